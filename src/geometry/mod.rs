@@ -1,0 +1,126 @@
+//! Planar geometry in f64 metres: polygons with holes, orientation, areas, and the roof
+//! constructions built on them (straight skeleton, hip roofs).
+//!
+//! Conventions used everywhere in citygen: the local frame is X east, Y north, Z up, metres.
+//! A [`Polygon`]'s outer ring is counter-clockwise, its holes clockwise, and no ring repeats its
+//! first vertex at the end.
+
+pub mod roof;
+pub mod skeleton;
+
+use glam::{DVec2, DVec3};
+
+/// A simple polygon with holes in the local frame (metres).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Polygon {
+    /// Outer ring, counter-clockwise, not closed (first vertex not repeated).
+    pub outer: Vec<DVec2>,
+    /// Inner rings (courtyards), clockwise, not closed.
+    pub holes: Vec<Vec<DVec2>>,
+}
+
+/// Signed area of a ring (positive when counter-clockwise). The ring is not closed.
+pub fn ring_signed_area(ring: &[DVec2]) -> f64 {
+    let n = ring.len();
+    if n < 3 {
+        return 0.0;
+    }
+    let mut s = 0.0;
+    for i in 0..n {
+        let a = ring[i];
+        let b = ring[(i + 1) % n];
+        s += a.x * b.y - b.x * a.y;
+    }
+    0.5 * s
+}
+
+impl Polygon {
+    /// Builds a polygon and normalises its orientation (outer CCW, holes CW), dropping a closing
+    /// vertex that repeats the first one.
+    pub fn new(outer: Vec<DVec2>, holes: Vec<Vec<DVec2>>) -> Polygon {
+        let mut p = Polygon { outer, holes };
+        p.normalize();
+        p
+    }
+
+    /// Drops closing duplicates and enforces outer CCW / holes CW.
+    pub fn normalize(&mut self) {
+        fn open(r: &mut Vec<DVec2>) {
+            while r.len() > 1 && r.first() == r.last() {
+                r.pop();
+            }
+        }
+        open(&mut self.outer);
+        if ring_signed_area(&self.outer) < 0.0 {
+            self.outer.reverse();
+        }
+        for h in &mut self.holes {
+            open(h);
+            if ring_signed_area(h) > 0.0 {
+                h.reverse();
+            }
+        }
+    }
+
+    /// Area of the outer ring minus the holes.
+    pub fn area(&self) -> f64 {
+        ring_signed_area(&self.outer) + self.holes.iter().map(|h| ring_signed_area(h)).sum::<f64>()
+    }
+
+    /// All rings, the outer first.
+    pub fn rings(&self) -> impl Iterator<Item = &Vec<DVec2>> {
+        std::iter::once(&self.outer).chain(self.holes.iter())
+    }
+
+    /// Whether `p` lies inside the outer ring and outside every hole (even-odd rule).
+    pub fn contains(&self, p: DVec2) -> bool {
+        self.rings().filter(|r| ring_contains(r, p)).count() % 2 == 1
+    }
+
+    /// Axis-aligned bounds (min, max). Panics never; an empty polygon gives (inf, -inf).
+    pub fn bounds(&self) -> (DVec2, DVec2) {
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for p in &self.outer {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        (lo, hi)
+    }
+
+    /// Translates every vertex.
+    pub fn translated(&self, d: DVec2) -> Polygon {
+        Polygon {
+            outer: self.outer.iter().map(|p| *p + d).collect(),
+            holes: self.holes.iter().map(|h| h.iter().map(|p| *p + d).collect()).collect(),
+        }
+    }
+}
+
+/// Crossing-number point-in-ring test.
+pub fn ring_contains(ring: &[DVec2], p: DVec2) -> bool {
+    let n = ring.len();
+    let mut inside = false;
+    let mut j = n.wrapping_sub(1);
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[j]);
+        if (a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x {
+            inside = !inside;
+        }
+        j = i;
+    }
+    inside
+}
+
+/// Newell normal of a 3D polygon ring (not normalised; its length is twice the area).
+pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
+    let mut n = DVec3::ZERO;
+    for i in 0..ring.len() {
+        let a = ring[i];
+        let b = ring[(i + 1) % ring.len()];
+        n.x += (a.y - b.y) * (a.z + b.z);
+        n.y += (a.z - b.z) * (a.x + b.x);
+        n.z += (a.x - b.x) * (a.y + b.y);
+    }
+    n
+}

@@ -1,0 +1,16 @@
+//! citygen: GIS footprints to BIM (IFC, CityGML 2.0, glTF).
+//!
+//! The pipeline runs one way: read footprints -> project to the local frame -> match the
+//! knowledge-base zone -> pick an appearance -> grammar rules -> derive the shape tree ->
+//! semantic building model cut at the LOD -> writers. See ARCHITECTURE.md.
+
+pub mod color;
+pub mod crs;
+pub mod export;
+pub mod geometry;
+pub mod grammar;
+pub mod input;
+pub mod kb;
+pub mod model;
+pub mod report;
+pub mod rng;

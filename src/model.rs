@@ -1,0 +1,225 @@
+//! The semantic building model: the one value every writer consumes.
+//!
+//! A [`Building`] is built from the derived shape tree (or directly from a footprint) and holds
+//! everything the IFC, CityGML and glTF writers need, already cut at the requested LOD. Writers
+//! never see the grammar, the knowledge base or the input.
+//!
+//! Geometry is in the run's local frame: metres, X east, Y north, Z up, relative to
+//! [`crate::export::OutputContext::origin`]. Every 3D face is planar and its outer ring is
+//! counter-clockwise seen from outside the solid (its normal points out of the building).
+
+use glam::{DVec2, DVec3};
+
+use crate::color::Color;
+use crate::geometry::Polygon;
+use crate::input::SourceId;
+
+/// Level of detail of a run (seed 003 L975-977).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Lod {
+    /// Blocks with a flat top at the overall height.
+    Lod1 = 1,
+    /// Real roof shapes and semantic surfaces (wall, roof, ground).
+    Lod2 = 2,
+    /// Storeys, facades and openings.
+    Lod3 = 3,
+    /// Interiors.
+    Lod4 = 4,
+}
+
+impl Lod {
+    /// The LOD as a number 1-4.
+    pub fn number(self) -> u8 {
+        self as u8
+    }
+}
+
+/// Roof shapes of the OSM Simple 3D Buildings catalogue that citygen knows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RoofShape {
+    Flat,
+    Skillion,
+    Gabled,
+    Hipped,
+    HalfHipped,
+    SideHipped,
+    Pyramidal,
+    Mansard,
+    Gambrel,
+    Saltbox,
+    Dome,
+    Onion,
+    Round,
+    Cone,
+}
+
+impl RoofShape {
+    /// The OSM `roof:shape` value.
+    pub fn osm_name(self) -> &'static str {
+        match self {
+            RoofShape::Flat => "flat",
+            RoofShape::Skillion => "skillion",
+            RoofShape::Gabled => "gabled",
+            RoofShape::Hipped => "hipped",
+            RoofShape::HalfHipped => "half-hipped",
+            RoofShape::SideHipped => "side_hipped",
+            RoofShape::Pyramidal => "pyramidal",
+            RoofShape::Mansard => "mansard",
+            RoofShape::Gambrel => "gambrel",
+            RoofShape::Saltbox => "saltbox",
+            RoofShape::Dome => "dome",
+            RoofShape::Onion => "onion",
+            RoofShape::Round => "round",
+            RoofShape::Cone => "cone",
+        }
+    }
+
+    /// Parses OSM `roof:shape` values and the thesis spellings (`hip`, `gabbled`, `shed`, ...),
+    /// case-insensitively and ignoring surrounding spaces. `None` for unknown values.
+    pub fn parse(s: &str) -> Option<RoofShape> {
+        let s = s.trim().to_ascii_lowercase().replace(['_', ' '], "-");
+        Some(match s.as_str() {
+            "flat" | "" => RoofShape::Flat,
+            "skillion" | "shed" | "lean-to" | "mono-pitched" => RoofShape::Skillion,
+            "gabled" | "gabbled" | "gable" | "pitched" => RoofShape::Gabled,
+            "hipped" | "hip" | "hiped" => RoofShape::Hipped,
+            "half-hipped" | "half-hip" => RoofShape::HalfHipped,
+            "side-hipped" => RoofShape::SideHipped,
+            "pyramidal" | "pyramid" => RoofShape::Pyramidal,
+            "mansard" => RoofShape::Mansard,
+            "gambrel" => RoofShape::Gambrel,
+            "saltbox" => RoofShape::Saltbox,
+            "dome" => RoofShape::Dome,
+            "onion" => RoofShape::Onion,
+            "round" => RoofShape::Round,
+            "cone" => RoofShape::Cone,
+            _ => return None,
+        })
+    }
+
+    /// The CityGML 2.0 `bldg:roofType` code (SIG3D code list: 1000 flat, 1010 monopitch,
+    /// 1020 dual pent, 1030 gabled, 1040 hipped, 1050 half-hipped, 1060 mansard, 1070 pavilion,
+    /// 1080 cone, 1090 cupola, 1100 sawtooth, 1110 arch, 1120 pyramidal broach, 1130 combination).
+    pub fn citygml_code(self) -> &'static str {
+        match self {
+            RoofShape::Flat => "1000",
+            RoofShape::Skillion => "1010",
+            RoofShape::Gabled | RoofShape::Saltbox => "1030",
+            RoofShape::Hipped | RoofShape::SideHipped => "1040",
+            RoofShape::HalfHipped => "1050",
+            RoofShape::Mansard | RoofShape::Gambrel => "1060",
+            RoofShape::Pyramidal => "1070",
+            RoofShape::Cone => "1080",
+            RoofShape::Dome | RoofShape::Onion => "1090",
+            RoofShape::Round => "1110",
+        }
+    }
+}
+
+/// A planar 3D polygon with holes. The outer ring is counter-clockwise seen from the side its
+/// normal points to (outside the building); holes run the other way. Rings are not closed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Face {
+    pub outer: Vec<DVec3>,
+    pub holes: Vec<Vec<DVec3>>,
+}
+
+impl Face {
+    /// A face without holes.
+    pub fn new(outer: Vec<DVec3>) -> Face {
+        Face { outer, holes: Vec::new() }
+    }
+
+    /// Unit normal (Newell), pointing out of the building. Zero for a degenerate face.
+    pub fn normal(&self) -> DVec3 {
+        crate::geometry::newell_normal(&self.outer).normalize_or_zero()
+    }
+}
+
+/// One exterior wall: the piece of the building envelope standing on one footprint edge.
+///
+/// `start` and `end` are the edge's endpoints on the footprint (outer ring counter-clockwise,
+/// so the outside is on the right of start->end). The wall body lies inside the footprint:
+/// the outer face is on the footprint edge and the wall is `thickness` thick towards the inside.
+/// `outline` is the outer face: it starts at (start, base_z), goes to (end, base_z), then up;
+/// it is a rectangle, or a pentagon/trapezoid where the wall closes a gable.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Wall {
+    pub start: DVec2,
+    pub end: DVec2,
+    pub base_z: f64,
+    /// Height of the wall top at the eave (the rectangular part).
+    pub top_z: f64,
+    pub thickness: f64,
+    pub outline: Face,
+}
+
+impl Wall {
+    /// Length of the wall along its footprint edge.
+    pub fn length(&self) -> f64 {
+        self.start.distance(self.end)
+    }
+}
+
+/// A building part: one vertical extrusion of one footprint with one roof.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    /// Stable suffix for identifiers within the building ("p0", "p1", ...).
+    pub key: String,
+    /// Footprint in the local frame.
+    pub footprint: Polygon,
+    /// Bottom of the part (`min_height`).
+    pub base_z: f64,
+    /// Top of the walls (the eave). Equal to `top_z` for a flat roof.
+    pub eave_z: f64,
+    /// Highest point of the part (ridge or flat top).
+    pub top_z: f64,
+    /// Storeys above ground in this part (at least 1).
+    pub storeys: u32,
+    pub wall_color: Color,
+    pub roof_color: Color,
+    pub roof_shape: RoofShape,
+    /// Exterior walls: one per footprint edge, outer ring then holes, in ring order.
+    pub walls: Vec<Wall>,
+    /// Roof surfaces (one per roof plane; a flat roof is one face with the footprint's holes).
+    pub roof: Vec<Face>,
+    /// The ground surface at `base_z`, normal pointing down.
+    pub ground: Face,
+}
+
+/// A building: the unit every writer emits, with its parts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Building {
+    /// Where it came from (`way/123`, `relation/45`, `shp/7`).
+    pub id: SourceId,
+    /// OSM `name` or a shapefile name field, when any.
+    pub name: Option<String>,
+    /// Path of the matched knowledge-base zone, e.g. `earth/France/Occitanie/Toulouse`.
+    pub zone: String,
+    /// Which appearance was chosen (e.g. `Toulouse#1`) or which ruleset was used.
+    pub appearance: String,
+    /// Lowest base of all parts (the terrain height of the building, 0 without terrain).
+    pub base_z: f64,
+    /// Overall height: highest top minus lowest base.
+    pub measured_height: f64,
+    /// Storeys above ground of the tallest part.
+    pub storeys_above_ground: u32,
+    /// Roof shape of the tallest part.
+    pub roof_shape: RoofShape,
+    pub parts: Vec<Part>,
+    /// The LOD the geometry was cut at.
+    pub lod: Lod,
+}
+
+impl Building {
+    /// A stable identifier usable in XML ids and IFC names: the source id with `/` replaced,
+    /// e.g. `way_123`.
+    pub fn key(&self) -> String {
+        self.id.key()
+    }
+
+    /// Number of planar polygons the building's surfaces contain (walls, roofs, grounds).
+    pub fn polygon_count(&self) -> usize {
+        self.parts.iter().map(|p| p.walls.len() + p.roof.len() + 1).sum()
+    }
+}

@@ -1,0 +1,54 @@
+//! The run report: counts and one entry per skipped or repaired footprint, with its reason.
+//! Written as JSON by `--report`; nothing is ever dropped silently.
+
+use serde::Serialize;
+
+use crate::input::SourceId;
+
+/// What happened to one input record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Outcome {
+    /// Not in the outputs.
+    Skipped,
+    /// In the outputs, after a repair.
+    Repaired,
+    /// In the outputs; the entry notes a value that was ignored or a fallback taken.
+    Note,
+}
+
+/// One report line about one record.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Entry {
+    /// `way/123`, `relation/45`, `shp/7`, or empty for file-level notes.
+    pub id: String,
+    pub outcome: Outcome,
+    pub reason: String,
+}
+
+/// Counts and entries of one run.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Report {
+    /// Building footprints read (outlines and multipolygons).
+    pub read: usize,
+    /// `building:part` footprints read.
+    pub parts_read: usize,
+    /// Buildings written to every output.
+    pub generated: usize,
+    /// Footprints not written (each has an entry).
+    pub skipped: usize,
+    /// Footprints written after a repair (each has an entry).
+    pub repaired: usize,
+    pub entries: Vec<Entry>,
+}
+
+impl Report {
+    /// Adds an entry about a record.
+    pub fn add(&mut self, id: Option<SourceId>, outcome: Outcome, reason: impl Into<String>) {
+        self.entries.push(Entry {
+            id: id.map(|i| i.to_string()).unwrap_or_default(),
+            outcome,
+            reason: reason.into(),
+        });
+    }
+}
