@@ -174,9 +174,19 @@ pub fn triangulate_face(outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTri
     }
     let triangles = tris
         .iter()
-        .map(|t| [new_index[t[0] as usize], new_index[t[1] as usize], new_index[t[2] as usize]])
+        .map(|t| {
+            [
+                new_index[t[0] as usize],
+                new_index[t[1] as usize],
+                new_index[t[2] as usize],
+            ]
+        })
         .collect();
-    Some(FaceTriangles { normal, vertices, triangles })
+    Some(FaceTriangles {
+        normal,
+        vertices,
+        triangles,
+    })
 }
 
 #[cfg(test)]
@@ -202,7 +212,11 @@ mod tests {
         f.triangles
             .iter()
             .map(|t| {
-                let (a, b, c) = (f.vertices[t[0] as usize], f.vertices[t[1] as usize], f.vertices[t[2] as usize]);
+                let (a, b, c) = (
+                    f.vertices[t[0] as usize],
+                    f.vertices[t[1] as usize],
+                    f.vertices[t[2] as usize],
+                );
                 0.5 * (b - a).cross(c - a).length()
             })
             .sum()
@@ -235,7 +249,12 @@ mod tests {
         let bad = vec![v2(1.0, 1.0), v2(2.0, 2.0)];
         let hole = vec![v2(3.0, 3.0), v2(3.0, 7.0), v2(7.0, 7.0), v2(7.0, 3.0)];
         let tris = triangulate_2d(&outer, &[bad.clone(), hole.clone()]);
-        let all: Vec<DVec2> = outer.iter().chain(bad.iter()).chain(hole.iter()).copied().collect();
+        let all: Vec<DVec2> = outer
+            .iter()
+            .chain(bad.iter())
+            .chain(hole.iter())
+            .copied()
+            .collect();
         assert!(tris.iter().flatten().all(|&i| i != 4 && i != 5));
         assert!((area_2d(&all, &tris) - 84.0).abs() < 1e-9);
     }
@@ -249,7 +268,9 @@ mod tests {
         assert_eq!(triangulate_face(&nan, &[]), None);
         let same = [DVec3::ONE, DVec3::ONE, DVec3::ONE];
         assert_eq!(triangulate_face(&same, &[]), None);
-        assert!(triangulate_2d(&[v2(0.0, 0.0), v2(f64::INFINITY, 0.0), v2(0.0, 1.0)], &[]).is_empty());
+        assert!(
+            triangulate_2d(&[v2(0.0, 0.0), v2(f64::INFINITY, 0.0), v2(0.0, 1.0)], &[]).is_empty()
+        );
     }
 
     #[test]
@@ -265,7 +286,11 @@ mod tests {
         assert!((f.normal - DVec3::NEG_Y).length() < 1e-12);
         assert!((area_3d(&f) - 30.0).abs() < 1e-9);
         for t in &f.triangles {
-            let (a, b, c) = (f.vertices[t[0] as usize], f.vertices[t[1] as usize], f.vertices[t[2] as usize]);
+            let (a, b, c) = (
+                f.vertices[t[0] as usize],
+                f.vertices[t[1] as usize],
+                f.vertices[t[2] as usize],
+            );
             assert!((b - a).cross(c - a).dot(DVec3::NEG_Y) > 0.0);
         }
     }
@@ -297,7 +322,10 @@ mod tests {
     fn star_polygon() -> impl Strategy<Value = (Vec<DVec2>, Option<Vec<DVec2>>)> {
         (6usize..30)
             .prop_flat_map(|n| {
-                (prop::collection::vec((2.0f64..10.0, 0.0f64..0.8), n), prop::option::of(0.1f64..0.69))
+                (
+                    prop::collection::vec((2.0f64..10.0, 0.0f64..0.8), n),
+                    prop::option::of(0.1f64..0.69),
+                )
             })
             .prop_map(|(pts, hole)| {
                 let n = pts.len() as f64;
