@@ -16,6 +16,7 @@
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use serde::Serialize;
@@ -85,6 +86,20 @@ pub struct GltfWriter<W: Write + Send> {
     doc: Document,
     /// (class, colour bits) -> material index, for reuse across buildings.
     material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
+    /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
+    /// `scratch` so that the file is closed before it is removed.
+    scratch_guard: ScratchGuard,
+}
+
+/// Removes its path when dropped.
+struct ScratchGuard(Option<PathBuf>);
+
+impl Drop for ScratchGuard {
+    fn drop(&mut self) {
+        if let Some(path) = self.0.take() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
 }
 
 impl<W: Write + Send> GltfWriter<W> {
@@ -99,7 +114,36 @@ impl<W: Write + Send> GltfWriter<W> {
             state: State::New,
             doc: Document::default(),
             material_index: BTreeMap::new(),
+            scratch_guard: ScratchGuard(None),
         }
+    }
+
+    /// A writer whose scratch file is created next to `target` (the final output path, whose
+    /// folder must exist), so that it lands on the same disk as the output rather than on a
+    /// possibly small temporary file system. The scratch file is deleted when the writer is
+    /// dropped (on Unix it is unlinked at once and only the open handle keeps it).
+    pub fn beside(out: W, target: &Path) -> io::Result<GltfWriter<W>> {
+        let dir = target
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let path = dir.join(format!(".{name}.{}.bin.tmp", std::process::id()));
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)?;
+        let mut w = GltfWriter::new(out, file);
+        // Unlinking an open file works on Unix; elsewhere it is removed on drop.
+        if std::fs::remove_file(&path).is_err() {
+            w.scratch_guard = ScratchGuard(Some(path));
+        }
+        Ok(w)
     }
 
     /// Gives back the output (complete after a successful `finish`).
@@ -1360,6 +1404,26 @@ mod tests {
         assert_eq!(json["nodes"].as_array().unwrap().len(), 1);
         assert!(json["nodes"][0].get("children").is_none());
         assert!(json["nodes"][0]["extras"]["height"].is_null());
+    }
+
+    #[test]
+    fn scratch_beside_target_is_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.glb");
+        let file = File::create(&target).unwrap();
+        let mut w = GltfWriter::beside(file, &target).unwrap();
+        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        w.write(&box_building()).unwrap();
+        w.finish().unwrap();
+        drop(w);
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["out.glb"]);
+        let glb = std::fs::read(&target).unwrap();
+        let (json, bin) = parse_glb(&glb);
+        check_mesh(&json, bin, 0);
     }
 
     #[test]

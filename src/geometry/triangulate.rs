@@ -379,4 +379,30 @@ mod tests {
             prop_assert!((area_2d(&all, &tris) - expected).abs() < 1e-7 * expected.max(1.0));
         }
     }
+
+    proptest! {
+        /// Arbitrary rings (self-intersecting, holes anywhere, repeated points): never a panic,
+        /// indices in range, every triangle CCW with positive area.
+        #[test]
+        fn arbitrary_rings_never_panic(
+            outer in prop::collection::vec((-50i32..50, -50i32..50), 0..20),
+            holes in prop::collection::vec(prop::collection::vec((-50i32..50, -50i32..50), 0..8), 0..3),
+        ) {
+            let ring = |r: &Vec<(i32, i32)>| r.iter().map(|&(x, y)| v2(x as f64 * 0.5, y as f64 * 0.5)).collect::<Vec<_>>();
+            let outer = ring(&outer);
+            let holes: Vec<Vec<DVec2>> = holes.iter().map(ring).collect();
+            let all: Vec<DVec2> = outer.iter().chain(holes.iter().flatten()).copied().collect();
+            for t in triangulate_2d(&outer, &holes) {
+                prop_assert!(t.iter().all(|&i| (i as usize) < all.len()));
+                let (a, b, c) = (all[t[0] as usize], all[t[1] as usize], all[t[2] as usize]);
+                prop_assert!((b - a).perp_dot(c - a) > 0.0);
+            }
+            let outer3: Vec<DVec3> = outer.iter().map(|p| DVec3::new(p.x, 0.3 * p.y, p.y)).collect();
+            let holes3: Vec<Vec<DVec3>> = holes.iter().map(|h| h.iter().map(|p| DVec3::new(p.x, 0.3 * p.y, p.y)).collect()).collect();
+            if let Some(f) = triangulate_face(&outer3, &holes3) {
+                prop_assert!(f.normal.is_finite());
+                prop_assert!(f.triangles.iter().flatten().all(|&i| (i as usize) < f.vertices.len()));
+            }
+        }
+    }
 }
