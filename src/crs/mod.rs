@@ -46,7 +46,8 @@ pub enum Crs {
     Utm { zone: u8, north: bool },
     /// RGF93 / Lambert-93, EPSG:2154.
     Lambert93,
-    /// OSGB36 / British National Grid, EPSG:27700.
+    /// OSGB36 / British National Grid, EPSG:27700. The OSGB36 <-> WGS84 datum shift is the
+    /// OS 7-parameter Helmert transformation: 2-5 m from OSTN15 (OS: up to 3.5 m, 95%).
     BritishNationalGrid,
     /// ETRS89 / UTM zone N (EPSG:25828-25838): projected on GRS80 with ETRS89 taken as WGS84
     /// (sub-metre difference). `zone` is 28..=38, northern hemisphere.

@@ -1,11 +1,13 @@
 //! OSGB36 / British National Grid (EPSG:27700) from WGS84, via the Ordnance Survey's published
 //! ETRS89 -> OSGB36 seven-parameter Helmert transformation.
 //!
-//! Accuracy: the Helmert transformation is a best fit over the whole of Great Britain and
-//! departs from the definitive OSTN15 grid transformation by up to about 3.5 m (the OS quotes
-//! "around 5 m" as a safe bound; typically 2-3 m). WGS84 is taken as equal to ETRS89 here,
-//! which adds well under 1 m. Buildings therefore keep their shape exactly (the error is a
-//! smooth offset), but absolute positions against OS MasterMap may be a few metres off. The
+//! Accuracy: the Helmert transformation is a single best fit over the whole of Great Britain,
+//! while OSGB36 itself is warped by its 1930s triangulation. The OS states its error against
+//! the definitive OSTN15 grid transformation as "up to 3.5 metres (95%)" horizontally, i.e.
+//! typically 2 m and up to about 5 m in the worst places. WGS84 is taken as equal to ETRS89
+//! (the OS calls the difference negligible at this level). Buildings keep their shape exactly
+//! (the error is a smooth offset over kilometres), but absolute positions against OS
+//! MasterMap may be a few metres off; OSTN15 would need its grid file. The
 //! projection step itself (Airy 1830 Transverse Mercator) is exact to well below 1 mm.
 
 use super::ellipsoid::Ellipsoid;
