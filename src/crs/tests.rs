@@ -307,6 +307,14 @@ fn prj_clifton_is_british_national_grid() {
     // The same parameters under an anonymous name are still recognised by their values.
     let anon = CLIFTON_PRJ.replace("British_National_Grid", "Custom");
     assert_eq!(Crs::from_prj(&anon), Ok(Crs::BritishNationalGrid));
+    // GDAL-style rounding of the scale factor still matches; a different scale does not.
+    let rounded = anon.replace("0.9996012717", "0.999601272");
+    assert_eq!(Crs::from_prj(&rounded), Ok(Crs::BritishNationalGrid));
+    let other = anon.replace("0.9996012717", "0.9996");
+    assert!(matches!(
+        Crs::from_prj(&other),
+        Err(CrsError::Unsupported(_))
+    ));
 }
 
 #[test]

@@ -526,6 +526,9 @@ fn by_parameters(f: &Facts) -> Option<ParamMatch> {
         |key: &str, want: f64, tol: f64| f.param(key).is_some_and(|v| (v - want).abs() <= tol);
     let ang = 1e-7;
     let metres = 1e-3;
+    // Some writers round the BNG scale 0.9996012717 to 0.999601272; 1e-8 is still 0.06 mm at
+    // 600 km from the central meridian.
+    let k_tol = 1e-8;
     if method.contains("transverse_mercator") && !method.contains("south") {
         let (lon0, k0, fe, fnn) = (
             f.param("lon0")?,
@@ -537,13 +540,13 @@ fn by_parameters(f: &Facts) -> Option<ParamMatch> {
         let found = if f.datum == Datum::Osgb36
             && (lat0 - 49.0).abs() <= ang
             && (lon0 + 2.0).abs() <= ang
-            && (k0 - 0.999_601_271_7).abs() <= 1e-10
+            && (k0 - 0.999_601_271_7).abs() <= k_tol
             && (fe - 400_000.0).abs() <= metres
             && (fnn + 100_000.0).abs() <= metres
         {
             Some(Crs::BritishNationalGrid)
         } else if lat0.abs() <= ang
-            && (k0 - 0.9996).abs() <= 1e-10
+            && (k0 - 0.9996).abs() <= k_tol
             && (fe - 500_000.0).abs() <= metres
             && (fnn.abs() <= metres || (fnn - 10_000_000.0).abs() <= metres)
         {
