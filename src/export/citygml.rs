@@ -134,7 +134,9 @@ impl<W: Write + Send> CityGmlWriter<W> {
             State::Open => "after begin()",
             State::Finished => "after finish()",
         };
-        Err(ExportError::Invalid(format!("CityGML writer: {call} called {why}")))
+        Err(ExportError::Invalid(format!(
+            "CityGML writer: {call} called {why}"
+        )))
     }
 }
 
@@ -160,7 +162,11 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         attr.escaped(&srs_name, true);
         self.srs_attr = String::from_utf8_lossy(&attr.0).into_owned();
         self.origin = ctx.origin;
-        self.lod = if ctx.lod == Lod::Lod1 { GeometryLod::Lod1 } else { GeometryLod::Lod2 };
+        self.lod = if ctx.lod == Lod::Lod1 {
+            GeometryLod::Lod1
+        } else {
+            GeometryLod::Lod2
+        };
 
         let x = &mut self.buf;
         x.0.clear();
@@ -171,7 +177,11 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         x.s(", seed ");
         x.uint(ctx.seed);
         x.s(", LOD");
-        x.s(if self.lod == GeometryLod::Lod1 { "1" } else { "2" });
+        x.s(if self.lod == GeometryLod::Lod1 {
+            "1"
+        } else {
+            "2"
+        });
         x.s(" geometry</gml:description>\n");
         if !ctx.source_name.is_empty() {
             x.s("<gml:name>");
@@ -187,7 +197,12 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         self.check_state(State::Open, "write()")?;
         check_finite(building)?;
         self.buf.0.clear();
-        let mut r = Renderer { x: &mut self.buf, origin: self.origin, srs: &self.srs_attr, lod: self.lod };
+        let mut r = Renderer {
+            x: &mut self.buf,
+            origin: self.origin,
+            srs: &self.srs_attr,
+            lod: self.lod,
+        };
         r.building(building);
         self.out.write_all(&self.buf.0)?;
         Ok(())
@@ -205,7 +220,12 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
 
 /// Rejects a building with a non-finite coordinate or height, naming the building and part.
 fn check_finite(b: &Building) -> Result<(), ExportError> {
-    let bad = |what: &str| ExportError::Invalid(format!("CityGML writer: building {}: {what} is not finite", b.id));
+    let bad = |what: &str| {
+        ExportError::Invalid(format!(
+            "CityGML writer: building {}: {what} is not finite",
+            b.id
+        ))
+    };
     if !b.measured_height.is_finite() || !b.base_z.is_finite() {
         return Err(bad("the measured height"));
     }
@@ -213,9 +233,15 @@ fn check_finite(b: &Building) -> Result<(), ExportError> {
         if !(p.base_z.is_finite() && p.top_z.is_finite()) {
             return Err(bad(&format!("the height of part {}", p.key)));
         }
-        let faces = std::iter::once(&p.ground).chain(p.walls.iter().map(|w| &w.outline)).chain(p.roof.iter());
+        let faces = std::iter::once(&p.ground)
+            .chain(p.walls.iter().map(|w| &w.outline))
+            .chain(p.roof.iter());
         for f in faces {
-            let finite = f.outer.iter().chain(f.holes.iter().flatten()).all(|v| v.is_finite());
+            let finite = f
+                .outer
+                .iter()
+                .chain(f.holes.iter().flatten())
+                .all(|v| v.is_finite());
             if !finite {
                 return Err(bad(&format!("a coordinate of part {}", p.key)));
             }
@@ -241,10 +267,25 @@ struct Surface<'a> {
 
 /// The writable polygons of a part in output order: ground, walls, roof faces.
 fn surfaces(part: &Part) -> impl Iterator<Item = Surface<'_>> {
-    let ground = std::iter::once(Surface { kind: SurfaceKind::Ground, index: 0, face: &part.ground });
-    let walls = part.walls.iter().enumerate().map(|(i, w)| Surface { kind: SurfaceKind::Wall, index: i, face: &w.outline });
-    let roofs = part.roof.iter().enumerate().map(|(i, f)| Surface { kind: SurfaceKind::Roof, index: i, face: f });
-    ground.chain(walls).chain(roofs).filter(|s| ring(&s.face.outer).is_some())
+    let ground = std::iter::once(Surface {
+        kind: SurfaceKind::Ground,
+        index: 0,
+        face: &part.ground,
+    });
+    let walls = part.walls.iter().enumerate().map(|(i, w)| Surface {
+        kind: SurfaceKind::Wall,
+        index: i,
+        face: &w.outline,
+    });
+    let roofs = part.roof.iter().enumerate().map(|(i, f)| Surface {
+        kind: SurfaceKind::Roof,
+        index: i,
+        face: f,
+    });
+    ground
+        .chain(walls)
+        .chain(roofs)
+        .filter(|s| ring(&s.face.outer).is_some())
 }
 
 /// The ring without a closing duplicate of its first vertex, or `None` if fewer than 3 remain.
@@ -259,17 +300,34 @@ fn ring(points: &[DVec3]) -> Option<&[DVec3]> {
 /// Keeps ASCII letters, digits, `_`, `-` and `.` (NCName-safe after a letter prefix), replacing
 /// anything else by `_`.
 fn id_fragment(s: &str) -> String {
-    s.chars().map(|c| if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') { c } else { '_' }).collect()
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 /// The id prefixes of the parts: `<building id>_<part key>`, or `<building id>_p<index>` for all
 /// parts when the keys are empty or not unique (ids must be unique in the file).
 fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
     let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
-    let usable = keys.iter().enumerate().all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
+    let usable = keys
+        .iter()
+        .enumerate()
+        .all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
     keys.iter()
         .enumerate()
-        .map(|(i, k)| if usable { format!("{building_id}_{k}") } else { format!("{building_id}_p{i}") })
+        .map(|(i, k)| {
+            if usable {
+                format!("{building_id}_{k}")
+            } else {
+                format!("{building_id}_p{i}")
+            }
+        })
         .collect()
 }
 
@@ -283,11 +341,23 @@ struct ColorKey {
 
 impl ColorKey {
     fn of(c: Color) -> ColorKey {
-        let q = |v: f32| if v.is_finite() { (v.clamp(0.0, 1.0) * 10_000.0).round() as u16 } else { 0 };
+        let q = |v: f32| {
+            if v.is_finite() {
+                (v.clamp(0.0, 1.0) * 10_000.0).round() as u16
+            } else {
+                0
+            }
+        };
         let alpha = if c.a.is_finite() { c.a } else { 1.0 };
-        ColorKey { rgb: [q(c.r), q(c.g), q(c.b)], transparency: 10_000 - q(alpha) }
+        ColorKey {
+            rgb: [q(c.r), q(c.g), q(c.b)],
+            transparency: 10_000 - q(alpha),
+        }
     }
 }
+
+/// A polygon an appearance targets: (part index, kind, index in the part's list).
+type Target = (usize, SurfaceKind, usize);
 
 /// Renders one building into the scratch buffer.
 struct Renderer<'a> {
@@ -328,9 +398,14 @@ impl Renderer<'_> {
                     x.s("<bldg:consistsOfBuildingPart>\n<bldg:BuildingPart gml:id=\"");
                     x.s(pid);
                     x.s("\">\n");
-                    self.building_attributes(part.roof_shape, part.top_z - part.base_z, part.storeys);
+                    self.building_attributes(
+                        part.roof_shape,
+                        part.top_z - part.base_z,
+                        part.storeys,
+                    );
                     self.geometry(part, pid);
-                    self.x.s("</bldg:BuildingPart>\n</bldg:consistsOfBuildingPart>\n");
+                    self.x
+                        .s("</bldg:BuildingPart>\n</bldg:consistsOfBuildingPart>\n");
                 }
             }
         }
@@ -339,7 +414,10 @@ impl Renderer<'_> {
 
     /// `gml:boundedBy` of the building's written polygons; nothing when it has none.
     fn envelope(&mut self, b: &Building) {
-        let mut points = b.parts.iter().flat_map(|p| surfaces(p).flat_map(|s| s.face.outer.iter()));
+        let mut points = b
+            .parts
+            .iter()
+            .flat_map(|p| surfaces(p).flat_map(|s| s.face.outer.iter()));
         let Some(&first) = points.next() else {
             return;
         };
@@ -367,7 +445,7 @@ impl Renderer<'_> {
     fn appearance(&mut self, building_id: &str, b: &Building, part_ids: &[String]) {
         // (colour, [(part index, kind, index)]) in first-use order: deterministic, and the few
         // colours of a building make a linear search cheaper than hashing.
-        let mut materials: Vec<(ColorKey, Vec<(usize, SurfaceKind, usize)>)> = Vec::new();
+        let mut materials: Vec<(ColorKey, Vec<Target>)> = Vec::new();
         for (pi, part) in b.parts.iter().enumerate() {
             for s in surfaces(part) {
                 let color = match s.kind {
@@ -438,7 +516,11 @@ impl Renderer<'_> {
             return;
         }
         let x = &mut *self.x;
-        let lod = if self.lod == GeometryLod::Lod1 { "1" } else { "2" };
+        let lod = if self.lod == GeometryLod::Lod1 {
+            "1"
+        } else {
+            "2"
+        };
         x.s("<bldg:lod");
         x.s(lod);
         x.s("Solid>\n<gml:Solid srsName=\"");
@@ -550,7 +632,12 @@ impl Xml {
         let m = n.unsigned_abs();
         self.uint(m / 1000);
         let frac = m % 1000;
-        self.0.extend_from_slice(&[b'.', b'0' + (frac / 100) as u8, b'0' + (frac / 10 % 10) as u8, b'0' + (frac % 10) as u8]);
+        self.0.extend_from_slice(&[
+            b'.',
+            b'0' + (frac / 100) as u8,
+            b'0' + (frac / 10 % 10) as u8,
+            b'0' + (frac % 10) as u8,
+        ]);
     }
 
     /// A value in 1/10000 as a decimal with 4 places (`5020` -> `0.5020`).
@@ -654,7 +741,15 @@ mod tests {
 
     /// An extruded footprint with a flat roof: one wall per ring edge, roof and ground with the
     /// footprint's holes.
-    fn prism(key: &str, outer: Vec<DVec2>, holes: Vec<Vec<DVec2>>, base: f64, top: f64, wall: Color, roof: Color) -> Part {
+    fn prism(
+        key: &str,
+        outer: Vec<DVec2>,
+        holes: Vec<Vec<DVec2>>,
+        base: f64,
+        top: f64,
+        wall: Color,
+        roof: Color,
+    ) -> Part {
         let footprint = Polygon::new(outer, holes);
         let mut walls = Vec::new();
         for r in footprint.rings() {
@@ -671,7 +766,10 @@ mod tests {
             }
         }
         let lift = |r: &Vec<DVec2>, z: f64| r.iter().map(|&p| at(p, z)).collect::<Vec<_>>();
-        let roof_face = Face { outer: lift(&footprint.outer, top), holes: footprint.holes.iter().map(|h| lift(h, top)).collect() };
+        let roof_face = Face {
+            outer: lift(&footprint.outer, top),
+            holes: footprint.holes.iter().map(|h| lift(h, top)).collect(),
+        };
         let rev = |mut v: Vec<DVec3>| {
             v.reverse();
             v
@@ -697,7 +795,12 @@ mod tests {
     }
 
     fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<DVec2> {
-        vec![DVec2::new(x0, y0), DVec2::new(x1, y0), DVec2::new(x1, y1), DVec2::new(x0, y1)]
+        vec![
+            DVec2::new(x0, y0),
+            DVec2::new(x1, y0),
+            DVec2::new(x1, y1),
+            DVec2::new(x0, y1),
+        ]
     }
 
     const BEIGE: Color = Color::rgb(0.96, 0.96, 0.86);
@@ -705,7 +808,10 @@ mod tests {
 
     fn building(id: SourceId, parts: Vec<Part>) -> Building {
         let base = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
-        let tallest = parts.iter().max_by(|a, b| a.top_z.total_cmp(&b.top_z)).cloned();
+        let tallest = parts
+            .iter()
+            .max_by(|a, b| a.top_z.total_cmp(&b.top_z))
+            .cloned();
         let top = tallest.as_ref().map_or(base, |p| p.top_z);
         Building {
             id,
@@ -723,7 +829,18 @@ mod tests {
 
     /// The 10 x 6 m box, 9 m high: 4 walls, a flat roof, a ground.
     fn simple_box() -> Building {
-        let mut b = building(SourceId::Way(123), vec![prism("p0", rect(0.0, 0.0, 10.0, 6.0), vec![], 0.0, 9.0, BEIGE, RED)]);
+        let mut b = building(
+            SourceId::Way(123),
+            vec![prism(
+                "p0",
+                rect(0.0, 0.0, 10.0, 6.0),
+                vec![],
+                0.0,
+                9.0,
+                BEIGE,
+                RED,
+            )],
+        );
         b.name = Some("Café \"<Chez Marie & Fils>\" l'été".into());
         b
     }
@@ -732,15 +849,47 @@ mod tests {
         building(
             SourceId::Relation(45),
             vec![
-                prism("p0", rect(0.0, 0.0, 10.0, 6.0), vec![], 0.0, 12.0, BEIGE, RED),
-                prism("p1", rect(10.0, 0.0, 16.0, 6.0), vec![], 0.0, 6.0, Color::WHITE, RED),
+                prism(
+                    "p0",
+                    rect(0.0, 0.0, 10.0, 6.0),
+                    vec![],
+                    0.0,
+                    12.0,
+                    BEIGE,
+                    RED,
+                ),
+                prism(
+                    "p1",
+                    rect(10.0, 0.0, 16.0, 6.0),
+                    vec![],
+                    0.0,
+                    6.0,
+                    Color::WHITE,
+                    RED,
+                ),
             ],
         )
     }
 
     fn courtyard() -> Building {
-        let hole = vec![DVec2::new(5.0, 5.0), DVec2::new(5.0, 15.0), DVec2::new(15.0, 15.0), DVec2::new(15.0, 5.0)];
-        building(SourceId::Shape(7), vec![prism("p0", rect(0.0, 0.0, 20.0, 20.0), vec![hole], 2.0, 14.0, BEIGE, RED)])
+        let hole = vec![
+            DVec2::new(5.0, 5.0),
+            DVec2::new(5.0, 15.0),
+            DVec2::new(15.0, 15.0),
+            DVec2::new(15.0, 5.0),
+        ];
+        building(
+            SourceId::Shape(7),
+            vec![prism(
+                "p0",
+                rect(0.0, 0.0, 20.0, 20.0),
+                vec![hole],
+                2.0,
+                14.0,
+                BEIGE,
+                RED,
+            )],
+        )
     }
 
     /// The box with a hipped roof: ridge from (3,3) to (7,3), 3 m above the eave.
@@ -749,9 +898,19 @@ mod tests {
         let mut part = prism("p0", rect(0.0, 0.0, 10.0, 6.0), vec![], 0.0, e, BEIGE, RED);
         let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
         part.roof = vec![
-            Face::new(vec![p(0.0, 0.0, e), p(10.0, 0.0, e), p(7.0, 3.0, r), p(3.0, 3.0, r)]),
+            Face::new(vec![
+                p(0.0, 0.0, e),
+                p(10.0, 0.0, e),
+                p(7.0, 3.0, r),
+                p(3.0, 3.0, r),
+            ]),
             Face::new(vec![p(10.0, 0.0, e), p(10.0, 6.0, e), p(7.0, 3.0, r)]),
-            Face::new(vec![p(10.0, 6.0, e), p(0.0, 6.0, e), p(3.0, 3.0, r), p(7.0, 3.0, r)]),
+            Face::new(vec![
+                p(10.0, 6.0, e),
+                p(0.0, 6.0, e),
+                p(3.0, 3.0, r),
+                p(7.0, 3.0, r),
+            ]),
             Face::new(vec![p(0.0, 6.0, e), p(0.0, 0.0, e), p(3.0, 3.0, r)]),
         ];
         part.top_z = r;
@@ -805,7 +964,10 @@ mod tests {
             self.descendants().iter().filter(|e| e.name == name).count()
         }
         fn find_all(&self, name: &str) -> Vec<&El> {
-            self.descendants().into_iter().filter(|e| e.name == name).collect()
+            self.descendants()
+                .into_iter()
+                .filter(|e| e.name == name)
+                .collect()
         }
     }
 
@@ -815,11 +977,21 @@ mod tests {
         let mut reader = quick_xml::Reader::from_str(text);
         let mut stack = vec![El::default()];
         let element = |e: &quick_xml::events::BytesStart<'_>| {
-            let mut el = El { name: e.name().as_ref().to_string(), ..El::default() };
+            let mut el = El {
+                name: e.name().as_ref().to_string(),
+                ..El::default()
+            };
             for a in e.attributes() {
                 let a = a.expect("attribute");
-                let v = a.normalized_value(XmlVersion::Implicit1_0).expect("attribute value");
-                assert!(el.attrs.insert(a.key.as_ref().to_string(), v.into_owned()).is_none(), "duplicate attribute");
+                let v = a
+                    .normalized_value(XmlVersion::Implicit1_0)
+                    .expect("attribute value");
+                assert!(
+                    el.attrs
+                        .insert(a.key.as_ref().to_string(), v.into_owned())
+                        .is_none(),
+                    "duplicate attribute"
+                );
             }
             el
         };
@@ -860,11 +1032,15 @@ mod tests {
     }
 
     fn buildings_of(root: &El) -> Vec<&El> {
-        root.children_named("core:cityObjectMember").map(|m| m.child("bldg:Building").expect("Building")).collect()
+        root.children_named("core:cityObjectMember")
+            .map(|m| m.child("bldg:Building").expect("Building"))
+            .collect()
     }
 
     fn numbers(s: &str) -> Vec<f64> {
-        s.split_whitespace().map(|t| t.parse().expect("number")).collect()
+        s.split_whitespace()
+            .map(|t| t.parse().expect("number"))
+            .collect()
     }
 
     /// Every gml:id is unique and every local reference (xlink:href, app:target) resolves.
@@ -874,8 +1050,15 @@ mod tests {
             if let Some(id) = e.attr("gml:id") {
                 assert!(ids.insert(id.to_string()), "duplicate gml:id {id}");
                 let first = id.chars().next().unwrap();
-                assert!(first.is_ascii_alphabetic() || first == '_', "{id} is not an NCName");
-                assert!(id.chars().all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c)), "{id} is not an NCName");
+                assert!(
+                    first.is_ascii_alphabetic() || first == '_',
+                    "{id} is not an NCName"
+                );
+                assert!(
+                    id.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c)),
+                    "{id} is not an NCName"
+                );
             }
         }
         for e in root.descendants() {
@@ -908,8 +1091,15 @@ mod tests {
         let loc = root.attr("xsi:schemaLocation").unwrap();
         assert!(loc.contains("http://schemas.opengis.net/citygml/building/2.0/building.xsd"));
         assert!(loc.contains("http://schemas.opengis.net/citygml/appearance/2.0/appearance.xsd"));
-        assert_eq!(root.child("gml:name").unwrap().text, "tiny <&> \"town\".osm.pbf");
-        assert!(root.child("gml:description").unwrap().text.contains("seed 42"));
+        assert_eq!(
+            root.child("gml:name").unwrap().text,
+            "tiny <&> \"town\".osm.pbf"
+        );
+        assert!(root
+            .child("gml:description")
+            .unwrap()
+            .text
+            .contains("seed 42"));
         assert_eq!(root.children_named("core:cityObjectMember").count(), 0);
     }
 
@@ -922,8 +1112,16 @@ mod tests {
         assert_eq!(written.len(), buildings.len());
         assert_eq!(root.count("bldg:Building"), 4);
         assert_eq!(root.count("bldg:BuildingPart"), 2);
-        let walls: usize = buildings.iter().flat_map(|b| &b.parts).map(|p| p.walls.len()).sum();
-        let roofs: usize = buildings.iter().flat_map(|b| &b.parts).map(|p| p.roof.len()).sum();
+        let walls: usize = buildings
+            .iter()
+            .flat_map(|b| &b.parts)
+            .map(|p| p.walls.len())
+            .sum();
+        let roofs: usize = buildings
+            .iter()
+            .flat_map(|b| &b.parts)
+            .map(|p| p.roof.len())
+            .sum();
         let parts: usize = buildings.iter().map(|b| b.parts.len()).sum();
         assert_eq!(root.count("bldg:WallSurface"), walls);
         assert_eq!(root.count("bldg:RoofSurface"), roofs);
@@ -933,7 +1131,11 @@ mod tests {
         let polygons: usize = buildings.iter().map(Building::polygon_count).sum();
         assert_eq!(root.count("gml:Polygon"), polygons);
         // The solids reference every polygon once and hold none inline.
-        let refs: Vec<&El> = root.find_all("gml:surfaceMember").into_iter().filter(|e| e.attr("xlink:href").is_some()).collect();
+        let refs: Vec<&El> = root
+            .find_all("gml:surfaceMember")
+            .into_iter()
+            .filter(|e| e.attr("xlink:href").is_some())
+            .collect();
         assert_eq!(refs.len(), polygons);
         for s in root.find_all("gml:Solid") {
             assert_eq!(s.count("gml:Polygon"), 0);
@@ -942,8 +1144,14 @@ mod tests {
         // Identifiers come from the source id and the part keys.
         let b0 = written[0];
         assert_eq!(b0.attr("gml:id"), Some("B_way_123"));
-        assert!(b0.find_all("bldg:WallSurface").iter().any(|w| w.attr("gml:id") == Some("B_way_123_p0_w3_s")));
-        assert!(b0.find_all("gml:Polygon").iter().any(|w| w.attr("gml:id") == Some("B_way_123_p0_w3")));
+        assert!(b0
+            .find_all("bldg:WallSurface")
+            .iter()
+            .any(|w| w.attr("gml:id") == Some("B_way_123_p0_w3_s")));
+        assert!(b0
+            .find_all("gml:Polygon")
+            .iter()
+            .any(|w| w.attr("gml:id") == Some("B_way_123_p0_w3")));
         assert_eq!(written[1].attr("gml:id"), Some("B_relation_45"));
         assert_eq!(written[3].attr("gml:id"), Some("B_way_-9"));
 
@@ -952,7 +1160,10 @@ mod tests {
         assert_eq!(hip.count("bldg:RoofSurface"), 4);
         assert_eq!(hip.child("bldg:roofType").unwrap().text, "1040");
         assert_eq!(hip.child("bldg:measuredHeight").unwrap().text, "9.000");
-        assert_eq!(hip.child("bldg:measuredHeight").unwrap().attr("uom"), Some("m"));
+        assert_eq!(
+            hip.child("bldg:measuredHeight").unwrap().attr("uom"),
+            Some("m")
+        );
     }
 
     #[test]
@@ -962,13 +1173,23 @@ mod tests {
         check_ids(&root);
         let parts: usize = buildings.iter().map(|b| b.parts.len()).sum();
         assert_eq!(root.count("bldg:lod1Solid"), parts);
-        assert_eq!(root.count("bldg:lod2Solid") + root.count("bldg:boundedBy") + root.count("bldg:WallSurface"), 0);
+        assert_eq!(
+            root.count("bldg:lod2Solid")
+                + root.count("bldg:boundedBy")
+                + root.count("bldg:WallSurface"),
+            0
+        );
         let polygons: usize = buildings.iter().map(Building::polygon_count).sum();
         assert_eq!(root.count("gml:Polygon"), polygons);
         for s in root.find_all("gml:Solid") {
             assert_eq!(s.attr("srsName"), Some("EPSG:2154"));
-            let cs = s.child("gml:exterior").and_then(|e| e.child("gml:CompositeSurface")).expect("CompositeSurface");
-            assert!(cs.children_named("gml:surfaceMember").all(|m| m.child("gml:Polygon").is_some()));
+            let cs = s
+                .child("gml:exterior")
+                .and_then(|e| e.child("gml:CompositeSurface"))
+                .expect("CompositeSurface");
+            assert!(cs
+                .children_named("gml:surfaceMember")
+                .all(|m| m.child("gml:Polygon").is_some()));
         }
     }
 
@@ -982,7 +1203,10 @@ mod tests {
 
         assert!(b[1].child("bldg:lod2Solid").is_none());
         assert!(b[1].child("bldg:boundedBy").is_none());
-        let parts: Vec<&El> = b[1].children_named("bldg:consistsOfBuildingPart").map(|c| c.child("bldg:BuildingPart").unwrap()).collect();
+        let parts: Vec<&El> = b[1]
+            .children_named("bldg:consistsOfBuildingPart")
+            .map(|c| c.child("bldg:BuildingPart").unwrap())
+            .collect();
         assert_eq!(parts.len(), 2);
         assert_eq!(parts[0].attr("gml:id"), Some("B_relation_45_p0"));
         assert_eq!(parts[1].child("bldg:measuredHeight").unwrap().text, "6.000");
@@ -1013,11 +1237,22 @@ mod tests {
             "bldg:boundedBy" => 7,
             other => panic!("unexpected {other}"),
         };
-        assert!(names.windows(2).all(|w| rank(w[0]) <= rank(w[1])), "{names:?}");
-        assert_eq!(b.child("gml:name").unwrap().text, "Café \"<Chez Marie & Fils>\" l'été");
+        assert!(
+            names.windows(2).all(|w| rank(w[0]) <= rank(w[1])),
+            "{names:?}"
+        );
+        assert_eq!(
+            b.child("gml:name").unwrap().text,
+            "Café \"<Chez Marie & Fils>\" l'été"
+        );
         let attrs: BTreeMap<&str, &str> = b
             .children_named("gen:stringAttribute")
-            .map(|a| (a.attr("name").unwrap(), a.child("gen:value").unwrap().text.as_str()))
+            .map(|a| {
+                (
+                    a.attr("name").unwrap(),
+                    a.child("gen:value").unwrap().text.as_str(),
+                )
+            })
             .collect();
         assert_eq!(attrs["sourceId"], "way/123");
         assert_eq!(attrs["zone"], "earth/France/Occitanie/Toulouse");
@@ -1048,16 +1283,27 @@ mod tests {
         let src = hipped();
         let root = parse(&write_all(Lod::Lod2, std::slice::from_ref(&src)));
         let b = buildings_of(&root)[0];
-        let polygons: BTreeMap<&str, &El> = b.find_all("gml:Polygon").into_iter().map(|p| (p.attr("gml:id").unwrap(), p)).collect();
+        let polygons: BTreeMap<&str, &El> = b
+            .find_all("gml:Polygon")
+            .into_iter()
+            .map(|p| (p.attr("gml:id").unwrap(), p))
+            .collect();
         let check = |id: &str, face: &Face| {
-            let list = polygons[id].child("gml:exterior").unwrap().find_all("gml:posList")[0];
+            let list = polygons[id]
+                .child("gml:exterior")
+                .unwrap()
+                .find_all("gml:posList")[0];
             assert_eq!(list.attr("srsDimension"), Some("3"));
             let v = numbers(&list.text);
             assert_eq!(v.len(), (face.outer.len() + 1) * 3);
             for (i, p) in face.outer.iter().chain(face.outer.first()).enumerate() {
                 let w = ORIGIN + *p;
                 for (k, c) in [w.x, w.y, w.z].into_iter().enumerate() {
-                    assert!((v[i * 3 + k] - c).abs() < 5e-4, "{id} point {i}: {} vs {c}", v[i * 3 + k]);
+                    assert!(
+                        (v[i * 3 + k] - c).abs() < 5e-4,
+                        "{id} point {i}: {} vs {c}",
+                        v[i * 3 + k]
+                    );
                 }
             }
         };
@@ -1070,7 +1316,11 @@ mod tests {
             check(&format!("B_way_-9_p0_r{i}"), f);
         }
         // The envelope is the bounds of the building in the output CRS.
-        let env = b.child("gml:boundedBy").unwrap().child("gml:Envelope").unwrap();
+        let env = b
+            .child("gml:boundedBy")
+            .unwrap()
+            .child("gml:Envelope")
+            .unwrap();
         assert_eq!(env.attr("srsName"), Some("EPSG:2154"));
         assert_eq!(env.attr("srsDimension"), Some("3"));
         let lo = numbers(&env.child("gml:lowerCorner").unwrap().text);
@@ -1083,16 +1333,40 @@ mod tests {
     fn appearance_one_material_per_colour() {
         let root = parse(&write_all(Lod::Lod2, &[two_parts()]));
         let b = buildings_of(&root)[0];
-        let app = b.child("app:appearance").unwrap().child("app:Appearance").unwrap();
+        let app = b
+            .child("app:appearance")
+            .unwrap()
+            .child("app:Appearance")
+            .unwrap();
         assert_eq!(app.child("app:theme").unwrap().text, "citygen");
-        let mats: Vec<&El> = app.children_named("app:surfaceDataMember").map(|m| m.child("app:X3DMaterial").unwrap()).collect();
+        let mats: Vec<&El> = app
+            .children_named("app:surfaceDataMember")
+            .map(|m| m.child("app:X3DMaterial").unwrap())
+            .collect();
         // Ground grey, beige walls, red roofs (shared by both parts), white walls.
-        let colours: Vec<&str> = mats.iter().map(|m| m.child("app:diffuseColor").unwrap().text.as_str()).collect();
-        assert_eq!(colours, vec!["0.5000 0.5000 0.5000", "0.9600 0.9600 0.8600", "0.7000 0.2000 0.1000", "1.0000 1.0000 1.0000"]);
-        let targets: Vec<usize> = mats.iter().map(|m| m.children_named("app:target").count()).collect();
+        let colours: Vec<&str> = mats
+            .iter()
+            .map(|m| m.child("app:diffuseColor").unwrap().text.as_str())
+            .collect();
+        assert_eq!(
+            colours,
+            vec![
+                "0.5000 0.5000 0.5000",
+                "0.9600 0.9600 0.8600",
+                "0.7000 0.2000 0.1000",
+                "1.0000 1.0000 1.0000"
+            ]
+        );
+        let targets: Vec<usize> = mats
+            .iter()
+            .map(|m| m.children_named("app:target").count())
+            .collect();
         assert_eq!(targets, vec![2, 4, 2, 4]);
         // Every polygon is coloured exactly once.
-        let mut all: Vec<&str> = mats.iter().flat_map(|m| m.children_named("app:target").map(|t| t.text.as_str())).collect();
+        let mut all: Vec<&str> = mats
+            .iter()
+            .flat_map(|m| m.children_named("app:target").map(|t| t.text.as_str()))
+            .collect();
         all.sort_unstable();
         let n = all.len();
         all.dedup();
@@ -1121,7 +1395,7 @@ mod tests {
         assert_eq!(f(-0.0006), "-0.001");
         assert_eq!(f(1.5), "1.500");
         assert_eq!(f(-12.3456), "-12.346");
-        assert_eq!(f(5_432_109.0125), "5432109.013");
+        assert_eq!(f(5_432_109.012_5), "5432109.013");
         assert_eq!(f(1e300), format!("{:.3}", 1e300));
     }
 
@@ -1132,8 +1406,14 @@ mod tests {
         b.zone = "z\"one\t<1>".into();
         let root = parse(&write_all(Lod::Lod1, &[b]));
         let bl = buildings_of(&root)[0];
-        assert_eq!(bl.child("gml:name").unwrap().text, "a&b<c>d\"e'f\u{FFFD}g\u{FFFD}h\ti\nj\rk");
-        let zone = bl.children_named("gen:stringAttribute").find(|a| a.attr("name") == Some("zone")).unwrap();
+        assert_eq!(
+            bl.child("gml:name").unwrap().text,
+            "a&b<c>d\"e'f\u{FFFD}g\u{FFFD}h\ti\nj\rk"
+        );
+        let zone = bl
+            .children_named("gen:stringAttribute")
+            .find(|a| a.attr("name") == Some("zone"))
+            .unwrap();
         assert_eq!(zone.child("gen:value").unwrap().text, "z\"one\t<1>");
         let mut x = Xml(Vec::new());
         x.escaped("a\tb\n\"", true);
@@ -1193,7 +1473,9 @@ mod tests {
     #[test]
     fn validates_against_citygml_schemas() {
         let Some(validator) = installed_validator() else {
-            eprintln!("skipped: validate-outputs is not installed (set CITYGEN_VALIDATOR to its path)");
+            eprintln!(
+                "skipped: validate-outputs is not installed (set CITYGEN_VALIDATOR to its path)"
+            );
             return;
         };
         let dir = tempfile::tempdir().unwrap();
@@ -1203,16 +1485,24 @@ mod tests {
             std::fs::write(&path, write_all(lod, &all_buildings())).unwrap();
             files.push(path);
         }
-        let out = std::process::Command::new(validator).args(&files).output().unwrap();
+        let out = std::process::Command::new(validator)
+            .args(&files)
+            .output()
+            .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success() && text.contains("2 passed, 0 failed"), "{text}\n{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success() && text.contains("2 passed, 0 failed"),
+            "{text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
 
     /// The validator wrapper, when it and its already-installed environment exist (the wrapper
     /// would otherwise try to install its dependencies from the network).
     fn installed_validator() -> Option<std::path::PathBuf> {
         let home = std::env::var_os("HOME").map(std::path::PathBuf::from)?;
-        let venv = std::env::var_os("CITYGEN_VALIDATE_HOME").map_or(home.join(".cache/citygen-validate"), Into::into);
+        let venv = std::env::var_os("CITYGEN_VALIDATE_HOME")
+            .map_or(home.join(".cache/citygen-validate"), Into::into);
         if !venv.join("venv/bin/python").exists() {
             return None;
         }
