@@ -1514,4 +1514,30 @@ mod tests {
         ];
         candidates.into_iter().flatten().find(|p| p.is_file())
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+
+        /// Millimetre rounding: within half a millimetre, three decimals, never a negative zero.
+        #[test]
+        fn fixed3_rounds_to_millimetres(v in -1.0e9f64..1.0e9) {
+            let mut x = Xml(Vec::new());
+            x.fixed3(v);
+            let s = String::from_utf8(x.0).unwrap();
+            let back: f64 = s.parse().unwrap();
+            proptest::prop_assert!((back - v).abs() <= 0.000_5 + v.abs() * 1e-15, "{} -> {}", v, s);
+            proptest::prop_assert_eq!(s.split('.').nth(1).map(str::len), Some(3));
+            proptest::prop_assert!(s != "-0.000");
+        }
+
+        /// Any name survives a round trip through the file (XML-forbidden characters aside).
+        #[test]
+        fn any_name_round_trips(name in "\\PC*") {
+            let mut b = simple_box();
+            b.name = Some(name.clone());
+            let root = parse(&write_all(Lod::Lod1, &[b]));
+            let text = buildings_of(&root)[0].child("gml:name").unwrap().text.clone();
+            proptest::prop_assert_eq!(text, name);
+        }
+    }
 }
