@@ -308,13 +308,21 @@ impl RuleSet {
 
     /// Whether `symbol` has no rule (it is a terminal: a leaf of the shape tree).
     pub fn is_terminal(&self, symbol: &str) -> bool {
-        self.index.get(symbol).is_none_or(|&id| self.by_pred[id as usize].is_empty())
+        self.index
+            .get(symbol)
+            .is_none_or(|&id| self.by_pred[id as usize].is_empty())
     }
 
     /// `file:line (pred)` for messages about a rule.
     pub(crate) fn describe(&self, rule: usize) -> String {
         let r = &self.rules[rule];
-        format!("{}:{} ({} -> {})", self.file, r.span.line, self.symbols[r.pred as usize], r.op.name())
+        format!(
+            "{}:{} ({} -> {})",
+            self.file,
+            r.span.line,
+            self.symbols[r.pred as usize],
+            r.op.name()
+        )
     }
 
     pub(crate) fn intern(&mut self, name: &str) -> SymbolId {

@@ -53,7 +53,10 @@ use glam::{DVec2, DVec3};
 
 use super::ast::{AttrValue, Attrs, Axis, Expr, Op, RuleSet, Selector, SplitKind, SymbolId};
 use super::expr::{eval, EvalError};
-use super::shape::{clip_slab, dominant_direction, map_polygon, FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal, EPS, MIN_AREA};
+use super::shape::{
+    clip_slab, dominant_direction, map_polygon, FaceKind, Geometry, Label, Scope, ShapeNode,
+    ShapeTree, Terminal, EPS, MIN_AREA,
+};
 use crate::geometry::Polygon;
 use crate::rng::Rng;
 
@@ -74,7 +77,11 @@ pub struct Caps {
 impl Default for Caps {
     /// 64 levels, 100 000 shapes, 10 000 pieces per operation.
     fn default() -> Caps {
-        Caps { max_depth: 64, max_shapes: 100_000, max_pieces: 10_000 }
+        Caps {
+            max_depth: 64,
+            max_shapes: 100_000,
+            max_pieces: 10_000,
+        }
     }
 }
 
@@ -142,7 +149,13 @@ impl Ctx<'_> {
     fn rule_name(&self) -> String {
         self.rules.describe(self.rule)
     }
-    fn eval(&self, e: &Expr, size: DVec3, attrs: &Attrs, rng: &mut Rng) -> Result<f64, DeriveError> {
+    fn eval(
+        &self,
+        e: &Expr,
+        size: DVec3,
+        attrs: &Attrs,
+        rng: &mut Rng,
+    ) -> Result<f64, DeriveError> {
         eval(e, size, attrs, rng).map_err(|err| DeriveError::Eval {
             rule: self.rule_name(),
             message: match err {
@@ -150,18 +163,32 @@ impl Ctx<'_> {
                     format!("`{n}` is neither sx/sy/sz nor an attribute of the shape")
                 }
                 EvalError::NotANumber(n, v) => format!("attribute `{n}` = `{v}` is not a number"),
-                EvalError::NonFinite => "expression gives a non-finite value (division by zero?)".into(),
+                EvalError::NonFinite => {
+                    "expression gives a non-finite value (division by zero?)".into()
+                }
             },
         })
     }
     fn bad(&self, message: String) -> DeriveError {
-        DeriveError::BadSize { rule: self.rule_name(), message }
+        DeriveError::BadSize {
+            rule: self.rule_name(),
+            message,
+        }
     }
     fn unsupported(&self, op: &'static str, geometry: &'static str, detail: &str) -> DeriveError {
-        DeriveError::Unsupported { rule: self.rule_name(), op, geometry, detail: detail.to_string() }
+        DeriveError::Unsupported {
+            rule: self.rule_name(),
+            op,
+            geometry,
+            detail: detail.to_string(),
+        }
     }
     fn cap(&self, cap: &'static str, limit: usize) -> DeriveError {
-        DeriveError::Cap { cap, limit, rule: self.rule_name() }
+        DeriveError::Cap {
+            cap,
+            limit,
+            rule: self.rule_name(),
+        }
     }
 }
 
@@ -178,14 +205,30 @@ fn geometry_name(g: &Geometry) -> &'static str {
 ///
 /// Deterministic for a given `rng` state. Never panics; fails with [`DeriveError`] when a cap
 /// is hit or a rule cannot be applied to the shape it meets.
-pub fn derive(rules: &RuleSet, lot: &Polygon, attrs: Attrs, rng: &mut Rng, caps: &Caps) -> Result<ShapeTree, DeriveError> {
-    if lot.outer.len() < 3 || lot.area().abs() <= MIN_AREA || lot.outer.iter().any(|p| !p.is_finite()) {
+pub fn derive(
+    rules: &RuleSet,
+    lot: &Polygon,
+    attrs: Attrs,
+    rng: &mut Rng,
+    caps: &Caps,
+) -> Result<ShapeTree, DeriveError> {
+    if lot.outer.len() < 3
+        || lot.area().abs() <= MIN_AREA
+        || lot.outer.iter().any(|p| !p.is_finite())
+    {
         return Err(DeriveError::EmptyLot);
     }
-    let z = attrs.get("base").and_then(AttrValue::as_f64).filter(|v| v.is_finite()).unwrap_or(0.0);
+    let z = attrs
+        .get("base")
+        .and_then(AttrValue::as_f64)
+        .filter(|v| v.is_finite())
+        .unwrap_or(0.0);
     let scope = Scope::around(lot, dominant_direction(lot), z, 0.0);
     let wall: Option<SymbolId> = rules.index.get("wall").copied();
-    let wall_name: Arc<str> = wall.map_or_else(|| Arc::from("wall"), |id| rules.symbols[id as usize].clone());
+    let wall_name: Arc<str> = wall.map_or_else(
+        || Arc::from("wall"),
+        |id| rules.symbols[id as usize].clone(),
+    );
     let mut tree = ShapeTree::default();
     // Per node: the symbol id (None for a `wall` the rule set never names) and the scope.
     let mut syms: Vec<Option<SymbolId>> = Vec::new();
@@ -194,7 +237,10 @@ pub fn derive(rules: &RuleSet, lot: &Polygon, attrs: Attrs, rng: &mut Rng, caps:
         symbol: rules.symbols[rules.axiom as usize].clone(),
         label: Label::Lot,
         attrs: Arc::new(attrs),
-        geometry: Geometry::Lot { polygon: lot.clone(), z },
+        geometry: Geometry::Lot {
+            polygon: lot.clone(),
+            z,
+        },
         terminal: None,
         parent: None,
         children: 0..0,
@@ -223,7 +269,11 @@ pub fn derive(rules: &RuleSet, lot: &Polygon, attrs: Attrs, rng: &mut Rng, caps:
             let w: Vec<f64> = candidates.iter().map(|&r| rules.weights[r]).collect();
             candidates[rng.pick_weighted(&w).unwrap_or(0)]
         };
-        let ctx = Ctx { rules, rule: rule_idx, caps };
+        let ctx = Ctx {
+            rules,
+            rule: rule_idx,
+            caps,
+        };
         let depth = tree.nodes[i].depth;
         if depth + 1 > caps.max_depth {
             return Err(ctx.cap("max_depth", caps.max_depth));
@@ -231,7 +281,15 @@ pub fn derive(rules: &RuleSet, lot: &Polygon, attrs: Attrs, rng: &mut Rng, caps:
         let rule = &rules.rules[rule_idx];
         let parent_attrs = tree.nodes[i].attrs.clone();
         let parent_label = tree.nodes[i].label;
-        let pieces = apply(&ctx, &rule.op, &tree.nodes[i].geometry, &scopes[i], parent_label, &parent_attrs, rng)?;
+        let pieces = apply(
+            &ctx,
+            &rule.op,
+            &tree.nodes[i].geometry,
+            &scopes[i],
+            parent_label,
+            &parent_attrs,
+            rng,
+        )?;
         if tree.nodes.len() + pieces.len() > caps.max_shapes {
             return Err(ctx.cap("max_shapes", caps.max_shapes));
         }
@@ -318,7 +376,11 @@ fn apply(
     let size = scope.size;
     match op {
         Op::Relabel => Ok((0..rule.succs.len())
-            .map(|k| Piece { succ: Some(k), geom: geom.clone(), scope: *scope })
+            .map(|k| Piece {
+                succ: Some(k),
+                geom: geom.clone(),
+                scope: *scope,
+            })
             .collect()),
         Op::Extrude(h) => {
             let h = ctx.eval(h, size, attrs, rng)?;
@@ -329,19 +391,33 @@ fn apply(
             Ok(all_succs(rule.succs.len(), g, s))
         }
         Op::Scale(e) => {
-            let v = [ctx.eval(&e[0], size, attrs, rng)?, ctx.eval(&e[1], size, attrs, rng)?, ctx.eval(&e[2], size, attrs, rng)?];
+            let v = [
+                ctx.eval(&e[0], size, attrs, rng)?,
+                ctx.eval(&e[1], size, attrs, rng)?,
+                ctx.eval(&e[2], size, attrs, rng)?,
+            ];
             let (g, s) = scale(ctx, geom, scope, v)?;
             Ok(all_succs(rule.succs.len(), g, s))
         }
         Op::Translate(e) => {
-            let v = [ctx.eval(&e[0], size, attrs, rng)?, ctx.eval(&e[1], size, attrs, rng)?, ctx.eval(&e[2], size, attrs, rng)?];
+            let v = [
+                ctx.eval(&e[0], size, attrs, rng)?,
+                ctx.eval(&e[1], size, attrs, rng)?,
+                ctx.eval(&e[2], size, attrs, rng)?,
+            ];
             let (g, s) = translate(geom, scope, v);
             Ok(all_succs(rule.succs.len(), g, s))
         }
         Op::Rotate(_, e) => {
             let deg = ctx.eval(e, size, attrs, rng)?;
             let (g, s) = match geom {
-                Geometry::Face { .. } => return Err(ctx.unsupported("R", "face", " (only volumes and lots rotate for now)")),
+                Geometry::Face { .. } => {
+                    return Err(ctx.unsupported(
+                        "R",
+                        "face",
+                        " (only volumes and lots rotate for now)",
+                    ))
+                }
                 _ => rotate(geom, scope, deg),
             };
             Ok(all_succs(rule.succs.len(), g, s))
@@ -358,11 +434,23 @@ fn apply(
 }
 
 fn all_succs(n: usize, g: Geometry, s: Scope) -> Vec<Piece> {
-    (0..n).map(|k| Piece { succ: Some(k), geom: g.clone(), scope: s }).collect()
+    (0..n)
+        .map(|k| Piece {
+            succ: Some(k),
+            geom: g.clone(),
+            scope: s,
+        })
+        .collect()
 }
 
 fn face_scope(origin: DVec3, x_axis: DVec3, z_axis: DVec3, width: f64, height: f64) -> Scope {
-    Scope { origin, x: x_axis, y: z_axis.cross(x_axis), z: z_axis, size: DVec3::new(width, 0.0, height) }
+    Scope {
+        origin,
+        x: x_axis,
+        y: z_axis.cross(x_axis),
+        z: z_axis,
+        size: DVec3::new(width, 0.0, height),
+    }
 }
 
 fn h2(v: DVec3) -> DVec2 {
@@ -375,31 +463,71 @@ fn extrude(geom: &Geometry, scope: &Scope, h: f64) -> (Geometry, Scope) {
             let mut s = *scope;
             s.origin.z = *z;
             s.size.z = h;
-            (Geometry::Volume { footprint: polygon.clone(), z0: *z, height: h, scope: s }, s)
+            (
+                Geometry::Volume {
+                    footprint: polygon.clone(),
+                    z0: *z,
+                    height: h,
+                    scope: s,
+                },
+                s,
+            )
         }
         Geometry::Volume { footprint, z0, .. } => {
             let mut s = *scope;
             s.size.z = h;
-            (Geometry::Volume { footprint: footprint.clone(), z0: *z0, height: h, scope: s }, s)
+            (
+                Geometry::Volume {
+                    footprint: footprint.clone(),
+                    z0: *z0,
+                    height: h,
+                    scope: s,
+                },
+                s,
+            )
         }
-        Geometry::Face { kind, origin, x_axis, z_axis, width, height, polygon } => {
+        Geometry::Face {
+            kind,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
             let normal = x_axis.cross(*z_axis);
             let (footprint, z0, vh) = match (kind, polygon) {
                 (FaceKind::Side, _) | (_, None) => {
                     let (o, x, n) = (h2(*origin), h2(*x_axis), h2(normal));
-                    let fp = Polygon::new(vec![o, o + x * *width, o + x * *width + n * h, o + n * h], Vec::new());
+                    let fp = Polygon::new(
+                        vec![o, o + x * *width, o + x * *width + n * h, o + n * h],
+                        Vec::new(),
+                    );
                     (fp, origin.z, *height)
                 }
                 (FaceKind::Top, Some(p)) => (p.clone(), origin.z, h),
                 (FaceKind::Bottom, Some(p)) => (p.clone(), origin.z - h, h),
             };
             let s = Scope::around(&footprint, h2(*x_axis), z0, vh);
-            (Geometry::Volume { footprint, z0, height: vh, scope: s }, s)
+            (
+                Geometry::Volume {
+                    footprint,
+                    z0,
+                    height: vh,
+                    scope: s,
+                },
+                s,
+            )
         }
     }
 }
 
-fn scale(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope, v: [f64; 3]) -> Result<(Geometry, Scope), DeriveError> {
+fn scale(
+    ctx: &Ctx<'_>,
+    geom: &Geometry,
+    scope: &Scope,
+    v: [f64; 3],
+) -> Result<(Geometry, Scope), DeriveError> {
     let check = |val: f64, name: &str| {
         if val <= EPS {
             Err(ctx.bad(format!("S: size {name} = {val} is not positive")))
@@ -423,7 +551,11 @@ fn scale(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope, v: [f64; 3]) -> Result<(
         Geometry::Lot { polygon, z } => {
             check(v[0], "x")?;
             check(v[1], "y")?;
-            let p = scale2(polygon, ratio(v[0], scope.size.x), ratio(v[1], scope.size.y));
+            let p = scale2(
+                polygon,
+                ratio(v[0], scope.size.x),
+                ratio(v[1], scope.size.y),
+            );
             let mut s = *scope;
             s.size.x = v[0];
             s.size.y = v[1];
@@ -433,12 +565,32 @@ fn scale(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope, v: [f64; 3]) -> Result<(
             check(v[0], "x")?;
             check(v[1], "y")?;
             check(v[2], "z")?;
-            let p = scale2(footprint, ratio(v[0], scope.size.x), ratio(v[1], scope.size.y));
+            let p = scale2(
+                footprint,
+                ratio(v[0], scope.size.x),
+                ratio(v[1], scope.size.y),
+            );
             let mut s = *scope;
             s.size = DVec3::from(v);
-            Ok((Geometry::Volume { footprint: p, z0: *z0, height: v[2], scope: s }, s))
+            Ok((
+                Geometry::Volume {
+                    footprint: p,
+                    z0: *z0,
+                    height: v[2],
+                    scope: s,
+                },
+                s,
+            ))
         }
-        Geometry::Face { kind, origin, x_axis, z_axis, width, height, polygon } => {
+        Geometry::Face {
+            kind,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
             check(v[0], "x")?;
             check(v[2], "z")?;
             let (fx, fz) = (ratio(v[0], *width), ratio(v[2], *height));
@@ -449,7 +601,15 @@ fn scale(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope, v: [f64; 3]) -> Result<(
                     o + x * (d.dot(x) * fx) + z * (d.dot(z) * fz)
                 })
             });
-            let g = Geometry::Face { kind: *kind, origin: *origin, x_axis: *x_axis, z_axis: *z_axis, width: v[0], height: v[2], polygon };
+            let g = Geometry::Face {
+                kind: *kind,
+                origin: *origin,
+                x_axis: *x_axis,
+                z_axis: *z_axis,
+                width: v[0],
+                height: v[2],
+                polygon,
+            };
             Ok((g, face_scope(*origin, *x_axis, *z_axis, v[0], v[2])))
         }
     }
@@ -461,19 +621,54 @@ fn translate(geom: &Geometry, scope: &Scope, v: [f64; 3]) -> (Geometry, Scope) {
             let d = scope.x2() * v[0] + scope.y2() * v[1];
             let mut s = *scope;
             s.origin += DVec3::new(d.x, d.y, v[2]);
-            (Geometry::Lot { polygon: polygon.translated(d), z: z + v[2] }, s)
+            (
+                Geometry::Lot {
+                    polygon: polygon.translated(d),
+                    z: z + v[2],
+                },
+                s,
+            )
         }
-        Geometry::Volume { footprint, z0, height, .. } => {
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } => {
             let d = scope.x2() * v[0] + scope.y2() * v[1];
             let mut s = *scope;
             s.origin += DVec3::new(d.x, d.y, v[2]);
-            (Geometry::Volume { footprint: footprint.translated(d), z0: z0 + v[2], height: *height, scope: s }, s)
+            (
+                Geometry::Volume {
+                    footprint: footprint.translated(d),
+                    z0: z0 + v[2],
+                    height: *height,
+                    scope: s,
+                },
+                s,
+            )
         }
-        Geometry::Face { kind, origin, x_axis, z_axis, width, height, polygon } => {
+        Geometry::Face {
+            kind,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
             let d = *x_axis * v[0] + x_axis.cross(*z_axis) * v[1] + *z_axis * v[2];
             let o = *origin + d;
             let polygon = polygon.as_ref().map(|p| p.translated(h2(d)));
-            let g = Geometry::Face { kind: *kind, origin: o, x_axis: *x_axis, z_axis: *z_axis, width: *width, height: *height, polygon };
+            let g = Geometry::Face {
+                kind: *kind,
+                origin: o,
+                x_axis: *x_axis,
+                z_axis: *z_axis,
+                width: *width,
+                height: *height,
+                polygon,
+            };
             (g, face_scope(o, *x_axis, *z_axis, *width, *height))
         }
     }
@@ -488,10 +683,27 @@ fn rotate(geom: &Geometry, scope: &Scope, deg: f64) -> (Geometry, Scope) {
     s.x = DVec3::new(x.x, x.y, 0.0);
     s.y = DVec3::new(y.x, y.y, 0.0);
     match geom {
-        Geometry::Lot { polygon, z } => (Geometry::Lot { polygon: turn(polygon), z: *z }, s),
-        Geometry::Volume { footprint, z0, height, .. } => {
-            (Geometry::Volume { footprint: turn(footprint), z0: *z0, height: *height, scope: s }, s)
-        }
+        Geometry::Lot { polygon, z } => (
+            Geometry::Lot {
+                polygon: turn(polygon),
+                z: *z,
+            },
+            s,
+        ),
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } => (
+            Geometry::Volume {
+                footprint: turn(footprint),
+                z0: *z0,
+                height: *height,
+                scope: s,
+            },
+            s,
+        ),
         Geometry::Face { .. } => (geom.clone(), *scope),
     }
 }
@@ -513,8 +725,18 @@ fn orientation(normal: DVec2, scope: &Scope) -> Selector {
 }
 
 fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, DeriveError> {
-    let Geometry::Volume { footprint, z0, height, .. } = geom else {
-        return Err(ctx.unsupported("comp", geometry_name(geom), " (comp needs a volume: extrude first)"));
+    let Geometry::Volume {
+        footprint,
+        z0,
+        height,
+        ..
+    } = geom
+    else {
+        return Err(ctx.unsupported(
+            "comp",
+            geometry_name(geom),
+            " (comp needs a volume: extrude first)",
+        ));
     };
     let succs = &ctx.rules.rules[ctx.rule].succs;
     let pick = |is_side: bool, sel: Option<Selector>| -> Option<usize> {
@@ -541,8 +763,20 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
             let sel = orientation(normal, scope);
             let origin = DVec3::new(a.x, a.y, *z0);
             let x_axis = DVec3::new(x2.x, x2.y, 0.0);
-            let g = Geometry::Face { kind: FaceKind::Side, origin, x_axis, z_axis: DVec3::Z, width: w, height: *height, polygon: None };
-            out.push(Piece { succ: pick(true, Some(sel)), geom: g, scope: face_scope(origin, x_axis, DVec3::Z, w, *height) });
+            let g = Geometry::Face {
+                kind: FaceKind::Side,
+                origin,
+                x_axis,
+                z_axis: DVec3::Z,
+                width: w,
+                height: *height,
+                polygon: None,
+            };
+            out.push(Piece {
+                succ: pick(true, Some(sel)),
+                geom: g,
+                scope: face_scope(origin, x_axis, DVec3::Z, w, *height),
+            });
         }
     }
     if out.len() > ctx.caps.max_pieces {
@@ -550,8 +784,13 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
     }
     let (sx, sy) = (scope.size.x, scope.size.y);
     let o2 = scope.origin2();
-    for (kind, sel) in [(FaceKind::Top, Selector::Top), (FaceKind::Bottom, Selector::Bottom)] {
-        let Some(k) = pick(false, Some(sel)) else { continue };
+    for (kind, sel) in [
+        (FaceKind::Top, Selector::Top),
+        (FaceKind::Bottom, Selector::Bottom),
+    ] {
+        let Some(k) = pick(false, Some(sel)) else {
+            continue;
+        };
         let (origin, z_axis) = match kind {
             FaceKind::Top => (DVec3::new(o2.x, o2.y, z0 + height), scope.y),
             _ => {
@@ -559,14 +798,32 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
                 (DVec3::new(o.x, o.y, *z0), -scope.y)
             }
         };
-        let g = Geometry::Face { kind, origin, x_axis: scope.x, z_axis, width: sx, height: sy, polygon: Some(footprint.clone()) };
-        out.push(Piece { succ: Some(k), geom: g, scope: face_scope(origin, scope.x, z_axis, sx, sy) });
+        let g = Geometry::Face {
+            kind,
+            origin,
+            x_axis: scope.x,
+            z_axis,
+            width: sx,
+            height: sy,
+            polygon: Some(footprint.clone()),
+        };
+        out.push(Piece {
+            succ: Some(k),
+            geom: g,
+            scope: face_scope(origin, scope.x, z_axis, sx, sy),
+        });
     }
     Ok(out)
 }
 
 /// A 1D layout: (successor or wall, start, length) along an axis of length `len`.
-fn layout(ctx: &Ctx<'_>, kind: SplitKind, sizes: &[f64], len: f64, face: bool) -> Result<Vec<(Option<usize>, f64, f64)>, DeriveError> {
+fn layout(
+    ctx: &Ctx<'_>,
+    kind: SplitKind,
+    sizes: &[f64],
+    len: f64,
+    face: bool,
+) -> Result<Vec<(Option<usize>, f64, f64)>, DeriveError> {
     let name = kind.name();
     if let Some(s) = sizes.iter().find(|s| **s < 0.0) {
         return Err(ctx.bad(format!("{name}: negative size {s}")));
@@ -650,7 +907,14 @@ fn layout(ctx: &Ctx<'_>, kind: SplitKind, sizes: &[f64], len: f64, face: bool) -
     Ok(out)
 }
 
-fn split(ctx: &Ctx<'_>, kind: SplitKind, axis: Axis, sizes: &[f64], geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, DeriveError> {
+fn split(
+    ctx: &Ctx<'_>,
+    kind: SplitKind,
+    axis: Axis,
+    sizes: &[f64],
+    geom: &Geometry,
+    scope: &Scope,
+) -> Result<Vec<Piece>, DeriveError> {
     let op = kind.name();
     match geom {
         Geometry::Lot { polygon, z } => {
@@ -661,11 +925,20 @@ fn split(ctx: &Ctx<'_>, kind: SplitKind, axis: Axis, sizes: &[f64], geom: &Geome
             let mut out = Vec::new();
             for (k, p) in clip_pieces(polygon, scope, axis, &segs) {
                 let s = Scope::around(&p, scope.x2(), *z, 0.0);
-                out.push(Piece { succ: k, geom: Geometry::Lot { polygon: p, z: *z }, scope: s });
+                out.push(Piece {
+                    succ: k,
+                    geom: Geometry::Lot { polygon: p, z: *z },
+                    scope: s,
+                });
             }
             Ok(out)
         }
-        Geometry::Volume { footprint, z0, height, .. } => {
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } => {
             let segs = layout(ctx, kind, sizes, scope.size[axis.index()], false)?;
             if axis == Axis::Z {
                 return Ok(segs
@@ -674,35 +947,86 @@ fn split(ctx: &Ctx<'_>, kind: SplitKind, axis: Axis, sizes: &[f64], geom: &Geome
                         let mut s = *scope;
                         s.origin.z = z0 + start;
                         s.size.z = l;
-                        Piece { succ: k, geom: Geometry::Volume { footprint: footprint.clone(), z0: z0 + start, height: l, scope: s }, scope: s }
+                        Piece {
+                            succ: k,
+                            geom: Geometry::Volume {
+                                footprint: footprint.clone(),
+                                z0: z0 + start,
+                                height: l,
+                                scope: s,
+                            },
+                            scope: s,
+                        }
                     })
                     .collect());
             }
             let mut out = Vec::new();
             for (k, p) in clip_pieces(footprint, scope, axis, &segs) {
                 let s = Scope::around(&p, scope.x2(), *z0, *height);
-                out.push(Piece { succ: k, geom: Geometry::Volume { footprint: p, z0: *z0, height: *height, scope: s }, scope: s });
+                out.push(Piece {
+                    succ: k,
+                    geom: Geometry::Volume {
+                        footprint: p,
+                        z0: *z0,
+                        height: *height,
+                        scope: s,
+                    },
+                    scope: s,
+                });
             }
             Ok(out)
         }
-        Geometry::Face { kind: fk, origin, x_axis, z_axis, width, height, polygon } => {
+        Geometry::Face {
+            kind: fk,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
             let (dir, len) = match axis {
                 Axis::X => (*x_axis, *width),
                 Axis::Z => (*z_axis, *height),
-                Axis::Y => return Err(ctx.unsupported(op, "face", " along Y (a face has no depth: split along X or Z)")),
+                Axis::Y => {
+                    return Err(ctx.unsupported(
+                        op,
+                        "face",
+                        " along Y (a face has no depth: split along X or Z)",
+                    ))
+                }
             };
             let segs = layout(ctx, kind, sizes, len, true)?;
             let mut out = Vec::new();
             for (k, start, l) in segs {
                 let o = *origin + dir * start;
-                let (w, h) = if axis == Axis::X { (l, *height) } else { (*width, l) };
+                let (w, h) = if axis == Axis::X {
+                    (l, *height)
+                } else {
+                    (*width, l)
+                };
                 let polys: Vec<Option<Polygon>> = match polygon {
                     None => vec![None],
-                    Some(p) => clip_slab(p, h2(*origin), h2(dir), start, start + l).into_iter().map(Some).collect(),
+                    Some(p) => clip_slab(p, h2(*origin), h2(dir), start, start + l)
+                        .into_iter()
+                        .map(Some)
+                        .collect(),
                 };
                 for poly in polys {
-                    let g = Geometry::Face { kind: *fk, origin: o, x_axis: *x_axis, z_axis: *z_axis, width: w, height: h, polygon: poly };
-                    out.push(Piece { succ: k, geom: g, scope: face_scope(o, *x_axis, *z_axis, w, h) });
+                    let g = Geometry::Face {
+                        kind: *fk,
+                        origin: o,
+                        x_axis: *x_axis,
+                        z_axis: *z_axis,
+                        width: w,
+                        height: h,
+                        polygon: poly,
+                    };
+                    out.push(Piece {
+                        succ: k,
+                        geom: g,
+                        scope: face_scope(o, *x_axis, *z_axis, w, h),
+                    });
                 }
             }
             Ok(out)
@@ -712,13 +1036,26 @@ fn split(ctx: &Ctx<'_>, kind: SplitKind, axis: Axis, sizes: &[f64], geom: &Geome
 
 /// Clips a footprint to the slabs of a layout along the scope's X or Y. The first and last
 /// slabs are open-ended so that no sliver of the footprint is lost to rounding.
-fn clip_pieces(poly: &Polygon, scope: &Scope, axis: Axis, segs: &[(Option<usize>, f64, f64)]) -> Vec<(Option<usize>, Polygon)> {
-    let dir = if axis == Axis::X { scope.x2() } else { scope.y2() };
+fn clip_pieces(
+    poly: &Polygon,
+    scope: &Scope,
+    axis: Axis,
+    segs: &[(Option<usize>, f64, f64)],
+) -> Vec<(Option<usize>, Polygon)> {
+    let dir = if axis == Axis::X {
+        scope.x2()
+    } else {
+        scope.y2()
+    };
     let o = scope.origin2();
     let mut out = Vec::new();
     for (j, &(k, start, l)) in segs.iter().enumerate() {
         let lo = if j == 0 { f64::NEG_INFINITY } else { start };
-        let hi = if j + 1 == segs.len() { f64::INFINITY } else { start + l };
+        let hi = if j + 1 == segs.len() {
+            f64::INFINITY
+        } else {
+            start + l
+        };
         for p in clip_slab(poly, o, dir, lo, hi) {
             out.push((k, p));
         }

@@ -21,7 +21,9 @@ pub mod shape;
 #[cfg(test)]
 mod tests;
 
-pub use ast::{AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId};
+pub use ast::{
+    AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
+};
 pub use interp::{derive, Caps, DeriveError};
 pub use parser::{parse, GrammarError, ParseErrorKind};
 pub use shape::{FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal};

@@ -25,7 +25,9 @@ use std::collections::HashMap;
 use std::fmt;
 use std::sync::Arc;
 
-use super::ast::{AttrValue, Axis, BinOp, Expr, Op, Rule, RuleSet, Selector, SplitKind, Span, Successor};
+use super::ast::{
+    AttrValue, Axis, BinOp, Expr, Op, Rule, RuleSet, Selector, Span, SplitKind, Successor,
+};
 
 /// What went wrong while parsing, for programmatic checks (the message says it in words).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,7 +75,11 @@ pub struct GrammarError {
 
 impl fmt::Display for GrammarError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(f, "{}:{}:{}: {}", self.file, self.line, self.col, self.message)?;
+        writeln!(
+            f,
+            "{}:{}:{}: {}",
+            self.file, self.line, self.col, self.message
+        )?;
         writeln!(f, "{}", self.line_text)?;
         // The caret line reproduces tabs so that it lines up under the offending character.
         let pad: String = self
@@ -140,7 +146,11 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn err(&self, span: Span, kind: ParseErrorKind, message: impl Into<String>) -> GrammarError {
-        let line_text = self.src.lines().nth(span.line.saturating_sub(1) as usize).unwrap_or("");
+        let line_text = self
+            .src
+            .lines()
+            .nth(span.line.saturating_sub(1) as usize)
+            .unwrap_or("");
         GrammarError {
             file: self.file.to_string(),
             line: span.line,
@@ -158,7 +168,12 @@ fn lex(ctx: &Ctx<'_>) -> Result<Vec<(Tok, Span)>, GrammarError> {
     let mut it = src.char_indices().peekable();
     let (mut line, mut col) = (1u32, 1u32);
     while let Some(&(off, c)) = it.peek() {
-        let start = Span { line, col, offset: off, len: c.len_utf8() };
+        let start = Span {
+            line,
+            col,
+            offset: off,
+            len: c.len_utf8(),
+        };
         let prev_is_eq = matches!(out.last(), Some((Tok::Eq, _)));
         // Advances one character, keeping line/column up to date.
         macro_rules! bump {
@@ -198,10 +213,12 @@ fn lex(ctx: &Ctx<'_>) -> Result<Vec<(Tok, Span)>, GrammarError> {
                 }
             }
             Tok::Ident(s)
-        } else if c.is_ascii_digit() || (c == '.' && peek2(off).is_some_and(|d| d.is_ascii_digit())) {
+        } else if c.is_ascii_digit() || (c == '.' && peek2(off).is_some_and(|d| d.is_ascii_digit()))
+        {
             let mut end = off;
             while let Some(&(i, ch)) = it.peek() {
-                let exp_sign = (ch == '+' || ch == '-') && matches!(src[..i].chars().last(), Some('e' | 'E'));
+                let exp_sign =
+                    (ch == '+' || ch == '-') && matches!(src[..i].chars().last(), Some('e' | 'E'));
                 if ch.is_ascii_digit() || ch == '.' || ch == 'e' || ch == 'E' || exp_sign {
                     end = i + ch.len_utf8();
                     bump!();
@@ -213,8 +230,15 @@ fn lex(ctx: &Ctx<'_>) -> Result<Vec<(Tok, Span)>, GrammarError> {
             match text.parse::<f64>() {
                 Ok(v) if v.is_finite() => Tok::Num(v),
                 _ => {
-                    let span = Span { len: end - off, ..start };
-                    return Err(ctx.err(span, ParseErrorKind::BadCharacter, format!("malformed number `{text}`")));
+                    let span = Span {
+                        len: end - off,
+                        ..start
+                    };
+                    return Err(ctx.err(
+                        span,
+                        ParseErrorKind::BadCharacter,
+                        format!("malformed number `{text}`"),
+                    ));
                 }
             }
         } else if c == '#' {
@@ -267,22 +291,42 @@ fn lex(ctx: &Ctx<'_>) -> Result<Vec<(Tok, Span)>, GrammarError> {
                 '*' => Tok::Star,
                 '/' => Tok::Slash,
                 _ => {
-                    return Err(ctx.err(start, ParseErrorKind::BadCharacter, format!("unexpected character `{c}`")));
+                    return Err(ctx.err(
+                        start,
+                        ParseErrorKind::BadCharacter,
+                        format!("unexpected character `{c}`"),
+                    ));
                 }
             };
             bump!();
             t
         };
         let end = it.peek().map_or(src.len(), |&(i, _)| i);
-        out.push((tok, Span { len: end - off, ..start }));
+        out.push((
+            tok,
+            Span {
+                len: end - off,
+                ..start
+            },
+        ));
     }
     // End of file is reported just after the last token, on its line.
     let eof = match out.last() {
         Some((_, last)) => {
             let chars = src[last.offset..last.offset + last.len].chars().count() as u32;
-            Span { col: last.col + chars, offset: last.offset + last.len, len: 0, ..*last }
+            Span {
+                col: last.col + chars,
+                offset: last.offset + last.len,
+                len: 0,
+                ..*last
+            }
         }
-        None => Span { line: 1, col: 1, offset: 0, len: 0 },
+        None => Span {
+            line: 1,
+            col: 1,
+            offset: 0,
+            len: 0,
+        },
     };
     out.push((Tok::Eof, eof));
     Ok(out)
@@ -316,7 +360,8 @@ impl Parser<'_> {
     }
     fn unexpected(&self, expected: &str) -> GrammarError {
         let msg = format!("expected {expected}, found {}", self.peek().describe());
-        self.ctx.err(self.span(), ParseErrorKind::UnexpectedToken, msg)
+        self.ctx
+            .err(self.span(), ParseErrorKind::UnexpectedToken, msg)
     }
     fn expect(&mut self, t: Tok, what: &str) -> PResult<Span> {
         if *self.peek() == t {
@@ -347,11 +392,16 @@ impl Parser<'_> {
             }
             self.rule()?;
             if !(self.at_rule_start() || *self.peek() == Tok::Eof) {
-                return Err(self.unexpected("`|`, `}`, `= probability`, a new rule `name ->` or end of file"));
+                return Err(self
+                    .unexpected("`|`, `}`, `= probability`, a new rule `name ->` or end of file"));
             }
         }
         if self.rs.rules.is_empty() {
-            return Err(self.ctx.err(self.span(), ParseErrorKind::NoRules, "the rule file has no rule"));
+            return Err(self.ctx.err(
+                self.span(),
+                ParseErrorKind::NoRules,
+                "the rule file has no rule",
+            ));
         }
         Ok(())
     }
@@ -408,14 +458,23 @@ impl Parser<'_> {
                     return Err(self.ctx.err(
                         sp,
                         ParseErrorKind::BadProbability,
-                        format!("expected a probability (a number in [0, 1]), found {}", t.describe()),
+                        format!(
+                            "expected a probability (a number in [0, 1]), found {}",
+                            t.describe()
+                        ),
                     ))
                 }
             }
         } else {
             None
         };
-        self.rs.rules.push(Rule { pred, op, succs, prob, span });
+        self.rs.rules.push(Rule {
+            pred,
+            op,
+            succs,
+            prob,
+            span,
+        });
         Ok(())
     }
 
@@ -447,7 +506,11 @@ impl Parser<'_> {
     /// the list ran into the next rule or the end of file, else an unexpected token.
     fn unclosed_or(&self, open: Span, bracket: &str, expected: &str) -> GrammarError {
         if *self.peek() == Tok::Eof || self.at_rule_start() {
-            self.ctx.err(open, ParseErrorKind::Unclosed, format!("unclosed {bracket}"))
+            self.ctx.err(
+                open,
+                ParseErrorKind::Unclosed,
+                format!("unclosed {bracket}"),
+            )
         } else {
             self.unexpected(expected)
         }
@@ -468,12 +531,19 @@ impl Parser<'_> {
             Some(a) => Err(self.ctx.err(
                 sp,
                 ParseErrorKind::BadAxis,
-                format!("{op} does not support axis {} yet (allowed: {})", a.name(), names(allowed)),
+                format!(
+                    "{op} does not support axis {} yet (allowed: {})",
+                    a.name(),
+                    names(allowed)
+                ),
             )),
             None => Err(self.ctx.err(
                 sp,
                 ParseErrorKind::BadAxis,
-                format!("{op} expects an axis ({}) as its first argument", names(allowed)),
+                format!(
+                    "{op} expects an axis ({}) as its first argument",
+                    names(allowed)
+                ),
             )),
         }
     }
@@ -484,7 +554,10 @@ impl Parser<'_> {
             p.ctx.err(
                 sp,
                 ParseErrorKind::WrongArgCount,
-                format!("{name} expects {expect}, got {n} argument{}", if n == 1 { "" } else { "s" }),
+                format!(
+                    "{name} expects {expect}, got {n} argument{}",
+                    if n == 1 { "" } else { "s" }
+                ),
             )
         };
         let three = |p: &Self, args: Vec<(Expr, Span)>| -> PResult<[Expr; 3]> {
@@ -565,7 +638,8 @@ impl Parser<'_> {
 
     fn succ(&mut self, comp: bool) -> PResult<Successor> {
         let selector = if comp {
-            let (name, sp) = self.ident("a comp selector (front, back, left, right, side, others, top, bottom)")?;
+            let (name, sp) = self
+                .ident("a comp selector (front, back, left, right, side, others, top, bottom)")?;
             let sel = Selector::from_name(&name).ok_or_else(|| {
                 self.ctx.err(
                     sp,
@@ -615,7 +689,12 @@ impl Parser<'_> {
                 }
             }
         }
-        Ok(Successor { selector, symbol, attrs, span })
+        Ok(Successor {
+            selector,
+            symbol,
+            attrs,
+            span,
+        })
     }
 
     fn expr(&mut self, open: Span) -> PResult<Expr> {
@@ -699,7 +778,9 @@ impl Parser<'_> {
                 if *self.peek() == Tok::Eof || self.at_rule_start() {
                     Err(self.ctx.err(open, ParseErrorKind::Unclosed, "unclosed `(`"))
                 } else {
-                    Err(self.unexpected("a number, `sx`, `sy`, `sz`, `rand(a, b)`, an attribute name or `(`"))
+                    Err(self.unexpected(
+                        "a number, `sx`, `sy`, `sz`, `rand(a, b)`, an attribute name or `(`",
+                    ))
                 }
             }
         }
@@ -728,7 +809,12 @@ pub fn parse(src: &str, file: &str) -> Result<RuleSet, GrammarError> {
         weights: Vec::new(),
         axiom: 0,
     };
-    let mut p = Parser { ctx, toks, pos: 0, rs };
+    let mut p = Parser {
+        ctx,
+        toks,
+        pos: 0,
+        rs,
+    };
     p.file()?;
     let mut rs = p.rs;
     for (i, r) in rs.rules.iter().enumerate() {
@@ -738,7 +824,11 @@ pub fn parse(src: &str, file: &str) -> Result<RuleSet, GrammarError> {
     for list in &rs.by_pred {
         let explicit: f64 = list.iter().filter_map(|&i| rs.rules[i].prob).sum();
         let implicit = list.iter().filter(|&&i| rs.rules[i].prob.is_none()).count();
-        let share = if implicit > 0 { (1.0 - explicit).max(0.0) / implicit as f64 } else { 0.0 };
+        let share = if implicit > 0 {
+            (1.0 - explicit).max(0.0) / implicit as f64
+        } else {
+            0.0
+        };
         for &i in list {
             weights[i] = rs.rules[i].prob.unwrap_or(share);
         }

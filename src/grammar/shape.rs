@@ -221,7 +221,9 @@ pub struct ShapeTree {
 impl ShapeTree {
     /// The children of node `i`.
     pub fn children(&self, i: usize) -> &[ShapeNode] {
-        self.nodes.get(i).map_or(&[], |n| &self.nodes[n.children.clone()])
+        self.nodes
+            .get(i)
+            .map_or(&[], |n| &self.nodes[n.children.clone()])
     }
 
     /// The leaves (terminal shapes), in index order.
@@ -252,9 +254,16 @@ pub fn dominant_direction(poly: &Polygon) -> DVec2 {
     }
     let mut best: Option<(f64, DVec2, bool)> = None;
     for i in 0..hull.len() {
-        let Some(u) = (hull[(i + 1) % hull.len()] - hull[i]).try_normalize() else { continue };
+        let Some(u) = (hull[(i + 1) % hull.len()] - hull[i]).try_normalize() else {
+            continue;
+        };
         let v = u.perp();
-        let (mut lu, mut hu, mut lv, mut hv) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let (mut lu, mut hu, mut lv, mut hv) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
         for p in &hull {
             let (a, b) = (p.dot(u), p.dot(v));
             lu = lu.min(a);
@@ -270,14 +279,20 @@ pub fn dominant_direction(poly: &Polygon) -> DVec2 {
             best = Some((area, long, square));
         }
     }
-    let Some((_, d, square)) = best else { return DVec2::X };
+    let Some((_, d, square)) = best else {
+        return DVec2::X;
+    };
     // Only the two directions along the long side compete, all four for a square.
     let cands = [d, -d, d.perp(), -d.perp()];
     let cands = if square { &cands[..] } else { &cands[..2] };
     let r = cands
         .iter()
         .copied()
-        .max_by(|a, b| (a.x, a.y).partial_cmp(&(b.x, b.y)).unwrap_or(std::cmp::Ordering::Equal))
+        .max_by(|a, b| {
+            (a.x, a.y)
+                .partial_cmp(&(b.x, b.y))
+                .unwrap_or(std::cmp::Ordering::Equal)
+        })
         .unwrap_or(DVec2::X);
     // Snap tiny numerical noise so that axis-aligned footprints get exact axes.
     DVec2::new(snap(r.x), snap(r.y))
@@ -296,7 +311,11 @@ fn snap(v: f64) -> f64 {
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
 pub fn convex_hull(pts: &[DVec2]) -> Vec<DVec2> {
     let mut p: Vec<DVec2> = pts.iter().copied().filter(|q| q.is_finite()).collect();
-    p.sort_by(|a, b| (a.x, a.y).partial_cmp(&(b.x, b.y)).unwrap_or(std::cmp::Ordering::Equal));
+    p.sort_by(|a, b| {
+        (a.x, a.y)
+            .partial_cmp(&(b.x, b.y))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
     p.dedup();
     if p.len() < 3 {
         return p;
@@ -372,13 +391,24 @@ pub fn clip_slab(poly: &Polygon, origin: DVec2, axis: DVec2, lo: f64, hi: f64) -
             geo::Coord { x: p.x, y: p.y }
         };
         let rect = geo::Polygon::new(
-            geo::LineString::from(vec![corner(lo, qmin), corner(hi, qmin), corner(hi, qmax), corner(lo, qmax)]),
+            geo::LineString::from(vec![
+                corner(lo, qmin),
+                corner(hi, qmin),
+                corner(hi, qmax),
+                corner(lo, qmax),
+            ]),
             Vec::new(),
         );
         let g = to_geo(poly);
-        g.intersection(&rect).0.into_iter().map(|gp| from_geo(&gp)).collect()
+        g.intersection(&rect)
+            .0
+            .into_iter()
+            .map(|gp| from_geo(&gp))
+            .collect()
     };
-    out.into_iter().filter(|p| p.outer.len() >= 3 && p.area() > MIN_AREA).collect()
+    out.into_iter()
+        .filter(|p| p.outer.len() >= 3 && p.area() > MIN_AREA)
+        .collect()
 }
 
 /// One Sutherland–Hodgman pass: keeps the part of a ring where `f >= 0`.
@@ -404,12 +434,19 @@ fn half_plane(ring: &[DVec2], f: impl Fn(&DVec2) -> f64) -> Vec<DVec2> {
 }
 
 fn to_geo(poly: &Polygon) -> geo::Polygon<f64> {
-    let ring = |r: &Vec<DVec2>| geo::LineString::from(r.iter().map(|p| geo::Coord { x: p.x, y: p.y }).collect::<Vec<_>>());
+    let ring = |r: &Vec<DVec2>| {
+        geo::LineString::from(
+            r.iter()
+                .map(|p| geo::Coord { x: p.x, y: p.y })
+                .collect::<Vec<_>>(),
+        )
+    };
     geo::Polygon::new(ring(&poly.outer), poly.holes.iter().map(ring).collect())
 }
 
 fn from_geo(p: &geo::Polygon<f64>) -> Polygon {
-    let ring = |l: &geo::LineString<f64>| l.0.iter().map(|c| DVec2::new(c.x, c.y)).collect::<Vec<_>>();
+    let ring =
+        |l: &geo::LineString<f64>| l.0.iter().map(|c| DVec2::new(c.x, c.y)).collect::<Vec<_>>();
     Polygon::new(ring(p.exterior()), p.interiors().iter().map(ring).collect())
 }
 
@@ -417,6 +454,9 @@ fn from_geo(p: &geo::Polygon<f64>) -> Polygon {
 pub fn map_polygon(poly: &Polygon, f: impl Fn(DVec2) -> DVec2) -> Polygon {
     Polygon::new(
         poly.outer.iter().map(|p| f(*p)).collect(),
-        poly.holes.iter().map(|h| h.iter().map(|p| f(*p)).collect()).collect(),
+        poly.holes
+            .iter()
+            .map(|h| h.iter().map(|p| f(*p)).collect())
+            .collect(),
     )
 }
