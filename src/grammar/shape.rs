@@ -203,7 +203,9 @@ pub struct ShapeNode {
     pub terminal: Option<Terminal>,
     /// The parent's index (`None` for the axiom).
     pub parent: Option<usize>,
-    /// The children's indices: always contiguous and in successor order.
+    /// The children's indices: contiguous, in the order the operation made them. A
+    /// non-terminal may have none when its operation made no piece (a split of a zero-size
+    /// scope, a slab that misses a concave footprint).
     pub children: Range<usize>,
     /// Depth in the tree (the axiom is 0).
     pub depth: usize,

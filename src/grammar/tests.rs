@@ -739,3 +739,52 @@ proptest! {
         prop_assert!((a + b - np.area()).abs() < 1e-6 * np.area().max(1.0), "{} + {} vs {}", a, b, np.area());
     }
 }
+
+#[test]
+fn thesis_window_example_parses_verbatim() {
+    // Seed 003 L884-890, as printed (spaces before commas, value wrapped after `=`).
+    let src = "lot -> extrude(3){m}\nm -> comp(){front: yellowwindow}\n\
+yellowwindow -> rsplit (Z,0.2 ,0.3 ,0.3){wall : color=indianred
+  | windowpart | upperwindowpart}
+upperwindowpart -> rsplit (X,0.4,0.6){windowpart|windowpart}
+windowpart -> {window: style=framed, framecolor=gold , material=
+  glass }
+";
+    let t = run(src, &rect(4.0, 4.0), 1);
+    let windows: Vec<&ShapeNode> = t
+        .nodes
+        .iter()
+        .filter(|n| n.terminal == Some(Terminal::Window))
+        .collect();
+    assert_eq!(windows.len(), 3);
+    assert!(windows
+        .iter()
+        .all(|n| n.attrs.get("material").and_then(AttrValue::as_str) == Some("glass")));
+    let yw = find(&t, "yellowwindow")[0];
+    let heights: Vec<f64> = t
+        .children(yw)
+        .iter()
+        .map(|n| {
+            if let Geometry::Face { height, .. } = n.geometry {
+                height
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // 0.2 : 0.3 : 0.3 normalised over 3 m.
+    assert!(
+        heights
+            .iter()
+            .zip([0.75, 1.125, 1.125])
+            .all(|(a, b)| (a - b).abs() < 1e-12),
+        "{heights:?}"
+    );
+    assert_eq!(
+        t.children(yw)[0]
+            .attrs
+            .get("color")
+            .and_then(AttrValue::as_str),
+        Some("indianred")
+    );
+}
