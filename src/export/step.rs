@@ -39,7 +39,11 @@ pub fn format_real(v: f64) -> String {
     if !v.is_finite() {
         return "0.".to_string();
     }
-    let mut r = if v.abs() < 1e9 { (v * 1e6).round() / 1e6 } else { v };
+    let mut r = if v.abs() < 1e9 {
+        (v * 1e6).round() / 1e6
+    } else {
+        v
+    };
     if r == 0.0 {
         r = 0.0; // drops the sign of -0
     }
@@ -97,7 +101,8 @@ pub fn encode_string(s: &str) -> String {
 }
 
 /// The 64 characters of IFC's base-64 encoding of GUIDs, in digit order.
-pub const IFC_BASE64: &[u8; 64] = b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$";
+pub const IFC_BASE64: &[u8; 64] =
+    b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$";
 
 /// FNV-1a over `bytes`, continuing from `h`.
 fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
@@ -119,7 +124,12 @@ fn mix64(mut z: u64) -> u64 {
 /// finished with SplitMix64 and cross-mixed. A 0xFF byte (never in UTF-8) separates the two
 /// strings so that ("ab", "c") and ("a", "bc") differ.
 pub fn hash128(namespace: &str, path: &str) -> u128 {
-    let feed = |seed: u64| fnv1a(fnv1a(fnv1a(seed, namespace.as_bytes()), &[0xFF]), path.as_bytes());
+    let feed = |seed: u64| {
+        fnv1a(
+            fnv1a(fnv1a(seed, namespace.as_bytes()), &[0xFF]),
+            path.as_bytes(),
+        )
+    };
     let a = feed(0xCBF2_9CE4_8422_2325);
     let b = feed(0x6C62_272E_07BB_0142);
     let hi = mix64(a ^ b.rotate_left(32));
@@ -185,7 +195,10 @@ impl Header {
 /// convention) when it is set and valid, else `1970-01-01T00:00:00`. Never the clock, so equal
 /// runs give byte-identical files.
 pub fn timestamp_from_env() -> String {
-    let secs = std::env::var("SOURCE_DATE_EPOCH").ok().and_then(|s| s.trim().parse::<i64>().ok()).unwrap_or(0);
+    let secs = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse::<i64>().ok())
+        .unwrap_or(0);
     iso8601_utc(secs)
 }
 
@@ -206,7 +219,12 @@ pub fn iso8601_utc(secs: i64) -> String {
     let d = doy - (153 * mp + 2) / 5 + 1;
     let m = if mp < 10 { mp + 3 } else { mp - 9 };
     let y = yoe + era * 400 + i64::from(m <= 2);
-    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}", sod / 3600, sod % 3600 / 60, sod % 60)
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}",
+        sod / 3600,
+        sod % 3600 / 60,
+        sod % 60
+    )
 }
 
 /// Builder of one entity's parameter list, handed to [`StepWriter::entity`]. Each call appends one
@@ -327,7 +345,10 @@ impl Args<'_> {
         let b = self.sep();
         b.push_str(type_name);
         b.push('(');
-        let mut inner = Args { buf: &mut *self.buf, count: 0 };
+        let mut inner = Args {
+            buf: &mut *self.buf,
+            count: 0,
+        };
         f(&mut inner);
         self.buf.push(')');
         self
@@ -336,7 +357,10 @@ impl Args<'_> {
     /// A list `( ... )`; `f` writes its members.
     pub fn list(&mut self, f: impl FnOnce(&mut Args<'_>)) -> &mut Self {
         self.sep().push('(');
-        let mut inner = Args { buf: &mut *self.buf, count: 0 };
+        let mut inner = Args {
+            buf: &mut *self.buf,
+            count: 0,
+        };
         f(&mut inner);
         self.buf.push(')');
         self
@@ -354,15 +378,29 @@ pub struct StepWriter<W: Write> {
 impl<W: Write> StepWriter<W> {
     /// A writer onto `out`; nothing is written yet.
     pub fn new(out: W) -> StepWriter<W> {
-        StepWriter { out, next: 1, line: String::with_capacity(256) }
+        StepWriter {
+            out,
+            next: 1,
+            line: String::with_capacity(256),
+        }
     }
 
     /// Writes `ISO-10303-21;`, the HEADER section and opens the DATA section.
     pub fn write_header(&mut self, h: &Header) -> io::Result<()> {
-        let list = |items: &[String]| items.iter().map(|s| encode_string(s)).collect::<Vec<_>>().join(",");
+        let list = |items: &[String]| {
+            items
+                .iter()
+                .map(|s| encode_string(s))
+                .collect::<Vec<_>>()
+                .join(",")
+        };
         writeln!(self.out, "ISO-10303-21;")?;
         writeln!(self.out, "HEADER;")?;
-        writeln!(self.out, "FILE_DESCRIPTION(({}),'2;1');", list(&h.description))?;
+        writeln!(
+            self.out,
+            "FILE_DESCRIPTION(({}),'2;1');",
+            list(&h.description)
+        )?;
         writeln!(
             self.out,
             "FILE_NAME({},{},({}),({}),{},{},{});",
@@ -386,7 +424,10 @@ impl<W: Write> StepWriter<W> {
         self.next += 1;
         self.line.clear();
         self.line.push_str(&format!("{id}={keyword}("));
-        let mut args = Args { buf: &mut self.line, count: 0 };
+        let mut args = Args {
+            buf: &mut self.line,
+            count: 0,
+        };
         f(&mut args);
         self.line.push_str(");\n");
         self.out.write_all(self.line.as_bytes())?;
@@ -444,12 +485,18 @@ mod tests {
     #[test]
     fn strings_are_escaped() {
         assert_eq!(encode_string(""), "''");
-        assert_eq!(encode_string("Rue de l'Église"), "'Rue de l''\\X2\\00C9\\X0\\glise'");
+        assert_eq!(
+            encode_string("Rue de l'Église"),
+            "'Rue de l''\\X2\\00C9\\X0\\glise'"
+        );
         assert_eq!(encode_string("a\\b"), "'a\\\\b'");
         assert_eq!(encode_string("日本"), "'\\X2\\65E5672C\\X0\\'");
         assert_eq!(encode_string("a\nb"), "'a\\X2\\000A\\X0\\b'");
         assert_eq!(encode_string("😀x"), "'\\X4\\0001F600\\X0\\x'");
-        assert_eq!(encode_string("é😀"), "'\\X2\\00E9\\X0\\\\X4\\0001F600\\X0\\'");
+        assert_eq!(
+            encode_string("é😀"),
+            "'\\X2\\00E9\\X0\\\\X4\\0001F600\\X0\\'"
+        );
     }
 
     #[test]
@@ -490,10 +537,11 @@ mod tests {
         let mut h = Header::new("x.ifc", "IFC4");
         h.time_stamp = "1970-01-01T00:00:00".into();
         w.write_header(&h).unwrap();
-        let a = w.entity("IFCDIRECTION", |a| {
-            a.reals(&[1.0, 0.0, 0.0]);
-        })
-        .unwrap();
+        let a = w
+            .entity("IFCDIRECTION", |a| {
+                a.reals(&[1.0, 0.0, 0.0]);
+            })
+            .unwrap();
         let b = w
             .entity("IFCTEST", |a| {
                 a.id(Id(1))
@@ -512,7 +560,9 @@ mod tests {
         let s = String::from_utf8(w.finish().unwrap()).unwrap();
         assert!(s.starts_with("ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION(('ViewDefinition"));
         assert!(s.contains("FILE_NAME('x.ifc','1970-01-01T00:00:00',"));
-        assert!(s.contains("FILE_SCHEMA(('IFC4'));\nENDSEC;\nDATA;\n#1=IFCDIRECTION((1.,0.,0.));\n"));
+        assert!(
+            s.contains("FILE_SCHEMA(('IFC4'));\nENDSEC;\nDATA;\n#1=IFCDIRECTION((1.,0.,0.));\n")
+        );
         assert!(s.contains("#2=IFCTEST(#1,$,*,.T.,(43,-1),IFCLABEL('x'),());\n"));
         assert!(s.ends_with("ENDSEC;\nEND-ISO-10303-21;\n"));
     }
