@@ -302,6 +302,8 @@ struct Open<W: Write> {
     site: Id,
     site_placement: Id,
     wall_material: Id,
+    /// `OutputContext::origin.z`: the datum height of the local frame's z = 0.
+    origin_z: f64,
     /// Material layer set usage per wall thickness (micrometres).
     usages: BTreeMap<i64, Id>,
     /// Surface style per colour.
@@ -463,6 +465,7 @@ impl<W: Write> Open<W> {
             site,
             site_placement,
             wall_material,
+            origin_z: ctx.origin.z,
             usages: BTreeMap::new(),
             styles: BTreeMap::new(),
             buildings: Vec::new(),
@@ -649,7 +652,8 @@ impl<W: Write> Open<W> {
         let name = b.name.clone().unwrap_or_else(|| b.key());
         let description = format!("{} ({})", b.id, b.zone);
         let composite = b.parts.len() > 1;
-        let datum_z = b.base_z; // placement z; the map conversion adds OrthogonalHeight
+        // Height of the building's +-0.00 above the CRS datum (storey elevations count from it).
+        let datum_z = self.origin_z + b.base_z;
         let building = self.w.entity("IFCBUILDING", |a| {
             a.string(&global_id(&key, "building"))
                 .null()
@@ -1425,7 +1429,11 @@ mod tests {
     }
 
     fn write_all(buildings: &[Building]) -> Vec<u8> {
-        let mut w = IfcWriter::new(Vec::new()).with_file_name("sample.ifc");
+        write_all_named(buildings, "sample.ifc")
+    }
+
+    fn write_all_named(buildings: &[Building], name: &str) -> Vec<u8> {
+        let mut w = IfcWriter::new(Vec::new()).with_file_name(name);
         w.begin(&ctx()).unwrap();
         for b in buildings {
             w.write(b).unwrap();
@@ -1642,31 +1650,104 @@ mod tests {
         assert!(!is_closed_shell(&flipped));
     }
 
-    /// Runs the reference validator (schema, WHERE rules, and the geometry kernel) on the sample
-    /// when it is installed; skipped otherwise.
+    /// The reference validator: `$CITYGEN_VALIDATE_OUTPUTS`, or `shared/tools/validate-outputs`
+    /// beside the checkout (`../shared` from the main checkout, `../../shared` from a worktree).
+    fn validator() -> Option<std::path::PathBuf> {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        std::env::var_os("CITYGEN_VALIDATE_OUTPUTS")
+            .map(std::path::PathBuf::from)
+            .into_iter()
+            .chain([
+                root.join("../shared/tools/validate-outputs"),
+                root.join("../../shared/tools/validate-outputs"),
+            ])
+            .find(|p| p.exists())
+    }
+
+    /// Runs the reference validator (schema, WHERE rules and, with `--geometry`, the geometry
+    /// kernel on every product) on the sample when it is installed; skipped otherwise.
     #[test]
     fn sample_passes_the_reference_validator() {
-        let tool = std::path::Path::new("/work/shared/tools/validate-outputs");
-        let venv = std::env::var_os("HOME")
-            .map(|h| std::path::PathBuf::from(h).join(".cache/citygen-validate/venv"));
-        if !tool.exists() || !venv.is_some_and(|v| v.exists()) {
+        let installed = std::env::var_os("HOME")
+            .map(|h| std::path::PathBuf::from(h).join(".cache/citygen-validate/venv"))
+            .is_some_and(|v| v.exists());
+        let Some(tool) = validator().filter(|_| installed) else {
             eprintln!("validate-outputs not installed: skipped");
             return;
-        }
+        };
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sample.ifc");
         std::fs::write(&path, write_all(&sample())).unwrap();
-        for args in [&[][..], &["--geometry"][..]] {
-            let out = std::process::Command::new(tool)
-                .args(args)
-                .arg(&path)
-                .output()
-                .unwrap();
-            let text = String::from_utf8_lossy(&out.stdout);
-            assert!(
-                out.status.success() && text.contains(" 0 failed"),
-                "{args:?}: {text}"
-            );
+        let out = std::process::Command::new(tool)
+            .arg("--geometry")
+            .arg(&path)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
+        assert!(text.contains("WallStandardCase=28"), "{text}");
+    }
+
+    #[test]
+    fn writes_through_an_atomic_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.ifc");
+        let file = crate::export::AtomicFile::create(&target).unwrap();
+        let mut w: Box<IfcWriter<crate::export::AtomicFile>> =
+            Box::new(IfcWriter::new(file).with_file_name("out.ifc"));
+        w.begin(&ctx()).unwrap();
+        for b in sample() {
+            w.write(&b).unwrap();
+        }
+        w.finish().unwrap();
+        w.into_inner().unwrap().commit().unwrap();
+        assert_eq!(
+            std::fs::read(&target).unwrap(),
+            write_all_named(&sample(), "out.ifc")
+        );
+        // The writer is usable as a trait object, as the pipeline holds it.
+        let _: Box<dyn BuildingWriter> = Box::new(IfcWriter::new(Vec::new()));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        /// Rotated and shifted boxes: the file stays well-formed, every wall keeps its length,
+        /// and no non-finite or exponent-formatted number slips in.
+        #[test]
+        fn rotated_boxes_are_well_formed(
+            angle in 0.0f64..std::f64::consts::TAU,
+            x in -5000.0f64..5000.0,
+            y in -5000.0f64..5000.0,
+            w in 0.5f64..80.0,
+            h in 0.5f64..80.0,
+        ) {
+            let (sin, cos) = angle.sin_cos();
+            let ring: Vec<DVec2> = rect(0.0, 0.0, w, h)
+                .into_iter()
+                .map(|p| DVec2::new(x + p.x * cos - p.y * sin, y + p.x * sin + p.y * cos))
+                .collect();
+            let b = building(SourceId::Way(9), None, vec![flat_part("p0", Polygon::new(ring, vec![]), 0.0, 7.5, 2)]);
+            let bytes = write_all(&[b]);
+            let m = parse(&bytes);
+            for (id, (_, args)) in &m {
+                for r in refs(args) {
+                    proptest::prop_assert!(m.contains_key(&r), "#{} -> #{}", id, r);
+                }
+                // Outside string literals, only digits, '.', '-', refs, enums and punctuation.
+                let bare: String = args.split('\'').step_by(2).collect();
+                proptest::prop_assert!(!bare.contains("NaN") && !bare.contains("inf") && !bare.contains('e'), "{}", bare);
+            }
+            let mut lengths: Vec<f64> = m
+                .values()
+                .filter(|(k, _)| k == "IFCRECTANGLEPROFILEDEF")
+                .map(|(_, a)| a.split(',').nth(3).unwrap().parse().unwrap())
+                .collect();
+            lengths.sort_by(f64::total_cmp);
+            let (lo, hi) = (w.min(h), w.max(h));
+            proptest::prop_assert_eq!(lengths.len(), 4);
+            for (got, want) in lengths.iter().zip([lo, lo, hi, hi]) {
+                proptest::prop_assert!((got - want).abs() < 1e-5, "{} vs {}", got, want);
+            }
         }
     }
 }
