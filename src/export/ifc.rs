@@ -1425,7 +1425,32 @@ mod tests {
             }
         }
         let gab = building(SourceId::Way(5), Some("Gable"), vec![gab]);
-        vec![boxb, two, court, hip, gab]
+
+        // Skillion: 8 x 5, eave 3 on the south, 5 on the north; east and west walls trapezoids.
+        let fp = Polygon::new(rect(80.0, 0.0, 8.0, 5.0), vec![]);
+        let p = |x: f64, y: f64, z: f64| DVec3::new(80.0 + x, y, z);
+        let mut shed = flat_part("p0", fp, 0.0, 3.0, 1);
+        shed.top_z = 5.0;
+        shed.roof_shape = RoofShape::Skillion;
+        shed.roof = vec![Face::new(vec![
+            p(0.0, 0.0, 3.0),
+            p(8.0, 0.0, 3.0),
+            p(8.0, 5.0, 5.0),
+            p(0.0, 5.0, 5.0),
+        ])];
+        let height_at = |q: DVec2| 3.0 + 2.0 * q.y / 5.0;
+        for w in &mut shed.walls {
+            let (a, b) = (w.start, w.end);
+            w.top_z = height_at(a).min(height_at(b));
+            w.outline = Face::new(vec![
+                a.extend(0.0),
+                b.extend(0.0),
+                b.extend(height_at(b)),
+                a.extend(height_at(a)),
+            ]);
+        }
+        let shed = building(SourceId::Way(6), None, vec![shed]);
+        vec![boxb, two, court, hip, gab, shed]
     }
 
     fn write_all(buildings: &[Building]) -> Vec<u8> {
@@ -1507,8 +1532,8 @@ mod tests {
             .map(|p| p.walls.len())
             .sum();
         assert_eq!(count(&m, "IFCWALLSTANDARDCASE"), total_walls);
-        // 5 buildings + 2 partial.
-        assert_eq!(count(&m, "IFCBUILDING"), 7);
+        // 6 buildings + 2 partial.
+        assert_eq!(count(&m, "IFCBUILDING"), 8);
         assert_eq!(
             m.values()
                 .filter(|(k, a)| k == "IFCBUILDING" && a.contains(".PARTIAL."))
@@ -1517,12 +1542,14 @@ mod tests {
         );
         let storeys: u32 = bs.iter().flat_map(|b| &b.parts).map(|p| p.storeys).sum();
         assert_eq!(count(&m, "IFCBUILDINGSTOREY"), storeys as usize);
-        assert_eq!(count(&m, "IFCSLAB"), 6);
-        assert_eq!(count(&m, "IFCROOF"), 6);
+        assert_eq!(count(&m, "IFCSLAB"), 7);
+        assert_eq!(count(&m, "IFCROOF"), 7);
         assert_eq!(count(&m, "IFCPROJECT"), 1);
         assert_eq!(count(&m, "IFCSITE"), 1);
-        // Hipped roof closes into one brep; gabled stays a surface model.
-        assert_eq!(count(&m, "IFCSHELLBASEDSURFACEMODEL"), 1);
+        // Hipped roof closes into one brep; gabled and skillion stay surface models.
+        assert_eq!(count(&m, "IFCSHELLBASEDSURFACEMODEL"), 2);
+        // Gable and skillion side walls are extruded outline profiles; 6 slabs have no voids.
+        assert_eq!(count(&m, "IFCARBITRARYCLOSEDPROFILEDEF"), 4 + 6);
         assert_eq!(count(&m, "IFCARBITRARYPROFILEDEFWITHVOIDS"), 1);
         // Shared styles and material usages: 2 colours, 1 thickness.
         assert_eq!(count(&m, "IFCSURFACESTYLE"), 2);
@@ -1685,7 +1712,7 @@ mod tests {
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
-        assert!(text.contains("WallStandardCase=28"), "{text}");
+        assert!(text.contains("WallStandardCase=32"), "{text}");
     }
 
     #[test]
