@@ -1,1 +1,569 @@
-//! (being written)
+//! A small streaming writer of ISO 10303-21 ("STEP Part 21") exchange files, the container of IFC.
+//!
+//! The writer numbers entity instances (`#1`, `#2`, ...) in creation order and writes each one as
+//! soon as it is made, so memory stays bounded by what the caller keeps. It only knows the
+//! encoding rules (reals, strings, enumerations, lists, the header); what the entities mean is
+//! the business of [`crate::export::ifc`].
+//!
+//! ```
+//! use citygen::export::step::{Header, StepWriter};
+//! let mut w = StepWriter::new(Vec::new());
+//! w.write_header(&Header::new("a.ifc", "IFC4")).unwrap();
+//! let p = w.entity("IFCCARTESIANPOINT", |a| { a.reals(&[0.0, 1.5, -3.25]); }).unwrap();
+//! assert_eq!(p.to_string(), "#1");
+//! let text = String::from_utf8(w.finish().unwrap()).unwrap();
+//! assert!(text.contains("#1=IFCCARTESIANPOINT((0.,1.5,-3.25));"));
+//! ```
+
+use std::fmt;
+use std::io::{self, Write};
+
+/// A reference to an entity instance of the file (`#n`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Id(pub u64);
+
+impl fmt::Display for Id {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "#{}", self.0)
+    }
+}
+
+/// Formats a REAL the way Part 21 wants it: always a decimal point, never an exponent, rounded
+/// to 6 decimals (micrometres for lengths) so that files stay small and free of float noise, and
+/// printed with the shortest digits that read back to the rounded value.
+///
+/// Values of magnitude 1e9 or more are not rounded (a multiply by 1e6 would lose their low
+/// digits). `-0` prints as `0.`. Non-finite values cannot be encoded; they print as `0.` and
+/// callers are expected to reject them before (the IFC writer does).
+pub fn format_real(v: f64) -> String {
+    if !v.is_finite() {
+        return "0.".to_string();
+    }
+    let mut r = if v.abs() < 1e9 {
+        (v * 1e6).round() / 1e6
+    } else {
+        v
+    };
+    if r == 0.0 {
+        r = 0.0; // drops the sign of -0
+    }
+    // Rust's Display for f64 is the shortest round-trip form and never uses an exponent.
+    let mut s = format!("{r}");
+    if !s.contains('.') {
+        s.push('.');
+    }
+    s
+}
+
+/// Encodes a STRING literal with its quotes: `'` doubled, `\` doubled, printable ASCII as is,
+/// anything else (non-ASCII, control characters) as `\X2\HHHH..\X0\` runs of UTF-16 code units
+/// for the Basic Multilingual Plane and `\X4\HHHHHHHH..\X0\` runs for the other planes.
+pub fn encode_string(s: &str) -> String {
+    #[derive(PartialEq, Clone, Copy)]
+    enum Run {
+        None,
+        X2,
+        X4,
+    }
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('\'');
+    let mut run = Run::None;
+    for c in s.chars() {
+        let wanted = match c {
+            ' '..='~' => Run::None,
+            c if (c as u32) <= 0xFFFF => Run::X2,
+            _ => Run::X4,
+        };
+        if wanted != run {
+            if run != Run::None {
+                out.push_str("\\X0\\");
+            }
+            match wanted {
+                Run::X2 => out.push_str("\\X2\\"),
+                Run::X4 => out.push_str("\\X4\\"),
+                Run::None => {}
+            }
+            run = wanted;
+        }
+        match (run, c) {
+            (Run::None, '\'') => out.push_str("''"),
+            (Run::None, '\\') => out.push_str("\\\\"),
+            (Run::None, c) => out.push(c),
+            (Run::X2, c) => out.push_str(&format!("{:04X}", c as u32)),
+            (Run::X4, c) => out.push_str(&format!("{:08X}", c as u32)),
+        }
+    }
+    if run != Run::None {
+        out.push_str("\\X0\\");
+    }
+    out.push('\'');
+    out
+}
+
+/// The 64 characters of IFC's base-64 encoding of GUIDs, in digit order.
+pub const IFC_BASE64: &[u8; 64] =
+    b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$";
+
+/// FNV-1a over `bytes`, continuing from `h`.
+fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
+    for b in bytes {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(0x0000_0100_0000_01B3);
+    }
+    h
+}
+
+/// SplitMix64's finaliser: spreads every input bit over the whole word.
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// A deterministic 128-bit hash of (namespace, path): two independent FNV-1a streams, each
+/// finished with SplitMix64 and cross-mixed. A 0xFF byte (never in UTF-8) separates the two
+/// strings so that ("ab", "c") and ("a", "bc") differ.
+pub fn hash128(namespace: &str, path: &str) -> u128 {
+    let feed = |seed: u64| {
+        fnv1a(
+            fnv1a(fnv1a(seed, namespace.as_bytes()), &[0xFF]),
+            path.as_bytes(),
+        )
+    };
+    let a = feed(0xCBF2_9CE4_8422_2325);
+    let b = feed(0x6C62_272E_07BB_0142);
+    let hi = mix64(a ^ b.rotate_left(32));
+    let lo = mix64(b ^ hi);
+    (u128::from(hi) << 64) | u128::from(lo)
+}
+
+/// The 22-character IFC GlobalId encoding of a 128-bit value: the first character carries the
+/// top 2 bits, each of the 21 others 6 bits, most significant first.
+pub fn encode_guid(v: u128) -> String {
+    let mut out = String::with_capacity(22);
+    out.push(IFC_BASE64[(v >> 126) as usize] as char);
+    for i in (0..21).rev() {
+        out.push(IFC_BASE64[((v >> (6 * i)) & 0x3F) as usize] as char);
+    }
+    out
+}
+
+/// A deterministic IFC GlobalId for the object at `path` (e.g. `p0/wall/3`) of the object family
+/// `namespace` (e.g. a building key): equal inputs give equal ids in every run, distinct inputs
+/// give distinct ids (up to a 128-bit hash collision).
+pub fn global_id(namespace: &str, path: &str) -> String {
+    encode_guid(hash128(namespace, path))
+}
+
+/// The Part 21 HEADER section.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// FILE_DESCRIPTION.description, e.g. `ViewDefinition [DesignTransferView_V1.0]`.
+    pub description: Vec<String>,
+    /// FILE_NAME.name.
+    pub name: String,
+    /// FILE_NAME.time_stamp (ISO 8601). Fixed, never the clock: see [`timestamp_from_env`].
+    pub time_stamp: String,
+    pub author: String,
+    pub organization: String,
+    pub preprocessor_version: String,
+    pub originating_system: String,
+    pub authorization: String,
+    /// FILE_SCHEMA, e.g. `IFC4`.
+    pub schema: String,
+}
+
+impl Header {
+    /// A header for `name` in `schema`, stamped by [`timestamp_from_env`], with citygen as the
+    /// originating system.
+    pub fn new(name: &str, schema: &str) -> Header {
+        Header {
+            description: vec!["ViewDefinition [DesignTransferView_V1.0]".to_string()],
+            name: name.to_string(),
+            time_stamp: timestamp_from_env(),
+            author: String::new(),
+            organization: String::new(),
+            preprocessor_version: format!("citygen {}", env!("CARGO_PKG_VERSION")),
+            originating_system: "citygen".to_string(),
+            authorization: String::new(),
+            schema: schema.to_string(),
+        }
+    }
+}
+
+/// The time stamp to write: `SOURCE_DATE_EPOCH` (seconds since 1970, the reproducible-builds
+/// convention) when it is set and valid, else `1970-01-01T00:00:00`. Never the clock, so equal
+/// runs give byte-identical files.
+pub fn timestamp_from_env() -> String {
+    let secs = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse::<i64>().ok())
+        .unwrap_or(0);
+    iso8601_utc(secs)
+}
+
+/// `YYYY-MM-DDTHH:MM:SS` (UTC) of a Unix time, proleptic Gregorian calendar. Years outside
+/// 0..=9999 are clamped to that range's ends.
+pub fn iso8601_utc(secs: i64) -> String {
+    // Clamp to 0000-01-01 .. 9999-12-31T23:59:59 so the format stays fixed-width.
+    let secs = secs.clamp(-62_167_219_200, 253_402_300_799);
+    let days = secs.div_euclid(86_400);
+    let sod = secs.rem_euclid(86_400);
+    // Howard Hinnant's civil_from_days.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}",
+        sod / 3600,
+        sod % 3600 / 60,
+        sod % 60
+    )
+}
+
+/// Builder of one entity's parameter list, handed to [`StepWriter::entity`]. Each call appends one
+/// parameter (commas are managed here).
+pub struct Args<'a> {
+    buf: &'a mut String,
+    count: usize,
+}
+
+impl Args<'_> {
+    fn sep(&mut self) -> &mut String {
+        if self.count > 0 {
+            self.buf.push(',');
+        }
+        self.count += 1;
+        self.buf
+    }
+
+    /// An entity reference `#n`.
+    pub fn id(&mut self, id: Id) -> &mut Self {
+        let s = format!("{id}");
+        self.sep().push_str(&s);
+        self
+    }
+
+    /// A reference, or `$` when absent.
+    pub fn opt_id(&mut self, id: Option<Id>) -> &mut Self {
+        match id {
+            Some(id) => self.id(id),
+            None => self.null(),
+        }
+    }
+
+    /// A list of references `(#a,#b)`.
+    pub fn ids(&mut self, ids: &[Id]) -> &mut Self {
+        self.list(|a| {
+            for id in ids {
+                a.id(*id);
+            }
+        })
+    }
+
+    /// A REAL (see [`format_real`]).
+    pub fn real(&mut self, v: f64) -> &mut Self {
+        let s = format_real(v);
+        self.sep().push_str(&s);
+        self
+    }
+
+    /// A list of REALs.
+    pub fn reals(&mut self, vs: &[f64]) -> &mut Self {
+        self.list(|a| {
+            for v in vs {
+                a.real(*v);
+            }
+        })
+    }
+
+    /// An INTEGER.
+    pub fn int(&mut self, v: i64) -> &mut Self {
+        let s = v.to_string();
+        self.sep().push_str(&s);
+        self
+    }
+
+    /// A list of INTEGERs.
+    pub fn ints(&mut self, vs: &[i64]) -> &mut Self {
+        self.list(|a| {
+            for v in vs {
+                a.int(*v);
+            }
+        })
+    }
+
+    /// A STRING (see [`encode_string`]).
+    pub fn string(&mut self, s: &str) -> &mut Self {
+        let s = encode_string(s);
+        self.sep().push_str(&s);
+        self
+    }
+
+    /// A STRING, or `$` when absent.
+    pub fn opt_string(&mut self, s: Option<&str>) -> &mut Self {
+        match s {
+            Some(s) => self.string(s),
+            None => self.null(),
+        }
+    }
+
+    /// `$`: an unset optional attribute.
+    pub fn null(&mut self) -> &mut Self {
+        self.sep().push('$');
+        self
+    }
+
+    /// `*`: an attribute derived in a subtype (e.g. `IfcSIUnit.Dimensions`).
+    pub fn derived(&mut self) -> &mut Self {
+        self.sep().push('*');
+        self
+    }
+
+    /// An enumeration value `.NAME.`; `name` must be the bare upper-case identifier.
+    pub fn enumeration(&mut self, name: &str) -> &mut Self {
+        let b = self.sep();
+        b.push('.');
+        b.push_str(name);
+        b.push('.');
+        self
+    }
+
+    /// A BOOLEAN `.T.` / `.F.`.
+    pub fn boolean(&mut self, v: bool) -> &mut Self {
+        self.enumeration(if v { "T" } else { "F" })
+    }
+
+    /// A typed value of a SELECT, e.g. `IFCLABEL('x')`; `f` writes the inner parameter.
+    pub fn typed(&mut self, type_name: &str, f: impl FnOnce(&mut Args<'_>)) -> &mut Self {
+        let b = self.sep();
+        b.push_str(type_name);
+        b.push('(');
+        let mut inner = Args {
+            buf: &mut *self.buf,
+            count: 0,
+        };
+        f(&mut inner);
+        self.buf.push(')');
+        self
+    }
+
+    /// A list `( ... )`; `f` writes its members.
+    pub fn list(&mut self, f: impl FnOnce(&mut Args<'_>)) -> &mut Self {
+        self.sep().push('(');
+        let mut inner = Args {
+            buf: &mut *self.buf,
+            count: 0,
+        };
+        f(&mut inner);
+        self.buf.push(')');
+        self
+    }
+}
+
+/// Streaming writer of one Part 21 file: `write_header`, then `entity` as many times as needed,
+/// then `finish`. Entities are numbered from 1 in call order.
+pub struct StepWriter<W: Write> {
+    out: W,
+    next: u64,
+    line: String,
+}
+
+impl<W: Write> StepWriter<W> {
+    /// A writer onto `out`; nothing is written yet.
+    pub fn new(out: W) -> StepWriter<W> {
+        StepWriter {
+            out,
+            next: 1,
+            line: String::with_capacity(256),
+        }
+    }
+
+    /// Writes `ISO-10303-21;`, the HEADER section and opens the DATA section.
+    pub fn write_header(&mut self, h: &Header) -> io::Result<()> {
+        let list = |items: &[String]| {
+            items
+                .iter()
+                .map(|s| encode_string(s))
+                .collect::<Vec<_>>()
+                .join(",")
+        };
+        writeln!(self.out, "ISO-10303-21;")?;
+        writeln!(self.out, "HEADER;")?;
+        writeln!(
+            self.out,
+            "FILE_DESCRIPTION(({}),'2;1');",
+            list(&h.description)
+        )?;
+        writeln!(
+            self.out,
+            "FILE_NAME({},{},({}),({}),{},{},{});",
+            encode_string(&h.name),
+            encode_string(&h.time_stamp),
+            encode_string(&h.author),
+            encode_string(&h.organization),
+            encode_string(&h.preprocessor_version),
+            encode_string(&h.originating_system),
+            encode_string(&h.authorization)
+        )?;
+        writeln!(self.out, "FILE_SCHEMA(({}));", encode_string(&h.schema))?;
+        writeln!(self.out, "ENDSEC;")?;
+        writeln!(self.out, "DATA;")
+    }
+
+    /// Writes one entity instance `#n=KEYWORD(args);` and returns its id. `keyword` is the
+    /// upper-case entity name; `f` writes the attributes in schema order.
+    pub fn entity(&mut self, keyword: &str, f: impl FnOnce(&mut Args<'_>)) -> io::Result<Id> {
+        let id = Id(self.next);
+        self.next += 1;
+        self.line.clear();
+        self.line.push_str(&format!("{id}={keyword}("));
+        let mut args = Args {
+            buf: &mut self.line,
+            count: 0,
+        };
+        f(&mut args);
+        self.line.push_str(");\n");
+        self.out.write_all(self.line.as_bytes())?;
+        Ok(id)
+    }
+
+    /// Number of entities written so far.
+    pub fn entity_count(&self) -> u64 {
+        self.next - 1
+    }
+
+    /// Closes the DATA section and the file, flushes, and hands the output back.
+    pub fn finish(mut self) -> io::Result<W> {
+        writeln!(self.out, "ENDSEC;")?;
+        writeln!(self.out, "END-ISO-10303-21;")?;
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn reals_have_a_point_and_no_exponent() {
+        assert_eq!(format_real(0.0), "0.");
+        assert_eq!(format_real(-0.0), "0.");
+        assert_eq!(format_real(1.0), "1.");
+        assert_eq!(format_real(1.5), "1.5");
+        assert_eq!(format_real(-3.25), "-3.25");
+        assert_eq!(format_real(0.1 + 0.2), "0.3");
+        assert_eq!(format_real(1e-5), "0.00001");
+        assert_eq!(format_real(1e-7), "0.");
+        assert_eq!(format_real(-1e-7), "0.");
+        assert_eq!(format_real(574_123.123_456_7), "574123.123457");
+        assert_eq!(format_real(6_300_000.5), "6300000.5");
+        assert_eq!(format_real(1e20), "100000000000000000000.");
+        assert_eq!(format_real(f64::NAN), "0.");
+        assert_eq!(format_real(f64::INFINITY), "0.");
+    }
+
+    proptest! {
+        #[test]
+        fn reals_round_trip_to_micrometres(v in -1e8f64..1e8) {
+            let s = format_real(v);
+            prop_assert!(s.contains('.'));
+            prop_assert!(!s.contains('e') && !s.contains('E'));
+            let back: f64 = s.parse().unwrap();
+            prop_assert!((back - v).abs() <= 5e-7 + 1e-9 * v.abs());
+        }
+    }
+
+    #[test]
+    fn strings_are_escaped() {
+        assert_eq!(encode_string(""), "''");
+        assert_eq!(
+            encode_string("Rue de l'Église"),
+            "'Rue de l''\\X2\\00C9\\X0\\glise'"
+        );
+        assert_eq!(encode_string("a\\b"), "'a\\\\b'");
+        assert_eq!(encode_string("日本"), "'\\X2\\65E5672C\\X0\\'");
+        assert_eq!(encode_string("a\nb"), "'a\\X2\\000A\\X0\\b'");
+        assert_eq!(encode_string("😀x"), "'\\X4\\0001F600\\X0\\x'");
+        assert_eq!(
+            encode_string("é😀"),
+            "'\\X2\\00E9\\X0\\\\X4\\0001F600\\X0\\'"
+        );
+    }
+
+    #[test]
+    fn guids_use_the_ifc_alphabet_and_are_stable() {
+        let g = global_id("way_1", "p0/wall/0");
+        assert_eq!(g.len(), 22);
+        assert!(g.bytes().all(|c| IFC_BASE64.contains(&c)));
+        assert!(matches!(g.as_bytes()[0], b'0'..=b'3'));
+        assert_eq!(g, global_id("way_1", "p0/wall/0"));
+        assert_ne!(g, global_id("way_1", "p0/wall/1"));
+        assert_ne!(global_id("ab", "c"), global_id("a", "bc"));
+        assert_eq!(encode_guid(0), "0000000000000000000000");
+        assert_eq!(encode_guid(u128::MAX), "3$$$$$$$$$$$$$$$$$$$$$");
+    }
+
+    #[test]
+    fn guids_are_unique_over_many_paths() {
+        let mut seen = std::collections::BTreeSet::new();
+        for b in 0..200 {
+            for e in 0..50 {
+                assert!(seen.insert(global_id(&format!("way_{b}"), &format!("p0/wall/{e}"))));
+            }
+        }
+    }
+
+    #[test]
+    fn timestamps() {
+        assert_eq!(iso8601_utc(0), "1970-01-01T00:00:00");
+        assert_eq!(iso8601_utc(951_782_400), "2000-02-29T00:00:00");
+        assert_eq!(iso8601_utc(1_700_000_000), "2023-11-14T22:13:20");
+        assert_eq!(iso8601_utc(-1), "1969-12-31T23:59:59");
+        assert_eq!(iso8601_utc(i64::MAX), "9999-12-31T23:59:59");
+    }
+
+    #[test]
+    fn writer_numbers_entities_and_frames_the_file() {
+        let mut w = StepWriter::new(Vec::new());
+        let mut h = Header::new("x.ifc", "IFC4");
+        h.time_stamp = "1970-01-01T00:00:00".into();
+        w.write_header(&h).unwrap();
+        let a = w
+            .entity("IFCDIRECTION", |a| {
+                a.reals(&[1.0, 0.0, 0.0]);
+            })
+            .unwrap();
+        let b = w
+            .entity("IFCTEST", |a| {
+                a.id(Id(1))
+                    .null()
+                    .derived()
+                    .enumeration("T")
+                    .ints(&[43, -1])
+                    .typed("IFCLABEL", |t| {
+                        t.string("x");
+                    })
+                    .ids(&[]);
+            })
+            .unwrap();
+        assert_eq!((a, b), (Id(1), Id(2)));
+        assert_eq!(w.entity_count(), 2);
+        let s = String::from_utf8(w.finish().unwrap()).unwrap();
+        assert!(s.starts_with("ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION(('ViewDefinition"));
+        assert!(s.contains("FILE_NAME('x.ifc','1970-01-01T00:00:00',"));
+        assert!(
+            s.contains("FILE_SCHEMA(('IFC4'));\nENDSEC;\nDATA;\n#1=IFCDIRECTION((1.,0.,0.));\n")
+        );
+        assert!(s.contains("#2=IFCTEST(#1,$,*,.T.,(43,-1),IFCLABEL('x'),());\n"));
+        assert!(s.ends_with("ENDSEC;\nEND-ISO-10303-21;\n"));
+    }
+}
