@@ -873,7 +873,7 @@ mod tests {
         assert_eq!(z[1].info.roof, Some(RoofShape::Gabled));
         assert_eq!(z[1].info.storeys, None);
         assert_eq!(z[1].circle.map(|c| c.radius_km), Some(0.3));
-        assert!(rep.iter().any(|r| r.line == 3 && r.what.contains("decimal comma")), "{rep:?}");
+        assert!(rep.iter().any(|r| r.line == 4 && r.what.contains("decimal comma")), "{rep:?}");
         assert!(rep.iter().any(|r| r.what.contains("gabbled")), "{rep:?}");
         assert!(rep.iter().any(|r| r.what.contains("empty value of 'nbfloor'")), "{rep:?}");
     }
