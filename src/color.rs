@@ -103,7 +103,11 @@ fn parse_triple(s: &str) -> Option<Color> {
     } else {
         1.0
     };
-    Some(Color::rgb((v[0] / scale) as f32, (v[1] / scale) as f32, (v[2] / scale) as f32))
+    Some(Color::rgb(
+        (v[0] / scale) as f32,
+        (v[1] / scale) as f32,
+        (v[2] / scale) as f32,
+    ))
 }
 
 /// The 148 named colours of CSS Color Module Level 4, sorted by name (binary-searched).
@@ -270,12 +274,27 @@ mod tests {
 
     #[test]
     fn names_case_insensitive_and_trimmed() {
-        assert_eq!(Color::parse(" AliceBlue\n").map(Color::to_hex).as_deref(), Some("#f0f8ff"));
-        assert_eq!(Color::parse("yellowgreen").map(Color::to_hex).as_deref(), Some("#9acd32"));
+        assert_eq!(
+            Color::parse(" AliceBlue\n").map(Color::to_hex).as_deref(),
+            Some("#f0f8ff")
+        );
+        assert_eq!(
+            Color::parse("yellowgreen").map(Color::to_hex).as_deref(),
+            Some("#9acd32")
+        );
         assert_eq!(Color::parse("grey"), Color::parse("gray"));
-        assert_eq!(Color::parse("lightslategrey"), Color::parse("LightSlateGray"));
-        assert_eq!(Color::parse("darkred").map(Color::to_hex).as_deref(), Some("#8b0000"));
-        assert_eq!(Color::parse("rebeccapurple").map(Color::to_hex).as_deref(), Some("#663399"));
+        assert_eq!(
+            Color::parse("lightslategrey"),
+            Color::parse("LightSlateGray")
+        );
+        assert_eq!(
+            Color::parse("darkred").map(Color::to_hex).as_deref(),
+            Some("#8b0000")
+        );
+        assert_eq!(
+            Color::parse("rebeccapurple").map(Color::to_hex).as_deref(),
+            Some("#663399")
+        );
         assert_eq!(Color::parse("notacolour"), None);
         assert_eq!(Color::parse(""), None);
     }
@@ -283,10 +302,34 @@ mod tests {
     #[test]
     fn every_thesis_name_parses() {
         for n in [
-            "pink", "grey", "yellow", "blue", "white", "red", "black", "floralwhite",
-            "lightslategray", "seashell", "peru", "ivory", "paleturquoise", "darkred", "tomato",
-            "brown", "indianred", "gold", "sandybrown", "green", "turquoise", "lightblue",
-            "blanchedalmond", "silver", "lightsalmon", "darksalmon", "palegoldenrod", "lightgrey",
+            "pink",
+            "grey",
+            "yellow",
+            "blue",
+            "white",
+            "red",
+            "black",
+            "floralwhite",
+            "lightslategray",
+            "seashell",
+            "peru",
+            "ivory",
+            "paleturquoise",
+            "darkred",
+            "tomato",
+            "brown",
+            "indianred",
+            "gold",
+            "sandybrown",
+            "green",
+            "turquoise",
+            "lightblue",
+            "blanchedalmond",
+            "silver",
+            "lightsalmon",
+            "darksalmon",
+            "palegoldenrod",
+            "lightgrey",
         ] {
             assert!(Color::parse(n).is_some(), "{n}");
         }
@@ -295,8 +338,14 @@ mod tests {
     #[test]
     fn hex_forms() {
         assert_eq!(Color::parse("#fff"), Some(Color::WHITE));
-        assert_eq!(Color::parse("#A52A2A").map(Color::to_hex).as_deref(), Some("#a52a2a"));
-        assert_eq!(Color::parse("#1a2").map(Color::to_hex).as_deref(), Some("#11aa22"));
+        assert_eq!(
+            Color::parse("#A52A2A").map(Color::to_hex).as_deref(),
+            Some("#a52a2a")
+        );
+        assert_eq!(
+            Color::parse("#1a2").map(Color::to_hex).as_deref(),
+            Some("#11aa22")
+        );
         assert_eq!(Color::parse("#12345"), None);
         assert_eq!(Color::parse("#ggg"), None);
         assert_eq!(Color::parse("#"), None);
@@ -316,8 +365,14 @@ mod tests {
 
     #[test]
     fn css_name_round_trips() {
-        assert_eq!(Color::parse("darkred").and_then(Color::css_name), Some("darkred"));
-        assert_eq!(Color::parse("#808080").and_then(Color::css_name), Some("gray"));
+        assert_eq!(
+            Color::parse("darkred").and_then(Color::css_name),
+            Some("darkred")
+        );
+        assert_eq!(
+            Color::parse("#808080").and_then(Color::css_name),
+            Some("gray")
+        );
         assert_eq!(Color::parse("#808081").and_then(Color::css_name), None);
     }
 }

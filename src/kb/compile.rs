@@ -49,7 +49,10 @@ pub enum AxiomValue {
 pub fn axiom_attributes(style: &Style) -> Vec<(String, AxiomValue)> {
     use AxiomValue::{Num, Text};
     let mut v = vec![
-        ("eave".to_string(), Num((style.eave_height - style.min_height).max(0.0))),
+        (
+            "eave".to_string(),
+            Num((style.eave_height - style.min_height).max(0.0)),
+        ),
         ("base".to_string(), Num(style.min_height)),
         ("floorsize".to_string(), Num(style.floor_height)),
         ("storeys".to_string(), Num(f64::from(style.storeys))),
@@ -130,7 +133,9 @@ pub fn ruleset_text(style: &Style) -> String {
     out.push("groundfloor -> comp(){front : groundfacade | others : facade}".to_string());
     out.push("floor -> comp(){side : facade}".to_string());
     out.push("facade -> repeat(X, bay){bay}".to_string());
-    out.push("groundfacade -> split(X, sx/2 - bay/2, bay, sx){facade | doorbay | facade}".to_string());
+    out.push(
+        "groundfacade -> split(X, sx/2 - bay/2, bay, sx){facade | doorbay | facade}".to_string(),
+    );
     let bay = bay_width(style);
     let p = num(PIER_WIDTH / bay);
     let w = num(style.window_width / bay);
@@ -138,7 +143,9 @@ pub fn ruleset_text(style: &Style) -> String {
         "doorbay -> rsplit(X, {p}, {w}, {p}){{wall | door : color={} | wall}}",
         color_word(style.door_color)
     ));
-    out.push(format!("bay -> rsplit(X, {p}, {w}, {p}){{wall | windowcol | wall}}"));
+    out.push(format!(
+        "bay -> rsplit(X, {p}, {w}, {p}){{wall | windowcol | wall}}"
+    ));
     for (rows, prob) in window_rows(style.window_height) {
         let suffix = prob.map(|q| format!(" = {}", num(q))).unwrap_or_default();
         out.push(format!(
@@ -172,7 +179,16 @@ fn window_successor(style: &Style) -> String {
 /// A safe grammar identifier: letters, digits and `_` kept, anything else `_`; never empty and
 /// never starting with a digit.
 fn ident(s: &str) -> String {
-    let mut o: String = s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' { c } else { '_' }).collect();
+    let mut o: String = s
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
     if o.is_empty() || o.starts_with(|c: char| c.is_ascii_digit()) {
         o.insert(0, 'n');
     }
@@ -182,8 +198,15 @@ fn ident(s: &str) -> String {
 /// The rules of a drawn opening: the root is the non-terminal `opening`, each split
 /// `parent -> rsplit(axis, f...){child | ...}`, and every leaf the `window` successor.
 pub fn opening_rules(tree: &OpeningTree, window: &str) -> Vec<String> {
-    let split_parents: std::collections::BTreeSet<&str> = tree.splits.iter().map(|s| s.parent.as_str()).collect();
-    let name = |n: &str| if n == tree.root { "opening".to_string() } else { ident(n) };
+    let split_parents: std::collections::BTreeSet<&str> =
+        tree.splits.iter().map(|s| s.parent.as_str()).collect();
+    let name = |n: &str| {
+        if n == tree.root {
+            "opening".to_string()
+        } else {
+            ident(n)
+        }
+    };
     tree.splits
         .iter()
         .map(|s| {
@@ -191,9 +214,21 @@ pub fn opening_rules(tree: &OpeningTree, window: &str) -> Vec<String> {
             let succ: Vec<String> = s
                 .children
                 .iter()
-                .map(|c| if split_parents.contains(c.as_str()) { name(c) } else { window.to_string() })
+                .map(|c| {
+                    if split_parents.contains(c.as_str()) {
+                        name(c)
+                    } else {
+                        window.to_string()
+                    }
+                })
                 .collect();
-            format!("{} -> rsplit({}, {}){{{}}}", name(&s.parent), s.axis.as_str(), fr.join(", "), succ.join(" | "))
+            format!(
+                "{} -> rsplit({}, {}){{{}}}",
+                name(&s.parent),
+                s.axis.as_str(),
+                fr.join(", "),
+                succ.join(" | ")
+            )
         })
         .collect()
 }
@@ -241,11 +276,34 @@ mod tests {
         OpeningTree {
             root: "nt4582467064".into(),
             splits: vec![
-                s(SplitAxis::X, "nt4582467064", "nt4582467848", "nt4582467288", [0.5023809523809524, 0.4976190476190476]),
-                s(SplitAxis::Z, "nt4582467848", "nt4582467512", "nt4582468296", [0.4595238095238095, 0.5404761904761906]),
-                s(SplitAxis::Z, "nt4582467288", "nt4582467736", "nt4582468856", [0.4595238095238095, 0.5404761904761906]),
+                s(
+                    SplitAxis::X,
+                    "nt4582467064",
+                    "nt4582467848",
+                    "nt4582467288",
+                    [0.5023809523809524, 0.4976190476190476],
+                ),
+                s(
+                    SplitAxis::Z,
+                    "nt4582467848",
+                    "nt4582467512",
+                    "nt4582468296",
+                    [0.4595238095238095, 0.5404761904761906],
+                ),
+                s(
+                    SplitAxis::Z,
+                    "nt4582467288",
+                    "nt4582467736",
+                    "nt4582468856",
+                    [0.4595238095238095, 0.5404761904761906],
+                ),
             ],
-            terms: vec!["nt4582467512".into(), "nt4582468296".into(), "nt4582467736".into(), "nt4582468856".into()],
+            terms: vec![
+                "nt4582467512".into(),
+                "nt4582468296".into(),
+                "nt4582467736".into(),
+                "nt4582468856".into(),
+            ],
         }
     }
 
@@ -253,7 +311,20 @@ mod tests {
     fn text_is_stable_and_mentions_each_value() {
         let a = ruleset_text(&style());
         assert_eq!(a, ruleset_text(&style()));
-        for needle in ["darksalmon", "#b5651d", "half_hipped", "roofangle=30", "paleturquoise", "saddlebrown", "framecolor=white", "material=glass", "style=framed", "extrude(eave)", "repeat(Z, floorsize)", "repeat(X, bay)"] {
+        for needle in [
+            "darksalmon",
+            "#b5651d",
+            "half_hipped",
+            "roofangle=30",
+            "paleturquoise",
+            "saddlebrown",
+            "framecolor=white",
+            "material=glass",
+            "style=framed",
+            "extrude(eave)",
+            "repeat(Z, floorsize)",
+            "repeat(X, bay)",
+        ] {
             assert!(a.contains(needle), "{needle} missing in\n{a}");
         }
         // Heights are axiom attributes, not text.
@@ -265,7 +336,10 @@ mod tests {
         other.roof = RoofShape::Flat;
         assert_ne!(a, ruleset_text(&other));
         // Window fractions: 0.9 / 3.0 and 1.2 / 3.0.
-        assert!(a.contains("bay -> rsplit(X, 0.3, 0.4, 0.3){wall | windowcol | wall}"), "{a}");
+        assert!(
+            a.contains("bay -> rsplit(X, 0.3, 0.4, 0.3){wall | windowcol | wall}"),
+            "{a}"
+        );
     }
 
     #[test]
@@ -290,10 +364,19 @@ mod tests {
         let mut s = style();
         s.opening = Some(two_by_two());
         let text = ruleset_text(&s);
-        let rules: Vec<&str> = text.lines().filter(|l| l.starts_with("opening") || l.starts_with("nt")).collect();
+        let rules: Vec<&str> = text
+            .lines()
+            .filter(|l| l.starts_with("opening") || l.starts_with("nt"))
+            .collect();
         assert_eq!(rules.len(), 3, "{text}");
         assert!(rules.iter().all(|r| r.contains("rsplit(")));
-        assert!(rules[0].starts_with("opening -> rsplit(X, 0.502381, 0.497619){nt4582467848 | nt4582467288}"), "{}", rules[0]);
+        assert!(
+            rules[0].starts_with(
+                "opening -> rsplit(X, 0.502381, 0.497619){nt4582467848 | nt4582467288}"
+            ),
+            "{}",
+            rules[0]
+        );
         assert_eq!(text.matches("window : style=framed").count(), 4);
         assert!(!text.contains("opening -> {window"));
     }
@@ -303,7 +386,10 @@ mod tests {
         let mut s = style();
         s.window_height = WindowHeight::Irregular;
         let text = ruleset_text(&s);
-        let alts: Vec<&str> = text.lines().filter(|l| l.starts_with("windowcol ->")).collect();
+        let alts: Vec<&str> = text
+            .lines()
+            .filter(|l| l.starts_with("windowcol ->"))
+            .collect();
         assert_eq!(alts.len(), 2);
         assert!(alts.iter().all(|l| l.ends_with("= 0.5")));
     }

@@ -420,15 +420,20 @@ impl KnowledgeBase {
     /// Returns the repairs the lenient reader made, each with its line.
     pub fn load(path: &Path) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| KbError::Io { file: name.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| KbError::Io {
+            file: name.clone(),
+            source,
+        })?;
         let (mut kb, repairs) = KnowledgeBase::parse_str(&text, &name)?;
         kb.base_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
         Ok((kb, repairs))
     }
 
     /// Parses KB text; `file_name` is used in errors only.
-    pub fn parse_str(text: &str, file_name: &str) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+    pub fn parse_str(
+        text: &str,
+        file_name: &str,
+    ) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
         let (zones, repairs) = xml::read_zones(text, file_name)?;
         Ok((KnowledgeBase::from_zones(zones, file_name), repairs))
     }
@@ -504,7 +509,11 @@ impl KnowledgeBase {
     /// Indices from earth down to `zone` (inclusive). Empty for an unknown zone.
     pub fn lineage(&self, zone: usize) -> Vec<usize> {
         let mut out = Vec::new();
-        let mut cur = if zone < self.zones.len() { Some(zone) } else { None };
+        let mut cur = if zone < self.zones.len() {
+            Some(zone)
+        } else {
+            None
+        };
         while let Some(i) = cur {
             out.push(i);
             // Parents precede children, so this always terminates.
@@ -570,10 +579,19 @@ impl KnowledgeBase {
     /// eave being floors × floor height clamped into `minHeight..=maxHeight`; otherwise an eave
     /// in `minHeight..maxHeight` and the storeys that fit; otherwise `nbfloor` storeys.
     /// Every override and every inconsistency fixed is described in the returned notes.
-    pub fn style_for(&self, zone: usize, tags: &BuildingTags, rng: &mut Rng) -> (Style, Vec<String>) {
+    pub fn style_for(
+        &self,
+        zone: usize,
+        tags: &BuildingTags,
+        rng: &mut Rng,
+    ) -> (Style, Vec<String>) {
         let mut notes = Vec::new();
         let zone = if zone < self.zones.len() { zone } else { 0 };
-        let zone_path = self.zones.get(zone).map(|z| z.path.clone()).unwrap_or_else(|| "earth".into());
+        let zone_path = self
+            .zones
+            .get(zone)
+            .map(|z| z.path.clone())
+            .unwrap_or_else(|| "earth".into());
         let mut v = self.resolved(zone);
         let mut opening = None;
         let appearance_label = match self.pick_appearance(zone, rng) {
@@ -589,7 +607,10 @@ impl KnowledgeBase {
             None => format!("{zone_path}#info"),
         };
 
-        let floor_height = v.floor_height.filter(|h| h.is_finite() && *h > 0.0).unwrap_or(defaults::FLOOR_HEIGHT);
+        let floor_height = v
+            .floor_height
+            .filter(|h| h.is_finite() && *h > 0.0)
+            .unwrap_or(defaults::FLOOR_HEIGHT);
         let (storeys, wall_height) = draw_heights(&v, floor_height, rng, &mut notes);
 
         let mut style = Style {
@@ -614,8 +635,16 @@ impl KnowledgeBase {
                 .filter(|w| w.is_finite() && *w > 0.0)
                 .unwrap_or(defaults::WINDOW_WIDTH),
             window_height: v.window_height.unwrap_or(WindowHeight::Tall),
-            window_style: v.window_style.clone().unwrap_or_else(|| "framed".into()).to_ascii_lowercase(),
-            window_material: v.window_material.clone().unwrap_or_else(|| "glass".into()).to_ascii_lowercase(),
+            window_style: v
+                .window_style
+                .clone()
+                .unwrap_or_else(|| "framed".into())
+                .to_ascii_lowercase(),
+            window_material: v
+                .window_material
+                .clone()
+                .unwrap_or_else(|| "glass".into())
+                .to_ascii_lowercase(),
             material: v.material.clone(),
             opening,
             zone_path,
@@ -635,10 +664,16 @@ impl KnowledgeBase {
         appearance: usize,
         allow_outside: bool,
     ) -> Result<Option<PathBuf>, KbError> {
-        let Some(app) = self.zones.get(zone).and_then(|z| z.appearances.get(appearance)) else {
+        let Some(app) = self
+            .zones
+            .get(zone)
+            .and_then(|z| z.appearances.get(appearance))
+        else {
             return Ok(None);
         };
-        let Some(file) = app.ruleset.as_deref() else { return Ok(None) };
+        let Some(file) = app.ruleset.as_deref() else {
+            return Ok(None);
+        };
         let rel = Path::new(file);
         let mut depth: i64 = 0;
         let mut escapes = rel.is_absolute();
@@ -674,7 +709,11 @@ impl KnowledgeBase {
 pub fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
     let given: f64 = apps.iter().filter_map(|a| a.proba).sum();
     let missing = apps.iter().filter(|a| a.proba.is_none()).count();
-    let share = if missing > 0 { ((1.0 - given) / missing as f64).max(0.0) } else { 0.0 };
+    let share = if missing > 0 {
+        ((1.0 - given) / missing as f64).max(0.0)
+    } else {
+        0.0
+    };
     let raw: Vec<f64> = apps.iter().map(|a| a.proba.unwrap_or(share)).collect();
     let total: f64 = raw.iter().sum();
     if total > 0.0 {
@@ -693,7 +732,10 @@ fn draw_heights(v: &Values, fh: f64, rng: &mut Rng, notes: &mut Vec<String>) -> 
         (Some(a), None) | (None, Some(a)) => Some((a, a)),
         (None, None) => None,
     };
-    let floors = match (v.min_floors.filter(|f| *f > 0), v.max_floors.filter(|f| *f > 0)) {
+    let floors = match (
+        v.min_floors.filter(|f| *f > 0),
+        v.max_floors.filter(|f| *f > 0),
+    ) {
         (Some(a), Some(b)) => Some((a.min(b), a.max(b))),
         (Some(a), None) | (None, Some(a)) => Some((a, a)),
         (None, None) => None,
@@ -738,11 +780,18 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     let fh = s.floor_height;
     if let Some(shape) = t.roof_shape {
         if shape != s.roof {
-            notes.push(format!("roof:shape={} overrides KB roof {}", shape.osm_name(), s.roof.osm_name()));
+            notes.push(format!(
+                "roof:shape={} overrides KB roof {}",
+                shape.osm_name(),
+                s.roof.osm_name()
+            ));
         }
         s.roof = shape;
     }
-    if let Some(a) = t.roof_angle.filter(|a| a.is_finite() && (0.0..90.0).contains(a)) {
+    if let Some(a) = t
+        .roof_angle
+        .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
+    {
         s.roof_angle_deg = a;
     }
     if let Some(h) = t.roof_height.filter(|h| h.is_finite() && *h >= 0.0) {
@@ -759,10 +808,17 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     let levels = t.levels.filter(|l| l.is_finite() && *l > 0.0);
     if let Some(l) = levels {
         let above = (l - min_level.unwrap_or(0.0)).round();
-        s.storeys = if above >= 1.0 { above.min(1000.0) as u32 } else { 1 };
+        s.storeys = if above >= 1.0 {
+            above.min(1000.0) as u32
+        } else {
+            1
+        };
         s.storeys_from_tags = true;
         s.eave_height = l * fh;
-        notes.push(format!("building:levels={l} sets {} storeys of {fh} m", s.storeys));
+        notes.push(format!(
+            "building:levels={l} sets {} storeys of {fh} m",
+            s.storeys
+        ));
     } else if s.min_height > 0.0 {
         // The KB height is a wall height: stand it on the base.
         s.eave_height += s.min_height;

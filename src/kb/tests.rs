@@ -6,7 +6,10 @@ fn shipped() -> KnowledgeBase {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
     match KnowledgeBase::load(&path) {
         Ok((kb, repairs)) => {
-            assert!(repairs.is_empty(), "the shipped KB needs no repair: {repairs:?}");
+            assert!(
+                repairs.is_empty(),
+                "the shipped KB needs no repair: {repairs:?}"
+            );
             kb
         }
         Err(e) => panic!("{e}"),
@@ -106,20 +109,47 @@ fn shipped_kb_locates_the_sample_places() {
     assert_eq!(kb.zones()[0].kind, ZoneKind::Earth);
     // Capitole square.
     let cap = kb.locate(1.4433, 43.6045);
-    assert_eq!(path_of(&kb, cap), "earth/France/Occitanie/Toulouse/Capitole");
+    assert_eq!(
+        path_of(&kb, cap),
+        "earth/France/Occitanie/Toulouse/Capitole"
+    );
     // Les Carmes lies inside Centre-Ville's larger circle: the smaller one wins at equal depth.
-    assert_eq!(path_of(&kb, kb.locate(1.4450, 43.5963)), "earth/France/Occitanie/Toulouse/Les Carmes");
+    assert_eq!(
+        path_of(&kb, kb.locate(1.4450, 43.5963)),
+        "earth/France/Occitanie/Toulouse/Les Carmes"
+    );
     // Toulouse outside every district.
-    assert_eq!(path_of(&kb, kb.locate(1.40, 43.63)), "earth/France/Occitanie/Toulouse");
-    assert_eq!(path_of(&kb, kb.locate(7.4206, 43.7308)), "earth/Monaco/Monaco-Ville");
-    assert_eq!(path_of(&kb, kb.locate(7.4275, 43.7396)), "earth/Monaco/Monte-Carlo");
-    assert_eq!(path_of(&kb, kb.locate(-1.18, 52.92)), "earth/United Kingdom/England/Nottingham");
-    assert_eq!(path_of(&kb, kb.locate(-1.18, 52.905)), "earth/United Kingdom/England/Nottingham/Clifton");
-    assert_eq!(path_of(&kb, kb.locate(2.35, 48.86)), "earth/France/Ile-de-France/Paris");
+    assert_eq!(
+        path_of(&kb, kb.locate(1.40, 43.63)),
+        "earth/France/Occitanie/Toulouse"
+    );
+    assert_eq!(
+        path_of(&kb, kb.locate(7.4206, 43.7308)),
+        "earth/Monaco/Monaco-Ville"
+    );
+    assert_eq!(
+        path_of(&kb, kb.locate(7.4275, 43.7396)),
+        "earth/Monaco/Monte-Carlo"
+    );
+    assert_eq!(
+        path_of(&kb, kb.locate(-1.18, 52.92)),
+        "earth/United Kingdom/England/Nottingham"
+    );
+    assert_eq!(
+        path_of(&kb, kb.locate(-1.18, 52.905)),
+        "earth/United Kingdom/England/Nottingham/Clifton"
+    );
+    assert_eq!(
+        path_of(&kb, kb.locate(2.35, 48.86)),
+        "earth/France/Ile-de-France/Paris"
+    );
     assert_eq!(kb.locate(0.0, 0.0), 0);
     assert_eq!(kb.locate(f64::NAN, 1.0), 0);
     // Longitudes are normalised.
-    assert_eq!(kb.locate(7.4206 + 360.0, 43.7308), kb.locate(7.4206, 43.7308));
+    assert_eq!(
+        kb.locate(7.4206 + 360.0, 43.7308),
+        kb.locate(7.4206, 43.7308)
+    );
 }
 
 #[test]
@@ -134,7 +164,10 @@ fn locate_matches_a_brute_force_scan() {
             .enumerate()
             .filter(|(_, z)| z.circle.is_some_and(|c| c.contains(lon, lat)))
             .min_by(|(i, a), (j, b)| {
-                let (ra, rb) = (a.circle.map_or(0.0, |c| c.radius_km), b.circle.map_or(0.0, |c| c.radius_km));
+                let (ra, rb) = (
+                    a.circle.map_or(0.0, |c| c.radius_km),
+                    b.circle.map_or(0.0, |c| c.radius_km),
+                );
                 b.depth.cmp(&a.depth).then(ra.total_cmp(&rb)).then(i.cmp(j))
             })
             .map_or(0, |(i, _)| i);
@@ -155,7 +188,9 @@ fn circles_near_the_antimeridian_and_poles_are_found() {
 #[test]
 fn inheritance_most_specific_wins() {
     let kb = shipped();
-    let sc = kb.find("earth/France/Occitanie/Toulouse/Saint-Cyprien").unwrap_or(usize::MAX);
+    let sc = kb
+        .find("earth/France/Occitanie/Toulouse/Saint-Cyprien")
+        .unwrap_or(usize::MAX);
     let v = kb.resolved(sc);
     assert_eq!(kb.zone(sc).and_then(|z| z.info.storeys), None);
     assert_eq!(v.storeys, Some(4), "Toulouse's nbfloor");
@@ -187,7 +222,9 @@ fn shipped_probas_sum_to_one() {
 #[test]
 fn appearance_picks_follow_proba() {
     let kb = shipped();
-    let cap = kb.find("earth/France/Occitanie/Toulouse/Capitole").unwrap_or(usize::MAX);
+    let cap = kb
+        .find("earth/France/Occitanie/Toulouse/Capitole")
+        .unwrap_or(usize::MAX);
     let mut counts = [0usize; 2];
     let n = 20_000;
     for seed in 0..n {
@@ -198,17 +235,32 @@ fn appearance_picks_follow_proba() {
         }
     }
     assert_eq!(counts[0] + counts[1], n as usize);
-    assert!((counts[0] as f64 / n as f64 - 0.7).abs() < 0.02, "{counts:?}");
+    assert!(
+        (counts[0] as f64 / n as f64 - 0.7).abs() < 0.02,
+        "{counts:?}"
+    );
 }
 
 #[test]
 fn absent_probas_share_the_remainder() {
-    let app = |p: Option<f64>| Appearance { proba: p, values: Values::default(), opening: None, ruleset: None, line: 1 };
+    let app = |p: Option<f64>| Appearance {
+        proba: p,
+        values: Values::default(),
+        opening: None,
+        ruleset: None,
+        line: 1,
+    };
     assert_eq!(appearance_weights(&[app(None), app(None)]), vec![0.5, 0.5]);
     let w = appearance_weights(&[app(Some(0.5)), app(None), app(None)]);
-    assert!((w[1] - 0.25).abs() < 1e-12 && (w[2] - 0.25).abs() < 1e-12, "{w:?}");
+    assert!(
+        (w[1] - 0.25).abs() < 1e-12 && (w[2] - 0.25).abs() < 1e-12,
+        "{w:?}"
+    );
     // Over-full: the given ones are normalised, the absent get nothing.
-    assert_eq!(appearance_weights(&[app(Some(1.0)), app(Some(1.0)), app(None)]), vec![0.5, 0.5, 0.0]);
+    assert_eq!(
+        appearance_weights(&[app(Some(1.0)), app(Some(1.0)), app(None)]),
+        vec![0.5, 0.5, 0.0]
+    );
     assert!(appearance_weights(&[]).is_empty());
 }
 
@@ -222,7 +274,11 @@ fn styles_are_deterministic_and_within_ranges() {
         let (b, _) = kb.style_for(mc, &tags, &mut Rng::new(seed, 7));
         assert_eq!(a, b);
         assert_eq!(a.zone_path, "earth/Monaco/Monte-Carlo");
-        assert!(a.appearance_label.starts_with("earth/Monaco/Monte-Carlo#"), "{}", a.appearance_label);
+        assert!(
+            a.appearance_label.starts_with("earth/Monaco/Monte-Carlo#"),
+            "{}",
+            a.appearance_label
+        );
         assert!((6..=12).contains(&a.storeys), "{}", a.storeys);
         assert!((a.eave_height - f64::from(a.storeys) * a.floor_height).abs() < 1e-9);
         if a.roof == RoofShape::Flat {
@@ -230,8 +286,13 @@ fn styles_are_deterministic_and_within_ranges() {
         }
     }
     // Over many seeds, all three Monte-Carlo appearances occur.
-    let labels: std::collections::BTreeSet<String> =
-        (0..200).map(|s| kb.style_for(mc, &tags, &mut Rng::new(s, 1)).0.appearance_label).collect();
+    let labels: std::collections::BTreeSet<String> = (0..200)
+        .map(|s| {
+            kb.style_for(mc, &tags, &mut Rng::new(s, 1))
+                .0
+                .appearance_label
+        })
+        .collect();
     assert_eq!(labels.len(), 3, "{labels:?}");
 }
 
@@ -253,17 +314,28 @@ fn osm_tags_override_the_kb() {
     assert_eq!(s.roof, RoofShape::Flat);
     assert_eq!(s.wall_color, Color::parse("navy").unwrap_or(Color::WHITE));
     assert_eq!(s.roof_color, Color::parse("black").unwrap_or(Color::WHITE));
-    assert!(notes.iter().any(|n| n.contains("building:levels")), "{notes:?}");
+    assert!(
+        notes.iter().any(|n| n.contains("building:levels")),
+        "{notes:?}"
+    );
 
     // height with a tagged roof height: eave = height - roof height.
-    let tags = BuildingTags { height: Some(12.0), roof_height: Some(3.0), ..BuildingTags::default() };
+    let tags = BuildingTags {
+        height: Some(12.0),
+        roof_height: Some(3.0),
+        ..BuildingTags::default()
+    };
     let (s, _) = kb.style_for(not, &tags, &mut Rng::new(1, 1));
     assert_eq!(s.total_height, Some(12.0));
     assert!((s.eave_height - 9.0).abs() < 1e-9);
     assert_eq!(s.storeys, 3);
 
     // height with a pitched roof of unknown height: the caller fits it.
-    let tags = BuildingTags { height: Some(20.0), roof_shape: Some(RoofShape::Gabled), ..BuildingTags::default() };
+    let tags = BuildingTags {
+        height: Some(20.0),
+        roof_shape: Some(RoofShape::Gabled),
+        ..BuildingTags::default()
+    };
     let (mut s, _) = kb.style_for(not, &tags, &mut Rng::new(1, 1));
     assert_eq!(s.roof_height, None);
     s.fit_total_height(4.0);
@@ -271,10 +343,18 @@ fn osm_tags_override_the_kb() {
     assert_eq!(s.storeys, 6);
 
     // min_height raises the base; a base above the walls is fixed and noted.
-    let tags = BuildingTags { min_height: Some(30.0), height: Some(10.0), roof_shape: Some(RoofShape::Flat), ..BuildingTags::default() };
+    let tags = BuildingTags {
+        min_height: Some(30.0),
+        height: Some(10.0),
+        roof_shape: Some(RoofShape::Flat),
+        ..BuildingTags::default()
+    };
     let (s, notes) = kb.style_for(not, &tags, &mut Rng::new(1, 1));
     assert!(s.eave_height > s.min_height && s.min_height == 30.0);
-    assert!(notes.iter().any(|n| n.contains("not above base")), "{notes:?}");
+    assert!(
+        notes.iter().any(|n| n.contains("not above base")),
+        "{notes:?}"
+    );
 }
 
 #[test]
@@ -286,15 +366,24 @@ fn defaults_apply_on_an_empty_kb() {
     assert_eq!(s.roof, defaults::ROOF);
     assert_eq!(s.roof_angle_deg, 30.0);
     assert_eq!(s.wall_color, Color::WHITE);
-    assert_eq!(s.roof_color, Color::parse("darkred").unwrap_or(Color::WHITE));
+    assert_eq!(
+        s.roof_color,
+        Color::parse("darkred").unwrap_or(Color::WHITE)
+    );
     assert_eq!(s.appearance_label, "earth#info");
     // Out-of-range zone index: earth.
-    assert_eq!(kb.style_for(42, &BuildingTags::default(), &mut Rng::new(0, 0)).0.zone_path, "earth");
+    assert_eq!(
+        kb.style_for(42, &BuildingTags::default(), &mut Rng::new(0, 0))
+            .0
+            .zone_path,
+        "earth"
+    );
 }
 
 #[test]
 fn thesis_annex_reconstruction_reads() {
-    let (kb, repairs) = KnowledgeBase::parse_str(ANNEX, "annex.xml").unwrap_or_else(|e| panic!("{e}"));
+    let (kb, repairs) =
+        KnowledgeBase::parse_str(ANNEX, "annex.xml").unwrap_or_else(|e| panic!("{e}"));
     let paths: Vec<&str> = kb.zones().iter().map(|z| z.path.as_str()).collect();
     assert_eq!(
         paths,
@@ -317,8 +406,13 @@ fn thesis_annex_reconstruction_reads() {
     );
     assert_eq!(kb.zones()[0].info.wall_color, Some(Color::WHITE), "1;1;1");
     assert_eq!(kb.zones()[1].info.roof, Some(RoofShape::Gabled), "gabbled");
-    let ups = kb.find("earth/France/Midi-Pyrenees/Toulouse/UPS").unwrap_or(usize::MAX);
-    assert_eq!(kb.zone(ups).map(|z| z.kind.clone()), Some(ZoneKind::District));
+    let ups = kb
+        .find("earth/France/Midi-Pyrenees/Toulouse/UPS")
+        .unwrap_or(usize::MAX);
+    assert_eq!(
+        kb.zone(ups).map(|z| z.kind.clone()),
+        Some(ZoneKind::District)
+    );
     // dist is read as km: 0.03 km = 30 m around the UPS centre.
     assert_eq!(kb.locate(1.468820, 43.560397), ups);
     assert_ne!(kb.locate(1.4700, 43.5610), ups);
@@ -331,7 +425,10 @@ fn thesis_annex_reconstruction_reads() {
     assert!(repairs.iter().any(|r| r.what.contains("trailing comma")));
     // Madagascar: windowColor read as the frame colour; maxrotation=" " absent.
     let mg = kb.find("earth/Madagascar").unwrap_or(usize::MAX);
-    let a = kb.zone(mg).map(|z| z.appearances[0].values.clone()).unwrap_or_default();
+    let a = kb
+        .zone(mg)
+        .map(|z| z.appearances[0].values.clone())
+        .unwrap_or_default();
     assert_eq!(a.frame_color, Color::parse("black"));
     assert_eq!(a.max_rotation, None);
     assert_eq!(a.window_height, Some(WindowHeight::Tall));
@@ -339,26 +436,50 @@ fn thesis_annex_reconstruction_reads() {
 
 #[test]
 fn thesis_excerpt_with_decimal_commas_reads() {
-    let (kb, repairs) = KnowledgeBase::parse_str(ANTANANARIVO, "s362.xml").unwrap_or_else(|e| panic!("{e}"));
-    let tana = kb.find("earth/Madagascar/Analamanga/Antananarivo").unwrap_or(usize::MAX);
+    let (kb, repairs) =
+        KnowledgeBase::parse_str(ANTANANARIVO, "s362.xml").unwrap_or_else(|e| panic!("{e}"));
+    let tana = kb
+        .find("earth/Madagascar/Analamanga/Antananarivo")
+        .unwrap_or(usize::MAX);
     let z = kb.zone(tana).unwrap_or_else(|| panic!("no zone"));
     let c = z.circle.unwrap_or_else(|| panic!("no circle"));
-    assert!((c.lat + 18.9333).abs() < 1e-12 && (c.lon - 47.5167).abs() < 1e-12 && (c.radius_km - 0.3).abs() < 1e-12);
+    assert!(
+        (c.lat + 18.9333).abs() < 1e-12
+            && (c.lon - 47.5167).abs() < 1e-12
+            && (c.radius_km - 0.3).abs() < 1e-12
+    );
     assert_eq!(z.appearances[0].proba, Some(0.5));
     assert_eq!(z.appearances[0].values.door_color, Color::parse("ivory"));
     assert_eq!(z.appearances[0].values.min_height, Some(5.0));
-    let o = z.appearances[0].opening.clone().unwrap_or_else(|| panic!("no opening"));
+    let o = z.appearances[0]
+        .opening
+        .clone()
+        .unwrap_or_else(|| panic!("no opening"));
     assert_eq!(o.root, "nt4582467064");
     assert_eq!(o.splits.len(), 3);
     assert_eq!(o.terms.len(), 4);
-    assert!(repairs.iter().any(|r| r.line == 3 && r.what.contains("quotes")), "{repairs:?}");
+    assert!(
+        repairs
+            .iter()
+            .any(|r| r.line == 3 && r.what.contains("quotes")),
+        "{repairs:?}"
+    );
     // The style compiles to three opening rsplit rules.
     assert_eq!(kb.locate(47.5167, -18.9333), tana);
     let (s, _) = kb.style_for(tana, &BuildingTags::default(), &mut Rng::new(5, 5));
-    assert_eq!(s.appearance_label, "earth/Madagascar/Analamanga/Antananarivo#1");
+    assert_eq!(
+        s.appearance_label,
+        "earth/Madagascar/Analamanga/Antananarivo#1"
+    );
     assert_eq!(s.floor_height, 5.0);
     let text = compile::ruleset_text(&s);
-    assert_eq!(text.lines().filter(|l| l.starts_with("opening") || l.starts_with("nt")).count(), 3, "{text}");
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.starts_with("opening") || l.starts_with("nt"))
+            .count(),
+        3,
+        "{text}"
+    );
 }
 
 #[test]
@@ -373,6 +494,9 @@ fn ruleset_paths_stay_inside_the_kb_folder() {
 
 #[test]
 fn load_names_the_file_on_errors() {
-    let err = KnowledgeBase::load(Path::new("/nonexistent/kb.xml")).err().map(|e| e.to_string()).unwrap_or_default();
+    let err = KnowledgeBase::load(Path::new("/nonexistent/kb.xml"))
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
     assert!(err.contains("/nonexistent/kb.xml"), "{err}");
 }

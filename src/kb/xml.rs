@@ -26,7 +26,9 @@ use std::fmt;
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::{Reader, XmlVersion};
 
-use super::{Appearance, Circle, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, Zone, ZoneKind};
+use super::{
+    Appearance, Circle, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, Zone, ZoneKind,
+};
 use crate::color::Color;
 use crate::model::RoofShape;
 
@@ -42,16 +44,29 @@ pub enum KbError {
     },
     /// Not well-formed XML (after the lenient pre-pass).
     #[error("{file}:{line}:{col}: malformed knowledge-base XML: {message}")]
-    Xml { file: String, line: usize, col: usize, message: String },
+    Xml {
+        file: String,
+        line: usize,
+        col: usize,
+        message: String,
+    },
     /// A `<!DOCTYPE>`: refused, so that no entity is ever expanded.
     #[error(
         "{file}:{line}:{col}: DOCTYPE declarations are not allowed in a knowledge base \
          (entities are never expanded); remove the <!DOCTYPE ...> block"
     )]
-    Doctype { file: String, line: usize, col: usize },
+    Doctype {
+        file: String,
+        line: usize,
+        col: usize,
+    },
     /// Well-formed XML that is not a knowledge base (wrong root, ...).
     #[error("{file}:{line}: {message}")]
-    Structure { file: String, line: usize, message: String },
+    Structure {
+        file: String,
+        line: usize,
+        message: String,
+    },
 }
 
 /// One thing the lenient reader repaired or ignored, at a 1-based line of the file.
@@ -76,7 +91,12 @@ struct LineIndex<'a> {
 impl<'a> LineIndex<'a> {
     fn new(text: &'a str) -> Self {
         let mut starts = vec![0];
-        starts.extend(text.bytes().enumerate().filter(|(_, b)| *b == b'\n').map(|(i, _)| i + 1));
+        starts.extend(
+            text.bytes()
+                .enumerate()
+                .filter(|(_, b)| *b == b'\n')
+                .map(|(i, _)| i + 1),
+        );
         LineIndex { text, starts }
     }
 
@@ -84,7 +104,11 @@ impl<'a> LineIndex<'a> {
         let offset = offset.min(self.text.len());
         let line = self.starts.partition_point(|&s| s <= offset).max(1);
         let start = self.starts.get(line - 1).copied().unwrap_or(0);
-        let col = self.text.get(start..offset).map_or(offset - start, |s| s.chars().count()) + 1;
+        let col = self
+            .text
+            .get(start..offset)
+            .map_or(offset - start, |s| s.chars().count())
+            + 1;
         (line, col)
     }
 
@@ -128,7 +152,11 @@ fn prepass(text: &str, repairs: &mut Vec<KbRepair>) -> String {
     let mut run_start = true; // at the start of a text run (after a tag or at the start)
     while i < b.len() {
         let rest = &text[i..];
-        if rest.starts_with("<!--") || rest.starts_with("<![CDATA[") || rest.starts_with("<?") || rest.starts_with("<!") {
+        if rest.starts_with("<!--")
+            || rest.starts_with("<![CDATA[")
+            || rest.starts_with("<?")
+            || rest.starts_with("<!")
+        {
             let end_pat = if rest.starts_with("<!--") {
                 "-->"
             } else if rest.starts_with("<![CDATA[") {
@@ -199,7 +227,13 @@ fn prepass(text: &str, repairs: &mut Vec<KbRepair>) -> String {
 
 /// Copies one tag from `start` (just after `<` or `</` and any repaired whitespace) to its `>`
 /// inclusive, repairing attribute quoting. Returns the offset after the tag.
-fn scan_tag(text: &str, start: usize, out: &mut String, idx: &LineIndex, repairs: &mut Vec<KbRepair>) -> usize {
+fn scan_tag(
+    text: &str,
+    start: usize,
+    out: &mut String,
+    idx: &LineIndex,
+    repairs: &mut Vec<KbRepair>,
+) -> usize {
     let b = text.as_bytes();
     let mut i = start;
     let mut last_name = String::new();
@@ -222,7 +256,9 @@ fn scan_tag(text: &str, start: usize, out: &mut String, idx: &LineIndex, repairs
                     // `attr="<newline> next=` : the value and its closing quote were lost.
                     repairs.push(KbRepair {
                         line: idx.line(i),
-                        what: format!("attribute '{last_name}' lost its closing quote; read as empty"),
+                        what: format!(
+                            "attribute '{last_name}' lost its closing quote; read as empty"
+                        ),
                     });
                     out.push_str("\"\"");
                     i += 1;
@@ -240,7 +276,9 @@ fn scan_tag(text: &str, start: usize, out: &mut String, idx: &LineIndex, repairs
                 }
                 if i < b.len() && b[i] != b'"' && b[i] != b'\'' {
                     let vstart = i;
-                    while i < b.len() && !b[i].is_ascii_whitespace() && !matches!(b[i], b'"' | b'\'' | b'>' | b'<')
+                    while i < b.len()
+                        && !b[i].is_ascii_whitespace()
+                        && !matches!(b[i], b'"' | b'\'' | b'>' | b'<')
                     {
                         if b[i] == b'/' && b.get(i + 1) == Some(&b'>') {
                             break;
@@ -286,7 +324,9 @@ fn swallowed_name(value: &str) -> bool {
         return false;
     }
     let name = t[..t.len() - 1].trim_end();
-    !name.is_empty() && name.bytes().next().is_some_and(is_name_start) && name.bytes().all(is_name_char)
+    !name.is_empty()
+        && name.bytes().next().is_some_and(is_name_start)
+        && name.bytes().all(is_name_char)
 }
 
 /// A parsed element: name, attributes (name, value, line) and children.
@@ -300,7 +340,10 @@ struct Elem {
 
 impl Elem {
     fn attr(&self, key: &str) -> Option<&(String, String, usize)> {
-        self.attrs.iter().rev().find(|(k, _, _)| k.eq_ignore_ascii_case(key))
+        self.attrs
+            .iter()
+            .rev()
+            .find(|(k, _, _)| k.eq_ignore_ascii_case(key))
     }
 }
 
@@ -313,16 +356,26 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
     let mut root: Option<Elem> = None;
     let xml_err = |pos: u64, message: String| {
         let (line, col) = idx.line_col(usize::try_from(pos).unwrap_or(usize::MAX));
-        KbError::Xml { file: file.to_string(), line, col, message }
+        KbError::Xml {
+            file: file.to_string(),
+            line,
+            col,
+            message,
+        }
     };
     loop {
         let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
-        let ev = reader.read_event().map_err(|e| xml_err(reader.error_position(), e.to_string()))?;
+        let ev = reader
+            .read_event()
+            .map_err(|e| xml_err(reader.error_position(), e.to_string()))?;
         let after = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
         match ev {
             Event::Start(e) | Event::Empty(e) if root.is_some() => {
                 let _ = e;
-                return Err(xml_err(before as u64, "content after the root element".into()));
+                return Err(xml_err(
+                    before as u64,
+                    "content after the root element".into(),
+                ));
             }
             Event::Start(ref e) | Event::Empty(ref e) => {
                 let el = element(e, text, before, after, &idx, file)?;
@@ -336,7 +389,10 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
             }
             Event::End(_) => {
                 let Some(el) = stack.pop() else {
-                    return Err(xml_err(before as u64, "closing tag without an opening tag".into()));
+                    return Err(xml_err(
+                        before as u64,
+                        "closing tag without an opening tag".into(),
+                    ));
                 };
                 match stack.last_mut() {
                     Some(parent) => parent.children.push(el),
@@ -345,12 +401,14 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
             }
             Event::DocType(_) => {
                 let (line, col) = idx.line_col(before);
-                return Err(KbError::Doctype { file: file.to_string(), line, col });
+                return Err(KbError::Doctype {
+                    file: file.to_string(),
+                    line,
+                    col,
+                });
             }
-            Event::Text(t) => {
-                if root.is_some() && !AsRef::<str>::as_ref(&t).trim().is_empty() {
-                    return Err(xml_err(before as u64, "text after the root element".into()));
-                }
+            Event::Text(t) if root.is_some() && !AsRef::<str>::as_ref(&t).trim().is_empty() => {
+                return Err(xml_err(before as u64, "text after the root element".into()));
             }
             Event::Eof => break,
             _ => {}
@@ -365,10 +423,21 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
             message: format!("element <{}> is never closed", open.name),
         });
     }
-    root.ok_or_else(|| KbError::Structure { file: file.to_string(), line: 1, message: "empty knowledge base: no <earth> element".into() })
+    root.ok_or_else(|| KbError::Structure {
+        file: file.to_string(),
+        line: 1,
+        message: "empty knowledge base: no <earth> element".into(),
+    })
 }
 
-fn element(e: &BytesStart, text: &str, start: usize, end: usize, idx: &LineIndex, file: &str) -> Result<Elem, KbError> {
+fn element(
+    e: &BytesStart,
+    text: &str,
+    start: usize,
+    end: usize,
+    idx: &LineIndex,
+    file: &str,
+) -> Result<Elem, KbError> {
     let name = e.name().into_inner().to_string();
     let line = idx.line(start);
     let tag = text.get(start..end).unwrap_or("");
@@ -377,7 +446,12 @@ fn element(e: &BytesStart, text: &str, start: usize, end: usize, idx: &LineIndex
     for a in e.attributes() {
         let a = a.map_err(|err| {
             let (line, col) = idx.line_col(start);
-            KbError::Xml { file: file.to_string(), line, col, message: format!("in <{name}>: {err}") }
+            KbError::Xml {
+                file: file.to_string(),
+                line,
+                col,
+                message: format!("in <{name}>: {err}"),
+            }
         })?;
         let key = a.key.into_inner().to_string();
         let value = a.normalized_value(XmlVersion::Implicit1_0).map_err(|err| {
@@ -390,14 +464,22 @@ fn element(e: &BytesStart, text: &str, start: usize, end: usize, idx: &LineIndex
             }
         })?;
         // The attribute's own line: find its name in the tag text after the previous one.
-        let at = tag.get(search_from..).and_then(|t| t.find(key.as_str())).map(|p| p + search_from);
+        let at = tag
+            .get(search_from..)
+            .and_then(|t| t.find(key.as_str()))
+            .map(|p| p + search_from);
         let aline = at.map_or(line, |p| idx.line(start + p));
         if let Some(p) = at {
             search_from = p + key.len();
         }
         attrs.push((key, value.into_owned(), aline));
     }
-    Ok(Elem { name, line, attrs, children: Vec::new() })
+    Ok(Elem {
+        name,
+        line,
+        attrs,
+        children: Vec::new(),
+    })
 }
 
 /// Reads zones from KB text: zone 0 is earth, parents before children. Used by
@@ -413,7 +495,10 @@ pub(crate) fn read_zones(text: &str, file: &str) -> Result<(Vec<Zone>, Vec<KbRep
             message: format!("the root element must be <earth>, found <{}>", root.name),
         });
     }
-    let mut r = ZoneReader { zones: Vec::new(), repairs };
+    let mut r = ZoneReader {
+        zones: Vec::new(),
+        repairs,
+    };
     r.zone(&root, None, 0, "earth".to_string());
     Ok((r.zones, r.repairs))
 }
@@ -433,7 +518,10 @@ struct CircleParts {
 
 impl ZoneReader {
     fn note(&mut self, line: usize, what: impl Into<String>) {
-        self.repairs.push(KbRepair { line, what: what.into() });
+        self.repairs.push(KbRepair {
+            line,
+            what: what.into(),
+        });
     }
 
     fn zone(&mut self, el: &Elem, parent: Option<usize>, depth: usize, path: String) {
@@ -441,7 +529,11 @@ impl ZoneReader {
         let name = path.rsplit('/').next().unwrap_or("earth").to_string();
         self.zones.push(Zone {
             name,
-            kind: if parent.is_none() { ZoneKind::Earth } else { ZoneKind::from_element(&el.name) },
+            kind: if parent.is_none() {
+                ZoneKind::Earth
+            } else {
+                ZoneKind::from_element(&el.name)
+            },
             path: path.clone(),
             parent,
             depth,
@@ -460,7 +552,10 @@ impl ZoneReader {
                 "info" | "location" => {
                     if lname == "info" {
                         if seen_info {
-                            self.note(child.line, "second <info> in one zone: merged, later values win");
+                            self.note(
+                                child.line,
+                                "second <info> in one zone: merged, later values win",
+                            );
                         }
                         seen_info = true;
                     }
@@ -471,14 +566,23 @@ impl ZoneReader {
                 _ if child.attr("designation").is_some()
                     || matches!(lname.as_str(), "country" | "region" | "town" | "district") =>
                 {
-                    let mut cname = child.attr("designation").map(|(_, v, _)| v.trim().to_string()).unwrap_or_default();
+                    let mut cname = child
+                        .attr("designation")
+                        .map(|(_, v, _)| v.trim().to_string())
+                        .unwrap_or_default();
                     if cname.is_empty() {
                         cname = format!("{}{}", lname, self.zones.len());
-                        self.note(child.line, format!("<{}> without designation: named '{cname}'", child.name));
+                        self.note(
+                            child.line,
+                            format!("<{}> without designation: named '{cname}'", child.name),
+                        );
                     }
                     if cname.contains('/') {
                         cname = cname.replace('/', "-");
-                        self.note(child.line, format!("'/' in designation replaced: '{cname}'"));
+                        self.note(
+                            child.line,
+                            format!("'/' in designation replaced: '{cname}'"),
+                        );
                     }
                     let cpath = format!("{path}/{cname}");
                     if self.zones.iter().any(|z| z.path == cpath) {
@@ -486,7 +590,10 @@ impl ZoneReader {
                     }
                     self.zone(child, Some(me), depth + 1, cpath);
                 }
-                _ => self.note(child.line, format!("unknown element <{}> in a zone ignored", child.name)),
+                _ => self.note(
+                    child.line,
+                    format!("unknown element <{}> in a zone ignored", child.name),
+                ),
             }
         }
         let circle = self.circle(circle, el);
@@ -502,24 +609,43 @@ impl ZoneReader {
             (None, None, None) => None,
             (Some(lat), Some(lon), Some(dist)) => {
                 if !(-90.0..=90.0).contains(&lat) || !(-180.0..=180.0).contains(&lon) {
-                    self.note(el.line, format!("zone circle centre ({lat}, {lon}) out of range: circle ignored"));
+                    self.note(
+                        el.line,
+                        format!("zone circle centre ({lat}, {lon}) out of range: circle ignored"),
+                    );
                     None
                 } else if dist <= 0.0 {
-                    self.note(el.line, format!("zone radius {dist} km is not positive: circle ignored"));
+                    self.note(
+                        el.line,
+                        format!("zone radius {dist} km is not positive: circle ignored"),
+                    );
                     None
                 } else {
-                    Some(Circle { lat, lon, radius_km: dist })
+                    Some(Circle {
+                        lat,
+                        lon,
+                        radius_km: dist,
+                    })
                 }
             }
             _ => {
-                self.note(el.line, "zone circle needs lat, lon and dist: incomplete circle ignored");
+                self.note(
+                    el.line,
+                    "zone circle needs lat, lon and dist: incomplete circle ignored",
+                );
                 None
             }
         }
     }
 
     fn appearance(&mut self, el: &Elem) -> Appearance {
-        let mut app = Appearance { proba: None, values: Values::default(), opening: None, ruleset: None, line: el.line };
+        let mut app = Appearance {
+            proba: None,
+            values: Values::default(),
+            opening: None,
+            ruleset: None,
+            line: el.line,
+        };
         let mut dummy = CircleParts::default();
         let mut proba = el.attr("proba").and_then(|(k, v, l)| self.number(k, v, *l));
         let mut seen_values = false;
@@ -527,7 +653,10 @@ impl ZoneReader {
             match child.name.to_ascii_lowercase().as_str() {
                 "values" => {
                     if seen_values {
-                        self.note(child.line, "second <values> in one appearance: merged, later values win");
+                        self.note(
+                            child.line,
+                            "second <values> in one appearance: merged, later values win",
+                        );
                     }
                     seen_values = true;
                     if let Some((k, v, l)) = child.attr("proba") {
@@ -543,18 +672,27 @@ impl ZoneReader {
                         app.opening = self.opening(child);
                     }
                 }
-                "ruleset" => match child.attr("file").and_then(|(k, v, l)| self.clean(k, v, *l)) {
+                "ruleset" => match child
+                    .attr("file")
+                    .and_then(|(k, v, l)| self.clean(k, v, *l))
+                {
                     Some(f) => app.ruleset = Some(f),
                     None => self.note(child.line, "<ruleset> without a file ignored"),
                 },
-                _ => self.note(child.line, format!("unknown element <{}> in an appearance ignored", child.name)),
+                _ => self.note(
+                    child.line,
+                    format!("unknown element <{}> in an appearance ignored", child.name),
+                ),
             }
         }
         if let Some(p) = proba {
             if (0.0..=1.0).contains(&p) {
                 app.proba = Some(p);
             } else {
-                self.note(el.line, format!("proba {p} outside 0..1 ignored (treated as absent)"));
+                self.note(
+                    el.line,
+                    format!("proba {p} outside 0..1 ignored (treated as absent)"),
+                );
             }
         }
         app
@@ -568,7 +706,10 @@ impl ZoneReader {
             return None;
         }
         if t.len() != raw.len() {
-            self.note(line, format!("trimmed spaces/line breaks around the value of '{key}'"));
+            self.note(
+                line,
+                format!("trimmed spaces/line breaks around the value of '{key}'"),
+            );
         }
         Some(t.to_string())
     }
@@ -576,7 +717,10 @@ impl ZoneReader {
     fn number(&mut self, key: &str, raw: &str, line: usize) -> Option<f64> {
         let t = self.clean(key, raw, line)?;
         let s = if !t.contains('.') && t.matches(',').count() == 1 {
-            self.note(line, format!("decimal comma in '{key}'=\"{t}\" read as a point"));
+            self.note(
+                line,
+                format!("decimal comma in '{key}'=\"{t}\" read as a point"),
+            );
             t.replace(',', ".")
         } else {
             t.clone()
@@ -592,7 +736,7 @@ impl ZoneReader {
 
     fn count(&mut self, key: &str, raw: &str, line: usize) -> Option<u32> {
         let x = self.number(key, raw, line)?;
-        if x < 0.0 || x > 10_000.0 {
+        if !(0.0..=10_000.0).contains(&x) {
             self.note(line, format!("'{key}'={x} out of range ignored"));
             return None;
         }
@@ -629,7 +773,12 @@ impl ZoneReader {
             let (key, line) = (key.as_str(), *line);
             let lk = key.to_ascii_lowercase();
             if !seen.insert(lk.clone()) {
-                self.note(line, format!("attribute '{key}' given twice (names are case-insensitive): the last wins"));
+                self.note(
+                    line,
+                    format!(
+                        "attribute '{key}' given twice (names are case-insensitive): the last wins"
+                    ),
+                );
             }
             match lk.as_str() {
                 "lat" | "lon" | "dist" if zone_level => {
@@ -658,20 +807,24 @@ impl ZoneReader {
                                 }
                                 v.roof = Some(r);
                             }
-                            None => self.note(line, format!("unknown roof type '{key}'=\"{t}\" ignored")),
+                            None => self
+                                .note(line, format!("unknown roof type '{key}'=\"{t}\" ignored")),
                         }
                     }
                 }
                 "roofangle" => {
-                    v.roof_angle = self.number(key, raw, line).filter(|a| {
-                        let ok = (0.0..90.0).contains(a);
-                        ok
-                    });
+                    v.roof_angle = self
+                        .number(key, raw, line)
+                        .filter(|a| (0.0..90.0).contains(a));
                 }
                 "roofcolor" | "roofcolour" => v.roof_color = self.color(key, raw, line),
                 "doorcol" | "doorcolor" | "doorcolour" => v.door_color = self.color(key, raw, line),
-                "openingcol" | "openingcolor" | "openingcolour" => v.window_color = self.color(key, raw, line),
-                "windowfcolor" | "framecolor" | "framecolour" => v.frame_color = self.color(key, raw, line),
+                "openingcol" | "openingcolor" | "openingcolour" => {
+                    v.window_color = self.color(key, raw, line)
+                }
+                "windowfcolor" | "framecolor" | "framecolour" => {
+                    v.frame_color = self.color(key, raw, line)
+                }
                 "windowcolor" | "windowcolour" => {
                     self.note(line, format!("'{key}' (thesis Madagascar spelling) read as the frame colour windowfcolor"));
                     v.frame_color = self.color(key, raw, line);
@@ -680,17 +833,29 @@ impl ZoneReader {
                     if let Some(t) = self.clean(key, raw, line) {
                         v.window_height = WindowHeight::parse(&t);
                         if v.window_height.is_none() {
-                            self.note(line, format!("unknown window height '{t}' ignored (tall, short, irregular)"));
+                            self.note(
+                                line,
+                                format!(
+                                    "unknown window height '{t}' ignored (tall, short, irregular)"
+                                ),
+                            );
                         }
                     }
                 }
                 "windowwidth" => v.window_width = self.positive(key, raw, line),
-                "windowstyle" => v.window_style = self.clean(key, raw, line).map(|s| s.to_ascii_lowercase()),
-                "windowmaterial" => v.window_material = self.clean(key, raw, line).map(|s| s.to_ascii_lowercase()),
+                "windowstyle" => {
+                    v.window_style = self.clean(key, raw, line).map(|s| s.to_ascii_lowercase())
+                }
+                "windowmaterial" => {
+                    v.window_material = self.clean(key, raw, line).map(|s| s.to_ascii_lowercase())
+                }
                 "maxrotation" => v.max_rotation = self.number(key, raw, line),
                 _ => {
                     if let Some(t) = self.clean(key, raw, line) {
-                        self.note(line, format!("unknown attribute '{key}' kept as an extra value"));
+                        self.note(
+                            line,
+                            format!("unknown attribute '{key}' kept as an extra value"),
+                        );
                         v.extra.insert(lk.clone(), t);
                     }
                 }
@@ -698,7 +863,13 @@ impl ZoneReader {
         }
         if let Some(a) = el.attr("roofangle") {
             if v.roof_angle.is_none() && !a.1.trim().is_empty() {
-                self.note(a.2, format!("roof angle \"{}\" outside 0..90 degrees ignored", a.1.trim()));
+                self.note(
+                    a.2,
+                    format!(
+                        "roof angle \"{}\" outside 0..90 degrees ignored",
+                        a.1.trim()
+                    ),
+                );
             }
         }
         v
@@ -713,29 +884,57 @@ impl ZoneReader {
         for child in &el.children {
             match child.name.to_ascii_lowercase().as_str() {
                 "split" => {
-                    let axis = match child.attr("axis").map(|a| a.1.trim().to_ascii_uppercase()).as_deref() {
+                    let axis = match child
+                        .attr("axis")
+                        .map(|a| a.1.trim().to_ascii_uppercase())
+                        .as_deref()
+                    {
                         Some("X") => SplitAxis::X,
                         Some("Y") => SplitAxis::Y,
                         Some("Z") => SplitAxis::Z,
                         other => {
-                            self.note(child.line, format!("split axis {other:?} is not X, Y or Z: split ignored"));
+                            self.note(
+                                child.line,
+                                format!("split axis {other:?} is not X, Y or Z: split ignored"),
+                            );
                             continue;
                         }
                     };
                     let parent = child.attr("parent").map(|a| id(&a.1)).unwrap_or_default();
                     let children: Vec<String> = child
                         .attr("children")
-                        .map(|a| a.1.split(['|', ',']).map(id).filter(|s| !s.is_empty()).collect())
+                        .map(|a| {
+                            a.1.split(['|', ','])
+                                .map(id)
+                                .filter(|s| !s.is_empty())
+                                .collect()
+                        })
                         .unwrap_or_default();
-                    let raw_vals = child.attr("splitvalues").map(|a| a.1.clone()).unwrap_or_default();
-                    let sep = if raw_vals.contains(';') || raw_vals.contains('|') { [';', '|'] } else { [',', ','] };
+                    let raw_vals = child
+                        .attr("splitvalues")
+                        .map(|a| a.1.clone())
+                        .unwrap_or_default();
+                    let sep = if raw_vals.contains(';') || raw_vals.contains('|') {
+                        [';', '|']
+                    } else {
+                        [',', ',']
+                    };
                     let vals: Vec<Option<f64>> = raw_vals
                         .split(sep)
                         .map(str::trim)
                         .filter(|s| !s.is_empty())
-                        .map(|s| s.replace(',', ".").parse::<f64>().ok().filter(|x| x.is_finite() && *x > 0.0))
+                        .map(|s| {
+                            s.replace(',', ".")
+                                .parse::<f64>()
+                                .ok()
+                                .filter(|x| x.is_finite() && *x > 0.0)
+                        })
                         .collect();
-                    if parent.is_empty() || children.is_empty() || vals.len() != children.len() || vals.iter().any(Option::is_none) {
+                    if parent.is_empty()
+                        || children.is_empty()
+                        || vals.len() != children.len()
+                        || vals.iter().any(Option::is_none)
+                    {
                         self.note(
                             child.line,
                             format!(
@@ -750,17 +949,32 @@ impl ZoneReader {
                     let mut fractions: Vec<f64> = vals.into_iter().flatten().collect();
                     let sum: f64 = fractions.iter().sum();
                     if (sum - 1.0).abs() > 1e-6 {
-                        self.note(child.line, format!("splitvalues of '{parent}' sum to {sum}: normalised to 1"));
+                        self.note(
+                            child.line,
+                            format!("splitvalues of '{parent}' sum to {sum}: normalised to 1"),
+                        );
                         fractions.iter_mut().for_each(|f| *f /= sum);
                     }
                     if splits.iter().any(|s| s.parent == parent) {
-                        self.note(child.line, format!("node '{parent}' split twice: the second split ignored"));
+                        self.note(
+                            child.line,
+                            format!("node '{parent}' split twice: the second split ignored"),
+                        );
                         continue;
                     }
-                    splits.push(OpeningSplit { axis, parent, children, fractions });
+                    splits.push(OpeningSplit {
+                        axis,
+                        parent,
+                        children,
+                        fractions,
+                    });
                 }
                 "elements" => {
-                    if let Some(p) = child.attr("parent").map(|a| id(&a.1)).filter(|p| !p.is_empty()) {
+                    if let Some(p) = child
+                        .attr("parent")
+                        .map(|a| id(&a.1))
+                        .filter(|p| !p.is_empty())
+                    {
                         root = Some(p);
                     }
                     if let Some((_, terms, line)) = child.attr("terms") {
@@ -768,17 +982,32 @@ impl ZoneReader {
                         if parts.iter().any(|p| p.is_empty()) {
                             self.note(*line, "empty entry (trailing comma) in terms dropped");
                         }
-                        listed_terms.extend(parts.into_iter().filter(|p| !p.is_empty()).map(String::from));
+                        listed_terms.extend(
+                            parts
+                                .into_iter()
+                                .filter(|p| !p.is_empty())
+                                .map(String::from),
+                        );
                     }
                 }
-                _ => self.note(child.line, format!("unknown element <{}> in an opening ignored", child.name)),
+                _ => self.note(
+                    child.line,
+                    format!("unknown element <{}> in an opening ignored", child.name),
+                ),
             }
         }
-        let all_children: BTreeSet<&str> = splits.iter().flat_map(|s| s.children.iter().map(String::as_str)).collect();
+        let all_children: BTreeSet<&str> = splits
+            .iter()
+            .flat_map(|s| s.children.iter().map(String::as_str))
+            .collect();
         let root = match root {
             Some(r) => r,
             None => {
-                let tops: Vec<&str> = splits.iter().map(|s| s.parent.as_str()).filter(|p| !all_children.contains(p)).collect();
+                let tops: Vec<&str> = splits
+                    .iter()
+                    .map(|s| s.parent.as_str())
+                    .filter(|p| !all_children.contains(p))
+                    .collect();
                 match tops.as_slice() {
                     [one] => one.to_string(),
                     _ => {
@@ -789,14 +1018,20 @@ impl ZoneReader {
             }
         };
         // Walk the tree from the root, pre-order; a node met twice means a cycle or shared child.
-        let by_parent: BTreeMap<&str, &OpeningSplit> = splits.iter().map(|s| (s.parent.as_str(), s)).collect();
+        let by_parent: BTreeMap<&str, &OpeningSplit> =
+            splits.iter().map(|s| (s.parent.as_str(), s)).collect();
         let mut ordered = Vec::new();
         let mut leaves = Vec::new();
         let mut seen = BTreeSet::new();
         let mut stack = vec![root.clone()];
         while let Some(n) = stack.pop() {
             if !seen.insert(n.clone()) {
-                self.note(el.line, format!("opening node '{n}' reached twice (cycle or shared child): opening ignored"));
+                self.note(
+                    el.line,
+                    format!(
+                        "opening node '{n}' reached twice (cycle or shared child): opening ignored"
+                    ),
+                );
                 return None;
             }
             match by_parent.get(n.as_str()) {
@@ -808,14 +1043,27 @@ impl ZoneReader {
             }
         }
         if ordered.len() != splits.len() {
-            self.note(el.line, format!("{} opening split(s) not reachable from '{root}' dropped", splits.len() - ordered.len()));
+            self.note(
+                el.line,
+                format!(
+                    "{} opening split(s) not reachable from '{root}' dropped",
+                    splits.len() - ordered.len()
+                ),
+            );
         }
         let listed: BTreeSet<&str> = listed_terms.iter().map(String::as_str).collect();
         let found: BTreeSet<&str> = leaves.iter().map(String::as_str).collect();
         if !listed_terms.is_empty() && listed != found {
-            self.note(el.line, "opening terms differ from the leaves of the split tree: the leaves are used");
+            self.note(
+                el.line,
+                "opening terms differ from the leaves of the split tree: the leaves are used",
+            );
         }
-        Some(OpeningTree { root, splits: ordered, terms: leaves })
+        Some(OpeningTree {
+            root,
+            splits: ordered,
+            terms: leaves,
+        })
     }
 }
 
@@ -842,7 +1090,11 @@ mod tests {
 
     #[test]
     fn malformed_xml_names_file_line_col() {
-        let err = read_zones("<earth>\n  <country designation=\"A\">\n</earth>", "bad.xml").err();
+        let err = read_zones(
+            "<earth>\n  <country designation=\"A\">\n</earth>",
+            "bad.xml",
+        )
+        .err();
         let msg = err.map(|e| e.to_string()).unwrap_or_default();
         assert!(msg.starts_with("bad.xml:3:"), "{msg}");
     }
@@ -859,8 +1111,14 @@ mod tests {
 
     #[test]
     fn wrong_root_and_empty_are_errors() {
-        assert!(matches!(read_zones("<kb/>", "k.xml"), Err(KbError::Structure { .. })));
-        assert!(matches!(read_zones("  ", "k.xml"), Err(KbError::Structure { .. })));
+        assert!(matches!(
+            read_zones("<kb/>", "k.xml"),
+            Err(KbError::Structure { .. })
+        ));
+        assert!(matches!(
+            read_zones("  ", "k.xml"),
+            Err(KbError::Structure { .. })
+        ));
         assert!(read_zones("<earth/><earth/>", "k.xml").is_err());
     }
 
@@ -873,9 +1131,17 @@ mod tests {
         assert_eq!(z[1].info.roof, Some(RoofShape::Gabled));
         assert_eq!(z[1].info.storeys, None);
         assert_eq!(z[1].circle.map(|c| c.radius_km), Some(0.3));
-        assert!(rep.iter().any(|r| r.line == 4 && r.what.contains("decimal comma")), "{rep:?}");
+        assert!(
+            rep.iter()
+                .any(|r| r.line == 4 && r.what.contains("decimal comma")),
+            "{rep:?}"
+        );
         assert!(rep.iter().any(|r| r.what.contains("gabbled")), "{rep:?}");
-        assert!(rep.iter().any(|r| r.what.contains("empty value of 'nbfloor'")), "{rep:?}");
+        assert!(
+            rep.iter()
+                .any(|r| r.what.contains("empty value of 'nbfloor'")),
+            "{rep:?}"
+        );
     }
 
     #[test]
@@ -897,14 +1163,23 @@ mod tests {
         let lines: Vec<usize> = rep.iter().map(|r| r.line).collect();
         assert_eq!(z.len(), 3, "{rep:?}");
         assert_eq!(z[1].name, "Madagascar");
-        let c = z[2].circle.unwrap_or(Circle { lat: 0.0, lon: 0.0, radius_km: 0.0 });
-        assert!((c.lat + 18.9333).abs() < 1e-9 && (c.lon - 47.5167).abs() < 1e-9 && c.radius_km == 0.3);
+        let c = z[2].circle.unwrap_or(Circle {
+            lat: 0.0,
+            lon: 0.0,
+            radius_km: 0.0,
+        });
+        assert!(
+            (c.lat + 18.9333).abs() < 1e-9 && (c.lon - 47.5167).abs() < 1e-9 && c.radius_km == 0.3
+        );
         let app = &z[2].appearances[0];
         assert_eq!(app.values.min_floors, Some(1));
         assert_eq!(app.values.wall_color, Color::parse("peru"));
         assert_eq!(app.values.max_rotation, None);
         assert_eq!(app.ruleset.as_deref(), Some("data.xml"));
-        assert!(lines.contains(&2) && lines.contains(&4) && lines.contains(&5) && lines.contains(&6), "{rep:?}");
+        assert!(
+            lines.contains(&2) && lines.contains(&4) && lines.contains(&5) && lines.contains(&6),
+            "{rep:?}"
+        );
     }
 
     #[test]
@@ -922,8 +1197,15 @@ mod tests {
             </opening></appearance></earth>"#;
         let (z, rep) = zones(norm);
         let o = z[0].appearances[0].opening.clone();
-        assert_eq!(o.as_ref().map(|o| o.splits[0].fractions.clone()), Some(vec![0.25, 0.75]), "{rep:?}");
-        assert_eq!(o.map(|o| o.terms), Some(vec!["b".to_string(), "c".to_string()]));
+        assert_eq!(
+            o.as_ref().map(|o| o.splits[0].fractions.clone()),
+            Some(vec![0.25, 0.75]),
+            "{rep:?}"
+        );
+        assert_eq!(
+            o.map(|o| o.terms),
+            Some(vec!["b".to_string(), "c".to_string()])
+        );
     }
 
     #[test]
