@@ -217,6 +217,13 @@ fn shipped_probas_sum_to_one() {
             assert!((s - 1.0).abs() < 1e-9, "{}: {s}", z.path);
         }
     }
+    // Floors and height ranges of every shipped appearance agree.
+    for i in 0..kb.zones().len() {
+        for seed in 0..50 {
+            let (_, notes) = kb.style_for(i, &BuildingTags::default(), &mut Rng::new(seed, 0));
+            assert!(notes.is_empty(), "{}: {notes:?}", path_of(&kb, i));
+        }
+    }
 }
 
 #[test]
@@ -499,4 +506,148 @@ fn load_names_the_file_on_errors() {
         .map(|e| e.to_string())
         .unwrap_or_default();
     assert!(err.contains("/nonexistent/kb.xml"), "{err}");
+}
+
+/// Thesis annex as printed (seed 003 notes §5.1, L1605-1710), the PDF page breaks removed, with
+/// all its markup slips: missing '<', a lost closing quote, whitespace after '<', ...
+const ANNEX_VERBATIM: &str = r##"
+<earth>
+<info color="1;1;1" material="BricksBasic" nbfloor="1" roofangle
+  ="15" rooftype="flat" />
+<country designation="France">
+<info color="pink" dist="5" lat="47.3833300" lon="0.6833300"
+  material="BricksBasic" nbfloor="1" roofangle="15" rooftype="
+  gabbled" />
+  <region designation="Midi-Pyrenees">
+    <info color="grey" dist="1.1" lat="43.600000"
+      lon="1.433333" material="BricksBasic" nbfloor
+      ="1" roofangle="15" rooftype="flat" />
+    <town designation="Toulouse">
+      <info color="yellow" dist="0.8" lat
+        ="43.600000" lon="1.433333" material
+        ="BricksBasic" nbfloor="3" roofangle
+        ="15" rooftype="flat" />
+      <district designation="UPS">
+        <info color="blue" dist="0.03"
+          lat="43.560397" lon
+          ="1.468820" material="
+          OfficeGlasses" nbfloor="4"
+          roofangle="0" rooftype="flat "
+          />
+      </district>
+    <district designation="Centre-Ville">
+      <info color="white" dist="0.03"
+        lat="43.603236" lon
+
+
+        = "1.444659" material="
+        BricksBasic " nbfloor="3"
+        roofangle="15" rooftype="
+        hipped " />
+    </district>
+<appearance><values bdRooftype="mansard" color="
+    black" doorCol="brown" floorsize="4"
+    maxFloors="1" maxHeight="5" maxrotation="
+    minFloors="1" minHeight="5" openingCol="black
+    " proba="" roofColor="black" windowfcolor="
+    black" windowheight="tall" windowmaterial="
+    glass" windowstyle="simple" windowwidth="2"
+    /><opening><split axis="Z" children="
+    nt4547681976|nt4629111416" parent="
+    nt4547681752" splitvalues
+    ="0.34523809523809523,0.6547619047619048" /><
+    elements parent="nt4547681752" terms="
+    nt4547681976,nt4629111416," /></opening>
+    ruleset file="data.xml" /></appearance>
+<appearance><values bdRooftype="hip" color="
+    floralwhite" doorCol="brown" floorsize="4"
+    maxFloors="1" maxHeight="23" maxrotation="
+    minFloors="1" minHeight="5" openingCol="white
+    " proba="" roofColor="lightslategray"
+    windowfcolor="seashell" windowheight="short"
+    windowmaterial="glass" windowstyle="framed"
+    windowwidth="3" /><opening><split axis="X"
+    children="nt140350002036184|nt140350002036632
+    " parent="nt140350002035064" splitvalues
+    ="0.3261904761904762,0.6738095238095239" /><
+    elements parent="nt140350002035064" terms="
+    nt140350002036184,nt140350002036632," /></
+    opening><ruleset file="data.xml" /></
+    appearance></town>
+    <town designation="Paris">
+        <info color="red" dist="0.8" lat
+        ="48.8534" lon="2.3488"
+        material="BricksBasic"
+        nbfloor="1" roofangle="15"
+        rooftype="flat" />
+    </town>
+</region>
+</country>
+country designation="Madagascar">
+region designation="Analamanga">
+
+
+
+    <town designation="Antananarivo" />
+    <town designation="Antsirabe" />
+</region>
+<region designation="Nord">
+    <town designation="Antsiranana" />
+    <town designation="Mahajanga" />
+</region>
+<appearance><values bdRoofType="mansard" color="black" doorCol="
+    brown" floorsize="4" maxFloors="1" maxHeight="5" maxrotation
+    =" " minFloors="1" minHeight="5" openingCol="black" proba=""
+    roofColor="black" windowColor="black" windowHeight="tall"
+    windowMaterial="glass" windowStyle="simple" windowWidth="2"
+    /><ruleset file="data.xml" /></appearance><appearance><values
+    bdRoofType="mansard" color="black" doorCol="brown" floorsize
+    ="4" maxFloors="1" maxHeight="5" maxrotation="" minFloors="1"
+    minHeight="5" openingCol="black" proba="" roofColor="black"
+    windowColor="black" windowHeight="tall" windowMaterial="
+    glass" windowStyle="simple" windowWidth="2" /><ruleset file="
+    data.xml" /></appearance></country>
+</earth>
+
+"##;
+
+#[test]
+fn thesis_annex_as_printed_reads_with_repairs() {
+    let (kb, repairs) =
+        KnowledgeBase::parse_str(ANNEX_VERBATIM, "annex.xml").unwrap_or_else(|e| panic!("{e}"));
+    let (clean, _) = KnowledgeBase::parse_str(ANNEX, "clean.xml").unwrap_or_else(|e| panic!("{e}"));
+    let paths = |k: &KnowledgeBase| k.zones().iter().map(|z| z.path.clone()).collect::<Vec<_>>();
+    assert_eq!(paths(&kb), paths(&clean));
+    for (a, b) in kb.zones().iter().zip(clean.zones()) {
+        assert_eq!(a.info, b.info, "{}", a.path);
+        assert_eq!(a.circle, b.circle, "{}", a.path);
+        let strip = |z: &Zone| {
+            z.appearances
+                .iter()
+                .map(|a| {
+                    (
+                        a.proba,
+                        a.values.clone(),
+                        a.opening.clone(),
+                        a.ruleset.clone(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(strip(a), strip(b), "{}", a.path);
+    }
+    let has = |line: usize, what: &str| {
+        repairs
+            .iter()
+            .any(|r| r.line == line && r.what.contains(what))
+    };
+    assert!(has(38, "lost its closing quote"), "{repairs:?}");
+    assert!(has(49, "missing '<' before element 'ruleset'"));
+    assert!(has(74, "missing '<' before element 'country'"));
+    assert!(has(75, "missing '<' before element 'region'"));
+    assert!(has(46, "whitespace between '<'"));
+    assert!(
+        repairs.windows(2).all(|w| w[0].line <= w[1].line),
+        "sorted by line"
+    );
 }

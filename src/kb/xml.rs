@@ -36,6 +36,7 @@ use crate::model::RoofShape;
 /// one, the place.
 #[derive(Debug, thiserror::Error)]
 pub enum KbError {
+    /// The file could not be read.
     #[error("{file}: cannot read the knowledge base: {source}")]
     Io {
         file: String,
@@ -500,6 +501,8 @@ pub(crate) fn read_zones(text: &str, file: &str) -> Result<(Vec<Zone>, Vec<KbRep
         repairs,
     };
     r.zone(&root, None, 0, "earth".to_string());
+    // Stable: repairs of one line keep the order they were found in.
+    r.repairs.sort_by_key(|r| r.line);
     Ok((r.zones, r.repairs))
 }
 
