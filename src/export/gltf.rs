@@ -1,1 +1,1498 @@
-//! (being written)
+//! glTF 2.0 binary (`.glb`) writer.
+//!
+//! Layout of the output: one scene; one node per building, named by the building key
+//! (`way_123`) with the source id, zone, appearance and heights in its `extras`; under it one
+//! child node per surface class (`walls`, `roof`, `ground`) holding one mesh, with one triangle
+//! primitive per material (usually one). Materials are PBR metallic-roughness, one per distinct
+//! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
+//! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
+//! "origin": [E, N, H]}`). Faces are flat shaded: every face has its own vertices and normal.
+//!
+//! Streaming: a GLB starts with its JSON chunk, which must know the binary chunk's length, so the
+//! vertex and index bytes are spooled to a scratch file as buildings arrive and copied after the
+//! JSON in [`BuildingWriter::finish`]. Only the small JSON records (nodes, meshes, accessors,
+//! buffer views) stay in memory. Output is a pure function of the context and the buildings.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::color::Color;
+use crate::crs::Crs;
+use crate::export::{BuildingWriter, ExportError, OutputContext};
+use crate::geometry::triangulate::triangulate_face;
+use crate::model::{Building, Face};
+
+/// GLB magic `glTF`, little-endian.
+const GLB_MAGIC: u32 = 0x4654_6C67;
+/// Chunk type `JSON`.
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+/// Chunk type `BIN\0`.
+const CHUNK_BIN: u32 = 0x004E_4942;
+/// glTF component types.
+const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
+const UNSIGNED_INT: u32 = 5125;
+/// Buffer view targets.
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+/// Byte stride of the vertex views: tightly packed f32 VEC3. glTF requires a stride on a vertex
+/// view that several accessors share (a building's positions and normals share one view).
+const VEC3_STRIDE: u32 = 12;
+/// Roughness of every material: building materials are matte.
+const ROUGHNESS: f32 = 0.9;
+/// Colour of ground surfaces (the model gives them none; they face down and are rarely seen).
+const GROUND_COLOR: Color = Color::GREY;
+
+/// Semantic class of a group of surfaces: one child node per class and building.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum SurfaceClass {
+    Walls,
+    Roof,
+    Ground,
+}
+
+impl SurfaceClass {
+    fn name(self) -> &'static str {
+        match self {
+            SurfaceClass::Walls => "walls",
+            SurfaceClass::Roof => "roof",
+            SurfaceClass::Ground => "ground",
+        }
+    }
+}
+
+/// Where the writer is in its `begin` / `write` / `finish` life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    New,
+    Open,
+    /// A write to the scratch file failed: the buffer no longer matches the records.
+    Failed,
+    Finished,
+}
+
+/// Streaming glTF 2.0 binary writer (see the module documentation for the layout).
+pub struct GltfWriter<W: Write + Send> {
+    out: W,
+    scratch: Option<BufWriter<File>>,
+    /// Bytes written to the scratch file so far (always a multiple of 4).
+    bin_len: u64,
+    state: State,
+    doc: Document,
+    /// (class, colour bits) -> material index, for reuse across buildings.
+    material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
+    /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
+    /// `scratch` so that the file is closed before it is removed.
+    scratch_guard: ScratchGuard,
+}
+
+/// Removes its path when dropped.
+struct ScratchGuard(Option<PathBuf>);
+
+impl Drop for ScratchGuard {
+    fn drop(&mut self) {
+        if let Some(path) = self.0.take() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+impl<W: Write + Send> GltfWriter<W> {
+    /// A writer that writes the `.glb` to `out` and spools the binary chunk to `scratch`, a file
+    /// it may truncate, read back and overwrite (an anonymous temporary file is ideal). Nothing is
+    /// written to `out` before [`BuildingWriter::finish`].
+    pub fn new(out: W, scratch: File) -> GltfWriter<W> {
+        GltfWriter {
+            out,
+            scratch: Some(BufWriter::with_capacity(1 << 20, scratch)),
+            bin_len: 0,
+            state: State::New,
+            doc: Document::default(),
+            material_index: BTreeMap::new(),
+            scratch_guard: ScratchGuard(None),
+        }
+    }
+
+    /// A writer whose scratch file is created next to `target` (the final output path, whose
+    /// folder must exist), so that it lands on the same disk as the output rather than on a
+    /// possibly small temporary file system. The scratch file is deleted when the writer is
+    /// dropped (on Unix it is unlinked at once and only the open handle keeps it).
+    pub fn beside(out: W, target: &Path) -> io::Result<GltfWriter<W>> {
+        let dir = target
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let path = dir.join(format!(".{name}.{}.bin.tmp", std::process::id()));
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)?;
+        let mut w = GltfWriter::new(out, file);
+        // Unlinking an open file works on Unix; elsewhere it is removed on drop.
+        if std::fs::remove_file(&path).is_err() {
+            w.scratch_guard = ScratchGuard(Some(path));
+        }
+        Ok(w)
+    }
+
+    /// Gives back the output (complete after a successful `finish`).
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+
+    /// `begin` with the CRS label already computed (kept apart so that it is the only place that
+    /// asks the CRS for its EPSG code).
+    fn start(&mut self, ctx: &OutputContext, crs_label: String) -> Result<(), ExportError> {
+        if self.state != State::New {
+            return Err(ExportError::Invalid(
+                "glTF writer: begin called twice".into(),
+            ));
+        }
+        let scratch = self
+            .scratch
+            .as_mut()
+            .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
+        scratch.get_mut().set_len(0)?;
+        scratch.seek(SeekFrom::Start(0))?;
+        self.doc.asset_extras = AssetExtras {
+            crs: crs_label,
+            origin: [ctx.origin.x, ctx.origin.y, ctx.origin.z],
+            lod: ctx.lod.number(),
+            source: ctx.source_name.clone(),
+        };
+        self.state = State::Open;
+        Ok(())
+    }
+
+    /// Appends one building: triangulates its faces, writes its binary data to the scratch file
+    /// and records its nodes, meshes, accessors and buffer views.
+    fn add_building(&mut self, b: &Building) -> Result<(), ExportError> {
+        let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
+        for class in [
+            SurfaceClass::Walls,
+            SurfaceClass::Roof,
+            SurfaceClass::Ground,
+        ] {
+            let mut groups: Vec<Group> = Vec::new();
+            for part in &b.parts {
+                let (color, faces): (Color, Vec<&Face>) = match class {
+                    SurfaceClass::Walls => (
+                        part.wall_color,
+                        part.walls.iter().map(|w| &w.outline).collect(),
+                    ),
+                    SurfaceClass::Roof => (part.roof_color, part.roof.iter().collect()),
+                    SurfaceClass::Ground => (GROUND_COLOR, vec![&part.ground]),
+                };
+                let key = color_key(color);
+                let idx = match groups.iter().position(|g| g.color_key == key) {
+                    Some(i) => i,
+                    None => {
+                        groups.push(Group {
+                            color,
+                            color_key: key,
+                            mesh: MeshData::default(),
+                        });
+                        groups.len() - 1
+                    }
+                };
+                for face in faces {
+                    groups[idx].mesh.add_face(face);
+                }
+            }
+            groups.retain(|g| !g.mesh.indices.is_empty());
+            if !groups.is_empty() {
+                classes.push((class, groups));
+            }
+        }
+
+        // Binary layout of one building: one vertex view (per primitive: positions, then
+        // normals) and one index view (per primitive: indices padded to 4 bytes).
+        let mut vertex_bytes: Vec<u8> = Vec::new();
+        let mut index_bytes: Vec<u8> = Vec::new();
+        struct PrimLayout {
+            class: SurfaceClass,
+            color: Color,
+            count: u32,
+            pos_offset: u64,
+            nrm_offset: u64,
+            idx_offset: u64,
+            idx_count: u32,
+            idx_type: u32,
+            min: [f32; 3],
+            max: [f32; 3],
+        }
+        let mut layouts: Vec<Vec<PrimLayout>> = Vec::new();
+        for (class, groups) in &classes {
+            let mut prims = Vec::new();
+            for g in groups {
+                let m = &g.mesh;
+                let too_big = || {
+                    ExportError::Invalid(format!(
+                        "building {}: the {} mesh is too large for glTF ({} vertices)",
+                        b.id,
+                        class.name(),
+                        m.positions.len()
+                    ))
+                };
+                let count = u32::try_from(m.positions.len()).map_err(|_| too_big())?;
+                let idx_count = u32::try_from(m.indices.len()).map_err(|_| too_big())?;
+                let pos_offset = vertex_bytes.len() as u64;
+                for p in &m.positions {
+                    p.iter()
+                        .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
+                }
+                let nrm_offset = vertex_bytes.len() as u64;
+                for n in &m.normals {
+                    n.iter()
+                        .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
+                }
+                let idx_offset = index_bytes.len() as u64;
+                // 65535 is the primitive-restart value of u16 indices: never use it as an index.
+                let idx_type = if count <= 65535 {
+                    m.indices
+                        .iter()
+                        .for_each(|&i| index_bytes.extend_from_slice(&(i as u16).to_le_bytes()));
+                    UNSIGNED_SHORT
+                } else {
+                    m.indices
+                        .iter()
+                        .for_each(|&i| index_bytes.extend_from_slice(&i.to_le_bytes()));
+                    UNSIGNED_INT
+                };
+                while index_bytes.len() % 4 != 0 {
+                    index_bytes.push(0);
+                }
+                let (min, max) = m.bounds();
+                prims.push(PrimLayout {
+                    class: *class,
+                    color: g.color,
+                    count,
+                    pos_offset,
+                    nrm_offset,
+                    idx_offset,
+                    idx_count,
+                    idx_type,
+                    min,
+                    max,
+                });
+            }
+            layouts.push(prims);
+        }
+
+        // Spool the bytes first: records are added only once their data is in the scratch file.
+        let vertex_view_offset = self.bin_len;
+        let index_view_offset = self.bin_len + vertex_bytes.len() as u64;
+        if !classes.is_empty() {
+            let scratch = self
+                .scratch
+                .as_mut()
+                .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
+            let written = scratch
+                .write_all(&vertex_bytes)
+                .and_then(|()| scratch.write_all(&index_bytes));
+            if let Err(e) = written {
+                self.state = State::Failed;
+                return Err(e.into());
+            }
+            self.bin_len = index_view_offset + index_bytes.len() as u64;
+        }
+
+        let doc = &mut self.doc;
+        let building_node = doc.nodes.len() as u32;
+        doc.roots.push(building_node);
+        doc.nodes.push(NodeRec {
+            name: b.key(),
+            children: Vec::new(),
+            mesh: None,
+            extras: Some(BuildingExtras {
+                id: b.id.to_string(),
+                name: b.name.clone(),
+                zone: b.zone.clone(),
+                appearance: b.appearance.clone(),
+                height: b.measured_height,
+                base: b.base_z,
+                storeys: b.storeys_above_ground,
+                roof_shape: b.roof_shape.osm_name(),
+                lod: b.lod.number(),
+            }),
+        });
+        if classes.is_empty() {
+            return Ok(());
+        }
+        let vertex_view = doc.views.len() as u32;
+        doc.views.push(ViewRec {
+            buffer: 0,
+            byte_offset: vertex_view_offset,
+            byte_length: vertex_bytes.len() as u64,
+            byte_stride: Some(VEC3_STRIDE),
+            target: ARRAY_BUFFER,
+        });
+        let index_view = doc.views.len() as u32;
+        doc.views.push(ViewRec {
+            buffer: 0,
+            byte_offset: index_view_offset,
+            byte_length: index_bytes.len() as u64,
+            byte_stride: None,
+            target: ELEMENT_ARRAY_BUFFER,
+        });
+
+        for prims in layouts {
+            let Some(class) = prims.first().map(|p| p.class) else {
+                continue;
+            };
+            let mut primitives = Vec::with_capacity(prims.len());
+            for p in prims {
+                let material = self.material_for(p.class, p.color);
+                let doc = &mut self.doc;
+                let position = doc.push_accessor(AccessorRec {
+                    buffer_view: vertex_view,
+                    byte_offset: p.pos_offset,
+                    component_type: FLOAT,
+                    count: p.count,
+                    kind: "VEC3",
+                    min: Some(p.min),
+                    max: Some(p.max),
+                });
+                let normal = doc.push_accessor(AccessorRec {
+                    buffer_view: vertex_view,
+                    byte_offset: p.nrm_offset,
+                    component_type: FLOAT,
+                    count: p.count,
+                    kind: "VEC3",
+                    min: None,
+                    max: None,
+                });
+                let indices = doc.push_accessor(AccessorRec {
+                    buffer_view: index_view,
+                    byte_offset: p.idx_offset,
+                    component_type: p.idx_type,
+                    count: p.idx_count,
+                    kind: "SCALAR",
+                    min: None,
+                    max: None,
+                });
+                primitives.push(PrimitiveRec {
+                    attributes: Attributes { position, normal },
+                    indices,
+                    material,
+                });
+            }
+            let doc = &mut self.doc;
+            let mesh = doc.meshes.len() as u32;
+            doc.meshes.push(MeshRec {
+                name: format!("{} {}", b.key(), class.name()),
+                primitives,
+            });
+            let child = doc.nodes.len() as u32;
+            doc.nodes.push(NodeRec {
+                name: class.name().to_string(),
+                children: Vec::new(),
+                mesh: Some(mesh),
+                extras: None,
+            });
+            doc.nodes[building_node as usize].children.push(child);
+        }
+        Ok(())
+    }
+
+    /// The material of `class` in `color`, created on first use.
+    fn material_for(&mut self, class: SurfaceClass, color: Color) -> u32 {
+        let key = (class, color_key(color));
+        if let Some(&i) = self.material_index.get(&key) {
+            return i;
+        }
+        let i = self.doc.materials.len() as u32;
+        let c = sanitize(color);
+        let name = if c.a < 1.0 {
+            format!("{} {} alpha {}", class.name(), c.to_hex(), c.a)
+        } else {
+            format!("{} {}", class.name(), c.to_hex())
+        };
+        self.doc.materials.push(MaterialRec {
+            name,
+            pbr: Pbr {
+                base_color_factor: [
+                    srgb_to_linear(c.r),
+                    srgb_to_linear(c.g),
+                    srgb_to_linear(c.b),
+                    c.a,
+                ],
+                metallic_factor: 0.0,
+                roughness_factor: ROUGHNESS,
+            },
+            alpha_mode: (c.a < 1.0).then_some("BLEND"),
+        });
+        self.material_index.insert(key, i);
+        i
+    }
+
+    /// Writes the GLB: header, JSON chunk, BIN chunk copied from the scratch file.
+    fn write_glb(&mut self) -> Result<(), ExportError> {
+        let scratch = self
+            .scratch
+            .take()
+            .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
+        let mut scratch = scratch.into_inner().map_err(|e| e.into_error())?;
+        let bin_len = self.bin_len;
+        self.doc.buffer_length = bin_len;
+
+        // Serialise twice (once to count) rather than hold the whole JSON text in memory.
+        let mut counter = ByteCounter(0);
+        serde_json::to_writer(&mut counter, &self.doc.json()).map_err(io::Error::from)?;
+        let json_len = counter.0;
+        let json_padded = pad4(json_len);
+        let bin_padded = pad4(bin_len);
+        let total = 12 + 8 + json_padded + if bin_len > 0 { 8 + bin_padded } else { 0 };
+        let too_big = || {
+            ExportError::Invalid(format!(
+                "the glTF binary would be {total} bytes, over the GLB limit of 4 GiB; write fewer buildings per file"
+            ))
+        };
+        let total32 = u32::try_from(total).map_err(|_| too_big())?;
+
+        let mut w = BufWriter::with_capacity(1 << 20, &mut self.out);
+        w.write_all(&GLB_MAGIC.to_le_bytes())?;
+        w.write_all(&2u32.to_le_bytes())?;
+        w.write_all(&total32.to_le_bytes())?;
+        w.write_all(&(json_padded as u32).to_le_bytes())?;
+        w.write_all(&CHUNK_JSON.to_le_bytes())?;
+        serde_json::to_writer(&mut w, &self.doc.json()).map_err(io::Error::from)?;
+        for _ in json_len..json_padded {
+            w.write_all(b" ")?;
+        }
+        if bin_len > 0 {
+            w.write_all(&(bin_padded as u32).to_le_bytes())?;
+            w.write_all(&CHUNK_BIN.to_le_bytes())?;
+            scratch.seek(SeekFrom::Start(0))?;
+            let copied = io::copy(&mut (&mut scratch).take(bin_len), &mut w)?;
+            if copied != bin_len {
+                return Err(ExportError::Invalid(format!(
+                    "glTF scratch file is {copied} bytes, expected {bin_len}: was it modified?"
+                )));
+            }
+            for _ in bin_len..bin_padded {
+                w.write_all(&[0])?;
+            }
+        }
+        w.flush()?;
+        drop(w);
+        self.out.flush()?;
+        Ok(())
+    }
+}
+
+impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
+    fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
+        let label = crs_label(&ctx.crs);
+        self.start(ctx, label)
+    }
+
+    fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        match self.state {
+            State::Open => self.add_building(building),
+            State::New => Err(ExportError::Invalid(
+                "glTF writer: write called before begin".into(),
+            )),
+            State::Failed => Err(ExportError::Invalid(
+                "glTF writer: an earlier write failed".into(),
+            )),
+            State::Finished => Err(ExportError::Invalid(
+                "glTF writer: write called after finish".into(),
+            )),
+        }
+    }
+
+    fn finish(&mut self) -> Result<(), ExportError> {
+        match self.state {
+            State::Open => {
+                self.state = State::Finished;
+                self.write_glb()
+            }
+            State::New => Err(ExportError::Invalid(
+                "glTF writer: finish called before begin".into(),
+            )),
+            State::Failed => Err(ExportError::Invalid(
+                "glTF writer: an earlier write failed".into(),
+            )),
+            State::Finished => Err(ExportError::Invalid(
+                "glTF writer: finish called twice".into(),
+            )),
+        }
+    }
+}
+
+/// `EPSG:n` for the asset's extras.
+fn crs_label(crs: &Crs) -> String {
+    format!("EPSG:{}", crs.epsg())
+}
+
+fn pad4(n: u64) -> u64 {
+    n.div_ceil(4) * 4
+}
+
+/// Colour components clamped to 0..=1, NaN as 0 (alpha NaN as opaque).
+fn sanitize(c: Color) -> Color {
+    let f = |v: f32, nan: f32| if v.is_nan() { nan } else { v.clamp(0.0, 1.0) };
+    Color {
+        r: f(c.r, 0.0),
+        g: f(c.g, 0.0),
+        b: f(c.b, 0.0),
+        a: f(c.a, 1.0),
+    }
+}
+
+/// Bit pattern of the sanitised colour: a total, hashable key.
+fn color_key(c: Color) -> [u32; 4] {
+    let c = sanitize(c);
+    [c.r.to_bits(), c.g.to_bits(), c.b.to_bits(), c.a.to_bits()]
+}
+
+/// sRGB transfer function inverse (IEC 61966-2-1): glTF colour factors are linear.
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
+/// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
+fn to_gltf(p: DVec3) -> [f32; 3] {
+    [p.x as f32 + 0.0, p.z as f32 + 0.0, (-p.y) as f32 + 0.0]
+}
+
+/// Faces of one surface class and one colour in one building.
+struct Group {
+    color: Color,
+    color_key: [u32; 4],
+    mesh: MeshData,
+}
+
+/// Flat-shaded triangle data of one primitive.
+#[derive(Default)]
+struct MeshData {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    indices: Vec<u32>,
+}
+
+impl MeshData {
+    /// Appends a face with its own vertices and normal; degenerate faces add nothing.
+    fn add_face(&mut self, face: &Face) {
+        let Some(t) = triangulate_face(&face.outer, &face.holes) else {
+            return;
+        };
+        let positions: Vec<[f32; 3]> = t.vertices.iter().map(|p| to_gltf(*p)).collect();
+        // Coordinates beyond f32 range (never in a local frame, but input is input).
+        if positions.iter().flatten().any(|c| !c.is_finite()) {
+            return;
+        }
+        let Ok(base) = u32::try_from(self.positions.len()) else {
+            return;
+        };
+        if u32::try_from(self.positions.len() + positions.len()).is_err() {
+            return;
+        }
+        let n = to_gltf(t.normal);
+        self.normals.extend(std::iter::repeat_n(n, positions.len()));
+        self.positions.extend(positions);
+        self.indices
+            .extend(t.triangles.iter().flatten().map(|i| base + i));
+    }
+
+    /// Component-wise min and max of the positions (as glTF requires for POSITION).
+    fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in &self.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (lo, hi)
+    }
+}
+
+/// Counts bytes written (to size the JSON chunk before writing it).
+struct ByteCounter(u64);
+
+impl Write for ByteCounter {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0 += buf.len() as u64;
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+// ---- JSON records, serialised with a fixed key order (struct field order) ----
+
+#[derive(Default)]
+struct Document {
+    asset_extras: AssetExtras,
+    nodes: Vec<NodeRec>,
+    roots: Vec<u32>,
+    meshes: Vec<MeshRec>,
+    materials: Vec<MaterialRec>,
+    accessors: Vec<AccessorRec>,
+    views: Vec<ViewRec>,
+    buffer_length: u64,
+}
+
+impl Document {
+    fn push_accessor(&mut self, a: AccessorRec) -> u32 {
+        self.accessors.push(a);
+        (self.accessors.len() - 1) as u32
+    }
+
+    fn json(&self) -> GltfJson<'_> {
+        GltfJson {
+            asset: Asset {
+                version: "2.0",
+                generator: concat!("citygen ", env!("CARGO_PKG_VERSION")),
+                extras: &self.asset_extras,
+            },
+            scene: 0,
+            scenes: [Scene { nodes: &self.roots }],
+            nodes: &self.nodes,
+            meshes: &self.meshes,
+            materials: &self.materials,
+            accessors: &self.accessors,
+            buffer_views: &self.views,
+            buffers: if self.buffer_length > 0 {
+                vec![Buffer {
+                    byte_length: self.buffer_length,
+                }]
+            } else {
+                Vec::new()
+            },
+        }
+    }
+}
+
+fn is_empty<T>(s: &[T]) -> bool {
+    s.is_empty()
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct GltfJson<'a> {
+    asset: Asset<'a>,
+    scene: u32,
+    scenes: [Scene<'a>; 1],
+    #[serde(skip_serializing_if = "is_empty")]
+    nodes: &'a [NodeRec],
+    #[serde(skip_serializing_if = "is_empty")]
+    meshes: &'a [MeshRec],
+    #[serde(skip_serializing_if = "is_empty")]
+    materials: &'a [MaterialRec],
+    #[serde(skip_serializing_if = "is_empty")]
+    accessors: &'a [AccessorRec],
+    #[serde(skip_serializing_if = "is_empty")]
+    buffer_views: &'a [ViewRec],
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    buffers: Vec<Buffer>,
+}
+
+#[derive(Serialize)]
+struct Asset<'a> {
+    version: &'static str,
+    generator: &'static str,
+    extras: &'a AssetExtras,
+}
+
+#[derive(Serialize, Default)]
+struct AssetExtras {
+    crs: String,
+    origin: [f64; 3],
+    lod: u8,
+    source: String,
+}
+
+#[derive(Serialize)]
+struct Scene<'a> {
+    #[serde(skip_serializing_if = "is_empty")]
+    nodes: &'a [u32],
+}
+
+#[derive(Serialize)]
+struct NodeRec {
+    name: String,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    children: Vec<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mesh: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extras: Option<BuildingExtras>,
+}
+
+#[derive(Serialize)]
+struct BuildingExtras {
+    id: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+    zone: String,
+    appearance: String,
+    /// Measured height in metres (non-finite values serialise as null).
+    height: f64,
+    base: f64,
+    storeys: u32,
+    roof_shape: &'static str,
+    lod: u8,
+}
+
+#[derive(Serialize)]
+struct MeshRec {
+    name: String,
+    primitives: Vec<PrimitiveRec>,
+}
+
+#[derive(Serialize)]
+struct PrimitiveRec {
+    attributes: Attributes,
+    indices: u32,
+    material: u32,
+}
+
+#[derive(Serialize)]
+struct Attributes {
+    #[serde(rename = "POSITION")]
+    position: u32,
+    #[serde(rename = "NORMAL")]
+    normal: u32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct MaterialRec {
+    name: String,
+    #[serde(rename = "pbrMetallicRoughness")]
+    pbr: Pbr,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    alpha_mode: Option<&'static str>,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct Pbr {
+    base_color_factor: [f32; 4],
+    metallic_factor: f32,
+    roughness_factor: f32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct AccessorRec {
+    buffer_view: u32,
+    #[serde(skip_serializing_if = "is_zero")]
+    byte_offset: u64,
+    component_type: u32,
+    count: u32,
+    #[serde(rename = "type")]
+    kind: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    min: Option<[f32; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    max: Option<[f32; 3]>,
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct ViewRec {
+    buffer: u32,
+    #[serde(skip_serializing_if = "is_zero")]
+    byte_offset: u64,
+    byte_length: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    byte_stride: Option<u32>,
+    target: u32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct Buffer {
+    byte_length: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Polygon;
+    use crate::input::SourceId;
+    use crate::model::{Lod, Part, RoofShape, Wall};
+    use glam::DVec2;
+    use serde_json::Value;
+
+    // ---- synthetic buildings ----
+
+    /// A wall on footprint edge start->end, its outer face CCW seen from outside.
+    fn wall(start: DVec2, end: DVec2, base: f64, top: f64) -> Wall {
+        let outline = Face::new(vec![
+            start.extend(base),
+            end.extend(base),
+            end.extend(top),
+            start.extend(top),
+        ]);
+        Wall {
+            start,
+            end,
+            base_z: base,
+            top_z: top,
+            thickness: 0.3,
+            outline,
+        }
+    }
+
+    /// A part extruded from `footprint` from `base` to `eave`, with the given roof faces (a flat
+    /// roof at `eave` when `roof` is empty).
+    fn part(
+        key: &str,
+        footprint: Polygon,
+        base: f64,
+        eave: f64,
+        roof: Vec<Face>,
+        wall_color: Color,
+    ) -> Part {
+        let mut walls = Vec::new();
+        for ring in footprint.rings() {
+            for i in 0..ring.len() {
+                walls.push(wall(ring[i], ring[(i + 1) % ring.len()], base, eave));
+            }
+        }
+        let lift = |r: &Vec<DVec2>, z: f64| r.iter().map(|p| p.extend(z)).collect::<Vec<_>>();
+        let (roof, shape, top) = if roof.is_empty() {
+            let flat = Face {
+                outer: lift(&footprint.outer, eave),
+                holes: footprint.holes.iter().map(|h| lift(h, eave)).collect(),
+            };
+            (vec![flat], RoofShape::Flat, eave)
+        } else {
+            let top = roof
+                .iter()
+                .flat_map(|f| f.outer.iter())
+                .map(|p| p.z)
+                .fold(eave, f64::max);
+            (roof, RoofShape::Hipped, top)
+        };
+        let rev = |r: &Vec<DVec2>| {
+            let mut v = lift(r, base);
+            v.reverse();
+            v
+        };
+        let ground = Face {
+            outer: rev(&footprint.outer),
+            holes: footprint.holes.iter().map(rev).collect(),
+        };
+        Part {
+            key: key.into(),
+            footprint,
+            base_z: base,
+            eave_z: eave,
+            top_z: top,
+            storeys: 2,
+            wall_color,
+            roof_color: Color::rgb(0.7, 0.2, 0.1),
+            roof_shape: shape,
+            walls,
+            roof,
+            ground,
+        }
+    }
+
+    fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<DVec2> {
+        vec![
+            DVec2::new(x0, y0),
+            DVec2::new(x1, y0),
+            DVec2::new(x1, y1),
+            DVec2::new(x0, y1),
+        ]
+    }
+
+    fn building(id: i64, parts: Vec<Part>) -> Building {
+        let base = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
+        let top = parts
+            .iter()
+            .map(|p| p.top_z)
+            .fold(f64::NEG_INFINITY, f64::max);
+        Building {
+            id: SourceId::Way(id),
+            name: Some(format!("Building {id}")),
+            zone: "earth/France/Occitanie/Toulouse".into(),
+            appearance: "Toulouse#1".into(),
+            base_z: base,
+            measured_height: top - base,
+            storeys_above_ground: 2,
+            roof_shape: parts[0].roof_shape,
+            parts,
+            lod: Lod::Lod2,
+        }
+    }
+
+    /// 10 x 6 m box, 3 m high, flat roof.
+    fn box_building() -> Building {
+        building(
+            1,
+            vec![part(
+                "p0",
+                Polygon::new(rect(0.0, 0.0, 10.0, 6.0), vec![]),
+                0.0,
+                3.0,
+                vec![],
+                Color::WHITE,
+            )],
+        )
+    }
+
+    /// 20 x 20 m block with an 8 x 8 m courtyard, 9 m high.
+    fn courtyard_building() -> Building {
+        let fp = Polygon::new(
+            rect(30.0, 0.0, 50.0, 20.0),
+            vec![rect(36.0, 6.0, 44.0, 14.0)],
+        );
+        building(
+            2,
+            vec![part("p0", fp, 0.0, 9.0, vec![], Color::rgb(0.9, 0.8, 0.6))],
+        )
+    }
+
+    /// Hip roof on a 10 x 6 m footprint at (x0, 0): eave 3 m, ridge 5 m from x0+3 to x0+7.
+    fn hip_roof(x0: f64) -> Vec<Face> {
+        let p = |x: f64, y: f64, z: f64| DVec3::new(x0 + x, y, z);
+        vec![
+            Face::new(vec![
+                p(0.0, 0.0, 3.0),
+                p(10.0, 0.0, 3.0),
+                p(7.0, 3.0, 5.0),
+                p(3.0, 3.0, 5.0),
+            ]),
+            Face::new(vec![p(10.0, 0.0, 3.0), p(10.0, 6.0, 3.0), p(7.0, 3.0, 5.0)]),
+            Face::new(vec![
+                p(10.0, 6.0, 3.0),
+                p(0.0, 6.0, 3.0),
+                p(3.0, 3.0, 5.0),
+                p(7.0, 3.0, 5.0),
+            ]),
+            Face::new(vec![p(0.0, 6.0, 3.0), p(0.0, 0.0, 3.0), p(3.0, 3.0, 5.0)]),
+        ]
+    }
+
+    /// A flat 6 m part and a hip-roofed part in another wall colour, plus a degenerate roof face.
+    fn two_part_building() -> Building {
+        let a = part(
+            "p0",
+            Polygon::new(rect(60.0, 0.0, 70.0, 6.0), vec![]),
+            0.0,
+            6.0,
+            vec![],
+            Color::WHITE,
+        );
+        let mut roof = hip_roof(70.0);
+        roof.push(Face::new(vec![
+            DVec3::new(70.0, 0.0, 3.0),
+            DVec3::new(71.0, 0.0, 3.0),
+        ]));
+        let b = part(
+            "p1",
+            Polygon::new(rect(70.0, 0.0, 80.0, 6.0), vec![]),
+            0.0,
+            3.0,
+            roof,
+            Color::rgb(1.0, 1.0, 0.5),
+        );
+        building(3, vec![a, b])
+    }
+
+    /// A hip-roofed house whose glazing-like roof colour is translucent.
+    fn translucent_building() -> Building {
+        let mut p = part(
+            "p0",
+            Polygon::new(rect(90.0, 0.0, 100.0, 6.0), vec![]),
+            2.0,
+            5.0,
+            vec![],
+            Color::WHITE,
+        );
+        p.roof = hip_roof(90.0)
+            .into_iter()
+            .map(|f| Face::new(f.outer.iter().map(|q| *q + DVec3::Z * 2.0).collect()))
+            .collect();
+        p.roof_color = Color {
+            r: 0.5,
+            g: 0.7,
+            b: 0.9,
+            a: 0.4,
+        };
+        building(4, vec![p])
+    }
+
+    fn all_buildings() -> Vec<Building> {
+        vec![
+            box_building(),
+            courtyard_building(),
+            two_part_building(),
+            translucent_building(),
+        ]
+    }
+
+    fn ctx() -> OutputContext {
+        OutputContext {
+            crs: Crs::Lambert93,
+            origin: DVec3::new(574_000.25, 6_279_000.5, 140.0),
+            origin_lonlat: (1.44, 43.6),
+            lod: Lod::Lod2,
+            source_name: "toulouse.osm.pbf".into(),
+            seed: 7,
+        }
+    }
+
+    /// Writes `buildings` to a GLB in memory (without asking the CRS for its EPSG code, which
+    /// another module provides).
+    fn write_glb(buildings: &[Building]) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut w = GltfWriter::new(&mut out, tempfile::tempfile().unwrap());
+        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        for b in buildings {
+            w.write(b).unwrap();
+        }
+        w.finish().unwrap();
+        out
+    }
+
+    // ---- a GLB reader for the checks ----
+
+    fn u32_at(b: &[u8], at: usize) -> u32 {
+        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    fn f32_at(b: &[u8], at: usize) -> f32 {
+        f32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    /// Checks the container and returns (JSON, BIN chunk data).
+    fn parse_glb(glb: &[u8]) -> (Value, &[u8]) {
+        assert_eq!(&glb[0..4], b"glTF");
+        assert_eq!(u32_at(glb, 4), 2);
+        assert_eq!(u32_at(glb, 8) as usize, glb.len());
+        assert_eq!(glb.len() % 4, 0);
+        let json_len = u32_at(glb, 12) as usize;
+        assert_eq!(json_len % 4, 0);
+        assert_eq!(&glb[16..20], b"JSON");
+        let json_bytes = &glb[20..20 + json_len];
+        let json: Value = serde_json::from_slice(json_bytes).expect("JSON chunk parses");
+        let rest = &glb[20 + json_len..];
+        if rest.is_empty() {
+            return (json, rest);
+        }
+        let bin_len = u32_at(rest, 0) as usize;
+        assert_eq!(bin_len % 4, 0);
+        assert_eq!(&rest[4..8], b"BIN\0");
+        assert_eq!(rest.len(), 8 + bin_len);
+        (json, &rest[8..])
+    }
+
+    /// Reads accessor `i` as f32 vec3s or as indices, after checking it lies in its view and the
+    /// view in the buffer.
+    fn accessor_data(json: &Value, bin: &[u8], i: u64) -> (Vec<[f32; 3]>, Vec<u32>) {
+        let a = &json["accessors"][i as usize];
+        let view = &json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+        let buffer_len = json["buffers"][0]["byteLength"].as_u64().unwrap() as usize;
+        assert!(buffer_len <= bin.len() && bin.len() - buffer_len < 4);
+        let v_off = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let v_len = view["byteLength"].as_u64().unwrap() as usize;
+        assert_eq!(v_off % 4, 0, "bufferView offsets are 4-aligned");
+        assert!(v_off + v_len <= buffer_len, "bufferView inside the buffer");
+        if view["target"] == ARRAY_BUFFER {
+            assert_eq!(view["byteStride"], 12);
+        } else {
+            assert!(view.get("byteStride").is_none());
+        }
+        let a_off = a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let count = a["count"].as_u64().unwrap() as usize;
+        assert!(count > 0);
+        let start = v_off + a_off;
+        match (
+            a["type"].as_str().unwrap(),
+            a["componentType"].as_u64().unwrap() as u32,
+        ) {
+            ("VEC3", FLOAT) => {
+                assert_eq!(start % 4, 0);
+                assert!(a_off + count * 12 <= v_len);
+                let v = (0..count)
+                    .map(|k| std::array::from_fn(|c| f32_at(bin, start + k * 12 + c * 4)))
+                    .collect();
+                (v, Vec::new())
+            }
+            ("SCALAR", UNSIGNED_SHORT) => {
+                assert_eq!(start % 2, 0);
+                assert!(a_off + count * 2 <= v_len);
+                let v = (0..count)
+                    .map(|k| {
+                        u16::from_le_bytes([bin[start + 2 * k], bin[start + 2 * k + 1]]) as u32
+                    })
+                    .collect();
+                (Vec::new(), v)
+            }
+            ("SCALAR", UNSIGNED_INT) => {
+                assert_eq!(start % 4, 0);
+                assert!(a_off + count * 4 <= v_len);
+                (
+                    Vec::new(),
+                    (0..count).map(|k| u32_at(bin, start + 4 * k)).collect(),
+                )
+            }
+            other => panic!("unexpected accessor {other:?}"),
+        }
+    }
+
+    /// Every primitive of mesh `m`: checks min/max, normals, index range, and that every
+    /// triangle faces the way its normal does. Returns the total triangle area.
+    fn check_mesh(json: &Value, bin: &[u8], m: u64) -> f64 {
+        let mut area = 0.0;
+        for prim in json["meshes"][m as usize]["primitives"].as_array().unwrap() {
+            let pos_i = prim["attributes"]["POSITION"].as_u64().unwrap();
+            let (pos, _) = accessor_data(json, bin, pos_i);
+            let (nrm, _) = accessor_data(json, bin, prim["attributes"]["NORMAL"].as_u64().unwrap());
+            let (_, idx) = accessor_data(json, bin, prim["indices"].as_u64().unwrap());
+            assert_eq!(pos.len(), nrm.len());
+            let acc = &json["accessors"][pos_i as usize];
+            for c in 0..3 {
+                let lo = pos.iter().map(|p| p[c]).fold(f32::INFINITY, f32::min);
+                let hi = pos.iter().map(|p| p[c]).fold(f32::NEG_INFINITY, f32::max);
+                assert_eq!(acc["min"][c].as_f64().unwrap() as f32, lo);
+                assert_eq!(acc["max"][c].as_f64().unwrap() as f32, hi);
+            }
+            assert!(nrm
+                .iter()
+                .all(|n| (DVec3::from(n.map(f64::from)).length() - 1.0).abs() < 1e-6));
+            assert_eq!(idx.len() % 3, 0);
+            assert!(
+                idx.iter().all(|&i| (i as usize) < pos.len()),
+                "indices in range"
+            );
+            for t in idx.chunks_exact(3) {
+                let p = |k: usize| DVec3::from(pos[t[k] as usize].map(f64::from));
+                let cross = (p(1) - p(0)).cross(p(2) - p(0));
+                let n = DVec3::from(nrm[t[0] as usize].map(f64::from));
+                assert!(
+                    cross.dot(n) > 0.0,
+                    "triangle winding agrees with its normal"
+                );
+                area += 0.5 * cross.length();
+            }
+            let mat = prim["material"].as_u64().unwrap() as usize;
+            assert!(mat < json["materials"].as_array().unwrap().len());
+        }
+        area
+    }
+
+    /// The child mesh of building node `node` named `class`.
+    fn class_mesh(json: &Value, node: &Value, class: &str) -> Option<u64> {
+        node["children"].as_array()?.iter().find_map(|c| {
+            let child = &json["nodes"][c.as_u64().unwrap() as usize];
+            (child["name"] == class).then(|| child["mesh"].as_u64().unwrap())
+        })
+    }
+
+    // ---- tests ----
+
+    #[test]
+    fn glb_container_and_asset() {
+        let glb = write_glb(&all_buildings());
+        let (json, bin) = parse_glb(&glb);
+        assert_eq!(json["asset"]["version"], "2.0");
+        assert_eq!(
+            json["asset"]["generator"],
+            format!("citygen {}", env!("CARGO_PKG_VERSION"))
+        );
+        assert_eq!(json["asset"]["extras"]["crs"], "EPSG:2154");
+        assert_eq!(
+            json["asset"]["extras"]["origin"],
+            serde_json::json!([574000.25, 6279000.5, 140.0])
+        );
+        assert_eq!(json["scene"], 0);
+        assert_eq!(json["buffers"].as_array().unwrap().len(), 1);
+        assert!(json["buffers"][0].get("uri").is_none());
+        // Every accessor is readable and consistent.
+        for i in 0..json["accessors"].as_array().unwrap().len() {
+            accessor_data(&json, bin, i as u64);
+        }
+    }
+
+    #[test]
+    fn one_node_per_building_with_extras() {
+        let buildings = all_buildings();
+        let glb = write_glb(&buildings);
+        let (json, _) = parse_glb(&glb);
+        let roots = json["scenes"][0]["nodes"].as_array().unwrap();
+        assert_eq!(roots.len(), buildings.len());
+        for (r, b) in roots.iter().zip(&buildings) {
+            let node = &json["nodes"][r.as_u64().unwrap() as usize];
+            assert_eq!(node["name"], b.key());
+            let x = &node["extras"];
+            assert_eq!(x["id"], b.id.to_string());
+            assert_eq!(x["zone"], "earth/France/Occitanie/Toulouse");
+            assert_eq!(x["appearance"], "Toulouse#1");
+            assert_eq!(x["height"].as_f64().unwrap(), b.measured_height);
+            assert_eq!(x["base"].as_f64().unwrap(), b.base_z);
+            let names: Vec<&str> = node["children"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| {
+                    json["nodes"][c.as_u64().unwrap() as usize]["name"]
+                        .as_str()
+                        .unwrap()
+                })
+                .collect();
+            assert_eq!(names, ["walls", "roof", "ground"]);
+        }
+    }
+
+    #[test]
+    fn box_areas_and_coordinates() {
+        let glb = write_glb(&[box_building()]);
+        let (json, bin) = parse_glb(&glb);
+        let node = &json["nodes"][0];
+        let walls = check_mesh(&json, bin, class_mesh(&json, node, "walls").unwrap());
+        let roof = check_mesh(&json, bin, class_mesh(&json, node, "roof").unwrap());
+        let ground = check_mesh(&json, bin, class_mesh(&json, node, "ground").unwrap());
+        assert!((walls - 96.0).abs() < 1e-4);
+        assert!((roof - 60.0).abs() < 1e-4);
+        assert!((ground - 60.0).abs() < 1e-4);
+        // Y up, north = -Z: the box spans x 0..10, y 0..3, z -6..0.
+        let roof_mesh = class_mesh(&json, node, "roof").unwrap() as usize;
+        let pos = json["meshes"][roof_mesh]["primitives"][0]["attributes"]["POSITION"]
+            .as_u64()
+            .unwrap() as usize;
+        assert_eq!(
+            json["accessors"][pos]["min"],
+            serde_json::json!([0.0, 3.0, -6.0])
+        );
+        assert_eq!(
+            json["accessors"][pos]["max"],
+            serde_json::json!([10.0, 3.0, 0.0])
+        );
+        // Roof normals point up (+Y) in glTF.
+        let nrm = json["meshes"][roof_mesh]["primitives"][0]["attributes"]["NORMAL"]
+            .as_u64()
+            .unwrap();
+        let (n, _) = accessor_data(&json, bin, nrm);
+        assert!(n.iter().all(|n| *n == [0.0, 1.0, 0.0]));
+        // Flat shading: 4 walls x 4 + 4 + 4 vertices.
+        let count = |m: u64| {
+            let a = json["meshes"][m as usize]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap();
+            json["accessors"][a as usize]["count"].as_u64().unwrap()
+        };
+        assert_eq!(count(class_mesh(&json, node, "walls").unwrap()), 16);
+    }
+
+    #[test]
+    fn courtyard_hole_is_kept() {
+        let glb = write_glb(&[courtyard_building()]);
+        let (json, bin) = parse_glb(&glb);
+        let node = &json["nodes"][0];
+        let roof = check_mesh(&json, bin, class_mesh(&json, node, "roof").unwrap());
+        let ground = check_mesh(&json, bin, class_mesh(&json, node, "ground").unwrap());
+        let walls = check_mesh(&json, bin, class_mesh(&json, node, "walls").unwrap());
+        assert!((roof - 336.0).abs() < 1e-3, "{roof}");
+        assert!((ground - 336.0).abs() < 1e-3, "{ground}");
+        assert!((walls - (80.0 + 32.0) * 9.0).abs() < 1e-3, "{walls}");
+    }
+
+    #[test]
+    fn two_parts_two_wall_materials_and_hip_roof() {
+        let glb = write_glb(&[two_part_building()]);
+        let (json, bin) = parse_glb(&glb);
+        let node = &json["nodes"][0];
+        let walls_mesh = class_mesh(&json, node, "walls").unwrap();
+        assert_eq!(
+            json["meshes"][walls_mesh as usize]["primitives"]
+                .as_array()
+                .unwrap()
+                .len(),
+            2
+        );
+        let walls = check_mesh(&json, bin, walls_mesh);
+        assert!((walls - (32.0 * 6.0 + 32.0 * 3.0)).abs() < 1e-3);
+        let roof = check_mesh(&json, bin, class_mesh(&json, node, "roof").unwrap());
+        // Flat 60 m2 plus the hip roof (trapezoids 2 x 19.80, triangles 2 x 10.82).
+        let s = (9.0f64 + 4.0).sqrt();
+        let expected =
+            60.0 + 2.0 * (10.0 + 4.0) / 2.0 * s + 2.0 * 0.5 * 6.0 * (9.0f64 + 4.0).sqrt();
+        assert!((roof - expected).abs() < 1e-3, "{roof} vs {expected}");
+    }
+
+    #[test]
+    fn materials_cached_linear_and_blended() {
+        let glb = write_glb(&all_buildings());
+        let (json, _) = parse_glb(&glb);
+        let mats = json["materials"].as_array().unwrap();
+        // walls white, roof, ground, courtyard walls, yellow walls, translucent roof.
+        let names: Vec<&str> = mats.iter().map(|m| m["name"].as_str().unwrap()).collect();
+        assert_eq!(
+            names,
+            [
+                "walls #ffffff",
+                "roof #b3331a",
+                "ground #808080",
+                "walls #e6cc99",
+                "walls #ffff80",
+                "roof #80b3e6 alpha 0.4"
+            ]
+        );
+        for m in mats {
+            let pbr = &m["pbrMetallicRoughness"];
+            assert_eq!(pbr["metallicFactor"], 0.0);
+            assert!((pbr["roughnessFactor"].as_f64().unwrap() - 0.9).abs() < 1e-6);
+        }
+        // sRGB 0.5 -> linear 0.2140.
+        let grey = mats[2]["pbrMetallicRoughness"]["baseColorFactor"][0]
+            .as_f64()
+            .unwrap();
+        assert!((grey - 0.2140).abs() < 1e-3, "{grey}");
+        assert_eq!(mats[5]["alphaMode"], "BLEND");
+        assert!(mats[0].get("alphaMode").is_none());
+    }
+
+    #[test]
+    #[ignore = "writes /tmp/x.glb for manual validation"]
+    fn dump_sample() {
+        std::fs::write("/tmp/x.glb", write_glb(&all_buildings())).unwrap();
+    }
+
+    #[test]
+    fn deterministic() {
+        assert_eq!(write_glb(&all_buildings()), write_glb(&all_buildings()));
+    }
+
+    #[test]
+    fn empty_and_degenerate_inputs() {
+        let glb = write_glb(&[]);
+        let (json, bin) = parse_glb(&glb);
+        assert!(bin.is_empty());
+        assert!(json.get("buffers").is_none() && json.get("nodes").is_none());
+        // A building whose every face is degenerate still gets its node, without children.
+        let mut b = box_building();
+        for p in &mut b.parts {
+            p.roof = vec![Face::new(vec![DVec3::ZERO, DVec3::X])];
+            p.ground = Face::new(vec![DVec3::new(f64::NAN, 0.0, 0.0); 3]);
+            p.walls.clear();
+        }
+        b.measured_height = f64::NAN;
+        let glb = write_glb(&[b]);
+        let (json, _) = parse_glb(&glb);
+        assert_eq!(json["nodes"].as_array().unwrap().len(), 1);
+        assert!(json["nodes"][0].get("children").is_none());
+        assert!(json["nodes"][0]["extras"]["height"].is_null());
+    }
+
+    #[test]
+    fn scratch_beside_target_is_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.glb");
+        let file = File::create(&target).unwrap();
+        let mut w = GltfWriter::beside(file, &target).unwrap();
+        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        w.write(&box_building()).unwrap();
+        w.finish().unwrap();
+        drop(w);
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["out.glb"]);
+        let glb = std::fs::read(&target).unwrap();
+        let (json, bin) = parse_glb(&glb);
+        check_mesh(&json, bin, 0);
+    }
+
+    #[test]
+    fn call_order_is_enforced() {
+        let mut out = Vec::new();
+        let mut w = GltfWriter::new(&mut out, tempfile::tempfile().unwrap());
+        assert!(w.write(&box_building()).is_err());
+        assert!(w.finish().is_err());
+        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        assert!(w.start(&ctx(), "EPSG:2154".into()).is_err());
+        w.finish().unwrap();
+        assert!(w.finish().is_err());
+        assert!(w.write(&box_building()).is_err());
+    }
+
+    #[test]
+    fn large_primitive_uses_u32_indices() {
+        // 17 000 small wall quads: 68 000 vertices in one primitive, more than u16 can index.
+        let mut b = box_building();
+        b.parts[0].walls = (0..17_000)
+            .map(|k| {
+                let x = k as f64 * 0.01;
+                wall(DVec2::new(x, 0.0), DVec2::new(x + 0.01, 0.0), 0.0, 3.0)
+            })
+            .collect();
+        let glb = write_glb(&[b]);
+        let (json, bin) = parse_glb(&glb);
+        let walls = class_mesh(&json, &json["nodes"][0], "walls").unwrap();
+        let idx = json["meshes"][walls as usize]["primitives"][0]["indices"]
+            .as_u64()
+            .unwrap();
+        assert_eq!(
+            json["accessors"][idx as usize]["componentType"],
+            UNSIGNED_INT
+        );
+        check_mesh(&json, bin, walls);
+    }
+
+    /// Runs the Khronos glTF validator through the shared script when it is installed.
+    #[test]
+    fn khronos_validator_accepts_output() {
+        let tool = std::path::Path::new("/work/shared/tools/validate-outputs");
+        let installed = std::env::var_os("HOME")
+            .map(|h| {
+                std::path::Path::new(&h)
+                    .join(".cache/citygen-validate/node/node_modules/gltf-validator")
+                    .is_dir()
+            })
+            .unwrap_or(false);
+        if !tool.exists() || !installed {
+            eprintln!(
+                "skipping: glTF validator not installed ({})",
+                tool.display()
+            );
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("citygen-test.glb");
+        std::fs::write(&path, write_glb(&all_buildings())).unwrap();
+        let out = std::process::Command::new(tool)
+            .arg(&path)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "validator failed:\n{text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(text.contains("OK "), "{text}");
+    }
+}

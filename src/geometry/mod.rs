@@ -7,6 +7,7 @@
 
 pub mod roof;
 pub mod skeleton;
+pub mod triangulate;
 
 use glam::{DVec2, DVec3};
 

@@ -1,1 +1,29 @@
 //! The stochastic, attributed shape grammar of seed 003 §3.3: parser, interpreter, shape tree.
+//!
+//! ```text
+//! lot -> extrude(20){building:roof=hip,roofcolor=sandybrown}
+//! building -> split(Y,sy/2,sy/2){b1|b2:color=grey}
+//! floor -> comp(){side:face}
+//! gback -> wall
+//! ```
+//!
+//! [`parse`] turns a rule file into a [`RuleSet`] (errors point at `file:line:col`); [`derive`]
+//! applies it to one footprint and returns the [`ShapeTree`] the exporters consume. The
+//! semantic decisions (remainders, truncation, repeat fitting, comp selectors, labels) are
+//! documented on the [`interp`] module.
+
+pub mod ast;
+pub mod expr;
+pub mod interp;
+pub mod parser;
+pub mod shape;
+
+#[cfg(test)]
+mod tests;
+
+pub use ast::{
+    AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
+};
+pub use interp::{derive, Caps, DeriveError};
+pub use parser::{parse, GrammarError, ParseErrorKind};
+pub use shape::{FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal};

@@ -1,0 +1,673 @@
+//! A small WKT reader (WKT1 as written by ESRI and GDAL/OGC, plus enough of WKT2) and the
+//! recogniser that maps a parsed `.prj` onto a [`Crs`].
+//!
+//! The grammar accepted is `KEYWORD[arg, ...]` (or with parentheses), where an argument is a
+//! quoted string (`""` escapes a quote), a number, a bare word (`EAST`) or a nested node.
+//! Keywords and names compare case-insensitively.
+
+use super::{Crs, CrsError};
+
+/// Nesting deeper than this is rejected rather than risking the stack on hostile input.
+const MAX_DEPTH: usize = 64;
+
+/// One argument of a WKT node.
+#[derive(Clone, Debug, PartialEq)]
+enum Value {
+    Str(String),
+    Num(f64),
+    Word(String),
+    Node(Node),
+}
+
+/// `KEYWORD[args]`, keyword upper-cased.
+#[derive(Clone, Debug, PartialEq)]
+struct Node {
+    keyword: String,
+    args: Vec<Value>,
+}
+
+impl Node {
+    /// The first argument as text (the object's name in every WKT object that has one).
+    fn name(&self) -> Option<&str> {
+        match self.args.first() {
+            Some(Value::Str(s)) | Some(Value::Word(s)) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The `i`-th argument as a number (quoted numbers accepted, as some writers quote them).
+    fn num(&self, i: usize) -> Option<f64> {
+        match self.args.get(i)? {
+            Value::Num(x) => Some(*x),
+            Value::Str(s) | Value::Word(s) => s.trim().parse().ok(),
+            Value::Node(_) => None,
+        }
+    }
+
+    /// Direct child nodes.
+    fn children(&self) -> impl Iterator<Item = &Node> {
+        self.args.iter().filter_map(|v| match v {
+            Value::Node(n) => Some(n),
+            _ => None,
+        })
+    }
+
+    /// The first direct child whose keyword is one of `kws`.
+    fn child(&self, kws: &[&str]) -> Option<&Node> {
+        self.children().find(|n| kws.contains(&n.keyword.as_str()))
+    }
+
+    /// The first node, depth first and including `self`, whose keyword is one of `kws`.
+    fn find(&self, kws: &[&str]) -> Option<&Node> {
+        if kws.contains(&self.keyword.as_str()) {
+            return Some(self);
+        }
+        self.children().find_map(|c| c.find(kws))
+    }
+
+    /// Every node, depth first, whose keyword is one of `kws`.
+    fn find_all<'a>(&'a self, kws: &[&str], out: &mut Vec<&'a Node>) {
+        if kws.contains(&self.keyword.as_str()) {
+            out.push(self);
+        }
+        for c in self.children() {
+            c.find_all(kws, out);
+        }
+    }
+}
+
+/// A recursive-descent reader over the bytes of the WKT text.
+struct Parser<'a> {
+    src: &'a str,
+    pos: usize,
+}
+
+impl<'a> Parser<'a> {
+    fn err(&self, what: &str) -> CrsError {
+        // Show a little of the text at the failure point so the user can find it.
+        let tail: String = self.src[self.pos..].chars().take(20).collect();
+        CrsError::BadPrj(format!("{what} at byte {} (near {tail:?})", self.pos))
+    }
+
+    fn peek(&self) -> Option<char> {
+        self.src[self.pos..].chars().next()
+    }
+
+    fn skip_ws(&mut self) {
+        while let Some(c) = self.peek() {
+            if c.is_whitespace() || c == '\u{feff}' || c == '\0' {
+                self.pos += c.len_utf8();
+            } else {
+                break;
+            }
+        }
+    }
+
+    fn word(&mut self) -> &'a str {
+        let start = self.pos;
+        while let Some(c) = self.peek() {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                self.pos += 1;
+            } else {
+                break;
+            }
+        }
+        &self.src[start..self.pos]
+    }
+
+    fn node(&mut self, depth: usize) -> Result<Node, CrsError> {
+        if depth > MAX_DEPTH {
+            return Err(self.err("WKT nested too deeply"));
+        }
+        self.skip_ws();
+        let kw = self.word();
+        if kw.is_empty() || !kw.starts_with(|c: char| c.is_ascii_alphabetic()) {
+            return Err(self.err("expected a WKT keyword such as PROJCS or GEOGCS"));
+        }
+        let keyword = kw.to_ascii_uppercase();
+        self.skip_ws();
+        match self.peek() {
+            Some('[') | Some('(') => self.pos += 1,
+            _ => return Err(self.err(&format!("expected '[' after {keyword}"))),
+        }
+        let mut args = Vec::new();
+        self.skip_ws();
+        if matches!(self.peek(), Some(']') | Some(')')) {
+            self.pos += 1;
+            return Ok(Node { keyword, args });
+        }
+        loop {
+            self.skip_ws();
+            args.push(self.value(depth)?);
+            self.skip_ws();
+            match self.peek() {
+                Some(',') => self.pos += 1,
+                Some(']') | Some(')') => {
+                    self.pos += 1;
+                    return Ok(Node { keyword, args });
+                }
+                None => return Err(self.err(&format!("unclosed {keyword}[ (text ends)"))),
+                Some(_) => return Err(self.err(&format!("expected ',' or ']' in {keyword}"))),
+            }
+        }
+    }
+
+    fn value(&mut self, depth: usize) -> Result<Value, CrsError> {
+        match self.peek() {
+            Some('"') => {
+                self.pos += 1;
+                let mut s = String::new();
+                loop {
+                    match self.peek() {
+                        None => return Err(self.err("unterminated string")),
+                        Some('"') => {
+                            self.pos += 1;
+                            if self.peek() == Some('"') {
+                                s.push('"');
+                                self.pos += 1;
+                            } else {
+                                return Ok(Value::Str(s));
+                            }
+                        }
+                        Some(c) => {
+                            s.push(c);
+                            self.pos += c.len_utf8();
+                        }
+                    }
+                }
+            }
+            Some(c) if c.is_ascii_digit() || c == '-' || c == '+' || c == '.' => {
+                let start = self.pos;
+                while let Some(c) = self.peek() {
+                    if c.is_ascii_digit() || matches!(c, '-' | '+' | '.' | 'e' | 'E') {
+                        self.pos += 1;
+                    } else {
+                        break;
+                    }
+                }
+                let text = &self.src[start..self.pos];
+                text.parse().map(Value::Num).map_err(|_| {
+                    self.pos = start;
+                    self.err(&format!("bad number {text:?}"))
+                })
+            }
+            Some(c) if c.is_ascii_alphabetic() => {
+                let start = self.pos;
+                let w = self.word();
+                self.skip_ws();
+                if matches!(self.peek(), Some('[') | Some('(')) {
+                    self.pos = start;
+                    Ok(Value::Node(self.node(depth + 1)?))
+                } else {
+                    Ok(Value::Word(w.to_owned()))
+                }
+            }
+            _ => Err(self.err("expected a string, number or WKT node")),
+        }
+    }
+}
+
+/// Parses WKT text into its root node.
+fn parse(text: &str) -> Result<Node, CrsError> {
+    if text.trim().is_empty() {
+        return Err(CrsError::BadPrj("the .prj is empty".to_owned()));
+    }
+    let mut p = Parser { src: text, pos: 0 };
+    let root = p.node(0)?;
+    p.skip_ws();
+    if p.pos < text.len() {
+        return Err(p.err("unexpected text after the end of the CRS"));
+    }
+    Ok(root)
+}
+
+/// Lower-case with every run of non-alphanumerics turned into one `_`, so that
+/// `WGS 84 / UTM zone 31N` and `WGS_1984_UTM_Zone_31N` compare by their words.
+fn norm(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        if c.is_alphanumeric() {
+            out.extend(c.to_lowercase());
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    out.trim_matches('_').to_owned()
+}
+
+/// The geodetic datums the recogniser distinguishes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Datum {
+    Wgs84,
+    Osgb36,
+    Rgf93,
+    Etrs89,
+    /// An unrecognised datum name on the GRS 1980 ellipsoid (ETRS89? RGF93? NAD83?).
+    UnknownGrs80,
+    Other,
+}
+
+/// The ellipsoid by its defining parameters, whatever it is called.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Spheroid {
+    Wgs84,
+    Grs80,
+    Airy,
+    Other,
+}
+
+fn classify_spheroid(a: f64, rf: f64) -> Spheroid {
+    let near = |x: f64, y: f64, tol: f64| (x - y).abs() <= tol;
+    if near(a, 6_378_137.0, 1e-3) && near(rf, 298.257_223_563, 1e-6) {
+        Spheroid::Wgs84
+    } else if near(a, 6_378_137.0, 1e-3) && near(rf, 298.257_222_101, 1e-6) {
+        Spheroid::Grs80
+    } else if near(a, 6_377_563.396, 1e-3) && near(rf, 299.324_964_6, 1e-5) {
+        Spheroid::Airy
+    } else {
+        Spheroid::Other
+    }
+}
+
+/// What the recogniser learnt from the WKT, kept for the error message.
+struct Facts {
+    name: String,
+    projected: bool,
+    datum_name: Option<String>,
+    spheroid_name: Option<String>,
+    datum: Datum,
+    method: Option<String>,
+    /// Canonical parameter key (`lon0`, `lat0`, `k0`, `fe`, `fn`, `sp1`, `sp2`) and value.
+    params: Vec<(&'static str, f64)>,
+}
+
+impl Facts {
+    fn param(&self, key: &str) -> Option<f64> {
+        self.params.iter().find(|(k, _)| *k == key).map(|(_, v)| *v)
+    }
+
+    fn describe(&self) -> String {
+        let mut s = format!(
+            "{} {:?}",
+            if self.projected {
+                "projected CRS"
+            } else {
+                "geographic CRS"
+            },
+            self.name
+        );
+        if let Some(m) = &self.method {
+            s.push_str(&format!(", projection {m:?}"));
+        }
+        if !self.params.is_empty() {
+            let ps: Vec<String> = self
+                .params
+                .iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect();
+            s.push_str(&format!(" ({})", ps.join(", ")));
+        }
+        s.push_str(&format!(
+            ", datum {:?}, ellipsoid {:?}",
+            self.datum_name.as_deref().unwrap_or("?"),
+            self.spheroid_name.as_deref().unwrap_or("?")
+        ));
+        s
+    }
+}
+
+/// Maps a WKT parameter name onto the canonical key, or `None` for parameters that do not
+/// matter to the CRSs recognised here.
+fn param_key(name: &str) -> Option<&'static str> {
+    Some(match norm(name).as_str() {
+        "false_easting" | "easting_at_false_origin" | "easting_at_projection_centre" => "fe",
+        "false_northing" | "northing_at_false_origin" | "northing_at_projection_centre" => "fn",
+        "central_meridian"
+        | "longitude_of_origin"
+        | "longitude_of_center"
+        | "longitude_of_centre"
+        | "longitude_of_natural_origin"
+        | "longitude_of_false_origin" => "lon0",
+        "latitude_of_origin"
+        | "latitude_of_center"
+        | "latitude_of_centre"
+        | "latitude_of_natural_origin"
+        | "latitude_of_false_origin" => "lat0",
+        "scale_factor" | "scale_factor_at_natural_origin" => "k0",
+        "standard_parallel_1" | "latitude_of_1st_standard_parallel" => "sp1",
+        "standard_parallel_2" | "latitude_of_2nd_standard_parallel" => "sp2",
+        _ => return None,
+    })
+}
+
+/// Identifies the CRS of `.prj` text. See [`Crs::from_prj`].
+pub(crate) fn identify(text: &str) -> Result<Crs, CrsError> {
+    let mut root = parse(text)?;
+    // A compound CRS: the horizontal part is its first component.
+    if matches!(root.keyword.as_str(), "COMPD_CS" | "COMPOUNDCRS") {
+        root = root
+            .child(&["PROJCS", "PROJCRS", "GEOGCS", "GEOGCRS", "GEOGRAPHICCRS"])
+            .cloned()
+            .ok_or_else(|| {
+                CrsError::Unsupported("a compound CRS without a horizontal part".to_owned())
+            })?;
+    }
+    let projected = match root.keyword.as_str() {
+        "PROJCS" | "PROJCRS" | "PROJECTEDCRS" => true,
+        "GEOGCS" | "GEOGCRS" | "GEOGRAPHICCRS" => false,
+        other => {
+            return Err(CrsError::Unsupported(format!(
+                "a .prj whose root is {other}[...] (expected PROJCS or GEOGCS)"
+            )))
+        }
+    };
+
+    // 1. A top-level EPSG code wins when citygen knows it.
+    let authority = root.child(&["AUTHORITY", "ID"]).and_then(|a| {
+        let auth = a.name()?;
+        if !auth.eq_ignore_ascii_case("EPSG") {
+            return None;
+        }
+        let code = a.num(1)?;
+        (code.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&code)).then_some(code as u32)
+    });
+    if let Some(code) = authority {
+        if let Ok(crs) = Crs::from_epsg(code) {
+            return Ok(crs);
+        }
+    }
+
+    let facts = gather(&root, projected)?;
+    // 2. The method and parameters, the definition itself; 3. the name as a fallback.
+    let found = if projected {
+        match by_parameters(&facts) {
+            Some(ParamMatch::Found(crs)) => Some(crs),
+            Some(ParamMatch::NoMatch) => None,
+            None => by_name(&facts),
+        }
+    } else {
+        (facts.datum == Datum::Wgs84).then_some(Crs::Wgs84)
+    };
+    found.ok_or_else(|| {
+        let mut what = facts.describe();
+        if let Some(code) = authority {
+            what = format!("EPSG:{code}, {what}");
+        }
+        CrsError::Unsupported(what)
+    })
+}
+
+/// Collects the datum, ellipsoid, method and parameters, and rejects units citygen would
+/// misread (non-metre linear units, non-degree angles, a non-Greenwich prime meridian).
+fn gather(root: &Node, projected: bool) -> Result<Facts, CrsError> {
+    let name = root.name().unwrap_or("").to_owned();
+    let datum_node = root.find(&["DATUM", "GEODETICDATUM", "TRF"]);
+    let datum_name = datum_node.and_then(Node::name).map(str::to_owned);
+    let spheroid_node = root.find(&["SPHEROID", "ELLIPSOID"]);
+    let spheroid_name = spheroid_node.and_then(Node::name).map(str::to_owned);
+    let spheroid = spheroid_node
+        .and_then(|s| Some((s.num(1)?, s.num(2)?)))
+        .map(|(a, rf)| classify_spheroid(a, rf));
+    let dn = datum_name.as_deref().map(norm).unwrap_or_default();
+    let has = |keys: &[&str]| keys.iter().any(|k| dn.contains(k));
+    let by_name = if has(&["wgs_1984", "wgs_84", "wgs84", "world_geodetic_system_1984"]) {
+        Some((Datum::Wgs84, Spheroid::Wgs84))
+    } else if has(&[
+        "osgb_1936",
+        "osgb36",
+        "ordnance_survey_of_great_britain_1936",
+    ]) {
+        Some((Datum::Osgb36, Spheroid::Airy))
+    } else if has(&["rgf_1993", "rgf93", "reseau_geodesique_francais_1993"]) {
+        Some((Datum::Rgf93, Spheroid::Grs80))
+    } else if has(&[
+        "etrs_1989",
+        "etrs89",
+        "european_terrestrial_reference_system_1989",
+    ]) {
+        Some((Datum::Etrs89, Spheroid::Grs80))
+    } else {
+        None
+    };
+    let datum = match (by_name, spheroid) {
+        // A datum name whose ellipsoid disagrees is not that datum.
+        (Some((d, want)), Some(got)) if got == want => d,
+        (Some(_), Some(_)) => Datum::Other,
+        (Some((d, _)), None) => d,
+        (None, Some(Spheroid::Wgs84)) => Datum::Wgs84,
+        (None, Some(Spheroid::Airy)) => Datum::Osgb36,
+        (None, Some(Spheroid::Grs80)) => Datum::UnknownGrs80,
+        (None, _) => Datum::Other,
+    };
+
+    if let Some(pm) = root.find(&["PRIMEM", "PRIMEMERIDIAN"]) {
+        if let Some(lon) = pm.num(1) {
+            if lon.abs() > 1e-9 {
+                return Err(CrsError::Unsupported(format!(
+                    "{name:?}: prime meridian {:?} at {lon} (only Greenwich is supported)",
+                    pm.name().unwrap_or("?")
+                )));
+            }
+        }
+    }
+    // The angular unit of the geographic part (WKT1: UNIT inside GEOGCS).
+    let geog = if projected {
+        root.find(&["GEOGCS", "BASEGEOGCRS", "BASEGEODCRS"])
+    } else {
+        Some(root)
+    };
+    if let Some(unit) = geog.and_then(|g| g.child(&["UNIT", "ANGLEUNIT"])) {
+        if let Some(f) = unit.num(1) {
+            if (f - 1f64.to_radians()).abs() > 1e-12 {
+                return Err(CrsError::Unsupported(format!(
+                    "{name:?}: angular unit {:?} (only degrees are supported)",
+                    unit.name().unwrap_or("?")
+                )));
+            }
+        }
+    }
+    if projected {
+        let mut units = Vec::new();
+        if let Some(u) = root.child(&["UNIT", "LENGTHUNIT"]) {
+            units.push(u);
+        }
+        let mut axes = Vec::new();
+        root.find_all(&["AXIS"], &mut axes);
+        for axis in axes {
+            if let Some(u) = axis.child(&["LENGTHUNIT"]) {
+                units.push(u);
+            }
+        }
+        for u in units {
+            if let Some(f) = u.num(1) {
+                if (f - 1.0).abs() > 1e-12 {
+                    return Err(CrsError::Unsupported(format!(
+                        "{name:?}: linear unit {:?} ({f} m; only metres are supported)",
+                        u.name().unwrap_or("?")
+                    )));
+                }
+            }
+        }
+    }
+
+    let method = root
+        .find(&["PROJECTION", "METHOD"])
+        .and_then(Node::name)
+        .map(str::to_owned);
+    let mut nodes = Vec::new();
+    root.find_all(&["PARAMETER"], &mut nodes);
+    let params = nodes
+        .into_iter()
+        .filter_map(|p| Some((param_key(p.name()?)?, p.num(1)?)))
+        .collect();
+    Ok(Facts {
+        name,
+        projected,
+        datum_name,
+        spheroid_name,
+        datum,
+        method,
+        params,
+    })
+}
+
+/// The outcome of matching the projection parameters.
+enum ParamMatch {
+    Found(Crs),
+    /// The parameters are complete and describe something citygen does not know.
+    NoMatch,
+}
+
+/// Matches the method and parameters; `None` when they are missing or incomplete, so the name
+/// decides instead.
+fn by_parameters(f: &Facts) -> Option<ParamMatch> {
+    let method = norm(f.method.as_deref()?);
+    let near =
+        |key: &str, want: f64, tol: f64| f.param(key).is_some_and(|v| (v - want).abs() <= tol);
+    let ang = 1e-7;
+    let metres = 1e-3;
+    // Some writers round the BNG scale 0.9996012717 to 0.999601272; 1e-8 is still 0.06 mm at
+    // 600 km from the central meridian.
+    let k_tol = 1e-8;
+    if method.contains("transverse_mercator") && !method.contains("south") {
+        let (lon0, k0, fe, fnn) = (
+            f.param("lon0")?,
+            f.param("k0")?,
+            f.param("fe")?,
+            f.param("fn")?,
+        );
+        let lat0 = f.param("lat0").unwrap_or(0.0);
+        let found = if f.datum == Datum::Osgb36
+            && (lat0 - 49.0).abs() <= ang
+            && (lon0 + 2.0).abs() <= ang
+            && (k0 - 0.999_601_271_7).abs() <= k_tol
+            && (fe - 400_000.0).abs() <= metres
+            && (fnn + 100_000.0).abs() <= metres
+        {
+            Some(Crs::BritishNationalGrid)
+        } else if lat0.abs() <= ang
+            && (k0 - 0.9996).abs() <= k_tol
+            && (fe - 500_000.0).abs() <= metres
+            && (fnn.abs() <= metres || (fnn - 10_000_000.0).abs() <= metres)
+        {
+            let z = (lon0 + 183.0) / 6.0;
+            let zone = z.round();
+            let north = fnn.abs() <= metres;
+            if (z - zone).abs() * 6.0 > ang || !(1.0..=60.0).contains(&zone) {
+                None
+            } else {
+                utm_on(f.datum, zone as u8, north)
+            }
+        } else {
+            None
+        };
+        return Some(found.map_or(ParamMatch::NoMatch, ParamMatch::Found));
+    }
+    if method.contains("lambert_conformal_conic") || method.contains("lambert_conic_conformal") {
+        for key in ["lat0", "lon0", "fe", "fn"] {
+            f.param(key)?;
+        }
+        let (sp1, sp2) = (f.param("sp1")?, f.param("sp2")?);
+        let parallels = ((sp1 - 49.0).abs() <= ang && (sp2 - 44.0).abs() <= ang)
+            || ((sp1 - 44.0).abs() <= ang && (sp2 - 49.0).abs() <= ang);
+        let ok = parallels
+            && matches!(f.datum, Datum::Rgf93 | Datum::UnknownGrs80 | Datum::Etrs89)
+            && near("lat0", 46.5, ang)
+            && near("lon0", 3.0, ang)
+            && near("fe", 700_000.0, metres)
+            && near("fn", 6_600_000.0, metres);
+        return Some(if ok {
+            ParamMatch::Found(Crs::Lambert93)
+        } else {
+            ParamMatch::NoMatch
+        });
+    }
+    None
+}
+
+/// The UTM CRS of `zone` on `datum`, if citygen has one.
+fn utm_on(datum: Datum, zone: u8, north: bool) -> Option<Crs> {
+    match datum {
+        Datum::Wgs84 => Some(Crs::Utm { zone, north }),
+        Datum::Etrs89 if north && (28..=38).contains(&zone) => Some(Crs::EtrsUtm { zone }),
+        _ => None,
+    }
+}
+
+/// Recognises the CRS by its name alone (used when the parameters are missing).
+fn by_name(f: &Facts) -> Option<Crs> {
+    let n = norm(&f.name);
+    if n.contains("british_national_grid") && matches!(f.datum, Datum::Osgb36 | Datum::Other) {
+        return Some(Crs::BritishNationalGrid);
+    }
+    if n.contains("lambert_93") || n.contains("lambert93") {
+        return Some(Crs::Lambert93);
+    }
+    let rest = &n[n.find("utm_zone_")? + "utm_zone_".len()..];
+    let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+    let zone: u8 = digits.parse().ok().filter(|z| (1..=60).contains(z))?;
+    let north = match rest[digits.len()..].chars().next() {
+        Some('s') => false,
+        Some('n') | None | Some('_') => true,
+        Some(_) => return None,
+    };
+    let datum = if n.starts_with("wgs_84") || n.starts_with("wgs_1984") || n.starts_with("wgs84") {
+        Datum::Wgs84
+    } else if n.starts_with("etrs") {
+        Datum::Etrs89
+    } else {
+        f.datum
+    };
+    utm_on(datum, zone, north)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_nested_nodes_strings_and_words() {
+        let n = parse(r#" PROJCS["a ""q"" b",GEOGCS("g",X[1,-2.5e3]),AXIS["E",EAST]] "#).unwrap();
+        assert_eq!(n.keyword, "PROJCS");
+        assert_eq!(n.name(), Some("a \"q\" b"));
+        let g = n.child(&["GEOGCS"]).unwrap();
+        assert_eq!(g.child(&["X"]).unwrap().num(1), Some(-2500.0));
+        assert_eq!(
+            n.child(&["AXIS"]).unwrap().args[1],
+            Value::Word("EAST".into())
+        );
+    }
+
+    #[test]
+    fn syntax_errors_name_the_place() {
+        for bad in [
+            "",
+            "PROJCS[",
+            "PROJCS[\"x\"",
+            "PROJCS[\"x\",]",
+            "[]",
+            "PROJCS[\"x\"] trailing",
+            "PROJCS[1..2]",
+        ] {
+            match parse(bad) {
+                Err(CrsError::BadPrj(msg)) => assert!(
+                    msg.contains("byte") || msg.contains("empty"),
+                    "{bad:?}: {msg}"
+                ),
+                other => panic!("{bad:?} gave {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn deep_nesting_is_an_error_not_a_stack_overflow() {
+        let text = "A[".repeat(10_000) + &"]".repeat(10_000);
+        assert!(matches!(parse(&text), Err(CrsError::BadPrj(_))));
+    }
+
+    #[test]
+    fn norm_joins_words() {
+        assert_eq!(norm("WGS 84 / UTM zone 31N"), "wgs_84_utm_zone_31n");
+        assert_eq!(norm("RGF93_Lambert_93"), "rgf93_lambert_93");
+    }
+}

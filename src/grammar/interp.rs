@@ -1,0 +1,1064 @@
+//! The derivation: applies rules to shapes, breadth first, until only terminals are left.
+//!
+//! Decisions of this core (a later issue writes them up in docs/grammar.md):
+//!
+//! * **Order and determinism.** Shapes are expanded breadth first in creation order; all random
+//!   draws (rule choice, `rand`) come from the one `Rng`, so the same seed gives the same tree.
+//! * **Rule choice.** Among a predecessor's rules, by weight (see [`super::parse`]).
+//! * **`split` (absolute sizes).** Pieces are laid from the scope's minimum along the axis.
+//!   A size ≤ 0 gives no piece. A piece that does not fit whole is the *overflow*: on a face it
+//!   is truncated at the face's edge and the pieces after it are dropped; on a volume (any axis)
+//!   or a lot it is dropped, and the space left after the last whole piece is added to that
+//!   piece (the top storey gets taller), so a volume split never loses or invents matter. When
+//!   the sizes do not reach the end, a face gets a `wall` shape for the rest (facades stay
+//!   closed) and a volume or lot extends its last piece.
+//!   This is how Figure 3.19 gets "two and four storeys": b3 is 20 m × rand(0.6, 0.8), i.e.
+//!   12–16 m, so `split(Z,4,4,4,4,4)` keeps 3 whole levels (ground floor + 2 floors, the
+//!   top one taller); b2 is 20 m, so `repeat(Z,4)` gives 5 levels. The thesis counts *étages*
+//!   in the French way, above the ground floor (rez-de-chaussée): 2 and 4.
+//! * **`rsplit`.** Fractions ≥ 0, normalised to sum 1; a zero fraction gives no piece.
+//! * **`repeat`.** The pattern of sizes fits `n = floor(L / Σ sizes)` times and every piece is
+//!   scaled by `L / (n Σ sizes)` so that the copies fill the parent exactly. When it does not fit
+//!   once (`n = 0`), a face becomes one `wall` (no squeezed windows) and a volume gets one copy
+//!   of the pattern scaled down to fit.
+//! * **Pieces of a concave footprint.** Cutting a volume or lot along X or Y clips its footprint
+//!   to a slab; a slab may hold several disjoint polygons: each becomes a shape with the same
+//!   successor. A split piece keeps the parent's axes; its scope is its bounding box in them.
+//! * **`comp()`.** One vertical face per footprint edge (outer ring and holes), then `top`
+//!   and `bottom`. A face goes to the *first* successor whose selector matches it; `side`
+//!   matches every vertical face and `others` every vertical face not taken by an earlier
+//!   selector. front/back/left/right: the face's outward normal is expressed in the parent
+//!   scope's frame; when |n·Y| ≥ |n·X| it is `front` (n·Y < 0) or `back`, otherwise `right`
+//!   (n·X > 0) or `left` — so on a 45° tie front/back win. A vertical face no selector takes
+//!   still becomes a `wall` (facades stay closed); a top or bottom face no selector takes is not
+//!   created (roofs and slabs are built from the building's footprint and roof attribute).
+//! * **extrude** of a lot gives a `Building`; of a volume, it re-extrudes the footprint to the
+//!   new height (same label); of a side face, it pushes the face outward along its normal (a
+//!   balcony-like `FacadePart`); of a top/bottom face, it extrudes its outline up/down.
+//! * **S(x, y, z)** sets the scope size: a volume's footprint is scaled about the scope origin
+//!   by x/sx, y/sy and its height set to z; a face's width and height become x and z.
+//!   **T(x, y, z)** moves along the scope axes (for a face: x along the width, y along the
+//!   outward normal, z along the height). **R(Z, deg)** rotates a volume or lot (footprint and
+//!   scope) counter-clockwise about the scope origin; R on a face is not supported yet.
+//! * **Labels** (§3.3.1.3): extrude → `Building`; X/Y cut of a Building/BuildingPart →
+//!   `BuildingPart`, Z cut → `Storey`; a cut of a Storey or Room → `Room`; comp → `Facade`
+//!   (the face kind says side/top/bottom); cuts of a Facade/FacadePart → `FacadePart`; relabel,
+//!   S, T, R keep the label.
+//! * **Attributes** are inherited: a child shares its parent's map unless its successor sets
+//!   attributes, in which case it gets a copy with those overridden.
+
+use std::sync::Arc;
+
+use glam::{DVec2, DVec3};
+
+use super::ast::{AttrValue, Attrs, Axis, Expr, Op, RuleSet, Selector, SplitKind, SymbolId};
+use super::expr::{eval, EvalError};
+use super::shape::{
+    clip_slab, dominant_direction, map_polygon, FaceKind, Geometry, Label, Scope, ShapeNode,
+    ShapeTree, Terminal, EPS, MIN_AREA,
+};
+use crate::geometry::Polygon;
+use crate::rng::Rng;
+
+/// Lengths within this tolerance count as "fits" in split layouts (metres).
+const FIT_TOL: f64 = 1e-6;
+
+/// Limits that keep a runaway rule set from hanging or exhausting memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Caps {
+    /// Deepest allowed shape (the axiom has depth 0).
+    pub max_depth: usize,
+    /// Most shapes in one tree.
+    pub max_shapes: usize,
+    /// Most pieces one operation may make (guards `repeat(X, 0.0001)`).
+    pub max_pieces: usize,
+}
+
+impl Default for Caps {
+    /// 64 levels, 100 000 shapes, 10 000 pieces per operation.
+    fn default() -> Caps {
+        Caps {
+            max_depth: 64,
+            max_shapes: 100_000,
+            max_pieces: 10_000,
+        }
+    }
+}
+
+/// Why a derivation failed. `rule` is `file:line (pred -> op)` of the rule being applied.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DeriveError {
+    /// A cap of [`Caps`] was hit.
+    #[error("{rule}: derivation exceeds {cap} = {limit} (recursive or too fine rules?)")]
+    Cap {
+        /// Which cap: `max_depth`, `max_shapes` or `max_pieces`.
+        cap: &'static str,
+        /// Its value.
+        limit: usize,
+        /// The rule being applied.
+        rule: String,
+    },
+    /// An expression used a missing or non-numeric attribute, or gave a non-finite value.
+    #[error("{rule}: {message}")]
+    Eval {
+        /// The rule being applied.
+        rule: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// An operation was applied to a geometry it does not handle (e.g. `comp` on a face).
+    #[error("{rule}: {op} cannot be applied to a {geometry}{detail}")]
+    Unsupported {
+        /// The rule being applied.
+        rule: String,
+        /// The operation name.
+        op: &'static str,
+        /// `lot`, `volume`, `face`.
+        geometry: &'static str,
+        /// More context, starting with a separator, or empty.
+        detail: String,
+    },
+    /// Sizes that make no shape: negative sizes, all-zero fractions, a non-positive height.
+    #[error("{rule}: {message}")]
+    BadSize {
+        /// The rule being applied.
+        rule: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// The lot polygon is empty or degenerate.
+    #[error("the lot has no area (fewer than 3 vertices or zero area)")]
+    EmptyLot,
+}
+
+/// A piece made by an operation: the successor it belongs to (`None`: a `wall` made to keep a
+/// facade closed), its geometry and scope.
+struct Piece {
+    succ: Option<usize>,
+    geom: Geometry,
+    scope: Scope,
+}
+
+struct Ctx<'a> {
+    rules: &'a RuleSet,
+    rule: usize,
+    caps: &'a Caps,
+}
+
+impl Ctx<'_> {
+    fn rule_name(&self) -> String {
+        self.rules.describe(self.rule)
+    }
+    fn eval(
+        &self,
+        e: &Expr,
+        size: DVec3,
+        attrs: &Attrs,
+        rng: &mut Rng,
+    ) -> Result<f64, DeriveError> {
+        eval(e, size, attrs, rng).map_err(|err| DeriveError::Eval {
+            rule: self.rule_name(),
+            message: match err {
+                EvalError::MissingAttribute(n) => {
+                    format!("`{n}` is neither sx/sy/sz nor an attribute of the shape")
+                }
+                EvalError::NotANumber(n, v) => format!("attribute `{n}` = `{v}` is not a number"),
+                EvalError::NonFinite => {
+                    "expression gives a non-finite value (division by zero?)".into()
+                }
+            },
+        })
+    }
+    fn bad(&self, message: String) -> DeriveError {
+        DeriveError::BadSize {
+            rule: self.rule_name(),
+            message,
+        }
+    }
+    fn unsupported(&self, op: &'static str, geometry: &'static str, detail: &str) -> DeriveError {
+        DeriveError::Unsupported {
+            rule: self.rule_name(),
+            op,
+            geometry,
+            detail: detail.to_string(),
+        }
+    }
+    fn cap(&self, cap: &'static str, limit: usize) -> DeriveError {
+        DeriveError::Cap {
+            cap,
+            limit,
+            rule: self.rule_name(),
+        }
+    }
+}
+
+fn geometry_name(g: &Geometry) -> &'static str {
+    match g {
+        Geometry::Lot { .. } => "lot",
+        Geometry::Volume { .. } => "volume",
+        Geometry::Face { .. } => "face",
+    }
+}
+
+/// Derives one building: the axiom shape is `lot` (local metres) carrying `attrs` and the rule
+/// set's axiom symbol, at z = the numeric `base` attribute (0 if absent).
+///
+/// Deterministic for a given `rng` state. Never panics; fails with [`DeriveError`] when a cap
+/// is hit or a rule cannot be applied to the shape it meets.
+pub fn derive(
+    rules: &RuleSet,
+    lot: &Polygon,
+    attrs: Attrs,
+    rng: &mut Rng,
+    caps: &Caps,
+) -> Result<ShapeTree, DeriveError> {
+    if lot.outer.len() < 3
+        || lot.area().abs() <= MIN_AREA
+        || lot.outer.iter().any(|p| !p.is_finite())
+    {
+        return Err(DeriveError::EmptyLot);
+    }
+    let z = attrs
+        .get("base")
+        .and_then(AttrValue::as_f64)
+        .filter(|v| v.is_finite())
+        .unwrap_or(0.0);
+    let scope = Scope::around(lot, dominant_direction(lot), z, 0.0);
+    let wall: Option<SymbolId> = rules.index.get("wall").copied();
+    let wall_name: Arc<str> = wall.map_or_else(
+        || Arc::from("wall"),
+        |id| rules.symbols[id as usize].clone(),
+    );
+    let mut tree = ShapeTree::default();
+    // Per node: the symbol id (None for a `wall` the rule set never names) and the scope.
+    let mut syms: Vec<Option<SymbolId>> = Vec::new();
+    let mut scopes: Vec<Scope> = Vec::new();
+    tree.nodes.push(ShapeNode {
+        symbol: rules.symbols[rules.axiom as usize].clone(),
+        label: Label::Lot,
+        attrs: Arc::new(attrs),
+        geometry: Geometry::Lot {
+            polygon: lot.clone(),
+            z,
+        },
+        terminal: None,
+        parent: None,
+        children: 0..0,
+        depth: 0,
+        rule: None,
+    });
+    syms.push(Some(rules.axiom));
+    scopes.push(scope);
+
+    let mut i = 0;
+    let mut attr_cache: Vec<Option<Arc<Attrs>>> = Vec::new();
+    while i < tree.nodes.len() {
+        let candidates: &[usize] = match syms[i] {
+            Some(s) => &rules.by_pred[s as usize],
+            None => &[],
+        };
+        if candidates.is_empty() {
+            let n = &mut tree.nodes[i];
+            n.terminal = Some(Terminal::of(&n.symbol));
+            i += 1;
+            continue;
+        }
+        let rule_idx = if candidates.len() == 1 {
+            candidates[0]
+        } else {
+            let w: Vec<f64> = candidates.iter().map(|&r| rules.weights[r]).collect();
+            candidates[rng.pick_weighted(&w).unwrap_or(0)]
+        };
+        let ctx = Ctx {
+            rules,
+            rule: rule_idx,
+            caps,
+        };
+        let depth = tree.nodes[i].depth;
+        if depth + 1 > caps.max_depth {
+            return Err(ctx.cap("max_depth", caps.max_depth));
+        }
+        let rule = &rules.rules[rule_idx];
+        let parent_attrs = tree.nodes[i].attrs.clone();
+        let parent_label = tree.nodes[i].label;
+        let pieces = apply(
+            &ctx,
+            &rule.op,
+            &tree.nodes[i].geometry,
+            &scopes[i],
+            parent_label,
+            &parent_attrs,
+            rng,
+        )?;
+        if tree.nodes.len() + pieces.len() > caps.max_shapes {
+            return Err(ctx.cap("max_shapes", caps.max_shapes));
+        }
+        let label = child_label(&rule.op, parent_label, &tree.nodes[i].geometry);
+        attr_cache.clear();
+        attr_cache.resize(rule.succs.len(), None);
+        let first = tree.nodes.len();
+        for p in pieces {
+            let (sym, name, attrs) = match p.succ {
+                Some(k) => {
+                    let s = &rule.succs[k];
+                    let a = if s.attrs.is_empty() {
+                        parent_attrs.clone()
+                    } else {
+                        attr_cache[k]
+                            .get_or_insert_with(|| {
+                                let mut m = (*parent_attrs).clone();
+                                for (key, v) in &s.attrs {
+                                    m.insert(key.clone(), v.clone());
+                                }
+                                Arc::new(m)
+                            })
+                            .clone()
+                    };
+                    (Some(s.symbol), rules.symbols[s.symbol as usize].clone(), a)
+                }
+                None => (wall, wall_name.clone(), parent_attrs.clone()),
+            };
+            tree.nodes.push(ShapeNode {
+                symbol: name,
+                label,
+                attrs,
+                geometry: p.geom,
+                terminal: None,
+                parent: Some(i),
+                children: 0..0,
+                depth: depth + 1,
+                rule: None,
+            });
+            syms.push(sym);
+            scopes.push(p.scope);
+        }
+        let end = tree.nodes.len();
+        let n = &mut tree.nodes[i];
+        n.children = first..end;
+        n.rule = Some(rule_idx);
+        i += 1;
+    }
+    Ok(tree)
+}
+
+fn child_label(op: &Op, parent: Label, geom: &Geometry) -> Label {
+    match op {
+        Op::Relabel | Op::Scale(_) | Op::Translate(_) | Op::Rotate(..) => parent,
+        Op::Comp => Label::Facade,
+        Op::Extrude(_) => match geom {
+            Geometry::Lot { .. } => Label::Building,
+            Geometry::Volume { .. } => parent,
+            Geometry::Face { .. } => Label::FacadePart,
+        },
+        Op::Split { axis, .. } => match parent {
+            Label::Building | Label::BuildingPart => match (axis, geom) {
+                (_, Geometry::Face { .. }) => Label::FacadePart,
+                (Axis::Z, _) => Label::Storey,
+                _ => Label::BuildingPart,
+            },
+            Label::Storey | Label::Room => Label::Room,
+            Label::Facade | Label::FacadePart => Label::FacadePart,
+            Label::Lot => Label::Lot,
+        },
+    }
+}
+
+fn apply(
+    ctx: &Ctx<'_>,
+    op: &Op,
+    geom: &Geometry,
+    scope: &Scope,
+    _label: Label,
+    attrs: &Attrs,
+    rng: &mut Rng,
+) -> Result<Vec<Piece>, DeriveError> {
+    let rule = &ctx.rules.rules[ctx.rule];
+    let size = scope.size;
+    match op {
+        Op::Relabel => Ok((0..rule.succs.len())
+            .map(|k| Piece {
+                succ: Some(k),
+                geom: geom.clone(),
+                scope: *scope,
+            })
+            .collect()),
+        Op::Extrude(h) => {
+            let h = ctx.eval(h, size, attrs, rng)?;
+            if h <= EPS {
+                return Err(ctx.bad(format!("extrude height {h} is not positive")));
+            }
+            let (g, s) = extrude(geom, scope, h);
+            Ok(all_succs(rule.succs.len(), g, s))
+        }
+        Op::Scale(e) => {
+            let v = [
+                ctx.eval(&e[0], size, attrs, rng)?,
+                ctx.eval(&e[1], size, attrs, rng)?,
+                ctx.eval(&e[2], size, attrs, rng)?,
+            ];
+            let (g, s) = scale(ctx, geom, scope, v)?;
+            Ok(all_succs(rule.succs.len(), g, s))
+        }
+        Op::Translate(e) => {
+            let v = [
+                ctx.eval(&e[0], size, attrs, rng)?,
+                ctx.eval(&e[1], size, attrs, rng)?,
+                ctx.eval(&e[2], size, attrs, rng)?,
+            ];
+            let (g, s) = translate(geom, scope, v);
+            Ok(all_succs(rule.succs.len(), g, s))
+        }
+        Op::Rotate(_, e) => {
+            let deg = ctx.eval(e, size, attrs, rng)?;
+            let (g, s) = match geom {
+                Geometry::Face { .. } => {
+                    return Err(ctx.unsupported(
+                        "R",
+                        "face",
+                        " (only volumes and lots rotate for now)",
+                    ))
+                }
+                _ => rotate(geom, scope, deg),
+            };
+            Ok(all_succs(rule.succs.len(), g, s))
+        }
+        Op::Comp => comp(ctx, geom, scope),
+        Op::Split { kind, axis, sizes } => {
+            let mut v = Vec::with_capacity(sizes.len());
+            for e in sizes {
+                v.push(ctx.eval(e, size, attrs, rng)?);
+            }
+            split(ctx, *kind, *axis, &v, geom, scope)
+        }
+    }
+}
+
+fn all_succs(n: usize, g: Geometry, s: Scope) -> Vec<Piece> {
+    (0..n)
+        .map(|k| Piece {
+            succ: Some(k),
+            geom: g.clone(),
+            scope: s,
+        })
+        .collect()
+}
+
+fn face_scope(origin: DVec3, x_axis: DVec3, z_axis: DVec3, width: f64, height: f64) -> Scope {
+    Scope {
+        origin,
+        x: x_axis,
+        y: z_axis.cross(x_axis),
+        z: z_axis,
+        size: DVec3::new(width, 0.0, height),
+    }
+}
+
+fn h2(v: DVec3) -> DVec2 {
+    DVec2::new(v.x, v.y)
+}
+
+fn extrude(geom: &Geometry, scope: &Scope, h: f64) -> (Geometry, Scope) {
+    match geom {
+        Geometry::Lot { polygon, z } => {
+            let mut s = *scope;
+            s.origin.z = *z;
+            s.size.z = h;
+            (
+                Geometry::Volume {
+                    footprint: polygon.clone(),
+                    z0: *z,
+                    height: h,
+                    scope: s,
+                },
+                s,
+            )
+        }
+        Geometry::Volume { footprint, z0, .. } => {
+            let mut s = *scope;
+            s.size.z = h;
+            (
+                Geometry::Volume {
+                    footprint: footprint.clone(),
+                    z0: *z0,
+                    height: h,
+                    scope: s,
+                },
+                s,
+            )
+        }
+        Geometry::Face {
+            kind,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
+            let normal = x_axis.cross(*z_axis);
+            let (footprint, z0, vh) = match (kind, polygon) {
+                (FaceKind::Side, _) | (_, None) => {
+                    let (o, x, n) = (h2(*origin), h2(*x_axis), h2(normal));
+                    let fp = Polygon::new(
+                        vec![o, o + x * *width, o + x * *width + n * h, o + n * h],
+                        Vec::new(),
+                    );
+                    (fp, origin.z, *height)
+                }
+                (FaceKind::Top, Some(p)) => (p.clone(), origin.z, h),
+                (FaceKind::Bottom, Some(p)) => (p.clone(), origin.z - h, h),
+            };
+            let s = Scope::around(&footprint, h2(*x_axis), z0, vh);
+            (
+                Geometry::Volume {
+                    footprint,
+                    z0,
+                    height: vh,
+                    scope: s,
+                },
+                s,
+            )
+        }
+    }
+}
+
+fn scale(
+    ctx: &Ctx<'_>,
+    geom: &Geometry,
+    scope: &Scope,
+    v: [f64; 3],
+) -> Result<(Geometry, Scope), DeriveError> {
+    let check = |val: f64, name: &str| {
+        if val <= EPS {
+            Err(ctx.bad(format!("S: size {name} = {val} is not positive")))
+        } else {
+            Ok(())
+        }
+    };
+    // Scales 2D points about the scope origin along the scope's X and Y.
+    let scale2 = |poly: &Polygon, fx: f64, fy: f64| {
+        if fx == 1.0 && fy == 1.0 {
+            return poly.clone();
+        }
+        let (o, x, y) = (scope.origin2(), scope.x2(), scope.y2());
+        map_polygon(poly, |p| {
+            let d = p - o;
+            o + x * (d.dot(x) * fx) + y * (d.dot(y) * fy)
+        })
+    };
+    let ratio = |new: f64, old: f64| if old > EPS { new / old } else { 1.0 };
+    match geom {
+        Geometry::Lot { polygon, z } => {
+            check(v[0], "x")?;
+            check(v[1], "y")?;
+            let p = scale2(
+                polygon,
+                ratio(v[0], scope.size.x),
+                ratio(v[1], scope.size.y),
+            );
+            let mut s = *scope;
+            s.size.x = v[0];
+            s.size.y = v[1];
+            Ok((Geometry::Lot { polygon: p, z: *z }, s))
+        }
+        Geometry::Volume { footprint, z0, .. } => {
+            check(v[0], "x")?;
+            check(v[1], "y")?;
+            check(v[2], "z")?;
+            let p = scale2(
+                footprint,
+                ratio(v[0], scope.size.x),
+                ratio(v[1], scope.size.y),
+            );
+            let mut s = *scope;
+            s.size = DVec3::from(v);
+            Ok((
+                Geometry::Volume {
+                    footprint: p,
+                    z0: *z0,
+                    height: v[2],
+                    scope: s,
+                },
+                s,
+            ))
+        }
+        Geometry::Face {
+            kind,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
+            check(v[0], "x")?;
+            check(v[2], "z")?;
+            let (fx, fz) = (ratio(v[0], *width), ratio(v[2], *height));
+            let polygon = polygon.as_ref().map(|p| {
+                let (o, x, z) = (h2(*origin), h2(*x_axis), h2(*z_axis));
+                map_polygon(p, |q| {
+                    let d = q - o;
+                    o + x * (d.dot(x) * fx) + z * (d.dot(z) * fz)
+                })
+            });
+            let g = Geometry::Face {
+                kind: *kind,
+                origin: *origin,
+                x_axis: *x_axis,
+                z_axis: *z_axis,
+                width: v[0],
+                height: v[2],
+                polygon,
+            };
+            Ok((g, face_scope(*origin, *x_axis, *z_axis, v[0], v[2])))
+        }
+    }
+}
+
+fn translate(geom: &Geometry, scope: &Scope, v: [f64; 3]) -> (Geometry, Scope) {
+    match geom {
+        Geometry::Lot { polygon, z } => {
+            let d = scope.x2() * v[0] + scope.y2() * v[1];
+            let mut s = *scope;
+            s.origin += DVec3::new(d.x, d.y, v[2]);
+            (
+                Geometry::Lot {
+                    polygon: polygon.translated(d),
+                    z: z + v[2],
+                },
+                s,
+            )
+        }
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } => {
+            let d = scope.x2() * v[0] + scope.y2() * v[1];
+            let mut s = *scope;
+            s.origin += DVec3::new(d.x, d.y, v[2]);
+            (
+                Geometry::Volume {
+                    footprint: footprint.translated(d),
+                    z0: z0 + v[2],
+                    height: *height,
+                    scope: s,
+                },
+                s,
+            )
+        }
+        Geometry::Face {
+            kind,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
+            let d = *x_axis * v[0] + x_axis.cross(*z_axis) * v[1] + *z_axis * v[2];
+            let o = *origin + d;
+            let polygon = polygon.as_ref().map(|p| p.translated(h2(d)));
+            let g = Geometry::Face {
+                kind: *kind,
+                origin: o,
+                x_axis: *x_axis,
+                z_axis: *z_axis,
+                width: *width,
+                height: *height,
+                polygon,
+            };
+            (g, face_scope(o, *x_axis, *z_axis, *width, *height))
+        }
+    }
+}
+
+fn rotate(geom: &Geometry, scope: &Scope, deg: f64) -> (Geometry, Scope) {
+    let rot = DVec2::from_angle(deg.to_radians());
+    let o = scope.origin2();
+    let turn = |p: &Polygon| map_polygon(p, |q| o + rot.rotate(q - o));
+    let mut s = *scope;
+    let (x, y) = (rot.rotate(scope.x2()), rot.rotate(scope.y2()));
+    s.x = DVec3::new(x.x, x.y, 0.0);
+    s.y = DVec3::new(y.x, y.y, 0.0);
+    match geom {
+        Geometry::Lot { polygon, z } => (
+            Geometry::Lot {
+                polygon: turn(polygon),
+                z: *z,
+            },
+            s,
+        ),
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } => (
+            Geometry::Volume {
+                footprint: turn(footprint),
+                z0: *z0,
+                height: *height,
+                scope: s,
+            },
+            s,
+        ),
+        Geometry::Face { .. } => (geom.clone(), *scope),
+    }
+}
+
+/// Vertical-face orientation relative to the parent scope (see the module doc).
+fn orientation(normal: DVec2, scope: &Scope) -> Selector {
+    let (nx, ny) = (normal.dot(scope.x2()), normal.dot(scope.y2()));
+    if ny.abs() >= nx.abs() {
+        if ny < 0.0 {
+            Selector::Front
+        } else {
+            Selector::Back
+        }
+    } else if nx > 0.0 {
+        Selector::Right
+    } else {
+        Selector::Left
+    }
+}
+
+fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, DeriveError> {
+    let Geometry::Volume {
+        footprint,
+        z0,
+        height,
+        ..
+    } = geom
+    else {
+        return Err(ctx.unsupported(
+            "comp",
+            geometry_name(geom),
+            " (comp needs a volume: extrude first)",
+        ));
+    };
+    let succs = &ctx.rules.rules[ctx.rule].succs;
+    let pick = |is_side: bool, sel: Option<Selector>| -> Option<usize> {
+        succs.iter().position(|s| match s.selector {
+            Some(Selector::Side) | Some(Selector::Others) => is_side,
+            Some(Selector::Top) => sel == Some(Selector::Top),
+            Some(Selector::Bottom) => sel == Some(Selector::Bottom),
+            Some(other) => is_side && sel == Some(other),
+            None => false,
+        })
+    };
+    let mut out = Vec::new();
+    for ring in footprint.rings() {
+        let n = ring.len();
+        for k in 0..n {
+            let (a, b) = (ring[k], ring[(k + 1) % n]);
+            let d = b - a;
+            let w = d.length();
+            if w <= EPS {
+                continue;
+            }
+            let x2 = d / w;
+            let normal = DVec2::new(x2.y, -x2.x);
+            let sel = orientation(normal, scope);
+            let origin = DVec3::new(a.x, a.y, *z0);
+            let x_axis = DVec3::new(x2.x, x2.y, 0.0);
+            let g = Geometry::Face {
+                kind: FaceKind::Side,
+                origin,
+                x_axis,
+                z_axis: DVec3::Z,
+                width: w,
+                height: *height,
+                polygon: None,
+            };
+            out.push(Piece {
+                succ: pick(true, Some(sel)),
+                geom: g,
+                scope: face_scope(origin, x_axis, DVec3::Z, w, *height),
+            });
+        }
+    }
+    if out.len() > ctx.caps.max_pieces {
+        return Err(ctx.cap("max_pieces", ctx.caps.max_pieces));
+    }
+    let (sx, sy) = (scope.size.x, scope.size.y);
+    let o2 = scope.origin2();
+    for (kind, sel) in [
+        (FaceKind::Top, Selector::Top),
+        (FaceKind::Bottom, Selector::Bottom),
+    ] {
+        let Some(k) = pick(false, Some(sel)) else {
+            continue;
+        };
+        let (origin, z_axis) = match kind {
+            FaceKind::Top => (DVec3::new(o2.x, o2.y, z0 + height), scope.y),
+            _ => {
+                let o = o2 + scope.y2() * sy;
+                (DVec3::new(o.x, o.y, *z0), -scope.y)
+            }
+        };
+        let g = Geometry::Face {
+            kind,
+            origin,
+            x_axis: scope.x,
+            z_axis,
+            width: sx,
+            height: sy,
+            polygon: Some(footprint.clone()),
+        };
+        out.push(Piece {
+            succ: Some(k),
+            geom: g,
+            scope: face_scope(origin, scope.x, z_axis, sx, sy),
+        });
+    }
+    Ok(out)
+}
+
+/// A 1D layout: (successor or wall, start, length) along an axis of length `len`.
+fn layout(
+    ctx: &Ctx<'_>,
+    kind: SplitKind,
+    sizes: &[f64],
+    len: f64,
+    face: bool,
+) -> Result<Vec<(Option<usize>, f64, f64)>, DeriveError> {
+    let name = kind.name();
+    if let Some(s) = sizes.iter().find(|s| **s < 0.0) {
+        return Err(ctx.bad(format!("{name}: negative size {s}")));
+    }
+    let mut out: Vec<(Option<usize>, f64, f64)> = Vec::new();
+    match kind {
+        SplitKind::Absolute => {
+            let mut cum = 0.0;
+            let mut overflow = None;
+            for (i, &s) in sizes.iter().enumerate() {
+                if s <= EPS {
+                    continue;
+                }
+                if cum + s <= len + FIT_TOL {
+                    out.push((Some(i), cum, s.min(len - cum)));
+                    cum += s;
+                } else {
+                    overflow = Some(i);
+                    break;
+                }
+            }
+            let rest = len - cum;
+            if rest > FIT_TOL {
+                if face {
+                    out.push((overflow, cum, rest));
+                } else if let Some(last) = out.last_mut() {
+                    last.2 += rest;
+                } else if let Some(o) = overflow {
+                    out.push((Some(o), 0.0, len));
+                } else {
+                    return Err(ctx.bad(format!("{name}: all sizes are zero")));
+                }
+            }
+        }
+        SplitKind::Relative => {
+            let total: f64 = sizes.iter().sum();
+            if total <= EPS {
+                return Err(ctx.bad(format!("{name}: the fractions sum to zero")));
+            }
+            let mut cum = 0.0;
+            for (i, &s) in sizes.iter().enumerate() {
+                let l = s / total * len;
+                if l > EPS {
+                    out.push((Some(i), cum, l));
+                }
+                cum += l;
+            }
+        }
+        SplitKind::Repeat => {
+            let pattern: f64 = sizes.iter().sum();
+            if pattern <= EPS {
+                return Err(ctx.bad(format!("{name}: the sizes sum to zero")));
+            }
+            let copies = ((len + FIT_TOL) / pattern).floor();
+            if copies * sizes.len() as f64 > ctx.caps.max_pieces as f64 {
+                return Err(ctx.cap("max_pieces", ctx.caps.max_pieces));
+            }
+            let (copies, factor) = if copies < 1.0 {
+                if face {
+                    return Ok(vec![(None, 0.0, len)]);
+                }
+                (1, len / pattern)
+            } else {
+                (copies as usize, len / (copies * pattern))
+            };
+            let mut cum = 0.0;
+            for _ in 0..copies {
+                for (i, &s) in sizes.iter().enumerate() {
+                    let l = s * factor;
+                    if l > EPS {
+                        out.push((Some(i), cum, l));
+                    }
+                    cum += l;
+                }
+            }
+        }
+    }
+    if out.len() > ctx.caps.max_pieces {
+        return Err(ctx.cap("max_pieces", ctx.caps.max_pieces));
+    }
+    Ok(out)
+}
+
+fn split(
+    ctx: &Ctx<'_>,
+    kind: SplitKind,
+    axis: Axis,
+    sizes: &[f64],
+    geom: &Geometry,
+    scope: &Scope,
+) -> Result<Vec<Piece>, DeriveError> {
+    let op = kind.name();
+    match geom {
+        Geometry::Lot { polygon, z } => {
+            if axis == Axis::Z {
+                return Err(ctx.unsupported(op, "lot", " along Z (a lot is flat: extrude first)"));
+            }
+            let segs = layout(ctx, kind, sizes, scope.size[axis.index()], false)?;
+            let mut out = Vec::new();
+            for (k, p) in clip_pieces(polygon, scope, axis, &segs) {
+                let s = Scope::around(&p, scope.x2(), *z, 0.0);
+                out.push(Piece {
+                    succ: k,
+                    geom: Geometry::Lot { polygon: p, z: *z },
+                    scope: s,
+                });
+            }
+            Ok(out)
+        }
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } => {
+            let segs = layout(ctx, kind, sizes, scope.size[axis.index()], false)?;
+            if axis == Axis::Z {
+                return Ok(segs
+                    .into_iter()
+                    .map(|(k, start, l)| {
+                        let mut s = *scope;
+                        s.origin.z = z0 + start;
+                        s.size.z = l;
+                        Piece {
+                            succ: k,
+                            geom: Geometry::Volume {
+                                footprint: footprint.clone(),
+                                z0: z0 + start,
+                                height: l,
+                                scope: s,
+                            },
+                            scope: s,
+                        }
+                    })
+                    .collect());
+            }
+            let mut out = Vec::new();
+            for (k, p) in clip_pieces(footprint, scope, axis, &segs) {
+                let s = Scope::around(&p, scope.x2(), *z0, *height);
+                out.push(Piece {
+                    succ: k,
+                    geom: Geometry::Volume {
+                        footprint: p,
+                        z0: *z0,
+                        height: *height,
+                        scope: s,
+                    },
+                    scope: s,
+                });
+            }
+            Ok(out)
+        }
+        Geometry::Face {
+            kind: fk,
+            origin,
+            x_axis,
+            z_axis,
+            width,
+            height,
+            polygon,
+        } => {
+            let (dir, len) = match axis {
+                Axis::X => (*x_axis, *width),
+                Axis::Z => (*z_axis, *height),
+                Axis::Y => {
+                    return Err(ctx.unsupported(
+                        op,
+                        "face",
+                        " along Y (a face has no depth: split along X or Z)",
+                    ))
+                }
+            };
+            let segs = layout(ctx, kind, sizes, len, true)?;
+            let mut out = Vec::new();
+            for (k, start, l) in segs {
+                let o = *origin + dir * start;
+                let (w, h) = if axis == Axis::X {
+                    (l, *height)
+                } else {
+                    (*width, l)
+                };
+                let polys: Vec<Option<Polygon>> = match polygon {
+                    None => vec![None],
+                    Some(p) => clip_slab(p, h2(*origin), h2(dir), start, start + l)
+                        .into_iter()
+                        .map(Some)
+                        .collect(),
+                };
+                for poly in polys {
+                    let g = Geometry::Face {
+                        kind: *fk,
+                        origin: o,
+                        x_axis: *x_axis,
+                        z_axis: *z_axis,
+                        width: w,
+                        height: h,
+                        polygon: poly,
+                    };
+                    out.push(Piece {
+                        succ: k,
+                        geom: g,
+                        scope: face_scope(o, *x_axis, *z_axis, w, h),
+                    });
+                }
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// Clips a footprint to the slabs of a layout along the scope's X or Y. The first and last
+/// slabs are open-ended so that no sliver of the footprint is lost to rounding.
+fn clip_pieces(
+    poly: &Polygon,
+    scope: &Scope,
+    axis: Axis,
+    segs: &[(Option<usize>, f64, f64)],
+) -> Vec<(Option<usize>, Polygon)> {
+    let dir = if axis == Axis::X {
+        scope.x2()
+    } else {
+        scope.y2()
+    };
+    let o = scope.origin2();
+    let mut out = Vec::new();
+    for (j, &(k, start, l)) in segs.iter().enumerate() {
+        let lo = if j == 0 { f64::NEG_INFINITY } else { start };
+        let hi = if j + 1 == segs.len() {
+            f64::INFINITY
+        } else {
+            start + l
+        };
+        for p in clip_slab(poly, o, dir, lo, hi) {
+            out.push((k, p));
+        }
+    }
+    out
+}

@@ -1,0 +1,790 @@
+//! Tests of the grammar core: the thesis rule sets verbatim, clipping, errors, caps.
+
+use glam::{DVec2, DVec3};
+use proptest::prelude::*;
+
+use super::shape::{clip_slab, dominant_direction};
+use super::*;
+use crate::geometry::Polygon;
+use crate::rng::Rng;
+
+/// Figure 3.19 (seed 003 L1065-1095), as printed, wrapped lines included.
+const FIG_3_19: &str = "\
+lot -> extrude(20){building:roof=hip,roofcolor=sandybrown}
+building -> split(Y,sy/2,sy/2){b1|b2:color=grey}
+b1 -> S(sx, sy, sz*rand(0.6,0.8)){b3:color=green}
+b2 -> repeat(Z,4){floor}
+b3 -> split(Z,4,4,4,4,4){gfloor|floor|floor|floor|floor}
+floor -> comp(){side:face}
+
+gfloor -> comp() { left : gleft_facade | front : gfront | right :
+  gright_facade | back : gback }
+face -> rsplit (X,0.1,0.8,0.1) { wall | windowarea | wall }
+windowarea -> repeat (X,2,0.2) { vwindow | wall }
+vwindow -> rsplit (Z,rand(0.1,0.3),rand(0.5,0.8),0.5) { wall | window
+  : color=yellow, material=glass | wall }
+gfront -> split (X,5,2,5) { wall : color=turquoise | door : color=white |
+  wall : color=turquoise }=0.4
+gfront -> split (X,4,1,2,1,4) { wall : color=turquoise | window : color=
+  pink, material=glass | door : color=white | window : color=pink,
+  material=glass | wall : color=turquoise }=0.6
+gright_facade -> repeat (X,1,1,1) { window : color=blue | window : color=
+  turquoise, material=glass | window : color=lightblue, material=
+  glass }
+gleft_facade -> repeat (X,1,1,1) { window : color=blue | window : color=
+  turquoise, material=glass | window : color=lightblue, material=
+  glass }
+gback -> wall
+";
+
+/// Toulouse downtown (seed 003 L1146-1180), as printed.
+const TOULOUSE: &str = "\
+lot -> extrude(15){building:color=blanchedalmond,roof=hip,
+  roofcolor=darksalmon}=0.4
+lot -> extrude(20){building:color=silver,roof=hip,roofcolor=
+  darksalmon}=0.2
+lot -> extrude(15){building2:color=lightsalmon,roof=hip,
+  roofcolor=darksalmon}=0.2
+lot -> extrude(20){building:color=palegoldenrod,roof=hip,
+  roofcolor=lightsalmon}=0.2
+building -> repeat(Z,5){floor}
+building2 -> repeat(Z,5){floor}
+floor -> comp(){side:face}
+floor2 -> comp(){side:face2}
+face -> rsplit(Z,0.9,0.1){upper_face|wall:color=darksalmon}
+face2 -> rsplit(Z,0.9,0.1){upper_face2|wall:color=white}
+upper_face -> rsplit(X,0.1,0.8,0.1){wall|windowarea|wall}
+upper_face2 -> rsplit(X,0.1,0.1,0.8,0.1,0.1){wall:color=
+  darksalmon|wall|windowarea2|wall|wall:color=darksalmon}
+windowarea -> repeat(X,2,1){vwindow|wall}
+windowarea2 -> repeat(X,2,1){vwindow2|wall}
+vwindow -> rsplit(Z,0.25,0.5,0.25){wall|bwindow|wall}
+vwindow2 -> rsplit(Z,0.2,0.6,0.2){wall|bwindow2|wall}
+bwindow -> rsplit(Z,0.1,0.8,0.1){wall:color=darksalmon|b_window|
+  wall:color=darksalmon}
+bwindow2 -> rsplit(Z,0.3,0.7){wall:color=white|window:color=
+  lightgrey}
+b_window -> rsplit(X,0.1,0.8,0.1){wall:color=darksalmon|window|
+  wall:color=darksalmon}
+";
+
+fn rect(w: f64, h: f64) -> Polygon {
+    Polygon::new(
+        vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(w, 0.0),
+            DVec2::new(w, h),
+            DVec2::new(0.0, h),
+        ],
+        vec![],
+    )
+}
+
+fn l_shape() -> Polygon {
+    let p = [
+        (0.0, 0.0),
+        (20.0, 0.0),
+        (20.0, 8.0),
+        (8.0, 8.0),
+        (8.0, 20.0),
+        (0.0, 20.0),
+    ];
+    Polygon::new(p.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![])
+}
+
+fn run(src: &str, lot: &Polygon, seed: u64) -> ShapeTree {
+    let rules = parse(src, "test.cga").unwrap_or_else(|e| panic!("{e}"));
+    derive(
+        &rules,
+        lot,
+        Attrs::new(),
+        &mut Rng::new(seed, 1),
+        &Caps::default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn count(t: &ShapeTree, f: impl Fn(&ShapeNode) -> bool) -> usize {
+    t.nodes.iter().filter(|n| f(n)).count()
+}
+
+/// Leaves under node `i`, of the given terminal kind.
+fn leaves_under(t: &ShapeTree, i: usize, kind: Terminal) -> usize {
+    let mut stack = vec![i];
+    let mut c = 0;
+    while let Some(j) = stack.pop() {
+        let n = &t.nodes[j];
+        if n.terminal == Some(kind) {
+            c += 1;
+        }
+        stack.extend(n.children.clone());
+    }
+    c
+}
+
+fn find(t: &ShapeTree, sym: &str) -> Vec<usize> {
+    (0..t.nodes.len())
+        .filter(|&i| &*t.nodes[i].symbol == sym)
+        .collect()
+}
+
+fn volume_height(n: &ShapeNode) -> f64 {
+    match &n.geometry {
+        Geometry::Volume { height, .. } => *height,
+        g => panic!("not a volume: {g:?}"),
+    }
+}
+
+#[test]
+fn figure_3_19_parses_and_derives_two_and_four_storeys() {
+    let rules = parse(FIG_3_19, "fig3_19.cga").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(rules.axiom(), "lot");
+    assert_eq!(rules.rules().len(), 15);
+    let gfront = rules.rules_for("gfront");
+    assert_eq!(gfront.len(), 2);
+    assert_eq!((gfront[0].1, gfront[1].1), (0.4, 0.6));
+    let mut seen_variants = std::collections::BTreeSet::new();
+    for seed in 0..12 {
+        let t = run(FIG_3_19, &rect(20.0, 12.0), seed);
+        assert_eq!(t.nodes[0].label, Label::Lot);
+        let b = find(&t, "building");
+        assert_eq!(b.len(), 1);
+        assert_eq!(t.nodes[b[0]].label, Label::Building);
+        assert_eq!(
+            t.nodes[b[0]].attrs.get("roof").and_then(AttrValue::as_str),
+            Some("hip")
+        );
+        // Two building parts of 20 x 6.
+        for s in ["b1", "b2"] {
+            let i = find(&t, s);
+            assert_eq!(i.len(), 1, "{s}");
+            assert_eq!(t.nodes[i[0]].label, Label::BuildingPart);
+            let Geometry::Volume { footprint, .. } = &t.nodes[i[0]].geometry else {
+                panic!()
+            };
+            assert!((footprint.area() - 120.0).abs() < 1e-9);
+        }
+        let b2 = find(&t, "b2")[0];
+        assert_eq!(
+            t.nodes[b2].attrs.get("color").and_then(AttrValue::as_str),
+            Some("grey")
+        );
+        let b3 = find(&t, "b3")[0];
+        let h3 = volume_height(&t.nodes[b3]);
+        assert!((12.0..16.0).contains(&h3), "{h3}");
+        // b2: 5 levels of 4 m (ground + 4 étages); b3: 3 levels (ground + 2 étages).
+        let b2_storeys: Vec<_> = t.children(b2).iter().collect();
+        assert_eq!(b2_storeys.len(), 5);
+        assert!(b2_storeys
+            .iter()
+            .all(|n| n.label == Label::Storey && (volume_height(n) - 4.0).abs() < 1e-9));
+        let b3_storeys: Vec<_> = t.children(b3).iter().collect();
+        assert_eq!(b3_storeys.len(), 3);
+        assert_eq!(&*b3_storeys[0].symbol, "gfloor");
+        let total: f64 = b3_storeys.iter().map(|n| volume_height(n)).sum();
+        assert!((total - h3).abs() < 1e-9, "storeys fill b3");
+        assert!(
+            (volume_height(b3_storeys[2]) - (h3 - 8.0)).abs() < 1e-9,
+            "top storey takes the rest"
+        );
+        // Ground floor: one door, on the front (south) facade; windows left and right; back wall.
+        assert_eq!(count(&t, |n| n.terminal == Some(Terminal::Door)), 1);
+        let door = t
+            .nodes
+            .iter()
+            .position(|n| n.terminal == Some(Terminal::Door))
+            .unwrap_or(0);
+        let facade = t.ancestor_with(door, Label::Facade).unwrap_or(0);
+        assert_eq!(&*t.nodes[facade].symbol, "gfront");
+        let n = t.nodes[facade]
+            .geometry
+            .face_normal()
+            .unwrap_or(DVec3::ZERO);
+        assert!(
+            (n - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-9,
+            "front faces south: {n}"
+        );
+        assert_eq!(t.nodes[door].label, Label::FacadePart);
+        assert_eq!(
+            t.nodes[door].attrs.get("color").and_then(AttrValue::as_str),
+            Some("white")
+        );
+        let front_windows = leaves_under(&t, facade, Terminal::Window);
+        seen_variants.insert(front_windows);
+        for s in ["gleft_facade", "gright_facade"] {
+            let i = find(&t, s);
+            assert_eq!(i.len(), 1);
+            // 6 m facade, repeat(X,1,1,1): two copies of three windows.
+            assert_eq!(leaves_under(&t, i[0], Terminal::Window), 6, "{s}");
+        }
+        let gback = find(&t, "gback")[0];
+        assert_eq!(t.nodes[gback].children.len(), 1);
+        assert_eq!(t.children(gback)[0].terminal, Some(Terminal::Wall));
+        // Upper floors: 7 windows on each 20 m facade, 2 on each 6 m one: 18 per floor.
+        let floors = find(&t, "floor");
+        assert_eq!(floors.len(), 7);
+        for f in floors {
+            assert_eq!(leaves_under(&t, f, Terminal::Window), 18);
+            assert_eq!(t.children(f).len(), 4);
+            assert!(t.children(f).iter().all(|c| c.label == Label::Facade));
+        }
+        assert_eq!(
+            count(&t, |n| n.terminal == Some(Terminal::Window)),
+            7 * 18 + 12 + front_windows
+        );
+        // Leaves are exactly the terminals; inherited attributes reach them.
+        assert!(t
+            .nodes
+            .iter()
+            .all(|n| n.terminal.is_some() == n.children.is_empty()));
+        let yellow = count(&t, |n| {
+            n.terminal == Some(Terminal::Window)
+                && n.attrs.get("color").and_then(AttrValue::as_str) == Some("yellow")
+        });
+        assert_eq!(yellow, 7 * 18);
+        assert!(t
+            .leaves()
+            .all(|n| n.attrs.get("roofcolor").and_then(AttrValue::as_str) == Some("sandybrown")));
+    }
+    assert_eq!(
+        seen_variants,
+        [0, 2].into_iter().collect(),
+        "both gfront alternatives occur"
+    );
+}
+
+#[test]
+fn toulouse_downtown_storeys_and_windows() {
+    let rules = parse(TOULOUSE, "toulouse.cga").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(rules.rules().len(), 19);
+    let mut heights = std::collections::BTreeSet::new();
+    for seed in 0..16 {
+        let t = run(TOULOUSE, &rect(20.0, 12.0), seed);
+        assert_eq!(t.children(0).len(), 1);
+        let bldg = &t.children(0)[0];
+        let h = volume_height(bldg);
+        heights.insert(h as i64);
+        let storeys = (h / 5.0).round() as usize;
+        assert!(storeys == 3 || storeys == 4);
+        assert_eq!(count(&t, |n| n.label == Label::Storey), storeys);
+        assert_eq!(count(&t, |n| n.label == Label::Facade), 4 * storeys);
+        // Every facade carries windows: 16 m wide -> 5, 9.6 m wide -> 3.
+        for (i, n) in t.nodes.iter().enumerate() {
+            if n.label == Label::Facade {
+                let Geometry::Face { width, .. } = n.geometry else {
+                    panic!()
+                };
+                let expect = if width > 15.0 { 5 } else { 3 };
+                assert_eq!(leaves_under(&t, i, Terminal::Window), expect);
+            }
+        }
+        assert_eq!(
+            count(&t, |n| n.terminal == Some(Terminal::Window)),
+            16 * storeys
+        );
+        assert_eq!(find(&t, "face2").len(), 0, "floor2 is unreachable");
+    }
+    assert_eq!(heights, [15, 20].into_iter().collect());
+}
+
+#[test]
+fn l_shaped_split_pieces_are_clipped_and_sum_to_the_lot() {
+    let lot = l_shape();
+    assert!((lot.area() - 256.0).abs() < 1e-9);
+    let t = run(
+        "lot -> extrude(10){b}\nb -> rsplit(Y,1,1,1){p|q|r}",
+        &lot,
+        1,
+    );
+    let areas: Vec<(String, f64)> = t
+        .leaves()
+        .map(|n| match &n.geometry {
+            Geometry::Volume { footprint, .. } => (n.symbol.to_string(), footprint.area()),
+            g => panic!("{g:?}"),
+        })
+        .collect();
+    assert_eq!(areas.len(), 3);
+    let sum: f64 = areas.iter().map(|a| a.1).sum();
+    assert!((sum - 256.0).abs() < 1e-6, "{areas:?}");
+    let third = 20.0 / 3.0;
+    assert!((areas[0].1 - 20.0 * third).abs() < 1e-6);
+    // The middle slab is itself L-shaped: 20 x (8 - 6.67) + 8 x (13.33 - 8).
+    assert!((areas[1].1 - (20.0 * (8.0 - third) + 8.0 * (2.0 * third - 8.0))).abs() < 1e-6);
+    assert!((areas[2].1 - 8.0 * third).abs() < 1e-6);
+    assert!(t.leaves().all(|n| n.label == Label::BuildingPart));
+}
+
+#[test]
+fn u_shaped_slab_gives_two_pieces_with_the_same_successor() {
+    let p = [
+        (0.0, 0.0),
+        (30.0, 0.0),
+        (30.0, 20.0),
+        (20.0, 20.0),
+        (20.0, 10.0),
+        (10.0, 10.0),
+        (10.0, 20.0),
+        (0.0, 20.0),
+    ];
+    let lot = Polygon::new(p.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![]);
+    let t = run(
+        "lot -> extrude(3){b}\nb -> split(Y,15,5){low|high}",
+        &lot,
+        1,
+    );
+    assert_eq!(find(&t, "low").len(), 1);
+    let high = find(&t, "high");
+    assert_eq!(high.len(), 2);
+    for i in high {
+        let Geometry::Volume { footprint, .. } = &t.nodes[i].geometry else {
+            panic!()
+        };
+        assert!((footprint.area() - 50.0).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn comp_covers_holes_and_selectors_follow_the_parent_frame() {
+    let hole = vec![
+        DVec2::new(5.0, 4.0),
+        DVec2::new(5.0, 8.0),
+        DVec2::new(15.0, 8.0),
+        DVec2::new(15.0, 4.0),
+    ];
+    let lot = Polygon::new(rect(20.0, 12.0).outer, vec![hole]);
+    let t = run(
+        "lot -> extrude(6){m}\nm -> comp(){front:f|right:r|others:o|top:t}",
+        &lot,
+        3,
+    );
+    assert_eq!(t.children(1).len(), 9, "8 side faces + top, no bottom");
+    // Outer ring: south=front, east=right, others; hole faces point into the courtyard:
+    // its north wall faces south (front), its west wall faces east (right).
+    assert_eq!(find(&t, "f").len(), 2);
+    assert_eq!(find(&t, "r").len(), 2);
+    assert_eq!(find(&t, "o").len(), 4);
+    let top = find(&t, "t");
+    assert_eq!(top.len(), 1);
+    let n = t.nodes[top[0]]
+        .geometry
+        .face_normal()
+        .unwrap_or(DVec3::ZERO);
+    assert!((n - DVec3::Z).length() < 1e-12);
+    for i in find(&t, "f") {
+        let n = t.nodes[i].geometry.face_normal().unwrap_or(DVec3::ZERO);
+        assert!((n - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
+    }
+    // Unselected side faces become walls.
+    let t = run(
+        "lot -> extrude(6){m}\nm -> comp(){front:f}",
+        &rect(20.0, 12.0),
+        3,
+    );
+    assert_eq!(t.children(1).len(), 4);
+    assert_eq!(count(&t, |n| n.terminal == Some(Terminal::Wall)), 3);
+}
+
+#[test]
+fn face_split_remainder_is_wall_and_overflow_is_truncated() {
+    let t = run(
+        "lot -> extrude(3){m}\nm -> comp(){front:f}\nf -> split(X,5,2){a|b}",
+        &rect(20.0, 12.0),
+        1,
+    );
+    let f = find(&t, "f")[0];
+    let kids: Vec<(&str, f64)> = t
+        .children(f)
+        .iter()
+        .map(|n| match n.geometry {
+            Geometry::Face { width, .. } => (&*n.symbol, width),
+            _ => ("?", 0.0),
+        })
+        .collect();
+    assert_eq!(kids, vec![("a", 5.0), ("b", 2.0), ("wall", 13.0)]);
+    let t = run(
+        "lot -> extrude(3){m}\nm -> comp(){front:f}\nf -> split(X,15,10,4){a|b|c}",
+        &rect(20.0, 12.0),
+        1,
+    );
+    let f = find(&t, "f")[0];
+    let w: Vec<f64> = t
+        .children(f)
+        .iter()
+        .map(|n| {
+            if let Geometry::Face { width, .. } = n.geometry {
+                width
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    assert_eq!(w, vec![15.0, 5.0]);
+    assert_eq!(find(&t, "c").len(), 0);
+}
+
+#[test]
+fn scope_follows_the_dominant_direction() {
+    // A rectangle rotated by 30 degrees: X follows its long side.
+    let rot = DVec2::from_angle(30f64.to_radians());
+    let p = Polygon::new(
+        rect(20.0, 12.0)
+            .outer
+            .iter()
+            .map(|q| rot.rotate(*q))
+            .collect(),
+        vec![],
+    );
+    let d = dominant_direction(&p);
+    assert!((d - rot).length() < 1e-9, "{d}");
+    let t = run("lot -> extrude(3){m}", &p, 1);
+    let Geometry::Volume { scope, .. } = &t.nodes[1].geometry else {
+        panic!()
+    };
+    assert!((scope.size - DVec3::new(20.0, 12.0, 3.0)).length() < 1e-9);
+    assert!(scope.origin.truncate().length() < 1e-9);
+    // A tall rectangle: X still follows the 20 m side, pointing north (closest to +X is +Y or
+    // -Y; +Y wins the tie-break on x = 0 only if x compares equal).
+    let d = dominant_direction(&rect(12.0, 20.0));
+    assert!(d.x.abs() < 1e-12 && (d.y.abs() - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn transforms_scale_translate_rotate() {
+    let t = run(
+        "lot -> extrude(10){m}\nm -> S(sx/2, sy, sz*0.5){a}\na -> T(1,2,3){b}\nb -> R(Z,90){c}",
+        &rect(20.0, 12.0),
+        1,
+    );
+    let vol = |s: &str| match &t.nodes[find(&t, s)[0]].geometry {
+        Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            scope,
+        } => (footprint.clone(), *z0, *height, *scope),
+        g => panic!("{g:?}"),
+    };
+    let (fa, _, ha, sa) = vol("a");
+    assert!((fa.area() - 120.0).abs() < 1e-9 && (ha - 5.0).abs() < 1e-12);
+    assert_eq!(sa.size, DVec3::new(10.0, 12.0, 5.0));
+    let (fb, zb, _, sb) = vol("b");
+    assert_eq!(fb.bounds().0, DVec2::new(1.0, 2.0));
+    assert_eq!((zb, sb.origin), (3.0, DVec3::new(1.0, 2.0, 3.0)));
+    let (fc, _, _, sc) = vol("c");
+    assert!((sc.x - DVec3::Y).length() < 1e-12);
+    let (lo, hi) = fc.bounds();
+    assert!(
+        (lo - DVec2::new(-11.0, 2.0)).length() < 1e-9
+            && (hi - DVec2::new(1.0, 12.0)).length() < 1e-9,
+        "{lo} {hi}"
+    );
+    assert_eq!(t.nodes[find(&t, "c")[0]].label, Label::Building);
+}
+
+#[test]
+fn expressions_use_attributes_and_fail_when_missing() {
+    let src = "lot -> extrude(h * 2 - -1){m}\nm -> split(Z, (sz - 1) / 2, rand(1, 1)){a|b}";
+    let rules = parse(src, "x.cga").unwrap_or_else(|e| panic!("{e}"));
+    let mut attrs = Attrs::new();
+    attrs.insert("h".into(), AttrValue::Num(4.0));
+    let t = derive(
+        &rules,
+        &rect(10.0, 10.0),
+        attrs,
+        &mut Rng::new(1, 1),
+        &Caps::default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(volume_height(&t.nodes[1]), 9.0);
+    assert_eq!(volume_height(&t.nodes[find(&t, "a")[0]]), 4.0);
+    let err = derive(
+        &rules,
+        &rect(10.0, 10.0),
+        Attrs::new(),
+        &mut Rng::new(1, 1),
+        &Caps::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&err, DeriveError::Eval { rule, .. } if rule.starts_with("x.cga:1 (lot")),
+        "{err}"
+    );
+    let mut attrs = Attrs::new();
+    attrs.insert("h".into(), AttrValue::Str("tall".into()));
+    let err = derive(
+        &rules,
+        &rect(10.0, 10.0),
+        attrs,
+        &mut Rng::new(1, 1),
+        &Caps::default(),
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("not a number"), "{err}");
+}
+
+#[test]
+fn hex_colours_comments_quotes_and_relabels() {
+    let src = "# a comment\nlot -> extrude(3){m: color=#a0b0c0, n=-2, s=\"x y\"} // trailing\n\
+               m -> {w: style=framed}\nw -> wall";
+    let t = run(src, &rect(4.0, 4.0), 1);
+    let m = &t.nodes[1];
+    assert_eq!(
+        m.attrs.get("color").and_then(AttrValue::as_str),
+        Some("#a0b0c0")
+    );
+    assert_eq!(m.attrs.get("n").and_then(AttrValue::as_f64), Some(-2.0));
+    assert_eq!(m.attrs.get("s").and_then(AttrValue::as_str), Some("x y"));
+    let leaf = t
+        .leaves()
+        .next()
+        .map(|n| (n.symbol.to_string(), n.terminal, n.label));
+    assert_eq!(
+        leaf,
+        Some(("wall".to_string(), Some(Terminal::Wall), Label::Building))
+    );
+}
+
+fn perr(src: &str) -> GrammarError {
+    match parse(src, "bad.cga") {
+        Err(e) => e,
+        Ok(_) => panic!("parsed: {src}"),
+    }
+}
+
+#[test]
+fn parse_errors_point_at_file_line_col() {
+    let cases: &[(&str, ParseErrorKind, u32, u32)] = &[
+        (
+            "lot -> extrude(3){a}\nb -> ) ",
+            ParseErrorKind::UnexpectedToken,
+            2,
+            6,
+        ),
+        (
+            "lot -> extrude(3){a}\nb -> bend(3){c}",
+            ParseErrorKind::UnknownOperation,
+            2,
+            6,
+        ),
+        (
+            "lot ->\n  extrude(3, 4){a}",
+            ParseErrorKind::WrongArgCount,
+            2,
+            3,
+        ),
+        ("a -> split(W, 1){b}", ParseErrorKind::BadAxis, 1, 12),
+        ("a -> R(X, 90){b}", ParseErrorKind::BadAxis, 1, 8),
+        (
+            "a -> extrude(1){b} = high",
+            ParseErrorKind::BadProbability,
+            1,
+            22,
+        ),
+        (
+            "a -> extrude(1){b} = 1.5",
+            ParseErrorKind::BadProbability,
+            1,
+            22,
+        ),
+        (
+            "a -> extrude(1){b | c\nd -> e",
+            ParseErrorKind::Unclosed,
+            1,
+            16,
+        ),
+        ("a -> extrude(1){b | c", ParseErrorKind::Unclosed, 1, 16),
+        ("a -> comp(){up : b}", ParseErrorKind::BadSelector, 1, 13),
+        (
+            "a -> split(X, 1, 2){b}",
+            ParseErrorKind::SizeCountMismatch,
+            1,
+            20,
+        ),
+        (
+            "a -> extrude(foo(1)){b}",
+            ParseErrorKind::UnknownFunction,
+            1,
+            14,
+        ),
+        ("a -> extrude(1){b} @", ParseErrorKind::BadCharacter, 1, 20),
+        ("# nothing\n", ParseErrorKind::NoRules, 1, 1),
+        ("a -> extrude(0,5){b}", ParseErrorKind::WrongArgCount, 1, 6),
+    ];
+    for &(src, kind, line, col) in cases {
+        let e = perr(src);
+        assert_eq!((e.kind, e.line, e.col), (kind, line, col), "{src:?}: {e}");
+        let shown = e.to_string();
+        assert!(
+            shown.starts_with(&format!("bad.cga:{line}:{col}: ")),
+            "{shown}"
+        );
+        let lines: Vec<&str> = shown.lines().collect();
+        assert_eq!(lines.len(), 3, "{shown}");
+        assert_eq!(
+            lines[2].len(),
+            col as usize,
+            "caret under column {col}: {shown}"
+        );
+        assert!(lines[2].ends_with('^'));
+    }
+}
+
+#[test]
+fn caps_stop_runaway_rules() {
+    for src in [
+        "a -> repeat(X,0.0001){a}",
+        "a -> extrude(1){a}",
+        "a -> {a|a}",
+    ] {
+        let rules = parse(src, "cap.cga").unwrap_or_else(|e| panic!("{e}"));
+        let err = derive(
+            &rules,
+            &rect(20.0, 12.0),
+            Attrs::new(),
+            &mut Rng::new(1, 1),
+            &Caps::default(),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&err, DeriveError::Cap { rule, .. } if rule.starts_with("cap.cga:1 (a")),
+            "{err}"
+        );
+    }
+    // A tiny lot lets repeat make few pieces per op: the depth or shape cap ends it.
+    let rules = parse("a -> repeat(X,0.01){a}", "cap.cga").unwrap_or_else(|e| panic!("{e}"));
+    let err = derive(
+        &rules,
+        &rect(0.05, 0.05),
+        Attrs::new(),
+        &mut Rng::new(1, 1),
+        &Caps::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(err, DeriveError::Cap { .. }), "{err}");
+}
+
+#[test]
+fn same_seed_same_tree() {
+    let a = run(FIG_3_19, &l_shape(), 42);
+    let b = run(FIG_3_19, &l_shape(), 42);
+    assert_eq!(a.nodes.len(), b.nodes.len());
+    for (x, y) in a.nodes.iter().zip(&b.nodes) {
+        assert_eq!(
+            (
+                &x.symbol,
+                x.label,
+                &x.geometry,
+                &x.attrs,
+                x.children.clone()
+            ),
+            (
+                &y.symbol,
+                y.label,
+                &y.geometry,
+                &y.attrs,
+                y.children.clone()
+            )
+        );
+    }
+    let c = run(TOULOUSE, &rect(20.0, 12.0), 1);
+    let heights: std::collections::BTreeSet<i64> = (0..32)
+        .map(|s| volume_height(&run(TOULOUSE, &rect(20.0, 12.0), s).nodes[1]) as i64)
+        .collect();
+    assert!(heights.len() > 1 && c.nodes.len() > 1);
+}
+
+#[test]
+fn empty_lot_is_an_error() {
+    let rules = parse("a -> extrude(1){b}", "x").unwrap_or_else(|e| panic!("{e}"));
+    let lot = Polygon::new(vec![DVec2::ZERO, DVec2::X], vec![]);
+    assert_eq!(
+        derive(
+            &rules,
+            &lot,
+            Attrs::new(),
+            &mut Rng::new(1, 1),
+            &Caps::default()
+        )
+        .unwrap_err(),
+        DeriveError::EmptyLot
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Slab pieces of any polygon (convex fast path or geo) partition it.
+    #[test]
+    fn slab_clips_partition_the_polygon(
+        pts in prop::collection::vec((0.0f64..50.0, 0.0f64..50.0), 3..9),
+        cut in 0.05f64..0.95,
+        angle in 0.0f64..6.3,
+    ) {
+        let hull = super::shape::convex_hull(&pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect::<Vec<_>>());
+        prop_assume!(hull.len() >= 3);
+        let poly = Polygon::new(hull, vec![]);
+        prop_assume!(poly.area() > 1.0);
+        let axis = DVec2::from_angle(angle);
+        let (lo, hi) = poly.outer.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.dot(axis)), b.max(p.dot(axis))));
+        let c = lo + (hi - lo) * cut;
+        let a: f64 = clip_slab(&poly, DVec2::ZERO, axis, f64::NEG_INFINITY, c).iter().map(Polygon::area).sum();
+        let b: f64 = clip_slab(&poly, DVec2::ZERO, axis, c, f64::INFINITY).iter().map(Polygon::area).sum();
+        prop_assert!((a + b - poly.area()).abs() < 1e-6 * poly.area().max(1.0));
+        // A concave version (a notch) goes through geo and must still partition.
+        let mut notched = poly.outer.clone();
+        let centroid = notched.iter().copied().sum::<DVec2>() / notched.len() as f64;
+        notched.insert(1, centroid);
+        let np = Polygon::new(notched, vec![]);
+        let a: f64 = clip_slab(&np, DVec2::ZERO, axis, f64::NEG_INFINITY, c).iter().map(Polygon::area).sum();
+        let b: f64 = clip_slab(&np, DVec2::ZERO, axis, c, f64::INFINITY).iter().map(Polygon::area).sum();
+        prop_assert!((a + b - np.area()).abs() < 1e-6 * np.area().max(1.0), "{} + {} vs {}", a, b, np.area());
+    }
+}
+
+#[test]
+fn thesis_window_example_parses_verbatim() {
+    // Seed 003 L884-890, as printed (spaces before commas, value wrapped after `=`).
+    let src = "lot -> extrude(3){m}\nm -> comp(){front: yellowwindow}\n\
+yellowwindow -> rsplit (Z,0.2 ,0.3 ,0.3){wall : color=indianred
+  | windowpart | upperwindowpart}
+upperwindowpart -> rsplit (X,0.4,0.6){windowpart|windowpart}
+windowpart -> {window: style=framed, framecolor=gold , material=
+  glass }
+";
+    let t = run(src, &rect(4.0, 4.0), 1);
+    let windows: Vec<&ShapeNode> = t
+        .nodes
+        .iter()
+        .filter(|n| n.terminal == Some(Terminal::Window))
+        .collect();
+    assert_eq!(windows.len(), 3);
+    assert!(windows
+        .iter()
+        .all(|n| n.attrs.get("material").and_then(AttrValue::as_str) == Some("glass")));
+    let yw = find(&t, "yellowwindow")[0];
+    let heights: Vec<f64> = t
+        .children(yw)
+        .iter()
+        .map(|n| {
+            if let Geometry::Face { height, .. } = n.geometry {
+                height
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // 0.2 : 0.3 : 0.3 normalised over 3 m.
+    assert!(
+        heights
+            .iter()
+            .zip([0.75, 1.125, 1.125])
+            .all(|(a, b)| (a - b).abs() < 1e-12),
+        "{heights:?}"
+    );
+    assert_eq!(
+        t.children(yw)[0]
+            .attrs
+            .get("color")
+            .and_then(AttrValue::as_str),
+        Some("indianred")
+    );
+}
