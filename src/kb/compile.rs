@@ -12,20 +12,21 @@
 //! The rules, top-down:
 //! ```text
 //! lot -> extrude(eave){building : color=C, roof=R, roofcolor=RC, roofangle=A}
-//! building -> split(Z, floorsize, sz){groundfloor | upperfloors}
+//! building -> split(Z, floorsize, sz - floorsize){groundfloor | upperfloors}
 //! upperfloors -> repeat(Z, floorsize){floor}
 //! groundfloor -> comp(){front : groundfacade | others : facade}
 //! floor -> comp(){side : facade}
 //! facade -> repeat(X, bay){bay}
-//! groundfacade -> split(X, sx/2 - bay/2, bay, sx){facade | doorbay | facade}
+//! groundfacade -> split(X, sx/2 - bay/2, bay, sx/2 - bay/2){facade | doorbay | facade}
 //! doorbay -> rsplit(X, p, w, p){wall | door : color=D | wall}
 //! bay -> rsplit(X, p, w, p){wall | windowcol | wall}
 //! windowcol -> rsplit(Z, sill, h, lintel){wall | opening | wall}
 //! opening -> {window : style=.., framecolor=.., material=.., color=..}   (or the drawn tree)
 //! ```
-//! `split` relies on the thesis's truncation semantics (Fig 3.19: sizes that overrun the parent
-//! are cut at the parent's size), so `split(Z, floorsize, sz)` gives a ground floor and the rest,
-//! or only a ground floor for a one-storey building.
+//! The split sizes add up to the parent exactly, so no truncation rule of the interpreter is
+//! relied on; a size ≤ 0 gives no piece (a one-storey building has no `upperfloors`, a facade
+//! narrower than a bay gets only the door bay). `repeat` scales its copies to fill the parent,
+//! and a face too narrow for one bay becomes a plain wall.
 
 use crate::color::Color;
 use crate::model::RoofShape;
@@ -78,6 +79,21 @@ pub fn axiom_attributes(style: &Style) -> Vec<(String, AxiomValue)> {
     v
 }
 
+/// [`axiom_attributes`] as the grammar's attribute map, ready for [`crate::grammar::derive`].
+pub fn axiom_attrs(style: &Style) -> crate::grammar::Attrs {
+    use crate::grammar::AttrValue;
+    axiom_attributes(style)
+        .into_iter()
+        .map(|(k, v)| {
+            let v = match v {
+                AxiomValue::Num(x) => AttrValue::Num(x),
+                AxiomValue::Text(t) => AttrValue::Str(t.into()),
+            };
+            (k.into(), v)
+        })
+        .collect()
+}
+
 /// Bay width: the window plus a pier on each side.
 pub fn bay_width(style: &Style) -> f64 {
     style.window_width + 2.0 * PIER_WIDTH
@@ -128,13 +144,16 @@ pub fn ruleset_text(style: &Style) -> String {
         color_word(style.roof_color),
         num(style.roof_angle_deg)
     ));
-    out.push("building -> split(Z, floorsize, sz){groundfloor | upperfloors}".to_string());
+    out.push(
+        "building -> split(Z, floorsize, sz - floorsize){groundfloor | upperfloors}".to_string(),
+    );
     out.push("upperfloors -> repeat(Z, floorsize){floor}".to_string());
     out.push("groundfloor -> comp(){front : groundfacade | others : facade}".to_string());
     out.push("floor -> comp(){side : facade}".to_string());
     out.push("facade -> repeat(X, bay){bay}".to_string());
     out.push(
-        "groundfacade -> split(X, sx/2 - bay/2, bay, sx){facade | doorbay | facade}".to_string(),
+        "groundfacade -> split(X, sx/2 - bay/2, bay, sx/2 - bay/2){facade | doorbay | facade}"
+            .to_string(),
     );
     let bay = bay_width(style);
     let p = num(PIER_WIDTH / bay);
@@ -392,6 +411,68 @@ mod tests {
             .collect();
         assert_eq!(alts.len(), 2);
         assert!(alts.iter().all(|l| l.ends_with("= 0.5")));
+    }
+
+    /// The generated text goes through the real grammar: it parses, and derives a building with
+    /// one door, windows on every storey and the drawn panes.
+    #[test]
+    fn text_parses_and_derives_with_the_grammar() {
+        use crate::geometry::Polygon;
+        use crate::grammar::{derive, parse, Caps, Terminal};
+        use glam::DVec2;
+        let lot = Polygon::new(
+            vec![
+                DVec2::new(0.0, 0.0),
+                DVec2::new(12.0, 0.0),
+                DVec2::new(12.0, 9.0),
+                DVec2::new(0.0, 9.0),
+            ],
+            Vec::new(),
+        );
+        for (storeys, opening, wh) in [
+            (4, None, WindowHeight::Tall),
+            (1, Some(two_by_two()), WindowHeight::Irregular),
+            (3, Some(two_by_two()), WindowHeight::Short),
+        ] {
+            let mut s = style();
+            s.storeys = storeys;
+            s.eave_height = f64::from(storeys) * s.floor_height;
+            s.opening = opening.clone();
+            s.window_height = wh;
+            let text = ruleset_text(&s);
+            let rules = parse(&text, "kb.rules").unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let tree = derive(
+                &rules,
+                &lot,
+                axiom_attrs(&s),
+                &mut crate::rng::Rng::new(1, 2),
+                &Caps::default(),
+            )
+            .unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let count = |t: Terminal| tree.nodes.iter().filter(|n| n.terminal == Some(t)).count();
+            assert_eq!(count(Terminal::Door), 1, "{text}");
+            let panes = if opening.is_some() { 4 } else { 1 };
+            let windows = count(Terminal::Window);
+            assert!(
+                windows > 0 && windows % panes == 0,
+                "{windows} windows\n{text}"
+            );
+            // 12 m and 9 m facades hold 4 and 3 bays of 3 m; the ground floor front has a door bay.
+            let per_storey_bays = 2 * 4 + 2 * 3;
+            assert!(
+                windows / panes >= per_storey_bays * storeys as usize - 2 * 4,
+                "{windows}"
+            );
+            let window_attrs = tree
+                .nodes
+                .iter()
+                .find(|n| n.terminal == Some(Terminal::Window))
+                .map(|n| n.attrs.clone());
+            let framecolor = window_attrs
+                .as_ref()
+                .and_then(|a| a.get("framecolor").map(|v| v.to_string()));
+            assert_eq!(framecolor.as_deref(), Some("white"));
+        }
     }
 
     #[test]

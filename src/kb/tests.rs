@@ -651,3 +651,36 @@ fn thesis_annex_as_printed_reads_with_repairs() {
         "sorted by line"
     );
 }
+
+#[test]
+fn every_shipped_style_derives_with_the_grammar() {
+    use crate::geometry::Polygon;
+    use crate::grammar::{derive, parse, Caps};
+    use glam::DVec2;
+    let kb = shipped();
+    let lot = Polygon::new(
+        vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(14.0, 0.0),
+            DVec2::new(14.0, 10.0),
+            DVec2::new(0.0, 10.0),
+        ],
+        Vec::new(),
+    );
+    for i in 0..kb.zones().len() {
+        for seed in 0..4 {
+            let (s, _) = kb.style_for(i, &BuildingTags::default(), &mut Rng::new(seed, 11));
+            let text = compile::ruleset_text(&s);
+            let rules = parse(&text, "kb.rules").unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let tree = derive(
+                &rules,
+                &lot,
+                compile::axiom_attrs(&s),
+                &mut Rng::new(seed, 12),
+                &Caps::default(),
+            )
+            .unwrap_or_else(|e| panic!("{}: {e}\n{text}", s.appearance_label));
+            assert!(tree.nodes.len() > 10, "{}", s.appearance_label);
+        }
+    }
+}
