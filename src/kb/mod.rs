@@ -1,6 +1,866 @@
 //! The knowledge base of regional appearance (seed 003 §3.4): a zone tree
 //! earth > country > region > town > district, each zone with `<info>` defaults and a circle,
 //! and `<appearance>` alternatives chosen by `proba`.
+//!
+//! Reading is in [`xml`], rule generation in [`compile`]. This module holds the zone tree, the
+//! R-tree that finds the zone of a point, value inheritance and the [`Style`] of one building.
+//!
+//! Invariants: zone 0 is `earth`; a zone's parent always has a smaller index (document order);
+//! [`KnowledgeBase::locate`] and [`KnowledgeBase::style_for`] never panic and depend only on
+//! their arguments (no clocks, no hash order).
 
 pub mod compile;
 pub mod xml;
+
+use std::collections::BTreeMap;
+use std::path::{Component, Path, PathBuf};
+
+use rstar::primitives::{GeomWithData, Rectangle};
+use rstar::RTree;
+
+use crate::color::Color;
+use crate::input::BuildingTags;
+use crate::model::RoofShape;
+use crate::rng::Rng;
+
+pub use xml::{KbError, KbRepair};
+
+/// Mean Earth radius (IUGG), km: used for circle containment and bounding boxes.
+const EARTH_RADIUS_KM: f64 = 6371.0088;
+/// Kilometres per degree of latitude on the mean sphere.
+const KM_PER_DEG: f64 = EARTH_RADIUS_KM * std::f64::consts::PI / 180.0;
+
+/// Built-in defaults, used where neither the KB nor the tags say anything.
+pub mod defaults {
+    use crate::color::Color;
+    use crate::model::RoofShape;
+
+    /// Storey height, metres.
+    pub const FLOOR_HEIGHT: f64 = 3.0;
+    /// Storeys above ground.
+    pub const STOREYS: u32 = 2;
+    /// Roof shape.
+    pub const ROOF: RoofShape = RoofShape::Gabled;
+    /// Roof pitch, degrees.
+    pub const ROOF_ANGLE_DEG: f64 = 30.0;
+    /// Walls: white.
+    pub const WALL_COLOR: Color = Color::WHITE;
+    /// Roof: CSS `darkred` (#8b0000).
+    pub const ROOF_COLOR: Color = Color::from_rgb24(0x8b0000);
+    /// Glass: CSS `lightsteelblue`.
+    pub const WINDOW_COLOR: Color = Color::from_rgb24(0xb0c4de);
+    /// Window frames: white.
+    pub const FRAME_COLOR: Color = Color::WHITE;
+    /// Doors: CSS `saddlebrown`.
+    pub const DOOR_COLOR: Color = Color::from_rgb24(0x8b4513);
+    /// Window width, metres.
+    pub const WINDOW_WIDTH: f64 = 1.2;
+}
+
+/// What level of the zone tree a zone is, from its element name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ZoneKind {
+    Earth,
+    Country,
+    Region,
+    Town,
+    District,
+    /// Any other element that has a `designation` (e.g. `quarter`, `block`), lower-cased.
+    Other(String),
+}
+
+impl ZoneKind {
+    /// The kind for an element name (case-insensitive).
+    pub fn from_element(name: &str) -> ZoneKind {
+        match name.to_ascii_lowercase().as_str() {
+            "earth" => ZoneKind::Earth,
+            "country" => ZoneKind::Country,
+            "region" => ZoneKind::Region,
+            "town" => ZoneKind::Town,
+            "district" => ZoneKind::District,
+            other => ZoneKind::Other(other.to_string()),
+        }
+    }
+
+    /// The element name.
+    pub fn as_str(&self) -> &str {
+        match self {
+            ZoneKind::Earth => "earth",
+            ZoneKind::Country => "country",
+            ZoneKind::Region => "region",
+            ZoneKind::Town => "town",
+            ZoneKind::District => "district",
+            ZoneKind::Other(s) => s,
+        }
+    }
+}
+
+/// The thesis's window height class (`windowheight`): tall, short or irregular (a mix).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WindowHeight {
+    Tall,
+    Short,
+    Irregular,
+}
+
+impl WindowHeight {
+    /// Parses `tall`, `short`, `irregular` (case-insensitive, trimmed).
+    pub fn parse(s: &str) -> Option<WindowHeight> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "tall" | "high" => Some(WindowHeight::Tall),
+            "short" | "low" => Some(WindowHeight::Short),
+            "irregular" | "mixed" => Some(WindowHeight::Irregular),
+            _ => None,
+        }
+    }
+
+    /// The lower-case name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            WindowHeight::Tall => "tall",
+            WindowHeight::Short => "short",
+            WindowHeight::Irregular => "irregular",
+        }
+    }
+}
+
+/// Descriptors of a zone's `<info>` or of an appearance's `<values>`, all optional.
+///
+/// Attribute names (case-insensitive) and their fields: `color` → `wall_color`; `material`;
+/// `nbfloor` → `storeys`; `minFloors`/`maxFloors`; `minHeight`/`maxHeight` (metres, eave
+/// height range of the house, not the OSM `min_height` base); `floorsize` or `floorheight` →
+/// `floor_height`; `rooftype`, `bdRooftype` or `roof` → `roof`; `roofangle`; `roofColor`;
+/// `doorCol`; `openingCol` → `window_color` (the glass); `windowfcolor` (or the Madagascar
+/// spelling `windowColor`) → `frame_color`; `windowheight`; `windowwidth` (metres);
+/// `windowstyle`; `windowmaterial`; `maxrotation` (degrees). Anything else lands in `extra`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Values {
+    pub wall_color: Option<Color>,
+    pub material: Option<String>,
+    pub storeys: Option<u32>,
+    pub min_floors: Option<u32>,
+    pub max_floors: Option<u32>,
+    pub min_height: Option<f64>,
+    pub max_height: Option<f64>,
+    pub floor_height: Option<f64>,
+    pub roof: Option<RoofShape>,
+    pub roof_angle: Option<f64>,
+    pub roof_color: Option<Color>,
+    pub door_color: Option<Color>,
+    pub window_color: Option<Color>,
+    pub frame_color: Option<Color>,
+    pub window_height: Option<WindowHeight>,
+    pub window_width: Option<f64>,
+    pub window_style: Option<String>,
+    pub window_material: Option<String>,
+    pub max_rotation: Option<f64>,
+    /// Unknown attributes, lower-cased name → trimmed value, kept for rulesets that read them.
+    pub extra: BTreeMap<String, String>,
+}
+
+impl Values {
+    /// Lays `more_specific` over `self`: every field it sets replaces ours; `extra` entries merge
+    /// with its entries winning.
+    pub fn overlay(&mut self, more_specific: &Values) {
+        macro_rules! over {
+            ($($f:ident),*) => { $( if more_specific.$f.is_some() { self.$f = more_specific.$f.clone(); } )* };
+        }
+        over!(
+            wall_color,
+            material,
+            storeys,
+            min_floors,
+            max_floors,
+            min_height,
+            max_height,
+            floor_height,
+            roof,
+            roof_angle,
+            roof_color,
+            door_color,
+            window_color,
+            frame_color,
+            window_height,
+            window_width,
+            window_style,
+            window_material,
+            max_rotation
+        );
+        for (k, v) in &more_specific.extra {
+            self.extra.insert(k.clone(), v.clone());
+        }
+    }
+}
+
+/// Axis of an opening split on a facade: X along the wall, Z up (Y accepted for completeness).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SplitAxis {
+    X,
+    Y,
+    Z,
+}
+
+impl SplitAxis {
+    /// `X`, `Y` or `Z`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SplitAxis::X => "X",
+            SplitAxis::Y => "Y",
+            SplitAxis::Z => "Z",
+        }
+    }
+}
+
+/// One `<split axis parent children splitvalues/>`: the rule
+/// `parent -> rsplit(axis, fractions...){children...}`. `fractions.len() == children.len()`,
+/// every fraction is positive and they sum to 1 (the reader normalises and says so).
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpeningSplit {
+    pub axis: SplitAxis,
+    pub parent: String,
+    pub children: Vec<String>,
+    pub fractions: Vec<f64>,
+}
+
+/// A drawn opening subdivision (`<opening>`): a tree of relative splits whose leaves are window
+/// panes. The reader guarantees it is a tree rooted at `root` (no node split twice, no cycle,
+/// every split reachable from the root).
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpeningTree {
+    /// The node standing for the whole opening (`<elements parent>`).
+    pub root: String,
+    /// Splits in document order.
+    pub splits: Vec<OpeningSplit>,
+    /// Leaf nodes (`<elements terms>`), in document order, empty entries dropped.
+    pub terms: Vec<String>,
+}
+
+/// One `<appearance>`: a style alternative of a zone.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Appearance {
+    /// `proba` in 0..=1, `None` when empty or absent (see [`KnowledgeBase::pick_appearance`]).
+    pub proba: Option<f64>,
+    pub values: Values,
+    pub opening: Option<OpeningTree>,
+    /// `<ruleset file="..."/>` as written (see [`KnowledgeBase::ruleset_path`]).
+    pub ruleset: Option<String>,
+    /// Line of the `<appearance>` element.
+    pub line: usize,
+}
+
+/// A zone circle: centre in WGS84 degrees, radius in kilometres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Circle {
+    pub lat: f64,
+    pub lon: f64,
+    pub radius_km: f64,
+}
+
+impl Circle {
+    /// Great-circle (haversine) distance in km from the centre to (lon, lat).
+    pub fn distance_km(&self, lon: f64, lat: f64) -> f64 {
+        let (p1, p2) = (self.lat.to_radians(), lat.to_radians());
+        let dp = p2 - p1;
+        let dl = (lon - self.lon).to_radians();
+        let a = (dp / 2.0).sin().powi(2) + p1.cos() * p2.cos() * (dl / 2.0).sin().powi(2);
+        2.0 * EARTH_RADIUS_KM * a.clamp(0.0, 1.0).sqrt().asin()
+    }
+
+    /// Whether (lon, lat) lies in the circle (boundary included).
+    pub fn contains(&self, lon: f64, lat: f64) -> bool {
+        self.distance_km(lon, lat) <= self.radius_km
+    }
+
+    /// Lon/lat bounding boxes (degrees) that cover the circle: one, or two when the circle
+    /// crosses the antimeridian. A circle reaching a pole covers every longitude.
+    fn bboxes(&self) -> Vec<([f64; 2], [f64; 2])> {
+        let dlat = self.radius_km / KM_PER_DEG;
+        let (lat0, lat1) = (self.lat - dlat, self.lat + dlat);
+        if lat0 <= -90.0 || lat1 >= 90.0 {
+            return vec![([-180.0, lat0.max(-90.0)], [180.0, lat1.min(90.0)])];
+        }
+        // The widest longitude extent is at the latitude nearest a pole.
+        let cos = lat0.abs().max(lat1.abs()).to_radians().cos();
+        let dlon = dlat / cos.max(1e-9);
+        if dlon >= 180.0 {
+            return vec![([-180.0, lat0], [180.0, lat1])];
+        }
+        let lon = normalize_lon(self.lon);
+        let (lon0, lon1) = (lon - dlon, lon + dlon);
+        let mut out = vec![([lon0.max(-180.0), lat0], [lon1.min(180.0), lat1])];
+        if lon0 < -180.0 {
+            out.push(([lon0 + 360.0, lat0], [180.0, lat1]));
+        }
+        if lon1 > 180.0 {
+            out.push(([-180.0, lat0], [lon1 - 360.0, lat1]));
+        }
+        out
+    }
+}
+
+fn normalize_lon(lon: f64) -> f64 {
+    let l = (lon + 180.0).rem_euclid(360.0) - 180.0;
+    if l.is_finite() {
+        l
+    } else {
+        0.0
+    }
+}
+
+/// One zone of the tree.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Zone {
+    /// `designation` (`earth` for the root).
+    pub name: String,
+    pub kind: ZoneKind,
+    /// Names from the root, `/`-separated: `earth/France/Occitanie/Toulouse`.
+    pub path: String,
+    /// Index of the parent zone; `None` only for earth.
+    pub parent: Option<usize>,
+    /// 0 for earth, 1 for its children, ...
+    pub depth: usize,
+    /// The zone's circle (`<info lat lon dist>` or `<location>`); `None` means the zone is never
+    /// matched by itself (its sub-zones still are).
+    pub circle: Option<Circle>,
+    /// The zone's own `<info>` values, not inherited ones (see [`KnowledgeBase::resolved`]).
+    pub info: Values,
+    /// The zone's own appearances, in document order.
+    pub appearances: Vec<Appearance>,
+    /// Line of the zone's element.
+    pub line: usize,
+}
+
+type ZoneBox = GeomWithData<Rectangle<[f64; 2]>, usize>;
+
+/// The loaded knowledge base: zones in document order (zone 0 is earth) and a spatial index.
+#[derive(Debug)]
+pub struct KnowledgeBase {
+    zones: Vec<Zone>,
+    index: RTree<ZoneBox>,
+    /// The file name used in messages.
+    source: String,
+    /// Folder that `ruleset file=` paths are relative to (the KB file's folder).
+    base_dir: Option<PathBuf>,
+}
+
+/// Everything one building needs, resolved from the KB, the chosen appearance and the tags.
+///
+/// Heights are metres above the ground the footprint stands on. The walls run from `min_height`
+/// to `eave_height`; the roof sits on top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Style {
+    /// Top of the walls.
+    pub eave_height: f64,
+    /// OSM `height` when given: the top of the roof. When it is `Some` and `roof_height` is
+    /// `None` on a pitched roof, `eave_height` is only a bound: the caller computes the roof
+    /// height from the footprint and calls [`Style::fit_total_height`].
+    pub total_height: Option<f64>,
+    pub floor_height: f64,
+    /// Storeys between `min_height` and `eave_height` (at least 1).
+    pub storeys: u32,
+    pub roof: RoofShape,
+    pub roof_angle_deg: f64,
+    /// `roof:height` when tagged (0 for a flat roof); `None`: computed from the angle later.
+    pub roof_height: Option<f64>,
+    /// Base of the walls (OSM `min_height` / `building:min_level`), 0 by default.
+    pub min_height: f64,
+    pub wall_color: Color,
+    pub roof_color: Color,
+    /// Glass / opening colour.
+    pub window_color: Color,
+    pub frame_color: Color,
+    pub door_color: Color,
+    /// Window width, metres.
+    pub window_width: f64,
+    pub window_height: WindowHeight,
+    /// `framed`, `simple`, ... (lower-case).
+    pub window_style: String,
+    /// `glass`, ... (lower-case).
+    pub window_material: String,
+    /// Wall material (`BricksBasic`, OSM `building:material`, ...), when known.
+    pub material: Option<String>,
+    pub opening: Option<OpeningTree>,
+    /// Path of the matched zone.
+    pub zone_path: String,
+    /// `<owner zone path>#<1-based appearance index>`, or `<zone path>#info` with no appearance.
+    pub appearance_label: String,
+    /// Whether `storeys` came from `building:levels` (then [`Style::fit_total_height`] keeps it).
+    pub storeys_from_tags: bool,
+}
+
+impl Style {
+    /// Sets the roof height once known and, when `total_height` is set, moves the eave to
+    /// `total_height - roof_height` (never below `min_height` + 1 m), recomputing `storeys` from
+    /// the floor height unless `building:levels` fixed them.
+    pub fn fit_total_height(&mut self, roof_height: f64) {
+        if !roof_height.is_finite() || roof_height < 0.0 {
+            return;
+        }
+        self.roof_height = Some(roof_height);
+        if let Some(total) = self.total_height {
+            self.eave_height = (total - roof_height).max(self.min_height + 1.0);
+            if !self.storeys_from_tags {
+                self.storeys = storeys_for(self.eave_height - self.min_height, self.floor_height);
+            }
+        }
+    }
+}
+
+fn storeys_for(wall_height: f64, floor_height: f64) -> u32 {
+    let n = (wall_height / floor_height).round();
+    if n.is_finite() && n >= 1.0 {
+        n.min(1000.0) as u32
+    } else {
+        1
+    }
+}
+
+impl KnowledgeBase {
+    /// Reads and parses a KB file. `ruleset file=` paths are then relative to its folder.
+    /// Returns the repairs the lenient reader made, each with its line.
+    pub fn load(path: &Path) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| KbError::Io {
+            file: name.clone(),
+            source,
+        })?;
+        let (mut kb, repairs) = KnowledgeBase::parse_str(&text, &name)?;
+        kb.base_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
+        Ok((kb, repairs))
+    }
+
+    /// Parses KB text; `file_name` is used in errors only.
+    pub fn parse_str(
+        text: &str,
+        file_name: &str,
+    ) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+        let (zones, repairs) = xml::read_zones(text, file_name)?;
+        Ok((KnowledgeBase::from_zones(zones, file_name), repairs))
+    }
+
+    /// Builds a KB from zones (zone 0 earth, parents before children) and indexes the circles.
+    fn from_zones(zones: Vec<Zone>, source: &str) -> KnowledgeBase {
+        let mut boxes = Vec::new();
+        for (i, z) in zones.iter().enumerate() {
+            if let Some(c) = z.circle {
+                for (lo, hi) in c.bboxes() {
+                    boxes.push(GeomWithData::new(Rectangle::from_corners(lo, hi), i));
+                }
+            }
+        }
+        KnowledgeBase {
+            zones,
+            index: RTree::bulk_load(boxes),
+            source: source.to_string(),
+            base_dir: None,
+        }
+    }
+
+    /// All zones in document order; index 0 is earth.
+    pub fn zones(&self) -> &[Zone] {
+        &self.zones
+    }
+
+    /// One zone (`None` when out of range).
+    pub fn zone(&self, i: usize) -> Option<&Zone> {
+        self.zones.get(i)
+    }
+
+    /// The file name given at load time.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// Index of the zone with this path (`earth/France/...`), case-sensitive.
+    pub fn find(&self, path: &str) -> Option<usize> {
+        self.zones.iter().position(|z| z.path == path)
+    }
+
+    /// The deepest zone whose circle contains (lon, lat) (great-circle distance). Ties at equal
+    /// depth go to the smallest radius, then to the first in document order. Earth (0) when no
+    /// circle contains the point or the point is not finite.
+    pub fn locate(&self, lon: f64, lat: f64) -> usize {
+        if !lon.is_finite() || !lat.is_finite() {
+            return 0;
+        }
+        let lon = normalize_lon(lon);
+        let mut best: Option<(usize, f64, usize)> = None; // (depth, radius, index)
+        for b in self.index.locate_all_at_point([lon, lat]) {
+            let i = b.data;
+            let Some(z) = self.zones.get(i) else { continue };
+            let Some(c) = z.circle else { continue };
+            if !c.contains(lon, lat) {
+                continue;
+            }
+            let better = match best {
+                None => true,
+                Some((d, r, j)) => {
+                    z.depth > d
+                        || (z.depth == d && (c.radius_km < r || (c.radius_km == r && i < j)))
+                }
+            };
+            if better {
+                best = Some((z.depth, c.radius_km, i));
+            }
+        }
+        best.map_or(0, |(_, _, i)| i)
+    }
+
+    /// Indices from earth down to `zone` (inclusive). Empty for an unknown zone.
+    pub fn lineage(&self, zone: usize) -> Vec<usize> {
+        let mut out = Vec::new();
+        let mut cur = if zone < self.zones.len() {
+            Some(zone)
+        } else {
+            None
+        };
+        while let Some(i) = cur {
+            out.push(i);
+            // Parents precede children, so this always terminates.
+            cur = self.zones.get(i).and_then(|z| z.parent).filter(|&p| p < i);
+        }
+        out.reverse();
+        out
+    }
+
+    /// The zone's info values inherited from earth down: each zone's `<info>` is laid over its
+    /// ancestors' ([`Values::overlay`]), so the most specific zone wins for every key it sets.
+    pub fn resolved(&self, zone: usize) -> Values {
+        let mut v = Values::default();
+        for i in self.lineage(zone) {
+            if let Some(z) = self.zones.get(i) {
+                v.overlay(&z.info);
+            }
+        }
+        v
+    }
+
+    /// The appearances that apply to a zone: its own, or if it has none those of the nearest
+    /// ancestor that has some. Returns the owning zone index and the slice (empty, owner 0, when
+    /// no zone up to earth has any).
+    pub fn appearances_for(&self, zone: usize) -> (usize, &[Appearance]) {
+        for i in self.lineage(zone).into_iter().rev() {
+            if let Some(z) = self.zones.get(i) {
+                if !z.appearances.is_empty() {
+                    return (i, &z.appearances);
+                }
+            }
+        }
+        (0, &[])
+    }
+
+    /// Chooses one of the appearances that apply to `zone` ([`KnowledgeBase::appearances_for`]).
+    ///
+    /// Weights: a given `proba` is used as is; appearances without one share what the given
+    /// ones leave of 1 equally (nothing when they already sum to 1 or more); the weights are
+    /// then normalised. If every weight is zero the choice is uniform. Draws exactly one
+    /// number from `rng` when there is at least one appearance. Returns (owner zone, index).
+    pub fn pick_appearance(&self, zone: usize, rng: &mut Rng) -> Option<(usize, usize)> {
+        let (owner, apps) = self.appearances_for(zone);
+        let weights = appearance_weights(apps);
+        rng.pick_weighted(&weights).map(|i| (owner, i))
+    }
+
+    /// Resolves the style of one building in `zone`.
+    ///
+    /// Precedence, lowest first: [`defaults`]; the zone's [`KnowledgeBase::resolved`] info
+    /// (`nbfloor`, `floorsize`, `rooftype`, `roofangle`, colours, ...); the chosen appearance's
+    /// `<values>` (its ranges drawn with `rng`); then the OSM tags, which always win:
+    /// - `height` (total, roof included) sets `total_height`; the eave is `height - roof:height`
+    ///   when `roof:height` is tagged or the roof is flat, else the caller fits it
+    ///   ([`Style::fit_total_height`]); without `height`, `building:levels` L sets the eave to
+    ///   L × floor height;
+    /// - `building:levels` L sets `storeys` (minus `building:min_level`);
+    /// - `min_height` (else `building:min_level` × floor height) sets the base;
+    /// - `roof:shape`, `roof:angle`, `roof:height`, `building:colour`, `roof:colour`,
+    ///   `building:material`.
+    ///
+    /// Height drawing from the appearance: floors in `minFloors..=maxFloors` when given, the
+    /// eave being floors × floor height clamped into `minHeight..=maxHeight`; otherwise an eave
+    /// in `minHeight..maxHeight` and the storeys that fit; otherwise `nbfloor` storeys.
+    /// Every override and every inconsistency fixed is described in the returned notes.
+    pub fn style_for(
+        &self,
+        zone: usize,
+        tags: &BuildingTags,
+        rng: &mut Rng,
+    ) -> (Style, Vec<String>) {
+        let mut notes = Vec::new();
+        let zone = if zone < self.zones.len() { zone } else { 0 };
+        let zone_path = self
+            .zones
+            .get(zone)
+            .map(|z| z.path.clone())
+            .unwrap_or_else(|| "earth".into());
+        let mut v = self.resolved(zone);
+        let mut opening = None;
+        let appearance_label = match self.pick_appearance(zone, rng) {
+            Some((owner, i)) => {
+                let app = self.zones.get(owner).and_then(|z| z.appearances.get(i));
+                if let Some(app) = app {
+                    v.overlay(&app.values);
+                    opening = app.opening.clone();
+                }
+                let owner_path = self.zones.get(owner).map_or("earth", |z| z.path.as_str());
+                format!("{owner_path}#{}", i + 1)
+            }
+            None => format!("{zone_path}#info"),
+        };
+
+        let floor_height = v
+            .floor_height
+            .filter(|h| h.is_finite() && *h > 0.0)
+            .unwrap_or(defaults::FLOOR_HEIGHT);
+        let (storeys, wall_height) = draw_heights(&v, floor_height, rng, &mut notes);
+
+        let mut style = Style {
+            eave_height: wall_height,
+            total_height: None,
+            floor_height,
+            storeys,
+            roof: v.roof.unwrap_or(defaults::ROOF),
+            roof_angle_deg: v
+                .roof_angle
+                .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
+                .unwrap_or(defaults::ROOF_ANGLE_DEG),
+            roof_height: None,
+            min_height: 0.0,
+            wall_color: v.wall_color.unwrap_or(defaults::WALL_COLOR),
+            roof_color: v.roof_color.unwrap_or(defaults::ROOF_COLOR),
+            window_color: v.window_color.unwrap_or(defaults::WINDOW_COLOR),
+            frame_color: v.frame_color.unwrap_or(defaults::FRAME_COLOR),
+            door_color: v.door_color.unwrap_or(defaults::DOOR_COLOR),
+            window_width: v
+                .window_width
+                .filter(|w| w.is_finite() && *w > 0.0)
+                .unwrap_or(defaults::WINDOW_WIDTH),
+            window_height: v.window_height.unwrap_or(WindowHeight::Tall),
+            window_style: v
+                .window_style
+                .clone()
+                .unwrap_or_else(|| "framed".into())
+                .to_ascii_lowercase(),
+            window_material: v
+                .window_material
+                .clone()
+                .unwrap_or_else(|| "glass".into())
+                .to_ascii_lowercase(),
+            material: v.material.clone(),
+            opening,
+            zone_path,
+            appearance_label,
+            storeys_from_tags: false,
+        };
+        apply_tags(&mut style, tags, &mut notes);
+        (style, notes)
+    }
+
+    /// Where an appearance's `ruleset file=` points, resolved against the KB's folder.
+    /// Refuses absolute paths and paths that climb out of that folder (`..`) unless
+    /// `allow_outside` is set. `Ok(None)` when the appearance names no ruleset.
+    pub fn ruleset_path(
+        &self,
+        zone: usize,
+        appearance: usize,
+        allow_outside: bool,
+    ) -> Result<Option<PathBuf>, KbError> {
+        let Some(app) = self
+            .zones
+            .get(zone)
+            .and_then(|z| z.appearances.get(appearance))
+        else {
+            return Ok(None);
+        };
+        let Some(file) = app.ruleset.as_deref() else {
+            return Ok(None);
+        };
+        let rel = Path::new(file);
+        let mut depth: i64 = 0;
+        let mut escapes = rel.is_absolute();
+        for c in rel.components() {
+            match c {
+                Component::ParentDir => depth -= 1,
+                Component::Normal(_) => depth += 1,
+                Component::CurDir => {}
+                Component::RootDir | Component::Prefix(_) => escapes = true,
+            }
+            if depth < 0 {
+                escapes = true;
+            }
+        }
+        if escapes && !allow_outside {
+            return Err(KbError::Structure {
+                file: self.source.clone(),
+                line: app.line,
+                message: format!(
+                    "ruleset file \"{file}\" lies outside the knowledge base's folder; \
+                     move it next to the KB or allow outside rulesets explicitly"
+                ),
+            });
+        }
+        Ok(Some(match &self.base_dir {
+            Some(d) => d.join(rel),
+            None => rel.to_path_buf(),
+        }))
+    }
+}
+
+/// The weights [`KnowledgeBase::pick_appearance`] uses, in appearance order.
+pub fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
+    let given: f64 = apps.iter().filter_map(|a| a.proba).sum();
+    let missing = apps.iter().filter(|a| a.proba.is_none()).count();
+    let share = if missing > 0 {
+        ((1.0 - given) / missing as f64).max(0.0)
+    } else {
+        0.0
+    };
+    let raw: Vec<f64> = apps.iter().map(|a| a.proba.unwrap_or(share)).collect();
+    let total: f64 = raw.iter().sum();
+    if total > 0.0 {
+        raw.iter().map(|w| w / total).collect()
+    } else {
+        raw
+    }
+}
+
+/// Draws (storeys, eave height) from the merged values; see [`KnowledgeBase::style_for`].
+fn draw_heights(v: &Values, fh: f64, rng: &mut Rng, notes: &mut Vec<String>) -> (u32, f64) {
+    let ok = |x: &f64| x.is_finite() && *x > 0.0;
+    let (min_h, max_h) = (v.min_height.filter(ok), v.max_height.filter(ok));
+    let height_range = match (min_h, max_h) {
+        (Some(a), Some(b)) => Some((a.min(b), a.max(b))),
+        (Some(a), None) | (None, Some(a)) => Some((a, a)),
+        (None, None) => None,
+    };
+    let floors = match (
+        v.min_floors.filter(|f| *f > 0),
+        v.max_floors.filter(|f| *f > 0),
+    ) {
+        (Some(a), Some(b)) => Some((a.min(b), a.max(b))),
+        (Some(a), None) | (None, Some(a)) => Some((a, a)),
+        (None, None) => None,
+    };
+    match (floors, height_range) {
+        (Some((f0, f1)), hr) => {
+            let n = draw_int(rng, f0, f1);
+            let mut h = f64::from(n) * fh;
+            if let Some((a, b)) = hr {
+                let c = h.clamp(a, b);
+                // A millimetre of rounding (3 x 3.3 = 9.899999...) is not a disagreement.
+                if (c - h).abs() > 1e-3 {
+                    notes.push(format!(
+                        "appearance floors ({n} x {fh} m) and heights ({a}..{b} m) disagree: eave {c} m"
+                    ));
+                    h = c;
+                }
+            }
+            (n, h)
+        }
+        (None, Some((a, b))) => {
+            let h = if b > a { rng.range(a, b) } else { a };
+            (storeys_for(h, fh), h)
+        }
+        (None, None) => {
+            let n = v.storeys.filter(|n| *n > 0).unwrap_or(defaults::STOREYS);
+            (n, f64::from(n) * fh)
+        }
+    }
+}
+
+/// Uniform integer in a..=b.
+fn draw_int(rng: &mut Rng, a: u32, b: u32) -> u32 {
+    if b <= a {
+        return a;
+    }
+    let span = u64::from(b - a) + 1;
+    a + (rng.next_u64() % span) as u32
+}
+
+/// Applies the OSM overrides; see [`KnowledgeBase::style_for`].
+fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
+    let fh = s.floor_height;
+    if let Some(shape) = t.roof_shape {
+        if shape != s.roof {
+            notes.push(format!(
+                "roof:shape={} overrides KB roof {}",
+                shape.osm_name(),
+                s.roof.osm_name()
+            ));
+        }
+        s.roof = shape;
+    }
+    if let Some(a) = t
+        .roof_angle
+        .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
+    {
+        s.roof_angle_deg = a;
+    }
+    if let Some(h) = t.roof_height.filter(|h| h.is_finite() && *h >= 0.0) {
+        s.roof_height = Some(h);
+    } else if s.roof == RoofShape::Flat {
+        s.roof_height = Some(0.0);
+    }
+    let min_level = t.min_level.filter(|l| l.is_finite() && *l >= 0.0);
+    if let Some(m) = t.min_height.filter(|m| m.is_finite() && *m >= 0.0) {
+        s.min_height = m;
+    } else if let Some(l) = min_level {
+        s.min_height = l * fh;
+    }
+    let levels = t.levels.filter(|l| l.is_finite() && *l > 0.0);
+    if let Some(l) = levels {
+        let above = (l - min_level.unwrap_or(0.0)).round();
+        s.storeys = if above >= 1.0 {
+            above.min(1000.0) as u32
+        } else {
+            1
+        };
+        s.storeys_from_tags = true;
+        s.eave_height = l * fh;
+        notes.push(format!(
+            "building:levels={l} sets {} storeys of {fh} m",
+            s.storeys
+        ));
+    } else if s.min_height > 0.0 {
+        // The KB height is a wall height: stand it on the base.
+        s.eave_height += s.min_height;
+    }
+    if let Some(h) = t.height.filter(|h| h.is_finite() && *h > 0.0) {
+        s.total_height = Some(h);
+        match s.roof_height {
+            Some(rh) => {
+                s.eave_height = h - rh;
+                if levels.is_none() {
+                    s.storeys = storeys_for(s.eave_height - s.min_height, fh);
+                }
+            }
+            // Pitched roof of unknown height: an upper bound until the caller fits it.
+            None => s.eave_height = s.eave_height.min(h),
+        }
+        notes.push(format!("height={h} overrides the KB height"));
+    }
+    if s.eave_height <= s.min_height {
+        notes.push(format!(
+            "eave {} m not above base {} m: walls set to one storey of {fh} m",
+            s.eave_height, s.min_height
+        ));
+        s.eave_height = s.min_height + fh;
+        s.storeys = 1;
+        if let Some(h) = s.total_height {
+            if h <= s.eave_height {
+                s.total_height = None;
+            }
+        }
+    }
+    if let Some(c) = t.colour {
+        s.wall_color = c;
+    }
+    if let Some(c) = t.roof_colour {
+        s.roof_color = c;
+    }
+    if let Some(m) = &t.material {
+        s.material = Some(m.clone());
+    }
+}
+
+#[cfg(test)]
+mod tests;
