@@ -490,17 +490,22 @@ mod tests {
 
     /// An x-monotone rectilinear polygon: columns of given widths, each spanning [lo, hi],
     /// overlapping its neighbour. Many right angles, collinear vertices and simultaneous events.
-    fn histogram(cols: &[(u8, u8, u8)]) -> Option<Vec<DVec2>> {
+    fn histogram(cols: &[(u8, u8, u8)]) -> Vec<DVec2> {
         let mut x = vec![0.0];
         let mut spans = Vec::new();
         for &(w, lo, h) in cols {
             x.push(x[x.len() - 1] + 1.0 + w as f64);
             spans.push((lo as f64, lo as f64 + 1.0 + h as f64));
         }
+        // Make each column overlap the previous one by at least 1.
         for i in 1..spans.len() {
-            let (a, b) = (spans[i - 1], spans[i]);
-            if a.1.min(b.1) - a.0.max(b.0) < 0.5 {
-                return None;
+            let a = spans[i - 1];
+            let b = &mut spans[i];
+            if b.0 > a.1 - 1.0 {
+                b.0 = a.1 - 1.0;
+            }
+            if b.1 < a.0 + 1.0 {
+                b.1 = a.0 + 1.0;
             }
         }
         let mut pts = Vec::new();
@@ -513,7 +518,68 @@ mod tests {
             pts.push(DVec2::new(x[i], s.1));
         }
         pts.dedup();
-        Some(pts)
+        pts
+    }
+
+    /// A union of unit cells grown from (0, 0) on a 7 × 7 grid: general rectilinear shapes
+    /// (spirals, G, comb), courtyards included. `None` when two cells touch only at a corner
+    /// (the boundary would not be simple).
+    fn cell_union(steps: &[(u8, u8)], carve: bool) -> Option<Polygon> {
+        const K: i32 = 7;
+        let mut cells = vec![(0i32, 0i32)];
+        if carve {
+            // A full block with cells taken out: courtyards and notches.
+            cells = (0..K * K).map(|i| (i % K, i / K)).collect();
+            for &(pick, _) in steps {
+                if cells.len() > 1 {
+                    cells.remove(pick as usize % cells.len());
+                }
+            }
+        }
+        for &(pick, dir) in steps.iter().filter(|_| !carve) {
+            let (x, y) = cells[pick as usize % cells.len()];
+            let (dx, dy) = [(1, 0), (0, 1), (-1, 0), (0, -1)][dir as usize % 4];
+            let c = (x + dx, y + dy);
+            if c.0 >= 0 && c.1 >= 0 && c.0 < K && c.1 < K && !cells.contains(&c) {
+                cells.push(c);
+            }
+        }
+        // Directed boundary edges: each cell's CCW edges, shared ones cancel.
+        let mut edges: std::collections::BTreeSet<((i32, i32), (i32, i32))> = Default::default();
+        for &(x, y) in &cells {
+            let c = [(x, y), (x + 1, y), (x + 1, y + 1), (x, y + 1)];
+            for i in 0..4 {
+                let (a, b) = (c[i], c[(i + 1) % 4]);
+                if !edges.remove(&(b, a)) {
+                    edges.insert((a, b));
+                }
+            }
+        }
+        let mut next = std::collections::BTreeMap::new();
+        for &(a, b) in &edges {
+            if next.insert(a, b).is_some() {
+                return None;
+            }
+        }
+        let mut rings = Vec::new();
+        let mut left = next.clone();
+        while let Some((&s, _)) = left.iter().next() {
+            let mut ring = vec![s];
+            let mut cur = left.remove(&s)?;
+            while cur != s {
+                ring.push(cur);
+                cur = left.remove(&cur)?;
+            }
+            rings.push(ring.iter().map(|&(x, y)| DVec2::new(x as f64, y as f64)).collect::<Vec<_>>());
+        }
+        let outer_ix = (0..rings.len())
+            .max_by(|&i, &j| crate::geometry::ring_signed_area(&rings[i])
+                .total_cmp(&crate::geometry::ring_signed_area(&rings[j])))?;
+        let outer = rings.remove(outer_ix);
+        if rings.iter().any(|r| crate::geometry::ring_signed_area(r) > 0.0) {
+            return None; // several components
+        }
+        Some(Polygon::new(outer, rings))
     }
 
     fn cases() -> u32 {
@@ -530,7 +596,7 @@ mod tests {
             scale in 0.5f64..20.0,
             pitch in 10.0f64..60.0,
         ) {
-            let Some(pts) = histogram(&cols) else { return Ok(()); };
+            let pts = histogram(&cols);
             let (s, c) = angle.sin_cos();
             let pts: Vec<DVec2> = pts.iter()
                 .map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale + DVec2::new(5e5, 4e6))
@@ -539,6 +605,25 @@ mod tests {
             let p = Polygon::new(pts, vec![]).translated(DVec2::new(-5e5, -4e6));
             if let Err(e) = check_hipped(&p, pitch) {
                 return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+            }
+        }
+
+        #[test]
+        fn hipped_cell_union(
+            steps in prop::collection::vec((0u8..255, 0u8..4), 1..30),
+            carve in any::<bool>(),
+            angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+            scale in 1.0f64..15.0,
+            pitch in 10.0f64..60.0,
+        ) {
+            let Some(p) = cell_union(&steps, carve) else { return Ok(()); };
+            let (s, c) = angle.sin_cos();
+            let rot = |r: &Vec<DVec2>| -> Vec<DVec2> {
+                r.iter().map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale).collect()
+            };
+            let p = Polygon::new(rot(&p.outer), p.holes.iter().map(rot).collect());
+            if let Err(e) = check_hipped(&p, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?} {:?}", p.outer, p.holes)));
             }
         }
 
