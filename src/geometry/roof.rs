@@ -23,7 +23,9 @@ pub enum RoofError {
     #[error("invalid roof parameter: {0}")]
     InvalidParameter(&'static str),
     /// A pyramid needs a footprint without holes that is star-shaped from its apex.
-    #[error("a pyramidal roof needs a footprint without holes that is star-shaped around its centroid")]
+    #[error(
+        "a pyramidal roof needs a footprint without holes that is star-shaped around its centroid"
+    )]
     NotStarShaped,
 }
 
@@ -47,7 +49,11 @@ impl RoofGeometry {
             .flat_map(|f| f.outer.iter())
             .map(|p| p.z)
             .fold(0.0, f64::max);
-        RoofGeometry { faces, gable_walls, height: top }
+        RoofGeometry {
+            faces,
+            gable_walls,
+            height: top,
+        }
     }
 
     /// Scales heights (about z = 0, the eave) so that the highest point is at `height`. A flat
@@ -79,13 +85,18 @@ impl RoofGeometry {
 /// A flat roof: one face at z = 0 with the footprint's holes.
 pub fn flat(poly: &Polygon) -> RoofGeometry {
     let lift = |r: &Vec<DVec2>| r.iter().map(|p| p.extend(0.0)).collect::<Vec<_>>();
-    let face = Face { outer: lift(&poly.outer), holes: poly.holes.iter().map(lift).collect() };
+    let face = Face {
+        outer: lift(&poly.outer),
+        holes: poly.holes.iter().map(lift).collect(),
+    };
     RoofGeometry::new(vec![face], Vec::new())
 }
 
 fn check_pitch(pitch_deg: f64) -> Result<f64, RoofError> {
     if !(pitch_deg.is_finite() && pitch_deg > 0.0 && pitch_deg < 90.0) {
-        return Err(RoofError::InvalidParameter("pitch must be between 0 and 90 degrees"));
+        return Err(RoofError::InvalidParameter(
+            "pitch must be between 0 and 90 degrees",
+        ));
     }
     Ok(pitch_deg.to_radians().tan())
 }
@@ -102,7 +113,14 @@ pub fn hipped(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
     let faces = sk
         .faces
         .into_iter()
-        .map(|f| Face::new(f.polygon.into_iter().map(|p| DVec3::new(p.x, p.y, p.z * k)).collect()))
+        .map(|f| {
+            Face::new(
+                f.polygon
+                    .into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, p.z * k))
+                    .collect(),
+            )
+        })
         .collect();
     Ok(RoofGeometry::new(faces, Vec::new()))
 }
@@ -130,7 +148,11 @@ pub fn pyramidal(poly: &Polygon, height: f64) -> Result<RoofGeometry, RoofError>
         if (b - a).perp_dot(c - a) <= tol {
             return Err(RoofError::NotStarShaped);
         }
-        faces.push(Face::new(vec![a.extend(0.0), b.extend(0.0), c.extend(height)]));
+        faces.push(Face::new(vec![
+            a.extend(0.0),
+            b.extend(0.0),
+            c.extend(height),
+        ]));
     }
     Ok(RoofGeometry::new(faces, Vec::new()))
 }
@@ -193,10 +215,12 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
                 return false;
             };
             // The neighbour's boundary next to the apex that is not the hip towards a or b.
-            [poly[(ix + 1) % m], poly[(ix + m - 1) % m]].iter().any(|q| {
-                let r = (q.truncate() - apex.truncate()).normalize_or_zero();
-                (q.z - apex.z).abs() <= tol && r.dot(d).abs() < 1e-6 && r != DVec2::ZERO
-            })
+            [poly[(ix + 1) % m], poly[(ix + m - 1) % m]]
+                .iter()
+                .any(|q| {
+                    let r = (q.truncate() - apex.truncate()).normalize_or_zero();
+                    (q.z - apex.z).abs() <= tol && r.dot(d).abs() < 1e-6 && r != DVec2::ZERO
+                })
         });
         if !ridge_ok {
             continue;
@@ -231,7 +255,13 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
     let faces = faces
         .into_iter()
         .filter(|f| f.len() >= 3)
-        .map(|f| Face::new(f.into_iter().map(|p| DVec3::new(p.x, p.y, p.z * k)).collect()))
+        .map(|f| {
+            Face::new(
+                f.into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, p.z * k))
+                    .collect(),
+            )
+        })
         .collect();
     Ok(RoofGeometry::new(faces, walls))
 }
@@ -279,7 +309,8 @@ mod tests {
             if f.polygon.iter().any(|q| !q.is_finite()) {
                 return Err("NaN".into());
             }
-            if f.polygon[0].truncate().distance(a) > tol || f.polygon[1].truncate().distance(b) > tol
+            if f.polygon[0].truncate().distance(a) > tol
+                || f.polygon[1].truncate().distance(b) > tol
             {
                 return Err(format!("face {:?} does not start with its edge", f.edge));
             }
@@ -371,11 +402,36 @@ mod tests {
     fn letter_shapes() {
         let shapes: Vec<Vec<(f64, f64)>> = vec![
             // L
-            vec![(0., 0.), (10., 0.), (10., 4.), (4., 4.), (4., 10.), (0., 10.)],
+            vec![
+                (0., 0.),
+                (10., 0.),
+                (10., 4.),
+                (4., 4.),
+                (4., 10.),
+                (0., 10.),
+            ],
             // T
-            vec![(3., 0.), (7., 0.), (7., 6.), (10., 6.), (10., 10.), (0., 10.), (0., 6.), (3., 6.)],
+            vec![
+                (3., 0.),
+                (7., 0.),
+                (7., 6.),
+                (10., 6.),
+                (10., 10.),
+                (0., 10.),
+                (0., 6.),
+                (3., 6.),
+            ],
             // U
-            vec![(0., 0.), (10., 0.), (10., 8.), (7., 8.), (7., 3.), (3., 3.), (3., 8.), (0., 8.)],
+            vec![
+                (0., 0.),
+                (10., 0.),
+                (10., 8.),
+                (7., 8.),
+                (7., 3.),
+                (3., 3.),
+                (3., 8.),
+                (0., 8.),
+            ],
             // H
             vec![
                 (0., 0.),
@@ -392,11 +448,27 @@ mod tests {
                 (0., 10.),
             ],
             // collinear vertices on every side
-            vec![(0., 0.), (5., 0.), (10., 0.), (10., 3.), (10., 6.), (5., 6.), (0., 6.), (0., 2.)],
+            vec![
+                (0., 0.),
+                (5., 0.),
+                (10., 0.),
+                (10., 3.),
+                (10., 6.),
+                (5., 6.),
+                (0., 6.),
+                (0., 2.),
+            ],
             // near-collinear vertex (1 µm off)
             vec![(0., 0.), (5., 1e-6), (10., 0.), (10., 6.), (0., 6.)],
             // tiny edge
-            vec![(0., 0.), (10., 0.), (10., 6.), (5.001, 6.), (5., 6.001), (0., 6.)],
+            vec![
+                (0., 0.),
+                (10., 0.),
+                (10., 6.),
+                (5.001, 6.),
+                (5., 6.001),
+                (0., 6.),
+            ],
         ];
         for s in shapes {
             if let Err(e) = check_hipped(&poly(&s), 35.0) {
@@ -439,8 +511,18 @@ mod tests {
     #[test]
     fn courtyard_hole() {
         let p = Polygon::new(
-            vec![DVec2::new(0., 0.), DVec2::new(20., 0.), DVec2::new(20., 14.), DVec2::new(0., 14.)],
-            vec![vec![DVec2::new(6., 5.), DVec2::new(14., 5.), DVec2::new(14., 9.), DVec2::new(6., 9.)]],
+            vec![
+                DVec2::new(0., 0.),
+                DVec2::new(20., 0.),
+                DVec2::new(20., 14.),
+                DVec2::new(0., 14.),
+            ],
+            vec![vec![
+                DVec2::new(6., 5.),
+                DVec2::new(14., 5.),
+                DVec2::new(14., 9.),
+                DVec2::new(6., 9.),
+            ]],
         );
         let roof = check_hipped(&p, 30.0).unwrap();
         assert_eq!(roof.faces.len(), 8);
@@ -457,8 +539,19 @@ mod tests {
         assert!(py.faces.iter().all(|f| f.normal().z > 0.0));
         assert!((py.height - 3.0).abs() < 1e-12);
         let s = py.scaled_to_height(6.0).translated_z(10.0);
-        assert!(s.faces.iter().flat_map(|f| &f.outer).all(|p| p.z >= 10.0 && p.z <= 16.0 + 1e-9));
-        let l = poly(&[(0., 0.), (10., 0.), (10., 1.), (1., 1.), (1., 10.), (0., 10.)]);
+        assert!(s
+            .faces
+            .iter()
+            .flat_map(|f| &f.outer)
+            .all(|p| p.z >= 10.0 && p.z <= 16.0 + 1e-9));
+        let l = poly(&[
+            (0., 0.),
+            (10., 0.),
+            (10., 1.),
+            (1., 1.),
+            (1., 10.),
+            (0., 10.),
+        ]);
         assert_eq!(pyramidal(&l, 3.0), Err(RoofError::NotStarShaped));
         assert!(hipped(&p, 90.0).is_err());
     }
@@ -472,7 +565,10 @@ mod tests {
         for f in &g.faces {
             let n = f.normal();
             assert!((n.z.acos().to_degrees() - 45.0).abs() < 1e-6);
-            assert!(f.outer.iter().all(|q| (*q - f.outer[0]).dot(n).abs() < 1e-9));
+            assert!(f
+                .outer
+                .iter()
+                .all(|q| (*q - f.outer[0]).dot(n).abs() < 1e-9));
         }
         for w in &g.gable_walls {
             let n = w.normal();
@@ -570,20 +666,31 @@ mod tests {
                 ring.push(cur);
                 cur = left.remove(&cur)?;
             }
-            rings.push(ring.iter().map(|&(x, y)| DVec2::new(x as f64, y as f64)).collect::<Vec<_>>());
+            rings.push(
+                ring.iter()
+                    .map(|&(x, y)| DVec2::new(x as f64, y as f64))
+                    .collect::<Vec<_>>(),
+            );
         }
-        let outer_ix = (0..rings.len())
-            .max_by(|&i, &j| crate::geometry::ring_signed_area(&rings[i])
-                .total_cmp(&crate::geometry::ring_signed_area(&rings[j])))?;
+        let outer_ix = (0..rings.len()).max_by(|&i, &j| {
+            crate::geometry::ring_signed_area(&rings[i])
+                .total_cmp(&crate::geometry::ring_signed_area(&rings[j]))
+        })?;
         let outer = rings.remove(outer_ix);
-        if rings.iter().any(|r| crate::geometry::ring_signed_area(r) > 0.0) {
+        if rings
+            .iter()
+            .any(|r| crate::geometry::ring_signed_area(r) > 0.0)
+        {
             return None; // several components
         }
         Some(Polygon::new(outer, rings))
     }
 
     fn cases() -> u32 {
-        std::env::var("PROPTEST_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(2000)
+        std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(2000)
     }
 
     proptest! {

@@ -77,7 +77,12 @@ pub enum SkeletonError {
     #[error(
         "the boundary touches itself: ring {ring_a} edge {edge_a} meets ring {ring_b} edge {edge_b}"
     )]
-    SelfIntersection { ring_a: usize, edge_a: usize, ring_b: usize, edge_b: usize },
+    SelfIntersection {
+        ring_a: usize,
+        edge_a: usize,
+        ring_b: usize,
+        edge_b: usize,
+    },
     /// A hole is not inside the outer ring, or is inside another hole.
     #[error("hole {hole} (ring {}) is not inside the outer ring or lies in another hole", hole + 1)]
     HoleOutside { hole: usize },
@@ -165,7 +170,10 @@ pub fn straight_skeleton(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
     let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
     for (ri, r) in rings.iter().enumerate() {
         if let Some(vi) = r.iter().position(|p| !p.is_finite()) {
-            return Err(SkeletonError::NonFinite { ring: ri, vertex: vi });
+            return Err(SkeletonError::NonFinite {
+                ring: ri,
+                vertex: vi,
+            });
         }
     }
     let (lo, hi) = poly.bounds();
@@ -189,7 +197,9 @@ pub fn straight_skeleton(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
     let total: f64 = faces.iter().map(|f| area3(&f.polygon)).sum();
     let expect = poly.area();
     if (total - expect).abs() > 1e-6 * expect.abs().max(size * size * 1e-9) {
-        return Err(SkeletonError::Inconsistent("face areas do not add up to the polygon area"));
+        return Err(SkeletonError::Inconsistent(
+            "face areas do not add up to the polygon area",
+        ));
     }
     Ok(Skeleton { faces })
 }
@@ -225,7 +235,11 @@ fn clean_ring(
         changed = false;
         let m = keep.len();
         for k in 0..m {
-            let (a, b, c) = (ring[keep[(k + m - 1) % m]], ring[keep[k]], ring[keep[(k + 1) % m]]);
+            let (a, b, c) = (
+                ring[keep[(k + m - 1) % m]],
+                ring[keep[k]],
+                ring[keep[(k + 1) % m]],
+            );
             let (ab, bc) = (b - a, c - b);
             let remove = if ab.length() < dup {
                 true
@@ -237,7 +251,10 @@ fn clean_ring(
                     let ac = c - a;
                     cross.abs() / ac.length() < col
                 } else if cross.abs() / ab.length().max(bc.length()) < col {
-                    return Err(SkeletonError::Spike { ring: ri, vertex: keep[k] });
+                    return Err(SkeletonError::Spike {
+                        ring: ri,
+                        vertex: keep[k],
+                    });
                 } else {
                     false
                 }
@@ -270,7 +287,13 @@ fn clean_ring(
                 break;
             }
         }
-        edges.push(Edge { a, d, n: d.perp(), ring: ri, inputs });
+        edges.push(Edge {
+            a,
+            d,
+            n: d.perp(),
+            ring: ri,
+            inputs,
+        });
     }
     Ok(())
 }
@@ -293,7 +316,11 @@ fn seg_seg_dist(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> f64 {
 fn point_seg_dist(p: DVec2, a: DVec2, b: DVec2) -> f64 {
     let ab = b - a;
     let l2 = ab.length_squared();
-    let t = if l2 > 0.0 { ((p - a).dot(ab) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        ((p - a).dot(ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     p.distance(a + ab * t)
 }
 
@@ -343,14 +370,21 @@ fn next_in_ring(i: usize, edges: &[Edge], ring_starts: &[usize]) -> usize {
 /// Holes must lie inside the outer ring and outside each other (their boundaries do not touch,
 /// so one vertex decides).
 fn check_holes(edges: &[Edge], ring_starts: &[usize]) -> Result<(), SkeletonError> {
-    let ring_pts =
-        |r: usize| -> Vec<DVec2> { edges[ring_starts[r]..ring_starts[r + 1]].iter().map(|e| e.a).collect() };
+    let ring_pts = |r: usize| -> Vec<DVec2> {
+        edges[ring_starts[r]..ring_starts[r + 1]]
+            .iter()
+            .map(|e| e.a)
+            .collect()
+    };
     let outer = ring_pts(0);
     let holes: Vec<Vec<DVec2>> = (1..ring_starts.len() - 1).map(ring_pts).collect();
     for (h, pts) in holes.iter().enumerate() {
         let p = pts[0];
         if !ring_contains(&outer, p)
-            || holes.iter().enumerate().any(|(k, o)| k != h && ring_contains(o, p))
+            || holes
+                .iter()
+                .enumerate()
+                .any(|(k, o)| k != h && ring_contains(o, p))
         {
             return Err(SkeletonError::HoleOutside { hole: h });
         }
@@ -403,7 +437,10 @@ impl Sim {
                 let prev = if i == s { e - 1 } else { i - 1 };
                 let next = if i + 1 == e { s } else { i + 1 };
                 let node = sim.nodes.len();
-                sim.nodes.push(Node { p: sim.edges[i].a, t: 0.0 });
+                sim.nodes.push(Node {
+                    p: sim.edges[i].a,
+                    t: 0.0,
+                });
                 let (vel, degenerate) = sim.velocity(prev, i);
                 sim.verts.push(Vert {
                     l: prev,
@@ -443,7 +480,9 @@ impl Sim {
     }
 
     fn alive(&self) -> Vec<usize> {
-        (0..self.verts.len()).filter(|&i| self.verts[i].alive).collect()
+        (0..self.verts.len())
+            .filter(|&i| self.verts[i].alive)
+            .collect()
     }
 
     fn run(&mut self) -> Result<(), SkeletonError> {
@@ -454,10 +493,6 @@ impl Sim {
                 return Ok(());
             }
             let points = self.next_events(&alive)?;
-            #[cfg(test)]
-            if std::env::var("SK_DEBUG").is_ok() {
-                eprintln!("t={} alive={} points={:?}", self.t, alive.len(), points);
-            }
             for p in points {
                 self.handle_point(p)?;
             }
@@ -472,7 +507,12 @@ impl Sim {
         let eps = self.eps;
         let mut best = f64::INFINITY;
         let mut cands: Vec<(f64, usize)> = Vec::new();
-        let pos_now: Vec<DVec2> = self.verts.iter().enumerate().map(|(i, _)| self.pos(i, t)).collect();
+        let pos_now: Vec<DVec2> = self
+            .verts
+            .iter()
+            .enumerate()
+            .map(|(i, _)| self.pos(i, t))
+            .collect();
         for &v in alive {
             let vv = &self.verts[v];
             if vv.degenerate {
@@ -486,10 +526,6 @@ impl Sim {
             if rate < -1e-12 {
                 let dt = (len / -rate).max(0.0);
                 if t + dt <= best + eps {
-                    #[cfg(test)]
-                    if std::env::var("SK_DEBUG").is_ok() {
-                        eprintln!("  edge v={v} w={w} len={len} rate={rate} te={}", t + dt);
-                    }
                     best = best.min(t + dt);
                     cands.push((t + dt, v));
                 }
@@ -525,10 +561,6 @@ impl Sim {
                 // very time, and that point has been handled.
                 let rad = 4.0 * eps;
                 let stale = h <= eps && (s <= rad || s >= l - rad);
-                #[cfg(test)]
-                if std::env::var("SK_DEBUG").is_ok() && te <= best + eps {
-                    eprintln!("  split v={v} (l={} r={} vel={}) edge {} u={u} w={} s={s} l={l} h={h} te={te} {onto_start} {onto_end}", vv.l, vv.r, vv.vel, uu.r, uu.next);
-                }
                 if s >= -eps && s <= l + eps && onto_start && onto_end && !stale {
                     best = best.min(te);
                     cands.push((te, v));
@@ -536,7 +568,9 @@ impl Sim {
             }
         }
         if !best.is_finite() {
-            return Err(SkeletonError::Inconsistent("a wavefront ring has no further event"));
+            return Err(SkeletonError::Inconsistent(
+                "a wavefront ring has no further event",
+            ));
         }
         self.t = best.max(t);
         let mut pts: Vec<DVec2> = Vec::new();
@@ -606,20 +640,29 @@ impl Sim {
             }
             if point_seg_dist(x, self.pos(u, t), self.pos(w, t)) <= rad {
                 let e = self.verts[u].r;
-                passes.push(Pass { entry: u, exit: w, in_edge: e, out_edge: e, run: None });
+                passes.push(Pass {
+                    entry: u,
+                    exit: w,
+                    in_edge: e,
+                    out_edge: e,
+                    run: None,
+                });
             }
         }
         let trivial = vanished.is_empty()
-            && passes.iter().all(|p| matches!(p.run, Some((a, b)) if a == b))
+            && passes
+                .iter()
+                .all(|p| matches!(p.run, Some((a, b)) if a == b))
             && passes.len() <= 1;
         if trivial {
             return Ok(());
         }
         let pairs = self.match_passes(&passes)?;
         let changed = !vanished.is_empty()
-            || pairs.iter().enumerate().any(|(i, &j)| {
-                i != j || matches!(passes[i].run, Some((a, b)) if a != b)
-            });
+            || pairs
+                .iter()
+                .enumerate()
+                .any(|(i, &j)| i != j || matches!(passes[i].run, Some((a, b)) if a != b));
         if !changed {
             return Ok(());
         }
@@ -766,16 +809,13 @@ impl Sim {
         for s in 0..k {
             let (is_in, p) = seq[(start + s) % k];
             if is_in {
-                let o = stack.pop().ok_or(SkeletonError::Inconsistent("unmatched edge"))?;
+                let o = stack
+                    .pop()
+                    .ok_or(SkeletonError::Inconsistent("unmatched edge"))?;
                 pairs[p] = o;
             } else {
                 stack.push(p);
             }
-        }
-        #[cfg(test)]
-        if std::env::var("SK_DEBUG").is_ok() {
-            let dirs: Vec<String> = passes.iter().map(|p| format!("in{}:{:.4} out{}:{:.4} run{:?}", p.in_edge, (-self.edges[p.in_edge].d).to_angle(), p.out_edge, self.edges[p.out_edge].d.to_angle(), p.run)).collect();
-            eprintln!("  match {dirs:?} seq={seq:?} -> {pairs:?}");
         }
         if pairs.contains(&usize::MAX) {
             return Err(SkeletonError::Inconsistent("unmatched edge"));
@@ -798,7 +838,9 @@ impl Sim {
         }
         let pts: Vec<DVec2> = ring.iter().map(|&u| self.pos(u, t)).collect();
         let area = ring_signed_area(&pts);
-        let perim: f64 = (0..pts.len()).map(|i| pts[i].distance(pts[(i + 1) % pts.len()])).sum();
+        let perim: f64 = (0..pts.len())
+            .map(|i| pts[i].distance(pts[(i + 1) % pts.len()]))
+            .sum();
         // Rings of holes that have not met the outer ring yet run clockwise: only the size of
         // the area tells a collapsed ring.
         if ring.len() >= 3 && area.abs() > self.radius() * perim {
@@ -829,7 +871,9 @@ impl Sim {
             let k1 = (k + 1) % ring.len();
             let e = self.verts[ring[k]].r;
             if self.verts[ring[k1]].l != e {
-                return Err(SkeletonError::Inconsistent("wavefront edge labels disagree"));
+                return Err(SkeletonError::Inconsistent(
+                    "wavefront edge labels disagree",
+                ));
             }
             if ends[k] != ends[k1] {
                 self.segs[e].push((ends[k1], ends[k]));
@@ -869,7 +913,9 @@ impl Sim {
             }
         }
         if self.alive().iter().any(|&v| self.verts[v].degenerate) {
-            return Err(SkeletonError::Inconsistent("unresolved antiparallel wavefront vertex"));
+            return Err(SkeletonError::Inconsistent(
+                "unresolved antiparallel wavefront vertex",
+            ));
         }
         Ok(())
     }
@@ -888,7 +934,10 @@ impl Sim {
                 })
                 .collect();
             if edge.inputs.len() == 1 {
-                out.push(SkeletonFace { edge: (edge.ring, edge.inputs[0].0), polygon: poly });
+                out.push(SkeletonFace {
+                    edge: (edge.ring, edge.inputs[0].0),
+                    polygon: poly,
+                });
                 continue;
             }
             // Cut the (edge-monotone) face into slabs across the edge, one per input edge.
@@ -910,7 +959,10 @@ impl Sim {
                 let st = (0..m).find(|&i| piece[i].z <= tol && piece[(i + 1) % m].z <= tol);
                 let st = st.ok_or(SkeletonError::Inconsistent("face piece lost its base"))?;
                 piece.rotate_left(st);
-                out.push(SkeletonFace { edge: (edge.ring, input), polygon: piece });
+                out.push(SkeletonFace {
+                    edge: (edge.ring, input),
+                    polygon: piece,
+                });
             }
         }
         out.sort_by_key(|f| f.edge);
@@ -919,7 +971,11 @@ impl Sim {
 
     /// The cycle of nodes bounding edge `e`'s face, starting with the base edge.
     fn chain(&self, e: usize) -> Result<Vec<usize>, SkeletonError> {
-        let mut segs: Vec<(usize, usize)> = self.segs[e].iter().copied().filter(|s| s.0 != s.1).collect();
+        let mut segs: Vec<(usize, usize)> = self.segs[e]
+            .iter()
+            .copied()
+            .filter(|s| s.0 != s.1)
+            .collect();
         segs.sort_unstable();
         segs.dedup();
         // Cancel segments traversed both ways (slits of zero width).
@@ -930,8 +986,12 @@ impl Sim {
                 keep[j] = false;
             }
         }
-        let segs: Vec<(usize, usize)> =
-            segs.iter().zip(&keep).filter(|(_, k)| **k).map(|(s, _)| *s).collect();
+        let segs: Vec<(usize, usize)> = segs
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(s, _)| *s)
+            .collect();
         let mut used = vec![false; segs.len()];
         let (start, second) = self.base[e];
         let mut ring = vec![start];
@@ -940,8 +1000,9 @@ impl Sim {
         let mut first = true;
         loop {
             // Outgoing candidates from `cur`.
-            let cands: Vec<usize> =
-                (0..segs.len()).filter(|&i| !used[i] && segs[i].0 == cur).collect();
+            let cands: Vec<usize> = (0..segs.len())
+                .filter(|&i| !used[i] && segs[i].0 == cur)
+                .collect();
             let pick = if first {
                 cands.iter().copied().find(|&i| segs[i].1 == second)
             } else if cands.len() <= 1 {
@@ -968,10 +1029,14 @@ impl Sim {
             }
         }
         if used.iter().any(|u| !u) {
-            return Err(SkeletonError::Inconsistent("face boundary has extra pieces"));
+            return Err(SkeletonError::Inconsistent(
+                "face boundary has extra pieces",
+            ));
         }
         if ring.len() < 3 {
-            return Err(SkeletonError::Inconsistent("face with fewer than 3 vertices"));
+            return Err(SkeletonError::Inconsistent(
+                "face with fewer than 3 vertices",
+            ));
         }
         Ok(ring)
     }
@@ -1030,11 +1095,113 @@ fn dedup(poly: Vec<DVec3>, tol: f64) -> Vec<DVec3> {
 mod tests {
     use super::*;
 
+    fn poly(pts: &[(f64, f64)]) -> Polygon {
+        Polygon::new(pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![])
+    }
+
+    fn square(x: f64, y: f64) -> Vec<DVec2> {
+        vec![
+            DVec2::new(x, y),
+            DVec2::new(x, y + 1.),
+            DVec2::new(x + 1., y + 1.),
+            DVec2::new(x + 1., y),
+        ]
+    }
+
     #[test]
-    fn debug_case() {
-        let sq = |x: f64, y: f64| vec![DVec2::new(x, y), DVec2::new(x, y + 1.), DVec2::new(x + 1., y + 1.), DVec2::new(x + 1., y)];
-        let p = Polygon::new(vec![DVec2::new(0., 0.), DVec2::new(7., 0.), DVec2::new(7., 7.), DVec2::new(0., 7.)], vec![sq(2., 2.), sq(2., 4.)]);
-        let r = straight_skeleton(&p);
-        assert!(r.is_ok(), "{r:?}");
+    fn rectangle_faces() {
+        let sk = straight_skeleton(&poly(&[(0., 0.), (10., 0.), (10., 4.), (0., 4.)])).unwrap();
+        let sizes: Vec<usize> = sk.faces.iter().map(|f| f.polygon.len()).collect();
+        assert_eq!(sizes, vec![4, 3, 4, 3]);
+        assert_eq!(sk.faces[1].polygon[2], DVec3::new(8., 2., 2.));
+    }
+
+    #[test]
+    fn collinear_vertices_keep_one_face_per_edge() {
+        let sk = straight_skeleton(&poly(&[(0., 0.), (4., 0.), (10., 0.), (10., 4.), (0., 4.)]))
+            .unwrap();
+        assert_eq!(sk.faces.len(), 5);
+        let e0 = &sk.faces[0].polygon;
+        assert_eq!(
+            (e0[0].truncate(), e0[1].truncate()),
+            (DVec2::ZERO, DVec2::new(4., 0.))
+        );
+    }
+
+    /// Regressions found by the property tests.
+    #[test]
+    fn regressions() {
+        let stars: [&[(f64, f64)]; 2] = [
+            &[
+                (0.39838971759809566, 0.035855723561373405),
+                (0.33404937147622477, 0.5060631665136619),
+                (-0.8479026993284455, 0.9485935222440922),
+                (-0.37547005695450164, -0.13792112358367487),
+                (-0.3433795174407466, -0.2051597109623623),
+                (-0.11857819031895019, -0.8753793534834874),
+                (0.603122373712497, -0.1318777078045141),
+            ],
+            &[
+                (1.735785639633616, 0.08395971628638865),
+                (1.1675437242486026, 1.5053175665116583),
+                (0.24598550744084619, 0.7620072262379639),
+                (0.11391485177964451, 1.5685225093791306),
+                (-0.2791213097346702, 0.6407584669289865),
+                (-0.7847381485905126, 0.6302521174771831),
+                (-0.3925480504557654, 0.07685068694148345),
+                (-1.2180783529680586, -0.3634810926398813),
+                (-0.2862395842976485, -0.27940454609957477),
+                (-0.12360679774997903, -0.3804226065180614),
+                (0.06734281653881553, -0.39429043237266037),
+                (0.24286500312748444, -0.31783107188550175),
+                (0.3627497443402183, -0.16856044310901153),
+            ],
+        ];
+        for s in stars {
+            assert!(straight_skeleton(&poly(s)).is_ok());
+        }
+        // Two courtyards whose wavefronts meet each other before the outer one.
+        let outer = vec![
+            DVec2::new(0., 0.),
+            DVec2::new(7., 0.),
+            DVec2::new(7., 7.),
+            DVec2::new(0., 7.),
+        ];
+        let p = Polygon::new(outer, vec![square(2., 2.), square(2., 4.)]);
+        assert_eq!(straight_skeleton(&p).unwrap().faces.len(), 12);
+    }
+
+    #[test]
+    fn invalid_inputs_are_errors() {
+        let bow = poly(&[(0., 0.), (6., 4.), (6., 0.), (0., 2.)]);
+        assert!(matches!(
+            straight_skeleton(&bow),
+            Err(SkeletonError::SelfIntersection { .. })
+        ));
+        let spike = poly(&[
+            (0., 0.),
+            (4., 0.),
+            (4., 4.),
+            (2., 4.),
+            (2., 8.),
+            (2., 4.),
+            (0., 4.),
+        ]);
+        assert!(matches!(
+            straight_skeleton(&spike),
+            Err(SkeletonError::Spike { .. })
+        ));
+        let nan = poly(&[(0., 0.), (f64::NAN, 0.), (4., 4.)]);
+        assert!(matches!(
+            straight_skeleton(&nan),
+            Err(SkeletonError::NonFinite { .. })
+        ));
+        assert!(straight_skeleton(&poly(&[(0., 0.), (1., 0.)])).is_err());
+        assert!(straight_skeleton(&poly(&[(0., 0.), (1., 0.), (2., 0.)])).is_err());
+        let outside = Polygon::new(square(0., 0.), vec![square(5., 5.)]);
+        assert!(matches!(
+            straight_skeleton(&outside),
+            Err(SkeletonError::HoleOutside { .. })
+        ));
     }
 }
