@@ -127,7 +127,10 @@ pub struct Face {
 impl Face {
     /// A face without holes.
     pub fn new(outer: Vec<DVec3>) -> Face {
-        Face { outer, holes: Vec::new() }
+        Face {
+            outer,
+            holes: Vec::new(),
+        }
     }
 
     /// Unit normal (Newell), pointing out of the building. Zero for a degenerate face.
@@ -220,6 +223,9 @@ impl Building {
 
     /// Number of planar polygons the building's surfaces contain (walls, roofs, grounds).
     pub fn polygon_count(&self) -> usize {
-        self.parts.iter().map(|p| p.walls.len() + p.roof.len() + 1).sum()
+        self.parts
+            .iter()
+            .map(|p| p.walls.len() + p.roof.len() + 1)
+            .sum()
     }
 }

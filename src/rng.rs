@@ -20,7 +20,14 @@ impl Rng {
     /// (the building's [`crate::input::SourceId::seed_value`]).
     pub fn new(seed: u64, stream: u64) -> Rng {
         let mut x = seed ^ stream.wrapping_mul(0xD6E8_FEB8_6659_FD93);
-        Rng { s: [splitmix(&mut x), splitmix(&mut x), splitmix(&mut x), splitmix(&mut x)] }
+        Rng {
+            s: [
+                splitmix(&mut x),
+                splitmix(&mut x),
+                splitmix(&mut x),
+                splitmix(&mut x),
+            ],
+        }
     }
 
     /// Next 64 random bits.
@@ -54,7 +61,9 @@ impl Rng {
         }
         let total: f64 = weights.iter().filter(|w| w.is_finite() && **w > 0.0).sum();
         if total <= 0.0 {
-            return Some(((self.next_f64() * weights.len() as f64) as usize).min(weights.len() - 1));
+            return Some(
+                ((self.next_f64() * weights.len() as f64) as usize).min(weights.len() - 1),
+            );
         }
         let mut x = self.next_f64() * total;
         for (i, w) in weights.iter().enumerate() {
@@ -93,6 +102,9 @@ mod tests {
             counts[r.pick_weighted(&[0.2, 0.0, 0.8]).unwrap()] += 1;
         }
         assert_eq!(counts[1], 0);
-        assert!((counts[0] as f64 / 30_000.0 - 0.2).abs() < 0.02, "{counts:?}");
+        assert!(
+            (counts[0] as f64 / 30_000.0 - 0.2).abs() < 0.02,
+            "{counts:?}"
+        );
     }
 }

@@ -63,11 +63,21 @@ pub struct AtomicFile {
 impl AtomicFile {
     /// Creates the temporary file in the target's folder (which must exist).
     pub fn create(target: &Path) -> io::Result<AtomicFile> {
-        let dir = target.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let dir = target
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
         let file = File::create(&tmp)?;
-        Ok(AtomicFile { target: target.to_path_buf(), tmp, file: Some(BufWriter::with_capacity(1 << 20, file)) })
+        Ok(AtomicFile {
+            target: target.to_path_buf(),
+            tmp,
+            file: Some(BufWriter::with_capacity(1 << 20, file)),
+        })
     }
 
     /// Flushes, syncs and renames the temporary file over the target.

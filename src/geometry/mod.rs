@@ -93,7 +93,11 @@ impl Polygon {
     pub fn translated(&self, d: DVec2) -> Polygon {
         Polygon {
             outer: self.outer.iter().map(|p| *p + d).collect(),
-            holes: self.holes.iter().map(|h| h.iter().map(|p| *p + d).collect()).collect(),
+            holes: self
+                .holes
+                .iter()
+                .map(|h| h.iter().map(|p| *p + d).collect())
+                .collect(),
         }
     }
 }

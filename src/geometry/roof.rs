@@ -1,1 +1,755 @@
-//! (being written)
+//! Roof surfaces over a footprint: flat, pyramidal, hipped (from the straight skeleton) and
+//! gabled (the hipped roof with its end triangles raised to vertical gables).
+//!
+//! All constructions put the eave at z = 0; [`RoofGeometry::translated_z`] lifts them onto the
+//! walls and [`RoofGeometry::scaled_to_height`] fits them to a known roof height (OSM
+//! `roof:height`). Faces are planar, their outer ring counter-clockwise seen from above (their
+//! normal points up and out of the building), in the `Face` convention of [`crate::model`].
+
+use glam::{DVec2, DVec3};
+use thiserror::Error;
+
+use super::skeleton::{straight_skeleton, SkeletonError};
+use super::{newell_normal, Polygon};
+use crate::model::Face;
+
+/// Why a roof shape cannot be built on a footprint (the caller falls back to a flat roof).
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum RoofError {
+    /// The straight skeleton failed (see [`SkeletonError`]).
+    #[error("straight skeleton failed: {0}")]
+    Skeleton(#[from] SkeletonError),
+    /// The pitch is not in (0°, 90°) or the height is not positive and finite.
+    #[error("invalid roof parameter: {0}")]
+    InvalidParameter(&'static str),
+    /// A pyramid needs a footprint without holes that is star-shaped from its apex.
+    #[error(
+        "a pyramidal roof needs a footprint without holes that is star-shaped around its centroid"
+    )]
+    NotStarShaped,
+}
+
+/// Roof surfaces with the eave at z = 0 (until translated).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoofGeometry {
+    /// Roof planes, normals pointing up/out.
+    pub faces: Vec<Face>,
+    /// Vertical walls closing gable ends (empty for other shapes). Their outer ring is
+    /// counter-clockwise seen from outside the building; the bottom edge lies on the eave.
+    pub gable_walls: Vec<Face>,
+    /// Height of the highest point above the eave.
+    pub height: f64,
+}
+
+impl RoofGeometry {
+    fn new(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
+        let top = faces
+            .iter()
+            .chain(&gable_walls)
+            .flat_map(|f| f.outer.iter())
+            .map(|p| p.z)
+            .fold(0.0, f64::max);
+        RoofGeometry {
+            faces,
+            gable_walls,
+            height: top,
+        }
+    }
+
+    /// Scales heights (about z = 0, the eave) so that the highest point is at `height`. A flat
+    /// roof (height 0) is left unchanged. Planarity is preserved (a vertical scale is affine).
+    pub fn scaled_to_height(mut self, height: f64) -> RoofGeometry {
+        if self.height > 0.0 && height.is_finite() && height >= 0.0 {
+            let k = height / self.height;
+            for f in self.faces.iter_mut().chain(self.gable_walls.iter_mut()) {
+                for p in f.outer.iter_mut().chain(f.holes.iter_mut().flatten()) {
+                    p.z *= k;
+                }
+            }
+            self.height = height;
+        }
+        self
+    }
+
+    /// Moves every vertex up by `dz` (the eave height). `height` stays relative to the eave.
+    pub fn translated_z(mut self, dz: f64) -> RoofGeometry {
+        for f in self.faces.iter_mut().chain(self.gable_walls.iter_mut()) {
+            for p in f.outer.iter_mut().chain(f.holes.iter_mut().flatten()) {
+                p.z += dz;
+            }
+        }
+        self
+    }
+}
+
+/// A flat roof: one face at z = 0 with the footprint's holes.
+pub fn flat(poly: &Polygon) -> RoofGeometry {
+    let lift = |r: &Vec<DVec2>| r.iter().map(|p| p.extend(0.0)).collect::<Vec<_>>();
+    let face = Face {
+        outer: lift(&poly.outer),
+        holes: poly.holes.iter().map(lift).collect(),
+    };
+    RoofGeometry::new(vec![face], Vec::new())
+}
+
+fn check_pitch(pitch_deg: f64) -> Result<f64, RoofError> {
+    if !(pitch_deg.is_finite() && pitch_deg > 0.0 && pitch_deg < 90.0) {
+        return Err(RoofError::InvalidParameter(
+            "pitch must be between 0 and 90 degrees",
+        ));
+    }
+    Ok(pitch_deg.to_radians().tan())
+}
+
+/// A hipped roof: one plane per footprint edge, all with slope `pitch_deg`, meeting along the
+/// straight skeleton; z = distance to the edge × tan(pitch). Works for any simple footprint,
+/// holes included (the courtyards get inward-facing hips). One face per input edge (see
+/// [`super::skeleton::Skeleton`] for degenerate edges), in ring then edge order.
+///
+/// Errors: pitch not in (0°, 90°), or any [`SkeletonError`].
+pub fn hipped(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError> {
+    let k = check_pitch(pitch_deg)?;
+    let sk = straight_skeleton(poly)?;
+    let faces = sk
+        .faces
+        .into_iter()
+        .map(|f| {
+            Face::new(
+                f.polygon
+                    .into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, p.z * k))
+                    .collect(),
+            )
+        })
+        .collect();
+    Ok(RoofGeometry::new(faces, Vec::new()))
+}
+
+/// A pyramidal roof: one triangle per edge rising to an apex `height` above the centroid of the
+/// footprint.
+///
+/// Errors: non-positive height, holes, or a footprint that is not strictly star-shaped from the
+/// centroid (some triangle would fold over).
+pub fn pyramidal(poly: &Polygon, height: f64) -> Result<RoofGeometry, RoofError> {
+    if !(height.is_finite() && height > 0.0) {
+        return Err(RoofError::InvalidParameter("height must be positive"));
+    }
+    if !poly.holes.is_empty() || poly.outer.len() < 3 {
+        return Err(RoofError::NotStarShaped);
+    }
+    let c = centroid(&poly.outer).ok_or(RoofError::NotStarShaped)?;
+    let n = poly.outer.len();
+    let (lo, hi) = poly.bounds();
+    let tol = 1e-9 * (hi - lo).max_element().powi(2);
+    let mut faces = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = (poly.outer[i], poly.outer[(i + 1) % n]);
+        // The apex must be strictly left of every edge.
+        if (b - a).perp_dot(c - a) <= tol {
+            return Err(RoofError::NotStarShaped);
+        }
+        faces.push(Face::new(vec![
+            a.extend(0.0),
+            b.extend(0.0),
+            c.extend(height),
+        ]));
+    }
+    Ok(RoofGeometry::new(faces, Vec::new()))
+}
+
+/// Area centroid of a ring; `None` for a zero-area ring.
+fn centroid(r: &[DVec2]) -> Option<DVec2> {
+    let n = r.len();
+    let o = r[0];
+    let (mut a, mut c) = (0.0, DVec2::ZERO);
+    for i in 0..n {
+        let (p, q) = (r[i] - o, r[(i + 1) % n] - o);
+        let w = p.perp_dot(q);
+        a += w;
+        c += (p + q) * w;
+    }
+    if a.abs() < 1e-300 || !a.is_finite() {
+        return None;
+    }
+    Some(o + c / (3.0 * a))
+}
+
+/// A gabled roof built from the hipped one (after Laycock and Day): every hip end — a
+/// triangular face whose edge is the end of a ridge — is raised to a vertical gable, its apex
+/// moved onto the vertical plane through its edge; the neighbouring roof planes are extended to
+/// that apex. The gable's vertical wall triangle is returned in `gable_walls`.
+///
+/// An edge is a gable end when its skeleton face is a triangle whose apex also lies on exactly
+/// two other faces, the two neighbours of the edge, which meet in a ridge leaving the apex
+/// perpendicular to the edge (within 1e-6 relative) and both face the edge at the same pitch.
+/// For a rectangle these are the two short sides. Footprints without such ends (a square) keep
+/// their hips.
+///
+/// Errors: as [`hipped`].
+pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError> {
+    let k = check_pitch(pitch_deg)?;
+    let sk = straight_skeleton(poly)?;
+    let mut faces: Vec<Vec<DVec3>> = sk.faces.iter().map(|f| f.polygon.clone()).collect();
+    let (lo, hi) = poly.bounds();
+    let tol = 1e-7 * (hi - lo).max_element();
+    let mut walls = Vec::new();
+    // Apex moves are decided on the original skeleton, then applied.
+    let mut moves: Vec<(DVec3, DVec3)> = Vec::new();
+    for (i, f) in sk.faces.iter().enumerate() {
+        if f.polygon.len() != 3 {
+            continue;
+        }
+        let (a, b, apex) = (f.polygon[0], f.polygon[1], f.polygon[2]);
+        let others: Vec<usize> = (0..sk.faces.len())
+            .filter(|&j| j != i && sk.faces[j].polygon.iter().any(|p| p.distance(apex) <= tol))
+            .collect();
+        if others.len() != 2 {
+            continue;
+        }
+        // The ridge must leave the apex perpendicular to the edge, away from it.
+        let d = (b - a).truncate().normalize_or_zero();
+        let ridge_ok = others.iter().all(|&j| {
+            let poly = &sk.faces[j].polygon;
+            let m = poly.len();
+            let Some(ix) = poly.iter().position(|p| p.distance(apex) <= tol) else {
+                return false;
+            };
+            // The neighbour's boundary next to the apex that is not the hip towards a or b.
+            [poly[(ix + 1) % m], poly[(ix + m - 1) % m]]
+                .iter()
+                .any(|q| {
+                    let r = (q.truncate() - apex.truncate()).normalize_or_zero();
+                    (q.z - apex.z).abs() <= tol && r.dot(d).abs() < 1e-6 && r != DVec2::ZERO
+                })
+        });
+        if !ridge_ok {
+            continue;
+        }
+        let (a2, ap2) = (a.truncate(), apex.truncate());
+        let mid = a2 + d * (ap2 - a2).dot(d);
+        let new_apex = DVec3::new(mid.x, mid.y, apex.z);
+        moves.push((apex, new_apex));
+        faces[i].clear();
+        walls.push(Face::new(vec![
+            DVec3::new(b.x, b.y, 0.0),
+            DVec3::new(a.x, a.y, 0.0),
+            DVec3::new(mid.x, mid.y, apex.z * k),
+        ]));
+    }
+    for f in faces.iter_mut() {
+        for p in f.iter_mut() {
+            if let Some((_, to)) = moves.iter().find(|(from, _)| from.distance(*p) <= tol) {
+                *p = *to;
+            }
+        }
+    }
+    // The walls above are listed b -> a at the bottom so that, seen from outside (the right of
+    // a -> b), they are counter-clockwise. Fix the orientation by the normal to be safe.
+    for w in walls.iter_mut() {
+        let (a, b) = (w.outer[1].truncate(), w.outer[0].truncate());
+        let outward = -(b - a).perp();
+        if newell_normal(&w.outer).truncate().dot(outward) < 0.0 {
+            w.outer.reverse();
+        }
+    }
+    let faces = faces
+        .into_iter()
+        .filter(|f| f.len() >= 3)
+        .map(|f| {
+            Face::new(
+                f.into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, p.z * k))
+                    .collect(),
+            )
+        })
+        .collect();
+    Ok(RoofGeometry::new(faces, walls))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::skeleton::Skeleton;
+    use proptest::prelude::*;
+
+    fn poly(pts: &[(f64, f64)]) -> Polygon {
+        Polygon::new(pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![])
+    }
+
+    fn dist_to_boundary(p: &Polygon, q: DVec2) -> f64 {
+        p.rings()
+            .flat_map(|r| {
+                (0..r.len()).map(move |i| {
+                    let (a, b) = (r[i], r[(i + 1) % r.len()]);
+                    let ab = b - a;
+                    let t = ((q - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+                    q.distance(a + ab * t)
+                })
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    fn area2(r: &[DVec3]) -> f64 {
+        crate::geometry::ring_signed_area(&r.iter().map(|p| p.truncate()).collect::<Vec<_>>())
+    }
+
+    /// Checks the skeleton contract on `p`; returns the skeleton for further checks.
+    fn check_skeleton(p: &Polygon, sk: &Skeleton) -> Result<(), String> {
+        let tol = 1e-3;
+        let mut total = 0.0;
+        let rings: Vec<&Vec<DVec2>> = p.rings().collect();
+        let mut seen = std::collections::BTreeSet::new();
+        for f in &sk.faces {
+            let (ri, ei) = f.edge;
+            if !seen.insert(f.edge) {
+                return Err(format!("edge {:?} owns two faces", f.edge));
+            }
+            let r = rings[ri];
+            let (a, b) = (r[ei], r[(ei + 1) % r.len()]);
+            if f.polygon.iter().any(|q| !q.is_finite()) {
+                return Err("NaN".into());
+            }
+            if f.polygon[0].truncate().distance(a) > tol
+                || f.polygon[1].truncate().distance(b) > tol
+            {
+                return Err(format!("face {:?} does not start with its edge", f.edge));
+            }
+            let ar = area2(&f.polygon);
+            if ar <= 1e-9 {
+                return Err(format!("face {:?} has area {ar}", f.edge));
+            }
+            total += ar;
+            let n = (b - a).normalize().perp();
+            for q in &f.polygon {
+                let g = q.truncate();
+                if !p.contains(g) && dist_to_boundary(p, g) > tol {
+                    return Err(format!("vertex {g} of face {:?} outside", f.edge));
+                }
+                let d = (g - a).dot(n);
+                if (d - q.z).abs() > tol {
+                    return Err(format!("face {:?}: vertex {q} at distance {d}", f.edge));
+                }
+            }
+        }
+        let expect = p.area();
+        if (total - expect).abs() > 1e-3 * expect {
+            return Err(format!("faces cover {total}, footprint {expect}"));
+        }
+        // Every edge longer than the tolerance owns a face.
+        for (ri, r) in rings.iter().enumerate() {
+            for ei in 0..r.len() {
+                if r[ei].distance(r[(ei + 1) % r.len()]) > 1e-3 && !seen.contains(&(ri, ei)) {
+                    return Err(format!("edge {:?} owns no face", (ri, ei)));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks a hipped roof: planar faces, all with the pitch, inside the footprint.
+    fn check_hipped(p: &Polygon, pitch: f64) -> Result<RoofGeometry, String> {
+        let sk = straight_skeleton(p).map_err(|e| e.to_string())?;
+        check_skeleton(p, &sk)?;
+        let roof = hipped(p, pitch).map_err(|e| e.to_string())?;
+        for f in &roof.faces {
+            let n = f.normal();
+            if !n.is_finite() || n.z <= 0.0 {
+                return Err(format!("bad normal {n}"));
+            }
+            let slope = n.z.clamp(-1.0, 1.0).acos().to_degrees();
+            if (slope - pitch).abs() > 0.01 {
+                return Err(format!("slope {slope} != {pitch}"));
+            }
+            let o = f.outer[0];
+            if f.outer.iter().any(|q| (*q - o).dot(n).abs() > 1e-3) {
+                return Err("face not planar".into());
+            }
+        }
+        Ok(roof)
+    }
+
+    #[test]
+    fn rectangle_hips_and_ridge() {
+        let (l, w) = (12.0, 5.0);
+        let p = poly(&[(0., 0.), (l, 0.), (l, w), (0., w)]);
+        let roof = check_hipped(&p, 30.0).unwrap();
+        let k = 30f64.to_radians().tan();
+        let counts: Vec<usize> = roof.faces.iter().map(|f| f.outer.len()).collect();
+        assert_eq!(counts, vec![4, 3, 4, 3]);
+        assert!((roof.height - w / 2.0 * k).abs() < 1e-9);
+        let ridge: Vec<DVec3> = roof.faces[0]
+            .outer
+            .iter()
+            .copied()
+            .filter(|p| (p.z - w / 2.0 * k).abs() < 1e-9)
+            .collect();
+        assert_eq!(ridge.len(), 2);
+        assert!((ridge[0].distance(ridge[1]) - (l - w)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn square_has_one_apex() {
+        let p = poly(&[(0., 0.), (6., 0.), (6., 6.), (0., 6.)]);
+        let roof = check_hipped(&p, 45.0).unwrap();
+        assert_eq!(roof.faces.len(), 4);
+        for f in &roof.faces {
+            assert_eq!(f.outer.len(), 3);
+            assert!(f.outer[2].distance(DVec3::new(3., 3., 3.)) < 1e-9);
+        }
+    }
+
+    #[test]
+    fn letter_shapes() {
+        let shapes: Vec<Vec<(f64, f64)>> = vec![
+            // L
+            vec![
+                (0., 0.),
+                (10., 0.),
+                (10., 4.),
+                (4., 4.),
+                (4., 10.),
+                (0., 10.),
+            ],
+            // T
+            vec![
+                (3., 0.),
+                (7., 0.),
+                (7., 6.),
+                (10., 6.),
+                (10., 10.),
+                (0., 10.),
+                (0., 6.),
+                (3., 6.),
+            ],
+            // U
+            vec![
+                (0., 0.),
+                (10., 0.),
+                (10., 8.),
+                (7., 8.),
+                (7., 3.),
+                (3., 3.),
+                (3., 8.),
+                (0., 8.),
+            ],
+            // H
+            vec![
+                (0., 0.),
+                (3., 0.),
+                (3., 4.),
+                (7., 4.),
+                (7., 0.),
+                (10., 0.),
+                (10., 10.),
+                (7., 10.),
+                (7., 6.),
+                (3., 6.),
+                (3., 10.),
+                (0., 10.),
+            ],
+            // collinear vertices on every side
+            vec![
+                (0., 0.),
+                (5., 0.),
+                (10., 0.),
+                (10., 3.),
+                (10., 6.),
+                (5., 6.),
+                (0., 6.),
+                (0., 2.),
+            ],
+            // near-collinear vertex (1 µm off)
+            vec![(0., 0.), (5., 1e-6), (10., 0.), (10., 6.), (0., 6.)],
+            // tiny edge
+            vec![
+                (0., 0.),
+                (10., 0.),
+                (10., 6.),
+                (5.001, 6.),
+                (5., 6.001),
+                (0., 6.),
+            ],
+        ];
+        for s in shapes {
+            if let Err(e) = check_hipped(&poly(&s), 35.0) {
+                panic!("{s:?}: {e}");
+            }
+        }
+    }
+
+    #[test]
+    fn regular_100_gon() {
+        let pts: Vec<(f64, f64)> = (0..100)
+            .map(|i| {
+                let a = i as f64 / 100.0 * std::f64::consts::TAU;
+                (20.0 * a.cos(), 20.0 * a.sin())
+            })
+            .collect();
+        let roof = check_hipped(&poly(&pts), 40.0).unwrap();
+        assert_eq!(roof.faces.len(), 100);
+        let apothem = 20.0 * (std::f64::consts::PI / 100.0).cos();
+        assert!((roof.height - apothem * 40f64.to_radians().tan()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn comb_with_ten_teeth() {
+        let mut pts = vec![(0.0, 0.0), (39.0, 0.0)];
+        for i in (0..10).rev() {
+            let x = i as f64 * 4.0;
+            pts.push((x + 3.0, 3.0));
+            pts.push((x + 3.0, 10.0));
+            pts.push((x, 10.0));
+            if i > 0 {
+                pts.push((x, 3.0));
+            }
+        }
+        // close: last tooth's left side goes down to (0, 0)
+        let roof = check_hipped(&poly(&pts), 30.0).unwrap();
+        assert_eq!(roof.faces.len(), pts.len());
+    }
+
+    #[test]
+    fn courtyard_hole() {
+        let p = Polygon::new(
+            vec![
+                DVec2::new(0., 0.),
+                DVec2::new(20., 0.),
+                DVec2::new(20., 14.),
+                DVec2::new(0., 14.),
+            ],
+            vec![vec![
+                DVec2::new(6., 5.),
+                DVec2::new(14., 5.),
+                DVec2::new(14., 9.),
+                DVec2::new(6., 9.),
+            ]],
+        );
+        let roof = check_hipped(&p, 30.0).unwrap();
+        assert_eq!(roof.faces.len(), 8);
+    }
+
+    #[test]
+    fn flat_and_pyramid_and_scaling() {
+        let p = poly(&[(0., 0.), (8., 0.), (8., 6.), (0., 6.)]);
+        let f = flat(&p);
+        assert_eq!(f.faces.len(), 1);
+        assert_eq!(f.height, 0.0);
+        let py = pyramidal(&p, 3.0).unwrap();
+        assert_eq!(py.faces.len(), 4);
+        assert!(py.faces.iter().all(|f| f.normal().z > 0.0));
+        assert!((py.height - 3.0).abs() < 1e-12);
+        let s = py.scaled_to_height(6.0).translated_z(10.0);
+        assert!(s
+            .faces
+            .iter()
+            .flat_map(|f| &f.outer)
+            .all(|p| p.z >= 10.0 && p.z <= 16.0 + 1e-9));
+        let l = poly(&[
+            (0., 0.),
+            (10., 0.),
+            (10., 1.),
+            (1., 1.),
+            (1., 10.),
+            (0., 10.),
+        ]);
+        assert_eq!(pyramidal(&l, 3.0), Err(RoofError::NotStarShaped));
+        assert!(hipped(&p, 90.0).is_err());
+    }
+
+    #[test]
+    fn gabled_rectangle() {
+        let p = poly(&[(0., 0.), (12., 0.), (12., 5.), (0., 5.)]);
+        let g = gabled(&p, 45.0).unwrap();
+        assert_eq!(g.faces.len(), 2);
+        assert_eq!(g.gable_walls.len(), 2);
+        for f in &g.faces {
+            let n = f.normal();
+            assert!((n.z.acos().to_degrees() - 45.0).abs() < 1e-6);
+            assert!(f
+                .outer
+                .iter()
+                .all(|q| (*q - f.outer[0]).dot(n).abs() < 1e-9));
+        }
+        for w in &g.gable_walls {
+            let n = w.normal();
+            assert!(n.z.abs() < 1e-9);
+            // Outward: away from the centre.
+            let c = w.outer.iter().map(|p| p.truncate()).sum::<DVec2>() / 3.0;
+            assert!(n.truncate().dot(c - DVec2::new(6., 2.5)) > 0.0);
+        }
+        // A square keeps its hips.
+        let sq = gabled(&poly(&[(0., 0.), (5., 0.), (5., 5.), (0., 5.)]), 45.0).unwrap();
+        assert_eq!(sq.faces.len(), 4);
+    }
+
+    // ---- generated footprints ----
+
+    /// An x-monotone rectilinear polygon: columns of given widths, each spanning [lo, hi],
+    /// overlapping its neighbour. Many right angles, collinear vertices and simultaneous events.
+    fn histogram(cols: &[(u8, u8, u8)]) -> Vec<DVec2> {
+        let mut x = vec![0.0];
+        let mut spans = Vec::new();
+        for &(w, lo, h) in cols {
+            x.push(x[x.len() - 1] + 1.0 + w as f64);
+            spans.push((lo as f64, lo as f64 + 1.0 + h as f64));
+        }
+        // Make each column overlap the previous one by at least 1.
+        for i in 1..spans.len() {
+            let a = spans[i - 1];
+            let b = &mut spans[i];
+            if b.0 > a.1 - 1.0 {
+                b.0 = a.1 - 1.0;
+            }
+            if b.1 < a.0 + 1.0 {
+                b.1 = a.0 + 1.0;
+            }
+        }
+        let mut pts = Vec::new();
+        for (i, s) in spans.iter().enumerate() {
+            pts.push(DVec2::new(x[i], s.0));
+            pts.push(DVec2::new(x[i + 1], s.0));
+        }
+        for (i, s) in spans.iter().enumerate().rev() {
+            pts.push(DVec2::new(x[i + 1], s.1));
+            pts.push(DVec2::new(x[i], s.1));
+        }
+        pts.dedup();
+        pts
+    }
+
+    /// A union of unit cells grown from (0, 0) on a 7 × 7 grid: general rectilinear shapes
+    /// (spirals, G, comb), courtyards included. `None` when two cells touch only at a corner
+    /// (the boundary would not be simple).
+    fn cell_union(steps: &[(u8, u8)], carve: bool) -> Option<Polygon> {
+        const K: i32 = 7;
+        let mut cells = vec![(0i32, 0i32)];
+        if carve {
+            // A full block with cells taken out: courtyards and notches.
+            cells = (0..K * K).map(|i| (i % K, i / K)).collect();
+            for &(pick, _) in steps {
+                if cells.len() > 1 {
+                    cells.remove(pick as usize % cells.len());
+                }
+            }
+        }
+        for &(pick, dir) in steps.iter().filter(|_| !carve) {
+            let (x, y) = cells[pick as usize % cells.len()];
+            let (dx, dy) = [(1, 0), (0, 1), (-1, 0), (0, -1)][dir as usize % 4];
+            let c = (x + dx, y + dy);
+            if c.0 >= 0 && c.1 >= 0 && c.0 < K && c.1 < K && !cells.contains(&c) {
+                cells.push(c);
+            }
+        }
+        // Directed boundary edges: each cell's CCW edges, shared ones cancel.
+        let mut edges: std::collections::BTreeSet<((i32, i32), (i32, i32))> = Default::default();
+        for &(x, y) in &cells {
+            let c = [(x, y), (x + 1, y), (x + 1, y + 1), (x, y + 1)];
+            for i in 0..4 {
+                let (a, b) = (c[i], c[(i + 1) % 4]);
+                if !edges.remove(&(b, a)) {
+                    edges.insert((a, b));
+                }
+            }
+        }
+        let mut next = std::collections::BTreeMap::new();
+        for &(a, b) in &edges {
+            if next.insert(a, b).is_some() {
+                return None;
+            }
+        }
+        let mut rings = Vec::new();
+        let mut left = next.clone();
+        while let Some((&s, _)) = left.iter().next() {
+            let mut ring = vec![s];
+            let mut cur = left.remove(&s)?;
+            while cur != s {
+                ring.push(cur);
+                cur = left.remove(&cur)?;
+            }
+            rings.push(
+                ring.iter()
+                    .map(|&(x, y)| DVec2::new(x as f64, y as f64))
+                    .collect::<Vec<_>>(),
+            );
+        }
+        let outer_ix = (0..rings.len()).max_by(|&i, &j| {
+            crate::geometry::ring_signed_area(&rings[i])
+                .total_cmp(&crate::geometry::ring_signed_area(&rings[j]))
+        })?;
+        let outer = rings.remove(outer_ix);
+        if rings
+            .iter()
+            .any(|r| crate::geometry::ring_signed_area(r) > 0.0)
+        {
+            return None; // several components
+        }
+        Some(Polygon::new(outer, rings))
+    }
+
+    fn cases() -> u32 {
+        std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(2000)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+        #[test]
+        fn hipped_orthogonal(
+            cols in prop::collection::vec((0u8..5, 0u8..6, 0u8..7), 1..8),
+            angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+            scale in 0.5f64..20.0,
+            pitch in 10.0f64..60.0,
+        ) {
+            let pts = histogram(&cols);
+            let (s, c) = angle.sin_cos();
+            let pts: Vec<DVec2> = pts.iter()
+                .map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale + DVec2::new(5e5, 4e6))
+                .collect();
+            // Work in a local frame, as the pipeline does.
+            let p = Polygon::new(pts, vec![]).translated(DVec2::new(-5e5, -4e6));
+            if let Err(e) = check_hipped(&p, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+            }
+        }
+
+        #[test]
+        fn hipped_cell_union(
+            steps in prop::collection::vec((0u8..255, 0u8..4), 1..30),
+            carve in any::<bool>(),
+            angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+            scale in 1.0f64..15.0,
+            pitch in 10.0f64..60.0,
+        ) {
+            let Some(p) = cell_union(&steps, carve) else { return Ok(()); };
+            let (s, c) = angle.sin_cos();
+            let rot = |r: &Vec<DVec2>| -> Vec<DVec2> {
+                r.iter().map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale).collect()
+            };
+            let p = Polygon::new(rot(&p.outer), p.holes.iter().map(rot).collect());
+            if let Err(e) = check_hipped(&p, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?} {:?}", p.outer, p.holes)));
+            }
+        }
+
+        #[test]
+        fn hipped_star(
+            pts in prop::collection::vec((0.0f64..1.0, 0.2f64..1.0), 3..24),
+            size in 2.0f64..60.0,
+            pitch in 10.0f64..60.0,
+        ) {
+            let n = pts.len();
+            // Angles: evenly spread sectors with jitter, so they stay ordered.
+            let ring: Vec<DVec2> = pts.iter().enumerate().map(|(i, &(j, r))| {
+                let a = (i as f64 + 0.1 + 0.8 * j) / n as f64 * std::f64::consts::TAU;
+                DVec2::new(a.cos(), a.sin()) * r * size
+            }).collect();
+            let p = Polygon::new(ring, vec![]);
+            if let Err(e) = check_hipped(&p, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+            }
+        }
+    }
+}
