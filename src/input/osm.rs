@@ -470,10 +470,7 @@ fn join_segments(mut pool: Vec<Segment>) -> (Vec<JoinedRing>, Vec<Vec<i64>>) {
         let mut pts = first.pts;
         let mut ways = vec![first.way];
         let mut roles = vec![first.role];
-        loop {
-            let (Some(&start), Some(&end)) = (ids.first(), ids.last()) else {
-                break;
-            };
+        while let (Some(&start), Some(&end)) = (ids.first(), ids.last()) {
             if start == end && ids.len() > 1 {
                 break;
             }
@@ -629,12 +626,15 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
     Assembled { polygons, problems }
 }
 
+/// A building/part relation's footprint (`None` when skipped) and its report entries.
+type RelOutcome = (Option<Footprint>, Vec<(Outcome, String)>, RelRec);
+
 /// Turns the three passes' results into footprints and report entries.
 fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report) -> ReadResult {
     // Relations first: they decide which ways are built by a relation instead of alone, and
     // which ways get holes from an old-style multipolygon. Their entries are emitted after the
     // ways' so that the report follows the footprint order.
-    let mut rel_out: Vec<(Option<Footprint>, Vec<(Outcome, String)>, RelRec)> = Vec::new();
+    let mut rel_out: Vec<RelOutcome> = Vec::new();
     // (way id, relation id) of ways built as part of a relation of the same kind.
     let mut built_by: Vec<(i64, i64)> = Vec::new();
     // (way id, relation id, holes) from old-style multipolygons.
