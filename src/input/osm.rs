@@ -181,8 +181,7 @@ impl Pbf {
                                 Err(format!("unsupported required features {unsupported:?}"))
                             }
                         }
-                        Ok(BlobDecode::OsmData(block)) if *i == 0 => {
-                            let _ = block;
+                        Ok(BlobDecode::OsmData(_)) if *i == 0 => {
                             Err("the first block is not an OSMHeader".to_string())
                         }
                         Ok(BlobDecode::OsmData(block)) => Ok(Some(f(&block))),

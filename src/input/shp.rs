@@ -20,6 +20,7 @@
 
 use std::fs::File;
 use std::io::{BufReader, Read};
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
 use shapefile::dbase::{self, FieldValue};
@@ -177,12 +178,19 @@ pub fn read_shp(
     let mut shape_iter = shapes.iter_shapes_as::<Shape>();
     let mut row_iter = table.iter_records();
     for index in 0..count {
-        let shape = match shape_iter.next() {
-            Some(Ok(s)) => s,
-            Some(Err(e)) => return Err(record_error(path, index, e.to_string())),
-            None => return Err(record_error(path, index, "missing from the .shp".into())),
+        // The decoders are not expected to panic; a corrupt file must not bring the process
+        // down if they do.
+        let shape = match catch_unwind(AssertUnwindSafe(|| shape_iter.next())) {
+            Ok(Some(Ok(s))) => s,
+            Ok(Some(Err(e))) => return Err(record_error(path, index, e.to_string())),
+            Ok(None) => return Err(record_error(path, index, "missing from the .shp".into())),
+            Err(_) => return Err(record_error(path, index, "undecodable record".into())),
         };
-        let row = match row_iter.next() {
+        let row = match catch_unwind(AssertUnwindSafe(|| row_iter.next())) {
+            Err(_) => return Err(record_error(&dbf_path, index, "undecodable row".into())),
+            Ok(row) => row,
+        };
+        let row = match row {
             Some(Ok(r)) => r,
             Some(Err(e)) => return Err(record_error(&dbf_path, index, e.to_string())),
             // The dBASE reader skips rows flagged deleted; a shape without its row would shift

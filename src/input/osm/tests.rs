@@ -404,6 +404,17 @@ fn monaco_reconciles_with_an_independent_count() {
     assert_eq!(holes_of(393226), Some(vec![1]));
     assert_eq!(holes_of(8280869), Some(vec![4]));
 
+    // Tags came through.
+    let with = |f: fn(&BuildingTags) -> bool| r.footprints.iter().filter(|fp| f(&fp.tags)).count();
+    let (h, l, rs) = (
+        with(|t| t.height.is_some()),
+        with(|t| t.levels.is_some()),
+        with(|t| t.roof_shape.is_some()),
+    );
+    eprintln!("monaco tags: height {h}, levels {l}, roof:shape {rs}");
+    assert!(h > 0 && l > 0 && rs > 0);
+    assert!(r.footprints.iter().all(|f| f.tags.building.is_some()));
+
     // Deterministic: a second read gives the same.
     let mut report2 = Report::default();
     let r2 = read_osm(&path, &mut report2).unwrap();
@@ -515,5 +526,29 @@ fn truncated_and_corrupted_copies_are_errors() {
     // panic.
     if let Err(e) = read_osm(&p, &mut report) {
         assert!(e.to_string().contains(&p.display().to_string()));
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(12))]
+    /// Corrupted or random PBF bytes give a result or an error naming the file, never a panic.
+    #[test]
+    fn corrupted_pbf_never_panics(
+        edits in proptest::collection::vec((proptest::num::usize::ANY, proptest::num::u8::ANY), 1..8),
+        random in proptest::collection::vec(proptest::num::u8::ANY, 0..64),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let mut d = std::fs::read(monaco()).unwrap();
+        let n = d.len();
+        for (at, byte) in edits {
+            d[at % n] = byte;
+        }
+        for (name, bytes) in [("edited.osm.pbf", d), ("random.osm.pbf", random)] {
+            let p = dir.path().join(name);
+            std::fs::write(&p, &bytes).unwrap();
+            if let Err(e) = read_osm(&p, &mut Report::default()) {
+                proptest::prop_assert!(e.to_string().contains(&p.display().to_string()));
+            }
+        }
     }
 }

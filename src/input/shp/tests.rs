@@ -344,3 +344,27 @@ fn missing_and_broken_companions_are_errors() {
     let msg = read(&path);
     assert!(msg.contains("t.shx") && msg.contains("missing"), "{msg}");
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+    /// Corrupting any bytes of the .shp or .dbf gives a result or an error, never a panic.
+    #[test]
+    fn corrupted_files_never_panic(
+        edits in proptest::collection::vec((0usize..2, 0usize..2000, proptest::num::u8::ANY), 1..6)
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write_tiny(dir.path(), &tiny_shapes(), &ROWS);
+        for (file, at, byte) in edits {
+            let p = if file == 0 { path.clone() } else { path.with_extension("dbf") };
+            let mut d = std::fs::read(&p).unwrap();
+            let n = d.len();
+            d[at % n] = byte;
+            std::fs::write(&p, &d).unwrap();
+        }
+        let opts = ShpOptions { src_crs: Some(Crs::Lambert93), ..ShpOptions::default() };
+        if let Err(e) = read_shp(&path, &opts, &mut Report::default()) {
+            let msg = e.to_string();
+            proptest::prop_assert!(msg.contains("t.shp") || msg.contains("t.dbf") || msg.contains("t.shx"), "{}", msg);
+        }
+    }
+}
