@@ -4,12 +4,61 @@
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
 
 pub mod osm;
+pub mod rings;
 pub mod shp;
 pub mod tags;
 
 use std::fmt;
+use std::path::PathBuf;
 
+use thiserror::Error;
+
+pub use osm::read_osm;
+pub use shp::{read_shp, ShpOptions};
 pub use tags::BuildingTags;
+
+/// A file-level failure of a reader: the file cannot be read at all, or is corrupt in a way that
+/// makes the rest of it untrustworthy. Record-level problems are report entries instead. Every
+/// message names the file, and the place (blob, record) where one is known.
+#[derive(Debug, Error)]
+pub enum InputError {
+    /// The file (or a companion file such as `.shx`/`.dbf`) cannot be opened or read.
+    #[error("{}: cannot read the file: {source}", .path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not an OSM PBF file at all (empty, text, no OSMHeader block).
+    #[error("{}: not an OSM PBF file: {reason}", .path.display())]
+    NotPbf { path: PathBuf, reason: String },
+    /// A PBF block cannot be framed or decoded (truncated or corrupt file).
+    #[error("{}: corrupt or truncated PBF at block {block}{}: {reason}", .path.display(),
+        .offset.map(|o| format!(" (byte offset {o})")).unwrap_or_default())]
+    CorruptPbf {
+        path: PathBuf,
+        /// 0-based index of the blob in the file.
+        block: usize,
+        /// Byte offset of the blob's start, when known.
+        offset: Option<u64>,
+        reason: String,
+    },
+    /// A shapefile component is missing, not a shapefile, or of an unsupported shape type.
+    #[error("{}: {reason}", .path.display())]
+    Shapefile { path: PathBuf, reason: String },
+    /// One shapefile record (or its attribute row) cannot be decoded; records after it cannot
+    /// be trusted either.
+    #[error("{}: record {record}: {reason}", .path.display())]
+    ShapeRecord {
+        path: PathBuf,
+        /// 0-based record index.
+        record: usize,
+        reason: String,
+    },
+    /// The `.prj` names a CRS citygen cannot use, or there is no CRS at all.
+    #[error("{}: {reason}", .path.display())]
+    Crs { path: PathBuf, reason: String },
+}
 
 /// Where a footprint came from. Displayed as `way/123`, `relation/45` or `shp/7`
 /// (shapefile record index, 0-based).
@@ -67,7 +116,9 @@ impl fmt::Display for SourceId {
 /// or the shapefile's native coordinates. Not closed (first point not repeated).
 pub type Ring = Vec<(f64, f64)>;
 
-/// One polygon of a footprint in source coordinates.
+/// One polygon of a footprint in source coordinates. Readers hand them out with the outer ring
+/// counter-clockwise and the holes clockwise (x east, y north), at least 3 distinct points and
+/// non-zero area per ring.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SourcePolygon {
     pub outer: Ring,

@@ -1,1 +1,852 @@
-//! (being written)
+//! OSM PBF reader: building ways, building multipolygon relations and `building:part`s.
+//!
+//! Three passes over the file keep memory bounded by the buildings, not by the file:
+//! 1. relations: `type=multipolygon` relations tagged `building`/`building:part`, and untagged
+//!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
+//! 2. ways: building/part ways and the member ways of pass 1; collect the node ids they need;
+//! 3. nodes: only the needed ids, stored as a sorted id list with a coordinate array beside it.
+//!
+//! Blocks are decoded in parallel (rayon) in batches, and the per-block results are merged in
+//! file order, then sorted by id, so the output does not depend on the thread count.
+//!
+//! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
+//! `report.read` / `report.parts_read` count them all, skipped ones included.
+
+use std::fs::File;
+use std::io::{BufReader, SeekFrom};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+
+use osmpbf::{BlobDecode, BlobReader, Element, PrimitiveBlock, RelMemberType};
+use rayon::prelude::*;
+
+use super::rings::{clean_ring, group_rings, oriented_polygon, ring_problem};
+use super::{BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId};
+use crate::report::{Outcome, Report};
+
+/// Blobs decoded per parallel batch: enough to keep the cores busy, few enough that the
+/// compressed blobs held at once stay small.
+const BATCH: usize = 64;
+
+/// At most this many ids are listed in one report reason.
+const MAX_LISTED: usize = 5;
+
+type Tags = Vec<(String, String)>;
+
+/// Reads the building footprints of an OSM PBF file.
+///
+/// Returns the footprints sorted (ways by id, then relations by id), in WGS84 lon/lat
+/// (`source_crs` is `None`). Record-level problems become report entries with the OSM id;
+/// file-level problems (missing file, not a PBF, corrupt or truncated block) are an
+/// [`InputError`] naming the file and the block. Never panics.
+pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputError> {
+    let pbf = Pbf::open(path)?;
+
+    // Pass 1: relations.
+    let rels = pbf.pass(relations_of_block)?;
+    let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
+    rels.sort_by_key(|r| r.id);
+    rels.dedup_by_key(|r| r.id);
+    let mut member_ways: Vec<i64> = rels
+        .iter()
+        .flat_map(|r| r.members.iter().map(|m| m.way))
+        .collect();
+    member_ways.sort_unstable();
+    member_ways.dedup();
+
+    // Pass 2: ways.
+    let ways = pbf.pass(|b| ways_of_block(b, &member_ways))?;
+    let mut ways: Vec<WayRec> = ways.into_iter().flatten().collect();
+    ways.sort_by_key(|w| w.id);
+    ways.dedup_by_key(|w| w.id);
+    drop(member_ways);
+    let mut needed: Vec<i64> = ways.iter().flat_map(|w| w.refs.iter().copied()).collect();
+    needed.sort_unstable();
+    needed.dedup();
+
+    // Pass 3: nodes.
+    let found = pbf.pass(|b| nodes_of_block(b, &needed))?;
+    let mut coords = vec![(f64::NAN, f64::NAN); needed.len()];
+    for (i, lon, lat) in found.into_iter().flatten() {
+        coords[i] = (lon, lat);
+    }
+    let nodes = Nodes {
+        ids: needed,
+        coords,
+    };
+
+    Ok(assemble(&ways, &rels, &nodes, report))
+}
+
+// ---------------------------------------------------------------------------------------------
+// File access
+
+/// An opened PBF file: the path for messages and the length to detect trailing garbage.
+struct Pbf {
+    path: PathBuf,
+    len: u64,
+}
+
+impl Pbf {
+    fn open(path: &Path) -> Result<Pbf, InputError> {
+        let io = |source| InputError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.is_dir() {
+            return Err(InputError::NotPbf {
+                path: path.to_path_buf(),
+                reason: "it is a directory".into(),
+            });
+        }
+        if meta.len() == 0 {
+            return Err(InputError::NotPbf {
+                path: path.to_path_buf(),
+                reason: "the file is empty".into(),
+            });
+        }
+        Ok(Pbf {
+            path: path.to_path_buf(),
+            len: meta.len(),
+        })
+    }
+
+    fn corrupt(&self, block: usize, offset: Option<u64>, reason: impl Into<String>) -> InputError {
+        InputError::CorruptPbf {
+            path: self.path.clone(),
+            block,
+            offset,
+            reason: reason.into(),
+        }
+    }
+
+    /// Runs `f` on every data block, in parallel batches, and returns the results in file
+    /// order. Checks the framing: the first blob must be an OSMHeader, every blob must decode,
+    /// and the blobs must end exactly at the end of the file.
+    fn pass<T, F>(&self, f: F) -> Result<Vec<T>, InputError>
+    where
+        T: Send,
+        F: Fn(&PrimitiveBlock) -> T + Sync,
+    {
+        let file = File::open(&self.path).map_err(|source| InputError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        let mut reader =
+            BlobReader::new_seekable(BufReader::new(file)).map_err(|e| InputError::Io {
+                path: self.path.clone(),
+                source: e.into(),
+            })?;
+        let mut out = Vec::new();
+        let mut index = 0usize;
+        let mut end_of_last = 0u64;
+        loop {
+            let mut batch = Vec::with_capacity(BATCH);
+            while batch.len() < BATCH {
+                // The framing code of osmpbf is not expected to panic, but a corrupt file must
+                // never bring the process down, so it is fenced like the decoding below.
+                let next = catch_unwind(AssertUnwindSafe(|| reader.next()));
+                let blob = match next {
+                    Ok(None) => break,
+                    Ok(Some(Ok(b))) => b,
+                    Ok(Some(Err(e))) => {
+                        return Err(self.framing_error(index, end_of_last, &e.to_string()))
+                    }
+                    Err(_) => return Err(self.framing_error(index, end_of_last, "unreadable")),
+                };
+                end_of_last = reader
+                    .seek_raw(SeekFrom::Current(0))
+                    .map_err(|e| self.corrupt(index, Some(end_of_last), e.to_string()))?;
+                batch.push((index, blob));
+                index += 1;
+            }
+            if batch.is_empty() {
+                break;
+            }
+            let results: Vec<Result<Option<T>, InputError>> = batch
+                .par_iter()
+                .map(|(i, blob)| {
+                    let offset = blob.offset().map(|o| o.0);
+                    let decoded = catch_unwind(AssertUnwindSafe(|| match blob.decode() {
+                        Ok(BlobDecode::OsmHeader(h)) => {
+                            let unsupported: Vec<&String> = h
+                                .required_features()
+                                .iter()
+                                .filter(|f| !matches!(f.as_str(), "OsmSchema-V0.6" | "DenseNodes"))
+                                .collect();
+                            if unsupported.is_empty() {
+                                Ok(None)
+                            } else {
+                                Err(format!("unsupported required features {unsupported:?}"))
+                            }
+                        }
+                        Ok(BlobDecode::OsmData(_)) if *i == 0 => {
+                            Err("the first block is not an OSMHeader".to_string())
+                        }
+                        Ok(BlobDecode::OsmData(block)) => Ok(Some(f(&block))),
+                        Ok(BlobDecode::Unknown(t)) if *i == 0 => {
+                            Err(format!("the first block has unknown type {t:?}"))
+                        }
+                        Ok(BlobDecode::Unknown(_)) => Ok(None),
+                        Err(e) => Err(e.to_string()),
+                    }));
+                    match decoded {
+                        Ok(Ok(v)) => Ok(v),
+                        Ok(Err(reason)) if *i == 0 => Err(InputError::NotPbf {
+                            path: self.path.clone(),
+                            reason,
+                        }),
+                        Ok(Err(reason)) => Err(self.corrupt(*i, offset, reason)),
+                        Err(_) => Err(self.corrupt(*i, offset, "the block cannot be decoded")),
+                    }
+                })
+                .collect();
+            for r in results {
+                if let Some(v) = r? {
+                    out.push(v);
+                }
+            }
+        }
+        if index == 0 {
+            return Err(InputError::NotPbf {
+                path: self.path.clone(),
+                reason: "no PBF blocks found".into(),
+            });
+        }
+        if end_of_last != self.len {
+            return Err(self.corrupt(
+                index,
+                Some(end_of_last),
+                format!(
+                    "{} bytes after the last complete block: the file is truncated or has trailing garbage",
+                    self.len.saturating_sub(end_of_last)
+                ),
+            ));
+        }
+        Ok(out)
+    }
+
+    /// An error while framing blob `index`: the first blob failing means this is not a PBF.
+    fn framing_error(&self, index: usize, offset: u64, reason: &str) -> InputError {
+        if index == 0 {
+            InputError::NotPbf {
+                path: self.path.clone(),
+                reason: format!("cannot read the first block: {reason}"),
+            }
+        } else {
+            self.corrupt(index, Some(offset), reason)
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pass results
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RelKind {
+    Building,
+    Part,
+    /// A multipolygon without tags of its own: an old-style multipolygon whose outer way may
+    /// carry `building=*`.
+    Untagged,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Role {
+    Outer,
+    Inner,
+    Unknown,
+}
+
+#[derive(Clone, Debug)]
+struct Member {
+    way: i64,
+    role: Role,
+}
+
+#[derive(Clone, Debug)]
+struct RelRec {
+    id: i64,
+    kind: RelKind,
+    tags: Tags,
+    members: Vec<Member>,
+    /// Node and relation members: not geometry of a multipolygon, reported and left out.
+    other_members: usize,
+}
+
+#[derive(Clone, Debug)]
+struct WayRec {
+    id: i64,
+    refs: Vec<i64>,
+    /// `Some` for a building or part way.
+    kind: Option<FootprintKind>,
+    /// Tags of building/part ways only.
+    tags: Tags,
+}
+
+/// Coordinates of the needed nodes: `coords[i]` belongs to `ids[i]`, NaN when not in the file.
+struct Nodes {
+    ids: Vec<i64>,
+    coords: Vec<(f64, f64)>,
+}
+
+impl Nodes {
+    fn get(&self, id: i64) -> Option<(f64, f64)> {
+        let i = self.ids.binary_search(&id).ok()?;
+        let c = self.coords[i];
+        c.0.is_finite().then_some(c)
+    }
+}
+
+/// The footprint kind a tag set asks for: `building=*` other than `no`, else `building:part=*`
+/// other than `no`.
+fn kind_of<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<FootprintKind> {
+    let mut building = false;
+    let mut part = false;
+    for (k, v) in tags {
+        match k {
+            "building" if v.trim() != "no" => building = true,
+            "building:part" if v.trim() != "no" => part = true,
+            _ => {}
+        }
+    }
+    if building {
+        Some(FootprintKind::Building)
+    } else if part {
+        Some(FootprintKind::Part)
+    } else {
+        None
+    }
+}
+
+/// Keys that do not make a multipolygon "tagged": with only these, the tags live on the ways.
+fn is_metadata_key(k: &str) -> bool {
+    k == "type"
+        || k == "created_by"
+        || k.starts_with("source")
+        || k.starts_with("note")
+        || k.eq_ignore_ascii_case("fixme")
+}
+
+fn relations_of_block(block: &PrimitiveBlock) -> Vec<RelRec> {
+    let mut out = Vec::new();
+    for group in block.groups() {
+        for rel in group.relations() {
+            if !rel
+                .tags()
+                .any(|(k, v)| k == "type" && v.trim() == "multipolygon")
+            {
+                continue;
+            }
+            let kind = match kind_of(rel.tags()) {
+                Some(FootprintKind::Building) => RelKind::Building,
+                Some(FootprintKind::Part) => RelKind::Part,
+                None if rel.tags().all(|(k, _)| is_metadata_key(k)) => RelKind::Untagged,
+                None => continue,
+            };
+            let mut members = Vec::new();
+            let mut other_members = 0;
+            for m in rel.members() {
+                if m.member_type == RelMemberType::Way {
+                    let role = match m.role().map(|r| r.trim()) {
+                        Ok("outer") => Role::Outer,
+                        Ok("inner") => Role::Inner,
+                        _ => Role::Unknown,
+                    };
+                    members.push(Member {
+                        way: m.member_id,
+                        role,
+                    });
+                } else {
+                    other_members += 1;
+                }
+            }
+            out.push(RelRec {
+                id: rel.id(),
+                kind,
+                tags: owned(rel.tags()),
+                members,
+                other_members,
+            });
+        }
+    }
+    out
+}
+
+fn owned<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
+    tags.map(|(k, v)| (k.to_string(), v.to_string())).collect()
+}
+
+fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
+    let mut out = Vec::new();
+    for group in block.groups() {
+        for way in group.ways() {
+            let kind = kind_of(way.tags());
+            let member = member_ways.binary_search(&way.id()).is_ok();
+            if kind.is_none() && !member {
+                continue;
+            }
+            out.push(WayRec {
+                id: way.id(),
+                refs: way.refs().collect(),
+                kind,
+                tags: if kind.is_some() {
+                    owned(way.tags())
+                } else {
+                    Vec::new()
+                },
+            });
+        }
+    }
+    out
+}
+
+fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, f64, f64)> {
+    let mut out = Vec::new();
+    block.for_each_element(|e| {
+        let (id, lon, lat) = match e {
+            Element::Node(n) => (n.id(), n.lon(), n.lat()),
+            Element::DenseNode(n) => (n.id(), n.lon(), n.lat()),
+            _ => return,
+        };
+        if let Ok(i) = needed.binary_search(&id) {
+            out.push((i, lon, lat));
+        }
+    });
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
+// Assembly
+
+/// A way's node list resolved to coordinates, or how many nodes are missing.
+fn resolve(refs: &[i64], nodes: &Nodes) -> Result<Ring, usize> {
+    let pts: Vec<Option<(f64, f64)>> = refs.iter().map(|&r| nodes.get(r)).collect();
+    let missing = pts.iter().filter(|p| p.is_none()).count();
+    if missing > 0 {
+        Err(missing)
+    } else {
+        Ok(pts.into_iter().flatten().collect())
+    }
+}
+
+fn list_ids(ids: &[i64], prefix: &str) -> String {
+    let mut s: Vec<String> = ids
+        .iter()
+        .take(MAX_LISTED)
+        .map(|i| format!("{prefix}/{i}"))
+        .collect();
+    if ids.len() > MAX_LISTED {
+        s.push(format!("and {} more", ids.len() - MAX_LISTED));
+    }
+    s.join(", ")
+}
+
+/// One open or closed piece of a multipolygon ring: node ids and their coordinates.
+struct Segment {
+    way: i64,
+    role: Role,
+    ids: Vec<i64>,
+    pts: Ring,
+}
+
+/// A ring joined from segments, with the ways it came from and the role they declared.
+struct JoinedRing {
+    ways: Vec<i64>,
+    claim: Option<bool>,
+    pts: Ring,
+}
+
+/// Joins segments end to end into closed rings (by node id, reversing segments as needed).
+/// Returns the closed rings and the ways of the pieces that could not be closed.
+fn join_segments(mut pool: Vec<Segment>) -> (Vec<JoinedRing>, Vec<Vec<i64>>) {
+    let mut rings = Vec::new();
+    let mut open = Vec::new();
+    pool.reverse(); // pop() then takes members in relation order
+    while let Some(first) = pool.pop() {
+        let mut ids = first.ids;
+        let mut pts = first.pts;
+        let mut ways = vec![first.way];
+        let mut roles = vec![first.role];
+        while let (Some(&start), Some(&end)) = (ids.first(), ids.last()) {
+            if start == end && ids.len() > 1 {
+                break;
+            }
+            // Prefer a segment with the same role, then any; last in pool = earliest member.
+            let pick = |same_role: bool| {
+                pool.iter().rposition(|s| {
+                    (!same_role || s.role == roles[0])
+                        && (s.ids.first() == Some(&end) || s.ids.last() == Some(&end))
+                })
+            };
+            let Some(k) = pick(true).or_else(|| pick(false)) else {
+                break;
+            };
+            let mut s = pool.remove(k);
+            if s.ids.first() != Some(&end) {
+                s.ids.reverse();
+                s.pts.reverse();
+            }
+            ids.extend_from_slice(&s.ids[1..]);
+            pts.extend_from_slice(&s.pts[1..]);
+            ways.push(s.way);
+            roles.push(s.role);
+        }
+        if ids.len() > 1 && ids.first() == ids.last() {
+            let claim = if roles.iter().all(|r| *r == Role::Outer) {
+                Some(true)
+            } else if roles.iter().all(|r| *r == Role::Inner) {
+                Some(false)
+            } else {
+                None
+            };
+            rings.push(JoinedRing { ways, claim, pts });
+        } else {
+            open.push(ways);
+        }
+    }
+    (rings, open)
+}
+
+/// What a multipolygon relation turned into.
+struct Assembled {
+    /// (outer ring, holes, ways of the outer ring)
+    polygons: Vec<(Ring, Vec<Ring>, Vec<i64>)>,
+    /// Problems met on the way, for the report.
+    problems: Vec<String>,
+}
+
+fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled {
+    let mut problems = Vec::new();
+    let mut missing_ways = Vec::new();
+    let mut missing_nodes = Vec::new();
+    let mut duplicate_members = 0;
+    let mut seen: Vec<i64> = Vec::new();
+    let mut pool = Vec::new();
+    for m in &rel.members {
+        if seen.contains(&m.way) {
+            duplicate_members += 1;
+            continue;
+        }
+        seen.push(m.way);
+        let Ok(i) = ways.binary_search_by_key(&m.way, |w| w.id) else {
+            missing_ways.push(m.way);
+            continue;
+        };
+        let w = &ways[i];
+        match resolve(&w.refs, nodes) {
+            Ok(pts) => {
+                // Drop consecutive duplicate nodes, keeping ids and points in step.
+                let mut ids = Vec::with_capacity(w.refs.len());
+                let mut clean = Vec::with_capacity(pts.len());
+                for (id, p) in w.refs.iter().zip(pts) {
+                    if ids.last() != Some(id) {
+                        ids.push(*id);
+                        clean.push(p);
+                    }
+                }
+                if ids.len() >= 2 {
+                    pool.push(Segment {
+                        way: w.id,
+                        role: m.role,
+                        ids,
+                        pts: clean,
+                    });
+                } else {
+                    problems.push(format!("member way/{} has fewer than 2 nodes", w.id));
+                }
+            }
+            Err(n) => missing_nodes.push((w.id, n, w.refs.len())),
+        }
+    }
+    if !missing_ways.is_empty() {
+        problems.push(format!(
+            "{} member way(s) missing from the file ({})",
+            missing_ways.len(),
+            list_ids(&missing_ways, "way")
+        ));
+    }
+    for (w, n, total) in &missing_nodes {
+        problems.push(format!(
+            "member way/{w} left out: {n} of {total} nodes missing from the file"
+        ));
+    }
+    if duplicate_members > 0 {
+        problems.push(format!("{duplicate_members} duplicate member(s) ignored"));
+    }
+    if rel.other_members > 0 {
+        problems.push(format!(
+            "{} node/relation member(s) ignored",
+            rel.other_members
+        ));
+    }
+    let (joined, open) = join_segments(pool);
+    for ways in &open {
+        problems.push(format!(
+            "ring that cannot be closed dropped ({})",
+            list_ids(ways, "way")
+        ));
+    }
+    let mut rings: Vec<Ring> = Vec::new();
+    let mut claims = Vec::new();
+    let mut ring_ways = Vec::new();
+    for mut r in joined {
+        clean_ring(&mut r.pts);
+        if let Some(why) = ring_problem(&r.pts) {
+            problems.push(format!(
+                "ring of {} dropped: {why}",
+                list_ids(&r.ways, "way")
+            ));
+            continue;
+        }
+        rings.push(r.pts);
+        claims.push(r.claim);
+        ring_ways.push(r.ways);
+    }
+    let g = group_rings(&rings, &claims);
+    if g.role_fixes > 0 {
+        problems.push(format!(
+            "{} ring role(s) corrected by containment",
+            g.role_fixes
+        ));
+    }
+    let polygons = g
+        .polygons
+        .iter()
+        .map(|(o, hs)| {
+            (
+                rings[*o].clone(),
+                hs.iter().map(|h| rings[*h].clone()).collect(),
+                ring_ways[*o].clone(),
+            )
+        })
+        .collect();
+    Assembled { polygons, problems }
+}
+
+/// A building/part relation's footprint (`None` when skipped) and its report entries.
+type RelOutcome = (Option<Footprint>, Vec<(Outcome, String)>, RelRec);
+
+/// Turns the three passes' results into footprints and report entries.
+fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report) -> ReadResult {
+    // Relations first: they decide which ways are built by a relation instead of alone, and
+    // which ways get holes from an old-style multipolygon. Their entries are emitted after the
+    // ways' so that the report follows the footprint order.
+    let mut rel_out: Vec<RelOutcome> = Vec::new();
+    // (way id, relation id) of ways built as part of a relation of the same kind.
+    let mut built_by: Vec<(i64, i64)> = Vec::new();
+    // (way id, relation id, holes) from old-style multipolygons.
+    let mut old_style: Vec<(i64, i64, Vec<Ring>)> = Vec::new();
+    // (way id, note) for building ways whose old-style relation could not be assembled.
+    let mut old_style_notes: Vec<(i64, String)> = Vec::new();
+    let way_kind = |id: i64| {
+        ways.binary_search_by_key(&id, |w| w.id)
+            .ok()
+            .and_then(|i| ways[i].kind)
+    };
+
+    for rel in rels {
+        let a = assemble_relation(rel, ways, nodes);
+        match rel.kind {
+            RelKind::Untagged => {
+                let mut used = false;
+                for (_, holes, outer_ways) in &a.polygons {
+                    if let [w] = outer_ways.as_slice() {
+                        if way_kind(*w).is_some()
+                            && !holes.is_empty()
+                            && !old_style.iter().any(|(o, _, _)| o == w)
+                        {
+                            old_style.push((*w, rel.id, holes.clone()));
+                            used = true;
+                        }
+                    }
+                }
+                if !used {
+                    // Not a building relation; only worth a word when an outer member is a
+                    // building that would have received holes.
+                    for m in rel.members.iter().filter(|m| m.role == Role::Outer) {
+                        if way_kind(m.way).is_some() && !a.problems.is_empty() {
+                            old_style_notes.push((
+                                m.way,
+                                format!(
+                                    "old-style multipolygon relation/{} could not be assembled, built without its holes: {}",
+                                    rel.id,
+                                    a.problems.join("; ")
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            RelKind::Building | RelKind::Part => {
+                let kind = if rel.kind == RelKind::Building {
+                    FootprintKind::Building
+                } else {
+                    FootprintKind::Part
+                };
+                let id = SourceId::Relation(rel.id);
+                let mut entries = Vec::new();
+                if a.polygons.is_empty() {
+                    let why = if a.problems.is_empty() {
+                        "multipolygon without any closed ring".to_string()
+                    } else {
+                        format!(
+                            "multipolygon without a usable outer ring: {}",
+                            a.problems.join("; ")
+                        )
+                    };
+                    entries.push((Outcome::Skipped, why));
+                    rel_out.push((None, entries, rel.clone()));
+                    continue;
+                }
+                if !a.problems.is_empty() {
+                    entries.push((Outcome::Repaired, a.problems.join("; ")));
+                }
+                for (_, _, outer_ways) in &a.polygons {
+                    for w in outer_ways {
+                        if way_kind(*w) == Some(kind) {
+                            built_by.push((*w, rel.id));
+                        }
+                    }
+                }
+                let tags = BuildingTags::from_pairs(
+                    rel.tags.iter().map(|(k, v)| (k.as_str(), v.as_str())),
+                );
+                let polygons = a
+                    .polygons
+                    .into_iter()
+                    .map(|(o, h, _)| oriented_polygon(o, h))
+                    .collect();
+                rel_out.push((
+                    Some(Footprint {
+                        id,
+                        kind,
+                        polygons,
+                        tags,
+                    }),
+                    entries,
+                    rel.clone(),
+                ));
+            }
+        }
+    }
+    built_by.sort_unstable();
+    old_style.sort_by_key(|(w, _, _)| *w);
+    old_style_notes.sort_by_key(|(w, _)| *w);
+
+    let mut result = ReadResult::default();
+    for w in ways {
+        let Some(kind) = w.kind else { continue };
+        let id = SourceId::Way(w.id);
+        count_read(report, kind);
+        let skip = |report: &mut Report, why: String| {
+            report.skipped += 1;
+            report.add(Some(id), Outcome::Skipped, why);
+        };
+        if let Some((_, r)) = built_by.iter().find(|(x, _)| *x == w.id) {
+            skip(
+                report,
+                format!("outer ring of multipolygon relation/{r}, which is built instead"),
+            );
+            continue;
+        }
+        if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
+            let why = match (w.refs.first(), w.refs.last()) {
+                (Some(a), Some(b)) if w.refs.len() >= 2 => {
+                    format!("unclosed way: first node node/{a}, last node node/{b}")
+                }
+                _ => format!("way with {} node(s)", w.refs.len()),
+            };
+            skip(report, why);
+            continue;
+        }
+        let mut outer = match resolve(&w.refs, nodes) {
+            Ok(pts) => pts,
+            Err(n) => {
+                skip(
+                    report,
+                    format!("{n} of {} nodes missing from the file", w.refs.len()),
+                );
+                continue;
+            }
+        };
+        clean_ring(&mut outer);
+        if let Some(why) = ring_problem(&outer) {
+            skip(report, why.to_string());
+            continue;
+        }
+        let tags = BuildingTags::from_pairs(w.tags.iter().map(|(k, v)| (k.as_str(), v.as_str())));
+        let holes = match old_style.binary_search_by_key(&w.id, |(x, _, _)| *x) {
+            Ok(i) => {
+                let (_, r, holes) = &old_style[i];
+                report.add(
+                    Some(id),
+                    Outcome::Note,
+                    format!(
+                        "{} hole(s) taken from old-style multipolygon relation/{r}",
+                        holes.len()
+                    ),
+                );
+                holes.clone()
+            }
+            Err(_) => Vec::new(),
+        };
+        for (_, note) in old_style_notes.iter().filter(|(x, _)| *x == w.id) {
+            report.add(Some(id), Outcome::Note, note.clone());
+        }
+        note_ignored(report, id, &tags);
+        result.footprints.push(Footprint {
+            id,
+            kind,
+            polygons: vec![oriented_polygon(outer, holes)],
+            tags,
+        });
+    }
+
+    for (fp, entries, rel) in rel_out {
+        let id = SourceId::Relation(rel.id);
+        count_read(
+            report,
+            if rel.kind == RelKind::Part {
+                FootprintKind::Part
+            } else {
+                FootprintKind::Building
+            },
+        );
+        for (outcome, why) in entries {
+            match outcome {
+                Outcome::Skipped => report.skipped += 1,
+                Outcome::Repaired => report.repaired += 1,
+                Outcome::Note => {}
+            }
+            report.add(Some(id), outcome, why);
+        }
+        if let Some(fp) = fp {
+            note_ignored(report, id, &fp.tags);
+            result.footprints.push(fp);
+        }
+    }
+    result
+}
+
+fn count_read(report: &mut Report, kind: FootprintKind) {
+    match kind {
+        FootprintKind::Building => report.read += 1,
+        FootprintKind::Part => report.parts_read += 1,
+    }
+}
+
+/// One `Note` entry per tag value that could not be used.
+pub(crate) fn note_ignored(report: &mut Report, id: SourceId, tags: &BuildingTags) {
+    for (k, v, why) in &tags.ignored {
+        report.add(
+            Some(id),
+            Outcome::Note,
+            format!("tag {k}={v} ignored: {why}"),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,37 +1,56 @@
 //! Simple 3D Buildings tags, parsed leniently (`12 m`, `12;15`, `12,5`, `40'`).
+//!
+//! Real OSM values are messy. The rule here: take what can be read without guessing (a unit, a
+//! decimal comma, the first value of a `;` list), and put everything else in
+//! [`BuildingTags::ignored`] with the reason, so the run report can show it.
 
 use crate::color::Color;
 use crate::model::RoofShape;
+
+/// Lengths above this (metres) are rejected as absurd: the tallest building stands at 828 m.
+pub const MAX_LENGTH_M: f64 = 1000.0;
+
+/// Level counts above this are rejected as absurd (the tallest building has 163 floors).
+pub const MAX_LEVELS: f64 = 300.0;
+
+const FOOT_M: f64 = 0.3048;
+const INCH_M: f64 = 0.0254;
 
 /// The building tags citygen honours. `None` when absent or unusable; every unusable value is
 /// listed in `ignored` as `(key, value, reason)` for the report.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BuildingTags {
-    /// `building=*` or `building:part=*` value (e.g. `yes`, `house`, `apartments`).
+    /// `building=*` or `building:part=*` value (e.g. `yes`, `house`, `apartments`), trimmed and
+    /// lower-cased. `building` wins over `building:part`, and a value other than `no` wins over
+    /// `no`.
     pub building: Option<String>,
     pub name: Option<String>,
-    /// `height` in metres, total height including the roof.
+    /// `height` in metres, total height including the roof. Always > 0.
     pub height: Option<f64>,
-    /// `min_height` in metres.
+    /// `min_height` in metres (>= 0).
     pub min_height: Option<f64>,
-    /// `building:levels` (above ground, without roof levels).
+    /// `building:levels` (above ground, without roof levels), >= 0.
     pub levels: Option<f64>,
-    /// `building:min_level`.
+    /// `building:min_level`, >= 0.
     pub min_level: Option<f64>,
     pub roof_shape: Option<RoofShape>,
-    /// `roof:height` in metres.
+    /// `roof:height` in metres (>= 0).
     pub roof_height: Option<f64>,
-    /// `roof:angle` in degrees.
+    /// `roof:angle` in degrees, in 0..=90.
     pub roof_angle: Option<f64>,
-    /// `roof:levels`.
+    /// `roof:levels`, >= 0.
     pub roof_levels: Option<f64>,
-    /// `roof:orientation` = along / across.
+    /// `roof:orientation` = `along` / `across` (lower case; other values are ignored).
     pub roof_orientation: Option<String>,
-    /// `roof:direction` in degrees from north (cardinal letters accepted).
+    /// `roof:direction` in degrees clockwise from north, in 0..360 (cardinal letters accepted).
     pub roof_direction: Option<f64>,
+    /// `building:colour` (or `building:color`).
     pub colour: Option<Color>,
+    /// `roof:colour` (or `roof:color`).
     pub roof_colour: Option<Color>,
+    /// `building:material`, trimmed and lower-cased.
     pub material: Option<String>,
+    /// `roof:material`, trimmed and lower-cased.
     pub roof_material: Option<String>,
     /// Values that were present but could not be used: (key, value, reason).
     pub ignored: Vec<(String, String, String)>,
@@ -40,13 +59,478 @@ pub struct BuildingTags {
 impl BuildingTags {
     /// Builds the parsed tags from raw key/value pairs (OSM tags or shapefile attributes mapped
     /// to OSM keys). Unknown keys are ignored silently; known keys with bad values go to `ignored`.
+    /// Never panics. When a key appears twice, the last usable value wins.
     pub fn from_pairs<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> BuildingTags {
-        todo!("tags::from_pairs {:?}", pairs.into_iter().count())
+        let mut t = BuildingTags::default();
+        let mut part: Option<String> = None;
+        for (key, value) in pairs {
+            let v = value.trim();
+            let known = matches!(
+                key,
+                "building"
+                    | "building:part"
+                    | "name"
+                    | "height"
+                    | "min_height"
+                    | "building:levels"
+                    | "building:min_level"
+                    | "roof:shape"
+                    | "roof:height"
+                    | "roof:angle"
+                    | "roof:levels"
+                    | "roof:orientation"
+                    | "roof:direction"
+                    | "building:colour"
+                    | "building:color"
+                    | "roof:colour"
+                    | "roof:color"
+                    | "building:material"
+                    | "roof:material"
+            );
+            if !known {
+                continue;
+            }
+            if v.is_empty() {
+                t.ignore(key, value, "empty value");
+                continue;
+            }
+            let res: Result<(), String> = match key {
+                "building" => {
+                    t.building = Some(v.to_ascii_lowercase());
+                    Ok(())
+                }
+                "building:part" => {
+                    part = Some(v.to_ascii_lowercase());
+                    Ok(())
+                }
+                "name" => {
+                    t.name = Some(v.to_string());
+                    Ok(())
+                }
+                "height" => parse_length_checked(v).and_then(|h| {
+                    if h > 0.0 {
+                        t.height = Some(h);
+                        Ok(())
+                    } else {
+                        Err("a height of zero is no height".to_string())
+                    }
+                }),
+                "min_height" => parse_length_checked(v).map(|h| t.min_height = Some(h)),
+                "roof:height" => parse_length_checked(v).map(|h| t.roof_height = Some(h)),
+                "building:levels" => parse_levels(v).map(|n| t.levels = Some(n)),
+                "building:min_level" => parse_levels(v).map(|n| t.min_level = Some(n)),
+                "roof:levels" => parse_levels(v).map(|n| t.roof_levels = Some(n)),
+                "roof:shape" => match RoofShape::parse(first_value(v)) {
+                    Some(s) => {
+                        t.roof_shape = Some(s);
+                        Ok(())
+                    }
+                    None => Err("unknown roof shape".to_string()),
+                },
+                "roof:angle" => parse_angle(v).map(|a| t.roof_angle = Some(a)),
+                "roof:orientation" => {
+                    let o = first_value(v).to_ascii_lowercase();
+                    if o == "along" || o == "across" {
+                        t.roof_orientation = Some(o);
+                        Ok(())
+                    } else {
+                        Err("roof:orientation must be along or across".to_string())
+                    }
+                }
+                "roof:direction" => parse_direction(v).map(|d| t.roof_direction = Some(d)),
+                "building:colour" | "building:color" => match Color::parse(first_value(v)) {
+                    Some(c) => {
+                        t.colour = Some(c);
+                        Ok(())
+                    }
+                    None => Err("unknown colour".to_string()),
+                },
+                "roof:colour" | "roof:color" => match Color::parse(first_value(v)) {
+                    Some(c) => {
+                        t.roof_colour = Some(c);
+                        Ok(())
+                    }
+                    None => Err("unknown colour".to_string()),
+                },
+                "building:material" => {
+                    t.material = Some(first_value(v).to_ascii_lowercase());
+                    Ok(())
+                }
+                "roof:material" => {
+                    t.roof_material = Some(first_value(v).to_ascii_lowercase());
+                    Ok(())
+                }
+                _ => Ok(()),
+            };
+            if let Err(reason) = res {
+                t.ignore(key, value, &reason);
+            }
+        }
+        // `building:part` fills `building` only when `building` says nothing better.
+        match (&t.building, part) {
+            (None, Some(p)) => t.building = Some(p),
+            (Some(b), Some(p)) if b == "no" && p != "no" => t.building = Some(p),
+            _ => {}
+        }
+        t
+    }
+
+    fn ignore(&mut self, key: &str, value: &str, reason: &str) {
+        self.ignored
+            .push((key.to_string(), value.to_string(), reason.to_string()));
+    }
+}
+
+/// The first value of an OSM `;`-separated list, trimmed.
+fn first_value(s: &str) -> &str {
+    s.split(';').next().unwrap_or("").trim()
+}
+
+/// Parses a plain decimal number, accepting one decimal comma (`12,5`). Rejects NaN and
+/// infinities (Rust's float parser would accept `inf` and `NaN`).
+fn parse_number(s: &str) -> Result<f64, String> {
+    let s = s.trim();
+    if s.is_empty() {
+        return Err("no number".to_string());
+    }
+    // Only digits, one sign, one separator and an exponent are numbers here: this rejects
+    // `inf`, `NaN` and `0x10` before the float parser sees them.
+    if !s
+        .chars()
+        .all(|c| c.is_ascii_digit() || matches!(c, '.' | ',' | '+' | '-' | 'e' | 'E'))
+    {
+        return Err("not a number".to_string());
+    }
+    let normalised;
+    let s = if s.contains(',') {
+        if s.matches(',').count() > 1 || s.contains('.') {
+            return Err("ambiguous decimal separators".to_string());
+        }
+        normalised = s.replace(',', ".");
+        normalised.as_str()
+    } else {
+        s
+    };
+    let v: f64 = s.parse().map_err(|_| "not a number".to_string())?;
+    if !v.is_finite() {
+        return Err("not a finite number".to_string());
+    }
+    Ok(v)
+}
+
+/// [`parse_length`] with the reason for a rejection.
+pub fn parse_length_checked(s: &str) -> Result<f64, String> {
+    let s = first_value(s);
+    let lower = s.to_ascii_lowercase();
+    let lower = lower.trim();
+    // Feet and inches: `12'`, `12'6"`, `12' 6"`, `6"`.
+    if lower.contains('\'') || lower.ends_with('"') {
+        let (feet_str, rest) = match lower.split_once('\'') {
+            Some((f, r)) => (f, r.trim()),
+            None => ("0", lower),
+        };
+        let feet = parse_number(feet_str)?;
+        let inches = match rest.strip_suffix('"') {
+            Some(i) => parse_number(i)?,
+            None if rest.is_empty() => 0.0,
+            None => return Err("cannot read feet and inches".to_string()),
+        };
+        if feet < 0.0 || inches < 0.0 {
+            return Err("negative length".to_string());
+        }
+        return check_length(feet * FOOT_M + inches * INCH_M);
+    }
+    let (num, factor) = split_unit(lower)?;
+    let v = parse_number(num)?;
+    check_length(v * factor)
+}
+
+/// Splits a trailing unit off a length and gives the factor to metres.
+fn split_unit(s: &str) -> Result<(&str, f64), String> {
+    const UNITS: [(&str, f64); 12] = [
+        ("metres", 1.0),
+        ("meters", 1.0),
+        ("metre", 1.0),
+        ("meter", 1.0),
+        ("feet", FOOT_M),
+        ("foot", FOOT_M),
+        ("ft", FOOT_M),
+        ("km", 1000.0),
+        ("cm", 0.01),
+        ("mm", 0.001),
+        ("m", 1.0),
+        ("in", INCH_M),
+    ];
+    let end = s.trim_end_matches(|c: char| c.is_ascii_alphabetic());
+    let unit = s[end.len()..].trim();
+    if unit.is_empty() {
+        return Ok((s, 1.0));
+    }
+    match UNITS.iter().find(|(u, _)| *u == unit) {
+        Some((_, f)) => Ok((end.trim(), *f)),
+        None => Err(format!("unknown unit `{unit}`")),
+    }
+}
+
+fn check_length(v: f64) -> Result<f64, String> {
+    if !v.is_finite() {
+        Err("not a finite number".to_string())
+    } else if v < 0.0 {
+        Err("negative length".to_string())
+    } else if v > MAX_LENGTH_M {
+        Err(format!("absurd length (over {MAX_LENGTH_M} m)"))
+    } else {
+        Ok(v)
     }
 }
 
 /// Parses a length in metres leniently: `12`, `12 m`, `12m`, `12,5`, `12;15` (first value),
-/// `40'` or `40 ft` (feet), `12'6"`. Rejects NaN, infinities and negative values.
+/// `40'` or `40 ft` (feet), `12'6"`. Rejects NaN, infinities, negative values and absurd ones
+/// (over [`MAX_LENGTH_M`]).
 pub fn parse_length(s: &str) -> Option<f64> {
-    todo!("parse_length {s}")
+    parse_length_checked(s).ok()
+}
+
+/// A level count: a non-negative number, first of a list, decimal comma accepted.
+fn parse_levels(s: &str) -> Result<f64, String> {
+    let v = parse_number(first_value(s))?;
+    if v < 0.0 {
+        Err("negative level count".to_string())
+    } else if v > MAX_LEVELS {
+        Err(format!("absurd level count (over {MAX_LEVELS})"))
+    } else {
+        Ok(v)
+    }
+}
+
+/// A roof angle in degrees (`30`, `30°`, `30 deg`), in 0..=90.
+fn parse_angle(s: &str) -> Result<f64, String> {
+    let s = first_value(s);
+    let s = s
+        .trim_end_matches('°')
+        .trim_end_matches("degrees")
+        .trim_end_matches("deg")
+        .trim();
+    let v = parse_number(s)?;
+    if (0.0..=90.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err("roof angle outside 0..90 degrees".to_string())
+    }
+}
+
+/// A direction in degrees from north (wrapped into 0..360), or a 16-wind compass point.
+fn parse_direction(s: &str) -> Result<f64, String> {
+    const WINDS: [&str; 16] = [
+        "N", "NNE", "NE", "ENE", "E", "ESE", "SE", "SSE", "S", "SSW", "SW", "WSW", "W", "WNW",
+        "NW", "NNW",
+    ];
+    let s = first_value(s);
+    let up = s.to_ascii_uppercase();
+    if let Some(i) = WINDS.iter().position(|w| *w == up) {
+        return Ok(i as f64 * 22.5);
+    }
+    let v = parse_number(s.trim_end_matches('°').trim())
+        .map_err(|_| "not a direction (degrees or N, NE, E...)".to_string())?;
+    let d = v.rem_euclid(360.0);
+    // rem_euclid rounds tiny negative values up to exactly 360.
+    Ok(if d >= 360.0 { 0.0 } else { d })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Option<f64>, b: f64) -> bool {
+        a.is_some_and(|a| (a - b).abs() < 1e-9)
+    }
+
+    #[test]
+    fn lengths_plain_and_metres() {
+        assert!(close(parse_length("12"), 12.0));
+        assert!(close(parse_length("12 m"), 12.0));
+        assert!(close(parse_length("12m"), 12.0));
+        assert!(close(parse_length(" 12.5 m "), 12.5));
+        assert!(close(parse_length("12,5"), 12.5));
+        assert!(close(parse_length("12.5 metres"), 12.5));
+        assert!(close(parse_length("0"), 0.0));
+    }
+
+    #[test]
+    fn lengths_lists_take_the_first() {
+        assert!(close(parse_length("12;15"), 12.0));
+        assert!(close(parse_length("12 m;15 m"), 12.0));
+    }
+
+    #[test]
+    fn lengths_in_feet() {
+        assert!(close(parse_length("40'"), 40.0 * 0.3048));
+        assert!(close(parse_length("40 ft"), 40.0 * 0.3048));
+        assert!(close(parse_length("40ft"), 40.0 * 0.3048));
+        assert!(close(parse_length("12'6\""), 12.0 * 0.3048 + 6.0 * 0.0254));
+        assert!(close(parse_length("12' 6\""), 12.0 * 0.3048 + 6.0 * 0.0254));
+    }
+
+    #[test]
+    fn lengths_rejected() {
+        for bad in [
+            "NaN",
+            "nan",
+            "inf",
+            "-inf",
+            "infinity",
+            "-3",
+            "-3 m",
+            "",
+            "abc",
+            "12 parsecs",
+            "1001",
+            "5000 m",
+            "1e400",
+            "1,2,3",
+            "1.2,3",
+            "12'x\"",
+            "m",
+        ] {
+            assert_eq!(parse_length(bad), None, "{bad:?} should be rejected");
+        }
+        assert!(parse_length_checked("2000").unwrap_err().contains("absurd"));
+        assert!(parse_length_checked("-1").unwrap_err().contains("negative"));
+    }
+
+    #[test]
+    fn tags_heights_and_levels() {
+        let t = BuildingTags::from_pairs([
+            ("building", "Apartments"),
+            ("height", "12 m"),
+            ("min_height", "3"),
+            ("building:levels", "4;5"),
+            ("building:min_level", "1"),
+            ("roof:height", "2,5"),
+            ("roof:levels", "1"),
+            ("name", " Villa "),
+            ("wikidata", "Q1"),
+        ]);
+        assert_eq!(t.building.as_deref(), Some("apartments"));
+        assert_eq!(t.name.as_deref(), Some("Villa"));
+        assert_eq!(t.height, Some(12.0));
+        assert_eq!(t.min_height, Some(3.0));
+        assert_eq!(t.levels, Some(4.0));
+        assert_eq!(t.min_level, Some(1.0));
+        assert_eq!(t.roof_height, Some(2.5));
+        assert_eq!(t.roof_levels, Some(1.0));
+        assert!(t.ignored.is_empty(), "{:?}", t.ignored);
+    }
+
+    #[test]
+    fn tags_bad_values_are_reported() {
+        let t = BuildingTags::from_pairs([
+            ("building", "yes"),
+            ("height", "tall"),
+            ("min_height", "-2"),
+            ("building:levels", "-1"),
+            ("roof:levels", "500"),
+            ("roof:shape", "9.0"),
+            ("roof:angle", "120"),
+            ("roof:orientation", "sideways"),
+            ("roof:direction", "up"),
+            ("name", "   "),
+        ]);
+        assert_eq!(t.height, None);
+        assert_eq!(t.min_height, None);
+        assert_eq!(t.levels, None);
+        assert_eq!(t.roof_levels, None);
+        assert_eq!(t.roof_shape, None);
+        assert_eq!(t.roof_angle, None);
+        assert_eq!(t.roof_orientation, None);
+        assert_eq!(t.roof_direction, None);
+        assert_eq!(t.name, None);
+        let keys: Vec<&str> = t.ignored.iter().map(|(k, _, _)| k.as_str()).collect();
+        assert_eq!(
+            keys,
+            [
+                "height",
+                "min_height",
+                "building:levels",
+                "roof:levels",
+                "roof:shape",
+                "roof:angle",
+                "roof:orientation",
+                "roof:direction",
+                "name"
+            ]
+        );
+        assert!(t.ignored.iter().all(|(_, _, r)| !r.is_empty()));
+        assert_eq!(t.ignored[4].1, "9.0");
+        assert_eq!(t.ignored[4].2, "unknown roof shape");
+    }
+
+    #[test]
+    fn tags_zero_and_absurd_height() {
+        let t = BuildingTags::from_pairs([("height", "0")]);
+        assert_eq!(t.height, None);
+        assert_eq!(t.ignored.len(), 1);
+        let t = BuildingTags::from_pairs([("height", "1200")]);
+        assert_eq!(t.height, None);
+        assert!(t.ignored[0].2.contains("absurd"));
+    }
+
+    #[test]
+    fn tags_roof_shapes() {
+        for (v, s) in [
+            ("half_hipped", RoofShape::HalfHipped),
+            ("half-hipped", RoofShape::HalfHipped),
+            ("Gabled", RoofShape::Gabled),
+            ("hipped;gabled", RoofShape::Hipped),
+            ("pyramid", RoofShape::Pyramidal),
+        ] {
+            let t = BuildingTags::from_pairs([("roof:shape", v)]);
+            assert_eq!(t.roof_shape, Some(s), "{v}");
+            assert!(t.ignored.is_empty());
+        }
+        let t = BuildingTags::from_pairs([("roof:shape", "many")]);
+        assert_eq!(t.roof_shape, None);
+        assert_eq!(t.ignored.len(), 1);
+    }
+
+    #[test]
+    fn tags_roof_direction_and_orientation() {
+        let t =
+            BuildingTags::from_pairs([("roof:direction", "NE"), ("roof:orientation", "Across")]);
+        assert_eq!(t.roof_direction, Some(45.0));
+        assert_eq!(t.roof_orientation.as_deref(), Some("across"));
+        let t = BuildingTags::from_pairs([("roof:direction", "-90")]);
+        assert_eq!(t.roof_direction, Some(270.0));
+        let t = BuildingTags::from_pairs([("roof:direction", "400°")]);
+        assert_eq!(t.roof_direction, Some(40.0));
+        let t = BuildingTags::from_pairs([("roof:direction", "wsw")]);
+        assert_eq!(t.roof_direction, Some(247.5));
+        let t = BuildingTags::from_pairs([("roof:angle", "30°")]);
+        assert_eq!(t.roof_angle, Some(30.0));
+    }
+
+    #[test]
+    fn tags_building_part_and_materials() {
+        let t = BuildingTags::from_pairs([("building:part", "yes"), ("roof:material", "Tiles")]);
+        assert_eq!(t.building.as_deref(), Some("yes"));
+        assert_eq!(t.roof_material.as_deref(), Some("tiles"));
+        let t = BuildingTags::from_pairs([("building", "no"), ("building:part", "roof")]);
+        assert_eq!(t.building.as_deref(), Some("roof"));
+        let t = BuildingTags::from_pairs([("building", "house"), ("building:part", "roof")]);
+        assert_eq!(t.building.as_deref(), Some("house"));
+        let t = BuildingTags::from_pairs([("building:material", "brick;stone")]);
+        assert_eq!(t.material.as_deref(), Some("brick"));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn parse_length_never_panics_and_is_sane(s in ".{0,16}") {
+            if let Some(v) = parse_length(&s) {
+                proptest::prop_assert!(v.is_finite() && (0.0..=MAX_LENGTH_M).contains(&v));
+            }
+            let t = BuildingTags::from_pairs([("height", s.as_str()), ("roof:direction", s.as_str()),
+                ("building:levels", s.as_str()), ("roof:angle", s.as_str())]);
+            if let Some(d) = t.roof_direction { proptest::prop_assert!((0.0..360.0).contains(&d)); }
+        }
+    }
 }

@@ -1,0 +1,554 @@
+use super::*;
+use std::collections::BTreeSet;
+
+fn monaco() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/monaco/monaco.osm.pbf")
+}
+
+// ---- synthetic data through `assemble` ------------------------------------------------------
+
+/// Nodes on a grid: node id `100 * x + y` sits at (x, y).
+fn grid_nodes(max: i64) -> Nodes {
+    let mut ids = Vec::new();
+    let mut coords = Vec::new();
+    for x in 0..=max {
+        for y in 0..=max {
+            ids.push(100 * x + y);
+            coords.push((x as f64, y as f64));
+        }
+    }
+    Nodes { ids, coords }
+}
+
+fn n(x: i64, y: i64) -> i64 {
+    100 * x + y
+}
+
+fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
+    let tags: Tags = owned(tags.iter().copied());
+    WayRec {
+        id,
+        refs,
+        kind: kind_of(tags.iter().map(|(k, v)| (k.as_str(), v.as_str()))),
+        tags,
+    }
+}
+
+fn rel(id: i64, kind: RelKind, members: &[(i64, Role)], tags: &[(&str, &str)]) -> RelRec {
+    RelRec {
+        id,
+        kind,
+        tags: owned(tags.iter().copied()),
+        members: members
+            .iter()
+            .map(|&(way, role)| Member { way, role })
+            .collect(),
+        other_members: 0,
+    }
+}
+
+fn square_refs(x: i64, y: i64, s: i64) -> Vec<i64> {
+    vec![n(x, y), n(x + s, y), n(x + s, y + s), n(x, y + s), n(x, y)]
+}
+
+fn entries_for(report: &Report, id: &str) -> Vec<(Outcome, String)> {
+    report
+        .entries
+        .iter()
+        .filter(|e| e.id == id)
+        .map(|e| (e.outcome, e.reason.clone()))
+        .collect()
+}
+
+#[test]
+fn courtyard_from_open_segments_with_a_reversed_piece() {
+    let nodes = grid_nodes(10);
+    // Outer 0..10 square split in two open ways, the second one reversed.
+    let ways = vec![
+        way(1, vec![n(0, 0), n(10, 0), n(10, 10)], &[]),
+        way(2, vec![n(0, 0), n(0, 10), n(10, 10)], &[]),
+        way(3, square_refs(3, 3, 4), &[]),
+    ];
+    let rels = vec![rel(
+        50,
+        RelKind::Building,
+        &[(1, Role::Outer), (2, Role::Outer), (3, Role::Inner)],
+        &[
+            ("type", "multipolygon"),
+            ("building", "yes"),
+            ("height", "9"),
+        ],
+    )];
+    let mut report = Report::default();
+    let r = assemble(&ways, &rels, &nodes, &mut report);
+    assert_eq!(r.footprints.len(), 1);
+    let fp = &r.footprints[0];
+    assert_eq!(fp.id, SourceId::Relation(50));
+    assert_eq!(fp.kind, FootprintKind::Building);
+    assert_eq!(fp.tags.height, Some(9.0));
+    assert_eq!(fp.polygons.len(), 1);
+    assert_eq!(fp.polygons[0].outer.len(), 4);
+    assert_eq!(fp.polygons[0].holes.len(), 1);
+    assert!(super::super::rings::signed_area(&fp.polygons[0].outer) > 0.0);
+    assert!(super::super::rings::signed_area(&fp.polygons[0].holes[0]) < 0.0);
+    assert_eq!(report.read, 1);
+    assert!(report.entries.is_empty(), "{:?}", report.entries);
+}
+
+#[test]
+fn wrong_roles_are_corrected_by_containment() {
+    let nodes = grid_nodes(20);
+    let ways = vec![
+        way(1, square_refs(0, 0, 10), &[]),
+        way(2, square_refs(2, 2, 3), &[]),
+        way(3, square_refs(15, 15, 3), &[]),
+    ];
+    // The courtyard says "outer", the separate block says nothing.
+    let rels = vec![rel(
+        7,
+        RelKind::Building,
+        &[(1, Role::Outer), (2, Role::Outer), (3, Role::Unknown)],
+        &[("type", "multipolygon"), ("building", "yes")],
+    )];
+    let mut report = Report::default();
+    let r = assemble(&ways, &rels, &nodes, &mut report);
+    let fp = &r.footprints[0];
+    assert_eq!(fp.polygons.len(), 2);
+    assert_eq!(fp.polygons[0].holes.len(), 1);
+    assert_eq!(fp.polygons[1].holes.len(), 0);
+    let e = entries_for(&report, "relation/7");
+    assert_eq!(e.len(), 1);
+    assert_eq!(e[0].0, Outcome::Repaired);
+    assert!(e[0].1.contains("1 ring role(s) corrected"), "{}", e[0].1);
+    assert_eq!(report.repaired, 1);
+}
+
+#[test]
+fn missing_members_repair_or_skip() {
+    let nodes = grid_nodes(10);
+    let ways = vec![
+        way(1, square_refs(0, 0, 10), &[]),
+        // Half of a ring whose other half is missing.
+        way(4, vec![n(2, 2), n(4, 2), n(4, 4)], &[]),
+    ];
+    let rels = vec![
+        rel(
+            8,
+            RelKind::Building,
+            &[(1, Role::Outer), (4, Role::Inner), (99, Role::Inner)],
+            &[("type", "multipolygon"), ("building", "yes")],
+        ),
+        rel(
+            9,
+            RelKind::Part,
+            &[(4, Role::Outer), (98, Role::Outer)],
+            &[("type", "multipolygon"), ("building:part", "yes")],
+        ),
+    ];
+    let mut report = Report::default();
+    let r = assemble(&ways, &rels, &nodes, &mut report);
+    assert_eq!(r.footprints.len(), 1);
+    assert_eq!(r.footprints[0].polygons[0].holes.len(), 0);
+    let e8 = entries_for(&report, "relation/8");
+    assert_eq!(e8.len(), 1);
+    assert_eq!(e8[0].0, Outcome::Repaired);
+    assert!(e8[0].1.contains("1 member way(s) missing"), "{}", e8[0].1);
+    assert!(e8[0].1.contains("way/99"));
+    assert!(e8[0].1.contains("cannot be closed"));
+    let e9 = entries_for(&report, "relation/9");
+    assert_eq!(e9.len(), 1);
+    assert_eq!(e9[0].0, Outcome::Skipped);
+    assert_eq!((report.read, report.parts_read, report.skipped), (1, 1, 1));
+}
+
+#[test]
+fn old_style_outer_way_gets_the_holes_once() {
+    let nodes = grid_nodes(10);
+    let ways = vec![
+        way(
+            1,
+            square_refs(0, 0, 10),
+            &[("building", "yes"), ("height", "20")],
+        ),
+        way(2, square_refs(3, 3, 4), &[]),
+    ];
+    let rels = vec![rel(
+        5,
+        RelKind::Untagged,
+        &[(1, Role::Outer), (2, Role::Inner)],
+        &[("type", "multipolygon")],
+    )];
+    let mut report = Report::default();
+    let r = assemble(&ways, &rels, &nodes, &mut report);
+    assert_eq!(
+        r.footprints.len(),
+        1,
+        "the way once, the relation not at all"
+    );
+    let fp = &r.footprints[0];
+    assert_eq!(fp.id, SourceId::Way(1));
+    assert_eq!(fp.tags.height, Some(20.0));
+    assert_eq!(fp.polygons[0].holes.len(), 1);
+    assert_eq!(report.read, 1);
+    let e = entries_for(&report, "way/1");
+    assert_eq!(e.len(), 1);
+    assert_eq!(e[0].0, Outcome::Note);
+    assert!(e[0].1.contains("relation/5"));
+}
+
+#[test]
+fn outer_way_tagged_like_its_relation_is_built_once() {
+    let nodes = grid_nodes(10);
+    let ways = vec![
+        way(1, square_refs(0, 0, 10), &[("building", "yes")]),
+        way(2, square_refs(3, 3, 4), &[]),
+    ];
+    let rels = vec![rel(
+        6,
+        RelKind::Building,
+        &[(1, Role::Outer), (2, Role::Inner)],
+        &[("type", "multipolygon"), ("building", "yes")],
+    )];
+    let mut report = Report::default();
+    let r = assemble(&ways, &rels, &nodes, &mut report);
+    assert_eq!(r.footprints.len(), 1);
+    assert_eq!(r.footprints[0].id, SourceId::Relation(6));
+    let e = entries_for(&report, "way/1");
+    assert_eq!(e[0].0, Outcome::Skipped);
+    assert!(e[0].1.contains("relation/6"));
+    assert_eq!((report.read, report.skipped), (2, 1));
+}
+
+#[test]
+fn broken_ways_are_reported() {
+    let nodes = grid_nodes(5);
+    let b = [("building", "yes")];
+    let ways = vec![
+        way(1, vec![n(0, 0), n(1, 0), n(1, 1)], &b), // unclosed
+        way(2, vec![n(0, 0), n(1, 0), 999_999, n(0, 0)], &b), // missing node
+        way(3, vec![n(0, 0), n(1, 0), n(1, 0), n(0, 0)], &b), // 2 distinct
+        way(
+            4,
+            vec![n(0, 0), n(0, 0), n(2, 0), n(2, 2), n(0, 0)],
+            &[("building:part", "yes"), ("roof:shape", "many")],
+        ),
+        way(5, vec![n(0, 0)], &b),
+        way(6, vec![n(0, 0), n(1, 1), n(2, 2), n(0, 0)], &b), // zero area
+        way(7, square_refs(0, 0, 1), &[("building", "no")]),
+    ];
+    let mut report = Report::default();
+    let r = assemble(&ways, &[], &nodes, &mut report);
+    assert_eq!(r.footprints.len(), 1);
+    assert_eq!(r.footprints[0].kind, FootprintKind::Part);
+    assert_eq!(
+        r.footprints[0].polygons[0].outer.len(),
+        3,
+        "duplicate node dropped"
+    );
+    assert_eq!((report.read, report.parts_read, report.skipped), (5, 1, 5));
+    assert!(entries_for(&report, "way/1")[0].1.contains("unclosed"));
+    assert!(entries_for(&report, "way/2")[0]
+        .1
+        .contains("1 of 4 nodes missing"));
+    assert!(entries_for(&report, "way/3")[0].1.contains("fewer than 3"));
+    assert!(entries_for(&report, "way/5")[0].1.contains("1 node"));
+    assert!(entries_for(&report, "way/6")[0].1.contains("zero area"));
+    let e4 = entries_for(&report, "way/4");
+    assert_eq!(
+        e4,
+        vec![(
+            Outcome::Note,
+            "tag roof:shape=many ignored: unknown roof shape".to_string()
+        )]
+    );
+    assert!(entries_for(&report, "way/7").is_empty());
+}
+
+// ---- Monaco -------------------------------------------------------------------------------
+
+/// Independent count with a plain osmpbf pass: building ways and multipolygon relations,
+/// buildings and parts separately.
+fn independent_counts(path: &Path) -> (BTreeSet<SourceId>, BTreeSet<SourceId>) {
+    let mut buildings = BTreeSet::new();
+    let mut parts = BTreeSet::new();
+    let classify = |tags: Vec<(&str, &str)>| {
+        let get = |k: &str| tags.iter().find(|(kk, _)| *kk == k).map(|(_, v)| *v);
+        if get("building").is_some_and(|v| v != "no") {
+            Some(true)
+        } else if get("building:part").is_some_and(|v| v != "no") {
+            Some(false)
+        } else {
+            None
+        }
+    };
+    osmpbf::ElementReader::from_path(path)
+        .unwrap()
+        .for_each(|e| {
+            let (id, c) = match e {
+                Element::Way(w) => (SourceId::Way(w.id()), classify(w.tags().collect())),
+                Element::Relation(r) => {
+                    let tags: Vec<_> = r.tags().collect();
+                    if !tags.contains(&("type", "multipolygon")) {
+                        return;
+                    }
+                    (SourceId::Relation(r.id()), classify(tags))
+                }
+                _ => return,
+            };
+            match c {
+                Some(true) => buildings.insert(id),
+                Some(false) => parts.insert(id),
+                None => false,
+            };
+        })
+        .unwrap();
+    (buildings, parts)
+}
+
+#[test]
+fn monaco_reconciles_with_an_independent_count() {
+    let path = monaco();
+    let mut report = Report::default();
+    let r = read_osm(&path, &mut report).unwrap();
+    let (buildings, parts) = independent_counts(&path);
+    assert_eq!(report.read, buildings.len());
+    assert_eq!(report.parts_read, parts.len());
+
+    let skipped: BTreeSet<String> = report
+        .entries
+        .iter()
+        .filter(|e| e.outcome == Outcome::Skipped)
+        .map(|e| e.id.clone())
+        .collect();
+    assert_eq!(
+        skipped.len(),
+        report.skipped,
+        "one skip entry per skipped object"
+    );
+    let out_b: BTreeSet<SourceId> = r
+        .footprints
+        .iter()
+        .filter(|f| f.kind == FootprintKind::Building)
+        .map(|f| f.id)
+        .collect();
+    let out_p: BTreeSet<SourceId> = r
+        .footprints
+        .iter()
+        .filter(|f| f.kind == FootprintKind::Part)
+        .map(|f| f.id)
+        .collect();
+    for (expected, got) in [(&buildings, &out_b), (&parts, &out_p)] {
+        for id in expected {
+            let built = got.contains(id);
+            let is_skipped = skipped.contains(&id.to_string());
+            assert!(
+                built != is_skipped,
+                "{id}: built {built}, skipped {is_skipped}"
+            );
+        }
+        assert!(got.is_subset(expected));
+    }
+    assert_eq!(
+        out_b.len() + out_p.len(),
+        r.footprints.len(),
+        "no duplicate ids"
+    );
+    assert_eq!(
+        r.footprints.len() + report.skipped,
+        buildings.len() + parts.len()
+    );
+
+    // Sorted: ways by id, then relations by id.
+    let ids: Vec<SourceId> = r.footprints.iter().map(|f| f.id).collect();
+    let mut sorted = ids.clone();
+    sorted.sort();
+    assert_eq!(ids, sorted);
+
+    // Every ring is usable and oriented.
+    for f in &r.footprints {
+        assert!(!f.polygons.is_empty());
+        for p in &f.polygons {
+            assert!(
+                super::super::rings::ring_problem(&p.outer).is_none(),
+                "{}",
+                f.id
+            );
+            assert!(super::super::rings::signed_area(&p.outer) > 0.0, "{}", f.id);
+            for h in &p.holes {
+                assert!(super::super::rings::signed_area(h) < 0.0, "{}", f.id);
+            }
+            for &(x, y) in p.outer.iter() {
+                assert!(
+                    (7.3..7.5).contains(&x) && (43.6..43.8).contains(&y),
+                    "{}",
+                    f.id
+                );
+            }
+        }
+    }
+
+    // A courtyard multipolygon keeps its hole.
+    let courtyard = r.footprints.iter().find(|f| {
+        matches!(f.id, SourceId::Relation(_)) && f.polygons.iter().any(|p| !p.holes.is_empty())
+    });
+    assert!(
+        courtyard.is_some(),
+        "Monaco has building multipolygons with courtyards"
+    );
+    let holes_of = |id: i64| {
+        r.footprints
+            .iter()
+            .find(|f| f.id == SourceId::Relation(id))
+            .map(|f| f.polygons.iter().map(|p| p.holes.len()).collect::<Vec<_>>())
+    };
+    assert_eq!(holes_of(393226), Some(vec![1]));
+    assert_eq!(holes_of(8280869), Some(vec![4]));
+
+    // Tags came through.
+    let with = |f: fn(&BuildingTags) -> bool| r.footprints.iter().filter(|fp| f(&fp.tags)).count();
+    let (h, l, rs) = (
+        with(|t| t.height.is_some()),
+        with(|t| t.levels.is_some()),
+        with(|t| t.roof_shape.is_some()),
+    );
+    eprintln!("monaco tags: height {h}, levels {l}, roof:shape {rs}");
+    assert!(h > 0 && l > 0 && rs > 0);
+    assert!(r.footprints.iter().all(|f| f.tags.building.is_some()));
+
+    // Deterministic: a second read gives the same.
+    let mut report2 = Report::default();
+    let r2 = read_osm(&path, &mut report2).unwrap();
+    assert_eq!(r.footprints, r2.footprints);
+    assert_eq!(report.entries, report2.entries);
+
+    // Print the numbers for the record (visible with --nocapture).
+    let rel_b = out_b
+        .iter()
+        .filter(|i| matches!(i, SourceId::Relation(_)))
+        .count();
+    eprintln!(
+        "monaco: building objects {} (relations {}), parts {}, footprints {} ({} building ways, {} building relations), skipped {}, repaired {}",
+        buildings.len(),
+        buildings.iter().filter(|i| matches!(i, SourceId::Relation(_))).count(),
+        parts.len(),
+        r.footprints.len(),
+        out_b.len() - rel_b,
+        rel_b,
+        report.skipped,
+        report.repaired
+    );
+    for e in &report.entries {
+        eprintln!("  {} {:?} {}", e.id, e.outcome, e.reason);
+    }
+    for f in r
+        .footprints
+        .iter()
+        .filter(|f| matches!(f.id, SourceId::Relation(_)))
+    {
+        let holes: usize = f.polygons.iter().map(|p| p.holes.len()).sum();
+        eprintln!("  {} polygons {} holes {}", f.id, f.polygons.len(), holes);
+    }
+    // The project notes count 1,160 `building` and 12 `building:part` tags; one way is
+    // `building=no` and one `building:part=no` (not buildings), and one way carries both
+    // `building` and `building:part` (read as a building).
+    assert_eq!((out_b.len() - rel_b, rel_b, out_p.len()), (1143, 16, 10));
+}
+
+// ---- file errors --------------------------------------------------------------------------
+
+fn expect_err_naming(path: &Path) -> String {
+    let mut report = Report::default();
+    let err = read_osm(path, &mut report).expect_err("must fail");
+    let msg = err.to_string();
+    assert!(
+        msg.contains(&path.display().to_string()),
+        "message names the file: {msg}"
+    );
+    msg
+}
+
+#[test]
+fn missing_empty_and_text_files_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope.osm.pbf");
+    assert!(expect_err_naming(&missing).contains("cannot read"));
+
+    let empty = dir.path().join("empty.osm.pbf");
+    std::fs::write(&empty, b"").unwrap();
+    assert!(expect_err_naming(&empty).contains("not an OSM PBF"));
+
+    let text = dir.path().join("text.osm.pbf");
+    std::fs::write(&text, b"<?xml version='1.0'?>\n<osm></osm>\n").unwrap();
+    assert!(expect_err_naming(&text).contains("not an OSM PBF"));
+
+    let tiny = dir.path().join("tiny.osm.pbf");
+    std::fs::write(&tiny, [0u8, 0]).unwrap();
+    expect_err_naming(&tiny);
+
+    assert!(expect_err_naming(dir.path()).contains("directory"));
+}
+
+#[test]
+fn truncated_and_corrupted_copies_are_errors() {
+    let data = std::fs::read(monaco()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    // Cut at several places: inside the header, inside a blob, 2 bytes into a length prefix
+    // (osmpbf itself takes the last case for a clean end of file).
+    let last_blob = BlobReader::from_path(monaco())
+        .unwrap()
+        .filter_map(|b| b.ok().and_then(|b| b.offset()))
+        .last()
+        .unwrap()
+        .0 as usize;
+    for cut in [10, 200, data.len() / 2, data.len() - 1, last_blob + 2] {
+        let p = dir.path().join(format!("cut{cut}.osm.pbf"));
+        std::fs::write(&p, &data[..cut]).unwrap();
+        let msg = expect_err_naming(&p);
+        eprintln!("{msg}");
+        assert!(msg.contains("block"), "{msg}");
+    }
+    // Trailing garbage after the last block.
+    let p = dir.path().join("trailing.osm.pbf");
+    let mut d = data.clone();
+    d.extend_from_slice(&[0, 0]);
+    std::fs::write(&p, &d).unwrap();
+    assert!(expect_err_naming(&p).contains("2 bytes after the last complete block"));
+    // Flipped bytes in the middle of a block.
+    let p = dir.path().join("flipped.osm.pbf");
+    let mut d = data.clone();
+    let mid = d.len() / 2;
+    for b in &mut d[mid..mid + 64] {
+        *b = !*b;
+    }
+    std::fs::write(&p, &d).unwrap();
+    let mut report = Report::default();
+    // Either an error naming the file or (if the flip hit a tolerant spot) a result: never a
+    // panic.
+    if let Err(e) = read_osm(&p, &mut report) {
+        assert!(e.to_string().contains(&p.display().to_string()));
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(12))]
+    /// Corrupted or random PBF bytes give a result or an error naming the file, never a panic.
+    #[test]
+    fn corrupted_pbf_never_panics(
+        edits in proptest::collection::vec((proptest::num::usize::ANY, proptest::num::u8::ANY), 1..8),
+        random in proptest::collection::vec(proptest::num::u8::ANY, 0..64),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let mut d = std::fs::read(monaco()).unwrap();
+        let n = d.len();
+        for (at, byte) in edits {
+            d[at % n] = byte;
+        }
+        for (name, bytes) in [("edited.osm.pbf", d), ("random.osm.pbf", random)] {
+            let p = dir.path().join(name);
+            std::fs::write(&p, &bytes).unwrap();
+            if let Err(e) = read_osm(&p, &mut Report::default()) {
+                proptest::prop_assert!(e.to_string().contains(&p.display().to_string()));
+            }
+        }
+    }
+}
