@@ -6,11 +6,15 @@
 
 pub mod color;
 pub mod crs;
+pub mod derive;
 pub mod export;
 pub mod geometry;
 pub mod grammar;
 pub mod input;
 pub mod kb;
+pub mod massing;
 pub mod model;
+pub mod pipeline;
+pub mod prepare;
 pub mod report;
 pub mod rng;

@@ -68,11 +68,12 @@ const MAX_STOREYS: u32 = 200;
 /// use citygen::export::{AtomicFile, BuildingWriter, ifc::IfcWriter};
 /// # fn f(ctx: &citygen::export::OutputContext, buildings: &[citygen::model::Building]) -> Result<(), Box<dyn std::error::Error>> {
 /// let file = AtomicFile::create(std::path::Path::new("out.ifc"))?;
-/// let mut w = IfcWriter::new(file).with_file_name("out.ifc");
+/// let mut w = IfcWriter::new(file.writer()?).with_file_name("out.ifc");
 /// w.begin(ctx)?;
 /// for b in buildings { w.write(b)?; }
 /// w.finish()?;
-/// w.into_inner()?.commit()?;
+/// drop(w);
+/// file.commit()?;
 /// # Ok(()) }
 /// ```
 pub struct IfcWriter<W: Write + Send> {
@@ -1720,14 +1721,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("out.ifc");
         let file = crate::export::AtomicFile::create(&target).unwrap();
-        let mut w: Box<IfcWriter<crate::export::AtomicFile>> =
-            Box::new(IfcWriter::new(file).with_file_name("out.ifc"));
+        let mut w = Box::new(IfcWriter::new(file.writer().unwrap()).with_file_name("out.ifc"));
         w.begin(&ctx()).unwrap();
         for b in sample() {
             w.write(&b).unwrap();
         }
         w.finish().unwrap();
-        w.into_inner().unwrap().commit().unwrap();
+        drop(w);
+        file.commit().unwrap();
         assert_eq!(
             std::fs::read(&target).unwrap(),
             write_all_named(&sample(), "out.ifc")

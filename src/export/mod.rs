@@ -7,7 +7,7 @@ pub mod ifc;
 pub mod step;
 
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, BufWriter};
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -53,11 +53,12 @@ pub trait BuildingWriter: Send {
 
 /// A file written atomically: bytes go to a temporary file beside the target, which is renamed
 /// over the target by [`AtomicFile::commit`]. Dropped without commit, the temporary is removed and
-/// the target is untouched.
+/// the target is untouched, so a failed or killed run never leaves a half-written output.
 pub struct AtomicFile {
     target: PathBuf,
     tmp: PathBuf,
-    file: Option<BufWriter<File>>,
+    file: File,
+    committed: bool,
 }
 
 impl AtomicFile {
@@ -76,39 +77,62 @@ impl AtomicFile {
         Ok(AtomicFile {
             target: target.to_path_buf(),
             tmp,
-            file: Some(BufWriter::with_capacity(1 << 20, file)),
+            file,
+            committed: false,
         })
     }
 
-    /// Flushes, syncs and renames the temporary file over the target.
-    pub fn commit(mut self) -> io::Result<()> {
-        if let Some(w) = self.file.take() {
-            let f = w.into_inner().map_err(|e| e.into_error())?;
-            f.sync_all()?;
-        }
-        std::fs::rename(&self.tmp, &self.target)
+    /// A buffered writer on the temporary file. Flush it before [`AtomicFile::commit`].
+    pub fn writer(&self) -> io::Result<BufWriter<File>> {
+        Ok(BufWriter::with_capacity(1 << 20, self.file.try_clone()?))
     }
-}
 
-impl Write for AtomicFile {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        match self.file.as_mut() {
-            Some(f) => f.write(buf),
-            None => Err(io::Error::other("file already committed")),
-        }
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        match self.file.as_mut() {
-            Some(f) => f.flush(),
-            None => Ok(()),
-        }
+    /// Syncs the temporary file and renames it over the target.
+    pub fn commit(mut self) -> io::Result<()> {
+        self.file.sync_all()?;
+        std::fs::rename(&self.tmp, &self.target)?;
+        self.committed = true;
+        Ok(())
     }
 }
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
-        if self.file.take().is_some() {
+        if !self.committed {
             let _ = std::fs::remove_file(&self.tmp);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn atomic_file_replaces_only_on_commit() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.txt");
+        std::fs::write(&target, b"old").unwrap();
+        {
+            let f = AtomicFile::create(&target).unwrap();
+            let mut w = f.writer().unwrap();
+            w.write_all(b"half").unwrap();
+            w.flush().unwrap();
+            // dropped without commit
+        }
+        assert_eq!(std::fs::read(&target).unwrap(), b"old");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "temporary left behind"
+        );
+        let f = AtomicFile::create(&target).unwrap();
+        let mut w = f.writer().unwrap();
+        w.write_all(b"new").unwrap();
+        w.flush().unwrap();
+        f.commit().unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }

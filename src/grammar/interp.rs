@@ -72,6 +72,9 @@ pub struct Caps {
     pub max_shapes: usize,
     /// Most pieces one operation may make (guards `repeat(X, 0.0001)`).
     pub max_pieces: usize,
+    /// Whether `comp` rules are applied. LOD1 and LOD2 need only the masses, so they derive
+    /// without facades: a shape whose chosen rule is a `comp` stays a leaf.
+    pub facades: bool,
 }
 
 impl Default for Caps {
@@ -81,6 +84,7 @@ impl Default for Caps {
             max_depth: 64,
             max_shapes: 100_000,
             max_pieces: 10_000,
+            facades: true,
         }
     }
 }
@@ -274,6 +278,10 @@ pub fn derive(
             rule: rule_idx,
             caps,
         };
+        if !caps.facades && matches!(rules.rules[rule_idx].op, Op::Comp) {
+            i += 1;
+            continue;
+        }
         let depth = tree.nodes[i].depth;
         if depth + 1 > caps.max_depth {
             return Err(ctx.cap("max_depth", caps.max_depth));
@@ -825,9 +833,10 @@ fn layout(
     face: bool,
 ) -> Result<Vec<(Option<usize>, f64, f64)>, DeriveError> {
     let name = kind.name();
-    if let Some(s) = sizes.iter().find(|s| **s < 0.0) {
-        return Err(ctx.bad(format!("{name}: negative size {s}")));
-    }
+    // A negative size (e.g. `sx/2 - bay/2` on a facade narrower than the bay) counts as zero:
+    // the piece is not made and the remainder rules apply, so a narrow facade stays closed.
+    let clamped: Vec<f64> = sizes.iter().map(|s| s.max(0.0)).collect();
+    let sizes = &clamped[..];
     let mut out: Vec<(Option<usize>, f64, f64)> = Vec::new();
     match kind {
         SplitKind::Absolute => {

@@ -438,6 +438,20 @@ impl KnowledgeBase {
         Ok((KnowledgeBase::from_zones(zones, file_name), repairs))
     }
 
+    /// A knowledge base with only the earth zone and the built-in defaults (used with `--rules`
+    /// and no `--kb`).
+    pub fn earth_only() -> KnowledgeBase {
+        match KnowledgeBase::parse_str("<earth/>", "<built-in>") {
+            Ok((kb, _)) => kb,
+            Err(_) => unreachable!("the built-in knowledge base parses"),
+        }
+    }
+
+    /// The path of a zone (`earth/France/...`), empty for an unknown index.
+    pub fn zone_path(&self, zone: usize) -> &str {
+        self.zones.get(zone).map_or("", |z| z.path.as_str())
+    }
+
     /// Builds a KB from zones (zone 0 earth, parents before children) and indexes the circles.
     fn from_zones(zones: Vec<Zone>, source: &str) -> KnowledgeBase {
         let mut boxes = Vec::new();

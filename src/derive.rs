@@ -1,0 +1,271 @@
+//! One lot to one building: zone, appearance, grammar derivation, masses, model.
+//!
+//! [`Generator::generate`] is a pure function of the lot, the rules and the seed: it runs on
+//! any rayon thread and gives the same building whatever the thread count.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use crate::color::Color;
+use crate::geometry::Polygon;
+use crate::grammar::{self, AttrValue, Attrs, Caps, Geometry, Label, RuleSet, ShapeTree};
+use crate::input::{BuildingTags, SourceId};
+use crate::kb::{compile, KnowledgeBase, Style};
+use crate::massing::{self, Mass};
+use crate::model::{Building, Lod, Part, RoofShape};
+use crate::prepare::{Lot, LotPiece};
+use crate::report::Outcome;
+use crate::rng::Rng;
+
+/// Where the rules come from.
+pub enum Rules {
+    /// Compiled per appearance from the knowledge base.
+    Kb,
+    /// One ruleset file for every building.
+    File(Arc<RuleSet>),
+}
+
+/// Everything needed to turn lots into buildings.
+pub struct Generator {
+    pub kb: KnowledgeBase,
+    pub rules: Rules,
+    pub lod: Lod,
+    pub seed: u64,
+    pub caps: Caps,
+    /// Rulesets compiled from appearances, by rule text.
+    compiled: Mutex<HashMap<String, Arc<RuleSet>>>,
+}
+
+/// A per-building remark for the report.
+pub type Note = (Outcome, String);
+
+impl Generator {
+    pub fn new(kb: KnowledgeBase, rules: Rules, lod: Lod, seed: u64, caps: Caps) -> Generator {
+        Generator {
+            kb,
+            rules,
+            lod,
+            seed,
+            caps,
+            compiled: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// Builds one lot. `Err` carries the reason the building is skipped.
+    pub fn generate(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
+        let zone = self.kb.locate(lot.lonlat.0, lot.lonlat.1);
+        let mut notes = Vec::new();
+        let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
+        let outline;
+        if lot.draw_outline {
+            outline = LotPiece {
+                id: lot.id,
+                polygons: lot.polygons.clone(),
+                tags: lot.tags.clone(),
+            };
+            pieces.insert(0, &outline);
+        }
+        let mut parts: Vec<Part> = Vec::new();
+        let mut label = None;
+        for piece in pieces {
+            let mut rng = Rng::new(self.seed, piece.id.seed_value());
+            let tags = merged_tags(&piece.tags, &lot.tags, piece.id != lot.id);
+            let (style, style_notes) = self.kb.style_for(zone, &tags, &mut rng);
+            notes.extend(style_notes.into_iter().map(|n| (Outcome::Note, n)));
+            if label.is_none() {
+                label = Some(style.appearance_label.clone());
+            }
+            let rules = self.rules_for(&style)?;
+            for polygon in &piece.polygons {
+                let masses = self.masses(polygon, &style, &rules, &mut rng, piece.id)?;
+                for mass in masses {
+                    let roof = match massing::roof_geometry(&mass) {
+                        Ok(r) => r,
+                        Err(f) => {
+                            notes.push((
+                                Outcome::Note,
+                                format!("{} roof drawn flat: {}", f.asked.osm_name(), f.reason),
+                            ));
+                            crate::geometry::roof::flat(&mass.footprint)
+                        }
+                    };
+                    let key = format!("p{}", parts.len());
+                    parts.push(massing::build_part(key, &mass, &roof, self.lod));
+                }
+            }
+        }
+        if parts.is_empty() {
+            return Err("the rules produced no building mass".into());
+        }
+        let base_z = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
+        let top = parts
+            .iter()
+            .map(|p| p.top_z)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let tallest = parts
+            .iter()
+            .max_by(|a, b| a.top_z.total_cmp(&b.top_z))
+            .map(|p| (p.storeys, p.roof_shape));
+        let (storeys, roof_shape) = tallest.unwrap_or((1, RoofShape::Flat));
+        Ok((
+            Building {
+                id: lot.id,
+                name: lot.tags.name.clone(),
+                zone: self.kb.zone_path(zone).to_string(),
+                appearance: match &self.rules {
+                    Rules::Kb => label.unwrap_or_default(),
+                    Rules::File(r) => format!("rules:{}", r.file()),
+                },
+                base_z,
+                measured_height: top - base_z,
+                storeys_above_ground: storeys,
+                roof_shape,
+                parts,
+                lod: self.lod,
+            },
+            notes,
+        ))
+    }
+
+    fn rules_for(&self, style: &Style) -> Result<Arc<RuleSet>, String> {
+        match &self.rules {
+            Rules::File(r) => Ok(r.clone()),
+            Rules::Kb => {
+                let text = compile::ruleset_text(style);
+                let mut cache = self
+                    .compiled
+                    .lock()
+                    .map_err(|_| "rule cache poisoned".to_string())?;
+                if let Some(r) = cache.get(&text) {
+                    return Ok(r.clone());
+                }
+                let parsed = grammar::parse(&text, &format!("<kb {}>", style.appearance_label))
+                    .map_err(|e| {
+                        format!("rules compiled from the knowledge base do not parse: {e}")
+                    })?;
+                let r = Arc::new(parsed);
+                cache.insert(text, r.clone());
+                Ok(r)
+            }
+        }
+    }
+
+    /// Derives one footprint polygon and returns the masses of the tree.
+    fn masses(
+        &self,
+        polygon: &Polygon,
+        style: &Style,
+        rules: &RuleSet,
+        rng: &mut Rng,
+        id: SourceId,
+    ) -> Result<Vec<Mass>, String> {
+        let mut style = style.clone();
+        // A total height with a pitched roof of unknown height: the eave is what is left under
+        // the roof at the zone's pitch.
+        if let (Some(total), None, true) = (
+            style.total_height,
+            style.roof_height,
+            style.roof != RoofShape::Flat,
+        ) {
+            let probe = Mass {
+                footprint: polygon.clone(),
+                base_z: 0.0,
+                eave_z: 0.0,
+                storeys: 1,
+                roof: style.roof,
+                roof_angle_deg: style.roof_angle_deg,
+                roof_height: None,
+                wall_color: style.wall_color,
+                roof_color: style.roof_color,
+            };
+            if let Ok(r) = massing::roof_geometry(&probe) {
+                let usable = (total - style.min_height).max(0.0);
+                style.fit_total_height(r.height.min(0.5 * usable));
+            }
+        }
+        let attrs: Attrs = compile::axiom_attrs(&style);
+        let tree = grammar::derive(rules, polygon, attrs, rng, &self.caps)
+            .map_err(|e| format!("derivation failed for {id}: {e}"))?;
+        Ok(masses_of(&tree, &style))
+    }
+}
+
+/// Part tags take precedence; a part without colours takes its outline's.
+fn merged_tags(piece: &BuildingTags, outline: &BuildingTags, is_part: bool) -> BuildingTags {
+    let mut t = piece.clone();
+    if is_part {
+        t.colour = t.colour.or(outline.colour);
+        t.roof_colour = t.roof_colour.or(outline.roof_colour);
+        t.material = t.material.clone().or(outline.material.clone());
+    }
+    t
+}
+
+/// The masses of a derived tree: volumes labelled building or building part that contain no
+/// other such volume (seed 003 §3.5: "each shape marked building part that contains no building
+/// part becomes an IfcBuilding").
+pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
+    let is_mass = |i: usize| {
+        matches!(tree.nodes[i].label, Label::Building | Label::BuildingPart)
+            && matches!(tree.nodes[i].geometry, Geometry::Volume { .. })
+    };
+    let mut has_mass_below = vec![false; tree.nodes.len()];
+    for i in (0..tree.nodes.len()).rev() {
+        if is_mass(i) || has_mass_below[i] {
+            if let Some(p) = tree.nodes[i].parent {
+                if is_mass(i) || has_mass_below[i] {
+                    has_mass_below[p] = true;
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (i, node) in tree.nodes.iter().enumerate() {
+        if !is_mass(i) || has_mass_below[i] {
+            continue;
+        }
+        let Geometry::Volume {
+            footprint,
+            z0,
+            height,
+            ..
+        } = &node.geometry
+        else {
+            continue;
+        };
+        let storeys = node
+            .children
+            .clone()
+            .filter(|c| tree.nodes[*c].label == Label::Storey)
+            .count() as u32;
+        let text = |k: &str| match node.attrs.get(k) {
+            Some(AttrValue::Str(s)) => Some(s.to_string()),
+            Some(AttrValue::Num(n)) => Some(n.to_string()),
+            None => None,
+        };
+        let num = |k: &str| match node.attrs.get(k) {
+            Some(AttrValue::Num(n)) if n.is_finite() => Some(*n),
+            Some(AttrValue::Str(s)) => s.trim().parse::<f64>().ok().filter(|v| v.is_finite()),
+            _ => None,
+        };
+        let roof = text("roof")
+            .and_then(|r| RoofShape::parse(&r))
+            .unwrap_or(style.roof);
+        out.push(Mass {
+            footprint: footprint.clone(),
+            base_z: *z0,
+            eave_z: z0 + height,
+            storeys: if storeys > 0 { storeys } else { style.storeys },
+            roof,
+            roof_angle_deg: num("roofangle").unwrap_or(style.roof_angle_deg),
+            roof_height: num("roofheight").or(style.roof_height),
+            wall_color: text("color")
+                .and_then(|c| Color::parse(&c))
+                .unwrap_or(style.wall_color),
+            roof_color: text("roofcolor")
+                .and_then(|c| Color::parse(&c))
+                .unwrap_or(style.roof_color),
+        });
+    }
+    out
+}

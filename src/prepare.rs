@@ -1,0 +1,614 @@
+//! From source footprints to lots in the local frame: projection, ring clean-up and repair,
+//! and `building:part` grouping under their outlines.
+//!
+//! Every footprint comes out either as (part of) a [`Lot`] or as a report entry with its reason.
+
+use geo::BooleanOps;
+use glam::DVec2;
+use rstar::{RTree, RTreeObject, AABB};
+
+use crate::crs::Crs;
+use crate::geometry::{ring_signed_area, Polygon};
+use crate::input::{BuildingTags, Footprint, FootprintKind, SourceId, SourcePolygon};
+use crate::report::{Outcome, Report};
+
+/// Vertices closer than this (metres) are merged.
+const MERGE_TOLERANCE: f64 = 1e-3;
+/// Footprint polygons smaller than this (square metres) are dropped.
+const MIN_AREA: f64 = 0.5;
+/// Rings with more vertices than this are not checked for self-intersection pair by pair.
+const MAX_CHECKED_VERTICES: usize = 20_000;
+
+/// A piece of a building with its own tags (a `building:part`, or the outline itself).
+#[derive(Clone, Debug)]
+pub struct LotPiece {
+    pub id: SourceId,
+    pub polygons: Vec<Polygon>,
+    pub tags: BuildingTags,
+}
+
+/// One building to generate, in the local frame.
+#[derive(Clone, Debug)]
+pub struct Lot {
+    pub id: SourceId,
+    pub tags: BuildingTags,
+    /// The outline polygons (several for a multipolygon with several outer rings).
+    pub polygons: Vec<Polygon>,
+    /// `building:part`s found inside the outline, in id order. When they cover the outline,
+    /// the building is built from them alone.
+    pub parts: Vec<LotPiece>,
+    /// Whether the outline itself is also drawn (no parts, or parts that leave it uncovered).
+    pub draw_outline: bool,
+    /// Representative point in WGS84 (lon, lat) degrees, for the knowledge-base zone.
+    pub lonlat: (f64, f64),
+}
+
+/// All lots of a run and the frame they are in.
+#[derive(Debug)]
+pub struct Site {
+    pub crs: Crs,
+    /// Output-CRS coordinates of the local origin.
+    pub origin: DVec2,
+    pub origin_lonlat: (f64, f64),
+    pub lots: Vec<Lot>,
+}
+
+/// Projects and cleans every footprint, then groups parts under outlines.
+///
+/// `source_crs` `None` means WGS84 degrees. `out_crs` `None` picks the UTM zone of the data's
+/// centre. The origin is the centre of the data's bounds, rounded to the metre.
+pub fn prepare(
+    footprints: Vec<Footprint>,
+    source_crs: Option<Crs>,
+    out_crs: Option<Crs>,
+    report: &mut Report,
+) -> Site {
+    let to_lonlat = |x: f64, y: f64| match source_crs {
+        None | Some(Crs::Wgs84) => (x, y),
+        Some(c) => c.to_lonlat(x, y),
+    };
+    // Output CRS: the UTM zone of the centre of the data.
+    let crs = out_crs.unwrap_or_else(|| {
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for f in &footprints {
+            for p in f.polygons.iter().flat_map(|p| p.outer.iter()) {
+                let (lon, lat) = to_lonlat(p.0, p.1);
+                if lon.is_finite() && lat.is_finite() {
+                    lo = lo.min(DVec2::new(lon, lat));
+                    hi = hi.max(DVec2::new(lon, lat));
+                }
+            }
+        }
+        if lo.x.is_finite() {
+            let c = (lo + hi) * 0.5;
+            Crs::utm_for(c.x, c.y)
+        } else {
+            Crs::utm_for(0.0, 0.0)
+        }
+    });
+    let same = source_crs == Some(crs);
+    let project = |x: f64, y: f64| -> (DVec2, (f64, f64)) {
+        if same {
+            (DVec2::new(x, y), crs.to_lonlat(x, y))
+        } else {
+            let ll = to_lonlat(x, y);
+            let (px, py) = crs.from_lonlat(ll.0, ll.1);
+            (DVec2::new(px, py), ll)
+        }
+    };
+
+    // Project everything in absolute output-CRS coordinates first.
+    struct Projected {
+        id: SourceId,
+        kind: FootprintKind,
+        tags: BuildingTags,
+        polygons: Vec<Polygon>,
+        lonlat: (f64, f64),
+    }
+    let mut projected = Vec::with_capacity(footprints.len());
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for f in footprints {
+        let mut lonlat_sum = (0.0, 0.0, 0usize);
+        let mut polys = Vec::with_capacity(f.polygons.len());
+        let mut bad = None;
+        for sp in &f.polygons {
+            let ring = |r: &[(f64, f64)], acc: &mut (f64, f64, usize)| -> Option<Vec<DVec2>> {
+                let mut out = Vec::with_capacity(r.len());
+                for &(x, y) in r {
+                    let (p, ll) = project(x, y);
+                    if !(p.x.is_finite() && p.y.is_finite()) {
+                        return None;
+                    }
+                    acc.0 += ll.0;
+                    acc.1 += ll.1;
+                    acc.2 += 1;
+                    out.push(p);
+                }
+                Some(out)
+            };
+            let SourcePolygon { outer, holes } = sp;
+            let Some(o) = ring(outer, &mut lonlat_sum) else {
+                bad = Some("coordinates cannot be projected to the output CRS");
+                break;
+            };
+            let mut hs = Vec::with_capacity(holes.len());
+            for h in holes {
+                let mut dummy = (0.0, 0.0, 0);
+                match ring(h, &mut dummy) {
+                    Some(r) => hs.push(r),
+                    None => bad = Some("coordinates cannot be projected to the output CRS"),
+                }
+            }
+            polys.push(Polygon {
+                outer: o,
+                holes: hs,
+            });
+        }
+        if let Some(reason) = bad {
+            report.add(Some(f.id), Outcome::Skipped, reason);
+            continue;
+        }
+        for p in &polys {
+            for q in &p.outer {
+                lo = lo.min(*q);
+                hi = hi.max(*q);
+            }
+        }
+        let n = lonlat_sum.2.max(1) as f64;
+        projected.push(Projected {
+            id: f.id,
+            kind: f.kind,
+            tags: f.tags,
+            polygons: polys,
+            lonlat: (lonlat_sum.0 / n, lonlat_sum.1 / n),
+        });
+    }
+    let origin = if lo.x.is_finite() {
+        ((lo + hi) * 0.5).round()
+    } else {
+        DVec2::ZERO
+    };
+    let origin_lonlat = crs.to_lonlat(origin.x, origin.y);
+
+    // Clean the rings in the local frame.
+    let mut outlines = Vec::new();
+    let mut pieces = Vec::new();
+    for p in projected {
+        let local: Vec<Polygon> = p.polygons.iter().map(|q| q.translated(-origin)).collect();
+        let Some(polygons) = clean_polygons(p.id, local, report) else {
+            continue;
+        };
+        match p.kind {
+            FootprintKind::Building => outlines.push(Lot {
+                id: p.id,
+                tags: p.tags,
+                polygons,
+                parts: Vec::new(),
+                draw_outline: true,
+                lonlat: p.lonlat,
+            }),
+            FootprintKind::Part => pieces.push((
+                LotPiece {
+                    id: p.id,
+                    polygons,
+                    tags: p.tags,
+                },
+                p.lonlat,
+            )),
+        }
+    }
+    let lots = group_parts(outlines, pieces, report);
+    Site {
+        crs,
+        origin,
+        origin_lonlat,
+        lots,
+    }
+}
+
+/// An outline's bounding box in the part-assignment index.
+struct OutlineBox {
+    index: usize,
+    aabb: AABB<[f64; 2]>,
+}
+
+impl RTreeObject for OutlineBox {
+    type Envelope = AABB<[f64; 2]>;
+    fn envelope(&self) -> Self::Envelope {
+        self.aabb
+    }
+}
+
+/// Puts each part under the smallest outline containing its representative point. Parts inside
+/// no outline become buildings of their own. An outline is drawn as well unless its parts
+/// cover at least 90 % of its area.
+fn group_parts(
+    mut outlines: Vec<Lot>,
+    pieces: Vec<(LotPiece, (f64, f64))>,
+    report: &mut Report,
+) -> Vec<Lot> {
+    let boxes: Vec<OutlineBox> = outlines
+        .iter()
+        .enumerate()
+        .map(|(index, l)| {
+            let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+            for p in &l.polygons {
+                let (a, b) = p.bounds();
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+            OutlineBox {
+                index,
+                aabb: AABB::from_corners([lo.x, lo.y], [hi.x, hi.y]),
+            }
+        })
+        .collect();
+    let tree = RTree::bulk_load(boxes);
+    let mut orphans = Vec::new();
+    for (piece, lonlat) in pieces {
+        let probe = interior_point(&piece.polygons[0]);
+        let owner = tree
+            .locate_in_envelope_intersecting(AABB::from_point([probe.x, probe.y]))
+            .filter(|b| outlines[b.index].polygons.iter().any(|p| p.contains(probe)))
+            .min_by(|a, b| {
+                let area = |i: usize| outlines[i].polygons.iter().map(Polygon::area).sum::<f64>();
+                area(a.index)
+                    .total_cmp(&area(b.index))
+                    .then(a.index.cmp(&b.index))
+            })
+            .map(|b| b.index);
+        match owner {
+            Some(i) => outlines[i].parts.push(piece),
+            None => {
+                report.add(
+                    Some(piece.id),
+                    Outcome::Note,
+                    "building:part lies in no building outline; generated as a building of its own",
+                );
+                orphans.push(Lot {
+                    id: piece.id,
+                    tags: piece.tags.clone(),
+                    polygons: piece.polygons.clone(),
+                    parts: Vec::new(),
+                    draw_outline: true,
+                    lonlat,
+                });
+            }
+        }
+    }
+    for lot in &mut outlines {
+        if lot.parts.is_empty() {
+            continue;
+        }
+        lot.parts.sort_by_key(|p| p.id);
+        let outline_area: f64 = lot.polygons.iter().map(Polygon::area).sum();
+        let parts_area: f64 = lot
+            .parts
+            .iter()
+            .flat_map(|p| p.polygons.iter())
+            .map(Polygon::area)
+            .sum();
+        lot.draw_outline = parts_area < 0.9 * outline_area;
+        if lot.draw_outline {
+            report.add(
+                Some(lot.id),
+                Outcome::Note,
+                format!(
+                    "building:parts cover {:.0} % of the outline; the outline is drawn too",
+                    100.0 * parts_area / outline_area.max(1e-9)
+                ),
+            );
+        }
+    }
+    outlines.extend(orphans);
+    outlines.sort_by_key(|l| l.id);
+    outlines
+}
+
+/// A point inside the polygon: the centroid when it is inside, else the midpoint of the widest
+/// horizontal chord through the middle of the bounds.
+pub fn interior_point(p: &Polygon) -> DVec2 {
+    let c = ring_centroid(&p.outer);
+    if p.contains(c) {
+        return c;
+    }
+    let (lo, hi) = p.bounds();
+    for k in 1..8 {
+        let y = lo.y + (hi.y - lo.y) * (k as f64 / 8.0);
+        let mut xs: Vec<f64> = Vec::new();
+        for ring in p.rings() {
+            let n = ring.len();
+            for i in 0..n {
+                let (a, b) = (ring[i], ring[(i + 1) % n]);
+                if (a.y > y) != (b.y > y) {
+                    xs.push(a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y));
+                }
+            }
+        }
+        xs.sort_by(f64::total_cmp);
+        let best = xs
+            .chunks_exact(2)
+            .max_by(|u, v| (u[1] - u[0]).total_cmp(&(v[1] - v[0])));
+        if let Some(seg) = best {
+            let q = DVec2::new(0.5 * (seg[0] + seg[1]), y);
+            if p.contains(q) {
+                return q;
+            }
+        }
+    }
+    p.outer[0]
+}
+
+/// Area centroid of a ring (vertex mean for a degenerate ring).
+pub fn ring_centroid(r: &[DVec2]) -> DVec2 {
+    let a = ring_signed_area(r);
+    if a.abs() < 1e-12 {
+        return r.iter().copied().sum::<DVec2>() / r.len().max(1) as f64;
+    }
+    let o = r[0];
+    let mut c = DVec2::ZERO;
+    for i in 0..r.len() {
+        let (p, q) = (r[i] - o, r[(i + 1) % r.len()] - o);
+        let cross = p.perp_dot(q);
+        c += (p + q) * cross;
+    }
+    o + c / (6.0 * a)
+}
+
+/// Cleans polygons: merges near-duplicate vertices, drops spikes and degenerate rings,
+/// repairs self-intersections and stray holes with a boolean union, drops slivers.
+/// `None` (with a report entry) when nothing usable is left.
+fn clean_polygons(id: SourceId, polys: Vec<Polygon>, report: &mut Report) -> Option<Vec<Polygon>> {
+    let mut out = Vec::with_capacity(polys.len());
+    let mut repaired = Vec::new();
+    for p in polys {
+        let Some(outer) = clean_ring(&p.outer) else {
+            repaired.push("dropped an outer ring with fewer than 3 distinct vertices".to_string());
+            continue;
+        };
+        let mut holes = Vec::with_capacity(p.holes.len());
+        for h in &p.holes {
+            match clean_ring(h) {
+                Some(r) => holes.push(r),
+                None => repaired.push("dropped a degenerate inner ring".to_string()),
+            }
+        }
+        let poly = Polygon::new(outer, holes);
+        if is_valid(&poly) {
+            out.push(poly);
+        } else {
+            let fixed = repair(&poly);
+            repaired.push(format!(
+                "self-intersecting or inconsistent rings resolved into {} polygon(s)",
+                fixed.len()
+            ));
+            out.extend(fixed);
+        }
+    }
+    let before = out.len();
+    out.retain(|p| p.area() >= MIN_AREA);
+    if out.len() < before {
+        repaired.push(format!(
+            "dropped {} polygon(s) smaller than {MIN_AREA} m²",
+            before - out.len()
+        ));
+    }
+    if out.is_empty() {
+        let why = if repaired.is_empty() {
+            "no usable polygon".to_string()
+        } else {
+            repaired.join("; ")
+        };
+        report.add(
+            Some(id),
+            Outcome::Skipped,
+            format!("degenerate footprint: {why}"),
+        );
+        return None;
+    }
+    if !repaired.is_empty() {
+        report.add(Some(id), Outcome::Repaired, repaired.join("; "));
+    }
+    Some(out)
+}
+
+/// Merges vertices closer than the tolerance and removes zero-width spikes (a, b, a). `None`
+/// when fewer than 3 vertices are left. (A ring can still have zero area, e.g. a bow-tie: the
+/// validity check and the repair handle that.)
+fn clean_ring(r: &[DVec2]) -> Option<Vec<DVec2>> {
+    let mut v: Vec<DVec2> = Vec::with_capacity(r.len());
+    for p in r {
+        if v.last().is_none_or(|q| q.distance(*p) > MERGE_TOLERANCE) {
+            v.push(*p);
+        }
+    }
+    while v.len() > 1 && v[0].distance(v[v.len() - 1]) <= MERGE_TOLERANCE {
+        v.pop();
+    }
+    // Spikes: a vertex whose neighbours coincide.
+    let mut changed = true;
+    while changed && v.len() >= 3 {
+        changed = false;
+        let n = v.len();
+        for i in 0..n {
+            let (a, c) = (v[(i + n - 1) % n], v[(i + 1) % n]);
+            if a.distance(c) <= MERGE_TOLERANCE {
+                // Remove the spike tip and one of the coinciding neighbours.
+                let j = (i + 1) % n;
+                let (first, second) = if i > j { (i, j) } else { (j, i) };
+                v.remove(first);
+                v.remove(second);
+                changed = true;
+                break;
+            }
+        }
+    }
+    (v.len() >= 3).then_some(v)
+}
+
+/// Whether rings are simple, do not cross each other, and holes lie inside the outer ring.
+fn is_valid(p: &Polygon) -> bool {
+    let total: usize = p.rings().map(Vec::len).sum();
+    if total > MAX_CHECKED_VERTICES {
+        return true; // too large to check pairwise; the writers cope with it
+    }
+    let segs: Vec<(DVec2, DVec2, usize, usize)> = p
+        .rings()
+        .enumerate()
+        .flat_map(|(ri, r)| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()], ri, i)))
+        .collect();
+    for (i, a) in segs.iter().enumerate() {
+        for b in &segs[i + 1..] {
+            let adjacent = a.2 == b.2 && {
+                let n = p.rings().nth(a.2).map_or(0, Vec::len);
+                b.3 == a.3 + 1 || (a.3 == 0 && b.3 == n - 1)
+            };
+            if adjacent {
+                continue;
+            }
+            if segments_touch(a.0, a.1, b.0, b.1) {
+                return false;
+            }
+        }
+    }
+    p.holes.iter().all(|h| {
+        h.iter()
+            .all(|q| crate::geometry::ring_contains(&p.outer, *q))
+    })
+}
+
+fn segments_touch(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
+    let orient = |p: DVec2, q: DVec2, r: DVec2| (q - p).perp_dot(r - p);
+    let (d1, d2, d3, d4) = (
+        orient(c, d, a),
+        orient(c, d, b),
+        orient(a, b, c),
+        orient(a, b, d),
+    );
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
+        return true;
+    }
+    let on = |p: DVec2, q: DVec2, r: DVec2, o: f64| {
+        o.abs() <= 1e-12 * (1.0 + (q - p).length_squared())
+            && r.x >= p.x.min(q.x)
+            && r.x <= p.x.max(q.x)
+            && r.y >= p.y.min(q.y)
+            && r.y <= p.y.max(q.y)
+    };
+    on(c, d, a, d1) || on(c, d, b, d2) || on(a, b, c, d3) || on(a, b, d, d4)
+}
+
+/// Resolves self-intersections with a boolean union of the polygon with nothing.
+fn repair(p: &Polygon) -> Vec<Polygon> {
+    let to_ring =
+        |r: &Vec<DVec2>| geo::LineString::from(r.iter().map(|q| (q.x, q.y)).collect::<Vec<_>>());
+    let g = geo::Polygon::new(to_ring(&p.outer), p.holes.iter().map(to_ring).collect());
+    let fixed = g.union(&geo::MultiPolygon::<f64>::new(Vec::new()));
+    fixed
+        .0
+        .into_iter()
+        .filter_map(|gp| {
+            let ring = |ls: &geo::LineString<f64>| -> Vec<DVec2> {
+                ls.0.iter().map(|c| DVec2::new(c.x, c.y)).collect()
+            };
+            let outer = clean_ring(&ring(gp.exterior()))?;
+            let holes = gp
+                .interiors()
+                .iter()
+                .filter_map(|h| clean_ring(&ring(h)))
+                .collect();
+            Some(Polygon::new(outer, holes))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sq(x0: f64, y0: f64, s: f64) -> Vec<DVec2> {
+        vec![
+            DVec2::new(x0, y0),
+            DVec2::new(x0 + s, y0),
+            DVec2::new(x0 + s, y0 + s),
+            DVec2::new(x0, y0 + s),
+        ]
+    }
+
+    #[test]
+    fn bow_tie_is_repaired_into_two_triangles() {
+        let bow = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(10.0, 10.0),
+            DVec2::new(10.0, 0.0),
+            DVec2::new(0.0, 10.0),
+        ];
+        let p = Polygon {
+            outer: bow,
+            holes: vec![],
+        };
+        assert!(!is_valid(&p));
+        let mut report = Report::default();
+        let out = clean_polygons(SourceId::Way(1), vec![p], &mut report).unwrap();
+        assert_eq!(out.len(), 2);
+        let area: f64 = out.iter().map(Polygon::area).sum();
+        assert!((area - 50.0).abs() < 1e-6, "{area}");
+        assert_eq!(report.entries[0].outcome, Outcome::Repaired);
+    }
+
+    #[test]
+    fn duplicates_and_spikes_are_removed() {
+        let mut r = sq(0.0, 0.0, 10.0);
+        r.insert(1, DVec2::new(0.0, 0.0));
+        r.insert(3, DVec2::new(15.0, 0.0)); // spike out of (10,0) and back
+        r.insert(4, DVec2::new(10.0, 0.0));
+        let c = clean_ring(&r).unwrap();
+        assert_eq!(c.len(), 4, "{c:?}");
+    }
+
+    #[test]
+    fn sliver_is_skipped_with_a_reason() {
+        let sliver = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(10.0, 0.0),
+            DVec2::new(10.0, 0.01),
+        ];
+        let mut report = Report::default();
+        let out = clean_polygons(
+            SourceId::Way(2),
+            vec![Polygon::new(sliver, vec![])],
+            &mut report,
+        );
+        assert!(out.is_none());
+        assert_eq!(report.entries[0].outcome, Outcome::Skipped);
+        assert!(report.entries[0].reason.contains("smaller than"));
+    }
+
+    #[test]
+    fn courtyard_stays_a_hole() {
+        let p = Polygon::new(sq(0.0, 0.0, 20.0), vec![sq(5.0, 5.0, 10.0)]);
+        let mut report = Report::default();
+        let out = clean_polygons(SourceId::Relation(3), vec![p], &mut report).unwrap();
+        assert_eq!(out[0].holes.len(), 1);
+        assert!((out[0].area() - 300.0).abs() < 1e-9);
+        assert!(report.entries.is_empty());
+    }
+
+    #[test]
+    fn interior_point_of_a_u_shape_is_inside() {
+        let u = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(30.0, 0.0),
+            DVec2::new(30.0, 20.0),
+            DVec2::new(20.0, 20.0),
+            DVec2::new(20.0, 5.0),
+            DVec2::new(10.0, 5.0),
+            DVec2::new(10.0, 20.0),
+            DVec2::new(0.0, 20.0),
+        ];
+        let p = Polygon::new(u, vec![]);
+        assert!(p.contains(interior_point(&p)));
+    }
+}

@@ -1,0 +1,202 @@
+//! End-to-end tests: the real binary on the real samples in data/.
+
+mod common;
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use common::*;
+use osmpbf::{Element, ElementReader};
+
+/// Building ways and relations of the Monaco extract, counted independently of citygen, with
+/// the tags the tests need.
+fn monaco_buildings() -> BTreeMap<String, BTreeMap<String, String>> {
+    let reader = ElementReader::from_path(root().join(MONACO)).unwrap();
+    let mut out = BTreeMap::new();
+    reader
+        .for_each(|e| {
+            let (id, tags): (String, BTreeMap<String, String>) = match &e {
+                Element::Way(w) => (
+                    format!("way/{}", w.id()),
+                    w.tags().map(|(k, v)| (k.into(), v.into())).collect(),
+                ),
+                Element::Relation(r) => (
+                    format!("relation/{}", r.id()),
+                    r.tags().map(|(k, v)| (k.into(), v.into())).collect(),
+                ),
+                _ => return,
+            };
+            let is_building = tags.get("building").is_some_and(|v| v != "no");
+            let is_mp =
+                id.starts_with("way") || tags.get("type").is_some_and(|t| t == "multipolygon");
+            if is_building && is_mp {
+                out.insert(id, tags);
+            }
+        })
+        .unwrap();
+    out
+}
+
+/// gml:id of the Building elements of a CityGML file, with their element text.
+fn citygml_buildings(gml: &str) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for chunk in gml.split("<bldg:Building gml:id=\"").skip(1) {
+        let id = chunk[..chunk.find('"').unwrap()].to_string();
+        let end = chunk.find("</bldg:Building>").unwrap_or(chunk.len());
+        out.insert(id, chunk[..end].to_string());
+    }
+    out
+}
+
+fn source_key(id: &str) -> String {
+    id.replace('/', "_")
+}
+
+#[test]
+fn monaco_lod2_every_building_is_in_all_outputs_or_reported() {
+    let run = run_all("--osm", MONACO, "2", &[]);
+    let buildings = monaco_buildings();
+    assert!(
+        buildings.len() > 1000,
+        "independent count found {}",
+        buildings.len()
+    );
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    let in_gml = citygml_buildings(&gml);
+    let report = run.report_json();
+    let skipped: BTreeSet<String> = report["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["outcome"] == "skipped")
+        .map(|e| e["id"].as_str().unwrap().to_string())
+        .collect();
+    let gml_keys: BTreeSet<String> = in_gml
+        .keys()
+        .map(|k| k.trim_start_matches("B_").to_string())
+        .collect();
+    for id in buildings.keys() {
+        assert!(
+            gml_keys.contains(&source_key(id)) || skipped.contains(id),
+            "{id} is neither in the CityGML nor reported as skipped"
+        );
+    }
+    // The three formats agree on the number of buildings, and with the report.
+    let generated = report["generated"].as_u64().unwrap() as usize;
+    assert_eq!(in_gml.len(), generated);
+    let (json, _) = glb_json(&run.glb);
+    let scene_nodes = json["scenes"][0]["nodes"].as_array().unwrap().len();
+    assert_eq!(scene_nodes, generated);
+    let ifc = step_entities(&run.ifc);
+    let top_level = ifc
+        .values()
+        .filter(|(t, a)| t == "IFCBUILDING" && !a.contains(".PARTIAL."))
+        .count();
+    assert_eq!(top_level, generated);
+}
+
+#[test]
+fn height_tag_gives_measured_height_and_top() {
+    let buildings = monaco_buildings();
+    // A plain building with a numeric height and no roof shape or parts.
+    let (id, h) = buildings
+        .iter()
+        .filter(|(_, t)| !t.contains_key("roof:shape") && !t.contains_key("min_height"))
+        .find_map(|(id, t)| Some((id.clone(), t.get("height")?.trim().parse::<f64>().ok()?)))
+        .expect("a Monaco building with height=");
+    let run = run_all("--osm", MONACO, "2", &[]);
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    let b = &citygml_buildings(&gml)[&format!("B_{}", source_key(&id))];
+    let mh: f64 = b
+        .split("<bldg:measuredHeight uom=\"m\">")
+        .nth(1)
+        .unwrap()
+        .split('<')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        (mh - h).abs() < 0.01,
+        "{id}: measuredHeight {mh} vs height={h}"
+    );
+    let zs: Vec<f64> = b
+        .split("<gml:posList")
+        .skip(1)
+        .flat_map(|s| {
+            let body = &s[s.find('>').unwrap() + 1..s.find("</gml:posList>").unwrap()];
+            body.split_whitespace()
+                .map(|v| v.parse::<f64>().unwrap())
+                .collect::<Vec<_>>()
+                .chunks(3)
+                .map(|c| c[2])
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let (lo, hi) = zs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), z| {
+            (a.min(*z), b.max(*z))
+        });
+    assert!(
+        (hi - lo - h).abs() < 0.01,
+        "{id}: geometry spans {lo}..{hi}, height={h}"
+    );
+}
+
+#[test]
+fn threads_do_not_change_a_byte() {
+    let one = run_all("--osm", MONACO, "2", &["--threads", "1", "--seed", "7"]);
+    let two = run_all("--osm", MONACO, "2", &["--threads", "2", "--seed", "7"]);
+    for (a, b) in [
+        (&one.ifc, &two.ifc),
+        (&one.gml, &two.gml),
+        (&one.glb, &two.glb),
+        (&one.report, &two.report),
+    ] {
+        assert!(
+            std::fs::read(a).unwrap() == std::fs::read(b).unwrap(),
+            "{} differs between 1 and 2 threads",
+            a.display()
+        );
+    }
+}
+
+#[test]
+fn clifton_shapefile_lod1_runs_and_counts_agree() {
+    let run = run_all("--shp", CLIFTON, "1", &[]);
+    let report = run.report_json();
+    let generated = report["generated"].as_u64().unwrap() as usize;
+    let skipped = report["skipped"].as_u64().unwrap() as usize;
+    assert_eq!(report["read"].as_u64().unwrap() as usize, 2989);
+    assert!(
+        generated + skipped >= 2989,
+        "generated {generated} + skipped {skipped}"
+    );
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    assert_eq!(citygml_buildings(&gml).len(), generated);
+    assert!(
+        gml.contains("EPSG:326"),
+        "default output CRS is the data's UTM zone"
+    );
+}
+
+#[test]
+fn missing_input_is_a_clear_error_naming_the_path() {
+    let out = citygen(&[
+        "--osm",
+        "no/such/file.pbf",
+        "--kb",
+        KB,
+        "--ifc",
+        "/tmp/never.ifc",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no/such/file.pbf"), "{err}");
+}
+
+#[test]
+fn no_output_is_a_usage_error() {
+    let out = citygen(&["--osm", MONACO, "--kb", KB]);
+    assert_eq!(out.status.code(), Some(2));
+}
