@@ -77,7 +77,8 @@ impl Generator {
             }
             let rules = self.rules_for(&style)?;
             for polygon in &piece.polygons {
-                let masses = self.masses(polygon, &style, &rules, &mut rng, piece.id)?;
+                let masses =
+                    self.masses(polygon, &style, &rules, &mut rng, piece.id, &mut notes)?;
                 for mass in masses {
                     let roof = match massing::roof_geometry(&mass) {
                         Ok(r) => r,
@@ -158,6 +159,7 @@ impl Generator {
         rules: &RuleSet,
         rng: &mut Rng,
         id: SourceId,
+        notes: &mut Vec<Note>,
     ) -> Result<Vec<Mass>, String> {
         let mut style = style.clone();
         // A total height with a pitched roof of unknown height: the eave is what is left under
@@ -178,9 +180,20 @@ impl Generator {
                 wall_color: style.wall_color,
                 roof_color: style.roof_color,
             };
-            if let Ok(r) = massing::roof_geometry(&probe) {
-                let usable = (total - style.min_height).max(0.0);
-                style.fit_total_height(r.height.min(0.5 * usable));
+            match massing::roof_geometry(&probe) {
+                Ok(r) => {
+                    let usable = (total - style.min_height).max(0.0);
+                    style.fit_total_height(r.height.min(0.5 * usable));
+                }
+                // The roof will be drawn flat: the walls take the whole height.
+                Err(f) => {
+                    notes.push((
+                        Outcome::Note,
+                        format!("{} roof drawn flat: {}", f.asked.osm_name(), f.reason),
+                    ));
+                    style.roof = RoofShape::Flat;
+                    style.fit_total_height(0.0);
+                }
             }
         }
         let attrs: Attrs = compile::axiom_attrs(&style);

@@ -200,3 +200,170 @@ fn no_output_is_a_usage_error() {
     let out = citygen(&["--osm", MONACO, "--kb", KB]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// Monaco read and prepared through the library, as the binary does.
+fn monaco_site() -> citygen::prepare::Site {
+    let mut report = citygen::report::Report::default();
+    let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
+    citygen::prepare::prepare(read.footprints, None, None, &mut report)
+}
+
+fn generator(lod: citygen::model::Lod) -> citygen::derive::Generator {
+    let (kb, _) = citygen::kb::KnowledgeBase::load(&root().join(KB)).unwrap();
+    let caps = citygen::grammar::Caps {
+        facades: false,
+        ..Default::default()
+    };
+    citygen::derive::Generator::new(kb, citygen::derive::Rules::Kb, lod, 0, caps)
+}
+
+#[test]
+fn levels_without_height_give_walls_of_levels_times_the_zone_floor_height() {
+    let site = monaco_site();
+    let gen = generator(citygen::model::Lod::Lod2);
+    let mut checked = 0;
+    for lot in site.lots.iter().filter(|l| l.parts.is_empty()) {
+        let t = &lot.tags;
+        let (Some(levels), None, None, None) = (t.levels, t.height, t.min_height, t.min_level)
+        else {
+            continue;
+        };
+        // The floor height the building's zone and appearance give, drawn as the generator does.
+        let zone = gen.kb.locate(lot.lonlat.0, lot.lonlat.1);
+        let mut rng = citygen::rng::Rng::new(0, lot.id.seed_value());
+        let (style, _) = gen.kb.style_for(zone, t, &mut rng);
+        let (b, _) = gen.generate(lot).unwrap();
+        for part in &b.parts {
+            let walls = part.eave_z - part.base_z;
+            assert!(
+                (walls - levels * style.floor_height).abs() < 0.01,
+                "{}: walls {walls} m, building:levels={levels} x floor {} m",
+                lot.id,
+                style.floor_height
+            );
+            if part.roof_shape == citygen::model::RoofShape::Flat {
+                assert!((b.measured_height - levels * style.floor_height).abs() < 0.01);
+            }
+        }
+        checked += 1;
+    }
+    assert!(
+        checked > 20,
+        "only {checked} Monaco buildings with levels and no height"
+    );
+}
+
+#[test]
+fn courtyards_stay_holes_in_all_three_formats() {
+    let site = monaco_site();
+    let lot = site
+        .lots
+        .iter()
+        .find(|l| l.id.to_string() == "relation/393226")
+        .expect("the courtyard relation");
+    assert_eq!(lot.polygons[0].holes.len(), 1);
+    let area = lot.polygons[0].area();
+    let run = run_all("--osm", MONACO, "2", &[]);
+
+    // CityGML: the building's ground polygon carries the courtyard as an interior ring (its
+    // hipped roof runs round the courtyard, so the roof faces need none).
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    let b = &citygml_buildings(&gml)["B_relation_393226"];
+    let ground = &b[b.find("<bldg:GroundSurface").unwrap()..];
+    let ground = &ground[..ground.find("</bldg:GroundSurface>").unwrap()];
+    assert_eq!(
+        ground.matches("<gml:interior>").count(),
+        1,
+        "no interior ring in the CityGML ground"
+    );
+
+    // glTF: the ground mesh of the building covers the footprint minus the courtyard.
+    let (json, bin) = glb_json(&run.glb);
+    let nodes = json["nodes"].as_array().unwrap();
+    let building = nodes
+        .iter()
+        .find(|n| n["name"] == "relation_393226")
+        .unwrap();
+    let ground = building["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| &nodes[c.as_u64().unwrap() as usize])
+        .find(|n| n["name"] == "ground")
+        .unwrap();
+    let prim = &json["meshes"][ground["mesh"].as_u64().unwrap() as usize]["primitives"][0];
+    let read_accessor = |i: u64| -> (Vec<f32>, Vec<u32>) {
+        let acc = &json["accessors"][i as usize];
+        let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+        let start = (view["byteOffset"].as_u64().unwrap_or(0)
+            + acc["byteOffset"].as_u64().unwrap_or(0)) as usize;
+        let count = acc["count"].as_u64().unwrap() as usize;
+        let stride = view["byteStride"].as_u64().unwrap_or(0) as usize;
+        match acc["componentType"].as_u64().unwrap() {
+            5126 => {
+                let stride = if stride == 0 { 12 } else { stride };
+                let mut v = Vec::new();
+                for k in 0..count {
+                    for c in 0..3 {
+                        let o = start + k * stride + c * 4;
+                        v.push(f32::from_le_bytes(bin[o..o + 4].try_into().unwrap()));
+                    }
+                }
+                (v, vec![])
+            }
+            5123 => {
+                let at = |k: usize| {
+                    u16::from_le_bytes(bin[start + 2 * k..start + 2 * k + 2].try_into().unwrap())
+                };
+                (vec![], (0..count).map(|k| u32::from(at(k))).collect())
+            }
+            _ => {
+                let at = |k: usize| {
+                    u32::from_le_bytes(bin[start + 4 * k..start + 4 * k + 4].try_into().unwrap())
+                };
+                (vec![], (0..count).map(at).collect())
+            }
+        }
+    };
+    let (pos, _) = read_accessor(prim["attributes"]["POSITION"].as_u64().unwrap());
+    let (_, idx) = read_accessor(prim["indices"].as_u64().unwrap());
+    let p = |i: u32| (pos[3 * i as usize] as f64, pos[3 * i as usize + 2] as f64);
+    let tri_area: f64 = idx
+        .chunks(3)
+        .map(|t| {
+            let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+            0.5 * ((b.0 - a.0) * (c.1 - a.1) - (c.0 - a.0) * (b.1 - a.1)).abs()
+        })
+        .sum();
+    assert!(
+        (tri_area - area).abs() < 0.01 * area,
+        "glTF ground {tri_area} m² vs footprint {area} m²"
+    );
+
+    // IFC: one slab profile with voids per drawn footprint polygon that has holes.
+    let with_holes: usize = site
+        .lots
+        .iter()
+        .flat_map(|l| {
+            let outline = if l.draw_outline {
+                l.polygons.iter().collect::<Vec<_>>()
+            } else {
+                vec![]
+            };
+            outline
+                .into_iter()
+                .chain(l.parts.iter().flat_map(|p| p.polygons.iter()))
+        })
+        .filter(|p| !p.holes.is_empty())
+        .count();
+    let ifc = step_entities(&run.ifc);
+    let voids = ifc
+        .values()
+        .filter(|(t, _)| t == "IFCARBITRARYPROFILEDEFWITHVOIDS")
+        .count();
+    assert!(with_holes >= 3);
+    assert_eq!(
+        voids, with_holes,
+        "IFC slab profiles with voids vs footprints with holes"
+    );
+}

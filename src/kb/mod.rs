@@ -794,13 +794,6 @@ fn draw_int(rng: &mut Rng, a: u32, b: u32) -> u32 {
 fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     let fh = s.floor_height;
     if let Some(shape) = t.roof_shape {
-        if shape != s.roof {
-            notes.push(format!(
-                "roof:shape={} overrides KB roof {}",
-                shape.osm_name(),
-                s.roof.osm_name()
-            ));
-        }
         s.roof = shape;
     }
     if let Some(a) = t
@@ -830,10 +823,6 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
         };
         s.storeys_from_tags = true;
         s.eave_height = l * fh;
-        notes.push(format!(
-            "building:levels={l} sets {} storeys of {fh} m",
-            s.storeys
-        ));
     } else if s.min_height > 0.0 {
         // The KB height is a wall height: stand it on the base.
         s.eave_height += s.min_height;
@@ -850,7 +839,6 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
             // Pitched roof of unknown height: an upper bound until the caller fits it.
             None => s.eave_height = s.eave_height.min(h),
         }
-        notes.push(format!("height={h} overrides the KB height"));
     }
     if s.eave_height <= s.min_height {
         notes.push(format!(
