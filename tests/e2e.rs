@@ -367,3 +367,77 @@ fn courtyards_stay_holes_in_all_three_formats() {
         "IFC slab profiles with voids vs footprints with holes"
     );
 }
+
+#[test]
+fn output_crs_can_be_chosen_and_source_crs_overridden() {
+    // Clifton is in British National Grid; asking for EPSG:27700 keeps its coordinates.
+    let run = run_all(
+        "--shp",
+        CLIFTON,
+        "1",
+        &["--crs", "EPSG:27700", "--src-crs", "EPSG:27700"],
+    );
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    assert!(gml.contains("srsName=\"EPSG:27700\""));
+    let corner = gml.split("<gml:lowerCorner>").nth(1).unwrap();
+    let xy: Vec<f64> = corner
+        .split_whitespace()
+        .take(2)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        (453_000.0..457_000.0).contains(&xy[0]) && (332_000.0..337_000.0).contains(&xy[1]),
+        "{xy:?}"
+    );
+    let ifc = std::fs::read_to_string(&run.ifc).unwrap();
+    assert!(ifc.contains("'EPSG:27700'"));
+    let (json, _) = glb_json(&run.glb);
+    assert_eq!(json["asset"]["extras"]["crs"], "EPSG:27700");
+}
+
+#[test]
+fn unknown_crs_is_a_usage_error() {
+    let out = citygen(&[
+        "--osm",
+        MONACO,
+        "--kb",
+        KB,
+        "--ifc",
+        "/tmp/never.ifc",
+        "--crs",
+        "EPSG:3857",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("3857"));
+}
+
+#[test]
+fn outputs_are_not_left_half_written_when_the_run_fails() {
+    // A rules file that does not parse fails the run before anything is written.
+    let dir = tempfile::tempdir().unwrap();
+    let rules = dir.path().join("bad.cga");
+    std::fs::write(
+        &rules,
+        "lot -> extrude(10){building}\nbuilding -> frobnicate(3){x}\n",
+    )
+    .unwrap();
+    let target = dir.path().join("out.gml");
+    std::fs::write(&target, "previous").unwrap();
+    let out = citygen(&[
+        "--osm",
+        MONACO,
+        "--rules",
+        rules.to_str().unwrap(),
+        "--citygml",
+        target.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.cga:2:"), "{err}");
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), "previous");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        2,
+        "a temporary file was left behind"
+    );
+}

@@ -9,64 +9,10 @@ use crate::geometry::Polygon;
 use crate::rng::Rng;
 
 /// Figure 3.19 (seed 003 L1065-1095), as printed, wrapped lines included.
-const FIG_3_19: &str = "\
-lot -> extrude(20){building:roof=hip,roofcolor=sandybrown}
-building -> split(Y,sy/2,sy/2){b1|b2:color=grey}
-b1 -> S(sx, sy, sz*rand(0.6,0.8)){b3:color=green}
-b2 -> repeat(Z,4){floor}
-b3 -> split(Z,4,4,4,4,4){gfloor|floor|floor|floor|floor}
-floor -> comp(){side:face}
-
-gfloor -> comp() { left : gleft_facade | front : gfront | right :
-  gright_facade | back : gback }
-face -> rsplit (X,0.1,0.8,0.1) { wall | windowarea | wall }
-windowarea -> repeat (X,2,0.2) { vwindow | wall }
-vwindow -> rsplit (Z,rand(0.1,0.3),rand(0.5,0.8),0.5) { wall | window
-  : color=yellow, material=glass | wall }
-gfront -> split (X,5,2,5) { wall : color=turquoise | door : color=white |
-  wall : color=turquoise }=0.4
-gfront -> split (X,4,1,2,1,4) { wall : color=turquoise | window : color=
-  pink, material=glass | door : color=white | window : color=pink,
-  material=glass | wall : color=turquoise }=0.6
-gright_facade -> repeat (X,1,1,1) { window : color=blue | window : color=
-  turquoise, material=glass | window : color=lightblue, material=
-  glass }
-gleft_facade -> repeat (X,1,1,1) { window : color=blue | window : color=
-  turquoise, material=glass | window : color=lightblue, material=
-  glass }
-gback -> wall
-";
+const FIG_3_19: &str = include_str!("../../knowledge_base/rules/fig3_19.cga");
 
 /// Toulouse downtown (seed 003 L1146-1180), as printed.
-const TOULOUSE: &str = "\
-lot -> extrude(15){building:color=blanchedalmond,roof=hip,
-  roofcolor=darksalmon}=0.4
-lot -> extrude(20){building:color=silver,roof=hip,roofcolor=
-  darksalmon}=0.2
-lot -> extrude(15){building2:color=lightsalmon,roof=hip,
-  roofcolor=darksalmon}=0.2
-lot -> extrude(20){building:color=palegoldenrod,roof=hip,
-  roofcolor=lightsalmon}=0.2
-building -> repeat(Z,5){floor}
-building2 -> repeat(Z,5){floor}
-floor -> comp(){side:face}
-floor2 -> comp(){side:face2}
-face -> rsplit(Z,0.9,0.1){upper_face|wall:color=darksalmon}
-face2 -> rsplit(Z,0.9,0.1){upper_face2|wall:color=white}
-upper_face -> rsplit(X,0.1,0.8,0.1){wall|windowarea|wall}
-upper_face2 -> rsplit(X,0.1,0.1,0.8,0.1,0.1){wall:color=
-  darksalmon|wall|windowarea2|wall|wall:color=darksalmon}
-windowarea -> repeat(X,2,1){vwindow|wall}
-windowarea2 -> repeat(X,2,1){vwindow2|wall}
-vwindow -> rsplit(Z,0.25,0.5,0.25){wall|bwindow|wall}
-vwindow2 -> rsplit(Z,0.2,0.6,0.2){wall|bwindow2|wall}
-bwindow -> rsplit(Z,0.1,0.8,0.1){wall:color=darksalmon|b_window|
-  wall:color=darksalmon}
-bwindow2 -> rsplit(Z,0.3,0.7){wall:color=white|window:color=
-  lightgrey}
-b_window -> rsplit(X,0.1,0.8,0.1){wall:color=darksalmon|window|
-  wall:color=darksalmon}
-";
+const TOULOUSE: &str = include_str!("../../knowledge_base/rules/toulouse_downtown.cga");
 
 fn rect(w: f64, h: f64) -> Polygon {
     Polygon::new(
