@@ -14,14 +14,24 @@ fn load(text: &str) -> Vec<(String, Polygon)> {
         r.as_array()
             .into_iter()
             .flatten()
-            .map(|p| DVec2::new(p[0].as_f64().unwrap_or(f64::NAN), p[1].as_f64().unwrap_or(f64::NAN)))
+            .map(|p| {
+                DVec2::new(
+                    p[0].as_f64().unwrap_or(f64::NAN),
+                    p[1].as_f64().unwrap_or(f64::NAN),
+                )
+            })
             .collect()
     };
     v.as_array()
         .into_iter()
         .flatten()
         .map(|c| {
-            let holes = c["holes"].as_array().into_iter().flatten().map(ring).collect();
+            let holes = c["holes"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(ring)
+                .collect();
             (
                 c["id"].as_str().unwrap_or("?").to_string(),
                 Polygon::new(ring(&c["outer"]), holes),
@@ -49,7 +59,12 @@ fn real_footprints_build_valid_hipped_roofs() {
     let cases = load(include_str!("fixtures/real_footprints.json"));
     assert!(cases.len() >= 15, "fixture has {} cases", cases.len());
     let bad = run_all(&cases);
-    assert!(bad.is_empty(), "{} failures:\n{}", bad.len(), bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "{} failures:\n{}",
+        bad.len(),
+        bad.join("\n")
+    );
 }
 
 /// Development aid: `SKEL_FAIL_JSON=/tmp/x.json cargo test --lib real_dump -- --ignored
