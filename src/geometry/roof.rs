@@ -267,6 +267,10 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
 }
 
 #[cfg(test)]
+#[path = "roof_real.rs"]
+mod real_footprints;
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use crate::geometry::skeleton::Skeleton;
@@ -347,7 +351,7 @@ mod tests {
     }
 
     /// Checks a hipped roof: planar faces, all with the pitch, inside the footprint.
-    fn check_hipped(p: &Polygon, pitch: f64) -> Result<RoofGeometry, String> {
+    pub(super) fn check_hipped(p: &Polygon, pitch: f64) -> Result<RoofGeometry, String> {
         let sk = straight_skeleton(p).map_err(|e| e.to_string())?;
         check_skeleton(p, &sk)?;
         let roof = hipped(p, pitch).map_err(|e| e.to_string())?;

@@ -34,6 +34,12 @@
 //!
 //! Directions that differ by less than [`ANGLE_TOL`] radians are treated as equal.
 //!
+//! A vertex between edges within about 2e-4 rad of antiparallel (corridors one wall apart,
+//! nearly rectangular footprints) would move at over 10⁴ times the wavefront speed; it is
+//! instead slid along the edges' common line to the neighbour it meets first, at the meeting
+//! time computed from its true velocity. A vertex's position at an event is trusted to the
+//! event radius plus `speed × EVENT_REL × size` (the distance it covers in the time tolerance).
+//!
 //! # Failure modes
 //!
 //! [`straight_skeleton`] returns an error (never panics, never loops: the number of events is
@@ -57,6 +63,13 @@ pub const COLLINEAR_REL: f64 = 1e-6;
 pub const EVENT_REL: f64 = 1e-9;
 /// Directions closer than this (radians) are parallel.
 pub const ANGLE_TOL: f64 = 1e-9;
+
+/// Two edges whose normals `n1`, `n2` have `1 + n1·n2` below this (an angle under about 2e-4
+/// rad from antiparallel) meet in a *degenerate* vertex, resolved by sliding it along their
+/// common line (see `Sim::resolve_degenerate`). Its exact speed, about 2 / angle (over 10⁴),
+/// would make its position at an event uncertain by `speed × EVENT_REL × size`, while sliding
+/// errs by at most `distance × angle / 2` in height (below 0.1 mm per metre slid).
+const ANTIPARALLEL_DEN: f64 = 2e-8;
 
 /// Why a straight skeleton could not be computed.
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -467,7 +480,7 @@ impl Sim {
     fn velocity(&self, l: usize, r: usize) -> (DVec2, bool) {
         let (nl, nr) = (self.edges[l].n, self.edges[r].n);
         let den = 1.0 + nl.dot(nr);
-        if den < 1e-12 {
+        if den < ANTIPARALLEL_DEN {
             (DVec2::ZERO, true)
         } else {
             ((nl + nr) / den, false)
@@ -573,13 +586,22 @@ impl Sim {
             ));
         }
         self.t = best.max(t);
+        // Cluster the event vertices; the slowest vertex of a cluster gives its point, as its
+        // position is the most precise (see `Sim::tol`).
+        let mut cands: Vec<usize> = cands
+            .into_iter()
+            .filter(|&(te, _)| te <= best + eps)
+            .map(|(_, v)| v)
+            .collect();
+        cands.sort_by(|&a, &b| {
+            let (sa, sb) = (self.verts[a].vel.length(), self.verts[b].vel.length());
+            sa.total_cmp(&sb).then(a.cmp(&b))
+        });
         let mut pts: Vec<DVec2> = Vec::new();
-        for (te, v) in cands {
-            if te <= best + eps {
-                let p = self.pos(v, self.t);
-                if !pts.iter().any(|q| q.distance(p) <= eps) {
-                    pts.push(p);
-                }
+        for v in cands {
+            let p = self.pos(v, self.t);
+            if !pts.iter().any(|q| q.distance(p) <= self.tol(v)) {
+                pts.push(p);
             }
         }
         Ok(pts)
@@ -590,21 +612,35 @@ impl Sim {
         4.0 * self.eps
     }
 
+    /// Distance within which vertex `v` is at an event point. Events closer than `eps` in time
+    /// are simultaneous, and in that time a vertex moves `eps × speed`: a vertex between nearly
+    /// antiparallel edges moves at about 2 / angle (10⁴ or more on real footprints), so its
+    /// position at an event is only known to that precision.
+    fn tol(&self, v: usize) -> f64 {
+        self.radius() + self.verts[v].vel.length() * self.eps
+    }
+
     /// Handles everything at point `x` at the current time.
-    fn handle_point(&mut self, x: DVec2) -> Result<(), SkeletonError> {
+    fn handle_point(&mut self, x: DVec2) -> Result<bool, SkeletonError> {
+        self.handle_point_at(x, None)
+    }
+
+    /// [`Sim::handle_point`], with the node of the event given (a slid vertex's meeting node).
+    /// Returns whether the wavefront changed.
+    fn handle_point_at(&mut self, x: DVec2, at: Option<usize>) -> Result<bool, SkeletonError> {
         let t = self.t;
         let rad = self.radius();
         let alive = self.alive();
         let member: Vec<bool> = {
             let mut m = vec![false; self.verts.len()];
             for &v in &alive {
-                m[v] = self.pos(v, t).distance(x) <= rad;
+                m[v] = self.pos(v, t).distance(x) <= self.tol(v);
             }
             m
         };
         let members: Vec<usize> = alive.iter().copied().filter(|&v| member[v]).collect();
         if members.is_empty() {
-            return Ok(());
+            return Ok(false);
         }
         let mut passes: Vec<Pass> = Vec::new();
         let mut visited = vec![false; self.verts.len()];
@@ -655,7 +691,7 @@ impl Sim {
                 .all(|p| matches!(p.run, Some((a, b)) if a == b))
             && passes.len() <= 1;
         if trivial {
-            return Ok(());
+            return Ok(false);
         }
         let pairs = self.match_passes(&passes)?;
         let changed = !vanished.is_empty()
@@ -664,10 +700,13 @@ impl Sim {
                 .enumerate()
                 .any(|(i, &j)| i != j || matches!(passes[i].run, Some((a, b)) if a != b));
         if !changed {
-            return Ok(());
+            return Ok(false);
         }
-        // The node: reuse one already at this place and time.
-        let node = self.node_at(x, &members);
+        // The node: reuse one already at this place and time, unless the caller gives it.
+        let node = match at {
+            Some(n) => n,
+            None => self.node_at(x, &members),
+        };
         // Retire the vertices of runs that change and of vanished rings.
         for (i, p) in passes.iter().enumerate() {
             if let Some((a, b)) = p.run {
@@ -705,7 +744,7 @@ impl Sim {
                     l: pi.in_edge,
                     r: pj.out_edge,
                     node,
-                    t0: t,
+                    t0: self.nodes[node].t,
                     p0: self.nodes[node].p,
                     vel,
                     degenerate,
@@ -723,7 +762,7 @@ impl Sim {
                 self.check_ring(v)?;
             }
         }
-        Ok(())
+        Ok(true)
     }
 
     /// A node at `x` at the current time, reusing a member's start node when it is there.
@@ -883,14 +922,18 @@ impl Sim {
     }
 
     /// Vertices between antiparallel edges must disappear at the time they were made (the two
-    /// wavefronts annihilate along their overlap). Handle every point where a vertex lies on a
-    /// non-incident wavefront edge or another vertex, then check none is left.
+    /// wavefronts annihilate along their overlap). First every point where a vertex lies on a
+    /// non-incident wavefront edge or another vertex is handled; a degenerate vertex still left
+    /// then slides along the common line of its two edges to the nearer of its neighbours (the
+    /// end of the overlap, which a nearly antiparallel vertex reaches almost at once, moving at
+    /// a speed of about 2 / angle) and that point is handled as an edge event.
     fn resolve_degenerate(&mut self) -> Result<(), SkeletonError> {
-        for _ in 0..4 {
+        let limit = 4 * self.verts.len() + 16;
+        for _ in 0..limit {
             let alive = self.alive();
-            if !alive.iter().any(|&v| self.verts[v].degenerate) {
+            let Some(&v) = alive.iter().find(|&&v| self.verts[v].degenerate) else {
                 return Ok(());
-            }
+            };
             let t = self.t;
             let rad = self.radius();
             let mut pts: Vec<DVec2> = Vec::new();
@@ -908,11 +951,89 @@ impl Sim {
                     }
                 }
             }
+            let mut changed = false;
             for p in pts {
-                self.handle_point(p)?;
+                changed |= self.handle_point(p)?;
+            }
+            if !changed {
+                self.slide(v)?;
             }
         }
-        if self.alive().iter().any(|&v| self.verts[v].degenerate) {
+        Err(SkeletonError::Inconsistent(
+            "unresolved antiparallel wavefront vertex",
+        ))
+    }
+
+    /// Moves degenerate vertex `v` to the neighbour it meets first along the line of its edges
+    /// and handles that point (see [`Sim::resolve_degenerate`]). When the edges are not exactly
+    /// antiparallel the meeting time is computed from the vertex's true (large) velocity and
+    /// the node placed on the neighbour's trajectory at that time, so that the node lies on
+    /// all the planes involved however far the vertex slides.
+    fn slide(&mut self, v: usize) -> Result<(), SkeletonError> {
+        let t = self.t;
+        let vv = self.verts[v].clone();
+        let p = self.pos(v, t);
+        let (nl, nr) = (self.edges[vv.l].n, self.edges[vv.r].n);
+        let den = 1.0 + nl.dot(nr);
+        let vel = if den > 0.0 {
+            (nl + nr) / den
+        } else {
+            DVec2::ZERO
+        };
+        // Time to meet the next vertex (edge r collapses) and the previous one (edge l).
+        let meet = |w: usize, d: DVec2, sign: f64| -> f64 {
+            let len = sign * (self.pos(w, t) - p).dot(d);
+            let rate = sign * (self.verts[w].vel - vel).dot(d);
+            if rate < 0.0 {
+                (len / -rate).max(0.0)
+            } else {
+                f64::INFINITY
+            }
+        };
+        let tw = meet(vv.next, self.edges[vv.r].d, 1.0);
+        let tu = meet(vv.prev, self.edges[vv.l].d, -1.0);
+        // Both neighbours lie ahead along the right edge's direction (the ring folds back).
+        let d = self.edges[vv.r].d;
+        let (pu, pw) = (self.pos(vv.prev, t), self.pos(vv.next, t));
+        let (w, dt) = if tw.is_finite() || tu.is_finite() {
+            if tw <= tu {
+                (vv.next, tw)
+            } else {
+                (vv.prev, tu)
+            }
+        } else if (pw - p).dot(d) <= (pu - p).dot(d) {
+            (vv.next, 0.0)
+        } else {
+            (vv.prev, 0.0)
+        };
+        // A slide is instantaneous up to the angle: a long wait means it is no slide.
+        let dt = if dt * self.verts[w].vel.length() > 1e-3 * self.size {
+            0.0
+        } else {
+            dt
+        };
+        let x = self.pos(w, t);
+        let target = self.pos(w, t + dt);
+        let node = self.nodes.len();
+        self.nodes.push(Node {
+            p: target,
+            t: t + dt,
+        });
+        self.retire(v, node);
+        let id = self.verts.len();
+        // The slid vertex rides on its neighbour's trajectory, so it is at the event point now.
+        self.verts.push(Vert {
+            node,
+            t0: t + dt,
+            p0: target,
+            vel: self.verts[w].vel,
+            alive: true,
+            ..vv
+        });
+        self.verts[vv.prev].next = id;
+        self.verts[vv.next].prev = id;
+        self.handle_point_at(x, Some(node))?;
+        if self.verts[id].alive {
             return Err(SkeletonError::Inconsistent(
                 "unresolved antiparallel wavefront vertex",
             ));
