@@ -15,6 +15,7 @@
 pub mod ast;
 pub mod expr;
 pub mod interp;
+pub mod lint;
 pub mod parser;
 pub mod shape;
 

@@ -1,0 +1,751 @@
+//! The rule linter behind `citygen rules check FILE` (issue 3 item 6).
+//!
+//! [`lint`] inspects a parsed [`RuleSet`] for mistakes that parse fine but derive something the
+//! author did not mean. Each finding is a [`Diagnostic`] with a stable `code`:
+//!
+//! | code | severity | what |
+//! |------|----------|------|
+//! | `undefined-symbol` | warning | a successor with no rule that is not a known terminal (wall, window, door, balcony): it becomes a bare leaf |
+//! | `unreachable-rule` | warning | a predecessor that no derivation from the axiom can reach |
+//! | `probability-sum` | error / warning | the `= p` of a predecessor's alternatives sum above 1 or below 0 (error), or all alternatives are explicit and sum below 1, or the explicit ones reach 1 so the others never fire (warning) |
+//! | `duplicate-rule` | error | two or more rules for one predecessor without `= p` |
+//! | `op-shape-mismatch` | error / warning | an operation the shape it meets cannot take (`comp` on a lot or face, `split(Z)` on a lot, `split(Y)` or `R` on a face); error when every shape kind the rule can meet fails, warning when only some do |
+//! | `non-terminating` | warning | recursion through operations that never shrink or drop the shape (relabel, `S`, `T`, `R`, `extrude`) |
+//!
+//! The shape-kind inference is a small abstract interpretation that follows the interpreter's
+//! rules (see [`super::interp`]): the axiom meets a lot; `extrude` yields a volume from anything;
+//! `comp` yields faces from a volume; splits, relabels, `S`, `T` and `R` keep the kind.
+//!
+//! Output is deterministic: diagnostics are sorted by (line, col, code, message) and no hash
+//! map order reaches them.
+
+use std::collections::BTreeSet;
+use std::fmt;
+
+use super::ast::{Axis, Op, Rule, RuleSet, SymbolId};
+
+/// The symbols that the model builder and the exporters turn into building elements; a
+/// successor with one of these names and no rule is a deliberate leaf, not a typo.
+pub const KNOWN_TERMINALS: [&str; 4] = ["wall", "window", "door", "balcony"];
+
+/// Tolerance on probability sums (`0.4 + 0.2 + 0.2 + 0.2` is not exactly 1 in binary).
+const PROB_EPS: f64 = 1e-9;
+
+/// How bad a [`Diagnostic`] is: errors make `citygen rules check` exit non-zero.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Severity {
+    /// The rule set is wrong: derivation will fail or silently ignore rules the author wrote.
+    Error,
+    /// The rule set derives, but probably not as the author meant.
+    Warning,
+}
+
+impl Severity {
+    /// `error` or `warning`, as printed.
+    pub fn name(self) -> &'static str {
+        match self {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        }
+    }
+}
+
+impl fmt::Display for Severity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One lint finding, located at a place in the rule source.
+///
+/// `Display` prints `file:line:col: warning[code]: message`, then the source line and a caret
+/// under `col` (tabs are reproduced so that the caret lines up), like a parse error.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Diagnostic {
+    /// Error or warning.
+    pub severity: Severity,
+    /// A stable, kebab-case identifier of the lint (see the module table), for tests and
+    /// filters.
+    pub code: &'static str,
+    /// The rule file name, as given to [`crate::grammar::parse`].
+    pub file: String,
+    /// 1-based line.
+    pub line: u32,
+    /// 1-based column, in characters.
+    pub col: u32,
+    /// The explanation, with a hint at the fix where there is one.
+    pub message: String,
+    /// The text of the source line (without its newline); empty when `source` did not have
+    /// that line.
+    pub line_text: String,
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{}:{}:{}: {}[{}]: {}",
+            self.file, self.line, self.col, self.severity, self.code, self.message
+        )?;
+        writeln!(f, "{}", self.line_text)?;
+        write!(f, "{}^", caret_pad(&self.line_text, self.col))
+    }
+}
+
+/// The blanks that put a caret under 1-based character column `col` of `line`: a tab where the
+/// line has a tab, a space elsewhere (so the caret lines up whatever the tab width).
+fn caret_pad(line: &str, col: u32) -> String {
+    line.chars()
+        .take(col.saturating_sub(1) as usize)
+        .map(|c| if c == '\t' { '\t' } else { ' ' })
+        .collect()
+}
+
+/// Whether any diagnostic is an error (then `citygen rules check` exits non-zero).
+pub fn has_errors(d: &[Diagnostic]) -> bool {
+    d.iter().any(|d| d.severity == Severity::Error)
+}
+
+/// Lints a parsed rule set. `source` must be the text `rules` was parsed from: it provides the
+/// line shown under each diagnostic (a mismatching source gives empty lines, never a panic).
+///
+/// Returns every finding, sorted by (line, col, code, message); empty for a clean file.
+pub fn lint(rules: &RuleSet, source: &str) -> Vec<Diagnostic> {
+    let cx = Cx::new(rules, source);
+    let mut out = Vec::new();
+    cx.undefined_symbols(&mut out);
+    cx.unreachable_rules(&mut out);
+    cx.probabilities(&mut out);
+    cx.duplicate_rules(&mut out);
+    cx.shape_kinds(&mut out);
+    cx.non_terminating(&mut out);
+    out.sort_by(|a, b| {
+        (a.line, a.col, a.code, &a.message, a.severity).cmp(&(
+            b.line,
+            b.col,
+            b.code,
+            &b.message,
+            b.severity,
+        ))
+    });
+    out
+}
+
+/// Shape kinds as a bit set, mirroring [`super::Geometry`]'s variants.
+type Kinds = u8;
+const LOT: Kinds = 1;
+const VOLUME: Kinds = 2;
+const FACE: Kinds = 4;
+
+fn kind_name(k: Kinds) -> &'static str {
+    match k {
+        LOT => "lot",
+        VOLUME => "volume",
+        _ => "face",
+    }
+}
+
+/// The lint context: the rule set seen through its public API, indexed once.
+struct Cx<'a> {
+    rules: &'a RuleSet,
+    source: &'a str,
+    /// Symbol names by id (ids are dense from 0).
+    names: Vec<&'a str>,
+    /// Rule indices (into `rules.rules()`) per predecessor id, in source order.
+    by_pred: Vec<Vec<usize>>,
+    /// The resolved selection weight of each rule, as the interpreter uses it.
+    weights: Vec<f64>,
+    /// The axiom's id, if it is interned (a `set_axiom` to an unknown name is not).
+    axiom: Option<SymbolId>,
+}
+
+impl<'a> Cx<'a> {
+    fn new(rules: &'a RuleSet, source: &'a str) -> Cx<'a> {
+        let mut names = Vec::new();
+        while let Some(n) = rules.symbol(names.len() as SymbolId) {
+            names.push(n);
+        }
+        let all = rules.rules();
+        let mut by_pred = vec![Vec::new(); names.len()];
+        for (i, r) in all.iter().enumerate() {
+            if let Some(list) = by_pred.get_mut(r.pred as usize) {
+                list.push(i);
+            }
+        }
+        // Weights come from `rules_for`, the same resolution the interpreter selects with;
+        // rules are matched back to their index by address.
+        let mut weights = vec![0.0; all.len()];
+        for (id, name) in names.iter().enumerate() {
+            if by_pred[id].is_empty() {
+                continue;
+            }
+            for (rule, w) in rules.rules_for(name) {
+                if let Some(i) = all.iter().position(|r| std::ptr::eq(r, rule)) {
+                    weights[i] = w;
+                }
+            }
+        }
+        let axiom = names
+            .iter()
+            .position(|n| *n == rules.axiom())
+            .map(|i| i as SymbolId);
+        Cx {
+            rules,
+            source,
+            names,
+            by_pred,
+            weights,
+            axiom,
+        }
+    }
+
+    fn name(&self, id: SymbolId) -> &'a str {
+        self.names.get(id as usize).copied().unwrap_or("?")
+    }
+
+    fn has_rules(&self, id: SymbolId) -> bool {
+        self.by_pred.get(id as usize).is_some_and(|l| !l.is_empty())
+    }
+
+    fn rule(&self, i: usize) -> &'a Rule {
+        &self.rules.rules()[i]
+    }
+
+    fn diag(
+        &self,
+        severity: Severity,
+        code: &'static str,
+        line: u32,
+        col: u32,
+        message: String,
+    ) -> Diagnostic {
+        let line_text = self
+            .source
+            .lines()
+            .nth(line.saturating_sub(1) as usize)
+            .unwrap_or("")
+            .trim_end_matches('\r')
+            .to_string();
+        Diagnostic {
+            severity,
+            code,
+            file: self.rules.file().to_string(),
+            line,
+            col,
+            message,
+            line_text,
+        }
+    }
+
+    /// Successor symbols with no rule that are not known terminals.
+    fn undefined_symbols(&self, out: &mut Vec<Diagnostic>) {
+        for r in self.rules.rules() {
+            for s in &r.succs {
+                let name = self.name(s.symbol);
+                if self.has_rules(s.symbol) || KNOWN_TERMINALS.contains(&name) {
+                    continue;
+                }
+                let mut msg = format!(
+                    "`{name}` has no rule and is not a known terminal ({}): it becomes a leaf \
+                     that no building element is made from",
+                    KNOWN_TERMINALS.join(", ")
+                );
+                if let Some(s) = self.suggest(name) {
+                    msg.push_str(&format!("; did you mean `{s}`?"));
+                }
+                out.push(self.diag(
+                    Severity::Warning,
+                    "undefined-symbol",
+                    s.span.line,
+                    s.span.col,
+                    msg,
+                ));
+            }
+        }
+    }
+
+    /// The defined symbol or known terminal closest to `name`, if within 2 edits (and fewer
+    /// edits than `name` has characters, so `a` does not suggest `b`). Ties go to the symbol
+    /// interned first (source order), then to the terminals' order.
+    fn suggest(&self, name: &str) -> Option<&'a str> {
+        let defined = (0..self.names.len() as SymbolId)
+            .filter(|&id| self.has_rules(id))
+            .map(|id| self.name(id));
+        let len = name.chars().count();
+        defined
+            .chain(KNOWN_TERMINALS.iter().copied())
+            .filter(|c| *c != name)
+            .map(|c| (edit_distance(name, c), c))
+            .filter(|&(d, _)| d <= 2 && d < len)
+            .min_by_key(|&(d, _)| d)
+            .map(|(_, c)| c)
+    }
+
+    /// Symbols reachable from the axiom through the successors of any rule.
+    fn reachable(&self) -> Vec<bool> {
+        let mut seen = vec![false; self.names.len()];
+        let mut stack: Vec<SymbolId> = self.axiom.into_iter().collect();
+        while let Some(s) = stack.pop() {
+            let Some(slot) = seen.get_mut(s as usize) else {
+                continue;
+            };
+            if *slot {
+                continue;
+            }
+            *slot = true;
+            for &i in &self.by_pred[s as usize] {
+                stack.extend(self.rule(i).succs.iter().map(|x| x.symbol));
+            }
+        }
+        seen
+    }
+
+    /// One warning per unreachable predecessor, at its first rule.
+    fn unreachable_rules(&self, out: &mut Vec<Diagnostic>) {
+        let seen = self.reachable();
+        for (id, list) in self.by_pred.iter().enumerate() {
+            let Some(&first) = list.first() else {
+                continue;
+            };
+            if seen[id] {
+                continue;
+            }
+            let r = self.rule(first);
+            let n = list.len();
+            let msg = format!(
+                "rule{} for `{}` {} never used: `{}` is not reachable from the axiom `{}`",
+                if n == 1 { "" } else { "s" },
+                self.name(id as SymbolId),
+                if n == 1 { "is" } else { "are" },
+                self.name(id as SymbolId),
+                self.rules.axiom()
+            );
+            out.push(self.diag(
+                Severity::Warning,
+                "unreachable-rule",
+                r.span.line,
+                r.span.col,
+                msg,
+            ));
+        }
+    }
+
+    /// Probability sums per predecessor, judged by the parser's resolution: explicit `= p`
+    /// weigh `p`, the others share `1 − Σp` (nothing if Σp ≥ 1), and selection normalises.
+    fn probabilities(&self, out: &mut Vec<Diagnostic>) {
+        for (id, list) in self.by_pred.iter().enumerate() {
+            let pred = self.name(id as SymbolId);
+            let explicit: Vec<usize> = list
+                .iter()
+                .copied()
+                .filter(|&i| self.rule(i).prob.is_some())
+                .collect();
+            if explicit.is_empty() {
+                continue;
+            }
+            let implicit: Vec<usize> = list
+                .iter()
+                .copied()
+                .filter(|&i| self.rule(i).prob.is_none())
+                .collect();
+            let first = self.rule(list[0]);
+            for &i in &explicit {
+                let r = self.rule(i);
+                if let Some(p) = r.prob.filter(|p| !(*p >= 0.0)) {
+                    out.push(self.diag(
+                        Severity::Error,
+                        "probability-sum",
+                        r.span.line,
+                        r.span.col,
+                        format!("probability {p} of a rule for `{pred}` is negative"),
+                    ));
+                }
+            }
+            let sum: f64 = explicit.iter().filter_map(|&i| self.rule(i).prob).sum();
+            let lines = |v: &[usize]| {
+                v.iter()
+                    .map(|&i| self.rule(i).span.line.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            if sum > 1.0 + PROB_EPS {
+                let mut msg = format!(
+                    "the probabilities of the rules for `{pred}` sum to {} > 1 (lines {})",
+                    fmt_num(sum),
+                    lines(&explicit)
+                );
+                if !implicit.is_empty() {
+                    msg.push_str(&format!(
+                        "; the rule{} without probability (line{} {}) get weight 0 and are never \
+                         chosen",
+                        plural(implicit.len()),
+                        plural(implicit.len()),
+                        lines(&implicit)
+                    ));
+                }
+                msg.push_str("; make them sum to 1");
+                out.push(self.diag(
+                    Severity::Error,
+                    "probability-sum",
+                    first.span.line,
+                    first.span.col,
+                    msg,
+                ));
+            } else if implicit.is_empty() && sum < 1.0 - PROB_EPS {
+                let how = if sum > 0.0 {
+                    format!(
+                        "they are normalised (each divided by {}) at selection",
+                        fmt_num(sum)
+                    )
+                } else {
+                    "all weights are 0, so one is chosen uniformly at random".to_string()
+                };
+                out.push(self.diag(
+                    Severity::Warning,
+                    "probability-sum",
+                    first.span.line,
+                    first.span.col,
+                    format!(
+                        "the probabilities of the rules for `{pred}` sum to {} < 1 (line{} {}); \
+                         {how}",
+                        fmt_num(sum),
+                        plural(explicit.len()),
+                        lines(&explicit)
+                    ),
+                ));
+            } else if !implicit.is_empty() && sum >= 1.0 - PROB_EPS {
+                let r = self.rule(implicit[0]);
+                out.push(self.diag(
+                    Severity::Warning,
+                    "probability-sum",
+                    r.span.line,
+                    r.span.col,
+                    format!(
+                        "the explicit probabilities of the rules for `{pred}` already sum to 1: \
+                         the rule{} without probability (line{} {}) get weight 0 and are never \
+                         chosen",
+                        plural(implicit.len()),
+                        plural(implicit.len()),
+                        lines(&implicit)
+                    ),
+                ));
+            }
+        }
+    }
+
+    /// Two or more rules for one predecessor without `= p`: by the parser's resolution they
+    /// share what the explicit alternatives leave, so none shadows another: they are drawn at
+    /// random (or never, when the explicit ones reach 1). Reported at each rule after the first.
+    fn duplicate_rules(&self, out: &mut Vec<Diagnostic>) {
+        for (id, list) in self.by_pred.iter().enumerate() {
+            let pred = self.name(id as SymbolId);
+            let implicit: Vec<usize> = list
+                .iter()
+                .copied()
+                .filter(|&i| self.rule(i).prob.is_none())
+                .collect();
+            if implicit.len() < 2 {
+                continue;
+            }
+            let total: f64 = list.iter().map(|&i| self.weights[i]).sum();
+            let first = self.rule(implicit[0]);
+            for &i in &implicit[1..] {
+                let r = self.rule(i);
+                let w = self.weights[i];
+                let how = if total <= 0.0 {
+                    format!(
+                        "all {} rules for `{pred}` have weight 0, so one is chosen uniformly at \
+                         random",
+                        list.len()
+                    )
+                } else if w > 0.0 {
+                    format!(
+                        "the {} rules without probability are not shadowed: each is chosen at \
+                         random with probability {}",
+                        implicit.len(),
+                        fmt_num(w / total)
+                    )
+                } else {
+                    format!(
+                        "the {} rules without probability get weight 0 (the explicit ones \
+                         already sum to 1) and are never chosen",
+                        implicit.len()
+                    )
+                };
+                let same = if same_body(first, r) {
+                    " and is identical to it"
+                } else {
+                    ""
+                };
+                out.push(self.diag(
+                    Severity::Error,
+                    "duplicate-rule",
+                    r.span.line,
+                    r.span.col,
+                    format!(
+                        "second deterministic rule for `{pred}` (the first is at line {}){same}: \
+                         {how}; give each alternative `= p` or remove all but one",
+                        first.span.line
+                    ),
+                ));
+            }
+        }
+    }
+
+    /// The shape kinds each symbol can meet, from the axiom (a lot), to a fixpoint.
+    fn kinds(&self) -> Vec<Kinds> {
+        let mut kinds = vec![0 as Kinds; self.names.len()];
+        let Some(ax) = self.axiom else {
+            return kinds;
+        };
+        kinds[ax as usize] = LOT;
+        let mut work: Vec<SymbolId> = vec![ax];
+        while let Some(s) = work.pop() {
+            let k = kinds[s as usize];
+            for &i in &self.by_pred[s as usize] {
+                let r = self.rule(i);
+                let mut produced = 0;
+                for bit in [LOT, VOLUME, FACE] {
+                    if k & bit != 0 {
+                        if let Ok(o) = apply_kind(&r.op, bit) {
+                            produced |= o;
+                        }
+                    }
+                }
+                for succ in &r.succs {
+                    if let Some(slot) = kinds.get_mut(succ.symbol as usize) {
+                        if *slot | produced != *slot {
+                            *slot |= produced;
+                            work.push(succ.symbol);
+                        }
+                    }
+                }
+            }
+        }
+        kinds
+    }
+
+    /// Operations applied to a shape kind the interpreter rejects.
+    fn shape_kinds(&self, out: &mut Vec<Diagnostic>) {
+        let kinds = self.kinds();
+        for r in self.rules.rules() {
+            let k = kinds.get(r.pred as usize).copied().unwrap_or(0);
+            let mut bad: Vec<(&str, &str)> = Vec::new();
+            let mut ok = 0;
+            for bit in [LOT, VOLUME, FACE] {
+                if k & bit == 0 {
+                    continue;
+                }
+                match apply_kind(&r.op, bit) {
+                    Ok(_) => ok += 1,
+                    Err(why) => bad.push((kind_name(bit), why)),
+                }
+            }
+            if bad.is_empty() {
+                continue;
+            }
+            let pred = self.name(r.pred);
+            let what = bad
+                .iter()
+                .map(|(k, why)| format!("a {k} ({why})"))
+                .collect::<Vec<_>>()
+                .join(" and ");
+            let (sev, msg) = if ok == 0 {
+                (
+                    Severity::Error,
+                    format!(
+                        "`{pred}` is always {}, and {} cannot be applied to {what}: derivation \
+                         of every building that reaches this rule fails",
+                        bad.iter()
+                            .map(|(k, _)| format!("a {k}"))
+                            .collect::<Vec<_>>()
+                            .join(" or "),
+                        op_label(&r.op)
+                    ),
+                )
+            } else {
+                (
+                    Severity::Warning,
+                    format!(
+                        "`{pred}` can be {}; {} cannot be applied to {what}: derivation fails \
+                         when it meets one",
+                        bad.iter()
+                            .map(|(k, _)| format!("a {k}"))
+                            .collect::<Vec<_>>()
+                            .join(" or "),
+                        op_label(&r.op)
+                    ),
+                )
+            };
+            out.push(self.diag(sev, "op-shape-mismatch", r.span.line, r.span.col, msg));
+        }
+    }
+
+    /// Cycles made only of rules whose operation keeps every successor at least as large as
+    /// its parent (relabel, S, T, R, extrude): such a recursion never runs out by itself.
+    /// Splits are excluded, since a size that no longer fits drops the recursive piece.
+    /// One warning per cycle (strongly connected component), at its first rule in the file.
+    fn non_terminating(&self, out: &mut Vec<Diagnostic>) {
+        let n = self.names.len();
+        let grows = |r: &Rule| {
+            matches!(
+                r.op,
+                Op::Relabel | Op::Scale(_) | Op::Translate(_) | Op::Rotate(..) | Op::Extrude(_)
+            )
+        };
+        // reach[s]: symbols reachable from s in one or more non-shrinking steps.
+        let mut reach: Vec<Vec<bool>> = Vec::with_capacity(n);
+        for s in 0..n {
+            let mut seen = vec![false; n];
+            let mut stack: Vec<usize> = vec![s];
+            while let Some(x) = stack.pop() {
+                for &i in &self.by_pred[x] {
+                    let r = self.rule(i);
+                    if !grows(r) {
+                        continue;
+                    }
+                    for succ in &r.succs {
+                        let t = succ.symbol as usize;
+                        if t < n && !seen[t] {
+                            seen[t] = true;
+                            stack.push(t);
+                        }
+                    }
+                }
+            }
+            reach.push(seen);
+        }
+        let mut done = vec![false; n];
+        for s in 0..n {
+            if done[s] || !reach[s][s] {
+                continue;
+            }
+            let comp: BTreeSet<usize> = (0..n).filter(|&t| reach[s][t] && reach[t][s]).collect();
+            for &t in &comp {
+                done[t] = true;
+            }
+            // The first rule, in source order, that stays inside the cycle.
+            let Some(r) = self.rules.rules().iter().find(|r| {
+                comp.contains(&(r.pred as usize))
+                    && grows(r)
+                    && r.succs.iter().any(|x| comp.contains(&(x.symbol as usize)))
+            }) else {
+                continue;
+            };
+            let mut members: Vec<&Rule> = self
+                .rules
+                .rules()
+                .iter()
+                .filter(|r| comp.contains(&(r.pred as usize)))
+                .collect();
+            members.sort_by_key(|r| r.span.offset);
+            let mut syms: Vec<&str> = Vec::new();
+            for m in members {
+                let name = self.name(m.pred);
+                if !syms.contains(&name) {
+                    syms.push(name);
+                }
+            }
+            let escapes = comp.iter().any(|&t| {
+                self.by_pred[t].iter().any(|&i| {
+                    let r = self.rule(i);
+                    !grows(r) || !r.succs.iter().any(|x| comp.contains(&(x.symbol as usize)))
+                })
+            });
+            let cycle = syms
+                .iter()
+                .map(|s| format!("`{s}`"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            let msg = format!(
+                "the rules for {cycle} recurse through operations that never shrink the shape \
+                 (relabel, S, T, R, extrude){}: may not terminate; the derivation cap will stop it",
+                if escapes {
+                    " unless another alternative is chosen"
+                } else {
+                    ""
+                }
+            );
+            out.push(self.diag(
+                Severity::Warning,
+                "non-terminating",
+                r.span.line,
+                r.span.col,
+                msg,
+            ));
+        }
+    }
+}
+
+/// What an operation makes of a shape of kind `k` (one bit), or why the interpreter refuses it.
+/// Mirrors [`super::interp`]: comp needs a volume; a lot is flat (no Z split); a face has no
+/// depth (no Y split) and does not rotate.
+fn apply_kind(op: &Op, k: Kinds) -> Result<Kinds, &'static str> {
+    match op {
+        Op::Relabel | Op::Scale(_) | Op::Translate(_) => Ok(k),
+        Op::Extrude(_) => Ok(VOLUME),
+        Op::Rotate(..) if k == FACE => Err("only volumes and lots rotate"),
+        Op::Rotate(..) => Ok(k),
+        Op::Comp if k == VOLUME => Ok(FACE),
+        Op::Comp => Err("comp needs a volume: extrude first"),
+        Op::Split { axis, .. } => match (k, axis) {
+            (LOT, Axis::Z) => Err("a lot is flat: extrude first"),
+            (FACE, Axis::Y) => Err("a face has no depth: split along X or Z"),
+            _ => Ok(k),
+        },
+    }
+}
+
+/// `comp`, `split(Z)`, ... for messages.
+fn op_label(op: &Op) -> String {
+    match op {
+        Op::Split { kind, axis, .. } => format!("`{}({}, ...)`", kind.name(), axis.name()),
+        other => format!("`{}`", other.name()),
+    }
+}
+
+/// Whether two rules do the same thing (ignoring where they are written).
+fn same_body(a: &Rule, b: &Rule) -> bool {
+    a.op == b.op
+        && a.succs.len() == b.succs.len()
+        && a.succs.iter().zip(&b.succs).all(|(x, y)| {
+            x.selector == y.selector && x.symbol == y.symbol && x.attrs == y.attrs
+        })
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
+    }
+}
+
+/// A probability for messages: at most 6 decimals, trailing zeros trimmed (`1.2`, not
+/// `1.2000000000000002`).
+fn fmt_num(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s.is_empty() || s == "-" {
+        "0".to_string()
+    } else {
+        s.to_string()
+    }
+}
+
+/// Levenshtein distance in characters (insert, delete, substitute each cost 1).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let a: Vec<char> = a.chars().collect();
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    let mut cur = vec![0; b.len() + 1];
+    for (i, ca) in a.iter().enumerate() {
+        cur[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let sub = prev[j] + usize::from(ca != cb);
+            cur[j + 1] = sub.min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        std::mem::swap(&mut prev, &mut cur);
+    }
+    prev[b.len()]
+}
