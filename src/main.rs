@@ -5,9 +5,10 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{ArgGroup, Parser};
+use clap::{ArgGroup, Args, Parser, Subcommand};
 
 use citygen::crs::Crs;
+use citygen::geometry::Polygon;
 use citygen::grammar::Caps;
 use citygen::model::Lod;
 use citygen::pipeline::{self, Options, RunError, Source};
@@ -23,10 +24,72 @@ use citygen::pipeline::{self, Options, RunError, Source};
 /// 3 an output could not be written.
 #[derive(Parser, Debug)]
 #[command(name = "citygen", version, about, long_about)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+/// Tools for rule authors.
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Check and try grammar rulesets.
+    #[command(subcommand)]
+    Rules(RulesCommand),
+}
+
+// Parsed once per process: the size difference between variants does not matter.
+#[allow(clippy::large_enum_variant)]
+#[derive(Subcommand, Debug)]
+enum RulesCommand {
+    /// Parse a ruleset and lint it: undefined successors, unreachable rules, probabilities
+    /// that do not sum to 1, duplicate deterministic rules. Exit code 1 on errors, 0 with
+    /// warnings only.
+    Check {
+        /// The ruleset file.
+        file: PathBuf,
+    },
+    /// Derive a ruleset on one test lot and write the outputs, to see a ruleset without a city.
+    #[command(group(ArgGroup::new("lot_shape").required(true).args(["lot", "wkt"])))]
+    #[command(group(ArgGroup::new("derive_outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf"])))]
+    Derive {
+        /// The ruleset file.
+        file: PathBuf,
+        /// A rectangular lot, width x depth in metres, e.g. 20x12.
+        #[arg(long, value_name = "WxD", value_parser = parse_lot)]
+        lot: Option<Polygon>,
+        /// A lot given as WKT in local metres, e.g. "POLYGON ((0 0, 20 0, 20 12, 0 12, 0 0))".
+        #[arg(long, value_name = "WKT", value_parser = parse_wkt)]
+        wkt: Option<Polygon>,
+        /// Where the lot stands (lon,lat in degrees): it picks the UTM zone and the KB zone.
+        #[arg(long, value_name = "LON,LAT", value_parser = parse_lonlat, default_value = "1.4442,43.6045")]
+        at: (f64, f64),
+        /// Knowledge base for default colours and heights (default: built-in defaults).
+        #[arg(long, value_name = "KB.xml")]
+        kb: Option<PathBuf>,
+        #[arg(long, value_parser = parse_lod, default_value = "2")]
+        lod: Lod,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(long, value_name = "OUT.ifc")]
+        ifc: Option<PathBuf>,
+        #[arg(long, value_name = "OUT.gml")]
+        citygml: Option<PathBuf>,
+        #[arg(long, value_name = "OUT.glb")]
+        gltf: Option<PathBuf>,
+        #[arg(long, value_name = "OUT.json")]
+        report: Option<PathBuf>,
+    },
+}
+
+/// The main job's arguments.
+#[derive(Args, Debug)]
 #[command(group(ArgGroup::new("input").required(true).args(["osm", "shp"])))]
 #[command(group(ArgGroup::new("style").required(true).args(["kb", "rules"])))]
 #[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf"])))]
-struct Cli {
+struct RunArgs {
     /// OpenStreetMap extract (.osm.pbf) to read building footprints from.
     #[arg(long, value_name = "FILE.pbf")]
     osm: Option<PathBuf>,
@@ -96,8 +159,150 @@ fn parse_crs(s: &str) -> Result<Crs, String> {
     Crs::from_epsg_str(s).map_err(|e| e.to_string())
 }
 
+fn parse_lot(s: &str) -> Result<Polygon, String> {
+    let (w, d) = s.split_once(['x', 'X']).ok_or("expected WxD, e.g. 20x12")?;
+    let w: f64 = w.trim().parse().map_err(|_| format!("bad width {w:?}"))?;
+    let d: f64 = d.trim().parse().map_err(|_| format!("bad depth {d:?}"))?;
+    if !(w.is_finite() && d.is_finite() && w > 0.0 && d > 0.0) {
+        return Err("width and depth must be positive".into());
+    }
+    let v = |x, y| glam::DVec2::new(x, y);
+    Ok(Polygon::new(
+        vec![
+            v(-w / 2.0, -d / 2.0),
+            v(w / 2.0, -d / 2.0),
+            v(w / 2.0, d / 2.0),
+            v(-w / 2.0, d / 2.0),
+        ],
+        vec![],
+    ))
+}
+
+fn parse_wkt(s: &str) -> Result<Polygon, String> {
+    citygen::input::wkt::parse_polygon(s)
+}
+
+fn parse_lonlat(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s.split_once(',').ok_or("expected LON,LAT")?;
+    let lon: f64 = a
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad longitude {a:?}"))?;
+    let lat: f64 = b
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad latitude {b:?}"))?;
+    if !((-180.0..=180.0).contains(&lon) && (-84.0..=84.0).contains(&lat)) {
+        return Err("longitude must be in -180..180 and latitude in -84..84".into());
+    }
+    Ok((lon, lat))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    match cli.command {
+        Some(Command::Rules(cmd)) => rules_command(cmd),
+        None => run_main(cli.run),
+    }
+}
+
+/// `citygen rules ...`.
+fn rules_command(cmd: RulesCommand) -> ExitCode {
+    match cmd {
+        RulesCommand::Check { file } => {
+            let text = match std::fs::read_to_string(&file) {
+                Ok(t) => t,
+                Err(e) => {
+                    eprintln!("citygen: error: {}: {e}", file.display());
+                    return ExitCode::from(1);
+                }
+            };
+            let name = file.display().to_string();
+            let rules = match citygen::grammar::parse(&text, &name) {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("{e}");
+                    return ExitCode::from(1);
+                }
+            };
+            let diagnostics = citygen::grammar::lint::lint(&rules, &text);
+            for d in &diagnostics {
+                eprintln!("{d}");
+            }
+            let errors = citygen::grammar::lint::has_errors(&diagnostics);
+            let n_err = diagnostics
+                .iter()
+                .filter(|d| d.severity == citygen::grammar::lint::Severity::Error)
+                .count();
+            eprintln!(
+                "{name}: {} rules, {n_err} errors, {} warnings",
+                rules.rules().len(),
+                diagnostics.len() - n_err
+            );
+            ExitCode::from(if errors { 1 } else { 0 })
+        }
+        RulesCommand::Derive {
+            file,
+            lot,
+            wkt,
+            at,
+            kb,
+            lod,
+            seed,
+            ifc,
+            citygml,
+            gltf,
+            report,
+        } => {
+            let Some(polygon) = lot.or(wkt) else {
+                return ExitCode::from(2);
+            };
+            match citygen::pipeline::derive_lot(
+                &file,
+                polygon,
+                at,
+                kb.as_deref(),
+                lod,
+                seed,
+                &citygen::pipeline::Targets {
+                    ifc,
+                    citygml,
+                    gltf,
+                    report,
+                },
+            ) {
+                Ok(summary) => {
+                    let r = &summary.report;
+                    for e in &r.entries {
+                        eprintln!("  {} {:?}: {}", e.id, e.outcome, e.reason);
+                    }
+                    eprintln!(
+                        "citygen: {} building(s), {} polygons",
+                        r.generated, summary.polygons
+                    );
+                    for p in &summary.outputs {
+                        eprintln!("  wrote {}", p.display());
+                    }
+                    ExitCode::from(if r.generated == 1 { 0 } else { 1 })
+                }
+                Err(e) => {
+                    eprintln!("citygen: error: {e}");
+                    ExitCode::from(exit_code(&e))
+                }
+            }
+        }
+    }
+}
+
+fn exit_code(e: &RunError) -> u8 {
+    match e {
+        RunError::Input(_) => 1,
+        RunError::Output { .. } => 3,
+    }
+}
+
+/// The main job.
+fn run_main(cli: RunArgs) -> ExitCode {
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n.max(1))
@@ -175,10 +380,7 @@ fn main() -> ExitCode {
         Err(e) => {
             bar.finish_and_clear();
             eprintln!("citygen: error: {e}");
-            ExitCode::from(match e {
-                RunError::Input(_) => 1,
-                RunError::Output { .. } => 3,
-            })
+            ExitCode::from(exit_code(&e))
         }
     }
 }

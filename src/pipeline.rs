@@ -100,73 +100,131 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         Source::Osm(p) | Source::Shp { path: p, .. } => file_name(p),
     };
 
-    let kb = match &opts.kb {
+    let kb = load_kb(opts.kb.as_deref(), &mut report)?;
+    let rules = match &opts.rules {
+        Some(p) => Rules::File(Arc::new(read_rules(p)?)),
+        None => Rules::Kb,
+    };
+
+    let site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
+    let caps = Caps {
+        facades: opts.lod >= Lod::Lod3,
+        ..opts.caps
+    };
+    let generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
+    let targets = Targets {
+        ifc: opts.ifc.clone(),
+        citygml: opts.citygml.clone(),
+        gltf: opts.gltf.clone(),
+        report: opts.report.clone(),
+    };
+    let mut summary =
+        generate_and_write(&site, &generator, &source_name, &targets, report, progress)?;
+    summary.elapsed = start.elapsed();
+    Ok(summary)
+}
+
+/// `citygen rules derive`: one ruleset on one test lot (local metres) placed at `lonlat`.
+pub fn derive_lot(
+    rules_path: &Path,
+    lot: crate::geometry::Polygon,
+    lonlat: (f64, f64),
+    kb: Option<&Path>,
+    lod: Lod,
+    seed: u64,
+    targets: &Targets,
+) -> Result<Summary, RunError> {
+    let mut report = Report::default();
+    let rules = read_rules(rules_path)?;
+    let kb = load_kb(kb, &mut report)?;
+    let site = prepare::single_lot(lot, lonlat, None, &mut report)
+        .ok_or_else(|| RunError::Input("the lot is degenerate (see the report)".into()))?;
+    let caps = Caps {
+        facades: lod >= Lod::Lod3,
+        ..Caps::default()
+    };
+    let generator = Generator::new(kb, Rules::File(Arc::new(rules)), lod, seed, caps);
+    generate_and_write(
+        &site,
+        &generator,
+        &file_name(rules_path),
+        targets,
+        report,
+        &|_, _| {},
+    )
+}
+
+fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, RunError> {
+    match path {
         Some(p) => {
             let (kb, repairs) =
                 KnowledgeBase::load(p).map_err(|e| RunError::Input(e.to_string()))?;
             for r in repairs {
                 report.add(None, Outcome::Note, format!("{}: {r}", p.display()));
             }
-            kb
+            Ok(kb)
         }
-        None => KnowledgeBase::earth_only(),
-    };
-    let rules = match &opts.rules {
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .map_err(|e| RunError::Input(format!("{}: {e}", p.display())))?;
-            let rs = crate::grammar::parse(&text, &p.display().to_string())
-                .map_err(|e| RunError::Input(e.to_string()))?;
-            Rules::File(Arc::new(rs))
-        }
-        None => Rules::Kb,
-    };
+        None => Ok(KnowledgeBase::earth_only()),
+    }
+}
 
-    let site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
+fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> {
+    let text =
+        std::fs::read_to_string(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))?;
+    crate::grammar::parse(&text, &p.display().to_string())
+        .map_err(|e| RunError::Input(e.to_string()))
+}
+
+/// Where a run writes.
+#[derive(Clone, Debug, Default)]
+pub struct Targets {
+    pub ifc: Option<PathBuf>,
+    pub citygml: Option<PathBuf>,
+    pub gltf: Option<PathBuf>,
+    pub report: Option<PathBuf>,
+}
+
+/// Derives every lot of the site (in parallel, chunk by chunk) and writes the buildings in lot
+/// order to every target, atomically. `report` already holds what reading and preparing said.
+pub fn generate_and_write(
+    site: &prepare::Site,
+    generator: &Generator,
+    source_name: &str,
+    targets: &Targets,
+    mut report: Report,
+    progress: Progress<'_>,
+) -> Result<Summary, RunError> {
+    let start = Instant::now();
     let ctx = OutputContext {
         crs: site.crs,
         origin: DVec3::new(site.origin.x, site.origin.y, 0.0),
         origin_lonlat: site.origin_lonlat,
-        lod: opts.lod,
-        source_name,
-        seed: opts.seed,
+        lod: generator.lod,
+        source_name: source_name.to_string(),
+        seed: generator.seed,
     };
 
     // Open every output before the work, so a bad path fails fast.
     let mut outputs: Vec<(PathBuf, Box<dyn BuildingWriter>, AtomicFile)> = Vec::new();
-    if let Some(p) = &opts.ifc {
+    if let Some(p) = &targets.ifc {
         let f = AtomicFile::create(p).map_err(io_err(p))?;
-        outputs.push((
-            p.clone(),
-            Box::new(IfcWriter::new(f.writer().map_err(io_err(p))?)),
-            f,
-        ));
+        let w = IfcWriter::new(f.writer().map_err(io_err(p))?).with_file_name(&file_name(p));
+        outputs.push((p.clone(), Box::new(w), f));
     }
-    if let Some(p) = &opts.citygml {
+    if let Some(p) = &targets.citygml {
         let f = AtomicFile::create(p).map_err(io_err(p))?;
-        outputs.push((
-            p.clone(),
-            Box::new(CityGmlWriter::new(f.writer().map_err(io_err(p))?)),
-            f,
-        ));
+        let w = CityGmlWriter::new(f.writer().map_err(io_err(p))?);
+        outputs.push((p.clone(), Box::new(w), f));
     }
-    if let Some(p) = &opts.gltf {
+    if let Some(p) = &targets.gltf {
         let f = AtomicFile::create(p).map_err(io_err(p))?;
         let w = GltfWriter::beside(f.writer().map_err(io_err(p))?, p).map_err(io_err(p))?;
         outputs.push((p.clone(), Box::new(w), f));
     }
     for (path, w, _) in &mut outputs {
-        w.begin(&ctx).map_err(|e| RunError::Output {
-            path: path.clone(),
-            source: e,
-        })?;
+        w.begin(&ctx).map_err(out_err(path))?;
     }
 
-    let caps = Caps {
-        facades: opts.lod >= Lod::Lod3,
-        ..opts.caps
-    };
-    let generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
     let total = site.lots.len();
     let mut polygons = 0usize;
     for (ci, chunk) in site.lots.chunks(CHUNK).enumerate() {
@@ -182,10 +240,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
                     }
                     polygons += building.polygon_count();
                     for (path, w, _) in &mut outputs {
-                        w.write(&building).map_err(|e| RunError::Output {
-                            path: path.clone(),
-                            source: e,
-                        })?;
+                        w.write(&building).map_err(out_err(path))?;
                     }
                     report.generated += 1;
                 }
@@ -195,10 +250,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         progress(((ci + 1) * CHUNK).min(total), total);
     }
     for (path, w, _) in &mut outputs {
-        w.finish().map_err(|e| RunError::Output {
-            path: path.clone(),
-            source: e,
-        })?;
+        w.finish().map_err(out_err(path))?;
     }
     report.skipped = report
         .entries
@@ -216,11 +268,8 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         file.commit().map_err(io_err(&path))?;
         paths.push(path);
     }
-    if let Some(p) = &opts.report {
-        write_report(p, &report).map_err(|e| RunError::Output {
-            path: p.clone(),
-            source: e.into(),
-        })?;
+    if let Some(p) = &targets.report {
+        write_report(p, &report).map_err(io_err(p))?;
     }
     Ok(Summary {
         report,
@@ -238,6 +287,14 @@ fn write_report(path: &Path, report: &Report) -> std::io::Result<()> {
     std::io::Write::flush(&mut w)?;
     drop(w);
     f.commit()
+}
+
+/// Maps a writer error on an output path to a [`RunError`].
+fn out_err(p: &Path) -> impl Fn(ExportError) -> RunError + '_ {
+    move |e| RunError::Output {
+        path: p.to_path_buf(),
+        source: e,
+    }
 }
 
 /// Maps an I/O error on an output path to a [`RunError`].

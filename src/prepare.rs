@@ -524,6 +524,36 @@ fn repair(p: &Polygon) -> Vec<Polygon> {
         .collect()
 }
 
+/// A site holding one lot given in local metres, placed at `lonlat` (the local origin), for
+/// trying a ruleset without a city (`citygen rules derive`).
+pub fn single_lot(
+    polygon: Polygon,
+    lonlat: (f64, f64),
+    crs: Option<Crs>,
+    report: &mut Report,
+) -> Option<Site> {
+    let crs = crs.unwrap_or_else(|| Crs::utm_for(lonlat.0, lonlat.1));
+    let (x, y) = crs.from_lonlat(lonlat.0, lonlat.1);
+    let origin = DVec2::new(x, y).round();
+    let id = SourceId::Lot(0);
+    let polygons = clean_polygons(id, vec![polygon], report)?;
+    report.read += 1;
+    let lot = Lot {
+        id,
+        tags: BuildingTags::default(),
+        polygons,
+        parts: Vec::new(),
+        draw_outline: true,
+        lonlat,
+    };
+    Some(Site {
+        crs,
+        origin,
+        origin_lonlat: crs.to_lonlat(origin.x, origin.y),
+        lots: vec![lot],
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

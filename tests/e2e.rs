@@ -441,3 +441,134 @@ fn outputs_are_not_left_half_written_when_the_run_fails() {
         "a temporary file was left behind"
     );
 }
+
+#[test]
+fn rules_check_reports_unreachable_rules_and_exits_zero_on_warnings() {
+    let out = citygen(&[
+        "rules",
+        "check",
+        "knowledge_base/rules/toulouse_downtown.cga",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    for sym in [
+        "floor2",
+        "face2",
+        "upper_face2",
+        "windowarea2",
+        "vwindow2",
+        "bwindow2",
+    ] {
+        assert!(
+            err.contains(&format!("rule for `{sym}` is never used")),
+            "{sym} not reported: {err}"
+        );
+    }
+    let out = citygen(&["rules", "check", "knowledge_base/rules/fig3_19.cga"]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn rules_check_fails_with_file_line_col_on_a_malformed_ruleset() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("bad.cga");
+    std::fs::write(
+        &f,
+        "lot -> extrude(10){building}\nbuilding -> split(Q, 1, 2){a | b}\n",
+    )
+    .unwrap();
+    let out = citygen(&["rules", "check", f.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.cga:2:"), "{err}");
+    assert!(err.contains('^'), "no caret: {err}");
+}
+
+#[test]
+fn rules_derive_writes_one_test_lot() {
+    let dir = tempfile::tempdir().unwrap();
+    let gml = dir.path().join("lot.gml");
+    let out = citygen(&[
+        "rules",
+        "derive",
+        "knowledge_base/rules/fig3_19.cga",
+        "--lot",
+        "20x12",
+        "--citygml",
+        gml.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&gml).unwrap();
+    // Figure 3.19 splits the mass in two halves along Y: two building parts.
+    assert_eq!(text.matches("<bldg:BuildingPart ").count(), 2);
+    let wkt = citygen(&[
+        "rules",
+        "derive",
+        "knowledge_base/rules/fig3_19.cga",
+        "--wkt",
+        "POLYGON ((0 0, 30 0, 30 10, 10 10, 10 25, 0 25, 0 0))",
+        "--citygml",
+        gml.to_str().unwrap(),
+    ]);
+    assert!(
+        wkt.status.success(),
+        "{}",
+        String::from_utf8_lossy(&wkt.stderr)
+    );
+}
+
+#[test]
+fn a_rule_bomb_ends_in_bounded_time_with_one_report_entry_per_building() {
+    let dir = tempfile::tempdir().unwrap();
+    let rules = dir.path().join("bomb.cga");
+    std::fs::write(&rules, "lot -> extrude(10){a}\na -> repeat(X, 0.0001){a}\n").unwrap();
+    let report = dir.path().join("report.json");
+    let start = std::time::Instant::now();
+    let out = citygen(&[
+        "--osm",
+        MONACO,
+        "--rules",
+        rules.to_str().unwrap(),
+        "--citygml",
+        dir.path().join("out.gml").to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        start.elapsed().as_secs() < 120,
+        "took {:?}",
+        start.elapsed()
+    );
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["generated"], 0);
+    let skipped: Vec<&serde_json::Value> = r["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["outcome"] == "skipped")
+        .collect();
+    assert_eq!(skipped.len() as u64, r["skipped"].as_u64().unwrap());
+    assert!(skipped.len() > 1000);
+    assert!(
+        skipped
+            .iter()
+            .all(|e| e["reason"].as_str().unwrap().contains("bomb.cga:2")),
+        "{:?}",
+        skipped[0]
+    );
+}

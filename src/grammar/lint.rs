@@ -120,13 +120,8 @@ pub fn lint(rules: &RuleSet, source: &str) -> Vec<Diagnostic> {
     cx.shape_kinds(&mut out);
     cx.non_terminating(&mut out);
     out.sort_by(|a, b| {
-        (a.line, a.col, a.code, &a.message, a.severity).cmp(&(
-            b.line,
-            b.col,
-            b.code,
-            &b.message,
-            b.severity,
-        ))
+        (a.line, a.col, a.code, &a.message, a.severity)
+            .cmp(&(b.line, b.col, b.code, &b.message, b.severity))
     });
     out
 }
@@ -351,7 +346,7 @@ impl<'a> Cx<'a> {
             let first = self.rule(list[0]);
             for &i in &explicit {
                 let r = self.rule(i);
-                if let Some(p) = r.prob.filter(|p| !(*p >= 0.0)) {
+                if let Some(p) = r.prob.filter(|p| p.is_nan() || *p < 0.0) {
                     out.push(self.diag(
                         Severity::Error,
                         "probability-sum",
@@ -708,9 +703,10 @@ fn op_label(op: &Op) -> String {
 fn same_body(a: &Rule, b: &Rule) -> bool {
     a.op == b.op
         && a.succs.len() == b.succs.len()
-        && a.succs.iter().zip(&b.succs).all(|(x, y)| {
-            x.selector == y.selector && x.symbol == y.symbol && x.attrs == y.attrs
-        })
+        && a.succs
+            .iter()
+            .zip(&b.succs)
+            .all(|(x, y)| x.selector == y.selector && x.symbol == y.symbol && x.attrs == y.attrs)
 }
 
 fn plural(n: usize) -> &'static str {

@@ -7,6 +7,7 @@ pub mod osm;
 pub mod rings;
 pub mod shp;
 pub mod tags;
+pub mod wkt;
 
 use std::fmt;
 use std::path::PathBuf;
@@ -67,6 +68,8 @@ pub enum SourceId {
     Way(i64),
     Relation(i64),
     Shape(u64),
+    /// A test lot given on the command line (`rules derive`).
+    Lot(u64),
 }
 
 impl SourceId {
@@ -81,6 +84,7 @@ impl SourceId {
             SourceId::Way(i) => (i as u64).wrapping_mul(4).wrapping_add(1),
             SourceId::Relation(i) => (i as u64).wrapping_mul(4).wrapping_add(2),
             SourceId::Shape(i) => i.wrapping_mul(4).wrapping_add(3),
+            SourceId::Lot(i) => i.wrapping_mul(4),
         }
     }
 
@@ -97,6 +101,7 @@ impl SourceId {
             "way" | "w" => num.parse().ok().map(SourceId::Way),
             "relation" | "r" => num.parse().ok().map(SourceId::Relation),
             "shp" | "shape" => num.parse().ok().map(SourceId::Shape),
+            "lot" => num.parse().ok().map(SourceId::Lot),
             _ => None,
         }
     }
@@ -108,6 +113,7 @@ impl fmt::Display for SourceId {
             SourceId::Way(i) => write!(f, "way/{i}"),
             SourceId::Relation(i) => write!(f, "relation/{i}"),
             SourceId::Shape(i) => write!(f, "shp/{i}"),
+            SourceId::Lot(i) => write!(f, "lot/{i}"),
         }
     }
 }
