@@ -242,7 +242,7 @@ impl<'a> Cx<'a> {
                 }
                 let mut msg = format!(
                     "`{name}` has no rule and is not a known terminal ({}): it becomes a leaf \
-                     that no building element is made from",
+                     of the shape tree with no element kind",
                     KNOWN_TERMINALS.join(", ")
                 );
                 if let Some(s) = self.suggest(name) {
@@ -1057,8 +1057,8 @@ mod tests {
         assert_eq!(
             d[1].to_string(),
             "t.cga:4:6: warning[undefined-symbol]: `winow` has no rule and is not a known \
-             terminal (wall, window, door, balcony): it becomes a leaf that no building element \
-             is made from; did you mean `window`?\nc -> winow\n     ^"
+             terminal (wall, window, door, balcony): it becomes a leaf of the shape tree with no \
+             element kind; did you mean `window`?\nc -> winow\n     ^"
         );
         assert!(d[0]
             .to_string()
