@@ -242,7 +242,7 @@ impl<'a> Cx<'a> {
                 }
                 let mut msg = format!(
                     "`{name}` has no rule and is not a known terminal ({}): it becomes a leaf \
-                     that no building element is made from",
+                     of the shape tree with no element kind",
                     KNOWN_TERMINALS.join(", ")
                 );
                 if let Some(s) = self.suggest(name) {
@@ -307,12 +307,35 @@ impl<'a> Cx<'a> {
             }
             let r = self.rule(first);
             let n = list.len();
+            // Name the unreachable rules that do use it, so that the author finds the root.
+            let mut users: Vec<&str> = Vec::new();
+            for u in self.rules.rules() {
+                let name = self.name(u.pred);
+                if u.pred as usize != id
+                    && u.succs.iter().any(|x| x.symbol as usize == id)
+                    && !users.contains(&name)
+                {
+                    users.push(name);
+                }
+            }
+            let by = if users.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (only used by the unreachable {})",
+                    users
+                        .iter()
+                        .map(|u| format!("`{u}`"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            };
+            let pred = self.name(id as SymbolId);
             let msg = format!(
-                "rule{} for `{}` {} never used: `{}` is not reachable from the axiom `{}`",
-                if n == 1 { "" } else { "s" },
-                self.name(id as SymbolId),
+                "rule{} for `{pred}` {} never used: `{pred}` is not reachable from the axiom \
+                 `{}`{by}",
+                plural(n),
                 if n == 1 { "is" } else { "are" },
-                self.name(id as SymbolId),
                 self.rules.axiom()
             );
             out.push(self.diag(
@@ -744,4 +767,368 @@ fn edit_distance(a: &str, b: &str) -> usize {
         std::mem::swap(&mut prev, &mut cur);
     }
     prev[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grammar::parse;
+
+    const FIG_3_19: &str = include_str!("../../knowledge_base/rules/fig3_19.cga");
+    const TOULOUSE: &str = include_str!("../../knowledge_base/rules/toulouse_downtown.cga");
+
+    fn run(src: &str) -> Vec<Diagnostic> {
+        let rules = parse(src, "t.cga").unwrap_or_else(|e| panic!("{e}"));
+        lint(&rules, src)
+    }
+
+    /// (code, line, col) of each diagnostic, in output order.
+    fn codes(d: &[Diagnostic]) -> Vec<(&'static str, u32, u32)> {
+        d.iter().map(|d| (d.code, d.line, d.col)).collect()
+    }
+
+    #[test]
+    fn undefined_successor_warns_with_terminals_and_suggestion() {
+        let d = run("a -> split(X,1,1,1){windowarae|windowarea|zzz}\n\
+                     windowarea -> {wall|window|door|balcony}\n");
+        assert_eq!(
+            codes(&d),
+            [("undefined-symbol", 1, 21), ("undefined-symbol", 1, 43)]
+        );
+        assert!(d.iter().all(|d| d.severity == Severity::Warning));
+        assert!(d[0].message.contains("(wall, window, door, balcony)"));
+        assert!(
+            d[0].message.ends_with("did you mean `windowarea`?"),
+            "{}",
+            d[0].message
+        );
+        // Nothing within 2 edits of `zzz`: no suggestion.
+        assert!(!d[1].message.contains("did you mean"), "{}", d[1].message);
+        assert!(!has_errors(&d));
+    }
+
+    #[test]
+    fn undefined_successor_suggests_a_terminal_but_not_for_one_letter_names() {
+        let d = run("a -> split(X,1,1){windw|b}\n");
+        assert_eq!(
+            codes(&d),
+            [("undefined-symbol", 1, 19), ("undefined-symbol", 1, 25)]
+        );
+        assert!(d[0].message.ends_with("did you mean `window`?"));
+        // `b` is one edit from the defined `a`, but that is the whole name: no suggestion.
+        assert!(!d[1].message.contains("did you mean"), "{}", d[1].message);
+    }
+
+    #[test]
+    fn unreachable_rules_are_reported_once_per_predecessor_with_their_user() {
+        let d = run("a -> b\nb -> wall\nc -> d = 0.5\nc -> wall = 0.5\nd -> window\n");
+        assert_eq!(
+            codes(&d),
+            [("unreachable-rule", 3, 1), ("unreachable-rule", 5, 1)]
+        );
+        assert!(
+            d[0].message.starts_with("rules for `c` are never used"),
+            "{}",
+            d[0].message
+        );
+        assert!(d[0].message.contains("axiom `a`"));
+        assert!(
+            d[1].message.ends_with("(only used by the unreachable `c`)"),
+            "{}",
+            d[1].message
+        );
+    }
+
+    #[test]
+    fn probabilities_above_one_are_an_error() {
+        let d = run("a -> b = 0.7\na -> c = 0.5\nb -> wall\nc -> wall\n");
+        assert_eq!(codes(&d), [("probability-sum", 1, 1)]);
+        assert_eq!(d[0].severity, Severity::Error);
+        assert!(
+            d[0].message.contains("sum to 1.2 > 1 (lines 1, 2)"),
+            "{}",
+            d[0].message
+        );
+        assert!(has_errors(&d));
+    }
+
+    #[test]
+    fn explicit_probabilities_above_one_starve_the_implicit_rules() {
+        let d = run("a -> b = 0.7\na -> wall\na -> c = 0.5\nb -> wall\nc -> wall\n");
+        assert_eq!(codes(&d), [("probability-sum", 1, 1)]);
+        assert_eq!(d[0].severity, Severity::Error);
+        assert!(
+            d[0].message
+                .contains("without probability (line 2) get weight 0"),
+            "{}",
+            d[0].message
+        );
+    }
+
+    #[test]
+    fn explicit_probabilities_below_one_are_normalised_with_a_warning() {
+        let d = run("a -> b = 0.3\na -> c = 0.3\nb -> wall\nc -> wall\n");
+        assert_eq!(codes(&d), [("probability-sum", 1, 1)]);
+        assert_eq!(d[0].severity, Severity::Warning);
+        assert!(d[0].message.contains("sum to 0.6 < 1"), "{}", d[0].message);
+        assert!(d[0].message.contains("normalised"), "{}", d[0].message);
+        // All zero: selection falls back to uniform, and says so.
+        let d = run("a -> wall = 0\na -> window = 0\n");
+        assert_eq!(codes(&d), [("probability-sum", 1, 1)]);
+        assert!(d[0].message.contains("uniformly"), "{}", d[0].message);
+    }
+
+    #[test]
+    fn implicit_rule_after_explicit_ones_reaching_one_is_never_chosen() {
+        let d = run("a -> wall = 0.5\na -> window = 0.5\na -> door\n");
+        assert_eq!(codes(&d), [("probability-sum", 3, 1)]);
+        assert_eq!(d[0].severity, Severity::Warning);
+        assert!(d[0].message.contains("never chosen"), "{}", d[0].message);
+        // An implicit rule that takes the remainder is the normal way to write a default.
+        assert!(run("a -> wall = 0.3\na -> window\n").is_empty());
+    }
+
+    #[test]
+    fn negative_probability_is_an_error() {
+        // The parser refuses `= -0.1`; a rule set built otherwise is still checked.
+        let src = "a -> wall = 0.5\na -> window = 0.5\n";
+        let mut rules = parse(src, "t.cga").unwrap_or_else(|e| panic!("{e}"));
+        rules.rules[1].prob = Some(-0.1);
+        let d = lint(&rules, src);
+        assert!(
+            d.iter().any(|d| d.code == "probability-sum"
+                && d.line == 2
+                && d.severity == Severity::Error),
+            "{d:?}"
+        );
+    }
+
+    #[test]
+    fn duplicate_deterministic_rules_are_an_error_that_says_they_are_drawn() {
+        let d = run("a -> b\nb -> wall\nb -> window\nb -> wall\n");
+        assert_eq!(
+            codes(&d),
+            [("duplicate-rule", 3, 1), ("duplicate-rule", 4, 1)]
+        );
+        assert!(d.iter().all(|d| d.severity == Severity::Error));
+        // The parser shares the weight equally: 1/3 each, no shadowing.
+        assert!(
+            d[0].message
+                .contains("each is chosen at random with probability 0.333333"),
+            "{}",
+            d[0].message
+        );
+        assert!(d[0].message.contains("the first is at line 2"));
+        assert!(!d[0].message.contains("identical"));
+        assert!(d[1].message.contains("identical"), "{}", d[1].message);
+        // Cross-check against the parser's resolution.
+        let rules = parse("a -> wall\na -> window\n", "t.cga").unwrap_or_else(|e| panic!("{e}"));
+        let w: Vec<f64> = rules.rules_for("a").iter().map(|x| x.1).collect();
+        assert_eq!(w, [0.5, 0.5]);
+    }
+
+    #[test]
+    fn duplicate_rules_starved_by_explicit_ones_say_never_chosen() {
+        let d = run("a -> wall = 1\na -> window\na -> door\n");
+        let dup: Vec<_> = d.iter().filter(|d| d.code == "duplicate-rule").collect();
+        assert_eq!(dup.len(), 1);
+        assert_eq!(dup[0].line, 3);
+        assert!(
+            dup[0].message.contains("never chosen"),
+            "{}",
+            dup[0].message
+        );
+    }
+
+    #[test]
+    fn operation_on_the_wrong_shape_kind() {
+        // comp on the lot itself: always fails.
+        let d = run("lot -> comp(){side:wall}\n");
+        assert_eq!(codes(&d), [("op-shape-mismatch", 1, 1)]);
+        assert_eq!(d[0].severity, Severity::Error);
+        assert!(d[0].message.contains("extrude first"), "{}", d[0].message);
+        // split(Y) and R on facades, split(Z) on a lot.
+        let d = run("lot -> extrude(9){v}\nv -> comp(){side:f|top:r}\n\
+                     f -> split(Y,1){wall}\nr -> R(Z,10){wall}\n");
+        assert_eq!(
+            codes(&d),
+            [("op-shape-mismatch", 3, 1), ("op-shape-mismatch", 4, 1)]
+        );
+        assert!(d[0].message.contains("`split(Y, ...)`"), "{}", d[0].message);
+        let d = run("lot -> split(Z,3){wall}\n");
+        assert_eq!(codes(&d), [("op-shape-mismatch", 1, 1)]);
+        // A symbol met both as a lot and as a volume: warning only.
+        let d = run("lot -> m = 0.5\nlot -> extrude(3){m} = 0.5\nm -> comp(){side:wall}\n");
+        assert_eq!(codes(&d), [("op-shape-mismatch", 3, 1)]);
+        assert_eq!(d[0].severity, Severity::Warning);
+        assert!(d[0].message.contains("can be a lot"), "{}", d[0].message);
+        // extrude of a facade is supported (a balcony-like volume): no finding.
+        assert!(
+            run("lot -> extrude(9){v}\nv -> comp(){side:f}\nf -> extrude(1){wall}\n").is_empty()
+        );
+    }
+
+    #[test]
+    fn recursion_without_shrinking_may_not_terminate() {
+        let d = run("a -> S(sx,sy,sz){a}\n");
+        assert_eq!(codes(&d), [("non-terminating", 1, 1)]);
+        assert_eq!(d[0].severity, Severity::Warning);
+        assert!(d[0]
+            .message
+            .ends_with("may not terminate; the derivation cap will stop it"));
+        assert!(!d[0].message.contains("unless"));
+        // A two-symbol cycle: one finding, at its first rule, naming both.
+        let d = run("a -> T(0,0,1){b}\nb -> {a:color=red}\n");
+        assert_eq!(codes(&d), [("non-terminating", 1, 1)]);
+        assert!(d[0].message.contains("`a`, `b`"), "{}", d[0].message);
+        // An alternative way out.
+        let d = run("a -> S(sx,sy,sz){a} = 0.5\na -> wall = 0.5\n");
+        assert_eq!(codes(&d), [("non-terminating", 1, 1)]);
+        assert!(d[0]
+            .message
+            .contains("unless another alternative is chosen"));
+        // A split that drops the recursive piece once it no longer fits is fine.
+        assert!(run("a -> split(X,1,sx-1){wall|a}\n").is_empty());
+    }
+
+    #[test]
+    fn toulouse_downtown_reports_exactly_the_floor2_branch() {
+        let rules = parse(TOULOUSE, "toulouse_downtown.cga").unwrap_or_else(|e| panic!("{e}"));
+        let d = lint(&rules, TOULOUSE);
+        assert!(!has_errors(&d), "{d:?}");
+        let got: Vec<(&str, u32, &str)> = d
+            .iter()
+            .map(|d| {
+                let sym = d.line_text.split(" ->").next().unwrap_or("");
+                (d.code, d.line, sym)
+            })
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("unreachable-rule", 14, "floor2"),
+                ("unreachable-rule", 16, "face2"),
+                ("unreachable-rule", 18, "upper_face2"),
+                ("unreachable-rule", 21, "windowarea2"),
+                ("unreachable-rule", 23, "vwindow2"),
+                ("unreachable-rule", 26, "bwindow2"),
+            ]
+        );
+        assert!(d.iter().all(|d| d.severity == Severity::Warning));
+        assert!(d[0]
+            .message
+            .contains("`floor2` is not reachable from the axiom `lot`"));
+        assert!(d[1]
+            .message
+            .ends_with("(only used by the unreachable `floor2`)"));
+    }
+
+    #[test]
+    fn figure_3_19_is_clean() {
+        let rules = parse(FIG_3_19, "fig3_19.cga").unwrap_or_else(|e| panic!("{e}"));
+        let d = lint(&rules, FIG_3_19);
+        assert!(!has_errors(&d));
+        assert!(d.is_empty(), "{d:?}");
+    }
+
+    #[test]
+    fn errors_and_warnings_together_sorted_by_place() {
+        let src = "a -> b\na -> c\nb -> windw\nc -> wall\n";
+        let d = run(src);
+        assert_eq!(
+            codes(&d),
+            [("duplicate-rule", 2, 1), ("undefined-symbol", 3, 6)]
+        );
+        assert_eq!(d[0].severity, Severity::Error);
+        assert_eq!(d[1].severity, Severity::Warning);
+        assert!(has_errors(&d));
+        assert!(!has_errors(&d[1..]));
+        assert_eq!(d, run(src), "deterministic");
+    }
+
+    #[test]
+    fn display_has_location_code_source_line_and_caret() {
+        let src = "a -> b = 0.5\r\n\ta -> c = 0.6\r\nb -> wall\nc -> winow\n";
+        let d = run(src);
+        assert_eq!(
+            codes(&d),
+            [("probability-sum", 1, 1), ("undefined-symbol", 4, 6)]
+        );
+        assert_eq!(
+            d[1].to_string(),
+            "t.cga:4:6: warning[undefined-symbol]: `winow` has no rule and is not a known \
+             terminal (wall, window, door, balcony): it becomes a leaf of the shape tree with no \
+             element kind; did you mean `window`?\nc -> winow\n     ^"
+        );
+        assert!(d[0]
+            .to_string()
+            .starts_with("t.cga:1:1: error[probability-sum]: "));
+        assert!(d[0].to_string().ends_with("\na -> b = 0.5\n^"));
+        // Tabs are kept in the caret line so that it lines up; CR is not shown.
+        let d = run("b -> wall\n\tb -> window\n");
+        assert_eq!(codes(&d), [("duplicate-rule", 2, 2)]);
+        assert!(
+            d[0].to_string().ends_with("\n\tb -> window\n\t^"),
+            "{:?}",
+            d[0].to_string()
+        );
+    }
+
+    #[test]
+    fn mismatched_source_gives_empty_lines_not_a_panic() {
+        let rules = parse("a -> b\na -> c\n", "t.cga").unwrap_or_else(|e| panic!("{e}"));
+        let d = lint(&rules, "");
+        assert!(!d.is_empty());
+        assert!(d.iter().all(|d| d.line_text.is_empty()));
+        assert!(d[0].to_string().ends_with("\n\n^"));
+    }
+
+    #[test]
+    fn edit_distance_counts_characters() {
+        assert_eq!(edit_distance("windowarae", "windowarea"), 2);
+        assert_eq!(edit_distance("windw", "window"), 1);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("façade", "facade"), 1);
+        assert_eq!(edit_distance("same", "same"), 0);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Any rule file assembled from valid pieces lints without panicking, sorted and
+        /// deterministically, with every diagnostic on a line of the file.
+        #[test]
+        fn lint_is_total_sorted_and_deterministic(
+            lines in proptest::collection::vec(
+                (0usize..5, 0usize..7, 0usize..5, 0usize..5, proptest::option::of(0u8..=10)),
+                1..10,
+            )
+        ) {
+            let syms = ["a", "b", "c", "wall", "windw"];
+            let mut src = String::new();
+            for (p, op, s1, s2, prob) in &lines {
+                let (p, s1, s2) = (syms[*p], syms[*s1], syms[*s2]);
+                let body = match op {
+                    0 => s1.to_string(),
+                    1 => format!("extrude(3){{{s1}}}"),
+                    2 => format!("comp(){{side:{s1}|top:{s2}}}"),
+                    3 => format!("split(Z,1,1){{{s1}|{s2}}}"),
+                    4 => format!("split(Y,1){{{s1}}}"),
+                    5 => format!("S(sx,sy,sz){{{s1}}}"),
+                    _ => format!("R(Z,5){{{s1}|{s2}}}"),
+                };
+                let prob = prob.map_or(String::new(), |q| format!(" = {}", f64::from(q) / 10.0));
+                src.push_str(&format!("{p} -> {body}{prob}\n"));
+            }
+            let rules = parse(&src, "p.cga").unwrap_or_else(|e| panic!("{e}\n{src}"));
+            let d = lint(&rules, &src);
+            let n = src.lines().count() as u32;
+            for w in d.windows(2) {
+                proptest::prop_assert!((w[0].line, w[0].col, w[0].code) <= (w[1].line, w[1].col, w[1].code));
+            }
+            for x in &d {
+                proptest::prop_assert!(x.line >= 1 && x.line <= n && !x.line_text.is_empty());
+            }
+            proptest::prop_assert_eq!(d, lint(&rules, &src));
+        }
+    }
 }
