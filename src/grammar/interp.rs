@@ -39,7 +39,12 @@
 //!   by x/sx, y/sy and its height set to z; a face's width and height become x and z.
 //!   **T(x, y, z)** moves along the scope axes (for a face: x along the width, y along the
 //!   outward normal, z along the height). **R(Z, deg)** rotates a volume or lot (footprint and
-//!   scope) counter-clockwise about the scope origin; R on a face is not supported yet.
+//!   scope) counter-clockwise (seen from above) about the vertical through the scope origin; a
+//!   side face turns about its left vertical edge like a hinge (it stays a vertical rectangle,
+//!   its normal turns by `deg`); a top or bottom face cannot (its scope Z is horizontal):
+//!   derive-time [`DeriveError::Unsupported`]. `R(X, ..)` and `R(Y, ..)` are rejected at parse
+//!   time ([`super::ParseErrorKind::BadAxis`]): every shape keeps a vertical Z axis, which the
+//!   storey/facade model and the exporters rely on.
 //! * **Labels** (§3.3.1.3): extrude → `Building`; X/Y cut of a Building/BuildingPart →
 //!   `BuildingPart`, Z cut → `Storey`; a cut of a Storey or Room → `Room`; comp → `Facade`
 //!   (the face kind says side/top/bottom); cuts of a Facade/FacadePart → `FacadePart`; relabel,
@@ -419,12 +424,18 @@ fn apply(
         Op::Rotate(_, e) => {
             let deg = ctx.eval(e, size, attrs, rng)?;
             let (g, s) = match geom {
-                Geometry::Face { .. } => {
+                Geometry::Face {
+                    kind: FaceKind::Top | FaceKind::Bottom,
+                    ..
+                } => {
+                    // The scope Z of a top/bottom face is horizontal: turning about it would
+                    // tilt the face out of its plane, which a plan outline cannot hold.
                     return Err(ctx.unsupported(
                         "R",
                         "face",
-                        " (only volumes and lots rotate for now)",
-                    ))
+                        " (a top or bottom face cannot turn about its scope Z, which is \
+                         horizontal; rotate the volume before comp)",
+                    ));
                 }
                 _ => rotate(geom, scope, deg),
             };
@@ -712,7 +723,28 @@ fn rotate(geom: &Geometry, scope: &Scope, deg: f64) -> (Geometry, Scope) {
             },
             s,
         ),
-        Geometry::Face { .. } => (geom.clone(), *scope),
+        Geometry::Face {
+            kind,
+            origin,
+            z_axis,
+            width,
+            height,
+            ..
+        } => {
+            // A side face turns about its vertical left edge (a hinge): it stays vertical and
+            // keeps its size; its outward normal turns by the same angle.
+            let x_axis = s.x;
+            let g = Geometry::Face {
+                kind: *kind,
+                origin: *origin,
+                x_axis,
+                z_axis: *z_axis,
+                width: *width,
+                height: *height,
+                polygon: None,
+            };
+            (g, face_scope(*origin, x_axis, *z_axis, *width, *height))
+        }
     }
 }
 

@@ -19,6 +19,8 @@ pub mod parser;
 pub mod shape;
 
 #[cfg(test)]
+mod doc_tests;
+#[cfg(test)]
 mod tests;
 
 pub use ast::{
