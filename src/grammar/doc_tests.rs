@@ -14,6 +14,8 @@
 //! count label Storey = 3        nodes with that label (Label's variant name)
 //! widths f = 5, 2, 13           face widths of the nodes named `f`, in tree order
 //! heights s = 4, 4, 6.5         heights (volumes and faces) of the nodes named `s`
+//! z0 s = 0, 4                   base heights (volumes, lots; lower edge of faces)
+//! area s = 120                  footprint areas of the volumes/lots named `s`
 //! children f = a, b, wall       symbols of the children of the (first) node named `f`
 //! attr window color = yellow    every node named `window` has that attribute value
 //! weights gfront = 0.4, 0.6     resolved selection weights of a predecessor's rules
@@ -59,7 +61,10 @@ fn examples(doc: &str) -> Vec<Example> {
                 });
             } else {
                 let ex = out.last_mut().unwrap_or_else(|| {
-                    panic!("docs/grammar.md:{}: expect block before any cga block", i + 1)
+                    panic!(
+                        "docs/grammar.md:{}: expect block before any cga block",
+                        i + 1
+                    )
                 });
                 assert!(
                     ex.expect.is_empty(),
@@ -112,7 +117,9 @@ fn close(a: &[f64], b: &[f64]) -> bool {
 
 fn size_of(n: &ShapeNode, width: bool) -> f64 {
     match &n.geometry {
-        Geometry::Face { width: w, height, .. } => {
+        Geometry::Face {
+            width: w, height, ..
+        } => {
             if width {
                 *w
             } else {
@@ -233,6 +240,24 @@ fn check(ex: &Example) {
                     "docs/grammar.md:{ln}: {c}, got {got:?}"
                 );
             }
+            "z0" | "area" => {
+                let (sym, v) = lhs_rhs(rest, *ln);
+                let got: Vec<f64> = named(&sym)
+                    .iter()
+                    .map(|n| match (&n.geometry, word) {
+                        (Geometry::Volume { z0, .. }, "z0") => *z0,
+                        (Geometry::Lot { z, .. }, "z0") => *z,
+                        (Geometry::Face { origin, .. }, "z0") => origin.z,
+                        (Geometry::Volume { footprint, .. }, _) => footprint.area(),
+                        (Geometry::Lot { polygon, .. }, _) => polygon.area(),
+                        (Geometry::Face { .. }, _) => f64::NAN,
+                    })
+                    .collect();
+                assert!(
+                    close(&got, &numbers(&v, *ln)),
+                    "docs/grammar.md:{ln}: {c}, got {got:?}"
+                );
+            }
             "children" => {
                 let (sym, v) = lhs_rhs(rest, *ln);
                 let first = tree
@@ -253,7 +278,11 @@ fn check(ex: &Example) {
                 assert!(!nodes.is_empty(), "docs/grammar.md:{ln}: no node `{sym}`");
                 for n in nodes {
                     let got = n.attrs.get(key.trim()).map(|a| a.to_string());
-                    assert_eq!(got.as_deref(), Some(v.as_str()), "docs/grammar.md:{ln}: {c}");
+                    assert_eq!(
+                        got.as_deref(),
+                        Some(v.as_str()),
+                        "docs/grammar.md:{ln}: {c}"
+                    );
                 }
             }
             "weights" => {

@@ -829,7 +829,11 @@ fn figure_3_19_on_a_real_monaco_footprint() {
         for s in ["gleft_facade", "gright_facade"] {
             for i in find(&t, s) {
                 let n = leaves_under(&t, i, Terminal::Window);
-                assert_eq!(n, 3 * (face_width(&t.nodes[i]) / 3.0).floor() as usize, "{s}");
+                assert_eq!(
+                    n,
+                    3 * (face_width(&t.nodes[i]) / 3.0).floor() as usize,
+                    "{s}"
+                );
                 windows += n;
             }
         }
@@ -851,7 +855,9 @@ fn figure_3_19_on_a_real_monaco_footprint() {
             .map(|&i| leaves_under(&t, i, Terminal::Window))
             .sum();
         assert_eq!(windows, 5 * 24 + 2 * 24 + 15 + front_windows);
-        assert!(t.leaves().all(|n| n.attrs.get("roof").and_then(AttrValue::as_str) == Some("hip")));
+        assert!(t
+            .leaves()
+            .all(|n| n.attrs.get("roof").and_then(AttrValue::as_str) == Some("hip")));
     }
 }
 
@@ -884,8 +890,63 @@ fn toulouse_downtown_on_a_real_monaco_footprint() {
         }
         // 6 + 0 + 1 + 1 + 4 + 2 + 2 + 6 windows on the 8 facades of one storey.
         assert_eq!(per_storey, 22 * storeys);
-        assert_eq!(count(&t, |n| n.terminal == Some(Terminal::Window)), 22 * storeys);
+        assert_eq!(
+            count(&t, |n| n.terminal == Some(Terminal::Window)),
+            22 * storeys
+        );
         assert_eq!(find(&t, "face2").len(), 0);
     }
     assert_eq!(storeys_seen, [3, 4].into_iter().collect());
+}
+
+#[test]
+fn r_turns_a_side_face_about_its_left_edge() {
+    let t = run(
+        "lot -> extrude(6){m}\nm -> comp(){front:f}\nf -> split(X,2,1,17){wall|shutter|wall}\n\
+         shutter -> R(Z,-90){open}\nopen -> R(Z,30){half}",
+        &rect(20.0, 12.0),
+        1,
+    );
+    let open = &t.nodes[find(&t, "open")[0]];
+    let Geometry::Face {
+        origin,
+        x_axis,
+        z_axis,
+        width,
+        height,
+        ..
+    } = open.geometry
+    else {
+        panic!()
+    };
+    // The hinge stays where it was; the face now sticks out south and faces west.
+    assert!((origin - DVec3::new(2.0, 0.0, 0.0)).length() < 1e-12);
+    assert!((x_axis - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
+    assert_eq!((z_axis, width, height), (DVec3::Z, 1.0, 6.0));
+    let n = open.geometry.face_normal().unwrap_or(DVec3::ZERO);
+    assert!((n - DVec3::new(-1.0, 0.0, 0.0)).length() < 1e-12, "{n}");
+    assert_eq!(open.label, Label::FacadePart);
+    // A second turn composes: -90 + 30 = -60 degrees from the facade.
+    let half = &t.nodes[find(&t, "half")[0]];
+    let n = half.geometry.face_normal().unwrap_or(DVec3::ZERO);
+    let want = DVec2::from_angle((-90.0f64 - 60.0).to_radians());
+    assert!((n.truncate() - want).length() < 1e-12, "{n}");
+    // A top face cannot turn about its (horizontal) scope Z.
+    let rules = parse(
+        "lot -> extrude(6){m}\nm -> comp(){top:t}\nt -> R(Z,45){u}",
+        "r.cga",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let err = derive(
+        &rules,
+        &rect(20.0, 12.0),
+        Attrs::new(),
+        &mut Rng::new(1, 1),
+        &Caps::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&err, DeriveError::Unsupported { rule, .. } if rule.starts_with("r.cga:3 (t -> R")),
+        "{err}"
+    );
 }
