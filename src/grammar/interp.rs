@@ -1,6 +1,7 @@
 //! The derivation: applies rules to shapes, breadth first, until only terminals are left.
 //!
-//! Decisions of this core (a later issue writes them up in docs/grammar.md):
+//! Decisions of this core (written up, with an example each that is also a test, in
+//! docs/grammar.md; `doc_tests.rs` keeps the two in step):
 //!
 //! * **Order and determinism.** Shapes are expanded breadth first in creation order; all random
 //!   draws (rule choice, `rand`) come from the one `Rng`, so the same seed gives the same tree.
@@ -29,7 +30,10 @@
 //!   matches every vertical face and `others` every vertical face not taken by an earlier
 //!   selector. front/back/left/right: the face's outward normal is expressed in the parent
 //!   scope's frame; when |n·Y| ≥ |n·X| it is `front` (n·Y < 0) or `back`, otherwise `right`
-//!   (n·X > 0) or `left` — so on a 45° tie front/back win. A vertical face no selector takes
+//!   (n·X > 0) or `left` — so on a 45° tie front/back win. This matches the thesis's "dot
+//!   product of the parent's X axis with the face's X axis" for front/back (x_face·X = −n·Y);
+//!   left/right also use the normal (not the side of the centroid) so that courtyard walls
+//!   and inner edges of concave footprints are classified by the direction they face. A vertical face no selector takes
 //!   still becomes a `wall` (facades stay closed); a top or bottom face no selector takes is not
 //!   created (roofs and slabs are built from the building's footprint and roof attribute).
 //! * **extrude** of a lot gives a `Building`; of a volume, it re-extrudes the footprint to the
