@@ -1,6 +1,7 @@
 //! The derivation: applies rules to shapes, breadth first, until only terminals are left.
 //!
-//! Decisions of this core (a later issue writes them up in docs/grammar.md):
+//! Decisions of this core (written up, with an example each that is also a test, in
+//! docs/grammar.md; `doc_tests.rs` keeps the two in step):
 //!
 //! * **Order and determinism.** Shapes are expanded breadth first in creation order; all random
 //!   draws (rule choice, `rand`) come from the one `Rng`, so the same seed gives the same tree.
@@ -29,7 +30,10 @@
 //!   matches every vertical face and `others` every vertical face not taken by an earlier
 //!   selector. front/back/left/right: the face's outward normal is expressed in the parent
 //!   scope's frame; when |n·Y| ≥ |n·X| it is `front` (n·Y < 0) or `back`, otherwise `right`
-//!   (n·X > 0) or `left` — so on a 45° tie front/back win. A vertical face no selector takes
+//!   (n·X > 0) or `left` — so on a 45° tie front/back win. This matches the thesis's "dot
+//!   product of the parent's X axis with the face's X axis" for front/back (x_face·X = −n·Y);
+//!   left/right also use the normal (not the side of the centroid) so that courtyard walls
+//!   and inner edges of concave footprints are classified by the direction they face. A vertical face no selector takes
 //!   still becomes a `wall` (facades stay closed); a top or bottom face no selector takes is not
 //!   created (roofs and slabs are built from the building's footprint and roof attribute).
 //! * **extrude** of a lot gives a `Building`; of a volume, it re-extrudes the footprint to the
@@ -39,7 +43,12 @@
 //!   by x/sx, y/sy and its height set to z; a face's width and height become x and z.
 //!   **T(x, y, z)** moves along the scope axes (for a face: x along the width, y along the
 //!   outward normal, z along the height). **R(Z, deg)** rotates a volume or lot (footprint and
-//!   scope) counter-clockwise about the scope origin; R on a face is not supported yet.
+//!   scope) counter-clockwise (seen from above) about the vertical through the scope origin; a
+//!   side face turns about its left vertical edge like a hinge (it stays a vertical rectangle,
+//!   its normal turns by `deg`); a top or bottom face cannot (its scope Z is horizontal):
+//!   derive-time [`DeriveError::Unsupported`]. `R(X, ..)` and `R(Y, ..)` are rejected at parse
+//!   time ([`super::ParseErrorKind::BadAxis`]): every shape keeps a vertical Z axis, which the
+//!   storey/facade model and the exporters rely on.
 //! * **Labels** (§3.3.1.3): extrude → `Building`; X/Y cut of a Building/BuildingPart →
 //!   `BuildingPart`, Z cut → `Storey`; a cut of a Storey or Room → `Room`; comp → `Facade`
 //!   (the face kind says side/top/bottom); cuts of a Facade/FacadePart → `FacadePart`; relabel,
@@ -419,12 +428,18 @@ fn apply(
         Op::Rotate(_, e) => {
             let deg = ctx.eval(e, size, attrs, rng)?;
             let (g, s) = match geom {
-                Geometry::Face { .. } => {
+                Geometry::Face {
+                    kind: FaceKind::Top | FaceKind::Bottom,
+                    ..
+                } => {
+                    // The scope Z of a top/bottom face is horizontal: turning about it would
+                    // tilt the face out of its plane, which a plan outline cannot hold.
                     return Err(ctx.unsupported(
                         "R",
                         "face",
-                        " (only volumes and lots rotate for now)",
-                    ))
+                        " (a top or bottom face cannot turn about its scope Z, which is \
+                         horizontal; rotate the volume before comp)",
+                    ));
                 }
                 _ => rotate(geom, scope, deg),
             };
@@ -712,7 +727,28 @@ fn rotate(geom: &Geometry, scope: &Scope, deg: f64) -> (Geometry, Scope) {
             },
             s,
         ),
-        Geometry::Face { .. } => (geom.clone(), *scope),
+        Geometry::Face {
+            kind,
+            origin,
+            z_axis,
+            width,
+            height,
+            ..
+        } => {
+            // A side face turns about its vertical left edge (a hinge): it stays vertical and
+            // keeps its size; its outward normal turns by the same angle.
+            let x_axis = s.x;
+            let g = Geometry::Face {
+                kind: *kind,
+                origin: *origin,
+                x_axis,
+                z_axis: *z_axis,
+                width: *width,
+                height: *height,
+                polygon: None,
+            };
+            (g, face_scope(*origin, x_axis, *z_axis, *width, *height))
+        }
     }
 }
 

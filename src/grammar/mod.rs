@@ -10,7 +10,8 @@
 //! [`parse`] turns a rule file into a [`RuleSet`] (errors point at `file:line:col`); [`derive`]
 //! applies it to one footprint and returns the [`ShapeTree`] the exporters consume. The
 //! semantic decisions (remainders, truncation, repeat fitting, comp selectors, labels) are
-//! documented on the [`interp`] module.
+//! documented on the [`interp`] module; the language reference is docs/grammar.md, whose
+//! examples are tests (`doc_tests.rs`).
 
 pub mod ast;
 pub mod expr;
@@ -19,6 +20,8 @@ pub mod lint;
 pub mod parser;
 pub mod shape;
 
+#[cfg(test)]
+mod doc_tests;
 #[cfg(test)]
 mod tests;
 

@@ -734,3 +734,219 @@ windowpart -> {window: style=framed, framecolor=gold , material=
         Some("indianred")
     );
 }
+
+/// A real, concave Monaco footprint: OSM way 49209616 (`building=yes`, `building:levels=3`),
+/// 8 vertices, 420.4 m², after `read_osm` + `prepare` (UTM 32N, local metres), shifted so that
+/// its bounding box starts at the origin. Inlined to keep the golden tests fast;
+/// `monaco_footprint_matches_the_data` checks it against data/monaco.
+pub(super) fn monaco_footprint() -> Polygon {
+    let p = [
+        (6.940, 27.632),
+        (0.000, 4.210),
+        (1.249, 3.797),
+        (7.934, 1.592),
+        (12.778, 0.000),
+        (17.838, 15.658),
+        (25.791, 13.162),
+        (28.774, 22.172),
+    ];
+    Polygon::new(p.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![])
+}
+
+#[test]
+fn monaco_footprint_matches_the_data() {
+    // The inlined footprint is the one the pipeline reads (up to the shift to the origin and
+    // the 3-decimal rounding).
+    let mut report = crate::report::Report::default();
+    let read = crate::input::osm::read_osm(
+        std::path::Path::new("data/monaco/monaco.osm.pbf"),
+        &mut report,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let site = crate::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let lot = site
+        .lots
+        .iter()
+        .find(|l| l.id == crate::input::SourceId::Way(49209616))
+        .unwrap_or_else(|| panic!("way 49209616 not in data/monaco"));
+    assert_eq!(lot.polygons.len(), 1);
+    let real = &lot.polygons[0];
+    let (lo, _) = real.bounds();
+    let ours = monaco_footprint();
+    assert_eq!(real.outer.len(), ours.outer.len());
+    for (a, b) in real.outer.iter().zip(&ours.outer) {
+        assert!((*a - lo - *b).length() < 1e-3, "{a} vs {b}");
+    }
+}
+
+/// Windows the thesis's `face` rule gives a facade of width `w` (Figure 3.19):
+/// `rsplit(X,0.1,0.8,0.1)` keeps 0.8 w for `windowarea`, whose `repeat(X,2,0.2)` fits
+/// floor(0.8 w / 2.2) window bays (none, and a plain wall, under 2.2 m).
+fn fig_face_windows(w: f64) -> usize {
+    (0.8 * w / 2.2 + 1e-9).floor() as usize
+}
+
+fn face_width(n: &ShapeNode) -> f64 {
+    match n.geometry {
+        Geometry::Face { width, .. } => width,
+        ref g => panic!("not a face: {g:?}"),
+    }
+}
+
+#[test]
+fn figure_3_19_on_a_real_monaco_footprint() {
+    // The text (seed 003 L1061): the mass is split into b1 and b2; b1 is shrunk to b3
+    // (60-80 % of 20 m); both are split into "five storeys of equal height" and "end with two
+    // and four storeys respectively" — French étages above the ground floor, i.e. 3 and 5
+    // levels here (Storey shapes); b3's ground floor (gfloor) differs from the other floors;
+    // every other floor facade holds a repeat of yellow glass windows.
+    let lot = monaco_footprint();
+    for seed in 0..8 {
+        let t = run(FIG_3_19, &lot, seed);
+        assert_eq!(find(&t, "building").len(), 1);
+        // The Y split of this convex-hull-ish boot shape gives one slab each side.
+        let (b2, b3) = (find(&t, "b2"), find(&t, "b3"));
+        assert_eq!((find(&t, "b1").len(), b2.len(), b3.len()), (1, 1, 1));
+        assert_eq!(t.children(b2[0]).len(), 5, "b2: ground + 4 étages");
+        assert_eq!(t.children(b3[0]).len(), 3, "b3: ground + 2 étages");
+        assert_eq!(count(&t, |n| n.label == Label::Storey), 8);
+        assert_eq!(find(&t, "gfloor").len(), 1);
+        assert_eq!(find(&t, "floor").len(), 7);
+        // Each piece has 6 vertical faces (the slab cut adds two edges to the boot's halves).
+        for f in find(&t, "floor") {
+            assert_eq!(t.children(f).len(), 6);
+        }
+        // Every upper-floor facade follows the face/windowarea arithmetic.
+        let mut windows = 0;
+        for i in find(&t, "face") {
+            let n = leaves_under(&t, i, Terminal::Window);
+            assert_eq!(n, fig_face_windows(face_width(&t.nodes[i])), "face {i}");
+            windows += n;
+        }
+        // Ground floor: left/right facades repeat(X,1,1,1) -> 3 per whole 3 m; two faces of
+        // this footprint are `front` (its two south-facing edges), each with one door; the
+        // back is a wall.
+        for s in ["gleft_facade", "gright_facade"] {
+            for i in find(&t, s) {
+                let n = leaves_under(&t, i, Terminal::Window);
+                assert_eq!(
+                    n,
+                    3 * (face_width(&t.nodes[i]) / 3.0).floor() as usize,
+                    "{s}"
+                );
+                windows += n;
+            }
+        }
+        let fronts = find(&t, "gfront");
+        assert_eq!(fronts.len(), 2);
+        for &i in &fronts {
+            assert_eq!(leaves_under(&t, i, Terminal::Door), 1);
+            let n = leaves_under(&t, i, Terminal::Window);
+            assert!(n == 0 || n == 2);
+            windows += n;
+        }
+        assert_eq!(count(&t, |n| n.terminal == Some(Terminal::Door)), 2);
+        assert_eq!(count(&t, |n| n.terminal == Some(Terminal::Window)), windows);
+        // b2's six facades (24.4, 1.3, 7.0, 2.9, 25.3, 11.3 m) hold 8+0+2+1+9+4 = 24 windows
+        // per floor, b3's (25.3, 2.2, 16.5, 8.3, 9.5, 11.3 m) 9+0+5+3+3+4 = 24; gfloor's left
+        // and right facades (2.2, 8.3 and 11.3 m) 0+6+9 = 15; each front 0 or 2.
+        let front_windows: usize = fronts
+            .iter()
+            .map(|&i| leaves_under(&t, i, Terminal::Window))
+            .sum();
+        assert_eq!(windows, 5 * 24 + 2 * 24 + 15 + front_windows);
+        assert!(t
+            .leaves()
+            .all(|n| n.attrs.get("roof").and_then(AttrValue::as_str) == Some("hip")));
+    }
+}
+
+/// Windows of the Toulouse `face` rule on a facade of width `w`: `upper_face` keeps 0.8 w for
+/// `windowarea`, whose `repeat(X,2,1)` fits floor(0.8 w / 3) bays of one window each.
+fn toulouse_face_windows(w: f64) -> usize {
+    (0.8 * w / 3.0 + 1e-9).floor() as usize
+}
+
+#[test]
+fn toulouse_downtown_on_a_real_monaco_footprint() {
+    // The text gives heights 15 m (p = 0.4 + 0.2) or 20 m (p = 0.2 + 0.2) and storeys of 5 m:
+    // 3 or 4 storeys; every facade of every storey gets framed windows (`b_window`), one per
+    // 3 m bay of its middle 80 %. `floor2` is unreachable (building2 repeats `floor`).
+    let lot = monaco_footprint();
+    let mut storeys_seen = std::collections::BTreeSet::new();
+    for seed in 0..12 {
+        let t = run(TOULOUSE, &lot, seed);
+        let h = volume_height(&t.children(0)[0]);
+        let storeys = (h / 5.0).round() as usize;
+        storeys_seen.insert(storeys);
+        assert_eq!(count(&t, |n| n.label == Label::Storey), storeys);
+        // The boot-shaped footprint has 8 edges: 8 facades per storey.
+        assert_eq!(count(&t, |n| n.label == Label::Facade), 8 * storeys);
+        let mut per_storey = 0;
+        for i in find(&t, "face") {
+            let n = leaves_under(&t, i, Terminal::Window);
+            assert_eq!(n, toulouse_face_windows(face_width(&t.nodes[i])));
+            per_storey += n;
+        }
+        // 6 + 0 + 1 + 1 + 4 + 2 + 2 + 6 windows on the 8 facades of one storey.
+        assert_eq!(per_storey, 22 * storeys);
+        assert_eq!(
+            count(&t, |n| n.terminal == Some(Terminal::Window)),
+            22 * storeys
+        );
+        assert_eq!(find(&t, "face2").len(), 0);
+    }
+    assert_eq!(storeys_seen, [3, 4].into_iter().collect());
+}
+
+#[test]
+fn r_turns_a_side_face_about_its_left_edge() {
+    let t = run(
+        "lot -> extrude(6){m}\nm -> comp(){front:f}\nf -> split(X,2,1,17){wall|shutter|wall}\n\
+         shutter -> R(Z,-90){open}\nopen -> R(Z,30){half}",
+        &rect(20.0, 12.0),
+        1,
+    );
+    let open = &t.nodes[find(&t, "open")[0]];
+    let Geometry::Face {
+        origin,
+        x_axis,
+        z_axis,
+        width,
+        height,
+        ..
+    } = open.geometry
+    else {
+        panic!()
+    };
+    // The hinge stays where it was; the face now sticks out south and faces west.
+    assert!((origin - DVec3::new(2.0, 0.0, 0.0)).length() < 1e-12);
+    assert!((x_axis - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
+    assert_eq!((z_axis, width, height), (DVec3::Z, 1.0, 6.0));
+    let n = open.geometry.face_normal().unwrap_or(DVec3::ZERO);
+    assert!((n - DVec3::new(-1.0, 0.0, 0.0)).length() < 1e-12, "{n}");
+    assert_eq!(open.label, Label::FacadePart);
+    // A second turn composes: -90 + 30 = -60 degrees from the facade.
+    let half = &t.nodes[find(&t, "half")[0]];
+    let n = half.geometry.face_normal().unwrap_or(DVec3::ZERO);
+    let want = DVec2::from_angle((-90.0f64 - 60.0).to_radians());
+    assert!((n.truncate() - want).length() < 1e-12, "{n}");
+    // A top face cannot turn about its (horizontal) scope Z.
+    let rules = parse(
+        "lot -> extrude(6){m}\nm -> comp(){top:t}\nt -> R(Z,45){u}",
+        "r.cga",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let err = derive(
+        &rules,
+        &rect(20.0, 12.0),
+        Attrs::new(),
+        &mut Rng::new(1, 1),
+        &Caps::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&err, DeriveError::Unsupported { rule, .. } if rule.starts_with("r.cga:3 (t -> R")),
+        "{err}"
+    );
+}
