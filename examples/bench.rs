@@ -79,5 +79,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     std::fs::remove_dir_all(&dir)?;
+    skeleton_bench(&source, reps)?;
+    Ok(())
+}
+
+/// Straight skeletons (hipped roofs) per second on the input's footprint polygons, one thread.
+fn skeleton_bench(source: &Source, reps: usize) -> Result<(), Box<dyn std::error::Error>> {
+    let mut report = citygen::report::Report::default();
+    let read = match source {
+        Source::Osm(p) => citygen::input::osm::read_osm(p, &mut report)?,
+        Source::Shp { path, .. } => citygen::input::shp::read_shp(path, &Default::default(), &mut report)?,
+    };
+    let site = citygen::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let polygons: Vec<&citygen::geometry::Polygon> = site
+        .lots
+        .iter()
+        .flat_map(|l| l.polygons.iter().chain(l.parts.iter().flat_map(|p| p.polygons.iter())))
+        .collect();
+    let vertices: usize = polygons.iter().map(|p| p.rings().map(Vec::len).sum::<usize>()).sum();
+    let mut best = f64::INFINITY;
+    let mut failed = 0;
+    for _ in 0..reps.max(1) {
+        let t = Instant::now();
+        failed = polygons.iter().filter(|p| citygen::geometry::skeleton::straight_skeleton(p).is_err()).count();
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    println!(
+        "skeleton: {} footprints ({vertices} vertices), {failed} failed, {:.3} s: {:.0} skeletons/s on one thread",
+        polygons.len(),
+        best,
+        polygons.len() as f64 / best
+    );
     Ok(())
 }
