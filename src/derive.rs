@@ -214,29 +214,33 @@ fn merged_tags(piece: &BuildingTags, outline: &BuildingTags, is_part: bool) -> B
     t
 }
 
-/// The masses of a derived tree: volumes labelled building or building part that contain no
-/// other such volume (seed 003 §3.5: "each shape marked building part that contains no building
-/// part becomes an IfcBuilding").
-pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
+/// Indices of the masses of a derived tree, in tree order: volumes labelled building or
+/// building part that contain no other such volume (seed 003 §3.5: "each shape marked building
+/// part that contains no building part becomes an IfcBuilding").
+pub fn mass_nodes(tree: &ShapeTree) -> Vec<usize> {
     let is_mass = |i: usize| {
         matches!(tree.nodes[i].label, Label::Building | Label::BuildingPart)
             && matches!(tree.nodes[i].geometry, Geometry::Volume { .. })
     };
+    // Children come after their parents, so one backward pass marks every ancestor of a mass.
     let mut has_mass_below = vec![false; tree.nodes.len()];
     for i in (0..tree.nodes.len()).rev() {
         if is_mass(i) || has_mass_below[i] {
             if let Some(p) = tree.nodes[i].parent {
-                if is_mass(i) || has_mass_below[i] {
-                    has_mass_below[p] = true;
-                }
+                has_mass_below[p] = true;
             }
         }
     }
+    (0..tree.nodes.len())
+        .filter(|&i| is_mass(i) && !has_mass_below[i])
+        .collect()
+}
+
+/// The masses of a derived tree (see [`mass_nodes`]) with their heights, roofs and colours.
+pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
     let mut out = Vec::new();
-    for (i, node) in tree.nodes.iter().enumerate() {
-        if !is_mass(i) || has_mass_below[i] {
-            continue;
-        }
+    for i in mass_nodes(tree) {
+        let node = &tree.nodes[i];
         let Geometry::Volume {
             footprint,
             z0,

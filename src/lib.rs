@@ -8,6 +8,7 @@ pub mod color;
 pub mod crs;
 pub mod derive;
 pub mod export;
+pub mod facade;
 pub mod geometry;
 pub mod grammar;
 pub mod input;

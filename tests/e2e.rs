@@ -492,7 +492,8 @@ fn rules_check_fails_with_file_line_col_on_a_malformed_ruleset() {
 #[test]
 fn rules_derive_writes_one_test_lot() {
     let dir = tempfile::tempdir().unwrap();
-    let gml = dir.path().join("lot.gml");
+    // The output folder does not exist yet: citygen creates it.
+    let gml = dir.path().join("new/sub/lot.gml");
     let out = citygen(&[
         "rules",
         "derive",

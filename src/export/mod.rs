@@ -62,12 +62,13 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    /// Creates the temporary file in the target's folder (which must exist).
+    /// Creates the temporary file in the target's folder, creating the folder if needed.
     pub fn create(target: &Path) -> io::Result<AtomicFile> {
         let dir = target
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir)?;
         let name = target
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
