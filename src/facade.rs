@@ -12,6 +12,7 @@ use glam::{DVec2, DVec3};
 use crate::color::Color;
 use crate::geometry::Polygon;
 use crate::grammar::{AttrValue, FaceKind, Geometry, Label, ShapeNode, ShapeTree, Terminal};
+pub use crate::model::OpeningKind;
 
 /// How far (metres) a face may be from a footprint edge and still stand on it.
 const ON_EDGE: f64 = 0.01;
@@ -21,13 +22,6 @@ const ON_EDGE: f64 = 0.01;
 pub struct Level {
     pub z0: f64,
     pub z1: f64,
-}
-
-/// Window or door.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum OpeningKind {
-    Window,
-    Door,
 }
 
 /// A window or door found on a wall: `u0..u1` along the footprint edge from its start (metres),

@@ -117,6 +117,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         eave_z: if lod == Lod::Lod1 { top_z } else { mass.eave_z },
         top_z,
         storeys: mass.storeys.max(1),
+        levels: even_levels(mass.base_z, mass.eave_z, mass.storeys.max(1)),
         wall_color: mass.wall_color,
         roof_color: mass.roof_color,
         roof_shape: if flat { RoofShape::Flat } else { mass.roof },
@@ -143,10 +144,20 @@ pub fn walls(footprint: &Polygon, base: f64, top: f64) -> Vec<Wall> {
                 top_z: top,
                 thickness: WALL_THICKNESS,
                 outline: Face::new(vec![at(s, base), at(e, base), at(e, top), at(s, top)]),
+                storey: 0,
+                openings: Vec::new(),
+                balconies: Vec::new(),
             });
         }
     }
     out
+}
+
+/// Floor elevations of `n` equal storeys between `base` and `eave`.
+pub fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
+    let n = n.max(1);
+    let h = (eave - base) / f64::from(n);
+    (0..n).map(|i| base + h * f64::from(i)).collect()
 }
 
 /// The footprint as a horizontal face at `z`, facing up (a roof) or down (a ground).

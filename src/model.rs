@@ -139,13 +139,70 @@ impl Face {
     }
 }
 
+/// Window or door.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum OpeningKind {
+    Window,
+    Door,
+}
+
+/// A window or door in a wall (LOD3).
+///
+/// `u0..u1` runs along the wall from its `start`, `z0..z1` are absolute heights. An opening
+/// lies strictly inside the rectangular part of its wall (at least [`OPENING_MARGIN`] from every
+/// border) and overlaps no other opening of the wall; its hole is also in the wall's
+/// `outline.holes`, in the same order as `openings`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Opening {
+    pub kind: OpeningKind,
+    pub u0: f64,
+    pub u1: f64,
+    pub z0: f64,
+    pub z1: f64,
+    /// Glass or door-panel colour.
+    pub color: Color,
+    pub frame_color: Color,
+    /// Transparent glass (`material=glass`).
+    pub glazed: bool,
+    /// With a frame (`style=framed`).
+    pub framed: bool,
+}
+
+impl Opening {
+    /// Width along the wall.
+    pub fn width(&self) -> f64 {
+        self.u1 - self.u0
+    }
+
+    /// Height.
+    pub fn height(&self) -> f64 {
+        self.z1 - self.z0
+    }
+}
+
+/// Smallest distance between an opening and the border of its wall, or another opening
+/// (metres). Keeps wall polygons with holes valid (no touching rings).
+pub const OPENING_MARGIN: f64 = 0.02;
+
+/// A balcony on a wall (LOD3): a slab of `depth` metres in front of the wall at floor height
+/// `z`, spanning `u0..u1` along it, with a railing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Balcony {
+    pub u0: f64,
+    pub u1: f64,
+    pub z: f64,
+    pub depth: f64,
+    pub color: Color,
+}
+
 /// One exterior wall: the piece of the building envelope standing on one footprint edge.
 ///
 /// `start` and `end` are the edge's endpoints on the footprint (outer ring counter-clockwise,
 /// so the outside is on the right of start->end). The wall body lies inside the footprint:
 /// the outer face is on the footprint edge and the wall is `thickness` thick towards the inside.
 /// `outline` is the outer face: it starts at (start, base_z), goes to (end, base_z), then up;
-/// it is a rectangle, or a pentagon/trapezoid where the wall closes a gable.
+/// it is a rectangle, or a pentagon/trapezoid where the wall closes a gable. At LOD3 its holes
+/// are the openings' rectangles.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wall {
     pub start: DVec2,
@@ -155,6 +212,13 @@ pub struct Wall {
     pub top_z: f64,
     pub thickness: f64,
     pub outline: Face,
+    /// Index of the storey (in [`Part::levels`]) the wall belongs to; 0 below LOD3, where a wall
+    /// spans all storeys.
+    pub storey: usize,
+    /// Windows and doors (LOD3).
+    pub openings: Vec<Opening>,
+    /// Balconies (LOD3).
+    pub balconies: Vec<Balcony>,
 }
 
 impl Wall {
@@ -179,6 +243,9 @@ pub struct Part {
     pub top_z: f64,
     /// Storeys above ground in this part (at least 1).
     pub storeys: u32,
+    /// Floor elevation of each storey, ascending, the first at `base_z` (`storeys` values; the
+    /// last storey ends at `eave_z`).
+    pub levels: Vec<f64>,
     pub wall_color: Color,
     pub roof_color: Color,
     pub roof_shape: RoofShape,

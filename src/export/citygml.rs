@@ -762,6 +762,9 @@ mod tests {
                     top_z: top,
                     thickness: 0.3,
                     outline: Face::new(vec![at(a, base), at(b, base), at(b, top), at(a, top)]),
+                    storey: 0,
+                    openings: Vec::new(),
+                    balconies: Vec::new(),
                 });
             }
         }
@@ -785,6 +788,7 @@ mod tests {
             eave_z: top,
             top_z: top,
             storeys: ((top - base) / 3.0).round().max(1.0) as u32,
+            levels: vec![base],
             wall_color: wall,
             roof_color: roof,
             roof_shape: RoofShape::Flat,

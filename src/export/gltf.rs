@@ -858,6 +858,9 @@ mod tests {
             top_z: top,
             thickness: 0.3,
             outline,
+            storey: 0,
+            openings: Vec::new(),
+            balconies: Vec::new(),
         }
     }
 
@@ -908,6 +911,7 @@ mod tests {
             eave_z: eave,
             top_z: top,
             storeys: 2,
+            levels: vec![base, (base + eave) / 2.0],
             wall_color,
             roof_color: Color::rgb(0.7, 0.2, 0.1),
             roof_shape: shape,

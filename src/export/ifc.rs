@@ -1261,6 +1261,9 @@ mod tests {
                         b.extend(eave),
                         a.extend(eave),
                     ]),
+                    storey: 0,
+                    openings: Vec::new(),
+                    balconies: Vec::new(),
                 });
             }
         }
@@ -1293,6 +1296,7 @@ mod tests {
             eave_z: top,
             top_z: top,
             storeys,
+            levels: crate::massing::even_levels(base, top, storeys),
             wall_color: BEIGE,
             roof_color: RED,
             roof_shape: RoofShape::Flat,
