@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::color::Color;
+use crate::facade;
 use crate::geometry::Polygon;
 use crate::grammar::{self, AttrValue, Attrs, Caps, Geometry, Label, RuleSet, ShapeTree};
 use crate::input::{BuildingTags, SourceId};
@@ -79,7 +80,7 @@ impl Generator {
             for polygon in &piece.polygons {
                 let masses =
                     self.masses(polygon, &style, &rules, &mut rng, piece.id, &mut notes)?;
-                for mass in masses {
+                for (mass, facades) in masses {
                     let roof = match massing::roof_geometry(&mass) {
                         Ok(r) => r,
                         Err(f) => {
@@ -91,7 +92,24 @@ impl Generator {
                         }
                     };
                     let key = format!("p{}", parts.len());
-                    parts.push(massing::build_part(key, &mass, &roof, self.lod));
+                    let mut part = massing::build_part(key, &mass, &roof, self.lod);
+                    if let Some(f) = facades {
+                        let colors = facade::OpeningColors {
+                            window: style.window_color,
+                            frame: style.frame_color,
+                            door: style.door_color,
+                        };
+                        let dropped = facade::apply(&mut part, &f, &colors);
+                        if dropped > 0 {
+                            notes.push((
+                                Outcome::Note,
+                                format!(
+                                    "{dropped} opening(s) too small or overlapping were left out"
+                                ),
+                            ));
+                        }
+                    }
+                    parts.push(part);
                 }
             }
         }
@@ -160,7 +178,7 @@ impl Generator {
         rng: &mut Rng,
         id: SourceId,
         notes: &mut Vec<Note>,
-    ) -> Result<Vec<Mass>, String> {
+    ) -> Result<Vec<(Mass, Option<facade::Facades>)>, String> {
         let mut style = style.clone();
         // A total height with a pitched roof of unknown height: the eave is what is left under
         // the roof at the zone's pitch.
@@ -199,7 +217,19 @@ impl Generator {
         let attrs: Attrs = compile::axiom_attrs(&style);
         let tree = grammar::derive(rules, polygon, attrs, rng, &self.caps)
             .map_err(|e| format!("derivation failed for {id}: {e}"))?;
-        Ok(masses_of(&tree, &style))
+        let masses = masses_of(&tree, &style);
+        if self.lod < Lod::Lod3 {
+            return Ok(masses.into_iter().map(|m| (m, None)).collect());
+        }
+        let nodes = mass_nodes(&tree);
+        Ok(masses
+            .into_iter()
+            .zip(nodes)
+            .map(|(m, i)| {
+                let f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+                (m, Some(f))
+            })
+            .collect())
     }
 }
 

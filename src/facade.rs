@@ -13,6 +13,7 @@ use crate::color::Color;
 use crate::geometry::Polygon;
 use crate::grammar::{AttrValue, FaceKind, Geometry, Label, ShapeNode, ShapeTree, Terminal};
 pub use crate::model::OpeningKind;
+use crate::model::{Balcony, Face, Opening, Part, Wall, OPENING_MARGIN};
 
 /// How far (metres) a face may be from a footprint edge and still stand on it.
 const ON_EDGE: f64 = 0.01;
@@ -37,7 +38,7 @@ pub struct FoundOpening {
     pub color: Option<Color>,
     /// `framecolor` attribute.
     pub frame_color: Option<Color>,
-    /// `material=glass`.
+    /// Glass: `material=glass`, or a window without a `material`.
     pub glazed: bool,
     /// `style=framed`.
     pub framed: bool,
@@ -209,10 +210,154 @@ fn place(node: &ShapeNode, t: Terminal, edges: &[Edge], out: &mut Facades) {
             z1,
             color,
             frame_color: text("framecolor").and_then(|c| Color::parse(&c)),
-            glazed: text("material").is_some_and(|m| m.eq_ignore_ascii_case("glass")),
+            // A window is glass unless its material says otherwise; a door only when it says so.
+            glazed: text("material")
+                .map_or(t == Terminal::Window, |m| m.eq_ignore_ascii_case("glass")),
             framed: text("style").is_some_and(|s| s.eq_ignore_ascii_case("framed")),
         }),
     }
+}
+
+/// Default colours of openings whose terminals set none.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpeningColors {
+    pub window: Color,
+    pub frame: Color,
+    pub door: Color,
+}
+
+/// Smallest window or door kept (metres, each side).
+const MIN_OPENING: f64 = 0.1;
+/// Default balcony depth (metres).
+const BALCONY_DEPTH: f64 = 1.2;
+
+/// Turns a LOD2-style part (one wall per footprint edge, built by [`crate::massing::build_part`])
+/// into LOD3: one wall per storey and edge, with the openings and balconies of `facades` placed
+/// on them and cut out of the wall outlines. Returns how many openings were left out because
+/// they were too small once kept [`OPENING_MARGIN`] inside their wall, or overlapped another.
+pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usize {
+    let edges = part.walls.len();
+    if edges != facades.openings.len() {
+        return 0; // not the footprint the facades were read on: leave the part as it is
+    }
+    // Storey floors, clamped to the walls: the first at the base, the last storey up to the eave.
+    let mut floors: Vec<f64> = facades
+        .levels
+        .iter()
+        .map(|l| l.z0)
+        .filter(|z| *z > part.base_z + MIN_OPENING && *z < part.eave_z - MIN_OPENING)
+        .collect();
+    floors.insert(0, part.base_z);
+    floors.dedup_by(|a, b| (*a - *b).abs() < MIN_OPENING);
+    let mut dropped = 0;
+    let mut walls = Vec::with_capacity(edges * floors.len());
+    for (storey, &lo) in floors.iter().enumerate() {
+        let top_storey = storey + 1 == floors.len();
+        let hi = if top_storey {
+            part.eave_z
+        } else {
+            floors[storey + 1]
+        };
+        for (k, full) in part.walls.iter().enumerate() {
+            let mut outline = if top_storey {
+                // Keeps a gable: only the base of the outline moves up to the storey's floor.
+                let mut o = full.outline.clone();
+                for p in o
+                    .outer
+                    .iter_mut()
+                    .filter(|p| (p.z - full.base_z).abs() < 1e-9)
+                {
+                    p.z = lo;
+                }
+                o
+            } else {
+                let at = |p: DVec2, z: f64| DVec3::new(p.x, p.y, z);
+                Face::new(vec![
+                    at(full.start, lo),
+                    at(full.end, lo),
+                    at(full.end, hi),
+                    at(full.start, hi),
+                ])
+            };
+            let len = full.length();
+            let dir = if len > 0.0 {
+                (full.end - full.start) / len
+            } else {
+                DVec2::X
+            };
+            let mut openings: Vec<Opening> = Vec::new();
+            for f in &facades.openings[k] {
+                let mid = 0.5 * (f.z0 + f.z1);
+                if mid < lo || mid >= hi {
+                    continue;
+                }
+                let o = Opening {
+                    kind: f.kind,
+                    u0: f.u0.max(OPENING_MARGIN),
+                    u1: f.u1.min(len - OPENING_MARGIN),
+                    z0: f.z0.max(lo + OPENING_MARGIN),
+                    z1: f.z1.min(hi - OPENING_MARGIN),
+                    color: f.color.unwrap_or(match f.kind {
+                        OpeningKind::Window => colors.window,
+                        OpeningKind::Door => colors.door,
+                    }),
+                    frame_color: f.frame_color.unwrap_or(colors.frame),
+                    glazed: f.glazed,
+                    framed: f.framed,
+                };
+                let overlaps = openings.iter().any(|q| {
+                    o.u0 < q.u1 + OPENING_MARGIN
+                        && q.u0 < o.u1 + OPENING_MARGIN
+                        && o.z0 < q.z1 + OPENING_MARGIN
+                        && q.z0 < o.z1 + OPENING_MARGIN
+                });
+                if o.width() < MIN_OPENING || o.height() < MIN_OPENING || overlaps {
+                    dropped += 1;
+                    continue;
+                }
+                openings.push(o);
+            }
+            outline.holes = openings
+                .iter()
+                .map(|o| {
+                    let p = |u: f64, z: f64| {
+                        let q = full.start + dir * u;
+                        DVec3::new(q.x, q.y, z)
+                    };
+                    vec![p(o.u0, o.z0), p(o.u0, o.z1), p(o.u1, o.z1), p(o.u1, o.z0)]
+                })
+                .collect();
+            let balconies = facades.balconies[k]
+                .iter()
+                .filter(|b| b.z0 >= lo - 1e-9 && b.z0 < hi)
+                .filter_map(|b| {
+                    let (u0, u1) = (b.u0.max(0.0), b.u1.min(len));
+                    (u1 - u0 >= MIN_OPENING).then(|| Balcony {
+                        u0,
+                        u1,
+                        z: b.z0,
+                        depth: BALCONY_DEPTH,
+                        color: b.color.unwrap_or(part.wall_color),
+                    })
+                })
+                .collect();
+            walls.push(Wall {
+                start: full.start,
+                end: full.end,
+                base_z: lo,
+                top_z: if top_storey { full.top_z } else { hi },
+                thickness: full.thickness,
+                outline,
+                storey,
+                openings,
+                balconies,
+            });
+        }
+    }
+    part.storeys = floors.len() as u32;
+    part.levels = floors;
+    part.walls = walls;
+    dropped
 }
 
 #[cfg(test)]
@@ -302,5 +447,174 @@ mod tests {
         let f = facades_of(&tree, 1, &lot, 0.0, 5.0);
         assert_eq!(f.levels, vec![Level { z0: 0.0, z1: 5.0 }]);
         assert!(f.openings.iter().all(Vec::is_empty));
+    }
+}
+
+#[cfg(test)]
+mod apply_tests {
+    use super::*;
+    use crate::derive::{mass_nodes, masses_of};
+    use crate::geometry::ring_signed_area;
+    use crate::grammar::{derive, parse, Caps};
+    use crate::kb::{compile, KnowledgeBase};
+    use crate::massing;
+    use crate::model::Lod;
+    use crate::rng::Rng;
+    use proptest::prelude::*;
+
+    /// Area of a planar 3D ring seen along its own normal.
+    fn area3(r: &[DVec3]) -> f64 {
+        0.5 * crate::geometry::newell_normal(r).length()
+    }
+
+    /// Derives `lot` with the shipped KB's rules for the zone at (lon, lat) and returns the
+    /// LOD3 parts.
+    fn lod3_parts(lot: &Polygon, lon: f64, lat: f64, seed: u64) -> Vec<Part> {
+        let (kb, _) = KnowledgeBase::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/knowledge_base/kb.xml"
+        )))
+        .unwrap();
+        let zone = kb.locate(lon, lat);
+        let mut rng = Rng::new(seed, 1);
+        let (style, _) = kb.style_for(zone, &Default::default(), &mut rng);
+        let rules = parse(&compile::ruleset_text(&style), "kb").unwrap();
+        let tree = derive(
+            &rules,
+            lot,
+            compile::axiom_attrs(&style),
+            &mut rng,
+            &Caps::default(),
+        )
+        .unwrap();
+        let colors = OpeningColors {
+            window: style.window_color,
+            frame: style.frame_color,
+            door: style.door_color,
+        };
+        masses_of(&tree, &style)
+            .into_iter()
+            .zip(mass_nodes(&tree))
+            .map(|(m, i)| {
+                let f = facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+                let roof = massing::roof_geometry(&m)
+                    .unwrap_or_else(|_| crate::geometry::roof::flat(&m.footprint));
+                let mut part = massing::build_part("p0".into(), &m, &roof, Lod::Lod3);
+                apply(&mut part, &f, &colors);
+                part
+            })
+            .collect()
+    }
+
+    /// Openings inside their walls with the margin, no overlaps, one hole per opening, and the
+    /// facade closed: wall area = (wall minus holes) + openings.
+    fn check_facades(part: &Part) {
+        assert!(!part.levels.is_empty());
+        for w in &part.walls {
+            let len = w.length();
+            assert_eq!(w.outline.holes.len(), w.openings.len());
+            for (i, o) in w.openings.iter().enumerate() {
+                assert!(
+                    o.u0 >= OPENING_MARGIN - 1e-9 && o.u1 <= len - OPENING_MARGIN + 1e-9,
+                    "{o:?} on a {len} m wall"
+                );
+                assert!(
+                    o.z0 >= w.base_z + OPENING_MARGIN - 1e-9
+                        && o.z1 <= w.top_z - OPENING_MARGIN + 1e-9,
+                    "{o:?} in {}..{}",
+                    w.base_z,
+                    w.top_z
+                );
+                for q in &w.openings[i + 1..] {
+                    let apart = o.u1 + OPENING_MARGIN <= q.u0 + 1e-9
+                        || q.u1 + OPENING_MARGIN <= o.u0 + 1e-9
+                        || o.z1 + OPENING_MARGIN <= q.z0 + 1e-9
+                        || q.z1 + OPENING_MARGIN <= o.z0 + 1e-9;
+                    assert!(apart, "{o:?} overlaps {q:?}");
+                }
+                let hole = area3(&w.outline.holes[i]);
+                assert!((hole - o.width() * o.height()).abs() < 1e-6);
+                // The hole runs against the outline, i.e. its normal points into the wall.
+                let n = crate::geometry::newell_normal(&w.outline.outer);
+                assert!(crate::geometry::newell_normal(&w.outline.holes[i]).dot(n) < 0.0);
+            }
+            // Every hole point lies inside the outline's rectangle, in the wall's own plane:
+            // computed from the 3D rings, not from the opening fields.
+            let dir = (w.end - w.start) / len;
+            let uz = |p: &DVec3| (DVec2::new(p.x, p.y) - w.start).dot(dir);
+            let (umin, umax) = w
+                .outline
+                .outer
+                .iter()
+                .map(uz)
+                .fold((f64::MAX, f64::MIN), |(a, b), u| (a.min(u), b.max(u)));
+            let zmin = w.outline.outer.iter().map(|p| p.z).fold(f64::MAX, f64::min);
+            for p in w.outline.holes.iter().flatten() {
+                let off = (DVec2::new(p.x, p.y) - w.start).perp_dot(dir).abs();
+                assert!(off < 1e-9, "hole point off the wall plane");
+                assert!(
+                    uz(p) >= umin + OPENING_MARGIN - 1e-9 && uz(p) <= umax - OPENING_MARGIN + 1e-9
+                );
+                assert!(
+                    p.z >= zmin + OPENING_MARGIN - 1e-9 && p.z <= w.top_z - OPENING_MARGIN + 1e-9
+                );
+            }
+        }
+        // The storeys' walls stack from the base to the eave on every edge.
+        let edges = part.footprint.rings().map(Vec::len).sum::<usize>();
+        assert_eq!(part.walls.len(), edges * part.levels.len());
+        for k in 0..edges {
+            let mut z = part.base_z;
+            for w in part.walls.iter().skip(k).step_by(edges) {
+                assert!((w.base_z - z).abs() < 1e-9);
+                z = w.top_z;
+            }
+            assert!((z - part.eave_z).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn toulouse_house_has_windows_a_door_and_closed_facades() {
+        let v = DVec2::new;
+        let lot = Polygon::new(
+            vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 12.0), v(0.0, 12.0)],
+            vec![],
+        );
+        let parts = lod3_parts(&lot, 1.4442, 43.6045, 3);
+        let part = &parts[0];
+        check_facades(part);
+        assert!(part.levels.len() >= 2);
+        let all = || part.walls.iter().flat_map(|w| w.openings.iter());
+        assert!(
+            all().filter(|o| o.kind == OpeningKind::Door).count() >= 1,
+            "no door"
+        );
+        assert!(
+            all().filter(|o| o.kind == OpeningKind::Window).count() >= 10,
+            "few windows"
+        );
+        assert!(ring_signed_area(&part.footprint.outer) > 0.0);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Rectangles and L shapes of many sizes in several zones: openings always inside their
+        /// walls and facades closed.
+        #[test]
+        fn openings_stay_inside_and_facades_closed(
+            w in 3.0f64..40.0, d in 3.0f64..25.0, notch in 0.0f64..0.6, zone in 0usize..3, seed in 0u64..1000,
+        ) {
+            let v = DVec2::new;
+            let lot = if notch < 0.1 {
+                Polygon::new(vec![v(0.0, 0.0), v(w, 0.0), v(w, d), v(0.0, d)], vec![])
+            } else {
+                let (nx, ny) = (w * (1.0 - notch), d * (1.0 - notch));
+                Polygon::new(vec![v(0.0, 0.0), v(w, 0.0), v(w, ny), v(nx, ny), v(nx, d), v(0.0, d)], vec![])
+            };
+            let (lon, lat) = [(1.4442, 43.6045), (7.4206, 43.7308), (-1.15, 52.95)][zone];
+            for part in lod3_parts(&lot, lon, lat, seed) {
+                check_facades(&part);
+            }
+        }
     }
 }
