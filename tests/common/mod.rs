@@ -116,3 +116,122 @@ pub fn step_entities(path: &Path) -> std::collections::BTreeMap<u64, (String, St
     }
     out
 }
+
+/// The `#n` references in a STEP argument text, in order.
+pub fn step_refs(args: &str) -> Vec<u64> {
+    let mut out = Vec::new();
+    let b = args.as_bytes();
+    let mut i = 0;
+    let mut in_str = false;
+    while i < b.len() {
+        match b[i] {
+            b'\'' => in_str = !in_str,
+            b'#' if !in_str => {
+                let j = i + 1 + b[i + 1..].iter().take_while(|c| c.is_ascii_digit()).count();
+                if let Ok(n) = args[i + 1..j].parse() {
+                    out.push(n);
+                }
+                i = j;
+                continue;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Windows and doors per top-level IfcBuilding, keyed by the building's `SourceId` property:
+/// window/door <- IfcRelFillsElement <- opening <- IfcRelVoidsElement <- wall <- storey
+/// (IfcRelContainedInSpatialStructure) <- building(s) (IfcRelAggregates).
+pub fn ifc_openings_per_building(
+    ents: &std::collections::BTreeMap<u64, (String, String)>,
+) -> std::collections::BTreeMap<String, (usize, usize)> {
+    use std::collections::BTreeMap;
+    let mut parent: BTreeMap<u64, u64> = BTreeMap::new(); // child -> container
+    let mut filled_by: BTreeMap<u64, u64> = BTreeMap::new(); // window/door -> opening
+    let mut voids: BTreeMap<u64, u64> = BTreeMap::new(); // opening -> wall
+    let mut source: BTreeMap<u64, String> = BTreeMap::new(); // building -> SourceId
+    for (id, (t, a)) in ents {
+        let refs = step_refs(a);
+        match t.as_str() {
+            "IFCRELAGGREGATES" | "IFCRELCONTAINEDINSPATIALSTRUCTURE" => {
+                // (GlobalId, OwnerHistory, Name, Description, RelatingObject, (RelatedObjects))
+                // or (..., (RelatedElements), RelatingStructure)
+                if t == "IFCRELAGGREGATES" {
+                    let (whole, parts) = refs.split_first().unwrap();
+                    for p in parts {
+                        parent.insert(*p, *whole);
+                    }
+                } else {
+                    let (structure, elems) = refs.split_last().unwrap();
+                    for e in elems {
+                        parent.insert(*e, *structure);
+                    }
+                }
+            }
+            "IFCRELFILLSELEMENT" => {
+                filled_by.insert(refs[1], refs[0]);
+            }
+            "IFCRELVOIDSELEMENT" => {
+                voids.insert(refs[1], refs[0]);
+            }
+            "IFCPROPERTYSINGLEVALUE" if a.starts_with("'SourceId'") => {
+                let v = a.split("IFCIDENTIFIER('").nth(1).and_then(|r| r.split('\'').next()).unwrap_or("");
+                source.insert(*id, v.to_string());
+            }
+            _ => {}
+        }
+    }
+    // Map pset id -> SourceId, then building -> SourceId through IfcRelDefinesByProperties.
+    let mut pset_ids: BTreeMap<u64, String> = BTreeMap::new();
+    for (id, (t, a)) in ents {
+        if t == "IFCPROPERTYSET" {
+            if let Some(v) = step_refs(a).iter().find_map(|r| source.get(r)) {
+                pset_ids.insert(*id, v.clone());
+            }
+        }
+    }
+    let mut building_source: BTreeMap<u64, String> = BTreeMap::new();
+    for (t, a) in ents.values() {
+        if t == "IFCRELDEFINESBYPROPERTIES" {
+            let refs = step_refs(a);
+            let (pset, objs) = refs.split_last().unwrap();
+            if let Some(v) = pset_ids.get(pset) {
+                for o in objs {
+                    building_source.insert(*o, v.clone());
+                }
+            }
+        }
+    }
+    let top_building = |mut e: u64| -> Option<u64> {
+        let mut found = None;
+        for _ in 0..16 {
+            if ents.get(&e).is_some_and(|(t, _)| t == "IFCBUILDING") {
+                found = Some(e);
+            }
+            match parent.get(&e) {
+                Some(p) => e = *p,
+                None => break,
+            }
+        }
+        found
+    };
+    let mut out: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    for (id, (t, _)) in ents {
+        let is_window = t == "IFCWINDOW";
+        if !is_window && t != "IFCDOOR" {
+            continue;
+        }
+        let wall = filled_by.get(id).and_then(|o| voids.get(o)).copied().expect("window or door fills a voided opening");
+        let b = top_building(wall).expect("the wall is in a building");
+        let key = building_source.get(&b).cloned().unwrap_or_else(|| format!("#{b}"));
+        let e = out.entry(key).or_default();
+        if is_window {
+            e.0 += 1;
+        } else {
+            e.1 += 1;
+        }
+    }
+    out
+}
