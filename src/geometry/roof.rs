@@ -9,9 +9,10 @@
 use glam::{DVec2, DVec3};
 use thiserror::Error;
 
+use super::roof_shapes::{self, Ends, Profile};
 use super::skeleton::{straight_skeleton, SkeletonError};
-use super::{newell_normal, Polygon};
-use crate::model::Face;
+use super::Polygon;
+use crate::model::{Face, RoofShape};
 
 /// Why a roof shape cannot be built on a footprint (the caller falls back to a flat roof).
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -42,6 +43,11 @@ pub struct RoofGeometry {
 }
 
 impl RoofGeometry {
+    /// Builds the geometry from its faces and gable walls; `height` is the highest z.
+    pub fn from_parts(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
+        RoofGeometry::new(faces, gable_walls)
+    }
+
     fn new(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
         let top = faces
             .iter()
@@ -174,96 +180,90 @@ fn centroid(r: &[DVec2]) -> Option<DVec2> {
     Some(o + c / (3.0 * a))
 }
 
-/// A gabled roof built from the hipped one (after Laycock and Day): every hip end — a
-/// triangular face whose edge is the end of a ridge — is raised to a vertical gable, its apex
-/// moved onto the vertical plane through its edge; the neighbouring roof planes are extended to
-/// that apex. The gable's vertical wall triangle is returned in `gable_walls`.
-///
-/// An edge is a gable end when its skeleton face is a triangle whose apex also lies on exactly
-/// two other faces, the two neighbours of the edge, which meet in a ridge leaving the apex
-/// perpendicular to the edge (within 1e-6 relative) and both face the edge at the same pitch.
-/// For a rectangle these are the two short sides. Footprints without such ends (a square) keep
-/// their hips.
+/// A gabled roof: the hipped roof with every hip end raised to a vertical gable (after Laycock
+/// and Day; see [`super::roof_shapes`] for the rule that picks the ends). The roof line over
+/// each gable is returned in `gable_walls`. Footprints without hip ends (a square) keep their
+/// hips.
 ///
 /// Errors: as [`hipped`].
 pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError> {
     let k = check_pitch(pitch_deg)?;
-    let sk = straight_skeleton(poly)?;
-    let mut faces: Vec<Vec<DVec3>> = sk.faces.iter().map(|f| f.polygon.clone()).collect();
-    let (lo, hi) = poly.bounds();
-    let tol = 1e-7 * (hi - lo).max_element();
-    let mut walls = Vec::new();
-    // Apex moves are decided on the original skeleton, then applied.
-    let mut moves: Vec<(DVec3, DVec3)> = Vec::new();
-    for (i, f) in sk.faces.iter().enumerate() {
-        if f.polygon.len() != 3 {
-            continue;
+    roof_shapes::profile_roof(poly, Ends::Gabled, |_| Profile::linear(k))
+}
+
+/// Builds any roof of the catalogue on `poly` with the eave at z = 0.
+///
+/// `pitch_deg` is the pitch of hipped, gabled, half-hipped, side-hipped, saltbox, skillion,
+/// pyramidal and cone roofs; the mansard and gambrel use their own two pitches (see
+/// [`roof_shapes`]) and dome, onion and round roofs a height from the inscribed radius. The
+/// caller scales the result with [`RoofGeometry::scaled_to_height`] when the height is known.
+/// `down` is the direction (in plan) a skillion faces (OSM `roof:direction`), else the short
+/// axis of the footprint's minimum bounding rectangle. Pyramidal and cone roofs rise to one
+/// apex over the centroid when the footprint has no holes and is star-shaped from it, and are
+/// hipped otherwise. Saltbox is built as gabled (see the module notes of [`roof_shapes`]).
+///
+/// Errors: a pitch outside (0°, 90°), or an invalid footprint ([`SkeletonError`]); never a
+/// fallback for a valid simple polygon.
+pub fn build(
+    poly: &Polygon,
+    shape: RoofShape,
+    pitch_deg: f64,
+    down: Option<DVec2>,
+) -> Result<RoofGeometry, RoofError> {
+    let k = check_pitch(pitch_deg)?;
+    let lin = |_: f64| Profile::linear(k);
+    let tan = |d: f64| d.to_radians().tan();
+    match shape {
+        RoofShape::Flat => {
+            straight_skeleton(poly)?;
+            Ok(flat(poly))
         }
-        let (a, b, apex) = (f.polygon[0], f.polygon[1], f.polygon[2]);
-        let others: Vec<usize> = (0..sk.faces.len())
-            .filter(|&j| j != i && sk.faces[j].polygon.iter().any(|p| p.distance(apex) <= tol))
-            .collect();
-        if others.len() != 2 {
-            continue;
+        RoofShape::Hipped => roof_shapes::profile_roof(poly, Ends::Hipped, lin),
+        RoofShape::Gabled | RoofShape::Saltbox => {
+            roof_shapes::profile_roof(poly, Ends::Gabled, lin)
         }
-        // The ridge must leave the apex perpendicular to the edge, away from it.
-        let d = (b - a).truncate().normalize_or_zero();
-        let ridge_ok = others.iter().all(|&j| {
-            let poly = &sk.faces[j].polygon;
-            let m = poly.len();
-            let Some(ix) = poly.iter().position(|p| p.distance(apex) <= tol) else {
-                return false;
-            };
-            // The neighbour's boundary next to the apex that is not the hip towards a or b.
-            [poly[(ix + 1) % m], poly[(ix + m - 1) % m]]
+        RoofShape::SideHipped => roof_shapes::profile_roof(poly, Ends::AllButOne, lin),
+        RoofShape::HalfHipped => roof_shapes::profile_roof(
+            poly,
+            Ends::HalfHipped(roof_shapes::HALF_HIP_FRACTION),
+            lin,
+        ),
+        RoofShape::Mansard => roof_shapes::profile_roof(poly, Ends::Hipped, |t| {
+            let t0 = roof_shapes::MANSARD_BREAK_M.min(roof_shapes::MANSARD_BREAK_REL * t);
+            Profile::broken(
+                tan(roof_shapes::MANSARD_LOWER_DEG),
+                tan(roof_shapes::MANSARD_UPPER_DEG),
+                t0,
+            )
+        }),
+        RoofShape::Gambrel => roof_shapes::profile_roof(poly, Ends::Gabled, |t| {
+            Profile::broken(
+                tan(roof_shapes::GAMBREL_LOWER_DEG),
+                tan(roof_shapes::GAMBREL_UPPER_DEG),
+                roof_shapes::GAMBREL_BREAK_REL * t,
+            )
+        }),
+        RoofShape::Dome => roof_shapes::profile_roof(poly, Ends::Hipped, Profile::circle),
+        RoofShape::Round => roof_shapes::profile_roof(poly, Ends::Gabled, Profile::circle),
+        RoofShape::Onion => roof_shapes::profile_roof(poly, Ends::Hipped, Profile::onion),
+        RoofShape::Pyramidal | RoofShape::Cone => {
+            let sk = straight_skeleton(poly)?;
+            let t = sk
+                .faces
                 .iter()
-                .any(|q| {
-                    let r = (q.truncate() - apex.truncate()).normalize_or_zero();
-                    (q.z - apex.z).abs() <= tol && r.dot(d).abs() < 1e-6 && r != DVec2::ZERO
-                })
-        });
-        if !ridge_ok {
-            continue;
-        }
-        let (a2, ap2) = (a.truncate(), apex.truncate());
-        let mid = a2 + d * (ap2 - a2).dot(d);
-        let new_apex = DVec3::new(mid.x, mid.y, apex.z);
-        moves.push((apex, new_apex));
-        faces[i].clear();
-        walls.push(Face::new(vec![
-            DVec3::new(b.x, b.y, 0.0),
-            DVec3::new(a.x, a.y, 0.0),
-            DVec3::new(mid.x, mid.y, apex.z * k),
-        ]));
-    }
-    for f in faces.iter_mut() {
-        for p in f.iter_mut() {
-            if let Some((_, to)) = moves.iter().find(|(from, _)| from.distance(*p) <= tol) {
-                *p = *to;
+                .flat_map(|f| f.polygon.iter())
+                .map(|p| p.z)
+                .fold(0.0, f64::max);
+            match pyramidal(poly, t * k) {
+                Ok(g) => Ok(g),
+                Err(_) => roof_shapes::profile_roof(poly, Ends::Hipped, lin),
             }
         }
-    }
-    // The walls above are listed b -> a at the bottom so that, seen from outside (the right of
-    // a -> b), they are counter-clockwise. Fix the orientation by the normal to be safe.
-    for w in walls.iter_mut() {
-        let (a, b) = (w.outer[1].truncate(), w.outer[0].truncate());
-        let outward = -(b - a).perp();
-        if newell_normal(&w.outer).truncate().dot(outward) < 0.0 {
-            w.outer.reverse();
+        RoofShape::Skillion => {
+            let d = down.unwrap_or_else(|| roof_shapes::short_axis(poly));
+            roof_shapes::skillion(poly, d, k)
         }
     }
-    let faces = faces
-        .into_iter()
-        .filter(|f| f.len() >= 3)
-        .map(|f| {
-            Face::new(
-                f.into_iter()
-                    .map(|p| DVec3::new(p.x, p.y, p.z * k))
-                    .collect(),
-            )
-        })
-        .collect();
-    Ok(RoofGeometry::new(faces, walls))
 }
 
 #[cfg(test)]
