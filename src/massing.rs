@@ -109,6 +109,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
     };
     let mut ground = horizontal_face(&mass.footprint, mass.base_z, false);
     weld(&mass.footprint, &mut ground, &mut walls, &mut roof_faces);
+    roof_faces.retain(|f| f.outer.len() >= 3);
     Part {
         key,
         footprint: mass.footprint.clone(),
@@ -152,7 +153,12 @@ pub fn walls(footprint: &Polygon, base: f64, top: f64) -> Vec<Wall> {
 /// the roof line over the edge from the end back to the start ([`crate::geometry::roof_shapes::wall_top`]): a rectangle
 /// under eaves, a pentagon (or more, under a profile roof) under a gable, a trapezoid under a
 /// skillion. `roof` is at z = 0 at the eave; the eave is at `eave`.
-pub fn walls_under_roof(footprint: &Polygon, base: f64, eave: f64, roof: &RoofGeometry) -> Vec<Wall> {
+pub fn walls_under_roof(
+    footprint: &Polygon,
+    base: f64,
+    eave: f64,
+    roof: &RoofGeometry,
+) -> Vec<Wall> {
     let mut out = Vec::with_capacity(footprint.outer.len());
     for ring in footprint.rings() {
         let n = ring.len();
@@ -177,7 +183,7 @@ pub fn walls_under_roof(footprint: &Polygon, base: f64, eave: f64, roof: &RoofGe
     out
 }
 
-/// Makes the part's surfaces meet exactly: vertices closer than a tolerance (1e-6 of the
+/// Makes the part's surfaces meet exactly: vertices closer than a tolerance (1e-5 of the
 /// footprint size, at least 1e-6 m) become one, and a vertex lying on another face's edge is
 /// inserted into that edge (the skeleton cuts faces of collinear footprint edges, and profile
 /// bands put points on edges, so neighbouring faces may otherwise meet in T-junctions). A wall
@@ -189,7 +195,7 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     if !size.is_finite() {
         return;
     }
-    let tol = (1e-6 * size).max(1e-6);
+    let tol = (1e-5 * size).max(1e-6);
     // Canonical vertices, bucketed on a grid of cell `tol`: ground and walls first, so the
     // footprint's exact corners win.
     let mut canon: Vec<DVec3> = Vec::new();
@@ -233,10 +239,7 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
             for p in r.iter_mut() {
                 snap(p);
             }
-            r.dedup();
-            while r.len() > 1 && r.first() == r.last() {
-                r.pop();
-            }
+            clean_ring(r);
         }
     }
     // T-junctions: a plan grid of cell `size / 64` over the canonical vertices.
@@ -298,6 +301,32 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     }
 }
 
+/// Removes consecutive duplicates and spikes (`x, y, x`: a sliver face collapsed by welding
+/// runs along an edge and back) from a ring, so no collapsed piece leaves a doubled edge.
+fn clean_ring(r: &mut Vec<DVec3>) {
+    loop {
+        r.dedup();
+        while r.len() > 1 && r.first() == r.last() {
+            r.pop();
+        }
+        let n = r.len();
+        if n < 3 {
+            r.clear();
+            return;
+        }
+        match (0..n).find(|&i| r[(i + n - 1) % n] == r[(i + 1) % n]) {
+            Some(i) => {
+                // Drop the spike tip and one copy of its base.
+                let j = (i + 1) % n;
+                let (a, b) = if i < j { (i, j) } else { (j, i) };
+                r.remove(b);
+                r.remove(a);
+            }
+            None => return,
+        }
+    }
+}
+
 /// Checks that a part's surfaces (ground, wall outlines, roof faces) bound a closed solid:
 /// every edge is used exactly twice, once in each direction (consistently oriented faces).
 /// Returns a description of each defect, empty when the solid is closed. Edges are compared
@@ -324,7 +353,13 @@ pub fn closure_defects(part: &Part) -> Vec<String> {
         }
     }
     let mut out = Vec::new();
-    let f = |k: K| DVec3::new(f64::from_bits(k.0), f64::from_bits(k.1), f64::from_bits(k.2));
+    let f = |k: K| {
+        DVec3::new(
+            f64::from_bits(k.0),
+            f64::from_bits(k.1),
+            f64::from_bits(k.2),
+        )
+    };
     for (&(a, b), &n) in &count {
         let back = count.get(&(b, a)).copied().unwrap_or(0);
         if n != 1 || back != 1 {

@@ -43,7 +43,14 @@ fn rect() -> Polygon {
 }
 
 fn ell() -> Polygon {
-    poly(&[(0., 0.), (16., 0.), (16., 6.), (6., 6.), (6., 14.), (0., 14.)])
+    poly(&[
+        (0., 0.),
+        (16., 0.),
+        (16., 6.),
+        (6., 6.),
+        (6., 14.),
+        (0., 14.),
+    ])
 }
 
 fn courtyard() -> Polygon {
@@ -161,8 +168,16 @@ const HALF_HIP_TEST: f64 = crate::geometry::roof_shapes::HALF_HIP_FRACTION;
 fn mansard_and_gambrel_have_two_slopes() {
     use crate::geometry::roof_shapes as rs;
     for (shape, lower, upper) in [
-        (RoofShape::Mansard, rs::MANSARD_LOWER_DEG, rs::MANSARD_UPPER_DEG),
-        (RoofShape::Gambrel, rs::GAMBREL_LOWER_DEG, rs::GAMBREL_UPPER_DEG),
+        (
+            RoofShape::Mansard,
+            rs::MANSARD_LOWER_DEG,
+            rs::MANSARD_UPPER_DEG,
+        ),
+        (
+            RoofShape::Gambrel,
+            rs::GAMBREL_LOWER_DEG,
+            rs::GAMBREL_UPPER_DEG,
+        ),
     ] {
         for p in [rect(), ell()] {
             let (r, _) = build(&p, shape);
@@ -245,6 +260,9 @@ fn roof_height_scales_every_shape() {
 fn invalid_footprint_is_an_error_not_a_panic() {
     let bow = poly(&[(0., 0.), (10., 10.), (10., 0.), (0., 10.)]);
     for shape in ALL.into_iter().filter(|s| *s != RoofShape::Flat) {
-        assert!(roof_geometry(&mass(bow.clone(), shape)).is_err(), "{shape:?}");
+        assert!(
+            roof_geometry(&mass(bow.clone(), shape)).is_err(),
+            "{shape:?}"
+        );
     }
 }

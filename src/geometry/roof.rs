@@ -223,11 +223,9 @@ pub fn build(
             roof_shapes::profile_roof(poly, Ends::Gabled, lin)
         }
         RoofShape::SideHipped => roof_shapes::profile_roof(poly, Ends::AllButOne, lin),
-        RoofShape::HalfHipped => roof_shapes::profile_roof(
-            poly,
-            Ends::HalfHipped(roof_shapes::HALF_HIP_FRACTION),
-            lin,
-        ),
+        RoofShape::HalfHipped => {
+            roof_shapes::profile_roof(poly, Ends::HalfHipped(roof_shapes::HALF_HIP_FRACTION), lin)
+        }
         RoofShape::Mansard => roof_shapes::profile_roof(poly, Ends::Hipped, |t| {
             let t0 = roof_shapes::MANSARD_BREAK_M.min(roof_shapes::MANSARD_BREAK_REL * t);
             Profile::broken(
@@ -805,7 +803,9 @@ mod tests {
         for f in &r.faces {
             let s = f.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
             if !slopes.iter().any(|x| (s - x).abs() < 0.01) {
-                return Err(format!("{shape:?}: face slope {s}, expected one of {slopes:?}"));
+                return Err(format!(
+                    "{shape:?}: face slope {s}, expected one of {slopes:?}"
+                ));
             }
         }
         Ok(())

@@ -119,7 +119,11 @@ impl Profile {
 
     /// Steep `lower` slope up to `t0`, then `upper`.
     pub fn broken(lower: f64, upper: f64, t0: f64) -> Profile {
-        Profile(vec![(0.0, 0.0), (t0, lower * t0), (t0 + 1.0, lower * t0 + upper)])
+        Profile(vec![
+            (0.0, 0.0),
+            (t0, lower * t0),
+            (t0 + 1.0, lower * t0 + upper),
+        ])
     }
 
     /// A quarter circle of radius `r` (a dome or a barrel vault), in [`CURVE_BANDS`] chords.
@@ -138,12 +142,6 @@ impl Profile {
     pub fn onion(r: f64) -> Profile {
         let h = ONION_HEIGHT_REL * r;
         Profile(ONION_PROFILE.iter().map(|&(t, z)| (t * r, z * h)).collect())
-    }
-
-    /// The interior break distances (where the slope changes).
-    fn breaks(&self) -> Vec<f64> {
-        let n = self.0.len();
-        self.0[1..n.saturating_sub(1)].iter().map(|p| p.0).collect()
     }
 
     /// Evaluates `h(t)`.
@@ -209,33 +207,50 @@ pub fn profile_roof(
         .flat_map(|f| f.pts.iter().map(|p| p.z))
         .collect();
     ts.sort_by(f64::total_cmp);
-    let eps = 1e-6 * size;
+    // A cut closer than `eps` to a vertex would leave a sliver band: the break moves instead
+    // (by at most 200 steps of `eps`), trying a clearance of 1e-3, then 1e-5, then 1e-7 of the
+    // footprint size. The profile keeps its slopes (its heights shift a little); a break that
+    // cannot be placed is dropped (the next segment takes the previous slope).
+    let clear = |l: f64, eps: f64| {
+        let i = ts.partition_point(|&t| t < l);
+        let d1 = ts.get(i).map_or(f64::INFINITY, |t| t - l);
+        let d0 = i.checked_sub(1).map_or(f64::INFINITY, |j| l - ts[j]);
+        d0.min(d1) > eps && l > eps && l < tmax - eps
+    };
+    let pts = &prof.0;
+    let mut placed: Vec<(f64, f64)> = vec![(0.0, 0.0)];
+    let mut slope = if pts.len() >= 2 && pts[1].0 > pts[0].0 {
+        (pts[1].1 - pts[0].1) / (pts[1].0 - pts[0].0)
+    } else {
+        0.0
+    };
     let mut levels = Vec::new();
-    for b in prof.breaks() {
-        if !(b > eps && b < tmax - eps) {
-            continue;
-        }
-        let clear = |l: f64| {
-            let i = ts.partition_point(|&t| t < l);
-            let d1 = ts.get(i).map_or(f64::INFINITY, |t| t - l);
-            let d0 = i.checked_sub(1).map_or(f64::INFINITY, |j| l - ts[j]);
-            d0.min(d1) > eps
+    for i in 1..pts.len() {
+        let b = pts[i].0;
+        let next_slope = match pts.get(i + 1) {
+            Some(q) if q.0 > b => (q.1 - pts[i].1) / (q.0 - b),
+            _ => slope,
         };
-        let step = 1e-4 * size;
-        if let Some(l) = (0..200)
-            .map(|j| {
-                let k = (j / 2 + 1) as f64 * if j % 2 == 0 { 1.0 } else { -1.0 };
-                if j == 0 {
-                    b
-                } else {
-                    b + k * step
-                }
-            })
-            .find(|&l| clear(l) && l > eps && l < tmax - eps)
-        {
+        if i + 1 == pts.len() {
+            break;
+        }
+        let last = placed[placed.len() - 1].0;
+        let found = [1e-3, 1e-5, 1e-7].iter().find_map(|rel| {
+            let eps = rel * size;
+            (0..400)
+                .map(|j| b + (j / 2) as f64 * eps * if j % 2 == 0 { 1.0 } else { -1.0 })
+                .find(|&l| l > last + eps && clear(l, eps))
+        });
+        if let Some(l) = found {
+            let (t0, h0) = placed[placed.len() - 1];
+            placed.push((l, h0 + slope * (l - t0)));
             levels.push(l);
+            slope = next_slope;
         }
     }
+    let (t0, h0) = placed[placed.len() - 1];
+    placed.push((t0 + 1.0, h0 + slope));
+    let prof = Profile(placed);
     levels.sort_by(f64::total_cmp);
     let mut out = Vec::new();
     for f in faces.into_iter().flatten() {
@@ -417,7 +432,10 @@ fn make_gables(
         }
         let _ = (edges, &rings);
         let p = p2.extend(tp);
-        let (mp, mn) = (faces[jp].as_ref().map(|g| g.pts[kp]), faces[jn].as_ref().map(|g| g.pts[kn]));
+        let (mp, mn) = (
+            faces[jp].as_ref().map(|g| g.pts[kp]),
+            faces[jn].as_ref().map(|g| g.pts[kn]),
+        );
         let (Some(mp), Some(_mn)) = (mp, mn) else {
             continue;
         };
@@ -575,7 +593,9 @@ fn cross(p: DVec3, q: DVec3, l: f64) -> DVec3 {
 /// (in plan) the slope faces, with rise `slope` per metre, the lowest corner at z = 0.
 pub fn skillion(poly: &Polygon, down: DVec2, slope: f64) -> Result<RoofGeometry, RoofError> {
     if !(slope.is_finite() && slope > 0.0) {
-        return Err(RoofError::InvalidParameter("skillion slope must be positive"));
+        return Err(RoofError::InvalidParameter(
+            "skillion slope must be positive",
+        ));
     }
     let down = down.normalize_or_zero();
     if down == DVec2::ZERO || !down.is_finite() {
@@ -619,7 +639,12 @@ pub fn short_axis(poly: &Polygon) -> DVec2 {
             continue;
         }
         let n = d.perp();
-        let (mut a0, mut a1, mut b0, mut b1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let (mut a0, mut a1, mut b0, mut b1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
         for p in &hull {
             a0 = a0.min(p.dot(d));
             a1 = a1.max(p.dot(d));
