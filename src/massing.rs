@@ -184,7 +184,7 @@ pub fn walls_under_roof(
 }
 
 /// Makes the part's surfaces meet exactly: vertices closer than a tolerance (1e-5 of the
-/// footprint size, at least 1e-6 m) become one, and a vertex lying on another face's edge is
+/// footprint size, within 1 µm..0.5 mm) become one, and a vertex lying on another face's edge is
 /// inserted into that edge (the skeleton cuts faces of collinear footprint edges, and profile
 /// bands put points on edges, so neighbouring faces may otherwise meet in T-junctions). A wall
 /// outline's first edge (its base) is left as it is: nothing else stands on it but the ground's
@@ -195,7 +195,7 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     if !size.is_finite() {
         return;
     }
-    let tol = (1e-5 * size).max(1e-6);
+    let tol = (1e-5 * size).clamp(1e-6, 5e-4);
     // Canonical vertices, bucketed on a grid of cell `tol`: ground and walls first, so the
     // footprint's exact corners win.
     let mut canon: Vec<DVec3> = Vec::new();
