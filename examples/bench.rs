@@ -88,20 +88,32 @@ fn skeleton_bench(source: &Source, reps: usize) -> Result<(), Box<dyn std::error
     let mut report = citygen::report::Report::default();
     let read = match source {
         Source::Osm(p) => citygen::input::osm::read_osm(p, &mut report)?,
-        Source::Shp { path, .. } => citygen::input::shp::read_shp(path, &Default::default(), &mut report)?,
+        Source::Shp { path, .. } => {
+            citygen::input::shp::read_shp(path, &Default::default(), &mut report)?
+        }
     };
     let site = citygen::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
     let polygons: Vec<&citygen::geometry::Polygon> = site
         .lots
         .iter()
-        .flat_map(|l| l.polygons.iter().chain(l.parts.iter().flat_map(|p| p.polygons.iter())))
+        .flat_map(|l| {
+            l.polygons
+                .iter()
+                .chain(l.parts.iter().flat_map(|p| p.polygons.iter()))
+        })
         .collect();
-    let vertices: usize = polygons.iter().map(|p| p.rings().map(Vec::len).sum::<usize>()).sum();
+    let vertices: usize = polygons
+        .iter()
+        .map(|p| p.rings().map(Vec::len).sum::<usize>())
+        .sum();
     let mut best = f64::INFINITY;
     let mut failed = 0;
     for _ in 0..reps.max(1) {
         let t = Instant::now();
-        failed = polygons.iter().filter(|p| citygen::geometry::skeleton::straight_skeleton(p).is_err()).count();
+        failed = polygons
+            .iter()
+            .filter(|p| citygen::geometry::skeleton::straight_skeleton(p).is_err())
+            .count();
         best = best.min(t.elapsed().as_secs_f64());
     }
     println!(
