@@ -15,6 +15,9 @@ use crate::model::{Face, Lod, Part, RoofShape, Wall};
 /// Default exterior wall thickness in metres.
 pub const WALL_THICKNESS: f64 = 0.3;
 
+/// Pitch used when a mass carries none usable (a KB angle of 0 or 90 on a pitched roof).
+pub const DEFAULT_PITCH_DEG: f64 = 30.0;
+
 /// Roofs lower than this are drawn flat (a pitched roof of a few centimetres is noise).
 const MIN_ROOF_HEIGHT: f64 = 0.05;
 
@@ -43,39 +46,28 @@ pub struct RoofFallback {
 }
 
 /// Computes the roof surfaces of a mass at z = 0 (the eave), or the reason it must be flat.
+///
+/// Every shape of [`RoofShape`] is built on every valid simple footprint, holes included (see
+/// [`roof::build`]); the height is `roof_height` when given, else follows from the pitch. The
+/// only fallbacks are an invalid footprint or parameter, and a roof lower than 5 cm.
 pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
     let fallback = |reason: String| RoofFallback {
         asked: mass.roof,
         reason,
     };
-    let pitched = match mass.roof {
-        RoofShape::Flat => return Ok(roof::flat(&mass.footprint)),
-        RoofShape::Hipped
-        | RoofShape::HalfHipped
-        | RoofShape::SideHipped
-        | RoofShape::Mansard
-        | RoofShape::Gambrel => roof::hipped(&mass.footprint, mass.roof_angle_deg)
-            .map_err(|e| fallback(e.to_string()))?,
-        RoofShape::Gabled | RoofShape::Saltbox => {
-            match roof::gabled(&mass.footprint, mass.roof_angle_deg) {
-                Ok(g) => g,
-                Err(e) => return Err(fallback(e.to_string())),
-            }
-        }
-        RoofShape::Pyramidal | RoofShape::Cone | RoofShape::Dome | RoofShape::Onion => {
-            let h = mass.roof_height.unwrap_or_else(|| {
-                let (lo, hi) = mass.footprint.bounds();
-                0.5 * (hi - lo).min_element() * mass.roof_angle_deg.to_radians().tan()
-            });
-            roof::pyramidal(&mass.footprint, h).map_err(|e| fallback(e.to_string()))?
-        }
-        other => {
-            return Err(fallback(format!(
-                "roof shape {} is not built yet",
-                other.osm_name()
-            )))
-        }
+    if mass.roof == RoofShape::Flat {
+        return Ok(roof::flat(&mass.footprint));
+    }
+    let pitch = if mass.roof_angle_deg.is_finite()
+        && mass.roof_angle_deg > 0.0
+        && mass.roof_angle_deg < 90.0
+    {
+        mass.roof_angle_deg
+    } else {
+        DEFAULT_PITCH_DEG
     };
+    let pitched = roof::build(&mass.footprint, mass.roof, pitch, None)
+        .map_err(|e| fallback(e.to_string()))?;
     let pitched = match mass.roof_height {
         Some(h) if h > MIN_ROOF_HEIGHT => pitched.scaled_to_height(h),
         _ => pitched,
@@ -101,15 +93,23 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         mass.eave_z + roof.height
     };
     let wall_top = if lod == Lod::Lod1 { top_z } else { mass.eave_z };
-    let walls = walls(&mass.footprint, mass.base_z, wall_top);
-    let roof_faces = if lod == Lod::Lod1 || flat {
-        vec![horizontal_face(&mass.footprint, wall_top, true)]
+    let (mut walls, mut roof_faces) = if lod == Lod::Lod1 || flat {
+        (
+            walls(&mass.footprint, mass.base_z, wall_top),
+            vec![horizontal_face(&mass.footprint, wall_top, true)],
+        )
     } else {
-        roof.faces
-            .iter()
-            .map(|f| translate_face(f, mass.eave_z))
-            .collect()
+        (
+            walls_under_roof(&mass.footprint, mass.base_z, mass.eave_z, roof),
+            roof.faces
+                .iter()
+                .map(|f| translate_face(f, mass.eave_z))
+                .collect(),
+        )
     };
+    let mut ground = horizontal_face(&mass.footprint, mass.base_z, false);
+    weld(&mass.footprint, &mut ground, &mut walls, &mut roof_faces);
+    roof_faces.retain(|f| f.outer.len() >= 3);
     Part {
         key,
         footprint: mass.footprint.clone(),
@@ -123,7 +123,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         roof_shape: if flat { RoofShape::Flat } else { mass.roof },
         walls,
         roof: roof_faces,
-        ground: horizontal_face(&mass.footprint, mass.base_z, false),
+        ground,
     }
 }
 
@@ -160,6 +160,322 @@ pub fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
     (0..n).map(|i| base + h * f64::from(i)).collect()
 }
 
+/// One wall per ring edge whose top follows the roof: the outline is start-base, end-base, then
+/// the roof line over the edge from the end back to the start ([`crate::geometry::roof_shapes::wall_top`]): a rectangle
+/// under eaves, a pentagon (or more, under a profile roof) under a gable, a trapezoid under a
+/// skillion. `roof` is at z = 0 at the eave; the eave is at `eave`.
+pub fn walls_under_roof(
+    footprint: &Polygon,
+    base: f64,
+    eave: f64,
+    roof: &RoofGeometry,
+) -> Vec<Wall> {
+    let mut out = Vec::with_capacity(footprint.outer.len());
+    for ring in footprint.rings() {
+        let n = ring.len();
+        for i in 0..n {
+            let (s, e) = (ring[i], ring[(i + 1) % n]);
+            let mut outline = vec![at(s, base), at(e, base)];
+            outline.extend(
+                crate::geometry::roof_shapes::wall_top(&roof.faces, s, e)
+                    .into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, p.z + eave)),
+            );
+            out.push(Wall {
+                start: s,
+                end: e,
+                base_z: base,
+                top_z: eave,
+                thickness: WALL_THICKNESS,
+                outline: Face::new(outline),
+                storey: 0,
+                openings: Vec::new(),
+                balconies: Vec::new(),
+            });
+        }
+    }
+    out
+}
+
+/// Makes the part's surfaces meet exactly: vertices closer than a tolerance (1e-5 of the
+/// footprint size, within 1 µm..0.5 mm) become one, and a vertex lying on another face's edge is
+/// inserted into that edge (the skeleton cuts faces of collinear footprint edges, and profile
+/// bands put points on edges, so neighbouring faces may otherwise meet in T-junctions). A wall
+/// outline's first edge (its base) is left as it is: nothing else stands on it but the ground's
+/// own vertices.
+fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [Face]) {
+    let (lo, hi) = footprint.bounds();
+    let size = (hi - lo).max_element();
+    if !size.is_finite() {
+        return;
+    }
+    let tol = (1e-5 * size).clamp(1e-6, 5e-4);
+    // Canonical vertices, bucketed on a grid of cell `tol`: ground and walls first, so the
+    // footprint's exact corners win.
+    let mut canon: Vec<DVec3> = Vec::new();
+    let mut grid: std::collections::BTreeMap<(i64, i64, i64), Vec<usize>> = Default::default();
+    let cell = |p: DVec3| {
+        (
+            (p.x / tol).floor() as i64,
+            (p.y / tol).floor() as i64,
+            (p.z / tol).floor() as i64,
+        )
+    };
+    let mut snap = |p: &mut DVec3| {
+        let c = cell(*p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(v) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
+                        if let Some(&i) = v.iter().find(|&&i| canon[i].distance(*p) <= tol) {
+                            *p = canon[i];
+                            return;
+                        }
+                    }
+                }
+            }
+        }
+        grid.entry(c).or_default().push(canon.len());
+        canon.push(*p);
+    };
+    {
+        let mut all: Vec<&mut Vec<DVec3>> = Vec::new();
+        all.push(&mut ground.outer);
+        all.extend(ground.holes.iter_mut());
+        for w in walls.iter_mut() {
+            all.push(&mut w.outline.outer);
+        }
+        for f in roof.iter_mut() {
+            all.push(&mut f.outer);
+            all.extend(f.holes.iter_mut());
+        }
+        for r in all {
+            for p in r.iter_mut() {
+                snap(p);
+            }
+            clean_ring(r);
+        }
+    }
+    // T-junctions: a plan grid of cell `size / 64` over the canonical vertices.
+    let g = (size / 64.0).max(tol);
+    let mut plan: std::collections::BTreeMap<(i64, i64), Vec<usize>> = Default::default();
+    for (i, p) in canon.iter().enumerate() {
+        plan.entry(((p.x / g).floor() as i64, (p.y / g).floor() as i64))
+            .or_default()
+            .push(i);
+    }
+    let split = |r: &mut Vec<DVec3>, skip_first: bool| {
+        let n = r.len();
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let (u, v) = (r[i], r[(i + 1) % n]);
+            out.push(u);
+            if skip_first && i == 0 {
+                continue;
+            }
+            let d = v - u;
+            let l2 = d.length_squared();
+            if l2 <= tol * tol {
+                continue;
+            }
+            let (a, b) = (u.min(v), u.max(v));
+            let mut on: Vec<(f64, DVec3)> = Vec::new();
+            for cx in ((a.x - tol) / g).floor() as i64..=((b.x + tol) / g).floor() as i64 {
+                for cy in ((a.y - tol) / g).floor() as i64..=((b.y + tol) / g).floor() as i64 {
+                    for &k in plan.get(&(cx, cy)).into_iter().flatten() {
+                        let q = canon[k];
+                        let s = (q - u).dot(d) / l2;
+                        if s <= 0.0 || s >= 1.0 || q == u || q == v {
+                            continue;
+                        }
+                        if (u + d * s).distance(q) <= tol {
+                            on.push((s, q));
+                        }
+                    }
+                }
+            }
+            on.sort_by(|x, y| x.0.total_cmp(&y.0));
+            on.dedup_by(|x, y| x.1 == y.1);
+            out.extend(on.into_iter().map(|x| x.1));
+        }
+        *r = out;
+    };
+    split(&mut ground.outer, false);
+    for h in ground.holes.iter_mut() {
+        split(h, false);
+    }
+    for w in walls.iter_mut() {
+        split(&mut w.outline.outer, true);
+    }
+    for f in roof.iter_mut() {
+        split(&mut f.outer, false);
+        for h in f.holes.iter_mut() {
+            split(h, false);
+        }
+    }
+}
+
+/// Removes consecutive duplicates and spikes (`x, y, x`: a sliver face collapsed by welding
+/// runs along an edge and back) from a ring, so no collapsed piece leaves a doubled edge.
+fn clean_ring(r: &mut Vec<DVec3>) {
+    loop {
+        r.dedup();
+        while r.len() > 1 && r.first() == r.last() {
+            r.pop();
+        }
+        let n = r.len();
+        if n < 3 {
+            r.clear();
+            return;
+        }
+        match (0..n).find(|&i| r[(i + n - 1) % n] == r[(i + 1) % n]) {
+            Some(i) => {
+                // Drop the spike tip and one copy of its base.
+                let j = (i + 1) % n;
+                let (a, b) = if i < j { (i, j) } else { (j, i) };
+                r.remove(b);
+                r.remove(a);
+            }
+            None => return,
+        }
+    }
+}
+
+/// Checks that a part's surfaces (ground, wall outlines, roof faces) bound a closed solid:
+/// every edge is used exactly twice, once in each direction (consistently oriented faces).
+/// Returns a description of each defect, empty when the solid is closed. Edges are compared
+/// on exact coordinates (after [`build_part`]'s welding).
+pub fn closure_defects(part: &Part) -> Vec<String> {
+    use std::collections::BTreeMap;
+    type K = (u64, u64, u64);
+    let key = |p: DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+    let mut count: BTreeMap<(K, K), i64> = BTreeMap::new();
+    let mut rings: Vec<&Vec<DVec3>> = vec![&part.ground.outer];
+    rings.extend(part.ground.holes.iter());
+    rings.extend(part.walls.iter().map(|w| &w.outline.outer));
+    for f in &part.roof {
+        rings.push(&f.outer);
+        rings.extend(f.holes.iter());
+    }
+    for r in rings {
+        for i in 0..r.len() {
+            let (a, b) = (key(r[i]), key(r[(i + 1) % r.len()]));
+            if a == b {
+                continue;
+            }
+            *count.entry((a, b)).or_default() += 1;
+        }
+    }
+    let mut out = Vec::new();
+    let f = |k: K| {
+        DVec3::new(
+            f64::from_bits(k.0),
+            f64::from_bits(k.1),
+            f64::from_bits(k.2),
+        )
+    };
+    for (&(a, b), &n) in &count {
+        let back = count.get(&(b, a)).copied().unwrap_or(0);
+        if n != 1 || back != 1 {
+            out.push(format!(
+                "edge {} -> {} used {n} times, reverse {back} times",
+                f(a),
+                f(b)
+            ));
+        }
+    }
+    out
+}
+
+/// Checks the geometric invariants of a part built by [`build_part`] and returns one line per
+/// violation (empty when all hold):
+///
+/// * every coordinate is finite;
+/// * every face (ground, wall outlines, roof faces) is planar within 1 mm and has an area above
+///   1e-6 m² (no zero-area face or sliver triangle face);
+/// * wall outlines are vertical, face out of the building (their normal points to the right of
+///   start → end) and start with their base edge;
+/// * roof faces face up, lie within 1 mm of the footprint in plan, and their plan areas add up
+///   to the footprint's area within 0.1 %;
+/// * the surfaces bound a closed solid ([`closure_defects`]).
+pub fn check_part(part: &Part) -> Vec<String> {
+    let mut out = Vec::new();
+    let planar = |f: &Face, what: &str, out: &mut Vec<String>| {
+        let pts = f.outer.iter().chain(f.holes.iter().flatten());
+        if pts.clone().any(|p| !p.is_finite()) {
+            out.push(format!("{what}: non-finite vertex"));
+            return;
+        }
+        let n = crate::geometry::newell_normal(&f.outer);
+        let area = 0.5 * n.length();
+        if area.is_nan() || area < 1e-6 {
+            out.push(format!("{what}: area {area}"));
+            return;
+        }
+        let n = n / n.length();
+        let c = f.outer.iter().copied().sum::<DVec3>() / f.outer.len() as f64;
+        let dev = pts.map(|p| (*p - c).dot(n).abs()).fold(0.0, f64::max);
+        if dev > 1e-3 {
+            out.push(format!("{what}: not planar ({dev} m)"));
+        }
+    };
+    planar(&part.ground, "ground", &mut out);
+    for (i, w) in part.walls.iter().enumerate() {
+        let what = format!("wall {i}");
+        planar(&w.outline, &what, &mut out);
+        let n = w.outline.normal();
+        let outward = -(w.end - w.start).perp().normalize_or_zero();
+        if n.z.abs() > 1e-6 || n.truncate().dot(outward) < 0.999 {
+            out.push(format!("{what}: normal {n} not outward {outward}"));
+        }
+        let o = &w.outline.outer;
+        if o.len() < 3
+            || o[0] != DVec3::new(w.start.x, w.start.y, w.base_z)
+            || o[1] != DVec3::new(w.end.x, w.end.y, w.base_z)
+        {
+            out.push(format!("{what}: outline does not start with its base"));
+        }
+    }
+    let fp = &part.footprint;
+    let mut area = 0.0;
+    for (i, f) in part.roof.iter().enumerate() {
+        let what = format!("roof face {i}");
+        planar(f, &what, &mut out);
+        if f.normal().z <= 1e-9 {
+            out.push(format!("{what}: does not face up"));
+        }
+        let plan = |r: &Vec<DVec3>| {
+            crate::geometry::ring_signed_area(&r.iter().map(|p| p.truncate()).collect::<Vec<_>>())
+        };
+        area += plan(&f.outer) + f.holes.iter().map(plan).sum::<f64>();
+        for p in f.outer.iter().chain(f.holes.iter().flatten()) {
+            let g = p.truncate();
+            if !fp.contains(g) && dist_to_boundary(fp, g) > 1e-3 {
+                out.push(format!("{what}: vertex {g} outside the footprint"));
+            }
+        }
+    }
+    let want = fp.area();
+    if (area - want).abs() > 1e-3 * want {
+        out.push(format!("roof covers {area} m², footprint {want} m²"));
+    }
+    out.extend(closure_defects(part));
+    out
+}
+
+fn dist_to_boundary(p: &Polygon, q: DVec2) -> f64 {
+    p.rings()
+        .flat_map(|r| {
+            (0..r.len()).map(move |i| {
+                let (a, b) = (r[i], r[(i + 1) % r.len()]);
+                let ab = b - a;
+                let t = ((q - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+                q.distance(a + ab * t)
+            })
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// The footprint as a horizontal face at `z`, facing up (a roof) or down (a ground).
 pub fn horizontal_face(footprint: &Polygon, z: f64, up: bool) -> Face {
     let ring = |r: &Vec<DVec2>, reverse: bool| {
@@ -186,3 +502,7 @@ fn translate_face(f: &Face, dz: f64) -> Face {
 fn at(p: DVec2, z: f64) -> DVec3 {
     DVec3::new(p.x, p.y, z)
 }
+
+#[cfg(test)]
+#[path = "massing_tests.rs"]
+mod tests;

@@ -6,6 +6,7 @@
 //! first vertex at the end.
 
 pub mod roof;
+pub mod roof_shapes;
 pub mod skeleton;
 pub mod triangulate;
 

@@ -34,6 +34,9 @@ pub struct BuildingTags {
     /// `building:min_level`, >= 0.
     pub min_level: Option<f64>,
     pub roof_shape: Option<RoofShape>,
+    /// A `roof:shape` value that is present but unknown or invalid (`9.0`, `many`): the roof is
+    /// drawn flat (issue 4) rather than taking the knowledge base's roof.
+    pub invalid_roof_shape: Option<String>,
     /// `roof:height` in metres (>= 0).
     pub roof_height: Option<f64>,
     /// `roof:angle` in degrees, in 0..=90.
@@ -125,7 +128,10 @@ impl BuildingTags {
                         t.roof_shape = Some(s);
                         Ok(())
                     }
-                    None => Err("unknown roof shape".to_string()),
+                    None => {
+                        t.invalid_roof_shape = Some(v.to_string());
+                        Err("unknown roof shape".to_string())
+                    }
                 },
                 "roof:angle" => parse_angle(v).map(|a| t.roof_angle = Some(a)),
                 "roof:orientation" => {
@@ -441,6 +447,7 @@ mod tests {
         assert_eq!(t.levels, None);
         assert_eq!(t.roof_levels, None);
         assert_eq!(t.roof_shape, None);
+        assert_eq!(t.invalid_roof_shape.as_deref(), Some("9.0"));
         assert_eq!(t.roof_angle, None);
         assert_eq!(t.roof_orientation, None);
         assert_eq!(t.roof_direction, None);

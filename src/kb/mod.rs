@@ -795,6 +795,13 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     let fh = s.floor_height;
     if let Some(shape) = t.roof_shape {
         s.roof = shape;
+    } else if let Some(v) = &t.invalid_roof_shape {
+        // An unreadable roof:shape says the mapper saw some roof we cannot name: flat is the
+        // honest drawing, not the zone's default roof.
+        s.roof = RoofShape::Flat;
+        notes.push(format!(
+            "roof:shape={v} is not a known roof shape: roof drawn flat"
+        ));
     }
     if let Some(a) = t
         .roof_angle

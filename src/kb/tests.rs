@@ -682,3 +682,20 @@ fn every_shipped_style_derives_with_the_grammar() {
         }
     }
 }
+
+#[test]
+fn invalid_roof_shape_tag_draws_flat_with_a_note() {
+    let kb = shipped();
+    let zone = kb.locate(-1.15, 52.95);
+    for v in ["9.0", "many"] {
+        let tags = BuildingTags::from_pairs([("building", "yes"), ("roof:shape", v)]);
+        assert_eq!(tags.roof_shape, None);
+        let (s, notes) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
+        assert_eq!(s.roof, RoofShape::Flat, "{v}");
+        assert_eq!(s.roof_height, Some(0.0));
+        assert!(
+            notes.iter().any(|n| n.contains(&format!("roof:shape={v}"))),
+            "{notes:?}"
+        );
+    }
+}

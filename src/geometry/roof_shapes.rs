@@ -1,0 +1,692 @@
+//! The OSM roof catalogue on any simple footprint, holes included, built on the straight
+//! skeleton.
+//!
+//! # Method
+//!
+//! Every roof except flat, skillion and the pyramid/cone apex roofs is a *profile roof*: the
+//! skeleton gives, for each footprint edge, the face swept by that edge's wavefront, and every
+//! point of a face carries `t`, its distance to the edge's line. The roof height is a
+//! piecewise-linear function `z = h(t)`, the same for every face (the *profile*):
+//!
+//! * hipped: `h(t) = t·tan(pitch)`;
+//! * mansard: steep ([`MANSARD_LOWER_DEG`]) up to the break distance `t0`, then shallow
+//!   ([`MANSARD_UPPER_DEG`]); gambrel the same with gable ends ([`GAMBREL_LOWER_DEG`],
+//!   [`GAMBREL_UPPER_DEG`]);
+//! * dome: a quarter circle of radius `T` (the largest `t`, the inscribed radius) in
+//!   [`CURVE_BANDS`] chords; round (a barrel vault): the same circle with gable ends; onion: a
+//!   bulb profile ([`ONION_PROFILE`]) that rises almost vertically from the eave, bulges and
+//!   ends in a concave spire, kept inside the footprint (a skeleton roof cannot overhang).
+//!
+//! Each face is cut at the profile's break distances into bands; within a band `t` is affine on
+//! the face and `h` is linear, so every band is planar. Two faces meet along a skeleton arc on
+//! which both have the same `t`, so their bands meet at the same points: the roof stays closed.
+//! Break distances that fall within a tolerance of some vertex's `t` are nudged so that no
+//! vertex lies on a cut (the cut then never runs along an edge or touches a vertex, and the
+//! crossings along the cut pair up exactly).
+//!
+//! Why offsets and not the thesis's "top polygon shrunk to 80 %" for the mansard: scaling a
+//! polygon about its centroid keeps it inside itself only for star-shaped outlines, and even
+//! then gives eaves of unequal depth (a long wing gets a deep lower slope, a short one a thin
+//! one) and, on an L or a courtyard, an upper polygon that crosses the walls. The inward offset
+//! at distance `t0` (which the skeleton gives exactly) is inside the footprint for every simple
+//! polygon, has the same depth on every side, and handles holes and wings narrower than `2·t0`
+//! (they simply never reach the upper slope).
+//!
+//! # Gables (after Laycock and Day)
+//!
+//! A *hip end* is a triangular skeleton face (edge `a → b`, apex `m`) whose apex lies on
+//! exactly three faces — its own and those of the two edges next to it — and whose two
+//! neighbouring edges run roughly opposite (more than [`GABLE_MIN_OPPOSITE_DEG`] apart: the end
+//! of a wing, not a chamfered corner). The apex is moved along the ridge (the line where the
+//! two neighbouring planes meet) onto the vertical plane of the edge: the point `p` of `a b`
+//! equidistant from the two neighbouring edges' lines. The neighbours take over the two halves of
+//! the end triangle; `p` lies on both their planes, so they stay planar and the roof stays
+//! closed. The wall under the edge is then closed by the roof line `b → p → a` (see
+//! [`wall_top`]). On an L, T, U, H or a courtyard block each wing ends in its own gable and the
+//! wings' ridges meet in valleys and hips, as a carpenter frames them; an end that is not a hip
+//! end (a square's apex, an irregular junction) stays hipped, which is still a closed roof.
+//!
+//! A half-hip cuts the gable at the fraction [`HALF_HIP_FRACTION`] of its height: the wall stops
+//! at a horizontal line there, and a small hip rises from it to the ridge.
+
+use glam::{DVec2, DVec3};
+
+use super::roof::{RoofError, RoofGeometry};
+use super::skeleton::straight_skeleton;
+use super::{ring_signed_area, Polygon};
+use crate::model::Face;
+
+/// Pitch of the mansard's lower (steep) slope, degrees.
+pub const MANSARD_LOWER_DEG: f64 = 70.0;
+/// Pitch of the mansard's upper (shallow) slope, degrees.
+pub const MANSARD_UPPER_DEG: f64 = 25.0;
+/// Horizontal depth of the mansard's lower slope, metres (about one storey at 70°), at most
+/// [`MANSARD_BREAK_REL`] of the inscribed radius.
+pub const MANSARD_BREAK_M: f64 = 1.0;
+/// Upper bound of the mansard break as a fraction of the inscribed radius `T`.
+pub const MANSARD_BREAK_REL: f64 = 0.35;
+/// Gambrel (barn) lower slope, degrees.
+pub const GAMBREL_LOWER_DEG: f64 = 60.0;
+/// Gambrel upper slope, degrees.
+pub const GAMBREL_UPPER_DEG: f64 = 30.0;
+/// Gambrel break as a fraction of the inscribed radius `T` (a barn's lower slope covers
+/// about 40 % of its half-width).
+pub const GAMBREL_BREAK_REL: f64 = 0.4;
+/// Number of chords of the dome and barrel-vault quarter circles.
+pub const CURVE_BANDS: usize = 6;
+/// Onion profile as (t / T, z / H) points, H = [`ONION_HEIGHT_REL`] · T.
+pub const ONION_PROFILE: [(f64, f64); 8] = [
+    (0.0, 0.0),
+    (0.03, 0.2),
+    (0.12, 0.38),
+    (0.3, 0.52),
+    (0.55, 0.62),
+    (0.75, 0.72),
+    (0.88, 0.84),
+    (1.0, 1.0),
+];
+/// Onion height over the inscribed radius.
+pub const ONION_HEIGHT_REL: f64 = 1.6;
+/// Two edges next to a triangular end face must differ in direction by more than this for the
+/// end to become a gable.
+pub const GABLE_MIN_OPPOSITE_DEG: f64 = 135.0;
+/// Height fraction of the gable wall under a half-hip.
+pub const HALF_HIP_FRACTION: f64 = 0.6;
+
+/// What happens to the hip ends of a profile roof.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Ends {
+    /// Keep every hip.
+    Hipped,
+    /// Every hip end becomes a gable.
+    Gabled,
+    /// Every hip end but the first (in ring and edge order) becomes a gable.
+    AllButOne,
+    /// Every hip end becomes a gable up to the given fraction of its height, then a small hip.
+    HalfHipped(f64),
+}
+
+/// A piecewise-linear height profile `z = h(t)`: points `(t, z)` with increasing `t`, starting
+/// at (0, 0); beyond the last point the last slope continues.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Profile(pub Vec<(f64, f64)>);
+
+impl Profile {
+    /// `z = t·tan(pitch)`.
+    pub fn linear(slope: f64) -> Profile {
+        Profile(vec![(0.0, 0.0), (1.0, slope)])
+    }
+
+    /// Steep `lower` slope up to `t0`, then `upper`.
+    pub fn broken(lower: f64, upper: f64, t0: f64) -> Profile {
+        Profile(vec![
+            (0.0, 0.0),
+            (t0, lower * t0),
+            (t0 + 1.0, lower * t0 + upper),
+        ])
+    }
+
+    /// A quarter circle of radius `r` (a dome or a barrel vault), in [`CURVE_BANDS`] chords.
+    pub fn circle(r: f64) -> Profile {
+        Profile(
+            (0..=CURVE_BANDS)
+                .map(|i| {
+                    let a = i as f64 / CURVE_BANDS as f64 * std::f64::consts::FRAC_PI_2;
+                    (r * (1.0 - a.cos()), r * a.sin())
+                })
+                .collect(),
+        )
+    }
+
+    /// The onion bulb over inscribed radius `r`.
+    pub fn onion(r: f64) -> Profile {
+        let h = ONION_HEIGHT_REL * r;
+        Profile(ONION_PROFILE.iter().map(|&(t, z)| (t * r, z * h)).collect())
+    }
+
+    /// Evaluates `h(t)`.
+    pub fn eval(&self, t: f64) -> f64 {
+        let p = &self.0;
+        let n = p.len();
+        if n < 2 {
+            return 0.0;
+        }
+        let i = (1..n - 1).find(|&i| t < p[i].0).unwrap_or(n - 1);
+        let (a, b) = (p[i - 1], p[i]);
+        let dt = b.0 - a.0;
+        if dt <= 0.0 {
+            return b.1;
+        }
+        a.1 + (t - a.0) * (b.1 - a.1) / dt
+    }
+}
+
+/// A roof face in plan: points `(x, y, t)` where `t` is affine on the face and the height is
+/// `h(t)`.
+#[derive(Clone, Debug)]
+struct TFace {
+    pts: Vec<DVec3>,
+}
+
+/// Builds a profile roof (see the module documentation) with the eave at z = 0.
+///
+/// `profile` receives `T`, the largest skeleton distance (the inscribed radius), and returns
+/// the height profile. Errors: any [`super::skeleton::SkeletonError`] (invalid footprint).
+pub fn profile_roof(
+    poly: &Polygon,
+    ends: Ends,
+    profile: impl Fn(f64) -> Profile,
+) -> Result<RoofGeometry, RoofError> {
+    let sk = straight_skeleton(poly)?;
+    let (lo, hi) = poly.bounds();
+    let size = (hi - lo).max_element();
+    let mut faces: Vec<Option<TFace>> = sk
+        .faces
+        .iter()
+        .map(|f| {
+            Some(TFace {
+                pts: f.polygon.clone(),
+            })
+        })
+        .collect();
+    let edges: Vec<(usize, usize)> = sk.faces.iter().map(|f| f.edge).collect();
+    if ends != Ends::Hipped {
+        make_gables(&mut faces, &edges, poly, ends, 1e-7 * size);
+    }
+    let tmax = faces
+        .iter()
+        .flatten()
+        .flat_map(|f| f.pts.iter())
+        .map(|p| p.z)
+        .fold(0.0, f64::max);
+    let prof = profile(tmax);
+    // Break levels, nudged away from every vertex's t.
+    let mut ts: Vec<f64> = faces
+        .iter()
+        .flatten()
+        .flat_map(|f| f.pts.iter().map(|p| p.z))
+        .collect();
+    ts.sort_by(f64::total_cmp);
+    // A cut closer than `eps` to a vertex would leave a sliver band: the break moves instead
+    // (by at most 200 steps of `eps`), trying a clearance of 1e-3, then 1e-5, then 1e-7 of the
+    // footprint size. The profile keeps its slopes (its heights shift a little); a break that
+    // cannot be placed is dropped (the next segment takes the previous slope).
+    let clear = |l: f64, eps: f64| {
+        let i = ts.partition_point(|&t| t < l);
+        let d1 = ts.get(i).map_or(f64::INFINITY, |t| t - l);
+        let d0 = i.checked_sub(1).map_or(f64::INFINITY, |j| l - ts[j]);
+        d0.min(d1) > eps && l > eps && l < tmax - eps
+    };
+    let pts = &prof.0;
+    let mut placed: Vec<(f64, f64)> = vec![(0.0, 0.0)];
+    let mut slope = if pts.len() >= 2 && pts[1].0 > pts[0].0 {
+        (pts[1].1 - pts[0].1) / (pts[1].0 - pts[0].0)
+    } else {
+        0.0
+    };
+    let mut levels = Vec::new();
+    for i in 1..pts.len() {
+        let b = pts[i].0;
+        let next_slope = match pts.get(i + 1) {
+            Some(q) if q.0 > b => (q.1 - pts[i].1) / (q.0 - b),
+            _ => slope,
+        };
+        if i + 1 == pts.len() {
+            break;
+        }
+        let last = placed[placed.len() - 1].0;
+        let found = [1e-3, 1e-5, 1e-7].iter().find_map(|rel| {
+            let eps = rel * size;
+            (0..400)
+                .map(|j| b + (j / 2) as f64 * eps * if j % 2 == 0 { 1.0 } else { -1.0 })
+                .find(|&l| l > last + eps && clear(l, eps))
+        });
+        if let Some(l) = found {
+            let (t0, h0) = placed[placed.len() - 1];
+            placed.push((l, h0 + slope * (l - t0)));
+            levels.push(l);
+            slope = next_slope;
+        }
+    }
+    let (t0, h0) = placed[placed.len() - 1];
+    placed.push((t0 + 1.0, h0 + slope));
+    let prof = Profile(placed);
+    levels.sort_by(f64::total_cmp);
+    let mut out = Vec::new();
+    for f in faces.into_iter().flatten() {
+        let mut rest = vec![f.pts];
+        for &l in &levels {
+            let mut next = Vec::new();
+            for r in rest {
+                let (below, above) = split_ring(&r, l);
+                out.extend(below);
+                next.extend(above);
+            }
+            rest = next;
+        }
+        out.extend(rest);
+    }
+    let faces = out
+        .into_iter()
+        .filter(|r| r.len() >= 3)
+        .map(|r| {
+            Face::new(
+                r.into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, prof.eval(p.z)))
+                    .collect(),
+            )
+        })
+        .collect::<Vec<_>>();
+    let walls = gable_walls(poly, &faces);
+    Ok(RoofGeometry::from_parts(faces, walls))
+}
+
+/// Vertical faces closing the roof above the eave on each footprint edge whose roof line rises
+/// above it (gables, half-hips): `a, b, then the roof line from b back to a` (see
+/// [`wall_top`]), counter-clockwise seen from outside.
+fn gable_walls(poly: &Polygon, faces: &[Face]) -> Vec<Face> {
+    let mut out = Vec::new();
+    for r in poly.rings() {
+        for i in 0..r.len() {
+            let (a, b) = (r[i], r[(i + 1) % r.len()]);
+            let top = wall_top(faces, a, b);
+            if top.iter().any(|p| p.z > 0.0) {
+                let mut ring = vec![a.extend(0.0), b.extend(0.0)];
+                ring.extend(top.iter().filter(|p| p.z > 0.0));
+                out.push(Face::new(ring));
+            }
+        }
+    }
+    out
+}
+
+/// The roof line over the footprint edge `a → b`, relative to the eave (z = 0): the roof
+/// vertices standing on the edge's vertical plane, ordered from `b` back to `a`, with `b` and
+/// `a` first and last (at the highest roof vertex there, 0 if none is higher). A wall on this
+/// edge closes the roof when its outline is `a(base), b(base), then these points`.
+pub fn wall_top(faces: &[Face], a: DVec2, b: DVec2) -> Vec<DVec3> {
+    let d = b - a;
+    let len2 = d.length_squared();
+    if len2 <= 0.0 || !len2.is_finite() {
+        return vec![b.extend(0.0), a.extend(0.0)];
+    }
+    let len = len2.sqrt();
+    let tol = 1e-6 * len.max(1.0);
+    let ztol = 1e-6;
+    let (mut za, mut zb) = (0.0f64, 0.0f64);
+    let mut mid: Vec<(f64, DVec3)> = Vec::new();
+    for p in faces
+        .iter()
+        .flat_map(|f| f.outer.iter().chain(f.holes.iter().flatten()))
+    {
+        let g = p.truncate();
+        if g.distance(a) <= tol {
+            za = za.max(p.z);
+            continue;
+        }
+        if g.distance(b) <= tol {
+            zb = zb.max(p.z);
+            continue;
+        }
+        let s = (g - a).dot(d) / len2;
+        if s <= 0.0 || s >= 1.0 || p.z <= ztol {
+            continue;
+        }
+        if (g - a).perp_dot(d).abs() / len > tol {
+            continue;
+        }
+        mid.push((s, *p));
+    }
+    mid.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.z.total_cmp(&y.1.z)));
+    mid.dedup_by(|x, y| x.1.distance(y.1) <= tol);
+    let mut out = vec![b.extend(zb)];
+    out.extend(mid.into_iter().map(|m| m.1));
+    out.push(a.extend(za));
+    out
+}
+
+/// Index of the point of `pts` within `tol` of `q` (plan and t).
+fn find(pts: &[DVec3], q: DVec3, tol: f64) -> Option<usize> {
+    pts.iter().position(|p| p.distance(q) <= tol)
+}
+
+/// Turns hip ends into gables or half-hips in place (see the module documentation).
+fn make_gables(
+    faces: &mut [Option<TFace>],
+    edges: &[(usize, usize)],
+    poly: &Polygon,
+    ends: Ends,
+    tol: f64,
+) {
+    let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
+    let min_cos = GABLE_MIN_OPPOSITE_DEG.to_radians().cos();
+    let mut skipped_first = false;
+    for i in 0..faces.len() {
+        let Some(f) = &faces[i] else { continue };
+        if f.pts.len() != 3 {
+            continue;
+        }
+        let (a, b, m) = (f.pts[0], f.pts[1], f.pts[2]);
+        // Faces on the apex.
+        let on_apex: Vec<usize> = (0..faces.len())
+            .filter(|&j| {
+                faces[j]
+                    .as_ref()
+                    .is_some_and(|g| find(&g.pts, m, tol).is_some())
+            })
+            .collect();
+        if on_apex.len() != 3 {
+            continue;
+        }
+        // The neighbour holding a → m (before a in its ring) and the one holding m → b.
+        let mut prev = None;
+        let mut next = None;
+        for &j in on_apex.iter().filter(|&&j| j != i) {
+            let Some(g) = &faces[j] else { continue };
+            let n = g.pts.len();
+            let Some(k) = find(&g.pts, m, tol) else {
+                continue;
+            };
+            if g.pts[(k + n - 1) % n].distance(a) <= tol {
+                prev = Some((j, k));
+            } else if g.pts[(k + 1) % n].distance(b) <= tol {
+                next = Some((j, k));
+            }
+        }
+        let (Some((jp, kp)), Some((jn, kn))) = (prev, next) else {
+            continue;
+        };
+        // The neighbours' edges must run roughly opposite (a wing's two sides).
+        let (Some(fp), Some(fnx)) = (&faces[jp], &faces[jn]) else {
+            continue;
+        };
+        let dp = (fp.pts[1] - fp.pts[0]).truncate().normalize_or_zero();
+        let dn = (fnx.pts[1] - fnx.pts[0]).truncate().normalize_or_zero();
+        if dp.dot(dn) > min_cos || dp == DVec2::ZERO || dn == DVec2::ZERO {
+            continue;
+        }
+        // Lines of the neighbouring edges: distance t = n·(x - o).
+        let np = dp.perp();
+        let nn = dn.perp();
+        let (op, on) = (fp.pts[0].truncate(), fnx.pts[0].truncate());
+        let (a2, b2) = (a.truncate(), b.truncate());
+        let dab = b2 - a2;
+        // f(s) = tp(a + s dab) - tn(a + s dab) = 0.
+        let f0 = np.dot(a2 - op) - nn.dot(a2 - on);
+        let fs = (np - nn).dot(dab);
+        if fs.abs() < 1e-12 {
+            continue;
+        }
+        let s = -f0 / fs;
+        if !(s.is_finite() && s > 1e-3 && s < 1.0 - 1e-3) {
+            continue;
+        }
+        let p2 = a2 + dab * s;
+        let tp = np.dot(p2 - op);
+        if !(tp.is_finite() && tp > tol) {
+            continue;
+        }
+        if ends == Ends::AllButOne && !skipped_first {
+            skipped_first = true;
+            continue;
+        }
+        let _ = (edges, &rings);
+        let p = p2.extend(tp);
+        let (mp, mn) = (
+            faces[jp].as_ref().map(|g| g.pts[kp]),
+            faces[jn].as_ref().map(|g| g.pts[kn]),
+        );
+        let (Some(mp), Some(_mn)) = (mp, mn) else {
+            continue;
+        };
+        match ends {
+            Ends::HalfHipped(c) => {
+                let c = c.clamp(0.05, 0.95);
+                let xa = a + (p - a) * c;
+                let xb = b + (p - b) * c;
+                // The hip's top on the ridge, so the small hip keeps about the roof's pitch.
+                let ridge = (mp - p).truncate().length();
+                let mu = if ridge > 0.0 {
+                    ((1.0 - c) * tp / ridge).min(1.0)
+                } else {
+                    1.0
+                };
+                let r = if mu >= 1.0 { mp } else { p + (mp - p) * mu };
+                if let Some(g) = faces[jp].as_mut() {
+                    if mu >= 1.0 {
+                        g.pts.splice(kp..kp, [xa]);
+                    } else {
+                        g.pts.splice(kp..kp, [xa, r]);
+                    }
+                }
+                if let Some(g) = faces[jn].as_mut() {
+                    if mu >= 1.0 {
+                        g.pts.splice(kn + 1..kn + 1, [xb]);
+                    } else {
+                        g.pts.splice(kn + 1..kn + 1, [r, xb]);
+                    }
+                }
+                faces[i] = Some(TFace {
+                    pts: vec![xa, xb, r],
+                });
+            }
+            _ => {
+                for (j, k) in [(jp, kp), (jn, kn)] {
+                    if let Some(g) = faces[j].as_mut() {
+                        g.pts[k] = p;
+                    }
+                }
+                faces[i] = None;
+            }
+        }
+    }
+}
+
+/// Splits a simple ring of points `(x, y, t)` by the level `t = l` (no vertex on it) into the
+/// pieces below and above. Pieces keep the ring's orientation.
+fn split_ring(ring: &[DVec3], l: f64) -> (Vec<Vec<DVec3>>, Vec<Vec<DVec3>>) {
+    let n = ring.len();
+    let below = |p: &DVec3| p.z < l;
+    if ring.iter().all(below) {
+        return (vec![ring.to_vec()], Vec::new());
+    }
+    if !ring.iter().any(below) {
+        return (Vec::new(), vec![ring.to_vec()]);
+    }
+    // Ring with crossings inserted; `cross[k]` is Some(order along the line) for crossings.
+    let mut pts: Vec<DVec3> = Vec::with_capacity(n + 4);
+    let mut is_cross: Vec<bool> = Vec::with_capacity(n + 4);
+    for i in 0..n {
+        let (p, q) = (ring[i], ring[(i + 1) % n]);
+        pts.push(p);
+        is_cross.push(false);
+        if below(&p) != below(&q) {
+            pts.push(cross(p, q, l));
+            is_cross.push(true);
+        }
+    }
+    let m = pts.len();
+    // Direction along the line: any, as long as both sides use the same; take the direction of
+    // the first crossing pair's chord by sorting on the dominant axis of the crossings' spread.
+    let xs: Vec<usize> = (0..m).filter(|&k| is_cross[k]).collect();
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for &k in &xs {
+        lo = lo.min(pts[k].truncate());
+        hi = hi.max(pts[k].truncate());
+    }
+    let axis = if hi.x - lo.x >= hi.y - lo.y {
+        DVec2::X
+    } else {
+        DVec2::Y
+    };
+    let mut order = xs.clone();
+    order.sort_by(|&u, &v| {
+        pts[u]
+            .truncate()
+            .dot(axis)
+            .total_cmp(&pts[v].truncate().dot(axis))
+    });
+    let mut partner = vec![usize::MAX; m];
+    for c in order.chunks(2) {
+        if let [u, v] = c {
+            partner[*u] = *v;
+            partner[*v] = *u;
+        }
+    }
+    let mut used = vec![false; m];
+    let mut pieces_below = Vec::new();
+    let mut pieces_above = Vec::new();
+    for start in 0..m {
+        if is_cross[start] || used[start] {
+            continue;
+        }
+        let side = below(&pts[start]);
+        let mut piece = Vec::new();
+        let mut k = start;
+        let mut guard = 0;
+        loop {
+            guard += 1;
+            if guard > 4 * m + 8 {
+                break;
+            }
+            used[k] = true;
+            piece.push(pts[k]);
+            let nk = (k + 1) % m;
+            if is_cross[nk] {
+                // Leaving the side: take the chord to the partner, then carry on from there.
+                piece.push(pts[nk]);
+                let p = partner[nk];
+                if p == usize::MAX {
+                    break;
+                }
+                piece.push(pts[p]);
+                k = (p + 1) % m;
+            } else {
+                k = nk;
+            }
+            if k == start {
+                break;
+            }
+        }
+        if piece.len() >= 3 {
+            if side {
+                pieces_below.push(piece);
+            } else {
+                pieces_above.push(piece);
+            }
+        }
+    }
+    (pieces_below, pieces_above)
+}
+
+/// The point of segment `p q` at `t = l`, computed from the endpoints in a canonical order so
+/// that the two faces sharing the segment get the same bits.
+fn cross(p: DVec3, q: DVec3, l: f64) -> DVec3 {
+    let key = |v: DVec3| (v.x.to_bits(), v.y.to_bits(), v.z.to_bits());
+    let (p, q) = if key(p) <= key(q) { (p, q) } else { (q, p) };
+    let s = ((l - p.z) / (q.z - p.z)).clamp(0.0, 1.0);
+    let g = p.truncate() + (q.truncate() - p.truncate()) * s;
+    g.extend(l)
+}
+
+/// A skillion (shed) roof: the footprint as one plane rising against `down`, the unit vector
+/// (in plan) the slope faces, with rise `slope` per metre, the lowest corner at z = 0.
+pub fn skillion(poly: &Polygon, down: DVec2, slope: f64) -> Result<RoofGeometry, RoofError> {
+    if !(slope.is_finite() && slope > 0.0) {
+        return Err(RoofError::InvalidParameter(
+            "skillion slope must be positive",
+        ));
+    }
+    let down = down.normalize_or_zero();
+    if down == DVec2::ZERO || !down.is_finite() {
+        return Err(RoofError::InvalidParameter("skillion direction is zero"));
+    }
+    check_simple(poly)?;
+    let smax = poly
+        .outer
+        .iter()
+        .map(|p| p.dot(down))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let lift = |r: &Vec<DVec2>| -> Vec<DVec3> {
+        r.iter()
+            .map(|p| p.extend((smax - p.dot(down)) * slope))
+            .collect()
+    };
+    let face = Face {
+        outer: lift(&poly.outer),
+        holes: poly.holes.iter().map(lift).collect(),
+    };
+    let faces = vec![face];
+    let walls = gable_walls(poly, &faces);
+    Ok(RoofGeometry::from_parts(faces, walls))
+}
+
+/// Validates a footprint the way the skeleton does (so that every shape rejects the same
+/// invalid input).
+fn check_simple(poly: &Polygon) -> Result<(), RoofError> {
+    straight_skeleton(poly)?;
+    Ok(())
+}
+
+/// The direction (unit, in plan) across the footprint's minimum-area bounding rectangle's
+/// shorter side: a shed roof slopes along it.
+pub fn short_axis(poly: &Polygon) -> DVec2 {
+    let hull = convex_hull(&poly.outer);
+    let mut best = (f64::INFINITY, DVec2::Y);
+    for i in 0..hull.len() {
+        let d = (hull[(i + 1) % hull.len()] - hull[i]).normalize_or_zero();
+        if d == DVec2::ZERO {
+            continue;
+        }
+        let n = d.perp();
+        let (mut a0, mut a1, mut b0, mut b1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for p in &hull {
+            a0 = a0.min(p.dot(d));
+            a1 = a1.max(p.dot(d));
+            b0 = b0.min(p.dot(n));
+            b1 = b1.max(p.dot(n));
+        }
+        let area = (a1 - a0) * (b1 - b0);
+        if area < best.0 - 1e-9 * area.abs() {
+            best = (area, if a1 - a0 < b1 - b0 { d } else { n });
+        }
+    }
+    best.1
+}
+
+/// Convex hull (monotone chain), counter-clockwise.
+fn convex_hull(pts: &[DVec2]) -> Vec<DVec2> {
+    let mut p: Vec<DVec2> = pts.iter().copied().filter(|q| q.is_finite()).collect();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let mut h: Vec<DVec2> = Vec::new();
+    for pass in 0..2 {
+        let start = h.len();
+        let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
+        for &q in iter {
+            while h.len() >= start + 2
+                && (h[h.len() - 1] - h[h.len() - 2]).perp_dot(q - h[h.len() - 2]) <= 0.0
+            {
+                h.pop();
+            }
+            h.push(q);
+        }
+        h.pop();
+    }
+    if ring_signed_area(&h) < 0.0 {
+        h.reverse();
+    }
+    h
+}

@@ -1,0 +1,268 @@
+//! Unit tests: every roof shape on a rectangle, an L and a courtyard block builds a closed,
+//! planar part whose walls meet the roof.
+
+use super::*;
+
+fn poly(pts: &[(f64, f64)]) -> Polygon {
+    Polygon::new(pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![])
+}
+
+pub(crate) fn mass(footprint: Polygon, roof: RoofShape) -> Mass {
+    Mass {
+        footprint,
+        base_z: 0.0,
+        eave_z: 6.0,
+        storeys: 2,
+        roof,
+        roof_angle_deg: 35.0,
+        roof_height: None,
+        wall_color: Color::WHITE,
+        roof_color: Color::GREY,
+    }
+}
+
+const ALL: [RoofShape; 14] = [
+    RoofShape::Flat,
+    RoofShape::Skillion,
+    RoofShape::Gabled,
+    RoofShape::Hipped,
+    RoofShape::HalfHipped,
+    RoofShape::SideHipped,
+    RoofShape::Pyramidal,
+    RoofShape::Mansard,
+    RoofShape::Gambrel,
+    RoofShape::Saltbox,
+    RoofShape::Dome,
+    RoofShape::Onion,
+    RoofShape::Round,
+    RoofShape::Cone,
+];
+
+fn rect() -> Polygon {
+    poly(&[(0., 0.), (12., 0.), (12., 6.), (0., 6.)])
+}
+
+fn ell() -> Polygon {
+    poly(&[
+        (0., 0.),
+        (16., 0.),
+        (16., 6.),
+        (6., 6.),
+        (6., 14.),
+        (0., 14.),
+    ])
+}
+
+fn courtyard() -> Polygon {
+    Polygon::new(
+        vec![
+            DVec2::new(0., 0.),
+            DVec2::new(20., 0.),
+            DVec2::new(20., 16.),
+            DVec2::new(0., 16.),
+        ],
+        vec![vec![
+            DVec2::new(6., 6.),
+            DVec2::new(14., 6.),
+            DVec2::new(14., 10.),
+            DVec2::new(6., 10.),
+        ]],
+    )
+}
+
+fn build(p: &Polygon, shape: RoofShape) -> (RoofGeometry, Part) {
+    let m = mass(p.clone(), shape);
+    let r = match roof_geometry(&m) {
+        Ok(r) => r,
+        Err(f) => panic!("{shape:?}: fallback {}", f.reason),
+    };
+    let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+    (r, part)
+}
+
+/// Walls whose outline rises above the eave (gables, sheds).
+fn raised_walls(part: &Part) -> usize {
+    part.walls
+        .iter()
+        .filter(|w| w.outline.outer.iter().any(|p| p.z > w.top_z + 1e-6))
+        .count()
+}
+
+#[test]
+fn every_shape_on_rectangle_l_and_courtyard_is_closed() {
+    for (name, p) in [("rect", rect()), ("L", ell()), ("court", courtyard())] {
+        for shape in ALL {
+            let (_, part) = build(&p, shape);
+            let d = check_part(&part);
+            assert!(d.is_empty(), "{name} {shape:?}: {}", d.join("\n"));
+            assert_eq!(part.roof_shape, shape, "{name}");
+        }
+    }
+}
+
+#[test]
+fn gabled_rectangle_has_two_pentagon_walls() {
+    let (r, part) = build(&rect(), RoofShape::Gabled);
+    assert_eq!(r.faces.len(), 2);
+    assert_eq!(r.gable_walls.len(), 2);
+    assert!((r.height - 3.0 * 35f64.to_radians().tan()).abs() < 1e-9);
+    let pent: Vec<&Wall> = part
+        .walls
+        .iter()
+        .filter(|w| w.outline.outer.len() == 5)
+        .collect();
+    assert_eq!(pent.len(), 2);
+    for w in pent {
+        // start-base, end-base, end-eave, apex, start-eave; apex over the middle.
+        let o = &w.outline.outer;
+        assert_eq!(o[2].z, 6.0);
+        assert_eq!(o[4].z, 6.0);
+        let mid = (w.start + w.end) / 2.0;
+        assert!(o[3].truncate().distance(mid) < 1e-9);
+        assert!((o[3].z - part.top_z).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn gabled_l_has_one_gable_per_wing_and_a_hip_at_the_corner() {
+    let (r, part) = build(&ell(), RoofShape::Gabled);
+    // Two wing ends: x = 16 and y = 14.
+    assert_eq!(raised_walls(&part), 2);
+    let ends: Vec<DVec2> = r
+        .gable_walls
+        .iter()
+        .map(|w| (w.outer[0].truncate() + w.outer[1].truncate()) / 2.0)
+        .collect();
+    assert!(ends.contains(&DVec2::new(16., 3.)), "{ends:?}");
+    assert!(ends.contains(&DVec2::new(3., 14.)), "{ends:?}");
+    // Both ridges at the same height (equal wing widths): width / 2 · tan 35°.
+    let h = 3.0 * 35f64.to_radians().tan();
+    assert!((r.height - h).abs() < 1e-9);
+    // Four roof planes: two per wing, meeting in a valley and a hip.
+    assert_eq!(r.faces.len(), 4);
+}
+
+#[test]
+fn hip_variants_on_rectangle() {
+    let (r, part) = build(&rect(), RoofShape::SideHipped);
+    assert_eq!(r.gable_walls.len(), 1);
+    assert_eq!(raised_walls(&part), 1);
+    let (r, _) = build(&rect(), RoofShape::HalfHipped);
+    // Two long planes, two small hips, two walls ending in a horizontal cut.
+    assert_eq!(r.faces.len(), 4);
+    assert_eq!(r.gable_walls.len(), 2);
+    for w in &r.gable_walls {
+        assert_eq!(w.outer.len(), 4, "{:?}", w.outer);
+        let top = w.outer[2].z;
+        assert!((w.outer[3].z - top).abs() < 1e-9);
+        assert!((top - HALF_HIP_TEST * r.height).abs() < 1e-9);
+    }
+    let (r, _) = build(&rect(), RoofShape::Hipped);
+    assert_eq!(r.faces.len(), 4);
+    assert!(r.gable_walls.is_empty());
+}
+
+const HALF_HIP_TEST: f64 = crate::geometry::roof_shapes::HALF_HIP_FRACTION;
+
+#[test]
+fn mansard_and_gambrel_have_two_slopes() {
+    use crate::geometry::roof_shapes as rs;
+    for (shape, lower, upper) in [
+        (
+            RoofShape::Mansard,
+            rs::MANSARD_LOWER_DEG,
+            rs::MANSARD_UPPER_DEG,
+        ),
+        (
+            RoofShape::Gambrel,
+            rs::GAMBREL_LOWER_DEG,
+            rs::GAMBREL_UPPER_DEG,
+        ),
+    ] {
+        for p in [rect(), ell()] {
+            let (r, _) = build(&p, shape);
+            let mut seen = [false, false];
+            for f in &r.faces {
+                let s = f.normal().z.acos().to_degrees();
+                if (s - lower).abs() < 1e-6 {
+                    seen[0] = true;
+                } else if (s - upper).abs() < 1e-6 {
+                    seen[1] = true;
+                } else {
+                    panic!("{shape:?}: slope {s}");
+                }
+            }
+            assert_eq!(seen, [true, true], "{shape:?}");
+        }
+    }
+    let (r, _) = build(&rect(), RoofShape::Gambrel);
+    assert_eq!(r.gable_walls.len(), 2);
+    // The gambrel gable wall has the break points: a heptagon.
+    assert!(r.gable_walls.iter().all(|w| w.outer.len() == 5));
+}
+
+#[test]
+fn skillion_walls_are_trapezoids() {
+    let (r, part) = build(&rect(), RoofShape::Skillion);
+    assert_eq!(r.faces.len(), 1);
+    // Slopes across the short side (y): the wall at y = 0 or y = 6 is the high one.
+    let k = 35f64.to_radians().tan();
+    assert!((r.height - 6.0 * k).abs() < 1e-9);
+    let n = r.faces[0].normal();
+    assert!(n.x.abs() < 1e-12 && n.y.abs() > 0.1);
+    // Two side walls are trapezoids, one wall is raised to the full height.
+    let trapezoids = part
+        .walls
+        .iter()
+        .filter(|w| {
+            let o = &w.outline.outer;
+            o.len() == 4 && (o[2].z - o[3].z).abs() > 1.0
+        })
+        .count();
+    assert_eq!(trapezoids, 2);
+}
+
+#[test]
+fn curved_roofs_are_banded() {
+    let sq = poly(&[(0., 0.), (10., 0.), (10., 10.), (0., 10.)]);
+    let (d, _) = build(&sq, RoofShape::Dome);
+    // Hemisphere-like: height = inscribed radius.
+    assert!((d.height - 5.0).abs() < 1e-9);
+    assert_eq!(d.faces.len(), 4 * crate::geometry::roof_shapes::CURVE_BANDS);
+    let (o, _) = build(&sq, RoofShape::Onion);
+    assert!((o.height - crate::geometry::roof_shapes::ONION_HEIGHT_REL * 5.0).abs() < 1e-9);
+    let (r, part) = build(&rect(), RoofShape::Round);
+    assert_eq!(r.gable_walls.len(), 2);
+    assert!((r.height - 3.0).abs() < 1e-9);
+    assert_eq!(raised_walls(&part), 2);
+    let (c, _) = build(&sq, RoofShape::Cone);
+    assert_eq!(c.faces.len(), 4);
+    assert!(c.faces.iter().all(|f| f.outer.len() == 3));
+    // A pyramid on an L (not star-shaped from its centroid) is hipped, not flat.
+    let (py, _) = build(&ell(), RoofShape::Pyramidal);
+    assert!(py.height > 1.0);
+}
+
+#[test]
+fn roof_height_scales_every_shape() {
+    for shape in ALL.into_iter().filter(|s| *s != RoofShape::Flat) {
+        let mut m = mass(ell(), shape);
+        m.roof_height = Some(4.0);
+        let r = roof_geometry(&m).unwrap_or_else(|f| panic!("{shape:?}: {}", f.reason));
+        assert!((r.height - 4.0).abs() < 1e-9, "{shape:?}");
+        let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+        assert!((part.top_z - 10.0).abs() < 1e-9);
+        assert!(check_part(&part).is_empty(), "{shape:?}");
+    }
+}
+
+#[test]
+fn invalid_footprint_is_an_error_not_a_panic() {
+    let bow = poly(&[(0., 0.), (10., 10.), (10., 0.), (0., 10.)]);
+    for shape in ALL.into_iter().filter(|s| *s != RoofShape::Flat) {
+        assert!(
+            roof_geometry(&mass(bow.clone(), shape)).is_err(),
+            "{shape:?}"
+        );
+    }
+}

@@ -1,0 +1,124 @@
+//! Every footprint polygon of data/monaco and data/clifton with hipped, gabled and mansard roofs
+//! forced: each built part must pass `massing::check_part` (planar faces, roof inside the
+//! footprint and covering it, walls meeting the roof, closed solid), gabled and hipped faces
+//! must all have the pitch, and no roof may fall back to flat. The closed-solid check has a
+//! ratchet for a known skeleton weakness (see below).
+
+use std::path::Path;
+
+use citygen::color::Color;
+use citygen::geometry::Polygon;
+use citygen::input::{osm::read_osm, shp::read_shp, shp::ShpOptions};
+use citygen::massing::{build_part, check_part, roof_geometry, Mass};
+use citygen::model::{Lod, RoofShape};
+use citygen::prepare::prepare;
+use citygen::report::Report;
+
+const PITCH: f64 = 35.0;
+
+fn footprints(path: &Path) -> Vec<(String, Polygon)> {
+    let mut report = Report::default();
+    let read = if path.extension().is_some_and(|e| e == "shp") {
+        read_shp(path, &ShpOptions::default(), &mut report)
+    } else {
+        read_osm(path, &mut report)
+    };
+    let read = match read {
+        Ok(r) => r,
+        Err(e) => panic!("{}: {e}", path.display()),
+    };
+    let site = prepare(read.footprints, read.source_crs, None, &mut report);
+    let mut out = Vec::new();
+    for lot in &site.lots {
+        for p in lot
+            .polygons
+            .iter()
+            .chain(lot.parts.iter().flat_map(|p| p.polygons.iter()))
+        {
+            out.push((lot.id.to_string(), p.clone()));
+        }
+    }
+    out
+}
+
+fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
+    let polys = footprints(path);
+    let mut bad = Vec::new();
+    for (id, p) in &polys {
+        for shape in [RoofShape::Hipped, RoofShape::Gabled, RoofShape::Mansard] {
+            let m = Mass {
+                footprint: p.clone(),
+                base_z: 0.0,
+                eave_z: 6.0,
+                storeys: 2,
+                roof: shape,
+                roof_angle_deg: PITCH,
+                roof_height: None,
+                wall_color: Color::WHITE,
+                roof_color: Color::GREY,
+            };
+            let r = match roof_geometry(&m) {
+                Ok(r) => r,
+                Err(f) => {
+                    bad.push(format!("{id} {shape:?}: flat fallback: {}", f.reason));
+                    continue;
+                }
+            };
+            let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+            let d = check_part(&part);
+            let open = d.iter().filter(|l| l.starts_with("edge ")).count();
+            if open > 0 && open == d.len() {
+                // Known weakness: the skeleton sometimes emits two nodes a few millimetres
+                // apart (beyond the 1e-5 × size weld), leaving an edge shared by four faces.
+                not_closed.push(format!("{id} {shape:?}: {}", d[0]));
+                continue;
+            }
+            if let Some(first) = d.first() {
+                bad.push(format!(
+                    "{id} {shape:?}: {} defects, first: {first}",
+                    d.len()
+                ));
+                continue;
+            }
+            if shape != RoofShape::Mansard {
+                for f in &r.faces {
+                    let s = f.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
+                    if (s - PITCH).abs() > 0.01 {
+                        bad.push(format!("{id} {shape:?}: face slope {s}"));
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    (polys.len(), bad)
+}
+
+#[test]
+fn every_footprint_of_both_data_sets_gets_every_forced_roof() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let mut total = 0;
+    let mut bad = Vec::new();
+    let mut not_closed = Vec::new();
+    for f in ["monaco/monaco.osm.pbf", "clifton/clifton_test.shp"] {
+        let (n, b) = run(&root.join(f), &mut not_closed);
+        assert!(n > 100, "{f}: only {n} footprints");
+        total += n;
+        bad.extend(b);
+    }
+    assert!(
+        bad.is_empty(),
+        "{} of {} footprints × 3 shapes fail:\n{}",
+        bad.len(),
+        total,
+        bad[..bad.len().min(30)].join("\n")
+    );
+    // Ratchet on the known weakness above (18 of 12,474 roofs when written): lower it as the
+    // skeleton's node merging improves, never raise it.
+    assert!(
+        not_closed.len() <= 18,
+        "{} roofs not closed:\n{}",
+        not_closed.len(),
+        not_closed.join("\n")
+    );
+}
