@@ -682,3 +682,15 @@ fn every_shipped_style_derives_with_the_grammar() {
         }
     }
 }
+
+#[test]
+fn shipped_kb_reads_strictly_with_no_repair() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+    match KnowledgeBase::load_with(&path, ReadMode::Strict) {
+        Ok((kb, repairs)) => {
+            assert!(repairs.is_empty());
+            assert!(kb.zones().len() > 20);
+        }
+        Err(e) => panic!("{e}"),
+    }
+}
