@@ -12,6 +12,7 @@
 pub mod compile;
 pub mod polygon;
 mod strict;
+pub mod tools;
 pub mod xml;
 
 use std::collections::BTreeMap;
@@ -357,7 +358,9 @@ impl ZoneMatch {
     /// not in the zone.
     pub fn area_km2(&self) -> Option<f64> {
         match self {
-            ZoneMatch::Circle { radius_km, .. } => Some(std::f64::consts::PI * radius_km * radius_km),
+            ZoneMatch::Circle { radius_km, .. } => {
+                Some(std::f64::consts::PI * radius_km * radius_km)
+            }
             ZoneMatch::Polygon { area_km2, .. } => Some(*area_km2),
             _ => None,
         }
@@ -547,7 +550,10 @@ impl KnowledgeBase {
                 }
             }
             for p in &z.polygons {
-                boxes.push(GeomWithData::new(Rectangle::from_corners(p.bbox.0, p.bbox.1), i));
+                boxes.push(GeomWithData::new(
+                    Rectangle::from_corners(p.bbox.0, p.bbox.1),
+                    i,
+                ));
             }
         }
         KnowledgeBase {

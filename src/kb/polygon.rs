@@ -41,7 +41,11 @@ impl ZonePolygon {
             };
             let num = |s: &str| s.parse::<f64>().ok().filter(|x| x.is_finite());
             let (Some(lon), Some(lat)) = (num(lon), num(lat)) else {
-                return Err(format!("point {} \"{}\" is not two numbers", k + 1, pair.trim()));
+                return Err(format!(
+                    "point {} \"{}\" is not two numbers",
+                    k + 1,
+                    pair.trim()
+                ));
             };
             if !(-180.0..=180.0).contains(&lon) || !(-90.0..=90.0).contains(&lat) {
                 return Err(format!(
@@ -171,7 +175,10 @@ fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 }
 
 fn on_segment(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> bool {
-    p[0] >= a[0].min(b[0]) && p[0] <= a[0].max(b[0]) && p[1] >= a[1].min(b[1]) && p[1] <= a[1].max(b[1])
+    p[0] >= a[0].min(b[0])
+        && p[0] <= a[0].max(b[0])
+        && p[1] >= a[1].min(b[1])
+        && p[1] <= a[1].max(b[1])
 }
 
 fn segments_touch(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> bool {
@@ -209,7 +216,10 @@ mod tests {
         let bad = [
             ("1.44 43.60, 1.45 43.60", "at least 3"),
             ("1,44 43,60, 1.45 43.60, 1.45 43.61", "pair"),
-            ("1.44 43.60, 1.45 43.61, 1.45 43.60, 1.44 43.61", "crosses itself"),
+            (
+                "1.44 43.60, 1.45 43.61, 1.45 43.60, 1.44 43.61",
+                "crosses itself",
+            ),
             ("1 1, 2 2, 3 3", "crosses itself"),
             ("-179 0, 179 0, 179 1", "antimeridian"),
             ("1 95, 2 0, 3 0", "outside"),

@@ -125,8 +125,10 @@ impl Ctx<'_> {
         for c in &el.children {
             loop {
                 let Some((names, min, max)) = groups.get(g) else {
-                    let expected: Vec<&str> =
-                        groups.iter().flat_map(|(n, _, _)| n.iter().copied()).collect();
+                    let expected: Vec<&str> = groups
+                        .iter()
+                        .flat_map(|(n, _, _)| n.iter().copied())
+                        .collect();
                     let hint = expected
                         .iter()
                         .find(|n| n.eq_ignore_ascii_case(&c.name))
@@ -253,7 +255,11 @@ impl Ctx<'_> {
         self.attrs(el, &[], &[])?;
         self.children(
             el,
-            &[(&["values"], 1, 1), (&["opening"], 0, 1), (&["ruleset"], 0, 1)],
+            &[
+                (&["values"], 1, 1),
+                (&["opening"], 0, 1),
+                (&["ruleset"], 0, 1),
+            ],
         )?;
         let values: Vec<(&str, Ty)> = DESCRIPTORS
             .iter()
@@ -331,7 +337,9 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
     }
     let names = |list: &str, sep: char| -> Result<(), String> {
         if list.split(sep).any(|p| p.is_empty() || p.trim() != p) {
-            return Err(format!("empty or space-padded entry in the '{sep}'-separated list"));
+            return Err(format!(
+                "empty or space-padded entry in the '{sep}'-separated list"
+            ));
         }
         Ok(())
     };

@@ -635,7 +635,9 @@ pub(crate) fn read_zones_with(
             let col = text
                 .lines()
                 .nth(first.line.saturating_sub(1))
-                .map_or(1, |l| l.chars().take_while(|c| c.is_whitespace()).count() + 1);
+                .map_or(1, |l| {
+                    l.chars().take_while(|c| c.is_whitespace()).count() + 1
+                });
             return Err(KbError::Strict {
                 file: file.to_string(),
                 line: first.line,
