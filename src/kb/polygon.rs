@@ -9,7 +9,7 @@
 //! as two polygons of the same zone). Containment is the even-odd rule in lon/lat, which for
 //! rings of city size matches the ground to well under a metre.
 
-use super::{EARTH_RADIUS_KM, KM_PER_DEG};
+use super::KM_PER_DEG;
 use crate::kb::xml::MAX_POLYGON_POINTS;
 
 /// One polygon of a zone: a simple ring in (lon, lat) degrees, not closed.
@@ -95,7 +95,7 @@ impl ZonePolygon {
             ));
         }
         let area_km2 = area_km2(&ring);
-        if !(area_km2 > 0.0) {
+        if area_km2.is_nan() || area_km2 <= 0.0 {
             return Err("the polygon has no area".into());
         }
         Ok(ZonePolygon {
@@ -138,7 +138,6 @@ fn area_km2(ring: &[[f64; 2]]) -> f64 {
         let (a, b) = (ring[i], ring[(i + 1) % n]);
         twice += (a[0] * kx) * (b[1] * KM_PER_DEG) - (b[0] * kx) * (a[1] * KM_PER_DEG);
     }
-    let _ = EARTH_RADIUS_KM;
     (twice / 2.0).abs()
 }
 
