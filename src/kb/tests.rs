@@ -1036,7 +1036,7 @@ fn compile_zone_output_parses_for_every_appearance_of_the_default_kb() {
     );
     assert!(matches!(
         tools::compile_zone(&kb, "France/Nowhere"),
-        Err(KbError::Structure { .. })
+        Err(KbError::UnknownZone { .. })
     ));
 }
 

@@ -220,16 +220,14 @@ pub fn compile_zone(kb: &KnowledgeBase, zone_path: &str) -> Result<Vec<(String, 
         let known: Vec<&str> = kb
             .zones()
             .iter()
-            .map(|z| z.path.as_str())
-            .take(12)
+            .skip(1)
+            .map(|z| z.path.trim_start_matches("earth/"))
+            .take(6)
             .collect();
-        return Err(KbError::Structure {
+        return Err(KbError::UnknownZone {
             file: kb.source().to_string(),
-            line: 0,
-            message: format!(
-                "no zone '{zone_path}' (paths are designations from earth down, e.g. {})",
-                known.join(", ")
-            ),
+            path: zone_path.to_string(),
+            examples: known.join(", "),
         });
     };
     let (owner, apps) = kb.appearances_for(zone);

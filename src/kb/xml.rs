@@ -81,6 +81,13 @@ pub enum KbError {
         col: usize,
         message: String,
     },
+    /// A zone path (`kb compile --zone`) that names no zone of the KB.
+    #[error("{file}: no zone '{path}' (paths are designations from earth down, e.g. {examples})")]
+    UnknownZone {
+        file: String,
+        path: String,
+        examples: String,
+    },
     /// Well-formed XML that is not a knowledge base (wrong root, ...).
     #[error("{file}:{line}: {message}")]
     Structure {
