@@ -10,6 +10,9 @@
 //! their arguments (no clocks, no hash order).
 
 pub mod compile;
+pub mod polygon;
+mod strict;
+pub mod tools;
 pub mod xml;
 
 use std::collections::BTreeMap;
@@ -23,7 +26,8 @@ use crate::input::BuildingTags;
 use crate::model::RoofShape;
 use crate::rng::Rng;
 
-pub use xml::{KbError, KbRepair};
+pub use polygon::ZonePolygon;
+pub use xml::{KbError, KbRepair, ReadMode};
 
 /// Mean Earth radius (IUGG), km: used for circle containment and bounding boxes.
 const EARTH_RADIUS_KM: f64 = 6371.0088;
@@ -322,12 +326,45 @@ pub struct Zone {
     /// The zone's circle (`<info lat lon dist>` or `<location>`); `None` means the zone is never
     /// matched by itself (its sub-zones still are).
     pub circle: Option<Circle>,
+    /// The zone's `<polygon>` rings. A point is in the zone when it is in the circle or in any
+    /// of these; a zone with neither is never matched by itself.
+    pub polygons: Vec<ZonePolygon>,
     /// The zone's own `<info>` values, not inherited ones (see [`KnowledgeBase::resolved`]).
     pub info: Values,
     /// The zone's own appearances, in document order.
     pub appearances: Vec<Appearance>,
     /// Line of the zone's element.
     pub line: usize,
+}
+
+/// How a point relates to one zone's shapes ([`KnowledgeBase::zone_match`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ZoneMatch {
+    /// Inside the circle (`distance_km <= radius_km`), and no smaller polygon of the zone
+    /// contains the point.
+    Circle { distance_km: f64, radius_km: f64 },
+    /// Inside polygon `index` (0-based, document order) of the zone, the smallest of its
+    /// shapes that contains the point.
+    Polygon { index: usize, area_km2: f64 },
+    /// The zone has shapes but none contains the point; the distance to the circle's centre
+    /// when it has one.
+    Outside { circle_distance_km: Option<f64> },
+    /// The zone has no circle and no polygon: never matched by itself.
+    NoShape,
+}
+
+impl ZoneMatch {
+    /// Area of the containing shape, km² (a circle counts as π r²); `None` when the point is
+    /// not in the zone.
+    pub fn area_km2(&self) -> Option<f64> {
+        match self {
+            ZoneMatch::Circle { radius_km, .. } => {
+                Some(std::f64::consts::PI * radius_km * radius_km)
+            }
+            ZoneMatch::Polygon { area_km2, .. } => Some(*area_km2),
+            _ => None,
+        }
+    }
 }
 
 type ZoneBox = GeomWithData<Rectangle<[f64; 2]>, usize>;
@@ -416,25 +453,75 @@ fn storeys_for(wall_height: f64, floor_height: f64) -> u32 {
 }
 
 impl KnowledgeBase {
-    /// Reads and parses a KB file. `ruleset file=` paths are then relative to its folder.
-    /// Returns the repairs the lenient reader made, each with its line.
+    /// Reads and parses a KB file leniently ([`ReadMode::Lenient`]). `ruleset file=` paths are
+    /// then relative to its folder. Returns the repairs the lenient reader made, each with its
+    /// line.
     pub fn load(path: &Path) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+        KnowledgeBase::load_with(path, ReadMode::Lenient)
+    }
+
+    /// Reads and parses a KB file in the given mode. Files larger than
+    /// [`xml::MAX_FILE_BYTES`] are refused before being read. In strict mode the repairs are
+    /// always empty (anything to repair is an error).
+    pub fn load_with(
+        path: &Path,
+        mode: ReadMode,
+    ) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+        use std::io::Read;
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| KbError::Io {
+        let io = |source| KbError::Io {
             file: name.clone(),
             source,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let too_big = |len: u64| KbError::Limit {
+            file: name.clone(),
+            line: 1,
+            col: 1,
+            message: format!(
+                "{len} bytes is more than the {}-byte cap on knowledge-base files",
+                xml::MAX_FILE_BYTES
+            ),
+        };
+        if let Ok(meta) = file.metadata() {
+            if meta.len() > xml::MAX_FILE_BYTES {
+                return Err(too_big(meta.len()));
+            }
+        }
+        // Read at most one byte past the cap: the file may grow, or be a pipe.
+        let mut bytes = Vec::new();
+        file.take(xml::MAX_FILE_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() as u64 > xml::MAX_FILE_BYTES {
+            return Err(too_big(bytes.len() as u64));
+        }
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 (byte {})", e.utf8_error().valid_up_to()),
+            ))
         })?;
-        let (mut kb, repairs) = KnowledgeBase::parse_str(&text, &name)?;
+        let (mut kb, repairs) = KnowledgeBase::parse_str_with(&text, &name, mode)?;
         kb.base_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
         Ok((kb, repairs))
     }
 
-    /// Parses KB text; `file_name` is used in errors only.
+    /// Parses KB text leniently; `file_name` is used in errors only.
     pub fn parse_str(
         text: &str,
         file_name: &str,
     ) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
-        let (zones, repairs) = xml::read_zones(text, file_name)?;
+        KnowledgeBase::parse_str_with(text, file_name, ReadMode::Lenient)
+    }
+
+    /// Parses KB text in the given mode; `file_name` is used in errors only.
+    pub fn parse_str_with(
+        text: &str,
+        file_name: &str,
+        mode: ReadMode,
+    ) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+        let (zones, repairs) = xml::read_zones_with(text, file_name, mode)?;
         Ok((KnowledgeBase::from_zones(zones, file_name), repairs))
     }
 
@@ -452,7 +539,8 @@ impl KnowledgeBase {
         self.zones.get(zone).map_or("", |z| z.path.as_str())
     }
 
-    /// Builds a KB from zones (zone 0 earth, parents before children) and indexes the circles.
+    /// Builds a KB from zones (zone 0 earth, parents before children) and indexes the
+    /// bounding boxes of their circles and polygons.
     fn from_zones(zones: Vec<Zone>, source: &str) -> KnowledgeBase {
         let mut boxes = Vec::new();
         for (i, z) in zones.iter().enumerate() {
@@ -460,6 +548,12 @@ impl KnowledgeBase {
                 for (lo, hi) in c.bboxes() {
                     boxes.push(GeomWithData::new(Rectangle::from_corners(lo, hi), i));
                 }
+            }
+            for p in &z.polygons {
+                boxes.push(GeomWithData::new(
+                    Rectangle::from_corners(p.bbox.0, p.bbox.1),
+                    i,
+                ));
             }
         }
         KnowledgeBase {
@@ -490,34 +584,79 @@ impl KnowledgeBase {
         self.zones.iter().position(|z| z.path == path)
     }
 
-    /// The deepest zone whose circle contains (lon, lat) (great-circle distance). Ties at equal
-    /// depth go to the smallest radius, then to the first in document order. Earth (0) when no
-    /// circle contains the point or the point is not finite.
+    /// The zone (lon, lat) falls in: the deepest zone one of whose shapes (circle,
+    /// great-circle distance; or polygon) contains the point. Ties at equal depth go to the
+    /// zone whose containing shape has the smaller area (the more specific description), then
+    /// to the first in document order. Earth (0) when no shape contains the point or the point
+    /// is not finite. A zone need not lie inside its parent's shapes: depth in the tree decides.
     pub fn locate(&self, lon: f64, lat: f64) -> usize {
         if !lon.is_finite() || !lat.is_finite() {
             return 0;
         }
         let lon = normalize_lon(lon);
-        let mut best: Option<(usize, f64, usize)> = None; // (depth, radius, index)
+        let mut best: Option<(usize, f64, usize)> = None; // (depth, area, index)
         for b in self.index.locate_all_at_point([lon, lat]) {
             let i = b.data;
             let Some(z) = self.zones.get(i) else { continue };
-            let Some(c) = z.circle else { continue };
-            if !c.contains(lon, lat) {
+            let Some(area) = self.zone_match(i, lon, lat).area_km2() else {
                 continue;
-            }
+            };
             let better = match best {
                 None => true,
-                Some((d, r, j)) => {
-                    z.depth > d
-                        || (z.depth == d && (c.radius_km < r || (c.radius_km == r && i < j)))
+                Some((d, a, j)) => {
+                    z.depth > d || (z.depth == d && (area < a || (area == a && i < j)))
                 }
             };
             if better {
-                best = Some((z.depth, c.radius_km, i));
+                best = Some((z.depth, area, i));
             }
         }
         best.map_or(0, |(_, _, i)| i)
+    }
+
+    /// How (lon, lat) relates to one zone's own shapes: the smallest containing shape, or why
+    /// none contains it. Used by [`KnowledgeBase::locate`] and to explain its choice.
+    pub fn zone_match(&self, zone: usize, lon: f64, lat: f64) -> ZoneMatch {
+        let Some(z) = self.zones.get(zone) else {
+            return ZoneMatch::NoShape;
+        };
+        if z.circle.is_none() && z.polygons.is_empty() {
+            return ZoneMatch::NoShape;
+        }
+        if !lon.is_finite() || !lat.is_finite() {
+            return ZoneMatch::Outside {
+                circle_distance_km: None,
+            };
+        }
+        let lon = normalize_lon(lon);
+        let mut best: Option<ZoneMatch> = None;
+        if let Some(c) = z.circle {
+            let d = c.distance_km(lon, lat);
+            if d <= c.radius_km {
+                best = Some(ZoneMatch::Circle {
+                    distance_km: d,
+                    radius_km: c.radius_km,
+                });
+            }
+        }
+        for (k, p) in z.polygons.iter().enumerate() {
+            if p.contains(lon, lat) {
+                let m = ZoneMatch::Polygon {
+                    index: k,
+                    area_km2: p.area_km2,
+                };
+                if best
+                    .as_ref()
+                    .and_then(ZoneMatch::area_km2)
+                    .is_none_or(|a| p.area_km2 < a)
+                {
+                    best = Some(m);
+                }
+            }
+        }
+        best.unwrap_or(ZoneMatch::Outside {
+            circle_distance_km: z.circle.map(|c| c.distance_km(lon, lat)),
+        })
     }
 
     /// Indices from earth down to `zone` (inclusive). Empty for an unknown zone.
@@ -599,6 +738,22 @@ impl KnowledgeBase {
         tags: &BuildingTags,
         rng: &mut Rng,
     ) -> (Style, Vec<String>) {
+        let zone = if zone < self.zones.len() { zone } else { 0 };
+        let pick = self.pick_appearance(zone, rng);
+        self.style_with_appearance(zone, pick, tags, rng)
+    }
+
+    /// [`KnowledgeBase::style_for`] with the appearance already chosen: `pick` is (owner zone,
+    /// appearance index) as [`KnowledgeBase::pick_appearance`] returns it, or `None` for the
+    /// zone's info values alone. Draws the heights from `rng` as `style_for` does. An
+    /// out-of-range `zone` is earth; an out-of-range `pick` is ignored (info values alone).
+    pub fn style_with_appearance(
+        &self,
+        zone: usize,
+        pick: Option<(usize, usize)>,
+        tags: &BuildingTags,
+        rng: &mut Rng,
+    ) -> (Style, Vec<String>) {
         let mut notes = Vec::new();
         let zone = if zone < self.zones.len() { zone } else { 0 };
         let zone_path = self
@@ -608,15 +763,15 @@ impl KnowledgeBase {
             .unwrap_or_else(|| "earth".into());
         let mut v = self.resolved(zone);
         let mut opening = None;
-        let appearance_label = match self.pick_appearance(zone, rng) {
-            Some((owner, i)) => {
-                let app = self.zones.get(owner).and_then(|z| z.appearances.get(i));
-                if let Some(app) = app {
-                    v.overlay(&app.values);
-                    opening = app.opening.clone();
-                }
-                let owner_path = self.zones.get(owner).map_or("earth", |z| z.path.as_str());
-                format!("{owner_path}#{}", i + 1)
+        let app = pick.and_then(|(owner, i)| {
+            let z = self.zones.get(owner)?;
+            Some((z, i, z.appearances.get(i)?))
+        });
+        let appearance_label = match app {
+            Some((owner, i, app)) => {
+                v.overlay(&app.values);
+                opening = app.opening.clone();
+                format!("{}#{}", owner.path, i + 1)
             }
             None => format!("{zone_path}#info"),
         };

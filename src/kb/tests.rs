@@ -508,106 +508,7 @@ fn load_names_the_file_on_errors() {
 
 /// Thesis annex as printed (seed 003 notes §5.1, L1605-1710), the PDF page breaks removed, with
 /// all its markup slips: missing '<', a lost closing quote, whitespace after '<', ...
-const ANNEX_VERBATIM: &str = r##"
-<earth>
-<info color="1;1;1" material="BricksBasic" nbfloor="1" roofangle
-  ="15" rooftype="flat" />
-<country designation="France">
-<info color="pink" dist="5" lat="47.3833300" lon="0.6833300"
-  material="BricksBasic" nbfloor="1" roofangle="15" rooftype="
-  gabbled" />
-  <region designation="Midi-Pyrenees">
-    <info color="grey" dist="1.1" lat="43.600000"
-      lon="1.433333" material="BricksBasic" nbfloor
-      ="1" roofangle="15" rooftype="flat" />
-    <town designation="Toulouse">
-      <info color="yellow" dist="0.8" lat
-        ="43.600000" lon="1.433333" material
-        ="BricksBasic" nbfloor="3" roofangle
-        ="15" rooftype="flat" />
-      <district designation="UPS">
-        <info color="blue" dist="0.03"
-          lat="43.560397" lon
-          ="1.468820" material="
-          OfficeGlasses" nbfloor="4"
-          roofangle="0" rooftype="flat "
-          />
-      </district>
-    <district designation="Centre-Ville">
-      <info color="white" dist="0.03"
-        lat="43.603236" lon
-
-
-        = "1.444659" material="
-        BricksBasic " nbfloor="3"
-        roofangle="15" rooftype="
-        hipped " />
-    </district>
-<appearance><values bdRooftype="mansard" color="
-    black" doorCol="brown" floorsize="4"
-    maxFloors="1" maxHeight="5" maxrotation="
-    minFloors="1" minHeight="5" openingCol="black
-    " proba="" roofColor="black" windowfcolor="
-    black" windowheight="tall" windowmaterial="
-    glass" windowstyle="simple" windowwidth="2"
-    /><opening><split axis="Z" children="
-    nt4547681976|nt4629111416" parent="
-    nt4547681752" splitvalues
-    ="0.34523809523809523,0.6547619047619048" /><
-    elements parent="nt4547681752" terms="
-    nt4547681976,nt4629111416," /></opening>
-    ruleset file="data.xml" /></appearance>
-<appearance><values bdRooftype="hip" color="
-    floralwhite" doorCol="brown" floorsize="4"
-    maxFloors="1" maxHeight="23" maxrotation="
-    minFloors="1" minHeight="5" openingCol="white
-    " proba="" roofColor="lightslategray"
-    windowfcolor="seashell" windowheight="short"
-    windowmaterial="glass" windowstyle="framed"
-    windowwidth="3" /><opening><split axis="X"
-    children="nt140350002036184|nt140350002036632
-    " parent="nt140350002035064" splitvalues
-    ="0.3261904761904762,0.6738095238095239" /><
-    elements parent="nt140350002035064" terms="
-    nt140350002036184,nt140350002036632," /></
-    opening><ruleset file="data.xml" /></
-    appearance></town>
-    <town designation="Paris">
-        <info color="red" dist="0.8" lat
-        ="48.8534" lon="2.3488"
-        material="BricksBasic"
-        nbfloor="1" roofangle="15"
-        rooftype="flat" />
-    </town>
-</region>
-</country>
-country designation="Madagascar">
-region designation="Analamanga">
-
-
-
-    <town designation="Antananarivo" />
-    <town designation="Antsirabe" />
-</region>
-<region designation="Nord">
-    <town designation="Antsiranana" />
-    <town designation="Mahajanga" />
-</region>
-<appearance><values bdRoofType="mansard" color="black" doorCol="
-    brown" floorsize="4" maxFloors="1" maxHeight="5" maxrotation
-    =" " minFloors="1" minHeight="5" openingCol="black" proba=""
-    roofColor="black" windowColor="black" windowHeight="tall"
-    windowMaterial="glass" windowStyle="simple" windowWidth="2"
-    /><ruleset file="data.xml" /></appearance><appearance><values
-    bdRoofType="mansard" color="black" doorCol="brown" floorsize
-    ="4" maxFloors="1" maxHeight="5" maxrotation="" minFloors="1"
-    minHeight="5" openingCol="black" proba="" roofColor="black"
-    windowColor="black" windowHeight="tall" windowMaterial="
-    glass" windowStyle="simple" windowWidth="2" /><ruleset file="
-    data.xml" /></appearance></country>
-</earth>
-
-"##;
+const ANNEX_VERBATIM: &str = include_str!("../../tests/data/thesis_annex.xml");
 
 #[test]
 fn thesis_annex_as_printed_reads_with_repairs() {
@@ -698,4 +599,642 @@ fn invalid_roof_shape_tag_draws_flat_with_a_note() {
             "{notes:?}"
         );
     }
+}
+
+#[test]
+fn shipped_kb_reads_strictly_with_no_repair() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+    match KnowledgeBase::load_with(&path, ReadMode::Strict) {
+        Ok((kb, repairs)) => {
+            assert!(repairs.is_empty());
+            assert!(kb.zones().len() > 20);
+        }
+        Err(e) => panic!("{e}"),
+    }
+}
+
+// ---- polygon zones -------------------------------------------------------------------------
+
+/// A town circle (r = 2 km) with a square polygon district well inside it, a circle district,
+/// and two sibling polygon districts of different sizes overlapping at one corner.
+const POLYGONS: &str = r#"<earth>
+  <info nbfloor="1"/>
+  <town designation="T">
+    <info lat="43.6000" lon="1.4400" dist="2" nbfloor="3"/>
+    <district designation="Square">
+      <info nbfloor="5"/>
+      <polygon points="1.4400 43.6000, 1.4450 43.6000, 1.4450 43.6030, 1.4400 43.6030"/>
+    </district>
+    <district designation="Big">
+      <info nbfloor="6"/>
+      <polygon points="1.4300 43.5900, 1.4380 43.5900, 1.4380 43.5980, 1.4300 43.5980"/>
+    </district>
+    <district designation="Small">
+      <info nbfloor="7"/>
+      <polygon points="1.4370 43.5970, 1.4390 43.5970, 1.4390 43.5990, 1.4370 43.5990"/>
+    </district>
+    <district designation="Twin">
+      <info nbfloor="8"/>
+      <polygon points="1.4370 43.5970, 1.4390 43.5970, 1.4390 43.5990, 1.4370 43.5990"/>
+    </district>
+    <district designation="Both">
+      <info nbfloor="9"/>
+      <location lat="43.6100" lon="1.4300" dist="0.2"/>
+      <polygon points="1.4500 43.6100, 1.4510 43.6100, 1.4510 43.6110"/>
+    </district>
+  </town>
+</earth>"#;
+
+fn polygons_kb() -> KnowledgeBase {
+    for mode in [ReadMode::Lenient, ReadMode::Strict] {
+        if let Err(e) = KnowledgeBase::parse_str_with(POLYGONS, "poly.xml", mode) {
+            panic!("{mode:?}: {e}");
+        }
+    }
+    match KnowledgeBase::parse_str_with(POLYGONS, "poly.xml", ReadMode::Strict) {
+        Ok((kb, _)) => kb,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+#[test]
+fn polygon_zone_inside_a_circle_zone() {
+    let kb = polygons_kb();
+    let square = kb.locate(1.4425, 43.6015);
+    assert_eq!(path_of(&kb, square), "earth/T/Square");
+    assert_eq!(kb.resolved(square).storeys, Some(5));
+    assert!(matches!(
+        kb.zone_match(square, 1.4425, 43.6015),
+        ZoneMatch::Polygon { index: 0, .. }
+    ));
+    // In the town's circle, outside the square: the town.
+    let t = kb.locate(1.4460, 43.6015);
+    assert_eq!(path_of(&kb, t), "earth/T");
+    assert_eq!(kb.resolved(t).storeys, Some(3));
+    assert!(matches!(
+        kb.zone_match(t, 1.4460, 43.6015),
+        ZoneMatch::Circle { .. }
+    ));
+    // Outside everything: earth.
+    assert_eq!(kb.locate(2.0, 44.0), 0);
+    // A zone with a circle and a triangle: both shapes match.
+    assert_eq!(path_of(&kb, kb.locate(1.4300, 43.6100)), "earth/T/Both");
+    assert_eq!(path_of(&kb, kb.locate(1.4508, 43.6102)), "earth/T/Both");
+    // Outside the triangle (above its hypotenuse) but inside its bounding box.
+    assert_eq!(path_of(&kb, kb.locate(1.4502, 43.6108)), "earth/T");
+}
+
+#[test]
+fn polygon_ties_go_to_the_smaller_area_then_document_order() {
+    let kb = polygons_kb();
+    // In Big only.
+    assert_eq!(path_of(&kb, kb.locate(1.4340, 43.5940)), "earth/T/Big");
+    // In Big, Small and Twin (same depth): Small and Twin are smaller than Big, and equal to
+    // each other: Small comes first in the document.
+    assert_eq!(path_of(&kb, kb.locate(1.4375, 43.5975)), "earth/T/Small");
+    // In Small and Twin but not Big.
+    assert_eq!(path_of(&kb, kb.locate(1.4385, 43.5985)), "earth/T/Small");
+    let e = tools::explain(&kb, 1.4375, 43.5975, &BuildingTags::default(), 1, 1);
+    let lost: Vec<&str> = e.tied.iter().map(|(p, _)| p.as_str()).collect();
+    assert_eq!(lost, vec!["earth/T/Big", "earth/T/Twin"]);
+}
+
+#[test]
+fn locate_with_polygons_matches_a_brute_force_scan() {
+    let kb = polygons_kb();
+    for k in 0..400 {
+        let lon = 1.425 + (k % 20) as f64 * 0.0015;
+        let lat = 43.585 + (k / 20) as f64 * 0.0015;
+        let mut best: Option<(usize, f64, usize)> = None;
+        for (i, z) in kb.zones().iter().enumerate() {
+            let Some(a) = kb.zone_match(i, lon, lat).area_km2() else {
+                continue;
+            };
+            if best.is_none_or(|(d, ba, _)| z.depth > d || (z.depth == d && a < ba)) {
+                best = Some((z.depth, a, i));
+            }
+        }
+        assert_eq!(kb.locate(lon, lat), best.map_or(0, |b| b.2), "{lon} {lat}");
+    }
+}
+
+#[test]
+fn bad_polygons_are_repaired_leniently_and_refused_strictly() {
+    let t =
+        "<earth>\n<town designation=\"T\">\n<polygon points=\"1 1, 2 2, 3 3\"/>\n</town>\n</earth>";
+    let (kb, rep) = KnowledgeBase::parse_str(t, "p.xml").unwrap_or_else(|e| panic!("{e}"));
+    assert!(kb.zones()[1].polygons.is_empty());
+    assert!(
+        rep.iter()
+            .any(|r| r.line == 3 && r.what.contains("crosses itself")),
+        "{rep:?}"
+    );
+    match KnowledgeBase::parse_str_with(t, "p.xml", ReadMode::Strict) {
+        Err(KbError::Strict {
+            line: 3,
+            col: 10,
+            message,
+            ..
+        }) => {
+            assert!(message.contains("crosses itself"), "{message}")
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+// ---- strict reader -------------------------------------------------------------------------
+
+#[test]
+fn strict_rejects_what_lenient_repairs_with_file_line_col() {
+    let cases: [(&str, usize, usize, &str); 9] = [
+        ("<earth>\n<country designation=\"F\">\n  <info lat=\"1,5\" lon=\"2\" dist=\"3\"/>\n</country>\n</earth>", 3, 9, "decimal comma"),
+        ("<earth>\n<country designation=\"F\">\n  <info lat=\"1.5\" lon=\"2\" dist=\"3\" colour=\"red\"/>\n</country>\n</earth>", 3, 36, "unknown attribute 'colour'"),
+        ("<earth>\n<country designation=\"F\">\n  <info lat=\"1.5\" lon=\"2\" dist=\"3\" roofcolor=\"red\"/>\n</country>\n</earth>", 3, 36, "did you mean 'roofColor'"),
+        ("<earth>\n<Country designation=\"F\"/>\n</earth>", 2, 1, "did you mean <country>"),
+        ("<earth>\n<country designation=\"F\">\n  <info lat=1.5 lon=\"2\" dist=\"3\"/>\n</country>\n</earth>", 3, 3, ""),
+        ("<earth>\n<country designation=\"\"/>\n</earth>", 2, 10, "empty value"),
+        ("<earth>\n<country designation=\"F\">\n  <appearance><values proba=\"\"/></appearance>\n</country>\n</earth>", 3, 23, "empty value"),
+        ("<earth>\n  <info rooftype=\"gabbled\"/>\n</earth>", 2, 9, "OSM roof:shape"),
+        ("<earth>\ncountry designation=\"F\"/>\n</earth>", 2, 1, "lost '<'"),
+    ];
+    for (text, line, col, want) in cases {
+        assert!(
+            KnowledgeBase::parse_str(text, "s.xml").is_ok(),
+            "lenient reads {text}"
+        );
+        match KnowledgeBase::parse_str_with(text, "s.xml", ReadMode::Strict) {
+            Err(e @ (KbError::Strict { .. } | KbError::Xml { .. })) => {
+                let msg = e.to_string();
+                assert!(
+                    msg.starts_with(&format!("s.xml:{line}:{col}: ")),
+                    "{text}\n{msg}"
+                );
+                assert!(msg.contains(want), "{msg}");
+            }
+            other => panic!("{text}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn strict_enforces_the_schema_order_and_counts() {
+    let bad = [
+        "<earth><country designation=\"F\"><appearance><values/></appearance><info nbfloor=\"1\"/></country></earth>",
+        "<earth><info/><info/></earth>",
+        "<earth><appearance><opening><split axis=\"X\" parent=\"a\" children=\"b|c\" splitvalues=\"0.5,0.5\"/></opening></appearance></earth>",
+        "<earth><appearance><values/><opening><split axis=\"x\" parent=\"a\" children=\"b|c\" splitvalues=\"0.5,0.5\"/></opening></appearance></earth>",
+        "<earth><appearance><values/><opening><split axis=\"X\" parent=\"a\" children=\"b|c\" splitvalues=\"0.5,0.5\"/><elements parent=\"a\" terms=\"b,c,\"/></opening></appearance></earth>",
+        "<earth><country designation=\"F\"><location lat=\"1\" lon=\"2\"/></country></earth>",
+        "<earth><appearance><values color=\"Red\"/></appearance></earth>",
+        "<earth><appearance><values color=\"1;1;1\"/></appearance></earth>",
+        "<earth><appearance><values windowColor=\"red\"/></appearance></earth>",
+    ];
+    for t in bad {
+        assert!(
+            matches!(
+                KnowledgeBase::parse_str_with(t, "o.xml", ReadMode::Strict),
+                Err(KbError::Strict { .. })
+            ),
+            "{t}"
+        );
+    }
+    let good = "<earth><info nbfloor=\"1\"/><appearance><values proba=\"1\" color=\"#aabbcc\"/><opening><split axis=\"X\" parent=\"a\" children=\"b|c\" splitvalues=\"0.5,0.5\"/><elements parent=\"a\" terms=\"b,c\"/></opening><ruleset file=\"r.cga\"/></appearance><zone designation=\"Z\"><location lat=\"1\" lon=\"2\" dist=\"3\"/></zone></earth>";
+    if let Err(e) = KnowledgeBase::parse_str_with(good, "g.xml", ReadMode::Strict) {
+        panic!("{e}");
+    }
+}
+
+#[test]
+fn the_thesis_annex_is_refused_strictly() {
+    assert!(matches!(
+        KnowledgeBase::parse_str_with(ANNEX_VERBATIM, "annex.xml", ReadMode::Strict),
+        Err(KbError::Strict { .. } | KbError::Xml { .. })
+    ));
+}
+
+// ---- safety --------------------------------------------------------------------------------
+
+const BILLION_LAUGHS: &str = r#"<?xml version="1.0"?>
+<!DOCTYPE earth [
+  <!ENTITY lol "lol">
+  <!ENTITY lol1 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">
+  <!ENTITY lol2 "&lol1;&lol1;&lol1;&lol1;&lol1;&lol1;&lol1;&lol1;&lol1;&lol1;">
+  <!ENTITY lol3 "&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;">
+  <!ENTITY lol4 "&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;">
+  <!ENTITY lol5 "&lol4;&lol4;&lol4;&lol4;&lol4;&lol4;&lol4;&lol4;&lol4;&lol4;">
+  <!ENTITY lol6 "&lol5;&lol5;&lol5;&lol5;&lol5;&lol5;&lol5;&lol5;&lol5;&lol5;">
+  <!ENTITY lol7 "&lol6;&lol6;&lol6;&lol6;&lol6;&lol6;&lol6;&lol6;&lol6;&lol6;">
+  <!ENTITY lol8 "&lol7;&lol7;&lol7;&lol7;&lol7;&lol7;&lol7;&lol7;&lol7;&lol7;">
+  <!ENTITY lol9 "&lol8;&lol8;&lol8;&lol8;&lol8;&lol8;&lol8;&lol8;&lol8;&lol8;">
+]>
+<earth><country designation="&lol9;"/></earth>"#;
+
+const EXTERNAL_ENTITY: &str = r#"<?xml version="1.0"?>
+<!DOCTYPE earth [ <!ENTITY x SYSTEM "file:///etc/passwd"> ]>
+<earth><country designation="&x;"/></earth>"#;
+
+#[test]
+fn billion_laughs_and_external_entities_are_refused_quickly() {
+    for (name, text) in [("laughs.xml", BILLION_LAUGHS), ("xxe.xml", EXTERNAL_ENTITY)] {
+        for mode in [ReadMode::Lenient, ReadMode::Strict] {
+            let t0 = std::time::Instant::now();
+            let r = KnowledgeBase::parse_str_with(text, name, mode);
+            assert!(
+                t0.elapsed().as_secs_f64() < 1.0,
+                "{name} {mode:?} took too long"
+            );
+            match r {
+                Err(
+                    e @ KbError::Doctype {
+                        line: 2, col: 1, ..
+                    },
+                ) => {
+                    let msg = e.to_string();
+                    assert!(msg.starts_with(&format!("{name}:2:1: ")), "{msg}");
+                    assert!(msg.contains("never expanded"), "{msg}");
+                }
+                other => panic!("{name} {mode:?}: {other:?}"),
+            }
+        }
+    }
+    // Without a DOCTYPE an entity reference is an undefined entity, not a file read.
+    let r = KnowledgeBase::parse_str(r#"<earth><country designation="&x;"/></earth>"#, "u.xml");
+    assert!(matches!(r, Err(KbError::Xml { line: 1, .. })), "{r:?}");
+}
+
+#[test]
+fn depth_attribute_and_size_caps() {
+    let deep = format!(
+        "<earth>{}{}</earth>",
+        "<zone designation=\"z\">".repeat(xml::MAX_DEPTH),
+        "</zone>".repeat(xml::MAX_DEPTH)
+    );
+    match KnowledgeBase::parse_str(&deep, "deep.xml") {
+        Err(e @ KbError::Limit { line: 1, .. }) => {
+            assert!(e.to_string().contains("nested more than 64"), "{e}")
+        }
+        other => panic!("{other:?}"),
+    }
+    let ok_depth = format!(
+        "<earth>{}{}</earth>",
+        "<zone designation=\"z\">".repeat(xml::MAX_DEPTH - 1),
+        "</zone>".repeat(xml::MAX_DEPTH - 1)
+    );
+    assert!(KnowledgeBase::parse_str_with(&ok_depth, "ok.xml", ReadMode::Strict).is_ok());
+
+    let attrs: String = (0..=xml::MAX_ATTRIBUTES)
+        .map(|i| format!(" a{i}=\"1\""))
+        .collect();
+    let many = format!("<earth>\n  <info{attrs}/></earth>");
+    match KnowledgeBase::parse_str(&many, "attrs.xml") {
+        Err(KbError::Limit {
+            line: 2,
+            col: 3,
+            message,
+            ..
+        }) => {
+            assert!(message.contains("more than 256 attributes"), "{message}")
+        }
+        other => panic!("{other:?}"),
+    }
+
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let big = dir.path().join("big.xml");
+    let f = std::fs::File::create(&big).unwrap_or_else(|e| panic!("{e}"));
+    // A sparse file: no 64 MiB written to disk.
+    f.set_len(xml::MAX_FILE_BYTES + 1)
+        .unwrap_or_else(|e| panic!("{e}"));
+    match KnowledgeBase::load(&big) {
+        Err(e @ KbError::Limit { .. }) => assert!(e.to_string().contains("cap"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn rulesets_outside_the_folder_are_check_errors_unless_allowed() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let kb = dir.path().join("kb.xml");
+    let text = "<earth>\n<appearance><values/><ruleset file=\"../x.cga\"/></appearance>\n<appearance><values/><ruleset file=\"/etc/x.cga\"/></appearance>\n<appearance><values/><ruleset file=\"rules/ok.cga\"/></appearance>\n</earth>";
+    std::fs::write(&kb, text).unwrap_or_else(|e| panic!("{e}"));
+    let r = tools::check_report(&kb, ReadMode::Strict).unwrap_or_else(|e| panic!("{e}"));
+    assert!(r.has_errors());
+    let lines: Vec<usize> = r.errors.iter().map(|e| e.line).collect();
+    assert_eq!(lines, vec![2, 3]);
+    assert!(r.errors[0].what.contains("../x.cga") && r.errors[0].what.contains("outside"));
+    let shown = r.to_string();
+    assert!(shown.contains(":2: error: "), "{shown}");
+    let r = tools::check_report_with(&kb, ReadMode::Strict, true).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!r.has_errors());
+    // The resolved paths: inside the KB folder for the relative one.
+    let (k, _) = KnowledgeBase::load(&kb).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        k.ruleset_path(0, 2, false).ok().flatten(),
+        Some(dir.path().join("rules/ok.cga"))
+    );
+}
+
+// ---- tools: check, compile, explain --------------------------------------------------------
+
+#[test]
+fn check_of_the_thesis_annex_repairs_with_lines_and_gives_the_zone_tree() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/thesis_annex.xml");
+    let r = tools::check_report(&path, ReadMode::Lenient).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!r.has_errors(), "{r}");
+    assert!(r.repairs.len() > 20, "{r}");
+    assert!(
+        r.repairs.iter().all(|x| x.line >= 1 && x.line <= 110),
+        "{r}"
+    );
+    let shown = r.to_string();
+    assert!(
+        shown.contains(
+            "thesis_annex.xml:38: repair: attribute 'maxrotation' lost its closing quote"
+        ),
+        "{shown}"
+    );
+    assert!(
+        shown.contains(":74: repair: added the missing '<' before element 'country'"),
+        "{shown}"
+    );
+
+    let (kb, _) = KnowledgeBase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let tree: Vec<(&str, usize)> = kb
+        .zones()
+        .iter()
+        .map(|z| (z.path.as_str(), z.depth))
+        .collect();
+    assert_eq!(
+        &tree[..8],
+        &[
+            ("earth", 0),
+            ("earth/France", 1),
+            ("earth/France/Midi-Pyrenees", 2),
+            ("earth/France/Midi-Pyrenees/Toulouse", 3),
+            ("earth/France/Midi-Pyrenees/Toulouse/UPS", 4),
+            ("earth/France/Midi-Pyrenees/Toulouse/Centre-Ville", 4),
+            ("earth/France/Midi-Pyrenees/Paris", 3),
+            ("earth/Madagascar", 1),
+        ]
+    );
+    assert_eq!(r.zones, kb.zones().len());
+    let z = |p: &str| kb.zone(kb.find(p).unwrap_or(usize::MAX)).cloned();
+    let france = z("earth/France").unwrap_or_else(|| panic!("France"));
+    assert_eq!(france.info.roof, Some(RoofShape::Gabled)); // "\n gabbled"
+    assert_eq!(france.info.wall_color, Color::parse("pink"));
+    assert_eq!(
+        france.circle.map(|c| (c.lat, c.lon, c.radius_km)),
+        Some((47.38333, 0.68333, 5.0))
+    );
+    let ups = z("earth/France/Midi-Pyrenees/Toulouse/UPS").unwrap_or_else(|| panic!("UPS"));
+    assert_eq!(ups.info.material.as_deref(), Some("OfficeGlasses")); // "\n OfficeGlasses"
+    assert_eq!(ups.info.roof, Some(RoofShape::Flat)); // "flat "
+    assert_eq!(ups.info.storeys, Some(4));
+    let cv = z("earth/France/Midi-Pyrenees/Toulouse/Centre-Ville").unwrap_or_else(|| panic!("CV"));
+    assert_eq!(cv.info.roof, Some(RoofShape::Hipped));
+    assert_eq!(cv.info.material.as_deref(), Some("BricksBasic"));
+    let toulouse = z("earth/France/Midi-Pyrenees/Toulouse").unwrap_or_else(|| panic!("T"));
+    assert_eq!(toulouse.appearances.len(), 2);
+    assert_eq!(toulouse.appearances[0].proba, None); // proba=""
+    assert_eq!(
+        toulouse.appearances[0].values.roof,
+        Some(RoofShape::Mansard)
+    );
+    assert_eq!(toulouse.appearances[1].values.roof, Some(RoofShape::Hipped)); // "hip"
+    assert_eq!(toulouse.appearances[0].ruleset.as_deref(), Some("data.xml"));
+    // Inherited: UPS has its own nbfloor; Centre-Ville inherits nothing it does not set.
+    assert_eq!(
+        kb.resolved(
+            kb.find("earth/France/Midi-Pyrenees/Toulouse/UPS")
+                .unwrap_or(0)
+        )
+        .storeys,
+        Some(4)
+    );
+}
+
+#[test]
+fn compile_zone_output_parses_for_every_appearance_of_the_default_kb() {
+    let kb = shipped();
+    let mut n = 0;
+    for z in kb.zones() {
+        let rel = z.path.trim_start_matches("earth").trim_start_matches('/');
+        let out = tools::compile_zone(&kb, rel).unwrap_or_else(|e| panic!("{e}"));
+        let (owner, apps) = kb.appearances_for(kb.find(&z.path).unwrap_or(0));
+        assert_eq!(out.len(), apps.len().max(1), "{}", z.path);
+        for (k, (label, text)) in out.iter().enumerate() {
+            if !apps.is_empty() {
+                assert_eq!(label, &format!("{}#{}", kb.zone_path(owner), k + 1));
+            }
+            if let Err(e) = crate::grammar::parse(text, label) {
+                panic!("{label}: {e}\n{text}");
+            }
+            n += 1;
+        }
+    }
+    assert!(n > 30);
+    // Paths: with or without earth/, any case.
+    let a = tools::compile_zone(&kb, "France/Occitanie/Toulouse/Centre-Ville");
+    let b = tools::compile_zone(&kb, "EARTH/france/occitanie/toulouse/centre-ville/");
+    assert!(a.is_ok());
+    assert_eq!(a.ok(), b.ok());
+    // Centre-Ville has no appearance of its own: Toulouse's three apply.
+    let labels: Vec<String> = tools::compile_zone(&kb, "France/Occitanie/Toulouse/Centre-Ville")
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(l, _)| l)
+        .collect();
+    assert_eq!(
+        labels,
+        vec![
+            "earth/France/Occitanie/Toulouse#1",
+            "earth/France/Occitanie/Toulouse#2",
+            "earth/France/Occitanie/Toulouse#3"
+        ]
+    );
+    assert!(matches!(
+        tools::compile_zone(&kb, "France/Nowhere"),
+        Err(KbError::UnknownZone { .. })
+    ));
+}
+
+#[test]
+fn explain_agrees_with_the_generator_for_a_district_a_town_and_nowhere() {
+    let kb = shipped();
+    let tags = BuildingTags::default();
+    // (lon, lat, expected zone, expected candidates' owner)
+    let places = [
+        // Compans-Caffarelli: its own single appearance (proba 1).
+        (
+            1.4330,
+            43.6110,
+            "earth/France/Occitanie/Toulouse/Compans-Caffarelli",
+            "earth/France/Occitanie/Toulouse/Compans-Caffarelli",
+        ),
+        // In Toulouse's circle, in no district: Toulouse's appearances.
+        (
+            1.4000,
+            43.6300,
+            "earth/France/Occitanie/Toulouse",
+            "earth/France/Occitanie/Toulouse",
+        ),
+        // The Atlantic: earth, no appearance.
+        (-30.0, 40.0, "earth", ""),
+    ];
+    for (lon, lat, zone, owner) in places {
+        for seed in [1u64, 7, 42] {
+            let e = tools::explain(&kb, lon, lat, &tags, 12345, seed);
+            assert_eq!(kb.zone_path(e.zone), zone);
+            assert_eq!(e.chain.last().map(|l| l.path.as_str()), Some(zone));
+            // Exactly what the generator computes.
+            let z = kb.locate(lon, lat);
+            let (style, _) = kb.style_for(z, &tags, &mut Rng::new(seed, 12345));
+            assert_eq!(e.style, style);
+            let chosen: Vec<&str> = e
+                .candidates
+                .iter()
+                .filter(|c| c.chosen)
+                .map(|c| c.label.as_str())
+                .collect();
+            if owner.is_empty() {
+                assert!(e.candidates.is_empty());
+                assert_eq!(e.style.appearance_label, "earth#info");
+            } else {
+                assert_eq!(chosen, vec![style.appearance_label.as_str()]);
+                assert!(style.appearance_label.starts_with(&format!("{owner}#")));
+                let sum: f64 = e.candidates.iter().map(|c| c.weight).sum();
+                assert!((sum - 1.0).abs() < 1e-9);
+            }
+        }
+    }
+    let from = |e: &tools::Explanation, a: &str| {
+        e.values
+            .iter()
+            .find(|v| v.attribute == a)
+            .map(|v| (v.value.clone(), v.from.clone()))
+    };
+    // District: the appearance sets the wall colour, the district's info the nbfloor, earth
+    // the material (France and Occitanie do not set it; Toulouse does).
+    let e = tools::explain(&kb, 1.4330, 43.6110, &tags, 1, 1);
+    assert_eq!(
+        e.style.appearance_label,
+        "earth/France/Occitanie/Toulouse/Compans-Caffarelli#1"
+    );
+    assert_eq!(
+        from(&e, "color"),
+        Some((
+            "#e6ddd0".into(),
+            "earth/France/Occitanie/Toulouse/Compans-Caffarelli#1".into()
+        ))
+    );
+    assert_eq!(
+        from(&e, "nbfloor"),
+        Some((
+            "6".into(),
+            "earth/France/Occitanie/Toulouse/Compans-Caffarelli".into()
+        ))
+    );
+    assert_eq!(
+        from(&e, "material"),
+        Some((
+            "BricksBasic".into(),
+            "earth/France/Occitanie/Toulouse".into()
+        ))
+    );
+    assert_eq!(
+        from(&e, "windowmaterial"),
+        Some((
+            "glass".into(),
+            "earth/France/Occitanie/Toulouse/Compans-Caffarelli#1".into()
+        ))
+    );
+    assert_eq!(e.style.roof, RoofShape::Flat);
+    assert!((5..=8).contains(&e.style.storeys));
+    // Town only: roofangle from Toulouse's info, windowstyle from the chosen appearance.
+    let e = tools::explain(&kb, 1.4000, 43.6300, &tags, 1, 1);
+    assert_eq!(
+        from(&e, "roofangle"),
+        Some(("30".into(), "earth/France/Occitanie/Toulouse".into()))
+    );
+    assert_eq!(
+        from(&e, "windowstyle").map(|v| v.1),
+        Some(e.style.appearance_label.clone())
+    );
+    // Nowhere: earth's info only.
+    let e = tools::explain(&kb, -30.0, 40.0, &tags, 1, 1);
+    assert!(e.values.iter().all(|v| v.from == "earth"));
+    assert_eq!(from(&e, "nbfloor"), Some(("2".into(), "earth".into())));
+    assert_eq!(e.style.storeys, 2);
+    assert_eq!(e.style.wall_color, Color::WHITE);
+    let shown = e.to_string();
+    assert!(
+        shown.contains("no zone contains the point: earth"),
+        "{shown}"
+    );
+    assert!(
+        shown.contains("chosen with this seed: earth#info"),
+        "{shown}"
+    );
+}
+
+#[test]
+fn explain_lists_tag_overrides_and_the_chain_reasons() {
+    let kb = shipped();
+    let tags = BuildingTags {
+        levels: Some(3.0),
+        colour: Color::parse("blue"),
+        ..BuildingTags::default()
+    };
+    let e = tools::explain(&kb, 1.4433, 43.6045, &tags, 99, 3);
+    assert_eq!(
+        kb.zone_path(e.zone),
+        "earth/France/Occitanie/Toulouse/Capitole"
+    );
+    assert_eq!(
+        e.overrides,
+        vec!["building:levels=3", "building:colour=blue"]
+    );
+    assert_eq!(e.style.storeys, 3);
+    assert_eq!(
+        e.style.wall_color,
+        Color::parse("blue").unwrap_or(Color::WHITE)
+    );
+    let shown = e.to_string();
+    assert!(
+        shown.contains("Capitole: inside its circle: 0.0"),
+        "{shown}"
+    );
+    assert!(
+        shown.contains("OSM tag overrides: building:levels=3, building:colour=blue"),
+        "{shown}"
+    );
+    assert!(shown.contains("weight 0.7000"), "{shown}");
+}
+
+#[test]
+fn check_of_the_shipped_kb_is_clean() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+    let r = tools::check_report(&path, ReadMode::Strict).unwrap_or_else(|e| panic!("{e}"));
+    assert!(r.repairs.is_empty() && !r.has_errors(), "{r}");
+    assert!(r.appearances >= 20 && r.zones >= 20, "{r}");
+    // Probas of each zone sum to 1: no such warning.
+    assert!(!r.warnings.iter().any(|w| w.what.contains("probas")), "{r}");
+}
+
+#[test]
+fn check_warns_on_probas_and_shapeless_zones() {
+    let t = "<earth>\n<country designation=\"A\">\n<appearance><values proba=\"0.5\"/></appearance>\n<appearance><values proba=\"0.2\"/></appearance>\n</country>\n</earth>";
+    let (kb, rep) = KnowledgeBase::parse_str(t, "w.xml").unwrap_or_else(|e| panic!("{e}"));
+    let r = tools::report_for(&kb, ReadMode::Lenient, rep, false);
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.line == 2 && w.what.contains("sum to 0.7")),
+        "{r}"
+    );
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.line == 2 && w.what.contains("no circle")),
+        "{r}"
+    );
 }

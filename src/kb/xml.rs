@@ -26,6 +26,7 @@ use std::fmt;
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::{Reader, XmlVersion};
 
+use super::polygon::ZonePolygon;
 use super::{
     Appearance, Circle, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, Zone, ZoneKind,
 };
@@ -61,6 +62,32 @@ pub enum KbError {
         line: usize,
         col: usize,
     },
+    /// Something the lenient reader would repair, refused by the strict reader
+    /// ([`ReadMode::Strict`]): a decimal comma, an unknown or wrongly-cased attribute or
+    /// element, missing quotes, an empty value, a value of the wrong type.
+    #[error("{file}:{line}:{col}: not a valid knowledge base (strict mode): {message}")]
+    Strict {
+        file: String,
+        line: usize,
+        col: usize,
+        message: String,
+    },
+    /// A safety limit was exceeded (see [`MAX_FILE_BYTES`], [`MAX_DEPTH`], [`MAX_ATTRIBUTES`],
+    /// [`MAX_POLYGON_POINTS`]).
+    #[error("{file}:{line}:{col}: knowledge base refused: {message}")]
+    Limit {
+        file: String,
+        line: usize,
+        col: usize,
+        message: String,
+    },
+    /// A zone path (`kb compile --zone`) that names no zone of the KB.
+    #[error("{file}: no zone '{path}' (paths are designations from earth down, e.g. {examples})")]
+    UnknownZone {
+        file: String,
+        path: String,
+        examples: String,
+    },
     /// Well-formed XML that is not a knowledge base (wrong root, ...).
     #[error("{file}:{line}: {message}")]
     Structure {
@@ -68,6 +95,30 @@ pub enum KbError {
         line: usize,
         message: String,
     },
+}
+
+/// Largest knowledge-base file read, bytes (64 MiB). A real KB is a few hundred kilobytes; the
+/// cap bounds memory and time on hostile or mistaken input (a PBF passed as `--kb`).
+pub const MAX_FILE_BYTES: u64 = 64 * 1024 * 1024;
+/// Deepest element nesting accepted (earth is level 1). The zone tree plus appearance, opening
+/// and split levels needs about 12; 64 leaves room while bounding the recursive reader.
+pub const MAX_DEPTH: usize = 64;
+/// Most attributes on one element. `<values>` has about 20 legitimate ones.
+pub const MAX_ATTRIBUTES: usize = 256;
+/// Most vertices in one `<polygon points>`: bounds the simple-ring check (quadratic) and the
+/// point-in-polygon test.
+pub const MAX_POLYGON_POINTS: usize = 4096;
+
+/// How forgiving the reader is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ReadMode {
+    /// Repairs legacy files such as the thesis annex and reports every repair
+    /// ([`KbRepair`]); only what cannot be repaired is an error.
+    #[default]
+    Lenient,
+    /// Our clean format only (schemas/kb.xsd): anything the lenient reader would repair is a
+    /// [`KbError::Strict`] at its file:line:col. A file read in this mode has no repairs.
+    Strict,
 }
 
 /// One thing the lenient reader repaired or ignored, at a 1-based line of the file.
@@ -119,7 +170,7 @@ impl<'a> LineIndex<'a> {
 }
 
 /// Element names the pre-pass may add a missing `<` in front of.
-const KNOWN_ELEMENTS: [&str; 14] = [
+const KNOWN_ELEMENTS: [&str; 15] = [
     "earth",
     "country",
     "region",
@@ -134,6 +185,7 @@ const KNOWN_ELEMENTS: [&str; 14] = [
     "elements",
     "ruleset",
     "zone",
+    "polygon",
 ];
 
 fn is_name_start(c: u8) -> bool {
@@ -332,11 +384,14 @@ fn swallowed_name(value: &str) -> bool {
 
 /// A parsed element: name, attributes (name, value, line) and children.
 #[derive(Debug)]
-struct Elem {
-    name: String,
-    line: usize,
-    attrs: Vec<(String, String, usize)>,
-    children: Vec<Elem>,
+pub(crate) struct Elem {
+    pub(crate) name: String,
+    pub(crate) line: usize,
+    pub(crate) col: usize,
+    pub(crate) attrs: Vec<(String, String, usize)>,
+    /// Column of each attribute's name, parallel to `attrs`.
+    pub(crate) attr_cols: Vec<usize>,
+    pub(crate) children: Vec<Elem>,
 }
 
 impl Elem {
@@ -348,8 +403,10 @@ impl Elem {
     }
 }
 
-/// Step 2: the element tree of the (repaired) text.
-fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
+/// Step 2: the element tree of the (repaired) text. Enforces [`MAX_DEPTH`] and
+/// [`MAX_ATTRIBUTES`]; in strict mode text content (other than whitespace) is an error, since no
+/// element of the format has any (it is what a lost `<` leaves behind).
+fn parse_tree(text: &str, file: &str, mode: ReadMode) -> Result<Elem, KbError> {
     let idx = LineIndex::new(text);
     let mut reader = Reader::from_str(text);
     reader.config_mut().check_end_names = true;
@@ -379,6 +436,15 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
                 ));
             }
             Event::Start(ref e) | Event::Empty(ref e) => {
+                if stack.len() >= MAX_DEPTH {
+                    let (line, col) = idx.line_col(before);
+                    return Err(KbError::Limit {
+                        file: file.to_string(),
+                        line,
+                        col,
+                        message: format!("elements nested more than {MAX_DEPTH} levels deep"),
+                    });
+                }
                 let el = element(e, text, before, after, &idx, file)?;
                 if matches!(ev, Event::Start(_)) {
                     stack.push(el);
@@ -411,6 +477,31 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
             Event::Text(t) if root.is_some() && !AsRef::<str>::as_ref(&t).trim().is_empty() => {
                 return Err(xml_err(before as u64, "text after the root element".into()));
             }
+            Event::Text(ref t)
+                if mode == ReadMode::Strict && !AsRef::<str>::as_ref(t).trim().is_empty() =>
+            {
+                let raw: &str = t.as_ref();
+                let lead = raw.len() - raw.trim_start().len();
+                let (line, col) = idx.line_col(before + lead);
+                return Err(KbError::Strict {
+                    file: file.to_string(),
+                    line,
+                    col,
+                    message: format!(
+                        "text \"{}\" is not allowed here (a lost '<'?)",
+                        raw.trim().chars().take(40).collect::<String>()
+                    ),
+                });
+            }
+            Event::CData(_) if mode == ReadMode::Strict => {
+                let (line, col) = idx.line_col(before);
+                return Err(KbError::Strict {
+                    file: file.to_string(),
+                    line,
+                    col,
+                    message: "CDATA sections are not allowed".into(),
+                });
+            }
             Event::Eof => break,
             _ => {}
         }
@@ -420,7 +511,7 @@ fn parse_tree(text: &str, file: &str) -> Result<Elem, KbError> {
         return Err(KbError::Xml {
             file: file.to_string(),
             line,
-            col: 1,
+            col: open.col,
             message: format!("element <{}> is never closed", open.name),
         });
     }
@@ -440,55 +531,95 @@ fn element(
     file: &str,
 ) -> Result<Elem, KbError> {
     let name = e.name().into_inner().to_string();
-    let line = idx.line(start);
+    let (line, col) = idx.line_col(start);
     let tag = text.get(start..end).unwrap_or("");
     let mut attrs = Vec::new();
+    let mut attr_cols = Vec::new();
     let mut search_from = 0;
     for a in e.attributes() {
-        let a = a.map_err(|err| {
-            let (line, col) = idx.line_col(start);
-            KbError::Xml {
+        if attrs.len() >= MAX_ATTRIBUTES {
+            return Err(KbError::Limit {
                 file: file.to_string(),
                 line,
                 col,
-                message: format!("in <{name}>: {err}"),
-            }
+                message: format!("<{name}> has more than {MAX_ATTRIBUTES} attributes"),
+            });
+        }
+        let a = a.map_err(|err| KbError::Xml {
+            file: file.to_string(),
+            line,
+            col,
+            message: format!("in <{name}>: {err}"),
         })?;
         let key = a.key.into_inner().to_string();
-        let value = a.normalized_value(XmlVersion::Implicit1_0).map_err(|err| {
-            let (line, col) = idx.line_col(start);
-            KbError::Xml {
-                file: file.to_string(),
-                line,
-                col,
-                message: format!("in <{name}> attribute '{key}': {err} (only the predefined entities are allowed)"),
-            }
-        })?;
-        // The attribute's own line: find its name in the tag text after the previous one.
+        // The attribute's own place: find its name in the tag text after the previous one.
         let at = tag
             .get(search_from..)
             .and_then(|t| t.find(key.as_str()))
             .map(|p| p + search_from);
-        let aline = at.map_or(line, |p| idx.line(start + p));
+        let (aline, acol) = at.map_or((line, col), |p| idx.line_col(start + p));
         if let Some(p) = at {
             search_from = p + key.len();
         }
+        let value = a.normalized_value(XmlVersion::Implicit1_0).map_err(|err| {
+            KbError::Xml {
+                file: file.to_string(),
+                line: aline,
+                col: acol,
+                message: format!("in <{name}> attribute '{key}': {err} (only the predefined entities are allowed)"),
+            }
+        })?;
         attrs.push((key, value.into_owned(), aline));
+        attr_cols.push(acol);
     }
     Ok(Elem {
         name,
         line,
+        col,
         attrs,
+        attr_cols,
         children: Vec::new(),
     })
 }
 
-/// Reads zones from KB text: zone 0 is earth, parents before children. Used by
+/// Reads zones from KB text leniently: zone 0 is earth, parents before children. Used by
 /// [`super::KnowledgeBase::parse_str`].
+#[cfg(test)]
 pub(crate) fn read_zones(text: &str, file: &str) -> Result<(Vec<Zone>, Vec<KbRepair>), KbError> {
+    read_zones_with(text, file, ReadMode::Lenient)
+}
+
+/// Reads zones from KB text in the given mode. In strict mode the repair pre-pass is skipped,
+/// the element tree is checked against the clean format ([`super::strict`]) and any repair the
+/// zone reader would still make is an error; the returned repairs are then always empty.
+pub(crate) fn read_zones_with(
+    text: &str,
+    file: &str,
+    mode: ReadMode,
+) -> Result<(Vec<Zone>, Vec<KbRepair>), KbError> {
+    if text.len() as u64 > MAX_FILE_BYTES {
+        return Err(KbError::Limit {
+            file: file.to_string(),
+            line: 1,
+            col: 1,
+            message: format!(
+                "{} bytes is more than the {MAX_FILE_BYTES}-byte cap on knowledge-base files",
+                text.len()
+            ),
+        });
+    }
     let mut repairs = Vec::new();
-    let fixed = prepass(text, &mut repairs);
-    let root = parse_tree(&fixed, file)?;
+    let root = match mode {
+        ReadMode::Lenient => {
+            let fixed = prepass(text, &mut repairs);
+            parse_tree(&fixed, file, mode)?
+        }
+        ReadMode::Strict => {
+            let root = parse_tree(text, file, mode)?;
+            super::strict::validate(&root, file)?;
+            root
+        }
+    };
     if !root.name.eq_ignore_ascii_case("earth") {
         return Err(KbError::Structure {
             file: file.to_string(),
@@ -503,6 +634,25 @@ pub(crate) fn read_zones(text: &str, file: &str) -> Result<(Vec<Zone>, Vec<KbRep
     r.zone(&root, None, 0, "earth".to_string());
     // Stable: repairs of one line keep the order they were found in.
     r.repairs.sort_by_key(|r| r.line);
+    if mode == ReadMode::Strict {
+        if let Some(first) = r.repairs.first() {
+            // The checks above catch every lexical problem at its column; what remains is a
+            // semantic one (an incomplete circle, an opening that is not a tree...) known by
+            // line: point at the line's first non-blank character.
+            let col = text
+                .lines()
+                .nth(first.line.saturating_sub(1))
+                .map_or(1, |l| {
+                    l.chars().take_while(|c| c.is_whitespace()).count() + 1
+                });
+            return Err(KbError::Strict {
+                file: file.to_string(),
+                line: first.line,
+                col,
+                message: first.what.clone(),
+            });
+        }
+    }
     Ok((r.zones, r.repairs))
 }
 
@@ -541,6 +691,7 @@ impl ZoneReader {
             parent,
             depth,
             circle: None,
+            polygons: Vec::new(),
             info: Values::default(),
             appearances: Vec::new(),
             line: el.line,
@@ -549,6 +700,7 @@ impl ZoneReader {
         let mut circle = CircleParts::default();
         let mut seen_info = false;
         let mut appearances = Vec::new();
+        let mut polygons = Vec::new();
         for child in &el.children {
             let lname = child.name.to_ascii_lowercase();
             match lname.as_str() {
@@ -566,6 +718,13 @@ impl ZoneReader {
                     info.overlay(&v);
                 }
                 "appearance" => appearances.push(self.appearance(child)),
+                "polygon" => match child.attr("points") {
+                    Some((_, pts, line)) => match ZonePolygon::parse(pts) {
+                        Ok(p) => polygons.push(p),
+                        Err(e) => self.note(*line, format!("polygon ignored: {e}")),
+                    },
+                    None => self.note(child.line, "<polygon> without points ignored"),
+                },
                 _ if child.attr("designation").is_some()
                     || matches!(lname.as_str(), "country" | "region" | "town" | "district") =>
                 {
@@ -604,6 +763,7 @@ impl ZoneReader {
             z.info = info;
             z.circle = circle;
             z.appearances = appearances;
+            z.polygons = polygons;
         }
     }
 

@@ -1,0 +1,436 @@
+//! The strict reader's check of the element tree against our clean format, the same rules as
+//! `schemas/kb.xsd` (kept in step with it by hand; the tests validate the shipped KB with both).
+//!
+//! Exact, case-sensitive element and attribute names; children in the schema's order; no empty
+//! value; numbers with a decimal point (never a comma) and in range; colours `#rrggbb` or a
+//! lower-case CSS name; roof shapes by their OSM name. Where this check is stricter than the XSD
+//! can say (surrounding spaces in numbers, which XSD collapses; unknown CSS colour names, which
+//! the XSD only checks as lower-case words), it is stricter, never looser.
+
+use super::polygon::ZonePolygon;
+use super::xml::{Elem, KbError};
+use crate::color::Color;
+use crate::model::RoofShape;
+
+/// The value type of an attribute.
+#[derive(Clone, Copy)]
+enum Ty {
+    /// Decimal in a closed range.
+    Dec(f64, f64),
+    /// Decimal > 0.
+    Pos,
+    /// Decimal in `0..90` (90 excluded).
+    Angle,
+    /// Whole number in 0..=10000.
+    Count,
+    Color,
+    Roof,
+    WindowHeight,
+    /// A word or phrase: no surrounding spaces.
+    Token,
+    /// A zone name: a token without `/`.
+    Designation,
+    Points,
+    Axis,
+    /// `a|b|c` node names.
+    Children,
+    /// `0.5,0.5` positive decimals.
+    SplitValues,
+    /// `a,b,c` node names.
+    Terms,
+}
+
+const DESCRIPTORS: [(&str, Ty); 18] = [
+    ("color", Ty::Color),
+    ("material", Ty::Token),
+    ("nbfloor", Ty::Count),
+    ("floorsize", Ty::Pos),
+    ("roofangle", Ty::Angle),
+    ("roofColor", Ty::Color),
+    ("doorCol", Ty::Color),
+    ("openingCol", Ty::Color),
+    ("windowfcolor", Ty::Color),
+    ("windowheight", Ty::WindowHeight),
+    ("windowwidth", Ty::Pos),
+    ("windowstyle", Ty::Token),
+    ("windowmaterial", Ty::Token),
+    ("minFloors", Ty::Count),
+    ("maxFloors", Ty::Count),
+    ("minHeight", Ty::Pos),
+    ("maxHeight", Ty::Pos),
+    ("maxrotation", Ty::Dec(-360.0, 360.0)),
+];
+
+const CIRCLE: [(&str, Ty); 3] = [
+    ("lat", Ty::Dec(-90.0, 90.0)),
+    ("lon", Ty::Dec(-180.0, 180.0)),
+    ("dist", Ty::Pos),
+];
+
+/// Zone elements below earth.
+pub(crate) const ZONE_ELEMENTS: [&str; 5] = ["country", "region", "town", "district", "zone"];
+
+struct Ctx<'a> {
+    file: &'a str,
+}
+
+impl Ctx<'_> {
+    fn err(&self, line: usize, col: usize, message: String) -> KbError {
+        KbError::Strict {
+            file: self.file.to_string(),
+            line,
+            col,
+            message,
+        }
+    }
+
+    /// Checks `el`'s attributes: `allowed` may appear, `required` must.
+    fn attrs(&self, el: &Elem, allowed: &[(&str, Ty)], required: &[&str]) -> Result<(), KbError> {
+        for (k, (name, value, line)) in el.attrs.iter().enumerate() {
+            let col = el.attr_cols.get(k).copied().unwrap_or(el.col);
+            if name.starts_with("xmlns") || name.starts_with("xsi:") {
+                continue;
+            }
+            let Some((_, ty)) = allowed.iter().find(|(n, _)| n == name) else {
+                let hint = allowed
+                    .iter()
+                    .find(|(n, _)| n.eq_ignore_ascii_case(name))
+                    .map_or(String::new(), |(n, _)| format!(" (did you mean '{n}'?)"));
+                return Err(self.err(
+                    *line,
+                    col,
+                    format!("unknown attribute '{name}' on <{}>{hint}", el.name),
+                ));
+            };
+            check_value(*ty, value).map_err(|m| {
+                self.err(*line, col, format!("<{}> {name}=\"{value}\": {m}", el.name))
+            })?;
+        }
+        for r in required {
+            if !el.attrs.iter().any(|(n, _, _)| n == r) {
+                return Err(self.err(
+                    el.line,
+                    el.col,
+                    format!("<{}> needs the attribute '{r}'", el.name),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks that the children follow `groups` in order: (element names, min, max).
+    fn children(&self, el: &Elem, groups: &[(&[&str], usize, usize)]) -> Result<(), KbError> {
+        let mut g = 0;
+        let mut count = 0;
+        for c in &el.children {
+            loop {
+                let Some((names, min, max)) = groups.get(g) else {
+                    let expected: Vec<&str> = groups
+                        .iter()
+                        .flat_map(|(n, _, _)| n.iter().copied())
+                        .collect();
+                    let hint = expected
+                        .iter()
+                        .find(|n| n.eq_ignore_ascii_case(&c.name))
+                        .map_or(String::new(), |n| {
+                            if *n == c.name {
+                                " here (out of order: the schema's order is ".to_string()
+                                    + &expected.join(", ")
+                                    + ")"
+                            } else {
+                                format!(" (did you mean <{n}>?)")
+                            }
+                        });
+                    return Err(self.err(
+                        c.line,
+                        c.col,
+                        format!("<{}> is not allowed in <{}>{hint}", c.name, el.name),
+                    ));
+                };
+                if names.contains(&c.name.as_str()) {
+                    if count >= *max {
+                        return Err(self.err(
+                            c.line,
+                            c.col,
+                            format!("more than {max} <{}> in <{}>", c.name, el.name),
+                        ));
+                    }
+                    count += 1;
+                    break;
+                }
+                if count < *min {
+                    return Err(self.err(
+                        c.line,
+                        c.col,
+                        format!("<{}> needs a <{}> before <{}>", el.name, names[0], c.name),
+                    ));
+                }
+                g += 1;
+                count = 0;
+            }
+        }
+        // Remaining groups must allow zero.
+        if let Some((names, min, _)) = groups.get(g) {
+            if count < *min {
+                return Err(self.err(
+                    el.line,
+                    el.col,
+                    format!("<{}> needs a <{}>", el.name, names[0]),
+                ));
+            }
+        }
+        for (names, min, _) in groups.iter().skip(g + 1) {
+            if *min > 0 {
+                return Err(self.err(
+                    el.line,
+                    el.col,
+                    format!("<{}> needs a <{}>", el.name, names[0]),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn zone(&self, el: &Elem, is_earth: bool) -> Result<(), KbError> {
+        if is_earth {
+            self.attrs(el, &[], &[])?;
+            self.children(
+                el,
+                &[
+                    (&["info"], 0, 1),
+                    (&["appearance"], 0, usize::MAX),
+                    (&ZONE_ELEMENTS, 0, usize::MAX),
+                ],
+            )?;
+        } else {
+            self.attrs(el, &[("designation", Ty::Designation)], &["designation"])?;
+            self.children(
+                el,
+                &[
+                    (&["info"], 0, 1),
+                    (&["location"], 0, 1),
+                    (&["polygon"], 0, usize::MAX),
+                    (&["appearance"], 0, usize::MAX),
+                    (&ZONE_ELEMENTS, 0, usize::MAX),
+                ],
+            )?;
+        }
+        let info: Vec<(&str, Ty)> = DESCRIPTORS
+            .iter()
+            .chain(CIRCLE.iter())
+            .copied()
+            .chain([("rooftype", Ty::Roof)])
+            .collect();
+        for c in &el.children {
+            match c.name.as_str() {
+                "info" => {
+                    let allowed = if is_earth {
+                        &info[..DESCRIPTORS.len()]
+                    } else {
+                        &info[..]
+                    };
+                    let mut allowed = allowed.to_vec();
+                    if is_earth {
+                        allowed.push(("rooftype", Ty::Roof));
+                    }
+                    self.attrs(c, &allowed, &[])?;
+                    self.children(c, &[])?;
+                }
+                "location" => {
+                    self.attrs(c, &CIRCLE, &["lat", "lon", "dist"])?;
+                    self.children(c, &[])?;
+                }
+                "polygon" => {
+                    self.attrs(c, &[("points", Ty::Points)], &["points"])?;
+                    self.children(c, &[])?;
+                }
+                "appearance" => self.appearance(c)?,
+                _ => self.zone(c, false)?,
+            }
+        }
+        Ok(())
+    }
+
+    fn appearance(&self, el: &Elem) -> Result<(), KbError> {
+        self.attrs(el, &[], &[])?;
+        self.children(
+            el,
+            &[
+                (&["values"], 1, 1),
+                (&["opening"], 0, 1),
+                (&["ruleset"], 0, 1),
+            ],
+        )?;
+        let values: Vec<(&str, Ty)> = DESCRIPTORS
+            .iter()
+            .copied()
+            .chain([("bdRooftype", Ty::Roof), ("proba", Ty::Dec(0.0, 1.0))])
+            .collect();
+        for c in &el.children {
+            match c.name.as_str() {
+                "values" => {
+                    self.attrs(c, &values, &[])?;
+                    self.children(c, &[])?;
+                }
+                "opening" => {
+                    self.attrs(c, &[], &[])?;
+                    self.children(c, &[(&["split"], 1, usize::MAX), (&["elements"], 0, 1)])?;
+                    for s in &c.children {
+                        if s.name == "split" {
+                            self.attrs(
+                                s,
+                                &[
+                                    ("axis", Ty::Axis),
+                                    ("parent", Ty::Token),
+                                    ("children", Ty::Children),
+                                    ("splitvalues", Ty::SplitValues),
+                                ],
+                                &["axis", "parent", "children", "splitvalues"],
+                            )?;
+                        } else {
+                            self.attrs(
+                                s,
+                                &[("parent", Ty::Token), ("terms", Ty::Terms)],
+                                &["parent"],
+                            )?;
+                        }
+                        self.children(s, &[])?;
+                    }
+                }
+                _ => {
+                    self.attrs(c, &[("file", Ty::Token)], &["file"])?;
+                    self.children(c, &[])?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `[+-]?(d+(.d*)?|.d+)`: the xs:decimal lexical space.
+fn decimal(s: &str) -> Result<f64, String> {
+    let body = s.strip_prefix(['+', '-']).unwrap_or(s);
+    let (int, frac) = body.split_once('.').unwrap_or((body, ""));
+    let digits = |t: &str| t.bytes().all(|b| b.is_ascii_digit());
+    if (int.is_empty() && frac.is_empty())
+        || !digits(int)
+        || !digits(frac)
+        || (int.is_empty() && body.ends_with('.'))
+    {
+        if s.contains(',') && !s.contains('.') {
+            return Err("decimal comma: write the number with a point".into());
+        }
+        return Err("not a decimal number (digits with an optional '.', no exponent)".into());
+    }
+    s.parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| "not a decimal number".into())
+}
+
+fn check_value(ty: Ty, v: &str) -> Result<(), String> {
+    if v.is_empty() {
+        return Err("empty value (leave the attribute out instead)".into());
+    }
+    if v.trim() != v {
+        return Err("spaces or line breaks around the value".into());
+    }
+    let names = |list: &str, sep: char| -> Result<(), String> {
+        if list.split(sep).any(|p| p.is_empty() || p.trim() != p) {
+            return Err(format!(
+                "empty or space-padded entry in the '{sep}'-separated list"
+            ));
+        }
+        Ok(())
+    };
+    match ty {
+        Ty::Dec(lo, hi) => {
+            let x = decimal(v)?;
+            if !(lo..=hi).contains(&x) {
+                return Err(format!("out of range {lo}..{hi}"));
+            }
+        }
+        Ty::Pos => {
+            if decimal(v)? <= 0.0 {
+                return Err("must be positive".into());
+            }
+        }
+        Ty::Angle => {
+            let x = decimal(v)?;
+            if !(0.0..90.0).contains(&x) {
+                return Err("an angle in degrees from 0 to below 90".into());
+            }
+        }
+        Ty::Count => {
+            let digits = v.strip_prefix('+').unwrap_or(v);
+            if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+                return Err("not a whole number".into());
+            }
+            if digits.len() > 5 || digits.parse::<u32>().map_or(true, |n| n > 10_000) {
+                return Err("out of range 0..10000".into());
+            }
+        }
+        Ty::Color => {
+            let hex = v
+                .strip_prefix('#')
+                .is_some_and(|h| h.len() == 6 && h.bytes().all(|b| b.is_ascii_hexdigit()));
+            let name = v.bytes().all(|b| b.is_ascii_lowercase()) && Color::parse(v).is_some();
+            if !hex && !name {
+                return Err("a colour is #rrggbb or a lower-case CSS colour name".into());
+            }
+        }
+        Ty::Roof => {
+            if RoofShape::parse(v).map(RoofShape::osm_name) != Some(v) {
+                return Err(
+                    "a roof shape by its OSM roof:shape name (flat, gabled, hipped, ...)".into(),
+                );
+            }
+        }
+        Ty::WindowHeight => {
+            if !matches!(v, "tall" | "short" | "irregular") {
+                return Err("tall, short or irregular".into());
+            }
+        }
+        Ty::Token => {
+            if v.contains(['\n', '\r', '\t']) {
+                return Err("line break or tab in the value".into());
+            }
+        }
+        Ty::Designation => {
+            if v.contains('/') || v.contains(['\n', '\r', '\t']) {
+                return Err("a zone name has no '/' and no line break".into());
+            }
+        }
+        Ty::Points => {
+            ZonePolygon::parse(v)?;
+        }
+        Ty::Axis => {
+            if !matches!(v, "X" | "Y" | "Z") {
+                return Err("X, Y or Z".into());
+            }
+        }
+        Ty::Children => names(v, '|')?,
+        Ty::Terms => names(v, ',')?,
+        Ty::SplitValues => {
+            for p in v.split(',') {
+                if decimal(p)? <= 0.0 {
+                    return Err("split values must be positive".into());
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks the whole tree; the first problem is the error.
+pub(crate) fn validate(root: &Elem, file: &str) -> Result<(), KbError> {
+    let ctx = Ctx { file };
+    if root.name != "earth" {
+        return Err(ctx.err(
+            root.line,
+            root.col,
+            format!("the root element must be <earth>, found <{}>", root.name),
+        ));
+    }
+    ctx.zone(root, true)
+}
