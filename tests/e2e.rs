@@ -578,7 +578,15 @@ fn a_rule_bomb_ends_in_bounded_time_with_one_report_entry_per_building() {
 fn citygml_openings(gml: &str) -> BTreeMap<String, (usize, usize)> {
     citygml_buildings(gml)
         .into_iter()
-        .map(|(id, text)| (id, (text.matches("<bldg:Window ").count(), text.matches("<bldg:Door ").count())))
+        .map(|(id, text)| {
+            (
+                id,
+                (
+                    text.matches("<bldg:Window ").count(),
+                    text.matches("<bldg:Door ").count(),
+                ),
+            )
+        })
         .collect()
 }
 
@@ -592,15 +600,25 @@ fn lod3_window_and_door_counts_agree_between_ifc_and_citygml() {
     for (id, (w, d)) in &gml {
         let source = id.trim_start_matches("B_").replacen('_', "/", 1);
         let (iw, id_) = ifc.get(&source).copied().unwrap_or((0, 0));
-        assert_eq!((iw, id_), (*w, *d), "{source}: IFC windows/doors vs CityGML");
+        assert_eq!(
+            (iw, id_),
+            (*w, *d),
+            "{source}: IFC windows/doors vs CityGML"
+        );
         windows += w;
         doors += d;
     }
-    assert!(windows > 10_000 && doors > 500, "{windows} windows, {doors} doors");
+    assert!(
+        windows > 10_000 && doors > 500,
+        "{windows} windows, {doors} doors"
+    );
     // Every IFC opening is filled by exactly one window or door, and voids exactly one wall.
     let ents = step_entities(&run.ifc);
     let count = |t: &str| ents.values().filter(|(k, _)| k == t).count();
-    assert_eq!(count("IFCOPENINGELEMENT"), count("IFCWINDOW") + count("IFCDOOR"));
+    assert_eq!(
+        count("IFCOPENINGELEMENT"),
+        count("IFCWINDOW") + count("IFCDOOR")
+    );
     assert_eq!(count("IFCRELFILLSELEMENT"), count("IFCOPENINGELEMENT"));
     assert_eq!(count("IFCRELVOIDSELEMENT"), count("IFCOPENINGELEMENT"));
 }

@@ -1379,6 +1379,30 @@ mod tests {
         assert!(mats.iter().all(|m| m.child("app:transparency").is_none()));
     }
 
+    /// FNV-1a 64: a dependency-free fingerprint of an output.
+    fn fnv1a(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        })
+    }
+
+    /// LOD1 and LOD2 output is byte-identical to the writer before LOD3 support (fingerprints
+    /// taken from that writer on the same samples).
+    #[test]
+    fn lod1_lod2_output_unchanged_by_lod3_support() {
+        let b = all_buildings();
+        assert_eq!(
+            fnv1a(&write_all(Lod::Lod1, &b)),
+            3_655_589_629_691_104_898,
+            "LOD1"
+        );
+        assert_eq!(
+            fnv1a(&write_all(Lod::Lod2, &b)),
+            11_241_214_483_957_492_289,
+            "LOD2"
+        );
+    }
+
     #[test]
     fn output_is_deterministic() {
         let b = all_buildings();

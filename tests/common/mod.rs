@@ -177,7 +177,11 @@ pub fn ifc_openings_per_building(
                 voids.insert(refs[1], refs[0]);
             }
             "IFCPROPERTYSINGLEVALUE" if a.starts_with("'SourceId'") => {
-                let v = a.split("IFCIDENTIFIER('").nth(1).and_then(|r| r.split('\'').next()).unwrap_or("");
+                let v = a
+                    .split("IFCIDENTIFIER('")
+                    .nth(1)
+                    .and_then(|r| r.split('\'').next())
+                    .unwrap_or("");
                 source.insert(*id, v.to_string());
             }
             _ => {}
@@ -223,9 +227,16 @@ pub fn ifc_openings_per_building(
         if !is_window && t != "IFCDOOR" {
             continue;
         }
-        let wall = filled_by.get(id).and_then(|o| voids.get(o)).copied().expect("window or door fills a voided opening");
+        let wall = filled_by
+            .get(id)
+            .and_then(|o| voids.get(o))
+            .copied()
+            .expect("window or door fills a voided opening");
         let b = top_building(wall).expect("the wall is in a building");
-        let key = building_source.get(&b).cloned().unwrap_or_else(|| format!("#{b}"));
+        let key = building_source
+            .get(&b)
+            .cloned()
+            .unwrap_or_else(|| format!("#{b}"));
         let e = out.entry(key).or_default();
         if is_window {
             e.0 += 1;
