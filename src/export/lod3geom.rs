@@ -1,0 +1,248 @@
+//! LOD3 detail geometry shared by the writers: opening rectangles, their reveals, and balcony
+//! slabs with railings, built from a [`Wall`] and the wall-coordinate values of the model.
+//!
+//! Every face returned is planar, its outer ring counter-clockwise seen from the side its normal
+//! points to (as [`Face`] requires). A wall's frame: `dir` runs along the wall from `start` to
+//! `end`, `outward` is horizontal and to the right of it (outside the building, as the footprint's
+//! outer ring is counter-clockwise) and `inward` is its opposite, where the wall body lies.
+
+use glam::{DVec2, DVec3};
+
+use crate::model::{Balcony, Face, Opening, Wall};
+
+/// Thickness of a balcony slab below its floor height (metres).
+pub const SLAB_THICKNESS: f64 = 0.2;
+/// Height of a balcony railing above the slab (metres).
+pub const RAILING_HEIGHT: f64 = 1.0;
+
+/// The horizontal frame of a wall: unit `dir` along start->end and unit `inward` (left of it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WallFrame {
+    pub start: DVec2,
+    pub dir: DVec2,
+    pub inward: DVec2,
+}
+
+impl WallFrame {
+    /// The frame of `wall`, or `None` when its edge has no length or is not finite.
+    pub fn of(wall: &Wall) -> Option<WallFrame> {
+        let d = wall.end - wall.start;
+        let len = d.length();
+        if !(len.is_finite() && len > 0.0 && wall.start.is_finite()) {
+            return None;
+        }
+        let dir = d / len;
+        Some(WallFrame {
+            start: wall.start,
+            dir,
+            inward: dir.perp(),
+        })
+    }
+
+    /// The point `u` metres along the wall at height `z`, moved `depth` metres inward (negative:
+    /// outward).
+    pub fn at(&self, u: f64, z: f64, depth: f64) -> DVec3 {
+        (self.start + self.dir * u + self.inward * depth).extend(z)
+    }
+
+    fn dir3(&self) -> DVec3 {
+        self.dir.extend(0.0)
+    }
+
+    fn inward3(&self) -> DVec3 {
+        self.inward.extend(0.0)
+    }
+}
+
+/// Quad `p, p+a, p+a+b, p+b`; its normal points along `a x b`.
+fn quad(p: DVec3, a: DVec3, b: DVec3) -> Face {
+    Face::new(vec![p, p + a, p + a + b, p + b])
+}
+
+/// The six faces of the box spanned from corner `p` by `a`, `b`, `c` (with `(a x b) . c > 0`),
+/// each facing out of the box.
+fn cuboid(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Vec<Face> {
+    vec![
+        quad(p, b, a),         // -c
+        quad(p + c, a, b),     // +c
+        quad(p, c, b),         // -a
+        quad(p + a, b, c),     // +a
+        quad(p, a, c),         // -b
+        quad(p + b, c, a),     // +b
+    ]
+}
+
+/// Whether an opening has a finite, non-empty rectangle.
+pub fn opening_is_valid(o: &Opening) -> bool {
+    [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()) && o.width() > 0.0 && o.height() > 0.0
+}
+
+/// The opening's rectangle `depth` metres inward of the wall's outer face (0: in the wall plane,
+/// filling the wall's hole exactly), facing outward like the wall. `None` for a degenerate wall
+/// or opening.
+pub fn opening_face(wall: &Wall, o: &Opening, depth: f64) -> Option<Face> {
+    let f = WallFrame::of(wall)?;
+    if !opening_is_valid(o) {
+        return None;
+    }
+    Some(Face::new(vec![
+        f.at(o.u0, o.z0, depth),
+        f.at(o.u1, o.z0, depth),
+        f.at(o.u1, o.z1, depth),
+        f.at(o.u0, o.z1, depth),
+    ]))
+}
+
+/// The four reveal faces lining the wall's hole from its outer face to `depth` metres inward
+/// (sill, head, two jambs), each facing into the opening. Empty for a degenerate wall, opening
+/// or depth.
+pub fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
+    let Some(f) = WallFrame::of(wall) else {
+        return Vec::new();
+    };
+    if !(opening_is_valid(o) && depth.is_finite() && depth > 0.0) {
+        return Vec::new();
+    }
+    let along = f.dir3() * o.width();
+    let up = DVec3::Z * o.height();
+    let into = f.inward3() * depth;
+    vec![
+        quad(f.at(o.u0, o.z0, 0.0), along, into), // sill, facing up
+        quad(f.at(o.u0, o.z1, 0.0), into, along), // head, facing down
+        quad(f.at(o.u0, o.z0, 0.0), into, up),    // jamb at u0, facing +dir
+        quad(f.at(o.u1, o.z0, 0.0), up, into),    // jamb at u1, facing -dir
+    ]
+}
+
+/// A balcony's geometry: the slab as a closed box and the railing as three panels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BalconyFaces {
+    /// Six faces: the slab from `z - SLAB_THICKNESS` to `z`, `depth` metres out from the wall.
+    pub slab: Vec<Face>,
+    /// Front and two end panels from `z` to `z + RAILING_HEIGHT`, facing away from the balcony.
+    pub railing: Vec<Face>,
+}
+
+impl BalconyFaces {
+    /// All faces, slab first.
+    pub fn all(&self) -> impl Iterator<Item = &Face> {
+        self.slab.iter().chain(self.railing.iter())
+    }
+}
+
+/// The geometry of balcony `b` on `wall`, or `None` for a degenerate wall or balcony.
+pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
+    let f = WallFrame::of(wall)?;
+    let ok = [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite())
+        && b.u1 > b.u0
+        && b.depth > 0.0;
+    if !ok {
+        return None;
+    }
+    let along = f.dir3() * (b.u1 - b.u0);
+    let out = -f.inward3() * b.depth;
+    // (out, along, up) is right-handed: out x along points up.
+    let slab = cuboid(
+        f.at(b.u0, b.z - SLAB_THICKNESS, 0.0),
+        out,
+        along,
+        DVec3::Z * SLAB_THICKNESS,
+    );
+    let up = DVec3::Z * RAILING_HEIGHT;
+    let railing = vec![
+        quad(f.at(b.u0, b.z, -b.depth), along, up), // front, facing out
+        quad(f.at(b.u0, b.z, 0.0), out, up),        // end at u0, facing -dir
+        quad(f.at(b.u1, b.z, 0.0), up, out),        // end at u1, facing +dir
+    ];
+    Some(BalconyFaces { slab, railing })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::Color;
+    use crate::model::OpeningKind;
+
+    fn wall(start: DVec2, end: DVec2) -> Wall {
+        Wall {
+            start,
+            end,
+            base_z: 0.0,
+            top_z: 3.0,
+            thickness: 0.3,
+            outline: Face::new(vec![
+                start.extend(0.0),
+                end.extend(0.0),
+                end.extend(3.0),
+                start.extend(3.0),
+            ]),
+            storey: 0,
+            openings: Vec::new(),
+            balconies: Vec::new(),
+        }
+    }
+
+    fn window() -> Opening {
+        Opening {
+            kind: OpeningKind::Window,
+            u0: 1.0,
+            u1: 2.0,
+            z0: 1.0,
+            z1: 2.5,
+            color: Color::WHITE,
+            frame_color: Color::WHITE,
+            glazed: true,
+            framed: false,
+        }
+    }
+
+    /// Normal of a face as a unit vector.
+    fn n(f: &Face) -> DVec3 {
+        f.normal()
+    }
+
+    #[test]
+    fn opening_faces_outward_and_reveals_inward() {
+        // Front wall of a CCW footprint: outside is -y.
+        let w = wall(DVec2::new(0.0, 0.0), DVec2::new(10.0, 0.0));
+        let pane = opening_face(&w, &window(), 0.1).unwrap();
+        assert!((n(&pane) - w.outline.normal()).length() < 1e-12);
+        assert!(pane.outer.iter().all(|p| (p.y - 0.1).abs() < 1e-12));
+        let r = opening_reveals(&w, &window(), 0.1);
+        let normals: Vec<DVec3> = r.iter().map(n).collect();
+        assert!((normals[0] - DVec3::Z).length() < 1e-12);
+        assert!((normals[1] + DVec3::Z).length() < 1e-12);
+        assert!((normals[2] - DVec3::X).length() < 1e-12);
+        assert!((normals[3] + DVec3::X).length() < 1e-12);
+        assert!(opening_reveals(&w, &window(), 0.0).is_empty());
+    }
+
+    #[test]
+    fn balcony_box_is_closed_and_outward() {
+        let w = wall(DVec2::new(10.0, 0.0), DVec2::new(10.0, 6.0)); // east wall, outside +x
+        let b = Balcony {
+            u0: 1.0,
+            u1: 4.0,
+            z: 3.0,
+            depth: 1.2,
+            color: Color::WHITE,
+        };
+        let f = balcony_faces(&w, &b).unwrap();
+        assert_eq!(f.slab.len(), 6);
+        let centre = DVec3::new(10.6, 2.5, 2.9);
+        let mut sum = DVec3::ZERO;
+        for face in &f.slab {
+            let c = face.outer.iter().copied().sum::<DVec3>() / 4.0;
+            assert!(n(face).dot(c - centre) > 0.0, "slab face faces out");
+            sum += crate::geometry::newell_normal(&face.outer);
+        }
+        assert!(sum.length() < 1e-9, "closed box: area vectors cancel");
+        assert!((n(&f.railing[0]) - DVec3::X).length() < 1e-12);
+        assert!((n(&f.railing[1]) + DVec3::Y).length() < 1e-12);
+        assert!((n(&f.railing[2]) - DVec3::Y).length() < 1e-12);
+        let xs: Vec<f64> = f.all().flat_map(|f| f.outer.iter().map(|p| p.x)).collect();
+        assert!(xs.iter().all(|x| (10.0..=11.2 + 1e-9).contains(x)));
+        let bad = Balcony { depth: 0.0, ..b };
+        assert!(balcony_faces(&w, &bad).is_none());
+    }
+}
