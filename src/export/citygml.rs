@@ -5,11 +5,21 @@
 //!
 //! - **LOD1**: `bldg:lod1Solid` whose `gml:CompositeSurface` holds the ground, wall and roof
 //!   polygons inline.
-//! - **LOD2** (and LOD3/LOD4 runs, whose openings and rooms the model does not carry yet):
-//!   `bldg:boundedBy` with one `bldg:GroundSurface` per part, one `bldg:WallSurface` per wall and
-//!   one `bldg:RoofSurface` per roof face, each holding its polygon in a `bldg:lod2MultiSurface`;
-//!   `bldg:lod2Solid` references those polygons with `xlink:href="#id"` so every coordinate is
-//!   written once.
+//! - **LOD2**: `bldg:boundedBy` with one `bldg:GroundSurface` per part, one `bldg:WallSurface`
+//!   per wall and one `bldg:RoofSurface` per roof face, each holding its polygon in a
+//!   `bldg:lod2MultiSurface`; `bldg:lod2Solid` references those polygons with `xlink:href="#id"`
+//!   so every coordinate is written once.
+//! - **LOD3** (and LOD4 runs, whose rooms the model does not carry yet): the same boundary
+//!   surfaces in `bldg:lod3MultiSurface`, wall polygons keeping their interior rings (the
+//!   openings' holes). Each wall surface lists its openings as `bldg:opening` with a
+//!   `bldg:Window` or `bldg:Door` whose `bldg:lod3MultiSurface` holds the opening's rectangle in
+//!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
+//!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose
+//!   `bldg:lod3Geometry` is a `gml:MultiSurface` of the slab (a closed box) and the railing
+//!   panels. `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
+//!   together close the shell. Elements follow the schema's order: installations, boundary
+//!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
+//!   0.6, doors and opaque windows their colour, balconies theirs.
 //!
 //! A building with one part carries its geometry itself; with several parts each part becomes a
 //! `bldg:BuildingPart` (with its own roof type, height, storeys and geometry) under
@@ -22,21 +32,24 @@
 //!
 //! Identifiers are built from the source id only (`way/123` gives `B_way_123`, its part `p0`
 //! gives `B_way_123_p0`, that part's polygons `B_way_123_p0_g`, `..._w3`, `..._r0`, their
-//! boundary surfaces `..._w3_s`, the building's materials `B_way_123_m0`), so they are stable
-//! from run to run. The caller must not write two buildings with the same source id: their ids
+//! boundary surfaces `..._w3_s`, the building's materials `B_way_123_m0`; at LOD3 that wall's
+//! openings `..._w3_o0` with polygons `..._w3_o0_p`, its balconies `..._w3_b0` with polygons
+//! `..._w3_b0_0` ...), so they are stable from run to run. The caller must not write two buildings with the same source id: their ids
 //! would clash.
 //!
 //! Faces whose outer ring has fewer than 3 distinct vertices are left out (a ring that repeats its
 //! first vertex at the end is accepted), as are such holes; any non-finite coordinate or height
-//! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written.
+//! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written. Openings
+//! or balconies with an empty extent (or on a wall without length) are left out.
 
 use std::io::Write;
 
 use glam::DVec3;
 
 use crate::color::Color;
+use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
-use crate::model::{Building, Face, Lod, Part, RoofShape};
+use crate::model::{Building, Face, Lod, OpeningKind, Part, RoofShape, Wall};
 
 /// Code list of `bldg:roofType` values ([`RoofShape::citygml_code`]).
 const ROOF_TYPE_CODESPACE: &str =
@@ -44,6 +57,9 @@ const ROOF_TYPE_CODESPACE: &str =
 
 /// Theme of the appearance that carries the colours.
 const APPEARANCE_THEME: &str = "citygen";
+
+/// `app:transparency` of glazed windows' glass.
+const GLASS_TRANSPARENCY: f32 = 0.6;
 
 const HEADER_NAMESPACES: &str = concat!(
     "<core:CityModel",
@@ -75,6 +91,18 @@ enum GeometryLod {
     Lod1,
     /// Semantic boundary surfaces plus an `lod2Solid` of references.
     Lod2,
+    /// LOD2's structure in `lod3` properties, with openings and balconies.
+    Lod3,
+}
+
+impl GeometryLod {
+    fn digit(self) -> &'static str {
+        match self {
+            GeometryLod::Lod1 => "1",
+            GeometryLod::Lod2 => "2",
+            GeometryLod::Lod3 => "3",
+        }
+    }
 }
 
 /// Streaming CityGML 2.0 writer (see the module documentation for what it writes).
@@ -162,10 +190,10 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         attr.escaped(&srs_name, true);
         self.srs_attr = String::from_utf8_lossy(&attr.0).into_owned();
         self.origin = ctx.origin;
-        self.lod = if ctx.lod == Lod::Lod1 {
-            GeometryLod::Lod1
-        } else {
-            GeometryLod::Lod2
+        self.lod = match ctx.lod {
+            Lod::Lod1 => GeometryLod::Lod1,
+            Lod::Lod2 => GeometryLod::Lod2,
+            Lod::Lod3 | Lod::Lod4 => GeometryLod::Lod3,
         };
 
         let x = &mut self.buf;
@@ -177,11 +205,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         x.s(", seed ");
         x.uint(ctx.seed);
         x.s(", LOD");
-        x.s(if self.lod == GeometryLod::Lod1 {
-            "1"
-        } else {
-            "2"
-        });
+        x.s(self.lod.digit());
         x.s(" geometry</gml:description>\n");
         if !ctx.source_name.is_empty() {
             x.s("<gml:name>");
@@ -246,6 +270,16 @@ fn check_finite(b: &Building) -> Result<(), ExportError> {
                 return Err(bad(&format!("a coordinate of part {}", p.key)));
             }
         }
+        for (i, w) in p.walls.iter().enumerate() {
+            let openings = w.openings.iter().flat_map(|o| [o.u0, o.u1, o.z0, o.z1]);
+            let balconies = w.balconies.iter().flat_map(|b| [b.u0, b.u1, b.z, b.depth]);
+            if !openings.chain(balconies).all(f64::is_finite) {
+                return Err(bad(&format!(
+                    "an opening or balcony of wall {i} of part {}",
+                    p.key
+                )));
+            }
+        }
     }
     Ok(())
 }
@@ -256,9 +290,19 @@ enum SurfaceKind {
     Ground,
     Wall,
     Roof,
+    /// An opening of wall `wall` (the surface's index is the opening's).
+    Opening {
+        wall: usize,
+    },
+    /// A face of balcony `balcony` of wall `wall` (the surface's index is the face's).
+    Balcony {
+        wall: usize,
+        balcony: usize,
+    },
 }
 
-/// One polygon to write: its kind, its index in the model's list, and its face.
+/// One polygon to write: its kind, its index in the model's list (for openings and balcony
+/// faces, in the wall's or the balcony's list), and its face.
 struct Surface<'a> {
     kind: SurfaceKind,
     index: usize,
@@ -359,6 +403,23 @@ impl ColorKey {
 /// A polygon an appearance targets: (part index, kind, index in the part's list).
 type Target = (usize, SurfaceKind, usize);
 
+/// Adds `target` to the material of `color`, creating it (last) on first use.
+fn add_target(materials: &mut Vec<(ColorKey, Vec<Target>)>, color: Color, target: Target) {
+    let key = ColorKey::of(color);
+    match materials.iter_mut().find(|(k, _)| *k == key) {
+        Some((_, targets)) => targets.push(target),
+        None => materials.push((key, vec![target])),
+    }
+}
+
+/// The walls that are written (see [`surfaces`]) with their indices: only their openings and
+/// balconies are.
+fn written_walls(part: &Part) -> impl Iterator<Item = (usize, &Wall)> {
+    surfaces(part)
+        .filter(|s| s.kind == SurfaceKind::Wall)
+        .filter_map(|s| part.walls.get(s.index).map(|w| (s.index, w)))
+}
+
 /// Renders one building into the scratch buffer.
 struct Renderer<'a> {
     x: &'a mut Xml,
@@ -421,7 +482,24 @@ impl Renderer<'_> {
         let Some(&first) = points.next() else {
             return;
         };
-        let (lo, hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let (mut lo, mut hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        if self.lod == GeometryLod::Lod3 {
+            // Balconies stand out of the walls.
+            for part in &b.parts {
+                for (_, wall) in written_walls(part) {
+                    for f in wall
+                        .balconies
+                        .iter()
+                        .filter_map(|bc| balcony_faces(wall, bc))
+                    {
+                        for p in f.all().flat_map(|f| f.outer.iter()) {
+                            lo = lo.min(*p);
+                            hi = hi.max(*p);
+                        }
+                    }
+                }
+            }
+        }
         let x = &mut *self.x;
         x.s("<gml:boundedBy>\n<gml:Envelope srsName=\"");
         x.s(self.srs);
@@ -450,14 +528,46 @@ impl Renderer<'_> {
             for s in surfaces(part) {
                 let color = match s.kind {
                     SurfaceKind::Ground => Color::GREY,
-                    SurfaceKind::Wall => part.wall_color,
                     SurfaceKind::Roof => part.roof_color,
+                    // `surfaces` yields no openings or balconies.
+                    SurfaceKind::Wall
+                    | SurfaceKind::Opening { .. }
+                    | SurfaceKind::Balcony { .. } => part.wall_color,
                 };
-                let key = ColorKey::of(color);
-                let target = (pi, s.kind, s.index);
-                match materials.iter_mut().find(|(k, _)| *k == key) {
-                    Some((_, targets)) => targets.push(target),
-                    None => materials.push((key, vec![target])),
+                add_target(&mut materials, color, (pi, s.kind, s.index));
+            }
+            if self.lod != GeometryLod::Lod3 {
+                continue;
+            }
+            for (wi, wall) in written_walls(part) {
+                for (k, o) in wall.openings.iter().enumerate() {
+                    if opening_face(wall, o, 0.0).is_none() {
+                        continue;
+                    }
+                    let color = match o.kind {
+                        OpeningKind::Window if o.glazed => Color {
+                            a: 1.0 - GLASS_TRANSPARENCY,
+                            ..o.color
+                        },
+                        _ => Color { a: 1.0, ..o.color },
+                    };
+                    add_target(
+                        &mut materials,
+                        color,
+                        (pi, SurfaceKind::Opening { wall: wi }, k),
+                    );
+                }
+                for (k, bc) in wall.balconies.iter().enumerate() {
+                    let Some(f) = balcony_faces(wall, bc) else {
+                        continue;
+                    };
+                    for i in 0..f.all().count() {
+                        let kind = SurfaceKind::Balcony {
+                            wall: wi,
+                            balcony: k,
+                        };
+                        add_target(&mut materials, bc.color, (pi, kind, i));
+                    }
                 }
             }
         }
@@ -515,12 +625,12 @@ impl Renderer<'_> {
             // A solid needs at least one surface member; a part without any writes none.
             return;
         }
+        if self.lod == GeometryLod::Lod3 {
+            self.geometry_lod3(part, pid);
+            return;
+        }
         let x = &mut *self.x;
-        let lod = if self.lod == GeometryLod::Lod1 {
-            "1"
-        } else {
-            "2"
-        };
+        let lod = self.lod.digit();
         x.s("<bldg:lod");
         x.s(lod);
         x.s("Solid>\n<gml:Solid srsName=\"");
@@ -533,7 +643,7 @@ impl Renderer<'_> {
                     x.polygon(pid, &s, self.origin);
                     x.s("</gml:surfaceMember>\n");
                 }
-                GeometryLod::Lod2 => {
+                GeometryLod::Lod2 | GeometryLod::Lod3 => {
                     x.s("<gml:surfaceMember xlink:href=\"#");
                     x.polygon_id(pid, s.kind, s.index);
                     x.s("\"/>\n");
@@ -547,11 +657,7 @@ impl Renderer<'_> {
             return;
         }
         for s in surfaces(part) {
-            let element = match s.kind {
-                SurfaceKind::Ground => "bldg:GroundSurface",
-                SurfaceKind::Wall => "bldg:WallSurface",
-                SurfaceKind::Roof => "bldg:RoofSurface",
-            };
+            let element = boundary_element(s.kind);
             x.s("<bldg:boundedBy>\n<");
             x.s(element);
             x.s(" gml:id=\"");
@@ -563,6 +669,126 @@ impl Renderer<'_> {
             x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod2MultiSurface>\n</");
             x.s(element);
             x.s(">\n</bldg:boundedBy>\n");
+        }
+    }
+}
+
+impl Renderer<'_> {
+    /// LOD3 geometry in the schema's order: balconies (`outerBuildingInstallation`), boundary
+    /// surfaces with their openings, then `lod3Solid` referencing the closed shell's polygons.
+    fn geometry_lod3(&mut self, part: &Part, pid: &str) {
+        let (origin, srs) = (self.origin, self.srs);
+        let x = &mut *self.x;
+        for (wi, wall) in written_walls(part) {
+            for (k, bc) in wall.balconies.iter().enumerate() {
+                let Some(faces) = balcony_faces(wall, bc) else {
+                    continue;
+                };
+                x.s("<bldg:outerBuildingInstallation>\n<bldg:BuildingInstallation gml:id=\"");
+                x.polygon_id(pid, SurfaceKind::Wall, wi);
+                x.s("_b");
+                x.uint(k as u64);
+                x.s("\">\n<gml:name>balcony</gml:name>\n<bldg:lod3Geometry>\n<gml:MultiSurface srsName=\"");
+                x.s(srs);
+                x.s("\">\n");
+                let kind = SurfaceKind::Balcony {
+                    wall: wi,
+                    balcony: k,
+                };
+                for (i, face) in faces.all().enumerate() {
+                    x.s("<gml:surfaceMember>\n");
+                    x.polygon(
+                        pid,
+                        &Surface {
+                            kind,
+                            index: i,
+                            face,
+                        },
+                        origin,
+                    );
+                    x.s("</gml:surfaceMember>\n");
+                }
+                x.s("</gml:MultiSurface>\n</bldg:lod3Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
+            }
+        }
+        // Opening polygons of the written walls, kept for the solid's references.
+        let mut opening_refs: Vec<(usize, usize)> = Vec::new();
+        for s in surfaces(part) {
+            let element = boundary_element(s.kind);
+            x.s("<bldg:boundedBy>\n<");
+            x.s(element);
+            x.s(" gml:id=\"");
+            x.polygon_id(pid, s.kind, s.index);
+            x.s("_s\">\n<bldg:lod3MultiSurface>\n<gml:MultiSurface srsName=\"");
+            x.s(srs);
+            x.s("\">\n<gml:surfaceMember>\n");
+            x.polygon(pid, &s, origin);
+            x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod3MultiSurface>\n");
+            if s.kind == SurfaceKind::Wall {
+                if let Some(wall) = part.walls.get(s.index) {
+                    for (k, o) in wall.openings.iter().enumerate() {
+                        let Some(face) = opening_face(wall, o, 0.0) else {
+                            continue;
+                        };
+                        opening_refs.push((s.index, k));
+                        let element = match o.kind {
+                            OpeningKind::Window => "bldg:Window",
+                            OpeningKind::Door => "bldg:Door",
+                        };
+                        x.s("<bldg:opening>\n<");
+                        x.s(element);
+                        x.s(" gml:id=\"");
+                        x.polygon_id(pid, SurfaceKind::Wall, s.index);
+                        x.s("_o");
+                        x.uint(k as u64);
+                        x.s("\">\n<bldg:lod3MultiSurface>\n<gml:MultiSurface srsName=\"");
+                        x.s(srs);
+                        x.s("\">\n<gml:surfaceMember>\n");
+                        let kind = SurfaceKind::Opening { wall: s.index };
+                        x.polygon(
+                            pid,
+                            &Surface {
+                                kind,
+                                index: k,
+                                face: &face,
+                            },
+                            origin,
+                        );
+                        x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod3MultiSurface>\n</");
+                        x.s(element);
+                        x.s(">\n</bldg:opening>\n");
+                    }
+                }
+            }
+            x.s("</");
+            x.s(element);
+            x.s(">\n</bldg:boundedBy>\n");
+        }
+        x.s("<bldg:lod3Solid>\n<gml:Solid srsName=\"");
+        x.s(srs);
+        x.s("\">\n<gml:exterior>\n<gml:CompositeSurface>\n");
+        let shell = surfaces(part).map(|s| (s.kind, s.index)).chain(
+            opening_refs
+                .iter()
+                .map(|&(wall, k)| (SurfaceKind::Opening { wall }, k)),
+        );
+        for (kind, index) in shell {
+            x.s("<gml:surfaceMember xlink:href=\"#");
+            x.polygon_id(pid, kind, index);
+            x.s("\"/>\n");
+        }
+        x.s("</gml:CompositeSurface>\n</gml:exterior>\n</gml:Solid>\n</bldg:lod3Solid>\n");
+    }
+}
+
+/// The boundary surface element of a part's own polygon kind.
+fn boundary_element(kind: SurfaceKind) -> &'static str {
+    match kind {
+        SurfaceKind::Ground => "bldg:GroundSurface",
+        SurfaceKind::Roof => "bldg:RoofSurface",
+        // Openings and balconies are not boundary surfaces; never asked for.
+        SurfaceKind::Wall | SurfaceKind::Opening { .. } | SurfaceKind::Balcony { .. } => {
+            "bldg:WallSurface"
         }
     }
 }
@@ -672,6 +898,21 @@ impl Xml {
             }
             SurfaceKind::Roof => {
                 self.s("_r");
+                self.uint(index as u64);
+            }
+            SurfaceKind::Opening { wall } => {
+                self.s("_w");
+                self.uint(wall as u64);
+                self.s("_o");
+                self.uint(index as u64);
+                self.s("_p");
+            }
+            SurfaceKind::Balcony { wall, balcony } => {
+                self.s("_w");
+                self.uint(wall as u64);
+                self.s("_b");
+                self.uint(balcony as u64);
+                self.s("_");
                 self.uint(index as u64);
             }
         }

@@ -63,12 +63,12 @@ fn quad(p: DVec3, a: DVec3, b: DVec3) -> Face {
 /// each facing out of the box.
 fn cuboid(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Vec<Face> {
     vec![
-        quad(p, b, a),         // -c
-        quad(p + c, a, b),     // +c
-        quad(p, c, b),         // -a
-        quad(p + a, b, c),     // +a
-        quad(p, a, c),         // -b
-        quad(p + b, c, a),     // +b
+        quad(p, b, a),     // -c
+        quad(p + c, a, b), // +c
+        quad(p, c, b),     // -a
+        quad(p + a, b, c), // +a
+        quad(p, a, c),     // -b
+        quad(p + b, c, a), // +b
     ]
 }
 
@@ -133,9 +133,8 @@ impl BalconyFaces {
 /// The geometry of balcony `b` on `wall`, or `None` for a degenerate wall or balcony.
 pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
     let f = WallFrame::of(wall)?;
-    let ok = [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite())
-        && b.u1 > b.u0
-        && b.depth > 0.0;
+    let ok =
+        [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite()) && b.u1 > b.u0 && b.depth > 0.0;
     if !ok {
         return None;
     }
