@@ -959,6 +959,7 @@ mod tests {
 
     use super::*;
     use crate::crs::Crs;
+    use crate::export::lod3geom::samples;
     use crate::geometry::Polygon;
     use crate::input::SourceId;
     use crate::model::Wall;
@@ -1737,8 +1738,326 @@ mod tests {
         assert!(w.finish().is_err());
     }
 
-    /// Runs the reference validator (OGC CityGML 2.0 XSDs) on LOD1 and LOD2 output when it is
-    /// installed; skipped otherwise so that the suite runs anywhere.
+    // ---- LOD3 ----
+
+    /// Points of a polygon's rings, each ring without its closing point.
+    fn rings_of(polygon: &El) -> Vec<Vec<DVec3>> {
+        polygon
+            .find_all("gml:posList")
+            .iter()
+            .map(|l| {
+                let v = numbers(&l.text);
+                let mut pts: Vec<DVec3> = v
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0], c[1], c[2]) - ORIGIN)
+                    .collect();
+                assert_eq!(pts.first(), pts.last(), "closed ring");
+                pts.pop();
+                pts
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lod3_openings_per_building_match_the_model() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        check_ids(&root);
+        assert!(root
+            .child("gml:description")
+            .unwrap()
+            .text
+            .contains("LOD3 geometry"));
+        for (el, b) in buildings_of(&root).into_iter().zip(&buildings) {
+            let (windows, doors) = samples::counts(b);
+            assert_eq!(el.count("bldg:Window"), windows, "{}", b.id);
+            assert_eq!(el.count("bldg:Door"), doors, "{}", b.id);
+            assert_eq!(el.count("bldg:opening"), windows + doors);
+            let walls: usize = b.parts.iter().map(|p| p.walls.len()).sum();
+            assert_eq!(el.count("bldg:WallSurface"), walls);
+            // LOD3 properties only.
+            for name in ["bldg:lod2Solid", "bldg:lod2MultiSurface", "bldg:lod1Solid"] {
+                assert_eq!(el.count(name), 0, "{name}");
+            }
+            assert_eq!(el.count("bldg:lod3Solid"), b.parts.len());
+            let balconies: usize = b
+                .parts
+                .iter()
+                .flat_map(|p| &p.walls)
+                .map(|w| w.balconies.len())
+                .sum();
+            assert_eq!(el.count("bldg:BuildingInstallation"), balconies);
+        }
+        let house = buildings_of(&root)[0];
+        assert_eq!(house.count("bldg:Window"), 4);
+        assert_eq!(house.count("bldg:Door"), 1);
+        let ids: Vec<&str> = house
+            .find_all("bldg:Window")
+            .iter()
+            .chain(house.find_all("bldg:Door").iter())
+            .map(|e| e.attr("gml:id").unwrap())
+            .collect();
+        assert_eq!(
+            ids,
+            [
+                "B_way_301_p0_w0_o0",
+                "B_way_301_p0_w0_o2",
+                "B_way_301_p0_w4_o0",
+                "B_way_301_p0_w4_o1",
+                "B_way_301_p0_w0_o1"
+            ]
+        );
+    }
+
+    #[test]
+    fn lod3_walls_keep_holes_filled_by_opening_polygons() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        for (el, b) in buildings_of(&root).into_iter().zip(&buildings) {
+            let model_walls: Vec<&Wall> = b.parts.iter().flat_map(|p| &p.walls).collect();
+            let surfaces = el.find_all("bldg:WallSurface");
+            assert_eq!(surfaces.len(), model_walls.len());
+            for (s, w) in surfaces.iter().zip(&model_walls) {
+                // Schema order inside a boundary surface: geometry, then openings.
+                let names: Vec<&str> = s.children.iter().map(|c| c.name.as_str()).collect();
+                let first_opening = names.iter().position(|n| *n == "bldg:opening");
+                assert_eq!(names[0], "bldg:lod3MultiSurface");
+                assert!(
+                    first_opening.is_none_or(|i| names[i..].iter().all(|n| *n == "bldg:opening"))
+                );
+                let wall_poly = s
+                    .child("bldg:lod3MultiSurface")
+                    .unwrap()
+                    .find_all("gml:Polygon")[0];
+                assert_eq!(wall_poly.count("gml:interior"), w.openings.len());
+                let rings = rings_of(wall_poly);
+                let normal = w.outline.normal();
+                let openings: Vec<&El> = s
+                    .children_named("bldg:opening")
+                    .map(|o| &o.children[0])
+                    .collect();
+                assert_eq!(openings.len(), w.openings.len());
+                for (k, (o_el, o)) in openings.iter().zip(&w.openings).enumerate() {
+                    let name = match o.kind {
+                        OpeningKind::Window => "bldg:Window",
+                        OpeningKind::Door => "bldg:Door",
+                    };
+                    assert_eq!(o_el.name, name);
+                    let poly = o_el.find_all("gml:Polygon")[0];
+                    let pts = &rings_of(poly)[0];
+                    // Faces outward like the wall ...
+                    let n = crate::geometry::newell_normal(pts).normalize();
+                    assert!((n - normal).length() < 1e-3, "{n} vs {normal}");
+                    assert!(
+                        (crate::geometry::newell_normal(pts).length() / 2.0
+                            - o.width() * o.height())
+                        .abs()
+                            < 1e-2
+                    );
+                    // ... and has the corners of the wall's hole k.
+                    let hole = &rings[k + 1];
+                    for p in pts {
+                        assert!(
+                            hole.iter().any(|q| q.distance(*p) < 1e-3),
+                            "{p} not in hole"
+                        );
+                    }
+                    // Holes run against the outline.
+                    let hn = crate::geometry::newell_normal(hole).normalize();
+                    assert!((hn + normal).length() < 1e-3);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lod3_solid_references_the_closed_shell() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        for (el, b) in buildings_of(&root).into_iter().zip(&buildings) {
+            let solids = el.find_all("bldg:lod3Solid");
+            for (solid, part) in solids.iter().zip(&b.parts) {
+                let refs: Vec<&str> = solid
+                    .find_all("gml:surfaceMember")
+                    .iter()
+                    .map(|m| m.attr("xlink:href").unwrap())
+                    .collect();
+                let openings: usize = part.walls.iter().map(|w| w.openings.len()).sum();
+                assert_eq!(
+                    refs.len(),
+                    1 + part.walls.len() + part.roof.len() + openings
+                );
+                assert_eq!(solid.count("gml:Polygon"), 0);
+                assert_eq!(refs.iter().filter(|r| r.ends_with("_p")).count(), openings);
+            }
+            // Closed shell: the area vectors of the referenced polygons (outer rings minus holes,
+            // plus the opening polygons) cancel out.
+            let polygons: BTreeMap<&str, &El> = el
+                .find_all("gml:Polygon")
+                .into_iter()
+                .map(|p| (p.attr("gml:id").unwrap(), p))
+                .collect();
+            for solid in solids {
+                let mut sum = DVec3::ZERO;
+                for m in solid.find_all("gml:surfaceMember") {
+                    let id = m.attr("xlink:href").unwrap().trim_start_matches('#');
+                    for r in rings_of(polygons[id]) {
+                        sum += crate::geometry::newell_normal(&r);
+                    }
+                }
+                assert!(sum.length() < 1e-2, "{} open shell: {sum}", b.id);
+            }
+        }
+    }
+
+    #[test]
+    fn lod3_element_order_and_balconies() {
+        let b = samples::with_balcony();
+        let root = parse(&write_all(Lod::Lod3, std::slice::from_ref(&b)));
+        check_ids(&root);
+        let parts = root.find_all("bldg:BuildingPart");
+        assert_eq!(parts.len(), 2);
+        let rank = |n: &str| match n {
+            "gml:name" | "gml:boundedBy" | "gen:stringAttribute" | "app:appearance" => 0,
+            "bldg:roofType" | "bldg:measuredHeight" | "bldg:storeysAboveGround" => 1,
+            "bldg:outerBuildingInstallation" => 2,
+            "bldg:boundedBy" => 3,
+            "bldg:lod3Solid" => 4,
+            other => panic!("unexpected {other}"),
+        };
+        for p in &parts {
+            let names: Vec<&str> = p.children.iter().map(|c| c.name.as_str()).collect();
+            assert!(
+                names.windows(2).all(|w| rank(w[0]) <= rank(w[1])),
+                "{names:?}"
+            );
+        }
+        let inst = parts[0].find_all("bldg:BuildingInstallation");
+        assert_eq!(inst.len(), 1);
+        assert_eq!(inst[0].attr("gml:id"), Some("B_way_303_p0_w4_b0"));
+        assert_eq!(inst[0].child("gml:name").unwrap().text, "balcony");
+        let geom = inst[0].child("bldg:lod3Geometry").unwrap();
+        assert_eq!(
+            geom.count("gml:Polygon"),
+            9,
+            "slab box and three railing panels"
+        );
+        // The slab stands 1.2 m out of the wall (y = 0, outside is -y); the envelope covers it.
+        let ys: Vec<f64> = geom
+            .find_all("gml:Polygon")
+            .iter()
+            .flat_map(|p| rings_of(p).concat())
+            .map(|p| p.y)
+            .collect();
+        let min_y = ys.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!((min_y + 1.2).abs() < 1e-3, "{min_y}");
+        let env = buildings_of(&root)[0]
+            .child("gml:boundedBy")
+            .unwrap()
+            .child("gml:Envelope")
+            .unwrap();
+        let lo = numbers(&env.child("gml:lowerCorner").unwrap().text);
+        assert!((lo[1] - (ORIGIN.y - 1.2)).abs() < 1e-3);
+        assert_eq!(parts[1].count("bldg:BuildingInstallation"), 0);
+        assert_eq!(parts[1].count("bldg:Door"), 1);
+    }
+
+    #[test]
+    fn lod3_appearance_glass_doors_balconies() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        let all_ids = check_ids(&root);
+        for el in buildings_of(&root) {
+            let mats = el.find_all("app:X3DMaterial");
+            let mut targets: Vec<&str> = mats
+                .iter()
+                .flat_map(|m| m.children_named("app:target").map(|t| t.text.as_str()))
+                .collect();
+            let n = targets.len();
+            targets.sort_unstable();
+            targets.dedup();
+            assert_eq!(targets.len(), n, "a polygon coloured twice");
+            assert_eq!(n, el.count("gml:Polygon"), "every polygon coloured");
+            let colour_of = |id: &str| {
+                let m = mats
+                    .iter()
+                    .find(|m| {
+                        m.children_named("app:target")
+                            .any(|t| t.text == format!("#{id}"))
+                    })
+                    .unwrap();
+                (
+                    m.child("app:diffuseColor").unwrap().text.clone(),
+                    m.child("app:transparency").map(|t| t.text.clone()),
+                )
+            };
+            for w in el.find_all("bldg:Window") {
+                let poly = w.find_all("gml:Polygon")[0].attr("gml:id").unwrap();
+                let (_, t) = colour_of(poly);
+                if poly == "B_relation_302_p0_w4_o1_p" {
+                    assert_eq!(t, None, "opaque window");
+                } else {
+                    assert_eq!(t.as_deref(), Some("0.6000"), "{poly}");
+                }
+            }
+            for d in el.find_all("bldg:Door") {
+                let poly = d.find_all("gml:Polygon")[0].attr("gml:id").unwrap();
+                assert_eq!(colour_of(poly), ("0.4000 0.2500 0.1000".to_string(), None));
+            }
+            for i in el.find_all("bldg:BuildingInstallation") {
+                for p in i.find_all("gml:Polygon") {
+                    let (c, _) = colour_of(p.attr("gml:id").unwrap());
+                    assert_eq!(c, "0.6000 0.6000 0.6000");
+                }
+            }
+        }
+        assert!(all_ids.contains("B_way_304_p0_w1_o0"), "gable window");
+    }
+
+    #[test]
+    fn lod3_output_is_deterministic_and_lod2_ignores_nothing_it_had() {
+        let b = samples::all();
+        assert_eq!(write_all(Lod::Lod3, &b), write_all(Lod::Lod3, &b));
+        // LOD4 runs write LOD3 geometry.
+        let lod4 = parse(&write_all(Lod::Lod4, &b));
+        assert_eq!(
+            lod4.count("bldg:Window"),
+            b.iter().map(|x| samples::counts(x).0).sum::<usize>()
+        );
+        // At LOD2 the same walls are written without openings.
+        let lod2 = parse(&write_all(Lod::Lod2, &b));
+        assert_eq!(
+            lod2.count("bldg:opening") + lod2.count("bldg:BuildingInstallation"),
+            0
+        );
+    }
+
+    #[test]
+    fn lod3_rejects_non_finite_openings() {
+        let mut bad = samples::house();
+        bad.parts[0].walls[0].openings[1].z1 = f64::INFINITY;
+        let mut w = CityGmlWriter::with_srs_name(Vec::new(), "EPSG:2154");
+        w.begin(&ctx(Lod::Lod3)).unwrap();
+        let err = w.write(&bad).unwrap_err().to_string();
+        assert!(err.contains("way/301") && err.contains("wall 0"), "{err}");
+        // A degenerate opening is left out, the rest is written.
+        let mut odd = samples::house();
+        odd.parts[0].walls[0].openings[0].u1 = odd.parts[0].walls[0].openings[0].u0;
+        w.write(&odd).unwrap();
+        w.finish().unwrap();
+        let root = parse(&w.into_inner());
+        check_ids(&root);
+        assert_eq!(root.count("bldg:Window"), 3);
+    }
+
+    #[test]
+    #[ignore = "writes /tmp/c3.gml for manual validation"]
+    fn dump_lod3_sample() {
+        std::fs::write("/tmp/c3.gml", write_all(Lod::Lod3, &samples::all())).unwrap();
+    }
+
+    /// Runs the reference validator (OGC CityGML 2.0 XSDs) on LOD1, LOD2 and LOD3 output when it
+    /// is installed; skipped otherwise so that the suite runs anywhere.
     #[test]
     fn validates_against_citygml_schemas() {
         let Some(validator) = installed_validator() else {
@@ -1754,13 +2073,18 @@ mod tests {
             std::fs::write(&path, write_all(lod, &all_buildings())).unwrap();
             files.push(path);
         }
+        let path = dir.path().join("lod3.gml");
+        let mut lod3 = all_buildings();
+        lod3.extend(samples::all());
+        std::fs::write(&path, write_all(Lod::Lod3, &lod3)).unwrap();
+        files.push(path);
         let out = std::process::Command::new(validator)
             .args(&files)
             .output()
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(
-            out.status.success() && text.contains("2 passed, 0 failed"),
+            out.status.success() && text.contains("3 passed, 0 failed"),
             "{text}\n{}",
             String::from_utf8_lossy(&out.stderr)
         );
