@@ -2,8 +2,17 @@
 //!
 //! Layout of the output: one scene; one node per building, named by the building key
 //! (`way_123`) with the source id, zone, appearance and heights in its `extras`; under it one
-//! child node per surface class (`walls`, `roof`, `ground`) holding one mesh, with one triangle
-//! primitive per material (usually one). Materials are PBR metallic-roughness, one per distinct
+//! child node per surface class (`walls`, `roof`, `ground`, and in LOD3 runs `windows`, `doors`,
+//! `balconies`) holding one mesh, with one triangle primitive per material (usually one). Classes
+//! without triangles get no node.
+//!
+//! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
+//! and door is a pane in its opening's rectangle set back [`OPENING_SETBACK`] into the wall
+//! (towards the inside, never deeper than the wall is thick) so it reads as recessed, plus four
+//! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
+//! else the wall colour. Glazed windows' glass is transparent (alpha [`GLASS_ALPHA`], `BLEND`);
+//! doors and unglazed windows are opaque in their colour. Balconies are a closed slab box and
+//! three railing panels, in a double-sided material. Materials are PBR metallic-roughness, one per distinct
 //! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
 //! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
 //! "origin": [E, N, H]}`). Faces are flat shaded: every face has its own vertices and normal.
@@ -23,9 +32,10 @@ use serde::Serialize;
 
 use crate::color::Color;
 use crate::crs::Crs;
+use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::geometry::triangulate::triangulate_face;
-use crate::model::{Building, Face};
+use crate::model::{Building, Face, Lod, OpeningKind, Part};
 
 /// GLB magic `glTF`, little-endian.
 const GLB_MAGIC: u32 = 0x4654_6C67;
@@ -47,6 +57,10 @@ const VEC3_STRIDE: u32 = 12;
 const ROUGHNESS: f32 = 0.9;
 /// Colour of ground surfaces (the model gives them none; they face down and are rarely seen).
 const GROUND_COLOR: Color = Color::GREY;
+/// How far window and door panes sit behind the wall's outer face (metres).
+pub const OPENING_SETBACK: f64 = 0.1;
+/// Opacity of glazed windows' glass.
+pub const GLASS_ALPHA: f32 = 0.35;
 
 /// Semantic class of a group of surfaces: one child node per class and building.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -54,15 +68,39 @@ enum SurfaceClass {
     Walls,
     Roof,
     Ground,
+    Windows,
+    Doors,
+    Balconies,
 }
 
 impl SurfaceClass {
+    /// Every class, in the order of the building's child nodes.
+    const ALL: [SurfaceClass; 6] = [
+        SurfaceClass::Walls,
+        SurfaceClass::Roof,
+        SurfaceClass::Ground,
+        SurfaceClass::Windows,
+        SurfaceClass::Doors,
+        SurfaceClass::Balconies,
+    ];
+
     fn name(self) -> &'static str {
         match self {
             SurfaceClass::Walls => "walls",
             SurfaceClass::Roof => "roof",
             SurfaceClass::Ground => "ground",
+            SurfaceClass::Windows => "windows",
+            SurfaceClass::Doors => "doors",
+            SurfaceClass::Balconies => "balconies",
         }
+    }
+
+    /// LOD3 detail classes, written only in LOD3 runs.
+    fn is_detail(self) -> bool {
+        matches!(
+            self,
+            SurfaceClass::Windows | SurfaceClass::Doors | SurfaceClass::Balconies
+        )
     }
 }
 
@@ -86,6 +124,8 @@ pub struct GltfWriter<W: Write + Send> {
     doc: Document,
     /// (class, colour bits) -> material index, for reuse across buildings.
     material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
+    /// Whether the run is LOD3 or above (openings and balconies are written).
+    detail: bool,
     /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
     /// `scratch` so that the file is closed before it is removed.
     scratch_guard: ScratchGuard,
@@ -114,6 +154,7 @@ impl<W: Write + Send> GltfWriter<W> {
             state: State::New,
             doc: Document::default(),
             material_index: BTreeMap::new(),
+            detail: false,
             scratch_guard: ScratchGuard(None),
         }
     }
@@ -171,6 +212,7 @@ impl<W: Write + Send> GltfWriter<W> {
             lod: ctx.lod.number(),
             source: ctx.source_name.clone(),
         };
+        self.detail = ctx.lod >= Lod::Lod3;
         self.state = State::Open;
         Ok(())
     }
@@ -179,35 +221,34 @@ impl<W: Write + Send> GltfWriter<W> {
     /// and records its nodes, meshes, accessors and buffer views.
     fn add_building(&mut self, b: &Building) -> Result<(), ExportError> {
         let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
-        for class in [
-            SurfaceClass::Walls,
-            SurfaceClass::Roof,
-            SurfaceClass::Ground,
-        ] {
+        for class in SurfaceClass::ALL {
+            if class.is_detail() && !self.detail {
+                continue;
+            }
             let mut groups: Vec<Group> = Vec::new();
             for part in &b.parts {
-                let (color, faces): (Color, Vec<&Face>) = match class {
-                    SurfaceClass::Walls => (
-                        part.wall_color,
-                        part.walls.iter().map(|w| &w.outline).collect(),
-                    ),
-                    SurfaceClass::Roof => (part.roof_color, part.roof.iter().collect()),
-                    SurfaceClass::Ground => (GROUND_COLOR, vec![&part.ground]),
-                };
-                let key = color_key(color);
-                let idx = match groups.iter().position(|g| g.color_key == key) {
-                    Some(i) => i,
-                    None => {
-                        groups.push(Group {
-                            color,
-                            color_key: key,
-                            mesh: MeshData::default(),
-                        });
-                        groups.len() - 1
+                match class {
+                    SurfaceClass::Walls => {
+                        let g = group(&mut groups, part.wall_color);
+                        part.walls.iter().for_each(|w| g.add_face(&w.outline));
                     }
-                };
-                for face in faces {
-                    groups[idx].mesh.add_face(face);
+                    SurfaceClass::Roof => {
+                        let g = group(&mut groups, part.roof_color);
+                        part.roof.iter().for_each(|f| g.add_face(f));
+                    }
+                    SurfaceClass::Ground => group(&mut groups, GROUND_COLOR).add_face(&part.ground),
+                    SurfaceClass::Windows => add_openings(&mut groups, part, OpeningKind::Window),
+                    SurfaceClass::Doors => add_openings(&mut groups, part, OpeningKind::Door),
+                    SurfaceClass::Balconies => {
+                        for w in &part.walls {
+                            for bc in &w.balconies {
+                                if let Some(f) = balcony_faces(w, bc) {
+                                    let g = group(&mut groups, bc.color);
+                                    f.all().for_each(|face| g.add_face(face));
+                                }
+                            }
+                        }
+                    }
                 }
             }
             groups.retain(|g| !g.mesh.indices.is_empty());
@@ -432,6 +473,8 @@ impl<W: Write + Send> GltfWriter<W> {
                 roughness_factor: ROUGHNESS,
             },
             alpha_mode: (c.a < 1.0).then_some("BLEND"),
+            // Railing panels are single quads, seen from both sides.
+            double_sided: (class == SurfaceClass::Balconies).then_some(true),
         });
         self.material_index.insert(key, i);
         i
@@ -578,6 +621,65 @@ struct Group {
     color: Color,
     color_key: [u32; 4],
     mesh: MeshData,
+}
+
+impl Group {
+    fn add_face(&mut self, face: &Face) {
+        self.mesh.add_face(face);
+    }
+}
+
+/// The group of `color` in `groups`, created (last) on first use.
+fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
+    let key = color_key(color);
+    let i = match groups.iter().position(|g| g.color_key == key) {
+        Some(i) => i,
+        None => {
+            groups.push(Group {
+                color,
+                color_key: key,
+                mesh: MeshData::default(),
+            });
+            groups.len() - 1
+        }
+    };
+    &mut groups[i]
+}
+
+/// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation).
+fn add_openings(groups: &mut Vec<Group>, part: &Part, kind: OpeningKind) {
+    for w in &part.walls {
+        // Never behind the wall's inner face; no setback (and no reveals) for a wall without
+        // thickness.
+        let depth = if w.thickness.is_finite() && w.thickness > 0.0 {
+            OPENING_SETBACK.min(w.thickness)
+        } else {
+            0.0
+        };
+        for o in w.openings.iter().filter(|o| o.kind == kind) {
+            let Some(pane) = opening_face(w, o, depth) else {
+                continue;
+            };
+            let color = if kind == OpeningKind::Window && o.glazed {
+                Color {
+                    a: GLASS_ALPHA,
+                    ..o.color
+                }
+            } else {
+                Color { a: 1.0, ..o.color }
+            };
+            group(groups, color).add_face(&pane);
+            let lining = if o.framed {
+                o.frame_color
+            } else {
+                part.wall_color
+            };
+            let g = group(groups, Color { a: 1.0, ..lining });
+            opening_reveals(w, o, depth)
+                .iter()
+                .for_each(|f| g.add_face(f));
+        }
+    }
 }
 
 /// Flat-shaded triangle data of one primitive.
@@ -784,6 +886,8 @@ struct MaterialRec {
     pbr: Pbr,
     #[serde(skip_serializing_if = "Option::is_none")]
     alpha_mode: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    double_sided: Option<bool>,
 }
 
 #[derive(Serialize)]
