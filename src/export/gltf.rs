@@ -939,6 +939,7 @@ struct Buffer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::export::lod3geom::samples;
     use crate::geometry::Polygon;
     use crate::input::SourceId;
     use crate::model::{Lod, Part, RoofShape, Wall};
@@ -1174,9 +1175,15 @@ mod tests {
     /// Writes `buildings` to a GLB in memory (without asking the CRS for its EPSG code, which
     /// another module provides).
     fn write_glb(buildings: &[Building]) -> Vec<u8> {
+        write_glb_at(Lod::Lod2, buildings)
+    }
+
+    /// [`write_glb`] for a run at `lod`.
+    fn write_glb_at(lod: Lod, buildings: &[Building]) -> Vec<u8> {
         let mut out = Vec::new();
         let mut w = GltfWriter::new(&mut out, tempfile::tempfile().unwrap());
-        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        w.start(&OutputContext { lod, ..ctx() }, "EPSG:2154".into())
+            .unwrap();
         for b in buildings {
             w.write(b).unwrap();
         }
@@ -1608,8 +1615,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("citygen-test.glb");
         std::fs::write(&path, write_glb(&all_buildings())).unwrap();
+        let path3 = dir.path().join("citygen-test-lod3.glb");
+        std::fs::write(&path3, write_glb_at(Lod::Lod3, &samples::all())).unwrap();
         let out = std::process::Command::new(tool)
             .arg(&path)
+            .arg(&path3)
             .output()
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
@@ -1618,6 +1628,187 @@ mod tests {
             "validator failed:\n{text}\n{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        assert!(text.contains("OK "), "{text}");
+        assert!(text.contains("2 passed, 0 failed"), "{text}");
+        assert_eq!(text.matches("warnings=0").count(), 2, "{text}");
+    }
+
+    // ---- LOD3 ----
+
+    fn child_names(json: &Value, node: &Value) -> Vec<String> {
+        node["children"]
+            .as_array()
+            .map(|c| {
+                c.iter()
+                    .map(|i| json["nodes"][i.as_u64().unwrap() as usize]["name"].to_string())
+                    .map(|n| n.trim_matches('"').to_string())
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// Positions of the primitives of mesh `m` whose material satisfies `pred`.
+    fn positions_where(
+        json: &Value,
+        bin: &[u8],
+        m: u64,
+        pred: impl Fn(&Value) -> bool,
+    ) -> Vec<[f32; 3]> {
+        json["meshes"][m as usize]["primitives"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| pred(&json["materials"][p["material"].as_u64().unwrap() as usize]))
+            .flat_map(|p| accessor_data(json, bin, p["attributes"]["POSITION"].as_u64().unwrap()).0)
+            .collect()
+    }
+
+    #[test]
+    fn lod3_nodes_per_class() {
+        let buildings = samples::all();
+        let glb = write_glb_at(Lod::Lod3, &buildings);
+        let (json, _) = parse_glb(&glb);
+        let roots: Vec<&Value> = json["scenes"][0]["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| &json["nodes"][r.as_u64().unwrap() as usize])
+            .collect();
+        let names = |i: usize| child_names(&json, roots[i]);
+        assert_eq!(names(0), ["walls", "roof", "ground", "windows", "doors"]);
+        assert_eq!(names(1), ["walls", "roof", "ground", "windows"]);
+        assert_eq!(
+            names(2),
+            ["walls", "roof", "ground", "windows", "doors", "balconies"]
+        );
+        assert_eq!(names(3), ["walls", "roof", "ground", "windows"]);
+        assert_eq!(roots[0]["extras"]["lod"], 3);
+        // Below LOD3 the details are not written (the model has none there anyway).
+        let glb = write_glb_at(Lod::Lod2, &buildings);
+        let (json, _) = parse_glb(&glb);
+        let first = &json["nodes"][json["scenes"][0]["nodes"][0].as_u64().unwrap() as usize];
+        assert_eq!(child_names(&json, first), ["walls", "roof", "ground"]);
+    }
+
+    #[test]
+    fn lod3_wall_area_is_wall_minus_openings() {
+        for b in samples::all() {
+            let glb = write_glb_at(Lod::Lod3, std::slice::from_ref(&b));
+            let (json, bin) = parse_glb(&glb);
+            let node = &json["nodes"][0];
+            let walls = check_mesh(&json, bin, class_mesh(&json, node, "walls").unwrap());
+            let expected = samples::net_wall_area(&b);
+            assert!(
+                (walls - expected).abs() < 1e-3,
+                "{}: {walls} vs {expected}",
+                b.id
+            );
+            // Panes and reveals: w*h + 2(w+h)*0.1 per opening.
+            let mut expected_openings = 0.0;
+            for o in b
+                .parts
+                .iter()
+                .flat_map(|p| &p.walls)
+                .flat_map(|w| &w.openings)
+            {
+                expected_openings += o.width() * o.height() + 2.0 * (o.width() + o.height()) * 0.1;
+            }
+            let mut got = 0.0;
+            for class in ["windows", "doors"] {
+                if let Some(m) = class_mesh(&json, node, class) {
+                    got += check_mesh(&json, bin, m);
+                }
+            }
+            assert!(
+                (got - expected_openings).abs() < 1e-3,
+                "{got} vs {expected_openings}"
+            );
+            for class in ["roof", "ground", "balconies"] {
+                if let Some(m) = class_mesh(&json, node, class) {
+                    check_mesh(&json, bin, m);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lod3_panes_are_recessed_and_glass_is_transparent() {
+        let glb = write_glb_at(Lod::Lod3, &[samples::house()]);
+        let (json, bin) = parse_glb(&glb);
+        let node = &json["nodes"][0];
+        let windows = class_mesh(&json, node, "windows").unwrap();
+        let doors = class_mesh(&json, node, "doors").unwrap();
+        let is_glass = |m: &Value| m["alphaMode"] == "BLEND";
+        // The front wall is y = 0, the inside +y: glTF z = -y, so panes sit at z = -0.1.
+        let glass = positions_where(&json, bin, windows, is_glass);
+        assert_eq!(glass.len(), 4 * 4);
+        assert!(glass.iter().all(|p| (p[2] + 0.1).abs() < 1e-6), "{glass:?}");
+        let door_pane = positions_where(&json, bin, doors, |m| {
+            m["name"].as_str().unwrap().starts_with("doors #66401a")
+        });
+        assert_eq!(door_pane.len(), 4);
+        assert!(door_pane.iter().all(|p| (p[2] + 0.1).abs() < 1e-6));
+        let mats = json["materials"].as_array().unwrap();
+        let glass_mat = mats.iter().find(|m| is_glass(m)).unwrap();
+        assert!(glass_mat["name"]
+            .as_str()
+            .unwrap()
+            .starts_with("windows #8cb3cc"));
+        let alpha = glass_mat["pbrMetallicRoughness"]["baseColorFactor"][3]
+            .as_f64()
+            .unwrap();
+        assert!((alpha - 0.35).abs() < 1e-6);
+        // Doors opaque in their colour; frames opaque.
+        for m in mats {
+            let name = m["name"].as_str().unwrap();
+            if name.starts_with("doors") || name.starts_with("walls") {
+                assert!(m.get("alphaMode").is_none(), "{name}");
+            }
+        }
+        let door = mats
+            .iter()
+            .find(|m| m["name"] == "doors #66401a")
+            .expect("door material");
+        let r = door["pbrMetallicRoughness"]["baseColorFactor"][0]
+            .as_f64()
+            .unwrap();
+        assert!((r - f64::from(srgb_to_linear(0.4))).abs() < 1e-6);
+    }
+
+    #[test]
+    fn lod3_balcony_box_and_railing() {
+        let b = samples::with_balcony();
+        let glb = write_glb_at(Lod::Lod3, std::slice::from_ref(&b));
+        let (json, bin) = parse_glb(&glb);
+        let m = class_mesh(&json, &json["nodes"][0], "balconies").unwrap();
+        let area = check_mesh(&json, bin, m);
+        // Slab 4 x 1.2 x 0.2 plus railing 4 x 1 and two 1.2 x 1 ends.
+        let slab = 2.0 * (4.0 * 1.2 + 4.0 * 0.2 + 1.2 * 0.2);
+        let railing = 4.0 + 2.0 * 1.2;
+        assert!((area - slab - railing).abs() < 1e-3, "{area}");
+        let mat = json["meshes"][m as usize]["primitives"][0]["material"]
+            .as_u64()
+            .unwrap() as usize;
+        assert_eq!(json["materials"][mat]["doubleSided"], true);
+        // Out in front of the wall (y from 0 to -1.2 is glTF z 0 to 1.2).
+        let pos = positions_where(&json, bin, m, |_| true);
+        let max_z = pos.iter().map(|p| p[2]).fold(f32::NEG_INFINITY, f32::max);
+        assert!((max_z - 1.2).abs() < 1e-5, "{max_z}");
+        // Only balcony materials are double-sided.
+        for mat in json["materials"].as_array().unwrap() {
+            let balcony = mat["name"].as_str().unwrap().starts_with("balconies");
+            assert_eq!(mat.get("doubleSided").is_some(), balcony);
+        }
+    }
+
+    #[test]
+    fn lod3_deterministic() {
+        let b = samples::all();
+        assert_eq!(write_glb_at(Lod::Lod3, &b), write_glb_at(Lod::Lod3, &b));
+    }
+
+    #[test]
+    #[ignore = "writes /tmp/c3.glb for manual validation"]
+    fn dump_lod3_sample() {
+        std::fs::write("/tmp/c3.glb", write_glb_at(Lod::Lod3, &samples::all())).unwrap();
     }
 }
