@@ -2015,7 +2015,7 @@ mod tests {
     }
 
     #[test]
-    fn lod3_output_is_deterministic_and_lod2_ignores_nothing_it_had() {
+    fn lod3_deterministic_lod4_as_lod3_lod2_without_details() {
         let b = samples::all();
         assert_eq!(write_all(Lod::Lod3, &b), write_all(Lod::Lod3, &b));
         // LOD4 runs write LOD3 geometry.
