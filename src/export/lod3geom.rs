@@ -18,8 +18,11 @@ pub const RAILING_HEIGHT: f64 = 1.0;
 /// The horizontal frame of a wall: unit `dir` along start->end and unit `inward` (left of it).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WallFrame {
+    /// The wall's start point on the footprint (u = 0).
     pub start: DVec2,
+    /// Unit vector from start to end (increasing u).
     pub dir: DVec2,
+    /// Unit horizontal vector into the building (left of `dir`).
     pub inward: DVec2,
 }
 
