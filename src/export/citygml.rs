@@ -5,11 +5,21 @@
 //!
 //! - **LOD1**: `bldg:lod1Solid` whose `gml:CompositeSurface` holds the ground, wall and roof
 //!   polygons inline.
-//! - **LOD2** (and LOD3/LOD4 runs, whose openings and rooms the model does not carry yet):
-//!   `bldg:boundedBy` with one `bldg:GroundSurface` per part, one `bldg:WallSurface` per wall and
-//!   one `bldg:RoofSurface` per roof face, each holding its polygon in a `bldg:lod2MultiSurface`;
-//!   `bldg:lod2Solid` references those polygons with `xlink:href="#id"` so every coordinate is
-//!   written once.
+//! - **LOD2**: `bldg:boundedBy` with one `bldg:GroundSurface` per part, one `bldg:WallSurface`
+//!   per wall and one `bldg:RoofSurface` per roof face, each holding its polygon in a
+//!   `bldg:lod2MultiSurface`; `bldg:lod2Solid` references those polygons with `xlink:href="#id"`
+//!   so every coordinate is written once.
+//! - **LOD3** (and LOD4 runs, whose rooms the model does not carry yet): the same boundary
+//!   surfaces in `bldg:lod3MultiSurface`, wall polygons keeping their interior rings (the
+//!   openings' holes). Each wall surface lists its openings as `bldg:opening` with a
+//!   `bldg:Window` or `bldg:Door` whose `bldg:lod3MultiSurface` holds the opening's rectangle in
+//!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
+//!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose
+//!   `bldg:lod3Geometry` is a `gml:MultiSurface` of the slab (a closed box) and the railing
+//!   panels. `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
+//!   together close the shell. Elements follow the schema's order: installations, boundary
+//!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
+//!   0.6, doors and opaque windows their colour, balconies theirs.
 //!
 //! A building with one part carries its geometry itself; with several parts each part becomes a
 //! `bldg:BuildingPart` (with its own roof type, height, storeys and geometry) under
@@ -22,21 +32,24 @@
 //!
 //! Identifiers are built from the source id only (`way/123` gives `B_way_123`, its part `p0`
 //! gives `B_way_123_p0`, that part's polygons `B_way_123_p0_g`, `..._w3`, `..._r0`, their
-//! boundary surfaces `..._w3_s`, the building's materials `B_way_123_m0`), so they are stable
-//! from run to run. The caller must not write two buildings with the same source id: their ids
+//! boundary surfaces `..._w3_s`, the building's materials `B_way_123_m0`; at LOD3 that wall's
+//! openings `..._w3_o0` with polygons `..._w3_o0_p`, its balconies `..._w3_b0` with polygons
+//! `..._w3_b0_0` ...), so they are stable from run to run. The caller must not write two buildings with the same source id: their ids
 //! would clash.
 //!
 //! Faces whose outer ring has fewer than 3 distinct vertices are left out (a ring that repeats its
 //! first vertex at the end is accepted), as are such holes; any non-finite coordinate or height
-//! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written.
+//! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written. Openings
+//! or balconies with an empty extent (or on a wall without length) are left out.
 
 use std::io::Write;
 
 use glam::DVec3;
 
 use crate::color::Color;
+use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
-use crate::model::{Building, Face, Lod, Part, RoofShape};
+use crate::model::{Building, Face, Lod, OpeningKind, Part, RoofShape, Wall};
 
 /// Code list of `bldg:roofType` values ([`RoofShape::citygml_code`]).
 const ROOF_TYPE_CODESPACE: &str =
@@ -44,6 +57,9 @@ const ROOF_TYPE_CODESPACE: &str =
 
 /// Theme of the appearance that carries the colours.
 const APPEARANCE_THEME: &str = "citygen";
+
+/// `app:transparency` of glazed windows' glass.
+const GLASS_TRANSPARENCY: f32 = 0.6;
 
 const HEADER_NAMESPACES: &str = concat!(
     "<core:CityModel",
@@ -75,6 +91,18 @@ enum GeometryLod {
     Lod1,
     /// Semantic boundary surfaces plus an `lod2Solid` of references.
     Lod2,
+    /// LOD2's structure in `lod3` properties, with openings and balconies.
+    Lod3,
+}
+
+impl GeometryLod {
+    fn digit(self) -> &'static str {
+        match self {
+            GeometryLod::Lod1 => "1",
+            GeometryLod::Lod2 => "2",
+            GeometryLod::Lod3 => "3",
+        }
+    }
 }
 
 /// Streaming CityGML 2.0 writer (see the module documentation for what it writes).
@@ -162,10 +190,10 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         attr.escaped(&srs_name, true);
         self.srs_attr = String::from_utf8_lossy(&attr.0).into_owned();
         self.origin = ctx.origin;
-        self.lod = if ctx.lod == Lod::Lod1 {
-            GeometryLod::Lod1
-        } else {
-            GeometryLod::Lod2
+        self.lod = match ctx.lod {
+            Lod::Lod1 => GeometryLod::Lod1,
+            Lod::Lod2 => GeometryLod::Lod2,
+            Lod::Lod3 | Lod::Lod4 => GeometryLod::Lod3,
         };
 
         let x = &mut self.buf;
@@ -177,11 +205,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         x.s(", seed ");
         x.uint(ctx.seed);
         x.s(", LOD");
-        x.s(if self.lod == GeometryLod::Lod1 {
-            "1"
-        } else {
-            "2"
-        });
+        x.s(self.lod.digit());
         x.s(" geometry</gml:description>\n");
         if !ctx.source_name.is_empty() {
             x.s("<gml:name>");
@@ -246,6 +270,16 @@ fn check_finite(b: &Building) -> Result<(), ExportError> {
                 return Err(bad(&format!("a coordinate of part {}", p.key)));
             }
         }
+        for (i, w) in p.walls.iter().enumerate() {
+            let openings = w.openings.iter().flat_map(|o| [o.u0, o.u1, o.z0, o.z1]);
+            let balconies = w.balconies.iter().flat_map(|b| [b.u0, b.u1, b.z, b.depth]);
+            if !openings.chain(balconies).all(f64::is_finite) {
+                return Err(bad(&format!(
+                    "an opening or balcony of wall {i} of part {}",
+                    p.key
+                )));
+            }
+        }
     }
     Ok(())
 }
@@ -256,9 +290,19 @@ enum SurfaceKind {
     Ground,
     Wall,
     Roof,
+    /// An opening of wall `wall` (the surface's index is the opening's).
+    Opening {
+        wall: usize,
+    },
+    /// A face of balcony `balcony` of wall `wall` (the surface's index is the face's).
+    Balcony {
+        wall: usize,
+        balcony: usize,
+    },
 }
 
-/// One polygon to write: its kind, its index in the model's list, and its face.
+/// One polygon to write: its kind, its index in the model's list (for openings and balcony
+/// faces, in the wall's or the balcony's list), and its face.
 struct Surface<'a> {
     kind: SurfaceKind,
     index: usize,
@@ -359,6 +403,23 @@ impl ColorKey {
 /// A polygon an appearance targets: (part index, kind, index in the part's list).
 type Target = (usize, SurfaceKind, usize);
 
+/// Adds `target` to the material of `color`, creating it (last) on first use.
+fn add_target(materials: &mut Vec<(ColorKey, Vec<Target>)>, color: Color, target: Target) {
+    let key = ColorKey::of(color);
+    match materials.iter_mut().find(|(k, _)| *k == key) {
+        Some((_, targets)) => targets.push(target),
+        None => materials.push((key, vec![target])),
+    }
+}
+
+/// The walls that are written (see [`surfaces`]) with their indices: only their openings and
+/// balconies are.
+fn written_walls(part: &Part) -> impl Iterator<Item = (usize, &Wall)> {
+    surfaces(part)
+        .filter(|s| s.kind == SurfaceKind::Wall)
+        .filter_map(|s| part.walls.get(s.index).map(|w| (s.index, w)))
+}
+
 /// Renders one building into the scratch buffer.
 struct Renderer<'a> {
     x: &'a mut Xml,
@@ -421,7 +482,24 @@ impl Renderer<'_> {
         let Some(&first) = points.next() else {
             return;
         };
-        let (lo, hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let (mut lo, mut hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        if self.lod == GeometryLod::Lod3 {
+            // Balconies stand out of the walls.
+            for part in &b.parts {
+                for (_, wall) in written_walls(part) {
+                    for f in wall
+                        .balconies
+                        .iter()
+                        .filter_map(|bc| balcony_faces(wall, bc))
+                    {
+                        for p in f.all().flat_map(|f| f.outer.iter()) {
+                            lo = lo.min(*p);
+                            hi = hi.max(*p);
+                        }
+                    }
+                }
+            }
+        }
         let x = &mut *self.x;
         x.s("<gml:boundedBy>\n<gml:Envelope srsName=\"");
         x.s(self.srs);
@@ -450,14 +528,46 @@ impl Renderer<'_> {
             for s in surfaces(part) {
                 let color = match s.kind {
                     SurfaceKind::Ground => Color::GREY,
-                    SurfaceKind::Wall => part.wall_color,
                     SurfaceKind::Roof => part.roof_color,
+                    // `surfaces` yields no openings or balconies.
+                    SurfaceKind::Wall
+                    | SurfaceKind::Opening { .. }
+                    | SurfaceKind::Balcony { .. } => part.wall_color,
                 };
-                let key = ColorKey::of(color);
-                let target = (pi, s.kind, s.index);
-                match materials.iter_mut().find(|(k, _)| *k == key) {
-                    Some((_, targets)) => targets.push(target),
-                    None => materials.push((key, vec![target])),
+                add_target(&mut materials, color, (pi, s.kind, s.index));
+            }
+            if self.lod != GeometryLod::Lod3 {
+                continue;
+            }
+            for (wi, wall) in written_walls(part) {
+                for (k, o) in wall.openings.iter().enumerate() {
+                    if opening_face(wall, o, 0.0).is_none() {
+                        continue;
+                    }
+                    let color = match o.kind {
+                        OpeningKind::Window if o.glazed => Color {
+                            a: 1.0 - GLASS_TRANSPARENCY,
+                            ..o.color
+                        },
+                        _ => Color { a: 1.0, ..o.color },
+                    };
+                    add_target(
+                        &mut materials,
+                        color,
+                        (pi, SurfaceKind::Opening { wall: wi }, k),
+                    );
+                }
+                for (k, bc) in wall.balconies.iter().enumerate() {
+                    let Some(f) = balcony_faces(wall, bc) else {
+                        continue;
+                    };
+                    for i in 0..f.all().count() {
+                        let kind = SurfaceKind::Balcony {
+                            wall: wi,
+                            balcony: k,
+                        };
+                        add_target(&mut materials, bc.color, (pi, kind, i));
+                    }
                 }
             }
         }
@@ -515,12 +625,12 @@ impl Renderer<'_> {
             // A solid needs at least one surface member; a part without any writes none.
             return;
         }
+        if self.lod == GeometryLod::Lod3 {
+            self.geometry_lod3(part, pid);
+            return;
+        }
         let x = &mut *self.x;
-        let lod = if self.lod == GeometryLod::Lod1 {
-            "1"
-        } else {
-            "2"
-        };
+        let lod = self.lod.digit();
         x.s("<bldg:lod");
         x.s(lod);
         x.s("Solid>\n<gml:Solid srsName=\"");
@@ -533,7 +643,7 @@ impl Renderer<'_> {
                     x.polygon(pid, &s, self.origin);
                     x.s("</gml:surfaceMember>\n");
                 }
-                GeometryLod::Lod2 => {
+                GeometryLod::Lod2 | GeometryLod::Lod3 => {
                     x.s("<gml:surfaceMember xlink:href=\"#");
                     x.polygon_id(pid, s.kind, s.index);
                     x.s("\"/>\n");
@@ -547,11 +657,7 @@ impl Renderer<'_> {
             return;
         }
         for s in surfaces(part) {
-            let element = match s.kind {
-                SurfaceKind::Ground => "bldg:GroundSurface",
-                SurfaceKind::Wall => "bldg:WallSurface",
-                SurfaceKind::Roof => "bldg:RoofSurface",
-            };
+            let element = boundary_element(s.kind);
             x.s("<bldg:boundedBy>\n<");
             x.s(element);
             x.s(" gml:id=\"");
@@ -563,6 +669,126 @@ impl Renderer<'_> {
             x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod2MultiSurface>\n</");
             x.s(element);
             x.s(">\n</bldg:boundedBy>\n");
+        }
+    }
+}
+
+impl Renderer<'_> {
+    /// LOD3 geometry in the schema's order: balconies (`outerBuildingInstallation`), boundary
+    /// surfaces with their openings, then `lod3Solid` referencing the closed shell's polygons.
+    fn geometry_lod3(&mut self, part: &Part, pid: &str) {
+        let (origin, srs) = (self.origin, self.srs);
+        let x = &mut *self.x;
+        for (wi, wall) in written_walls(part) {
+            for (k, bc) in wall.balconies.iter().enumerate() {
+                let Some(faces) = balcony_faces(wall, bc) else {
+                    continue;
+                };
+                x.s("<bldg:outerBuildingInstallation>\n<bldg:BuildingInstallation gml:id=\"");
+                x.polygon_id(pid, SurfaceKind::Wall, wi);
+                x.s("_b");
+                x.uint(k as u64);
+                x.s("\">\n<gml:name>balcony</gml:name>\n<bldg:lod3Geometry>\n<gml:MultiSurface srsName=\"");
+                x.s(srs);
+                x.s("\">\n");
+                let kind = SurfaceKind::Balcony {
+                    wall: wi,
+                    balcony: k,
+                };
+                for (i, face) in faces.all().enumerate() {
+                    x.s("<gml:surfaceMember>\n");
+                    x.polygon(
+                        pid,
+                        &Surface {
+                            kind,
+                            index: i,
+                            face,
+                        },
+                        origin,
+                    );
+                    x.s("</gml:surfaceMember>\n");
+                }
+                x.s("</gml:MultiSurface>\n</bldg:lod3Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
+            }
+        }
+        // Opening polygons of the written walls, kept for the solid's references.
+        let mut opening_refs: Vec<(usize, usize)> = Vec::new();
+        for s in surfaces(part) {
+            let element = boundary_element(s.kind);
+            x.s("<bldg:boundedBy>\n<");
+            x.s(element);
+            x.s(" gml:id=\"");
+            x.polygon_id(pid, s.kind, s.index);
+            x.s("_s\">\n<bldg:lod3MultiSurface>\n<gml:MultiSurface srsName=\"");
+            x.s(srs);
+            x.s("\">\n<gml:surfaceMember>\n");
+            x.polygon(pid, &s, origin);
+            x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod3MultiSurface>\n");
+            if s.kind == SurfaceKind::Wall {
+                if let Some(wall) = part.walls.get(s.index) {
+                    for (k, o) in wall.openings.iter().enumerate() {
+                        let Some(face) = opening_face(wall, o, 0.0) else {
+                            continue;
+                        };
+                        opening_refs.push((s.index, k));
+                        let element = match o.kind {
+                            OpeningKind::Window => "bldg:Window",
+                            OpeningKind::Door => "bldg:Door",
+                        };
+                        x.s("<bldg:opening>\n<");
+                        x.s(element);
+                        x.s(" gml:id=\"");
+                        x.polygon_id(pid, SurfaceKind::Wall, s.index);
+                        x.s("_o");
+                        x.uint(k as u64);
+                        x.s("\">\n<bldg:lod3MultiSurface>\n<gml:MultiSurface srsName=\"");
+                        x.s(srs);
+                        x.s("\">\n<gml:surfaceMember>\n");
+                        let kind = SurfaceKind::Opening { wall: s.index };
+                        x.polygon(
+                            pid,
+                            &Surface {
+                                kind,
+                                index: k,
+                                face: &face,
+                            },
+                            origin,
+                        );
+                        x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod3MultiSurface>\n</");
+                        x.s(element);
+                        x.s(">\n</bldg:opening>\n");
+                    }
+                }
+            }
+            x.s("</");
+            x.s(element);
+            x.s(">\n</bldg:boundedBy>\n");
+        }
+        x.s("<bldg:lod3Solid>\n<gml:Solid srsName=\"");
+        x.s(srs);
+        x.s("\">\n<gml:exterior>\n<gml:CompositeSurface>\n");
+        let shell = surfaces(part).map(|s| (s.kind, s.index)).chain(
+            opening_refs
+                .iter()
+                .map(|&(wall, k)| (SurfaceKind::Opening { wall }, k)),
+        );
+        for (kind, index) in shell {
+            x.s("<gml:surfaceMember xlink:href=\"#");
+            x.polygon_id(pid, kind, index);
+            x.s("\"/>\n");
+        }
+        x.s("</gml:CompositeSurface>\n</gml:exterior>\n</gml:Solid>\n</bldg:lod3Solid>\n");
+    }
+}
+
+/// The boundary surface element of a part's own polygon kind.
+fn boundary_element(kind: SurfaceKind) -> &'static str {
+    match kind {
+        SurfaceKind::Ground => "bldg:GroundSurface",
+        SurfaceKind::Roof => "bldg:RoofSurface",
+        // Openings and balconies are not boundary surfaces; never asked for.
+        SurfaceKind::Wall | SurfaceKind::Opening { .. } | SurfaceKind::Balcony { .. } => {
+            "bldg:WallSurface"
         }
     }
 }
@@ -674,6 +900,21 @@ impl Xml {
                 self.s("_r");
                 self.uint(index as u64);
             }
+            SurfaceKind::Opening { wall } => {
+                self.s("_w");
+                self.uint(wall as u64);
+                self.s("_o");
+                self.uint(index as u64);
+                self.s("_p");
+            }
+            SurfaceKind::Balcony { wall, balcony } => {
+                self.s("_w");
+                self.uint(wall as u64);
+                self.s("_b");
+                self.uint(balcony as u64);
+                self.s("_");
+                self.uint(index as u64);
+            }
         }
     }
 
@@ -718,6 +959,7 @@ mod tests {
 
     use super::*;
     use crate::crs::Crs;
+    use crate::export::lod3geom::samples;
     use crate::geometry::Polygon;
     use crate::input::SourceId;
     use crate::model::Wall;
@@ -1379,6 +1621,30 @@ mod tests {
         assert!(mats.iter().all(|m| m.child("app:transparency").is_none()));
     }
 
+    /// FNV-1a 64: a dependency-free fingerprint of an output.
+    fn fnv1a(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        })
+    }
+
+    /// LOD1 and LOD2 output is byte-identical to the writer before LOD3 support (fingerprints
+    /// taken from that writer on the same samples).
+    #[test]
+    fn lod1_lod2_output_unchanged_by_lod3_support() {
+        let b = all_buildings();
+        assert_eq!(
+            fnv1a(&write_all(Lod::Lod1, &b)),
+            3_655_589_629_691_104_898,
+            "LOD1"
+        );
+        assert_eq!(
+            fnv1a(&write_all(Lod::Lod2, &b)),
+            11_241_214_483_957_492_289,
+            "LOD2"
+        );
+    }
+
     #[test]
     fn output_is_deterministic() {
         let b = all_buildings();
@@ -1472,8 +1738,326 @@ mod tests {
         assert!(w.finish().is_err());
     }
 
-    /// Runs the reference validator (OGC CityGML 2.0 XSDs) on LOD1 and LOD2 output when it is
-    /// installed; skipped otherwise so that the suite runs anywhere.
+    // ---- LOD3 ----
+
+    /// Points of a polygon's rings, each ring without its closing point.
+    fn rings_of(polygon: &El) -> Vec<Vec<DVec3>> {
+        polygon
+            .find_all("gml:posList")
+            .iter()
+            .map(|l| {
+                let v = numbers(&l.text);
+                let mut pts: Vec<DVec3> = v
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0], c[1], c[2]) - ORIGIN)
+                    .collect();
+                assert_eq!(pts.first(), pts.last(), "closed ring");
+                pts.pop();
+                pts
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lod3_openings_per_building_match_the_model() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        check_ids(&root);
+        assert!(root
+            .child("gml:description")
+            .unwrap()
+            .text
+            .contains("LOD3 geometry"));
+        for (el, b) in buildings_of(&root).into_iter().zip(&buildings) {
+            let (windows, doors) = samples::counts(b);
+            assert_eq!(el.count("bldg:Window"), windows, "{}", b.id);
+            assert_eq!(el.count("bldg:Door"), doors, "{}", b.id);
+            assert_eq!(el.count("bldg:opening"), windows + doors);
+            let walls: usize = b.parts.iter().map(|p| p.walls.len()).sum();
+            assert_eq!(el.count("bldg:WallSurface"), walls);
+            // LOD3 properties only.
+            for name in ["bldg:lod2Solid", "bldg:lod2MultiSurface", "bldg:lod1Solid"] {
+                assert_eq!(el.count(name), 0, "{name}");
+            }
+            assert_eq!(el.count("bldg:lod3Solid"), b.parts.len());
+            let balconies: usize = b
+                .parts
+                .iter()
+                .flat_map(|p| &p.walls)
+                .map(|w| w.balconies.len())
+                .sum();
+            assert_eq!(el.count("bldg:BuildingInstallation"), balconies);
+        }
+        let house = buildings_of(&root)[0];
+        assert_eq!(house.count("bldg:Window"), 4);
+        assert_eq!(house.count("bldg:Door"), 1);
+        let ids: Vec<&str> = house
+            .find_all("bldg:Window")
+            .iter()
+            .chain(house.find_all("bldg:Door").iter())
+            .map(|e| e.attr("gml:id").unwrap())
+            .collect();
+        assert_eq!(
+            ids,
+            [
+                "B_way_301_p0_w0_o0",
+                "B_way_301_p0_w0_o2",
+                "B_way_301_p0_w4_o0",
+                "B_way_301_p0_w4_o1",
+                "B_way_301_p0_w0_o1"
+            ]
+        );
+    }
+
+    #[test]
+    fn lod3_walls_keep_holes_filled_by_opening_polygons() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        for (el, b) in buildings_of(&root).into_iter().zip(&buildings) {
+            let model_walls: Vec<&Wall> = b.parts.iter().flat_map(|p| &p.walls).collect();
+            let surfaces = el.find_all("bldg:WallSurface");
+            assert_eq!(surfaces.len(), model_walls.len());
+            for (s, w) in surfaces.iter().zip(&model_walls) {
+                // Schema order inside a boundary surface: geometry, then openings.
+                let names: Vec<&str> = s.children.iter().map(|c| c.name.as_str()).collect();
+                let first_opening = names.iter().position(|n| *n == "bldg:opening");
+                assert_eq!(names[0], "bldg:lod3MultiSurface");
+                assert!(
+                    first_opening.is_none_or(|i| names[i..].iter().all(|n| *n == "bldg:opening"))
+                );
+                let wall_poly = s
+                    .child("bldg:lod3MultiSurface")
+                    .unwrap()
+                    .find_all("gml:Polygon")[0];
+                assert_eq!(wall_poly.count("gml:interior"), w.openings.len());
+                let rings = rings_of(wall_poly);
+                let normal = w.outline.normal();
+                let openings: Vec<&El> = s
+                    .children_named("bldg:opening")
+                    .map(|o| &o.children[0])
+                    .collect();
+                assert_eq!(openings.len(), w.openings.len());
+                for (k, (o_el, o)) in openings.iter().zip(&w.openings).enumerate() {
+                    let name = match o.kind {
+                        OpeningKind::Window => "bldg:Window",
+                        OpeningKind::Door => "bldg:Door",
+                    };
+                    assert_eq!(o_el.name, name);
+                    let poly = o_el.find_all("gml:Polygon")[0];
+                    let pts = &rings_of(poly)[0];
+                    // Faces outward like the wall ...
+                    let n = crate::geometry::newell_normal(pts).normalize();
+                    assert!((n - normal).length() < 1e-3, "{n} vs {normal}");
+                    assert!(
+                        (crate::geometry::newell_normal(pts).length() / 2.0
+                            - o.width() * o.height())
+                        .abs()
+                            < 1e-2
+                    );
+                    // ... and has the corners of the wall's hole k.
+                    let hole = &rings[k + 1];
+                    for p in pts {
+                        assert!(
+                            hole.iter().any(|q| q.distance(*p) < 1e-3),
+                            "{p} not in hole"
+                        );
+                    }
+                    // Holes run against the outline.
+                    let hn = crate::geometry::newell_normal(hole).normalize();
+                    assert!((hn + normal).length() < 1e-3);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lod3_solid_references_the_closed_shell() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        for (el, b) in buildings_of(&root).into_iter().zip(&buildings) {
+            let solids = el.find_all("bldg:lod3Solid");
+            for (solid, part) in solids.iter().zip(&b.parts) {
+                let refs: Vec<&str> = solid
+                    .find_all("gml:surfaceMember")
+                    .iter()
+                    .map(|m| m.attr("xlink:href").unwrap())
+                    .collect();
+                let openings: usize = part.walls.iter().map(|w| w.openings.len()).sum();
+                assert_eq!(
+                    refs.len(),
+                    1 + part.walls.len() + part.roof.len() + openings
+                );
+                assert_eq!(solid.count("gml:Polygon"), 0);
+                assert_eq!(refs.iter().filter(|r| r.ends_with("_p")).count(), openings);
+            }
+            // Closed shell: the area vectors of the referenced polygons (outer rings minus holes,
+            // plus the opening polygons) cancel out.
+            let polygons: BTreeMap<&str, &El> = el
+                .find_all("gml:Polygon")
+                .into_iter()
+                .map(|p| (p.attr("gml:id").unwrap(), p))
+                .collect();
+            for solid in solids {
+                let mut sum = DVec3::ZERO;
+                for m in solid.find_all("gml:surfaceMember") {
+                    let id = m.attr("xlink:href").unwrap().trim_start_matches('#');
+                    for r in rings_of(polygons[id]) {
+                        sum += crate::geometry::newell_normal(&r);
+                    }
+                }
+                assert!(sum.length() < 1e-2, "{} open shell: {sum}", b.id);
+            }
+        }
+    }
+
+    #[test]
+    fn lod3_element_order_and_balconies() {
+        let b = samples::with_balcony();
+        let root = parse(&write_all(Lod::Lod3, std::slice::from_ref(&b)));
+        check_ids(&root);
+        let parts = root.find_all("bldg:BuildingPart");
+        assert_eq!(parts.len(), 2);
+        let rank = |n: &str| match n {
+            "gml:name" | "gml:boundedBy" | "gen:stringAttribute" | "app:appearance" => 0,
+            "bldg:roofType" | "bldg:measuredHeight" | "bldg:storeysAboveGround" => 1,
+            "bldg:outerBuildingInstallation" => 2,
+            "bldg:boundedBy" => 3,
+            "bldg:lod3Solid" => 4,
+            other => panic!("unexpected {other}"),
+        };
+        for p in &parts {
+            let names: Vec<&str> = p.children.iter().map(|c| c.name.as_str()).collect();
+            assert!(
+                names.windows(2).all(|w| rank(w[0]) <= rank(w[1])),
+                "{names:?}"
+            );
+        }
+        let inst = parts[0].find_all("bldg:BuildingInstallation");
+        assert_eq!(inst.len(), 1);
+        assert_eq!(inst[0].attr("gml:id"), Some("B_way_303_p0_w4_b0"));
+        assert_eq!(inst[0].child("gml:name").unwrap().text, "balcony");
+        let geom = inst[0].child("bldg:lod3Geometry").unwrap();
+        assert_eq!(
+            geom.count("gml:Polygon"),
+            9,
+            "slab box and three railing panels"
+        );
+        // The slab stands 1.2 m out of the wall (y = 0, outside is -y); the envelope covers it.
+        let ys: Vec<f64> = geom
+            .find_all("gml:Polygon")
+            .iter()
+            .flat_map(|p| rings_of(p).concat())
+            .map(|p| p.y)
+            .collect();
+        let min_y = ys.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!((min_y + 1.2).abs() < 1e-3, "{min_y}");
+        let env = buildings_of(&root)[0]
+            .child("gml:boundedBy")
+            .unwrap()
+            .child("gml:Envelope")
+            .unwrap();
+        let lo = numbers(&env.child("gml:lowerCorner").unwrap().text);
+        assert!((lo[1] - (ORIGIN.y - 1.2)).abs() < 1e-3);
+        assert_eq!(parts[1].count("bldg:BuildingInstallation"), 0);
+        assert_eq!(parts[1].count("bldg:Door"), 1);
+    }
+
+    #[test]
+    fn lod3_appearance_glass_doors_balconies() {
+        let buildings = samples::all();
+        let root = parse(&write_all(Lod::Lod3, &buildings));
+        let all_ids = check_ids(&root);
+        for el in buildings_of(&root) {
+            let mats = el.find_all("app:X3DMaterial");
+            let mut targets: Vec<&str> = mats
+                .iter()
+                .flat_map(|m| m.children_named("app:target").map(|t| t.text.as_str()))
+                .collect();
+            let n = targets.len();
+            targets.sort_unstable();
+            targets.dedup();
+            assert_eq!(targets.len(), n, "a polygon coloured twice");
+            assert_eq!(n, el.count("gml:Polygon"), "every polygon coloured");
+            let colour_of = |id: &str| {
+                let m = mats
+                    .iter()
+                    .find(|m| {
+                        m.children_named("app:target")
+                            .any(|t| t.text == format!("#{id}"))
+                    })
+                    .unwrap();
+                (
+                    m.child("app:diffuseColor").unwrap().text.clone(),
+                    m.child("app:transparency").map(|t| t.text.clone()),
+                )
+            };
+            for w in el.find_all("bldg:Window") {
+                let poly = w.find_all("gml:Polygon")[0].attr("gml:id").unwrap();
+                let (_, t) = colour_of(poly);
+                if poly == "B_relation_302_p0_w4_o1_p" {
+                    assert_eq!(t, None, "opaque window");
+                } else {
+                    assert_eq!(t.as_deref(), Some("0.6000"), "{poly}");
+                }
+            }
+            for d in el.find_all("bldg:Door") {
+                let poly = d.find_all("gml:Polygon")[0].attr("gml:id").unwrap();
+                assert_eq!(colour_of(poly), ("0.4000 0.2500 0.1000".to_string(), None));
+            }
+            for i in el.find_all("bldg:BuildingInstallation") {
+                for p in i.find_all("gml:Polygon") {
+                    let (c, _) = colour_of(p.attr("gml:id").unwrap());
+                    assert_eq!(c, "0.6000 0.6000 0.6000");
+                }
+            }
+        }
+        assert!(all_ids.contains("B_way_304_p0_w1_o0"), "gable window");
+    }
+
+    #[test]
+    fn lod3_deterministic_lod4_as_lod3_lod2_without_details() {
+        let b = samples::all();
+        assert_eq!(write_all(Lod::Lod3, &b), write_all(Lod::Lod3, &b));
+        // LOD4 runs write LOD3 geometry.
+        let lod4 = parse(&write_all(Lod::Lod4, &b));
+        assert_eq!(
+            lod4.count("bldg:Window"),
+            b.iter().map(|x| samples::counts(x).0).sum::<usize>()
+        );
+        // At LOD2 the same walls are written without openings.
+        let lod2 = parse(&write_all(Lod::Lod2, &b));
+        assert_eq!(
+            lod2.count("bldg:opening") + lod2.count("bldg:BuildingInstallation"),
+            0
+        );
+    }
+
+    #[test]
+    fn lod3_rejects_non_finite_openings() {
+        let mut bad = samples::house();
+        bad.parts[0].walls[0].openings[1].z1 = f64::INFINITY;
+        let mut w = CityGmlWriter::with_srs_name(Vec::new(), "EPSG:2154");
+        w.begin(&ctx(Lod::Lod3)).unwrap();
+        let err = w.write(&bad).unwrap_err().to_string();
+        assert!(err.contains("way/301") && err.contains("wall 0"), "{err}");
+        // A degenerate opening is left out, the rest is written.
+        let mut odd = samples::house();
+        odd.parts[0].walls[0].openings[0].u1 = odd.parts[0].walls[0].openings[0].u0;
+        w.write(&odd).unwrap();
+        w.finish().unwrap();
+        let root = parse(&w.into_inner());
+        check_ids(&root);
+        assert_eq!(root.count("bldg:Window"), 3);
+    }
+
+    #[test]
+    #[ignore = "writes /tmp/c3.gml for manual validation"]
+    fn dump_lod3_sample() {
+        std::fs::write("/tmp/c3.gml", write_all(Lod::Lod3, &samples::all())).unwrap();
+    }
+
+    /// Runs the reference validator (OGC CityGML 2.0 XSDs) on LOD1, LOD2 and LOD3 output when it
+    /// is installed; skipped otherwise so that the suite runs anywhere.
     #[test]
     fn validates_against_citygml_schemas() {
         let Some(validator) = installed_validator() else {
@@ -1489,13 +2073,18 @@ mod tests {
             std::fs::write(&path, write_all(lod, &all_buildings())).unwrap();
             files.push(path);
         }
+        let path = dir.path().join("lod3.gml");
+        let mut lod3 = all_buildings();
+        lod3.extend(samples::all());
+        std::fs::write(&path, write_all(Lod::Lod3, &lod3)).unwrap();
+        files.push(path);
         let out = std::process::Command::new(validator)
             .args(&files)
             .output()
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(
-            out.status.success() && text.contains("2 passed, 0 failed"),
+            out.status.success() && text.contains("3 passed, 0 failed"),
             "{text}\n{}",
             String::from_utf8_lossy(&out.stderr)
         );

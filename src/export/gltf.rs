@@ -2,8 +2,17 @@
 //!
 //! Layout of the output: one scene; one node per building, named by the building key
 //! (`way_123`) with the source id, zone, appearance and heights in its `extras`; under it one
-//! child node per surface class (`walls`, `roof`, `ground`) holding one mesh, with one triangle
-//! primitive per material (usually one). Materials are PBR metallic-roughness, one per distinct
+//! child node per surface class (`walls`, `roof`, `ground`, and in LOD3 runs `windows`, `doors`,
+//! `balconies`) holding one mesh, with one triangle primitive per material (usually one). Classes
+//! without triangles get no node.
+//!
+//! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
+//! and door is a pane in its opening's rectangle set back [`OPENING_SETBACK`] into the wall
+//! (towards the inside, never deeper than the wall is thick) so it reads as recessed, plus four
+//! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
+//! else the wall colour. Glazed windows' glass is transparent (alpha [`GLASS_ALPHA`], `BLEND`);
+//! doors and unglazed windows are opaque in their colour. Balconies are a closed slab box and
+//! three railing panels, in a double-sided material. Materials are PBR metallic-roughness, one per distinct
 //! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
 //! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
 //! "origin": [E, N, H]}`). Faces are flat shaded: every face has its own vertices and normal.
@@ -23,9 +32,10 @@ use serde::Serialize;
 
 use crate::color::Color;
 use crate::crs::Crs;
+use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::geometry::triangulate::triangulate_face;
-use crate::model::{Building, Face};
+use crate::model::{Building, Face, Lod, OpeningKind, Part};
 
 /// GLB magic `glTF`, little-endian.
 const GLB_MAGIC: u32 = 0x4654_6C67;
@@ -47,6 +57,10 @@ const VEC3_STRIDE: u32 = 12;
 const ROUGHNESS: f32 = 0.9;
 /// Colour of ground surfaces (the model gives them none; they face down and are rarely seen).
 const GROUND_COLOR: Color = Color::GREY;
+/// How far window and door panes sit behind the wall's outer face (metres).
+pub const OPENING_SETBACK: f64 = 0.1;
+/// Opacity of glazed windows' glass.
+pub const GLASS_ALPHA: f32 = 0.35;
 
 /// Semantic class of a group of surfaces: one child node per class and building.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -54,15 +68,39 @@ enum SurfaceClass {
     Walls,
     Roof,
     Ground,
+    Windows,
+    Doors,
+    Balconies,
 }
 
 impl SurfaceClass {
+    /// Every class, in the order of the building's child nodes.
+    const ALL: [SurfaceClass; 6] = [
+        SurfaceClass::Walls,
+        SurfaceClass::Roof,
+        SurfaceClass::Ground,
+        SurfaceClass::Windows,
+        SurfaceClass::Doors,
+        SurfaceClass::Balconies,
+    ];
+
     fn name(self) -> &'static str {
         match self {
             SurfaceClass::Walls => "walls",
             SurfaceClass::Roof => "roof",
             SurfaceClass::Ground => "ground",
+            SurfaceClass::Windows => "windows",
+            SurfaceClass::Doors => "doors",
+            SurfaceClass::Balconies => "balconies",
         }
+    }
+
+    /// LOD3 detail classes, written only in LOD3 runs.
+    fn is_detail(self) -> bool {
+        matches!(
+            self,
+            SurfaceClass::Windows | SurfaceClass::Doors | SurfaceClass::Balconies
+        )
     }
 }
 
@@ -86,6 +124,8 @@ pub struct GltfWriter<W: Write + Send> {
     doc: Document,
     /// (class, colour bits) -> material index, for reuse across buildings.
     material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
+    /// Whether the run is LOD3 or above (openings and balconies are written).
+    detail: bool,
     /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
     /// `scratch` so that the file is closed before it is removed.
     scratch_guard: ScratchGuard,
@@ -114,6 +154,7 @@ impl<W: Write + Send> GltfWriter<W> {
             state: State::New,
             doc: Document::default(),
             material_index: BTreeMap::new(),
+            detail: false,
             scratch_guard: ScratchGuard(None),
         }
     }
@@ -171,6 +212,7 @@ impl<W: Write + Send> GltfWriter<W> {
             lod: ctx.lod.number(),
             source: ctx.source_name.clone(),
         };
+        self.detail = ctx.lod >= Lod::Lod3;
         self.state = State::Open;
         Ok(())
     }
@@ -179,35 +221,34 @@ impl<W: Write + Send> GltfWriter<W> {
     /// and records its nodes, meshes, accessors and buffer views.
     fn add_building(&mut self, b: &Building) -> Result<(), ExportError> {
         let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
-        for class in [
-            SurfaceClass::Walls,
-            SurfaceClass::Roof,
-            SurfaceClass::Ground,
-        ] {
+        for class in SurfaceClass::ALL {
+            if class.is_detail() && !self.detail {
+                continue;
+            }
             let mut groups: Vec<Group> = Vec::new();
             for part in &b.parts {
-                let (color, faces): (Color, Vec<&Face>) = match class {
-                    SurfaceClass::Walls => (
-                        part.wall_color,
-                        part.walls.iter().map(|w| &w.outline).collect(),
-                    ),
-                    SurfaceClass::Roof => (part.roof_color, part.roof.iter().collect()),
-                    SurfaceClass::Ground => (GROUND_COLOR, vec![&part.ground]),
-                };
-                let key = color_key(color);
-                let idx = match groups.iter().position(|g| g.color_key == key) {
-                    Some(i) => i,
-                    None => {
-                        groups.push(Group {
-                            color,
-                            color_key: key,
-                            mesh: MeshData::default(),
-                        });
-                        groups.len() - 1
+                match class {
+                    SurfaceClass::Walls => {
+                        let g = group(&mut groups, part.wall_color);
+                        part.walls.iter().for_each(|w| g.add_face(&w.outline));
                     }
-                };
-                for face in faces {
-                    groups[idx].mesh.add_face(face);
+                    SurfaceClass::Roof => {
+                        let g = group(&mut groups, part.roof_color);
+                        part.roof.iter().for_each(|f| g.add_face(f));
+                    }
+                    SurfaceClass::Ground => group(&mut groups, GROUND_COLOR).add_face(&part.ground),
+                    SurfaceClass::Windows => add_openings(&mut groups, part, OpeningKind::Window),
+                    SurfaceClass::Doors => add_openings(&mut groups, part, OpeningKind::Door),
+                    SurfaceClass::Balconies => {
+                        for w in &part.walls {
+                            for bc in &w.balconies {
+                                if let Some(f) = balcony_faces(w, bc) {
+                                    let g = group(&mut groups, bc.color);
+                                    f.all().for_each(|face| g.add_face(face));
+                                }
+                            }
+                        }
+                    }
                 }
             }
             groups.retain(|g| !g.mesh.indices.is_empty());
@@ -432,6 +473,8 @@ impl<W: Write + Send> GltfWriter<W> {
                 roughness_factor: ROUGHNESS,
             },
             alpha_mode: (c.a < 1.0).then_some("BLEND"),
+            // Railing panels are single quads, seen from both sides.
+            double_sided: (class == SurfaceClass::Balconies).then_some(true),
         });
         self.material_index.insert(key, i);
         i
@@ -578,6 +621,65 @@ struct Group {
     color: Color,
     color_key: [u32; 4],
     mesh: MeshData,
+}
+
+impl Group {
+    fn add_face(&mut self, face: &Face) {
+        self.mesh.add_face(face);
+    }
+}
+
+/// The group of `color` in `groups`, created (last) on first use.
+fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
+    let key = color_key(color);
+    let i = match groups.iter().position(|g| g.color_key == key) {
+        Some(i) => i,
+        None => {
+            groups.push(Group {
+                color,
+                color_key: key,
+                mesh: MeshData::default(),
+            });
+            groups.len() - 1
+        }
+    };
+    &mut groups[i]
+}
+
+/// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation).
+fn add_openings(groups: &mut Vec<Group>, part: &Part, kind: OpeningKind) {
+    for w in &part.walls {
+        // Never behind the wall's inner face; no setback (and no reveals) for a wall without
+        // thickness.
+        let depth = if w.thickness.is_finite() && w.thickness > 0.0 {
+            OPENING_SETBACK.min(w.thickness)
+        } else {
+            0.0
+        };
+        for o in w.openings.iter().filter(|o| o.kind == kind) {
+            let Some(pane) = opening_face(w, o, depth) else {
+                continue;
+            };
+            let color = if kind == OpeningKind::Window && o.glazed {
+                Color {
+                    a: GLASS_ALPHA,
+                    ..o.color
+                }
+            } else {
+                Color { a: 1.0, ..o.color }
+            };
+            group(groups, color).add_face(&pane);
+            let lining = if o.framed {
+                o.frame_color
+            } else {
+                part.wall_color
+            };
+            let g = group(groups, Color { a: 1.0, ..lining });
+            opening_reveals(w, o, depth)
+                .iter()
+                .for_each(|f| g.add_face(f));
+        }
+    }
 }
 
 /// Flat-shaded triangle data of one primitive.
@@ -784,6 +886,8 @@ struct MaterialRec {
     pbr: Pbr,
     #[serde(skip_serializing_if = "Option::is_none")]
     alpha_mode: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    double_sided: Option<bool>,
 }
 
 #[derive(Serialize)]
@@ -835,6 +939,7 @@ struct Buffer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::export::lod3geom::samples;
     use crate::geometry::Polygon;
     use crate::input::SourceId;
     use crate::model::{Lod, Part, RoofShape, Wall};
@@ -1070,9 +1175,15 @@ mod tests {
     /// Writes `buildings` to a GLB in memory (without asking the CRS for its EPSG code, which
     /// another module provides).
     fn write_glb(buildings: &[Building]) -> Vec<u8> {
+        write_glb_at(Lod::Lod2, buildings)
+    }
+
+    /// [`write_glb`] for a run at `lod`.
+    fn write_glb_at(lod: Lod, buildings: &[Building]) -> Vec<u8> {
         let mut out = Vec::new();
         let mut w = GltfWriter::new(&mut out, tempfile::tempfile().unwrap());
-        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        w.start(&OutputContext { lod, ..ctx() }, "EPSG:2154".into())
+            .unwrap();
         for b in buildings {
             w.write(b).unwrap();
         }
@@ -1384,6 +1495,23 @@ mod tests {
         std::fs::write("/tmp/x.glb", write_glb(&all_buildings())).unwrap();
     }
 
+    /// FNV-1a 64: a dependency-free fingerprint of an output.
+    fn fnv1a(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+        })
+    }
+
+    /// LOD2 output is byte-identical to the writer before LOD3 support (fingerprint taken from
+    /// that writer on the same samples).
+    #[test]
+    fn lod2_output_unchanged_by_lod3_support() {
+        assert_eq!(
+            fnv1a(&write_glb(&all_buildings())),
+            13_296_349_161_037_005_596
+        );
+    }
+
     #[test]
     fn deterministic() {
         assert_eq!(write_glb(&all_buildings()), write_glb(&all_buildings()));
@@ -1487,8 +1615,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("citygen-test.glb");
         std::fs::write(&path, write_glb(&all_buildings())).unwrap();
+        let path3 = dir.path().join("citygen-test-lod3.glb");
+        std::fs::write(&path3, write_glb_at(Lod::Lod3, &samples::all())).unwrap();
         let out = std::process::Command::new(tool)
             .arg(&path)
+            .arg(&path3)
             .output()
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
@@ -1497,6 +1628,187 @@ mod tests {
             "validator failed:\n{text}\n{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        assert!(text.contains("OK "), "{text}");
+        assert!(text.contains("2 passed, 0 failed"), "{text}");
+        assert_eq!(text.matches("warnings=0").count(), 2, "{text}");
+    }
+
+    // ---- LOD3 ----
+
+    fn child_names(json: &Value, node: &Value) -> Vec<String> {
+        node["children"]
+            .as_array()
+            .map(|c| {
+                c.iter()
+                    .map(|i| json["nodes"][i.as_u64().unwrap() as usize]["name"].to_string())
+                    .map(|n| n.trim_matches('"').to_string())
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// Positions of the primitives of mesh `m` whose material satisfies `pred`.
+    fn positions_where(
+        json: &Value,
+        bin: &[u8],
+        m: u64,
+        pred: impl Fn(&Value) -> bool,
+    ) -> Vec<[f32; 3]> {
+        json["meshes"][m as usize]["primitives"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| pred(&json["materials"][p["material"].as_u64().unwrap() as usize]))
+            .flat_map(|p| accessor_data(json, bin, p["attributes"]["POSITION"].as_u64().unwrap()).0)
+            .collect()
+    }
+
+    #[test]
+    fn lod3_nodes_per_class() {
+        let buildings = samples::all();
+        let glb = write_glb_at(Lod::Lod3, &buildings);
+        let (json, _) = parse_glb(&glb);
+        let roots: Vec<&Value> = json["scenes"][0]["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| &json["nodes"][r.as_u64().unwrap() as usize])
+            .collect();
+        let names = |i: usize| child_names(&json, roots[i]);
+        assert_eq!(names(0), ["walls", "roof", "ground", "windows", "doors"]);
+        assert_eq!(names(1), ["walls", "roof", "ground", "windows"]);
+        assert_eq!(
+            names(2),
+            ["walls", "roof", "ground", "windows", "doors", "balconies"]
+        );
+        assert_eq!(names(3), ["walls", "roof", "ground", "windows"]);
+        assert_eq!(roots[0]["extras"]["lod"], 3);
+        // Below LOD3 the details are not written (the model has none there anyway).
+        let glb = write_glb_at(Lod::Lod2, &buildings);
+        let (json, _) = parse_glb(&glb);
+        let first = &json["nodes"][json["scenes"][0]["nodes"][0].as_u64().unwrap() as usize];
+        assert_eq!(child_names(&json, first), ["walls", "roof", "ground"]);
+    }
+
+    #[test]
+    fn lod3_wall_area_is_wall_minus_openings() {
+        for b in samples::all() {
+            let glb = write_glb_at(Lod::Lod3, std::slice::from_ref(&b));
+            let (json, bin) = parse_glb(&glb);
+            let node = &json["nodes"][0];
+            let walls = check_mesh(&json, bin, class_mesh(&json, node, "walls").unwrap());
+            let expected = samples::net_wall_area(&b);
+            assert!(
+                (walls - expected).abs() < 1e-3,
+                "{}: {walls} vs {expected}",
+                b.id
+            );
+            // Panes and reveals: w*h + 2(w+h)*0.1 per opening.
+            let mut expected_openings = 0.0;
+            for o in b
+                .parts
+                .iter()
+                .flat_map(|p| &p.walls)
+                .flat_map(|w| &w.openings)
+            {
+                expected_openings += o.width() * o.height() + 2.0 * (o.width() + o.height()) * 0.1;
+            }
+            let mut got = 0.0;
+            for class in ["windows", "doors"] {
+                if let Some(m) = class_mesh(&json, node, class) {
+                    got += check_mesh(&json, bin, m);
+                }
+            }
+            assert!(
+                (got - expected_openings).abs() < 1e-3,
+                "{got} vs {expected_openings}"
+            );
+            for class in ["roof", "ground", "balconies"] {
+                if let Some(m) = class_mesh(&json, node, class) {
+                    check_mesh(&json, bin, m);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lod3_panes_are_recessed_and_glass_is_transparent() {
+        let glb = write_glb_at(Lod::Lod3, &[samples::house()]);
+        let (json, bin) = parse_glb(&glb);
+        let node = &json["nodes"][0];
+        let windows = class_mesh(&json, node, "windows").unwrap();
+        let doors = class_mesh(&json, node, "doors").unwrap();
+        let is_glass = |m: &Value| m["alphaMode"] == "BLEND";
+        // The front wall is y = 0, the inside +y: glTF z = -y, so panes sit at z = -0.1.
+        let glass = positions_where(&json, bin, windows, is_glass);
+        assert_eq!(glass.len(), 4 * 4);
+        assert!(glass.iter().all(|p| (p[2] + 0.1).abs() < 1e-6), "{glass:?}");
+        let door_pane = positions_where(&json, bin, doors, |m| {
+            m["name"].as_str().unwrap().starts_with("doors #66401a")
+        });
+        assert_eq!(door_pane.len(), 4);
+        assert!(door_pane.iter().all(|p| (p[2] + 0.1).abs() < 1e-6));
+        let mats = json["materials"].as_array().unwrap();
+        let glass_mat = mats.iter().find(|m| is_glass(m)).unwrap();
+        assert!(glass_mat["name"]
+            .as_str()
+            .unwrap()
+            .starts_with("windows #8cb3cc"));
+        let alpha = glass_mat["pbrMetallicRoughness"]["baseColorFactor"][3]
+            .as_f64()
+            .unwrap();
+        assert!((alpha - 0.35).abs() < 1e-6);
+        // Doors opaque in their colour; frames opaque.
+        for m in mats {
+            let name = m["name"].as_str().unwrap();
+            if name.starts_with("doors") || name.starts_with("walls") {
+                assert!(m.get("alphaMode").is_none(), "{name}");
+            }
+        }
+        let door = mats
+            .iter()
+            .find(|m| m["name"] == "doors #66401a")
+            .expect("door material");
+        let r = door["pbrMetallicRoughness"]["baseColorFactor"][0]
+            .as_f64()
+            .unwrap();
+        assert!((r - f64::from(srgb_to_linear(0.4))).abs() < 1e-6);
+    }
+
+    #[test]
+    fn lod3_balcony_box_and_railing() {
+        let b = samples::with_balcony();
+        let glb = write_glb_at(Lod::Lod3, std::slice::from_ref(&b));
+        let (json, bin) = parse_glb(&glb);
+        let m = class_mesh(&json, &json["nodes"][0], "balconies").unwrap();
+        let area = check_mesh(&json, bin, m);
+        // Slab 4 x 1.2 x 0.2 plus railing 4 x 1 and two 1.2 x 1 ends.
+        let slab = 2.0 * (4.0 * 1.2 + 4.0 * 0.2 + 1.2 * 0.2);
+        let railing = 4.0 + 2.0 * 1.2;
+        assert!((area - slab - railing).abs() < 1e-3, "{area}");
+        let mat = json["meshes"][m as usize]["primitives"][0]["material"]
+            .as_u64()
+            .unwrap() as usize;
+        assert_eq!(json["materials"][mat]["doubleSided"], true);
+        // Out in front of the wall (y from 0 to -1.2 is glTF z 0 to 1.2).
+        let pos = positions_where(&json, bin, m, |_| true);
+        let max_z = pos.iter().map(|p| p[2]).fold(f32::NEG_INFINITY, f32::max);
+        assert!((max_z - 1.2).abs() < 1e-5, "{max_z}");
+        // Only balcony materials are double-sided.
+        for mat in json["materials"].as_array().unwrap() {
+            let balcony = mat["name"].as_str().unwrap().starts_with("balconies");
+            assert_eq!(mat.get("doubleSided").is_some(), balcony);
+        }
+    }
+
+    #[test]
+    fn lod3_deterministic() {
+        let b = samples::all();
+        assert_eq!(write_glb_at(Lod::Lod3, &b), write_glb_at(Lod::Lod3, &b));
+    }
+
+    #[test]
+    #[ignore = "writes /tmp/c3.glb for manual validation"]
+    fn dump_lod3_sample() {
+        std::fs::write("/tmp/c3.glb", write_glb_at(Lod::Lod3, &samples::all())).unwrap();
     }
 }

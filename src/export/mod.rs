@@ -4,6 +4,7 @@
 pub mod citygml;
 pub mod gltf;
 pub mod ifc;
+pub mod lod3geom;
 pub mod step;
 
 use std::fs::File;

@@ -1,0 +1,537 @@
+//! LOD3 detail geometry shared by the writers: opening rectangles, their reveals, and balcony
+//! slabs with railings, built from a [`Wall`] and the wall-coordinate values of the model.
+//!
+//! Every face returned is planar, its outer ring counter-clockwise seen from the side its normal
+//! points to (as [`Face`] requires). A wall's frame: `dir` runs along the wall from `start` to
+//! `end`, `outward` is horizontal and to the right of it (outside the building, as the footprint's
+//! outer ring is counter-clockwise) and `inward` is its opposite, where the wall body lies.
+
+use glam::{DVec2, DVec3};
+
+use crate::model::{Balcony, Face, Opening, Wall};
+
+/// Thickness of a balcony slab below its floor height (metres).
+pub const SLAB_THICKNESS: f64 = 0.2;
+/// Height of a balcony railing above the slab (metres).
+pub const RAILING_HEIGHT: f64 = 1.0;
+
+/// The horizontal frame of a wall: unit `dir` along start->end and unit `inward` (left of it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WallFrame {
+    /// The wall's start point on the footprint (u = 0).
+    pub start: DVec2,
+    /// Unit vector from start to end (increasing u).
+    pub dir: DVec2,
+    /// Unit horizontal vector into the building (left of `dir`).
+    pub inward: DVec2,
+}
+
+impl WallFrame {
+    /// The frame of `wall`, or `None` when its edge has no length or is not finite.
+    pub fn of(wall: &Wall) -> Option<WallFrame> {
+        let d = wall.end - wall.start;
+        let len = d.length();
+        if !(len.is_finite() && len > 0.0 && wall.start.is_finite()) {
+            return None;
+        }
+        let dir = d / len;
+        Some(WallFrame {
+            start: wall.start,
+            dir,
+            inward: dir.perp(),
+        })
+    }
+
+    /// The point `u` metres along the wall at height `z`, moved `depth` metres inward (negative:
+    /// outward).
+    pub fn at(&self, u: f64, z: f64, depth: f64) -> DVec3 {
+        (self.start + self.dir * u + self.inward * depth).extend(z)
+    }
+
+    fn dir3(&self) -> DVec3 {
+        self.dir.extend(0.0)
+    }
+
+    fn inward3(&self) -> DVec3 {
+        self.inward.extend(0.0)
+    }
+}
+
+/// Quad `p, p+a, p+a+b, p+b`; its normal points along `a x b`.
+fn quad(p: DVec3, a: DVec3, b: DVec3) -> Face {
+    Face::new(vec![p, p + a, p + a + b, p + b])
+}
+
+/// The six faces of the box spanned from corner `p` by `a`, `b`, `c` (with `(a x b) . c > 0`),
+/// each facing out of the box.
+fn cuboid(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Vec<Face> {
+    vec![
+        quad(p, b, a),     // -c
+        quad(p + c, a, b), // +c
+        quad(p, c, b),     // -a
+        quad(p + a, b, c), // +a
+        quad(p, a, c),     // -b
+        quad(p + b, c, a), // +b
+    ]
+}
+
+/// Whether an opening has a finite, non-empty rectangle.
+pub fn opening_is_valid(o: &Opening) -> bool {
+    [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()) && o.width() > 0.0 && o.height() > 0.0
+}
+
+/// The opening's rectangle `depth` metres inward of the wall's outer face (0: in the wall plane,
+/// filling the wall's hole exactly), facing outward like the wall. `None` for a degenerate wall
+/// or opening.
+pub fn opening_face(wall: &Wall, o: &Opening, depth: f64) -> Option<Face> {
+    let f = WallFrame::of(wall)?;
+    if !opening_is_valid(o) {
+        return None;
+    }
+    Some(Face::new(vec![
+        f.at(o.u0, o.z0, depth),
+        f.at(o.u1, o.z0, depth),
+        f.at(o.u1, o.z1, depth),
+        f.at(o.u0, o.z1, depth),
+    ]))
+}
+
+/// The four reveal faces lining the wall's hole from its outer face to `depth` metres inward
+/// (sill, head, two jambs), each facing into the opening. Empty for a degenerate wall, opening
+/// or depth.
+pub fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
+    let Some(f) = WallFrame::of(wall) else {
+        return Vec::new();
+    };
+    if !(opening_is_valid(o) && depth.is_finite() && depth > 0.0) {
+        return Vec::new();
+    }
+    let along = f.dir3() * o.width();
+    let up = DVec3::Z * o.height();
+    let into = f.inward3() * depth;
+    vec![
+        quad(f.at(o.u0, o.z0, 0.0), along, into), // sill, facing up
+        quad(f.at(o.u0, o.z1, 0.0), into, along), // head, facing down
+        quad(f.at(o.u0, o.z0, 0.0), into, up),    // jamb at u0, facing +dir
+        quad(f.at(o.u1, o.z0, 0.0), up, into),    // jamb at u1, facing -dir
+    ]
+}
+
+/// A balcony's geometry: the slab as a closed box and the railing as three panels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BalconyFaces {
+    /// Six faces: the slab from `z - SLAB_THICKNESS` to `z`, `depth` metres out from the wall.
+    pub slab: Vec<Face>,
+    /// Front and two end panels from `z` to `z + RAILING_HEIGHT`, facing away from the balcony.
+    pub railing: Vec<Face>,
+}
+
+impl BalconyFaces {
+    /// All faces, slab first.
+    pub fn all(&self) -> impl Iterator<Item = &Face> {
+        self.slab.iter().chain(self.railing.iter())
+    }
+}
+
+/// The geometry of balcony `b` on `wall`, or `None` for a degenerate wall or balcony.
+pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
+    let f = WallFrame::of(wall)?;
+    let ok =
+        [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite()) && b.u1 > b.u0 && b.depth > 0.0;
+    if !ok {
+        return None;
+    }
+    let along = f.dir3() * (b.u1 - b.u0);
+    let out = -f.inward3() * b.depth;
+    // (out, along, up) is right-handed: out x along points up.
+    let slab = cuboid(
+        f.at(b.u0, b.z - SLAB_THICKNESS, 0.0),
+        out,
+        along,
+        DVec3::Z * SLAB_THICKNESS,
+    );
+    let up = DVec3::Z * RAILING_HEIGHT;
+    let railing = vec![
+        quad(f.at(b.u0, b.z, -b.depth), along, up), // front, facing out
+        quad(f.at(b.u0, b.z, 0.0), out, up),        // end at u0, facing -dir
+        quad(f.at(b.u1, b.z, 0.0), up, out),        // end at u1, facing +dir
+    ];
+    Some(BalconyFaces { slab, railing })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::Color;
+    use crate::model::OpeningKind;
+
+    fn wall(start: DVec2, end: DVec2) -> Wall {
+        Wall {
+            start,
+            end,
+            base_z: 0.0,
+            top_z: 3.0,
+            thickness: 0.3,
+            outline: Face::new(vec![
+                start.extend(0.0),
+                end.extend(0.0),
+                end.extend(3.0),
+                start.extend(3.0),
+            ]),
+            storey: 0,
+            openings: Vec::new(),
+            balconies: Vec::new(),
+        }
+    }
+
+    fn window() -> Opening {
+        Opening {
+            kind: OpeningKind::Window,
+            u0: 1.0,
+            u1: 2.0,
+            z0: 1.0,
+            z1: 2.5,
+            color: Color::WHITE,
+            frame_color: Color::WHITE,
+            glazed: true,
+            framed: false,
+        }
+    }
+
+    /// Normal of a face as a unit vector.
+    fn n(f: &Face) -> DVec3 {
+        f.normal()
+    }
+
+    #[test]
+    fn opening_faces_outward_and_reveals_inward() {
+        // Front wall of a CCW footprint: outside is -y.
+        let w = wall(DVec2::new(0.0, 0.0), DVec2::new(10.0, 0.0));
+        let pane = opening_face(&w, &window(), 0.1).unwrap();
+        assert!((n(&pane) - w.outline.normal()).length() < 1e-12);
+        assert!(pane.outer.iter().all(|p| (p.y - 0.1).abs() < 1e-12));
+        let r = opening_reveals(&w, &window(), 0.1);
+        let normals: Vec<DVec3> = r.iter().map(n).collect();
+        assert!((normals[0] - DVec3::Z).length() < 1e-12);
+        assert!((normals[1] + DVec3::Z).length() < 1e-12);
+        assert!((normals[2] - DVec3::X).length() < 1e-12);
+        assert!((normals[3] + DVec3::X).length() < 1e-12);
+        assert!(opening_reveals(&w, &window(), 0.0).is_empty());
+    }
+
+    #[test]
+    fn balcony_box_is_closed_and_outward() {
+        let w = wall(DVec2::new(10.0, 0.0), DVec2::new(10.0, 6.0)); // east wall, outside +x
+        let b = Balcony {
+            u0: 1.0,
+            u1: 4.0,
+            z: 3.0,
+            depth: 1.2,
+            color: Color::WHITE,
+        };
+        let f = balcony_faces(&w, &b).unwrap();
+        assert_eq!(f.slab.len(), 6);
+        let centre = DVec3::new(10.6, 2.5, 2.9);
+        let mut sum = DVec3::ZERO;
+        for face in &f.slab {
+            let c = face.outer.iter().copied().sum::<DVec3>() / 4.0;
+            assert!(n(face).dot(c - centre) > 0.0, "slab face faces out");
+            sum += crate::geometry::newell_normal(&face.outer);
+        }
+        assert!(sum.length() < 1e-9, "closed box: area vectors cancel");
+        assert!((n(&f.railing[0]) - DVec3::X).length() < 1e-12);
+        assert!((n(&f.railing[1]) + DVec3::Y).length() < 1e-12);
+        assert!((n(&f.railing[2]) - DVec3::Y).length() < 1e-12);
+        let xs: Vec<f64> = f.all().flat_map(|f| f.outer.iter().map(|p| p.x)).collect();
+        assert!(xs.iter().all(|x| (10.0..=11.2 + 1e-9).contains(x)));
+        let bad = Balcony { depth: 0.0, ..b };
+        assert!(balcony_faces(&w, &bad).is_none());
+    }
+}
+
+/// Hand-built LOD3 buildings for the writers' tests, laid out as the model's LOD3 contract says
+/// (walls per storey and edge, one hole per opening in the same order, holes oriented opposite
+/// to the outline).
+#[cfg(test)]
+pub(crate) mod samples {
+    use glam::{DVec2, DVec3};
+
+    use crate::color::Color;
+    use crate::geometry::Polygon;
+    use crate::input::SourceId;
+    use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
+
+    pub const GLASS: Color = Color::rgb(0.55, 0.7, 0.8);
+    pub const DOOR: Color = Color::rgb(0.4, 0.25, 0.1);
+    pub const FRAME: Color = Color::rgb(0.95, 0.95, 0.95);
+    pub const BALCONY: Color = Color::rgb(0.6, 0.6, 0.6);
+
+    pub fn window(u0: f64, u1: f64, z0: f64, z1: f64) -> Opening {
+        Opening {
+            kind: OpeningKind::Window,
+            u0,
+            u1,
+            z0,
+            z1,
+            color: GLASS,
+            frame_color: FRAME,
+            glazed: true,
+            framed: true,
+        }
+    }
+
+    pub fn door(u0: f64, u1: f64, z0: f64, z1: f64) -> Opening {
+        Opening {
+            kind: OpeningKind::Door,
+            color: DOOR,
+            glazed: false,
+            framed: false,
+            ..window(u0, u1, z0, z1)
+        }
+    }
+
+    fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<DVec2> {
+        vec![
+            DVec2::new(x0, y0),
+            DVec2::new(x1, y0),
+            DVec2::new(x1, y1),
+            DVec2::new(x0, y1),
+        ]
+    }
+
+    /// A flat-roofed LOD3 part: walls per storey (`levels`, the last up to `eave`) and edge of
+    /// `footprint` (outer ring then holes), with `openings` and `balconies` given as
+    /// (edge index, storey, item).
+    pub fn part(
+        key: &str,
+        footprint: Polygon,
+        levels: Vec<f64>,
+        eave: f64,
+        openings: &[(usize, usize, Opening)],
+        balconies: &[(usize, usize, Balcony)],
+    ) -> Part {
+        let edges: Vec<(DVec2, DVec2)> = footprint
+            .rings()
+            .flat_map(|r| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()])))
+            .collect();
+        let mut walls = Vec::new();
+        for (storey, &lo) in levels.iter().enumerate() {
+            let hi = levels.get(storey + 1).copied().unwrap_or(eave);
+            for (e, &(a, b)) in edges.iter().enumerate() {
+                let ops: Vec<Opening> = openings
+                    .iter()
+                    .filter(|(oe, os, _)| *oe == e && *os == storey)
+                    .map(|(_, _, o)| o.clone())
+                    .collect();
+                let dir = (b - a).normalize();
+                let p = |u: f64, z: f64| (a + dir * u).extend(z);
+                let holes = ops
+                    .iter()
+                    .map(|o| vec![p(o.u0, o.z0), p(o.u0, o.z1), p(o.u1, o.z1), p(o.u1, o.z0)])
+                    .collect();
+                walls.push(Wall {
+                    start: a,
+                    end: b,
+                    base_z: lo,
+                    top_z: hi,
+                    thickness: 0.3,
+                    outline: Face {
+                        outer: vec![a.extend(lo), b.extend(lo), b.extend(hi), a.extend(hi)],
+                        holes,
+                    },
+                    storey,
+                    openings: ops,
+                    balconies: balconies
+                        .iter()
+                        .filter(|(be, bs, _)| *be == e && *bs == storey)
+                        .map(|(_, _, b)| b.clone())
+                        .collect(),
+                });
+            }
+        }
+        let lift = |r: &Vec<DVec2>, z: f64| r.iter().map(|p| p.extend(z)).collect::<Vec<_>>();
+        let roof = Face {
+            outer: lift(&footprint.outer, eave),
+            holes: footprint.holes.iter().map(|h| lift(h, eave)).collect(),
+        };
+        let rev = |r: &Vec<DVec2>| {
+            let mut v = lift(r, levels[0]);
+            v.reverse();
+            v
+        };
+        let ground = Face {
+            outer: rev(&footprint.outer),
+            holes: footprint.holes.iter().map(rev).collect(),
+        };
+        Part {
+            key: key.into(),
+            footprint,
+            base_z: levels[0],
+            eave_z: eave,
+            top_z: eave,
+            storeys: levels.len() as u32,
+            levels,
+            wall_color: Color::rgb(0.96, 0.96, 0.86),
+            roof_color: Color::rgb(0.7, 0.2, 0.1),
+            roof_shape: RoofShape::Flat,
+            walls,
+            roof: vec![roof],
+            ground,
+        }
+    }
+
+    pub fn building(id: SourceId, parts: Vec<Part>) -> Building {
+        let base = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
+        let top = parts
+            .iter()
+            .map(|p| p.top_z)
+            .fold(f64::NEG_INFINITY, f64::max);
+        Building {
+            id,
+            name: None,
+            zone: "earth/Europe/Monaco".into(),
+            appearance: "Monaco#1".into(),
+            base_z: base,
+            measured_height: top - base,
+            storeys_above_ground: parts.iter().map(|p| p.storeys).max().unwrap_or(1),
+            roof_shape: parts[0].roof_shape,
+            parts,
+            lod: Lod::Lod3,
+        }
+    }
+
+    /// 10 x 6 m box, 2 storeys of 3 m; the front wall (edge 0, y = 0) has 4 windows and a door.
+    pub fn house() -> Building {
+        let openings = [
+            (0, 0, window(1.0, 2.2, 0.9, 2.2)),
+            (0, 0, door(4.5, 5.5, 0.02, 2.2)),
+            (0, 0, window(7.8, 9.0, 0.9, 2.2)),
+            (0, 1, window(1.0, 2.2, 3.9, 5.2)),
+            (0, 1, window(7.8, 9.0, 3.9, 5.2)),
+        ];
+        let p = part(
+            "p0",
+            Polygon::new(rect(0.0, 0.0, 10.0, 6.0), vec![]),
+            vec![0.0, 3.0],
+            6.0,
+            &openings,
+            &[],
+        );
+        building(SourceId::Way(301), vec![p])
+    }
+
+    /// 20 x 20 m block with an 8 x 8 m courtyard, one storey; windows on an outer and a
+    /// courtyard wall (edge 4 is the courtyard's first edge).
+    pub fn courtyard() -> Building {
+        let fp = Polygon::new(
+            rect(30.0, 0.0, 50.0, 20.0),
+            vec![rect(36.0, 6.0, 44.0, 14.0)],
+        );
+        let mut opaque = window(5.0, 6.0, 1.0, 2.0);
+        opaque.glazed = false;
+        opaque.color = Color::rgb(0.2, 0.3, 0.2);
+        let openings = [
+            (1, 0, window(2.0, 3.0, 1.0, 2.2)),
+            (4, 0, window(2.0, 3.5, 1.0, 2.2)),
+            (4, 0, opaque),
+        ];
+        let p = part("p0", fp, vec![0.0], 3.5, &openings, &[]);
+        building(SourceId::Relation(302), vec![p])
+    }
+
+    /// Two parts: a 2-storey box with a balcony and a French window on its first floor, and a
+    /// lower annex with a door.
+    pub fn with_balcony() -> Building {
+        let balcony = Balcony {
+            u0: 3.0,
+            u1: 7.0,
+            z: 3.0,
+            depth: 1.2,
+            color: BALCONY,
+        };
+        let a = part(
+            "p0",
+            Polygon::new(rect(60.0, 0.0, 70.0, 6.0), vec![]),
+            vec![0.0, 3.0],
+            6.0,
+            &[(0, 1, window(4.0, 6.0, 3.02, 5.4))],
+            &[(0, 1, balcony)],
+        );
+        let b = part(
+            "p1",
+            Polygon::new(rect(70.0, 0.0, 76.0, 6.0), vec![]),
+            vec![0.0],
+            3.0,
+            &[(0, 0, door(2.0, 3.0, 0.02, 2.1))],
+            &[],
+        );
+        building(SourceId::Way(303), vec![a, b])
+    }
+
+    /// 10 x 6 m, one storey, gable roof (eave 3, ridge 5 along x at y = 3): the east and west
+    /// walls are pentagons; the east one has a window.
+    pub fn gable() -> Building {
+        let (x0, e, r) = (90.0, 3.0, 5.0);
+        let mut p = part(
+            "p0",
+            Polygon::new(rect(x0, 0.0, x0 + 10.0, 6.0), vec![]),
+            vec![0.0],
+            e,
+            &[(1, 0, window(2.0, 4.0, 1.0, 2.5))],
+            &[],
+        );
+        let q = |x: f64, y: f64, z: f64| DVec3::new(x0 + x, y, z);
+        for w in [1, 3] {
+            let wall = &mut p.walls[w];
+            let o = &mut wall.outline.outer;
+            o.insert(3, ((o[2] + o[3]) * 0.5).truncate().extend(r));
+        }
+        p.roof = vec![
+            Face::new(vec![
+                q(0.0, 0.0, e),
+                q(10.0, 0.0, e),
+                q(10.0, 3.0, r),
+                q(0.0, 3.0, r),
+            ]),
+            Face::new(vec![
+                q(10.0, 6.0, e),
+                q(0.0, 6.0, e),
+                q(0.0, 3.0, r),
+                q(10.0, 3.0, r),
+            ]),
+        ];
+        p.top_z = r;
+        p.roof_shape = RoofShape::Gabled;
+        building(SourceId::Way(304), vec![p])
+    }
+
+    /// All LOD3 samples.
+    pub fn all() -> Vec<Building> {
+        vec![house(), courtyard(), with_balcony(), gable()]
+    }
+
+    /// (windows, doors) of a building, counted on the model.
+    pub fn counts(b: &Building) -> (usize, usize) {
+        let all = b
+            .parts
+            .iter()
+            .flat_map(|p| &p.walls)
+            .flat_map(|w| &w.openings);
+        let doors = all.clone().filter(|o| o.kind == OpeningKind::Door).count();
+        (all.count() - doors, doors)
+    }
+
+    /// Wall area minus opening area of a building, from the model (rectangles and the gable
+    /// pentagons via their Newell normals).
+    pub fn net_wall_area(b: &Building) -> f64 {
+        b.parts
+            .iter()
+            .flat_map(|p| &p.walls)
+            .map(|w| {
+                let outer = crate::geometry::newell_normal(&w.outline.outer).length() / 2.0;
+                let open: f64 = w.openings.iter().map(|o| o.width() * o.height()).sum();
+                outer - open
+            })
+            .sum()
+    }
+}
