@@ -234,7 +234,7 @@ impl Generator {
 }
 
 /// Part tags take precedence; a part without colours takes its outline's.
-fn merged_tags(piece: &BuildingTags, outline: &BuildingTags, is_part: bool) -> BuildingTags {
+pub fn merged_tags(piece: &BuildingTags, outline: &BuildingTags, is_part: bool) -> BuildingTags {
     let mut t = piece.clone();
     if is_part {
         t.colour = t.colour.or(outline.colour);

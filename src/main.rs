@@ -38,6 +38,46 @@ enum Command {
     /// Check and try grammar rulesets.
     #[command(subcommand)]
     Rules(RulesCommand),
+    /// Check, compile and explain knowledge bases.
+    #[command(subcommand)]
+    Kb(KbCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum KbCommand {
+    /// Read a knowledge base and list what the lenient reader repaired (with lines), errors and
+    /// warnings. Exit code 1 on errors, 0 with repairs or warnings only.
+    Check {
+        /// The knowledge base.
+        kb: PathBuf,
+        /// Read our clean format only (schemas/kb.xsd): every repair becomes an error.
+        #[arg(long)]
+        strict: bool,
+        /// Allow `<ruleset file=...>` paths outside the knowledge base's folder.
+        #[arg(long)]
+        allow_external_rulesets: bool,
+    },
+    /// Print the grammar rules generated for each appearance of a zone.
+    Compile {
+        kb: PathBuf,
+        /// Zone path, e.g. France/Occitanie/Toulouse/Centre-Ville (with or without `earth/`).
+        #[arg(long)]
+        zone: String,
+    },
+    /// Explain the zone chain, inherited values, and the appearance chosen for one building.
+    #[command(group(ArgGroup::new("explain_input").required(true).args(["osm", "shp"])))]
+    Explain {
+        kb: PathBuf,
+        #[arg(long, value_name = "FILE.pbf")]
+        osm: Option<PathBuf>,
+        #[arg(long, value_name = "FILE.shp")]
+        shp: Option<PathBuf>,
+        /// The building: way/123, relation/45 (OSM) or a 0-based shapefile record number.
+        #[arg(long)]
+        id: String,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+    },
 }
 
 // Parsed once per process: the size difference between variants does not matter.
@@ -202,6 +242,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Rules(cmd)) => rules_command(cmd),
+        Some(Command::Kb(cmd)) => kb_command(cmd),
         None => run_main(cli.run),
     }
 }
@@ -290,6 +331,116 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     ExitCode::from(exit_code(&e))
                 }
             }
+        }
+    }
+}
+
+/// `citygen kb ...`.
+fn kb_command(cmd: KbCommand) -> ExitCode {
+    use citygen::kb::{tools, KnowledgeBase, ReadMode};
+    let load = |p: &PathBuf| {
+        KnowledgeBase::load(p)
+            .map(|(kb, _)| kb)
+            .map_err(|e| e.to_string())
+    };
+    let fail = |msg: String| {
+        eprintln!("citygen: error: {msg}");
+        ExitCode::from(1)
+    };
+    match cmd {
+        KbCommand::Check {
+            kb,
+            strict,
+            allow_external_rulesets,
+        } => {
+            let mode = if strict {
+                ReadMode::Strict
+            } else {
+                ReadMode::Lenient
+            };
+            match tools::check_report_with(&kb, mode, allow_external_rulesets) {
+                Ok(r) => {
+                    print!("{r}");
+                    ExitCode::from(if r.has_errors() { 1 } else { 0 })
+                }
+                Err(e) => fail(e.to_string()),
+            }
+        }
+        KbCommand::Compile { kb, zone } => {
+            let kb = match load(&kb) {
+                Ok(k) => k,
+                Err(e) => return fail(e),
+            };
+            match tools::compile_zone(&kb, &zone) {
+                Ok(list) => {
+                    for (label, text) in list {
+                        println!("# {label}\n{text}");
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(e) => fail(e.to_string()),
+            }
+        }
+        KbCommand::Explain {
+            kb,
+            osm,
+            shp,
+            id,
+            seed,
+        } => {
+            let kb = match load(&kb) {
+                Ok(k) => k,
+                Err(e) => return fail(e),
+            };
+            let wanted = match (&shp, citygen::input::SourceId::parse(&id)) {
+                (Some(_), None) => id.trim().parse().ok().map(citygen::input::SourceId::Shape),
+                (_, parsed) => parsed,
+            };
+            let Some(wanted) = wanted else {
+                return fail(format!(
+                    "{id:?} is not a building id (way/123, relation/45 or a record number)"
+                ));
+            };
+            let mut report = citygen::report::Report::default();
+            let read = match (&osm, &shp) {
+                (Some(p), _) => citygen::input::osm::read_osm(p, &mut report),
+                (None, Some(p)) => {
+                    citygen::input::shp::read_shp(p, &Default::default(), &mut report)
+                }
+                (None, None) => return ExitCode::from(2),
+            };
+            let read = match read {
+                Ok(r) => r,
+                Err(e) => return fail(e.to_string()),
+            };
+            let site =
+                citygen::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+            let found = site.lots.iter().find_map(|lot| {
+                if lot.id == wanted {
+                    return Some((lot.lonlat, lot.tags.clone()));
+                }
+                let part = lot.parts.iter().find(|p| p.id == wanted)?;
+                Some((
+                    lot.lonlat,
+                    citygen::derive::merged_tags(&part.tags, &lot.tags, true),
+                ))
+            });
+            let Some((lonlat, tags)) = found else {
+                let why = report
+                    .entries
+                    .iter()
+                    .find(|e| e.id == wanted.to_string())
+                    .map(|e| e.reason.clone());
+                return fail(match why {
+                    Some(r) => format!("{wanted} was not generated: {r}"),
+                    None => format!("no building {wanted} in the input"),
+                });
+            };
+            print!(
+                "{}",
+                tools::explain(&kb, lonlat.0, lonlat.1, &tags, wanted.seed_value(), seed)
+            );
+            ExitCode::SUCCESS
         }
     }
 }

@@ -622,3 +622,86 @@ fn lod3_window_and_door_counts_agree_between_ifc_and_citygml() {
     assert_eq!(count("IFCRELFILLSELEMENT"), count("IFCOPENINGELEMENT"));
     assert_eq!(count("IFCRELVOIDSELEMENT"), count("IFCOPENINGELEMENT"));
 }
+
+#[test]
+fn kb_check_repairs_the_thesis_annex_and_strict_mode_refuses_it() {
+    let out = citygen(&["kb", "check", "tests/data/thesis_annex.xml"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("line"), "repairs carry their line: {text}");
+    let strict = citygen(&["kb", "check", "--strict", "tests/data/thesis_annex.xml"]);
+    assert_ne!(strict.status.code(), Some(0));
+    let shipped = citygen(&["kb", "check", "--strict", KB]);
+    assert_eq!(
+        shipped.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&shipped.stdout)
+    );
+}
+
+#[test]
+fn kb_compile_prints_rules_that_parse() {
+    let out = citygen(&[
+        "kb",
+        "compile",
+        KB,
+        "--zone",
+        "France/Occitanie/Toulouse/Centre-Ville",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let sections: Vec<&str> = text.split("# ").filter(|s| !s.trim().is_empty()).collect();
+    assert!(!sections.is_empty());
+    for s in sections {
+        let (label, rules) = s.split_once('\n').unwrap();
+        citygen::grammar::parse(rules, label).unwrap_or_else(|e| panic!("{e}"));
+    }
+    let bad = citygen(&["kb", "compile", KB, "--zone", "Atlantis"]);
+    assert_eq!(bad.status.code(), Some(1));
+}
+
+#[test]
+fn kb_explain_tells_the_zone_chain_and_the_chosen_appearance() {
+    let out = citygen(&[
+        "kb",
+        "explain",
+        KB,
+        "--osm",
+        MONACO,
+        "--id",
+        "relation/393226",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("earth/Monaco/Monaco-Ville"), "{text}");
+    // What explain says is what the generator does: the same appearance as in the CityGML.
+    let chosen = text
+        .lines()
+        .find_map(|l| l.strip_prefix("chosen with this seed: "))
+        .unwrap()
+        .trim()
+        .to_string();
+    let run = run_all("--osm", MONACO, "2", &[]);
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    let b = &citygml_buildings(&gml)["B_relation_393226"];
+    assert!(
+        b.contains(&format!("<gen:value>{chosen}</gen:value>")),
+        "explain chose {chosen}"
+    );
+    let missing = citygen(&["kb", "explain", KB, "--osm", MONACO, "--id", "way/1"]);
+    assert_eq!(missing.status.code(), Some(1));
+}
