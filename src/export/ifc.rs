@@ -38,10 +38,38 @@
 //!   Lod, RoofShape) and `Pset_BuildingCommon` (NumberOfStoreys), and per building a
 //!   `Pset_WallCommon` (IsExternal) on all its walls.
 //!
+//! At LOD3 (`OutputContext::lod >= Lod3`) a part is written differently (LOD1/LOD2 files are
+//! unchanged):
+//!
+//! - One `IfcBuildingStorey` per entry of [`Part::levels`] (`Storey i`, Elevation relative to
+//!   the building's placement). Each wall is placed in, and contained in, the storey
+//!   [`Wall::storey`] names; the base slab is in the first storey, the roof in the top one.
+//! - Each [`Opening`] is an `IfcOpeningElement` `.OPENING.` placed relative to its wall (at
+//!   (u0, -tolerance, z0 - wall base) in the wall's frame: X along the wall, Y into the wall
+//!   body, Z up), whose body is the opening's rectangle extruded across the wall, 1 cm past
+//!   each face; `IfcRelVoidsElement(wall, opening)`. It is filled (`IfcRelFillsElement`) by an
+//!   `IfcWindow` `.WINDOW.` or `IfcDoor` `.DOOR.` (OverallHeight/OverallWidth = the
+//!   opening's) placed relative to the opening, centred in it and in the wall's depth, and
+//!   contained in the wall's storey.
+//! - Windows and doors of one kind (kind, size floored to the cm, frame depth, glazed, framed,
+//!   colours) share one `IfcWindowType`/`IfcDoorType` holding one `IfcRepresentationMap`: a
+//!   frame (`IfcRectangleHollowProfileDef` extruded 8 cm deep) and a glass pane or door panel,
+//!   or a single pane/panel when unframed, styled with `IfcSurfaceStyleRendering` (glass 65 %
+//!   transparent; styles cached per colour and transparency). Every occurrence references the
+//!   same `IfcProductDefinitionShape` (one `IfcMappedItem` of the map), so a window costs its
+//!   placement and relationships only. The `IfcRelDefinesByType` of each type (a type has at
+//!   most one) and an `IfcRelDeclares` of all types in the project are written by `finish`.
+//!   Opening bodies are shared the same way per (width, height, wall thickness).
+//! - A [`Balcony`] is an `IfcSlab` `.FLOOR.` named `Balcony` (its rectangle, 15 cm thick, top
+//!   at the balcony's floor height, outside the wall) and an `IfcRailing` `.BALUSTRADE.` (1 m
+//!   high, 5 cm thick, on the three free edges), both contained in the wall's storey.
+//! - Glazed facades are not written as `IfcCurtainWall`: windows only.
+//!
 //! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
-//! building ids, the set of building keys seen, and the caches of shared styles and material
-//! usages.
+//! building ids, the set of building keys seen, the caches of shared styles and material
+//! usages, and at LOD3 the shared opening shapes and the window/door types with the ids of
+//! their occurrences (8 bytes per window or door, for the final `IfcRelDefinesByType`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -241,12 +269,12 @@ fn check_finite(b: &Building) -> Result<(), ExportError> {
                 && w.top_z.is_finite()
                 && w.thickness.is_finite()
                 && face_ok(&w.outline)
-                && w.openings.iter().all(|o| {
-                    [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite())
-                })
-                && w.balconies.iter().all(|b| {
-                    [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite())
-                });
+                && w.openings
+                    .iter()
+                    .all(|o| [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()))
+                && w.balconies
+                    .iter()
+                    .all(|b| [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite()));
             if !ok {
                 return bad(&format!("wall coordinate in part {}", p.key));
             }
@@ -415,7 +443,13 @@ impl TypeKey {
     fn name(&self) -> String {
         let hex = |k: [u16; 4]| {
             let c = |v: u16| (f64::from(v) / 1000.0 * 255.0).round() as u8;
-            format!("#{:02x}{:02x}{:02x}{:02x}", c(k[0]), c(k[1]), c(k[2]), c(k[3]))
+            format!(
+                "#{:02x}{:02x}{:02x}{:02x}",
+                c(k[0]),
+                c(k[1]),
+                c(k[2]),
+                c(k[3])
+            )
         };
         format!(
             "{} {}x{} cm{}{} d{} {}/{}",
@@ -1229,8 +1263,7 @@ impl<W: Write> Open<W> {
         if let Some(id) = self.slab(part, &frames[0], &global_id(key, &format!("{pk}/slab")))? {
             contained[0].push(id);
         }
-        if let Some(id) = self.roof(part, &frames[top], &global_id(key, &format!("{pk}/roof")))?
-        {
+        if let Some(id) = self.roof(part, &frames[top], &global_id(key, &format!("{pk}/roof")))? {
             contained[top].push(id);
         }
         for (s, ids) in contained.iter().enumerate() {
@@ -1369,7 +1402,11 @@ impl<W: Write> Open<W> {
         let shape = match self.shared.opening_shapes.get(&skey) {
             Some(&id) => id,
             None => {
-                let (w, h, depth) = (skey[0] as f64 / 1e6, skey[1] as f64 / 1e6, skey[2] as f64 / 1e6);
+                let (w, h, depth) = (
+                    skey[0] as f64 / 1e6,
+                    skey[1] as f64 / 1e6,
+                    skey[2] as f64 / 1e6,
+                );
                 let profile = self.rect_profile(0.0, 0.0, w, h)?;
                 let solid = self.through_wall(profile, 0.0, depth)?;
                 let body_ctx = self.body_ctx;
@@ -2299,10 +2336,13 @@ mod tests {
             w.finish().unwrap();
             got.push(file_hash(&w.into_inner().unwrap()));
         }
-        assert_eq!(got, [
-            "4771904b886d95b8478c8e3ac6d5e37a",
-            "5447e28037551ac9622b57ba40da9fdd"
-        ]);
+        assert_eq!(
+            got,
+            [
+                "4771904b886d95b8478c8e3ac6d5e37a",
+                "5447e28037551ac9622b57ba40da9fdd"
+            ]
+        );
     }
 
     #[test]
@@ -2591,7 +2631,13 @@ mod tests {
 
     /// The GlobalId (first argument) of an entity.
     fn gid_of(m: &BTreeMap<u64, (String, String)>, id: u64) -> String {
-        m[&id].1.split(',').next().unwrap().trim_matches('\'').to_string()
+        m[&id]
+            .1
+            .split(',')
+            .next()
+            .unwrap()
+            .trim_matches('\'')
+            .to_string()
     }
 
     #[test]
@@ -2678,10 +2724,13 @@ mod tests {
     fn lod3_storeys_per_level_with_walls_in_their_storey() {
         let bs = lod3_sample();
         let m = parse(&write_lod3(&bs));
-        let levels: usize = bs.iter().flat_map(|b| &b.parts).map(|p| p.levels.len()).sum();
+        let levels: usize = bs
+            .iter()
+            .flat_map(|b| &b.parts)
+            .map(|p| p.levels.len())
+            .sum();
         assert_eq!(count(&m, "IFCBUILDINGSTOREY"), levels);
-        let by_gid: BTreeMap<String, u64> =
-            m.keys().map(|&id| (gid_of(&m, id), id)).collect();
+        let by_gid: BTreeMap<String, u64> = m.keys().map(|&id| (gid_of(&m, id), id)).collect();
         let contained: Vec<Vec<u64>> = m
             .values()
             .filter(|(k, _)| k == "IFCRELCONTAINEDINSPATIALSTRUCTURE")
@@ -2701,7 +2750,10 @@ mod tests {
                 for (s, level) in part.levels.iter().enumerate() {
                     let st = by_gid[&global_id(&key, &format!("p0/storey/{s}"))];
                     let elev: f64 = m[&st].1.rsplit(',').next().unwrap().parse().unwrap();
-                    assert!((elev - (level - b.base_z)).abs() < 1e-9, "{elev} vs {level}");
+                    assert!(
+                        (elev - (level - b.base_z)).abs() < 1e-9,
+                        "{elev} vs {level}"
+                    );
                 }
                 for (i, wall) in part.walls.iter().enumerate() {
                     let id = by_gid[&global_id(&key, &format!("p0/wall/{i}"))];
