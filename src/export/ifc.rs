@@ -2868,5 +2868,48 @@ mod tests {
                 proptest::prop_assert!((got - want).abs() < 1e-5, "{} vs {}", got, want);
             }
         }
+
+        /// LOD3 rotated boxes with a random row of windows and doors on the front of each
+        /// storey: one opening element per opening, each voiding its wall and filled once, and
+        /// one type per distinct (kind, size in cm).
+        #[test]
+        fn lod3_rotated_boxes_keep_one_opening_per_window_or_door(
+            angle in 0.0f64..std::f64::consts::TAU,
+            widths in proptest::collection::vec((0.3f64..1.6, proptest::bool::ANY), 1..6),
+            storeys in 1usize..4,
+        ) {
+            let (sin, cos) = angle.sin_cos();
+            let ring: Vec<DVec2> = rect(0.0, 0.0, 12.0, 6.0)
+                .into_iter()
+                .map(|p| DVec2::new(p.x * cos - p.y * sin, p.x * sin + p.y * cos))
+                .collect();
+            let levels: Vec<f64> = (0..storeys).map(|i| 3.0 * i as f64).collect();
+            let top = 3.0 * storeys as f64;
+            let part = flat_part("p0", Polygon::new(ring, vec![]), 0.0, top, storeys as u32);
+            let mut part = storeyed(part, &levels);
+            let mut kinds = BTreeSet::new();
+            for (s, z) in levels.iter().enumerate() {
+                let mut u = 0.1;
+                for &(w, door) in &widths {
+                    let kind = if door { OpeningKind::Door } else { OpeningKind::Window };
+                    open(&mut part, 4 * s, kind, (u, u + w), (z + 0.1, z + 2.2));
+                    kinds.insert((door, (w * 100.0 + 1e-6).floor() as i64));
+                    u += w + 0.5;
+                }
+            }
+            let n = widths.len() * storeys;
+            let b = lod3(building(SourceId::Way(9), None, vec![part]));
+            let m = parse(&write_lod3(&[b]));
+            let openings = ids_of(&m, "IFCOPENINGELEMENT");
+            proptest::prop_assert_eq!(openings.len(), n);
+            proptest::prop_assert_eq!(count(&m, "IFCWINDOW") + count(&m, "IFCDOOR"), n);
+            for o in &openings {
+                let voids = m.values().filter(|(k, a)| k == "IFCRELVOIDSELEMENT" && refs(a)[1] == *o).count();
+                let fills = m.values().filter(|(k, a)| k == "IFCRELFILLSELEMENT" && refs(a)[0] == *o).count();
+                proptest::prop_assert_eq!((voids, fills), (1, 1));
+            }
+            proptest::prop_assert_eq!(count(&m, "IFCWINDOWTYPE") + count(&m, "IFCDOORTYPE"), kinds.len());
+            proptest::prop_assert_eq!(count(&m, "IFCBUILDINGSTOREY"), storeys);
+        }
     }
 }
