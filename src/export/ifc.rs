@@ -38,10 +38,38 @@
 //!   Lod, RoofShape) and `Pset_BuildingCommon` (NumberOfStoreys), and per building a
 //!   `Pset_WallCommon` (IsExternal) on all its walls.
 //!
+//! At LOD3 (`OutputContext::lod >= Lod3`) a part is written differently (LOD1/LOD2 files are
+//! unchanged):
+//!
+//! - One `IfcBuildingStorey` per entry of [`Part::levels`] (`Storey i`, Elevation relative to
+//!   the building's placement). Each wall is placed in, and contained in, the storey
+//!   [`Wall::storey`] names; the base slab is in the first storey, the roof in the top one.
+//! - Each [`Opening`] is an `IfcOpeningElement` `.OPENING.` placed relative to its wall (at
+//!   (u0, -tolerance, z0 - wall base) in the wall's frame: X along the wall, Y into the wall
+//!   body, Z up), whose body is the opening's rectangle extruded across the wall, 1 cm past
+//!   each face; `IfcRelVoidsElement(wall, opening)`. It is filled (`IfcRelFillsElement`) by an
+//!   `IfcWindow` `.WINDOW.` or `IfcDoor` `.DOOR.` (OverallHeight/OverallWidth = the
+//!   opening's) placed relative to the opening, centred in it and in the wall's depth, and
+//!   contained in the wall's storey.
+//! - Windows and doors of one kind (kind, size floored to the cm, frame depth, glazed, framed,
+//!   colours) share one `IfcWindowType`/`IfcDoorType` holding one `IfcRepresentationMap`: a
+//!   frame (`IfcRectangleHollowProfileDef` extruded 8 cm deep) and a glass pane or door panel,
+//!   or a single pane/panel when unframed, styled with `IfcSurfaceStyleRendering` (glass 65 %
+//!   transparent; styles cached per colour and transparency). Every occurrence references the
+//!   same `IfcProductDefinitionShape` (one `IfcMappedItem` of the map), so a window costs its
+//!   placement and relationships only. The `IfcRelDefinesByType` of each type (a type has at
+//!   most one) and an `IfcRelDeclares` of all types in the project are written by `finish`.
+//!   Opening bodies are shared the same way per (width, height, wall thickness).
+//! - A [`Balcony`] is an `IfcSlab` `.FLOOR.` named `Balcony` (its rectangle, 15 cm thick, top
+//!   at the balcony's floor height, outside the wall) and an `IfcRailing` `.BALUSTRADE.` (1 m
+//!   high, 5 cm thick, on the three free edges), both contained in the wall's storey.
+//! - Glazed facades are not written as `IfcCurtainWall`: windows only.
+//!
 //! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
-//! building ids, the set of building keys seen, and the caches of shared styles and material
-//! usages.
+//! building ids, the set of building keys seen, the caches of shared styles and material
+//! usages, and at LOD3 the shared opening shapes and the window/door types with the ids of
+//! their occurrences (8 bytes per window or door, for the final `IfcRelDefinesByType`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -51,7 +79,7 @@ use glam::{DVec2, DVec3};
 use crate::color::Color;
 use crate::export::step::{global_id, Header, Id, StepWriter};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
-use crate::model::{Building, Face, Part, RoofShape, Wall};
+use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
 
 /// Thickness of the base slab, extruded down from the ground surface (metres).
 const SLAB_THICKNESS: f64 = 0.2;
@@ -61,6 +89,25 @@ const FLAT_ROOF_THICKNESS: f64 = 0.2;
 const EPS: f64 = 1e-4;
 /// A part never gets more storeys than this, whatever its `storeys` says.
 const MAX_STOREYS: u32 = 200;
+/// How far an opening's body reaches past each face of its wall (metres), so that the boolean
+/// cut never leaves a skin of wall behind.
+const OPENING_TOLERANCE: f64 = 0.01;
+/// Depth of a window or door frame across the wall (metres; less in thinner walls).
+const FRAME_DEPTH: f64 = 0.08;
+/// Width of a window or door frame in the wall's plane (metres; less for tiny openings).
+const FRAME_WIDTH: f64 = 0.06;
+/// Thickness of a glass pane (metres).
+const GLASS_THICKNESS: f64 = 0.02;
+/// Thickness of a door panel (metres).
+const PANEL_THICKNESS: f64 = 0.04;
+/// Transparency of glass in its surface style (1 = invisible).
+const GLASS_TRANSPARENCY: f64 = 0.65;
+/// Thickness of a balcony slab, hanging below its floor height (metres).
+const BALCONY_THICKNESS: f64 = 0.15;
+/// Height of a balcony railing above the slab (metres).
+const RAILING_HEIGHT: f64 = 1.0;
+/// Thickness of a balcony railing (metres).
+const RAILING_THICKNESS: f64 = 0.05;
 
 /// Streaming IFC4 writer. See the module documentation for what it writes.
 ///
@@ -221,10 +268,19 @@ fn check_finite(b: &Building) -> Result<(), ExportError> {
                 && w.base_z.is_finite()
                 && w.top_z.is_finite()
                 && w.thickness.is_finite()
-                && face_ok(&w.outline);
+                && face_ok(&w.outline)
+                && w.openings
+                    .iter()
+                    .all(|o| [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()))
+                && w.balconies
+                    .iter()
+                    .all(|b| [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite()));
             if !ok {
                 return bad(&format!("wall coordinate in part {}", p.key));
             }
+        }
+        if !p.levels.iter().all(|z| z.is_finite()) {
+            return bad(&format!("storey level in part {}", p.key));
         }
         if !p.roof.iter().all(face_ok) || !face_ok(&p.ground) {
             return bad(&format!("roof or ground coordinate in part {}", p.key));
@@ -313,6 +369,108 @@ struct Open<W: Write> {
     buildings: Vec<Id>,
     /// Building keys already written, to keep GlobalIds unique if a key repeats.
     keys: BTreeSet<String>,
+    /// Whether the run is LOD3 or more (storeys per level, openings, windows, doors, balconies).
+    lod3: bool,
+    project: Id,
+    /// LOD3 shared entities, created on first use so LOD1/LOD2 files do not change.
+    shared: Lod3Shared,
+}
+
+/// Entities shared file-wide by LOD3 elements, created lazily.
+#[derive(Default)]
+struct Lod3Shared {
+    /// `IfcAxis2Placement3D(origin, -Y, X)`: maps a profile's (x, y) to (X, Z), extruding along
+    /// its -Z goes to +Y (into the wall).
+    vertical: Option<Id>,
+    /// `IfcCartesianTransformationOperator3D` at the origin (mapped items are placed by their
+    /// product's placement).
+    identity_op: Option<Id>,
+    /// Product shape of an opening body per (width, height, depth) in micrometres.
+    opening_shapes: BTreeMap<[i64; 3], Id>,
+    /// `IfcAxis2Placement3D` of a window/door in its opening, per offset in micrometres.
+    fill_offsets: BTreeMap<[i64; 3], Id>,
+    /// Rendering surface style per (colour, transparency in thousandths).
+    renderings: BTreeMap<([u16; 4], u16), Id>,
+    /// Window and door types, by what makes two openings the same kind.
+    types: BTreeMap<TypeKey, FillType>,
+}
+
+/// What makes two windows or doors share a type: kind, size (floored to the cm), frame depth
+/// (mm), glazing, frame, colours.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct TypeKey {
+    door: bool,
+    width_cm: i64,
+    height_cm: i64,
+    depth_mm: i64,
+    glazed: bool,
+    framed: bool,
+    color: [u16; 4],
+    frame_color: [u16; 4],
+}
+
+impl TypeKey {
+    /// The key of an opening in a wall of `thickness`; `None` if it is under a centimetre.
+    fn of(o: &Opening, thickness: f64) -> Option<TypeKey> {
+        let cm = |v: f64| (v * 100.0 + 1e-6).floor() as i64;
+        let (width_cm, height_cm) = (cm(o.width()), cm(o.height()));
+        let depth_mm = (FRAME_DEPTH.min(thickness) * 1000.0).round() as i64;
+        (width_cm >= 1 && height_cm >= 1 && depth_mm >= 1).then_some(TypeKey {
+            door: o.kind == OpeningKind::Door,
+            width_cm,
+            height_cm,
+            depth_mm,
+            glazed: o.glazed,
+            framed: o.framed,
+            color: color_key(o.color),
+            frame_color: color_key(o.frame_color),
+        })
+    }
+
+    fn width(&self) -> f64 {
+        self.width_cm as f64 / 100.0
+    }
+
+    fn height(&self) -> f64 {
+        self.height_cm as f64 / 100.0
+    }
+
+    fn depth(&self) -> f64 {
+        self.depth_mm as f64 / 1000.0
+    }
+
+    /// A readable, unique name (also the GlobalId path of the type).
+    fn name(&self) -> String {
+        let hex = |k: [u16; 4]| {
+            let c = |v: u16| (f64::from(v) / 1000.0 * 255.0).round() as u8;
+            format!(
+                "#{:02x}{:02x}{:02x}{:02x}",
+                c(k[0]),
+                c(k[1]),
+                c(k[2]),
+                c(k[3])
+            )
+        };
+        format!(
+            "{} {}x{} cm{}{} d{} {}/{}",
+            if self.door { "Door" } else { "Window" },
+            self.width_cm,
+            self.height_cm,
+            if self.framed { " framed" } else { "" },
+            if self.glazed { " glazed" } else { "" },
+            self.depth_mm,
+            hex(self.color),
+            hex(self.frame_color)
+        )
+    }
+}
+
+/// A written window or door type: its shared occurrence shape and its occurrences so far.
+struct FillType {
+    id: Id,
+    /// `IfcProductDefinitionShape` of one `IfcMappedItem` of the type's representation map.
+    shape: Id,
+    occurrences: Vec<Id>,
 }
 
 /// Where a part's elements are placed: the frame of its `Storey 0`, in local-frame coordinates.
@@ -471,6 +629,9 @@ impl<W: Write> Open<W> {
             styles: BTreeMap::new(),
             buildings: Vec::new(),
             keys: BTreeSet::new(),
+            lod3: ctx.lod >= Lod::Lod3,
+            project,
+            shared: Lod3Shared::default(),
         })
     }
 
@@ -483,6 +644,33 @@ impl<W: Write> Open<W> {
             );
             self.w.entity("IFCRELAGGREGATES", |a| {
                 a.string(&gid).null().null().null().id(site).ids(buildings);
+            })?;
+        }
+        // Window and door types: one IfcRelDefinesByType each (a type has at most one), and
+        // all declared in the project.
+        let types = std::mem::take(&mut self.shared.types);
+        let mut declared = Vec::with_capacity(types.len());
+        for (key, t) in types.iter().filter(|(_, t)| !t.occurrences.is_empty()) {
+            let gid = global_id(&self.ns, &format!("type/{}/rel", key.name()));
+            self.w.entity("IFCRELDEFINESBYTYPE", |a| {
+                a.string(&gid)
+                    .null()
+                    .null()
+                    .null()
+                    .ids(&t.occurrences)
+                    .id(t.id);
+            })?;
+            declared.push(t.id);
+        }
+        if !declared.is_empty() {
+            let (gid, project) = (global_id(&self.ns, "project/types"), self.project);
+            self.w.entity("IFCRELDECLARES", |a| {
+                a.string(&gid)
+                    .null()
+                    .null()
+                    .null()
+                    .id(project)
+                    .ids(&declared);
             })?;
         }
         Ok(self.w.finish()?)
@@ -517,7 +705,15 @@ impl<W: Write> Open<W> {
 
     /// An `IfcLocalPlacement` relative to `rel`, at `loc`, with X along `x_dir` (Z up).
     fn placement(&mut self, rel: Id, loc: DVec3, x_dir: DVec3) -> Result<Id, ExportError> {
-        let a2p = if loc == DVec3::ZERO && x_dir == DVec3::X {
+        let a2p = self.axes(loc, x_dir)?;
+        Ok(self.w.entity("IFCLOCALPLACEMENT", |a| {
+            a.id(rel).id(a2p);
+        })?)
+    }
+
+    /// An `IfcAxis2Placement3D` at `loc`, with X along `x_dir` (Z up).
+    fn axes(&mut self, loc: DVec3, x_dir: DVec3) -> Result<Id, ExportError> {
+        Ok(if loc == DVec3::ZERO && x_dir == DVec3::X {
             self.identity
         } else {
             let p = self.point3(loc)?;
@@ -532,10 +728,7 @@ impl<W: Write> Open<W> {
                     a.id(p).id(z).id(d);
                 })?
             }
-        };
-        Ok(self.w.entity("IFCLOCALPLACEMENT", |a| {
-            a.id(rel).id(a2p);
-        })?)
+        })
     }
 
     /// The shared surface style of a colour.
@@ -799,6 +992,9 @@ impl<W: Write> Open<W> {
         holder_pl: Id,
         anchor: DVec3,
     ) -> Result<Vec<Id>, ExportError> {
+        if self.lod3 {
+            return self.part_lod3(part, key, holder, holder_pl, anchor);
+        }
         let pk = &part.key;
         let n = part.storeys.clamp(1, MAX_STOREYS);
         let span = part.eave_z - part.base_z;
@@ -849,6 +1045,7 @@ impl<W: Write> Open<W> {
                 &global_id(key, &format!("{pk}/wall/{i}")),
                 i,
             )? {
+                let id = id.0;
                 let usage = self.usage(wall.thickness)?;
                 by_usage.entry(usage).or_default().push(id);
                 walls.push(id);
@@ -883,8 +1080,8 @@ impl<W: Write> Open<W> {
         Ok(walls)
     }
 
-    /// One `IfcWallStandardCase`, or `None` for a degenerate wall (no length, height or
-    /// thickness), which has no valid solid.
+    /// One `IfcWallStandardCase` and its placement, or `None` for a degenerate wall (no length,
+    /// height or thickness), which has no valid solid.
     fn wall(
         &mut self,
         part: &Part,
@@ -892,7 +1089,7 @@ impl<W: Write> Open<W> {
         frame: &ElementFrame,
         gid: &str,
         index: usize,
-    ) -> Result<Option<Id>, ExportError> {
+    ) -> Result<Option<(Id, Id)>, ExportError> {
         let len = wall.length();
         let height = wall.top_z - wall.base_z;
         if len <= EPS || wall.thickness <= EPS {
@@ -968,7 +1165,7 @@ impl<W: Write> Open<W> {
         let body_rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[axis_rep, body_rep])?;
         let name = format!("Wall {index}");
-        Ok(Some(self.w.entity("IFCWALLSTANDARDCASE", |a| {
+        let id = self.w.entity("IFCWALLSTANDARDCASE", |a| {
             a.string(gid)
                 .null()
                 .string(&name)
@@ -978,7 +1175,526 @@ impl<W: Write> Open<W> {
                 .id(shape)
                 .null();
             a.enumeration("SOLIDWALL");
-        })?))
+        })?;
+        Ok(Some((id, placement)))
+    }
+
+    /// LOD3 part: one storey per entry of `part.levels` (elevation relative to the building),
+    /// each wall in its storey (`Wall::storey`) with its openings, windows, doors and balconies;
+    /// the base slab in the first storey and the roof in the top one. Returns the wall ids.
+    fn part_lod3(
+        &mut self,
+        part: &Part,
+        key: &str,
+        holder: Id,
+        holder_pl: Id,
+        anchor: DVec3,
+    ) -> Result<Vec<Id>, ExportError> {
+        let pk = &part.key;
+        let mut levels: Vec<f64> = part
+            .levels
+            .iter()
+            .copied()
+            .take(MAX_STOREYS as usize)
+            .collect();
+        if levels.is_empty() {
+            levels.push(part.base_z);
+        }
+        let mut storeys = Vec::with_capacity(levels.len());
+        let mut frames = Vec::with_capacity(levels.len());
+        for (i, &level) in levels.iter().enumerate() {
+            let elev = level - anchor.z;
+            let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
+            let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
+                a.string(&global_id(key, &format!("{pk}/storey/{i}")))
+                    .null()
+                    .string(&format!("Storey {i}"));
+                a.null()
+                    .null()
+                    .id(pl)
+                    .null()
+                    .null()
+                    .enumeration("ELEMENT")
+                    .real(elev);
+            })?;
+            storeys.push(storey);
+            frames.push(ElementFrame {
+                origin: DVec3::new(anchor.x, anchor.y, level),
+                placement: pl,
+            });
+        }
+        self.w.entity("IFCRELAGGREGATES", |a| {
+            a.string(&global_id(key, &format!("{pk}/storeys")))
+                .null()
+                .null()
+                .null()
+                .id(holder)
+                .ids(&storeys);
+        })?;
+
+        let top = storeys.len() - 1;
+        let mut contained: Vec<Vec<Id>> = vec![Vec::new(); storeys.len()];
+        let mut by_usage: BTreeMap<Id, Vec<Id>> = BTreeMap::new();
+        let mut walls = Vec::new();
+        for (i, wall) in part.walls.iter().enumerate() {
+            let s = wall.storey.min(top);
+            let path = format!("{pk}/wall/{i}");
+            let Some((id, wall_pl)) =
+                self.wall(part, wall, &frames[s], &global_id(key, &path), i)?
+            else {
+                continue;
+            };
+            let usage = self.usage(wall.thickness)?;
+            by_usage.entry(usage).or_default().push(id);
+            walls.push(id);
+            contained[s].push(id);
+            for (j, o) in wall.openings.iter().enumerate() {
+                let path = format!("{path}/opening/{j}");
+                if let Some(fill) = self.opening(wall, id, wall_pl, o, key, &path, (i, j))? {
+                    contained[s].push(fill);
+                }
+            }
+            for (j, b) in wall.balconies.iter().enumerate() {
+                let path = format!("{path}/balcony/{j}");
+                let ids = self.balcony(wall, b, &frames[s], key, &path)?;
+                contained[s].extend(ids);
+            }
+        }
+        if let Some(id) = self.slab(part, &frames[0], &global_id(key, &format!("{pk}/slab")))? {
+            contained[0].push(id);
+        }
+        if let Some(id) = self.roof(part, &frames[top], &global_id(key, &format!("{pk}/roof")))? {
+            contained[top].push(id);
+        }
+        for (s, ids) in contained.iter().enumerate() {
+            if ids.is_empty() {
+                continue;
+            }
+            let path = if s == 0 {
+                format!("{pk}/contained")
+            } else {
+                format!("{pk}/contained/{s}")
+            };
+            let storey = storeys[s];
+            self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
+                a.string(&global_id(key, &path)).null().null().null();
+                a.ids(ids).id(storey);
+            })?;
+        }
+        for (usage, ids) in by_usage {
+            self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
+                a.string(&global_id(key, &format!("{pk}/material/{}", usage.0)))
+                    .null()
+                    .null()
+                    .null();
+                a.ids(&ids).id(usage);
+            })?;
+        }
+        Ok(walls)
+    }
+
+    /// The shared `IfcAxis2Placement3D(origin, -Y, X)` of profiles drawn in a wall's plane.
+    fn vertical(&mut self) -> Result<Id, ExportError> {
+        if let Some(id) = self.shared.vertical {
+            return Ok(id);
+        }
+        let (o, ny, x) = (self.origin3, self.dir_neg_y, self.dir_x);
+        let id = self.w.entity("IFCAXIS2PLACEMENT3D", |a| {
+            a.id(o).id(ny).id(x);
+        })?;
+        self.shared.vertical = Some(id);
+        Ok(id)
+    }
+
+    /// A rectangle `w` x `h` with its lower-left corner at (x0, y0), as a profile.
+    fn rect_profile(&mut self, x0: f64, y0: f64, w: f64, h: f64) -> Result<Id, ExportError> {
+        let centre = self.point2(DVec2::new(x0 + w / 2.0, y0 + h / 2.0))?;
+        let pos = self.w.entity("IFCAXIS2PLACEMENT2D", |a| {
+            a.id(centre).null();
+        })?;
+        Ok(self.w.entity("IFCRECTANGLEPROFILEDEF", |a| {
+            a.enumeration("AREA").null().id(pos).real(w).real(h);
+        })?)
+    }
+
+    /// A profile drawn in the wall's plane (x along, y up) extruded by `depth` into the wall
+    /// (+Y) from `y0`.
+    fn through_wall(&mut self, profile: Id, y0: f64, depth: f64) -> Result<Id, ExportError> {
+        let pos = if y0 == 0.0 {
+            self.vertical()?
+        } else {
+            let p = self.point3(DVec3::new(0.0, y0, 0.0))?;
+            let (ny, x) = (self.dir_neg_y, self.dir_x);
+            self.w.entity("IFCAXIS2PLACEMENT3D", |a| {
+                a.id(p).id(ny).id(x);
+            })?
+        };
+        let nz = self.dir_neg_z;
+        Ok(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
+            a.id(profile).id(pos).id(nz).real(depth);
+        })?)
+    }
+
+    /// The shared rendering style of a colour with a transparency (0 opaque .. 1 invisible).
+    fn rendering(&mut self, c: Color, transparency: f64) -> Result<Id, ExportError> {
+        let ck = color_key(c);
+        let tk = (transparency.clamp(0.0, 1.0) * 1000.0).round() as u16;
+        if let Some(&id) = self.shared.renderings.get(&(ck, tk)) {
+            return Ok(id);
+        }
+        let rgb = self.w.entity("IFCCOLOURRGB", |a| {
+            a.null()
+                .real(f64::from(ck[0]) / 1000.0)
+                .real(f64::from(ck[1]) / 1000.0)
+                .real(f64::from(ck[2]) / 1000.0);
+        })?;
+        let rendering = self.w.entity("IFCSURFACESTYLERENDERING", |a| {
+            a.id(rgb);
+            if tk > 0 {
+                a.real(f64::from(tk) / 1000.0);
+            } else {
+                a.null();
+            }
+            a.null().null().null().null().null().null();
+            a.enumeration("NOTDEFINED");
+        })?;
+        let name = if tk > 0 {
+            format!("{} {}%", c.to_hex(), tk / 10)
+        } else {
+            c.to_hex()
+        };
+        let style = self.w.entity("IFCSURFACESTYLE", |a| {
+            a.string(&name).enumeration("BOTH").ids(&[rendering]);
+        })?;
+        self.shared.renderings.insert((ck, tk), style);
+        Ok(style)
+    }
+
+    fn rendered(&mut self, item: Id, c: Color, transparency: f64) -> Result<(), ExportError> {
+        let style = self.rendering(c, transparency)?;
+        self.w.entity("IFCSTYLEDITEM", |a| {
+            a.id(item).ids(&[style]).null();
+        })?;
+        Ok(())
+    }
+
+    /// One opening of `wall`: an `IfcOpeningElement` voiding the wall, filled by an `IfcWindow`
+    /// or `IfcDoor` of a shared type. Returns the window or door (to be contained in the
+    /// wall's storey), or `None` for an opening too small to build (nothing written then).
+    #[allow(clippy::too_many_arguments)]
+    fn opening(
+        &mut self,
+        wall: &Wall,
+        wall_id: Id,
+        wall_pl: Id,
+        o: &Opening,
+        key: &str,
+        path: &str,
+        index: (usize, usize),
+    ) -> Result<Option<Id>, ExportError> {
+        let (w, h) = (o.width(), o.height());
+        let Some(tkey) = TypeKey::of(o, wall.thickness) else {
+            return Ok(None);
+        };
+        let q = |v: f64| (v * 1e6).round() as i64;
+        let depth = wall.thickness + 2.0 * OPENING_TOLERANCE;
+        let skey = [q(w), q(h), q(depth)];
+        let shape = match self.shared.opening_shapes.get(&skey) {
+            Some(&id) => id,
+            None => {
+                let (w, h, depth) = (
+                    skey[0] as f64 / 1e6,
+                    skey[1] as f64 / 1e6,
+                    skey[2] as f64 / 1e6,
+                );
+                let profile = self.rect_profile(0.0, 0.0, w, h)?;
+                let solid = self.through_wall(profile, 0.0, depth)?;
+                let body_ctx = self.body_ctx;
+                let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
+                let shape = self.shape(&[rep])?;
+                self.shared.opening_shapes.insert(skey, shape);
+                shape
+            }
+        };
+        let loc = DVec3::new(o.u0, -OPENING_TOLERANCE, o.z0 - wall.base_z);
+        let pl = self.placement(wall_pl, loc, DVec3::X)?;
+        let (name, ifc, predefined) = match o.kind {
+            OpeningKind::Window => ("Window", "IFCWINDOW", "WINDOW"),
+            OpeningKind::Door => ("Door", "IFCDOOR", "DOOR"),
+        };
+        let label = format!("{name} {}.{}", index.0, index.1);
+        let opening = self.w.entity("IFCOPENINGELEMENT", |a| {
+            a.string(&global_id(key, path))
+                .null()
+                .string(&format!("Opening {}.{}", index.0, index.1))
+                .null()
+                .null()
+                .id(pl)
+                .id(shape)
+                .null()
+                .enumeration("OPENING");
+        })?;
+        self.w.entity("IFCRELVOIDSELEMENT", |a| {
+            a.string(&global_id(key, &format!("{path}/voids")))
+                .null()
+                .null()
+                .null()
+                .id(wall_id)
+                .id(opening);
+        })?;
+
+        let type_shape = self.fill_type(&tkey)?;
+        // The type's body is floored to the cm: centre it in the opening, and centre its
+        // depth in the wall.
+        let off = DVec3::new(
+            (w - tkey.width()) / 2.0,
+            OPENING_TOLERANCE + (wall.thickness - tkey.depth()).max(0.0) / 2.0,
+            (h - tkey.height()) / 2.0,
+        );
+        let okey = [q(off.x), q(off.y), q(off.z)];
+        let axes = match self.shared.fill_offsets.get(&okey) {
+            Some(&id) => id,
+            None => {
+                let p = DVec3::new(okey[0] as f64, okey[1] as f64, okey[2] as f64) / 1e6;
+                let id = self.axes(p, DVec3::X)?;
+                self.shared.fill_offsets.insert(okey, id);
+                id
+            }
+        };
+        let fill_pl = self.w.entity("IFCLOCALPLACEMENT", |a| {
+            a.id(pl).id(axes);
+        })?;
+        let fill = self.w.entity(ifc, |a| {
+            a.string(&global_id(key, &format!("{path}/fill")))
+                .null()
+                .string(&label)
+                .null()
+                .null()
+                .id(fill_pl)
+                .id(type_shape)
+                .null()
+                .real(h)
+                .real(w)
+                .enumeration(predefined);
+            match o.kind {
+                OpeningKind::Window => a.enumeration("SINGLE_PANEL"),
+                OpeningKind::Door => a.enumeration("NOTDEFINED"),
+            };
+            a.null();
+        })?;
+        self.w.entity("IFCRELFILLSELEMENT", |a| {
+            a.string(&global_id(key, &format!("{path}/fills")))
+                .null()
+                .null()
+                .null()
+                .id(opening)
+                .id(fill);
+        })?;
+        if let Some(t) = self.shared.types.get_mut(&tkey) {
+            t.occurrences.push(fill);
+        }
+        Ok(Some(fill))
+    }
+
+    /// The shape shared by every occurrence of a window or door type (an `IfcMappedItem` of its
+    /// representation map), writing the type on first use.
+    ///
+    /// The type's body, in its local frame (X along the width, Y across the wall, Z up, all
+    /// from 0): a framed opening has a frame (a hollow rectangle, `FRAME_DEPTH` deep) and a
+    /// glass pane or door panel in the middle of it; an unframed one is a single pane or panel.
+    fn fill_type(&mut self, k: &TypeKey) -> Result<Id, ExportError> {
+        if let Some(t) = self.shared.types.get(k) {
+            return Ok(t.shape);
+        }
+        let (w, h, d) = (k.width(), k.height(), k.depth());
+        let color = |c: [u16; 4]| {
+            let f = |v: u16| f64::from(v) as f32 / 1000.0;
+            Color {
+                r: f(c[0]),
+                g: f(c[1]),
+                b: f(c[2]),
+                a: f(c[3]),
+            }
+        };
+        let alpha_transparency = |c: [u16; 4]| 1.0 - f64::from(c[3]) / 1000.0;
+        let mut items = Vec::new();
+        let fw = FRAME_WIDTH.min(w.min(h) / 4.0);
+        let inset = if k.framed {
+            let centre = self.point2(DVec2::new(w / 2.0, h / 2.0))?;
+            let pos = self.w.entity("IFCAXIS2PLACEMENT2D", |a| {
+                a.id(centre).null();
+            })?;
+            let profile = self.w.entity("IFCRECTANGLEHOLLOWPROFILEDEF", |a| {
+                a.enumeration("AREA")
+                    .null()
+                    .id(pos)
+                    .real(w)
+                    .real(h)
+                    .real(fw)
+                    .null()
+                    .null();
+            })?;
+            let frame = self.through_wall(profile, 0.0, d)?;
+            self.rendered(
+                frame,
+                color(k.frame_color),
+                alpha_transparency(k.frame_color),
+            )?;
+            items.push(frame);
+            fw
+        } else {
+            0.0
+        };
+        let pane = if k.door {
+            PANEL_THICKNESS
+        } else {
+            GLASS_THICKNESS
+        }
+        .min(d);
+        let profile = self.rect_profile(inset, inset, w - 2.0 * inset, h - 2.0 * inset)?;
+        let panel = self.through_wall(profile, (d - pane) / 2.0, pane)?;
+        let transparency = if k.glazed {
+            GLASS_TRANSPARENCY
+        } else {
+            alpha_transparency(k.color)
+        };
+        self.rendered(panel, color(k.color), transparency)?;
+        items.push(panel);
+
+        let body_ctx = self.body_ctx;
+        let rep = self.representation(body_ctx, "Body", "SweptSolid", &items)?;
+        let identity = self.identity;
+        let map = self.w.entity("IFCREPRESENTATIONMAP", |a| {
+            a.id(identity).id(rep);
+        })?;
+        let name = k.name();
+        let gid = global_id(&self.ns, &format!("type/{name}"));
+        let id = if k.door {
+            self.w.entity("IFCDOORTYPE", |a| {
+                a.string(&gid).null().string(&name).null().null().null();
+                a.ids(&[map]).null().null().enumeration("DOOR");
+                a.enumeration("NOTDEFINED").boolean(false).null();
+            })?
+        } else {
+            self.w.entity("IFCWINDOWTYPE", |a| {
+                a.string(&gid).null().string(&name).null().null().null();
+                a.ids(&[map]).null().null().enumeration("WINDOW");
+                a.enumeration("SINGLE_PANEL").boolean(false).null();
+            })?
+        };
+        let op = match self.shared.identity_op {
+            Some(op) => op,
+            None => {
+                let o = self.origin3;
+                let op = self.w.entity("IFCCARTESIANTRANSFORMATIONOPERATOR3D", |a| {
+                    a.null().null().id(o).null().null();
+                })?;
+                self.shared.identity_op = Some(op);
+                op
+            }
+        };
+        let mapped = self.w.entity("IFCMAPPEDITEM", |a| {
+            a.id(map).id(op);
+        })?;
+        let rep = self.representation(body_ctx, "Body", "MappedRepresentation", &[mapped])?;
+        let shape = self.shape(&[rep])?;
+        self.shared.types.insert(
+            *k,
+            FillType {
+                id,
+                shape,
+                occurrences: Vec::new(),
+            },
+        );
+        Ok(shape)
+    }
+
+    /// A balcony of `wall`: an `IfcSlab` `.FLOOR.` (its top at the balcony's floor height) and
+    /// an `IfcRailing` `.BALUSTRADE.` on its three free edges, both placed like the wall but at
+    /// the balcony's height, relative to the storey. Nothing for a degenerate balcony.
+    fn balcony(
+        &mut self,
+        wall: &Wall,
+        b: &Balcony,
+        frame: &ElementFrame,
+        key: &str,
+        path: &str,
+    ) -> Result<Vec<Id>, ExportError> {
+        let len = wall.length();
+        let (u0, u1) = (b.u0.max(0.0), b.u1.min(len));
+        let (w, depth) = (u1 - u0, b.depth);
+        if len <= EPS || w <= 4.0 * RAILING_THICKNESS || depth <= 2.0 * RAILING_THICKNESS {
+            return Ok(Vec::new());
+        }
+        let dir2 = (wall.end - wall.start) / len;
+        let loc = DVec3::new(wall.start.x, wall.start.y, b.z) - frame.origin;
+        let axes = self.axes(loc, DVec3::new(dir2.x, dir2.y, 0.0))?;
+        let body_ctx = self.body_ctx;
+
+        // Slab: outside is -Y in the wall's frame.
+        let profile = self.rect_profile(u0, -depth, w, depth)?;
+        let down = self.dir_neg_z;
+        let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
+            a.id(profile).null().id(down).real(BALCONY_THICKNESS);
+        })?;
+        self.styled(solid, b.color)?;
+        let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
+        let shape = self.shape(&[rep])?;
+        let fp = frame.placement;
+        let pl = self.w.entity("IFCLOCALPLACEMENT", |a| {
+            a.id(fp).id(axes);
+        })?;
+        let slab = self.w.entity("IFCSLAB", |a| {
+            a.string(&global_id(key, path))
+                .null()
+                .string("Balcony")
+                .null()
+                .null()
+                .id(pl)
+                .id(shape)
+                .null()
+                .enumeration("FLOOR");
+        })?;
+
+        // Railing: a U along the three free edges, counter-clockwise.
+        let t = RAILING_THICKNESS;
+        let v = DVec2::new;
+        let ring = [
+            v(u0, 0.0),
+            v(u0, -depth),
+            v(u1, -depth),
+            v(u1, 0.0),
+            v(u1 - t, 0.0),
+            v(u1 - t, t - depth),
+            v(u0 + t, t - depth),
+            v(u0 + t, 0.0),
+        ];
+        let curve = self.closed_polyline2(&ring)?;
+        let profile = self.w.entity("IFCARBITRARYCLOSEDPROFILEDEF", |a| {
+            a.enumeration("AREA").null().id(curve);
+        })?;
+        let up = self.dir_z;
+        let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
+            a.id(profile).null().id(up).real(RAILING_HEIGHT);
+        })?;
+        self.styled(solid, b.color)?;
+        let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
+        let shape = self.shape(&[rep])?;
+        let pl = self.w.entity("IFCLOCALPLACEMENT", |a| {
+            a.id(fp).id(axes);
+        })?;
+        let railing = self.w.entity("IFCRAILING", |a| {
+            a.string(&global_id(key, &format!("{path}/railing")))
+                .null()
+                .string("Balcony railing")
+                .null()
+                .null()
+                .id(pl)
+                .id(shape)
+                .null()
+                .enumeration("BALUSTRADE");
+        })?;
+        Ok(vec![slab, railing])
     }
 
     /// The base slab: the footprint extruded down by [`SLAB_THICKNESS`] from the part's base.
@@ -1597,6 +2313,38 @@ mod tests {
         assert!(text.contains("FILE_SCHEMA(('IFC4'));"));
     }
 
+    /// Hash of a file's DATA section (the header carries a time stamp and the crate version),
+    /// to pin LOD1/LOD2 output byte for byte.
+    fn file_hash(bytes: &[u8]) -> String {
+        let text = std::str::from_utf8(bytes).unwrap();
+        let data = text.split_once("DATA;").unwrap().1;
+        format!("{:032x}", crate::export::step::hash128("file", data))
+    }
+
+    /// LOD1 and LOD2 files are byte-identical to those written before LOD3 was added (hashes
+    /// of the sample taken at that commit).
+    #[test]
+    fn lod1_and_lod2_output_is_unchanged() {
+        let bs = sample();
+        let mut got = Vec::new();
+        for lod in [Lod::Lod1, Lod::Lod2] {
+            let mut w = IfcWriter::new(Vec::new()).with_file_name("sample.ifc");
+            w.begin(&OutputContext { lod, ..ctx() }).unwrap();
+            for b in &bs {
+                w.write(b).unwrap();
+            }
+            w.finish().unwrap();
+            got.push(file_hash(&w.into_inner().unwrap()));
+        }
+        assert_eq!(
+            got,
+            [
+                "4771904b886d95b8478c8e3ac6d5e37a",
+                "5447e28037551ac9622b57ba40da9fdd"
+            ]
+        );
+    }
+
     #[test]
     fn output_is_deterministic() {
         let bs = sample();
@@ -1741,6 +2489,345 @@ mod tests {
         let _: Box<dyn BuildingWriter> = Box::new(IfcWriter::new(Vec::new()));
     }
 
+    // ---- LOD3 ----
+
+    fn lod3_ctx() -> OutputContext {
+        OutputContext {
+            lod: Lod::Lod3,
+            ..ctx()
+        }
+    }
+
+    /// Turns a LOD2-style part (one wall per edge) into LOD3 walls: one per storey and edge,
+    /// storey i from `levels[i]` to the next level (the top one keeps the full wall's outline,
+    /// its base raised), like the model does.
+    fn storeyed(mut part: Part, levels: &[f64]) -> Part {
+        let mut walls = Vec::new();
+        for (s, &lo) in levels.iter().enumerate() {
+            let top = s + 1 == levels.len();
+            for full in &part.walls {
+                let mut w = full.clone();
+                w.storey = s;
+                w.base_z = lo;
+                if top {
+                    for p in &mut w.outline.outer {
+                        if (p.z - full.base_z).abs() < 1e-9 {
+                            p.z = lo;
+                        }
+                    }
+                } else {
+                    let hi = levels[s + 1];
+                    w.top_z = hi;
+                    let (a, b) = (w.start, w.end);
+                    w.outline =
+                        Face::new(vec![a.extend(lo), b.extend(lo), b.extend(hi), a.extend(hi)]);
+                }
+                walls.push(w);
+            }
+        }
+        part.walls = walls;
+        part.levels = levels.to_vec();
+        part.storeys = levels.len() as u32;
+        part
+    }
+
+    /// Adds an opening to wall `i` of `part`, with its hole in the outline.
+    fn open(part: &mut Part, i: usize, kind: OpeningKind, u: (f64, f64), z: (f64, f64)) {
+        let w = &mut part.walls[i];
+        let dir = (w.end - w.start).normalize();
+        let p = |u: f64, z: f64| (w.start + dir * u).extend(z);
+        w.outline
+            .holes
+            .push(vec![p(u.0, z.0), p(u.0, z.1), p(u.1, z.1), p(u.1, z.0)]);
+        w.openings.push(Opening {
+            kind,
+            u0: u.0,
+            u1: u.1,
+            z0: z.0,
+            z1: z.1,
+            color: match kind {
+                OpeningKind::Window => Color::rgb(0.6, 0.8, 1.0),
+                OpeningKind::Door => Color::rgb(0.4, 0.25, 0.1),
+            },
+            frame_color: Color::rgb(1.0, 1.0, 1.0),
+            glazed: kind == OpeningKind::Window,
+            framed: true,
+        });
+    }
+
+    fn lod3(mut b: Building) -> Building {
+        b.lod = Lod::Lod3;
+        b
+    }
+
+    /// A 10 x 6 m box with 2 storeys, 4 windows and a door on the front (south) wall; a
+    /// courtyard building with windows on the outer and the courtyard walls; a building with a
+    /// balcony and a balcony door; a gabled house with a window in a gable wall.
+    fn lod3_sample() -> Vec<Building> {
+        use OpeningKind::{Door, Window};
+        let fp = Polygon::new(rect(0.0, 0.0, 10.0, 6.0), vec![]);
+        let mut p = storeyed(flat_part("p0", fp, 0.0, 6.0, 2), &[0.0, 3.0]);
+        // Walls 0..4 are storey 0 (south, east, north, west), 4..8 storey 1.
+        open(&mut p, 0, Window, (1.0, 2.2), (0.9, 2.4));
+        open(&mut p, 0, Door, (4.4, 5.6), (0.05, 2.3));
+        open(&mut p, 0, Window, (7.8, 9.0), (0.9, 2.4));
+        open(&mut p, 4, Window, (1.0, 2.2), (3.9, 5.4));
+        open(&mut p, 4, Window, (7.8, 9.0), (3.9, 5.4));
+        let boxb = lod3(building(SourceId::Way(1), Some("Box"), vec![p]));
+
+        let fp = Polygon::new(
+            rect(0.0, 20.0, 20.0, 20.0),
+            vec![rect(5.0, 25.0, 10.0, 10.0)],
+        );
+        let mut p = storeyed(flat_part("p0", fp, 1.0, 7.0, 2), &[1.0, 4.0]);
+        // 8 walls per storey: 4 outer, then 4 of the courtyard (clockwise).
+        open(&mut p, 0, Window, (2.0, 3.2), (2.0, 3.5));
+        open(&mut p, 4, Window, (4.0, 5.2), (2.0, 3.5));
+        open(&mut p, 8 + 5, Window, (4.0, 5.2), (5.0, 6.5));
+        open(&mut p, 8 + 6, Door, (1.0, 2.0), (4.05, 6.2));
+        let court = lod3(building(SourceId::Relation(3), None, vec![p]));
+
+        let fp = Polygon::new(rect(30.0, 0.0, 8.0, 5.0), vec![]);
+        let mut p = storeyed(flat_part("p0", fp, 0.0, 6.0, 2), &[0.0, 3.0]);
+        open(&mut p, 4, Door, (3.4, 4.4), (3.05, 5.2));
+        open(&mut p, 4, Window, (5.0, 6.2), (3.9, 5.4));
+        p.walls[4].balconies.push(Balcony {
+            u0: 2.0,
+            u1: 7.0,
+            z: 3.0,
+            depth: 1.2,
+            color: Color::rgb(0.5, 0.5, 0.5),
+        });
+        let balc = lod3(building(SourceId::Way(7), None, vec![p]));
+
+        // The gabled house of `sample()`: the east wall of the top storey is a pentagon.
+        let mut gab = sample().remove(4);
+        let part = gab.parts.remove(0);
+        let mut p = storeyed(part, &[0.0, 3.0]);
+        assert_eq!(p.walls[5].outline.outer.len(), 5, "east gable of storey 1");
+        open(&mut p, 5, Window, (2.4, 3.6), (3.6, 5.4));
+        open(&mut p, 1, Window, (2.4, 3.6), (0.9, 2.4));
+        gab.parts.push(p);
+        vec![boxb, court, balc, lod3(gab)]
+    }
+
+    fn write_lod3(buildings: &[Building]) -> Vec<u8> {
+        let mut w = IfcWriter::new(Vec::new()).with_file_name("lod3.ifc");
+        w.begin(&lod3_ctx()).unwrap();
+        for b in buildings {
+            w.write(b).unwrap();
+        }
+        w.finish().unwrap();
+        w.into_inner().unwrap()
+    }
+
+    /// Ids of the entities of keyword `kw`.
+    fn ids_of(m: &BTreeMap<u64, (String, String)>, kw: &str) -> Vec<u64> {
+        m.iter()
+            .filter(|(_, (k, _))| k == kw)
+            .map(|(id, _)| *id)
+            .collect()
+    }
+
+    /// The GlobalId (first argument) of an entity.
+    fn gid_of(m: &BTreeMap<u64, (String, String)>, id: u64) -> String {
+        m[&id]
+            .1
+            .split(',')
+            .next()
+            .unwrap()
+            .trim_matches('\'')
+            .to_string()
+    }
+
+    #[test]
+    fn lod3_openings_are_voided_filled_and_typed() {
+        let bs = lod3_sample();
+        let m = parse(&write_lod3(&bs));
+        for (id, (_, args)) in &m {
+            for r in refs(args) {
+                assert!(m.contains_key(&r) && r < *id, "#{id} -> #{r}");
+            }
+        }
+        let (windows, doors) = bs
+            .iter()
+            .flat_map(|b| &b.parts)
+            .flat_map(|p| &p.walls)
+            .flat_map(|w| &w.openings)
+            .fold((0, 0), |(w, d), o| match o.kind {
+                OpeningKind::Window => (w + 1, d),
+                OpeningKind::Door => (w, d + 1),
+            });
+        assert_eq!((windows, doors), (10, 3));
+        assert_eq!(count(&m, "IFCWINDOW"), windows);
+        assert_eq!(count(&m, "IFCDOOR"), doors);
+        let openings = ids_of(&m, "IFCOPENINGELEMENT");
+        assert_eq!(openings.len(), windows + doors);
+        let rels = |kw: &str| -> Vec<Vec<u64>> {
+            m.values()
+                .filter(|(k, _)| k == kw)
+                .map(|(_, a)| refs(a))
+                .collect()
+        };
+        let voids = rels("IFCRELVOIDSELEMENT");
+        let fills = rels("IFCRELFILLSELEMENT");
+        for o in &openings {
+            assert!(m[o].1.ends_with(".OPENING."), "{}", m[o].1);
+            let v: Vec<_> = voids.iter().filter(|r| r[1] == *o).collect();
+            assert_eq!(v.len(), 1, "opening #{o} voids one wall");
+            assert_eq!(m[&v[0][0]].0, "IFCWALLSTANDARDCASE");
+            let f: Vec<_> = fills.iter().filter(|r| r[0] == *o).collect();
+            assert_eq!(f.len(), 1, "opening #{o} is filled once");
+            assert!(["IFCWINDOW", "IFCDOOR"].contains(&m[&f[0][1]].0.as_str()));
+            // Placements: the opening relative to its wall's, the filler relative to the
+            // opening's.
+            let pl = |id: u64| refs(&m[&id].1)[0];
+            let rel_to = |pl: u64| refs(&m[&pl].1)[0];
+            assert_eq!(rel_to(pl(*o)), pl(v[0][0]));
+            assert_eq!(rel_to(pl(f[0][1])), pl(*o));
+        }
+        // Every window and door is filled once and typed once, by a type of its kind that has
+        // one representation map, used through a mapped item.
+        let by_type = rels("IFCRELDEFINESBYTYPE");
+        for kw in ["IFCWINDOW", "IFCDOOR"] {
+            for id in ids_of(&m, kw) {
+                assert_eq!(fills.iter().filter(|r| r[1] == id).count(), 1);
+                let t: Vec<_> = by_type.iter().filter(|r| r.contains(&id)).collect();
+                assert_eq!(t.len(), 1, "{kw} #{id} has one type");
+                let ty = *t[0].last().unwrap();
+                assert_eq!(m[&ty].0, format!("{kw}TYPE"));
+                let maps = refs(&m[&ty].1);
+                assert_eq!(maps.len(), 1, "one representation map");
+                assert_eq!(m[&maps[0]].0, "IFCREPRESENTATIONMAP");
+                let shape = refs(&m[&id].1)[1];
+                let rep = refs(&m[&shape].1)[0];
+                assert!(m[&rep].1.contains("'MappedRepresentation'"));
+                let item = *refs(&m[&rep].1).last().unwrap();
+                assert_eq!(m[&item].0, "IFCMAPPEDITEM");
+                assert_eq!(refs(&m[&item].1)[0], maps[0]);
+            }
+        }
+        // One type per kind: windows 1.2 x 1.5 (in all four buildings) and 1.2 x 1.8 (the
+        // gable); doors 1.2 x 2.25 (the box) and 1.0 x 2.15 (courtyard and balcony).
+        assert_eq!(count(&m, "IFCWINDOWTYPE"), 2);
+        assert_eq!(count(&m, "IFCDOORTYPE"), 2);
+        assert_eq!(count(&m, "IFCREPRESENTATIONMAP"), 4);
+        assert_eq!(by_type.len(), 4);
+        assert_eq!(count(&m, "IFCRELDECLARES"), 1);
+        // Glass is transparent.
+        assert!(m
+            .values()
+            .any(|(k, a)| k == "IFCSURFACESTYLERENDERING" && a.contains(",0.65,")));
+    }
+
+    #[test]
+    fn lod3_storeys_per_level_with_walls_in_their_storey() {
+        let bs = lod3_sample();
+        let m = parse(&write_lod3(&bs));
+        let levels: usize = bs
+            .iter()
+            .flat_map(|b| &b.parts)
+            .map(|p| p.levels.len())
+            .sum();
+        assert_eq!(count(&m, "IFCBUILDINGSTOREY"), levels);
+        let by_gid: BTreeMap<String, u64> = m.keys().map(|&id| (gid_of(&m, id), id)).collect();
+        let contained: Vec<Vec<u64>> = m
+            .values()
+            .filter(|(k, _)| k == "IFCRELCONTAINEDINSPATIALSTRUCTURE")
+            .map(|(_, a)| refs(a))
+            .collect();
+        let storey_of = |id: u64| -> u64 {
+            let c: Vec<_> = contained
+                .iter()
+                .filter(|r| r[..r.len() - 1].contains(&id))
+                .collect();
+            assert_eq!(c.len(), 1, "#{id} is contained once");
+            *c[0].last().unwrap()
+        };
+        for b in &bs {
+            let key = b.key();
+            for part in &b.parts {
+                for (s, level) in part.levels.iter().enumerate() {
+                    let st = by_gid[&global_id(&key, &format!("p0/storey/{s}"))];
+                    let elev: f64 = m[&st].1.rsplit(',').next().unwrap().parse().unwrap();
+                    assert!(
+                        (elev - (level - b.base_z)).abs() < 1e-9,
+                        "{elev} vs {level}"
+                    );
+                }
+                for (i, wall) in part.walls.iter().enumerate() {
+                    let id = by_gid[&global_id(&key, &format!("p0/wall/{i}"))];
+                    let st = by_gid[&global_id(&key, &format!("p0/storey/{}", wall.storey))];
+                    assert_eq!(storey_of(id), st, "{key} wall {i}");
+                    for j in 0..wall.openings.len() {
+                        let f = by_gid[&global_id(&key, &format!("p0/wall/{i}/opening/{j}/fill"))];
+                        assert_eq!(storey_of(f), st, "{key} wall {i} opening {j}");
+                    }
+                }
+                let top = part.levels.len() - 1;
+                let roof = by_gid[&global_id(&key, "p0/roof")];
+                let top_st = by_gid[&global_id(&key, &format!("p0/storey/{top}"))];
+                assert_eq!(storey_of(roof), top_st);
+            }
+        }
+        // The balcony: a floor slab and a balustrade in storey 1 of way/7.
+        let slab = by_gid[&global_id("way_7", "p0/wall/4/balcony/0")];
+        let railing = by_gid[&global_id("way_7", "p0/wall/4/balcony/0/railing")];
+        assert!(m[&slab].0 == "IFCSLAB" && m[&slab].1.contains("'Balcony'"));
+        assert!(m[&slab].1.ends_with(".FLOOR."));
+        assert!(m[&railing].0 == "IFCRAILING" && m[&railing].1.ends_with(".BALUSTRADE."));
+        let st1 = by_gid[&global_id("way_7", "p0/storey/1")];
+        assert_eq!(storey_of(slab), st1);
+        assert_eq!(storey_of(railing), st1);
+    }
+
+    #[test]
+    fn lod3_output_is_deterministic_and_light() {
+        let bs = lod3_sample();
+        let a = write_lod3(&bs);
+        assert_eq!(a, write_lod3(&bs));
+        // Sharing: one opening body per size and wall thickness, one mapped shape per type.
+        let m = parse(&a);
+        assert_eq!(count(&m, "IFCMAPPEDITEM"), 4);
+        let opening_shapes: BTreeSet<u64> = ids_of(&m, "IFCOPENINGELEMENT")
+            .iter()
+            .map(|o| refs(&m[o].1)[1])
+            .collect();
+        assert_eq!(opening_shapes.len(), 4);
+    }
+
+    /// Runs the reference validator with the geometry kernel on the LOD3 sample when it is
+    /// installed (every wall is built with its openings cut, every window and door from its
+    /// mapped type); skipped otherwise. `CITYGEN_IFC_LOD3_SAMPLE=path` also keeps the file.
+    #[test]
+    fn lod3_sample_passes_the_reference_validator() {
+        let installed = std::env::var_os("HOME")
+            .map(|h| std::path::PathBuf::from(h).join(".cache/citygen-validate/venv"))
+            .is_some_and(|v| v.exists());
+        let bytes = write_lod3(&lod3_sample());
+        if let Some(keep) = std::env::var_os("CITYGEN_IFC_LOD3_SAMPLE") {
+            std::fs::write(keep, &bytes).unwrap();
+        }
+        let Some(tool) = validator().filter(|_| installed) else {
+            eprintln!("validate-outputs not installed: skipped");
+            return;
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lod3.ifc");
+        std::fs::write(&path, bytes).unwrap();
+        let out = std::process::Command::new(tool)
+            .arg("--geometry")
+            .arg(&path)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
+        assert!(
+            text.contains("OpeningElement=13 Window=10 Door=3 shapes=63/63"),
+            "{text}"
+        );
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
         /// Rotated and shifted boxes: the file stays well-formed, every wall keeps its length,
@@ -1780,6 +2867,49 @@ mod tests {
             for (got, want) in lengths.iter().zip([lo, lo, hi, hi]) {
                 proptest::prop_assert!((got - want).abs() < 1e-5, "{} vs {}", got, want);
             }
+        }
+
+        /// LOD3 rotated boxes with a random row of windows and doors on the front of each
+        /// storey: one opening element per opening, each voiding its wall and filled once, and
+        /// one type per distinct (kind, size in cm).
+        #[test]
+        fn lod3_rotated_boxes_keep_one_opening_per_window_or_door(
+            angle in 0.0f64..std::f64::consts::TAU,
+            widths in proptest::collection::vec((0.3f64..1.6, proptest::bool::ANY), 1..6),
+            storeys in 1usize..4,
+        ) {
+            let (sin, cos) = angle.sin_cos();
+            let ring: Vec<DVec2> = rect(0.0, 0.0, 12.0, 6.0)
+                .into_iter()
+                .map(|p| DVec2::new(p.x * cos - p.y * sin, p.x * sin + p.y * cos))
+                .collect();
+            let levels: Vec<f64> = (0..storeys).map(|i| 3.0 * i as f64).collect();
+            let top = 3.0 * storeys as f64;
+            let part = flat_part("p0", Polygon::new(ring, vec![]), 0.0, top, storeys as u32);
+            let mut part = storeyed(part, &levels);
+            let mut kinds = BTreeSet::new();
+            for (s, z) in levels.iter().enumerate() {
+                let mut u = 0.1;
+                for &(w, door) in &widths {
+                    let kind = if door { OpeningKind::Door } else { OpeningKind::Window };
+                    open(&mut part, 4 * s, kind, (u, u + w), (z + 0.1, z + 2.2));
+                    kinds.insert((door, (w * 100.0 + 1e-6).floor() as i64));
+                    u += w + 0.5;
+                }
+            }
+            let n = widths.len() * storeys;
+            let b = lod3(building(SourceId::Way(9), None, vec![part]));
+            let m = parse(&write_lod3(&[b]));
+            let openings = ids_of(&m, "IFCOPENINGELEMENT");
+            proptest::prop_assert_eq!(openings.len(), n);
+            proptest::prop_assert_eq!(count(&m, "IFCWINDOW") + count(&m, "IFCDOOR"), n);
+            for o in &openings {
+                let voids = m.values().filter(|(k, a)| k == "IFCRELVOIDSELEMENT" && refs(a)[1] == *o).count();
+                let fills = m.values().filter(|(k, a)| k == "IFCRELFILLSELEMENT" && refs(a)[0] == *o).count();
+                proptest::prop_assert_eq!((voids, fills), (1, 1));
+            }
+            proptest::prop_assert_eq!(count(&m, "IFCWINDOWTYPE") + count(&m, "IFCDOORTYPE"), kinds.len());
+            proptest::prop_assert_eq!(count(&m, "IFCBUILDINGSTOREY"), storeys);
         }
     }
 }
