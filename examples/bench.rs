@@ -51,6 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             crs: None,
             src_crs: None,
             caps: Caps::default(),
+            bbox: None,
         };
         let mut best = f64::INFINITY;
         let mut last = None;

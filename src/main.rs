@@ -142,7 +142,8 @@ struct RunArgs {
     /// Grammar ruleset applied to every footprint instead of the knowledge base's rules.
     #[arg(long, value_name = "FILE")]
     rules: Option<PathBuf>,
-    /// Level of detail: 1 (blocks) or 2 (roofs and semantic surfaces).
+    /// Level of detail: 1 (blocks), 2 (roofs and semantic surfaces) or 3 (storeys, facades,
+    /// windows, doors and balconies).
     #[arg(long, value_parser = parse_lod, default_value = "2")]
     lod: Lod,
     /// Write IFC4 (STEP) here.
@@ -181,6 +182,11 @@ struct RunArgs {
     /// Maximum number of shapes per building.
     #[arg(long, default_value_t = Caps::default().max_shapes)]
     max_shapes: usize,
+    /// Only generate the buildings whose representative point lies in this box (degrees:
+    /// min lon, min lat, max lon, max lat), e.g. to split a region across machines. The others
+    /// are counted in the report.
+    #[arg(long, value_name = "LON0,LAT0,LON1,LAT1", value_parser = parse_bbox)]
+    bbox: Option<[f64; 4]>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -190,8 +196,9 @@ fn parse_lod(s: &str) -> Result<Lod, String> {
     match s.trim() {
         "1" => Ok(Lod::Lod1),
         "2" => Ok(Lod::Lod2),
-        "3" | "4" => Err(format!("LOD {s} is not available yet; use 1 or 2")),
-        _ => Err(format!("LOD must be 1 or 2, not {s:?}")),
+        "3" => Ok(Lod::Lod3),
+        "4" => Err("LOD 4 (interiors) is not available yet; use 1, 2 or 3".into()),
+        _ => Err(format!("LOD must be 1, 2 or 3, not {s:?}")),
     }
 }
 
@@ -220,6 +227,21 @@ fn parse_lot(s: &str) -> Result<Polygon, String> {
 
 fn parse_wkt(s: &str) -> Result<Polygon, String> {
     citygen::input::wkt::parse_polygon(s)
+}
+
+fn parse_bbox(s: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| {
+            x.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("bad number {x:?}"))
+        })
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [a, b, c, d] if a < c && b < d && v.iter().all(|x| x.is_finite()) => Ok([a, b, c, d]),
+        _ => Err("expected LON0,LAT0,LON1,LAT1 with LON0 < LON1 and LAT0 < LAT1".into()),
+    }
 }
 
 fn parse_lonlat(s: &str) -> Result<(f64, f64), String> {
@@ -489,6 +511,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
             max_shapes: cli.max_shapes,
             ..Caps::default()
         },
+        bbox: cli.bbox,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

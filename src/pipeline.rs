@@ -50,6 +50,8 @@ pub struct Options {
     pub crs: Option<Crs>,
     pub src_crs: Option<Crs>,
     pub caps: Caps,
+    /// Only the buildings whose representative point is in [min lon, min lat, max lon, max lat].
+    pub bbox: Option<[f64; 4]>,
 }
 
 /// What went wrong, for the exit code and the message.
@@ -106,7 +108,10 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         None => Rules::Kb,
     };
 
-    let site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
+    let mut site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
+    if let Some(b) = opts.bbox {
+        prepare::retain_in_bbox(&mut site, b, &mut report);
+    }
     let caps = Caps {
         facades: opts.lod >= Lod::Lod3,
         ..opts.caps

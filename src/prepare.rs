@@ -524,6 +524,29 @@ fn repair(p: &Polygon) -> Vec<Polygon> {
         .collect()
 }
 
+/// Keeps the lots whose representative point lies in `bbox` = [min lon, min lat, max lon,
+/// max lat] (degrees), so a region can be split across runs or machines: every footprint lies in
+/// exactly one of several boxes that tile the region (min inclusive, max exclusive). The lots
+/// left out are counted in one report note.
+pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) {
+    let before = site.lots.len();
+    site.lots.retain(|l| {
+        let (lon, lat) = l.lonlat;
+        lon >= bbox[0] && lon < bbox[2] && lat >= bbox[1] && lat < bbox[3]
+    });
+    let out = before - site.lots.len();
+    if out > 0 {
+        report.add(
+            None,
+            Outcome::Note,
+            format!(
+                "{out} building(s) outside --bbox {},{},{},{} were not generated",
+                bbox[0], bbox[1], bbox[2], bbox[3]
+            ),
+        );
+    }
+}
+
 /// A site holding one lot given in local metres, placed at `lonlat` (the local origin), for
 /// trying a ruleset without a city (`citygen rules derive`).
 pub fn single_lot(
