@@ -194,6 +194,7 @@ impl Generator {
                 storeys: 1,
                 roof: style.roof,
                 roof_angle_deg: style.roof_angle_deg,
+                roof_direction: style.roof_direction,
                 roof_height: None,
                 wall_color: style.wall_color,
                 roof_color: style.roof_color,
@@ -305,6 +306,7 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
             storeys: if storeys > 0 { storeys } else { style.storeys },
             roof,
             roof_angle_deg: num("roofangle").unwrap_or(style.roof_angle_deg),
+            roof_direction: style.roof_direction,
             roof_height: num("roofheight").or(style.roof_height),
             wall_color: text("color")
                 .and_then(|c| Color::parse(&c))

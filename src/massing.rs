@@ -32,6 +32,9 @@ pub struct Mass {
     pub roof: RoofShape,
     /// Pitch in degrees, used when `roof_height` is not given.
     pub roof_angle_deg: f64,
+    /// Compass bearing (degrees from north) a skillion slopes down towards (OSM
+    /// `roof:direction`); `None`: across the footprint's short side.
+    pub roof_direction: Option<f64>,
     /// Height of the roof above the eave, when known (OSM `roof:height`).
     pub roof_height: Option<f64>,
     pub wall_color: Color,
@@ -66,7 +69,11 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
     } else {
         DEFAULT_PITCH_DEG
     };
-    let pitched = roof::build(&mass.footprint, mass.roof, pitch, None)
+    let down = mass.roof_direction.map(|b| {
+        let r = b.to_radians();
+        DVec2::new(r.sin(), r.cos())
+    });
+    let pitched = roof::build(&mass.footprint, mass.roof, pitch, down)
         .map_err(|e| fallback(e.to_string()))?;
     let pitched = match mass.roof_height {
         Some(h) if h > MIN_ROOF_HEIGHT => pitched.scaled_to_height(h),

@@ -15,6 +15,7 @@ pub(crate) fn mass(footprint: Polygon, roof: RoofShape) -> Mass {
         storeys: 2,
         roof,
         roof_angle_deg: 35.0,
+        roof_direction: None,
         roof_height: None,
         wall_color: Color::WHITE,
         roof_color: Color::GREY,
@@ -264,5 +265,35 @@ fn invalid_footprint_is_an_error_not_a_panic() {
             roof_geometry(&mass(bow.clone(), shape)).is_err(),
             "{shape:?}"
         );
+    }
+}
+
+#[test]
+fn skillion_slopes_down_towards_roof_direction() {
+    let rect = poly(&[(0.0, 0.0), (10.0, 0.0), (10.0, 6.0), (0.0, 6.0)]);
+    // (bearing, the horizontal direction the roof must fall towards)
+    for (bearing, down) in [
+        (90.0, DVec2::X),
+        (270.0, -DVec2::X),
+        (0.0, DVec2::Y),
+        (180.0, -DVec2::Y),
+    ] {
+        let mut m = mass(rect.clone(), RoofShape::Skillion);
+        m.roof_direction = Some(bearing);
+        let r = roof_geometry(&m).unwrap();
+        let pts: Vec<DVec3> = r
+            .faces
+            .iter()
+            .flat_map(|f| f.outer.iter().copied())
+            .collect();
+        let high = pts.iter().max_by(|a, b| a.z.total_cmp(&b.z)).unwrap();
+        let low = pts.iter().min_by(|a, b| a.z.total_cmp(&b.z)).unwrap();
+        let fall = DVec2::new(low.x - high.x, low.y - high.y);
+        assert!(
+            fall.dot(down) > 0.0,
+            "bearing {bearing}: falls towards {fall:?}"
+        );
+        let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+        assert!(check_part(&part).is_empty(), "{:?}", check_part(&part));
     }
 }

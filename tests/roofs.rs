@@ -53,6 +53,7 @@ fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
                 storeys: 2,
                 roof: shape,
                 roof_angle_deg: PITCH,
+                roof_direction: None,
                 roof_height: None,
                 wall_color: Color::WHITE,
                 roof_color: Color::GREY,

@@ -776,6 +776,7 @@ mod tests {
             storeys: 2,
             roof: shape,
             roof_angle_deg: pitch,
+            roof_direction: None,
             roof_height: None,
             wall_color: crate::color::Color::WHITE,
             roof_color: crate::color::Color::GREY,

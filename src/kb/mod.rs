@@ -397,6 +397,9 @@ pub struct Style {
     pub storeys: u32,
     pub roof: RoofShape,
     pub roof_angle_deg: f64,
+    /// OSM `roof:direction`: the compass bearing (degrees from north) the main roof face looks
+    /// towards, i.e. the way a skillion slopes down. `None`: chosen from the footprint.
+    pub roof_direction: Option<f64>,
     /// `roof:height` when tagged (0 for a flat roof); `None`: computed from the angle later.
     pub roof_height: Option<f64>,
     /// Base of the walls (OSM `min_height` / `building:min_level`), 0 by default.
@@ -788,6 +791,7 @@ impl KnowledgeBase {
             floor_height,
             storeys,
             roof: v.roof.unwrap_or(defaults::ROOF),
+            roof_direction: None,
             roof_angle_deg: v
                 .roof_angle
                 .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
@@ -964,6 +968,10 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     {
         s.roof_angle_deg = a;
     }
+    s.roof_direction = t
+        .roof_direction
+        .filter(|d| d.is_finite())
+        .map(|d| d.rem_euclid(360.0));
     if let Some(h) = t.roof_height.filter(|h| h.is_finite() && *h >= 0.0) {
         s.roof_height = Some(h);
     } else if s.roof == RoofShape::Flat {

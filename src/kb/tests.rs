@@ -1238,3 +1238,20 @@ fn check_warns_on_probas_and_shapeless_zones() {
         "{r}"
     );
 }
+
+#[test]
+fn roof_direction_tag_reaches_the_style() {
+    let kb = shipped();
+    let zone = kb.locate(-1.15, 52.95);
+    let tags = BuildingTags::from_pairs([
+        ("building", "yes"),
+        ("roof:shape", "skillion"),
+        ("roof:direction", "E"),
+    ]);
+    let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
+    assert_eq!(s.roof, RoofShape::Skillion);
+    assert_eq!(s.roof_direction, Some(90.0));
+    let tags = BuildingTags::from_pairs([("building", "yes"), ("roof:direction", "-90")]);
+    let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
+    assert_eq!(s.roof_direction, Some(270.0));
+}
