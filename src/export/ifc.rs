@@ -703,6 +703,32 @@ impl<W: Write> Open<W> {
         })?)
     }
 
+    /// Storey `i` of part `pk` at elevation `elev` (relative to the building), placed relative to
+    /// `holder_pl`: returns the storey and its placement.
+    fn storey(
+        &mut self,
+        key: &str,
+        pk: &str,
+        i: usize,
+        holder_pl: Id,
+        elev: f64,
+    ) -> Result<(Id, Id), ExportError> {
+        let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
+        let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
+            a.string(&global_id(key, &format!("{pk}/storey/{i}")))
+                .null()
+                .string(&format!("Storey {i}"));
+            a.null()
+                .null()
+                .id(pl)
+                .null()
+                .null()
+                .enumeration("ELEMENT")
+                .real(elev);
+        })?;
+        Ok((storey, pl))
+    }
+
     /// An `IfcLocalPlacement` relative to `rel`, at `loc`, with X along `x_dir` (Z up).
     fn placement(&mut self, rel: Id, loc: DVec3, x_dir: DVec3) -> Result<Id, ExportError> {
         let a2p = self.axes(loc, x_dir)?;
@@ -1003,22 +1029,10 @@ impl<W: Write> Open<W> {
         let mut storey0_pl = holder_pl;
         for i in 0..n {
             let elev = part.base_z + span * f64::from(i) / f64::from(n) - anchor.z;
-            let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
+            let (storey, pl) = self.storey(key, pk, i as usize, holder_pl, elev)?;
             if i == 0 {
                 storey0_pl = pl;
             }
-            let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
-                a.string(&global_id(key, &format!("{pk}/storey/{i}")))
-                    .null()
-                    .string(&format!("Storey {i}"));
-                a.null()
-                    .null()
-                    .id(pl)
-                    .null()
-                    .null()
-                    .enumeration("ELEMENT")
-                    .real(elev);
-            })?;
             storeys.push(storey);
         }
         self.w.entity("IFCRELAGGREGATES", |a| {
@@ -1204,19 +1218,7 @@ impl<W: Write> Open<W> {
         let mut frames = Vec::with_capacity(levels.len());
         for (i, &level) in levels.iter().enumerate() {
             let elev = level - anchor.z;
-            let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
-            let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
-                a.string(&global_id(key, &format!("{pk}/storey/{i}")))
-                    .null()
-                    .string(&format!("Storey {i}"));
-                a.null()
-                    .null()
-                    .id(pl)
-                    .null()
-                    .null()
-                    .enumeration("ELEMENT")
-                    .real(elev);
-            })?;
+            let (storey, pl) = self.storey(key, pk, i, holder_pl, elev)?;
             storeys.push(storey);
             frames.push(ElementFrame {
                 origin: DVec3::new(anchor.x, anchor.y, level),
