@@ -195,6 +195,7 @@ impl Generator {
                 roof: style.roof,
                 roof_angle_deg: style.roof_angle_deg,
                 roof_direction: style.roof_direction,
+                roof_across: style.roof_across,
                 roof_height: None,
                 wall_color: style.wall_color,
                 roof_color: style.roof_color,
@@ -307,6 +308,7 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
             roof,
             roof_angle_deg: num("roofangle").unwrap_or(style.roof_angle_deg),
             roof_direction: style.roof_direction,
+            roof_across: style.roof_across,
             roof_height: num("roofheight").or(style.roof_height),
             wall_color: text("color")
                 .and_then(|c| Color::parse(&c))

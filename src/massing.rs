@@ -35,6 +35,8 @@ pub struct Mass {
     /// Compass bearing (degrees from north) a skillion slopes down towards (OSM
     /// `roof:direction`); `None`: across the footprint's short side.
     pub roof_direction: Option<f64>,
+    /// OSM `roof:orientation=across`: a gabled roof's ridge parallel to the short side.
+    pub roof_across: bool,
     /// Height of the roof above the eave, when known (OSM `roof:height`).
     pub roof_height: Option<f64>,
     pub wall_color: Color,
@@ -73,8 +75,13 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         let r = b.to_radians();
         DVec2::new(r.sin(), r.cos())
     });
-    let pitched = roof::build(&mass.footprint, mass.roof, pitch, down)
-        .map_err(|e| fallback(e.to_string()))?;
+    let pitched = if mass.roof == RoofShape::Gabled && mass.roof_across {
+        let short = crate::geometry::roof_shapes::short_axis(&mass.footprint);
+        crate::geometry::roof_shapes::ridge_roof(&mass.footprint, short, 0.5, pitch)
+    } else {
+        roof::build(&mass.footprint, mass.roof, pitch, down)
+    }
+    .map_err(|e| fallback(e.to_string()))?;
     let pitched = match mass.roof_height {
         Some(h) if h > MIN_ROOF_HEIGHT => pitched.scaled_to_height(h),
         _ => pitched,

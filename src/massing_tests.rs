@@ -16,6 +16,7 @@ pub(crate) fn mass(footprint: Polygon, roof: RoofShape) -> Mass {
         roof,
         roof_angle_deg: 35.0,
         roof_direction: None,
+        roof_across: false,
         roof_height: None,
         wall_color: Color::WHITE,
         roof_color: Color::GREY,
@@ -296,4 +297,127 @@ fn skillion_slopes_down_towards_roof_direction() {
         let part = build_part("p0".into(), &m, &r, Lod::Lod2);
         assert!(check_part(&part).is_empty(), "{:?}", check_part(&part));
     }
+}
+
+/// The two planes of a ridge roof: (area-weighted) slopes in degrees, steepest first.
+fn plane_slopes(r: &RoofGeometry) -> Vec<f64> {
+    let mut s: Vec<f64> = r
+        .faces
+        .iter()
+        .map(|f| f.normal().z.clamp(-1.0, 1.0).acos().to_degrees())
+        .collect();
+    s.sort_by(|a, b| b.total_cmp(a));
+    s.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    s
+}
+
+#[test]
+fn saltbox_has_two_unequal_slopes_and_the_long_one_faces_roof_direction() {
+    let rect = poly(&[(0.0, 0.0), (12.0, 0.0), (12.0, 8.0), (0.0, 8.0)]);
+    let mut m = mass(rect.clone(), RoofShape::Saltbox);
+    let r = roof_geometry(&m).unwrap();
+    let slopes = plane_slopes(&r);
+    assert_eq!(slopes.len(), 2, "{slopes:?}");
+    assert!(
+        (slopes[0] - 35.0).abs() < 1e-6,
+        "the steep side has the pitch: {slopes:?}"
+    );
+    assert!(slopes[1] < slopes[0] - 5.0, "{slopes:?}");
+    // The ridge runs along the long (x) axis: every top vertex has the same y.
+    let top = r.height;
+    let ridge: Vec<f64> = r
+        .faces
+        .iter()
+        .flat_map(|f| f.outer.iter())
+        .filter(|p| (p.z - top).abs() < 1e-9)
+        .map(|p| p.y)
+        .collect();
+    assert!(
+        ridge.len() >= 2 && ridge.iter().all(|y| (y - ridge[0]).abs() < 1e-6),
+        "{ridge:?}"
+    );
+    let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+    assert!(check_part(&part).is_empty(), "{:?}", check_part(&part));
+    // roof:direction = south: the long, shallow slope faces south, so the ridge is north of the
+    // middle.
+    m.roof_direction = Some(180.0);
+    let r = roof_geometry(&m).unwrap();
+    let ridge_y = r
+        .faces
+        .iter()
+        .flat_map(|f| f.outer.iter())
+        .find(|p| (p.z - r.height).abs() < 1e-9)
+        .unwrap()
+        .y;
+    assert!(ridge_y > 4.5, "ridge at y = {ridge_y}");
+}
+
+#[test]
+fn saltbox_and_across_work_on_an_l_and_a_courtyard() {
+    let l = poly(&[
+        (0.0, 0.0),
+        (20.0, 0.0),
+        (20.0, 8.0),
+        (8.0, 8.0),
+        (8.0, 18.0),
+        (0.0, 18.0),
+    ]);
+    let mut court = poly(&[(0.0, 0.0), (24.0, 0.0), (24.0, 16.0), (0.0, 16.0)]);
+    court.holes = vec![vec![
+        DVec2::new(8.0, 5.0),
+        DVec2::new(8.0, 11.0),
+        DVec2::new(16.0, 11.0),
+        DVec2::new(16.0, 5.0),
+    ]];
+    for footprint in [l, court] {
+        for (shape, across) in [(RoofShape::Saltbox, false), (RoofShape::Gabled, true)] {
+            let mut m = mass(footprint.clone(), shape);
+            m.roof_across = across;
+            let r = roof_geometry(&m).unwrap();
+            let projected: f64 = r
+                .faces
+                .iter()
+                .map(|f| {
+                    let ring: Vec<DVec2> = f.outer.iter().map(|p| p.truncate()).collect();
+                    crate::geometry::ring_signed_area(&ring)
+                        + f.holes
+                            .iter()
+                            .map(|h| {
+                                crate::geometry::ring_signed_area(
+                                    &h.iter().map(|p| p.truncate()).collect::<Vec<_>>(),
+                                )
+                            })
+                            .sum::<f64>()
+                })
+                .sum();
+            assert!(
+                (projected - footprint.area()).abs() < 1e-3 * footprint.area(),
+                "{shape:?}: {projected} vs {}",
+                footprint.area()
+            );
+            let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+            assert!(
+                check_part(&part).is_empty(),
+                "{shape:?} across={across}: {:?}",
+                check_part(&part)
+            );
+        }
+    }
+}
+
+#[test]
+fn across_turns_the_ridge_of_a_gabled_rectangle() {
+    let rect = poly(&[(0.0, 0.0), (12.0, 0.0), (12.0, 8.0), (0.0, 8.0)]);
+    let mut m = mass(rect, RoofShape::Gabled);
+    m.roof_across = true;
+    let r = roof_geometry(&m).unwrap();
+    // Ridge across the short side: parallel to y, at x = 6; gables on the long walls.
+    let top: Vec<DVec3> = r
+        .faces
+        .iter()
+        .flat_map(|f| f.outer.iter().copied())
+        .filter(|p| (p.z - r.height).abs() < 1e-9)
+        .collect();
+    assert!(top.iter().all(|p| (p.x - 6.0).abs() < 1e-6), "{top:?}");
+    assert!((r.height - 6.0 * 35f64.to_radians().tan()).abs() < 1e-6);
 }

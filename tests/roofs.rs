@@ -1,4 +1,4 @@
-//! Every footprint polygon of data/monaco and data/clifton with hipped, gabled and mansard roofs
+//! Every footprint polygon of data/monaco and data/clifton with hipped, gabled, mansard and saltbox roofs
 //! forced: each built part must pass `massing::check_part` (planar faces, roof inside the
 //! footprint and covering it, walls meeting the roof, closed solid), gabled and hipped faces
 //! must all have the pitch, and no roof may fall back to flat. The closed-solid check has a
@@ -45,7 +45,12 @@ fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
     let polys = footprints(path);
     let mut bad = Vec::new();
     for (id, p) in &polys {
-        for shape in [RoofShape::Hipped, RoofShape::Gabled, RoofShape::Mansard] {
+        for shape in [
+            RoofShape::Hipped,
+            RoofShape::Gabled,
+            RoofShape::Mansard,
+            RoofShape::Saltbox,
+        ] {
             let m = Mass {
                 footprint: p.clone(),
                 base_z: 0.0,
@@ -54,6 +59,7 @@ fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
                 roof: shape,
                 roof_angle_deg: PITCH,
                 roof_direction: None,
+                roof_across: false,
                 roof_height: None,
                 wall_color: Color::WHITE,
                 roof_color: Color::GREY,
@@ -81,7 +87,7 @@ fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
                 ));
                 continue;
             }
-            if shape != RoofShape::Mansard {
+            if matches!(shape, RoofShape::Hipped | RoofShape::Gabled) {
                 for f in &r.faces {
                     let s = f.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
                     if (s - PITCH).abs() > 0.01 {
@@ -109,7 +115,7 @@ fn every_footprint_of_both_data_sets_gets_every_forced_roof() {
     }
     assert!(
         bad.is_empty(),
-        "{} of {} footprints × 3 shapes fail:\n{}",
+        "{} of {} footprints × 4 shapes fail:\n{}",
         bad.len(),
         total,
         bad[..bad.len().min(30)].join("\n")

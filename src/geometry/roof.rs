@@ -200,7 +200,8 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
 /// `down` is the direction (in plan) a skillion faces (OSM `roof:direction`), else the short
 /// axis of the footprint's minimum bounding rectangle. Pyramidal and cone roofs rise to one
 /// apex over the centroid when the footprint has no holes and is star-shaped from it, and are
-/// hipped otherwise. Saltbox is built as gabled (see the module notes of [`roof_shapes`]).
+/// hipped otherwise. Saltbox is a two-plane ridge roof with the ridge at 35 % of the width
+/// ([`roof_shapes::ridge_roof`]); its long slope faces `down` when given.
 ///
 /// Errors: a pitch outside (0°, 90°), or an invalid footprint ([`SkeletonError`]); never a
 /// fallback for a valid simple polygon.
@@ -219,8 +220,16 @@ pub fn build(
             Ok(flat(poly))
         }
         RoofShape::Hipped => roof_shapes::profile_roof(poly, Ends::Hipped, lin),
-        RoofShape::Gabled | RoofShape::Saltbox => {
-            roof_shapes::profile_roof(poly, Ends::Gabled, lin)
+        RoofShape::Gabled => roof_shapes::profile_roof(poly, Ends::Gabled, lin),
+        RoofShape::Saltbox => {
+            // The long slope faces `down` (roof:direction) when given: the ridge stands on the
+            // other side.
+            let across = roof_shapes::short_axis(poly);
+            let (ridge_dir, at) = match down.map(|d| d.normalize_or_zero()) {
+                Some(d) if d != DVec2::ZERO => (d.perp(), roof_shapes::SALTBOX_RIDGE_AT),
+                _ => (across.perp(), roof_shapes::SALTBOX_RIDGE_AT),
+            };
+            roof_shapes::ridge_roof(poly, -ridge_dir, at, pitch_deg)
         }
         RoofShape::SideHipped => roof_shapes::profile_roof(poly, Ends::AllButOne, lin),
         RoofShape::HalfHipped => {
@@ -777,6 +786,7 @@ mod tests {
             roof: shape,
             roof_angle_deg: pitch,
             roof_direction: None,
+            roof_across: false,
             roof_height: None,
             wall_color: crate::color::Color::WHITE,
             roof_color: crate::color::Color::GREY,

@@ -266,6 +266,7 @@ mod tests {
             roof: RoofShape::HalfHipped,
             roof_angle_deg: 30.0,
             roof_direction: None,
+            roof_across: false,
             roof_height: None,
             min_height: 0.0,
             wall_color: Color::from_rgb24(0xe9967a),

@@ -400,6 +400,8 @@ pub struct Style {
     /// OSM `roof:direction`: the compass bearing (degrees from north) the main roof face looks
     /// towards, i.e. the way a skillion slopes down. `None`: chosen from the footprint.
     pub roof_direction: Option<f64>,
+    /// OSM `roof:orientation=across`: a gabled roof's ridge runs parallel to the short side.
+    pub roof_across: bool,
     /// `roof:height` when tagged (0 for a flat roof); `None`: computed from the angle later.
     pub roof_height: Option<f64>,
     /// Base of the walls (OSM `min_height` / `building:min_level`), 0 by default.
@@ -792,6 +794,7 @@ impl KnowledgeBase {
             storeys,
             roof: v.roof.unwrap_or(defaults::ROOF),
             roof_direction: None,
+            roof_across: false,
             roof_angle_deg: v
                 .roof_angle
                 .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
