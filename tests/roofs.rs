@@ -140,9 +140,20 @@ fn a_test_kb_forcing_the_roof_gives_every_building_that_roof() {
     use citygen::kb::KnowledgeBase;
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
     for shape in ["hipped", "gabled", "mansard"] {
-        let text = format!(r#"<earth><info rooftype="{shape}" roofangle="{PITCH}" nbfloor="3" floorsize="3"/></earth>"#);
+        let text = format!(
+            r#"<earth><info rooftype="{shape}" roofangle="{PITCH}" nbfloor="3" floorsize="3"/></earth>"#
+        );
         let (kb, _) = KnowledgeBase::parse_str(&text, "forced.xml").unwrap();
-        let generator = Generator::new(kb, Rules::Kb, Lod::Lod2, 0, Caps { facades: false, ..Caps::default() });
+        let generator = Generator::new(
+            kb,
+            Rules::Kb,
+            Lod::Lod2,
+            0,
+            Caps {
+                facades: false,
+                ..Caps::default()
+            },
+        );
         let mut open = 0;
         for f in ["monaco/monaco.osm.pbf", "clifton/clifton_test.shp"] {
             let path = root.join(f);
@@ -154,14 +165,22 @@ fn a_test_kb_forcing_the_roof_gives_every_building_that_roof() {
             };
             let mut site = prepare(read.footprints, read.source_crs, None, &mut report);
             for lot in &mut site.lots {
-                for t in std::iter::once(&mut lot.tags).chain(lot.parts.iter_mut().map(|p| &mut p.tags)) {
+                for t in
+                    std::iter::once(&mut lot.tags).chain(lot.parts.iter_mut().map(|p| &mut p.tags))
+                {
                     t.roof_shape = None;
                     t.roof_height = None;
                 }
             }
             for lot in &site.lots {
-                let (b, notes) = generator.generate(lot).unwrap_or_else(|e| panic!("{}: {e}", lot.id));
-                let flat: Vec<&String> = notes.iter().map(|(_, n)| n).filter(|n| n.contains("drawn flat")).collect();
+                let (b, notes) = generator
+                    .generate(lot)
+                    .unwrap_or_else(|e| panic!("{}: {e}", lot.id));
+                let flat: Vec<&String> = notes
+                    .iter()
+                    .map(|(_, n)| n)
+                    .filter(|n| n.contains("drawn flat"))
+                    .collect();
                 assert!(flat.is_empty(), "{} {shape}: {flat:?}", lot.id);
                 for part in &b.parts {
                     let d = check_part(part);

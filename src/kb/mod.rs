@@ -979,6 +979,9 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
         s.roof_height = Some(h);
     } else if s.roof == RoofShape::Flat {
         s.roof_height = Some(0.0);
+    } else if let Some(l) = t.roof_levels.filter(|l| l.is_finite() && *l > 0.0) {
+        // S3DB: without roof:height, roof:levels storeys of the zone's height.
+        s.roof_height = Some(l * fh);
     }
     let min_level = t.min_level.filter(|l| l.is_finite() && *l >= 0.0);
     if let Some(m) = t.min_height.filter(|m| m.is_finite() && *m >= 0.0) {
@@ -1026,15 +1029,50 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
             }
         }
     }
-    if let Some(c) = t.colour {
+    // A colour tag wins; else a material tag gives its usual colour.
+    if let Some(c) = t
+        .colour
+        .or_else(|| t.material.as_deref().and_then(material_color))
+    {
         s.wall_color = c;
     }
-    if let Some(c) = t.roof_colour {
+    if let Some(c) = t
+        .roof_colour
+        .or_else(|| t.roof_material.as_deref().and_then(material_color))
+    {
         s.roof_color = c;
     }
     if let Some(m) = &t.material {
         s.material = Some(m.clone());
     }
+}
+
+/// The usual colour of an OSM `building:material` / `roof:material` value, when it has one.
+pub fn material_color(material: &str) -> Option<Color> {
+    let rgb = match material
+        .trim()
+        .to_ascii_lowercase()
+        .replace(['-', ' '], "_")
+        .as_str()
+    {
+        "roof_tiles" | "tiles" | "tile" | "clay" | "terracotta" => 0xb5523b,
+        "slate" => 0x4a5259,
+        "metal" | "metal_sheet" | "steel" | "tin" | "zinc" => 0x8a9197,
+        "copper" => 0x6f9f8a,
+        "concrete" | "cement_block" => 0xa8a8a0,
+        "glass" => 0xa8c8d8,
+        "thatch" => 0xb8a060,
+        "tar_paper" | "asphalt" | "bitumen" | "eternit" => 0x3c3c3c,
+        "wood" | "timber_framing" => 0x8b5a2b,
+        "gravel" => 0x9a9a92,
+        "grass" | "plants" => 0x6a8a3a,
+        "stone" | "sandstone" | "limestone" => 0xa89f8f,
+        "brick" | "bricks" => 0xa0522d,
+        "plaster" | "render" | "stucco" => 0xe8dcc8,
+        "marble" => 0xe8e6e0,
+        _ => return None,
+    };
+    Some(Color::from_rgb24(rgb))
 }
 
 #[cfg(test)]

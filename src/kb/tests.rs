@@ -1255,3 +1255,29 @@ fn roof_direction_tag_reaches_the_style() {
     let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
     assert_eq!(s.roof_direction, Some(270.0));
 }
+
+#[test]
+fn roof_levels_and_materials_reach_the_style() {
+    let kb = shipped();
+    let zone = kb.locate(-1.15, 52.95);
+    let tags = BuildingTags::from_pairs([
+        ("building", "yes"),
+        ("roof:shape", "gabled"),
+        ("roof:levels", "2"),
+        ("roof:material", "slate"),
+        ("building:material", "brick"),
+    ]);
+    let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
+    assert_eq!(s.roof_height, Some(2.0 * s.floor_height));
+    assert_eq!(Some(s.roof_color), crate::kb::material_color("slate"));
+    assert_eq!(Some(s.wall_color), crate::kb::material_color("brick"));
+    // A colour tag wins over the material.
+    let tags = BuildingTags::from_pairs([
+        ("building", "yes"),
+        ("roof:material", "slate"),
+        ("roof:colour", "red"),
+    ]);
+    let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
+    assert_eq!(Some(s.roof_color), Color::parse("red"));
+    assert_eq!(crate::kb::material_color("unobtainium"), None);
+}
