@@ -268,6 +268,32 @@ pub fn mass_nodes(tree: &ShapeTree) -> Vec<usize> {
         .collect()
 }
 
+/// Storeys of the mass at node `mass`: the finest partition of its horizontal cuts
+/// ([`crate::facade::levels`]); 0 when the rules cut none.
+fn storey_count(tree: &ShapeTree, mass: usize, z0: f64, z1: f64) -> u32 {
+    let mut found = Vec::new();
+    let mut stack = vec![mass];
+    while let Some(i) = stack.pop() {
+        let node = &tree.nodes[i];
+        if i != mass && matches!(node.label, Label::Building | Label::BuildingPart) {
+            continue;
+        }
+        if matches!(node.label, Label::Storey | Label::Room) {
+            if let Geometry::Volume { z0, height, .. } = node.geometry {
+                found.push(facade::Level {
+                    z0,
+                    z1: z0 + height,
+                });
+            }
+        }
+        stack.extend(node.children.clone());
+    }
+    if found.is_empty() {
+        return 0;
+    }
+    facade::levels(found, z0, z1).len() as u32
+}
+
 /// The masses of a derived tree (see [`mass_nodes`]) with their heights, roofs and colours.
 pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
     let mut out = Vec::new();
@@ -282,11 +308,7 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
         else {
             continue;
         };
-        let storeys = node
-            .children
-            .clone()
-            .filter(|c| tree.nodes[*c].label == Label::Storey)
-            .count() as u32;
+        let storeys = storey_count(tree, i, *z0, z0 + height);
         let text = |k: &str| match node.attrs.get(k) {
             Some(AttrValue::Str(s)) => Some(s.to_string()),
             Some(AttrValue::Num(n)) => Some(n.to_string()),

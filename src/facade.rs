@@ -103,9 +103,10 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
         if i != mass && matches!(node.label, Label::Building | Label::BuildingPart) {
             continue; // another mass: its facades are its own
         }
-        if node.label == Label::Storey {
+        if matches!(node.label, Label::Storey | Label::Room) {
             if let Geometry::Volume { z0, height, .. } = node.geometry {
-                // A storey inside another storey's range (a room cut) adds nothing.
+                // Horizontal cuts of storeys (and the rooms of a vertical cut, which repeat
+                // their storey's range) are sorted out by `levels`.
                 out.levels.push(Level {
                     z0,
                     z1: z0 + height,
@@ -129,17 +130,20 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
     out
 }
 
-/// Storey ranges sorted and de-duplicated (nested room cuts dropped); one level over the whole
-/// wall when there are none.
-fn levels(mut found: Vec<Level>, z0: f64, z1: f64) -> Vec<Level> {
-    found.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(b.z1.total_cmp(&a.z1)));
+/// The finest storey partition of the ranges found: a storey cut again along Z (`building ->
+/// split(Z, ...){groundfloor | upperfloors}`, `upperfloors -> repeat(Z, ...){floor}`) counts as
+/// its pieces; ranges repeated by vertical cuts count once. One level over the whole wall when
+/// there are none.
+pub fn levels(mut found: Vec<Level>, z0: f64, z1: f64) -> Vec<Level> {
+    found.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.z1.total_cmp(&b.z1)));
     let mut out: Vec<Level> = Vec::with_capacity(found.len());
     for l in found {
         if l.z1 - l.z0 <= ON_EDGE {
             continue;
         }
         match out.last() {
-            Some(last) if l.z0 < last.z1 - ON_EDGE => {} // nested or overlapping: keep the first
+            // Starts inside the last one kept: a coarser range holding it, or a repeat.
+            Some(last) if l.z0 < last.z1 - ON_EDGE => {}
             _ => out.push(l),
         }
     }
@@ -594,6 +598,38 @@ mod apply_tests {
             "few windows"
         );
         assert!(ring_signed_area(&part.footprint.outer) > 0.0);
+    }
+
+    #[test]
+    fn appearances_with_balconies_give_balconies_and_balcony_doors() {
+        let v = DVec2::new;
+        let lot = Polygon::new(
+            vec![v(0.0, 0.0), v(24.0, 0.0), v(24.0, 14.0), v(0.0, 14.0)],
+            vec![],
+        );
+        let mut balconies = 0;
+        for seed in 0..12 {
+            // Monte-Carlo's appearances ask for balconies on 30-40 % of the upper bays.
+            for part in lod3_parts(&lot, 7.4275, 43.7396, seed) {
+                check_facades(&part);
+                for w in part.walls.iter().filter(|w| !w.balconies.is_empty()) {
+                    assert!(w.storey > 0, "no balcony on the ground floor");
+                    for b in &w.balconies {
+                        assert!(
+                            (b.z - w.base_z).abs() < 1e-9,
+                            "a balcony stands at its storey's floor"
+                        );
+                        // Each balcony has a door above it.
+                        assert!(w
+                            .openings
+                            .iter()
+                            .any(|o| o.kind == OpeningKind::Door && o.u0 < b.u1 && b.u0 < o.u1));
+                    }
+                    balconies += w.balconies.len();
+                }
+            }
+        }
+        assert!(balconies > 20, "{balconies} balconies");
     }
 
     proptest! {

@@ -241,6 +241,12 @@ fn levels_without_height_give_walls_of_levels_times_the_zone_floor_height() {
                 lot.id,
                 style.floor_height
             );
+            assert_eq!(
+                f64::from(part.storeys),
+                levels,
+                "{}: storeys of the derived tree vs building:levels",
+                lot.id
+            );
             if part.roof_shape == citygen::model::RoofShape::Flat {
                 assert!((b.measured_height - levels * style.floor_height).abs() < 0.01);
             }

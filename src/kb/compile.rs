@@ -149,7 +149,20 @@ pub fn ruleset_text(style: &Style) -> String {
     );
     out.push("upperfloors -> repeat(Z, floorsize){floor}".to_string());
     out.push("groundfloor -> comp(){front : groundfacade | others : facade}".to_string());
-    out.push("floor -> comp(){side : facade}".to_string());
+    if style.balconies > 0.0 {
+        // Upper floors: a share of the bays get a balcony (a thin strip at the floor, which
+        // LOD3 turns into a slab with a railing) and a balcony door instead of a window.
+        let b = num(style.balconies);
+        out.push("floor -> comp(){side : upperfacade}".to_string());
+        out.push("upperfacade -> repeat(X, bay){upperbay}".to_string());
+        if style.balconies < 1.0 {
+            out.push(format!("upperbay -> bay = {}", num(1.0 - style.balconies)));
+        }
+        out.push(format!("upperbay -> balconybay = {b}"));
+        out.push("balconybay -> split(Z, 0.05, sz - 0.05){balcony | balconyface}".to_string());
+    } else {
+        out.push("floor -> comp(){side : facade}".to_string());
+    }
     out.push("facade -> repeat(X, bay){bay}".to_string());
     out.push(
         "groundfacade -> split(X, sx/2 - bay/2, bay, sx/2 - bay/2){facade | doorbay | facade}"
@@ -165,6 +178,15 @@ pub fn ruleset_text(style: &Style) -> String {
     out.push(format!(
         "bay -> rsplit(X, {p}, {w}, {p}){{wall | windowcol | wall}}"
     ));
+    if style.balconies > 0.0 {
+        out.push(format!(
+            "balconyface -> rsplit(X, {p}, {w}, {p}){{wall | balconydoor | wall}}"
+        ));
+        out.push(format!(
+            "balconydoor -> rsplit(Z, 0.8, 0.2){{door : color={}, material=glass | wall}}",
+            color_word(style.window_color)
+        ));
+    }
     for (rows, prob) in window_rows(style.window_height) {
         let suffix = prob.map(|q| format!(" = {}", num(q))).unwrap_or_default();
         out.push(format!(
@@ -275,6 +297,7 @@ mod tests {
             frame_color: Color::WHITE,
             door_color: Color::from_rgb24(0x8b4513),
             window_width: 1.2,
+            balconies: 0.0,
             window_height: WindowHeight::Tall,
             window_style: "framed".into(),
             window_material: "glass".into(),

@@ -158,6 +158,8 @@ pub struct Values {
     pub window_style: Option<String>,
     pub window_material: Option<String>,
     pub max_rotation: Option<f64>,
+    /// `balconies`: the share (0..1) of upper-floor bays with a balcony and a balcony door.
+    pub balconies: Option<f64>,
     /// Unknown attributes, lower-cased name → trimmed value, kept for rulesets that read them.
     pub extra: BTreeMap<String, String>,
 }
@@ -188,7 +190,8 @@ impl Values {
             window_width,
             window_style,
             window_material,
-            max_rotation
+            max_rotation,
+            balconies
         );
         for (k, v) in &more_specific.extra {
             self.extra.insert(k.clone(), v.clone());
@@ -414,6 +417,8 @@ pub struct Style {
     pub door_color: Color,
     /// Window width, metres.
     pub window_width: f64,
+    /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
+    pub balconies: f64,
     pub window_height: WindowHeight,
     /// `framed`, `simple`, ... (lower-case).
     pub window_style: String,
@@ -810,6 +815,10 @@ impl KnowledgeBase {
                 .window_width
                 .filter(|w| w.is_finite() && *w > 0.0)
                 .unwrap_or(defaults::WINDOW_WIDTH),
+            balconies: v
+                .balconies
+                .filter(|b| b.is_finite())
+                .map_or(0.0, |b| b.clamp(0.0, 1.0)),
             window_height: v.window_height.unwrap_or(WindowHeight::Tall),
             window_style: v
                 .window_style

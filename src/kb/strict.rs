@@ -264,7 +264,11 @@ impl Ctx<'_> {
         let values: Vec<(&str, Ty)> = DESCRIPTORS
             .iter()
             .copied()
-            .chain([("bdRooftype", Ty::Roof), ("proba", Ty::Dec(0.0, 1.0))])
+            .chain([
+                ("bdRooftype", Ty::Roof),
+                ("proba", Ty::Dec(0.0, 1.0)),
+                ("balconies", Ty::Dec(0.0, 1.0)),
+            ])
             .collect();
         for c in &el.children {
             match c.name.as_str() {

@@ -1013,6 +1013,7 @@ impl ZoneReader {
                     v.window_material = self.clean(key, raw, line).map(|s| s.to_ascii_lowercase())
                 }
                 "maxrotation" => v.max_rotation = self.number(key, raw, line),
+                "balconies" => v.balconies = self.number(key, raw, line),
                 _ => {
                     if let Some(t) = self.clean(key, raw, line) {
                         self.note(
