@@ -703,6 +703,25 @@ impl<W: Write> Open<W> {
         })?)
     }
 
+    /// One `IfcRelAssociatesMaterial` per material layer set usage, for the walls using it.
+    fn associate_materials(
+        &mut self,
+        key: &str,
+        pk: &str,
+        by_usage: BTreeMap<Id, Vec<Id>>,
+    ) -> Result<(), ExportError> {
+        for (usage, ids) in by_usage {
+            self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
+                a.string(&global_id(key, &format!("{pk}/material/{}", usage.0)))
+                    .null()
+                    .null()
+                    .null();
+                a.ids(&ids).id(usage);
+            })?;
+        }
+        Ok(())
+    }
+
     /// Storey `i` of part `pk` at elevation `elev` (relative to the building), placed relative to
     /// `holder_pl`: returns the storey and its placement.
     fn storey(
@@ -1082,15 +1101,7 @@ impl<W: Write> Open<W> {
                 a.ids(&contained).id(storey0);
             })?;
         }
-        for (usage, ids) in by_usage {
-            self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
-                a.string(&global_id(key, &format!("{pk}/material/{}", usage.0)))
-                    .null()
-                    .null()
-                    .null();
-                a.ids(&ids).id(usage);
-            })?;
-        }
+        self.associate_materials(key, pk, by_usage)?;
         Ok(walls)
     }
 
@@ -1283,15 +1294,7 @@ impl<W: Write> Open<W> {
                 a.ids(ids).id(storey);
             })?;
         }
-        for (usage, ids) in by_usage {
-            self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
-                a.string(&global_id(key, &format!("{pk}/material/{}", usage.0)))
-                    .null()
-                    .null()
-                    .null();
-                a.ids(&ids).id(usage);
-            })?;
-        }
+        self.associate_materials(key, pk, by_usage)?;
         Ok(walls)
     }
 
