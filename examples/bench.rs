@@ -52,6 +52,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             src_crs: None,
             caps: Caps::default(),
             bbox: None,
+            tile: None,
         };
         let mut best = f64::INFINITY;
         let mut last = None;
