@@ -288,11 +288,20 @@ impl Building {
         self.id.key()
     }
 
-    /// Number of planar polygons the building's surfaces contain (walls, roofs, grounds).
+    /// Number of planar polygons of the building's surfaces, about as CityGML writes them: walls,
+    /// roof faces and grounds, plus at LOD3 one per window or door and the 9 faces of each
+    /// balcony (a 6-face slab and 3 railing panels).
     pub fn polygon_count(&self) -> usize {
         self.parts
             .iter()
-            .map(|p| p.walls.len() + p.roof.len() + 1)
+            .map(|p| {
+                let facade: usize = p
+                    .walls
+                    .iter()
+                    .map(|w| w.openings.len() + 9 * w.balconies.len())
+                    .sum();
+                p.walls.len() + p.roof.len() + 1 + facade
+            })
             .sum()
     }
 }
