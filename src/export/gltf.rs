@@ -1023,6 +1023,7 @@ mod tests {
             walls,
             roof,
             ground,
+            interior: Vec::new(),
         }
     }
 
