@@ -5,7 +5,7 @@
 use geo::{Area, BooleanOps, Validation};
 use glam::DVec2;
 
-use crate::geometry::{ring_contains, ring_signed_area, Polygon};
+use crate::geometry::{ring_signed_area, Polygon};
 
 /// A `geo` polygon (f64).
 pub type GPoly = geo::Polygon<f64>;
@@ -22,7 +22,10 @@ fn ring_to_geo(r: &[DVec2]) -> geo::LineString<f64> {
 
 /// Our polygon as a `geo` polygon.
 pub fn to_geo(p: &Polygon) -> GPoly {
-    GPoly::new(ring_to_geo(&p.outer), p.holes.iter().map(|h| ring_to_geo(h)).collect())
+    GPoly::new(
+        ring_to_geo(&p.outer),
+        p.holes.iter().map(|h| ring_to_geo(h)).collect(),
+    )
 }
 
 fn ring_from_geo(ls: &geo::LineString<f64>) -> Vec<DVec2> {
@@ -43,7 +46,11 @@ pub fn from_geo(g: &GPoly) -> Polygon {
 /// Drops the closing vertex, near-duplicate vertices and collinear vertices, so that rings stay
 /// small and shared-edge tests see straight edges as one edge.
 pub fn clean_ring(mut r: Vec<DVec2>) -> Vec<DVec2> {
-    while r.len() > 1 && r.first().zip(r.last()).is_some_and(|(a, b)| a.distance(*b) < 1e-9) {
+    while r.len() > 1
+        && r.first()
+            .zip(r.last())
+            .is_some_and(|(a, b)| a.distance(*b) < 1e-9)
+    {
         r.pop();
     }
     let mut changed = true;
@@ -133,18 +140,31 @@ fn ring_area_below(ring: &[DVec2], axis: Axis, t: f64) -> f64 {
     ring_signed_area(&out)
 }
 
-/// Area of the region `m` below `t` on `axis`.
-pub fn area_below(m: &GMulti, axis: Axis, t: f64) -> f64 {
-    let mut s = 0.0;
+/// The rings of a multipolygon as point lists, holes marked.
+fn rings_of(m: &GMulti) -> Vec<(bool, Vec<DVec2>)> {
+    let mut out = Vec::new();
     for p in &m.0 {
-        let ext: Vec<DVec2> = p.exterior().0.iter().map(|c| DVec2::new(c.x, c.y)).collect();
-        s += ring_area_below(&ext, axis, t).abs();
+        let pts = |ls: &geo::LineString<f64>| ls.0.iter().map(|c| DVec2::new(c.x, c.y)).collect();
+        out.push((false, pts(p.exterior())));
         for h in p.interiors() {
-            let r: Vec<DVec2> = h.0.iter().map(|c| DVec2::new(c.x, c.y)).collect();
-            s -= ring_area_below(&r, axis, t).abs();
+            out.push((true, pts(h)));
         }
     }
-    s
+    out
+}
+
+fn rings_area_below(rings: &[(bool, Vec<DVec2>)], axis: Axis, t: f64) -> f64 {
+    rings
+        .iter()
+        .map(|(hole, r)| {
+            let a = ring_area_below(r, axis, t).abs();
+            if *hole {
+                -a
+            } else {
+                a
+            }
+        })
+        .sum()
 }
 
 /// The cut position `t` on `axis` where the region below holds `frac` of the area (bisection).
@@ -154,11 +174,12 @@ pub fn cut_at_fraction(m: &GMulti, axis: Axis, frac: f64) -> f64 {
     if !(a.is_finite() && b.is_finite()) {
         return 0.0;
     }
-    let total = area_below(m, axis, b + 1.0);
+    let rings = rings_of(m);
+    let total = rings_area_below(&rings, axis, b + 1.0);
     let target = frac.clamp(0.0, 1.0) * total;
     for _ in 0..48 {
         let mid = 0.5 * (a + b);
-        if area_below(m, axis, mid) < target {
+        if rings_area_below(&rings, axis, mid) < target {
             a = mid;
         } else {
             b = mid;
@@ -190,14 +211,8 @@ pub fn split(m: &GMulti, axis: Axis, t: f64) -> (GMulti, GMulti) {
     let pad = DVec2::splat(1.0);
     let (lo, hi) = (lo - pad, hi + pad);
     let (below, above) = match axis {
-        Axis::X => (
-            rect(lo, DVec2::new(t, hi.y)),
-            rect(DVec2::new(t, lo.y), hi),
-        ),
-        Axis::Y => (
-            rect(lo, DVec2::new(hi.x, t)),
-            rect(DVec2::new(lo.x, t), hi),
-        ),
+        Axis::X => (rect(lo, DVec2::new(t, hi.y)), rect(DVec2::new(t, lo.y), hi)),
+        Axis::Y => (rect(lo, DVec2::new(hi.x, t)), rect(DVec2::new(lo.x, t), hi)),
     };
     (
         m.intersection(&GMulti::new(vec![below])),
@@ -235,9 +250,8 @@ pub fn rect_inside(poly: &Polygon, lo: DVec2, hi: DVec2) -> bool {
             return false;
         }
     }
-    let inside_strict = |p: DVec2| {
-        p.x > lo.x + 1e-9 && p.x < hi.x - 1e-9 && p.y > lo.y + 1e-9 && p.y < hi.y - 1e-9
-    };
+    let inside_strict =
+        |p: DVec2| p.x > lo.x + 1e-9 && p.x < hi.x - 1e-9 && p.y > lo.y + 1e-9 && p.y < hi.y - 1e-9;
     for ring in poly.rings() {
         let n = ring.len();
         for i in 0..n {
@@ -300,28 +314,4 @@ pub fn shared_segments(a: &[DVec2], b: &[DVec2]) -> Vec<(DVec2, DVec2)> {
         }
     }
     out
-}
-
-/// Distance from a point to a segment.
-pub fn point_segment_distance(p: DVec2, a: DVec2, b: DVec2) -> f64 {
-    let d = b - a;
-    let l2 = d.length_squared();
-    if l2 <= 0.0 {
-        return p.distance(a);
-    }
-    let t = ((p - a).dot(d) / l2).clamp(0.0, 1.0);
-    p.distance(a + d * t)
-}
-
-/// Distance from a point to a ring's boundary.
-pub fn point_ring_distance(p: DVec2, r: &[DVec2]) -> f64 {
-    let n = r.len();
-    (0..n)
-        .map(|i| point_segment_distance(p, r[i], r[(i + 1) % n]))
-        .fold(f64::INFINITY, f64::min)
-}
-
-/// Whether `p` is inside the ring or on its boundary (within [`EPS`]).
-pub fn ring_covers(r: &[DVec2], p: DVec2) -> bool {
-    ring_contains(r, p) || point_ring_distance(p, r) < EPS
 }

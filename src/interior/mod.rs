@@ -91,7 +91,7 @@ mod programme;
 #[cfg(test)]
 mod tests;
 
-use geo::{Buffer, BooleanOps};
+use geo::{BooleanOps, Buffer};
 use glam::DVec2;
 
 use crate::geometry::Polygon;
@@ -151,7 +151,8 @@ pub struct Door {
     /// The door's opening on the wall centre line (interior) or on the usable polygon's outer
     /// ring (entrance); its length is `width`.
     pub segment: (DVec2, DVec2),
-    /// Clear width (metres): 0.9 inside, 1.0 for the entrance, less on short walls (≥ 0.6).
+    /// Clear width (metres): 0.9 inside and 1.0 for the entrance; less on short walls (≥ 0.6
+    /// inside; an entrance on a round wall of short edges takes the edge less 0.1 m, ≥ 0.5).
     pub width: f64,
 }
 
@@ -241,6 +242,9 @@ const DOOR_WALL: f64 = 1.2;
 /// Shortest wall that can hold a (narrowed) door.
 const MIN_DOOR_WALL: f64 = 0.8;
 const ENTRANCE_WIDTH: f64 = 1.0;
+/// Shortest outer wall that can hold a (narrowed) entrance: round buildings drawn with short
+/// edges get an entrance as wide as one edge allows (edge - 0.1 m).
+const MIN_ENTRANCE_WALL: f64 = 0.6;
 /// Pieces under this area are merged into a neighbour (m²).
 const SLIVER_AREA: f64 = 1.0;
 /// Pieces thinner than this (twice area over perimeter) are merged (m).
@@ -255,10 +259,10 @@ struct Frame {
 }
 
 impl Frame {
-    fn to_local(&self, p: DVec2) -> DVec2 {
+    fn to_local(self, p: DVec2) -> DVec2 {
         DVec2::new((p - self.o).dot(self.u), (p - self.o).dot(self.v))
     }
-    fn to_world(&self, q: DVec2) -> DVec2 {
+    fn to_world(self, q: DVec2) -> DVec2 {
         self.o + self.u * q.x + self.v * q.y
     }
     fn poly_local(&self, p: &Polygon) -> Polygon {
@@ -431,15 +435,15 @@ fn inset(p: &Polygon, d: f64) -> Option<Polygon> {
     if d <= 0.0 {
         return Some(p.clone());
     }
-    let style = geo::algorithm::buffer::BufferStyle::new(-d)
-        .line_join(geo::algorithm::buffer::LineJoin::Miter(0.1 * std::f64::consts::PI));
+    let style = geo::algorithm::buffer::BufferStyle::new(-d).line_join(
+        geo::algorithm::buffer::LineJoin::Miter(0.1 * std::f64::consts::PI),
+    );
     let m = geom::to_geo(p).buffer_with_style(style);
-    let best = m
-        .0
-        .iter()
-        .map(geom::from_geo)
-        .filter(|q| q.outer.len() >= 3)
-        .max_by(|a, b| a.area().total_cmp(&b.area()))?;
+    let best =
+        m.0.iter()
+            .map(geom::from_geo)
+            .filter(|q| q.outer.len() >= 3)
+            .max_by(|a, b| a.area().total_cmp(&b.area()))?;
     (best.area() >= 1.0).then_some(best)
 }
 
@@ -527,8 +531,14 @@ impl Planner {
         };
         let half = risers.div_ceil(2) as f64;
         let forms = [
-            (StairForm::DogLeg, DVec2::new(2.0 * fw + 0.1, half * going + fw)),
-            (StairForm::Straight, DVec2::new(fw, risers as f64 * going + 0.3)),
+            (
+                StairForm::DogLeg,
+                DVec2::new(2.0 * fw + 0.1, half * going + fw),
+            ),
+            (
+                StairForm::Straight,
+                DVec2::new(fw, risers as f64 * going + 0.3),
+            ),
             (StairForm::Spiral, DVec2::new(1.6, 1.6)),
         ];
         let (lo, hi) = self.usable.bounds();
@@ -558,11 +568,7 @@ impl Planner {
                     vec![p, DVec2::new(q.x, p.y), q, DVec2::new(p.x, q.y)],
                     vec![],
                 );
-                let up = if dims.y >= dims.x {
-                    DVec2::Y
-                } else {
-                    DVec2::X
-                };
+                let up = if dims.y >= dims.x { DVec2::Y } else { DVec2::X };
                 return Some(StairCore {
                     polygon,
                     form,
@@ -827,9 +833,9 @@ impl Planner {
             }
         }
         // The smallest office cell is the storey's WC.
-        if let Some(i) = (0..cells.len()).min_by(|a, b| {
-            geom::garea(&cells[*a].2).total_cmp(&geom::garea(&cells[*b].2))
-        }) {
+        if let Some(i) = (0..cells.len())
+            .min_by(|a, b| geom::garea(&cells[*a].2).total_cmp(&geom::garea(&cells[*b].2)))
+        {
             if cells.len() > 2 {
                 cells[i].0 = programme::item(RoomKind::Wc, "WC".into(), 1.0);
                 cells[i].1 = None;
@@ -864,13 +870,13 @@ impl Planner {
         }
         finish(&self.usable, protos.clone(), ground).unwrap_or_else(|| {
             // Even the graph failed: rooms without doors (reported by the checks).
-            let (rooms, _) = to_rooms(protos);
+            let (rooms, stair_room) = to_rooms(protos);
             StoreyPlan {
                 rooms,
                 walls: Vec::new(),
                 doors: Vec::new(),
                 entrance: None,
-                stair_room: None,
+                stair_room,
             }
         })
     }
@@ -926,14 +932,13 @@ fn treemap(region: &GMulti, weights: &[f64], fixed: Option<Axis>) -> Vec<GMulti>
 fn explode(leaves: Vec<(Item, Option<usize>, GMulti)>) -> Vec<Proto> {
     let mut out = Vec::new();
     for (it, unit, g) in leaves {
-        let mut pieces: Vec<Polygon> = g
-            .0
-            .iter()
-            .map(geom::from_geo)
-            .filter(|p| p.outer.len() >= 3 && p.area() > 1e-6)
-            .flat_map(|p| split_holes(p, 0))
-            .filter(|p| p.outer.len() >= 3 && p.area() > 1e-6)
-            .collect();
+        let mut pieces: Vec<Polygon> =
+            g.0.iter()
+                .map(geom::from_geo)
+                .filter(|p| p.outer.len() >= 3 && p.area() > 1e-6)
+                .flat_map(|p| split_holes(p, 0))
+                .filter(|p| p.outer.len() >= 3 && p.area() > 1e-6)
+                .collect();
         pieces.sort_by(|a, b| b.area().total_cmp(&a.area()));
         for (i, p) in pieces.into_iter().enumerate() {
             out.push(Proto {
@@ -973,10 +978,15 @@ fn split_holes(p: Polygon, depth: usize) -> Vec<Polygon> {
         .collect()
 }
 
+/// A segment (start, end).
+type Seg = (DVec2, DVec2);
+/// Two rooms (i < j) and the segments they share.
+type Adjacency = (usize, usize, Vec<Seg>);
+
 /// Adjacency: for each pair of rooms that share boundary, the shared segments.
 struct Graph {
     /// (i, j, segments) with i < j.
-    pairs: Vec<(usize, usize, Vec<(DVec2, DVec2)>)>,
+    pairs: Vec<Adjacency>,
 }
 
 fn graph(protos: &[Proto]) -> Graph {
@@ -998,6 +1008,26 @@ fn graph(protos: &[Proto]) -> Graph {
     Graph { pairs }
 }
 
+/// The rooms sharing boundary with room `r`, with the shared length.
+fn neighbours(protos: &[Proto], r: usize) -> Vec<(f64, usize)> {
+    let a = ring_bounds(&protos[r].poly.outer);
+    let e = geom::EPS;
+    (0..protos.len())
+        .filter(|&j| j != r)
+        .filter_map(|j| {
+            let b = ring_bounds(&protos[j].poly.outer);
+            if a.0.x > b.1.x + e || b.0.x > a.1.x + e || a.0.y > b.1.y + e || b.0.y > a.1.y + e {
+                return None;
+            }
+            let l: f64 = geom::shared_segments(&protos[r].poly.outer, &protos[j].poly.outer)
+                .iter()
+                .map(seg_len)
+                .sum();
+            (l > 0.0).then_some((l, j))
+        })
+        .collect()
+}
+
 fn seg_len(s: &(DVec2, DVec2)) -> f64 {
     s.0.distance(s.1)
 }
@@ -1008,10 +1038,10 @@ fn longest(segs: &[(DVec2, DVec2)]) -> Option<(DVec2, DVec2)> {
         .max_by(|a, b| seg_len(a).total_cmp(&seg_len(b)))
 }
 
-/// A door of up to `width` centred on `s`, keeping 0.1 m to each end.
-fn door_on(s: (DVec2, DVec2), width: f64) -> ((DVec2, DVec2), f64) {
+/// A door of up to `width` centred on `s`, keeping `margin` to each end.
+fn door_on(s: (DVec2, DVec2), width: f64, margin: f64) -> ((DVec2, DVec2), f64) {
     let l = seg_len(&s);
-    let w = width.min(l - 0.2).max(0.0);
+    let w = width.min(l - 2.0 * margin).max(0.0);
     let mid = 0.5 * (s.0 + s.1);
     let dir = if l > 0.0 { (s.1 - s.0) / l } else { DVec2::X };
     ((mid - dir * 0.5 * w, mid + dir * 0.5 * w), w)
@@ -1036,31 +1066,37 @@ fn merge(protos: &mut Vec<Proto>, r: usize, into: usize) -> bool {
 /// Merges slivers, grows the doors, merges unreachable rooms and builds the storey plan.
 fn finish(usable: &Polygon, mut protos: Vec<Proto>, ground: bool) -> Option<StoreyPlan> {
     // 1. Slivers into the neighbour with the longest shared boundary.
-    for _ in 0..200 {
-        let g = graph(&protos);
+    let is_sliver = |p: &Proto| {
+        let a = p.poly.area();
+        p.kind != RoomKind::Stair
+            && (a < SLIVER_AREA || 2.0 * a / perimeter(&p.poly.outer) < SLIVER_WIDTH)
+    };
+    let mut kept = vec![false; protos.len()];
+    for _ in 0..500 {
         let bad = (0..protos.len())
-            .filter(|&i| protos[i].kind != RoomKind::Stair)
-            .filter(|&i| {
-                let a = protos[i].poly.area();
-                a < SLIVER_AREA || 2.0 * a / perimeter(&protos[i].poly.outer) < SLIVER_WIDTH
-            })
+            .filter(|&i| !kept[i] && is_sliver(&protos[i]))
             .min_by(|a, b| protos[*a].poly.area().total_cmp(&protos[*b].poly.area()));
         let Some(r) = bad else { break };
-        let mut nbrs: Vec<(f64, usize)> = g
-            .pairs
-            .iter()
-            .filter(|(i, j, _)| *i == r || *j == r)
-            .map(|(i, j, s)| (s.iter().map(seg_len).sum::<f64>(), if *i == r { *j } else { *i }))
+        let mut nbrs: Vec<(f64, usize)> = neighbours(&protos, r)
+            .into_iter()
             .filter(|(_, o)| protos[*o].kind != RoomKind::Stair)
             .collect();
         nbrs.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let merged = nbrs.iter().any(|(_, o)| merge(&mut protos, r, *o));
+        let mut merged = false;
+        for (_, o) in nbrs {
+            if merge(&mut protos, r, o) {
+                kept.remove(r);
+                merged = true;
+                break;
+            }
+        }
         if !merged {
-            // Nothing takes it: keep it as a small storage room, no longer a sliver candidate.
             if protos[r].poly.area() < 1e-3 {
                 protos.remove(r);
+                kept.remove(r);
             } else {
-                break;
+                // Nothing takes it: it stays a small room.
+                kept[r] = true;
             }
         }
     }
@@ -1167,39 +1203,53 @@ fn grow_doors(protos: &[Proto], g: &Graph, start: usize) -> (Vec<Door>, Vec<bool
             _ => 2,
         }
     };
-    loop {
-        let mut best: Option<((u32, u32, u32, f64), usize, usize, (DVec2, DVec2))> = None;
-        for &(i, j, seg) in &edges {
-            if reached[i] == reached[j] {
+    let mut adj: Vec<Vec<(usize, (DVec2, DVec2))>> = vec![Vec::new(); n];
+    for &(i, j, seg) in &edges {
+        adj[i].push((j, seg));
+        adj[j].push((i, seg));
+    }
+    // Min-heap of candidate doors from reached rooms; the key orders by short wall, dwelling
+    // crossing, passage rank of the source, then the longest wall (millimetres), then indices
+    // so that ties break the same way everywhere.
+    type Key = (u32, u32, u32, i64, usize, usize);
+    let mut heap: std::collections::BinaryHeap<std::cmp::Reverse<Key>> =
+        std::collections::BinaryHeap::new();
+    let push = |heap: &mut std::collections::BinaryHeap<std::cmp::Reverse<Key>>,
+                s: usize,
+                adj: &[Vec<(usize, (DVec2, DVec2))>],
+                reached: &[bool]| {
+        for (t, seg) in &adj[s] {
+            if reached[*t] {
                 continue;
             }
-            let (s, t) = if reached[i] { (i, j) } else { (j, i) };
-            let short = u32::from(seg_len(&seg) < DOOR_WALL);
-            let key = (
-                short,
-                level(s, t),
+            let l = seg_len(seg);
+            heap.push(std::cmp::Reverse((
+                u32::from(l < DOOR_WALL),
+                level(s, *t),
                 protos[s].kind.passage_rank(),
-                -seg_len(&seg),
-            );
-            let better = best.as_ref().is_none_or(|b| {
-                (key.0, key.1, key.2)
-                    .cmp(&(b.0 .0, b.0 .1, b.0 .2))
-                    .then(key.3.total_cmp(&b.0 .3))
-                    .is_lt()
-            });
-            if better {
-                best = Some((key, s, t, seg));
-            }
+                -((l * 1000.0).round() as i64),
+                s,
+                *t,
+            )));
         }
-        let Some((_, s, t, seg)) = best else { break };
+    };
+    push(&mut heap, start, &adj, &reached);
+    while let Some(std::cmp::Reverse((_, _, _, _, s, t))) = heap.pop() {
+        if reached[t] {
+            continue;
+        }
+        let Some(seg) = adj[s].iter().find(|(o, _)| *o == t).map(|x| x.1) else {
+            continue;
+        };
         reached[t] = true;
-        let (segment, width) = door_on(seg, DOOR_WIDTH);
+        let (segment, width) = door_on(seg, DOOR_WIDTH, 0.1);
         doors.push(Door {
             a: s,
             b: Some(t),
             segment,
             width,
         });
+        push(&mut heap, t, &adj, &reached);
     }
     (doors, reached)
 }
@@ -1207,14 +1257,14 @@ fn grow_doors(protos: &[Proto], g: &Graph, start: usize) -> (Vec<Door>, Vec<bool
 /// The entrance: on the outer ring of the usable polygon, front-facing first, then the best
 /// circulation room, then the longest wall.
 fn entrance_for(usable: &Polygon, protos: &[Proto]) -> Option<Door> {
-    let mut best: Option<((u32, u32, f64), usize, (DVec2, DVec2))> = None;
+    let mut best: Option<((u32, u32, f64), usize, Seg)> = None;
     for (k, p) in protos.iter().enumerate() {
         if p.kind == RoomKind::Stair {
             continue;
         }
         for s in geom::shared_segments(&p.poly.outer, &usable.outer) {
             let l = seg_len(&s);
-            if l < MIN_DOOR_WALL {
+            if l < MIN_ENTRANCE_WALL {
                 continue;
             }
             // Room rings are CCW: the outward normal is the edge turned clockwise; the front
@@ -1238,7 +1288,7 @@ fn entrance_for(usable: &Polygon, protos: &[Proto]) -> Option<Door> {
         }
     }
     best.map(|(_, k, s)| {
-        let (segment, width) = door_on(s, ENTRANCE_WIDTH);
+        let (segment, width) = door_on(s, ENTRANCE_WIDTH, 0.05);
         Door {
             a: k,
             b: None,

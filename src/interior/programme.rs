@@ -192,7 +192,12 @@ fn bedrooms(t: usize, first: usize, count: usize) -> Vec<Item> {
         .map(|i| {
             let min = RGEU_BEDROOMS[t.min(5)][i.min(4)];
             let w = if i == 0 { 2.0 } else { 1.6 };
-            Item::new(RoomKind::Bedroom, format!("Bedroom {}", i + 1), Some(min), w)
+            Item::new(
+                RoomKind::Bedroom,
+                format!("Bedroom {}", i + 1),
+                Some(min),
+                w,
+            )
         })
         .collect()
 }
