@@ -47,7 +47,7 @@
 //!    then living rooms, kitchens, bedrooms, bathrooms last: seed 001, L91) and has the longest
 //!    wall. A room that no door reaches is merged into a neighbour and the doors are grown
 //!    again. The entrance is on the longest front-facing part of the outer boundary of the
-//!    best circulation room.
+//!    best circulation room (common parts before a dwelling's own hall).
 //!
 //! # Programmes
 //!
@@ -1271,8 +1271,11 @@ fn entrance_for(usable: &Polygon, protos: &[Proto]) -> Option<Door> {
             // is -y in the plan frame.
             let d = (s.1 - s.0) / l;
             let facing = DVec2::new(d.y, -d.x).dot(DVec2::new(0.0, -1.0));
+            // Common circulation (a corridor, an entrance hall) before any dwelling's hall.
             let key = (
-                u32::from(l < ENTRANCE_WIDTH + 0.3) * 2 + u32::from(facing < 0.5),
+                u32::from(l < ENTRANCE_WIDTH + 0.3) * 4
+                    + u32::from(facing < 0.5) * 2
+                    + u32::from(p.unit.is_some()),
                 p.kind.passage_rank(),
                 -l,
             );
