@@ -12,6 +12,7 @@ pub mod facade;
 pub mod geometry;
 pub mod grammar;
 pub mod input;
+pub mod interior;
 pub mod kb;
 pub mod massing;
 pub mod model;
