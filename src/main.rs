@@ -545,6 +545,9 @@ fn run_main(cli: RunArgs) -> ExitCode {
                     r.generated as f64 / secs,
                     summary.polygons as f64 / secs
                 );
+                if let Some(kib) = peak_rss_kib() {
+                    eprintln!("  peak RSS {:.1} MiB", kib as f64 / 1024.0);
+                }
                 for p in &summary.outputs {
                     eprintln!("  wrote {}", p.display());
                 }
@@ -557,4 +560,17 @@ fn run_main(cli: RunArgs) -> ExitCode {
             ExitCode::from(exit_code(&e))
         }
     }
+}
+
+/// This process's peak resident set size in KiB (`VmHWM` of /proc/self/status), on Linux only;
+/// `None` where the kernel does not report it.
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.trim_start_matches("VmHWM:")
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()
 }
