@@ -545,8 +545,13 @@ fn run_main(cli: RunArgs) -> ExitCode {
                     r.generated as f64 / secs,
                     summary.polygons as f64 / secs
                 );
-                if let Some(kib) = peak_rss_kib() {
-                    eprintln!("  peak RSS {:.1} MiB", kib as f64 / 1024.0);
+                match peak_rss_kib() {
+                    Some(kib) => eprintln!(
+                        "  output: {} polygons; peak RSS {:.1} MiB",
+                        summary.polygons,
+                        kib as f64 / 1024.0
+                    ),
+                    None => eprintln!("  output: {} polygons", summary.polygons),
                 }
                 for p in &summary.outputs {
                     eprintln!("  wrote {}", p.display());
