@@ -415,14 +415,20 @@ fn read_bench(input: &Path, size: u64, reps: usize) -> Result<(), Error> {
 
 // ---- tiled inputs ----
 
+/// OSM tags as owned (key, value) pairs.
+type Tags = Vec<(String, String)>;
+
+/// Polygons of one footprint in lon/lat: (outer ring, holes).
+type LonLatPolygons = Vec<(Vec<(f64, f64)>, Vec<Vec<(f64, f64)>>)>;
+
 /// The footprints repeated per copy, with dense ids (1-based per kind) and lon/lat nodes.
 #[derive(Default)]
 struct Template {
     nodes: Vec<(f64, f64)>,
     /// (node indices (0-based), tags).
-    ways: Vec<(Vec<usize>, Vec<(String, String)>)>,
+    ways: Vec<(Vec<usize>, Tags)>,
     /// (members as (is_way, index), roles, tags); only way members.
-    relations: Vec<(Vec<(usize, String)>, Vec<(String, String)>)>,
+    relations: Vec<(Vec<(usize, String)>, Tags)>,
     /// Top-level buildings in order: (true = way, false = relation, index).
     buildings: Vec<(bool, usize)>,
     /// Extent in degrees: (min lon, min lat, max lon, max lat).
@@ -444,8 +450,8 @@ fn is_part(tags: &[(String, String)]) -> bool {
 fn template() -> Result<Template, Error> {
     let monaco = Path::new("data/monaco/monaco.osm.pbf");
     let mut nodes: BTreeMap<i64, (f64, f64)> = BTreeMap::new();
-    let mut ways: BTreeMap<i64, (Vec<i64>, Vec<(String, String)>)> = BTreeMap::new();
-    let mut rels: BTreeMap<i64, (Vec<(i64, String)>, Vec<(String, String)>)> = BTreeMap::new();
+    let mut ways: BTreeMap<i64, (Vec<i64>, Tags)> = BTreeMap::new();
+    let mut rels: BTreeMap<i64, (Vec<(i64, String)>, Tags)> = BTreeMap::new();
     let tags_of = |it: &mut dyn Iterator<Item = (&str, &str)>| -> Vec<(String, String)> {
         it.map(|(k, v)| (k.to_string(), v.to_string())).collect()
     };
@@ -544,7 +550,7 @@ fn add_clifton(t: &mut Template, beside: [f64; 4]) -> Result<(), Error> {
         &mut report,
     )?;
     let crs = read.source_crs.ok_or("the Clifton shapefile has no CRS")?;
-    let lonlat: Vec<Vec<(Vec<(f64, f64)>, Vec<Vec<(f64, f64)>>)>> = read
+    let lonlat: Vec<LonLatPolygons> = read
         .footprints
         .iter()
         .map(|f| {
