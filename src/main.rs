@@ -187,6 +187,11 @@ struct RunArgs {
     /// are counted in the report.
     #[arg(long, value_name = "LON0,LAT0,LON1,LAT1", value_parser = parse_bbox)]
     bbox: Option<[f64; 4]>,
+    /// Split the outputs into square tiles of this many metres of the output CRS: `out.gml`
+    /// becomes `out_{easting}_{northing}.gml` per tile holding buildings (the lower-left
+    /// corner of the tile). A building belongs to the tile of its representative point.
+    #[arg(long, value_name = "METRES", value_parser = clap::value_parser!(u32).range(10..))]
+    tile: Option<u32>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -512,6 +517,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
             ..Caps::default()
         },
         bbox: cli.bbox,
+        tile: cli.tile,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();
@@ -553,8 +559,17 @@ fn run_main(cli: RunArgs) -> ExitCode {
                     ),
                     None => eprintln!("  output: {} polygons", summary.polygons),
                 }
-                for p in &summary.outputs {
+                // One screen: a tiled run may write thousands of files.
+                const SHOWN: usize = 9;
+                for p in summary.outputs.iter().take(SHOWN) {
                     eprintln!("  wrote {}", p.display());
+                }
+                if summary.outputs.len() > SHOWN {
+                    eprintln!(
+                        "  ... and {} more files ({} in all)",
+                        summary.outputs.len() - SHOWN,
+                        summary.outputs.len()
+                    );
                 }
             }
             ExitCode::SUCCESS

@@ -138,6 +138,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         walls,
         roof: roof_faces,
         ground,
+        interior: Vec::new(),
     }
 }
 

@@ -255,6 +255,78 @@ pub struct Part {
     pub roof: Vec<Face>,
     /// The ground surface at `base_z`, normal pointing down.
     pub ground: Face,
+    /// The interior, one plan per storey (LOD4; empty below).
+    pub interior: Vec<StoreyInterior>,
+}
+
+/// The interior of one storey of a part (LOD4): rooms, the interior walls between them, the
+/// doors in those walls, and the stair core.
+///
+/// Rooms partition the storey's usable area (the footprint inside the exterior walls): their
+/// polygons are the cells of the partition, so two neighbouring rooms share an edge; an
+/// interior wall is centred on that shared edge and is `thickness` thick (writers give it a
+/// body of half the thickness on each side). The entrance from outside is the LOD3 front door.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StoreyInterior {
+    /// Index of the storey in [`Part::levels`].
+    pub storey: usize,
+    /// Top of this storey's floor slab (the storey's level).
+    pub floor_z: f64,
+    /// Underside of the ceiling (the next storey's slab, or the eave).
+    pub ceiling_z: f64,
+    pub rooms: Vec<Room>,
+    /// Interior walls, each once (never duplicated for its two rooms).
+    pub walls: Vec<InteriorWall>,
+    /// Doors in interior walls.
+    pub doors: Vec<InteriorDoor>,
+    /// The stair rising from this storey to the next, if any. Every storey of a part has its
+    /// stair at the same place.
+    pub stair: Option<Stair>,
+}
+
+/// A room (or the hall, a corridor, the stair core) of a storey plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Room {
+    /// Simple polygon in the local frame, inside the storey's usable area.
+    pub polygon: Polygon,
+    /// What the room is for, lower case, e.g. `living room`, `bedroom`, `hall`, `stair`.
+    pub usage: String,
+    /// A name unique in the storey, e.g. `Bedroom 2`.
+    pub name: String,
+}
+
+/// An interior wall on the shared boundary of two rooms: the centre line from `a` to `b`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InteriorWall {
+    pub a: DVec2,
+    pub b: DVec2,
+    pub thickness: f64,
+    /// The two rooms it separates (indices in [`StoreyInterior::rooms`]).
+    pub rooms: [usize; 2],
+}
+
+/// A door in an interior wall: `u0..u1` metres along the wall from `a`, from the floor up to
+/// `height`. It lies inside the wall with at least [`OPENING_MARGIN`] to its ends.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InteriorDoor {
+    /// Index in [`StoreyInterior::walls`].
+    pub wall: usize,
+    pub u0: f64,
+    pub u1: f64,
+    pub height: f64,
+}
+
+/// A straight stair flight inside a stair core: it rises from the storey's floor to the next
+/// storey's floor over `footprint`, in the direction `run` (unit vector in the plan).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stair {
+    /// The flight's outline (a rectangle) in the local frame.
+    pub footprint: Polygon,
+    pub run: DVec2,
+    /// Height climbed (floor to next floor).
+    pub rise: f64,
+    /// Number of risers.
+    pub risers: u32,
 }
 
 /// A building: the unit every writer emits, with its parts.
@@ -288,11 +360,20 @@ impl Building {
         self.id.key()
     }
 
-    /// Number of planar polygons the building's surfaces contain (walls, roofs, grounds).
+    /// Number of planar polygons of the building's surfaces, about as CityGML writes them: walls,
+    /// roof faces and grounds, plus at LOD3 one per window or door and the 9 faces of each
+    /// balcony (a 6-face slab and 3 railing panels).
     pub fn polygon_count(&self) -> usize {
         self.parts
             .iter()
-            .map(|p| p.walls.len() + p.roof.len() + 1)
+            .map(|p| {
+                let facade: usize = p
+                    .walls
+                    .iter()
+                    .map(|w| w.openings.len() + 9 * w.balconies.len())
+                    .sum();
+                p.walls.len() + p.roof.len() + 1 + facade
+            })
             .sum()
     }
 }

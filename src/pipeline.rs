@@ -13,7 +13,7 @@ use crate::derive::{Generator, Rules};
 use crate::export::citygml::CityGmlWriter;
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
-use crate::export::{AtomicFile, BuildingWriter, ExportError, OutputContext};
+use crate::export::{AtomicFile, BuildingWriter, ExportError, OutputContext, PendingFile};
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
 use crate::kb::KnowledgeBase;
@@ -52,6 +52,9 @@ pub struct Options {
     pub caps: Caps,
     /// Only the buildings whose representative point is in [min lon, min lat, max lon, max lat].
     pub bbox: Option<[f64; 4]>,
+    /// Split the outputs into square tiles of this many metres of the output CRS: each output
+    /// path `NAME.EXT` becomes one `NAME_{easting}_{northing}.EXT` per non-empty tile.
+    pub tile: Option<u32>,
 }
 
 /// What went wrong, for the exit code and the message.
@@ -123,8 +126,28 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         gltf: opts.gltf.clone(),
         report: opts.report.clone(),
     };
-    let mut summary =
-        generate_and_write(&site, &generator, &source_name, &targets, report, progress)?;
+    let batches: Vec<Batch> = match opts.tile {
+        None => vec![Batch {
+            suffix: None,
+            range: 0..site.lots.len(),
+        }],
+        Some(size) => prepare::group_into_tiles(&mut site, size)
+            .into_iter()
+            .map(|t| Batch {
+                suffix: Some(t.suffix()),
+                range: t.range,
+            })
+            .collect(),
+    };
+    let mut summary = write_batches(
+        &site,
+        &batches,
+        &generator,
+        &source_name,
+        &targets,
+        report,
+        progress,
+    )?;
     summary.elapsed = start.elapsed();
     Ok(summary)
 }
@@ -196,10 +219,114 @@ pub fn generate_and_write(
     generator: &Generator,
     source_name: &str,
     targets: &Targets,
+    report: Report,
+    progress: Progress<'_>,
+) -> Result<Summary, RunError> {
+    let all = [Batch {
+        suffix: None,
+        range: 0..site.lots.len(),
+    }];
+    write_batches(
+        site,
+        &all,
+        generator,
+        source_name,
+        targets,
+        report,
+        progress,
+    )
+}
+
+/// A run of consecutive lots written to one set of files: the whole site, or one tile.
+struct Batch {
+    /// Inserted before the extension of every output path (`None`: the paths as given).
+    suffix: Option<String>,
+    range: std::ops::Range<usize>,
+}
+
+/// Writes each batch to its own files. Every file is complete and closed before any is renamed
+/// over its target, so a run that fails (or is killed) part-way publishes nothing.
+fn write_batches(
+    site: &prepare::Site,
+    batches: &[Batch],
+    generator: &Generator,
+    source_name: &str,
+    targets: &Targets,
     mut report: Report,
     progress: Progress<'_>,
 ) -> Result<Summary, RunError> {
     let start = Instant::now();
+    let total = site.lots.len();
+    let mut done = 0usize;
+    let mut polygons = 0usize;
+    let mut pending = Vec::new();
+    for batch in batches {
+        let path = |p: &Option<PathBuf>| match (&batch.suffix, p) {
+            (Some(sfx), Some(p)) => Some(tile_path(p, sfx)),
+            (_, p) => p.clone(),
+        };
+        let tile_targets = Targets {
+            ifc: path(&targets.ifc),
+            citygml: path(&targets.citygml),
+            gltf: path(&targets.gltf),
+            report: None,
+        };
+        let name = match &batch.suffix {
+            Some(sfx) => format!("{source_name} tile {sfx}"),
+            None => source_name.to_string(),
+        };
+        let lots = &site.lots[batch.range.clone()];
+        polygons += write_lots(
+            site,
+            lots,
+            generator,
+            &name,
+            &tile_targets,
+            &mut report,
+            &mut pending,
+            &|n| progress(done + n, total),
+        )?;
+        done += lots.len();
+    }
+    report.skipped = report
+        .entries
+        .iter()
+        .filter(|e| e.outcome == Outcome::Skipped)
+        .count();
+    report.repaired = report
+        .entries
+        .iter()
+        .filter(|e| e.outcome == Outcome::Repaired)
+        .count();
+    let mut paths = Vec::with_capacity(pending.len());
+    for (path, file) in pending {
+        file.commit().map_err(io_err(&path))?;
+        paths.push(path);
+    }
+    if let Some(p) = &targets.report {
+        write_report(p, &report).map_err(io_err(p))?;
+    }
+    Ok(Summary {
+        report,
+        polygons,
+        elapsed: start.elapsed(),
+        outputs: paths,
+    })
+}
+
+/// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the targets' files,
+/// which are left closed in `pending`, ready to be renamed. Returns the polygons written.
+#[allow(clippy::too_many_arguments)]
+fn write_lots(
+    site: &prepare::Site,
+    lots: &[prepare::Lot],
+    generator: &Generator,
+    source_name: &str,
+    targets: &Targets,
+    report: &mut Report,
+    pending: &mut Vec<(PathBuf, PendingFile)>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<usize, RunError> {
     let ctx = OutputContext {
         crs: site.crs,
         origin: DVec3::new(site.origin.x, site.origin.y, 0.0),
@@ -230,9 +357,8 @@ pub fn generate_and_write(
         w.begin(&ctx).map_err(out_err(path))?;
     }
 
-    let total = site.lots.len();
     let mut polygons = 0usize;
-    for (ci, chunk) in site.lots.chunks(CHUNK).enumerate() {
+    for (ci, chunk) in lots.chunks(CHUNK).enumerate() {
         let results: Vec<_> = chunk
             .par_iter()
             .map(|lot| generator.generate(lot))
@@ -252,36 +378,30 @@ pub fn generate_and_write(
                 Err(reason) => report.add(Some(lot.id), Outcome::Skipped, reason),
             }
         }
-        progress(((ci + 1) * CHUNK).min(total), total);
+        progress(((ci + 1) * CHUNK).min(lots.len()));
     }
     for (path, w, _) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
-    report.skipped = report
-        .entries
-        .iter()
-        .filter(|e| e.outcome == Outcome::Skipped)
-        .count();
-    report.repaired = report
-        .entries
-        .iter()
-        .filter(|e| e.outcome == Outcome::Repaired)
-        .count();
-    let mut paths = Vec::with_capacity(outputs.len());
     for (path, writer, file) in outputs {
         drop(writer);
-        file.commit().map_err(io_err(&path))?;
-        paths.push(path);
+        let closed = file.close().map_err(io_err(&path))?;
+        pending.push((path, closed));
     }
-    if let Some(p) = &targets.report {
-        write_report(p, &report).map_err(io_err(p))?;
-    }
-    Ok(Summary {
-        report,
-        polygons,
-        elapsed: start.elapsed(),
-        outputs: paths,
-    })
+    Ok(polygons)
+}
+
+/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`.
+fn tile_path(p: &Path, suffix: &str) -> PathBuf {
+    let stem = p
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match p.extension() {
+        Some(ext) => format!("{stem}_{suffix}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{suffix}"),
+    };
+    p.with_file_name(name)
 }
 
 fn write_report(path: &Path, report: &Report) -> std::io::Result<()> {

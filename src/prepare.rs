@@ -547,6 +547,63 @@ pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) {
     }
 }
 
+/// One square tile of a tiled run: the lots whose representative point lies in it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Tile {
+    /// Output-CRS coordinates of the tile's lower-left corner, in whole metres.
+    pub corner: (i64, i64),
+    /// The tile's lots: `site.lots[range]` after [`group_into_tiles`].
+    pub range: std::ops::Range<usize>,
+}
+
+impl Tile {
+    /// The file-name suffix of the tile, `{easting}_{northing}` of its lower-left corner, so
+    /// that the same grid gives the same names night after night.
+    pub fn suffix(&self) -> String {
+        format!("{}_{}", self.corner.0, self.corner.1)
+    }
+}
+
+/// Groups the lots by the `size`-metre square of the output CRS grid holding their
+/// representative point, and reorders `site.lots` so that each tile's lots are contiguous.
+/// Tiles come in (easting, northing) order of their corners; inside a tile the lots keep their
+/// input order, so the outputs stay deterministic. Every lot is in exactly one tile.
+pub fn group_into_tiles(site: &mut Site, size: u32) -> Vec<Tile> {
+    let size = i64::from(size.max(1));
+    let key = |lot: &Lot| {
+        let (x, y) = site.crs.from_lonlat(lot.lonlat.0, lot.lonlat.1);
+        // A non-finite point (cannot happen for a prepared lot) goes to the origin's tile
+        // rather than being lost.
+        let cell = |v: f64| {
+            if v.is_finite() {
+                (v / size as f64).floor() as i64
+            } else {
+                0
+            }
+        };
+        (cell(x), cell(y))
+    };
+    let mut keyed: Vec<((i64, i64), Lot)> = std::mem::take(&mut site.lots)
+        .into_iter()
+        .map(|l| (key(&l), l))
+        .collect();
+    // Stable: lots of one tile keep their input order.
+    keyed.sort_by_key(|(k, _)| *k);
+    let mut tiles: Vec<Tile> = Vec::new();
+    for (i, (k, lot)) in keyed.into_iter().enumerate() {
+        let corner = (k.0 * size, k.1 * size);
+        match tiles.last_mut() {
+            Some(t) if t.corner == corner => t.range.end = i + 1,
+            _ => tiles.push(Tile {
+                corner,
+                range: i..i + 1,
+            }),
+        }
+        site.lots.push(lot);
+    }
+    tiles
+}
+
 /// A site holding one lot given in local metres, placed at `lonlat` (the local origin), for
 /// trying a ruleset without a city (`citygen rules derive`).
 pub fn single_lot(
@@ -663,5 +720,50 @@ mod tests {
         ];
         let p = Polygon::new(u, vec![]);
         assert!(p.contains(interior_point(&p)));
+    }
+
+    #[test]
+    fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
+        let crs = Crs::utm_for(7.42, 43.73);
+        let lot = |i: i64, x: f64, y: f64| {
+            let (lon, lat) = crs.to_lonlat(x, y);
+            Lot {
+                id: SourceId::Way(i),
+                tags: BuildingTags::default(),
+                polygons: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
+                parts: Vec::new(),
+                draw_outline: true,
+                lonlat: (lon, lat),
+            }
+        };
+        // Input order mixes the tiles; 5 and 2 share a tile with 1, in that input order.
+        let mut site = Site {
+            crs,
+            origin: DVec2::new(370_000.0, 4_842_000.0),
+            origin_lonlat: crs.to_lonlat(370_000.0, 4_842_000.0),
+            lots: vec![
+                lot(1, 370_010.0, 4_842_010.0),
+                lot(3, 370_260.0, 4_842_010.0),
+                lot(4, 370_010.0, 4_842_260.0),
+                lot(2, 370_240.0, 4_842_240.0),
+                lot(5, 370_100.0, 4_842_100.0),
+            ],
+        };
+        let tiles = group_into_tiles(&mut site, 250);
+        let ids: Vec<SourceId> = site.lots.iter().map(|l| l.id).collect();
+        let way = SourceId::Way;
+        assert_eq!(ids, vec![way(1), way(2), way(5), way(4), way(3)]);
+        let names: Vec<(String, std::ops::Range<usize>)> = tiles
+            .iter()
+            .map(|t| (t.suffix(), t.range.clone()))
+            .collect();
+        assert_eq!(
+            names,
+            vec![
+                ("370000_4842000".to_string(), 0..3),
+                ("370000_4842250".to_string(), 3..4),
+                ("370250_4842000".to_string(), 4..5),
+            ]
+        );
     }
 }

@@ -714,3 +714,52 @@ fn kb_explain_tells_the_zone_chain_and_the_chosen_appearance() {
     let missing = citygen(&["kb", "explain", KB, "--osm", MONACO, "--id", "way/1"]);
     assert_eq!(missing.status.code(), Some(1));
 }
+
+#[test]
+fn tiled_run_puts_every_building_in_exactly_one_tile_with_the_same_bytes() {
+    // A whole run and a tiled run of the same input: the tiles hold exactly the buildings of the
+    // whole run, each once, with the same geometry (the frame is the site's, not the tile's).
+    let whole = run_all("--shp", CLIFTON, "1", &[]);
+    let tiled = run_all("--shp", CLIFTON, "1", &["--tile", "250"]);
+    assert!(!tiled.gml.exists(), "a tiled run writes no untiled file");
+    let whole_gml = std::fs::read_to_string(&whole.gml).unwrap();
+    let all = citygml_buildings(&whole_gml);
+    let mut seen = BTreeMap::new();
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(tiled.dir.path()).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if !name.ends_with(".gml") {
+            continue;
+        }
+        // out_{easting}_{northing}.gml, corners on the 250 m grid.
+        let parts: Vec<&str> = name.trim_end_matches(".gml").split('_').collect();
+        assert_eq!(parts.len(), 3, "{name}");
+        let (e, n): (i64, i64) = (parts[1].parse().unwrap(), parts[2].parse().unwrap());
+        assert!(e % 250 == 0 && n % 250 == 0, "{name} is not on the grid");
+        for ext in ["ifc", "glb"] {
+            let sibling = tiled
+                .dir
+                .path()
+                .join(name.replace(".gml", &format!(".{ext}")));
+            assert!(sibling.exists(), "{} missing", sibling.display());
+        }
+        let text = std::fs::read_to_string(tiled.dir.path().join(&name)).unwrap();
+        for (id, body) in citygml_buildings(&text) {
+            assert_eq!(all.get(&id), Some(&body), "{id} differs in tile {name}");
+            assert!(
+                seen.insert(id.clone(), name.clone()).is_none(),
+                "{id} twice"
+            );
+        }
+        names.push(name);
+    }
+    assert!(
+        names.len() >= 4,
+        "Clifton spans several 250 m tiles: {names:?}"
+    );
+    assert_eq!(seen.len(), all.len(), "every building is in one tile");
+    assert_eq!(
+        whole.report_json()["generated"],
+        tiled.report_json()["generated"]
+    );
+}

@@ -1037,6 +1037,7 @@ mod tests {
             walls,
             roof: vec![roof_face],
             ground,
+            interior: Vec::new(),
         }
     }
 

@@ -1200,6 +1200,7 @@ mod tests {
             walls,
             roof,
             ground,
+            interior: Vec::new(),
         }
     }
 

@@ -2012,6 +2012,7 @@ mod tests {
             key: key.into(),
             walls: walls(&fp, base, top),
             ground: ground(&fp, base),
+            interior: Vec::new(),
             footprint: fp,
             base_z: base,
             eave_z: top,

@@ -377,6 +377,7 @@ pub(crate) mod samples {
             walls,
             roof: vec![roof],
             ground,
+            interior: Vec::new(),
         }
     }
 

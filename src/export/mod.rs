@@ -90,11 +90,46 @@ impl AtomicFile {
     }
 
     /// Syncs the temporary file and renames it over the target.
-    pub fn commit(mut self) -> io::Result<()> {
+    pub fn commit(self) -> io::Result<()> {
+        self.close()?.commit()
+    }
+
+    /// Syncs and closes the temporary file without renaming it yet, so that a run writing many
+    /// files (tiles) can publish them all at the end without holding a descriptor per file.
+    pub fn close(mut self) -> io::Result<PendingFile> {
         self.file.sync_all()?;
+        // Hand the temporary over: this AtomicFile must not delete it when dropped.
+        self.committed = true;
+        Ok(PendingFile {
+            target: std::mem::take(&mut self.target),
+            tmp: std::mem::take(&mut self.tmp),
+            committed: false,
+        })
+    }
+}
+
+/// A complete, closed temporary file waiting to be renamed over its target
+/// ([`AtomicFile::close`]). Dropped without commit, the temporary is removed.
+pub struct PendingFile {
+    target: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+impl PendingFile {
+    /// Renames the temporary over the target.
+    pub fn commit(mut self) -> io::Result<()> {
         std::fs::rename(&self.tmp, &self.target)?;
         self.committed = true;
         Ok(())
+    }
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
     }
 }
 
@@ -110,6 +145,29 @@ impl Drop for AtomicFile {
 mod tests {
     use super::*;
     use std::io::Write;
+
+    #[test]
+    fn closed_file_is_published_only_on_commit_and_removed_when_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("tile.gml");
+        std::fs::write(&target, b"old").unwrap();
+        let write = |bytes: &[u8]| {
+            let f = AtomicFile::create(&target).unwrap();
+            let mut w = f.writer().unwrap();
+            w.write_all(bytes).unwrap();
+            w.flush().unwrap();
+            drop(w);
+            f.close().unwrap()
+        };
+        drop(write(b"abandoned"));
+        assert_eq!(std::fs::read(&target).unwrap(), b"old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        let pending = write(b"new");
+        assert_eq!(std::fs::read(&target).unwrap(), b"old", "not before commit");
+        pending.commit().unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
 
     #[test]
     fn atomic_file_replaces_only_on_commit() {
