@@ -214,6 +214,8 @@ impl Format {
 /// One child run.
 struct RunResult {
     secs: f64,
+    /// User + system CPU seconds of the child (on a shared machine, steadier than wall time).
+    cpu: f64,
     buildings: u64,
     polygons: u64,
     bytes: u64,
@@ -234,7 +236,7 @@ fn bench_input(
     let size = std::fs::metadata(input)?.len();
     let is_shp = input.extension().is_some_and(|e| e == "shp");
     println!(
-        "\n== {} ({:.1} MB)\n{:<4} {:<10} {:>9} {:>10} {:>8} {:>11} {:>12} {:>9} {:>8} {:>9}",
+        "\n== {} ({:.1} MB)\n{:<4} {:<10} {:>9} {:>10} {:>8} {:>8} {:>11} {:>12} {:>9} {:>8} {:>9}",
         input.display(),
         size as f64 / 1e6,
         "LOD",
@@ -242,6 +244,7 @@ fn bench_input(
         "buildings",
         "polygons",
         "s",
+        "CPU s",
         "buildings/s",
         "polygons/s",
         "MB out",
@@ -262,12 +265,13 @@ fn bench_input(
             }
             let Some(r) = best else { continue };
             println!(
-                "{:<4} {:<10} {:>9} {:>10} {:>8.2} {:>11.0} {:>12.0} {:>9.1} {:>8.1} {:>9.1}",
+                "{:<4} {:<10} {:>9} {:>10} {:>8.2} {:>8.2} {:>11.0} {:>12.0} {:>9.1} {:>8.1} {:>9.1}",
                 lod,
                 format.name(),
                 r.buildings,
                 r.polygons,
                 r.secs,
+                r.cpu,
                 r.buildings as f64 / r.secs,
                 r.polygons as f64 / r.secs,
                 r.bytes as f64 / 1e6,
@@ -319,7 +323,7 @@ fn run_child(
     if let Some(mut e) = child.stderr.take() {
         e.read_to_string(&mut stderr)?;
     }
-    let (ok, rss_kib) = wait_with_rss(&mut child)?;
+    let (ok, rss_kib, cpu) = wait_with_rss(&mut child)?;
     let secs = t.elapsed().as_secs_f64();
     if !ok {
         return Err(format!("citygen failed on {}:\n{stderr}", input.display()).into());
@@ -339,6 +343,7 @@ fn run_child(
         .sum();
     Ok(RunResult {
         secs,
+        cpu,
         buildings: number_after("generated "),
         polygons: number_after("output: "),
         bytes,
@@ -346,9 +351,10 @@ fn run_child(
     })
 }
 
-/// Waits for the child and returns (success, peak RSS in KiB of that child alone).
+/// Waits for the child and returns (success, peak RSS in KiB, user + system CPU seconds) of
+/// that child alone.
 #[cfg(unix)]
-fn wait_with_rss(child: &mut std::process::Child) -> Result<(bool, u64), Error> {
+fn wait_with_rss(child: &mut std::process::Child) -> Result<(bool, u64, f64), Error> {
     let pid = child.id() as libc::pid_t;
     let mut status: libc::c_int = 0;
     // SAFETY: plain FFI call with valid out-pointers; the child is ours and not yet reaped.
@@ -359,12 +365,14 @@ fn wait_with_rss(child: &mut std::process::Child) -> Result<(bool, u64), Error> 
     }
     let ok = libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0;
     // ru_maxrss is in KiB on Linux.
-    Ok((ok, usage.ru_maxrss.max(0) as u64))
+    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
+    let cpu = tv(usage.ru_utime) + tv(usage.ru_stime);
+    Ok((ok, usage.ru_maxrss.max(0) as u64, cpu))
 }
 
 #[cfg(not(unix))]
-fn wait_with_rss(child: &mut std::process::Child) -> Result<(bool, u64), Error> {
-    Ok((child.wait()?.success(), 0))
+fn wait_with_rss(child: &mut std::process::Child) -> Result<(bool, u64, f64), Error> {
+    Ok((child.wait()?.success(), 0, 0.0))
 }
 
 /// Raw osmpbf decode (parallel, all blobs) vs citygen's read phase, best of `reps`.
