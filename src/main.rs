@@ -551,6 +551,14 @@ fn run_main(cli: RunArgs) -> ExitCode {
                     r.generated as f64 / secs,
                     summary.polygons as f64 / secs
                 );
+                match peak_rss_kib() {
+                    Some(kib) => eprintln!(
+                        "  output: {} polygons; peak RSS {:.1} MiB",
+                        summary.polygons,
+                        kib as f64 / 1024.0
+                    ),
+                    None => eprintln!("  output: {} polygons", summary.polygons),
+                }
                 // One screen: a tiled run may write thousands of files.
                 const SHOWN: usize = 9;
                 for p in summary.outputs.iter().take(SHOWN) {
@@ -572,4 +580,17 @@ fn run_main(cli: RunArgs) -> ExitCode {
             ExitCode::from(exit_code(&e))
         }
     }
+}
+
+/// This process's peak resident set size in KiB (`VmHWM` of /proc/self/status), on Linux only;
+/// `None` where the kernel does not report it.
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.trim_start_matches("VmHWM:")
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()
 }

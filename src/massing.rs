@@ -226,9 +226,11 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     }
     let tol = (1e-5 * size).clamp(1e-6, 5e-4);
     // Canonical vertices, bucketed on a grid of cell `tol`: ground and walls first, so the
-    // footprint's exact corners win.
+    // footprint's exact corners win. (A hash map with a fixed hasher: only looked up, never
+    // iterated, so its order cannot reach the output.)
     let mut canon: Vec<DVec3> = Vec::new();
-    let mut grid: std::collections::BTreeMap<(i64, i64, i64), Vec<usize>> = Default::default();
+    let mut grid: std::collections::HashMap<(i64, i64, i64), Vec<usize>, CellHash> =
+        Default::default();
     let cell = |p: DVec3| {
         (
             (p.x / tol).floor() as i64,
@@ -271,15 +273,36 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
             clean_ring(r);
         }
     }
-    // T-junctions: a plan grid of cell `size / 64` over the canonical vertices.
-    let g = (size / 64.0).max(tol);
-    let mut plan: std::collections::BTreeMap<(i64, i64), Vec<usize>> = Default::default();
-    for (i, p) in canon.iter().enumerate() {
-        plan.entry(((p.x / g).floor() as i64, (p.y / g).floor() as i64))
-            .or_default()
-            .push(i);
+    // T-junctions: a dense plan grid over the canonical vertices (compressed rows: `start[c]..
+    // start[c + 1]` of `members`), about one vertex per cell and at most 64 cells a side.
+    let (clo, chi) = canon.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(p.truncate()), hi.max(p.truncate())),
+    );
+    let n_side = ((canon.len() as f64).sqrt().ceil() as usize).clamp(1, 64);
+    let g = (((chi - clo).max_element()) / n_side as f64).max(tol);
+    if !g.is_finite() {
+        return;
     }
-    let split = |r: &mut Vec<DVec3>, skip_first: bool| {
+    let cell_of =
+        |v: f64, lo: f64| -> usize { (((v - lo) / g).floor().max(0.0) as usize).min(n_side - 1) };
+    let index_of = |p: DVec3| cell_of(p.y, clo.y) * n_side + cell_of(p.x, clo.x);
+    let mut start = vec![0usize; n_side * n_side + 1];
+    for p in &canon {
+        start[index_of(*p) + 1] += 1;
+    }
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    let mut fill = start.clone();
+    let mut members = vec![0usize; canon.len()];
+    for (k, p) in canon.iter().enumerate() {
+        let c = index_of(*p);
+        members[fill[c]] = k;
+        fill[c] += 1;
+    }
+    let mut on: Vec<(f64, usize)> = Vec::new();
+    let mut split = |r: &mut Vec<DVec3>, skip_first: bool| {
         let n = r.len();
         let mut out = Vec::with_capacity(n);
         for i in 0..n {
@@ -294,24 +317,26 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
                 continue;
             }
             let (a, b) = (u.min(v), u.max(v));
-            let mut on: Vec<(f64, DVec3)> = Vec::new();
-            for cx in ((a.x - tol) / g).floor() as i64..=((b.x + tol) / g).floor() as i64 {
-                for cy in ((a.y - tol) / g).floor() as i64..=((b.y + tol) / g).floor() as i64 {
-                    for &k in plan.get(&(cx, cy)).into_iter().flatten() {
-                        let q = canon[k];
-                        let s = (q - u).dot(d) / l2;
-                        if s <= 0.0 || s >= 1.0 || q == u || q == v {
-                            continue;
-                        }
-                        if (u + d * s).distance(q) <= tol {
-                            on.push((s, q));
-                        }
+            on.clear();
+            let (x0, x1) = (cell_of(a.x - tol, clo.x), cell_of(b.x + tol, clo.x));
+            let (y0, y1) = (cell_of(a.y - tol, clo.y), cell_of(b.y + tol, clo.y));
+            for cy in y0..=y1 {
+                let row = cy * n_side;
+                for &k in &members[start[row + x0]..start[row + x1 + 1]] {
+                    let q = canon[k];
+                    let s = (q - u).dot(d) / l2;
+                    if s <= 0.0 || s >= 1.0 || q == u || q == v {
+                        continue;
+                    }
+                    if (u + d * s).distance(q) <= tol {
+                        on.push((s, k));
                     }
                 }
             }
-            on.sort_by(|x, y| x.0.total_cmp(&y.0));
-            on.dedup_by(|x, y| x.1 == y.1);
-            out.extend(on.into_iter().map(|x| x.1));
+            // Along the edge; ties by canonical index, so the order does not depend on the grid.
+            on.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            on.dedup_by(|x, y| canon[x.1] == canon[y.1]);
+            out.extend(on.iter().map(|x| canon[x.1]));
         }
         *r = out;
     };
@@ -327,6 +352,38 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
         for h in f.holes.iter_mut() {
             split(h, false);
         }
+    }
+}
+
+/// A fixed, fast hasher for integer grid cells (FxHash's multiply-rotate): no per-process
+/// random seed, which is fine because the maps using it are never iterated.
+#[derive(Default, Clone, Copy)]
+struct CellHash;
+
+impl std::hash::BuildHasher for CellHash {
+    type Hasher = CellHasher;
+    fn build_hasher(&self) -> CellHasher {
+        CellHasher(0)
+    }
+}
+
+/// See [`CellHash`].
+struct CellHasher(u64);
+
+impl std::hash::Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(u64::from(*b));
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
     }
 }
 

@@ -17,7 +17,7 @@ use crate::export::{AtomicFile, BuildingWriter, ExportError, OutputContext, Pend
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
 use crate::kb::KnowledgeBase;
-use crate::model::Lod;
+use crate::model::{Building, Lod};
 use crate::prepare;
 use crate::report::{Outcome, Report};
 
@@ -358,11 +358,22 @@ fn write_lots(
     }
 
     let mut polygons = 0usize;
+    // Deriving chunk k + 1 overlaps writing chunk k, and each writer writes a chunk in its own
+    // task, so every core stays busy although each writer is sequential. Each writer still gets
+    // every building in lot order; at most two chunks of buildings are held.
+    let mut ready: Vec<Building> = Vec::new();
     for (ci, chunk) in lots.chunks(CHUNK).enumerate() {
-        let results: Vec<_> = chunk
-            .par_iter()
-            .map(|lot| generator.generate(lot))
-            .collect();
+        let (results, written) = rayon::join(
+            || {
+                chunk
+                    .par_iter()
+                    .map(|lot| generator.generate(lot))
+                    .collect::<Vec<_>>()
+            },
+            || write_chunk(&mut outputs, &ready),
+        );
+        written?;
+        ready.clear();
         for (lot, result) in chunk.iter().zip(results) {
             match result {
                 Ok((building, notes)) => {
@@ -370,16 +381,15 @@ fn write_lots(
                         report.add(Some(lot.id), outcome, text);
                     }
                     polygons += building.polygon_count();
-                    for (path, w, _) in &mut outputs {
-                        w.write(&building).map_err(out_err(path))?;
-                    }
                     report.generated += 1;
+                    ready.push(building);
                 }
                 Err(reason) => report.add(Some(lot.id), Outcome::Skipped, reason),
             }
         }
         progress(((ci + 1) * CHUNK).min(lots.len()));
     }
+    write_chunk(&mut outputs, &ready)?;
     for (path, w, _) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
@@ -389,6 +399,26 @@ fn write_lots(
         pending.push((path, closed));
     }
     Ok(polygons)
+}
+
+/// Writes `buildings` in order with every writer, the writers in parallel; the first error in
+/// writer order wins, so the error reported does not depend on scheduling.
+fn write_chunk(
+    outputs: &mut [(PathBuf, Box<dyn BuildingWriter>, AtomicFile)],
+    buildings: &[Building],
+) -> Result<(), RunError> {
+    if buildings.is_empty() {
+        return Ok(());
+    }
+    let results: Vec<Result<(), RunError>> = outputs
+        .par_iter_mut()
+        .map(|(path, w, _)| {
+            buildings
+                .iter()
+                .try_for_each(|b| w.write(b).map_err(out_err(path)))
+        })
+        .collect();
+    results.into_iter().collect()
 }
 
 /// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`.

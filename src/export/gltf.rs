@@ -19,8 +19,12 @@
 //!
 //! Streaming: a GLB starts with its JSON chunk, which must know the binary chunk's length, so the
 //! vertex and index bytes are spooled to a scratch file as buildings arrive and copied after the
-//! JSON in [`BuildingWriter::finish`]. Only the small JSON records (nodes, meshes, accessors,
-//! buffer views) stay in memory. Output is a pure function of the context and the buildings.
+//! JSON in [`BuildingWriter::finish`]. The JSON records of the arrays that grow with the number of
+//! buildings (nodes, meshes, accessors, buffer views) are serialised as each building arrives and
+//! spooled too: to scratch files beside the output with [`GltfWriter::beside`] (memory stays
+//! flat however many buildings), in memory with [`GltfWriter::new`]. What stays in memory is
+//! the materials and 4 bytes per building (the scene's root list). Output is a pure function of
+//! the context and the buildings.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -122,6 +126,10 @@ pub struct GltfWriter<W: Write + Send> {
     bin_len: u64,
     state: State,
     doc: Document,
+    /// Serialised records of `nodes`, `meshes`, `accessors` and `bufferViews`, in that order.
+    spools: [Spool; 4],
+    /// Reused buffer one record is serialised into.
+    json_scratch: Vec<u8>,
     /// (class, colour bits) -> material index, for reuse across buildings.
     material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
     /// Whether the run is LOD3 or above (openings and balconies are written).
@@ -131,13 +139,99 @@ pub struct GltfWriter<W: Write + Send> {
     scratch_guard: ScratchGuard,
 }
 
-/// Removes its path when dropped.
-struct ScratchGuard(Option<PathBuf>);
+/// Removes its paths when dropped.
+struct ScratchGuard(Vec<PathBuf>);
 
 impl Drop for ScratchGuard {
     fn drop(&mut self) {
-        if let Some(path) = self.0.take() {
+        for path in self.0.drain(..) {
             let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// Index of each growing array in [`GltfWriter::spools`].
+const NODES: usize = 0;
+const MESHES: usize = 1;
+const ACCESSORS: usize = 2;
+const VIEWS: usize = 3;
+
+/// The serialised records of one JSON array, comma-separated, without the brackets.
+enum Spool {
+    Mem {
+        buf: Vec<u8>,
+        count: u32,
+    },
+    File {
+        w: BufWriter<File>,
+        len: u64,
+        count: u32,
+    },
+}
+
+impl Default for Spool {
+    fn default() -> Spool {
+        Spool::Mem {
+            buf: Vec::new(),
+            count: 0,
+        }
+    }
+}
+
+impl Spool {
+    /// Records so far (the index the next one gets).
+    fn count(&self) -> u32 {
+        match self {
+            Spool::Mem { count, .. } | Spool::File { count, .. } => *count,
+        }
+    }
+
+    /// Bytes so far.
+    fn len(&self) -> u64 {
+        match self {
+            Spool::Mem { buf, .. } => buf.len() as u64,
+            Spool::File { len, .. } => *len,
+        }
+    }
+
+    /// Appends one record; returns its index.
+    fn push(&mut self, rec: &impl Serialize, scratch: &mut Vec<u8>) -> io::Result<u32> {
+        scratch.clear();
+        if self.count() > 0 {
+            scratch.push(b',');
+        }
+        serde_json::to_writer(&mut *scratch, rec).map_err(io::Error::from)?;
+        match self {
+            Spool::Mem { buf, count } => {
+                buf.extend_from_slice(scratch);
+                *count += 1;
+                Ok(*count - 1)
+            }
+            Spool::File { w, len, count } => {
+                w.write_all(scratch)?;
+                *len += scratch.len() as u64;
+                *count += 1;
+                Ok(*count - 1)
+            }
+        }
+    }
+
+    /// Copies the records to `out`.
+    fn copy_to(&mut self, out: &mut impl Write) -> io::Result<()> {
+        match self {
+            Spool::Mem { buf, .. } => out.write_all(buf),
+            Spool::File { w, len, .. } => {
+                w.flush()?;
+                let f = w.get_mut();
+                f.seek(SeekFrom::Start(0))?;
+                let copied = io::copy(&mut (&mut *f).take(*len), out)?;
+                if copied != *len {
+                    return Err(io::Error::other(format!(
+                        "glTF JSON scratch file is {copied} bytes, expected {len}: was it modified?"
+                    )));
+                }
+                Ok(())
+            }
         }
     }
 }
@@ -153,9 +247,11 @@ impl<W: Write + Send> GltfWriter<W> {
             bin_len: 0,
             state: State::New,
             doc: Document::default(),
+            spools: Default::default(),
+            json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
             detail: false,
-            scratch_guard: ScratchGuard(None),
+            scratch_guard: ScratchGuard(Vec::new()),
         }
     }
 
@@ -182,7 +278,24 @@ impl<W: Write + Send> GltfWriter<W> {
         let mut w = GltfWriter::new(out, file);
         // Unlinking an open file works on Unix; elsewhere it is removed on drop.
         if std::fs::remove_file(&path).is_err() {
-            w.scratch_guard = ScratchGuard(Some(path));
+            w.scratch_guard.0.push(path);
+        }
+        for (i, array) in ["nodes", "meshes", "accessors", "views"].iter().enumerate() {
+            let path = dir.join(format!(".{name}.{}.{array}.tmp", std::process::id()));
+            let file = File::options()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(true)
+                .open(&path)?;
+            if std::fs::remove_file(&path).is_err() {
+                w.scratch_guard.0.push(path);
+            }
+            w.spools[i] = Spool::File {
+                w: BufWriter::with_capacity(1 << 18, file),
+                len: 0,
+                count: 0,
+            };
         }
         Ok(w)
     }
@@ -261,18 +374,6 @@ impl<W: Write + Send> GltfWriter<W> {
         // normals) and one index view (per primitive: indices padded to 4 bytes).
         let mut vertex_bytes: Vec<u8> = Vec::new();
         let mut index_bytes: Vec<u8> = Vec::new();
-        struct PrimLayout {
-            class: SurfaceClass,
-            color: Color,
-            count: u32,
-            pos_offset: u64,
-            nrm_offset: u64,
-            idx_offset: u64,
-            idx_count: u32,
-            idx_type: u32,
-            min: [f32; 3],
-            max: [f32; 3],
-        }
         let mut layouts: Vec<Vec<PrimLayout>> = Vec::new();
         for (class, groups) in &classes {
             let mut prims = Vec::new();
@@ -349,44 +450,79 @@ impl<W: Write + Send> GltfWriter<W> {
             self.bin_len = index_view_offset + index_bytes.len() as u64;
         }
 
-        let doc = &mut self.doc;
-        let building_node = doc.nodes.len() as u32;
-        doc.roots.push(building_node);
-        doc.nodes.push(NodeRec {
-            name: b.key(),
-            children: Vec::new(),
-            mesh: None,
-            extras: Some(BuildingExtras {
-                id: b.id.to_string(),
-                name: b.name.clone(),
-                zone: b.zone.clone(),
-                appearance: b.appearance.clone(),
-                height: b.measured_height,
-                base: b.base_z,
-                storeys: b.storeys_above_ground,
-                roof_shape: b.roof_shape.osm_name(),
-                lod: b.lod.number(),
-            }),
-        });
-        if classes.is_empty() {
+        let written = self.records(
+            b,
+            &layouts,
+            vertex_view_offset,
+            vertex_bytes.len() as u64,
+            index_bytes.len() as u64,
+        );
+        written.map_err(|e| {
+            self.state = State::Failed;
+            e.into()
+        })
+    }
+
+    /// Serialises the JSON records of one building (its data already spooled at
+    /// `vertex_view_offset`..): the building node, then per class its accessors, mesh and child
+    /// node; the building's children are the nodes that follow it.
+    fn records(
+        &mut self,
+        b: &Building,
+        layouts: &[Vec<PrimLayout>],
+        vertex_view_offset: u64,
+        vertex_len: u64,
+        index_len: u64,
+    ) -> io::Result<()> {
+        let mut tmp = std::mem::take(&mut self.json_scratch);
+        let index_view_offset = vertex_view_offset + vertex_len;
+        let key = b.key();
+        let classes = layouts.iter().filter(|p| !p.is_empty()).count() as u32;
+        let building_node = self.spools[NODES].count();
+        self.doc.roots.push(building_node);
+        self.spools[NODES].push(
+            &NodeRec {
+                name: &key,
+                children: (building_node + 1..=building_node + classes).collect(),
+                mesh: None,
+                extras: Some(BuildingExtras {
+                    id: b.id.to_string(),
+                    name: b.name.as_deref(),
+                    zone: &b.zone,
+                    appearance: &b.appearance,
+                    height: b.measured_height,
+                    base: b.base_z,
+                    storeys: b.storeys_above_ground,
+                    roof_shape: b.roof_shape.osm_name(),
+                    lod: b.lod.number(),
+                }),
+            },
+            &mut tmp,
+        )?;
+        if classes == 0 {
+            self.json_scratch = tmp;
             return Ok(());
         }
-        let vertex_view = doc.views.len() as u32;
-        doc.views.push(ViewRec {
-            buffer: 0,
-            byte_offset: vertex_view_offset,
-            byte_length: vertex_bytes.len() as u64,
-            byte_stride: Some(VEC3_STRIDE),
-            target: ARRAY_BUFFER,
-        });
-        let index_view = doc.views.len() as u32;
-        doc.views.push(ViewRec {
-            buffer: 0,
-            byte_offset: index_view_offset,
-            byte_length: index_bytes.len() as u64,
-            byte_stride: None,
-            target: ELEMENT_ARRAY_BUFFER,
-        });
+        let vertex_view = self.spools[VIEWS].push(
+            &ViewRec {
+                buffer: 0,
+                byte_offset: vertex_view_offset,
+                byte_length: vertex_len,
+                byte_stride: Some(VEC3_STRIDE),
+                target: ARRAY_BUFFER,
+            },
+            &mut tmp,
+        )?;
+        let index_view = self.spools[VIEWS].push(
+            &ViewRec {
+                buffer: 0,
+                byte_offset: index_view_offset,
+                byte_length: index_len,
+                byte_stride: None,
+                target: ELEMENT_ARRAY_BUFFER,
+            },
+            &mut tmp,
+        )?;
 
         for prims in layouts {
             let Some(class) = prims.first().map(|p| p.class) else {
@@ -395,55 +531,67 @@ impl<W: Write + Send> GltfWriter<W> {
             let mut primitives = Vec::with_capacity(prims.len());
             for p in prims {
                 let material = self.material_for(p.class, p.color);
-                let doc = &mut self.doc;
-                let position = doc.push_accessor(AccessorRec {
-                    buffer_view: vertex_view,
-                    byte_offset: p.pos_offset,
-                    component_type: FLOAT,
-                    count: p.count,
-                    kind: "VEC3",
-                    min: Some(p.min),
-                    max: Some(p.max),
-                });
-                let normal = doc.push_accessor(AccessorRec {
-                    buffer_view: vertex_view,
-                    byte_offset: p.nrm_offset,
-                    component_type: FLOAT,
-                    count: p.count,
-                    kind: "VEC3",
-                    min: None,
-                    max: None,
-                });
-                let indices = doc.push_accessor(AccessorRec {
-                    buffer_view: index_view,
-                    byte_offset: p.idx_offset,
-                    component_type: p.idx_type,
-                    count: p.idx_count,
-                    kind: "SCALAR",
-                    min: None,
-                    max: None,
-                });
+                let acc = &mut self.spools[ACCESSORS];
+                let position = acc.push(
+                    &AccessorRec {
+                        buffer_view: vertex_view,
+                        byte_offset: p.pos_offset,
+                        component_type: FLOAT,
+                        count: p.count,
+                        kind: "VEC3",
+                        min: Some(p.min),
+                        max: Some(p.max),
+                    },
+                    &mut tmp,
+                )?;
+                let normal = acc.push(
+                    &AccessorRec {
+                        buffer_view: vertex_view,
+                        byte_offset: p.nrm_offset,
+                        component_type: FLOAT,
+                        count: p.count,
+                        kind: "VEC3",
+                        min: None,
+                        max: None,
+                    },
+                    &mut tmp,
+                )?;
+                let indices = acc.push(
+                    &AccessorRec {
+                        buffer_view: index_view,
+                        byte_offset: p.idx_offset,
+                        component_type: p.idx_type,
+                        count: p.idx_count,
+                        kind: "SCALAR",
+                        min: None,
+                        max: None,
+                    },
+                    &mut tmp,
+                )?;
                 primitives.push(PrimitiveRec {
                     attributes: Attributes { position, normal },
                     indices,
                     material,
                 });
             }
-            let doc = &mut self.doc;
-            let mesh = doc.meshes.len() as u32;
-            doc.meshes.push(MeshRec {
-                name: format!("{} {}", b.key(), class.name()),
-                primitives,
-            });
-            let child = doc.nodes.len() as u32;
-            doc.nodes.push(NodeRec {
-                name: class.name().to_string(),
-                children: Vec::new(),
-                mesh: Some(mesh),
-                extras: None,
-            });
-            doc.nodes[building_node as usize].children.push(child);
+            let mesh = self.spools[MESHES].push(
+                &MeshRec {
+                    name: format!("{key} {}", class.name()),
+                    primitives,
+                },
+                &mut tmp,
+            )?;
+            self.spools[NODES].push(
+                &NodeRec {
+                    name: class.name(),
+                    children: Vec::new(),
+                    mesh: Some(mesh),
+                    extras: None,
+                },
+                &mut tmp,
+            )?;
         }
+        self.json_scratch = tmp;
         Ok(())
     }
 
@@ -490,10 +638,14 @@ impl<W: Write + Send> GltfWriter<W> {
         let bin_len = self.bin_len;
         self.doc.buffer_length = bin_len;
 
-        // Serialise twice (once to count) rather than hold the whole JSON text in memory.
-        let mut counter = ByteCounter(0);
-        serde_json::to_writer(&mut counter, &self.doc.json()).map_err(io::Error::from)?;
-        let json_len = counter.0;
+        let pieces = self.doc.pieces(&self.spools)?;
+        let json_len: u64 = pieces
+            .iter()
+            .map(|p| match p {
+                Piece::Text(t) => t.len() as u64,
+                Piece::Spool(i) => self.spools[*i].len(),
+            })
+            .sum();
         let json_padded = pad4(json_len);
         let bin_padded = pad4(bin_len);
         let total = 12 + 8 + json_padded + if bin_len > 0 { 8 + bin_padded } else { 0 };
@@ -510,7 +662,12 @@ impl<W: Write + Send> GltfWriter<W> {
         w.write_all(&total32.to_le_bytes())?;
         w.write_all(&(json_padded as u32).to_le_bytes())?;
         w.write_all(&CHUNK_JSON.to_le_bytes())?;
-        serde_json::to_writer(&mut w, &self.doc.json()).map_err(io::Error::from)?;
+        for p in &pieces {
+            match p {
+                Piece::Text(t) => w.write_all(t)?,
+                Piece::Spool(i) => self.spools[*i].copy_to(&mut w)?,
+            }
+        }
         for _ in json_len..json_padded {
             w.write_all(b" ")?;
         }
@@ -728,17 +885,18 @@ impl MeshData {
     }
 }
 
-/// Counts bytes written (to size the JSON chunk before writing it).
-struct ByteCounter(u64);
-
-impl Write for ByteCounter {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.0 += buf.len() as u64;
-        Ok(buf.len())
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        Ok(())
-    }
+/// Where one primitive's data lies in its building's vertex and index views.
+struct PrimLayout {
+    class: SurfaceClass,
+    color: Color,
+    count: u32,
+    pos_offset: u64,
+    nrm_offset: u64,
+    idx_offset: u64,
+    idx_count: u32,
+    idx_type: u32,
+    min: [f32; 3],
+    max: [f32; 3],
 }
 
 // ---- JSON records, serialised with a fixed key order (struct field order) ----
@@ -746,23 +904,24 @@ impl Write for ByteCounter {
 #[derive(Default)]
 struct Document {
     asset_extras: AssetExtras,
-    nodes: Vec<NodeRec>,
+    /// The scene's root nodes: one per building.
     roots: Vec<u32>,
-    meshes: Vec<MeshRec>,
     materials: Vec<MaterialRec>,
-    accessors: Vec<AccessorRec>,
-    views: Vec<ViewRec>,
     buffer_length: u64,
 }
 
-impl Document {
-    fn push_accessor(&mut self, a: AccessorRec) -> u32 {
-        self.accessors.push(a);
-        (self.accessors.len() - 1) as u32
-    }
+/// A piece of the JSON chunk: text, or the records of a spooled array.
+enum Piece {
+    Text(Vec<u8>),
+    Spool(usize),
+}
 
-    fn json(&self) -> GltfJson<'_> {
-        GltfJson {
+impl Document {
+    /// The JSON chunk in document order (the key order of the glTF JSON is fixed: asset, scene,
+    /// scenes, nodes, meshes, materials, accessors, bufferViews, buffers; empty arrays are left
+    /// out), with the growing arrays as references to `spools`.
+    fn pieces(&self, spools: &[Spool; 4]) -> io::Result<Vec<Piece>> {
+        let head = Head {
             asset: Asset {
                 version: "2.0",
                 generator: concat!("citygen ", env!("CARGO_PKG_VERSION")),
@@ -770,19 +929,49 @@ impl Document {
             },
             scene: 0,
             scenes: [Scene { nodes: &self.roots }],
-            nodes: &self.nodes,
-            meshes: &self.meshes,
-            materials: &self.materials,
-            accessors: &self.accessors,
-            buffer_views: &self.views,
-            buffers: if self.buffer_length > 0 {
-                vec![Buffer {
-                    byte_length: self.buffer_length,
-                }]
-            } else {
-                Vec::new()
-            },
+        };
+        let mut text = serde_json::to_vec(&head).map_err(io::Error::from)?;
+        text.pop(); // the closing brace, written last
+        let mut pieces = Vec::new();
+        let array = |pieces: &mut Vec<Piece>, text: &mut Vec<u8>, key: &str, body: Piece| {
+            text.extend_from_slice(b",\"");
+            text.extend_from_slice(key.as_bytes());
+            text.extend_from_slice(b"\":[");
+            match body {
+                Piece::Text(t) => text.extend_from_slice(&t),
+                Piece::Spool(i) => {
+                    pieces.push(Piece::Text(std::mem::take(text)));
+                    pieces.push(Piece::Spool(i));
+                }
+            }
+            text.push(b']');
+        };
+        for (key, i) in [("nodes", NODES), ("meshes", MESHES)] {
+            if spools[i].count() > 0 {
+                array(&mut pieces, &mut text, key, Piece::Spool(i));
+            }
         }
+        if !self.materials.is_empty() {
+            let mut m = serde_json::to_vec(&self.materials).map_err(io::Error::from)?;
+            m.pop();
+            m.remove(0);
+            array(&mut pieces, &mut text, "materials", Piece::Text(m));
+        }
+        for (key, i) in [("accessors", ACCESSORS), ("bufferViews", VIEWS)] {
+            if spools[i].count() > 0 {
+                array(&mut pieces, &mut text, key, Piece::Spool(i));
+            }
+        }
+        if self.buffer_length > 0 {
+            let b = serde_json::to_vec(&Buffer {
+                byte_length: self.buffer_length,
+            })
+            .map_err(io::Error::from)?;
+            array(&mut pieces, &mut text, "buffers", Piece::Text(b));
+        }
+        text.push(b'}');
+        pieces.push(Piece::Text(text));
+        Ok(pieces)
     }
 }
 
@@ -790,24 +979,12 @@ fn is_empty<T>(s: &[T]) -> bool {
     s.is_empty()
 }
 
+/// The JSON chunk's first keys.
 #[derive(Serialize)]
-#[serde(rename_all = "camelCase")]
-struct GltfJson<'a> {
+struct Head<'a> {
     asset: Asset<'a>,
     scene: u32,
     scenes: [Scene<'a>; 1],
-    #[serde(skip_serializing_if = "is_empty")]
-    nodes: &'a [NodeRec],
-    #[serde(skip_serializing_if = "is_empty")]
-    meshes: &'a [MeshRec],
-    #[serde(skip_serializing_if = "is_empty")]
-    materials: &'a [MaterialRec],
-    #[serde(skip_serializing_if = "is_empty")]
-    accessors: &'a [AccessorRec],
-    #[serde(skip_serializing_if = "is_empty")]
-    buffer_views: &'a [ViewRec],
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    buffers: Vec<Buffer>,
 }
 
 #[derive(Serialize)]
@@ -832,23 +1009,23 @@ struct Scene<'a> {
 }
 
 #[derive(Serialize)]
-struct NodeRec {
-    name: String,
+struct NodeRec<'a> {
+    name: &'a str,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     children: Vec<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     mesh: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    extras: Option<BuildingExtras>,
+    extras: Option<BuildingExtras<'a>>,
 }
 
 #[derive(Serialize)]
-struct BuildingExtras {
+struct BuildingExtras<'a> {
     id: String,
     #[serde(skip_serializing_if = "Option::is_none")]
-    name: Option<String>,
-    zone: String,
-    appearance: String,
+    name: Option<&'a str>,
+    zone: &'a str,
+    appearance: &'a str,
     /// Measured height in metres (non-finite values serialise as null).
     height: f64,
     base: f64,

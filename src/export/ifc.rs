@@ -67,7 +67,7 @@
 //!
 //! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
-//! building ids, the set of building keys seen, the caches of shared styles and material
+//! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
 //! usages, and at LOD3 the shared opening shapes and the window/door types with the ids of
 //! their occurrences (8 bytes per window or door, for the final `IfcRelDefinesByType`).
 
@@ -77,7 +77,7 @@ use std::io::Write;
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
-use crate::export::step::{global_id, Header, Id, StepWriter};
+use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
 
@@ -367,8 +367,9 @@ struct Open<W: Write> {
     styles: BTreeMap<[u16; 4], Id>,
     /// Top-level buildings, for the final site aggregation.
     buildings: Vec<Id>,
-    /// Building keys already written, to keep GlobalIds unique if a key repeats.
-    keys: BTreeSet<String>,
+    /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
+    /// repeats (16 bytes a building rather than the key's string).
+    keys: BTreeSet<u128>,
     /// Whether the run is LOD3 or more (storeys per level, openings, windows, doors, balconies).
     lod3: bool,
     project: Id,
@@ -873,11 +874,10 @@ impl<W: Write> Open<W> {
         // GlobalIds derive from the key; a repeated key gets a suffix so ids stay unique.
         let mut key = b.key();
         let mut n = 1;
-        while self.keys.contains(&key) {
+        while !self.keys.insert(hash128("building key", &key)) {
             n += 1;
             key = format!("{}~{n}", b.key());
         }
-        self.keys.insert(key.clone());
 
         let anchor = b
             .parts

@@ -36,36 +36,101 @@ impl fmt::Display for Id {
 /// digits). `-0` prints as `0.`. Non-finite values cannot be encoded; they print as `0.` and
 /// callers are expected to reject them before (the IFC writer does).
 pub fn format_real(v: f64) -> String {
-    if !v.is_finite() {
-        return "0.".to_string();
-    }
-    let mut r = if v.abs() < 1e9 {
-        (v * 1e6).round() / 1e6
-    } else {
-        v
-    };
-    if r == 0.0 {
-        r = 0.0; // drops the sign of -0
-    }
-    // Rust's Display for f64 is the shortest round-trip form and never uses an exponent.
-    let mut s = format!("{r}");
-    if !s.contains('.') {
-        s.push('.');
-    }
+    let mut s = String::with_capacity(24);
+    push_real(&mut s, v);
     s
+}
+
+/// Appends [`format_real`]`(v)` to `out` without allocating.
+///
+/// Below 1e9 the rounded value is `k / 1e6` for an integer `k` of at most 15 digits; every
+/// decimal of at most 15 significant digits reads back to a distinct f64, so the shortest
+/// round-trip form of the rounded value is exactly `k / 1e6` written out with its trailing
+/// zeros dropped, which is what is written here with integer arithmetic (the property test
+/// `fast_real_matches_display` checks it against `Display`).
+pub fn push_real(out: &mut String, v: f64) {
+    if !v.is_finite() {
+        out.push_str("0.");
+        return;
+    }
+    if v.abs() >= 1e9 {
+        let start = out.len();
+        // Rust's Display for f64 is the shortest round-trip form and never uses an exponent.
+        let _ = fmt::Write::write_fmt(out, format_args!("{v}"));
+        if !out[start..].contains('.') {
+            out.push('.');
+        }
+        return;
+    }
+    let k = (v * 1e6).round();
+    if k == 0.0 {
+        out.push_str("0.");
+        return;
+    }
+    if k < 0.0 {
+        out.push('-');
+    }
+    let m = k.abs() as u64;
+    push_uint(out, m / 1_000_000);
+    out.push('.');
+    let mut frac = m % 1_000_000;
+    if frac != 0 {
+        let mut width = 6;
+        while frac % 10 == 0 {
+            frac /= 10;
+            width -= 1;
+        }
+        let mut digits = [b'0'; 6];
+        for d in digits[..width].iter_mut().rev() {
+            *d = b'0' + (frac % 10) as u8;
+            frac /= 10;
+        }
+        // The digits are ASCII.
+        out.push_str(std::str::from_utf8(&digits[..width]).unwrap_or_default());
+    }
+}
+
+/// Appends the decimal digits of `v`.
+fn push_uint(out: &mut String, mut v: u64) {
+    let mut digits = [0u8; 20];
+    let mut i = digits.len();
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    out.push_str(std::str::from_utf8(&digits[i..]).unwrap_or_default());
 }
 
 /// Encodes a STRING literal with its quotes: `'` doubled, `\` doubled, printable ASCII as is,
 /// anything else (non-ASCII, control characters) as `\X2\HHHH..\X0\` runs of UTF-16 code units
 /// for the Basic Multilingual Plane and `\X4\HHHHHHHH..\X0\` runs for the other planes.
 pub fn encode_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    push_string(&mut out, s);
+    out
+}
+
+/// Appends [`encode_string`]`(s)` to `out`.
+pub fn push_string(out: &mut String, s: &str) {
     #[derive(PartialEq, Clone, Copy)]
     enum Run {
         None,
         X2,
         X4,
     }
-    let mut out = String::with_capacity(s.len() + 2);
+    if s.bytes()
+        .all(|b| (b' '..=b'~').contains(&b) && b != b'\'' && b != b'\\')
+    {
+        out.reserve(s.len() + 2);
+        out.push('\'');
+        out.push_str(s);
+        out.push('\'');
+        return;
+    }
     out.push('\'');
     let mut run = Run::None;
     for c in s.chars() {
@@ -89,15 +154,18 @@ pub fn encode_string(s: &str) -> String {
             (Run::None, '\'') => out.push_str("''"),
             (Run::None, '\\') => out.push_str("\\\\"),
             (Run::None, c) => out.push(c),
-            (Run::X2, c) => out.push_str(&format!("{:04X}", c as u32)),
-            (Run::X4, c) => out.push_str(&format!("{:08X}", c as u32)),
+            (Run::X2, c) => {
+                let _ = fmt::Write::write_fmt(out, format_args!("{:04X}", c as u32));
+            }
+            (Run::X4, c) => {
+                let _ = fmt::Write::write_fmt(out, format_args!("{:08X}", c as u32));
+            }
         }
     }
     if run != Run::None {
         out.push_str("\\X0\\");
     }
     out.push('\'');
-    out
 }
 
 /// The 64 characters of IFC's base-64 encoding of GUIDs, in digit order.
@@ -245,8 +313,9 @@ impl Args<'_> {
 
     /// An entity reference `#n`.
     pub fn id(&mut self, id: Id) -> &mut Self {
-        let s = format!("{id}");
-        self.sep().push_str(&s);
+        let b = self.sep();
+        b.push('#');
+        push_uint(b, id.0);
         self
     }
 
@@ -269,8 +338,7 @@ impl Args<'_> {
 
     /// A REAL (see [`format_real`]).
     pub fn real(&mut self, v: f64) -> &mut Self {
-        let s = format_real(v);
-        self.sep().push_str(&s);
+        push_real(self.sep(), v);
         self
     }
 
@@ -285,8 +353,11 @@ impl Args<'_> {
 
     /// An INTEGER.
     pub fn int(&mut self, v: i64) -> &mut Self {
-        let s = v.to_string();
-        self.sep().push_str(&s);
+        let b = self.sep();
+        if v < 0 {
+            b.push('-');
+        }
+        push_uint(b, v.unsigned_abs());
         self
     }
 
@@ -301,8 +372,7 @@ impl Args<'_> {
 
     /// A STRING (see [`encode_string`]).
     pub fn string(&mut self, s: &str) -> &mut Self {
-        let s = encode_string(s);
-        self.sep().push_str(&s);
+        push_string(self.sep(), s);
         self
     }
 
@@ -423,7 +493,11 @@ impl<W: Write> StepWriter<W> {
         let id = Id(self.next);
         self.next += 1;
         self.line.clear();
-        self.line.push_str(&format!("{id}={keyword}("));
+        self.line.push('#');
+        push_uint(&mut self.line, id.0);
+        self.line.push('=');
+        self.line.push_str(keyword);
+        self.line.push('(');
         let mut args = Args {
             buf: &mut self.line,
             count: 0,
@@ -471,7 +545,61 @@ mod tests {
         assert_eq!(format_real(f64::INFINITY), "0.");
     }
 
+    /// The formatting before `push_real` (Display of the value rounded to micrometres).
+    fn format_real_by_display(v: f64) -> String {
+        if !v.is_finite() {
+            return "0.".to_string();
+        }
+        let mut r = if v.abs() < 1e9 {
+            (v * 1e6).round() / 1e6
+        } else {
+            v
+        };
+        if r == 0.0 {
+            r = 0.0;
+        }
+        let mut s = format!("{r}");
+        if !s.contains('.') {
+            s.push('.');
+        }
+        s
+    }
+
+    #[test]
+    fn fast_real_matches_display_at_the_edges() {
+        for v in [
+            0.0,
+            -0.0,
+            1e-6,
+            -1e-6,
+            4.9e-7,
+            5e-7,
+            0.1,
+            0.3,
+            999_999_999.999_999,
+            -999_999_999.999_999,
+            1e9,
+            -1e9,
+            1.5e9,
+            123_456.000_001,
+            0.000_010,
+            7.25,
+            f64::MIN_POSITIVE,
+            1e300,
+            -1e300,
+        ] {
+            assert_eq!(format_real(v), format_real_by_display(v), "{v:e}");
+        }
+    }
+
     proptest! {
+        #[test]
+        fn fast_real_matches_display(v in -1e9f64..1e9, e in -12i32..10) {
+            prop_assert_eq!(format_real(v), format_real_by_display(v));
+            let w = v / 1e9 * 10f64.powi(e);
+            prop_assert_eq!(format_real(w), format_real_by_display(w));
+        }
+
         #[test]
         fn reals_round_trip_to_micrometres(v in -1e8f64..1e8) {
             let s = format_real(v);
