@@ -78,8 +78,9 @@ impl Generator {
             }
             let rules = self.rules_for(&style)?;
             for polygon in &piece.polygons {
-                let masses =
-                    self.masses(polygon, &style, &rules, &mut rng, piece.id, &mut notes)?;
+                let masses = self.masses(
+                    polygon, lot.front, &style, &rules, &mut rng, piece.id, &mut notes,
+                )?;
                 for (mass, facades) in masses {
                     let roof = match massing::roof_geometry(&mass) {
                         Ok(r) => r,
@@ -169,10 +170,13 @@ impl Generator {
         }
     }
 
-    /// Derives one footprint polygon and returns the masses of the tree.
+    /// Derives one footprint polygon and returns the masses of the tree. `front` is the lot's
+    /// street direction ([`Lot::front`]): every piece of the lot turns its front towards it.
+    #[allow(clippy::too_many_arguments)]
     fn masses(
         &self,
         polygon: &Polygon,
+        front: Option<glam::DVec2>,
         style: &Style,
         rules: &RuleSet,
         rng: &mut Rng,
@@ -217,7 +221,7 @@ impl Generator {
             }
         }
         let attrs: Attrs = compile::axiom_attrs(&style);
-        let tree = grammar::derive(rules, polygon, attrs, rng, &self.caps)
+        let tree = grammar::derive_facing(rules, polygon, front, attrs, rng, &self.caps)
             .map_err(|e| format!("derivation failed for {id}: {e}"))?;
         let masses = masses_of(&tree, &style);
         if self.lod < Lod::Lod3 {
@@ -341,4 +345,75 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec2;
+
+    use super::*;
+    use crate::input::Streets;
+    use crate::model::OpeningKind;
+    use crate::prepare::{assign_fronts, single_lot};
+    use crate::report::Report;
+
+    /// Outward normals of the walls that hold a door.
+    fn door_normals(b: &Building) -> Vec<DVec2> {
+        b.parts
+            .iter()
+            .flat_map(|p| p.walls.iter())
+            .filter(|w| w.openings.iter().any(|o| o.kind == OpeningKind::Door))
+            .map(|w| {
+                let d = (w.end - w.start).normalize();
+                DVec2::new(d.y, -d.x)
+            })
+            .collect()
+    }
+
+    /// A street along the north side turns the door north, whichever way the footprint lies;
+    /// without it the thesis front stays (south of an east-west block, east of a north-south
+    /// one).
+    #[test]
+    fn the_door_faces_a_street_on_the_north_side() {
+        let gen = Generator::new(
+            KnowledgeBase::earth_only(),
+            Rules::Kb,
+            Lod::Lod3,
+            0,
+            Caps::default(),
+        );
+        for (w, h, thesis) in [(20.0, 10.0, -DVec2::Y), (10.0, 20.0, DVec2::X)] {
+            let ring = vec![
+                DVec2::new(0.0, 0.0),
+                DVec2::new(w, 0.0),
+                DVec2::new(w, h),
+                DVec2::new(0.0, h),
+            ];
+            let mut report = Report::default();
+            let mut site =
+                single_lot(Polygon::new(ring, vec![]), (7.42, 43.73), None, &mut report).unwrap();
+            let (b, _) = gen.generate(&site.lots[0]).unwrap();
+            let doors = door_normals(&b);
+            assert!(!doors.is_empty(), "{w}x{h}: no door");
+            assert!(
+                doors.iter().all(|n| n.dot(thesis) > 0.999),
+                "{w}x{h}: {doors:?}"
+            );
+
+            // A street 6 m north of the block, in output-CRS coordinates.
+            let o = site.origin;
+            let mut streets = Streets::default();
+            streets.push(&[(o.x - 30.0, o.y + h + 6.0), (o.x + w + 30.0, o.y + h + 6.0)]);
+            let crs = site.crs;
+            assign_fronts(&mut site, &streets, Some(crs));
+            assert_eq!(site.lots[0].front, Some(DVec2::Y));
+            let (b, _) = gen.generate(&site.lots[0]).unwrap();
+            let doors = door_normals(&b);
+            assert!(!doors.is_empty(), "{w}x{h}: no door");
+            assert!(
+                doors.iter().all(|n| n.dot(DVec2::Y) > 0.999),
+                "{w}x{h}: {doors:?}"
+            );
+        }
+    }
 }

@@ -112,6 +112,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
 
     let mut site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
+    prepare::assign_fronts(&mut site, &read.streets, source_crs);
     if let Some(b) = opts.bbox {
         prepare::retain_in_bbox(&mut site, b, &mut report);
     }

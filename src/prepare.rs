@@ -5,11 +5,12 @@
 
 use geo::BooleanOps;
 use glam::DVec2;
+use rayon::prelude::*;
 use rstar::{RTree, RTreeObject, AABB};
 
 use crate::crs::Crs;
 use crate::geometry::{ring_signed_area, Polygon};
-use crate::input::{BuildingTags, Footprint, FootprintKind, SourceId, SourcePolygon};
+use crate::input::{BuildingTags, Footprint, FootprintKind, SourceId, SourcePolygon, Streets};
 use crate::report::{Outcome, Report};
 
 /// Vertices closer than this (metres) are merged.
@@ -41,6 +42,11 @@ pub struct Lot {
     pub draw_outline: bool,
     /// Representative point in WGS84 (lon, lat) degrees, for the knowledge-base zone.
     pub lonlat: (f64, f64),
+    /// Where the building's front faces, set by [`assign_fronts`]: the unit outward normal (local
+    /// frame) of the outline edge that faces the nearest street. `None` without a street
+    /// within [`FRONT_MAX_DISTANCE`] (and for shapefile input, which has no streets): the
+    /// grammar then keeps the thesis front.
+    pub front: Option<DVec2>,
 }
 
 /// All lots of a run and the frame they are in.
@@ -186,6 +192,7 @@ pub fn prepare(
                 parts: Vec::new(),
                 draw_outline: true,
                 lonlat: p.lonlat,
+                front: None,
             }),
             FootprintKind::Part => pieces.push((
                 LotPiece {
@@ -272,6 +279,7 @@ fn group_parts(
                     parts: Vec::new(),
                     draw_outline: true,
                     lonlat,
+                    front: None,
                 });
             }
         }
@@ -625,6 +633,7 @@ pub fn single_lot(
         parts: Vec::new(),
         draw_outline: true,
         lonlat,
+        front: None,
     };
     Some(Site {
         crs,
@@ -632,6 +641,155 @@ pub fn single_lot(
         origin_lonlat: crs.to_lonlat(origin.x, origin.y),
         lots: vec![lot],
     })
+}
+
+/// A street farther than this (metres) from every facing outline edge does not make a front:
+/// beyond it a building stands in a park, a compound or behind other buildings, and the nearest
+/// street says little about where its door is.
+pub const FRONT_MAX_DISTANCE: f64 = 50.0;
+/// Outline edges shorter than this (metres) are passed over for the front when the outline has
+/// longer ones: a chamfered corner or a small recess would get the door otherwise, and a door
+/// bay does not fit on it.
+const FRONT_MIN_EDGE: f64 = 2.0;
+/// Edges whose distance to the street is within this (metres) of the nearest one count as
+/// equally near; the longest of them is the front (the main facade over a slightly closer
+/// recess).
+const FRONT_TIE: f64 = 1.0;
+/// An edge faces a street when the direction from its midpoint to the street's nearest point is
+/// within 60° of its outward normal.
+const FRONT_COS_CONE: f64 = 0.5;
+
+/// A street segment in the front index, local metres.
+struct StreetSegment([f64; 2], [f64; 2]);
+
+impl RTreeObject for StreetSegment {
+    type Envelope = AABB<[f64; 2]>;
+    fn envelope(&self) -> Self::Envelope {
+        AABB::from_corners(self.0, self.1)
+    }
+}
+
+/// Sets [`Lot::front`] of every lot from the street centre lines the reader gave (in the same
+/// source coordinates as the footprints, `source_crs` as for [`prepare`]).
+///
+/// For each outer edge of the outline (edges shorter than 2 m are passed over when longer ones
+/// exist) and each street segment near the lot (an rstar index over the segments), the edge
+/// *faces* the segment when the segment's point nearest to the edge's midpoint lies within 60°
+/// of the edge's outward normal; its distance is that of the midpoint (so the long side of a
+/// building whose corner touches a street does not win over the end wall that faces it). The
+/// nearest facing edge within [`FRONT_MAX_DISTANCE`] — the longest of those within 1 m of the
+/// nearest — gives the front: its outward normal. Pure per lot, so it runs in parallel and the
+/// result does not depend on the thread count. Street vertices that cannot be projected break
+/// their line.
+///
+/// Not handled: a street hidden behind another building still counts (no visibility test).
+pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>) {
+    if streets.is_empty() {
+        return;
+    }
+    let crs = site.crs;
+    let origin = site.origin;
+    let local = |x: f64, y: f64| -> Option<DVec2> {
+        let (lon, lat) = match source_crs {
+            None | Some(Crs::Wgs84) => (x, y),
+            Some(c) if c == crs => return finite(DVec2::new(x, y) - origin),
+            Some(c) => c.to_lonlat(x, y),
+        };
+        let (px, py) = crs.from_lonlat(lon, lat);
+        finite(DVec2::new(px, py) - origin)
+    };
+    let mut segments = Vec::new();
+    for line in streets.lines() {
+        let pts: Vec<Option<DVec2>> = line.iter().map(|&(x, y)| local(x, y)).collect();
+        for w in pts.windows(2) {
+            if let [Some(a), Some(b)] = *w {
+                if a.distance(b) > MERGE_TOLERANCE {
+                    segments.push(StreetSegment([a.x, a.y], [b.x, b.y]));
+                }
+            }
+        }
+    }
+    let tree = RTree::bulk_load(segments);
+    site.lots
+        .par_iter_mut()
+        .for_each(|lot| lot.front = front_of(&lot.polygons, &tree));
+}
+
+fn finite(p: DVec2) -> Option<DVec2> {
+    p.is_finite().then_some(p)
+}
+
+/// The point of segment `a`-`b` nearest to `p`.
+fn nearest_on_segment(a: DVec2, b: DVec2, p: DVec2) -> DVec2 {
+    let d = b - a;
+    let l2 = d.length_squared();
+    if l2 <= 0.0 {
+        return a;
+    }
+    a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+}
+
+/// The front of one outline (see [`assign_fronts`]).
+fn front_of(polygons: &[Polygon], tree: &RTree<StreetSegment>) -> Option<DVec2> {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for p in polygons {
+        let (a, b) = p.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return None;
+    }
+    let m = DVec2::splat(FRONT_MAX_DISTANCE);
+    let near: Vec<(DVec2, DVec2)> = tree
+        .locate_in_envelope_intersecting(AABB::from_corners(
+            (lo - m).to_array(),
+            (hi + m).to_array(),
+        ))
+        .map(|s| (DVec2::from(s.0), DVec2::from(s.1)))
+        .collect();
+    if near.is_empty() {
+        return None;
+    }
+    // (distance, length, outward normal) of every edge that faces a street.
+    let edges = || {
+        polygons.iter().flat_map(|p| {
+            let r = &p.outer;
+            (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()]))
+        })
+    };
+    let long_exists = edges().any(|(a, b)| a.distance(b) >= FRONT_MIN_EDGE);
+    let mut facing: Vec<(f64, f64, DVec2)> = Vec::new();
+    for (a, b) in edges() {
+        let len = a.distance(b);
+        if len <= MERGE_TOLERANCE || (long_exists && len < FRONT_MIN_EDGE) {
+            continue;
+        }
+        let d = (b - a) / len;
+        // Outer rings are counter-clockwise: the outside is on the right.
+        let normal = DVec2::new(d.y, -d.x);
+        let mid = (a + b) * 0.5;
+        let best = near
+            .iter()
+            .filter_map(|&(s0, s1)| {
+                let v = nearest_on_segment(s0, s1, mid) - mid;
+                let dist = v.length();
+                let faces = dist <= MERGE_TOLERANCE || normal.dot(v) >= FRONT_COS_CONE * dist;
+                (faces && dist <= FRONT_MAX_DISTANCE).then_some(dist)
+            })
+            .min_by(f64::total_cmp);
+        if let Some(dist) = best {
+            facing.push((dist, len, normal));
+        }
+    }
+    let nearest = facing.iter().map(|f| f.0).min_by(f64::total_cmp)?;
+    facing
+        .iter()
+        .filter(|f| f.0 <= nearest + FRONT_TIE)
+        // The longest; on equal lengths the first in ring order (max_by keeps the last).
+        .rev()
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .map(|f| f.2)
 }
 
 #[cfg(test)]
@@ -706,6 +864,65 @@ mod tests {
         assert!(report.entries.is_empty());
     }
 
+    /// The front of a 20 m × 10 m block at the origin with one street from `a` to `b`.
+    fn front_with_street(a: DVec2, b: DVec2) -> Option<DVec2> {
+        let tree = RTree::bulk_load(vec![StreetSegment(a.to_array(), b.to_array())]);
+        let block = Polygon::new(
+            vec![
+                DVec2::new(0.0, 0.0),
+                DVec2::new(20.0, 0.0),
+                DVec2::new(20.0, 10.0),
+                DVec2::new(0.0, 10.0),
+            ],
+            vec![],
+        );
+        front_of(&[block], &tree)
+    }
+
+    #[test]
+    fn the_front_is_the_normal_of_the_edge_that_faces_the_nearest_street() {
+        let v = DVec2::new;
+        // Along the north side.
+        assert_eq!(
+            front_with_street(v(-50.0, 15.0), v(70.0, 15.0)),
+            Some(DVec2::Y)
+        );
+        // A north-south street past the east end: the end wall faces it, not the long south
+        // side, although both touch the corner nearest to the street.
+        assert_eq!(
+            front_with_street(v(25.0, -40.0), v(25.0, 50.0)),
+            Some(DVec2::X)
+        );
+        // A street along the wall itself (a mapped sidewalk) counts.
+        assert_eq!(
+            front_with_street(v(-5.0, 0.0), v(25.0, 0.0)),
+            Some(-DVec2::Y)
+        );
+        // Too far.
+        assert_eq!(front_with_street(v(-50.0, 70.0), v(70.0, 70.0)), None);
+    }
+
+    #[test]
+    fn fronts_need_streets_and_do_not_move_the_lots() {
+        let mut report = Report::default();
+        let block = Polygon::new(sq(0.0, 0.0, 10.0), vec![]);
+        let mut site = single_lot(block, (7.42, 43.73), None, &mut report).unwrap();
+        let before = site.lots[0].polygons.clone();
+        let crs = site.crs;
+        assign_fronts(&mut site, &Streets::default(), Some(crs));
+        assert_eq!(site.lots[0].front, None);
+        // A west street in lon/lat (source CRS None = WGS84), projected like the footprints.
+        let (x, y) = (site.origin.x - 12.0, site.origin.y);
+        let a = crs.to_lonlat(x, y - 50.0);
+        let b = crs.to_lonlat(x, y + 50.0);
+        let mut streets = Streets::default();
+        streets.push(&[a, b]);
+        assign_fronts(&mut site, &streets, None);
+        let f = site.lots[0].front.unwrap();
+        assert!(f.dot(-DVec2::X) > 0.999, "{f}");
+        assert_eq!(site.lots[0].polygons, before);
+    }
+
     #[test]
     fn interior_point_of_a_u_shape_is_inside() {
         let u = vec![
@@ -734,6 +951,7 @@ mod tests {
                 parts: Vec::new(),
                 draw_outline: true,
                 lonlat: (lon, lat),
+                front: None,
             }
         };
         // Input order mixes the tiles; 5 and 2 share a tile with 1, in that input order.

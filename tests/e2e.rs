@@ -203,9 +203,16 @@ fn no_output_is_a_usage_error() {
 
 /// Monaco read and prepared through the library, as the binary does.
 fn monaco_site() -> citygen::prepare::Site {
+    monaco_site_and_streets().0
+}
+
+/// Monaco read and prepared through the library, as the binary does, with its streets as read.
+fn monaco_site_and_streets() -> (citygen::prepare::Site, citygen::input::Streets) {
     let mut report = citygen::report::Report::default();
     let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
-    citygen::prepare::prepare(read.footprints, None, None, &mut report)
+    let mut site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
+    citygen::prepare::assign_fronts(&mut site, &read.streets, None);
+    (site, read.streets)
 }
 
 fn generator(lod: citygen::model::Lod) -> citygen::derive::Generator {
@@ -630,6 +637,123 @@ fn lod3_window_and_door_counts_agree_between_ifc_and_citygml() {
     );
     assert_eq!(count("IFCRELFILLSELEMENT"), count("IFCOPENINGELEMENT"));
     assert_eq!(count("IFCRELVOIDSELEMENT"), count("IFCOPENINGELEMENT"));
+}
+
+/// Front doors face the nearest street. For the Monaco buildings (without parts) with a street
+/// within 20 m — measured here independently of `prepare`, by sampling the outline — the
+/// ground-floor wall whose outward normal is closest to the street direction holds a door.
+/// Two street directions are checked: the lot's `front` (the normal of the outline edge that
+/// `prepare` found facing the street: this checks the scope, `comp` and the compiled rules put
+/// the door there), and, more loosely, the normal of the nearest street segment measured here
+/// (buildings between two streets or touching a footway may legitimately differ).
+#[test]
+fn monaco_front_doors_face_the_nearest_street() {
+    use citygen::model::{Building, OpeningKind};
+    use glam::DVec2;
+    let (site, streets) = monaco_site_and_streets();
+    let local = |(lon, lat): (f64, f64)| {
+        let (x, y) = site.crs.from_lonlat(lon, lat);
+        DVec2::new(x, y) - site.origin
+    };
+    let segments: Vec<(DVec2, DVec2)> = streets
+        .lines()
+        .flat_map(|l| l.windows(2).map(|w| (local(w[0]), local(w[1]))))
+        .collect();
+    let nearest_on = |a: DVec2, b: DVec2, p: DVec2| {
+        let d = b - a;
+        a + d * ((p - a).dot(d) / d.length_squared().max(1e-12)).clamp(0.0, 1.0)
+    };
+    // Whether a ground-floor wall among those whose outward normal is closest to `dir` has a door.
+    let door_on_closest_wall = |b: &Building, dir: DVec2| {
+        let walls: Vec<(f64, bool)> = b
+            .parts
+            .iter()
+            .flat_map(|p| p.walls.iter())
+            .filter(|w| w.storey == 0 && w.length() > 1e-6)
+            .map(|w| {
+                let d = (w.end - w.start).normalize();
+                let door = w.openings.iter().any(|o| o.kind == OpeningKind::Door);
+                (DVec2::new(d.y, -d.x).dot(dir), door)
+            })
+            .collect();
+        let top = walls.iter().map(|w| w.0).fold(f64::NEG_INFINITY, f64::max);
+        walls.iter().any(|w| w.0 >= top - 1e-3 && w.1)
+    };
+    let mut gen = generator(citygen::model::Lod::Lod3);
+    gen.caps.facades = true;
+    let (mut checked, mut good, mut measured, mut thesis) = (0usize, 0usize, 0usize, 0usize);
+    let mut misses = Vec::new();
+    // Every third building keeps the debug-mode time small (LOD3 twice per building).
+    for lot in site.lots.iter().filter(|l| l.parts.is_empty()).step_by(3) {
+        let edges: Vec<(DVec2, DVec2)> = lot
+            .polygons
+            .iter()
+            .flat_map(|p| {
+                (0..p.outer.len()).map(|i| (p.outer[i], p.outer[(i + 1) % p.outer.len()]))
+            })
+            .collect();
+        let (lo, hi) = edges.iter().fold(
+            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+            |(lo, hi), (a, _)| (lo.min(*a), hi.max(*a)),
+        );
+        // The nearest street segment and outline point, sampling the outline every 0.5 m.
+        let mut best: Option<(f64, DVec2, (DVec2, DVec2))> = None;
+        for &(s0, s1) in &segments {
+            if s0.max(s1).cmplt(lo - 20.0).any() || s0.min(s1).cmpgt(hi + 20.0).any() {
+                continue;
+            }
+            for &(a, b) in &edges {
+                let n = ((a.distance(b) / 0.5).ceil() as usize).max(1);
+                for k in 0..=n {
+                    let p = a.lerp(b, k as f64 / n as f64);
+                    let d = p.distance(nearest_on(s0, s1, p));
+                    if best.is_none_or(|b| d < b.0) {
+                        best = Some((d, p, (s0, s1)));
+                    }
+                }
+            }
+        }
+        let Some((dist, p, (s0, s1))) = best else {
+            continue;
+        };
+        if dist > 20.0 {
+            continue;
+        }
+        let front = lot.front.expect("a street within 20 m gives a front");
+        let (b, _) = gen.generate(lot).unwrap();
+        checked += 1;
+        if door_on_closest_wall(&b, front) {
+            good += 1;
+        } else {
+            misses.push(lot.id.to_string());
+        }
+        // The nearest segment's normal, from the building towards the street.
+        let mut dir = (s1 - s0).normalize().perp();
+        if dir.dot(p - s0) > 0.0 {
+            dir = -dir;
+        }
+        if door_on_closest_wall(&b, dir) {
+            measured += 1;
+        }
+        let mut plain = lot.clone();
+        plain.front = None;
+        if door_on_closest_wall(&gen.generate(&plain).unwrap().0, dir) {
+            thesis += 1;
+        }
+    }
+    let pc = |n: usize| 100.0 * n as f64 / checked.max(1) as f64;
+    println!(
+        "{checked} buildings with a street within 20 m; door on the wall facing: the lot's front \
+         {good} ({:.1} %), the nearest segment {measured} ({:.1} %), the same with the thesis \
+         front {thesis} ({:.1} %); misses: {:?}",
+        pc(good),
+        pc(measured),
+        pc(thesis),
+        &misses[..misses.len().min(10)]
+    );
+    assert!(checked > 250, "{checked} buildings near a street");
+    assert!(pc(good) >= 90.0, "{:.1} %", pc(good));
+    assert!(pc(measured) >= pc(thesis) + 30.0);
 }
 
 #[test]

@@ -63,7 +63,7 @@ use glam::{DVec2, DVec3};
 use super::ast::{AttrValue, Attrs, Axis, Expr, Op, RuleSet, Selector, SplitKind, SymbolId};
 use super::expr::{eval, EvalError};
 use super::shape::{
-    clip_slab, dominant_direction, map_polygon, FaceKind, Geometry, Label, Scope, ShapeNode,
+    clip_slab, map_polygon, scope_direction, FaceKind, Geometry, Label, Scope, ShapeNode,
     ShapeTree, Terminal, EPS, MIN_AREA,
 };
 use crate::geometry::Polygon;
@@ -225,6 +225,21 @@ pub fn derive(
     rng: &mut Rng,
     caps: &Caps,
 ) -> Result<ShapeTree, DeriveError> {
+    derive_facing(rules, lot, None, attrs, rng, caps)
+}
+
+/// [`derive`] for a lot whose front is known: `front` (a unit vector in the local frame,
+/// pointing from the building to its street) turns the axiom's scope so that its −Y, the
+/// `front` selector of `comp`, is the direction along the lot's minimum-area rectangle closest
+/// to it ([`super::shape::scope_direction`]). `None` is exactly [`derive`] (the thesis scope).
+pub fn derive_facing(
+    rules: &RuleSet,
+    lot: &Polygon,
+    front: Option<DVec2>,
+    attrs: Attrs,
+    rng: &mut Rng,
+    caps: &Caps,
+) -> Result<ShapeTree, DeriveError> {
     if lot.outer.len() < 3
         || lot.area().abs() <= MIN_AREA
         || lot.outer.iter().any(|p| !p.is_finite())
@@ -236,7 +251,7 @@ pub fn derive(
         .and_then(AttrValue::as_f64)
         .filter(|v| v.is_finite())
         .unwrap_or(0.0);
-    let scope = Scope::around(lot, dominant_direction(lot), z, 0.0);
+    let scope = Scope::around(lot, scope_direction(lot, front), z, 0.0);
     let wall: Option<SymbolId> = rules.index.get("wall").copied();
     let wall_name: Arc<str> = wall.map_or_else(
         || Arc::from("wall"),

@@ -28,6 +28,6 @@ mod tests;
 pub use ast::{
     AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
 };
-pub use interp::{derive, Caps, DeriveError};
+pub use interp::{derive, derive_facing, Caps, DeriveError};
 pub use parser::{parse, GrammarError, ParseErrorKind};
 pub use shape::{FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal};

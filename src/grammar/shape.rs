@@ -250,9 +250,68 @@ impl ShapeTree {
 /// directions along that side, the one closest to world +X is taken (ties: closest to +Y), so
 /// that an east-west rectangle gets X = east, Y = north and its south facade is `front`.
 pub fn dominant_direction(poly: &Polygon) -> DVec2 {
+    let Some((d, square)) = min_area_rectangle(poly) else {
+        return DVec2::X;
+    };
+    // Only the two directions along the long side compete, all four for a square.
+    let cands = [d, -d, d.perp(), -d.perp()];
+    let cands = if square { &cands[..] } else { &cands[..2] };
+    let r = cands
+        .iter()
+        .copied()
+        .max_by(|a, b| {
+            (a.x, a.y)
+                .partial_cmp(&(b.x, b.y))
+                .unwrap_or(std::cmp::Ordering::Equal)
+        })
+        .unwrap_or(DVec2::X);
+    // Snap tiny numerical noise so that axis-aligned footprints get exact axes.
+    DVec2::new(snap(r.x), snap(r.y))
+}
+
+/// The X direction of a footprint's scope when the building's front is known: the scope's −Y
+/// (the `front` of `comp`) is the one of the four directions along the sides of the minimum-area
+/// rectangle closest to `front` (a unit vector pointing from the building to its street), and
+/// X = that direction turned a quarter counter-clockwise. Without `front`, or when that choice
+/// is the thesis one, this is exactly [`dominant_direction`].
+///
+/// Why the rectangle's directions and not the street edge's own normal: the closest of four
+/// directions 90° apart is within 45° of `front`, so the edge that faces the street is always a
+/// `front` face of `comp` (ties at 45° go to front, see [`super::interp`]), while the scope stays
+/// aligned with the building's main axes, so that X/Y splits of rule files, `repeat`s and top
+/// faces keep following the mass and differ from the thesis only by a quarter or half turn.
+pub fn scope_direction(poly: &Polygon, front: Option<DVec2>) -> DVec2 {
+    let thesis = dominant_direction(poly);
+    let Some(front) = front.and_then(DVec2::try_normalize) else {
+        return thesis;
+    };
+    let Some((d, _)) = min_area_rectangle(poly) else {
+        return thesis;
+    };
+    // −Y of the thesis scope first, so that a tie keeps the thesis front.
+    let thesis_front = -thesis.perp();
+    let cands = [thesis_front, d, -d, d.perp(), -d.perp()];
+    let best = cands
+        .iter()
+        .copied()
+        .rev()
+        .max_by(|a, b| a.dot(front).total_cmp(&b.dot(front)))
+        .unwrap_or(thesis_front);
+    if best.dot(front) <= thesis_front.dot(front) + 1e-12 {
+        return thesis;
+    }
+    // −Y = best  ⇔  Y = −best  ⇔  X = best turned a quarter counter-clockwise.
+    let x = best.perp();
+    DVec2::new(snap(x.x), snap(x.y))
+}
+
+/// The direction of one side of the minimum-area bounding rectangle of the outer ring
+/// (rotating calipers over its convex hull): the longer side, and whether the rectangle is a
+/// square. `None` for fewer than two distinct points.
+fn min_area_rectangle(poly: &Polygon) -> Option<(DVec2, bool)> {
     let hull = convex_hull(&poly.outer);
     if hull.len() < 2 {
-        return DVec2::X;
+        return None;
     }
     let mut best: Option<(f64, DVec2, bool)> = None;
     for i in 0..hull.len() {
@@ -281,23 +340,7 @@ pub fn dominant_direction(poly: &Polygon) -> DVec2 {
             best = Some((area, long, square));
         }
     }
-    let Some((_, d, square)) = best else {
-        return DVec2::X;
-    };
-    // Only the two directions along the long side compete, all four for a square.
-    let cands = [d, -d, d.perp(), -d.perp()];
-    let cands = if square { &cands[..] } else { &cands[..2] };
-    let r = cands
-        .iter()
-        .copied()
-        .max_by(|a, b| {
-            (a.x, a.y)
-                .partial_cmp(&(b.x, b.y))
-                .unwrap_or(std::cmp::Ordering::Equal)
-        })
-        .unwrap_or(DVec2::X);
-    // Snap tiny numerical noise so that axis-aligned footprints get exact axes.
-    DVec2::new(snap(r.x), snap(r.y))
+    best.map(|(_, d, square)| (d, square))
 }
 
 fn snap(v: f64) -> f64 {

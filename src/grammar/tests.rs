@@ -3,7 +3,7 @@
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 
-use super::shape::{clip_slab, dominant_direction};
+use super::shape::{clip_slab, dominant_direction, scope_direction};
 use super::*;
 use crate::geometry::Polygon;
 use crate::rng::Rng;
@@ -683,6 +683,44 @@ proptest! {
         let a: f64 = clip_slab(&np, DVec2::ZERO, axis, f64::NEG_INFINITY, c).iter().map(Polygon::area).sum();
         let b: f64 = clip_slab(&np, DVec2::ZERO, axis, c, f64::INFINITY).iter().map(Polygon::area).sum();
         prop_assert!((a + b - np.area()).abs() < 1e-6 * np.area().max(1.0), "{} + {} vs {}", a, b, np.area());
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// With a front direction (as `prepare` gives it: the outward normal of one footprint edge),
+    /// that edge is a `front` face of `comp`; without one the scope is the thesis scope.
+    #[test]
+    fn the_edge_giving_the_front_direction_is_a_front_face(
+        pts in prop::collection::vec((0.0f64..50.0, 0.0f64..50.0), 3..9),
+        edge in any::<prop::sample::Index>(),
+        notch in any::<bool>(),
+    ) {
+        let hull = super::shape::convex_hull(&pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect::<Vec<_>>());
+        prop_assume!(hull.len() >= 3);
+        let mut ring = hull;
+        if notch {
+            let c = ring.iter().copied().sum::<DVec2>() / ring.len() as f64;
+            ring.insert(1, (ring[0] + ring[1]) * 0.25 + c * 0.5);
+        }
+        let poly = Polygon::new(ring, vec![]);
+        prop_assume!(poly.area() > 1.0);
+        prop_assert_eq!(scope_direction(&poly, None), dominant_direction(&poly));
+        let k = edge.index(poly.outer.len());
+        let d = poly.outer[(k + 1) % poly.outer.len()] - poly.outer[k];
+        prop_assume!(d.length() > 0.1);
+        let front = DVec2::new(d.y, -d.x).normalize();
+        let x = scope_direction(&poly, Some(front));
+        prop_assert!((-x.perp()).dot(front) >= std::f64::consts::FRAC_1_SQRT_2 - 1e-9);
+
+        let rules = parse("lot -> extrude(3){m}\nm -> comp(){front : f | others : o}", "t").unwrap();
+        let t = derive_facing(&rules, &poly, Some(front), Attrs::new(), &mut Rng::new(1, 1), &Caps::default()).unwrap();
+        let facing: Vec<String> = t.nodes.iter()
+            .filter(|n| n.geometry.face_normal().is_some_and(|v| v.truncate().dot(front) > 1.0 - 1e-9))
+            .map(|n| n.symbol.to_string())
+            .collect();
+        prop_assert!(!facing.is_empty());
+        prop_assert!(facing.iter().all(|s| s == "f"), "{:?}", facing);
     }
 }
 

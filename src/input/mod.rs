@@ -159,4 +159,50 @@ pub struct ReadResult {
     /// The source CRS: `None` means WGS84 lon/lat degrees (OSM); shapefiles give the CRS found in
     /// the `.prj` or `--src-crs`.
     pub source_crs: Option<crate::crs::Crs>,
+    /// Street centre lines in the same coordinates as the footprints, used to turn each
+    /// building's front door towards its street. OSM gives them ([`osm::STREET_KINDS`]);
+    /// shapefiles of building footprints carry none, so their buildings keep the thesis front.
+    pub streets: Streets,
+}
+
+/// Street centre lines, stored flat to stay small on a whole country: every vertex of every
+/// polyline in one vector, and where each polyline ends. Polyline `i` is
+/// `points[ends[i - 1]..ends[i]]` (from 0 for the first); each has at least 2 vertices.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Streets {
+    /// All vertices, polyline after polyline, in source coordinates (lon, lat for OSM).
+    pub points: Vec<(f64, f64)>,
+    /// The exclusive end of each polyline in `points`, ascending.
+    pub ends: Vec<u32>,
+}
+
+impl Streets {
+    /// Appends one polyline; ignored when it has fewer than 2 vertices (no segment), or when
+    /// the vertex count no longer fits the `u32` index.
+    pub fn push(&mut self, line: &[(f64, f64)]) {
+        let end = self.points.len() + line.len();
+        if line.len() < 2 || u32::try_from(end).is_err() {
+            return;
+        }
+        self.points.extend_from_slice(line);
+        self.ends.push(end as u32);
+    }
+
+    /// The polylines, in the order they were pushed.
+    pub fn lines(&self) -> impl Iterator<Item = &[(f64, f64)]> {
+        let starts = std::iter::once(0).chain(self.ends.iter().map(|&e| e as usize));
+        starts
+            .zip(self.ends.iter())
+            .map(|(s, &e)| &self.points[s..e as usize])
+    }
+
+    /// Number of polylines.
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// Whether there is no polyline.
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
 }

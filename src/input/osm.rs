@@ -3,7 +3,8 @@
 //! Three passes over the file keep memory bounded by the buildings, not by the file:
 //! 1. relations: `type=multipolygon` relations tagged `building`/`building:part`, and untagged
 //!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
-//! 2. ways: building/part ways and the member ways of pass 1; collect the node ids they need;
+//! 2. ways: building/part ways, the member ways of pass 1 and street ways ([`STREET_KINDS`]);
+//!    collect the node ids they need;
 //! 3. nodes: only the needed ids, stored as a sorted id list with a coordinate array beside it.
 //!
 //! Blocks are decoded in parallel (rayon) in batches, and the per-block results are merged in
@@ -75,7 +76,72 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
         coords,
     };
 
-    Ok(assemble(&ways, &rels, &nodes, report))
+    let mut result = assemble(&ways, &rels, &nodes, report);
+    result.streets = streets_of(&ways, &nodes);
+    Ok(result)
+}
+
+/// The `highway=*` values read as streets a front door can face, with their `_link` roads.
+///
+/// Roads with frontage (trunk down to residential, service, living streets) and the ways people
+/// walk to doors on: `pedestrian`, `footway` (which includes mapped sidewalks, parallel to the
+/// street and right in front of the facades) and `steps` — in old towns such as Monaco-Ville
+/// many houses open only onto stepped lanes. Left out: motorways (no frontage), `track`,
+/// `path`, `cycleway`, `bridleway` (rarely what a house faces), `corridor` (indoor),
+/// `proposed`/`construction`, and any way in a tunnel (Monaco runs roads under whole
+/// districts), indoors or a parking aisle (a car park lane, not an address street).
+pub const STREET_KINDS: &[&str] = &[
+    "trunk",
+    "trunk_link",
+    "primary",
+    "primary_link",
+    "secondary",
+    "secondary_link",
+    "tertiary",
+    "tertiary_link",
+    "unclassified",
+    "residential",
+    "living_street",
+    "service",
+    "pedestrian",
+    "footway",
+    "steps",
+];
+
+/// Whether a way's tags make it a street (see [`STREET_KINDS`]).
+fn is_street<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> bool {
+    let mut street = false;
+    for (k, v) in tags {
+        let v = v.trim();
+        match k {
+            "highway" => street = STREET_KINDS.contains(&v),
+            "tunnel" | "indoor" if v != "no" => return false,
+            "service" if v == "parking_aisle" => return false,
+            _ => {}
+        }
+    }
+    street
+}
+
+/// The street ways as polylines in way-id order. A way with missing nodes keeps its runs of
+/// consecutive known nodes (a street clipped by the extract's border is still a street).
+fn streets_of(ways: &[WayRec], nodes: &Nodes) -> super::Streets {
+    let mut streets = super::Streets::default();
+    let mut run: Ring = Vec::new();
+    for w in ways.iter().filter(|w| w.street) {
+        run.clear();
+        for &r in &w.refs {
+            match nodes.get(r) {
+                Some(p) => run.push(p),
+                None => {
+                    streets.push(&run);
+                    run.clear();
+                }
+            }
+        }
+        streets.push(&run);
+    }
+    streets
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -283,6 +349,8 @@ struct WayRec {
     kind: Option<FootprintKind>,
     /// Tags of building/part ways only.
     tags: Tags,
+    /// Whether the way is a street (see [`STREET_KINDS`]).
+    street: bool,
 }
 
 /// Coordinates of the needed nodes: `coords[i]` belongs to `ids[i]`, NaN when not in the file.
@@ -384,7 +452,8 @@ fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
         for way in group.ways() {
             let kind = kind_of(way.tags());
             let member = member_ways.binary_search(&way.id()).is_ok();
-            if kind.is_none() && !member {
+            let street = is_street(way.tags());
+            if kind.is_none() && !member && !street {
                 continue;
             }
             out.push(WayRec {
@@ -396,6 +465,7 @@ fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
                 } else {
                     Vec::new()
                 },
+                street,
             });
         }
     }

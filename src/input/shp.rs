@@ -170,9 +170,11 @@ pub fn read_shp(
         );
     }
 
+    // A footprint shapefile has no streets: its buildings keep the thesis front.
     let mut result = ReadResult {
         footprints: Vec::new(),
         source_crs,
+        streets: Default::default(),
     };
     let mut role_fixes = 0usize;
     let mut shape_iter = shapes.iter_shapes_as::<Shape>();

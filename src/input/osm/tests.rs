@@ -30,6 +30,7 @@ fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
         id,
         refs,
         kind: kind_of(tags.iter().map(|(k, v)| (k.as_str(), v.as_str()))),
+        street: is_street(tags.iter().map(|(k, v)| (k.as_str(), v.as_str()))),
         tags,
     }
 }
@@ -220,6 +221,44 @@ fn outer_way_tagged_like_its_relation_is_built_once() {
 }
 
 #[test]
+fn streets_are_the_listed_highways_outside_tunnels() {
+    let t = |tags: &[(&str, &str)]| is_street(tags.iter().copied());
+    assert!(t(&[("highway", "residential")]));
+    assert!(t(&[("highway", "steps"), ("name", "Rampe Major")]));
+    assert!(t(&[("highway", "service"), ("tunnel", "no")]));
+    assert!(!t(&[("highway", "motorway")]));
+    assert!(!t(&[("highway", "primary"), ("tunnel", "yes")]));
+    assert!(!t(&[
+        ("tunnel", "building_passage"),
+        ("highway", "footway")
+    ]));
+    assert!(!t(&[("highway", "service"), ("service", "parking_aisle")]));
+    assert!(!t(&[("building", "yes")]));
+}
+
+#[test]
+fn streets_keep_runs_of_known_nodes_in_way_order() {
+    let nodes = grid_nodes(4);
+    let ways = vec![
+        way(1, vec![n(0, 0), n(1, 0)], &[("building", "yes")]),
+        // A missing node (id 9999) splits the street; a lone node before it is no segment.
+        way(
+            3,
+            vec![n(0, 1), 9999, n(1, 1), n(2, 1), n(3, 1)],
+            &[("highway", "footway")],
+        ),
+        way(2, vec![n(0, 4), n(4, 4)], &[("highway", "primary")]),
+    ];
+    let mut ways = ways;
+    ways.sort_by_key(|w| w.id);
+    let s = streets_of(&ways, &nodes);
+    let lines: Vec<&[(f64, f64)]> = s.lines().collect();
+    assert_eq!(s.len(), 2);
+    assert_eq!(lines[0], &[(0.0, 4.0), (4.0, 4.0)][..]);
+    assert_eq!(lines[1], &[(1.0, 1.0), (2.0, 1.0), (3.0, 1.0)][..]);
+}
+
+#[test]
 fn broken_ways_are_reported() {
     let nodes = grid_nodes(5);
     let b = [("building", "yes")];
@@ -312,6 +351,13 @@ fn monaco_reconciles_with_an_independent_count() {
     let r = read_osm(&path, &mut report).unwrap();
     let (buildings, parts) = independent_counts(&path);
     assert_eq!(report.read, buildings.len());
+    // Streets come along, inside the extract (Monaco: lon 7.40-7.44, lat 43.72-43.76).
+    assert!(r.streets.len() > 500, "{} streets", r.streets.len());
+    assert!(r
+        .streets
+        .points
+        .iter()
+        .all(|&(lon, lat)| (7.3..7.5).contains(&lon) && (43.6..43.8).contains(&lat)));
     assert_eq!(report.parts_read, parts.len());
 
     let skipped: BTreeSet<String> = report
