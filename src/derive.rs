@@ -11,12 +11,16 @@ use crate::facade;
 use crate::geometry::Polygon;
 use crate::grammar::{self, AttrValue, Attrs, Caps, Geometry, Label, RuleSet, ShapeTree};
 use crate::input::{BuildingTags, SourceId};
+use crate::interior;
 use crate::kb::{compile, KnowledgeBase, Style};
 use crate::massing::{self, Mass};
 use crate::model::{Building, Lod, Part, RoofShape};
 use crate::prepare::{Lot, LotPiece};
 use crate::report::Outcome;
 use crate::rng::Rng;
+
+/// Mixed into the seed of the interiors' random stream ("LOD4").
+const INTERIOR_STREAM: u64 = 0x4c4f_4434;
 
 /// Where the rules come from.
 pub enum Rules {
@@ -110,6 +114,10 @@ impl Generator {
                             ));
                         }
                     }
+                    if self.lod >= Lod::Lod4 {
+                        part.interior =
+                            self.interior(&part, &tags, lot.front, piece.id, parts.len());
+                    }
                     parts.push(part);
                 }
             }
@@ -145,6 +153,32 @@ impl Generator {
             },
             notes,
         ))
+    }
+
+    /// The LOD4 interior of a finished part: floor plans on its footprint, one per storey.
+    /// Its own random stream (seeded by the piece and the part), so that interiors never change
+    /// the exterior's choices.
+    fn interior(
+        &self,
+        part: &Part,
+        tags: &BuildingTags,
+        front: Option<glam::DVec2>,
+        id: SourceId,
+        index: usize,
+    ) -> Vec<crate::model::StoreyInterior> {
+        let storeys = part.levels.len().max(1) as u32;
+        let input = interior::PlanInput {
+            footprint: &part.footprint,
+            storeys,
+            storey_height: (part.eave_z - part.base_z) / f64::from(storeys),
+            building: tags.building.as_deref(),
+            programme: None,
+            front,
+            wall_thickness: massing::WALL_THICKNESS,
+        };
+        let mut rng = Rng::new(self.seed ^ INTERIOR_STREAM, id.seed_value() ^ index as u64);
+        let plan = interior::plan_building(&input, &mut rng);
+        interior::to_model::storeys_of(part, &plan)
     }
 
     fn rules_for(&self, style: &Style) -> Result<Arc<RuleSet>, String> {

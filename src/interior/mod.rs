@@ -90,6 +90,7 @@ mod geom;
 mod programme;
 #[cfg(test)]
 mod tests;
+pub mod to_model;
 
 use geo::{BooleanOps, Buffer};
 use glam::DVec2;
