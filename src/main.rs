@@ -444,7 +444,7 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 citygen::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
             let found = site.lots.iter().find_map(|lot| {
                 if lot.id == wanted {
-                    return Some((lot.lonlat, lot.tags.clone()));
+                    return Some((lot.lonlat, (*lot.tags).clone()));
                 }
                 let part = lot.parts.iter().find(|p| p.id == wanted)?;
                 Some((

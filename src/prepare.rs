@@ -25,14 +25,14 @@ const MAX_CHECKED_VERTICES: usize = 20_000;
 pub struct LotPiece {
     pub id: SourceId,
     pub polygons: Vec<Polygon>,
-    pub tags: BuildingTags,
+    pub tags: Box<BuildingTags>,
 }
 
 /// One building to generate, in the local frame.
 #[derive(Clone, Debug)]
 pub struct Lot {
     pub id: SourceId,
-    pub tags: BuildingTags,
+    pub tags: Box<BuildingTags>,
     /// The outline polygons (several for a multipolygon with several outer rings).
     pub polygons: Vec<Polygon>,
     /// `building:part`s found inside the outline, in id order. When they cover the outline,
@@ -107,7 +107,7 @@ pub fn prepare(
     struct Projected {
         id: SourceId,
         kind: FootprintKind,
-        tags: BuildingTags,
+        tags: Box<BuildingTags>,
         polygons: Vec<Polygon>,
         lonlat: (f64, f64),
     }
@@ -628,7 +628,7 @@ pub fn single_lot(
     report.read += 1;
     let lot = Lot {
         id,
-        tags: BuildingTags::default(),
+        tags: Box::default(),
         polygons,
         parts: Vec::new(),
         draw_outline: true,
@@ -946,7 +946,7 @@ mod tests {
             let (lon, lat) = crs.to_lonlat(x, y);
             Lot {
                 id: SourceId::Way(i),
-                tags: BuildingTags::default(),
+                tags: Box::default(),
                 polygons: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
                 parts: Vec::new(),
                 draw_outline: true,

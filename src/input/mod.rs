@@ -148,7 +148,9 @@ pub struct Footprint {
     pub id: SourceId,
     pub kind: FootprintKind,
     pub polygons: Vec<SourcePolygon>,
-    pub tags: BuildingTags,
+    /// Boxed: the parsed tags are large and most footprints move through the pipeline several
+    /// times (reader, projection, lot), so only the pointer moves and memory stays compact.
+    pub tags: Box<BuildingTags>,
 }
 
 /// Everything a reader produced.

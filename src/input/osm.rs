@@ -793,7 +793,7 @@ fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report
                         id,
                         kind,
                         polygons,
-                        tags,
+                        tags: Box::new(tags),
                     }),
                     entries,
                     rel.clone(),
@@ -870,7 +870,7 @@ fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report
             id,
             kind,
             polygons: vec![oriented_polygon(outer, holes)],
-            tags,
+            tags: Box::new(tags),
         });
     }
 

@@ -306,7 +306,7 @@ pub fn read_shp(
             id,
             kind: FootprintKind::Building,
             polygons,
-            tags,
+            tags: Box::new(tags),
         });
     }
     if role_fixes > 0 {
