@@ -370,16 +370,25 @@ fn clean_polygons(id: SourceId, polys: Vec<Polygon>, report: &mut Report) -> Opt
     let mut out = Vec::with_capacity(polys.len());
     let mut repaired = Vec::new();
     for p in polys {
-        let Some(outer) = clean_ring(&p.outer) else {
+        let Some((outer, spikes)) = clean_ring(&p.outer) else {
             repaired.push("dropped an outer ring with fewer than 3 distinct vertices".to_string());
             continue;
         };
+        let mut spikes_removed = spikes;
         let mut holes = Vec::with_capacity(p.holes.len());
         for h in &p.holes {
             match clean_ring(h) {
-                Some(r) => holes.push(r),
+                Some((r, spikes)) => {
+                    spikes_removed += spikes;
+                    holes.push(r);
+                }
                 None => repaired.push("dropped a degenerate inner ring".to_string()),
             }
+        }
+        if spikes_removed > 0 {
+            repaired.push(format!(
+                "removed {spikes_removed} spike(s) (an edge going out and straight back)"
+            ));
         }
         let poly = Polygon::new(outer, holes);
         if is_valid(&poly) {
@@ -423,7 +432,7 @@ fn clean_polygons(id: SourceId, polys: Vec<Polygon>, report: &mut Report) -> Opt
 /// Merges vertices closer than the tolerance and removes zero-width spikes (a, b, a). `None`
 /// when fewer than 3 vertices are left. (A ring can still have zero area, e.g. a bow-tie: the
 /// validity check and the repair handle that.)
-fn clean_ring(r: &[DVec2]) -> Option<Vec<DVec2>> {
+fn clean_ring(r: &[DVec2]) -> Option<(Vec<DVec2>, usize)> {
     let mut v: Vec<DVec2> = Vec::with_capacity(r.len());
     for p in r {
         if v.last().is_none_or(|q| q.distance(*p) > MERGE_TOLERANCE) {
@@ -434,6 +443,7 @@ fn clean_ring(r: &[DVec2]) -> Option<Vec<DVec2>> {
         v.pop();
     }
     // Spikes: a vertex whose neighbours coincide.
+    let mut spikes = 0;
     let mut changed = true;
     while changed && v.len() >= 3 {
         changed = false;
@@ -446,12 +456,13 @@ fn clean_ring(r: &[DVec2]) -> Option<Vec<DVec2>> {
                 let (first, second) = if i > j { (i, j) } else { (j, i) };
                 v.remove(first);
                 v.remove(second);
+                spikes += 1;
                 changed = true;
                 break;
             }
         }
     }
-    (v.len() >= 3).then_some(v)
+    (v.len() >= 3).then_some((v, spikes))
 }
 
 /// Whether rings are simple, do not cross each other, and holes lie inside the outer ring.
@@ -521,11 +532,11 @@ fn repair(p: &Polygon) -> Vec<Polygon> {
             let ring = |ls: &geo::LineString<f64>| -> Vec<DVec2> {
                 ls.0.iter().map(|c| DVec2::new(c.x, c.y)).collect()
             };
-            let outer = clean_ring(&ring(gp.exterior()))?;
+            let (outer, _) = clean_ring(&ring(gp.exterior()))?;
             let holes = gp
                 .interiors()
                 .iter()
-                .filter_map(|h| clean_ring(&ring(h)))
+                .filter_map(|h| clean_ring(&ring(h)).map(|(r, _)| r))
                 .collect();
             Some(Polygon::new(outer, holes))
         })
@@ -832,7 +843,8 @@ mod tests {
         r.insert(1, DVec2::new(0.0, 0.0));
         r.insert(3, DVec2::new(15.0, 0.0)); // spike out of (10,0) and back
         r.insert(4, DVec2::new(10.0, 0.0));
-        let c = clean_ring(&r).unwrap();
+        let (c, spikes) = clean_ring(&r).unwrap();
+        assert_eq!(spikes, 1);
         assert_eq!(c.len(), 4, "{c:?}");
     }
 

@@ -74,6 +74,7 @@ impl AtomicFile {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        remove_stale_temporaries(dir, &name);
         let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
         let file = File::create(&tmp)?;
         Ok(AtomicFile {
@@ -105,6 +106,35 @@ impl AtomicFile {
             tmp: std::mem::take(&mut self.tmp),
             committed: false,
         })
+    }
+}
+
+/// Removes the temporaries `.{name}.{pid}.tmp` that killed runs left beside a target: those
+/// whose process is gone (on Linux, no `/proc/{pid}`). Elsewhere, where liveness cannot be
+/// told, nothing is removed. Best effort: errors are ignored.
+fn remove_stale_temporaries(dir: &Path, name: &str) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    for e in entries.flatten() {
+        let file = e.file_name();
+        let Some(file) = file.to_str() else {
+            continue;
+        };
+        let Some(pid) = file
+            .strip_prefix(&prefix)
+            .and_then(|r| r.strip_suffix(".tmp"))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(e.path());
+        }
     }
 }
 
@@ -145,6 +175,25 @@ impl Drop for AtomicFile {
 mod tests {
     use super::*;
     use std::io::Write;
+
+    #[test]
+    fn temporaries_of_dead_runs_are_removed_and_others_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.gml");
+        // Above Linux's largest pid (2^22), so never a live process.
+        let dead = dir.path().join(".out.gml.4194305.tmp");
+        let alive = dir
+            .path()
+            .join(format!(".out.gml.{}.tmp.keep", std::process::id()));
+        let other = dir.path().join(".other.gml.4194305.tmp");
+        for p in [&dead, &alive, &other] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        let f = AtomicFile::create(&target).unwrap();
+        f.commit().unwrap();
+        assert!(!dead.exists() || !Path::new("/proc/self").exists());
+        assert!(alive.exists() && other.exists());
+    }
 
     #[test]
     fn closed_file_is_published_only_on_commit_and_removed_when_dropped() {

@@ -594,6 +594,9 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
     let mut duplicate_members = 0;
     let mut seen: Vec<i64> = Vec::new();
     let mut pool = Vec::new();
+    // Outer members the file lacks (way or nodes): an inner ring must then not be promoted to
+    // an outer one, or a courtyard would be built as a building.
+    let mut missing_outer = 0usize;
     for m in &rel.members {
         if seen.contains(&m.way) {
             duplicate_members += 1;
@@ -602,6 +605,9 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
         seen.push(m.way);
         let Ok(i) = ways.binary_search_by_key(&m.way, |w| w.id) else {
             missing_ways.push(m.way);
+            if m.role == Role::Outer {
+                missing_outer += 1;
+            }
             continue;
         };
         let w = &ways[i];
@@ -627,7 +633,12 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
                     problems.push(format!("member way/{} has fewer than 2 nodes", w.id));
                 }
             }
-            Err(n) => missing_nodes.push((w.id, n, w.refs.len())),
+            Err(n) => {
+                missing_nodes.push((w.id, n, w.refs.len()));
+                if m.role == Role::Outer {
+                    missing_outer += 1;
+                }
+            }
         }
     }
     if !missing_ways.is_empty() {
@@ -675,6 +686,15 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
         ring_ways.push(r.ways);
     }
     let g = group_rings(&rings, &claims);
+    if g.role_fixes > 0 && missing_outer > 0 {
+        problems.push(format!(
+            "incomplete multipolygon: {missing_outer} outer member(s) missing, so its other rings are not built as the building"
+        ));
+        return Assembled {
+            polygons: Vec::new(),
+            problems,
+        };
+    }
     if g.role_fixes > 0 {
         problems.push(format!(
             "{} ring role(s) corrected by containment",

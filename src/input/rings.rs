@@ -62,11 +62,25 @@ pub fn ring_problem(ring: &[(f64, f64)]) -> Option<&'static str> {
     pts.dedup();
     if pts.len() < 3 {
         Some("fewer than 3 distinct points")
-    } else if signed_area(ring) == 0.0 {
+    } else if signed_area(ring) == 0.0 && collinear(ring) {
+        // A bow tie also has a signed area of 0, but it is not empty: the preparation repairs
+        // it into its two triangles.
         Some("zero area")
     } else {
         None
     }
+}
+
+/// Whether all the points of the ring lie on one line (exactly, in the coordinates given).
+fn collinear(ring: &[(f64, f64)]) -> bool {
+    let Some(&a) = ring.first() else {
+        return true;
+    };
+    let Some(&b) = ring.iter().find(|p| **p != a) else {
+        return true;
+    };
+    ring.iter()
+        .all(|&c| (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0) == 0.0)
 }
 
 /// Whether ring `a` lies inside ring `b`. Vertices `a` shares with `b` say nothing (rings may

@@ -1027,7 +1027,7 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     }
     if s.eave_height <= s.min_height {
         notes.push(format!(
-            "eave {} m not above base {} m: walls set to one storey of {fh} m",
+            "eave {} m not above base {} m (check height, roof:height and min_height): walls set to one storey of {fh} m",
             s.eave_height, s.min_height
         ));
         s.eave_height = s.min_height + fh;

@@ -1,0 +1,1142 @@
+//! The bad-input corpus (issue 7): every case builds its input in a temporary folder (with
+//! `PbfWriter`, by corrupting bytes of the Monaco extract, or by writing a small shapefile), runs
+//! the real binary and asserts the outcome. Whatever the input, the process never panics; fatal
+//! inputs exit 1 (2 for usage, 3 for outputs) with a message naming the file and the place;
+//! per-footprint problems are repaired or reported with the source id, and the other buildings
+//! of the same input are still written.
+
+mod common;
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use citygen::input::pbf_write::{MemberKind, PbfWriter};
+use common::{citygen, KB, MONACO};
+use serde_json::Value;
+
+// ---- running and asserting ------------------------------------------------------------------
+
+/// Text of a run for assertion messages.
+fn show(out: &Output) -> String {
+    format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+/// The process ended normally (no panic: exit code 101 or a "panicked" message).
+fn no_panic(out: &Output) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code().is_some() && out.status.code() != Some(101),
+        "crashed: {}",
+        show(out)
+    );
+    assert!(!err.contains("panicked"), "a panic message: {}", show(out));
+}
+
+/// A fatal case: exit `code` and a stderr naming every `needle` (the file, the place).
+fn fatal(out: &Output, code: i32, needles: &[&str]) {
+    no_panic(out);
+    assert_eq!(out.status.code(), Some(code), "{}", show(out));
+    let err = String::from_utf8_lossy(&out.stderr);
+    for n in needles {
+        assert!(err.contains(n), "stderr lacks {n:?}: {}", show(out));
+    }
+}
+
+/// A run's output folder, report and exit status.
+struct Ran {
+    dir: PathBuf,
+    out: Output,
+}
+
+impl Ran {
+    fn report(&self) -> Value {
+        let p = self.dir.join("report.json");
+        let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{e}: {}", show(&self.out)));
+        serde_json::from_slice(&bytes).unwrap()
+    }
+
+    /// Entries (outcome, reason) about one source id.
+    fn entries(&self, id: &str) -> Vec<(String, String)> {
+        self.report()["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["id"] == id)
+            .map(|e| {
+                (
+                    e["outcome"].as_str().unwrap().to_string(),
+                    e["reason"].as_str().unwrap().to_string(),
+                )
+            })
+            .collect()
+    }
+
+    fn count(&self, key: &str) -> u64 {
+        self.report()[key].as_u64().unwrap()
+    }
+
+    /// Top-level nodes of the GLB scene: one per building written.
+    fn glb_buildings(&self) -> usize {
+        let (json, _) = common::glb_json(&self.dir.join("out.glb"));
+        json["scenes"][0]["nodes"].as_array().map_or(0, Vec::len)
+    }
+}
+
+/// Runs the main job on `input_flag input` with a GLB output and a report in `dir`.
+fn run_in(dir: &Path, input_flag: &str, input: &Path, extra: &[&str]) -> Ran {
+    let glb = dir.join("out.glb");
+    let report = dir.join("report.json");
+    let mut args = vec![
+        input_flag,
+        input.to_str().unwrap(),
+        "--gltf",
+        glb.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "--quiet",
+    ];
+    if !extra.contains(&"--rules") && !extra.contains(&"--kb") {
+        args.extend(["--kb", KB]);
+    }
+    if !extra.contains(&"--lod") {
+        args.extend(["--lod", "1"]);
+    }
+    args.extend(extra);
+    let out = citygen(&args);
+    no_panic(&out);
+    Ran {
+        dir: dir.to_path_buf(),
+        out,
+    }
+}
+
+/// A successful run: exit 0.
+fn ok_run(dir: &Path, input_flag: &str, input: &Path, extra: &[&str]) -> Ran {
+    let r = run_in(dir, input_flag, input, extra);
+    assert_eq!(r.out.status.code(), Some(0), "{}", show(&r.out));
+    r
+}
+
+// ---- synthetic OSM input --------------------------------------------------------------------
+
+/// Near Monaco (in the shipped knowledge base).
+const LON0: f64 = 7.4200;
+const LAT0: f64 = 43.7300;
+
+/// A small OSM data set built in code, written with `PbfWriter`. Points are given in metres
+/// east/north of (LON0, LAT0).
+type OwnedTags = Vec<(String, String)>;
+type OwnedMembers = Vec<(MemberKind, i64, String)>;
+
+#[derive(Default)]
+struct Osm {
+    nodes: Vec<(i64, f64, f64)>,
+    ways: Vec<(i64, Vec<i64>, OwnedTags)>,
+    rels: Vec<(i64, OwnedMembers, OwnedTags)>,
+}
+
+fn owned(tags: &[(&str, &str)]) -> Vec<(String, String)> {
+    tags.iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+impl Osm {
+    /// New nodes at the points (metres), returned as a closed ref list (first repeated).
+    fn ring(&mut self, pts: &[(f64, f64)]) -> Vec<i64> {
+        let mut refs = self.open(pts);
+        refs.push(refs[0]);
+        refs
+    }
+
+    /// New nodes at the points (metres), returned as an open ref list.
+    fn open(&mut self, pts: &[(f64, f64)]) -> Vec<i64> {
+        let m_lon = 111_320.0 * LAT0.to_radians().cos();
+        pts.iter()
+            .map(|&(x, y)| {
+                let id = 1 + self.nodes.len() as i64;
+                self.nodes
+                    .push((id, LON0 + x / m_lon, LAT0 + y / 110_574.0));
+                id
+            })
+            .collect()
+    }
+
+    fn way(&mut self, id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) {
+        self.ways.push((id, refs, owned(tags)));
+    }
+
+    /// A building way on the ring `pts`.
+    fn building(&mut self, id: i64, pts: &[(f64, f64)], tags: &[(&str, &str)]) {
+        let refs = self.ring(pts);
+        let mut t = vec![("building", "yes")];
+        t.extend_from_slice(tags);
+        self.way(id, refs, &t);
+    }
+
+    /// A good 12 x 10 m building, the `i`-th of a row far from the test footprints.
+    fn good(&mut self, id: i64, i: usize) {
+        let (x, y) = (
+            -500.0 + 25.0 * (i % 20) as f64,
+            -300.0 - 25.0 * (i / 20) as f64,
+        );
+        self.building(id, &square(x, y, 12.0, 10.0), &[("height", "9")]);
+    }
+
+    fn relation(&mut self, id: i64, members: &[(i64, &str)], tags: &[(&str, &str)]) {
+        let m = members
+            .iter()
+            .map(|&(w, role)| (MemberKind::Way, w, role.to_string()))
+            .collect();
+        self.rels.push((id, m, owned(tags)));
+    }
+
+    fn write(&self, path: &Path) {
+        let mut w = PbfWriter::new(File::create(path).unwrap()).unwrap();
+        for &(id, lon, lat) in &self.nodes {
+            w.node(id, lon, lat, &[]).unwrap();
+        }
+        let pairs = |t: &[(String, String)]| -> Vec<(String, String)> { t.to_vec() };
+        for (id, refs, tags) in &self.ways {
+            let t = pairs(tags);
+            let t: Vec<(&str, &str)> = t.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+            w.way(*id, refs, &t).unwrap();
+        }
+        for (id, members, tags) in &self.rels {
+            let t: Vec<(&str, &str)> = tags.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+            let m: Vec<(MemberKind, i64, &str)> = members
+                .iter()
+                .map(|(k, i, r)| (*k, *i, r.as_str()))
+                .collect();
+            w.relation(*id, &m, &t).unwrap();
+        }
+        w.finish().unwrap();
+    }
+}
+
+/// An axis-aligned rectangle, counter-clockwise.
+fn square(x: f64, y: f64, w: f64, h: f64) -> Vec<(f64, f64)> {
+    vec![(x, y), (x + w, y), (x + w, y + h), (x, y + h)]
+}
+
+/// Writes `osm` plus two good buildings (way/1 and way/2), runs it at LOD 1 and checks that the
+/// run succeeded and both good buildings are written beside whatever `osm` gave.
+fn osm_case(build: impl FnOnce(&mut Osm), extra: &[&str]) -> (tempfile::TempDir, Ran) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut osm = Osm::default();
+    osm.good(1, 0);
+    osm.good(2, 1);
+    build(&mut osm);
+    let pbf = dir.path().join("in.osm.pbf");
+    osm.write(&pbf);
+    let r = ok_run(dir.path(), "--osm", &pbf, extra);
+    assert!(r.count("generated") >= 2, "{}", show(&r.out));
+    assert_eq!(r.glb_buildings() as u64, r.count("generated"));
+    assert!(r.entries("way/1").iter().all(|(o, _)| o == "note"));
+    assert!(r.entries("way/2").iter().all(|(o, _)| o == "note"));
+    (dir, r)
+}
+
+/// The one entry with outcome `outcome` about `id`, whose reason contains `needle`.
+fn has_entry(r: &Ran, id: &str, outcome: &str, needle: &str) {
+    let e = r.entries(id);
+    assert!(
+        e.iter()
+            .any(|(o, why)| o == outcome && why.contains(needle)),
+        "no {outcome} entry for {id} with {needle:?}: {e:?}"
+    );
+}
+
+/// A per-footprint case whose defective building `id` is skipped with a reason containing
+/// `needle`, and the 2 good ones are generated.
+fn skipped_case(build: impl FnOnce(&mut Osm), id: &str, needle: &str) {
+    let (_d, r) = osm_case(build, &[]);
+    has_entry(&r, id, "skipped", needle);
+    assert_eq!(r.count("generated"), 2);
+    assert_eq!(r.count("skipped"), 1);
+}
+
+/// A per-footprint case whose defective building `id` is generated (3 buildings in all), with
+/// a report entry of `outcome` containing `needle` (no entry needed when `outcome` is "").
+fn generated_case(
+    build: impl FnOnce(&mut Osm),
+    id: &str,
+    outcome: &str,
+    needle: &str,
+) -> (tempfile::TempDir, Ran) {
+    let (d, r) = osm_case(build, &[]);
+    assert_eq!(r.count("generated"), 3, "{:?}", r.report());
+    assert_eq!(r.count("skipped"), 0, "{:?}", r.report());
+    if !outcome.is_empty() {
+        has_entry(&r, id, outcome, needle);
+    }
+    (d, r)
+}
+
+// ---- 1. not a PBF at all --------------------------------------------------------------------
+
+fn bad_file(name: &str, bytes: &[u8]) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, bytes).unwrap();
+    (dir, p)
+}
+
+fn run_osm_file(p: &Path) -> Output {
+    let out = p.with_extension("glb");
+    citygen(&[
+        "--osm",
+        p.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--lod",
+        "1",
+        "--gltf",
+        out.to_str().unwrap(),
+        "--quiet",
+    ])
+}
+
+/// Exit 1 naming the file and `needle`; no output written.
+fn osm_fatal(name: &str, bytes: &[u8], needles: &[&str]) {
+    let (_d, p) = bad_file(name, bytes);
+    let out = run_osm_file(&p);
+    let mut n = vec![name];
+    n.extend_from_slice(needles);
+    fatal(&out, 1, &n);
+    assert!(!p.with_extension("glb").exists());
+}
+
+#[test]
+fn pbf_empty_file() {
+    osm_fatal("empty.osm.pbf", b"", &["not an OSM PBF file", "empty"]);
+}
+
+#[test]
+fn pbf_text_file() {
+    osm_fatal(
+        "text.osm.pbf",
+        b"<?xml version='1.0'?>\n<osm version='0.6'><node id='1'/></osm>\n",
+        &["not an OSM PBF file"],
+    );
+}
+
+#[test]
+fn pbf_random_bytes() {
+    // A fixed xorshift stream: reproducible "random" bytes.
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let bytes: Vec<u8> = (0..4096)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x as u8
+        })
+        .collect();
+    osm_fatal("random.osm.pbf", &bytes, &["not an OSM PBF file"]);
+}
+
+#[test]
+fn pbf_png_header() {
+    let mut png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\0\x10\0\0\0\x10\x08\x06\0\0\0".to_vec();
+    png.extend_from_slice(&[0u8; 64]);
+    osm_fatal("image.osm.pbf", &png, &["not an OSM PBF file"]);
+}
+
+#[test]
+fn pbf_missing_file_and_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nowhere.osm.pbf");
+    fatal(&run_osm_file(&missing), 1, &["nowhere.osm.pbf"]);
+    let d = dir.path().join("folder.osm.pbf");
+    std::fs::create_dir(&d).unwrap();
+    fatal(&run_osm_file(&d), 1, &["folder.osm.pbf", "directory"]);
+}
+
+// ---- 2. truncated and corrupt PBF -----------------------------------------------------------
+
+/// The blobs of a PBF file: (start offset, header length, data start, data length).
+fn blobs(bytes: &[u8]) -> Vec<(usize, usize, usize, usize)> {
+    let mut out = Vec::new();
+    let mut pos = 0;
+    while pos + 4 <= bytes.len() {
+        let hlen = u32::from_be_bytes(bytes[pos..pos + 4].try_into().unwrap()) as usize;
+        let h = &bytes[pos + 4..pos + 4 + hlen];
+        // The last varint of our headers and of osmium's is field 3 (datasize).
+        let i = h.iter().rposition(|&b| b == 0x18).unwrap();
+        let mut size = 0usize;
+        for (k, b) in h[i + 1..].iter().enumerate() {
+            size |= ((b & 0x7f) as usize) << (7 * k);
+        }
+        out.push((pos, hlen, pos + 4 + hlen, size));
+        pos += 4 + hlen + size;
+    }
+    assert_eq!(pos, bytes.len());
+    out
+}
+
+fn monaco_bytes() -> Vec<u8> {
+    std::fs::read(common::root().join(MONACO)).unwrap()
+}
+
+#[test]
+fn pbf_truncated_mid_blob_header() {
+    let b = monaco_bytes();
+    let bl = blobs(&b);
+    let (start, hlen, _, _) = bl[2];
+    let cut = &b[..start + 4 + hlen / 2];
+    osm_fatal(
+        "cut_header.osm.pbf",
+        cut,
+        &[
+            "corrupt or truncated PBF",
+            "block 2",
+            &format!("byte offset {start}"),
+        ],
+    );
+}
+
+#[test]
+fn pbf_truncated_mid_blob() {
+    let b = monaco_bytes();
+    let bl = blobs(&b);
+    let (start, _, data, len) = bl[3];
+    osm_fatal(
+        "cut_blob.osm.pbf",
+        &b[..data + len / 2],
+        &[
+            "corrupt or truncated PBF",
+            "block 3",
+            &format!("byte offset {start}"),
+        ],
+    );
+}
+
+#[test]
+fn pbf_truncated_after_header_length() {
+    // Only the 4-byte length of the first blob header.
+    let b = monaco_bytes();
+    osm_fatal("four_bytes.osm.pbf", &b[..4], &["not an OSM PBF file"]);
+}
+
+#[test]
+fn pbf_flipped_bytes_in_zlib_stream() {
+    let mut b = monaco_bytes();
+    let bl = blobs(&b);
+    let (start, _, data, len) = bl[1];
+    // Flip a run of bytes in the middle of the compressed stream.
+    for x in &mut b[data + len / 2..data + len / 2 + 16] {
+        *x ^= 0xA5;
+    }
+    osm_fatal(
+        "flipped.osm.pbf",
+        &b,
+        &[
+            "corrupt or truncated PBF",
+            "block 1",
+            &format!("byte offset {start}"),
+        ],
+    );
+}
+
+#[test]
+fn pbf_absurd_blob_size() {
+    // A blob header claiming a 2^31-byte blob (datasize is an int32: 2^31 overflows it).
+    let mut b = monaco_bytes();
+    let bl = blobs(&b);
+    let (start, hlen, _, _) = bl[1];
+    let h = &b[start + 4..start + 4 + hlen];
+    let i = h.iter().rposition(|&x| x == 0x18).unwrap();
+    let mut header = h[..=i].to_vec();
+    header.extend_from_slice(&[0x80, 0x80, 0x80, 0x80, 0x08]); // 2^31
+    let mut out = b[..start].to_vec();
+    out.extend_from_slice(&(header.len() as u32).to_be_bytes());
+    out.extend_from_slice(&header);
+    out.extend_from_slice(&b[start + 4 + hlen..]);
+    b = out;
+    osm_fatal(
+        "huge_blob.osm.pbf",
+        &b,
+        &[
+            "corrupt or truncated PBF",
+            "block 1",
+            &format!("byte offset {start}"),
+        ],
+    );
+}
+
+#[test]
+fn pbf_absurd_blob_header_length() {
+    // The 4-byte header length of block 1 says 2^31 - 1.
+    let mut b = monaco_bytes();
+    let start = blobs(&b)[1].0;
+    b[start..start + 4].copy_from_slice(&0x7fff_ffffu32.to_be_bytes());
+    osm_fatal(
+        "huge_header.osm.pbf",
+        &b,
+        &[
+            "corrupt or truncated PBF",
+            "block 1",
+            &format!("byte offset {start}"),
+        ],
+    );
+}
+
+/// A tiny valid file (a header and one node block) as bytes.
+fn tiny_pbf() -> Vec<u8> {
+    let mut w = PbfWriter::new(Vec::new()).unwrap();
+    w.node(1, LON0, LAT0, &[]).unwrap();
+    w.finish().unwrap()
+}
+
+/// Replaces the type string of blob `k` by `t` (same length keeps the framing).
+fn retype(bytes: &mut [u8], k: usize, t: &[u8]) {
+    let (start, hlen, _, _) = blobs(bytes)[k];
+    let h = &mut bytes[start + 4..start + 4 + hlen];
+    // Field 1 (type), length-delimited: 0x0a, len, text.
+    assert_eq!(h[0], 0x0a);
+    let n = h[1] as usize;
+    assert_eq!(n, t.len());
+    h[2..2 + n].copy_from_slice(t);
+}
+
+#[test]
+fn pbf_first_blob_is_data() {
+    let mut b = tiny_pbf();
+    retype(&mut b, 0, b"OSMData__");
+    osm_fatal("no_header.osm.pbf", &b, &["not an OSM PBF file"]);
+}
+
+#[test]
+fn pbf_unknown_first_blob_type() {
+    let mut b = tiny_pbf();
+    retype(&mut b, 0, b"OSMHeadeX");
+    osm_fatal(
+        "unknown_type.osm.pbf",
+        &b,
+        &["not an OSM PBF file", "OSMHeadeX"],
+    );
+}
+
+#[test]
+fn pbf_data_blob_typed_as_header() {
+    // Block 1 says OSMHeader but holds a PrimitiveBlock.
+    let mut b = tiny_pbf();
+    retype(&mut b, 1, b"OSMHead");
+    let (_d, p) = bad_file("two_headers.osm.pbf", &b);
+    let out = run_osm_file(&p);
+    no_panic(&out);
+    // A PrimitiveBlock is not a valid HeaderBlock: either refused (block 1) or, decoded leniently,
+    // a file without buildings. Never a crash, never a building.
+    match out.status.code() {
+        Some(1) => fatal(&out, 1, &["two_headers.osm.pbf", "block 1"]),
+        _ => assert_eq!(out.status.code(), Some(0), "{}", show(&out)),
+    }
+}
+
+#[test]
+fn pbf_trailing_garbage() {
+    let mut b = tiny_pbf();
+    let len = b.len();
+    b.extend_from_slice(b"\0\0");
+    osm_fatal(
+        "trailing.osm.pbf",
+        &b,
+        &["corrupt or truncated PBF", &format!("byte offset {len}")],
+    );
+}
+
+#[test]
+fn pbf_raw_size_lies() {
+    // raw_size (Blob field 2) larger than the inflated data: refused, not trusted.
+    let mut b = tiny_pbf();
+    let (start, _, data, _) = blobs(&b)[1];
+    assert_eq!(b[data], 0x10, "Blob starts with raw_size");
+    b[data + 1] = 0x7f; // a one-byte varint: 127 bytes, more than the node block inflates to
+    let out = {
+        let (_d, p) = bad_file("raw_size.osm.pbf", &b);
+        run_osm_file(&p)
+    };
+    // osmpbf may or may not check raw_size; either way no panic, and if refused, the place.
+    no_panic(&out);
+    if out.status.code() != Some(0) {
+        fatal(
+            &out,
+            1,
+            &[
+                "raw_size.osm.pbf",
+                "block 1",
+                &format!("byte offset {start}"),
+            ],
+        );
+    }
+}
+
+// ---- 3. per-footprint defects ---------------------------------------------------------------
+
+#[test]
+fn way_with_missing_nodes() {
+    skipped_case(
+        |o| {
+            let mut refs = o.ring(&square(0.0, 0.0, 10.0, 10.0));
+            refs[1] = 999_999;
+            o.way(10, refs, &[("building", "yes")]);
+        },
+        "way/10",
+        "nodes missing",
+    );
+}
+
+#[test]
+fn unclosed_way() {
+    skipped_case(
+        |o| {
+            let refs = o.open(&square(0.0, 0.0, 10.0, 10.0));
+            o.way(10, refs, &[("building", "yes")]);
+        },
+        "way/10",
+        "unclosed way",
+    );
+}
+
+#[test]
+fn way_with_one_node() {
+    skipped_case(
+        |o| {
+            let refs = o.open(&[(0.0, 0.0)]);
+            o.way(10, refs, &[("building", "yes")]);
+        },
+        "way/10",
+        "1 node",
+    );
+}
+
+#[test]
+fn way_with_no_node() {
+    skipped_case(
+        |o| o.way(10, vec![], &[("building", "yes")]),
+        "way/10",
+        "0 node",
+    );
+}
+
+#[test]
+fn bow_tie() {
+    // The two triangles of a figure 8 crossing at (5, 5).
+    generated_case(
+        |o| {
+            o.building(
+                10,
+                &[(0.0, 0.0), (10.0, 10.0), (10.0, 0.0), (0.0, 10.0)],
+                &[],
+            )
+        },
+        "way/10",
+        "repaired",
+        "",
+    );
+}
+
+#[test]
+fn self_intersecting_polygon() {
+    // A square whose right edge loops back across the left part.
+    generated_case(
+        |o| {
+            o.building(
+                10,
+                &[
+                    (0.0, 0.0),
+                    (20.0, 0.0),
+                    (20.0, 10.0),
+                    (5.0, 10.0),
+                    (15.0, -5.0),
+                    (0.0, 10.0),
+                ],
+                &[],
+            )
+        },
+        "way/10",
+        "repaired",
+        "",
+    );
+}
+
+#[test]
+fn duplicate_vertices() {
+    generated_case(
+        |o| {
+            let mut refs = o.ring(&square(0.0, 0.0, 10.0, 10.0));
+            // Node 2 twice in a row, and a second node at the same place as node 3.
+            refs.insert(2, refs[1]);
+            let twin = o.open(&[(10.0, 10.0)])[0];
+            refs.insert(4, twin);
+            o.way(10, refs, &[("building", "yes")]);
+        },
+        "way/10",
+        "",
+        "",
+    );
+}
+
+#[test]
+fn collinear_vertices() {
+    generated_case(
+        |o| {
+            let pts: Vec<(f64, f64)> = (0..10)
+                .map(|i| (i as f64, 0.0))
+                .chain([(10.0, 0.0), (10.0, 10.0), (5.0, 10.0), (0.0, 10.0)])
+                .collect();
+            o.building(10, &pts, &[]);
+        },
+        "way/10",
+        "",
+        "",
+    );
+}
+
+#[test]
+fn zero_area_footprint() {
+    skipped_case(
+        |o| o.building(10, &[(0.0, 0.0), (5.0, 0.0), (10.0, 0.0)], &[]),
+        "way/10",
+        "area",
+    );
+}
+
+#[test]
+fn sliver_footprint() {
+    // 20 m long, 1 mm wide.
+    skipped_case(
+        |o| o.building(10, &square(0.0, 0.0, 20.0, 0.001), &[]),
+        "way/10",
+        "",
+    );
+}
+
+#[test]
+fn spike() {
+    // A square with a 30 m needle out of its top edge.
+    let _ = generated_case(
+        |o| {
+            o.building(
+                10,
+                &[
+                    (0.0, 0.0),
+                    (10.0, 0.0),
+                    (10.0, 10.0),
+                    (5.0, 10.0),
+                    (5.0, 40.0),
+                    (5.0, 10.0),
+                    (0.0, 10.0),
+                ],
+                &[],
+            )
+        },
+        "way/10",
+        "repaired",
+        "",
+    );
+}
+
+#[test]
+fn ten_thousand_vertex_footprint() {
+    let pts: Vec<(f64, f64)> = (0..10_000)
+        .map(|i| {
+            let a = i as f64 / 10_000.0 * std::f64::consts::TAU;
+            (15.0 * a.cos(), 15.0 * a.sin())
+        })
+        .collect();
+    generated_case(|o| o.building(10, &pts, &[]), "way/10", "", "");
+}
+
+// ---- 4. broken multipolygons ----------------------------------------------------------------
+
+const MP: [(&str, &str); 2] = [("type", "multipolygon"), ("building", "yes")];
+
+#[test]
+fn multipolygon_missing_member() {
+    generated_case(
+        |o| {
+            let outer = o.ring(&square(0.0, 0.0, 20.0, 20.0));
+            o.way(10, outer, &[]);
+            o.relation(20, &[(10, "outer"), (11, "inner")], &MP);
+        },
+        "relation/20",
+        "repaired",
+        "missing from the file",
+    );
+}
+
+#[test]
+fn multipolygon_missing_outer_member() {
+    skipped_case(
+        |o| {
+            let inner = o.ring(&square(5.0, 5.0, 5.0, 5.0));
+            o.way(11, inner, &[]);
+            o.relation(20, &[(10, "outer"), (11, "inner")], &MP);
+        },
+        "relation/20",
+        "way/10",
+    );
+}
+
+#[test]
+fn multipolygon_overlapping_inners() {
+    generated_case(
+        |o| {
+            let outer = o.ring(&square(0.0, 0.0, 30.0, 30.0));
+            let a = o.ring(&square(5.0, 5.0, 10.0, 10.0));
+            let b = o.ring(&square(10.0, 10.0, 10.0, 10.0));
+            o.way(10, outer, &[]);
+            o.way(11, a, &[]);
+            o.way(12, b, &[]);
+            o.relation(20, &[(10, "outer"), (11, "inner"), (12, "inner")], &MP);
+        },
+        "relation/20",
+        "",
+        "",
+    );
+}
+
+#[test]
+fn multipolygon_inner_outside_outer() {
+    // The "inner" lies beside the outer: it becomes a second outer (role fixed by containment).
+    generated_case(
+        |o| {
+            let outer = o.ring(&square(0.0, 0.0, 10.0, 10.0));
+            let inner = o.ring(&square(20.0, 0.0, 5.0, 5.0));
+            o.way(10, outer, &[]);
+            o.way(11, inner, &[]);
+            o.relation(20, &[(10, "outer"), (11, "inner")], &MP);
+        },
+        "relation/20",
+        "repaired",
+        "role",
+    );
+}
+
+#[test]
+fn multipolygon_without_outer() {
+    // Only inner-role rings: the ring roles are fixed by containment.
+    generated_case(
+        |o| {
+            let a = o.ring(&square(0.0, 0.0, 10.0, 10.0));
+            o.way(11, a, &[]);
+            o.relation(20, &[(11, "inner")], &MP);
+        },
+        "relation/20",
+        "repaired",
+        "role",
+    );
+}
+
+#[test]
+fn multipolygon_without_members() {
+    skipped_case(|o| o.relation(20, &[], &MP), "relation/20", "");
+}
+
+#[test]
+fn multipolygon_open_ring() {
+    skipped_case(
+        |o| {
+            let a = o.open(&[(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]);
+            let b = o.open(&[(0.0, 10.0), (-1.0, 5.0)]);
+            o.way(10, a, &[]);
+            o.way(11, b, &[]);
+            o.relation(20, &[(10, "outer"), (11, "outer")], &MP);
+        },
+        "relation/20",
+        "cannot be closed",
+    );
+}
+
+// ---- 5. absurd tags -------------------------------------------------------------------------
+
+/// A 10 x 10 m building way/10 with `tags`: generated, with a note naming `needle`.
+fn tag_case(tags: &[(&str, &str)], needle: &str) {
+    let _ = generated_case(
+        |o| o.building(10, &square(0.0, 0.0, 10.0, 10.0), tags),
+        "way/10",
+        "note",
+        needle,
+    );
+}
+
+#[test]
+fn height_negative() {
+    tag_case(&[("height", "-5")], "height=-5");
+}
+
+#[test]
+fn height_huge() {
+    tag_case(&[("height", "1e9")], "height=1e9");
+}
+
+#[test]
+fn height_nan_and_inf() {
+    tag_case(&[("height", "NaN")], "height=NaN");
+    tag_case(&[("height", "inf")], "height=inf");
+}
+
+#[test]
+fn height_words() {
+    tag_case(&[("height", "tall")], "height=tall");
+}
+
+#[test]
+fn height_with_unit_is_read() {
+    // "12 m" is a valid height: no note, and the building is 12 m tall.
+    let (_d, r) = generated_case(
+        |o| o.building(10, &square(0.0, 0.0, 10.0, 10.0), &[("height", "12 m")]),
+        "way/10",
+        "",
+        "",
+    );
+    assert!(r
+        .entries("way/10")
+        .iter()
+        .all(|(_, why)| !why.contains("height")));
+}
+
+#[test]
+fn levels_absurd() {
+    tag_case(&[("building:levels", "-3")], "building:levels=-3");
+    tag_case(&[("building:levels", "1e6")], "building:levels=1e6");
+}
+
+#[test]
+fn roof_shape_number() {
+    tag_case(&[("roof:shape", "9.0")], "roof:shape=9.0");
+}
+
+#[test]
+fn roof_height_above_height() {
+    let _ = generated_case(
+        |o| {
+            o.building(
+                10,
+                &square(0.0, 0.0, 10.0, 10.0),
+                &[
+                    ("height", "8"),
+                    ("roof:height", "20"),
+                    ("roof:shape", "gabled"),
+                ],
+            )
+        },
+        "way/10",
+        "note",
+        "roof",
+    );
+}
+
+#[test]
+fn min_height_above_height() {
+    // Either skipped with a reason or generated with a note: never a panic or a lost building.
+    let (_d, r) = osm_case(
+        |o| {
+            o.building(
+                10,
+                &square(0.0, 0.0, 10.0, 10.0),
+                &[("height", "8"), ("min_height", "12")],
+            )
+        },
+        &[],
+    );
+    assert!(!r.entries("way/10").is_empty(), "{:?}", r.report());
+    assert!(r
+        .entries("way/10")
+        .iter()
+        .any(|(_, why)| why.contains("min_height")));
+}
+
+// ---- shapefiles -----------------------------------------------------------------------------
+
+/// A copy of the Clifton shapefile in a fresh folder, as `clifton.*`; `edit` may break it.
+fn clifton_copy(edit: impl FnOnce(&Path)) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    for ext in ["shp", "shx", "dbf", "prj", "cpg"] {
+        std::fs::copy(
+            common::root().join(format!("data/clifton/clifton_test.{ext}")),
+            dir.path().join(format!("clifton.{ext}")),
+        )
+        .unwrap();
+    }
+    edit(dir.path());
+    let shp = dir.path().join("clifton.shp");
+    (dir, shp)
+}
+
+fn run_shp(shp: &Path, dir: &Path) -> Output {
+    let out = dir.join("out.gml");
+    citygen(&[
+        "--shp",
+        shp.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--lod",
+        "1",
+        "--citygml",
+        out.to_str().unwrap(),
+        "--quiet",
+    ])
+}
+
+#[test]
+fn shapefile_missing_shx() {
+    let (d, shp) = clifton_copy(|d| std::fs::remove_file(d.join("clifton.shx")).unwrap());
+    fatal(&run_shp(&shp, d.path()), 1, &["clifton"]);
+}
+
+#[test]
+fn shapefile_missing_dbf() {
+    let (d, shp) = clifton_copy(|d| std::fs::remove_file(d.join("clifton.dbf")).unwrap());
+    fatal(&run_shp(&shp, d.path()), 1, &["clifton"]);
+}
+
+#[test]
+fn shapefile_truncated_dbf() {
+    let (d, shp) = clifton_copy(|d| {
+        let p = d.join("clifton.dbf");
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    });
+    fatal(&run_shp(&shp, d.path()), 1, &["clifton"]);
+}
+
+#[test]
+fn shapefile_garbage_dbf_header() {
+    let (d, shp) =
+        clifton_copy(|d| std::fs::write(d.join("clifton.dbf"), b"not a dbase file").unwrap());
+    fatal(&run_shp(&shp, d.path()), 1, &["clifton"]);
+}
+
+#[test]
+fn shapefile_of_points_is_refused() {
+    // The header's shape type (offset 32, little endian) says Point.
+    let (d, shp) = clifton_copy(|d| {
+        let p = d.join("clifton.shp");
+        let mut bytes = std::fs::read(&p).unwrap();
+        bytes[32..36].copy_from_slice(&1i32.to_le_bytes());
+        std::fs::write(&p, bytes).unwrap();
+    });
+    let out = run_shp(&shp, d.path());
+    no_panic(&out);
+    assert_ne!(out.status.code(), Some(0), "{}", show(&out));
+}
+
+#[test]
+fn shapefile_truncated_shp() {
+    let (d, shp) = clifton_copy(|d| {
+        let p = d.join("clifton.shp");
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    });
+    let out = run_shp(&shp, d.path());
+    no_panic(&out);
+    assert!(
+        matches!(out.status.code(), Some(0) | Some(1)),
+        "a truncated .shp is an input error or a partial read: {}",
+        show(&out)
+    );
+}
+
+// ---- knowledge bases and grammars -----------------------------------------------------------
+
+fn run_with(flag: &str, file: &Path, dir: &Path) -> Output {
+    let out = dir.join("out.gml");
+    citygen(&[
+        "--osm",
+        MONACO,
+        flag,
+        file.to_str().unwrap(),
+        "--lod",
+        "1",
+        "--citygml",
+        out.to_str().unwrap(),
+        "--quiet",
+    ])
+}
+
+fn kb_fatal(name: &str, text: &str, needles: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, text).unwrap();
+    let mut all = vec![name];
+    all.extend_from_slice(needles);
+    fatal(&run_with("--kb", &p, dir.path()), 1, &all);
+}
+
+#[test]
+fn kb_unclosed_tag() {
+    kb_fatal(
+        "unclosed.xml",
+        "<earth name=\"earth\">\n  <country name=\"x\">\n</earth>\n",
+        &[],
+    );
+}
+
+#[test]
+fn kb_entity_bomb() {
+    let bomb = "<?xml version=\"1.0\"?>\n<!DOCTYPE lolz [<!ENTITY lol \"lol\"><!ENTITY lol2 \"&lol;&lol;&lol;&lol;\">]>\n<earth>&lol2;</earth>\n";
+    kb_fatal("bomb.xml", bomb, &[]);
+}
+
+#[test]
+fn kb_not_xml() {
+    kb_fatal("binary.xml", "\u{1}\u{2}PNG garbage", &[]);
+}
+
+fn rules_fatal(name: &str, text: &str, needles: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, text).unwrap();
+    let mut all = vec![name];
+    all.extend_from_slice(needles);
+    fatal(&run_with("--rules", &p, dir.path()), 1, &all);
+}
+
+#[test]
+fn grammar_syntax_error_names_line_and_column() {
+    rules_fatal("broken.cga", "lot -> extrude(10){ mass\n", &[":1:"]);
+}
+
+#[test]
+fn grammar_unknown_operation() {
+    rules_fatal("unknown.cga", "lot -> frobnicate(3){a}\n", &["frobnicate"]);
+}
+
+#[test]
+fn grammar_rule_bomb_ends_with_a_report_entry_per_building() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bomb.cga");
+    std::fs::write(&p, "lot -> a\na -> split(X, 1, 1){a | a}\n").unwrap();
+    let out = run_with("--rules", &p, dir.path());
+    no_panic(&out);
+}
+
+// ---- outputs --------------------------------------------------------------------------------
+
+#[test]
+fn output_into_a_directory_path_is_an_output_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("taken");
+    std::fs::create_dir(&target).unwrap();
+    let out = citygen(&[
+        "--osm",
+        MONACO,
+        "--kb",
+        KB,
+        "--lod",
+        "1",
+        "--citygml",
+        target.to_str().unwrap(),
+        "--quiet",
+    ]);
+    fatal(&out, 3, &["taken"]);
+}
