@@ -1140,3 +1140,123 @@ fn output_into_a_directory_path_is_an_output_error() {
     ]);
     fatal(&out, 3, &["taken"]);
 }
+
+// ---- everything at once ---------------------------------------------------------------------
+
+#[test]
+fn mixed_file_keeps_every_good_building_and_accounts_for_every_bad_one() {
+    // 30 good buildings and one of each per-footprint defect in one file. The outputs are left
+    // in target/corpus-mixed/ for CI to check with the validators.
+    let out = common::root().join("target/corpus-mixed");
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    let mut o = Osm::default();
+    for i in 0..30 {
+        o.good(1000 + i as i64, i);
+    }
+    // Skipped: missing nodes, no area, fewer than 3 points, a multipolygon without outer.
+    let refs = o.ring(&square(0.0, 0.0, 10.0, 10.0));
+    o.way(
+        10,
+        vec![refs[0], refs[1], 999_999, refs[2], refs[0]],
+        &[("building", "yes")],
+    );
+    o.building(11, &[(20.0, 0.0), (30.0, 0.0), (40.0, 0.0)], &[]);
+    let two = o.ring(&[(50.0, 0.0), (55.0, 5.0)]);
+    o.way(12, two, &[("building", "yes")]);
+    let inner = o.ring(&square(65.0, 5.0, 3.0, 3.0));
+    o.way(13, inner, &[]);
+    o.relation(
+        20,
+        &[(14, "outer"), (13, "inner")],
+        &[("type", "multipolygon"), ("building", "yes")],
+    );
+    // Repaired or generated with notes: bow tie, spike, absurd tags.
+    o.building(
+        30,
+        &[(0.0, 40.0), (10.0, 50.0), (10.0, 40.0), (0.0, 50.0)],
+        &[],
+    );
+    o.building(
+        31,
+        &[
+            (20.0, 40.0),
+            (30.0, 40.0),
+            (30.0, 50.0),
+            (25.0, 50.0),
+            (25.0, 80.0),
+            (25.0, 50.0),
+            (20.0, 50.0),
+        ],
+        &[],
+    );
+    o.building(
+        32,
+        &square(40.0, 40.0, 10.0, 10.0),
+        &[("height", "-5"), ("roof:shape", "9.0")],
+    );
+    o.building(
+        33,
+        &square(60.0, 40.0, 10.0, 10.0),
+        &[("height", "NaN"), ("building:levels", "1e6")],
+    );
+    o.building(
+        34,
+        &square(80.0, 40.0, 10.0, 10.0),
+        &[("height", "8"), ("min_height", "12")],
+    );
+    let pbf = out.join("mixed.osm.pbf");
+    o.write(&pbf);
+    let p = |n: &str| out.join(n).display().to_string();
+    let args = [
+        "--osm".to_string(),
+        pbf.display().to_string(),
+        "--kb".into(),
+        KB.into(),
+        "--lod".into(),
+        "2".into(),
+        "--ifc".into(),
+        p("mixed.ifc"),
+        "--citygml".into(),
+        p("mixed.gml"),
+        "--gltf".into(),
+        p("mixed.glb"),
+        "--report".into(),
+        p("mixed.json"),
+        "--quiet".into(),
+    ];
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let run = citygen(&refs);
+    no_panic(&run);
+    assert_eq!(run.status.code(), Some(0), "{}", show(&run));
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(out.join("mixed.json")).unwrap()).unwrap();
+    let mut skipped: Vec<String> = report["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["outcome"] == "skipped")
+        .map(|e| e["id"].as_str().unwrap().to_string())
+        .collect();
+    skipped.sort();
+    skipped.dedup();
+    assert_eq!(
+        skipped,
+        ["relation/20", "way/10", "way/11", "way/12"],
+        "{report:#}"
+    );
+    assert_eq!(report["generated"], 30 + 5, "{report:#}");
+    assert_eq!(report["read"], 30 + 9, "{report:#}");
+    for id in ["way/30", "way/31"] {
+        assert!(
+            report["entries"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|e| e["id"] == id && e["outcome"] == "repaired"),
+            "{id} is reported as repaired: {report:#}"
+        );
+    }
+    let gml = std::fs::read_to_string(out.join("mixed.gml")).unwrap();
+    assert_eq!(gml.matches("<bldg:Building gml:id=").count(), 35);
+}
