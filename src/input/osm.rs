@@ -76,7 +76,7 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
         coords,
     };
 
-    let mut result = assemble(&ways, &rels, &nodes, report);
+    let mut result = assemble(&mut ways, &rels, &nodes, report);
     result.streets = streets_of(&ways, &nodes);
     Ok(result)
 }
@@ -347,8 +347,9 @@ struct WayRec {
     refs: Vec<i64>,
     /// `Some` for a building or part way.
     kind: Option<FootprintKind>,
-    /// Tags of building/part ways only.
-    tags: Tags,
+    /// Parsed tags of building/part ways only, parsed in the parallel pass; taken (moved into
+    /// the footprint) during assembly, so the raw strings are never all held at once.
+    tags: Option<Box<BuildingTags>>,
     /// Whether the way is a street (see [`STREET_KINDS`]).
     street: bool,
 }
@@ -460,11 +461,7 @@ fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
                 id: way.id(),
                 refs: way.refs().collect(),
                 kind,
-                tags: if kind.is_some() {
-                    owned(way.tags())
-                } else {
-                    Vec::new()
-                },
+                tags: kind.map(|_| Box::new(BuildingTags::from_pairs(way.tags()))),
                 street,
             });
         }
@@ -719,7 +716,12 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
 type RelOutcome = (Option<Footprint>, Vec<(Outcome, String)>, RelRec);
 
 /// Turns the three passes' results into footprints and report entries.
-fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report) -> ReadResult {
+fn assemble(
+    ways: &mut [WayRec],
+    rels: &[RelRec],
+    nodes: &Nodes,
+    report: &mut Report,
+) -> ReadResult {
     // Relations first: they decide which ways are built by a relation instead of alone, and
     // which ways get holes from an old-style multipolygon. Their entries are emitted after the
     // ways' so that the report follows the footprint order.
@@ -826,7 +828,7 @@ fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report
     old_style_notes.sort_by_key(|(w, _)| *w);
 
     let mut result = ReadResult::default();
-    for w in ways {
+    for w in ways.iter_mut() {
         let Some(kind) = w.kind else { continue };
         let id = SourceId::Way(w.id);
         count_read(report, kind);
@@ -866,7 +868,7 @@ fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report
             skip(report, why.to_string());
             continue;
         }
-        let tags = BuildingTags::from_pairs(w.tags.iter().map(|(k, v)| (k.as_str(), v.as_str())));
+        let tags = w.tags.take().unwrap_or_default();
         let holes = match old_style.binary_search_by_key(&w.id, |(x, _, _)| *x) {
             Ok(i) => {
                 let (_, r, holes) = &old_style[i];
@@ -890,7 +892,7 @@ fn assemble(ways: &[WayRec], rels: &[RelRec], nodes: &Nodes, report: &mut Report
             id,
             kind,
             polygons: vec![oriented_polygon(outer, holes)],
-            tags: Box::new(tags),
+            tags,
         });
     }
 

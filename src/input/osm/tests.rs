@@ -25,13 +25,13 @@ fn n(x: i64, y: i64) -> i64 {
 }
 
 fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
-    let tags: Tags = owned(tags.iter().copied());
+    let kind = kind_of(tags.iter().copied());
     WayRec {
         id,
         refs,
-        kind: kind_of(tags.iter().map(|(k, v)| (k.as_str(), v.as_str()))),
-        street: is_street(tags.iter().map(|(k, v)| (k.as_str(), v.as_str()))),
-        tags,
+        kind,
+        street: is_street(tags.iter().copied()),
+        tags: kind.map(|_| Box::new(BuildingTags::from_pairs(tags.iter().copied()))),
     }
 }
 
@@ -65,7 +65,7 @@ fn entries_for(report: &Report, id: &str) -> Vec<(Outcome, String)> {
 fn courtyard_from_open_segments_with_a_reversed_piece() {
     let nodes = grid_nodes(10);
     // Outer 0..10 square split in two open ways, the second one reversed.
-    let ways = vec![
+    let mut ways = vec![
         way(1, vec![n(0, 0), n(10, 0), n(10, 10)], &[]),
         way(2, vec![n(0, 0), n(0, 10), n(10, 10)], &[]),
         way(3, square_refs(3, 3, 4), &[]),
@@ -81,7 +81,7 @@ fn courtyard_from_open_segments_with_a_reversed_piece() {
         ],
     )];
     let mut report = Report::default();
-    let r = assemble(&ways, &rels, &nodes, &mut report);
+    let r = assemble(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     let fp = &r.footprints[0];
     assert_eq!(fp.id, SourceId::Relation(50));
@@ -99,7 +99,7 @@ fn courtyard_from_open_segments_with_a_reversed_piece() {
 #[test]
 fn wrong_roles_are_corrected_by_containment() {
     let nodes = grid_nodes(20);
-    let ways = vec![
+    let mut ways = vec![
         way(1, square_refs(0, 0, 10), &[]),
         way(2, square_refs(2, 2, 3), &[]),
         way(3, square_refs(15, 15, 3), &[]),
@@ -112,7 +112,7 @@ fn wrong_roles_are_corrected_by_containment() {
         &[("type", "multipolygon"), ("building", "yes")],
     )];
     let mut report = Report::default();
-    let r = assemble(&ways, &rels, &nodes, &mut report);
+    let r = assemble(&mut ways, &rels, &nodes, &mut report);
     let fp = &r.footprints[0];
     assert_eq!(fp.polygons.len(), 2);
     assert_eq!(fp.polygons[0].holes.len(), 1);
@@ -127,7 +127,7 @@ fn wrong_roles_are_corrected_by_containment() {
 #[test]
 fn missing_members_repair_or_skip() {
     let nodes = grid_nodes(10);
-    let ways = vec![
+    let mut ways = vec![
         way(1, square_refs(0, 0, 10), &[]),
         // Half of a ring whose other half is missing.
         way(4, vec![n(2, 2), n(4, 2), n(4, 4)], &[]),
@@ -147,7 +147,7 @@ fn missing_members_repair_or_skip() {
         ),
     ];
     let mut report = Report::default();
-    let r = assemble(&ways, &rels, &nodes, &mut report);
+    let r = assemble(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].polygons[0].holes.len(), 0);
     let e8 = entries_for(&report, "relation/8");
@@ -165,7 +165,7 @@ fn missing_members_repair_or_skip() {
 #[test]
 fn old_style_outer_way_gets_the_holes_once() {
     let nodes = grid_nodes(10);
-    let ways = vec![
+    let mut ways = vec![
         way(
             1,
             square_refs(0, 0, 10),
@@ -180,7 +180,7 @@ fn old_style_outer_way_gets_the_holes_once() {
         &[("type", "multipolygon")],
     )];
     let mut report = Report::default();
-    let r = assemble(&ways, &rels, &nodes, &mut report);
+    let r = assemble(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(
         r.footprints.len(),
         1,
@@ -200,7 +200,7 @@ fn old_style_outer_way_gets_the_holes_once() {
 #[test]
 fn outer_way_tagged_like_its_relation_is_built_once() {
     let nodes = grid_nodes(10);
-    let ways = vec![
+    let mut ways = vec![
         way(1, square_refs(0, 0, 10), &[("building", "yes")]),
         way(2, square_refs(3, 3, 4), &[]),
     ];
@@ -211,7 +211,7 @@ fn outer_way_tagged_like_its_relation_is_built_once() {
         &[("type", "multipolygon"), ("building", "yes")],
     )];
     let mut report = Report::default();
-    let r = assemble(&ways, &rels, &nodes, &mut report);
+    let r = assemble(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].id, SourceId::Relation(6));
     let e = entries_for(&report, "way/1");
@@ -262,7 +262,7 @@ fn streets_keep_runs_of_known_nodes_in_way_order() {
 fn broken_ways_are_reported() {
     let nodes = grid_nodes(5);
     let b = [("building", "yes")];
-    let ways = vec![
+    let mut ways = vec![
         way(1, vec![n(0, 0), n(1, 0), n(1, 1)], &b), // unclosed
         way(2, vec![n(0, 0), n(1, 0), 999_999, n(0, 0)], &b), // missing node
         way(3, vec![n(0, 0), n(1, 0), n(1, 0), n(0, 0)], &b), // 2 distinct
@@ -276,7 +276,7 @@ fn broken_ways_are_reported() {
         way(7, square_refs(0, 0, 1), &[("building", "no")]),
     ];
     let mut report = Report::default();
-    let r = assemble(&ways, &[], &nodes, &mut report);
+    let r = assemble(&mut ways, &[], &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].kind, FootprintKind::Part);
     assert_eq!(
