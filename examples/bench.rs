@@ -23,7 +23,7 @@
 //!
 //! Flags: `--lods 1,2,3` (default all), `--formats all,ifc,gml,glb` (default all four),
 //! `--reps R` (default 1, or the number after a file path), `--kb FILE`, `--threads N` (passed
-//! on to citygen).
+//! on to citygen), `--read` (only the read comparison, no citygen runs).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs::File;
@@ -64,6 +64,8 @@ fn main() -> Result<(), Error> {
                 return make_tiled(n, &out).map(|_| ());
             }
             "--reps" => reps = Some(value()?.parse()?),
+            // Only the read comparison (raw osmpbf decode vs citygen's read phase).
+            "--read" => lods.clear(),
             "--kb" => kb = PathBuf::from(value()?),
             "--threads" => threads = Some(value()?),
             "--lods" => {

@@ -1,24 +1,28 @@
 //! OSM PBF reader: building ways, building multipolygon relations and `building:part`s.
 //!
-//! Three passes over the file keep memory bounded by the buildings, not by the file:
+//! A sweep frames every blob and inflates only the start of each data blob to see the kind of
+//! its first group (nodes, ways or relations). Then three passes, each decoding only the blobs
+//! of its kind, so every blob is decoded once:
 //! 1. relations: `type=multipolygon` relations tagged `building`/`building:part`, and untagged
 //!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
 //! 2. ways: building/part ways, the member ways of pass 1 and street ways ([`STREET_KINDS`]);
 //!    collect the node ids they need;
-//! 3. nodes: only the needed ids, stored as a sorted id list with a coordinate array beside it.
+//! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside).
 //!
-//! Blocks are decoded in parallel (rayon) in batches, and the per-block results are merged in
-//! file order, then sorted by id, so the output does not depend on the thread count.
+//! A block that holds more than one kind of element (no common writer makes one) is noticed
+//! when decoded; the read then starts again with every pass decoding every blob. Blocks are
+//! decoded in parallel (rayon) in batches, and the per-block results are merged in file order,
+//! then sorted by id, so the output does not depend on the thread count.
 //!
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
 //! `report.read` / `report.parts_read` count them all, skipped ones included.
 
 use std::fs::File;
-use std::io::{BufReader, SeekFrom};
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
-use osmpbf::{BlobDecode, BlobReader, Element, PrimitiveBlock, RelMemberType};
+use osmpbf::{BlobDecode, BlobReader, PrimitiveBlock, RelMemberType};
 use rayon::prelude::*;
 
 use super::rings::{clean_ring, group_rings, oriented_polygon, ring_problem};
@@ -42,9 +46,30 @@ type Tags = Vec<(String, String)>;
 /// [`InputError`] naming the file and the block. Never panics.
 pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputError> {
     let pbf = Pbf::open(path)?;
+    let mut locs = pbf.sweep()?;
+    if let Some(r) = read_passes(&pbf, &locs, report)? {
+        return Ok(r);
+    }
+    // A block held more than one kind of element: every pass decodes every block.
+    for l in &mut locs {
+        l.kind = BlobKind::Any;
+    }
+    read_passes(&pbf, &locs, report)?.ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
+}
 
+/// The three passes over the blobs `locs` (relations, ways, needed nodes) and the assembly;
+/// `None` when a block held another kind of element than the sweep saw (nothing was reported
+/// then).
+fn read_passes(
+    pbf: &Pbf,
+    locs: &[BlobLoc],
+    report: &mut Report,
+) -> Result<Option<ReadResult>, InputError> {
     // Pass 1: relations.
-    let rels = pbf.pass(relations_of_block)?;
+    let (rels, mixed) = pbf.pass(locs, BlobKind::Relations, relations_of_block)?;
+    if mixed {
+        return Ok(None);
+    }
     let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
     rels.sort_by_key(|r| r.id);
     rels.dedup_by_key(|r| r.id);
@@ -56,7 +81,10 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
     member_ways.dedup();
 
     // Pass 2: ways.
-    let ways = pbf.pass(|b| ways_of_block(b, &member_ways))?;
+    let (ways, mixed) = pbf.pass(locs, BlobKind::Ways, |b| ways_of_block(b, &member_ways))?;
+    if mixed {
+        return Ok(None);
+    }
     let mut ways: Vec<WayRec> = ways.into_iter().flatten().collect();
     ways.sort_by_key(|w| w.id);
     ways.dedup_by_key(|w| w.id);
@@ -66,19 +94,19 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
     needed.dedup();
 
     // Pass 3: nodes.
-    let found = pbf.pass(|b| nodes_of_block(b, &needed))?;
-    let mut coords = vec![(f64::NAN, f64::NAN); needed.len()];
-    for (i, lon, lat) in found.into_iter().flatten() {
-        coords[i] = (lon, lat);
+    let mut nodes = Nodes::new(needed);
+    let (found, mixed) = pbf.pass(locs, BlobKind::Nodes, |b| nodes_of_block(b, &nodes.ids))?;
+    if mixed {
+        return Ok(None);
     }
-    let nodes = Nodes {
-        ids: needed,
-        coords,
-    };
+    for (i, lon, lat) in found.into_iter().flatten() {
+        nodes.set(i, lon, lat);
+    }
+    nodes.finish();
 
     let mut result = assemble(&mut ways, &rels, &nodes, report);
     result.streets = streets_of(&ways, &nodes);
-    Ok(result)
+    Ok(Some(result))
 }
 
 /// The `highway=*` values read as streets a front door can face, with their `_link` roads.
@@ -147,6 +175,47 @@ fn streets_of(ways: &[WayRec], nodes: &Nodes) -> super::Streets {
 // ---------------------------------------------------------------------------------------------
 // File access
 
+/// Largest BlobHeader the PBF format allows (64 KiB).
+const MAX_HEADER: usize = 64 * 1024;
+/// Largest Blob the PBF format allows (32 MiB).
+const MAX_BLOB: u64 = 32 * 1024 * 1024;
+
+/// Which elements a data blob holds, as far as the sweep can tell from its first group.
+///
+/// Writers (osmium, osmosis, ours) put one kind of element in a block, so the first group tells
+/// the pass that needs the block. `Any` (the blob could not be peeked, or holds no group) is
+/// decoded by every pass. A block that turns out to hold other kinds too makes the read start
+/// again with every blob `Any`: exact, and as slow as three full decodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum BlobKind {
+    Nodes,
+    Ways,
+    Relations,
+    Any,
+}
+
+/// Where a data blob lies in the file: its frame (length prefix, header, blob) and kind.
+#[derive(Clone, Copy, Debug)]
+struct BlobLoc {
+    /// 0-based index among all blobs of the file, for messages.
+    index: usize,
+    start: u64,
+    len: usize,
+    kind: BlobKind,
+}
+
+/// One framed blob read from the file.
+struct Frame {
+    index: usize,
+    start: u64,
+    /// The whole frame: 4-byte length, BlobHeader, Blob.
+    bytes: Vec<u8>,
+    /// Where the Blob message starts in `bytes`.
+    data: usize,
+    /// The header's type: `OSMHeader`, `OSMData` or something else.
+    data_blob: bool,
+}
+
 /// An opened PBF file: the path for messages and the length to detect trailing garbage.
 struct Pbf {
     path: PathBuf,
@@ -187,110 +256,11 @@ impl Pbf {
         }
     }
 
-    /// Runs `f` on every data block, in parallel batches, and returns the results in file
-    /// order. Checks the framing: the first blob must be an OSMHeader, every blob must decode,
-    /// and the blobs must end exactly at the end of the file.
-    fn pass<T, F>(&self, f: F) -> Result<Vec<T>, InputError>
-    where
-        T: Send,
-        F: Fn(&PrimitiveBlock) -> T + Sync,
-    {
-        let file = File::open(&self.path).map_err(|source| InputError::Io {
+    fn file(&self) -> Result<File, InputError> {
+        File::open(&self.path).map_err(|source| InputError::Io {
             path: self.path.clone(),
             source,
-        })?;
-        let mut reader =
-            BlobReader::new_seekable(BufReader::new(file)).map_err(|e| InputError::Io {
-                path: self.path.clone(),
-                source: e.into(),
-            })?;
-        let mut out = Vec::new();
-        let mut index = 0usize;
-        let mut end_of_last = 0u64;
-        loop {
-            let mut batch = Vec::with_capacity(BATCH);
-            while batch.len() < BATCH {
-                // The framing code of osmpbf is not expected to panic, but a corrupt file must
-                // never bring the process down, so it is fenced like the decoding below.
-                let next = catch_unwind(AssertUnwindSafe(|| reader.next()));
-                let blob = match next {
-                    Ok(None) => break,
-                    Ok(Some(Ok(b))) => b,
-                    Ok(Some(Err(e))) => {
-                        return Err(self.framing_error(index, end_of_last, &e.to_string()))
-                    }
-                    Err(_) => return Err(self.framing_error(index, end_of_last, "unreadable")),
-                };
-                end_of_last = reader
-                    .seek_raw(SeekFrom::Current(0))
-                    .map_err(|e| self.corrupt(index, Some(end_of_last), e.to_string()))?;
-                batch.push((index, blob));
-                index += 1;
-            }
-            if batch.is_empty() {
-                break;
-            }
-            let results: Vec<Result<Option<T>, InputError>> = batch
-                .par_iter()
-                .map(|(i, blob)| {
-                    let offset = blob.offset().map(|o| o.0);
-                    let decoded = catch_unwind(AssertUnwindSafe(|| match blob.decode() {
-                        Ok(BlobDecode::OsmHeader(h)) => {
-                            let unsupported: Vec<&String> = h
-                                .required_features()
-                                .iter()
-                                .filter(|f| !matches!(f.as_str(), "OsmSchema-V0.6" | "DenseNodes"))
-                                .collect();
-                            if unsupported.is_empty() {
-                                Ok(None)
-                            } else {
-                                Err(format!("unsupported required features {unsupported:?}"))
-                            }
-                        }
-                        Ok(BlobDecode::OsmData(_)) if *i == 0 => {
-                            Err("the first block is not an OSMHeader".to_string())
-                        }
-                        Ok(BlobDecode::OsmData(block)) => Ok(Some(f(&block))),
-                        Ok(BlobDecode::Unknown(t)) if *i == 0 => {
-                            Err(format!("the first block has unknown type {t:?}"))
-                        }
-                        Ok(BlobDecode::Unknown(_)) => Ok(None),
-                        Err(e) => Err(e.to_string()),
-                    }));
-                    match decoded {
-                        Ok(Ok(v)) => Ok(v),
-                        Ok(Err(reason)) if *i == 0 => Err(InputError::NotPbf {
-                            path: self.path.clone(),
-                            reason,
-                        }),
-                        Ok(Err(reason)) => Err(self.corrupt(*i, offset, reason)),
-                        Err(_) => Err(self.corrupt(*i, offset, "the block cannot be decoded")),
-                    }
-                })
-                .collect();
-            for r in results {
-                if let Some(v) = r? {
-                    out.push(v);
-                }
-            }
-        }
-        if index == 0 {
-            return Err(InputError::NotPbf {
-                path: self.path.clone(),
-                reason: "no PBF blocks found".into(),
-            });
-        }
-        if end_of_last != self.len {
-            return Err(self.corrupt(
-                index,
-                Some(end_of_last),
-                format!(
-                    "{} bytes after the last complete block: the file is truncated or has trailing garbage",
-                    self.len.saturating_sub(end_of_last)
-                ),
-            ));
-        }
-        Ok(out)
+        })
     }
 
     /// An error while framing blob `index`: the first blob failing means this is not a PBF.
@@ -302,6 +272,404 @@ impl Pbf {
             }
         } else {
             self.corrupt(index, Some(offset), reason)
+        }
+    }
+
+    /// Reads the frame of blob `index` starting at `start`, or `None` at the end of the file.
+    /// Checks the sizes the format allows before allocating.
+    fn read_frame(
+        &self,
+        r: &mut impl Read,
+        index: usize,
+        start: u64,
+    ) -> Result<Option<Frame>, InputError> {
+        let err = |reason: &str| self.framing_error(index, start, reason);
+        let mut len4 = [0u8; 4];
+        let got = read_full(r, &mut len4).map_err(|e| err(&e.to_string()))?;
+        if got == 0 {
+            return Ok(None);
+        }
+        if got < 4 {
+            return Err(self.corrupt(
+                index,
+                Some(start),
+                format!(
+                    "{got} bytes after the last complete block: the file is truncated or has trailing garbage"
+                ),
+            ));
+        }
+        let hlen = u32::from_be_bytes(len4) as usize;
+        if hlen > MAX_HEADER {
+            return Err(err(&format!(
+                "blob header of {hlen} bytes (at most {MAX_HEADER})"
+            )));
+        }
+        let mut bytes = vec![0u8; 4 + hlen];
+        bytes[..4].copy_from_slice(&len4);
+        if read_full(r, &mut bytes[4..]).map_err(|e| err(&e.to_string()))? < hlen {
+            return Err(err("the file ends inside a blob header"));
+        }
+        let (data_blob, size) = parse_blob_header(&bytes[4..])
+            .map(|(kind, size)| (kind == b"OSMData", size))
+            .ok_or_else(|| err("unreadable blob header"))?;
+        if size > MAX_BLOB {
+            return Err(err(&format!("blob of {size} bytes (at most {MAX_BLOB})")));
+        }
+        let data = bytes.len();
+        bytes.resize(data + size as usize, 0);
+        if read_full(r, &mut bytes[data..]).map_err(|e| err(&e.to_string()))? < size as usize {
+            return Err(err("the file ends inside a blob"));
+        }
+        Ok(Some(Frame {
+            index,
+            start,
+            bytes,
+            data,
+            data_blob,
+        }))
+    }
+
+    /// Frames every blob of the file once, checks the header block, and peeks at each data
+    /// blob's first group to tell its kind. Checks the framing: the first blob must be an
+    /// OSMHeader, and the blobs must end exactly at the end of the file.
+    fn sweep(&self) -> Result<Vec<BlobLoc>, InputError> {
+        let mut r = BufReader::new(self.file()?);
+        let mut locs = Vec::new();
+        let mut index = 0usize;
+        let mut pos = 0u64;
+        loop {
+            let mut batch = Vec::with_capacity(BATCH);
+            while batch.len() < BATCH {
+                let Some(frame) = self.read_frame(&mut r, index, pos)? else {
+                    break;
+                };
+                pos += frame.bytes.len() as u64;
+                index += 1;
+                batch.push(frame);
+            }
+            if batch.is_empty() {
+                break;
+            }
+            let kinds: Vec<Result<Option<BlobKind>, InputError>> = batch
+                .par_iter()
+                .map(|f| {
+                    if f.data_blob && f.index > 0 {
+                        let kind = catch_unwind(AssertUnwindSafe(|| peek_kind(&f.bytes[f.data..])));
+                        return Ok(Some(kind.unwrap_or(BlobKind::Any)));
+                    }
+                    // The header block, a data block in its place, or an unknown type: fully
+                    // decoded, as osmpbf sees them.
+                    self.decode(f, |_| ()).map(|_| None)
+                })
+                .collect();
+            for (f, k) in batch.iter().zip(kinds) {
+                if let Some(kind) = k? {
+                    locs.push(BlobLoc {
+                        index: f.index,
+                        start: f.start,
+                        len: f.bytes.len(),
+                        kind,
+                    });
+                }
+            }
+        }
+        if index == 0 {
+            return Err(InputError::NotPbf {
+                path: self.path.clone(),
+                reason: "no PBF blocks found".into(),
+            });
+        }
+        if pos != self.len {
+            return Err(self.corrupt(
+                index,
+                Some(pos),
+                format!(
+                    "{} bytes after the last complete block: the file is truncated or has trailing garbage",
+                    self.len.saturating_sub(pos)
+                ),
+            ));
+        }
+        Ok(locs)
+    }
+
+    /// Decodes one frame with osmpbf and runs `f` on its block: `Ok(None)` for a header or
+    /// unknown blob (checked like a header when it is the first). Fenced against panics: a
+    /// corrupt file must never bring the process down.
+    fn decode<T, F>(&self, frame: &Frame, f: F) -> Result<Option<T>, InputError>
+    where
+        F: Fn(&PrimitiveBlock) -> T,
+    {
+        let i = frame.index;
+        let decoded = catch_unwind(AssertUnwindSafe(|| {
+            let blob = match BlobReader::new(frame.bytes.as_slice()).next() {
+                Some(Ok(b)) => b,
+                Some(Err(e)) => return Err(e.to_string()),
+                None => return Err("empty blob".to_string()),
+            };
+            match blob.decode() {
+                Ok(BlobDecode::OsmHeader(h)) => {
+                    let unsupported: Vec<&String> = h
+                        .required_features()
+                        .iter()
+                        .filter(|f| !matches!(f.as_str(), "OsmSchema-V0.6" | "DenseNodes"))
+                        .collect();
+                    if unsupported.is_empty() {
+                        Ok(None)
+                    } else {
+                        Err(format!("unsupported required features {unsupported:?}"))
+                    }
+                }
+                Ok(BlobDecode::OsmData(_)) if i == 0 => {
+                    Err("the first block is not an OSMHeader".to_string())
+                }
+                Ok(BlobDecode::OsmData(block)) => Ok(Some(f(&block))),
+                Ok(BlobDecode::Unknown(t)) if i == 0 => {
+                    Err(format!("the first block has unknown type {t:?}"))
+                }
+                Ok(BlobDecode::Unknown(_)) => Ok(None),
+                Err(e) => Err(e.to_string()),
+            }
+        }));
+        match decoded {
+            Ok(Ok(v)) => Ok(v),
+            Ok(Err(reason)) if i == 0 => Err(InputError::NotPbf {
+                path: self.path.clone(),
+                reason,
+            }),
+            Ok(Err(reason)) => Err(self.corrupt(i, Some(frame.start), reason)),
+            Err(_) => Err(self.corrupt(i, Some(frame.start), "the block cannot be decoded")),
+        }
+    }
+
+    /// Runs `f` on every data block of kind `want` (and every `Any` block), in parallel
+    /// batches, and returns the results in file order, with whether a block held elements of
+    /// another kind than the sweep saw (then the caller starts again with every blob `Any`).
+    fn pass<T, F>(
+        &self,
+        locs: &[BlobLoc],
+        want: BlobKind,
+        f: F,
+    ) -> Result<(Vec<T>, bool), InputError>
+    where
+        T: Send,
+        F: Fn(&PrimitiveBlock) -> T + Sync,
+    {
+        let mut file = self.file()?;
+        let mut out = Vec::new();
+        let mut mixed = false;
+        let wanted: Vec<&BlobLoc> = locs
+            .iter()
+            .filter(|l| l.kind == want || l.kind == BlobKind::Any)
+            .collect();
+        for chunk in wanted.chunks(BATCH) {
+            let mut batch = Vec::with_capacity(chunk.len());
+            for l in chunk {
+                let mut bytes = vec![0u8; l.len];
+                file.seek(SeekFrom::Start(l.start))
+                    .and_then(|_| file.read_exact(&mut bytes))
+                    .map_err(|e| self.corrupt(l.index, Some(l.start), e.to_string()))?;
+                batch.push((
+                    l.kind,
+                    Frame {
+                        index: l.index,
+                        start: l.start,
+                        data: 0,
+                        bytes,
+                        data_blob: true,
+                    },
+                ));
+            }
+            let results: Vec<Result<Option<(T, bool)>, InputError>> = batch
+                .par_iter()
+                .map(|(kind, frame)| {
+                    self.decode(frame, |block| {
+                        let foreign = *kind != BlobKind::Any && holds_other_than(block, want);
+                        (f(block), foreign)
+                    })
+                })
+                .collect();
+            for r in results {
+                if let Some((v, foreign)) = r? {
+                    mixed |= foreign;
+                    out.push(v);
+                }
+            }
+        }
+        Ok((out, mixed))
+    }
+}
+
+/// Reads until `buf` is full or the end of the input; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Whether a block holds elements of another kind than `want`.
+fn holds_other_than(block: &PrimitiveBlock, want: BlobKind) -> bool {
+    block.groups().any(|g| {
+        let nodes = g.nodes().next().is_some() || g.dense_nodes().next().is_some();
+        let ways = g.ways().next().is_some();
+        let rels = g.relations().next().is_some();
+        match want {
+            BlobKind::Nodes => ways || rels,
+            BlobKind::Ways => nodes || rels,
+            BlobKind::Relations => nodes || ways,
+            BlobKind::Any => false,
+        }
+    })
+}
+
+/// A protobuf varint at `*pos`, advancing it; `None` when the bytes end or it is too long.
+fn varint(b: &[u8], pos: &mut usize) -> Option<u64> {
+    let mut v = 0u64;
+    for shift in (0..64).step_by(7) {
+        let byte = *b.get(*pos)?;
+        *pos += 1;
+        v |= u64::from(byte & 0x7f) << shift;
+        if byte & 0x80 == 0 {
+            return Some(v);
+        }
+    }
+    None
+}
+
+/// Skips a field of wire type `wire` at `*pos`; `None` when the bytes end or the type is
+/// unknown.
+fn skip_field(b: &[u8], pos: &mut usize, wire: u64) -> Option<()> {
+    let end = match wire {
+        0 => return varint(b, pos).map(|_| ()),
+        1 => pos.checked_add(8)?,
+        2 => {
+            let len = usize::try_from(varint(b, pos)?).ok()?;
+            pos.checked_add(len)?
+        }
+        5 => pos.checked_add(4)?,
+        _ => return None,
+    };
+    (end <= b.len()).then(|| *pos = end)
+}
+
+/// A BlobHeader's type (field 1) and data size (field 3).
+fn parse_blob_header(b: &[u8]) -> Option<(&[u8], u64)> {
+    let (mut pos, mut kind, mut size) = (0, None, None);
+    while pos < b.len() {
+        let key = varint(b, &mut pos)?;
+        match key {
+            0x0a => {
+                let len = usize::try_from(varint(b, &mut pos)?).ok()?;
+                let end = pos.checked_add(len).filter(|&e| e <= b.len())?;
+                kind = Some(&b[pos..end]);
+                pos = end;
+            }
+            0x18 => size = Some(varint(b, &mut pos)?),
+            _ => skip_field(b, &mut pos, key & 7)?,
+        }
+    }
+    Some((kind?, size?))
+}
+
+/// The kind of a data blob's first group, inflating only as much of the block as it takes
+/// (the string table and the first group's first field). `Any` when it cannot tell.
+fn peek_kind(blob: &[u8]) -> BlobKind {
+    // Blob: field 1 raw bytes, field 3 zlib_data; other compressions are left to osmpbf.
+    let (mut pos, mut raw, mut zlib) = (0, None, None);
+    while pos < blob.len() {
+        let Some(key) = varint(blob, &mut pos) else {
+            return BlobKind::Any;
+        };
+        if key == 0x0a || key == 0x1a {
+            let Some(len) = varint(blob, &mut pos).and_then(|l| usize::try_from(l).ok()) else {
+                return BlobKind::Any;
+            };
+            let Some(end) = pos.checked_add(len).filter(|&e| e <= blob.len()) else {
+                return BlobKind::Any;
+            };
+            if key == 0x0a {
+                raw = Some(&blob[pos..end]);
+            } else {
+                zlib = Some(&blob[pos..end]);
+            }
+            pos = end;
+        } else if skip_field(blob, &mut pos, key & 7).is_none() {
+            return BlobKind::Any;
+        }
+    }
+    if let Some(r) = raw {
+        return first_group_kind(r, true).unwrap_or(BlobKind::Any);
+    }
+    let Some(z) = zlib else {
+        return BlobKind::Any;
+    };
+    let mut inflater = flate2::Decompress::new(true);
+    let mut buf: Vec<u8> = Vec::with_capacity(16 * 1024);
+    loop {
+        if buf.len() == buf.capacity() {
+            if buf.len() as u64 >= MAX_BLOB {
+                return BlobKind::Any;
+            }
+            buf.reserve(buf.len());
+        }
+        let consumed = usize::try_from(inflater.total_in()).unwrap_or(usize::MAX);
+        let Some(input) = z.get(consumed..) else {
+            return BlobKind::Any;
+        };
+        let before = buf.len();
+        let status = match inflater.decompress_vec(input, &mut buf, flate2::FlushDecompress::None) {
+            Ok(s) => s,
+            Err(_) => return BlobKind::Any,
+        };
+        let done = status == flate2::Status::StreamEnd;
+        if let Some(kind) = first_group_kind(&buf, done) {
+            return kind;
+        }
+        let stuck = buf.len() == before
+            && usize::try_from(inflater.total_in()).unwrap_or(usize::MAX) == consumed;
+        if done || stuck {
+            return BlobKind::Any;
+        }
+    }
+}
+
+/// The kind of a PrimitiveBlock's first non-empty group (field 2), from its first field;
+/// `None` when `b` is a prefix too short to tell (and `complete` is false).
+fn first_group_kind(b: &[u8], complete: bool) -> Option<BlobKind> {
+    let more = if complete { Some(BlobKind::Any) } else { None };
+    let mut pos = 0;
+    loop {
+        if pos >= b.len() {
+            return more;
+        }
+        let Some(key) = varint(b, &mut pos) else {
+            return more;
+        };
+        if key == 0x12 {
+            let Some(len) = varint(b, &mut pos) else {
+                return more;
+            };
+            if len == 0 {
+                continue;
+            }
+            let Some(inner) = varint(b, &mut pos) else {
+                return more;
+            };
+            return Some(match inner >> 3 {
+                1 | 2 => BlobKind::Nodes,
+                3 => BlobKind::Ways,
+                4 => BlobKind::Relations,
+                _ => BlobKind::Any,
+            });
+        }
+        if skip_field(b, &mut pos, key & 7).is_none() {
+            return more;
         }
     }
 }
@@ -354,18 +722,74 @@ struct WayRec {
     street: bool,
 }
 
-/// Coordinates of the needed nodes: `coords[i]` belongs to `ids[i]`, NaN when not in the file.
+/// Coordinates of the needed nodes: `coords[i]` belongs to `ids[i]`.
+///
+/// Compact (16 bytes a node with its id): a coordinate is kept as its 1e-7 degree integer
+/// (the PBF default granularity), from which the reader's f64 is rebuilt bit for bit; the
+/// rare coordinate that is not a whole number of 1e-7 degrees goes to `exact`.
 struct Nodes {
     ids: Vec<i64>,
-    coords: Vec<(f64, f64)>,
+    /// (lon, lat) in 1e-7 degrees; [`MISSING`] when not in the file, [`EXACT`] when in `exact`.
+    coords: Vec<[i32; 2]>,
+    /// (index, lon, lat) of the coordinates `coords` cannot hold, sorted by index.
+    exact: Vec<(usize, f64, f64)>,
 }
 
+const MISSING: i32 = i32::MIN;
+const EXACT: i32 = i32::MAX;
+
 impl Nodes {
+    fn new(ids: Vec<i64>) -> Nodes {
+        let coords = vec![[MISSING; 2]; ids.len()];
+        Nodes {
+            ids,
+            coords,
+            exact: Vec::new(),
+        }
+    }
+
+    /// Sets node `i` from nanodegrees (as osmpbf gives them).
+    fn set(&mut self, i: usize, nano_lon: i64, nano_lat: i64) {
+        let small = |n: i64| {
+            (n % 100 == 0)
+                .then_some(n / 100)
+                .and_then(|d| i32::try_from(d).ok())
+                .filter(|d| *d != MISSING && *d != EXACT)
+        };
+        match (small(nano_lon), small(nano_lat)) {
+            (Some(x), Some(y)) => self.coords[i] = [x, y],
+            _ => self.set_exact(i, degrees(nano_lon), degrees(nano_lat)),
+        }
+    }
+
+    /// Sets node `i` to exact degrees.
+    fn set_exact(&mut self, i: usize, lon: f64, lat: f64) {
+        self.coords[i] = [EXACT; 2];
+        self.exact.push((i, lon, lat));
+    }
+
+    /// Sorts the exact table; call once all nodes are set.
+    fn finish(&mut self) {
+        self.exact.sort_by_key(|e| e.0);
+        self.exact.dedup_by_key(|e| e.0);
+    }
+
     fn get(&self, id: i64) -> Option<(f64, f64)> {
         let i = self.ids.binary_search(&id).ok()?;
-        let c = self.coords[i];
-        c.0.is_finite().then_some(c)
+        match self.coords[i] {
+            [MISSING, _] => None,
+            [EXACT, _] => {
+                let k = self.exact.binary_search_by_key(&i, |e| e.0).ok()?;
+                Some((self.exact[k].1, self.exact[k].2))
+            }
+            [x, y] => Some((degrees(i64::from(x) * 100), degrees(i64::from(y) * 100))),
+        }
     }
+}
+
+/// Degrees from nanodegrees, computed as osmpbf's `lat()`/`lon()` do.
+fn degrees(nano: i64) -> f64 {
+    1e-9 * nano as f64
 }
 
 /// The footprint kind a tag set asks for: `building=*` other than `no`, else `building:part=*`
@@ -469,18 +893,34 @@ fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
     out
 }
 
-fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, f64, f64)> {
+/// The needed nodes of a block as (index in `needed`, nanodegrees lon, lat). Node ids in a
+/// block are usually ascending, so the index is found by walking forward (binary search only
+/// for the first node and after a step back).
+fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, i64, i64)> {
     let mut out = Vec::new();
-    block.for_each_element(|e| {
-        let (id, lon, lat) = match e {
-            Element::Node(n) => (n.id(), n.lon(), n.lat()),
-            Element::DenseNode(n) => (n.id(), n.lon(), n.lat()),
-            _ => return,
-        };
-        if let Ok(i) = needed.binary_search(&id) {
-            out.push((i, lon, lat));
+    let mut j = 0usize;
+    let mut last = i64::MAX;
+    let mut visit = |id: i64, lon: i64, lat: i64| {
+        if id < last {
+            j = needed.partition_point(|&x| x < id);
+        } else {
+            while j < needed.len() && needed[j] < id {
+                j += 1;
+            }
         }
-    });
+        last = id;
+        if needed.get(j) == Some(&id) {
+            out.push((j, lon, lat));
+        }
+    };
+    for g in block.groups() {
+        for n in g.dense_nodes() {
+            visit(n.id(), n.nano_lon(), n.nano_lat());
+        }
+        for n in g.nodes() {
+            visit(n.id(), n.nano_lon(), n.nano_lat());
+        }
+    }
     out
 }
 

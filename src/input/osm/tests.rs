@@ -1,4 +1,5 @@
 use super::*;
+use osmpbf::Element;
 use std::collections::BTreeSet;
 
 fn monaco() -> PathBuf {
@@ -9,15 +10,18 @@ fn monaco() -> PathBuf {
 
 /// Nodes on a grid: node id `100 * x + y` sits at (x, y).
 fn grid_nodes(max: i64) -> Nodes {
-    let mut ids = Vec::new();
-    let mut coords = Vec::new();
+    let mut pts = Vec::new();
     for x in 0..=max {
         for y in 0..=max {
-            ids.push(100 * x + y);
-            coords.push((x as f64, y as f64));
+            pts.push((100 * x + y, x as f64, y as f64));
         }
     }
-    Nodes { ids, coords }
+    let mut nodes = Nodes::new(pts.iter().map(|p| p.0).collect());
+    for (i, (_, x, y)) in pts.into_iter().enumerate() {
+        nodes.set_exact(i, x, y);
+    }
+    nodes.finish();
+    nodes
 }
 
 fn n(x: i64, y: i64) -> i64 {
