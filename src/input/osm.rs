@@ -729,12 +729,16 @@ struct WayRec {
 /// rare coordinate that is not a whole number of 1e-7 degrees goes to `exact`.
 struct Nodes {
     ids: Vec<i64>,
+    /// `ids[k * FENCE]` for every k: a small table that stays in cache and narrows each lookup
+    /// to one run of `FENCE` ids.
+    fences: Vec<i64>,
     /// (lon, lat) in 1e-7 degrees; [`MISSING`] when not in the file, [`EXACT`] when in `exact`.
     coords: Vec<[i32; 2]>,
     /// (index, lon, lat) of the coordinates `coords` cannot hold, sorted by index.
     exact: Vec<(usize, f64, f64)>,
 }
 
+const FENCE: usize = 128;
 const MISSING: i32 = i32::MIN;
 const EXACT: i32 = i32::MAX;
 
@@ -742,6 +746,7 @@ impl Nodes {
     fn new(ids: Vec<i64>) -> Nodes {
         let coords = vec![[MISSING; 2]; ids.len()];
         Nodes {
+            fences: ids.iter().step_by(FENCE).copied().collect(),
             ids,
             coords,
             exact: Vec::new(),
@@ -775,7 +780,9 @@ impl Nodes {
     }
 
     fn get(&self, id: i64) -> Option<(f64, f64)> {
-        let i = self.ids.binary_search(&id).ok()?;
+        let k = self.fences.partition_point(|&f| f <= id).checked_sub(1)?;
+        let run = &self.ids[k * FENCE..self.ids.len().min((k + 1) * FENCE)];
+        let i = k * FENCE + run.binary_search(&id).ok()?;
         match self.coords[i] {
             [MISSING, _] => None,
             [EXACT, _] => {
@@ -929,12 +936,18 @@ fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, i64, i6
 
 /// A way's node list resolved to coordinates, or how many nodes are missing.
 fn resolve(refs: &[i64], nodes: &Nodes) -> Result<Ring, usize> {
-    let pts: Vec<Option<(f64, f64)>> = refs.iter().map(|&r| nodes.get(r)).collect();
-    let missing = pts.iter().filter(|p| p.is_none()).count();
+    let mut pts = Vec::with_capacity(refs.len());
+    let mut missing = 0;
+    for &r in refs {
+        match nodes.get(r) {
+            Some(p) => pts.push(p),
+            None => missing += 1,
+        }
+    }
     if missing > 0 {
         Err(missing)
     } else {
-        Ok(pts.into_iter().flatten().collect())
+        Ok(pts)
     }
 }
 
@@ -1267,47 +1280,27 @@ fn assemble(
     old_style.sort_by_key(|(w, _, _)| *w);
     old_style_notes.sort_by_key(|(w, _)| *w);
 
+    // The rings of the building/part ways, built in parallel: the costly part (node lookups,
+    // clean-up, checks); report entries are then added in way order.
+    let rings: Vec<Option<Result<Ring, String>>> = ways
+        .par_iter()
+        .map(|w| w.kind.map(|_| way_ring(w, &built_by, nodes)))
+        .collect();
     let mut result = ReadResult::default();
-    for w in ways.iter_mut() {
-        let Some(kind) = w.kind else { continue };
+    for (w, ring) in ways.iter_mut().zip(rings) {
+        let (Some(kind), Some(ring)) = (w.kind, ring) else {
+            continue;
+        };
         let id = SourceId::Way(w.id);
         count_read(report, kind);
-        let skip = |report: &mut Report, why: String| {
-            report.skipped += 1;
-            report.add(Some(id), Outcome::Skipped, why);
-        };
-        if let Some((_, r)) = built_by.iter().find(|(x, _)| *x == w.id) {
-            skip(
-                report,
-                format!("outer ring of multipolygon relation/{r}, which is built instead"),
-            );
-            continue;
-        }
-        if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
-            let why = match (w.refs.first(), w.refs.last()) {
-                (Some(a), Some(b)) if w.refs.len() >= 2 => {
-                    format!("unclosed way: first node node/{a}, last node node/{b}")
-                }
-                _ => format!("way with {} node(s)", w.refs.len()),
-            };
-            skip(report, why);
-            continue;
-        }
-        let mut outer = match resolve(&w.refs, nodes) {
-            Ok(pts) => pts,
-            Err(n) => {
-                skip(
-                    report,
-                    format!("{n} of {} nodes missing from the file", w.refs.len()),
-                );
+        let outer = match ring {
+            Ok(r) => r,
+            Err(why) => {
+                report.skipped += 1;
+                report.add(Some(id), Outcome::Skipped, why);
                 continue;
             }
         };
-        clean_ring(&mut outer);
-        if let Some(why) = ring_problem(&outer) {
-            skip(report, why.to_string());
-            continue;
-        }
         let tags = w.tags.take().unwrap_or_default();
         let holes = match old_style.binary_search_by_key(&w.id, |(x, _, _)| *x) {
             Ok(i) => {
@@ -1360,6 +1353,31 @@ fn assemble(
         }
     }
     result
+}
+
+/// The cleaned outer ring of a building/part way, or why it is skipped. `built_by` is sorted.
+fn way_ring(w: &WayRec, built_by: &[(i64, i64)], nodes: &Nodes) -> Result<Ring, String> {
+    let first = built_by.partition_point(|(x, _)| *x < w.id);
+    if let Some((_, r)) = built_by.get(first).filter(|(x, _)| *x == w.id) {
+        return Err(format!(
+            "outer ring of multipolygon relation/{r}, which is built instead"
+        ));
+    }
+    if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
+        return Err(match (w.refs.first(), w.refs.last()) {
+            (Some(a), Some(b)) if w.refs.len() >= 2 => {
+                format!("unclosed way: first node node/{a}, last node node/{b}")
+            }
+            _ => format!("way with {} node(s)", w.refs.len()),
+        });
+    }
+    let mut outer = resolve(&w.refs, nodes)
+        .map_err(|n| format!("{n} of {} nodes missing from the file", w.refs.len()))?;
+    clean_ring(&mut outer);
+    if let Some(why) = ring_problem(&outer) {
+        return Err(why.to_string());
+    }
+    Ok(outer)
 }
 
 fn count_read(report: &mut Report, kind: FootprintKind) {
