@@ -81,6 +81,9 @@ use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
 
+#[path = "ifc_lod4.rs"]
+mod lod4;
+
 /// Thickness of the base slab, extruded down from the ground surface (metres).
 const SLAB_THICKNESS: f64 = 0.2;
 /// Thickness of flat roof slabs, hanging below the roof surface (metres).
@@ -1272,6 +1275,9 @@ impl<W: Write> Open<W> {
                 let ids = self.balcony(wall, b, &frames[s], key, &path)?;
                 contained[s].extend(ids);
             }
+        }
+        if !part.interior.is_empty() {
+            self.interiors(part, key, &storeys, &frames, &mut contained, &mut by_usage)?;
         }
         if let Some(id) = self.slab(part, &frames[0], &global_id(key, &format!("{pk}/slab")))? {
             contained[0].push(id);

@@ -19,8 +19,22 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::color::Color;
 use crate::geometry::{ring_signed_area, Polygon};
 use crate::model::{Face, InteriorDoor, InteriorWall, Stair, StoreyInterior, OPENING_MARGIN};
+
+/// Colour of interior walls (the model gives them none): off-white plaster.
+pub const INTERIOR_WALL_COLOR: Color = Color::rgb(0.93, 0.92, 0.88);
+/// Colour of room floors: light oak.
+pub const FLOOR_COLOR: Color = Color::rgb(0.72, 0.58, 0.4);
+/// Colour of interior door leaves: mid-brown wood.
+pub const DOOR_COLOR: Color = Color::rgb(0.55, 0.38, 0.22);
+/// Colour of interior door frames.
+pub const DOOR_FRAME_COLOR: Color = Color::rgb(0.95, 0.95, 0.95);
+/// Colour of stairs: concrete grey.
+pub const STAIR_COLOR: Color = Color::rgb(0.62, 0.62, 0.6);
+/// Colour of floor slabs' edges and undersides (ceilings): white.
+pub const SLAB_COLOR: Color = Color::rgb(0.97, 0.97, 0.97);
 
 /// Height of an interior door's sill above the floor, and the least gap between the door and
 /// the ceiling (metres).
@@ -156,7 +170,8 @@ pub fn door_heights(s: &StoreyInterior, d: &InteriorDoor) -> Option<(f64, f64)> 
 pub fn door_points(s: &StoreyInterior, d: &InteriorDoor) -> Option<(DVec2, DVec2)> {
     let w = s.walls.get(d.wall)?;
     let len = w.a.distance(w.b);
-    if !(len > EPS) || !(d.u0 >= 0.0 && d.u1 <= len && d.u1 - d.u0 > 0.01) {
+    let inside = len > EPS && d.u0 >= 0.0 && d.u1 <= len && d.u1 - d.u0 > 0.01;
+    if !inside {
         return None;
     }
     let dir = (w.b - w.a) / len;
