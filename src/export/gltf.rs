@@ -877,7 +877,7 @@ fn add_interior(groups: &mut Vec<Group>, part: &Part, class: SurfaceClass) {
             SurfaceClass::Floors => {
                 let g = group(groups, lod4geom::FLOOR_COLOR);
                 for r in &s.rooms {
-                    if let Some(ring) = lod4geom::clean_ring(&r.polygon.outer) {
+                    if let Some(ring) = lod4geom::room_ring(r) {
                         g.add_face(&Face::new(
                             ring.iter().map(|p| p.extend(s.floor_z)).collect(),
                         ));

@@ -28,7 +28,7 @@ use std::io::Write;
 use glam::{DVec2, DVec3};
 
 use super::{ElementFrame, Open, EPS};
-use crate::export::lod4geom::{self, clean_ring};
+use crate::export::lod4geom;
 use crate::export::step::{global_id, Id};
 use crate::export::ExportError;
 use crate::model::{Face, Opening, OpeningKind, Part, StoreyInterior, Wall};
@@ -187,7 +187,7 @@ impl<W: Write> Open<W> {
         path: &str,
     ) -> Result<Option<Id>, ExportError> {
         let room = &s.rooms[r];
-        let Some(ring) = clean_ring(&room.polygon.outer) else {
+        let Some(ring) = lod4geom::room_ring(room) else {
             return Ok(None);
         };
         let height = s.ceiling_z - s.floor_z;

@@ -93,6 +93,61 @@ pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
     Some(r)
 }
 
+/// The ring of a room: its polygon's outer ring cleaned ([`clean_ring`]), or `None` when it is
+/// degenerate or not simple (two non-adjacent edges touch or cross, e.g. two pieces joined by a
+/// zero-width seam), which no writer can build a valid solid from. The model promises simple
+/// rooms; this guards the writers against a plan that breaks the promise.
+pub fn room_ring(room: &crate::model::Room) -> Option<Vec<DVec2>> {
+    let r = clean_ring(&room.polygon.outer)?;
+    is_simple(&r).then_some(r)
+}
+
+/// Whether no two non-adjacent edges of the ring touch (within 1e-7 m) or cross.
+pub fn is_simple(r: &[DVec2]) -> bool {
+    let n = r.len();
+    let orient = |a: DVec2, b: DVec2, c: DVec2| {
+        let v = (b - a).perp_dot(c - a);
+        let scale = (b - a).length().max(1e-12);
+        if v.abs() / scale <= 1e-7 {
+            0.0
+        } else {
+            v.signum()
+        }
+    };
+    let on = |a: DVec2, b: DVec2, p: DVec2| {
+        p.x >= a.x.min(b.x) - 1e-7
+            && p.x <= a.x.max(b.x) + 1e-7
+            && p.y >= a.y.min(b.y) - 1e-7
+            && p.y <= a.y.max(b.y) + 1e-7
+    };
+    for i in 0..n {
+        let (a, b) = (r[i], r[(i + 1) % n]);
+        for j in i + 1..n {
+            if j == i + 1 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            let (c, d) = (r[j], r[(j + 1) % n]);
+            let (o1, o2, o3, o4) = (
+                orient(a, b, c),
+                orient(a, b, d),
+                orient(c, d, a),
+                orient(c, d, b),
+            );
+            if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
+                return false;
+            }
+            if (o1 == 0.0 && on(a, b, c))
+                || (o2 == 0.0 && on(a, b, d))
+                || (o3 == 0.0 && on(c, d, a))
+                || (o4 == 0.0 && on(c, d, b))
+            {
+                return false;
+            }
+        }
+    }
+    true
+}
+
 /// The faces of a vertical prism over a counter-clockwise ring from `z0` up to `z1`, pointing
 /// out: bottom (clockwise seen from above), top, then one quad per edge.
 pub fn prism_faces(ring: &[DVec2], z0: f64, z1: f64) -> Vec<Face> {
@@ -180,7 +235,7 @@ pub fn door_points(s: &StoreyInterior, d: &InteriorDoor) -> Option<(DVec2, DVec2
 
 /// The shell of room `room` of storey `s`, or `None` when its polygon or height is degenerate.
 pub fn room_shell(s: &StoreyInterior, room: usize) -> Option<RoomShell> {
-    let ring = clean_ring(&s.rooms.get(room)?.polygon.outer)?;
+    let ring = room_ring(s.rooms.get(room)?)?;
     let (f, c) = (s.floor_z, s.ceiling_z);
     if !(f.is_finite() && c.is_finite() && c - f > 0.01) {
         return None;
@@ -475,7 +530,7 @@ pub fn floor_slab(below: Option<&StoreyInterior>, s: &StoreyInterior) -> (Vec<Po
     });
     let mut out = Vec::new();
     for room in &s.rooms {
-        let Some(ring) = clean_ring(&room.polygon.outer) else {
+        let Some(ring) = room_ring(room) else {
             continue;
         };
         let Some(well) = &well else {
@@ -586,6 +641,40 @@ mod tests {
             }
             assert_eq!(holes, 2 * s.doors.len(), "each door cuts its two rooms");
         }
+    }
+
+    #[test]
+    fn rooms_that_are_not_simple_are_refused() {
+        let v = DVec2::new;
+        let room = |outer: Vec<DVec2>| crate::model::Room {
+            polygon: Polygon::new(outer, Vec::new()),
+            usage: "bedroom".into(),
+            name: "Bedroom".into(),
+        };
+        // Two squares joined by a zero-width seam along y = 0 (seen in a real plan).
+        let seam = room(vec![
+            v(0.0, 0.0),
+            v(0.0, -2.0),
+            v(1.0, -2.0),
+            v(1.0, 0.0),
+            v(2.0, 0.0),
+            v(2.0, -2.0),
+            v(3.0, -2.0),
+            v(3.0, 0.0),
+        ]);
+        assert!(clean_ring(&seam.polygon.outer).is_some());
+        assert!(room_ring(&seam).is_none());
+        let bow = room(vec![v(0.0, 0.0), v(2.0, 2.0), v(2.0, 0.0), v(0.0, 2.0)]);
+        assert!(room_ring(&bow).is_none());
+        let l = room(vec![
+            v(0.0, 0.0),
+            v(2.0, 0.0),
+            v(2.0, 1.0),
+            v(1.0, 1.0),
+            v(1.0, 2.0),
+            v(0.0, 2.0),
+        ]);
+        assert_eq!(room_ring(&l).map(|r| r.len()), Some(6));
     }
 
     #[test]
