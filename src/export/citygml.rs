@@ -9,7 +9,7 @@
 //!   per wall and one `bldg:RoofSurface` per roof face, each holding its polygon in a
 //!   `bldg:lod2MultiSurface`; `bldg:lod2Solid` references those polygons with `xlink:href="#id"`
 //!   so every coordinate is written once.
-//! - **LOD3** (and LOD4 runs, whose rooms the model does not carry yet): the same boundary
+//! - **LOD3**: the same boundary
 //!   surfaces in `bldg:lod3MultiSurface`, wall polygons keeping their interior rings (the
 //!   openings' holes). Each wall surface lists its openings as `bldg:opening` with a
 //!   `bldg:Window` or `bldg:Door` whose `bldg:lod3MultiSurface` holds the opening's rectangle in
@@ -20,6 +20,9 @@
 //!   together close the shell. Elements follow the schema's order: installations, boundary
 //!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
 //!   0.6, doors and opaque windows their colour, balconies theirs.
+//! - **LOD4**: the LOD3 exterior in the `lod4` properties (the code is shared, parameterised by
+//!   the LOD number), plus stairs (`bldg:interiorBuildingInstallation`) and rooms
+//!   (`bldg:interiorRoom`), written by the child module `citygml_lod4.rs` (see there).
 //!
 //! A building with one part carries its geometry itself; with several parts each part becomes a
 //! `bldg:BuildingPart` (with its own roof type, height, storeys and geometry) under

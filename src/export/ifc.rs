@@ -65,6 +65,9 @@
 //!   high, 5 cm thick, on the three free edges), both contained in the wall's storey.
 //! - Glazed facades are not written as `IfcCurtainWall`: windows only.
 //!
+//! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior
+//! doors, stairs, upper floor slabs) by the child module `ifc_lod4.rs` (see there).
+//!
 //! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
