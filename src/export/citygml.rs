@@ -9,7 +9,7 @@
 //!   per wall and one `bldg:RoofSurface` per roof face, each holding its polygon in a
 //!   `bldg:lod2MultiSurface`; `bldg:lod2Solid` references those polygons with `xlink:href="#id"`
 //!   so every coordinate is written once.
-//! - **LOD3** (and LOD4 runs, whose rooms the model does not carry yet): the same boundary
+//! - **LOD3**: the same boundary
 //!   surfaces in `bldg:lod3MultiSurface`, wall polygons keeping their interior rings (the
 //!   openings' holes). Each wall surface lists its openings as `bldg:opening` with a
 //!   `bldg:Window` or `bldg:Door` whose `bldg:lod3MultiSurface` holds the opening's rectangle in
@@ -20,6 +20,9 @@
 //!   together close the shell. Elements follow the schema's order: installations, boundary
 //!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
 //!   0.6, doors and opaque windows their colour, balconies theirs.
+//! - **LOD4**: the LOD3 exterior in the `lod4` properties (the code is shared, parameterised by
+//!   the LOD number), plus stairs (`bldg:interiorBuildingInstallation`) and rooms
+//!   (`bldg:interiorRoom`), written by the child module `citygml_lod4.rs` (see there).
 //!
 //! A building with one part carries its geometry itself; with several parts each part becomes a
 //! `bldg:BuildingPart` (with its own roof type, height, storeys and geometry) under
@@ -50,6 +53,9 @@ use crate::color::Color;
 use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Building, Face, Lod, OpeningKind, Part, RoofShape, Wall};
+
+#[path = "citygml_lod4.rs"]
+mod lod4;
 
 /// Code list of `bldg:roofType` values ([`RoofShape::citygml_code`]).
 const ROOF_TYPE_CODESPACE: &str =
@@ -85,7 +91,7 @@ enum State {
 }
 
 /// Which geometry representation the run writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum GeometryLod {
     /// Inline polygons in `lod1Solid`.
     Lod1,
@@ -93,6 +99,8 @@ enum GeometryLod {
     Lod2,
     /// LOD2's structure in `lod3` properties, with openings and balconies.
     Lod3,
+    /// LOD3's structure in `lod4` properties, with rooms and stairs.
+    Lod4,
 }
 
 impl GeometryLod {
@@ -101,6 +109,7 @@ impl GeometryLod {
             GeometryLod::Lod1 => "1",
             GeometryLod::Lod2 => "2",
             GeometryLod::Lod3 => "3",
+            GeometryLod::Lod4 => "4",
         }
     }
 }
@@ -193,7 +202,8 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         self.lod = match ctx.lod {
             Lod::Lod1 => GeometryLod::Lod1,
             Lod::Lod2 => GeometryLod::Lod2,
-            Lod::Lod3 | Lod::Lod4 => GeometryLod::Lod3,
+            Lod::Lod3 => GeometryLod::Lod3,
+            Lod::Lod4 => GeometryLod::Lod4,
         };
 
         let x = &mut self.buf;
@@ -483,7 +493,7 @@ impl Renderer<'_> {
             return;
         };
         let (mut lo, mut hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-        if self.lod == GeometryLod::Lod3 {
+        if self.lod >= GeometryLod::Lod3 {
             // Balconies stand out of the walls.
             for part in &b.parts {
                 for (_, wall) in written_walls(part) {
@@ -536,7 +546,7 @@ impl Renderer<'_> {
                 };
                 add_target(&mut materials, color, (pi, s.kind, s.index));
             }
-            if self.lod != GeometryLod::Lod3 {
+            if self.lod < GeometryLod::Lod3 {
                 continue;
             }
             for (wi, wall) in written_walls(part) {
@@ -603,6 +613,9 @@ impl Renderer<'_> {
             }
             x.s("</app:X3DMaterial>\n</app:surfaceDataMember>\n");
         }
+        if self.lod == GeometryLod::Lod4 {
+            lod4::materials(x, building_id, b, part_ids);
+        }
         x.s("</app:Appearance>\n</app:appearance>\n");
     }
 
@@ -625,7 +638,7 @@ impl Renderer<'_> {
             // A solid needs at least one surface member; a part without any writes none.
             return;
         }
-        if self.lod == GeometryLod::Lod3 {
+        if self.lod >= GeometryLod::Lod3 {
             self.geometry_lod3(part, pid);
             return;
         }
@@ -643,7 +656,7 @@ impl Renderer<'_> {
                     x.polygon(pid, &s, self.origin);
                     x.s("</gml:surfaceMember>\n");
                 }
-                GeometryLod::Lod2 | GeometryLod::Lod3 => {
+                GeometryLod::Lod2 | GeometryLod::Lod3 | GeometryLod::Lod4 => {
                     x.s("<gml:surfaceMember xlink:href=\"#");
                     x.polygon_id(pid, s.kind, s.index);
                     x.s("\"/>\n");
@@ -677,7 +690,7 @@ impl Renderer<'_> {
     /// LOD3 geometry in the schema's order: balconies (`outerBuildingInstallation`), boundary
     /// surfaces with their openings, then `lod3Solid` referencing the closed shell's polygons.
     fn geometry_lod3(&mut self, part: &Part, pid: &str) {
-        let (origin, srs) = (self.origin, self.srs);
+        let (origin, srs, d) = (self.origin, self.srs, self.lod.digit());
         let x = &mut *self.x;
         for (wi, wall) in written_walls(part) {
             for (k, bc) in wall.balconies.iter().enumerate() {
@@ -688,7 +701,9 @@ impl Renderer<'_> {
                 x.polygon_id(pid, SurfaceKind::Wall, wi);
                 x.s("_b");
                 x.uint(k as u64);
-                x.s("\">\n<gml:name>balcony</gml:name>\n<bldg:lod3Geometry>\n<gml:MultiSurface srsName=\"");
+                x.s("\">\n<gml:name>balcony</gml:name>\n<bldg:lod");
+                x.s(d);
+                x.s("Geometry>\n<gml:MultiSurface srsName=\"");
                 x.s(srs);
                 x.s("\">\n");
                 let kind = SurfaceKind::Balcony {
@@ -708,8 +723,13 @@ impl Renderer<'_> {
                     );
                     x.s("</gml:surfaceMember>\n");
                 }
-                x.s("</gml:MultiSurface>\n</bldg:lod3Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
+                x.s("</gml:MultiSurface>\n</bldg:lod");
+                x.s(d);
+                x.s("Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
             }
+        }
+        if self.lod == GeometryLod::Lod4 {
+            lod4::stairs(x, part, pid, origin, srs);
         }
         // Opening polygons of the written walls, kept for the solid's references.
         let mut opening_refs: Vec<(usize, usize)> = Vec::new();
@@ -719,11 +739,15 @@ impl Renderer<'_> {
             x.s(element);
             x.s(" gml:id=\"");
             x.polygon_id(pid, s.kind, s.index);
-            x.s("_s\">\n<bldg:lod3MultiSurface>\n<gml:MultiSurface srsName=\"");
+            x.s("_s\">\n<bldg:lod");
+            x.s(d);
+            x.s("MultiSurface>\n<gml:MultiSurface srsName=\"");
             x.s(srs);
             x.s("\">\n<gml:surfaceMember>\n");
             x.polygon(pid, &s, origin);
-            x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod3MultiSurface>\n");
+            x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod");
+            x.s(d);
+            x.s("MultiSurface>\n");
             if s.kind == SurfaceKind::Wall {
                 if let Some(wall) = part.walls.get(s.index) {
                     for (k, o) in wall.openings.iter().enumerate() {
@@ -741,7 +765,9 @@ impl Renderer<'_> {
                         x.polygon_id(pid, SurfaceKind::Wall, s.index);
                         x.s("_o");
                         x.uint(k as u64);
-                        x.s("\">\n<bldg:lod3MultiSurface>\n<gml:MultiSurface srsName=\"");
+                        x.s("\">\n<bldg:lod");
+                        x.s(d);
+                        x.s("MultiSurface>\n<gml:MultiSurface srsName=\"");
                         x.s(srs);
                         x.s("\">\n<gml:surfaceMember>\n");
                         let kind = SurfaceKind::Opening { wall: s.index };
@@ -754,7 +780,9 @@ impl Renderer<'_> {
                             },
                             origin,
                         );
-                        x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod3MultiSurface>\n</");
+                        x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod");
+                        x.s(d);
+                        x.s("MultiSurface>\n</");
                         x.s(element);
                         x.s(">\n</bldg:opening>\n");
                     }
@@ -764,7 +792,9 @@ impl Renderer<'_> {
             x.s(element);
             x.s(">\n</bldg:boundedBy>\n");
         }
-        x.s("<bldg:lod3Solid>\n<gml:Solid srsName=\"");
+        x.s("<bldg:lod");
+        x.s(d);
+        x.s("Solid>\n<gml:Solid srsName=\"");
         x.s(srs);
         x.s("\">\n<gml:exterior>\n<gml:CompositeSurface>\n");
         let shell = surfaces(part).map(|s| (s.kind, s.index)).chain(
@@ -777,7 +807,12 @@ impl Renderer<'_> {
             x.polygon_id(pid, kind, index);
             x.s("\"/>\n");
         }
-        x.s("</gml:CompositeSurface>\n</gml:exterior>\n</gml:Solid>\n</bldg:lod3Solid>\n");
+        x.s("</gml:CompositeSurface>\n</gml:exterior>\n</gml:Solid>\n</bldg:lod");
+        x.s(d);
+        x.s("Solid>\n");
+        if self.lod == GeometryLod::Lod4 {
+            lod4::rooms(x, part, pid, origin, srs);
+        }
     }
 }
 
@@ -1169,7 +1204,7 @@ mod tests {
         vec![simple_box(), two_parts(), courtyard(), hipped()]
     }
 
-    fn write_all(lod: Lod, buildings: &[Building]) -> Vec<u8> {
+    pub(super) fn write_all(lod: Lod, buildings: &[Building]) -> Vec<u8> {
         let mut w = CityGmlWriter::with_srs_name(Vec::new(), "EPSG:2154");
         w.begin(&ctx(lod)).unwrap();
         for b in buildings {
@@ -1181,24 +1216,27 @@ mod tests {
 
     /// A parsed element: enough of a DOM to check structure.
     #[derive(Debug, Default)]
-    struct El {
-        name: String,
-        attrs: BTreeMap<String, String>,
-        text: String,
-        children: Vec<El>,
+    pub(super) struct El {
+        pub(super) name: String,
+        pub(super) attrs: BTreeMap<String, String>,
+        pub(super) text: String,
+        pub(super) children: Vec<El>,
     }
 
     impl El {
-        fn attr(&self, k: &str) -> Option<&str> {
+        pub(super) fn attr(&self, k: &str) -> Option<&str> {
             self.attrs.get(k).map(String::as_str)
         }
-        fn child(&self, name: &str) -> Option<&El> {
+        pub(super) fn child(&self, name: &str) -> Option<&El> {
             self.children.iter().find(|c| c.name == name)
         }
-        fn children_named<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a El> + 'a {
+        pub(super) fn children_named<'a>(
+            &'a self,
+            name: &'a str,
+        ) -> impl Iterator<Item = &'a El> + 'a {
             self.children.iter().filter(move |c| c.name == name)
         }
-        fn descendants(&self) -> Vec<&El> {
+        pub(super) fn descendants(&self) -> Vec<&El> {
             let mut out = vec![self];
             let mut i = 0;
             while i < out.len() {
@@ -1207,10 +1245,10 @@ mod tests {
             }
             out
         }
-        fn count(&self, name: &str) -> usize {
+        pub(super) fn count(&self, name: &str) -> usize {
             self.descendants().iter().filter(|e| e.name == name).count()
         }
-        fn find_all(&self, name: &str) -> Vec<&El> {
+        pub(super) fn find_all(&self, name: &str) -> Vec<&El> {
             self.descendants()
                 .into_iter()
                 .filter(|e| e.name == name)
@@ -1219,7 +1257,7 @@ mod tests {
     }
 
     /// Parses the whole document with quick-xml, failing on any well-formedness error.
-    fn parse(bytes: &[u8]) -> El {
+    pub(super) fn parse(bytes: &[u8]) -> El {
         let text = std::str::from_utf8(bytes).expect("UTF-8");
         let mut reader = quick_xml::Reader::from_str(text);
         let mut stack = vec![El::default()];
@@ -2019,8 +2057,9 @@ mod tests {
     fn lod3_deterministic_lod4_as_lod3_lod2_without_details() {
         let b = samples::all();
         assert_eq!(write_all(Lod::Lod3, &b), write_all(Lod::Lod3, &b));
-        // LOD4 runs write LOD3 geometry.
+        // LOD4 runs write the LOD3 exterior in the lod4 properties.
         let lod4 = parse(&write_all(Lod::Lod4, &b));
+        assert_eq!(lod4.count("bldg:lod3MultiSurface"), 0);
         assert_eq!(
             lod4.count("bldg:Window"),
             b.iter().map(|x| samples::counts(x).0).sum::<usize>()

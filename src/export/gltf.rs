@@ -2,8 +2,9 @@
 //!
 //! Layout of the output: one scene; one node per building, named by the building key
 //! (`way_123`) with the source id, zone, appearance and heights in its `extras`; under it one
-//! child node per surface class (`walls`, `roof`, `ground`, and in LOD3 runs `windows`, `doors`,
-//! `balconies`) holding one mesh, with one triangle primitive per material (usually one). Classes
+//! child node per surface class (`walls`, `roof`, `ground`, in LOD3 runs `windows`, `doors`,
+//! `balconies`, and for parts with an interior (LOD4) `floors`, `interior walls`, `interior
+//! doors`, `stairs`, `slabs`) holding one mesh, with one triangle primitive per material (usually one). Classes
 //! without triangles get no node.
 //!
 //! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
@@ -12,7 +13,14 @@
 //! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
 //! else the wall colour. Glazed windows' glass is transparent (alpha [`GLASS_ALPHA`], `BLEND`);
 //! doors and unglazed windows are opaque in their colour. Balconies are a closed slab box and
-//! three railing panels, in a double-sided material. Materials are PBR metallic-roughness, one per distinct
+//! three railing panels, in a double-sided material.
+//!
+//! LOD4 ([`crate::export::lod4geom`]): `floors` are the rooms' polygons at floor height, facing
+//! up; `interior walls` are closed boxes of the walls' thickness around their centre lines,
+//! floor to ceiling, with the door holes and their reveals; `interior doors` are each a leaf in
+//! the wall's middle plane, one face per side; `stairs` are the steps' closed blocks; `slabs`
+//! are the floor slabs above the ground storey without their top face (the floors cover it),
+//! so their undersides are the ceilings below. Materials are PBR metallic-roughness, one per distinct
 //! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
 //! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
 //! "origin": [E, N, H]}`). Faces are flat shaded: every face has its own vertices and normal.
@@ -37,6 +45,7 @@ use serde::Serialize;
 use crate::color::Color;
 use crate::crs::Crs;
 use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
+use crate::export::lod4geom;
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::geometry::triangulate::triangulate_face;
 use crate::model::{Building, Face, Lod, OpeningKind, Part};
@@ -75,17 +84,28 @@ enum SurfaceClass {
     Windows,
     Doors,
     Balconies,
+    /// LOD4: room floors, interior walls, their doors, stairs, upper floor slabs.
+    Floors,
+    InteriorWalls,
+    InteriorDoors,
+    Stairs,
+    Slabs,
 }
 
 impl SurfaceClass {
     /// Every class, in the order of the building's child nodes.
-    const ALL: [SurfaceClass; 6] = [
+    const ALL: [SurfaceClass; 11] = [
         SurfaceClass::Walls,
         SurfaceClass::Roof,
         SurfaceClass::Ground,
         SurfaceClass::Windows,
         SurfaceClass::Doors,
         SurfaceClass::Balconies,
+        SurfaceClass::Floors,
+        SurfaceClass::InteriorWalls,
+        SurfaceClass::InteriorDoors,
+        SurfaceClass::Stairs,
+        SurfaceClass::Slabs,
     ];
 
     fn name(self) -> &'static str {
@@ -96,14 +116,20 @@ impl SurfaceClass {
             SurfaceClass::Windows => "windows",
             SurfaceClass::Doors => "doors",
             SurfaceClass::Balconies => "balconies",
+            SurfaceClass::Floors => "floors",
+            SurfaceClass::InteriorWalls => "interior walls",
+            SurfaceClass::InteriorDoors => "interior doors",
+            SurfaceClass::Stairs => "stairs",
+            SurfaceClass::Slabs => "slabs",
         }
     }
 
-    /// LOD3 detail classes, written only in LOD3 runs.
+    /// LOD3 detail classes (and the LOD4 ones, which only parts with an interior have),
+    /// written only in LOD3 and LOD4 runs.
     fn is_detail(self) -> bool {
-        matches!(
+        !matches!(
             self,
-            SurfaceClass::Windows | SurfaceClass::Doors | SurfaceClass::Balconies
+            SurfaceClass::Walls | SurfaceClass::Roof | SurfaceClass::Ground
         )
     }
 }
@@ -362,6 +388,11 @@ impl<W: Write + Send> GltfWriter<W> {
                             }
                         }
                     }
+                    SurfaceClass::Floors
+                    | SurfaceClass::InteriorWalls
+                    | SurfaceClass::InteriorDoors
+                    | SurfaceClass::Stairs
+                    | SurfaceClass::Slabs => add_interior(&mut groups, part, class),
                 }
             }
             groups.retain(|g| !g.mesh.indices.is_empty());
@@ -835,6 +866,68 @@ fn add_openings(groups: &mut Vec<Group>, part: &Part, kind: OpeningKind) {
             opening_reveals(w, o, depth)
                 .iter()
                 .for_each(|f| g.add_face(f));
+        }
+    }
+}
+
+/// Adds the faces of `part`'s interiors of one LOD4 class (see the module documentation).
+fn add_interior(groups: &mut Vec<Group>, part: &Part, class: SurfaceClass) {
+    for (k, s) in part.interior.iter().enumerate() {
+        match class {
+            SurfaceClass::Floors => {
+                let g = group(groups, lod4geom::FLOOR_COLOR);
+                for r in &s.rooms {
+                    if let Some(ring) = lod4geom::room_ring(r) {
+                        g.add_face(&Face::new(
+                            ring.iter().map(|p| p.extend(s.floor_z)).collect(),
+                        ));
+                    }
+                }
+            }
+            SurfaceClass::InteriorWalls => {
+                let g = group(groups, lod4geom::INTERIOR_WALL_COLOR);
+                for w in 0..s.walls.len() {
+                    lod4geom::wall_body(s, w)
+                        .iter()
+                        .flatten()
+                        .for_each(|f| g.add_face(f));
+                }
+            }
+            SurfaceClass::InteriorDoors => {
+                let g = group(groups, lod4geom::DOOR_COLOR);
+                for d in &s.doors {
+                    lod4geom::door_leaf(s, d)
+                        .iter()
+                        .flatten()
+                        .for_each(|f| g.add_face(f));
+                }
+            }
+            SurfaceClass::Stairs => {
+                let g = group(groups, lod4geom::STAIR_COLOR);
+                if let Some(st) = &s.stair {
+                    for step in lod4geom::stair_steps(s, st) {
+                        lod4geom::prism_faces(&step.ring, step.z0, step.z1)
+                            .iter()
+                            .for_each(|f| g.add_face(f));
+                    }
+                }
+            }
+            SurfaceClass::Slabs => {
+                let below = k
+                    .checked_sub(1)
+                    .and_then(|b| part.interior.get(b))
+                    .filter(|b| b.storey + 1 == s.storey);
+                let (pieces, thickness) = lod4geom::floor_slab(below, s);
+                let g = group(groups, lod4geom::SLAB_COLOR);
+                for p in &pieces {
+                    // The top face is the rooms' floors: leave it out so they do not fight.
+                    lod4geom::slab_faces(p, s.floor_z, thickness)
+                        .iter()
+                        .skip(1)
+                        .for_each(|f| g.add_face(f));
+                }
+            }
+            _ => {}
         }
     }
 }
@@ -1808,6 +1901,78 @@ mod tests {
         );
         assert!(text.contains("2 passed, 0 failed"), "{text}");
         assert_eq!(text.matches("warnings=0").count(), 2, "{text}");
+    }
+
+    // ---- LOD4 ----
+
+    #[test]
+    fn lod4_interior_nodes_and_areas() {
+        let house = crate::export::fixtures::lod4_house();
+        let glb = write_glb_at(Lod::Lod4, std::slice::from_ref(&house));
+        let (json, bin) = parse_glb(&glb);
+        let root = &json["nodes"][json["scenes"][0]["nodes"][0].as_u64().unwrap() as usize];
+        assert_eq!(
+            child_names(&json, root),
+            [
+                "walls",
+                "roof",
+                "ground",
+                "windows",
+                "doors",
+                "floors",
+                "interior walls",
+                "interior doors",
+                "stairs",
+                "slabs"
+            ]
+        );
+        let area = |class: &str| check_mesh(&json, bin, class_mesh(&json, root, class).unwrap());
+        // Floors: the usable area on each storey.
+        let usable = 11.4 * 7.4;
+        assert!(
+            (area("floors") - 2.0 * usable).abs() < 1e-3,
+            "{}",
+            area("floors")
+        );
+        // Door leaves: two faces per door, 4 doors of 0.9 m x (2.1 - sill).
+        let leaf = 0.9 * (2.1 - lod4geom::DOOR_SILL);
+        assert!((area("interior doors") - 8.0 * leaf).abs() < 1e-3);
+        // Interior walls: both long faces minus the door holes dominate; at least that much.
+        let walls = 2.0 * 2.8 * (3.7 + 3.7 + 7.4) * 2.0 - 2.0 * 4.0 * leaf;
+        assert!(area("interior walls") > walls);
+        // Slabs: only the upper storey has one: its underside is the rooms minus the well.
+        let well = 1.0 * 4.5;
+        assert!(area("slabs") > usable - well);
+        assert!(area("stairs") > 0.0);
+        // Below LOD4 a model without interiors writes none of these nodes.
+        let glb = write_glb_at(Lod::Lod3, &samples::all());
+        let (json, _) = parse_glb(&glb);
+        for r in json["scenes"][0]["nodes"].as_array().unwrap() {
+            let node = &json["nodes"][r.as_u64().unwrap() as usize];
+            assert!(!child_names(&json, node).iter().any(|n| n == "floors"));
+        }
+    }
+
+    #[test]
+    fn lod4_validates_with_khronos() {
+        let Some(tool) = crate::export::fixtures::validator() else {
+            eprintln!("validate-outputs not installed: skipped");
+            return;
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lod4.glb");
+        let bytes = write_glb_at(Lod::Lod4, &crate::export::fixtures::lod4_all());
+        if let Some(keep) = std::env::var_os("CITYGEN_GLB_LOD4_SAMPLE") {
+            std::fs::write(keep, &bytes).unwrap();
+        }
+        std::fs::write(&path, bytes).unwrap();
+        let out = std::process::Command::new(tool)
+            .arg(&path)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
+        assert!(text.contains("warnings=0"), "{text}");
     }
 
     // ---- LOD3 ----

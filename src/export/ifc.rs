@@ -65,6 +65,9 @@
 //!   high, 5 cm thick, on the three free edges), both contained in the wall's storey.
 //! - Glazed facades are not written as `IfcCurtainWall`: windows only.
 //!
+//! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior
+//! doors, stairs, upper floor slabs) by the child module `ifc_lod4.rs` (see there).
+//!
 //! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
@@ -80,6 +83,9 @@ use crate::color::Color;
 use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
+
+#[path = "ifc_lod4.rs"]
+mod lod4;
 
 /// Thickness of the base slab, extruded down from the ground surface (metres).
 const SLAB_THICKNESS: f64 = 0.2;
@@ -1272,6 +1278,9 @@ impl<W: Write> Open<W> {
                 let ids = self.balcony(wall, b, &frames[s], key, &path)?;
                 contained[s].extend(ids);
             }
+        }
+        if !part.interior.is_empty() {
+            self.interiors(part, key, &storeys, &frames, &mut contained, &mut by_usage)?;
         }
         if let Some(id) = self.slab(part, &frames[0], &global_id(key, &format!("{pk}/slab")))? {
             contained[0].push(id);

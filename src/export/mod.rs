@@ -2,9 +2,12 @@
 //! values one at a time (streaming) and nothing else.
 
 pub mod citygml;
+#[cfg(test)]
+pub(crate) mod fixtures;
 pub mod gltf;
 pub mod ifc;
 pub mod lod3geom;
+pub mod lod4geom;
 pub mod step;
 
 use std::fs::File;
