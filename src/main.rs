@@ -202,8 +202,8 @@ fn parse_lod(s: &str) -> Result<Lod, String> {
         "1" => Ok(Lod::Lod1),
         "2" => Ok(Lod::Lod2),
         "3" => Ok(Lod::Lod3),
-        "4" => Err("LOD 4 (interiors) is not available yet; use 1, 2 or 3".into()),
-        _ => Err(format!("LOD must be 1, 2 or 3, not {s:?}")),
+        "4" => Ok(Lod::Lod4),
+        _ => Err(format!("LOD must be 1, 2, 3 or 4, not {s:?}")),
     }
 }
 

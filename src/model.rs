@@ -362,7 +362,8 @@ impl Building {
 
     /// Number of planar polygons of the building's surfaces, about as CityGML writes them: walls,
     /// roof faces and grounds, plus at LOD3 one per window or door and the 9 faces of each
-    /// balcony (a 6-face slab and 3 railing panels).
+    /// balcony (a 6-face slab and 3 railing panels), and at LOD4 per storey each room's floor,
+    /// ceiling and sides, 6 faces per interior wall and door leaf and per stair step.
     pub fn polygon_count(&self) -> usize {
         self.parts
             .iter()
@@ -372,7 +373,16 @@ impl Building {
                     .iter()
                     .map(|w| w.openings.len() + 9 * w.balconies.len())
                     .sum();
-                p.walls.len() + p.roof.len() + 1 + facade
+                let interior: usize = p
+                    .interior
+                    .iter()
+                    .map(|s| {
+                        let rooms: usize = s.rooms.iter().map(|r| 2 + r.polygon.outer.len()).sum();
+                        let stair = s.stair.as_ref().map_or(0, |st| 6 * st.risers as usize);
+                        rooms + 6 * (s.walls.len() + s.doors.len()) + stair
+                    })
+                    .sum();
+                p.walls.len() + p.roof.len() + 1 + facade + interior
             })
             .sum()
     }

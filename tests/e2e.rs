@@ -887,3 +887,47 @@ fn tiled_run_puts_every_building_in_exactly_one_tile_with_the_same_bytes() {
         tiled.report_json()["generated"]
     );
 }
+
+/// The south-west corner of the Clifton sample (a few dozen houses), as `--bbox=...` because
+/// the value starts with a minus sign.
+const CLIFTON_PART: &str = "--bbox=-1.1950,52.9020,-1.1900,52.9050";
+
+#[test]
+fn lod4_from_the_command_line_writes_every_room_in_every_format() {
+    let run = run_all("--shp", CLIFTON, "4", &[CLIFTON_PART]);
+    let report = run.report_json();
+    assert_eq!(report["skipped"], 0, "{report}");
+    let ents = step_entities(&run.ifc);
+    let count = |t: &str| ents.values().filter(|(k, _)| k == t).count();
+    let spaces = count("IFCSPACE");
+    let buildings = count("IFCBUILDING");
+    assert!(buildings > 20, "{buildings} buildings");
+    // Houses of two storeys and more: a stair each, rooms on every storey.
+    assert!(
+        spaces > 4 * buildings,
+        "{spaces} spaces in {buildings} buildings"
+    );
+    assert!(
+        count("IFCSTAIR") > buildings / 2,
+        "{} stairs",
+        count("IFCSTAIR")
+    );
+    let gml = std::fs::read_to_string(&run.gml).unwrap();
+    assert_eq!(gml.matches("<bldg:Room ").count(), spaces);
+    assert!(gml.contains("<bldg:lod4Solid>") && gml.contains("<bldg:InteriorWallSurface"));
+    let (json, _) = glb_json(&run.glb);
+    let names: Vec<&str> = json["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|n| n["name"].as_str())
+        .collect();
+    // Child nodes per class, interior ones included (named "<building> <class>").
+    for class in ["floors", "interior walls", "interior doors", "stairs"] {
+        assert!(
+            names.iter().any(|n| n.ends_with(class)),
+            "no {class:?} node among {} nodes",
+            names.len()
+        );
+    }
+}

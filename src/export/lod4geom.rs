@@ -20,7 +20,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
-use crate::geometry::{ring_signed_area, Polygon};
+use crate::geometry::{clean_ring, is_simple, Polygon};
 use crate::model::{Face, InteriorDoor, InteriorWall, Stair, StoreyInterior, OPENING_MARGIN};
 
 /// Colour of interior walls (the model gives them none): off-white plaster.
@@ -49,50 +49,6 @@ const EPS: f64 = 1e-6;
 /// may lie off the side's line (metres).
 const DOOR_FIT: f64 = 0.005;
 
-/// A ring without repeated (closer than 0.1 mm), closing or collinear vertices, counter-clockwise;
-/// `None` when fewer than 3 vertices or no area remain.
-pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
-    let mut r: Vec<DVec2> = Vec::with_capacity(ring.len());
-    for &p in ring {
-        if !p.is_finite() {
-            return None;
-        }
-        if r.last().is_none_or(|q: &DVec2| q.distance(p) > 1e-4) {
-            r.push(p);
-        }
-    }
-    while r.len() > 1 && r[0].distance(r[r.len() - 1]) <= 1e-4 {
-        r.pop();
-    }
-    // Drop collinear vertices until none is left (a vertex whose neighbours it lies between).
-    let mut changed = true;
-    while changed && r.len() >= 3 {
-        changed = false;
-        let n = r.len();
-        for i in 0..n {
-            let (a, p, b) = (r[(i + n - 1) % n], r[i], r[(i + 1) % n]);
-            let ab = b - a;
-            let len = ab.length();
-            if len <= EPS || (p - a).perp_dot(ab).abs() / len <= 1e-6 {
-                r.remove(i);
-                changed = true;
-                break;
-            }
-        }
-    }
-    if r.len() < 3 {
-        return None;
-    }
-    let area = ring_signed_area(&r);
-    if area.abs() <= 1e-8 {
-        return None;
-    }
-    if area < 0.0 {
-        r.reverse();
-    }
-    Some(r)
-}
-
 /// The ring of a room: its polygon's outer ring cleaned ([`clean_ring`]), or `None` when it is
 /// degenerate or not simple (two non-adjacent edges touch or cross, e.g. two pieces joined by a
 /// zero-width seam), which no writer can build a valid solid from. The model promises simple
@@ -100,52 +56,6 @@ pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
 pub fn room_ring(room: &crate::model::Room) -> Option<Vec<DVec2>> {
     let r = clean_ring(&room.polygon.outer)?;
     is_simple(&r).then_some(r)
-}
-
-/// Whether no two non-adjacent edges of the ring touch (within 1e-7 m) or cross.
-pub fn is_simple(r: &[DVec2]) -> bool {
-    let n = r.len();
-    let orient = |a: DVec2, b: DVec2, c: DVec2| {
-        let v = (b - a).perp_dot(c - a);
-        let scale = (b - a).length().max(1e-12);
-        if v.abs() / scale <= 1e-7 {
-            0.0
-        } else {
-            v.signum()
-        }
-    };
-    let on = |a: DVec2, b: DVec2, p: DVec2| {
-        p.x >= a.x.min(b.x) - 1e-7
-            && p.x <= a.x.max(b.x) + 1e-7
-            && p.y >= a.y.min(b.y) - 1e-7
-            && p.y <= a.y.max(b.y) + 1e-7
-    };
-    for i in 0..n {
-        let (a, b) = (r[i], r[(i + 1) % n]);
-        for j in i + 1..n {
-            if j == i + 1 || (i == 0 && j == n - 1) {
-                continue;
-            }
-            let (c, d) = (r[j], r[(j + 1) % n]);
-            let (o1, o2, o3, o4) = (
-                orient(a, b, c),
-                orient(a, b, d),
-                orient(c, d, a),
-                orient(c, d, b),
-            );
-            if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
-                return false;
-            }
-            if (o1 == 0.0 && on(a, b, c))
-                || (o2 == 0.0 && on(a, b, d))
-                || (o3 == 0.0 && on(c, d, a))
-                || (o4 == 0.0 && on(c, d, b))
-            {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 /// The faces of a vertical prism over a counter-clockwise ring from `z0` up to `z1`, pointing
@@ -593,6 +503,7 @@ pub fn slab_faces(p: &Polygon, z_top: f64, thickness: f64) -> Vec<Face> {
 mod tests {
     use super::*;
     use crate::export::fixtures;
+    use crate::geometry::ring_signed_area;
 
     /// Every directed edge of the faces (outer rings and holes) has its reverse exactly once.
     pub(crate) fn is_closed(faces: &[&Face]) -> bool {

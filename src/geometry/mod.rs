@@ -103,6 +103,9 @@ impl Polygon {
     }
 }
 
+/// Lengths below this are zero in [`clean_ring`] (metres).
+const RING_EPS: f64 = 1e-6;
+
 /// Crossing-number point-in-ring test.
 pub fn ring_contains(ring: &[DVec2], p: DVec2) -> bool {
     let n = ring.len();
@@ -129,4 +132,94 @@ pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
         n.z += (a.x - b.x) * (a.y + b.y);
     }
     n
+}
+
+/// A ring without repeated (closer than 0.1 mm), closing or collinear vertices, counter-clockwise;
+/// `None` when fewer than 3 vertices or no area remain.
+pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
+    let mut r: Vec<DVec2> = Vec::with_capacity(ring.len());
+    for &p in ring {
+        if !p.is_finite() {
+            return None;
+        }
+        if r.last().is_none_or(|q: &DVec2| q.distance(p) > 1e-4) {
+            r.push(p);
+        }
+    }
+    while r.len() > 1 && r[0].distance(r[r.len() - 1]) <= 1e-4 {
+        r.pop();
+    }
+    // Drop collinear vertices until none is left (a vertex whose neighbours it lies between).
+    let mut changed = true;
+    while changed && r.len() >= 3 {
+        changed = false;
+        let n = r.len();
+        for i in 0..n {
+            let (a, p, b) = (r[(i + n - 1) % n], r[i], r[(i + 1) % n]);
+            let ab = b - a;
+            let len = ab.length();
+            if len <= RING_EPS || (p - a).perp_dot(ab).abs() / len <= 1e-6 {
+                r.remove(i);
+                changed = true;
+                break;
+            }
+        }
+    }
+    if r.len() < 3 {
+        return None;
+    }
+    let area = ring_signed_area(&r);
+    if area.abs() <= 1e-8 {
+        return None;
+    }
+    if area < 0.0 {
+        r.reverse();
+    }
+    Some(r)
+}
+
+/// Whether no two non-adjacent edges of the ring touch (within 1e-7 m) or cross.
+pub fn is_simple(r: &[DVec2]) -> bool {
+    let n = r.len();
+    let orient = |a: DVec2, b: DVec2, c: DVec2| {
+        let v = (b - a).perp_dot(c - a);
+        let scale = (b - a).length().max(1e-12);
+        if v.abs() / scale <= 1e-7 {
+            0.0
+        } else {
+            v.signum()
+        }
+    };
+    let on = |a: DVec2, b: DVec2, p: DVec2| {
+        p.x >= a.x.min(b.x) - 1e-7
+            && p.x <= a.x.max(b.x) + 1e-7
+            && p.y >= a.y.min(b.y) - 1e-7
+            && p.y <= a.y.max(b.y) + 1e-7
+    };
+    for i in 0..n {
+        let (a, b) = (r[i], r[(i + 1) % n]);
+        for j in i + 1..n {
+            if j == i + 1 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            let (c, d) = (r[j], r[(j + 1) % n]);
+            let (o1, o2, o3, o4) = (
+                orient(a, b, c),
+                orient(a, b, d),
+                orient(c, d, a),
+                orient(c, d, b),
+            );
+            if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
+                return false;
+            }
+            if (o1 == 0.0 && on(a, b, c))
+                || (o2 == 0.0 && on(a, b, d))
+                || (o3 == 0.0 && on(c, d, a))
+                || (o4 == 0.0 && on(c, d, b))
+            {
+                return false;
+            }
+        }
+    }
+    true
 }

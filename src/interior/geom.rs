@@ -315,3 +315,89 @@ pub fn shared_segments(a: &[DVec2], b: &[DVec2]) -> Vec<(DVec2, DVec2)> {
     }
     out
 }
+
+/// Tolerance of [`simple_parts`]: a vertex this close to another vertex or to an edge touches it
+/// (metres). [`crate::geometry::is_simple`] counts touching at 1e-7 relative, well inside this.
+const TOUCH: f64 = 1e-6;
+
+/// The simple rings a writer builds a solid from, for one polygon outer ring: the ring cleaned
+/// as the writers clean it ([`crate::geometry::clean_ring`], counter-clockwise) and, when it
+/// touches itself (two pieces joined at a vertex or by a zero-width seam, which `geo`'s boolean
+/// operations produce and call valid), cut at every touching point into its pieces. Pieces that
+/// run clockwise are holes pinched onto the ring: they are returned in the second list, for the
+/// caller to cut the polygon through them. A ring that still crosses itself is returned as it
+/// is (never seen from the planner's own cuts; the plan tests check it).
+pub fn simple_parts(ring: &[DVec2]) -> (Vec<Vec<DVec2>>, Vec<Vec<DVec2>>) {
+    let (mut outers, mut holes) = (Vec::new(), Vec::new());
+    let Some(first) = crate::geometry::clean_ring(ring) else {
+        return (outers, holes);
+    };
+    let mut stack = vec![first];
+    let mut budget = 256usize;
+    while let Some(r) = stack.pop() {
+        if crate::geometry::is_simple(&r) || budget == 0 {
+            outers.push(r);
+            continue;
+        }
+        budget -= 1;
+        let r = node_ring(r);
+        let n = r.len();
+        let pinch = (0..n).find_map(|i| {
+            ((i + 2)..n)
+                .find(|&j| r[i].distance(r[j]) <= TOUCH && !(i == 0 && j == n - 1))
+                .map(|j| (i, j))
+        });
+        let Some((i, j)) = pinch else {
+            outers.push(r);
+            continue;
+        };
+        let a: Vec<DVec2> = r[i..j].to_vec();
+        let b: Vec<DVec2> = r[j..].iter().chain(r[..i].iter()).copied().collect();
+        for piece in [a, b] {
+            let clockwise = ring_signed_area(&piece) < 0.0;
+            if let Some(c) = crate::geometry::clean_ring(&piece) {
+                if clockwise {
+                    holes.push(c);
+                } else {
+                    stack.push(c);
+                }
+            }
+        }
+    }
+    (outers, holes)
+}
+
+/// Inserts every vertex that lies on the inside of a non-adjacent edge into that edge, so that
+/// a ring touching itself along an edge shares a vertex there.
+fn node_ring(mut r: Vec<DVec2>) -> Vec<DVec2> {
+    for _ in 0..64 {
+        let n = r.len();
+        let mut hit = None;
+        'search: for k in 0..n {
+            let p = r[k];
+            for i in 0..n {
+                let j = (i + 1) % n;
+                if i == k || j == k {
+                    continue;
+                }
+                let (a, b) = (r[i], r[j]);
+                let ab = b - a;
+                let len2 = ab.length_squared();
+                if len2 <= TOUCH * TOUCH {
+                    continue;
+                }
+                let t = (p - a).dot(ab) / len2;
+                let near_end = p.distance(a) <= TOUCH || p.distance(b) <= TOUCH;
+                if t > 0.0 && t < 1.0 && !near_end && (a + ab * t).distance(p) <= TOUCH {
+                    hit = Some((i + 1, p));
+                    break 'search;
+                }
+            }
+        }
+        match hit {
+            Some((at, p)) => r.insert(at, p),
+            None => break,
+        }
+    }
+    r
+}

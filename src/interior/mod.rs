@@ -937,7 +937,7 @@ fn explode(leaves: Vec<(Item, Option<usize>, GMulti)>) -> Vec<Proto> {
             g.0.iter()
                 .map(geom::from_geo)
                 .filter(|p| p.outer.len() >= 3 && p.area() > 1e-6)
-                .flat_map(|p| split_holes(p, 0))
+                .flat_map(|p| simple_pieces(p, 0))
                 .filter(|p| p.outer.len() >= 3 && p.area() > 1e-6)
                 .collect();
         pieces.sort_by(|a, b| b.area().total_cmp(&a.area()));
@@ -953,6 +953,32 @@ fn explode(leaves: Vec<(Item, Option<usize>, GMulti)>) -> Vec<Proto> {
                 min_area: if i == 0 { it.min_area } else { None },
                 poly: p,
             });
+        }
+    }
+    out
+}
+
+/// The simple pieces of a polygon: cut through its holes ([`split_holes`]), then each piece's
+/// ring cut where it touches itself ([`geom::simple_parts`]); a hole pinched onto the ring
+/// becomes a hole of the piece around it and is cut through in turn.
+fn simple_pieces(p: Polygon, depth: usize) -> Vec<Polygon> {
+    let mut out = Vec::new();
+    for q in split_holes(p, 0) {
+        let (outers, pinched) = geom::simple_parts(&q.outer);
+        for o in outers {
+            let holes: Vec<Vec<DVec2>> = pinched
+                .iter()
+                .filter(|h| {
+                    let c = h.iter().copied().sum::<DVec2>() / h.len() as f64;
+                    crate::geometry::ring_contains(&o, c)
+                })
+                .map(|h| h.iter().rev().copied().collect())
+                .collect();
+            if holes.is_empty() || depth >= 4 {
+                out.push(Polygon::new(o, Vec::new()));
+            } else {
+                out.extend(simple_pieces(Polygon::new(o, holes), depth + 1));
+            }
         }
     }
     out
@@ -1059,7 +1085,13 @@ fn merge(protos: &mut Vec<Proto>, r: usize, into: usize) -> bool {
     if !p.holes.is_empty() || p.outer.len() < 3 || !geom::is_valid(&geom::to_geo(&p)) {
         return false;
     }
-    protos[into].poly = p;
+    // A union that touches itself (two rooms meeting at a corner and along a seam) is not one
+    // room a writer can build.
+    let (mut outers, pinched) = geom::simple_parts(&p.outer);
+    if outers.len() != 1 || !pinched.is_empty() {
+        return false;
+    }
+    protos[into].poly = Polygon::new(outers.remove(0), Vec::new());
     protos.remove(r);
     true
 }

@@ -68,6 +68,15 @@ fn check(footprint: &Polygon, plan: &BuildingPlan, storeys: u32) -> Result<(), S
             if !geom::is_valid(&to_geo(&r.polygon)) {
                 return Err(format!("storey {level} room {i} ({}) invalid", r.name));
             }
+            // What the writers build a solid from: the cleaned ring must stay simple.
+            if !crate::geometry::clean_ring(&r.polygon.outer)
+                .is_some_and(|c| crate::geometry::is_simple(&c))
+            {
+                return Err(format!(
+                    "storey {level} room {i} ({}) not simple once cleaned",
+                    r.name
+                ));
+            }
             let a = r.area();
             if a <= 0.0 {
                 return Err(format!("storey {level} room {i} has area {a}"));
@@ -455,4 +464,58 @@ proptest! {
         let plan = plan_building(&input(&fp, storeys, Some(building)), &mut crate::rng::Rng::new(5, 5));
         prop_assert!(check(&fp, &plan, storeys).is_ok(), "{:?}", check(&fp, &plan, storeys));
     }
+}
+
+#[test]
+fn a_ring_touching_itself_is_cut_into_simple_pieces() {
+    let v = |x: f64, y: f64| DVec2::new(x, y);
+    // Two rectangles joined by a zero-width seam along y = 0 (seen on Monaco way/49209503).
+    let seam = [
+        v(0.0, 0.0),
+        v(0.0, -4.0),
+        v(2.4, -4.0),
+        v(2.4, 0.0),
+        v(4.4, 0.0),
+        v(4.4, -4.0),
+        v(6.6, -4.0),
+        v(6.6, 0.0),
+    ];
+    assert!(!crate::geometry::is_simple(&seam));
+    let (outers, holes) = geom::simple_parts(&seam);
+    assert!(holes.is_empty());
+    assert_eq!(outers.len(), 2, "{outers:?}");
+    let area: f64 = outers
+        .iter()
+        .map(|r| crate::geometry::ring_signed_area(r))
+        .sum();
+    assert!((area - (2.4 * 4.0 + 2.2 * 4.0)).abs() < 1e-9, "{area}");
+    assert!(outers
+        .iter()
+        .all(|r| r.len() == 4 && crate::geometry::is_simple(r)));
+    // Two squares meeting at one corner.
+    let bow = [
+        v(0.0, 0.0),
+        v(1.0, 0.0),
+        v(1.0, 1.0),
+        v(2.0, 1.0),
+        v(2.0, 2.0),
+        v(1.0, 2.0),
+        v(1.0, 1.0),
+        v(0.0, 1.0),
+    ];
+    let (outers, holes) = geom::simple_parts(&bow);
+    assert_eq!((outers.len(), holes.len()), (2, 0), "{outers:?}");
+    // A hole pinched onto the outer ring at one vertex comes back as a hole.
+    let pinched = [
+        v(0.0, 0.0),
+        v(4.0, 0.0),
+        v(4.0, 4.0),
+        v(2.0, 4.0),
+        v(3.0, 2.0),
+        v(1.0, 2.0),
+        v(2.0, 4.0),
+        v(0.0, 4.0),
+    ];
+    let (outers, holes) = geom::simple_parts(&pinched);
+    assert_eq!((outers.len(), holes.len()), (1, 1), "{outers:?} {holes:?}");
 }
