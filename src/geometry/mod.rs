@@ -178,23 +178,28 @@ pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
     Some(r)
 }
 
-/// Whether no two non-adjacent edges of the ring touch (within 1e-7 m) or cross.
+/// Two non-adjacent edges closer than this touch, for [`is_simple`] (metres): the distance
+/// under which [`clean_ring`] merges vertices, and ten times the precision our IFC files
+/// declare, so that what IfcOpenShell sees as self-touching is never called simple here.
+pub const TOUCH_TOLERANCE: f64 = 1e-4;
+
+/// Whether no two non-adjacent edges of the ring touch (within [`TOUCH_TOLERANCE`]) or cross.
 pub fn is_simple(r: &[DVec2]) -> bool {
     let n = r.len();
     let orient = |a: DVec2, b: DVec2, c: DVec2| {
         let v = (b - a).perp_dot(c - a);
         let scale = (b - a).length().max(1e-12);
-        if v.abs() / scale <= 1e-7 {
+        if v.abs() / scale <= TOUCH_TOLERANCE {
             0.0
         } else {
             v.signum()
         }
     };
     let on = |a: DVec2, b: DVec2, p: DVec2| {
-        p.x >= a.x.min(b.x) - 1e-7
-            && p.x <= a.x.max(b.x) + 1e-7
-            && p.y >= a.y.min(b.y) - 1e-7
-            && p.y <= a.y.max(b.y) + 1e-7
+        p.x >= a.x.min(b.x) - TOUCH_TOLERANCE
+            && p.x <= a.x.max(b.x) + TOUCH_TOLERANCE
+            && p.y >= a.y.min(b.y) - TOUCH_TOLERANCE
+            && p.y <= a.y.max(b.y) + TOUCH_TOLERANCE
     };
     for i in 0..n {
         let (a, b) = (r[i], r[(i + 1) % n]);

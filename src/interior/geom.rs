@@ -317,8 +317,8 @@ pub fn shared_segments(a: &[DVec2], b: &[DVec2]) -> Vec<(DVec2, DVec2)> {
 }
 
 /// Tolerance of [`simple_parts`]: a vertex this close to another vertex or to an edge touches it
-/// (metres). [`crate::geometry::is_simple`] counts touching at 1e-7 relative, well inside this.
-const TOUCH: f64 = 1e-6;
+/// (metres), as in [`crate::geometry::is_simple`].
+const TOUCH: f64 = crate::geometry::TOUCH_TOLERANCE;
 
 /// The simple rings a writer builds a solid from, for one polygon outer ring: the ring cleaned
 /// as the writers clean it ([`crate::geometry::clean_ring`], counter-clockwise) and, when it
