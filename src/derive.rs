@@ -115,8 +115,14 @@ impl Generator {
                         }
                     }
                     if self.lod >= Lod::Lod4 {
-                        part.interior =
-                            self.interior(&part, &tags, lot.front, piece.id, parts.len());
+                        part.interior = self.interior(
+                            &part,
+                            &tags,
+                            style.programme,
+                            lot.front,
+                            piece.id,
+                            parts.len(),
+                        );
                     }
                     parts.push(part);
                 }
@@ -162,17 +168,24 @@ impl Generator {
         &self,
         part: &Part,
         tags: &BuildingTags,
+        kb_programme: Option<interior::Programme>,
         front: Option<glam::DVec2>,
         id: SourceId,
         index: usize,
     ) -> Vec<crate::model::StoreyInterior> {
+        // The knowledge base's programme is a default for buildings of no declared type: a
+        // `building=office` tag is a fact about the building, the zone's programme a guess.
+        let untyped = tags
+            .building
+            .as_deref()
+            .is_none_or(|b| matches!(b.trim().to_ascii_lowercase().as_str(), "" | "yes"));
         let storeys = part.levels.len().max(1) as u32;
         let input = interior::PlanInput {
             footprint: &part.footprint,
             storeys,
             storey_height: (part.eave_z - part.base_z) / f64::from(storeys),
             building: tags.building.as_deref(),
-            programme: None,
+            programme: kb_programme.filter(|_| untyped),
             front,
             wall_thickness: massing::WALL_THICKNESS,
         };

@@ -89,3 +89,55 @@ fn monaco_ville_interiors_are_connected_and_every_upper_storey_has_the_stair() {
     eprintln!("{parts} parts, {storeys} storeys, {rooms} rooms, {doors} interior doors");
     assert!(parts > 50 && rooms > 10 * storeys / 2);
 }
+
+/// The knowledge base's `programme` is the default of buildings of no declared type: with
+/// `programme="office"` on the earth zone, untagged (`building=yes`) Monaco-Ville buildings get
+/// office cells, and the typed ones keep their own programme.
+#[test]
+fn the_knowledge_base_programme_applies_to_untyped_buildings_only() {
+    let kb_text = std::fs::read_to_string(root().join(KB)).unwrap();
+    let kb_text = kb_text.replacen("<info ", "<info programme=\"office\" ", 1);
+    let dir = tempfile::tempdir().unwrap();
+    let kb_path = dir.path().join("kb.xml");
+    std::fs::write(&kb_path, kb_text).unwrap();
+    let (kb, _) = citygen::kb::KnowledgeBase::load(&kb_path).unwrap();
+    let mut report = citygen::report::Report::default();
+    let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
+    let mut site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
+    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report);
+    let caps = citygen::grammar::Caps {
+        facades: true,
+        ..Default::default()
+    };
+    let generator =
+        citygen::derive::Generator::new(kb, citygen::derive::Rules::Kb, Lod::Lod4, 0, caps);
+    let (mut untyped, mut typed) = (0, 0);
+    for lot in &site.lots {
+        let Ok((b, _)) = generator.generate(lot) else {
+            continue;
+        };
+        let usages: Vec<&str> = b
+            .parts
+            .iter()
+            .flat_map(|p| &p.interior)
+            .flat_map(|s| &s.rooms)
+            .map(|r| r.usage.as_str())
+            .collect();
+        let dwelling = usages.iter().any(|u| matches!(*u, "bedroom" | "kitchen"));
+        match lot.tags.building.as_deref() {
+            None | Some("yes") if lot.parts.is_empty() => {
+                untyped += 1;
+                assert!(!dwelling, "{}: dwelling rooms {usages:?}", b.id);
+            }
+            Some("apartments" | "house" | "residential") if lot.parts.is_empty() => {
+                typed += 1;
+                assert!(dwelling, "{}: no dwelling rooms {usages:?}", b.id);
+            }
+            _ => {}
+        }
+    }
+    assert!(
+        untyped > 20 && typed > 0,
+        "{untyped} untyped, {typed} typed"
+    );
+}

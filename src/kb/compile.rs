@@ -298,6 +298,7 @@ mod tests {
             door_color: Color::from_rgb24(0x8b4513),
             window_width: 1.2,
             balconies: 0.0,
+            programme: None,
             window_height: WindowHeight::Tall,
             window_style: "framed".into(),
             window_material: "glass".into(),

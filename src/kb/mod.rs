@@ -160,6 +160,9 @@ pub struct Values {
     pub max_rotation: Option<f64>,
     /// `balconies`: the share (0..1) of upper-floor bays with a balcony and a balcony door.
     pub balconies: Option<f64>,
+    /// `programme`: the LOD4 floor-plan programme of buildings whose `building=*` tag does not
+    /// name a type (untagged or `yes`).
+    pub programme: Option<crate::interior::Programme>,
     /// Unknown attributes, lower-cased name → trimmed value, kept for rulesets that read them.
     pub extra: BTreeMap<String, String>,
 }
@@ -191,7 +194,8 @@ impl Values {
             window_style,
             window_material,
             max_rotation,
-            balconies
+            balconies,
+            programme
         );
         for (k, v) in &more_specific.extra {
             self.extra.insert(k.clone(), v.clone());
@@ -419,6 +423,8 @@ pub struct Style {
     pub window_width: f64,
     /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
     pub balconies: f64,
+    /// LOD4 programme for buildings whose `building=*` names no type (value `programme`).
+    pub programme: Option<crate::interior::Programme>,
     pub window_height: WindowHeight,
     /// `framed`, `simple`, ... (lower-case).
     pub window_style: String,
@@ -819,6 +825,7 @@ impl KnowledgeBase {
                 .balconies
                 .filter(|b| b.is_finite())
                 .map_or(0.0, |b| b.clamp(0.0, 1.0)),
+            programme: v.programme,
             window_height: v.window_height.unwrap_or(WindowHeight::Tall),
             window_style: v
                 .window_style

@@ -26,6 +26,8 @@ enum Ty {
     Color,
     Roof,
     WindowHeight,
+    /// A LOD4 programme: house, apartments, office, retail or openplan.
+    Programme,
     /// A word or phrase: no surrounding spaces.
     Token,
     /// A zone name: a token without `/`.
@@ -40,7 +42,7 @@ enum Ty {
     Terms,
 }
 
-const DESCRIPTORS: [(&str, Ty); 18] = [
+const DESCRIPTORS: [(&str, Ty); 19] = [
     ("color", Ty::Color),
     ("material", Ty::Token),
     ("nbfloor", Ty::Count),
@@ -59,6 +61,7 @@ const DESCRIPTORS: [(&str, Ty); 18] = [
     ("minHeight", Ty::Pos),
     ("maxHeight", Ty::Pos),
     ("maxrotation", Ty::Dec(-360.0, 360.0)),
+    ("programme", Ty::Programme),
 ];
 
 const CIRCLE: [(&str, Ty); 3] = [
@@ -393,6 +396,11 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
         Ty::WindowHeight => {
             if !matches!(v, "tall" | "short" | "irregular") {
                 return Err("tall, short or irregular".into());
+            }
+        }
+        Ty::Programme => {
+            if !matches!(v, "house" | "apartments" | "office" | "retail" | "openplan") {
+                return Err("house, apartments, office, retail or openplan".into());
             }
         }
         Ty::Token => {

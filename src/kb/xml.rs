@@ -1014,6 +1014,19 @@ impl ZoneReader {
                 }
                 "maxrotation" => v.max_rotation = self.number(key, raw, line),
                 "balconies" => v.balconies = self.number(key, raw, line),
+                "programme" | "program" => {
+                    if let Some(t) = self.clean(key, raw, line) {
+                        v.programme = crate::interior::Programme::parse(&t);
+                        if v.programme.is_none() {
+                            self.note(
+                                line,
+                                format!(
+                                    "unknown programme '{t}' ignored (house, apartments, office, retail, openplan)"
+                                ),
+                            );
+                        }
+                    }
+                }
                 _ => {
                     if let Some(t) = self.clean(key, raw, line) {
                         self.note(
