@@ -71,8 +71,10 @@
 //! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
-//! usages, and at LOD3 the shared opening shapes and the window/door types with the ids of
-//! their occurrences (8 bytes per window or door, for the final `IfcRelDefinesByType`).
+//! usages, and at LOD3 the shared opening shapes and fill offsets (at most
+//! `SHARED_CACHE_LIMIT` each) and the window/door types with the ids of their occurrences
+//! (8 bytes per window or door, for the final `IfcRelDefinesByType`: IFC4 allows one such
+//! relation per type, so they cannot be flushed per building).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -132,6 +134,8 @@ const RAILING_THICKNESS: f64 = 0.05;
 pub struct IfcWriter<W: Write + Send> {
     state: State<W>,
     file_name: String,
+    /// [`SHARED_CACHE_LIMIT`], smaller in tests.
+    cache_limit: usize,
 }
 
 enum State<W: Write + Send> {
@@ -148,6 +152,7 @@ impl<W: Write + Send> IfcWriter<W> {
         IfcWriter {
             state: State::New(out),
             file_name: "citygen.ifc".to_string(),
+            cache_limit: SHARED_CACHE_LIMIT,
         }
     }
 
@@ -180,7 +185,8 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
                 ));
             }
         };
-        let open = Open::begin(out, ctx, &self.file_name)?;
+        let mut open = Open::begin(out, ctx, &self.file_name)?;
+        open.shared.limit = self.cache_limit;
         self.state = State::Open(Box::new(open));
         Ok(())
     }
@@ -383,6 +389,15 @@ struct Open<W: Write> {
     shared: Lod3Shared,
 }
 
+/// Most entries kept in each of the caches of shared opening bodies and fill offsets, whose keys
+/// are sizes in micrometres: real walls give nearly every building sizes of its own (about 8 new
+/// bodies a building on the benchmark's tiled input), so unbounded caches would grow with the
+/// city. A full cache is emptied and starts again: sizes repeat mostly within a building and
+/// among its neighbours, so little sharing is lost, memory stays flat (about 6 MB per cache),
+/// and the output stays deterministic. Files of fewer distinct sizes (every sample, every 100 m
+/// LOD4 tile) are unchanged.
+const SHARED_CACHE_LIMIT: usize = 100_000;
+
 /// Entities shared file-wide by LOD3 elements, created lazily.
 #[derive(Default)]
 struct Lod3Shared {
@@ -392,6 +407,8 @@ struct Lod3Shared {
     /// `IfcCartesianTransformationOperator3D` at the origin (mapped items are placed by their
     /// product's placement).
     identity_op: Option<Id>,
+    /// Entries kept per cache before it is emptied ([`SHARED_CACHE_LIMIT`]).
+    limit: usize,
     /// Product shape of an opening body per (width, height, depth) in micrometres.
     opening_shapes: BTreeMap<[i64; 3], Id>,
     /// `IfcAxis2Placement3D` of a window/door in its opening, per offset in micrometres.
@@ -1426,6 +1443,9 @@ impl<W: Write> Open<W> {
                 let body_ctx = self.body_ctx;
                 let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
                 let shape = self.shape(&[rep])?;
+                if self.shared.opening_shapes.len() >= self.shared.limit {
+                    self.shared.opening_shapes.clear();
+                }
                 self.shared.opening_shapes.insert(skey, shape);
                 shape
             }
@@ -1471,6 +1491,9 @@ impl<W: Write> Open<W> {
             None => {
                 let p = DVec3::new(okey[0] as f64, okey[1] as f64, okey[2] as f64) / 1e6;
                 let id = self.axes(p, DVec3::X)?;
+                if self.shared.fill_offsets.len() >= self.shared.limit {
+                    self.shared.fill_offsets.clear();
+                }
                 self.shared.fill_offsets.insert(okey, id);
                 id
             }
@@ -2627,7 +2650,12 @@ mod tests {
     }
 
     fn write_lod3(buildings: &[Building]) -> Vec<u8> {
+        write_lod3_limited(buildings, SHARED_CACHE_LIMIT)
+    }
+
+    fn write_lod3_limited(buildings: &[Building], limit: usize) -> Vec<u8> {
         let mut w = IfcWriter::new(Vec::new()).with_file_name("lod3.ifc");
+        w.cache_limit = limit;
         w.begin(&lod3_ctx()).unwrap();
         for b in buildings {
             w.write(b).unwrap();
@@ -2809,6 +2837,54 @@ mod tests {
             .map(|o| refs(&m[o].1)[1])
             .collect();
         assert_eq!(opening_shapes.len(), 4);
+    }
+
+    /// With caches of one entry, sharing is lost but nothing else: every opening still has a
+    /// body of its own size, the file has the same elements, and it stays deterministic.
+    #[test]
+    fn full_shared_caches_are_emptied_not_grown() {
+        let bs = lod3_sample();
+        let full = parse(&write_lod3(&bs));
+        let small = write_lod3_limited(&bs, 1);
+        assert_eq!(small, write_lod3_limited(&bs, 1));
+        let m = parse(&small);
+        for kw in [
+            "IFCOPENINGELEMENT",
+            "IFCWINDOW",
+            "IFCDOOR",
+            "IFCRELVOIDSELEMENT",
+        ] {
+            assert_eq!(count(&m, kw), count(&full, kw), "{kw}");
+        }
+        let body = |m: &BTreeMap<u64, (String, String)>, o: u64| {
+            // Opening -> product shape -> representation -> extruded solid -> profile.
+            let rep = refs(&m[&refs(&m[&o].1)[1]].1)[0];
+            let solid = *refs(&m[&rep].1).last().unwrap();
+            let profile = refs(&m[&solid].1)[0];
+            // Width and height: the last two arguments (the profile's placement id differs).
+            let args: Vec<&str> = m[&profile].1.rsplitn(3, ',').collect();
+            format!("{} x {}", args[1], args[0])
+        };
+        let sizes = |m: &BTreeMap<u64, (String, String)>| -> Vec<String> {
+            ids_of(m, "IFCOPENINGELEMENT")
+                .iter()
+                .map(|&o| body(m, o))
+                .collect()
+        };
+        assert_eq!(sizes(&m), sizes(&full));
+        let shapes = |m: &BTreeMap<u64, (String, String)>| -> usize {
+            ids_of(m, "IFCOPENINGELEMENT")
+                .iter()
+                .map(|o| refs(&m[o].1)[1])
+                .collect::<BTreeSet<_>>()
+                .len()
+        };
+        assert!(
+            shapes(&m) > shapes(&full),
+            "{} vs {}",
+            shapes(&m),
+            shapes(&full)
+        );
     }
 
     /// Runs the reference validator with the geometry kernel on the LOD3 sample when it is
