@@ -151,13 +151,15 @@ pub fn room_shell(s: &StoreyInterior, room: usize) -> Option<RoomShell> {
         return None;
     }
     let n = ring.len();
-    let mut sides = Vec::with_capacity(n);
+    // Every side a door fits on, with how far the door lies off the side's line. A door goes on
+    // one side only, the nearest: a room with a fold (two sides a few millimetres apart, back
+    // to back) would otherwise hold it twice.
+    let mut fits: Vec<(usize, DoorSpan, f64)> = Vec::new();
     for i in 0..n {
         let (a, b) = (ring[i], ring[(i + 1) % n]);
         let len = a.distance(b);
         let dir = (b - a) / len;
-        let on_side = |p: DVec2| (p - a).perp_dot(dir).abs() <= DOOR_FIT;
-        let mut doors: Vec<DoorSpan> = Vec::new();
+        let off = |p: DVec2| (p - a).perp_dot(dir).abs();
         for (di, d) in s.doors.iter().enumerate() {
             let Some(w) = s.walls.get(d.wall) else {
                 continue;
@@ -168,24 +170,47 @@ pub fn room_shell(s: &StoreyInterior, room: usize) -> Option<RoomShell> {
             let (Some((p, q)), Some((z0, z1))) = (door_points(s, d), door_heights(s, d)) else {
                 continue;
             };
-            if !(on_side(p) && on_side(q)) {
+            if off(p) > DOOR_FIT || off(q) > DOOR_FIT {
                 continue;
             }
             let (mut t0, mut t1) = ((p - a).dot(dir), (q - a).dot(dir));
             if t0 > t1 {
                 std::mem::swap(&mut t0, &mut t1);
             }
-            let overlaps = doors
-                .iter()
-                .any(|o| t0 < o.t1 + DOOR_FIT && o.t0 < t1 + DOOR_FIT);
-            if t0 >= DOOR_FIT && t1 <= len - DOOR_FIT && !overlaps {
-                doors.push(DoorSpan {
+            if t0 >= DOOR_FIT && t1 <= len - DOOR_FIT {
+                let span = DoorSpan {
                     door: di,
                     t0,
                     t1,
                     z0,
                     z1,
-                });
+                };
+                fits.push((i, span, off(p).max(off(q))));
+            }
+        }
+    }
+    let best = |di: usize| {
+        fits.iter()
+            .filter(|f| f.1.door == di)
+            .min_by(|x, y| x.2.total_cmp(&y.2).then(x.0.cmp(&y.0)))
+            .map(|f| f.0)
+    };
+    let mut sides = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[(i + 1) % n]);
+        let len = a.distance(b);
+        let dir = (b - a) / len;
+        let mut doors: Vec<DoorSpan> = Vec::new();
+        for (_, span, _) in fits.iter().filter(|f| f.0 == i) {
+            if best(span.door) != Some(i) {
+                continue;
+            }
+            let (t0, t1) = (span.t0, span.t1);
+            let overlaps = doors
+                .iter()
+                .any(|o| t0 < o.t1 + DOOR_FIT && o.t0 < t1 + DOOR_FIT);
+            if !overlaps {
+                doors.push(*span);
             }
         }
         doors.sort_by(|x, y| x.t0.total_cmp(&y.t0));
@@ -552,6 +577,58 @@ mod tests {
             }
             assert_eq!(holes, 2 * s.doors.len(), "each door cuts its two rooms");
         }
+    }
+
+    /// A room whose ring folds back along its shared wall (two sides 3 mm apart, back to back:
+    /// seen on a real Monaco plan) holds each door once, on the nearest side.
+    #[test]
+    fn a_door_goes_on_one_side_of_a_folded_room() {
+        let v = DVec2::new;
+        let room = |outer: Vec<DVec2>| crate::model::Room {
+            polygon: Polygon::new(outer, Vec::new()),
+            usage: "bedroom".into(),
+            name: "Bedroom".into(),
+        };
+        let folded = room(vec![
+            v(0.0, 0.0),
+            v(4.0, 0.0),
+            v(4.0, 2.0),
+            v(0.5, 2.0),
+            v(3.5, 2.003),
+            v(0.0, 2.003),
+        ]);
+        assert!(room_ring(&folded).is_some(), "simple, so written");
+        let above = room(vec![v(0.0, 2.003), v(4.0, 2.003), v(4.0, 4.0), v(0.0, 4.0)]);
+        let s = StoreyInterior {
+            storey: 0,
+            floor_z: 0.0,
+            ceiling_z: 2.8,
+            rooms: vec![folded, above],
+            walls: vec![InteriorWall {
+                a: v(0.0, 2.0),
+                b: v(4.0, 2.0),
+                thickness: 0.1,
+                rooms: [0, 1],
+            }],
+            doors: vec![InteriorDoor {
+                wall: 0,
+                u0: 1.6,
+                u1: 2.4,
+                height: 2.1,
+            }],
+            stair: None,
+        };
+        let shell = room_shell(&s, 0).unwrap();
+        let placed: Vec<usize> = shell
+            .sides
+            .iter()
+            .enumerate()
+            .filter(|(_, x)| !x.doors.is_empty())
+            .map(|(i, _)| i)
+            .collect();
+        // Side 2 runs along the wall itself.
+        assert_eq!(placed, vec![2]);
+        assert_eq!(shell.sides[2].doors.len(), 1);
     }
 
     #[test]
