@@ -22,8 +22,11 @@
 //! citygen's read phase alone (`input::osm::read_osm`, in this process).
 //!
 //! Flags: `--lods 1,2,3` (default all), `--formats all,ifc,gml,glb` (default all four),
-//! `--reps R` (default 1, or the number after a file path), `--kb FILE`, `--threads N` (passed
-//! on to citygen), `--read` (only the read comparison, no citygen runs).
+//! `--reps R` (default 1, or the number after a file path), `--kb FILE`, `--threads N`,
+//! `--tile METRES` and `--dry-run` (passed on to citygen; a dry run renders every output and
+//! counts its bytes but writes none, for runs whose outputs the disk cannot hold), `--read`
+//! (only the read comparison, no citygen runs). MB out is the byte count citygen's summary
+//! gives, the same whether written or not.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs::File;
@@ -47,7 +50,7 @@ fn main() -> Result<(), Error> {
     let mut lods = vec![1u8, 2, 3];
     let mut formats: Vec<Format> = Format::ALL.to_vec();
     let mut kb = PathBuf::from("knowledge_base/kb.xml");
-    let mut threads: Option<String> = None;
+    let mut extra: Vec<String> = Vec::new();
     let mut i = 0;
     while i < args.len() {
         let a = args[i].as_str();
@@ -67,7 +70,9 @@ fn main() -> Result<(), Error> {
             // Only the read comparison (raw osmpbf decode vs citygen's read phase).
             "--read" => lods.clear(),
             "--kb" => kb = PathBuf::from(value()?),
-            "--threads" => threads = Some(value()?),
+            "--threads" => extra.extend(["--threads".to_string(), value()?]),
+            "--tile" => extra.extend(["--tile".to_string(), value()?]),
+            "--dry-run" => extra.push("--dry-run".into()),
             "--lods" => {
                 lods = value()?
                     .split(',')
@@ -118,16 +123,7 @@ fn main() -> Result<(), Error> {
             }
             _ => PathBuf::from(input),
         };
-        bench_input(
-            &bin,
-            &path,
-            &kb,
-            &lods,
-            &formats,
-            reps,
-            threads.as_deref(),
-            &out_dir,
-        )?;
+        bench_input(&bin, &path, &kb, &lods, &formats, reps, &extra, &out_dir)?;
     }
     Ok(())
 }
@@ -232,7 +228,7 @@ fn bench_input(
     lods: &[u8],
     formats: &[Format],
     reps: usize,
-    threads: Option<&str>,
+    extra: &[String],
     out_dir: &Path,
 ) -> Result<(), Error> {
     let size = std::fs::metadata(input)?.len();
@@ -257,7 +253,7 @@ fn bench_input(
         for &format in formats {
             let mut best: Option<RunResult> = None;
             for _ in 0..reps {
-                let r = run_child(bin, input, is_shp, kb, lod, format, threads, out_dir)?;
+                let r = run_child(bin, input, is_shp, kb, lod, format, extra, out_dir)?;
                 let rss = best.as_ref().map_or(0, |b| b.rss_kib).max(r.rss_kib);
                 if best.as_ref().is_none_or(|b| r.secs < b.secs) {
                     best = Some(RunResult { rss_kib: rss, ..r });
@@ -282,9 +278,6 @@ fn bench_input(
             );
         }
     }
-    for f in ["b.ifc", "b.gml", "b.glb"] {
-        let _ = std::fs::remove_file(out_dir.join(f));
-    }
     if !is_shp {
         read_bench(input, size, reps)?;
     }
@@ -300,12 +293,10 @@ fn run_child(
     kb: &Path,
     lod: u8,
     format: Format,
-    threads: Option<&str>,
+    extra: &[String],
     out_dir: &Path,
 ) -> Result<RunResult, Error> {
-    for f in ["b.ifc", "b.gml", "b.glb"] {
-        let _ = std::fs::remove_file(out_dir.join(f));
-    }
+    clear(out_dir);
     let mut cmd = Command::new(bin);
     cmd.arg(if is_shp { "--shp" } else { "--osm" })
         .arg(input)
@@ -316,9 +307,7 @@ fn run_child(
         .args(format.flags(out_dir))
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
-    if let Some(t) = threads {
-        cmd.args(["--threads", t]);
-    }
+    cmd.args(extra);
     let t = Instant::now();
     let mut child = cmd.spawn()?;
     let mut stderr = String::new();
@@ -338,19 +327,26 @@ fn run_child(
             .and_then(|s| s.parse().ok())
             .unwrap_or(0)
     };
-    let bytes = ["b.ifc", "b.gml", "b.glb"]
-        .iter()
-        .filter_map(|f| std::fs::metadata(out_dir.join(f)).ok())
-        .map(|m| m.len())
-        .sum();
+    clear(out_dir);
     Ok(RunResult {
         secs,
         cpu,
         buildings: number_after("generated "),
         polygons: number_after("output: "),
-        bytes,
+        bytes: number_after(" polygons, "),
         rss_kib,
     })
+}
+
+/// Removes the outputs of a run (`b.*`, and `b_*` tiles) from the bench's output folder.
+fn clear(out_dir: &Path) {
+    if let Ok(entries) = std::fs::read_dir(out_dir) {
+        for e in entries.flatten() {
+            if e.file_name().to_string_lossy().starts_with('b') {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
 }
 
 /// Waits for the child and returns (success, peak RSS in KiB, user + system CPU seconds) of

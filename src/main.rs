@@ -192,6 +192,11 @@ struct RunArgs {
     /// corner of the tile). A building belongs to the tile of its representative point.
     #[arg(long, value_name = "METRES", value_parser = clap::value_parser!(u32).range(10..))]
     tile: Option<u32>,
+    /// Derive every building and render every output, but write none of them (the --report
+    /// is still written): the summary says which files and how many bytes a real run would
+    /// write. For checking a region's input, or sizing its outputs, before a nightly run.
+    #[arg(long)]
+    dry_run: bool,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -337,6 +342,7 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     citygml,
                     gltf,
                     report,
+                    dry_run: false,
                 },
             ) {
                 Ok(summary) => {
@@ -518,6 +524,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         },
         bbox: cli.bbox,
         tile: cli.tile,
+        dry_run: cli.dry_run,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();
@@ -551,25 +558,28 @@ fn run_main(cli: RunArgs) -> ExitCode {
                     r.generated as f64 / secs,
                     summary.polygons as f64 / secs
                 );
-                match peak_rss_kib() {
-                    Some(kib) => eprintln!(
-                        "  output: {} polygons; peak RSS {:.1} MiB",
-                        summary.polygons,
-                        kib as f64 / 1024.0
-                    ),
-                    None => eprintln!("  output: {} polygons", summary.polygons),
-                }
+                let files = summary.outputs.len();
+                let rss = peak_rss_kib()
+                    .map(|kib| format!("; peak RSS {:.1} MiB", kib as f64 / 1024.0))
+                    .unwrap_or_default();
+                eprintln!(
+                    "  output: {} polygons, {} bytes in {files} file(s){rss}{}",
+                    summary.polygons,
+                    summary.bytes,
+                    if cli.dry_run {
+                        " (dry run: nothing written)"
+                    } else {
+                        ""
+                    }
+                );
+                let verb = if cli.dry_run { "would write" } else { "wrote" };
                 // One screen: a tiled run may write thousands of files.
                 const SHOWN: usize = 9;
                 for p in summary.outputs.iter().take(SHOWN) {
-                    eprintln!("  wrote {}", p.display());
+                    eprintln!("  {verb} {}", p.display());
                 }
-                if summary.outputs.len() > SHOWN {
-                    eprintln!(
-                        "  ... and {} more files ({} in all)",
-                        summary.outputs.len() - SHOWN,
-                        summary.outputs.len()
-                    );
+                if files > SHOWN {
+                    eprintln!("  ... and {} more files ({files} in all)", files - SHOWN);
                 }
             }
             ExitCode::SUCCESS

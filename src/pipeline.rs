@@ -1,6 +1,8 @@
 //! The whole run: read -> prepare -> derive (parallel, in chunks) -> write (in input order).
 
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -55,6 +57,10 @@ pub struct Options {
     /// Split the outputs into square tiles of this many metres of the output CRS: each output
     /// path `NAME.EXT` becomes one `NAME_{easting}_{northing}.EXT` per non-empty tile.
     pub tile: Option<u32>,
+    /// Derive and render every model output as usual but write none of them: their bytes are
+    /// counted and dropped (the glTF writer's scratch files, unlinked at once, still go to
+    /// disk). The report, if asked for, is written.
+    pub dry_run: bool,
 }
 
 /// What went wrong, for the exit code and the message.
@@ -74,7 +80,10 @@ pub struct Summary {
     pub report: Report,
     pub polygons: usize,
     pub elapsed: Duration,
+    /// The files written, or with `dry_run` the files that would have been.
     pub outputs: Vec<PathBuf>,
+    /// Bytes of every output file together (written, or rendered and dropped with `dry_run`).
+    pub bytes: u64,
 }
 
 /// Called after each chunk with (buildings done, buildings in all).
@@ -126,6 +135,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         citygml: opts.citygml.clone(),
         gltf: opts.gltf.clone(),
         report: opts.report.clone(),
+        dry_run: opts.dry_run,
     };
     let batches: Vec<Batch> = match opts.tile {
         None => vec![Batch {
@@ -211,6 +221,8 @@ pub struct Targets {
     pub citygml: Option<PathBuf>,
     pub gltf: Option<PathBuf>,
     pub report: Option<PathBuf>,
+    /// Render the model outputs but write none (see [`Options::dry_run`]).
+    pub dry_run: bool,
 }
 
 /// Derives every lot of the site (in parallel, chunk by chunk) and writes the buildings in lot
@@ -260,7 +272,9 @@ fn write_batches(
     let total = site.lots.len();
     let mut done = 0usize;
     let mut polygons = 0usize;
+    let mut bytes = 0u64;
     let mut pending = Vec::new();
+    let mut rendered = Vec::new();
     for batch in batches {
         let path = |p: &Option<PathBuf>| match (&batch.suffix, p) {
             (Some(sfx), Some(p)) => Some(tile_path(p, sfx)),
@@ -271,13 +285,14 @@ fn write_batches(
             citygml: path(&targets.citygml),
             gltf: path(&targets.gltf),
             report: None,
+            dry_run: targets.dry_run,
         };
         let name = match &batch.suffix {
             Some(sfx) => format!("{source_name} tile {sfx}"),
             None => source_name.to_string(),
         };
         let lots = &site.lots[batch.range.clone()];
-        polygons += write_lots(
+        let (p, b) = write_lots(
             site,
             lots,
             generator,
@@ -285,8 +300,11 @@ fn write_batches(
             &tile_targets,
             &mut report,
             &mut pending,
+            &mut rendered,
             &|n| progress(done + n, total),
         )?;
+        polygons += p;
+        bytes += b;
         done += lots.len();
     }
     report.skipped = report
@@ -299,7 +317,7 @@ fn write_batches(
         .iter()
         .filter(|e| e.outcome == Outcome::Repaired)
         .count();
-    let mut paths = Vec::with_capacity(pending.len());
+    let mut paths = rendered;
     for (path, file) in pending {
         file.commit().map_err(io_err(&path))?;
         paths.push(path);
@@ -312,11 +330,58 @@ fn write_batches(
         polygons,
         elapsed: start.elapsed(),
         outputs: paths,
+        bytes,
     })
 }
 
+/// Where one writer's bytes go: a temporary file to publish, or (dry run) nowhere.
+enum Sink {
+    File(AtomicFile),
+    Discard,
+}
+
+/// Counts the bytes that pass through it (below the writer's buffer, so once per flush).
+struct Counted<W> {
+    inner: W,
+    bytes: Arc<AtomicU64>,
+}
+
+impl<W: Write> Write for Counted<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.bytes.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// A buffered, counted writer for `path`: on its temporary file, or on nothing for a dry run.
+type OutWriter = BufWriter<Counted<Box<dyn Write + Send>>>;
+
+fn open_output(path: &Path, dry_run: bool) -> Result<(OutWriter, Sink, Arc<AtomicU64>), RunError> {
+    let (inner, sink): (Box<dyn Write + Send>, Sink) = if dry_run {
+        (Box::new(std::io::sink()), Sink::Discard)
+    } else {
+        let f = AtomicFile::create(path).map_err(io_err(path))?;
+        (Box::new(f.file().map_err(io_err(path))?), Sink::File(f))
+    };
+    let bytes = Arc::new(AtomicU64::new(0));
+    let w = BufWriter::with_capacity(
+        1 << 20,
+        Counted {
+            inner,
+            bytes: Arc::clone(&bytes),
+        },
+    );
+    Ok((w, sink, bytes))
+}
+
 /// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the targets' files,
-/// which are left closed in `pending`, ready to be renamed. Returns the polygons written.
+/// which are left closed in `pending`, ready to be renamed (for a dry run, their paths go to
+/// `rendered`). Returns the polygons and the bytes written.
 #[allow(clippy::too_many_arguments)]
 fn write_lots(
     site: &prepare::Site,
@@ -326,8 +391,9 @@ fn write_lots(
     targets: &Targets,
     report: &mut Report,
     pending: &mut Vec<(PathBuf, PendingFile)>,
+    rendered: &mut Vec<PathBuf>,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<usize, RunError> {
+) -> Result<(usize, u64), RunError> {
     let ctx = OutputContext {
         crs: site.crs,
         origin: DVec3::new(site.origin.x, site.origin.y, 0.0),
@@ -338,23 +404,30 @@ fn write_lots(
     };
 
     // Open every output before the work, so a bad path fails fast.
-    let mut outputs: Vec<(PathBuf, Box<dyn BuildingWriter>, AtomicFile)> = Vec::new();
+    let dry = targets.dry_run;
+    let mut outputs: Vec<Output> = Vec::new();
     if let Some(p) = &targets.ifc {
-        let f = AtomicFile::create(p).map_err(io_err(p))?;
-        let w = IfcWriter::new(f.writer().map_err(io_err(p))?).with_file_name(&file_name(p));
-        outputs.push((p.clone(), Box::new(w), f));
+        let (w, sink, bytes) = open_output(p, dry)?;
+        let w = IfcWriter::new(w).with_file_name(&file_name(p));
+        outputs.push((p.clone(), Box::new(w), sink, bytes));
     }
     if let Some(p) = &targets.citygml {
-        let f = AtomicFile::create(p).map_err(io_err(p))?;
-        let w = CityGmlWriter::new(f.writer().map_err(io_err(p))?);
-        outputs.push((p.clone(), Box::new(w), f));
+        let (w, sink, bytes) = open_output(p, dry)?;
+        outputs.push((p.clone(), Box::new(CityGmlWriter::new(w)), sink, bytes));
     }
     if let Some(p) = &targets.gltf {
-        let f = AtomicFile::create(p).map_err(io_err(p))?;
-        let w = GltfWriter::beside(f.writer().map_err(io_err(p))?, p).map_err(io_err(p))?;
-        outputs.push((p.clone(), Box::new(w), f));
+        let (w, sink, bytes) = open_output(p, dry)?;
+        // A dry run's target folder may not exist: the scratch files go to the temp folder.
+        let beside = match p.parent() {
+            Some(d) if dry && !d.as_os_str().is_empty() && !d.is_dir() => {
+                std::env::temp_dir().join(file_name(p))
+            }
+            _ => p.clone(),
+        };
+        let w = GltfWriter::beside(w, &beside).map_err(io_err(p))?;
+        outputs.push((p.clone(), Box::new(w), sink, bytes));
     }
-    for (path, w, _) in &mut outputs {
+    for (path, w, _, _) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;
     }
 
@@ -391,29 +464,36 @@ fn write_lots(
         progress(((ci + 1) * CHUNK).min(lots.len()));
     }
     write_chunk(&mut outputs, &ready)?;
-    for (path, w, _) in &mut outputs {
+    for (path, w, _, _) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
-    for (path, writer, file) in outputs {
+    let mut bytes = 0;
+    for (path, writer, sink, counted) in outputs {
         drop(writer);
-        let closed = file.close().map_err(io_err(&path))?;
-        pending.push((path, closed));
+        bytes += counted.load(Ordering::Relaxed);
+        match sink {
+            Sink::File(file) => {
+                let closed = file.close().map_err(io_err(&path))?;
+                pending.push((path, closed));
+            }
+            Sink::Discard => rendered.push(path),
+        }
     }
-    Ok(polygons)
+    Ok((polygons, bytes))
 }
+
+/// An open output: target path, format writer, where its bytes go, and their count.
+type Output = (PathBuf, Box<dyn BuildingWriter>, Sink, Arc<AtomicU64>);
 
 /// Writes `buildings` in order with every writer, the writers in parallel; the first error in
 /// writer order wins, so the error reported does not depend on scheduling.
-fn write_chunk(
-    outputs: &mut [(PathBuf, Box<dyn BuildingWriter>, AtomicFile)],
-    buildings: &[Building],
-) -> Result<(), RunError> {
+fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), RunError> {
     if buildings.is_empty() {
         return Ok(());
     }
     let results: Vec<Result<(), RunError>> = outputs
         .par_iter_mut()
-        .map(|(path, w, _)| {
+        .map(|(path, w, _, _)| {
             buildings
                 .iter()
                 .try_for_each(|b| w.write(b).map_err(out_err(path)))

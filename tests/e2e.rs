@@ -888,6 +888,59 @@ fn tiled_run_puts_every_building_in_exactly_one_tile_with_the_same_bytes() {
     );
 }
 
+#[test]
+fn dry_run_writes_no_model_file_and_counts_the_bytes_a_real_run_writes() {
+    let real = run_all("--shp", CLIFTON, "2", &["--tile", "250"]);
+    let real_bytes: u64 = std::fs::read_dir(real.dir.path())
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_name() != "report.json")
+        .map(|e| e.metadata().unwrap().len())
+        .sum();
+    let real_files = std::fs::read_dir(real.dir.path()).unwrap().count() - 1;
+
+    let dir = tempfile::tempdir().unwrap();
+    let outs = dir.path().join("not-yet");
+    let p = |n: &str| outs.join(n).display().to_string();
+    let report = dir.path().join("report.json");
+    let out = citygen(&[
+        "--shp",
+        CLIFTON,
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--tile",
+        "250",
+        "--ifc",
+        &p("out.ifc"),
+        "--citygml",
+        &p("out.gml"),
+        "--gltf",
+        &p("out.glb"),
+        "--report",
+        &report.display().to_string(),
+        "--dry-run",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!outs.exists(), "a dry run creates no output folder");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["report.json"], "only the report is written");
+    assert!(
+        stderr.contains(&format!(
+            " bytes in {real_files} file(s)"
+        )) && stderr.contains(&format!(", {real_bytes} bytes in ")),
+        "the dry run counts the {real_bytes} bytes in {real_files} files of the real run:\n{stderr}"
+    );
+    assert!(stderr.contains("would write "), "{stderr}");
+    let dry: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(dry["generated"], real.report_json()["generated"]);
+}
+
 /// The south-west corner of the Clifton sample (a few dozen houses), as `--bbox=...` because
 /// the value starts with a minus sign.
 const CLIFTON_PART: &str = "--bbox=-1.1950,52.9020,-1.1900,52.9050";

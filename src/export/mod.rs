@@ -88,6 +88,11 @@ impl AtomicFile {
         })
     }
 
+    /// The temporary file itself (another handle on it), unbuffered.
+    pub fn file(&self) -> io::Result<File> {
+        self.file.try_clone()
+    }
+
     /// A buffered writer on the temporary file. Flush it before [`AtomicFile::commit`].
     pub fn writer(&self) -> io::Result<BufWriter<File>> {
         Ok(BufWriter::with_capacity(1 << 20, self.file.try_clone()?))
