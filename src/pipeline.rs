@@ -493,11 +493,7 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     }
     let results: Vec<Result<(), RunError>> = outputs
         .par_iter_mut()
-        .map(|(path, w, _, _)| {
-            buildings
-                .iter()
-                .try_for_each(|b| w.write(b).map_err(out_err(path)))
-        })
+        .map(|(path, w, _, _)| w.write_all(buildings).map_err(out_err(path)))
         .collect();
     results.into_iter().collect()
 }

@@ -48,6 +48,7 @@
 use std::io::Write;
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::color::Color;
 use crate::export::lod3geom::{balcony_faces, opening_face};
@@ -239,6 +240,34 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         };
         r.building(building);
         self.out.write_all(&self.buf.0)?;
+        Ok(())
+    }
+
+    /// Renders the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, each into its
+    /// own buffer, and writes them in order: the same bytes as `write` on each.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.check_state(State::Open, "write()")?;
+        let (origin, srs, lod) = (self.origin, self.srs_attr.as_str(), self.lod);
+        for batch in buildings.chunks(super::PARALLEL_BATCH) {
+            let rendered: Vec<Result<Xml, ExportError>> = batch
+                .par_iter()
+                .map(|b| {
+                    check_finite(b)?;
+                    let mut x = Xml(Vec::with_capacity(64 * 1024));
+                    Renderer {
+                        x: &mut x,
+                        origin,
+                        srs,
+                        lod,
+                    }
+                    .building(b);
+                    Ok(x)
+                })
+                .collect();
+            for x in rendered {
+                self.out.write_all(&x?.0)?;
+            }
+        }
         Ok(())
     }
 

@@ -40,6 +40,7 @@ use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::color::Color;
@@ -359,114 +360,21 @@ impl<W: Write + Send> GltfWriter<W> {
     /// Appends one building: triangulates its faces, writes its binary data to the scratch file
     /// and records its nodes, meshes, accessors and buffer views.
     fn add_building(&mut self, b: &Building) -> Result<(), ExportError> {
-        let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
-        for class in SurfaceClass::ALL {
-            if class.is_detail() && !self.detail {
-                continue;
-            }
-            let mut groups: Vec<Group> = Vec::new();
-            for part in &b.parts {
-                match class {
-                    SurfaceClass::Walls => {
-                        let g = group(&mut groups, part.wall_color);
-                        part.walls.iter().for_each(|w| g.add_face(&w.outline));
-                    }
-                    SurfaceClass::Roof => {
-                        let g = group(&mut groups, part.roof_color);
-                        part.roof.iter().for_each(|f| g.add_face(f));
-                    }
-                    SurfaceClass::Ground => group(&mut groups, GROUND_COLOR).add_face(&part.ground),
-                    SurfaceClass::Windows => add_openings(&mut groups, part, OpeningKind::Window),
-                    SurfaceClass::Doors => add_openings(&mut groups, part, OpeningKind::Door),
-                    SurfaceClass::Balconies => {
-                        for w in &part.walls {
-                            for bc in &w.balconies {
-                                if let Some(f) = balcony_faces(w, bc) {
-                                    let g = group(&mut groups, bc.color);
-                                    f.all().for_each(|face| g.add_face(face));
-                                }
-                            }
-                        }
-                    }
-                    SurfaceClass::Floors
-                    | SurfaceClass::InteriorWalls
-                    | SurfaceClass::InteriorDoors
-                    | SurfaceClass::Stairs
-                    | SurfaceClass::Slabs => add_interior(&mut groups, part, class),
-                }
-            }
-            groups.retain(|g| !g.mesh.indices.is_empty());
-            if !groups.is_empty() {
-                classes.push((class, groups));
-            }
-        }
+        let e = encode(b, self.detail)?;
+        self.add_encoded(b, e)
+    }
 
-        // Binary layout of one building: one vertex view (per primitive: positions, then
-        // normals) and one index view (per primitive: indices padded to 4 bytes).
-        let mut vertex_bytes: Vec<u8> = Vec::new();
-        let mut index_bytes: Vec<u8> = Vec::new();
-        let mut layouts: Vec<Vec<PrimLayout>> = Vec::new();
-        for (class, groups) in &classes {
-            let mut prims = Vec::new();
-            for g in groups {
-                let m = &g.mesh;
-                let too_big = || {
-                    ExportError::Invalid(format!(
-                        "building {}: the {} mesh is too large for glTF ({} vertices)",
-                        b.id,
-                        class.name(),
-                        m.positions.len()
-                    ))
-                };
-                let count = u32::try_from(m.positions.len()).map_err(|_| too_big())?;
-                let idx_count = u32::try_from(m.indices.len()).map_err(|_| too_big())?;
-                let pos_offset = vertex_bytes.len() as u64;
-                for p in &m.positions {
-                    p.iter()
-                        .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
-                }
-                let nrm_offset = vertex_bytes.len() as u64;
-                for n in &m.normals {
-                    n.iter()
-                        .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
-                }
-                let idx_offset = index_bytes.len() as u64;
-                // 65535 is the primitive-restart value of u16 indices: never use it as an index.
-                let idx_type = if count <= 65535 {
-                    m.indices
-                        .iter()
-                        .for_each(|&i| index_bytes.extend_from_slice(&(i as u16).to_le_bytes()));
-                    UNSIGNED_SHORT
-                } else {
-                    m.indices
-                        .iter()
-                        .for_each(|&i| index_bytes.extend_from_slice(&i.to_le_bytes()));
-                    UNSIGNED_INT
-                };
-                while index_bytes.len() % 4 != 0 {
-                    index_bytes.push(0);
-                }
-                let (min, max) = m.bounds();
-                prims.push(PrimLayout {
-                    class: *class,
-                    color: g.color,
-                    count,
-                    pos_offset,
-                    nrm_offset,
-                    idx_offset,
-                    idx_count,
-                    idx_type,
-                    min,
-                    max,
-                });
-            }
-            layouts.push(prims);
-        }
-
+    /// Spools an encoded building's bytes and serialises its records.
+    fn add_encoded(&mut self, b: &Building, e: Encoded) -> Result<(), ExportError> {
+        let Encoded {
+            layouts,
+            vertex_bytes,
+            index_bytes,
+        } = e;
         // Spool the bytes first: records are added only once their data is in the scratch file.
         let vertex_view_offset = self.bin_len;
         let index_view_offset = self.bin_len + vertex_bytes.len() as u64;
-        if !classes.is_empty() {
+        if !layouts.is_empty() {
             let scratch = self
                 .scratch
                 .as_mut()
@@ -744,6 +652,22 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
         }
     }
 
+    /// Encodes (triangulates) the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, and
+    /// appends them in order: the same bytes as `write` on each.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        if self.state != State::Open {
+            return buildings.iter().try_for_each(|b| self.write(b));
+        }
+        let detail = self.detail;
+        for batch in buildings.chunks(super::PARALLEL_BATCH) {
+            let encoded: Vec<_> = batch.par_iter().map(|b| encode(b, detail)).collect();
+            for (b, e) in batch.iter().zip(encoded) {
+                self.add_encoded(b, e?)?;
+            }
+        }
+        Ok(())
+    }
+
     fn finish(&mut self) -> Result<(), ExportError> {
         match self.state {
             State::Open => {
@@ -930,6 +854,127 @@ fn add_interior(groups: &mut Vec<Group>, part: &Part, class: SurfaceClass) {
             _ => {}
         }
     }
+}
+
+/// One building's binary data (vertex and index bytes) and primitive layout: all the work of a
+/// write that needs no writer state, so a chunk of buildings can be encoded in parallel.
+struct Encoded {
+    layouts: Vec<Vec<PrimLayout>>,
+    vertex_bytes: Vec<u8>,
+    index_bytes: Vec<u8>,
+}
+
+/// Triangulates and lays out one building (`detail`: LOD3 and up classes are written).
+fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError> {
+    let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
+    for class in SurfaceClass::ALL {
+        if class.is_detail() && !detail {
+            continue;
+        }
+        let mut groups: Vec<Group> = Vec::new();
+        for part in &b.parts {
+            match class {
+                SurfaceClass::Walls => {
+                    let g = group(&mut groups, part.wall_color);
+                    part.walls.iter().for_each(|w| g.add_face(&w.outline));
+                }
+                SurfaceClass::Roof => {
+                    let g = group(&mut groups, part.roof_color);
+                    part.roof.iter().for_each(|f| g.add_face(f));
+                }
+                SurfaceClass::Ground => group(&mut groups, GROUND_COLOR).add_face(&part.ground),
+                SurfaceClass::Windows => add_openings(&mut groups, part, OpeningKind::Window),
+                SurfaceClass::Doors => add_openings(&mut groups, part, OpeningKind::Door),
+                SurfaceClass::Balconies => {
+                    for w in &part.walls {
+                        for bc in &w.balconies {
+                            if let Some(f) = balcony_faces(w, bc) {
+                                let g = group(&mut groups, bc.color);
+                                f.all().for_each(|face| g.add_face(face));
+                            }
+                        }
+                    }
+                }
+                SurfaceClass::Floors
+                | SurfaceClass::InteriorWalls
+                | SurfaceClass::InteriorDoors
+                | SurfaceClass::Stairs
+                | SurfaceClass::Slabs => add_interior(&mut groups, part, class),
+            }
+        }
+        groups.retain(|g| !g.mesh.indices.is_empty());
+        if !groups.is_empty() {
+            classes.push((class, groups));
+        }
+    }
+
+    // Binary layout of one building: one vertex view (per primitive: positions, then
+    // normals) and one index view (per primitive: indices padded to 4 bytes).
+    let mut vertex_bytes: Vec<u8> = Vec::new();
+    let mut index_bytes: Vec<u8> = Vec::new();
+    let mut layouts: Vec<Vec<PrimLayout>> = Vec::new();
+    for (class, groups) in &classes {
+        let mut prims = Vec::new();
+        for g in groups {
+            let m = &g.mesh;
+            let too_big = || {
+                ExportError::Invalid(format!(
+                    "building {}: the {} mesh is too large for glTF ({} vertices)",
+                    b.id,
+                    class.name(),
+                    m.positions.len()
+                ))
+            };
+            let count = u32::try_from(m.positions.len()).map_err(|_| too_big())?;
+            let idx_count = u32::try_from(m.indices.len()).map_err(|_| too_big())?;
+            let pos_offset = vertex_bytes.len() as u64;
+            for p in &m.positions {
+                p.iter()
+                    .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
+            }
+            let nrm_offset = vertex_bytes.len() as u64;
+            for n in &m.normals {
+                n.iter()
+                    .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
+            }
+            let idx_offset = index_bytes.len() as u64;
+            // 65535 is the primitive-restart value of u16 indices: never use it as an index.
+            let idx_type = if count <= 65535 {
+                m.indices
+                    .iter()
+                    .for_each(|&i| index_bytes.extend_from_slice(&(i as u16).to_le_bytes()));
+                UNSIGNED_SHORT
+            } else {
+                m.indices
+                    .iter()
+                    .for_each(|&i| index_bytes.extend_from_slice(&i.to_le_bytes()));
+                UNSIGNED_INT
+            };
+            while index_bytes.len() % 4 != 0 {
+                index_bytes.push(0);
+            }
+            let (min, max) = m.bounds();
+            prims.push(PrimLayout {
+                class: *class,
+                color: g.color,
+                count,
+                pos_offset,
+                nrm_offset,
+                idx_offset,
+                idx_count,
+                idx_type,
+                min,
+                max,
+            });
+        }
+        layouts.push(prims);
+    }
+
+    Ok(Encoded {
+        layouts,
+        vertex_bytes,
+        index_bytes,
+    })
 }
 
 /// Flat-shaded triangle data of one primitive.

@@ -43,6 +43,10 @@ pub enum ExportError {
     Invalid(String),
 }
 
+/// Buildings a writer's `write_all` renders in parallel at a time: enough to keep the cores
+/// busy, few enough that their rendered bytes (a few MB a LOD4 building) stay small.
+pub const PARALLEL_BATCH: usize = 16;
+
 /// A streaming writer of one output format.
 ///
 /// Call order: `begin` once, `write` per building in output order, `finish` once. Output is a
@@ -51,6 +55,12 @@ pub enum ExportError {
 pub trait BuildingWriter: Send {
     fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError>;
     fn write(&mut self, building: &Building) -> Result<(), ExportError>;
+    /// Writes `buildings` in order: the same bytes as `write` on each, and the same first error.
+    /// A writer whose per-building work needs none of its state does that work in parallel
+    /// here (rayon) and appends the results in order.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        buildings.iter().try_for_each(|b| self.write(b))
+    }
     /// Flushes and completes the file. The writer is unusable afterwards.
     fn finish(&mut self) -> Result<(), ExportError>;
 }
@@ -251,5 +261,92 @@ mod tests {
         f.commit().unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// Several batches of buildings, LOD4 and LOD3 alike, for the `write_all` checks.
+    fn many_buildings() -> Vec<Building> {
+        let all = fixtures::lod4_all();
+        (0..3 * PARALLEL_BATCH + 5)
+            .map(|i| {
+                let mut b = all[i % all.len()].clone();
+                b.id = crate::input::SourceId::Way(1000 + i as i64);
+                b
+            })
+            .collect()
+    }
+
+    fn ctx() -> OutputContext {
+        OutputContext {
+            crs: Crs::Lambert93,
+            origin: DVec3::new(574_000.25, 6_279_000.5, 140.0),
+            origin_lonlat: (1.44, 43.6),
+            lod: Lod::Lod4,
+            source_name: "batches.osm.pbf".into(),
+            seed: 3,
+        }
+    }
+
+    /// What one writer leaves in its sink: one `write` per building, or one `write_all`.
+    fn both_ways<W: BuildingWriter>(
+        make: impl Fn() -> W,
+        sink: impl Fn(W) -> Vec<u8>,
+        buildings: &[Building],
+    ) -> [(Vec<u8>, Option<String>); 2] {
+        let run = |all: bool| {
+            let mut w = make();
+            w.begin(&ctx()).unwrap();
+            let r = if all {
+                w.write_all(buildings)
+            } else {
+                buildings.iter().try_for_each(|b| w.write(b))
+            };
+            let err = match r {
+                Ok(()) => {
+                    w.finish().unwrap();
+                    None
+                }
+                Err(e) => Some(e.to_string()),
+            };
+            (sink(w), err)
+        };
+        [run(false), run(true)]
+    }
+
+    #[test]
+    fn write_all_writes_the_bytes_and_the_first_error_of_one_write_per_building() {
+        use crate::export::citygml::CityGmlWriter;
+        use crate::export::gltf::GltfWriter;
+        let mut buildings = many_buildings();
+        let gml = |b: &[Building]| {
+            both_ways(
+                || CityGmlWriter::new(Vec::new()),
+                CityGmlWriter::into_inner,
+                b,
+            )
+        };
+        let glb = |b: &[Building]| {
+            both_ways(
+                || GltfWriter::new(Vec::new(), tempfile::tempfile().unwrap()),
+                |w| w.into_inner(),
+                b,
+            )
+        };
+        let [one, all] = gml(&buildings);
+        assert!(one.1.is_none() && one.0.len() > 100_000);
+        assert!(one == all, "CityGML: write_all differs from write");
+        let [one, all] = glb(&buildings);
+        assert!(one.1.is_none() && one.0.len() > 100_000);
+        assert!(one == all, "glTF: write_all differs from write");
+
+        // A building the CityGML writer refuses, in the middle of a batch: the buildings before
+        // it are written, the error is the same, nothing after it is written.
+        buildings[PARALLEL_BATCH + 3].measured_height = f64::NAN;
+        let [one, all] = gml(&buildings);
+        let err = one.1.clone().expect("the NaN height is refused");
+        assert!(err.contains("not finite"), "{err}");
+        assert!(
+            one == all,
+            "CityGML: write_all differs from write on an error"
+        );
     }
 }
