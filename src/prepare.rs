@@ -10,7 +10,7 @@ use rstar::{RTree, RTreeObject, AABB};
 
 use crate::crs::Crs;
 use crate::geometry::{ring_signed_area, Polygon};
-use crate::input::{BuildingTags, Footprint, FootprintKind, SourceId, SourcePolygon, Streets};
+use crate::input::{Footprint, FootprintKind, SharedTags, SourceId, SourcePolygon, Streets};
 use crate::report::{Outcome, Report};
 
 /// Vertices closer than this (metres) are merged.
@@ -25,14 +25,14 @@ const MAX_CHECKED_VERTICES: usize = 20_000;
 pub struct LotPiece {
     pub id: SourceId,
     pub polygons: Vec<Polygon>,
-    pub tags: Box<BuildingTags>,
+    pub tags: SharedTags,
 }
 
 /// One building to generate, in the local frame.
 #[derive(Clone, Debug)]
 pub struct Lot {
     pub id: SourceId,
-    pub tags: Box<BuildingTags>,
+    pub tags: SharedTags,
     /// The outline polygons (several for a multipolygon with several outer rings).
     pub polygons: Vec<Polygon>,
     /// `building:part`s found inside the outline, in id order. When they cover the outline,
@@ -107,7 +107,7 @@ pub fn prepare(
     struct Projected {
         id: SourceId,
         kind: FootprintKind,
-        tags: Box<BuildingTags>,
+        tags: SharedTags,
         polygons: Vec<Polygon>,
         lonlat: (f64, f64),
     }
@@ -639,7 +639,7 @@ pub fn single_lot(
     report.read += 1;
     let lot = Lot {
         id,
-        tags: Box::default(),
+        tags: SharedTags::default(),
         polygons,
         parts: Vec::new(),
         draw_outline: true,
@@ -958,7 +958,7 @@ mod tests {
             let (lon, lat) = crs.to_lonlat(x, y);
             Lot {
                 id: SourceId::Way(i),
-                tags: Box::default(),
+                tags: Default::default(),
                 polygons: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
                 parts: Vec::new(),
                 draw_outline: true,

@@ -168,6 +168,7 @@ fn a_test_kb_forcing_the_roof_gives_every_building_that_roof() {
                 for t in
                     std::iter::once(&mut lot.tags).chain(lot.parts.iter_mut().map(|p| &mut p.tags))
                 {
+                    let t = std::sync::Arc::make_mut(t);
                     t.roof_shape = None;
                     t.roof_height = None;
                 }

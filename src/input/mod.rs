@@ -17,7 +17,7 @@ use thiserror::Error;
 
 pub use osm::read_osm;
 pub use shp::{read_shp, ShpOptions};
-pub use tags::BuildingTags;
+pub use tags::{BuildingTags, SharedTags, TagInterner};
 
 /// A file-level failure of a reader: the file cannot be read at all, or is corrupt in a way that
 /// makes the rest of it untrustworthy. Record-level problems are report entries instead. Every
@@ -150,7 +150,7 @@ pub struct Footprint {
     pub polygons: Vec<SourcePolygon>,
     /// Boxed: the parsed tags are large and most footprints move through the pipeline several
     /// times (reader, projection, lot), so only the pointer moves and memory stays compact.
-    pub tags: Box<BuildingTags>,
+    pub tags: tags::SharedTags,
 }
 
 /// Everything a reader produced.

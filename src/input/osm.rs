@@ -26,7 +26,10 @@ use osmpbf::{BlobDecode, BlobReader, PrimitiveBlock, RelMemberType};
 use rayon::prelude::*;
 
 use super::rings::{clean_ring, group_rings, oriented_polygon, ring_problem};
-use super::{BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId};
+use super::{
+    BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SharedTags, SourceId,
+    TagInterner,
+};
 use crate::report::{Outcome, Report};
 
 /// Blobs decoded per parallel batch: enough to keep the cores busy, few enough that the
@@ -80,8 +83,11 @@ fn read_passes(
     member_ways.sort_unstable();
     member_ways.dedup();
 
-    // Pass 2: ways.
-    let (ways, mixed) = pbf.pass(locs, BlobKind::Ways, |b| ways_of_block(b, &member_ways))?;
+    // Pass 2: ways. Their parsed tags are shared between ways with the same ones.
+    let interner = TagInterner::default();
+    let (ways, mixed) = pbf.pass(locs, BlobKind::Ways, |b| {
+        ways_of_block(b, &member_ways, &interner)
+    })?;
     if mixed {
         return Ok(None);
     }
@@ -104,7 +110,7 @@ fn read_passes(
     }
     nodes.finish();
 
-    let mut result = assemble(&mut ways, &rels, &nodes, report);
+    let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
     result.streets = streets_of(&ways, &nodes);
     Ok(Some(result))
 }
@@ -717,7 +723,7 @@ struct WayRec {
     kind: Option<FootprintKind>,
     /// Parsed tags of building/part ways only, parsed in the parallel pass; taken (moved into
     /// the footprint) during assembly, so the raw strings are never all held at once.
-    tags: Option<Box<BuildingTags>>,
+    tags: Option<SharedTags>,
     /// Whether the way is a street (see [`STREET_KINDS`]).
     street: bool,
 }
@@ -878,7 +884,11 @@ fn owned<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
     tags.map(|(k, v)| (k.to_string(), v.to_string())).collect()
 }
 
-fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
+fn ways_of_block(
+    block: &PrimitiveBlock,
+    member_ways: &[i64],
+    interner: &TagInterner,
+) -> Vec<WayRec> {
     let mut out = Vec::new();
     for group in block.groups() {
         for way in group.ways() {
@@ -892,7 +902,7 @@ fn ways_of_block(block: &PrimitiveBlock, member_ways: &[i64]) -> Vec<WayRec> {
                 id: way.id(),
                 refs: way.refs().collect(),
                 kind,
-                tags: kind.map(|_| Box::new(BuildingTags::from_pairs(way.tags()))),
+                tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(way.tags()))),
                 street,
             });
         }
@@ -1173,6 +1183,7 @@ fn assemble(
     ways: &mut [WayRec],
     rels: &[RelRec],
     nodes: &Nodes,
+    interner: &TagInterner,
     report: &mut Report,
 ) -> ReadResult {
     // Relations first: they decide which ways are built by a relation instead of alone, and
@@ -1268,7 +1279,7 @@ fn assemble(
                         id,
                         kind,
                         polygons,
-                        tags: Box::new(tags),
+                        tags: interner.intern(tags),
                     }),
                     entries,
                     rel.clone(),

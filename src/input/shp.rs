@@ -27,7 +27,9 @@ use shapefile::dbase::{self, FieldValue};
 use shapefile::{Shape, ShapeReader, ShapeType};
 
 use super::rings::{clean_ring, group_rings, oriented_polygon, ring_problem};
-use super::{BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId};
+use super::{
+    BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
+};
 use crate::report::{Outcome, Report};
 
 /// Height field names tried, in order, when no field is named (compared case-insensitively).
@@ -171,6 +173,8 @@ pub fn read_shp(
     }
 
     // A footprint shapefile has no streets: its buildings keep the thesis front.
+    // Rows with the same attributes share their parsed tags.
+    let interner = TagInterner::default();
     let mut result = ReadResult {
         footprints: Vec::new(),
         source_crs,
@@ -306,7 +310,7 @@ pub fn read_shp(
             id,
             kind: FootprintKind::Building,
             polygons,
-            tags: Box::new(tags),
+            tags: interner.intern(tags),
         });
     }
     if role_fixes > 0 {

@@ -59,6 +59,125 @@ pub struct BuildingTags {
     pub ignored: Vec<(String, String, String)>,
 }
 
+/// Parsed tags shared by every footprint that has the same ones: most buildings of a region
+/// carry one of a few tag sets (`building=yes`, `building=house` with a level count), so a
+/// city of a million buildings holds a few thousand [`BuildingTags`] instead of a million
+/// (each is about 350 bytes).
+pub type SharedTags = std::sync::Arc<BuildingTags>;
+
+/// Number of independently locked parts of a [`TagInterner`].
+const INTERN_SHARDS: usize = 16;
+
+/// Hands out one [`SharedTags`] per distinct tag set. Thread-safe (sharded locks), for the
+/// readers' parallel passes. Two tag sets are the same only when they are equal bit for bit
+/// (`0.0` and `-0.0` are different), so which footprint's copy is kept never shows in an
+/// output: runs stay byte-identical whatever the thread count.
+pub struct TagInterner {
+    shards: Vec<std::sync::Mutex<std::collections::HashMap<u64, Vec<SharedTags>>>>,
+}
+
+impl Default for TagInterner {
+    fn default() -> Self {
+        TagInterner {
+            shards: (0..INTERN_SHARDS).map(|_| Default::default()).collect(),
+        }
+    }
+}
+
+impl TagInterner {
+    /// The shared copy of `tags`: an existing one equal bit for bit, or `tags` itself, kept.
+    pub fn intern(&self, tags: BuildingTags) -> SharedTags {
+        let h = tags.bits_hash();
+        let shard = &self.shards[(h % INTERN_SHARDS as u64) as usize];
+        // A poisoned lock only means another thread panicked mid-insert; the map is still a
+        // valid cache (every entry was pushed whole).
+        let mut map = shard.lock().unwrap_or_else(|e| e.into_inner());
+        let bucket = map.entry(h).or_default();
+        if let Some(t) = bucket.iter().find(|t| t.same_bits(&tags)) {
+            return t.clone();
+        }
+        let t = SharedTags::new(tags);
+        bucket.push(t.clone());
+        t
+    }
+
+    /// Number of distinct tag sets handed out.
+    pub fn len(&self) -> usize {
+        self.shards
+            .iter()
+            .map(|s| {
+                s.lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .values()
+                    .map(Vec::len)
+                    .sum::<usize>()
+            })
+            .sum()
+    }
+
+    /// Whether no tag set was handed out yet.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl BuildingTags {
+    /// Every field, floats by their bits: the identity [`TagInterner`] shares tags by. The
+    /// destructuring names every field, so a new field cannot be forgotten here.
+    fn bits_key(&self) -> impl PartialEq + std::hash::Hash + '_ {
+        let BuildingTags {
+            building,
+            name,
+            height,
+            min_height,
+            levels,
+            min_level,
+            roof_shape,
+            invalid_roof_shape,
+            roof_height,
+            roof_angle,
+            roof_levels,
+            roof_orientation,
+            roof_direction,
+            colour,
+            roof_colour,
+            material,
+            roof_material,
+            ignored,
+        } = self;
+        let f = |x: &Option<f64>| x.map(f64::to_bits);
+        let c = |x: &Option<Color>| x.map(|c| [c.r, c.g, c.b, c.a].map(f32::to_bits));
+        (
+            (building, name, invalid_roof_shape, roof_orientation),
+            (material, roof_material, ignored, roof_shape),
+            [
+                f(height),
+                f(min_height),
+                f(levels),
+                f(min_level),
+                f(roof_height),
+                f(roof_angle),
+                f(roof_levels),
+                f(roof_direction),
+            ],
+            [c(colour), c(roof_colour)],
+        )
+    }
+
+    /// A hash of [`Self::bits_key`] with fixed keys (the same in every run).
+    fn bits_hash(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        self.bits_key().hash(&mut h);
+        h.finish()
+    }
+
+    /// Equal bit for bit (unlike `==`, which takes `0.0` for `-0.0`).
+    pub fn same_bits(&self, other: &BuildingTags) -> bool {
+        self.bits_key() == other.bits_key()
+    }
+}
+
 impl BuildingTags {
     /// Builds the parsed tags from raw key/value pairs (OSM tags or shapefile attributes mapped
     /// to OSM keys). Unknown keys are ignored silently; known keys with bad values go to `ignored`.
@@ -346,6 +465,50 @@ fn parse_direction(s: &str) -> Result<f64, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn interner_shares_equal_tags_and_only_equal_ones() {
+        use rayon::prelude::*;
+        let i = TagInterner::default();
+        let parse = |pairs: &[(&str, &str)]| BuildingTags::from_pairs(pairs.iter().copied());
+        let a = i.intern(parse(&[("building", "yes")]));
+        let b = i.intern(parse(&[("building", "yes"), ("source", "survey")]));
+        assert!(
+            std::sync::Arc::ptr_eq(&a, &b),
+            "unknown keys do not make a new tag set"
+        );
+        let c = i.intern(parse(&[("building", "house")]));
+        let d = i.intern(parse(&[("building", "yes"), ("height", "x")]));
+        assert!(!std::sync::Arc::ptr_eq(&a, &c) && !std::sync::Arc::ptr_eq(&a, &d));
+        assert_eq!(i.len(), 3);
+        // 0.0 == -0.0, but they are written differently: never shared.
+        let mut zero = parse(&[("building", "yes")]);
+        zero.min_height = Some(0.0);
+        let mut minus = zero.clone();
+        minus.min_height = Some(-0.0);
+        assert_eq!(zero, minus);
+        let (z, m) = (i.intern(zero), i.intern(minus));
+        assert!(!std::sync::Arc::ptr_eq(&z, &m));
+        assert_eq!(m.min_height.map(f64::to_bits), Some((-0.0f64).to_bits()));
+        // From many threads at once: still one copy per tag set.
+        let many: Vec<SharedTags> = (0..2000)
+            .into_par_iter()
+            .map(|k| {
+                i.intern(parse(&[
+                    ("building", "yes"),
+                    ("building:levels", ["2", "3"][k % 2]),
+                ]))
+            })
+            .collect();
+        assert_eq!(i.len(), 7);
+        assert!(many
+            .iter()
+            .all(|t| t.levels == Some(2.0) || t.levels == Some(3.0)));
+        assert!(many
+            .iter()
+            .step_by(2)
+            .all(|t| std::sync::Arc::ptr_eq(t, &many[0])));
+    }
 
     fn close(a: Option<f64>, b: f64) -> bool {
         a.is_some_and(|a| (a - b).abs() < 1e-9)

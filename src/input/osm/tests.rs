@@ -35,7 +35,7 @@ fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
         refs,
         kind,
         street: is_street(tags.iter().copied()),
-        tags: kind.map(|_| Box::new(BuildingTags::from_pairs(tags.iter().copied()))),
+        tags: kind.map(|_| std::sync::Arc::new(BuildingTags::from_pairs(tags.iter().copied()))),
     }
 }
 
@@ -85,7 +85,13 @@ fn courtyard_from_open_segments_with_a_reversed_piece() {
         ],
     )];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &rels, &nodes, &mut report);
+    let r = assemble(
+        &mut ways,
+        &rels,
+        &nodes,
+        &TagInterner::default(),
+        &mut report,
+    );
     assert_eq!(r.footprints.len(), 1);
     let fp = &r.footprints[0];
     assert_eq!(fp.id, SourceId::Relation(50));
@@ -116,7 +122,13 @@ fn wrong_roles_are_corrected_by_containment() {
         &[("type", "multipolygon"), ("building", "yes")],
     )];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &rels, &nodes, &mut report);
+    let r = assemble(
+        &mut ways,
+        &rels,
+        &nodes,
+        &TagInterner::default(),
+        &mut report,
+    );
     let fp = &r.footprints[0];
     assert_eq!(fp.polygons.len(), 2);
     assert_eq!(fp.polygons[0].holes.len(), 1);
@@ -151,7 +163,13 @@ fn missing_members_repair_or_skip() {
         ),
     ];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &rels, &nodes, &mut report);
+    let r = assemble(
+        &mut ways,
+        &rels,
+        &nodes,
+        &TagInterner::default(),
+        &mut report,
+    );
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].polygons[0].holes.len(), 0);
     let e8 = entries_for(&report, "relation/8");
@@ -184,7 +202,13 @@ fn old_style_outer_way_gets_the_holes_once() {
         &[("type", "multipolygon")],
     )];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &rels, &nodes, &mut report);
+    let r = assemble(
+        &mut ways,
+        &rels,
+        &nodes,
+        &TagInterner::default(),
+        &mut report,
+    );
     assert_eq!(
         r.footprints.len(),
         1,
@@ -215,7 +239,13 @@ fn outer_way_tagged_like_its_relation_is_built_once() {
         &[("type", "multipolygon"), ("building", "yes")],
     )];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &rels, &nodes, &mut report);
+    let r = assemble(
+        &mut ways,
+        &rels,
+        &nodes,
+        &TagInterner::default(),
+        &mut report,
+    );
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].id, SourceId::Relation(6));
     let e = entries_for(&report, "way/1");
@@ -280,7 +310,7 @@ fn broken_ways_are_reported() {
         way(7, square_refs(0, 0, 1), &[("building", "no")]),
     ];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &[], &nodes, &mut report);
+    let r = assemble(&mut ways, &[], &nodes, &TagInterner::default(), &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].kind, FootprintKind::Part);
     assert_eq!(
