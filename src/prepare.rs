@@ -103,7 +103,8 @@ pub fn prepare(
         }
     };
 
-    // Project everything in absolute output-CRS coordinates first.
+    // Project everything in absolute output-CRS coordinates first (in parallel; the report
+    // entries and the bounds follow the input order).
     struct Projected {
         id: SourceId,
         kind: FootprintKind,
@@ -111,13 +112,12 @@ pub fn prepare(
         polygons: Vec<Polygon>,
         lonlat: (f64, f64),
     }
-    let mut projected = Vec::with_capacity(footprints.len());
-    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    for f in footprints {
-        let mut lonlat_sum = (0.0, 0.0, 0usize);
-        let mut polys = Vec::with_capacity(f.polygons.len());
-        let mut bad = None;
-        for sp in &f.polygons {
+    const UNPROJECTABLE: &str = "coordinates cannot be projected to the output CRS";
+    let projected: Vec<Result<Projected, SourceId>> = footprints
+        .into_par_iter()
+        .map(|f| {
+            let mut lonlat_sum = (0.0, 0.0, 0usize);
+            let mut polys = Vec::with_capacity(f.polygons.len());
             let ring = |r: &[(f64, f64)], acc: &mut (f64, f64, usize)| -> Option<Vec<DVec2>> {
                 let mut out = Vec::with_capacity(r.len());
                 for &(x, y) in r {
@@ -132,43 +132,46 @@ pub fn prepare(
                 }
                 Some(out)
             };
-            let SourcePolygon { outer, holes } = sp;
-            let Some(o) = ring(outer, &mut lonlat_sum) else {
-                bad = Some("coordinates cannot be projected to the output CRS");
-                break;
-            };
-            let mut hs = Vec::with_capacity(holes.len());
-            for h in holes {
-                let mut dummy = (0.0, 0.0, 0);
-                match ring(h, &mut dummy) {
-                    Some(r) => hs.push(r),
-                    None => bad = Some("coordinates cannot be projected to the output CRS"),
+            for sp in &f.polygons {
+                let SourcePolygon { outer, holes } = sp;
+                let o = ring(outer, &mut lonlat_sum).ok_or(f.id)?;
+                let mut hs = Vec::with_capacity(holes.len());
+                for h in holes {
+                    let mut dummy = (0.0, 0.0, 0);
+                    hs.push(ring(h, &mut dummy).ok_or(f.id)?);
                 }
+                polys.push(Polygon {
+                    outer: o,
+                    holes: hs,
+                });
             }
-            polys.push(Polygon {
-                outer: o,
-                holes: hs,
-            });
-        }
-        if let Some(reason) = bad {
-            report.add(Some(f.id), Outcome::Skipped, reason);
-            continue;
-        }
-        for p in &polys {
-            for q in &p.outer {
-                lo = lo.min(*q);
-                hi = hi.max(*q);
+            let n = lonlat_sum.2.max(1) as f64;
+            Ok(Projected {
+                id: f.id,
+                kind: f.kind,
+                tags: f.tags,
+                polygons: polys,
+                lonlat: (lonlat_sum.0 / n, lonlat_sum.1 / n),
+            })
+        })
+        .collect();
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    let projected: Vec<Projected> = projected
+        .into_iter()
+        .filter_map(|p| match p {
+            Ok(p) => {
+                for q in p.polygons.iter().flat_map(|p| &p.outer) {
+                    lo = lo.min(*q);
+                    hi = hi.max(*q);
+                }
+                Some(p)
             }
-        }
-        let n = lonlat_sum.2.max(1) as f64;
-        projected.push(Projected {
-            id: f.id,
-            kind: f.kind,
-            tags: f.tags,
-            polygons: polys,
-            lonlat: (lonlat_sum.0 / n, lonlat_sum.1 / n),
-        });
-    }
+            Err(id) => {
+                report.add(Some(id), Outcome::Skipped, UNPROJECTABLE);
+                None
+            }
+        })
+        .collect();
     let origin = if lo.x.is_finite() {
         ((lo + hi) * 0.5).round()
     } else {
@@ -176,12 +179,25 @@ pub fn prepare(
     };
     let origin_lonlat = crs.to_lonlat(origin.x, origin.y);
 
-    // Clean the rings in the local frame.
+    // Clean the rings in the local frame (in parallel; entries in input order).
+    let cleaned: Vec<(Projected, Option<Vec<Polygon>>, Option<(Outcome, String)>)> = projected
+        .into_par_iter()
+        .map(|mut p| {
+            let local = std::mem::take(&mut p.polygons)
+                .into_iter()
+                .map(|q| q.translated(-origin))
+                .collect();
+            let (polygons, entry) = clean_polygons_quietly(local);
+            (p, polygons, entry)
+        })
+        .collect();
     let mut outlines = Vec::new();
     let mut pieces = Vec::new();
-    for p in projected {
-        let local: Vec<Polygon> = p.polygons.iter().map(|q| q.translated(-origin)).collect();
-        let Some(polygons) = clean_polygons(p.id, local, report) else {
+    for (p, polygons, entry) in cleaned {
+        if let Some((outcome, text)) = entry {
+            report.add(Some(p.id), outcome, text);
+        }
+        let Some(polygons) = polygons else {
             continue;
         };
         match p.kind {
@@ -367,6 +383,18 @@ pub fn ring_centroid(r: &[DVec2]) -> DVec2 {
 /// repairs self-intersections and stray holes with a boolean union, drops slivers.
 /// `None` (with a report entry) when nothing usable is left.
 fn clean_polygons(id: SourceId, polys: Vec<Polygon>, report: &mut Report) -> Option<Vec<Polygon>> {
+    let (polygons, entry) = clean_polygons_quietly(polys);
+    if let Some((outcome, text)) = entry {
+        report.add(Some(id), outcome, text);
+    }
+    polygons
+}
+
+/// [`clean_polygons`] without a report: the cleaned polygons (`None`: the footprint is
+/// skipped) and the report entry to add for it, if any.
+fn clean_polygons_quietly(
+    polys: Vec<Polygon>,
+) -> (Option<Vec<Polygon>>, Option<(Outcome, String)>) {
     let mut out = Vec::with_capacity(polys.len());
     let mut repaired = Vec::new();
     for p in polys {
@@ -416,17 +444,13 @@ fn clean_polygons(id: SourceId, polys: Vec<Polygon>, report: &mut Report) -> Opt
         } else {
             repaired.join("; ")
         };
-        report.add(
-            Some(id),
-            Outcome::Skipped,
-            format!("degenerate footprint: {why}"),
+        return (
+            None,
+            Some((Outcome::Skipped, format!("degenerate footprint: {why}"))),
         );
-        return None;
     }
-    if !repaired.is_empty() {
-        report.add(Some(id), Outcome::Repaired, repaired.join("; "));
-    }
-    Some(out)
+    let entry = (!repaired.is_empty()).then(|| (Outcome::Repaired, repaired.join("; ")));
+    (Some(out), entry)
 }
 
 /// Merges vertices closer than the tolerance and removes zero-width spikes (a, b, a). `None`
