@@ -180,20 +180,19 @@ pub fn prepare(
     let origin_lonlat = crs.to_lonlat(origin.x, origin.y);
 
     // Clean the rings in the local frame (in parallel; entries in input order).
-    let cleaned: Vec<(Projected, Option<Vec<Polygon>>, Option<(Outcome, String)>)> = projected
+    let cleaned: Vec<(Projected, Cleaned)> = projected
         .into_par_iter()
         .map(|mut p| {
             let local = std::mem::take(&mut p.polygons)
                 .into_iter()
                 .map(|q| q.translated(-origin))
                 .collect();
-            let (polygons, entry) = clean_polygons_quietly(local);
-            (p, polygons, entry)
+            (p, clean_polygons_quietly(local))
         })
         .collect();
     let mut outlines = Vec::new();
     let mut pieces = Vec::new();
-    for (p, polygons, entry) in cleaned {
+    for (p, (polygons, entry)) in cleaned {
         if let Some((outcome, text)) = entry {
             report.add(Some(p.id), outcome, text);
         }
@@ -389,6 +388,10 @@ fn clean_polygons(id: SourceId, polys: Vec<Polygon>, report: &mut Report) -> Opt
     }
     polygons
 }
+
+/// What [`clean_polygons_quietly`] gives: the cleaned polygons (`None`: skipped) and the report
+/// entry for the footprint, if any.
+type Cleaned = (Option<Vec<Polygon>>, Option<(Outcome, String)>);
 
 /// [`clean_polygons`] without a report: the cleaned polygons (`None`: the footprint is
 /// skipped) and the report entry to add for it, if any.
