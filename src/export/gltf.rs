@@ -145,12 +145,17 @@ enum State {
     Finished,
 }
 
+/// A GLB's length field is a `u32`: no GLB is larger, its binary chunk even less.
+const GLB_MAX_BYTES: u64 = u32::MAX as u64;
+
 /// Streaming glTF 2.0 binary writer (see the module documentation for the layout).
 pub struct GltfWriter<W: Write + Send> {
     out: W,
     scratch: Option<BufWriter<File>>,
     /// Bytes written to the scratch file so far (always a multiple of 4).
     bin_len: u64,
+    /// The largest binary chunk accepted ([`GLB_MAX_BYTES`]; smaller in tests).
+    max_bin: u64,
     state: State,
     doc: Document,
     /// Serialised records of `nodes`, `meshes`, `accessors` and `bufferViews`, in that order.
@@ -272,6 +277,7 @@ impl<W: Write + Send> GltfWriter<W> {
             out,
             scratch: Some(BufWriter::with_capacity(1 << 20, scratch)),
             bin_len: 0,
+            max_bin: GLB_MAX_BYTES,
             state: State::New,
             doc: Document::default(),
             spools: Default::default(),
@@ -387,6 +393,15 @@ impl<W: Write + Send> GltfWriter<W> {
                 return Err(e.into());
             }
             self.bin_len = index_view_offset + index_bytes.len() as u64;
+            // Fail as soon as the file cannot be a GLB any more, not hours later at the end.
+            if self.bin_len > self.max_bin {
+                self.state = State::Failed;
+                return Err(ExportError::Invalid(format!(
+                    "the glTF binary is over the GLB limit of 4 GiB ({} bytes of vertex data at \
+                     building {}); write fewer buildings per file (--tile METRES or --bbox)",
+                    self.bin_len, b.id
+                )));
+            }
         }
 
         let written = self.records(
@@ -590,7 +605,7 @@ impl<W: Write + Send> GltfWriter<W> {
         let total = 12 + 8 + json_padded + if bin_len > 0 { 8 + bin_padded } else { 0 };
         let too_big = || {
             ExportError::Invalid(format!(
-                "the glTF binary would be {total} bytes, over the GLB limit of 4 GiB; write fewer buildings per file"
+                "the glTF binary would be {total} bytes, over the GLB limit of 4 GiB; write fewer buildings per file (--tile METRES or --bbox)"
             ))
         };
         let total32 = u32::try_from(total).map_err(|_| too_big())?;
@@ -1643,6 +1658,25 @@ mod tests {
     }
 
     // ---- tests ----
+
+    #[test]
+    fn a_binary_chunk_over_the_limit_fails_at_that_building_not_at_the_end() {
+        let buildings = all_buildings();
+        let mut out = Vec::new();
+        let mut w = GltfWriter::new(&mut out, tempfile::tempfile().unwrap());
+        w.max_bin = 1; // any building's vertex data is over it
+        w.start(&OutputContext { ..ctx() }, "EPSG:2154".into())
+            .unwrap();
+        let e = w.write(&buildings[0]).unwrap_err().to_string();
+        assert!(
+            e.contains("over the GLB limit") && e.contains("--tile"),
+            "{e}"
+        );
+        assert!(e.contains(&buildings[0].id.to_string()), "{e}");
+        assert!(w.write(&buildings[1]).is_err() && w.finish().is_err());
+        drop(w);
+        assert!(out.is_empty(), "nothing is written to the target");
+    }
 
     #[test]
     fn glb_container_and_asset() {
