@@ -28,6 +28,16 @@ fn n(x: i64, y: i64) -> i64 {
     100 * x + y
 }
 
+/// [`assemble`] with an interner of its own.
+fn assemble_fresh(
+    ways: &mut [WayRec],
+    rels: &[RelRec],
+    nodes: &Nodes,
+    report: &mut Report,
+) -> ReadResult {
+    assemble(ways, rels, nodes, &TagInterner::default(), report)
+}
+
 fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
     let kind = kind_of(tags.iter().copied());
     WayRec {
@@ -85,13 +95,7 @@ fn courtyard_from_open_segments_with_a_reversed_piece() {
         ],
     )];
     let mut report = Report::default();
-    let r = assemble(
-        &mut ways,
-        &rels,
-        &nodes,
-        &TagInterner::default(),
-        &mut report,
-    );
+    let r = assemble_fresh(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     let fp = &r.footprints[0];
     assert_eq!(fp.id, SourceId::Relation(50));
@@ -122,13 +126,7 @@ fn wrong_roles_are_corrected_by_containment() {
         &[("type", "multipolygon"), ("building", "yes")],
     )];
     let mut report = Report::default();
-    let r = assemble(
-        &mut ways,
-        &rels,
-        &nodes,
-        &TagInterner::default(),
-        &mut report,
-    );
+    let r = assemble_fresh(&mut ways, &rels, &nodes, &mut report);
     let fp = &r.footprints[0];
     assert_eq!(fp.polygons.len(), 2);
     assert_eq!(fp.polygons[0].holes.len(), 1);
@@ -163,13 +161,7 @@ fn missing_members_repair_or_skip() {
         ),
     ];
     let mut report = Report::default();
-    let r = assemble(
-        &mut ways,
-        &rels,
-        &nodes,
-        &TagInterner::default(),
-        &mut report,
-    );
+    let r = assemble_fresh(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].polygons[0].holes.len(), 0);
     let e8 = entries_for(&report, "relation/8");
@@ -202,13 +194,7 @@ fn old_style_outer_way_gets_the_holes_once() {
         &[("type", "multipolygon")],
     )];
     let mut report = Report::default();
-    let r = assemble(
-        &mut ways,
-        &rels,
-        &nodes,
-        &TagInterner::default(),
-        &mut report,
-    );
+    let r = assemble_fresh(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(
         r.footprints.len(),
         1,
@@ -239,13 +225,7 @@ fn outer_way_tagged_like_its_relation_is_built_once() {
         &[("type", "multipolygon"), ("building", "yes")],
     )];
     let mut report = Report::default();
-    let r = assemble(
-        &mut ways,
-        &rels,
-        &nodes,
-        &TagInterner::default(),
-        &mut report,
-    );
+    let r = assemble_fresh(&mut ways, &rels, &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].id, SourceId::Relation(6));
     let e = entries_for(&report, "way/1");
@@ -310,7 +290,7 @@ fn broken_ways_are_reported() {
         way(7, square_refs(0, 0, 1), &[("building", "no")]),
     ];
     let mut report = Report::default();
-    let r = assemble(&mut ways, &[], &nodes, &TagInterner::default(), &mut report);
+    let r = assemble_fresh(&mut ways, &[], &nodes, &mut report);
     assert_eq!(r.footprints.len(), 1);
     assert_eq!(r.footprints[0].kind, FootprintKind::Part);
     assert_eq!(
