@@ -56,8 +56,14 @@ impl Generator {
         }
     }
 
-    /// Builds one lot. `Err` carries the reason the building is skipped.
+    /// Builds one lot. `Err` carries the reason the building is skipped. A panic while
+    /// deriving it (a bug, in citygen or in a geometry crate, that one footprint sets off) is
+    /// caught and becomes that reason, so it costs one building, not the whole run.
     pub fn generate(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
+        guarded("deriving the building", || self.derive(lot))
+    }
+
+    fn derive(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
         let zone = self.kb.locate(lot.lonlat.0, lot.lonlat.1);
         let mut notes = Vec::new();
         let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
@@ -199,10 +205,9 @@ impl Generator {
             Rules::File(r) => Ok(r.clone()),
             Rules::Kb => {
                 let text = compile::ruleset_text(style);
-                let mut cache = self
-                    .compiled
-                    .lock()
-                    .map_err(|_| "rule cache poisoned".to_string())?;
+                // A cache poisoned by a caught panic in another building still holds only
+                // fully parsed rulesets (an entry is inserted after its parse), so it is used.
+                let mut cache = self.compiled.lock().unwrap_or_else(|e| e.into_inner());
                 if let Some(r) = cache.get(&text) {
                     return Ok(r.clone());
                 }
@@ -394,6 +399,27 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
     out
 }
 
+/// Runs `f`; a panic inside it becomes `Err` naming `what` and the panic's message.
+pub fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(result) => result,
+        Err(payload) => Err(format!(
+            "internal error while {what}: {} (a citygen bug: please report it with this \
+             footprint)",
+            panic_message(payload.as_ref())
+        )),
+    }
+}
+
+/// The text a panic was raised with (`panic!` gives a `&str` or a `String`).
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "no message".to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use glam::DVec2;
@@ -462,5 +488,49 @@ mod tests {
                 "{w}x{h}: {doors:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_panic_inside_becomes_the_skip_reason() {
+        let r: Result<(), String> = guarded("deriving the building", || panic!("ring {} bad", 7));
+        let e = r.unwrap_err();
+        assert!(
+            e.contains("internal error while deriving the building: ring 7 bad"),
+            "{e}"
+        );
+        let r: Result<(), String> = guarded("x", || panic!("static text"));
+        assert!(r.unwrap_err().contains("static text"));
+        assert_eq!(guarded("x", || Ok::<_, String>(3)), Ok(3));
+        assert_eq!(
+            guarded::<()>("x", || Err("plain".into())),
+            Err("plain".into())
+        );
+    }
+
+    #[test]
+    fn a_rule_cache_poisoned_by_a_caught_panic_still_serves_the_next_building() {
+        let gen = Generator::new(
+            KnowledgeBase::earth_only(),
+            Rules::Kb,
+            Lod::Lod2,
+            0,
+            Caps::default(),
+        );
+        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let _held = gen.compiled.lock().unwrap();
+            panic!("poison the cache");
+        }));
+        assert!(gen.compiled.is_poisoned());
+        let ring = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(12.0, 0.0),
+            DVec2::new(12.0, 9.0),
+            DVec2::new(0.0, 9.0),
+        ];
+        let mut report = Report::default();
+        let site =
+            single_lot(Polygon::new(ring, vec![]), (7.42, 43.73), None, &mut report).unwrap();
+        let (b, _) = gen.generate(&site.lots[0]).unwrap();
+        assert!(b.polygon_count() > 0);
     }
 }

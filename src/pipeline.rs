@@ -491,9 +491,23 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     if buildings.is_empty() {
         return Ok(());
     }
+    // A panic in a writer (a bug) ends the run with an error naming the file and the buildings
+    // being written, not with a crash; no output is published, as for any failed run.
     let results: Vec<Result<(), RunError>> = outputs
         .par_iter_mut()
-        .map(|(path, w, _, _)| w.write_all(buildings).map_err(out_err(path)))
+        .map(|(path, w, _, _)| {
+            match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| w.write_all(buildings)))
+            {
+                Ok(written) => written.map_err(out_err(path)),
+                Err(payload) => Err(out_err(path)(ExportError::Invalid(format!(
+                    "internal error while writing the buildings from {} to {}: {} (a citygen \
+                     bug: please report it)",
+                    buildings[0].id,
+                    buildings[buildings.len() - 1].id,
+                    crate::derive::panic_message(payload.as_ref())
+                )))),
+            }
+        })
         .collect();
     results.into_iter().collect()
 }
@@ -541,4 +555,48 @@ fn file_name(p: &Path) -> String {
     p.file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::export::fixtures::lod4_house;
+
+    /// Panics on its second building.
+    struct Faulty(usize);
+
+    impl BuildingWriter for Faulty {
+        fn begin(&mut self, _: &OutputContext) -> Result<(), ExportError> {
+            Ok(())
+        }
+        fn write(&mut self, _: &Building) -> Result<(), ExportError> {
+            self.0 += 1;
+            assert!(self.0 < 2, "index out of range in a writer");
+            Ok(())
+        }
+        fn finish(&mut self) -> Result<(), ExportError> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_panicking_writer_is_an_error_naming_the_file_and_the_buildings() {
+        let path = PathBuf::from("out/city.ifc");
+        let mut outputs: Vec<Output> = vec![(
+            path,
+            Box::new(Faulty(0)),
+            Sink::Discard,
+            Arc::new(AtomicU64::new(0)),
+        )];
+        let buildings = vec![lod4_house(), lod4_house()];
+        let e = write_chunk(&mut outputs, &buildings)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("out/city.ifc: internal error while writing"),
+            "{e}"
+        );
+        assert!(e.contains("index out of range in a writer"), "{e}");
+        assert!(e.contains(&buildings[0].id.to_string()), "{e}");
+    }
 }
