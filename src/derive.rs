@@ -60,7 +60,7 @@ impl Generator {
     /// deriving it (a bug, in citygen or in a geometry crate, that one footprint sets off) is
     /// caught and becomes that reason, so it costs one building, not the whole run.
     pub fn generate(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
-        guarded("deriving the building", || self.derive(lot))
+        crate::guard::caught(|| "deriving the building", || self.derive(lot)).unwrap_or_else(Err)
     }
 
     fn derive(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
@@ -399,27 +399,6 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
     out
 }
 
-/// Runs `f`; a panic inside it becomes `Err` naming `what` and the panic's message.
-pub fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
-        Ok(result) => result,
-        Err(payload) => Err(format!(
-            "internal error while {what}: {} (a citygen bug: please report it with this \
-             footprint)",
-            panic_message(payload.as_ref())
-        )),
-    }
-}
-
-/// The text a panic was raised with (`panic!` gives a `&str` or a `String`).
-pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "no message".to_string())
-}
-
 #[cfg(test)]
 mod tests {
     use glam::DVec2;
@@ -488,23 +467,6 @@ mod tests {
                 "{w}x{h}: {doors:?}"
             );
         }
-    }
-
-    #[test]
-    fn a_panic_inside_becomes_the_skip_reason() {
-        let r: Result<(), String> = guarded("deriving the building", || panic!("ring {} bad", 7));
-        let e = r.unwrap_err();
-        assert!(
-            e.contains("internal error while deriving the building: ring 7 bad"),
-            "{e}"
-        );
-        let r: Result<(), String> = guarded("x", || panic!("static text"));
-        assert!(r.unwrap_err().contains("static text"));
-        assert_eq!(guarded("x", || Ok::<_, String>(3)), Ok(3));
-        assert_eq!(
-            guarded::<()>("x", || Err("plain".into())),
-            Err("plain".into())
-        );
     }
 
     #[test]

@@ -11,6 +11,7 @@ pub mod export;
 pub mod facade;
 pub mod geometry;
 pub mod grammar;
+pub mod guard;
 pub mod input;
 pub mod interior;
 pub mod kb;

@@ -496,16 +496,13 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     let results: Vec<Result<(), RunError>> = outputs
         .par_iter_mut()
         .map(|(path, w, _, _)| {
-            match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| w.write_all(buildings)))
-            {
+            let what = || {
+                let (first, last) = (&buildings[0].id, &buildings[buildings.len() - 1].id);
+                format!("writing the buildings from {first} to {last}")
+            };
+            match crate::guard::caught(what, || w.write_all(buildings)) {
                 Ok(written) => written.map_err(out_err(path)),
-                Err(payload) => Err(out_err(path)(ExportError::Invalid(format!(
-                    "internal error while writing the buildings from {} to {}: {} (a citygen \
-                     bug: please report it)",
-                    buildings[0].id,
-                    buildings[buildings.len() - 1].id,
-                    crate::derive::panic_message(payload.as_ref())
-                )))),
+                Err(e) => Err(out_err(path)(ExportError::Invalid(e))),
             }
         })
         .collect();
