@@ -30,6 +30,8 @@ from multiprocessing import Pool
 from pathlib import Path
 
 SHARED_TOOLS = Path(os.environ.get("CITYGEN_SHARED", Path(__file__).resolve().parent.parent.parent / "shared")) / "tools"
+# The shared tool's module (validate_outputs.py), imported by each worker on its first check.
+sys.path.insert(0, str(SHARED_TOOLS))
 
 
 def sha256(path):
@@ -42,7 +44,6 @@ def sha256(path):
 
 def check(job):
     mode, path, digest = job
-    sys.path.insert(0, str(SHARED_TOOLS))
     import validate_outputs as v
 
     start = time.time()
