@@ -431,8 +431,8 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 Ok(k) => k,
                 Err(e) => return fail(e),
             };
-            let wanted = match (&shp, citygen::input::SourceId::parse(&id)) {
-                (Some(_), None) => id.trim().parse().ok().map(citygen::input::SourceId::Shape),
+            let wanted = match (&shp, citygen::model::SourceId::parse(&id)) {
+                (Some(_), None) => id.trim().parse().ok().map(citygen::model::SourceId::Shape),
                 (_, parsed) => parsed,
             };
             let Some(wanted) = wanted else {

@@ -8,11 +8,69 @@
 //! [`crate::export::OutputContext::origin`]. Every 3D face is planar and its outer ring is
 //! counter-clockwise seen from outside the solid (its normal points out of the building).
 
+use std::fmt;
+
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
 use crate::geometry::Polygon;
-use crate::input::SourceId;
+
+/// Where a footprint came from. Displayed as `way/123`, `relation/45` or `shp/7`
+/// (shapefile record index, 0-based).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum SourceId {
+    Way(i64),
+    Relation(i64),
+    Shape(u64),
+    /// A test lot given on the command line (`rules derive`).
+    Lot(u64),
+}
+
+impl SourceId {
+    /// `way_123`, `relation_45`, `shp_7`: usable in XML ids and file-safe names.
+    pub fn key(&self) -> String {
+        self.to_string().replace('/', "_")
+    }
+
+    /// A stable 64-bit value used to seed the building's random generator.
+    pub fn seed_value(&self) -> u64 {
+        match *self {
+            SourceId::Way(i) => (i as u64).wrapping_mul(4).wrapping_add(1),
+            SourceId::Relation(i) => (i as u64).wrapping_mul(4).wrapping_add(2),
+            SourceId::Shape(i) => i.wrapping_mul(4).wrapping_add(3),
+            SourceId::Lot(i) => i.wrapping_mul(4),
+        }
+    }
+
+    /// Parses `way/123`, `w123`, `relation/4`, `r4`, `shp/7`.
+    pub fn parse(s: &str) -> Option<SourceId> {
+        let s = s.trim();
+        let (kind, num) = if let Some((k, n)) = s.split_once('/') {
+            (k, n)
+        } else {
+            let i = s.find(|c: char| c.is_ascii_digit() || c == '-')?;
+            s.split_at(i)
+        };
+        match kind {
+            "way" | "w" => num.parse().ok().map(SourceId::Way),
+            "relation" | "r" => num.parse().ok().map(SourceId::Relation),
+            "shp" | "shape" => num.parse().ok().map(SourceId::Shape),
+            "lot" => num.parse().ok().map(SourceId::Lot),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for SourceId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SourceId::Way(i) => write!(f, "way/{i}"),
+            SourceId::Relation(i) => write!(f, "relation/{i}"),
+            SourceId::Shape(i) => write!(f, "shp/{i}"),
+            SourceId::Lot(i) => write!(f, "lot/{i}"),
+        }
+    }
+}
 
 /// Level of detail of a run (seed 003 L975-977).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

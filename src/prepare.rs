@@ -10,7 +10,8 @@ use rstar::{RTree, RTreeObject, AABB};
 
 use crate::crs::Crs;
 use crate::geometry::{ring_signed_area, Polygon};
-use crate::input::{Footprint, FootprintKind, SharedTags, SourceId, SourcePolygon, Streets};
+use crate::input::{Footprint, FootprintKind, SharedTags, SourcePolygon, Streets};
+use crate::model::SourceId;
 use crate::report::{Outcome, Report};
 
 /// Vertices closer than this (metres) are merged.

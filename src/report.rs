@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::input::SourceId;
+use crate::model::SourceId;
 
 /// What happened to one input record.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

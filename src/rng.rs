@@ -17,7 +17,7 @@ fn splitmix(x: &mut u64) -> u64 {
 
 impl Rng {
     /// A generator for one purpose of one building: mixes the run seed and a stream value
-    /// (the building's [`crate::input::SourceId::seed_value`]).
+    /// (the building's [`crate::model::SourceId::seed_value`]).
     pub fn new(seed: u64, stream: u64) -> Rng {
         let mut x = seed ^ stream.wrapping_mul(0xD6E8_FEB8_6659_FD93);
         Rng {

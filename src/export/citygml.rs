@@ -1025,7 +1025,7 @@ mod tests {
     use crate::crs::Crs;
     use crate::export::lod3geom::samples;
     use crate::geometry::Polygon;
-    use crate::input::SourceId;
+    use crate::model::SourceId;
     use crate::model::Wall;
 
     const ORIGIN: DVec3 = DVec3::new(574_321.5, 6_279_876.25, 146.0);

@@ -7,7 +7,7 @@ use glam::DVec2;
 
 use crate::export::lod3geom::samples;
 use crate::geometry::Polygon;
-use crate::input::SourceId;
+use crate::model::SourceId;
 use crate::model::{Building, InteriorDoor, InteriorWall, Lod, Room, Stair, StoreyInterior};
 
 fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<DVec2> {

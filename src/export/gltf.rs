@@ -1271,7 +1271,7 @@ mod tests {
     use super::*;
     use crate::export::lod3geom::samples;
     use crate::geometry::Polygon;
-    use crate::input::SourceId;
+    use crate::model::SourceId;
     use crate::model::{Lod, Part, RoofShape, Wall};
     use glam::DVec2;
     use serde_json::Value;

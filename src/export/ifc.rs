@@ -1970,8 +1970,8 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::geometry::Polygon;
-    use crate::input::SourceId;
     use crate::model::Lod;
+    use crate::model::SourceId;
 
     const RED: Color = Color::rgb(0.8, 0.2, 0.1);
     const BEIGE: Color = Color::rgb(0.96, 0.96, 0.86);

@@ -258,7 +258,7 @@ pub(crate) mod samples {
 
     use crate::color::Color;
     use crate::geometry::Polygon;
-    use crate::input::SourceId;
+    use crate::model::SourceId;
     use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
 
     pub const GLASS: Color = Color::rgb(0.55, 0.7, 0.8);

@@ -269,7 +269,7 @@ mod tests {
         (0..3 * PARALLEL_BATCH + 5)
             .map(|i| {
                 let mut b = all[i % all.len()].clone();
-                b.id = crate::input::SourceId::Way(1000 + i as i64);
+                b.id = crate::model::SourceId::Way(1000 + i as i64);
                 b
             })
             .collect()

@@ -805,7 +805,7 @@ fn monaco_footprint_matches_the_data() {
     let lot = site
         .lots
         .iter()
-        .find(|l| l.id == crate::input::SourceId::Way(49209616))
+        .find(|l| l.id == crate::model::SourceId::Way(49209616))
         .unwrap_or_else(|| panic!("way 49209616 not in data/monaco"));
     assert_eq!(lot.polygons.len(), 1);
     let real = &lot.polygons[0];

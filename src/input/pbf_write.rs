@@ -294,7 +294,8 @@ fn packed_sint_delta(out: &mut Vec<u8>, field: u32, values: impl Iterator<Item =
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::input::{FootprintKind, SourceId};
+    use crate::input::FootprintKind;
+    use crate::model::SourceId;
     use crate::report::Report;
     use osmpbf::{Element, ElementReader, RelMemberType};
 
