@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-use citygen::input::pbf_write::{MemberKind, PbfWriter};
+use citygen::testkit::pbf_write::{MemberKind, PbfWriter};
 use osmpbf::{Element, ElementReader, RelMemberType};
 
 type Error = Box<dyn std::error::Error>;

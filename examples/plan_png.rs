@@ -10,8 +10,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use citygen::derive::interior::{plan_building, PlanInput, RoomKind};
 use citygen::input::osm::read_osm;
-use citygen::interior::{plan_building, PlanInput, RoomKind};
 use citygen::prepare::prepare;
 use citygen::report::Report;
 use citygen::rng::Rng;

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use citygen::geometry::roof;
+use citygen::derive::roof;
 use citygen::input::{osm::read_osm, shp::read_shp, shp::ShpOptions};
 use citygen::prepare::prepare;
 use citygen::report::Report;

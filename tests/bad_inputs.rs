@@ -11,7 +11,7 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use citygen::input::pbf_write::{MemberKind, PbfWriter};
+use citygen::testkit::pbf_write::{MemberKind, PbfWriter};
 use common::{citygen, KB, MONACO};
 use serde_json::Value;
 

@@ -7,9 +7,9 @@
 use std::path::Path;
 
 use citygen::color::Color;
+use citygen::derive::massing::{build_part, check_part, roof_geometry, Mass};
 use citygen::geometry::Polygon;
 use citygen::input::{osm::read_osm, shp::read_shp, shp::ShpOptions};
-use citygen::massing::{build_part, check_part, roof_geometry, Mass};
 use citygen::model::{Lod, RoofShape};
 use citygen::prepare::prepare;
 use citygen::report::Report;

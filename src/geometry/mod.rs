@@ -1,12 +1,12 @@
-//! Planar geometry in f64 metres: polygons with holes, orientation, areas, and the roof
-//! constructions built on them (straight skeleton, hip roofs).
+//! Planar geometry in f64 metres: polygons with holes, orientation, areas, the straight
+//! skeleton, triangulation. The ground floor: it imports nothing else of citygen.
 //!
 //! Conventions used everywhere in citygen: the local frame is X east, Y north, Z up, metres.
 //! A [`Polygon`]'s outer ring is counter-clockwise, its holes clockwise, and no ring repeats its
 //! first vertex at the end.
 
-pub mod roof;
-pub mod roof_shapes;
+pub mod clip;
+pub mod hull;
 pub mod skeleton;
 pub mod triangulate;
 

@@ -63,9 +63,10 @@ use glam::{DVec2, DVec3};
 use super::ast::{AttrValue, Attrs, Axis, Expr, Op, RuleSet, Selector, SplitKind, SymbolId};
 use super::expr::{eval, EvalError};
 use super::shape::{
-    clip_slab, map_polygon, scope_direction, FaceKind, Geometry, Label, Scope, ShapeNode,
-    ShapeTree, Terminal, EPS, MIN_AREA,
+    FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal, EPS, MIN_AREA,
 };
+use crate::geometry::clip::{clip_slab, map_polygon};
+use crate::geometry::hull::scope_direction;
 use crate::geometry::Polygon;
 use crate::rng::Rng;
 
@@ -231,7 +232,7 @@ pub fn derive(
 /// [`derive`] for a lot whose front is known: `front` (a unit vector in the local frame,
 /// pointing from the building to its street) turns the axiom's scope so that its −Y, the
 /// `front` selector of `comp`, is the direction along the lot's minimum-area rectangle closest
-/// to it ([`super::shape::scope_direction`]). `None` is exactly [`derive`] (the thesis scope).
+/// to it ([`crate::geometry::hull::scope_direction`]). `None` is exactly [`derive`] (the thesis scope).
 pub fn derive_facing(
     rules: &RuleSet,
     lot: &Polygon,

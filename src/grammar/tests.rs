@@ -3,8 +3,9 @@
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 
-use super::shape::{clip_slab, dominant_direction, scope_direction};
 use super::*;
+use crate::geometry::clip::clip_slab;
+use crate::geometry::hull::{dominant_direction, scope_direction};
 use crate::geometry::Polygon;
 use crate::rng::Rng;
 
@@ -665,7 +666,7 @@ proptest! {
         cut in 0.05f64..0.95,
         angle in 0.0f64..6.3,
     ) {
-        let hull = super::shape::convex_hull(&pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect::<Vec<_>>());
+        let hull = crate::geometry::hull::convex_hull(&pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect::<Vec<_>>());
         prop_assume!(hull.len() >= 3);
         let poly = Polygon::new(hull, vec![]);
         prop_assume!(poly.area() > 1.0);
@@ -696,7 +697,7 @@ proptest! {
         edge in any::<prop::sample::Index>(),
         notch in any::<bool>(),
     ) {
-        let hull = super::shape::convex_hull(&pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect::<Vec<_>>());
+        let hull = crate::geometry::hull::convex_hull(&pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect::<Vec<_>>());
         prop_assume!(hull.len() >= 3);
         let mut ring = hull;
         if notch {

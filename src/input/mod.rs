@@ -4,7 +4,6 @@
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
 
 pub mod osm;
-pub mod pbf_write;
 pub mod rings;
 pub mod shp;
 pub mod tags;

@@ -10,6 +10,7 @@
 //! their arguments (no clocks, no hash order).
 
 pub mod compile;
+mod dom;
 pub mod polygon;
 mod strict;
 pub mod tools;
@@ -162,7 +163,7 @@ pub struct Values {
     pub balconies: Option<f64>,
     /// `programme`: the LOD4 floor-plan programme of buildings whose `building=*` tag does not
     /// name a type (untagged or `yes`).
-    pub programme: Option<crate::interior::Programme>,
+    pub programme: Option<crate::model::Programme>,
     /// Unknown attributes, lower-cased name → trimmed value, kept for rulesets that read them.
     pub extra: BTreeMap<String, String>,
 }
@@ -424,7 +425,7 @@ pub struct Style {
     /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
     pub balconies: f64,
     /// LOD4 programme for buildings whose `building=*` names no type (value `programme`).
-    pub programme: Option<crate::interior::Programme>,
+    pub programme: Option<crate::model::Programme>,
     pub window_height: WindowHeight,
     /// `framed`, `simple`, ... (lower-case).
     pub window_style: String,

@@ -9,8 +9,8 @@
 //! as two polygons of the same zone). Containment is the even-odd rule in lon/lat, which for
 //! rings of city size matches the ground to well under a metre.
 
+use super::dom::MAX_POLYGON_POINTS;
 use super::KM_PER_DEG;
-use crate::kb::xml::MAX_POLYGON_POINTS;
 
 /// One polygon of a zone: a simple ring in (lon, lat) degrees, not closed.
 #[derive(Clone, Debug, PartialEq)]

@@ -7,8 +7,8 @@
 //! can say (surrounding spaces in numbers, which XSD collapses; unknown CSS colour names, which
 //! the XSD only checks as lower-case words), it is stricter, never looser.
 
+use super::dom::{Elem, KbError};
 use super::polygon::ZonePolygon;
-use super::xml::{Elem, KbError};
 use crate::color::Color;
 use crate::model::RoofShape;
 

@@ -4,7 +4,7 @@
 
 use glam::DVec2;
 
-use super::tests::check_hipped;
+use super::check_hipped;
 use crate::geometry::Polygon;
 
 /// Parses the fixture format: a JSON array of `{id, outer: [[x, y], ...], holes: [[[x, y]...]]}`.

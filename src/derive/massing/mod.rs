@@ -8,7 +8,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
-use crate::geometry::roof::{self, RoofGeometry};
+use crate::derive::roof::{self, RoofGeometry};
 use crate::geometry::Polygon;
 use crate::model::{Face, Lod, Part, RoofShape, Wall};
 
@@ -76,8 +76,8 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         DVec2::new(r.sin(), r.cos())
     });
     let pitched = if mass.roof == RoofShape::Gabled && mass.roof_across {
-        let short = crate::geometry::roof_shapes::short_axis(&mass.footprint);
-        crate::geometry::roof_shapes::ridge_roof(&mass.footprint, short, 0.5, pitch)
+        let short = crate::derive::roof::shapes::short_axis(&mass.footprint);
+        crate::derive::roof::shapes::ridge_roof(&mass.footprint, short, 0.5, pitch)
     } else {
         roof::build(&mass.footprint, mass.roof, pitch, down)
     }
@@ -176,7 +176,7 @@ pub fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
 }
 
 /// One wall per ring edge whose top follows the roof: the outline is start-base, end-base, then
-/// the roof line over the edge from the end back to the start ([`crate::geometry::roof_shapes::wall_top`]): a rectangle
+/// the roof line over the edge from the end back to the start ([`crate::derive::roof::shapes::wall_top`]): a rectangle
 /// under eaves, a pentagon (or more, under a profile roof) under a gable, a trapezoid under a
 /// skillion. `roof` is at z = 0 at the eave; the eave is at `eave`.
 pub fn walls_under_roof(
@@ -192,7 +192,7 @@ pub fn walls_under_roof(
             let (s, e) = (ring[i], ring[(i + 1) % n]);
             let mut outline = vec![at(s, base), at(e, base)];
             outline.extend(
-                crate::geometry::roof_shapes::wall_top(&roof.faces, s, e)
+                crate::derive::roof::shapes::wall_top(&roof.faces, s, e)
                     .into_iter()
                     .map(|p| DVec3::new(p.x, p.y, p.z + eave)),
             );
@@ -576,5 +576,4 @@ fn at(p: DVec2, z: f64) -> DVec3 {
 }
 
 #[cfg(test)]
-#[path = "massing_tests.rs"]
 mod tests;

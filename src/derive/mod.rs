@@ -3,17 +3,21 @@
 //! [`Generator::generate`] is a pure function of the lot, the rules and the seed: it runs on
 //! any rayon thread and gives the same building whatever the thread count.
 
+pub mod facade;
+pub mod interior;
+pub mod massing;
+pub mod roof;
+
+use self::massing::Mass;
+
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::color::Color;
-use crate::facade;
 use crate::geometry::Polygon;
 use crate::grammar::{self, AttrValue, Attrs, Caps, Geometry, Label, RuleSet, ShapeTree};
 use crate::input::BuildingTags;
-use crate::interior;
 use crate::kb::{compile, KnowledgeBase, Style};
-use crate::massing::{self, Mass};
 use crate::model::SourceId;
 use crate::model::{Building, Lod, Part, RoofShape};
 use crate::prepare::{Lot, LotPiece};
@@ -100,7 +104,7 @@ impl Generator {
                                 Outcome::Note,
                                 format!("{} roof drawn flat: {}", f.asked.osm_name(), f.reason),
                             ));
-                            crate::geometry::roof::flat(&mass.footprint)
+                            crate::derive::roof::flat(&mass.footprint)
                         }
                     };
                     let key = format!("p{}", parts.len());
@@ -326,7 +330,7 @@ pub fn mass_nodes(tree: &ShapeTree) -> Vec<usize> {
 }
 
 /// Storeys of the mass at node `mass`: the finest partition of its horizontal cuts
-/// ([`crate::facade::levels`]); 0 when the rules cut none.
+/// ([`crate::derive::facade::levels`]); 0 when the rules cut none.
 fn storey_count(tree: &ShapeTree, mass: usize, z0: f64, z1: f64) -> u32 {
     let mut found = Vec::new();
     let mut stack = vec![mass];

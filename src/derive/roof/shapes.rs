@@ -51,9 +51,10 @@
 
 use glam::{DVec2, DVec3};
 
-use super::roof::{RoofError, RoofGeometry};
-use super::skeleton::straight_skeleton;
-use super::{ring_signed_area, Polygon};
+use super::{RoofError, RoofGeometry};
+use crate::geometry::hull::convex_hull;
+use crate::geometry::skeleton::straight_skeleton;
+use crate::geometry::Polygon;
 use crate::model::Face;
 
 /// Pitch of the mansard's lower (steep) slope, degrees.
@@ -171,7 +172,7 @@ struct TFace {
 /// Builds a profile roof (see the module documentation) with the eave at z = 0.
 ///
 /// `profile` receives `T`, the largest skeleton distance (the inscribed radius), and returns
-/// the height profile. Errors: any [`super::skeleton::SkeletonError`] (invalid footprint).
+/// the height profile. Errors: any [`crate::geometry::skeleton::SkeletonError`] (invalid footprint).
 pub fn profile_roof(
     poly: &Polygon,
     ends: Ends,
@@ -686,7 +687,7 @@ pub fn ridge_roof(
             Box::new(move |s: f64| h * (smax - s) / db),
         ),
     ] {
-        for piece in crate::grammar::shape::clip_slab(poly, DVec2::ZERO, n, lo, hi) {
+        for piece in crate::geometry::clip::clip_slab(poly, DVec2::ZERO, n, lo, hi) {
             let lift = |r: &Vec<DVec2>| -> Vec<DVec3> {
                 r.iter()
                     .map(|p| p.extend(z(p.dot(n)).clamp(0.0, h)))
@@ -738,36 +739,4 @@ pub fn short_axis(poly: &Polygon) -> DVec2 {
         }
     }
     best.1
-}
-
-/// Convex hull (monotone chain), counter-clockwise.
-fn convex_hull(pts: &[DVec2]) -> Vec<DVec2> {
-    let mut p: Vec<DVec2> = pts.iter().copied().filter(|q| q.is_finite()).collect();
-    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    p.dedup();
-    if p.len() < 3 {
-        return p;
-    }
-    let mut h: Vec<DVec2> = Vec::new();
-    for pass in 0..2 {
-        let start = h.len();
-        let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while h.len() >= start + 2
-                && (h[h.len() - 1] - h[h.len() - 2]).perp_dot(q - h[h.len() - 2]) <= 0.0
-            {
-                h.pop();
-            }
-            h.push(q);
-        }
-        h.pop();
-    }
-    if ring_signed_area(&h) < 0.0 {
-        h.reverse();
-    }
-    h
 }

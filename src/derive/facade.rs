@@ -235,7 +235,7 @@ const MIN_OPENING: f64 = 0.1;
 /// Default balcony depth (metres).
 const BALCONY_DEPTH: f64 = 1.2;
 
-/// Turns a LOD2-style part (one wall per footprint edge, built by [`crate::massing::build_part`])
+/// Turns a LOD2-style part (one wall per footprint edge, built by [`crate::derive::massing::build_part`])
 /// into LOD3: one wall per storey and edge, with the openings and balconies of `facades` placed
 /// on them and cut out of the wall outlines. Returns how many openings were left out because
 /// they were too small once kept [`OPENING_MARGIN`] inside their wall, or overlapped another.
@@ -457,11 +457,11 @@ mod tests {
 #[cfg(test)]
 mod apply_tests {
     use super::*;
+    use crate::derive::massing;
     use crate::derive::{mass_nodes, masses_of};
     use crate::geometry::ring_signed_area;
     use crate::grammar::{derive, parse, Caps};
     use crate::kb::{compile, KnowledgeBase};
-    use crate::massing;
     use crate::model::Lod;
     use crate::rng::Rng;
     use proptest::prelude::*;
@@ -502,7 +502,7 @@ mod apply_tests {
             .map(|(m, i)| {
                 let f = facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
                 let roof = massing::roof_geometry(&m)
-                    .unwrap_or_else(|_| crate::geometry::roof::flat(&m.footprint));
+                    .unwrap_or_else(|_| crate::derive::roof::flat(&m.footprint));
                 let mut part = massing::build_part("p0".into(), &m, &roof, Lod::Lod3);
                 apply(&mut part, &f, &colors);
                 part

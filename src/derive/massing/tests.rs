@@ -164,11 +164,11 @@ fn hip_variants_on_rectangle() {
     assert!(r.gable_walls.is_empty());
 }
 
-const HALF_HIP_TEST: f64 = crate::geometry::roof_shapes::HALF_HIP_FRACTION;
+const HALF_HIP_TEST: f64 = crate::derive::roof::shapes::HALF_HIP_FRACTION;
 
 #[test]
 fn mansard_and_gambrel_have_two_slopes() {
-    use crate::geometry::roof_shapes as rs;
+    use crate::derive::roof::shapes as rs;
     for (shape, lower, upper) in [
         (
             RoofShape::Mansard,
@@ -230,9 +230,9 @@ fn curved_roofs_are_banded() {
     let (d, _) = build(&sq, RoofShape::Dome);
     // Hemisphere-like: height = inscribed radius.
     assert!((d.height - 5.0).abs() < 1e-9);
-    assert_eq!(d.faces.len(), 4 * crate::geometry::roof_shapes::CURVE_BANDS);
+    assert_eq!(d.faces.len(), 4 * crate::derive::roof::shapes::CURVE_BANDS);
     let (o, _) = build(&sq, RoofShape::Onion);
-    assert!((o.height - crate::geometry::roof_shapes::ONION_HEIGHT_REL * 5.0).abs() < 1e-9);
+    assert!((o.height - crate::derive::roof::shapes::ONION_HEIGHT_REL * 5.0).abs() < 1e-9);
     let (r, part) = build(&rect(), RoofShape::Round);
     assert_eq!(r.gable_walls.len(), 2);
     assert!((r.height - 3.0).abs() < 1e-9);

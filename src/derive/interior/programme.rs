@@ -60,66 +60,7 @@ impl RoomKind {
     }
 }
 
-/// The layout family of a building, from its `building=*` value or set by the knowledge base.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Programme {
-    /// One dwelling over all storeys (house): public rooms on the ground floor, bedrooms above.
-    House,
-    /// Dwellings per storey around a common stair (and a corridor when the storey is large).
-    Apartments,
-    /// Office cells along a corridor (large storeys) or a reception with cells (small ones).
-    Office,
-    /// Shops (one or more units) with storage.
-    Retail,
-    /// One open room per storey (garages, sheds, warehouses, churches, unknown types).
-    OpenPlan,
-}
-
-impl Programme {
-    /// The programme for a `building=*` value. `yes` and missing values are dwellings: a
-    /// house when the whole building is small (usable area over all storeys ≤ 200 m²),
-    /// apartments otherwise.
-    pub fn for_building(building: Option<&str>, total_area: f64) -> Programme {
-        match building.map(|b| b.trim().to_ascii_lowercase()).as_deref() {
-            Some(
-                "house" | "detached" | "semidetached_house" | "semi" | "terrace" | "bungalow"
-                | "villa" | "farm" | "cabin" | "hut" | "static_caravan",
-            ) => Programme::House,
-            Some("apartments" | "residential" | "flats" | "dormitory" | "block") => {
-                Programme::Apartments
-            }
-            Some(
-                "office" | "commercial" | "public" | "civic" | "government" | "school"
-                | "university" | "college" | "hospital" | "hotel" | "bank" | "townhall"
-                | "kindergarten" | "clinic",
-            ) => Programme::Office,
-            Some("retail" | "supermarket" | "kiosk" | "shop" | "mall" | "store") => {
-                Programme::Retail
-            }
-            None | Some("yes" | "") => {
-                if total_area <= 200.0 {
-                    Programme::House
-                } else {
-                    Programme::Apartments
-                }
-            }
-            Some(_) => Programme::OpenPlan,
-        }
-    }
-
-    /// Parses a knowledge-base programme name (`house`, `apartments`, `office`, `retail`,
-    /// `open`/`openplan`), case-insensitively.
-    pub fn parse(s: &str) -> Option<Programme> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "house" | "dwelling" => Some(Programme::House),
-            "apartments" | "flats" => Some(Programme::Apartments),
-            "office" => Some(Programme::Office),
-            "retail" | "shop" => Some(Programme::Retail),
-            "open" | "openplan" | "open-plan" | "open_plan" => Some(Programme::OpenPlan),
-            _ => None,
-        }
-    }
-}
+pub use crate::model::Programme;
 
 /// One room to lay out: its kind, name, legal minimum area (when the programme is within the
 /// storey area) and its target area.

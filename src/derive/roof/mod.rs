@@ -1,0 +1,279 @@
+//! Roof surfaces over a footprint: flat, pyramidal, hipped (from the straight skeleton) and
+//! gabled (the hipped roof with its end triangles raised to vertical gables).
+//!
+//! All constructions put the eave at z = 0; [`RoofGeometry::translated_z`] lifts them onto the
+//! walls and [`RoofGeometry::scaled_to_height`] fits them to a known roof height (OSM
+//! `roof:height`). Faces are planar, their outer ring counter-clockwise seen from above (their
+//! normal points up and out of the building), in the `Face` convention of [`crate::model`].
+
+use glam::{DVec2, DVec3};
+use thiserror::Error;
+
+pub mod shapes;
+
+use self::shapes::{Ends, Profile};
+use crate::geometry::skeleton::{straight_skeleton, SkeletonError};
+use crate::geometry::Polygon;
+use crate::model::{Face, RoofShape};
+
+/// Why a roof shape cannot be built on a footprint (the caller falls back to a flat roof).
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum RoofError {
+    /// The straight skeleton failed (see [`SkeletonError`]).
+    #[error("straight skeleton failed: {0}")]
+    Skeleton(#[from] SkeletonError),
+    /// The pitch is not in (0°, 90°) or the height is not positive and finite.
+    #[error("invalid roof parameter: {0}")]
+    InvalidParameter(&'static str),
+    /// A pyramid needs a footprint without holes that is star-shaped from its apex.
+    #[error(
+        "a pyramidal roof needs a footprint without holes that is star-shaped around its centroid"
+    )]
+    NotStarShaped,
+}
+
+/// Roof surfaces with the eave at z = 0 (until translated).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoofGeometry {
+    /// Roof planes, normals pointing up/out.
+    pub faces: Vec<Face>,
+    /// Vertical walls closing gable ends (empty for other shapes). Their outer ring is
+    /// counter-clockwise seen from outside the building; the bottom edge lies on the eave.
+    pub gable_walls: Vec<Face>,
+    /// Height of the highest point above the eave.
+    pub height: f64,
+}
+
+impl RoofGeometry {
+    /// Builds the geometry from its faces and gable walls; `height` is the highest z.
+    pub fn from_parts(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
+        RoofGeometry::new(faces, gable_walls)
+    }
+
+    fn new(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
+        let top = faces
+            .iter()
+            .chain(&gable_walls)
+            .flat_map(|f| f.outer.iter())
+            .map(|p| p.z)
+            .fold(0.0, f64::max);
+        RoofGeometry {
+            faces,
+            gable_walls,
+            height: top,
+        }
+    }
+
+    /// Scales heights (about z = 0, the eave) so that the highest point is at `height`. A flat
+    /// roof (height 0) is left unchanged. Planarity is preserved (a vertical scale is affine).
+    pub fn scaled_to_height(mut self, height: f64) -> RoofGeometry {
+        if self.height > 0.0 && height.is_finite() && height >= 0.0 {
+            let k = height / self.height;
+            for f in self.faces.iter_mut().chain(self.gable_walls.iter_mut()) {
+                for p in f.outer.iter_mut().chain(f.holes.iter_mut().flatten()) {
+                    p.z *= k;
+                }
+            }
+            self.height = height;
+        }
+        self
+    }
+
+    /// Moves every vertex up by `dz` (the eave height). `height` stays relative to the eave.
+    pub fn translated_z(mut self, dz: f64) -> RoofGeometry {
+        for f in self.faces.iter_mut().chain(self.gable_walls.iter_mut()) {
+            for p in f.outer.iter_mut().chain(f.holes.iter_mut().flatten()) {
+                p.z += dz;
+            }
+        }
+        self
+    }
+}
+
+/// A flat roof: one face at z = 0 with the footprint's holes.
+pub fn flat(poly: &Polygon) -> RoofGeometry {
+    let lift = |r: &Vec<DVec2>| r.iter().map(|p| p.extend(0.0)).collect::<Vec<_>>();
+    let face = Face {
+        outer: lift(&poly.outer),
+        holes: poly.holes.iter().map(lift).collect(),
+    };
+    RoofGeometry::new(vec![face], Vec::new())
+}
+
+fn check_pitch(pitch_deg: f64) -> Result<f64, RoofError> {
+    if !(pitch_deg.is_finite() && pitch_deg > 0.0 && pitch_deg < 90.0) {
+        return Err(RoofError::InvalidParameter(
+            "pitch must be between 0 and 90 degrees",
+        ));
+    }
+    Ok(pitch_deg.to_radians().tan())
+}
+
+/// A hipped roof: one plane per footprint edge, all with slope `pitch_deg`, meeting along the
+/// straight skeleton; z = distance to the edge × tan(pitch). Works for any simple footprint,
+/// holes included (the courtyards get inward-facing hips). One face per input edge (see
+/// [`crate::geometry::skeleton::Skeleton`] for degenerate edges), in ring then edge order.
+///
+/// Errors: pitch not in (0°, 90°), or any [`SkeletonError`].
+pub fn hipped(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError> {
+    let k = check_pitch(pitch_deg)?;
+    let sk = straight_skeleton(poly)?;
+    let faces = sk
+        .faces
+        .into_iter()
+        .map(|f| {
+            Face::new(
+                f.polygon
+                    .into_iter()
+                    .map(|p| DVec3::new(p.x, p.y, p.z * k))
+                    .collect(),
+            )
+        })
+        .collect();
+    Ok(RoofGeometry::new(faces, Vec::new()))
+}
+
+/// A pyramidal roof: one triangle per edge rising to an apex `height` above the centroid of the
+/// footprint.
+///
+/// Errors: non-positive height, holes, or a footprint that is not strictly star-shaped from the
+/// centroid (some triangle would fold over).
+pub fn pyramidal(poly: &Polygon, height: f64) -> Result<RoofGeometry, RoofError> {
+    if !(height.is_finite() && height > 0.0) {
+        return Err(RoofError::InvalidParameter("height must be positive"));
+    }
+    if !poly.holes.is_empty() || poly.outer.len() < 3 {
+        return Err(RoofError::NotStarShaped);
+    }
+    let c = centroid(&poly.outer).ok_or(RoofError::NotStarShaped)?;
+    let n = poly.outer.len();
+    let (lo, hi) = poly.bounds();
+    let tol = 1e-9 * (hi - lo).max_element().powi(2);
+    let mut faces = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = (poly.outer[i], poly.outer[(i + 1) % n]);
+        // The apex must be strictly left of every edge.
+        if (b - a).perp_dot(c - a) <= tol {
+            return Err(RoofError::NotStarShaped);
+        }
+        faces.push(Face::new(vec![
+            a.extend(0.0),
+            b.extend(0.0),
+            c.extend(height),
+        ]));
+    }
+    Ok(RoofGeometry::new(faces, Vec::new()))
+}
+
+/// Area centroid of a ring; `None` for a zero-area ring.
+fn centroid(r: &[DVec2]) -> Option<DVec2> {
+    let n = r.len();
+    let o = r[0];
+    let (mut a, mut c) = (0.0, DVec2::ZERO);
+    for i in 0..n {
+        let (p, q) = (r[i] - o, r[(i + 1) % n] - o);
+        let w = p.perp_dot(q);
+        a += w;
+        c += (p + q) * w;
+    }
+    if a.abs() < 1e-300 || !a.is_finite() {
+        return None;
+    }
+    Some(o + c / (3.0 * a))
+}
+
+/// A gabled roof: the hipped roof with every hip end raised to a vertical gable (after Laycock
+/// and Day; see [`super::roof_shapes`] for the rule that picks the ends). The roof line over
+/// each gable is returned in `gable_walls`. Footprints without hip ends (a square) keep their
+/// hips.
+///
+/// Errors: as [`hipped`].
+pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError> {
+    let k = check_pitch(pitch_deg)?;
+    shapes::profile_roof(poly, Ends::Gabled, |_| Profile::linear(k))
+}
+
+/// Builds any roof of the catalogue on `poly` with the eave at z = 0.
+///
+/// `pitch_deg` is the pitch of hipped, gabled, half-hipped, side-hipped, saltbox, skillion,
+/// pyramidal and cone roofs; the mansard and gambrel use their own two pitches (see
+/// [`shapes`]) and dome, onion and round roofs a height from the inscribed radius. The
+/// caller scales the result with [`RoofGeometry::scaled_to_height`] when the height is known.
+/// `down` is the direction (in plan) a skillion faces (OSM `roof:direction`), else the short
+/// axis of the footprint's minimum bounding rectangle. Pyramidal and cone roofs rise to one
+/// apex over the centroid when the footprint has no holes and is star-shaped from it, and are
+/// hipped otherwise. Saltbox is a two-plane ridge roof with the ridge at 35 % of the width
+/// ([`shapes::ridge_roof`]); its long slope faces `down` when given.
+///
+/// Errors: a pitch outside (0°, 90°), or an invalid footprint ([`SkeletonError`]); never a
+/// fallback for a valid simple polygon.
+pub fn build(
+    poly: &Polygon,
+    shape: RoofShape,
+    pitch_deg: f64,
+    down: Option<DVec2>,
+) -> Result<RoofGeometry, RoofError> {
+    let k = check_pitch(pitch_deg)?;
+    let lin = |_: f64| Profile::linear(k);
+    let tan = |d: f64| d.to_radians().tan();
+    match shape {
+        RoofShape::Flat => {
+            straight_skeleton(poly)?;
+            Ok(flat(poly))
+        }
+        RoofShape::Hipped => shapes::profile_roof(poly, Ends::Hipped, lin),
+        RoofShape::Gabled => shapes::profile_roof(poly, Ends::Gabled, lin),
+        RoofShape::Saltbox => {
+            // The long slope faces `down` (roof:direction) when given: the ridge stands on the
+            // other side.
+            let across = shapes::short_axis(poly);
+            let (ridge_dir, at) = match down.map(|d| d.normalize_or_zero()) {
+                Some(d) if d != DVec2::ZERO => (d.perp(), shapes::SALTBOX_RIDGE_AT),
+                _ => (across.perp(), shapes::SALTBOX_RIDGE_AT),
+            };
+            shapes::ridge_roof(poly, -ridge_dir, at, pitch_deg)
+        }
+        RoofShape::SideHipped => shapes::profile_roof(poly, Ends::AllButOne, lin),
+        RoofShape::HalfHipped => {
+            shapes::profile_roof(poly, Ends::HalfHipped(shapes::HALF_HIP_FRACTION), lin)
+        }
+        RoofShape::Mansard => shapes::profile_roof(poly, Ends::Hipped, |t| {
+            let t0 = shapes::MANSARD_BREAK_M.min(shapes::MANSARD_BREAK_REL * t);
+            Profile::broken(
+                tan(shapes::MANSARD_LOWER_DEG),
+                tan(shapes::MANSARD_UPPER_DEG),
+                t0,
+            )
+        }),
+        RoofShape::Gambrel => shapes::profile_roof(poly, Ends::Gabled, |t| {
+            Profile::broken(
+                tan(shapes::GAMBREL_LOWER_DEG),
+                tan(shapes::GAMBREL_UPPER_DEG),
+                shapes::GAMBREL_BREAK_REL * t,
+            )
+        }),
+        RoofShape::Dome => shapes::profile_roof(poly, Ends::Hipped, Profile::circle),
+        RoofShape::Round => shapes::profile_roof(poly, Ends::Gabled, Profile::circle),
+        RoofShape::Onion => shapes::profile_roof(poly, Ends::Hipped, Profile::onion),
+        RoofShape::Pyramidal | RoofShape::Cone => {
+            let sk = straight_skeleton(poly)?;
+            let t = sk
+                .faces
+                .iter()
+                .flat_map(|f| f.polygon.iter())
+                .map(|p| p.z)
+                .fold(0.0, f64::max);
+            match pyramidal(poly, t * k) {
+                Ok(g) => Ok(g),
+                Err(_) => shapes::profile_roof(poly, Ends::Hipped, lin),
+            }
+        }
+        RoofShape::Skillion => {
+            let d = down.unwrap_or_else(|| shapes::short_axis(poly));
+            shapes::skillion(poly, d, k)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,635 @@
+//! Roof tests: every shape on synthetic footprints (property tests) and on real ones.
+
+use super::*;
+use crate::geometry::skeleton::Skeleton;
+use proptest::prelude::*;
+
+fn poly(pts: &[(f64, f64)]) -> Polygon {
+    Polygon::new(pts.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), vec![])
+}
+
+fn dist_to_boundary(p: &Polygon, q: DVec2) -> f64 {
+    p.rings()
+        .flat_map(|r| {
+            (0..r.len()).map(move |i| {
+                let (a, b) = (r[i], r[(i + 1) % r.len()]);
+                let ab = b - a;
+                let t = ((q - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+                q.distance(a + ab * t)
+            })
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn area2(r: &[DVec3]) -> f64 {
+    crate::geometry::ring_signed_area(&r.iter().map(|p| p.truncate()).collect::<Vec<_>>())
+}
+
+/// Checks the skeleton contract on `p`; returns the skeleton for further checks.
+fn check_skeleton(p: &Polygon, sk: &Skeleton) -> Result<(), String> {
+    let tol = 1e-3;
+    let mut total = 0.0;
+    let rings: Vec<&Vec<DVec2>> = p.rings().collect();
+    let mut seen = std::collections::BTreeSet::new();
+    for f in &sk.faces {
+        let (ri, ei) = f.edge;
+        if !seen.insert(f.edge) {
+            return Err(format!("edge {:?} owns two faces", f.edge));
+        }
+        let r = rings[ri];
+        let (a, b) = (r[ei], r[(ei + 1) % r.len()]);
+        if f.polygon.iter().any(|q| !q.is_finite()) {
+            return Err("NaN".into());
+        }
+        if f.polygon[0].truncate().distance(a) > tol || f.polygon[1].truncate().distance(b) > tol {
+            return Err(format!("face {:?} does not start with its edge", f.edge));
+        }
+        let ar = area2(&f.polygon);
+        if ar <= 1e-9 {
+            return Err(format!("face {:?} has area {ar}", f.edge));
+        }
+        total += ar;
+        let n = (b - a).normalize().perp();
+        for q in &f.polygon {
+            let g = q.truncate();
+            if !p.contains(g) && dist_to_boundary(p, g) > tol {
+                return Err(format!("vertex {g} of face {:?} outside", f.edge));
+            }
+            let d = (g - a).dot(n);
+            if (d - q.z).abs() > tol {
+                return Err(format!("face {:?}: vertex {q} at distance {d}", f.edge));
+            }
+        }
+    }
+    let expect = p.area();
+    if (total - expect).abs() > 1e-3 * expect {
+        return Err(format!("faces cover {total}, footprint {expect}"));
+    }
+    // Every edge longer than the tolerance owns a face.
+    for (ri, r) in rings.iter().enumerate() {
+        for ei in 0..r.len() {
+            if r[ei].distance(r[(ei + 1) % r.len()]) > 1e-3 && !seen.contains(&(ri, ei)) {
+                return Err(format!("edge {:?} owns no face", (ri, ei)));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks a hipped roof: planar faces, all with the pitch, inside the footprint.
+pub(super) fn check_hipped(p: &Polygon, pitch: f64) -> Result<RoofGeometry, String> {
+    let sk = straight_skeleton(p).map_err(|e| e.to_string())?;
+    check_skeleton(p, &sk)?;
+    let roof = hipped(p, pitch).map_err(|e| e.to_string())?;
+    for f in &roof.faces {
+        let n = f.normal();
+        if !n.is_finite() || n.z <= 0.0 {
+            return Err(format!("bad normal {n}"));
+        }
+        let slope = n.z.clamp(-1.0, 1.0).acos().to_degrees();
+        if (slope - pitch).abs() > 0.01 {
+            return Err(format!("slope {slope} != {pitch}"));
+        }
+        let o = f.outer[0];
+        if f.outer.iter().any(|q| (*q - o).dot(n).abs() > 1e-3) {
+            return Err("face not planar".into());
+        }
+    }
+    Ok(roof)
+}
+
+#[test]
+fn rectangle_hips_and_ridge() {
+    let (l, w) = (12.0, 5.0);
+    let p = poly(&[(0., 0.), (l, 0.), (l, w), (0., w)]);
+    let roof = check_hipped(&p, 30.0).unwrap();
+    let k = 30f64.to_radians().tan();
+    let counts: Vec<usize> = roof.faces.iter().map(|f| f.outer.len()).collect();
+    assert_eq!(counts, vec![4, 3, 4, 3]);
+    assert!((roof.height - w / 2.0 * k).abs() < 1e-9);
+    let ridge: Vec<DVec3> = roof.faces[0]
+        .outer
+        .iter()
+        .copied()
+        .filter(|p| (p.z - w / 2.0 * k).abs() < 1e-9)
+        .collect();
+    assert_eq!(ridge.len(), 2);
+    assert!((ridge[0].distance(ridge[1]) - (l - w)).abs() < 1e-9);
+}
+
+#[test]
+fn square_has_one_apex() {
+    let p = poly(&[(0., 0.), (6., 0.), (6., 6.), (0., 6.)]);
+    let roof = check_hipped(&p, 45.0).unwrap();
+    assert_eq!(roof.faces.len(), 4);
+    for f in &roof.faces {
+        assert_eq!(f.outer.len(), 3);
+        assert!(f.outer[2].distance(DVec3::new(3., 3., 3.)) < 1e-9);
+    }
+}
+
+#[test]
+fn letter_shapes() {
+    let shapes: Vec<Vec<(f64, f64)>> = vec![
+        // L
+        vec![
+            (0., 0.),
+            (10., 0.),
+            (10., 4.),
+            (4., 4.),
+            (4., 10.),
+            (0., 10.),
+        ],
+        // T
+        vec![
+            (3., 0.),
+            (7., 0.),
+            (7., 6.),
+            (10., 6.),
+            (10., 10.),
+            (0., 10.),
+            (0., 6.),
+            (3., 6.),
+        ],
+        // U
+        vec![
+            (0., 0.),
+            (10., 0.),
+            (10., 8.),
+            (7., 8.),
+            (7., 3.),
+            (3., 3.),
+            (3., 8.),
+            (0., 8.),
+        ],
+        // H
+        vec![
+            (0., 0.),
+            (3., 0.),
+            (3., 4.),
+            (7., 4.),
+            (7., 0.),
+            (10., 0.),
+            (10., 10.),
+            (7., 10.),
+            (7., 6.),
+            (3., 6.),
+            (3., 10.),
+            (0., 10.),
+        ],
+        // collinear vertices on every side
+        vec![
+            (0., 0.),
+            (5., 0.),
+            (10., 0.),
+            (10., 3.),
+            (10., 6.),
+            (5., 6.),
+            (0., 6.),
+            (0., 2.),
+        ],
+        // near-collinear vertex (1 µm off)
+        vec![(0., 0.), (5., 1e-6), (10., 0.), (10., 6.), (0., 6.)],
+        // tiny edge
+        vec![
+            (0., 0.),
+            (10., 0.),
+            (10., 6.),
+            (5.001, 6.),
+            (5., 6.001),
+            (0., 6.),
+        ],
+    ];
+    for s in shapes {
+        if let Err(e) = check_hipped(&poly(&s), 35.0) {
+            panic!("{s:?}: {e}");
+        }
+    }
+}
+
+#[test]
+fn regular_100_gon() {
+    let pts: Vec<(f64, f64)> = (0..100)
+        .map(|i| {
+            let a = i as f64 / 100.0 * std::f64::consts::TAU;
+            (20.0 * a.cos(), 20.0 * a.sin())
+        })
+        .collect();
+    let roof = check_hipped(&poly(&pts), 40.0).unwrap();
+    assert_eq!(roof.faces.len(), 100);
+    let apothem = 20.0 * (std::f64::consts::PI / 100.0).cos();
+    assert!((roof.height - apothem * 40f64.to_radians().tan()).abs() < 1e-6);
+}
+
+#[test]
+fn comb_with_ten_teeth() {
+    let mut pts = vec![(0.0, 0.0), (39.0, 0.0)];
+    for i in (0..10).rev() {
+        let x = i as f64 * 4.0;
+        pts.push((x + 3.0, 3.0));
+        pts.push((x + 3.0, 10.0));
+        pts.push((x, 10.0));
+        if i > 0 {
+            pts.push((x, 3.0));
+        }
+    }
+    // close: last tooth's left side goes down to (0, 0)
+    let roof = check_hipped(&poly(&pts), 30.0).unwrap();
+    assert_eq!(roof.faces.len(), pts.len());
+}
+
+#[test]
+fn courtyard_hole() {
+    let p = Polygon::new(
+        vec![
+            DVec2::new(0., 0.),
+            DVec2::new(20., 0.),
+            DVec2::new(20., 14.),
+            DVec2::new(0., 14.),
+        ],
+        vec![vec![
+            DVec2::new(6., 5.),
+            DVec2::new(14., 5.),
+            DVec2::new(14., 9.),
+            DVec2::new(6., 9.),
+        ]],
+    );
+    let roof = check_hipped(&p, 30.0).unwrap();
+    assert_eq!(roof.faces.len(), 8);
+}
+
+#[test]
+fn flat_and_pyramid_and_scaling() {
+    let p = poly(&[(0., 0.), (8., 0.), (8., 6.), (0., 6.)]);
+    let f = flat(&p);
+    assert_eq!(f.faces.len(), 1);
+    assert_eq!(f.height, 0.0);
+    let py = pyramidal(&p, 3.0).unwrap();
+    assert_eq!(py.faces.len(), 4);
+    assert!(py.faces.iter().all(|f| f.normal().z > 0.0));
+    assert!((py.height - 3.0).abs() < 1e-12);
+    let s = py.scaled_to_height(6.0).translated_z(10.0);
+    assert!(s
+        .faces
+        .iter()
+        .flat_map(|f| &f.outer)
+        .all(|p| p.z >= 10.0 && p.z <= 16.0 + 1e-9));
+    let l = poly(&[
+        (0., 0.),
+        (10., 0.),
+        (10., 1.),
+        (1., 1.),
+        (1., 10.),
+        (0., 10.),
+    ]);
+    assert_eq!(pyramidal(&l, 3.0), Err(RoofError::NotStarShaped));
+    assert!(hipped(&p, 90.0).is_err());
+}
+
+#[test]
+fn gabled_rectangle() {
+    let p = poly(&[(0., 0.), (12., 0.), (12., 5.), (0., 5.)]);
+    let g = gabled(&p, 45.0).unwrap();
+    assert_eq!(g.faces.len(), 2);
+    assert_eq!(g.gable_walls.len(), 2);
+    for f in &g.faces {
+        let n = f.normal();
+        assert!((n.z.acos().to_degrees() - 45.0).abs() < 1e-6);
+        assert!(f
+            .outer
+            .iter()
+            .all(|q| (*q - f.outer[0]).dot(n).abs() < 1e-9));
+    }
+    for w in &g.gable_walls {
+        let n = w.normal();
+        assert!(n.z.abs() < 1e-9);
+        // Outward: away from the centre.
+        let c = w.outer.iter().map(|p| p.truncate()).sum::<DVec2>() / 3.0;
+        assert!(n.truncate().dot(c - DVec2::new(6., 2.5)) > 0.0);
+    }
+    // A square keeps its hips.
+    let sq = gabled(&poly(&[(0., 0.), (5., 0.), (5., 5.), (0., 5.)]), 45.0).unwrap();
+    assert_eq!(sq.faces.len(), 4);
+}
+
+// ---- generated footprints ----
+
+/// An x-monotone rectilinear polygon: columns of given widths, each spanning [lo, hi],
+/// overlapping its neighbour. Many right angles, collinear vertices and simultaneous events.
+fn histogram(cols: &[(u8, u8, u8)]) -> Vec<DVec2> {
+    let mut x = vec![0.0];
+    let mut spans = Vec::new();
+    for &(w, lo, h) in cols {
+        x.push(x[x.len() - 1] + 1.0 + w as f64);
+        spans.push((lo as f64, lo as f64 + 1.0 + h as f64));
+    }
+    // Make each column overlap the previous one by at least 1.
+    for i in 1..spans.len() {
+        let a = spans[i - 1];
+        let b = &mut spans[i];
+        if b.0 > a.1 - 1.0 {
+            b.0 = a.1 - 1.0;
+        }
+        if b.1 < a.0 + 1.0 {
+            b.1 = a.0 + 1.0;
+        }
+    }
+    let mut pts = Vec::new();
+    for (i, s) in spans.iter().enumerate() {
+        pts.push(DVec2::new(x[i], s.0));
+        pts.push(DVec2::new(x[i + 1], s.0));
+    }
+    for (i, s) in spans.iter().enumerate().rev() {
+        pts.push(DVec2::new(x[i + 1], s.1));
+        pts.push(DVec2::new(x[i], s.1));
+    }
+    pts.dedup();
+    pts
+}
+
+/// A union of unit cells grown from (0, 0) on a 7 × 7 grid: general rectilinear shapes
+/// (spirals, G, comb), courtyards included. `None` when two cells touch only at a corner
+/// (the boundary would not be simple).
+fn cell_union(steps: &[(u8, u8)], carve: bool) -> Option<Polygon> {
+    const K: i32 = 7;
+    let mut cells = vec![(0i32, 0i32)];
+    if carve {
+        // A full block with cells taken out: courtyards and notches.
+        cells = (0..K * K).map(|i| (i % K, i / K)).collect();
+        for &(pick, _) in steps {
+            if cells.len() > 1 {
+                cells.remove(pick as usize % cells.len());
+            }
+        }
+    }
+    for &(pick, dir) in steps.iter().filter(|_| !carve) {
+        let (x, y) = cells[pick as usize % cells.len()];
+        let (dx, dy) = [(1, 0), (0, 1), (-1, 0), (0, -1)][dir as usize % 4];
+        let c = (x + dx, y + dy);
+        if c.0 >= 0 && c.1 >= 0 && c.0 < K && c.1 < K && !cells.contains(&c) {
+            cells.push(c);
+        }
+    }
+    // Directed boundary edges: each cell's CCW edges, shared ones cancel.
+    let mut edges: std::collections::BTreeSet<((i32, i32), (i32, i32))> = Default::default();
+    for &(x, y) in &cells {
+        let c = [(x, y), (x + 1, y), (x + 1, y + 1), (x, y + 1)];
+        for i in 0..4 {
+            let (a, b) = (c[i], c[(i + 1) % 4]);
+            if !edges.remove(&(b, a)) {
+                edges.insert((a, b));
+            }
+        }
+    }
+    let mut next = std::collections::BTreeMap::new();
+    for &(a, b) in &edges {
+        if next.insert(a, b).is_some() {
+            return None;
+        }
+    }
+    let mut rings = Vec::new();
+    let mut left = next.clone();
+    while let Some((&s, _)) = left.iter().next() {
+        let mut ring = vec![s];
+        let mut cur = left.remove(&s)?;
+        while cur != s {
+            ring.push(cur);
+            cur = left.remove(&cur)?;
+        }
+        rings.push(
+            ring.iter()
+                .map(|&(x, y)| DVec2::new(x as f64, y as f64))
+                .collect::<Vec<_>>(),
+        );
+    }
+    let outer_ix = (0..rings.len()).max_by(|&i, &j| {
+        crate::geometry::ring_signed_area(&rings[i])
+            .total_cmp(&crate::geometry::ring_signed_area(&rings[j]))
+    })?;
+    let outer = rings.remove(outer_ix);
+    if rings
+        .iter()
+        .any(|r| crate::geometry::ring_signed_area(r) > 0.0)
+    {
+        return None; // several components
+    }
+    Some(Polygon::new(outer, rings))
+}
+
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2000)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
+
+    #[test]
+    fn hipped_orthogonal(
+        cols in prop::collection::vec((0u8..5, 0u8..6, 0u8..7), 1..8),
+        angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+        scale in 0.5f64..20.0,
+        pitch in 10.0f64..60.0,
+    ) {
+        let pts = histogram(&cols);
+        let (s, c) = angle.sin_cos();
+        let pts: Vec<DVec2> = pts.iter()
+            .map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale + DVec2::new(5e5, 4e6))
+            .collect();
+        // Work in a local frame, as the pipeline does.
+        let p = Polygon::new(pts, vec![]).translated(DVec2::new(-5e5, -4e6));
+        if let Err(e) = check_hipped(&p, pitch) {
+            return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+        }
+    }
+
+    #[test]
+    fn hipped_cell_union(
+        steps in prop::collection::vec((0u8..255, 0u8..4), 1..30),
+        carve in any::<bool>(),
+        angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+        scale in 1.0f64..15.0,
+        pitch in 10.0f64..60.0,
+    ) {
+        let Some(p) = cell_union(&steps, carve) else { return Ok(()); };
+        let (s, c) = angle.sin_cos();
+        let rot = |r: &Vec<DVec2>| -> Vec<DVec2> {
+            r.iter().map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale).collect()
+        };
+        let p = Polygon::new(rot(&p.outer), p.holes.iter().map(rot).collect());
+        if let Err(e) = check_hipped(&p, pitch) {
+            return Err(TestCaseError::fail(format!("{e}: {:?} {:?}", p.outer, p.holes)));
+        }
+    }
+
+    #[test]
+    fn hipped_star(
+        pts in prop::collection::vec((0.0f64..1.0, 0.2f64..1.0), 3..24),
+        size in 2.0f64..60.0,
+        pitch in 10.0f64..60.0,
+    ) {
+        let n = pts.len();
+        // Angles: evenly spread sectors with jitter, so they stay ordered.
+        let ring: Vec<DVec2> = pts.iter().enumerate().map(|(i, &(j, r))| {
+            let a = (i as f64 + 0.1 + 0.8 * j) / n as f64 * std::f64::consts::TAU;
+            DVec2::new(a.cos(), a.sin()) * r * size
+        }).collect();
+        let p = Polygon::new(ring, vec![]);
+        if let Err(e) = check_hipped(&p, pitch) {
+            return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+        }
+    }
+}
+
+// ---- every shape: the invariants of issue 4 on the built part ----
+
+fn roof_cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(if cfg!(debug_assertions) { 1000 } else { 10000 })
+}
+
+/// Builds `shape` on `p` through massing and checks the part ([`crate::derive::massing::check_part`])
+/// and the slopes: hipped and gabled faces all at `pitch`, mansard faces at one of its two
+/// pitches.
+pub(super) fn check_shape(p: &Polygon, shape: RoofShape, pitch: f64) -> Result<(), String> {
+    use crate::derive::massing::{build_part, check_part, roof_geometry, Mass};
+    let m = Mass {
+        footprint: p.clone(),
+        base_z: 0.0,
+        eave_z: 5.0,
+        storeys: 2,
+        roof: shape,
+        roof_angle_deg: pitch,
+        roof_direction: None,
+        roof_across: false,
+        roof_height: None,
+        wall_color: crate::color::Color::WHITE,
+        roof_color: crate::color::Color::GREY,
+    };
+    let r = match roof_geometry(&m) {
+        Ok(r) => r,
+        // A roof under 5 cm (a sliver of a footprint at a low pitch) is drawn flat on
+        // purpose; only that fallback is allowed.
+        Err(f) if f.reason.starts_with("roof would be") => return Ok(()),
+        Err(f) => return Err(format!("{shape:?} fell back: {}", f.reason)),
+    };
+    let part = build_part("p0".into(), &m, &r, crate::model::Lod::Lod2);
+    // Known weakness (reported, not hidden in the data-set test's ratchet): the skeleton can
+    // emit nodes just beyond the weld distance, leaving one edge shared by 4 or 6 faces
+    // ("used n times, reverse n times"); every use still has its reverse, so the shell is
+    // watertight there, but not 2-manifold.
+    let balanced = |l: &str| {
+        let tail: Vec<&str> = l
+            .rsplit("used ")
+            .next()
+            .unwrap_or("")
+            .split_whitespace()
+            .collect();
+        tail.len() == 5 && tail[1] == "times," && tail[2] == "reverse" && tail[0] == tail[3]
+    };
+    let d: Vec<String> = check_part(&part)
+        .into_iter()
+        .filter(|l| !balanced(l))
+        .collect();
+    if !d.is_empty() {
+        return Err(format!("{shape:?}: {}", d[..d.len().min(5)].join("; ")));
+    }
+    let slopes: Vec<f64> = match shape {
+        RoofShape::Hipped | RoofShape::Gabled => vec![pitch],
+        RoofShape::Mansard => vec![shapes::MANSARD_LOWER_DEG, shapes::MANSARD_UPPER_DEG],
+        _ => return Ok(()),
+    };
+    for f in &r.faces {
+        let s = f.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
+        if !slopes.iter().any(|x| (s - x).abs() < 0.01) {
+            return Err(format!(
+                "{shape:?}: face slope {s}, expected one of {slopes:?}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+const CHECKED: [RoofShape; 3] = [RoofShape::Hipped, RoofShape::Gabled, RoofShape::Mansard];
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: roof_cases(), ..ProptestConfig::default() })]
+
+    #[test]
+    fn shapes_orthogonal(
+        cols in prop::collection::vec((0u8..5, 0u8..6, 0u8..7), 1..8),
+        angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+        scale in 0.5f64..20.0,
+        pitch in 10.0f64..60.0,
+    ) {
+        let (s, c) = angle.sin_cos();
+        let pts: Vec<DVec2> = histogram(&cols).iter()
+            .map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale)
+            .collect();
+        let p = Polygon::new(pts, vec![]);
+        for shape in CHECKED {
+            if let Err(e) = check_shape(&p, shape, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+            }
+        }
+    }
+
+    #[test]
+    fn shapes_cell_union_with_holes(
+        steps in prop::collection::vec((0u8..255, 0u8..4), 1..30),
+        carve in any::<bool>(),
+        angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
+        scale in 1.0f64..15.0,
+        pitch in 10.0f64..60.0,
+    ) {
+        let Some(p) = cell_union(&steps, carve) else { return Ok(()); };
+        let (s, c) = angle.sin_cos();
+        let rot = |r: &Vec<DVec2>| -> Vec<DVec2> {
+            r.iter().map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale).collect()
+        };
+        let p = Polygon::new(rot(&p.outer), p.holes.iter().map(rot).collect());
+        for shape in CHECKED {
+            if let Err(e) = check_shape(&p, shape, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?} {:?}", p.outer, p.holes)));
+            }
+        }
+    }
+
+    #[test]
+    fn shapes_general(
+        pts in prop::collection::vec((0.0f64..1.0, 0.2f64..1.0), 3..24),
+        size in 2.0f64..60.0,
+        pitch in 10.0f64..60.0,
+        hole in any::<bool>(),
+    ) {
+        let n = pts.len();
+        let ring: Vec<DVec2> = pts.iter().enumerate().map(|(i, &(j, r))| {
+            let a = (i as f64 + 0.1 + 0.8 * j) / n as f64 * std::f64::consts::TAU;
+            DVec2::new(a.cos(), a.sin()) * r * size
+        }).collect();
+        // A small square hole at the centre when the disc around it that holds the square
+        // lies inside the star.
+        let outer = Polygon::new(ring.clone(), vec![]);
+        let h = 0.05 * size;
+        let holes = if hole
+            && outer.contains(DVec2::ZERO)
+            && dist_to_boundary(&outer, DVec2::ZERO) > 2.0 * h
+        {
+            vec![vec![DVec2::new(-h, -h), DVec2::new(-h, h), DVec2::new(h, h), DVec2::new(h, -h)]]
+        } else {
+            vec![]
+        };
+        let p = Polygon::new(ring, holes);
+        for shape in CHECKED {
+            if let Err(e) = check_shape(&p, shape, pitch) {
+                return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
+            }
+        }
+    }
+}
+
+mod real_footprints;

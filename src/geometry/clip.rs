@@ -1,0 +1,133 @@
+//! Clipping a polygon to a slab between two parallel lines, and mapping its vertices.
+
+use geo::BooleanOps;
+use glam::DVec2;
+
+use super::Polygon;
+
+/// Lengths below this (metres) are treated as zero: empty split pieces, degenerate edges.
+pub const EPS: f64 = 1e-9;
+/// Pieces of a clipped footprint smaller than this (m²) are slivers and are dropped.
+pub const MIN_AREA: f64 = 1e-6;
+
+/// Whether a ring is convex (counter-clockwise, collinear vertices allowed).
+fn is_convex(ring: &[DVec2]) -> bool {
+    let n = ring.len();
+    if n < 3 {
+        return false;
+    }
+    (0..n).all(|i| {
+        let (a, b, c) = (ring[i], ring[(i + 1) % n], ring[(i + 2) % n]);
+        (b - a).perp_dot(c - b) >= -1e-12 * (b - a).length() * (c - b).length()
+    })
+}
+
+/// The parts of `poly` whose points `p` satisfy `lo <= (p - origin)·axis <= hi` (`axis` unit).
+///
+/// Convex footprints without holes (most buildings) are clipped by Sutherland–Hodgman against
+/// the two half-planes; anything else goes through `geo`'s boolean intersection with a large
+/// rectangle, which is exact for concave outlines and holes and may return several polygons.
+/// Slivers under [`MIN_AREA`] are dropped.
+pub fn clip_slab(poly: &Polygon, origin: DVec2, axis: DVec2, lo: f64, hi: f64) -> Vec<Polygon> {
+    let proj = |p: &DVec2| (*p - origin).dot(axis);
+    let (mut pmin, mut pmax) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in &poly.outer {
+        let t = proj(p);
+        pmin = pmin.min(t);
+        pmax = pmax.max(t);
+    }
+    if pmin >= lo - EPS && pmax <= hi + EPS {
+        return vec![poly.clone()];
+    }
+    if pmax <= lo + EPS || pmin >= hi - EPS {
+        return Vec::new();
+    }
+    let out = if poly.holes.is_empty() && is_convex(&poly.outer) {
+        let a = half_plane(&poly.outer, |p| proj(p) - lo);
+        let b = half_plane(&a, |p| hi - proj(p));
+        vec![Polygon::new(b, Vec::new())]
+    } else {
+        let perp = axis.perp();
+        let (mut qmin, mut qmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for p in &poly.outer {
+            let t = (*p - origin).dot(perp);
+            qmin = qmin.min(t);
+            qmax = qmax.max(t);
+        }
+        let (qmin, qmax) = (qmin - 1.0, qmax + 1.0);
+        let lo = lo.max(pmin - 1.0);
+        let hi = hi.min(pmax + 1.0);
+        let corner = |s: f64, t: f64| {
+            let p = origin + axis * s + perp * t;
+            geo::Coord { x: p.x, y: p.y }
+        };
+        let rect = geo::Polygon::new(
+            geo::LineString::from(vec![
+                corner(lo, qmin),
+                corner(hi, qmin),
+                corner(hi, qmax),
+                corner(lo, qmax),
+            ]),
+            Vec::new(),
+        );
+        let g = to_geo(poly);
+        g.intersection(&rect)
+            .0
+            .into_iter()
+            .map(|gp| from_geo(&gp))
+            .collect()
+    };
+    out.into_iter()
+        .filter(|p| p.outer.len() >= 3 && p.area() > MIN_AREA)
+        .collect()
+}
+
+/// One Sutherland–Hodgman pass: keeps the part of a ring where `f >= 0`.
+fn half_plane(ring: &[DVec2], f: impl Fn(&DVec2) -> f64) -> Vec<DVec2> {
+    let n = ring.len();
+    let mut out = Vec::with_capacity(n + 2);
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[(i + 1) % n]);
+        let (fa, fb) = (f(&a), f(&b));
+        if fa >= 0.0 {
+            out.push(a);
+        }
+        if (fa >= 0.0) != (fb >= 0.0) {
+            let t = fa / (fa - fb);
+            out.push(a + (b - a) * t);
+        }
+    }
+    out.dedup_by(|a, b| a.distance_squared(*b) < EPS * EPS);
+    if out.len() > 1 && out[0].distance_squared(out[out.len() - 1]) < EPS * EPS {
+        out.pop();
+    }
+    out
+}
+
+fn to_geo(poly: &Polygon) -> geo::Polygon<f64> {
+    let ring = |r: &Vec<DVec2>| {
+        geo::LineString::from(
+            r.iter()
+                .map(|p| geo::Coord { x: p.x, y: p.y })
+                .collect::<Vec<_>>(),
+        )
+    };
+    geo::Polygon::new(ring(&poly.outer), poly.holes.iter().map(ring).collect())
+}
+
+fn from_geo(p: &geo::Polygon<f64>) -> Polygon {
+    let ring =
+        |l: &geo::LineString<f64>| l.0.iter().map(|c| DVec2::new(c.x, c.y)).collect::<Vec<_>>();
+    Polygon::new(ring(p.exterior()), p.interiors().iter().map(ring).collect())
+}
+
+/// Applies `f` to every vertex of a polygon, then restores the orientation convention.
+pub fn map_polygon(poly: &Polygon, f: impl Fn(DVec2) -> DVec2) -> Polygon {
+    Polygon::new(
+        poly.outer.iter().map(|p| f(*p)).collect(),
+        poly.holes
+            .iter()
+            .map(|h| h.iter().map(|p| f(*p)).collect())
+            .collect(),
+    )
+}
