@@ -431,55 +431,22 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 Ok(k) => k,
                 Err(e) => return fail(e),
             };
-            let wanted = match (&shp, citygen::model::SourceId::parse(&id)) {
-                (Some(_), None) => id.trim().parse().ok().map(citygen::model::SourceId::Shape),
-                (_, parsed) => parsed,
-            };
-            let Some(wanted) = wanted else {
-                return fail(format!(
-                    "{id:?} is not a building id (way/123, relation/45 or a record number)"
-                ));
-            };
-            let mut report = citygen::report::Report::default();
-            let read = match (&osm, &shp) {
-                (Some(p), _) => citygen::input::osm::read_osm(p, &mut report),
-                (None, Some(p)) => {
-                    citygen::input::shp::read_shp(p, &Default::default(), &mut report)
-                }
+            let source = match (osm, shp) {
+                (Some(p), _) => Source::Osm(p),
+                (None, Some(path)) => Source::Shp {
+                    path,
+                    height_field: None,
+                    levels_field: None,
+                },
                 (None, None) => return ExitCode::from(2),
             };
-            let read = match read {
-                Ok(r) => r,
-                Err(e) => return fail(e.to_string()),
-            };
-            let site =
-                citygen::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
-            let found = site.lots.iter().find_map(|lot| {
-                if lot.id == wanted {
-                    return Some((lot.lonlat, (*lot.tags).clone()));
+            match citygen::pipeline::explain_building(&kb, &source, &id, seed) {
+                Ok(e) => {
+                    print!("{e}");
+                    ExitCode::SUCCESS
                 }
-                let part = lot.parts.iter().find(|p| p.id == wanted)?;
-                Some((
-                    lot.lonlat,
-                    citygen::derive::merged_tags(&part.tags, &lot.tags, true),
-                ))
-            });
-            let Some((lonlat, tags)) = found else {
-                let why = report
-                    .entries
-                    .iter()
-                    .find(|e| e.id == wanted.to_string())
-                    .map(|e| e.reason.clone());
-                return fail(match why {
-                    Some(r) => format!("{wanted} was not generated: {r}"),
-                    None => format!("no building {wanted} in the input"),
-                });
-            };
-            print!(
-                "{}",
-                tools::explain(&kb, lonlat.0, lonlat.1, &tags, wanted.seed_value(), seed)
-            );
-            ExitCode::SUCCESS
+                Err(e) => fail(e.to_string()),
+            }
         }
     }
 }

@@ -11,15 +11,15 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::crs::Crs;
-use crate::derive::{Generator, Rules};
+use crate::derive::{merged_tags, Generator, Rules};
 use crate::export::citygml::CityGmlWriter;
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
 use crate::export::{AtomicFile, BuildingWriter, ExportError, OutputContext, PendingFile};
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
-use crate::kb::KnowledgeBase;
-use crate::model::{Building, Lod};
+use crate::kb::{self, tools::Explanation, KnowledgeBase};
+use crate::model::{Building, Lod, SourceId};
 use crate::prepare;
 use crate::report::{Outcome, Report};
 
@@ -93,22 +93,7 @@ pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> {
     let start = Instant::now();
     let mut report = Report::default();
-    let read = match &opts.source {
-        Source::Osm(p) => input::osm::read_osm(p, &mut report),
-        Source::Shp {
-            path,
-            height_field,
-            levels_field,
-        } => {
-            let o = ShpOptions {
-                height_field: height_field.clone(),
-                levels_field: levels_field.clone(),
-                src_crs: opts.src_crs,
-            };
-            input::shp::read_shp(path, &o, &mut report)
-        }
-    }
-    .map_err(|e| RunError::Input(e.to_string()))?;
+    let read = read_source(&opts.source, opts.src_crs, &mut report)?;
     let source_crs = opts.src_crs.or(read.source_crs);
     let source_name = match &opts.source {
         Source::Osm(p) | Source::Shp { path: p, .. } => file_name(p),
@@ -161,6 +146,80 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     )?;
     summary.elapsed = start.elapsed();
     Ok(summary)
+}
+
+/// Reads the footprints of the source (with `src_crs` overriding a shapefile's `.prj`).
+fn read_source(
+    source: &Source,
+    src_crs: Option<Crs>,
+    report: &mut Report,
+) -> Result<input::ReadResult, RunError> {
+    match source {
+        Source::Osm(p) => input::osm::read_osm(p, report),
+        Source::Shp {
+            path,
+            height_field,
+            levels_field,
+        } => {
+            let o = ShpOptions {
+                height_field: height_field.clone(),
+                levels_field: levels_field.clone(),
+                src_crs,
+            };
+            input::shp::read_shp(path, &o, report)
+        }
+    }
+    .map_err(|e| RunError::Input(e.to_string()))
+}
+
+/// `citygen kb explain`: reads the source and prepares it as a run does, finds building `id`
+/// (`way/123`, `relation/45`, or for a shapefile also a bare 0-based record number; a
+/// `building:part` gets its outline's tags under its own) and explains, for the knowledge base,
+/// its zone chain, inherited values and the appearance the run's `seed` picks for it.
+pub fn explain_building(
+    kb: &KnowledgeBase,
+    source: &Source,
+    id: &str,
+    seed: u64,
+) -> Result<Explanation, RunError> {
+    let wanted = match (source, SourceId::parse(id)) {
+        (Source::Shp { .. }, None) => id.trim().parse().ok().map(SourceId::Shape),
+        (_, parsed) => parsed,
+    };
+    let Some(wanted) = wanted else {
+        return Err(RunError::Input(format!(
+            "{id:?} is not a building id (way/123, relation/45 or a record number)"
+        )));
+    };
+    let mut report = Report::default();
+    let read = read_source(source, None, &mut report)?;
+    let site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let found = site.lots.iter().find_map(|lot| {
+        if lot.id == wanted {
+            return Some((lot.lonlat, (*lot.tags).clone()));
+        }
+        let part = lot.parts.iter().find(|p| p.id == wanted)?;
+        Some((lot.lonlat, merged_tags(&part.tags, &lot.tags, true)))
+    });
+    let Some((lonlat, tags)) = found else {
+        let why = report
+            .entries
+            .iter()
+            .find(|e| e.id == wanted.to_string())
+            .map(|e| e.reason.clone());
+        return Err(RunError::Input(match why {
+            Some(r) => format!("{wanted} was not generated: {r}"),
+            None => format!("no building {wanted} in the input"),
+        }));
+    };
+    Ok(kb::tools::explain(
+        kb,
+        lonlat.0,
+        lonlat.1,
+        &tags,
+        wanted.seed_value(),
+        seed,
+    ))
 }
 
 /// `citygen rules derive`: one ruleset on one test lot (local metres) placed at `lonlat`.
@@ -271,10 +330,7 @@ fn write_batches(
     let start = Instant::now();
     let total = site.lots.len();
     let mut done = 0usize;
-    let mut polygons = 0usize;
-    let mut bytes = 0u64;
-    let mut pending = Vec::new();
-    let mut rendered = Vec::new();
+    let mut written = Written::default();
     for batch in batches {
         let path = |p: &Option<PathBuf>| match (&batch.suffix, p) {
             (Some(sfx), Some(p)) => Some(tile_path(p, sfx)),
@@ -292,19 +348,18 @@ fn write_batches(
             None => source_name.to_string(),
         };
         let lots = &site.lots[batch.range.clone()];
-        let (p, b) = write_lots(
+        write_lots(
             site,
             lots,
             generator,
-            &name,
-            &tile_targets,
+            &FileSet {
+                name: &name,
+                targets: &tile_targets,
+            },
             &mut report,
-            &mut pending,
-            &mut rendered,
+            &mut written,
             &|n| progress(done + n, total),
         )?;
-        polygons += p;
-        bytes += b;
         done += lots.len();
     }
     report.skipped = report
@@ -317,7 +372,12 @@ fn write_batches(
         .iter()
         .filter(|e| e.outcome == Outcome::Repaired)
         .count();
-    let mut paths = rendered;
+    let Written {
+        pending,
+        rendered: mut paths,
+        polygons,
+        bytes,
+    } = written;
     for (path, file) in pending {
         file.commit().map_err(io_err(&path))?;
         paths.push(path);
@@ -379,21 +439,37 @@ fn open_output(path: &Path, dry_run: bool) -> Result<(OutWriter, Sink, Arc<Atomi
     Ok((w, sink, bytes))
 }
 
-/// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the targets' files,
-/// which are left closed in `pending`, ready to be renamed (for a dry run, their paths go to
-/// `rendered`). Returns the polygons and the bytes written.
-#[allow(clippy::too_many_arguments)]
+/// One set of files of a run (the whole site, or one tile): the name the files give as their
+/// source, and their paths.
+struct FileSet<'a> {
+    name: &'a str,
+    targets: &'a Targets,
+}
+
+/// What the batches of a run have written so far.
+#[derive(Default)]
+struct Written {
+    /// Complete and closed files, ready to be renamed over their targets.
+    pending: Vec<(PathBuf, PendingFile)>,
+    /// The targets of a dry run, rendered and dropped.
+    rendered: Vec<PathBuf>,
+    polygons: usize,
+    bytes: u64,
+}
+
+/// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the file set,
+/// whose files are left closed in `written.pending`, ready to be renamed (for a dry run, their
+/// paths go to `written.rendered`); adds the polygons and the bytes written.
 fn write_lots(
     site: &prepare::Site,
     lots: &[prepare::Lot],
     generator: &Generator,
-    source_name: &str,
-    targets: &Targets,
+    files: &FileSet<'_>,
     report: &mut Report,
-    pending: &mut Vec<(PathBuf, PendingFile)>,
-    rendered: &mut Vec<PathBuf>,
+    written: &mut Written,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<(usize, u64), RunError> {
+) -> Result<(), RunError> {
+    let (source_name, targets) = (files.name, files.targets);
     let ctx = OutputContext {
         crs: site.crs,
         origin: DVec3::new(site.origin.x, site.origin.y, 0.0),
@@ -467,19 +543,19 @@ fn write_lots(
     for (path, w, _, _) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
-    let mut bytes = 0;
+    written.polygons += polygons;
     for (path, writer, sink, counted) in outputs {
         drop(writer);
-        bytes += counted.load(Ordering::Relaxed);
+        written.bytes += counted.load(Ordering::Relaxed);
         match sink {
             Sink::File(file) => {
                 let closed = file.close().map_err(io_err(&path))?;
-                pending.push((path, closed));
+                written.pending.push((path, closed));
             }
-            Sink::Discard => rendered.push(path),
+            Sink::Discard => written.rendered.push(path),
         }
     }
-    Ok((polygons, bytes))
+    Ok(())
 }
 
 /// An open output: target path, format writer, where its bytes go, and their count.

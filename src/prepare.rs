@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use rstar::{RTree, RTreeObject, AABB};
 
 use crate::crs::Crs;
-use crate::geometry::{ring_signed_area, Polygon};
+use crate::geometry::{ring, ring_signed_area, Polygon};
 use crate::input::{Footprint, FootprintKind, SharedTags, SourcePolygon, Streets};
 use crate::model::SourceId;
 use crate::report::{Outcome, Report};
@@ -402,14 +402,14 @@ fn clean_polygons_quietly(
     let mut out = Vec::with_capacity(polys.len());
     let mut repaired = Vec::new();
     for p in polys {
-        let Some((outer, spikes)) = clean_ring(&p.outer) else {
+        let Some((outer, spikes)) = merge_ring(&p.outer) else {
             repaired.push("dropped an outer ring with fewer than 3 distinct vertices".to_string());
             continue;
         };
         let mut spikes_removed = spikes;
         let mut holes = Vec::with_capacity(p.holes.len());
         for h in &p.holes {
-            match clean_ring(h) {
+            match merge_ring(h) {
                 Some((r, spikes)) => {
                     spikes_removed += spikes;
                     holes.push(r);
@@ -457,39 +457,14 @@ fn clean_polygons_quietly(
     (Some(out), entry)
 }
 
-/// Merges vertices closer than the tolerance and removes zero-width spikes (a, b, a). `None`
-/// when fewer than 3 vertices are left. (A ring can still have zero area, e.g. a bow-tie: the
-/// validity check and the repair handle that.)
-fn clean_ring(r: &[DVec2]) -> Option<(Vec<DVec2>, usize)> {
-    let mut v: Vec<DVec2> = Vec::with_capacity(r.len());
-    for p in r {
-        if v.last().is_none_or(|q| q.distance(*p) > MERGE_TOLERANCE) {
-            v.push(*p);
-        }
-    }
-    while v.len() > 1 && v[0].distance(v[v.len() - 1]) <= MERGE_TOLERANCE {
-        v.pop();
-    }
-    // Spikes: a vertex whose neighbours coincide.
-    let mut spikes = 0;
-    let mut changed = true;
-    while changed && v.len() >= 3 {
-        changed = false;
-        let n = v.len();
-        for i in 0..n {
-            let (a, c) = (v[(i + n - 1) % n], v[(i + 1) % n]);
-            if a.distance(c) <= MERGE_TOLERANCE {
-                // Remove the spike tip and one of the coinciding neighbours.
-                let j = (i + 1) % n;
-                let (first, second) = if i > j { (i, j) } else { (j, i) };
-                v.remove(first);
-                v.remove(second);
-                spikes += 1;
-                changed = true;
-                break;
-            }
-        }
-    }
+/// Merges vertices closer than the tolerance and removes zero-width spikes (a, b, a)
+/// ([`ring::dedup_within`], [`ring::remove_spikes_by`]); returns the ring and the number of
+/// spikes. `None` when fewer than 3 vertices are left. (A ring can still have zero area, e.g. a
+/// bow-tie: the validity check and the repair handle that.)
+fn merge_ring(r: &[DVec2]) -> Option<(Vec<DVec2>, usize)> {
+    let mut v = r.to_vec();
+    ring::dedup_within(&mut v, MERGE_TOLERANCE);
+    let spikes = ring::remove_spikes_by(&mut v, |a, b| a.distance(b) <= MERGE_TOLERANCE);
     (v.len() >= 3).then_some((v, spikes))
 }
 
@@ -560,11 +535,11 @@ fn repair(p: &Polygon) -> Vec<Polygon> {
             let ring = |ls: &geo::LineString<f64>| -> Vec<DVec2> {
                 ls.0.iter().map(|c| DVec2::new(c.x, c.y)).collect()
             };
-            let (outer, _) = clean_ring(&ring(gp.exterior()))?;
+            let (outer, _) = merge_ring(&ring(gp.exterior()))?;
             let holes = gp
                 .interiors()
                 .iter()
-                .filter_map(|h| clean_ring(&ring(h)).map(|(r, _)| r))
+                .filter_map(|h| merge_ring(&ring(h)).map(|(r, _)| r))
                 .collect();
             Some(Polygon::new(outer, holes))
         })
@@ -871,7 +846,7 @@ mod tests {
         r.insert(1, DVec2::new(0.0, 0.0));
         r.insert(3, DVec2::new(15.0, 0.0)); // spike out of (10,0) and back
         r.insert(4, DVec2::new(10.0, 0.0));
-        let (c, spikes) = clean_ring(&r).unwrap();
+        let (c, spikes) = merge_ring(&r).unwrap();
         assert_eq!(spikes, 1);
         assert_eq!(c.len(), 4, "{c:?}");
     }

@@ -27,6 +27,16 @@ use crate::rng::Rng;
 /// Mixed into the seed of the interiors' random stream ("LOD4").
 const INTERIOR_STREAM: u64 = 0x4c4f_4434;
 
+/// What the derivation of one piece of a lot (its outline or a `building:part`) works with.
+#[derive(Clone, Copy)]
+struct Piece<'a> {
+    id: SourceId,
+    /// The lot's street direction ([`Lot::front`]).
+    front: Option<glam::DVec2>,
+    style: &'a Style,
+    rules: &'a RuleSet,
+}
+
 /// Where the rules come from.
 pub enum Rules {
     /// Compiled per appearance from the knowledge base.
@@ -93,9 +103,13 @@ impl Generator {
             }
             let rules = self.rules_for(&style)?;
             for polygon in &piece.polygons {
-                let masses = self.masses(
-                    polygon, lot.front, &style, &rules, &mut rng, piece.id, &mut notes,
-                )?;
+                let on = Piece {
+                    id: piece.id,
+                    front: lot.front,
+                    style: &style,
+                    rules: &rules,
+                };
+                let masses = self.masses(&on, polygon, &mut rng, &mut notes)?;
                 for (mass, facades) in masses {
                     let roof = match massing::roof_geometry(&mass) {
                         Ok(r) => r,
@@ -229,17 +243,19 @@ impl Generator {
 
     /// Derives one footprint polygon and returns the masses of the tree. `front` is the lot's
     /// street direction ([`Lot::front`]): every piece of the lot turns its front towards it.
-    #[allow(clippy::too_many_arguments)]
     fn masses(
         &self,
+        piece: &Piece<'_>,
         polygon: &Polygon,
-        front: Option<glam::DVec2>,
-        style: &Style,
-        rules: &RuleSet,
         rng: &mut Rng,
-        id: SourceId,
         notes: &mut Vec<Note>,
     ) -> Result<Vec<(Mass, Option<facade::Facades>)>, String> {
+        let Piece {
+            id,
+            front,
+            style,
+            rules,
+        } = *piece;
         let mut style = style.clone();
         // A total height with a pitched roof of unknown height: the eave is what is left under
         // the roof at the zone's pitch.

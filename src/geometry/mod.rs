@@ -7,10 +7,13 @@
 
 pub mod clip;
 pub mod hull;
+pub mod ring;
 pub mod skeleton;
 pub mod triangulate;
 
 use glam::{DVec2, DVec3};
+
+pub use ring::clean_ring;
 
 /// A simple polygon with holes in the local frame (metres).
 #[derive(Clone, Debug, PartialEq)]
@@ -103,9 +106,6 @@ impl Polygon {
     }
 }
 
-/// Lengths below this are zero in [`clean_ring`] (metres).
-const RING_EPS: f64 = 1e-6;
-
 /// Crossing-number point-in-ring test.
 pub fn ring_contains(ring: &[DVec2], p: DVec2) -> bool {
     let n = ring.len();
@@ -132,50 +132,6 @@ pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
         n.z += (a.x - b.x) * (a.y + b.y);
     }
     n
-}
-
-/// A ring without repeated (closer than 0.1 mm), closing or collinear vertices, counter-clockwise;
-/// `None` when fewer than 3 vertices or no area remain.
-pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
-    let mut r: Vec<DVec2> = Vec::with_capacity(ring.len());
-    for &p in ring {
-        if !p.is_finite() {
-            return None;
-        }
-        if r.last().is_none_or(|q: &DVec2| q.distance(p) > 1e-4) {
-            r.push(p);
-        }
-    }
-    while r.len() > 1 && r[0].distance(r[r.len() - 1]) <= 1e-4 {
-        r.pop();
-    }
-    // Drop collinear vertices until none is left (a vertex whose neighbours it lies between).
-    let mut changed = true;
-    while changed && r.len() >= 3 {
-        changed = false;
-        let n = r.len();
-        for i in 0..n {
-            let (a, p, b) = (r[(i + n - 1) % n], r[i], r[(i + 1) % n]);
-            let ab = b - a;
-            let len = ab.length();
-            if len <= RING_EPS || (p - a).perp_dot(ab).abs() / len <= 1e-6 {
-                r.remove(i);
-                changed = true;
-                break;
-            }
-        }
-    }
-    if r.len() < 3 {
-        return None;
-    }
-    let area = ring_signed_area(&r);
-    if area.abs() <= 1e-8 {
-        return None;
-    }
-    if area < 0.0 {
-        r.reverse();
-    }
-    Some(r)
 }
 
 /// Two non-adjacent edges closer than this touch, for [`is_simple`] (metres): the distance

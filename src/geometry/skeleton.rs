@@ -207,7 +207,7 @@ pub fn straight_skeleton(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
     let mut ring_starts = Vec::new();
     for (ri, r) in rings.iter().enumerate() {
         ring_starts.push(edges.len());
-        clean_ring(ri, r, size, &mut edges)?;
+        ring_edges(ri, r, size, &mut edges)?;
     }
     ring_starts.push(edges.len());
     // The propagation costs about O(n²) per event: past this many edges one skeleton would take
@@ -246,8 +246,9 @@ fn area3(r: &[DVec3]) -> f64 {
         * 0.5
 }
 
-/// Removes duplicate and collinear vertices of ring `ri` and appends its edges.
-fn clean_ring(
+/// Removes duplicate and collinear vertices of ring `ri` ([`super::ring::simplified_indices`])
+/// and appends its edges.
+fn ring_edges(
     ri: usize,
     ring: &[DVec2],
     size: f64,
@@ -259,43 +260,8 @@ fn clean_ring(
     }
     let dup = DUPLICATE_REL * size;
     let col = COLLINEAR_REL * size;
-    let mut keep: Vec<usize> = (0..n).collect();
-    let mut changed = true;
-    while changed && keep.len() >= 3 {
-        changed = false;
-        let m = keep.len();
-        for k in 0..m {
-            let (a, b, c) = (
-                ring[keep[(k + m - 1) % m]],
-                ring[keep[k]],
-                ring[keep[(k + 1) % m]],
-            );
-            let (ab, bc) = (b - a, c - b);
-            let remove = if ab.length() < dup {
-                true
-            } else if bc.length() < dup {
-                false // handled when the next vertex is visited
-            } else {
-                let cross = ab.perp_dot(bc);
-                if ab.dot(bc) > 0.0 {
-                    let ac = c - a;
-                    cross.abs() / ac.length() < col
-                } else if cross.abs() / ab.length().max(bc.length()) < col {
-                    return Err(SkeletonError::Spike {
-                        ring: ri,
-                        vertex: keep[k],
-                    });
-                } else {
-                    false
-                }
-            };
-            if remove {
-                keep.remove(k);
-                changed = true;
-                break;
-            }
-        }
-    }
+    let keep = super::ring::simplified_indices(ring, dup, col)
+        .map_err(|vertex| SkeletonError::Spike { ring: ri, vertex })?;
     if keep.len() < 3 {
         return Err(SkeletonError::TooFewVertices { ring: ri });
     }

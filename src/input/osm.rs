@@ -25,11 +25,12 @@ use std::path::{Path, PathBuf};
 use osmpbf::{BlobDecode, BlobReader, PrimitiveBlock, RelMemberType};
 use rayon::prelude::*;
 
-use super::rings::{clean_ring, group_rings, oriented_polygon, ring_problem};
+use super::rings::{group_rings, oriented_polygon, ring_problem};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SharedTags, SourceId,
     TagInterner,
 };
+use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
 /// Blobs decoded per parallel batch: enough to keep the cores busy, few enough that the
@@ -1133,7 +1134,7 @@ fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled 
     let mut claims = Vec::new();
     let mut ring_ways = Vec::new();
     for mut r in joined {
-        clean_ring(&mut r.pts);
+        ring::dedup_by(&mut r.pts, |a, b| a == b);
         if let Some(why) = ring_problem(&r.pts) {
             problems.push(format!(
                 "ring of {} dropped: {why}",
@@ -1384,7 +1385,7 @@ fn way_ring(w: &WayRec, built_by: &[(i64, i64)], nodes: &Nodes) -> Result<Ring, 
     }
     let mut outer = resolve(&w.refs, nodes)
         .map_err(|n| format!("{n} of {} nodes missing from the file", w.refs.len()))?;
-    clean_ring(&mut outer);
+    ring::dedup_by(&mut outer, |a, b| a == b);
     if let Some(why) = ring_problem(&outer) {
         return Err(why.to_string());
     }

@@ -41,14 +41,6 @@ pub fn ring_contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
     inside
 }
 
-/// Drops consecutive duplicate points and a closing point that repeats the first one.
-pub fn clean_ring(ring: &mut Ring) {
-    ring.dedup();
-    while ring.len() > 1 && ring.first() == ring.last() {
-        ring.pop();
-    }
-}
-
 /// Why a cleaned ring cannot be used, if it cannot.
 pub fn ring_problem(ring: &[(f64, f64)]) -> Option<&'static str> {
     if ring.iter().any(|&(x, y)| !x.is_finite() || !y.is_finite()) {
@@ -215,7 +207,7 @@ mod tests {
     #[test]
     fn problems_and_cleaning() {
         let mut r = vec![(0.0, 0.0), (0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 0.0)];
-        clean_ring(&mut r);
+        crate::geometry::ring::dedup_by(&mut r, |a, b| a == b);
         assert_eq!(r, vec![(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)]);
         assert_eq!(ring_problem(&r), None);
         assert!(ring_problem(&[(0.0, 0.0), (1.0, 1.0), (0.0, 0.0)]).is_some());

@@ -26,10 +26,11 @@ use std::path::{Path, PathBuf};
 use shapefile::dbase::{self, FieldValue};
 use shapefile::{Shape, ShapeReader, ShapeType};
 
-use super::rings::{clean_ring, group_rings, oriented_polygon, ring_problem};
+use super::rings::{group_rings, oriented_polygon, ring_problem};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
 };
+use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
 /// Height field names tried, in order, when no field is named (compared case-insensitively).
@@ -255,7 +256,7 @@ pub fn read_shp(
         let mut kept: Vec<Ring> = Vec::new();
         let mut claims = Vec::new();
         for (i, (mut ring, outer)) in rings.into_iter().enumerate() {
-            clean_ring(&mut ring);
+            ring::dedup_by(&mut ring, |a, b| a == b);
             if let Some(why) = ring_problem(&ring) {
                 problems.push(format!("ring {i} dropped: {why}"));
                 continue;

@@ -5,7 +5,7 @@
 use geo::{Area, BooleanOps, Validation};
 use glam::DVec2;
 
-use crate::geometry::{ring_signed_area, Polygon};
+use crate::geometry::{ring, ring_signed_area, Polygon};
 
 /// A `geo` polygon (f64).
 pub type GPoly = geo::Polygon<f64>;
@@ -29,7 +29,7 @@ pub fn to_geo(p: &Polygon) -> GPoly {
 }
 
 fn ring_from_geo(ls: &geo::LineString<f64>) -> Vec<DVec2> {
-    clean_ring(ls.0.iter().map(|c| DVec2::new(c.x, c.y)).collect())
+    straighten(ls.0.iter().map(|c| DVec2::new(c.x, c.y)).collect())
 }
 
 /// A `geo` polygon as ours: orientation normalised, rings cleaned, degenerate holes dropped.
@@ -43,42 +43,12 @@ pub fn from_geo(g: &GPoly) -> Polygon {
     Polygon::new(ring_from_geo(g.exterior()), holes)
 }
 
-/// Drops the closing vertex, near-duplicate vertices and collinear vertices, so that rings stay
-/// small and shared-edge tests see straight edges as one edge.
-pub fn clean_ring(mut r: Vec<DVec2>) -> Vec<DVec2> {
-    while r.len() > 1
-        && r.first()
-            .zip(r.last())
-            .is_some_and(|(a, b)| a.distance(*b) < 1e-9)
-    {
-        r.pop();
-    }
-    let mut changed = true;
-    while changed && r.len() >= 3 {
-        changed = false;
-        let n = r.len();
-        let mut keep = Vec::with_capacity(n);
-        for i in 0..n {
-            let prev = r[(i + n - 1) % n];
-            let cur = r[i];
-            let next = r[(i + 1) % n];
-            let near = cur.distance(prev) < 1e-7;
-            let e1 = cur - prev;
-            let e2 = next - cur;
-            let len = e1.length() * e2.length();
-            // Collinear (straight on, or a zero-width spike): the vertex adds nothing.
-            let collinear = len > 0.0 && e1.perp_dot(e2).abs() / len < 1e-7;
-            if near || collinear {
-                changed = true;
-                continue;
-            }
-            keep.push(cur);
-        }
-        if keep.len() < 3 {
-            return keep;
-        }
-        r = keep;
-    }
+/// Drops the closing vertex ([`ring::pop_closing_by`], 1 nm) and near-duplicate and straight
+/// vertices ([`ring::remove_straight`], 0.1 µm and a sine of 1e-7), so that rings stay small
+/// and shared-edge tests see straight edges as one edge.
+pub fn straighten(mut r: Vec<DVec2>) -> Vec<DVec2> {
+    ring::pop_closing_by(&mut r, |a, b| a.distance(b) < 1e-9);
+    ring::remove_straight(&mut r, 1e-7, 1e-7);
     r
 }
 

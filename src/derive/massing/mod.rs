@@ -9,7 +9,7 @@ use glam::{DVec2, DVec3};
 
 use crate::color::Color;
 use crate::derive::roof::{self, RoofGeometry};
-use crate::geometry::Polygon;
+use crate::geometry::{ring, Polygon};
 use crate::model::{Face, Lod, Part, RoofShape, Wall};
 
 /// Default exterior wall thickness in metres.
@@ -270,7 +270,7 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
             for p in r.iter_mut() {
                 snap(p);
             }
-            clean_ring(r);
+            drop_collapsed(r);
         }
     }
     // T-junctions: a dense plan grid over the canonical vertices (compressed rows: `start[c]..
@@ -388,28 +388,13 @@ impl std::hash::Hasher for CellHasher {
 }
 
 /// Removes consecutive duplicates and spikes (`x, y, x`: a sliver face collapsed by welding
-/// runs along an edge and back) from a ring, so no collapsed piece leaves a doubled edge.
-fn clean_ring(r: &mut Vec<DVec3>) {
-    loop {
-        r.dedup();
-        while r.len() > 1 && r.first() == r.last() {
-            r.pop();
-        }
-        let n = r.len();
-        if n < 3 {
-            r.clear();
-            return;
-        }
-        match (0..n).find(|&i| r[(i + n - 1) % n] == r[(i + 1) % n]) {
-            Some(i) => {
-                // Drop the spike tip and one copy of its base.
-                let j = (i + 1) % n;
-                let (a, b) = if i < j { (i, j) } else { (j, i) };
-                r.remove(b);
-                r.remove(a);
-            }
-            None => return,
-        }
+/// runs along an edge and back) from a ring, exactly, so no collapsed piece leaves a doubled
+/// edge; a ring left with fewer than 3 vertices is emptied.
+fn drop_collapsed(r: &mut Vec<DVec3>) {
+    ring::dedup_by(r, |a, b| a == b);
+    ring::remove_spikes_by(r, |a, b| a == b);
+    if r.len() < 3 {
+        r.clear();
     }
 }
 
