@@ -10,7 +10,7 @@ pub mod derive;
 pub mod export;
 pub mod geometry;
 pub mod grammar;
-pub mod guard;
+pub(crate) mod guard;
 pub mod input;
 pub mod kb;
 pub mod model;

@@ -3,7 +3,7 @@
 //! [`Generator::generate`] is a pure function of the lot, the rules and the seed: it runs on
 //! any rayon thread and gives the same building whatever the thread count.
 
-pub mod facade;
+pub(crate) mod facade;
 pub mod interior;
 pub mod massing;
 pub mod roof;

@@ -5,11 +5,11 @@
 //! A [`Polygon`]'s outer ring is counter-clockwise, its holes clockwise, and no ring repeats its
 //! first vertex at the end.
 
-pub mod clip;
-pub mod hull;
-pub mod ring;
-pub mod skeleton;
-pub mod triangulate;
+pub(crate) mod clip;
+pub(crate) mod hull;
+pub(crate) mod ring;
+pub(crate) mod skeleton;
+pub(crate) mod triangulate;
 
 use glam::{DVec2, DVec3};
 

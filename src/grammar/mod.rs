@@ -13,12 +13,12 @@
 //! documented on the [`interp`] module; the language reference is docs/grammar.md, whose
 //! examples are tests (`doc_tests.rs`).
 
-pub mod ast;
-pub mod expr;
-pub mod interp;
+pub(crate) mod ast;
+pub(crate) mod expr;
+pub(crate) mod interp;
 pub mod lint;
-pub mod parser;
-pub mod shape;
+pub(crate) mod parser;
+pub(crate) mod shape;
 
 #[cfg(test)]
 mod doc_tests;

@@ -4,9 +4,9 @@
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
 
 pub mod osm;
-pub mod rings;
+pub(crate) mod rings;
 pub mod shp;
-pub mod tags;
+pub(crate) mod tags;
 pub mod wkt;
 
 use std::path::PathBuf;

@@ -343,7 +343,9 @@ fn parse_number(s: &str) -> Result<f64, String> {
     Ok(v)
 }
 
-/// [`parse_length`] with the reason for a rejection.
+/// Parses a length in metres leniently: `12`, `12 m`, `12m`, `12,5`, `12;15` (first value),
+/// `40'` or `40 ft` (feet), `12'6"`. Rejects NaN, infinities, negative values and absurd ones
+/// (over [`MAX_LENGTH_M`]), with the reason.
 pub fn parse_length_checked(s: &str) -> Result<f64, String> {
     let s = first_value(s);
     let lower = s.to_ascii_lowercase();
@@ -409,10 +411,9 @@ fn check_length(v: f64) -> Result<f64, String> {
     }
 }
 
-/// Parses a length in metres leniently: `12`, `12 m`, `12m`, `12,5`, `12;15` (first value),
-/// `40'` or `40 ft` (feet), `12'6"`. Rejects NaN, infinities, negative values and absurd ones
-/// (over [`MAX_LENGTH_M`]).
-pub fn parse_length(s: &str) -> Option<f64> {
+/// [`parse_length_checked`] without the reason.
+#[cfg(test)]
+fn parse_length(s: &str) -> Option<f64> {
     parse_length_checked(s).ok()
 }
 

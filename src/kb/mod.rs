@@ -9,12 +9,12 @@
 //! [`KnowledgeBase::locate`] and [`KnowledgeBase::style_for`] never panic and depend only on
 //! their arguments (no clocks, no hash order).
 
-pub mod compile;
+pub(crate) mod compile;
 mod dom;
-pub mod polygon;
+pub(crate) mod polygon;
 mod strict;
 pub mod tools;
-pub mod xml;
+pub(crate) mod xml;
 
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
@@ -478,7 +478,7 @@ impl KnowledgeBase {
     }
 
     /// Reads and parses a KB file in the given mode. Files larger than
-    /// [`xml::MAX_FILE_BYTES`] are refused before being read. In strict mode the repairs are
+    /// [`dom::MAX_FILE_BYTES`] are refused before being read. In strict mode the repairs are
     /// always empty (anything to repair is an error).
     pub fn load_with(
         path: &Path,
@@ -497,20 +497,20 @@ impl KnowledgeBase {
             col: 1,
             message: format!(
                 "{len} bytes is more than the {}-byte cap on knowledge-base files",
-                xml::MAX_FILE_BYTES
+                dom::MAX_FILE_BYTES
             ),
         };
         if let Ok(meta) = file.metadata() {
-            if meta.len() > xml::MAX_FILE_BYTES {
+            if meta.len() > dom::MAX_FILE_BYTES {
                 return Err(too_big(meta.len()));
             }
         }
         // Read at most one byte past the cap: the file may grow, or be a pipe.
         let mut bytes = Vec::new();
-        file.take(xml::MAX_FILE_BYTES + 1)
+        file.take(dom::MAX_FILE_BYTES + 1)
             .read_to_end(&mut bytes)
             .map_err(io)?;
-        if bytes.len() as u64 > xml::MAX_FILE_BYTES {
+        if bytes.len() as u64 > dom::MAX_FILE_BYTES {
             return Err(too_big(bytes.len() as u64));
         }
         let text = String::from_utf8(bytes).map_err(|e| {

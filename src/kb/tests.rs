@@ -866,8 +866,8 @@ fn billion_laughs_and_external_entities_are_refused_quickly() {
 fn depth_attribute_and_size_caps() {
     let deep = format!(
         "<earth>{}{}</earth>",
-        "<zone designation=\"z\">".repeat(xml::MAX_DEPTH),
-        "</zone>".repeat(xml::MAX_DEPTH)
+        "<zone designation=\"z\">".repeat(dom::MAX_DEPTH),
+        "</zone>".repeat(dom::MAX_DEPTH)
     );
     match KnowledgeBase::parse_str(&deep, "deep.xml") {
         Err(e @ KbError::Limit { line: 1, .. }) => {
@@ -877,12 +877,12 @@ fn depth_attribute_and_size_caps() {
     }
     let ok_depth = format!(
         "<earth>{}{}</earth>",
-        "<zone designation=\"z\">".repeat(xml::MAX_DEPTH - 1),
-        "</zone>".repeat(xml::MAX_DEPTH - 1)
+        "<zone designation=\"z\">".repeat(dom::MAX_DEPTH - 1),
+        "</zone>".repeat(dom::MAX_DEPTH - 1)
     );
     assert!(KnowledgeBase::parse_str_with(&ok_depth, "ok.xml", ReadMode::Strict).is_ok());
 
-    let attrs: String = (0..=xml::MAX_ATTRIBUTES)
+    let attrs: String = (0..=dom::MAX_ATTRIBUTES)
         .map(|i| format!(" a{i}=\"1\""))
         .collect();
     let many = format!("<earth>\n  <info{attrs}/></earth>");
@@ -902,7 +902,7 @@ fn depth_attribute_and_size_caps() {
     let big = dir.path().join("big.xml");
     let f = std::fs::File::create(&big).unwrap_or_else(|e| panic!("{e}"));
     // A sparse file: no 64 MiB written to disk.
-    f.set_len(xml::MAX_FILE_BYTES + 1)
+    f.set_len(dom::MAX_FILE_BYTES + 1)
         .unwrap_or_else(|e| panic!("{e}"));
     match KnowledgeBase::load(&big) {
         Err(e @ KbError::Limit { .. }) => assert!(e.to_string().contains("cap"), "{e}"),

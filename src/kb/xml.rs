@@ -22,10 +22,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use super::dom::{parse_tree, Elem, LineIndex};
-pub use super::dom::{
-    KbError, KbRepair, ReadMode, MAX_ATTRIBUTES, MAX_DEPTH, MAX_FILE_BYTES, MAX_POLYGON_POINTS,
-};
+use super::dom::{parse_tree, Elem, LineIndex, MAX_FILE_BYTES};
+pub use super::dom::{KbError, KbRepair, ReadMode};
 use super::polygon::ZonePolygon;
 use super::{
     Appearance, Circle, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, Zone, ZoneKind,

@@ -90,7 +90,7 @@ mod geom;
 mod programme;
 #[cfg(test)]
 mod tests;
-pub mod to_model;
+pub(crate) mod to_model;
 
 use geo::{BooleanOps, Buffer};
 use glam::DVec2;
