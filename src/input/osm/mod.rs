@@ -1,0 +1,425 @@
+//! OSM PBF reader: building ways, building multipolygon relations and `building:part`s.
+//!
+//! A sweep frames every blob and inflates only the start of each data blob to see the kind of
+//! its first group (nodes, ways or relations). Then three passes, each decoding only the blobs
+//! of its kind, so every blob is decoded once:
+//! 1. relations: `type=multipolygon` relations tagged `building`/`building:part`, and untagged
+//!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
+//! 2. ways: building/part ways, the member ways of pass 1 and street ways ([`STREET_KINDS`]);
+//!    collect the node ids they need;
+//! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside).
+//!
+//! A block that holds more than one kind of element (no common writer makes one) is noticed
+//! when decoded; the read then starts again with every pass decoding every blob. Blocks are
+//! decoded in parallel (rayon) in batches, and the per-block results are merged in file order,
+//! then sorted by id, so the output does not depend on the thread count.
+//!
+//! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
+//! `report.read` / `report.parts_read` count them all, skipped ones included.
+
+use std::fs::File;
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+
+use osmpbf::{BlobDecode, BlobReader, PrimitiveBlock, RelMemberType};
+use rayon::prelude::*;
+
+use super::rings::{group_rings, oriented_polygon, ring_problem};
+use super::{
+    BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SharedTags, SourceId,
+    TagInterner,
+};
+use crate::geometry::ring;
+use crate::report::{Outcome, Report};
+
+mod multipolygon;
+mod pbf;
+mod records;
+
+use multipolygon::*;
+use pbf::*;
+use records::*;
+
+/// Blobs decoded per parallel batch: enough to keep the cores busy, few enough that the
+/// compressed blobs held at once stay small.
+const BATCH: usize = 64;
+
+/// At most this many ids are listed in one report reason.
+const MAX_LISTED: usize = 5;
+
+type Tags = Vec<(String, String)>;
+
+/// Reads the building footprints of an OSM PBF file.
+///
+/// Returns the footprints sorted (ways by id, then relations by id), in WGS84 lon/lat
+/// (`source_crs` is `None`). Record-level problems become report entries with the OSM id;
+/// file-level problems (missing file, not a PBF, corrupt or truncated block) are an
+/// [`InputError`] naming the file and the block. Never panics.
+pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputError> {
+    let pbf = Pbf::open(path)?;
+    let mut locs = pbf.sweep()?;
+    if let Some(r) = read_passes(&pbf, &locs, report)? {
+        return Ok(r);
+    }
+    // A block held more than one kind of element: every pass decodes every block.
+    for l in &mut locs {
+        l.kind = BlobKind::Any;
+    }
+    read_passes(&pbf, &locs, report)?.ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
+}
+
+/// The three passes over the blobs `locs` (relations, ways, needed nodes) and the assembly;
+/// `None` when a block held another kind of element than the sweep saw (nothing was reported
+/// then).
+fn read_passes(
+    pbf: &Pbf,
+    locs: &[BlobLoc],
+    report: &mut Report,
+) -> Result<Option<ReadResult>, InputError> {
+    // Pass 1: relations.
+    let (rels, mixed) = pbf.pass(locs, BlobKind::Relations, relations_of_block)?;
+    if mixed {
+        return Ok(None);
+    }
+    let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
+    rels.sort_by_key(|r| r.id);
+    rels.dedup_by_key(|r| r.id);
+    let mut member_ways: Vec<i64> = rels
+        .iter()
+        .flat_map(|r| r.members.iter().map(|m| m.way))
+        .collect();
+    member_ways.sort_unstable();
+    member_ways.dedup();
+
+    // Pass 2: ways. Their parsed tags are shared between ways with the same ones.
+    let interner = TagInterner::default();
+    let (ways, mixed) = pbf.pass(locs, BlobKind::Ways, |b| {
+        ways_of_block(b, &member_ways, &interner)
+    })?;
+    if mixed {
+        return Ok(None);
+    }
+    let mut ways: Vec<WayRec> = ways.into_iter().flatten().collect();
+    ways.sort_by_key(|w| w.id);
+    ways.dedup_by_key(|w| w.id);
+    drop(member_ways);
+    let mut needed: Vec<i64> = ways.iter().flat_map(|w| w.refs.iter().copied()).collect();
+    needed.sort_unstable();
+    needed.dedup();
+
+    // Pass 3: nodes.
+    let mut nodes = Nodes::new(needed);
+    let (found, mixed) = pbf.pass(locs, BlobKind::Nodes, |b| nodes_of_block(b, &nodes.ids))?;
+    if mixed {
+        return Ok(None);
+    }
+    for (i, lon, lat) in found.into_iter().flatten() {
+        nodes.set(i, lon, lat);
+    }
+    nodes.finish();
+
+    let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
+    result.streets = streets_of(&ways, &nodes);
+    Ok(Some(result))
+}
+
+/// The `highway=*` values read as streets a front door can face, with their `_link` roads.
+///
+/// Roads with frontage (trunk down to residential, service, living streets) and the ways people
+/// walk to doors on: `pedestrian`, `footway` (which includes mapped sidewalks, parallel to the
+/// street and right in front of the facades) and `steps` — in old towns such as Monaco-Ville
+/// many houses open only onto stepped lanes. Left out: motorways (no frontage), `track`,
+/// `path`, `cycleway`, `bridleway` (rarely what a house faces), `corridor` (indoor),
+/// `proposed`/`construction`, and any way in a tunnel (Monaco runs roads under whole
+/// districts), indoors or a parking aisle (a car park lane, not an address street).
+pub const STREET_KINDS: &[&str] = &[
+    "trunk",
+    "trunk_link",
+    "primary",
+    "primary_link",
+    "secondary",
+    "secondary_link",
+    "tertiary",
+    "tertiary_link",
+    "unclassified",
+    "residential",
+    "living_street",
+    "service",
+    "pedestrian",
+    "footway",
+    "steps",
+];
+
+/// Whether a way's tags make it a street (see [`STREET_KINDS`]).
+fn is_street<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> bool {
+    let mut street = false;
+    for (k, v) in tags {
+        let v = v.trim();
+        match k {
+            "highway" => street = STREET_KINDS.contains(&v),
+            "tunnel" | "indoor" if v != "no" => return false,
+            "service" if v == "parking_aisle" => return false,
+            _ => {}
+        }
+    }
+    street
+}
+
+/// The street ways as polylines in way-id order. A way with missing nodes keeps its runs of
+/// consecutive known nodes (a street clipped by the extract's border is still a street).
+fn streets_of(ways: &[WayRec], nodes: &Nodes) -> super::Streets {
+    let mut streets = super::Streets::default();
+    let mut run: Ring = Vec::new();
+    for w in ways.iter().filter(|w| w.street) {
+        run.clear();
+        for &r in &w.refs {
+            match nodes.get(r) {
+                Some(p) => run.push(p),
+                None => {
+                    streets.push(&run);
+                    run.clear();
+                }
+            }
+        }
+        streets.push(&run);
+    }
+    streets
+}
+
+/// A building/part relation's footprint (`None` when skipped) and its report entries.
+type RelOutcome = (Option<Footprint>, Vec<(Outcome, String)>, RelRec);
+
+/// Turns the three passes' results into footprints and report entries.
+fn assemble(
+    ways: &mut [WayRec],
+    rels: &[RelRec],
+    nodes: &Nodes,
+    interner: &TagInterner,
+    report: &mut Report,
+) -> ReadResult {
+    // Relations first: they decide which ways are built by a relation instead of alone, and
+    // which ways get holes from an old-style multipolygon. Their entries are emitted after the
+    // ways' so that the report follows the footprint order.
+    let mut rel_out: Vec<RelOutcome> = Vec::new();
+    // (way id, relation id) of ways built as part of a relation of the same kind.
+    let mut built_by: Vec<(i64, i64)> = Vec::new();
+    // (way id, relation id, holes) from old-style multipolygons.
+    let mut old_style: Vec<(i64, i64, Vec<Ring>)> = Vec::new();
+    // (way id, note) for building ways whose old-style relation could not be assembled.
+    let mut old_style_notes: Vec<(i64, String)> = Vec::new();
+    let way_kind = |id: i64| {
+        ways.binary_search_by_key(&id, |w| w.id)
+            .ok()
+            .and_then(|i| ways[i].kind)
+    };
+
+    for rel in rels {
+        let a = assemble_relation(rel, ways, nodes);
+        match rel.kind {
+            RelKind::Untagged => {
+                let mut used = false;
+                for (_, holes, outer_ways) in &a.polygons {
+                    if let [w] = outer_ways.as_slice() {
+                        if way_kind(*w).is_some()
+                            && !holes.is_empty()
+                            && !old_style.iter().any(|(o, _, _)| o == w)
+                        {
+                            old_style.push((*w, rel.id, holes.clone()));
+                            used = true;
+                        }
+                    }
+                }
+                if !used {
+                    // Not a building relation; only worth a word when an outer member is a
+                    // building that would have received holes.
+                    for m in rel.members.iter().filter(|m| m.role == Role::Outer) {
+                        if way_kind(m.way).is_some() && !a.problems.is_empty() {
+                            old_style_notes.push((
+                                m.way,
+                                format!(
+                                    "old-style multipolygon relation/{} could not be assembled, built without its holes: {}",
+                                    rel.id,
+                                    a.problems.join("; ")
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            RelKind::Building | RelKind::Part => {
+                let kind = if rel.kind == RelKind::Building {
+                    FootprintKind::Building
+                } else {
+                    FootprintKind::Part
+                };
+                let id = SourceId::Relation(rel.id);
+                let mut entries = Vec::new();
+                if a.polygons.is_empty() {
+                    let why = if a.problems.is_empty() {
+                        "multipolygon without any closed ring".to_string()
+                    } else {
+                        format!(
+                            "multipolygon without a usable outer ring: {}",
+                            a.problems.join("; ")
+                        )
+                    };
+                    entries.push((Outcome::Skipped, why));
+                    rel_out.push((None, entries, rel.clone()));
+                    continue;
+                }
+                if !a.problems.is_empty() {
+                    entries.push((Outcome::Repaired, a.problems.join("; ")));
+                }
+                for (_, _, outer_ways) in &a.polygons {
+                    for w in outer_ways {
+                        if way_kind(*w) == Some(kind) {
+                            built_by.push((*w, rel.id));
+                        }
+                    }
+                }
+                let tags = BuildingTags::from_pairs(
+                    rel.tags.iter().map(|(k, v)| (k.as_str(), v.as_str())),
+                );
+                let polygons = a
+                    .polygons
+                    .into_iter()
+                    .map(|(o, h, _)| oriented_polygon(o, h))
+                    .collect();
+                rel_out.push((
+                    Some(Footprint {
+                        id,
+                        kind,
+                        polygons,
+                        tags: interner.intern(tags),
+                    }),
+                    entries,
+                    rel.clone(),
+                ));
+            }
+        }
+    }
+    built_by.sort_unstable();
+    old_style.sort_by_key(|(w, _, _)| *w);
+    old_style_notes.sort_by_key(|(w, _)| *w);
+
+    // The rings of the building/part ways, built in parallel: the costly part (node lookups,
+    // clean-up, checks); report entries are then added in way order.
+    let rings: Vec<Option<Result<Ring, String>>> = ways
+        .par_iter()
+        .map(|w| w.kind.map(|_| way_ring(w, &built_by, nodes)))
+        .collect();
+    let mut result = ReadResult::default();
+    for (w, ring) in ways.iter_mut().zip(rings) {
+        let (Some(kind), Some(ring)) = (w.kind, ring) else {
+            continue;
+        };
+        let id = SourceId::Way(w.id);
+        count_read(report, kind);
+        let outer = match ring {
+            Ok(r) => r,
+            Err(why) => {
+                report.skipped += 1;
+                report.add(Some(id), Outcome::Skipped, why);
+                continue;
+            }
+        };
+        let tags = w.tags.take().unwrap_or_default();
+        let holes = match old_style.binary_search_by_key(&w.id, |(x, _, _)| *x) {
+            Ok(i) => {
+                let (_, r, holes) = &old_style[i];
+                report.add(
+                    Some(id),
+                    Outcome::Note,
+                    format!(
+                        "{} hole(s) taken from old-style multipolygon relation/{r}",
+                        holes.len()
+                    ),
+                );
+                holes.clone()
+            }
+            Err(_) => Vec::new(),
+        };
+        for (_, note) in old_style_notes.iter().filter(|(x, _)| *x == w.id) {
+            report.add(Some(id), Outcome::Note, note.clone());
+        }
+        note_ignored(report, id, &tags);
+        result.footprints.push(Footprint {
+            id,
+            kind,
+            polygons: vec![oriented_polygon(outer, holes)],
+            tags,
+        });
+    }
+
+    for (fp, entries, rel) in rel_out {
+        let id = SourceId::Relation(rel.id);
+        count_read(
+            report,
+            if rel.kind == RelKind::Part {
+                FootprintKind::Part
+            } else {
+                FootprintKind::Building
+            },
+        );
+        for (outcome, why) in entries {
+            match outcome {
+                Outcome::Skipped => report.skipped += 1,
+                Outcome::Repaired => report.repaired += 1,
+                Outcome::Note => {}
+            }
+            report.add(Some(id), outcome, why);
+        }
+        if let Some(fp) = fp {
+            note_ignored(report, id, &fp.tags);
+            result.footprints.push(fp);
+        }
+    }
+    result
+}
+
+/// The cleaned outer ring of a building/part way, or why it is skipped. `built_by` is sorted.
+fn way_ring(w: &WayRec, built_by: &[(i64, i64)], nodes: &Nodes) -> Result<Ring, String> {
+    let first = built_by.partition_point(|(x, _)| *x < w.id);
+    if let Some((_, r)) = built_by.get(first).filter(|(x, _)| *x == w.id) {
+        return Err(format!(
+            "outer ring of multipolygon relation/{r}, which is built instead"
+        ));
+    }
+    if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
+        return Err(match (w.refs.first(), w.refs.last()) {
+            (Some(a), Some(b)) if w.refs.len() >= 2 => {
+                format!("unclosed way: first node node/{a}, last node node/{b}")
+            }
+            _ => format!("way with {} node(s)", w.refs.len()),
+        });
+    }
+    let mut outer = resolve(&w.refs, nodes)
+        .map_err(|n| format!("{n} of {} nodes missing from the file", w.refs.len()))?;
+    ring::dedup_by(&mut outer, |a, b| a == b);
+    if let Some(why) = ring_problem(&outer) {
+        return Err(why.to_string());
+    }
+    Ok(outer)
+}
+
+fn count_read(report: &mut Report, kind: FootprintKind) {
+    match kind {
+        FootprintKind::Building => report.read += 1,
+        FootprintKind::Part => report.parts_read += 1,
+    }
+}
+
+/// One `Note` entry per tag value that could not be used.
+pub(crate) fn note_ignored(report: &mut Report, id: SourceId, tags: &BuildingTags) {
+    for (k, v, why) in &tags.ignored {
+        report.add(
+            Some(id),
+            Outcome::Note,
+            format!("tag {k}={v} ignored: {why}"),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,206 @@
+//! Multipolygon assembly: member ways joined into closed rings, rings grouped into polygons
+//! with holes, every problem named by way and node ids.
+
+use super::*;
+
+/// One open or closed piece of a multipolygon ring: node ids and their coordinates.
+pub(super) struct Segment {
+    pub(super) way: i64,
+    pub(super) role: Role,
+    pub(super) ids: Vec<i64>,
+    pub(super) pts: Ring,
+}
+
+/// A ring joined from segments, with the ways it came from and the role they declared.
+pub(super) struct JoinedRing {
+    pub(super) ways: Vec<i64>,
+    pub(super) claim: Option<bool>,
+    pub(super) pts: Ring,
+}
+
+/// Joins segments end to end into closed rings (by node id, reversing segments as needed).
+/// Returns the closed rings and the ways of the pieces that could not be closed.
+pub(super) fn join_segments(mut pool: Vec<Segment>) -> (Vec<JoinedRing>, Vec<Vec<i64>>) {
+    let mut rings = Vec::new();
+    let mut open = Vec::new();
+    pool.reverse(); // pop() then takes members in relation order
+    while let Some(first) = pool.pop() {
+        let mut ids = first.ids;
+        let mut pts = first.pts;
+        let mut ways = vec![first.way];
+        let mut roles = vec![first.role];
+        while let (Some(&start), Some(&end)) = (ids.first(), ids.last()) {
+            if start == end && ids.len() > 1 {
+                break;
+            }
+            // Prefer a segment with the same role, then any; last in pool = earliest member.
+            let pick = |same_role: bool| {
+                pool.iter().rposition(|s| {
+                    (!same_role || s.role == roles[0])
+                        && (s.ids.first() == Some(&end) || s.ids.last() == Some(&end))
+                })
+            };
+            let Some(k) = pick(true).or_else(|| pick(false)) else {
+                break;
+            };
+            let mut s = pool.remove(k);
+            if s.ids.first() != Some(&end) {
+                s.ids.reverse();
+                s.pts.reverse();
+            }
+            ids.extend_from_slice(&s.ids[1..]);
+            pts.extend_from_slice(&s.pts[1..]);
+            ways.push(s.way);
+            roles.push(s.role);
+        }
+        if ids.len() > 1 && ids.first() == ids.last() {
+            let claim = if roles.iter().all(|r| *r == Role::Outer) {
+                Some(true)
+            } else if roles.iter().all(|r| *r == Role::Inner) {
+                Some(false)
+            } else {
+                None
+            };
+            rings.push(JoinedRing { ways, claim, pts });
+        } else {
+            open.push(ways);
+        }
+    }
+    (rings, open)
+}
+
+/// What a multipolygon relation turned into.
+pub(super) struct Assembled {
+    /// (outer ring, holes, ways of the outer ring)
+    pub(super) polygons: Vec<(Ring, Vec<Ring>, Vec<i64>)>,
+    /// Problems met on the way, for the report.
+    pub(super) problems: Vec<String>,
+}
+
+pub(super) fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled {
+    let mut problems = Vec::new();
+    let mut missing_ways = Vec::new();
+    let mut missing_nodes = Vec::new();
+    let mut duplicate_members = 0;
+    let mut seen: Vec<i64> = Vec::new();
+    let mut pool = Vec::new();
+    // Outer members the file lacks (way or nodes): an inner ring must then not be promoted to
+    // an outer one, or a courtyard would be built as a building.
+    let mut missing_outer = 0usize;
+    for m in &rel.members {
+        if seen.contains(&m.way) {
+            duplicate_members += 1;
+            continue;
+        }
+        seen.push(m.way);
+        let Ok(i) = ways.binary_search_by_key(&m.way, |w| w.id) else {
+            missing_ways.push(m.way);
+            if m.role == Role::Outer {
+                missing_outer += 1;
+            }
+            continue;
+        };
+        let w = &ways[i];
+        match resolve(&w.refs, nodes) {
+            Ok(pts) => {
+                // Drop consecutive duplicate nodes, keeping ids and points in step.
+                let mut ids = Vec::with_capacity(w.refs.len());
+                let mut clean = Vec::with_capacity(pts.len());
+                for (id, p) in w.refs.iter().zip(pts) {
+                    if ids.last() != Some(id) {
+                        ids.push(*id);
+                        clean.push(p);
+                    }
+                }
+                if ids.len() >= 2 {
+                    pool.push(Segment {
+                        way: w.id,
+                        role: m.role,
+                        ids,
+                        pts: clean,
+                    });
+                } else {
+                    problems.push(format!("member way/{} has fewer than 2 nodes", w.id));
+                }
+            }
+            Err(n) => {
+                missing_nodes.push((w.id, n, w.refs.len()));
+                if m.role == Role::Outer {
+                    missing_outer += 1;
+                }
+            }
+        }
+    }
+    if !missing_ways.is_empty() {
+        problems.push(format!(
+            "{} member way(s) missing from the file ({})",
+            missing_ways.len(),
+            list_ids(&missing_ways, "way")
+        ));
+    }
+    for (w, n, total) in &missing_nodes {
+        problems.push(format!(
+            "member way/{w} left out: {n} of {total} nodes missing from the file"
+        ));
+    }
+    if duplicate_members > 0 {
+        problems.push(format!("{duplicate_members} duplicate member(s) ignored"));
+    }
+    if rel.other_members > 0 {
+        problems.push(format!(
+            "{} node/relation member(s) ignored",
+            rel.other_members
+        ));
+    }
+    let (joined, open) = join_segments(pool);
+    for ways in &open {
+        problems.push(format!(
+            "ring that cannot be closed dropped ({})",
+            list_ids(ways, "way")
+        ));
+    }
+    let mut rings: Vec<Ring> = Vec::new();
+    let mut claims = Vec::new();
+    let mut ring_ways = Vec::new();
+    for mut r in joined {
+        ring::dedup_by(&mut r.pts, |a, b| a == b);
+        if let Some(why) = ring_problem(&r.pts) {
+            problems.push(format!(
+                "ring of {} dropped: {why}",
+                list_ids(&r.ways, "way")
+            ));
+            continue;
+        }
+        rings.push(r.pts);
+        claims.push(r.claim);
+        ring_ways.push(r.ways);
+    }
+    let g = group_rings(&rings, &claims);
+    if g.role_fixes > 0 && missing_outer > 0 {
+        problems.push(format!(
+            "incomplete multipolygon: {missing_outer} outer member(s) missing, so its other rings are not built as the building"
+        ));
+        return Assembled {
+            polygons: Vec::new(),
+            problems,
+        };
+    }
+    if g.role_fixes > 0 {
+        problems.push(format!(
+            "{} ring role(s) corrected by containment",
+            g.role_fixes
+        ));
+    }
+    let polygons = g
+        .polygons
+        .iter()
+        .map(|(o, hs)| {
+            (
+                rings[*o].clone(),
+                hs.iter().map(|h| rings[*h].clone()).collect(),
+                ring_ways[*o].clone(),
+            )
+        })
+        .collect();
+    Assembled { polygons, problems }
+}

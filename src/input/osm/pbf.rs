@@ -1,0 +1,511 @@
+//! File access: the blob framing of the PBF file, the sweep's peek at each data blob's first
+//! group, and the decoding of the blobs of one kind in parallel batches.
+
+use super::*;
+
+// ---------------------------------------------------------------------------------------------
+// File access
+
+/// Largest BlobHeader the PBF format allows (64 KiB).
+pub(super) const MAX_HEADER: usize = 64 * 1024;
+/// Largest Blob the PBF format allows (32 MiB).
+pub(super) const MAX_BLOB: u64 = 32 * 1024 * 1024;
+
+/// Which elements a data blob holds, as far as the sweep can tell from its first group.
+///
+/// Writers (osmium, osmosis, ours) put one kind of element in a block, so the first group tells
+/// the pass that needs the block. `Any` (the blob could not be peeked, or holds no group) is
+/// decoded by every pass. A block that turns out to hold other kinds too makes the read start
+/// again with every blob `Any`: exact, and as slow as three full decodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum BlobKind {
+    Nodes,
+    Ways,
+    Relations,
+    Any,
+}
+
+/// Where a data blob lies in the file: its frame (length prefix, header, blob) and kind.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BlobLoc {
+    /// 0-based index among all blobs of the file, for messages.
+    pub(super) index: usize,
+    pub(super) start: u64,
+    pub(super) len: usize,
+    pub(super) kind: BlobKind,
+}
+
+/// One framed blob read from the file.
+pub(super) struct Frame {
+    pub(super) index: usize,
+    pub(super) start: u64,
+    /// The whole frame: 4-byte length, BlobHeader, Blob.
+    pub(super) bytes: Vec<u8>,
+    /// Where the Blob message starts in `bytes`.
+    pub(super) data: usize,
+    /// The header's type: `OSMHeader`, `OSMData` or something else.
+    pub(super) data_blob: bool,
+}
+
+/// An opened PBF file: the path for messages and the length to detect trailing garbage.
+pub(super) struct Pbf {
+    pub(super) path: PathBuf,
+    pub(super) len: u64,
+}
+
+impl Pbf {
+    pub(super) fn open(path: &Path) -> Result<Pbf, InputError> {
+        let io = |source| InputError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.is_dir() {
+            return Err(InputError::NotPbf {
+                path: path.to_path_buf(),
+                reason: "it is a directory".into(),
+            });
+        }
+        if meta.len() == 0 {
+            return Err(InputError::NotPbf {
+                path: path.to_path_buf(),
+                reason: "the file is empty".into(),
+            });
+        }
+        Ok(Pbf {
+            path: path.to_path_buf(),
+            len: meta.len(),
+        })
+    }
+
+    pub(super) fn corrupt(
+        &self,
+        block: usize,
+        offset: Option<u64>,
+        reason: impl Into<String>,
+    ) -> InputError {
+        InputError::CorruptPbf {
+            path: self.path.clone(),
+            block,
+            offset,
+            reason: reason.into(),
+        }
+    }
+
+    pub(super) fn file(&self) -> Result<File, InputError> {
+        File::open(&self.path).map_err(|source| InputError::Io {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    /// An error while framing blob `index`: the first blob failing means this is not a PBF.
+    pub(super) fn framing_error(&self, index: usize, offset: u64, reason: &str) -> InputError {
+        if index == 0 {
+            InputError::NotPbf {
+                path: self.path.clone(),
+                reason: format!("cannot read the first block: {reason}"),
+            }
+        } else {
+            self.corrupt(index, Some(offset), reason)
+        }
+    }
+
+    /// Reads the frame of blob `index` starting at `start`, or `None` at the end of the file.
+    /// Checks the sizes the format allows before allocating.
+    pub(super) fn read_frame(
+        &self,
+        r: &mut impl Read,
+        index: usize,
+        start: u64,
+    ) -> Result<Option<Frame>, InputError> {
+        let err = |reason: &str| self.framing_error(index, start, reason);
+        let mut len4 = [0u8; 4];
+        let got = read_full(r, &mut len4).map_err(|e| err(&e.to_string()))?;
+        if got == 0 {
+            return Ok(None);
+        }
+        if got < 4 {
+            return Err(self.corrupt(
+                index,
+                Some(start),
+                format!(
+                    "{got} bytes after the last complete block: the file is truncated or has trailing garbage"
+                ),
+            ));
+        }
+        let hlen = u32::from_be_bytes(len4) as usize;
+        if hlen > MAX_HEADER {
+            return Err(err(&format!(
+                "blob header of {hlen} bytes (at most {MAX_HEADER})"
+            )));
+        }
+        let mut bytes = vec![0u8; 4 + hlen];
+        bytes[..4].copy_from_slice(&len4);
+        if read_full(r, &mut bytes[4..]).map_err(|e| err(&e.to_string()))? < hlen {
+            return Err(err("the file ends inside a blob header"));
+        }
+        let (data_blob, size) = parse_blob_header(&bytes[4..])
+            .map(|(kind, size)| (kind == b"OSMData", size))
+            .ok_or_else(|| err("unreadable blob header"))?;
+        if size > MAX_BLOB {
+            return Err(err(&format!("blob of {size} bytes (at most {MAX_BLOB})")));
+        }
+        let data = bytes.len();
+        bytes.resize(data + size as usize, 0);
+        if read_full(r, &mut bytes[data..]).map_err(|e| err(&e.to_string()))? < size as usize {
+            return Err(err("the file ends inside a blob"));
+        }
+        Ok(Some(Frame {
+            index,
+            start,
+            bytes,
+            data,
+            data_blob,
+        }))
+    }
+
+    /// Frames every blob of the file once, checks the header block, and peeks at each data
+    /// blob's first group to tell its kind. Checks the framing: the first blob must be an
+    /// OSMHeader, and the blobs must end exactly at the end of the file.
+    pub(super) fn sweep(&self) -> Result<Vec<BlobLoc>, InputError> {
+        let mut r = BufReader::new(self.file()?);
+        let mut locs = Vec::new();
+        let mut index = 0usize;
+        let mut pos = 0u64;
+        loop {
+            let mut batch = Vec::with_capacity(BATCH);
+            while batch.len() < BATCH {
+                let Some(frame) = self.read_frame(&mut r, index, pos)? else {
+                    break;
+                };
+                pos += frame.bytes.len() as u64;
+                index += 1;
+                batch.push(frame);
+            }
+            if batch.is_empty() {
+                break;
+            }
+            let kinds: Vec<Result<Option<BlobKind>, InputError>> = batch
+                .par_iter()
+                .map(|f| {
+                    if f.data_blob && f.index > 0 {
+                        let kind = catch_unwind(AssertUnwindSafe(|| peek_kind(&f.bytes[f.data..])));
+                        return Ok(Some(kind.unwrap_or(BlobKind::Any)));
+                    }
+                    // The header block, a data block in its place, or an unknown type: fully
+                    // decoded, as osmpbf sees them.
+                    self.decode(f, |_| ()).map(|_| None)
+                })
+                .collect();
+            for (f, k) in batch.iter().zip(kinds) {
+                if let Some(kind) = k? {
+                    locs.push(BlobLoc {
+                        index: f.index,
+                        start: f.start,
+                        len: f.bytes.len(),
+                        kind,
+                    });
+                }
+            }
+        }
+        if index == 0 {
+            return Err(InputError::NotPbf {
+                path: self.path.clone(),
+                reason: "no PBF blocks found".into(),
+            });
+        }
+        if pos != self.len {
+            return Err(self.corrupt(
+                index,
+                Some(pos),
+                format!(
+                    "{} bytes after the last complete block: the file is truncated or has trailing garbage",
+                    self.len.saturating_sub(pos)
+                ),
+            ));
+        }
+        Ok(locs)
+    }
+
+    /// Decodes one frame with osmpbf and runs `f` on its block: `Ok(None)` for a header or
+    /// unknown blob (checked like a header when it is the first). Fenced against panics: a
+    /// corrupt file must never bring the process down.
+    pub(super) fn decode<T, F>(&self, frame: &Frame, f: F) -> Result<Option<T>, InputError>
+    where
+        F: Fn(&PrimitiveBlock) -> T,
+    {
+        let i = frame.index;
+        let decoded = catch_unwind(AssertUnwindSafe(|| {
+            let blob = match BlobReader::new(frame.bytes.as_slice()).next() {
+                Some(Ok(b)) => b,
+                Some(Err(e)) => return Err(e.to_string()),
+                None => return Err("empty blob".to_string()),
+            };
+            match blob.decode() {
+                Ok(BlobDecode::OsmHeader(h)) => {
+                    let unsupported: Vec<&String> = h
+                        .required_features()
+                        .iter()
+                        .filter(|f| !matches!(f.as_str(), "OsmSchema-V0.6" | "DenseNodes"))
+                        .collect();
+                    if unsupported.is_empty() {
+                        Ok(None)
+                    } else {
+                        Err(format!("unsupported required features {unsupported:?}"))
+                    }
+                }
+                Ok(BlobDecode::OsmData(_)) if i == 0 => {
+                    Err("the first block is not an OSMHeader".to_string())
+                }
+                Ok(BlobDecode::OsmData(block)) => Ok(Some(f(&block))),
+                Ok(BlobDecode::Unknown(t)) if i == 0 => {
+                    Err(format!("the first block has unknown type {t:?}"))
+                }
+                Ok(BlobDecode::Unknown(_)) => Ok(None),
+                Err(e) => Err(e.to_string()),
+            }
+        }));
+        match decoded {
+            Ok(Ok(v)) => Ok(v),
+            Ok(Err(reason)) if i == 0 => Err(InputError::NotPbf {
+                path: self.path.clone(),
+                reason,
+            }),
+            Ok(Err(reason)) => Err(self.corrupt(i, Some(frame.start), reason)),
+            Err(_) => Err(self.corrupt(i, Some(frame.start), "the block cannot be decoded")),
+        }
+    }
+
+    /// Runs `f` on every data block of kind `want` (and every `Any` block), in parallel
+    /// batches, and returns the results in file order, with whether a block held elements of
+    /// another kind than the sweep saw (then the caller starts again with every blob `Any`).
+    pub(super) fn pass<T, F>(
+        &self,
+        locs: &[BlobLoc],
+        want: BlobKind,
+        f: F,
+    ) -> Result<(Vec<T>, bool), InputError>
+    where
+        T: Send,
+        F: Fn(&PrimitiveBlock) -> T + Sync,
+    {
+        let mut file = self.file()?;
+        let mut out = Vec::new();
+        let mut mixed = false;
+        let wanted: Vec<&BlobLoc> = locs
+            .iter()
+            .filter(|l| l.kind == want || l.kind == BlobKind::Any)
+            .collect();
+        for chunk in wanted.chunks(BATCH) {
+            let mut batch = Vec::with_capacity(chunk.len());
+            for l in chunk {
+                let mut bytes = vec![0u8; l.len];
+                file.seek(SeekFrom::Start(l.start))
+                    .and_then(|_| file.read_exact(&mut bytes))
+                    .map_err(|e| self.corrupt(l.index, Some(l.start), e.to_string()))?;
+                batch.push((
+                    l.kind,
+                    Frame {
+                        index: l.index,
+                        start: l.start,
+                        data: 0,
+                        bytes,
+                        data_blob: true,
+                    },
+                ));
+            }
+            let results: Vec<Result<Option<(T, bool)>, InputError>> = batch
+                .par_iter()
+                .map(|(kind, frame)| {
+                    self.decode(frame, |block| {
+                        let foreign = *kind != BlobKind::Any && holds_other_than(block, want);
+                        (f(block), foreign)
+                    })
+                })
+                .collect();
+            for r in results {
+                if let Some((v, foreign)) = r? {
+                    mixed |= foreign;
+                    out.push(v);
+                }
+            }
+        }
+        Ok((out, mixed))
+    }
+}
+
+/// Reads until `buf` is full or the end of the input; returns the bytes read.
+pub(super) fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Whether a block holds elements of another kind than `want`.
+pub(super) fn holds_other_than(block: &PrimitiveBlock, want: BlobKind) -> bool {
+    block.groups().any(|g| {
+        let nodes = g.nodes().next().is_some() || g.dense_nodes().next().is_some();
+        let ways = g.ways().next().is_some();
+        let rels = g.relations().next().is_some();
+        match want {
+            BlobKind::Nodes => ways || rels,
+            BlobKind::Ways => nodes || rels,
+            BlobKind::Relations => nodes || ways,
+            BlobKind::Any => false,
+        }
+    })
+}
+
+/// A protobuf varint at `*pos`, advancing it; `None` when the bytes end or it is too long.
+pub(super) fn varint(b: &[u8], pos: &mut usize) -> Option<u64> {
+    let mut v = 0u64;
+    for shift in (0..64).step_by(7) {
+        let byte = *b.get(*pos)?;
+        *pos += 1;
+        v |= u64::from(byte & 0x7f) << shift;
+        if byte & 0x80 == 0 {
+            return Some(v);
+        }
+    }
+    None
+}
+
+/// Skips a field of wire type `wire` at `*pos`; `None` when the bytes end or the type is
+/// unknown.
+pub(super) fn skip_field(b: &[u8], pos: &mut usize, wire: u64) -> Option<()> {
+    let end = match wire {
+        0 => return varint(b, pos).map(|_| ()),
+        1 => pos.checked_add(8)?,
+        2 => {
+            let len = usize::try_from(varint(b, pos)?).ok()?;
+            pos.checked_add(len)?
+        }
+        5 => pos.checked_add(4)?,
+        _ => return None,
+    };
+    (end <= b.len()).then(|| *pos = end)
+}
+
+/// A BlobHeader's type (field 1) and data size (field 3).
+pub(super) fn parse_blob_header(b: &[u8]) -> Option<(&[u8], u64)> {
+    let (mut pos, mut kind, mut size) = (0, None, None);
+    while pos < b.len() {
+        let key = varint(b, &mut pos)?;
+        match key {
+            0x0a => {
+                let len = usize::try_from(varint(b, &mut pos)?).ok()?;
+                let end = pos.checked_add(len).filter(|&e| e <= b.len())?;
+                kind = Some(&b[pos..end]);
+                pos = end;
+            }
+            0x18 => size = Some(varint(b, &mut pos)?),
+            _ => skip_field(b, &mut pos, key & 7)?,
+        }
+    }
+    Some((kind?, size?))
+}
+
+/// The kind of a data blob's first group, inflating only as much of the block as it takes
+/// (the string table and the first group's first field). `Any` when it cannot tell.
+pub(super) fn peek_kind(blob: &[u8]) -> BlobKind {
+    // Blob: field 1 raw bytes, field 3 zlib_data; other compressions are left to osmpbf.
+    let (mut pos, mut raw, mut zlib) = (0, None, None);
+    while pos < blob.len() {
+        let Some(key) = varint(blob, &mut pos) else {
+            return BlobKind::Any;
+        };
+        if key == 0x0a || key == 0x1a {
+            let Some(len) = varint(blob, &mut pos).and_then(|l| usize::try_from(l).ok()) else {
+                return BlobKind::Any;
+            };
+            let Some(end) = pos.checked_add(len).filter(|&e| e <= blob.len()) else {
+                return BlobKind::Any;
+            };
+            if key == 0x0a {
+                raw = Some(&blob[pos..end]);
+            } else {
+                zlib = Some(&blob[pos..end]);
+            }
+            pos = end;
+        } else if skip_field(blob, &mut pos, key & 7).is_none() {
+            return BlobKind::Any;
+        }
+    }
+    if let Some(r) = raw {
+        return first_group_kind(r, true).unwrap_or(BlobKind::Any);
+    }
+    let Some(z) = zlib else {
+        return BlobKind::Any;
+    };
+    let mut inflater = flate2::Decompress::new(true);
+    let mut buf: Vec<u8> = Vec::with_capacity(16 * 1024);
+    loop {
+        if buf.len() == buf.capacity() {
+            if buf.len() as u64 >= MAX_BLOB {
+                return BlobKind::Any;
+            }
+            buf.reserve(buf.len());
+        }
+        let consumed = usize::try_from(inflater.total_in()).unwrap_or(usize::MAX);
+        let Some(input) = z.get(consumed..) else {
+            return BlobKind::Any;
+        };
+        let before = buf.len();
+        let status = match inflater.decompress_vec(input, &mut buf, flate2::FlushDecompress::None) {
+            Ok(s) => s,
+            Err(_) => return BlobKind::Any,
+        };
+        let done = status == flate2::Status::StreamEnd;
+        if let Some(kind) = first_group_kind(&buf, done) {
+            return kind;
+        }
+        let stuck = buf.len() == before
+            && usize::try_from(inflater.total_in()).unwrap_or(usize::MAX) == consumed;
+        if done || stuck {
+            return BlobKind::Any;
+        }
+    }
+}
+
+/// The kind of a PrimitiveBlock's first non-empty group (field 2), from its first field;
+/// `None` when `b` is a prefix too short to tell (and `complete` is false).
+pub(super) fn first_group_kind(b: &[u8], complete: bool) -> Option<BlobKind> {
+    let more = if complete { Some(BlobKind::Any) } else { None };
+    let mut pos = 0;
+    loop {
+        if pos >= b.len() {
+            return more;
+        }
+        let Some(key) = varint(b, &mut pos) else {
+            return more;
+        };
+        if key == 0x12 {
+            let Some(len) = varint(b, &mut pos) else {
+                return more;
+            };
+            if len == 0 {
+                continue;
+            }
+            let Some(inner) = varint(b, &mut pos) else {
+                return more;
+            };
+            return Some(match inner >> 3 {
+                1 | 2 => BlobKind::Nodes,
+                3 => BlobKind::Ways,
+                4 => BlobKind::Relations,
+                _ => BlobKind::Any,
+            });
+        }
+        if skip_field(b, &mut pos, key & 7).is_none() {
+            return more;
+        }
+    }
+}

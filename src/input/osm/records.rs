@@ -1,0 +1,297 @@
+//! What the three passes keep of each block: relations with their members, ways with their
+//! node references, and the compact index of the needed nodes.
+
+use super::*;
+
+// ---------------------------------------------------------------------------------------------
+// Pass results
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum RelKind {
+    Building,
+    Part,
+    /// A multipolygon without tags of its own: an old-style multipolygon whose outer way may
+    /// carry `building=*`.
+    Untagged,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Role {
+    Outer,
+    Inner,
+    Unknown,
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct Member {
+    pub(super) way: i64,
+    pub(super) role: Role,
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct RelRec {
+    pub(super) id: i64,
+    pub(super) kind: RelKind,
+    pub(super) tags: Tags,
+    pub(super) members: Vec<Member>,
+    /// Node and relation members: not geometry of a multipolygon, reported and left out.
+    pub(super) other_members: usize,
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct WayRec {
+    pub(super) id: i64,
+    pub(super) refs: Vec<i64>,
+    /// `Some` for a building or part way.
+    pub(super) kind: Option<FootprintKind>,
+    /// Parsed tags of building/part ways only, parsed in the parallel pass; taken (moved into
+    /// the footprint) during assembly, so the raw strings are never all held at once.
+    pub(super) tags: Option<SharedTags>,
+    /// Whether the way is a street (see [`STREET_KINDS`]).
+    pub(super) street: bool,
+}
+
+/// Coordinates of the needed nodes: `coords[i]` belongs to `ids[i]`.
+///
+/// Compact (16 bytes a node with its id): a coordinate is kept as its 1e-7 degree integer
+/// (the PBF default granularity), from which the reader's f64 is rebuilt bit for bit; the
+/// rare coordinate that is not a whole number of 1e-7 degrees goes to `exact`.
+pub(super) struct Nodes {
+    pub(super) ids: Vec<i64>,
+    /// `ids[k * FENCE]` for every k: a small table that stays in cache and narrows each lookup
+    /// to one run of `FENCE` ids.
+    pub(super) fences: Vec<i64>,
+    /// (lon, lat) in 1e-7 degrees; [`MISSING`] when not in the file, [`EXACT`] when in `exact`.
+    pub(super) coords: Vec<[i32; 2]>,
+    /// (index, lon, lat) of the coordinates `coords` cannot hold, sorted by index.
+    pub(super) exact: Vec<(usize, f64, f64)>,
+}
+
+pub(super) const FENCE: usize = 128;
+pub(super) const MISSING: i32 = i32::MIN;
+pub(super) const EXACT: i32 = i32::MAX;
+
+impl Nodes {
+    pub(super) fn new(ids: Vec<i64>) -> Nodes {
+        let coords = vec![[MISSING; 2]; ids.len()];
+        Nodes {
+            fences: ids.iter().step_by(FENCE).copied().collect(),
+            ids,
+            coords,
+            exact: Vec::new(),
+        }
+    }
+
+    /// Sets node `i` from nanodegrees (as osmpbf gives them).
+    pub(super) fn set(&mut self, i: usize, nano_lon: i64, nano_lat: i64) {
+        let small = |n: i64| {
+            (n % 100 == 0)
+                .then_some(n / 100)
+                .and_then(|d| i32::try_from(d).ok())
+                .filter(|d| *d != MISSING && *d != EXACT)
+        };
+        match (small(nano_lon), small(nano_lat)) {
+            (Some(x), Some(y)) => self.coords[i] = [x, y],
+            _ => self.set_exact(i, degrees(nano_lon), degrees(nano_lat)),
+        }
+    }
+
+    /// Sets node `i` to exact degrees.
+    pub(super) fn set_exact(&mut self, i: usize, lon: f64, lat: f64) {
+        self.coords[i] = [EXACT; 2];
+        self.exact.push((i, lon, lat));
+    }
+
+    /// Sorts the exact table; call once all nodes are set.
+    pub(super) fn finish(&mut self) {
+        self.exact.sort_by_key(|e| e.0);
+        self.exact.dedup_by_key(|e| e.0);
+    }
+
+    pub(super) fn get(&self, id: i64) -> Option<(f64, f64)> {
+        let k = self.fences.partition_point(|&f| f <= id).checked_sub(1)?;
+        let run = &self.ids[k * FENCE..self.ids.len().min((k + 1) * FENCE)];
+        let i = k * FENCE + run.binary_search(&id).ok()?;
+        match self.coords[i] {
+            [MISSING, _] => None,
+            [EXACT, _] => {
+                let k = self.exact.binary_search_by_key(&i, |e| e.0).ok()?;
+                Some((self.exact[k].1, self.exact[k].2))
+            }
+            [x, y] => Some((degrees(i64::from(x) * 100), degrees(i64::from(y) * 100))),
+        }
+    }
+}
+
+/// Degrees from nanodegrees, computed as osmpbf's `lat()`/`lon()` do.
+pub(super) fn degrees(nano: i64) -> f64 {
+    1e-9 * nano as f64
+}
+
+/// The footprint kind a tag set asks for: `building=*` other than `no`, else `building:part=*`
+/// other than `no`.
+pub(super) fn kind_of<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<FootprintKind> {
+    let mut building = false;
+    let mut part = false;
+    for (k, v) in tags {
+        match k {
+            "building" if v.trim() != "no" => building = true,
+            "building:part" if v.trim() != "no" => part = true,
+            _ => {}
+        }
+    }
+    if building {
+        Some(FootprintKind::Building)
+    } else if part {
+        Some(FootprintKind::Part)
+    } else {
+        None
+    }
+}
+
+/// Keys that do not make a multipolygon "tagged": with only these, the tags live on the ways.
+pub(super) fn is_metadata_key(k: &str) -> bool {
+    k == "type"
+        || k == "created_by"
+        || k.starts_with("source")
+        || k.starts_with("note")
+        || k.eq_ignore_ascii_case("fixme")
+}
+
+pub(super) fn relations_of_block(block: &PrimitiveBlock) -> Vec<RelRec> {
+    let mut out = Vec::new();
+    for group in block.groups() {
+        for rel in group.relations() {
+            if !rel
+                .tags()
+                .any(|(k, v)| k == "type" && v.trim() == "multipolygon")
+            {
+                continue;
+            }
+            let kind = match kind_of(rel.tags()) {
+                Some(FootprintKind::Building) => RelKind::Building,
+                Some(FootprintKind::Part) => RelKind::Part,
+                None if rel.tags().all(|(k, _)| is_metadata_key(k)) => RelKind::Untagged,
+                None => continue,
+            };
+            let mut members = Vec::new();
+            let mut other_members = 0;
+            for m in rel.members() {
+                if m.member_type == RelMemberType::Way {
+                    let role = match m.role().map(|r| r.trim()) {
+                        Ok("outer") => Role::Outer,
+                        Ok("inner") => Role::Inner,
+                        _ => Role::Unknown,
+                    };
+                    members.push(Member {
+                        way: m.member_id,
+                        role,
+                    });
+                } else {
+                    other_members += 1;
+                }
+            }
+            out.push(RelRec {
+                id: rel.id(),
+                kind,
+                tags: owned(rel.tags()),
+                members,
+                other_members,
+            });
+        }
+    }
+    out
+}
+
+pub(super) fn owned<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
+    tags.map(|(k, v)| (k.to_string(), v.to_string())).collect()
+}
+
+pub(super) fn ways_of_block(
+    block: &PrimitiveBlock,
+    member_ways: &[i64],
+    interner: &TagInterner,
+) -> Vec<WayRec> {
+    let mut out = Vec::new();
+    for group in block.groups() {
+        for way in group.ways() {
+            let kind = kind_of(way.tags());
+            let member = member_ways.binary_search(&way.id()).is_ok();
+            let street = is_street(way.tags());
+            if kind.is_none() && !member && !street {
+                continue;
+            }
+            out.push(WayRec {
+                id: way.id(),
+                refs: way.refs().collect(),
+                kind,
+                tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(way.tags()))),
+                street,
+            });
+        }
+    }
+    out
+}
+
+/// The needed nodes of a block as (index in `needed`, nanodegrees lon, lat). Node ids in a
+/// block are usually ascending, so the index is found by walking forward (binary search only
+/// for the first node and after a step back).
+pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, i64, i64)> {
+    let mut out = Vec::new();
+    let mut j = 0usize;
+    let mut last = i64::MAX;
+    let mut visit = |id: i64, lon: i64, lat: i64| {
+        if id < last {
+            j = needed.partition_point(|&x| x < id);
+        } else {
+            while j < needed.len() && needed[j] < id {
+                j += 1;
+            }
+        }
+        last = id;
+        if needed.get(j) == Some(&id) {
+            out.push((j, lon, lat));
+        }
+    };
+    for g in block.groups() {
+        for n in g.dense_nodes() {
+            visit(n.id(), n.nano_lon(), n.nano_lat());
+        }
+        for n in g.nodes() {
+            visit(n.id(), n.nano_lon(), n.nano_lat());
+        }
+    }
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
+// Assembly
+
+/// A way's node list resolved to coordinates, or how many nodes are missing.
+pub(super) fn resolve(refs: &[i64], nodes: &Nodes) -> Result<Ring, usize> {
+    let mut pts = Vec::with_capacity(refs.len());
+    let mut missing = 0;
+    for &r in refs {
+        match nodes.get(r) {
+            Some(p) => pts.push(p),
+            None => missing += 1,
+        }
+    }
+    if missing > 0 {
+        Err(missing)
+    } else {
+        Ok(pts)
+    }
+}
+
+pub(super) fn list_ids(ids: &[i64], prefix: &str) -> String {
+    let mut s: Vec<String> = ids
+        .iter()
+        .take(MAX_LISTED)
+        .map(|i| format!("{prefix}/{i}"))
+        .collect();
+    if ids.len() > MAX_LISTED {
+        s.push(format!("and {} more", ids.len() - MAX_LISTED));
+    }
+    s.join(", ")
+}
