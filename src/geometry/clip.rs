@@ -131,3 +131,6 @@ pub fn map_polygon(poly: &Polygon, f: impl Fn(DVec2) -> DVec2) -> Polygon {
             .collect(),
     )
 }
+
+#[cfg(test)]
+mod tests;

@@ -143,3 +143,6 @@ pub fn convex_hull(pts: &[DVec2]) -> Vec<DVec2> {
     h.pop();
     h
 }
+
+#[cfg(test)]
+mod tests;
