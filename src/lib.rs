@@ -3,6 +3,24 @@
 //! The pipeline runs one way: read footprints -> project to the local frame -> match the
 //! knowledge-base zone -> pick an appearance -> grammar rules -> derive the shape tree ->
 //! semantic building model cut at the LOD -> writers. See ARCHITECTURE.md.
+//!
+//! # The front door
+//!
+//! A run as the command line does it: fill [`Options`] and call [`run`], which returns a
+//! [`Summary`] or a [`RunError`] (bad input, exit 1; an output that could not be written,
+//! exit 3). The semantic model every writer consumes is [`model`] ([`model::Building`]); a
+//! writer of one more format implements [`BuildingWriter`].
+//!
+//! The stages are public modules for the tests, the examples and the tools (`kb explain`,
+//! `rules derive`), in the order data flows: [`input`] → [`prepare`] → [`derive`] →
+//! [`export`], run by [`pipeline`]; the two languages [`kb`] and [`grammar`]; the ground floor
+//! [`model`], [`geometry`], [`crs`], [`color`], [`rng`], [`report`]. Their layering (what may
+//! import what) is in ARCHITECTURE.md and is enforced by `tests/architecture.rs`.
+
+#![forbid(unsafe_code)]
+
+pub use export::BuildingWriter;
+pub use pipeline::{run, Options, RunError, Summary};
 
 pub mod color;
 pub mod crs;

@@ -1,6 +1,8 @@
 //! The `citygen` command line: arguments, progress, summary and exit code. All the work is in
 //! the library (`citygen::pipeline`).
 
+#![forbid(unsafe_code)]
+
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;

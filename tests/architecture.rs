@@ -521,7 +521,7 @@ fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) ->
         test_files.extend(s.test_modules);
         uses.extend(s.uses);
     }
-    let is_test = |m: &[String]| (1..=m.len()).any(|k| test_files.contains(&m[..k].to_vec()));
+    let is_test = |m: &[String]| (1..=m.len()).any(|k| test_files.contains(&m[..k]));
     let allowed: BTreeMap<&str, &[&str]> = layers.iter().copied().collect();
     let mut out = Vec::new();
     // Edges per folder: folder -> (child -> (child -> first use)).
@@ -530,7 +530,7 @@ fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) ->
         // The longest prefix of the path that is a module.
         let k = (0..=u.to.len())
             .rev()
-            .find(|&k| k == 0 || modules.contains(&u.to[..k].to_vec()))
+            .find(|&k| k == 0 || modules.contains(&u.to[..k]))
             .unwrap();
         let to = &u.to[..k];
         if let (Some(a), Some(b)) = (u.from.first(), to.first()) {
