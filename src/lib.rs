@@ -12,7 +12,7 @@
 //! writer of one more format implements [`BuildingWriter`].
 //!
 //! The stages are public modules for the tests, the examples and the tools (`kb explain`,
-//! `rules derive`), in the order data flows: [`input`] → [`prepare`] → [`derive`] →
+//! `rules derive`), in the order data flows: [`input`] → [`prepare`] → [`mod@derive`] →
 //! [`export`], run by [`pipeline`]; the two languages [`kb`] and [`grammar`]; the ground floor
 //! [`model`], [`geometry`], [`crs`], [`color`], [`rng`], [`report`]. Their layering (what may
 //! import what) is in ARCHITECTURE.md and is enforced by `tests/architecture.rs`.

@@ -221,7 +221,7 @@ impl std::fmt::Display for AttrValue {
 /// reference counts, not string allocations; look up with `attrs.get("color")`.
 pub type Attrs = BTreeMap<Arc<str>, AttrValue>;
 
-/// An interned symbol: an index into [`RuleSet::symbols`].
+/// An interned symbol: an index into the rule set's symbol table.
 pub type SymbolId = u32;
 
 /// One successor of a rule: `symbol : attr=val, ...`, with a selector for `comp`.

@@ -229,10 +229,10 @@ pub fn derive(
     derive_facing(rules, lot, None, attrs, rng, caps)
 }
 
-/// [`derive`] for a lot whose front is known: `front` (a unit vector in the local frame,
+/// [`derive()`] for a lot whose front is known: `front` (a unit vector in the local frame,
 /// pointing from the building to its street) turns the axiom's scope so that its −Y, the
 /// `front` selector of `comp`, is the direction along the lot's minimum-area rectangle closest
-/// to it ([`crate::geometry::hull::scope_direction`]). `None` is exactly [`derive`] (the thesis scope).
+/// to it (`geometry::hull::scope_direction`). `None` is exactly [`derive()`] (the thesis scope).
 pub fn derive_facing(
     rules: &RuleSet,
     lot: &Polygon,

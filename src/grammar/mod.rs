@@ -7,7 +7,7 @@
 //! gback -> wall
 //! ```
 //!
-//! [`parse`] turns a rule file into a [`RuleSet`] (errors point at `file:line:col`); [`derive`]
+//! [`parse`] turns a rule file into a [`RuleSet`] (errors point at `file:line:col`); [`derive()`]
 //! applies it to one footprint and returns the [`ShapeTree`] the exporters consume. The
 //! semantic decisions (remainders, truncation, repeat fitting, comp selectors, labels) are
 //! documented on the [`interp`] module; the language reference is docs/grammar.md, whose
@@ -15,7 +15,7 @@
 
 pub(crate) mod ast;
 pub(crate) mod expr;
-pub(crate) mod interp;
+pub mod interp;
 pub mod lint;
 pub(crate) mod parser;
 pub(crate) mod shape;

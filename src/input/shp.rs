@@ -3,7 +3,7 @@
 //! Each record is one footprint (`shp/<record index>`), however many outer rings it has. ESRI
 //! declares ring roles by orientation (outer clockwise, holes counter-clockwise), but files
 //! written by other tools often get it wrong, so rings are grouped by how they nest (see
-//! [`super::rings`]) and disagreements are counted in one file-level note.
+//! `input::rings`) and disagreements are counted in one file-level note.
 //!
 //! Attributes: a height field and a levels field are mapped to the OSM keys `height` and
 //! `building:levels` and parsed by [`BuildingTags`]. Without `--height-field`, the first field

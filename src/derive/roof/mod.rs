@@ -19,7 +19,8 @@ use crate::model::{Face, RoofShape};
 /// Why a roof shape cannot be built on a footprint (the caller falls back to a flat roof).
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum RoofError {
-    /// The straight skeleton failed (see [`SkeletonError`]).
+    /// The straight skeleton failed: the footprint is degenerate, crosses itself or is too
+    /// complex (`geometry::skeleton::SkeletonError`).
     #[error("straight skeleton failed: {0}")]
     Skeleton(#[from] SkeletonError),
     /// The pitch is not in (0°, 90°) or the height is not positive and finite.
@@ -112,9 +113,9 @@ fn check_pitch(pitch_deg: f64) -> Result<f64, RoofError> {
 /// A hipped roof: one plane per footprint edge, all with slope `pitch_deg`, meeting along the
 /// straight skeleton; z = distance to the edge × tan(pitch). Works for any simple footprint,
 /// holes included (the courtyards get inward-facing hips). One face per input edge (see
-/// [`crate::geometry::skeleton::Skeleton`] for degenerate edges), in ring then edge order.
+/// straight skeleton for degenerate edges), in ring then edge order.
 ///
-/// Errors: pitch not in (0°, 90°), or any [`SkeletonError`].
+/// Errors: pitch not in (0°, 90°), or any straight-skeleton error (`SkeletonError`).
 pub fn hipped(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError> {
     let k = check_pitch(pitch_deg)?;
     let sk = straight_skeleton(poly)?;
@@ -183,7 +184,7 @@ fn centroid(r: &[DVec2]) -> Option<DVec2> {
 }
 
 /// A gabled roof: the hipped roof with every hip end raised to a vertical gable (after Laycock
-/// and Day; see [`super::roof_shapes`] for the rule that picks the ends). The roof line over
+/// and Day; see [`shapes`] for the rule that picks the ends). The roof line over
 /// each gable is returned in `gable_walls`. Footprints without hip ends (a square) keep their
 /// hips.
 ///
@@ -205,7 +206,7 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
 /// hipped otherwise. Saltbox is a two-plane ridge roof with the ridge at 35 % of the width
 /// ([`shapes::ridge_roof`]); its long slope faces `down` when given.
 ///
-/// Errors: a pitch outside (0°, 90°), or an invalid footprint ([`SkeletonError`]); never a
+/// Errors: a pitch outside (0°, 90°), or an invalid footprint (a `SkeletonError`); never a
 /// fallback for a valid simple polygon.
 pub fn build(
     poly: &Polygon,

@@ -172,7 +172,7 @@ struct TFace {
 /// Builds a profile roof (see the module documentation) with the eave at z = 0.
 ///
 /// `profile` receives `T`, the largest skeleton distance (the inscribed radius), and returns
-/// the height profile. Errors: any [`crate::geometry::skeleton::SkeletonError`] (invalid footprint).
+/// the height profile. Errors: any straight-skeleton error (an invalid footprint).
 pub fn profile_roof(
     poly: &Polygon,
     ends: Ends,
@@ -634,7 +634,7 @@ pub const SALTBOX_RIDGE_AT: f64 = 0.35;
 /// of a gabled roof with `roof:orientation=across` (`at` = 0.5, ridge parallel to the short
 /// side). It works on any simple polygon, with or without holes: each plane covers the part of
 /// the footprint on its side of the ridge line (clipped exactly), and the walls rise to the roof
-/// line ([`gable_walls`]). On an L or T the ridge crosses the wings as a carpenter's single
+/// line (`gable_walls`). On an L or T the ridge crosses the wings as a carpenter's single
 /// ridge would; the skeleton gables ([`profile_roof`]) are the better answer there and stay the
 /// default for `gabled`.
 pub fn ridge_roof(
