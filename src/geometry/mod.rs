@@ -8,8 +8,8 @@
 pub(crate) mod clip;
 pub(crate) mod hull;
 pub(crate) mod ring;
-pub(crate) mod skeleton;
-pub(crate) mod triangulate;
+pub mod skeleton;
+pub mod triangulate;
 
 use glam::{DVec2, DVec3};
 

@@ -82,35 +82,66 @@ pub const MAX_EDGES: usize = 1000;
 pub enum SkeletonError {
     /// A coordinate is NaN or infinite.
     #[error("ring {ring} vertex {vertex} has a non-finite coordinate")]
-    NonFinite { ring: usize, vertex: usize },
+    NonFinite {
+        /// The ring: 0 is the outer ring, 1.. the holes in their order.
+        ring: usize,
+        /// The vertex's index in the ring as given.
+        vertex: usize,
+    },
     /// A ring has fewer than three distinct, non-collinear vertices.
     #[error("ring {ring} has fewer than 3 distinct non-collinear vertices")]
-    TooFewVertices { ring: usize },
+    TooFewVertices {
+        /// The ring: 0 is the outer ring, 1.. the holes.
+        ring: usize,
+    },
     /// The polygon (or a hole) has no area.
     #[error("ring {ring} has zero area")]
-    ZeroArea { ring: usize },
+    ZeroArea {
+        /// The ring: 0 is the outer ring, 1.. the holes.
+        ring: usize,
+    },
     /// An edge folds back onto the previous one.
     #[error("ring {ring} has a spike at vertex {vertex} (the boundary folds back on itself)")]
-    Spike { ring: usize, vertex: usize },
+    Spike {
+        /// The ring: 0 is the outer ring, 1.. the holes.
+        ring: usize,
+        /// The index (in the ring as given) of the vertex where it turns back.
+        vertex: usize,
+    },
     /// Two edges of the boundary cross or touch.
     #[error(
         "the boundary touches itself: ring {ring_a} edge {edge_a} meets ring {ring_b} edge {edge_b}"
     )]
     SelfIntersection {
+        /// The ring of the first edge (0 outer, 1.. holes).
         ring_a: usize,
+        /// The first edge, by the index (in the ring as given) of the vertex it starts at.
         edge_a: usize,
+        /// The ring of the second edge.
         ring_b: usize,
+        /// The second edge, by the index of the vertex it starts at.
         edge_b: usize,
     },
     /// A hole is not inside the outer ring, or is inside another hole.
     #[error("hole {hole} (ring {}) is not inside the outer ring or lies in another hole", hole + 1)]
-    HoleOutside { hole: usize },
+    HoleOutside {
+        /// The hole, 0-based among the holes (ring `hole + 1`).
+        hole: usize,
+    },
     /// Too many edges (after merging collinear ones) for the skeleton to finish quickly.
     #[error("{edges} edges (after merging collinear ones) exceed the skeleton's limit of {max}")]
-    TooComplex { edges: usize, max: usize },
+    TooComplex {
+        /// The polygon's edges after collinear runs are merged.
+        edges: usize,
+        /// The limit, [`MAX_EDGES`].
+        max: usize,
+    },
     /// The propagation did not finish within its event budget.
     #[error("straight skeleton did not converge within {events} events")]
-    NoConvergence { events: usize },
+    NoConvergence {
+        /// The event budget that ran out.
+        events: usize,
+    },
     /// The propagation reached a state that cannot be right (numerical breakdown).
     #[error("straight skeleton is inconsistent: {0}")]
     Inconsistent(&'static str),
