@@ -790,3 +790,88 @@ fn paths_inside_types_and_expressions_count() {
     ];
     assert_eq!(check(&files, TEST_LAYERS).len(), 2);
 }
+
+/// The backticked paths of ARCHITECTURE.md's code map (`input/osm/pbf.rs`, `kb/`, ...).
+fn code_map_paths(doc: &str) -> Vec<String> {
+    let start = doc
+        .find("## Code map")
+        .expect("ARCHITECTURE.md has a `## Code map` section");
+    let end = doc[start..].find("\n## ").map_or(doc.len(), |e| start + e);
+    doc[start..end]
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|t| {
+            !t.is_empty()
+                && (t.ends_with(".rs") || t.ends_with('/'))
+                && t.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "_/.-".contains(c))
+        })
+        .map(String::from)
+        .collect()
+}
+
+/// What the code map must name for a file of `src/`: `a/b.rs` for a module file, `a/` for a
+/// folder's `mod.rs`; `None` for test code (`tests.rs`, files under a `tests/` folder).
+fn code_map_name(rel: &str) -> Option<String> {
+    let parts: Vec<&str> = rel.split('/').collect();
+    if parts.last() == Some(&"tests.rs") || parts[..parts.len() - 1].contains(&"tests") {
+        return None;
+    }
+    Some(match rel.strip_suffix("mod.rs") {
+        Some(folder) => folder.to_string(),
+        None => rel.to_string(),
+    })
+}
+
+#[test]
+fn the_code_map_of_architecture_md_names_every_module_and_nothing_else() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let doc = std::fs::read_to_string(root.join("ARCHITECTURE.md")).unwrap();
+    let named: BTreeSet<String> = code_map_paths(&doc).into_iter().collect();
+    let src = root.join("src");
+    let mut problems = Vec::new();
+    for (path, _) in source_files(&src)
+        .into_iter()
+        .chain([(src.join("main.rs"), Vec::new())])
+    {
+        let rel = path
+            .strip_prefix(&src)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        if let Some(name) = code_map_name(&rel) {
+            if !named.contains(&name) {
+                problems.push(format!("src/{rel} is not in the code map (as `{name}`)"));
+            }
+        }
+    }
+    for name in &named {
+        if !src.join(name).exists() && !root.join(name).exists() {
+            problems.push(format!(
+                "the code map names `{name}`, which is neither in src/ nor in the repository"
+            ));
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "ARCHITECTURE.md's code map:\n{}",
+        problems.join("\n")
+    );
+}
+
+#[test]
+fn code_map_names_follow_the_tree() {
+    assert_eq!(
+        code_map_name("input/osm/mod.rs").as_deref(),
+        Some("input/osm/")
+    );
+    assert_eq!(
+        code_map_name("input/osm/pbf.rs").as_deref(),
+        Some("input/osm/pbf.rs")
+    );
+    assert_eq!(code_map_name("input/osm/tests.rs"), None);
+    assert_eq!(code_map_name("derive/roof/tests/real_footprints.rs"), None);
+    let doc = "x\n## Code map\n- `a/b.rs` — and `c/` and `Polygon` and `x::y`\n## Layers\n`z.rs`";
+    assert_eq!(code_map_paths(doc), vec!["a/b.rs", "c/"]);
+}
