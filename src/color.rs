@@ -3,14 +3,21 @@
 /// A linear RGBA colour with components in 0..=1 (sRGB encoded, as CSS gives them).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Color {
+    /// Red component, 0..=1.
     pub r: f32,
+    /// Green component, 0..=1.
     pub g: f32,
+    /// Blue component, 0..=1.
     pub b: f32,
+    /// Opacity, 0..=1 (1 opaque). Every parsed colour is opaque; the writers lower it for glazed
+    /// windows.
     pub a: f32,
 }
 
 impl Color {
+    /// Opaque white, `#ffffff`: the knowledge base's default wall and window-frame colour.
     pub const WHITE: Color = Color::rgb(1.0, 1.0, 1.0);
+    /// Opaque mid grey, `#808080` (0.5 in each component).
     pub const GREY: Color = Color::rgb(0.5, 0.5, 0.5);
 
     /// An opaque colour.

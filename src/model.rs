@@ -19,8 +19,12 @@ use crate::geometry::Polygon;
 /// (shapefile record index, 0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum SourceId {
+    /// An OSM closed way tagged `building` or `building:part`, by its OSM way id.
     Way(i64),
+    /// An OSM `type=multipolygon` relation (a building or `building:part`), by its OSM relation
+    /// id.
     Relation(i64),
+    /// A shapefile record, by its 0-based index in the `.shp`.
     Shape(u64),
     /// A test lot given on the command line (`rules derive`).
     Lot(u64),
@@ -156,19 +160,39 @@ impl Lod {
 /// Roof shapes of the OSM Simple 3D Buildings catalogue that citygen knows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum RoofShape {
+    /// `flat` (also an empty value): one horizontal face at the top of the walls.
     Flat,
+    /// `skillion` (also `shed`, `lean-to`, `mono-pitched`): one plane sloping down towards
+    /// `roof:direction`, or across the footprint's short side.
     Skillion,
+    /// `gabled`: slopes from the straight skeleton, each wing end closed by a vertical gable wall;
+    /// with `roof:orientation=across`, two planes on one ridge parallel to the short side.
     Gabled,
+    /// `hipped`: a slope rising from every footprint edge.
     Hipped,
+    /// `half-hipped`: gabled, each gable wall stopping at 0.6 of its height under a small hip.
     HalfHipped,
+    /// `side_hipped`: gabled with one end hipped (the first hip end in ring order).
     SideHipped,
+    /// `pyramidal`: one triangle per edge rising to an apex over the centroid (hipped when the
+    /// footprint has holes or is not star-shaped from the centroid).
     Pyramidal,
+    /// `mansard`: hipped with a steep 70° lower slope (1 m deep in plan, less on narrow wings)
+    /// under a 25° upper slope; `roof:angle` is not used.
     Mansard,
+    /// `gambrel`: a barn roof, gabled with a 60° lower slope and a 30° upper slope; `roof:angle`
+    /// is not used.
     Gambrel,
+    /// `saltbox`: two planes on one straight ridge at 35 % of the width, a short steep slope and a
+    /// long one (facing `roof:direction` when tagged).
     Saltbox,
+    /// `dome`: a quarter-circle profile of the footprint's inscribed radius, in 6 planar bands.
     Dome,
+    /// `onion`: a bulb profile, 1.6 times the footprint's inscribed radius high.
     Onion,
+    /// `round`: a barrel vault, the dome's quarter-circle profile with gable ends.
     Round,
+    /// `cone`: drawn as the pyramidal roof, planar triangles to one apex.
     Cone,
 }
 
@@ -239,7 +263,10 @@ impl RoofShape {
 /// normal points to (outside the building); holes run the other way. Rings are not closed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Face {
+    /// Outer ring in the local frame (metres), not closed (the first vertex is not repeated).
     pub outer: Vec<DVec3>,
+    /// Hole rings, running opposite to `outer`: a wall's window and door openings at LOD3, a
+    /// courtyard in a flat roof or the ground.
     pub holes: Vec<Vec<DVec3>>,
 }
 
@@ -261,7 +288,10 @@ impl Face {
 /// Window or door.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum OpeningKind {
+    /// A window: a `window` terminal of the rules, glass unless its `material` says otherwise.
     Window,
+    /// A door: a `door` terminal of the rules (the front door, a balcony door), opaque unless its
+    /// `material` is `glass`.
     Door,
 }
 
@@ -273,13 +303,23 @@ pub enum OpeningKind {
 /// `outline.holes`, in the same order as `openings`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Opening {
+    /// Window or door.
     pub kind: OpeningKind,
+    /// Left edge: metres along the wall from its `start`, at least [`OPENING_MARGIN`].
     pub u0: f64,
+    /// Right edge: metres along the wall from its `start`, at most the wall's length minus
+    /// [`OPENING_MARGIN`].
     pub u1: f64,
+    /// Bottom edge (sill, or the foot of a door): absolute height in metres, at least
+    /// [`OPENING_MARGIN`] above the wall's base, so a door stands 2 cm above its floor.
     pub z0: f64,
+    /// Top edge: absolute height in metres, at least [`OPENING_MARGIN`] below the storey's top
+    /// (the eave for the top storey).
     pub z1: f64,
     /// Glass or door-panel colour.
     pub color: Color,
+    /// Frame colour: the terminal's `framecolor`, else the style's (the knowledge base's
+    /// `windowfcolor`, white by default). The IFC and glTF writers use it only when `framed`.
     pub frame_color: Color,
     /// Transparent glass (`material=glass`).
     pub glazed: bool,
@@ -307,10 +347,16 @@ pub const OPENING_MARGIN: f64 = 0.02;
 /// `z`, spanning `u0..u1` along it, with a railing.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Balcony {
+    /// Start along the wall, metres from its `start` (0 or more).
     pub u0: f64,
+    /// End along the wall, metres from its `start` (at most the wall's length).
     pub u1: f64,
+    /// Absolute height of the balcony's floor (the bottom of the `balcony` terminal), metres.
     pub z: f64,
+    /// How far the slab reaches out from the wall's outer face, metres (1.2 m for every balcony
+    /// the rules make).
     pub depth: f64,
+    /// Colour of the slab and railing: the terminal's `color`, else the part's wall colour.
     pub color: Color,
 }
 
@@ -324,12 +370,18 @@ pub struct Balcony {
 /// are the openings' rectangles.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wall {
+    /// Start of the footprint edge, local frame (metres).
     pub start: DVec2,
+    /// End of the footprint edge, local frame (metres).
     pub end: DVec2,
+    /// Bottom of the wall, metres: the part's base, or at LOD3 its storey's floor.
     pub base_z: f64,
     /// Height of the wall top at the eave (the rectangular part).
     pub top_z: f64,
+    /// Thickness in metres, measured inwards from the footprint edge (0.3 m for every exterior
+    /// wall citygen derives).
     pub thickness: f64,
+    /// The outer face, on the footprint edge, normal pointing out of the building.
     pub outline: Face,
     /// Index of the storey (in [`Part::levels`]) the wall belongs to; 0 below LOD3, where a wall
     /// spans all storeys.
@@ -365,8 +417,17 @@ pub struct Part {
     /// Floor elevation of each storey, ascending, the first at `base_z` (`storeys` values; the
     /// last storey ends at `eave_z`).
     pub levels: Vec<f64>,
+    /// Wall colour: the mass's `color` attribute in the rules, else the style's (OSM
+    /// `building:colour`, then `building:material`, then the knowledge base's `color`, white by
+    /// default).
     pub wall_color: Color,
+    /// Roof colour: the mass's `roofcolor` attribute in the rules, else the style's (OSM
+    /// `roof:colour`, then `roof:material`, then the knowledge base's `roofColor`, CSS `darkred` by
+    /// default).
     pub roof_color: Color,
+    /// The roof shape derived for the part, or [`RoofShape::Flat`] when it fell back to flat (or is
+    /// under 5 cm high). At LOD1, where every part is a flat-topped block, it still names the
+    /// derived shape.
     pub roof_shape: RoofShape,
     /// Exterior walls: one per footprint edge, outer ring then holes, in ring order.
     pub walls: Vec<Wall>,
@@ -393,6 +454,8 @@ pub struct StoreyInterior {
     pub floor_z: f64,
     /// Underside of the ceiling (the next storey's slab, or the eave).
     pub ceiling_z: f64,
+    /// The rooms, which partition the storey's usable area; [`InteriorWall::rooms`] indexes into
+    /// this list.
     pub rooms: Vec<Room>,
     /// Interior walls, each once (never duplicated for its two rooms).
     pub walls: Vec<InteriorWall>,
@@ -417,8 +480,11 @@ pub struct Room {
 /// An interior wall on the shared boundary of two rooms: the centre line from `a` to `b`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InteriorWall {
+    /// One end of the centre line, local frame (metres).
     pub a: DVec2,
+    /// The other end of the centre line, local frame (metres).
     pub b: DVec2,
+    /// Thickness in metres, centred on the line from `a` to `b` (0.1 m partitions).
     pub thickness: f64,
     /// The two rooms it separates (indices in [`StoreyInterior::rooms`]).
     pub rooms: [usize; 2],
@@ -430,8 +496,11 @@ pub struct InteriorWall {
 pub struct InteriorDoor {
     /// Index in [`StoreyInterior::walls`].
     pub wall: usize,
+    /// Start of the door opening, metres along the wall from its `a`.
     pub u0: f64,
+    /// End of the opening, metres along the wall from its `a`.
     pub u1: f64,
+    /// Height of the door above the storey's floor, metres: 2.1 m, lowered to fit a low storey.
     pub height: f64,
 }
 
@@ -441,6 +510,7 @@ pub struct InteriorDoor {
 pub struct Stair {
     /// The flight's outline (a rectangle) in the local frame.
     pub footprint: Polygon,
+    /// Direction of the climb in plan: a unit vector in the local frame (X east, Y north).
     pub run: DVec2,
     /// Height climbed (floor to next floor).
     pub rise: f64,
@@ -467,6 +537,8 @@ pub struct Building {
     pub storeys_above_ground: u32,
     /// Roof shape of the tallest part.
     pub roof_shape: RoofShape,
+    /// The parts, in derivation order (the outline when it is drawn, then the `building:part`s
+    /// in id order); each has a distinct [`Part::key`].
     pub parts: Vec<Part>,
     /// The LOD the geometry was cut at.
     pub lod: Lod,

@@ -29,10 +29,18 @@ const CHUNK: usize = 2048;
 /// The footprint source.
 #[derive(Clone, Debug)]
 pub enum Source {
+    /// An OpenStreetMap extract (`--osm FILE.pbf`): building ways, multipolygon relations and
+    /// `building:part`s, and the streets that front doors turn towards.
     Osm(PathBuf),
+    /// An ESRI shapefile (`--shp FILE.shp`, with its `.shx`, `.dbf` and `.prj` beside it).
     Shp {
+        /// The `.shp` file.
         path: PathBuf,
+        /// The `.dbf` field holding the building height in metres (`--shp-height-field`); `None`
+        /// detects it from [`HEIGHT_FIELDS`](crate::input::shp::HEIGHT_FIELDS).
         height_field: Option<String>,
+        /// The `.dbf` field holding the number of storeys (`--shp-levels-field`); `None` detects it
+        /// from [`LEVELS_FIELDS`](crate::input::shp::LEVELS_FIELDS).
         levels_field: Option<String>,
     },
 }
@@ -40,17 +48,34 @@ pub enum Source {
 /// Everything a run needs, as the CLI gives it.
 #[derive(Clone, Debug)]
 pub struct Options {
+    /// The footprints to read (`--osm` or `--shp`).
     pub source: Source,
+    /// The knowledge base (`--kb`); `None` uses the built-in defaults alone
+    /// ([`KnowledgeBase::earth_only`]).
     pub kb: Option<PathBuf>,
+    /// A ruleset file applied to every building (`--rules`); `None` compiles the rules of each
+    /// building's appearance from the knowledge base.
     pub rules: Option<PathBuf>,
+    /// The LOD every building is cut at (`--lod`, default 2).
     pub lod: Lod,
+    /// Write IFC4 (STEP) here (`--ifc`).
     pub ifc: Option<PathBuf>,
+    /// Write CityGML 2.0 here (`--citygml`).
     pub citygml: Option<PathBuf>,
+    /// Write binary glTF 2.0 (`.glb`) here (`--gltf`).
     pub gltf: Option<PathBuf>,
+    /// Write the JSON run report here (`--report`); one file for the whole run, even with
+    /// `tile`.
     pub report: Option<PathBuf>,
+    /// Seed of every random choice (`--seed`, default 0): the same inputs and seed give
+    /// byte-identical outputs, whatever the thread count.
     pub seed: u64,
+    /// The output CRS (`--crs`); `None`: the WGS84 UTM zone of the centre of the data.
     pub crs: Option<Crs>,
+    /// The CRS of the input coordinates (`--src-crs`); it overrides what the reader found (a
+    /// shapefile's `.prj`, WGS84 lon/lat for OSM).
     pub src_crs: Option<Crs>,
+    /// Derivation limits (`--max-depth`, `--max-shapes`); [`run`] sets `facades` from `lod`.
     pub caps: Caps,
     /// Only the buildings whose representative point is in [min lon, min lat, max lon, max lat].
     pub bbox: Option<[f64; 4]>,
@@ -77,8 +102,13 @@ pub enum RunError {
 /// Totals of a run, for the summary line.
 #[derive(Clone, Debug, Default)]
 pub struct Summary {
+    /// The run report (what `--report` writes), with its `skipped` and `repaired` counts
+    /// computed from its entries.
     pub report: Report,
+    /// Planar polygons of all generated buildings, as [`Building::polygon_count`] counts them.
     pub polygons: usize,
+    /// Wall-clock time: of the whole run for [`run`]; of deriving and writing for
+    /// [`generate_and_write`] and [`derive_lot`].
     pub elapsed: Duration,
     /// The files written, or with `dry_run` the files that would have been.
     pub outputs: Vec<PathBuf>,
@@ -276,9 +306,13 @@ fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> {
 /// Where a run writes.
 #[derive(Clone, Debug, Default)]
 pub struct Targets {
+    /// Write IFC4 (STEP) here.
     pub ifc: Option<PathBuf>,
+    /// Write CityGML 2.0 here.
     pub citygml: Option<PathBuf>,
+    /// Write binary glTF 2.0 (`.glb`) here.
     pub gltf: Option<PathBuf>,
+    /// Write the JSON run report here.
     pub report: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
     pub dry_run: bool,

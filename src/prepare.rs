@@ -24,15 +24,24 @@ const MAX_CHECKED_VERTICES: usize = 20_000;
 /// A piece of a building with its own tags (a `building:part`, or the outline itself).
 #[derive(Clone, Debug)]
 pub struct LotPiece {
+    /// The piece's own id: the `building:part`'s, or the outline's when the piece is the outline
+    /// itself.
     pub id: SourceId,
+    /// Its polygons in the local frame (metres), cleaned and repaired, outer rings
+    /// counter-clockwise.
     pub polygons: Vec<Polygon>,
+    /// The piece's own tags; when it is derived, a part without colours or material takes its
+    /// outline's ([`crate::derive::merged_tags`]).
     pub tags: SharedTags,
 }
 
 /// One building to generate, in the local frame.
 #[derive(Clone, Debug)]
 pub struct Lot {
+    /// The outline's id (`way/123`, `relation/45`, `shp/7`; a `building:part` that lies in no
+    /// outline keeps its own): the building's id in every output and in the report.
     pub id: SourceId,
+    /// The outline's tags (the part's own for a `building:part` that lies in no outline).
     pub tags: SharedTags,
     /// The outline polygons (several for a multipolygon with several outer rings).
     pub polygons: Vec<Polygon>,
@@ -53,10 +62,16 @@ pub struct Lot {
 /// All lots of a run and the frame they are in.
 #[derive(Debug)]
 pub struct Site {
+    /// The output CRS: `--crs`, else the WGS84 UTM zone of the centre of the data's lon/lat bounds.
     pub crs: Crs,
     /// Output-CRS coordinates of the local origin.
     pub origin: DVec2,
+    /// The origin as WGS84 (longitude, latitude) in degrees; the IFC writer's `IfcSite`
+    /// reference point.
     pub origin_lonlat: (f64, f64),
+    /// The buildings to generate, sorted by id (ways, then relations, then shapefile records, each
+    /// by number). [`group_into_tiles`] reorders them tile by tile and [`retain_in_bbox`] drops
+    /// those outside `--bbox` (counted in one report note).
     pub lots: Vec<Lot>,
 }
 

@@ -22,7 +22,9 @@ pub enum Outcome {
 pub struct Entry {
     /// `way/123`, `relation/45`, `shp/7`, or empty for file-level notes.
     pub id: String,
+    /// What happened to the record; `skipped`, `repaired` or `note` in the JSON.
     pub outcome: Outcome,
+    /// Why, in words for people, e.g. `coordinates cannot be projected to the output CRS`.
     pub reason: String,
 }
 
@@ -39,6 +41,8 @@ pub struct Report {
     pub skipped: usize,
     /// Footprints written after a repair (each has an entry).
     pub repaired: usize,
+    /// One entry per skipped or repaired record and per note, in the order they were found:
+    /// reading the input, loading the knowledge base, preparing, then deriving in lot order.
     pub entries: Vec<Entry>,
 }
 

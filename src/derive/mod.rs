@@ -47,10 +47,20 @@ pub enum Rules {
 
 /// Everything needed to turn lots into buildings.
 pub struct Generator {
+    /// The knowledge base that gives every lot its zone and style (`--kb`, or
+    /// [`KnowledgeBase::earth_only`] when none is given).
     pub kb: KnowledgeBase,
+    /// Where each building's grammar rules come from.
     pub rules: Rules,
+    /// The LOD every building is cut at: from LOD3 the facades are read from the shape tree, at
+    /// LOD4 the interiors are planned too.
     pub lod: Lod,
+    /// The run's seed (`--seed`, default 0). Each piece of a lot draws from its own stream, seeded
+    /// by this and the piece's [`SourceId::seed_value`], so a building's random choices depend on
+    /// the seed and its id only, never on the thread count or the other buildings.
     pub seed: u64,
+    /// Limits of every derivation (`--max-depth`, `--max-shapes`) and whether `comp` rules run
+    /// (`facades`, which the pipeline turns on from LOD3).
     pub caps: Caps,
     /// Rulesets compiled from appearances, by rule text.
     compiled: Mutex<HashMap<String, Arc<RuleSet>>>,
@@ -60,6 +70,8 @@ pub struct Generator {
 pub type Note = (Outcome, String);
 
 impl Generator {
+    /// A generator with an empty cache of rulesets compiled from the knowledge base. `caps` is used
+    /// as given: set `caps.facades` for LOD3 and above, as [`crate::pipeline::run`] does.
     pub fn new(kb: KnowledgeBase, rules: Rules, lod: Lod, seed: u64, caps: Caps) -> Generator {
         Generator {
             kb,

@@ -25,7 +25,10 @@ pub enum InputError {
     /// The file (or a companion file such as `.shx`/`.dbf`) cannot be opened or read.
     #[error("{}: cannot read the file: {source}", .path.display())]
     Io {
+        /// The file that failed: the `--osm` or `--shp` file, or a companion (`.shx`, `.dbf`,
+        /// `.prj`) beside it.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
@@ -36,11 +39,13 @@ pub enum InputError {
     #[error("{}: corrupt or truncated PBF at block {block}{}: {reason}", .path.display(),
         .offset.map(|o| format!(" (byte offset {o})")).unwrap_or_default())]
     CorruptPbf {
+        /// The `.osm.pbf` file.
         path: PathBuf,
         /// 0-based index of the blob in the file.
         block: usize,
         /// Byte offset of the blob's start, when known.
         offset: Option<u64>,
+        /// What is wrong with the block, e.g. `the block cannot be decoded` or the decoder's error.
         reason: String,
     },
     /// A shapefile component is missing, not a shapefile, or of an unsupported shape type.
@@ -50,9 +55,12 @@ pub enum InputError {
     /// be trusted either.
     #[error("{}: record {record}: {reason}", .path.display())]
     ShapeRecord {
+        /// The `.shp` when the geometry record is bad, the `.dbf` when its attribute row is.
         path: PathBuf,
         /// 0-based record index.
         record: usize,
+        /// What is wrong, e.g. `undecodable record` or `no attribute row (deleted or missing rows in
+        /// the .dbf)`.
         reason: String,
     },
     /// The `.prj` names a CRS citygen cannot use, or there is no CRS at all.
@@ -71,7 +79,9 @@ pub type Ring = Vec<(f64, f64)>;
 /// non-zero area per ring.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SourcePolygon {
+    /// Outer ring, counter-clockwise.
     pub outer: Ring,
+    /// Hole rings, clockwise.
     pub holes: Vec<Ring>,
 }
 
@@ -88,8 +98,11 @@ pub enum FootprintKind {
 /// gives one footprint with several polygons (one building, several parts of ground).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Footprint {
+    /// Where the footprint came from: `way/123`, `relation/45` or `shp/7`.
     pub id: SourceId,
+    /// Whether it is a building outline or a `building:part`.
     pub kind: FootprintKind,
+    /// The footprint's polygons: one per outer ring with its holes.
     pub polygons: Vec<SourcePolygon>,
     /// Boxed: the parsed tags are large and most footprints move through the pipeline several
     /// times (reader, projection, lot), so only the pointer moves and memory stays compact.

@@ -24,6 +24,8 @@ pub struct BuildingTags {
     /// lower-cased. `building` wins over `building:part`, and a value other than `no` wins over
     /// `no`.
     pub building: Option<String>,
+    /// OSM `name`, trimmed (a blank value is ignored). Only OSM input sets it: the shapefile
+    /// reader maps no name field.
     pub name: Option<String>,
     /// `height` in metres, total height including the roof. Always > 0.
     pub height: Option<f64>,
@@ -33,6 +35,9 @@ pub struct BuildingTags {
     pub levels: Option<f64>,
     /// `building:min_level`, >= 0.
     pub min_level: Option<f64>,
+    /// `roof:shape` (the first value of a `;` list), read by [`RoofShape::parse`], so the thesis
+    /// spellings are accepted too. An unknown value leaves this `None` and sets
+    /// `invalid_roof_shape`.
     pub roof_shape: Option<RoofShape>,
     /// A `roof:shape` value that is present but unknown or invalid (`9.0`, `many`): the roof is
     /// drawn flat (issue 4) rather than taking the knowledge base's roof.

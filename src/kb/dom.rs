@@ -15,16 +15,24 @@ pub enum KbError {
     /// The file could not be read.
     #[error("{file}: cannot read the knowledge base: {source}")]
     Io {
+        /// The knowledge base as messages name it: the path given to `KnowledgeBase::load`, or the
+        /// name given to `KnowledgeBase::parse_str`.
         file: String,
+        /// The operating system's error; invalid UTF-8 is reported here too, as `InvalidData` with
+        /// the byte offset where the text stops being UTF-8.
         #[source]
         source: std::io::Error,
     },
     /// Not well-formed XML (after the lenient pre-pass).
     #[error("{file}:{line}:{col}: malformed knowledge-base XML: {message}")]
     Xml {
+        /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
+        /// 1-based line of the fault.
         line: usize,
+        /// 1-based column of the fault, in characters.
         col: usize,
+        /// The XML parser's description, or ours (e.g. `element <town> is never closed`).
         message: String,
     },
     /// A `<!DOCTYPE>`: refused, so that no entity is ever expanded.
@@ -33,8 +41,11 @@ pub enum KbError {
          (entities are never expanded); remove the <!DOCTYPE ...> block"
     )]
     Doctype {
+        /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
+        /// 1-based line of the `<!DOCTYPE`.
         line: usize,
+        /// 1-based column of the `<!DOCTYPE`, in characters.
         col: usize,
     },
     /// Something the lenient reader would repair, refused by the strict reader
@@ -42,32 +53,47 @@ pub enum KbError {
     /// element, missing quotes, an empty value, a value of the wrong type.
     #[error("{file}:{line}:{col}: not a valid knowledge base (strict mode): {message}")]
     Strict {
+        /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
+        /// 1-based line of what was refused.
         line: usize,
+        /// 1-based column of what was refused, in characters.
         col: usize,
+        /// What was refused and why, e.g. `CDATA sections are not allowed`.
         message: String,
     },
     /// A safety limit was exceeded (see [`MAX_FILE_BYTES`], [`MAX_DEPTH`], [`MAX_ATTRIBUTES`],
     /// [`MAX_POLYGON_POINTS`]).
     #[error("{file}:{line}:{col}: knowledge base refused: {message}")]
     Limit {
+        /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
+        /// 1-based line of the element over the limit (1 for a file over [`MAX_FILE_BYTES`]).
         line: usize,
+        /// 1-based column of that element, in characters (1 for a file over [`MAX_FILE_BYTES`]).
         col: usize,
+        /// Which limit and the value that broke it, e.g. `elements nested more than 64 levels deep`.
         message: String,
     },
     /// A zone path (`kb compile --zone`) that names no zone of the KB.
     #[error("{file}: no zone '{path}' (paths are designations from earth down, e.g. {examples})")]
     UnknownZone {
+        /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
+        /// The zone path as given on the command line.
         path: String,
+        /// Up to six zone paths of the KB (without the leading `earth/`), comma-separated, to show
+        /// the expected form.
         examples: String,
     },
     /// Well-formed XML that is not a knowledge base (wrong root, ...).
     #[error("{file}:{line}: {message}")]
     Structure {
+        /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
+        /// 1-based line of the element at fault (1 when the file holds no element).
         line: usize,
+        /// What is wrong, e.g. `the root element must be <earth>, found <country>`.
         message: String,
     },
 }
@@ -99,7 +125,10 @@ pub enum ReadMode {
 /// One thing the lenient reader repaired or ignored, at a 1-based line of the file.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct KbRepair {
+    /// 1-based line of the file where the repair was made (for `kb check`'s errors and
+    /// warnings, the line of the element concerned).
     pub line: usize,
+    /// What was repaired or ignored and how, e.g. `roof 'hip' read as hipped`.
     pub what: String,
 }
 

@@ -65,10 +65,16 @@ pub mod defaults {
 /// What level of the zone tree a zone is, from its element name.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ZoneKind {
+    /// `<earth>`: the root element (zone 0), whose `<info>` and appearances apply everywhere no
+    /// deeper zone says otherwise.
     Earth,
+    /// `<country>`.
     Country,
+    /// `<region>`.
     Region,
+    /// `<town>`.
     Town,
+    /// `<district>`.
     District,
     /// Any other element that has a `designation` (e.g. `quarter`, `block`), lower-cased.
     Other(String),
@@ -103,8 +109,11 @@ impl ZoneKind {
 /// The thesis's window height class (`windowheight`): tall, short or irregular (a mix).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WindowHeight {
+    /// Tall windows: sill, window and lintel take 0.25, 0.6 and 0.15 of the storey height.
     Tall,
+    /// Short windows: sill, window and lintel take 0.4, 0.35 and 0.25 of the storey height.
     Short,
+    /// A mix: each window column is drawn tall or short with probability 1/2.
     Irregular,
 }
 
@@ -140,24 +149,56 @@ impl WindowHeight {
 /// `windowstyle`; `windowmaterial`; `maxrotation` (degrees). Anything else lands in `extra`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Values {
+    /// `color` (or `colour`): wall colour.
     pub wall_color: Option<Color>,
+    /// `material`: the wall material's name (e.g. `BricksBasic`), kept as [`Style::material`].
+    /// Unlike the OSM `building:material` tag it does not change the wall colour.
     pub material: Option<String>,
+    /// `nbfloor` (or `nbfloors`, `floors`): storeys above ground, used when the values give
+    /// neither a floors range nor a height range. 0 is ignored.
     pub storeys: Option<u32>,
+    /// `minFloors`: lower end of the storey range drawn uniformly for each building (with
+    /// `maxFloors`; one alone fixes the number). A floors range takes precedence over a height
+    /// range, which then only clamps the eave.
     pub min_floors: Option<u32>,
+    /// `maxFloors`: upper end of the storey range; see `min_floors`.
     pub max_floors: Option<u32>,
+    /// `minHeight`, metres (positive): lower end of the eave height range (with `maxHeight`; one
+    /// alone fixes the height). Without a floors range the eave is drawn uniformly in the range
+    /// and the storeys are the eave height over `floor_height`, rounded (at least 1).
     pub min_height: Option<f64>,
+    /// `maxHeight`, metres (positive): upper end of the eave height range; see `min_height`.
     pub max_height: Option<f64>,
+    /// `floorsize` (or `floorheight`): storey height in metres (positive); default 3 m.
     pub floor_height: Option<f64>,
+    /// `rooftype` (or `bdRooftype`, `roof`, `roofshape`): roof shape, read like OSM `roof:shape`
+    /// with the thesis spellings (`hip`, `gabbled`, ...) accepted.
     pub roof: Option<RoofShape>,
+    /// `roofangle`: roof pitch in degrees; values outside 0..90 are ignored.
     pub roof_angle: Option<f64>,
+    /// `roofColor` (or `roofcolour`): roof colour.
     pub roof_color: Option<Color>,
+    /// `doorCol` (or `doorcolor`, `doorcolour`): colour of the front door panel.
     pub door_color: Option<Color>,
+    /// `openingCol` (or `openingcolor`, `openingcolour`): colour of the window glass, also used
+    /// for the glazed balcony doors.
     pub window_color: Option<Color>,
+    /// `windowfcolor` (or `framecolor`, `framecolour`, and the thesis Madagascar spelling
+    /// `windowColor`): colour of the window frames.
     pub frame_color: Option<Color>,
+    /// `windowheight`: `tall`, `short` or `irregular` (also `high`, `low`, `mixed`).
     pub window_height: Option<WindowHeight>,
+    /// `windowwidth`: window width in metres (positive); a facade bay is this plus a 0.9 m pier
+    /// on each side.
     pub window_width: Option<f64>,
+    /// `windowstyle`, lower-cased: `framed` gives the windows a frame; any other word (the thesis
+    /// uses `simple`) none.
     pub window_style: Option<String>,
+    /// `windowmaterial`, lower-cased: `glass` makes the panes transparent; any other word draws
+    /// them opaque.
     pub window_material: Option<String>,
+    /// `maxrotation`, degrees: read and shown by `kb explain`, but no step of the generation uses
+    /// it.
     pub max_rotation: Option<f64>,
     /// `balconies`: the share (0..1) of upper-floor bays with a balcony and a balcony door.
     pub balconies: Option<f64>,
@@ -207,8 +248,12 @@ impl Values {
 /// Axis of an opening split on a facade: X along the wall, Z up (Y accepted for completeness).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SplitAxis {
+    /// Along the wall (the opening's width).
     X,
+    /// Across the wall. An opening is a face with no depth, so the grammar refuses a `Y` split
+    /// of it: at LOD3 and above the derivation of a building whose appearance uses one fails.
     Y,
+    /// Up (the opening's height).
     Z,
 }
 
@@ -228,9 +273,15 @@ impl SplitAxis {
 /// every fraction is positive and they sum to 1 (the reader normalises and says so).
 #[derive(Clone, Debug, PartialEq)]
 pub struct OpeningSplit {
+    /// The `axis` attribute: the direction the parent is cut along.
     pub axis: SplitAxis,
+    /// The `parent` attribute: the node being split (the tree's root stands for the whole
+    /// opening).
     pub parent: String,
+    /// The `children` attribute (`|`- or `,`-separated), in order along `axis`; a child that is
+    /// not split again is a window pane.
     pub children: Vec<String>,
+    /// The `splitvalues` attribute: each child's share of the parent along `axis`, one per child.
     pub fractions: Vec<f64>,
 }
 
@@ -252,7 +303,10 @@ pub struct OpeningTree {
 pub struct Appearance {
     /// `proba` in 0..=1, `None` when empty or absent (see [`KnowledgeBase::pick_appearance`]).
     pub proba: Option<f64>,
+    /// The appearance's `<values>`, laid over the zone's resolved `<info>` when it is chosen.
     pub values: Values,
+    /// The appearance's `<opening>`: how each window is subdivided into panes; `None` (or a tree
+    /// without splits) draws one pane per window.
     pub opening: Option<OpeningTree>,
     /// `<ruleset file="..."/>` as written (see [`KnowledgeBase::ruleset_path`]).
     pub ruleset: Option<String>,
@@ -263,8 +317,11 @@ pub struct Appearance {
 /// A zone circle: centre in WGS84 degrees, radius in kilometres.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Circle {
+    /// Latitude of the centre, degrees, -90..=90 (`lat`).
     pub lat: f64,
+    /// Longitude of the centre, degrees, -180..=180 (`lon`).
     pub lon: f64,
+    /// Radius in kilometres (`dist`), positive; distances are great-circle on the mean sphere.
     pub radius_km: f64,
 }
 
@@ -324,6 +381,8 @@ fn normalize_lon(lon: f64) -> f64 {
 pub struct Zone {
     /// `designation` (`earth` for the root).
     pub name: String,
+    /// Level of the zone, from its element name. Informational: what decides between zones is
+    /// `depth`, not the kind.
     pub kind: ZoneKind,
     /// Names from the root, `/`-separated: `earth/France/Occitanie/Toulouse`.
     pub path: String,
@@ -400,10 +459,15 @@ pub struct Style {
     /// `None` on a pitched roof, `eave_height` is only a bound: the caller computes the roof
     /// height from the footprint and calls [`Style::fit_total_height`].
     pub total_height: Option<f64>,
+    /// Storey height in metres: the KB's `floorsize`, default 3 m. Turns `building:levels`,
+    /// `building:min_level` and `roof:levels` into heights, and is the grammar's `floorsize`.
     pub floor_height: f64,
     /// Storeys between `min_height` and `eave_height` (at least 1).
     pub storeys: u32,
+    /// Roof shape: OSM `roof:shape` when it is tagged and known (an unknown value gives
+    /// [`RoofShape::Flat`]), else the KB's `rooftype`, else gabled.
     pub roof: RoofShape,
+    /// Roof pitch in degrees, 0 ≤ angle < 90: OSM `roof:angle`, else the KB's `roofangle`, else 30.
     pub roof_angle_deg: f64,
     /// OSM `roof:direction`: the compass bearing (degrees from north) the main roof face looks
     /// towards, i.e. the way a skillion slopes down. `None`: chosen from the footprint.
@@ -414,11 +478,17 @@ pub struct Style {
     pub roof_height: Option<f64>,
     /// Base of the walls (OSM `min_height` / `building:min_level`), 0 by default.
     pub min_height: f64,
+    /// Wall colour: OSM `building:colour`, else the usual colour of `building:material`
+    /// ([`material_color`]), else the KB's `color`, else white.
     pub wall_color: Color,
+    /// Roof colour: OSM `roof:colour`, else the usual colour of `roof:material`, else the KB's
+    /// `roofColor`, else CSS `darkred`.
     pub roof_color: Color,
     /// Glass / opening colour.
     pub window_color: Color,
+    /// Window frame colour: the KB's `windowfcolor`, else white.
     pub frame_color: Color,
+    /// Front door colour: the KB's `doorCol`, else CSS `saddlebrown`.
     pub door_color: Color,
     /// Window width, metres.
     pub window_width: f64,
@@ -426,6 +496,7 @@ pub struct Style {
     pub balconies: f64,
     /// LOD4 programme for buildings whose `building=*` names no type (value `programme`).
     pub programme: Option<crate::model::Programme>,
+    /// Window height class: the KB's `windowheight`, else tall.
     pub window_height: WindowHeight,
     /// `framed`, `simple`, ... (lower-case).
     pub window_style: String,
@@ -433,6 +504,8 @@ pub struct Style {
     pub window_material: String,
     /// Wall material (`BricksBasic`, OSM `building:material`, ...), when known.
     pub material: Option<String>,
+    /// The chosen appearance's drawn window subdivision; `None`: one pane per window (zones'
+    /// `<info>` have none).
     pub opening: Option<OpeningTree>,
     /// Path of the matched zone.
     pub zone_path: String,

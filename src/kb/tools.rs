@@ -21,6 +21,7 @@ use crate::rng::Rng;
 pub struct CheckReport {
     /// The file as given.
     pub file: String,
+    /// How the file was read: [`ReadMode::Strict`] with `kb check --strict`, else lenient.
     pub mode: ReadMode,
     /// Zones including earth.
     pub zones: usize,
@@ -251,9 +252,13 @@ pub fn compile_zone(kb: &KnowledgeBase, zone_path: &str) -> Result<Vec<(String, 
 /// One zone of the chain from earth to the matched zone, and how the point relates to it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChainLink {
+    /// Index of the zone in [`KnowledgeBase::zones`].
     pub zone: usize,
+    /// The zone's path, e.g. `earth/France/Occitanie/Toulouse`.
     pub path: String,
+    /// Depth in the tree: 0 for earth.
     pub depth: usize,
+    /// How the point relates to this zone's own shapes ([`KnowledgeBase::zone_match`]).
     pub matched: ZoneMatch,
 }
 
@@ -262,6 +267,8 @@ pub struct ChainLink {
 pub struct ValueSource {
     /// The attribute name as written in a KB (`nbfloor`, `roofColor`, ...).
     pub attribute: &'static str,
+    /// The value as `kb explain` prints it: colours as CSS names or `#rrggbb`, numbers in their
+    /// shortest form, roof shapes by their OSM name.
     pub value: String,
     /// The zone path whose `<info>` set it, or `<zone path>#n` for the chosen appearance.
     pub from: String,
@@ -270,20 +277,28 @@ pub struct ValueSource {
 /// One appearance candidate for the footprint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Candidate {
+    /// `<owner zone path>#<1-based appearance index>`, as in [`Style::appearance_label`].
     pub label: String,
     /// `proba` as written (`None`: empty or absent).
     pub proba: Option<f64>,
     /// The normalised weight the draw uses ([`appearance_weights`]).
     pub weight: f64,
+    /// Whether this is the appearance drawn for the building with this seed.
     pub chosen: bool,
 }
 
 /// Everything `kb explain` prints for one footprint; see [`explain`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Explanation {
+    /// Longitude of the point explained, WGS84 degrees (for `kb explain`, the building's
+    /// representative point as a run computes it).
     pub lon: f64,
+    /// Latitude of the point explained, WGS84 degrees.
     pub lat: f64,
+    /// The run's seed (`--seed`).
     pub seed: u64,
+    /// The building's [`SourceId::seed_value`](crate::model::SourceId::seed_value); with `seed` it
+    /// seeds the building's random stream.
     pub seed_value: u64,
     /// The matched zone (what [`KnowledgeBase::locate`] returns).
     pub zone: usize,
@@ -294,6 +309,8 @@ pub struct Explanation {
     /// Values inherited through the zones' `<info>` and then the chosen appearance, in a fixed
     /// attribute order.
     pub values: Vec<ValueSource>,
+    /// The appearances that apply to the zone (its own, or the nearest ancestor's), in document
+    /// order with their weights; empty when no zone up to earth has any.
     pub candidates: Vec<Candidate>,
     /// OSM tags that override the KB, as `key=value`.
     pub overrides: Vec<String>,

@@ -13,16 +13,23 @@ pub enum RoomKind {
     Corridor,
     /// The stair core (the same rectangle on every storey).
     Stair,
+    /// A living room (RGEU minimum 10 to 16 m² by typology); also a studio's one room.
     Living,
+    /// A kitchen (RGEU minimum 6 m²).
     Kitchen,
+    /// A bedroom, with its RGEU minimum by typology and rank.
     Bedroom,
+    /// A bathroom or shower room (the RGEU sanitary space).
     Bathroom,
     /// A separate toilet.
     Wc,
+    /// An office cell of the office programme.
     Office,
     /// An open-plan floor (office, workshop, garage, shed, church, ...).
     OpenPlan,
+    /// The sales floor of a shop unit (retail programme).
     Shop,
+    /// A shop's storage room (retail programme).
     Storage,
 }
 

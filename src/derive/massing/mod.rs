@@ -24,11 +24,17 @@ const MIN_ROOF_HEIGHT: f64 = 0.05;
 /// One building part before it becomes geometry.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mass {
+    /// Footprint of the mass in the local frame (metres): the derived volume's footprint.
     pub footprint: Polygon,
+    /// Bottom of the walls, metres: the derived volume's base (the style's `min_height`, from OSM
+    /// `min_height` or `building:min_level`, for a mass extruded from the lot).
     pub base_z: f64,
     /// Top of the walls.
     pub eave_z: f64,
+    /// Storeys above the base: the finest partition of the rules' horizontal storey cuts, else the
+    /// style's `storeys`.
     pub storeys: u32,
+    /// Roof shape asked for: the mass's `roof` attribute in the rules, else the style's.
     pub roof: RoofShape,
     /// Pitch in degrees, used when `roof_height` is not given.
     pub roof_angle_deg: f64,
@@ -39,14 +45,19 @@ pub struct Mass {
     pub roof_across: bool,
     /// Height of the roof above the eave, when known (OSM `roof:height`).
     pub roof_height: Option<f64>,
+    /// Wall colour: the mass's `color` attribute in the rules, else the style's.
     pub wall_color: Color,
+    /// Roof colour: the mass's `roofcolor` attribute in the rules, else the style's.
     pub roof_color: Color,
 }
 
 /// A roof that could not be built as asked and fell back to flat.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoofFallback {
+    /// The roof shape that was asked for.
     pub asked: RoofShape,
+    /// Why it could not be built, for the report (a roof-builder error, or `roof would be 0.030 m
+    /// high` for a roof under 5 cm).
     pub reason: String,
 }
 
