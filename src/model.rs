@@ -303,7 +303,7 @@ pub enum OpeningKind {
 /// `outline.holes`, in the same order as `openings`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Opening {
-    /// Window or door.
+    /// Window or door: decides the default colour and whether the pane is glass by default.
     pub kind: OpeningKind,
     /// Left edge: metres along the wall from its `start`, at least [`OPENING_MARGIN`].
     pub u0: f64,

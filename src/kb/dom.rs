@@ -68,9 +68,9 @@ pub enum KbError {
     Limit {
         /// The knowledge base as messages name it (see [`KbError::Io`]).
         file: String,
-        /// 1-based line of the element over the limit (1 for a file over [`MAX_FILE_BYTES`]).
+        /// 1-based line of the element over the limit (1 for a file over the 64 MiB cap).
         line: usize,
-        /// 1-based column of that element, in characters (1 for a file over [`MAX_FILE_BYTES`]).
+        /// 1-based column of that element, in characters (1 for a file over the 64 MiB cap).
         col: usize,
         /// Which limit and the value that broke it, e.g. `elements nested more than 64 levels deep`.
         message: String,

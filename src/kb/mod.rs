@@ -113,7 +113,7 @@ pub enum WindowHeight {
     Tall,
     /// Short windows: sill, window and lintel take 0.4, 0.35 and 0.25 of the storey height.
     Short,
-    /// A mix: each window column is drawn tall or short with probability 1/2.
+    /// A mix: each window is drawn tall or short with probability 1/2.
     Irregular,
 }
 
