@@ -62,8 +62,10 @@ pub enum KbError {
         /// What was refused and why, e.g. `CDATA sections are not allowed`.
         message: String,
     },
-    /// A safety limit was exceeded (see [`MAX_FILE_BYTES`], [`MAX_DEPTH`], [`MAX_ATTRIBUTES`],
-    /// [`MAX_POLYGON_POINTS`]).
+    /// A safety limit was exceeded: a file over 64 MiB (`MAX_FILE_BYTES`), elements nested more
+    /// than 64 deep (`MAX_DEPTH`) or more than 256 attributes on one element (`MAX_ATTRIBUTES`).
+    /// A `<polygon>` of more than 4096 points (`MAX_POLYGON_POINTS`) is not a `Limit`: the
+    /// lenient reader ignores it with a repair, the strict one refuses it as [`KbError::Strict`].
     #[error("{file}:{line}:{col}: knowledge base refused: {message}")]
     Limit {
         /// The knowledge base as messages name it (see [`KbError::Io`]).

@@ -2,7 +2,7 @@
 //! earth > country > region > town > district, each zone with `<info>` defaults and a circle,
 //! and `<appearance>` alternatives chosen by `proba`.
 //!
-//! Reading is in [`xml`], rule generation in [`compile`]. This module holds the zone tree, the
+//! Reading is in `xml`, rule generation in `compile`. This module holds the zone tree, the
 //! R-tree that finds the zone of a point, value inheritance and the [`Style`] of one building.
 //!
 //! Invariants: zone 0 is `earth`; a zone's parent always has a smaller index (document order);
@@ -550,8 +550,8 @@ impl KnowledgeBase {
         KnowledgeBase::load_with(path, ReadMode::Lenient)
     }
 
-    /// Reads and parses a KB file in the given mode. Files larger than
-    /// [`dom::MAX_FILE_BYTES`] are refused before being read. In strict mode the repairs are
+    /// Reads and parses a KB file in the given mode. Files larger than 64 MiB
+    /// (`MAX_FILE_BYTES`) are refused before being read. In strict mode the repairs are
     /// always empty (anything to repair is an error).
     pub fn load_with(
         path: &Path,
