@@ -28,7 +28,7 @@ pub enum InputError {
         /// The file that failed: the `--osm` or `--shp` file, or a companion (`.shx`, `.dbf`,
         /// `.prj`) beside it.
         path: PathBuf,
-        /// The operating system's error.
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },

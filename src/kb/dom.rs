@@ -18,7 +18,7 @@ pub enum KbError {
         /// The knowledge base as messages name it: the path given to `KnowledgeBase::load`, or the
         /// name given to `KnowledgeBase::parse_str`.
         file: String,
-        /// The operating system's error; invalid UTF-8 is reported here too, as `InvalidData` with
+        /// The underlying I/O error; invalid UTF-8 is reported here too, as `InvalidData` with
         /// the byte offset where the text stops being UTF-8.
         #[source]
         source: std::io::Error,
