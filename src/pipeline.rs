@@ -96,7 +96,12 @@ pub enum RunError {
     Input(String),
     /// An output could not be written (exit code 3).
     #[error("{path}: {source}")]
-    Output { path: PathBuf, source: ExportError },
+    Output {
+        /// The output file (for a tiled run, the tile's file; for the report, `--report`).
+        path: PathBuf,
+        /// The writer's or the file system's error.
+        source: ExportError,
+    },
 }
 
 /// Totals of a run, for the summary line.

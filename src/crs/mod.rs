@@ -43,7 +43,13 @@ pub enum Crs {
     /// EPSG:4326, x = lon, y = lat in degrees.
     Wgs84,
     /// WGS84 / UTM, EPSG:326zz (north) or 327zz (south). `zone` is 1..=60.
-    Utm { zone: u8, north: bool },
+    Utm {
+        /// UTM zone number, 1..=60: 6° wide, central meridian at 6 × zone − 183 degrees.
+        zone: u8,
+        /// `true` for the northern hemisphere (EPSG:326zz, northings from the equator),
+        /// `false` for the southern (EPSG:327zz, 10 000 km false northing).
+        north: bool,
+    },
     /// RGF93 / Lambert-93, EPSG:2154.
     Lambert93,
     /// OSGB36 / British National Grid, EPSG:27700. The OSGB36 <-> WGS84 datum shift is the
@@ -51,7 +57,10 @@ pub enum Crs {
     BritishNationalGrid,
     /// ETRS89 / UTM zone N (EPSG:25828-25838): projected on GRS80 with ETRS89 taken as WGS84
     /// (sub-metre difference). `zone` is 28..=38, northern hemisphere.
-    EtrsUtm { zone: u8 },
+    EtrsUtm {
+        /// UTM zone number, 28..=38 (EPSG:25828-25838).
+        zone: u8,
+    },
 }
 
 /// Why a CRS could not be identified.

@@ -34,7 +34,13 @@ pub enum InputError {
     },
     /// The file is not an OSM PBF file at all (empty, text, no OSMHeader block).
     #[error("{}: not an OSM PBF file: {reason}", .path.display())]
-    NotPbf { path: PathBuf, reason: String },
+    NotPbf {
+        /// The `--osm` file.
+        path: PathBuf,
+        /// What gave it away, e.g. `the file is empty`, `it is a directory`, `no PBF blocks
+        /// found`.
+        reason: String,
+    },
     /// A PBF block cannot be framed or decoded (truncated or corrupt file).
     #[error("{}: corrupt or truncated PBF at block {block}{}: {reason}", .path.display(),
         .offset.map(|o| format!(" (byte offset {o})")).unwrap_or_default())]
@@ -50,7 +56,12 @@ pub enum InputError {
     },
     /// A shapefile component is missing, not a shapefile, or of an unsupported shape type.
     #[error("{}: {reason}", .path.display())]
-    Shapefile { path: PathBuf, reason: String },
+    Shapefile {
+        /// The component at fault: the `.shp`, or its `.shx` or `.dbf`.
+        path: PathBuf,
+        /// What is wrong, e.g. `has 12 rows but the .shx indexes 13 shapes`.
+        reason: String,
+    },
     /// One shapefile record (or its attribute row) cannot be decoded; records after it cannot
     /// be trusted either.
     #[error("{}: record {record}: {reason}", .path.display())]
@@ -65,7 +76,12 @@ pub enum InputError {
     },
     /// The `.prj` names a CRS citygen cannot use, or there is no CRS at all.
     #[error("{}: {reason}", .path.display())]
-    Crs { path: PathBuf, reason: String },
+    Crs {
+        /// The `.prj` beside the `.shp` (also when it is missing).
+        path: PathBuf,
+        /// Why no CRS could be used, ending with the advice to give one with `--src-crs`.
+        reason: String,
+    },
 }
 
 pub use crate::model::SourceId;

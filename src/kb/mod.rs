@@ -409,13 +409,27 @@ pub struct Zone {
 pub enum ZoneMatch {
     /// Inside the circle (`distance_km <= radius_km`), and no smaller polygon of the zone
     /// contains the point.
-    Circle { distance_km: f64, radius_km: f64 },
+    Circle {
+        /// Great-circle distance from the circle's centre to the point, km.
+        distance_km: f64,
+        /// The circle's radius, km.
+        radius_km: f64,
+    },
     /// Inside polygon `index` (0-based, document order) of the zone, the smallest of its
     /// shapes that contains the point.
-    Polygon { index: usize, area_km2: f64 },
+    Polygon {
+        /// 0-based index of the polygon in [`Zone::polygons`].
+        index: usize,
+        /// The polygon's area, km².
+        area_km2: f64,
+    },
     /// The zone has shapes but none contains the point; the distance to the circle's centre
     /// when it has one.
-    Outside { circle_distance_km: Option<f64> },
+    Outside {
+        /// Great-circle distance from the circle's centre to the point, km; `None` when the
+        /// zone has no circle or the point is not finite.
+        circle_distance_km: Option<f64>,
+    },
     /// The zone has no circle and no polygon: never matched by itself.
     NoShape,
 }
