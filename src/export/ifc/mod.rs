@@ -86,7 +86,6 @@ use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
 
-#[path = "ifc_lod4.rs"]
 mod lod4;
 
 /// Thickness of the base slab, extruded down from the ground surface (metres).
