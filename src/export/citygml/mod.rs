@@ -55,7 +55,6 @@ use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Building, Face, Lod, OpeningKind, Part, RoofShape, Wall};
 
-#[path = "citygml_lod4.rs"]
 mod lod4;
 
 /// Code list of `bldg:roofType` values ([`RoofShape::citygml_code`]).
