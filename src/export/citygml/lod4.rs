@@ -25,7 +25,9 @@
 
 use glam::DVec3;
 
-use super::{surfaces, Xml};
+use super::appearance::ColorKey;
+use super::surfaces::surfaces;
+use super::xml::Xml;
 use crate::color::Color;
 use crate::export::lod4geom::{self, prism_faces, room_shell, RoomShell};
 use crate::model::{Building, Face, Part};
@@ -245,7 +247,7 @@ pub(super) fn materials(x: &mut Xml, building_id: &str, b: &Building, part_ids: 
         if targets.is_empty() {
             continue;
         }
-        let key = super::ColorKey::of(*color);
+        let key = ColorKey::of(*color);
         x.s("<app:surfaceDataMember>\n<app:X3DMaterial gml:id=\"");
         x.s(building_id);
         x.s("_i");
@@ -264,179 +266,5 @@ pub(super) fn materials(x: &mut Xml, building_id: &str, b: &Building, part_ids: 
             x.s("</app:target>\n");
         }
         x.s("</app:X3DMaterial>\n</app:surfaceDataMember>\n");
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use std::collections::{BTreeMap, BTreeSet};
-
-    use super::super::tests::{parse, write_all, El};
-    use crate::export::fixtures;
-    use crate::model::Lod;
-
-    /// The posList of a polygon's rings as rounded points (mm).
-    fn rings(poly: &El) -> Vec<Vec<[i64; 3]>> {
-        poly.find_all("gml:posList")
-            .iter()
-            .map(|p| {
-                let v: Vec<f64> = p
-                    .text
-                    .split_whitespace()
-                    .map(|n| n.parse().unwrap())
-                    .collect();
-                let mut pts: Vec<[i64; 3]> = v
-                    .chunks(3)
-                    .map(|c| [0, 1, 2].map(|k| (c[k] * 1000.0).round() as i64))
-                    .collect();
-                assert_eq!(pts.first(), pts.last(), "closed ring");
-                pts.pop();
-                pts
-            })
-            .collect()
-    }
-
-    #[test]
-    fn rooms_are_closed_solids_with_doors_and_the_stair_is_an_installation() {
-        let bs = fixtures::lod4_all();
-        let doc = parse(&write_all(Lod::Lod4, &bs));
-        assert_eq!(doc.count("bldg:lod3MultiSurface"), 0);
-        let house = &doc.find_all("bldg:Building")[0];
-        // Schema order of the building's properties.
-        let order: Vec<&str> = house
-            .children
-            .iter()
-            .map(|c| c.name.as_str())
-            .filter(|n| {
-                n.starts_with("bldg:")
-                    && !n.ends_with("Height")
-                    && *n != "bldg:roofType"
-                    && *n != "bldg:storeysAboveGround"
-            })
-            .collect();
-        let first = |n: &str| order.iter().position(|x| *x == n).unwrap();
-        let last = |n: &str| order.iter().rposition(|x| *x == n).unwrap();
-        assert!(last("bldg:interiorBuildingInstallation") < first("bldg:boundedBy"));
-        assert!(last("bldg:boundedBy") < first("bldg:lod4Solid"));
-        assert!(first("bldg:lod4Solid") < first("bldg:interiorRoom"));
-        let stairs = house.find_all("bldg:IntBuildingInstallation");
-        assert_eq!(stairs.len(), 1);
-        assert_eq!(stairs[0].child("bldg:class").unwrap().text, "stairs");
-        assert_eq!(stairs[0].count("gml:Polygon"), 17 * 6);
-
-        // Every polygon by id.
-        let polys: BTreeMap<&str, &El> = doc
-            .find_all("gml:Polygon")
-            .into_iter()
-            .map(|p| (p.attr("gml:id").unwrap(), p))
-            .collect();
-        let rooms = house.find_all("bldg:Room");
-        assert_eq!(rooms.len(), 6);
-        let mut doors = BTreeSet::new();
-        let mut holes = 0;
-        for room in &rooms {
-            assert!(room.child("gml:name").is_some() && room.child("bldg:usage").is_some());
-            let kinds: Vec<&str> = room
-                .children_named("bldg:boundedBy")
-                .map(|b| b.children[0].name.as_str())
-                .collect();
-            assert_eq!(kinds[..2], ["bldg:FloorSurface", "bldg:CeilingSurface"]);
-            assert!(kinds[2..].iter().all(|k| *k == "bldg:InteriorWallSurface"));
-            // The solid's members, resolved (reversed for "-"), close: every directed edge has
-            // its reverse exactly once.
-            let solid = room.child("bldg:lod4Solid").unwrap();
-            let mut edges: BTreeMap<([i64; 3], [i64; 3]), i32> = BTreeMap::new();
-            for m in solid.find_all("gml:surfaceMember") {
-                let (href, reversed) = match m.attr("xlink:href") {
-                    Some(h) => (h, false),
-                    None => {
-                        let o = m.child("gml:OrientableSurface").unwrap();
-                        assert_eq!(o.attr("orientation"), Some("-"));
-                        (
-                            o.child("gml:baseSurface")
-                                .unwrap()
-                                .attr("xlink:href")
-                                .unwrap(),
-                            true,
-                        )
-                    }
-                };
-                for mut r in rings(polys[href.trim_start_matches('#')]) {
-                    if reversed {
-                        r.reverse();
-                    }
-                    for i in 0..r.len() {
-                        *edges.entry((r[i], r[(i + 1) % r.len()])).or_default() += 1;
-                    }
-                }
-            }
-            for ((a, b), n) in &edges {
-                assert_eq!(*n, 1, "edge used once per direction");
-                assert_eq!(
-                    edges.get(&(*b, *a)),
-                    Some(&1),
-                    "edge {a:?}-{b:?} not closed"
-                );
-            }
-            for w in room.find_all("bldg:InteriorWallSurface") {
-                holes += w.count("gml:interior")
-                    - w.find_all("bldg:Door")
-                        .iter()
-                        .map(|d| d.count("gml:interior"))
-                        .sum::<usize>();
-                for o in w.children_named("bldg:opening") {
-                    let id = match o.attr("xlink:href") {
-                        Some(h) => h.trim_start_matches('#').to_string(),
-                        None => o
-                            .child("bldg:Door")
-                            .unwrap()
-                            .attr("gml:id")
-                            .unwrap()
-                            .to_string(),
-                    };
-                    doors.insert(id);
-                }
-            }
-        }
-        // 2 doors per storey, each cutting both its rooms.
-        assert_eq!(doors.len(), 4);
-        assert_eq!(
-            house.count("bldg:Door"),
-            4 + 1,
-            "interior doors once, plus the front door"
-        );
-        assert_eq!(holes, 8);
-        // Materials target only polygons that exist.
-        for t in doc.find_all("app:target") {
-            assert!(
-                polys.contains_key(t.text.trim_start_matches('#')),
-                "{}",
-                t.text
-            );
-        }
-    }
-
-    /// The reference validator (CityGML 2.0 XSDs) on the LOD4 sample, when installed.
-    /// `CITYGEN_GML_LOD4_SAMPLE=path` keeps the file.
-    #[test]
-    fn lod4_sample_validates() {
-        let bytes = write_all(Lod::Lod4, &fixtures::lod4_all());
-        if let Some(keep) = std::env::var_os("CITYGEN_GML_LOD4_SAMPLE") {
-            std::fs::write(keep, &bytes).unwrap();
-        }
-        let Some(tool) = fixtures::validator() else {
-            eprintln!("validate-outputs not installed: skipped");
-            return;
-        };
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("lod4.gml");
-        std::fs::write(&path, bytes).unwrap();
-        let out = std::process::Command::new(tool)
-            .arg(&path)
-            .output()
-            .unwrap();
-        let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
-        assert!(text.contains("Room=6"), "{text}");
     }
 }
