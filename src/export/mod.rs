@@ -4,6 +4,7 @@
 pub mod citygml;
 #[cfg(test)]
 pub(crate) mod fixtures;
+mod format;
 pub mod gltf;
 pub mod ifc;
 pub mod lod3geom;

@@ -1,9 +1,9 @@
 //! The XML output buffer of the CityGML writer: text, escaping, numbers, polygon ids, polygons and
 //! linear rings.
 
-use std::io::Write;
-
 use glam::DVec3;
+
+use crate::export::format;
 
 use super::surfaces::{ring, Surface, SurfaceKind};
 
@@ -43,55 +43,18 @@ impl Xml {
         self.s(&s[start..]);
     }
 
-    pub(super) fn uint(&mut self, mut v: u64) {
-        let mut digits = [0u8; 20];
-        let mut i = digits.len();
-        loop {
-            i -= 1;
-            digits[i] = b'0' + (v % 10) as u8;
-            v /= 10;
-            if v == 0 {
-                break;
-            }
-        }
-        self.0.extend_from_slice(&digits[i..]);
+    pub(super) fn uint(&mut self, v: u64) {
+        format::push_uint(&mut self.0, v);
     }
 
     /// A finite number with exactly 3 decimals, never `-0.000`.
     pub(super) fn fixed3(&mut self, v: f64) {
-        let scaled = (v * 1000.0).round();
-        if scaled.abs() >= 1e18 {
-            // Beyond u64 millimetres (never a real coordinate): let the formatter do it.
-            let _ = write!(self.0, "{v:.3}");
-            return;
-        }
-        let n = scaled as i64;
-        if n < 0 {
-            self.0.push(b'-');
-        }
-        let m = n.unsigned_abs();
-        self.uint(m / 1000);
-        let frac = m % 1000;
-        self.0.extend_from_slice(&[
-            b'.',
-            b'0' + (frac / 100) as u8,
-            b'0' + (frac / 10 % 10) as u8,
-            b'0' + (frac % 10) as u8,
-        ]);
+        format::push_fixed3(&mut self.0, v);
     }
 
     /// A value in 1/10000 as a decimal with 4 places (`5020` -> `0.5020`).
     pub(super) fn fixed4(&mut self, v: u16) {
-        let v = u64::from(v);
-        self.uint(v / 10_000);
-        let f = v % 10_000;
-        self.0.extend_from_slice(&[
-            b'.',
-            b'0' + (f / 1000) as u8,
-            b'0' + (f / 100 % 10) as u8,
-            b'0' + (f / 10 % 10) as u8,
-            b'0' + (f % 10) as u8,
-        ]);
+        format::push_fixed4(&mut self.0, v);
     }
 
     pub(super) fn point(&mut self, p: DVec3) {
