@@ -44,6 +44,13 @@ pub enum ExportError {
     Invalid(String),
 }
 
+/// [`Building::check_finite`] as the [`ExportError::Invalid`] of `writer` (e.g. `"IFC writer"`):
+/// every writer calls it before writing anything of a building.
+pub(crate) fn check_finite(writer: &str, b: &Building) -> Result<(), ExportError> {
+    b.check_finite()
+        .map_err(|e| ExportError::Invalid(format!("{writer}: {e}")))
+}
+
 /// Buildings a writer's `write_all` renders in parallel at a time: enough to keep the cores
 /// busy, few enough that their rendered bytes (a few MB a LOD4 building) stay small.
 pub const PARALLEL_BATCH: usize = 16;

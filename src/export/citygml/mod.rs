@@ -50,7 +50,7 @@ use std::io::Write;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::export::{BuildingWriter, ExportError, OutputContext};
+use crate::export::{check_finite, BuildingWriter, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 use xml::Xml;
@@ -234,7 +234,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
 
     fn write(&mut self, building: &Building) -> Result<(), ExportError> {
         self.check_state(State::Open, "write()")?;
-        check_finite(building)?;
+        check_finite("CityGML writer", building)?;
         self.buf.0.clear();
         let mut r = Renderer {
             x: &mut self.buf,
@@ -256,7 +256,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
             let rendered: Vec<Result<Xml, ExportError>> = batch
                 .par_iter()
                 .map(|b| {
-                    check_finite(b)?;
+                    check_finite("CityGML writer", b)?;
                     let mut x = Xml(Vec::with_capacity(64 * 1024));
                     Renderer {
                         x: &mut x,
@@ -283,48 +283,6 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         self.buf = Xml(Vec::new());
         Ok(())
     }
-}
-
-/// Rejects a building with a non-finite coordinate or height, naming the building and part.
-fn check_finite(b: &Building) -> Result<(), ExportError> {
-    let bad = |what: &str| {
-        ExportError::Invalid(format!(
-            "CityGML writer: building {}: {what} is not finite",
-            b.id
-        ))
-    };
-    if !b.measured_height.is_finite() || !b.base_z.is_finite() {
-        return Err(bad("the measured height"));
-    }
-    for p in &b.parts {
-        if !(p.base_z.is_finite() && p.top_z.is_finite()) {
-            return Err(bad(&format!("the height of part {}", p.key)));
-        }
-        let faces = std::iter::once(&p.ground)
-            .chain(p.walls.iter().map(|w| &w.outline))
-            .chain(p.roof.iter());
-        for f in faces {
-            let finite = f
-                .outer
-                .iter()
-                .chain(f.holes.iter().flatten())
-                .all(|v| v.is_finite());
-            if !finite {
-                return Err(bad(&format!("a coordinate of part {}", p.key)));
-            }
-        }
-        for (i, w) in p.walls.iter().enumerate() {
-            let openings = w.openings.iter().flat_map(|o| [o.u0, o.u1, o.z0, o.z1]);
-            let balconies = w.balconies.iter().flat_map(|b| [b.u0, b.u1, b.z, b.depth]);
-            if !openings.chain(balconies).all(f64::is_finite) {
-                return Err(bad(&format!(
-                    "an opening or balcony of wall {i} of part {}",
-                    p.key
-                )));
-            }
-        }
-    }
-    Ok(())
 }
 
 /// Renders one building into the scratch buffer.

@@ -5,7 +5,7 @@ use glam::DVec3;
 
 use crate::color::Color;
 use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
-use crate::export::ExportError;
+use crate::export::{check_finite, ExportError};
 use crate::geometry::triangulate::triangulate_face;
 use crate::model::{Building, Face, OpeningKind, Part};
 
@@ -97,6 +97,7 @@ pub(super) struct Encoded {
 
 /// Triangulates and lays out one building (`detail`: LOD3 and up classes are written).
 pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError> {
+    check_finite("glTF writer", b)?;
     let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
     for class in SurfaceClass::ALL {
         if class.is_detail() && !detail {

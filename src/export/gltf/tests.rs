@@ -606,15 +606,36 @@ fn empty_and_degenerate_inputs() {
     let mut b = box_building();
     for p in &mut b.parts {
         p.roof = vec![Face::new(vec![DVec3::ZERO, DVec3::X])];
-        p.ground = Face::new(vec![DVec3::new(f64::NAN, 0.0, 0.0); 3]);
+        p.ground = Face::new(vec![DVec3::new(1.0, 0.0, 0.0); 3]);
         p.walls.clear();
     }
-    b.measured_height = f64::NAN;
-    let glb = write_glb(&[b]);
+    let glb = write_glb(std::slice::from_ref(&b));
     let (json, _) = parse_glb(&glb);
     assert_eq!(json["nodes"].as_array().unwrap().len(), 1);
     assert!(json["nodes"][0].get("children").is_none());
-    assert!(json["nodes"][0]["extras"]["height"].is_null());
+    // A non-finite coordinate or height refuses the building (Building::check_finite).
+    for bad in [f64::NAN, f64::INFINITY] {
+        let mut nan = b.clone();
+        nan.parts[0].ground = Face::new(vec![DVec3::new(bad, 0.0, 0.0); 3]);
+        let mut w = GltfWriter::new(Vec::new(), tempfile::tempfile().unwrap());
+        w.start(&ctx(), "EPSG:2154".into()).unwrap();
+        let err = w.write(&nan).unwrap_err().to_string();
+        assert!(
+            err.contains("glTF writer") && err.contains("not finite"),
+            "{err}"
+        );
+        nan.parts[0].ground = b.parts[0].ground.clone();
+        nan.measured_height = bad;
+        assert!(w.write(&nan).is_err());
+        w.write(&b).unwrap();
+        w.finish().unwrap();
+        let (json, _) = parse_glb(&w.into_inner());
+        assert_eq!(
+            json["nodes"].as_array().unwrap().len(),
+            1,
+            "only the good building"
+        );
+    }
 }
 
 #[test]

@@ -79,11 +79,11 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 
 use crate::export::step::{Id, StepWriter};
 use crate::export::{BuildingWriter, ExportError, OutputContext};
-use crate::model::{Building, Face, RoofShape};
+use crate::model::{Building, RoofShape};
 
 use openings::{FillType, TypeKey};
 
@@ -256,55 +256,6 @@ pub fn compound_angle(deg: f64) -> Option<[i64; 4]> {
         return None; // rounding carried it to 360
     }
     Some(parts.map(|v| v * sign))
-}
-
-/// Returns an error naming the building if any coordinate of it is not finite: nothing can be
-/// written for such a building, and checking first means nothing half-written is left behind.
-fn check_finite(b: &Building) -> Result<(), ExportError> {
-    let bad = |what: &str| {
-        Err(ExportError::Invalid(format!(
-            "IFC: building {}: non-finite {what}",
-            b.id
-        )))
-    };
-    let f2 = |p: &DVec2| p.is_finite();
-    let f3 = |p: &DVec3| p.is_finite();
-    let face_ok = |f: &Face| f.outer.iter().all(f3) && f.holes.iter().flatten().all(f3);
-    if !b.base_z.is_finite() || !b.measured_height.is_finite() {
-        return bad("height");
-    }
-    for p in &b.parts {
-        if !(p.base_z.is_finite() && p.eave_z.is_finite() && p.top_z.is_finite()) {
-            return bad(&format!("height in part {}", p.key));
-        }
-        if !p.footprint.rings().flatten().all(f2) {
-            return bad(&format!("footprint coordinate in part {}", p.key));
-        }
-        for w in &p.walls {
-            let ok = f2(&w.start)
-                && f2(&w.end)
-                && w.base_z.is_finite()
-                && w.top_z.is_finite()
-                && w.thickness.is_finite()
-                && face_ok(&w.outline)
-                && w.openings
-                    .iter()
-                    .all(|o| [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()))
-                && w.balconies
-                    .iter()
-                    .all(|b| [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite()));
-            if !ok {
-                return bad(&format!("wall coordinate in part {}", p.key));
-            }
-        }
-        if !p.levels.iter().all(|z| z.is_finite()) {
-            return bad(&format!("storey level in part {}", p.key));
-        }
-        if !p.roof.iter().all(face_ok) || !face_ok(&p.ground) {
-            return bad(&format!("roof or ground coordinate in part {}", p.key));
-        }
-    }
-    Ok(())
 }
 
 /// The state of an open file: the STEP writer, shared entities, caches and what `finish` needs.

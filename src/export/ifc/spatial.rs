@@ -8,10 +8,10 @@ use std::io::Write;
 use glam::{DVec2, DVec3};
 
 use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
-use crate::export::{ExportError, OutputContext};
+use crate::export::{check_finite, ExportError, OutputContext};
 use crate::model::{Building, Lod, Part};
 
-use super::{check_finite, compound_angle, ElementFrame, Lod3Shared, Open, EPS, MAX_STOREYS};
+use super::{compound_angle, ElementFrame, Lod3Shared, Open, EPS, MAX_STOREYS};
 
 impl<W: Write> Open<W> {
     pub(super) fn begin(
@@ -241,7 +241,7 @@ impl<W: Write> Open<W> {
     }
 
     pub(super) fn building(&mut self, b: &Building) -> Result<(), ExportError> {
-        check_finite(b)?;
+        check_finite("IFC writer", b)?;
         // GlobalIds derive from the key; a repeated key gets a suffix so ids stay unique.
         let mut key = b.key();
         let mut n = 1;

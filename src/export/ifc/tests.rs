@@ -8,7 +8,7 @@ use crate::color::Color;
 use crate::crs::Crs;
 use crate::export::step::global_id;
 use crate::geometry::Polygon;
-use crate::model::{Balcony, Lod, Opening, OpeningKind, Part, SourceId, Wall};
+use crate::model::{Balcony, Face, Lod, Opening, OpeningKind, Part, SourceId, Wall};
 
 const RED: Color = Color::rgb(0.8, 0.2, 0.1);
 const BEIGE: Color = Color::rgb(0.96, 0.96, 0.86);
