@@ -6,6 +6,7 @@ use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::model::{Building, OpeningKind};
 
 use super::surfaces::{surfaces, written_walls, SurfaceKind};
+use super::xml::Xml;
 use super::{lod4, GeometryLod, Renderer, APPEARANCE_THEME, GLASS_TRANSPARENCY};
 
 /// A colour quantised as written (4 decimals), used to merge equal materials.
@@ -97,29 +98,16 @@ impl Renderer<'_> {
         x.s(APPEARANCE_THEME);
         x.s("</app:theme>\n");
         for (mi, (key, targets)) in materials.iter().enumerate() {
-            x.s("<app:surfaceDataMember>\n<app:X3DMaterial gml:id=\"");
-            x.s(building_id);
-            x.s("_m");
-            x.uint(mi as u64);
-            x.s("\">\n<app:diffuseColor>");
-            for (i, c) in key.rgb.iter().enumerate() {
-                if i > 0 {
-                    x.s(" ");
-                }
-                x.fixed4(*c);
-            }
-            x.s("</app:diffuseColor>\n");
-            if key.transparency > 0 {
-                x.s("<app:transparency>");
-                x.fixed4(key.transparency);
-                x.s("</app:transparency>\n");
-            }
-            for &(pi, kind, index) in targets {
-                x.s("<app:target>#");
-                x.polygon_id(&part_ids[pi], kind, index);
-                x.s("</app:target>\n");
-            }
-            x.s("</app:X3DMaterial>\n</app:surfaceDataMember>\n");
+            x3d_material(
+                x,
+                [building_id, "_m"],
+                mi,
+                *key,
+                targets,
+                |x, &(pi, kind, index)| {
+                    x.polygon_id(&part_ids[pi], kind, index);
+                },
+            );
         }
         if self.lod == GeometryLod::Lod4 {
             lod4::materials(x, building_id, b, part_ids);
@@ -139,4 +127,41 @@ pub(super) fn add_target(
         Some((_, targets)) => targets.push(target),
         None => materials.push((key, vec![target])),
     }
+}
+
+/// Writes one `app:surfaceDataMember` holding an `app:X3DMaterial` with id `{id[0]}{id[1]}{n}`
+/// (e.g. `B_way_1_m0`) of the colour `key` (its `app:transparency` only when not opaque),
+/// targeting each of `targets` by the polygon id `target` writes for it. Used for the
+/// exterior's materials and for the LOD4 interior's ([`lod4::materials`]).
+pub(super) fn x3d_material<T>(
+    x: &mut Xml,
+    id: [&str; 2],
+    n: usize,
+    key: ColorKey,
+    targets: &[T],
+    target: impl Fn(&mut Xml, &T),
+) {
+    x.s("<app:surfaceDataMember>\n<app:X3DMaterial gml:id=\"");
+    x.s(id[0]);
+    x.s(id[1]);
+    x.uint(n as u64);
+    x.s("\">\n<app:diffuseColor>");
+    for (i, c) in key.rgb.iter().enumerate() {
+        if i > 0 {
+            x.s(" ");
+        }
+        x.fixed4(*c);
+    }
+    x.s("</app:diffuseColor>\n");
+    if key.transparency > 0 {
+        x.s("<app:transparency>");
+        x.fixed4(key.transparency);
+        x.s("</app:transparency>\n");
+    }
+    for t in targets {
+        x.s("<app:target>#");
+        target(x, t);
+        x.s("</app:target>\n");
+    }
+    x.s("</app:X3DMaterial>\n</app:surfaceDataMember>\n");
 }

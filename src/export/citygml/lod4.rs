@@ -25,7 +25,7 @@
 
 use glam::DVec3;
 
-use super::appearance::ColorKey;
+use super::appearance::{x3d_material, ColorKey};
 use super::surfaces::surfaces;
 use super::xml::Xml;
 use crate::color::Color;
@@ -247,24 +247,8 @@ pub(super) fn materials(x: &mut Xml, building_id: &str, b: &Building, part_ids: 
         if targets.is_empty() {
             continue;
         }
+        // The interior colours are opaque: no app:transparency is written.
         let key = ColorKey::of(*color);
-        x.s("<app:surfaceDataMember>\n<app:X3DMaterial gml:id=\"");
-        x.s(building_id);
-        x.s("_i");
-        x.uint(n as u64);
-        x.s("\">\n<app:diffuseColor>");
-        for (i, c) in key.rgb.iter().enumerate() {
-            if i > 0 {
-                x.s(" ");
-            }
-            x.fixed4(*c);
-        }
-        x.s("</app:diffuseColor>\n");
-        for t in targets {
-            x.s("<app:target>#");
-            x.s(t);
-            x.s("</app:target>\n");
-        }
-        x.s("</app:X3DMaterial>\n</app:surfaceDataMember>\n");
+        x3d_material(x, [building_id, "_i"], n, key, targets, |x, t| x.s(t));
     }
 }
