@@ -29,7 +29,7 @@ impl Ascii for Vec<u8> {
 }
 
 /// Appends the decimal digits of `v`.
-pub fn push_uint(out: &mut impl Ascii, mut v: u64) {
+pub(crate) fn push_uint(out: &mut impl Ascii, mut v: u64) {
     let mut digits = [0u8; 20];
     let mut i = digits.len();
     loop {
@@ -95,7 +95,7 @@ pub fn push_real(out: &mut impl Ascii, v: f64) {
 }
 
 /// Appends a finite number with exactly 3 decimals, never `-0.000`.
-pub fn push_fixed3(out: &mut impl Ascii, v: f64) {
+pub(crate) fn push_fixed3(out: &mut impl Ascii, v: f64) {
     let scaled = (v * 1000.0).round();
     if scaled.abs() >= 1e18 {
         // Beyond u64 millimetres (never a real coordinate): let the formatter do it.
@@ -120,7 +120,7 @@ pub fn push_fixed3(out: &mut impl Ascii, v: f64) {
 }
 
 /// Appends a value in 1/10000 as a decimal with 4 places (`5020` -> `0.5020`).
-pub fn push_fixed4(out: &mut impl Ascii, v: u16) {
+pub(crate) fn push_fixed4(out: &mut impl Ascii, v: u16) {
     let v = u64::from(v);
     push_uint(out, v / 10_000);
     let f = v % 10_000;
