@@ -44,6 +44,11 @@
 //! first vertex at the end is accepted), as are such holes; any non-finite coordinate or height
 //! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written. Openings
 //! or balconies with an empty extent (or on a wall without length) are left out.
+//!
+//! Code layout: this module holds the writer and the per-building renderer; `building` writes
+//! the building element and its parts, `surfaces` the boundary surfaces and LOD1/LOD2 solids,
+//! `openings` the LOD3 openings, balconies and solid, `appearance` the X3D materials, `lod4` the
+//! stairs and rooms, on the XML buffer of `xml`.
 
 use std::io::Write;
 

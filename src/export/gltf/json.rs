@@ -1,6 +1,6 @@
 //! The glTF JSON records of the glTF writer, serialised with a fixed key order.
 
-use std::io::{self};
+use std::io;
 
 use serde::Serialize;
 

@@ -33,6 +33,11 @@
 //! flat however many buildings), in memory with [`GltfWriter::new`]. What stays in memory is
 //! the materials and 4 bytes per building (the scene's root list). Output is a pure function of
 //! the context and the buildings.
+//!
+//! Code layout: this module holds the writer, its state and the surface classes; `mesh` groups
+//! and triangulates a building's faces (`lod4` its interior's), `materials` makes the PBR
+//! materials, `spool` spools the data and records and assembles the GLB, `json` holds the JSON
+//! records.
 
 use std::collections::BTreeMap;
 use std::fs::File;

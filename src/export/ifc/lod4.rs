@@ -121,27 +121,7 @@ impl<W: Write> Open<W> {
             }
         }
         if !partitions.is_empty() {
-            let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
-                a.string("IsExternal").null().typed("IFCBOOLEAN", |t| {
-                    t.boolean(false);
-                });
-                a.null();
-            })?;
-            let pset = self.w.entity("IFCPROPERTYSET", |a| {
-                a.string(&global_id(key, &format!("{pk}/partitions/pset")))
-                    .null()
-                    .string("Pset_WallCommon")
-                    .null()
-                    .ids(&[prop]);
-            })?;
-            self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-                a.string(&global_id(key, &format!("{pk}/partitions/pset/rel")))
-                    .null()
-                    .null()
-                    .null()
-                    .ids(&partitions)
-                    .id(pset);
-            })?;
+            self.wall_common(key, &format!("{pk}/partitions/pset"), false, &partitions)?;
         }
         Ok(())
     }

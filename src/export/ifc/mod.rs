@@ -75,6 +75,12 @@
 //! `SHARED_CACHE_LIMIT` each) and the window/door types with the ids of their occurrences
 //! (8 bytes per window or door, for the final `IfcRelDefinesByType`: IFC4 allows one such
 //! relation per type, so they cannot be flushed per building).
+//!
+//! Code layout: this module holds the writer, its state and the constants; the child modules
+//! add to the open file's `impl` what they write: `spatial` (project, site, buildings, storeys,
+//! parts), `walls` (walls, balconies), `openings` (openings, windows, doors and their types),
+//! `roofs` (base slab, roof), `styles` (styles, materials, property sets), `shapes` (points,
+//! placements, profiles, breps) and `lod4` (interiors).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;

@@ -312,27 +312,7 @@ impl<W: Write> Open<W> {
         }
 
         if !walls.is_empty() {
-            let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
-                a.string("IsExternal").null().typed("IFCBOOLEAN", |t| {
-                    t.boolean(true);
-                });
-                a.null();
-            })?;
-            let pset = self.w.entity("IFCPROPERTYSET", |a| {
-                a.string(&global_id(&key, "walls/pset"))
-                    .null()
-                    .string("Pset_WallCommon")
-                    .null()
-                    .ids(&[prop]);
-            })?;
-            self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-                a.string(&global_id(&key, "walls/pset/rel"))
-                    .null()
-                    .null()
-                    .null()
-                    .ids(&walls)
-                    .id(pset);
-            })?;
+            self.wall_common(&key, "walls/pset", true, &walls)?;
         }
         self.buildings.push(building);
         Ok(())

@@ -206,6 +206,39 @@ impl<W: Write> Open<W> {
         }
         Ok(())
     }
+
+    /// A `Pset_WallCommon` with IsExternal `external` (GlobalId path `path`, its relation
+    /// `{path}/rel`) on `walls`.
+    pub(super) fn wall_common(
+        &mut self,
+        key: &str,
+        path: &str,
+        external: bool,
+        walls: &[Id],
+    ) -> Result<(), ExportError> {
+        let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+            a.string("IsExternal").null().typed("IFCBOOLEAN", |t| {
+                t.boolean(external);
+            });
+            a.null();
+        })?;
+        let pset = self.w.entity("IFCPROPERTYSET", |a| {
+            a.string(&global_id(key, path))
+                .null()
+                .string("Pset_WallCommon")
+                .null()
+                .ids(&[prop]);
+        })?;
+        self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
+            a.string(&global_id(key, &format!("{path}/rel")))
+                .null()
+                .null()
+                .null()
+                .ids(walls)
+                .id(pset);
+        })?;
+        Ok(())
+    }
 }
 
 /// A colour as a cache key (components in thousandths).
