@@ -211,7 +211,7 @@ impl<W: Write> Open<W> {
 }
 
 /// Drops consecutive duplicate points (and a closing duplicate) of a ring, within `EPS`.
-pub(super) fn clean_ring<T: Copy>(ring: &[T], dist: impl Fn(T, T) -> f64) -> Vec<T> {
+fn clean_ring<T: Copy>(ring: &[T], dist: impl Fn(T, T) -> f64) -> Vec<T> {
     let mut out: Vec<T> = Vec::with_capacity(ring.len());
     for &p in ring {
         if out.last().is_none_or(|&q| dist(p, q) > EPS) {
