@@ -4,6 +4,7 @@
 pub mod citygml;
 #[cfg(test)]
 pub(crate) mod fixtures;
+mod format;
 pub mod gltf;
 pub mod ifc;
 pub mod lod3geom;
@@ -41,6 +42,13 @@ pub enum ExportError {
     Io(#[from] io::Error),
     #[error("{0}")]
     Invalid(String),
+}
+
+/// [`Building::check_finite`] as the [`ExportError::Invalid`] of `writer` (e.g. `"IFC writer"`):
+/// every writer calls it before writing anything of a building.
+pub(crate) fn check_finite(writer: &str, b: &Building) -> Result<(), ExportError> {
+    b.check_finite()
+        .map_err(|e| ExportError::Invalid(format!("{writer}: {e}")))
 }
 
 /// Buildings a writer's `write_all` renders in parallel at a time: enough to keep the cores

@@ -18,6 +18,8 @@
 use std::fmt;
 use std::io::{self, Write};
 
+use crate::export::format::push_uint;
+
 /// A reference to an entity instance of the file (`#n`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Id(pub u64);
@@ -42,68 +44,7 @@ pub fn format_real(v: f64) -> String {
 }
 
 /// Appends [`format_real`]`(v)` to `out` without allocating.
-///
-/// Below 1e9 the rounded value is `k / 1e6` for an integer `k` of at most 15 digits; every
-/// decimal of at most 15 significant digits reads back to a distinct f64, so the shortest
-/// round-trip form of the rounded value is exactly `k / 1e6` written out with its trailing
-/// zeros dropped, which is what is written here with integer arithmetic (the property test
-/// `fast_real_matches_display` checks it against `Display`).
-pub fn push_real(out: &mut String, v: f64) {
-    if !v.is_finite() {
-        out.push_str("0.");
-        return;
-    }
-    if v.abs() >= 1e9 {
-        let start = out.len();
-        // Rust's Display for f64 is the shortest round-trip form and never uses an exponent.
-        let _ = fmt::Write::write_fmt(out, format_args!("{v}"));
-        if !out[start..].contains('.') {
-            out.push('.');
-        }
-        return;
-    }
-    let k = (v * 1e6).round();
-    if k == 0.0 {
-        out.push_str("0.");
-        return;
-    }
-    if k < 0.0 {
-        out.push('-');
-    }
-    let m = k.abs() as u64;
-    push_uint(out, m / 1_000_000);
-    out.push('.');
-    let mut frac = m % 1_000_000;
-    if frac != 0 {
-        let mut width = 6;
-        while frac % 10 == 0 {
-            frac /= 10;
-            width -= 1;
-        }
-        let mut digits = [b'0'; 6];
-        for d in digits[..width].iter_mut().rev() {
-            *d = b'0' + (frac % 10) as u8;
-            frac /= 10;
-        }
-        // The digits are ASCII.
-        out.push_str(std::str::from_utf8(&digits[..width]).unwrap_or_default());
-    }
-}
-
-/// Appends the decimal digits of `v`.
-fn push_uint(out: &mut String, mut v: u64) {
-    let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
-    out.push_str(std::str::from_utf8(&digits[i..]).unwrap_or_default());
-}
+pub use crate::export::format::push_real;
 
 /// Encodes a STRING literal with its quotes: `'` doubled, `\` doubled, printable ASCII as is,
 /// anything else (non-ASCII, control characters) as `\X2\HHHH..\X0\` runs of UTF-16 code units

@@ -1,0 +1,147 @@
+//! The building element of the CityGML writer: `bldg:Building` with its envelope, attributes and
+//! parts (`bldg:BuildingPart`), and the ids derived from the source id.
+
+use crate::export::lod3geom::balcony_faces;
+use crate::model::{Building, Part, RoofShape};
+
+use super::surfaces::{surfaces, written_walls};
+use super::{GeometryLod, Renderer, ROOF_TYPE_CODESPACE};
+
+impl Renderer<'_> {
+    pub(super) fn building(&mut self, b: &Building) {
+        let id = format!("B_{}", id_fragment(&b.key()));
+        let parts = part_ids(&id, &b.parts);
+        let x = &mut *self.x;
+        x.s("<core:cityObjectMember>\n<bldg:Building gml:id=\"");
+        x.s(&id);
+        x.s("\">\n");
+        if let Some(name) = &b.name {
+            x.s("<gml:name>");
+            x.escaped(name, false);
+            x.s("</gml:name>\n");
+        }
+        self.envelope(b);
+        self.string_attribute("sourceId", &b.id.to_string());
+        if !b.zone.is_empty() {
+            self.string_attribute("zone", &b.zone);
+        }
+        if !b.appearance.is_empty() {
+            self.string_attribute("appearance", &b.appearance);
+        }
+        self.appearance(&id, b, &parts);
+        self.building_attributes(b.roof_shape, b.measured_height, b.storeys_above_ground);
+        match b.parts.as_slice() {
+            [part] => self.geometry(part, &parts[0]),
+            _ => {
+                for (part, pid) in b.parts.iter().zip(&parts) {
+                    let x = &mut *self.x;
+                    x.s("<bldg:consistsOfBuildingPart>\n<bldg:BuildingPart gml:id=\"");
+                    x.s(pid);
+                    x.s("\">\n");
+                    self.building_attributes(
+                        part.roof_shape,
+                        part.top_z - part.base_z,
+                        part.storeys,
+                    );
+                    self.geometry(part, pid);
+                    self.x
+                        .s("</bldg:BuildingPart>\n</bldg:consistsOfBuildingPart>\n");
+                }
+            }
+        }
+        self.x.s("</bldg:Building>\n</core:cityObjectMember>\n");
+    }
+
+    /// `gml:boundedBy` of the building's written polygons; nothing when it has none.
+    fn envelope(&mut self, b: &Building) {
+        let mut points = b
+            .parts
+            .iter()
+            .flat_map(|p| surfaces(p).flat_map(|s| s.face.outer.iter()));
+        let Some(&first) = points.next() else {
+            return;
+        };
+        let (mut lo, mut hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        if self.lod >= GeometryLod::Lod3 {
+            // Balconies stand out of the walls.
+            for part in &b.parts {
+                for (_, wall) in written_walls(part) {
+                    for f in wall
+                        .balconies
+                        .iter()
+                        .filter_map(|bc| balcony_faces(wall, bc))
+                    {
+                        for p in f.all().flat_map(|f| f.outer.iter()) {
+                            lo = lo.min(*p);
+                            hi = hi.max(*p);
+                        }
+                    }
+                }
+            }
+        }
+        let x = &mut *self.x;
+        x.s("<gml:boundedBy>\n<gml:Envelope srsName=\"");
+        x.s(self.srs);
+        x.s("\" srsDimension=\"3\">\n<gml:lowerCorner>");
+        x.point(self.origin + lo);
+        x.s("</gml:lowerCorner>\n<gml:upperCorner>");
+        x.point(self.origin + hi);
+        x.s("</gml:upperCorner>\n</gml:Envelope>\n</gml:boundedBy>\n");
+    }
+
+    fn string_attribute(&mut self, name: &str, value: &str) {
+        let x = &mut *self.x;
+        x.s("<gen:stringAttribute name=\"");
+        x.escaped(name, true);
+        x.s("\">\n<gen:value>");
+        x.escaped(value, false);
+        x.s("</gen:value>\n</gen:stringAttribute>\n");
+    }
+
+    fn building_attributes(&mut self, roof: RoofShape, height: f64, storeys: u32) {
+        let x = &mut *self.x;
+        x.s("<bldg:roofType codeSpace=\"");
+        x.s(ROOF_TYPE_CODESPACE);
+        x.s("\">");
+        x.s(roof.citygml_code());
+        x.s("</bldg:roofType>\n<bldg:measuredHeight uom=\"m\">");
+        x.fixed3(height);
+        x.s("</bldg:measuredHeight>\n<bldg:storeysAboveGround>");
+        x.uint(u64::from(storeys));
+        x.s("</bldg:storeysAboveGround>\n");
+    }
+}
+
+/// Keeps ASCII letters, digits, `_`, `-` and `.` (NCName-safe after a letter prefix), replacing
+/// anything else by `_`.
+pub(super) fn id_fragment(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The id prefixes of the parts: `<building id>_<part key>`, or `<building id>_p<index>` for all
+/// parts when the keys are empty or not unique (ids must be unique in the file).
+pub(super) fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
+    let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
+    let usable = keys
+        .iter()
+        .enumerate()
+        .all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
+    keys.iter()
+        .enumerate()
+        .map(|(i, k)| {
+            if usable {
+                format!("{building_id}_{k}")
+            } else {
+                format!("{building_id}_p{i}")
+            }
+        })
+        .collect()
+}

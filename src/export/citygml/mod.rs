@@ -1,0 +1,302 @@
+//! CityGML 2.0 writer: one `core:cityObjectMember` per building, streamed.
+//!
+//! The file is a `core:CityModel` in the output CRS. Coordinates are `origin + local point`,
+//! written in metres with 3 decimals (millimetres). What each LOD gets:
+//!
+//! - **LOD1**: `bldg:lod1Solid` whose `gml:CompositeSurface` holds the ground, wall and roof
+//!   polygons inline.
+//! - **LOD2**: `bldg:boundedBy` with one `bldg:GroundSurface` per part, one `bldg:WallSurface`
+//!   per wall and one `bldg:RoofSurface` per roof face, each holding its polygon in a
+//!   `bldg:lod2MultiSurface`; `bldg:lod2Solid` references those polygons with `xlink:href="#id"`
+//!   so every coordinate is written once.
+//! - **LOD3**: the same boundary
+//!   surfaces in `bldg:lod3MultiSurface`, wall polygons keeping their interior rings (the
+//!   openings' holes). Each wall surface lists its openings as `bldg:opening` with a
+//!   `bldg:Window` or `bldg:Door` whose `bldg:lod3MultiSurface` holds the opening's rectangle in
+//!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
+//!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose
+//!   `bldg:lod3Geometry` is a `gml:MultiSurface` of the slab (a closed box) and the railing
+//!   panels. `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
+//!   together close the shell. Elements follow the schema's order: installations, boundary
+//!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
+//!   0.6, doors and opaque windows their colour, balconies theirs.
+//! - **LOD4**: the LOD3 exterior in the `lod4` properties (the code is shared, parameterised by
+//!   the LOD number), plus stairs (`bldg:interiorBuildingInstallation`) and rooms
+//!   (`bldg:interiorRoom`), written by the child module `lod4` (see there).
+//!
+//! A building with one part carries its geometry itself; with several parts each part becomes a
+//! `bldg:BuildingPart` (with its own roof type, height, storeys and geometry) under
+//! `bldg:consistsOfBuildingPart`. Colours are a local `app:appearance` per building (theme
+//! `citygen`): one `app:X3DMaterial` per distinct colour, targeting its polygons by id.
+//!
+//! Because the file is streamed, the extent of the whole model is not known when the header is
+//! written, so the `core:CityModel` has no `gml:boundedBy`; each `bldg:Building` has one (an
+//! envelope with the CRS), and every top-level geometry names the CRS too.
+//!
+//! Identifiers are built from the source id only (`way/123` gives `B_way_123`, its part `p0`
+//! gives `B_way_123_p0`, that part's polygons `B_way_123_p0_g`, `..._w3`, `..._r0`, their
+//! boundary surfaces `..._w3_s`, the building's materials `B_way_123_m0`; at LOD3 that wall's
+//! openings `..._w3_o0` with polygons `..._w3_o0_p`, its balconies `..._w3_b0` with polygons
+//! `..._w3_b0_0` ...), so they are stable from run to run. The caller must not write two buildings with the same source id: their ids
+//! would clash.
+//!
+//! Faces whose outer ring has fewer than 3 distinct vertices are left out (a ring that repeats its
+//! first vertex at the end is accepted), as are such holes; any non-finite coordinate or height
+//! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written. Openings
+//! or balconies with an empty extent (or on a wall without length) are left out.
+//!
+//! Code layout: this module holds the writer and the per-building renderer; `building` writes
+//! the building element and its parts, `surfaces` the boundary surfaces and LOD1/LOD2 solids,
+//! `openings` the LOD3 openings, balconies and solid, `appearance` the X3D materials, `lod4` the
+//! stairs and rooms, on the XML buffer of `xml`.
+
+use std::io::Write;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::export::{check_finite, BuildingWriter, ExportError, OutputContext};
+use crate::model::{Building, Lod};
+
+use xml::Xml;
+
+mod appearance;
+mod building;
+mod lod4;
+mod openings;
+mod surfaces;
+mod xml;
+
+/// Code list of `bldg:roofType` values ([`RoofShape::citygml_code`]).
+const ROOF_TYPE_CODESPACE: &str =
+    "http://www.sig3d.org/codelists/standard/building/2.0/_AbstractBuilding_roofType.xml";
+
+/// Theme of the appearance that carries the colours.
+const APPEARANCE_THEME: &str = "citygen";
+
+/// `app:transparency` of glazed windows' glass.
+const GLASS_TRANSPARENCY: f32 = 0.6;
+
+const HEADER_NAMESPACES: &str = concat!(
+    "<core:CityModel",
+    " xmlns:core=\"http://www.opengis.net/citygml/2.0\"",
+    " xmlns:bldg=\"http://www.opengis.net/citygml/building/2.0\"",
+    " xmlns:app=\"http://www.opengis.net/citygml/appearance/2.0\"",
+    " xmlns:gen=\"http://www.opengis.net/citygml/generics/2.0\"",
+    " xmlns:gml=\"http://www.opengis.net/gml\"",
+    " xmlns:xlink=\"http://www.w3.org/1999/xlink\"",
+    " xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\"",
+    " xsi:schemaLocation=\"",
+    "http://www.opengis.net/citygml/building/2.0 http://schemas.opengis.net/citygml/building/2.0/building.xsd",
+    " http://www.opengis.net/citygml/appearance/2.0 http://schemas.opengis.net/citygml/appearance/2.0/appearance.xsd",
+    " http://www.opengis.net/citygml/generics/2.0 http://schemas.opengis.net/citygml/generics/2.0/generics.xsd",
+    "\">\n",
+);
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    New,
+    Open,
+    Finished,
+}
+
+/// Which geometry representation the run writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum GeometryLod {
+    /// Inline polygons in `lod1Solid`.
+    Lod1,
+    /// Semantic boundary surfaces plus an `lod2Solid` of references.
+    Lod2,
+    /// LOD2's structure in `lod3` properties, with openings and balconies.
+    Lod3,
+    /// LOD3's structure in `lod4` properties, with rooms and stairs.
+    Lod4,
+}
+
+impl GeometryLod {
+    fn digit(self) -> &'static str {
+        match self {
+            GeometryLod::Lod1 => "1",
+            GeometryLod::Lod2 => "2",
+            GeometryLod::Lod3 => "3",
+            GeometryLod::Lod4 => "4",
+        }
+    }
+}
+
+/// Streaming CityGML 2.0 writer (see the module documentation for what it writes).
+///
+/// Call [`BuildingWriter::begin`], then [`BuildingWriter::write`] per building, then
+/// [`BuildingWriter::finish`]; [`CityGmlWriter::into_inner`] gives the sink back afterwards
+/// (e.g. to commit an [`crate::export::AtomicFile`]). Each building is rendered into an internal
+/// buffer and handed to the sink in one `write_all`, so a rejected building leaves no trace in
+/// the output. The output is a pure function of the context and the buildings.
+pub struct CityGmlWriter<W: Write + Send> {
+    out: W,
+    state: State,
+    /// `srsName` given by [`CityGmlWriter::with_srs_name`]; `None` means `EPSG:<code>`.
+    srs_override: Option<String>,
+    /// The `srsName` value, already escaped for an attribute.
+    srs_attr: String,
+    origin: DVec3,
+    lod: GeometryLod,
+    /// Scratch buffer one building is rendered into.
+    buf: Xml,
+}
+
+impl<W: Write + Send> CityGmlWriter<W> {
+    /// A writer to `out` whose `srsName` is `EPSG:<code>` of the context's CRS.
+    pub fn new(out: W) -> CityGmlWriter<W> {
+        CityGmlWriter {
+            out,
+            state: State::New,
+            srs_override: None,
+            srs_attr: String::new(),
+            origin: DVec3::ZERO,
+            lod: GeometryLod::Lod2,
+            buf: Xml(Vec::with_capacity(64 * 1024)),
+        }
+    }
+
+    /// A writer to `out` that writes `srs_name` verbatim as every `srsName` (e.g. a compound
+    /// `urn:ogc:def:crs,crs:EPSG::25832,crs:EPSG::5783`) instead of `EPSG:<code>`.
+    pub fn with_srs_name(out: W, srs_name: impl Into<String>) -> CityGmlWriter<W> {
+        let mut w = CityGmlWriter::new(out);
+        w.srs_override = Some(srs_name.into());
+        w
+    }
+
+    /// Gives the sink back. Call it after [`BuildingWriter::finish`]; before, the document is
+    /// incomplete.
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+
+    fn check_state(&self, expected: State, call: &str) -> Result<(), ExportError> {
+        if self.state == expected {
+            return Ok(());
+        }
+        let why = match self.state {
+            State::New => "before begin()",
+            State::Open => "after begin()",
+            State::Finished => "after finish()",
+        };
+        Err(ExportError::Invalid(format!(
+            "CityGML writer: {call} called {why}"
+        )))
+    }
+}
+
+/// `EPSG:<code>` of the context's CRS.
+fn epsg_srs_name(ctx: &OutputContext) -> String {
+    format!("EPSG:{}", ctx.crs.epsg())
+}
+
+impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
+    fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
+        self.check_state(State::New, "begin()")?;
+        if !ctx.origin.is_finite() {
+            return Err(ExportError::Invalid(format!(
+                "CityGML writer: the local origin {:?} is not finite",
+                ctx.origin
+            )));
+        }
+        let srs_name = match &self.srs_override {
+            Some(s) => s.clone(),
+            None => epsg_srs_name(ctx),
+        };
+        let mut attr = Xml(Vec::new());
+        attr.escaped(&srs_name, true);
+        self.srs_attr = String::from_utf8_lossy(&attr.0).into_owned();
+        self.origin = ctx.origin;
+        self.lod = match ctx.lod {
+            Lod::Lod1 => GeometryLod::Lod1,
+            Lod::Lod2 => GeometryLod::Lod2,
+            Lod::Lod3 => GeometryLod::Lod3,
+            Lod::Lod4 => GeometryLod::Lod4,
+        };
+
+        let x = &mut self.buf;
+        x.0.clear();
+        x.s("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+        x.s(HEADER_NAMESPACES);
+        x.s("<gml:description>Generated by citygen from ");
+        x.escaped(&ctx.source_name, false);
+        x.s(", seed ");
+        x.uint(ctx.seed);
+        x.s(", LOD");
+        x.s(self.lod.digit());
+        x.s(" geometry</gml:description>\n");
+        if !ctx.source_name.is_empty() {
+            x.s("<gml:name>");
+            x.escaped(&ctx.source_name, false);
+            x.s("</gml:name>\n");
+        }
+        self.out.write_all(&x.0)?;
+        self.state = State::Open;
+        Ok(())
+    }
+
+    fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        self.check_state(State::Open, "write()")?;
+        check_finite("CityGML writer", building)?;
+        self.buf.0.clear();
+        let mut r = Renderer {
+            x: &mut self.buf,
+            origin: self.origin,
+            srs: &self.srs_attr,
+            lod: self.lod,
+        };
+        r.building(building);
+        self.out.write_all(&self.buf.0)?;
+        Ok(())
+    }
+
+    /// Renders the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, each into its
+    /// own buffer, and writes them in order: the same bytes as `write` on each.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.check_state(State::Open, "write()")?;
+        let (origin, srs, lod) = (self.origin, self.srs_attr.as_str(), self.lod);
+        for batch in buildings.chunks(super::PARALLEL_BATCH) {
+            let rendered: Vec<Result<Xml, ExportError>> = batch
+                .par_iter()
+                .map(|b| {
+                    check_finite("CityGML writer", b)?;
+                    let mut x = Xml(Vec::with_capacity(64 * 1024));
+                    Renderer {
+                        x: &mut x,
+                        origin,
+                        srs,
+                        lod,
+                    }
+                    .building(b);
+                    Ok(x)
+                })
+                .collect();
+            for x in rendered {
+                self.out.write_all(&x?.0)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<(), ExportError> {
+        self.check_state(State::Open, "finish()")?;
+        self.state = State::Finished;
+        self.out.write_all(b"</core:CityModel>\n")?;
+        self.out.flush()?;
+        self.buf = Xml(Vec::new());
+        Ok(())
+    }
+}
+
+/// Renders one building into the scratch buffer.
+struct Renderer<'a> {
+    x: &'a mut Xml,
+    origin: DVec3,
+    srs: &'a str,
+    lod: GeometryLod,
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,219 @@
+//! The glTF JSON records of the glTF writer, serialised with a fixed key order.
+
+use std::io;
+
+use serde::Serialize;
+
+use super::spool::{Spool, ACCESSORS, MESHES, NODES, VIEWS};
+
+#[derive(Default)]
+pub(super) struct Document {
+    pub(super) asset_extras: AssetExtras,
+    /// The scene's root nodes: one per building.
+    pub(super) roots: Vec<u32>,
+    pub(super) materials: Vec<MaterialRec>,
+    pub(super) buffer_length: u64,
+}
+
+/// A piece of the JSON chunk: text, or the records of a spooled array.
+pub(super) enum Piece {
+    Text(Vec<u8>),
+    Spool(usize),
+}
+
+impl Document {
+    /// The JSON chunk in document order (the key order of the glTF JSON is fixed: asset, scene,
+    /// scenes, nodes, meshes, materials, accessors, bufferViews, buffers; empty arrays are left
+    /// out), with the growing arrays as references to `spools`.
+    pub(super) fn pieces(&self, spools: &[Spool; 4]) -> io::Result<Vec<Piece>> {
+        let head = Head {
+            asset: Asset {
+                version: "2.0",
+                generator: concat!("citygen ", env!("CARGO_PKG_VERSION")),
+                extras: &self.asset_extras,
+            },
+            scene: 0,
+            scenes: [Scene { nodes: &self.roots }],
+        };
+        let mut text = serde_json::to_vec(&head).map_err(io::Error::from)?;
+        text.pop(); // the closing brace, written last
+        let mut pieces = Vec::new();
+        let array = |pieces: &mut Vec<Piece>, text: &mut Vec<u8>, key: &str, body: Piece| {
+            text.extend_from_slice(b",\"");
+            text.extend_from_slice(key.as_bytes());
+            text.extend_from_slice(b"\":[");
+            match body {
+                Piece::Text(t) => text.extend_from_slice(&t),
+                Piece::Spool(i) => {
+                    pieces.push(Piece::Text(std::mem::take(text)));
+                    pieces.push(Piece::Spool(i));
+                }
+            }
+            text.push(b']');
+        };
+        for (key, i) in [("nodes", NODES), ("meshes", MESHES)] {
+            if spools[i].count() > 0 {
+                array(&mut pieces, &mut text, key, Piece::Spool(i));
+            }
+        }
+        if !self.materials.is_empty() {
+            let mut m = serde_json::to_vec(&self.materials).map_err(io::Error::from)?;
+            m.pop();
+            m.remove(0);
+            array(&mut pieces, &mut text, "materials", Piece::Text(m));
+        }
+        for (key, i) in [("accessors", ACCESSORS), ("bufferViews", VIEWS)] {
+            if spools[i].count() > 0 {
+                array(&mut pieces, &mut text, key, Piece::Spool(i));
+            }
+        }
+        if self.buffer_length > 0 {
+            let b = serde_json::to_vec(&Buffer {
+                byte_length: self.buffer_length,
+            })
+            .map_err(io::Error::from)?;
+            array(&mut pieces, &mut text, "buffers", Piece::Text(b));
+        }
+        text.push(b'}');
+        pieces.push(Piece::Text(text));
+        Ok(pieces)
+    }
+}
+
+pub(super) fn is_empty<T>(s: &[T]) -> bool {
+    s.is_empty()
+}
+
+/// The JSON chunk's first keys.
+#[derive(Serialize)]
+pub(super) struct Head<'a> {
+    pub(super) asset: Asset<'a>,
+    pub(super) scene: u32,
+    pub(super) scenes: [Scene<'a>; 1],
+}
+
+#[derive(Serialize)]
+pub(super) struct Asset<'a> {
+    pub(super) version: &'static str,
+    pub(super) generator: &'static str,
+    pub(super) extras: &'a AssetExtras,
+}
+
+#[derive(Serialize, Default)]
+pub(super) struct AssetExtras {
+    pub(super) crs: String,
+    pub(super) origin: [f64; 3],
+    pub(super) lod: u8,
+    pub(super) source: String,
+}
+
+#[derive(Serialize)]
+pub(super) struct Scene<'a> {
+    #[serde(skip_serializing_if = "is_empty")]
+    pub(super) nodes: &'a [u32],
+}
+
+#[derive(Serialize)]
+pub(super) struct NodeRec<'a> {
+    pub(super) name: &'a str,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub(super) children: Vec<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) mesh: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) extras: Option<BuildingExtras<'a>>,
+}
+
+#[derive(Serialize)]
+pub(super) struct BuildingExtras<'a> {
+    pub(super) id: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) name: Option<&'a str>,
+    pub(super) zone: &'a str,
+    pub(super) appearance: &'a str,
+    /// Measured height in metres (non-finite values serialise as null).
+    pub(super) height: f64,
+    pub(super) base: f64,
+    pub(super) storeys: u32,
+    pub(super) roof_shape: &'static str,
+    pub(super) lod: u8,
+}
+
+#[derive(Serialize)]
+pub(super) struct MeshRec {
+    pub(super) name: String,
+    pub(super) primitives: Vec<PrimitiveRec>,
+}
+
+#[derive(Serialize)]
+pub(super) struct PrimitiveRec {
+    pub(super) attributes: Attributes,
+    pub(super) indices: u32,
+    pub(super) material: u32,
+}
+
+#[derive(Serialize)]
+pub(super) struct Attributes {
+    #[serde(rename = "POSITION")]
+    pub(super) position: u32,
+    #[serde(rename = "NORMAL")]
+    pub(super) normal: u32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct MaterialRec {
+    pub(super) name: String,
+    #[serde(rename = "pbrMetallicRoughness")]
+    pub(super) pbr: Pbr,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) alpha_mode: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) double_sided: Option<bool>,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct Pbr {
+    pub(super) base_color_factor: [f32; 4],
+    pub(super) metallic_factor: f32,
+    pub(super) roughness_factor: f32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct AccessorRec {
+    pub(super) buffer_view: u32,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub(super) byte_offset: u64,
+    pub(super) component_type: u32,
+    pub(super) count: u32,
+    #[serde(rename = "type")]
+    pub(super) kind: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) min: Option<[f32; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) max: Option<[f32; 3]>,
+}
+
+pub(super) fn is_zero(v: &u64) -> bool {
+    *v == 0
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct ViewRec {
+    pub(super) buffer: u32,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub(super) byte_offset: u64,
+    pub(super) byte_length: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) byte_stride: Option<u32>,
+    pub(super) target: u32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct Buffer {
+    pub(super) byte_length: u64,
+}

@@ -1,0 +1,69 @@
+//! Materials of the glTF writer: one PBR metallic-roughness material per (surface class, colour).
+
+use std::io::Write;
+
+use crate::color::Color;
+
+use super::json::{MaterialRec, Pbr};
+use super::{GltfWriter, SurfaceClass, ROUGHNESS};
+
+impl<W: Write + Send> GltfWriter<W> {
+    /// The material of `class` in `color`, created on first use.
+    pub(super) fn material_for(&mut self, class: SurfaceClass, color: Color) -> u32 {
+        let key = (class, color_key(color));
+        if let Some(&i) = self.material_index.get(&key) {
+            return i;
+        }
+        let i = self.doc.materials.len() as u32;
+        let c = sanitize(color);
+        let name = if c.a < 1.0 {
+            format!("{} {} alpha {}", class.name(), c.to_hex(), c.a)
+        } else {
+            format!("{} {}", class.name(), c.to_hex())
+        };
+        self.doc.materials.push(MaterialRec {
+            name,
+            pbr: Pbr {
+                base_color_factor: [
+                    srgb_to_linear(c.r),
+                    srgb_to_linear(c.g),
+                    srgb_to_linear(c.b),
+                    c.a,
+                ],
+                metallic_factor: 0.0,
+                roughness_factor: ROUGHNESS,
+            },
+            alpha_mode: (c.a < 1.0).then_some("BLEND"),
+            // Railing panels are single quads, seen from both sides.
+            double_sided: (class == SurfaceClass::Balconies).then_some(true),
+        });
+        self.material_index.insert(key, i);
+        i
+    }
+}
+
+/// Colour components clamped to 0..=1, NaN as 0 (alpha NaN as opaque).
+pub(super) fn sanitize(c: Color) -> Color {
+    let f = |v: f32, nan: f32| if v.is_nan() { nan } else { v.clamp(0.0, 1.0) };
+    Color {
+        r: f(c.r, 0.0),
+        g: f(c.g, 0.0),
+        b: f(c.b, 0.0),
+        a: f(c.a, 1.0),
+    }
+}
+
+/// Bit pattern of the sanitised colour: a total, hashable key.
+pub(super) fn color_key(c: Color) -> [u32; 4] {
+    let c = sanitize(c);
+    [c.r.to_bits(), c.g.to_bits(), c.b.to_bits(), c.a.to_bits()]
+}
+
+/// sRGB transfer function inverse (IEC 61966-2-1): glTF colour factors are linear.
+pub(super) fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}

@@ -1,0 +1,372 @@
+//! glTF 2.0 binary (`.glb`) writer.
+//!
+//! Layout of the output: one scene; one node per building, named by the building key
+//! (`way_123`) with the source id, zone, appearance and heights in its `extras`; under it one
+//! child node per surface class (`walls`, `roof`, `ground`, in LOD3 runs `windows`, `doors`,
+//! `balconies`, and for parts with an interior (LOD4) `floors`, `interior walls`, `interior
+//! doors`, `stairs`, `slabs`) holding one mesh, with one triangle primitive per material (usually one). Classes
+//! without triangles get no node.
+//!
+//! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
+//! and door is a pane in its opening's rectangle set back [`OPENING_SETBACK`] into the wall
+//! (towards the inside, never deeper than the wall is thick) so it reads as recessed, plus four
+//! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
+//! else the wall colour. Glazed windows' glass is transparent (alpha [`GLASS_ALPHA`], `BLEND`);
+//! doors and unglazed windows are opaque in their colour. Balconies are a closed slab box and
+//! three railing panels, in a double-sided material.
+//!
+//! LOD4 ([`crate::export::lod4geom`]): `floors` are the rooms' polygons at floor height, facing
+//! up; `interior walls` are closed boxes of the walls' thickness around their centre lines,
+//! floor to ceiling, with the door holes and their reveals; `interior doors` are each a leaf in
+//! the wall's middle plane, one face per side; `stairs` are the steps' closed blocks; `slabs`
+//! are the floor slabs above the ground storey without their top face (the floors cover it),
+//! so their undersides are the ceilings below. Materials are PBR metallic-roughness, one per distinct
+//! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
+//! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
+//! "origin": [E, N, H]}`). Faces are flat shaded: every face has its own vertices and normal.
+//!
+//! Streaming: a GLB starts with its JSON chunk, which must know the binary chunk's length, so the
+//! vertex and index bytes are spooled to a scratch file as buildings arrive and copied after the
+//! JSON in [`BuildingWriter::finish`]. The JSON records of the arrays that grow with the number of
+//! buildings (nodes, meshes, accessors, buffer views) are serialised as each building arrives and
+//! spooled too: to scratch files beside the output with [`GltfWriter::beside`] (memory stays
+//! flat however many buildings), in memory with [`GltfWriter::new`]. What stays in memory is
+//! the materials and 4 bytes per building (the scene's root list). Output is a pure function of
+//! the context and the buildings.
+//!
+//! Code layout: this module holds the writer, its state and the surface classes; `mesh` groups
+//! and triangulates a building's faces (`lod4` its interior's), `materials` makes the PBR
+//! materials, `spool` spools the data and records and assembles the GLB, `json` holds the JSON
+//! records.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::color::Color;
+use crate::crs::Crs;
+use crate::export::{BuildingWriter, ExportError, OutputContext};
+use crate::model::{Building, Lod};
+
+use json::{AssetExtras, Document};
+use mesh::encode;
+use spool::Spool;
+
+mod json;
+mod lod4;
+mod materials;
+mod mesh;
+mod spool;
+
+/// GLB magic `glTF`, little-endian.
+const GLB_MAGIC: u32 = 0x4654_6C67;
+
+/// Chunk type `JSON`.
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+
+/// Chunk type `BIN\0`.
+const CHUNK_BIN: u32 = 0x004E_4942;
+
+/// glTF component types.
+const FLOAT: u32 = 5126;
+
+const UNSIGNED_SHORT: u32 = 5123;
+
+const UNSIGNED_INT: u32 = 5125;
+
+/// Buffer view targets.
+const ARRAY_BUFFER: u32 = 34962;
+
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+
+/// Byte stride of the vertex views: tightly packed f32 VEC3. glTF requires a stride on a vertex
+/// view that several accessors share (a building's positions and normals share one view).
+const VEC3_STRIDE: u32 = 12;
+
+/// Roughness of every material: building materials are matte.
+const ROUGHNESS: f32 = 0.9;
+
+/// Colour of ground surfaces (the model gives them none; they face down and are rarely seen).
+const GROUND_COLOR: Color = Color::GREY;
+
+/// How far window and door panes sit behind the wall's outer face (metres).
+pub const OPENING_SETBACK: f64 = 0.1;
+
+/// Opacity of glazed windows' glass.
+pub const GLASS_ALPHA: f32 = 0.35;
+
+/// Semantic class of a group of surfaces: one child node per class and building.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum SurfaceClass {
+    Walls,
+    Roof,
+    Ground,
+    Windows,
+    Doors,
+    Balconies,
+    /// LOD4: room floors, interior walls, their doors, stairs, upper floor slabs.
+    Floors,
+    InteriorWalls,
+    InteriorDoors,
+    Stairs,
+    Slabs,
+}
+
+impl SurfaceClass {
+    /// Every class, in the order of the building's child nodes.
+    const ALL: [SurfaceClass; 11] = [
+        SurfaceClass::Walls,
+        SurfaceClass::Roof,
+        SurfaceClass::Ground,
+        SurfaceClass::Windows,
+        SurfaceClass::Doors,
+        SurfaceClass::Balconies,
+        SurfaceClass::Floors,
+        SurfaceClass::InteriorWalls,
+        SurfaceClass::InteriorDoors,
+        SurfaceClass::Stairs,
+        SurfaceClass::Slabs,
+    ];
+
+    fn name(self) -> &'static str {
+        match self {
+            SurfaceClass::Walls => "walls",
+            SurfaceClass::Roof => "roof",
+            SurfaceClass::Ground => "ground",
+            SurfaceClass::Windows => "windows",
+            SurfaceClass::Doors => "doors",
+            SurfaceClass::Balconies => "balconies",
+            SurfaceClass::Floors => "floors",
+            SurfaceClass::InteriorWalls => "interior walls",
+            SurfaceClass::InteriorDoors => "interior doors",
+            SurfaceClass::Stairs => "stairs",
+            SurfaceClass::Slabs => "slabs",
+        }
+    }
+
+    /// LOD3 detail classes (and the LOD4 ones, which only parts with an interior have),
+    /// written only in LOD3 and LOD4 runs.
+    fn is_detail(self) -> bool {
+        !matches!(
+            self,
+            SurfaceClass::Walls | SurfaceClass::Roof | SurfaceClass::Ground
+        )
+    }
+}
+
+/// Where the writer is in its `begin` / `write` / `finish` life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    New,
+    Open,
+    /// A write to the scratch file failed: the buffer no longer matches the records.
+    Failed,
+    Finished,
+}
+
+/// A GLB's length field is a `u32`: no GLB is larger, its binary chunk even less.
+const GLB_MAX_BYTES: u64 = u32::MAX as u64;
+
+/// Streaming glTF 2.0 binary writer (see the module documentation for the layout).
+pub struct GltfWriter<W: Write + Send> {
+    out: W,
+    scratch: Option<BufWriter<File>>,
+    /// Bytes written to the scratch file so far (always a multiple of 4).
+    bin_len: u64,
+    /// The largest binary chunk accepted ([`GLB_MAX_BYTES`]; smaller in tests).
+    max_bin: u64,
+    state: State,
+    doc: Document,
+    /// Serialised records of `nodes`, `meshes`, `accessors` and `bufferViews`, in that order.
+    spools: [Spool; 4],
+    /// Reused buffer one record is serialised into.
+    json_scratch: Vec<u8>,
+    /// (class, colour bits) -> material index, for reuse across buildings.
+    material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
+    /// Whether the run is LOD3 or above (openings and balconies are written).
+    detail: bool,
+    /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
+    /// `scratch` so that the file is closed before it is removed.
+    scratch_guard: ScratchGuard,
+}
+
+/// Removes its paths when dropped.
+struct ScratchGuard(Vec<PathBuf>);
+
+impl Drop for ScratchGuard {
+    fn drop(&mut self) {
+        for path in self.0.drain(..) {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+impl<W: Write + Send> GltfWriter<W> {
+    /// A writer that writes the `.glb` to `out` and spools the binary chunk to `scratch`, a file
+    /// it may truncate, read back and overwrite (an anonymous temporary file is ideal). Nothing is
+    /// written to `out` before [`BuildingWriter::finish`].
+    pub fn new(out: W, scratch: File) -> GltfWriter<W> {
+        GltfWriter {
+            out,
+            scratch: Some(BufWriter::with_capacity(1 << 20, scratch)),
+            bin_len: 0,
+            max_bin: GLB_MAX_BYTES,
+            state: State::New,
+            doc: Document::default(),
+            spools: Default::default(),
+            json_scratch: Vec::new(),
+            material_index: BTreeMap::new(),
+            detail: false,
+            scratch_guard: ScratchGuard(Vec::new()),
+        }
+    }
+
+    /// A writer whose scratch file is created next to `target` (the final output path, whose
+    /// folder must exist), so that it lands on the same disk as the output rather than on a
+    /// possibly small temporary file system. The scratch file is deleted when the writer is
+    /// dropped (on Unix it is unlinked at once and only the open handle keeps it).
+    pub fn beside(out: W, target: &Path) -> io::Result<GltfWriter<W>> {
+        let dir = target
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let path = dir.join(format!(".{name}.{}.bin.tmp", std::process::id()));
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)?;
+        let mut w = GltfWriter::new(out, file);
+        // Unlinking an open file works on Unix; elsewhere it is removed on drop.
+        if std::fs::remove_file(&path).is_err() {
+            w.scratch_guard.0.push(path);
+        }
+        for (i, array) in ["nodes", "meshes", "accessors", "views"].iter().enumerate() {
+            let path = dir.join(format!(".{name}.{}.{array}.tmp", std::process::id()));
+            let file = File::options()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(true)
+                .open(&path)?;
+            if std::fs::remove_file(&path).is_err() {
+                w.scratch_guard.0.push(path);
+            }
+            w.spools[i] = Spool::File {
+                w: BufWriter::with_capacity(1 << 18, file),
+                len: 0,
+                count: 0,
+            };
+        }
+        Ok(w)
+    }
+
+    /// Gives back the output (complete after a successful `finish`).
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+
+    /// `begin` with the CRS label already computed (kept apart so that it is the only place that
+    /// asks the CRS for its EPSG code).
+    fn start(&mut self, ctx: &OutputContext, crs_label: String) -> Result<(), ExportError> {
+        if self.state != State::New {
+            return Err(ExportError::Invalid(
+                "glTF writer: begin called twice".into(),
+            ));
+        }
+        let scratch = self
+            .scratch
+            .as_mut()
+            .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
+        scratch.get_mut().set_len(0)?;
+        scratch.seek(SeekFrom::Start(0))?;
+        self.doc.asset_extras = AssetExtras {
+            crs: crs_label,
+            origin: [ctx.origin.x, ctx.origin.y, ctx.origin.z],
+            lod: ctx.lod.number(),
+            source: ctx.source_name.clone(),
+        };
+        self.detail = ctx.lod >= Lod::Lod3;
+        self.state = State::Open;
+        Ok(())
+    }
+
+    /// Appends one building: triangulates its faces, writes its binary data to the scratch file
+    /// and records its nodes, meshes, accessors and buffer views.
+    fn add_building(&mut self, b: &Building) -> Result<(), ExportError> {
+        let e = encode(b, self.detail)?;
+        self.add_encoded(b, e)
+    }
+}
+
+impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
+    fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
+        let label = crs_label(&ctx.crs);
+        self.start(ctx, label)
+    }
+
+    fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        match self.state {
+            State::Open => self.add_building(building),
+            State::New => Err(ExportError::Invalid(
+                "glTF writer: write called before begin".into(),
+            )),
+            State::Failed => Err(ExportError::Invalid(
+                "glTF writer: an earlier write failed".into(),
+            )),
+            State::Finished => Err(ExportError::Invalid(
+                "glTF writer: write called after finish".into(),
+            )),
+        }
+    }
+
+    /// Encodes (triangulates) the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, and
+    /// appends them in order: the same bytes as `write` on each.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        if self.state != State::Open {
+            return buildings.iter().try_for_each(|b| self.write(b));
+        }
+        let detail = self.detail;
+        for batch in buildings.chunks(super::PARALLEL_BATCH) {
+            let encoded: Vec<_> = batch.par_iter().map(|b| encode(b, detail)).collect();
+            for (b, e) in batch.iter().zip(encoded) {
+                self.add_encoded(b, e?)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<(), ExportError> {
+        match self.state {
+            State::Open => {
+                self.state = State::Finished;
+                self.write_glb()
+            }
+            State::New => Err(ExportError::Invalid(
+                "glTF writer: finish called before begin".into(),
+            )),
+            State::Failed => Err(ExportError::Invalid(
+                "glTF writer: an earlier write failed".into(),
+            )),
+            State::Finished => Err(ExportError::Invalid(
+                "glTF writer: finish called twice".into(),
+            )),
+        }
+    }
+}
+
+/// `EPSG:n` for the asset's extras.
+fn crs_label(crs: &Crs) -> String {
+    format!("EPSG:{}", crs.epsg())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,495 @@
+//! Spatial structure of the IFC writer: the file's header entities (project, units, contexts,
+//! map conversion, site) and final relations, buildings (partial buildings of composite ones),
+//! storeys, and how a part's elements are laid out in its storeys (LOD1/LOD2 and LOD3).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write;
+
+use glam::{DVec2, DVec3};
+
+use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
+use crate::export::{check_finite, ExportError, OutputContext};
+use crate::model::{Building, Lod, Part};
+
+use super::{compound_angle, ElementFrame, Lod3Shared, Open, EPS, MAX_STOREYS};
+
+impl<W: Write> Open<W> {
+    pub(super) fn begin(
+        out: W,
+        ctx: &OutputContext,
+        file_name: &str,
+    ) -> Result<Open<W>, ExportError> {
+        let mut w = StepWriter::new(out);
+        w.write_header(&Header::new(file_name, "IFC4"))?;
+        let ns = format!("{}#{}", ctx.source_name, ctx.seed);
+
+        let origin3 = w.entity("IFCCARTESIANPOINT", |a| {
+            a.reals(&[0.0, 0.0, 0.0]);
+        })?;
+        let origin2 = w.entity("IFCCARTESIANPOINT", |a| {
+            a.reals(&[0.0, 0.0]);
+        })?;
+        let mut dir = |v: &[f64]| {
+            w.entity("IFCDIRECTION", |a| {
+                a.reals(v);
+            })
+        };
+        let dir_x = dir(&[1.0, 0.0, 0.0])?;
+        let dir_z = dir(&[0.0, 0.0, 1.0])?;
+        let dir_neg_y = dir(&[0.0, -1.0, 0.0])?;
+        let dir_neg_z = dir(&[0.0, 0.0, -1.0])?;
+        let true_north = dir(&[0.0, 1.0])?;
+        let identity = w.entity("IFCAXIS2PLACEMENT3D", |a| {
+            a.id(origin3).null().null();
+        })?;
+
+        let model_ctx = w.entity("IFCGEOMETRICREPRESENTATIONCONTEXT", |a| {
+            a.null()
+                .string("Model")
+                .int(3)
+                .real(1e-5)
+                .id(identity)
+                .id(true_north);
+        })?;
+        let sub = |w: &mut StepWriter<W>, ident: &str, view: &str| {
+            w.entity("IFCGEOMETRICREPRESENTATIONSUBCONTEXT", |a| {
+                a.string(ident)
+                    .string("Model")
+                    .derived()
+                    .derived()
+                    .derived()
+                    .derived();
+                a.id(model_ctx).null().enumeration(view).null();
+            })
+        };
+        let body_ctx = sub(&mut w, "Body", "MODEL_VIEW")?;
+        let axis_ctx = sub(&mut w, "Axis", "GRAPH_VIEW")?;
+
+        let mut si = |kind: &str, name: &str| {
+            w.entity("IFCSIUNIT", |a| {
+                a.derived().enumeration(kind).null().enumeration(name);
+            })
+        };
+        let metre = si("LENGTHUNIT", "METRE")?;
+        let units = [
+            metre,
+            si("AREAUNIT", "SQUARE_METRE")?,
+            si("VOLUMEUNIT", "CUBIC_METRE")?,
+            si("PLANEANGLEUNIT", "RADIAN")?,
+        ];
+        let unit_assignment = w.entity("IFCUNITASSIGNMENT", |a| {
+            a.ids(&units);
+        })?;
+        let project = w.entity("IFCPROJECT", |a| {
+            a.string(&global_id(&ns, "project"))
+                .null()
+                .string(&ctx.source_name);
+            a.string(&format!(
+                "citygen model of {} (LOD{}, seed {})",
+                ctx.source_name,
+                ctx.lod.number(),
+                ctx.seed
+            ));
+            a.null().null().null().ids(&[model_ctx]).id(unit_assignment);
+        })?;
+
+        let epsg = ctx.crs.epsg();
+        let crs_name = ctx.crs.name();
+        let crs = w.entity("IFCPROJECTEDCRS", |a| {
+            a.string(&format!("EPSG:{epsg}"))
+                .string(&crs_name)
+                .null()
+                .null()
+                .null()
+                .null()
+                .id(metre);
+        })?;
+        w.entity("IFCMAPCONVERSION", |a| {
+            a.id(model_ctx)
+                .id(crs)
+                .real(ctx.origin.x)
+                .real(ctx.origin.y)
+                .real(ctx.origin.z);
+            a.real(1.0).real(0.0).real(1.0);
+        })?;
+
+        let site_placement = w.entity("IFCLOCALPLACEMENT", |a| {
+            a.null().id(identity);
+        })?;
+        let (lon, lat) = ctx.origin_lonlat;
+        let site = w.entity("IFCSITE", |a| {
+            a.string(&global_id(&ns, "site"))
+                .null()
+                .string("Site")
+                .null()
+                .null()
+                .id(site_placement);
+            a.null().null().enumeration("ELEMENT");
+            match compound_angle(lat).filter(|_| lat.abs() <= 90.0) {
+                Some(v) => a.ints(&v),
+                None => a.null(),
+            };
+            match compound_angle(lon) {
+                Some(v) => a.ints(&v),
+                None => a.null(),
+            };
+            a.real(ctx.origin.z).null().null();
+        })?;
+        w.entity("IFCRELAGGREGATES", |a| {
+            a.string(&global_id(&ns, "project/site"))
+                .null()
+                .null()
+                .null()
+                .id(project)
+                .ids(&[site]);
+        })?;
+        let wall_material = w.entity("IFCMATERIAL", |a| {
+            a.string("Wall").null().string("Wall");
+        })?;
+
+        Ok(Open {
+            w,
+            ns,
+            origin3,
+            origin2,
+            dir_x,
+            dir_z,
+            dir_neg_y,
+            dir_neg_z,
+            identity,
+            body_ctx,
+            axis_ctx,
+            site,
+            site_placement,
+            wall_material,
+            origin_z: ctx.origin.z,
+            usages: BTreeMap::new(),
+            styles: BTreeMap::new(),
+            buildings: Vec::new(),
+            keys: BTreeSet::new(),
+            lod3: ctx.lod >= Lod::Lod3,
+            project,
+            shared: Lod3Shared::default(),
+        })
+    }
+
+    pub(super) fn finish(mut self) -> Result<W, ExportError> {
+        if !self.buildings.is_empty() {
+            let (gid, site, buildings) = (
+                global_id(&self.ns, "site/buildings"),
+                self.site,
+                &self.buildings,
+            );
+            self.w.entity("IFCRELAGGREGATES", |a| {
+                a.string(&gid).null().null().null().id(site).ids(buildings);
+            })?;
+        }
+        // Window and door types: one IfcRelDefinesByType each (a type has at most one), and
+        // all declared in the project.
+        let types = std::mem::take(&mut self.shared.types);
+        let mut declared = Vec::with_capacity(types.len());
+        for (key, t) in types.iter().filter(|(_, t)| !t.occurrences.is_empty()) {
+            let gid = global_id(&self.ns, &format!("type/{}/rel", key.name()));
+            self.w.entity("IFCRELDEFINESBYTYPE", |a| {
+                a.string(&gid)
+                    .null()
+                    .null()
+                    .null()
+                    .ids(&t.occurrences)
+                    .id(t.id);
+            })?;
+            declared.push(t.id);
+        }
+        if !declared.is_empty() {
+            let (gid, project) = (global_id(&self.ns, "project/types"), self.project);
+            self.w.entity("IFCRELDECLARES", |a| {
+                a.string(&gid)
+                    .null()
+                    .null()
+                    .null()
+                    .id(project)
+                    .ids(&declared);
+            })?;
+        }
+        Ok(self.w.finish()?)
+    }
+
+    /// Storey `i` of part `pk` at elevation `elev` (relative to the building), placed relative to
+    /// `holder_pl`: returns the storey and its placement.
+    pub(super) fn storey(
+        &mut self,
+        key: &str,
+        pk: &str,
+        i: usize,
+        holder_pl: Id,
+        elev: f64,
+    ) -> Result<(Id, Id), ExportError> {
+        let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
+        let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
+            a.string(&global_id(key, &format!("{pk}/storey/{i}")))
+                .null()
+                .string(&format!("Storey {i}"));
+            a.null()
+                .null()
+                .id(pl)
+                .null()
+                .null()
+                .enumeration("ELEMENT")
+                .real(elev);
+        })?;
+        Ok((storey, pl))
+    }
+
+    pub(super) fn building(&mut self, b: &Building) -> Result<(), ExportError> {
+        check_finite("IFC writer", b)?;
+        // GlobalIds derive from the key; a repeated key gets a suffix so ids stay unique.
+        let mut key = b.key();
+        let mut n = 1;
+        while !self.keys.insert(hash128("building key", &key)) {
+            n += 1;
+            key = format!("{}~{n}", b.key());
+        }
+
+        let anchor = b
+            .parts
+            .first()
+            .and_then(|p| p.footprint.outer.first())
+            .copied()
+            .unwrap_or(DVec2::ZERO);
+        let anchor = DVec3::new(anchor.x, anchor.y, b.base_z);
+        let site_pl = self.site_placement;
+        let placement = self.placement(site_pl, anchor, DVec3::X)?;
+        let name = b.name.clone().unwrap_or_else(|| b.key());
+        let description = format!("{} ({})", b.id, b.zone);
+        let composite = b.parts.len() > 1;
+        // Height of the building's +-0.00 above the CRS datum (storey elevations count from it).
+        let datum_z = self.origin_z + b.base_z;
+        let building = self.w.entity("IFCBUILDING", |a| {
+            a.string(&global_id(&key, "building"))
+                .null()
+                .string(&name)
+                .string(&description)
+                .null();
+            a.id(placement).null().opt_string(b.name.as_deref());
+            a.enumeration(if composite { "COMPLEX" } else { "ELEMENT" });
+            a.real(datum_z).real(datum_z).null();
+        })?;
+        self.building_psets(b, &key, building)?;
+
+        let mut walls = Vec::new();
+        if composite {
+            let mut partials = Vec::with_capacity(b.parts.len());
+            for part in &b.parts {
+                let pl = self.placement(placement, DVec3::ZERO, DVec3::X)?;
+                let pname = format!("{name} {}", part.key);
+                let partial = self.w.entity("IFCBUILDING", |a| {
+                    a.string(&global_id(&key, &format!("{}/building", part.key)))
+                        .null()
+                        .string(&pname);
+                    a.null()
+                        .null()
+                        .id(pl)
+                        .null()
+                        .null()
+                        .enumeration("PARTIAL")
+                        .null()
+                        .null()
+                        .null();
+                })?;
+                partials.push(partial);
+                walls.extend(self.part(part, &key, partial, pl, anchor)?);
+            }
+            self.w.entity("IFCRELAGGREGATES", |a| {
+                a.string(&global_id(&key, "building/parts"))
+                    .null()
+                    .null()
+                    .null()
+                    .id(building)
+                    .ids(&partials);
+            })?;
+        } else if let Some(part) = b.parts.first() {
+            walls.extend(self.part(part, &key, building, placement, anchor)?);
+        }
+
+        if !walls.is_empty() {
+            self.wall_common(&key, "walls/pset", true, &walls)?;
+        }
+        self.buildings.push(building);
+        Ok(())
+    }
+
+    /// Writes a part's storeys and elements under `holder` (the building or partial building,
+    /// placed at `anchor`). Returns the ids of its walls.
+    fn part(
+        &mut self,
+        part: &Part,
+        key: &str,
+        holder: Id,
+        holder_pl: Id,
+        anchor: DVec3,
+    ) -> Result<Vec<Id>, ExportError> {
+        if self.lod3 {
+            return self.part_lod3(part, key, holder, holder_pl, anchor);
+        }
+        let pk = &part.key;
+        let n = part.storeys.clamp(1, MAX_STOREYS);
+        let span = part.eave_z - part.base_z;
+        let n = if span > EPS { n } else { 1 };
+        let mut storeys = Vec::with_capacity(n as usize);
+        let mut storey0_pl = holder_pl;
+        for i in 0..n {
+            let elev = part.base_z + span * f64::from(i) / f64::from(n) - anchor.z;
+            let (storey, pl) = self.storey(key, pk, i as usize, holder_pl, elev)?;
+            if i == 0 {
+                storey0_pl = pl;
+            }
+            storeys.push(storey);
+        }
+        self.w.entity("IFCRELAGGREGATES", |a| {
+            a.string(&global_id(key, &format!("{pk}/storeys")))
+                .null()
+                .null()
+                .null()
+                .id(holder)
+                .ids(&storeys);
+        })?;
+
+        let frame = ElementFrame {
+            origin: DVec3::new(anchor.x, anchor.y, part.base_z),
+            placement: storey0_pl,
+        };
+        let mut contained = Vec::new();
+        let mut by_usage: BTreeMap<Id, Vec<Id>> = BTreeMap::new();
+        let mut walls = Vec::new();
+        for (i, wall) in part.walls.iter().enumerate() {
+            if let Some(id) = self.wall(
+                part,
+                wall,
+                &frame,
+                &global_id(key, &format!("{pk}/wall/{i}")),
+                i,
+            )? {
+                let id = id.0;
+                let usage = self.usage(wall.thickness)?;
+                by_usage.entry(usage).or_default().push(id);
+                walls.push(id);
+                contained.push(id);
+            }
+        }
+        if let Some(id) = self.slab(part, &frame, &global_id(key, &format!("{pk}/slab")))? {
+            contained.push(id);
+        }
+        if let Some(id) = self.roof(part, &frame, &global_id(key, &format!("{pk}/roof")))? {
+            contained.push(id);
+        }
+        if !contained.is_empty() {
+            let storey0 = storeys[0];
+            self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
+                a.string(&global_id(key, &format!("{pk}/contained")))
+                    .null()
+                    .null()
+                    .null();
+                a.ids(&contained).id(storey0);
+            })?;
+        }
+        self.associate_materials(key, pk, by_usage)?;
+        Ok(walls)
+    }
+
+    /// LOD3 part: one storey per entry of `part.levels` (elevation relative to the building),
+    /// each wall in its storey (`Wall::storey`) with its openings, windows, doors and balconies;
+    /// the base slab in the first storey and the roof in the top one. Returns the wall ids.
+    fn part_lod3(
+        &mut self,
+        part: &Part,
+        key: &str,
+        holder: Id,
+        holder_pl: Id,
+        anchor: DVec3,
+    ) -> Result<Vec<Id>, ExportError> {
+        let pk = &part.key;
+        let mut levels: Vec<f64> = part
+            .levels
+            .iter()
+            .copied()
+            .take(MAX_STOREYS as usize)
+            .collect();
+        if levels.is_empty() {
+            levels.push(part.base_z);
+        }
+        let mut storeys = Vec::with_capacity(levels.len());
+        let mut frames = Vec::with_capacity(levels.len());
+        for (i, &level) in levels.iter().enumerate() {
+            let elev = level - anchor.z;
+            let (storey, pl) = self.storey(key, pk, i, holder_pl, elev)?;
+            storeys.push(storey);
+            frames.push(ElementFrame {
+                origin: DVec3::new(anchor.x, anchor.y, level),
+                placement: pl,
+            });
+        }
+        self.w.entity("IFCRELAGGREGATES", |a| {
+            a.string(&global_id(key, &format!("{pk}/storeys")))
+                .null()
+                .null()
+                .null()
+                .id(holder)
+                .ids(&storeys);
+        })?;
+
+        let top = storeys.len() - 1;
+        let mut contained: Vec<Vec<Id>> = vec![Vec::new(); storeys.len()];
+        let mut by_usage: BTreeMap<Id, Vec<Id>> = BTreeMap::new();
+        let mut walls = Vec::new();
+        for (i, wall) in part.walls.iter().enumerate() {
+            let s = wall.storey.min(top);
+            let path = format!("{pk}/wall/{i}");
+            let Some((id, wall_pl)) =
+                self.wall(part, wall, &frames[s], &global_id(key, &path), i)?
+            else {
+                continue;
+            };
+            let usage = self.usage(wall.thickness)?;
+            by_usage.entry(usage).or_default().push(id);
+            walls.push(id);
+            contained[s].push(id);
+            for (j, o) in wall.openings.iter().enumerate() {
+                let path = format!("{path}/opening/{j}");
+                if let Some(fill) = self.opening(wall, id, wall_pl, o, key, &path, (i, j))? {
+                    contained[s].push(fill);
+                }
+            }
+            for (j, b) in wall.balconies.iter().enumerate() {
+                let path = format!("{path}/balcony/{j}");
+                let ids = self.balcony(wall, b, &frames[s], key, &path)?;
+                contained[s].extend(ids);
+            }
+        }
+        if !part.interior.is_empty() {
+            self.interiors(part, key, &storeys, &frames, &mut contained, &mut by_usage)?;
+        }
+        if let Some(id) = self.slab(part, &frames[0], &global_id(key, &format!("{pk}/slab")))? {
+            contained[0].push(id);
+        }
+        if let Some(id) = self.roof(part, &frames[top], &global_id(key, &format!("{pk}/roof")))? {
+            contained[top].push(id);
+        }
+        for (s, ids) in contained.iter().enumerate() {
+            if ids.is_empty() {
+                continue;
+            }
+            let path = if s == 0 {
+                format!("{pk}/contained")
+            } else {
+                format!("{pk}/contained/{s}")
+            };
+            let storey = storeys[s];
+            self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
+                a.string(&global_id(key, &path)).null().null().null();
+                a.ids(ids).id(storey);
+            })?;
+        }
+        self.associate_materials(key, pk, by_usage)?;
+        Ok(walls)
+    }
+}

@@ -1,0 +1,248 @@
+//! Styles, materials and property sets of the IFC writer: surface styles and renderings per
+//! colour, material layer set usages per wall thickness, their associations, and the building's
+//! property sets.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+
+use crate::color::Color;
+use crate::export::step::{global_id, Id, StepWriter};
+use crate::export::ExportError;
+use crate::model::Building;
+
+use super::Open;
+
+impl<W: Write> Open<W> {
+    /// One `IfcRelAssociatesMaterial` per material layer set usage, for the walls using it.
+    pub(super) fn associate_materials(
+        &mut self,
+        key: &str,
+        pk: &str,
+        by_usage: BTreeMap<Id, Vec<Id>>,
+    ) -> Result<(), ExportError> {
+        for (usage, ids) in by_usage {
+            self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
+                a.string(&global_id(key, &format!("{pk}/material/{}", usage.0)))
+                    .null()
+                    .null()
+                    .null();
+                a.ids(&ids).id(usage);
+            })?;
+        }
+        Ok(())
+    }
+
+    /// The shared surface style of a colour.
+    fn style(&mut self, c: Color) -> Result<Id, ExportError> {
+        let key = color_key(c);
+        if let Some(&id) = self.styles.get(&key) {
+            return Ok(id);
+        }
+        let rgb = self.w.entity("IFCCOLOURRGB", |a| {
+            a.null()
+                .real(f64::from(key[0]) / 1000.0)
+                .real(f64::from(key[1]) / 1000.0)
+                .real(f64::from(key[2]) / 1000.0);
+        })?;
+        let shading = self.w.entity("IFCSURFACESTYLESHADING", |a| {
+            a.id(rgb);
+            if key[3] < 1000 {
+                a.real(1.0 - f64::from(key[3]) / 1000.0);
+            } else {
+                a.null();
+            }
+        })?;
+        let name = c.to_hex();
+        let style = self.w.entity("IFCSURFACESTYLE", |a| {
+            a.string(&name).enumeration("BOTH").ids(&[shading]);
+        })?;
+        self.styles.insert(key, style);
+        Ok(style)
+    }
+
+    pub(super) fn styled(&mut self, item: Id, c: Color) -> Result<(), ExportError> {
+        let style = self.style(c)?;
+        self.w.entity("IFCSTYLEDITEM", |a| {
+            a.id(item).ids(&[style]).null();
+        })?;
+        Ok(())
+    }
+
+    /// The shared material layer set usage of a wall thickness.
+    pub(super) fn usage(&mut self, thickness: f64) -> Result<Id, ExportError> {
+        let key = (thickness * 1e6).round() as i64;
+        if let Some(&id) = self.usages.get(&key) {
+            return Ok(id);
+        }
+        let t = key as f64 / 1e6;
+        let mat = self.wall_material;
+        let layer = self.w.entity("IFCMATERIALLAYER", |a| {
+            a.id(mat).real(t).null().string("Wall").null().null().null();
+        })?;
+        let name = format!("Wall {:.0} mm", t * 1000.0);
+        let set = self.w.entity("IFCMATERIALLAYERSET", |a| {
+            a.ids(&[layer]).string(&name).null();
+        })?;
+        let usage = self.w.entity("IFCMATERIALLAYERSETUSAGE", |a| {
+            a.id(set)
+                .enumeration("AXIS2")
+                .enumeration("POSITIVE")
+                .real(0.0)
+                .null();
+        })?;
+        self.usages.insert(key, usage);
+        Ok(usage)
+    }
+
+    /// The shared rendering style of a colour with a transparency (0 opaque .. 1 invisible).
+    fn rendering(&mut self, c: Color, transparency: f64) -> Result<Id, ExportError> {
+        let ck = color_key(c);
+        let tk = (transparency.clamp(0.0, 1.0) * 1000.0).round() as u16;
+        if let Some(&id) = self.shared.renderings.get(&(ck, tk)) {
+            return Ok(id);
+        }
+        let rgb = self.w.entity("IFCCOLOURRGB", |a| {
+            a.null()
+                .real(f64::from(ck[0]) / 1000.0)
+                .real(f64::from(ck[1]) / 1000.0)
+                .real(f64::from(ck[2]) / 1000.0);
+        })?;
+        let rendering = self.w.entity("IFCSURFACESTYLERENDERING", |a| {
+            a.id(rgb);
+            if tk > 0 {
+                a.real(f64::from(tk) / 1000.0);
+            } else {
+                a.null();
+            }
+            a.null().null().null().null().null().null();
+            a.enumeration("NOTDEFINED");
+        })?;
+        let name = if tk > 0 {
+            format!("{} {}%", c.to_hex(), tk / 10)
+        } else {
+            c.to_hex()
+        };
+        let style = self.w.entity("IFCSURFACESTYLE", |a| {
+            a.string(&name).enumeration("BOTH").ids(&[rendering]);
+        })?;
+        self.shared.renderings.insert((ck, tk), style);
+        Ok(style)
+    }
+
+    pub(super) fn rendered(
+        &mut self,
+        item: Id,
+        c: Color,
+        transparency: f64,
+    ) -> Result<(), ExportError> {
+        let style = self.rendering(c, transparency)?;
+        self.w.entity("IFCSTYLEDITEM", |a| {
+            a.id(item).ids(&[style]).null();
+        })?;
+        Ok(())
+    }
+
+    pub(super) fn building_psets(
+        &mut self,
+        b: &Building,
+        key: &str,
+        building: Id,
+    ) -> Result<(), ExportError> {
+        let mut props = Vec::new();
+        let source = b.id.to_string();
+        let single = |w: &mut StepWriter<W>,
+                      name: &str,
+                      ty: &str,
+                      f: &dyn Fn(&mut crate::export::step::Args<'_>)| {
+            w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+                a.string(name).null().typed(ty, |t| f(t)).null();
+            })
+        };
+        props.push(single(&mut self.w, "SourceId", "IFCIDENTIFIER", &|t| {
+            t.string(&source);
+        })?);
+        props.push(single(&mut self.w, "Zone", "IFCLABEL", &|t| {
+            t.string(&b.zone);
+        })?);
+        props.push(single(&mut self.w, "Appearance", "IFCLABEL", &|t| {
+            t.string(&b.appearance);
+        })?);
+        props.push(single(
+            &mut self.w,
+            "MeasuredHeight",
+            "IFCLENGTHMEASURE",
+            &|t| {
+                t.real(b.measured_height);
+            },
+        )?);
+        props.push(single(&mut self.w, "Lod", "IFCINTEGER", &|t| {
+            t.int(i64::from(b.lod.number()));
+        })?);
+        props.push(single(&mut self.w, "RoofShape", "IFCLABEL", &|t| {
+            t.string(b.roof_shape.osm_name());
+        })?);
+        let storeys = single(&mut self.w, "NumberOfStoreys", "IFCINTEGER", &|t| {
+            t.int(i64::from(b.storeys_above_ground));
+        })?;
+        for (name, props, path) in [
+            ("Citygen_Source", &props[..], "pset/source"),
+            ("Pset_BuildingCommon", &[storeys][..], "pset/common"),
+        ] {
+            let pset = self.w.entity("IFCPROPERTYSET", |a| {
+                a.string(&global_id(key, path))
+                    .null()
+                    .string(name)
+                    .null()
+                    .ids(props);
+            })?;
+            self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
+                a.string(&global_id(key, &format!("{path}/rel")))
+                    .null()
+                    .null()
+                    .null()
+                    .ids(&[building])
+                    .id(pset);
+            })?;
+        }
+        Ok(())
+    }
+
+    /// A `Pset_WallCommon` with IsExternal `external` (GlobalId path `path`, its relation
+    /// `{path}/rel`) on `walls`.
+    pub(super) fn wall_common(
+        &mut self,
+        key: &str,
+        path: &str,
+        external: bool,
+        walls: &[Id],
+    ) -> Result<(), ExportError> {
+        let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+            a.string("IsExternal").null().typed("IFCBOOLEAN", |t| {
+                t.boolean(external);
+            });
+            a.null();
+        })?;
+        let pset = self.w.entity("IFCPROPERTYSET", |a| {
+            a.string(&global_id(key, path))
+                .null()
+                .string("Pset_WallCommon")
+                .null()
+                .ids(&[prop]);
+        })?;
+        self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
+            a.string(&global_id(key, &format!("{path}/rel")))
+                .null()
+                .null()
+                .null()
+                .ids(walls)
+                .id(pset);
+        })?;
+        Ok(())
+    }
+}
+
+/// A colour as a cache key (components in thousandths).
+pub(super) fn color_key(c: Color) -> [u16; 4] {
+    let q = |v: f32| (v.clamp(0.0, 1.0) * 1000.0).round() as u16;
+    [q(c.r), q(c.g), q(c.b), q(c.a)]
+}
