@@ -38,7 +38,3 @@ pub mod report;
 pub mod rng;
 #[cfg(any(test, feature = "testkit"))]
 pub mod testkit;
-
-// TEMPORARY (until the export split lands): the IFC writer's tests name `crate::massing`.
-#[cfg(test)]
-pub(crate) use derive::massing;

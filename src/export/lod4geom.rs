@@ -82,9 +82,13 @@ pub fn prism_faces(ring: &[DVec2], z0: f64, z1: f64) -> Vec<Face> {
 pub struct DoorSpan {
     /// Index of the door in [`StoreyInterior::doors`].
     pub door: usize,
+    /// Start of the door along the side, metres from the side's first vertex.
     pub t0: f64,
+    /// End of the door along the side (metres, `t0 < t1`, both inside the side).
     pub t1: f64,
+    /// Bottom of the door leaf (metres, local frame: the storey's floor).
     pub z0: f64,
+    /// Top of the door leaf (metres).
     pub z1: f64,
 }
 
@@ -93,11 +97,16 @@ pub struct DoorSpan {
 /// side, each filling its hole exactly).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoomSide {
+    /// The side's first vertex (the room ring's vertex it starts at, local metres).
     pub a: DVec2,
+    /// The side's last vertex.
     pub b: DVec2,
+    /// The vertical face from floor to ceiling over `a`-`b`, pointing out of the room, with a
+    /// hole per door.
     pub face: Face,
     /// The interior wall this side lies on, if any (none: the side is on an exterior wall).
     pub wall: Option<usize>,
+    /// The doors on this side, in the order of their holes in `face`.
     pub doors: Vec<DoorSpan>,
     /// The doors' rectangles, in the order of `doors`.
     pub door_faces: Vec<Face>,
@@ -107,8 +116,11 @@ pub struct RoomSide {
 /// with the sides' door rectangles, every edge of the shell is shared by exactly two faces.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoomShell {
+    /// The room's polygon at floor height, pointing down.
     pub floor: Face,
+    /// The room's polygon at ceiling height, pointing up.
     pub ceiling: Face,
+    /// One vertical side per edge of the room's ring, in ring order.
     pub sides: Vec<RoomSide>,
 }
 
@@ -396,8 +408,11 @@ pub fn door_leaf(s: &StoreyInterior, d: &InteriorDoor) -> Option<[Face; 2]> {
 /// One step of a stair: a block over `ring` (counter-clockwise) from `z0` up to its tread `z1`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Step {
+    /// The step's plan rectangle (local metres, counter-clockwise).
     pub ring: [DVec2; 4],
+    /// Bottom of the block: the storey's floor (metres).
     pub z0: f64,
+    /// Top of the block: this step's tread (metres).
     pub z1: f64,
 }
 

@@ -30,16 +30,23 @@ pub struct OutputContext {
     pub origin: DVec3,
     /// The origin as WGS84 (lon, lat) degrees.
     pub origin_lonlat: (f64, f64),
+    /// The run's level of detail (`--lod`): the buildings are already cut at it.
     pub lod: Lod,
     /// Name of the input file (for headers and descriptions).
     pub source_name: String,
+    /// The run's `--seed`: written in the files' descriptions, and part of the namespace of
+    /// the IFC GlobalIds.
     pub seed: u64,
 }
 
+/// Why a writer could not write.
 #[derive(Debug, Error)]
 pub enum ExportError {
+    /// The output (or a scratch file) could not be written.
     #[error("write failed: {0}")]
     Io(#[from] io::Error),
+    /// What the writer was given cannot be written as a valid file: a non-finite coordinate,
+    /// a call out of order, a file over a format limit. The message says which.
     #[error("{0}")]
     Invalid(String),
 }
@@ -61,7 +68,9 @@ pub const PARALLEL_BATCH: usize = 16;
 /// pure function of the context and the buildings in order (no clock, no randomness), so equal
 /// inputs give byte-identical files.
 pub trait BuildingWriter: Send {
+    /// Starts the file: header, project and site, or their equivalents, from the run's context.
     fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError>;
+    /// Writes one building (after [`BuildingWriter::begin`], in output order).
     fn write(&mut self, building: &Building) -> Result<(), ExportError>;
     /// Writes `buildings` in order: the same bytes as `write` on each, and the same first error.
     /// A writer whose per-building work needs none of its state does that work in parallel

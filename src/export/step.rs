@@ -173,10 +173,15 @@ pub struct Header {
     pub name: String,
     /// FILE_NAME.time_stamp (ISO 8601). Fixed, never the clock: see [`timestamp_from_env`].
     pub time_stamp: String,
+    /// FILE_NAME.author.
     pub author: String,
+    /// FILE_NAME.organization.
     pub organization: String,
+    /// FILE_NAME.preprocessor_version: the software that wrote the STEP encoding.
     pub preprocessor_version: String,
+    /// FILE_NAME.originating_system: the software the model comes from.
     pub originating_system: String,
+    /// FILE_NAME.authorization.
     pub authorization: String,
     /// FILE_SCHEMA, e.g. `IFC4`.
     pub schema: String,

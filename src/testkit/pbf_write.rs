@@ -22,8 +22,11 @@ pub const BLOCK_ENTITIES: usize = 8_000;
 /// The type of a relation member.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MemberKind {
+    /// A node member (PBF member type 0).
     Node,
+    /// A way member (type 1).
     Way,
+    /// A relation member (type 2).
     Relation,
 }
 

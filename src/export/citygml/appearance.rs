@@ -5,34 +5,9 @@ use crate::color::Color;
 use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::model::{Building, OpeningKind};
 
+use super::material::{x3d_material, ColorKey};
 use super::surfaces::{surfaces, written_walls, SurfaceKind};
-use super::xml::Xml;
 use super::{lod4, GeometryLod, Renderer, APPEARANCE_THEME, GLASS_TRANSPARENCY};
-
-/// A colour quantised as written (4 decimals), used to merge equal materials.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct ColorKey {
-    pub(super) rgb: [u16; 3],
-    /// Transparency (1 - alpha) in 1/10000.
-    pub(super) transparency: u16,
-}
-
-impl ColorKey {
-    pub(super) fn of(c: Color) -> ColorKey {
-        let q = |v: f32| {
-            if v.is_finite() {
-                (v.clamp(0.0, 1.0) * 10_000.0).round() as u16
-            } else {
-                0
-            }
-        };
-        let alpha = if c.a.is_finite() { c.a } else { 1.0 };
-        ColorKey {
-            rgb: [q(c.r), q(c.g), q(c.b)],
-            transparency: 10_000 - q(alpha),
-        }
-    }
-}
 
 /// A polygon an appearance targets: (part index, kind, index in the part's list).
 pub(super) type Target = (usize, SurfaceKind, usize);
@@ -127,41 +102,4 @@ pub(super) fn add_target(
         Some((_, targets)) => targets.push(target),
         None => materials.push((key, vec![target])),
     }
-}
-
-/// Writes one `app:surfaceDataMember` holding an `app:X3DMaterial` with id `{id[0]}{id[1]}{n}`
-/// (e.g. `B_way_1_m0`) of the colour `key` (its `app:transparency` only when not opaque),
-/// targeting each of `targets` by the polygon id `target` writes for it. Used for the
-/// exterior's materials and for the LOD4 interior's ([`lod4::materials`]).
-pub(super) fn x3d_material<T>(
-    x: &mut Xml,
-    id: [&str; 2],
-    n: usize,
-    key: ColorKey,
-    targets: &[T],
-    target: impl Fn(&mut Xml, &T),
-) {
-    x.s("<app:surfaceDataMember>\n<app:X3DMaterial gml:id=\"");
-    x.s(id[0]);
-    x.s(id[1]);
-    x.uint(n as u64);
-    x.s("\">\n<app:diffuseColor>");
-    for (i, c) in key.rgb.iter().enumerate() {
-        if i > 0 {
-            x.s(" ");
-        }
-        x.fixed4(*c);
-    }
-    x.s("</app:diffuseColor>\n");
-    if key.transparency > 0 {
-        x.s("<app:transparency>");
-        x.fixed4(key.transparency);
-        x.s("</app:transparency>\n");
-    }
-    for t in targets {
-        x.s("<app:target>#");
-        target(x, t);
-        x.s("</app:target>\n");
-    }
-    x.s("</app:X3DMaterial>\n</app:surfaceDataMember>\n");
 }

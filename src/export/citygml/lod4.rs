@@ -25,7 +25,7 @@
 
 use glam::DVec3;
 
-use super::appearance::{x3d_material, ColorKey};
+use super::material::{x3d_material, ColorKey};
 use super::surfaces::surfaces;
 use super::xml::Xml;
 use crate::color::Color;

@@ -63,6 +63,7 @@ use xml::Xml;
 mod appearance;
 mod building;
 mod lod4;
+mod material;
 mod openings;
 mod surfaces;
 mod xml;

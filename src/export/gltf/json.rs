@@ -4,7 +4,15 @@ use std::io;
 
 use serde::Serialize;
 
-use super::spool::{Spool, ACCESSORS, MESHES, NODES, VIEWS};
+/// Index of each growing array of the document in the writer's spools
+/// ([`super::GltfWriter`]): the nodes, meshes, accessors and buffer views, in that order.
+pub(super) const NODES: usize = 0;
+/// The meshes' array (see [`NODES`]).
+pub(super) const MESHES: usize = 1;
+/// The accessors' array (see [`NODES`]).
+pub(super) const ACCESSORS: usize = 2;
+/// The buffer views' array (see [`NODES`]).
+pub(super) const VIEWS: usize = 3;
 
 #[derive(Default)]
 pub(super) struct Document {
@@ -24,8 +32,9 @@ pub(super) enum Piece {
 impl Document {
     /// The JSON chunk in document order (the key order of the glTF JSON is fixed: asset, scene,
     /// scenes, nodes, meshes, materials, accessors, bufferViews, buffers; empty arrays are left
-    /// out), with the growing arrays as references to `spools`.
-    pub(super) fn pieces(&self, spools: &[Spool; 4]) -> io::Result<Vec<Piece>> {
+    /// out), with the growing arrays as references to the spools; `counts` are the records in
+    /// each spool (indexed by [`NODES`], [`MESHES`], [`ACCESSORS`], [`VIEWS`]).
+    pub(super) fn pieces(&self, counts: [u32; 4]) -> io::Result<Vec<Piece>> {
         let head = Head {
             asset: Asset {
                 version: "2.0",
@@ -52,7 +61,7 @@ impl Document {
             text.push(b']');
         };
         for (key, i) in [("nodes", NODES), ("meshes", MESHES)] {
-            if spools[i].count() > 0 {
+            if counts[i] > 0 {
                 array(&mut pieces, &mut text, key, Piece::Spool(i));
             }
         }
@@ -63,7 +72,7 @@ impl Document {
             array(&mut pieces, &mut text, "materials", Piece::Text(m));
         }
         for (key, i) in [("accessors", ACCESSORS), ("bufferViews", VIEWS)] {
-            if spools[i].count() > 0 {
+            if counts[i] > 0 {
                 array(&mut pieces, &mut text, key, Piece::Spool(i));
             }
         }

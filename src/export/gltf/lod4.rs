@@ -3,7 +3,7 @@
 use crate::export::lod4geom;
 use crate::model::{Face, Part};
 
-use super::mesh::{group, Group};
+use super::group::{group, Group};
 use super::SurfaceClass;
 
 /// Adds the faces of `part`'s interiors of one LOD4 class (see the module documentation).

@@ -1,55 +1,16 @@
 //! Mesh building of the glTF writer: a building's faces grouped by surface class and colour,
 //! triangulated (flat shaded) and laid out as vertex and index bytes.
 
-use glam::DVec3;
-
 use crate::color::Color;
 use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
 use crate::export::{check_finite, ExportError};
-use crate::geometry::triangulate::triangulate_face;
-use crate::model::{Building, Face, OpeningKind, Part};
+use crate::model::{Building, OpeningKind, Part};
 
+use super::group::{group, Group};
 use super::lod4::add_interior;
-use super::materials::color_key;
 use super::{
     SurfaceClass, GLASS_ALPHA, GROUND_COLOR, OPENING_SETBACK, UNSIGNED_INT, UNSIGNED_SHORT,
 };
-
-/// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
-/// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
-pub(super) fn to_gltf(p: DVec3) -> [f32; 3] {
-    [p.x as f32 + 0.0, p.z as f32 + 0.0, (-p.y) as f32 + 0.0]
-}
-
-/// Faces of one surface class and one colour in one building.
-pub(super) struct Group {
-    pub(super) color: Color,
-    pub(super) color_key: [u32; 4],
-    pub(super) mesh: MeshData,
-}
-
-impl Group {
-    pub(super) fn add_face(&mut self, face: &Face) {
-        self.mesh.add_face(face);
-    }
-}
-
-/// The group of `color` in `groups`, created (last) on first use.
-pub(super) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
-    let key = color_key(color);
-    let i = match groups.iter().position(|g| g.color_key == key) {
-        Some(i) => i,
-        None => {
-            groups.push(Group {
-                color,
-                color_key: key,
-                mesh: MeshData::default(),
-            });
-            groups.len() - 1
-        }
-    };
-    &mut groups[i]
-}
 
 /// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation).
 pub(super) fn add_openings(groups: &mut Vec<Group>, part: &Part, kind: OpeningKind) {
@@ -207,52 +168,6 @@ pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError>
         vertex_bytes,
         index_bytes,
     })
-}
-
-/// Flat-shaded triangle data of one primitive.
-#[derive(Default)]
-pub(super) struct MeshData {
-    pub(super) positions: Vec<[f32; 3]>,
-    pub(super) normals: Vec<[f32; 3]>,
-    pub(super) indices: Vec<u32>,
-}
-
-impl MeshData {
-    /// Appends a face with its own vertices and normal; degenerate faces add nothing.
-    pub(super) fn add_face(&mut self, face: &Face) {
-        let Some(t) = triangulate_face(&face.outer, &face.holes) else {
-            return;
-        };
-        let positions: Vec<[f32; 3]> = t.vertices.iter().map(|p| to_gltf(*p)).collect();
-        // Coordinates beyond f32 range (never in a local frame, but input is input).
-        if positions.iter().flatten().any(|c| !c.is_finite()) {
-            return;
-        }
-        let Ok(base) = u32::try_from(self.positions.len()) else {
-            return;
-        };
-        if u32::try_from(self.positions.len() + positions.len()).is_err() {
-            return;
-        }
-        let n = to_gltf(t.normal);
-        self.normals.extend(std::iter::repeat_n(n, positions.len()));
-        self.positions.extend(positions);
-        self.indices
-            .extend(t.triangles.iter().flatten().map(|i| base + i));
-    }
-
-    /// Component-wise min and max of the positions (as glTF requires for POSITION).
-    fn bounds(&self) -> ([f32; 3], [f32; 3]) {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for p in &self.positions {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        (lo, hi)
-    }
 }
 
 /// Where one primitive's data lies in its building's vertex and index views.

@@ -55,6 +55,7 @@ use json::{AssetExtras, Document};
 use mesh::encode;
 use spool::Spool;
 
+mod group;
 mod json;
 mod lod4;
 mod materials;

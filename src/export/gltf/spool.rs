@@ -12,20 +12,12 @@ use crate::model::Building;
 use super::json::{
     AccessorRec, Attributes, BuildingExtras, MeshRec, NodeRec, Piece, PrimitiveRec, ViewRec,
 };
+use super::json::{ACCESSORS, MESHES, NODES, VIEWS};
 use super::mesh::{Encoded, PrimLayout};
 use super::{
     GltfWriter, State, ARRAY_BUFFER, CHUNK_BIN, CHUNK_JSON, ELEMENT_ARRAY_BUFFER, FLOAT, GLB_MAGIC,
     VEC3_STRIDE,
 };
-
-/// Index of each growing array in [`GltfWriter::spools`].
-pub(super) const NODES: usize = 0;
-
-pub(super) const MESHES: usize = 1;
-
-pub(super) const ACCESSORS: usize = 2;
-
-pub(super) const VIEWS: usize = 3;
 
 /// The serialised records of one JSON array, comma-separated, without the brackets.
 pub(super) enum Spool {
@@ -297,7 +289,7 @@ impl<W: Write + Send> GltfWriter<W> {
         let bin_len = self.bin_len;
         self.doc.buffer_length = bin_len;
 
-        let pieces = self.doc.pieces(&self.spools)?;
+        let pieces = self.doc.pieces(self.spools.each_ref().map(Spool::count))?;
         let json_len: u64 = pieces
             .iter()
             .map(|p| match p {

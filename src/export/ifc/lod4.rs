@@ -27,6 +27,7 @@ use std::io::Write;
 
 use glam::{DVec2, DVec3};
 
+use super::openings::Host;
 use super::{ElementFrame, Open, EPS};
 use crate::export::lod4geom;
 use crate::export::step::{global_id, Id};
@@ -102,7 +103,17 @@ impl<W: Write> Open<W> {
                         framed: true,
                     };
                     let dpath = format!("{path}/door/{di}");
-                    if let Some(fill) = self.opening(&wall, id, pl, &o, key, &dpath, (wi, di))? {
+                    if let Some(fill) = self.opening(
+                        &Host {
+                            wall: &wall,
+                            id,
+                            placement: pl,
+                        },
+                        &o,
+                        key,
+                        &dpath,
+                        (wi, di),
+                    )? {
                         contained[i].push(fill);
                     }
                 }

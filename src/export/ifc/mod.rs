@@ -41,10 +41,10 @@
 //! At LOD3 (`OutputContext::lod >= Lod3`) a part is written differently (LOD1/LOD2 files are
 //! unchanged):
 //!
-//! - One `IfcBuildingStorey` per entry of [`Part::levels`] (`Storey i`, Elevation relative to
+//! - One `IfcBuildingStorey` per entry of [`Part::levels`](crate::model::Part::levels) (`Storey i`, Elevation relative to
 //!   the building's placement). Each wall is placed in, and contained in, the storey
-//!   [`Wall::storey`] names; the base slab is in the first storey, the roof in the top one.
-//! - Each [`Opening`] is an `IfcOpeningElement` `.OPENING.` placed relative to its wall (at
+//!   [`Wall::storey`](crate::model::Wall::storey) names; the base slab is in the first storey, the roof in the top one.
+//! - Each [`Opening`](crate::model::Opening) is an `IfcOpeningElement` `.OPENING.` placed relative to its wall (at
 //!   (u0, -tolerance, z0 - wall base) in the wall's frame: X along the wall, Y into the wall
 //!   body, Z up), whose body is the opening's rectangle extruded across the wall, 1 cm past
 //!   each face; `IfcRelVoidsElement(wall, opening)`. It is filled (`IfcRelFillsElement`) by an
@@ -60,7 +60,7 @@
 //!   placement and relationships only. The `IfcRelDefinesByType` of each type (a type has at
 //!   most one) and an `IfcRelDeclares` of all types in the project are written by `finish`.
 //!   Opening bodies are shared the same way per (width, height, wall thickness).
-//! - A [`Balcony`] is an `IfcSlab` `.FLOOR.` named `Balcony` (its rectangle, 15 cm thick, top
+//! - A [`Balcony`](crate::model::Balcony) is an `IfcSlab` `.FLOOR.` named `Balcony` (its rectangle, 15 cm thick, top
 //!   at the balcony's floor height, outside the wall) and an `IfcRailing` `.BALUSTRADE.` (1 m
 //!   high, 5 cm thick, on the three free edges), both contained in the wall's storey.
 //! - Glazed facades are not written as `IfcCurtainWall`: windows only.
@@ -68,7 +68,7 @@
 //! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior
 //! doors, stairs, upper floor slabs) by the child module `lod4` (see there).
 //!
-//! GlobalIds are deterministic ([`global_id`]) from the building key and the element's path, so
+//! GlobalIds are deterministic ([`global_id`](crate::export::step::global_id)) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
 //! usages, and at LOD3 the shared opening shapes and fill offsets (at most

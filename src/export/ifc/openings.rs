@@ -94,21 +94,32 @@ pub(super) struct FillType {
     pub(super) occurrences: Vec<Id>,
 }
 
+/// The wall an opening is cut into, as written: the model's wall, its `IfcWallStandardCase`
+/// and the wall's local placement.
+#[derive(Clone, Copy)]
+pub(super) struct Host<'a> {
+    pub(super) wall: &'a Wall,
+    pub(super) id: Id,
+    pub(super) placement: Id,
+}
+
 impl<W: Write> Open<W> {
     /// One opening of `wall`: an `IfcOpeningElement` voiding the wall, filled by an `IfcWindow`
     /// or `IfcDoor` of a shared type. Returns the window or door (to be contained in the
     /// wall's storey), or `None` for an opening too small to build (nothing written then).
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn opening(
         &mut self,
-        wall: &Wall,
-        wall_id: Id,
-        wall_pl: Id,
+        host: &Host<'_>,
         o: &Opening,
         key: &str,
         path: &str,
         index: (usize, usize),
     ) -> Result<Option<Id>, ExportError> {
+        let Host {
+            wall,
+            id: wall_id,
+            placement: wall_pl,
+        } = *host;
         let (w, h) = (o.width(), o.height());
         let Some(tkey) = TypeKey::of(o, wall.thickness) else {
             return Ok(None);

@@ -9,6 +9,7 @@ use glam::{DVec2, DVec3};
 
 use crate::export::step::Id;
 use crate::export::ExportError;
+use crate::geometry::ring;
 
 use super::{Open, EPS};
 
@@ -210,26 +211,18 @@ impl<W: Write> Open<W> {
     }
 }
 
-/// Drops consecutive duplicate points (and a closing duplicate) of a ring, within `EPS`.
-fn clean_ring<T: Copy>(ring: &[T], dist: impl Fn(T, T) -> f64) -> Vec<T> {
-    let mut out: Vec<T> = Vec::with_capacity(ring.len());
-    for &p in ring {
-        if out.last().is_none_or(|&q| dist(p, q) > EPS) {
-            out.push(p);
-        }
-    }
-    while out.len() > 1 && dist(out[0], out[out.len() - 1]) <= EPS {
-        out.pop();
-    }
-    out
+/// A 2D ring without consecutive (or closing) points within `EPS` ([`ring::dedup_within`]).
+pub(super) fn clean2(r: &[DVec2]) -> Vec<DVec2> {
+    let mut v = r.to_vec();
+    ring::dedup_within(&mut v, EPS);
+    v
 }
 
-pub(super) fn clean2(ring: &[DVec2]) -> Vec<DVec2> {
-    clean_ring(ring, |a, b| a.distance(b))
-}
-
-pub(super) fn clean3(ring: &[DVec3]) -> Vec<DVec3> {
-    clean_ring(ring, |a, b| a.distance(b))
+/// [`clean2`] for a 3D ring.
+pub(super) fn clean3(r: &[DVec3]) -> Vec<DVec3> {
+    let mut v = r.to_vec();
+    ring::dedup_within(&mut v, EPS);
+    v
 }
 
 /// Key of a vertex quantised to micrometres, to share points and match edges.

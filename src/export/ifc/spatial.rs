@@ -11,6 +11,7 @@ use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
 use crate::export::{check_finite, ExportError, OutputContext};
 use crate::model::{Building, Lod, Part};
 
+use super::openings::Host;
 use super::{compound_angle, ElementFrame, Lod3Shared, Open, EPS, MAX_STOREYS};
 
 impl<W: Write> Open<W> {
@@ -455,7 +456,17 @@ impl<W: Write> Open<W> {
             contained[s].push(id);
             for (j, o) in wall.openings.iter().enumerate() {
                 let path = format!("{path}/opening/{j}");
-                if let Some(fill) = self.opening(wall, id, wall_pl, o, key, &path, (i, j))? {
+                if let Some(fill) = self.opening(
+                    &Host {
+                        wall,
+                        id,
+                        placement: wall_pl,
+                    },
+                    o,
+                    key,
+                    &path,
+                    (i, j),
+                )? {
                     contained[s].push(fill);
                 }
             }

@@ -87,7 +87,7 @@ fn flat_part(key: &str, fp: Polygon, base: f64, top: f64, storeys: u32) -> Part 
         eave_z: top,
         top_z: top,
         storeys,
-        levels: crate::massing::even_levels(base, top, storeys),
+        levels: crate::derive::massing::even_levels(base, top, storeys),
         wall_color: BEIGE,
         roof_color: RED,
         roof_shape: RoofShape::Flat,

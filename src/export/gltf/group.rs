@@ -1,0 +1,92 @@
+//! Faces grouped by colour within one surface class of a building, as flat-shaded triangle
+//! data in glTF's frame: what the exterior (`mesh`) and the interior (`lod4`) add faces to.
+
+use glam::DVec3;
+
+use crate::color::Color;
+use crate::geometry::triangulate::triangulate_face;
+use crate::model::Face;
+
+use super::materials::color_key;
+
+/// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
+/// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
+pub(super) fn to_gltf(p: DVec3) -> [f32; 3] {
+    [p.x as f32 + 0.0, p.z as f32 + 0.0, (-p.y) as f32 + 0.0]
+}
+
+/// Faces of one surface class and one colour in one building.
+pub(super) struct Group {
+    pub(super) color: Color,
+    pub(super) color_key: [u32; 4],
+    pub(super) mesh: MeshData,
+}
+
+impl Group {
+    pub(super) fn add_face(&mut self, face: &Face) {
+        self.mesh.add_face(face);
+    }
+}
+
+/// The group of `color` in `groups`, created (last) on first use.
+pub(super) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
+    let key = color_key(color);
+    let i = match groups.iter().position(|g| g.color_key == key) {
+        Some(i) => i,
+        None => {
+            groups.push(Group {
+                color,
+                color_key: key,
+                mesh: MeshData::default(),
+            });
+            groups.len() - 1
+        }
+    };
+    &mut groups[i]
+}
+
+/// Flat-shaded triangle data of one primitive.
+#[derive(Default)]
+pub(super) struct MeshData {
+    pub(super) positions: Vec<[f32; 3]>,
+    pub(super) normals: Vec<[f32; 3]>,
+    pub(super) indices: Vec<u32>,
+}
+
+impl MeshData {
+    /// Appends a face with its own vertices and normal; degenerate faces add nothing.
+    pub(super) fn add_face(&mut self, face: &Face) {
+        let Some(t) = triangulate_face(&face.outer, &face.holes) else {
+            return;
+        };
+        let positions: Vec<[f32; 3]> = t.vertices.iter().map(|p| to_gltf(*p)).collect();
+        // Coordinates beyond f32 range (never in a local frame, but input is input).
+        if positions.iter().flatten().any(|c| !c.is_finite()) {
+            return;
+        }
+        let Ok(base) = u32::try_from(self.positions.len()) else {
+            return;
+        };
+        if u32::try_from(self.positions.len() + positions.len()).is_err() {
+            return;
+        }
+        let n = to_gltf(t.normal);
+        self.normals.extend(std::iter::repeat_n(n, positions.len()));
+        self.positions.extend(positions);
+        self.indices
+            .extend(t.triangles.iter().flatten().map(|i| base + i));
+    }
+
+    /// Component-wise min and max of the positions (as glTF requires for POSITION).
+    pub(super) fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in &self.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (lo, hi)
+    }
+}
