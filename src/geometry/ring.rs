@@ -7,7 +7,7 @@
 //! | readers (`input::rings`) | [`dedup_by`] with exact equality | none |
 //! | prepare (`prepare`) | [`dedup_within`], then [`remove_spikes_by`] | `MERGE_TOLERANCE` |
 //! | massing (welded parts) | [`dedup_by`] and [`remove_spikes_by`], exact, on 3D rings | none |
-//! | straight skeleton | [`simplified_indices`] | relative to the footprint size |
+//! | straight skeleton | [`simplified_indices`]; [`dedup_within`] on its faces | relative to the footprint size |
 //! | LOD4 floor plans | [`pop_closing_by`], then [`remove_straight`] | 1e-9 / 1e-7 m |
 //! | writers | [`clean_ring`] (IFC also [`dedup_within`]) | 0.1 mm |
 //!
