@@ -54,7 +54,16 @@ pub enum ParseErrorKind {
     Unclosed,
     /// A file with no rule.
     NoRules,
+    /// An expression nested deeper than [`MAX_EXPR_DEPTH`] (parentheses, unary minus, `rand`
+    /// and chains of binary operators together).
+    TooDeep,
 }
+
+/// The deepest expression a rule file may hold: its tree depth, counting each `(`, unary `-`,
+/// `rand(...)` and binary operator on the way down. Real rules nest a few levels. The cap bounds
+/// the parser's recursion and every later walk of an expression (evaluation, lint, drop), so a
+/// hostile or generated file gets an error at its place instead of a stack overflow.
+pub const MAX_EXPR_DEPTH: usize = 128;
 
 /// A parse error: `file:line:col: message`, then the offending line and a caret under the place.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -73,6 +82,9 @@ pub struct GrammarError {
     pub line_text: String,
 }
 
+/// Characters of the offending line shown on each side of the place when the line is long.
+const CONTEXT_CHARS: usize = 80;
+
 impl fmt::Display for GrammarError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
@@ -80,13 +92,28 @@ impl fmt::Display for GrammarError {
             "{}:{}:{}: {}",
             self.file, self.line, self.col, self.message
         )?;
-        writeln!(f, "{}", self.line_text)?;
+        // A long line (a generated file, a hostile one) is shown as a window around the place.
+        let chars: Vec<char> = self.line_text.chars().collect();
+        let at = (self.col.saturating_sub(1) as usize).min(chars.len());
+        let (from, to) = if chars.len() > 2 * CONTEXT_CHARS {
+            let from = at.saturating_sub(CONTEXT_CHARS);
+            (from, (at + CONTEXT_CHARS).min(chars.len()))
+        } else {
+            (0, chars.len())
+        };
+        let (head, tail) = (
+            if from > 0 { "…" } else { "" },
+            if to < chars.len() { "…" } else { "" },
+        );
+        let shown: String = chars[from..to].iter().collect();
+        writeln!(f, "{head}{shown}{tail}")?;
         // The caret line reproduces tabs so that it lines up under the offending character.
-        let pad: String = self
-            .line_text
-            .chars()
-            .take(self.col.saturating_sub(1) as usize)
-            .map(|c| if c == '\t' { '\t' } else { ' ' })
+        let pad: String = std::iter::repeat_n(' ', head.chars().count())
+            .chain(
+                chars[from..at]
+                    .iter()
+                    .map(|&c| if c == '\t' { '\t' } else { ' ' }),
+            )
             .collect();
         write!(f, "{pad}^")
     }
@@ -337,6 +364,8 @@ struct Parser<'a> {
     toks: Vec<(Tok, Span)>,
     pos: usize,
     rs: RuleSet,
+    /// Unary levels open (`-`, `(`, `rand(`): the parser's recursion depth.
+    nesting: usize,
 }
 
 type PResult<T> = Result<T, GrammarError>;
@@ -480,6 +509,15 @@ impl Parser<'_> {
 
     /// Parses comma-separated arguments after `(` up to the matching `)`.
     fn args(&mut self, open: Span) -> PResult<Vec<(Expr, Span)>> {
+        Ok(self
+            .args_with_depth(open)?
+            .into_iter()
+            .map(|(e, sp, _)| (e, sp))
+            .collect())
+    }
+
+    /// The arguments of a call, each with its tree depth.
+    fn args_with_depth(&mut self, open: Span) -> PResult<Vec<(Expr, Span, usize)>> {
         let mut args = Vec::new();
         if *self.peek() == Tok::RParen {
             self.bump();
@@ -487,8 +525,8 @@ impl Parser<'_> {
         }
         loop {
             let sp = self.span();
-            let e = self.expr(open)?;
-            args.push((e, sp));
+            let (e, d) = self.expr(open)?;
+            args.push((e, sp, d));
             match self.peek() {
                 Tok::Comma => {
                     self.bump();
@@ -697,43 +735,79 @@ impl Parser<'_> {
         })
     }
 
-    fn expr(&mut self, open: Span) -> PResult<Expr> {
-        let mut lhs = self.term(open)?;
+    /// An error at the current token when an expression of tree depth `depth` would be too
+    /// deep.
+    fn check_depth(&self, depth: usize) -> PResult<()> {
+        if depth > MAX_EXPR_DEPTH {
+            return Err(self.ctx.err(
+                self.span(),
+                ParseErrorKind::TooDeep,
+                format!("expression nested more than {MAX_EXPR_DEPTH} levels deep"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// A sum of products, with its tree depth.
+    fn expr(&mut self, open: Span) -> PResult<(Expr, usize)> {
+        let (mut lhs, mut depth) = self.term(open)?;
         loop {
             let op = match self.peek() {
                 Tok::Plus => BinOp::Add,
                 Tok::Minus => BinOp::Sub,
-                _ => return Ok(lhs),
+                _ => return Ok((lhs, depth)),
             };
+            self.check_depth(depth + 1)?;
             self.bump();
-            let rhs = self.term(open)?;
+            let (rhs, d) = self.term(open)?;
+            depth = 1 + depth.max(d);
+            self.check_depth(depth)?;
             lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
         }
     }
 
-    fn term(&mut self, open: Span) -> PResult<Expr> {
-        let mut lhs = self.unary(open)?;
+    /// A product of unary expressions, with its tree depth.
+    fn term(&mut self, open: Span) -> PResult<(Expr, usize)> {
+        let (mut lhs, mut depth) = self.unary(open)?;
         loop {
             let op = match self.peek() {
                 Tok::Star => BinOp::Mul,
                 Tok::Slash => BinOp::Div,
-                _ => return Ok(lhs),
+                _ => return Ok((lhs, depth)),
             };
+            self.check_depth(depth + 1)?;
             self.bump();
-            let rhs = self.unary(open)?;
+            let (rhs, d) = self.unary(open)?;
+            depth = 1 + depth.max(d);
+            self.check_depth(depth)?;
             lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
         }
     }
 
-    fn unary(&mut self, open: Span) -> PResult<Expr> {
+    /// A unary expression, with its tree depth. The parser recurses here for `-`, `(` and
+    /// `rand(`, so `nesting` counts the levels open and stops at [`MAX_EXPR_DEPTH`] before the
+    /// recursion can exhaust the stack.
+    fn unary(&mut self, open: Span) -> PResult<(Expr, usize)> {
+        self.nesting += 1;
+        let r = match self.check_depth(self.nesting) {
+            Ok(()) => self.unary_inner(open),
+            Err(e) => Err(e),
+        };
+        self.nesting -= 1;
+        r
+    }
+
+    fn unary_inner(&mut self, open: Span) -> PResult<(Expr, usize)> {
         match self.peek().clone() {
             Tok::Minus => {
                 self.bump();
-                Ok(Expr::Neg(Box::new(self.unary(open)?)))
+                let (e, d) = self.unary(open)?;
+                self.check_depth(d + 1)?;
+                Ok((Expr::Neg(Box::new(e)), d + 1))
             }
             Tok::Num(v) => {
                 self.bump();
-                Ok(Expr::Num(v))
+                Ok((Expr::Num(v), 1))
             }
             Tok::LParen => {
                 let o = self.bump().1;
@@ -748,7 +822,7 @@ impl Parser<'_> {
                 let sp = self.bump().1;
                 if *self.peek() == Tok::LParen {
                     let o = self.bump().1;
-                    let args = self.args(o)?;
+                    let args = self.args_with_depth(o)?;
                     if name != "rand" {
                         return Err(self.ctx.err(
                             sp,
@@ -757,9 +831,13 @@ impl Parser<'_> {
                         ));
                     }
                     let n = args.len();
+                    let depth = 1 + args.iter().map(|a| a.2).max().unwrap_or(0);
+                    self.check_depth(depth)?;
                     let mut it = args.into_iter().map(|a| a.0);
                     return match (it.next(), it.next(), it.next()) {
-                        (Some(a), Some(b), None) => Ok(Expr::Rand(Box::new(a), Box::new(b))),
+                        (Some(a), Some(b), None) => {
+                            Ok((Expr::Rand(Box::new(a), Box::new(b)), depth))
+                        }
                         _ => Err(self.ctx.err(
                             sp,
                             ParseErrorKind::WrongArgCount,
@@ -767,12 +845,15 @@ impl Parser<'_> {
                         )),
                     };
                 }
-                Ok(match name.as_str() {
-                    "sx" => Expr::ScopeSize(Axis::X),
-                    "sy" => Expr::ScopeSize(Axis::Y),
-                    "sz" => Expr::ScopeSize(Axis::Z),
-                    _ => Expr::Attr(Arc::from(name), sp),
-                })
+                Ok((
+                    match name.as_str() {
+                        "sx" => Expr::ScopeSize(Axis::X),
+                        "sy" => Expr::ScopeSize(Axis::Y),
+                        "sz" => Expr::ScopeSize(Axis::Z),
+                        _ => Expr::Attr(Arc::from(name), sp),
+                    },
+                    1,
+                ))
             }
             _ => {
                 if *self.peek() == Tok::Eof || self.at_rule_start() {
@@ -814,6 +895,7 @@ pub fn parse(src: &str, file: &str) -> Result<RuleSet, GrammarError> {
         toks,
         pos: 0,
         rs,
+        nesting: 0,
     };
     p.file()?;
     let mut rs = p.rs;

@@ -958,3 +958,52 @@ fn r_turns_a_side_face_about_its_left_edge() {
         "{err}"
     );
 }
+
+/// Hostile nesting: 10,000 parentheses, a 10,000-long chain of unary minus, a 1 MB line of
+/// additions and nested `rand`s each give a file:line:col error, not a stack overflow.
+#[test]
+fn deep_expressions_are_an_error_at_their_place_not_a_stack_overflow() {
+    let deep = |expr: String| {
+        let src = format!("# header\nlot -> extrude({expr}){{m}}\n");
+        parse(&src, "deep.cga").unwrap_err()
+    };
+    let cases = [
+        (
+            "parentheses",
+            format!("{}1{}", "(".repeat(10_000), ")".repeat(10_000)),
+        ),
+        ("unary chain", format!("{}1", "-".repeat(10_000))),
+        ("1 MB line", format!("1{}", "+1".repeat(500_000))),
+        (
+            "rand",
+            format!("{}1, 2{}", "rand(1, ".repeat(5_000), ")".repeat(5_000)),
+        ),
+    ];
+    for (what, expr) in cases {
+        let e = deep(expr);
+        assert_eq!(e.kind, ParseErrorKind::TooDeep, "{what}: {}", e.message);
+        assert_eq!(e.line, 2, "{what}: {}", e.message);
+        assert!(e.col > 15 && e.col < 2_000, "{what}: {}", e.message);
+        let text = e.to_string();
+        // The message shows a window of the line around the place, not the whole line.
+        assert!(text.len() < 600, "{what}: {} bytes of message", text.len());
+        assert!(
+            text.starts_with("deep.cga:2:") && text.contains("nested more than 128 levels"),
+            "{what}: {}",
+            e.message
+        );
+    }
+    // Right at the limit it parses: 126 parentheses around a sum of one operator.
+    let ok = format!(
+        "lot -> extrude({}1+1{}){{m}}",
+        "(".repeat(126),
+        ")".repeat(126)
+    );
+    assert!(parse(&ok, "ok.cga").is_ok());
+    // And a realistic expression far from it.
+    assert!(parse(
+        "lot -> extrude(-(2 * floorsize + rand(0, 1)) / 3 + 12){m}",
+        "r.cga"
+    )
+    .is_ok());
+}
