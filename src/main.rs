@@ -205,6 +205,10 @@ struct RunArgs {
     /// write. For checking a region's input, or sizing its outputs, before a nightly run.
     #[arg(long)]
     dry_run: bool,
+    /// Accept output file names whose extension is not the format's (.ifc, .gml or .xml, .glb,
+    /// .json for the report).
+    #[arg(long)]
+    force_extension: bool,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -456,6 +460,7 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
 fn exit_code(e: &RunError) -> u8 {
     match e {
         RunError::Input(_) => 1,
+        RunError::Usage(_) => 2,
         RunError::Output { .. } => 3,
     }
 }
@@ -500,6 +505,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         bbox: cli.bbox,
         tile: cli.tile,
         dry_run: cli.dry_run,
+        force_extension: cli.force_extension,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

@@ -10,6 +10,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use thiserror::Error;
 
+mod outputs;
+
 use crate::crs::Crs;
 use crate::derive::{merged_tags, Generator, Rules};
 use crate::export::citygml::CityGmlWriter;
@@ -86,6 +88,8 @@ pub struct Options {
     /// counted and dropped (the glTF writer's scratch files, unlinked at once, still go to
     /// disk). The report, if asked for, is written.
     pub dry_run: bool,
+    /// Accept output file names whose extension is not the format's (`--force-extension`).
+    pub force_extension: bool,
 }
 
 /// What went wrong, for the exit code and the message.
@@ -94,6 +98,11 @@ pub enum RunError {
     /// Bad input file (exit code 1).
     #[error("{0}")]
     Input(String),
+    /// The command line asks for something that cannot be done, found before any work (exit
+    /// code 2): two outputs on one path, an output on an input, an output in a folder that is a
+    /// file, an extension that is not the format's.
+    #[error("{0}")]
+    Usage(String),
     /// An output could not be written (exit code 3).
     #[error("{path}: {source}")]
     Output {
@@ -127,6 +136,26 @@ pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 /// Runs the pipeline and writes every requested output atomically.
 pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> {
     let start = Instant::now();
+    let mut inputs = match &opts.source {
+        Source::Osm(p) => vec![("--osm", p.clone())],
+        Source::Shp { path, .. } => outputs::shapefile_parts(path)
+            .into_iter()
+            .map(|p| ("--shp", p))
+            .collect(),
+    };
+    inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
+    inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
+    let targets = [
+        ("--ifc", &opts.ifc),
+        ("--citygml", &opts.citygml),
+        ("--gltf", &opts.gltf),
+        ("--report", &opts.report),
+    ];
+    let planned: Vec<(&'static str, &Path)> = targets
+        .iter()
+        .filter_map(|(flag, p)| p.as_deref().map(|p| (*flag, p)))
+        .collect();
+    outputs::check(&planned, &inputs, opts.force_extension)?;
     let mut report = Report::default();
     let read = read_source(&opts.source, opts.src_crs, &mut report)?;
     let source_crs = opts.src_crs.or(read.source_crs);
@@ -267,6 +296,18 @@ pub fn derive_lot(
     seed: u64,
     targets: &Targets,
 ) -> Result<Summary, RunError> {
+    let mut inputs = vec![("the ruleset", rules_path.to_path_buf())];
+    inputs.extend(kb.map(|p| ("--kb", p.to_path_buf())));
+    let planned: Vec<(&'static str, &Path)> = [
+        ("--ifc", &targets.ifc),
+        ("--citygml", &targets.citygml),
+        ("--gltf", &targets.gltf),
+        ("--report", &targets.report),
+    ]
+    .iter()
+    .filter_map(|(flag, p)| p.as_deref().map(|p| (*flag, p)))
+    .collect();
+    outputs::check(&planned, &inputs, false)?;
     let mut report = Report::default();
     let rules = read_rules(rules_path)?;
     let kb = load_kb(kb, &mut report)?;
@@ -417,12 +458,18 @@ fn write_batches(
         polygons,
         bytes,
     } = written;
+    // Every file, the report too, is complete and closed before the first is renamed into
+    // place, so a failure up to here leaves every target as it was.
+    let report_file = match &targets.report {
+        Some(p) => Some((p, render_report(p, &report).map_err(io_err(p))?)),
+        None => None,
+    };
     for (path, file) in pending {
         file.commit().map_err(io_err(&path))?;
         paths.push(path);
     }
-    if let Some(p) = &targets.report {
-        write_report(p, &report).map_err(io_err(p))?;
+    if let Some((p, file)) = report_file {
+        file.commit().map_err(io_err(p))?;
     }
     Ok(Summary {
         report,
@@ -637,14 +684,15 @@ fn tile_path(p: &Path, suffix: &str) -> PathBuf {
     p.with_file_name(name)
 }
 
-fn write_report(path: &Path, report: &Report) -> std::io::Result<()> {
+/// The report as JSON in a closed temporary file beside `path`, ready to be renamed over it.
+fn render_report(path: &Path, report: &Report) -> std::io::Result<PendingFile> {
     let f = AtomicFile::create(path)?;
     let mut w = f.writer()?;
     serde_json::to_writer_pretty(&mut w, report).map_err(std::io::Error::other)?;
     std::io::Write::write_all(&mut w, b"\n")?;
     std::io::Write::flush(&mut w)?;
     drop(w);
-    f.commit()
+    f.close()
 }
 
 /// Maps a writer error on an output path to a [`RunError`].

@@ -1125,7 +1125,7 @@ fn grammar_rule_bomb_ends_with_a_report_entry_per_building() {
 #[test]
 fn output_into_a_directory_path_is_an_output_error() {
     let dir = tempfile::tempdir().unwrap();
-    let target = dir.path().join("taken");
+    let target = dir.path().join("taken.gml");
     std::fs::create_dir(&target).unwrap();
     let out = citygen(&[
         "--osm",
@@ -1139,6 +1139,178 @@ fn output_into_a_directory_path_is_an_output_error() {
         "--quiet",
     ]);
     fatal(&out, 3, &["taken"]);
+}
+
+/// Files with known bytes at the given names in `dir`, to check that a refused run leaves them.
+fn existing(dir: &Path, names: &[&str]) -> Vec<(PathBuf, Vec<u8>)> {
+    names
+        .iter()
+        .map(|n| {
+            let p = dir.join(n);
+            let bytes = format!("old {n}\n").into_bytes();
+            std::fs::write(&p, &bytes).unwrap();
+            (p, bytes)
+        })
+        .collect()
+}
+
+fn unchanged(files: &[(PathBuf, Vec<u8>)]) {
+    for (p, bytes) in files {
+        assert_eq!(&std::fs::read(p).unwrap(), bytes, "{} changed", p.display());
+    }
+}
+
+/// `citygen --osm MONACO --kb KB --lod 1` with `extra` arguments.
+fn monaco_with(extra: &[&str]) -> Output {
+    let mut args = vec!["--osm", MONACO, "--kb", KB, "--lod", "1", "--quiet"];
+    args.extend(extra);
+    citygen(&args)
+}
+
+#[test]
+fn two_outputs_on_one_path_exit_2_before_writing_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let files = existing(d, &["x.ifc"]);
+    let x = d.join("x.ifc");
+    let x = x.to_str().unwrap();
+    // The report on the IFC's path: the extension says so first.
+    let out = monaco_with(&["--ifc", x, "--report", x]);
+    fatal(&out, 2, &["--report", "x.ifc", "must end in .json"]);
+    unchanged(&files);
+    // Same format, other spelling of the same file (through `..`), extensions waived.
+    let again = d.join("sub/../x.ifc");
+    let out = monaco_with(&[
+        "--ifc",
+        x,
+        "--report",
+        again.to_str().unwrap(),
+        "--force-extension",
+    ]);
+    fatal(&out, 2, &["--ifc", "--report", "are the same file"]);
+    unchanged(&files);
+    // IFC and CityGML on one path.
+    let out = monaco_with(&["--ifc", x, "--citygml", x]);
+    fatal(&out, 2, &["--citygml", "x.ifc"]);
+    unchanged(&files);
+    assert_eq!(
+        std::fs::read_dir(d).unwrap().count(),
+        1,
+        "a refused run left a file"
+    );
+}
+
+#[test]
+fn an_output_in_a_folder_that_is_a_file_or_of_the_wrong_format_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let files = existing(d, &["README.md"]);
+    let under = d.join("README.md/x.ifc");
+    let out = monaco_with(&["--ifc", under.to_str().unwrap()]);
+    fatal(&out, 2, &["--ifc", "README.md", "is a file, not a folder"]);
+    unchanged(&files);
+    let gml = d.join("out.gml");
+    let out = monaco_with(&["--ifc", gml.to_str().unwrap()]);
+    fatal(&out, 2, &["--ifc", "out.gml", "must end in .ifc"]);
+    assert!(!gml.exists());
+}
+
+#[test]
+fn an_output_on_an_input_is_refused_and_the_input_is_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let pbf = d.join("in.osm.pbf");
+    std::fs::copy(MONACO, &pbf).unwrap();
+    let kb = d.join("kb.xml");
+    std::fs::copy(KB, &kb).unwrap();
+    let before = (std::fs::read(&pbf).unwrap(), std::fs::read(&kb).unwrap());
+    let (p, k) = (pbf.to_str().unwrap(), kb.to_str().unwrap());
+    let out = citygen(&[
+        "--osm",
+        p,
+        "--kb",
+        k,
+        "--ifc",
+        p,
+        "--force-extension",
+        "--quiet",
+    ]);
+    fatal(
+        &out,
+        2,
+        &[
+            "--ifc",
+            "the file --osm reads",
+            "refusing to overwrite an input",
+        ],
+    );
+    let glb = d.join("o.glb");
+    let g = glb.to_str().unwrap();
+    let out = citygen(&[
+        "--osm",
+        p,
+        "--kb",
+        k,
+        "--gltf",
+        g,
+        "--report",
+        k,
+        "--force-extension",
+        "--quiet",
+    ]);
+    fatal(&out, 2, &["--report", "the file --kb reads"]);
+    // Without --force-extension the extension refuses it first.
+    let out = citygen(&["--osm", p, "--kb", k, "--ifc", p, "--quiet"]);
+    fatal(&out, 2, &["--ifc", "must end in .ifc"]);
+    assert_eq!(
+        (std::fs::read(&pbf).unwrap(), std::fs::read(&kb).unwrap()),
+        before
+    );
+    // A shapefile's parts count as inputs too.
+    for ext in ["shp", "shx", "dbf", "prj"] {
+        let from = common::root().join(format!("data/clifton/clifton_test.{ext}"));
+        std::fs::copy(from, d.join(format!("c.{ext}"))).unwrap();
+    }
+    let dbf = std::fs::read(d.join("c.dbf")).unwrap();
+    let out = citygen(&[
+        "--shp",
+        d.join("c.shp").to_str().unwrap(),
+        "--kb",
+        k,
+        "--gltf",
+        g,
+        "--report",
+        d.join("c.dbf").to_str().unwrap(),
+        "--force-extension",
+        "--quiet",
+    ]);
+    fatal(&out, 2, &["--report", "c.dbf", "the file --shp reads"]);
+    assert_eq!(std::fs::read(d.join("c.dbf")).unwrap(), dbf);
+    assert!(!glb.exists(), "a refused run wrote an output");
+}
+
+#[test]
+fn a_failing_third_output_leaves_all_three_targets_unchanged() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let files = existing(d, &["x.ifc", "x.gml"]);
+    std::fs::create_dir(d.join("x.glb")).unwrap();
+    let out = monaco_with(&[
+        "--ifc",
+        d.join("x.ifc").to_str().unwrap(),
+        "--citygml",
+        d.join("x.gml").to_str().unwrap(),
+        "--gltf",
+        d.join("x.glb").to_str().unwrap(),
+    ]);
+    fatal(&out, 3, &["x.glb", "names a folder"]);
+    unchanged(&files);
+    assert!(d.join("x.glb").is_dir());
+    assert_eq!(
+        std::fs::read_dir(d).unwrap().count(),
+        3,
+        "a refused run left a file"
+    );
 }
 
 // ---- everything at once ---------------------------------------------------------------------

@@ -29,5 +29,5 @@ pub use ast::{
     AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
 };
 pub use interp::{derive, derive_facing, Caps, DeriveError};
-pub use parser::{parse, GrammarError, ParseErrorKind};
+pub use parser::{parse, GrammarError, ParseErrorKind, MAX_EXPR_DEPTH};
 pub use shape::{FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal};
