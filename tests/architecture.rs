@@ -388,11 +388,21 @@ fn scan(file: &str, module: &[String], src: &str) -> Scan {
         match &toks[i].0 {
             Tok::Hash if is_cfg_test(&toks, i) => {
                 let item = skip_attribute(&toks, i);
-                // `#[cfg(test)] mod name;` names a test file.
+                // `#[cfg(test)] mod name;` (with any visibility) names a test file.
+                let mut m_at = item;
+                if toks.get(m_at).map(|t| &t.0) == Some(&Tok::Ident("pub".into())) {
+                    m_at += 1;
+                    if toks.get(m_at).map(|t| &t.0) == Some(&Tok::ParenOpen) {
+                        while toks.get(m_at).is_some_and(|t| t.0 != Tok::ParenClose) {
+                            m_at += 1;
+                        }
+                        m_at += 1;
+                    }
+                }
                 if let (Some(Tok::Ident(m)), Some(Tok::Ident(name)), Some(Tok::Semi)) = (
-                    toks.get(item).map(|t| &t.0),
-                    toks.get(item + 1).map(|t| &t.0),
-                    toks.get(item + 2).map(|t| &t.0),
+                    toks.get(m_at).map(|t| &t.0),
+                    toks.get(m_at + 1).map(|t| &t.0),
+                    toks.get(m_at + 2).map(|t| &t.0),
                 ) {
                     if m == "mod" {
                         let mut p = module.to_vec();
@@ -761,6 +771,8 @@ fn test_code_may_import_anything() {
         file("src/geometry/mod.rs", "geometry", "#[cfg(test)]\nmod tests;\n#[cfg(test)]\nmod more { use crate::model::X; }\n#[cfg(test)] use crate::model::Y;\nfn f<'a>(c: char) -> bool { c == '{' }"),
         file("src/model.rs", "model", "pub struct A { b: Option<crate::geometry::Polygon> }"),
         file("src/geometry/tests.rs", "geometry::tests", "use crate::export::Z;"),
+        file("src/model.rs", "model", "#[cfg(test)]\npub(crate) mod fixtures;"),
+        file("src/model/fixtures.rs", "model::fixtures", "use crate::export::W;"),
     ];
     assert!(check(&files, TEST_LAYERS).is_empty());
 }
@@ -874,4 +886,47 @@ fn code_map_names_follow_the_tree() {
     assert_eq!(code_map_name("derive/roof/tests/real_footprints.rs"), None);
     let doc = "x\n## Code map\n- `a/b.rs` — and `c/` and `Polygon` and `x::y`\n## Layers\n`z.rs`";
     assert_eq!(code_map_paths(doc), vec!["a/b.rs", "c/"]);
+}
+
+/// No path of one machine in the sources, tests, scripts or examples: tests find tools relative
+/// to the checkout or through the validators' variables (`CITYGEN_VALIDATE_HOME`).
+#[test]
+fn no_absolute_path_of_a_machine_in_the_repository() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // Built at run time, so that this file does not match itself.
+    let roots: Vec<String> = ["root", "home", "work", "tmp"]
+        .iter()
+        .map(|r| format!("/{r}/"))
+        .collect();
+    let mut found = Vec::new();
+    let mut stack: Vec<PathBuf> = ["src", "tests", "scripts", "examples"]
+        .iter()
+        .map(|d| root.join(d))
+        .collect();
+    while let Some(p) = stack.pop() {
+        if p.is_dir() {
+            for e in std::fs::read_dir(&p).unwrap() {
+                stack.push(e.unwrap().path());
+            }
+            continue;
+        }
+        let Ok(text) = std::fs::read_to_string(&p) else {
+            continue; // binary fixtures
+        };
+        for (i, line) in text.lines().enumerate() {
+            if roots.iter().any(|r| line.contains(r.as_str())) {
+                found.push(format!(
+                    "{}:{}: {}",
+                    p.strip_prefix(root).unwrap().display(),
+                    i + 1,
+                    line.trim()
+                ));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "absolute paths of a machine:\n{}",
+        found.join("\n")
+    );
 }

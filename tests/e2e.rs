@@ -188,7 +188,7 @@ fn missing_input_is_a_clear_error_naming_the_path() {
         "--kb",
         KB,
         "--ifc",
-        "/tmp/never.ifc",
+        "target/never/never.ifc",
     ]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
@@ -416,7 +416,7 @@ fn unknown_crs_is_a_usage_error() {
         "--kb",
         KB,
         "--ifc",
-        "/tmp/never.ifc",
+        "target/never/never.ifc",
         "--crs",
         "EPSG:3857",
     ]);

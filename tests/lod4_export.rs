@@ -104,19 +104,11 @@ fn monaco_ville_interiors_write_and_validate() {
     // The geometry kernel is slow on the whole quarter (hundreds of buildings): validate the
     // first 6 buildings with a multi-storey interior (stairs, upper slabs) in files of their
     // own, and the quarter's glTF.
-    let installed = std::env::var_os("HOME")
-        .map(|h| std::path::PathBuf::from(h).join(".cache/citygen-validate/venv"))
-        .is_some_and(|v| v.exists());
-    let tool = root().join("../shared/tools/validate-outputs");
-    let tool = if tool.exists() {
-        tool
-    } else {
-        root().join("../../shared/tools/validate-outputs")
-    };
-    if !installed || !tool.exists() {
-        eprintln!("validate-outputs not installed: skipped");
+    let Some(tool) =
+        citygen::testkit::validators::validate_outputs("Monaco-Ville LOD4 (geometry kernel)")
+    else {
         return;
-    }
+    };
     let some: Vec<Building> = buildings
         .iter()
         .filter(|b| b.parts.iter().any(|p| p.interior.len() > 1))

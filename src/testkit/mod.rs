@@ -4,3 +4,4 @@
 //! built in code with them instead of being committed as fixtures.
 
 pub mod pbf_write;
+pub mod validators;

@@ -1097,17 +1097,21 @@ fn lod3_rejects_non_finite_openings() {
 }
 
 #[test]
-#[ignore = "writes /tmp/c3.gml for manual validation"]
+#[ignore = "writes c3.gml in the temporary folder for manual validation"]
 fn dump_lod3_sample() {
-    std::fs::write("/tmp/c3.gml", write_all(Lod::Lod3, &samples::all())).unwrap();
+    std::fs::write(
+        std::env::temp_dir().join("c3.gml"),
+        write_all(Lod::Lod3, &samples::all()),
+    )
+    .unwrap();
 }
 
 /// Runs the reference validator (OGC CityGML 2.0 XSDs) on LOD1, LOD2 and LOD3 output when it
 /// is installed; skipped otherwise so that the suite runs anywhere.
 #[test]
 fn validates_against_citygml_schemas() {
-    let Some(validator) = installed_validator() else {
-        eprintln!("skipped: validate-outputs is not installed (set CITYGEN_VALIDATOR to its path)");
+    let Some(validator) = crate::testkit::validators::validate_outputs("CityGML LOD1-3 schemas")
+    else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -1132,24 +1136,6 @@ fn validates_against_citygml_schemas() {
         "{text}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-/// The validator wrapper, when it and its already-installed environment exist (the wrapper
-/// would otherwise try to install its dependencies from the network).
-fn installed_validator() -> Option<std::path::PathBuf> {
-    let home = std::env::var_os("HOME").map(std::path::PathBuf::from)?;
-    let venv = std::env::var_os("CITYGEN_VALIDATE_HOME")
-        .map_or(home.join(".cache/citygen-validate"), Into::into);
-    if !venv.join("venv/bin/python").exists() {
-        return None;
-    }
-    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let candidates = [
-        std::env::var_os("CITYGEN_VALIDATOR").map(Into::into),
-        Some(manifest.join("../shared/tools/validate-outputs")),
-        Some(manifest.join("../../shared/tools/validate-outputs")),
-    ];
-    candidates.into_iter().flatten().find(|p| p.is_file())
 }
 
 proptest::proptest! {
@@ -1335,8 +1321,7 @@ mod lod4 {
         if let Some(keep) = std::env::var_os("CITYGEN_GML_LOD4_SAMPLE") {
             std::fs::write(keep, &bytes).unwrap();
         }
-        let Some(tool) = fixtures::validator() else {
-            eprintln!("validate-outputs not installed: skipped");
+        let Some(tool) = fixtures::validator("CityGML LOD4 sample") else {
             return;
         };
         let dir = tempfile::tempdir().unwrap();

@@ -504,29 +504,11 @@ fn closed_shell_detection() {
     assert!(!is_closed_shell(&flipped));
 }
 
-/// The reference validator: `$CITYGEN_VALIDATE_OUTPUTS`, or `shared/tools/validate-outputs`
-/// beside the checkout (`../shared` from the main checkout, `../../shared` from a worktree).
-fn validator() -> Option<std::path::PathBuf> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    std::env::var_os("CITYGEN_VALIDATE_OUTPUTS")
-        .map(std::path::PathBuf::from)
-        .into_iter()
-        .chain([
-            root.join("../shared/tools/validate-outputs"),
-            root.join("../../shared/tools/validate-outputs"),
-        ])
-        .find(|p| p.exists())
-}
-
 /// Runs the reference validator (schema, WHERE rules and, with `--geometry`, the geometry
 /// kernel on every product) on the sample when it is installed; skipped otherwise.
 #[test]
 fn sample_passes_the_reference_validator() {
-    let installed = std::env::var_os("HOME")
-        .map(|h| std::path::PathBuf::from(h).join(".cache/citygen-validate/venv"))
-        .is_some_and(|v| v.exists());
-    let Some(tool) = validator().filter(|_| installed) else {
-        eprintln!("validate-outputs not installed: skipped");
+    let Some(tool) = crate::testkit::validators::validate_outputs("IFC sample") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -927,15 +909,12 @@ fn full_shared_caches_are_emptied_not_grown() {
 /// mapped type); skipped otherwise. `CITYGEN_IFC_LOD3_SAMPLE=path` also keeps the file.
 #[test]
 fn lod3_sample_passes_the_reference_validator() {
-    let installed = std::env::var_os("HOME")
-        .map(|h| std::path::PathBuf::from(h).join(".cache/citygen-validate/venv"))
-        .is_some_and(|v| v.exists());
     let bytes = write_lod3(&lod3_sample());
     if let Some(keep) = std::env::var_os("CITYGEN_IFC_LOD3_SAMPLE") {
         std::fs::write(keep, &bytes).unwrap();
     }
-    let Some(tool) = validator().filter(|_| installed) else {
-        eprintln!("validate-outputs not installed: skipped");
+    let Some(tool) = crate::testkit::validators::validate_outputs("IFC LOD3 sample (geometry)")
+    else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -1224,8 +1203,7 @@ mod lod4 {
         if let Some(keep) = std::env::var_os("CITYGEN_IFC_LOD4_SAMPLE") {
             std::fs::write(keep, &bytes).unwrap();
         }
-        let Some(tool) = fixtures::validator() else {
-            eprintln!("validate-outputs not installed: skipped");
+        let Some(tool) = fixtures::validator("IFC LOD4 sample (geometry)") else {
             return;
         };
         let dir = tempfile::tempdir().unwrap();

@@ -67,7 +67,7 @@ fn real_footprints_build_valid_hipped_roofs() {
     );
 }
 
-/// Development aid: `SKEL_FAIL_JSON=/tmp/x.json cargo test --lib real_dump -- --ignored
+/// Development aid: `SKEL_FAIL_JSON=failures.json cargo test --lib real_dump -- --ignored
 /// --nocapture` checks every polygon of a dump written by the `roof_survey` example.
 #[test]
 #[ignore]
