@@ -169,8 +169,9 @@ struct RunArgs {
     /// Seed of every random choice (appearances, rand() in rules).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Output CRS, e.g. EPSG:2154 (Lambert-93). Default: the UTM zone of the data.
-    #[arg(long, value_name = "EPSG:n", value_parser = parse_crs)]
+    /// Output CRS, projected (metres), e.g. EPSG:2154 (Lambert-93). Default: the UTM zone of
+    /// the data.
+    #[arg(long, value_name = "EPSG:n", value_parser = parse_output_crs)]
     crs: Option<Crs>,
     /// CRS of the input coordinates, overriding a shapefile's .prj.
     #[arg(long, value_name = "EPSG:n", value_parser = parse_crs)]
@@ -226,6 +227,20 @@ fn parse_lod(s: &str) -> Result<Lod, String> {
 
 fn parse_crs(s: &str) -> Result<Crs, String> {
     Crs::from_epsg_str(s).map_err(|e| e.to_string())
+}
+
+/// `--crs`: a projected CRS. The model is built in metres in a local frame of the output CRS,
+/// so a geographic one (degrees) would make every footprint degenerate.
+fn parse_output_crs(s: &str) -> Result<Crs, String> {
+    let crs = parse_crs(s)?;
+    if crs.is_geographic() {
+        return Err(format!(
+            "{s} is geographic (degrees), and the output CRS must be projected (metres): a UTM \
+             zone (EPSG:326xx north, 327xx south, 258xx ETRS89), EPSG:2154 (Lambert-93) or \
+             EPSG:27700 (British National Grid); without --crs, citygen uses the UTM zone of the data"
+        ));
+    }
+    Ok(crs)
 }
 
 fn parse_lot(s: &str) -> Result<Polygon, String> {
@@ -467,9 +482,17 @@ fn exit_code(e: &RunError) -> u8 {
 
 /// The main job.
 fn run_main(cli: RunArgs) -> ExitCode {
-    if let Some(n) = cli.threads {
+    if let Some(asked) = cli.threads {
+        // More threads than cores buys nothing (the outputs do not depend on the count) and
+        // thousands take longer to start than the run.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let cap = (4 * cores).max(1);
+        let n = asked.clamp(1, cap);
+        if n != asked && !cli.quiet {
+            eprintln!("citygen: note: --threads {asked} runs {n} threads (at least 1, at most 4 per core: {cores} cores)");
+        }
         if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n)
             .build_global()
         {
             eprintln!("citygen: cannot start {n} threads: {e}");

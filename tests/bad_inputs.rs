@@ -1313,6 +1313,45 @@ fn a_failing_third_output_leaves_all_three_targets_unchanged() {
     );
 }
 
+#[test]
+fn a_geographic_output_crs_is_refused_naming_the_projected_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let ifc = dir.path().join("x.ifc");
+    let out = monaco_with(&["--ifc", ifc.to_str().unwrap(), "--crs", "EPSG:4326"]);
+    fatal(
+        &out,
+        2,
+        &["EPSG:4326 is geographic", "projected", "EPSG:2154", "UTM"],
+    );
+    assert!(!ifc.exists());
+}
+
+#[test]
+fn ten_thousand_threads_run_as_a_few_per_core_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("x.glb");
+    let mut args = vec![
+        "--osm",
+        MONACO,
+        "--kb",
+        KB,
+        "--lod",
+        "1",
+        "--threads",
+        "10000",
+    ];
+    args.extend(["--gltf", glb.to_str().unwrap()]);
+    let out = citygen(&args);
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(0), "{}", show(&out));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--threads 10000 runs"),
+        "{}",
+        show(&out)
+    );
+    assert!(glb.exists());
+}
+
 // ---- everything at once ---------------------------------------------------------------------
 
 #[test]
