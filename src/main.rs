@@ -210,6 +210,10 @@ struct RunArgs {
     /// .json for the report).
     #[arg(long)]
     force_extension: bool,
+    /// Write the outputs even when no building is generated (an empty --bbox, every footprint
+    /// skipped); without it such a run is an error (exit 1) and writes nothing.
+    #[arg(long)]
+    allow_empty: bool,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -370,6 +374,7 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     gltf,
                     report,
                     dry_run: false,
+                    allow_empty: false,
                 },
             ) {
                 Ok(summary) => {
@@ -529,6 +534,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         tile: cli.tile,
         dry_run: cli.dry_run,
         force_extension: cli.force_extension,
+        allow_empty: cli.allow_empty,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

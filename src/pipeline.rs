@@ -90,6 +90,9 @@ pub struct Options {
     pub dry_run: bool,
     /// Accept output file names whose extension is not the format's (`--force-extension`).
     pub force_extension: bool,
+    /// Publish the outputs even when no building is generated (an empty `--bbox`, every
+    /// footprint skipped): without it such a run is an error (`--allow-empty`).
+    pub allow_empty: bool,
 }
 
 /// What went wrong, for the exit code and the message.
@@ -172,7 +175,13 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let mut site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
     prepare::assign_fronts(&mut site, &read.streets, source_crs);
     if let Some(b) = opts.bbox {
-        prepare::retain_in_bbox(&mut site, b, &mut report);
+        if let Err(why) = prepare::retain_in_bbox(&mut site, b, &mut report) {
+            if !opts.allow_empty {
+                return Err(RunError::Input(format!(
+                    "{why} (pass --allow-empty to write empty outputs)"
+                )));
+            }
+        }
     }
     let caps = Caps {
         facades: opts.lod >= Lod::Lod3,
@@ -185,6 +194,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         gltf: opts.gltf.clone(),
         report: opts.report.clone(),
         dry_run: opts.dry_run,
+        allow_empty: opts.allow_empty,
     };
     let batches: Vec<Batch> = match opts.tile {
         None => vec![Batch {
@@ -362,6 +372,8 @@ pub struct Targets {
     pub report: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
     pub dry_run: bool,
+    /// Publish the outputs even when no building was generated ([`Options::allow_empty`]).
+    pub allow_empty: bool,
 }
 
 /// Derives every lot of the site (in parallel, chunk by chunk) and writes the buildings in lot
@@ -422,6 +434,7 @@ fn write_batches(
             gltf: path(&targets.gltf),
             report: None,
             dry_run: targets.dry_run,
+            allow_empty: targets.allow_empty,
         };
         let name = match &batch.suffix {
             Some(sfx) => format!("{source_name} tile {sfx}"),
@@ -458,6 +471,25 @@ fn write_batches(
         polygons,
         bytes,
     } = written;
+    if report.generated == 0 && !targets.allow_empty {
+        let shown: Vec<String> = report
+            .entries
+            .iter()
+            .filter(|e| e.outcome == Outcome::Skipped)
+            .take(3)
+            .map(|e| format!("{}: {}", e.id, e.reason))
+            .collect();
+        let why = if shown.is_empty() {
+            "the input holds no building".to_string()
+        } else {
+            format!("every building was skipped, e.g. {}", shown.join("; "))
+        };
+        return Err(RunError::Input(format!(
+            "{source_name}: generated 0 of {} buildings: {why}. Nothing was written; pass \
+             --allow-empty to write empty outputs",
+            report.read
+        )));
+    }
     // Every file, the report too, is complete and closed before the first is renamed into
     // place, so a failure up to here leaves every target as it was.
     let report_file = match &targets.report {

@@ -564,24 +564,54 @@ fn repair(p: &Polygon) -> Vec<Polygon> {
 /// Keeps the lots whose representative point lies in `bbox` = [min lon, min lat, max lon,
 /// max lat] (degrees), so a region can be split across runs or machines: every footprint lies in
 /// exactly one of several boxes that tile the region (min inclusive, max exclusive). The lots
-/// left out are counted in one report note.
-pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) {
+/// left out are counted in one report note. A box that holds none of the lots (when there are
+/// some) leaves none and is an `Err` naming the data's extent, and saying so when the box with
+/// its longitudes and latitudes swapped would hold some: the caller decides whether an empty
+/// run is an error (`--allow-empty`).
+pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) -> Result<(), String> {
+    let inside = |(lon, lat): (f64, f64), b: [f64; 4]| {
+        lon >= b[0] && lon < b[2] && lat >= b[1] && lat < b[3]
+    };
     let before = site.lots.len();
-    site.lots.retain(|l| {
-        let (lon, lat) = l.lonlat;
-        lon >= bbox[0] && lon < bbox[2] && lat >= bbox[1] && lat < bbox[3]
-    });
+    if before > 0 && !site.lots.iter().any(|l| inside(l.lonlat, bbox)) {
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        for l in &site.lots {
+            lo = (lo.0.min(l.lonlat.0), lo.1.min(l.lonlat.1));
+            hi = (hi.0.max(l.lonlat.0), hi.1.max(l.lonlat.1));
+        }
+        let swapped = [bbox[1], bbox[0], bbox[3], bbox[2]];
+        let hint = if site.lots.iter().any(|l| inside(l.lonlat, swapped)) {
+            format!(
+                "; its corners look swapped: --bbox {},{},{},{} (longitude first) holds some",
+                swapped[0], swapped[1], swapped[2], swapped[3]
+            )
+        } else {
+            String::new()
+        };
+        let why = format!(
+            "--bbox {},{},{},{} holds none of the {before} buildings, which lie in longitude {:.5} to {:.5}, latitude {:.5} to {:.5}{hint}",
+            bbox[0], bbox[1], bbox[2], bbox[3], lo.0, hi.0, lo.1, hi.1
+        );
+        site.lots.clear();
+        report.add(None, Outcome::Note, why.clone());
+        return Err(why);
+    }
+    site.lots.retain(|l| inside(l.lonlat, bbox));
     let out = before - site.lots.len();
     if out > 0 {
         report.add(
             None,
             Outcome::Note,
             format!(
-                "{out} building(s) outside --bbox {},{},{},{} were not generated",
+                "{out} of {before} building(s) outside --bbox {},{},{},{} were not generated",
                 bbox[0], bbox[1], bbox[2], bbox[3]
             ),
         );
     }
+    Ok(())
 }
 
 /// One square tile of a tiled run: the lots whose representative point lies in it.

@@ -290,6 +290,8 @@ fn bad_file(name: &str, bytes: &[u8]) -> (tempfile::TempDir, PathBuf) {
 
 fn run_osm_file(p: &Path) -> Output {
     let out = p.with_extension("glb");
+    // These cases test the reader: a file that yields no building is allowed to make an empty
+    // run here (the empty-run rule has its own tests).
     citygen(&[
         "--osm",
         p.to_str().unwrap(),
@@ -299,6 +301,7 @@ fn run_osm_file(p: &Path) -> Output {
         "1",
         "--gltf",
         out.to_str().unwrap(),
+        "--allow-empty",
         "--quiet",
     ])
 }
@@ -1349,6 +1352,92 @@ fn ten_thousand_threads_run_as_a_few_per_core_with_a_note() {
         "{}",
         show(&out)
     );
+    assert!(glb.exists());
+}
+
+#[test]
+fn a_bbox_without_buildings_or_with_swapped_corners_is_an_error_naming_the_extent() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("x.glb");
+    let g = glb.to_str().unwrap();
+    // Monaco is at 7.42 E, 43.73 N: latitude and longitude swapped.
+    let out = monaco_with(&["--gltf", g, "--bbox", "43.7290,7.4180,43.7330,7.4240"]);
+    fatal(
+        &out,
+        1,
+        &[
+            "--bbox 43.729,7.418,43.733,7.424 holds none of the 1159 buildings",
+            "longitude 7.4",
+            "look swapped",
+        ],
+    );
+    assert!(!glb.exists());
+    // A box in the sea off Monaco.
+    let out = monaco_with(&["--gltf", g, "--bbox", "7.50,43.60,7.51,43.61"]);
+    fatal(
+        &out,
+        1,
+        &[
+            "holds none of the 1159 buildings",
+            "latitude 43.7",
+            "--allow-empty",
+        ],
+    );
+    assert!(!glb.exists());
+    // Asked for, an empty run writes valid empty outputs and says why in the report.
+    let report = dir.path().join("r.json");
+    let out = monaco_with(&[
+        "--gltf",
+        g,
+        "--report",
+        report.to_str().unwrap(),
+        "--bbox",
+        "7.50,43.60,7.51,43.61",
+        "--allow-empty",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", show(&out));
+    assert!(
+        glb.exists()
+            && std::fs::read_to_string(&report)
+                .unwrap()
+                .contains("holds none of the 1159")
+    );
+}
+
+#[test]
+fn a_run_that_generates_no_building_fails_unless_allowed() {
+    let dir = tempfile::tempdir().unwrap();
+    let rules = dir.path().join("bomb.cga");
+    // Every building hits the derivation caps and is skipped.
+    std::fs::write(&rules, "lot -> repeat(X, 0.0001){lot}\n").unwrap();
+    let glb = dir.path().join("x.glb");
+    let args = [
+        "--osm",
+        MONACO,
+        "--rules",
+        rules.to_str().unwrap(),
+        "--lod",
+        "1",
+        "--gltf",
+        glb.to_str().unwrap(),
+        "--quiet",
+    ];
+    let out = citygen(&args);
+    fatal(
+        &out,
+        1,
+        &[
+            "generated 0 of 1159 buildings",
+            "every building was skipped",
+            "way/",
+            "--allow-empty",
+        ],
+    );
+    assert!(!glb.exists(), "an empty run published an output");
+    let mut allowed = args.to_vec();
+    allowed.push("--allow-empty");
+    let out = citygen(&allowed);
+    assert_eq!(out.status.code(), Some(0), "{}", show(&out));
     assert!(glb.exists());
 }
 

@@ -32,7 +32,8 @@ fn monaco_ville_interiors_are_connected_and_every_upper_storey_has_the_stair() {
     let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
     let mut site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
     citygen::prepare::assign_fronts(&mut site, &read.streets, None);
-    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report);
+    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report)
+        .expect("Monaco-Ville lies in the sample");
     let (kb, _) = citygen::kb::KnowledgeBase::load(&root().join(KB)).unwrap();
     let caps = citygen::grammar::Caps {
         facades: true,
@@ -104,7 +105,8 @@ fn the_knowledge_base_programme_applies_to_untyped_buildings_only() {
     let mut report = citygen::report::Report::default();
     let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
     let mut site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
-    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report);
+    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report)
+        .expect("Monaco-Ville lies in the sample");
     let caps = citygen::grammar::Caps {
         facades: true,
         ..Default::default()

@@ -17,7 +17,8 @@ fn monaco_ville_lod4() -> (OutputContext, Vec<Building>) {
     let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
     let mut site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
     citygen::prepare::assign_fronts(&mut site, &read.streets, None);
-    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report);
+    citygen::prepare::retain_in_bbox(&mut site, [7.4180, 43.7290, 7.4240, 43.7330], &mut report)
+        .expect("Monaco-Ville lies in the sample");
     let (kb, _) = citygen::kb::KnowledgeBase::load(&root().join(KB)).unwrap();
     let caps = citygen::grammar::Caps {
         facades: true,
