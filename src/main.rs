@@ -22,14 +22,18 @@ use citygen::pipeline::{self, Options, RunError, Source};
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// Turns a city's building footprints (OSM PBF or shapefile) into BIM and city models:
-/// IFC4, CityGML 2.0 (LOD1-2) and glTF 2.0 binary.
+/// IFC4, CityGML 2.0 and glTF 2.0 binary, at LOD1 to LOD4.
 ///
 /// Each footprint is matched to the deepest zone of the knowledge base (or ruled by --rules),
 /// derived with the shape grammar, and written to every requested output. Outputs are written
 /// atomically. Same inputs and --seed give byte-identical files, whatever --threads is.
 ///
-/// Exit codes: 0 success; 1 bad input (file, knowledge base, rules); 2 bad usage;
-/// 3 an output could not be written.
+/// Subcommands: `citygen rules check|derive` for rule authors, `citygen kb
+/// check|compile|explain` for knowledge-base authors (`citygen rules --help`, `citygen kb
+/// --help`).
+///
+/// Exit codes: 0 success; 1 bad input (file, knowledge base, rules; a run that generates no
+/// building); 2 bad usage (flags, output paths); 3 an output could not be written.
 #[derive(Parser, Debug)]
 #[command(name = "citygen", version, about, long_about)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
@@ -67,6 +71,7 @@ enum KbCommand {
     },
     /// Print the grammar rules generated for each appearance of a zone.
     Compile {
+        /// The knowledge base.
         kb: PathBuf,
         /// Zone path, e.g. France/Occitanie/Toulouse/Centre-Ville (with or without `earth/`).
         #[arg(long)]
@@ -75,14 +80,18 @@ enum KbCommand {
     /// Explain the zone chain, inherited values, and the appearance chosen for one building.
     #[command(group(ArgGroup::new("explain_input").required(true).args(["osm", "shp"])))]
     Explain {
+        /// The knowledge base.
         kb: PathBuf,
+        /// The OpenStreetMap extract holding the building.
         #[arg(long, value_name = "FILE.pbf")]
         osm: Option<PathBuf>,
+        /// The shapefile holding the building.
         #[arg(long, value_name = "FILE.shp")]
         shp: Option<PathBuf>,
         /// The building: way/123, relation/45 (OSM) or a 0-based shapefile record number.
         #[arg(long)]
         id: String,
+        /// The run's --seed: the appearance picked is the one a run with this seed picks.
         #[arg(long, default_value_t = 0)]
         seed: u64,
     },
@@ -117,8 +126,10 @@ enum RulesCommand {
         /// Knowledge base for default colours and heights (default: built-in defaults).
         #[arg(long, value_name = "KB.xml")]
         kb: Option<PathBuf>,
+        /// Level of detail, 1 to 4 (as for the main job).
         #[arg(long, value_parser = parse_lod, default_value = "2")]
         lod: Lod,
+        /// Seed of every random choice.
         #[arg(long, default_value_t = 0)]
         seed: u64,
         #[arg(long, value_name = "OUT.ifc")]
@@ -150,8 +161,8 @@ struct RunArgs {
     /// Grammar ruleset applied to every footprint instead of the knowledge base's rules.
     #[arg(long, value_name = "FILE")]
     rules: Option<PathBuf>,
-    /// Level of detail: 1 (blocks), 2 (roofs and semantic surfaces) or 3 (storeys, facades,
-    /// windows, doors and balconies).
+    /// Level of detail: 1 (blocks), 2 (roofs and semantic surfaces), 3 (storeys, facades,
+    /// windows, doors and balconies) or 4 (interiors: rooms, interior walls and doors, stairs).
     #[arg(long, value_parser = parse_lod, default_value = "2")]
     lod: Lod,
     /// Write IFC4 (STEP) here.
@@ -426,6 +437,9 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
             match tools::check_report_with(&kb, mode, allow_external_rulesets) {
                 Ok(r) => {
                     print!("{r}");
+                    if !r.to_string().ends_with('\n') {
+                        println!();
+                    }
                     ExitCode::from(if r.has_errors() { 1 } else { 0 })
                 }
                 Err(e) => fail(e.to_string()),
@@ -468,7 +482,11 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
             };
             match citygen::pipeline::explain_building(&kb, &source, &id, seed) {
                 Ok(e) => {
-                    print!("{e}");
+                    let text = e.to_string();
+                    print!("{text}");
+                    if !text.ends_with('\n') {
+                        println!();
+                    }
                     ExitCode::SUCCESS
                 }
                 Err(e) => fail(e.to_string()),

@@ -6,7 +6,7 @@
 //! `input::rings`) and disagreements are counted in one file-level note.
 //!
 //! Attributes: a height field and a levels field are mapped to the OSM keys `height` and
-//! `building:levels` and parsed by [`BuildingTags`]. Without `--height-field`, the first field
+//! `building:levels` and parsed by [`BuildingTags`]. Without `--shp-height-field`, the first field
 //! whose name matches [`HEIGHT_FIELDS`] (case-insensitively, in that order) is used.
 //!
 //! About the Clifton sample (`data/clifton/clifton_test.dbf`): `MEAN_mean`, `MIN_min` and
@@ -68,7 +68,7 @@ pub const LEVELS_FIELDS: [&str; 10] = [
 /// How to read a shapefile.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShpOptions {
-    /// The `.dbf` field holding the height in metres (`--height-field`); auto-detected from
+    /// The `.dbf` field holding the height in metres (`--shp-height-field`); auto-detected from
     /// [`HEIGHT_FIELDS`] when `None`. Naming a field that does not exist is an error.
     pub height_field: Option<String>,
     /// The `.dbf` field holding the number of levels; auto-detected from [`LEVELS_FIELDS`].
