@@ -986,3 +986,49 @@ fn lod4_from_the_command_line_writes_every_room_in_every_format() {
         );
     }
 }
+
+/// A lot of 50 km: at LOD2 a valid IFC (checked by the reference validator where installed);
+/// at LOD3 the facade rules would make millions of windows, and the run ends with the cap's
+/// message instead (exit 1, nothing written).
+#[test]
+fn a_fifty_kilometre_lot_gives_a_valid_ifc_or_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let ifc = dir.path().join("big.ifc");
+    let args = |lod: &'static str| {
+        vec![
+            "rules".to_string(),
+            "derive".into(),
+            "knowledge_base/rules/fig3_19.cga".into(),
+            "--lot".into(),
+            "50000x50000".into(),
+            "--lod".into(),
+            lod.into(),
+            "--ifc".into(),
+            ifc.to_str().unwrap().into(),
+        ]
+    };
+    let a3 = args("3");
+    let out = citygen(&a3.iter().map(String::as_str).collect::<Vec<_>>());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("max_pieces") && err.contains("fig3_19.cga:"),
+        "{err}"
+    );
+    assert!(!ifc.exists());
+    let a2 = args("2");
+    let out = citygen(&a2.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    if let Some(tool) = citygen::testkit::validators::validate_outputs("a 50 km lot at LOD2") {
+        let v = std::process::Command::new(tool).arg(&ifc).output().unwrap();
+        let text = String::from_utf8_lossy(&v.stdout);
+        assert!(
+            v.status.success() && text.contains("1 passed, 0 failed"),
+            "{text}"
+        );
+    }
+}
