@@ -1123,6 +1123,25 @@ fn grammar_rule_bomb_ends_with_a_report_entry_per_building() {
     no_panic(&out);
 }
 
+#[test]
+fn a_duplicate_way_id_is_reported_and_its_first_copy_used() {
+    // way/3 twice (an extract merged twice): the first copy is the building.
+    let (_d, r) = osm_case(
+        |o| {
+            o.building(3, &square(0.0, 0.0, 12.0, 10.0), &[("height", "9")]);
+            o.building(3, &square(40.0, 0.0, 30.0, 30.0), &[("height", "30")]);
+        },
+        &[],
+    );
+    has_entry(
+        &r,
+        "way/3",
+        "note",
+        "appears 2 times in the file: the first is used",
+    );
+    assert_eq!(r.count("generated"), 3);
+}
+
 // ---- outputs --------------------------------------------------------------------------------
 
 #[test]

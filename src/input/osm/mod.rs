@@ -69,6 +69,39 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
     read_passes(&pbf, &locs, report)?.ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
 }
 
+/// One report note per id that appears more than once in `sorted_ids` (an extract merged
+/// twice, a broken writer): the first record in file order is used, the others are dropped,
+/// and the note says so.
+fn note_duplicates(
+    sorted_ids: impl Iterator<Item = i64>,
+    id: fn(i64) -> SourceId,
+    report: &mut Report,
+) {
+    let mut run: Option<(i64, usize)> = None;
+    let flush = |run: Option<(i64, usize)>, report: &mut Report| {
+        if let Some((i, n)) = run.filter(|r| r.1 > 1) {
+            report.add(
+                Some(id(i)),
+                Outcome::Note,
+                format!(
+                    "{} appears {n} times in the file: the first is used, the others are ignored",
+                    id(i)
+                ),
+            );
+        }
+    };
+    for i in sorted_ids {
+        match &mut run {
+            Some((j, n)) if *j == i => *n += 1,
+            _ => {
+                flush(run.take(), report);
+                run = Some((i, 1));
+            }
+        }
+    }
+    flush(run, report);
+}
+
 /// The three passes over the blobs `locs` (relations, ways, needed nodes) and the assembly;
 /// `None` when a block held another kind of element than the sweep saw (nothing was reported
 /// then).
@@ -84,6 +117,7 @@ fn read_passes(
     }
     let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
     rels.sort_by_key(|r| r.id);
+    note_duplicates(rels.iter().map(|r| r.id), SourceId::Relation, report);
     rels.dedup_by_key(|r| r.id);
     let mut member_ways: Vec<i64> = rels
         .iter()
@@ -102,6 +136,11 @@ fn read_passes(
     }
     let mut ways: Vec<WayRec> = ways.into_iter().flatten().collect();
     ways.sort_by_key(|w| w.id);
+    note_duplicates(
+        ways.iter().filter(|w| w.kind.is_some()).map(|w| w.id),
+        SourceId::Way,
+        report,
+    );
     ways.dedup_by_key(|w| w.id);
     drop(member_ways);
     let mut needed: Vec<i64> = ways.iter().flat_map(|w| w.refs.iter().copied()).collect();
