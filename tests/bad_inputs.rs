@@ -1142,6 +1142,22 @@ fn a_duplicate_way_id_is_reported_and_its_first_copy_used() {
     assert_eq!(r.count("generated"), 3);
 }
 
+#[test]
+fn coordinates_outside_the_earth_are_skipped_not_wrapped() {
+    skipped_case(
+        |o| {
+            let mut refs = o.ring(&square(0.0, 0.0, 12.0, 10.0));
+            // One corner at latitude 95: a broken writer, not a place.
+            let id = 1 + o.nodes.len() as i64;
+            o.nodes.push((id, LON0, 95.0));
+            refs.insert(1, id);
+            o.way(3, refs, &[("building", "yes")]);
+        },
+        "way/3",
+        "outside the Earth (longitude 7.42000, latitude 95.00000",
+    );
+}
+
 // ---- outputs --------------------------------------------------------------------------------
 
 #[test]

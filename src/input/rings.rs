@@ -41,6 +41,18 @@ pub fn ring_contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
     inside
 }
 
+/// Why a ring of WGS84 (lon, lat) degrees cannot be a place on the Earth, if it cannot: a
+/// latitude beyond ±90° or a longitude beyond ±180° (a broken writer or a projected file read
+/// as OSM), which a projection would otherwise wrap and use.
+pub fn lonlat_problem(ring: &[(f64, f64)]) -> Option<String> {
+    let &(lon, lat) = ring
+        .iter()
+        .find(|&&(lon, lat)| !(-180.0..=180.0).contains(&lon) || !(-90.0..=90.0).contains(&lat))?;
+    Some(format!(
+        "coordinates outside the Earth (longitude {lon:.5}, latitude {lat:.5}; WGS84 allows -180..180 and -90..90)"
+    ))
+}
+
 /// Why a cleaned ring cannot be used, if it cannot.
 pub fn ring_problem(ring: &[(f64, f64)]) -> Option<&'static str> {
     if ring.iter().any(|&(x, y)| !x.is_finite() || !y.is_finite()) {

@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 use osmpbf::{BlobDecode, BlobReader, PrimitiveBlock, RelMemberType};
 use rayon::prelude::*;
 
-use super::rings::{group_rings, oriented_polygon, ring_problem};
+use super::rings::{group_rings, lonlat_problem, oriented_polygon, ring_problem};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SharedTags, SourceId,
     TagInterner,
@@ -438,6 +438,9 @@ fn way_ring(w: &WayRec, built_by: &[(i64, i64)], nodes: &Nodes) -> Result<Ring, 
     ring::dedup_by(&mut outer, |a, b| a == b);
     if let Some(why) = ring_problem(&outer) {
         return Err(why.to_string());
+    }
+    if let Some(why) = lonlat_problem(&outer) {
+        return Err(why);
     }
     Ok(outer)
 }

@@ -164,7 +164,10 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) ->
     let mut ring_ways = Vec::new();
     for mut r in joined {
         ring::dedup_by(&mut r.pts, |a, b| a == b);
-        if let Some(why) = ring_problem(&r.pts) {
+        if let Some(why) = ring_problem(&r.pts)
+            .map(str::to_string)
+            .or_else(|| lonlat_problem(&r.pts))
+        {
             problems.push(format!(
                 "ring of {} dropped: {why}",
                 list_ids(&r.ways, "way")
