@@ -1281,3 +1281,44 @@ fn roof_levels_and_materials_reach_the_style() {
     assert_eq!(Some(s.roof_color), Color::parse("red"));
     assert_eq!(crate::kb::material_color("unobtainium"), None);
 }
+
+#[test]
+fn kb_check_reads_parses_and_lints_every_ruleset_the_kb_names() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    std::fs::create_dir(dir.path().join("rules")).unwrap_or_else(|e| panic!("{e}"));
+    let w = |name: &str, text: &str| {
+        std::fs::write(dir.path().join("rules").join(name), text).unwrap_or_else(|e| panic!("{e}"))
+    };
+    w("broken.cga", "lot -> extrude(3){a\n");
+    w("unreachable.cga", "lot -> extrude(3){wall}\nb -> extrude(1){wall}\n");
+    w("good.cga", "lot -> extrude(3){wall}\n");
+    let kb = dir.path().join("kb.xml");
+    let apps: String = ["missing", "broken", "unreachable", "good"]
+        .iter()
+        .map(|r| format!("<appearance><values/><ruleset file=\"rules/{r}.cga\"/></appearance>\n"))
+        .collect();
+    std::fs::write(&kb, format!("<earth>\n{apps}</earth>")).unwrap_or_else(|e| panic!("{e}"));
+    let r = tools::check_report(&kb, ReadMode::Strict).unwrap_or_else(|e| panic!("{e}"));
+    let said: Vec<(usize, &str)> = r
+        .warnings
+        .iter()
+        .map(|w| (w.line, w.what.as_str()))
+        .collect();
+    let about = |line: usize, needle: &str| {
+        assert!(
+            said.iter().any(|&(l, w)| l == line && w.contains(needle)),
+            "no warning at line {line} with {needle:?}: {said:?}"
+        )
+    };
+    about(2, "missing.cga cannot be read");
+    about(3, "ruleset does not parse");
+    about(3, "broken.cga:1:");
+    about(4, "unreachable.cga:2:");
+    about(4, "unreachable-rule");
+    assert!(
+        !said.iter().any(|&(l, _)| l == 5),
+        "the good ruleset: {said:?}"
+    );
+    // The run does not apply ruleset files, so none of it is an error.
+    assert!(!r.has_errors(), "{}", r);
+}

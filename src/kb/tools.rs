@@ -94,6 +94,56 @@ pub fn check_report_with(
     Ok(report_for(&kb, mode, repairs, allow_external))
 }
 
+/// Largest ruleset file `kb check` reads (bytes): rule files are a few kilobytes.
+const MAX_RULESET_BYTES: u64 = 4 * 1024 * 1024;
+
+/// Reads, parses and lints the ruleset an appearance names (at KB line `line`), and lists as
+/// warnings a file that cannot be read or does not parse and every lint finding (a rule that
+/// can never terminate, probabilities above 1, ...), each with the ruleset's own file:line:col.
+/// Warnings, not errors: the run derives an appearance from its values and does not apply
+/// ruleset files (yet), so none of these stops a run.
+fn check_ruleset(path: &Path, line: usize, warnings: &mut Vec<KbRepair>) {
+    let name = path.display().to_string();
+    let text = match std::fs::metadata(path) {
+        Ok(m) if m.len() > MAX_RULESET_BYTES => Err(format!(
+            "{} bytes, more than the {MAX_RULESET_BYTES}-byte cap on ruleset files",
+            m.len()
+        )),
+        Ok(_) => std::fs::read_to_string(path).map_err(|e| e.to_string()),
+        Err(e) => Err(e.to_string()),
+    };
+    let text = match text {
+        Ok(t) => t,
+        Err(why) => {
+            warnings.push(KbRepair {
+                line,
+                what: format!("ruleset file {name} cannot be read: {why}"),
+            });
+            return;
+        }
+    };
+    let rules = match crate::grammar::parse(&text, &name) {
+        Ok(r) => r,
+        Err(e) => {
+            let first = e.to_string().lines().next().unwrap_or_default().to_string();
+            warnings.push(KbRepair {
+                line,
+                what: format!("ruleset does not parse: {first}"),
+            });
+            return;
+        }
+    };
+    for d in crate::grammar::lint::lint(&rules, &text) {
+        warnings.push(KbRepair {
+            line,
+            what: format!(
+                "ruleset {}:{}:{}: {}[{}]: {}",
+                d.file, d.line, d.col, d.severity, d.code, d.message
+            ),
+        });
+    }
+}
+
 /// The report for an already loaded KB (what [`check_report_with`] does after loading).
 pub fn report_for(
     kb: &KnowledgeBase,
@@ -169,12 +219,18 @@ pub fn report_for(
                     });
                 }
             }
-            if let Err(e) = kb.ruleset_path(i, k, allow_external) {
-                let what = match e {
-                    KbError::Structure { message, .. } => message,
-                    other => other.to_string(),
-                };
-                errors.push(KbRepair { line: a.line, what });
+            match kb.ruleset_path(i, k, allow_external) {
+                Err(e) => {
+                    let what = match e {
+                        KbError::Structure { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    errors.push(KbRepair { line: a.line, what });
+                }
+                Ok(Some(path)) => {
+                    check_ruleset(&path, a.line, &mut warnings);
+                }
+                Ok(None) => {}
             }
         }
     }
