@@ -1290,7 +1290,10 @@ fn kb_check_reads_parses_and_lints_every_ruleset_the_kb_names() {
         std::fs::write(dir.path().join("rules").join(name), text).unwrap_or_else(|e| panic!("{e}"))
     };
     w("broken.cga", "lot -> extrude(3){a\n");
-    w("unreachable.cga", "lot -> extrude(3){wall}\nb -> extrude(1){wall}\n");
+    w(
+        "unreachable.cga",
+        "lot -> extrude(3){wall}\nb -> extrude(1){wall}\n",
+    );
     w("good.cga", "lot -> extrude(3){wall}\n");
     let kb = dir.path().join("kb.xml");
     let apps: String = ["missing", "broken", "unreachable", "good"]
