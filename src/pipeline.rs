@@ -148,17 +148,15 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
     inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
-    let targets = [
-        ("--ifc", &opts.ifc),
-        ("--citygml", &opts.citygml),
-        ("--gltf", &opts.gltf),
-        ("--report", &opts.report),
-    ];
-    let planned: Vec<(&'static str, &Path)> = targets
-        .iter()
-        .filter_map(|(flag, p)| p.as_deref().map(|p| (*flag, p)))
-        .collect();
-    outputs::check(&planned, &inputs, opts.force_extension)?;
+    let targets = Targets {
+        ifc: opts.ifc.clone(),
+        citygml: opts.citygml.clone(),
+        gltf: opts.gltf.clone(),
+        report: opts.report.clone(),
+        dry_run: opts.dry_run,
+        allow_empty: opts.allow_empty,
+    };
+    outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
     let mut report = Report::default();
     let read = read_source(&opts.source, opts.src_crs, &mut report)?;
     let source_crs = opts.src_crs.or(read.source_crs);
@@ -188,14 +186,6 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         ..opts.caps
     };
     let generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
-    let targets = Targets {
-        ifc: opts.ifc.clone(),
-        citygml: opts.citygml.clone(),
-        gltf: opts.gltf.clone(),
-        report: opts.report.clone(),
-        dry_run: opts.dry_run,
-        allow_empty: opts.allow_empty,
-    };
     let batches: Vec<Batch> = match opts.tile {
         None => vec![Batch {
             suffix: None,
@@ -308,16 +298,7 @@ pub fn derive_lot(
 ) -> Result<Summary, RunError> {
     let mut inputs = vec![("the ruleset", rules_path.to_path_buf())];
     inputs.extend(kb.map(|p| ("--kb", p.to_path_buf())));
-    let planned: Vec<(&'static str, &Path)> = [
-        ("--ifc", &targets.ifc),
-        ("--citygml", &targets.citygml),
-        ("--gltf", &targets.gltf),
-        ("--report", &targets.report),
-    ]
-    .iter()
-    .filter_map(|(flag, p)| p.as_deref().map(|p| (*flag, p)))
-    .collect();
-    outputs::check(&planned, &inputs, false)?;
+    outputs::check(&targets.flagged(), &inputs, false)?;
     let mut report = Report::default();
     let rules = read_rules(rules_path)?;
     let kb = load_kb(kb, &mut report)?;
@@ -374,6 +355,21 @@ pub struct Targets {
     pub dry_run: bool,
     /// Publish the outputs even when no building was generated ([`Options::allow_empty`]).
     pub allow_empty: bool,
+}
+
+impl Targets {
+    /// The paths asked for, each with the flag that names it (for [`outputs::check`]).
+    fn flagged(&self) -> Vec<(&'static str, &Path)> {
+        [
+            ("--ifc", &self.ifc),
+            ("--citygml", &self.citygml),
+            ("--gltf", &self.gltf),
+            ("--report", &self.report),
+        ]
+        .into_iter()
+        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+        .collect()
+    }
 }
 
 /// Derives every lot of the site (in parallel, chunk by chunk) and writes the buildings in lot

@@ -125,9 +125,14 @@ pub(crate) fn check(
         }
     }
     let resolved: Vec<PathBuf> = outputs.iter().map(|(_, p)| resolve(p)).collect();
+    let read: Vec<(&str, &PathBuf, PathBuf)> = inputs
+        .iter()
+        .filter(|(_, p)| p.exists())
+        .map(|(flag, p)| (*flag, p, resolve(p)))
+        .collect();
     for (i, &(flag, path)) in outputs.iter().enumerate() {
-        for (in_flag, input) in inputs {
-            if input.exists() && resolve(input) == resolved[i] {
+        for &(in_flag, input, ref at) in &read {
+            if *at == resolved[i] {
                 return usage(format!(
                     "{flag} {} is the file {in_flag} reads ({}): refusing to overwrite an input",
                     path.display(),
