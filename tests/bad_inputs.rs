@@ -938,6 +938,61 @@ fn roof_height_above_height() {
     );
 }
 
+/// The highest vertex of the GLB (glTF is y-up), from the POSITION accessors' bounds.
+fn glb_top(r: &Ran) -> f64 {
+    let (json, _) = common::glb_json(&r.dir.join("out.glb"));
+    let accessors = json["accessors"].as_array().unwrap();
+    let mut top = f64::NEG_INFINITY;
+    for mesh in json["meshes"].as_array().unwrap() {
+        for prim in mesh["primitives"].as_array().unwrap() {
+            let a = prim["attributes"]["POSITION"].as_u64().unwrap() as usize;
+            top = top.max(accessors[a]["max"][1].as_f64().unwrap());
+        }
+    }
+    top
+}
+
+#[test]
+fn roof_angle_near_vertical_is_bounded() {
+    // roof:angle=89.9999 over a 10 m house would be a roof 2,858 km high.
+    let (_d, r) = generated_case(
+        |o| {
+            o.building(
+                10,
+                &square(0.0, 0.0, 10.0, 10.0),
+                &[
+                    ("building:levels", "2"),
+                    ("roof:angle", "89.9999"),
+                    ("roof:shape", "gabled"),
+                ],
+            )
+        },
+        "way/10",
+        "note",
+        "roof:angle=89.9999",
+    );
+    // 85° over a 5 m half-width: 57 m of roof on 2 storeys.
+    let top = glb_top(&r);
+    assert!(top > 50.0 && top < 80.0, "top {top}");
+}
+
+#[test]
+fn roof_height_absurd_is_bounded() {
+    let (_d, r) = generated_case(
+        |o| {
+            o.building(
+                10,
+                &square(0.0, 0.0, 10.0, 10.0),
+                &[("roof:height", "900"), ("roof:shape", "pyramidal")],
+            )
+        },
+        "way/10",
+        "note",
+        "roof:height=900",
+    );
+    assert!(glb_top(&r) < 400.0, "top {}", glb_top(&r));
+}
+
 #[test]
 fn min_height_above_height() {
     // Either skipped with a reason or generated with a note: never a panic or a lost building.

@@ -34,6 +34,16 @@ pub use values::{
 pub use xml::{KbError, KbRepair, ReadMode};
 
 /// Mean Earth radius (IUGG), km: used for circle containment and bounding boxes.
+/// The steepest `roof:angle` drawn as tagged, in degrees. Steeper tags (up to 90°, which
+/// `roof:angle` allows) are drawn at this pitch with a note: near 90° the height of a roof
+/// from its pitch grows without bound (89.9999° over a 10 m house is 2,858 km).
+pub const MAX_TAGGED_PITCH_DEG: f64 = 85.0;
+
+/// The highest roof a tag may ask for (`roof:height`, or `roof:levels` × floor height), in
+/// metres: twice the tallest church spire (Ulm Minster's, 161.5 m above the street). Higher
+/// tags are drawn at this height with a note.
+pub const MAX_TAGGED_ROOF_HEIGHT_M: f64 = 320.0;
+
 const EARTH_RADIUS_KM: f64 = 6371.0088;
 /// Kilometres per degree of latitude on the mean sphere.
 const KM_PER_DEG: f64 = EARTH_RADIUS_KM * std::f64::consts::PI / 180.0;
@@ -232,7 +242,8 @@ pub struct Style {
     /// Roof shape: OSM `roof:shape` when it is tagged and known (an unknown value gives
     /// [`RoofShape::Flat`]), else the KB's `rooftype`, else gabled.
     pub roof: RoofShape,
-    /// Roof pitch in degrees, 0 ≤ angle < 90: OSM `roof:angle`, else the KB's `roofangle`, else 30.
+    /// Roof pitch in degrees, 0 ≤ angle < 90: OSM `roof:angle` (at most [`MAX_TAGGED_PITCH_DEG`]),
+    /// else the KB's `roofangle`, else 30.
     pub roof_angle_deg: f64,
     /// OSM `roof:direction`: the compass bearing (degrees from north) the main roof face looks
     /// towards, i.e. the way a skillion slopes down. `None`: chosen from the footprint.
@@ -824,19 +835,36 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
         .roof_angle
         .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
     {
-        s.roof_angle_deg = a;
+        s.roof_angle_deg = if a > MAX_TAGGED_PITCH_DEG {
+            notes.push(format!(
+                "roof:angle={a} is steeper than {MAX_TAGGED_PITCH_DEG}°: roof drawn at {MAX_TAGGED_PITCH_DEG}°"
+            ));
+            MAX_TAGGED_PITCH_DEG
+        } else {
+            a
+        };
     }
     s.roof_direction = t
         .roof_direction
         .filter(|d| d.is_finite())
         .map(|d| d.rem_euclid(360.0));
+    let bounded = |what: String, h: f64, notes: &mut Vec<String>| {
+        if h > MAX_TAGGED_ROOF_HEIGHT_M {
+            notes.push(format!(
+                "{what} gives a roof {h} m high, above {MAX_TAGGED_ROOF_HEIGHT_M} m: roof drawn {MAX_TAGGED_ROOF_HEIGHT_M} m high"
+            ));
+            MAX_TAGGED_ROOF_HEIGHT_M
+        } else {
+            h
+        }
+    };
     if let Some(h) = t.roof_height.filter(|h| h.is_finite() && *h >= 0.0) {
-        s.roof_height = Some(h);
+        s.roof_height = Some(bounded(format!("roof:height={h}"), h, notes));
     } else if s.roof == RoofShape::Flat {
         s.roof_height = Some(0.0);
     } else if let Some(l) = t.roof_levels.filter(|l| l.is_finite() && *l > 0.0) {
         // S3DB: without roof:height, roof:levels storeys of the zone's height.
-        s.roof_height = Some(l * fh);
+        s.roof_height = Some(bounded(format!("roof:levels={l}"), l * fh, notes));
     }
     let min_level = t.min_level.filter(|l| l.is_finite() && *l >= 0.0);
     if let Some(m) = t.min_height.filter(|m| m.is_finite() && *m >= 0.0) {

@@ -1325,3 +1325,37 @@ fn kb_check_reads_parses_and_lints_every_ruleset_the_kb_names() {
     // The run does not apply ruleset files, so none of it is an error.
     assert!(!r.has_errors(), "{}", r);
 }
+
+#[test]
+fn roof_tags_beyond_sane_limits_are_bounded_with_a_note() {
+    let (kb, _) = KnowledgeBase::parse_str("<earth/>", "e.xml").unwrap_or_else(|e| panic!("{e}"));
+    let style = |pairs: &[(&str, &str)]| {
+        let tags = BuildingTags::from_pairs(pairs.iter().copied());
+        kb.style_for(0, &tags, &mut Rng::new(0, 0))
+    };
+    // roof:angle allows up to 90°; near it the pitch gives a roof of any height.
+    let (s, notes) = style(&[("roof:shape", "gabled"), ("roof:angle", "89.9999")]);
+    assert_eq!(s.roof_angle_deg, MAX_TAGGED_PITCH_DEG);
+    assert!(
+        notes.iter().any(|n| n.contains("roof:angle=89.9999")),
+        "{notes:?}"
+    );
+    // At the bound and below it, the tag is drawn as it is, without a note.
+    let (s, notes) = style(&[("roof:shape", "gabled"), ("roof:angle", "85")]);
+    assert_eq!(s.roof_angle_deg, 85.0);
+    assert!(notes.iter().all(|n| !n.contains("roof:angle")), "{notes:?}");
+    let (s, notes) = style(&[("roof:shape", "pyramidal"), ("roof:height", "900")]);
+    assert_eq!(s.roof_height, Some(MAX_TAGGED_ROOF_HEIGHT_M));
+    assert!(
+        notes.iter().any(|n| n.contains("roof:height=900")),
+        "{notes:?}"
+    );
+    let (s, notes) = style(&[("roof:shape", "gabled"), ("roof:levels", "150")]);
+    assert_eq!(s.roof_height, Some(MAX_TAGGED_ROOF_HEIGHT_M));
+    assert!(
+        notes.iter().any(|n| n.contains("roof:levels=150")),
+        "{notes:?}"
+    );
+    let (s, _) = style(&[("roof:shape", "gabled"), ("roof:height", "12")]);
+    assert_eq!(s.roof_height, Some(12.0));
+}
