@@ -181,7 +181,7 @@ struct RunArgs {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Output CRS, projected (metres), e.g. EPSG:2154 (Lambert-93). Default: the UTM zone of
-    /// the data.
+    /// the data's centre (inside --bbox); data too wide for one zone needs --crs or --bbox.
     #[arg(long, value_name = "EPSG:n", value_parser = parse_output_crs)]
     crs: Option<Crs>,
     /// CRS of the input coordinates, overriding a shapefile's .prj.

@@ -170,7 +170,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         None => Rules::Kb,
     };
 
-    let mut site = prepare::prepare(read.footprints, source_crs, opts.crs, &mut report);
+    let crs = match opts.crs {
+        Some(c) => c,
+        None => zone_for(&read.footprints, source_crs, opts.bbox, &source_name)?,
+    };
+    let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
     prepare::assign_fronts(&mut site, &read.streets, source_crs);
     if let Some(b) = opts.bbox {
         if let Err(why) = prepare::retain_in_bbox(&mut site, b, &mut report) {
@@ -210,6 +214,38 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     )?;
     summary.elapsed = start.elapsed();
     Ok(summary)
+}
+
+/// The output CRS for a run without `--crs` ([`prepare::choose_output_crs`]), or an error when
+/// no one zone fits the data: a building that the zone would stretch by more than
+/// [`prepare::MAX_SCALE_ERROR`] is far from the zone's centre (two cities in one file, a
+/// country), and would be written with wrong lengths.
+fn zone_for(
+    footprints: &[input::Footprint],
+    source_crs: Option<Crs>,
+    bbox: Option<[f64; 4]>,
+    source_name: &str,
+) -> Result<Crs, RunError> {
+    let choice = prepare::choose_output_crs(footprints, source_crs, bbox);
+    match choice.worst {
+        Some((error, id, (lon, lat))) if error > prepare::MAX_SCALE_ERROR => {
+            let (west, east) = choice.west_east;
+            let zone = |lon: f64| match Crs::utm_for(lon, 0.0) {
+                Crs::Utm { zone, .. } => zone,
+                _ => 0,
+            };
+            Err(RunError::Input(format!(
+                "{source_name}: the buildings span longitude {west:.4} to {east:.4} (UTM zones {} to {}), too wide for one projection: in {} (EPSG:{}), the zone of their centre, {id} at {lon:.5}, {lat:.5} would be stretched by {:.2} % (at most {:.2} % is allowed). Run each area on its own (--bbox W,S,E,N), or pass --crs EPSG:code to accept the error",
+                zone(west),
+                zone(east),
+                choice.crs.name(),
+                choice.crs.epsg(),
+                100.0 * error,
+                100.0 * prepare::MAX_SCALE_ERROR,
+            )))
+        }
+        _ => Ok(choice.crs),
+    }
 }
 
 /// Reads the footprints of the source (with `src_crs` overriding a shapefile's `.prj`).

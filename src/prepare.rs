@@ -75,6 +75,92 @@ pub struct Site {
     pub lots: Vec<Lot>,
 }
 
+/// The most a projection chosen by citygen may stretch a building's lengths: 0.25 % (2.5 mm
+/// per metre), 2.5 times the worst of UTM within its own zone (0.1 % at the zone's edge on the
+/// equator). It lets a city overhang its zone by a degree or more (London across 0°, any
+/// town on a zone boundary) and refuses a file of places hundreds of kilometres apart.
+pub const MAX_SCALE_ERROR: f64 = 0.0025;
+
+/// The output CRS [`choose_output_crs`] picked, and how well it fits the data.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CrsChoice {
+    /// The WGS84 UTM zone of the centre of the data.
+    pub crs: Crs,
+    /// The data's longitudes, west to east (west > east when they cross the antimeridian).
+    pub west_east: (f64, f64),
+    /// The largest scale error of the zone at a vertex of the data ([`Crs::utm_scale_error`]),
+    /// with that vertex's footprint and lon/lat; `None` when no vertex is finite.
+    pub worst: Option<(f64, SourceId, (f64, f64))>,
+}
+
+/// The UTM zone for data without `--crs`: the zone of the centre of the footprints' lon/lat
+/// bounds, where the bounds take the shorter way round the globe (data on both sides of the
+/// antimeridian is centred on it, not on Greenwich). With `bbox` (lon/lat), only the vertices
+/// inside it count when some are, so that a region cut from a larger file gets its own zone.
+/// Also finds the vertex the zone stretches most (see [`MAX_SCALE_ERROR`]).
+pub fn choose_output_crs(
+    footprints: &[Footprint],
+    source_crs: Option<Crs>,
+    bbox: Option<[f64; 4]>,
+) -> CrsChoice {
+    let to_lonlat = |x: f64, y: f64| match source_crs {
+        None | Some(Crs::Wgs84) => (x, y),
+        Some(c) => c.to_lonlat(x, y),
+    };
+    let vertices = || {
+        footprints.iter().flat_map(move |f| {
+            f.polygons
+                .iter()
+                .flat_map(|p| p.outer.iter())
+                .map(move |p| (f.id, to_lonlat(p.0, p.1)))
+                .filter(|(_, (lon, lat))| lon.is_finite() && lat.is_finite())
+        })
+    };
+    let in_box = |(lon, lat): (f64, f64)| match bbox {
+        Some(b) => lon >= b[0] && lon < b[2] && lat >= b[1] && lat < b[3],
+        None => true,
+    };
+    let use_box = bbox.is_some() && vertices().any(|(_, ll)| in_box(ll));
+    let counted = || vertices().filter(move |(_, ll)| !use_box || in_box(*ll));
+    // Longitude bounds as given, and with the western hemisphere moved east by 360°: the
+    // narrower of the two is the data's extent.
+    let mut plain = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut shifted = plain;
+    let mut lat = plain;
+    for (_, (lon, la)) in counted() {
+        plain = (plain.0.min(lon), plain.1.max(lon));
+        let e = if lon < 0.0 { lon + 360.0 } else { lon };
+        shifted = (shifted.0.min(e), shifted.1.max(e));
+        lat = (lat.0.min(la), lat.1.max(la));
+    }
+    if !plain.0.is_finite() {
+        return CrsChoice {
+            crs: Crs::utm_for(0.0, 0.0),
+            west_east: (0.0, 0.0),
+            worst: None,
+        };
+    }
+    let wrap = |l: f64| (l + 180.0).rem_euclid(360.0) - 180.0;
+    let (west, east) = if shifted.1 - shifted.0 < plain.1 - plain.0 {
+        shifted
+    } else {
+        plain
+    };
+    let crs = Crs::utm_for(wrap(0.5 * (west + east)), 0.5 * (lat.0 + lat.1));
+    let mut worst: Option<(f64, SourceId, (f64, f64))> = None;
+    for (id, (lon, la)) in counted() {
+        let e = crs.utm_scale_error(lon, la).unwrap_or(0.0);
+        if worst.as_ref().is_none_or(|w| e > w.0) {
+            worst = Some((e, id, (lon, la)));
+        }
+    }
+    CrsChoice {
+        crs,
+        west_east: (wrap(west), wrap(east)),
+        worst,
+    }
+}
+
 /// Projects and cleans every footprint, then groups parts under outlines.
 ///
 /// `source_crs` `None` means WGS84 degrees. `out_crs` `None` picks the UTM zone of the data's
@@ -90,24 +176,7 @@ pub fn prepare(
         Some(c) => c.to_lonlat(x, y),
     };
     // Output CRS: the UTM zone of the centre of the data.
-    let crs = out_crs.unwrap_or_else(|| {
-        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-        for f in &footprints {
-            for p in f.polygons.iter().flat_map(|p| p.outer.iter()) {
-                let (lon, lat) = to_lonlat(p.0, p.1);
-                if lon.is_finite() && lat.is_finite() {
-                    lo = lo.min(DVec2::new(lon, lat));
-                    hi = hi.max(DVec2::new(lon, lat));
-                }
-            }
-        }
-        if lo.x.is_finite() {
-            let c = (lo + hi) * 0.5;
-            Crs::utm_for(c.x, c.y)
-        } else {
-            Crs::utm_for(0.0, 0.0)
-        }
-    });
+    let crs = out_crs.unwrap_or_else(|| choose_output_crs(&footprints, source_crs, None).crs);
     let same = source_crs == Some(crs);
     let project = |x: f64, y: f64| -> (DVec2, (f64, f64)) {
         if same {
@@ -1043,5 +1112,107 @@ mod tests {
                 ("370250_4842000".to_string(), 4..5),
             ]
         );
+    }
+}
+
+#[cfg(test)]
+mod crs_choice_tests {
+    use super::*;
+
+    /// A 10 m square building (as lon/lat degrees) at each point.
+    fn at(points: &[(f64, f64)]) -> Vec<Footprint> {
+        points
+            .iter()
+            .enumerate()
+            .map(|(i, &(lon, lat))| {
+                let d = 1e-4;
+                Footprint {
+                    id: SourceId::Way(i as i64 + 1),
+                    kind: FootprintKind::Building,
+                    polygons: vec![SourcePolygon {
+                        outer: vec![
+                            (lon, lat),
+                            (lon + d, lat),
+                            (lon + d, lat + d),
+                            (lon, lat + d),
+                            (lon, lat),
+                        ],
+                        holes: vec![],
+                    }],
+                    tags: SharedTags::default(),
+                }
+            })
+            .collect()
+    }
+
+    fn zone(c: &CrsChoice) -> u8 {
+        match c.crs {
+            Crs::Utm { zone, .. } => zone,
+            _ => 0,
+        }
+    }
+
+    fn worst(c: &CrsChoice) -> f64 {
+        c.worst.as_ref().map_or(f64::NAN, |w| w.0)
+    }
+
+    #[test]
+    fn one_town_gets_its_zone_and_fits_it() {
+        let c = choose_output_crs(&at(&[(7.41, 43.73), (7.43, 43.74)]), None, None);
+        assert_eq!(
+            c.crs,
+            Crs::Utm {
+                zone: 32,
+                north: true
+            }
+        );
+        assert!(worst(&c) < 1e-3, "{c:?}");
+        let south = choose_output_crs(&at(&[(-58.4, -34.6)]), None, None);
+        assert_eq!(
+            south.crs,
+            Crs::Utm {
+                zone: 21,
+                north: false
+            }
+        );
+    }
+
+    #[test]
+    fn data_across_the_antimeridian_is_centred_on_it() {
+        // Taveuni, Fiji, on both sides of 180°: the plain bounds' centre would be Greenwich.
+        let c = choose_output_crs(&at(&[(179.95, -16.8), (-179.95, -16.8)]), None, None);
+        assert!(zone(&c) == 60 || zone(&c) == 1, "{c:?}");
+        assert!(worst(&c) < MAX_SCALE_ERROR, "{c:?}");
+        assert!(c.west_east.0 > 179.0 && c.west_east.1 < -179.0, "{c:?}");
+    }
+
+    #[test]
+    fn a_city_across_a_zone_boundary_fits_but_two_distant_cities_do_not() {
+        // Greater London spans 0° (zones 30 and 31).
+        let london = choose_output_crs(&at(&[(-0.5, 51.3), (0.3, 51.7)]), None, None);
+        assert!(worst(&london) < MAX_SCALE_ERROR, "{london:?}");
+        // Monaco and Lisbon in one file: 16° apart.
+        let two = at(&[(7.42, 43.73), (-9.14, 38.72)]);
+        let c = choose_output_crs(&two, None, None);
+        assert!(worst(&c) > MAX_SCALE_ERROR, "{c:?}");
+        // A box around one of them: that city's zone, and it fits.
+        let lisbon = choose_output_crs(&two, None, Some([-9.5, 38.5, -9.0, 39.0]));
+        assert_eq!(
+            lisbon.crs,
+            Crs::Utm {
+                zone: 29,
+                north: true
+            }
+        );
+        assert!(worst(&lisbon) < 1e-3, "{lisbon:?}");
+        // A box that holds nothing: the whole data decides (the box's own check reports it).
+        let none = choose_output_crs(&two, None, Some([100.0, 0.0, 101.0, 1.0]));
+        assert_eq!(none, c);
+    }
+
+    #[test]
+    fn no_finite_vertex_gives_a_zone_and_no_worst() {
+        let c = choose_output_crs(&at(&[(f64::NAN, 1.0)]), None, None);
+        assert!(c.worst.is_none());
     }
 }

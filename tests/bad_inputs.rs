@@ -1650,3 +1650,94 @@ fn mixed_file_keeps_every_good_building_and_accounts_for_every_bad_one() {
     let gml = std::fs::read_to_string(out.join("mixed.gml")).unwrap();
     assert_eq!(gml.matches("<bldg:Building gml:id=").count(), 35);
 }
+
+/// An OSM file of 10 m square buildings (`building=yes`), one at each lon/lat.
+fn buildings_at(path: &Path, places: &[(f64, f64)]) {
+    let mut osm = Osm::default();
+    for (i, &(lon, lat)) in places.iter().enumerate() {
+        let d = 1e-4;
+        let first = osm.nodes.len() as i64 + 1;
+        for (k, (x, y)) in [(0.0, 0.0), (d, 0.0), (d, d), (0.0, d)].iter().enumerate() {
+            osm.nodes.push((first + k as i64, lon + x, lat + y));
+        }
+        let refs = vec![first, first + 1, first + 2, first + 3, first];
+        osm.way(i as i64 + 1, refs, &[("building", "yes")]);
+    }
+    osm.write(path);
+}
+
+#[test]
+fn data_too_wide_for_one_zone_is_refused_and_a_bbox_or_crs_takes_one_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let pbf = d.join("two-cities.osm.pbf");
+    // Monaco and Lisbon, 16° of longitude apart: one UTM zone would stretch one of them by
+    // several per cent.
+    buildings_at(
+        &pbf,
+        &[(7.4200, 43.7300), (7.4210, 43.7300), (-9.1400, 38.7200)],
+    );
+    let glb = d.join("x.glb");
+    let args = |extra: &[&str]| {
+        let mut a = vec!["--osm", pbf.to_str().unwrap(), "--kb", KB, "--lod", "1"];
+        a.extend(["--gltf", glb.to_str().unwrap(), "--quiet"]);
+        a.extend_from_slice(extra);
+        a.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    let run = |extra: &[&str]| {
+        let a = args(extra);
+        citygen(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let out = run(&[]);
+    fatal(
+        &out,
+        1,
+        &[
+            "two-cities.osm.pbf",
+            "too wide for one projection",
+            "UTM zones 29 to 32",
+            "--bbox",
+            "--crs",
+        ],
+    );
+    assert!(!glb.exists());
+    // The Lisbon building alone, in its own zone.
+    let out = run(&[
+        "--bbox=-9.5,38.5,-9.0,39.0",
+        "--ifc",
+        d.join("x.ifc").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", show(&out));
+    let ifc = std::fs::read_to_string(d.join("x.ifc")).unwrap();
+    assert!(ifc.contains("EPSG:32629"), "Lisbon is in UTM zone 29");
+    // A chosen CRS is the user's call.
+    let out = run(&["--crs", "EPSG:32632"]);
+    assert_eq!(out.status.code(), Some(0), "{}", show(&out));
+}
+
+#[test]
+fn data_across_the_antimeridian_gets_the_zone_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let pbf = d.join("taveuni.osm.pbf");
+    // Taveuni, Fiji: buildings on both sides of 180°.
+    buildings_at(&pbf, &[(179.9990, -16.8), (-179.9990, -16.8)]);
+    let ifc = d.join("x.ifc");
+    let out = citygen(&[
+        "--osm",
+        pbf.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--lod",
+        "1",
+        "--ifc",
+        ifc.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", show(&out));
+    let text = std::fs::read_to_string(&ifc).unwrap();
+    assert!(
+        text.contains("EPSG:32760") || text.contains("EPSG:32701"),
+        "the zone at the antimeridian, not at Greenwich"
+    );
+}

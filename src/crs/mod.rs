@@ -188,6 +188,22 @@ impl Crs {
         }
     }
 
+    /// The scale error |k − 1| of a UTM zone (WGS84 or ETRS89) at (`lon`, `lat`) degrees: how
+    /// much lengths there are stretched or shrunk by the projection (0.001 is 1 mm per metre).
+    /// Spherical formula, k = 0.9996 / √(1 − (cos φ sin Δλ)²), Δλ from the zone's central
+    /// meridian: within 1e-5 of the ellipsoid's over a zone, which is all a bound needs. `None`
+    /// for the other CRSs.
+    pub fn utm_scale_error(&self, lon: f64, lat: f64) -> Option<f64> {
+        let zone = match *self {
+            Crs::Utm { zone, .. } | Crs::EtrsUtm { zone } => zone,
+            _ => return None,
+        };
+        let central = 6.0 * f64::from(zone) - 183.0;
+        let b = lat.to_radians().cos() * (lon - central).to_radians().sin();
+        let k = 0.9996 / (1.0 - b * b).max(1e-12).sqrt();
+        Some((k - 1.0).abs())
+    }
+
     /// Identifies the CRS of an ESRI or OGC WKT1 `.prj` (WKT2 `PROJCRS`/`GEOGCRS` is accepted
     /// too): British National Grid, Lambert-93, WGS84 UTM zones, ETRS89 UTM, WGS84 geographic.
     ///
