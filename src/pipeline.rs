@@ -363,6 +363,9 @@ fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, Ru
             for r in repairs {
                 report.add(None, Outcome::Note, format!("{}: {r}", p.display()));
             }
+            for n in kb::tools::ruleset_notes(&kb) {
+                report.add(None, Outcome::Note, n);
+            }
             Ok(kb)
         }
         None => Ok(KnowledgeBase::earth_only()),

@@ -1741,3 +1741,41 @@ fn data_across_the_antimeridian_gets_the_zone_there() {
         "the zone at the antimeridian, not at Greenwich"
     );
 }
+
+#[test]
+fn rulesets_the_kb_names_are_reported_as_not_applied_or_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let kb = d.join("kb.xml");
+    std::fs::write(
+        &kb,
+        r#"<earth>
+  <info nbfloor="2" rooftype="flat"/>
+  <appearance><values proba="0.5"/><ruleset file="near.cga"/></appearance>
+  <appearance><values proba="0.5"/><ruleset file="../far.cga"/></appearance>
+</earth>
+"#,
+    )
+    .unwrap();
+    std::fs::write(d.join("near.cga"), "Lot --> extrude(3) Mass\n").unwrap();
+    let pbf = d.join("in.osm.pbf");
+    let mut osm = Osm::default();
+    osm.good(1, 0);
+    osm.write(&pbf);
+    let r = ok_run(d, "--osm", &pbf, &["--kb", kb.to_str().unwrap()]);
+    let notes: Vec<String> = r.report()["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["id"] == "")
+        .map(|e| e["reason"].as_str().unwrap().to_string())
+        .collect();
+    let about = |needle: &str| notes.iter().find(|n| n.contains(needle)).cloned();
+    let near = about("near.cga").unwrap_or_else(|| panic!("no note on near.cga: {notes:?}"));
+    assert!(
+        near.contains("kb.xml:3") && near.contains("does not apply"),
+        "{near}"
+    );
+    let far = about("far.cga").unwrap_or_else(|| panic!("no note on ../far.cga: {notes:?}"));
+    assert!(far.contains("kb.xml:4") && far.contains("refused"), "{far}");
+}

@@ -94,6 +94,44 @@ pub fn check_report_with(
     Ok(report_for(&kb, mode, repairs, allow_external))
 }
 
+/// What a run says about the `<ruleset file>`s a knowledge base names, one note each (for the
+/// report): a refused path (outside the KB's folder) says why, and every other says that the
+/// run does not apply knowledge-base ruleset files (yet): the appearance's values compile into
+/// rules as for any appearance, and `--rules` applies one ruleset to every building. Empty when
+/// the KB names none.
+pub fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
+    let mut notes = Vec::new();
+    for (i, z) in kb.zones().iter().enumerate() {
+        for (k, a) in z.appearances.iter().enumerate() {
+            let Some(file) = a.ruleset.as_deref() else {
+                continue;
+            };
+            let at = format!(
+                "{}:{}: appearance {}#{}",
+                kb.source(),
+                a.line,
+                z.path,
+                k + 1
+            );
+            notes.push(match kb.ruleset_path(i, k, false) {
+                Err(e) => {
+                    let why = match e {
+                        KbError::Structure { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    format!("{at}: ruleset refused: {why}; its values are used")
+                }
+                Ok(_) => format!(
+                    "{at} names ruleset file \"{file}\", which the run does not apply (knowledge-base \
+                     ruleset files are checked by `kb check` only): its values compile into rules \
+                     as for any appearance; --rules FILE applies one ruleset to every building"
+                ),
+            });
+        }
+    }
+    notes
+}
+
 /// Largest ruleset file `kb check` reads (bytes): rule files are a few kilobytes.
 const MAX_RULESET_BYTES: u64 = 4 * 1024 * 1024;
 
