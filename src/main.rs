@@ -590,8 +590,12 @@ fn run_main(cli: RunArgs) -> ExitCode {
                 let rss = peak_rss_kib()
                     .map(|kib| format!("; peak RSS {:.1} MiB", kib as f64 / 1024.0))
                     .unwrap_or_default();
+                let split = match (summary.tiles, cli.tile) {
+                    (0, _) | (_, None) => String::new(),
+                    (n, Some(size)) => format!(" ({n} tiles of {size} m)"),
+                };
                 eprintln!(
-                    "  output: {} polygons, {} bytes in {files} file(s){rss}{}",
+                    "  output: {} polygons, {} bytes in {files} file(s){split}{rss}{}",
                     summary.polygons,
                     summary.bytes,
                     if cli.dry_run {
@@ -609,6 +613,9 @@ fn run_main(cli: RunArgs) -> ExitCode {
                 if files > SHOWN {
                     eprintln!("  ... and {} more files ({files} in all)", files - SHOWN);
                 }
+            }
+            for w in &summary.warnings {
+                eprintln!("citygen: warning: {w}");
             }
             ExitCode::SUCCESS
         }

@@ -14,7 +14,7 @@ mod outputs;
 
 use crate::crs::Crs;
 use crate::derive::{merged_tags, Generator, Rules};
-use crate::export::citygml::CityGmlWriter;
+use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
 use crate::export::{AtomicFile, BuildingWriter, ExportError, OutputContext, PendingFile};
@@ -131,6 +131,11 @@ pub struct Summary {
     pub outputs: Vec<PathBuf>,
     /// Bytes of every output file together (written, or rendered and dropped with `dry_run`).
     pub bytes: u64,
+    /// The tiles the outputs were split into (`--tile`); 0 for an untiled run.
+    pub tiles: usize,
+    /// What the user should know about the outputs although the run succeeded (a CityGML file
+    /// too big for the reference validator); each is also a note in the report.
+    pub warnings: Vec<String>,
 }
 
 /// Called after each chunk with (buildings done, buildings in all).
@@ -505,6 +510,8 @@ fn write_batches(
         rendered: mut paths,
         polygons,
         bytes,
+        largest_citygml,
+        citygml_over_cap,
     } = written;
     if report.generated == 0 && !targets.allow_empty {
         let shown: Vec<String> = report
@@ -525,6 +532,25 @@ fn write_batches(
             report.read
         )));
     }
+    let tiled = batches.iter().any(|b| b.suffix.is_some());
+    let mut warnings = Vec::new();
+    if let Some((path, n)) = largest_citygml.filter(|(_, n)| *n > VALIDATOR_MAX_ELEMENTS) {
+        warnings.push(if tiled {
+            format!(
+                "{citygml_over_cap} of {} CityGML tiles have more than {VALIDATOR_MAX_ELEMENTS} XML elements, the most the reference schema validator reads (the largest: {}, {n}); a smaller --tile keeps every tile under it",
+                batches.len(),
+                path.display()
+            )
+        } else {
+            format!(
+                "{} has {n} XML elements, more than the {VALIDATOR_MAX_ELEMENTS} the reference schema validator reads; --tile METRES splits the outputs into tiles (250 m tiles of a dense centre hold under 300,000 at LOD3)",
+                path.display()
+            )
+        });
+    }
+    for w in &warnings {
+        report.add(None, Outcome::Note, w.clone());
+    }
     // Every file, the report too, is complete and closed before the first is renamed into
     // place, so a failure up to here leaves every target as it was.
     let report_file = match &targets.report {
@@ -544,6 +570,8 @@ fn write_batches(
         elapsed: start.elapsed(),
         outputs: paths,
         bytes,
+        tiles: if tiled { batches.len() } else { 0 },
+        warnings,
     })
 }
 
@@ -553,16 +581,22 @@ enum Sink {
     Discard,
 }
 
-/// Counts the bytes that pass through it (below the writer's buffer, so once per flush).
+/// Counts the bytes that pass through it (below the writer's buffer, so once per flush), and
+/// for XML the elements (`elements`, with the state of a `<` at the end of the last write).
 struct Counted<W> {
     inner: W,
     bytes: Arc<AtomicU64>,
+    elements: Option<(Arc<AtomicU64>, bool)>,
 }
 
 impl<W: Write> Write for Counted<W> {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
         let n = self.inner.write(buf)?;
         self.bytes.fetch_add(n as u64, Ordering::Relaxed);
+        if let Some((count, after_lt)) = &mut self.elements {
+            let e = crate::export::citygml::count_elements(&buf[..n], after_lt);
+            count.fetch_add(e, Ordering::Relaxed);
+        }
         Ok(n)
     }
 
@@ -574,7 +608,12 @@ impl<W: Write> Write for Counted<W> {
 /// A buffered, counted writer for `path`: on its temporary file, or on nothing for a dry run.
 type OutWriter = BufWriter<Counted<Box<dyn Write + Send>>>;
 
-fn open_output(path: &Path, dry_run: bool) -> Result<(OutWriter, Sink, Arc<AtomicU64>), RunError> {
+/// `elements`: also count the XML elements written, into it.
+fn open_output(
+    path: &Path,
+    dry_run: bool,
+    elements: Option<Arc<AtomicU64>>,
+) -> Result<(OutWriter, Sink, Arc<AtomicU64>), RunError> {
     let (inner, sink): (Box<dyn Write + Send>, Sink) = if dry_run {
         (Box::new(std::io::sink()), Sink::Discard)
     } else {
@@ -587,6 +626,7 @@ fn open_output(path: &Path, dry_run: bool) -> Result<(OutWriter, Sink, Arc<Atomi
         Counted {
             inner,
             bytes: Arc::clone(&bytes),
+            elements: elements.map(|e| (e, false)),
         },
     );
     Ok((w, sink, bytes))
@@ -608,6 +648,10 @@ struct Written {
     rendered: Vec<PathBuf>,
     polygons: usize,
     bytes: u64,
+    /// The CityGML file with the most elements so far, and their count.
+    largest_citygml: Option<(PathBuf, u64)>,
+    /// CityGML files with more than [`VALIDATOR_MAX_ELEMENTS`] elements.
+    citygml_over_cap: usize,
 }
 
 /// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the file set,
@@ -636,16 +680,17 @@ fn write_lots(
     let dry = targets.dry_run;
     let mut outputs: Vec<Output> = Vec::new();
     if let Some(p) = &targets.ifc {
-        let (w, sink, bytes) = open_output(p, dry)?;
+        let (w, sink, bytes) = open_output(p, dry, None)?;
         let w = IfcWriter::new(w).with_file_name(&file_name(p));
         outputs.push((p.clone(), Box::new(w), sink, bytes));
     }
+    let citygml_elements = Arc::new(AtomicU64::new(0));
     if let Some(p) = &targets.citygml {
-        let (w, sink, bytes) = open_output(p, dry)?;
+        let (w, sink, bytes) = open_output(p, dry, Some(Arc::clone(&citygml_elements)))?;
         outputs.push((p.clone(), Box::new(CityGmlWriter::new(w)), sink, bytes));
     }
     if let Some(p) = &targets.gltf {
-        let (w, sink, bytes) = open_output(p, dry)?;
+        let (w, sink, bytes) = open_output(p, dry, None)?;
         // A dry run's target folder may not exist: the scratch files go to the temp folder.
         let beside = match p.parent() {
             Some(d) if dry && !d.as_os_str().is_empty() && !d.is_dir() => {
@@ -697,6 +742,15 @@ fn write_lots(
         w.finish().map_err(out_err(path))?;
     }
     written.polygons += polygons;
+    if let Some(p) = &targets.citygml {
+        let n = citygml_elements.load(Ordering::Relaxed);
+        if written.largest_citygml.as_ref().is_none_or(|(_, m)| n > *m) {
+            written.largest_citygml = Some((p.clone(), n));
+        }
+        if n > VALIDATOR_MAX_ELEMENTS {
+            written.citygml_over_cap += 1;
+        }
+    }
     for (path, writer, sink, counted) in outputs {
         drop(writer);
         written.bytes += counted.load(Ordering::Relaxed);

@@ -1779,3 +1779,64 @@ fn rulesets_the_kb_names_are_reported_as_not_applied_or_refused() {
     let far = about("far.cga").unwrap_or_else(|| panic!("no note on ../far.cga: {notes:?}"));
     assert!(far.contains("kb.xml:4") && far.contains("refused"), "{far}");
 }
+
+#[test]
+fn a_citygml_file_past_the_validators_element_cap_is_named_and_tiles_fix_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 19,600 plain LOD1 blocks (about 60 elements each): 1.2 million elements in one file.
+    let mut osm = Osm::default();
+    for i in 0..140 {
+        for j in 0..140 {
+            let id = 1 + (i * 140 + j) as i64;
+            let (x, y) = (15.0 * i as f64, 15.0 * j as f64);
+            osm.building(id, &square(x, y, 10.0, 10.0), &[("height", "6")]);
+        }
+    }
+    let pbf = d.join("grid.osm.pbf");
+    osm.write(&pbf);
+    let gml = d.join("city.gml");
+    let report = d.join("report.json");
+    let run = |extra: &[&str]| {
+        let mut a = vec!["--osm", pbf.to_str().unwrap(), "--kb", KB, "--lod", "1"];
+        a.extend(["--citygml", gml.to_str().unwrap()]);
+        a.extend(["--report", report.to_str().unwrap()]);
+        a.extend_from_slice(extra);
+        let out = citygen(&a);
+        assert_eq!(out.status.code(), Some(0), "{}", show(&out));
+        let r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        let notes: Vec<String> = r["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|e| e["reason"].as_str())
+            .filter(|t| t.contains("XML elements"))
+            .map(str::to_string)
+            .collect();
+        (String::from_utf8_lossy(&out.stderr).into_owned(), notes)
+    };
+    let (stderr, notes) = run(&[]);
+    assert!(
+        stderr.contains("citygen: warning:")
+            && stderr.contains("city.gml has 1")
+            && stderr.contains("more than the 1000000")
+            && stderr.contains("--tile"),
+        "{stderr}"
+    );
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    // The warning's count is the file's: every start tag.
+    let text = std::fs::read_to_string(&gml).unwrap();
+    let starts = text
+        .match_indices('<')
+        .filter(|(i, _)| !matches!(text.as_bytes().get(i + 1), Some(b'/' | b'?' | b'!')));
+    assert!(
+        notes[0].contains(&format!("has {} XML", starts.count())),
+        "{notes:?}"
+    );
+    // Tiled: the summary says so, and no tile is past the cap.
+    let (stderr, notes) = run(&["--tile", "500"]);
+    assert!(stderr.contains("tiles of 500 m)"), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    assert!(notes.is_empty(), "{notes:?}");
+}

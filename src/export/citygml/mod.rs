@@ -73,6 +73,34 @@ const ROOF_TYPE_CODESPACE: &str =
     "http://www.sig3d.org/codelists/standard/building/2.0/_AbstractBuilding_roofType.xml";
 
 /// Theme of the appearance that carries the colours.
+/// The most elements an XML document may have for the reference schema validator (xmlschema's
+/// `MAX_XML_ELEMENTS`, which `validate-outputs` uses): a larger file is refused unread. The run
+/// counts each CityGML file's elements and warns past it ([`count_elements`]).
+pub const VALIDATOR_MAX_ELEMENTS: u64 = 1_000_000;
+
+/// Counts the element start tags (`<name`, `<name/>`; not `</`, `<?`, `<!`) in `bytes`, a
+/// piece of a CityGML stream; `after_lt` carries a `<` that ended the previous piece. The
+/// writer escapes `<` in text and attributes, so every other `<` opens an element.
+pub fn count_elements(bytes: &[u8], after_lt: &mut bool) -> u64 {
+    let opens = |b: u8| !matches!(b, b'/' | b'?' | b'!');
+    let mut n = 0;
+    if *after_lt {
+        if let Some(&b) = bytes.first() {
+            n += u64::from(opens(b));
+        }
+    }
+    if bytes.is_empty() {
+        return n;
+    }
+    for i in memchr::memchr_iter(b'<', bytes) {
+        if let Some(&b) = bytes.get(i + 1) {
+            n += u64::from(opens(b));
+        }
+    }
+    *after_lt = bytes.last() == Some(&b'<');
+    n
+}
+
 const APPEARANCE_THEME: &str = "citygen";
 
 /// `app:transparency` of glazed windows' glass.

@@ -1336,3 +1336,23 @@ mod lod4 {
         assert!(text.contains("Room=6"), "{text}");
     }
 }
+
+#[test]
+fn element_count_is_the_same_however_the_stream_is_cut() {
+    let xml = b"<?xml version=\"1.0\"?><!-- c --><a x=\"1\"><b/><c>t</c><d><e/></d></a><";
+    // a, b, c, d, e, and the trailing `<` whose next byte never comes: 5.
+    let whole = count_elements(xml, &mut false);
+    assert_eq!(whole, 5);
+    for cut in 0..=xml.len() {
+        let mut after_lt = false;
+        let n = count_elements(&xml[..cut], &mut after_lt)
+            + count_elements(&[], &mut after_lt)
+            + count_elements(&xml[cut..], &mut after_lt);
+        assert_eq!(n, whole, "cut at {cut}");
+    }
+    // A `<` at the end of one piece and `/` at the start of the next is a closing tag.
+    let mut after_lt = false;
+    assert_eq!(count_elements(b"<a><", &mut after_lt), 1);
+    assert!(after_lt);
+    assert_eq!(count_elements(b"/a>", &mut after_lt), 0);
+}
