@@ -246,6 +246,29 @@ pub fn iso8601_utc(secs: i64) -> String {
 pub struct Args<'a> {
     buf: &'a mut String,
     count: usize,
+    /// The first argument that broke its type's rule ([`Args::positive`]), for [`Writer::entity`]
+    /// to refuse the entity with.
+    bad: Option<String>,
+}
+
+/// An entity that would break a rule of the schema (a positive length written as 0): the
+/// writer refuses it rather than write an invalid file. Carried inside the `io::Error` that
+/// [`Writer::entity`] returns; [`broken_rule`] finds it.
+#[derive(Debug)]
+pub struct BrokenRule(pub String);
+
+impl std::fmt::Display for BrokenRule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BrokenRule {}
+
+/// The [`BrokenRule`] inside an error of [`Writer::entity`], if that is what it is.
+pub fn broken_rule(e: &io::Error) -> Option<&BrokenRule> {
+    e.get_ref()
+        .and_then(|inner| inner.downcast_ref::<BrokenRule>())
 }
 
 impl Args<'_> {
@@ -286,6 +309,20 @@ impl Args<'_> {
     pub fn real(&mut self, v: f64) -> &mut Self {
         push_real(self.sep(), v);
         self
+    }
+
+    /// A REAL that the schema requires to be above zero (`IfcPositiveLengthMeasure`: profile
+    /// sizes, extrusion depths). One that is not, or that would be written as `0.` (below half
+    /// a micrometre), makes [`Writer::entity`] refuse the entity.
+    pub fn positive(&mut self, v: f64) -> &mut Self {
+        let written_positive = v.is_finite() && (v >= 1e9 || (v * 1e6).round() > 0.0);
+        if !written_positive && self.bad.is_none() {
+            self.bad = Some(format!(
+                "argument {} must be a positive length, is {v}",
+                self.count + 1
+            ));
+        }
+        self.real(v)
     }
 
     /// A list of REALs.
@@ -364,8 +401,12 @@ impl Args<'_> {
         let mut inner = Args {
             buf: &mut *self.buf,
             count: 0,
+            bad: None,
         };
         f(&mut inner);
+        if self.bad.is_none() {
+            self.bad = inner.bad;
+        }
         self.buf.push(')');
         self
     }
@@ -376,8 +417,12 @@ impl Args<'_> {
         let mut inner = Args {
             buf: &mut *self.buf,
             count: 0,
+            bad: None,
         };
         f(&mut inner);
+        if self.bad.is_none() {
+            self.bad = inner.bad;
+        }
         self.buf.push(')');
         self
     }
@@ -447,8 +492,12 @@ impl<W: Write> StepWriter<W> {
         let mut args = Args {
             buf: &mut self.line,
             count: 0,
+            bad: None,
         };
         f(&mut args);
+        if let Some(why) = args.bad {
+            return Err(io::Error::other(BrokenRule(format!("{keyword}: {why}"))));
+        }
         self.line.push_str(");\n");
         self.out.write_all(self.line.as_bytes())?;
         Ok(id)
@@ -472,6 +521,41 @@ impl<W: Write> StepWriter<W> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_positive_length_written_as_zero_refuses_the_entity() {
+        let mut w = StepWriter::new(Vec::new());
+        for v in [0.0, -1.0, 4e-7, f64::NAN, f64::INFINITY] {
+            let e = w
+                .entity("IFCRECTANGLEPROFILEDEF", |a| {
+                    a.enumeration("AREA")
+                        .null()
+                        .null()
+                        .positive(1.0)
+                        .positive(v);
+                })
+                .unwrap_err();
+            let rule = broken_rule(&e).unwrap_or_else(|| panic!("{v}: {e}"));
+            assert!(
+                rule.0.starts_with("IFCRECTANGLEPROFILEDEF: argument 5"),
+                "{rule}"
+            );
+        }
+        // Inside a list too.
+        let e = w
+            .entity("X", |a| {
+                a.list(|l| {
+                    l.positive(0.0);
+                });
+            })
+            .unwrap_err();
+        assert!(broken_rule(&e).is_some());
+        assert!(w
+            .entity("X", |a| {
+                a.positive(1e-6).positive(2e9);
+            })
+            .is_ok());
+    }
 
     #[test]
     fn reals_have_a_point_and_no_exponent() {

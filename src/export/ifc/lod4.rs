@@ -188,7 +188,7 @@ impl<W: Write> Open<W> {
         let profile = self.plan_profile(frame, &ring, &[])?;
         let up = self.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(up).real(height);
+            a.id(profile).null().id(up).positive(height);
         })?;
         let body_ctx = self.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -275,7 +275,7 @@ impl<W: Write> Open<W> {
         let profile = self.rect_profile(0.0, 0.0, len, w.thickness)?;
         let up = self.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(up).real(height);
+            a.id(profile).null().id(up).positive(height);
         })?;
         self.styled(solid, lod4geom::INTERIOR_WALL_COLOR)?;
         let body_ctx = self.body_ctx;
@@ -331,7 +331,7 @@ impl<W: Write> Open<W> {
         for step in &steps {
             let profile = self.plan_profile(frame, &step.ring, &[])?;
             items.push(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).null().id(up).real(step.z1 - step.z0);
+                a.id(profile).null().id(up).positive(step.z1 - step.z0);
             })?);
         }
         for &item in &items {
@@ -373,7 +373,7 @@ impl<W: Write> Open<W> {
         for p in &pieces {
             let profile = self.plan_profile(frame, &p.outer, &p.holes)?;
             items.push(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).null().id(down).real(thickness);
+                a.id(profile).null().id(down).positive(thickness);
             })?);
         }
         for &item in &items {

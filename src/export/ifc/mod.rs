@@ -88,7 +88,7 @@ use std::io::Write;
 use glam::DVec3;
 
 use crate::export::step::{Id, StepWriter};
-use crate::export::{BuildingWriter, ExportError, OutputContext};
+use crate::export::{check_finite, BuildingWriter, ExportError, OutputContext};
 use crate::model::{Building, RoofShape};
 
 use openings::{FillType, TypeKey};
@@ -205,7 +205,21 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
 
     fn write(&mut self, building: &Building) -> Result<(), ExportError> {
         match &mut self.state {
-            State::Open(open) => open.building(building),
+            State::Open(open) => {
+                check_finite("IFC writer", building)?;
+                // An entity that would break a schema rule (a zero length) ends the file here
+                // with an error naming the building, never as an invalid file.
+                open.building(building).map_err(|e| match e {
+                    ExportError::Io(io) => match crate::export::step::broken_rule(&io) {
+                        Some(rule) => ExportError::Invalid(format!(
+                            "IFC writer: building {}: {rule}",
+                            building.id
+                        )),
+                        None => ExportError::Io(io),
+                    },
+                    other => other,
+                })
+            }
             _ => Err(ExportError::Invalid(
                 "IFC writer: write called outside begin..finish".into(),
             )),

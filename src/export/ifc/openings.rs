@@ -207,8 +207,8 @@ impl<W: Write> Open<W> {
                 .id(fill_pl)
                 .id(type_shape)
                 .null()
-                .real(h)
-                .real(w)
+                .positive(h)
+                .positive(w)
                 .enumeration(predefined);
             match o.kind {
                 OpeningKind::Window => a.enumeration("SINGLE_PANEL"),
@@ -262,9 +262,9 @@ impl<W: Write> Open<W> {
                 a.enumeration("AREA")
                     .null()
                     .id(pos)
-                    .real(w)
-                    .real(h)
-                    .real(fw)
+                    .positive(w)
+                    .positive(h)
+                    .positive(fw)
                     .null()
                     .null();
             })?;

@@ -50,7 +50,7 @@ impl<W: Write> Open<W> {
         };
         let down = self.dir_neg_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(down).real(SLAB_THICKNESS);
+            a.id(profile).null().id(down).positive(SLAB_THICKNESS);
         })?;
         let body_ctx = self.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;

@@ -130,7 +130,7 @@ impl<W: Write> Open<W> {
             a.id(centre).null();
         })?;
         Ok(self.w.entity("IFCRECTANGLEPROFILEDEF", |a| {
-            a.enumeration("AREA").null().id(pos).real(w).real(h);
+            a.enumeration("AREA").null().id(pos).positive(w).positive(h);
         })?)
     }
 
@@ -153,7 +153,7 @@ impl<W: Write> Open<W> {
         };
         let nz = self.dir_neg_z;
         Ok(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).id(pos).id(nz).real(depth);
+            a.id(profile).id(pos).id(nz).positive(depth);
         })?)
     }
 

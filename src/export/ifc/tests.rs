@@ -1222,3 +1222,110 @@ mod lod4 {
         assert_eq!(ok, all.split_whitespace().next().unwrap(), "{text}");
     }
 }
+
+/// The arguments of `args` (top level, split at commas outside parentheses).
+fn top_args(args: &str) -> Vec<&str> {
+    let (mut out, mut depth, mut start) = (Vec::new(), 0, 0);
+    for (i, c) in args.char_indices() {
+        match c {
+            '(' => depth += 1,
+            ')' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(&args[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&args[start..]);
+    out
+}
+
+#[test]
+fn degenerate_dimensions_never_reach_the_file_as_zero_lengths() {
+    // Each mutation is either left out by the writer (the file stays valid) or an error naming
+    // the building; never a profile or extrusion with a length of 0 (IfcPositiveLengthMeasure).
+    type Mutation = fn(&mut Building);
+    let cases: [(&str, Mutation); 7] = [
+        ("wall thickness 0", |b| b.parts[0].walls[0].thickness = 0.0),
+        ("wall thickness 0.1 µm", |b| {
+            b.parts[0].walls[0].thickness = 1e-7
+        }),
+        ("negative wall thickness", |b| {
+            b.parts[0].walls[0].thickness = -0.3
+        }),
+        ("wall of no height", |b| {
+            let w = &mut b.parts[0].walls[0];
+            w.top_z = w.base_z;
+        }),
+        ("wall of no length", |b| {
+            let w = &mut b.parts[0].walls[0];
+            w.end = w.start;
+        }),
+        ("opening of no width", |b| {
+            let w = &mut b.parts[0].walls[0];
+            w.openings = vec![
+                crate::export::lod3geom::samples::window(1.0, 1.0, 1.0, 2.0),
+                crate::export::lod3geom::samples::door(2.0, 2.0, 0.0, 2.0),
+            ];
+        }),
+        ("opening 0.1 µm high", |b| {
+            let w = &mut b.parts[0].walls[0];
+            w.openings = vec![crate::export::lod3geom::samples::window(
+                1.0,
+                2.0,
+                1.0,
+                1.0 + 1e-7,
+            )];
+        }),
+    ];
+    // (keyword, 1-based arguments that are positive lengths)
+    let positive: [(&str, &[usize]); 3] = [
+        ("IFCRECTANGLEPROFILEDEF", &[4, 5]),
+        ("IFCRECTANGLEHOLLOWPROFILEDEF", &[4, 5, 6]),
+        ("IFCEXTRUDEDAREASOLID", &[4]),
+    ];
+    let lod3 = OutputContext {
+        lod: Lod::Lod3,
+        ..ctx()
+    };
+    let write3 = |b: &Building| {
+        let mut w = IfcWriter::new(Vec::new());
+        w.begin(&lod3).unwrap();
+        let done = w.write(b);
+        (w, done)
+    };
+    // The harness writes openings: a sound window gets its IfcWindow.
+    let mut sound = sample().remove(0);
+    sound.lod = Lod::Lod3;
+    sound.parts[0].walls[0].openings =
+        vec![crate::export::lod3geom::samples::window(1.0, 2.0, 1.0, 2.0)];
+    let (mut w, done) = write3(&sound);
+    done.unwrap();
+    w.finish().unwrap();
+    assert_eq!(count(&parse(&w.into_inner().unwrap()), "IFCWINDOW"), 1);
+    for (what, mutate) in cases {
+        let mut b = sample().remove(0);
+        b.lod = Lod::Lod3;
+        mutate(&mut b);
+        let (mut w, done) = write3(&b);
+        match done {
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains("building way/1"), "{what}: {msg}");
+                continue;
+            }
+            Ok(()) => w.finish().unwrap(),
+        }
+        for (kw, args) in parse(&w.into_inner().unwrap()).values() {
+            let Some((_, idx)) = positive.iter().find(|(k, _)| k == kw) else {
+                continue;
+            };
+            let a = top_args(args);
+            for &i in *idx {
+                let v: f64 = a[i - 1].parse().unwrap_or(f64::NAN);
+                assert!(v > 0.0, "{what}: {kw}({args}) argument {i} is {}", a[i - 1]);
+            }
+        }
+    }
+}

@@ -71,12 +71,12 @@ impl<W: Write> Open<W> {
                 a.enumeration("AREA")
                     .null()
                     .id(pos)
-                    .real(len)
-                    .real(wall.thickness);
+                    .positive(len)
+                    .positive(wall.thickness);
             })?;
             let up = self.dir_z;
             self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).null().id(up).real(height);
+                a.id(profile).null().id(up).positive(height);
             })?
         } else {
             // Profile in the wall's vertical plane: Position maps profile x to the wall's X and
@@ -90,7 +90,7 @@ impl<W: Write> Open<W> {
                 a.id(o).id(ny).id(x);
             })?;
             self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).id(pos).id(nz).real(wall.thickness);
+                a.id(profile).id(pos).id(nz).positive(wall.thickness);
             })?
         };
         self.styled(solid, part.wall_color)?;
@@ -138,7 +138,7 @@ impl<W: Write> Open<W> {
         let profile = self.rect_profile(u0, -depth, w, depth)?;
         let down = self.dir_neg_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(down).real(BALCONY_THICKNESS);
+            a.id(profile).null().id(down).positive(BALCONY_THICKNESS);
         })?;
         self.styled(solid, b.color)?;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -178,7 +178,7 @@ impl<W: Write> Open<W> {
         })?;
         let up = self.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(up).real(RAILING_HEIGHT);
+            a.id(profile).null().id(up).positive(RAILING_HEIGHT);
         })?;
         self.styled(solid, b.color)?;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
