@@ -437,6 +437,19 @@ pub struct Part {
     pub ground: Face,
     /// The interior, one plan per storey (LOD4; empty below).
     pub interior: Vec<StoreyInterior>,
+    /// The footprint the part was derived from: its `building:part` (or the outline, for the
+    /// part the outline's own tags give), so that every part can be traced back to the map.
+    /// Writers record it where it differs from the building's id. `None` for parts built
+    /// without a source (tests, `rules derive` lots).
+    pub source: Option<SourceId>,
+}
+
+impl Part {
+    /// The part's source where it is not the building's own (`building`): a `building:part`'s
+    /// id, which the writers record on the part.
+    pub fn traced_source(&self, building: SourceId) -> Option<SourceId> {
+        self.source.filter(|s| *s != building)
+    }
 }
 
 /// The interior of one storey of a part (LOD4): rooms, the interior walls between them, the

@@ -527,9 +527,8 @@ fn write_batches(
             format!("every building was skipped, e.g. {}", shown.join("; "))
         };
         return Err(RunError::Input(format!(
-            "{source_name}: generated 0 of {} buildings: {why}. Nothing was written; pass \
-             --allow-empty to write empty outputs",
-            report.read
+            "{source_name}: generated 0 of {total} buildings: {why}. Nothing was written; pass \
+             --allow-empty to write empty outputs"
         )));
     }
     let tiled = batches.iter().any(|b| b.suffix.is_some());

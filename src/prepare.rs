@@ -45,11 +45,13 @@ pub struct Lot {
     pub tags: SharedTags,
     /// The outline polygons (several for a multipolygon with several outer rings).
     pub polygons: Vec<Polygon>,
-    /// `building:part`s found inside the outline, in id order. When they cover the outline,
-    /// the building is built from them alone.
+    /// `building:part`s found inside the outline, in id order.
     pub parts: Vec<LotPiece>,
-    /// Whether the outline itself is also drawn (no parts, or parts that leave it uncovered).
-    pub draw_outline: bool,
+    /// What of the outline is drawn with its own tags: all of it without parts; with parts,
+    /// what they leave uncovered (the outline minus their union, slivers dropped), often
+    /// nothing; for a part that holds other parts (tagged `building=*` too, in no outline),
+    /// the part itself.
+    pub drawn_outline: Vec<Polygon>,
     /// Representative point in WGS84 (lon, lat) degrees, for the knowledge-base zone.
     pub lonlat: (f64, f64),
     /// Where the building's front faces, set by [`assign_fronts`]: the unit outward normal (local
@@ -288,9 +290,9 @@ pub fn prepare(
             FootprintKind::Building => outlines.push(Lot {
                 id: p.id,
                 tags: p.tags,
+                drawn_outline: polygons.clone(),
                 polygons,
                 parts: Vec::new(),
-                draw_outline: true,
                 lonlat: p.lonlat,
                 front: None,
             }),
@@ -326,15 +328,163 @@ impl RTreeObject for OutlineBox {
     }
 }
 
-/// Puts each part under the smallest outline containing its representative point. Parts inside
-/// no outline become buildings of their own. An outline is drawn as well unless its parts
-/// cover at least 90 % of its area.
+/// The smallest piece of an outline left over by its parts that is still drawn (m²), and the
+/// least mean width (area / half perimeter, metres): what the parts leave of an outline is
+/// mostly the slivers between nearly shared edges.
+const MIN_REST_AREA: f64 = 2.0;
+const MIN_REST_WIDTH: f64 = 0.25;
+
+/// Groups parts under outlines (Simple 3D Buildings). Each part goes under the smallest
+/// outline containing its representative point. A part that lies in no outline but is tagged
+/// `building=*` too (a church mapped as its nave with `building=church` + `building:part=yes`,
+/// domes and towers as parts inside it) holds the unowned parts inside it, the largest such
+/// part first, and is drawn as a part of itself; any other part that lies in no outline is a
+/// building of its own (with a note). An outline with parts is a container: only what its
+/// parts leave uncovered is drawn with its own tags ([`Lot::drawn_outline`]), so that outline
+/// and parts never both fill one volume.
 fn group_parts(
     mut outlines: Vec<Lot>,
     pieces: Vec<(LotPiece, (f64, f64))>,
     report: &mut Report,
 ) -> Vec<Lot> {
-    let boxes: Vec<OutlineBox> = outlines
+    let tree = outline_index(&outlines);
+    let area = |polys: &[Polygon]| polys.iter().map(Polygon::area).sum::<f64>();
+    let owner_in =
+        |lots: &[Lot], tree: &RTree<OutlineBox>, piece: &LotPiece, skip: Option<SourceId>| {
+            let probe = interior_point(&piece.polygons[0]);
+            tree.locate_in_envelope_intersecting(AABB::from_point([probe.x, probe.y]))
+                .filter(|b| Some(lots[b.index].id) != skip)
+                .filter(|b| lots[b.index].polygons.iter().any(|p| p.contains(probe)))
+                .min_by(|a, b| {
+                    area(&lots[a.index].polygons)
+                        .total_cmp(&area(&lots[b.index].polygons))
+                        .then(a.index.cmp(&b.index))
+                })
+                .map(|b| b.index)
+        };
+    let mut unowned = Vec::new();
+    for (piece, lonlat) in pieces {
+        match owner_in(&outlines, &tree, &piece, None) {
+            Some(i) => outlines[i].parts.push(piece),
+            None => unowned.push((piece, lonlat)),
+        }
+    }
+    // Unowned parts tagged building=* too are candidate containers; each unowned part goes into
+    // the largest candidate containing it (a dome into the nave, not into a tower).
+    let is_building = |p: &LotPiece| p.tags.has_building;
+    let mut containers: Vec<Lot> = unowned
+        .iter()
+        .filter(|(p, _)| is_building(p))
+        .map(|(p, lonlat)| Lot {
+            id: p.id,
+            tags: p.tags.clone(),
+            polygons: p.polygons.clone(),
+            parts: Vec::new(),
+            drawn_outline: p.polygons.clone(),
+            lonlat: *lonlat,
+            front: None,
+        })
+        .collect();
+    let ctree = outline_index(&containers);
+    let largest_container = |piece: &LotPiece| {
+        let probe = interior_point(&piece.polygons[0]);
+        ctree
+            .locate_in_envelope_intersecting(AABB::from_point([probe.x, probe.y]))
+            .filter(|b| containers[b.index].id != piece.id)
+            .filter(|b| {
+                containers[b.index]
+                    .polygons
+                    .iter()
+                    .any(|p| p.contains(probe))
+            })
+            .filter(|b| area(&containers[b.index].polygons) > area(&piece.polygons))
+            .max_by(|a, b| {
+                area(&containers[a.index].polygons)
+                    .total_cmp(&area(&containers[b.index].polygons))
+                    .then(b.index.cmp(&a.index))
+            })
+            .map(|b| b.index)
+    };
+    let homes: Vec<Option<usize>> = unowned.iter().map(|(p, _)| largest_container(p)).collect();
+    let mut orphans = Vec::new();
+    let mut contained = vec![false; containers.len()];
+    for ((piece, lonlat), home) in unowned.into_iter().zip(homes) {
+        match home {
+            Some(c) => {
+                if let Some(k) = containers.iter().position(|l| l.id == piece.id) {
+                    contained[k] = true;
+                }
+                containers[c].parts.push(piece);
+            }
+            None if is_building(&piece) => {}
+            None => {
+                report.add(
+                    Some(piece.id),
+                    Outcome::Note,
+                    "building:part lies in no building outline; generated as a building of its own",
+                );
+                orphans.push(Lot {
+                    id: piece.id,
+                    tags: piece.tags.clone(),
+                    polygons: piece.polygons.clone(),
+                    parts: Vec::new(),
+                    drawn_outline: piece.polygons,
+                    lonlat,
+                    front: None,
+                });
+            }
+        }
+    }
+    // A container inside a larger one is one of its parts, not a building of its own.
+    let containers: Vec<Lot> = containers
+        .into_iter()
+        .zip(contained)
+        .filter(|(_, inside)| !inside)
+        .map(|(l, _)| l)
+        .collect();
+    for lot in &mut outlines {
+        if lot.parts.is_empty() {
+            continue;
+        }
+        let parts: Vec<Polygon> = lot
+            .parts
+            .iter()
+            .flat_map(|p| p.polygons.iter().cloned())
+            .collect();
+        let outline_area = area(&lot.polygons);
+        let rest: Vec<Polygon> = crate::geometry::clip::difference(&lot.polygons, &parts)
+            .into_iter()
+            .filter(|p| {
+                let perimeter: f64 = p.rings().map(|r| ring_perimeter(r)).sum();
+                p.area() >= MIN_REST_AREA && p.area() >= MIN_REST_WIDTH * 0.5 * perimeter
+            })
+            .collect();
+        let (rest, _) = clean_polygons_quietly(rest);
+        lot.drawn_outline = rest.unwrap_or_default();
+        if !lot.drawn_outline.is_empty() {
+            report.add(
+                Some(lot.id),
+                Outcome::Note,
+                format!(
+                    "building:parts cover {:.0} % of the outline; the rest ({:.0} m²) is drawn with the outline's tags",
+                    100.0 * (1.0 - area(&lot.drawn_outline) / outline_area.max(1e-9)),
+                    area(&lot.drawn_outline)
+                ),
+            );
+        }
+    }
+    outlines.extend(containers);
+    outlines.extend(orphans);
+    for lot in &mut outlines {
+        lot.parts.sort_by_key(|p| p.id);
+    }
+    outlines.sort_by_key(|l| l.id);
+    outlines
+}
+
+/// The bounding boxes of lots' outlines, for finding the outlines around a point.
+fn outline_index(lots: &[Lot]) -> RTree<OutlineBox> {
+    let boxes: Vec<OutlineBox> = lots
         .iter()
         .enumerate()
         .map(|(index, l)| {
@@ -350,67 +500,14 @@ fn group_parts(
             }
         })
         .collect();
-    let tree = RTree::bulk_load(boxes);
-    let mut orphans = Vec::new();
-    for (piece, lonlat) in pieces {
-        let probe = interior_point(&piece.polygons[0]);
-        let owner = tree
-            .locate_in_envelope_intersecting(AABB::from_point([probe.x, probe.y]))
-            .filter(|b| outlines[b.index].polygons.iter().any(|p| p.contains(probe)))
-            .min_by(|a, b| {
-                let area = |i: usize| outlines[i].polygons.iter().map(Polygon::area).sum::<f64>();
-                area(a.index)
-                    .total_cmp(&area(b.index))
-                    .then(a.index.cmp(&b.index))
-            })
-            .map(|b| b.index);
-        match owner {
-            Some(i) => outlines[i].parts.push(piece),
-            None => {
-                report.add(
-                    Some(piece.id),
-                    Outcome::Note,
-                    "building:part lies in no building outline; generated as a building of its own",
-                );
-                orphans.push(Lot {
-                    id: piece.id,
-                    tags: piece.tags.clone(),
-                    polygons: piece.polygons.clone(),
-                    parts: Vec::new(),
-                    draw_outline: true,
-                    lonlat,
-                    front: None,
-                });
-            }
-        }
-    }
-    for lot in &mut outlines {
-        if lot.parts.is_empty() {
-            continue;
-        }
-        lot.parts.sort_by_key(|p| p.id);
-        let outline_area: f64 = lot.polygons.iter().map(Polygon::area).sum();
-        let parts_area: f64 = lot
-            .parts
-            .iter()
-            .flat_map(|p| p.polygons.iter())
-            .map(Polygon::area)
-            .sum();
-        lot.draw_outline = parts_area < 0.9 * outline_area;
-        if lot.draw_outline {
-            report.add(
-                Some(lot.id),
-                Outcome::Note,
-                format!(
-                    "building:parts cover {:.0} % of the outline; the outline is drawn too",
-                    100.0 * parts_area / outline_area.max(1e-9)
-                ),
-            );
-        }
-    }
-    outlines.extend(orphans);
-    outlines.sort_by_key(|l| l.id);
-    outlines
+    RTree::bulk_load(boxes)
+}
+
+/// Length of a closed ring.
+fn ring_perimeter(r: &[DVec2]) -> f64 {
+    (0..r.len())
+        .map(|i| r[i].distance(r[(i + 1) % r.len()]))
+        .sum()
 }
 
 /// A point inside the polygon: the centroid when it is inside, else the midpoint of the widest
@@ -757,9 +854,9 @@ pub fn single_lot(
     let lot = Lot {
         id,
         tags: SharedTags::default(),
+        drawn_outline: polygons.clone(),
         polygons,
         parts: Vec::new(),
-        draw_outline: true,
         lonlat,
         front: None,
     };
@@ -1078,7 +1175,7 @@ mod tests {
                 tags: Default::default(),
                 polygons: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
                 parts: Vec::new(),
-                draw_outline: true,
+                drawn_outline: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
                 lonlat: (lon, lat),
                 front: None,
             }

@@ -235,6 +235,10 @@ fn levels_without_height_give_walls_of_levels_times_the_zone_floor_height() {
         else {
             continue;
         };
+        // A roof on pillars has no storeys: its levels say how high it stands (tests/s3db.rs).
+        if t.is_roof() {
+            continue;
+        }
         // The floor height the building's zone and appearance give, drawn as the generator does.
         let zone = gen.kb.locate(lot.lonlat.0, lot.lonlat.1);
         let mut rng = citygen::rng::Rng::new(0, lot.id.seed_value());
@@ -358,13 +362,8 @@ fn courtyards_stay_holes_in_all_three_formats() {
         .lots
         .iter()
         .flat_map(|l| {
-            let outline = if l.draw_outline {
-                l.polygons.iter().collect::<Vec<_>>()
-            } else {
-                vec![]
-            };
-            outline
-                .into_iter()
+            l.drawn_outline
+                .iter()
                 .chain(l.parts.iter().flat_map(|p| p.polygons.iter()))
         })
         .filter(|p| !p.holes.is_empty())

@@ -95,16 +95,19 @@ impl Generator {
         let mut notes = Vec::new();
         let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
         let outline;
-        if lot.draw_outline {
+        if !lot.drawn_outline.is_empty() {
             outline = LotPiece {
                 id: lot.id,
-                polygons: lot.polygons.clone(),
+                polygons: lot.drawn_outline.clone(),
                 tags: lot.tags.clone(),
             };
             pieces.insert(0, &outline);
         }
         let mut parts: Vec<Part> = Vec::new();
         let mut label = None;
+        // Every piece's style first: whether a piece's roof is drawn depends on the pieces
+        // stacked on it.
+        let mut styled = Vec::with_capacity(pieces.len());
         for piece in pieces {
             let mut rng = Rng::new(self.seed, piece.id.seed_value());
             let tags = merged_tags(&piece.tags, &lot.tags, piece.id != lot.id);
@@ -113,6 +116,13 @@ impl Generator {
             if label.is_none() {
                 label = Some(style.appearance_label.clone());
             }
+            styled.push((piece, tags, style, rng));
+        }
+        flatten_covered_roofs(&mut styled);
+        if let Some(note) = floating_note(&styled) {
+            notes.push((Outcome::Note, note));
+        }
+        for (piece, tags, style, mut rng) in styled {
             let rules = self.rules_for(&style)?;
             for polygon in &piece.polygons {
                 let on = Piece {
@@ -124,7 +134,7 @@ impl Generator {
                 let masses = self.masses(&on, polygon, &mut rng, &mut notes)?;
                 for (mass, facades) in masses {
                     let roof = match massing::roof_geometry(&mass) {
-                        Ok(r) => r,
+                        Ok(r) => cap_guessed_roof(r, &mass, &style),
                         Err(f) => {
                             notes.push((
                                 Outcome::Note,
@@ -135,6 +145,7 @@ impl Generator {
                     };
                     let key = format!("p{}", parts.len());
                     let mut part = massing::build_part(key, &mass, &roof, self.lod);
+                    part.source = Some(piece.id);
                     if let Some(f) = facades {
                         let colors = facade::OpeningColors {
                             window: style.window_color,
@@ -305,6 +316,12 @@ impl Generator {
                 }
             }
         }
+        // building:levels wins over the zone's storey height: the walls are shared out evenly
+        // among the tagged storeys (13 levels in 70 m are 13 storeys of 5.4 m, not 23 of 3).
+        let walls = style.eave_height - style.min_height;
+        if style.storeys_from_tags && style.storeys > 0 && walls > 0.0 {
+            style.floor_height = walls / f64::from(style.storeys);
+        }
         let attrs: Attrs = compile::axiom_attrs(&style);
         let tree = grammar::derive_facing(rules, polygon, front, attrs, rng, &self.caps)
             .map_err(|e| format!("derivation failed for {id}: {e}"))?;
@@ -322,6 +339,79 @@ impl Generator {
             })
             .collect())
     }
+}
+
+/// A roof whose height nothing on the map gives (no `roof:height`, `roof:levels`, `roof:angle`
+/// or `height`: the knowledge base's pitch over the footprint alone) is no taller than the
+/// walls under it, so that a deep footprint does not get a roof higher than the building (a
+/// 30° roof over 40 m of depth is 11.5 m). Tagged roofs are drawn as tagged.
+fn cap_guessed_roof(
+    roof: crate::derive::roof::RoofGeometry,
+    mass: &Mass,
+    style: &Style,
+) -> crate::derive::roof::RoofGeometry {
+    let walls = mass.eave_z - mass.base_z;
+    let guessed = mass.roof_height.is_none() && !style.pitch_from_tags;
+    if guessed && walls > 0.0 && roof.height > walls {
+        roof.scaled_to_height(walls)
+    } else {
+        roof
+    }
+}
+
+/// A piece whose base is this close below the top of another's walls (metres), or higher,
+/// stands on it.
+const STACK_TOLERANCE: f64 = 0.5;
+
+/// Simple 3D Buildings: a piece with no `roof:shape` of its own on which another piece stands
+/// (the other's base at or above this one's eave, and their plans overlapping) has a flat top;
+/// the knowledge base's roof is for untagged outlines and the top pieces only. Without this,
+/// each roof of a stack of parts runs up through the parts above it.
+fn flatten_covered_roofs(styled: &mut [(&LotPiece, BuildingTags, Style, Rng)]) {
+    let covered: Vec<bool> = (0..styled.len())
+        .map(|i| {
+            let (below, tags, style, _) = &styled[i];
+            if tags.roof_shape.is_some() || style.roof == RoofShape::Flat {
+                return false;
+            }
+            styled.iter().enumerate().any(|(j, (above, _, s, _))| {
+                j != i
+                    && s.min_height > style.min_height
+                    && s.min_height >= style.eave_height - STACK_TOLERANCE
+                    && plans_overlap(&below.polygons, &above.polygons)
+            })
+        })
+        .collect();
+    for ((_, _, style, _), flat) in styled.iter_mut().zip(covered) {
+        if flat {
+            style.make_flat();
+        }
+    }
+}
+
+/// Whether two pieces' plans overlap: a point inside one of them lies in the other.
+fn plans_overlap(a: &[Polygon], b: &[Polygon]) -> bool {
+    let inside = |p: &[Polygon], q: &[Polygon]| {
+        p.iter()
+            .map(crate::prepare::interior_point)
+            .any(|pt| q.iter().any(|poly| poly.contains(pt)))
+    };
+    inside(a, b) || inside(b, a)
+}
+
+/// A note when every piece of a building starts above the ground (nothing is drawn under it),
+/// unless the building is a roof on pillars (`building=roof`), which does by nature.
+fn floating_note(styled: &[(&LotPiece, BuildingTags, Style, Rng)]) -> Option<String> {
+    let lowest = styled
+        .iter()
+        .map(|(_, _, s, _)| s.min_height)
+        .fold(f64::INFINITY, f64::min);
+    let roofs = styled.iter().all(|(_, t, _, _)| t.is_roof());
+    (lowest.is_finite() && lowest > 0.0 && !roofs).then(|| {
+        format!(
+            "every part starts above the ground (the lowest at {lowest} m, from min_height or building:min_level): the building is drawn floating, with nothing under it"
+        )
+    })
 }
 
 /// Part tags take precedence; a part without colours takes its outline's.

@@ -378,6 +378,7 @@ pub(crate) mod samples {
             roof: vec![roof],
             ground,
             interior: Vec::new(),
+            source: None,
         }
     }
 

@@ -246,14 +246,14 @@ pub fn iso8601_utc(secs: i64) -> String {
 pub struct Args<'a> {
     buf: &'a mut String,
     count: usize,
-    /// The first argument that broke its type's rule ([`Args::positive`]), for [`Writer::entity`]
+    /// The first argument that broke its type's rule ([`Args::positive`]), for [`StepWriter::entity`]
     /// to refuse the entity with.
     bad: Option<String>,
 }
 
 /// An entity that would break a rule of the schema (a positive length written as 0): the
 /// writer refuses it rather than write an invalid file. Carried inside the `io::Error` that
-/// [`Writer::entity`] returns; [`broken_rule`] finds it.
+/// [`StepWriter::entity`] returns; [`broken_rule`] finds it.
 #[derive(Debug)]
 pub struct BrokenRule(pub String);
 
@@ -265,7 +265,7 @@ impl std::fmt::Display for BrokenRule {
 
 impl std::error::Error for BrokenRule {}
 
-/// The [`BrokenRule`] inside an error of [`Writer::entity`], if that is what it is.
+/// The [`BrokenRule`] inside an error of [`StepWriter::entity`], if that is what it is.
 pub fn broken_rule(e: &io::Error) -> Option<&BrokenRule> {
     e.get_ref()
         .and_then(|inner| inner.downcast_ref::<BrokenRule>())
@@ -313,7 +313,7 @@ impl Args<'_> {
 
     /// A REAL that the schema requires to be above zero (`IfcPositiveLengthMeasure`: profile
     /// sizes, extrusion depths). One that is not, or that would be written as `0.` (below half
-    /// a micrometre), makes [`Writer::entity`] refuse the entity.
+    /// a micrometre), makes [`StepWriter::entity`] refuse the entity.
     pub fn positive(&mut self, v: f64) -> &mut Self {
         let written_positive = v.is_finite() && (v >= 1e9 || (v * 1e6).round() > 0.0);
         if !written_positive && self.bad.is_none() {

@@ -104,6 +104,23 @@ fn half_plane(ring: &[DVec2], f: impl Fn(&DVec2) -> f64) -> Vec<DVec2> {
     out
 }
 
+/// What of the polygons `a` lies outside every polygon of `b` (boolean difference), as
+/// polygons with the orientation convention. Pieces under [`MIN_AREA`] are dropped; the caller
+/// filters slivers by its own measure.
+pub fn difference(a: &[Polygon], b: &[Polygon]) -> Vec<Polygon> {
+    // One cutter at a time: a multipolygon whose members overlap is read even-odd by the
+    // boolean operations, so two overlapping cutters would cancel where they overlap.
+    let mut rest = geo::MultiPolygon::new(a.iter().map(to_geo).collect());
+    for cutter in b {
+        rest = rest.difference(&geo::MultiPolygon::new(vec![to_geo(cutter)]));
+    }
+    rest.0
+        .iter()
+        .map(from_geo)
+        .filter(|p| p.outer.len() >= 3 && p.area() > MIN_AREA)
+        .collect()
+}
+
 fn to_geo(poly: &Polygon) -> geo::Polygon<f64> {
     let ring = |r: &Vec<DVec2>| {
         geo::LineString::from(
@@ -134,3 +151,31 @@ pub fn map_polygon(poly: &Polygon, f: impl Fn(DVec2) -> DVec2) -> Polygon {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod difference_tests {
+    use super::*;
+
+    fn sq(x: f64, y: f64, w: f64, h: f64) -> Polygon {
+        Polygon::new(
+            vec![
+                DVec2::new(x, y),
+                DVec2::new(x + w, y),
+                DVec2::new(x + w, y + h),
+                DVec2::new(x, y + h),
+            ],
+            vec![],
+        )
+    }
+
+    #[test]
+    fn overlapping_cutters_remove_their_union() {
+        // The second cutter lies inside the first: nothing is left, not the second's square.
+        let a = vec![sq(0.0, 0.0, 20.0, 20.0)];
+        assert!(difference(&a, &[sq(0.0, 0.0, 20.0, 20.0), sq(5.0, 5.0, 10.0, 10.0)]).is_empty());
+        let rest = difference(&a, &[sq(0.0, 0.0, 10.0, 20.0), sq(5.0, 0.0, 10.0, 10.0)]);
+        let area: f64 = rest.iter().map(Polygon::area).sum();
+        assert!((area - 150.0).abs() < 1e-6, "{area}");
+        assert!(difference(&a, &[]).len() == 1);
+    }
+}

@@ -24,6 +24,13 @@ pub struct BuildingTags {
     /// lower-cased. `building` wins over `building:part`, and a value other than `no` wins over
     /// `no`.
     pub building: Option<String>,
+    /// `building:part=*` value (other than `no`), trimmed and lower-cased: what the part is
+    /// (`roof`, `tower`, ...), which for a way tagged both says more about the part than
+    /// `building` does.
+    pub building_part: Option<String>,
+    /// Whether `building=*` (other than `no`) is present: a `building:part` that carries it too
+    /// is a building when no outline holds it (Simple 3D Buildings).
+    pub has_building: bool,
     /// OSM `name`, trimmed (a blank value is ignored). Only OSM input sets it: the shapefile
     /// reader maps no name field.
     pub name: Option<String>,
@@ -127,11 +134,22 @@ impl TagInterner {
 }
 
 impl BuildingTags {
+    /// `building=roof`, or `building:part=roof` (a roof with no walls under it: a canopy, a
+    /// roof on pillars). A part's own `building:part` value decides over `building`.
+    pub fn is_roof(&self) -> bool {
+        match &self.building_part {
+            Some(p) => p == "roof",
+            None => self.building.as_deref() == Some("roof"),
+        }
+    }
+
     /// Every field, floats by their bits: the identity [`TagInterner`] shares tags by. The
     /// destructuring names every field, so a new field cannot be forgotten here.
     fn bits_key(&self) -> impl PartialEq + std::hash::Hash + '_ {
         let BuildingTags {
             building,
+            building_part,
+            has_building,
             name,
             height,
             min_height,
@@ -153,7 +171,8 @@ impl BuildingTags {
         let f = |x: &Option<f64>| x.map(f64::to_bits);
         let c = |x: &Option<Color>| x.map(|c| [c.r, c.g, c.b, c.a].map(f32::to_bits));
         (
-            (building, name, invalid_roof_shape, roof_orientation),
+            (building, building_part, has_building, name),
+            (invalid_roof_shape, roof_orientation),
             (material, roof_material, ignored, roof_shape),
             [
                 f(height),
@@ -296,6 +315,8 @@ impl BuildingTags {
                 t.ignore(key, value, &reason);
             }
         }
+        t.has_building = t.building.as_deref().is_some_and(|b| b != "no");
+        t.building_part = part.clone().filter(|p| p != "no");
         // `building:part` fills `building` only when `building` says nothing better.
         match (&t.building, part) {
             (None, Some(p)) => t.building = Some(p),
@@ -694,6 +715,10 @@ mod tests {
         assert_eq!(t.building.as_deref(), Some("roof"));
         let t = BuildingTags::from_pairs([("building", "house"), ("building:part", "roof")]);
         assert_eq!(t.building.as_deref(), Some("house"));
+        assert_eq!(t.building_part.as_deref(), Some("roof"));
+        assert!(t.has_building);
+        let t = BuildingTags::from_pairs([("building", "no"), ("building:part", "yes")]);
+        assert!(!t.has_building);
         let t = BuildingTags::from_pairs([("building:material", "brick;stone")]);
         assert_eq!(t.material.as_deref(), Some("brick"));
     }

@@ -289,9 +289,26 @@ pub struct Style {
     pub appearance_label: String,
     /// Whether `storeys` came from `building:levels` (then [`Style::fit_total_height`] keeps it).
     pub storeys_from_tags: bool,
+    /// Whether the pitch came from `roof:angle`. A roof whose height follows from the
+    /// knowledge base's pitch alone is capped at the height of its walls (the caller applies
+    /// it: see `derive`); a tagged pitch is drawn as tagged.
+    pub pitch_from_tags: bool,
 }
 
 impl Style {
+    /// Draws the roof flat (a piece that another stands on): the walls take the whole height
+    /// when `total_height` is known, and the storeys follow unless `building:levels` fixed them.
+    pub fn make_flat(&mut self) {
+        self.roof = RoofShape::Flat;
+        self.roof_height = Some(0.0);
+        if let Some(total) = self.total_height {
+            self.eave_height = total.max(self.min_height + 0.1);
+            if !self.storeys_from_tags {
+                self.storeys = storeys_for(self.eave_height - self.min_height, self.floor_height);
+            }
+        }
+    }
+
     /// Sets the roof height once known and, when `total_height` is set, moves the eave to
     /// `total_height - roof_height` (never below `min_height` + 1 m), recomputing `storeys` from
     /// the floor height unless `building:levels` fixed them.
@@ -692,6 +709,7 @@ impl KnowledgeBase {
             zone_path,
             appearance_label,
             storeys_from_tags: false,
+            pitch_from_tags: false,
         };
         apply_tags(&mut style, tags, &mut notes);
         (style, notes)
@@ -835,6 +853,7 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
         .roof_angle
         .filter(|a| a.is_finite() && (0.0..90.0).contains(a))
     {
+        s.pitch_from_tags = true;
         s.roof_angle_deg = if a > MAX_TAGGED_PITCH_DEG {
             notes.push(format!(
                 "roof:angle={a} is steeper than {MAX_TAGGED_PITCH_DEG}°: roof drawn at {MAX_TAGGED_PITCH_DEG}°"
@@ -858,10 +877,12 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
             h
         }
     };
-    if let Some(h) = t.roof_height.filter(|h| h.is_finite() && *h >= 0.0) {
-        s.roof_height = Some(bounded(format!("roof:height={h}"), h, notes));
-    } else if s.roof == RoofShape::Flat {
+    // A flat roof has no height, whatever roof:height says: `height` is then the top of the
+    // walls.
+    if s.roof == RoofShape::Flat {
         s.roof_height = Some(0.0);
+    } else if let Some(h) = t.roof_height.filter(|h| h.is_finite() && *h >= 0.0) {
+        s.roof_height = Some(bounded(format!("roof:height={h}"), h, notes));
     } else if let Some(l) = t.roof_levels.filter(|l| l.is_finite() && *l > 0.0) {
         // S3DB: without roof:height, roof:levels storeys of the zone's height.
         s.roof_height = Some(bounded(format!("roof:levels={l}"), l * fh, notes));
@@ -927,6 +948,62 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     }
     if let Some(m) = &t.material {
         s.material = Some(m.clone());
+    }
+    if t.is_roof() {
+        roof_on_pillars(s, t);
+    }
+}
+
+/// Thickness of a `building=roof` drawn without `min_height` (metres): the roof slab.
+pub const ROOF_SLAB_M: f64 = 0.5;
+
+/// `building=roof` / `building:part=roof` (Simple 3D Buildings): a roof with no walls under it,
+/// such as a canopy or a roof on pillars. It is drawn as a slab up to `height` (else
+/// `building:levels` storeys, else one storey; with `min_height` alone, [`ROOF_SLAB_M`] above
+/// it), under the tagged roof if any,
+/// from `min_height` (else [`ROOF_SLAB_M`] thick): flat unless `roof:shape` says otherwise,
+/// never the zone's roof and storeys.
+fn roof_on_pillars(s: &mut Style, t: &BuildingTags) {
+    let fh = s.floor_height;
+    let base_tag = t
+        .min_height
+        .filter(|m| m.is_finite() && *m >= 0.0)
+        .or_else(|| {
+            t.min_level
+                .filter(|l| l.is_finite() && *l >= 0.0)
+                .map(|l| l * fh)
+        });
+    let top = t
+        .height
+        .filter(|h| h.is_finite() && *h > 0.0)
+        .or_else(|| {
+            t.levels
+                .filter(|l| l.is_finite() && *l > 0.0)
+                .map(|l| l * fh)
+        })
+        .filter(|h| base_tag.is_none_or(|b| *h > b))
+        .unwrap_or_else(|| base_tag.map_or(fh, |b| b + ROOF_SLAB_M));
+    s.storeys = 1;
+    s.storeys_from_tags = true;
+    if t.roof_shape.is_none() {
+        s.roof = RoofShape::Flat;
+        s.roof_height = Some(0.0);
+    }
+    // The slab's top: under a roof of known height, that much lower; under one of unknown
+    // height, the slab's own thickness above its base, the roof fitted into the rest.
+    let eave = match s.roof_height {
+        Some(rh) if rh < top => top - rh,
+        Some(_) => top,
+        None => top - ROOF_SLAB_M,
+    };
+    let base = base_tag
+        .filter(|b| *b < eave)
+        .unwrap_or((eave - ROOF_SLAB_M).max(0.0));
+    s.min_height = base;
+    s.eave_height = eave.max(base + 0.05);
+    s.total_height = (top > s.eave_height + 0.05 || s.roof == RoofShape::Flat).then_some(top);
+    if s.roof == RoofShape::Flat {
+        s.eave_height = top;
     }
 }
 

@@ -150,6 +150,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         roof: roof_faces,
         ground,
         interior: Vec::new(),
+        source: None,
     }
 }
 

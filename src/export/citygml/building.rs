@@ -28,6 +28,11 @@ impl Renderer<'_> {
         if !b.appearance.is_empty() {
             self.string_attribute("appearance", &b.appearance);
         }
+        if let [part] = b.parts.as_slice() {
+            if let Some(source) = part.traced_source(b.id) {
+                self.string_attribute("partSourceId", &source.to_string());
+            }
+        }
         self.appearance(&id, b, &parts);
         self.building_attributes(b.roof_shape, b.measured_height, b.storeys_above_ground);
         match b.parts.as_slice() {
@@ -38,6 +43,9 @@ impl Renderer<'_> {
                     x.s("<bldg:consistsOfBuildingPart>\n<bldg:BuildingPart gml:id=\"");
                     x.s(pid);
                     x.s("\">\n");
+                    if let Some(source) = part.traced_source(b.id) {
+                        self.string_attribute("sourceId", &source.to_string());
+                    }
                     self.building_attributes(
                         part.roof_shape,
                         part.top_z - part.base_z,

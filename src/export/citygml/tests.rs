@@ -85,6 +85,7 @@ fn prism(
         roof: vec![roof_face],
         ground,
         interior: Vec::new(),
+        source: None,
     }
 }
 

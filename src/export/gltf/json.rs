@@ -146,6 +146,21 @@ pub(super) struct BuildingExtras<'a> {
     pub(super) storeys: u32,
     pub(super) roof_shape: &'static str,
     pub(super) lod: u8,
+    /// The building's parts, listed when one of them comes from a `building:part` (its id
+    /// differs from the building's): key, source id, base and top, so that every part can be
+    /// traced back to the map although the meshes merge the parts.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub(super) parts: Vec<PartExtras<'a>>,
+}
+
+/// One part in [`BuildingExtras::parts`].
+#[derive(Serialize)]
+pub(super) struct PartExtras<'a> {
+    pub(super) key: &'a str,
+    pub(super) id: Option<String>,
+    pub(super) base: f64,
+    pub(super) top: f64,
+    pub(super) roof_shape: &'static str,
 }
 
 #[derive(Serialize)]

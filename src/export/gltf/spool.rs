@@ -10,7 +10,8 @@ use crate::export::ExportError;
 use crate::model::Building;
 
 use super::json::{
-    AccessorRec, Attributes, BuildingExtras, MeshRec, NodeRec, Piece, PrimitiveRec, ViewRec,
+    AccessorRec, Attributes, BuildingExtras, MeshRec, NodeRec, PartExtras, Piece, PrimitiveRec,
+    ViewRec,
 };
 use super::json::{ACCESSORS, MESHES, NODES, VIEWS};
 use super::mesh::{Encoded, PrimLayout};
@@ -179,6 +180,20 @@ impl<W: Write + Send> GltfWriter<W> {
                     storeys: b.storeys_above_ground,
                     roof_shape: b.roof_shape.osm_name(),
                     lod: b.lod.number(),
+                    parts: if b.parts.iter().any(|p| p.traced_source(b.id).is_some()) {
+                        b.parts
+                            .iter()
+                            .map(|p| PartExtras {
+                                key: &p.key,
+                                id: p.source.map(|s| s.to_string()),
+                                base: p.base_z,
+                                top: p.top_z,
+                                roof_shape: p.roof_shape.osm_name(),
+                            })
+                            .collect()
+                    } else {
+                        Vec::new()
+                    },
                 }),
             },
             &mut tmp,

@@ -86,6 +86,7 @@ fn part(
         roof,
         ground,
         interior: Vec::new(),
+        source: None,
     }
 }
 

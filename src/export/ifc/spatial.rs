@@ -298,6 +298,7 @@ impl<W: Write> Open<W> {
                         .null();
                 })?;
                 partials.push(partial);
+                self.part_pset(part, b, &key, partial)?;
                 walls.extend(self.part(part, &key, partial, pl, anchor)?);
             }
             self.w.entity("IFCRELAGGREGATES", |a| {

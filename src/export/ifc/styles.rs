@@ -181,6 +181,20 @@ impl<W: Write> Open<W> {
         props.push(single(&mut self.w, "RoofShape", "IFCLABEL", &|t| {
             t.string(b.roof_shape.osm_name());
         })?);
+        // A building of one part that is a building:part (its outline not drawn): the part's id.
+        if let [part] = b.parts.as_slice() {
+            if let Some(source) = part.traced_source(b.id) {
+                let source = source.to_string();
+                props.push(single(
+                    &mut self.w,
+                    "PartSourceId",
+                    "IFCIDENTIFIER",
+                    &|t| {
+                        t.string(&source);
+                    },
+                )?);
+            }
+        }
         let storeys = single(&mut self.w, "NumberOfStoreys", "IFCINTEGER", &|t| {
             t.int(i64::from(b.storeys_above_ground));
         })?;
@@ -204,6 +218,46 @@ impl<W: Write> Open<W> {
                     .id(pset);
             })?;
         }
+        Ok(())
+    }
+
+    /// A `Citygen_Part` property set (SourceId: the `building:part`'s id) on the partial
+    /// building of a part, when the part's source is not the building's own.
+    pub(super) fn part_pset(
+        &mut self,
+        part: &crate::model::Part,
+        b: &Building,
+        key: &str,
+        partial: Id,
+    ) -> Result<(), ExportError> {
+        let Some(source) = part.traced_source(b.id) else {
+            return Ok(());
+        };
+        let source = source.to_string();
+        let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+            a.string("SourceId")
+                .null()
+                .typed("IFCIDENTIFIER", |t| {
+                    t.string(&source);
+                })
+                .null();
+        })?;
+        let path = format!("{}/pset/source", part.key);
+        let pset = self.w.entity("IFCPROPERTYSET", |a| {
+            a.string(&global_id(key, &path))
+                .null()
+                .string("Citygen_Part")
+                .null()
+                .ids(&[prop]);
+        })?;
+        self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
+            a.string(&global_id(key, &format!("{path}/rel")))
+                .null()
+                .null()
+                .null()
+                .ids(&[partial])
+                .id(pset);
+        })?;
         Ok(())
     }
 

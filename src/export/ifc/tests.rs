@@ -82,6 +82,7 @@ fn flat_part(key: &str, fp: Polygon, base: f64, top: f64, storeys: u32) -> Part 
         walls: walls(&fp, base, top),
         ground: ground(&fp, base),
         interior: Vec::new(),
+        source: None,
         footprint: fp,
         base_z: base,
         eave_z: top,

@@ -128,8 +128,11 @@ pub(super) fn degrees(nano: i64) -> f64 {
     1e-9 * nano as f64
 }
 
-/// The footprint kind a tag set asks for: `building=*` other than `no`, else `building:part=*`
-/// other than `no`.
+/// The footprint kind a tag set asks for: `building:part=*` other than `no` makes a part, even
+/// with `building=*` as well (Simple 3D Buildings: a way tagged both, such as a church's dome
+/// `building=church` + `building:part=yes`, is a part of the outline around it; one that lies
+/// in no outline becomes a building holding itself and the parts inside it); else `building=*`
+/// other than `no` an outline.
 pub(super) fn kind_of<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<FootprintKind> {
     let mut building = false;
     let mut part = false;
@@ -140,10 +143,10 @@ pub(super) fn kind_of<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Opt
             _ => {}
         }
     }
-    if building {
-        Some(FootprintKind::Building)
-    } else if part {
+    if part {
         Some(FootprintKind::Part)
+    } else if building {
+        Some(FootprintKind::Building)
     } else {
         None
     }

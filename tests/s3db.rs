@@ -1,0 +1,740 @@
+//! A corpus of Simple 3D Buildings cases written in code (the OSM wiki's Simple 3D Buildings
+//! and Key:building:part pages are the reference): outlines with parts, a church mapped with
+//! domes and towers as parts, `building=roof`, stacked parts, floating parts, parts outside
+//! their outline, a relation with parts, every `roof:shape` on a part, levels and heights.
+//!
+//! Each case is an OSM file written with the test PBF writer near Monaco (so the shipped
+//! knowledge base's zone applies), read and derived through the library as the binary does.
+//! Every building's parts carry their source ids, which is how the checks find the part of
+//! each tagged way. The last test measures, per tag, the share of tagged units honoured over
+//! the whole corpus: it must be 100 %.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::path::Path;
+
+use citygen::derive::{Generator, Rules};
+use citygen::grammar::Caps;
+use citygen::kb::KnowledgeBase;
+use citygen::model::{Building, Lod, Part, RoofShape, SourceId};
+use citygen::report::Report;
+use citygen::testkit::pbf_write::PbfWriter;
+
+const KB: &str = "knowledge_base/kb.xml";
+const LON0: f64 = 7.4200;
+const LAT0: f64 = 43.7300;
+
+type Tags = Vec<(String, String)>;
+type Members = Vec<(i64, String)>;
+
+/// An OSM data set in metres east/north of (LON0, LAT0).
+#[derive(Default)]
+struct Osm {
+    nodes: Vec<(i64, f64, f64)>,
+    ways: Vec<(i64, Vec<i64>, Tags)>,
+    rels: Vec<(i64, Members, Tags)>,
+}
+
+fn owned(tags: &[(&str, &str)]) -> Vec<(String, String)> {
+    tags.iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+impl Osm {
+    /// A closed way on the ring (metres) with these tags.
+    fn way(&mut self, id: i64, ring: &[(f64, f64)], tags: &[(&str, &str)]) {
+        let m_lon = 111_320.0 * LAT0.to_radians().cos();
+        let mut refs: Vec<i64> = ring
+            .iter()
+            .map(|&(x, y)| {
+                let nid = 1 + self.nodes.len() as i64;
+                self.nodes
+                    .push((nid, LON0 + x / m_lon, LAT0 + y / 110_574.0));
+                nid
+            })
+            .collect();
+        refs.push(refs[0]);
+        self.ways.push((id, refs, owned(tags)));
+    }
+
+    fn relation(&mut self, id: i64, members: &[(i64, &str)], tags: &[(&str, &str)]) {
+        let m = members.iter().map(|&(w, r)| (w, r.to_string())).collect();
+        self.rels.push((id, m, owned(tags)));
+    }
+
+    fn write(&self, path: &Path) {
+        let mut w = PbfWriter::new(File::create(path).unwrap()).unwrap();
+        for &(id, lon, lat) in &self.nodes {
+            w.node(id, lon, lat, &[]).unwrap();
+        }
+        for (id, refs, tags) in &self.ways {
+            let t: Vec<(&str, &str)> = tags.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+            w.way(*id, refs, &t).unwrap();
+        }
+        for (id, members, tags) in &self.rels {
+            let t: Vec<(&str, &str)> = tags.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+            let m: Vec<(citygen::testkit::pbf_write::MemberKind, i64, &str)> = members
+                .iter()
+                .map(|(i, r)| (citygen::testkit::pbf_write::MemberKind::Way, *i, r.as_str()))
+                .collect();
+            w.relation(*id, &m, &t).unwrap();
+        }
+        w.finish().unwrap();
+    }
+}
+
+/// An axis-aligned rectangle, counter-clockwise.
+fn rect(x: f64, y: f64, w: f64, h: f64) -> Vec<(f64, f64)> {
+    vec![(x, y), (x + w, y), (x + w, y + h), (x, y + h)]
+}
+
+/// What a case gave: the buildings, the report, and every input element's tags by id.
+struct Derived {
+    buildings: Vec<Building>,
+    report: Report,
+    tags: BTreeMap<SourceId, Vec<(String, String)>>,
+}
+
+impl Derived {
+    /// The parts derived from `id` (a building:part or an outline's own piece), over every
+    /// building.
+    fn parts_of(&self, id: SourceId) -> Vec<&Part> {
+        self.buildings
+            .iter()
+            .flat_map(|b| b.parts.iter())
+            .filter(|p| p.source == Some(id))
+            .collect()
+    }
+
+    fn one_part(&self, id: SourceId) -> &Part {
+        let p = self.parts_of(id);
+        assert_eq!(p.len(), 1, "{id}: {} parts", p.len());
+        p[0]
+    }
+
+    fn notes(&self, id: SourceId) -> Vec<String> {
+        let id = id.to_string();
+        self.report
+            .entries
+            .iter()
+            .filter(|e| e.id == id)
+            .map(|e| e.reason.clone())
+            .collect()
+    }
+}
+
+fn derive(osm: &Osm) -> Derived {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("case.osm.pbf");
+    osm.write(&pbf);
+    let mut report = Report::default();
+    let read = citygen::input::osm::read_osm(&pbf, &mut report).unwrap();
+    let site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (kb, _) = KnowledgeBase::load(&root.join(KB)).unwrap();
+    let gen = Generator::new(kb, Rules::Kb, Lod::Lod2, 0, Caps::default());
+    let mut buildings = Vec::new();
+    for lot in &site.lots {
+        match gen.generate(lot) {
+            Ok((b, notes)) => {
+                for (o, n) in notes {
+                    report.add(Some(lot.id), o, n);
+                }
+                buildings.push(b);
+            }
+            Err(e) => report.add(Some(lot.id), citygen::report::Outcome::Skipped, e),
+        }
+    }
+    let mut tags = BTreeMap::new();
+    for (id, _, t) in &osm.ways {
+        tags.insert(SourceId::Way(*id), t.clone());
+    }
+    for (id, _, t) in &osm.rels {
+        tags.insert(SourceId::Relation(*id), t.clone());
+    }
+    Derived {
+        buildings,
+        report,
+        tags,
+    }
+}
+
+fn way(i: i64) -> SourceId {
+    SourceId::Way(i)
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 0.1
+}
+
+/// The plan area two parts' footprints share (m²), by sampling a 0.25 m grid.
+fn shared_area(a: &Part, b: &Part) -> f64 {
+    let (lo_a, hi_a) = a.footprint.bounds();
+    let (lo_b, hi_b) = b.footprint.bounds();
+    let lo = lo_a.max(lo_b);
+    let hi = hi_a.min(hi_b);
+    if lo.x >= hi.x || lo.y >= hi.y {
+        return 0.0;
+    }
+    let step = 0.25;
+    let mut n = 0;
+    let mut y = lo.y + step / 2.0;
+    while y < hi.y {
+        let mut x = lo.x + step / 2.0;
+        while x < hi.x {
+            let p = glam::DVec2::new(x, y);
+            if a.footprint.contains(p) && b.footprint.contains(p) {
+                n += 1;
+            }
+            x += step;
+        }
+        y += step;
+    }
+    n as f64 * step * step
+}
+
+/// No two parts of one building fill the same volume: where their plans overlap, their height
+/// ranges do not (a part standing on another touches it only).
+fn assert_no_volume_overlap(d: &Derived) {
+    for b in &d.buildings {
+        for (i, p) in b.parts.iter().enumerate() {
+            for q in &b.parts[i + 1..] {
+                let z = p.top_z.min(q.top_z) - p.base_z.max(q.base_z);
+                if z > 0.05 {
+                    let a = shared_area(p, q);
+                    assert!(
+                        a < 0.5,
+                        "{}: parts {:?} and {:?} share {a} m² over {z} m",
+                        b.id,
+                        p.source,
+                        q.source
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_wiki_example_an_outline_covered_by_two_stacked_parts() {
+    let mut o = Osm::default();
+    o.way(1, &rect(0.0, 0.0, 20.0, 20.0), &[("building", "yes")]);
+    o.way(
+        2,
+        &rect(0.0, 0.0, 20.0, 20.0),
+        &[
+            ("building:part", "yes"),
+            ("height", "10"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        3,
+        &rect(5.0, 5.0, 10.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("min_height", "10"),
+            ("height", "15"),
+            ("roof:shape", "pyramidal"),
+        ],
+    );
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 1);
+    let b = &d.buildings[0];
+    assert_eq!(b.id, way(1));
+    assert_eq!(b.parts.len(), 2, "the covered outline is not drawn");
+    let base = d.one_part(way(2));
+    assert!(close(base.base_z, 0.0) && close(base.top_z, 10.0));
+    assert_eq!(base.roof_shape, RoofShape::Flat);
+    let top = d.one_part(way(3));
+    assert!(
+        close(top.base_z, 10.0) && close(top.top_z, 15.0),
+        "{}..{}",
+        top.base_z,
+        top.top_z
+    );
+    assert_eq!(top.roof_shape, RoofShape::Pyramidal);
+    assert_no_volume_overlap(&d);
+}
+
+#[test]
+fn a_church_with_domes_tagged_building_and_part_is_one_building() {
+    // The usual mapping: the outline; the nave and domes tagged building=church +
+    // building:part=yes; a tower as a part inside a dome's drum.
+    let mut o = Osm::default();
+    o.way(1, &rect(0.0, 0.0, 40.0, 20.0), &[("building", "church")]);
+    o.way(
+        2,
+        &rect(0.0, 0.0, 40.0, 20.0),
+        &[
+            ("building", "church"),
+            ("building:part", "yes"),
+            ("height", "18"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        3,
+        &rect(12.0, 2.0, 16.0, 16.0),
+        &[
+            ("building", "church"),
+            ("building:part", "yes"),
+            ("min_height", "18"),
+            ("height", "38"),
+            ("roof:shape", "dome"),
+        ],
+    );
+    o.way(
+        4,
+        &rect(1.0, 1.0, 5.0, 5.0),
+        &[
+            ("building:part", "tower"),
+            ("min_height", "18"),
+            ("height", "30"),
+            ("roof:shape", "pyramidal"),
+        ],
+    );
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 1, "the domes are parts, not buildings");
+    assert_eq!(d.buildings[0].parts.len(), 3);
+    let dome = d.one_part(way(3));
+    assert_eq!(dome.roof_shape, RoofShape::Dome);
+    assert!(close(dome.base_z, 18.0) && close(dome.top_z, 38.0));
+    let tower = d.one_part(way(4));
+    assert!(close(tower.base_z, 18.0) && close(tower.top_z, 30.0));
+    assert_no_volume_overlap(&d);
+}
+
+#[test]
+fn a_part_tagged_building_in_no_outline_holds_the_parts_inside_it() {
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 30.0, 20.0),
+        &[
+            ("building", "church"),
+            ("building:part", "yes"),
+            ("height", "15"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        2,
+        &rect(10.0, 5.0, 10.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("min_height", "15"),
+            ("height", "27"),
+            ("roof:shape", "onion"),
+        ],
+    );
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 1);
+    assert_eq!(d.buildings[0].id, way(1));
+    assert!(close(d.one_part(way(1)).top_z, 15.0));
+    let onion = d.one_part(way(2));
+    assert_eq!(onion.roof_shape, RoofShape::Onion);
+    assert!(close(onion.base_z, 15.0) && close(onion.top_z, 27.0));
+    assert!(d.notes(way(2)).is_empty(), "{:?}", d.notes(way(2)));
+}
+
+#[test]
+fn building_roof_is_a_roof_on_pillars_not_a_house() {
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 20.0, 10.0),
+        &[("building", "roof"), ("min_height", "16"), ("height", "18")],
+    );
+    o.way(2, &rect(40.0, 0.0, 12.0, 8.0), &[("building", "roof")]);
+    o.way(
+        3,
+        &rect(80.0, 0.0, 12.0, 8.0),
+        &[
+            ("building", "roof"),
+            ("height", "5"),
+            ("roof:shape", "gabled"),
+            ("roof:height", "1.5"),
+        ],
+    );
+    let d = derive(&o);
+    let high = d.one_part(way(1));
+    assert!(
+        close(high.base_z, 16.0) && close(high.top_z, 18.0),
+        "{}..{}",
+        high.base_z,
+        high.top_z
+    );
+    assert_eq!(high.roof_shape, RoofShape::Flat);
+    assert_eq!(high.storeys, 1);
+    // No heights: a canopy of one storey's height, a slab under its top.
+    let canopy = d.one_part(way(2));
+    assert!(canopy.top_z - canopy.base_z <= 0.5 + 1e-9 && canopy.base_z > 1.0);
+    assert_eq!(canopy.roof_shape, RoofShape::Flat);
+    let gabled = d.one_part(way(3));
+    assert_eq!(gabled.roof_shape, RoofShape::Gabled);
+    assert!(close(gabled.top_z, 5.0) && close(gabled.top_z - gabled.eave_z, 1.5));
+    // A roof on pillars floats by nature: no note says so.
+    assert!(d.notes(way(1)).iter().all(|n| !n.contains("floating")));
+}
+
+#[test]
+fn a_part_under_another_has_a_flat_top_and_only_the_top_takes_the_zones_roof() {
+    let mut o = Osm::default();
+    o.way(1, &rect(0.0, 0.0, 16.0, 12.0), &[("building", "yes")]);
+    o.way(
+        2,
+        &rect(0.0, 0.0, 16.0, 12.0),
+        &[("building:part", "yes"), ("height", "10")],
+    );
+    o.way(
+        3,
+        &rect(0.0, 0.0, 16.0, 12.0),
+        &[
+            ("building:part", "yes"),
+            ("min_height", "10"),
+            ("height", "20"),
+        ],
+    );
+    let d = derive(&o);
+    let lower = d.one_part(way(2));
+    assert_eq!(
+        lower.roof_shape,
+        RoofShape::Flat,
+        "a roof would run up through the part above"
+    );
+    assert!(close(lower.top_z, 10.0));
+    let upper = d.one_part(way(3));
+    assert!(close(upper.base_z, 10.0) && close(upper.top_z, 20.0));
+    assert_no_volume_overlap(&d);
+}
+
+#[test]
+fn a_building_whose_parts_all_start_above_the_ground_gets_a_note() {
+    let mut o = Osm::default();
+    o.way(1, &rect(0.0, 0.0, 10.0, 10.0), &[("building", "yes")]);
+    o.way(
+        2,
+        &rect(0.0, 0.0, 10.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("building:min_level", "1"),
+            ("building:levels", "3"),
+        ],
+    );
+    let d = derive(&o);
+    let p = d.one_part(way(2));
+    assert!(p.base_z > 2.0);
+    assert!(
+        d.notes(way(1)).iter().any(|n| n.contains("floating")),
+        "{:?}",
+        d.notes(way(1))
+    );
+}
+
+#[test]
+fn a_part_outside_every_outline_is_a_building_with_a_note() {
+    let mut o = Osm::default();
+    o.way(1, &rect(0.0, 0.0, 10.0, 10.0), &[("building", "yes")]);
+    o.way(
+        2,
+        &rect(30.0, 0.0, 8.0, 8.0),
+        &[("building:part", "yes"), ("height", "6")],
+    );
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 2);
+    assert!(close(d.one_part(way(2)).top_z, 6.0));
+    assert!(d
+        .notes(way(2))
+        .iter()
+        .any(|n| n.contains("lies in no building outline")));
+}
+
+#[test]
+fn a_relation_outline_holds_its_parts_and_its_uncovered_rest_is_drawn() {
+    let mut o = Osm::default();
+    // A courtyard building as a multipolygon; a tall part on its west wing only.
+    o.way(10, &rect(0.0, 0.0, 30.0, 30.0), &[]);
+    o.way(11, &rect(10.0, 10.0, 10.0, 10.0), &[]);
+    o.relation(
+        1,
+        &[(10, "outer"), (11, "inner")],
+        &[
+            ("type", "multipolygon"),
+            ("building", "yes"),
+            ("height", "9"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        2,
+        &rect(0.0, 0.0, 10.0, 30.0),
+        &[
+            ("building:part", "yes"),
+            ("height", "21"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 1);
+    let b = &d.buildings[0];
+    assert_eq!(b.id, SourceId::Relation(1));
+    assert!(close(d.one_part(way(2)).top_z, 21.0));
+    // The rest of the outline (900 − 100 − 300 = 500 m² as drawn in metres; the projection
+    // makes it a little more) with the outline's own height.
+    let rest = d.parts_of(SourceId::Relation(1));
+    let area: f64 = rest.iter().map(|p| p.footprint.area()).sum();
+    let wing = d.one_part(way(2)).footprint.area();
+    assert!(
+        (area / wing - 5.0 / 3.0).abs() < 0.01,
+        "rest {area} m², wing {wing} m²"
+    );
+    assert!(rest.iter().all(|p| close(p.top_z, 9.0)));
+    assert_no_volume_overlap(&d);
+}
+
+#[test]
+fn every_roof_shape_on_a_part_is_drawn_as_tagged() {
+    let shapes = [
+        ("flat", RoofShape::Flat),
+        ("skillion", RoofShape::Skillion),
+        ("gabled", RoofShape::Gabled),
+        ("hipped", RoofShape::Hipped),
+        ("half-hipped", RoofShape::HalfHipped),
+        ("side_hipped", RoofShape::SideHipped),
+        ("pyramidal", RoofShape::Pyramidal),
+        ("mansard", RoofShape::Mansard),
+        ("gambrel", RoofShape::Gambrel),
+        ("saltbox", RoofShape::Saltbox),
+        ("dome", RoofShape::Dome),
+        ("onion", RoofShape::Onion),
+        ("round", RoofShape::Round),
+        ("cone", RoofShape::Cone),
+    ];
+    let mut o = Osm::default();
+    for (i, (tag, _)) in shapes.iter().enumerate() {
+        let x = 40.0 * i as f64;
+        let id = 100 + 2 * i as i64;
+        o.way(id, &rect(x, 0.0, 14.0, 10.0), &[("building", "yes")]);
+        o.way(
+            id + 1,
+            &rect(x, 0.0, 14.0, 10.0),
+            &[
+                ("building:part", "yes"),
+                ("height", "12"),
+                ("roof:height", "4"),
+                ("roof:shape", tag),
+            ],
+        );
+    }
+    let d = derive(&o);
+    for (i, (tag, shape)) in shapes.iter().enumerate() {
+        let p = d.one_part(way(101 + 2 * i as i64));
+        assert_eq!(p.roof_shape, *shape, "roof:shape={tag}");
+        assert!(close(p.top_z, 12.0), "roof:shape={tag}: top {}", p.top_z);
+        if *shape != RoofShape::Flat {
+            assert!(
+                close(p.top_z - p.eave_z, 4.0),
+                "roof:shape={tag}: roof {}",
+                p.top_z - p.eave_z
+            );
+        }
+    }
+}
+
+#[test]
+fn levels_win_over_the_zones_storey_height_and_fractions_are_kept() {
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 20.0, 20.0),
+        &[
+            ("building", "yes"),
+            ("height", "70"),
+            ("building:levels", "13"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        2,
+        &rect(40.0, 0.0, 12.0, 10.0),
+        &[
+            ("building", "yes"),
+            ("building:levels", "3.5"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    let d = derive(&o);
+    let tower = d.one_part(way(1));
+    assert_eq!(tower.storeys, 13);
+    assert!(close(tower.top_z, 70.0));
+    let half = d.one_part(way(2));
+    let b = d.buildings.iter().find(|b| b.id == way(2)).unwrap();
+    assert_eq!(
+        b.storeys_above_ground, 4,
+        "3.5 levels: three and a half storey"
+    );
+    // The walls are 3.5 storeys of the zone's height, not 3.
+    let storey = tower.top_z / 13.0;
+    assert!(
+        half.eave_z > 3.2 * 2.5 && storey > 5.0,
+        "{} {}",
+        half.eave_z,
+        storey
+    );
+}
+
+#[test]
+fn a_guessed_roof_is_no_taller_than_its_walls() {
+    // A deep footprint with a zone roof and no roof tags: the pitch alone over 40 m would be
+    // a roof higher than the two storeys under it.
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 60.0, 40.0),
+        &[
+            ("building", "yes"),
+            ("building:levels", "2"),
+            ("roof:shape", "hipped"),
+        ],
+    );
+    let d = derive(&o);
+    let p = d.one_part(way(1));
+    let walls = p.eave_z - p.base_z;
+    assert!(
+        p.top_z - p.eave_z <= walls + 1e-6,
+        "roof {} on walls {walls}",
+        p.top_z - p.eave_z
+    );
+    assert_eq!(p.roof_shape, RoofShape::Hipped);
+}
+
+/// Per tag, the share of tagged units (building:part, or outline drawn itself) whose derived
+/// part honours it, over every case above built again in one file: 100 % each.
+#[test]
+fn every_tag_of_the_corpus_is_honoured() {
+    let mut o = Osm::default();
+    let cases: [&[(&str, &str)]; 8] = [
+        &[
+            ("height", "12"),
+            ("roof:shape", "gabled"),
+            ("roof:height", "3"),
+        ],
+        &[("height", "9"), ("min_height", "3"), ("roof:shape", "flat")],
+        &[
+            ("building:levels", "4"),
+            ("roof:shape", "hipped"),
+            ("building:colour", "#aa3311"),
+        ],
+        &[
+            ("height", "20"),
+            ("building:levels", "5"),
+            ("roof:colour", "#102030"),
+        ],
+        &[
+            ("min_height", "6"),
+            ("height", "16"),
+            ("roof:shape", "dome"),
+        ],
+        &[
+            ("building:levels", "2.5"),
+            ("roof:shape", "skillion"),
+            ("roof:height", "2"),
+        ],
+        &[("height", "30"), ("roof:shape", "pyramidal")],
+        &[
+            ("height", "7"),
+            ("roof:shape", "mansard"),
+            ("roof:height", "2.5"),
+        ],
+    ];
+    for (i, tags) in cases.iter().enumerate() {
+        let x = 50.0 * i as f64;
+        let id = 10 * (i as i64 + 1);
+        o.way(id, &rect(x, 0.0, 24.0, 14.0), &[("building", "yes")]);
+        let mut t = vec![("building:part", "yes")];
+        t.extend_from_slice(tags);
+        o.way(id + 1, &rect(x, 0.0, 12.0, 14.0), &t);
+        let mut t = vec![("building", "yes")];
+        t.extend_from_slice(tags);
+        o.way(id + 2, &rect(x, 30.0, 12.0, 14.0), &t);
+    }
+    let d = derive(&o);
+    let mut honoured: BTreeMap<&str, (usize, usize)> = BTreeMap::new();
+    for (id, tags) in &d.tags {
+        let get = |k: &str| tags.iter().find(|(kk, _)| kk == k).map(|(_, v)| v.as_str());
+        let parts = d.parts_of(*id);
+        if parts.is_empty() {
+            continue;
+        }
+        let mut count = |key: &'static str, ok: bool| {
+            let e = honoured.entry(key).or_default();
+            e.1 += 1;
+            if ok {
+                e.0 += 1;
+            }
+        };
+        let top = parts
+            .iter()
+            .map(|p| p.top_z)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let base = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
+        if let Some(h) = get("height") {
+            count("height", close(top, h.parse().unwrap()));
+        }
+        if let Some(m) = get("min_height") {
+            count("min_height", close(base, m.parse().unwrap()));
+        }
+        if let Some(r) = get("roof:shape") {
+            let want = RoofShape::parse(r).unwrap();
+            count("roof:shape", parts.iter().all(|p| p.roof_shape == want));
+        }
+        if let Some(l) = get("building:levels") {
+            let l: f64 = l.parse().unwrap();
+            count(
+                "building:levels",
+                parts.iter().all(|p| p.storeys == l.round() as u32),
+            );
+        }
+        if let Some(c) = get("building:colour") {
+            let want = citygen::color::Color::parse(c).unwrap();
+            count(
+                "building:colour",
+                parts.iter().all(|p| p.wall_color == want),
+            );
+        }
+        if let Some(c) = get("roof:colour") {
+            let want = citygen::color::Color::parse(c).unwrap();
+            count("roof:colour", parts.iter().all(|p| p.roof_color == want));
+        }
+    }
+    let mut lines = Vec::new();
+    for (k, (ok, n)) in &honoured {
+        lines.push(format!("{k}: {ok} of {n}"));
+    }
+    eprintln!("honoured per tag: {}", lines.join(", "));
+    assert!(honoured.len() >= 6, "{lines:?}");
+    for (k, (ok, n)) in &honoured {
+        assert_eq!(ok, n, "{k} honoured on {ok} of {n} units: {lines:?}");
+    }
+    assert_no_volume_overlap(&d);
+}
+
+#[test]
+fn a_roof_with_levels_stands_that_many_storeys_high() {
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 10.0, 10.0),
+        &[("building", "roof"), ("building:levels", "2")],
+    );
+    let d = derive(&o);
+    let p = d.one_part(way(1));
+    assert!(
+        p.top_z > 5.0 && p.top_z < 8.0 && p.top_z - p.base_z <= 0.5 + 1e-9,
+        "{}..{}",
+        p.base_z,
+        p.top_z
+    );
+}
