@@ -213,3 +213,243 @@ fn a_test_kb_forcing_the_roof_gives_every_building_that_roof() {
         assert!(open <= 18, "{shape}: {open} parts not closed");
     }
 }
+
+/// A footprint that is a rectangle once its straight vertices (turning by less than 1°) are
+/// dropped: four corners, each within `tol_deg` of 90°. Returns the number of vertices dropped.
+fn rectangle(p: &Polygon, tol_deg: f64) -> Option<usize> {
+    if !p.holes.is_empty() {
+        return None;
+    }
+    let mut r = p.outer.clone();
+    let turn = |r: &[glam::DVec2], i: usize| {
+        let n = r.len();
+        let (a, b, c) = (r[(i + n - 1) % n], r[i], r[(i + 1) % n]);
+        let (u, v) = (b - a, c - b);
+        u.perp_dot(v).atan2(u.dot(v)).to_degrees()
+    };
+    while r.len() > 4 {
+        let Some(i) = (0..r.len()).find(|&i| turn(&r, i).abs() < 1.0) else {
+            break;
+        };
+        r.remove(i);
+    }
+    (r.len() == 4 && (0..4).all(|i| (turn(&r, i) - 90.0).abs() <= tol_deg))
+        .then(|| p.outer.len() - 4)
+}
+
+/// Distinct planes among faces (normal and offset within 1e-6).
+fn planes(faces: &[citygen::model::Face]) -> usize {
+    let mut seen: Vec<(glam::DVec3, f64)> = Vec::new();
+    for f in faces {
+        let n = f.normal();
+        let d = n.dot(f.outer[0]);
+        if !seen
+            .iter()
+            .any(|(m, e)| m.distance(n) < 1e-6 && (e - d).abs() < 1e-6)
+        {
+            seen.push((n, d));
+        }
+    }
+    seen.len()
+}
+
+/// Gable ends: gable walls, those in one plane that share a corner counted once (a side with
+/// a collinear vertex has two walls under one gable).
+fn gable_ends(walls: &[citygen::model::Face]) -> usize {
+    let n = walls.len();
+    let mut rep: Vec<usize> = (0..n).collect();
+    for i in 0..n {
+        for j in 0..i {
+            let same_plane = planes(&[walls[i].clone(), walls[j].clone()]) == 1;
+            let touch = walls[i]
+                .outer
+                .iter()
+                .any(|p| walls[j].outer.iter().any(|q| p.distance(*q) < 1e-9));
+            if same_plane && touch {
+                let (a, b) = (rep[i], rep[j]);
+                for r in rep.iter_mut() {
+                    if *r == a {
+                        *r = b;
+                    }
+                }
+            }
+        }
+    }
+    rep.sort_unstable();
+    rep.dedup();
+    rep.len()
+}
+
+#[derive(Default, Debug)]
+struct Survey {
+    footprints: usize,
+    rectangles: usize,
+    fallbacks: Vec<String>,
+    one_sided: Vec<String>,
+    open: Vec<String>,
+    written: Vec<String>,
+    slivers: Vec<String>,
+    checks: Vec<String>,
+}
+
+/// Hipped, gabled and mansard (and, on rectangles, half-hipped and gambrel) forced on every
+/// footprint of a sample, each part checked as built and as written (millimetres).
+fn survey(path: &Path) -> Survey {
+    let mut report = Report::default();
+    let read = if path.extension().is_some_and(|e| e == "shp") {
+        read_shp(path, &ShpOptions::default(), &mut report)
+    } else {
+        read_osm(path, &mut report)
+    }
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let site = prepare(read.footprints, read.source_crs, None, &mut report);
+    let origin = site.origin.extend(0.0);
+    let mut s = Survey::default();
+    for lot in &site.lots {
+        for p in lot
+            .polygons
+            .iter()
+            .chain(lot.parts.iter().flat_map(|p| p.polygons.iter()))
+        {
+            s.footprints += 1;
+            let rect = rectangle(p, 1.0);
+            s.rectangles += usize::from(rect.is_some());
+            let mut shapes = vec![RoofShape::Hipped, RoofShape::Gabled, RoofShape::Mansard];
+            if rect.is_some() {
+                shapes.extend([RoofShape::HalfHipped, RoofShape::Gambrel]);
+            }
+            for shape in shapes {
+                let id = format!("{} {shape:?}", lot.id);
+                let m = Mass {
+                    footprint: p.clone(),
+                    base_z: 0.0,
+                    eave_z: 6.0,
+                    storeys: 2,
+                    roof: shape,
+                    roof_angle_deg: PITCH,
+                    roof_direction: None,
+                    roof_across: false,
+                    roof_height: None,
+                    wall_color: Color::WHITE,
+                    roof_color: Color::GREY,
+                };
+                let r = match roof_geometry(&m) {
+                    Ok(r) => r,
+                    Err(f) => {
+                        s.fallbacks.push(format!("{id}: {}", f.reason));
+                        continue;
+                    }
+                };
+                if rect.is_some() && shape != RoofShape::Hipped && shape != RoofShape::Mansard {
+                    // Two gable walls, and two roof planes per slope break and side.
+                    let want = match shape {
+                        RoofShape::Gabled => 2,
+                        _ => 4,
+                    };
+                    let got = planes(&r.faces);
+                    // Gable ends: vertical planes (a side with a collinear vertex has two walls).
+                    let ends = gable_ends(&r.gable_walls);
+                    if ends != 2 || got != want {
+                        s.one_sided.push(format!(
+                            "{id}: {} roof planes ({} faces), {ends} gable ends: {:?}",
+                            got,
+                            r.faces.len(),
+                            p.outer
+                        ));
+                    }
+                }
+                let part = build_part("p0".into(), &m, &r, Lod::Lod2);
+                let open = citygen::derive::massing::closure_defects(&part);
+                if let Some(first) = open.first() {
+                    s.open
+                        .push(format!("{id}: {} edges, first: {first}", open.len()));
+                }
+                let d: Vec<String> = check_part(&part)
+                    .into_iter()
+                    .filter(|l| !l.starts_with("edge "))
+                    .collect();
+                if let Some(first) = d.first() {
+                    s.checks
+                        .push(format!("{id}: {} defects, first: {first}", d.len()));
+                }
+                let (sl, w): (Vec<String>, Vec<String>) =
+                    citygen::derive::massing::written_defects(&part, origin)
+                        .into_iter()
+                        .partition(|l| l.starts_with("sliver:"));
+                if let Some(first) = sl.first() {
+                    s.slivers.push(format!(
+                        "{id}: {} ear-clipper slivers, first: {first}",
+                        sl.len()
+                    ));
+                }
+                if let Some(first) = w.first() {
+                    s.written
+                        .push(format!("{id}: {} defects, first: {first}", w.len()));
+                }
+            }
+        }
+    }
+    s
+}
+
+#[test]
+fn forced_roofs_are_closed_valid_solids_once_written() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let mut failures = Vec::new();
+    // Ratchets (issue 19's acceptance is 0 everywhere; not reached yet): the figures when
+    // written, per sample: one-sided gable ends on rectangles (a side kinked by less than 1°
+    // but more than the skeleton's collinear tolerance makes an end of two faces), open solids
+    // (nodes farther apart than the skeleton's merge), parts with a repeated vertex, a spike or
+    // an open edge once rounded. Lower them as the roofs improve, never raise them.
+    let limits = [
+        ("monaco/monaco.osm.pbf", 117, 4, 35),
+        ("clifton/clifton_test.shp", 3, 3, 35),
+    ];
+    for (f, max_one_sided, max_open, max_written) in limits {
+        let s = survey(&root.join(f));
+        eprintln!(
+            "{f}: {} footprints ({} rectangles): {} flat fallbacks, {} one-sided gable ends on \
+             rectangles, {} open solids, {} part-check failures, {} parts invalid once written, {} \
+             with ear-clipper slivers (not failed)",
+            s.footprints,
+            s.rectangles,
+            s.fallbacks.len(),
+            s.one_sided.len(),
+            s.open.len(),
+            s.checks.len(),
+            s.written.len(),
+            s.slivers.len()
+        );
+        for l in s.slivers.iter().take(3) {
+            eprintln!("  sliver (not failed): {l}");
+        }
+        for (what, v) in [
+            ("fallback", &s.fallbacks),
+            ("one-sided", &s.one_sided),
+            ("open", &s.open),
+            ("check", &s.checks),
+            ("written", &s.written),
+        ] {
+            for l in v.iter().take(8) {
+                eprintln!("  {what}: {l}");
+            }
+        }
+        failures.extend(s.fallbacks.iter().map(|l| format!("{f} fallback: {l}")));
+        failures.extend(s.checks.iter().map(|l| format!("{f} check: {l}")));
+        for (what, v, max) in [
+            ("one-sided", &s.one_sided, max_one_sided),
+            ("open", &s.open, max_open),
+            ("written", &s.written, max_written),
+        ] {
+            if v.len() > max {
+                failures.push(format!("{f}: {} {what}, ratchet {max}", v.len()));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failures, first:\n{}",
+        failures.len(),
+        failures[..failures.len().min(20)].join("\n")
+    );
+}

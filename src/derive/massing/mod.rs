@@ -532,6 +532,154 @@ pub fn check_part(part: &Part) -> Vec<String> {
     out
 }
 
+/// Checks a part as the writers put it on disk: every coordinate `origin + p` rounded to the
+/// millimetre (CityGML's 3 decimals; `origin` is the local frame's origin, whole metres), and
+/// returns one line per violation of the solid rules a validator such as val3dity applies at
+/// its default tolerances (empty when all hold):
+///
+/// * no ring repeats a vertex consecutively (closing vertex included);
+/// * no ring has a spike (a vertex where the ring turns straight back: `x, y, x`, or two
+///   edges running exactly opposite) or touches itself (`geometry::is_simple` in the face's
+///   plane);
+/// * the rounded surfaces bound a closed solid: every edge used exactly once in each
+///   direction;
+/// * every face is planar within [`WRITTEN_PLANARITY`] (1 cm) and has no sliver: each triangle
+///   of the face (`geometry::triangulate`, an ear clipper) has its normal within
+///   [`WRITTEN_NORMAL_DEG`] (20°) of the face's normal. These lines start with `sliver:`; the
+///   ear clipper also cuts ears of three boundary vertices of one straight run (a footprint's
+///   collinear vertex on an eave, moved off the line by the rounding), which a constrained
+///   Delaunay triangulation (val3dity's) would not, so this check is stricter than the
+///   validator's.
+pub fn written_defects(part: &Part, origin: DVec3) -> Vec<String> {
+    use std::collections::BTreeMap;
+    type K = (i64, i64, i64);
+    let q = |v: f64| (v * 1000.0).round() as i64;
+    let key = |p: DVec3| {
+        let g = origin + p;
+        (q(g.x), q(g.y), q(g.z))
+    };
+    let back = |k: K| DVec3::new(k.0 as f64, k.1 as f64, k.2 as f64) / 1000.0 - origin;
+    let mut out = Vec::new();
+    let mut count: BTreeMap<(K, K), i64> = BTreeMap::new();
+    let mut faces: Vec<(String, &Face)> = vec![("ground".to_string(), &part.ground)];
+    faces.extend(
+        part.walls
+            .iter()
+            .enumerate()
+            .map(|(i, w)| (format!("wall {i}"), &w.outline)),
+    );
+    faces.extend(
+        part.roof
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (format!("roof face {i}"), f)),
+    );
+    let min_cos = WRITTEN_NORMAL_DEG.to_radians().cos();
+    for (what, f) in &faces {
+        let rings: Vec<Vec<K>> = std::iter::once(&f.outer)
+            .chain(f.holes.iter())
+            .map(|r| r.iter().map(|p| key(*p)).collect())
+            .collect();
+        for (ri, r) in rings.iter().enumerate() {
+            let n = r.len();
+            for i in 0..n {
+                let (a, b, c) = (r[(i + n - 1) % n], r[i], r[(i + 1) % n]);
+                if a == b {
+                    out.push(format!("{what} ring {ri}: repeated vertex {}", back(b)));
+                } else if a == c {
+                    out.push(format!("{what} ring {ri}: spike at {}", back(b)));
+                } else if b != c {
+                    let (u, v) = (
+                        (b.0 - a.0, b.1 - a.1, b.2 - a.2),
+                        (c.0 - b.0, c.1 - b.1, c.2 - b.2),
+                    );
+                    let cross = (
+                        u.1 * v.2 - u.2 * v.1,
+                        u.2 * v.0 - u.0 * v.2,
+                        u.0 * v.1 - u.1 * v.0,
+                    );
+                    let dot = u.0 * v.0 + u.1 * v.1 + u.2 * v.2;
+                    if cross == (0, 0, 0) && dot < 0 {
+                        out.push(format!("{what} ring {ri}: spike at {}", back(b)));
+                    }
+                }
+                if a != b {
+                    *count.entry((a, b)).or_default() += 1;
+                }
+            }
+        }
+        let pts: Vec<Vec<DVec3>> = rings
+            .iter()
+            .map(|r| r.iter().map(|k| back(*k)).collect())
+            .collect();
+        let newell = crate::geometry::newell_normal(&pts[0]);
+        if newell.length().is_nan() || newell.length() <= 1e-12 {
+            out.push(format!("{what}: no area once rounded"));
+            continue;
+        }
+        let normal = newell.normalize();
+        let c = pts[0].iter().copied().sum::<DVec3>() / pts[0].len() as f64;
+        let dev = pts
+            .iter()
+            .flatten()
+            .map(|p| (*p - c).dot(normal).abs())
+            .fold(0.0, f64::max);
+        if dev > WRITTEN_PLANARITY {
+            out.push(format!("{what}: not planar ({dev:.4} m)"));
+        }
+        // The rings in the face's plane: simple, and every triangle facing the same way.
+        let (ex, ey) = {
+            let t = if normal.x.abs() < 0.9 {
+                DVec3::X
+            } else {
+                DVec3::Y
+            };
+            let ex = normal.cross(t).normalize();
+            (ex, normal.cross(ex))
+        };
+        for (ri, r) in pts.iter().enumerate() {
+            let plan: Vec<DVec2> = r
+                .iter()
+                .map(|p| DVec2::new((*p - c).dot(ex), (*p - c).dot(ey)))
+                .collect();
+            if !crate::geometry::is_simple(&plan) {
+                out.push(format!("{what} ring {ri}: touches itself once rounded"));
+            }
+        }
+        if let Some(t) = crate::geometry::triangulate::triangulate_face(&pts[0], &pts[1..]) {
+            for tri in &t.triangles {
+                let [a, b, c] = tri.map(|i| t.vertices[i as usize]);
+                let n = (b - a).cross(c - a);
+                if n.length() > 0.0 && n.normalize().dot(normal) < min_cos {
+                    out.push(format!(
+                        "sliver: {what}: triangle {a} {b} {c} off the face's plane"
+                    ));
+                    break;
+                }
+            }
+        }
+    }
+    for (&(a, b), &n) in &count {
+        let rev = count.get(&(b, a)).copied().unwrap_or(0);
+        if n != 1 || rev != 1 {
+            out.push(format!(
+                "rounded edge {} -> {} used {n} times, reverse {rev} times",
+                back(a),
+                back(b)
+            ));
+        }
+    }
+    out
+}
+
+/// Most distance (metres) of a written face's vertex from the face's plane
+/// ([`written_defects`]): val3dity's default planarity tolerance.
+pub const WRITTEN_PLANARITY: f64 = 0.01;
+
+/// Most angle (degrees) between a written face's normal and the normal of any of its triangles
+/// ([`written_defects`]): val3dity's default normal deviation.
+pub const WRITTEN_NORMAL_DEG: f64 = 20.0;
+
 fn dist_to_boundary(p: &Polygon, q: DVec2) -> f64 {
     p.rings()
         .flat_map(|r| {

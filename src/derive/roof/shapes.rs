@@ -53,7 +53,7 @@ use glam::{DVec2, DVec3};
 
 use super::{RoofError, RoofGeometry};
 use crate::geometry::hull::convex_hull;
-use crate::geometry::skeleton::straight_skeleton;
+use crate::geometry::skeleton::{straight_skeleton, straight_skeleton_merged, COLLINEAR_REL};
 use crate::geometry::Polygon;
 use crate::model::Face;
 
@@ -91,6 +91,9 @@ pub const ONION_HEIGHT_REL: f64 = 1.6;
 /// Two edges next to a triangular end face must differ in direction by more than this for the
 /// end to become a gable.
 pub const GABLE_MIN_OPPOSITE_DEG: f64 = 135.0;
+/// The top of a hip end (its vertices off the base) may spread over this fraction of the
+/// base's length and still be one apex (see `make_gables`).
+pub const GABLE_APEX_CLUSTER: f64 = 0.05;
 /// Height fraction of the gable wall under a half-hip.
 pub const HALF_HIP_FRACTION: f64 = 0.6;
 
@@ -178,7 +181,9 @@ pub fn profile_roof(
     ends: Ends,
     profile: impl Fn(f64) -> Profile,
 ) -> Result<RoofGeometry, RoofError> {
-    let sk = straight_skeleton(poly)?;
+    // One face per side, collinear vertices included: a gable end or a roof plane over a side
+    // with an extra vertex is one face, as it is one plane.
+    let sk = straight_skeleton_merged(poly)?;
     let (lo, hi) = poly.bounds();
     let size = (hi - lo).max_element();
     let mut faces: Vec<Option<TFace>> = sk
@@ -190,9 +195,8 @@ pub fn profile_roof(
             })
         })
         .collect();
-    let edges: Vec<(usize, usize)> = sk.faces.iter().map(|f| f.edge).collect();
     if ends != Ends::Hipped {
-        make_gables(&mut faces, &edges, poly, ends, 1e-7 * size);
+        make_gables(&mut faces, ends, 1e-7 * size);
     }
     let tmax = faces
         .iter()
@@ -278,8 +282,45 @@ pub fn profile_roof(
             )
         })
         .collect::<Vec<_>>();
+    let mut faces = faces;
+    insert_footprint_vertices(&mut faces, poly, 2.0 * COLLINEAR_REL * size);
     let walls = gable_walls(poly, &faces);
     Ok(RoofGeometry::from_parts(faces, walls))
+}
+
+/// Puts every footprint vertex that lies inside a roof face's edge in plan (within `tol`: the
+/// collinear vertices the skeleton merged away) into that edge, at the edge's height there, so
+/// that the wall on each side of it meets the roof at its corner (a gable over a side with a
+/// collinear vertex rises to the roof line at that vertex, not to the eave).
+fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
+    let corners: Vec<DVec2> = poly.rings().flatten().copied().collect();
+    for f in faces.iter_mut() {
+        for r in std::iter::once(&mut f.outer).chain(f.holes.iter_mut()) {
+            let n = r.len();
+            let mut out = Vec::with_capacity(n);
+            for i in 0..n {
+                let (u, v) = (r[i], r[(i + 1) % n]);
+                out.push(u);
+                let d = (v - u).truncate();
+                let l2 = d.length_squared();
+                if l2 <= tol * tol {
+                    continue;
+                }
+                let mut on: Vec<(f64, DVec3)> = corners
+                    .iter()
+                    .filter_map(|&c| {
+                        let s = (c - u.truncate()).dot(d) / l2;
+                        let off = (c - u.truncate()).perp_dot(d).abs() / l2.sqrt();
+                        let inside = s * l2.sqrt() > tol && (1.0 - s) * l2.sqrt() > tol;
+                        (inside && off <= tol).then(|| (s, c.extend(u.z + s * (v.z - u.z))))
+                    })
+                    .collect();
+                on.sort_by(|a, b| a.0.total_cmp(&b.0));
+                out.extend(on.into_iter().map(|x| x.1));
+            }
+            *r = out;
+        }
+    }
 }
 
 /// Vertical faces closing the roof above the eave on each footprint edge whose roof line rises
@@ -346,57 +387,67 @@ pub fn wall_top(faces: &[Face], a: DVec2, b: DVec2) -> Vec<DVec3> {
     out
 }
 
-/// Index of the point of `pts` within `tol` of `q` (plan and t).
-fn find(pts: &[DVec3], q: DVec3, tol: f64) -> Option<usize> {
-    pts.iter().position(|p| p.distance(q) <= tol)
-}
-
 /// Turns hip ends into gables or half-hips in place (see the module documentation).
-fn make_gables(
-    faces: &mut [Option<TFace>],
-    edges: &[(usize, usize)],
-    poly: &Polygon,
-    ends: Ends,
-    tol: f64,
-) {
-    let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
+///
+/// A hip end is a face whose vertices other than its base `a → b` (its *top*) lie within
+/// [`GABLE_APEX_CLUSTER`] of the base's length of each other — one apex, or the few nodes a
+/// nearly antiparallel pair of sides leaves where the exact skeleton has one (a rectangle
+/// skewed by hundredths of a degree) — and touch no face but the end's two neighbours, whose
+/// sides run roughly opposite. Each neighbour's run of top vertices is replaced by the gable
+/// point `p` (or the half-hip's points), which lies exactly on both neighbours' planes, so they
+/// stay planar and share their new ridge end.
+fn make_gables(faces: &mut [Option<TFace>], ends: Ends, tol: f64) {
     let min_cos = GABLE_MIN_OPPOSITE_DEG.to_radians().cos();
     let mut skipped_first = false;
     for i in 0..faces.len() {
         let Some(f) = &faces[i] else { continue };
-        if f.pts.len() != 3 {
+        if f.pts.len() < 3 {
             continue;
         }
-        let (a, b, m) = (f.pts[0], f.pts[1], f.pts[2]);
-        // Faces on the apex.
-        let on_apex: Vec<usize> = (0..faces.len())
+        let (a, b) = (f.pts[0], f.pts[1]);
+        let top: Vec<DVec3> = f.pts[2..].to_vec();
+        let width = (b - a).truncate().length();
+        let diam = top
+            .iter()
+            .flat_map(|p| top.iter().map(move |q| p.distance(*q)))
+            .fold(0.0, f64::max);
+        if diam > GABLE_APEX_CLUSTER * width {
+            continue;
+        }
+        let in_top = |q: DVec3| top.iter().any(|m| m.distance(q) <= tol);
+        let touching: Vec<usize> = (0..faces.len())
             .filter(|&j| {
-                faces[j]
-                    .as_ref()
-                    .is_some_and(|g| find(&g.pts, m, tol).is_some())
+                j != i
+                    && faces[j]
+                        .as_ref()
+                        .is_some_and(|g| g.pts.iter().any(|q| in_top(*q)))
             })
             .collect();
-        if on_apex.len() != 3 {
+        if touching.len() != 2 {
             continue;
         }
-        // The neighbour holding a → m (before a in its ring) and the one holding m → b.
+        // The neighbour holding a → top (before a in its ring) and the one holding top → b.
         let mut prev = None;
         let mut next = None;
-        for &j in on_apex.iter().filter(|&&j| j != i) {
+        for &j in &touching {
             let Some(g) = &faces[j] else { continue };
             let n = g.pts.len();
-            let Some(k) = find(&g.pts, m, tol) else {
-                continue;
-            };
-            if g.pts[(k + n - 1) % n].distance(a) <= tol {
-                prev = Some((j, k));
-            } else if g.pts[(k + 1) % n].distance(b) <= tol {
-                next = Some((j, k));
+            for k in 0..n {
+                let (u, v) = (g.pts[k], g.pts[(k + 1) % n]);
+                if u.distance(a) <= tol && in_top(v) {
+                    prev = Some(j);
+                }
+                if in_top(u) && v.distance(b) <= tol {
+                    next = Some(j);
+                }
             }
         }
-        let (Some((jp, kp)), Some((jn, kn))) = (prev, next) else {
+        let (Some(jp), Some(jn)) = (prev, next) else {
             continue;
         };
+        if jp == jn {
+            continue;
+        }
         // The neighbours' edges must run roughly opposite (a wing's two sides).
         let (Some(fp), Some(fnx)) = (&faces[jp], &faces[jn]) else {
             continue;
@@ -431,56 +482,65 @@ fn make_gables(
             skipped_first = true;
             continue;
         }
-        let _ = (edges, &rings);
         let p = p2.extend(tp);
-        let (mp, mn) = (
-            faces[jp].as_ref().map(|g| g.pts[kp]),
-            faces[jn].as_ref().map(|g| g.pts[kn]),
-        );
-        let (Some(mp), Some(_mn)) = (mp, mn) else {
-            continue;
-        };
-        match ends {
+        let (with_prev, with_next) = match ends {
             Ends::HalfHipped(c) => {
                 let c = c.clamp(0.05, 0.95);
                 let xa = a + (p - a) * c;
                 let xb = b + (p - b) * c;
-                // The hip's top on the ridge, so the small hip keeps about the roof's pitch.
-                let ridge = (mp - p).truncate().length();
-                let mu = if ridge > 0.0 {
-                    ((1.0 - c) * tp / ridge).min(1.0)
-                } else {
-                    1.0
-                };
-                let r = if mu >= 1.0 { mp } else { p + (mp - p) * mu };
-                if let Some(g) = faces[jp].as_mut() {
-                    if mu >= 1.0 {
-                        g.pts.splice(kp..kp, [xa]);
-                    } else {
-                        g.pts.splice(kp..kp, [xa, r]);
-                    }
+                // The hip's top on the ridge (the line both neighbours' planes share), a
+                // horizontal (1 - c)·tp from p, so the small hip keeps about the roof's pitch,
+                // and no farther than the old apex.
+                let apex = top.iter().copied().sum::<DVec3>() / top.len() as f64;
+                let mut d = (np - nn).perp().normalize_or_zero();
+                if d.dot(apex.truncate() - p2) < 0.0 {
+                    d = -d;
                 }
-                if let Some(g) = faces[jn].as_mut() {
-                    if mu >= 1.0 {
-                        g.pts.splice(kn + 1..kn + 1, [xb]);
-                    } else {
-                        g.pts.splice(kn + 1..kn + 1, [r, xb]);
-                    }
+                let run = ((1.0 - c) * tp).min((apex.truncate() - p2).dot(d));
+                if !(run.is_finite() && run > tol) {
+                    continue;
                 }
+                let r = (p2 + d * run).extend(tp + np.dot(d) * run);
                 faces[i] = Some(TFace {
                     pts: vec![xa, xb, r],
                 });
+                (vec![xa, r], vec![r, xb])
             }
             _ => {
-                for (j, k) in [(jp, kp), (jn, kn)] {
-                    if let Some(g) = faces[j].as_mut() {
-                        g.pts[k] = p;
-                    }
-                }
                 faces[i] = None;
+                (vec![p], vec![p])
+            }
+        };
+        for (j, with) in [(jp, with_prev), (jn, with_next)] {
+            if let Some(g) = faces[j].as_mut() {
+                g.pts = replace_runs(&g.pts, &in_top, &with);
+                g.pts.dedup_by(|x, y| x.distance(*y) <= tol);
             }
         }
     }
+}
+
+/// The ring with every maximal (cyclic) run of the points `hit` marks replaced by `with`.
+fn replace_runs(ring: &[DVec3], hit: &impl Fn(DVec3) -> bool, with: &[DVec3]) -> Vec<DVec3> {
+    let n = ring.len();
+    let Some(start) = (0..n).find(|&k| !hit(ring[k])) else {
+        return with.to_vec();
+    };
+    let mut out = Vec::with_capacity(n + with.len());
+    let mut in_run = false;
+    for k in 0..n {
+        let q = ring[(start + k) % n];
+        if hit(q) {
+            if !in_run {
+                out.extend_from_slice(with);
+                in_run = true;
+            }
+        } else {
+            out.push(q);
+            in_run = false;
+        }
+    }
+    out
 }
 
 /// Splits a simple ring of points `(x, y, t)` by the level `t = l` (no vertex on it) into the

@@ -538,6 +538,20 @@ pub(super) fn check_shape(p: &Polygon, shape: RoofShape, pitch: f64) -> Result<(
     if !d.is_empty() {
         return Err(format!("{shape:?}: {}", d[..d.len().min(5)].join("; ")));
     }
+    // As written (millimetres), in a frame far from 0 as a real origin is.
+    // (Slivers of the ear clipper are counted by tests/roofs.rs, not failed here: see
+    // `written_defects`.)
+    let w: Vec<String> =
+        crate::derive::massing::written_defects(&part, DVec3::new(500_000.0, 4_000_000.0, 0.0))
+            .into_iter()
+            .filter(|l| !l.starts_with("sliver:"))
+            .collect();
+    if !w.is_empty() {
+        return Err(format!(
+            "{shape:?} written: {}",
+            w[..w.len().min(5)].join("; ")
+        ));
+    }
     let slopes: Vec<f64> = match shape {
         RoofShape::Hipped | RoofShape::Gabled => vec![pitch],
         RoofShape::Mansard => vec![shapes::MANSARD_LOWER_DEG, shapes::MANSARD_UPPER_DEG],
@@ -633,3 +647,48 @@ proptest! {
 }
 
 mod real_footprints;
+
+/// Distinct planes among faces (unit normals and offsets within 1e-6).
+pub(super) fn planes(faces: &[Face]) -> usize {
+    let mut seen: Vec<(DVec3, f64)> = Vec::new();
+    for f in faces {
+        let n = f.normal();
+        let d = n.dot(f.outer[0]);
+        if !seen
+            .iter()
+            .any(|(m, e)| m.distance(n) < 1e-6 && (e - d).abs() < 1e-6)
+        {
+            seen.push((n, d));
+        }
+    }
+    seen.len()
+}
+
+/// Gable ends: gable walls, those in one plane that share a corner counted once (a side with
+/// a collinear vertex has two walls under one gable).
+pub(super) fn gable_ends(walls: &[Face]) -> usize {
+    let n = walls.len();
+    let mut rep: Vec<usize> = (0..n).collect();
+    for i in 0..n {
+        for j in 0..i {
+            let same_plane = planes(&[walls[i].clone(), walls[j].clone()]) == 1;
+            let touch = walls[i]
+                .outer
+                .iter()
+                .any(|p| walls[j].outer.iter().any(|q| p.distance(*q) < 1e-9));
+            if same_plane && touch {
+                let (a, b) = (rep[i], rep[j]);
+                for r in rep.iter_mut() {
+                    if *r == a {
+                        *r = b;
+                    }
+                }
+            }
+        }
+    }
+    rep.sort_unstable();
+    rep.dedup();
+    rep.len()
+}
+
+mod corpus;

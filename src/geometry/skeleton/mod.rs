@@ -65,6 +65,17 @@ pub const DUPLICATE_REL: f64 = 1e-7;
 pub const COLLINEAR_REL: f64 = 1e-6;
 /// Events closer than `EVENT_REL × size` (in time and in position) are simultaneous.
 pub const EVENT_REL: f64 = 1e-9;
+/// Skeleton nodes closer than `NODE_MERGE_REL × size` (in place and time), and at most
+/// [`NODE_MERGE_MAX`], are one node (see `Sim::merge_nodes`).
+pub const NODE_MERGE_REL: f64 = 1e-4;
+/// The most distance (metres) at which two skeleton nodes are merged: half the millimetre to
+/// which footprints are cleaned and outputs written (two nodes closer would often be one point,
+/// or a zero-length edge shared by four faces, once written), so a node's time stays within
+/// 1 mm of its distance to its edges' lines; a merge tilts a 4 m face by under 0.01°. (The slide of a nearly
+/// antiparallel vertex can place its node up to `distance × angle / 2` off, 0.45 mm on a 12 m
+/// rectangle skewed by 0.01°: such ends are recognised by the gable rule instead, see
+/// `derive::roof::shapes`.)
+pub const NODE_MERGE_MAX: f64 = 5e-4;
 /// Directions closer than this (radians) are parallel.
 pub const ANGLE_TOL: f64 = 1e-9;
 
@@ -224,6 +235,18 @@ struct Node {
 /// assert_eq!(sk.faces.len(), 4);
 /// ```
 pub fn straight_skeleton(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
+    skeleton(poly, true)
+}
+
+/// [`straight_skeleton`] with one face per run of collinear input edges (the edges the
+/// propagation merged, see the module documentation) instead of one per input edge: a face's
+/// `edge` is the first input edge of its run, and the run's inner vertices lie on the face's
+/// base. A roof plane over a footprint side with collinear vertices is one face.
+pub fn straight_skeleton_merged(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
+    skeleton(poly, false)
+}
+
+fn skeleton(poly: &Polygon, split: bool) -> Result<Skeleton, SkeletonError> {
     let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
     for (ri, r) in rings.iter().enumerate() {
         if let Some(vi) = r.iter().position(|p| !p.is_finite()) {
@@ -257,7 +280,8 @@ pub fn straight_skeleton(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
     check_holes(&edges, &ring_starts)?;
     let mut sim = Sim::new(edges, &ring_starts, size);
     sim.run()?;
-    let faces = sim.faces()?;
+    sim.merge_nodes();
+    let faces = sim.faces(split)?;
     // Area check: the faces must tile the polygon.
     let total: f64 = faces.iter().map(|f| area3(&f.polygon)).sum();
     let expect = poly.area();

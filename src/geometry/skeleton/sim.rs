@@ -643,9 +643,62 @@ impl Sim {
         Ok(())
     }
 
-    /// Chains each edge's boundary segments into its face and splits faces of merged edges back
-    /// into one face per input edge.
-    pub(super) fn faces(&self) -> Result<Vec<SkeletonFace>, SkeletonError> {
+    /// Makes nodes closer than [`NODE_MERGE_REL`]` × size` (at most [`NODE_MERGE_MAX`]) in
+    /// place and time one node: the first made of them, so that the footprint's corners
+    /// (made first) are never moved. Events at one point handled apart (a slid antiparallel
+    /// vertex, events a rounding error apart in time) leave such pairs, which would otherwise
+    /// give faces a zero-length edge (a hip end with two apexes a micrometre apart is no
+    /// triangle, so it could not become a gable) and the solid an edge shared by four faces.
+    /// Corners (time 0) are neither merged nor absorb interior nodes: an edge of a millimetre
+    /// keeps its face.
+    pub(super) fn merge_nodes(&mut self) {
+        let r = (NODE_MERGE_REL * self.size).min(NODE_MERGE_MAX);
+        let n = self.nodes.len();
+        let mut rep: Vec<usize> = (0..n).collect();
+        let key = |nd: &Node| DVec3::new(nd.p.x, nd.p.y, nd.t);
+        // Sweep in x order (ties by index, so the result does not depend on the sort).
+        let mut order: Vec<usize> = (0..n).filter(|&i| self.nodes[i].t > 0.0).collect();
+        order.sort_by(|&a, &b| {
+            self.nodes[a]
+                .p
+                .x
+                .total_cmp(&self.nodes[b].p.x)
+                .then(a.cmp(&b))
+        });
+        // Union-find: every node within `r` of another joins its group; the group's smallest
+        // index is its node.
+        fn find(rep: &mut [usize], mut i: usize) -> usize {
+            while rep[i] != i {
+                rep[i] = rep[rep[i]];
+                i = rep[i];
+            }
+            i
+        }
+        for (k, &i) in order.iter().enumerate() {
+            for &j in &order[k + 1..] {
+                if self.nodes[j].p.x - self.nodes[i].p.x > r {
+                    break;
+                }
+                if key(&self.nodes[i]).distance(key(&self.nodes[j])) <= r {
+                    let (a, b) = (find(&mut rep, i), find(&mut rep, j));
+                    if a != b {
+                        rep[a.max(b)] = a.min(b);
+                    }
+                }
+            }
+        }
+        let rep: Vec<usize> = (0..n).map(|i| find(&mut rep, i)).collect();
+        for segs in &mut self.segs {
+            for s in segs.iter_mut() {
+                *s = (rep[s.0], rep[s.1]);
+            }
+        }
+    }
+
+    /// Chains each edge's boundary segments into its face and (with `split`) splits faces of
+    /// merged edges back into one face per input edge.
+    /// With `split` false, a merged edge keeps one face.
+    pub(super) fn faces(&self, split: bool) -> Result<Vec<SkeletonFace>, SkeletonError> {
         let mut out = Vec::new();
         for (e, edge) in self.edges.iter().enumerate() {
             let ring = self.chain(e)?;
@@ -656,7 +709,7 @@ impl Sim {
                     DVec3::new(nd.p.x, nd.p.y, nd.t)
                 })
                 .collect();
-            if edge.inputs.len() == 1 {
+            if edge.inputs.len() == 1 || !split {
                 out.push(SkeletonFace {
                     edge: (edge.ring, edge.inputs[0].0),
                     polygon: poly,
