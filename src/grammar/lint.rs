@@ -18,11 +18,20 @@
 //!
 //! Output is deterministic: diagnostics are sorted by (line, col, code, message) and no hash
 //! map order reaches them.
+//!
+//! **Bounded work.** A generated or hostile file (a split with 50,000 successors, each a new
+//! symbol) must not make the linter itself the rule bomb. Every pass is linear in the size of
+//! the file, or bounded by a constant: cycles are found with one strongly-connected-component
+//! pass (not a symbol × symbol table), each diagnostic keeps a window of
+//! [`CONTEXT_CHARS`] characters on each side of its column (not its whole line), at most
+//! [`MAX_PER_CODE`] diagnostics of one code are listed (then one saying how many more there
+//! are), name lists in messages stop after a few names, long symbol names are cut, and the
+//! "did you mean" search has a fixed budget.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet, BinaryHeap};
 use std::fmt;
 
-use super::ast::{Axis, Op, Rule, RuleSet, SymbolId};
+use super::ast::{Axis, Op, Rule, RuleSet, Span, SymbolId};
 
 /// The symbols that the model builder and the exporters turn into building elements; a
 /// successor with one of these names and no rule is a deliberate leaf, not a typo.
@@ -30,6 +39,25 @@ pub const KNOWN_TERMINALS: [&str; 4] = ["wall", "window", "door", "balcony"];
 
 /// Tolerance on probability sums (`0.4 + 0.2 + 0.2 + 0.2` is not exactly 1 in binary).
 const PROB_EPS: f64 = 1e-9;
+
+/// Characters of a long source line a [`Diagnostic`] keeps on each side of its column (the
+/// parser's errors show the same window).
+pub const CONTEXT_CHARS: usize = 80;
+
+/// The most diagnostics of one code [`lint`] lists; past it, one more diagnostic of that code
+/// says how many were left out.
+pub const MAX_PER_CODE: usize = 100;
+
+/// Symbol names longer than this many characters are cut (with `…`) in messages.
+const MAX_NAME_CHARS: usize = 64;
+
+/// Names listed in one message (cycle members, users of a symbol, line numbers) before
+/// "and N more".
+const MAX_LISTED: usize = 8;
+
+/// Edit-distance cells the "did you mean" suggestions of one file may cost in total; once
+/// spent, later undefined symbols get no suggestion.
+const SUGGEST_BUDGET: usize = 20_000_000;
 
 /// How bad a [`Diagnostic`] is: errors make `citygen rules check` exit non-zero.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -76,8 +104,12 @@ pub struct Diagnostic {
     /// The explanation, with a hint at the fix where there is one.
     pub message: String,
     /// The text of the source line (without its newline); empty when `source` did not have
-    /// that line.
+    /// that line. A line longer than 2 × [`CONTEXT_CHARS`] characters is cut to the
+    /// [`CONTEXT_CHARS`] characters on each side of `col`, with `…` where it is cut.
     pub line_text: String,
+    /// The 1-based character column of `line_text` the caret goes under: `col`, unless the
+    /// line was cut.
+    pub text_col: u32,
 }
 
 impl fmt::Display for Diagnostic {
@@ -88,8 +120,43 @@ impl fmt::Display for Diagnostic {
             self.file, self.line, self.col, self.severity, self.code, self.message
         )?;
         writeln!(f, "{}", self.line_text)?;
-        write!(f, "{}^", caret_pad(&self.line_text, self.col))
+        write!(f, "{}^", caret_pad(&self.line_text, self.text_col))
     }
+}
+
+/// The window of `line` shown under a diagnostic whose place is byte `pos` of the line (a
+/// char boundary, at most `line.len()`), and the caret's 1-based character column in it: the
+/// whole line when it is at most 2 × [`CONTEXT_CHARS`] characters, else [`CONTEXT_CHARS`]
+/// characters on each side of the place with `…` where it is cut. The cost is bounded by the
+/// window, not the line (a megabyte line with thousands of diagnostics stays linear).
+fn line_window(line: &str, pos: usize) -> (String, u32) {
+    let (head, tail) = line.split_at(pos);
+    // Byte where the window starts: CONTEXT_CHARS characters back, or the line's start.
+    let from = head
+        .char_indices()
+        .rev()
+        .nth(CONTEXT_CHARS - 1)
+        .map_or(0, |(i, _)| i);
+    // Byte where it ends: CONTEXT_CHARS characters on, or the line's end.
+    let to = tail
+        .char_indices()
+        .nth(CONTEXT_CHARS)
+        .map_or(line.len(), |(i, _)| pos + i);
+    // At most 2 × CONTEXT_CHARS characters (counting stops there): the whole line.
+    if line.chars().nth(2 * CONTEXT_CHARS).is_none() {
+        return (line.to_string(), head.chars().count() as u32 + 1);
+    }
+    let cut_head = from > 0;
+    let mut shown = String::with_capacity(to - from + 6);
+    if cut_head {
+        shown.push('…');
+    }
+    shown.push_str(&line[from..to]);
+    if to < line.len() {
+        shown.push('…');
+    }
+    let col = line[from..pos].chars().count() + 1 + usize::from(cut_head);
+    (shown, col as u32)
 }
 
 /// The blanks that put a caret under 1-based character column `col` of `line`: a tab where the
@@ -109,21 +176,122 @@ pub fn has_errors(d: &[Diagnostic]) -> bool {
 /// Lints a parsed rule set. `source` must be the text `rules` was parsed from: it provides the
 /// line shown under each diagnostic (a mismatching source gives empty lines, never a panic).
 ///
-/// Returns every finding, sorted by (line, col, code, message); empty for a clean file.
+/// Returns every finding, sorted by (line, col, code, message), at most [`MAX_PER_CODE`] of
+/// each code (then one more of that code counting the rest); empty for a clean file.
 pub fn lint(rules: &RuleSet, source: &str) -> Vec<Diagnostic> {
     let cx = Cx::new(rules, source);
-    let mut out = Vec::new();
+    let mut out = Sink::default();
     cx.undefined_symbols(&mut out);
     cx.unreachable_rules(&mut out);
     cx.probabilities(&mut out);
     cx.duplicate_rules(&mut out);
     cx.shape_kinds(&mut out);
     cx.non_terminating(&mut out);
-    out.sort_by(|a, b| {
-        (a.line, a.col, a.code, &a.message, a.severity)
-            .cmp(&(b.line, b.col, b.code, &b.message, b.severity))
-    });
-    out
+    out.finish()
+}
+
+/// A diagnostic ordered by (line, col, code, message, severity): the order of [`lint`]'s output.
+struct Ranked(Diagnostic);
+
+impl Ranked {
+    fn key(&self) -> (u32, u32, &'static str, &str, Severity) {
+        let d = &self.0;
+        (d.line, d.col, d.code, &d.message, d.severity)
+    }
+}
+
+impl PartialEq for Ranked {
+    fn eq(&self, other: &Self) -> bool {
+        self.key() == other.key()
+    }
+}
+impl Eq for Ranked {}
+impl PartialOrd for Ranked {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Ranked {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.key().cmp(&other.key())
+    }
+}
+
+/// The diagnostics of one code: the first [`MAX_PER_CODE`] in output order, and what was left
+/// out.
+#[derive(Default)]
+struct Bucket {
+    /// A max-heap, so that the last kept one is evicted when an earlier one comes.
+    kept: BinaryHeap<Ranked>,
+    dropped: usize,
+    /// The first (in output order) of the ones left out.
+    first_dropped: Option<Ranked>,
+    /// Whether any left out is an error.
+    dropped_error: bool,
+}
+
+/// Where the passes put their findings: memory stays bounded by [`MAX_PER_CODE`] per code
+/// however many a file has.
+#[derive(Default)]
+struct Sink {
+    buckets: BTreeMap<&'static str, Bucket>,
+}
+
+impl Sink {
+    fn push(&mut self, d: Diagnostic) {
+        let b = self.buckets.entry(d.code).or_default();
+        b.kept.push(Ranked(d));
+        if b.kept.len() > MAX_PER_CODE {
+            if let Some(last) = b.kept.pop() {
+                b.dropped += 1;
+                b.dropped_error |= last.0.severity == Severity::Error;
+                if b.first_dropped.as_ref().is_none_or(|f| last < *f) {
+                    b.first_dropped = Some(last);
+                }
+            }
+        }
+    }
+
+    /// How many diagnostics of `code` were pushed.
+    fn count(&self, code: &str) -> usize {
+        self.buckets
+            .get(code)
+            .map_or(0, |b| b.kept.len() + b.dropped)
+    }
+
+    /// Everything kept, sorted, with one "N more" diagnostic per code that was cut, at the
+    /// place of the first one left out.
+    fn finish(self) -> Vec<Diagnostic> {
+        let mut out = Vec::new();
+        for (code, b) in self.buckets {
+            out.extend(b.kept.into_iter().map(|r| r.0));
+            if let Some(Ranked(first)) = b.first_dropped {
+                let kind = if b.dropped_error {
+                    "findings (some are errors)"
+                } else {
+                    "findings"
+                };
+                out.push(Diagnostic {
+                    severity: if b.dropped_error {
+                        Severity::Error
+                    } else {
+                        first.severity
+                    },
+                    message: format!(
+                        "{} more `{code}` {kind} from here on are not shown: rules check lists at \
+                         most {MAX_PER_CODE} of each kind",
+                        b.dropped
+                    ),
+                    ..first
+                });
+            }
+        }
+        out.sort_by(|a, b| {
+            (a.line, a.col, a.code, &a.message, a.severity)
+                .cmp(&(b.line, b.col, b.code, &b.message, b.severity))
+        });
+        out
+    }
 }
 
 /// Shape kinds as a bit set, mirroring [`super::Geometry`]'s variants.
@@ -144,6 +312,8 @@ fn kind_name(k: Kinds) -> &'static str {
 struct Cx<'a> {
     rules: &'a RuleSet,
     source: &'a str,
+    /// Byte offset of the start of each line of `source`.
+    line_starts: Vec<usize>,
     /// Symbol names by id (ids are dense from 0).
     names: Vec<&'a str>,
     /// Rule indices (into `rules.rules()`) per predecessor id, in source order.
@@ -168,14 +338,16 @@ impl<'a> Cx<'a> {
             }
         }
         // Weights come from `rules_for`, the same resolution the interpreter selects with;
-        // rules are matched back to their index by address.
+        // rules are matched back to their index by address (the slice is in memory order, so
+        // a binary search finds each).
         let mut weights = vec![0.0; all.len()];
         for (id, name) in names.iter().enumerate() {
             if by_pred[id].is_empty() {
                 continue;
             }
             for (rule, w) in rules.rules_for(name) {
-                if let Some(i) = all.iter().position(|r| std::ptr::eq(r, rule)) {
+                let at = all.binary_search_by(|r| (r as *const Rule).cmp(&(rule as *const Rule)));
+                if let Ok(i) = at {
                     weights[i] = w;
                 }
             }
@@ -184,9 +356,13 @@ impl<'a> Cx<'a> {
             .iter()
             .position(|n| *n == rules.axiom())
             .map(|i| i as SymbolId);
+        let line_starts = std::iter::once(0)
+            .chain(source.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
         Cx {
             rules,
             source,
+            line_starts,
             names,
             by_pred,
             weights,
@@ -198,6 +374,11 @@ impl<'a> Cx<'a> {
         self.names.get(id as usize).copied().unwrap_or("?")
     }
 
+    /// `` `name` `` for messages, cut to [`MAX_NAME_CHARS`] characters.
+    fn q(&self, id: SymbolId) -> String {
+        quote(self.name(id))
+    }
+
     fn has_rules(&self, id: SymbolId) -> bool {
         self.by_pred.get(id as usize).is_some_and(|l| !l.is_empty())
     }
@@ -206,34 +387,61 @@ impl<'a> Cx<'a> {
         &self.rules.rules()[i]
     }
 
+    /// A diagnostic at `span` (its line and column; the byte offset finds the place in the
+    /// line without counting characters from its start).
     fn diag(
         &self,
         severity: Severity,
         code: &'static str,
-        line: u32,
-        col: u32,
+        span: Span,
         message: String,
     ) -> Diagnostic {
-        let line_text = self
-            .source
-            .lines()
-            .nth(line.saturating_sub(1) as usize)
-            .unwrap_or("")
-            .trim_end_matches('\r')
-            .to_string();
+        let at = span.line.saturating_sub(1) as usize;
+        let (line_text, text_col) = match self.line_starts.get(at) {
+            Some(&start) => {
+                // The line ends before the next line's start (its `\n`), or at the end.
+                let end = self
+                    .line_starts
+                    .get(at + 1)
+                    .map_or(self.source.len(), |&next| next - 1);
+                let line = self.source[start..end].trim_end_matches('\r');
+                let pos = span.offset.wrapping_sub(start);
+                let pos = if pos <= line.len() && line.is_char_boundary(pos) {
+                    pos
+                } else {
+                    // A source that is not the one parsed: find the column by counting.
+                    line.char_indices()
+                        .nth(span.col.saturating_sub(1) as usize)
+                        .map_or(line.len(), |(i, _)| i)
+                };
+                line_window(line, pos)
+            }
+            None => (String::new(), span.col),
+        };
         Diagnostic {
             severity,
             code,
             file: self.rules.file().to_string(),
-            line,
-            col,
+            line: span.line,
+            col: span.col,
             message,
             line_text,
+            text_col,
         }
     }
 
     /// Successor symbols with no rule that are not known terminals.
-    fn undefined_symbols(&self, out: &mut Vec<Diagnostic>) {
+    fn undefined_symbols(&self, out: &mut Sink) {
+        // The names a suggestion can be, with their lengths in characters, in the order ties
+        // are broken: defined symbols (interned order), then the known terminals.
+        let candidates: Vec<(&str, usize)> = (0..self.names.len() as SymbolId)
+            .filter(|&id| self.has_rules(id))
+            .map(|id| self.name(id))
+            .chain(KNOWN_TERMINALS.iter().copied())
+            .filter(|c| c.len() <= 4 * MAX_NAME_CHARS)
+            .map(|c| (c, c.chars().count()))
+            .collect();
+        let mut budget = SUGGEST_BUDGET;
         for r in self.rules.rules() {
             for s in &r.succs {
                 let name = self.name(s.symbol);
@@ -241,39 +449,21 @@ impl<'a> Cx<'a> {
                     continue;
                 }
                 let mut msg = format!(
-                    "`{name}` has no rule and is not a known terminal ({}): it becomes a leaf \
-                     of the shape tree with no element kind",
+                    "{} has no rule and is not a known terminal ({}): it becomes a leaf of the \
+                     shape tree with no element kind",
+                    quote(name),
                     KNOWN_TERMINALS.join(", ")
                 );
-                if let Some(s) = self.suggest(name) {
-                    msg.push_str(&format!("; did you mean `{s}`?"));
+                // Successors come in source order, which is the output order: past the listed
+                // ones a suggestion would not be shown.
+                if out.count("undefined-symbol") < MAX_PER_CODE {
+                    if let Some(s) = suggest(name, &candidates, &mut budget) {
+                        msg.push_str(&format!("; did you mean {}?", quote(s)));
+                    }
                 }
-                out.push(self.diag(
-                    Severity::Warning,
-                    "undefined-symbol",
-                    s.span.line,
-                    s.span.col,
-                    msg,
-                ));
+                out.push(self.diag(Severity::Warning, "undefined-symbol", s.span, msg));
             }
         }
-    }
-
-    /// The defined symbol or known terminal closest to `name`, if within 2 edits (and fewer
-    /// edits than `name` has characters, so `a` does not suggest `b`). Ties go to the symbol
-    /// interned first (source order), then to the terminals' order.
-    fn suggest(&self, name: &str) -> Option<&'a str> {
-        let defined = (0..self.names.len() as SymbolId)
-            .filter(|&id| self.has_rules(id))
-            .map(|id| self.name(id));
-        let len = name.chars().count();
-        defined
-            .chain(KNOWN_TERMINALS.iter().copied())
-            .filter(|c| *c != name)
-            .map(|c| (edit_distance(name, c), c))
-            .filter(|&(d, _)| d <= 2 && d < len)
-            .min_by_key(|&(d, _)| d)
-            .map(|(_, c)| c)
     }
 
     /// Symbols reachable from the axiom through the successors of any rule.
@@ -296,8 +486,24 @@ impl<'a> Cx<'a> {
     }
 
     /// One warning per unreachable predecessor, at its first rule.
-    fn unreachable_rules(&self, out: &mut Vec<Diagnostic>) {
+    fn unreachable_rules(&self, out: &mut Sink) {
         let seen = self.reachable();
+        // The predecessors of the rules that use each unreachable symbol, in source order,
+        // once each (one pass over the rules, not one per symbol).
+        let mut users: Vec<Vec<SymbolId>> = vec![Vec::new(); self.names.len()];
+        let mut pairs: BTreeSet<(SymbolId, SymbolId)> = BTreeSet::new();
+        for u in self.rules.rules() {
+            for x in &u.succs {
+                let t = x.symbol as usize;
+                if t < users.len()
+                    && !seen[t]
+                    && x.symbol != u.pred
+                    && pairs.insert((x.symbol, u.pred))
+                {
+                    users[t].push(u.pred);
+                }
+            }
+        }
         for (id, list) in self.by_pred.iter().enumerate() {
             let Some(&first) = list.first() else {
                 continue;
@@ -308,51 +514,35 @@ impl<'a> Cx<'a> {
             let r = self.rule(first);
             let n = list.len();
             // Name the unreachable rules that do use it, so that the author finds the root.
-            let mut users: Vec<&str> = Vec::new();
-            for u in self.rules.rules() {
-                let name = self.name(u.pred);
-                if u.pred as usize != id
-                    && u.succs.iter().any(|x| x.symbol as usize == id)
-                    && !users.contains(&name)
-                {
-                    users.push(name);
-                }
-            }
-            let by = if users.is_empty() {
+            let by = if users[id].is_empty() {
                 String::new()
             } else {
+                let names: Vec<String> = users[id]
+                    .iter()
+                    .take(MAX_LISTED)
+                    .map(|&u| self.q(u))
+                    .collect();
                 format!(
                     " (only used by the unreachable {})",
-                    users
-                        .iter()
-                        .map(|u| format!("`{u}`"))
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    list_names(&names, users[id].len())
                 )
             };
-            let pred = self.name(id as SymbolId);
+            let pred = self.q(id as SymbolId);
             let msg = format!(
-                "rule{} for `{pred}` {} never used: `{pred}` is not reachable from the axiom \
-                 `{}`{by}",
+                "rule{} for {pred} {} never used: {pred} is not reachable from the axiom {}{by}",
                 plural(n),
                 if n == 1 { "is" } else { "are" },
-                self.rules.axiom()
+                quote(self.rules.axiom())
             );
-            out.push(self.diag(
-                Severity::Warning,
-                "unreachable-rule",
-                r.span.line,
-                r.span.col,
-                msg,
-            ));
+            out.push(self.diag(Severity::Warning, "unreachable-rule", r.span, msg));
         }
     }
 
     /// Probability sums per predecessor, judged by the parser's resolution: explicit `= p`
     /// weigh `p`, the others share `1 − Σp` (nothing if Σp ≥ 1), and selection normalises.
-    fn probabilities(&self, out: &mut Vec<Diagnostic>) {
+    fn probabilities(&self, out: &mut Sink) {
         for (id, list) in self.by_pred.iter().enumerate() {
-            let pred = self.name(id as SymbolId);
+            let pred = cut(self.name(id as SymbolId));
             let explicit: Vec<usize> = list
                 .iter()
                 .copied()
@@ -373,18 +563,19 @@ impl<'a> Cx<'a> {
                     out.push(self.diag(
                         Severity::Error,
                         "probability-sum",
-                        r.span.line,
-                        r.span.col,
+                        r.span,
                         format!("probability {p} of a rule for `{pred}` is negative"),
                     ));
                 }
             }
             let sum: f64 = explicit.iter().filter_map(|&i| self.rule(i).prob).sum();
             let lines = |v: &[usize]| {
-                v.iter()
+                let shown: Vec<String> = v
+                    .iter()
+                    .take(MAX_LISTED)
                     .map(|&i| self.rule(i).span.line.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                    .collect();
+                list_names(&shown, v.len())
             };
             if sum > 1.0 + PROB_EPS {
                 let mut msg = format!(
@@ -402,13 +593,7 @@ impl<'a> Cx<'a> {
                     ));
                 }
                 msg.push_str("; make them sum to 1");
-                out.push(self.diag(
-                    Severity::Error,
-                    "probability-sum",
-                    first.span.line,
-                    first.span.col,
-                    msg,
-                ));
+                out.push(self.diag(Severity::Error, "probability-sum", first.span, msg));
             } else if implicit.is_empty() && sum < 1.0 - PROB_EPS {
                 let how = if sum > 0.0 {
                     format!(
@@ -421,8 +606,7 @@ impl<'a> Cx<'a> {
                 out.push(self.diag(
                     Severity::Warning,
                     "probability-sum",
-                    first.span.line,
-                    first.span.col,
+                    first.span,
                     format!(
                         "the probabilities of the rules for `{pred}` sum to {} < 1 (line{} {}); \
                          {how}",
@@ -436,8 +620,7 @@ impl<'a> Cx<'a> {
                 out.push(self.diag(
                     Severity::Warning,
                     "probability-sum",
-                    r.span.line,
-                    r.span.col,
+                    r.span,
                     format!(
                         "the explicit probabilities of the rules for `{pred}` already sum to 1: \
                          the rule{} without probability (line{} {}) get weight 0 and are never \
@@ -454,9 +637,9 @@ impl<'a> Cx<'a> {
     /// Two or more rules for one predecessor without `= p`: by the parser's resolution they
     /// share what the explicit alternatives leave, so none shadows another: they are drawn at
     /// random (or never, when the explicit ones reach 1). Reported at each rule after the first.
-    fn duplicate_rules(&self, out: &mut Vec<Diagnostic>) {
+    fn duplicate_rules(&self, out: &mut Sink) {
         for (id, list) in self.by_pred.iter().enumerate() {
-            let pred = self.name(id as SymbolId);
+            let pred = cut(self.name(id as SymbolId));
             let implicit: Vec<usize> = list
                 .iter()
                 .copied()
@@ -498,8 +681,7 @@ impl<'a> Cx<'a> {
                 out.push(self.diag(
                     Severity::Error,
                     "duplicate-rule",
-                    r.span.line,
-                    r.span.col,
+                    r.span,
                     format!(
                         "second deterministic rule for `{pred}` (the first is at line {}){same}: \
                          {how}; give each alternative `= p` or remove all but one",
@@ -544,7 +726,7 @@ impl<'a> Cx<'a> {
     }
 
     /// Operations applied to a shape kind the interpreter rejects.
-    fn shape_kinds(&self, out: &mut Vec<Diagnostic>) {
+    fn shape_kinds(&self, out: &mut Sink) {
         let kinds = self.kinds();
         for r in self.rules.rules() {
             let k = kinds.get(r.pred as usize).copied().unwrap_or(0);
@@ -562,7 +744,7 @@ impl<'a> Cx<'a> {
             if bad.is_empty() {
                 continue;
             }
-            let pred = self.name(r.pred);
+            let pred = cut(self.name(r.pred));
             let what = bad
                 .iter()
                 .map(|(k, why)| format!("a {k} ({why})"))
@@ -595,7 +777,7 @@ impl<'a> Cx<'a> {
                     ),
                 )
             };
-            out.push(self.diag(sev, "op-shape-mismatch", r.span.line, r.span.col, msg));
+            out.push(self.diag(sev, "op-shape-mismatch", r.span, msg));
         }
     }
 
@@ -603,7 +785,7 @@ impl<'a> Cx<'a> {
     /// its parent (relabel, S, T, R, extrude): such a recursion never runs out by itself.
     /// Splits are excluded, since a size that no longer fits drops the recursive piece.
     /// One warning per cycle (strongly connected component), at its first rule in the file.
-    fn non_terminating(&self, out: &mut Vec<Diagnostic>) {
+    fn non_terminating(&self, out: &mut Sink) {
         let n = self.names.len();
         let grows = |r: &Rule| {
             matches!(
@@ -611,88 +793,130 @@ impl<'a> Cx<'a> {
                 Op::Relabel | Op::Scale(_) | Op::Translate(_) | Op::Rotate(..) | Op::Extrude(_)
             )
         };
-        // reach[s]: symbols reachable from s in one or more non-shrinking steps.
-        let mut reach: Vec<Vec<bool>> = Vec::with_capacity(n);
-        for s in 0..n {
-            let mut seen = vec![false; n];
-            let mut stack: Vec<usize> = vec![s];
-            while let Some(x) = stack.pop() {
-                for &i in &self.by_pred[x] {
-                    let r = self.rule(i);
-                    if !grows(r) {
-                        continue;
-                    }
-                    for succ in &r.succs {
-                        let t = succ.symbol as usize;
-                        if t < n && !seen[t] {
-                            seen[t] = true;
-                            stack.push(t);
-                        }
+        let mut adj: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for r in self.rules.rules() {
+            if grows(r) {
+                for x in &r.succs {
+                    if (x.symbol as usize) < n && (r.pred as usize) < n {
+                        adj[r.pred as usize].push(x.symbol as usize);
                     }
                 }
             }
-            reach.push(seen);
         }
-        let mut done = vec![false; n];
-        for s in 0..n {
-            if done[s] || !reach[s][s] {
+        let comp_of = sccs(&adj);
+        let mut members: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+        for (v, &c) in comp_of.iter().enumerate() {
+            members.entry(c).or_default().push(v);
+        }
+        for syms in members.values() {
+            let c = comp_of[syms[0]];
+            let inside = |t: SymbolId| comp_of.get(t as usize) == Some(&c);
+            let cyclic = syms.len() > 1 || adj[syms[0]].contains(&syms[0]);
+            if !cyclic {
                 continue;
             }
-            let comp: BTreeSet<usize> = (0..n).filter(|&t| reach[s][t] && reach[t][s]).collect();
-            for &t in &comp {
-                done[t] = true;
-            }
+            let rules: Vec<&Rule> = syms
+                .iter()
+                .flat_map(|&t| self.by_pred[t].iter().map(|&i| self.rule(i)))
+                .collect();
             // The first rule, in source order, that stays inside the cycle.
-            let Some(r) = self.rules.rules().iter().find(|r| {
-                comp.contains(&(r.pred as usize))
-                    && grows(r)
-                    && r.succs.iter().any(|x| comp.contains(&(x.symbol as usize)))
-            }) else {
+            let Some(r) = rules
+                .iter()
+                .filter(|r| grows(r) && r.succs.iter().any(|x| inside(x.symbol)))
+                .min_by_key(|r| r.span.offset)
+            else {
                 continue;
             };
-            let mut members: Vec<&Rule> = self
-                .rules
-                .rules()
+            // Members in the order of their first rule in the file.
+            let mut ordered: Vec<usize> = syms
                 .iter()
-                .filter(|r| comp.contains(&(r.pred as usize)))
+                .copied()
+                .filter(|&t| !self.by_pred[t].is_empty())
                 .collect();
-            members.sort_by_key(|r| r.span.offset);
-            let mut syms: Vec<&str> = Vec::new();
-            for m in members {
-                let name = self.name(m.pred);
-                if !syms.contains(&name) {
-                    syms.push(name);
-                }
-            }
-            let escapes = comp.iter().any(|&t| {
-                self.by_pred[t].iter().any(|&i| {
-                    let r = self.rule(i);
-                    !grows(r) || !r.succs.iter().any(|x| comp.contains(&(x.symbol as usize)))
-                })
-            });
-            let cycle = syms
+            ordered.sort_by_key(|&t| self.rule(self.by_pred[t][0]).span.offset);
+            let names: Vec<String> = ordered
                 .iter()
-                .map(|s| format!("`{s}`"))
-                .collect::<Vec<_>>()
-                .join(", ");
+                .take(MAX_LISTED)
+                .map(|&t| self.q(t as SymbolId))
+                .collect();
+            let escapes = rules
+                .iter()
+                .any(|r| !grows(r) || !r.succs.iter().any(|x| inside(x.symbol)));
             let msg = format!(
-                "the rules for {cycle} recurse through operations that never shrink the shape \
+                "the rules for {} recurse through operations that never shrink the shape \
                  (relabel, S, T, R, extrude){}: may not terminate; the derivation cap will stop it",
+                list_names(&names, ordered.len()),
                 if escapes {
                     " unless another alternative is chosen"
                 } else {
                     ""
                 }
             );
-            out.push(self.diag(
-                Severity::Warning,
-                "non-terminating",
-                r.span.line,
-                r.span.col,
-                msg,
-            ));
+            out.push(self.diag(Severity::Warning, "non-terminating", r.span, msg));
         }
     }
+}
+
+/// The strongly connected components of the graph on `0..adj.len()` whose edges are
+/// `v -> adj[v][..]`: the component id of each vertex. Tarjan's algorithm with an explicit
+/// stack, so a chain of 100,000 symbols costs time and memory linear in the graph and never
+/// overflows the call stack.
+fn sccs(adj: &[Vec<usize>]) -> Vec<usize> {
+    const UNSEEN: usize = usize::MAX;
+    let n = adj.len();
+    let mut index = vec![UNSEEN; n];
+    let mut low = vec![0; n];
+    let mut on_stack = vec![false; n];
+    let mut comp = vec![UNSEEN; n];
+    let mut stack: Vec<usize> = Vec::new();
+    // (vertex, next edge to look at)
+    let mut call: Vec<(usize, usize)> = Vec::new();
+    let (mut next_index, mut next_comp) = (0, 0);
+    for root in 0..n {
+        if index[root] != UNSEEN {
+            continue;
+        }
+        call.push((root, 0));
+        index[root] = next_index;
+        low[root] = next_index;
+        next_index += 1;
+        stack.push(root);
+        on_stack[root] = true;
+        while let Some(&mut (v, ref mut e)) = call.last_mut() {
+            if let Some(&w) = adj[v].get(*e) {
+                *e += 1;
+                if w >= n {
+                    continue;
+                }
+                if index[w] == UNSEEN {
+                    index[w] = next_index;
+                    low[w] = next_index;
+                    next_index += 1;
+                    stack.push(w);
+                    on_stack[w] = true;
+                    call.push((w, 0));
+                } else if on_stack[w] {
+                    low[v] = low[v].min(index[w]);
+                }
+                continue;
+            }
+            call.pop();
+            if let Some(&(parent, _)) = call.last() {
+                low[parent] = low[parent].min(low[v]);
+            }
+            if low[v] == index[v] {
+                while let Some(w) = stack.pop() {
+                    on_stack[w] = false;
+                    comp[w] = next_comp;
+                    if w == v {
+                        break;
+                    }
+                }
+                next_comp += 1;
+            }
+        }
+    }
+    comp
 }
 
 /// What an operation makes of a shape of kind `k` (one bit), or why the interpreter refuses it.
@@ -730,6 +954,57 @@ fn same_body(a: &Rule, b: &Rule) -> bool {
             .iter()
             .zip(&b.succs)
             .all(|(x, y)| x.selector == y.selector && x.symbol == y.symbol && x.attrs == y.attrs)
+}
+
+/// `` `name` ``, cut to [`MAX_NAME_CHARS`] characters with `…` (a generated file may have
+/// megabyte names).
+fn quote(name: &str) -> String {
+    format!("`{}`", cut(name))
+}
+
+/// `name`, cut to [`MAX_NAME_CHARS`] characters with `…`.
+fn cut(name: &str) -> String {
+    match name.char_indices().nth(MAX_NAME_CHARS) {
+        Some((i, _)) => format!("{}…", &name[..i]),
+        None => name.to_string(),
+    }
+}
+
+/// `a, b, c`, or `a, b, c and 5 more` when `total` is more than the names shown.
+fn list_names(shown: &[String], total: usize) -> String {
+    let mut s = shown.join(", ");
+    if total > shown.len() {
+        s.push_str(&format!(" and {} more", total - shown.len()));
+    }
+    s
+}
+
+/// The candidate closest to `name`, if within 2 edits (and fewer edits than `name` has
+/// characters, so `a` does not suggest `b`); ties go to the earlier candidate. Candidates
+/// whose length differs by more than 2 are skipped unmeasured; each distance measured costs
+/// its table's cells from `budget`, and a spent budget gives no suggestion (so that a file of
+/// thousands of similar names stays fast). Names longer than [`MAX_NAME_CHARS`] get none.
+fn suggest<'c>(name: &str, candidates: &[(&'c str, usize)], budget: &mut usize) -> Option<&'c str> {
+    let len = name.chars().count();
+    if len > MAX_NAME_CHARS {
+        return None;
+    }
+    let mut best: Option<(usize, &str)> = None;
+    for &(c, clen) in candidates {
+        if c == name || clen.abs_diff(len) > 2 {
+            continue;
+        }
+        let cost = (len + 1) * (clen + 1);
+        if cost > *budget {
+            return None;
+        }
+        *budget -= cost;
+        let d = edit_distance(name, c);
+        if d <= 2 && d < len && best.is_none_or(|(b, _)| d < b) {
+            best = Some((d, c));
+        }
+    }
+    best.map(|(_, c)| c)
 }
 
 fn plural(n: usize) -> &'static str {
@@ -1081,6 +1356,167 @@ mod tests {
         assert!(!d.is_empty());
         assert!(d.iter().all(|d| d.line_text.is_empty()));
         assert!(d[0].to_string().ends_with("\n\n^"));
+    }
+
+    #[test]
+    fn findings_past_the_cap_are_counted_and_long_lines_are_windowed() {
+        // One line of 300 undefined successors (about 2,000 characters).
+        let succ: Vec<String> = (0..300).map(|i| format!("u{i}")).collect();
+        let sizes = vec!["1"; 300].join(",");
+        let src = format!("lot -> split(X,{sizes}){{{}}}\n", succ.join("|"));
+        let d = run(&src);
+        assert_eq!(d.len(), MAX_PER_CODE + 1, "{:?}", codes(&d));
+        assert!(d.iter().all(|d| d.code == "undefined-symbol"));
+        // The first 100 in file order are listed, then one diagnostic at the 101st.
+        let line = src.lines().next().unwrap_or_default();
+        let col_of = |name: &str| {
+            line.find(&format!("{{{name}|"))
+                .or_else(|| line.find(&format!("|{name}|")))
+                .map(|i| i as u32 + 2)
+        };
+        assert_eq!(Some(d[0].col), col_of("u0"));
+        assert_eq!(Some(d[99].col), col_of("u99"));
+        assert_eq!(Some(d[100].col), col_of("u100"));
+        assert_eq!(
+            d[100].message,
+            "200 more `undefined-symbol` findings from here on are not shown: rules check lists \
+             at most 100 of each kind"
+        );
+        for x in &d {
+            // 80 characters each side, two ellipses: never the whole 2,000-character line.
+            assert!(
+                x.line_text.chars().count() <= 2 * CONTEXT_CHARS + 2,
+                "{}",
+                x.line_text
+            );
+            // The caret is under the successor's first character.
+            let under: String = x
+                .line_text
+                .chars()
+                .skip(x.text_col as usize - 1)
+                .take(2)
+                .collect();
+            assert!(under.starts_with('u'), "{under:?} in {:?}", x.line_text);
+            let shown = x.to_string();
+            let caret = shown.lines().last().unwrap_or_default();
+            assert_eq!(caret.chars().count() as u32, x.text_col, "{shown}");
+        }
+        assert!(d[50].line_text.starts_with('…') && d[50].line_text.ends_with('…'));
+        // A short line is kept whole, with the caret at its column.
+        let d = run("lot -> {zz}\n");
+        assert_eq!((d[0].line_text.as_str(), d[0].text_col), ("lot -> {zz}", 9));
+    }
+
+    #[test]
+    fn line_window_cuts_at_characters_not_bytes() {
+        let line = format!("{}X{}", "é".repeat(200), "ü".repeat(200));
+        let pos = line.find('X').unwrap_or_default();
+        let (shown, col) = line_window(&line, pos);
+        assert_eq!(shown.chars().count(), 1 + 2 * CONTEXT_CHARS + 1);
+        assert_eq!(shown.chars().nth(col as usize - 1), Some('X'));
+        assert!(shown.starts_with("…é") && shown.ends_with("ü…"));
+        // At the start of a long line: no leading ellipsis.
+        let (shown, col) = line_window(&line, 0);
+        assert_eq!(col, 1);
+        assert!(shown.starts_with('é') && shown.ends_with('…'));
+        assert_eq!(line_window("", 0), (String::new(), 1));
+    }
+
+    #[test]
+    fn generated_files_with_thousands_of_symbols_lint_in_linear_work() {
+        // A cycle of 20,000 symbols through T: one finding, with a bounded list of names.
+        let n = 20_000;
+        let mut src = String::from("lot -> s0\n");
+        for i in 0..n {
+            src.push_str(&format!("s{i} -> T(0,0,1){{s{}}}\n", (i + 1) % n));
+        }
+        let d = run(&src);
+        assert_eq!(codes(&d), [("non-terminating", 2, 1)]);
+        assert!(
+            d[0].message
+                .contains("`s0`, `s1`, `s2`, `s3`, `s4`, `s5`, `s6`, `s7` and 19992 more"),
+            "{}",
+            d[0].message
+        );
+        // A chain of 20,000 unreachable rules: each names its one user; 100 listed.
+        let mut src = String::from("lot -> wall\n");
+        for i in 0..n {
+            src.push_str(&format!("c{i} -> c{}\n", i + 1));
+        }
+        let d: Vec<Diagnostic> = run(&src)
+            .into_iter()
+            .filter(|d| d.code == "unreachable-rule")
+            .collect();
+        assert_eq!(d.len(), MAX_PER_CODE + 1);
+        assert!(
+            d[1].message
+                .ends_with("(only used by the unreachable `c0`)"),
+            "{}",
+            d[1].message
+        );
+        assert!(d[MAX_PER_CODE]
+            .message
+            .starts_with("19900 more `unreachable-rule` findings"));
+        // 50,000 probabilities of one predecessor: one error listing 8 lines.
+        let src = "lot -> wall = 0.00004\n".repeat(50_000);
+        let d = run(&src);
+        assert_eq!(codes(&d), [("probability-sum", 1, 1)]);
+        assert!(
+            d[0].message
+                .contains("(lines 1, 2, 3, 4, 5, 6, 7, 8 and 49992 more)"),
+            "{}",
+            d[0].message
+        );
+    }
+
+    #[test]
+    fn long_names_are_cut_in_messages_and_get_no_suggestion() {
+        let long = "x".repeat(10_000);
+        let src = format!("lot -> {{{long}|{long}y}}\n{long}z -> wall\n");
+        let d = run(&src);
+        assert_eq!(
+            codes(&d),
+            [
+                ("undefined-symbol", 1, 9),
+                ("undefined-symbol", 1, 10_010),
+                ("unreachable-rule", 2, 1)
+            ]
+        );
+        for x in &d {
+            assert!(x.message.len() < 400, "{}", x.message);
+            assert!(!x.message.contains("did you mean"), "{}", x.message);
+        }
+        assert!(d[0]
+            .message
+            .starts_with(&format!("`{}…` has no rule", "x".repeat(MAX_NAME_CHARS))));
+    }
+
+    #[test]
+    fn suggestions_stop_when_their_budget_is_spent() {
+        let candidates = [("window", 6), ("wall", 4)];
+        let mut budget = 1_000;
+        assert_eq!(suggest("windw", &candidates, &mut budget), Some("window"));
+        assert_eq!(
+            budget,
+            1_000 - 6 * 7 - 6 * 5,
+            "one table per measured candidate"
+        );
+        // Not enough left for the first table: no suggestion, nothing spent.
+        let mut budget = 10;
+        assert_eq!(suggest("windw", &candidates, &mut budget), None);
+        assert_eq!(budget, 10);
+        // A file of thousands of similar names still lints, and the first ones get suggestions.
+        let succ: Vec<String> = (0..5_000).map(|i| format!("d{i:04}x")).collect();
+        let mut src = format!("lot -> {{{}}}\n", succ.join("|"));
+        for i in 0..5_000 {
+            src.push_str(&format!("d{i:04} -> wall\n"));
+        }
+        let d = run(&src);
+        assert!(
+            d[0].message.ends_with("did you mean `d0000`?"),
+            "{}",
+            d[0].message
+        );
     }
 
     #[test]
