@@ -231,3 +231,136 @@ fn rules_derive_counts_astronomical_repeats_and_relabels_before_making_them() {
         stderr(&out)
     );
 }
+
+/// (file, line:col, code) of each `file:line:col: warning[code]` line of `rules check`.
+fn findings(err: &str) -> Vec<String> {
+    err.lines()
+        .filter(|l| l.contains(": warning[") || l.contains(": error["))
+        .map(|l| l.split("]:").next().unwrap_or_default().to_string())
+        .collect()
+}
+
+#[test]
+fn rules_check_warns_where_a_rule_can_exceed_the_caps_and_derive_agrees() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("out.glb");
+    // (file, rules, the warning, its consequence, the cap the derivation then stops at)
+    let cases = [
+        (
+            "repeat.cga",
+            // The issue's bomb: every copy of a 1 m pattern on a 1-2 m piece is itself again.
+            "lot -> extrude(10){a}\na -> repeat(X, 1){a}\n",
+            "repeat.cga:2:1: warning[non-terminating",
+            "may not terminate; the derivation stops at the depth cap (max_depth, 64 by default)",
+            "repeat.cga:2:1 (a -> repeat): derivation exceeds max_depth = 64",
+        ),
+        (
+            "halves.cga",
+            "lot -> extrude(10){a}\na -> split(X, sx/2, sx/2){a|a}\n",
+            "halves.cga:2:1: warning[exponential-growth",
+            "may reach 2^depth shapes; the derivation stops at the shape cap (max_shapes, 100000 \
+             by default) about 17 levels down",
+            "halves.cga:2:1 (a -> split): derivation exceeds max_shapes = 100000",
+        ),
+        (
+            "faces.cga",
+            "lot -> extrude(10){v}\nv -> comp(){side:f}\nf -> extrude(1){v}\n",
+            "faces.cga:2:1: warning[exponential-growth",
+            "at LOD3 and LOD4 (where comp is applied)",
+            "faces.cga:2:1 (v -> comp): derivation exceeds max_shapes = 100000",
+        ),
+    ];
+    for (name, text, warning, consequence, cap) in cases {
+        let f = write(dir.path(), name, text);
+        let out = citygen_capped(&["rules", "check", &f]);
+        assert_answered(&out);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(0), "warnings only: {err}");
+        let found = findings(&err);
+        assert_eq!(found.len(), 1, "{err}");
+        assert!(found[0].ends_with(warning), "{err}");
+        assert!(err.contains(consequence), "{err}");
+        // The caret line under the rule.
+        assert!(
+            err.contains(&format!("\n{}\n^", text.lines().nth(1).unwrap())),
+            "{err}"
+        );
+        let out = citygen_capped(&[
+            "rules",
+            "derive",
+            &f,
+            "--lot",
+            "20x12",
+            "--lod",
+            "3",
+            "--gltf",
+            glb.to_str().unwrap(),
+        ]);
+        assert_answered(&out);
+        assert!(stderr(&out).contains(cap), "{}", stderr(&out));
+    }
+    // A bounded recursion: a fixed metre off each trip. Clean, and it derives.
+    let f = write(
+        dir.path(),
+        "bounded.cga",
+        "lot -> extrude(10){v}\nv -> comp(){side:f}\nf -> split(X, 1, sx - 1){window|f}\n",
+    );
+    let out = citygen_capped(&["rules", "check", &f]);
+    assert!(findings(&stderr(&out)).is_empty(), "{}", stderr(&out));
+    let out = citygen_capped(&[
+        "rules",
+        "derive",
+        &f,
+        "--lot",
+        "20x12",
+        "--lod",
+        "3",
+        "--gltf",
+        glb.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+}
+
+#[test]
+fn shipped_rulesets_and_compiled_kb_rules_get_no_cap_warnings() {
+    for f in [
+        "knowledge_base/rules/fig3_19.cga",
+        "knowledge_base/rules/toulouse_downtown.cga",
+    ] {
+        let out = citygen_capped(&["rules", "check", f]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(0), "{err}");
+        assert!(
+            !err.contains("exponential-growth") && !err.contains("non-terminating"),
+            "{err}"
+        );
+    }
+    // The rules the KB compiler writes, as `kb compile` prints them (one block per appearance).
+    let dir = tempfile::tempdir().unwrap();
+    let mut checked = 0;
+    for zone in [
+        "earth",
+        "France/Occitanie/Toulouse",
+        "France/Occitanie/Toulouse/Capitole",
+        "France/Ile-de-France/Paris",
+        "Monaco/Monte-Carlo",
+        "Monaco/Fontvieille",
+        "United Kingdom/England/Nottingham/Clifton",
+    ] {
+        let out = common::citygen(&["kb", "compile", "--zone", zone, common::KB]);
+        assert!(out.status.success(), "{zone}: {}", stderr(&out));
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        for (i, block) in text.split("\n\n").filter(|b| b.contains("->")).enumerate() {
+            let f = write(dir.path(), &format!("z{checked}_{i}.cga"), block);
+            let out = citygen_capped(&["rules", "check", &f]);
+            let err = stderr(&out);
+            assert_eq!(out.status.code(), Some(0), "{zone}: {err}");
+            assert!(
+                findings(&err).is_empty(),
+                "{zone} block {i}: {err}\n{block}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 10, "{checked} rulesets");
+}

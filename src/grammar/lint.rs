@@ -10,7 +10,12 @@
 //! | `probability-sum` | error / warning | the `= p` of a predecessor's alternatives sum above 1 or below 0 (error), or all alternatives are explicit and sum below 1, or the explicit ones reach 1 so the others never fire (warning) |
 //! | `duplicate-rule` | error | two or more rules for one predecessor without `= p` |
 //! | `op-shape-mismatch` | error / warning | an operation the shape it meets cannot take (`comp` on a lot or face, `split(Z)` on a lot, `split(Y)` or `R` on a face); error when every shape kind the rule can meet fails, warning when only some do |
-//! | `non-terminating` | warning | recursion through operations that never shrink or drop the shape (relabel, `S`, `T`, `R`, `extrude`) |
+//! | `non-terminating` | warning | recursion through operations that never drop the shape (relabel, `S`, `T`, `R`, `extrude`, a `repeat` that keeps a copy, a one-entry split, a `comp` face of a box): only `max_depth` stops it |
+//! | `exponential-growth` | warning | unbounded recursion whose shapes multiply (on average ≥ 1 per shape, with a rule making two or more): about ρ^depth shapes, stopped by `max_shapes` |
+//!
+//! The two recursion lints and what counts as bounded are specified on `Cx::recursion` (in the
+//! source) and summed up in docs/grammar.md; each message says what the derivation will do
+//! (which cap stops it, and for growth about how many levels down).
 //!
 //! The shape-kind inference is a small abstract interpretation that follows the interpreter's
 //! rules (see [`super::interp`]): the axiom meets a lot; `extrude` yields a volume from anything;
@@ -31,7 +36,7 @@
 use std::collections::{BTreeMap, BTreeSet, BinaryHeap};
 use std::fmt;
 
-use super::ast::{Axis, Op, Rule, RuleSet, Span, SymbolId};
+use super::ast::{Axis, BinOp, Expr, Op, Rule, RuleSet, Selector, Span, SplitKind, SymbolId};
 
 /// The symbols that the model builder and the exporters turn into building elements; a
 /// successor with one of these names and no rule is a deliberate leaf, not a typo.
@@ -50,6 +55,9 @@ pub const MAX_PER_CODE: usize = 100;
 
 /// Symbol names longer than this many characters are cut (with `…`) in messages.
 const MAX_NAME_CHARS: usize = 64;
+
+/// Sizes at most this are skipped by the interpreter (`shape::EPS`).
+const EPS_SIZE: f64 = 1e-9;
 
 /// Names listed in one message (cycle members, users of a symbol, line numbers) before
 /// "and N more".
@@ -186,7 +194,7 @@ pub fn lint(rules: &RuleSet, source: &str) -> Vec<Diagnostic> {
     cx.probabilities(&mut out);
     cx.duplicate_rules(&mut out);
     cx.shape_kinds(&mut out);
-    cx.non_terminating(&mut out);
+    cx.recursion(&mut out);
     out.finish()
 }
 
@@ -781,79 +789,612 @@ impl<'a> Cx<'a> {
         }
     }
 
-    /// Cycles made only of rules whose operation keeps every successor at least as large as
-    /// its parent (relabel, S, T, R, extrude): such a recursion never runs out by itself.
-    /// Splits are excluded, since a size that no longer fits drops the recursive piece.
-    /// One warning per cycle (strongly connected component), at its first rule in the file.
-    fn non_terminating(&self, out: &mut Sink) {
+    /// Recursions that only the caps stop: `exponential-growth` and `non-terminating`.
+    ///
+    /// The rule graph has an edge from a rule's predecessor to each of its successor entries.
+    /// A recursion is a cycle of it (a strongly connected component); only cycles are looked at,
+    /// so the shipped rulesets and every ruleset the KB compiler writes (which are trees) are
+    /// never reported. Each edge of a cycle is classed by what its operation does to the piece
+    /// it makes, following the interpreter's rules ([`super::interp`]):
+    ///
+    /// * **Shrinking, by a fixed amount** (the recursion is *bounded*): a `split` (absolute sizes)
+    ///   along an axis that no rule of the cycle can enlarge, whose entry either comes after an
+    ///   entry of positive constant size `c` (the piece is then at most the parent's length
+    ///   minus `c`, or not made at all), or, on a shape that is always a face, has a size written
+    ///   `E - c` with `E` at most the axis size (`sx`, `sx/2`, `sx*0.5`; a face's last piece is
+    ///   never stretched to the rest, a volume's is). Every trip round the cycle through such an
+    ///   edge takes at least `c` metres off an axis that never grows back, so the recursion ends
+    ///   after at most length/`c` trips, and (the pieces of a split sharing their parent's
+    ///   length) with at most about length/`c` shapes: `a -> split(X, 1, sx-1){wall | a}` is
+    ///   not reported. This holds only when no rule of the cycle copies the shape into it twice
+    ///   or more (a relabel, `S`, `T`, `R`, `extrude` or `comp` with two successors in it: the
+    ///   copies do not share the length, and the count doubles at each trip within the bounded
+    ///   depth), so in such a cycle no edge counts as shrinking. The axes that can grow back:
+    ///   `S` whose size is not visibly at most the current one, `extrude` (Y and Z), `comp` (a
+    ///   face's width may be the volume's depth). The depth of a bounded recursion still grows
+    ///   with the scope (about one level per `c` metres), which this lint does not check.
+    /// * **Never dropping**: relabel, `S`, `T`, `R` and `extrude` make the whole shape again; a
+    ///   `repeat` with a one-size pattern makes pieces between one and two sizes long, which
+    ///   repeat once, unchanged, for ever (a volume narrower than the size gets one copy of its
+    ///   own length); the first entry of a `split` with a positive constant size (every entry
+    ///   before it being 0) is always made, of that size (or the whole length when it does not
+    ///   fit), again and again; a `split` or `rsplit` with one entry gives its piece the whole
+    ///   length (on a lot or volume; `rsplit` on anything); a `comp` entry that takes a face of a
+    ///   box (a face extruded is a box) makes it every time.
+    /// * **Others**: `split` and `rsplit` pieces that can be dropped or that shrink by a factor,
+    ///   and the pieces of a `repeat` of two or more sizes (each a share of the parent, as in
+    ///   `rsplit`): they may end the recursion, or shrink it until pieces are thinner than
+    ///   1e-9 m, which takes tens of levels; not judged either way.
+    ///
+    /// The shrinking edges removed, a cycle left is **unbounded**. For it, the expected number
+    /// of shapes of the cycle that one shape makes per level is the largest eigenvalue ρ of the
+    /// mean matrix (rule probabilities times the pieces each entry makes: one per entry; a
+    /// `comp` entry's faces of a box; a `repeat` entry one copy, or two when a rule of the cycle
+    /// can enlarge the repeat's axis, since its count is then renewed every trip). ρ > 1 is
+    /// **exponential growth**: about ρ^depth shapes, so `max_shapes` stops the derivation after
+    /// ln(max_shapes)/ln ρ levels (`a -> split(X, sx/2, sx/2){a | a}`: 2^depth, 17 levels). ρ = 1
+    /// with a rule making two or more is a critical branching process: most derivations end,
+    /// some reach the caps. ρ < 1 ends quickly (almost surely) and is not reported. Otherwise, a
+    /// cycle of never-dropping edges is **non-terminating**: nothing in it can end the recursion
+    /// except another alternative, so `max_depth` stops it (`a -> repeat(X, 1){a}`).
+    ///
+    /// Only recursions the axiom reaches are looked at. One warning per cycle, at the first rule
+    /// (in the file) that makes two or more shapes of it (growth) or that stays in it
+    /// (non-termination). The work is linear in the rule set
+    /// (three strongly-connected-component passes) plus a bounded number of power iterations.
+    fn recursion(&self, out: &mut Sink) {
         let n = self.names.len();
-        let grows = |r: &Rule| {
+        let kinds = self.kinds();
+        // Unknown (unreachable) symbols can be anything.
+        let kind = |s: usize| match kinds.get(s).copied().unwrap_or(0) {
+            0 => LOT | VOLUME | FACE,
+            k => k,
+        };
+        // Only what a derivation can reach: a never-used rule cannot reach a cap (and is
+        // reported as unreachable).
+        let reachable = self.reachable();
+        let mut edges = self.rule_edges(&kind);
+        edges.retain(|e| reachable.get(e.from).copied().unwrap_or(false));
+        let adj = |keep: &dyn Fn(&Edge) -> bool| {
+            let mut adj: Vec<Vec<usize>> = vec![Vec::new(); n];
+            for e in edges.iter().filter(|e| keep(e)) {
+                adj[e.from].push(e.to);
+            }
+            adj
+        };
+        // 1. The recursions; per recursion, the axes its rules can enlarge, and whether a rule
+        // copies the shape (not a split's share of it) into it twice or more.
+        let comp1 = sccs(&adj(&|_| true));
+        let mut enlarged: BTreeMap<usize, [bool; 3]> = BTreeMap::new();
+        let mut copies: BTreeMap<usize, f64> = BTreeMap::new();
+        for e in &edges {
+            if comp1[e.from] == comp1[e.to] {
+                let op = &self.rule(e.rule).op;
+                let slot = enlarged.entry(comp1[e.from]).or_default();
+                for (ax, grows) in enlarges(op).iter().enumerate() {
+                    slot[ax] |= grows;
+                }
+                if !matches!(op, Op::Split { .. }) {
+                    *copies.entry(e.rule).or_default() += e.pieces;
+                }
+            }
+        }
+        let mut duplicating: BTreeSet<usize> = BTreeSet::new();
+        for (&r, &n) in &copies {
+            if n >= 2.0 {
+                duplicating.insert(comp1[self.rule(r).pred as usize]);
+            }
+        }
+        let grows_in = |e: &Edge, axis: Axis| {
+            enlarged
+                .get(&comp1[e.from])
+                .is_some_and(|g| g[axis.index()])
+        };
+        // 2. Without the bounded edges: the unbounded recursions, with their growth.
+        let unbounded = |e: &Edge| match e.shrinks {
+            Some(axis) => grows_in(e, axis) || duplicating.contains(&comp1[e.from]),
+            None => true,
+        };
+        let comp2 = sccs(&adj(&|e| unbounded(e)));
+        let mut groups: BTreeMap<usize, Vec<&Edge>> = BTreeMap::new();
+        for e in edges.iter().filter(|e| unbounded(e)) {
+            if comp2[e.from] == comp2[e.to] {
+                groups.entry(comp2[e.from]).or_default().push(e);
+            }
+        }
+        let mut growing: BTreeSet<usize> = BTreeSet::new();
+        for (&c, inner) in &groups {
+            if self.growth(inner, &|e| grows_in(e, self.repeat_axis(e)), out) {
+                growing.insert(c);
+            }
+        }
+        // 3. Never-dropping cycles, where no growth was reported.
+        let stays = |e: &Edge| unbounded(e) && e.never_drops && !growing.contains(&comp2[e.from]);
+        let comp3 = sccs(&adj(&|e| stays(e)));
+        let mut loops: BTreeMap<usize, Vec<&Edge>> = BTreeMap::new();
+        for e in edges.iter().filter(|e| stays(e)) {
+            if comp3[e.from] == comp3[e.to] {
+                loops.entry(comp3[e.from]).or_default().push(e);
+            }
+        }
+        for inner in loops.values() {
+            self.never_ends(inner, out);
+        }
+    }
+
+    /// The axis of a `repeat` edge (X for any other: unused).
+    fn repeat_axis(&self, e: &Edge) -> Axis {
+        match &self.rule(e.rule).op {
+            Op::Split { axis, .. } => *axis,
+            _ => Axis::X,
+        }
+    }
+
+    /// Every (predecessor → successor entry) edge of the rule set, classed (see
+    /// [`Cx::recursion`]).
+    fn rule_edges(&self, kind: &dyn Fn(usize) -> Kinds) -> Vec<Edge> {
+        let n = self.names.len();
+        let mut edges = Vec::new();
+        for (i, r) in self.rules.rules().iter().enumerate() {
+            let from = r.pred as usize;
+            if from >= n {
+                continue;
+            }
+            let k = kind(from);
+            let solid = k & (LOT | VOLUME) != 0;
+            let faces_only = k == FACE;
+            let boxed = match r.op {
+                Op::Comp => box_faces(r),
+                _ => Vec::new(),
+            };
+            for (j, x) in r.succs.iter().enumerate() {
+                let to = x.symbol as usize;
+                if to >= n {
+                    continue;
+                }
+                let (pieces, never_drops, shrinks) = match &r.op {
+                    Op::Relabel
+                    | Op::Scale(_)
+                    | Op::Translate(_)
+                    | Op::Rotate(..)
+                    | Op::Extrude(_) => (1.0, true, None),
+                    Op::Comp => {
+                        let b = boxed.get(j).copied().unwrap_or(0);
+                        (b as f64, b > 0, None)
+                    }
+                    // One size: a piece 1-2 sizes long is one copy of the same length, for ever.
+                    // More: each piece is a share of the parent, like rsplit's.
+                    Op::Split {
+                        kind: SplitKind::Repeat,
+                        sizes,
+                        ..
+                    } => (1.0, sizes.len() == 1, None),
+                    Op::Split {
+                        kind: SplitKind::Relative,
+                        sizes,
+                        ..
+                    } => (1.0, sizes.len() == 1, None),
+                    Op::Split {
+                        kind: SplitKind::Absolute,
+                        axis,
+                        sizes,
+                    } => {
+                        let before = &sizes[..j.min(sizes.len())];
+                        let positive = |e: &Expr| const_range(e).is_some_and(|(lo, _)| lo > 1e-6);
+                        let after_fixed = before.iter().any(positive);
+                        let cut =
+                            faces_only && sizes.get(j).and_then(|e| shrink_by(e, *axis)).is_some();
+                        let shrinks = (after_fixed || cut).then_some(*axis);
+                        // The first piece of positive constant size is always made (whole, or as
+                        // the overflow: a volume's whole length, a face's truncated one), of that
+                        // size again and again; a lone piece of a lot or volume gets the whole
+                        // length.
+                        let skipped =
+                            |e: &Expr| const_range(e).is_some_and(|(_, hi)| hi <= EPS_SIZE);
+                        let first_fixed =
+                            sizes.get(j).is_some_and(positive) && before.iter().all(skipped);
+                        let lone = sizes.len() == 1 && solid;
+                        (1.0, shrinks.is_none() && (first_fixed || lone), shrinks)
+                    }
+                };
+                edges.push(Edge {
+                    from,
+                    to,
+                    rule: i,
+                    pieces,
+                    never_drops,
+                    shrinks,
+                });
+            }
+        }
+        edges
+    }
+
+    /// The growth of one unbounded recursion (its edges `inner`, all inside it): reports
+    /// `exponential-growth` and returns true when the expected shapes per level are ≥ 1 with
+    /// a rule that makes two or more. `renewed` tells whether a `repeat` edge's count is renewed
+    /// (its axis can be enlarged in the cycle).
+    fn growth(&self, inner: &[&Edge], renewed: &dyn Fn(&Edge) -> bool, out: &mut Sink) -> bool {
+        // Local numbering of the cycle's symbols.
+        let mut local: BTreeMap<usize, usize> = BTreeMap::new();
+        for e in inner {
+            let next = local.len();
+            local.entry(e.from).or_insert(next);
+        }
+        let is_repeat = |e: &Edge| {
             matches!(
-                r.op,
-                Op::Relabel | Op::Scale(_) | Op::Translate(_) | Op::Rotate(..) | Op::Extrude(_)
+                self.rule(e.rule).op,
+                Op::Split {
+                    kind: SplitKind::Repeat,
+                    ..
+                }
             )
         };
-        let mut adj: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for r in self.rules.rules() {
-            if grows(r) {
-                for x in &r.succs {
-                    if (x.symbol as usize) < n && (r.pred as usize) < n {
-                        adj[r.pred as usize].push(x.symbol as usize);
-                    }
-                }
+        let pieces = |e: &Edge| {
+            if is_repeat(e) && renewed(e) {
+                2.0 * e.pieces
+            } else {
+                e.pieces
             }
+        };
+        // Pieces of the cycle per rule, and the rules that make two or more.
+        let mut per_rule: BTreeMap<usize, f64> = BTreeMap::new();
+        for e in inner {
+            *per_rule.entry(e.rule).or_default() += pieces(e);
         }
-        let comp_of = sccs(&adj);
-        let mut members: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-        for (v, &c) in comp_of.iter().enumerate() {
-            members.entry(c).or_default().push(v);
+        let Some((&first, &most)) = per_rule
+            .iter()
+            .filter(|(_, &m)| m >= 2.0)
+            .min_by_key(|(&r, _)| self.rule(r).span.offset)
+        else {
+            return false;
+        };
+        // The mean matrix, as weighted edges between local indices.
+        let weighted: Vec<(usize, usize, f64)> = inner
+            .iter()
+            .filter_map(|e| {
+                let p = self.choice_probability(e.rule);
+                Some((*local.get(&e.from)?, *local.get(&e.to)?, p * pieces(e)))
+            })
+            .collect();
+        let (lo, hi) = perron_bounds(local.len(), &weighted);
+        if hi < 1.0 - 1e-9 {
+            return false;
         }
-        for syms in members.values() {
-            let c = comp_of[syms[0]];
-            let inside = |t: SymbolId| comp_of.get(t as usize) == Some(&c);
-            let cyclic = syms.len() > 1 || adj[syms[0]].contains(&syms[0]);
-            if !cyclic {
-                continue;
-            }
-            let rules: Vec<&Rule> = syms
-                .iter()
-                .flat_map(|&t| self.by_pred[t].iter().map(|&i| self.rule(i)))
-                .collect();
-            // The first rule, in source order, that stays inside the cycle.
-            let Some(r) = rules
-                .iter()
-                .filter(|r| grows(r) && r.succs.iter().any(|x| inside(x.symbol)))
-                .min_by_key(|r| r.span.offset)
-            else {
-                continue;
-            };
-            // Members in the order of their first rule in the file.
-            let mut ordered: Vec<usize> = syms
-                .iter()
-                .copied()
-                .filter(|&t| !self.by_pred[t].is_empty())
-                .collect();
-            ordered.sort_by_key(|&t| self.rule(self.by_pred[t][0]).span.offset);
-            let names: Vec<String> = ordered
-                .iter()
-                .take(MAX_LISTED)
-                .map(|&t| self.q(t as SymbolId))
-                .collect();
-            let escapes = rules
-                .iter()
-                .any(|r| !grows(r) || !r.succs.iter().any(|x| inside(x.symbol)));
-            let msg = format!(
-                "the rules for {} recurse through operations that never shrink the shape \
-                 (relabel, S, T, R, extrude){}: may not terminate; the derivation cap will stop it",
-                list_names(&names, ordered.len()),
-                if escapes {
-                    " unless another alternative is chosen"
+        let r = self.rule(first);
+        let renewed_repeat = inner
+            .iter()
+            .any(|e| e.rule == first && is_repeat(e) && renewed(e));
+        let cycle = self.cycle_names(local.keys().copied());
+        let caps = super::interp::Caps::default();
+        let renewed_any = inner.iter().any(|e| is_repeat(e) && renewed(e));
+        let makes = if renewed_repeat {
+            "whose count of copies is renewed at every trip (an extrude, S or comp of the \
+             recursion restores the length it divides)"
+                .to_string()
+        } else {
+            format!(
+                "which makes {} shapes of the recursion from one",
+                fmt_num(most)
+            )
+        };
+        let head = format!(
+            "the rules for {cycle} recurse through {}, {makes}",
+            op_label(&r.op)
+        );
+        let lod = lod_note(inner.iter().map(|e| e.rule), self);
+        let rho = 0.5 * (lo + hi);
+        // Growth when the lower bound is above 1, or (bounds not converged) the estimate is.
+        let grows = lo > 1.0 + 1e-9 || (hi - lo > 1e-6 && rho > 1.0 + 1e-6);
+        let chosen = inner
+            .iter()
+            .any(|e| self.choice_probability(e.rule) < 1.0 - PROB_EPS);
+        let msg = if grows && renewed_any {
+            format!(
+                "{head}: the shape count may multiply by a repeat's count at every trip; the \
+                 derivation stops at the shape cap (max_shapes, {} by default){lod}",
+                caps.max_shapes
+            )
+        } else if grows {
+            let levels = ((caps.max_shapes as f64).ln() / rho.ln()).ceil();
+            format!(
+                "{head}: the shape count grows {}× per level{} and may reach {}^depth shapes; \
+                 the derivation stops at the shape cap (max_shapes, {} by default) about \
+                 {levels} levels down{lod}",
+                fmt_rho(rho),
+                if chosen {
+                    " on average (with the other alternatives' probabilities)"
                 } else {
                     ""
-                }
-            );
-            out.push(self.diag(Severity::Warning, "non-terminating", r.span, msg));
+                },
+                fmt_rho(rho),
+                caps.max_shapes,
+            )
+        } else {
+            format!(
+                "{head}, but with the other alternatives 1 on average: a critical branching \
+                 process, which ends for most buildings but reaches the shape cap (max_shapes, \
+                 {} by default) or the depth cap (max_depth, {}) for some{lod}",
+                caps.max_shapes, caps.max_depth,
+            )
+        };
+        out.push(self.diag(Severity::Warning, "exponential-growth", r.span, msg));
+        true
+    }
+
+    /// A cycle of never-dropping edges (`inner`, all inside it): `non-terminating`, at its
+    /// first rule in the file.
+    fn never_ends(&self, inner: &[&Edge], out: &mut Sink) {
+        let syms: BTreeSet<usize> = inner.iter().map(|e| e.from).collect();
+        let Some(first) = inner
+            .iter()
+            .map(|e| e.rule)
+            .min_by_key(|&r| self.rule(r).span.offset)
+        else {
+            return;
+        };
+        let staying: BTreeSet<usize> = inner.iter().map(|e| e.rule).collect();
+        // Another alternative of a symbol of the cycle that does not stay in it.
+        let escapes = syms
+            .iter()
+            .any(|&s| self.by_pred[s].iter().any(|i| !staying.contains(i)));
+        let mut ops: Vec<&str> = Vec::new();
+        let mut by_place: Vec<usize> = staying.iter().copied().collect();
+        by_place.sort_by_key(|&r| self.rule(r).span.offset);
+        for &r in &by_place {
+            let name = self.rule(r).op.name();
+            if !ops.contains(&name) {
+                ops.push(name);
+            }
         }
+        let why = if ops.contains(&"repeat") {
+            "; a one-size repeat makes one copy of the same length again"
+        } else {
+            ""
+        };
+        let caps = super::interp::Caps::default();
+        let msg = format!(
+            "the rules for {} recurse through operations that never drop the shape ({}{why}){}: \
+             may not terminate; the derivation stops at the depth cap (max_depth, {} by \
+             default){}",
+            self.cycle_names(syms.iter().copied()),
+            ops.join(", "),
+            if escapes {
+                " unless another alternative is chosen"
+            } else {
+                ""
+            },
+            caps.max_depth,
+            lod_note(staying.iter().copied(), self)
+        );
+        out.push(self.diag(
+            Severity::Warning,
+            "non-terminating",
+            self.rule(first).span,
+            msg,
+        ));
+    }
+
+    /// The probability that the interpreter picks rule `i` among its predecessor's rules
+    /// (weights ≤ 0 never, unless all are: then uniformly).
+    fn choice_probability(&self, i: usize) -> f64 {
+        let list = &self.by_pred[self.rule(i).pred as usize];
+        let w = |j: usize| {
+            let x = self.weights[j];
+            if x.is_finite() && x > 0.0 {
+                x
+            } else {
+                0.0
+            }
+        };
+        let total: f64 = list.iter().map(|&j| w(j)).sum();
+        if total > 0.0 {
+            w(i) / total
+        } else {
+            1.0 / list.len().max(1) as f64
+        }
+    }
+
+    /// `` `a`, `b` and 3 more `` for the symbols of a cycle, in the order of their first rule.
+    fn cycle_names(&self, syms: impl Iterator<Item = usize>) -> String {
+        let mut ordered: Vec<usize> = syms.filter(|&t| !self.by_pred[t].is_empty()).collect();
+        ordered.sort_by_key(|&t| self.rule(self.by_pred[t][0]).span.offset);
+        let names: Vec<String> = ordered
+            .iter()
+            .take(MAX_LISTED)
+            .map(|&t| self.q(t as SymbolId))
+            .collect();
+        list_names(&names, ordered.len())
+    }
+}
+
+/// One edge of the rule graph: a rule's predecessor to one of its successor entries.
+struct Edge {
+    from: usize,
+    to: usize,
+    /// The rule (index into the rule set).
+    rule: usize,
+    /// Pieces of `to` the entry makes per application in the sustained regime (one; a comp
+    /// entry's faces of a box; a repeat entry's one copy, doubled by the caller when renewed).
+    pieces: f64,
+    /// Whether the piece is always made, whatever the size (see [`Cx::recursion`]).
+    never_drops: bool,
+    /// The axis on which the piece is at least a fixed amount shorter than its parent.
+    shrinks: Option<Axis>,
+}
+
+/// The faces of a box (a volume with one face per direction, a top and a bottom) each entry of
+/// a `comp` rule takes, by the interpreter's first-match rule.
+fn box_faces(r: &Rule) -> Vec<usize> {
+    let mut taken = vec![0; r.succs.len()];
+    let sides = [
+        Selector::Front,
+        Selector::Back,
+        Selector::Left,
+        Selector::Right,
+    ];
+    for face in sides.iter().chain(&[Selector::Top, Selector::Bottom]) {
+        let side = sides.contains(face);
+        let first = r.succs.iter().position(|x| match x.selector {
+            Some(Selector::Side) | Some(Selector::Others) => side,
+            Some(sel) => sel == *face,
+            None => false,
+        });
+        if let Some(k) = first {
+            taken[k] += 1;
+        }
+    }
+    taken
+}
+
+/// The scope axes (X, Y, Z) an operation can make larger than its parent's: `S` unless its
+/// size is visibly at most the current one, `extrude` (Z, and Y for a face pushed out), `comp`
+/// (a face's width may be the volume's depth, a top face's height its depth). Splits, relabel,
+/// `T` and `R` never do.
+fn enlarges(op: &Op) -> [bool; 3] {
+    match op {
+        Op::Scale(e) => [
+            !non_enlarging(&e[0], Axis::X),
+            !non_enlarging(&e[1], Axis::Y),
+            !non_enlarging(&e[2], Axis::Z),
+        ],
+        Op::Extrude(_) => [false, true, true],
+        Op::Comp => [true, false, true],
+        _ => [false; 3],
+    }
+}
+
+/// The range of a constant expression (numbers, arithmetic, `rand` of constants), or `None`
+/// when it reads a scope size or an attribute.
+fn const_range(e: &Expr) -> Option<(f64, f64)> {
+    let r = match e {
+        Expr::Num(v) => (*v, *v),
+        Expr::ScopeSize(_) | Expr::Attr(..) => return None,
+        Expr::Rand(a, b) => {
+            let (a, b) = (const_range(a)?, const_range(b)?);
+            (a.0.min(b.0), a.1.max(b.1))
+        }
+        Expr::Neg(a) => {
+            let a = const_range(a)?;
+            (-a.1, -a.0)
+        }
+        Expr::Bin(op, a, b) => {
+            let (a, b) = (const_range(a)?, const_range(b)?);
+            match op {
+                BinOp::Add => (a.0 + b.0, a.1 + b.1),
+                BinOp::Sub => (a.0 - b.1, a.1 - b.0),
+                BinOp::Mul | BinOp::Div => {
+                    let b = if *op == BinOp::Div {
+                        if b.0 <= 0.0 && b.1 >= 0.0 {
+                            return None;
+                        }
+                        (1.0 / b.1, 1.0 / b.0)
+                    } else {
+                        b
+                    };
+                    let p = [a.0 * b.0, a.0 * b.1, a.1 * b.0, a.1 * b.1];
+                    (
+                        p.iter().copied().fold(f64::INFINITY, f64::min),
+                        p.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                    )
+                }
+            }
+        }
+    };
+    (r.0.is_finite() && r.1.is_finite()).then_some(r)
+}
+
+/// Whether `e` is visibly at most the shape's size along `axis` (call it x ≥ 0): `x`, `x * c`
+/// or `c * x` with 0 ≤ c ≤ 1, `x / c` with c ≥ 1, `x - c` with c ≥ 0, `x + c` with c ≤ 0, of
+/// such forms.
+fn non_enlarging(e: &Expr, axis: Axis) -> bool {
+    let within =
+        |c: &Expr, lo: f64, hi: f64| const_range(c).is_some_and(|r| r.0 >= lo && r.1 <= hi);
+    match e {
+        Expr::ScopeSize(a) => *a == axis,
+        Expr::Bin(BinOp::Mul, a, b) => {
+            (non_enlarging(a, axis) && within(b, 0.0, 1.0))
+                || (non_enlarging(b, axis) && within(a, 0.0, 1.0))
+        }
+        Expr::Bin(BinOp::Div, a, b) => non_enlarging(a, axis) && within(b, 1.0, f64::INFINITY),
+        Expr::Bin(BinOp::Sub, a, b) => non_enlarging(a, axis) && within(b, 0.0, f64::INFINITY),
+        Expr::Bin(BinOp::Add, a, b) => {
+            (non_enlarging(a, axis) && within(b, f64::NEG_INFINITY, 0.0))
+                || (non_enlarging(b, axis) && within(a, f64::NEG_INFINITY, 0.0))
+        }
+        _ => false,
+    }
+}
+
+/// The fixed amount `c > 0` by which `e` is visibly below the size along `axis`: `E - c` (or
+/// `E + (-c)`) with `E` non-enlarging ([`non_enlarging`]) or itself such a form.
+fn shrink_by(e: &Expr, axis: Axis) -> Option<f64> {
+    let (base, c) = match e {
+        Expr::Bin(BinOp::Sub, a, b) => (a, const_range(b)?.0),
+        Expr::Bin(BinOp::Add, a, b) => (a, -const_range(b)?.1),
+        _ => return None,
+    };
+    if c <= 1e-6 {
+        return None;
+    }
+    if non_enlarging(base, axis) {
+        Some(c)
+    } else {
+        shrink_by(base, axis).map(|d| d + c)
+    }
+}
+
+/// Bounds [lo, hi] on the largest eigenvalue ρ of the non-negative `n` × `n` matrix given as
+/// weighted edges (row, column, weight): Collatz–Wielandt bounds of a power iteration on
+/// M + I (whose largest eigenvalue is ρ + 1 and which is aperiodic, so the iteration
+/// converges on a cycle too). The iterations stop at a relative gap of 1e-9, or when 50 million
+/// edge visits are spent.
+fn perron_bounds(n: usize, edges: &[(usize, usize, f64)]) -> (f64, f64) {
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let mut v = vec![1.0; n];
+    let (mut lo, mut hi) = (0.0, f64::INFINITY);
+    let rounds = (50_000_000 / (edges.len() + n)).clamp(1, 10_000);
+    for _ in 0..rounds {
+        let mut w = v.clone();
+        for &(i, j, x) in edges {
+            w[i] += x * v[j];
+        }
+        let (mut l, mut h) = (f64::INFINITY, 0.0_f64);
+        for (a, b) in w.iter().zip(&v) {
+            let q = a / b;
+            l = l.min(q);
+            h = h.max(q);
+        }
+        lo = f64::max(lo, l - 1.0);
+        hi = f64::min(hi, h - 1.0);
+        let top = w.iter().copied().fold(0.0, f64::max);
+        if !(top.is_finite() && top > 0.0) || hi - lo <= 1e-9 * hi.abs().max(1.0) {
+            break;
+        }
+        v = w.iter().map(|x| (x / top).max(1e-300)).collect();
+    }
+    (lo, hi)
+}
+
+/// A growth factor for messages: an integer as is, else two decimals.
+fn fmt_rho(r: f64) -> String {
+    if (r - r.round()).abs() < 1e-6 {
+        format!("{}", r.round())
+    } else {
+        format!("{r:.2}")
+    }
+}
+
+/// `, at LOD3 and LOD4 (where comp is applied)` when one of the rules is a `comp`: below LOD3 a
+/// shape whose rule is `comp` stays a leaf, and the recursion ends there.
+fn lod_note(rules: impl Iterator<Item = usize>, cx: &Cx<'_>) -> &'static str {
+    let mut rules = rules;
+    if rules.any(|r| matches!(cx.rule(r).op, Op::Comp)) {
+        ", at LOD3 and LOD4 (where comp is applied)"
+    } else {
+        ""
     }
 }
 
@@ -1248,14 +1789,16 @@ mod tests {
         let d = run("a -> S(sx,sy,sz){a}\n");
         assert_eq!(codes(&d), [("non-terminating", 1, 1)]);
         assert_eq!(d[0].severity, Severity::Warning);
-        assert!(d[0]
-            .message
-            .ends_with("may not terminate; the derivation cap will stop it"));
-        assert!(!d[0].message.contains("unless"));
+        assert_eq!(
+            d[0].message,
+            "the rules for `a` recurse through operations that never drop the shape (S): may not \
+             terminate; the derivation stops at the depth cap (max_depth, 64 by default)"
+        );
         // A two-symbol cycle: one finding, at its first rule, naming both.
         let d = run("a -> T(0,0,1){b}\nb -> {a:color=red}\n");
         assert_eq!(codes(&d), [("non-terminating", 1, 1)]);
         assert!(d[0].message.contains("`a`, `b`"), "{}", d[0].message);
+        assert!(d[0].message.contains("(T, relabel)"), "{}", d[0].message);
         // An alternative way out.
         let d = run("a -> S(sx,sy,sz){a} = 0.5\na -> wall = 0.5\n");
         assert_eq!(codes(&d), [("non-terminating", 1, 1)]);
@@ -1264,6 +1807,266 @@ mod tests {
             .contains("unless another alternative is chosen"));
         // A split that drops the recursive piece once it no longer fits is fine.
         assert!(run("a -> split(X,1,sx-1){wall|a}\n").is_empty());
+    }
+
+    /// The message of the only finding of `src`, which must be a warning `code` at line:col.
+    fn only(src: &str, code: &'static str, line: u32, col: u32) -> String {
+        let d = run(src);
+        assert_eq!(codes(&d), [(code, line, col)], "{src}: {d:?}");
+        assert_eq!(d[0].severity, Severity::Warning);
+        d[0].message.clone()
+    }
+
+    #[test]
+    fn a_repeat_that_reproduces_itself_never_terminates() {
+        // The issue's bomb: each copy of a 1 m pattern on a piece 1-2 m long is one copy of the
+        // same length, for ever (on a lot and a volume; a face too, the pattern being one size).
+        let m = only("a -> repeat(X, 1){a}\n", "non-terminating", 1, 1);
+        assert_eq!(
+            m,
+            "the rules for `a` recurse through operations that never drop the shape (repeat; a \
+             one-size repeat makes one copy of the same length again): may not terminate; the \
+             derivation stops at the depth cap (max_depth, 64 by default)"
+        );
+        only(
+            "lot -> extrude(9){v}\nv -> comp(){side:f}\nf -> repeat(X, 1){f}\n",
+            "non-terminating",
+            3,
+            1,
+        );
+        // On a face, a two-size pattern drops its pieces once the face is narrower than it.
+        assert!(
+            run("lot -> extrude(9){v}\nv -> comp(){side:f}\nf -> repeat(X, 2, 1){f|wall}\n")
+                .is_empty()
+        );
+        // ... and on a volume, a two-size pattern makes a share of the parent (2/3 here),
+        // which shrinks until it is thinner than 1e-9 m: not judged.
+        assert!(run("lot -> extrude(9){v}\nv -> repeat(X, 2, 1){v|wall}\n").is_empty());
+        // The first piece of a constant size: 1 m, then 1 m again, for ever (the second piece
+        // comes after it, so it shrinks).
+        let m = only(
+            "lot -> extrude(9){a}\na -> split(Z, 1, 1){a|a}\n",
+            "non-terminating",
+            2,
+            1,
+        );
+        assert!(m.contains("(split)"), "{m}");
+        only(
+            "lot -> extrude(9){a}\na -> split(X, 0, 1, sx - 1){wall|a|wall}\n",
+            "non-terminating",
+            2,
+            1,
+        );
+        // A recursion the axiom never reaches is only an unreachable rule.
+        let d = run("lot -> extrude(9){wall}\nz -> {z|z}\n");
+        assert_eq!(codes(&d), [("unreachable-rule", 2, 1)]);
+        // A one-entry split of a volume gives the piece the whole length again.
+        only(
+            "lot -> extrude(9){v}\nv -> split(X, sx - 1){v}\n",
+            "non-terminating",
+            2,
+            1,
+        );
+        // A box's front is always there: comp and extrude make a recursion of one face.
+        let m = only(
+            "lot -> extrude(9){v}\nv -> comp(){front:f}\nf -> extrude(1){v}\n",
+            "non-terminating",
+            2,
+            1,
+        );
+        assert!(
+            m.ends_with("(max_depth, 64 by default), at LOD3 and LOD4 (where comp is applied)"),
+            "{m}"
+        );
+    }
+
+    #[test]
+    fn recursion_that_multiplies_the_shapes_is_exponential_growth() {
+        let m = only(
+            "a -> split(X, sx/2, sx/2){a|a}\n",
+            "exponential-growth",
+            1,
+            1,
+        );
+        assert_eq!(
+            m,
+            "the rules for `a` recurse through `split(X, ...)`, which makes 2 shapes of the \
+             recursion from one: the shape count grows 2× per level and may reach 2^depth \
+             shapes; the derivation stops at the shape cap (max_shapes, 100000 by default) about \
+             17 levels down"
+        );
+        // A relabel to two copies of itself: growth, reported once (not also non-terminating).
+        let m = only("a -> {a|a}\n", "exponential-growth", 1, 1);
+        assert!(m.contains("through `relabel`, which makes 2 shapes"), "{m}");
+        // A three-way repeat pattern, at the rule that branches.
+        let m = only(
+            "lot -> extrude(9){v}\nv -> repeat(X, 1, 1, 1){v|w|v}\nw -> {v}\n",
+            "exponential-growth",
+            2,
+            1,
+        );
+        assert!(
+            m.contains("`v`, `w`") && m.contains("makes 3 shapes"),
+            "{m}"
+        );
+        // comp's four side faces of a box, each extruded back into a volume: 4 every 2 levels.
+        let m = only(
+            "lot -> extrude(3){v}\nv -> comp(){side:f}\nf -> extrude(1){v}\n",
+            "exponential-growth",
+            2,
+            1,
+        );
+        assert!(
+            m.contains("makes 4 shapes") && m.contains("grows 2× per level"),
+            "{m}"
+        );
+        assert!(
+            m.ends_with(", at LOD3 and LOD4 (where comp is applied)"),
+            "{m}"
+        );
+        // A repeat whose length an extrude restores: its count is renewed at every trip.
+        let m = only(
+            "lot -> extrude(10){b}\nb -> repeat(Z, 1){c}\nc -> extrude(10){b}\n",
+            "exponential-growth",
+            2,
+            1,
+        );
+        assert!(
+            m.contains("whose count of copies is renewed at every trip"),
+            "{m}"
+        );
+        assert!(m.contains("may multiply by a repeat's count"), "{m}");
+        // Probabilities: 3 pieces with p = 0.5 is 1.5 per level on average.
+        let m = only(
+            "a -> rsplit(X, 1, 1, 1){a|a|a} = 0.5\na -> wall = 0.5\n",
+            "exponential-growth",
+            1,
+            1,
+        );
+        assert!(
+            m.contains(
+                "grows 1.50× per level on average (with the other alternatives' probabilities)"
+            ),
+            "{m}"
+        );
+        assert!(m.contains("about 29 levels down"), "{m}");
+    }
+
+    #[test]
+    fn critical_and_subcritical_branching() {
+        // Two copies half the time: on average one, but a fat tail (with an extrude in front,
+        // 7 of 300 seeds reached max_depth through `rules derive`).
+        let m = only(
+            "a -> {a|a} = 0.5\na -> wall = 0.5\n",
+            "exponential-growth",
+            1,
+            1,
+        );
+        assert!(m.contains("a critical branching process"), "{m}");
+        // 0.6 per level on average: ends quickly, not reported.
+        assert!(run("a -> rsplit(X, 0.5, 0.5){a|a} = 0.3\na -> wall = 0.7\n").is_empty());
+    }
+
+    #[test]
+    fn bounded_recursion_is_not_reported() {
+        // Each trip takes a fixed metre off an axis that nothing in the recursion enlarges.
+        for src in [
+            "a -> split(X, 1, sx - 1){wall|a}\n",
+            "a -> split(X, 1, sx/2 - 1, sx/2){wall|a|a}\n",
+            // On faces: `E - c` shrinks (the rest is a wall, never given to the last piece).
+            "lot -> extrude(9){v}\nv -> comp(){side:f}\nf -> split(X, sx - 1){f}\n",
+            "lot -> extrude(9){v}\nv -> comp(){side:f}\nf -> split(X, sx/2 - 0.5, sx/2 - 0.5){f|f}\n",
+            // rand of constants is a positive constant.
+            "a -> split(Y, rand(0.5, 1), sy - 1){wall|a}\n",
+        ] {
+            let d = run(src);
+            assert!(d.is_empty(), "{src}: {d:?}");
+        }
+        // A split piece that only shrinks by a factor, or on a volume whose last piece takes
+        // the rest, is not bounded by this rule: growth through two of them is reported.
+        only(
+            "a -> split(X, sx/2, sx/2){a|a}\n",
+            "exponential-growth",
+            1,
+            1,
+        );
+        only(
+            "lot -> extrude(9){v}\nv -> split(X, sx/2 - 0.5, sx/2 - 0.5){v|v}\n",
+            "exponential-growth",
+            2,
+            1,
+        );
+        // A fixed piece does not bound the recursion when the recursion can grow that axis
+        // back: S scales X up again.
+        only(
+            "a -> split(X, 1, sx - 1){wall|b}\nb -> S(sx*2, sy, sz){a|a}\n",
+            "exponential-growth",
+            2,
+            1,
+        );
+        // ... nor does an S that keeps or shrinks the axis when it makes two copies: the copies
+        // do not share the length, so the count doubles at every trip within the bounded depth.
+        only(
+            "a -> split(X, 1, sx - 1){wall|b}\nb -> S(sx*rand(0.5,1), sy, sz){a|a}\n",
+            "exponential-growth",
+            2,
+            1,
+        );
+        // One copy is fine.
+        assert!(
+            run("a -> split(X, 1, sx - 1){wall|b}\nb -> S(sx*rand(0.5,1), sy, sz){a}\n").is_empty()
+        );
+    }
+
+    #[test]
+    fn shipped_and_compiled_rulesets_have_no_recursion_findings() {
+        for (name, src) in [
+            ("fig3_19.cga", FIG_3_19),
+            ("toulouse_downtown.cga", TOULOUSE),
+        ] {
+            let rules = parse(src, name).unwrap_or_else(|e| panic!("{e}"));
+            let d = lint(&rules, src);
+            assert!(
+                !d.iter()
+                    .any(|d| d.code == "exponential-growth" || d.code == "non-terminating"),
+                "{name}: {d:?}"
+            );
+        }
+        // Every appearance of every zone of the shipped KB, as `kb compile` prints it, and the
+        // compiler's variants (balconies, irregular and short windows).
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+        let (kb, _) = crate::kb::KnowledgeBase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let mut texts: Vec<(String, String)> = Vec::new();
+        for z in kb.zones() {
+            texts.extend(
+                crate::kb::tools::compile_zone(&kb, &z.path).unwrap_or_else(|e| panic!("{e}")),
+            );
+        }
+        let tags = crate::input::tags::BuildingTags::default();
+        let (style, _) = kb.style_for(0, &tags, &mut crate::rng::Rng::new(1, 1));
+        for balconies in [0.0, 0.5, 1.0] {
+            for wh in [
+                crate::kb::WindowHeight::Tall,
+                crate::kb::WindowHeight::Short,
+                crate::kb::WindowHeight::Irregular,
+            ] {
+                let s = crate::kb::Style {
+                    balconies,
+                    window_height: wh,
+                    ..style.clone()
+                };
+                texts.push((
+                    format!("{balconies} {wh:?}"),
+                    crate::kb::compile::ruleset_text(&s),
+                ));
+            }
+        }
+        assert!(texts.len() > 20, "{}", texts.len());
+        for (label, text) in &texts {
+            let rules = parse(text, label).unwrap_or_else(|e| panic!("{label}: {e}"));
+            let d = lint(&rules, text);
+            assert!(d.is_empty(), "{label}: {d:?}\n{text}");
+        }
     }
 
     #[test]
