@@ -241,7 +241,7 @@ impl Ctx<'_> {
             return Err(self.cap_with(
                 "max_pieces",
                 caps.max_pieces,
-                format!(": {what} {} pieces", count(pieces)),
+                format!(": {what} {}", count_pieces(pieces)),
             ));
         }
         if pieces > self.shapes_left as f64 {
@@ -249,8 +249,8 @@ impl Ctx<'_> {
                 "max_shapes",
                 caps.max_shapes,
                 format!(
-                    ": {what} {} pieces, and the tree has {} shapes",
-                    count(pieces),
+                    ": {what} {}, and the tree has {} shapes",
+                    count_pieces(pieces),
                     caps.max_shapes.saturating_sub(self.shapes_left)
                 ),
             ));
@@ -260,8 +260,8 @@ impl Ctx<'_> {
                 "max_points",
                 caps.max_points,
                 format!(
-                    ": {what} {} pieces holding {} points, and the tree holds {}",
-                    count(pieces),
+                    ": {what} {} holding {} points, and the tree holds {}",
+                    count_pieces(pieces),
                     count(points),
                     caps.max_points.saturating_sub(self.points_left)
                 ),
@@ -277,6 +277,15 @@ fn count(n: f64) -> String {
         format!("{}", n as u64)
     } else {
         format!("{n:.2e}")
+    }
+}
+
+/// `1 piece`, `3 pieces`.
+fn count_pieces(n: f64) -> String {
+    if n == 1.0 {
+        "1 piece".to_string()
+    } else {
+        format!("{} pieces", count(n))
     }
 }
 
