@@ -325,7 +325,7 @@ fn main() -> ExitCode {
 fn rules_command(cmd: RulesCommand) -> ExitCode {
     match cmd {
         RulesCommand::Check { file } => {
-            let text = match std::fs::read_to_string(&file) {
+            let text = match citygen::grammar::read_source(&file) {
                 Ok(t) => t,
                 Err(e) => {
                     eprintln!("citygen: error: {}: {e}", file.display());

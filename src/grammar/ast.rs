@@ -313,13 +313,14 @@ impl RuleSet {
             .is_none_or(|&id| self.by_pred[id as usize].is_empty())
     }
 
-    /// `file:line (pred)` for messages about a rule.
+    /// `file:line:col (pred -> op)` for messages about a rule.
     pub(crate) fn describe(&self, rule: usize) -> String {
         let r = &self.rules[rule];
         format!(
-            "{}:{} ({} -> {})",
+            "{}:{}:{} ({} -> {})",
             self.file,
             r.span.line,
+            r.span.col,
             self.symbols[r.pred as usize],
             r.op.name()
         )

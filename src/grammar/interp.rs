@@ -74,6 +74,14 @@ use crate::rng::Rng;
 const FIT_TOL: f64 = 1e-6;
 
 /// Limits that keep a runaway rule set from hanging or exhausting memory.
+///
+/// Every cap is checked *before* the memory it guards is spent: an operation counts the pieces
+/// it is about to make (a `repeat`'s copies arithmetically, from the scope length and the
+/// pattern; a split's pieces as they are laid out; a clip's pieces slab by slab; `comp`'s faces
+/// from the footprint's edges; a relabel's successors) and the points their polygons will hold,
+/// and refuses with [`DeriveError::Cap`] when they would not fit. So a `repeat(X, 1e-300)` on a
+/// 50 km lot, or a concave footprint cut into thousands of slabs of a thousand pieces each,
+/// costs a message, not the address space.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Caps {
     /// Deepest allowed shape (the axiom has depth 0).
@@ -82,18 +90,25 @@ pub struct Caps {
     pub max_shapes: usize,
     /// Most pieces one operation may make (guards `repeat(X, 0.0001)`).
     pub max_pieces: usize,
+    /// Most polygon vertices the shapes of one tree may hold together (lots, volume footprints,
+    /// top and bottom faces; a side face holds none). Each volume piece keeps its own copy of
+    /// its footprint, so a 5,000-vertex footprint cut into 10,000 storeys would hold 50 million
+    /// points (800 MB) with only 10,000 shapes: `max_shapes` alone does not bound the memory.
+    pub max_points: usize,
     /// Whether `comp` rules are applied. LOD1 and LOD2 need only the masses, so they derive
     /// without facades: a shape whose chosen rule is a `comp` stays a leaf.
     pub facades: bool,
 }
 
 impl Default for Caps {
-    /// 64 levels, 100 000 shapes, 10 000 pieces per operation.
+    /// 64 levels, 100 000 shapes, 10 000 pieces per operation, 1 000 000 points (16 MB of
+    /// coordinates: a 2,000-vertex footprint, the most an OSM way has, in 500 volumes).
     fn default() -> Caps {
         Caps {
             max_depth: 64,
             max_shapes: 100_000,
             max_pieces: 10_000,
+            max_points: 1_000_000,
             facades: true,
         }
     }
@@ -102,15 +117,19 @@ impl Default for Caps {
 /// Why a derivation failed. `rule` is `file:line (pred -> op)` of the rule being applied.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum DeriveError {
-    /// A cap of [`Caps`] was hit.
-    #[error("{rule}: derivation exceeds {cap} = {limit} (recursive or too fine rules?)")]
+    /// A cap of [`Caps`] was hit (or would be by the operation being applied: it is refused
+    /// before it makes its pieces).
+    #[error("{rule}: derivation exceeds {cap} = {limit}{detail} (recursive or too fine rules?)")]
     Cap {
-        /// Which cap: `max_depth`, `max_shapes` or `max_pieces`.
+        /// Which cap: `max_depth`, `max_shapes`, `max_pieces` or `max_points`.
         cap: &'static str,
         /// Its value.
         limit: usize,
         /// The rule being applied.
         rule: String,
+        /// What the operation would have made, starting with a separator (`: repeat would
+        /// make 2000000000 pieces`), or empty.
+        detail: String,
     },
     /// An expression used a missing or non-numeric attribute, or gave a non-finite value.
     #[error("{rule}: {message}")]
@@ -157,6 +176,10 @@ struct Ctx<'a> {
     rules: &'a RuleSet,
     rule: usize,
     caps: &'a Caps,
+    /// Shapes the tree may still take (`max_shapes` minus the shapes made so far).
+    shapes_left: usize,
+    /// Points the tree may still take (`max_points` minus the points held so far).
+    points_left: usize,
 }
 
 impl Ctx<'_> {
@@ -198,12 +221,86 @@ impl Ctx<'_> {
         }
     }
     fn cap(&self, cap: &'static str, limit: usize) -> DeriveError {
+        self.cap_with(cap, limit, String::new())
+    }
+    fn cap_with(&self, cap: &'static str, limit: usize, detail: String) -> DeriveError {
         DeriveError::Cap {
             cap,
             limit,
             rule: self.rule_name(),
+            detail,
         }
     }
+    /// Whether the operation may make `pieces` pieces holding `points` points in all (counts
+    /// as `f64`, so that an astronomical count is compared, not overflowed): `max_pieces`, then
+    /// the shapes and the points the tree has left. `what` names the pieces for the message
+    /// (`repeat would make`).
+    fn room(&self, pieces: f64, points: f64, what: &str) -> Result<(), DeriveError> {
+        let caps = self.caps;
+        if pieces > caps.max_pieces as f64 {
+            return Err(self.cap_with(
+                "max_pieces",
+                caps.max_pieces,
+                format!(": {what} {}", count_pieces(pieces)),
+            ));
+        }
+        if pieces > self.shapes_left as f64 {
+            return Err(self.cap_with(
+                "max_shapes",
+                caps.max_shapes,
+                format!(
+                    ": {what} {}, and the tree has {} shapes",
+                    count_pieces(pieces),
+                    caps.max_shapes.saturating_sub(self.shapes_left)
+                ),
+            ));
+        }
+        if points > self.points_left as f64 {
+            return Err(self.cap_with(
+                "max_points",
+                caps.max_points,
+                format!(
+                    ": {what} {} holding {} points, and the tree holds {}",
+                    count_pieces(pieces),
+                    count(points),
+                    caps.max_points.saturating_sub(self.points_left)
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A count for messages: an integer, or in scientific notation past 10^15.
+fn count(n: f64) -> String {
+    if n < 1e15 {
+        format!("{}", n as u64)
+    } else {
+        format!("{n:.2e}")
+    }
+}
+
+/// `1 piece`, `3 pieces`.
+fn count_pieces(n: f64) -> String {
+    if n == 1.0 {
+        "1 piece".to_string()
+    } else {
+        format!("{} pieces", count(n))
+    }
+}
+
+/// The polygon vertices a geometry holds (what [`Caps::max_points`] counts).
+fn points_of(g: &Geometry) -> usize {
+    let poly = match g {
+        Geometry::Lot { polygon, .. } => Some(polygon),
+        Geometry::Volume { footprint, .. } => Some(footprint),
+        Geometry::Face { polygon, .. } => polygon.as_ref(),
+    };
+    poly.map_or(0, polygon_points)
+}
+
+fn polygon_points(p: &Polygon) -> usize {
+    p.rings().map(Vec::len).sum()
 }
 
 fn geometry_name(g: &Geometry) -> &'static str {
@@ -281,6 +378,8 @@ pub fn derive_facing(
 
     let mut i = 0;
     let mut attr_cache: Vec<Option<Arc<Attrs>>> = Vec::new();
+    // Polygon vertices held by the tree (Caps::max_points).
+    let mut points = polygon_points(lot);
     while i < tree.nodes.len() {
         let candidates: &[usize] = match syms[i] {
             Some(s) => &rules.by_pred[s as usize],
@@ -302,6 +401,8 @@ pub fn derive_facing(
             rules,
             rule: rule_idx,
             caps,
+            shapes_left: caps.max_shapes.saturating_sub(tree.nodes.len()),
+            points_left: caps.max_points.saturating_sub(points),
         };
         if !caps.facades && matches!(rules.rules[rule_idx].op, Op::Comp) {
             i += 1;
@@ -323,8 +424,14 @@ pub fn derive_facing(
             &parent_attrs,
             rng,
         )?;
+        // `apply` counted before making them; these are the same caps, checked once more on
+        // what was made.
         if tree.nodes.len() + pieces.len() > caps.max_shapes {
             return Err(ctx.cap("max_shapes", caps.max_shapes));
+        }
+        points += pieces.iter().map(|p| points_of(&p.geom)).sum::<usize>();
+        if points > caps.max_points {
+            return Err(ctx.cap("max_points", caps.max_points));
         }
         let label = child_label(&rule.op, parent_label, &tree.nodes[i].geometry);
         attr_cache.clear();
@@ -408,20 +515,14 @@ fn apply(
     let rule = &ctx.rules.rules[ctx.rule];
     let size = scope.size;
     match op {
-        Op::Relabel => Ok((0..rule.succs.len())
-            .map(|k| Piece {
-                succ: Some(k),
-                geom: geom.clone(),
-                scope: *scope,
-            })
-            .collect()),
+        Op::Relabel => all_succs(ctx, rule.succs.len(), geom.clone(), *scope),
         Op::Extrude(h) => {
             let h = ctx.eval(h, size, attrs, rng)?;
             if h <= EPS {
                 return Err(ctx.bad(format!("extrude height {h} is not positive")));
             }
             let (g, s) = extrude(geom, scope, h);
-            Ok(all_succs(rule.succs.len(), g, s))
+            all_succs(ctx, rule.succs.len(), g, s)
         }
         Op::Scale(e) => {
             let v = [
@@ -430,7 +531,7 @@ fn apply(
                 ctx.eval(&e[2], size, attrs, rng)?,
             ];
             let (g, s) = scale(ctx, geom, scope, v)?;
-            Ok(all_succs(rule.succs.len(), g, s))
+            all_succs(ctx, rule.succs.len(), g, s)
         }
         Op::Translate(e) => {
             let v = [
@@ -439,7 +540,7 @@ fn apply(
                 ctx.eval(&e[2], size, attrs, rng)?,
             ];
             let (g, s) = translate(geom, scope, v);
-            Ok(all_succs(rule.succs.len(), g, s))
+            all_succs(ctx, rule.succs.len(), g, s)
         }
         Op::Rotate(_, e) => {
             let deg = ctx.eval(e, size, attrs, rng)?;
@@ -459,7 +560,7 @@ fn apply(
                 }
                 _ => rotate(geom, scope, deg),
             };
-            Ok(all_succs(rule.succs.len(), g, s))
+            all_succs(ctx, rule.succs.len(), g, s)
         }
         Op::Comp => comp(ctx, geom, scope),
         Op::Split { kind, axis, sizes } => {
@@ -472,14 +573,20 @@ fn apply(
     }
 }
 
-fn all_succs(n: usize, g: Geometry, s: Scope) -> Vec<Piece> {
-    (0..n)
+/// One copy of `g` per successor, once the caps allow `n` copies.
+fn all_succs(ctx: &Ctx<'_>, n: usize, g: Geometry, s: Scope) -> Result<Vec<Piece>, DeriveError> {
+    ctx.room(
+        n as f64,
+        n as f64 * points_of(&g) as f64,
+        "its successors would make",
+    )?;
+    Ok((0..n)
         .map(|k| Piece {
             succ: Some(k),
             geom: g.clone(),
             scope: s,
         })
-        .collect()
+        .collect())
 }
 
 fn face_scope(origin: DVec3, x_axis: DVec3, z_axis: DVec3, width: f64, height: f64) -> Scope {
@@ -808,12 +915,32 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
             None => false,
         })
     };
-    let mut out = Vec::new();
+    // Counted before any face is made: one side face per edge longer than EPS, and a top and
+    // a bottom face (each holding the footprint) when a selector takes them.
+    let edge = |ring: &[DVec2], k: usize| ring[(k + 1) % ring.len()] - ring[k];
+    let sides = footprint
+        .rings()
+        .map(|ring| {
+            (0..ring.len())
+                .filter(|&k| edge(ring, k).length() > EPS)
+                .count()
+        })
+        .sum::<usize>();
+    let caps_faces = [Selector::Top, Selector::Bottom]
+        .iter()
+        .filter(|&&sel| pick(false, Some(sel)).is_some())
+        .count();
+    ctx.room(
+        (sides + caps_faces) as f64,
+        (caps_faces * polygon_points(footprint)) as f64,
+        "comp would make",
+    )?;
+    let mut out = Vec::with_capacity(sides + caps_faces);
     for ring in footprint.rings() {
         let n = ring.len();
         for k in 0..n {
-            let (a, b) = (ring[k], ring[(k + 1) % n]);
-            let d = b - a;
+            let a = ring[k];
+            let d = edge(ring, k);
             let w = d.length();
             if w <= EPS {
                 continue;
@@ -838,9 +965,6 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
                 scope: face_scope(origin, x_axis, DVec3::Z, w, *height),
             });
         }
-    }
-    if out.len() > ctx.caps.max_pieces {
-        return Err(ctx.cap("max_pieces", ctx.caps.max_pieces));
     }
     let (sx, sy) = (scope.size.x, scope.size.y);
     let o2 = scope.origin2();
@@ -899,6 +1023,7 @@ fn layout(
                     continue;
                 }
                 if cum + s <= len + FIT_TOL {
+                    ctx.room((out.len() + 1) as f64, 0.0, "split would make at least")?;
                     out.push((Some(i), cum, s.min(len - cum)));
                     cum += s;
                 } else {
@@ -928,6 +1053,7 @@ fn layout(
             for (i, &s) in sizes.iter().enumerate() {
                 let l = s / total * len;
                 if l > EPS {
+                    ctx.room((out.len() + 1) as f64, 0.0, "rsplit would make at least")?;
                     out.push((Some(i), cum, l));
                 }
                 cum += l;
@@ -938,10 +1064,14 @@ fn layout(
             if pattern <= EPS {
                 return Err(ctx.bad(format!("{name}: the sizes sum to zero")));
             }
+            // The copies are counted, not made, first: `repeat(X, 1e-300)` on a long lot would
+            // make more pieces than there are bytes.
             let copies = ((len + FIT_TOL) / pattern).floor();
-            if copies * sizes.len() as f64 > ctx.caps.max_pieces as f64 {
-                return Err(ctx.cap("max_pieces", ctx.caps.max_pieces));
-            }
+            ctx.room(
+                copies.max(1.0) * sizes.len() as f64,
+                0.0,
+                "repeat would make",
+            )?;
             let (copies, factor) = if copies < 1.0 {
                 if face {
                     return Ok(vec![(None, 0.0, len)]);
@@ -962,9 +1092,7 @@ fn layout(
             }
         }
     }
-    if out.len() > ctx.caps.max_pieces {
-        return Err(ctx.cap("max_pieces", ctx.caps.max_pieces));
-    }
+    ctx.room(out.len() as f64, 0.0, &format!("{name} would make"))?;
     Ok(out)
 }
 
@@ -984,7 +1112,7 @@ fn split(
             }
             let segs = layout(ctx, kind, sizes, scope.size[axis.index()], false)?;
             let mut out = Vec::new();
-            for (k, p) in clip_pieces(polygon, scope, axis, &segs) {
+            for (k, p) in clip_pieces(ctx, polygon, scope, axis, &segs)? {
                 let s = Scope::around(&p, scope.x2(), *z, 0.0);
                 out.push(Piece {
                     succ: k,
@@ -1002,6 +1130,12 @@ fn split(
         } => {
             let segs = layout(ctx, kind, sizes, scope.size[axis.index()], false)?;
             if axis == Axis::Z {
+                // Every storey keeps its own copy of the footprint.
+                ctx.room(
+                    segs.len() as f64,
+                    segs.len() as f64 * polygon_points(footprint) as f64,
+                    &format!("{op} would make"),
+                )?;
                 return Ok(segs
                     .into_iter()
                     .map(|(k, start, l)| {
@@ -1022,7 +1156,7 @@ fn split(
                     .collect());
             }
             let mut out = Vec::new();
-            for (k, p) in clip_pieces(footprint, scope, axis, &segs) {
+            for (k, p) in clip_pieces(ctx, footprint, scope, axis, &segs)? {
                 let s = Scope::around(&p, scope.x2(), *z0, *height);
                 out.push(Piece {
                     succ: k,
@@ -1059,6 +1193,7 @@ fn split(
             };
             let segs = layout(ctx, kind, sizes, len, true)?;
             let mut out = Vec::new();
+            let mut points = 0;
             for (k, start, l) in segs {
                 let o = *origin + dir * start;
                 let (w, h) = if axis == Axis::X {
@@ -1073,6 +1208,12 @@ fn split(
                         .map(Some)
                         .collect(),
                 };
+                points += polys.iter().flatten().map(polygon_points).sum::<usize>();
+                ctx.room(
+                    (out.len() + polys.len()) as f64,
+                    points as f64,
+                    &format!("{op} would make at least"),
+                )?;
                 for poly in polys {
                     let g = Geometry::Face {
                         kind: *fk,
@@ -1096,13 +1237,18 @@ fn split(
 }
 
 /// Clips a footprint to the slabs of a layout along the scope's X or Y. The first and last
-/// slabs are open-ended so that no sliver of the footprint is lost to rounding.
+/// slabs are open-ended so that no sliver of the footprint is lost to rounding. A slab of a
+/// concave footprint may hold many pieces (a comb cut across its teeth), so the pieces and
+/// their points are counted against the caps slab by slab, before the next slab is cut.
 fn clip_pieces(
+    ctx: &Ctx<'_>,
     poly: &Polygon,
     scope: &Scope,
     axis: Axis,
     segs: &[(Option<usize>, f64, f64)],
-) -> Vec<(Option<usize>, Polygon)> {
+) -> Result<Vec<(Option<usize>, Polygon)>, DeriveError> {
+    let op = ctx.rules.rules[ctx.rule].op.name();
+    let mut points = 0;
     let dir = if axis == Axis::X {
         scope.x2()
     } else {
@@ -1117,9 +1263,14 @@ fn clip_pieces(
         } else {
             start + l
         };
-        for p in clip_slab(poly, o, dir, lo, hi) {
-            out.push((k, p));
-        }
+        let pieces = clip_slab(poly, o, dir, lo, hi);
+        points += pieces.iter().map(polygon_points).sum::<usize>();
+        ctx.room(
+            (out.len() + pieces.len()) as f64,
+            points as f64,
+            &format!("{op} would make at least"),
+        )?;
+        out.extend(pieces.into_iter().map(|p| (k, p)));
     }
-    out
+    Ok(out)
 }

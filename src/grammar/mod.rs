@@ -29,5 +29,7 @@ pub use ast::{
     AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
 };
 pub use interp::{derive, derive_facing, Caps, DeriveError};
-pub use parser::{parse, GrammarError, ParseErrorKind, MAX_EXPR_DEPTH};
+pub use parser::{
+    parse, read_source, GrammarError, ParseErrorKind, MAX_EXPR_DEPTH, MAX_SOURCE_BYTES,
+};
 pub use shape::{FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal};

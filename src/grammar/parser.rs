@@ -57,6 +57,8 @@ pub enum ParseErrorKind {
     /// An expression nested deeper than [`MAX_EXPR_DEPTH`] (parentheses, unary minus, `rand`
     /// and chains of binary operators together).
     TooDeep,
+    /// A rule file longer than [`MAX_SOURCE_BYTES`].
+    TooLarge,
 }
 
 /// The deepest expression a rule file may hold: its tree depth, counting each `(`, unary `-`,
@@ -64,6 +66,34 @@ pub enum ParseErrorKind {
 /// the parser's recursion and every later walk of an expression (evaluation, lint, drop), so a
 /// hostile or generated file gets an error at its place instead of a stack overflow.
 pub const MAX_EXPR_DEPTH: usize = 128;
+
+/// The longest rule file [`parse`] (and [`read_source`]) takes, in bytes. Rule files are a few
+/// kilobytes; parsing holds about 100 bytes per byte of input (tokens, spans, symbols), so the
+/// cap keeps one file under half a gigabyte however it is written (a 40 MB file of `|a` ran out
+/// of a 2 GiB address space while lexing). `kb check` reads the rulesets a KB names with the
+/// same cap.
+pub const MAX_SOURCE_BYTES: usize = 4 * 1024 * 1024;
+
+/// Reads a rule file, refusing one over [`MAX_SOURCE_BYTES`] without reading past the cap (an
+/// `InvalidData` error that says so); an unreadable or non-UTF-8 file is the same error as
+/// `std::fs::read_to_string` gives.
+pub fn read_source(path: &std::path::Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    std::fs::File::open(path)?
+        .take(MAX_SOURCE_BYTES as u64 + 1)
+        .read_to_string(&mut text)?;
+    if text.len() > MAX_SOURCE_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "more than {MAX_SOURCE_BYTES} bytes, the cap on rule files (rule files are a few \
+                 kilobytes)"
+            ),
+        ));
+    }
+    Ok(text)
+}
 
 /// A parse error: `file:line:col: message`, then the offending line and a caret under the place.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -877,9 +907,26 @@ fn names(axes: &[Axis]) -> String {
 /// The axiom is the predecessor of the first rule. Probabilities: a rule with `= p` has weight
 /// `p`; the rules of the same predecessor without one share `1 − Σ p` equally (0 if the explicit
 /// ones already reach 1). Selection normalises the weights, so a set that does not sum to 1
-/// still derives (the linter of a later issue warns about it).
+/// still derives (the linter of a later issue warns about it). A source longer than
+/// [`MAX_SOURCE_BYTES`] is refused before it is read ([`ParseErrorKind::TooLarge`], at 1:1).
 pub fn parse(src: &str, file: &str) -> Result<RuleSet, GrammarError> {
     let ctx = Ctx { src, file };
+    if src.len() > MAX_SOURCE_BYTES {
+        return Err(ctx.err(
+            Span {
+                line: 1,
+                col: 1,
+                offset: 0,
+                len: 0,
+            },
+            ParseErrorKind::TooLarge,
+            format!(
+                "the rule file is {} bytes, more than {MAX_SOURCE_BYTES}, the cap on rule files \
+                 (rule files are a few kilobytes)",
+                src.len()
+            ),
+        ));
+    }
     let toks = lex(&ctx)?;
     let rs = RuleSet {
         file: Arc::from(file),

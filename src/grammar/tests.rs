@@ -452,7 +452,7 @@ fn expressions_use_attributes_and_fail_when_missing() {
     )
     .unwrap_err();
     assert!(
-        matches!(&err, DeriveError::Eval { rule, .. } if rule.starts_with("x.cga:1 (lot")),
+        matches!(&err, DeriveError::Eval { rule, .. } if rule.starts_with("x.cga:1:1 (lot")),
         "{err}"
     );
     let mut attrs = Attrs::new();
@@ -592,7 +592,7 @@ fn caps_stop_runaway_rules() {
         )
         .unwrap_err();
         assert!(
-            matches!(&err, DeriveError::Cap { rule, .. } if rule.starts_with("cap.cga:1 (a")),
+            matches!(&err, DeriveError::Cap { rule, .. } if rule.starts_with("cap.cga:1:1 (a")),
             "{err}"
         );
     }
@@ -607,6 +607,193 @@ fn caps_stop_runaway_rules() {
     )
     .unwrap_err();
     assert!(matches!(err, DeriveError::Cap { .. }), "{err}");
+}
+
+/// A comb: a 1 m base along X with `teeth` teeth 1 m wide and 100 m long (in Y), 1 m apart.
+fn comb(teeth: usize) -> Polygon {
+    let w = 2.0 * teeth as f64;
+    let mut p = vec![DVec2::new(0.0, 0.0), DVec2::new(w, 0.0), DVec2::new(w, 1.0)];
+    for i in (0..teeth).rev() {
+        let x = 2.0 * i as f64;
+        p.extend([
+            DVec2::new(x + 1.0, 1.0),
+            DVec2::new(x + 1.0, 101.0),
+            DVec2::new(x, 101.0),
+        ]);
+        if i > 0 {
+            p.push(DVec2::new(x, 1.0));
+        }
+    }
+    Polygon::new(p, vec![])
+}
+
+/// A star with `n` points alternating between radius 100 and 130 m.
+fn star(n: usize) -> Polygon {
+    let p = (0..n)
+        .map(|i| {
+            let a = std::f64::consts::TAU * i as f64 / n as f64;
+            let r = if i % 2 == 0 { 100.0 } else { 130.0 };
+            DVec2::new(r * a.cos(), r * a.sin())
+        })
+        .collect();
+    Polygon::new(p, vec![])
+}
+
+/// The cap error of deriving `src` on `lot` with `caps`: (cap, rule, detail).
+fn cap_error(src: &str, lot: &Polygon, caps: &Caps) -> (&'static str, String, String) {
+    let rules = parse(src, "cap.cga").unwrap_or_else(|e| panic!("{e}"));
+    match derive(&rules, lot, Attrs::new(), &mut Rng::new(1, 1), caps) {
+        Err(DeriveError::Cap {
+            cap, rule, detail, ..
+        }) => (cap, rule, detail),
+        other => panic!("expected a cap error, got {other:?}"),
+    }
+}
+
+#[test]
+fn caps_are_checked_before_the_pieces_are_made() {
+    // Each case would hold far more than memory if the pieces were made first; the detail
+    // (`would make ...`) is only written by the checks made before.
+    let big = Caps {
+        max_pieces: usize::MAX,
+        ..Caps::default()
+    };
+    // 1e17 copies on a lot a million kilometres long: counted, not made.
+    let (cap, rule, detail) = cap_error(
+        "a -> repeat(X, 0.001){a}",
+        &rect(20.0, 12.0),
+        &Caps::default(),
+    );
+    assert_eq!(
+        (cap, rule.as_str()),
+        ("max_pieces", "cap.cga:1:1 (a -> repeat)")
+    );
+    assert_eq!(detail, ": repeat would make 20000 pieces");
+    let (cap, _, detail) = cap_error("a -> repeat(X, 1e-8){a}", &rect(1e9, 12.0), &big);
+    assert_eq!(cap, "max_shapes");
+    assert_eq!(
+        detail,
+        ": repeat would make 1.00e17 pieces, and the tree has 1 shapes"
+    );
+    // A literal list longer than the cap.
+    let n = 20_000;
+    let src = format!(
+        "lot -> split(X,{}){{{}}}",
+        vec!["0.001"; n].join(","),
+        vec!["a"; n].join("|")
+    );
+    let (cap, _, detail) = cap_error(&src, &rect(20.0, 12.0), &Caps::default());
+    assert_eq!(
+        (cap, detail.as_str()),
+        ("max_pieces", ": split would make at least 10001 pieces")
+    );
+    // A relabel to 20,000 successors: refused before 20,000 copies of the lot are made.
+    let src = format!("lot -> {{{}}}", vec!["a"; n].join("|"));
+    let (cap, _, detail) = cap_error(&src, &rect(20.0, 12.0), &Caps::default());
+    assert_eq!(
+        (cap, detail.as_str()),
+        ("max_pieces", ": its successors would make 20000 pieces")
+    );
+    // A comb cut across its 1,000 teeth into 5,050 slabs: about 5 million pieces, refused
+    // slab by slab once the pieces exceed the caps.
+    let (cap, rule, detail) =
+        cap_error("lot -> repeat(Y, 0.02){a}", &comb(1_000), &Caps::default());
+    assert_eq!(
+        (cap, rule.as_str()),
+        ("max_pieces", "cap.cga:1:1 (lot -> repeat)")
+    );
+    assert!(
+        detail.starts_with(": repeat would make at least 1"),
+        "{detail}"
+    );
+    let (cap, _, detail) = cap_error("lot -> repeat(Y, 0.02){a}", &comb(1_000), &big);
+    assert_eq!(cap, "max_shapes");
+    assert!(detail.contains("and the tree has 1 shapes"), "{detail}");
+    // 10,000 storeys of a 5,000-vertex footprint: 10,000 shapes, but 50 million points.
+    let (cap, rule, detail) = cap_error(
+        "lot -> extrude(1000){b}\nb -> repeat(Z, 0.1){c}",
+        &star(5_000),
+        &Caps::default(),
+    );
+    assert_eq!(
+        (cap, rule.as_str()),
+        ("max_points", "cap.cga:2:1 (b -> repeat)")
+    );
+    assert_eq!(
+        detail,
+        ": repeat would make 10000 pieces holding 50000000 points, and the tree holds 10000"
+    );
+    // comp on a footprint with more edges than pieces allowed, before any face is made.
+    let few = Caps {
+        max_pieces: 100,
+        ..Caps::default()
+    };
+    let (cap, _, detail) = cap_error(
+        "lot -> extrude(3){v}\nv -> comp(){side:f}",
+        &star(500),
+        &few,
+    );
+    assert_eq!(
+        (cap, detail.as_str()),
+        ("max_pieces", ": comp would make 500 pieces")
+    );
+    // Top faces hold the footprint: counted as points.
+    let tight = Caps {
+        max_points: 1_200,
+        ..Caps::default()
+    };
+    let (cap, _, detail) = cap_error(
+        "lot -> extrude(3){v}\nv -> comp(){top:t|bottom:b}",
+        &star(500),
+        &tight,
+    );
+    assert_eq!(
+        (cap, detail.as_str()),
+        (
+            "max_points",
+            ": comp would make 502 pieces holding 1000 points, and the tree holds 1000"
+        )
+    );
+}
+
+#[test]
+fn derivations_below_the_caps_are_unchanged_by_the_checks() {
+    // Exactly max_pieces copies are allowed; one more is not.
+    let caps = Caps {
+        max_pieces: 20,
+        ..Caps::default()
+    };
+    let rules = parse("lot -> repeat(X, 1){a}", "t.cga").unwrap_or_else(|e| panic!("{e}"));
+    let t = derive(
+        &rules,
+        &rect(20.0, 12.0),
+        Attrs::new(),
+        &mut Rng::new(1, 1),
+        &caps,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(count(&t, |n| &*n.symbol == "a"), 20);
+    let (cap, _, _) = cap_error("lot -> repeat(X, 1){a}", &rect(21.0, 12.0), &caps);
+    assert_eq!(cap, "max_pieces");
+    // The points of the tree are exactly what max_points counts: 1 lot + 3 storeys of 8 points.
+    let src = "lot -> extrude(9){b}\nb -> repeat(Z, 3){c}";
+    let fits = Caps {
+        max_points: 8 * 5,
+        ..Caps::default()
+    };
+    let rules = parse(src, "t.cga").unwrap_or_else(|e| panic!("{e}"));
+    let t = derive(&rules, &star(8), Attrs::new(), &mut Rng::new(1, 1), &fits)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(count(&t, |n| &*n.symbol == "c"), 3);
+    let (cap, _, _) = cap_error(
+        src,
+        &star(8),
+        &Caps {
+            max_points: 8 * 5 - 1,
+            ..fits
+        },
+    );
+    assert_eq!(cap, "max_points");
 }
 
 #[test]
@@ -954,7 +1141,7 @@ fn r_turns_a_side_face_about_its_left_edge() {
     )
     .unwrap_err();
     assert!(
-        matches!(&err, DeriveError::Unsupported { rule, .. } if rule.starts_with("r.cga:3 (t -> R")),
+        matches!(&err, DeriveError::Unsupported { rule, .. } if rule.starts_with("r.cga:3:1 (t -> R")),
         "{err}"
     );
 }

@@ -132,9 +132,6 @@ pub fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
     notes
 }
 
-/// Largest ruleset file `kb check` reads (bytes): rule files are a few kilobytes.
-const MAX_RULESET_BYTES: u64 = 4 * 1024 * 1024;
-
 /// Reads, parses and lints the ruleset an appearance names (at KB line `line`), and lists as
 /// warnings a file that cannot be read or does not parse and every lint finding (a rule that
 /// can never terminate, probabilities above 1, ...), each with the ruleset's own file:line:col.
@@ -142,14 +139,8 @@ const MAX_RULESET_BYTES: u64 = 4 * 1024 * 1024;
 /// ruleset files (yet), so none of these stops a run.
 fn check_ruleset(path: &Path, line: usize, warnings: &mut Vec<KbRepair>) {
     let name = path.display().to_string();
-    let text = match std::fs::metadata(path) {
-        Ok(m) if m.len() > MAX_RULESET_BYTES => Err(format!(
-            "{} bytes, more than the {MAX_RULESET_BYTES}-byte cap on ruleset files",
-            m.len()
-        )),
-        Ok(_) => std::fs::read_to_string(path).map_err(|e| e.to_string()),
-        Err(e) => Err(e.to_string()),
-    };
+    // At most grammar::MAX_SOURCE_BYTES are read (rule files are a few kilobytes).
+    let text = crate::grammar::read_source(path).map_err(|e| e.to_string());
     let text = match text {
         Ok(t) => t,
         Err(why) => {
