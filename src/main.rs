@@ -102,8 +102,9 @@ enum KbCommand {
 #[derive(Subcommand, Debug)]
 enum RulesCommand {
     /// Parse a ruleset and lint it: undefined successors, unreachable rules, probabilities
-    /// that do not sum to 1, duplicate deterministic rules. Exit code 1 on errors, 0 with
-    /// warnings only.
+    /// that do not sum to 1, duplicate deterministic rules, rules that never terminate or
+    /// grow exponentially (rule bombs: the derivation would stop at a cap). Exit code 1 on
+    /// errors, 0 with warnings only.
     Check {
         /// The ruleset file.
         file: PathBuf,

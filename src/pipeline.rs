@@ -378,8 +378,9 @@ fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, Ru
 }
 
 fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> {
-    let text =
-        std::fs::read_to_string(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))?;
+    // At most grammar::MAX_SOURCE_BYTES are read: a huge file is refused, not read whole.
+    let text = crate::grammar::read_source(p)
+        .map_err(|e| RunError::Input(format!("{}: {e}", p.display())))?;
     crate::grammar::parse(&text, &p.display().to_string())
         .map_err(|e| RunError::Input(e.to_string()))
 }
