@@ -738,3 +738,157 @@ fn a_roof_with_levels_stands_that_many_storeys_high() {
         p.top_z
     );
 }
+
+/// Every way and multipolygon relation of the Monaco sample tagged `building` or
+/// `building:part` (other than `no`), counted by a plain osmpbf pass, is written (as a
+/// building or as a part's source id) or has a report entry.
+#[test]
+fn every_building_and_part_of_monaco_is_written_or_reported() {
+    use osmpbf::{Element, ElementReader};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let pbf = root.join("data/monaco/monaco.osm.pbf");
+    let mut tagged = std::collections::BTreeSet::new();
+    let is_building = |tags: &[(&str, &str)]| {
+        tags.iter()
+            .any(|(k, v)| (*k == "building" || *k == "building:part") && *v != "no")
+    };
+    ElementReader::from_path(&pbf)
+        .unwrap()
+        .for_each(|e| match e {
+            Element::Way(w) => {
+                let t: Vec<_> = w.tags().collect();
+                if is_building(&t) {
+                    tagged.insert(SourceId::Way(w.id()));
+                }
+            }
+            Element::Relation(r) => {
+                let t: Vec<_> = r.tags().collect();
+                if t.contains(&("type", "multipolygon")) && is_building(&t) {
+                    tagged.insert(SourceId::Relation(r.id()));
+                }
+            }
+            _ => {}
+        })
+        .unwrap();
+    let mut report = Report::default();
+    let read = citygen::input::osm::read_osm(&pbf, &mut report).unwrap();
+    let site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
+    let (kb, _) = KnowledgeBase::load(&root.join(KB)).unwrap();
+    let gen = Generator::new(kb, Rules::Kb, Lod::Lod1, 0, Caps::default());
+    let mut written = std::collections::BTreeSet::new();
+    for lot in &site.lots {
+        match gen.generate(lot) {
+            Ok((b, _)) => {
+                written.insert(b.id);
+                written.extend(b.parts.iter().filter_map(|p| p.source));
+            }
+            Err(e) => report.add(Some(lot.id), citygen::report::Outcome::Skipped, e),
+        }
+    }
+    let reported: std::collections::BTreeSet<String> =
+        report.entries.iter().map(|e| e.id.clone()).collect();
+    let lost: Vec<String> = tagged
+        .iter()
+        .filter(|id| !written.contains(id) && !reported.contains(&id.to_string()))
+        .map(|id| id.to_string())
+        .collect();
+    assert!(tagged.len() > 1100, "{} tagged", tagged.len());
+    assert!(
+        lost.is_empty(),
+        "{} of {} lost: {lost:?}",
+        lost.len(),
+        tagged.len()
+    );
+}
+
+/// Per tag, the share of tagged units of both samples honoured at LOD2 (a unit is a
+/// `building:part`, or an outline drawn itself): at least 99.5 % each.
+#[test]
+fn the_tags_of_both_samples_are_honoured() {
+    for sample in [
+        "data/monaco/monaco.osm.pbf",
+        "data/clifton/clifton_test.shp",
+    ] {
+        tags_honoured(sample);
+    }
+}
+
+fn tags_honoured(sample: &str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = root.join(sample);
+    let mut report = Report::default();
+    let read = if sample.ends_with(".shp") {
+        let o = citygen::input::shp::ShpOptions::default();
+        citygen::input::shp::read_shp(&path, &o, &mut report).unwrap()
+    } else {
+        citygen::input::osm::read_osm(&path, &mut report).unwrap()
+    };
+    let site = citygen::prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let (kb, _) = KnowledgeBase::load(&root.join(KB)).unwrap();
+    let gen = Generator::new(kb, Rules::Kb, Lod::Lod2, 0, Caps::default());
+    let mut honoured: BTreeMap<&str, (usize, usize, Vec<String>)> = BTreeMap::new();
+    for lot in &site.lots {
+        let Ok((b, _)) = gen.generate(lot) else {
+            continue;
+        };
+        let mut units: Vec<(SourceId, &citygen::input::BuildingTags)> = Vec::new();
+        if !lot.drawn_outline.is_empty() {
+            units.push((lot.id, &lot.tags));
+        }
+        units.extend(lot.parts.iter().map(|p| (p.id, &*p.tags)));
+        for (id, t) in units {
+            let parts: Vec<&Part> = b.parts.iter().filter(|p| p.source == Some(id)).collect();
+            if parts.is_empty() {
+                continue;
+            }
+            let mut count = |key: &'static str, ok: bool| {
+                let e = honoured.entry(key).or_default();
+                e.1 += 1;
+                if ok {
+                    e.0 += 1;
+                } else if e.2.len() < 5 {
+                    e.2.push(id.to_string());
+                }
+            };
+            let top = parts
+                .iter()
+                .map(|p| p.top_z)
+                .fold(f64::NEG_INFINITY, f64::max);
+            let base = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
+            if let Some(h) = t.height {
+                count("height", close(top, h));
+            }
+            if let Some(m) = t.min_height {
+                count("min_height", close(base, m));
+            }
+            if let Some(r) = t.roof_shape {
+                count("roof:shape", parts.iter().all(|p| p.roof_shape == r));
+            }
+            // A roof on pillars has no storeys: its levels say how high it stands.
+            if let (Some(l), false) = (t.levels, t.is_roof()) {
+                let want = (l - t.min_level.unwrap_or(0.0)).round().max(1.0) as u32;
+                count("building:levels", parts.iter().all(|p| p.storeys == want));
+            }
+            if let Some(c) = t.colour {
+                count("building:colour", parts.iter().all(|p| p.wall_color == c));
+            }
+            if let Some(c) = t.roof_colour {
+                count("roof:colour", parts.iter().all(|p| p.roof_color == c));
+            }
+        }
+    }
+    let lines: Vec<String> = honoured
+        .iter()
+        .map(|(k, (ok, n, bad))| {
+            format!(
+                "{k}: {ok} of {n} ({:.1} %) e.g. {bad:?}",
+                100.0 * *ok as f64 / *n as f64
+            )
+        })
+        .collect();
+    eprintln!("{sample}:\n{}", lines.join("\n"));
+    assert!(!honoured.is_empty(), "{sample}: no tag");
+    for (k, (ok, n, _)) in &honoured {
+        assert!(*ok as f64 >= 0.995 * *n as f64, "{sample}: {k}: {lines:?}");
+    }
+}

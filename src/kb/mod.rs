@@ -310,7 +310,8 @@ impl Style {
     }
 
     /// Sets the roof height once known and, when `total_height` is set, moves the eave to
-    /// `total_height - roof_height` (never below `min_height` + 1 m), recomputing `storeys` from
+    /// `total_height - roof_height` (never below `min_height` + 1 m, or + half the height below
+    /// 2 m), recomputing `storeys` from
     /// the floor height unless `building:levels` fixed them.
     pub fn fit_total_height(&mut self, roof_height: f64) {
         if !roof_height.is_finite() || roof_height < 0.0 {
@@ -318,7 +319,10 @@ impl Style {
         }
         self.roof_height = Some(roof_height);
         if let Some(total) = self.total_height {
-            self.eave_height = (total - roof_height).max(self.min_height + 1.0);
+            // Walls of at least 1 m, or half the height of a unit lower than 2 m (a 1 m shed
+            // keeps its 1 m: 0.5 m of walls under 0.5 m of roof).
+            let least = (0.5 * (total - self.min_height)).clamp(0.0, 1.0);
+            self.eave_height = (total - roof_height).max(self.min_height + least);
             if !self.storeys_from_tags {
                 self.storeys = storeys_for(self.eave_height - self.min_height, self.floor_height);
             }
