@@ -802,7 +802,8 @@ fn every_building_and_part_of_monaco_is_written_or_reported() {
 }
 
 /// Per tag, the share of tagged units of both samples honoured at LOD2 (a unit is a
-/// `building:part`, or an outline drawn itself): at least 99.5 % each.
+/// `building:part`, or an outline drawn itself): at least 99.5 % each; and no two parts of a
+/// building share a volume.
 #[test]
 fn the_tags_of_both_samples_are_honoured() {
     for sample in [
@@ -827,10 +828,19 @@ fn tags_honoured(sample: &str) {
     let (kb, _) = KnowledgeBase::load(&root.join(KB)).unwrap();
     let gen = Generator::new(kb, Rules::Kb, Lod::Lod2, 0, Caps::default());
     let mut honoured: BTreeMap<&str, (usize, usize, Vec<String>)> = BTreeMap::new();
+    let mut overlaps = Vec::new();
     for lot in &site.lots {
         let Ok((b, _)) = gen.generate(lot) else {
             continue;
         };
+        for (i, p) in b.parts.iter().enumerate() {
+            for q in &b.parts[i + 1..] {
+                let z = p.top_z.min(q.top_z) - p.base_z.max(q.base_z);
+                if z > 0.05 && shared_area(p, q) > 0.5 {
+                    overlaps.push(format!("{}: {:?} and {:?}", b.id, p.source, q.source));
+                }
+            }
+        }
         let mut units: Vec<(SourceId, &citygen::input::BuildingTags)> = Vec::new();
         if !lot.drawn_outline.is_empty() {
             units.push((lot.id, &lot.tags));
@@ -888,7 +898,65 @@ fn tags_honoured(sample: &str) {
         .collect();
     eprintln!("{sample}:\n{}", lines.join("\n"));
     assert!(!honoured.is_empty(), "{sample}: no tag");
+    assert!(
+        overlaps.is_empty(),
+        "{sample}: parts sharing a volume: {overlaps:?}"
+    );
     for (k, (ok, n, _)) in &honoured {
         assert!(*ok as f64 >= 0.995 * *n as f64, "{sample}: {k}: {lines:?}");
     }
+}
+
+#[test]
+fn a_tower_mapped_inside_the_part_around_it_is_cut_out_of_it() {
+    // Both from the ground: the base (20 m) and a round-ish tower (60 m) inside it, and a
+    // second part that duplicates the tower's plan and heights.
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 40.0, 30.0),
+        &[
+            ("building", "yes"),
+            ("building:part", "yes"),
+            ("height", "20"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        2,
+        &rect(10.0, 10.0, 10.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("height", "60"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        3,
+        &rect(10.0, 10.0, 10.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("height", "60"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 1);
+    assert_no_volume_overlap(&d);
+    let base: f64 = d.parts_of(way(1)).iter().map(|p| p.footprint.area()).sum();
+    let tower = d.one_part(way(3));
+    assert!(
+        (base / tower.footprint.area() - 11.0).abs() < 0.05,
+        "base {base} m²"
+    );
+    assert!(close(tower.top_z, 60.0));
+    // The duplicate is drawn once, with a note on the one left out.
+    assert!(d.parts_of(way(2)).is_empty());
+    assert!(
+        d.notes(way(1))
+            .iter()
+            .any(|n| n.contains("way/2 lies inside")),
+        "{:?}",
+        d.notes(way(1))
+    );
 }

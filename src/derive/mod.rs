@@ -122,9 +122,10 @@ impl Generator {
         if let Some(note) = floating_note(&styled) {
             notes.push((Outcome::Note, note));
         }
-        for (piece, tags, style, mut rng) in styled {
+        let plans = resolve_overlaps(&styled, &mut notes);
+        for ((piece, tags, style, mut rng), plan) in styled.into_iter().zip(plans) {
             let rules = self.rules_for(&style)?;
-            for polygon in &piece.polygons {
+            for polygon in &plan {
                 let on = Piece {
                     id: piece.id,
                     front: lot.front,
@@ -397,6 +398,56 @@ fn plans_overlap(a: &[Polygon], b: &[Polygon]) -> bool {
             .any(|pt| q.iter().any(|poly| poly.contains(pt)))
     };
     inside(a, b) || inside(b, a)
+}
+
+/// The plan each piece is drawn on, so that no two pieces fill one volume: where two pieces'
+/// plans overlap and their walls share more than [`STACK_TOLERANCE`] of height (a tower mapped
+/// inside the part around it, both from the ground), the smaller plan wins and is cut out of
+/// the larger (equal plans: the later id wins). A piece left with nothing is not drawn, with a
+/// note naming the piece that holds its volume. Pieces that only stand on each other keep
+/// their plans.
+fn resolve_overlaps(
+    styled: &[(&LotPiece, BuildingTags, Style, Rng)],
+    notes: &mut Vec<Note>,
+) -> Vec<Vec<Polygon>> {
+    let area = |p: &[Polygon]| p.iter().map(Polygon::area).sum::<f64>();
+    let mut plans: Vec<Vec<Polygon>> = styled.iter().map(|(p, ..)| p.polygons.clone()).collect();
+    if styled.len() < 2 {
+        return plans;
+    }
+    let areas: Vec<f64> = plans.iter().map(|p| area(p)).collect();
+    for i in 0..styled.len() {
+        let (_, _, si, _) = &styled[i];
+        let winners: Vec<&Polygon> = (0..styled.len())
+            .filter(|&j| j != i)
+            .filter(|&j| {
+                let (_, _, sj, _) = &styled[j];
+                let shared = si.eave_height.min(sj.eave_height) - si.min_height.max(sj.min_height);
+                shared > STACK_TOLERANCE && (areas[j] < areas[i] || (areas[j] == areas[i] && j > i))
+            })
+            .flat_map(|j| styled[j].0.polygons.iter())
+            .collect();
+        if winners.is_empty() {
+            continue;
+        }
+        let cutters: Vec<Polygon> = winners.into_iter().cloned().collect();
+        let cut = crate::prepare::cut_out(&plans[i], &cutters);
+        // Only a real overlap changes the plan (a cut that removes nothing keeps the piece as
+        // it was, bytes included).
+        if area(&cut) < areas[i] - 0.5 {
+            if cut.is_empty() {
+                notes.push((
+                    Outcome::Note,
+                    format!(
+                        "{} lies inside other parts over the same heights: their volumes are drawn, not its own",
+                        styled[i].0.id
+                    ),
+                ));
+            }
+            plans[i] = cut;
+        }
+    }
+    plans
 }
 
 /// A note when every piece of a building starts above the ground (nothing is drawn under it),
