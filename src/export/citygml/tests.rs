@@ -1357,3 +1357,36 @@ fn element_count_is_the_same_however_the_stream_is_cut() {
     assert!(after_lt);
     assert_eq!(count_elements(b"/a>", &mut after_lt), 0);
 }
+
+#[test]
+fn rings_are_written_without_repeats_or_spikes_after_rounding() {
+    use super::xml::written_ring;
+    let o = DVec3::new(500_000.0, 4_000_000.0, 0.0);
+    let p = |x: f64, y: f64| DVec3::new(x, y, 3.0);
+    // 0.3 mm apart (one point once rounded), a spike out and back, the closing repeat.
+    let ring = vec![
+        p(0.0, 0.0),
+        p(0.0003, 0.0),
+        p(10.0, 0.0),
+        p(10.0, 5.0),
+        p(12.0, 5.0),
+        p(10.0, 5.0),
+        p(10.0, 10.0),
+        p(0.0, 10.0),
+        p(0.0, 0.0),
+    ];
+    let w = written_ring(&ring, o);
+    assert_eq!(
+        w,
+        vec![
+            p(0.0, 0.0),
+            p(10.0, 0.0),
+            p(10.0, 5.0),
+            p(10.0, 10.0),
+            p(0.0, 10.0)
+        ]
+    );
+    // A ring that rounds to nothing keeps its points (the polygon is referenced elsewhere).
+    let tiny = vec![p(0.0, 0.0), p(0.0001, 0.0), p(0.0, 0.0001)];
+    assert!(written_ring(&tiny, o).len() < 3);
+}

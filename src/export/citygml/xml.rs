@@ -114,7 +114,12 @@ impl Xml {
         self.s("</gml:Polygon>\n");
     }
 
+    /// A ring as written: millimetres, closed. The rounding can make neighbouring points one
+    /// (a point 0.4 mm from the next) or fold a ring back on itself (`x, y, x`): those are
+    /// written once ([`written_ring`]), so no ring of the file repeats a point or has a spike.
     pub(super) fn linear_ring(&mut self, points: &[DVec3], origin: DVec3) {
+        let cleaned = written_ring(points, origin);
+        let points: &[DVec3] = if cleaned.len() >= 3 { &cleaned } else { points };
         self.s("<gml:LinearRing><gml:posList srsDimension=\"3\">");
         for (i, p) in points.iter().chain(points.first()).enumerate() {
             if i > 0 {
@@ -124,4 +129,37 @@ impl Xml {
         }
         self.s("</gml:posList></gml:LinearRing>\n");
     }
+}
+
+/// The points of a ring as the file holds them (millimetres of `origin + p`), without
+/// consecutive repeats (the closing one included) and spikes (`x, y, x` becomes `x`); the
+/// points are the ring's own, not moved. May return fewer than 3 points: the caller then keeps
+/// the ring as it was (a polygon is never dropped, the solid refers to it).
+pub(super) fn written_ring(points: &[DVec3], origin: DVec3) -> Vec<DVec3> {
+    let key = |p: &DVec3| {
+        let g = (origin + *p) * 1000.0;
+        (g.x.round() as i64, g.y.round() as i64, g.z.round() as i64)
+    };
+    let mut r: Vec<(_, DVec3)> = points.iter().map(|p| (key(p), *p)).collect();
+    loop {
+        let before = r.len();
+        r.dedup_by_key(|(k, _)| *k);
+        while r.len() > 1 && r.first().map(|x| x.0) == r.last().map(|x| x.0) {
+            r.pop();
+        }
+        let n = r.len();
+        if n >= 3 {
+            if let Some(i) = (0..n).find(|&i| r[(i + n - 1) % n].0 == r[(i + 1) % n].0) {
+                // x, y, x: drop y and the second x.
+                let next = (i + 1) % n;
+                let (a, b) = if i < next { (i, next) } else { (next, i) };
+                r.remove(b);
+                r.remove(a);
+            }
+        }
+        if r.len() == before || r.len() < 3 {
+            break;
+        }
+    }
+    r.into_iter().map(|(_, p)| p).collect()
 }
