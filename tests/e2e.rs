@@ -357,16 +357,15 @@ fn courtyards_stay_holes_in_all_three_formats() {
         "glTF ground {tri_area} m² vs footprint {area} m²"
     );
 
-    // IFC: one slab profile with voids per drawn footprint polygon that has holes.
+    // IFC: one slab profile with voids per derived part whose footprint has holes (the
+    // courtyards, and the holes that parts cut in the parts around them).
+    let gen = generator(citygen::model::Lod::Lod2);
     let with_holes: usize = site
         .lots
         .iter()
-        .flat_map(|l| {
-            l.drawn_outline
-                .iter()
-                .chain(l.parts.iter().flat_map(|p| p.polygons.iter()))
-        })
-        .filter(|p| !p.holes.is_empty())
+        .filter_map(|l| gen.generate(l).ok())
+        .flat_map(|(b, _)| b.parts)
+        .filter(|p| !p.footprint.holes.is_empty())
         .count();
     let ifc = step_entities(&run.ifc);
     let voids = ifc
