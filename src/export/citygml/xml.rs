@@ -118,8 +118,17 @@ impl Xml {
     /// (a point 0.4 mm from the next) or fold a ring back on itself (`x, y, x`): those are
     /// written once ([`written_ring`]), so no ring of the file repeats a point or has a spike.
     pub(super) fn linear_ring(&mut self, points: &[DVec3], origin: DVec3) {
-        let cleaned = written_ring(points, origin);
-        let points: &[DVec3] = if cleaned.len() >= 3 { &cleaned } else { points };
+        let cleaned;
+        let points: &[DVec3] = if written_clean(points, origin) {
+            points
+        } else {
+            cleaned = written_ring(points, origin);
+            if cleaned.len() >= 3 {
+                &cleaned
+            } else {
+                points
+            }
+        };
         self.s("<gml:LinearRing><gml:posList srsDimension=\"3\">");
         for (i, p) in points.iter().chain(points.first()).enumerate() {
             if i > 0 {
@@ -129,6 +138,28 @@ impl Xml {
         }
         self.s("</gml:posList></gml:LinearRing>\n");
     }
+}
+
+/// Whether the ring, as written, has no repeated consecutive point and no `x, y, x` spike
+/// (nearly every ring): then [`written_ring`] would return it unchanged.
+fn written_clean(points: &[DVec3], origin: DVec3) -> bool {
+    let key = |p: &DVec3| {
+        let g = (origin + *p) * 1000.0;
+        (g.x.round() as i64, g.y.round() as i64, g.z.round() as i64)
+    };
+    let n = points.len();
+    if n < 3 {
+        return false;
+    }
+    let (mut a, mut b) = (key(&points[n - 2]), key(&points[n - 1]));
+    for p in points {
+        let c = key(p);
+        if b == c || a == c {
+            return false;
+        }
+        (a, b) = (b, c);
+    }
+    true
 }
 
 /// The points of a ring as the file holds them (millimetres of `origin + p`), without
