@@ -198,26 +198,41 @@ impl<W: Write> Open<W> {
         let storeys = single(&mut self.w, "NumberOfStoreys", "IFCINTEGER", &|t| {
             t.int(i64::from(b.storeys_above_ground));
         })?;
-        for (name, props, path) in [
-            ("Citygen_Source", &props[..], "pset/source"),
-            ("Pset_BuildingCommon", &[storeys][..], "pset/common"),
-        ] {
-            let pset = self.w.entity("IFCPROPERTYSET", |a| {
-                a.string(&global_id(key, path))
-                    .null()
-                    .string(name)
-                    .null()
-                    .ids(props);
-            })?;
-            self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-                a.string(&global_id(key, &format!("{path}/rel")))
-                    .null()
-                    .null()
-                    .null()
-                    .ids(&[building])
-                    .id(pset);
-            })?;
-        }
+        self.pset(key, "pset/source", "Citygen_Source", &props, &[building])?;
+        self.pset(
+            key,
+            "pset/common",
+            "Pset_BuildingCommon",
+            &[storeys],
+            &[building],
+        )
+    }
+
+    /// An `IfcPropertySet` `name` of `props` (GlobalId path `path`) and the
+    /// `IfcRelDefinesByProperties` (`{path}/rel`) that puts it on `objects`.
+    fn pset(
+        &mut self,
+        key: &str,
+        path: &str,
+        name: &str,
+        props: &[Id],
+        objects: &[Id],
+    ) -> Result<(), ExportError> {
+        let pset = self.w.entity("IFCPROPERTYSET", |a| {
+            a.string(&global_id(key, path))
+                .null()
+                .string(name)
+                .null()
+                .ids(props);
+        })?;
+        self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
+            a.string(&global_id(key, &format!("{path}/rel")))
+                .null()
+                .null()
+                .null()
+                .ids(objects)
+                .id(pset);
+        })?;
         Ok(())
     }
 
@@ -243,22 +258,7 @@ impl<W: Write> Open<W> {
                 .null();
         })?;
         let path = format!("{}/pset/source", part.key);
-        let pset = self.w.entity("IFCPROPERTYSET", |a| {
-            a.string(&global_id(key, &path))
-                .null()
-                .string("Citygen_Part")
-                .null()
-                .ids(&[prop]);
-        })?;
-        self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-            a.string(&global_id(key, &format!("{path}/rel")))
-                .null()
-                .null()
-                .null()
-                .ids(&[partial])
-                .id(pset);
-        })?;
-        Ok(())
+        self.pset(key, &path, "Citygen_Part", &[prop], &[partial])
     }
 
     /// A `Pset_WallCommon` with IsExternal `external` (GlobalId path `path`, its relation
@@ -276,22 +276,7 @@ impl<W: Write> Open<W> {
             });
             a.null();
         })?;
-        let pset = self.w.entity("IFCPROPERTYSET", |a| {
-            a.string(&global_id(key, path))
-                .null()
-                .string("Pset_WallCommon")
-                .null()
-                .ids(&[prop]);
-        })?;
-        self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-            a.string(&global_id(key, &format!("{path}/rel")))
-                .null()
-                .null()
-                .null()
-                .ids(walls)
-                .id(pset);
-        })?;
-        Ok(())
+        self.pset(key, path, "Pset_WallCommon", &[prop], walls)
     }
 }
 
