@@ -1,0 +1,69 @@
+"""Renders a citygen GLB to a PNG without a browser: flat-shaded triangles, z-buffer, numpy only.
+
+python scripts/render_png.py IN.glb OUT.png bird
+python scripts/render_png.py IN.glb OUT.png street DX DY FX FY   (eye 1.7 m up at the model centre
+    + (DX, DY) metres east/north, looking along (FX, FY)); numpy is in the validators' venv:
+    $CITYGEN_VALIDATE_HOME/venv/bin/python (default ~/.cache/citygen-validate).
+For where headless Chromium (scripts/screenshot) is missing."""
+import json, struct, sys, zlib, numpy as np
+glb, out, mode = sys.argv[1], sys.argv[2], sys.argv[3]
+d = open(glb, 'rb').read()
+n = struct.unpack('<I', d[12:16])[0]
+j = json.loads(d[20:20+n]); bin_ = d[20+n+8:]
+def acc(i):
+    a = j['accessors'][i]; v = j['bufferViews'][a['bufferView']]
+    off = v.get('byteOffset', 0) + a.get('byteOffset', 0)
+    comp = {5126: np.float32, 5125: np.uint32, 5123: np.uint16}[a['componentType']]
+    k = {'SCALAR': 1, 'VEC3': 3}[a['type']]
+    stride = v.get('byteStride')
+    if stride and k == 3:
+        raw = np.frombuffer(bin_, np.uint8, a['count'] * stride, off).reshape(-1, stride)
+        return raw[:, :12].copy().view(np.float32).reshape(-1, 3)
+    return np.frombuffer(bin_, comp, a['count'] * k, off).reshape(-1, k) if k > 1 else np.frombuffer(bin_, comp, a['count'], off)
+tris = []; cols = []
+def walk(i, t):
+    nd = j['nodes'][i]; t = t + np.array(nd.get('translation', [0, 0, 0]))
+    if 'mesh' in nd:
+        for p in j['meshes'][nd['mesh']]['primitives']:
+            pos = acc(p['attributes']['POSITION']) + t; idx = acc(p['indices']).reshape(-1, 3)
+            m = j['materials'][p['material']]['pbrMetallicRoughness'].get('baseColorFactor', [1, 1, 1, 1])
+            tris.append(pos[idx]); cols.append(np.tile(m[:3], (len(idx), 1)))
+    for c in nd.get('children', []): walk(c, t)
+for r in j['scenes'][0]['nodes']: walk(r, np.zeros(3))
+T = np.concatenate(tris).astype(np.float64); C = np.concatenate(cols)
+# glTF y up, z south: world x east, y north, z up
+W = np.stack([T[..., 0], -T[..., 2], T[..., 1]], -1)
+c = W.reshape(-1, 3).mean(0); ext = np.ptp(W.reshape(-1, 3)[:, :2], 0).max()
+Wd, H = 1400, 900
+if mode == 'bird':
+    eye = c + np.array([-0.5, -0.9, 0.8]) * ext * 0.9; f = 1.6
+else:  # street: 1.7 m above ground, at the south edge, looking north
+    eye = np.array([c[0] + float(sys.argv[4]), c[1] + float(sys.argv[5]), 1.7]); f = 1.0
+    tgt = eye + np.array([float(sys.argv[6]), float(sys.argv[7]), 0.15])
+fwd = (c - eye) if mode == 'bird' else (tgt - eye); fwd /= np.linalg.norm(fwd)
+right = np.cross(fwd, [0, 0, 1]); right /= np.linalg.norm(right); up = np.cross(right, fwd)
+V = W - eye; x = V @ right; y = V @ up; z = V @ fwd
+nrm = np.cross(W[:, 1] - W[:, 0], W[:, 2] - W[:, 0]); nl = np.linalg.norm(nrm, axis=1) + 1e-12; nrm /= nl[:, None]
+light = np.array([0.4, -0.5, 0.75]); light /= np.linalg.norm(light)
+shade = 0.35 + 0.65 * np.abs(nrm @ light)
+img = np.full((H, Wd, 3), [0.78, 0.86, 0.95]); zb = np.full((H, Wd), np.inf)
+s = f * Wd / 2
+for k in np.argsort(-z.min(1)):
+    if z[k].min() < 0.5: continue
+    px = Wd / 2 + s * x[k] / z[k]; py = H / 2 - s * y[k] / z[k]
+    x0, x1 = max(int(px.min()), 0), min(int(px.max()) + 1, Wd); y0, y1 = max(int(py.min()), 0), min(int(py.max()) + 1, H)
+    if x0 >= x1 or y0 >= y1: continue
+    gx, gy = np.meshgrid(np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5)
+    (ax, bx, cx), (ay, by, cy) = px, py
+    den = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+    if abs(den) < 1e-9: continue
+    l1 = ((by - cy) * (gx - cx) + (cx - bx) * (gy - cy)) / den; l2 = ((cy - ay) * (gx - cx) + (ax - cx) * (gy - cy)) / den; l3 = 1 - l1 - l2
+    inside = (l1 >= 0) & (l2 >= 0) & (l3 >= 0)
+    zz = l1 * z[k][0] + l2 * z[k][1] + l3 * z[k][2]
+    sub = zb[y0:y1, x0:x1]; m = inside & (zz < sub)
+    sub[m] = zz[m]; img[y0:y1, x0:x1][m] = C[k] * shade[k]
+px8 = (np.clip(img, 0, 1) * 255).astype(np.uint8)
+raw = b''.join(b'\x00' + px8[r].tobytes() for r in range(H))
+chunk = lambda t, b: struct.pack('>I', len(b)) + t + b + struct.pack('>I', zlib.crc32(t + b) & 0xffffffff)
+open(out, 'wb').write(b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', Wd, H, 8, 2, 0, 0, 0)) + chunk(b'IDAT', zlib.compress(raw, 6)) + chunk(b'IEND', b''))
+print(len(T), 'triangles')
