@@ -15,6 +15,23 @@ use glam::{DVec2, DVec3};
 use crate::color::Color;
 use crate::geometry::Polygon;
 
+/// Grid steps per metre of the output grid: the millimetre, the precision CityGML files are
+/// written to (three decimals). The local origin is a whole number of metres, so a local
+/// coordinate on this grid is on the output CRS's millimetre grid too.
+pub const GRID_STEPS_PER_M: f64 = 1000.0;
+
+/// Distinct vertices of a part (and of a footprint) are at least this far apart (metres) before
+/// they are put on the grid: three grid steps, so that on the grid two distinct vertices are at
+/// least √2 mm apart and a validator's 1 mm snapping merges none of them
+/// (`derive::massing::grid`).
+pub const MIN_VERTEX_GAP: f64 = 0.003;
+
+/// A coordinate on the output grid: the nearest whole millimetre (`k / 1000` for the nearest
+/// integer `k`, so that writing it to three decimals gives back `k` exactly).
+pub fn on_grid(v: f64) -> f64 {
+    (v * GRID_STEPS_PER_M).round() / GRID_STEPS_PER_M
+}
+
 /// Where a footprint came from. Displayed as `way/123`, `relation/45` or `shp/7`
 /// (shapefile record index, 0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

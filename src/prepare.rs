@@ -16,6 +16,14 @@ use crate::report::{Outcome, Report};
 
 /// Vertices closer than this (metres) are merged.
 const MERGE_TOLERANCE: f64 = 1e-3;
+/// A vertex where a footprint bends by less than [`STRAIGHTEN_MAX_TURN_DEG`] and that lies
+/// within this distance (metres) of the line through its neighbours is dropped
+/// (`straighten_lot`): a straight wall drawn with a node a few centimetres off (most often a
+/// neighbour's corner), which would give the roof a crease along the whole building and cost
+/// a gable its end.
+pub const STRAIGHTEN_TOLERANCE: f64 = 0.05;
+/// See [`STRAIGHTEN_TOLERANCE`] (degrees).
+pub const STRAIGHTEN_MAX_TURN_DEG: f64 = 1.0;
 /// Footprint polygons smaller than this (square metres) are dropped.
 const MIN_AREA: f64 = 0.5;
 /// Rings with more vertices than this are not checked for self-intersection pair by pair.
@@ -306,12 +314,66 @@ pub fn prepare(
             )),
         }
     }
-    let lots = group_parts(outlines, pieces, report);
+    let mut lots = group_parts(outlines, pieces, report);
+    lots.par_iter_mut().for_each(straighten_lot);
     Site {
         crs,
         origin,
         origin_lonlat,
         lots,
+    }
+}
+
+/// Straightens the rings of a lot ([`ring::straighten`] within [`STRAIGHTEN_TOLERANCE`]): the
+/// outline, its drawn rest and its parts. A vertex within 1 cm of another of the lot's rings
+/// stays (a part's corner on the outline, an outline's corner on a part), so that what shares a
+/// boundary still does; the outline and its drawn rest, which share theirs by construction, are
+/// not each other's keepers. A polygon that straightening would make touch itself stays as it
+/// was.
+fn straighten_lot(lot: &mut Lot) {
+    const NEAR: f64 = 0.01;
+    let rings_of = |ps: &[Polygon]| -> Vec<Vec<DVec2>> {
+        ps.iter().flat_map(|p| p.rings().cloned()).collect()
+    };
+    let outline = rings_of(&lot.polygons);
+    let drawn = rings_of(&lot.drawn_outline);
+    let parts: Vec<Vec<Vec<DVec2>>> = lot.parts.iter().map(|p| rings_of(&p.polygons)).collect();
+    let near = |q: DVec2, rings: &[&Vec<DVec2>]| {
+        rings.iter().any(|r| {
+            (0..r.len())
+                .any(|i| nearest_on_segment(r[i], r[(i + 1) % r.len()], q).distance(q) <= NEAR)
+        })
+    };
+    let fix = |ps: &mut Vec<Polygon>, keepers: &[&Vec<DVec2>]| {
+        for p in ps.iter_mut() {
+            let straight = |r: &Vec<DVec2>| {
+                ring::straighten(r, STRAIGHTEN_TOLERANCE, STRAIGHTEN_MAX_TURN_DEG, |q| {
+                    !keepers.is_empty() && near(q, keepers)
+                })
+            };
+            let candidate =
+                Polygon::new(straight(&p.outer), p.holes.iter().map(straight).collect());
+            if candidate != *p && candidate.outer.len() >= 3 && is_valid(&candidate) {
+                *p = candidate;
+            }
+        }
+    };
+    let all_parts: Vec<&Vec<DVec2>> = parts.iter().flatten().collect();
+    fix(&mut lot.polygons, &all_parts);
+    fix(&mut lot.drawn_outline, &all_parts);
+    for (k, part) in lot.parts.iter_mut().enumerate() {
+        let keepers: Vec<&Vec<DVec2>> = outline
+            .iter()
+            .chain(&drawn)
+            .chain(
+                parts
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != k)
+                    .flat_map(|(_, r)| r),
+            )
+            .collect();
+        fix(&mut part.polygons, &keepers);
     }
 }
 
@@ -857,7 +919,7 @@ pub fn single_lot(
     let id = SourceId::Lot(0);
     let polygons = clean_polygons(id, vec![polygon], report)?;
     report.read += 1;
-    let lot = Lot {
+    let mut lot = Lot {
         id,
         tags: SharedTags::default(),
         drawn_outline: polygons.clone(),
@@ -866,6 +928,7 @@ pub fn single_lot(
         lonlat,
         front: None,
     };
+    straighten_lot(&mut lot);
     Some(Site {
         crs,
         origin,

@@ -552,8 +552,12 @@ pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
         let roof = text("roof")
             .and_then(|r| RoofShape::parse(&r))
             .unwrap_or(style.roof);
+        // On the output grid from the start, so that the roof is built on the footprint the
+        // walls stand on (a footprint a millimetre from touching itself stays as it is).
+        let footprint =
+            massing::grid::polygon_on_grid(footprint).unwrap_or_else(|| footprint.clone());
         out.push(Mass {
-            footprint: footprint.clone(),
+            footprint,
             base_z: *z0,
             eave_z: z0 + height,
             storeys: if storeys > 0 { storeys } else { style.storeys },

@@ -6,6 +6,7 @@
 //! |---|---|---|
 //! | readers (`input::rings`) | [`dedup_by`] with exact equality | none |
 //! | prepare (`prepare`) | [`dedup_within`], then [`remove_spikes_by`] | `MERGE_TOLERANCE` |
+//! | prepare, per lot (`prepare::straighten_lot`) | [`straighten`] | `STRAIGHTEN_TOLERANCE`, 1° |
 //! | massing (welded parts) | [`dedup_by`] and [`remove_spikes_by`], exact, on 3D rings | none |
 //! | straight skeleton | [`simplified_indices`]; [`dedup_within`] on its faces | relative to the footprint size |
 //! | LOD4 floor plans | [`pop_closing_by`], then [`remove_straight`] | 1e-9 / 1e-7 m |
@@ -137,12 +138,74 @@ pub fn remove_straight(ring: &mut Vec<DVec2>, near: f64, sine: f64) {
     }
 }
 
+/// Drops the vertices where the ring bends by less than `max_turn_deg` degrees (going on, not
+/// turning back) and whose removal keeps every dropped vertex within `tol` of the chord that
+/// replaces it — a straight wall drawn with an extra node a little off the line — except those
+/// `keep` holds (a corner another ring shares). The least bent vertex goes first, one at a
+/// time; a ring is never left with fewer than 3 vertices. Returns the ring's kept points.
+pub fn straighten(
+    ring: &[DVec2],
+    tol: f64,
+    max_turn_deg: f64,
+    keep: impl Fn(DVec2) -> bool,
+) -> Vec<DVec2> {
+    let n = ring.len();
+    let mut kept: Vec<usize> = (0..n).collect();
+    let max_sine = max_turn_deg.to_radians().sin();
+    let held: Vec<bool> = ring.iter().map(|p| keep(*p)).collect();
+    // Distance of every original vertex between kept positions i and k (exclusive) to the chord.
+    let fits = |i: usize, k: usize| -> bool {
+        let (a, c) = (ring[i], ring[k]);
+        let ac = c - a;
+        let len = ac.length();
+        if len <= 0.0 {
+            return false;
+        }
+        let mut j = (i + 1) % n;
+        while j != k {
+            if (ring[j] - a).perp_dot(ac).abs() / len > tol {
+                return false;
+            }
+            j = (j + 1) % n;
+        }
+        true
+    };
+    while kept.len() > 3 {
+        let m = kept.len();
+        let mut best: Option<(f64, usize)> = None;
+        for k in 0..m {
+            let (i, j, l) = (kept[(k + m - 1) % m], kept[k], kept[(k + 1) % m]);
+            if held[j] {
+                continue;
+            }
+            let (e1, e2) = (ring[j] - ring[i], ring[l] - ring[j]);
+            let len = e1.length() * e2.length();
+            if len.is_nan() || len <= 0.0 || e1.dot(e2) <= 0.0 {
+                continue;
+            }
+            let sine = e1.perp_dot(e2).abs() / len;
+            if sine < max_sine && best.is_none_or(|(b, _)| sine < b) && fits(i, l) {
+                best = Some((sine, k));
+            }
+        }
+        let Some((_, k)) = best else { break };
+        kept.remove(k);
+    }
+    kept.into_iter().map(|i| ring[i]).collect()
+}
+
 /// The indices of the vertices of `ring` that remain when duplicates and collinear vertices are
 /// removed without moving any (the straight skeleton's input): a vertex closer than `dup` to
 /// the previous kept one goes; a vertex going straight on whose distance to the chord of its
-/// neighbours is under `col` goes. A vertex that turns back on itself by less than `col` (a
-/// spike) is an error: `Err(index)`. One removal at a time, the first in ring order.
-pub fn simplified_indices(ring: &[DVec2], dup: f64, col: f64) -> Result<Vec<usize>, usize> {
+/// neighbours is under `col` goes. A vertex where the ring turns back on itself, the far end
+/// of the shorter edge less than `spike` off the longer one's line, is an error (a spike):
+/// `Err(index)`. One removal at a time, the first in ring order.
+pub fn simplified_indices(
+    ring: &[DVec2],
+    dup: f64,
+    col: f64,
+    spike: f64,
+) -> Result<Vec<usize>, usize> {
     let n = ring.len();
     let mut keep: Vec<usize> = (0..n).collect();
     let mut changed = true;
@@ -165,7 +228,7 @@ pub fn simplified_indices(ring: &[DVec2], dup: f64, col: f64) -> Result<Vec<usiz
                 if ab.dot(bc) > 0.0 {
                     let ac = c - a;
                     cross.abs() / ac.length() < col
-                } else if cross.abs() / ab.length().max(bc.length()) < col {
+                } else if cross.abs() / ab.length().max(bc.length()) < spike {
                     return Err(keep[k]);
                 } else {
                     false

@@ -950,8 +950,10 @@ pub(super) fn monaco_footprint() -> Polygon {
 
 #[test]
 fn monaco_footprint_matches_the_data() {
-    // The inlined footprint is the one the pipeline reads (up to the shift to the origin and
-    // the 3-decimal rounding).
+    // The inlined footprint is the one the map has (up to the shift to the origin and the
+    // 3-decimal rounding); the pipeline reads it without the two nodes on its straight
+    // south-west side, within 5 cm of it, which the footprint cleaning drops (the grammar tests
+    // keep them: eight edges, two of them short).
     let mut report = crate::report::Report::default();
     let read = crate::input::osm::read_osm(
         std::path::Path::new("data/monaco/monaco.osm.pbf"),
@@ -967,7 +969,9 @@ fn monaco_footprint_matches_the_data() {
     assert_eq!(lot.polygons.len(), 1);
     let real = &lot.polygons[0];
     let (lo, _) = real.bounds();
-    let ours = monaco_footprint();
+    let mut ours = monaco_footprint();
+    ours.outer
+        .retain(|p| *p != DVec2::new(1.249, 3.797) && *p != DVec2::new(7.934, 1.592));
     assert_eq!(real.outer.len(), ours.outer.len());
     for (a, b) in real.outer.iter().zip(&ours.outer) {
         assert!((*a - lo - *b).length() < 1e-3, "{a} vs {b}");

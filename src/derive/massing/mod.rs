@@ -10,7 +10,9 @@ use glam::{DVec2, DVec3};
 use crate::color::Color;
 use crate::derive::roof::{self, RoofGeometry};
 use crate::geometry::{ring, Polygon};
-use crate::model::{Face, Lod, Part, RoofShape, Wall};
+use crate::model::{on_grid, Face, Lod, Part, RoofShape, Wall};
+
+pub mod grid;
 
 /// Default exterior wall thickness in metres.
 pub const WALL_THICKNESS: f64 = 0.3;
@@ -71,8 +73,9 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         asked: mass.roof,
         reason,
     };
+    let footprint = &mass.footprint;
     if mass.roof == RoofShape::Flat {
-        return Ok(roof::flat(&mass.footprint));
+        return Ok(roof::flat(footprint));
     }
     let pitch = if mass.roof_angle_deg.is_finite()
         && mass.roof_angle_deg > 0.0
@@ -87,10 +90,10 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         DVec2::new(r.sin(), r.cos())
     });
     let pitched = if mass.roof == RoofShape::Gabled && mass.roof_across {
-        let short = crate::derive::roof::shapes::short_axis(&mass.footprint);
-        crate::derive::roof::shapes::ridge_roof(&mass.footprint, short, 0.5, pitch)
+        let short = crate::derive::roof::shapes::short_axis(footprint);
+        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
     } else {
-        roof::build(&mass.footprint, mass.roof, pitch, down)
+        roof::build(footprint, mass.roof, pitch, down)
     }
     .map_err(|e| fallback(e.to_string()))?;
     let pitched = match mass.roof_height {
@@ -111,38 +114,54 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
 /// `roof` is the result of [`roof_geometry`] for this mass (computed by the caller, which may
 /// need the roof height first). At LOD1 the part is a block up to its overall top.
 pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Part {
+    let footprint = built_footprint(mass).into_owned();
+    let (base_z, eave_z) = (on_grid(mass.base_z), on_grid(mass.eave_z));
     let flat = roof.faces.is_empty() || roof.height <= MIN_ROOF_HEIGHT;
-    let top_z = if flat {
-        mass.eave_z
+    let top_z = if flat { eave_z } else { eave_z + roof.height };
+    let wall_top = if lod == Lod::Lod1 {
+        on_grid(top_z)
     } else {
-        mass.eave_z + roof.height
+        eave_z
     };
-    let wall_top = if lod == Lod::Lod1 { top_z } else { mass.eave_z };
     let (mut walls, mut roof_faces) = if lod == Lod::Lod1 || flat {
         (
-            walls(&mass.footprint, mass.base_z, wall_top),
-            vec![horizontal_face(&mass.footprint, wall_top, true)],
+            walls(&footprint, base_z, wall_top),
+            vec![horizontal_face(&footprint, wall_top, true)],
         )
     } else {
         (
-            walls_under_roof(&mass.footprint, mass.base_z, mass.eave_z, roof),
+            walls_under_roof(&footprint, base_z, eave_z, roof),
             roof.faces
                 .iter()
-                .map(|f| translate_face(f, mass.eave_z))
+                .map(|f| translate_face(f, eave_z))
                 .collect(),
         )
     };
-    let mut ground = horizontal_face(&mass.footprint, mass.base_z, false);
-    weld(&mass.footprint, &mut ground, &mut walls, &mut roof_faces);
+    let mut ground = horizontal_face(&footprint, base_z, false);
+    weld(&footprint, &mut ground, &mut walls, &mut roof_faces);
     roof_faces.retain(|f| f.outer.len() >= 3);
+    grid::finish(&mut ground, &mut walls, &mut roof_faces);
+    // The top as built (the highest roof vertex, on the grid).
+    let top_z = if lod == Lod::Lod1 || flat {
+        wall_top
+    } else {
+        roof_faces
+            .iter()
+            .flat_map(|f| f.outer.iter())
+            .map(|p| p.z)
+            .fold(eave_z, f64::max)
+    };
     Part {
         key,
-        footprint: mass.footprint.clone(),
-        base_z: mass.base_z,
-        eave_z: if lod == Lod::Lod1 { top_z } else { mass.eave_z },
+        footprint,
+        base_z,
+        eave_z: if lod == Lod::Lod1 { top_z } else { eave_z },
         top_z,
         storeys: mass.storeys.max(1),
-        levels: even_levels(mass.base_z, mass.eave_z, mass.storeys.max(1)),
+        levels: even_levels(base_z, eave_z, mass.storeys.max(1))
+            .into_iter()
+            .map(on_grid)
+            .collect(),
         wall_color: mass.wall_color,
         roof_color: mass.roof_color,
         roof_shape: if flat { RoofShape::Flat } else { mass.roof },
@@ -151,6 +170,15 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         ground,
         interior: Vec::new(),
         source: None,
+    }
+}
+
+/// The footprint a mass is built on: its own on the output grid ([`grid::polygon_on_grid`]),
+/// or as it is when rounding would make it touch itself.
+pub fn built_footprint(mass: &Mass) -> std::borrow::Cow<'_, Polygon> {
+    match grid::polygon_on_grid(&mass.footprint) {
+        Some(p) if p != mass.footprint => std::borrow::Cow::Owned(p),
+        _ => std::borrow::Cow::Borrowed(&mass.footprint),
     }
 }
 
@@ -188,7 +216,7 @@ pub fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
 }
 
 /// One wall per ring edge whose top follows the roof: the outline is start-base, end-base, then
-/// the roof line over the edge from the end back to the start ([`crate::derive::roof::shapes::wall_top`]): a rectangle
+/// the roof line over the edge from the end back to the start ([`crate::derive::roof::shapes::RoofLine::over`]): a rectangle
 /// under eaves, a pentagon (or more, under a profile roof) under a gable, a trapezoid under a
 /// skillion. `roof` is at z = 0 at the eave; the eave is at `eave`.
 pub fn walls_under_roof(
@@ -198,13 +226,14 @@ pub fn walls_under_roof(
     roof: &RoofGeometry,
 ) -> Vec<Wall> {
     let mut out = Vec::with_capacity(footprint.outer.len());
-    for ring in footprint.rings() {
+    let line = crate::derive::roof::shapes::RoofLine::new(&roof.faces, footprint);
+    for (ri, ring) in footprint.rings().enumerate() {
         let n = ring.len();
         for i in 0..n {
             let (s, e) = (ring[i], ring[(i + 1) % n]);
             let mut outline = vec![at(s, base), at(e, base)];
             outline.extend(
-                crate::derive::roof::shapes::wall_top(&roof.faces, s, e)
+                line.over(ri, i)
                     .into_iter()
                     .map(|p| DVec3::new(p.x, p.y, p.z + eave)),
             );
@@ -460,11 +489,12 @@ pub fn closure_defects(part: &Part) -> Vec<String> {
 /// violation (empty when all hold):
 ///
 /// * every coordinate is finite;
-/// * every face (ground, wall outlines, roof faces) is planar within 1 mm and has an area above
-///   1e-6 m² (no zero-area face or sliver triangle face);
-/// * wall outlines are vertical, face out of the building (their normal points to the right of
-///   start → end) and start with their base edge;
-/// * roof faces face up, lie within 1 mm of the footprint in plan, and their plan areas add up
+/// * every face (ground, wall outlines, roof faces) is planar within [`PLANAR_TOL`] and has an
+///   area above 1e-6 m² (no zero-area face or sliver triangle face);
+/// * wall outlines stand on their footprint edge's vertical plane (within [`PLANAR_TOL`]), face
+///   out of the building (their normal points to the right of start → end) and start with their
+///   base edge;
+/// * roof faces face up, lie within [`PLANAR_TOL`] of the footprint in plan, and their plan areas add up
 ///   to the footprint's area within 0.1 %;
 /// * the surfaces bound a closed solid ([`closure_defects`]).
 pub fn check_part(part: &Part) -> Vec<String> {
@@ -484,7 +514,7 @@ pub fn check_part(part: &Part) -> Vec<String> {
         let n = n / n.length();
         let c = f.outer.iter().copied().sum::<DVec3>() / f.outer.len() as f64;
         let dev = pts.map(|p| (*p - c).dot(n).abs()).fold(0.0, f64::max);
-        if dev > 1e-3 {
+        if dev > PLANAR_TOL {
             out.push(format!("{what}: not planar ({dev} m)"));
         }
     };
@@ -494,8 +524,17 @@ pub fn check_part(part: &Part) -> Vec<String> {
         planar(&w.outline, &what, &mut out);
         let n = w.outline.normal();
         let outward = -(w.end - w.start).perp().normalize_or_zero();
-        if n.z.abs() > 1e-6 || n.truncate().dot(outward) < 0.999 {
-            out.push(format!("{what}: normal {n} not outward {outward}"));
+        // On its footprint edge's vertical plane (within the grid's tolerance), facing out.
+        let off = w
+            .outline
+            .outer
+            .iter()
+            .map(|p| (p.truncate() - w.start).dot(outward).abs())
+            .fold(0.0, f64::max);
+        if off > PLANAR_TOL || n.truncate().dot(outward) < 0.999 {
+            out.push(format!(
+                "{what}: normal {n} not outward {outward}, or {off} m off its plane"
+            ));
         }
         let o = &w.outline.outer;
         if o.len() < 3
@@ -519,7 +558,7 @@ pub fn check_part(part: &Part) -> Vec<String> {
         area += plan(&f.outer) + f.holes.iter().map(plan).sum::<f64>();
         for p in f.outer.iter().chain(f.holes.iter().flatten()) {
             let g = p.truncate();
-            if !fp.contains(g) && dist_to_boundary(fp, g) > 1e-3 {
+            if !fp.contains(g) && dist_to_boundary(fp, g) > PLANAR_TOL {
                 out.push(format!("{what}: vertex {g} outside the footprint"));
             }
         }
@@ -671,6 +710,11 @@ pub fn written_defects(part: &Part, origin: DVec3) -> Vec<String> {
     }
     out
 }
+
+/// Most distance (metres) of a part's vertex from its face's plane ([`check_part`]): a vertex
+/// on the grid ([`grid`]) is half a millimetre step from where it was computed, and one merged
+/// into a neighbour less than [`grid::MIN_GAP`] away.
+pub const PLANAR_TOL: f64 = 0.01;
 
 /// Most distance (metres) of a written face's vertex from the face's plane
 /// ([`written_defects`]): val3dity's default planarity tolerance.

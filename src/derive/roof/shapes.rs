@@ -42,9 +42,12 @@
 //! equidistant from the two neighbouring edges' lines. The neighbours take over the two halves of
 //! the end triangle; `p` lies on both their planes, so they stay planar and the roof stays
 //! closed. The wall under the edge is then closed by the roof line `b → p → a` (see
-//! [`wall_top`]). On an L, T, U, H or a courtyard block each wing ends in its own gable and the
-//! wings' ridges meet in valleys and hips, as a carpenter frames them; an end that is not a hip
-//! end (a square's apex, an irregular junction) stays hipped, which is still a closed roof.
+//! [`RoofLine::over`]). On an L, T, U, H or a courtyard block each wing ends in its own gable
+//! and the wings' ridges meet in valleys and hips, as a carpenter frames them. An end whose
+//! side has a vertex a little off straight (more than the skeleton's collinear tolerance, less
+//! than [`GABLE_MAX_KINK_DEG`]) is made of two or three faces and is still one end; a square's
+//! four hips meet in one apex, and two opposite ones become gables. An end that is no hip end
+//! (an irregular junction) stays hipped, which is still a closed roof.
 //!
 //! A half-hip cuts the gable at the fraction [`HALF_HIP_FRACTION`] of its height: the wall stops
 //! at a horizontal line there, and a small hip rises from it to the ridge.
@@ -53,7 +56,7 @@ use glam::{DVec2, DVec3};
 
 use super::{RoofError, RoofGeometry};
 use crate::geometry::hull::convex_hull;
-use crate::geometry::skeleton::{straight_skeleton, straight_skeleton_merged, COLLINEAR_REL};
+use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton, straight_skeleton_merged};
 use crate::geometry::Polygon;
 use crate::model::Face;
 
@@ -169,6 +172,9 @@ impl Profile {
 /// `h(t)`.
 #[derive(Clone, Debug)]
 struct TFace {
+    /// The face's edge (ring, first input edge): faces of one ring are consecutive in ring
+    /// order.
+    edge: (usize, usize),
     pts: Vec<DVec3>,
 }
 
@@ -191,6 +197,7 @@ pub fn profile_roof(
         .iter()
         .map(|f| {
             Some(TFace {
+                edge: f.edge,
                 pts: f.polygon.clone(),
             })
         })
@@ -283,17 +290,56 @@ pub fn profile_roof(
         })
         .collect::<Vec<_>>();
     let mut faces = faces;
-    insert_footprint_vertices(&mut faces, poly, 2.0 * COLLINEAR_REL * size);
+    insert_footprint_vertices(&mut faces, poly, 2.0 * collinear_tolerance(size));
     let walls = gable_walls(poly, &faces);
     Ok(RoofGeometry::from_parts(faces, walls))
 }
 
-/// Puts every footprint vertex that lies inside a roof face's edge in plan (within `tol`: the
-/// collinear vertices the skeleton merged away) into that edge, at the edge's height there, so
-/// that the wall on each side of it meets the roof at its corner (a gable over a side with a
-/// collinear vertex rises to the roof line at that vertex, not to the eave).
+/// Puts every footprint vertex that an edge of the roof's boundary passes over into that edge,
+/// at the edge's height there, so that the wall on each side of it meets the roof at its
+/// corner (a gable over a side with a collinear vertex rises to the roof line at that vertex,
+/// not to the eave). A boundary edge runs along the footprint in the ring's direction from
+/// the place of its start to the place of its end (each within `tol` of the footprint: the
+/// collinear vertices the skeleton merged away lie up to its collinear tolerance off the
+/// chord); the vertices it passes over are the ring's vertices between those places. Edges
+/// inside the roof (two faces meeting) are left alone.
 fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
-    let corners: Vec<DVec2> = poly.rings().flatten().copied().collect();
+    type K = (u64, u64, u64);
+    let key = |p: DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+    let mut edges: Vec<(K, K)> = Vec::new();
+    for f in faces.iter() {
+        for r in std::iter::once(&f.outer).chain(f.holes.iter()) {
+            for i in 0..r.len() {
+                edges.push((key(r[i]), key(r[(i + 1) % r.len()])));
+            }
+        }
+    }
+    edges.sort_unstable();
+    let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
+    // The place of a point on the footprint: (ring, edge index + fraction along the edge).
+    let place = |q: DVec2| -> Option<(usize, f64)> {
+        let mut best: Option<(f64, usize, f64)> = None;
+        for (ri, r) in rings.iter().enumerate() {
+            let n = r.len();
+            for i in 0..n {
+                let (a, b) = (r[i], r[(i + 1) % n]);
+                if q == a {
+                    return Some((ri, i as f64));
+                }
+                let d = b - a;
+                let l2 = d.length_squared();
+                if l2 <= 0.0 {
+                    continue;
+                }
+                let s = ((q - a).dot(d) / l2).clamp(0.0, 1.0);
+                let dist = q.distance(a + d * s);
+                if dist <= tol && best.is_none_or(|(bd, ..)| dist < bd) {
+                    best = Some((dist, ri, i as f64 + s));
+                }
+            }
+        }
+        best.map(|(_, ri, p)| (ri, p))
+    };
     for f in faces.iter_mut() {
         for r in std::iter::once(&mut f.outer).chain(f.holes.iter_mut()) {
             let n = r.len();
@@ -303,20 +349,47 @@ fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
                 out.push(u);
                 let d = (v - u).truncate();
                 let l2 = d.length_squared();
-                if l2 <= tol * tol {
+                if l2 <= 1e-12 || edges.binary_search(&(key(v), key(u))).is_ok() {
                     continue;
                 }
-                let mut on: Vec<(f64, DVec3)> = corners
-                    .iter()
-                    .filter_map(|&c| {
-                        let s = (c - u.truncate()).dot(d) / l2;
-                        let off = (c - u.truncate()).perp_dot(d).abs() / l2.sqrt();
-                        let inside = s * l2.sqrt() > tol && (1.0 - s) * l2.sqrt() > tol;
-                        (inside && off <= tol).then(|| (s, c.extend(u.z + s * (v.z - u.z))))
-                    })
-                    .collect();
-                on.sort_by(|a, b| a.0.total_cmp(&b.0));
-                out.extend(on.into_iter().map(|x| x.1));
+                let (Some((ru, pu)), Some((rv, pv))) = (place(u.truncate()), place(v.truncate()))
+                else {
+                    continue;
+                };
+                if ru != rv {
+                    continue;
+                }
+                let ring = rings[ru];
+                let m = ring.len();
+                // Ring vertices k with pu < k < pv, going forward (around the end if need be);
+                // a boundary edge never passes over the whole ring, and runs along the
+                // footprint (its middle on it too: a ridge between two gable points that only
+                // looks open, for a vertex on it the other side has, does not).
+                let span = if pv > pu { pv - pu } else { pv + m as f64 - pu };
+                if span >= (m - 1) as f64 {
+                    continue;
+                }
+                let along = place(0.5 * (u + v).truncate()).is_some_and(|(rm, pm)| {
+                    let from_u = if pm >= pu {
+                        pm - pu
+                    } else {
+                        pm + m as f64 - pu
+                    };
+                    rm == ru && from_u <= span
+                });
+                if !along {
+                    continue;
+                }
+                let first = pu.floor() as usize + 1;
+                let mut k = first;
+                while (k as f64) < pu + span {
+                    let c = ring[k % m];
+                    let s = (c - u.truncate()).dot(d) / l2;
+                    if s > 0.0 && s < 1.0 {
+                        out.push(c.extend(u.z + s * (v.z - u.z)));
+                    }
+                    k += 1;
+                }
             }
             *r = out;
         }
@@ -325,13 +398,14 @@ fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
 
 /// Vertical faces closing the roof above the eave on each footprint edge whose roof line rises
 /// above it (gables, half-hips): `a, b, then the roof line from b back to a` (see
-/// [`wall_top`]), counter-clockwise seen from outside.
+/// [`RoofLine::over`]), counter-clockwise seen from outside.
 fn gable_walls(poly: &Polygon, faces: &[Face]) -> Vec<Face> {
+    let line = RoofLine::new(faces, poly);
     let mut out = Vec::new();
-    for r in poly.rings() {
+    for (ri, r) in poly.rings().enumerate() {
         for i in 0..r.len() {
             let (a, b) = (r[i], r[(i + 1) % r.len()]);
-            let top = wall_top(faces, a, b);
+            let top = line.over(ri, i);
             if top.iter().any(|p| p.z > 0.0) {
                 let mut ring = vec![a.extend(0.0), b.extend(0.0)];
                 ring.extend(top.iter().filter(|p| p.z > 0.0));
@@ -342,180 +416,482 @@ fn gable_walls(poly: &Polygon, faces: &[Face]) -> Vec<Face> {
     out
 }
 
-/// The roof line over the footprint edge `a → b`, relative to the eave (z = 0): the roof
-/// vertices standing on the edge's vertical plane, ordered from `b` back to `a`, with `b` and
-/// `a` first and last (at the highest roof vertex there, 0 if none is higher). A wall on this
-/// edge closes the roof when its outline is `a(base), b(base), then these points`.
-pub fn wall_top(faces: &[Face], a: DVec2, b: DVec2) -> Vec<DVec3> {
-    let d = b - a;
-    let len2 = d.length_squared();
-    if len2 <= 0.0 || !len2.is_finite() {
-        return vec![b.extend(0.0), a.extend(0.0)];
-    }
-    let len = len2.sqrt();
-    let tol = 1e-6 * len.max(1.0);
-    let ztol = 1e-6;
-    let (mut za, mut zb) = (0.0f64, 0.0f64);
-    let mut mid: Vec<(f64, DVec3)> = Vec::new();
-    for p in faces
-        .iter()
-        .flat_map(|f| f.outer.iter().chain(f.holes.iter().flatten()))
-    {
-        let g = p.truncate();
-        if g.distance(a) <= tol {
-            za = za.max(p.z);
-            continue;
-        }
-        if g.distance(b) <= tol {
-            zb = zb.max(p.z);
-            continue;
-        }
-        let s = (g - a).dot(d) / len2;
-        if s <= 0.0 || s >= 1.0 || p.z <= ztol {
-            continue;
-        }
-        if (g - a).perp_dot(d).abs() / len > tol {
-            continue;
-        }
-        mid.push((s, *p));
-    }
-    mid.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.z.total_cmp(&y.1.z)));
-    mid.dedup_by(|x, y| x.1.distance(y.1) <= tol);
-    let mut out = vec![b.extend(zb)];
-    out.extend(mid.into_iter().map(|m| m.1));
-    out.push(a.extend(za));
-    out
+/// Where the walls meet a roof: the vertices of the roof's boundary (those of the roof faces'
+/// edges that no other face runs back along: the eaves, gable lines and the points on them),
+/// each with the footprint edge it stands on.
+pub struct RoofLine<'a> {
+    footprint: &'a Polygon,
+    /// Boundary vertices above the eave with the footprint edge (ring, edge) nearest to them
+    /// in plan, within [`RoofLine::TOL`].
+    above: Vec<(DVec3, (usize, usize))>,
+    /// Every boundary vertex (for the heights at the footprint's corners).
+    boundary: Vec<DVec3>,
 }
+
+impl<'a> RoofLine<'a> {
+    /// How far in plan (metres) a roof boundary vertex may lie from its footprint edge: twice
+    /// the skeleton's collinear tolerance ([`crate::geometry::skeleton::COLLINEAR_ABS`]), since
+    /// a roof built on a side with a vertex a few millimetres off straight puts the side's
+    /// gable point on the side's chord.
+    pub const TOL: f64 = 2.0 * crate::geometry::skeleton::COLLINEAR_ABS;
+
+    /// The boundary of `faces` (edges compared on exact coordinates) over `footprint`.
+    pub fn new(faces: &[Face], footprint: &'a Polygon) -> RoofLine<'a> {
+        type K = (u64, u64, u64);
+        let key = |p: DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+        let rings = || {
+            faces
+                .iter()
+                .flat_map(|f| std::iter::once(&f.outer).chain(f.holes.iter()))
+        };
+        let mut edges: Vec<(K, K)> = Vec::new();
+        for r in rings() {
+            for i in 0..r.len() {
+                edges.push((key(r[i]), key(r[(i + 1) % r.len()])));
+            }
+        }
+        edges.sort_unstable();
+        let mut boundary: Vec<DVec3> = Vec::new();
+        for r in rings() {
+            for i in 0..r.len() {
+                let (u, v) = (r[i], r[(i + 1) % r.len()]);
+                if edges.binary_search(&(key(v), key(u))).is_err() {
+                    boundary.push(u);
+                    boundary.push(v);
+                }
+            }
+        }
+        boundary.sort_by(|p, q| {
+            p.x.total_cmp(&q.x)
+                .then(p.y.total_cmp(&q.y))
+                .then(p.z.total_cmp(&q.z))
+        });
+        boundary.dedup();
+        let mut above = Vec::new();
+        for p in &boundary {
+            if p.z <= 1e-6 {
+                continue;
+            }
+            let g = p.truncate();
+            let mut best: Option<(f64, (usize, usize))> = None;
+            for (ri, r) in footprint.rings().enumerate() {
+                let n = r.len();
+                for i in 0..n {
+                    let (a, b) = (r[i], r[(i + 1) % n]);
+                    let d = b - a;
+                    let l2 = d.length_squared();
+                    if l2 <= 0.0 {
+                        continue;
+                    }
+                    let s = ((g - a).dot(d) / l2).clamp(0.0, 1.0);
+                    let dist = g.distance(a + d * s);
+                    if dist <= Self::TOL && best.is_none_or(|(bd, _)| dist < bd) {
+                        best = Some((dist, (ri, i)));
+                    }
+                }
+            }
+            if let Some((_, e)) = best {
+                above.push((*p, e));
+            }
+        }
+        RoofLine {
+            footprint,
+            above,
+            boundary,
+        }
+    }
+
+    /// The roof line over edge `i` of ring `ring` of the footprint (`a → b`), relative to the
+    /// eave (z = 0): the roof boundary's vertices standing on that edge (nearer to it than to
+    /// any other), ordered from `b` back to `a`, with `b` and `a` first and last (at the
+    /// highest roof vertex there, 0 if none is higher). A wall on this edge closes the roof when
+    /// its outline is `a(base), b(base), then these points`.
+    pub fn over(&self, ring: usize, i: usize) -> Vec<DVec3> {
+        let Some(r) = self.footprint.rings().nth(ring) else {
+            return Vec::new();
+        };
+        let (a, b) = (r[i], r[(i + 1) % r.len()]);
+        let d = b - a;
+        let len2 = d.length_squared();
+        if len2 <= 0.0 || !len2.is_finite() {
+            return vec![b.extend(0.0), a.extend(0.0)];
+        }
+        let tol = 1e-6 * len2.sqrt().max(1.0);
+        // The roof at the corners: its boundary vertices there (within the grid's gap, for a
+        // roof built on the footprint before it was put on the grid).
+        let corner = tol.max(crate::model::MIN_VERTEX_GAP);
+        let (mut za, mut zb) = (0.0f64, 0.0f64);
+        for p in &self.boundary {
+            let g = p.truncate();
+            if g.distance(a) <= corner {
+                za = za.max(p.z);
+            } else if g.distance(b) <= corner {
+                zb = zb.max(p.z);
+            }
+        }
+        let mut mid: Vec<(f64, DVec3)> = Vec::new();
+        for &(p, e) in &self.above {
+            let g = p.truncate();
+            if e != (ring, i) || g.distance(a) <= corner || g.distance(b) <= corner {
+                continue;
+            }
+            let s = (g - a).dot(d) / len2;
+            if s > 0.0 && s < 1.0 {
+                mid.push((s, p));
+            }
+        }
+        mid.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.z.total_cmp(&y.1.z)));
+        mid.dedup_by(|x, y| x.1.distance(y.1) <= tol);
+        let mut out = vec![b.extend(zb)];
+        out.extend(mid.into_iter().map(|m| m.1));
+        out.push(a.extend(za));
+        out
+    }
+}
+
+/// Most faces one end of a wing may be made of: a side whose vertex is a little off straight
+/// (beyond the skeleton's collinear tolerance, within [`GABLE_MAX_KINK_DEG`]) has a face on
+/// each part, and the two together are the end.
+pub const GABLE_MAX_CHAIN: usize = 3;
+
+/// Most turn (degrees) between the parts of one end of a wing (see [`GABLE_MAX_CHAIN`]).
+pub const GABLE_MAX_KINK_DEG: f64 = 1.0;
 
 /// Turns hip ends into gables or half-hips in place (see the module documentation).
 ///
-/// A hip end is a face whose vertices other than its base `a → b` (its *top*) lie within
+/// A hip end is a face — or a run of up to [`GABLE_MAX_CHAIN`] faces of consecutive sides that
+/// turn by less than [`GABLE_MAX_KINK_DEG`] from each other (one side with a vertex a little
+/// off straight) — whose vertices other than its base `a → … → b` (its *top*) lie within
 /// [`GABLE_APEX_CLUSTER`] of the base's length of each other — one apex, or the few nodes a
 /// nearly antiparallel pair of sides leaves where the exact skeleton has one (a rectangle
 /// skewed by hundredths of a degree) — and touch no face but the end's two neighbours, whose
 /// sides run roughly opposite. Each neighbour's run of top vertices is replaced by the gable
 /// point `p` (or the half-hip's points), which lies exactly on both neighbours' planes, so they
-/// stay planar and share their new ridge end.
+/// stay planar and share their new ridge end; a kink of the base between `a` and `p` is lifted
+/// onto the first neighbour's plane (the roof line over it), one between `p` and `b` onto the
+/// second's. A square's four hips meet in one apex: two opposite ones become the gables.
 fn make_gables(faces: &mut [Option<TFace>], ends: Ends, tol: f64) {
-    let min_cos = GABLE_MIN_OPPOSITE_DEG.to_radians().cos();
     let mut skipped_first = false;
-    for i in 0..faces.len() {
-        let Some(f) = &faces[i] else { continue };
-        if f.pts.len() < 3 {
-            continue;
-        }
-        let (a, b) = (f.pts[0], f.pts[1]);
-        let top: Vec<DVec3> = f.pts[2..].to_vec();
-        let width = (b - a).truncate().length();
-        let diam = top
-            .iter()
-            .flat_map(|p| top.iter().map(move |q| p.distance(*q)))
-            .fold(0.0, f64::max);
-        if diam > GABLE_APEX_CLUSTER * width {
-            continue;
-        }
-        let in_top = |q: DVec3| top.iter().any(|m| m.distance(q) <= tol);
-        let touching: Vec<usize> = (0..faces.len())
-            .filter(|&j| {
-                j != i
-                    && faces[j]
-                        .as_ref()
-                        .is_some_and(|g| g.pts.iter().any(|q| in_top(*q)))
-            })
+    // The next face of the same ring, in ring order.
+    let next_of = |faces: &[Option<TFace>], i: usize| -> Option<usize> {
+        let e = faces[i].as_ref()?.edge;
+        let same: Vec<usize> = (0..faces.len())
+            .filter(|&j| faces[j].as_ref().is_some_and(|f| f.edge.0 == e.0))
             .collect();
-        if touching.len() != 2 {
+        let k = same.iter().position(|&j| j == i)?;
+        Some(same[(k + 1) % same.len()])
+    };
+    for i in 0..faces.len() {
+        if faces[i].is_none() {
             continue;
         }
-        // The neighbour holding a → top (before a in its ring) and the one holding top → b.
-        let mut prev = None;
-        let mut next = None;
-        for &j in &touching {
-            let Some(g) = &faces[j] else { continue };
-            let n = g.pts.len();
-            for k in 0..n {
-                let (u, v) = (g.pts[k], g.pts[(k + 1) % n]);
-                if u.distance(a) <= tol && in_top(v) {
-                    prev = Some(j);
-                }
-                if in_top(u) && v.distance(b) <= tol {
-                    next = Some(j);
-                }
+        let mut chain = vec![i];
+        for _ in 0..GABLE_MAX_CHAIN {
+            if gable_chain(faces, &chain, ends, tol, &mut skipped_first).is_some() {
+                break;
+            }
+            let Some(n) = next_of(faces, *chain.last().unwrap_or(&i)) else {
+                break;
+            };
+            if chain.contains(&n) || !kinked(faces, *chain.last().unwrap_or(&i), n) {
+                break;
+            }
+            chain.push(n);
+        }
+    }
+    if !matches!(ends, Ends::Gabled) {
+        return;
+    }
+    for i in 0..faces.len() {
+        square_gables(faces, i, tol);
+    }
+}
+
+/// Whether face `j`'s side follows face `i`'s with a turn under [`GABLE_MAX_KINK_DEG`].
+fn kinked(faces: &[Option<TFace>], i: usize, j: usize) -> bool {
+    let (Some(f), Some(g)) = (&faces[i], &faces[j]) else {
+        return false;
+    };
+    if f.pts.len() < 2 || g.pts.len() < 2 || f.pts[1].distance(g.pts[0]) > 1e-9 {
+        return false;
+    }
+    let d1 = (f.pts[1] - f.pts[0]).truncate().normalize_or_zero();
+    let d2 = (g.pts[1] - g.pts[0]).truncate().normalize_or_zero();
+    d1.dot(d2) >= GABLE_MAX_KINK_DEG.to_radians().cos()
+}
+
+/// The two faces holding `a → top` (before `a` in its ring) and `top → b`, with every face
+/// touching the top outside `chain`; `None` unless they are exactly two and distinct.
+fn end_neighbours(
+    faces: &[Option<TFace>],
+    chain: &[usize],
+    a: DVec3,
+    b: DVec3,
+    in_top: &impl Fn(DVec3) -> bool,
+    tol: f64,
+) -> Option<(usize, usize)> {
+    let touching: Vec<usize> = (0..faces.len())
+        .filter(|j| !chain.contains(j))
+        .filter(|&j| {
+            faces[j]
+                .as_ref()
+                .is_some_and(|g| g.pts.iter().any(|q| in_top(*q)))
+        })
+        .collect();
+    if touching.len() != 2 {
+        return None;
+    }
+    let (mut prev, mut next) = (None, None);
+    for &j in &touching {
+        let g = faces[j].as_ref()?;
+        let n = g.pts.len();
+        for k in 0..n {
+            let (u, v) = (g.pts[k], g.pts[(k + 1) % n]);
+            if u.distance(a) <= tol && in_top(v) {
+                prev = Some(j);
+            }
+            if in_top(u) && v.distance(b) <= tol {
+                next = Some(j);
             }
         }
-        let (Some(jp), Some(jn)) = (prev, next) else {
-            continue;
-        };
-        if jp == jn {
-            continue;
+    }
+    let (jp, jn) = (prev?, next?);
+    (jp != jn).then_some((jp, jn))
+}
+
+/// The line of face `j`'s edge: origin and unit inward normal (the distance `t = n·(x - o)`),
+/// when it runs roughly opposite to the other one's ([`GABLE_MIN_OPPOSITE_DEG`]).
+fn opposite_lines(fp: &TFace, fnx: &TFace) -> Option<((DVec2, DVec2), (DVec2, DVec2))> {
+    let dp = (fp.pts[1] - fp.pts[0]).truncate().normalize_or_zero();
+    let dn = (fnx.pts[1] - fnx.pts[0]).truncate().normalize_or_zero();
+    let min_cos = GABLE_MIN_OPPOSITE_DEG.to_radians().cos();
+    if dp.dot(dn) > min_cos || dp == DVec2::ZERO || dn == DVec2::ZERO {
+        return None;
+    }
+    Some((
+        (fp.pts[0].truncate(), dp.perp()),
+        (fnx.pts[0].truncate(), dn.perp()),
+    ))
+}
+
+/// Makes the end made of the faces `chain` (consecutive sides) a gable or half-hip if it is a
+/// hip end (see [`make_gables`]): `Some(true)` when it did, `Some(false)` when the end is one
+/// but was left hipped on purpose (the first end of a side-hipped roof), `None` when the chain
+/// is no hip end.
+fn gable_chain(
+    faces: &mut [Option<TFace>],
+    chain: &[usize],
+    ends: Ends,
+    tol: f64,
+    skipped_first: &mut bool,
+) -> Option<bool> {
+    // The base polyline a = q0, …, qm = b, and the top: every other vertex of the chain.
+    let mut base: Vec<DVec3> = Vec::new();
+    for &k in chain {
+        let f = faces[k].as_ref()?;
+        if f.pts.len() < 3 {
+            return None;
         }
-        // The neighbours' edges must run roughly opposite (a wing's two sides).
-        let (Some(fp), Some(fnx)) = (&faces[jp], &faces[jn]) else {
-            continue;
-        };
-        let dp = (fp.pts[1] - fp.pts[0]).truncate().normalize_or_zero();
-        let dn = (fnx.pts[1] - fnx.pts[0]).truncate().normalize_or_zero();
-        if dp.dot(dn) > min_cos || dp == DVec2::ZERO || dn == DVec2::ZERO {
-            continue;
+        if base.is_empty() {
+            base.push(f.pts[0]);
         }
-        // Lines of the neighbouring edges: distance t = n·(x - o).
-        let np = dp.perp();
-        let nn = dn.perp();
-        let (op, on) = (fp.pts[0].truncate(), fnx.pts[0].truncate());
-        let (a2, b2) = (a.truncate(), b.truncate());
-        let dab = b2 - a2;
-        // f(s) = tp(a + s dab) - tn(a + s dab) = 0.
-        let f0 = np.dot(a2 - op) - nn.dot(a2 - on);
-        let fs = (np - nn).dot(dab);
-        if fs.abs() < 1e-12 {
-            continue;
-        }
-        let s = -f0 / fs;
-        if !(s.is_finite() && s > 1e-3 && s < 1.0 - 1e-3) {
-            continue;
-        }
-        let p2 = a2 + dab * s;
-        let tp = np.dot(p2 - op);
-        if !(tp.is_finite() && tp > tol) {
-            continue;
-        }
-        if ends == Ends::AllButOne && !skipped_first {
-            skipped_first = true;
-            continue;
-        }
-        let p = p2.extend(tp);
-        let (with_prev, with_next) = match ends {
-            Ends::HalfHipped(c) => {
-                let c = c.clamp(0.05, 0.95);
-                let xa = a + (p - a) * c;
-                let xb = b + (p - b) * c;
-                // The hip's top on the ridge (the line both neighbours' planes share), a
-                // horizontal (1 - c)·tp from p, so the small hip keeps about the roof's pitch,
-                // and no farther than the old apex.
-                let apex = top.iter().copied().sum::<DVec3>() / top.len() as f64;
-                let mut d = (np - nn).perp().normalize_or_zero();
-                if d.dot(apex.truncate() - p2) < 0.0 {
-                    d = -d;
-                }
-                let run = ((1.0 - c) * tp).min((apex.truncate() - p2).dot(d));
-                if !(run.is_finite() && run > tol) {
-                    continue;
-                }
-                let r = (p2 + d * run).extend(tp + np.dot(d) * run);
-                faces[i] = Some(TFace {
-                    pts: vec![xa, xb, r],
-                });
-                (vec![xa, r], vec![r, xb])
+        base.push(f.pts[1]);
+    }
+    let (a, b) = (base[0], base[base.len() - 1]);
+    let on_base = |q: DVec3| base.iter().any(|m| m.distance(q) <= tol);
+    let mut top: Vec<DVec3> = Vec::new();
+    for &k in chain {
+        for q in &faces[k].as_ref()?.pts {
+            if !on_base(*q) && !top.iter().any(|m| m.distance(*q) <= tol) {
+                top.push(*q);
             }
-            _ => {
-                faces[i] = None;
-                (vec![p], vec![p])
+        }
+    }
+    if top.is_empty() {
+        return None;
+    }
+    let width = (b - a).truncate().length();
+    let diam = top
+        .iter()
+        .flat_map(|p| top.iter().map(move |q| p.distance(*q)))
+        .fold(0.0, f64::max);
+    if diam > GABLE_APEX_CLUSTER * width {
+        return None;
+    }
+    let in_top = |q: DVec3| top.iter().any(|m| m.distance(q) <= tol);
+    let (jp, jn) = end_neighbours(faces, chain, a, b, &in_top, tol)?;
+    let ((op, np), (on, nn)) = opposite_lines(faces[jp].as_ref()?, faces[jn].as_ref()?)?;
+    let tp = |x: DVec2| np.dot(x - op);
+    let tn = |x: DVec2| nn.dot(x - on);
+    // The gable point: where the base is as far from both neighbours' lines.
+    let f = |x: DVec2| tp(x) - tn(x);
+    let mut at = None;
+    for k in 0..base.len() - 1 {
+        let (u, v) = (base[k].truncate(), base[k + 1].truncate());
+        let (fu, fv) = (f(u), f(v));
+        if fu <= 0.0 && fv > 0.0 {
+            let s = -fu / (fv - fu);
+            at = Some((k, u + (v - u) * s));
+            break;
+        }
+    }
+    let (k, p2) = at?;
+    let t_p = tp(p2);
+    if !(t_p.is_finite() && t_p > tol && p2.distance(a.truncate()) > 1e-3 * width)
+        || p2.distance(b.truncate()) <= 1e-3 * width
+    {
+        return None;
+    }
+    if ends == Ends::AllButOne && !*skipped_first {
+        *skipped_first = true;
+        return Some(false);
+    }
+    let p = p2.extend(t_p);
+    // The kinks of the base lifted onto the neighbour's plane on their side of p.
+    let before: Vec<DVec3> = base[1..=k]
+        .iter()
+        .map(|q| q.truncate().extend(tp(q.truncate())))
+        .collect();
+    let after: Vec<DVec3> = base[k + 1..base.len() - 1]
+        .iter()
+        .map(|q| q.truncate().extend(tn(q.truncate())))
+        .collect();
+    let (with_prev, with_next, hip) = match ends {
+        Ends::HalfHipped(c) => {
+            let c = c.clamp(0.05, 0.95);
+            // The half-hip's base cuts the gable at c of its height, above every kink (a kink
+            // higher up would put the hip's base off the wall).
+            let cut = c * t_p;
+            if before.iter().chain(&after).any(|q| q.z >= cut) {
+                return None;
             }
-        };
-        for (j, with) in [(jp, with_prev), (jn, with_next)] {
-            if let Some(g) = faces[j].as_mut() {
-                g.pts = replace_runs(&g.pts, &in_top, &with);
-                g.pts.dedup_by(|x, y| x.distance(*y) <= tol);
+            let last_a = before.last().copied().unwrap_or(a);
+            let first_b = after.first().copied().unwrap_or(b);
+            let xa = last_a + (p - last_a) * ((cut - last_a.z) / (t_p - last_a.z));
+            let xb = first_b + (p - first_b) * ((cut - first_b.z) / (t_p - first_b.z));
+            // The hip's top on the ridge (the line both neighbours' planes share), a
+            // horizontal (1 - c)·tp from p, so the small hip keeps about the roof's pitch,
+            // and no farther than the old apex.
+            let apex = top.iter().copied().sum::<DVec3>() / top.len() as f64;
+            let mut d = (np - nn).perp().normalize_or_zero();
+            if d.dot(apex.truncate() - p2) < 0.0 {
+                d = -d;
             }
+            let run = ((1.0 - c) * t_p).min((apex.truncate() - p2).dot(d));
+            if !(run.is_finite() && run > tol) {
+                return None;
+            }
+            let r = (p2 + d * run).extend(t_p + np.dot(d) * run);
+            let mut wp = before.clone();
+            wp.extend([xa, r]);
+            let mut wn = vec![r, xb];
+            wn.extend(after.iter().copied());
+            (wp, wn, Some(vec![xa, xb, r]))
+        }
+        _ => {
+            let mut wp = before.clone();
+            wp.push(p);
+            let mut wn = vec![p];
+            wn.extend(after.iter().copied());
+            (wp, wn, None)
+        }
+    };
+    let edge = faces[chain[0]].as_ref()?.edge;
+    for &c in chain {
+        faces[c] = None;
+    }
+    if let Some(pts) = hip {
+        faces[chain[0]] = Some(TFace { edge, pts });
+    }
+    for (j, with) in [(jp, with_prev), (jn, with_next)] {
+        if let Some(g) = faces[j].as_mut() {
+            g.pts = replace_runs(&g.pts, &in_top, &with);
+            g.pts.dedup_by(|x, y| x.distance(*y) <= tol);
+        }
+    }
+    Some(true)
+}
+
+/// A square's roof (four hips meeting in one apex) made gabled: face `i` and the face opposite
+/// it become the gables, the two others meet along a ridge between their gable points. Does
+/// nothing unless face `i`'s top is one point shared by exactly three other faces: the one
+/// before it, the one after it (whose sides run opposite) and one whose side runs opposite to
+/// `i`'s.
+fn square_gables(faces: &mut [Option<TFace>], i: usize, tol: f64) {
+    let Some(f) = &faces[i] else { return };
+    if f.pts.len() != 3 {
+        return;
+    }
+    let (a, b, apex) = (f.pts[0], f.pts[1], f.pts[2]);
+    let at_apex = |q: DVec3| q.distance(apex) <= tol;
+    let touching: Vec<usize> = (0..faces.len())
+        .filter(|&j| j != i)
+        .filter(|&j| {
+            faces[j]
+                .as_ref()
+                .is_some_and(|g| g.pts.iter().any(|q| at_apex(*q)))
+        })
+        .collect();
+    if touching.len() != 3 {
+        return;
+    }
+    let side = |j: usize| -> Option<(DVec3, DVec3)> {
+        let g = faces[j].as_ref()?;
+        (g.pts.len() == 3).then(|| (g.pts[0], g.pts[1]))
+    };
+    let mut prev = None;
+    let mut next = None;
+    let mut opposite = None;
+    for &j in &touching {
+        let Some((u, v)) = side(j) else { return };
+        if v.distance(a) <= tol {
+            prev = Some(j);
+        } else if u.distance(b) <= tol {
+            next = Some(j);
+        } else {
+            opposite = Some(j);
+        }
+    }
+    let (Some(jp), Some(jn), Some(jo)) = (prev, next, opposite) else {
+        return;
+    };
+    let (Some(fp), Some(fnx)) = (&faces[jp], &faces[jn]) else {
+        return;
+    };
+    let Some(((op, np), (on, nn))) = opposite_lines(fp, fnx) else {
+        return;
+    };
+    let Some((c, d)) = side(jo) else { return };
+    // The gable points: on each end's side, as far from both neighbours' lines.
+    let gable_point = |u: DVec3, v: DVec3| -> Option<DVec3> {
+        let (u, v) = (u.truncate(), v.truncate());
+        let f = |x: DVec2| np.dot(x - op) - nn.dot(x - on);
+        let (fu, fv) = (f(u), f(v));
+        if (fu - fv).abs() < 1e-12 {
+            return None;
+        }
+        let s = fu / (fu - fv);
+        if !(s > 1e-3 && s < 1.0 - 1e-3) {
+            return None;
+        }
+        let x = u + (v - u) * s;
+        let t = np.dot(x - op);
+        (t > tol).then(|| x.extend(t))
+    };
+    let (ab, cd) = ((b - a).truncate(), (d - c).truncate());
+    if ab.normalize_or_zero().dot(cd.normalize_or_zero()) > -std::f64::consts::FRAC_1_SQRT_2 {
+        return;
+    }
+    let (Some(p), Some(q)) = (gable_point(a, b), gable_point(c, d)) else {
+        return;
+    };
+    faces[i] = None;
+    faces[jo] = None;
+    // Before `i` the ridge runs from i's gable to the opposite one; after it, back.
+    for (j, with) in [(jp, [p, q]), (jn, [q, p])] {
+        if let Some(g) = faces[j].as_mut() {
+            g.pts = replace_runs(&g.pts, &at_apex, &with);
+            g.pts.dedup_by(|x, y| x.distance(*y) <= tol);
         }
     }
 }

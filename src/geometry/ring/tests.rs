@@ -124,7 +124,7 @@ proptest! {
     fn simplified_indices_are_increasing_and_drop_only_straight_vertices(r in noisy_ring()) {
         let mut d = r.clone();
         dedup_within(&mut d, 1e-4);
-        if let Ok(keep) = simplified_indices(&d, 1e-6, 1e-6) {
+        if let Ok(keep) = simplified_indices(&d, 1e-6, 1e-6, 1e-6) {
             prop_assert!(keep.windows(2).all(|w| w[0] < w[1]));
             prop_assert!(keep.iter().all(|&i| i < d.len()));
         }
@@ -141,7 +141,7 @@ fn a_spike_is_an_error_for_the_skeleton_and_removed_for_prepare() {
         DVec2::new(4.0, 4.0),
     ];
     // 4,0 -> 8,0 -> 4,0: the tip 8,0 turns back.
-    assert_eq!(simplified_indices(&r, 1e-6, 1e-6), Err(2));
+    assert_eq!(simplified_indices(&r, 1e-6, 1e-6, 1e-6), Err(2));
     let mut v = r.to_vec();
     assert_eq!(remove_spikes_by(&mut v, |a, b| a == b), 1);
     assert_eq!(

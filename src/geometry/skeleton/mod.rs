@@ -61,10 +61,30 @@ use sim::*;
 
 /// Consecutive vertices closer than `DUPLICATE_REL × size` are one vertex.
 pub const DUPLICATE_REL: f64 = 1e-7;
-/// Vertices closer than `COLLINEAR_REL × size` to the line through their neighbours are removed.
+/// Vertices closer than `COLLINEAR_REL × size` to the line through their neighbours are removed
+/// (or closer than [`COLLINEAR_ABS`], whichever is larger: see [`collinear_tolerance`]).
 pub const COLLINEAR_REL: f64 = 1e-6;
+/// Vertices closer than this (metres) to the chord of their neighbours, going straight on, are
+/// removed whatever the polygon's size: footprints on the millimetre grid carry straight walls
+/// with a node a millimetre off the line (the rounding of a point that was on it), and nearly
+/// straight vertices of real footprints (turning by hundredths of a degree, a few millimetres
+/// off the chord) make events that are simultaneous in all but rounding, on which the
+/// propagation used to stall.
+pub const COLLINEAR_ABS: f64 = 0.005;
+
+/// The distance under which a vertex going straight on is removed, for a polygon whose
+/// bounding box's larger side is `size`: [`COLLINEAR_ABS`], but no more than a thousandth of the
+/// size (a kiosk of 2 m keeps a 3 mm kink).
+pub fn collinear_tolerance(size: f64) -> f64 {
+    (COLLINEAR_REL * size).max(COLLINEAR_ABS.min(1e-3 * size))
+}
+
 /// Events closer than `EVENT_REL × size` (in time and in position) are simultaneous.
 pub const EVENT_REL: f64 = 1e-9;
+/// Wavefront vertices and edges within `RADIUS_REL × size` of an event point at its time take
+/// part in it: two reflex corners that meet head-on on the exact footprint pass a few hundredths
+/// of a millimetre apart once it is rounded to the grid, and must still be one event.
+pub const RADIUS_REL: f64 = 5e-6;
 /// Skeleton nodes closer than `NODE_MERGE_REL × size` (in place and time), and at most
 /// [`NODE_MERGE_MAX`], are one node (see `Sim::merge_nodes`).
 pub const NODE_MERGE_REL: f64 = 1e-4;
@@ -278,19 +298,124 @@ fn skeleton(poly: &Polygon, split: bool) -> Result<Skeleton, SkeletonError> {
     }
     check_simple(&edges, &ring_starts, size)?;
     check_holes(&edges, &ring_starts)?;
-    let mut sim = Sim::new(edges, &ring_starts, size);
+    // The faces tile the polygon the propagation runs on: the input without its collinear
+    // vertices (which may lie up to the collinear tolerance off their chord; the faces cut back
+    // to the input edges keep their bases on the chord).
+    let expect: f64 = ring_starts
+        .windows(2)
+        .map(|w| {
+            let pts: Vec<DVec2> = edges[w[0]..w[1]].iter().map(|e| e.a).collect();
+            ring_signed_area(&pts)
+        })
+        .sum();
+    // The propagation decides events that are simultaneous but for rounding (real footprints
+    // are full of them: walls a hair off parallel, cells of nearly equal width) one after the
+    // other, and on rare configurations it takes a wrong turn. A result that fails the checks
+    // below is computed again on the polygon turned by a tiny angle about its first corner
+    // (a different rounding of the same events), and turned back.
+    let mut last = SkeletonError::Inconsistent("no attempt");
+    for angle in RETRY_ANGLES {
+        match attempt(&edges, &ring_starts, size, split, expect, angle) {
+            Ok(faces) => return Ok(Skeleton { faces }),
+            Err(e) => last = e,
+        }
+    }
+    Err(last)
+}
+
+/// Turns by which a failed propagation is tried again (radians; see [`skeleton`]): at most
+/// 3e-5 × the polygon's size in plan (0.6 mm on a 20 m footprint), undone on the result.
+const RETRY_ANGLES: [f64; 4] = [0.0, 1e-5, -2e-5, 3e-5];
+
+/// One propagation on `edges` turned by `angle` about the first corner, its faces turned back
+/// (the footprint's corners exactly as given) and checked: the faces tile the polygon, every
+/// face vertex lies in the polygon at a height (time) equal to its distance from its edge's
+/// line.
+fn attempt(
+    edges: &[Edge],
+    ring_starts: &[usize],
+    size: f64,
+    split: bool,
+    expect: f64,
+    angle: f64,
+) -> Result<Vec<SkeletonFace>, SkeletonError> {
+    let o = edges[0].a;
+    let (sin, cos) = angle.sin_cos();
+    let turn = |p: DVec2, s: f64| {
+        let q = p - o;
+        o + DVec2::new(cos * q.x - s * q.y, s * q.x + cos * q.y)
+    };
+    let turned: Vec<Edge> = if angle == 0.0 {
+        edges.to_vec()
+    } else {
+        edges
+            .iter()
+            .map(|e| {
+                let a = turn(e.a, sin);
+                let d = DVec2::new(cos * e.d.x - sin * e.d.y, sin * e.d.x + cos * e.d.y);
+                Edge {
+                    a,
+                    d,
+                    n: d.perp(),
+                    ..e.clone()
+                }
+            })
+            .collect()
+    };
+    let corners: Vec<(DVec2, DVec2)> = turned.iter().zip(edges).map(|(t, e)| (t.a, e.a)).collect();
+    let mut sim = Sim::new(turned, ring_starts, size);
     sim.run()?;
     sim.merge_nodes();
-    let faces = sim.faces(split)?;
+    let mut faces = sim.faces(split)?;
+    if angle != 0.0 {
+        for f in &mut faces {
+            for p in &mut f.polygon {
+                let g = match corners.iter().find(|c| c.0 == p.truncate() && p.z == 0.0) {
+                    Some(c) => c.1,
+                    None => turn(p.truncate(), -sin),
+                };
+                *p = g.extend(p.z);
+            }
+        }
+    }
     // Area check: the faces must tile the polygon.
     let total: f64 = faces.iter().map(|f| area3(&f.polygon)).sum();
-    let expect = poly.area();
     if (total - expect).abs() > 1e-6 * expect.abs().max(size * size * 1e-9) {
         return Err(SkeletonError::Inconsistent(
             "face areas do not add up to the polygon area",
         ));
     }
-    Ok(Skeleton { faces })
+    // Heights: a vertex of edge e's face is as high as it is far from e's line (up to the node
+    // merge and the slide of a nearly antiparallel vertex), and within the polygon.
+    let tol = 1e-3 + 1e-4 * size;
+    let rings: Vec<Vec<DVec2>> = ring_starts
+        .windows(2)
+        .map(|w| edges[w[0]..w[1]].iter().map(|e| e.a).collect())
+        .collect();
+    let inside = |q: DVec2| {
+        let within = ring_contains(&rings[0], q) && !rings[1..].iter().any(|h| ring_contains(h, q));
+        within
+            || rings
+                .iter()
+                .any(|r| (0..r.len()).any(|i| point_seg_dist(q, r[i], r[(i + 1) % r.len()]) <= tol))
+    };
+    for f in &faces {
+        let e = edges
+            .iter()
+            .find(|e| e.ring == f.edge.0 && e.inputs.iter().any(|x| x.0 == f.edge.1));
+        let Some(e) = e else {
+            return Err(SkeletonError::Inconsistent("a face has no edge"));
+        };
+        for p in &f.polygon {
+            let d = (p.truncate() - e.a).dot(e.n);
+            if !((d - p.z).abs() <= tol && p.z >= -tol && inside(p.truncate())) {
+                return Err(SkeletonError::Inconsistent(
+                    "a face vertex is outside the polygon, or not as high as it is far from its edge",
+                ));
+            }
+        }
+    }
+    Ok(faces)
 }
 
 /// Ground-projected signed area of a 3D ring.
@@ -318,8 +443,8 @@ fn ring_edges(
         return Err(SkeletonError::TooFewVertices { ring: ri });
     }
     let dup = DUPLICATE_REL * size;
-    let col = COLLINEAR_REL * size;
-    let keep = super::ring::simplified_indices(ring, dup, col)
+    let col = collinear_tolerance(size);
+    let keep = super::ring::simplified_indices(ring, dup, col, COLLINEAR_REL * size)
         .map_err(|vertex| SkeletonError::Spike { ring: ri, vertex })?;
     if keep.len() < 3 {
         return Err(SkeletonError::TooFewVertices { ring: ri });
@@ -334,9 +459,11 @@ fn ring_edges(
         let (a, b) = (ring[i0], ring[i1]);
         let d = (b - a).normalize();
         let mut inputs = Vec::new();
+
         let mut i = i0;
         loop {
             inputs.push((i, (ring[i] - a).dot(d)));
+
             i = (i + 1) % n;
             if i == i1 {
                 break;

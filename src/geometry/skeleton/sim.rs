@@ -27,6 +27,10 @@ pub(super) struct Sim {
     pub(super) eps: f64,
     pub(super) t: f64,
     pub(super) size: f64,
+    /// Events found at the current time whose handling changed nothing (a vertex and the edge
+    /// it was to meet, `usize::MAX` for its own edge's collapse): skipped until time moves on,
+    /// so that an event the point handling cannot resolve never stalls the propagation.
+    pub(super) stale: Vec<(usize, usize)>,
 }
 
 impl Sim {
@@ -41,6 +45,7 @@ impl Sim {
             t: 0.0,
             size,
             edges,
+            stale: Vec::new(),
         };
         for r in 0..ring_starts.len() - 1 {
             let (s, e) = (ring_starts[r], ring_starts[r + 1]);
@@ -103,21 +108,60 @@ impl Sim {
             if alive.is_empty() {
                 return Ok(());
             }
-            let points = self.next_events(&alive)?;
-            for p in points {
-                self.handle_point(p)?;
+            let before = self.t;
+            let (points, found) = self.next_events(&alive)?;
+            if self.t > before + self.eps {
+                self.stale.clear();
             }
-            self.resolve_degenerate()?;
+            let mut changed = false;
+            for p in points {
+                changed |= self.handle_point(p)?;
+            }
+            changed |= self.resolve_degenerate()?;
+            if !changed {
+                // An edge due to collapse now whose ends are farther apart than the event
+                // radius (events a rounding error apart left them so): its end is brought onto
+                // its start, and the point is handled again.
+                for &(v, with) in &found {
+                    if with != usize::MAX || !self.verts[v].alive || self.verts[v].degenerate {
+                        continue;
+                    }
+                    let w = self.verts[v].next;
+                    if w == v || !self.verts[w].alive || self.verts[w].degenerate {
+                        continue;
+                    }
+                    let t = self.t;
+                    let (pv, pw) = (self.pos(v, t), self.pos(w, t));
+                    if pv.distance(pw) > 1e-6 * self.size {
+                        continue;
+                    }
+                    let ww = &mut self.verts[w];
+                    ww.p0 += pv - pw;
+                    if self.handle_point(pv)? {
+                        changed = true;
+                        break;
+                    }
+                }
+            }
+            if !changed {
+                self.stale.extend(found);
+            }
         }
         Err(SkeletonError::NoConvergence { events: budget })
     }
 
-    /// Finds the earliest event time, advances to it and returns the event points.
-    pub(super) fn next_events(&mut self, alive: &[usize]) -> Result<Vec<DVec2>, SkeletonError> {
+    /// Finds the earliest event time, advances to it and returns the event points, with the
+    /// events found there (see [`Sim::stale`]).
+    #[allow(clippy::type_complexity)]
+    pub(super) fn next_events(
+        &mut self,
+        alive: &[usize],
+    ) -> Result<(Vec<DVec2>, Vec<(usize, usize)>), SkeletonError> {
         let t = self.t;
         let eps = self.eps;
         let mut best = f64::INFINITY;
-        let mut cands: Vec<(f64, usize)> = Vec::new();
+        let mut cands: Vec<(f64, usize, usize)> = Vec::new();
+        let is_stale = |v: usize, with: usize| self.stale.contains(&(v, with));
         let pos_now: Vec<DVec2> = self
             .verts
             .iter()
@@ -134,17 +178,17 @@ impl Sim {
             let e = &self.edges[vv.r];
             let len = (pos_now[w] - pos_now[v]).dot(e.d);
             let rate = (self.verts[w].vel - vv.vel).dot(e.d);
-            if rate < -1e-12 {
+            if rate < -1e-12 && !is_stale(v, usize::MAX) {
                 let dt = (len / -rate).max(0.0);
                 if t + dt <= best + eps {
                     best = best.min(t + dt);
-                    cands.push((t + dt, v));
+                    cands.push((t + dt, v, usize::MAX));
                 }
             }
             // Split events of v against every non-incident edge.
             for &u in alive {
                 let uu = &self.verts[u];
-                if u == v || uu.next == v {
+                if u == v || uu.next == v || is_stale(v, u) {
                     continue;
                 }
                 let f = &self.edges[uu.r];
@@ -174,7 +218,7 @@ impl Sim {
                 let stale = h <= eps && (s <= rad || s >= l - rad);
                 if s >= -eps && s <= l + eps && onto_start && onto_end && !stale {
                     best = best.min(te);
-                    cands.push((te, v));
+                    cands.push((te, v, u));
                 }
             }
         }
@@ -186,11 +230,14 @@ impl Sim {
         self.t = best.max(t);
         // Cluster the event vertices; the slowest vertex of a cluster gives its point, as its
         // position is the most precise (see `Sim::tol`).
-        let mut cands: Vec<usize> = cands
+        let cands: Vec<(f64, usize, usize)> = cands
             .into_iter()
-            .filter(|&(te, _)| te <= best + eps)
-            .map(|(_, v)| v)
+            .filter(|&(te, ..)| te <= best + eps)
             .collect();
+        let found: Vec<(usize, usize)> = cands.iter().map(|&(_, v, w)| (v, w)).collect();
+        let mut cands: Vec<usize> = cands.into_iter().map(|(_, v, _)| v).collect();
+        cands.sort_unstable();
+        cands.dedup();
         cands.sort_by(|&a, &b| {
             let (sa, sb) = (self.verts[a].vel.length(), self.verts[b].vel.length());
             sa.total_cmp(&sb).then(a.cmp(&b))
@@ -202,7 +249,7 @@ impl Sim {
                 pts.push(p);
             }
         }
-        Ok(pts)
+        Ok((pts, found))
     }
 
     /// Cluster radius: a little larger than the event tolerance to absorb rounding.
@@ -233,10 +280,13 @@ impl Sim {
         let t = self.t;
         let rad = self.radius();
         let alive = self.alive();
+        // Vertices this close take part (see [`RADIUS_REL`]): two reflex corners meeting
+        // head-on pass a little apart once the footprint is rounded.
+        let reach = RADIUS_REL * self.size;
         let member: Vec<bool> = {
             let mut m = vec![false; self.verts.len()];
             for &v in &alive {
-                m[v] = self.pos(v, t).distance(x) <= self.tol(v);
+                m[v] = self.pos(v, t).distance(x) <= self.tol(v).max(reach);
             }
             m
         };
@@ -276,7 +326,7 @@ impl Sim {
             if member[u] || member[w] {
                 continue;
             }
-            if point_seg_dist(x, self.pos(u, t), self.pos(w, t)) <= rad {
+            if point_seg_dist(x, self.pos(u, t), self.pos(w, t)) <= rad.max(reach) {
                 let e = self.verts[u].r;
                 passes.push(Pass {
                     entry: u,
@@ -529,12 +579,13 @@ impl Sim {
     /// then slides along the common line of its two edges to the nearer of its neighbours (the
     /// end of the overlap, which a nearly antiparallel vertex reaches almost at once, moving at
     /// a speed of about 2 / angle) and that point is handled as an edge event.
-    pub(super) fn resolve_degenerate(&mut self) -> Result<(), SkeletonError> {
+    pub(super) fn resolve_degenerate(&mut self) -> Result<bool, SkeletonError> {
+        let mut any = false;
         let limit = 4 * self.verts.len() + 16;
         for _ in 0..limit {
             let alive = self.alive();
             let Some(&v) = alive.iter().find(|&&v| self.verts[v].degenerate) else {
-                return Ok(());
+                return Ok(any);
             };
             let t = self.t;
             let rad = self.radius();
@@ -560,6 +611,7 @@ impl Sim {
             if !changed {
                 self.slide(v)?;
             }
+            any = true;
         }
         Err(SkeletonError::Inconsistent(
             "unresolved antiparallel wavefront vertex",
