@@ -375,6 +375,86 @@ fn straighten_lot(lot: &mut Lot) {
             .collect();
         fix(&mut part.polygons, &keepers);
     }
+    share_vertices(lot);
+}
+
+/// How far (metres) a vertex of one of a lot's drawn rings may lie from another ring's edge
+/// and be put into that edge: two rings that share a boundary then have the same vertices along
+/// it, and their walls meet edge to edge (a vertex on one side only leaves a sliver between the
+/// two solids, a volume overlap to a solid validator, and a T-junction in the shell).
+const SHARED_VERTEX_TOLERANCE: f64 = 0.002;
+
+/// Puts every vertex of the lot's drawn rings (the outline's rest and the parts) into the
+/// edges of the others that pass within [`SHARED_VERTEX_TOLERANCE`] of it, strictly between
+/// their ends (at least [`crate::model::MIN_VERTEX_GAP`] from each). A polygon that the
+/// insertion would make invalid stays as it was.
+fn share_vertices(lot: &mut Lot) {
+    let n_pieces = 1 + lot.parts.len();
+    if n_pieces < 2 {
+        return;
+    }
+    let gap = crate::model::MIN_VERTEX_GAP;
+    // Every vertex of each piece, with the piece it belongs to.
+    let mut verts: Vec<(usize, DVec2)> = Vec::new();
+    let pieces = std::iter::once(&lot.drawn_outline).chain(lot.parts.iter().map(|p| &p.polygons));
+    for (k, ps) in pieces.enumerate() {
+        for p in ps {
+            verts.extend(p.rings().flatten().map(|&v| (k, v)));
+        }
+    }
+    let insert = |k: usize, r: &Vec<DVec2>| -> Vec<DVec2> {
+        let n = r.len();
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let (a, b) = (r[i], r[(i + 1) % n]);
+            out.push(a);
+            let (lo, hi) = (a.min(b), a.max(b));
+            let d = b - a;
+            let l2 = d.length_squared();
+            if l2 <= 0.0 {
+                continue;
+            }
+            let mut on: Vec<(f64, DVec2)> = verts
+                .iter()
+                .filter(|(j, v)| {
+                    *j != k
+                        && v.x >= lo.x - SHARED_VERTEX_TOLERANCE
+                        && v.x <= hi.x + SHARED_VERTEX_TOLERANCE
+                        && v.y >= lo.y - SHARED_VERTEX_TOLERANCE
+                        && v.y <= hi.y + SHARED_VERTEX_TOLERANCE
+                })
+                .filter_map(|&(_, v)| {
+                    let t = (v - a).dot(d) / l2;
+                    let near = (a + d * t).distance(v) <= SHARED_VERTEX_TOLERANCE;
+                    let inside = v.distance(a) >= gap && v.distance(b) >= gap;
+                    (near && inside && t > 0.0 && t < 1.0).then_some((t, v))
+                })
+                .collect();
+            on.sort_by(|x, y| {
+                x.0.total_cmp(&y.0)
+                    .then(x.1.x.total_cmp(&y.1.x))
+                    .then(x.1.y.total_cmp(&y.1.y))
+            });
+            on.dedup_by(|x, y| x.1.distance(y.1) < gap);
+            out.extend(on.into_iter().map(|x| x.1));
+        }
+        out
+    };
+    let fix = |k: usize, ps: &mut Vec<Polygon>| {
+        for p in ps.iter_mut() {
+            let candidate = Polygon::new(
+                insert(k, &p.outer),
+                p.holes.iter().map(|h| insert(k, h)).collect(),
+            );
+            if candidate != *p && is_valid(&candidate) {
+                *p = candidate;
+            }
+        }
+    };
+    fix(0, &mut lot.drawn_outline);
+    for (i, part) in lot.parts.iter_mut().enumerate() {
+        fix(i + 1, &mut part.polygons);
+    }
 }
 
 /// An outline's bounding box in the part-assignment index.

@@ -27,8 +27,19 @@ use crate::model::{on_grid, Face, Wall, GRID_STEPS_PER_M};
 /// merged into its neighbour) plus half a grid step.
 pub const MIN_GAP: f64 = crate::model::MIN_VERTEX_GAP;
 
-/// [`MIN_GAP`] in grid steps, squared: two vertices closer than this are one.
-const MIN_GAP2_STEPS: i64 = 9;
+/// [`MIN_GAP`] in grid steps: two vertices of the ground and the walls closer than this are one.
+const MIN_GAP_STEPS: i64 = 3;
+
+/// Roof vertices closer than this (metres) to a vertex offered before them join it. A roof
+/// edge of a few millimetres (skeleton nodes that nearly coincide, on curved footprints
+/// above all) is tilted by the millimetre rounding of its ends by tens of degrees, and a
+/// validator triangulating the face finds a sliver there (val3dity's 204); merging it moves a
+/// vertex by less than this, which a roof face's planarity (1 cm) absorbs at any pitch up to
+/// 70° (8 mm × sin 70° plus the rounding).
+pub const ROOF_GAP: f64 = 0.008;
+
+/// [`ROOF_GAP`] in grid steps.
+const ROOF_GAP_STEPS: i64 = 8;
 
 /// A vertex on the grid, in grid steps.
 type Key = (i64, i64, i64);
@@ -100,10 +111,12 @@ struct Reps {
 
 impl Reps {
     fn cell(k: Key) -> Key {
-        (k.0.div_euclid(3), k.1.div_euclid(3), k.2.div_euclid(3))
+        let c = ROOF_GAP_STEPS;
+        (k.0.div_euclid(c), k.1.div_euclid(c), k.2.div_euclid(c))
     }
 
-    fn of(&mut self, k: Key) -> Key {
+    /// The representative of `k`: the first one within `gap` grid steps, else `k` itself.
+    fn of(&mut self, k: Key, gap: i64) -> Key {
         if let Some(&i) = self.seen.get(&k) {
             return self.reps[i as usize];
         }
@@ -118,7 +131,7 @@ impl Reps {
                     for &i in v {
                         let r = self.reps[i as usize];
                         let d = (r.0 - k.0, r.1 - k.1, r.2 - k.2);
-                        if d.0 * d.0 + d.1 * d.1 + d.2 * d.2 < MIN_GAP2_STEPS
+                        if d.0 * d.0 + d.1 * d.1 + d.2 * d.2 < gap * gap
                             && found.is_none_or(|f| i < f)
                         {
                             found = Some(i);
@@ -214,22 +227,108 @@ fn on_segment(u: Key, v: Key, w: Key) -> Option<f64> {
 /// base); walls have no openings yet (they are cut at LOD3, after this). Roof faces that
 /// collapse are dropped.
 pub fn finish(ground: &mut Face, walls: &mut [Wall], roof: &mut Vec<Face>) {
+    // Roof vertices merged at ROOF_GAP, unless that leaves the shell not 2-manifold (two thin
+    // faces folded onto one edge, a ring touching itself): then at MIN_GAP, as ground and walls.
+    let (mut faces, mut alive) = on_keys(ground, walls, roof, ROOF_GAP_STEPS);
+    if !sound(&faces, &alive) {
+        (faces, alive) = on_keys(ground, walls, roof, MIN_GAP_STEPS);
+    }
+    // Back into the faces.
+    let back = |r: &Vec<Key>| -> Vec<DVec3> { r.iter().map(|k| point(*k)).collect() };
+    let face = |f: &Vec<Vec<Key>>| Face {
+        outer: back(&f[0]),
+        holes: f[1..].iter().map(back).collect(),
+    };
+    let mut faces = faces.into_iter().zip(alive);
+    if let Some((g, _)) = faces.next() {
+        if !g.is_empty() {
+            *ground = face(&g);
+        }
+    }
+    for w in walls.iter_mut() {
+        if let Some((f, _)) = faces.next() {
+            if !f.is_empty() {
+                w.outline.outer = back(&f[0]);
+            }
+        }
+    }
+    *roof = faces
+        .filter(|(f, a)| *a && !f.is_empty())
+        .map(|(f, _)| face(&f))
+        .collect();
+}
+
+/// Whether every directed edge of the live faces is used once, and its reverse once, and every
+/// ring is simple in its face's plane (no vertex passed twice, no edge crossing or touching
+/// another).
+fn sound(faces: &[Vec<Vec<Key>>], alive: &[bool]) -> bool {
+    let mut count: HashMap<(Key, Key), i32, crate::derive::massing::CellHash> = HashMap::default();
+    for r in faces
+        .iter()
+        .zip(alive)
+        .filter(|(_, a)| **a)
+        .flat_map(|(f, _)| f.iter())
+    {
+        let mut seen: Vec<Key> = r.clone();
+        seen.sort_unstable();
+        if seen.windows(2).any(|w| w[0] == w[1]) {
+            return false;
+        }
+        let pts: Vec<DVec3> = r.iter().map(|k| point(*k)).collect();
+        let normal = crate::geometry::newell_normal(&pts);
+        if normal.length().is_nan() || normal.length() <= 1e-12 {
+            return false;
+        }
+        let normal = normal.normalize();
+        let ex = normal
+            .cross(if normal.x.abs() < 0.9 {
+                DVec3::X
+            } else {
+                DVec3::Y
+            })
+            .normalize();
+        let ey = normal.cross(ex);
+        let plan: Vec<glam::DVec2> = pts
+            .iter()
+            .map(|p| glam::DVec2::new((*p - pts[0]).dot(ex), (*p - pts[0]).dot(ey)))
+            .collect();
+        if !crate::geometry::is_simple(&plan) {
+            return false;
+        }
+        let n = r.len();
+        for i in 0..n {
+            *count.entry((r[i], r[(i + 1) % n])).or_default() += 1;
+        }
+    }
+    count
+        .iter()
+        .all(|(&(a, b), &c)| c == 1 && count.get(&(b, a)) == Some(&1))
+}
+
+/// The part's faces on grid keys, vertices merged (roof ones within `roof_gap` steps), rings
+/// cleaned and T-junctions closed; with each face's liveness.
+fn on_keys(
+    ground: &Face,
+    walls: &[Wall],
+    roof: &[Face],
+    roof_gap: i64,
+) -> (Vec<Vec<Vec<Key>>>, Vec<bool>) {
     let mut reps = Reps::default();
-    let mut to_keys = |f: &Face| -> Vec<Vec<Key>> {
+    let mut to_keys = |f: &Face, gap: i64| -> Vec<Vec<Key>> {
         std::iter::once(&f.outer)
             .chain(f.holes.iter())
-            .map(|r| r.iter().map(|p| reps.of(key(*p))).collect())
+            .map(|r| r.iter().map(|p| reps.of(key(*p), gap)).collect())
             .collect()
     };
     // Ground, then the walls (base first in each outline), then the roof: one list of faces,
     // each a list of rings (the outer first).
-    let mut faces: Vec<Vec<Vec<Key>>> = vec![to_keys(ground)];
+    let mut faces: Vec<Vec<Vec<Key>>> = vec![to_keys(ground, MIN_GAP_STEPS)];
     faces.extend(
         walls
             .iter()
-            .map(|w| to_keys(&Face::new(w.outline.outer.clone()))),
+            .map(|w| to_keys(&Face::new(w.outline.outer.clone()), MIN_GAP_STEPS)),
     );
-    faces.extend(roof.iter().map(&mut to_keys));
+    faces.extend(roof.iter().map(|f| to_keys(f, roof_gap)));
     let roof0 = 1 + walls.len();
     let mut alive = vec![true; faces.len()];
     let tidy = |faces: &mut Vec<Vec<Vec<Key>>>, alive: &mut Vec<bool>| {
@@ -310,27 +409,5 @@ pub fn finish(ground: &mut Face, walls: &mut [Wall], roof: &mut Vec<Face>) {
         }
         tidy(&mut faces, &mut alive);
     }
-    // Back into the faces.
-    let back = |r: &Vec<Key>| -> Vec<DVec3> { r.iter().map(|k| point(*k)).collect() };
-    let face = |f: &Vec<Vec<Key>>| Face {
-        outer: back(&f[0]),
-        holes: f[1..].iter().map(back).collect(),
-    };
-    let mut faces = faces.into_iter().zip(alive);
-    if let Some((g, _)) = faces.next() {
-        if !g.is_empty() {
-            *ground = face(&g);
-        }
-    }
-    for w in walls.iter_mut() {
-        if let Some((f, _)) = faces.next() {
-            if !f.is_empty() {
-                w.outline.outer = back(&f[0]);
-            }
-        }
-    }
-    *roof = faces
-        .filter(|(f, a)| *a && !f.is_empty())
-        .map(|(f, _)| face(&f))
-        .collect();
+    (faces, alive)
 }

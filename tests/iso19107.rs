@@ -1,0 +1,721 @@
+//! Every solid of both samples as written, against the ISO 19107 rules a solid validator applies
+//! (val3dity's, at its default tolerances: 1 mm snapping, 1 cm planarity, 20° normal deviation,
+//! no overlap tolerance). The runs go through the binary; the CityGML files are read back and
+//! each `bldg:lodNSolid` is checked as it is on disk (millimetres):
+//!
+//! * ring: at least 3 points (val3dity 101), no point repeated consecutively (102), no two
+//!   points of the solid one millimetre apart (a 1 mm snapping would merge them), not crossing
+//!   or touching itself in its plane, no spike (104);
+//! * polygon: within 1 cm of its plane (203); inner rings inside the outer one, apart from it
+//!   and each other, turning the other way (201, 206, 208); every triangle of its constrained
+//!   Delaunay triangulation (spade, as val3dity's CGAL one) within 20° of the first one's
+//!   normal: no sliver (204);
+//! * shell: every edge used once in each direction (closed, 2-manifold, consistently oriented:
+//!   302, 303, 307);
+//! * building: no two of its parts' solids overlap in volume (601): along a vertical line
+//!   through every piece of their plans' intersection, the heights the two solids occupy share
+//!   no more than a millimetre.
+//!
+//! Samples: Monaco (OSM) and Clifton (shapefile) at LOD1 and LOD2 with the shipped knowledge
+//! base, at LOD2 with hipped, gabled and mansard roofs forced on every untagged building, and
+//! at LOD3 on a district of each (CI's). Slivers (204) are held to ratchets, every other
+//! rule to zero (see `assert_valid`).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use geo::{Area, BooleanOps, InteriorPoint, Length};
+use glam::{DVec2, DVec3};
+use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+
+/// A written point, in millimetres.
+type P = [i64; 3];
+
+/// One `bldg:lodNSolid`: its building, its owner (the building or the part), its polygons
+/// (rings of points, the outer one first, as the shell uses them).
+struct Solid {
+    building: String,
+    owner: String,
+    lod: u8,
+    faces: Vec<(String, Vec<Vec<P>>)>,
+}
+
+/// A CityGML coordinate (three decimals) in millimetres, exactly.
+fn mm(s: &str) -> i64 {
+    let (neg, s) = match s.strip_prefix('-') {
+        Some(r) => (true, r),
+        None => (false, s),
+    };
+    let (int, frac) = s.split_once('.').unwrap_or((s, ""));
+    let mut f = frac.to_string();
+    assert!(f.len() <= 3, "{s}: more than three decimals");
+    while f.len() < 3 {
+        f.push('0');
+    }
+    let v = int.parse::<i64>().unwrap() * 1000 + f.parse::<i64>().unwrap();
+    if neg {
+        -v
+    } else {
+        v
+    }
+}
+
+/// A posList's points without the closing one.
+fn pos_list(s: &str) -> Vec<P> {
+    let v: Vec<i64> = s.split_whitespace().map(mm).collect();
+    assert_eq!(v.len() % 3, 0);
+    let mut pts: Vec<P> = v.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+    assert!(
+        pts.len() >= 2 && pts[0] == pts[pts.len() - 1],
+        "ring not closed"
+    );
+    pts.pop();
+    pts
+}
+
+/// The text between `open` (after it) and the next `close`, from `at`.
+fn between<'a>(text: &'a str, at: usize, open: &str, close: &str) -> Option<(usize, &'a str)> {
+    let s = text[at..].find(open)? + at + open.len();
+    let e = text[s..].find(close)? + s;
+    Some((e + close.len(), &text[s..e]))
+}
+
+/// Every solid of a CityGML file.
+fn solids(text: &str) -> Vec<Solid> {
+    let mut out = Vec::new();
+    let mut at = 0;
+    while let Some((next, block)) = between(
+        text,
+        at,
+        "<core:cityObjectMember>",
+        "</core:cityObjectMember>",
+    ) {
+        at = next;
+        // The polygons of the block, by id.
+        let mut polys: HashMap<&str, Vec<Vec<P>>> = HashMap::new();
+        let mut k = 0;
+        while let Some((next, body)) = between(block, k, "<gml:Polygon gml:id=\"", "</gml:Polygon>")
+        {
+            k = next;
+            let id = &body[..body.find('"').unwrap()];
+            let mut rings = Vec::new();
+            let mut j = 0;
+            while let Some((n, list)) = between(
+                body,
+                j,
+                "<gml:posList srsDimension=\"3\">",
+                "</gml:posList>",
+            ) {
+                j = n;
+                rings.push(pos_list(list));
+            }
+            polys.insert(id, rings);
+        }
+        let building = between(block, 0, "<bldg:Building gml:id=\"", "\"").map(|x| x.1.to_string());
+        let Some(building) = building else { continue };
+        for lod in 1..=4u8 {
+            let (open, close) = (
+                format!("<bldg:lod{lod}Solid>"),
+                format!("</bldg:lod{lod}Solid>"),
+            );
+            let mut k = 0;
+            while let Some(s) = block[k..].find(&open) {
+                let start = k + s;
+                let end = block[start..].find(&close).unwrap() + start;
+                k = end;
+                let before = &block[..start];
+                let owner = ["<bldg:BuildingPart gml:id=\"", "<bldg:Building gml:id=\""]
+                    .iter()
+                    .filter_map(|tag| before.rfind(tag).map(|i| (i, tag.len())))
+                    .max()
+                    .map(|(i, l)| {
+                        let r = &before[i + l..];
+                        r[..r.find('"').unwrap()].to_string()
+                    })
+                    .unwrap_or_else(|| building.clone());
+                let body = &block[start..end];
+                let mut faces = Vec::new();
+                let mut j = 0;
+                while let Some(m) = body[j..].find("<gml:surfaceMember") {
+                    let m = j + m;
+                    let tail = &body[m..];
+                    let reversed = tail.starts_with(
+                        "<gml:surfaceMember>\n<gml:OrientableSurface orientation=\"-\">",
+                    );
+                    let id = if let Some(h) = tail.find("xlink:href=\"#") {
+                        let p = tail.find("<gml:Polygon gml:id=\"").unwrap_or(usize::MAX);
+                        if p < h {
+                            let r = &tail[p + 21..];
+                            &r[..r.find('"').unwrap()]
+                        } else {
+                            let r = &tail[h + 13..];
+                            &r[..r.find('"').unwrap()]
+                        }
+                    } else {
+                        let p = tail.find("<gml:Polygon gml:id=\"").unwrap();
+                        let r = &tail[p + 21..];
+                        &r[..r.find('"').unwrap()]
+                    };
+                    let mut rings = polys
+                        .get(id)
+                        .unwrap_or_else(|| panic!("{building}: polygon {id} not in the file"))
+                        .clone();
+                    if reversed {
+                        for r in &mut rings {
+                            r.reverse();
+                        }
+                    }
+                    faces.push((id.to_string(), rings));
+                    j = m + 18;
+                }
+                out.push(Solid {
+                    building: building.clone(),
+                    owner,
+                    lod,
+                    faces,
+                });
+            }
+        }
+    }
+    out
+}
+
+fn f(p: P) -> DVec3 {
+    DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+}
+
+/// Whether segments `a b` and `c d` (2D) cross or touch.
+fn touch(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
+    let o = |p: DVec2, q: DVec2, r: DVec2| (q - p).perp_dot(r - p);
+    let (d1, d2, d3, d4) = (o(c, d, a), o(c, d, b), o(a, b, c), o(a, b, d));
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
+        return true;
+    }
+    let on = |p: DVec2, q: DVec2, r: DVec2, v: f64| {
+        v == 0.0
+            && r.x >= p.x.min(q.x)
+            && r.x <= p.x.max(q.x)
+            && r.y >= p.y.min(q.y)
+            && r.y <= p.y.max(q.y)
+    };
+    on(c, d, a, d1) || on(c, d, b, d2) || on(a, b, c, d3) || on(a, b, d, d4)
+}
+
+fn signed_area(r: &[DVec2]) -> f64 {
+    (0..r.len())
+        .map(|i| r[i].perp_dot(r[(i + 1) % r.len()]))
+        .sum::<f64>()
+        * 0.5
+}
+
+fn contains(r: &[DVec2], p: DVec2) -> bool {
+    let mut inside = false;
+    let n = r.len();
+    for i in 0..n {
+        let (a, b) = (r[i], r[(i + 1) % n]);
+        if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
+/// The defects of one polygon (its rings in mm), each a line starting with its code.
+fn polygon_defects(rings: &[Vec<P>], out: &mut Vec<String>) {
+    for r in rings {
+        if r.len() < 3 {
+            out.push("101 too few points".into());
+            return;
+        }
+        let n = r.len();
+        if (0..n).any(|i| r[i] == r[(i + 1) % n]) {
+            out.push("102 consecutive points the same".into());
+            return;
+        }
+    }
+    // The plane: through the centroid, with the outer ring's (Newell) normal; coordinates
+    // relative to the first point.
+    let o = f(rings[0][0]);
+    let pts: Vec<Vec<DVec3>> = rings
+        .iter()
+        .map(|r| r.iter().map(|p| f(*p) - o).collect())
+        .collect();
+    let outer = &pts[0];
+    let mut nrm = DVec3::ZERO;
+    for i in 0..outer.len() {
+        let (a, b) = (outer[i], outer[(i + 1) % outer.len()]);
+        nrm += DVec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    if nrm.length() == 0.0 {
+        out.push("104 outer ring collapsed to a line".into());
+        return;
+    }
+    let nrm = nrm.normalize();
+    let all: Vec<DVec3> = pts.iter().flatten().copied().collect();
+    let c = all.iter().copied().sum::<DVec3>() / all.len() as f64;
+    let dev = all
+        .iter()
+        .map(|p| (*p - c).dot(nrm).abs())
+        .fold(0.0, f64::max);
+    if dev > 10.0 {
+        out.push(format!("203 {dev:.1} mm off its plane"));
+        return;
+    }
+    let ex = if nrm.x.abs() < 0.9 {
+        DVec3::X
+    } else {
+        DVec3::Y
+    };
+    let ex = nrm.cross(ex).normalize();
+    let ey = nrm.cross(ex);
+    let plan: Vec<Vec<DVec2>> = pts
+        .iter()
+        .map(|r| r.iter().map(|p| DVec2::new(p.dot(ex), p.dot(ey))).collect())
+        .collect();
+    // Rings simple, and apart from each other.
+    let segs: Vec<(usize, usize, DVec2, DVec2)> = plan
+        .iter()
+        .enumerate()
+        .flat_map(|(ri, r)| (0..r.len()).map(move |i| (ri, i, r[i], r[(i + 1) % r.len()])))
+        .collect();
+    for (x, a) in segs.iter().enumerate() {
+        for b in &segs[x + 1..] {
+            let m = plan[a.0].len();
+            let adjacent = a.0 == b.0 && (b.1 == a.1 + 1 || (a.1 == 0 && b.1 == m - 1));
+            if adjacent {
+                // A spike: the ring runs back along the edge it came by.
+                let (p, q, r) = if b.1 == a.1 + 1 {
+                    (a.2, a.3, b.3)
+                } else {
+                    (b.2, b.3, a.3)
+                };
+                let (u, v) = (q - p, r - q);
+                if u.perp_dot(v) == 0.0 && u.dot(v) < 0.0 {
+                    out.push("104 spike".into());
+                    return;
+                }
+                continue;
+            }
+            if touch(a.2, a.3, b.2, b.3) {
+                out.push(
+                    if a.0 == b.0 {
+                        "104 ring touches itself"
+                    } else {
+                        "201 rings intersect"
+                    }
+                    .into(),
+                );
+                return;
+            }
+        }
+    }
+    for h in &plan[1..] {
+        if !contains(&plan[0], h[0]) {
+            out.push("206 inner ring outside".into());
+            return;
+        }
+        if signed_area(h) * signed_area(&plan[0]) > 0.0 {
+            out.push("208 inner ring turns the outer ring's way".into());
+            return;
+        }
+    }
+    // Slivers: the triangles of the constrained Delaunay triangulation, against the first.
+    let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
+        ConstrainedDelaunayTriangulation::new();
+    let mut index: HashMap<usize, DVec3> = HashMap::new();
+    for (r2, r3) in plan.iter().zip(&pts) {
+        let handles: Vec<_> = r2
+            .iter()
+            .zip(r3)
+            .map(|(p, q)| {
+                let h = cdt.insert(Point2::new(p.x, p.y)).expect("finite point");
+                index.entry(h.index()).or_insert(*q);
+                h
+            })
+            .collect();
+        for i in 0..handles.len() {
+            if cdt
+                .try_add_constraint(handles[i], handles[(i + 1) % handles.len()])
+                .is_empty()
+                && handles[i] != handles[(i + 1) % handles.len()]
+            {
+                out.push("104 constraint crossing".into());
+                return;
+            }
+        }
+    }
+    let mut first: Option<DVec3> = None;
+    for t in cdt.inner_faces() {
+        let v = t.vertices();
+        let p2: Vec<DVec2> = v
+            .iter()
+            .map(|h| DVec2::new(h.position().x, h.position().y))
+            .collect();
+        let centre = (p2[0] + p2[1] + p2[2]) / 3.0;
+        let inside = plan.iter().filter(|r| contains(r, centre)).count() % 2 == 1;
+        if !inside {
+            continue;
+        }
+        let q: Vec<DVec3> = v.iter().map(|h| index[&h.fix().index()]).collect();
+        let tn = (q[1] - q[0]).cross(q[2] - q[0]);
+        if tn.length() == 0.0 {
+            out.push("204 a triangle of no area".into());
+            return;
+        }
+        let tn = tn.normalize();
+        match first {
+            None => first = Some(tn),
+            Some(f0) => {
+                let angle = f0.cross(tn).length().atan2(f0.dot(tn)).to_degrees();
+                if angle > 20.0 {
+                    out.push(format!("204 normals deviate by {angle:.1}°"));
+                    return;
+                }
+            }
+        }
+    }
+}
+
+/// The defects of one solid, each a line starting with its code.
+fn solid_defects(s: &Solid) -> Vec<String> {
+    let mut out = Vec::new();
+    for (id, rings) in &s.faces {
+        let mut d = Vec::new();
+        polygon_defects(rings, &mut d);
+        out.extend(d.into_iter().map(|l| format!("{l} (polygon {id})")));
+    }
+    if !out.is_empty() {
+        return out; // a validator checks the shell of valid polygons only
+    }
+    // Points a millimetre apart (merged by a 1 mm snapping).
+    let mut pts: Vec<P> = s
+        .faces
+        .iter()
+        .flat_map(|(_, r)| r.iter().flatten().copied())
+        .collect();
+    pts.sort_unstable();
+    pts.dedup();
+    for p in &pts {
+        for d in [[1, 0, 0], [0, 1, 0], [0, 0, 1]] {
+            let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+            if pts.binary_search(&q).is_ok() {
+                out.push(format!(
+                    "102 points 1 mm apart ({p:?}, {q:?}), merged by a 1 mm snapping"
+                ));
+            }
+        }
+    }
+    // The shell: every edge once in each direction.
+    let mut count: HashMap<(P, P), i32> = HashMap::new();
+    for (_, rings) in &s.faces {
+        for r in rings {
+            for i in 0..r.len() {
+                *count.entry((r[i], r[(i + 1) % r.len()])).or_default() += 1;
+            }
+        }
+    }
+    let mut bad: Vec<String> = count
+        .iter()
+        .filter(|(&(a, b), &n)| n != 1 || count.get(&(b, a)).copied().unwrap_or(0) != 1)
+        .map(|(&(a, b), &n)| {
+            format!(
+                "30x edge {a:?} -> {b:?} used {n} times, back {} times",
+                count.get(&(b, a)).copied().unwrap_or(0)
+            )
+        })
+        .collect();
+    bad.sort();
+    out.extend(bad.into_iter().take(3));
+    out
+}
+
+/// Twice the area vector of a ring (Newell), mm².
+fn newell(r: &[P]) -> DVec3 {
+    let mut nrm = DVec3::ZERO;
+    for i in 0..r.len() {
+        let (a, b) = (f(r[i]), f(r[(i + 1) % r.len()]));
+        nrm += DVec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    nrm
+}
+
+/// The heights a solid occupies on the vertical line through `p` (plan, mm): from the lowest to
+/// the highest of its non-vertical faces there.
+fn span_at(s: &Solid, p: DVec2) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (_, rings) in &s.faces {
+        let plan: Vec<Vec<DVec2>> = rings
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .map(|q| DVec2::new(q[0] as f64, q[1] as f64))
+                    .collect()
+            })
+            .collect();
+        if plan.iter().filter(|r| contains(r, p)).count() % 2 == 0 {
+            continue;
+        }
+        let r = &rings[0];
+        let nrm = newell(r);
+        if nrm.z.abs() < 1e-9 * nrm.length() {
+            continue;
+        }
+        let a = f(r[0]);
+        let z = a.z - (nrm.x * (p.x - a.x) + nrm.y * (p.y - a.y)) / nrm.z;
+        lo = lo.min(z);
+        hi = hi.max(z);
+    }
+    (lo < hi).then_some((lo, hi))
+}
+
+/// A solid's plan: the union of its faces facing down (the ground, or the underside of a roof
+/// on pillars), as a geo multipolygon in mm.
+fn plan_of(s: &Solid) -> geo::MultiPolygon<f64> {
+    let mut acc = geo::MultiPolygon::<f64>::new(Vec::new());
+    for (_, rings) in &s.faces {
+        let r = &rings[0];
+        let area: f64 = signed_area(
+            &r.iter()
+                .map(|q| DVec2::new(q[0] as f64, q[1] as f64))
+                .collect::<Vec<_>>(),
+        );
+        // Faces up, or vertical: a wall whose gable apex the rounding moved a millimetre off
+        // its base line has a plan of a few cm², either way round.
+        if area >= -0.01 * newell(r).length() / 2.0 {
+            continue;
+        }
+        let ring = |r: &Vec<P>| {
+            geo::LineString::from(
+                r.iter()
+                    .map(|q| (q[0] as f64, q[1] as f64))
+                    .collect::<Vec<_>>(),
+            )
+        };
+        let poly = geo::Polygon::new(ring(&rings[0]), rings[1..].iter().map(ring).collect());
+        acc = acc.union(&geo::MultiPolygon::new(vec![poly]));
+    }
+    acc
+}
+
+/// The pairs of part solids of one building (same LOD) that overlap in volume.
+fn overlaps(solids: &[&Solid]) -> Vec<String> {
+    let mut out = Vec::new();
+    let plans: Vec<_> = solids.iter().map(|s| plan_of(s)).collect();
+    for i in 0..solids.len() {
+        for j in i + 1..solids.len() {
+            let common = plans[i].intersection(&plans[j]);
+            for piece in &common.0 {
+                // Two plans that share an edge meet in a piece of no width (floating-point
+                // noise of the boolean operation): not an overlap. Mean width = area / half
+                // the perimeter, here in millimetres.
+                let perimeter = geo::Euclidean.length(piece.exterior());
+                if perimeter <= 0.0 || piece.unsigned_area() / (perimeter / 2.0) < 0.01 {
+                    continue;
+                }
+                let Some(p) = piece.interior_point() else {
+                    continue;
+                };
+                let p = DVec2::new(p.x(), p.y());
+                if let (Some(a), Some(b)) = (span_at(solids[i], p), span_at(solids[j], p)) {
+                    let shared = a.1.min(b.1) - a.0.max(b.0);
+                    if shared > 1.0 {
+                        out.push(format!(
+                            "601 parts {} and {} share {shared:.0} mm of height at ({:.0}, {:.0})",
+                            solids[i].owner, solids[j].owner, p.x, p.y
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Every defect of a CityGML file: (solids checked, defects as `building: line`).
+fn file_defects(path: &Path) -> (usize, Vec<String>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let all = solids(&text);
+    let mut out = Vec::new();
+    for s in &all {
+        out.extend(
+            solid_defects(s)
+                .into_iter()
+                .map(|l| format!("{} {}: {l}", s.building, s.owner)),
+        );
+    }
+    let mut by_building: HashMap<(&str, u8), Vec<&Solid>> = HashMap::new();
+    for s in &all {
+        by_building.entry((&s.building, s.lod)).or_default().push(s);
+    }
+    let mut keys: Vec<_> = by_building.keys().copied().collect();
+    keys.sort();
+    for k in keys {
+        let group = &by_building[&k];
+        if group.len() > 1 {
+            out.extend(overlaps(group).into_iter().map(|l| format!("{}: {l}", k.0)));
+        }
+    }
+    (all.len(), out)
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs the binary on a sample; returns the CityGML file.
+fn citygml(dir: &Path, name: &str, input: &[&str], kb: &Path, lod: u8, extra: &[&str]) -> PathBuf {
+    let out = dir.join(format!("{name}.gml"));
+    let status = Command::new(env!("CARGO_BIN_EXE_citygen"))
+        .current_dir(root())
+        .args(input)
+        .arg("--kb")
+        .arg(kb)
+        .args(["--lod", &lod.to_string(), "--quiet", "--citygml"])
+        .arg(&out)
+        .args(extra)
+        .status()
+        .unwrap();
+    assert!(status.success(), "{name}: citygen failed");
+    out
+}
+
+const MONACO: [&str; 2] = ["--osm", "data/monaco/monaco.osm.pbf"];
+const CLIFTON: [&str; 2] = ["--shp", "data/clifton/clifton_test.shp"];
+
+/// Checks the files; fails listing the first defects of each code when any defect other than
+/// a sliver (204) is found, or more slivers than `max_slivers`.
+///
+/// The sliver ratchets (lower them, never raise them) are the slivers left at the time of
+/// writing: roof faces with an edge of a few millimetres (skeleton nodes that nearly coincide)
+/// tilted by the rounding, and LOD3 walls on oblique lines whose window corners, once rounded,
+/// are no longer collinear with the wall's base. They are issue 19's open work.
+fn assert_valid(files: &[PathBuf], max_slivers: usize) {
+    let mut failures = Vec::new();
+    for f in files {
+        let (n, d) = file_defects(f);
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        eprintln!("{name}: {n} solids, {} defects", d.len());
+        for l in &d {
+            eprintln!("  {l}");
+        }
+        assert!(n > 50, "{name}: only {n} solids");
+        failures.extend(d.into_iter().map(|l| format!("{name}: {l}")));
+    }
+    let mut shown: HashMap<String, usize> = HashMap::new();
+    let mut lines = Vec::new();
+    for l in &failures {
+        let code = l
+            .split(": ")
+            .nth(2)
+            .unwrap_or("")
+            .chars()
+            .take(3)
+            .collect::<String>();
+        let k = shown.entry(code).or_default();
+        if *k < 5 {
+            lines.push(l.clone());
+        }
+        *k += 1;
+    }
+    let slivers = shown.get("204").copied().unwrap_or(0);
+    eprintln!("slivers (204): {slivers}, ratchet {max_slivers}");
+    assert!(
+        failures.len() == slivers && slivers <= max_slivers,
+        "{} defects ({shown:?}; slivers allowed: {max_slivers}), first of each code:\n{}",
+        failures.len(),
+        lines.join("\n")
+    );
+}
+
+#[test]
+fn lod1_and_lod2_solids_of_both_samples_are_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let kb = root().join("knowledge_base/kb.xml");
+    let mut files = Vec::new();
+    for lod in [1, 2] {
+        files.push(citygml(
+            dir.path(),
+            &format!("monaco-lod{lod}"),
+            &MONACO,
+            &kb,
+            lod,
+            &[],
+        ));
+        files.push(citygml(
+            dir.path(),
+            &format!("clifton-lod{lod}"),
+            &CLIFTON,
+            &kb,
+            lod,
+            &[],
+        ));
+    }
+    assert_valid(&files, 15);
+}
+
+#[test]
+fn forced_hipped_gabled_and_mansard_roofs_are_valid_solids() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for shape in ["hipped", "gabled", "mansard"] {
+        let kb = dir.path().join(format!("{shape}.xml"));
+        std::fs::write(
+            &kb,
+            format!(r#"<earth><info rooftype="{shape}" roofangle="35" nbfloor="3" floorsize="3"/></earth>"#),
+        )
+        .unwrap();
+        files.push(citygml(
+            dir.path(),
+            &format!("monaco-{shape}"),
+            &MONACO,
+            &kb,
+            2,
+            &[],
+        ));
+        files.push(citygml(
+            dir.path(),
+            &format!("clifton-{shape}"),
+            &CLIFTON,
+            &kb,
+            2,
+            &[],
+        ));
+    }
+    assert_valid(&files, 52);
+}
+
+#[test]
+fn lod3_solids_of_a_district_of_each_sample_are_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let kb = root().join("knowledge_base/kb.xml");
+    let files = vec![
+        citygml(
+            dir.path(),
+            "monaco-ville-lod3",
+            &MONACO,
+            &kb,
+            3,
+            &["--bbox", "7.4180,43.7290,7.4240,43.7330"],
+        ),
+        citygml(
+            dir.path(),
+            "clifton-part-lod3",
+            &CLIFTON,
+            &kb,
+            3,
+            &["--bbox=-1.1950,52.9020,-1.1900,52.9050"],
+        ),
+    ];
+    assert_valid(&files, 40);
+}
