@@ -389,8 +389,7 @@ const SHARED_VERTEX_TOLERANCE: f64 = 0.002;
 /// their ends (at least [`crate::model::MIN_VERTEX_GAP`] from each). A polygon that the
 /// insertion would make invalid stays as it was.
 fn share_vertices(lot: &mut Lot) {
-    let n_pieces = 1 + lot.parts.len();
-    if n_pieces < 2 {
+    if lot.parts.is_empty() {
         return;
     }
     let gap = crate::model::MIN_VERTEX_GAP;
@@ -411,9 +410,6 @@ fn share_vertices(lot: &mut Lot) {
             let (lo, hi) = (a.min(b), a.max(b));
             let d = b - a;
             let l2 = d.length_squared();
-            if l2 <= 0.0 {
-                continue;
-            }
             let mut on: Vec<(f64, DVec2)> = verts
                 .iter()
                 .filter(|(j, v)| {
@@ -423,12 +419,14 @@ fn share_vertices(lot: &mut Lot) {
                         && v.y >= lo.y - SHARED_VERTEX_TOLERANCE
                         && v.y <= hi.y + SHARED_VERTEX_TOLERANCE
                 })
-                .filter_map(|&(_, v)| {
-                    let t = (v - a).dot(d) / l2;
-                    let near = (a + d * t).distance(v) <= SHARED_VERTEX_TOLERANCE;
-                    let inside = v.distance(a) >= gap && v.distance(b) >= gap;
-                    (near && inside && t > 0.0 && t < 1.0).then_some((t, v))
+                .filter(|&&(_, v)| {
+                    v.distance(a) >= gap
+                        && v.distance(b) >= gap
+                        && nearest_on_segment(a, b, v).distance(v) <= SHARED_VERTEX_TOLERANCE
                 })
+                // Along the edge; a vertex at least `gap` from both ends of an edge it lies
+                // within 2 mm of is strictly inside it, so the edge has a length.
+                .map(|&(_, v)| ((v - a).dot(d) / l2, v))
                 .collect();
             on.sort_by(|x, y| {
                 x.0.total_cmp(&y.0)

@@ -134,6 +134,25 @@ pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
     n
 }
 
+/// Two unit axes spanning the plane whose unit normal is `normal` (`ex`, `ey`, `normal` right-handed):
+/// for projecting a face into its own plane.
+pub fn plane_axes(normal: DVec3) -> (DVec3, DVec3) {
+    let t = if normal.x.abs() < 0.9 {
+        DVec3::X
+    } else {
+        DVec3::Y
+    };
+    let ex = normal.cross(t).normalize();
+    (ex, normal.cross(ex))
+}
+
+/// The length of a closed ring (closing edge included).
+pub fn ring_perimeter(r: &[DVec2]) -> f64 {
+    (0..r.len())
+        .map(|i| r[i].distance(r[(i + 1) % r.len()]))
+        .sum()
+}
+
 /// Two non-adjacent edges closer than this touch, for [`is_simple`] (metres): the distance
 /// under which [`clean_ring`] merges vertices, and ten times the precision our IFC files
 /// declare, so that what IfcOpenShell sees as self-touching is never called simple here.

@@ -30,11 +30,7 @@ pub(super) struct Planner {
     pub(super) spine: Option<Spine>,
 }
 
-pub(super) fn perimeter(r: &[DVec2]) -> f64 {
-    (0..r.len())
-        .map(|i| r[i].distance(r[(i + 1) % r.len()]))
-        .sum()
-}
+pub(super) use crate::geometry::ring_perimeter as perimeter;
 
 /// Ring bounds (min, max).
 pub(super) fn ring_bounds(r: &[DVec2]) -> (DVec2, DVec2) {

@@ -279,15 +279,7 @@ fn sound(faces: &[Vec<Vec<Key>>], alive: &[bool]) -> bool {
         if normal.length().is_nan() || normal.length() <= 1e-12 {
             return false;
         }
-        let normal = normal.normalize();
-        let ex = normal
-            .cross(if normal.x.abs() < 0.9 {
-                DVec3::X
-            } else {
-                DVec3::Y
-            })
-            .normalize();
-        let ey = normal.cross(ex);
+        let (ex, ey) = crate::geometry::plane_axes(normal.normalize());
         let plan: Vec<glam::DVec2> = pts
             .iter()
             .map(|p| glam::DVec2::new((*p - pts[0]).dot(ex), (*p - pts[0]).dot(ey)))

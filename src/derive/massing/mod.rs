@@ -567,14 +567,7 @@ pub fn check_part(part: &Part) -> Vec<String> {
     // from where the footprint's edge runs (an apex on a gable wall rounded off its line): a
     // strip that wide along the outline, beside the relative tolerance for large footprints.
     let want = fp.area();
-    let perimeter: f64 = std::iter::once(&fp.outer)
-        .chain(fp.holes.iter())
-        .map(|r| {
-            (0..r.len())
-                .map(|i| r[i].distance(r[(i + 1) % r.len()]))
-                .sum::<f64>()
-        })
-        .sum();
+    let perimeter: f64 = fp.rings().map(|r| crate::geometry::ring_perimeter(r)).sum();
     if (area - want).abs() > 1e-3 * want + perimeter * crate::model::MIN_VERTEX_GAP {
         out.push(format!("roof covers {area} m², footprint {want} m²"));
     }
@@ -678,15 +671,7 @@ pub fn written_defects(part: &Part, origin: DVec3) -> Vec<String> {
             out.push(format!("{what}: not planar ({dev:.4} m)"));
         }
         // The rings in the face's plane: simple, and every triangle facing the same way.
-        let (ex, ey) = {
-            let t = if normal.x.abs() < 0.9 {
-                DVec3::X
-            } else {
-                DVec3::Y
-            };
-            let ex = normal.cross(t).normalize();
-            (ex, normal.cross(ex))
-        };
+        let (ex, ey) = crate::geometry::plane_axes(normal);
         for (ri, r) in pts.iter().enumerate() {
             let plan: Vec<DVec2> = r
                 .iter()
