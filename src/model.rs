@@ -330,8 +330,8 @@ pub struct Opening {
     /// Bottom edge (sill, or the foot of a door): absolute height in metres, at least
     /// [`OPENING_MARGIN`] above the wall's base, so a door stands 2 cm above its floor.
     pub z0: f64,
-    /// Top edge: absolute height in metres, at least [`OPENING_MARGIN`] below the storey's top
-    /// (the eave for the top storey).
+    /// Top edge: absolute height in metres, at least [`LINTEL`] below the storey's top (the
+    /// eave for the top storey).
     pub z1: f64,
     /// Glass or door-panel colour.
     pub color: Color,
@@ -359,6 +359,12 @@ impl Opening {
 /// Smallest distance between an opening and the border of its wall, or another opening
 /// (metres). Keeps wall polygons with holes valid (no touching rings).
 pub const OPENING_MARGIN: f64 = 0.02;
+
+/// Least wall between an opening's head and the top of its storey (metres): the lintel and the
+/// floor above. A door that filled its storey would also leave a strip of wall 2 cm high above
+/// it, whose long thin triangles a validator finds tilted once the opening's corners are
+/// rounded to the millimetre (val3dity's 204).
+pub const LINTEL: f64 = 0.3;
 
 /// A balcony on a wall (LOD3): a slab of `depth` metres in front of the wall at floor height
 /// `z`, spanning `u0..u1` along it, with a railing.

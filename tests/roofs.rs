@@ -9,6 +9,7 @@ use std::path::Path;
 
 use citygen::color::Color;
 use citygen::derive::massing::{build_part, check_part, roof_geometry, Mass};
+use citygen::derive::roof::RoofGeometry;
 use citygen::geometry::Polygon;
 use citygen::input::{osm::read_osm, shp::read_shp, shp::ShpOptions};
 use citygen::model::{Lod, RoofShape};
@@ -87,6 +88,13 @@ fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
                 continue;
             }
             if matches!(shape, RoofShape::Hipped | RoofShape::Gabled) {
+                // A round outline rises to one apex: its faces' pitches are off the given
+                // one by up to the angle the apex's move makes.
+                let apex_tol = if r.has_one_apex() {
+                    RoofGeometry::one_apex_pitch_tolerance(PITCH)
+                } else {
+                    0.0
+                };
                 for f in &r.faces {
                     let s = f.normal().z.clamp(-1.0, 1.0).acos().to_degrees();
                     // A footprint vertex the skeleton took for straight lies up to its
@@ -97,7 +105,7 @@ fn run(path: &Path, not_closed: &mut Vec<String>) -> (usize, Vec<String>) {
                     let tol = 0.01
                         + (2.0 * citygen::geometry::skeleton::COLLINEAR_ABS / width.max(1e-9))
                             .to_degrees();
-                    if (s - PITCH).abs() > tol {
+                    if (s - PITCH).abs() > tol + apex_tol {
                         bad.push(format!("{id} {shape:?}: face slope {s}"));
                         break;
                     }
@@ -264,14 +272,15 @@ fn planes(faces: &[citygen::model::Face]) -> usize {
     seen.len()
 }
 
-/// Gable ends: gable walls, those in one plane that share a corner counted once (a side with
-/// a collinear vertex has two walls under one gable).
+/// Gable ends: gable walls, those that share a corner and face the same way within 1° counted
+/// once (a side with a straight vertex, as [`rectangle`] drops them, has two walls under one
+/// gable).
 fn gable_ends(walls: &[citygen::model::Face]) -> usize {
     let n = walls.len();
     let mut rep: Vec<usize> = (0..n).collect();
     for i in 0..n {
         for j in 0..i {
-            let same_plane = planes(&[walls[i].clone(), walls[j].clone()]) == 1;
+            let same_plane = walls[i].normal().dot(walls[j].normal()) >= 1f64.to_radians().cos();
             let touch = walls[i]
                 .outer
                 .iter()
@@ -410,13 +419,10 @@ fn forced_roofs_are_closed_valid_solids_once_written() {
     let mut failures = Vec::new();
     // Ratchets: the figures per sample of one-sided gable ends on rectangles, open solids, and
     // parts with a repeated vertex, a spike, a self-touching ring or an open edge once written.
-    // Open and written are 0. The one-sided ends left: Monaco way/572948281, whose end's
-    // vertices are its parts' corners (kept, 5.3 mm off straight, so the end is two faces) under
-    // gabled, half-hipped and gambrel; Clifton shp/515, a square, half-hipped (a square's
-    // gabled ends are drawn, its half-hips not yet). Lower them, never raise them.
+    // All are 0; a new case fails the test.
     let limits = [
-        ("monaco/monaco.osm.pbf", 3, 0, 0),
-        ("clifton/clifton_test.shp", 1, 0, 0),
+        ("monaco/monaco.osm.pbf", 0, 0, 0),
+        ("clifton/clifton_test.shp", 0, 0, 0),
     ];
     for (f, max_one_sided, max_open, max_written) in limits {
         let s = survey(&root.join(f));

@@ -10,10 +10,11 @@
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
+use crate::derive::massing::grid::along_on_grid;
 use crate::geometry::Polygon;
 use crate::grammar::{AttrValue, FaceKind, Geometry, Label, ShapeNode, ShapeTree, Terminal};
 pub use crate::model::OpeningKind;
-use crate::model::{Balcony, Face, Opening, Part, Wall, OPENING_MARGIN};
+use crate::model::{Balcony, Face, Opening, Part, Wall, LINTEL, OPENING_MARGIN};
 
 /// How far (metres) a face may be from a footprint edge and still stand on it.
 const ON_EDGE: f64 = 0.01;
@@ -232,6 +233,9 @@ pub struct OpeningColors {
 
 /// Smallest window or door kept (metres, each side).
 const MIN_OPENING: f64 = 0.1;
+/// How far (metres) a jamb may move into its opening to stand on a grid point by its wall's
+/// line ([`along_on_grid`]).
+const JAMB_SNAP: f64 = 0.02;
 /// Default balcony depth (metres).
 const BALCONY_DEPTH: f64 = 1.2;
 
@@ -300,7 +304,7 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                     u0: f.u0.max(OPENING_MARGIN),
                     u1: f.u1.min(len - OPENING_MARGIN),
                     z0: f.z0.max(lo + OPENING_MARGIN),
-                    z1: f.z1.min(hi - OPENING_MARGIN),
+                    z1: f.z1.min(hi - LINTEL),
                     color: f.color.unwrap_or(match f.kind {
                         OpeningKind::Window => colors.window,
                         OpeningKind::Door => colors.door,
@@ -309,6 +313,7 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                     glazed: f.glazed,
                     framed: f.framed,
                 };
+                // Kept or dropped on its extent as derived; the kept ones narrowed after.
                 let overlaps = openings.iter().any(|q| {
                     o.u0 < q.u1 + OPENING_MARGIN
                         && q.u0 < o.u1 + OPENING_MARGIN
@@ -320,6 +325,13 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                     continue;
                 }
                 openings.push(o);
+            }
+            // Jambs on grid points by the wall's line (see `along_on_grid`), each opening
+            // narrowed by at most JAMB_SNAP a side.
+            for o in &mut openings {
+                let snap = (0.25 * o.width()).clamp(0.0, JAMB_SNAP);
+                o.u0 = along_on_grid(full.start, full.end, o.u0, snap);
+                o.u1 = along_on_grid(full.start, full.end, o.u1, -snap);
             }
             outline.holes = openings
                 .iter()

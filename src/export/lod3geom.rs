@@ -8,7 +8,7 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::model::{Balcony, Face, Opening, Wall};
+use crate::model::{Balcony, Face, Opening, Part, Wall};
 
 /// Thickness of a balcony slab below its floor height (metres).
 pub const SLAB_THICKNESS: f64 = 0.2;
@@ -159,6 +159,121 @@ pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
     Some(BalconyFaces { slab, railing })
 }
 
+/// Sills lower than this above their wall's base (metres: a door, a French window) stand over
+/// vertices of the base ([`seated_faces`]).
+pub const LOW_SILL: f64 = 0.3;
+
+/// The ground and wall outlines of a LOD3 part as a solid writes them: a vertex on a wall's
+/// base under each jamb of an opening whose sill is lower than [`LOW_SILL`], and the same
+/// vertex in the face below that shares the base (the ground, or the storey below's wall), so
+/// the shell stays closed (every edge twice, no T-junction).
+///
+/// Why: a door stands [`crate::model::OPENING_MARGIN`] (2 cm) above its floor. Without these
+/// vertices the strip of wall under it meets the base only at the wall's corners, and a
+/// validator's triangulation of the wall spans it with long needles from the door's corners to
+/// a far corner; the door's corners, rounded to the millimetre, sit a fraction of a millimetre
+/// either side of the wall's plane, which tilts such a needle by tens of degrees (val3dity's
+/// 204). With a vertex under each jamb (at the jamb's own point, so the jamb is exactly
+/// vertical once rounded) the strip is a rectangle with vertical sides.
+///
+/// `None` when no wall has such an opening (write the model's faces), else every ground and
+/// wall face, in the model's order.
+pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
+    let low = |w: &Wall| {
+        w.openings
+            .iter()
+            .any(|o| opening_is_valid(o) && o.z0 - w.base_z < LOW_SILL)
+    };
+    if !part.walls.iter().any(low) {
+        return None;
+    }
+    type Mm = (i64, i64, i64);
+    let key = |p: DVec3| -> Mm {
+        let g = p * crate::model::GRID_STEPS_PER_M;
+        (g.x.round() as i64, g.y.round() as i64, g.z.round() as i64)
+    };
+    let mut faces: Vec<Face> = std::iter::once(part.ground.clone())
+        .chain(part.walls.iter().map(|w| w.outline.clone()))
+        .collect();
+    // Every directed edge of the faces: (face, ring, index of its start).
+    let mut edge_at: std::collections::HashMap<(Mm, Mm), (usize, usize, usize)> =
+        std::collections::HashMap::new();
+    for (fi, face) in faces.iter().enumerate() {
+        for (ri, r) in std::iter::once(&face.outer)
+            .chain(face.holes.iter())
+            .enumerate()
+        {
+            let n = r.len();
+            for i in 0..n {
+                edge_at
+                    .entry((key(r[i]), key(r[(i + 1) % n])))
+                    .or_insert((fi, ri, i));
+            }
+        }
+    }
+    // (face, ring, after which index, points), applied last.
+    let mut inserts: Vec<(usize, usize, usize, Vec<DVec3>)> = Vec::new();
+    for (wi, wall) in part.walls.iter().enumerate() {
+        let Some(f) = WallFrame::of(wall) else {
+            continue;
+        };
+        if !low(wall) {
+            continue;
+        }
+        let mut us: Vec<f64> = wall
+            .openings
+            .iter()
+            .filter(|o| opening_is_valid(o) && o.z0 - wall.base_z < LOW_SILL)
+            .flat_map(|o| [o.u0, o.u1])
+            .collect();
+        us.sort_by(f64::total_cmp);
+        let (a, b) = (wall.start.extend(wall.base_z), wall.end.extend(wall.base_z));
+        // The points, a grid step and more from each other and from the base's ends.
+        let mut points: Vec<DVec3> = Vec::new();
+        for u in us {
+            let p = f.at(u, wall.base_z, 0.0);
+            let k = key(p);
+            let apart = |q: DVec3| {
+                let kq = key(q);
+                (kq.0 - k.0).abs().max((kq.1 - k.1).abs()) > 1
+            };
+            if apart(a) && apart(b) && points.iter().all(|q| apart(*q)) {
+                points.push(p);
+            }
+        }
+        // The base (a then b) in the wall's own outline, and the face that runs b then a.
+        let own = edge_at
+            .get(&(key(a), key(b)))
+            .filter(|e| e.0 == wi + 1 && e.1 == 0);
+        let below = edge_at.get(&(key(b), key(a))).filter(|e| e.0 != wi + 1);
+        let (Some(&(fo, ro, io)), Some(&(fb, rb, ib))) = (own, below) else {
+            continue;
+        };
+        if points.is_empty() {
+            continue;
+        }
+        inserts.push((fo, ro, io, points.clone()));
+        points.reverse();
+        inserts.push((fb, rb, ib, points));
+    }
+    if inserts.is_empty() {
+        return None;
+    }
+    // Later places in a ring first, so the earlier indices still hold.
+    inserts.sort_by(|x, y| (x.0, x.1, y.2).cmp(&(y.0, y.1, x.2)));
+    for (fi, ri, i, pts) in inserts {
+        let face = &mut faces[fi];
+        let r = if ri == 0 {
+            &mut face.outer
+        } else {
+            &mut face.holes[ri - 1]
+        };
+        r.splice(i + 1..i + 1, pts);
+    }
+    let ground = faces.remove(0);
+    Some((ground, faces))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -246,6 +361,104 @@ mod tests {
         assert!(xs.iter().all(|x| (10.0..=11.2 + 1e-9).contains(x)));
         let bad = Balcony { depth: 0.0, ..b };
         assert!(balcony_faces(&w, &bad).is_none());
+    }
+
+    /// A point in millimetres.
+    type Mm = (i64, i64, i64);
+
+    /// Directed edges, in millimetres, of every ring of `faces` that have no reverse twin.
+    fn unpaired(faces: &[Face]) -> Vec<(Mm, Mm)> {
+        let k = |p: DVec3| {
+            let g = (p * 1000.0).round();
+            (g.x as i64, g.y as i64, g.z as i64)
+        };
+        let mut edges = std::collections::HashMap::new();
+        for r in faces
+            .iter()
+            .flat_map(|f| std::iter::once(&f.outer).chain(f.holes.iter()))
+        {
+            for i in 0..r.len() {
+                *edges.entry((k(r[i]), k(r[(i + 1) % r.len()]))).or_insert(0) += 1;
+            }
+        }
+        let mut out: Vec<_> = edges
+            .iter()
+            .filter(|((a, b), c)| **c != 1 || edges.get(&(*b, *a)) != Some(&1))
+            .map(|(e, _)| *e)
+            .collect();
+        out.sort();
+        out
+    }
+
+    #[test]
+    fn low_openings_stand_over_vertices_of_the_base_and_the_face_below() {
+        use super::samples::{door, part, window};
+        // An oblique quadrilateral on the millimetre grid, two storeys of 3 m: a door 2 cm
+        // above the ground on edge 0, a French window 2 cm above the first floor on edge 1,
+        // an ordinary window on edge 2.
+        let footprint = crate::geometry::Polygon::new(
+            vec![
+                DVec2::new(0.0, 0.0),
+                DVec2::new(8.003, 3.001),
+                DVec2::new(5.004, 11.002),
+                DVec2::new(-3.001, 8.0),
+            ],
+            vec![],
+        );
+        let p = part(
+            "p0",
+            footprint,
+            vec![0.0, 3.0],
+            6.0,
+            &[
+                (0, 0, door(3.0, 4.1, 0.02, 2.2)),
+                (1, 1, window(2.0, 3.2, 3.02, 5.4)),
+                (2, 0, window(2.0, 3.0, 0.9, 2.2)),
+            ],
+            &[],
+        );
+        let shell = |ground: &Face, walls: &[Face]| -> Vec<Face> {
+            let mut all = vec![ground.clone()];
+            all.extend(walls.iter().cloned());
+            all.extend(p.roof.iter().cloned());
+            for w in &p.walls {
+                all.extend(w.openings.iter().filter_map(|o| opening_face(w, o, 0.0)));
+            }
+            all
+        };
+        let model: Vec<Face> = p.walls.iter().map(|w| w.outline.clone()).collect();
+        assert!(
+            unpaired(&shell(&p.ground, &model)).is_empty(),
+            "the fixture is closed"
+        );
+        let (ground, walls) = seated_faces(&p).expect("two low openings");
+        assert!(unpaired(&shell(&ground, &walls)).is_empty(), "still closed");
+        // Edge 0, storey 0: the door's jambs on the base, in order, and in the ground reversed.
+        let w0 = &p.walls[0];
+        let f = WallFrame::of(w0).unwrap();
+        let (j0, j1) = (f.at(3.0, 0.0, 0.0), f.at(4.1, 0.0, 0.0));
+        assert_eq!(walls[0].outer.len(), 6);
+        assert_eq!(&walls[0].outer[1..3], &[j0, j1]);
+        assert_eq!(ground.outer.len(), 6);
+        let at = ground.outer.iter().position(|q| *q == j1).unwrap();
+        assert_eq!(ground.outer[at + 1], j0);
+        // Edge 1, storey 1 (wall 5): the French window's jambs on its base, and on the top of
+        // the wall below it (wall 1).
+        let f = WallFrame::of(&p.walls[5]).unwrap();
+        let (k0, k1) = (f.at(2.0, 3.0, 0.0), f.at(3.2, 3.0, 0.0));
+        assert_eq!(&walls[5].outer[1..3], &[k0, k1]);
+        assert_eq!(walls[1].outer.len(), 6);
+        assert!(walls[1].outer.windows(2).any(|w| w == [k1, k0]));
+        // Nothing else moved.
+        for i in [2, 3, 4, 6, 7] {
+            assert_eq!(walls[i], p.walls[i].outline);
+        }
+        // No low opening, nothing to seat.
+        let mut q = p.clone();
+        for w in &mut q.walls {
+            w.openings.retain(|o| o.z0 - w.base_z >= LOW_SILL);
+        }
+        assert!(seated_faces(&q).is_none());
     }
 }
 

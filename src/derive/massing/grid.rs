@@ -30,17 +30,6 @@ pub const MIN_GAP: f64 = crate::model::MIN_VERTEX_GAP;
 /// [`MIN_GAP`] in grid steps: two vertices of the ground and the walls closer than this are one.
 const MIN_GAP_STEPS: i64 = 3;
 
-/// Roof vertices closer than this (metres) to a vertex offered before them join it. A roof
-/// edge of a few millimetres (skeleton nodes that nearly coincide, on curved footprints
-/// above all) is tilted by the millimetre rounding of its ends by tens of degrees, and a
-/// validator triangulating the face finds a sliver there (val3dity's 204); merging it moves a
-/// vertex by less than this, which a roof face's planarity (1 cm) absorbs at any pitch up to
-/// 70° (8 mm × sin 70° plus the rounding).
-pub const ROOF_GAP: f64 = 0.008;
-
-/// [`ROOF_GAP`] in grid steps.
-const ROOF_GAP_STEPS: i64 = 8;
-
 /// A vertex on the grid, in grid steps.
 type Key = (i64, i64, i64);
 
@@ -60,6 +49,79 @@ fn point(k: Key) -> DVec3 {
 /// A 2D point on the grid.
 pub fn point2_on_grid(p: DVec2) -> DVec2 {
     DVec2::new(on_grid(p.x), on_grid(p.y))
+}
+
+/// The place nearest `u` (metres along the line from `start` to `end`, both on the grid), moved
+/// towards `u + shift` by at most `|shift|`, whose point lies within a small fraction of a grid
+/// step of the line, on the grid point the writers round it to.
+///
+/// An opening's corners are written rounded to the millimetre; a corner rounded half a
+/// millimetre off its wall's plane, against a neighbour rounded the other way, tilts the long
+/// thin triangles a validator makes between an opening 2 cm from the wall's base or top and the
+/// wall's far corners by tens of degrees (val3dity's 204). Grid points by an oblique line lie at
+/// every multiple of `1 / |end - start|` steps from it, so within a few steps along the line
+/// there is one a hundredth of a step from it, or closer: the jamb moves there. `u` comes back
+/// unchanged when `start` or `end` is not on the grid, or the line has no length.
+pub fn along_on_grid(start: DVec2, end: DVec2, u: f64, shift: f64) -> f64 {
+    let steps = |v: f64| v * GRID_STEPS_PER_M;
+    let whole = |p: DVec2| {
+        let (x, y) = (steps(p.x), steps(p.y));
+        ((x - x.round()).abs() < 1e-6 && (y - y.round()).abs() < 1e-6)
+            .then(|| (x.round() as i64, y.round() as i64))
+    };
+    let (Some(s), Some(e)) = (whole(start), whole(end)) else {
+        return u;
+    };
+    let d = (e.0 - s.0, e.1 - s.1);
+    let len = ((d.0 as f64).powi(2) + (d.1 as f64).powi(2)).sqrt();
+    if !(len > 0.0 && u.is_finite() && shift.is_finite()) || d.0.abs().max(d.1.abs()) > 1 << 40 {
+        return u;
+    }
+    // Along the line's dominant axis (a), one grid point per step: the other coordinate (b)
+    // rounded to the line, scored by the cross product (an integer: |cross| / len steps off).
+    let swap = d.1.abs() > d.0.abs();
+    let (da, db) = if swap { (d.1, d.0) } else { (d.0, d.1) };
+    let per_step = len / da.abs() as f64; // along-line steps per step of a
+    let target = steps(u) / per_step * da.signum() as f64; // a offset of u from start
+    let toward = if shift >= 0.0 {
+        da.signum()
+    } else {
+        -da.signum()
+    };
+    let (lo, hi) = (steps(u.min(u + shift)), steps(u.max(u + shift)));
+    let start_a = if toward > 0 {
+        target.floor() as i64
+    } else {
+        target.ceil() as i64
+    };
+    let reach = (steps(shift.abs()) / per_step).ceil() as i64 + 1;
+    // Staying put is a candidate: u's own point, as the writers round it.
+    let here = {
+        let t = DVec2::new(steps(start.x), steps(start.y))
+            + (DVec2::new(d.0 as f64, d.1 as f64) / len) * steps(u);
+        let q = (t.x.round() as i64 - s.0, t.y.round() as i64 - s.1);
+        let cross = (q.0 as i128 * d.1 as i128 - q.1 as i128 * d.0 as i128).unsigned_abs();
+        i64::try_from(cross).unwrap_or(i64::MAX)
+    };
+    let mut best: (i64, Option<f64>) = (here, None); // (|cross|, along in steps; None: u)
+    for k in 0..=reach.min(100_000) {
+        let qa = start_a + toward * k;
+        let qb = ((qa as f64) * db as f64 / da as f64).round() as i64;
+        let (qx, qy) = if swap { (qb, qa) } else { (qa, qb) };
+        let along = (qx as f64 * d.0 as f64 + qy as f64 * d.1 as f64) / len;
+        if along < lo || along > hi {
+            continue;
+        }
+        let cross = (qa as i128 * db as i128 - qb as i128 * da as i128).unsigned_abs();
+        let cross = i64::try_from(cross).unwrap_or(i64::MAX);
+        if cross < best.0 {
+            best = (cross, Some(along));
+        }
+        if cross == 0 {
+            break;
+        }
+    }
+    best.1.map_or(u, |along| along / GRID_STEPS_PER_M)
 }
 
 /// The footprint on the grid: every vertex rounded to the millimetre, vertices closer than
@@ -111,7 +173,7 @@ struct Reps {
 
 impl Reps {
     fn cell(k: Key) -> Key {
-        let c = ROOF_GAP_STEPS;
+        let c = MIN_GAP_STEPS;
         (k.0.div_euclid(c), k.1.div_euclid(c), k.2.div_euclid(c))
     }
 
@@ -227,11 +289,13 @@ fn on_segment(u: Key, v: Key, w: Key) -> Option<f64> {
 /// base); walls have no openings yet (they are cut at LOD3, after this). Roof faces that
 /// collapse are dropped.
 pub fn finish(ground: &mut Face, walls: &mut [Wall], roof: &mut Vec<Face>) {
-    // Roof vertices merged at ROOF_GAP, unless that leaves the shell not 2-manifold (two thin
-    // faces folded onto one edge, a ring touching itself): then at MIN_GAP, as ground and walls.
-    let (mut faces, mut alive) = on_keys(ground, walls, roof, ROOF_GAP_STEPS);
-    if !sound(&faces, &alive) {
-        (faces, alive) = on_keys(ground, walls, roof, MIN_GAP_STEPS);
+    // Roof vertices that nearly coincide made one where the faces stay flat, unless that
+    // leaves the shell not 2-manifold (two thin faces folded onto one edge, a ring touching
+    // itself): then the roof as built. Every vertex then joins the first within MIN_GAP.
+    let collapsed = collapse_clusters(ground, walls, roof);
+    let (mut faces, mut alive) = on_keys(ground, walls, collapsed.as_deref().unwrap_or(roof));
+    if collapsed.is_some() && !sound(&faces, &alive) {
+        (faces, alive) = on_keys(ground, walls, roof);
     }
     // Back into the faces.
     let back = |r: &Vec<Key>| -> Vec<DVec3> { r.iter().map(|k| point(*k)).collect() };
@@ -256,6 +320,256 @@ pub fn finish(ground: &mut Face, walls: &mut [Wall], roof: &mut Vec<Face>) {
         .filter(|(f, a)| *a && !f.is_empty())
         .map(|(f, _)| face(&f))
         .collect();
+}
+
+/// Roof vertices closer than this (metres), directly or through a chain of such neighbours,
+/// form a cluster that `finish` makes one vertex where one fits (see `collapse_clusters`).
+pub const ROOF_CLUSTER: f64 = 0.03;
+
+/// Roof edges shorter than this (metres) have their ends made one by `collapse_clusters`
+/// where a point fits.
+pub const ROOF_SHORT_EDGE: f64 = 0.1;
+
+/// Vertices become one only where one point lies within this (metres) of the plane of every
+/// roof face they touch: a millimetre, the rounding's own size, so that faces stay as flat as
+/// the grid lets them (a vertex moved further off its planes tilts the near-degenerate
+/// triangles of the faces around it, the very slivers this removes).
+const CLUSTER_PLANE_TOL: f64 = 0.001;
+
+/// The roof with each cluster of nearby vertices, and the ends of each short edge, made one
+/// vertex where that keeps every face flat; `None` when nothing moves.
+///
+/// The straight skeleton of a nearly regular outline (a bay's arc, a tower's polygon with a
+/// courtyard) does not meet in single nodes: its nodes land a centimetre or two apart, joined
+/// by edges of millimetres, or in a chain a few centimetres apart along a curved side, and the
+/// faces between them are needles. Rounded to the millimetre, a validator triangulating such a
+/// face finds triangles tilted by tens of degrees (val3dity's 204). Where the faces' planes
+/// nearly meet in one point, that point replaces the vertices: the least-squares point of the
+/// planes (pulled towards the vertices' centroid along any direction they leave free, a
+/// ridge's), kept only when it lies within [`CLUSTER_PLANE_TOL`] of every plane and near every
+/// vertex it replaces. A vertex at a wall or ground vertex (an eave corner, a gable's apex)
+/// keeps that place, on the same condition. First the clusters of vertices chained within
+/// [`ROOF_CLUSTER`]; then the edges shorter than [`ROOF_SHORT_EDGE`], shortest first, each
+/// joining what its two ends already joined. Faces left with repeated vertices are cleaned by
+/// [`on_keys`]; the caller keeps the roof as it was if the shell is then not sound.
+fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec<Face>> {
+    type Map<V> = HashMap<Key, V, crate::derive::massing::CellHash>;
+    let reach = (ROOF_CLUSTER * GRID_STEPS_PER_M).round() as i64;
+    let cell = |k: Key| {
+        (
+            k.0.div_euclid(reach),
+            k.1.div_euclid(reach),
+            k.2.div_euclid(reach),
+        )
+    };
+    fn rings(f: &Face) -> impl Iterator<Item = DVec3> + '_ {
+        std::iter::once(&f.outer)
+            .chain(f.holes.iter())
+            .flatten()
+            .copied()
+    }
+    // The roof's distinct vertices (by grid key, in order of appearance) and their faces.
+    let mut ids: Map<usize> = Map::default();
+    let mut verts: Vec<(Key, DVec3)> = Vec::new();
+    let mut faces_of: Vec<Vec<usize>> = Vec::new();
+    for (fi, f) in roof.iter().enumerate() {
+        for p in rings(f) {
+            let k = key(p);
+            let id = *ids.entry(k).or_insert_with(|| {
+                verts.push((k, p));
+                faces_of.push(Vec::new());
+                verts.len() - 1
+            });
+            if faces_of[id].last() != Some(&fi) {
+                faces_of[id].push(fi);
+            }
+        }
+    }
+    // Vertices of the ground and walls, by cell: they do not move.
+    let mut fixed: Map<Vec<DVec3>> = Map::default();
+    for p in rings(ground).chain(walls.iter().flat_map(|w| w.outline.outer.iter().copied())) {
+        fixed.entry(cell(key(p))).or_default().push(p);
+    }
+    let near = |k: Key, f: &mut dyn FnMut(Key)| {
+        let c = cell(k);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    f((c.0 + dx, c.1 + dy, c.2 + dz));
+                }
+            }
+        }
+    };
+    // Clusters: union-find over pairs within ROOF_CLUSTER.
+    let mut by_cell: Map<Vec<usize>> = Map::default();
+    for (i, (k, _)) in verts.iter().enumerate() {
+        by_cell.entry(cell(*k)).or_default().push(i);
+    }
+    let mut parent: Vec<usize> = (0..verts.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let r2 = ROOF_CLUSTER * ROOF_CLUSTER;
+    let mut any = false;
+    for i in 0..verts.len() {
+        let mut others = Vec::new();
+        near(verts[i].0, &mut |c| {
+            if let Some(v) = by_cell.get(&c) {
+                others.extend(v.iter().copied().filter(|&j| j > i));
+            }
+        });
+        for j in others {
+            if verts[i].1.distance_squared(verts[j].1) < r2 {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                if a != b {
+                    parent[a.max(b)] = a.min(b);
+                    any = true;
+                }
+            }
+        }
+    }
+    // The roof's edges shorter than ROOF_SHORT_EDGE, shortest first.
+    let mut edges: Vec<(f64, usize, usize)> = Vec::new();
+    for f in roof {
+        for r in std::iter::once(&f.outer).chain(f.holes.iter()) {
+            let n = r.len();
+            for i in 0..n {
+                let (a, b) = (ids[&key(r[i])], ids[&key(r[(i + 1) % n])]);
+                let l = verts[a].1.distance(verts[b].1);
+                if a != b && l < ROOF_SHORT_EDGE {
+                    edges.push((l, a.min(b), a.max(b)));
+                }
+            }
+        }
+    }
+    edges.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    edges.dedup_by(|x, y| x.1 == y.1 && x.2 == y.2);
+    if !any && edges.is_empty() {
+        return None;
+    }
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); verts.len()];
+    for i in 0..verts.len() {
+        let r = root(&mut parent, i);
+        members[r].push(i);
+    }
+    // Each face's plane: unit normal and offset.
+    let planes: Vec<Option<(DVec3, f64)>> = roof
+        .iter()
+        .map(|f| {
+            let n = crate::geometry::newell_normal(&f.outer);
+            let l = n.length();
+            (l.is_finite() && l > 1e-12).then(|| {
+                let n = n / l;
+                let c = f.outer.iter().copied().sum::<DVec3>() / f.outer.len() as f64;
+                (n, n.dot(c))
+            })
+        })
+        .collect();
+    // The vertices within MIN_GAP of a wall or ground vertex, with it.
+    let anchor_of: Vec<Option<DVec3>> = verts
+        .iter()
+        .map(|&(k, p)| {
+            let mut found = None;
+            near(k, &mut |c| {
+                if let Some(v) = fixed.get(&c) {
+                    for q in v {
+                        if q.distance(p) < MIN_GAP && found.is_none() {
+                            found = Some(*q);
+                        }
+                    }
+                }
+            });
+            found
+        })
+        .collect();
+    // The point for a group of vertices, if one fits (see the doc comment).
+    let fit = |group: &[usize], at: &[DVec3], reach: f64| -> Option<DVec3> {
+        let mut face_ids: Vec<usize> = group.iter().flat_map(|&i| faces_of[i].clone()).collect();
+        face_ids.sort_unstable();
+        face_ids.dedup();
+        let ps = face_ids
+            .iter()
+            .map(|&f| planes[f])
+            .collect::<Option<Vec<(DVec3, f64)>>>()?;
+        let mut anchors: Vec<DVec3> = group.iter().filter_map(|&i| anchor_of[i]).collect();
+        anchors.dedup();
+        let centroid = group.iter().map(|&i| at[i]).sum::<DVec3>() / group.len() as f64;
+        let x = match anchors.as_slice() {
+            [] => {
+                let lambda = 1e-4;
+                let mut a = glam::DMat3::from_diagonal(DVec3::splat(lambda));
+                let mut b = centroid * lambda;
+                for (n, d) in &ps {
+                    a += glam::DMat3::from_cols(*n * n.x, *n * n.y, *n * n.z);
+                    b += *n * *d;
+                }
+                if a.determinant().abs() < 1e-15 {
+                    return None;
+                }
+                a.inverse() * b
+            }
+            [one] => *one,
+            _ => return None,
+        };
+        let fits = x.is_finite()
+            && ps
+                .iter()
+                .all(|(n, d)| (n.dot(x) - d).abs() <= CLUSTER_PLANE_TOL)
+            && group.iter().all(|&i| verts[i].1.distance(x) <= reach);
+        fits.then_some(x)
+    };
+    // Stage 1: the clusters. `pos` is where each vertex goes, `merged` which are one.
+    let mut pos: Vec<DVec3> = verts.iter().map(|v| v.1).collect();
+    let mut merged: Vec<usize> = (0..verts.len()).collect();
+    let mut groups: Vec<Vec<usize>> = (0..verts.len()).map(|i| vec![i]).collect();
+    let mut changed = false;
+    for group in members.iter().filter(|g| g.len() > 1) {
+        if let Some(x) = fit(group, &pos, 2.0 * ROOF_CLUSTER) {
+            for &i in group {
+                pos[i] = x;
+                merged[i] = group[0];
+            }
+            groups[group[0]] = group.clone();
+            changed = true;
+        }
+    }
+    // Stage 2: roof edges shorter than ROOF_SHORT_EDGE, shortest first, their two ends (and
+    // what each was merged with) made one where a point fits. A chain of skeleton nodes a few
+    // centimetres apart along a curved side's faces leaves corners a millimetre off straight,
+    // which the rounding turns into slivers just as a cluster does.
+    for (_, a, b) in edges {
+        let (ra, rb) = (merged[a], merged[b]);
+        if ra == rb {
+            continue;
+        }
+        let mut group = groups[ra].clone();
+        group.extend(groups[rb].iter().copied());
+        if let Some(x) = fit(&group, &pos, 2.0 * ROOF_SHORT_EDGE) {
+            let r = ra.min(rb);
+            for &i in &group {
+                pos[i] = x;
+                merged[i] = r;
+            }
+            groups[r] = group;
+            changed = true;
+        }
+    }
+    if !changed {
+        return None;
+    }
+    let mv = |r: &Vec<DVec3>| -> Vec<DVec3> { r.iter().map(|p| pos[ids[&key(*p)]]).collect() };
+    Some(
+        roof.iter()
+            .map(|f| Face {
+                outer: mv(&f.outer),
+                holes: f.holes.iter().map(mv).collect(),
+            })
+            .collect(),
+    )
 }
 
 /// Whether every directed edge of the live faces is used once, and its reverse once, and every
@@ -297,14 +611,9 @@ fn sound(faces: &[Vec<Vec<Key>>], alive: &[bool]) -> bool {
         .all(|(&(a, b), &c)| c == 1 && count.get(&(b, a)) == Some(&1))
 }
 
-/// The part's faces on grid keys, vertices merged (roof ones within `roof_gap` steps), rings
+/// The part's faces on grid keys, vertices within [`MIN_GAP`] merged, rings
 /// cleaned and T-junctions closed; with each face's liveness.
-fn on_keys(
-    ground: &Face,
-    walls: &[Wall],
-    roof: &[Face],
-    roof_gap: i64,
-) -> (Vec<Vec<Vec<Key>>>, Vec<bool>) {
+fn on_keys(ground: &Face, walls: &[Wall], roof: &[Face]) -> (Vec<Vec<Vec<Key>>>, Vec<bool>) {
     let mut reps = Reps::default();
     let mut to_keys = |f: &Face, gap: i64| -> Vec<Vec<Key>> {
         std::iter::once(&f.outer)
@@ -320,7 +629,7 @@ fn on_keys(
             .iter()
             .map(|w| to_keys(&Face::new(w.outline.outer.clone()), MIN_GAP_STEPS)),
     );
-    faces.extend(roof.iter().map(|f| to_keys(f, roof_gap)));
+    faces.extend(roof.iter().map(|f| to_keys(f, MIN_GAP_STEPS)));
     let roof0 = 1 + walls.len();
     let mut alive = vec![true; faces.len()];
     let tidy = |faces: &mut Vec<Vec<Vec<Key>>>, alive: &mut Vec<bool>| {

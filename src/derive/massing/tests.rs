@@ -421,3 +421,120 @@ fn across_turns_the_ridge_of_a_gabled_rectangle() {
     assert!(top.iter().all(|p| (p.x - 6.0).abs() < 1e-6), "{top:?}");
     assert!((r.height - 6.0 * 35f64.to_radians().tan()).abs() < 1e-6);
 }
+
+#[test]
+fn jambs_move_to_grid_points_by_the_walls_line() {
+    use crate::rng::Rng;
+    use grid::{along_on_grid, point2_on_grid};
+    let off = |s: DVec2, e: DVec2, u: f64| {
+        let d = (e - s).normalize();
+        let q = point2_on_grid(s + d * u);
+        (q - s).perp_dot(d).abs()
+    };
+    let mut rng = Rng::new(19, 0);
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    for _ in 0..2000 {
+        let g = |r: &mut Rng| (r.range(-50_000.0, 50_000.0)).round() / 1000.0;
+        let s = DVec2::new(g(&mut rng), g(&mut rng));
+        let e = DVec2::new(g(&mut rng), g(&mut rng));
+        let len = s.distance(e);
+        if len < 1.0 {
+            continue;
+        }
+        let u = rng.range(0.1, len - 0.1);
+        let shift = if rng.next_f64() < 0.5 { 0.02 } else { -0.02 };
+        let v = along_on_grid(s, e, u, shift);
+        // Within the range it may move in, on the side it may move to.
+        let (lo, hi) = (u.min(u + shift), u.max(u + shift));
+        assert!(v >= lo - 1e-9 && v <= hi + 1e-9, "{u} -> {v} ({shift})");
+        before.push(off(s, e, u));
+        after.push(off(s, e, v));
+        assert!(
+            off(s, e, v) <= off(s, e, u) + 1e-12,
+            "never further off the line"
+        );
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (b, a) = (median(&mut before), median(&mut after));
+    // Rounding alone leaves a point a quarter of a millimetre off its line, typically.
+    assert!(
+        b > 1.5e-4 && a < 2e-5,
+        "median off the line: {b} m -> {a} m"
+    );
+    // On an axis, exactly on it; off the grid, not moved.
+    let (s, e) = (DVec2::new(1.0, 2.0), DVec2::new(11.0, 2.0));
+    assert_eq!(off(s, e, along_on_grid(s, e, 3.2137, 0.02)), 0.0);
+    let s = DVec2::new(1.00042, 2.0);
+    assert_eq!(along_on_grid(s, e, 3.2137, 0.02), 3.2137);
+}
+
+/// A 10 m square box (walls 0 to 3 m) under `roof`, put on the grid by `grid::finish`.
+fn finished_box(roof: Vec<Face>) -> (Face, Vec<Wall>, Vec<Face>) {
+    let c = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)].map(|(x, y)| DVec2::new(x, y));
+    let mut ground = Face::new(c.iter().rev().map(|p| p.extend(0.0)).collect());
+    let mut walls: Vec<Wall> = (0..4)
+        .map(|i| {
+            let (a, b) = (c[i], c[(i + 1) % 4]);
+            Wall {
+                start: a,
+                end: b,
+                base_z: 0.0,
+                top_z: 3.0,
+                thickness: 0.3,
+                outline: Face::new(vec![
+                    a.extend(0.0),
+                    b.extend(0.0),
+                    b.extend(3.0),
+                    a.extend(3.0),
+                ]),
+                storey: 0,
+                openings: Vec::new(),
+                balconies: Vec::new(),
+            }
+        })
+        .collect();
+    let mut roof = roof;
+    grid::finish(&mut ground, &mut walls, &mut roof);
+    (ground, walls, roof)
+}
+
+/// Four faces over the box's eave (z = 3) meeting in `a` (west) and `b` (east), joined by an
+/// edge.
+fn split_top(a: DVec3, b: DVec3) -> Vec<Face> {
+    let e = |x: f64, y: f64| DVec3::new(x, y, 3.0);
+    vec![
+        Face::new(vec![e(0.0, 0.0), e(10.0, 0.0), b, a]),
+        Face::new(vec![e(10.0, 0.0), e(10.0, 10.0), b]),
+        Face::new(vec![e(10.0, 10.0), e(0.0, 10.0), a, b]),
+        Face::new(vec![e(0.0, 10.0), e(0.0, 0.0), a]),
+    ]
+}
+
+#[test]
+fn a_split_apex_whose_planes_meet_in_one_point_becomes_that_point() {
+    // A low pyramid (3°) over the box whose apex the skeleton left as two nodes 1.3 cm
+    // apart, joined by an edge: each is within a millimetre of the planes of the faces
+    // through it, and all four planes meet within a millimetre of one point.
+    let (a, b) = (DVec3::new(5.0, 5.0, 3.25), DVec3::new(5.012, 5.004, 3.25));
+    let (_, _, roof) = finished_box(split_top(a, b));
+    assert_eq!(roof.len(), 4);
+    assert!(roof.iter().all(|f| f.outer.len() == 3), "{roof:?}");
+    let apex = roof[0].outer[2];
+    assert!(roof.iter().all(|f| f.outer.contains(&apex)));
+    assert!(apex.distance(a) < 0.013 && apex.distance(b) < 0.013);
+}
+
+#[test]
+fn a_short_ridge_whose_planes_do_not_meet_in_one_point_is_kept() {
+    // A hipped roof on the box with a ridge of 2.5 cm, less than ROOF_CLUSTER: made one
+    // point, the hips' planes would be 6 mm off it, so the ridge stays.
+    let (a, b) = (DVec3::new(4.9875, 5.0, 6.0), DVec3::new(5.0125, 5.0, 6.0));
+    assert!(a.distance(b) < grid::ROOF_CLUSTER);
+    let (_, _, roof) = finished_box(split_top(a, b));
+    assert_eq!(roof[0].outer.len(), 4, "{roof:?}");
+    let on_grid = |p: DVec3| DVec3::new(on_grid(p.x), on_grid(p.y), on_grid(p.z));
+    assert!(roof[0].outer.contains(&on_grid(a)) && roof[0].outer.contains(&on_grid(b)));
+}

@@ -65,6 +65,26 @@ impl RoofGeometry {
         }
     }
 
+    /// Whether every face meets at the highest point: a pyramid, a cone, or a round outline's
+    /// roof risen to one apex (see [`shapes::ONE_APEX_SPREAD`]).
+    pub fn has_one_apex(&self) -> bool {
+        let top = self
+            .faces
+            .iter()
+            .flat_map(|f| f.outer.iter())
+            .copied()
+            .max_by(|a, b| a.z.total_cmp(&b.z));
+        top.is_some_and(|t| self.faces.iter().all(|f| f.outer.contains(&t)))
+    }
+
+    /// How far (degrees) a face of a roof risen to one apex may be off `pitch_deg`, the slope
+    /// its side was given: the apex stands up to [`shapes::ONE_APEX_SPREAD`] of the largest
+    /// skeleton distance farther from a side than that side's own top would (2.5° at 35°).
+    pub fn one_apex_pitch_tolerance(pitch_deg: f64) -> f64 {
+        let k = pitch_deg.to_radians().tan();
+        pitch_deg - (k / (1.0 + shapes::ONE_APEX_SPREAD)).atan().to_degrees()
+    }
+
     /// Scales heights (about z = 0, the eave) so that the highest point is at `height`. A flat
     /// roof (height 0) is left unchanged. Planarity is preserved (a vertical scale is affine).
     pub fn scaled_to_height(mut self, height: f64) -> RoofGeometry {

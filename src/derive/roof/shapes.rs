@@ -97,6 +97,11 @@ pub const GABLE_MIN_OPPOSITE_DEG: f64 = 135.0;
 /// The top of a hip end (its vertices off the base) may spread over this fraction of the
 /// base's length and still be one apex (see `make_gables`).
 pub const GABLE_APEX_CLUSTER: f64 = 0.05;
+/// A footprint's skeleton whose inner nodes all lie within this fraction of its largest `t`
+/// (in plan) of the deepest node rises to that one apex (see `to_one_apex`).
+pub const ONE_APEX_SPREAD: f64 = 0.1;
+/// Fewest sides of an outline that `to_one_apex` takes for round (an octagonal tower).
+pub const ONE_APEX_MIN_SIDES: usize = 8;
 /// Height fraction of the gable wall under a half-hip.
 pub const HALF_HIP_FRACTION: f64 = 0.6;
 
@@ -202,7 +207,7 @@ pub fn profile_roof(
             })
         })
         .collect();
-    if ends != Ends::Hipped {
+    if !to_one_apex(poly, &mut faces, size) && ends != Ends::Hipped {
         make_gables(&mut faces, ends, 1e-7 * size);
     }
     let tmax = faces
@@ -293,6 +298,88 @@ pub fn profile_roof(
     insert_footprint_vertices(&mut faces, poly, 2.0 * collinear_tolerance(size));
     let walls = gable_walls(poly, &faces);
     Ok(RoofGeometry::from_parts(faces, walls))
+}
+
+/// Makes the faces of a footprint whose skeleton nearly closes in one point (a round tower drawn
+/// as a polygon of many sides, a regular octagon) rise to one apex: each face becomes its base
+/// (the footprint side, collinear vertices included) and the deepest skeleton node, at the
+/// largest `t`. Returns whether it did.
+///
+/// The skeleton of such a footprint, drawn by hand, does not meet in one point: its inner nodes
+/// scatter over a few centimetres, joined by edges of millimetres, and the faces there are
+/// needles that the millimetre rounding tilts by tens of degrees (a validator's sliver). A
+/// triangle is planar whatever its apex; the apex is at most [`ONE_APEX_SPREAD`] of the
+/// largest `t` from where each face's own top was, so a face's pitch changes by a few degrees
+/// at most (2.5° at 35°).
+///
+/// Applies to round outlines: without holes, of [`ONE_APEX_MIN_SIDES`] sides or more, convex,
+/// every corner within [`ONE_APEX_SPREAD`] of the mean distance from the deepest node, and all
+/// inner nodes within [`ONE_APEX_SPREAD`] · `T` (in plan) of it; every face must have one run
+/// of base vertices.
+fn to_one_apex(poly: &Polygon, faces: &mut [Option<TFace>], size: f64) -> bool {
+    if !poly.holes.is_empty() || poly.outer.len() < ONE_APEX_MIN_SIDES {
+        return false;
+    }
+    let eps = 1e-9 * size;
+    let Some(apex) = faces
+        .iter()
+        .flatten()
+        .flat_map(|f| f.pts.iter())
+        .copied()
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+    else {
+        return false;
+    };
+    let t = apex.z;
+    let spread = ONE_APEX_SPREAD * t;
+    let inner_close = faces
+        .iter()
+        .flatten()
+        .flat_map(|f| f.pts.iter())
+        .filter(|p| p.z > eps)
+        .all(|p| p.truncate().distance(apex.truncate()) <= spread);
+    // Round: convex, every corner about as far from the apex as the others.
+    let n = poly.outer.len();
+    let c = apex.truncate();
+    let convex = (0..n).all(|i| {
+        let (a, b, d) = (
+            poly.outer[i],
+            poly.outer[(i + 1) % n],
+            poly.outer[(i + 2) % n],
+        );
+        (b - a).perp_dot(d - b) >= 0.0 && (b - a).perp_dot(c - a) > 0.05 * t * (b - a).length()
+    });
+    let radii: Vec<f64> = poly.outer.iter().map(|p| p.distance(c)).collect();
+    let mean = radii.iter().sum::<f64>() / n as f64;
+    let round = radii
+        .iter()
+        .all(|r| (r - mean).abs() <= ONE_APEX_SPREAD * mean);
+    if !(t > eps && inner_close && convex && round) {
+        return false;
+    }
+    let mut out = Vec::with_capacity(faces.len());
+    for f in faces.iter().flatten() {
+        let m = f.pts.len();
+        // The base run: from the base vertex after an inner one, while on the base.
+        let Some(s) = (0..m).find(|&i| f.pts[i].z <= eps && f.pts[(i + m - 1) % m].z > eps) else {
+            return false;
+        };
+        let base: Vec<DVec3> = (0..m)
+            .map(|k| f.pts[(s + k) % m])
+            .take_while(|p| p.z <= eps)
+            .collect();
+        let rest_on_base = (base.len()..m).any(|k| f.pts[(s + k) % m].z <= eps);
+        if base.len() < 2 || rest_on_base {
+            return false;
+        }
+        let mut pts = base;
+        pts.push(apex);
+        out.push(TFace { edge: f.edge, pts });
+    }
+    for (slot, f) in faces.iter_mut().filter(|f| f.is_some()).zip(out) {
+        *slot = Some(f);
+    }
+    true
 }
 
 /// Puts every footprint vertex that an edge of the roof's boundary passes over into that edge,
@@ -599,11 +686,11 @@ fn make_gables(faces: &mut [Option<TFace>], ends: Ends, tol: f64) {
             chain.push(n);
         }
     }
-    if !matches!(ends, Ends::Gabled) {
+    if !matches!(ends, Ends::Gabled | Ends::HalfHipped(_)) {
         return;
     }
     for i in 0..faces.len() {
-        square_gables(faces, i, tol);
+        square_gables(faces, i, ends, tol);
     }
 }
 
@@ -612,12 +699,30 @@ fn kinked(faces: &[Option<TFace>], i: usize, j: usize) -> bool {
     let (Some(f), Some(g)) = (&faces[i], &faces[j]) else {
         return false;
     };
-    if f.pts.len() < 2 || g.pts.len() < 2 || f.pts[1].distance(g.pts[0]) > 1e-9 {
+    if f.pts.len() < 2 || g.pts.len() < 2 {
         return false;
     }
-    let d1 = (f.pts[1] - f.pts[0]).truncate().normalize_or_zero();
-    let d2 = (g.pts[1] - g.pts[0]).truncate().normalize_or_zero();
+    let (rf, rg) = (base_run(f, 0.0), base_run(g, 0.0));
+    let (f0, f1) = (rf[rf.len() - 2], rf[rf.len() - 1]);
+    if f1.distance(g.pts[0]) > 1e-9 {
+        return false;
+    }
+    let d1 = (f1 - f0).truncate().normalize_or_zero();
+    let d2 = (rg[1] - rg[0]).truncate().normalize_or_zero();
     d1.dot(d2) >= GABLE_MAX_KINK_DEG.to_radians().cos()
+}
+
+/// The face's side: its first vertices, as long as they are on the footprint (`t` within
+/// `tol` of 0), at least its first two. A side with collinear vertices (the corners of parts
+/// drawn along it) is one face whose side has them all.
+fn base_run(f: &TFace, tol: f64) -> &[DVec3] {
+    let n = f
+        .pts
+        .iter()
+        .take_while(|p| p.z.abs() <= tol)
+        .count()
+        .clamp(2.min(f.pts.len()), f.pts.len());
+    &f.pts[..n]
 }
 
 /// The two faces holding `a → top` (before `a` in its ring) and `top → b`, with every face
@@ -692,10 +797,11 @@ fn gable_chain(
         if f.pts.len() < 3 {
             return None;
         }
+        let run = base_run(f, tol);
         if base.is_empty() {
-            base.push(f.pts[0]);
+            base.push(run[0]);
         }
-        base.push(f.pts[1]);
+        base.extend_from_slice(&run[1..]);
     }
     let (a, b) = (base[0], base[base.len() - 1]);
     let on_base = |q: DVec3| base.iter().any(|m| m.distance(q) <= tol);
@@ -710,12 +816,22 @@ fn gable_chain(
     if top.is_empty() {
         return None;
     }
+    // One apex: the top's highest vertex and those near it. A vertex clearly lower may be
+    // there too, where a short face of a kinked side closed before the apex (a side drawn
+    // in two pieces a few millimetres off straight); the end's neighbours hold it, and it
+    // goes with the end. Two vertices far apart at the same height are a ridge: a long
+    // side, no end.
     let width = (b - a).truncate().length();
-    let diam = top
+    let cluster = GABLE_APEX_CLUSTER * width;
+    let apex = top
         .iter()
-        .flat_map(|p| top.iter().map(move |q| p.distance(*q)))
-        .fold(0.0, f64::max);
-    if diam > GABLE_APEX_CLUSTER * width {
+        .copied()
+        .max_by(|p, q| p.z.total_cmp(&q.z))
+        .unwrap_or(a);
+    if !top
+        .iter()
+        .all(|q| q.distance(apex) <= cluster || q.z < apex.z - cluster)
+    {
         return None;
     }
     let in_top = |q: DVec3| top.iter().any(|m| m.distance(q) <= tol);
@@ -817,7 +933,7 @@ fn gable_chain(
 /// nothing unless face `i`'s top is one point shared by exactly three other faces: the one
 /// before it, the one after it (whose sides run opposite) and one whose side runs opposite to
 /// `i`'s.
-fn square_gables(faces: &mut [Option<TFace>], i: usize, tol: f64) {
+fn square_gables(faces: &mut [Option<TFace>], i: usize, ends: Ends, tol: f64) {
     let Some(f) = &faces[i] else { return };
     if f.pts.len() != 3 {
         return;
@@ -885,10 +1001,41 @@ fn square_gables(faces: &mut [Option<TFace>], i: usize, tol: f64) {
     let (Some(p), Some(q)) = (gable_point(a, b), gable_point(c, d)) else {
         return;
     };
+    let edge_i = f.edge;
+    let edge_o = faces[jo].as_ref().map(|g| g.edge);
+    let (with_prev, with_next, hips) = match ends {
+        Ends::HalfHipped(frac) => {
+            // Each gable stops at `frac` of its height, and a small hip rises from there to
+            // the ridge (the segment p q, on both neighbours' planes), a horizontal
+            // (1 - frac)·t from the gable point, at most half-way.
+            let frac = frac.clamp(0.05, 0.95);
+            let cut = |u: DVec3, g: DVec3| u + (g - u) * frac;
+            let len = (q - p).truncate().length();
+            let run = ((1.0 - frac) * p.z.min(q.z)).min(0.5 * len);
+            if !(run > tol && len > tol) {
+                return;
+            }
+            let (rp, rq) = (p + (q - p) * (run / len), q + (p - q) * (run / len));
+            let (xa, xb, xc, xd) = (cut(a, p), cut(b, p), cut(c, q), cut(d, q));
+            (
+                vec![xa, rp, rq, xd],
+                vec![xc, rq, rp, xb],
+                Some((vec![xa, xb, rp], vec![xc, xd, rq])),
+            )
+        }
+        _ => (vec![p, q], vec![q, p], None),
+    };
     faces[i] = None;
     faces[jo] = None;
+    if let (Some((hi, ho)), Some(eo)) = (hips, edge_o) {
+        faces[i] = Some(TFace {
+            edge: edge_i,
+            pts: hi,
+        });
+        faces[jo] = Some(TFace { edge: eo, pts: ho });
+    }
     // Before `i` the ridge runs from i's gable to the opposite one; after it, back.
-    for (j, with) in [(jp, [p, q]), (jn, [q, p])] {
+    for (j, with) in [(jp, with_prev), (jn, with_next)] {
         if let Some(g) = faces[j].as_mut() {
             g.pts = replace_runs(&g.pts, &at_apex, &with);
             g.pts.dedup_by(|x, y| x.distance(*y) <= tol);

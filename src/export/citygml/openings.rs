@@ -2,10 +2,12 @@
 //! balconies as `bldg:BuildingInstallation`s, and the `lod3Solid` (also used at LOD4 with the
 //! `lod4` properties).
 
-use crate::export::lod3geom::{balcony_faces, opening_face};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_faces};
 use crate::model::{OpeningKind, Part};
 
-use super::surfaces::{boundary_element, surfaces, written_walls, Surface, SurfaceKind};
+use super::surfaces::{
+    boundary_element, seated_surfaces, surfaces, written_walls, Surface, SurfaceKind,
+};
 use super::{lod4, GeometryLod, Renderer};
 
 impl Renderer<'_> {
@@ -55,7 +57,8 @@ impl Renderer<'_> {
         }
         // Opening polygons of the written walls, kept for the solid's references.
         let mut opening_refs: Vec<(usize, usize)> = Vec::new();
-        for s in surfaces(part) {
+        let seated = seated_faces(part);
+        for s in seated_surfaces(part, &seated) {
             let element = boundary_element(s.kind);
             x.s("<bldg:boundedBy>\n<");
             x.s(element);

@@ -110,6 +110,22 @@ pub(super) fn surfaces(part: &Part) -> impl Iterator<Item = Surface<'_>> {
         .filter(|s| ring(&s.face.outer).is_some())
 }
 
+/// [`surfaces`] with the ground and walls of `seated` (the LOD3 solid's, see
+/// [`crate::export::lod3geom::seated_faces`]) in place of the model's.
+pub(super) fn seated_surfaces<'a>(
+    part: &'a Part,
+    seated: &'a Option<(Face, Vec<Face>)>,
+) -> impl Iterator<Item = Surface<'a>> {
+    surfaces(part).map(move |s| {
+        let face = match (seated, s.kind) {
+            (Some((g, _)), SurfaceKind::Ground) => g,
+            (Some((_, w)), SurfaceKind::Wall) => w.get(s.index).unwrap_or(s.face),
+            _ => s.face,
+        };
+        Surface { face, ..s }
+    })
+}
+
 /// The ring without a closing duplicate of its first vertex, or `None` if fewer than 3 remain.
 pub(super) fn ring(points: &[DVec3]) -> Option<&[DVec3]> {
     let mut r = points;
