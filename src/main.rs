@@ -436,13 +436,10 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 ReadMode::Lenient
             };
             match tools::check_report_with(&kb, mode, allow_external_rulesets) {
-                Ok(r) => {
-                    print!("{r}");
-                    if !r.to_string().ends_with('\n') {
-                        println!();
-                    }
-                    ExitCode::from(if r.has_errors() { 1 } else { 0 })
-                }
+                Ok(r) => match emit(&r.to_string()) {
+                    Ok(()) => ExitCode::from(if r.has_errors() { 1 } else { 0 }),
+                    Err(code) => code,
+                },
                 Err(e) => fail(e.to_string()),
             }
         }
@@ -453,10 +450,11 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
             };
             match tools::compile_zone(&kb, &zone) {
                 Ok(list) => {
-                    for (label, text) in list {
-                        println!("# {label}\n{text}");
-                    }
-                    ExitCode::SUCCESS
+                    let all: String = list
+                        .iter()
+                        .map(|(label, text)| format!("# {label}\n{text}\n"))
+                        .collect();
+                    emit(&all).err().unwrap_or(ExitCode::SUCCESS)
                 }
                 Err(e) => fail(e.to_string()),
             }
@@ -482,16 +480,34 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 (None, None) => return ExitCode::from(2),
             };
             match citygen::pipeline::explain_building(&kb, &source, &id, seed) {
-                Ok(e) => {
-                    let text = e.to_string();
-                    print!("{text}");
-                    if !text.ends_with('\n') {
-                        println!();
-                    }
-                    ExitCode::SUCCESS
-                }
+                Ok(e) => emit(&e.to_string()).err().unwrap_or(ExitCode::SUCCESS),
                 Err(e) => fail(e.to_string()),
             }
+        }
+    }
+}
+
+/// Writes `text` to standard output, ending it with a newline (nothing for no text). A reader
+/// that stops early (`citygen kb explain ... | head`) closes the pipe: that is no error, and
+/// nothing more is written. `Err(3)` when standard output could not be written otherwise.
+fn emit(text: &str) -> Result<(), ExitCode> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let nl: &[u8] = if text.is_empty() || text.ends_with('\n') {
+        b""
+    } else {
+        b"\n"
+    };
+    match out
+        .write_all(text.as_bytes())
+        .and_then(|()| out.write_all(nl))
+        .and_then(|()| out.flush())
+    {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => {
+            eprintln!("citygen: error: standard output: {e}");
+            Err(ExitCode::from(3))
         }
     }
 }

@@ -779,6 +779,41 @@ fn kb_check_repairs_the_thesis_annex_and_strict_mode_refuses_it() {
 }
 
 #[test]
+fn a_reader_that_stops_early_is_no_panic() {
+    // `citygen kb check BIG.xml | head -1`: half a megabyte of findings, the pipe closed
+    // after the first line. The rest goes nowhere; the exit code is the command's own.
+    use std::io::{BufRead, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    let kb = dir.path().join("big.xml");
+    let mut text = String::from("<earth><info color=\"white\"/>\n");
+    for i in 0..3000 {
+        text.push_str(&format!(
+            "<country designation=\"C{i}\"><info lat=\"1\" lon=\"1\" dist=\"1\" \
+             color=\"notacolour{i}\"/></country>\n"
+        ));
+    }
+    text.push_str("</earth>\n");
+    std::fs::write(&kb, text).unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_citygen"))
+        .args(["kb", "check"])
+        .arg(&kb)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("3001 zones"), "{first}");
+    // The reader is dropped: the pipe is closed.
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}
+
+#[test]
 fn kb_compile_prints_rules_that_parse() {
     let out = citygen(&[
         "kb",
