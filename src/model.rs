@@ -32,6 +32,13 @@ pub fn on_grid(v: f64) -> f64 {
     (v * GRID_STEPS_PER_M).round() / GRID_STEPS_PER_M
 }
 
+/// A point's place on the output grid, in whole grid steps (millimetres): the integers its
+/// coordinates are written as. Two points are one vertex in the files when their keys agree.
+pub fn grid_key(p: glam::DVec3) -> (i64, i64, i64) {
+    let s = |v: f64| (v * GRID_STEPS_PER_M).round() as i64;
+    (s(p.x), s(p.y), s(p.z))
+}
+
 /// Where a footprint came from. Displayed as `way/123`, `relation/45` or `shp/7`
 /// (shapefile record index, 0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

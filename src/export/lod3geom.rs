@@ -179,19 +179,13 @@ pub const LOW_SILL: f64 = 0.3;
 /// `None` when no wall has such an opening (write the model's faces), else every ground and
 /// wall face, in the model's order.
 pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
-    let low = |w: &Wall| {
-        w.openings
-            .iter()
-            .any(|o| opening_is_valid(o) && o.z0 - w.base_z < LOW_SILL)
-    };
+    let is_low = |w: &Wall, o: &Opening| opening_is_valid(o) && o.z0 - w.base_z < LOW_SILL;
+    let low = |w: &Wall| w.openings.iter().any(|o| is_low(w, o));
     if !part.walls.iter().any(low) {
         return None;
     }
     type Mm = (i64, i64, i64);
-    let key = |p: DVec3| -> Mm {
-        let g = p * crate::model::GRID_STEPS_PER_M;
-        (g.x.round() as i64, g.y.round() as i64, g.z.round() as i64)
-    };
+    let key = crate::model::grid_key;
     let mut faces: Vec<Face> = std::iter::once(part.ground.clone())
         .chain(part.walls.iter().map(|w| w.outline.clone()))
         .collect();
@@ -214,16 +208,16 @@ pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
     // (face, ring, after which index, points), applied last.
     let mut inserts: Vec<(usize, usize, usize, Vec<DVec3>)> = Vec::new();
     for (wi, wall) in part.walls.iter().enumerate() {
-        let Some(f) = WallFrame::of(wall) else {
-            continue;
-        };
         if !low(wall) {
             continue;
         }
+        let Some(f) = WallFrame::of(wall) else {
+            continue;
+        };
         let mut us: Vec<f64> = wall
             .openings
             .iter()
-            .filter(|o| opening_is_valid(o) && o.z0 - wall.base_z < LOW_SILL)
+            .filter(|o| is_low(wall, o))
             .flat_map(|o| [o.u0, o.u1])
             .collect();
         us.sort_by(f64::total_cmp);
@@ -368,10 +362,7 @@ mod tests {
 
     /// Directed edges, in millimetres, of every ring of `faces` that have no reverse twin.
     fn unpaired(faces: &[Face]) -> Vec<(Mm, Mm)> {
-        let k = |p: DVec3| {
-            let g = (p * 1000.0).round();
-            (g.x as i64, g.y as i64, g.z as i64)
-        };
+        let k = crate::model::grid_key;
         let mut edges = std::collections::HashMap::new();
         for r in faces
             .iter()

@@ -34,8 +34,7 @@ const MIN_GAP_STEPS: i64 = 3;
 type Key = (i64, i64, i64);
 
 fn key(p: DVec3) -> Key {
-    let s = |v: f64| (v * GRID_STEPS_PER_M).round() as i64;
-    (s(p.x), s(p.y), s(p.z))
+    crate::model::grid_key(p)
 }
 
 fn point(k: Key) -> DVec3 {
@@ -385,11 +384,6 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
             }
         }
     }
-    // Vertices of the ground and walls, by cell: they do not move.
-    let mut fixed: Map<Vec<DVec3>> = Map::default();
-    for p in rings(ground).chain(walls.iter().flat_map(|w| w.outline.outer.iter().copied())) {
-        fixed.entry(cell(key(p))).or_default().push(p);
-    }
     let near = |k: Key, f: &mut dyn FnMut(Key)| {
         let c = cell(k);
         for dx in -1..=1 {
@@ -450,6 +444,11 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
     edges.dedup_by(|x, y| x.1 == y.1 && x.2 == y.2);
     if !any && edges.is_empty() {
         return None;
+    }
+    // Vertices of the ground and walls, by cell: they do not move.
+    let mut fixed: Map<Vec<DVec3>> = Map::default();
+    for p in rings(ground).chain(walls.iter().flat_map(|w| w.outline.outer.iter().copied())) {
+        fixed.entry(cell(key(p))).or_default().push(p);
     }
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); verts.len()];
     for i in 0..verts.len() {
