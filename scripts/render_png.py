@@ -2,7 +2,9 @@
 
 python scripts/render_png.py IN.glb OUT.png bird
 python scripts/render_png.py IN.glb OUT.png street DX DY FX FY   (eye 1.7 m up at the model centre
-    + (DX, DY) metres east/north, looking along (FX, FY)); numpy is in the validators' venv:
+    + (DX, DY) metres east/north, looking along (FX, FY))
+python scripts/render_png.py IN.glb OUT.png at X Y FX FY   (eye 1.7 m up at (X, Y) of the file's
+    local frame, metres east/north, looking along (FX, FY)); numpy is in the validators' venv:
     $CITYGEN_VALIDATE_HOME/venv/bin/python (default ~/.cache/citygen-validate).
 For where headless Chromium (scripts/screenshot) is missing."""
 import json, struct, sys, zlib, numpy as np
@@ -37,8 +39,9 @@ c = W.reshape(-1, 3).mean(0); ext = np.ptp(W.reshape(-1, 3)[:, :2], 0).max()
 Wd, H = 1400, 900
 if mode == 'bird':
     eye = c + np.array([-0.5, -0.9, 0.8]) * ext * 0.9; f = 1.6
-else:  # street: 1.7 m above ground, at the south edge, looking north
-    eye = np.array([c[0] + float(sys.argv[4]), c[1] + float(sys.argv[5]), 1.7]); f = 1.0
+else:  # street / at: 1.7 m above the ground
+    at = np.zeros(2) if mode == 'at' else c[:2]
+    eye = np.array([at[0] + float(sys.argv[4]), at[1] + float(sys.argv[5]), 1.7]); f = 1.0
     tgt = eye + np.array([float(sys.argv[6]), float(sys.argv[7]), 0.15])
 fwd = (c - eye) if mode == 'bird' else (tgt - eye); fwd /= np.linalg.norm(fwd)
 right = np.cross(fwd, [0, 0, 1]); right /= np.linalg.norm(right); up = np.cross(right, fwd)
@@ -48,6 +51,10 @@ light = np.array([0.4, -0.5, 0.75]); light /= np.linalg.norm(light)
 shade = 0.35 + 0.65 * np.abs(nrm @ light)
 img = np.full((H, Wd, 3), [0.78, 0.86, 0.95]); zb = np.full((H, Wd), np.inf)
 s = f * Wd / 2
+if mode != 'bird':  # the ground: pixels whose ray points down
+    gx, gy = np.meshgrid((np.arange(Wd) + 0.5 - Wd / 2) / s, (H / 2 - np.arange(H) - 0.5) / s)
+    dz = fwd[2] + gx * right[2] + gy * up[2]
+    img[dz < 0] = [0.55, 0.55, 0.53]
 for k in np.argsort(-z.min(1)):
     if z[k].min() < 0.5: continue
     px = Wd / 2 + s * x[k] / z[k]; py = H / 2 - s * y[k] / z[k]

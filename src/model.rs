@@ -373,6 +373,10 @@ pub const OPENING_MARGIN: f64 = 0.02;
 /// rounded to the millimetre (val3dity's 204).
 pub const LINTEL: f64 = 0.3;
 
+/// Height of a balcony's railing above its slab (metres): the writers draw it, and the facade
+/// rules keep a balcony clear of neighbours up to it.
+pub const RAILING_HEIGHT: f64 = 1.0;
+
 /// A balcony on a wall (LOD3): a slab of `depth` metres in front of the wall at floor height
 /// `z`, spanning `u0..u1` along it, with a railing.
 #[derive(Clone, Debug, PartialEq)]
@@ -420,6 +424,11 @@ pub struct Wall {
     pub openings: Vec<Opening>,
     /// Balconies (LOD3).
     pub balconies: Vec<Balcony>,
+    /// Share (0..=1) of the wall's rectangle (its length by `base_z..top_z`) that faces a
+    /// neighbouring building or another part of this one, from the ground up to that
+    /// neighbour's top (LOD3 and above, else 0): a party wall where it is 1, and no window,
+    /// door or balcony is cut where it faces one (`derive::frontage`).
+    pub party: f64,
 }
 
 impl Wall {
@@ -585,6 +594,52 @@ pub struct Building {
     pub parts: Vec<Part>,
     /// The LOD the geometry was cut at.
     pub lod: Lod,
+    /// What the LOD3 facade rules left out or added on this building (for the report).
+    pub facade: FacadeCounts,
+}
+
+/// What the LOD3 facade rules (`derive::frontage`) did to one building, or summed over a run.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FacadeCounts {
+    /// Windows and doors the rules put where the wall faces a neighbour: left out.
+    pub openings_on_party_walls: usize,
+    /// Balconies there: left out.
+    pub balconies_on_party_walls: usize,
+    /// Main entrances placed (one per building standing on the ground that has room for one).
+    pub entrances: usize,
+    /// Buildings standing on the ground with no ground-storey wall free for a door of at least
+    /// 0.8 by 2.0 m: no entrance.
+    pub without_entrance: usize,
+    /// Doors the rules put where there is no ground or balcony under them (the base of a raised
+    /// part, an upper storey): made windows, or left out where no window fits.
+    pub doors_off_ground: usize,
+    /// Ground-storey doors besides the main entrance: made windows.
+    pub extra_doors: usize,
+    /// Balcony doors that would be narrower than 0.8 m or lower than 2.0 m as drawn: left out.
+    pub doors_too_small: usize,
+    /// Window panes placed on runs of short wall edges (curved and many-edged walls).
+    pub run_windows: usize,
+    /// Wall area facing a neighbour, square metres (of the walls' rectangles: length by storey
+    /// height).
+    pub party_wall_area: f64,
+    /// All wall area, square metres (the same rectangles).
+    pub wall_area: f64,
+}
+
+impl FacadeCounts {
+    /// Adds `o`'s counts to these.
+    pub fn add(&mut self, o: &FacadeCounts) {
+        self.openings_on_party_walls += o.openings_on_party_walls;
+        self.balconies_on_party_walls += o.balconies_on_party_walls;
+        self.entrances += o.entrances;
+        self.without_entrance += o.without_entrance;
+        self.doors_off_ground += o.doors_off_ground;
+        self.extra_doors += o.extra_doors;
+        self.doors_too_small += o.doors_too_small;
+        self.run_windows += o.run_windows;
+        self.party_wall_area += o.party_wall_area;
+        self.wall_area += o.wall_area;
+    }
 }
 
 impl Building {

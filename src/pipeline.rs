@@ -181,6 +181,19 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
     prepare::assign_fronts(&mut site, &read.streets, source_crs);
+    let caps = Caps {
+        facades: opts.lod >= Lod::Lod3,
+        ..opts.caps
+    };
+    let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
+    if opts.lod >= Lod::Lod3 {
+        // Party walls: every building the run writes, and those that touch one, at LOD2 first.
+        let keep = match opts.bbox {
+            Some(b) => prepare::near_bbox(&site.lots, b, 1.0),
+            None => vec![true; site.lots.len()],
+        };
+        generator.surroundings = generator.neighbours_of(&site.lots, |i| keep[i]);
+    }
     if let Some(b) = opts.bbox {
         if let Err(why) = prepare::retain_in_bbox(&mut site, b, &mut report) {
             if !opts.allow_empty {
@@ -190,11 +203,6 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             }
         }
     }
-    let caps = Caps {
-        facades: opts.lod >= Lod::Lod3,
-        ..opts.caps
-    };
-    let generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
     let batches: Vec<Batch> = match opts.tile {
         None => vec![Batch {
             suffix: None,
@@ -729,6 +737,7 @@ fn write_lots(
                         report.add(Some(lot.id), outcome, text);
                     }
                     polygons += building.polygon_count();
+                    report.facades.add(&building.facade);
                     report.generated += 1;
                     ready.push(building);
                 }

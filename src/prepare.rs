@@ -881,9 +881,7 @@ fn repair(p: &Polygon) -> Vec<Polygon> {
 /// its longitudes and latitudes swapped would hold some: the caller decides whether an empty
 /// run is an error (`--allow-empty`).
 pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) -> Result<(), String> {
-    let inside = |(lon, lat): (f64, f64), b: [f64; 4]| {
-        lon >= b[0] && lon < b[2] && lat >= b[1] && lat < b[3]
-    };
+    let inside = in_bbox;
     let before = site.lots.len();
     if before > 0 && !site.lots.iter().any(|l| inside(l.lonlat, bbox)) {
         let (mut lo, mut hi) = (
@@ -1054,6 +1052,10 @@ impl RTreeObject for StreetSegment {
 /// result does not depend on the thread count. Street vertices that cannot be projected break
 /// their line.
 ///
+/// An edge whose outside is another building's (probes a quarter, half and three quarters
+/// along it, [`FRONT_PARTY_PROBE`] out, all inside another lot's outline) is no front: a
+/// party wall does not face the street beyond its neighbour.
+///
 /// Not handled: a street hidden behind another building still counts (no visibility test).
 pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>) {
     if streets.is_empty() {
@@ -1082,10 +1084,45 @@ pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>
         }
     }
     let tree = RTree::bulk_load(segments);
-    site.lots
-        .par_iter_mut()
-        .for_each(|lot| lot.front = front_of(&lot.polygons, &tree));
+    let outlines: Vec<OutlineEntry> = site
+        .lots
+        .iter()
+        .enumerate()
+        .flat_map(|(i, l)| {
+            l.polygons.iter().enumerate().map(move |(j, p)| {
+                let (lo, hi) = p.bounds();
+                OutlineEntry::new(
+                    rstar::primitives::Rectangle::from_corners(lo.to_array(), hi.to_array()),
+                    (i, j),
+                )
+            })
+        })
+        .collect();
+    let outlines = RTree::bulk_load(outlines);
+    let lots = &site.lots;
+    let fronts: Vec<Option<DVec2>> = lots
+        .par_iter()
+        .enumerate()
+        .map(|(i, lot)| {
+            let others = |p: DVec2| {
+                outlines
+                    .locate_all_at_point(p.to_array())
+                    .any(|e| e.data.0 != i && lots[e.data.0].polygons[e.data.1].contains(p))
+            };
+            front_of(&lot.polygons, &tree, &others)
+        })
+        .collect();
+    for (lot, f) in site.lots.iter_mut().zip(fronts) {
+        lot.front = f;
+    }
 }
+
+/// How far outside an edge [`assign_fronts`] looks for another building (metres).
+pub const FRONT_PARTY_PROBE: f64 = 0.25;
+
+/// A lot's outline polygon in the index of [`assign_fronts`]: (lot, polygon).
+type OutlineEntry =
+    rstar::primitives::GeomWithData<rstar::primitives::Rectangle<[f64; 2]>, (usize, usize)>;
 
 fn finite(p: DVec2) -> Option<DVec2> {
     p.is_finite().then_some(p)
@@ -1101,8 +1138,51 @@ fn nearest_on_segment(a: DVec2, b: DVec2, p: DVec2) -> DVec2 {
     a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
 }
 
+/// Whether a representative point (lon, lat) is in `--bbox` b (west, south, east, north), as
+/// [`retain_in_bbox`] decides.
+fn in_bbox((lon, lat): (f64, f64), b: [f64; 4]) -> bool {
+    lon >= b[0] && lon < b[2] && lat >= b[1] && lat < b[3]
+}
+
+/// Which lots `--bbox` keeps or whose outline comes within `margin` metres of one it keeps: the
+/// lots a run in the box needs as neighbours.
+pub fn near_bbox(lots: &[Lot], bbox: [f64; 4], margin: f64) -> Vec<bool> {
+    let bounds = |l: &Lot| {
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for p in l
+            .polygons
+            .iter()
+            .chain(l.parts.iter().flat_map(|p| &p.polygons))
+        {
+            let (a, b) = p.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        (lo.is_finite() && hi.is_finite())
+            .then(|| AABB::from_corners((lo - margin).to_array(), (hi + margin).to_array()))
+    };
+    let kept: Vec<rstar::primitives::Rectangle<[f64; 2]>> = lots
+        .iter()
+        .filter(|l| in_bbox(l.lonlat, bbox))
+        .filter_map(&bounds)
+        .map(|b| rstar::primitives::Rectangle::from_corners(b.lower(), b.upper()))
+        .collect();
+    let tree = RTree::bulk_load(kept);
+    lots.iter()
+        .map(|l| {
+            in_bbox(l.lonlat, bbox)
+                || bounds(l)
+                    .is_some_and(|b| tree.locate_in_envelope_intersecting(b).next().is_some())
+        })
+        .collect()
+}
+
 /// The front of one outline (see [`assign_fronts`]).
-fn front_of(polygons: &[Polygon], tree: &RTree<StreetSegment>) -> Option<DVec2> {
+fn front_of(
+    polygons: &[Polygon],
+    tree: &RTree<StreetSegment>,
+    in_another: &dyn Fn(DVec2) -> bool,
+) -> Option<DVec2> {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for p in polygons {
         let (a, b) = p.bounds();
@@ -1141,6 +1221,12 @@ fn front_of(polygons: &[Polygon], tree: &RTree<StreetSegment>) -> Option<DVec2> 
         // Outer rings are counter-clockwise: the outside is on the right.
         let normal = DVec2::new(d.y, -d.x);
         let mid = (a + b) * 0.5;
+        let party = [0.25, 0.5, 0.75]
+            .iter()
+            .all(|t| in_another(a + (b - a) * *t + normal * FRONT_PARTY_PROBE));
+        if party {
+            continue;
+        }
         let best = near
             .iter()
             .filter_map(|&(s0, s1)| {
@@ -1249,7 +1335,7 @@ mod tests {
             ],
             vec![],
         );
-        front_of(&[block], &tree)
+        front_of(&[block], &tree, &|_| false)
     }
 
     #[test]
@@ -1273,6 +1359,36 @@ mod tests {
         );
         // Too far.
         assert_eq!(front_with_street(v(-50.0, 70.0), v(70.0, 70.0)), None);
+    }
+
+    /// A wall against another building does not face the street beyond it: the block's north
+    /// side touches a neighbour 0.2 m away, so its front is the east end, which faces the street
+    /// 30 m off, not the north side 20 m from the street behind the neighbour.
+    #[test]
+    fn a_wall_against_a_neighbour_is_no_front() {
+        let v = DVec2::new;
+        let tree = RTree::bulk_load(vec![StreetSegment([-10.0, 30.0], [50.0, 30.0])]);
+        let block = Polygon::new(
+            vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 10.0), v(0.0, 10.0)],
+            vec![],
+        );
+        let neighbour = Polygon::new(
+            vec![v(-5.0, 10.2), v(25.0, 10.2), v(25.0, 20.0), v(-5.0, 20.0)],
+            vec![],
+        );
+        let free = front_of(std::slice::from_ref(&block), &tree, &|_| false);
+        assert_eq!(free, Some(DVec2::Y));
+        let against = |p: DVec2| neighbour.contains(p);
+        assert_eq!(
+            front_of(std::slice::from_ref(&block), &tree, &against),
+            None
+        );
+        let both: Vec<StreetSegment> = vec![
+            StreetSegment([-10.0, 30.0], [50.0, 30.0]),
+            StreetSegment([50.0, -20.0], [50.0, 40.0]),
+        ];
+        let both = RTree::bulk_load(both);
+        assert_eq!(front_of(&[block], &both, &against), Some(DVec2::X));
     }
 
     #[test]

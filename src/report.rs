@@ -41,6 +41,10 @@ pub struct Report {
     pub skipped: usize,
     /// Footprints written after a repair (each has an entry).
     pub repaired: usize,
+    /// What the LOD3 facade rules did, summed over the buildings written (zero below LOD3):
+    /// openings and balconies left out on party walls, entrances placed, doors made windows,
+    /// windows on curved runs, wall and party-wall areas.
+    pub facades: crate::model::FacadeCounts,
     /// One entry per skipped or repaired record and per note, in the order they were found:
     /// reading the input, loading the knowledge base, preparing, then deriving in lot order.
     pub entries: Vec<Entry>,

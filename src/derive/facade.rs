@@ -232,12 +232,34 @@ pub struct OpeningColors {
 }
 
 /// Smallest window or door kept (metres, each side).
-const MIN_OPENING: f64 = 0.1;
+pub const MIN_OPENING: f64 = 0.1;
 /// How far (metres) a jamb may move into its opening to stand on a grid point by its wall's
 /// line ([`along_on_grid`]).
-const JAMB_SNAP: f64 = 0.02;
+pub const JAMB_SNAP: f64 = 0.02;
 /// Default balcony depth (metres).
 const BALCONY_DEPTH: f64 = 1.2;
+
+/// The storey floors [`apply`] cuts `part`'s walls at: the levels' floors clamped to the walls,
+/// the first at the base (the last storey reaches up to the eave).
+pub fn floors(part: &Part, facades: &Facades) -> Vec<f64> {
+    let mut floors: Vec<f64> = facades
+        .levels
+        .iter()
+        .map(|l| l.z0)
+        .filter(|z| *z > part.base_z + MIN_OPENING && *z < part.eave_z - MIN_OPENING)
+        .collect();
+    floors.insert(0, part.base_z);
+    floors.dedup_by(|a, b| (*a - *b).abs() < MIN_OPENING);
+    floors
+}
+
+/// The storeys of `part` as [`apply`] cuts them: `(floor, next floor or eave)`.
+pub fn storeys(part: &Part, facades: &Facades) -> Vec<(f64, f64)> {
+    let f = floors(part, facades);
+    (0..f.len())
+        .map(|i| (f[i], f.get(i + 1).copied().unwrap_or(part.eave_z)))
+        .collect()
+}
 
 /// Turns a LOD2-style part (one wall per footprint edge, built by [`crate::derive::massing::build_part`])
 /// into LOD3: one wall per storey and edge, with the openings and balconies of `facades` placed
@@ -248,15 +270,7 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
     if edges != facades.openings.len() {
         return 0; // not the footprint the facades were read on: leave the part as it is
     }
-    // Storey floors, clamped to the walls: the first at the base, the last storey up to the eave.
-    let mut floors: Vec<f64> = facades
-        .levels
-        .iter()
-        .map(|l| l.z0)
-        .filter(|z| *z > part.base_z + MIN_OPENING && *z < part.eave_z - MIN_OPENING)
-        .collect();
-    floors.insert(0, part.base_z);
-    floors.dedup_by(|a, b| (*a - *b).abs() < MIN_OPENING);
+    let floors = floors(part, facades);
     let mut dropped = 0;
     let mut walls = Vec::with_capacity(edges * floors.len());
     for (storey, &lo) in floors.iter().enumerate() {
@@ -367,6 +381,7 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                 storey,
                 openings,
                 balconies,
+                party: 0.0,
             });
         }
     }

@@ -4,9 +4,11 @@
 //! any rayon thread and gives the same building whatever the thread count.
 
 pub(crate) mod facade;
+pub(crate) mod frontage;
 pub mod interior;
 pub mod massing;
 pub mod roof;
+pub mod surroundings;
 
 use self::massing::Mass;
 
@@ -64,6 +66,9 @@ pub struct Generator {
     pub caps: Caps,
     /// Rulesets compiled from appearances, by rule text.
     compiled: Mutex<HashMap<String, Arc<RuleSet>>>,
+    /// The other buildings around each lot, for party walls at LOD3 and above (empty: every
+    /// building stands alone). See [`Generator::surroundings`].
+    pub surroundings: surroundings::Surroundings,
 }
 
 /// A per-building remark for the report.
@@ -80,17 +85,52 @@ impl Generator {
             seed,
             caps,
             compiled: Mutex::new(HashMap::new()),
+            surroundings: Default::default(),
         }
+    }
+
+    /// The parts of every lot `keep` selects, derived at LOD2 (their footprints, bases and tops:
+    /// what a neighbour needs), for [`Generator::surroundings`]. Each lot on its own random
+    /// stream, as [`Generator::generate`] derives it, so the heights are those it will have;
+    /// lots that fail are left out (they are not written either).
+    pub fn neighbours_of(
+        &self,
+        lots: &[Lot],
+        keep: impl Fn(usize) -> bool + Sync,
+    ) -> surroundings::Surroundings {
+        use rayon::prelude::*;
+        let parts: Vec<Vec<surroundings::Neighbour>> = lots
+            .par_iter()
+            .enumerate()
+            .map(|(i, lot)| {
+                if !keep(i) {
+                    return Vec::new();
+                }
+                let derived =
+                    crate::guard::caught(|| "deriving a neighbour", || self.derive(lot, Lod::Lod2));
+                match derived {
+                    Ok(Ok((b, _))) => b
+                        .parts
+                        .iter()
+                        .map(|p| surroundings::Neighbour::of_part(lot.id, p))
+                        .collect(),
+                    _ => Vec::new(),
+                }
+            })
+            .collect();
+        surroundings::Surroundings::new(parts.into_iter().flatten().collect())
     }
 
     /// Builds one lot. `Err` carries the reason the building is skipped. A panic while
     /// deriving it (a bug, in citygen or in a geometry crate, that one footprint sets off) is
     /// caught and becomes that reason, so it costs one building, not the whole run.
     pub fn generate(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
-        crate::guard::caught(|| "deriving the building", || self.derive(lot)).unwrap_or_else(Err)
+        crate::guard::caught(|| "deriving the building", || self.derive(lot, self.lod))
+            .unwrap_or_else(Err)
     }
 
-    fn derive(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
+    /// The building of `lot` at `lod` (the generator's own, or LOD2 for its neighbours).
+    fn derive(&self, lot: &Lot, lod: Lod) -> Result<(Building, Vec<Note>), String> {
         let zone = self.kb.locate(lot.lonlat.0, lot.lonlat.1);
         let mut notes = Vec::new();
         let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
@@ -103,7 +143,6 @@ impl Generator {
             };
             pieces.insert(0, &outline);
         }
-        let mut parts: Vec<Part> = Vec::new();
         let mut label = None;
         // Every piece's style first: whether a piece's roof is drawn depends on the pieces
         // stacked on it.
@@ -123,6 +162,10 @@ impl Generator {
             notes.push((Outcome::Note, note));
         }
         let plans = resolve_overlaps(&styled, &mut notes);
+        // Every part first (at LOD3, with the openings its rules found): the facade rules look
+        // at the whole building.
+        let mut drafts: Vec<(Part, Option<facade::Facades>, usize)> = Vec::new();
+        let mut styles: Vec<(Style, BuildingTags)> = Vec::with_capacity(styled.len());
         for ((piece, tags, style, mut rng), plan) in styled.into_iter().zip(plans) {
             let rules = self.rules_for(&style)?;
             for polygon in &plan {
@@ -132,7 +175,7 @@ impl Generator {
                     style: &style,
                     rules: &rules,
                 };
-                let masses = self.masses(&on, polygon, &mut rng, &mut notes)?;
+                let masses = self.masses(&on, polygon, lod, &mut rng, &mut notes)?;
                 for (mass, facades) in masses {
                     let roof = match massing::roof_geometry(&mass) {
                         Ok(r) => cap_guessed_roof(r, &mass, &style),
@@ -144,38 +187,81 @@ impl Generator {
                             crate::derive::roof::flat(&mass.footprint)
                         }
                     };
-                    let key = format!("p{}", parts.len());
-                    let mut part = massing::build_part(key, &mass, &roof, self.lod);
+                    let key = format!("p{}", drafts.len());
+                    let mut part = massing::build_part(key, &mass, &roof, lod);
                     part.source = Some(piece.id);
-                    if let Some(f) = facades {
-                        let colors = facade::OpeningColors {
-                            window: style.window_color,
-                            frame: style.frame_color,
-                            door: style.door_color,
-                        };
-                        let dropped = facade::apply(&mut part, &f, &colors);
-                        if dropped > 0 {
-                            notes.push((
-                                Outcome::Note,
-                                format!(
-                                    "{dropped} opening(s) too small or overlapping were left out"
-                                ),
-                            ));
-                        }
-                    }
-                    if self.lod >= Lod::Lod4 {
-                        part.interior = self.interior(
-                            &part,
-                            &tags,
-                            style.programme,
-                            lot.front,
-                            piece.id,
-                            parts.len(),
-                        );
-                    }
-                    parts.push(part);
+                    drafts.push((part, facades, styles.len()));
                 }
             }
+            styles.push((style, tags));
+        }
+        let mut counts = crate::model::FacadeCounts::default();
+        let mut entrance = None;
+        let mut spans = Vec::new();
+        if lod >= Lod::Lod3 {
+            let mut views: Vec<frontage::Draft<'_>> = Vec::new();
+            let mut index = Vec::new();
+            for (i, (part, facades, s)) in drafts.iter_mut().enumerate() {
+                if let Some(f) = facades.as_mut() {
+                    views.push(frontage::Draft {
+                        part,
+                        facades: f,
+                        style: &styles[*s].0,
+                    });
+                    index.push(i);
+                }
+            }
+            let from_style = matches!(self.rules, Rules::Kb);
+            let a = frontage::arrange(
+                &mut views,
+                lot.id,
+                lot.front,
+                &self.surroundings,
+                from_style,
+            );
+            if let Some(n) = a.note {
+                notes.push((Outcome::Note, n));
+            }
+            counts = a.counts;
+            entrance = a.entrance.map(|(v, n)| (index[v], n));
+            spans = index.into_iter().zip(a.spans).collect::<Vec<_>>();
+        }
+        let mut parts: Vec<Part> = Vec::with_capacity(drafts.len());
+        for (i, (mut part, facades, s)) in drafts.into_iter().enumerate() {
+            let (style, tags) = &styles[s];
+            if let Some(f) = facades {
+                let colors = facade::OpeningColors {
+                    window: style.window_color,
+                    frame: style.frame_color,
+                    door: style.door_color,
+                };
+                let dropped = facade::apply(&mut part, &f, &colors);
+                if dropped > 0 {
+                    notes.push((
+                        Outcome::Note,
+                        format!("{dropped} opening(s) too small or overlapping were left out"),
+                    ));
+                }
+                if let Some((_, sp)) = spans.iter().find(|(j, _)| *j == i) {
+                    frontage::mark_party_walls(&mut part, sp, &mut counts);
+                }
+            }
+            if lod >= Lod::Lod4 {
+                // The entrance's wall is the plan's front; other parts face the street.
+                let front = match entrance {
+                    Some((j, n)) if j == i => Some(n),
+                    _ => lot.front,
+                };
+                part.interior = self.interior(
+                    &part,
+                    tags,
+                    style.programme,
+                    front,
+                    part.source.unwrap_or(lot.id),
+                    i,
+                );
+            }
+            parts.push(part);
         }
         if parts.is_empty() {
             return Err("the rules produced no building mass".into());
@@ -204,7 +290,8 @@ impl Generator {
                 storeys_above_ground: storeys,
                 roof_shape,
                 parts,
-                lod: self.lod,
+                lod,
+                facade: counts,
             },
             notes,
         ))
@@ -271,6 +358,7 @@ impl Generator {
         &self,
         piece: &Piece<'_>,
         polygon: &Polygon,
+        lod: Lod,
         rng: &mut Rng,
         notes: &mut Vec<Note>,
     ) -> Result<Vec<(Mass, Option<facade::Facades>)>, String> {
@@ -324,10 +412,14 @@ impl Generator {
             style.floor_height = walls / f64::from(style.storeys);
         }
         let attrs: Attrs = compile::axiom_attrs(&style);
-        let tree = grammar::derive_facing(rules, polygon, front, attrs, rng, &self.caps)
+        let caps = Caps {
+            facades: self.caps.facades && lod >= Lod::Lod3,
+            ..self.caps
+        };
+        let tree = grammar::derive_facing(rules, polygon, front, attrs, rng, &caps)
             .map_err(|e| format!("derivation failed for {id}: {e}"))?;
         let masses = masses_of(&tree, &style);
-        if self.lod < Lod::Lod3 {
+        if lod < Lod::Lod3 {
             return Ok(masses.into_iter().map(|m| (m, None)).collect());
         }
         let nodes = mass_nodes(&tree);
@@ -645,6 +737,105 @@ mod tests {
                 "{w}x{h}: {doors:?}"
             );
         }
+    }
+
+    /// Three terraced houses in a row, a street 6 m north, the middle one taller: their shared
+    /// walls are blank up to the lower neighbour's top and have windows above it; each has one
+    /// door, on the street.
+    #[test]
+    fn a_terrace_has_blank_party_walls_and_one_door_each_on_the_street() {
+        let mut gen = Generator::new(
+            KnowledgeBase::earth_only(),
+            Rules::Kb,
+            Lod::Lod3,
+            0,
+            Caps::default(),
+        );
+        let mut report = Report::default();
+        let mut lots = Vec::new();
+        let mut site = None;
+        for i in 0..3 {
+            let x = 8.0 * i as f64;
+            let ring = vec![
+                DVec2::new(x, 0.0),
+                DVec2::new(x + 8.0, 0.0),
+                DVec2::new(x + 8.0, 10.0),
+                DVec2::new(x, 10.0),
+            ];
+            let mut s =
+                single_lot(Polygon::new(ring, vec![]), (7.42, 43.73), None, &mut report).unwrap();
+            let mut lot = s.lots.pop().unwrap();
+            lot.id = SourceId::Lot(i);
+            let tags = crate::input::BuildingTags {
+                levels: Some(if i == 1 { 5.0 } else { 2.0 }),
+                ..Default::default()
+            };
+            lot.tags = std::sync::Arc::new(tags);
+            lots.push(lot);
+            site = Some(s);
+        }
+        let mut site = site.unwrap();
+        site.lots = lots;
+        let o = site.origin;
+        let mut streets = Streets::default();
+        streets.push(&[(o.x - 30.0, o.y + 16.0), (o.x + 54.0, o.y + 16.0)]);
+        let crs = site.crs;
+        assign_fronts(&mut site, &streets, Some(crs));
+        gen.surroundings = gen.neighbours_of(&site.lots, |_| true);
+        assert_eq!(gen.surroundings.len(), 3);
+        let low_top = site
+            .lots
+            .iter()
+            .take(1)
+            .map(|l| gen.generate(l).unwrap().0.parts[0].top_z)
+            .sum::<f64>();
+        for (i, lot) in site.lots.iter().enumerate() {
+            let (b, _) = gen.generate(lot).unwrap();
+            assert_eq!(door_normals(&b), vec![DVec2::Y], "house {i}");
+            assert_eq!(b.facade.entrances, 1);
+            let x = |w: &crate::model::Wall| 0.5 * (w.start.x + w.end.x);
+            for p in &b.parts {
+                for w in &p.walls {
+                    let vertical = (w.start.x - w.end.x).abs() < 1e-9;
+                    let shared =
+                        vertical && ((x(w) - 8.0).abs() < 0.01 || (x(w) - 16.0).abs() < 0.01);
+                    let outer_gable = vertical && !shared;
+                    if shared {
+                        for o in &w.openings {
+                            assert!(o.z0 >= low_top - 1e-9, "house {i}: {o:?} under {low_top}");
+                        }
+                        // Above the neighbours' roofs a wall of the taller house is a facade.
+                        assert_eq!(
+                            w.party > 0.0,
+                            w.base_z < low_top - 1e-9,
+                            "house {i}: party share {} at {}..{}",
+                            w.party,
+                            w.base_z,
+                            w.top_z
+                        );
+                    }
+                    if outer_gable && w.storey == 0 {
+                        assert!(!w.openings.is_empty(), "house {i}: a blank end wall");
+                    }
+                }
+            }
+            if i == 1 {
+                // The taller house has windows on its side walls above its neighbours.
+                let high = p_side_windows(&b);
+                assert!(high > 0, "no window above the neighbours");
+            }
+        }
+        assert!(report.entries.is_empty(), "{:?}", report.entries);
+    }
+
+    /// Windows on the walls of `b` that run north-south.
+    fn p_side_windows(b: &Building) -> usize {
+        b.parts
+            .iter()
+            .flat_map(|p| p.walls.iter())
+            .filter(|w| (w.start.x - w.end.x).abs() < 1e-9)
+            .map(|w| w.openings.len())
+            .sum()
     }
 
     #[test]

@@ -290,6 +290,7 @@ mod tests {
             storey: 0,
             openings: Vec::new(),
             balconies: Vec::new(),
+            party: 0.0,
         }
     }
 
@@ -550,6 +551,7 @@ pub(crate) mod samples {
                         .filter(|(be, bs, _)| *be == e && *bs == storey)
                         .map(|(_, _, b)| b.clone())
                         .collect(),
+                    party: 0.0,
                 });
             }
         }
@@ -603,6 +605,7 @@ pub(crate) mod samples {
             roof_shape: parts[0].roof_shape,
             parts,
             lod: Lod::Lod3,
+            facade: Default::default(),
         }
     }
 

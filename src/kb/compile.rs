@@ -122,7 +122,7 @@ fn num(x: f64) -> String {
 }
 
 /// Sill, window and lintel fractions of a storey for a window height class.
-fn window_rows(h: WindowHeight) -> Vec<([f64; 3], Option<f64>)> {
+pub fn window_rows(h: WindowHeight) -> Vec<([f64; 3], Option<f64>)> {
     const TALL: [f64; 3] = [0.25, 0.6, 0.15];
     const SHORT: [f64; 3] = [0.4, 0.35, 0.25];
     match h {
@@ -297,6 +297,8 @@ mod tests {
             frame_color: Color::WHITE,
             door_color: Color::from_rgb24(0x8b4513),
             window_width: 1.2,
+            door_width: 1.0,
+            door_height: 2.2,
             balconies: 0.0,
             programme: None,
             window_height: WindowHeight::Tall,

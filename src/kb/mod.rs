@@ -73,6 +73,14 @@ pub mod defaults {
     pub const DOOR_COLOR: Color = Color::from_rgb24(0x8b4513);
     /// Window width, metres.
     pub const WINDOW_WIDTH: f64 = 1.2;
+    /// Main entrance door width without a `doorwidth` (metres).
+    pub const DOOR_WIDTH: f64 = 1.0;
+    /// The widths an entrance door is drawn at: a KB value outside is brought inside.
+    pub const DOOR_WIDTH_RANGE: (f64, f64) = (0.8, 2.5);
+    /// Main entrance door height without a `doorheight` (metres).
+    pub const DOOR_HEIGHT: f64 = 2.2;
+    /// The heights an entrance door is drawn at.
+    pub const DOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 2.6);
 }
 
 /// A zone circle: centre in WGS84 degrees, radius in kilometres.
@@ -268,6 +276,12 @@ pub struct Style {
     pub door_color: Color,
     /// Window width, metres.
     pub window_width: f64,
+    /// Main entrance door width, metres: the KB's `doorwidth` within
+    /// [`defaults::DOOR_WIDTH_RANGE`], else [`defaults::DOOR_WIDTH`].
+    pub door_width: f64,
+    /// Main entrance door height, metres: the KB's `doorheight` within
+    /// [`defaults::DOOR_HEIGHT_RANGE`], else [`defaults::DOOR_HEIGHT`].
+    pub door_height: f64,
     /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
     pub balconies: f64,
     /// LOD4 programme for buildings whose `building=*` names no type (value `programme`).
@@ -328,6 +342,13 @@ impl Style {
             }
         }
     }
+}
+
+/// `v` brought within `range` (a KB value out of bounds is drawn at the nearest bound), `or`
+/// without a finite positive value.
+fn within(v: Option<f64>, range: (f64, f64), or: f64) -> f64 {
+    v.filter(|x| x.is_finite() && *x > 0.0)
+        .map_or(or, |x| x.clamp(range.0, range.1))
 }
 
 fn storeys_for(wall_height: f64, floor_height: f64) -> u32 {
@@ -692,6 +713,16 @@ impl KnowledgeBase {
                 .window_width
                 .filter(|w| w.is_finite() && *w > 0.0)
                 .unwrap_or(defaults::WINDOW_WIDTH),
+            door_width: within(
+                v.door_width,
+                defaults::DOOR_WIDTH_RANGE,
+                defaults::DOOR_WIDTH,
+            ),
+            door_height: within(
+                v.door_height,
+                defaults::DOOR_HEIGHT_RANGE,
+                defaults::DOOR_HEIGHT,
+            ),
             balconies: v
                 .balconies
                 .filter(|b| b.is_finite())

@@ -42,7 +42,7 @@ enum Ty {
     Terms,
 }
 
-const DESCRIPTORS: [(&str, Ty); 19] = [
+const DESCRIPTORS: [(&str, Ty); 21] = [
     ("color", Ty::Color),
     ("material", Ty::Token),
     ("nbfloor", Ty::Count),
@@ -54,6 +54,8 @@ const DESCRIPTORS: [(&str, Ty); 19] = [
     ("windowfcolor", Ty::Color),
     ("windowheight", Ty::WindowHeight),
     ("windowwidth", Ty::Pos),
+    ("doorwidth", Ty::Pos),
+    ("doorheight", Ty::Pos),
     ("windowstyle", Ty::Token),
     ("windowmaterial", Ty::Token),
     ("minFloors", Ty::Count),

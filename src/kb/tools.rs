@@ -516,7 +516,7 @@ pub fn explain(
 }
 
 /// KB attribute names in the order [`value_fields`] lists them.
-const ATTRIBUTE_ORDER: [&str; 19] = [
+const ATTRIBUTE_ORDER: [&str; 21] = [
     "color",
     "material",
     "nbfloor",
@@ -533,6 +533,8 @@ const ATTRIBUTE_ORDER: [&str; 19] = [
     "windowfcolor",
     "windowheight",
     "windowwidth",
+    "doorwidth",
+    "doorheight",
     "windowstyle",
     "windowmaterial",
     "maxrotation",
@@ -543,7 +545,7 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
     let c = |x: Option<crate::color::Color>| x.map(color_word);
     let n = |x: Option<f64>| x.map(|x| format!("{x}"));
     let u = |x: Option<u32>| x.map(|x| x.to_string());
-    let fields: [(&'static str, Option<String>); 19] = [
+    let fields: [(&'static str, Option<String>); 21] = [
         ("color", c(v.wall_color)),
         ("material", v.material.clone()),
         ("nbfloor", u(v.storeys)),
@@ -563,6 +565,8 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
             v.window_height.map(|h| h.as_str().to_string()),
         ),
         ("windowwidth", n(v.window_width)),
+        ("doorwidth", n(v.door_width)),
+        ("doorheight", n(v.door_height)),
         ("windowstyle", v.window_style.clone()),
         ("windowmaterial", v.window_material.clone()),
         ("maxrotation", n(v.max_rotation)),

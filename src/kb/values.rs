@@ -135,6 +135,12 @@ pub struct Values {
     /// `windowwidth`: window width in metres (positive); a facade bay is this plus a 0.9 m pier
     /// on each side.
     pub window_width: Option<f64>,
+    /// `doorwidth`: width of the main entrance door in metres (positive; drawn within 0.8 to
+    /// 2.5 m).
+    pub door_width: Option<f64>,
+    /// `doorheight`: height of the main entrance door in metres (positive; drawn within 2.0 to
+    /// 2.6 m, and always under its storey's lintel).
+    pub door_height: Option<f64>,
     /// `windowstyle`, lower-cased: `framed` gives the windows a frame; any other word (the thesis
     /// uses `simple`) none.
     pub window_style: Option<String>,
@@ -177,6 +183,8 @@ impl Values {
             frame_color,
             window_height,
             window_width,
+            door_width,
+            door_height,
             window_style,
             window_material,
             max_rotation,

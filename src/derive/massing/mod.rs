@@ -202,6 +202,7 @@ pub fn walls(footprint: &Polygon, base: f64, top: f64) -> Vec<Wall> {
                 storey: 0,
                 openings: Vec::new(),
                 balconies: Vec::new(),
+                party: 0.0,
             });
         }
     }
@@ -247,6 +248,7 @@ pub fn walls_under_roof(
                 storey: 0,
                 openings: Vec::new(),
                 balconies: Vec::new(),
+                party: 0.0,
             });
         }
     }

@@ -493,6 +493,7 @@ fn finished_box(roof: Vec<Face>) -> (Face, Vec<Wall>, Vec<Face>) {
                 storey: 0,
                 openings: Vec::new(),
                 balconies: Vec::new(),
+                party: 0.0,
             }
         })
         .collect();

@@ -11,7 +11,8 @@
 //!   so every coordinate is written once.
 //! - **LOD3**: the same boundary
 //!   surfaces in `bldg:lod3MultiSurface`, wall polygons keeping their interior rings (the
-//!   openings' holes). Each wall surface lists its openings as `bldg:opening` with a
+//!   openings' holes). A wall that faces a neighbour carries `gen:doubleAttribute`
+//!   `partyWallShare` (its `Wall::party`, to the hundredth). Each wall surface lists its openings as `bldg:opening` with a
 //!   `bldg:Window` or `bldg:Door` whose `bldg:lod3MultiSurface` holds the opening's rectangle in
 //!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
 //!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose

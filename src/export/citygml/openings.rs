@@ -64,7 +64,18 @@ impl Renderer<'_> {
             x.s(element);
             x.s(" gml:id=\"");
             x.polygon_id(pid, s.kind, s.index);
-            x.s("_s\">\n<bldg:lod");
+            x.s("_s\">\n");
+            // A wall against a neighbour says how much of it is (model::Wall::party).
+            let party = match s.kind {
+                SurfaceKind::Wall => part.walls.get(s.index).map_or(0.0, |w| w.party),
+                _ => 0.0,
+            };
+            if party >= 0.005 {
+                x.s("<gen:doubleAttribute name=\"partyWallShare\">\n<gen:value>");
+                x.s(&format!("{:.2}", party.min(1.0)));
+                x.s("</gen:value>\n</gen:doubleAttribute>\n");
+            }
+            x.s("<bldg:lod");
             x.s(d);
             x.s("MultiSurface>\n<gml:MultiSurface srsName=\"");
             x.s(srs);

@@ -54,6 +54,7 @@ fn prism(
                 storey: 0,
                 openings: Vec::new(),
                 balconies: Vec::new(),
+                party: 0.0,
             });
         }
     }
@@ -119,6 +120,7 @@ fn building(id: SourceId, parts: Vec<Part>) -> Building {
         roof_shape: tallest.as_ref().map_or(RoofShape::Flat, |p| p.roof_shape),
         parts,
         lod: Lod::Lod2,
+        facade: Default::default(),
     }
 }
 

@@ -28,6 +28,7 @@ fn wall(start: DVec2, end: DVec2, base: f64, top: f64) -> Wall {
         storey: 0,
         openings: Vec::new(),
         balconies: Vec::new(),
+        party: 0.0,
     }
 }
 
@@ -116,6 +117,7 @@ fn building(id: i64, parts: Vec<Part>) -> Building {
         roof_shape: parts[0].roof_shape,
         parts,
         lod: Lod::Lod2,
+        facade: Default::default(),
     }
 }
 

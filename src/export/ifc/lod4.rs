@@ -309,6 +309,7 @@ impl<W: Write> Open<W> {
             storey: s.storey,
             openings: Vec::new(),
             balconies: Vec::new(),
+            party: 0.0,
         };
         Ok(Some((wall, id, placement)))
     }

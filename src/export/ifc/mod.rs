@@ -36,7 +36,9 @@
 //!   `IfcStyledItem` to wall and roof bodies.
 //! - Per building, property sets `Citygen_Source` (SourceId, Zone, Appearance, MeasuredHeight,
 //!   Lod, RoofShape) and `Pset_BuildingCommon` (NumberOfStoreys), and per building a
-//!   `Pset_WallCommon` (IsExternal) on all its walls.
+//!   `Pset_WallCommon` with IsExternal true on its walls and false on those wholly against a
+//!   neighbour (`Wall::party` 1, LOD3), and `Citygen_Wall` (PartyWallShare, one set per
+//!   share) on every wall that faces a neighbour.
 //!
 //! At LOD3 (`OutputContext::lod >= Lod3`) a part is written differently (LOD1/LOD2 files are
 //! unchanged):

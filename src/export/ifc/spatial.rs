@@ -313,15 +313,13 @@ impl<W: Write> Open<W> {
             walls.extend(self.part(part, &key, building, placement, anchor)?);
         }
 
-        if !walls.is_empty() {
-            self.wall_common(&key, "walls/pset", true, &walls)?;
-        }
+        self.wall_psets(&key, &walls)?;
         self.buildings.push(building);
         Ok(())
     }
 
     /// Writes a part's storeys and elements under `holder` (the building or partial building,
-    /// placed at `anchor`). Returns the ids of its walls.
+    /// placed at `anchor`). Returns the ids of its walls with their party-wall shares.
     fn part(
         &mut self,
         part: &Part,
@@ -329,7 +327,7 @@ impl<W: Write> Open<W> {
         holder: Id,
         holder_pl: Id,
         anchor: DVec3,
-    ) -> Result<Vec<Id>, ExportError> {
+    ) -> Result<Vec<(Id, f64)>, ExportError> {
         if self.lod3 {
             return self.part_lod3(part, key, holder, holder_pl, anchor);
         }
@@ -374,7 +372,7 @@ impl<W: Write> Open<W> {
                 let id = id.0;
                 let usage = self.usage(wall.thickness)?;
                 by_usage.entry(usage).or_default().push(id);
-                walls.push(id);
+                walls.push((id, wall.party));
                 contained.push(id);
             }
         }
@@ -408,7 +406,7 @@ impl<W: Write> Open<W> {
         holder: Id,
         holder_pl: Id,
         anchor: DVec3,
-    ) -> Result<Vec<Id>, ExportError> {
+    ) -> Result<Vec<(Id, f64)>, ExportError> {
         let pk = &part.key;
         let mut levels: Vec<f64> = part
             .levels
@@ -453,7 +451,7 @@ impl<W: Write> Open<W> {
             };
             let usage = self.usage(wall.thickness)?;
             by_usage.entry(usage).or_default().push(id);
-            walls.push(id);
+            walls.push((id, wall.party));
             contained[s].push(id);
             for (j, o) in wall.openings.iter().enumerate() {
                 let path = format!("{path}/opening/{j}");

@@ -261,6 +261,49 @@ impl<W: Write> Open<W> {
         self.pset(key, &path, "Citygen_Part", &[prop], &[partial])
     }
 
+    /// The property sets of a building's walls, given with their party-wall shares
+    /// ([`crate::model::Wall::party`]): `Pset_WallCommon` with IsExternal true on the walls
+    /// that face the outside at least in part, false on those wholly against a neighbour (a
+    /// party wall faces no outside); and a `Citygen_Wall` set with `PartyWallShare` (an
+    /// `IfcNormalisedRatioMeasure`, to the hundredth) on every wall that faces a neighbour,
+    /// one set per distinct share.
+    pub(super) fn wall_psets(&mut self, key: &str, walls: &[(Id, f64)]) -> Result<(), ExportError> {
+        let party = |s: f64| s >= 0.995;
+        let outside: Vec<Id> = walls.iter().filter(|w| !party(w.1)).map(|w| w.0).collect();
+        let against: Vec<Id> = walls.iter().filter(|w| party(w.1)).map(|w| w.0).collect();
+        if !outside.is_empty() {
+            self.wall_common(key, "walls/pset", true, &outside)?;
+        }
+        if !against.is_empty() {
+            self.wall_common(key, "walls/party/pset", false, &against)?;
+        }
+        let mut by_share: std::collections::BTreeMap<u32, Vec<Id>> = Default::default();
+        for &(id, s) in walls {
+            let hundredths = (s.clamp(0.0, 1.0) * 100.0).round() as u32;
+            if hundredths > 0 {
+                by_share.entry(hundredths).or_default().push(id);
+            }
+        }
+        for (h, ids) in by_share {
+            let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+                a.string("PartyWallShare")
+                    .null()
+                    .typed("IFCNORMALISEDRATIOMEASURE", |t| {
+                        t.real(f64::from(h) / 100.0);
+                    });
+                a.null();
+            })?;
+            self.pset(
+                key,
+                &format!("walls/party/{h}"),
+                "Citygen_Wall",
+                &[prop],
+                &ids,
+            )?;
+        }
+        Ok(())
+    }
+
     /// A `Pset_WallCommon` with IsExternal `external` (GlobalId path `path`, its relation
     /// `{path}/rel`) on `walls`.
     pub(super) fn wall_common(

@@ -54,6 +54,7 @@ fn walls(fp: &Polygon, base: f64, eave: f64) -> Vec<Wall> {
                 storey: 0,
                 openings: Vec::new(),
                 balconies: Vec::new(),
+                party: 0.0,
             });
         }
     }
@@ -113,6 +114,7 @@ fn building(id: SourceId, name: Option<&str>, parts: Vec<Part>) -> Building {
         roof_shape: parts[0].roof_shape,
         parts,
         lod: Lod::Lod2,
+        facade: Default::default(),
     }
 }
 
