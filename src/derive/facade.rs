@@ -60,7 +60,8 @@ pub struct FoundBalcony {
 pub struct Facades {
     /// Storeys from bottom to top (one level spanning the mass when the rules make none).
     pub levels: Vec<Level>,
-    /// Openings per footprint edge, edges numbered in ring order (outer ring first).
+    /// Openings per footprint edge, edges numbered in ring order (outer ring first), sorted by
+    /// height then place, the panes of one window joined.
     pub openings: Vec<Vec<FoundOpening>>,
     /// Balconies per footprint edge.
     pub balconies: Vec<Vec<FoundBalcony>>,
@@ -126,7 +127,7 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
     }
     out.levels = levels(out.levels, z0, z1);
     for v in &mut out.openings {
-        v.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
+        *v = panes_joined(v);
     }
     out
 }
@@ -238,6 +239,37 @@ pub const MIN_OPENING: f64 = 0.1;
 pub const JAMB_SNAP: f64 = 0.02;
 /// Default balcony depth (metres).
 const BALCONY_DEPTH: f64 = 1.2;
+
+/// The openings of one edge with the panes of one window joined: a drawn subdivision (the
+/// knowledge base's `<opening>` splits) ends in panes that touch, each its own terminal; cut
+/// one by one, every pane after the first would overlap its neighbour's margin and be left
+/// out, halving the window. Panes of one kind on the same rows whose sides meet (closer than
+/// two margins) become one opening, with the first pane's looks.
+fn panes_joined(found: &[FoundOpening]) -> Vec<FoundOpening> {
+    let mut v: Vec<FoundOpening> = found.to_vec();
+    v.sort_by(|a, b| {
+        a.z0.total_cmp(&b.z0)
+            .then(a.z1.total_cmp(&b.z1))
+            .then(a.u0.total_cmp(&b.u0))
+    });
+    let mut out: Vec<FoundOpening> = Vec::with_capacity(v.len());
+    for f in v {
+        match out.last_mut() {
+            Some(last)
+                if last.kind == f.kind
+                    && (last.z0 - f.z0).abs() < 1e-6
+                    && (last.z1 - f.z1).abs() < 1e-6
+                    && f.u0 >= last.u0
+                    && f.u0 - last.u1 < 2.0 * OPENING_MARGIN =>
+            {
+                last.u1 = last.u1.max(f.u1);
+            }
+            _ => out.push(f),
+        }
+    }
+    out.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
+    out
+}
 
 /// The storey floors [`apply`] cuts `part`'s walls at: the levels' floors clamped to the walls,
 /// the first at the base (the last storey reaches up to the eave).
@@ -461,6 +493,34 @@ mod tests {
             }
         }
         assert!(f.openings[1].iter().all(|o| o.glazed));
+    }
+
+    /// A window drawn as two casements side by side is one opening of both widths (before,
+    /// the second casement overlapped the first's margin and was left out).
+    #[test]
+    fn the_panes_of_one_window_are_one_opening() {
+        let pane = |u0: f64, u1: f64, z0: f64| FoundOpening {
+            kind: OpeningKind::Window,
+            u0,
+            u1,
+            z0,
+            z1: z0 + 1.5,
+            color: None,
+            frame_color: None,
+            glazed: true,
+            framed: false,
+        };
+        let found = vec![
+            pane(2.0, 2.5, 1.0),
+            pane(0.5, 1.0, 1.0),
+            pane(1.0, 1.5, 1.0),
+            pane(0.5, 1.0, 4.0),
+        ];
+        let joined = panes_joined(&found);
+        assert_eq!(joined.len(), 3, "{joined:?}");
+        assert_eq!((joined[0].u0, joined[0].u1), (0.5, 1.5));
+        assert_eq!((joined[1].u0, joined[1].u1), (2.0, 2.5));
+        assert_eq!(joined[2].z0, 4.0);
     }
 
     #[test]
