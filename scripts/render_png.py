@@ -2,11 +2,17 @@
 
 python scripts/render_png.py IN.glb OUT.png bird
 python scripts/render_png.py IN.glb OUT.png street DX DY FX FY   (eye 1.7 m up at the model centre
+    (the middle of its bounding box)
     + (DX, DY) metres east/north, looking along (FX, FY))
 python scripts/render_png.py IN.glb OUT.png at X Y FX FY   (eye 1.7 m up at (X, Y) of the file's
     local frame, metres east/north, looking along (FX, FY)); numpy is in the validators' venv:
     $CITYGEN_VALIDATE_HOME/venv/bin/python (default ~/.cache/citygen-validate).
-For where headless Chromium (scripts/screenshot) is missing."""
+For where headless Chromium (scripts/screenshot) is missing. Like a glTF viewer, it culls the
+back faces of single-sided materials, blends BLEND materials over the opaque scene (back to
+front) and encodes the linear colours to sRGB. With ZFIGHT=1 in the environment it emulates a 24-bit depth buffer (near plane 0.1 m,
+depth jittered by half a step per triangle and pixel), so coincident faces show the speckled
+seams a GPU draws."""
+import os
 import json, struct, sys, zlib, numpy as np
 glb, out, mode = sys.argv[1], sys.argv[2], sys.argv[3]
 d = open(glb, 'rb').read()
@@ -22,20 +28,22 @@ def acc(i):
         raw = np.frombuffer(bin_, np.uint8, a['count'] * stride, off).reshape(-1, stride)
         return raw[:, :12].copy().view(np.float32).reshape(-1, 3)
     return np.frombuffer(bin_, comp, a['count'] * k, off).reshape(-1, k) if k > 1 else np.frombuffer(bin_, comp, a['count'], off)
-tris = []; cols = []
+tris = []; cols = []; alphas = []; twosided = []
 def walk(i, t):
     nd = j['nodes'][i]; t = t + np.array(nd.get('translation', [0, 0, 0]))
     if 'mesh' in nd:
         for p in j['meshes'][nd['mesh']]['primitives']:
             pos = acc(p['attributes']['POSITION']) + t; idx = acc(p['indices']).reshape(-1, 3)
-            m = j['materials'][p['material']]['pbrMetallicRoughness'].get('baseColorFactor', [1, 1, 1, 1])
+            mat = j['materials'][p['material']]; m = mat['pbrMetallicRoughness'].get('baseColorFactor', [1, 1, 1, 1])
+            blend = mat.get('alphaMode') == 'BLEND'
             tris.append(pos[idx]); cols.append(np.tile(m[:3], (len(idx), 1)))
+            alphas.append(np.full(len(idx), m[3] if blend else 1.0)); twosided.append(np.full(len(idx), bool(mat.get('doubleSided'))))
     for c in nd.get('children', []): walk(c, t)
 for r in j['scenes'][0]['nodes']: walk(r, np.zeros(3))
-T = np.concatenate(tris).astype(np.float64); C = np.concatenate(cols)
+T = np.concatenate(tris).astype(np.float64); C = np.concatenate(cols); A = np.concatenate(alphas); D = np.concatenate(twosided)
 # glTF y up, z south: world x east, y north, z up
 W = np.stack([T[..., 0], -T[..., 2], T[..., 1]], -1)
-c = W.reshape(-1, 3).mean(0); ext = np.ptp(W.reshape(-1, 3)[:, :2], 0).max()
+P = W.reshape(-1, 3); c = (P.min(0) + P.max(0)) / 2; ext = np.ptp(W.reshape(-1, 3)[:, :2], 0).max()
 Wd, H = 1400, 900
 if mode == 'bird':
     eye = c + np.array([-0.5, -0.9, 0.8]) * ext * 0.9; f = 1.6
@@ -49,14 +57,18 @@ V = W - eye; x = V @ right; y = V @ up; z = V @ fwd
 nrm = np.cross(W[:, 1] - W[:, 0], W[:, 2] - W[:, 0]); nl = np.linalg.norm(nrm, axis=1) + 1e-12; nrm /= nl[:, None]
 light = np.array([0.4, -0.5, 0.75]); light /= np.linalg.norm(light)
 shade = 0.35 + 0.65 * np.abs(nrm @ light)
-img = np.full((H, Wd, 3), [0.78, 0.86, 0.95]); zb = np.full((H, Wd), np.inf)
+img = np.full((H, Wd, 3), [0.57, 0.71, 0.89]); zb = np.full((H, Wd), np.inf)
 s = f * Wd / 2
 if mode != 'bird':  # the ground: pixels whose ray points down
     gx, gy = np.meshgrid((np.arange(Wd) + 0.5 - Wd / 2) / s, (H / 2 - np.arange(H) - 0.5) / s)
     dz = fwd[2] + gx * right[2] + gy * up[2]
     img[dz < 0] = [0.55, 0.55, 0.53]
-for k in np.argsort(-z.min(1)):
+facing = (nrm * (eye - W[:, 0])).sum(1) > 0  # front side towards the eye
+zfight = os.environ.get('ZFIGHT') == '1'
+order = np.argsort(-z.min(1)); opaque = A >= 1.0
+for k in np.concatenate([order[opaque[order]], order[~opaque[order]]]):
     if z[k].min() < 0.5: continue
+    if not (facing[k] or D[k]): continue
     px = Wd / 2 + s * x[k] / z[k]; py = H / 2 - s * y[k] / z[k]
     x0, x1 = max(int(px.min()), 0), min(int(px.max()) + 1, Wd); y0, y1 = max(int(py.min()), 0), min(int(py.max()) + 1, H)
     if x0 >= x1 or y0 >= y1: continue
@@ -67,8 +79,17 @@ for k in np.argsort(-z.min(1)):
     l1 = ((by - cy) * (gx - cx) + (cx - bx) * (gy - cy)) / den; l2 = ((cy - ay) * (gx - cx) + (ax - cx) * (gy - cy)) / den; l3 = 1 - l1 - l2
     inside = (l1 >= 0) & (l2 >= 0) & (l3 >= 0)
     zz = l1 * z[k][0] + l2 * z[k][1] + l3 * z[k][2]
-    sub = zb[y0:y1, x0:x1]; m = inside & (zz < sub)
-    sub[m] = zz[m]; img[y0:y1, x0:x1][m] = C[k] * shade[k]
+    sub = zb[y0:y1, x0:x1]
+    if zfight:  # 24-bit depth of a 0.1 m near plane: one step is z^2 / (0.1 * 2^24)
+        q = zz * zz / (0.1 * 2 ** 24); jit = np.random.default_rng(k).random(zz.shape) - 0.5
+        m = inside & (np.floor(zz / q + jit) < np.floor(sub / q + 0.0))
+    else:
+        m = inside & (zz < sub)
+    if A[k] >= 1.0:
+        sub[m] = zz[m]; img[y0:y1, x0:x1][m] = C[k] * shade[k]
+    else:
+        img[y0:y1, x0:x1][m] = A[k] * C[k] * shade[k] + (1 - A[k]) * img[y0:y1, x0:x1][m]
+img = np.clip(img, 0, 1); img = np.where(img <= 0.0031308, img * 12.92, 1.055 * img ** (1 / 2.4) - 0.055)  # linear to sRGB, as viewers show it
 px8 = (np.clip(img, 0, 1) * 255).astype(np.uint8)
 raw = b''.join(b'\x00' + px8[r].tobytes() for r in range(H))
 chunk = lambda t, b: struct.pack('>I', len(b)) + t + b + struct.pack('>I', zlib.crc32(t + b) & 0xffffffff)

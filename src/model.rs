@@ -390,7 +390,8 @@ pub struct Balcony {
     /// How far the slab reaches out from the wall's outer face, metres (1.2 m for every balcony
     /// the rules make).
     pub depth: f64,
-    /// Colour of the slab and railing: the terminal's `color`, else the part's wall colour.
+    /// Colour of the slab: the terminal's `color`, else the part's wall colour (the writers draw the
+    /// railing in its own iron and glass colours).
     pub color: Color,
 }
 

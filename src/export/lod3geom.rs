@@ -1,5 +1,6 @@
 //! LOD3 detail geometry shared by the writers: opening rectangles, their reveals, and balcony
-//! slabs with railings, built from a [`Wall`] and the wall-coordinate values of the model.
+//! slabs with railings (handrail, posts, infill), built from a [`Wall`] and the wall-coordinate
+//! values of the model.
 //!
 //! Every face returned is planar, its outer ring counter-clockwise seen from the side its normal
 //! points to (as [`Face`] requires). A wall's frame: `dir` runs along the wall from `start` to
@@ -8,12 +9,8 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::color::Color;
 use crate::model::{Balcony, Face, Opening, Part, Wall};
-
-/// Thickness of a balcony slab below its floor height (metres).
-pub const SLAB_THICKNESS: f64 = 0.2;
-/// Height of a balcony railing above the slab (metres).
-pub const RAILING_HEIGHT: f64 = 1.0;
 
 /// The horizontal frame of a wall: unit `dir` along start->end and unit `inward` (left of it).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,20 +114,102 @@ pub fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
     ]
 }
 
-/// A balcony's geometry: the slab as a closed box and the railing as three panels.
+/// A balcony's geometry: the slab, the railing's metal (handrail and posts) and its infill,
+/// each in its own colour ([`BalconyFaces::colored`]).
+///
+/// The railing stands on the slab's three free edges, its centre line [`RAILING_INSET`] in from
+/// them: a handrail (a closed U-shaped bar, [`HANDRAIL_WIDTH`] by [`HANDRAIL_HEIGHT`], its top
+/// at [`RAILING_HEIGHT`] above the slab), square posts ([`POST_WIDTH`]) at the two front
+/// corners and at most [`POST_SPACING`] apart between them and the wall, and a thin infill
+/// panel of tinted glass (a closed U of [`INFILL_THICKNESS`], from [`INFILL_BOTTOM`] to
+/// [`INFILL_TOP`] above the slab) that the posts pass through. The three have different
+/// widths, so no face of one lies in the plane of a face of another. A post is its four sides:
+/// its ends stand on the slab and under the handrail, where a cap would only coincide with their
+/// faces. The slab box and the two U prisms are closed, so each has faces in the wall's plane
+/// ([`BalconyFaces::against_wall`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BalconyFaces {
     /// Six faces: the slab from `z - SLAB_THICKNESS` to `z`, `depth` metres out from the wall.
     pub slab: Vec<Face>,
-    /// Front and two end panels from `z` to `z + RAILING_HEIGHT`, facing away from the balcony.
+    /// The handrail's ten faces, then four per post; in [`RAILING_COLOR`]. Empty when the
+    /// balcony is too small for a railing (narrower or shallower than [`MIN_RAILED`]).
     pub railing: Vec<Face>,
+    /// The infill's ten faces, in [`INFILL_COLOR`]; empty with `railing`.
+    pub infill: Vec<Face>,
+    /// The wall's frame, for [`BalconyFaces::against_wall`].
+    frame: WallFrame,
 }
 
 impl BalconyFaces {
-    /// All faces, slab first.
+    /// All faces: slab, railing, infill.
     pub fn all(&self) -> impl Iterator<Item = &Face> {
-        self.slab.iter().chain(self.railing.iter())
+        self.slab.iter().chain(&self.railing).chain(&self.infill)
     }
+
+    /// All faces in the order of [`BalconyFaces::all`], each with its colour: the slab in the
+    /// balcony's, the railing in [`RAILING_COLOR`], the infill in [`INFILL_COLOR`].
+    pub fn colored<'a>(&'a self, b: &Balcony) -> impl Iterator<Item = (&'a Face, Color)> + 'a {
+        let slab = b.color;
+        self.slab
+            .iter()
+            .map(move |f| (f, slab))
+            .chain(self.railing.iter().map(|f| (f, RAILING_COLOR)))
+            .chain(self.infill.iter().map(|f| (f, INFILL_COLOR)))
+    }
+
+    /// Whether `face` (one of these) lies in the wall's outer plane, facing into the wall: the
+    /// slab's back and the ends of the handrail and infill. A closed solid needs them; a view
+    /// never sees them, and they coincide with the wall's face.
+    pub fn against_wall(&self, face: &Face) -> bool {
+        face.outer.iter().all(|p| {
+            (p.truncate() - self.frame.start)
+                .dot(self.frame.inward)
+                .abs()
+                < 1e-9
+        })
+    }
+}
+
+/// Thickness of a balcony slab below its floor height (metres).
+pub const SLAB_THICKNESS: f64 = 0.2;
+/// Height of a balcony railing's top above the slab (metres): the model's, which the facade
+/// rules keep clear of neighbours.
+pub const RAILING_HEIGHT: f64 = crate::model::RAILING_HEIGHT;
+/// How far the railing's centre line lies in from the slab's free edges (metres).
+pub const RAILING_INSET: f64 = 0.05;
+/// Width of the handrail's section (metres).
+pub const HANDRAIL_WIDTH: f64 = 0.06;
+/// Height of the handrail's section (metres).
+pub const HANDRAIL_HEIGHT: f64 = 0.05;
+/// Side of a post's square section (metres).
+pub const POST_WIDTH: f64 = 0.04;
+/// The longest distance between two posts along the railing (metres).
+pub const POST_SPACING: f64 = 1.25;
+/// Thickness of the infill panel (metres).
+pub const INFILL_THICKNESS: f64 = 0.015;
+/// Height of the infill's bottom above the slab (metres).
+pub const INFILL_BOTTOM: f64 = 0.1;
+/// Height of the infill's top above the slab (metres; below the handrail, not touching it).
+pub const INFILL_TOP: f64 = 0.9;
+/// A balcony narrower or shallower than this (metres) gets no railing.
+pub const MIN_RAILED: f64 = 0.3;
+/// Colour of the railing's handrail and posts: dark painted iron.
+pub const RAILING_COLOR: Color = Color::rgb(0.2, 0.21, 0.23);
+/// Colour of the railing's infill: grey-green tinted glass, half transparent.
+pub const INFILL_COLOR: Color = Color {
+    r: 0.55,
+    g: 0.65,
+    b: 0.65,
+    a: 0.5,
+};
+
+/// The faces of a closed vertical prism over `ring` (either orientation) from `z0` to `z1`,
+/// each facing out.
+fn prism(mut ring: Vec<DVec2>, z0: f64, z1: f64) -> Vec<Face> {
+    if crate::geometry::ring_signed_area(&ring) < 0.0 {
+        ring.reverse();
+    }
+    crate::export::lod4geom::prism_faces(&ring, z0, z1)
 }
 
 /// The geometry of balcony `b` on `wall`, or `None` for a degenerate wall or balcony.
@@ -150,13 +229,67 @@ pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
         along,
         DVec3::Z * SLAB_THICKNESS,
     );
-    let up = DVec3::Z * RAILING_HEIGHT;
-    let railing = vec![
-        quad(f.at(b.u0, b.z, -b.depth), along, up), // front, facing out
-        quad(f.at(b.u0, b.z, 0.0), out, up),        // end at u0, facing -dir
-        quad(f.at(b.u1, b.z, 0.0), up, out),        // end at u1, facing +dir
-    ];
-    Some(BalconyFaces { slab, railing })
+    let mut faces = BalconyFaces {
+        slab,
+        railing: Vec::new(),
+        infill: Vec::new(),
+        frame: f,
+    };
+    if b.u1 - b.u0 < MIN_RAILED || b.depth < MIN_RAILED {
+        return Some(faces);
+    }
+    // Plan points by (u along the wall, o out of it).
+    let plan = |u: f64, o: f64| f.start + f.dir * u - f.inward * o;
+    let e = RAILING_INSET;
+    let (ua, ub, front) = (b.u0 + e, b.u1 - e, b.depth - e);
+    // The U of width `w` around the centre line (wall, ua) -> (front, ua) -> (front, ub) -> wall.
+    let u_ring = |w: f64| {
+        let h = w / 2.0;
+        vec![
+            plan(ua - h, 0.0),
+            plan(ua - h, front + h),
+            plan(ub + h, front + h),
+            plan(ub + h, 0.0),
+            plan(ub - h, 0.0),
+            plan(ub - h, front - h),
+            plan(ua + h, front - h),
+            plan(ua + h, 0.0),
+        ]
+    };
+    let top = b.z + RAILING_HEIGHT;
+    faces.railing = prism(u_ring(HANDRAIL_WIDTH), top - HANDRAIL_HEIGHT, top);
+    // Posts: the front corners, then evenly between them and along the arms (none at the wall,
+    // which holds the handrail).
+    let mut posts: Vec<(f64, f64)> = vec![(ua, front), (ub, front)];
+    let mut between = |(u0, o0): (f64, f64), (u1, o1): (f64, f64)| {
+        let n = ((u1 - u0).hypot(o1 - o0) / POST_SPACING).ceil().max(1.0) as usize;
+        for k in 1..n {
+            let t = k as f64 / n as f64;
+            posts.push((u0 + (u1 - u0) * t, o0 + (o1 - o0) * t));
+        }
+    };
+    between((ua, 0.0), (ua, front));
+    between((ua, front), (ub, front));
+    between((ub, front), (ub, 0.0));
+    let h = POST_WIDTH / 2.0;
+    for (u, o) in posts {
+        let ring = vec![
+            plan(u - h, o - h),
+            plan(u + h, o - h),
+            plan(u + h, o + h),
+            plan(u - h, o + h),
+        ];
+        // The four sides only: the prism's bottom and top come first.
+        faces
+            .railing
+            .extend(prism(ring, b.z, top - HANDRAIL_HEIGHT).into_iter().skip(2));
+    }
+    faces.infill = prism(
+        u_ring(INFILL_THICKNESS),
+        b.z + INFILL_BOTTOM,
+        b.z + INFILL_TOP,
+    );
+    Some(faces)
 }
 
 /// Sills lower than this above their wall's base (metres: a door, a French window) stand over
@@ -329,8 +462,30 @@ mod tests {
         assert!(opening_reveals(&w, &window(), 0.0).is_empty());
     }
 
+    /// The sum of the area vectors of `faces`: zero for a closed surface.
+    fn area_sum(faces: &[Face]) -> DVec3 {
+        faces
+            .iter()
+            .map(|f| crate::geometry::newell_normal(&f.outer))
+            .sum()
+    }
+
+    /// Whether every face of a closed solid faces away from a point inside it.
+    fn faces_out_of(faces: &[Face], inside: DVec3) -> bool {
+        faces.iter().all(|f| {
+            let c = f.outer.iter().copied().sum::<DVec3>() / f.outer.len() as f64;
+            n(f).dot(c - inside) > 0.0
+        })
+    }
+
+    /// Whether every vertex of `face` lies in its plane (within 1e-9 m).
+    fn planar(face: &Face) -> bool {
+        let (nm, p0) = (n(face), face.outer[0]);
+        face.outer.iter().all(|p| (p - p0).dot(nm).abs() < 1e-9)
+    }
+
     #[test]
-    fn balcony_box_is_closed_and_outward() {
+    fn balcony_slab_handrail_posts_and_infill() {
         let w = wall(DVec2::new(10.0, 0.0), DVec2::new(10.0, 6.0)); // east wall, outside +x
         let b = Balcony {
             u0: 1.0,
@@ -340,20 +495,70 @@ mod tests {
             color: Color::WHITE,
         };
         let f = balcony_faces(&w, &b).unwrap();
+        assert!(f.all().all(planar));
+        // Slab: a closed box facing out.
         assert_eq!(f.slab.len(), 6);
-        let centre = DVec3::new(10.6, 2.5, 2.9);
-        let mut sum = DVec3::ZERO;
-        for face in &f.slab {
-            let c = face.outer.iter().copied().sum::<DVec3>() / 4.0;
-            assert!(n(face).dot(c - centre) > 0.0, "slab face faces out");
-            sum += crate::geometry::newell_normal(&face.outer);
+        assert!(area_sum(&f.slab).length() < 1e-9, "closed box");
+        assert!(faces_out_of(&f.slab, DVec3::new(10.6, 2.5, 2.9)));
+        // Handrail: a closed U of ten faces, its top 1 m above the slab.
+        let rail = &f.railing[..10];
+        assert!(area_sum(rail).length() < 1e-9, "closed handrail");
+        let top = rail.iter().flat_map(|f| &f.outer).map(|p| p.z);
+        assert!((top.fold(f64::MIN, f64::max) - 4.0).abs() < 1e-12);
+        // Its front arm's outside faces +x, 2 cm in from the slab's edge.
+        let front = rail
+            .iter()
+            .find(|f| (n(f) - DVec3::X).length() < 1e-12 && f.outer[0].x > 11.0)
+            .unwrap();
+        assert!(front.outer.iter().all(|p| (p.x - 11.18).abs() < 1e-9));
+        // Posts: four sides each; the two front corners and two between them along the 2.9 m
+        // front (1.25 m apart at most); the 1.15 m arms need none.
+        let posts = &f.railing[10..];
+        assert_eq!(posts.len(), 4 * 4);
+        for post in posts.chunks(4) {
+            assert!(
+                area_sum(post).truncate().length() < 1e-9,
+                "sides of a square"
+            );
+            let zs: Vec<f64> = post.iter().flat_map(|f| &f.outer).map(|p| p.z).collect();
+            assert!(zs.iter().all(|z| (3.0..=3.95 + 1e-9).contains(z)));
         }
-        assert!(sum.length() < 1e-9, "closed box: area vectors cancel");
-        assert!((n(&f.railing[0]) - DVec3::X).length() < 1e-12);
-        assert!((n(&f.railing[1]) + DVec3::Y).length() < 1e-12);
-        assert!((n(&f.railing[2]) - DVec3::Y).length() < 1e-12);
+        // Infill: a closed U below the handrail, not touching it or the slab.
+        assert_eq!(f.infill.len(), 10);
+        assert!(area_sum(&f.infill).length() < 1e-9, "closed infill");
+        let zs: Vec<f64> = f
+            .infill
+            .iter()
+            .flat_map(|f| &f.outer)
+            .map(|p| p.z)
+            .collect();
+        assert!(zs.iter().all(|z| (3.1 - 1e-9..=3.9 + 1e-9).contains(z)));
+        // Everything out of the wall, within the slab's plan.
         let xs: Vec<f64> = f.all().flat_map(|f| f.outer.iter().map(|p| p.x)).collect();
         assert!(xs.iter().all(|x| (10.0..=11.2 + 1e-9).contains(x)));
+        // In the wall's plane: the slab's back and the two U's two ends each.
+        let against: Vec<&Face> = f.all().filter(|x| f.against_wall(x)).collect();
+        assert_eq!(against.len(), 5);
+        assert!(against.iter().all(|x| (n(x) + DVec3::X).length() < 1e-12));
+        // Colours: slab in the balcony's, the railing dark, the infill translucent.
+        let colors: Vec<Color> = f.colored(&b).map(|(_, c)| c).collect();
+        assert_eq!(colors.len(), f.all().count());
+        assert_eq!(colors[0], Color::WHITE);
+        assert_eq!(colors[6], RAILING_COLOR);
+        assert_eq!(*colors.last().unwrap(), INFILL_COLOR);
+        // A long balcony's posts stay at most 1.25 m apart; a tiny one has no railing.
+        let long = Balcony {
+            u1: 11.0,
+            ..b.clone()
+        };
+        let f = balcony_faces(&w, &long).unwrap();
+        assert_eq!(f.railing.len(), 10 + 4 * (2 + 7));
+        let tiny = Balcony {
+            u1: 1.2,
+            ..b.clone()
+        };
+        let f = balcony_faces(&w, &tiny).unwrap();
+        assert_eq!((f.slab.len(), f.railing.len(), f.infill.len()), (6, 0, 0));
         let bad = Balcony { depth: 0.0, ..b };
         assert!(balcony_faces(&w, &bad).is_none());
     }

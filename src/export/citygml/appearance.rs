@@ -55,12 +55,12 @@ impl Renderer<'_> {
                     let Some(f) = balcony_faces(wall, bc) else {
                         continue;
                     };
-                    for i in 0..f.all().count() {
+                    for (i, (_, color)) in f.colored(bc).enumerate() {
                         let kind = SurfaceKind::Balcony {
                             wall: wi,
                             balcony: k,
                         };
-                        add_target(&mut materials, bc.color, (pi, kind, i));
+                        add_target(&mut materials, color, (pi, kind, i));
                     }
                 }
             }

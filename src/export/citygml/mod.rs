@@ -17,10 +17,12 @@
 //!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
 //!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose
 //!   `bldg:lod3Geometry` is a `gml:MultiSurface` of the slab (a closed box) and the railing
-//!   panels. `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
+//!   (handrail, posts and infill panel, [`crate::export::lod3geom::balcony_faces`]).
+//!   `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
 //!   together close the shell. Elements follow the schema's order: installations, boundary
 //!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
-//!   0.6, doors and opaque windows their colour, balconies theirs.
+//!   0.6, doors and opaque windows their colour, balcony slabs theirs, railings dark iron and their
+//!   infill tinted glass with `app:transparency` 0.5.
 //! - **LOD4**: the LOD3 exterior in the `lod4` properties (the code is shared, parameterised by
 //!   the LOD number), plus stairs (`bldg:interiorBuildingInstallation`) and rooms
 //!   (`bldg:interiorRoom`), written by the child module `lod4` (see there).

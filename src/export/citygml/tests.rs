@@ -987,8 +987,8 @@ fn lod3_element_order_and_balconies() {
     let geom = inst[0].child("bldg:lod3Geometry").unwrap();
     assert_eq!(
         geom.count("gml:Polygon"),
-        9,
-        "slab box and three railing panels"
+        6 + 10 + 5 * 4 + 10,
+        "slab box, handrail, five posts' sides and the infill"
     );
     // The slab stands 1.2 m out of the wall (y = 0, outside is -y); the envelope covers it.
     let ys: Vec<f64> = geom
@@ -1053,9 +1053,20 @@ fn lod3_appearance_glass_doors_balconies() {
             assert_eq!(colour_of(poly), ("0.4000 0.2500 0.1000".to_string(), None));
         }
         for i in el.find_all("bldg:BuildingInstallation") {
-            for p in i.find_all("gml:Polygon") {
-                let (c, _) = colour_of(p.attr("gml:id").unwrap());
-                assert_eq!(c, "0.6000 0.6000 0.6000");
+            let polygons = i.find_all("gml:Polygon");
+            let n = polygons.len();
+            for (k, p) in polygons.iter().enumerate() {
+                let colour = colour_of(p.attr("gml:id").unwrap());
+                let expected = match k {
+                    0..6 => ("0.6000 0.6000 0.6000", None),
+                    _ if k < n - 10 => ("0.2000 0.2100 0.2300", None),
+                    _ => ("0.5500 0.6500 0.6500", Some("0.5000")),
+                };
+                assert_eq!(
+                    (colour.0.as_str(), colour.1.as_deref()),
+                    expected,
+                    "slab, railing, infill"
+                );
             }
         }
     }

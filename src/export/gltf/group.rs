@@ -7,7 +7,7 @@ use crate::color::Color;
 use crate::geometry::triangulate::triangulate_face;
 use crate::model::Face;
 
-use super::materials::color_key;
+use super::materials::{color_key, Finish};
 
 /// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
 /// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
@@ -15,10 +15,11 @@ pub(super) fn to_gltf(p: DVec3) -> [f32; 3] {
     [p.x as f32 + 0.0, p.z as f32 + 0.0, (-p.y) as f32 + 0.0]
 }
 
-/// Faces of one surface class and one colour in one building.
+/// Faces of one surface class, one colour and one finish in one building.
 pub(super) struct Group {
     pub(super) color: Color,
     pub(super) color_key: [u32; 4],
+    pub(super) finish: Finish,
     pub(super) mesh: MeshData,
 }
 
@@ -28,15 +29,24 @@ impl Group {
     }
 }
 
-/// The group of `color` in `groups`, created (last) on first use.
+/// The matte group of `color` in `groups`, created (last) on first use.
 pub(super) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
+    group_with(groups, color, Finish::Matte)
+}
+
+/// The group of `color` and `finish` in `groups`, created (last) on first use.
+pub(super) fn group_with(groups: &mut Vec<Group>, color: Color, finish: Finish) -> &mut Group {
     let key = color_key(color);
-    let i = match groups.iter().position(|g| g.color_key == key) {
+    let i = match groups
+        .iter()
+        .position(|g| g.color_key == key && g.finish == finish)
+    {
         Some(i) => i,
         None => {
             groups.push(Group {
                 color,
                 color_key: key,
+                finish,
                 mesh: MeshData::default(),
             });
             groups.len() - 1

@@ -192,8 +192,6 @@ pub(super) struct MaterialRec {
     pub(super) pbr: Pbr,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) alpha_mode: Option<&'static str>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub(super) double_sided: Option<bool>,
 }
 
 #[derive(Serialize)]

@@ -1,25 +1,59 @@
-//! Materials of the glTF writer: one PBR metallic-roughness material per (surface class, colour).
+//! Materials of the glTF writer: one PBR metallic-roughness material per (surface class, colour,
+//! finish). Matte materials are the colour at [`ROUGHNESS`]; glass is smooth
+//! ([`GLASS_ROUGHNESS`]) and slightly metallic ([`GLASS_METALLIC`]), and opaque glass is the
+//! window colour darkened ([`GLASS_SHADE`]), so that a pane reads as glass with a dark room
+//! behind it rather than as a painted panel, without showing the hollow shell behind it.
 
 use std::io::Write;
 
 use crate::color::Color;
 
 use super::json::{MaterialRec, Pbr};
-use super::{GltfWriter, SurfaceClass, ROUGHNESS};
+use super::{GltfWriter, SurfaceClass, GLASS_METALLIC, GLASS_ROUGHNESS, GLASS_SHADE, ROUGHNESS};
+
+/// How a material renders its colour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) enum Finish {
+    /// Matte, in the colour as given (building materials).
+    Matte,
+    /// Glazing: smooth and slightly metallic; opaque and darker than the given colour when the
+    /// colour is opaque.
+    Glass,
+}
 
 impl<W: Write + Send> GltfWriter<W> {
-    /// The material of `class` in `color`, created on first use.
-    pub(super) fn material_for(&mut self, class: SurfaceClass, color: Color) -> u32 {
-        let key = (class, color_key(color));
+    /// The material of `class` in `color` and `finish`, created on first use.
+    pub(super) fn material_for(
+        &mut self,
+        class: SurfaceClass,
+        color: Color,
+        finish: Finish,
+    ) -> u32 {
+        let key = (class, color_key(color), finish);
         if let Some(&i) = self.material_index.get(&key) {
             return i;
         }
         let i = self.doc.materials.len() as u32;
         let c = sanitize(color);
-        let name = if c.a < 1.0 {
+        let mut name = if c.a < 1.0 {
             format!("{} {} alpha {}", class.name(), c.to_hex(), c.a)
         } else {
             format!("{} {}", class.name(), c.to_hex())
+        };
+        let (c, metallic, roughness) = match finish {
+            Finish::Matte => (c, 0.0, ROUGHNESS),
+            Finish::Glass => {
+                name.push_str(" glass");
+                // Transparent glass shows what is behind it; opaque glass is darker.
+                let shade = if c.a < 1.0 { 1.0 } else { GLASS_SHADE };
+                let c = Color {
+                    r: c.r * shade,
+                    g: c.g * shade,
+                    b: c.b * shade,
+                    a: c.a,
+                };
+                (c, GLASS_METALLIC, GLASS_ROUGHNESS)
+            }
         };
         self.doc.materials.push(MaterialRec {
             name,
@@ -30,12 +64,11 @@ impl<W: Write + Send> GltfWriter<W> {
                     srgb_to_linear(c.b),
                     c.a,
                 ],
-                metallic_factor: 0.0,
-                roughness_factor: ROUGHNESS,
+                metallic_factor: metallic,
+                roughness_factor: roughness,
             },
+            // No `doubleSided`: every surface is the outside of a closed (or walled-in) body.
             alpha_mode: (c.a < 1.0).then_some("BLEND"),
-            // Railing panels are single quads, seen from both sides.
-            double_sided: (class == SurfaceClass::Balconies).then_some(true),
         });
         self.material_index.insert(key, i);
         i

@@ -6,15 +6,35 @@ use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
 use crate::export::{check_finite, ExportError};
 use crate::model::{Building, OpeningKind, Part};
 
-use super::group::{group, Group};
+use super::contact::{self, Exposed};
+use super::group::{group, group_with, Group};
 use super::lod4::add_interior;
+use super::materials::Finish;
 use super::{
     SurfaceClass, GLASS_ALPHA, GROUND_COLOR, OPENING_SETBACK, UNSIGNED_INT, UNSIGNED_SHORT,
 };
 
-/// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation).
-pub(super) fn add_openings(groups: &mut Vec<Group>, part: &Part, kind: OpeningKind) {
-    for w in &part.walls {
+/// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation),
+/// on its walls that are `shown` (not wholly against another part). Glazed panes are glass:
+/// opaque on a hollow part, transparent ([`GLASS_ALPHA`]) on a part with an interior (LOD4),
+/// whose rooms are there to be seen through them.
+pub(super) fn add_openings(
+    groups: &mut Vec<Group>,
+    part: &Part,
+    shown: &Exposed<'_>,
+    kind: OpeningKind,
+) {
+    let glass_alpha = if part.interior.is_empty() {
+        1.0
+    } else {
+        GLASS_ALPHA
+    };
+    for (w, _) in part
+        .walls
+        .iter()
+        .zip(&shown.walls)
+        .filter(|(_, s)| !s.is_empty())
+    {
         // Never behind the wall's inner face; no setback (and no reveals) for a wall without
         // thickness.
         let depth = if w.thickness.is_finite() && w.thickness > 0.0 {
@@ -26,15 +46,15 @@ pub(super) fn add_openings(groups: &mut Vec<Group>, part: &Part, kind: OpeningKi
             let Some(pane) = opening_face(w, o, depth) else {
                 continue;
             };
-            let color = if kind == OpeningKind::Window && o.glazed {
-                Color {
-                    a: GLASS_ALPHA,
+            if kind == OpeningKind::Window && o.glazed {
+                let glass = Color {
+                    a: glass_alpha,
                     ..o.color
-                }
+                };
+                group_with(groups, glass, Finish::Glass).add_face(&pane);
             } else {
-                Color { a: 1.0, ..o.color }
-            };
-            group(groups, color).add_face(&pane);
+                group(groups, Color { a: 1.0, ..o.color }).add_face(&pane);
+            }
             let lining = if o.framed {
                 o.frame_color
             } else {
@@ -59,31 +79,44 @@ pub(super) struct Encoded {
 /// Triangulates and lays out one building (`detail`: LOD3 and up classes are written).
 pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError> {
     check_finite("glTF writer", b)?;
+    // Faces against another part of the building are inside it: not drawn.
+    let exposed = contact::exposed(b);
     let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
     for class in SurfaceClass::ALL {
         if class.is_detail() && !detail {
             continue;
         }
         let mut groups: Vec<Group> = Vec::new();
-        for part in &b.parts {
+        for (part, shown) in b.parts.iter().zip(&exposed) {
             match class {
                 SurfaceClass::Walls => {
                     let g = group(&mut groups, part.wall_color);
-                    part.walls.iter().for_each(|w| g.add_face(&w.outline));
+                    shown.walls.iter().flatten().for_each(|f| g.add_face(f));
                 }
                 SurfaceClass::Roof => {
                     let g = group(&mut groups, part.roof_color);
-                    part.roof.iter().for_each(|f| g.add_face(f));
+                    shown.roof.iter().for_each(|f| g.add_face(f));
                 }
-                SurfaceClass::Ground => group(&mut groups, GROUND_COLOR).add_face(&part.ground),
-                SurfaceClass::Windows => add_openings(&mut groups, part, OpeningKind::Window),
-                SurfaceClass::Doors => add_openings(&mut groups, part, OpeningKind::Door),
+                SurfaceClass::Ground => {
+                    let g = group(&mut groups, GROUND_COLOR);
+                    shown.ground.iter().for_each(|f| g.add_face(f));
+                }
+                SurfaceClass::Windows => {
+                    add_openings(&mut groups, part, shown, OpeningKind::Window)
+                }
+                SurfaceClass::Doors => add_openings(&mut groups, part, shown, OpeningKind::Door),
                 SurfaceClass::Balconies => {
-                    for w in &part.walls {
+                    let walls = part.walls.iter().zip(&shown.walls);
+                    for (w, _) in walls.filter(|(_, s)| !s.is_empty()) {
                         for bc in &w.balconies {
-                            if let Some(f) = balcony_faces(w, bc) {
-                                let g = group(&mut groups, bc.color);
-                                f.all().for_each(|face| g.add_face(face));
+                            let Some(f) = balcony_faces(w, bc) else {
+                                continue;
+                            };
+                            // The faces in the wall's plane are hidden and would fight it.
+                            for (face, color) in f.colored(bc) {
+                                if !f.against_wall(face) {
+                                    group(&mut groups, color).add_face(face);
+                                }
                             }
                         }
                     }
@@ -150,6 +183,7 @@ pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError>
             prims.push(PrimLayout {
                 class: *class,
                 color: g.color,
+                finish: g.finish,
                 count,
                 pos_offset,
                 nrm_offset,
@@ -174,6 +208,7 @@ pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError>
 pub(super) struct PrimLayout {
     pub(super) class: SurfaceClass,
     pub(super) color: Color,
+    pub(super) finish: Finish,
     pub(super) count: u32,
     pub(super) pos_offset: u64,
     pub(super) nrm_offset: u64,

@@ -7,13 +7,23 @@
 //! doors`, `stairs`, `slabs`) holding one mesh, with one triangle primitive per material (usually one). Classes
 //! without triangles get no node.
 //!
+//! Where two parts of a building touch, the faces of each that lie against the other (a shared
+//! wall, a roof under another part's ground) are inside the building and left out, or the
+//! pieces of them that the other part covers (`contact`): drawn, they speckle the seams where
+//! parts meet. The CityGML and IFC solids keep them.
+//!
 //! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
 //! and door is a pane in its opening's rectangle set back [`OPENING_SETBACK`] into the wall
 //! (towards the inside, never deeper than the wall is thick) so it reads as recessed, plus four
 //! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
-//! else the wall colour. Glazed windows' glass is transparent (alpha [`GLASS_ALPHA`], `BLEND`);
-//! doors and unglazed windows are opaque in their colour. Balconies are a closed slab box and
-//! three railing panels, in a double-sided material.
+//! else the wall colour. The shell behind a pane is hollow, so glazed windows' glass is opaque:
+//! the window colour darkened ([`GLASS_SHADE`]), smooth and a little metallic, as glass with an
+//! unlit room behind it looks from the street; only a part with an interior (LOD4) has
+//! transparent glass (alpha [`GLASS_ALPHA`], `BLEND`). Doors and unglazed windows are opaque in
+//! their colour. Balconies ([`crate::export::lod3geom::balcony_faces`]) are the slab in the
+//! balcony's colour, a railing of handrail and posts in dark iron, and its infill of tinted glass
+//! (`BLEND`), without their faces in the wall's plane. No material is double-sided: every face
+//! is the outside of a body.
 //!
 //! LOD4 ([`crate::export::lod4geom`]): `floors` are the rooms' polygons at floor height, facing
 //! up; `interior walls` are closed boxes of the walls' thickness around their centre lines,
@@ -35,8 +45,8 @@
 //! the context and the buildings.
 //!
 //! Code layout: this module holds the writer, its state and the surface classes; `mesh` groups
-//! and triangulates a building's faces (`lod4` its interior's), `materials` makes the PBR
-//! materials, `spool` spools the data and records and assembles the GLB, `json` holds the JSON
+//! and triangulates a building's faces (`lod4` its interior's, `contact` leaves out those
+//! between parts), `materials` makes the PBR materials, `spool` spools the data and records and assembles the GLB, `json` holds the JSON
 //! records.
 
 use std::collections::BTreeMap;
@@ -52,9 +62,11 @@ use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 use json::{AssetExtras, Document};
+use materials::Finish;
 use mesh::encode;
 use spool::Spool;
 
+mod contact;
 mod group;
 mod json;
 mod lod4;
@@ -96,8 +108,18 @@ const GROUND_COLOR: Color = Color::GREY;
 /// How far window and door panes sit behind the wall's outer face (metres).
 pub const OPENING_SETBACK: f64 = 0.1;
 
-/// Opacity of glazed windows' glass.
+/// Opacity of glazed windows' glass in parts with an interior (LOD4); elsewhere glass is opaque.
 pub const GLASS_ALPHA: f32 = 0.35;
+
+/// Opaque glass is the window colour times this (in sRGB): dark, as a pane with an unlit room
+/// behind it looks from the street.
+pub const GLASS_SHADE: f32 = 0.4;
+
+/// Roughness of glass: smooth, so that viewers with an environment light show reflections.
+pub const GLASS_ROUGHNESS: f32 = 0.1;
+
+/// Metalness of glass: a little, for a stronger reflection than a plain dielectric's.
+pub const GLASS_METALLIC: f32 = 0.2;
 
 /// Semantic class of a group of surfaces: one child node per class and building.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -186,7 +208,7 @@ pub struct GltfWriter<W: Write + Send> {
     /// Reused buffer one record is serialised into.
     json_scratch: Vec<u8>,
     /// (class, colour bits) -> material index, for reuse across buildings.
-    material_index: BTreeMap<(SurfaceClass, [u32; 4]), u32>,
+    material_index: BTreeMap<(SurfaceClass, [u32; 4], Finish), u32>,
     /// Whether the run is LOD3 or above (openings and balconies are written).
     detail: bool,
     /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after

@@ -2,7 +2,7 @@ use glam::{DVec2, DVec3};
 
 use super::materials::srgb_to_linear;
 use super::*;
-use crate::export::lod3geom::samples;
+use crate::export::lod3geom::{balcony_faces, samples};
 use crate::export::lod4geom;
 use crate::geometry::Polygon;
 use crate::model::{Face, Lod, Part, RoofShape, SourceId, Wall};
@@ -531,7 +531,8 @@ fn two_parts_two_wall_materials_and_hip_roof() {
         2
     );
     let walls = check_mesh(&json, bin, walls_mesh);
-    assert!((walls - (32.0 * 6.0 + 32.0 * 3.0)).abs() < 1e-3);
+    // Less the shared wall at x = 70 up to the lower part's 3 m, on both sides: inside.
+    assert!((walls - (32.0 * 6.0 + 32.0 * 3.0 - 2.0 * 6.0 * 3.0)).abs() < 1e-3);
     let roof = check_mesh(&json, bin, class_mesh(&json, node, "roof").unwrap());
     // Flat 60 m2 plus the hip roof (trapezoids 2 x 19.80, triangles 2 x 10.82).
     let s = (9.0f64 + 4.0).sqrt();
@@ -589,12 +590,13 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 /// LOD2 output is byte-identical to the writer before LOD3 support (fingerprint taken from
-/// that writer on the same samples).
+/// that writer on the same samples, then once more when the walls between two parts of a
+/// building were left out: only `two_part_building` changed, by its shared wall).
 #[test]
 fn lod2_output_unchanged_by_lod3_support() {
     assert_eq!(
         fnv1a(&write_glb(&all_buildings())),
-        13_296_349_161_037_005_596
+        6_307_124_370_317_660_226
     );
 }
 
@@ -862,7 +864,14 @@ fn lod3_wall_area_is_wall_minus_openings() {
         let (json, bin) = parse_glb(&glb);
         let node = &json["nodes"][0];
         let walls = check_mesh(&json, bin, class_mesh(&json, node, "walls").unwrap());
-        let expected = samples::net_wall_area(&b);
+        // Less the walls between the two parts of way/303 (x = 70, 6 m wide, up to the
+        // annex's 3 m, on both sides): inside the building, not drawn.
+        let between = if b.id == SourceId::Way(303) {
+            36.0
+        } else {
+            0.0
+        };
+        let expected = samples::net_wall_area(&b) - between;
         assert!(
             (walls - expected).abs() < 1e-3,
             "{}: {walls} vs {expected}",
@@ -897,13 +906,13 @@ fn lod3_wall_area_is_wall_minus_openings() {
 }
 
 #[test]
-fn lod3_panes_are_recessed_and_glass_is_transparent() {
+fn lod3_panes_are_recessed_and_glass_is_opaque() {
     let glb = write_glb_at(Lod::Lod3, &[samples::house()]);
     let (json, bin) = parse_glb(&glb);
     let node = &json["nodes"][0];
     let windows = class_mesh(&json, node, "windows").unwrap();
     let doors = class_mesh(&json, node, "doors").unwrap();
-    let is_glass = |m: &Value| m["alphaMode"] == "BLEND";
+    let is_glass = |m: &Value| m["name"].as_str().unwrap().ends_with(" glass");
     // The front wall is y = 0, the inside +y: glTF z = -y, so panes sit at z = -0.1.
     let glass = positions_where(&json, bin, windows, is_glass);
     assert_eq!(glass.len(), 4 * 4);
@@ -914,22 +923,30 @@ fn lod3_panes_are_recessed_and_glass_is_transparent() {
     assert_eq!(door_pane.len(), 4);
     assert!(door_pane.iter().all(|p| (p[2] + 0.1).abs() < 1e-6));
     let mats = json["materials"].as_array().unwrap();
-    let glass_mat = mats.iter().find(|m| is_glass(m)).unwrap();
-    assert!(glass_mat["name"]
-        .as_str()
-        .unwrap()
-        .starts_with("windows #8cb3cc"));
-    let alpha = glass_mat["pbrMetallicRoughness"]["baseColorFactor"][3]
-        .as_f64()
-        .unwrap();
-    assert!((alpha - 0.35).abs() < 1e-6);
-    // Doors opaque in their colour; frames opaque.
+    // A hollow LOD3 shell: nothing is see-through, nothing double-sided.
     for m in mats {
         let name = m["name"].as_str().unwrap();
-        if name.starts_with("doors") || name.starts_with("walls") {
-            assert!(m.get("alphaMode").is_none(), "{name}");
-        }
+        assert!(m.get("alphaMode").is_none(), "{name}");
+        assert!(m.get("doubleSided").is_none(), "{name}");
+        assert_eq!(
+            m["pbrMetallicRoughness"]["baseColorFactor"][3], 1.0,
+            "{name}"
+        );
     }
+    // Glass: the window colour darkened, smooth and a little metallic.
+    let glass_mat = mats.iter().find(|m| is_glass(m)).unwrap();
+    assert_eq!(glass_mat["name"], "windows #8cb3cc glass");
+    let pbr = &glass_mat["pbrMetallicRoughness"];
+    let rgb: Vec<f64> = (0..3)
+        .map(|k| pbr["baseColorFactor"][k].as_f64().unwrap())
+        .collect();
+    let glass = samples::GLASS;
+    for (got, c) in rgb.iter().zip([glass.r, glass.g, glass.b]) {
+        assert!((got - f64::from(srgb_to_linear(c * GLASS_SHADE))).abs() < 1e-6);
+    }
+    assert!((pbr["roughnessFactor"].as_f64().unwrap() - 0.1).abs() < 1e-6);
+    assert!((pbr["metallicFactor"].as_f64().unwrap() - 0.2).abs() < 1e-6);
+    // Doors opaque in their colour, matte.
     let door = mats
         .iter()
         .find(|m| m["name"] == "doors #66401a")
@@ -938,31 +955,90 @@ fn lod3_panes_are_recessed_and_glass_is_transparent() {
         .as_f64()
         .unwrap();
     assert!((r - f64::from(srgb_to_linear(0.4))).abs() < 1e-6);
+    assert_eq!(door["pbrMetallicRoughness"]["metallicFactor"], 0.0);
 }
 
 #[test]
-fn lod3_balcony_box_and_railing() {
+fn lod4_glass_stays_transparent() {
+    // A part with rooms keeps see-through glass, in the window colour.
+    let house = crate::export::fixtures::lod4_house();
+    let glb = write_glb_at(Lod::Lod4, std::slice::from_ref(&house));
+    let (json, _) = parse_glb(&glb);
+    let mats = json["materials"].as_array().unwrap();
+    let glass: Vec<&Value> = mats
+        .iter()
+        .filter(|m| m["name"].as_str().unwrap().ends_with(" glass"))
+        .collect();
+    assert_eq!(glass.len(), 1);
+    assert_eq!(glass[0]["name"], "windows #8cb3cc alpha 0.35 glass");
+    assert_eq!(glass[0]["alphaMode"], "BLEND");
+    let c = &glass[0]["pbrMetallicRoughness"]["baseColorFactor"];
+    assert!((c[3].as_f64().unwrap() - 0.35).abs() < 1e-6);
+    let r = c[0].as_f64().unwrap();
+    assert!((r - f64::from(srgb_to_linear(samples::GLASS.r))).abs() < 1e-6);
+    // The same house without its rooms is a hollow shell: its glass is opaque.
+    let mut hollow = house.clone();
+    hollow.parts.iter_mut().for_each(|p| p.interior.clear());
+    let glb = write_glb_at(Lod::Lod4, std::slice::from_ref(&hollow));
+    let (json, _) = parse_glb(&glb);
+    for m in json["materials"].as_array().unwrap() {
+        assert!(m.get("alphaMode").is_none(), "{}", m["name"]);
+    }
+}
+
+#[test]
+fn lod3_balcony_slab_and_railing() {
     let b = samples::with_balcony();
     let glb = write_glb_at(Lod::Lod3, std::slice::from_ref(&b));
     let (json, bin) = parse_glb(&glb);
     let m = class_mesh(&json, &json["nodes"][0], "balconies").unwrap();
     let area = check_mesh(&json, bin, m);
-    // Slab 4 x 1.2 x 0.2 plus railing 4 x 1 and two 1.2 x 1 ends.
-    let slab = 2.0 * (4.0 * 1.2 + 4.0 * 0.2 + 1.2 * 0.2);
-    let railing = 4.0 + 2.0 * 1.2;
-    assert!((area - slab - railing).abs() < 1e-3, "{area}");
-    let mat = json["meshes"][m as usize]["primitives"][0]["material"]
-        .as_u64()
-        .unwrap() as usize;
-    assert_eq!(json["materials"][mat]["doubleSided"], true);
-    // Out in front of the wall (y from 0 to -1.2 is glTF z 0 to 1.2).
+    // The model's faces less those in the wall's plane (the slab's back, the handrail's and
+    // the infill's ends), which would fight the wall.
+    let wall = &b.parts[0].walls[4];
+    let faces = balcony_faces(wall, &wall.balconies[0]).unwrap();
+    let expected: f64 = faces
+        .all()
+        .filter(|f| !faces.against_wall(f))
+        .map(|f| crate::geometry::newell_normal(&f.outer).length() / 2.0)
+        .sum();
+    let against: f64 = faces
+        .all()
+        .filter(|f| faces.against_wall(f))
+        .map(|f| crate::geometry::newell_normal(&f.outer).length() / 2.0)
+        .sum();
+    // Slab back 4 x 0.2, handrail ends 2 x 0.06 x 0.05, infill ends 2 x 0.015 x 0.8.
+    assert!((against - (0.8 + 0.006 + 0.024)).abs() < 1e-9, "{against}");
+    assert!((area - expected).abs() < 1e-3, "{area} vs {expected}");
+    // Three materials: the slab in the balcony colour, the dark railing, the tinted infill.
+    let prims = json["meshes"][m as usize]["primitives"].as_array().unwrap();
+    let names: Vec<&str> = prims
+        .iter()
+        .map(|p| {
+            json["materials"][p["material"].as_u64().unwrap() as usize]["name"]
+                .as_str()
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "balconies #999999",
+            "balconies #33363b",
+            "balconies #8ca6a6 alpha 0.5"
+        ]
+    );
+    let infill = &json["materials"][prims[2]["material"].as_u64().unwrap() as usize];
+    assert_eq!(infill["alphaMode"], "BLEND");
+    // Out in front of the wall (y from 0 to -1.2 is glTF z 0 to 1.2), up to the handrail.
     let pos = positions_where(&json, bin, m, |_| true);
     let max_z = pos.iter().map(|p| p[2]).fold(f32::NEG_INFINITY, f32::max);
     assert!((max_z - 1.2).abs() < 1e-5, "{max_z}");
-    // Only balcony materials are double-sided.
+    let max_y = pos.iter().map(|p| p[1]).fold(f32::NEG_INFINITY, f32::max);
+    assert!((max_y - 4.0).abs() < 1e-5, "{max_y}");
+    // No material is double-sided: every face is the outside of a body.
     for mat in json["materials"].as_array().unwrap() {
-        let balcony = mat["name"].as_str().unwrap().starts_with("balconies");
-        assert_eq!(mat.get("doubleSided").is_some(), balcony);
+        assert!(mat.get("doubleSided").is_none());
     }
 }
 
