@@ -226,6 +226,11 @@ struct RunArgs {
     /// skipped); without it such a run is an error (exit 1) and writes nothing.
     #[arg(long)]
     allow_empty: bool,
+    /// Give each building with no building:levels and no height the distance-weighted median
+    /// storeys of the tagged buildings around it (the 8 nearest within 300 m, of its own
+    /// building=* kind when 3 of them are; at least 3), and say so in the report.
+    #[arg(long)]
+    infer_levels: bool,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -570,6 +575,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         dry_run: cli.dry_run,
         force_extension: cli.force_extension,
         allow_empty: cli.allow_empty,
+        infer_levels: cli.infer_levels,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

@@ -93,6 +93,9 @@ pub struct Options {
     /// Publish the outputs even when no building is generated (an empty `--bbox`, every
     /// footprint skipped): without it such a run is an error (`--allow-empty`).
     pub allow_empty: bool,
+    /// Give a building with no `building:levels` and no `height` the storeys of its tagged
+    /// neighbours (`--infer-levels`, [`prepare::infer`]); each one so changed has a report note.
+    pub infer_levels: bool,
 }
 
 /// What went wrong, for the exit code and the message.
@@ -181,6 +184,15 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
     prepare::assign_fronts(&mut site, &read.streets, source_crs);
+    // Before --bbox, so that the neighbours outside the box count; noted for the buildings
+    // the run keeps.
+    let mut inferred_notes = std::collections::HashMap::new();
+    if opts.infer_levels {
+        let inferred = prepare::infer::infer_levels(&site.lots, Default::default());
+        for (i, note) in prepare::infer::apply(&mut site.lots, &inferred) {
+            inferred_notes.insert(site.lots[i].id, note);
+        }
+    }
     let caps = Caps {
         facades: opts.lod >= Lod::Lod3,
         ..opts.caps
@@ -201,6 +213,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
                     "{why} (pass --allow-empty to write empty outputs)"
                 )));
             }
+        }
+    }
+    for lot in &site.lots {
+        if let Some(note) = inferred_notes.remove(&lot.id) {
+            report.add(Some(lot.id), Outcome::Note, note);
         }
     }
     let batches: Vec<Batch> = match opts.tile {

@@ -8,6 +8,8 @@ use glam::DVec2;
 use rayon::prelude::*;
 use rstar::{RTree, RTreeObject, AABB};
 
+pub mod infer;
+
 use crate::crs::Crs;
 use crate::geometry::{ring, ring_signed_area, Polygon};
 use crate::input::{Footprint, FootprintKind, SharedTags, SourcePolygon, Streets};
