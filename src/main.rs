@@ -94,6 +94,9 @@ enum KbCommand {
         /// The run's --seed: the appearance picked is the one a run with this seed picks.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// The run's --infer: what the building takes from its tagged neighbours.
+        #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]
+        infer: InferArg,
     },
 }
 
@@ -226,11 +229,14 @@ struct RunArgs {
     /// skipped); without it such a run is an error (exit 1) and writes nothing.
     #[arg(long)]
     allow_empty: bool,
-    /// Give each building with no building:levels and no height the distance-weighted median
-    /// storeys of the tagged buildings around it (the 8 nearest within 300 m, of its own
-    /// building=* kind when 3 of them are; at least 3), and say so in the report.
-    #[arg(long)]
-    infer_levels: bool,
+    /// What a building lacking tags takes from the tagged buildings around it: kb (as its
+    /// knowledge-base zone says, <info infer="...">), none, all, or a comma-separated list of
+    /// levels (storeys: distance-weighted median of the 8 nearest within 300 m, of its own
+    /// building=* kind when 3 of them are; at least 3), roof (roof:shape) and colour
+    /// (building:colour, roof:colour; the weighted majority). Each building changed has a
+    /// report note.
+    #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]
+    infer: InferArg,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -262,6 +268,19 @@ fn parse_output_crs(s: &str) -> Result<Crs, String> {
         ));
     }
     Ok(crs)
+}
+
+/// `--infer`: `kb` (the zones decide: `None`) or an [`Inference`](citygen::model::Inference).
+#[derive(Clone, Copy, Debug)]
+struct InferArg(Option<citygen::model::Inference>);
+
+fn parse_infer(s: &str) -> Result<InferArg, String> {
+    if s.trim().eq_ignore_ascii_case("kb") {
+        return Ok(InferArg(None));
+    }
+    citygen::model::Inference::parse(s)
+        .map(|i| InferArg(Some(i)))
+        .ok_or_else(|| "expected kb, none, all, or a list of levels, roof, colour".to_string())
 }
 
 fn parse_lot(s: &str) -> Result<Polygon, String> {
@@ -470,6 +489,7 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
             shp,
             id,
             seed,
+            infer,
         } => {
             let kb = match load(&kb) {
                 Ok(k) => k,
@@ -484,7 +504,7 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 },
                 (None, None) => return ExitCode::from(2),
             };
-            match citygen::pipeline::explain_building(&kb, &source, &id, seed) {
+            match citygen::pipeline::explain_building(&kb, &source, &id, seed, infer.0) {
                 Ok(e) => emit(&e.to_string()).err().unwrap_or(ExitCode::SUCCESS),
                 Err(e) => fail(e.to_string()),
             }
@@ -575,7 +595,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         dry_run: cli.dry_run,
         force_extension: cli.force_extension,
         allow_empty: cli.allow_empty,
-        infer_levels: cli.infer_levels,
+        infer: cli.infer.0,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

@@ -729,3 +729,73 @@ impl Building {
         Ok(())
     }
 }
+
+/// The `infer` attribute: which values of an untagged building may come from its tagged
+/// neighbours. Written as `none`, `all`, or a comma-separated list of `levels`, `roof` and
+/// `colour` (`color` accepted).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Inference {
+    /// Storeys, from the neighbours' `building:levels` (or `height` over the floor height).
+    pub levels: bool,
+    /// Roof shape, from the neighbours' `roof:shape`.
+    pub roof: bool,
+    /// Wall and roof colours, from the neighbours' `building:colour` and `roof:colour`.
+    pub colour: bool,
+}
+
+impl Inference {
+    /// Nothing is inferred.
+    pub const NONE: Inference = Inference {
+        levels: false,
+        roof: false,
+        colour: false,
+    };
+    /// Everything that can be is inferred.
+    pub const ALL: Inference = Inference {
+        levels: true,
+        roof: true,
+        colour: true,
+    };
+
+    /// Parses the attribute (case-insensitive); `None` for an unknown word.
+    pub fn parse(s: &str) -> Option<Inference> {
+        let s = s.trim().to_ascii_lowercase();
+        match s.as_str() {
+            "none" | "no" | "off" => return Some(Inference::NONE),
+            "all" | "yes" | "on" => return Some(Inference::ALL),
+            _ => {}
+        }
+        let mut out = Inference::NONE;
+        for w in s.split([',', ' ']).map(str::trim).filter(|w| !w.is_empty()) {
+            match w {
+                "levels" | "storeys" | "height" => out.levels = true,
+                "roof" | "roofs" => out.roof = true,
+                "colour" | "color" | "colours" | "colors" => out.colour = true,
+                _ => return None,
+            }
+        }
+        Some(out)
+    }
+
+    /// Whether anything is inferred.
+    pub fn any(self) -> bool {
+        self.levels || self.roof || self.colour
+    }
+
+    /// The attribute as written back: `none` or the list.
+    pub fn as_string(self) -> String {
+        let words: Vec<&str> = [
+            (self.levels, "levels"),
+            (self.roof, "roof"),
+            (self.colour, "colour"),
+        ]
+        .into_iter()
+        .filter_map(|(on, w)| on.then_some(w))
+        .collect();
+        if words.is_empty() {
+            "none".into()
+        } else {
+            words.join(",")
+        }
+    }
+}

@@ -93,9 +93,46 @@ pub struct Options {
     /// Publish the outputs even when no building is generated (an empty `--bbox`, every
     /// footprint skipped): without it such a run is an error (`--allow-empty`).
     pub allow_empty: bool,
-    /// Give a building with no `building:levels` and no `height` the storeys of its tagged
-    /// neighbours (`--infer-levels`, [`prepare::infer`]); each one so changed has a report note.
-    pub infer_levels: bool,
+    /// What buildings lacking tags take from their tagged neighbours ([`prepare::infer`]):
+    /// `None` as each building's zone says (`<info infer=...>`, off where no zone says), else
+    /// this everywhere (`--infer`). Each building so changed has a report note.
+    pub infer: Option<crate::model::Inference>,
+}
+
+/// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
+/// `infer` ([`KnowledgeBase::inference_by_zone`]). The zone lookups are skipped when no zone
+/// infers anything.
+pub fn inference_wanted(
+    kb: &KnowledgeBase,
+    lots: &[prepare::Lot],
+    over: Option<crate::model::Inference>,
+) -> Vec<crate::model::Inference> {
+    use rayon::prelude::*;
+    if let Some(o) = over {
+        return vec![o; lots.len()];
+    }
+    let by_zone = kb.inference_by_zone();
+    if !by_zone.iter().any(|i| i.any()) {
+        return vec![crate::model::Inference::NONE; lots.len()];
+    }
+    lots.par_iter()
+        .map(|l| by_zone[kb.locate(l.lonlat.0, l.lonlat.1)])
+        .collect()
+}
+
+/// Infers what the lots lack from their tagged neighbours ([`prepare::infer`]) and returns
+/// the report note of each lot changed, by id.
+fn infer_from_neighbours(
+    kb: &KnowledgeBase,
+    lots: &mut [prepare::Lot],
+    over: Option<crate::model::Inference>,
+) -> std::collections::HashMap<SourceId, String> {
+    let wanted = inference_wanted(kb, lots, over);
+    let inferred = prepare::infer::infer(lots, |i| wanted[i], Default::default());
+    prepare::infer::apply(lots, &inferred)
+        .into_iter()
+        .map(|(i, note)| (lots[i].id, note))
+        .collect()
 }
 
 /// What went wrong, for the exit code and the message.
@@ -186,13 +223,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     prepare::assign_fronts(&mut site, &read.streets, source_crs);
     // Before --bbox, so that the neighbours outside the box count; noted for the buildings
     // the run keeps.
-    let mut inferred_notes = std::collections::HashMap::new();
-    if opts.infer_levels {
-        let inferred = prepare::infer::infer_levels(&site.lots, Default::default());
-        for (i, note) in prepare::infer::apply(&mut site.lots, &inferred) {
-            inferred_notes.insert(site.lots[i].id, note);
-        }
-    }
+    let mut inferred_notes = infer_from_neighbours(&kb, &mut site.lots, opts.infer);
     let caps = Caps {
         facades: opts.lod >= Lod::Lod3,
         ..opts.caps
@@ -311,6 +342,7 @@ pub fn explain_building(
     source: &Source,
     id: &str,
     seed: u64,
+    infer: Option<crate::model::Inference>,
 ) -> Result<Explanation, RunError> {
     let wanted = match (source, SourceId::parse(id)) {
         (Source::Shp { .. }, None) => id.trim().parse().ok().map(SourceId::Shape),
@@ -323,7 +355,8 @@ pub fn explain_building(
     };
     let mut report = Report::default();
     let read = read_source(source, None, &mut report)?;
-    let site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let mut site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let mut inferred = infer_from_neighbours(kb, &mut site.lots, infer);
     let found = site.lots.iter().find_map(|lot| {
         if lot.id == wanted {
             return Some((lot.lonlat, (*lot.tags).clone()));
@@ -342,14 +375,17 @@ pub fn explain_building(
             None => format!("no building {wanted} in the input"),
         }));
     };
-    Ok(kb::tools::explain(
-        kb,
-        lonlat.0,
-        lonlat.1,
-        &tags,
-        wanted.seed_value(),
-        seed,
-    ))
+    let mut e = kb::tools::explain(kb, lonlat.0, lonlat.1, &tags, wanted.seed_value(), seed);
+    // A part's own tags win over what its outline inferred; the outline's note tells what.
+    let outline = site
+        .lots
+        .iter()
+        .find(|l| l.id == wanted || l.parts.iter().any(|p| p.id == wanted))
+        .map(|l| l.id);
+    if let Some(note) = outline.and_then(|id| inferred.remove(&id)) {
+        e.inferred = note.split("; ").map(str::to_string).collect();
+    }
+    Ok(e)
 }
 
 /// `citygen rules derive`: one ruleset on one test lot (local metres) placed at `lonlat`.

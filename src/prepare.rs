@@ -71,6 +71,20 @@ pub struct Lot {
     pub front: Option<DVec2>,
 }
 
+impl Lot {
+    /// Lower-left and upper-right corners of the outline polygons (local metres), `None`
+    /// when there is none or a coordinate is not finite.
+    pub fn bounds(&self) -> Option<(DVec2, DVec2)> {
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for p in &self.polygons {
+            let (a, b) = p.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        (lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+    }
+}
+
 /// All lots of a run and the frame they are in.
 #[derive(Debug)]
 pub struct Site {

@@ -27,6 +27,7 @@ use crate::input::BuildingTags;
 use crate::model::RoofShape;
 use crate::rng::Rng;
 
+pub use crate::model::Inference;
 pub use polygon::ZonePolygon;
 pub use values::{
     Appearance, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, ZoneKind,
@@ -596,6 +597,21 @@ impl KnowledgeBase {
         v
     }
 
+    /// Per zone (in order): what its buildings may infer from tagged neighbours, its resolved
+    /// `infer` value (nothing where no zone up to earth sets one).
+    pub fn inference_by_zone(&self) -> Vec<Inference> {
+        let mut out: Vec<Inference> = Vec::with_capacity(self.zones.len());
+        for z in &self.zones {
+            // Parents precede children: a zone's is its own or its parent's.
+            let inherited = z
+                .parent
+                .and_then(|p| out.get(p).copied())
+                .unwrap_or(Inference::NONE);
+            out.push(z.info.infer.unwrap_or(inherited));
+        }
+        out
+    }
+
     /// The appearances that apply to a zone: its own, or if it has none those of the nearest
     /// ancestor that has some. Returns the owning zone index and the slice (empty, owner 0, when
     /// no zone up to earth has any).
@@ -610,16 +626,37 @@ impl KnowledgeBase {
         (0, &[])
     }
 
-    /// Chooses one of the appearances that apply to `zone` ([`KnowledgeBase::appearances_for`]).
-    ///
-    /// Weights: a given `proba` is used as is; appearances without one share what the given
-    /// ones leave of 1 equally (nothing when they already sum to 1 or more); the weights are
-    /// then normalised. If every weight is zero the choice is uniform. Draws exactly one
-    /// number from `rng` when there is at least one appearance. Returns (owner zone, index).
-    pub fn pick_appearance(&self, zone: usize, rng: &mut Rng) -> Option<(usize, usize)> {
+    /// Which of the appearances that apply to `zone` ([`KnowledgeBase::appearances_for`]) a
+    /// building of this OSM `building=*` kind may be drawn from: those whose `building` list
+    /// names the kind (`None` and `yes` both stand for `yes`); if none does, those with no
+    /// list; if every appearance has a list, all of them. Returns the owning zone and the
+    /// indices, in appearance order (empty when no zone up to earth has an appearance).
+    pub fn eligible_appearances(&self, zone: usize, kind: Option<&str>) -> (usize, Vec<usize>) {
         let (owner, apps) = self.appearances_for(zone);
-        let weights = appearance_weights(apps);
-        rng.pick_weighted(&weights).map(|i| (owner, i))
+        (owner, eligible(apps, kind))
+    }
+
+    /// Chooses one of the appearances that apply to `zone` for a building of this `building=*`
+    /// kind ([`KnowledgeBase::eligible_appearances`]).
+    ///
+    /// Weights among the eligible appearances ([`appearance_weights`]): a given `proba` is
+    /// used as is; appearances without one share what the given ones leave of 1 equally
+    /// (nothing when they already sum to 1 or more); the weights are then normalised. If every
+    /// weight is zero the choice is uniform. Draws exactly one number from `rng` when there is
+    /// at least one eligible appearance. Returns (owner zone, index).
+    pub fn pick_appearance(
+        &self,
+        zone: usize,
+        kind: Option<&str>,
+        rng: &mut Rng,
+    ) -> Option<(usize, usize)> {
+        let (owner, apps) = self.appearances_for(zone);
+        let ids = eligible(apps, kind);
+        let subset: Vec<Appearance> = ids.iter().filter_map(|&i| apps.get(i).cloned()).collect();
+        let weights = appearance_weights(&subset);
+        rng.pick_weighted(&weights)
+            .and_then(|k| ids.get(k).copied())
+            .map(|i| (owner, i))
     }
 
     /// Resolves the style of one building in `zone`.
@@ -647,7 +684,7 @@ impl KnowledgeBase {
         rng: &mut Rng,
     ) -> (Style, Vec<String>) {
         let zone = if zone < self.zones.len() { zone } else { 0 };
-        let pick = self.pick_appearance(zone, rng);
+        let pick = self.pick_appearance(zone, tags.building.as_deref(), rng);
         self.style_with_appearance(zone, pick, tags, rng)
     }
 
@@ -800,7 +837,35 @@ impl KnowledgeBase {
     }
 }
 
-/// The weights [`KnowledgeBase::pick_appearance`] uses, in appearance order.
+/// Indices of the appearances a building of this kind is drawn from; see
+/// [`KnowledgeBase::eligible_appearances`].
+pub fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
+    let kind = kind
+        .map(str::trim)
+        .filter(|k| !k.is_empty())
+        .unwrap_or("yes");
+    let named: Vec<usize> = (0..apps.len())
+        .filter(|&i| {
+            apps[i]
+                .buildings
+                .iter()
+                .any(|b| b.eq_ignore_ascii_case(kind))
+        })
+        .collect();
+    if !named.is_empty() {
+        return named;
+    }
+    let open: Vec<usize> = (0..apps.len())
+        .filter(|&i| apps[i].buildings.is_empty())
+        .collect();
+    if open.is_empty() {
+        (0..apps.len()).collect()
+    } else {
+        open
+    }
+}
+
+/// The weights [`KnowledgeBase::pick_appearance`] uses over a set of appearances, in order.
 pub fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
     let given: f64 = apps.iter().filter_map(|a| a.proba).sum();
     let missing = apps.iter().filter(|a| a.proba.is_none()).count();

@@ -28,6 +28,8 @@ enum Ty {
     WindowHeight,
     /// A LOD4 programme: house, apartments, office, retail or openplan.
     Programme,
+    /// `none`, `all` or a list of `levels`, `roof`, `colour`.
+    Infer,
     /// A word or phrase: no surrounding spaces.
     Token,
     /// A zone name: a token without `/`.
@@ -73,7 +75,8 @@ const CIRCLE: [(&str, Ty); 3] = [
 ];
 
 /// Zone elements below earth.
-pub(crate) const ZONE_ELEMENTS: [&str; 5] = ["country", "region", "town", "district", "zone"];
+pub(crate) const ZONE_ELEMENTS: [&str; 6] =
+    ["continent", "country", "region", "town", "district", "zone"];
 
 struct Ctx<'a> {
     file: &'a str,
@@ -224,7 +227,7 @@ impl Ctx<'_> {
             .iter()
             .chain(CIRCLE.iter())
             .copied()
-            .chain([("rooftype", Ty::Roof)])
+            .chain([("rooftype", Ty::Roof), ("infer", Ty::Infer)])
             .collect();
         for c in &el.children {
             match c.name.as_str() {
@@ -237,6 +240,7 @@ impl Ctx<'_> {
                     let mut allowed = allowed.to_vec();
                     if is_earth {
                         allowed.push(("rooftype", Ty::Roof));
+                        allowed.push(("infer", Ty::Infer));
                     }
                     self.attrs(c, &allowed, &[])?;
                     self.children(c, &[])?;
@@ -257,7 +261,7 @@ impl Ctx<'_> {
     }
 
     fn appearance(&self, el: &Elem) -> Result<(), KbError> {
-        self.attrs(el, &[], &[])?;
+        self.attrs(el, &[("building", Ty::Terms)], &[])?;
         self.children(
             el,
             &[
@@ -398,6 +402,14 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
         Ty::WindowHeight => {
             if !matches!(v, "tall" | "short" | "irregular") {
                 return Err("tall, short or irregular".into());
+            }
+        }
+        Ty::Infer => {
+            let ok = matches!(v, "none" | "all")
+                || v.split(',')
+                    .all(|w| matches!(w, "levels" | "roof" | "colour"));
+            if !ok {
+                return Err("none, all, or a comma-separated list of levels, roof, colour".into());
             }
         }
         Ty::Programme => {

@@ -236,7 +236,7 @@ fn appearance_picks_follow_proba() {
     let n = 20_000;
     for seed in 0..n {
         let mut rng = Rng::new(seed, 99);
-        if let Some((owner, i)) = kb.pick_appearance(cap, &mut rng) {
+        if let Some((owner, i)) = kb.pick_appearance(cap, None, &mut rng) {
             assert_eq!(owner, cap);
             counts[i] += 1;
         }
@@ -255,6 +255,7 @@ fn absent_probas_share_the_remainder() {
         values: Values::default(),
         opening: None,
         ruleset: None,
+        buildings: Vec::new(),
         line: 1,
     };
     assert_eq!(appearance_weights(&[app(None), app(None)]), vec![0.5, 0.5]);
@@ -1358,4 +1359,74 @@ fn roof_tags_beyond_sane_limits_are_bounded_with_a_note() {
     );
     let (s, _) = style(&[("roof:shape", "gabled"), ("roof:height", "12")]);
     assert_eq!(s.roof_height, Some(12.0));
+}
+
+#[test]
+fn an_appearance_for_some_building_kinds_is_drawn_only_for_them() {
+    let text = r#"<earth>
+      <appearance building="house,detached"><values proba="1" nbfloor="2"/></appearance>
+      <appearance building="industrial"><values proba="1" nbfloor="1"/></appearance>
+      <appearance><values proba="0.5" nbfloor="5"/></appearance>
+      <appearance><values proba="0.5" nbfloor="6"/></appearance>
+    </earth>"#;
+    let (kb, repairs) = KnowledgeBase::parse_str(text, "t.xml").unwrap();
+    assert!(repairs.is_empty(), "{repairs:?}");
+    assert_eq!(
+        kb.zones()[0].appearances[0].buildings,
+        ["house", "detached"]
+    );
+    assert_eq!(kb.eligible_appearances(0, Some("detached")).1, [0]);
+    assert_eq!(kb.eligible_appearances(0, Some("industrial")).1, [1]);
+    assert_eq!(
+        kb.eligible_appearances(0, None).1,
+        [2, 3],
+        "untagged: the open ones"
+    );
+    assert_eq!(kb.eligible_appearances(0, Some("yes")).1, [2, 3]);
+    assert_eq!(kb.eligible_appearances(0, Some("church")).1, [2, 3]);
+    for s in 0..50 {
+        let mut rng = Rng::new(s, 7);
+        assert_eq!(kb.pick_appearance(0, Some("house"), &mut rng), Some((0, 0)));
+        let mut rng = Rng::new(s, 7);
+        let (_, i) = kb.pick_appearance(0, Some("apartments"), &mut rng).unwrap();
+        assert!(i == 2 || i == 3);
+    }
+    // Every appearance listed and none names the kind: all of them.
+    let only = r#"<earth><appearance building="house"><values/></appearance>
+      <appearance building="shed"><values/></appearance></earth>"#;
+    let (kb, _) = KnowledgeBase::parse_str(only, "t.xml").unwrap();
+    assert_eq!(kb.eligible_appearances(0, Some("office")).1, [0, 1]);
+    // The strict reader takes the attribute; the style of a house is the house appearance's.
+    assert!(KnowledgeBase::parse_str_with(text, "t.xml", ReadMode::Strict).is_ok());
+    let tags = BuildingTags {
+        building: Some("house".into()),
+        ..Default::default()
+    };
+    let (kb, _) = KnowledgeBase::parse_str(text, "t.xml").unwrap();
+    let (style, _) = kb.style_for(0, &tags, &mut Rng::new(1, 1));
+    assert_eq!(style.storeys, 2);
+}
+
+#[test]
+fn infer_is_inherited_and_read_in_both_modes() {
+    let text = r#"<earth><info infer="levels,roof"/>
+      <country designation="A"><info lat="10" lon="10" dist="100" infer="none"/>
+        <town designation="B"><info lat="10" lon="10" dist="5"/></town></country>
+      <country designation="C"><info lat="-10" lon="10" dist="100" infer="all"/></country>
+    </earth>"#;
+    let (kb, repairs) = KnowledgeBase::parse_str(text, "t.xml").unwrap();
+    assert!(repairs.is_empty(), "{repairs:?}");
+    assert!(KnowledgeBase::parse_str_with(text, "t.xml", ReadMode::Strict).is_ok());
+    let by = kb.inference_by_zone();
+    let lr = Inference {
+        levels: true,
+        roof: true,
+        colour: false,
+    };
+    assert_eq!(by, [lr, Inference::NONE, Inference::NONE, Inference::ALL]);
+    let bad = r#"<earth><info infer="levels,walls"/></earth>"#;
+    assert!(KnowledgeBase::parse_str_with(bad, "t.xml", ReadMode::Strict).is_err());
+    let (kb, repairs) = KnowledgeBase::parse_str(bad, "t.xml").unwrap();
+    assert_eq!(repairs.len(), 1, "{repairs:?}");
+    assert_eq!(kb.inference_by_zone(), [Inference::NONE]);
 }

@@ -366,8 +366,14 @@ pub struct Candidate {
     pub label: String,
     /// `proba` as written (`None`: empty or absent).
     pub proba: Option<f64>,
-    /// The normalised weight the draw uses ([`appearance_weights`]).
+    /// The normalised weight the draw uses ([`appearance_weights`] over the eligible
+    /// appearances); 0 for an appearance this building's kind may not take.
     pub weight: f64,
+    /// The appearance's `building` list (empty: any kind).
+    pub buildings: Vec<String>,
+    /// Whether the building's kind may take this appearance
+    /// ([`KnowledgeBase::eligible_appearances`]).
+    pub eligible: bool,
     /// Whether this is the appearance drawn for the building with this seed.
     pub chosen: bool,
 }
@@ -401,6 +407,10 @@ pub struct Explanation {
     pub overrides: Vec<String>,
     /// Notes of [`KnowledgeBase::style_for`] (inconsistencies fixed).
     pub notes: Vec<String>,
+    /// What the building took from its tagged neighbours ([`crate::prepare`]'s inference, set
+    /// by `kb explain`, which runs it as a run does), one phrase per value; these values are
+    /// among `overrides`, used like tags.
+    pub inferred: Vec<String>,
     /// The style citygen uses.
     pub style: Style,
 }
@@ -475,17 +485,22 @@ pub fn explain(
     }
     let (owner, apps) = kb.appearances_for(zone);
     let owner_path = kb.zone_path(owner).to_string();
-    let weights = appearance_weights(apps);
+    let ids = super::eligible(apps, tags.building.as_deref());
+    let subset: Vec<super::Appearance> = ids.iter().filter_map(|&i| apps.get(i).cloned()).collect();
+    let weights = appearance_weights(&subset);
     let candidates: Vec<Candidate> = apps
         .iter()
         .enumerate()
         .map(|(i, a)| {
             let label = format!("{owner_path}#{}", i + 1);
+            let at = ids.iter().position(|&j| j == i);
             Candidate {
                 chosen: label == style.appearance_label,
                 label,
                 proba: a.proba,
-                weight: weights.get(i).copied().unwrap_or(0.0),
+                weight: at.and_then(|k| weights.get(k).copied()).unwrap_or(0.0),
+                buildings: a.buildings.clone(),
+                eligible: at.is_some(),
             }
         })
         .collect();
@@ -511,12 +526,13 @@ pub fn explain(
         candidates,
         overrides: tag_overrides(tags),
         notes,
+        inferred: Vec::new(),
         style,
     }
 }
 
 /// KB attribute names in the order [`value_fields`] lists them.
-const ATTRIBUTE_ORDER: [&str; 21] = [
+const ATTRIBUTE_ORDER: [&str; 22] = [
     "color",
     "material",
     "nbfloor",
@@ -538,6 +554,7 @@ const ATTRIBUTE_ORDER: [&str; 21] = [
     "windowstyle",
     "windowmaterial",
     "maxrotation",
+    "infer",
 ];
 
 /// The values a [`Values`] sets, by KB attribute name.
@@ -545,7 +562,7 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
     let c = |x: Option<crate::color::Color>| x.map(color_word);
     let n = |x: Option<f64>| x.map(|x| format!("{x}"));
     let u = |x: Option<u32>| x.map(|x| x.to_string());
-    let fields: [(&'static str, Option<String>); 21] = [
+    let fields: [(&'static str, Option<String>); 22] = [
         ("color", c(v.wall_color)),
         ("material", v.material.clone()),
         ("nbfloor", u(v.storeys)),
@@ -570,6 +587,7 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
         ("windowstyle", v.window_style.clone()),
         ("windowmaterial", v.window_material.clone()),
         ("maxrotation", n(v.max_rotation)),
+        ("infer", v.infer.map(|i| i.as_string())),
     ];
     fields
         .into_iter()
@@ -674,9 +692,19 @@ impl fmt::Display for Explanation {
             writeln!(f, "appearance candidates (normalised weights):")?;
             for c in &self.candidates {
                 let p = c.proba.map_or("(empty)".to_string(), |p| format!("{p}"));
+                let kinds = if c.buildings.is_empty() {
+                    String::new()
+                } else {
+                    format!("  building={}", c.buildings.join(","))
+                };
+                let not = if c.eligible {
+                    ""
+                } else {
+                    "  (not for this building's kind)"
+                };
                 writeln!(
                     f,
-                    "  {} {}  proba {p} -> weight {:.4}",
+                    "  {} {}  proba {p} -> weight {:.4}{kinds}{not}",
                     if c.chosen { "*" } else { " " },
                     c.label,
                     c.weight
@@ -688,6 +716,13 @@ impl fmt::Display for Explanation {
             writeln!(f, "OSM tag overrides: none")?;
         } else {
             writeln!(f, "OSM tag overrides: {}", self.overrides.join(", "))?;
+        }
+        if self.inferred.is_empty() {
+            writeln!(f, "inferred from neighbours: nothing")?;
+        } else {
+            for i in &self.inferred {
+                writeln!(f, "inferred from neighbours (used as a tag): {i}")?;
+            }
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;

@@ -155,6 +155,9 @@ pub struct Values {
     /// `programme`: the LOD4 floor-plan programme of buildings whose `building=*` tag does not
     /// name a type (untagged or `yes`).
     pub programme: Option<crate::model::Programme>,
+    /// `infer` (zone `<info>` only): which values citygen may infer from tagged neighbours
+    /// for the buildings of this zone that lack the tags ([`crate::prepare::infer`]).
+    pub infer: Option<crate::model::Inference>,
     /// Unknown attributes, lower-cased name → trimmed value, kept for rulesets that read them.
     pub extra: BTreeMap<String, String>,
 }
@@ -189,7 +192,8 @@ impl Values {
             window_material,
             max_rotation,
             balconies,
-            programme
+            programme,
+            infer
         );
         for (k, v) in &more_specific.extra {
             self.extra.insert(k.clone(), v.clone());
@@ -262,6 +266,12 @@ pub struct Appearance {
     pub opening: Option<OpeningTree>,
     /// `<ruleset file="..."/>` as written (see [`KnowledgeBase::ruleset_path`]).
     pub ruleset: Option<String>,
+    /// The `building` attribute: the OSM `building=*` kinds (lower-case; `yes` also stands
+    /// for an untagged kind) this appearance is for. Empty: any building. When a building's
+    /// kind is listed by some of a zone's appearances, it is drawn among those alone;
+    /// otherwise among the appearances with no list (among all when every one has a list).
+    /// See [`KnowledgeBase::eligible_appearances`].
+    pub buildings: Vec<String>,
     /// Line of the `<appearance>` element.
     pub line: usize,
 }

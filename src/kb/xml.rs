@@ -331,6 +331,19 @@ struct CircleParts {
     dist: Option<f64>,
 }
 
+/// The kinds of an appearance's `building` attribute: comma- or space-separated OSM
+/// `building=*` values, trimmed and lower-cased, duplicates and empty entries dropped, in order.
+pub(crate) fn building_kinds(v: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for k in v.split([',', ' ', '\t', '\n', ';']) {
+        let k = k.trim().to_ascii_lowercase();
+        if !k.is_empty() && !out.contains(&k) {
+            out.push(k);
+        }
+    }
+    out
+}
+
 impl ZoneReader {
     fn note(&mut self, line: usize, what: impl Into<String>) {
         self.repairs.push(KbRepair {
@@ -469,8 +482,12 @@ impl ZoneReader {
             values: Values::default(),
             opening: None,
             ruleset: None,
+            buildings: Vec::new(),
             line: el.line,
         };
+        if let Some((_, v, _)) = el.attr("building") {
+            app.buildings = building_kinds(v);
+        }
         let mut dummy = CircleParts::default();
         let mut proba = el.attr("proba").and_then(|(k, v, l)| self.number(k, v, *l));
         let mut seen_values = false;
@@ -678,6 +695,19 @@ impl ZoneReader {
                 }
                 "maxrotation" => v.max_rotation = self.number(key, raw, line),
                 "balconies" => v.balconies = self.number(key, raw, line),
+                "infer" if zone_level => {
+                    if let Some(t) = self.clean(key, raw, line) {
+                        v.infer = crate::model::Inference::parse(&t);
+                        if v.infer.is_none() {
+                            self.note(
+                                line,
+                                format!(
+                                    "unknown infer '{t}' ignored (none, all, or levels,roof,colour)"
+                                ),
+                            );
+                        }
+                    }
+                }
                 "programme" | "program" => {
                     if let Some(t) = self.clean(key, raw, line) {
                         v.programme = crate::model::Programme::parse(&t);
