@@ -205,17 +205,35 @@ pub fn report_for(
                 ),
             });
         }
-        if !z.appearances.is_empty() {
-            let given: Vec<f64> = z.appearances.iter().filter_map(|a| a.proba).collect();
+        // The probas of one group (the appearances with the same `building` list) sum to 1.
+        let mut groups: Vec<&[String]> = Vec::new();
+        for a in &z.appearances {
+            if !groups.contains(&a.buildings.as_slice()) {
+                groups.push(&a.buildings);
+            }
+        }
+        for g in groups {
+            let apps: Vec<super::Appearance> = z
+                .appearances
+                .iter()
+                .filter(|a| a.buildings == g)
+                .cloned()
+                .collect();
+            let given: Vec<f64> = apps.iter().filter_map(|a| a.proba).collect();
             let sum: f64 = given.iter().sum();
-            let all_given = given.len() == z.appearances.len();
+            let all_given = given.len() == apps.len();
             if (all_given && (sum - 1.0).abs() > 1e-6) || sum > 1.0 + 1e-6 {
-                let w = appearance_weights(&z.appearances);
+                let w = appearance_weights(&apps);
                 let shares: Vec<String> = w.iter().map(|x| format!("{x:.3}")).collect();
+                let of = if g.is_empty() {
+                    String::new()
+                } else {
+                    format!(" for building={}", g.join(","))
+                };
                 warnings.push(KbRepair {
                     line: z.line,
                     what: format!(
-                        "appearance probas of '{}' sum to {sum}, not 1: normalised to {}",
+                        "appearance probas of '{}'{of} sum to {sum}, not 1: normalised to {}",
                         z.path,
                         shares.join(", ")
                     ),
