@@ -72,8 +72,10 @@ const CIRCLE: [(&str, Ty); 3] = [
     ("dist", Ty::Pos),
 ];
 
-/// Zone elements below earth.
-pub(crate) const ZONE_ELEMENTS: [&str; 5] = ["country", "region", "town", "district", "zone"];
+/// Zone elements below earth (`continent`: a continent or cultural region of the world KB,
+/// holding countries).
+pub(crate) const ZONE_ELEMENTS: [&str; 6] =
+    ["continent", "country", "region", "town", "district", "zone"];
 
 struct Ctx<'a> {
     file: &'a str,
