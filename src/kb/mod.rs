@@ -218,7 +218,12 @@ impl ZoneMatch {
     }
 }
 
-type ZoneBox = GeomWithData<Rectangle<[f64; 2]>, usize>;
+/// A bounding box of one zone shape: (zone index, shape), the shape being [`CIRCLE_SHAPE`] or
+/// the index of a polygon in [`Zone::polygons`].
+type ZoneBox = GeomWithData<Rectangle<[f64; 2]>, (usize, usize)>;
+
+/// The shape number of a zone's circle in the spatial index.
+const CIRCLE_SHAPE: usize = usize::MAX;
 
 /// The loaded knowledge base: zones in document order (zone 0 is earth) and a spatial index.
 #[derive(Debug)]
@@ -455,13 +460,16 @@ impl KnowledgeBase {
         for (i, z) in zones.iter().enumerate() {
             if let Some(c) = z.circle {
                 for (lo, hi) in c.bboxes() {
-                    boxes.push(GeomWithData::new(Rectangle::from_corners(lo, hi), i));
+                    boxes.push(GeomWithData::new(
+                        Rectangle::from_corners(lo, hi),
+                        (i, CIRCLE_SHAPE),
+                    ));
                 }
             }
-            for p in &z.polygons {
+            for (k, p) in z.polygons.iter().enumerate() {
                 boxes.push(GeomWithData::new(
                     Rectangle::from_corners(p.bbox.0, p.bbox.1),
-                    i,
+                    (i, k),
                 ));
             }
         }
@@ -504,10 +512,27 @@ impl KnowledgeBase {
         }
         let lon = normalize_lon(lon);
         let mut best: Option<(usize, f64, usize)> = None; // (depth, area, index)
+                                                          // Each box is one shape. A zone's area is that of its smallest shape containing the
+                                                          // point (`zone_match`): every polygon containing the point has its box met (a polygon's
+                                                          // box is exact), and the circle, whose boxes only approximate it, is tried with each
+                                                          // of the zone's boxes, as `zone_match` tries it whichever box led there.
         for b in self.index.locate_all_at_point([lon, lat]) {
-            let i = b.data;
+            let (i, shape) = b.data;
             let Some(z) = self.zones.get(i) else { continue };
-            let Some(area) = self.zone_match(i, lon, lat).area_km2() else {
+            let circle = z
+                .circle
+                .filter(|c| c.contains(lon, lat))
+                .map(|c| std::f64::consts::PI * c.radius_km * c.radius_km);
+            let polygon = z
+                .polygons
+                .get(shape)
+                .filter(|p| p.contains(lon, lat))
+                .map(|p| p.area_km2);
+            let area = match (circle, polygon) {
+                (Some(c), Some(p)) => Some(c.min(p)),
+                (c, p) => c.or(p),
+            };
+            let Some(area) = area else {
                 continue;
             };
             let better = match best {

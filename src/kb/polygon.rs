@@ -13,6 +13,10 @@ use super::dom::MAX_POLYGON_POINTS;
 use super::KM_PER_DEG;
 
 /// One polygon of a zone: a simple ring in (lon, lat) degrees, not closed.
+///
+/// Built by [`ZonePolygon::new`] or [`ZonePolygon::parse`], which also index its edges by
+/// latitude bands; the public fields are read-only in effect (changing `ring` afterwards leaves
+/// the index describing the old ring).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ZonePolygon {
     /// Vertices (lon, lat) in degrees, the closing vertex not repeated.
@@ -22,6 +26,90 @@ pub struct ZonePolygon {
     /// Area on the mean sphere, km² (local equirectangular projection: exact enough to order
     /// zones by size, which is all it is used for).
     pub area_km2: f64,
+    /// The edges by latitude band, so that containment and the self-intersection check look
+    /// at the edges near one latitude only.
+    bands: Bands,
+}
+
+/// Edge `k` runs from `ring[k]` to `ring[(k + 1) % n]`. The ring's latitude range is cut into
+/// `count` equal bands; an edge is listed in every band its closed latitude range touches.
+/// Band numbers come from one monotone formula ([`Bands::band`]), so a latitude `y` within an
+/// edge's range always falls in one of that edge's bands: nothing the brute-force rules would
+/// see is missed.
+#[derive(Clone, Debug, PartialEq)]
+struct Bands {
+    /// Latitude of the bottom of band 0 (the ring's lowest latitude).
+    lo: f64,
+    /// Height of one band, degrees (positive).
+    height: f64,
+    /// Edges of band `b`: `edges[start[b]..start[b + 1]]`.
+    start: Vec<u32>,
+    edges: Vec<u32>,
+}
+
+impl Bands {
+    fn new(ring: &[[f64; 2]], lo: f64, hi: f64) -> Bands {
+        let n = ring.len();
+        // About two edges a band for a ring whose edges each touch a few bands.
+        let count = (n / 2).clamp(1, 1 << 16);
+        let span = hi - lo;
+        let height = if span > 0.0 && span.is_finite() {
+            span / count as f64
+        } else {
+            1.0
+        };
+        let mut bands = Bands {
+            lo,
+            height,
+            start: vec![0; count + 1],
+            edges: Vec::new(),
+        };
+        // Counting sort of (band, edge) pairs: count, prefix sums, fill.
+        for k in 0..n {
+            let (b0, b1) = bands.range(ring, k);
+            for b in b0..=b1 {
+                bands.start[b + 1] += 1;
+            }
+        }
+        for b in 0..count {
+            bands.start[b + 1] += bands.start[b];
+        }
+        let mut fill = bands.start.clone();
+        bands.edges = vec![0; bands.start[count] as usize];
+        for k in 0..n {
+            let (b0, b1) = bands.range(ring, k);
+            for slot in &mut fill[b0..=b1] {
+                bands.edges[*slot as usize] = k as u32;
+                *slot += 1;
+            }
+        }
+        bands
+    }
+
+    fn count(&self) -> usize {
+        self.start.len() - 1
+    }
+
+    /// The band of latitude `y` (clamped into the bands).
+    fn band(&self, y: f64) -> usize {
+        let b = ((y - self.lo) / self.height).floor();
+        if b >= 0.0 {
+            (b as usize).min(self.count() - 1)
+        } else {
+            0
+        }
+    }
+
+    /// First and last band of edge `k`.
+    fn range(&self, ring: &[[f64; 2]], k: usize) -> (usize, usize) {
+        let (a, b) = (ring[k][1], ring[(k + 1) % ring.len()][1]);
+        (self.band(a.min(b)), self.band(a.max(b)))
+    }
+
+    fn edges_of(&self, band: usize) -> &[u32] {
+        let (s, e) = (self.start[band] as usize, self.start[band + 1] as usize);
+        &self.edges[s..e]
+    }
 }
 
 impl ZonePolygon {
@@ -30,8 +118,8 @@ impl ZonePolygon {
     pub fn parse(points: &str) -> Result<ZonePolygon, String> {
         let mut ring: Vec<[f64; 2]> = Vec::new();
         for (k, pair) in points.split(',').enumerate() {
-            let nums: Vec<&str> = pair.split_whitespace().collect();
-            let [lon, lat] = nums.as_slice() else {
+            let mut nums = pair.split_whitespace();
+            let (Some(lon), Some(lat), None) = (nums.next(), nums.next(), nums.next()) else {
                 return Err(format!(
                     "point {} \"{}\" is not a 'lon lat' pair (pairs are separated by commas, \
                      decimals written with a point)",
@@ -87,7 +175,8 @@ impl ZonePolygon {
                     .into(),
             );
         }
-        if let Some((i, j)) = first_crossing(&ring) {
+        let bands = Bands::new(&ring, lo[1], hi[1]);
+        if let Some((i, j)) = first_crossing(&ring, &bands) {
             return Err(format!(
                 "the ring crosses itself (edges {} and {})",
                 i + 1,
@@ -102,10 +191,13 @@ impl ZonePolygon {
             ring,
             bbox: (lo, hi),
             area_km2,
+            bands,
         })
     }
 
     /// Whether (lon, lat) lies inside (even-odd rule; points on an edge may fall either way).
+    /// Only the edges of the point's latitude band are tested, with the same arithmetic as the
+    /// plain even-odd loop over every edge, so the answer is the same bit for bit.
     pub fn contains(&self, lon: f64, lat: f64) -> bool {
         let (lo, hi) = self.bbox;
         if lon < lo[0] || lon > hi[0] || lat < lo[1] || lat > hi[1] {
@@ -113,16 +205,16 @@ impl ZonePolygon {
         }
         let n = self.ring.len();
         let mut inside = false;
-        let mut j = n - 1;
-        for i in 0..n {
-            let (a, b) = (self.ring[i], self.ring[j]);
+        for &k in self.bands.edges_of(self.bands.band(lat)) {
+            let k = k as usize;
+            // The even-odd loop's pair (ring[i], ring[i - 1]) with i = k + 1.
+            let (a, b) = (self.ring[(k + 1) % n], self.ring[k]);
             if (a[1] > lat) != (b[1] > lat) {
                 let x = a[0] + (lat - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
                 if lon < x {
                     inside = !inside;
                 }
             }
-            j = i;
         }
         inside
     }
@@ -142,25 +234,81 @@ fn area_km2(ring: &[[f64; 2]]) -> f64 {
 }
 
 /// The first pair of non-adjacent edges that intersect (or adjacent ones that overlap).
-fn first_crossing(ring: &[[f64; 2]]) -> Option<(usize, usize)> {
+///
+/// Two edges that touch share a latitude, hence a band: only pairs of one band are compared
+/// (with a bounding-box test first). When any pair is found, the brute-force scan names the
+/// first pair in index order, as it always did.
+fn first_crossing(ring: &[[f64; 2]], bands: &Bands) -> Option<(usize, usize)> {
+    let n = ring.len();
+    let edge = |i: usize| (ring[i], ring[(i + 1) % n]);
+    let found = (0..n).any(|i| folds_back(ring, i, (i + 1) % n))
+        || (0..bands.count()).any(|band| {
+            let list = bands.edges_of(band);
+            list.iter().enumerate().any(|(x, &i)| {
+                let i = i as usize;
+                let (a, b) = edge(i);
+                let (alo, ahi) = (
+                    [a[0].min(b[0]), a[1].min(b[1])],
+                    [a[0].max(b[0]), a[1].max(b[1])],
+                );
+                list[x + 1..].iter().any(|&j| {
+                    let j = j as usize;
+                    if adjacent(i, j, n) {
+                        return false;
+                    }
+                    let (c, d) = edge(j);
+                    if c[0].max(d[0]) < alo[0]
+                        || c[0].min(d[0]) > ahi[0]
+                        || c[1].max(d[1]) < alo[1]
+                        || c[1].min(d[1]) > ahi[1]
+                    {
+                        return false;
+                    }
+                    segments_touch(a, b, c, d)
+                })
+            })
+        });
+    if found {
+        brute_first_crossing(ring)
+    } else {
+        None
+    }
+}
+
+fn adjacent(i: usize, j: usize, n: usize) -> bool {
+    let (i, j) = (i.min(j), i.max(j));
+    j == i + 1 || (i == 0 && j == n - 1)
+}
+
+/// Whether adjacent edges `i` and `j` (`i < j`) fold back onto each other (they share one
+/// vertex, and are wrong only when they overlap from it).
+fn folds_back(ring: &[[f64; 2]], i: usize, j: usize) -> bool {
+    let (i, j) = (i.min(j), i.max(j));
+    let n = ring.len();
+    let edge = |i: usize| (ring[i], ring[(i + 1) % n]);
+    let (a, b) = edge(i);
+    let (c, d) = edge(j);
+    let shared = if j == i + 1 { b } else { a };
+    let (p, q) = if j == i + 1 { (a, d) } else { (b, c) };
+    let u = [p[0] - shared[0], p[1] - shared[1]];
+    let v = [q[0] - shared[0], q[1] - shared[1]];
+    u[0] * v[1] - u[1] * v[0] == 0.0 && u[0] * v[0] + u[1] * v[1] > 0.0
+}
+
+/// The plain O(n²) scan over every pair of edges, in index order.
+fn brute_first_crossing(ring: &[[f64; 2]]) -> Option<(usize, usize)> {
     let n = ring.len();
     let edge = |i: usize| (ring[i], ring[(i + 1) % n]);
     for i in 0..n {
         for j in i + 1..n {
-            let adjacent = j == i + 1 || (i == 0 && j == n - 1);
-            let (a, b) = edge(i);
-            let (c, d) = edge(j);
-            if adjacent {
-                // Adjacent edges share one vertex; they are wrong only when they fold back.
-                let shared = if j == i + 1 { b } else { a };
-                let (p, q) = if j == i + 1 { (a, d) } else { (b, c) };
-                let u = [p[0] - shared[0], p[1] - shared[1]];
-                let v = [q[0] - shared[0], q[1] - shared[1]];
-                if u[0] * v[1] - u[1] * v[0] == 0.0 && u[0] * v[0] + u[1] * v[1] > 0.0 {
+            if adjacent(i, j, n) {
+                if folds_back(ring, i, j) {
                     return Some((i, j));
                 }
                 continue;
             }
+            let (a, b) = edge(i);
+            let (c, d) = edge(j);
             if segments_touch(a, b, c, d) {
                 return Some((i, j));
             }
@@ -230,6 +378,127 @@ mod tests {
                 Err(e) => assert!(e.contains(want), "{s}: {e}"),
             }
         }
+    }
+
+    /// The plain even-odd loop over every edge, as `contains` was before the bands.
+    fn brute_contains(p: &ZonePolygon, lon: f64, lat: f64) -> bool {
+        let (lo, hi) = p.bbox;
+        if lon < lo[0] || lon > hi[0] || lat < lo[1] || lat > hi[1] {
+            return false;
+        }
+        let n = p.ring.len();
+        let mut inside = false;
+        let mut j = n - 1;
+        for i in 0..n {
+            let (a, b) = (p.ring[i], p.ring[j]);
+            if (a[1] > lat) != (b[1] > lat) {
+                let x = a[0] + (lat - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+                if lon < x {
+                    inside = !inside;
+                }
+            }
+            j = i;
+        }
+        inside
+    }
+
+    /// A star-shaped ring of `n` points with random radii (simple), on a coarse grid so that
+    /// test points often share a vertex's latitude.
+    fn star(rng: &mut crate::rng::Rng, n: usize) -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|k| {
+                let a = k as f64 / n as f64 * std::f64::consts::TAU;
+                let r = 0.2 + rng.next_f64();
+                [
+                    (10.0 + r * a.cos() * 1000.0).round() / 1000.0,
+                    (45.0 + r * a.sin() * 1000.0).round() / 1000.0,
+                ]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn banded_containment_matches_the_even_odd_loop() {
+        let mut rng = crate::rng::Rng::new(7, 21);
+        let mut checked = 0;
+        for round in 0..200 {
+            let n = 3 + round * 7 % 900;
+            let Ok(p) = ZonePolygon::new(star(&mut rng, n)) else {
+                continue;
+            };
+            for _ in 0..500 {
+                // Half the points on a vertex's latitude or longitude, where ties live.
+                let v = p.ring[(rng.next_f64() * n as f64) as usize % p.ring.len()];
+                let mut lon = 8.7 + rng.next_f64() * 2.6;
+                let mut lat = 43.7 + rng.next_f64() * 2.6;
+                if rng.next_f64() < 0.25 {
+                    lat = v[1];
+                } else if rng.next_f64() < 0.33 {
+                    lon = v[0];
+                } else if rng.next_f64() < 0.5 {
+                    (lon, lat) = (v[0], v[1]);
+                }
+                assert_eq!(
+                    p.contains(lon, lat),
+                    brute_contains(&p, lon, lat),
+                    "{lon} {lat} in ring of {n}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 50_000, "{checked}");
+    }
+
+    #[test]
+    fn banded_crossing_check_matches_the_brute_force_scan() {
+        let mut rng = crate::rng::Rng::new(11, 21);
+        let (mut simple, mut crossed) = (0, 0);
+        for round in 0..400 {
+            let n = 3 + round % 60;
+            let mut ring = star(&mut rng, n);
+            // Swap two vertices in most rounds: often a crossing, sometimes not.
+            if round % 4 != 0 {
+                let i = (rng.next_f64() * n as f64) as usize % n;
+                let j = (rng.next_f64() * n as f64) as usize % n;
+                ring.swap(i, j);
+            }
+            // Or fold an edge back.
+            if round % 9 == 1 {
+                let m = [
+                    (ring[0][0] + ring[1][0]) / 2.0,
+                    (ring[0][1] + ring[1][1]) / 2.0,
+                ];
+                ring.insert(2, m);
+            }
+            ring.dedup();
+            if ring.len() > 1 && ring.first() == ring.last() {
+                ring.pop();
+            }
+            if ring.len() < 3 {
+                continue;
+            }
+            let (lo, hi) = ring.iter().fold(
+                ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+                |(lo, hi), p| {
+                    (
+                        [lo[0].min(p[0]), lo[1].min(p[1])],
+                        [hi[0].max(p[0]), hi[1].max(p[1])],
+                    )
+                },
+            );
+            let bands = Bands::new(&ring, lo[1], hi[1]);
+            let want = brute_first_crossing(&ring);
+            assert_eq!(first_crossing(&ring, &bands), want, "{ring:?}");
+            if want.is_some() {
+                crossed += 1;
+            } else {
+                simple += 1;
+            }
+        }
+        assert!(
+            simple > 50 && crossed > 50,
+            "{simple} simple, {crossed} crossed"
+        );
     }
 
     proptest::proptest! {

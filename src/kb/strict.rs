@@ -74,7 +74,8 @@ const CIRCLE: [(&str, Ty); 3] = [
     ("dist", Ty::Pos),
 ];
 
-/// Zone elements below earth.
+/// Zone elements below earth (`continent`: a continent or cultural region of the world KB,
+/// holding countries).
 pub(crate) const ZONE_ELEMENTS: [&str; 6] =
     ["continent", "country", "region", "town", "district", "zone"];
 
