@@ -349,7 +349,8 @@ fn monaco_roof_shapes_from_neighbours_beat_the_knowledge_base_alone() {
 }
 
 /// The binary's `--infer levels`: a report note for every building given storeys, none
-/// without the flag, and taller buildings where the neighbours are.
+/// with `--infer none`, and taller buildings where the neighbours are. Without the flag the
+/// shipped KB decides: its earth infers storeys, roofs and colours, as `kb explain` says.
 #[test]
 fn infer_levels_is_a_flag_with_a_note_per_building() {
     let notes = |r: &Run| {
@@ -364,7 +365,7 @@ fn infer_levels_is_a_flag_with_a_note_per_building() {
         "--osm",
         MONACO,
         "1",
-        &["--bbox", "7.4180,43.7290,7.4240,43.7330"],
+        &["--bbox", "7.4180,43.7290,7.4240,43.7330", "--infer", "none"],
     );
     let with = run_all(
         "--osm",
@@ -384,4 +385,37 @@ fn infer_levels_is_a_flag_with_a_note_per_building() {
         std::fs::read(&plain.gml).unwrap(),
         std::fs::read(&with.gml).unwrap()
     );
+    // The shipped KB's earth says infer="levels,roof,colour": notes without the flag, and
+    // kb explain tells the same for a building.
+    let by_kb = run_all(
+        "--osm",
+        MONACO,
+        "1",
+        &["--bbox", "7.4180,43.7290,7.4240,43.7330"],
+    );
+    assert!(notes(&by_kb) >= n, "{} vs {n}", notes(&by_kb));
+    let report = by_kb.report_json();
+    let entry = report["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["reason"].as_str().unwrap().starts_with("building:levels"))
+        .unwrap();
+    let (id, reason) = (
+        entry["id"].as_str().unwrap(),
+        entry["reason"].as_str().unwrap(),
+    );
+    let out = citygen(&["kb", "explain", KB, "--osm", MONACO, "--id", id]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let first = reason.split("; ").next().unwrap();
+    assert!(
+        text.contains(&format!(
+            "inferred from neighbours (used as a tag): {first}"
+        )),
+        "{reason}\n{text}"
+    );
+    let none = citygen(&[
+        "kb", "explain", KB, "--osm", MONACO, "--id", id, "--infer", "none",
+    ]);
+    assert!(String::from_utf8_lossy(&none.stdout).contains("inferred from neighbours: nothing"));
 }

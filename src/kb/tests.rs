@@ -1,9 +1,12 @@
-//! Tests of the zone tree, lookup, inheritance and styles, on the shipped KB and the thesis's.
+//! Tests of the zone tree, lookup, inheritance and styles, on the 21-zone KB that was shipped
+//! before the world KB (tests/data/kb-21-zones.xml: small, its zones known by heart), the
+//! shipped world KB and the thesis's.
 
 use super::*;
 
+/// The 21-zone KB shipped before the world KB (France, Monaco, UK), kept as a fixture.
 fn shipped() -> KnowledgeBase {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/kb-21-zones.xml");
     match KnowledgeBase::load(&path) {
         Ok((kb, repairs)) => {
             assert!(
@@ -175,6 +178,31 @@ fn locate_matches_a_brute_force_scan() {
     }
 }
 
+/// The world KB (polygons and circles): `locate` agrees with a scan of every zone's
+/// [`KnowledgeBase::zone_match`] (deepest, then smaller area, then first).
+#[test]
+fn world_locate_matches_a_brute_force_scan() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+    let (kb, _) = KnowledgeBase::load(&path).unwrap();
+    let mut rng = Rng::new(5, 5);
+    for k in 0..600 {
+        // Half over Europe, half anywhere.
+        let (lon, lat) = if k % 2 == 0 {
+            (rng.range(-10.0, 30.0), rng.range(36.0, 62.0))
+        } else {
+            (rng.range(-180.0, 180.0), rng.range(-60.0, 75.0))
+        };
+        let brute = (0..kb.zones().len())
+            .filter_map(|i| Some((i, kb.zone_match(i, lon, lat).area_km2()?)))
+            .min_by(|&(i, a), &(j, b)| {
+                let (da, db) = (kb.zones()[i].depth, kb.zones()[j].depth);
+                db.cmp(&da).then(a.total_cmp(&b)).then(i.cmp(&j))
+            })
+            .map_or(0, |(i, _)| i);
+        assert_eq!(kb.locate(lon, lat), brute, "({lon}, {lat})");
+    }
+}
+
 #[test]
 fn circles_near_the_antimeridian_and_poles_are_found() {
     let t = r#"<earth><country designation="Fiji"><info lat="-17" lon="179.9" dist="100"/></country>
@@ -206,6 +234,45 @@ fn inheritance_most_specific_wins() {
     let lc = kb.find("earth/Monaco/La Condamine").unwrap_or(usize::MAX);
     assert_eq!(path_of(&kb, kb.appearances_for(lc).0), "earth/Monaco");
     assert!(kb.resolved(usize::MAX) == Values::default());
+}
+
+/// The shipped world KB: each building-type group's probas sum to 1, and every zone's
+/// appearances draw without an inconsistency note.
+#[test]
+fn world_probas_sum_to_one_per_building_group() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("knowledge_base/kb.xml");
+    let (kb, repairs) = KnowledgeBase::load(&path).unwrap();
+    assert!(repairs.is_empty(), "{repairs:?}");
+    let mut groups = 0;
+    for z in kb.zones() {
+        let mut lists: Vec<&Vec<String>> = Vec::new();
+        for a in &z.appearances {
+            if !lists.contains(&&a.buildings) {
+                lists.push(&a.buildings);
+            }
+        }
+        for l in lists {
+            let s: f64 = z
+                .appearances
+                .iter()
+                .filter(|a| &a.buildings == l)
+                .filter_map(|a| a.proba)
+                .sum();
+            assert!((s - 1.0).abs() < 1e-6, "{} {l:?}: {s}", z.path);
+            groups += 1;
+        }
+    }
+    assert!(groups > 500, "{groups} groups");
+    for i in 0..kb.zones().len() {
+        for (seed, kind) in [(0, None), (1, Some("house")), (2, Some("industrial"))] {
+            let tags = BuildingTags {
+                building: kind.map(str::to_string),
+                ..Default::default()
+            };
+            let (_, notes) = kb.style_for(i, &tags, &mut Rng::new(seed, 0));
+            assert!(notes.is_empty(), "{}: {notes:?}", path_of(&kb, i));
+        }
+    }
 }
 
 #[test]

@@ -298,8 +298,29 @@ pub fn report_for(
 
 /// Finds a zone by path: `France/Occitanie/Toulouse` or `earth/France/...`, case-insensitive,
 /// surrounding slashes and spaces ignored; `earth` or an empty path is earth. The first zone in
-/// document order wins when two have the same path.
+/// document order wins when two have the same path. A path that names no zone from earth down
+/// may leave out the first levels (`France/Occitanie/Toulouse` for
+/// `earth/Western Europe/France/Occitanie/Toulouse`): it then finds the one zone whose path
+/// ends with it at a `/`, and nothing when several do.
 pub fn find_zone(kb: &KnowledgeBase, zone_path: &str) -> Option<usize> {
+    if let Some(i) = find_zone_from_earth(kb, zone_path) {
+        return Some(i);
+    }
+    let tail = format!("/{}", zone_path.trim().trim_matches('/')).to_ascii_lowercase();
+    let mut hits = kb
+        .zones()
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| z.path.to_ascii_lowercase().ends_with(&tail))
+        .map(|(i, _)| i);
+    match (hits.next(), hits.next()) {
+        (Some(i), None) => Some(i),
+        _ => None,
+    }
+}
+
+/// [`find_zone`]'s exact part: the zone with this path from earth down.
+fn find_zone_from_earth(kb: &KnowledgeBase, zone_path: &str) -> Option<usize> {
     let p = zone_path.trim().trim_matches('/');
     let full = if p.is_empty() || p.eq_ignore_ascii_case("earth") {
         "earth".to_string()
