@@ -2,7 +2,7 @@
 """Generate the shipped world knowledge base knowledge_base/kb.xml from its hand-edited source.
 
   python3 scripts/world_kb.py [--src knowledge_base/world/kb.src.xml] [--out knowledge_base/kb.xml]
-                              [--tolerance 0.01] [--decimals 3] [--min-island-km2 10]
+                              [--tolerance 0.01] [--decimals 3] [--min-island-km2 1] [--coast-km 3]
 
 The source is a normal knowledge base in which each country zone holds a placeholder
 `<boundary ne="NNN"/>` (NNN: the feature id of world-atlas, ISO 3166-1 numeric as a string, e.g.
@@ -23,6 +23,13 @@ degrees of longitude (Antarctica) are split, and every ring is checked against t
 (src/kb/polygon.rs: at least 3 distinct points, at most 4096, no self-intersection, non-zero area,
 lon span <= 180). The arcs of a ring that fails are simplified again at half the tolerance (down
 to none) until every ring passes.
+
+Coast buffer: the arcs used by one feature only border the sea; their vertices are pushed out by
+--coast-km along the outward bisector (local km frame, miter at most twice the offset), tapered
+to 0 towards the points where a coast meets a land border, which stay exact. The offset of the
+vertices of edges where a ring crosses itself, or crosses another feature's ring, is halved
+(down to 0) until it does not; a ring still failing the reader's rules is retried at half the
+offset as a whole, then none.
 
 Python 3 standard library only. Exit status 1 when a placeholder matches no feature or a ring
 cannot be made valid; features the source does not reference are listed as warnings.
@@ -648,7 +655,7 @@ def buffer_coasts(coasts, decimals, log):
             for i, j in x:
                 n = len(o)
                 for k in {i, (i + 1) % n, j, (j + 1) % n}:
-                    cut = c.reduce(k) or cut
+                    cut = c.reduce(k, spread=0) or cut
             if not cut:
                 return o
             c.self_cut = True
@@ -656,8 +663,11 @@ def buffer_coasts(coasts, decimals, log):
 
     rings = [unself(c) for f, c in coasts]
     pairs = set()
+    first = None
     for rnd in range(8):
         hits, pairs = country_crossings(coasts, rings)
+        if first is None:
+            first = pairs
         log(f"coast buffer, round {rnd + 1}: {len(hits)} vertices where rings of two countries cross, {len(pairs)} pairs")
         if not hits:
             break
@@ -671,7 +681,7 @@ def buffer_coasts(coasts, decimals, log):
             break
         for jb in touched:
             rings[jb] = unself(coasts[jb][1])
-    return rings, pairs
+    return rings, pairs, first or set()
 
 
 def build(topo, tol, decimals, min_island, coast_km, log):
@@ -703,7 +713,9 @@ def build(topo, tol, decimals, min_island, coast_km, log):
             c.self_cut = c.country_cut = False
             c.halved = 0
             coasts.append((f, c))
-        offset, pairs = buffer_coasts(coasts, decimals, log) if coast_km > 0 else ([c.pts for f, c in coasts], set())
+        offset, pairs, first = (
+            buffer_coasts(coasts, decimals, log) if coast_km > 0 else ([c.pts for f, c in coasts], set(), set())
+        )
         failing = []
         out = {}
         for jb, (f, r) in enumerate(jobs):
@@ -729,6 +741,9 @@ def build(topo, tol, decimals, min_island, coast_km, log):
                 "halved": sum(1 for f, c in coasts if c.halved),
                 "smaller": sum(1 for f, c in coasts if c.self_cut or c.country_cut or c.halved),
                 "buffered": sum(1 for f, c in coasts if any(c.moves)),
+                "limited": sorted(
+                    (features[a]["properties"]["name"], features[b]["properties"]["name"]) for a, b in first
+                ),
                 "overlaps": sorted(
                     (features[a]["properties"]["name"], features[b]["properties"]["name"]) for a, b in pairs
                 ),
@@ -840,7 +855,8 @@ def main():
     print(
         f"coast buffer {a.coast_km:g} km: {info['buffered']} coastal rings, {info['smaller']} with a smaller offset "
         f"somewhere ({info['self_cut']} self-crossing, {info['country_cut']} another country, {info['halved']} "
-        f"halved as a whole), {len(info['overlaps'])} overlapping pairs {info['overlaps']}",
+        f"halved as a whole); offsets limited where rings of {len(info['limited'])} pairs of countries crossed: "
+        f"{info['limited']}; {len(info['overlaps'])} overlapping pairs left {info['overlaps']}",
         file=sys.stderr,
     )
     return 0
