@@ -2,7 +2,7 @@
 """Generate the shipped world knowledge base knowledge_base/kb.xml from its hand-edited source.
 
   python3 scripts/world_kb.py [--src knowledge_base/world/kb.src.xml] [--out knowledge_base/kb.xml]
-                              [--tolerance 0.01] [--decimals 3] [--min-island-km2 10]
+                              [--tolerance 0.01] [--decimals 3] [--min-island-km2 1] [--coast-km 3]
 
 The source is a normal knowledge base in which each country zone holds a placeholder
 `<boundary ne="NNN"/>` (NNN: the feature id of world-atlas, ISO 3166-1 numeric as a string, e.g.
@@ -23,6 +23,13 @@ degrees of longitude (Antarctica) are split, and every ring is checked against t
 (src/kb/polygon.rs: at least 3 distinct points, at most 4096, no self-intersection, non-zero area,
 lon span <= 180). The arcs of a ring that fails are simplified again at half the tolerance (down
 to none) until every ring passes.
+
+Coast buffer: the arcs used by one feature only border the sea; their vertices are pushed out by
+--coast-km along the outward bisector (local km frame, miter at most twice the offset), tapered
+to 0 towards the points where a coast meets a land border, which stay exact. The offset of the
+vertices of edges where a ring crosses itself, or crosses another feature's ring, is halved
+(down to 0) until it does not; a ring still failing the reader's rules is retried at half the
+offset as a whole, then none.
 
 Python 3 standard library only. Exit status 1 when a placeholder matches no feature or a ring
 cannot be made valid; features the source does not reference are listed as warnings.
@@ -336,6 +343,249 @@ def split_pinches(ring):
     return [ring]
 
 
+# ---------------------------------------------------------------- coast buffer
+
+
+def arc_uses(features):
+    """How many times each arc is used by all rings (outer rings and holes) of all features: an
+    arc used once borders the sea (a coast), one used twice is a land border."""
+    uses = {}
+
+    def walk(x):
+        if isinstance(x, int):
+            i = x if x >= 0 else ~x
+            uses[i] = uses.get(i, 0) + 1
+        else:
+            for y in x:
+                walk(y)
+
+    for g in features:
+        if g.get("arcs") is not None:
+            walk(g["arcs"])
+    return uses
+
+
+def flagged_ring(simple, arc_ids, coastal):
+    """The ring of arcs (no closing vertex, no consecutive repeats) and, per vertex, whether it
+    stays fixed: on a land-border arc or where a coast meets a land border."""
+    pts, fixed = [], []
+    for a in arc_ids:
+        i = a if a >= 0 else ~a
+        p = arc_points(simple, a)
+        coast = coastal[i]
+        if pts:
+            fixed[-1] = fixed[-1] or not coast  # the junction with the previous arc
+            p = p[1:]
+        pts.extend(p)
+        fixed.extend([not coast] * len(p))
+    if len(pts) > 1 and pts[0] == pts[-1]:
+        fixed[0] = fixed[0] or fixed[-1]
+        pts.pop()
+        fixed.pop()
+        last = arc_ids[-1] if arc_ids[-1] >= 0 else ~arc_ids[-1]
+        fixed[0] = fixed[0] or not coastal[last]
+    out, ofix = [], []
+    for p, f in zip(pts, fixed):
+        if out and out[-1] == p:
+            ofix[-1] = ofix[-1] or f
+        else:
+            out.append(p)
+            ofix.append(f)
+    while len(out) > 1 and out[0] == out[-1]:
+        ofix[0] = ofix[0] or ofix[-1]
+        out.pop()
+        ofix.pop()
+    # Continuous longitudes (as unwrap, without closing a ring round a pole along the pole: the
+    # two ends of such a ring stay fixed, and split_wide closes it later).
+    u = [out[0]]
+    for x, y in out[1:]:
+        px = u[-1][0]
+        while x - px > 180.0:
+            x -= 360.0
+        while px - x > 180.0:
+            x += 360.0
+        u.append((x, y))
+    if abs(u[-1][0] - u[0][0]) > 180.0:
+        ofix[0] = ofix[-1] = True
+    return u, ofix
+
+
+class Coast:
+    """One ring to push out to sea: its points, fixed flags, the offset cap per vertex (km,
+    tapered to 0 towards the fixed points: the offset line leaves a land border at 45 degrees)
+    and the reduction factor per vertex (1 = full offset)."""
+
+    def __init__(self, pts, fixed, km):
+        n = len(pts)
+        self.pts, self.fixed, self.km = pts, fixed, km
+        twice = sum(pts[i][0] * pts[(i + 1) % n][1] - pts[(i + 1) % n][0] * pts[i][1] for i in range(n))
+        self.ccw = twice > 0
+        seg = []
+        for i in range(n):
+            a, b = pts[i], pts[(i + 1) % n]
+            kx = KM_PER_DEG * math.cos(math.radians((a[1] + b[1]) / 2))
+            seg.append(math.hypot((b[0] - a[0]) * kx, (b[1] - a[1]) * KM_PER_DEG))
+        cap = [0.0 if f else km for f in fixed]
+        if any(fixed):
+            # Distance along the ring to the nearest fixed vertex, both ways (two passes round).
+            d = [0.0 if f else math.inf for f in fixed]
+            for _ in range(2):
+                for i in range(n):
+                    j = (i + 1) % n
+                    d[j] = min(d[j], d[i] + seg[i])
+            for _ in range(2):
+                for i in range(n - 1, -1, -1):
+                    j = (i + 1) % n
+                    d[i] = min(d[i], d[j] + seg[i])
+            cap = [min(km, x) for x in d]
+        self.cap = cap
+        self.factor = [1.0] * n
+        self.moves = [c > 0.0 for c in cap]
+
+    def offset(self, decimals):
+        pts, n = self.pts, len(self.pts)
+        out = []
+        for i in range(n):
+            c = pts[i]
+            off = self.cap[i] * self.factor[i]
+            if off <= 0.0:
+                out.append(c)
+                continue
+            p, q = pts[i - 1], pts[(i + 1) % n]
+            kx = KM_PER_DEG * max(0.05, math.cos(math.radians(c[1])))
+            ux, uy = (c[0] - p[0]) * kx, (c[1] - p[1]) * KM_PER_DEG
+            wx, wy = (q[0] - c[0]) * kx, (q[1] - c[1]) * KM_PER_DEG
+            lu, lw = math.hypot(ux, uy), math.hypot(wx, wy)
+            if lu == 0.0 or lw == 0.0:
+                out.append(c)
+                continue
+            ux, uy, wx, wy = ux / lu, uy / lu, wx / lw, wy / lw
+            # Outward normals: the interior is on the left of a counter-clockwise ring.
+            if self.ccw:
+                n1, n2 = (uy, -ux), (wy, -wx)
+            else:
+                n1, n2 = (-uy, ux), (-wy, wx)
+            bx, by = n1[0] + n2[0], n1[1] + n2[1]
+            lb = math.hypot(bx, by)
+            if lb < 1e-9:  # a spike: out along it
+                bx, by, cos_half = ux, uy, 1.0
+            else:
+                bx, by = bx / lb, by / lb
+                cos_half = bx * n1[0] + by * n1[1]
+            miter = off / max(cos_half, 0.5)  # the miter at most twice the offset
+            x = c[0] + bx * miter / kx
+            y = max(-90.0, min(90.0, c[1] + by * miter / KM_PER_DEG))
+            out.append((round(x, decimals), round(y, decimals)))
+        return out
+
+    def reduce(self, i, spread=2):
+        n = len(self.pts)
+        hit = False
+        for k in range(i - spread, i + spread + 1):
+            k %= n
+            if self.factor[k] > 0.0 and self.cap[k] > 0.0:
+                self.factor[k] = self.factor[k] / 2 if self.factor[k] > 1 / 16 else 0.0
+                hit = True
+        return hit
+
+
+def all_crossings(ring):
+    """The pairs of edges (i, j) that break polygon.rs's rule (first_crossing, all of them)."""
+    n = len(ring)
+    found = []
+    for i in range(n):
+        a, s, b = ring[i - 1], ring[i], ring[(i + 1) % n]
+        u = (a[0] - s[0], a[1] - s[1])
+        v = (b[0] - s[0], b[1] - s[1])
+        if u[0] * v[1] - u[1] * v[0] == 0.0 and u[0] * v[0] + u[1] * v[1] > 0.0:
+            found.append(((i - 1) % n, i))
+    lo = min(p[1] for p in ring)
+    hi = max(p[1] for p in ring)
+    nb = max(1, n // 4)
+    h = (hi - lo) / nb or 1.0
+    bands = [[] for _ in range(nb)]
+    for i in range(n):
+        a, b = ring[i], ring[(i + 1) % n]
+        b0 = min(nb - 1, int((min(a[1], b[1]) - lo) / h))
+        b1 = min(nb - 1, int((max(a[1], b[1]) - lo) / h))
+        for k in range(b0, b1 + 1):
+            bands[k].append(i)
+    seen = set()
+    for band in bands:
+        m = len(band)
+        for x in range(m):
+            i = band[x]
+            a, b = ring[i], ring[(i + 1) % n]
+            ax0, ax1 = min(a[0], b[0]), max(a[0], b[0])
+            ay0, ay1 = min(a[1], b[1]), max(a[1], b[1])
+            for y in range(x + 1, m):
+                j = band[y]
+                if j == i + 1 or i == j + 1 or (i == 0 and j == n - 1) or (j == 0 and i == n - 1):
+                    continue
+                c, d = ring[j], ring[(j + 1) % n]
+                if max(c[0], d[0]) < ax0 or min(c[0], d[0]) > ax1:
+                    continue
+                if max(c[1], d[1]) < ay0 or min(c[1], d[1]) > ay1:
+                    continue
+                key = (min(i, j), max(i, j))
+                if key not in seen and segments_touch(a, b, c, d):
+                    seen.add(key)
+                    found.append(key)
+    return found
+
+
+def proper_cross(a, b, c, d):
+    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+    return ((o1 > 0 > o2) or (o1 < 0 < o2)) and ((o3 > 0 > o4) or (o3 < 0 < o4))
+
+
+def country_crossings(coasts, rings):
+    """Edges of a ring that properly cross an edge of another feature's ring, as (job, vertex)
+    pairs to reduce (the moved endpoints of both edges), and the set of feature pairs that
+    overlap. `coasts` and `rings` are per job: (feature, Coast) and the offset points."""
+    cell = 0.5
+    grid = {}
+    for jb, ((f, c), r) in enumerate(zip(coasts, rings)):
+        n = len(r)
+        for i in range(n):
+            a, b = r[i], r[(i + 1) % n]
+            for gx in range(int(math.floor(min(a[0], b[0]) / cell)), int(math.floor(max(a[0], b[0]) / cell)) + 1):
+                for gy in range(int(math.floor(min(a[1], b[1]) / cell)), int(math.floor(max(a[1], b[1]) / cell)) + 1):
+                    grid.setdefault((gx, gy), []).append((jb, i))
+    hits, pairs, done = set(), set(), set()
+    for edges in grid.values():
+        if len(edges) < 2:
+            continue
+        for x in range(len(edges)):
+            j1, i1 = edges[x]
+            f1, c1 = coasts[j1]
+            r1 = rings[j1]
+            n1 = len(r1)
+            m1 = c1.moves[i1] or c1.moves[(i1 + 1) % n1]
+            a, b = r1[i1], r1[(i1 + 1) % n1]
+            for y in range(x + 1, len(edges)):
+                j2, i2 = edges[y]
+                f2, c2 = coasts[j2]
+                if f1 == f2:
+                    continue
+                r2 = rings[j2]
+                n2 = len(r2)
+                m2 = c2.moves[i2] or c2.moves[(i2 + 1) % n2]
+                if not (m1 or m2):
+                    continue
+                key = (j1, i1, j2, i2)
+                if key in done:
+                    continue
+                done.add(key)
+                if proper_cross(a, b, r2[i2], r2[(i2 + 1) % n2]):
+                    pairs.add((min(f1, f2), max(f1, f2)))
+                    for jb, i, cc, n in ((j1, i1, c1, n1), (j2, i2, c2, n2)):
+                        for k in (i, (i + 1) % n):
+                            if cc.moves[k]:
+                                hits.add((jb, k))
+    return hits, pairs
+
+
 # ---------------------------------------------------------------- assembly
 
 
@@ -375,9 +625,70 @@ def fmt(x, decimals):
     return "0" if s in ("-0", "") else s
 
 
-def build(topo, tol, decimals, min_island):
+def pieces_of(ring, decimals):
+    """The rings the reader gets from one assembled ring: cut along the antimeridian, at the
+    given decimals, split at pinches, loops with no area dropped."""
+    pieces = []
+    for p in split_wide(clean(ring)):
+        p = [(float(fmt(x, decimals)), float(fmt(y, decimals))) for x, y in p]
+        for q in split_pinches(clean(p)):
+            q = clean(q)
+            # A pinch can leave a loop with no area (a spike): nothing to keep.
+            if len(q) >= 3 and ring_area_km2(q) > 0.0:
+                pieces.append(q)
+    return pieces
+
+
+def buffer_coasts(coasts, decimals, log):
+    """Offset rings: each Coast pushed out to sea; where the offset ring crosses itself (fjords,
+    narrow straits) the offset is halved around the crossing (down to 0), and where it crosses
+    another feature's ring likewise for both, for a few rounds."""
+    def unself(c):
+        if not any(c.moves):
+            return c.pts
+        for _ in range(40):
+            o = c.offset(decimals)
+            x = all_crossings(o)
+            if not x:
+                return o
+            cut = False
+            for i, j in x:
+                n = len(o)
+                for k in {i, (i + 1) % n, j, (j + 1) % n}:
+                    cut = c.reduce(k, spread=0) or cut
+            if not cut:
+                return o
+            c.self_cut = True
+        return c.offset(decimals)
+
+    rings = [unself(c) for f, c in coasts]
+    pairs = set()
+    first = None
+    for rnd in range(8):
+        hits, pairs = country_crossings(coasts, rings)
+        if first is None:
+            first = pairs
+        log(f"coast buffer, round {rnd + 1}: {len(hits)} vertices where rings of two countries cross, {len(pairs)} pairs")
+        if not hits:
+            break
+        touched = set()
+        for jb, k in hits:
+            c = coasts[jb][1]
+            if c.reduce(k, spread=1):
+                c.country_cut = True
+                touched.add(jb)
+        if not touched:
+            break
+        for jb in touched:
+            rings[jb] = unself(coasts[jb][1])
+    return rings, pairs, first or set()
+
+
+def build(topo, tol, decimals, min_island, coast_km, log):
     raw = decode_arcs(topo)
     features = topo["objects"]["countries"]["geometries"]
+    uses = arc_uses(features)
+    coastal = [uses.get(i, 0) == 1 for i in range(len(raw))]
     # Which outer rings of each feature are kept (island threshold on the unsimplified ring).
     jobs = []  # (feature index, arc ids)
     for f, g in enumerate(features):
@@ -390,30 +701,54 @@ def build(topo, tol, decimals, min_island):
             if k == largest or areas[k] >= min_island:
                 jobs.append((f, r))
     arc_tol = [tol] * len(raw)
-    done = {}
     while True:
         simple = [
             [(round(x, decimals), round(y, decimals)) for x, y in simplify_arc(a, arc_tol[i])]
             for i, a in enumerate(raw)
         ]
+        coasts = []
+        for f, r in jobs:
+            pts, fixed = flagged_ring(simple, r, coastal)
+            c = Coast(pts, fixed, coast_km)
+            c.self_cut = c.country_cut = False
+            c.halved = 0
+            coasts.append((f, c))
+        offset, pairs, first = (
+            buffer_coasts(coasts, decimals, log) if coast_km > 0 else ([c.pts for f, c in coasts], set(), set())
+        )
         failing = []
         out = {}
-        for f, r in jobs:
-            pieces = []
-            for p in split_wide(clean(ring_from(simple, r))):
-                p = [(float(fmt(x, decimals)), float(fmt(y, decimals))) for x, y in p]
-                for q in split_pinches(clean(p)):
-                    q = clean(q)
-                    # A pinch can leave a loop with no area (a spike): nothing to keep.
-                    if len(q) >= 3 and ring_area_km2(q) > 0.0:
-                        pieces.append(q)
-            bad = [problem(q) for q in pieces if problem(q)]
+        for jb, (f, r) in enumerate(jobs):
+            c = coasts[jb][1]
+            ring = offset[jb]
+            while True:
+                pieces = pieces_of(ring, decimals)
+                bad = [problem(q) for q in pieces if problem(q)]
+                if (not bad and pieces) or not any(x > 0 for x in c.factor):
+                    break
+                # The whole ring at half the offset (down to none).
+                c.halved += 1
+                c.factor = [x / 2 if c.halved < 5 else 0.0 for x in c.factor]
+                ring = c.offset(decimals)
             if bad or not pieces:
                 failing.append((f, r, bad[0] if bad else "nothing left"))
             else:
                 out.setdefault(f, []).extend(pieces)
         if not failing:
-            return features, out, arc_tol
+            info = {
+                "self_cut": sum(1 for f, c in coasts if c.self_cut),
+                "country_cut": sum(1 for f, c in coasts if c.country_cut),
+                "halved": sum(1 for f, c in coasts if c.halved),
+                "smaller": sum(1 for f, c in coasts if c.self_cut or c.country_cut or c.halved),
+                "buffered": sum(1 for f, c in coasts if any(c.moves)),
+                "limited": sorted(
+                    (features[a]["properties"]["name"], features[b]["properties"]["name"]) for a, b in first
+                ),
+                "overlaps": sorted(
+                    (features[a]["properties"]["name"], features[b]["properties"]["name"]) for a, b in pairs
+                ),
+            }
+            return features, out, arc_tol, info
         refined = False
         for f, r, why in failing:
             for a in r:
@@ -433,11 +768,16 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "knowledge_base", "kb.xml"))
     ap.add_argument("--tolerance", type=float, default=0.01, help="Douglas-Peucker tolerance, degrees of latitude (default 0.01, about 1.1 km)")
     ap.add_argument("--decimals", type=int, default=3, help="decimals of the written coordinates (default 3)")
-    ap.add_argument("--min-island-km2", type=float, default=10.0, help="rings smaller than this are dropped unless a feature's largest (default 10)")
+    ap.add_argument("--min-island-km2", type=float, default=1.0, help="rings smaller than this are dropped unless a feature's largest (default 1)")
+    ap.add_argument("--coast-km", type=float, default=3.0, help="coasts pushed out to sea by this distance, km (default 3; 0: none)")
     a = ap.parse_args()
 
     topo = load_topology()
-    features, rings, arc_tol = build(topo, a.tolerance, a.decimals, a.min_island_km2)
+
+    def log(msg):
+        print(msg, file=sys.stderr)
+
+    features, rings, arc_tol, info = build(topo, a.tolerance, a.decimals, a.min_island_km2, a.coast_km, log)
     by_id, by_name = {}, {}
     for f, g in enumerate(features):
         if g.get("id") is not None:
@@ -493,7 +833,10 @@ def main():
         f"  packaged by the npm package {PACKAGE} (ISC), countries-50m.json. Shared borders\n"
         f"  simplified once per arc (Douglas-Peucker, {a.tolerance} degrees; {refined} arcs finer so that\n"
         f"  every ring is simple), coordinates at {a.decimals} decimals, islands under {a.min_island_km2:g} km2\n"
-        f"  dropped (a country's largest ring is always kept), holes dropped: {stats['rings']} rings,\n"
+        f"  dropped (a country's largest ring is always kept), holes dropped. Coasts (arcs of one\n"
+        f"  feature only) pushed out to sea by {a.coast_km:g} km, land borders exact; {info['smaller']} of\n"
+        f"  {info['buffered']} coastal rings with a smaller offset somewhere (self-crossing or another\n"
+        f"  country's ring), {len(info['overlaps'])} pairs of countries overlapping: {stats['rings']} rings,\n"
         f"  {stats['points']} points.\n"
         "-->\n"
     )
@@ -507,6 +850,13 @@ def main():
     print(
         f"{os.path.relpath(a.out, ROOT)}: {len(out.encode('utf-8'))} bytes, {stats['rings']} rings, "
         f"{stats['points']} points, {len(used)} of {len(features)} features, {refined} arcs refined",
+        file=sys.stderr,
+    )
+    print(
+        f"coast buffer {a.coast_km:g} km: {info['buffered']} coastal rings, {info['smaller']} with a smaller offset "
+        f"somewhere ({info['self_cut']} self-crossing, {info['country_cut']} another country, {info['halved']} "
+        f"halved as a whole); offsets limited where rings of {len(info['limited'])} pairs of countries crossed: "
+        f"{info['limited']}; {len(info['overlaps'])} overlapping pairs left {info['overlaps']}",
         file=sys.stderr,
     )
     return 0
