@@ -214,9 +214,19 @@ const COASTAL: &[(&str, f64, f64, &str)] = &[
     ("Singapore, Marina Bay", 103.854, 1.283, "Singapore"),
     ("Sydney, Opera House", 151.2153, -33.8568, "Australia"),
     ("Rio de Janeiro, Copacabana", -43.1822, -22.9711, "Brazil"),
-    ("Cape Town, V&A Waterfront", 18.4197, -33.9036, "South Africa"),
+    (
+        "Cape Town, V&A Waterfront",
+        18.4197,
+        -33.9036,
+        "South Africa",
+    ),
     ("Mumbai, Gateway of India", 72.8347, 18.9220, "India"),
-    ("San Francisco, Ferry Building", -122.3937, 37.7955, "United States"),
+    (
+        "San Francisco, Ferry Building",
+        -122.3937,
+        37.7955,
+        "United States",
+    ),
     ("Vancouver, Canada Place", -123.1110, 49.2888, "Canada"),
     ("Halifax, waterfront", -63.5700, 44.6470, "Canada"),
 ];

@@ -9,7 +9,8 @@
 //! that carry it, within [`InferOptions::radius`] metres (representative points: the middle of
 //! the outline's bounds); those of the same `building=*` kind when at least
 //! [`InferOptions::min_neighbours`] of them are among the nearest, else all. Fewer than
-//! `min_neighbours`: nothing inferred (the knowledge base decides). Each neighbour weighs
+//! `min_neighbours`: nothing inferred (the knowledge base decides). A roof shape or colour
+//! needs [`InferOptions::min_votes`] neighbours within [`InferOptions::category_radius`]. Each neighbour weighs
 //! `1 / (distance + 10 m)` times a footprint likeness `exp(-|ln(area / own area)|)` (a villa
 //! beside a tower block is drawn like the villas around it). Storeys are the weighted median,
 //! rounded; a neighbour with a `height` and no levels counts as `height / 3 m` storeys. Roof
@@ -42,6 +43,12 @@ pub struct InferOptions {
     pub min_neighbours: usize,
     /// The least share of the weight a roof shape or colour must hold to be inferred.
     pub majority: f64,
+    /// The fewest neighbours that make a roof shape or colour (a category: two domed
+    /// neighbours must not turn a street domed).
+    pub min_votes: usize,
+    /// The farthest a neighbour may be for a roof shape or colour (metres): a category
+    /// follows the street more than the district.
+    pub category_radius: f64,
     /// How much a neighbour's footprint area unlike the building's lowers its weight: the
     /// weight is multiplied by `(smaller area / larger area) ^ likeness` (0: not at all).
     pub likeness: f64,
@@ -54,6 +61,8 @@ impl Default for InferOptions {
             radius: 300.0,
             min_neighbours: 2,
             majority: 0.5,
+            min_votes: 3,
+            category_radius: 150.0,
             likeness: 1.0,
         }
     }
@@ -240,6 +249,11 @@ pub fn infer(
     let roofs = Index::new(lots, &points, |l| l.tags.roof_shape.is_some());
     let walls = Index::new(lots, &points, |l| l.tags.colour.is_some());
     let roof_colours = Index::new(lots, &points, |l| l.tags.roof_colour.is_some());
+    let categorical = InferOptions {
+        min_neighbours: opts.min_neighbours.max(opts.min_votes),
+        radius: opts.radius.min(opts.category_radius),
+        ..opts
+    };
     (0..lots.len())
         .into_par_iter()
         .map(|i| {
@@ -255,7 +269,7 @@ pub fn infer(
                 out.levels = median(votes).map(|m| found(m.round().max(1.0), &near, 1.0));
             }
             if w.roof && lot.tags.roof_shape.is_none() && lot.tags.invalid_roof_shape.is_none() {
-                let near = roofs.near(lots, &areas, i, p, &opts);
+                let near = roofs.near(lots, &areas, i, p, &categorical);
                 let votes: Vec<(RoofShape, f64)> = near
                     .iter()
                     .filter_map(|&(j, wt, _)| lots[j].tags.roof_shape.map(|r| (r, wt)))
@@ -269,7 +283,7 @@ pub fn infer(
                     if get(lot).is_some() {
                         return None;
                     }
-                    let near = index.near(lots, &areas, i, p, &opts);
+                    let near = index.near(lots, &areas, i, p, &categorical);
                     let votes: Vec<(Color, f64)> = near
                         .iter()
                         .filter_map(|&(j, wt, _)| get(&lots[j]).map(|c| (c, wt)))
