@@ -27,8 +27,9 @@
 //! rare roof whose storeys are all in one appearance is folded into the nearest appearance of
 //! the most common roof (the cost of each step: the L1 error it adds to the joint). Each
 //! appearance's `color`, `roofColor` and `floorsize` are the most frequent colour and median
-//! floor height of the zone's buildings of that combination when at least
-//! [`MIN_PER_APPEARANCE`] are tagged, else the zone's. Probas are rounded to 4 decimals summing
+//! floor height of the zone's buildings of that combination when the attribute is the zone's
+//! own and at least [`MIN_PER_APPEARANCE`] of them are tagged, else the zone's (an inherited
+//! one: the parent's overall value). Probas are rounded to 4 decimals summing
 //! to exactly 1. A zone writes appearances only where one of their attributes is its own; the
 //! others inherit their parent's (the KB's rule: the nearest zone with appearances).
 //!
@@ -58,6 +59,9 @@ pub const MIN_PER_APPEARANCE: usize = 5;
 /// Floor heights outside this range (metres) are not learned: a `height` that includes an
 /// untagged roof, or a mistyped level count.
 pub const FLOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 6.0);
+/// The most grid cells with buildings: about 300 bytes to 3 KB each, more would pass the
+/// 64 MiB a knowledge-base file may have.
+pub const MAX_CELLS: usize = 100_000;
 /// The latitudes a grid may cover (degrees): near the poles a column would span the globe.
 pub const MAX_GRID_LATITUDE: f64 = 85.0;
 
@@ -359,6 +363,14 @@ fn grid_groups(samples: &[&Sample], metres: f64, name: &str) -> Result<Vec<Group
         });
         cells.entry((j, i)).or_default().push(k);
     }
+    if cells.len() > MAX_CELLS {
+        return Err(format!(
+            "a grid of {} m puts the buildings in {} cells, more than the {MAX_CELLS} a learned \
+             knowledge base may have: use larger cells (--grid)",
+            num(metres, 3),
+            cells.len()
+        ));
+    }
     let rect = |j: i64, i: i64| {
         [
             lon_edge(j, i),
@@ -642,23 +654,36 @@ fn merge_bins(joint: &Joint, max: usize) -> (Vec<Bin>, Vec<String>) {
         .collect();
     let combinations = bins.len();
     let mut folded: Vec<String> = Vec::new();
+    // Each bin's error, and the error a merge of bins k and k + 1 (same roof) would add: only
+    // the neighbours of a merge change, so a step costs a scan of the bins.
+    let merge_delta = |bins: &[Bin], cost: &[f64], k: usize| -> Option<f64> {
+        let (a, b) = (bins.get(k)?, bins.get(k + 1)?);
+        if a.roof != b.roof {
+            return None;
+        }
+        let m = Bin {
+            roof: a.roof,
+            lo: a.lo,
+            hi: b.hi,
+            mass: a.mass + b.mass,
+        };
+        Some(bin_cost(&m, joint) - cost[k] - cost[k + 1])
+    };
+    let mut cost: Vec<f64> = bins.iter().map(|b| bin_cost(b, joint)).collect();
+    let all_deltas = |bins: &[Bin], cost: &[f64]| -> Vec<Option<f64>> {
+        (0..bins.len().saturating_sub(1))
+            .map(|k| merge_delta(bins, cost, k))
+            .collect()
+    };
+    let mut delta = all_deltas(&bins, &cost);
     while bins.len() > max.max(1) {
         // (added error, merge k with k + 1 | fold k)
         let mut best: Option<(f64, usize, bool)> = None;
-        for k in 0..bins.len().saturating_sub(1) {
-            let (a, b) = (&bins[k], &bins[k + 1]);
-            if a.roof != b.roof {
-                continue;
-            }
-            let m = Bin {
-                roof: a.roof,
-                lo: a.lo,
-                hi: b.hi,
-                mass: a.mass + b.mass,
-            };
-            let d = bin_cost(&m, joint) - bin_cost(a, joint) - bin_cost(b, joint);
-            if best.is_none_or(|(e, _, _)| d < e) {
-                best = Some((d, k, false));
+        for (k, d) in delta.iter().enumerate() {
+            if let Some(d) = *d {
+                if best.is_none_or(|(e, _, _)| d < e) {
+                    best = Some((d, k, false));
+                }
             }
         }
         let roofs: BTreeMap<&str, (usize, f64)> =
@@ -670,8 +695,8 @@ fn merge_bins(joint: &Joint, max: usize) -> (Vec<Bin>, Vec<String>) {
             });
         if roofs.len() > 1 {
             for (k, b) in bins.iter().enumerate() {
-                if roofs[b.roof].0 == 1 {
-                    let d = 2.0 * b.mass - bin_cost(b, joint);
+                if roofs.get(b.roof).is_some_and(|r| r.0 == 1) {
+                    let d = 2.0 * b.mass - cost[k];
                     if best.is_none_or(|(e, _, _)| d < e) {
                         best = Some((d, k, true));
                     }
@@ -681,8 +706,17 @@ fn merge_bins(joint: &Joint, max: usize) -> (Vec<Bin>, Vec<String>) {
         let Some((_, k, fold)) = best else { break };
         if !fold {
             let b = bins.remove(k + 1);
+            cost.remove(k + 1);
+            delta.remove(k);
             bins[k].hi = b.hi;
             bins[k].mass += b.mass;
+            cost[k] = bin_cost(&bins[k], joint);
+            if k > 0 {
+                delta[k - 1] = merge_delta(&bins, &cost, k - 1);
+            }
+            if k < delta.len() {
+                delta[k] = merge_delta(&bins, &cost, k);
+            }
             continue;
         }
         let gone = bins.remove(k);
@@ -718,6 +752,9 @@ fn merge_bins(joint: &Joint, max: usize) -> (Vec<Bin>, Vec<String>) {
             num(100.0 * gone.mass, 1),
             tr
         ));
+        // Rare: everything again.
+        cost = bins.iter().map(|b| bin_cost(b, joint)).collect();
+        delta = all_deltas(&bins, &cost);
     }
     let mut notes = Vec::new();
     if bins.len() < combinations {
@@ -776,6 +813,20 @@ struct Writer<'a> {
     /// Per group and attribute: whether `data` is the rest (the samples outside its sub-zones
     /// that have that attribute of their own) rather than the whole zone.
     rest: Vec<[bool; 6]>,
+    /// Per group: its sub-zones, in order.
+    children: Vec<Vec<usize>>,
+    /// What a parent gives every sub-zone that inherits it, computed once.
+    cache: std::cell::RefCell<Cache>,
+}
+
+/// The values a group's data give, by group (and attribute), kept for its sub-zones.
+#[derive(Default)]
+struct Cache {
+    storeys: BTreeMap<usize, BTreeMap<u32, f64>>,
+    roofs: BTreeMap<usize, BTreeMap<&'static str, f64>>,
+    joints: BTreeMap<(Option<usize>, Option<usize>), (Joint, String)>,
+    modes: BTreeMap<(usize, usize), Option<String>>,
+    floors: BTreeMap<usize, Option<f64>>,
 }
 
 impl<'a> Writer<'a> {
@@ -792,7 +843,7 @@ impl<'a> Writer<'a> {
             .collect();
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); groups.len()];
         for (i, g) in groups.iter().enumerate() {
-            if let Some(p) = g.parent {
+            if let Some(p) = g.parent.filter(|&p| p < i) {
                 children[p].push(i);
             }
         }
@@ -845,6 +896,8 @@ impl<'a> Writer<'a> {
             counts,
             data,
             rest,
+            children,
+            cache: Default::default(),
         }
     }
 
@@ -876,7 +929,37 @@ impl<'a> Writer<'a> {
             .map(|&k| self.samples[k])
     }
 
+    /// [`Writer::storeys_dist_of`], computed once per group (a big parent serves many cells).
     fn storeys_dist(&self, g: usize) -> BTreeMap<u32, f64> {
+        if let Some(d) = self.cache.borrow().storeys.get(&g) {
+            return d.clone();
+        }
+        let d = self.storeys_dist_of(g);
+        self.cache.borrow_mut().storeys.insert(g, d.clone());
+        d
+    }
+
+    /// [`Writer::roof_dist_of`], computed once per group.
+    fn roof_dist(&self, g: usize) -> BTreeMap<&'static str, f64> {
+        if let Some(d) = self.cache.borrow().roofs.get(&g) {
+            return d.clone();
+        }
+        let d = self.roof_dist_of(g);
+        self.cache.borrow_mut().roofs.insert(g, d.clone());
+        d
+    }
+
+    /// [`Writer::joint_of`], computed once per pair of sources.
+    fn joint(&self, ss: Option<usize>, sr: Option<usize>) -> (Joint, String) {
+        if let Some(j) = self.cache.borrow().joints.get(&(ss, sr)) {
+            return j.clone();
+        }
+        let j = self.joint_of(ss, sr);
+        self.cache.borrow_mut().joints.insert((ss, sr), j.clone());
+        j
+    }
+
+    fn storeys_dist_of(&self, g: usize) -> BTreeMap<u32, f64> {
         let mut m: BTreeMap<u32, f64> = BTreeMap::new();
         for s in self.tagged(g, Attr::Storeys) {
             *m.entry(s.storeys.unwrap_or(1)).or_default() += 1.0;
@@ -884,7 +967,7 @@ impl<'a> Writer<'a> {
         normalise(m)
     }
 
-    fn roof_dist(&self, g: usize) -> BTreeMap<&'static str, f64> {
+    fn roof_dist_of(&self, g: usize) -> BTreeMap<&'static str, f64> {
         let mut m: BTreeMap<&'static str, f64> = BTreeMap::new();
         for s in self.tagged(g, Attr::Roof) {
             *m.entry(roof_key(s.roof)).or_default() += 1.0;
@@ -893,7 +976,7 @@ impl<'a> Writer<'a> {
     }
 
     /// The joint (roof, storeys) distribution a zone's appearances draw, and how it was made.
-    fn joint(&self, ss: Option<usize>, sr: Option<usize>) -> (Joint, String) {
+    fn joint_of(&self, ss: Option<usize>, sr: Option<usize>) -> (Joint, String) {
         match (ss, sr) {
             (None, None) => (Joint::new(), String::new()),
             (Some(a), None) => (
@@ -974,26 +1057,43 @@ impl<'a> Writer<'a> {
         })
     }
 
-    fn colour_for(&self, src: Option<usize>, a: Attr, bin: Option<&Bin>) -> Option<String> {
+    /// The colour (or material) `a` of group `g`'s appearance `bin` (`None`: of its info): the
+    /// most frequent among the bin's buildings when the attribute is `g`'s own and
+    /// [`MIN_PER_APPEARANCE`] of them are tagged, else the most frequent of the source's.
+    fn colour_for(
+        &self,
+        g: usize,
+        src: Option<usize>,
+        a: Attr,
+        bin: Option<&Bin>,
+    ) -> Option<String> {
         let src = src?;
         let get = |s: &Sample| match a {
             Attr::WallColour => s.wall_colour.clone(),
             Attr::RoofColour => s.roof_colour.clone(),
             _ => s.material.clone(),
         };
-        if let Some(b) = bin {
+        if let Some(b) = bin.filter(|_| src == g) {
             let own: Vec<String> = self.matching(src, a, b).filter_map(get).collect();
             if own.len() >= MIN_PER_APPEARANCE {
                 return mode(own.iter().map(String::as_str));
             }
         }
+        let key = (src, Self::index(a));
+        if let Some(c) = self.cache.borrow().modes.get(&key) {
+            return c.clone();
+        }
         let all: Vec<String> = self.tagged(src, a).filter_map(get).collect();
-        mode(all.iter().map(String::as_str))
+        let c = mode(all.iter().map(String::as_str));
+        self.cache.borrow_mut().modes.insert(key, c.clone());
+        c
     }
 
-    fn floor_for(&self, src: Option<usize>, bin: Option<&Bin>) -> Option<f64> {
+    /// The floor height of group `g`'s appearance `bin` (`None`: of its info), as
+    /// [`Writer::colour_for`] with the median.
+    fn floor_for(&self, g: usize, src: Option<usize>, bin: Option<&Bin>) -> Option<f64> {
         let src = src?;
-        if let Some(b) = bin {
+        if let Some(b) = bin.filter(|_| src == g) {
             let own: Vec<f64> = self
                 .matching(src, Attr::FloorHeight, b)
                 .filter_map(|s| s.floor_height)
@@ -1002,11 +1102,16 @@ impl<'a> Writer<'a> {
                 return median(own);
             }
         }
-        median(
+        if let Some(f) = self.cache.borrow().floors.get(&src) {
+            return *f;
+        }
+        let f = median(
             self.tagged(src, Attr::FloorHeight)
                 .filter_map(|s| s.floor_height)
                 .collect(),
-        )
+        );
+        self.cache.borrow_mut().floors.insert(src, f);
+        f
     }
 
     fn line(&mut self, indent: usize, text: &str) {
@@ -1053,7 +1158,7 @@ impl<'a> Writer<'a> {
                 "Appearances, drawn by proba, reproduce the distribution of (storeys, roof \
                  shape); at most {} per zone, the rare tail merged as each zone says. Colours \
                  and floorsize per appearance from its own buildings when {} or more are \
-                 tagged, else the zone's. A zone without appearances uses its parent's.",
+                 tagged (in a zone where they are its own), else the zone's. A zone without appearances uses its parent's.",
                 self.max_apps, MIN_PER_APPEARANCE
             ),
             "Not written: appearances per building=* kind (this reader has no appearance \
@@ -1191,7 +1296,7 @@ impl<'a> Writer<'a> {
                 let _ = write!(info, " nbfloor=\"{n}\"");
             }
         }
-        if let Some(f) = self.floor_for(src_of(Attr::FloorHeight), None) {
+        if let Some(f) = self.floor_for(g, src_of(Attr::FloorHeight), None) {
             let _ = write!(info, " floorsize=\"{}\"", num(f, 2));
         }
         if let Some(r) = sr {
@@ -1211,7 +1316,7 @@ impl<'a> Writer<'a> {
             ("roofColor", Attr::RoofColour),
             ("material", Attr::Material),
         ] {
-            if let Some(c) = self.colour_for(src_of(a), a, None) {
+            if let Some(c) = self.colour_for(g, src_of(a), a, None) {
                 let _ = write!(info, " {attr}=\"{}\"", escape(&c));
             }
         }
@@ -1246,10 +1351,7 @@ impl<'a> Writer<'a> {
                 "<!-- No attribute of its own (too few tags): the appearances above apply. -->",
             );
         }
-        let children: Vec<usize> = (0..self.groups.len())
-            .filter(|&c| self.groups[c].parent == Some(g))
-            .collect();
-        for c in children {
+        for c in self.children[g].clone() {
             self.group(c, inner);
         }
         if element == "earth" {
@@ -1259,7 +1361,7 @@ impl<'a> Writer<'a> {
         }
     }
 
-    fn appearances_of(&mut self, _g: usize, src: &[Option<usize>], indent: usize) {
+    fn appearances_of(&mut self, g: usize, src: &[Option<usize>], indent: usize) {
         let at = |a: Attr| src[ATTRS.iter().position(|&x| x == a).unwrap_or(0)];
         let (joint, how) = self.joint(at(Attr::Storeys), at(Attr::Roof));
         let (mut bins, notes) = if joint.is_empty() {
@@ -1308,11 +1410,11 @@ impl<'a> Writer<'a> {
             if b.hi > 0 {
                 let _ = write!(v, " minFloors=\"{}\" maxFloors=\"{}\"", b.lo, b.hi);
             }
-            if let Some(f) = self.floor_for(at(Attr::FloorHeight), with_bin) {
+            if let Some(f) = self.floor_for(g, at(Attr::FloorHeight), with_bin) {
                 let _ = write!(v, " floorsize=\"{}\"", num(f, 2));
             }
             for (attr, a) in [("color", Attr::WallColour), ("roofColor", Attr::RoofColour)] {
-                if let Some(c) = self.colour_for(at(a), a, with_bin) {
+                if let Some(c) = self.colour_for(g, at(a), a, with_bin) {
                     let _ = write!(v, " {attr}=\"{}\"", escape(&c));
                 }
             }
