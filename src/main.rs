@@ -29,7 +29,7 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 /// atomically. Same inputs and --seed give byte-identical files, whatever --threads is.
 ///
 /// Subcommands: `citygen rules check|derive` for rule authors, `citygen kb
-/// check|compile|explain` for knowledge-base authors (`citygen rules --help`, `citygen kb
+/// check|compile|explain|learn` for knowledge-base authors (`citygen rules --help`, `citygen kb
 /// --help`).
 ///
 /// Exit codes: 0 success; 1 bad input (file, knowledge base, rules; a run that generates no
@@ -50,7 +50,7 @@ enum Command {
     /// Check and try grammar rulesets.
     #[command(subcommand)]
     Rules(RulesCommand),
-    /// Check, compile and explain knowledge bases.
+    /// Check, compile, explain and learn knowledge bases.
     #[command(subcommand)]
     Kb(KbCommand),
 }
@@ -97,6 +97,41 @@ enum KbCommand {
         /// The run's --infer: what the building takes from its tagged neighbours.
         #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]
         infer: InferArg,
+    },
+    /// Learn a knowledge base from an extract's tags: storeys (building:levels), roof shape,
+    /// floor height, colours and material per grid cell or per zone, written as zones and
+    /// appearances to edit. A zone with fewer than --min-samples tagged values of an attribute
+    /// takes its parent's (the grid's parent is the whole extract). Errors (exit 1): an input
+    /// that cannot be read or holds no building. An extract without any of these tags gives a
+    /// KB of the built-in defaults with a comment saying so.
+    #[command(group(ArgGroup::new("learn_input").required(true).args(["osm", "shp"])))]
+    Learn {
+        /// The OpenStreetMap extract to learn from.
+        #[arg(long, value_name = "FILE.pbf")]
+        osm: Option<PathBuf>,
+        /// The shapefile to learn from (its height and level fields detected).
+        #[arg(long, value_name = "FILE.shp")]
+        shp: Option<PathBuf>,
+        /// Group by square cells of this many metres.
+        #[arg(long, value_name = "METRES", conflicts_with = "zones",
+              default_value_t = citygen::kb::learn::DEFAULT_GRID_M as u32,
+              value_parser = clap::value_parser!(u32).range(10..))]
+        grid: u32,
+        /// Group by the deepest zone of this knowledge base instead of a grid (its zones'
+        /// circles and polygons are kept, its values and appearances replaced).
+        #[arg(long, value_name = "KB.xml")]
+        zones: Option<PathBuf>,
+        /// Least tagged values of an attribute for a cell or zone to have its own distribution.
+        #[arg(long, value_name = "N", default_value_t = citygen::kb::learn::DEFAULT_MIN_SAMPLES,
+              value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+        min_samples: usize,
+        /// Most appearances per zone (the rare tail is merged, as the file's comments say).
+        #[arg(long, value_name = "N", default_value_t = citygen::kb::learn::DEFAULT_MAX_APPEARANCES,
+              value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100))]
+        max_appearances: usize,
+        /// Where to write the learned knowledge base.
+        #[arg(long, value_name = "LEARNED.xml")]
+        out: PathBuf,
     },
 }
 
@@ -507,6 +542,65 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
             match citygen::pipeline::explain_building(&kb, &source, &id, seed, infer.0) {
                 Ok(e) => emit(&e.to_string()).err().unwrap_or(ExitCode::SUCCESS),
                 Err(e) => fail(e.to_string()),
+            }
+        }
+        KbCommand::Learn {
+            osm,
+            shp,
+            grid,
+            zones,
+            min_samples,
+            max_appearances,
+            out,
+        } => {
+            let (source, file) = match (osm, shp) {
+                (Some(p), _) => (Source::Osm(p.clone()), p),
+                (None, Some(path)) => (
+                    Source::Shp {
+                        path: path.clone(),
+                        height_field: None,
+                        levels_field: None,
+                    },
+                    path,
+                ),
+                (None, None) => return ExitCode::from(2),
+            };
+            let name = file
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let stem = [".osm.pbf", ".pbf", ".shp", ".SHP"]
+                .iter()
+                .find_map(|ext| name.strip_suffix(ext))
+                .unwrap_or(&name)
+                .to_string();
+            let options = citygen::kb::learn::LearnOptions {
+                grouping: citygen::kb::learn::Grouping::Grid {
+                    metres: f64::from(grid),
+                },
+                min_samples,
+                max_appearances,
+                name: stem,
+                source: name,
+            };
+            match citygen::pipeline::learn_kb(&source, zones.as_deref(), &options, &out) {
+                Ok(l) => {
+                    eprintln!(
+                        "citygen: learned {} buildings into {} zones ({} with data of their own) \
+                         and {} appearances; wrote {} ({} bytes)",
+                        l.samples,
+                        l.zones,
+                        l.zones_with_own_data,
+                        l.appearances,
+                        out.display(),
+                        l.text.len()
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("citygen: error: {e}");
+                    ExitCode::from(exit_code(&e))
+                }
             }
         }
     }

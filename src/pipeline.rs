@@ -388,6 +388,74 @@ pub fn explain_building(
     Ok(e)
 }
 
+/// `citygen kb learn`: reads and prepares the source as a run does, takes one
+/// [`kb::learn::Sample`] per lot (its outline's tags at its representative point, the point
+/// the generator locates; `building=roof` canopies left out), learns a knowledge base
+/// ([`kb::learn::learn`]) grouped by a grid or by the zones of the `--zones` knowledge base
+/// (`options.grouping` is then replaced), and writes it atomically to `out`. The output may
+/// not be an input. Errors name the file: an input that cannot be read or holds no building
+/// is an input error, as is a `--zones` KB that does not load.
+pub fn learn_kb(
+    source: &Source,
+    zones: Option<&Path>,
+    options: &kb::learn::LearnOptions<'_>,
+    out: &Path,
+) -> Result<kb::learn::Learned, RunError> {
+    let mut inputs: Vec<(&'static str, PathBuf)> = match source {
+        Source::Osm(p) => vec![("--osm", p.clone())],
+        Source::Shp { path, .. } => outputs::shapefile_parts(path)
+            .into_iter()
+            .map(|p| ("--shp", p))
+            .collect(),
+    };
+    inputs.extend(zones.map(|z| ("--zones", z.to_path_buf())));
+    outputs::check(&[("--out", out)], &inputs, true)?;
+    let zones_kb = match zones {
+        Some(z) => Some(
+            KnowledgeBase::load(z)
+                .map(|(kb, _)| kb)
+                .map_err(|e| RunError::Input(e.to_string()))?,
+        ),
+        None => None,
+    };
+    let file = match source {
+        Source::Osm(p) | Source::Shp { path: p, .. } => p.clone(),
+    };
+    let mut report = Report::default();
+    let read = read_source(source, None, &mut report)?;
+    if read.footprints.is_empty() {
+        return Err(RunError::Input(format!(
+            "{}: no building footprint to learn from",
+            file.display()
+        )));
+    }
+    let site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
+    let samples: Vec<kb::learn::Sample> = site
+        .lots
+        .iter()
+        .filter_map(|lot| kb::learn::Sample::from_tags(lot.lonlat, &lot.tags))
+        .collect();
+    let mut o = options.clone();
+    if let Some(kb) = &zones_kb {
+        o.grouping = kb::learn::Grouping::Zones(kb);
+    }
+    let learned = kb::learn::learn(&samples, &o)
+        .map_err(|e| RunError::Input(format!("{}: {e}", file.display())))?;
+    let write = || -> std::io::Result<()> {
+        let f = AtomicFile::create(out)?;
+        let mut w = f.writer()?;
+        w.write_all(learned.text.as_bytes())?;
+        w.flush()?;
+        drop(w);
+        f.commit()
+    };
+    write().map_err(|e| RunError::Output {
+        path: out.to_path_buf(),
+        source: ExportError::Io(e),
+    })?;
+    Ok(learned)
+}
+
 /// `citygen rules derive`: one ruleset on one test lot (local metres) placed at `lonlat`.
 pub fn derive_lot(
     rules_path: &Path,
