@@ -172,16 +172,17 @@ def segments_touch(a, b, c, d):
     )
 
 
-def first_crossing(ring):
-    """polygon.rs's rule: adjacent edges must not fold back, others must not touch. Edges are
-    bucketed by latitude bands so only edges sharing a band are compared."""
+def crossings(ring):
+    """Yields the pairs of edges that break polygon.rs's rule, each once: adjacent edges that
+    fold back, then other edges that touch. Edges are bucketed by latitude bands so only edges
+    sharing a band are compared."""
     n = len(ring)
     for i in range(n):
         a, s, b = ring[i - 1], ring[i], ring[(i + 1) % n]
         u = (a[0] - s[0], a[1] - s[1])
         v = (b[0] - s[0], b[1] - s[1])
         if u[0] * v[1] - u[1] * v[0] == 0.0 and u[0] * v[0] + u[1] * v[1] > 0.0:
-            return (i - 1) % n, i
+            yield (i - 1) % n, i
     lo = min(p[1] for p in ring)
     hi = max(p[1] for p in ring)
     nb = max(1, n // 4)
@@ -193,6 +194,7 @@ def first_crossing(ring):
         b1 = min(nb - 1, int((max(a[1], b[1]) - lo) / h))
         for k in range(b0, b1 + 1):
             bands[k].append(i)
+    seen = set()
     for band in bands:
         m = len(band)
         for x in range(m):
@@ -209,9 +211,15 @@ def first_crossing(ring):
                     continue
                 if max(c[1], d[1]) < ay0 or min(c[1], d[1]) > ay1:
                     continue
-                if segments_touch(a, b, c, d):
-                    return min(i, j), max(i, j)
-    return None
+                key = (min(i, j), max(i, j))
+                if key not in seen and segments_touch(a, b, c, d):
+                    seen.add(key)
+                    yield key
+
+
+def first_crossing(ring):
+    """polygon.rs's rule: the first pair of edges that breaks it, or None."""
+    return next(crossings(ring), None)
 
 
 def clean(ring):
@@ -491,47 +499,7 @@ class Coast:
 
 def all_crossings(ring):
     """The pairs of edges (i, j) that break polygon.rs's rule (first_crossing, all of them)."""
-    n = len(ring)
-    found = []
-    for i in range(n):
-        a, s, b = ring[i - 1], ring[i], ring[(i + 1) % n]
-        u = (a[0] - s[0], a[1] - s[1])
-        v = (b[0] - s[0], b[1] - s[1])
-        if u[0] * v[1] - u[1] * v[0] == 0.0 and u[0] * v[0] + u[1] * v[1] > 0.0:
-            found.append(((i - 1) % n, i))
-    lo = min(p[1] for p in ring)
-    hi = max(p[1] for p in ring)
-    nb = max(1, n // 4)
-    h = (hi - lo) / nb or 1.0
-    bands = [[] for _ in range(nb)]
-    for i in range(n):
-        a, b = ring[i], ring[(i + 1) % n]
-        b0 = min(nb - 1, int((min(a[1], b[1]) - lo) / h))
-        b1 = min(nb - 1, int((max(a[1], b[1]) - lo) / h))
-        for k in range(b0, b1 + 1):
-            bands[k].append(i)
-    seen = set()
-    for band in bands:
-        m = len(band)
-        for x in range(m):
-            i = band[x]
-            a, b = ring[i], ring[(i + 1) % n]
-            ax0, ax1 = min(a[0], b[0]), max(a[0], b[0])
-            ay0, ay1 = min(a[1], b[1]), max(a[1], b[1])
-            for y in range(x + 1, m):
-                j = band[y]
-                if j == i + 1 or i == j + 1 or (i == 0 and j == n - 1) or (j == 0 and i == n - 1):
-                    continue
-                c, d = ring[j], ring[(j + 1) % n]
-                if max(c[0], d[0]) < ax0 or min(c[0], d[0]) > ax1:
-                    continue
-                if max(c[1], d[1]) < ay0 or min(c[1], d[1]) > ay1:
-                    continue
-                key = (min(i, j), max(i, j))
-                if key not in seen and segments_touch(a, b, c, d):
-                    seen.add(key)
-                    found.append(key)
-    return found
+    return list(crossings(ring))
 
 
 def proper_cross(a, b, c, d):
