@@ -127,8 +127,13 @@ pub(super) fn check_hipped(p: &Polygon, pitch: f64) -> Result<RoofGeometry, Stri
             return Err(format!("bad normal {n}"));
         }
         let slope = n.z.clamp(-1.0, 1.0).acos().to_degrees();
-        if (slope - pitch).abs() > 0.01 {
-            return Err(format!("slope {slope} != {pitch}"));
+        // As in `check_shape`: a vertex the skeleton took for straight tilts a face w wide by
+        // up to COLLINEAR_ABS / w (a 2 m star's small faces: a few hundredths of a degree).
+        let width = area2(&f.outer).abs().sqrt().max(1e-9);
+        let tol = SLOPE_TOLERANCE_DEG
+            + (2.0 * crate::geometry::skeleton::COLLINEAR_ABS / width).to_degrees();
+        if (slope - pitch).abs() > tol {
+            return Err(format!("slope {slope} != {pitch} (within {tol}°)"));
         }
         let o = f.outer[0];
         if f.outer.iter().any(|q| (*q - o).dot(n).abs() > 1e-3) {
