@@ -41,8 +41,10 @@
 //! class's full list of kinds (the reader's appearance filter, `kb::eligible`): learned as
 //! above from that class's buildings only (those its zone's values describe), each attribute
 //! the class has fewer than `min_samples` of taken from the zone's unfiltered values. The
-//! unfiltered appearances (no `building` list) stay learned from all buildings: they serve
-//! `building=yes`, kinds in no class, and classes without a group of their own. Each group has
+//! unfiltered appearances (no `building` list) serve `building=yes`, kinds in no class, and
+//! classes without a group of their own: for an attribute some class draws from its own
+//! group, they are learned from the buildings outside those classes (when `min_samples` of
+//! them are tagged; else from all), so no class weighs twice in the zone's mix. Each group has
 //! at most `max_appearances` appearances and probas summing to 1. The kinds are also counted
 //! per zone in a comment.
 //!
@@ -1007,6 +1009,32 @@ impl<'a> Writer<'a> {
                 }
             }
         }
+        // The unfiltered appearances serve `building=yes` and the classes without a group of
+        // their own: for an attribute that some class draws from its own group, they are
+        // learned from the buildings outside those classes (when `min` of them are tagged), so
+        // that the class's values are not counted twice in the zone's mix.
+        for (g, cls) in classes.iter().enumerate() {
+            for ai in 0..ATTRS.len() {
+                let grouped: Vec<usize> = cls
+                    .iter()
+                    .filter(|(_, di)| counts[*di][ai] >= min)
+                    .map(|(ci, _)| *ci)
+                    .collect();
+                if grouped.is_empty() {
+                    continue;
+                }
+                let left: Vec<usize> = data[g][ai]
+                    .iter()
+                    .copied()
+                    .filter(|&k| {
+                        kind_class(samples[k].kind.as_deref()).is_none_or(|c| !grouped.contains(&c))
+                    })
+                    .collect();
+                if left.len() >= min {
+                    data[g][ai] = left;
+                }
+            }
+        }
         Writer {
             samples,
             groups,
@@ -1858,7 +1886,7 @@ mod tests {
         // One cell: 30 houses of 2 storeys, gabled; 25 apartments of 8 storeys, flat; 5 sheds
         // of 1 storey (too few for a group); 10 `yes` of 4 storeys. With min 20: a group for
         // houses, one for flats, none for industrial; the unfiltered group from all 70 (in the
-        // town and in its cell alike).
+        // town and in its cell alike): the 15 outside the grouped classes are under 20.
         let mut samples = Vec::new();
         let mut add = |n: u32, kind: &str, storeys: u32, roof: RoofShape| {
             for k in 0..n {
@@ -1903,6 +1931,31 @@ mod tests {
             .flat_map(|z| &z.appearances)
             .any(|a| a.buildings.iter().any(|b| b == "shed")));
         let _ = owner;
+        // With 25 `yes` more (40 outside the grouped classes): the unfiltered group is learned
+        // from those alone, so the houses' 2 and the flats' 8 storeys are not counted twice.
+        let mut more = samples.clone();
+        for k in 0..25 {
+            let mut s = sample(
+                7.4 + deg(f64::from(100 + k)),
+                43.7,
+                Some(4),
+                Some(RoofShape::Flat),
+            );
+            s.kind = Some("yes".into());
+            more.push(s);
+        }
+        let l = learn(&more, &grid(500.0, 20)).unwrap();
+        let kb = strict(&l.text);
+        let z = kb.locate(more[0].lonlat.0, more[0].lonlat.1);
+        let (_, apps) = kb.appearances_for(z);
+        let (_, y) = kb.eligible_appearances(z, None);
+        let storeys: std::collections::BTreeSet<Option<u32>> =
+            y.iter().map(|&i| apps[i].values.min_floors).collect();
+        assert!(
+            !storeys.contains(&Some(2)) && !storeys.contains(&Some(8)),
+            "{}",
+            l.text
+        );
         // With min 26: only the houses (30) have enough.
         let l = learn(&samples, &grid(500.0, 26)).unwrap();
         assert_eq!(l.kind_groups, 2, "{}", l.text);
