@@ -125,7 +125,7 @@ enum KbCommand {
         #[arg(long, value_name = "N", default_value_t = citygen::kb::learn::DEFAULT_MIN_SAMPLES,
               value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
         min_samples: usize,
-        /// Most appearances per zone (the rare tail is merged, as the file's comments say).
+        /// Most appearances per zone and group (the rare tail is merged, as the file's comments say).
         #[arg(long, value_name = "N", default_value_t = citygen::kb::learn::DEFAULT_MAX_APPEARANCES,
               value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100))]
         max_appearances: usize,
@@ -587,11 +587,12 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                 Ok(l) => {
                     eprintln!(
                         "citygen: learned {} buildings into {} zones ({} with data of their own) \
-                         and {} appearances; wrote {} ({} bytes)",
+                         and {} appearances ({} per-kind groups); wrote {} ({} bytes)",
                         l.samples,
                         l.zones,
                         l.zones_with_own_data,
                         l.appearances,
+                        l.kind_groups,
                         out.display(),
                         l.text.len()
                     );

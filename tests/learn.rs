@@ -3,7 +3,8 @@
 //! byte-identical across runs, and reproduces what it learned: the generator, run with the
 //! learned KB on the Monaco buildings whose learned tags are removed (so the KB decides),
 //! draws storeys and roof shapes whose distribution is close to the tagged one (total
-//! variation distance, overall and per cell).
+//! variation distance, overall and per cell). The buildings keep their `building=*` kind, so
+//! the generator draws each among the per-kind group that names its kind, where one is learned.
 
 mod common;
 use common::*;
@@ -87,12 +88,14 @@ fn measure(min_samples: usize) -> Figures {
     let (kb, _) =
         KnowledgeBase::parse_str_with(&learned.text, "learned.xml", ReadMode::Strict).unwrap();
     eprintln!(
-        "learned from {} buildings: {} bytes, {} zones ({} with data of their own), {} appearances",
+        "learned from {} buildings: {} bytes, {} zones ({} with data of their own), {} appearances, \
+         {} per-kind groups",
         learned.samples,
         learned.text.len(),
         learned.zones,
         learned.zones_with_own_data,
-        learned.appearances
+        learned.appearances,
+        learned.kind_groups
     );
     // Every building lies in the cell it was learned in (binning = the KB's polygons).
     let town = kb.find("earth/monaco").unwrap();

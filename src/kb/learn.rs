@@ -33,8 +33,20 @@
 //! to exactly 1. A zone writes appearances only where one of their attributes is its own; the
 //! others inherit their parent's (the KB's rule: the nearest zone with appearances).
 //!
-//! Per-kind appearances (`building=*`) are not written: this KB reader has no appearance filter
-//! by kind. The kinds are listed per zone in a comment.
+//! **Per-kind groups.** Buildings are sorted into the kind classes of [`KIND_CLASSES`] by their
+//! `building=*` (houses; flats and commercial; industrial; any other kind, `yes` and none in no
+//! class). In a zone that writes appearances, a class with at least `min_samples` tagged values
+//! of its own of one of the appearance attributes (storeys, roof shape, floor height, colour,
+//! roof colour) gets its own group of appearances, written with `building="..."` naming the
+//! class's full list of kinds (the reader's appearance filter, `kb::eligible`): learned as
+//! above from that class's buildings only (those its zone's values describe), each attribute
+//! the class has fewer than `min_samples` of taken from the zone's unfiltered values. The
+//! unfiltered appearances (no `building` list) serve `building=yes`, kinds in no class, and
+//! classes without a group of their own: for an attribute some class draws from its own
+//! group, they are learned from the buildings outside those classes (when `min_samples` of
+//! them are tagged; else from all), so no class weighs twice in the zone's mix. Each group has
+//! at most `max_appearances` appearances and probas summing to 1. The kinds are also counted
+//! per zone in a comment.
 //!
 //! Deterministic: ordered maps only, ties broken by key; the same samples give the same bytes.
 
@@ -56,6 +68,71 @@ pub const DEFAULT_MAX_APPEARANCES: usize = 12;
 /// Least tagged buildings of one appearance's (storeys, roof) combination for the appearance to
 /// take their most frequent colour or median floor height instead of the zone's.
 pub const MIN_PER_APPEARANCE: usize = 5;
+/// The kind classes that get appearance groups of their own: (name, the `building=*` kinds of
+/// the class, written as the group's `building` list).
+pub const KIND_CLASSES: [(&str, &[&str]); 3] = [
+    (
+        "houses",
+        &[
+            "house",
+            "detached",
+            "semidetached_house",
+            "terrace",
+            "bungalow",
+            "farm",
+            "cabin",
+            "hut",
+        ],
+    ),
+    (
+        "flats and commercial",
+        &[
+            "apartments",
+            "residential",
+            "commercial",
+            "office",
+            "retail",
+            "civic",
+            "public",
+            "hotel",
+            "school",
+            "university",
+            "college",
+            "hospital",
+            "government",
+            "dormitory",
+            "church",
+            "kindergarten",
+        ],
+    ),
+    (
+        "industrial",
+        &[
+            "industrial",
+            "warehouse",
+            "garage",
+            "garages",
+            "shed",
+            "barn",
+            "farm_auxiliary",
+            "hangar",
+            "manufacture",
+            "service",
+            "storage_tank",
+            "greenhouse",
+            "carport",
+        ],
+    ),
+];
+
+/// The index in [`KIND_CLASSES`] of the class of a `building=*` kind (`None`: in no class).
+pub fn kind_class(kind: Option<&str>) -> Option<usize> {
+    let k = kind?.trim();
+    KIND_CLASSES
+        .iter()
+        .position(|(_, kinds)| kinds.iter().any(|x| x.eq_ignore_ascii_case(k)))
+}
+
 /// Floor heights outside this range (metres) are not learned: a `height` that includes an
 /// untagged roof, or a mistyped level count.
 pub const FLOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 6.0);
@@ -184,6 +261,8 @@ pub struct Learned {
     pub zones: usize,
     /// Appearances written in all zones.
     pub appearances: usize,
+    /// Per-kind appearance groups (with a `building` list) written in all zones.
+    pub kind_groups: usize,
     /// Zones with at least one attribute of their own (the others only inherit).
     pub zones_with_own_data: usize,
 }
@@ -295,6 +374,7 @@ pub fn learn(samples: &[Sample], o: &LearnOptions<'_>) -> Result<Learned, String
         samples: samples.len(),
         zones: w.zones,
         appearances: w.appearances,
+        kind_groups: w.kind_groups,
         zones_with_own_data: w.own,
     })
 }
@@ -805,8 +885,10 @@ struct Writer<'a> {
     out: String,
     zones: usize,
     appearances: usize,
+    kind_groups: usize,
     own: usize,
-    /// Per group and attribute: its tagged members.
+    /// Per group and attribute: its tagged members. Indices from `groups.len()` on are the
+    /// per-kind groups (see `classes`): a class's tagged members in one zone.
     counts: Vec<[usize; 6]>,
     /// Per group and attribute: the tagged samples its appearances and info describe.
     data: Vec<[Vec<usize>; 6]>,
@@ -815,6 +897,9 @@ struct Writer<'a> {
     rest: Vec<[bool; 6]>,
     /// Per group: its sub-zones, in order.
     children: Vec<Vec<usize>>,
+    /// Per group: its per-kind groups, (class index in [`KIND_CLASSES`], index in `counts`,
+    /// `data` and `rest`), by class.
+    classes: Vec<Vec<(usize, usize)>>,
     /// What a parent gives every sub-zone that inherits it, computed once.
     cache: std::cell::RefCell<Cache>,
 }
@@ -884,6 +969,72 @@ impl<'a> Writer<'a> {
             data.push(d);
             rest.push(r);
         }
+        // Per-kind groups: a class with `min` tagged values of an attribute in the zone; its
+        // values from the class's part of what the zone's describe (the rest, when that holds
+        // `min`), else of the whole zone.
+        let mut counts = counts;
+        let mut classes: Vec<Vec<(usize, usize)>> = vec![Vec::new(); groups.len()];
+        for (g, grp) in groups.iter().enumerate() {
+            for ci in 0..KIND_CLASSES.len() {
+                let in_class = |k: &usize| kind_class(samples[*k].kind.as_deref()) == Some(ci);
+                let mut d: [Vec<usize>; 6] = Default::default();
+                let mut n = [0usize; 6];
+                let mut r = [false; 6];
+                let mut own = false;
+                for (ai, &a) in ATTRS.iter().enumerate() {
+                    let whole: Vec<usize> = grp
+                        .members
+                        .iter()
+                        .copied()
+                        .filter(|k| a.has(samples[*k]) && in_class(k))
+                        .collect();
+                    n[ai] = whole.len();
+                    if whole.len() < min {
+                        continue;
+                    }
+                    own |= ai < 5;
+                    let left: Vec<usize> = data[g][ai].iter().copied().filter(in_class).collect();
+                    if rest[g][ai] && left.len() >= min {
+                        d[ai] = left;
+                        r[ai] = true;
+                    } else {
+                        d[ai] = whole;
+                    }
+                }
+                if own {
+                    classes[g].push((ci, data.len()));
+                    data.push(d);
+                    rest.push(r);
+                    counts.push(n);
+                }
+            }
+        }
+        // The unfiltered appearances serve `building=yes` and the classes without a group of
+        // their own: for an attribute that some class draws from its own group, they are
+        // learned from the buildings outside those classes (when `min` of them are tagged), so
+        // that the class's values are not counted twice in the zone's mix.
+        for (g, cls) in classes.iter().enumerate() {
+            for ai in 0..ATTRS.len() {
+                let grouped: Vec<usize> = cls
+                    .iter()
+                    .filter(|(_, di)| counts[*di][ai] >= min)
+                    .map(|(ci, _)| *ci)
+                    .collect();
+                if grouped.is_empty() {
+                    continue;
+                }
+                let left: Vec<usize> = data[g][ai]
+                    .iter()
+                    .copied()
+                    .filter(|&k| {
+                        kind_class(samples[k].kind.as_deref()).is_none_or(|c| !grouped.contains(&c))
+                    })
+                    .collect();
+                if left.len() >= min {
+                    data[g][ai] = left;
+                }
+            }
+        }
         Writer {
             samples,
             groups,
@@ -892,11 +1043,13 @@ impl<'a> Writer<'a> {
             out: String::new(),
             zones: 0,
             appearances: 0,
+            kind_groups: 0,
             own: 0,
             counts,
             data,
             rest,
             children,
+            classes,
             cache: Default::default(),
         }
     }
@@ -1156,14 +1309,20 @@ impl<'a> Writer<'a> {
                 .into(),
             format!(
                 "Appearances, drawn by proba, reproduce the distribution of (storeys, roof \
-                 shape); at most {} per zone, the rare tail merged as each zone says. Colours \
+                 shape); at most {} per zone and group, the rare tail merged as each zone says. Colours \
                  and floorsize per appearance from its own buildings when {} or more are \
                  tagged (in a zone where they are its own), else the zone's. A zone without appearances uses its parent's.",
                 self.max_apps, MIN_PER_APPEARANCE
             ),
-            "Not written: appearances per building=* kind (this reader has no appearance \
-             filter); the kinds are counted per zone."
-                .into(),
+            format!(
+                "Per building=* kind class (houses; flats and commercial; industrial): where a \
+                 zone's buildings of one class have {} or more tagged values of their own, the \
+                 class has its own appearances, with building=\"...\" naming the class's kinds, \
+                 learned from that class's buildings only (what it has too few of: the zone's). \
+                 The appearances without a building list are learned from all buildings and \
+                 serve building=yes, other kinds and the classes without their own.",
+                self.min
+            ),
             "Edit freely, then check it with citygen's kb check in strict mode.".into(),
         ];
         for l in lines {
@@ -1344,7 +1503,22 @@ impl<'a> Writer<'a> {
         }
         // Appearances.
         if own_any {
-            self.appearances_of(g, &src, inner);
+            self.appearances_of(g, &src, inner, None);
+            for (ci, v) in self.classes[g].clone() {
+                let class_src: Vec<Option<usize>> = ATTRS
+                    .iter()
+                    .enumerate()
+                    .map(|(ai, _)| {
+                        if self.counts[v][ai] >= self.min {
+                            Some(v)
+                        } else {
+                            src[ai]
+                        }
+                    })
+                    .collect();
+                self.appearances_of(v, &class_src, inner, Some(ci));
+                self.kind_groups += 1;
+            }
         } else if grp.parent.is_some() {
             self.line(
                 inner,
@@ -1361,7 +1535,15 @@ impl<'a> Writer<'a> {
         }
     }
 
-    fn appearances_of(&mut self, g: usize, src: &[Option<usize>], indent: usize) {
+    /// Writes the appearances of `g` (a zone, or a per-kind group for `class`), whose values
+    /// come from `src` (per attribute).
+    fn appearances_of(
+        &mut self,
+        g: usize,
+        src: &[Option<usize>],
+        indent: usize,
+        class: Option<usize>,
+    ) {
         let at = |a: Attr| src[ATTRS.iter().position(|&x| x == a).unwrap_or(0)];
         let (joint, how) = self.joint(at(Attr::Storeys), at(Attr::Roof));
         let (mut bins, notes) = if joint.is_empty() {
@@ -1390,6 +1572,20 @@ impl<'a> Writer<'a> {
         }
         kept.sort_by(|(a, ua), (b, ub)| ub.cmp(ua).then(a.roof.cmp(b.roof)).then(a.lo.cmp(&b.lo)));
         let mut about = Vec::new();
+        if let Some(ci) = class {
+            let own: Vec<String> = ATTRS[..5]
+                .iter()
+                .enumerate()
+                .filter(|&(ai, _)| src[ai] == Some(g))
+                .map(|(ai, a)| format!("{} {}", a.name(), self.counts[g][ai]))
+                .collect();
+            about.push(format!(
+                "for {} (building={}), from their tagged values: {}; the rest as the zone's",
+                KIND_CLASSES[ci].0,
+                KIND_CLASSES[ci].1.join(","),
+                own.join(", ")
+            ));
+        }
         if !how.is_empty() {
             about.push(how);
         }
@@ -1419,7 +1615,11 @@ impl<'a> Writer<'a> {
                 }
             }
             v.push_str("/>");
-            self.line(indent, "<appearance>");
+            let open = match class {
+                Some(ci) => format!("<appearance building=\"{}\">", KIND_CLASSES[ci].1.join(",")),
+                None => "<appearance>".to_string(),
+            };
+            self.line(indent, &open);
             self.line(indent + 1, &v);
             self.line(indent, "</appearance>");
             self.appearances += 1;
@@ -1658,15 +1858,111 @@ mod tests {
         let c = learn(&reversed, &grid(500.0, 20)).unwrap();
         assert_eq!(a.text, c.text);
         let kb = strict(&a.text);
+        let mut kind_groups = 0;
         for z in kb.zones() {
-            assert!(z.appearances.len() <= DEFAULT_MAX_APPEARANCES);
-            if !z.appearances.is_empty() {
-                let sum: f64 = z.appearances.iter().filter_map(|x| x.proba).sum();
-                assert!((sum - 1.0).abs() < 1e-9, "{}: {sum}", z.path);
+            // Per group (the appearances with one `building` list): the cap, probas summing to 1.
+            let mut groups: BTreeMap<Vec<String>, Vec<f64>> = BTreeMap::new();
+            for x in &z.appearances {
+                groups
+                    .entry(x.buildings.clone())
+                    .or_default()
+                    .push(x.proba.unwrap());
+            }
+            for (list, probas) in &groups {
+                assert!(probas.len() <= DEFAULT_MAX_APPEARANCES, "{}", z.path);
+                let sum: f64 = probas.iter().sum();
+                assert!((sum - 1.0).abs() < 1e-9, "{} {list:?}: {sum}", z.path);
+                kind_groups += usize::from(!list.is_empty());
             }
         }
+        assert_eq!(kind_groups, a.kind_groups);
+        assert!(a.kind_groups > 0, "{}", a.text);
         let r = crate::kb::tools::report_for(&kb, ReadMode::Strict, Vec::new(), false);
         assert!(r.warnings.is_empty() && r.errors.is_empty(), "{r}");
+    }
+
+    #[test]
+    fn a_kind_class_with_enough_samples_gets_its_own_group() {
+        // One cell: 30 houses of 2 storeys, gabled; 25 apartments of 8 storeys, flat; 5 sheds
+        // of 1 storey (too few for a group); 10 `yes` of 4 storeys. With min 20: a group for
+        // houses, one for flats, none for industrial; the unfiltered group from all 70 (in the
+        // town and in its cell alike): the 15 outside the grouped classes are under 20.
+        let mut samples = Vec::new();
+        let mut add = |n: u32, kind: &str, storeys: u32, roof: RoofShape| {
+            for k in 0..n {
+                let mut s = sample(7.4 + deg(f64::from(k)), 43.7, Some(storeys), Some(roof));
+                s.kind = Some(kind.into());
+                samples.push(s);
+            }
+        };
+        add(30, "house", 2, RoofShape::Gabled);
+        add(25, "apartments", 8, RoofShape::Flat);
+        add(5, "shed", 1, RoofShape::Flat);
+        add(10, "yes", 4, RoofShape::Flat);
+        let l = learn(&samples, &grid(500.0, 20)).unwrap();
+        // The town and its one cell, two each.
+        assert_eq!(l.kind_groups, 4, "{}", l.text);
+        let kb = strict(&l.text);
+        let z = kb.locate(samples[0].lonlat.0, samples[0].lonlat.1);
+        let (owner, apps) = kb.appearances_for(z);
+        let houses: Vec<String> = KIND_CLASSES[0].1.iter().map(|k| k.to_string()).collect();
+        let flats: Vec<String> = KIND_CLASSES[1].1.iter().map(|k| k.to_string()).collect();
+        // A house: only its class's appearance, 2 storeys gabled.
+        let (_, h) = kb.eligible_appearances(z, Some("detached"));
+        assert_eq!(h.len(), 1, "{}", l.text);
+        assert_eq!(apps[h[0]].buildings, houses);
+        assert_eq!(apps[h[0]].values.min_floors, Some(2));
+        assert_eq!(apps[h[0]].values.roof, Some(RoofShape::Gabled));
+        let (_, f) = kb.eligible_appearances(z, Some("office"));
+        assert_eq!(apps[f[0]].buildings, flats);
+        assert_eq!(apps[f[0]].values.min_floors, Some(8));
+        // A shed (its class has no group) and `yes`: the unfiltered appearances, from all 70.
+        let (_, s) = kb.eligible_appearances(z, Some("shed"));
+        let (_, y) = kb.eligible_appearances(z, None);
+        assert_eq!(s, y);
+        assert!(s.iter().all(|&i| apps[i].buildings.is_empty()));
+        let storeys: std::collections::BTreeSet<Option<u32>> =
+            s.iter().map(|&i| apps[i].values.min_floors).collect();
+        assert_eq!(storeys.len(), 4, "{}", l.text);
+        // No industrial list anywhere.
+        assert!(!kb
+            .zones()
+            .iter()
+            .flat_map(|z| &z.appearances)
+            .any(|a| a.buildings.iter().any(|b| b == "shed")));
+        let _ = owner;
+        // With 25 `yes` more (40 outside the grouped classes): the unfiltered group is learned
+        // from those alone, so the houses' 2 and the flats' 8 storeys are not counted twice.
+        let mut more = samples.clone();
+        for k in 0..25 {
+            let mut s = sample(
+                7.4 + deg(f64::from(100 + k)),
+                43.7,
+                Some(4),
+                Some(RoofShape::Flat),
+            );
+            s.kind = Some("yes".into());
+            more.push(s);
+        }
+        let l = learn(&more, &grid(500.0, 20)).unwrap();
+        let kb = strict(&l.text);
+        let z = kb.locate(more[0].lonlat.0, more[0].lonlat.1);
+        let (_, apps) = kb.appearances_for(z);
+        let (_, y) = kb.eligible_appearances(z, None);
+        let storeys: std::collections::BTreeSet<Option<u32>> =
+            y.iter().map(|&i| apps[i].values.min_floors).collect();
+        assert!(
+            !storeys.contains(&Some(2)) && !storeys.contains(&Some(8)),
+            "{}",
+            l.text
+        );
+        // With min 26: only the houses (30) have enough.
+        let l = learn(&samples, &grid(500.0, 26)).unwrap();
+        assert_eq!(l.kind_groups, 2, "{}", l.text);
+        strict(&l.text);
+        assert_eq!(kind_class(Some("Terrace")), Some(0));
+        assert_eq!(kind_class(Some("yes")), None);
+        assert_eq!(kind_class(None), None);
     }
 
     #[test]
