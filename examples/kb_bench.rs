@@ -61,13 +61,7 @@ fn main() -> Result<(), Error> {
             kb = Some(k);
         }
         let kb = kb.ok_or("no load")?;
-        let polygons: usize = kb.zones().iter().map(|z| z.polygons.len()).sum();
-        let points: usize = kb
-            .zones()
-            .iter()
-            .flat_map(|z| &z.polygons)
-            .map(|p| p.ring.len())
-            .sum();
+        let (polygons, points) = kb.polygon_counts();
         println!(
             "{}: {} bytes, {} zones, {polygons} polygons, {points} points; load best of {reps}: {:.1} ms",
             path.display(),

@@ -252,9 +252,8 @@ def problem(ring):
 # ---------------------------------------------------------------- antimeridian
 
 
-def unwrap(ring):
-    """Longitudes made continuous (TopoJSON rings jump from 180 to -180 where they cross the
-    antimeridian); a ring that goes round a pole (Antarctica) is closed along the pole."""
+def continuous_lon(ring):
+    """The ring with each longitude moved by whole turns to within 180° of the one before."""
     out = [ring[0]]
     for x, y in ring[1:]:
         px = out[-1][0]
@@ -263,6 +262,13 @@ def unwrap(ring):
         while px - x > 180.0:
             x += 360.0
         out.append((x, y))
+    return out
+
+
+def unwrap(ring):
+    """Longitudes made continuous (TopoJSON rings jump from 180 to -180 where they cross the
+    antimeridian); a ring that goes round a pole (Antarctica) is closed along the pole."""
+    out = continuous_lon(ring)
     shift = out[-1][0] - out[0][0]
     if abs(shift) > 180.0:
         pole = -90.0 if sum(p[1] for p in out) < 0 else 90.0
@@ -405,14 +411,7 @@ def flagged_ring(simple, arc_ids, coastal):
         ofix.pop()
     # Continuous longitudes (as unwrap, without closing a ring round a pole along the pole: the
     # two ends of such a ring stay fixed, and split_wide closes it later).
-    u = [out[0]]
-    for x, y in out[1:]:
-        px = u[-1][0]
-        while x - px > 180.0:
-            x -= 360.0
-        while px - x > 180.0:
-            x += 360.0
-        u.append((x, y))
+    u = continuous_lon(out)
     if abs(u[-1][0] - u[0][0]) > 180.0:
         ofix[0] = ofix[-1] = True
     return u, ofix

@@ -342,13 +342,7 @@ fn the_world_kb_is_strict_and_within_its_size_budget() {
     let (kb, repairs) =
         KnowledgeBase::load_with(&path, ReadMode::Strict).unwrap_or_else(|e| panic!("{e}"));
     assert!(repairs.is_empty());
-    let polygons: usize = kb.zones().iter().map(|z| z.polygons.len()).sum();
-    let points: usize = kb
-        .zones()
-        .iter()
-        .flat_map(|z| &z.polygons)
-        .map(|p| p.ring.len())
-        .sum();
+    let (polygons, points) = kb.polygon_counts();
     eprintln!("{bytes} bytes, {polygons} polygons, {points} points");
     // Every country of the world: well over 200 polygon zones.
     let countries = kb.zones().iter().filter(|z| !z.polygons.is_empty()).count();

@@ -492,6 +492,15 @@ impl KnowledgeBase {
         self.zones.get(i)
     }
 
+    /// How many polygons the zones hold, and how many vertices those have.
+    pub fn polygon_counts(&self) -> (usize, usize) {
+        let polygons = self.zones.iter().flat_map(|z| &z.polygons);
+        (
+            polygons.clone().count(),
+            polygons.map(|p| p.ring.len()).sum(),
+        )
+    }
+
     /// The file name given at load time.
     pub fn source(&self) -> &str {
         &self.source
@@ -678,8 +687,7 @@ impl KnowledgeBase {
     ) -> Option<(usize, usize)> {
         let (owner, apps) = self.appearances_for(zone);
         let ids = eligible(apps, kind);
-        let subset: Vec<Appearance> = ids.iter().filter_map(|&i| apps.get(i).cloned()).collect();
-        let weights = appearance_weights(&subset);
+        let weights = proba_weights(ids.iter().map(|&i| apps[i].proba));
         rng.pick_weighted(&weights)
             .and_then(|k| ids.get(k).copied())
             .map(|i| (owner, i))
@@ -893,14 +901,20 @@ pub fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
 
 /// The weights [`KnowledgeBase::pick_appearance`] uses over a set of appearances, in order.
 pub fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
-    let given: f64 = apps.iter().filter_map(|a| a.proba).sum();
-    let missing = apps.iter().filter(|a| a.proba.is_none()).count();
+    proba_weights(apps.iter().map(|a| a.proba))
+}
+
+/// The weights of appearances with these `proba`s, in order: given ones as they are, absent
+/// ones sharing what the given leave of 1, normalised (see [`KnowledgeBase::pick_appearance`]).
+pub fn proba_weights(probas: impl Iterator<Item = Option<f64>> + Clone) -> Vec<f64> {
+    let given: f64 = probas.clone().flatten().sum();
+    let missing = probas.clone().filter(Option::is_none).count();
     let share = if missing > 0 {
         ((1.0 - given) / missing as f64).max(0.0)
     } else {
         0.0
     };
-    let raw: Vec<f64> = apps.iter().map(|a| a.proba.unwrap_or(share)).collect();
+    let raw: Vec<f64> = probas.map(|p| p.unwrap_or(share)).collect();
     let total: f64 = raw.iter().sum();
     if total > 0.0 {
         raw.iter().map(|w| w / total).collect()

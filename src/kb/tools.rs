@@ -9,9 +9,7 @@ use std::fmt;
 use std::path::Path;
 
 use super::compile::{color_word, ruleset_text};
-use super::{
-    appearance_weights, KbError, KbRepair, KnowledgeBase, ReadMode, Style, Values, ZoneMatch,
-};
+use super::{proba_weights, KbError, KbRepair, KnowledgeBase, ReadMode, Style, Values, ZoneMatch};
 use crate::input::BuildingTags;
 use crate::rng::Rng;
 
@@ -213,17 +211,15 @@ pub fn report_for(
             }
         }
         for g in groups {
-            let apps: Vec<super::Appearance> = z
+            let probas = z
                 .appearances
                 .iter()
                 .filter(|a| a.buildings == g)
-                .cloned()
-                .collect();
-            let given: Vec<f64> = apps.iter().filter_map(|a| a.proba).collect();
-            let sum: f64 = given.iter().sum();
-            let all_given = given.len() == apps.len();
+                .map(|a| a.proba);
+            let sum: f64 = probas.clone().flatten().sum();
+            let all_given = probas.clone().all(|p| p.is_some());
             if (all_given && (sum - 1.0).abs() > 1e-6) || sum > 1.0 + 1e-6 {
-                let w = appearance_weights(&apps);
+                let w = proba_weights(probas);
                 let shares: Vec<String> = w.iter().map(|x| format!("{x:.3}")).collect();
                 let of = if g.is_empty() {
                     String::new()
@@ -405,7 +401,7 @@ pub struct Candidate {
     pub label: String,
     /// `proba` as written (`None`: empty or absent).
     pub proba: Option<f64>,
-    /// The normalised weight the draw uses ([`appearance_weights`] over the eligible
+    /// The normalised weight the draw uses ([`proba_weights`] over the eligible
     /// appearances); 0 for an appearance this building's kind may not take.
     pub weight: f64,
     /// The appearance's `building` list (empty: any kind).
@@ -525,8 +521,7 @@ pub fn explain(
     let (owner, apps) = kb.appearances_for(zone);
     let owner_path = kb.zone_path(owner).to_string();
     let ids = super::eligible(apps, tags.building.as_deref());
-    let subset: Vec<super::Appearance> = ids.iter().filter_map(|&i| apps.get(i).cloned()).collect();
-    let weights = appearance_weights(&subset);
+    let weights = proba_weights(ids.iter().map(|&i| apps[i].proba));
     let candidates: Vec<Candidate> = apps
         .iter()
         .enumerate()

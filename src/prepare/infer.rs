@@ -245,10 +245,17 @@ pub fn infer(
     }
     let points: Vec<Option<DVec2>> = lots.par_iter().map(point_of).collect();
     let areas: Vec<f64> = lots.par_iter().map(area_of).collect();
-    let levels = Index::new(lots, &points, |l| storeys(l).is_some());
-    let roofs = Index::new(lots, &points, |l| l.tags.roof_shape.is_some());
-    let walls = Index::new(lots, &points, |l| l.tags.colour.is_some());
-    let roof_colours = Index::new(lots, &points, |l| l.tags.roof_colour.is_some());
+    // An index only for what some lot wants (an empty one finds nothing).
+    let index = |on: bool, has: fn(&Lot) -> bool| Index::new(lots, &points, |l| on && has(l));
+    let (any_levels, any_roof, any_colour) = (
+        want.iter().any(|w| w.levels),
+        want.iter().any(|w| w.roof),
+        want.iter().any(|w| w.colour),
+    );
+    let levels = index(any_levels, |l| storeys(l).is_some());
+    let roofs = index(any_roof, |l| l.tags.roof_shape.is_some());
+    let walls = index(any_colour, |l| l.tags.colour.is_some());
+    let roof_colours = index(any_colour, |l| l.tags.roof_colour.is_some());
     let categorical = InferOptions {
         min_neighbours: opts.min_neighbours.max(opts.min_votes),
         radius: opts.radius.min(opts.category_radius),
