@@ -8,11 +8,12 @@
 //! ```
 //!
 //! Inputs: a path (`.osm.pbf` or `.shp`), or a building count `N` (`10000`, `100k`, `1M`): the
-//! tiled input `target/bench-inputs/tiled-N.osm.pbf`, made first when missing. `--make N OUT`
+//! tiled input `target/bench-inputs/jittered-N.osm.pbf`, made first when missing. `--make N OUT`
 //! only makes one: the buildings of data/monaco and the Clifton shapefile's footprints
 //! (converted to lon/lat and moved beside Monaco, keeping their size in metres) are repeated in
 //! a grid of copies with coordinate offsets and new node/way/relation ids per copy, until there
-//! are N buildings (the last copy is partial).
+//! are N buildings (the last copy is partial). Every copy is turned, scaled and its nodes moved
+//! by a few centimetres ([`Jitter`]), so no two footprints are the same shape.
 //!
 //! For each input it runs the `citygen` binary next to this example (target/release/citygen)
 //! as a child process per configuration: LOD 1, 2, 3 × (IFC, CityGML, glTF, all three), and
@@ -115,7 +116,7 @@ fn main() -> Result<(), Error> {
     for input in &inputs {
         let path = match parse_count(input) {
             Ok(n) if !Path::new(input).exists() => {
-                let p = Path::new(INPUT_DIR).join(format!("tiled-{n}.osm.pbf"));
+                let p = Path::new(INPUT_DIR).join(format!("jittered-{n}.osm.pbf"));
                 if !p.exists() {
                     make_tiled(n, &p)?;
                 }
@@ -662,6 +663,59 @@ fn select(t: &Template, k: Option<usize>) -> Selection {
     s
 }
 
+/// How one copy differs from the template, so that no two footprints of a tiled input are the
+/// same shape (a cache of identical footprints would flatter the bench and speed up no real
+/// city): the whole copy is turned by up to 6 degrees and scaled by up to 4 % about the
+/// template's centre, and every node moves by up to 3 cm on its own. Nodes shared by two
+/// buildings move together, so party walls stay party walls.
+struct Jitter {
+    copy: u64,
+    cos: f64,
+    sin: f64,
+    scale: f64,
+}
+
+impl Jitter {
+    fn of_copy(copy: u64) -> Jitter {
+        let angle = (unit(copy, 0) * 2.0 - 1.0) * 6f64.to_radians();
+        Jitter {
+            copy,
+            cos: angle.cos(),
+            sin: angle.sin(),
+            scale: 1.0 + (unit(copy, 1) * 2.0 - 1.0) * 0.04,
+        }
+    }
+
+    /// Node `node` at `(lon, lat)`, turned and scaled about `centre` in a frame where one unit
+    /// is as long east as north (`kx`: cos of the latitude), then moved by its own few cm.
+    fn apply(&self, (lon, lat): (f64, f64), centre: (f64, f64), kx: f64, node: u64) -> (f64, f64) {
+        const METRE: f64 = 1.0 / 111_320.0; // degrees of latitude
+        let (x, y) = ((lon - centre.0) * kx, lat - centre.1);
+        let (x, y) = (
+            self.scale * (x * self.cos - y * self.sin),
+            self.scale * (x * self.sin + y * self.cos),
+        );
+        let k = (self.copy << 32) ^ node;
+        let (ex, ey) = (
+            (unit(k, 2) * 2.0 - 1.0) * 0.03 * METRE,
+            (unit(k, 3) * 2.0 - 1.0) * 0.03 * METRE,
+        );
+        (centre.0 + (x + ex) / kx, centre.1 + y + ey)
+    }
+}
+
+/// A number in [0, 1) from `(key, salt)` (splitmix64).
+fn unit(key: u64, salt: u64) -> f64 {
+    let mut z = key
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(salt.wrapping_mul(0xBF58_476D_1CE4_E5B9))
+        .wrapping_add(0x94D0_49BB_1331_11EB);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 53) as f64
+}
+
 /// Writes `n` buildings tiled from the template to `out` (see the module documentation).
 fn make_tiled(n: usize, out: &Path) -> Result<PathBuf, Error> {
     let t = Instant::now();
@@ -673,7 +727,10 @@ fn make_tiled(n: usize, out: &Path) -> Result<PathBuf, Error> {
     let copies = n.div_ceil(per);
     let cols = (copies as f64).sqrt().ceil() as usize;
     let [x0, y0, x1, y1] = tpl.bounds;
-    let (dx, dy) = ((x1 - x0) * 1.02, (y1 - y0) * 1.02);
+    // Room for the copy's rotation (at most 6 degrees) and scale (at most 4 %).
+    let (dx, dy) = ((x1 - x0) * 1.2, (y1 - y0) * 1.2);
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let kx = cy.to_radians().cos();
     let full = select(&tpl, None);
     let last = select(&tpl, Some(n - (copies - 1) * per));
     let sel = |c: usize| if c + 1 == copies { &last } else { &full };
@@ -690,8 +747,10 @@ fn make_tiled(n: usize, out: &Path) -> Result<PathBuf, Error> {
     for c in 0..copies {
         let (ox, oy) = ((c % cols) as f64 * dx, (c / cols) as f64 * dy);
         let s = sel(c);
-        for (i, &(lon, lat)) in tpl.nodes.iter().enumerate() {
+        let jitter = Jitter::of_copy(c as u64);
+        for (i, &p) in tpl.nodes.iter().enumerate() {
             if s.nodes[i] {
+                let (lon, lat) = jitter.apply(p, (cx, cy), kx, i as u64);
                 w.node(c as i64 * nn + i as i64 + 1, lon + ox, lat + oy, &[])?;
             }
         }
