@@ -73,8 +73,8 @@ pub trait BuildingWriter: Send {
     /// Writes one building (after [`BuildingWriter::begin`], in output order).
     fn write(&mut self, building: &Building) -> Result<(), ExportError>;
     /// Writes `buildings` in order: the same bytes as `write` on each, and the same first error.
-    /// A writer whose per-building work needs none of its state does that work in parallel
-    /// here (rayon) and appends the results in order.
+    /// A writer may do its per-building work in parallel here (rayon) and append the results
+    /// in order.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         buildings.iter().try_for_each(|b| self.write(b))
     }
