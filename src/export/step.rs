@@ -530,7 +530,12 @@ impl StepBuf {
         self.count == 0
     }
 
-    /// Forgets the rendered entities.
+    /// Bytes the buffer holds without reallocating.
+    pub fn capacity(&self) -> usize {
+        self.bytes.capacity()
+    }
+
+    /// Forgets the rendered entities (keeping the storage).
     pub fn clear(&mut self) {
         self.bytes.clear();
         self.holes.clear();

@@ -52,13 +52,16 @@ impl<K: Ord + Copy, V: Relocate> Cache<K, V> {
         self.limit = limit;
     }
 
-    /// A view for rendering one building.
-    pub(super) fn view(&self) -> View<'_, K, V> {
+    /// A view for rendering one building, logging into `log`'s storage (a log of a building
+    /// appended before, reused).
+    pub(super) fn view(&self, log: Log<K, V>) -> View<'_, K, V> {
+        let mut log = log.ops;
+        log.clear();
         View {
             base: self,
             over: BTreeMap::new(),
             cleared: false,
-            log: Vec::new(),
+            log,
         }
     }
 
@@ -147,6 +150,15 @@ fn put<K: Ord, V>(
 pub(super) struct Log<K, V> {
     version: u64,
     ops: Vec<Op<K, V>>,
+}
+
+impl<K, V> Default for Log<K, V> {
+    fn default() -> Self {
+        Log {
+            version: 0,
+            ops: Vec::new(),
+        }
+    }
 }
 
 impl<K: Ord + Copy, V: Relocate> Log<K, V> {

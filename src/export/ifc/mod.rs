@@ -92,7 +92,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::export::step::{hash128, Id, StepBuf, StepWriter};
-use crate::export::{check_finite, BuildingWriter, ExportError, OutputContext, PARALLEL_BATCH};
+use crate::export::{BuildingWriter, Checked, ExportError, OutputContext, PARALLEL_BATCH};
 use crate::model::{Building, RoofShape};
 
 use cache::{Cache, Log, View};
@@ -219,10 +219,18 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
     /// whose rendering did not see the caches as the buildings before it left them is rendered
     /// again. The same bytes as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         match &mut self.state {
-            State::Open(open) => buildings
-                .chunks(PARALLEL_BATCH)
-                .try_for_each(|batch| open.write_batch(batch)),
+            State::Open(open) => {
+                checked
+                    .finite()
+                    .chunks(PARALLEL_BATCH)
+                    .try_for_each(|batch| open.write_batch(batch))?;
+                checked.refused("IFC writer")
+            }
             _ => Err(ExportError::Invalid(
                 "IFC writer: write called outside begin..finish".into(),
             )),
@@ -247,41 +255,46 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
 }
 
 impl<W: Write> Open<W> {
-    /// Writes `batch` (at most [`PARALLEL_BATCH`] buildings): the same bytes and first error
-    /// as writing them one by one.
+    /// Writes `batch` (at most [`PARALLEL_BATCH`] buildings, checked finite): the same bytes
+    /// and first error as writing them one by one.
     fn write_batch(&mut self, batch: &[Building]) -> Result<(), ExportError> {
-        // Checks and GlobalId keys, in order; nothing of a building that is not finite.
-        let mut keys = Vec::with_capacity(batch.len());
-        let mut refused = None;
-        for b in batch {
-            if let Err(e) = check_finite("IFC writer", b) {
-                refused = Some(e);
-                break;
-            }
-            keys.push(self.claim_key(b));
-        }
-        let batch = &batch[..keys.len()];
+        // GlobalId keys, in order.
+        let keys: Vec<(String, u128)> = batch.iter().map(|b| self.claim_key(b)).collect();
         let start = self.w.next_number();
+        let scratch: Vec<Scratch> = (0..batch.len())
+            .map(|_| self.pool.pop().unwrap_or_default())
+            .collect();
         let (g, caches) = (&self.g, &self.caches);
         // The first building sees the caches as they are and knows its first number.
         let rendered: Vec<Rendered> = if batch.len() > 1 {
             batch
                 .par_iter()
                 .zip(&keys)
+                .zip(scratch)
                 .enumerate()
-                .map(|(i, (b, k))| render(g, caches, b, &k.0, (i == 0).then_some(start)))
+                .map(|(i, ((b, k), s))| render(g, caches, b, &k.0, (i == 0).then_some(start), s))
                 .collect()
         } else {
             batch
                 .iter()
                 .zip(&keys)
-                .map(|(b, k)| render(g, caches, b, &k.0, Some(start)))
+                .zip(scratch)
+                .map(|((b, k), s)| render(g, caches, b, &k.0, Some(start), s))
                 .collect()
         };
         for (i, r) in rendered.into_iter().enumerate() {
             let r = if r.inexact || !r.logs.holds(&self.caches) {
                 let start = Some(self.w.next_number());
-                render(&self.g, &self.caches, &batch[i], &keys[i].0, start)
+                let again = render(
+                    &self.g,
+                    &self.caches,
+                    &batch[i],
+                    &keys[i].0,
+                    start,
+                    Scratch::default(),
+                );
+                self.keep(r.into_scratch());
+                again
             } else {
                 r
             };
@@ -293,7 +306,7 @@ impl<W: Write> Open<W> {
                 return Err(e.for_building(&batch[i]));
             }
         }
-        refused.map_or(Ok(()), Err)
+        Ok(())
     }
 
     /// The GlobalId key of `b` (its [`Building::key`], with a suffix when a building before
@@ -314,21 +327,36 @@ impl<W: Write> Open<W> {
 
     /// Writes a rendered building and applies its cache insertions; its error if it had one
     /// (after the entities before the failure).
-    fn append(&mut self, r: Rendered) -> Result<(), ExportError> {
+    fn append(&mut self, mut r: Rendered) -> Result<(), ExportError> {
         let start = self.w.append(&r.w)?;
         r.logs.commit(&mut self.caches, start);
-        for (k, id) in r.occurrences {
+        for &(k, id) in &r.occurrences {
             self.occurrences
                 .entry(k)
                 .or_default()
                 .push(id.relocate(start));
         }
-        match r.done {
-            Ok(building) => {
-                self.buildings.push(building.relocate(start));
-                Ok(())
-            }
-            Err(e) => Err(e),
+        let done = std::mem::replace(&mut r.done, Ok(Id(0)));
+        self.keep(r.into_scratch());
+        let building = done?;
+        self.buildings.push(building.relocate(start));
+        Ok(())
+    }
+
+    /// Keeps the storage of a rendered building for reuse, unless it is large.
+    fn keep(&mut self, s: Scratch) {
+        if s.w.capacity() <= SCRATCH_KEPT && self.pool.len() < PARALLEL_BATCH {
+            self.pool.push(s);
+        }
+    }
+}
+
+impl Rendered {
+    fn into_scratch(self) -> Scratch {
+        Scratch {
+            w: self.w,
+            logs: self.logs,
+            occurrences: self.occurrences,
         }
     }
 }
@@ -351,21 +379,36 @@ impl ExportError {
 
 /// Renders building `b` (checked finite, GlobalId key `key`) against the caches as they are,
 /// its first entity numbered `start` if known.
-fn render(g: &Globals, caches: &Caches, b: &Building, key: &str, start: Option<u64>) -> Rendered {
+/// `scratch` is storage to reuse (of a building appended before).
+fn render(
+    g: &Globals,
+    caches: &Caches,
+    b: &Building,
+    key: &str,
+    start: Option<u64>,
+    scratch: Scratch,
+) -> Rendered {
+    let Scratch {
+        mut w,
+        logs: l,
+        mut occurrences,
+    } = scratch;
+    w.clear();
+    occurrences.clear();
     let mut r = Render {
         g,
-        w: StepBuf::new(),
-        usages: caches.usages.view(),
-        styles: caches.styles.view(),
+        w,
+        usages: caches.usages.view(l.usages),
+        styles: caches.styles.view(l.styles),
         shared: Lod3Views {
-            vertical: caches.vertical.view(),
-            identity_op: caches.identity_op.view(),
-            opening_shapes: caches.opening_shapes.view(),
-            fill_offsets: caches.fill_offsets.view(),
-            renderings: caches.renderings.view(),
-            types: caches.types.view(),
+            vertical: caches.vertical.view(l.vertical),
+            identity_op: caches.identity_op.view(l.identity_op),
+            opening_shapes: caches.opening_shapes.view(l.opening_shapes),
+            fill_offsets: caches.fill_offsets.view(l.fill_offsets),
+            renderings: caches.renderings.view(l.renderings),
+            types: caches.types.view(l.types),
         },
-        occurrences: Vec::new(),
+        occurrences,
         start,
         inexact: false,
     };
@@ -435,6 +478,9 @@ struct Open<W: Write> {
     occurrences: BTreeMap<TypeKey, Vec<Id>>,
     /// Top-level buildings, for the final site aggregation.
     buildings: Vec<Id>,
+    /// Storage of rendered buildings for the next batches to reuse (at most a batch of
+    /// buffers of at most [`SCRATCH_KEPT`] bytes each).
+    pool: Vec<Scratch>,
     /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
     /// repeats (16 bytes a building rather than the key's string).
     keys: BTreeSet<u128>,
@@ -538,6 +584,17 @@ struct Lod3Views<'a> {
     types: View<'a, TypeKey, (Id, Id)>,
 }
 
+/// Storage of a rendered building, kept for the next ones (see [`Open::pool`]).
+#[derive(Default)]
+struct Scratch {
+    w: StepBuf,
+    logs: Logs,
+    occurrences: Vec<(TypeKey, Id)>,
+}
+
+/// Scratch storage of at most this many bytes of entities is kept for reuse.
+const SCRATCH_KEPT: usize = 1 << 20;
+
 /// A rendered building, to be checked against the caches and appended.
 struct Rendered {
     w: StepBuf,
@@ -549,6 +606,7 @@ struct Rendered {
 }
 
 /// What a rendered building did with each cache.
+#[derive(Default)]
 struct Logs {
     usages: Log<i64, Id>,
     styles: Log<[u16; 4], Id>,

@@ -172,6 +172,7 @@ impl<W: Write> Open<W> {
             caches: Caches::new(SHARED_CACHE_LIMIT),
             occurrences: BTreeMap::new(),
             buildings: Vec::new(),
+            pool: Vec::new(),
             keys: BTreeSet::new(),
         })
     }
