@@ -685,6 +685,57 @@ impl Building {
     /// is not finite`. Every writer calls it before writing anything of a building, so that a
     /// refused building leaves nothing half-written.
     pub fn check_finite(&self) -> Result<(), String> {
+        if self.all_finite() {
+            return Ok(());
+        }
+        self.find_non_finite()
+    }
+
+    /// Whether every number [`Building::check_finite`] checks is finite: one pass without a
+    /// branch per number (an exponent of all ones is an infinity or a NaN).
+    fn all_finite(&self) -> bool {
+        let mut c = FiniteCheck(0);
+        c.v(self.base_z);
+        c.v(self.measured_height);
+        for p in &self.parts {
+            c.v(p.base_z);
+            c.v(p.eave_z);
+            c.v(p.top_z);
+            for r in p.footprint.rings() {
+                c.p2(r);
+            }
+            c.face(&p.ground);
+            for w in &p.walls {
+                c.p2(&[w.start, w.end]);
+                c.v(w.base_z);
+                c.v(w.top_z);
+                c.v(w.thickness);
+                c.face(&w.outline);
+                for o in &w.openings {
+                    c.v(o.u0);
+                    c.v(o.u1);
+                    c.v(o.z0);
+                    c.v(o.z1);
+                }
+                for b in &w.balconies {
+                    c.v(b.u0);
+                    c.v(b.u1);
+                    c.v(b.z);
+                    c.v(b.depth);
+                }
+            }
+            for z in &p.levels {
+                c.v(*z);
+            }
+            for r in &p.roof {
+                c.face(r);
+            }
+        }
+        c.0 != FiniteCheck::EXP
+    }
+
+    /// The message of [`Building::check_finite`] for a building that is not all finite.
+    fn find_non_finite(&self) -> Result<(), String> {
         let bad = |what: String| Err(format!("building {}: {what} is not finite", self.id));
         let f2 = |p: &DVec2| p.is_finite();
         let f3 = |p: &DVec3| p.is_finite();
@@ -727,6 +778,44 @@ impl Building {
             }
         }
         Ok(())
+    }
+}
+
+/// The accumulator of [`Building::all_finite`]: the largest exponent field seen (all ones for
+/// an infinity or a NaN), so that a check has no branch.
+struct FiniteCheck(u64);
+
+impl FiniteCheck {
+    const EXP: u64 = 0x7FF0_0000_0000_0000;
+
+    #[inline]
+    fn v(&mut self, v: f64) {
+        self.0 = self.0.max(v.to_bits() & FiniteCheck::EXP);
+    }
+
+    #[inline]
+    fn p2(&mut self, ps: &[DVec2]) {
+        for p in ps {
+            self.v(p.x);
+            self.v(p.y);
+        }
+    }
+
+    #[inline]
+    fn p3(&mut self, ps: &[DVec3]) {
+        for p in ps {
+            self.v(p.x);
+            self.v(p.y);
+            self.v(p.z);
+        }
+    }
+
+    #[inline]
+    fn face(&mut self, f: &Face) {
+        self.p3(&f.outer);
+        for h in &f.holes {
+            self.p3(h);
+        }
     }
 }
 

@@ -17,7 +17,7 @@ use crate::derive::{merged_tags, Generator, Rules};
 use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
-use crate::export::{AtomicFile, BuildingWriter, ExportError, OutputContext, PendingFile};
+use crate::export::{AtomicFile, BuildingWriter, Checked, ExportError, OutputContext, PendingFile};
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
 use crate::kb::{self, tools::Explanation, KnowledgeBase};
@@ -906,6 +906,8 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     }
     // A panic in a writer (a bug) ends the run with an error naming the file and the buildings
     // being written, not with a crash; no output is published, as for any failed run.
+    // Checked once for every writer.
+    let checked = Checked::check(buildings);
     let results: Vec<Result<(), RunError>> = outputs
         .par_iter_mut()
         .map(|(path, w, _, _)| {
@@ -913,7 +915,7 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
                 let (first, last) = (&buildings[0].id, &buildings[buildings.len() - 1].id);
                 format!("writing the buildings from {first} to {last}")
             };
-            match crate::guard::caught(what, || w.write_all(buildings)) {
+            match crate::guard::caught(what, || w.write_checked(&checked)) {
                 Ok(written) => written.map_err(out_err(path)),
                 Err(e) => Err(out_err(path)(ExportError::Invalid(e))),
             }

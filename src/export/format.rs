@@ -28,19 +28,56 @@ impl Ascii for Vec<u8> {
     }
 }
 
-/// Appends the decimal digits of `v`.
-pub(crate) fn push_uint(out: &mut impl Ascii, mut v: u64) {
-    let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
+/// The two-digit decimals `00` to `99`, back to back.
+const PAIRS: &[u8; 200] = b"\
+0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
+
+/// Writes the decimal digits of `v` at the end of `buf`; returns where they start.
+#[inline]
+fn digits_at_end(buf: &mut [u8], mut v: u64) -> usize {
+    let mut i = buf.len();
+    while v >= 100 {
+        let r = (v % 100) as usize * 2;
+        v /= 100;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
     }
+    if v >= 10 {
+        let r = v as usize * 2;
+        i -= 2;
+        buf[i..i + 2].copy_from_slice(&PAIRS[r..r + 2]);
+    } else {
+        i -= 1;
+        buf[i] = b'0' + v as u8;
+    }
+    i
+}
+
+/// Appends the decimal digits of `v`.
+#[inline]
+pub(crate) fn push_uint(out: &mut impl Ascii, v: u64) {
+    let mut digits = [0u8; 20];
+    let i = digits_at_end(&mut digits, v);
     out.push_ascii(&digits[i..]);
+}
+
+/// `x.round() as i64` (halves away from zero) for `|x| < 2^63`, without the libm call: below
+/// 2^52 the truncation and the remainder are exact, above every f64 is an integer.
+#[inline]
+fn round_i64(x: f64) -> i64 {
+    let t = x as i64;
+    let rest = x - t as f64;
+    if rest >= 0.5 {
+        t + 1
+    } else if rest <= -0.5 {
+        t - 1
+    } else {
+        t
+    }
 }
 
 /// Appends a REAL the way STEP Part 21 wants it: always a decimal point, never an exponent,
@@ -67,36 +104,39 @@ pub fn push_real(out: &mut impl Ascii, v: f64) {
         out.push_ascii(s.as_bytes());
         return;
     }
-    let k = (v * 1e6).round();
-    if k == 0.0 {
+    let k = round_i64(v * 1e6);
+    if k == 0 {
         out.push_ascii(b"0.");
         return;
     }
-    if k < 0.0 {
-        out.push_ascii(b"-");
-    }
-    let m = k.abs() as u64;
-    push_uint(out, m / 1_000_000);
-    out.push_ascii(b".");
-    let mut frac = m % 1_000_000;
+    let m = k.unsigned_abs();
+    // [sign][integer digits].[6 decimals], the decimals' trailing zeros dropped.
+    let mut buf = [0u8; 32];
+    let frac = (m % 1_000_000) as usize;
+    let mut end = 26;
     if frac != 0 {
-        let mut width = 6;
-        while frac % 10 == 0 {
-            frac /= 10;
-            width -= 1;
+        let (hi, mid, lo) = (frac / 10_000 * 2, frac / 100 % 100 * 2, frac % 100 * 2);
+        buf[20..22].copy_from_slice(&PAIRS[hi..hi + 2]);
+        buf[22..24].copy_from_slice(&PAIRS[mid..mid + 2]);
+        buf[24..26].copy_from_slice(&PAIRS[lo..lo + 2]);
+        while buf[end - 1] == b'0' {
+            end -= 1;
         }
-        let mut digits = [b'0'; 6];
-        for d in digits[..width].iter_mut().rev() {
-            *d = b'0' + (frac % 10) as u8;
-            frac /= 10;
-        }
-        out.push_ascii(&digits[..width]);
+    } else {
+        end = 20;
     }
+    buf[19] = b'.';
+    let mut i = digits_at_end(&mut buf[..19], m / 1_000_000);
+    if k < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    out.push_ascii(&buf[i..end]);
 }
 
 /// Appends a finite number with exactly 3 decimals, never `-0.000`.
 pub(crate) fn push_fixed3(out: &mut impl Ascii, v: f64) {
-    let scaled = (v * 1000.0).round();
+    let scaled = v * 1000.0;
     if scaled.abs() >= 1e18 {
         // Beyond u64 millimetres (never a real coordinate): let the formatter do it.
         let mut s = String::with_capacity(32);
@@ -104,7 +144,7 @@ pub(crate) fn push_fixed3(out: &mut impl Ascii, v: f64) {
         out.push_ascii(s.as_bytes());
         return;
     }
-    let n = scaled as i64;
+    let n = round_i64(scaled);
     if n < 0 {
         out.push_ascii(b"-");
     }

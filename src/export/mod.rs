@@ -52,10 +52,61 @@ pub enum ExportError {
 }
 
 /// [`Building::check_finite`] as the [`ExportError::Invalid`] of `writer` (e.g. `"IFC writer"`):
-/// every writer calls it before writing anything of a building.
+/// every writer calls it before writing anything of a building, unless given the buildings
+/// [`Checked`].
 pub(crate) fn check_finite(writer: &str, b: &Building) -> Result<(), ExportError> {
     b.check_finite()
         .map_err(|e| ExportError::Invalid(format!("{writer}: {e}")))
+}
+
+/// Buildings checked once for every writer ([`Building::check_finite`]): those before the
+/// first that is refused, and why that one is. It borrows the buildings, so they cannot
+/// change while it is held: a writer given one ([`BuildingWriter::write_checked`]) need not
+/// check again.
+pub struct Checked<'a> {
+    buildings: &'a [Building],
+    /// How many buildings are finite before the first refused one.
+    ok: usize,
+    refused: Option<String>,
+}
+
+impl<'a> Checked<'a> {
+    /// Checks `buildings` (in parallel).
+    pub fn check(buildings: &'a [Building]) -> Checked<'a> {
+        use rayon::prelude::*;
+        let first_bad = if buildings.len() > 1 {
+            buildings
+                .par_iter()
+                .position_first(|b| b.check_finite().is_err())
+        } else {
+            buildings.iter().position(|b| b.check_finite().is_err())
+        };
+        match first_bad {
+            Some(i) => Checked {
+                buildings,
+                ok: i,
+                refused: buildings[i].check_finite().err(),
+            },
+            None => Checked {
+                buildings,
+                ok: buildings.len(),
+                refused: None,
+            },
+        }
+    }
+
+    /// The buildings before the first refused one (all of them if none is).
+    pub fn finite(&self) -> &'a [Building] {
+        &self.buildings[..self.ok]
+    }
+
+    /// The [`ExportError::Invalid`] of `writer` for the first refused building, if any.
+    pub fn refused(&self, writer: &str) -> Result<(), ExportError> {
+        match &self.refused {
+            Some(e) => Err(ExportError::Invalid(format!("{writer}: {e}"))),
+            None => Ok(()),
+        }
+    }
 }
 
 /// Buildings a writer's `write_all` renders in parallel at a time: enough to keep the cores
@@ -73,10 +124,18 @@ pub trait BuildingWriter: Send {
     /// Writes one building (after [`BuildingWriter::begin`], in output order).
     fn write(&mut self, building: &Building) -> Result<(), ExportError>;
     /// Writes `buildings` in order: the same bytes as `write` on each, and the same first error.
-    /// A writer whose per-building work needs none of its state does that work in parallel
-    /// here (rayon) and appends the results in order.
+    /// A writer may do its per-building work in parallel here (rayon) and append the results
+    /// in order.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         buildings.iter().try_for_each(|b| self.write(b))
+    }
+    /// `write_all` of buildings already checked ([`Checked`]), so that a run checks them once
+    /// for all its writers: the same bytes and first error. A writer that checks in its
+    /// `write_all` anyway keeps this default.
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
+        // The refused building is given too, for the writer's own error.
+        let n = checked.ok + usize::from(checked.refused.is_some());
+        self.write_all(&checked.buildings[..n])
     }
     /// Flushes and completes the file. The writer is unusable afterwards.
     fn finish(&mut self) -> Result<(), ExportError>;

@@ -20,9 +20,32 @@ use std::io::{self, Write};
 
 use crate::export::format::push_uint;
 
-/// A reference to an entity instance of the file (`#n`).
+/// A reference to an entity instance of the file (`#n`), or, with [`Id::LOCAL`] set, to the
+/// entity numbered `n & !LOCAL` (from 0) of a [`StepBuf`], whose final number is known only
+/// when the buffer is appended ([`StepWriter::append`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Id(pub u64);
+
+impl Id {
+    /// The bit that marks an id local to a [`StepBuf`]: local ids sort after every file id,
+    /// in creation order, as their final numbers will.
+    pub const LOCAL: u64 = 1 << 63;
+
+    /// Whether this is an id local to a [`StepBuf`].
+    pub fn is_local(self) -> bool {
+        self.0 & Id::LOCAL != 0
+    }
+
+    /// The file id of this id once the buffer it is local to starts at entity number `start`
+    /// (a file id is returned unchanged).
+    pub fn relocate(self, start: u64) -> Id {
+        if self.is_local() {
+            Id(start + (self.0 & !Id::LOCAL))
+        } else {
+            self
+        }
+    }
+}
 
 impl fmt::Display for Id {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -50,13 +73,14 @@ pub use crate::export::format::push_real;
 /// anything else (non-ASCII, control characters) as `\X2\HHHH..\X0\` runs of UTF-16 code units
 /// for the Basic Multilingual Plane and `\X4\HHHHHHHH..\X0\` runs for the other planes.
 pub fn encode_string(s: &str) -> String {
-    let mut out = String::with_capacity(s.len() + 2);
+    let mut out = Vec::with_capacity(s.len() + 2);
     push_string(&mut out, s);
-    out
+    // Only ASCII is pushed.
+    String::from_utf8(out).unwrap_or_default()
 }
 
-/// Appends [`encode_string`]`(s)` to `out`.
-pub fn push_string(out: &mut String, s: &str) {
+/// Appends [`encode_string`]`(s)` to `out` (ASCII bytes).
+pub fn push_string(out: &mut Vec<u8>, s: &str) {
     #[derive(PartialEq, Clone, Copy)]
     enum Run {
         None,
@@ -67,12 +91,12 @@ pub fn push_string(out: &mut String, s: &str) {
         .all(|b| (b' '..=b'~').contains(&b) && b != b'\'' && b != b'\\')
     {
         out.reserve(s.len() + 2);
-        out.push('\'');
-        out.push_str(s);
-        out.push('\'');
+        out.push(b'\'');
+        out.extend_from_slice(s.as_bytes());
+        out.push(b'\'');
         return;
     }
-    out.push('\'');
+    out.push(b'\'');
     let mut run = Run::None;
     for c in s.chars() {
         let wanted = match c {
@@ -82,42 +106,46 @@ pub fn push_string(out: &mut String, s: &str) {
         };
         if wanted != run {
             if run != Run::None {
-                out.push_str("\\X0\\");
+                out.extend_from_slice(b"\\X0\\");
             }
             match wanted {
-                Run::X2 => out.push_str("\\X2\\"),
-                Run::X4 => out.push_str("\\X4\\"),
+                Run::X2 => out.extend_from_slice(b"\\X2\\"),
+                Run::X4 => out.extend_from_slice(b"\\X4\\"),
                 Run::None => {}
             }
             run = wanted;
         }
         match (run, c) {
-            (Run::None, '\'') => out.push_str("''"),
-            (Run::None, '\\') => out.push_str("\\\\"),
-            (Run::None, c) => out.push(c),
+            (Run::None, '\'') => out.extend_from_slice(b"''"),
+            (Run::None, '\\') => out.extend_from_slice(b"\\\\"),
+            // Printable ASCII.
+            (Run::None, c) => out.push(c as u8),
             (Run::X2, c) => {
-                let _ = fmt::Write::write_fmt(out, format_args!("{:04X}", c as u32));
+                let _ = write!(out, "{:04X}", c as u32);
             }
             (Run::X4, c) => {
-                let _ = fmt::Write::write_fmt(out, format_args!("{:08X}", c as u32));
+                let _ = write!(out, "{:08X}", c as u32);
             }
         }
     }
     if run != Run::None {
-        out.push_str("\\X0\\");
+        out.extend_from_slice(b"\\X0\\");
     }
-    out.push('\'');
+    out.push(b'\'');
 }
 
 /// The 64 characters of IFC's base-64 encoding of GUIDs, in digit order.
 pub const IFC_BASE64: &[u8; 64] =
     b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$";
 
-/// FNV-1a over `bytes`, continuing from `h`.
-fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
+/// FNV-1a over `bytes`, continuing from each of the two states (two independent streams in
+/// one pass).
+fn fnv1a2(mut h: [u64; 2], bytes: &[u8]) -> [u64; 2] {
     for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01B3);
+        for h in &mut h {
+            *h ^= u64::from(*b);
+            *h = h.wrapping_mul(0x0000_0100_0000_01B3);
+        }
     }
     h
 }
@@ -133,14 +161,11 @@ fn mix64(mut z: u64) -> u64 {
 /// finished with SplitMix64 and cross-mixed. A 0xFF byte (never in UTF-8) separates the two
 /// strings so that ("ab", "c") and ("a", "bc") differ.
 pub fn hash128(namespace: &str, path: &str) -> u128 {
-    let feed = |seed: u64| {
-        fnv1a(
-            fnv1a(fnv1a(seed, namespace.as_bytes()), &[0xFF]),
-            path.as_bytes(),
-        )
-    };
-    let a = feed(0xCBF2_9CE4_8422_2325);
-    let b = feed(0x6C62_272E_07BB_0142);
+    let h = [0xCBF2_9CE4_8422_2325, 0x6C62_272E_07BB_0142];
+    let [a, b] = fnv1a2(
+        fnv1a2(fnv1a2(h, namespace.as_bytes()), &[0xFF]),
+        path.as_bytes(),
+    );
     let hi = mix64(a ^ b.rotate_left(32));
     let lo = mix64(b ^ hi);
     (u128::from(hi) << 64) | u128::from(lo)
@@ -149,10 +174,15 @@ pub fn hash128(namespace: &str, path: &str) -> u128 {
 /// The 22-character IFC GlobalId encoding of a 128-bit value: the first character carries the
 /// top 2 bits, each of the 21 others 6 bits, most significant first.
 pub fn encode_guid(v: u128) -> String {
-    let mut out = String::with_capacity(22);
-    out.push(IFC_BASE64[(v >> 126) as usize] as char);
-    for i in (0..21).rev() {
-        out.push(IFC_BASE64[((v >> (6 * i)) & 0x3F) as usize] as char);
+    String::from_utf8(guid_bytes(v).to_vec()).unwrap_or_default()
+}
+
+/// [`encode_guid`] as bytes.
+fn guid_bytes(v: u128) -> [u8; 22] {
+    let mut out = [0u8; 22];
+    out[0] = IFC_BASE64[(v >> 126) as usize];
+    for (i, c) in out[1..].iter_mut().enumerate() {
+        *c = IFC_BASE64[((v >> (6 * (20 - i))) & 0x3F) as usize];
     }
     out
 }
@@ -240,16 +270,21 @@ pub fn iso8601_utc(secs: i64) -> String {
         sod % 60
     )
 }
-
 /// Builder of one entity's parameter list, handed to [`StepWriter::entity`]. Each call appends one
 /// parameter (commas are managed here).
 pub struct Args<'a> {
-    buf: &'a mut String,
+    buf: &'a mut Vec<u8>,
+    /// Where the references to local ids ([`Id::LOCAL`]) are, for [`StepBuf::append_to`].
+    holes: &'a mut Vec<Hole>,
     count: usize,
     /// The first argument that broke its type's rule ([`Args::positive`]), for [`StepWriter::entity`]
     /// to refuse the entity with.
     bad: Option<String>,
 }
+
+/// A reference to a local id in a [`StepBuf`]: the byte offset where its number goes and the
+/// local number.
+type Hole = (usize, u64);
 
 /// An entity that would break a rule of the schema (a positive length written as 0): the
 /// writer refuses it rather than write an invalid file. Carried inside the `io::Error` that
@@ -272,9 +307,10 @@ pub fn broken_rule(e: &io::Error) -> Option<&BrokenRule> {
 }
 
 impl Args<'_> {
-    fn sep(&mut self) -> &mut String {
+    #[inline]
+    fn sep(&mut self) -> &mut Vec<u8> {
         if self.count > 0 {
-            self.buf.push(',');
+            self.buf.push(b',');
         }
         self.count += 1;
         self.buf
@@ -283,8 +319,12 @@ impl Args<'_> {
     /// An entity reference `#n`.
     pub fn id(&mut self, id: Id) -> &mut Self {
         let b = self.sep();
-        b.push('#');
-        push_uint(b, id.0);
+        b.push(b'#');
+        if id.is_local() {
+            self.holes.push((self.buf.len(), id.0 & !Id::LOCAL));
+        } else {
+            push_uint(self.buf, id.0);
+        }
         self
     }
 
@@ -338,7 +378,7 @@ impl Args<'_> {
     pub fn int(&mut self, v: i64) -> &mut Self {
         let b = self.sep();
         if v < 0 {
-            b.push('-');
+            b.push(b'-');
         }
         push_uint(b, v.unsigned_abs());
         self
@@ -359,6 +399,15 @@ impl Args<'_> {
         self
     }
 
+    /// The STRING of [`global_id`]`(namespace, path)`.
+    pub fn guid(&mut self, namespace: &str, path: &str) -> &mut Self {
+        let b = self.sep();
+        b.push(b'\'');
+        b.extend_from_slice(&guid_bytes(hash128(namespace, path)));
+        b.push(b'\'');
+        self
+    }
+
     /// A STRING, or `$` when absent.
     pub fn opt_string(&mut self, s: Option<&str>) -> &mut Self {
         match s {
@@ -369,22 +418,22 @@ impl Args<'_> {
 
     /// `$`: an unset optional attribute.
     pub fn null(&mut self) -> &mut Self {
-        self.sep().push('$');
+        self.sep().push(b'$');
         self
     }
 
     /// `*`: an attribute derived in a subtype (e.g. `IfcSIUnit.Dimensions`).
     pub fn derived(&mut self) -> &mut Self {
-        self.sep().push('*');
+        self.sep().push(b'*');
         self
     }
 
     /// An enumeration value `.NAME.`; `name` must be the bare upper-case identifier.
     pub fn enumeration(&mut self, name: &str) -> &mut Self {
         let b = self.sep();
-        b.push('.');
-        b.push_str(name);
-        b.push('.');
+        b.push(b'.');
+        b.extend_from_slice(name.as_bytes());
+        b.push(b'.');
         self
     }
 
@@ -396,26 +445,24 @@ impl Args<'_> {
     /// A typed value of a SELECT, e.g. `IFCLABEL('x')`; `f` writes the inner parameter.
     pub fn typed(&mut self, type_name: &str, f: impl FnOnce(&mut Args<'_>)) -> &mut Self {
         let b = self.sep();
-        b.push_str(type_name);
-        b.push('(');
-        let mut inner = Args {
-            buf: &mut *self.buf,
-            count: 0,
-            bad: None,
-        };
-        f(&mut inner);
-        if self.bad.is_none() {
-            self.bad = inner.bad;
-        }
-        self.buf.push(')');
+        b.extend_from_slice(type_name.as_bytes());
+        b.push(b'(');
+        self.inner(f);
         self
     }
 
     /// A list `( ... )`; `f` writes its members.
     pub fn list(&mut self, f: impl FnOnce(&mut Args<'_>)) -> &mut Self {
-        self.sep().push('(');
+        self.sep().push(b'(');
+        self.inner(f);
+        self
+    }
+
+    /// The parameters `f` writes, then `)`.
+    fn inner(&mut self, f: impl FnOnce(&mut Args<'_>)) {
         let mut inner = Args {
             buf: &mut *self.buf,
+            holes: &mut *self.holes,
             count: 0,
             bad: None,
         };
@@ -423,17 +470,98 @@ impl Args<'_> {
         if self.bad.is_none() {
             self.bad = inner.bad;
         }
-        self.buf.push(')');
-        self
+        self.buf.push(b')');
     }
 }
 
-/// Streaming writer of one Part 21 file: `write_header`, then `entity` as many times as needed,
-/// then `finish`. Entities are numbered from 1 in call order.
+/// Entity instances rendered apart from the file, numbered locally from 0 ([`Id::LOCAL`] ids),
+/// so that several can be rendered in parallel and appended in order
+/// ([`StepWriter::append`]): appending only writes the final numbers of the local ids into the
+/// rendered text. References to file ids are written as they are.
+#[derive(Default)]
+pub struct StepBuf {
+    /// The entities' text, `#=KEYWORD(args);\n` each, without the numbers of local ids.
+    bytes: Vec<u8>,
+    /// Where the numbers of local ids go, in byte order.
+    holes: Vec<Hole>,
+    count: u64,
+}
+
+impl StepBuf {
+    /// An empty buffer.
+    pub fn new() -> StepBuf {
+        StepBuf::default()
+    }
+
+    /// Renders one entity instance `#n=KEYWORD(args);` and returns its local id (see
+    /// [`StepWriter::entity`]). An entity refused for a broken rule leaves nothing behind.
+    pub fn entity(&mut self, keyword: &str, f: impl FnOnce(&mut Args<'_>)) -> io::Result<Id> {
+        let (mark, holes) = (self.bytes.len(), self.holes.len());
+        let id = Id(Id::LOCAL | self.count);
+        self.bytes.push(b'#');
+        self.holes.push((self.bytes.len(), self.count));
+        self.bytes.push(b'=');
+        self.bytes.extend_from_slice(keyword.as_bytes());
+        self.bytes.push(b'(');
+        let mut args = Args {
+            buf: &mut self.bytes,
+            holes: &mut self.holes,
+            count: 0,
+            bad: None,
+        };
+        f(&mut args);
+        if let Some(why) = args.bad {
+            self.bytes.truncate(mark);
+            self.holes.truncate(holes);
+            return Err(io::Error::other(BrokenRule(format!("{keyword}: {why}"))));
+        }
+        self.bytes.extend_from_slice(b");\n");
+        self.count += 1;
+        Ok(id)
+    }
+
+    /// Number of entities rendered.
+    pub fn len(&self) -> u64 {
+        self.count
+    }
+
+    /// Whether no entity was rendered.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Bytes the buffer holds without reallocating.
+    pub fn capacity(&self) -> usize {
+        self.bytes.capacity()
+    }
+
+    /// Forgets the rendered entities (keeping the storage).
+    pub fn clear(&mut self) {
+        self.bytes.clear();
+        self.holes.clear();
+        self.count = 0;
+    }
+
+    /// Appends the text of the entities to `out`, local id `k` numbered `start + k`.
+    pub fn append_to(&self, out: &mut Vec<u8>, start: u64) {
+        out.reserve(self.bytes.len() + 8 * self.holes.len());
+        let mut pos = 0;
+        for &(at, k) in &self.holes {
+            out.extend_from_slice(&self.bytes[pos..at]);
+            push_uint(out, start + k);
+            pos = at;
+        }
+        out.extend_from_slice(&self.bytes[pos..]);
+    }
+}
+
+/// Streaming writer of one Part 21 file: `write_header`, then `entity` (or `append`) as many
+/// times as needed, then `finish`. Entities are numbered from 1 in call order.
 pub struct StepWriter<W: Write> {
     out: W,
     next: u64,
-    line: String,
+    one: StepBuf,
+    line: Vec<u8>,
 }
 
 impl<W: Write> StepWriter<W> {
@@ -442,7 +570,8 @@ impl<W: Write> StepWriter<W> {
         StepWriter {
             out,
             next: 1,
-            line: String::with_capacity(256),
+            one: StepBuf::new(),
+            line: Vec::with_capacity(256),
         }
     }
 
@@ -481,26 +610,31 @@ impl<W: Write> StepWriter<W> {
     /// Writes one entity instance `#n=KEYWORD(args);` and returns its id. `keyword` is the
     /// upper-case entity name; `f` writes the attributes in schema order.
     pub fn entity(&mut self, keyword: &str, f: impl FnOnce(&mut Args<'_>)) -> io::Result<Id> {
-        let id = Id(self.next);
-        self.next += 1;
-        self.line.clear();
-        self.line.push('#');
-        push_uint(&mut self.line, id.0);
-        self.line.push('=');
-        self.line.push_str(keyword);
-        self.line.push('(');
-        let mut args = Args {
-            buf: &mut self.line,
-            count: 0,
-            bad: None,
+        let mut one = std::mem::take(&mut self.one);
+        one.clear();
+        let done = one.entity(keyword, f);
+        let appended = match done {
+            Ok(_) => self.append(&one).map(Id),
+            Err(e) => Err(e),
         };
-        f(&mut args);
-        if let Some(why) = args.bad {
-            return Err(io::Error::other(BrokenRule(format!("{keyword}: {why}"))));
-        }
-        self.line.push_str(");\n");
-        self.out.write_all(self.line.as_bytes())?;
-        Ok(id)
+        self.one = one;
+        appended
+    }
+
+    /// Writes the entities of `buf` and returns the number its local id 0 gets (the number
+    /// of the next entity when `buf` is empty).
+    pub fn append(&mut self, buf: &StepBuf) -> io::Result<u64> {
+        let start = self.next;
+        self.line.clear();
+        buf.append_to(&mut self.line, start);
+        self.out.write_all(&self.line)?;
+        self.next += buf.len();
+        Ok(start)
+    }
+
+    /// The number the next entity gets.
+    pub fn next_number(&self) -> u64 {
+        self.next
     }
 
     /// Number of entities written so far.

@@ -23,18 +23,17 @@
 //! Everything but the spaces is contained in the storey with the LOD3 elements.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 
 use glam::{DVec2, DVec3};
 
 use super::openings::Host;
-use super::{ElementFrame, Open, EPS};
+use super::{ElementFrame, Render, EPS};
 use crate::export::lod4geom;
-use crate::export::step::{global_id, Id};
+use crate::export::step::Id;
 use crate::export::ExportError;
 use crate::model::{Face, Opening, OpeningKind, Part, StoreyInterior, Wall};
 
-impl<W: Write> Open<W> {
+impl Render<'_> {
     /// Writes the interiors of `part` into its storeys (`storeys[i]` placed by `frames[i]`),
     /// adding the contained elements to `contained[i]` and the interior walls to `by_usage`.
     pub(super) fn interiors(
@@ -66,7 +65,7 @@ impl<W: Write> Open<W> {
             }
             if !spaces.is_empty() {
                 self.w.entity("IFCRELAGGREGATES", |a| {
-                    a.string(&global_id(key, &format!("{path}/spaces")))
+                    a.guid(key, &format!("{path}/spaces"))
                         .null()
                         .null()
                         .null()
@@ -186,16 +185,16 @@ impl<W: Write> Open<W> {
             return Ok(None);
         }
         let profile = self.plan_profile(frame, &ring, &[])?;
-        let up = self.dir_z;
+        let up = self.g.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
             a.id(profile).null().id(up).positive(height);
         })?;
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[rep])?;
         let pl = self.level_placement(frame, s.floor_z)?;
         let space = self.w.entity("IFCSPACE", |a| {
-            a.string(&global_id(key, path))
+            a.guid(key, path)
                 .null()
                 .string(&room.name)
                 .null()
@@ -223,7 +222,7 @@ impl<W: Write> Open<W> {
             })?);
         }
         let qto = self.w.entity("IFCELEMENTQUANTITY", |a| {
-            a.string(&global_id(key, &format!("{path}/qto")))
+            a.guid(key, &format!("{path}/qto"))
                 .null()
                 .string("Qto_SpaceBaseQuantities")
                 .null()
@@ -231,7 +230,7 @@ impl<W: Write> Open<W> {
                 .ids(&quantities);
         })?;
         self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-            a.string(&global_id(key, &format!("{path}/qto/rel")))
+            a.guid(key, &format!("{path}/qto/rel"))
                 .null()
                 .null()
                 .null()
@@ -266,24 +265,24 @@ impl<W: Write> Open<W> {
 
         // The axis is the reference line of the shared layer set usage (offset 0, body on +Y),
         // as for the exterior walls.
-        let (origin2, end2) = (self.origin2, self.point2(DVec2::new(len, 0.0))?);
+        let (origin2, end2) = (self.g.origin2, self.point2(DVec2::new(len, 0.0))?);
         let axis_line = self.w.entity("IFCPOLYLINE", |a| {
             a.ids(&[origin2, end2]);
         })?;
-        let axis_ctx = self.axis_ctx;
+        let axis_ctx = self.g.axis_ctx;
         let axis_rep = self.representation(axis_ctx, "Axis", "Curve2D", &[axis_line])?;
         let profile = self.rect_profile(0.0, 0.0, len, w.thickness)?;
-        let up = self.dir_z;
+        let up = self.g.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
             a.id(profile).null().id(up).positive(height);
         })?;
         self.styled(solid, lod4geom::INTERIOR_WALL_COLOR)?;
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let body_rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[axis_rep, body_rep])?;
         let name = format!("Interior wall {}.{wi}", s.storey);
         let id = self.w.entity("IFCWALLSTANDARDCASE", |a| {
-            a.string(&global_id(key, path))
+            a.guid(key, path)
                 .null()
                 .string(&name)
                 .null()
@@ -327,7 +326,7 @@ impl<W: Write> Open<W> {
         if steps.is_empty() {
             return Ok(None);
         }
-        let up = self.dir_z;
+        let up = self.g.dir_z;
         let mut items = Vec::with_capacity(steps.len());
         for step in &steps {
             let profile = self.plan_profile(frame, &step.ring, &[])?;
@@ -338,12 +337,12 @@ impl<W: Write> Open<W> {
         for &item in &items {
             self.styled(item, lod4geom::STAIR_COLOR)?;
         }
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &items)?;
         let shape = self.shape(&[rep])?;
         let pl = self.level_placement(frame, s.floor_z)?;
         Ok(Some(self.w.entity("IFCSTAIR", |a| {
-            a.string(&global_id(key, path))
+            a.guid(key, path)
                 .null()
                 .string("Stair")
                 .null()
@@ -369,7 +368,7 @@ impl<W: Write> Open<W> {
         if pieces.is_empty() {
             return Ok(None);
         }
-        let down = self.dir_neg_z;
+        let down = self.g.dir_neg_z;
         let mut items = Vec::with_capacity(pieces.len());
         for p in &pieces {
             let profile = self.plan_profile(frame, &p.outer, &p.holes)?;
@@ -380,13 +379,13 @@ impl<W: Write> Open<W> {
         for &item in &items {
             self.styled(item, lod4geom::SLAB_COLOR)?;
         }
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &items)?;
         let shape = self.shape(&[rep])?;
         let pl = self.level_placement(frame, s.floor_z)?;
         let name = format!("Floor {}", s.storey);
         Ok(Some(self.w.entity("IFCSLAB", |a| {
-            a.string(&global_id(key, path))
+            a.guid(key, path)
                 .null()
                 .string(&name)
                 .null()

@@ -89,12 +89,16 @@ use std::io::Write;
 
 use glam::DVec3;
 
-use crate::export::step::{Id, StepWriter};
-use crate::export::{check_finite, BuildingWriter, ExportError, OutputContext};
+use rayon::prelude::*;
+
+use crate::export::step::{hash128, Id, StepBuf, StepWriter};
+use crate::export::{BuildingWriter, Checked, ExportError, OutputContext, PARALLEL_BATCH};
 use crate::model::{Building, RoofShape};
 
-use openings::{FillType, TypeKey};
+use cache::{Cache, Log, View};
+use openings::TypeKey;
 
+mod cache;
 mod lod4;
 mod openings;
 mod roofs;
@@ -200,27 +204,32 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
             }
         };
         let mut open = Open::begin(out, ctx, &self.file_name)?;
-        open.shared.limit = self.cache_limit;
+        open.caches.opening_shapes.set_limit(self.cache_limit);
+        open.caches.fill_offsets.set_limit(self.cache_limit);
         self.state = State::Open(Box::new(open));
         Ok(())
     }
 
     fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        self.write_all(std::slice::from_ref(building))
+    }
+
+    /// Renders [`PARALLEL_BATCH`] buildings at a time in parallel, each against the shared
+    /// caches as the batch found them (see [`cache`]), and appends them in order; a building
+    /// whose rendering did not see the caches as the buildings before it left them is rendered
+    /// again. The same bytes as `write` on each.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         match &mut self.state {
             State::Open(open) => {
-                check_finite("IFC writer", building)?;
-                // An entity that would break a schema rule (a zero length) ends the file here
-                // with an error naming the building, never as an invalid file.
-                open.building(building).map_err(|e| match e {
-                    ExportError::Io(io) => match crate::export::step::broken_rule(&io) {
-                        Some(rule) => ExportError::Invalid(format!(
-                            "IFC writer: building {}: {rule}",
-                            building.id
-                        )),
-                        None => ExportError::Io(io),
-                    },
-                    other => other,
-                })
+                checked
+                    .finite()
+                    .chunks(PARALLEL_BATCH)
+                    .try_for_each(|batch| open.write_batch(batch))?;
+                checked.refused("IFC writer")
             }
             _ => Err(ExportError::Invalid(
                 "IFC writer: write called outside begin..finish".into(),
@@ -242,6 +251,184 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
                 ))
             }
         }
+    }
+}
+
+impl<W: Write> Open<W> {
+    /// Writes `batch` (at most [`PARALLEL_BATCH`] buildings, checked finite): the same bytes
+    /// and first error as writing them one by one.
+    fn write_batch(&mut self, batch: &[Building]) -> Result<(), ExportError> {
+        // GlobalId keys, in order.
+        let keys: Vec<(String, u128)> = batch.iter().map(|b| self.claim_key(b)).collect();
+        let start = self.w.next_number();
+        let scratch: Vec<Scratch> = (0..batch.len())
+            .map(|_| self.pool.pop().unwrap_or_default())
+            .collect();
+        let (g, caches) = (&self.g, &self.caches);
+        // The first building sees the caches as they are and knows its first number.
+        let rendered: Vec<Rendered> = if batch.len() > 1 {
+            batch
+                .par_iter()
+                .zip(&keys)
+                .zip(scratch)
+                .enumerate()
+                .map(|(i, ((b, k), s))| render(g, caches, b, &k.0, (i == 0).then_some(start), s))
+                .collect()
+        } else {
+            batch
+                .iter()
+                .zip(&keys)
+                .zip(scratch)
+                .map(|((b, k), s)| render(g, caches, b, &k.0, Some(start), s))
+                .collect()
+        };
+        for (i, r) in rendered.into_iter().enumerate() {
+            let r = if r.inexact || !r.logs.holds(&self.caches) {
+                let start = Some(self.w.next_number());
+                let again = render(
+                    &self.g,
+                    &self.caches,
+                    &batch[i],
+                    &keys[i].0,
+                    start,
+                    Scratch::default(),
+                );
+                self.keep(r.into_scratch());
+                again
+            } else {
+                r
+            };
+            if let Err(e) = self.append(r) {
+                // The buildings after it were not written: their keys are free again.
+                for (_, h) in &keys[i + 1..] {
+                    self.keys.remove(h);
+                }
+                return Err(e.for_building(&batch[i]));
+            }
+        }
+        Ok(())
+    }
+
+    /// The GlobalId key of `b` (its [`Building::key`], with a suffix when a building before
+    /// had the same, so that ids stay unique) and its hash, now taken.
+    fn claim_key(&mut self, b: &Building) -> (String, u128) {
+        let first = b.key();
+        let mut key = first.clone();
+        let mut n = 1;
+        loop {
+            let h = hash128("building key", &key);
+            if self.keys.insert(h) {
+                return (key, h);
+            }
+            n += 1;
+            key = format!("{first}~{n}");
+        }
+    }
+
+    /// Writes a rendered building and applies its cache insertions; its error if it had one
+    /// (after the entities before the failure).
+    fn append(&mut self, mut r: Rendered) -> Result<(), ExportError> {
+        let start = self.w.append(&r.w)?;
+        r.logs.commit(&mut self.caches, start);
+        for &(k, id) in &r.occurrences {
+            self.occurrences
+                .entry(k)
+                .or_default()
+                .push(id.relocate(start));
+        }
+        let done = std::mem::replace(&mut r.done, Ok(Id(0)));
+        self.keep(r.into_scratch());
+        let building = done?;
+        self.buildings.push(building.relocate(start));
+        Ok(())
+    }
+
+    /// Keeps the storage of a rendered building for reuse, unless it is large.
+    fn keep(&mut self, s: Scratch) {
+        if s.w.capacity() <= SCRATCH_KEPT && self.pool.len() < PARALLEL_BATCH {
+            self.pool.push(s);
+        }
+    }
+}
+
+impl Rendered {
+    fn into_scratch(self) -> Scratch {
+        Scratch {
+            w: self.w,
+            logs: self.logs,
+            occurrences: self.occurrences,
+        }
+    }
+}
+
+impl ExportError {
+    /// An error of the IFC writer on building `b`: an entity that would break a schema rule (a
+    /// zero length) ends the file with an error naming the building, never as an invalid file.
+    fn for_building(self, b: &Building) -> ExportError {
+        match self {
+            ExportError::Io(io) => match crate::export::step::broken_rule(&io) {
+                Some(rule) => {
+                    ExportError::Invalid(format!("IFC writer: building {}: {rule}", b.id))
+                }
+                None => ExportError::Io(io),
+            },
+            other => other,
+        }
+    }
+}
+
+/// Renders building `b` (checked finite, GlobalId key `key`) against the caches as they are,
+/// its first entity numbered `start` if known.
+/// `scratch` is storage to reuse (of a building appended before).
+fn render(
+    g: &Globals,
+    caches: &Caches,
+    b: &Building,
+    key: &str,
+    start: Option<u64>,
+    scratch: Scratch,
+) -> Rendered {
+    let Scratch {
+        mut w,
+        logs: l,
+        mut occurrences,
+    } = scratch;
+    w.clear();
+    occurrences.clear();
+    let mut r = Render {
+        g,
+        w,
+        usages: caches.usages.view(l.usages),
+        styles: caches.styles.view(l.styles),
+        shared: Lod3Views {
+            vertical: caches.vertical.view(l.vertical),
+            identity_op: caches.identity_op.view(l.identity_op),
+            opening_shapes: caches.opening_shapes.view(l.opening_shapes),
+            fill_offsets: caches.fill_offsets.view(l.fill_offsets),
+            renderings: caches.renderings.view(l.renderings),
+            types: caches.types.view(l.types),
+        },
+        occurrences,
+        start,
+        inexact: false,
+    };
+    let done = r.building(b, key);
+    let s = r.shared;
+    Rendered {
+        w: r.w,
+        logs: Logs {
+            usages: r.usages.into_log(),
+            styles: r.styles.into_log(),
+            vertical: s.vertical.into_log(),
+            identity_op: s.identity_op.into_log(),
+            opening_shapes: s.opening_shapes.into_log(),
+            fill_offsets: s.fill_offsets.into_log(),
+            renderings: s.renderings.into_log(),
+            types: s.types.into_log(),
+        },
+        occurrences: r.occurrences,
+        inexact: r.inexact,
+        done,
     }
 }
 
@@ -283,6 +470,24 @@ pub fn compound_angle(deg: f64) -> Option<[i64; 4]> {
 /// The state of an open file: the STEP writer, shared entities, caches and what `finish` needs.
 struct Open<W: Write> {
     w: StepWriter<W>,
+    g: Globals,
+    site: Id,
+    project: Id,
+    caches: Caches,
+    /// The occurrences of each window and door type, for the final `IfcRelDefinesByType`s.
+    occurrences: BTreeMap<TypeKey, Vec<Id>>,
+    /// Top-level buildings, for the final site aggregation.
+    buildings: Vec<Id>,
+    /// Storage of rendered buildings for the next batches to reuse (at most a batch of
+    /// buffers of at most [`SCRATCH_KEPT`] bytes each).
+    pool: Vec<Scratch>,
+    /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
+    /// repeats (16 bytes a building rather than the key's string).
+    keys: BTreeSet<u128>,
+}
+
+/// The entities and settings of the file that every building refers to, written by `begin`.
+struct Globals {
     /// GlobalId namespace of project-level objects (the source name).
     ns: String,
     origin3: Id,
@@ -295,25 +500,12 @@ struct Open<W: Write> {
     identity: Id,
     body_ctx: Id,
     axis_ctx: Id,
-    site: Id,
     site_placement: Id,
     wall_material: Id,
     /// `OutputContext::origin.z`: the datum height of the local frame's z = 0.
     origin_z: f64,
-    /// Material layer set usage per wall thickness (micrometres).
-    usages: BTreeMap<i64, Id>,
-    /// Surface style per colour.
-    styles: BTreeMap<[u16; 4], Id>,
-    /// Top-level buildings, for the final site aggregation.
-    buildings: Vec<Id>,
-    /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
-    /// repeats (16 bytes a building rather than the key's string).
-    keys: BTreeSet<u128>,
     /// Whether the run is LOD3 or more (storeys per level, openings, windows, doors, balconies).
     lod3: bool,
-    project: Id,
-    /// LOD3 shared entities, created on first use so LOD1/LOD2 files do not change.
-    shared: Lod3Shared,
 }
 
 /// Most entries kept in each of the caches of shared opening bodies and fill offsets, whose keys
@@ -325,25 +517,131 @@ struct Open<W: Write> {
 /// LOD4 tile) are unchanged.
 const SHARED_CACHE_LIMIT: usize = 100_000;
 
-/// Entities shared file-wide by LOD3 elements, created lazily.
-#[derive(Default)]
-struct Lod3Shared {
+/// The file-wide caches of shared entities, each created on first use (the LOD3 ones only by
+/// LOD3 elements, so LOD1/LOD2 files do not change).
+struct Caches {
+    /// Material layer set usage per wall thickness (micrometres).
+    usages: Cache<i64, Id>,
+    /// Surface style per colour.
+    styles: Cache<[u16; 4], Id>,
     /// `IfcAxis2Placement3D(origin, -Y, X)`: maps a profile's (x, y) to (X, Z), extruding along
     /// its -Z goes to +Y (into the wall).
-    vertical: Option<Id>,
+    vertical: Cache<(), Id>,
     /// `IfcCartesianTransformationOperator3D` at the origin (mapped items are placed by their
     /// product's placement).
-    identity_op: Option<Id>,
-    /// Entries kept per cache before it is emptied ([`SHARED_CACHE_LIMIT`]).
-    limit: usize,
-    /// Product shape of an opening body per (width, height, depth) in micrometres.
-    opening_shapes: BTreeMap<[i64; 3], Id>,
-    /// `IfcAxis2Placement3D` of a window/door in its opening, per offset in micrometres.
-    fill_offsets: BTreeMap<[i64; 3], Id>,
+    identity_op: Cache<(), Id>,
+    /// Product shape of an opening body per (width, height, depth) in micrometres (at most
+    /// [`SHARED_CACHE_LIMIT`] entries).
+    opening_shapes: Cache<[i64; 3], Id>,
+    /// `IfcAxis2Placement3D` of a window/door in its opening, per offset in micrometres (at
+    /// most [`SHARED_CACHE_LIMIT`] entries).
+    fill_offsets: Cache<[i64; 3], Id>,
     /// Rendering surface style per (colour, transparency in thousandths).
-    renderings: BTreeMap<([u16; 4], u16), Id>,
-    /// Window and door types, by what makes two openings the same kind.
-    types: BTreeMap<TypeKey, FillType>,
+    renderings: Cache<([u16; 4], u16), Id>,
+    /// Window and door types (the type and the product shape of one `IfcMappedItem` of its
+    /// representation map), by what makes two openings the same kind.
+    types: Cache<TypeKey, (Id, Id)>,
+}
+
+impl Caches {
+    fn new(limit: usize) -> Caches {
+        Caches {
+            usages: Cache::new(usize::MAX),
+            styles: Cache::new(usize::MAX),
+            vertical: Cache::new(usize::MAX),
+            identity_op: Cache::new(usize::MAX),
+            opening_shapes: Cache::new(limit),
+            fill_offsets: Cache::new(limit),
+            renderings: Cache::new(usize::MAX),
+            types: Cache::new(usize::MAX),
+        }
+    }
+}
+
+/// One building being rendered ([`render`]): its entities, numbered locally, and its views of
+/// the caches.
+struct Render<'a> {
+    g: &'a Globals,
+    w: StepBuf,
+    usages: View<'a, i64, Id>,
+    styles: View<'a, [u16; 4], Id>,
+    shared: Lod3Views<'a>,
+    /// The window and door occurrences of the building, by type.
+    occurrences: Vec<(TypeKey, Id)>,
+    /// The number of the building's first entity, when known.
+    start: Option<u64>,
+    /// Whether something written needed `start` unknown (the rendering must be redone).
+    inexact: bool,
+}
+
+/// The views of the LOD3 caches ([`Caches`]).
+struct Lod3Views<'a> {
+    vertical: View<'a, (), Id>,
+    identity_op: View<'a, (), Id>,
+    opening_shapes: View<'a, [i64; 3], Id>,
+    fill_offsets: View<'a, [i64; 3], Id>,
+    renderings: View<'a, ([u16; 4], u16), Id>,
+    types: View<'a, TypeKey, (Id, Id)>,
+}
+
+/// Storage of a rendered building, kept for the next ones (see [`Open::pool`]).
+#[derive(Default)]
+struct Scratch {
+    w: StepBuf,
+    logs: Logs,
+    occurrences: Vec<(TypeKey, Id)>,
+}
+
+/// Scratch storage of at most this many bytes of entities is kept for reuse.
+const SCRATCH_KEPT: usize = 1 << 20;
+
+/// A rendered building, to be checked against the caches and appended.
+struct Rendered {
+    w: StepBuf,
+    logs: Logs,
+    occurrences: Vec<(TypeKey, Id)>,
+    inexact: bool,
+    /// The top-level `IfcBuilding`, or the error that stopped the rendering.
+    done: Result<Id, ExportError>,
+}
+
+/// What a rendered building did with each cache.
+#[derive(Default)]
+struct Logs {
+    usages: Log<i64, Id>,
+    styles: Log<[u16; 4], Id>,
+    vertical: Log<(), Id>,
+    identity_op: Log<(), Id>,
+    opening_shapes: Log<[i64; 3], Id>,
+    fill_offsets: Log<[i64; 3], Id>,
+    renderings: Log<([u16; 4], u16), Id>,
+    types: Log<TypeKey, (Id, Id)>,
+}
+
+impl Logs {
+    /// Whether the rendering is what the caches as they are now would give.
+    fn holds(&self, c: &Caches) -> bool {
+        self.usages.holds(&c.usages)
+            && self.styles.holds(&c.styles)
+            && self.vertical.holds(&c.vertical)
+            && self.identity_op.holds(&c.identity_op)
+            && self.opening_shapes.holds(&c.opening_shapes)
+            && self.fill_offsets.holds(&c.fill_offsets)
+            && self.renderings.holds(&c.renderings)
+            && self.types.holds(&c.types)
+    }
+
+    /// Applies the insertions, the building's first entity numbered `start`.
+    fn commit(&self, c: &mut Caches, start: u64) {
+        self.usages.commit(&mut c.usages, start);
+        self.styles.commit(&mut c.styles, start);
+        self.vertical.commit(&mut c.vertical, start);
+        self.identity_op.commit(&mut c.identity_op, start);
+        self.opening_shapes.commit(&mut c.opening_shapes, start);
+        self.fill_offsets.commit(&mut c.fill_offsets, start);
+        self.renderings.commit(&mut c.renderings, start);
+        self.types.commit(&mut c.types, start);
+    }
 }
 
 /// Where a part's elements are placed: the frame of its `Storey 0`, in local-frame coordinates.

@@ -1,8 +1,6 @@
 //! Openings of the IFC writer (LOD3): `IfcOpeningElement`s voiding their wall, filled by
 //! `IfcWindow`s and `IfcDoor`s of shared `IfcWindowType`/`IfcDoorType`s.
 
-use std::io::Write;
-
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
@@ -12,7 +10,7 @@ use crate::model::{Opening, OpeningKind, Wall};
 
 use super::styles::color_key;
 use super::{
-    Open, FRAME_DEPTH, FRAME_WIDTH, GLASS_THICKNESS, GLASS_TRANSPARENCY, OPENING_TOLERANCE,
+    Render, FRAME_DEPTH, FRAME_WIDTH, GLASS_THICKNESS, GLASS_TRANSPARENCY, OPENING_TOLERANCE,
     PANEL_THICKNESS,
 };
 
@@ -86,14 +84,6 @@ impl TypeKey {
     }
 }
 
-/// A written window or door type: its shared occurrence shape and its occurrences so far.
-pub(super) struct FillType {
-    pub(super) id: Id,
-    /// `IfcProductDefinitionShape` of one `IfcMappedItem` of the type's representation map.
-    pub(super) shape: Id,
-    pub(super) occurrences: Vec<Id>,
-}
-
 /// The wall an opening is cut into, as written: the model's wall, its `IfcWallStandardCase`
 /// and the wall's local placement.
 #[derive(Clone, Copy)]
@@ -103,7 +93,7 @@ pub(super) struct Host<'a> {
     pub(super) placement: Id,
 }
 
-impl<W: Write> Open<W> {
+impl Render<'_> {
     /// One opening of `wall`: an `IfcOpeningElement` voiding the wall, filled by an `IfcWindow`
     /// or `IfcDoor` of a shared type. Returns the window or door (to be contained in the
     /// wall's storey), or `None` for an opening too small to build (nothing written then).
@@ -128,7 +118,7 @@ impl<W: Write> Open<W> {
         let depth = wall.thickness + 2.0 * OPENING_TOLERANCE;
         let skey = [q(w), q(h), q(depth)];
         let shape = match self.shared.opening_shapes.get(&skey) {
-            Some(&id) => id,
+            Some(id) => id,
             None => {
                 let (w, h, depth) = (
                     skey[0] as f64 / 1e6,
@@ -137,12 +127,9 @@ impl<W: Write> Open<W> {
                 );
                 let profile = self.rect_profile(0.0, 0.0, w, h)?;
                 let solid = self.through_wall(profile, 0.0, depth)?;
-                let body_ctx = self.body_ctx;
+                let body_ctx = self.g.body_ctx;
                 let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
                 let shape = self.shape(&[rep])?;
-                if self.shared.opening_shapes.len() >= self.shared.limit {
-                    self.shared.opening_shapes.clear();
-                }
                 self.shared.opening_shapes.insert(skey, shape);
                 shape
             }
@@ -155,7 +142,7 @@ impl<W: Write> Open<W> {
         };
         let label = format!("{name} {}.{}", index.0, index.1);
         let opening = self.w.entity("IFCOPENINGELEMENT", |a| {
-            a.string(&global_id(key, path))
+            a.guid(key, path)
                 .null()
                 .string(&format!("Opening {}.{}", index.0, index.1))
                 .null()
@@ -166,7 +153,7 @@ impl<W: Write> Open<W> {
                 .enumeration("OPENING");
         })?;
         self.w.entity("IFCRELVOIDSELEMENT", |a| {
-            a.string(&global_id(key, &format!("{path}/voids")))
+            a.guid(key, &format!("{path}/voids"))
                 .null()
                 .null()
                 .null()
@@ -184,13 +171,10 @@ impl<W: Write> Open<W> {
         );
         let okey = [q(off.x), q(off.y), q(off.z)];
         let axes = match self.shared.fill_offsets.get(&okey) {
-            Some(&id) => id,
+            Some(id) => id,
             None => {
                 let p = DVec3::new(okey[0] as f64, okey[1] as f64, okey[2] as f64) / 1e6;
                 let id = self.axes(p, DVec3::X)?;
-                if self.shared.fill_offsets.len() >= self.shared.limit {
-                    self.shared.fill_offsets.clear();
-                }
                 self.shared.fill_offsets.insert(okey, id);
                 id
             }
@@ -199,7 +183,7 @@ impl<W: Write> Open<W> {
             a.id(pl).id(axes);
         })?;
         let fill = self.w.entity(ifc, |a| {
-            a.string(&global_id(key, &format!("{path}/fill")))
+            a.guid(key, &format!("{path}/fill"))
                 .null()
                 .string(&label)
                 .null()
@@ -217,16 +201,14 @@ impl<W: Write> Open<W> {
             a.null();
         })?;
         self.w.entity("IFCRELFILLSELEMENT", |a| {
-            a.string(&global_id(key, &format!("{path}/fills")))
+            a.guid(key, &format!("{path}/fills"))
                 .null()
                 .null()
                 .null()
                 .id(opening)
                 .id(fill);
         })?;
-        if let Some(t) = self.shared.types.get_mut(&tkey) {
-            t.occurrences.push(fill);
-        }
+        self.occurrences.push((tkey, fill));
         Ok(Some(fill))
     }
 
@@ -237,8 +219,8 @@ impl<W: Write> Open<W> {
     /// from 0): a framed opening has a frame (a hollow rectangle, `FRAME_DEPTH` deep) and a
     /// glass pane or door panel in the middle of it; an unframed one is a single pane or panel.
     fn fill_type(&mut self, k: &TypeKey) -> Result<Id, ExportError> {
-        if let Some(t) = self.shared.types.get(k) {
-            return Ok(t.shape);
+        if let Some((_, shape)) = self.shared.types.get(k) {
+            return Ok(shape);
         }
         let (w, h, d) = (k.width(), k.height(), k.depth());
         let color = |c: [u16; 4]| {
@@ -295,14 +277,14 @@ impl<W: Write> Open<W> {
         self.rendered(panel, color(k.color), transparency)?;
         items.push(panel);
 
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &items)?;
-        let identity = self.identity;
+        let identity = self.g.identity;
         let map = self.w.entity("IFCREPRESENTATIONMAP", |a| {
             a.id(identity).id(rep);
         })?;
         let name = k.name();
-        let gid = global_id(&self.ns, &format!("type/{name}"));
+        let gid = global_id(&self.g.ns, &format!("type/{name}"));
         let id = if k.door {
             self.w.entity("IFCDOORTYPE", |a| {
                 a.string(&gid).null().string(&name).null().null().null();
@@ -316,14 +298,14 @@ impl<W: Write> Open<W> {
                 a.enumeration("SINGLE_PANEL").boolean(false).null();
             })?
         };
-        let op = match self.shared.identity_op {
+        let op = match self.shared.identity_op.get(&()) {
             Some(op) => op,
             None => {
-                let o = self.origin3;
+                let o = self.g.origin3;
                 let op = self.w.entity("IFCCARTESIANTRANSFORMATIONOPERATOR3D", |a| {
                     a.null().null().id(o).null().null();
                 })?;
-                self.shared.identity_op = Some(op);
+                self.shared.identity_op.insert((), op);
                 op
             }
         };
@@ -332,14 +314,7 @@ impl<W: Write> Open<W> {
         })?;
         let rep = self.representation(body_ctx, "Body", "MappedRepresentation", &[mapped])?;
         let shape = self.shape(&[rep])?;
-        self.shared.types.insert(
-            *k,
-            FillType {
-                id,
-                shape,
-                occurrences: Vec::new(),
-            },
-        );
+        self.shared.types.insert(*k, (id, shape));
         Ok(shape)
     }
 }

@@ -2,7 +2,6 @@
 //! prisms or surface model).
 
 use std::collections::BTreeMap;
-use std::io::Write;
 
 use glam::{DVec2, DVec3};
 
@@ -11,9 +10,9 @@ use crate::export::ExportError;
 use crate::model::Part;
 
 use super::shapes::{clean2, clean3, vkey};
-use super::{roof_type, ElementFrame, Open, EPS, FLAT_ROOF_THICKNESS, SLAB_THICKNESS};
+use super::{roof_type, ElementFrame, Render, EPS, FLAT_ROOF_THICKNESS, SLAB_THICKNESS};
 
-impl<W: Write> Open<W> {
+impl Render<'_> {
     /// The base slab: the footprint extruded down by [`SLAB_THICKNESS`] from the part's base.
     pub(super) fn slab(
         &mut self,
@@ -48,11 +47,11 @@ impl<W: Write> Open<W> {
                 a.enumeration("AREA").null().id(outer_curve).ids(&inner);
             })?
         };
-        let down = self.dir_neg_z;
+        let down = self.g.dir_neg_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
             a.id(profile).null().id(down).positive(SLAB_THICKNESS);
         })?;
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[rep])?;
         let pl = self.placement(frame.placement, DVec3::ZERO, DVec3::X)?;
@@ -174,7 +173,7 @@ impl<W: Write> Open<W> {
         for &item in &items {
             self.styled(item, part.roof_color)?;
         }
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", kind, &items)?;
         let shape = self.shape(&[rep])?;
         let pl = self.placement(frame.placement, DVec3::ZERO, DVec3::X)?;

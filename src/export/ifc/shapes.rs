@@ -3,7 +3,6 @@
 //! and vertex keys.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 
 use glam::{DVec2, DVec3};
 
@@ -11,12 +10,12 @@ use crate::export::step::Id;
 use crate::export::ExportError;
 use crate::geometry::ring;
 
-use super::{Open, EPS};
+use super::{Render, EPS};
 
-impl<W: Write> Open<W> {
+impl Render<'_> {
     fn point3(&mut self, p: DVec3) -> Result<Id, ExportError> {
         if p == DVec3::ZERO {
-            return Ok(self.origin3);
+            return Ok(self.g.origin3);
         }
         Ok(self.w.entity("IFCCARTESIANPOINT", |a| {
             a.reals(&[p.x, p.y, p.z]);
@@ -25,7 +24,7 @@ impl<W: Write> Open<W> {
 
     pub(super) fn point2(&mut self, p: DVec2) -> Result<Id, ExportError> {
         if p == DVec2::ZERO {
-            return Ok(self.origin2);
+            return Ok(self.g.origin2);
         }
         Ok(self.w.entity("IFCCARTESIANPOINT", |a| {
             a.reals(&[p.x, p.y]);
@@ -34,7 +33,7 @@ impl<W: Write> Open<W> {
 
     fn direction(&mut self, d: DVec3) -> Result<Id, ExportError> {
         if d == DVec3::X {
-            return Ok(self.dir_x);
+            return Ok(self.g.dir_x);
         }
         Ok(self.w.entity("IFCDIRECTION", |a| {
             a.reals(&[d.x, d.y, d.z]);
@@ -57,7 +56,7 @@ impl<W: Write> Open<W> {
     /// An `IfcAxis2Placement3D` at `loc`, with X along `x_dir` (Z up).
     pub(super) fn axes(&mut self, loc: DVec3, x_dir: DVec3) -> Result<Id, ExportError> {
         Ok(if loc == DVec3::ZERO && x_dir == DVec3::X {
-            self.identity
+            self.g.identity
         } else {
             let p = self.point3(loc)?;
             if x_dir == DVec3::X {
@@ -66,7 +65,7 @@ impl<W: Write> Open<W> {
                 })?
             } else {
                 let d = self.direction(x_dir)?;
-                let z = self.dir_z;
+                let z = self.g.dir_z;
                 self.w.entity("IFCAXIS2PLACEMENT3D", |a| {
                     a.id(p).id(z).id(d);
                 })?
@@ -106,14 +105,14 @@ impl<W: Write> Open<W> {
 
     /// The shared `IfcAxis2Placement3D(origin, -Y, X)` of profiles drawn in a wall's plane.
     fn vertical(&mut self) -> Result<Id, ExportError> {
-        if let Some(id) = self.shared.vertical {
+        if let Some(id) = self.shared.vertical.get(&()) {
             return Ok(id);
         }
-        let (o, ny, x) = (self.origin3, self.dir_neg_y, self.dir_x);
+        let (o, ny, x) = (self.g.origin3, self.g.dir_neg_y, self.g.dir_x);
         let id = self.w.entity("IFCAXIS2PLACEMENT3D", |a| {
             a.id(o).id(ny).id(x);
         })?;
-        self.shared.vertical = Some(id);
+        self.shared.vertical.insert((), id);
         Ok(id)
     }
 
@@ -146,12 +145,12 @@ impl<W: Write> Open<W> {
             self.vertical()?
         } else {
             let p = self.point3(DVec3::new(0.0, y0, 0.0))?;
-            let (ny, x) = (self.dir_neg_y, self.dir_x);
+            let (ny, x) = (self.g.dir_neg_y, self.g.dir_x);
             self.w.entity("IFCAXIS2PLACEMENT3D", |a| {
                 a.id(p).id(ny).id(x);
             })?
         };
-        let nz = self.dir_neg_z;
+        let nz = self.g.dir_neg_z;
         Ok(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
             a.id(profile).id(pos).id(nz).positive(depth);
         })?)

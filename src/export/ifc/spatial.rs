@@ -7,12 +7,15 @@ use std::io::Write;
 
 use glam::{DVec2, DVec3};
 
-use crate::export::step::{global_id, hash128, Header, Id, StepWriter};
-use crate::export::{check_finite, ExportError, OutputContext};
+use crate::export::step::{global_id, Header, Id, StepWriter};
+use crate::export::{ExportError, OutputContext};
 use crate::model::{Building, Lod, Part};
 
 use super::openings::Host;
-use super::{compound_angle, ElementFrame, Lod3Shared, Open, EPS, MAX_STOREYS};
+use super::{
+    compound_angle, Caches, ElementFrame, Globals, Open, Render, EPS, MAX_STOREYS,
+    SHARED_CACHE_LIMIT,
+};
 
 impl<W: Write> Open<W> {
     pub(super) fn begin(
@@ -82,9 +85,7 @@ impl<W: Write> Open<W> {
             a.ids(&units);
         })?;
         let project = w.entity("IFCPROJECT", |a| {
-            a.string(&global_id(&ns, "project"))
-                .null()
-                .string(&ctx.source_name);
+            a.guid(&ns, "project").null().string(&ctx.source_name);
             a.string(&format!(
                 "citygen model of {} (LOD{}, seed {})",
                 ctx.source_name,
@@ -119,7 +120,7 @@ impl<W: Write> Open<W> {
         })?;
         let (lon, lat) = ctx.origin_lonlat;
         let site = w.entity("IFCSITE", |a| {
-            a.string(&global_id(&ns, "site"))
+            a.guid(&ns, "site")
                 .null()
                 .string("Site")
                 .null()
@@ -137,7 +138,7 @@ impl<W: Write> Open<W> {
             a.real(ctx.origin.z).null().null();
         })?;
         w.entity("IFCRELAGGREGATES", |a| {
-            a.string(&global_id(&ns, "project/site"))
+            a.guid(&ns, "project/site")
                 .null()
                 .null()
                 .null()
@@ -150,34 +151,36 @@ impl<W: Write> Open<W> {
 
         Ok(Open {
             w,
-            ns,
-            origin3,
-            origin2,
-            dir_x,
-            dir_z,
-            dir_neg_y,
-            dir_neg_z,
-            identity,
-            body_ctx,
-            axis_ctx,
+            g: Globals {
+                ns,
+                origin3,
+                origin2,
+                dir_x,
+                dir_z,
+                dir_neg_y,
+                dir_neg_z,
+                identity,
+                body_ctx,
+                axis_ctx,
+                site_placement,
+                wall_material,
+                origin_z: ctx.origin.z,
+                lod3: ctx.lod >= Lod::Lod3,
+            },
             site,
-            site_placement,
-            wall_material,
-            origin_z: ctx.origin.z,
-            usages: BTreeMap::new(),
-            styles: BTreeMap::new(),
-            buildings: Vec::new(),
-            keys: BTreeSet::new(),
-            lod3: ctx.lod >= Lod::Lod3,
             project,
-            shared: Lod3Shared::default(),
+            caches: Caches::new(SHARED_CACHE_LIMIT),
+            occurrences: BTreeMap::new(),
+            buildings: Vec::new(),
+            pool: Vec::new(),
+            keys: BTreeSet::new(),
         })
     }
 
     pub(super) fn finish(mut self) -> Result<W, ExportError> {
         if !self.buildings.is_empty() {
             let (gid, site, buildings) = (
-                global_id(&self.ns, "site/buildings"),
+                global_id(&self.g.ns, "site/buildings"),
                 self.site,
                 &self.buildings,
             );
@@ -187,22 +190,19 @@ impl<W: Write> Open<W> {
         }
         // Window and door types: one IfcRelDefinesByType each (a type has at most one), and
         // all declared in the project.
-        let types = std::mem::take(&mut self.shared.types);
-        let mut declared = Vec::with_capacity(types.len());
-        for (key, t) in types.iter().filter(|(_, t)| !t.occurrences.is_empty()) {
-            let gid = global_id(&self.ns, &format!("type/{}/rel", key.name()));
+        let mut declared = Vec::with_capacity(self.caches.types.map.len());
+        for (key, &(id, _)) in &self.caches.types.map {
+            let Some(occurrences) = self.occurrences.get(key).filter(|o| !o.is_empty()) else {
+                continue;
+            };
+            let gid = global_id(&self.g.ns, &format!("type/{}/rel", key.name()));
             self.w.entity("IFCRELDEFINESBYTYPE", |a| {
-                a.string(&gid)
-                    .null()
-                    .null()
-                    .null()
-                    .ids(&t.occurrences)
-                    .id(t.id);
+                a.string(&gid).null().null().null().ids(occurrences).id(id);
             })?;
-            declared.push(t.id);
+            declared.push(id);
         }
         if !declared.is_empty() {
-            let (gid, project) = (global_id(&self.ns, "project/types"), self.project);
+            let (gid, project) = (global_id(&self.g.ns, "project/types"), self.project);
             self.w.entity("IFCRELDECLARES", |a| {
                 a.string(&gid)
                     .null()
@@ -214,7 +214,9 @@ impl<W: Write> Open<W> {
         }
         Ok(self.w.finish()?)
     }
+}
 
+impl Render<'_> {
     /// Storey `i` of part `pk` at elevation `elev` (relative to the building), placed relative to
     /// `holder_pl`: returns the storey and its placement.
     pub(super) fn storey(
@@ -227,7 +229,7 @@ impl<W: Write> Open<W> {
     ) -> Result<(Id, Id), ExportError> {
         let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
         let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
-            a.string(&global_id(key, &format!("{pk}/storey/{i}")))
+            a.guid(key, &format!("{pk}/storey/{i}"))
                 .null()
                 .string(&format!("Storey {i}"));
             a.null()
@@ -241,16 +243,9 @@ impl<W: Write> Open<W> {
         Ok((storey, pl))
     }
 
-    pub(super) fn building(&mut self, b: &Building) -> Result<(), ExportError> {
-        check_finite("IFC writer", b)?;
-        // GlobalIds derive from the key; a repeated key gets a suffix so ids stay unique.
-        let mut key = b.key();
-        let mut n = 1;
-        while !self.keys.insert(hash128("building key", &key)) {
-            n += 1;
-            key = format!("{}~{n}", b.key());
-        }
-
+    /// Writes building `b` (already checked finite) whose GlobalIds derive from `key`
+    /// ([`Open::claim_key`]); returns its top-level `IfcBuilding`.
+    pub(super) fn building(&mut self, b: &Building, key: &str) -> Result<Id, ExportError> {
         let anchor = b
             .parts
             .first()
@@ -258,15 +253,15 @@ impl<W: Write> Open<W> {
             .copied()
             .unwrap_or(DVec2::ZERO);
         let anchor = DVec3::new(anchor.x, anchor.y, b.base_z);
-        let site_pl = self.site_placement;
+        let site_pl = self.g.site_placement;
         let placement = self.placement(site_pl, anchor, DVec3::X)?;
         let name = b.name.clone().unwrap_or_else(|| b.key());
         let description = format!("{} ({})", b.id, b.zone);
         let composite = b.parts.len() > 1;
         // Height of the building's +-0.00 above the CRS datum (storey elevations count from it).
-        let datum_z = self.origin_z + b.base_z;
+        let datum_z = self.g.origin_z + b.base_z;
         let building = self.w.entity("IFCBUILDING", |a| {
-            a.string(&global_id(&key, "building"))
+            a.guid(key, "building")
                 .null()
                 .string(&name)
                 .string(&description)
@@ -275,7 +270,7 @@ impl<W: Write> Open<W> {
             a.enumeration(if composite { "COMPLEX" } else { "ELEMENT" });
             a.real(datum_z).real(datum_z).null();
         })?;
-        self.building_psets(b, &key, building)?;
+        self.building_psets(b, key, building)?;
 
         let mut walls = Vec::new();
         if composite {
@@ -284,7 +279,7 @@ impl<W: Write> Open<W> {
                 let pl = self.placement(placement, DVec3::ZERO, DVec3::X)?;
                 let pname = format!("{name} {}", part.key);
                 let partial = self.w.entity("IFCBUILDING", |a| {
-                    a.string(&global_id(&key, &format!("{}/building", part.key)))
+                    a.guid(key, &format!("{}/building", part.key))
                         .null()
                         .string(&pname);
                     a.null()
@@ -298,11 +293,11 @@ impl<W: Write> Open<W> {
                         .null();
                 })?;
                 partials.push(partial);
-                self.part_pset(part, b, &key, partial)?;
-                walls.extend(self.part(part, &key, partial, pl, anchor)?);
+                self.part_pset(part, b, key, partial)?;
+                walls.extend(self.part(part, key, partial, pl, anchor)?);
             }
             self.w.entity("IFCRELAGGREGATES", |a| {
-                a.string(&global_id(&key, "building/parts"))
+                a.guid(key, "building/parts")
                     .null()
                     .null()
                     .null()
@@ -310,12 +305,11 @@ impl<W: Write> Open<W> {
                     .ids(&partials);
             })?;
         } else if let Some(part) = b.parts.first() {
-            walls.extend(self.part(part, &key, building, placement, anchor)?);
+            walls.extend(self.part(part, key, building, placement, anchor)?);
         }
 
-        self.wall_psets(&key, &walls)?;
-        self.buildings.push(building);
-        Ok(())
+        self.wall_psets(key, &walls)?;
+        Ok(building)
     }
 
     /// Writes a part's storeys and elements under `holder` (the building or partial building,
@@ -328,7 +322,7 @@ impl<W: Write> Open<W> {
         holder_pl: Id,
         anchor: DVec3,
     ) -> Result<Vec<(Id, f64)>, ExportError> {
-        if self.lod3 {
+        if self.g.lod3 {
             return self.part_lod3(part, key, holder, holder_pl, anchor);
         }
         let pk = &part.key;
@@ -346,7 +340,7 @@ impl<W: Write> Open<W> {
             storeys.push(storey);
         }
         self.w.entity("IFCRELAGGREGATES", |a| {
-            a.string(&global_id(key, &format!("{pk}/storeys")))
+            a.guid(key, &format!("{pk}/storeys"))
                 .null()
                 .null()
                 .null()
@@ -385,10 +379,7 @@ impl<W: Write> Open<W> {
         if !contained.is_empty() {
             let storey0 = storeys[0];
             self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
-                a.string(&global_id(key, &format!("{pk}/contained")))
-                    .null()
-                    .null()
-                    .null();
+                a.guid(key, &format!("{pk}/contained")).null().null().null();
                 a.ids(&contained).id(storey0);
             })?;
         }
@@ -429,7 +420,7 @@ impl<W: Write> Open<W> {
             });
         }
         self.w.entity("IFCRELAGGREGATES", |a| {
-            a.string(&global_id(key, &format!("{pk}/storeys")))
+            a.guid(key, &format!("{pk}/storeys"))
                 .null()
                 .null()
                 .null()
@@ -495,7 +486,7 @@ impl<W: Write> Open<W> {
             };
             let storey = storeys[s];
             self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
-                a.string(&global_id(key, &path)).null().null().null();
+                a.guid(key, &path).null().null().null();
                 a.ids(ids).id(storey);
             })?;
         }

@@ -3,16 +3,15 @@
 //! property sets.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 
 use crate::color::Color;
-use crate::export::step::{global_id, Id, StepWriter};
+use crate::export::step::{Id, StepBuf};
 use crate::export::ExportError;
 use crate::model::Building;
 
-use super::Open;
+use super::Render;
 
-impl<W: Write> Open<W> {
+impl Render<'_> {
     /// One `IfcRelAssociatesMaterial` per material layer set usage, for the walls using it.
     pub(super) fn associate_materials(
         &mut self,
@@ -21,8 +20,18 @@ impl<W: Write> Open<W> {
         by_usage: BTreeMap<Id, Vec<Id>>,
     ) -> Result<(), ExportError> {
         for (usage, ids) in by_usage {
+            // The path holds the usage's entity number: that of one made by this building is
+            // known only when the rendering is exact.
+            let number = match self.start {
+                _ if !usage.is_local() => usage.0,
+                Some(start) => usage.relocate(start).0,
+                None => {
+                    self.inexact = true;
+                    0
+                }
+            };
             self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
-                a.string(&global_id(key, &format!("{pk}/material/{}", usage.0)))
+                a.guid(key, &format!("{pk}/material/{number}"))
                     .null()
                     .null()
                     .null();
@@ -35,7 +44,7 @@ impl<W: Write> Open<W> {
     /// The shared surface style of a colour.
     fn style(&mut self, c: Color) -> Result<Id, ExportError> {
         let key = color_key(c);
-        if let Some(&id) = self.styles.get(&key) {
+        if let Some(id) = self.styles.get(&key) {
             return Ok(id);
         }
         let rgb = self.w.entity("IFCCOLOURRGB", |a| {
@@ -71,11 +80,11 @@ impl<W: Write> Open<W> {
     /// The shared material layer set usage of a wall thickness.
     pub(super) fn usage(&mut self, thickness: f64) -> Result<Id, ExportError> {
         let key = (thickness * 1e6).round() as i64;
-        if let Some(&id) = self.usages.get(&key) {
+        if let Some(id) = self.usages.get(&key) {
             return Ok(id);
         }
         let t = key as f64 / 1e6;
-        let mat = self.wall_material;
+        let mat = self.g.wall_material;
         let layer = self.w.entity("IFCMATERIALLAYER", |a| {
             a.id(mat).real(t).null().string("Wall").null().null().null();
         })?;
@@ -98,7 +107,7 @@ impl<W: Write> Open<W> {
     fn rendering(&mut self, c: Color, transparency: f64) -> Result<Id, ExportError> {
         let ck = color_key(c);
         let tk = (transparency.clamp(0.0, 1.0) * 1000.0).round() as u16;
-        if let Some(&id) = self.shared.renderings.get(&(ck, tk)) {
+        if let Some(id) = self.shared.renderings.get(&(ck, tk)) {
             return Ok(id);
         }
         let rgb = self.w.entity("IFCCOLOURRGB", |a| {
@@ -150,7 +159,7 @@ impl<W: Write> Open<W> {
     ) -> Result<(), ExportError> {
         let mut props = Vec::new();
         let source = b.id.to_string();
-        let single = |w: &mut StepWriter<W>,
+        let single = |w: &mut StepBuf,
                       name: &str,
                       ty: &str,
                       f: &dyn Fn(&mut crate::export::step::Args<'_>)| {
@@ -219,14 +228,10 @@ impl<W: Write> Open<W> {
         objects: &[Id],
     ) -> Result<(), ExportError> {
         let pset = self.w.entity("IFCPROPERTYSET", |a| {
-            a.string(&global_id(key, path))
-                .null()
-                .string(name)
-                .null()
-                .ids(props);
+            a.guid(key, path).null().string(name).null().ids(props);
         })?;
         self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-            a.string(&global_id(key, &format!("{path}/rel")))
+            a.guid(key, &format!("{path}/rel"))
                 .null()
                 .null()
                 .null()

@@ -1332,3 +1332,46 @@ fn degenerate_dimensions_never_reach_the_file_as_zero_lengths() {
         }
     }
 }
+
+#[test]
+fn write_all_writes_the_bytes_of_one_write_per_building() {
+    // Several batches of LOD4 buildings (new styles, usages, types and opening shapes in the
+    // middle of batches; repeated keys), with the shared caches at full size and tiny (emptied
+    // within batches).
+    let all = crate::export::fixtures::lod4_all();
+    let buildings: Vec<Building> = (0..3 * PARALLEL_BATCH + 5)
+        .map(|i| {
+            let mut b = all[i % all.len()].clone();
+            if i % 7 != 3 {
+                b.id = SourceId::Way(1000 + i as i64);
+            }
+            b
+        })
+        .collect();
+    let ctx = OutputContext {
+        lod: Lod::Lod4,
+        ..ctx()
+    };
+    for limit in [SHARED_CACHE_LIMIT, 5, 1] {
+        let run = |all: bool| {
+            let mut w = IfcWriter::new(Vec::new());
+            w.cache_limit = limit;
+            w.begin(&ctx).unwrap();
+            if all {
+                w.write_all(&buildings).unwrap();
+            } else {
+                for b in &buildings {
+                    w.write(b).unwrap();
+                }
+            }
+            w.finish().unwrap();
+            w.into_inner().unwrap()
+        };
+        let one = run(false);
+        assert!(one.len() > 100_000);
+        assert!(
+            one == run(true),
+            "limit {limit}: write_all differs from write"
+        );
+    }
+}

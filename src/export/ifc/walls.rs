@@ -1,18 +1,16 @@
 //! Walls of the IFC writer (`IfcWallStandardCase`, rectangular or gable) and, at LOD3, the
 //! balconies on them (`IfcSlab` `.FLOOR.` and `IfcRailing`).
 
-use std::io::Write;
-
 use glam::{DVec2, DVec3};
 
-use crate::export::step::{global_id, Id};
+use crate::export::step::Id;
 use crate::export::ExportError;
 use crate::model::{Balcony, Part, Wall};
 
 use super::shapes::clean2;
-use super::{ElementFrame, Open, BALCONY_THICKNESS, EPS, RAILING_HEIGHT, RAILING_THICKNESS};
+use super::{ElementFrame, Render, BALCONY_THICKNESS, EPS, RAILING_HEIGHT, RAILING_THICKNESS};
 
-impl<W: Write> Open<W> {
+impl Render<'_> {
     /// One `IfcWallStandardCase` and its placement, or `None` for a degenerate wall (no length,
     /// height or thickness), which has no valid solid.
     pub(super) fn wall(
@@ -55,11 +53,11 @@ impl<W: Write> Open<W> {
         let placement = self.placement(frame.placement, loc, DVec3::new(dir2.x, dir2.y, 0.0))?;
 
         let end = self.point2(DVec2::new(len, 0.0))?;
-        let origin2 = self.origin2;
+        let origin2 = self.g.origin2;
         let axis_line = self.w.entity("IFCPOLYLINE", |a| {
             a.ids(&[origin2, end]);
         })?;
-        let axis_ctx = self.axis_ctx;
+        let axis_ctx = self.g.axis_ctx;
         let axis_rep = self.representation(axis_ctx, "Axis", "Curve2D", &[axis_line])?;
 
         let solid = if is_rect {
@@ -74,7 +72,7 @@ impl<W: Write> Open<W> {
                     .positive(len)
                     .positive(wall.thickness);
             })?;
-            let up = self.dir_z;
+            let up = self.g.dir_z;
             self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
                 a.id(profile).null().id(up).positive(height);
             })?
@@ -85,7 +83,12 @@ impl<W: Write> Open<W> {
             let profile = self.w.entity("IFCARBITRARYCLOSEDPROFILEDEF", |a| {
                 a.enumeration("AREA").null().id(curve);
             })?;
-            let (o, ny, x, nz) = (self.origin3, self.dir_neg_y, self.dir_x, self.dir_neg_z);
+            let (o, ny, x, nz) = (
+                self.g.origin3,
+                self.g.dir_neg_y,
+                self.g.dir_x,
+                self.g.dir_neg_z,
+            );
             let pos = self.w.entity("IFCAXIS2PLACEMENT3D", |a| {
                 a.id(o).id(ny).id(x);
             })?;
@@ -94,7 +97,7 @@ impl<W: Write> Open<W> {
             })?
         };
         self.styled(solid, part.wall_color)?;
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
         let body_rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[axis_rep, body_rep])?;
         let name = format!("Wall {index}");
@@ -132,11 +135,11 @@ impl<W: Write> Open<W> {
         let dir2 = (wall.end - wall.start) / len;
         let loc = DVec3::new(wall.start.x, wall.start.y, b.z) - frame.origin;
         let axes = self.axes(loc, DVec3::new(dir2.x, dir2.y, 0.0))?;
-        let body_ctx = self.body_ctx;
+        let body_ctx = self.g.body_ctx;
 
         // Slab: outside is -Y in the wall's frame.
         let profile = self.rect_profile(u0, -depth, w, depth)?;
-        let down = self.dir_neg_z;
+        let down = self.g.dir_neg_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
             a.id(profile).null().id(down).positive(BALCONY_THICKNESS);
         })?;
@@ -148,7 +151,7 @@ impl<W: Write> Open<W> {
             a.id(fp).id(axes);
         })?;
         let slab = self.w.entity("IFCSLAB", |a| {
-            a.string(&global_id(key, path))
+            a.guid(key, path)
                 .null()
                 .string("Balcony")
                 .null()
@@ -176,7 +179,7 @@ impl<W: Write> Open<W> {
         let profile = self.w.entity("IFCARBITRARYCLOSEDPROFILEDEF", |a| {
             a.enumeration("AREA").null().id(curve);
         })?;
-        let up = self.dir_z;
+        let up = self.g.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
             a.id(profile).null().id(up).positive(RAILING_HEIGHT);
         })?;
@@ -187,7 +190,7 @@ impl<W: Write> Open<W> {
             a.id(fp).id(axes);
         })?;
         let railing = self.w.entity("IFCRAILING", |a| {
-            a.string(&global_id(key, &format!("{path}/railing")))
+            a.guid(key, &format!("{path}/railing"))
                 .null()
                 .string("Balcony railing")
                 .null()
