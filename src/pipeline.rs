@@ -750,8 +750,15 @@ fn open_output(
         (Box::new(f.file().map_err(io_err(path))?), Sink::File(f))
     };
     let bytes = Arc::new(AtomicU64::new(0));
+    // A dry run's CityGML writer hands over whole buildings, which only need counting: no
+    // buffer to copy them into.
+    let capacity = if dry_run && elements.is_some() {
+        0
+    } else {
+        1 << 20
+    };
     let w = BufWriter::with_capacity(
-        1 << 20,
+        capacity,
         Counted {
             inner,
             bytes: Arc::clone(&bytes),
@@ -820,14 +827,12 @@ fn write_lots(
     }
     if let Some(p) = &targets.gltf {
         let (w, sink, bytes) = open_output(p, dry, None)?;
-        // A dry run's target folder may not exist: the scratch files go to the temp folder.
-        let beside = match p.parent() {
-            Some(d) if dry && !d.as_os_str().is_empty() && !d.is_dir() => {
-                std::env::temp_dir().join(file_name(p))
-            }
-            _ => p.clone(),
+        // A dry run keeps nothing, so its writer needs no scratch files.
+        let w = if dry {
+            GltfWriter::discarding(w)
+        } else {
+            GltfWriter::beside(w, p).map_err(io_err(p))?
         };
-        let w = GltfWriter::beside(w, &beside).map_err(io_err(p))?;
         outputs.push((p.clone(), Box::new(w), sink, bytes));
     }
     for (path, w, _, _) in &mut outputs {

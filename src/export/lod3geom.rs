@@ -312,32 +312,57 @@ pub const LOW_SILL: f64 = 0.3;
 /// `None` when no wall has such an opening (write the model's faces), else every ground and
 /// wall face, in the model's order.
 pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
-    let is_low = |w: &Wall, o: &Opening| opening_is_valid(o) && o.z0 - w.base_z < LOW_SILL;
-    let low = |w: &Wall| w.openings.iter().any(|o| is_low(w, o));
-    if !part.walls.iter().any(low) {
+    let changes = seated_changes(part);
+    if changes.is_empty() {
         return None;
     }
-    type Mm = (i64, i64, i64);
-    let key = crate::model::grid_key;
     let mut faces: Vec<Face> = std::iter::once(part.ground.clone())
         .chain(part.walls.iter().map(|w| w.outline.clone()))
         .collect();
-    // Every directed edge of the faces: (face, ring, index of its start).
-    let mut edge_at: std::collections::HashMap<(Mm, Mm), (usize, usize, usize)> =
-        std::collections::HashMap::new();
-    for (fi, face) in faces.iter().enumerate() {
-        for (ri, r) in std::iter::once(&face.outer)
-            .chain(face.holes.iter())
-            .enumerate()
-        {
-            let n = r.len();
-            for i in 0..n {
-                edge_at
-                    .entry((key(r[i]), key(r[(i + 1) % n])))
-                    .or_insert((fi, ri, i));
-            }
+    for (fi, face) in changes {
+        faces[fi] = face;
+    }
+    let ground = faces.remove(0);
+    Some((ground, faces))
+}
+
+/// The faces [`seated_faces`] changes, and only those, as (index, face): index 0 is the
+/// ground, `i + 1` wall `i`'s outline; in increasing index order. Empty when it changes none.
+pub fn seated_changes(part: &Part) -> Vec<(usize, Face)> {
+    let is_low = |w: &Wall, o: &Opening| opening_is_valid(o) && o.z0 - w.base_z < LOW_SILL;
+    let low = |w: &Wall| w.openings.iter().any(|o| is_low(w, o));
+    if !part.walls.iter().any(low) {
+        return Vec::new();
+    }
+    type Mm = (i64, i64, i64);
+    let key = crate::model::grid_key;
+    let face = |fi: usize| match fi {
+        0 => &part.ground,
+        _ => &part.walls[fi - 1].outline,
+    };
+    // The grid keys of every ring's points, and per ring (face, ring, where its keys start).
+    let mut keys: Vec<Mm> = Vec::new();
+    let mut rings: Vec<(usize, usize, usize)> = Vec::new();
+    for fi in 0..=part.walls.len() {
+        let f = face(fi);
+        for (ri, r) in std::iter::once(&f.outer).chain(f.holes.iter()).enumerate() {
+            rings.push((fi, ri, keys.len()));
+            keys.extend(r.iter().map(|p| key(*p)));
         }
     }
+    rings.push((usize::MAX, 0, keys.len()));
+    // The first directed edge (ka, kb) of the faces, in face, ring, point order: (face, ring,
+    // index of its start).
+    let first_edge = |ka: Mm, kb: Mm| -> Option<(usize, usize, usize)> {
+        rings.windows(2).find_map(|w| {
+            let ((fi, ri, start), end) = (w[0], w[1].2);
+            let k = &keys[start..end];
+            let n = k.len();
+            (0..n)
+                .find(|&i| k[i] == ka && k[(i + 1) % n] == kb)
+                .map(|i| (fi, ri, i))
+        })
+    };
     // (face, ring, after which index, points), applied last.
     let mut inserts: Vec<(usize, usize, usize, Vec<DVec3>)> = Vec::new();
     for (wi, wall) in part.walls.iter().enumerate() {
@@ -368,28 +393,33 @@ pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
                 points.push(p);
             }
         }
-        // The base (a then b) in the wall's own outline, and the face that runs b then a.
-        let own = edge_at
-            .get(&(key(a), key(b)))
-            .filter(|e| e.0 == wi + 1 && e.1 == 0);
-        let below = edge_at.get(&(key(b), key(a))).filter(|e| e.0 != wi + 1);
-        let (Some(&(fo, ro, io)), Some(&(fb, rb, ib))) = (own, below) else {
-            continue;
-        };
         if points.is_empty() {
             continue;
         }
+        // The base (a then b) in the wall's own outline, and the face that runs b then a.
+        let (ka, kb) = (key(a), key(b));
+        let own = first_edge(ka, kb).filter(|e| e.0 == wi + 1 && e.1 == 0);
+        let Some((fo, ro, io)) = own else {
+            continue;
+        };
+        let below = first_edge(kb, ka).filter(|e| e.0 != wi + 1);
+        let Some((fb, rb, ib)) = below else {
+            continue;
+        };
         inserts.push((fo, ro, io, points.clone()));
         points.reverse();
         inserts.push((fb, rb, ib, points));
     }
-    if inserts.is_empty() {
-        return None;
-    }
     // Later places in a ring first, so the earlier indices still hold.
     inserts.sort_by(|x, y| (x.0, x.1, y.2).cmp(&(y.0, y.1, x.2)));
+    let mut changed: Vec<(usize, Face)> = Vec::new();
     for (fi, ri, i, pts) in inserts {
-        let face = &mut faces[fi];
+        if changed.last().is_none_or(|c| c.0 != fi) {
+            changed.push((fi, face(fi).clone()));
+        }
+        let Some((_, face)) = changed.last_mut() else {
+            continue;
+        };
         let r = if ri == 0 {
             &mut face.outer
         } else {
@@ -397,8 +427,7 @@ pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
         };
         r.splice(i + 1..i + 1, pts);
     }
-    let ground = faces.remove(0);
-    Some((ground, faces))
+    changed
 }
 
 #[cfg(test)]

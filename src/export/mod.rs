@@ -414,6 +414,17 @@ mod tests {
         assert!(one.1.is_none() && one.0.len() > 100_000);
         assert!(one == all, "glTF: write_all differs from write");
 
+        // A dry run's glTF writer keeps nothing but writes a GLB of the same length.
+        let dry = both_ways(
+            || GltfWriter::discarding(Vec::new()),
+            |w| w.into_inner(),
+            &buildings,
+        );
+        for (d, real) in dry.iter().zip([&one, &all]) {
+            assert_eq!(d.0.len(), real.0.len(), "dry glTF length");
+            assert_eq!(d.0[..12], real.0[..12], "GLB header");
+        }
+
         // A building the CityGML writer refuses, in the middle of a batch: the buildings before
         // it are written, the error is the same, nothing after it is written.
         buildings[PARALLEL_BATCH + 3].measured_height = f64::NAN;

@@ -40,77 +40,17 @@ const REL_EPS: f64 = 1e-12;
 /// For a simple polygon whose holes lie inside it without touching, the triangles cover it
 /// exactly: their areas add up to the polygon's area.
 pub fn triangulate_2d(outer: &[DVec2], holes: &[Vec<DVec2>]) -> Vec<[u32; 3]> {
-    if outer.len() < 3 {
-        return Vec::new();
-    }
-    let all_finite = std::iter::once(outer)
-        .chain(holes.iter().map(Vec::as_slice))
-        .flatten()
-        .all(|p| p.is_finite());
-    if !all_finite {
-        return Vec::new();
-    }
-    let total: usize = outer.len() + holes.iter().map(Vec::len).sum::<usize>();
-    if u32::try_from(total).is_err() {
-        return Vec::new();
-    }
-
-    // Earcut's vertex numbering skips ignored holes; `index_map` takes it back to ours. Coordinates
-    // are taken relative to the first vertex so that large offsets do not eat the precision.
-    let origin = outer[0];
-    let mut data: Vec<[f64; 2]> = Vec::with_capacity(total);
-    let mut index_map: Vec<u32> = Vec::with_capacity(total);
-    let mut hole_starts: Vec<u32> = Vec::new();
-    let mut push_ring = |ring: &[DVec2], first: usize, data: &mut Vec<[f64; 2]>| {
-        for (k, p) in ring.iter().enumerate() {
-            let q = *p - origin;
-            data.push([q.x, q.y]);
-            index_map.push((first + k) as u32);
-        }
-    };
-    push_ring(outer, 0, &mut data);
-    let mut first = outer.len();
+    let mut t = Triangulator::default();
+    t.flat.clear();
+    t.flat.extend_from_slice(outer);
+    t.ring_ends.clear();
+    t.ring_ends.push(outer.len());
     for h in holes {
-        if h.len() >= 3 {
-            hole_starts.push(data.len() as u32);
-            push_ring(h, first, &mut data);
-        }
-        first += h.len();
+        t.flat.extend_from_slice(h);
+        t.ring_ends.push(t.flat.len());
     }
-
-    let (lo, hi) = data.iter().fold(
-        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(DVec2::from(*p)), hi.max(DVec2::from(*p))),
-    );
-    let extent = (hi - lo).max_element();
-    // `extent` is finite here (all points are); zero means all points coincide.
-    if extent <= 0.0 {
-        return Vec::new();
-    }
-    let min_area = REL_EPS * extent * extent;
-
-    let mut raw: Vec<u32> = Vec::new();
-    earcut::Earcut::new().earcut(data.iter().copied(), &hole_starts, &mut raw);
-
-    let mut out = Vec::with_capacity(raw.len() / 3);
-    for t in raw.chunks_exact(3) {
-        let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
-        let (Some(pa), Some(pb), Some(pc)) = (data.get(a), data.get(b), data.get(c)) else {
-            continue;
-        };
-        let (pa, pb, pc) = (DVec2::from(*pa), DVec2::from(*pb), DVec2::from(*pc));
-        let twice_area = (pb - pa).perp_dot(pc - pa);
-        if twice_area.abs() <= 2.0 * min_area {
-            continue;
-        }
-        let (ia, ib, ic) = (index_map[a], index_map[b], index_map[c]);
-        if twice_area > 0.0 {
-            out.push([ia, ib, ic]);
-        } else {
-            out.push([ia, ic, ib]);
-        }
-    }
-    out
+    t.cut_flat();
+    std::mem::take(&mut t.tris)
 }
 
 /// Triangulates a planar 3D polygon with holes (a model face).
@@ -120,73 +60,329 @@ pub fn triangulate_2d(outer: &[DVec2], holes: &[Vec<DVec2>]) -> Vec<[u32; 3]> {
 /// `None` for a degenerate face: fewer than 3 points, non-finite coordinates, zero area, or no
 /// triangle left. Only vertices used by a triangle are returned.
 pub fn triangulate_face(outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTriangles> {
-    if outer.len() < 3 {
-        return None;
-    }
-    let rings = || std::iter::once(outer).chain(holes.iter().map(Vec::as_slice));
-    if !rings().flatten().all(|p| p.is_finite()) {
-        return None;
-    }
-    let origin = outer[0];
-    let rel: Vec<DVec3> = outer.iter().map(|p| *p - origin).collect();
-    let newell = super::newell_normal(&rel);
-    let extent = rel.iter().fold(0.0f64, |m, p| m.max(p.abs().max_element()));
-    // The Newell vector's length is twice the area.
-    if newell.length() <= 2.0 * REL_EPS * extent * extent {
-        return None;
-    }
-    let normal = newell.normalize();
-    if !normal.is_finite() {
-        return None;
-    }
-    // Right-handed basis (u, v, normal): CCW around the normal in 3D is CCW in (u, v).
-    let u = normal.any_orthonormal_vector();
-    let v = normal.cross(u);
-    let project = |ring: &[DVec3]| -> Vec<DVec2> {
-        ring.iter()
-            .map(|p| {
-                let q = *p - origin;
-                DVec2::new(q.dot(u), q.dot(v))
-            })
-            .collect()
-    };
-    let outer2 = project(outer);
-    let holes2: Vec<Vec<DVec2>> = holes.iter().map(|h| project(h)).collect();
-    let tris = triangulate_2d(&outer2, &holes2);
-    if tris.is_empty() {
-        return None;
-    }
+    let mut t = Triangulator::default();
+    let f = t.face(outer, holes)?;
+    Some(FaceTriangles {
+        normal: f.normal,
+        vertices: f.vertices.to_vec(),
+        triangles: f.triangles.to_vec(),
+    })
+}
 
-    // Keep only used vertices, numbered in ring order (deterministic).
-    let all: Vec<DVec3> = rings().flatten().copied().collect();
-    let mut new_index = vec![u32::MAX; all.len()];
-    for t in &tris {
-        for &i in t {
-            new_index[i as usize] = 0;
+/// [`triangulate_face`]'s result, borrowed from the [`Triangulator`] that made it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaceTrianglesRef<'a> {
+    /// Unit normal of the face (Newell normal of its outer ring).
+    pub normal: DVec3,
+    /// The face's vertices that some triangle uses, in ring order (outer ring, then holes).
+    pub vertices: &'a [DVec3],
+    /// Triangles as indices into `vertices`, counter-clockwise seen from the `normal` side.
+    pub triangles: &'a [[u32; 3]],
+}
+
+/// Reusable working memory for [`triangulate_face`] and [`triangulate_2d`]: one per thread
+/// triangulates any number of faces without allocating per face, with the same results.
+///
+/// Rings without holes of at most [`SMALL_RING`] points (nearly every face: quads, panes,
+/// reveals, slabs) are cut by a replica of earcut's ear-slicing pass on a plain index ring,
+/// which gives exactly the triangles, in the same order, that earcut gives; whenever that
+/// pass would hand over to earcut's later passes (no ear found in a whole loop), earcut itself
+/// cuts the ring from the start.
+#[derive(Default)]
+pub struct Triangulator {
+    /// The rings' 3D points relative to the outer ring's first one (outer ring only).
+    rel: Vec<DVec3>,
+    /// All rings' points, flat (2D: projected), and where each ring ends in it.
+    flat: Vec<DVec2>,
+    ring_ends: Vec<usize>,
+    /// What earcut is given: points relative to the first, skipping short holes.
+    data: Vec<[f64; 2]>,
+    index_map: Vec<u32>,
+    hole_starts: Vec<u32>,
+    raw: Vec<u32>,
+    /// Kept triangles, numbered over `flat`.
+    tris: Vec<[u32; 3]>,
+    /// The face's used vertices and its triangles renumbered to them.
+    new_index: Vec<u32>,
+    vertices: Vec<DVec3>,
+    face_tris: Vec<[u32; 3]>,
+    /// The ear-slicing pass's ring: vertex, next and previous node per node.
+    ring: Vec<(u32, u32, u32)>,
+    earcut: earcut::Earcut<f64>,
+}
+
+/// The most points of a hole-free ring that [`Triangulator`] cuts itself: earcut switches to
+/// its z-order hashed search above 80 points.
+pub const SMALL_RING: usize = 80;
+
+impl Triangulator {
+    /// [`triangulate_face`] into this triangulator's buffers.
+    pub fn face(&mut self, outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTrianglesRef<'_>> {
+        if outer.len() < 3 {
+            return None;
         }
-    }
-    let mut vertices = Vec::new();
-    for (i, slot) in new_index.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = vertices.len() as u32;
-            vertices.push(all[i]);
+        let all_finite =
+            outer.iter().all(|p| p.is_finite()) && holes.iter().flatten().all(|p| p.is_finite());
+        if !all_finite {
+            return None;
         }
-    }
-    let triangles = tris
-        .iter()
-        .map(|t| {
+        let origin = outer[0];
+        self.rel.clear();
+        self.rel.extend(outer.iter().map(|p| *p - origin));
+        let newell = super::newell_normal(&self.rel);
+        let extent = self
+            .rel
+            .iter()
+            .fold(0.0f64, |m, p| m.max(p.abs().max_element()));
+        // The Newell vector's length is twice the area.
+        if newell.length() <= 2.0 * REL_EPS * extent * extent {
+            return None;
+        }
+        let normal = newell.normalize();
+        if !normal.is_finite() {
+            return None;
+        }
+        // Right-handed basis (u, v, normal): CCW around the normal in 3D is CCW in (u, v).
+        let u = normal.any_orthonormal_vector();
+        let v = normal.cross(u);
+        let project = |p: &DVec3| {
+            let q = *p - origin;
+            DVec2::new(q.dot(u), q.dot(v))
+        };
+        self.flat.clear();
+        self.ring_ends.clear();
+        self.flat.extend(outer.iter().map(project));
+        self.ring_ends.push(self.flat.len());
+        for h in holes {
+            self.flat.extend(h.iter().map(project));
+            self.ring_ends.push(self.flat.len());
+        }
+        self.cut_flat();
+        if self.tris.is_empty() {
+            return None;
+        }
+
+        // Keep only used vertices, numbered in ring order (deterministic).
+        let total = self.flat.len();
+        self.new_index.clear();
+        self.new_index.resize(total, u32::MAX);
+        for t in &self.tris {
+            for &i in t {
+                self.new_index[i as usize] = 0;
+            }
+        }
+        self.vertices.clear();
+        let all = std::iter::once(outer).chain(holes.iter().map(Vec::as_slice));
+        for (i, p) in all.flatten().enumerate() {
+            let slot = &mut self.new_index[i];
+            if *slot == 0 {
+                *slot = self.vertices.len() as u32;
+                self.vertices.push(*p);
+            }
+        }
+        self.face_tris.clear();
+        let new_index = &self.new_index;
+        self.face_tris.extend(self.tris.iter().map(|t| {
             [
                 new_index[t[0] as usize],
                 new_index[t[1] as usize],
                 new_index[t[2] as usize],
             ]
+        }));
+        Some(FaceTrianglesRef {
+            normal,
+            vertices: &self.vertices,
+            triangles: &self.face_tris,
         })
-        .collect();
-    Some(FaceTriangles {
-        normal,
-        vertices,
-        triangles,
-    })
+    }
+
+    /// [`triangulate_2d`] of the rings in `flat` / `ring_ends` (outer first) into `tris`.
+    fn cut_flat(&mut self) {
+        self.tris.clear();
+        let outer_len = self.ring_ends[0];
+        if outer_len < 3 {
+            return;
+        }
+        if !self.flat.iter().all(|p| p.is_finite()) {
+            return;
+        }
+        let total = self.flat.len();
+        if u32::try_from(total).is_err() {
+            return;
+        }
+
+        // Earcut's vertex numbering skips ignored holes; `index_map` takes it back to ours.
+        // Coordinates are taken relative to the first vertex so that large offsets do not eat
+        // the precision.
+        let origin = self.flat[0];
+        self.data.clear();
+        self.index_map.clear();
+        self.hole_starts.clear();
+        let mut first = 0;
+        for (ri, &end) in self.ring_ends.iter().enumerate() {
+            let ring = &self.flat[first..end];
+            if ri == 0 || ring.len() >= 3 {
+                if ri > 0 {
+                    self.hole_starts.push(self.data.len() as u32);
+                }
+                for (k, p) in ring.iter().enumerate() {
+                    let q = *p - origin;
+                    self.data.push([q.x, q.y]);
+                    self.index_map.push((first + k) as u32);
+                }
+            }
+            first = end;
+        }
+
+        let (lo, hi) = self.data.iter().fold(
+            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(DVec2::from(*p)), hi.max(DVec2::from(*p))),
+        );
+        let extent = (hi - lo).max_element();
+        // `extent` is finite here (all points are); zero means all points coincide.
+        if extent <= 0.0 {
+            return;
+        }
+        let min_area = REL_EPS * extent * extent;
+
+        let small = self.hole_starts.is_empty() && self.data.len() <= SMALL_RING;
+        if !(small && ear_slice(&self.data, &mut self.ring, &mut self.raw)) {
+            self.earcut
+                .earcut(self.data.iter().copied(), &self.hole_starts, &mut self.raw);
+        }
+
+        for t in self.raw.chunks_exact(3) {
+            let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
+            let (Some(pa), Some(pb), Some(pc)) =
+                (self.data.get(a), self.data.get(b), self.data.get(c))
+            else {
+                continue;
+            };
+            let (pa, pb, pc) = (DVec2::from(*pa), DVec2::from(*pb), DVec2::from(*pc));
+            let twice_area = (pb - pa).perp_dot(pc - pa);
+            if twice_area.abs() <= 2.0 * min_area {
+                continue;
+            }
+            let (ia, ib, ic) = (self.index_map[a], self.index_map[b], self.index_map[c]);
+            if twice_area > 0.0 {
+                self.tris.push([ia, ib, ic]);
+            } else {
+                self.tris.push([ia, ic, ib]);
+            }
+        }
+    }
+}
+
+/// Earcut's first pass on one ring without holes of at most [`SMALL_RING`] points (earcut
+/// 0.4's `linked_list` then `earcut_linked` at pass 0 without z-order hashing), with its
+/// arithmetic, so that it cuts the same triangles in the same order into `out`. Returns false,
+/// with `out` undefined, where earcut would go on to its later passes (no ear in a whole loop
+/// round the remaining ring): the caller then runs earcut itself.
+fn ear_slice(data: &[[f64; 2]], ring: &mut Vec<(u32, u32, u32)>, out: &mut Vec<u32>) -> bool {
+    out.clear();
+    let n = data.len();
+    if n < 3 {
+        return true;
+    }
+    // linked_list(clockwise = true): the points in order when their signed area (earcut's sum)
+    // is positive, else reversed; node k is the k-th inserted.
+    let mut sum = 0.0;
+    let [mut bx, mut by] = data[n - 1];
+    for &[ax, ay] in data {
+        sum += (bx - ax) * (ay + by);
+        (bx, by) = (ax, ay);
+    }
+    let forward = sum > 0.0;
+    ring.clear();
+    ring.extend((0..n).map(|k| {
+        let v = if forward { k } else { n - 1 - k };
+        (v as u32, ((k + 1) % n) as u32, ((k + n - 1) % n) as u32)
+    }));
+    let xy = |node: u32, ring: &[(u32, u32, u32)]| data[ring[node as usize].0 as usize];
+    let remove = |node: u32, ring: &mut [(u32, u32, u32)]| {
+        let (_, next, prev) = ring[node as usize];
+        ring[prev as usize].1 = next;
+        ring[next as usize].2 = prev;
+    };
+    // The last node inserted, dropped if it equals its next (the first).
+    let mut ear = (n - 1) as u32;
+    if xy(ear, ring) == xy(ring[ear as usize].1, ring) {
+        let next = ring[ear as usize].1;
+        remove(ear, ring);
+        ear = next;
+    }
+    if ring[ear as usize].1 == ring[ear as usize].2 {
+        return true;
+    }
+    let mut stop = ear;
+    loop {
+        let (_, next, prev) = ring[ear as usize];
+        if prev == next {
+            return true;
+        }
+        if is_ear(data, ring, ear) {
+            out.extend([
+                ring[prev as usize].0,
+                ring[ear as usize].0,
+                ring[next as usize].0,
+            ]);
+            remove(ear, ring);
+            // Skipping the next vertex leads to fewer sliver triangles.
+            ear = ring[next as usize].1;
+            stop = ear;
+            continue;
+        }
+        ear = next;
+        if ear == stop {
+            return false;
+        }
+    }
+}
+
+/// Earcut's signed area of triangle `p q r` (negative: counter-clockwise, a convex corner).
+fn ear_area(p: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {
+    (q[1] - p[1]) * (r[0] - q[0]) - (q[0] - p[0]) * (r[1] - q[1])
+}
+
+/// Earcut's `is_ear`: node `b` is a convex corner and no reflex point of the ring lies in the
+/// triangle it cuts off.
+fn is_ear(data: &[[f64; 2]], ring: &[(u32, u32, u32)], b: u32) -> bool {
+    let (bv, cn, an) = ring[b as usize];
+    let (av, cv) = (ring[an as usize].0, ring[cn as usize].0);
+    let (a, bp, c) = (data[av as usize], data[bv as usize], data[cv as usize]);
+    if ear_area(a, bp, c) >= 0.0 {
+        return false;
+    }
+    let x0 = a[0].min(bp[0].min(c[0]));
+    let y0 = a[1].min(bp[1].min(c[1]));
+    let x1 = a[0].max(bp[0].max(c[0]));
+    let y1 = a[1].max(bp[1].max(c[1]));
+    let mut p = ring[cn as usize].1;
+    let mut p_prev = ring[p as usize].2;
+    while p != an {
+        let p_next = ring[p as usize].1;
+        let pp = data[ring[p as usize].0 as usize];
+        if (pp[0] >= x0 && pp[0] <= x1 && pp[1] >= y0 && pp[1] <= y1)
+            && !(a[0] == pp[0] && a[1] == pp[1])
+            && point_in_triangle(a, bp, c, pp)
+            && ear_area(
+                data[ring[p_prev as usize].0 as usize],
+                pp,
+                data[ring[p_next as usize].0 as usize],
+            ) >= 0.0
+        {
+            return false;
+        }
+        (p_prev, p) = (p, p_next);
+    }
+    true
+}
+
+/// Earcut's `point_in_triangle` (boundary included).
+fn point_in_triangle(a: [f64; 2], b: [f64; 2], c: [f64; 2], p: [f64; 2]) -> bool {
+    ((c[0] - p[0]) * (a[1] - p[1]) >= (a[0] - p[0]) * (c[1] - p[1]))
+        && ((a[0] - p[0]) * (b[1] - p[1]) >= (b[0] - p[0]) * (a[1] - p[1]))
+        && ((b[0] - p[0]) * (c[1] - p[1]) >= (c[0] - p[0]) * (b[1] - p[1]))
 }
 
 #[cfg(test)]
@@ -377,6 +573,68 @@ mod tests {
             let tris = triangulate_2d(&outer, &holes);
             let all: Vec<DVec2> = outer.iter().chain(holes.iter().flatten()).copied().collect();
             prop_assert!((area_2d(&all, &tris) - expected).abs() < 1e-7 * expected.max(1.0));
+        }
+    }
+
+    /// Earcut's own triangles of a ring without holes.
+    fn earcut_of(data: &[[f64; 2]]) -> Vec<u32> {
+        let mut out = Vec::new();
+        earcut::Earcut::new().earcut(data.iter().copied(), &[] as &[u32], &mut out);
+        out
+    }
+
+    #[test]
+    fn ear_slice_cuts_convex_and_concave_rings_as_earcut() {
+        let mut ring = Vec::new();
+        let mut out = Vec::new();
+        let rings: [&[[f64; 2]]; 5] = [
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            &[[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]],
+            &[[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [2.0, 1.0], [0.0, 4.0]],
+            &[
+                [0.0, 0.0],
+                [2.0, 0.0],
+                [4.0, 0.0],
+                [4.0, 3.0],
+                [0.0, 3.0],
+                [0.0, 0.0],
+            ],
+            &[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]],
+        ];
+        for r in rings {
+            let done = ear_slice(r, &mut ring, &mut out);
+            assert!(!done || out == earcut_of(r), "{r:?}: {out:?}");
+        }
+    }
+
+    proptest! {
+        /// Wherever the ear-slicing replica finishes, it gives earcut's triangles in earcut's
+        /// order (so the glTF bytes do not depend on which of the two cut a face).
+        #[test]
+        fn ear_slice_matches_earcut(
+            pts in prop::collection::vec((-8i32..8, -8i32..8), 3..12),
+            star in prop::collection::vec((1.0f64..10.0, 0.0f64..0.9), 3..40),
+            scale in 0.001f64..1000.0,
+        ) {
+            let mut ring = Vec::new();
+            let mut out = Vec::new();
+            let grid: Vec<[f64; 2]> = pts.iter().map(|&(x, y)| [x as f64 * scale, y as f64 * 0.7]).collect();
+            if ear_slice(&grid, &mut ring, &mut out) {
+                prop_assert_eq!(&out, &earcut_of(&grid));
+            }
+            let n = star.len() as f64;
+            let round: Vec<[f64; 2]> = star
+                .iter()
+                .enumerate()
+                .map(|(i, (r, j))| {
+                    let a = (i as f64 + j) * std::f64::consts::TAU / n;
+                    [scale * r * a.cos() + 0.1, r * a.sin() - 3.0]
+                })
+                .collect();
+            prop_assert!(ear_slice(&round, &mut ring, &mut out) || round.len() > 3);
+            if ear_slice(&round, &mut ring, &mut out) {
+                prop_assert_eq!(&out, &earcut_of(&round));
+            }
         }
     }
 

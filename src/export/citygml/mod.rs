@@ -90,17 +90,21 @@ pub fn count_elements(bytes: &[u8], after_lt: &mut bool) -> u64 {
     };
     let opens = |b: u8| !matches!(b, b'/' | b'?' | b'!');
     let mut n = u64::from(*after_lt && opens(first));
-    // Start tags are the `<`s that `/`, `?` or `!` do not follow: every `<` (one SIMD count)
-    // minus those three pairs (SIMD searches), rather than a look at each `<`'s next byte.
-    let lt = memchr::memchr_iter(b'<', bytes).count() as u64;
-    let not_start: u64 = [b"</", b"<?", b"<!"]
-        .iter()
-        .map(|pair| memchr::memmem::find_iter(bytes, pair).count() as u64)
-        .sum();
+    // Every `<` that `/`, `?` or `!` does not follow, in one branch-free pass over the byte
+    // pairs that the compiler vectorises (byte counters, emptied every 255 pairs).
+    let pairs = bytes.len() - 1;
+    for (ca, cb) in bytes[..pairs].chunks(255).zip(bytes[1..].chunks(255)) {
+        let mut acc: u8 = 0;
+        for (&x, &y) in ca.iter().zip(cb) {
+            acc += u8::from(x == b'<')
+                & u8::from(y != b'/')
+                & u8::from(y != b'?')
+                & u8::from(y != b'!');
+        }
+        n += u64::from(acc);
+    }
     // A `<` at the very end is decided by the next piece.
-    let last = u64::from(bytes.last() == Some(&b'<'));
-    n += lt - not_start - last;
-    *after_lt = last == 1;
+    *after_lt = bytes[pairs] == b'<';
     n
 }
 
@@ -174,6 +178,8 @@ pub struct CityGmlWriter<W: Write + Send> {
     lod: GeometryLod,
     /// Scratch buffer one building is rendered into.
     buf: Xml,
+    /// Buffers of the buildings [`BuildingWriter::write_all`] renders in parallel, reused.
+    slots: Vec<Xml>,
 }
 
 impl<W: Write + Send> CityGmlWriter<W> {
@@ -187,6 +193,7 @@ impl<W: Write + Send> CityGmlWriter<W> {
             origin: DVec3::ZERO,
             lod: GeometryLod::Lod2,
             buf: Xml(Vec::with_capacity(64 * 1024)),
+            slots: Vec::new(),
         }
     }
 
@@ -285,28 +292,33 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
     }
 
     /// Renders the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, each into its
-    /// own buffer, and writes them in order: the same bytes as `write` on each.
+    /// own buffer (kept from batch to batch), and writes them in order: the same bytes as
+    /// `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         self.check_state(State::Open, "write()")?;
         let (origin, srs, lod) = (self.origin, self.srs_attr.as_str(), self.lod);
+        let slots = &mut self.slots;
+        slots.resize_with(super::PARALLEL_BATCH, || Xml(Vec::new()));
         for batch in buildings.chunks(super::PARALLEL_BATCH) {
-            let rendered: Vec<Result<Xml, ExportError>> = batch
+            let rendered: Vec<Result<(), ExportError>> = batch
                 .par_iter()
-                .map(|b| {
+                .zip(slots.par_iter_mut())
+                .map(|(b, x)| {
+                    x.0.clear();
                     check_finite("CityGML writer", b)?;
-                    let mut x = Xml(Vec::with_capacity(64 * 1024));
                     Renderer {
-                        x: &mut x,
+                        x,
                         origin,
                         srs,
                         lod,
                     }
                     .building(b);
-                    Ok(x)
+                    Ok(())
                 })
                 .collect();
-            for x in rendered {
-                self.out.write_all(&x?.0)?;
+            for (r, x) in rendered.into_iter().zip(slots.iter()) {
+                r?;
+                self.out.write_all(&x.0)?;
             }
         }
         Ok(())
@@ -318,6 +330,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         self.out.write_all(b"</core:CityModel>\n")?;
         self.out.flush()?;
         self.buf = Xml(Vec::new());
+        self.slots = Vec::new();
         Ok(())
     }
 }

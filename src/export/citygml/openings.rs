@@ -2,7 +2,7 @@
 //! balconies as `bldg:BuildingInstallation`s, and the `lod3Solid` (also used at LOD4 with the
 //! `lod4` properties).
 
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_faces};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
 use crate::model::{OpeningKind, Part};
 
 use super::surfaces::{
@@ -57,7 +57,7 @@ impl Renderer<'_> {
         }
         // Opening polygons of the written walls, kept for the solid's references.
         let mut opening_refs: Vec<(usize, usize)> = Vec::new();
-        let seated = seated_faces(part);
+        let seated = seated_changes(part);
         for s in seated_surfaces(part, &seated) {
             let element = boundary_element(s.kind);
             x.s("<bldg:boundedBy>\n<");

@@ -110,18 +110,21 @@ pub(super) fn surfaces(part: &Part) -> impl Iterator<Item = Surface<'_>> {
         .filter(|s| ring(&s.face.outer).is_some())
 }
 
-/// [`surfaces`] with the ground and walls of `seated` (the LOD3 solid's, see
-/// [`crate::export::lod3geom::seated_faces`]) in place of the model's.
+/// [`surfaces`] with the ground and walls that `seated` changes (the LOD3 solid's, see
+/// [`crate::export::lod3geom::seated_changes`]) in place of the model's.
 pub(super) fn seated_surfaces<'a>(
     part: &'a Part,
-    seated: &'a Option<(Face, Vec<Face>)>,
+    seated: &'a [(usize, Face)],
 ) -> impl Iterator<Item = Surface<'a>> {
     surfaces(part).map(move |s| {
-        let face = match (seated, s.kind) {
-            (Some((g, _)), SurfaceKind::Ground) => g,
-            (Some((_, w)), SurfaceKind::Wall) => w.get(s.index).unwrap_or(s.face),
-            _ => s.face,
+        let fi = match s.kind {
+            SurfaceKind::Ground => Some(0),
+            SurfaceKind::Wall => Some(s.index + 1),
+            _ => None,
         };
+        let face = fi
+            .and_then(|fi| seated.iter().find(|c| c.0 == fi))
+            .map_or(s.face, |c| &c.1);
         Surface { face, ..s }
     })
 }

@@ -47,9 +47,14 @@ impl Xml {
         format::push_uint(&mut self.0, v);
     }
 
-    /// A finite number with exactly 3 decimals, never `-0.000`.
+    /// A finite number with exactly 3 decimals, never `-0.000` (the digits of
+    /// [`format::push_fixed3`], without its general cases where they cannot arise).
     pub(super) fn fixed3(&mut self, v: f64) {
-        format::push_fixed3(&mut self.0, v);
+        let mut buf = [0u8; 24];
+        match fixed3_into(&mut buf, v) {
+            Some(start) => self.0.extend_from_slice(&buf[start..]),
+            None => format::push_fixed3(&mut self.0, v),
+        }
     }
 
     /// A value in 1/10000 as a decimal with 4 places (`5020` -> `0.5020`).
@@ -130,14 +135,101 @@ impl Xml {
             }
         };
         self.s("<gml:LinearRing><gml:posList srsDimension=\"3\">");
+        // The points go through a stack buffer, appended a few kilobytes at a time.
+        let mut buf = [0u8; 4096];
+        let mut len = 0;
         for (i, p) in points.iter().chain(points.first()).enumerate() {
-            if i > 0 {
-                self.0.push(b' ');
+            if len + 1 + 3 * 24 > buf.len() {
+                self.0.extend_from_slice(&buf[..len]);
+                len = 0;
             }
-            self.point(origin + *p);
+            if i > 0 {
+                buf[len] = b' ';
+                len += 1;
+            }
+            let q = origin + *p;
+            for (k, v) in [q.x, q.y, q.z].into_iter().enumerate() {
+                let mut one = [0u8; 24];
+                let Some(start) = fixed3_into(&mut one, v) else {
+                    // Beyond a million kilometres: the general formatter, point by point.
+                    self.0.extend_from_slice(&buf[..len]);
+                    len = 0;
+                    if k > 0 {
+                        self.0.push(b' ');
+                    }
+                    format::push_fixed3(&mut self.0, v);
+                    continue;
+                };
+                if k > 0 {
+                    buf[len] = b' ';
+                    len += 1;
+                }
+                let digits = &one[start..];
+                buf[len..len + digits.len()].copy_from_slice(digits);
+                len += digits.len();
+            }
         }
+        self.0.extend_from_slice(&buf[..len]);
         self.s("</gml:posList></gml:LinearRing>\n");
     }
+}
+
+/// `v` rounded to the nearest integer, halves away from zero, as `f64::round` (which is a libm
+/// call without SSE4.1), for `|v| < 1e18`; `None` beyond.
+#[inline]
+fn round_i64(v: f64) -> Option<i64> {
+    if v.is_nan() || v.abs() >= 1e18 {
+        return None;
+    }
+    // Exact: below 2^63 the cast truncates, and `v - t` is exact for a `t` that only clears
+    // `v`'s fraction bits.
+    let t = v as i64;
+    let frac = v - t as f64;
+    Some(if frac >= 0.5 {
+        t + 1
+    } else if frac <= -0.5 {
+        t - 1
+    } else {
+        t
+    })
+}
+
+/// Two-digit groups for [`fixed3_into`].
+const DIGIT_PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
+
+/// Writes `v` with exactly 3 decimals (as [`format::push_fixed3`]: `(v * 1000).round()`
+/// millimetres, never `-0.000`) at the end of `buf`; returns where it starts. `None` when
+/// `|v * 1000|` reaches 1e18, which the general formatter handles.
+#[inline]
+fn fixed3_into(buf: &mut [u8; 24], v: f64) -> Option<usize> {
+    let n = round_i64(v * 1000.0)?;
+    let mut m = n.unsigned_abs();
+    let mut i = buf.len();
+    let frac = (m % 1000) as usize;
+    m /= 1000;
+    buf[i - 3] = b'0' + (frac / 100) as u8;
+    buf[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * (frac % 100)..2 * (frac % 100) + 2]);
+    buf[i - 4] = b'.';
+    i -= 4;
+    while m >= 100 {
+        let d = (m % 100) as usize;
+        m /= 100;
+        buf[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
+        i -= 2;
+    }
+    if m >= 10 {
+        let d = m as usize;
+        buf[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
+        i -= 2;
+    } else {
+        buf[i - 1] = b'0' + m as u8;
+        i -= 1;
+    }
+    if n < 0 {
+        buf[i - 1] = b'-';
+        i -= 1;
+    }
+    Some(i)
 }
 
 /// Whether the ring, as written, has no repeated consecutive point and no `x, y, x` spike
@@ -145,7 +237,8 @@ impl Xml {
 fn written_clean(points: &[DVec3], origin: DVec3) -> bool {
     let key = |p: &DVec3| {
         let g = (origin + *p) * 1000.0;
-        (g.x.round() as i64, g.y.round() as i64, g.z.round() as i64)
+        let r = |v: f64| round_i64(v).unwrap_or(v.round() as i64);
+        (r(g.x), r(g.y), r(g.z))
     };
     let n = points.len();
     if n < 3 {
@@ -193,4 +286,57 @@ pub(super) fn written_ring(points: &[DVec3], origin: DVec3) -> Vec<DVec3> {
         }
     }
     r.into_iter().map(|(_, p)| p).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn general(v: f64) -> Vec<u8> {
+        let mut out = Vec::new();
+        format::push_fixed3(&mut out, v);
+        out
+    }
+
+    fn fast(v: f64) -> Vec<u8> {
+        let mut x = Xml(Vec::new());
+        x.fixed3(v);
+        x.0
+    }
+
+    #[test]
+    fn fixed3_writes_the_general_formatters_digits() {
+        for v in [
+            0.0,
+            -0.0,
+            -0.0004,
+            0.0005,
+            -0.0005,
+            1.2345,
+            -1.2346,
+            0.5,
+            999.9995,
+            574_321.5,
+            6_279_000.123_456,
+            -42.0,
+            1e14,
+            9.99e14,
+            1e15,
+            1e30,
+            -1e30,
+        ] {
+            assert_eq!(fast(v), general(v), "{v}");
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn fixed3_matches_push_fixed3(v in -1e16f64..1e16, m in -10_000_000i64..10_000_000) {
+            prop_assert_eq!(fast(v), general(v));
+            // Halves of a millimetre, where rounding ties.
+            let t = m as f64 / 1000.0 + 0.0005;
+            prop_assert_eq!(fast(t), general(t));
+        }
+    }
 }

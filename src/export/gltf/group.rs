@@ -1,10 +1,12 @@
 //! Faces grouped by colour within one surface class of a building, as flat-shaded triangle
 //! data in glTF's frame: what the exterior (`mesh`) and the interior (`lod4`) add faces to.
 
+use std::cell::RefCell;
+
 use glam::DVec3;
 
 use crate::color::Color;
-use crate::geometry::triangulate::triangulate_face;
+use crate::geometry::triangulate::Triangulator;
 use crate::model::Face;
 
 use super::materials::{color_key, Finish};
@@ -55,6 +57,11 @@ pub(super) fn group_with(groups: &mut Vec<Group>, color: Color, finish: Finish) 
     &mut groups[i]
 }
 
+thread_local! {
+    /// Each thread's triangulation buffers, reused from face to face.
+    static TRIANGULATOR: RefCell<Triangulator> = RefCell::new(Triangulator::default());
+}
+
 /// Flat-shaded triangle data of one primitive.
 #[derive(Default)]
 pub(super) struct MeshData {
@@ -66,23 +73,34 @@ pub(super) struct MeshData {
 impl MeshData {
     /// Appends a face with its own vertices and normal; degenerate faces add nothing.
     pub(super) fn add_face(&mut self, face: &Face) {
-        let Some(t) = triangulate_face(&face.outer, &face.holes) else {
+        TRIANGULATOR.with_borrow_mut(|tri| self.add_triangulated(face, tri));
+    }
+
+    fn add_triangulated(&mut self, face: &Face, tri: &mut Triangulator) {
+        let Some(t) = tri.face(&face.outer, &face.holes) else {
             return;
         };
-        let positions: Vec<[f32; 3]> = t.vertices.iter().map(|p| to_gltf(*p)).collect();
-        // Coordinates beyond f32 range (never in a local frame, but input is input).
-        if positions.iter().flatten().any(|c| !c.is_finite()) {
-            return;
-        }
         let Ok(base) = u32::try_from(self.positions.len()) else {
             return;
         };
-        if u32::try_from(self.positions.len() + positions.len()).is_err() {
+        if u32::try_from(self.positions.len() + t.vertices.len()).is_err() {
+            return;
+        }
+        let start = self.positions.len();
+        self.positions
+            .extend(t.vertices.iter().map(|p| to_gltf(*p)));
+        // Coordinates beyond f32 range (never in a local frame, but input is input).
+        if self.positions[start..]
+            .iter()
+            .flatten()
+            .any(|c| !c.is_finite())
+        {
+            self.positions.truncate(start);
             return;
         }
         let n = to_gltf(t.normal);
-        self.normals.extend(std::iter::repeat_n(n, positions.len()));
-        self.positions.extend(positions);
+        self.normals
+            .extend(std::iter::repeat_n(n, t.vertices.len()));
         self.indices
             .extend(t.triangles.iter().flatten().map(|i| base + i));
     }

@@ -69,15 +69,21 @@ pub(super) fn add_openings(
 }
 
 /// One building's binary data (vertex and index bytes) and primitive layout: all the work of a
-/// write that needs no writer state, so a chunk of buildings can be encoded in parallel.
+/// write that needs no writer state, so a chunk of buildings can be encoded in parallel. The
+/// writer keeps one per building of a parallel batch and reuses their buffers.
+#[derive(Default)]
 pub(super) struct Encoded {
     pub(super) layouts: Vec<Vec<PrimLayout>>,
     pub(super) vertex_bytes: Vec<u8>,
     pub(super) index_bytes: Vec<u8>,
 }
 
-/// Triangulates and lays out one building (`detail`: LOD3 and up classes are written).
-pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError> {
+/// Triangulates and lays out one building (`detail`: LOD3 and up classes are written) into
+/// `out`, whose buffers are reused.
+pub(super) fn encode(b: &Building, detail: bool, out: &mut Encoded) -> Result<(), ExportError> {
+    out.layouts.clear();
+    out.vertex_bytes.clear();
+    out.index_bytes.clear();
     check_finite("glTF writer", b)?;
     // Faces against another part of the building are inside it: not drawn.
     let exposed = contact::exposed(b);
@@ -136,9 +142,11 @@ pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError>
 
     // Binary layout of one building: one vertex view (per primitive: positions, then
     // normals) and one index view (per primitive: indices padded to 4 bytes).
-    let mut vertex_bytes: Vec<u8> = Vec::new();
-    let mut index_bytes: Vec<u8> = Vec::new();
-    let mut layouts: Vec<Vec<PrimLayout>> = Vec::new();
+    let Encoded {
+        layouts,
+        vertex_bytes,
+        index_bytes,
+    } = out;
     for (class, groups) in &classes {
         let mut prims = Vec::new();
         for g in groups {
@@ -197,11 +205,7 @@ pub(super) fn encode(b: &Building, detail: bool) -> Result<Encoded, ExportError>
         layouts.push(prims);
     }
 
-    Ok(Encoded {
-        layouts,
-        vertex_bytes,
-        index_bytes,
-    })
+    Ok(())
 }
 
 /// Where one primitive's data lies in its building's vertex and index views.

@@ -63,7 +63,7 @@ use crate::model::{Building, Lod};
 
 use json::{AssetExtras, Document};
 use materials::Finish;
-use mesh::encode;
+use mesh::{encode, Encoded};
 use spool::Spool;
 
 mod contact;
@@ -197,6 +197,8 @@ const GLB_MAX_BYTES: u64 = u32::MAX as u64;
 pub struct GltfWriter<W: Write + Send> {
     out: W,
     scratch: Option<BufWriter<File>>,
+    /// A dry run's writer ([`GltfWriter::discarding`]): no scratch file, the data only counted.
+    discard: bool,
     /// Bytes written to the scratch file so far (always a multiple of 4).
     bin_len: u64,
     /// The largest binary chunk accepted ([`GLB_MAX_BYTES`]; smaller in tests).
@@ -205,6 +207,8 @@ pub struct GltfWriter<W: Write + Send> {
     doc: Document,
     /// Serialised records of `nodes`, `meshes`, `accessors` and `bufferViews`, in that order.
     spools: [Spool; 4],
+    /// Reused buffers of the buildings being encoded (one per building of a parallel batch).
+    slots: Vec<Encoded>,
     /// Reused buffer one record is serialised into.
     json_scratch: Vec<u8>,
     /// (class, colour bits) -> material index, for reuse across buildings.
@@ -235,11 +239,36 @@ impl<W: Write + Send> GltfWriter<W> {
         GltfWriter {
             out,
             scratch: Some(BufWriter::with_capacity(1 << 20, scratch)),
+            discard: false,
             bin_len: 0,
             max_bin: GLB_MAX_BYTES,
             state: State::New,
             doc: Document::default(),
             spools: Default::default(),
+            slots: Vec::new(),
+            json_scratch: Vec::new(),
+            material_index: BTreeMap::new(),
+            detail: false,
+            scratch_guard: ScratchGuard(Vec::new()),
+        }
+    }
+
+    /// A writer for a dry run, whose output is thrown away: it renders every building as the
+    /// other writers do (triangulation, binary layout, JSON records) but stores nothing, no
+    /// scratch file and no spool: the binary data and the records are only counted. The GLB it
+    /// writes to `out` has the right header and length, the JSON chunk's fixed parts, and
+    /// blanks (spaces, zero bytes) in place of the records and the binary data.
+    pub fn discarding(out: W) -> GltfWriter<W> {
+        GltfWriter {
+            out,
+            scratch: None,
+            discard: true,
+            bin_len: 0,
+            max_bin: GLB_MAX_BYTES,
+            state: State::New,
+            doc: Document::default(),
+            spools: std::array::from_fn(|_| Spool::Count { len: 0, count: 0 }),
+            slots: Vec::new(),
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
             detail: false,
@@ -305,12 +334,14 @@ impl<W: Write + Send> GltfWriter<W> {
                 "glTF writer: begin called twice".into(),
             ));
         }
-        let scratch = self
-            .scratch
-            .as_mut()
-            .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
-        scratch.get_mut().set_len(0)?;
-        scratch.seek(SeekFrom::Start(0))?;
+        if !self.discard {
+            let scratch = self
+                .scratch
+                .as_mut()
+                .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
+            scratch.get_mut().set_len(0)?;
+            scratch.seek(SeekFrom::Start(0))?;
+        }
         self.doc.asset_extras = AssetExtras {
             crs: crs_label,
             origin: [ctx.origin.x, ctx.origin.y, ctx.origin.z],
@@ -325,8 +356,13 @@ impl<W: Write + Send> GltfWriter<W> {
     /// Appends one building: triangulates its faces, writes its binary data to the scratch file
     /// and records its nodes, meshes, accessors and buffer views.
     fn add_building(&mut self, b: &Building) -> Result<(), ExportError> {
-        let e = encode(b, self.detail)?;
-        self.add_encoded(b, e)
+        let mut slots = std::mem::take(&mut self.slots);
+        if slots.is_empty() {
+            slots.push(Encoded::default());
+        }
+        let r = encode(b, self.detail, &mut slots[0]).and_then(|()| self.add_encoded(b, &slots[0]));
+        self.slots = slots;
+        r
     }
 }
 
@@ -358,13 +394,24 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
             return buildings.iter().try_for_each(|b| self.write(b));
         }
         let detail = self.detail;
-        for batch in buildings.chunks(super::PARALLEL_BATCH) {
-            let encoded: Vec<_> = batch.par_iter().map(|b| encode(b, detail)).collect();
-            for (b, e) in batch.iter().zip(encoded) {
-                self.add_encoded(b, e?)?;
-            }
-        }
-        Ok(())
+        let mut slots = std::mem::take(&mut self.slots);
+        slots.resize_with(super::PARALLEL_BATCH, Encoded::default);
+        let r = buildings
+            .chunks(super::PARALLEL_BATCH)
+            .try_for_each(|batch| {
+                let encoded: Vec<_> = batch
+                    .par_iter()
+                    .zip(slots.par_iter_mut())
+                    .map(|(b, slot)| encode(b, detail, slot))
+                    .collect();
+                for ((b, e), slot) in batch.iter().zip(encoded).zip(&slots) {
+                    e?;
+                    self.add_encoded(b, slot)?;
+                }
+                Ok(())
+            });
+        self.slots = slots;
+        r
     }
 
     fn finish(&mut self) -> Result<(), ExportError> {

@@ -31,6 +31,11 @@ pub(super) enum Spool {
         len: u64,
         count: u32,
     },
+    /// A dry run's: the records are serialised and counted, not kept.
+    Count {
+        len: u64,
+        count: u32,
+    },
 }
 
 impl Default for Spool {
@@ -46,7 +51,9 @@ impl Spool {
     /// Records so far (the index the next one gets).
     pub(super) fn count(&self) -> u32 {
         match self {
-            Spool::Mem { count, .. } | Spool::File { count, .. } => *count,
+            Spool::Mem { count, .. } | Spool::File { count, .. } | Spool::Count { count, .. } => {
+                *count
+            }
         }
     }
 
@@ -54,7 +61,7 @@ impl Spool {
     pub(super) fn len(&self) -> u64 {
         match self {
             Spool::Mem { buf, .. } => buf.len() as u64,
-            Spool::File { len, .. } => *len,
+            Spool::File { len, .. } | Spool::Count { len, .. } => *len,
         }
     }
 
@@ -73,6 +80,11 @@ impl Spool {
             }
             Spool::File { w, len, count } => {
                 w.write_all(scratch)?;
+                *len += scratch.len() as u64;
+                *count += 1;
+                Ok(*count - 1)
+            }
+            Spool::Count { len, count } => {
                 *len += scratch.len() as u64;
                 *count += 1;
                 Ok(*count - 1)
@@ -96,13 +108,27 @@ impl Spool {
                 }
                 Ok(())
             }
+            Spool::Count { len, .. } => write_blank(out, *len, b' '),
         }
     }
 }
 
+/// Writes `len` copies of `byte` (a dry run's stand-in for data it did not keep), in pieces
+/// large enough to pass through buffered writers without a copy.
+fn write_blank(out: &mut impl Write, len: u64, byte: u8) -> io::Result<()> {
+    let block = vec![byte; len.min(1 << 20) as usize];
+    let mut left = len;
+    while left > 0 {
+        let n = left.min(block.len() as u64) as usize;
+        out.write_all(&block[..n])?;
+        left -= n as u64;
+    }
+    Ok(())
+}
+
 impl<W: Write + Send> GltfWriter<W> {
     /// Spools an encoded building's bytes and serialises its records.
-    pub(super) fn add_encoded(&mut self, b: &Building, e: Encoded) -> Result<(), ExportError> {
+    pub(super) fn add_encoded(&mut self, b: &Building, e: &Encoded) -> Result<(), ExportError> {
         let Encoded {
             layouts,
             vertex_bytes,
@@ -112,16 +138,17 @@ impl<W: Write + Send> GltfWriter<W> {
         let vertex_view_offset = self.bin_len;
         let index_view_offset = self.bin_len + vertex_bytes.len() as u64;
         if !layouts.is_empty() {
-            let scratch = self
-                .scratch
-                .as_mut()
-                .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
-            let written = scratch
-                .write_all(&vertex_bytes)
-                .and_then(|()| scratch.write_all(&index_bytes));
-            if let Err(e) = written {
-                self.state = State::Failed;
-                return Err(e.into());
+            if !self.discard {
+                let scratch = self.scratch.as_mut().ok_or_else(|| {
+                    ExportError::Invalid("glTF writer: scratch file missing".into())
+                })?;
+                let written = scratch
+                    .write_all(vertex_bytes)
+                    .and_then(|()| scratch.write_all(index_bytes));
+                if let Err(e) = written {
+                    self.state = State::Failed;
+                    return Err(e.into());
+                }
             }
             self.bin_len = index_view_offset + index_bytes.len() as u64;
             // Fail as soon as the file cannot be a GLB any more, not hours later at the end.
@@ -137,7 +164,7 @@ impl<W: Write + Send> GltfWriter<W> {
 
         let written = self.records(
             b,
-            &layouts,
+            layouts,
             vertex_view_offset,
             vertex_bytes.len() as u64,
             index_bytes.len() as u64,
@@ -296,11 +323,15 @@ impl<W: Write + Send> GltfWriter<W> {
 
     /// Writes the GLB: header, JSON chunk, BIN chunk copied from the scratch file.
     pub(super) fn write_glb(&mut self) -> Result<(), ExportError> {
-        let scratch = self
-            .scratch
-            .take()
-            .ok_or_else(|| ExportError::Invalid("glTF writer: scratch file missing".into()))?;
-        let mut scratch = scratch.into_inner().map_err(|e| e.into_error())?;
+        let mut scratch = match self.scratch.take() {
+            Some(s) => Some(s.into_inner().map_err(|e| e.into_error())?),
+            None if self.discard => None,
+            None => {
+                return Err(ExportError::Invalid(
+                    "glTF writer: scratch file missing".into(),
+                ))
+            }
+        };
         let bin_len = self.bin_len;
         self.doc.buffer_length = bin_len;
 
@@ -340,12 +371,17 @@ impl<W: Write + Send> GltfWriter<W> {
         if bin_len > 0 {
             w.write_all(&(bin_padded as u32).to_le_bytes())?;
             w.write_all(&CHUNK_BIN.to_le_bytes())?;
-            scratch.seek(SeekFrom::Start(0))?;
-            let copied = io::copy(&mut (&mut scratch).take(bin_len), &mut w)?;
-            if copied != bin_len {
-                return Err(ExportError::Invalid(format!(
-                    "glTF scratch file is {copied} bytes, expected {bin_len}: was it modified?"
-                )));
+            match &mut scratch {
+                Some(scratch) => {
+                    scratch.seek(SeekFrom::Start(0))?;
+                    let copied = io::copy(&mut scratch.take(bin_len), &mut w)?;
+                    if copied != bin_len {
+                        return Err(ExportError::Invalid(format!(
+                            "glTF scratch file is {copied} bytes, expected {bin_len}: was it modified?"
+                        )));
+                    }
+                }
+                None => write_blank(&mut w, bin_len, 0)?,
             }
             for _ in bin_len..bin_padded {
                 w.write_all(&[0])?;
