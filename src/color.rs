@@ -57,15 +57,27 @@ impl Color {
     /// component to 8 bits; `gray` is preferred over `grey`, the first name in alphabetical
     /// order otherwise), else `None`.
     pub fn css_name(self) -> Option<&'static str> {
-        let hex = self.to_hex();
-        let v = u32::from_str_radix(hex.get(1..)?, 16).ok()?;
+        let [r, g, b] = self.bytes();
+        let v = u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b);
         CSS_NAMES.iter().find(|(_, c)| *c == v).map(|(n, _)| *n)
     }
 
     /// `#rrggbb`.
     pub fn to_hex(self) -> String {
+        const DIGITS: &[u8; 16] = b"0123456789abcdef";
+        let mut s = String::with_capacity(7);
+        s.push('#');
+        for v in self.bytes() {
+            s.push(char::from(DIGITS[usize::from(v >> 4)]));
+            s.push(char::from(DIGITS[usize::from(v & 15)]));
+        }
+        s
+    }
+
+    /// Red, green and blue as 0..=255, as `#rrggbb` writes them.
+    fn bytes(self) -> [u8; 3] {
         let c = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-        format!("#{:02x}{:02x}{:02x}", c(self.r), c(self.g), c(self.b))
+        [c(self.r), c(self.g), c(self.b)]
     }
 }
 

@@ -64,11 +64,19 @@ pub struct Generator {
     /// Limits of every derivation (`--max-depth`, `--max-shapes`) and whether `comp` rules run
     /// (`facades`, which the pipeline turns on from LOD3).
     pub caps: Caps,
-    /// Rulesets compiled from appearances, by rule text.
-    compiled: Mutex<HashMap<String, Arc<RuleSet>>>,
+    /// Rulesets compiled from appearances.
+    compiled: Mutex<RuleCache>,
     /// The other buildings around each lot, for party walls at LOD3 and above (empty: every
     /// building stands alone). See [`Generator::surroundings`].
     pub surroundings: surroundings::Surroundings,
+}
+
+/// Rulesets compiled from the knowledge base: by rule text, and by the styles' inputs to it
+/// (hash, then [`compile::RulesInputs::matches`]), which spares writing the text again.
+#[derive(Default)]
+struct RuleCache {
+    by_text: HashMap<String, Arc<RuleSet>>,
+    by_inputs: HashMap<u64, Vec<(compile::RulesInputs, Arc<RuleSet>)>>,
 }
 
 /// A per-building remark for the report.
@@ -84,7 +92,7 @@ impl Generator {
             lod,
             seed,
             caps,
-            compiled: Mutex::new(HashMap::new()),
+            compiled: Mutex::new(RuleCache::default()),
             surroundings: Default::default(),
         }
     }
@@ -334,19 +342,41 @@ impl Generator {
         match &self.rules {
             Rules::File(r) => Ok(r.clone()),
             Rules::Kb => {
-                let text = compile::ruleset_text(style);
+                // By the style's inputs to the rule text first: most buildings share them, and
+                // then the text is not written again.
+                let h = compile::RulesInputs::hash_of(style);
                 // A cache poisoned by a caught panic in another building still holds only
                 // fully parsed rulesets (an entry is inserted after its parse), so it is used.
                 let mut cache = self.compiled.lock().unwrap_or_else(|e| e.into_inner());
-                if let Some(r) = cache.get(&text) {
+                if let Some((_, r)) = cache
+                    .by_inputs
+                    .get(&h)
+                    .and_then(|b| b.iter().find(|(i, _)| i.matches(style)))
+                {
                     return Ok(r.clone());
                 }
-                let parsed = grammar::parse(&text, &format!("<kb {}>", style.appearance_label))
-                    .map_err(|e| {
-                        format!("rules compiled from the knowledge base do not parse: {e}")
-                    })?;
-                let r = Arc::new(parsed);
-                cache.insert(text, r.clone());
+                let text = compile::ruleset_text(style);
+                let r = match cache.by_text.get(&text) {
+                    Some(r) => r.clone(),
+                    None => {
+                        let parsed =
+                            grammar::parse(&text, &format!("<kb {}>", style.appearance_label))
+                                .map_err(|e| {
+                                    format!(
+                                        "rules compiled from the knowledge base do not parse: {e}"
+                                    )
+                                })?;
+                        let r = Arc::new(parsed);
+                        cache.by_text.insert(text, r.clone());
+                        r
+                    }
+                };
+                let inputs = compile::RulesInputs::of(style);
+                cache
+                    .by_inputs
+                    .entry(h)
+                    .or_default()
+                    .push((inputs, r.clone()));
                 Ok(r)
             }
         }

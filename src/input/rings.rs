@@ -58,13 +58,13 @@ pub fn ring_problem(ring: &[(f64, f64)]) -> Option<&'static str> {
     if ring.iter().any(|&(x, y)| !x.is_finite() || !y.is_finite()) {
         return Some("non-finite coordinates");
     }
-    let mut pts: Vec<(u64, u64)> = ring
-        .iter()
-        .map(|&(x, y)| (x.to_bits(), y.to_bits()))
-        .collect();
-    pts.sort_unstable();
-    pts.dedup();
-    if pts.len() < 3 {
+    // Three points that differ bit for bit.
+    let bits = |&(x, y): &(f64, f64)| (x.to_bits(), y.to_bits());
+    let mut pts = ring.iter().map(bits);
+    let a = pts.next();
+    let b = pts.find(|p| Some(*p) != a);
+    let c = pts.find(|p| Some(*p) != a && Some(*p) != b);
+    if c.is_none() {
         Some("fewer than 3 distinct points")
     } else if signed_area(ring) == 0.0 && collinear(ring) {
         // A bow tie also has a signed area of 0, but it is not empty: the preparation repairs

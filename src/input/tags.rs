@@ -86,14 +86,45 @@ const INTERN_SHARDS: usize = 16;
 /// output: runs stay byte-identical whatever the thread count.
 pub struct TagInterner {
     shards: Vec<std::sync::Mutex<std::collections::HashMap<u64, Vec<SharedTags>>>>,
+    /// The raw pairs already parsed (only the keys [`BuildingTags::from_pairs`] reads), by a
+    /// hash of their bytes: a repeated tag set is neither parsed nor hashed field by field
+    /// again.
+    raw: Vec<std::sync::Mutex<RawShard>>,
 }
+
+/// Raw known pairs and their shared parsed tags, by a hash of the pairs' bytes.
+type RawShard = std::collections::HashMap<u64, Vec<(Box<[(Box<str>, Box<str>)]>, SharedTags)>>;
 
 impl Default for TagInterner {
     fn default() -> Self {
         TagInterner {
             shards: (0..INTERN_SHARDS).map(|_| Default::default()).collect(),
+            raw: (0..INTERN_SHARDS).map(|_| Default::default()).collect(),
         }
     }
+}
+
+/// A fast hash of the bytes of `pairs` (a word at a time; not for untrusted keys of a hash
+/// table that an attacker fills, but here a collision only costs a comparison).
+fn pairs_hash(pairs: &[(&str, &str)]) -> u64 {
+    const K: u64 = 0x517c_c1b7_2722_0a95;
+    let mut h = 0u64;
+    let mut mix = |bytes: &[u8]| {
+        let mut chunks = bytes.chunks_exact(8);
+        for c in &mut chunks {
+            let w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+            h = (h.rotate_left(5) ^ w).wrapping_mul(K);
+        }
+        let mut last = [0u8; 8];
+        last[..chunks.remainder().len()].copy_from_slice(chunks.remainder());
+        h = (h.rotate_left(5) ^ u64::from_le_bytes(last) ^ (bytes.len() as u64) << 56)
+            .wrapping_mul(K);
+    };
+    for (k, v) in pairs {
+        mix(k.as_bytes());
+        mix(v.as_bytes());
+    }
+    h
 }
 
 impl TagInterner {
@@ -110,6 +141,46 @@ impl TagInterner {
         }
         let t = SharedTags::new(tags);
         bucket.push(t.clone());
+        t
+    }
+
+    /// The shared parsed tags of raw key/value pairs: [`Self::intern`] of
+    /// [`BuildingTags::from_pairs`], parsing each distinct set of the pairs it reads once.
+    pub fn intern_pairs(&self, pairs: &[(&str, &str)]) -> SharedTags {
+        let filtered: Vec<(&str, &str)>;
+        let known = if pairs.iter().all(|(k, _)| is_known_key(k)) {
+            pairs
+        } else {
+            filtered = pairs
+                .iter()
+                .copied()
+                .filter(|(k, _)| is_known_key(k))
+                .collect();
+            &filtered
+        };
+        let h = pairs_hash(known);
+        let shard = &self.raw[(h % INTERN_SHARDS as u64) as usize];
+        let same = |stored: &[(Box<str>, Box<str>)]| {
+            stored.len() == known.len()
+                && stored
+                    .iter()
+                    .zip(known)
+                    .all(|((a, b), (c, d))| **a == **c && **b == **d)
+        };
+        {
+            // Poisoned: see `intern`.
+            let map = shard.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some((_, t)) = map.get(&h).and_then(|b| b.iter().find(|(s, _)| same(s))) {
+                return t.clone();
+            }
+        }
+        let t = self.intern(BuildingTags::from_pairs(known.iter().copied()));
+        let mut map = shard.lock().unwrap_or_else(|e| e.into_inner());
+        let bucket = map.entry(h).or_default();
+        if !bucket.iter().any(|(s, _)| same(s)) {
+            let stored = known.iter().map(|&(k, v)| (k.into(), v.into())).collect();
+            bucket.push((stored, t.clone()));
+        }
         t
     }
 
@@ -211,28 +282,7 @@ impl BuildingTags {
         let mut part: Option<String> = None;
         for (key, value) in pairs {
             let v = value.trim();
-            let known = matches!(
-                key,
-                "building"
-                    | "building:part"
-                    | "name"
-                    | "height"
-                    | "min_height"
-                    | "building:levels"
-                    | "building:min_level"
-                    | "roof:shape"
-                    | "roof:height"
-                    | "roof:angle"
-                    | "roof:levels"
-                    | "roof:orientation"
-                    | "roof:direction"
-                    | "building:colour"
-                    | "building:color"
-                    | "roof:colour"
-                    | "roof:color"
-                    | "building:material"
-                    | "roof:material"
-            );
+            let known = is_known_key(key);
             if !known {
                 continue;
             }
@@ -330,6 +380,33 @@ impl BuildingTags {
         self.ignored
             .push((key.to_string(), value.to_string(), reason.to_string()));
     }
+}
+
+/// Whether [`BuildingTags::from_pairs`] reads `key` (it ignores every other key, so the parsed
+/// tags depend only on the pairs with these keys, in their order).
+pub(crate) fn is_known_key(key: &str) -> bool {
+    matches!(
+        key,
+        "building"
+            | "building:part"
+            | "name"
+            | "height"
+            | "min_height"
+            | "building:levels"
+            | "building:min_level"
+            | "roof:shape"
+            | "roof:height"
+            | "roof:angle"
+            | "roof:levels"
+            | "roof:orientation"
+            | "roof:direction"
+            | "building:colour"
+            | "building:color"
+            | "roof:colour"
+            | "roof:color"
+            | "building:material"
+            | "roof:material"
+    )
 }
 
 /// The first value of an OSM `;`-separated list, trimmed.

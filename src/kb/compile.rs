@@ -28,6 +28,8 @@
 //! narrower than a bay gets only the door bay). `repeat` scales its copies to fill the parent,
 //! and a face too narrow for one bay becomes a plain wall.
 
+use std::sync::Arc;
+
 use crate::color::Color;
 use crate::model::RoofShape;
 
@@ -47,25 +49,22 @@ pub enum AxiomValue {
 /// `eave` (wall height of the extrusion, `eave_height - min_height`), `base` (`min_height`),
 /// `floorsize`, `storeys`, `bay` (bay width, m), `roof`, `roofangle`, `roofheight` (when known),
 /// `totalheight` (when known), `color`, `roofcolor`, `windowcolor`, `framecolor`, `doorcolor`.
-pub fn axiom_attributes(style: &Style) -> Vec<(String, AxiomValue)> {
+pub fn axiom_attributes(style: &Style) -> Vec<(&'static str, AxiomValue)> {
     use AxiomValue::{Num, Text};
     let mut v = vec![
-        (
-            "eave".to_string(),
-            Num((style.eave_height - style.min_height).max(0.0)),
-        ),
-        ("base".to_string(), Num(style.min_height)),
-        ("floorsize".to_string(), Num(style.floor_height)),
-        ("storeys".to_string(), Num(f64::from(style.storeys))),
-        ("bay".to_string(), Num(bay_width(style))),
-        ("roof".to_string(), Text(roof_word(style.roof))),
-        ("roofangle".to_string(), Num(style.roof_angle_deg)),
+        ("eave", Num((style.eave_height - style.min_height).max(0.0))),
+        ("base", Num(style.min_height)),
+        ("floorsize", Num(style.floor_height)),
+        ("storeys", Num(f64::from(style.storeys))),
+        ("bay", Num(bay_width(style))),
+        ("roof", Text(roof_word(style.roof))),
+        ("roofangle", Num(style.roof_angle_deg)),
     ];
     if let Some(h) = style.roof_height {
-        v.push(("roofheight".to_string(), Num(h)));
+        v.push(("roofheight", Num(h)));
     }
     if let Some(h) = style.total_height {
-        v.push(("totalheight".to_string(), Num(h)));
+        v.push(("totalheight", Num(h)));
     }
     for (k, c) in [
         ("color", style.wall_color),
@@ -74,7 +73,7 @@ pub fn axiom_attributes(style: &Style) -> Vec<(String, AxiomValue)> {
         ("framecolor", style.frame_color),
         ("doorcolor", style.door_color),
     ] {
-        v.push((k.to_string(), Text(color_word(c))));
+        v.push((k, Text(color_word(c))));
     }
     v
 }
@@ -82,6 +81,15 @@ pub fn axiom_attributes(style: &Style) -> Vec<(String, AxiomValue)> {
 /// [`axiom_attributes`] as the grammar's attribute map, ready for [`crate::grammar::derive`].
 pub fn axiom_attrs(style: &Style) -> crate::grammar::Attrs {
     use crate::grammar::AttrValue;
+    // The keys are shared by every building (the map holds `Arc<str>` keys).
+    static KEYS: std::sync::OnceLock<std::collections::HashMap<&'static str, Arc<str>>> =
+        std::sync::OnceLock::new();
+    let keys = KEYS.get_or_init(|| {
+        AXIOM_KEYS
+            .iter()
+            .map(|k| (*k, Arc::<str>::from(*k)))
+            .collect()
+    });
     axiom_attributes(style)
         .into_iter()
         .map(|(k, v)| {
@@ -89,10 +97,29 @@ pub fn axiom_attrs(style: &Style) -> crate::grammar::Attrs {
                 AxiomValue::Num(x) => AttrValue::Num(x),
                 AxiomValue::Text(t) => AttrValue::Str(t.into()),
             };
-            (k.into(), v)
+            let k = keys.get(k).cloned().unwrap_or_else(|| k.into());
+            (k, v)
         })
         .collect()
 }
+
+/// Every key [`axiom_attributes`] may give.
+const AXIOM_KEYS: [&str; 14] = [
+    "eave",
+    "base",
+    "floorsize",
+    "storeys",
+    "bay",
+    "roof",
+    "roofangle",
+    "roofheight",
+    "totalheight",
+    "color",
+    "roofcolor",
+    "windowcolor",
+    "framecolor",
+    "doorcolor",
+];
 
 /// Bay width: the window plus a pier on each side.
 pub fn bay_width(style: &Style) -> f64 {
@@ -204,6 +231,114 @@ pub fn ruleset_text(style: &Style) -> String {
     let mut text = out.join("\n");
     text.push('\n');
     text
+}
+
+/// What [`ruleset_text`] reads of a style. Two styles whose inputs are the same bit for bit
+/// get the same text, so a ruleset compiled for one serves the other without writing the text
+/// again ([`RulesInputs::matches`]).
+#[derive(Clone, Debug)]
+pub struct RulesInputs {
+    colors: [Color; 5],
+    roof: RoofShape,
+    numbers: [f64; 3],
+    window_height: WindowHeight,
+    window_style: String,
+    window_material: String,
+    opening: Option<OpeningTree>,
+}
+
+impl RulesInputs {
+    /// The inputs of `style`.
+    pub fn of(style: &Style) -> RulesInputs {
+        RulesInputs {
+            colors: rules_colors(style),
+            roof: style.roof,
+            numbers: rules_numbers(style),
+            window_height: style.window_height,
+            window_style: style.window_style.clone(),
+            window_material: style.window_material.clone(),
+            opening: style.opening.clone(),
+        }
+    }
+
+    /// Whether `style` has exactly these inputs (numbers and colours compared bit for bit).
+    pub fn matches(&self, style: &Style) -> bool {
+        let colors = rules_colors(style);
+        let numbers = rules_numbers(style);
+        self.roof == style.roof
+            && self.window_height == style.window_height
+            && self
+                .colors
+                .iter()
+                .zip(&colors)
+                .all(|(a, b)| color_bits(*a) == color_bits(*b))
+            && self
+                .numbers
+                .iter()
+                .zip(&numbers)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+            && self.window_style == style.window_style
+            && self.window_material == style.window_material
+            && opening_same(self.opening.as_ref(), style.opening.as_ref())
+    }
+
+    /// A hash of the inputs of `style` (the same for styles that [`RulesInputs::matches`]
+    /// tells apart from none), cheap: the opening tree counts by its root and size only.
+    pub fn hash_of(style: &Style) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        rules_colors(style).map(color_bits).hash(&mut h);
+        style.roof.hash(&mut h);
+        rules_numbers(style).map(f64::to_bits).hash(&mut h);
+        (style.window_height as u8).hash(&mut h);
+        style.window_style.hash(&mut h);
+        style.window_material.hash(&mut h);
+        if let Some(t) = &style.opening {
+            (&t.root, t.splits.len(), t.terms.len()).hash(&mut h);
+        }
+        h.finish()
+    }
+}
+
+fn rules_colors(style: &Style) -> [Color; 5] {
+    [
+        style.wall_color,
+        style.roof_color,
+        style.door_color,
+        style.window_color,
+        style.frame_color,
+    ]
+}
+
+fn rules_numbers(style: &Style) -> [f64; 3] {
+    [style.roof_angle_deg, style.balconies, style.window_width]
+}
+
+fn color_bits(c: Color) -> [u32; 4] {
+    [c.r, c.g, c.b, c.a].map(f32::to_bits)
+}
+
+/// Opening trees equal, their fractions bit for bit.
+fn opening_same(a: Option<&OpeningTree>, b: Option<&OpeningTree>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            a.root == b.root
+                && a.terms == b.terms
+                && a.splits.len() == b.splits.len()
+                && a.splits.iter().zip(&b.splits).all(|(x, y)| {
+                    x.axis == y.axis
+                        && x.parent == y.parent
+                        && x.children == y.children
+                        && x.fractions.len() == y.fractions.len()
+                        && x.fractions
+                            .iter()
+                            .zip(&y.fractions)
+                            .all(|(p, q)| p.to_bits() == q.to_bits())
+                })
+        }
+        _ => false,
+    }
 }
 
 /// `window : style=.., framecolor=.., material=.., color=..` for the style.
@@ -396,7 +531,7 @@ mod tests {
         s.min_height = 3.0;
         s.roof_height = Some(2.5);
         let attrs = axiom_attributes(&s);
-        let get = |k: &str| attrs.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone());
+        let get = |k: &str| attrs.iter().find(|(n, _)| *n == k).map(|(_, v)| v.clone());
         assert_eq!(get("eave"), Some(AxiomValue::Num(9.0)));
         assert_eq!(get("floorsize"), Some(AxiomValue::Num(3.0)));
         assert_eq!(get("bay"), Some(AxiomValue::Num(3.0)));

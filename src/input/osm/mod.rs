@@ -12,7 +12,9 @@
 //! A block that holds more than one kind of element (no common writer makes one) is noticed
 //! when decoded; the read then starts again with every pass decoding every blob. Blocks are
 //! decoded in parallel (rayon) in batches, and the per-block results are merged in file order,
-//! then sorted by id, so the output does not depend on the thread count.
+//! then sorted by id, so the output does not depend on the thread count. The ways and nodes
+//! passes decode their blocks directly ([`wire`]), falling back to osmpbf for any block the
+//! direct decoder does not take.
 //!
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
 //! `report.read` / `report.parts_read` count them all, skipped ones included.
@@ -28,7 +30,7 @@ use rayon::prelude::*;
 use super::rings::{group_rings, lonlat_problem, oriented_polygon, ring_problem};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SharedTags, SourceId,
-    TagInterner,
+    SourcePolygon, TagInterner,
 };
 use crate::geometry::ring;
 use crate::report::{Outcome, Report};
@@ -36,10 +38,12 @@ use crate::report::{Outcome, Report};
 mod multipolygon;
 mod pbf;
 mod records;
+mod wire;
 
 use multipolygon::*;
 use pbf::*;
 use records::*;
+use wire::*;
 
 /// Blobs decoded per parallel batch: enough to keep the cores busy, few enough that the
 /// compressed blobs held at once stay small.
@@ -111,7 +115,7 @@ fn read_passes(
     report: &mut Report,
 ) -> Result<Option<ReadResult>, InputError> {
     // Pass 1: relations.
-    let (rels, mixed) = pbf.pass(locs, BlobKind::Relations, relations_of_block)?;
+    let (rels, mixed) = pbf.pass(locs, BlobKind::Relations, |_, _| None, relations_of_block)?;
     if mixed {
         return Ok(None);
     }
@@ -128,13 +132,29 @@ fn read_passes(
 
     // Pass 2: ways. Their parsed tags are shared between ways with the same ones.
     let interner = TagInterner::default();
-    let (ways, mixed) = pbf.pass(locs, BlobKind::Ways, |b| {
-        ways_of_block(b, &member_ways, &interner)
-    })?;
+    // Each block's ways come with the node ids they need, sorted and deduplicated in the
+    // parallel pass; the file's list is then a merge of sorted runs.
+    let with_needed = |ways: Vec<WayRec>| {
+        let mut needed: Vec<i64> = ways.iter().flat_map(|w| w.refs.iter().copied()).collect();
+        needed.sort_unstable();
+        needed.dedup();
+        (ways, needed)
+    };
+    let (blocks, mixed) = pbf.pass(
+        locs,
+        BlobKind::Ways,
+        |f, s| fast_ways(f, s, &member_ways, &interner).map(with_needed),
+        |b| with_needed(ways_of_block(b, &member_ways, &interner)),
+    )?;
     if mixed {
         return Ok(None);
     }
-    let mut ways: Vec<WayRec> = ways.into_iter().flatten().collect();
+    let (ways, needed): (Vec<Vec<WayRec>>, Vec<Vec<i64>>) = blocks.into_iter().unzip();
+    let mut all = Vec::with_capacity(ways.iter().map(Vec::len).sum());
+    for w in ways {
+        all.extend(w);
+    }
+    let mut ways = all;
     ways.sort_by_key(|w| w.id);
     note_duplicates(
         ways.iter().filter(|w| w.kind.is_some()).map(|w| w.id),
@@ -143,13 +163,20 @@ fn read_passes(
     );
     ways.dedup_by_key(|w| w.id);
     drop(member_ways);
-    let mut needed: Vec<i64> = ways.iter().flat_map(|w| w.refs.iter().copied()).collect();
-    needed.sort_unstable();
+    // The ids of ways dropped as duplicates may stay: an id too many in the index changes no
+    // lookup.
+    let mut needed = needed.concat();
+    needed.par_sort();
     needed.dedup();
 
     // Pass 3: nodes.
     let mut nodes = Nodes::new(needed);
-    let (found, mixed) = pbf.pass(locs, BlobKind::Nodes, |b| nodes_of_block(b, &nodes.ids))?;
+    let (found, mixed) = pbf.pass(
+        locs,
+        BlobKind::Nodes,
+        |f, s| fast_nodes(f, s, &nodes.ids),
+        |b| nodes_of_block(b, &nodes.ids),
+    )?;
     if mixed {
         return Ok(None);
     }
@@ -342,21 +369,33 @@ fn assemble(
     old_style.sort_by_key(|(w, _, _)| *w);
     old_style_notes.sort_by_key(|(w, _)| *w);
 
-    // The rings of the building/part ways, built in parallel: the costly part (node lookups,
-    // clean-up, checks); report entries are then added in way order.
-    let rings: Vec<Option<Result<Ring, String>>> = ways
+    // The polygons of the building/part ways, built in parallel: the costly part (node
+    // lookups, clean-up, checks, orientation); report entries are then added in way order.
+    let old_style_at = |w: i64| old_style.binary_search_by_key(&w, |(x, _, _)| *x).ok();
+    let polygons: Vec<Option<Result<SourcePolygon, String>>> = ways
         .par_iter()
-        .map(|w| w.kind.map(|_| way_ring(w, &built_by, nodes)))
+        .map(|w| {
+            w.kind.map(|_| {
+                way_ring(w, &built_by, nodes).map(|outer| {
+                    let holes =
+                        old_style_at(w.id).map_or_else(Vec::new, |i| old_style[i].2.clone());
+                    oriented_polygon(outer, holes)
+                })
+            })
+        })
         .collect();
     let mut result = ReadResult::default();
-    for (w, ring) in ways.iter_mut().zip(rings) {
-        let (Some(kind), Some(ring)) = (w.kind, ring) else {
+    result
+        .footprints
+        .reserve(polygons.iter().flatten().count() + rel_out.len());
+    for (w, polygon) in ways.iter_mut().zip(polygons) {
+        let (Some(kind), Some(polygon)) = (w.kind, polygon) else {
             continue;
         };
         let id = SourceId::Way(w.id);
         count_read(report, kind);
-        let outer = match ring {
-            Ok(r) => r,
+        let polygon = match polygon {
+            Ok(p) => p,
             Err(why) => {
                 report.skipped += 1;
                 report.add(Some(id), Outcome::Skipped, why);
@@ -364,29 +403,29 @@ fn assemble(
             }
         };
         let tags = w.tags.take().unwrap_or_default();
-        let holes = match old_style.binary_search_by_key(&w.id, |(x, _, _)| *x) {
-            Ok(i) => {
-                let (_, r, holes) = &old_style[i];
-                report.add(
-                    Some(id),
-                    Outcome::Note,
-                    format!(
-                        "{} hole(s) taken from old-style multipolygon relation/{r}",
-                        holes.len()
-                    ),
-                );
-                holes.clone()
-            }
-            Err(_) => Vec::new(),
-        };
-        for (_, note) in old_style_notes.iter().filter(|(x, _)| *x == w.id) {
+        if let Some(i) = old_style_at(w.id) {
+            let (_, r, holes) = &old_style[i];
+            report.add(
+                Some(id),
+                Outcome::Note,
+                format!(
+                    "{} hole(s) taken from old-style multipolygon relation/{r}",
+                    holes.len()
+                ),
+            );
+        }
+        let first = old_style_notes.partition_point(|(x, _)| *x < w.id);
+        for (_, note) in old_style_notes[first..]
+            .iter()
+            .take_while(|(x, _)| *x == w.id)
+        {
             report.add(Some(id), Outcome::Note, note.clone());
         }
         note_ignored(report, id, &tags);
         result.footprints.push(Footprint {
             id,
             kind,
-            polygons: vec![oriented_polygon(outer, holes)],
+            polygons: vec![polygon],
             tags,
         });
     }

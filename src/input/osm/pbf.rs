@@ -280,15 +280,19 @@ impl Pbf {
     /// Runs `f` on every data block of kind `want` (and every `Any` block), in parallel
     /// batches, and returns the results in file order, with whether a block held elements of
     /// another kind than the sweep saw (then the caller starts again with every blob `Any`).
-    pub(super) fn pass<T, F>(
+    /// `fast` is tried first on each block of kind `want`: the same result from the raw frame
+    /// ([`wire`]), or `None` to leave the block to osmpbf and `f`.
+    pub(super) fn pass<T, F, G>(
         &self,
         locs: &[BlobLoc],
         want: BlobKind,
+        fast: G,
         f: F,
     ) -> Result<(Vec<T>, bool), InputError>
     where
         T: Send,
         F: Fn(&PrimitiveBlock) -> T + Sync,
+        G: Fn(&Frame, &mut Scratch) -> Option<T> + Sync,
     {
         let mut file = self.file()?;
         let mut out = Vec::new();
@@ -317,7 +321,17 @@ impl Pbf {
             }
             let results: Vec<Result<Option<(T, bool)>, InputError>> = batch
                 .par_iter()
-                .map(|(kind, frame)| {
+                .map_init(Scratch::default, |scratch, (kind, frame)| {
+                    if *kind == want {
+                        let v = catch_unwind(AssertUnwindSafe(|| fast(frame, scratch)));
+                        if let Ok(Some(v)) = v {
+                            return Ok(Some((v, false)));
+                        }
+                        // A panic (never expected) leaves the inflater in an unknown state.
+                        if v.is_err() {
+                            *scratch = Scratch::default();
+                        }
+                    }
                     self.decode(frame, |block| {
                         let foreign = *kind != BlobKind::Any && holds_other_than(block, want);
                         (f(block), foreign)

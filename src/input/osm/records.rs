@@ -68,6 +68,8 @@ pub(super) struct Nodes {
 }
 
 pub(super) const FENCE: usize = 128;
+/// How far [`Nodes::index_near`] looks around its hint before searching the whole index.
+const GALLOP: usize = 32;
 pub(super) const MISSING: i32 = i32::MIN;
 pub(super) const EXACT: i32 = i32::MAX;
 
@@ -109,9 +111,58 @@ impl Nodes {
     }
 
     pub(super) fn get(&self, id: i64) -> Option<(f64, f64)> {
+        self.coord(self.index(id)?)
+    }
+
+    /// The index of `id` in `ids`.
+    fn index(&self, id: i64) -> Option<usize> {
         let k = self.fences.partition_point(|&f| f <= id).checked_sub(1)?;
         let run = &self.ids[k * FENCE..self.ids.len().min((k + 1) * FENCE)];
-        let i = k * FENCE + run.binary_search(&id).ok()?;
+        Some(k * FENCE + run.binary_search(&id).ok()?)
+    }
+
+    /// The index of `id` in `ids`, searched from `hint` outwards first: the nodes of a way
+    /// mostly have nearby ids, so the next one is a few places from the last.
+    fn index_near(&self, id: i64, hint: usize) -> Option<usize> {
+        let ids = &self.ids;
+        let Some(&at) = ids.get(hint) else {
+            return self.index(id);
+        };
+        if at == id {
+            return Some(hint);
+        }
+        // Bracket `id` by steps doubling away from `hint` (at most `GALLOP` places), then
+        // search the bracket.
+        let (mut near, mut step) = (hint, 1usize);
+        while step <= GALLOP {
+            if at < id {
+                let far = hint + step;
+                match ids.get(far) {
+                    Some(&x) if x < id => near = far,
+                    Some(_) => {
+                        return ids[near + 1..=far]
+                            .binary_search(&id)
+                            .ok()
+                            .map(|i| near + 1 + i)
+                    }
+                    None => break,
+                }
+            } else {
+                let Some(far) = hint.checked_sub(step) else {
+                    break;
+                };
+                if ids[far] > id {
+                    near = far;
+                } else {
+                    return ids[far..near].binary_search(&id).ok().map(|i| far + i);
+                }
+            }
+            step *= 2;
+        }
+        self.index(id)
+    }
+
+    fn coord(&self, i: usize) -> Option<(f64, f64)> {
         match self.coords[i] {
             [MISSING, _] => None,
             [EXACT, _] => {
@@ -274,9 +325,20 @@ pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usi
 pub(super) fn resolve(refs: &[i64], nodes: &Nodes) -> Result<Ring, usize> {
     let mut pts = Vec::with_capacity(refs.len());
     let mut missing = 0;
+    let mut hint = None;
     for &r in refs {
-        match nodes.get(r) {
-            Some(p) => pts.push(p),
+        let found = match hint {
+            Some(h) => nodes.index_near(r, h),
+            None => nodes.index(r),
+        };
+        match found {
+            Some(i) => {
+                hint = Some(i);
+                match nodes.coord(i) {
+                    Some(p) => pts.push(p),
+                    None => missing += 1,
+                }
+            }
             None => missing += 1,
         }
     }

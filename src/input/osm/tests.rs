@@ -613,3 +613,189 @@ proptest::proptest! {
         }
     }
 }
+
+// ---- direct decoding (wire.rs) against osmpbf ----------------------------------------------
+
+/// Inflated data blocks with the kind the sweep saw.
+type Blocks = Vec<(BlobKind, Vec<u8>)>;
+
+/// The inflated data blocks of Monaco with the kind the sweep saw.
+fn monaco_blocks() -> Blocks {
+    let pbf = Pbf::open(&monaco()).unwrap();
+    let locs = pbf.sweep().unwrap();
+    let mut file = pbf.file().unwrap();
+    locs.iter()
+        .map(|l| {
+            let mut bytes = vec![0u8; l.len];
+            file.seek(SeekFrom::Start(l.start)).unwrap();
+            file.read_exact(&mut bytes).unwrap();
+            let frame = frame_of(l.index, bytes);
+            let mut scratch = Scratch::default();
+            let block = inflated(&frame, &mut scratch)
+                .expect("a zlib data blob")
+                .to_vec();
+            (l.kind, block)
+        })
+        .collect()
+}
+
+/// A data frame holding `block` uncompressed.
+fn raw_frame(block: &[u8]) -> Frame {
+    fn varint_to(out: &mut Vec<u8>, mut v: u64) {
+        while v >= 0x80 {
+            out.push(v as u8 | 0x80);
+            v >>= 7;
+        }
+        out.push(v as u8);
+    }
+    let mut blob = vec![0x0a];
+    varint_to(&mut blob, block.len() as u64);
+    blob.extend_from_slice(block);
+    let mut header = vec![0x0a, 7];
+    header.extend_from_slice(b"OSMData");
+    header.push(0x18);
+    varint_to(&mut header, blob.len() as u64);
+    let mut bytes = (header.len() as u32).to_be_bytes().to_vec();
+    bytes.extend_from_slice(&header);
+    bytes.extend_from_slice(&blob);
+    frame_of(1, bytes)
+}
+
+fn frame_of(index: usize, bytes: Vec<u8>) -> Frame {
+    Frame {
+        index,
+        start: 0,
+        data: 0,
+        bytes,
+        data_blob: true,
+    }
+}
+
+/// What a way block gives, comparably: (id, refs, kind, street, tags).
+type WayView = (
+    i64,
+    Vec<i64>,
+    Option<FootprintKind>,
+    bool,
+    Option<BuildingTags>,
+);
+
+fn way_view(ways: Vec<WayRec>) -> Vec<WayView> {
+    ways.into_iter()
+        .map(|w| (w.id, w.refs, w.kind, w.street, w.tags.map(|t| (*t).clone())))
+        .collect()
+}
+
+/// The direct decoder gives osmpbf's result on `frame`, or leaves the block to osmpbf; it
+/// never accepts a block osmpbf refuses. Returns whether it decoded the block itself.
+fn same_as_osmpbf(frame: &Frame, kind: BlobKind, needed: &[i64]) -> bool {
+    let pbf = Pbf::open(&monaco()).unwrap();
+    let interner = TagInterner::default();
+    let mut scratch = Scratch::default();
+    let members = [needed.first().copied().unwrap_or(0)];
+    match kind {
+        BlobKind::Ways => {
+            let fast = fast_ways(frame, &mut scratch, &members, &interner);
+            let slow = pbf.decode(frame, |b| {
+                (
+                    ways_of_block(b, &members, &interner),
+                    holds_other_than(b, BlobKind::Ways),
+                )
+            });
+            match (fast, slow) {
+                (Some(f), Ok(Some((s, false)))) => {
+                    assert_eq!(way_view(f), way_view(s));
+                    true
+                }
+                (Some(_), other) => panic!("decoded a block osmpbf gives {:?}", other.is_ok()),
+                (None, _) => false,
+            }
+        }
+        _ => {
+            let fast = fast_nodes(frame, &mut scratch, needed);
+            let slow = pbf.decode(frame, |b| {
+                (
+                    nodes_of_block(b, needed),
+                    holds_other_than(b, BlobKind::Nodes),
+                )
+            });
+            match (fast, slow) {
+                (Some(f), Ok(Some((s, false)))) => {
+                    assert_eq!(f, s);
+                    true
+                }
+                (Some(_), other) => panic!("decoded a block osmpbf gives {:?}", other.is_ok()),
+                (None, _) => false,
+            }
+        }
+    }
+}
+
+/// Every third node id of the node blocks, as the nodes pass would need them.
+fn some_node_ids(blocks: &[(BlobKind, Vec<u8>)]) -> Vec<i64> {
+    let pbf = Pbf::open(&monaco()).unwrap();
+    let mut ids: Vec<i64> = blocks
+        .iter()
+        .filter(|(k, _)| *k == BlobKind::Nodes)
+        .flat_map(|(_, b)| {
+            pbf.decode(&raw_frame(b), |b| {
+                b.groups()
+                    .flat_map(|g| g.dense_nodes().map(|n| n.id()).collect::<Vec<_>>())
+                    .collect::<Vec<_>>()
+            })
+            .unwrap()
+            .unwrap()
+        })
+        .step_by(3)
+        .collect();
+    ids.sort_unstable();
+    ids
+}
+
+#[test]
+fn direct_decoding_matches_osmpbf() {
+    let blocks = monaco_blocks();
+    let needed = some_node_ids(&blocks);
+    let mut seen = [0, 0];
+    for (kind, block) in &blocks {
+        if *kind == BlobKind::Relations {
+            continue;
+        }
+        assert!(same_as_osmpbf(&raw_frame(block), *kind, &needed));
+        seen[usize::from(*kind == BlobKind::Ways)] += 1;
+    }
+    assert!(seen[0] > 0 && seen[1] > 0, "{seen:?}");
+    // A ways block read by the nodes pass and the other way round: left to osmpbf.
+    for (kind, block) in &blocks {
+        let other = if *kind == BlobKind::Ways {
+            BlobKind::Nodes
+        } else {
+            BlobKind::Ways
+        };
+        assert!(!same_as_osmpbf(&raw_frame(block), other, &needed));
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    /// Edited blocks: the direct decoder agrees with osmpbf or leaves the block to it.
+    #[test]
+    fn edited_blocks_decode_as_osmpbf_does(
+        which in proptest::num::usize::ANY,
+        edits in proptest::collection::vec((proptest::num::usize::ANY, proptest::num::u8::ANY), 1..6),
+    ) {
+        static BLOCKS: std::sync::OnceLock<(Blocks, Vec<i64>)> = std::sync::OnceLock::new();
+        let (blocks, needed) = BLOCKS.get_or_init(|| {
+            let b = monaco_blocks();
+            let n = some_node_ids(&b);
+            (b, n)
+        });
+        let (kind, block) = &blocks[which % blocks.len()];
+        let mut b = block.clone();
+        let n = b.len();
+        for (at, byte) in edits {
+            b[at % n] = byte;
+        }
+        same_as_osmpbf(&raw_frame(&b), *kind, needed);
+    }
+}
