@@ -58,7 +58,7 @@ use std::io::Write;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::export::{check_finite, BuildingWriter, ExportError, OutputContext};
+use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 use xml::Xml;
@@ -295,17 +295,20 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
     /// own buffer (kept from batch to batch), and writes them in order: the same bytes as
     /// `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         self.check_state(State::Open, "write()")?;
         let (origin, srs, lod) = (self.origin, self.srs_attr.as_str(), self.lod);
         let slots = &mut self.slots;
         slots.resize_with(super::PARALLEL_BATCH, || Xml(Vec::new()));
-        for batch in buildings.chunks(super::PARALLEL_BATCH) {
-            let rendered: Vec<Result<(), ExportError>> = batch
+        for batch in checked.finite().chunks(super::PARALLEL_BATCH) {
+            batch
                 .par_iter()
                 .zip(slots.par_iter_mut())
-                .map(|(b, x)| {
+                .for_each(|(b, x)| {
                     x.0.clear();
-                    check_finite("CityGML writer", b)?;
                     Renderer {
                         x,
                         origin,
@@ -313,15 +316,12 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
                         lod,
                     }
                     .building(b);
-                    Ok(())
-                })
-                .collect();
-            for (r, x) in rendered.into_iter().zip(slots.iter()) {
-                r?;
+                });
+            for x in &slots[..batch.len()] {
                 self.out.write_all(&x.0)?;
             }
         }
-        Ok(())
+        checked.refused("CityGML writer")
     }
 
     fn finish(&mut self) -> Result<(), ExportError> {

@@ -79,12 +79,20 @@ pub(super) struct Encoded {
 }
 
 /// Triangulates and lays out one building (`detail`: LOD3 and up classes are written) into
-/// `out`, whose buffers are reused.
-pub(super) fn encode(b: &Building, detail: bool, out: &mut Encoded) -> Result<(), ExportError> {
+/// `out`, whose buffers are reused. `checked`: the building is known finite
+/// ([`crate::export::Checked`]), else it is checked here.
+pub(super) fn encode(
+    b: &Building,
+    detail: bool,
+    checked: bool,
+    out: &mut Encoded,
+) -> Result<(), ExportError> {
     out.layouts.clear();
     out.vertex_bytes.clear();
     out.index_bytes.clear();
-    check_finite("glTF writer", b)?;
+    if !checked {
+        check_finite("glTF writer", b)?;
+    }
     // Faces against another part of the building are inside it: not drawn.
     let exposed = contact::exposed(b);
     let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();

@@ -58,7 +58,7 @@ use rayon::prelude::*;
 
 use crate::color::Color;
 use crate::crs::Crs;
-use crate::export::{BuildingWriter, ExportError, OutputContext};
+use crate::export::{BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 use json::{AssetExtras, Document};
@@ -360,7 +360,8 @@ impl<W: Write + Send> GltfWriter<W> {
         if slots.is_empty() {
             slots.push(Encoded::default());
         }
-        let r = encode(b, self.detail, &mut slots[0]).and_then(|()| self.add_encoded(b, &slots[0]));
+        let r = encode(b, self.detail, false, &mut slots[0])
+            .and_then(|()| self.add_encoded(b, &slots[0]));
         self.slots = slots;
         r
     }
@@ -390,19 +391,25 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
     /// Encodes (triangulates) the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, and
     /// appends them in order: the same bytes as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         if self.state != State::Open {
-            return buildings.iter().try_for_each(|b| self.write(b));
+            // The error of `write` out of begin..finish.
+            return checked.buildings.first().map_or(Ok(()), |b| self.write(b));
         }
         let detail = self.detail;
         let mut slots = std::mem::take(&mut self.slots);
         slots.resize_with(super::PARALLEL_BATCH, Encoded::default);
-        let r = buildings
+        let r: Result<(), ExportError> = checked
+            .finite()
             .chunks(super::PARALLEL_BATCH)
             .try_for_each(|batch| {
                 let encoded: Vec<_> = batch
                     .par_iter()
                     .zip(slots.par_iter_mut())
-                    .map(|(b, slot)| encode(b, detail, slot))
+                    .map(|(b, slot)| encode(b, detail, true, slot))
                     .collect();
                 for ((b, e), slot) in batch.iter().zip(encoded).zip(&slots) {
                     e?;
@@ -411,7 +418,8 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
                 Ok(())
             });
         self.slots = slots;
-        r
+        r?;
+        checked.refused("glTF writer")
     }
 
     fn finish(&mut self) -> Result<(), ExportError> {
