@@ -73,6 +73,10 @@ use crate::rng::Rng;
 /// Lengths within this tolerance count as "fits" in split layouts (metres).
 const FIT_TOL: f64 = 1e-6;
 
+/// Most successor attribute maps a derivation remembers for reuse (see `derive_facing`): rule
+/// sets whose attributes differ from node to node make new maps past it, as they would anyway.
+const ATTR_MEMO: usize = 64;
+
 /// Limits that keep a runaway rule set from hanging or exhausting memory.
 ///
 /// Every cap is checked *before* the memory it guards is spent: an operation counts the pieces
@@ -235,7 +239,12 @@ impl Ctx<'_> {
     /// as `f64`, so that an astronomical count is compared, not overflowed): `max_pieces`, then
     /// the shapes and the points the tree has left. `what` names the pieces for the message
     /// (`repeat would make`).
-    fn room(&self, pieces: f64, points: f64, what: &str) -> Result<(), DeriveError> {
+    fn room(
+        &self,
+        pieces: f64,
+        points: f64,
+        what: std::fmt::Arguments<'_>,
+    ) -> Result<(), DeriveError> {
         let caps = self.caps;
         if pieces > caps.max_pieces as f64 {
             return Err(self.cap_with(
@@ -351,16 +360,22 @@ pub fn derive_facing(
         .unwrap_or(0.0);
     let scope = Scope::around(lot, scope_direction(lot, front), z, 0.0);
     let wall: Option<SymbolId> = rules.index.get("wall").copied();
-    let wall_name: Arc<str> = wall.map_or_else(
-        || Arc::from("wall"),
-        |id| rules.symbols[id as usize].clone(),
-    );
+    // This derivation's own copies of the symbol names: the rule set's are shared by every
+    // thread, and counting references to them from each node would make the threads contend
+    // for their counters.
+    let mut names: Vec<Option<Arc<str>>> = vec![None; rules.symbols.len()];
+    let mut name_of = |id: SymbolId| -> Arc<str> {
+        names[id as usize]
+            .get_or_insert_with(|| Arc::from(&*rules.symbols[id as usize]))
+            .clone()
+    };
+    let wall_name: Arc<str> = wall.map_or_else(|| Arc::from("wall"), &mut name_of);
     let mut tree = ShapeTree::default();
     // Per node: the symbol id (None for a `wall` the rule set never names) and the scope.
     let mut syms: Vec<Option<SymbolId>> = Vec::new();
     let mut scopes: Vec<Scope> = Vec::new();
     tree.nodes.push(ShapeNode {
-        symbol: rules.symbols[rules.axiom as usize].clone(),
+        symbol: name_of(rules.axiom),
         label: Label::Lot,
         attrs: Arc::new(attrs),
         geometry: Geometry::Lot {
@@ -377,7 +392,10 @@ pub fn derive_facing(
     scopes.push(scope);
 
     let mut i = 0;
-    let mut attr_cache: Vec<Option<Arc<Attrs>>> = Vec::new();
+    // The attributes of a successor that sets some, by the parent's attributes (the address
+    // of the map, held here so it stays that map's), rule and successor: the nodes that share
+    // their attributes and a rule give their pieces one map.
+    let mut attr_memo: Vec<(Arc<Attrs>, usize, usize, Arc<Attrs>)> = Vec::new();
     // Polygon vertices held by the tree (Caps::max_points).
     let mut points = polygon_points(lot);
     while i < tree.nodes.len() {
@@ -434,9 +452,8 @@ pub fn derive_facing(
             return Err(ctx.cap("max_points", caps.max_points));
         }
         let label = child_label(&rule.op, parent_label, &tree.nodes[i].geometry);
-        attr_cache.clear();
-        attr_cache.resize(rule.succs.len(), None);
         let first = tree.nodes.len();
+        tree.nodes.reserve(pieces.len());
         for p in pieces {
             let (sym, name, attrs) = match p.succ {
                 Some(k) => {
@@ -444,17 +461,25 @@ pub fn derive_facing(
                     let a = if s.attrs.is_empty() {
                         parent_attrs.clone()
                     } else {
-                        attr_cache[k]
-                            .get_or_insert_with(|| {
+                        let known = attr_memo.iter().find(|(from, r, j, _)| {
+                            *r == rule_idx && *j == k && Arc::ptr_eq(from, &parent_attrs)
+                        });
+                        match known {
+                            Some((.., a)) => a.clone(),
+                            None => {
                                 let mut m = (*parent_attrs).clone();
                                 for (key, v) in &s.attrs {
                                     m.insert(key.clone(), v.clone());
                                 }
-                                Arc::new(m)
-                            })
-                            .clone()
+                                let a = Arc::new(m);
+                                if attr_memo.len() < ATTR_MEMO {
+                                    attr_memo.push((parent_attrs.clone(), rule_idx, k, a.clone()));
+                                }
+                                a
+                            }
+                        }
                     };
-                    (Some(s.symbol), rules.symbols[s.symbol as usize].clone(), a)
+                    (Some(s.symbol), name_of(s.symbol), a)
                 }
                 None => (wall, wall_name.clone(), parent_attrs.clone()),
             };
@@ -578,7 +603,7 @@ fn all_succs(ctx: &Ctx<'_>, n: usize, g: Geometry, s: Scope) -> Result<Vec<Piece
     ctx.room(
         n as f64,
         n as f64 * points_of(&g) as f64,
-        "its successors would make",
+        format_args!("its successors would make"),
     )?;
     Ok((0..n)
         .map(|k| Piece {
@@ -933,7 +958,7 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
     ctx.room(
         (sides + caps_faces) as f64,
         (caps_faces * polygon_points(footprint)) as f64,
-        "comp would make",
+        format_args!("comp would make"),
     )?;
     let mut out = Vec::with_capacity(sides + caps_faces);
     for ring in footprint.rings() {
@@ -1023,7 +1048,11 @@ fn layout(
                     continue;
                 }
                 if cum + s <= len + FIT_TOL {
-                    ctx.room((out.len() + 1) as f64, 0.0, "split would make at least")?;
+                    ctx.room(
+                        (out.len() + 1) as f64,
+                        0.0,
+                        format_args!("split would make at least"),
+                    )?;
                     out.push((Some(i), cum, s.min(len - cum)));
                     cum += s;
                 } else {
@@ -1053,7 +1082,11 @@ fn layout(
             for (i, &s) in sizes.iter().enumerate() {
                 let l = s / total * len;
                 if l > EPS {
-                    ctx.room((out.len() + 1) as f64, 0.0, "rsplit would make at least")?;
+                    ctx.room(
+                        (out.len() + 1) as f64,
+                        0.0,
+                        format_args!("rsplit would make at least"),
+                    )?;
                     out.push((Some(i), cum, l));
                 }
                 cum += l;
@@ -1070,7 +1103,7 @@ fn layout(
             ctx.room(
                 copies.max(1.0) * sizes.len() as f64,
                 0.0,
-                "repeat would make",
+                format_args!("repeat would make"),
             )?;
             let (copies, factor) = if copies < 1.0 {
                 if face {
@@ -1092,7 +1125,7 @@ fn layout(
             }
         }
     }
-    ctx.room(out.len() as f64, 0.0, &format!("{name} would make"))?;
+    ctx.room(out.len() as f64, 0.0, format_args!("{name} would make"))?;
     Ok(out)
 }
 
@@ -1134,7 +1167,7 @@ fn split(
                 ctx.room(
                     segs.len() as f64,
                     segs.len() as f64 * polygon_points(footprint) as f64,
-                    &format!("{op} would make"),
+                    format_args!("{op} would make"),
                 )?;
                 return Ok(segs
                     .into_iter()
@@ -1212,7 +1245,7 @@ fn split(
                 ctx.room(
                     (out.len() + polys.len()) as f64,
                     points as f64,
-                    &format!("{op} would make at least"),
+                    format_args!("{op} would make at least"),
                 )?;
                 for poly in polys {
                     let g = Geometry::Face {
@@ -1268,7 +1301,7 @@ fn clip_pieces(
         ctx.room(
             (out.len() + pieces.len()) as f64,
             points as f64,
-            &format!("{op} would make at least"),
+            format_args!("{op} would make at least"),
         )?;
         out.extend(pieces.into_iter().map(|p| (k, p)));
     }

@@ -271,7 +271,12 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     // Canonical vertices, bucketed on a grid of cell `tol`: ground and walls first, so the
     // footprint's exact corners win. (A hash map with a fixed hasher: only looked up, never
     // iterated, so its order cannot reach the output.)
+    // Up to WELD_LINEAR canonical vertices they are scanned one by one (cheaper than 27
+    // probes), taking the one the cells would give first: the nearest cell in (dx, dy, dz)
+    // order, then the first made.
+    const WELD_LINEAR: usize = 64;
     let mut canon: Vec<DVec3> = Vec::new();
+    let mut canon_cells: Vec<(i64, i64, i64)> = Vec::new();
     let mut grid: std::collections::HashMap<(i64, i64, i64), Vec<usize>, CellHash> =
         Default::default();
     let cell = |p: DVec3| {
@@ -283,20 +288,48 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     };
     let mut snap = |p: &mut DVec3| {
         let c = cell(*p);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    if let Some(v) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
-                        if let Some(&i) = v.iter().find(|&&i| canon[i].distance(*p) <= tol) {
-                            *p = canon[i];
-                            return;
+        if canon.len() <= WELD_LINEAR {
+            let mut best: Option<(i64, usize)> = None;
+            for (i, (q, qc)) in canon.iter().zip(&canon_cells).enumerate() {
+                let d = (qc.0 - c.0, qc.1 - c.1, qc.2 - c.2);
+                if d.0.abs() > 1 || d.1.abs() > 1 || d.2.abs() > 1 {
+                    continue;
+                }
+                let rank = (d.0 + 1) * 9 + (d.1 + 1) * 3 + (d.2 + 1);
+                if best.is_some_and(|(r, _)| r <= rank) {
+                    continue;
+                }
+                if q.distance(*p) <= tol {
+                    best = Some((rank, i));
+                }
+            }
+            if let Some((_, i)) = best {
+                *p = canon[i];
+                return;
+            }
+        } else {
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if let Some(v) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
+                            if let Some(&i) = v.iter().find(|&&i| canon[i].distance(*p) <= tol) {
+                                *p = canon[i];
+                                return;
+                            }
                         }
                     }
                 }
             }
         }
-        grid.entry(c).or_default().push(canon.len());
         canon.push(*p);
+        canon_cells.push(c);
+        if canon.len() == WELD_LINEAR + 1 {
+            for (i, qc) in canon_cells.iter().enumerate() {
+                grid.entry(*qc).or_default().push(i);
+            }
+        } else if canon.len() > WELD_LINEAR + 1 {
+            grid.entry(c).or_default().push(canon.len() - 1);
+        }
     };
     {
         let mut all: Vec<&mut Vec<DVec3>> = Vec::new();

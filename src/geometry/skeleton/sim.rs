@@ -168,6 +168,17 @@ impl Sim {
             .enumerate()
             .map(|(i, _)| self.pos(i, t))
             .collect();
+        // The wavefront edges (the edge leaving each alive vertex u), gathered once: u, the
+        // vertex after it, and the edge's start and inward normal.
+        let fronts: Vec<(usize, usize, DVec2, DVec2)> = alive
+            .iter()
+            .map(|&u| {
+                let uu = &self.verts[u];
+                let f = &self.edges[uu.r];
+                (u, uu.next, f.a, f.n)
+            })
+            .collect();
+        let no_stale = self.stale.is_empty();
         for &v in alive {
             let vv = &self.verts[v];
             if vv.degenerate {
@@ -186,15 +197,17 @@ impl Sim {
                 }
             }
             // Split events of v against every non-incident edge.
-            for &u in alive {
-                let uu = &self.verts[u];
-                if u == v || uu.next == v || is_stale(v, u) {
+            let (pv_now, vel) = (pos_now[v], vv.vel);
+            for &(u, next, fa, fnorm) in &fronts {
+                if u == v || next == v {
                     continue;
                 }
-                let f = &self.edges[uu.r];
-                let h = (pos_now[v] - f.a).dot(f.n) - t;
-                let rate = vv.vel.dot(f.n) - 1.0;
+                let h = (pv_now - fa).dot(fnorm) - t;
+                let rate = vel.dot(fnorm) - 1.0;
                 if rate >= -1e-12 || h < -eps {
+                    continue;
+                }
+                if !no_stale && is_stale(v, u) {
                     continue;
                 }
                 let dt = h.max(0.0) / -rate;
@@ -202,6 +215,8 @@ impl Sim {
                 if te > best + eps {
                     continue;
                 }
+                let uu = &self.verts[u];
+                let f = &self.edges[uu.r];
                 let pv = self.pos(v, te);
                 let pa = self.pos(u, te);
                 let pb = self.pos(uu.next, te);
@@ -583,6 +598,10 @@ impl Sim {
         let mut any = false;
         let limit = 4 * self.verts.len() + 16;
         for _ in 0..limit {
+            // Nothing to do (the usual case) is found without gathering the alive vertices.
+            if !self.verts.iter().any(|v| v.alive && v.degenerate) {
+                return Ok(any);
+            }
             let alive = self.alive();
             let Some(&v) = alive.iter().find(|&&v| self.verts[v].degenerate) else {
                 return Ok(any);
