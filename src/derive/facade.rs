@@ -7,7 +7,7 @@
 //! that are not on a footprint edge (a face turned by `R`, the inner faces where a `split` cut
 //! the mass) are not on the envelope and are counted in [`Facades::off_envelope`].
 
-use std::sync::Arc;
+use std::rc::Rc;
 
 use glam::{DVec2, DVec3};
 
@@ -101,7 +101,7 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
         balconies: vec![Vec::new(); edges.len()],
         off_envelope: 0,
     };
-    let mut looks: Vec<(Arc<Attrs>, Look)> = Vec::new();
+    let mut looks: Vec<(Rc<Attrs>, Look)> = Vec::new();
     let mut stack = vec![mass];
     while let Some(i) = stack.pop() {
         let node = &tree.nodes[i];
@@ -191,7 +191,7 @@ fn place(
     t: Terminal,
     edges: &[Edge],
     out: &mut Facades,
-    looks: &mut Vec<(Arc<Attrs>, Look)>,
+    looks: &mut Vec<(Rc<Attrs>, Look)>,
 ) {
     let Geometry::Face {
         kind: FaceKind::Side,
@@ -223,7 +223,7 @@ fn place(
         out.off_envelope += 1;
         return;
     };
-    let look = match looks.iter().find(|(a, _)| Arc::ptr_eq(a, &node.attrs)) {
+    let look = match looks.iter().find(|(a, _)| Rc::ptr_eq(a, &node.attrs)) {
         Some((_, l)) => *l,
         None => {
             let l = Look::of(&node.attrs);

@@ -56,7 +56,7 @@
 //! * **Attributes** are inherited: a child shares its parent's map unless its successor sets
 //!   attributes, in which case it gets a copy with those overridden.
 
-use std::sync::Arc;
+use std::rc::Rc;
 
 use glam::{DVec2, DVec3};
 
@@ -360,24 +360,26 @@ pub fn derive_facing(
         .unwrap_or(0.0);
     let scope = Scope::around(lot, scope_direction(lot, front), z, 0.0);
     let wall: Option<SymbolId> = rules.index.get("wall").copied();
-    // This derivation's own copies of the symbol names: the rule set's are shared by every
-    // thread, and counting references to them from each node would make the threads contend
-    // for their counters.
-    let mut names: Vec<Option<Arc<str>>> = vec![None; rules.symbols.len()];
-    let mut name_of = |id: SymbolId| -> Arc<str> {
+    // This derivation's own copies of the symbol names (counted without atomics, as the
+    // attribute maps are: a tree stays on the thread that derives it; the rule set's names are
+    // shared by every thread, whose counting would make the threads contend).
+    let mut names: Vec<Option<Rc<str>>> = vec![None; rules.symbols.len()];
+    let mut name_of = |id: SymbolId| -> Rc<str> {
         names[id as usize]
-            .get_or_insert_with(|| Arc::from(&*rules.symbols[id as usize]))
+            .get_or_insert_with(|| Rc::from(&*rules.symbols[id as usize]))
             .clone()
     };
-    let wall_name: Arc<str> = wall.map_or_else(|| Arc::from("wall"), &mut name_of);
-    let mut tree = ShapeTree::default();
+    let wall_name: Rc<str> = wall.map_or_else(|| Rc::from("wall"), &mut name_of);
+    // The buffers of this thread's last trees (see [`recycle`]): a tree of thousands of nodes
+    // grown from nothing copies itself at every doubling, onto freshly mapped pages.
+    let (nodes, mut syms, mut scopes) = SPARE.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    let mut tree = ShapeTree { nodes };
     // Per node: the symbol id (None for a `wall` the rule set never names) and the scope.
-    let mut syms: Vec<Option<SymbolId>> = Vec::new();
-    let mut scopes: Vec<Scope> = Vec::new();
+    debug_assert!(tree.nodes.is_empty() && syms.is_empty() && scopes.is_empty());
     tree.nodes.push(ShapeNode {
         symbol: name_of(rules.axiom),
         label: Label::Lot,
-        attrs: Arc::new(attrs),
+        attrs: Rc::new(attrs),
         geometry: Geometry::Lot {
             polygon: lot.clone(),
             z,
@@ -395,7 +397,7 @@ pub fn derive_facing(
     // The attributes of a successor that sets some, by the parent's attributes (the address
     // of the map, held here so it stays that map's), rule and successor: the nodes that share
     // their attributes and a rule give their pieces one map.
-    let mut attr_memo: Vec<(Arc<Attrs>, usize, usize, Arc<Attrs>)> = Vec::new();
+    let mut attr_memo: Vec<(Rc<Attrs>, usize, usize, Rc<Attrs>)> = Vec::new();
     // Polygon vertices held by the tree (Caps::max_points).
     let mut points = polygon_points(lot);
     while i < tree.nodes.len() {
@@ -462,7 +464,7 @@ pub fn derive_facing(
                         parent_attrs.clone()
                     } else {
                         let known = attr_memo.iter().find(|(from, r, j, _)| {
-                            *r == rule_idx && *j == k && Arc::ptr_eq(from, &parent_attrs)
+                            *r == rule_idx && *j == k && Rc::ptr_eq(from, &parent_attrs)
                         });
                         match known {
                             Some((.., a)) => a.clone(),
@@ -471,7 +473,7 @@ pub fn derive_facing(
                                 for (key, v) in &s.attrs {
                                     m.insert(key.clone(), v.clone());
                                 }
-                                let a = Arc::new(m);
+                                let a = Rc::new(m);
                                 if attr_memo.len() < ATTR_MEMO {
                                     attr_memo.push((parent_attrs.clone(), rule_idx, k, a.clone()));
                                 }
@@ -503,7 +505,35 @@ pub fn derive_facing(
         n.rule = Some(rule_idx);
         i += 1;
     }
+    syms.clear();
+    scopes.clear();
+    SPARE.with(|s| {
+        let mut s = s.borrow_mut();
+        s.1 = syms;
+        s.2 = scopes;
+    });
     Ok(tree)
+}
+
+/// Buffers kept for this thread's next derivation: the nodes of a recycled tree, the symbol
+/// ids and the scopes.
+type Spare = (Vec<ShapeNode>, Vec<Option<SymbolId>>, Vec<Scope>);
+
+thread_local! {
+    static SPARE: std::cell::RefCell<Spare> = Default::default();
+}
+
+/// Gives a tree that is no longer needed back to this thread's next [`derive_facing`], which
+/// reuses its node buffer (emptied here). Only a cost saving: dropping the tree is as good.
+pub fn recycle(tree: ShapeTree) {
+    let mut nodes = tree.nodes;
+    nodes.clear();
+    SPARE.with(|s| {
+        let mut s = s.borrow_mut();
+        if nodes.capacity() > s.0.capacity() {
+            s.0 = nodes;
+        }
+    });
 }
 
 fn child_label(op: &Op, parent: Label, geom: &Geometry) -> Label {

@@ -179,6 +179,16 @@ impl Sim {
             })
             .collect();
         let no_stale = self.stale.is_empty();
+        // `h / r > lim(best)` (h ≥ 0, r > 0) is checked as `h > r * lim(best)` first, which
+        // spares the division for most pairs: `lim` is `best + eps - t` widened by relative
+        // margins of 1e-12 and two units in the last place of `best + eps`, so that whenever
+        // the product says so, `t + h / r` computed in floating point exceeds `best + eps`
+        // (the test below, which decides). Infinite while `best` is.
+        let lim = |best: f64| {
+            let b = best + eps;
+            ((b - t) * (1.0 + 1e-12) + b * 4.5e-16) * (1.0 + 1e-12)
+        };
+        let mut best_lim = f64::INFINITY;
         for &v in alive {
             let vv = &self.verts[v];
             if vv.degenerate {
@@ -193,6 +203,7 @@ impl Sim {
                 let dt = (len / -rate).max(0.0);
                 if t + dt <= best + eps {
                     best = best.min(t + dt);
+                    best_lim = lim(best);
                     cands.push((t + dt, v, usize::MAX));
                 }
             }
@@ -208,6 +219,9 @@ impl Sim {
                     continue;
                 }
                 if !no_stale && is_stale(v, u) {
+                    continue;
+                }
+                if h.max(0.0) > -rate * best_lim {
                     continue;
                 }
                 let dt = h.max(0.0) / -rate;
@@ -233,6 +247,7 @@ impl Sim {
                 let stale = h <= eps && (s <= rad || s >= l - rad);
                 if s >= -eps && s <= l + eps && onto_start && onto_end && !stale {
                     best = best.min(te);
+                    best_lim = lim(best);
                     cands.push((te, v, u));
                 }
             }
