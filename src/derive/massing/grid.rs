@@ -719,20 +719,45 @@ fn on_keys(ground: &Face, walls: &[Wall], roof: &[Face]) -> (Vec<Vec<Vec<Key>>>,
                 .filter(|(_, a)| **a)
                 .flat_map(|(f, _)| f.iter())
         };
-        // Every directed edge of the live faces, sorted: an edge is lonely when its reverse is
+        // Every directed edge of the live faces, by its ends' representatives' indices (every
+        // vertex of a face is a representative), sorted: an edge is lonely when its reverse is
         // not among them.
-        let mut count: Vec<(Key, Key)> = Vec::with_capacity(live().map(Vec::len).sum());
-        for r in live() {
+        let id = |k: &Key| -> u64 { u64::from(reps.seen[k]) };
+        let ring_ids: Vec<Vec<u64>> = live().map(|r| r.iter().map(id).collect()).collect();
+        let mut count: Vec<u64> = Vec::with_capacity(ring_ids.iter().map(Vec::len).sum());
+        for r in &ring_ids {
             let n = r.len();
             for i in 0..n {
-                count.push((r[i], r[(i + 1) % n]));
+                count.push(r[i] << 32 | r[(i + 1) % n]);
             }
         }
         count.sort_unstable();
+        let lonely_ids = |a: u64, b: u64| count.binary_search(&(b << 32 | a)).is_err();
+        // Nothing to do (the usual case) unless some edge is lonely, a wall's base aside.
+        let mut any = false;
+        let mut at = 0;
+        for (fi, f) in faces.iter().enumerate() {
+            if !alive[fi] {
+                continue;
+            }
+            let is_wall = (1..roof0).contains(&fi);
+            for (ri, r) in ring_ids[at..at + f.len()].iter().enumerate() {
+                let n = r.len();
+                any |= (0..n)
+                    .any(|i| !(is_wall && ri == 0 && i == 0) && lonely_ids(r[i], r[(i + 1) % n]));
+            }
+            at += f.len();
+            if any {
+                break;
+            }
+        }
+        if !any {
+            break;
+        }
+        let lonely = |a: Key, b: Key| lonely_ids(id(&a), id(&b));
         let mut verts: Vec<Key> = live().flat_map(|r| r.iter().copied()).collect();
         verts.sort_unstable();
         verts.dedup();
-        let lonely = |a: Key, b: Key| count.binary_search(&(b, a)).is_err();
         // The vertices that may lie on the segment u v (`on_segment`: within 1.5 steps of a
         // point of it): those whose x is within 2 steps of its x range (`verts` is sorted by x
         // first).

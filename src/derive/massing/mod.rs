@@ -89,13 +89,8 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         let r = b.to_radians();
         DVec2::new(r.sin(), r.cos())
     });
-    let pitched = if mass.roof == RoofShape::Gabled && mass.roof_across {
-        let short = crate::derive::roof::shapes::short_axis(footprint);
-        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
-    } else {
-        roof::build(footprint, mass.roof, pitch, down)
-    }
-    .map_err(|e| fallback(e.to_string()))?;
+    let pitched = pitched_roof(footprint, mass.roof, pitch, down, mass.roof_across)
+        .map_err(|e| fallback(e.to_string()))?;
     let pitched = match mass.roof_height {
         Some(h) if h > MIN_ROOF_HEIGHT => pitched.scaled_to_height(h),
         _ => pitched,
@@ -107,6 +102,59 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         )));
     }
     Ok(pitched)
+}
+
+/// The roof of `roof_geometry` before it is fitted to a height. The last one built on this
+/// thread is kept and given again for the same arguments (compared bit for bit): a building
+/// whose total height is known builds its roof once to find its eave, then again on the same
+/// footprint for its mass.
+fn pitched_roof(
+    footprint: &Polygon,
+    shape: RoofShape,
+    pitch: f64,
+    down: Option<DVec2>,
+    across: bool,
+) -> Result<RoofGeometry, roof::RoofError> {
+    type Key = (
+        Vec<[u64; 2]>,
+        Vec<Vec<[u64; 2]>>,
+        RoofShape,
+        u64,
+        Option<[u64; 2]>,
+        bool,
+    );
+    thread_local! {
+        static LAST: std::cell::RefCell<Option<(Key, Result<RoofGeometry, roof::RoofError>)>> =
+            const { std::cell::RefCell::new(None) };
+    }
+    let bits = |p: &DVec2| [p.x.to_bits(), p.y.to_bits()];
+    let key: Key = (
+        footprint.outer.iter().map(bits).collect(),
+        footprint
+            .holes
+            .iter()
+            .map(|h| h.iter().map(bits).collect())
+            .collect(),
+        shape,
+        pitch.to_bits(),
+        down.as_ref().map(bits),
+        across,
+    );
+    if let Some(hit) = LAST.with(|l| {
+        l.borrow()
+            .as_ref()
+            .and_then(|(k, r)| (*k == key).then(|| r.clone()))
+    }) {
+        return hit;
+    }
+    let built = if shape == RoofShape::Gabled && across {
+        let short = crate::derive::roof::shapes::short_axis(footprint);
+        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
+    } else {
+        roof::build(footprint, shape, pitch, down)
+    };
+    LAST.with(|l| *l.borrow_mut() = Some((key, built.clone())));
+    built
 }
 
 /// Builds the walls, ground and roof of one part at the given LOD.
