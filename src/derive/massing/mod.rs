@@ -104,10 +104,7 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
     Ok(pitched)
 }
 
-/// The roof of `roof_geometry` before it is fitted to a height. The last one built on this
-/// thread is kept and given again for the same arguments (compared bit for bit): a building
-/// whose total height is known builds its roof once to find its eave, then again on the same
-/// footprint for its mass.
+/// The roof of [`roof_geometry`] before it is fitted to a height.
 fn pitched_roof(
     footprint: &Polygon,
     shape: RoofShape,
@@ -115,46 +112,12 @@ fn pitched_roof(
     down: Option<DVec2>,
     across: bool,
 ) -> Result<RoofGeometry, roof::RoofError> {
-    type Key = (
-        Vec<[u64; 2]>,
-        Vec<Vec<[u64; 2]>>,
-        RoofShape,
-        u64,
-        Option<[u64; 2]>,
-        bool,
-    );
-    thread_local! {
-        static LAST: std::cell::RefCell<Option<(Key, Result<RoofGeometry, roof::RoofError>)>> =
-            const { std::cell::RefCell::new(None) };
-    }
-    let bits = |p: &DVec2| [p.x.to_bits(), p.y.to_bits()];
-    let key: Key = (
-        footprint.outer.iter().map(bits).collect(),
-        footprint
-            .holes
-            .iter()
-            .map(|h| h.iter().map(bits).collect())
-            .collect(),
-        shape,
-        pitch.to_bits(),
-        down.as_ref().map(bits),
-        across,
-    );
-    if let Some(hit) = LAST.with(|l| {
-        l.borrow()
-            .as_ref()
-            .and_then(|(k, r)| (*k == key).then(|| r.clone()))
-    }) {
-        return hit;
-    }
-    let built = if shape == RoofShape::Gabled && across {
+    if shape == RoofShape::Gabled && across {
         let short = crate::derive::roof::shapes::short_axis(footprint);
         crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
     } else {
         roof::build(footprint, shape, pitch, down)
-    };
-    LAST.with(|l| *l.borrow_mut() = Some((key, built.clone())));
-    built
+    }
 }
 
 /// Builds the walls, ground and roof of one part at the given LOD.
@@ -334,7 +297,15 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
             (p.z / tol).floor() as i64,
         )
     };
+    // The canonical vertices bit for bit: a vertex that is one of them stays as it is (no
+    // other canonical vertex is within `tol` of it in the cells around it, or one of the two
+    // would have joined the other when it came).
+    let mut canon_bits: std::collections::HashSet<(u64, u64, u64), CellHash> = Default::default();
+    let bits = |p: &DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
     let mut snap = |p: &mut DVec3| {
+        if canon_bits.contains(&bits(p)) {
+            return;
+        }
         let c = cell(*p);
         if canon.len() <= WELD_LINEAR {
             let mut best: Option<(i64, usize)> = None;
@@ -370,6 +341,7 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
             }
         }
         canon.push(*p);
+        canon_bits.insert(bits(p));
         canon_cells.push(c);
         if canon.len() == WELD_LINEAR + 1 {
             for (i, qc) in canon_cells.iter().enumerate() {
@@ -482,7 +454,7 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
 /// A fixed, fast hasher for integer grid cells (FxHash's multiply-rotate): no per-process
 /// random seed, which is fine because the maps using it are never iterated.
 #[derive(Default, Clone, Copy)]
-struct CellHash;
+pub(crate) struct CellHash;
 
 impl std::hash::BuildHasher for CellHash {
     type Hasher = CellHasher;
@@ -492,7 +464,7 @@ impl std::hash::BuildHasher for CellHash {
 }
 
 /// See [`CellHash`].
-struct CellHasher(u64);
+pub(crate) struct CellHasher(u64);
 
 impl std::hash::Hasher for CellHasher {
     fn finish(&self) -> u64 {
