@@ -420,7 +420,12 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
                 let row = cy * n_side;
                 for &k in &members[start[row + x0]..start[row + x1 + 1]] {
                     let q = canon[k];
-                    let s = (q - u).dot(d) / l2;
+                    let along = (q - u).dot(d);
+                    // Off the segment's span (then `s` below is too): spares the division.
+                    if along <= 0.0 || along >= l2 {
+                        continue;
+                    }
+                    let s = along / l2;
                     if s <= 0.0 || s >= 1.0 || q == u || q == v {
                         continue;
                     }

@@ -523,8 +523,10 @@ pub struct RoofLine<'a> {
     /// Boundary vertices above the eave with the footprint edge (ring, edge) nearest to them
     /// in plan, within [`RoofLine::TOL`].
     above: Vec<(DVec3, (usize, usize))>,
-    /// Every boundary vertex (for the heights at the footprint's corners).
+    /// Every boundary vertex (for the heights at the footprint's corners), sorted by x.
     boundary: Vec<DVec3>,
+    /// No x is NaN, so that `boundary` is ordered by `<` on x too.
+    sorted: bool,
 }
 
 impl<'a> RoofLine<'a> {
@@ -593,10 +595,12 @@ impl<'a> RoofLine<'a> {
                 above.push((*p, e));
             }
         }
+        let sorted = boundary.iter().all(|p| !p.x.is_nan());
         RoofLine {
             footprint,
             above,
             boundary,
+            sorted,
         }
     }
 
@@ -620,11 +624,25 @@ impl<'a> RoofLine<'a> {
         // roof built on the footprint before it was put on the grid).
         let corner = tol.max(crate::model::MIN_VERTEX_GAP);
         let (mut za, mut zb) = (0.0f64, 0.0f64);
-        for p in &self.boundary {
-            let g = p.truncate();
-            if g.distance(a) <= corner {
+        // The boundary is sorted by x: only the points within (a little more than) `corner`
+        // of a corner in x can be within `corner` of it.
+        let near = |c: DVec2| -> &[DVec3] {
+            if !self.sorted {
+                return &self.boundary;
+            }
+            let m = corner * (1.0 + 1e-6) + 1e-6;
+            let lo = self.boundary.partition_point(|p| p.x < c.x - m);
+            let hi = self.boundary.partition_point(|p| p.x <= c.x + m);
+            &self.boundary[lo..hi.max(lo)]
+        };
+        for p in near(a) {
+            if p.truncate().distance(a) <= corner {
                 za = za.max(p.z);
-            } else if g.distance(b) <= corner {
+            }
+        }
+        for p in near(b) {
+            let g = p.truncate();
+            if g.distance(a) > corner && g.distance(b) <= corner {
                 zb = zb.max(p.z);
             }
         }
