@@ -106,13 +106,18 @@ pub fn along_on_grid(start: DVec2, end: DVec2, u: f64, shift: f64) -> f64 {
     for k in 0..=reach.min(100_000) {
         let qa = start_a + toward * k;
         let qb = ((qa as f64) * db as f64 / da as f64).round() as i64;
+        let cross = (qa as i128 * db as i128 - qb as i128 * da as i128).unsigned_abs();
+        let cross = i64::try_from(cross).unwrap_or(i64::MAX);
+        // A point no closer to the line than the best so far changes nothing unless it is on
+        // the line (which ends the search when it is within reach): its place is not needed.
+        if cross >= best.0 && cross != 0 {
+            continue;
+        }
         let (qx, qy) = if swap { (qb, qa) } else { (qa, qb) };
         let along = (qx as f64 * d.0 as f64 + qy as f64 * d.1 as f64) / len;
         if along < lo || along > hi {
             continue;
         }
-        let cross = (qa as i128 * db as i128 - qb as i128 * da as i128).unsigned_abs();
-        let cross = i64::try_from(cross).unwrap_or(i64::MAX);
         if cross < best.0 {
             best = (cross, Some(along));
         }
