@@ -31,6 +31,18 @@ pub(super) struct Sim {
     /// it was to meet, `usize::MAX` for its own edge's collapse): skipped until time moves on,
     /// so that an event the point handling cannot resolve never stalls the propagation.
     pub(super) stale: Vec<(usize, usize)>,
+    /// Buffers reused from event to event.
+    pub(super) scratch: Scratch,
+}
+
+/// Buffers of [`Sim`]'s steps, kept between them (their contents are rebuilt every time).
+#[derive(Default)]
+pub(super) struct Scratch {
+    alive: Vec<usize>,
+    member: Vec<bool>,
+    visited: Vec<bool>,
+    pos: Vec<DVec2>,
+    fronts: Vec<(usize, usize, DVec2, DVec2)>,
 }
 
 impl Sim {
@@ -46,6 +58,7 @@ impl Sim {
             size,
             edges,
             stale: Vec::new(),
+            scratch: Scratch::default(),
         };
         for r in 0..ring_starts.len() - 1 {
             let (s, e) = (ring_starts[r], ring_starts[r + 1]);
@@ -101,15 +114,24 @@ impl Sim {
             .collect()
     }
 
+    /// [`Sim::alive`] into `out`.
+    fn alive_into(&self, out: &mut Vec<usize>) {
+        out.clear();
+        out.extend((0..self.verts.len()).filter(|&i| self.verts[i].alive));
+    }
+
     pub(super) fn run(&mut self) -> Result<(), SkeletonError> {
         let budget = 40 * self.edges.len() + 100;
         for _ in 0..budget {
-            let alive = self.alive();
+            let mut alive = std::mem::take(&mut self.scratch.alive);
+            self.alive_into(&mut alive);
             if alive.is_empty() {
                 return Ok(());
             }
             let before = self.t;
-            let (points, found) = self.next_events(&alive)?;
+            let events = self.next_events(&alive);
+            self.scratch.alive = alive;
+            let (points, found) = events?;
             if self.t > before + self.eps {
                 self.stale.clear();
             }
@@ -161,23 +183,19 @@ impl Sim {
         let eps = self.eps;
         let mut best = f64::INFINITY;
         let mut cands: Vec<(f64, usize, usize)> = Vec::new();
+        let mut pos_now = std::mem::take(&mut self.scratch.pos);
+        let mut fronts = std::mem::take(&mut self.scratch.fronts);
         let is_stale = |v: usize, with: usize| self.stale.contains(&(v, with));
-        let pos_now: Vec<DVec2> = self
-            .verts
-            .iter()
-            .enumerate()
-            .map(|(i, _)| self.pos(i, t))
-            .collect();
+        pos_now.clear();
+        pos_now.extend((0..self.verts.len()).map(|i| self.pos(i, t)));
         // The wavefront edges (the edge leaving each alive vertex u), gathered once: u, the
         // vertex after it, and the edge's start and inward normal.
-        let fronts: Vec<(usize, usize, DVec2, DVec2)> = alive
-            .iter()
-            .map(|&u| {
-                let uu = &self.verts[u];
-                let f = &self.edges[uu.r];
-                (u, uu.next, f.a, f.n)
-            })
-            .collect();
+        fronts.clear();
+        fronts.extend(alive.iter().map(|&u| {
+            let uu = &self.verts[u];
+            let f = &self.edges[uu.r];
+            (u, uu.next, f.a, f.n)
+        }));
         let no_stale = self.stale.is_empty();
         // `h / r > lim(best)` (h ≥ 0, r > 0) is checked as `h > r * lim(best)` first, which
         // spares the division for most pairs: `lim` is `best + eps - t` widened by relative
@@ -252,6 +270,8 @@ impl Sim {
                 }
             }
         }
+        self.scratch.pos = pos_now;
+        self.scratch.fronts = fronts;
         if !best.is_finite() {
             return Err(SkeletonError::Inconsistent(
                 "a wavefront ring has no further event",
@@ -307,25 +327,45 @@ impl Sim {
         x: DVec2,
         at: Option<usize>,
     ) -> Result<bool, SkeletonError> {
+        let mut alive = std::mem::take(&mut self.scratch.alive);
+        let mut member = std::mem::take(&mut self.scratch.member);
+        let mut visited = std::mem::take(&mut self.scratch.visited);
+        let r = self.handle_point_with(x, at, &mut alive, &mut member, &mut visited);
+        self.scratch.alive = alive;
+        self.scratch.member = member;
+        self.scratch.visited = visited;
+        r
+    }
+
+    /// [`Sim::handle_point_at`] with its buffers (contents rebuilt here).
+    fn handle_point_with(
+        &mut self,
+        x: DVec2,
+        at: Option<usize>,
+        alive: &mut Vec<usize>,
+        member: &mut Vec<bool>,
+        visited: &mut Vec<bool>,
+    ) -> Result<bool, SkeletonError> {
         let t = self.t;
         let rad = self.radius();
-        let alive = self.alive();
+        self.alive_into(alive);
+        let alive = &*alive;
         // Vertices this close take part (see [`RADIUS_REL`]): two reflex corners meeting
         // head-on pass a little apart once the footprint is rounded.
         let reach = RADIUS_REL * self.size;
-        let member: Vec<bool> = {
-            let mut m = vec![false; self.verts.len()];
-            for &v in &alive {
-                m[v] = self.pos(v, t).distance(x) <= self.tol(v).max(reach);
-            }
-            m
-        };
+        member.clear();
+        member.resize(self.verts.len(), false);
+        for &v in alive {
+            member[v] = self.pos(v, t).distance(x) <= self.tol(v).max(reach);
+        }
+        let member = &*member;
         let members: Vec<usize> = alive.iter().copied().filter(|&v| member[v]).collect();
         if members.is_empty() {
             return Ok(false);
         }
         let mut passes: Vec<Pass> = Vec::new();
-        let mut visited = vec![false; self.verts.len()];
+        visited.clear();
+        visited.resize(self.verts.len(), false);
         for &m in &members {
             if member[self.verts[m].prev] {
                 continue;
@@ -351,7 +391,7 @@ impl Sim {
         }
         // Rings that lie entirely at the point vanish there.
         let vanished: Vec<usize> = members.iter().copied().filter(|&m| !visited[m]).collect();
-        for &u in &alive {
+        for &u in alive {
             let w = self.verts[u].next;
             if member[u] || member[w] {
                 continue;
