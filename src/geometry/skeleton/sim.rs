@@ -43,6 +43,10 @@ pub(super) struct Scratch {
     visited: Vec<bool>,
     pos: Vec<DVec2>,
     fronts: Vec<(usize, usize, DVec2, DVec2)>,
+    /// The wavefront edges' starts and normals by coordinate (x, y of the start, x, y of the
+    /// normal), and which of them a vertex may meet.
+    front_xy: [Vec<f64>; 4],
+    keep: Vec<bool>,
 }
 
 impl Sim {
@@ -196,6 +200,17 @@ impl Sim {
             let f = &self.edges[uu.r];
             (u, uu.next, f.a, f.n)
         }));
+        let [mut ax, mut ay, mut nx, mut ny] = std::mem::take(&mut self.scratch.front_xy);
+        let mut keep = std::mem::take(&mut self.scratch.keep);
+        for c in [&mut ax, &mut ay, &mut nx, &mut ny] {
+            c.clear();
+        }
+        for &(_, _, a, n) in &fronts {
+            ax.push(a.x);
+            ay.push(a.y);
+            nx.push(n.x);
+            ny.push(n.y);
+        }
         let no_stale = self.stale.is_empty();
         // `h / r > lim(best)` (h ≥ 0, r > 0) is checked as `h > r * lim(best)` first, which
         // spares the division for most pairs: `lim` is `best + eps - t` widened by relative
@@ -225,10 +240,21 @@ impl Sim {
                     cands.push((t + dt, v, usize::MAX));
                 }
             }
-            // Split events of v against every non-incident edge.
+            // Split events of v against every non-incident edge. First, without branches, the
+            // edges v may meet before `best` as it stands now (it only comes down): the tests
+            // of the loop below, on the same values.
             let (pv_now, vel) = (pos_now[v], vv.vel);
-            for &(u, next, fa, fnorm) in &fronts {
-                if u == v || next == v {
+            let lim0 = best_lim;
+            keep.clear();
+            keep.extend(ax.iter().zip(&ay).zip(nx.iter().zip(&ny)).map(
+                |((&ax, &ay), (&nx, &ny))| {
+                    let h = (pv_now.x - ax) * nx + (pv_now.y - ay) * ny - t;
+                    let rate = vel.x * nx + vel.y * ny - 1.0;
+                    !(rate >= -1e-12 || h < -eps) & !(h.max(0.0) > -rate * lim0)
+                },
+            ));
+            for (&(u, next, fa, fnorm), &kept) in fronts.iter().zip(&keep) {
+                if !kept || u == v || next == v {
                     continue;
                 }
                 let h = (pv_now - fa).dot(fnorm) - t;
@@ -272,6 +298,8 @@ impl Sim {
         }
         self.scratch.pos = pos_now;
         self.scratch.fronts = fronts;
+        self.scratch.front_xy = [ax, ay, nx, ny];
+        self.scratch.keep = keep;
         if !best.is_finite() {
             return Err(SkeletonError::Inconsistent(
                 "a wavefront ring has no further event",
