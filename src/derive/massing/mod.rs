@@ -300,7 +300,15 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     // The canonical vertices bit for bit: a vertex that is one of them stays as it is (no
     // other canonical vertex is within `tol` of it in the cells around it, or one of the two
     // would have joined the other when it came).
-    let mut canon_bits: std::collections::HashSet<(u64, u64, u64), CellHash> = Default::default();
+    let n_points = ground.outer.len()
+        + ground.holes.iter().map(Vec::len).sum::<usize>()
+        + walls.iter().map(|w| w.outline.outer.len()).sum::<usize>()
+        + roof
+            .iter()
+            .map(|f| f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>())
+            .sum::<usize>();
+    let mut canon_bits: std::collections::HashSet<(u64, u64, u64), CellHash> =
+        std::collections::HashSet::with_capacity_and_hasher(n_points, CellHash);
     let bits = |p: &DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
     let mut snap = |p: &mut DVec3| {
         if canon_bits.contains(&bits(p)) {
