@@ -171,9 +171,9 @@ struct Reps {
     reps: Vec<Key>,
     /// Representatives by cell of [`MIN_GAP`] steps (3 × 3 × 3 grid steps), once there are
     /// more than [`Reps::LINEAR`] of them (below, a scan of `reps` is cheaper than 27 probes).
-    cells: HashMap<Key, Vec<u32>, crate::derive::massing::CellHash>,
+    cells: HashMap<Key, Vec<u32>, crate::geometry::CellHash>,
     /// Every vertex offered so far, with its representative.
-    seen: HashMap<Key, u32, crate::derive::massing::CellHash>,
+    seen: HashMap<Key, u32, crate::geometry::CellHash>,
 }
 
 impl Reps {
@@ -391,7 +391,7 @@ const CLUSTER_PLANE_TOL: f64 = 0.001;
 /// joining what its two ends already joined. Faces left with repeated vertices are cleaned by
 /// [`on_keys`]; the caller keeps the roof as it was if the shell is then not sound.
 fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec<Face>> {
-    type Map<V> = HashMap<Key, V, crate::derive::massing::CellHash>;
+    type Map<V> = HashMap<Key, V, crate::geometry::CellHash>;
     let reach = (ROOF_CLUSTER * GRID_STEPS_PER_M).round() as i64;
     let cell = |k: Key| {
         (
@@ -625,7 +625,7 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
 /// ring is simple in its face's plane (no vertex passed twice, no edge crossing or touching
 /// another).
 fn sound(faces: &[Vec<Vec<Key>>], alive: &[bool]) -> bool {
-    let mut count: HashMap<(Key, Key), i32, crate::derive::massing::CellHash> = HashMap::default();
+    let mut count: HashMap<(Key, Key), i32, crate::geometry::CellHash> = HashMap::default();
     for r in faces
         .iter()
         .zip(alive)

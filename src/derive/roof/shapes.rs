@@ -57,10 +57,9 @@ use std::collections::HashSet;
 use glam::{DVec2, DVec3};
 
 use super::{RoofError, RoofGeometry};
-use crate::derive::massing::CellHash;
 use crate::geometry::hull::convex_hull;
 use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton, straight_skeleton_merged};
-use crate::geometry::Polygon;
+use crate::geometry::{CellHash, Polygon};
 use crate::model::Face;
 
 /// Pitch of the mansard's lower (steep) slope, degrees.
