@@ -246,6 +246,8 @@ impl Sim {
             let (pv_now, vel) = (pos_now[v], vv.vel);
             let lim0 = best_lim;
             keep.clear();
+            // Negated as the loop's tests are, so that a NaN goes on to them as it would.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
             keep.extend(ax.iter().zip(&ay).zip(nx.iter().zip(&ny)).map(
                 |((&ax, &ay), (&nx, &ny))| {
                     let h = (pv_now.x - ax) * nx + (pv_now.y - ay) * ny - t;
