@@ -7,12 +7,14 @@
 //! that are not on a footprint edge (a face turned by `R`, the inner faces where a `split` cut
 //! the mass) are not on the envelope and are counted in [`Facades::off_envelope`].
 
+use std::rc::Rc;
+
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
 use crate::derive::massing::grid::along_on_grid;
 use crate::geometry::Polygon;
-use crate::grammar::{AttrValue, FaceKind, Geometry, Label, ShapeNode, ShapeTree, Terminal};
+use crate::grammar::{AttrValue, Attrs, FaceKind, Geometry, Label, ShapeNode, ShapeTree, Terminal};
 pub use crate::model::OpeningKind;
 use crate::model::{Balcony, Face, Opening, Part, Wall, LINTEL, OPENING_MARGIN};
 
@@ -99,6 +101,7 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
         balconies: vec![Vec::new(); edges.len()],
         off_envelope: 0,
     };
+    let mut looks: Vec<(Rc<Attrs>, Look)> = Vec::new();
     let mut stack = vec![mass];
     while let Some(i) = stack.pop() {
         let node = &tree.nodes[i];
@@ -118,7 +121,7 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
         if let Some(t) = node.terminal {
             match t {
                 Terminal::Window | Terminal::Door | Terminal::Balcony => {
-                    place(node, t, &edges, &mut out)
+                    place(node, t, &edges, &mut out, &mut looks)
                 }
                 Terminal::Wall | Terminal::Other => {}
             }
@@ -155,8 +158,41 @@ pub fn levels(mut found: Vec<Level>, z0: f64, z1: f64) -> Vec<Level> {
     out
 }
 
-/// Finds the footprint edge a terminal face stands on and records it there.
-fn place(node: &ShapeNode, t: Terminal, edges: &[Edge], out: &mut Facades) {
+/// What a terminal's attributes say about its looks: colour, frame colour, whether its
+/// material is glass (`None`: no material) and whether it is framed.
+#[derive(Clone, Copy)]
+struct Look {
+    color: Option<Color>,
+    frame_color: Option<Color>,
+    glass: Option<bool>,
+    framed: bool,
+}
+
+impl Look {
+    fn of(attrs: &Attrs) -> Look {
+        let text = |key: &str| match attrs.get(key) {
+            Some(AttrValue::Str(s)) => Some(s.to_string()),
+            Some(AttrValue::Num(n)) => Some(n.to_string()),
+            None => None,
+        };
+        Look {
+            color: text("color").and_then(|c| Color::parse(&c)),
+            frame_color: text("framecolor").and_then(|c| Color::parse(&c)),
+            glass: text("material").map(|m| m.eq_ignore_ascii_case("glass")),
+            framed: text("style").is_some_and(|s| s.eq_ignore_ascii_case("framed")),
+        }
+    }
+}
+
+/// Finds the footprint edge a terminal face stands on and records it there. `looks` remembers
+/// the [`Look`] of each attribute map met (the terminals of a facade share theirs).
+fn place(
+    node: &ShapeNode,
+    t: Terminal,
+    edges: &[Edge],
+    out: &mut Facades,
+    looks: &mut Vec<(Rc<Attrs>, Look)>,
+) {
     let Geometry::Face {
         kind: FaceKind::Side,
         origin,
@@ -187,12 +223,17 @@ fn place(node: &ShapeNode, t: Terminal, edges: &[Edge], out: &mut Facades) {
         out.off_envelope += 1;
         return;
     };
-    let text = |key: &str| match node.attrs.get(key) {
-        Some(AttrValue::Str(s)) => Some(s.to_string()),
-        Some(AttrValue::Num(n)) => Some(n.to_string()),
-        None => None,
+    let look = match looks.iter().find(|(a, _)| Rc::ptr_eq(a, &node.attrs)) {
+        Some((_, l)) => *l,
+        None => {
+            let l = Look::of(&node.attrs);
+            if looks.len() < 64 {
+                looks.push((node.attrs.clone(), l));
+            }
+            l
+        }
     };
-    let color = text("color").and_then(|c| Color::parse(&c));
+    let color = look.color;
     let u0 = u0.max(0.0);
     let u1 = (u0 + width).min(edges[k].len);
     let (z0, z1) = (origin.z, origin.z + height);
@@ -215,11 +256,10 @@ fn place(node: &ShapeNode, t: Terminal, edges: &[Edge], out: &mut Facades) {
             z0,
             z1,
             color,
-            frame_color: text("framecolor").and_then(|c| Color::parse(&c)),
+            frame_color: look.frame_color,
             // A window is glass unless its material says otherwise; a door only when it says so.
-            glazed: text("material")
-                .map_or(t == Terminal::Window, |m| m.eq_ignore_ascii_case("glass")),
-            framed: text("style").is_some_and(|s| s.eq_ignore_ascii_case("framed")),
+            glazed: look.glass.unwrap_or(t == Terminal::Window),
+            framed: look.framed,
         }),
     }
 }

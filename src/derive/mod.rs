@@ -450,17 +450,20 @@ impl Generator {
             .map_err(|e| format!("derivation failed for {id}: {e}"))?;
         let masses = masses_of(&tree, &style);
         if lod < Lod::Lod3 {
+            grammar::recycle(tree);
             return Ok(masses.into_iter().map(|m| (m, None)).collect());
         }
         let nodes = mass_nodes(&tree);
-        Ok(masses
+        let out = masses
             .into_iter()
             .zip(nodes)
             .map(|(m, i)| {
                 let f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
                 (m, Some(f))
             })
-            .collect())
+            .collect();
+        grammar::recycle(tree);
+        Ok(out)
     }
 }
 

@@ -203,3 +203,36 @@ pub fn is_simple(r: &[DVec2]) -> bool {
     }
     true
 }
+
+/// A fixed, fast hasher for integer keys (grid cells, coordinates' bits; FxHash's
+/// multiply-rotate): no per-process random seed, which is fine because the maps using it are
+/// never iterated.
+#[derive(Default, Clone, Copy)]
+pub(crate) struct CellHash;
+
+impl std::hash::BuildHasher for CellHash {
+    type Hasher = CellHasher;
+    fn build_hasher(&self) -> CellHasher {
+        CellHasher(0)
+    }
+}
+
+/// See [`CellHash`].
+pub(crate) struct CellHasher(u64);
+
+impl std::hash::Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(u64::from(*b));
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+}

@@ -56,7 +56,7 @@
 //! * **Attributes** are inherited: a child shares its parent's map unless its successor sets
 //!   attributes, in which case it gets a copy with those overridden.
 
-use std::sync::Arc;
+use std::rc::Rc;
 
 use glam::{DVec2, DVec3};
 
@@ -72,6 +72,10 @@ use crate::rng::Rng;
 
 /// Lengths within this tolerance count as "fits" in split layouts (metres).
 const FIT_TOL: f64 = 1e-6;
+
+/// Most successor attribute maps a derivation remembers for reuse (see `derive_facing`): rule
+/// sets whose attributes differ from node to node make new maps past it, as they would anyway.
+const ATTR_MEMO: usize = 64;
 
 /// Limits that keep a runaway rule set from hanging or exhausting memory.
 ///
@@ -235,7 +239,12 @@ impl Ctx<'_> {
     /// as `f64`, so that an astronomical count is compared, not overflowed): `max_pieces`, then
     /// the shapes and the points the tree has left. `what` names the pieces for the message
     /// (`repeat would make`).
-    fn room(&self, pieces: f64, points: f64, what: &str) -> Result<(), DeriveError> {
+    fn room(
+        &self,
+        pieces: f64,
+        points: f64,
+        what: std::fmt::Arguments<'_>,
+    ) -> Result<(), DeriveError> {
         let caps = self.caps;
         if pieces > caps.max_pieces as f64 {
             return Err(self.cap_with(
@@ -351,18 +360,26 @@ pub fn derive_facing(
         .unwrap_or(0.0);
     let scope = Scope::around(lot, scope_direction(lot, front), z, 0.0);
     let wall: Option<SymbolId> = rules.index.get("wall").copied();
-    let wall_name: Arc<str> = wall.map_or_else(
-        || Arc::from("wall"),
-        |id| rules.symbols[id as usize].clone(),
-    );
-    let mut tree = ShapeTree::default();
+    // This derivation's own copies of the symbol names (counted without atomics, as the
+    // attribute maps are: a tree stays on the thread that derives it; the rule set's names are
+    // shared by every thread, whose counting would make the threads contend).
+    let mut names: Vec<Option<Rc<str>>> = vec![None; rules.symbols.len()];
+    let mut name_of = |id: SymbolId| -> Rc<str> {
+        names[id as usize]
+            .get_or_insert_with(|| Rc::from(&*rules.symbols[id as usize]))
+            .clone()
+    };
+    let wall_name: Rc<str> = wall.map_or_else(|| Rc::from("wall"), &mut name_of);
+    // The buffers of this thread's last trees (see [`recycle`]): a tree of thousands of nodes
+    // grown from nothing copies itself at every doubling, onto freshly mapped pages.
+    let (nodes, mut syms, mut scopes) = SPARE.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    let mut tree = ShapeTree { nodes };
     // Per node: the symbol id (None for a `wall` the rule set never names) and the scope.
-    let mut syms: Vec<Option<SymbolId>> = Vec::new();
-    let mut scopes: Vec<Scope> = Vec::new();
+    debug_assert!(tree.nodes.is_empty() && syms.is_empty() && scopes.is_empty());
     tree.nodes.push(ShapeNode {
-        symbol: rules.symbols[rules.axiom as usize].clone(),
+        symbol: name_of(rules.axiom),
         label: Label::Lot,
-        attrs: Arc::new(attrs),
+        attrs: Rc::new(attrs),
         geometry: Geometry::Lot {
             polygon: lot.clone(),
             z,
@@ -377,7 +394,10 @@ pub fn derive_facing(
     scopes.push(scope);
 
     let mut i = 0;
-    let mut attr_cache: Vec<Option<Arc<Attrs>>> = Vec::new();
+    // The attributes of a successor that sets some, by the parent's attributes (the address
+    // of the map, held here so it stays that map's), rule and successor: the nodes that share
+    // their attributes and a rule give their pieces one map.
+    let mut attr_memo: Vec<(Rc<Attrs>, usize, usize, Rc<Attrs>)> = Vec::new();
     // Polygon vertices held by the tree (Caps::max_points).
     let mut points = polygon_points(lot);
     while i < tree.nodes.len() {
@@ -434,9 +454,8 @@ pub fn derive_facing(
             return Err(ctx.cap("max_points", caps.max_points));
         }
         let label = child_label(&rule.op, parent_label, &tree.nodes[i].geometry);
-        attr_cache.clear();
-        attr_cache.resize(rule.succs.len(), None);
         let first = tree.nodes.len();
+        tree.nodes.reserve(pieces.len());
         for p in pieces {
             let (sym, name, attrs) = match p.succ {
                 Some(k) => {
@@ -444,17 +463,25 @@ pub fn derive_facing(
                     let a = if s.attrs.is_empty() {
                         parent_attrs.clone()
                     } else {
-                        attr_cache[k]
-                            .get_or_insert_with(|| {
+                        let known = attr_memo.iter().find(|(from, r, j, _)| {
+                            *r == rule_idx && *j == k && Rc::ptr_eq(from, &parent_attrs)
+                        });
+                        match known {
+                            Some((.., a)) => a.clone(),
+                            None => {
                                 let mut m = (*parent_attrs).clone();
                                 for (key, v) in &s.attrs {
                                     m.insert(key.clone(), v.clone());
                                 }
-                                Arc::new(m)
-                            })
-                            .clone()
+                                let a = Rc::new(m);
+                                if attr_memo.len() < ATTR_MEMO {
+                                    attr_memo.push((parent_attrs.clone(), rule_idx, k, a.clone()));
+                                }
+                                a
+                            }
+                        }
                     };
-                    (Some(s.symbol), rules.symbols[s.symbol as usize].clone(), a)
+                    (Some(s.symbol), name_of(s.symbol), a)
                 }
                 None => (wall, wall_name.clone(), parent_attrs.clone()),
             };
@@ -478,7 +505,35 @@ pub fn derive_facing(
         n.rule = Some(rule_idx);
         i += 1;
     }
+    syms.clear();
+    scopes.clear();
+    SPARE.with(|s| {
+        let mut s = s.borrow_mut();
+        s.1 = syms;
+        s.2 = scopes;
+    });
     Ok(tree)
+}
+
+/// Buffers kept for this thread's next derivation: the nodes of a recycled tree, the symbol
+/// ids and the scopes.
+type Spare = (Vec<ShapeNode>, Vec<Option<SymbolId>>, Vec<Scope>);
+
+thread_local! {
+    static SPARE: std::cell::RefCell<Spare> = Default::default();
+}
+
+/// Gives a tree that is no longer needed back to this thread's next [`derive_facing`], which
+/// reuses its node buffer (emptied here). Only a cost saving: dropping the tree is as good.
+pub fn recycle(tree: ShapeTree) {
+    let mut nodes = tree.nodes;
+    nodes.clear();
+    SPARE.with(|s| {
+        let mut s = s.borrow_mut();
+        if nodes.capacity() > s.0.capacity() {
+            s.0 = nodes;
+        }
+    });
 }
 
 fn child_label(op: &Op, parent: Label, geom: &Geometry) -> Label {
@@ -578,7 +633,7 @@ fn all_succs(ctx: &Ctx<'_>, n: usize, g: Geometry, s: Scope) -> Result<Vec<Piece
     ctx.room(
         n as f64,
         n as f64 * points_of(&g) as f64,
-        "its successors would make",
+        format_args!("its successors would make"),
     )?;
     Ok((0..n)
         .map(|k| Piece {
@@ -933,7 +988,7 @@ fn comp(ctx: &Ctx<'_>, geom: &Geometry, scope: &Scope) -> Result<Vec<Piece>, Der
     ctx.room(
         (sides + caps_faces) as f64,
         (caps_faces * polygon_points(footprint)) as f64,
-        "comp would make",
+        format_args!("comp would make"),
     )?;
     let mut out = Vec::with_capacity(sides + caps_faces);
     for ring in footprint.rings() {
@@ -1023,7 +1078,11 @@ fn layout(
                     continue;
                 }
                 if cum + s <= len + FIT_TOL {
-                    ctx.room((out.len() + 1) as f64, 0.0, "split would make at least")?;
+                    ctx.room(
+                        (out.len() + 1) as f64,
+                        0.0,
+                        format_args!("split would make at least"),
+                    )?;
                     out.push((Some(i), cum, s.min(len - cum)));
                     cum += s;
                 } else {
@@ -1053,7 +1112,11 @@ fn layout(
             for (i, &s) in sizes.iter().enumerate() {
                 let l = s / total * len;
                 if l > EPS {
-                    ctx.room((out.len() + 1) as f64, 0.0, "rsplit would make at least")?;
+                    ctx.room(
+                        (out.len() + 1) as f64,
+                        0.0,
+                        format_args!("rsplit would make at least"),
+                    )?;
                     out.push((Some(i), cum, l));
                 }
                 cum += l;
@@ -1070,7 +1133,7 @@ fn layout(
             ctx.room(
                 copies.max(1.0) * sizes.len() as f64,
                 0.0,
-                "repeat would make",
+                format_args!("repeat would make"),
             )?;
             let (copies, factor) = if copies < 1.0 {
                 if face {
@@ -1092,7 +1155,7 @@ fn layout(
             }
         }
     }
-    ctx.room(out.len() as f64, 0.0, &format!("{name} would make"))?;
+    ctx.room(out.len() as f64, 0.0, format_args!("{name} would make"))?;
     Ok(out)
 }
 
@@ -1134,7 +1197,7 @@ fn split(
                 ctx.room(
                     segs.len() as f64,
                     segs.len() as f64 * polygon_points(footprint) as f64,
-                    &format!("{op} would make"),
+                    format_args!("{op} would make"),
                 )?;
                 return Ok(segs
                     .into_iter()
@@ -1212,7 +1275,7 @@ fn split(
                 ctx.room(
                     (out.len() + polys.len()) as f64,
                     points as f64,
-                    &format!("{op} would make at least"),
+                    format_args!("{op} would make at least"),
                 )?;
                 for poly in polys {
                     let g = Geometry::Face {
@@ -1268,7 +1331,7 @@ fn clip_pieces(
         ctx.room(
             (out.len() + pieces.len()) as f64,
             points as f64,
-            &format!("{op} would make at least"),
+            format_args!("{op} would make at least"),
         )?;
         out.extend(pieces.into_iter().map(|p| (k, p)));
     }

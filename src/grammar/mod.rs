@@ -28,7 +28,7 @@ mod tests;
 pub use ast::{
     AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
 };
-pub use interp::{derive, derive_facing, Caps, DeriveError};
+pub use interp::{derive, derive_facing, recycle, Caps, DeriveError};
 pub use parser::{
     parse, read_source, GrammarError, ParseErrorKind, MAX_EXPR_DEPTH, MAX_SOURCE_BYTES,
 };

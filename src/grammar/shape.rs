@@ -2,7 +2,7 @@
 //! (oriented frames of footprints, clipping a footprint to a slab) are in [`crate::geometry`].
 
 use std::ops::Range;
-use std::sync::Arc;
+use std::rc::Rc;
 
 use glam::{DVec2, DVec3};
 
@@ -187,12 +187,12 @@ impl Geometry {
 #[derive(Clone, Debug)]
 pub struct ShapeNode {
     /// The symbol this shape carries.
-    pub symbol: Arc<str>,
+    pub symbol: Rc<str>,
     /// Its place in the spatial hierarchy.
     pub label: Label,
     /// Its attributes, inherited and overridden. Nodes without overrides share their parent's
     /// map.
-    pub attrs: Arc<Attrs>,
+    pub attrs: Rc<Attrs>,
     /// Its geometry.
     pub geometry: Geometry,
     /// `Some` for leaves: the terminal kind of the symbol.

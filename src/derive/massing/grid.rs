@@ -106,13 +106,18 @@ pub fn along_on_grid(start: DVec2, end: DVec2, u: f64, shift: f64) -> f64 {
     for k in 0..=reach.min(100_000) {
         let qa = start_a + toward * k;
         let qb = ((qa as f64) * db as f64 / da as f64).round() as i64;
+        let cross = (qa as i128 * db as i128 - qb as i128 * da as i128).unsigned_abs();
+        let cross = i64::try_from(cross).unwrap_or(i64::MAX);
+        // A point no closer to the line than the best so far changes nothing unless it is on
+        // the line (which ends the search when it is within reach): its place is not needed.
+        if cross >= best.0 && cross != 0 {
+            continue;
+        }
         let (qx, qy) = if swap { (qb, qa) } else { (qa, qb) };
         let along = (qx as f64 * d.0 as f64 + qy as f64 * d.1 as f64) / len;
         if along < lo || along > hi {
             continue;
         }
-        let cross = (qa as i128 * db as i128 - qb as i128 * da as i128).unsigned_abs();
-        let cross = i64::try_from(cross).unwrap_or(i64::MAX);
         if cross < best.0 {
             best = (cross, Some(along));
         }
@@ -164,13 +169,25 @@ pub fn polygon_on_grid(p: &Polygon) -> Option<Polygon> {
 #[derive(Default)]
 struct Reps {
     reps: Vec<Key>,
-    /// Representatives by cell of [`MIN_GAP`] steps (3 × 3 × 3 grid steps).
-    cells: HashMap<Key, Vec<u32>, crate::derive::massing::CellHash>,
+    /// Representatives by cell of [`MIN_GAP`] steps (3 × 3 × 3 grid steps), once there are
+    /// more than [`Reps::LINEAR`] of them (below, a scan of `reps` is cheaper than 27 probes).
+    cells: HashMap<Key, Vec<u32>, crate::geometry::CellHash>,
     /// Every vertex offered so far, with its representative.
-    seen: HashMap<Key, u32, crate::derive::massing::CellHash>,
+    seen: HashMap<Key, u32, crate::geometry::CellHash>,
 }
 
 impl Reps {
+    /// Representatives scanned one by one, up to this many; past it the cells are used.
+    const LINEAR: usize = 48;
+
+    fn with_capacity(n: usize) -> Reps {
+        Reps {
+            reps: Vec::with_capacity(n),
+            cells: HashMap::default(),
+            seen: HashMap::with_capacity_and_hasher(n, Default::default()),
+        }
+    }
+
     fn cell(k: Key) -> Key {
         let c = MIN_GAP_STEPS;
         (k.0.div_euclid(c), k.1.div_euclid(c), k.2.div_euclid(c))
@@ -182,20 +199,36 @@ impl Reps {
             return self.reps[i as usize];
         }
         let c = Reps::cell(k);
+        let near = |r: Key| {
+            let d = (r.0 - k.0, r.1 - k.1, r.2 - k.2);
+            d.0 * d.0 + d.1 * d.1 + d.2 * d.2 < gap * gap
+        };
         let mut found: Option<u32> = None;
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let Some(v) = self.cells.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) else {
-                        continue;
-                    };
-                    for &i in v {
-                        let r = self.reps[i as usize];
-                        let d = (r.0 - k.0, r.1 - k.1, r.2 - k.2);
-                        if d.0 * d.0 + d.1 * d.1 + d.2 * d.2 < gap * gap
-                            && found.is_none_or(|f| i < f)
-                        {
-                            found = Some(i);
+        if self.reps.len() <= Reps::LINEAR {
+            // The smallest index within the gap, among those in the 27 cells around `k`'s
+            // (the cells hold every representative within MIN_GAP_STEPS; `gap` is never more).
+            for (i, &r) in self.reps.iter().enumerate() {
+                let rc = Reps::cell(r);
+                if (rc.0 - c.0).abs() <= 1
+                    && (rc.1 - c.1).abs() <= 1
+                    && (rc.2 - c.2).abs() <= 1
+                    && near(r)
+                {
+                    found = Some(i as u32);
+                    break;
+                }
+            }
+        } else {
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(v) = self.cells.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) else {
+                            continue;
+                        };
+                        for &i in v {
+                            if near(self.reps[i as usize]) && found.is_none_or(|f| i < f) {
+                                found = Some(i);
+                            }
                         }
                     }
                 }
@@ -206,7 +239,13 @@ impl Reps {
             None => {
                 let i = self.reps.len() as u32;
                 self.reps.push(k);
-                self.cells.entry(c).or_default().push(i);
+                if self.reps.len() == Reps::LINEAR + 1 {
+                    for (j, &r) in self.reps.iter().enumerate() {
+                        self.cells.entry(Reps::cell(r)).or_default().push(j as u32);
+                    }
+                } else if self.reps.len() > Reps::LINEAR + 1 {
+                    self.cells.entry(c).or_default().push(i);
+                }
                 i
             }
         };
@@ -352,7 +391,7 @@ const CLUSTER_PLANE_TOL: f64 = 0.001;
 /// joining what its two ends already joined. Faces left with repeated vertices are cleaned by
 /// [`on_keys`]; the caller keeps the roof as it was if the shell is then not sound.
 fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec<Face>> {
-    type Map<V> = HashMap<Key, V, crate::derive::massing::CellHash>;
+    type Map<V> = HashMap<Key, V, crate::geometry::CellHash>;
     let reach = (ROOF_CLUSTER * GRID_STEPS_PER_M).round() as i64;
     let cell = |k: Key| {
         (
@@ -368,9 +407,12 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
             .copied()
     }
     // The roof's distinct vertices (by grid key, in order of appearance) and their faces.
-    let mut ids: Map<usize> = Map::default();
+    let n_points: usize = roof.iter().map(|f| rings(f).count()).sum();
+    let mut ids: Map<usize> = Map::with_capacity_and_hasher(n_points, Default::default());
     let mut verts: Vec<(Key, DVec3)> = Vec::new();
     let mut faces_of: Vec<Vec<usize>> = Vec::new();
+    // The id of every ring vertex, in the order of the faces' rings.
+    let mut ring_ids: Vec<usize> = Vec::with_capacity(n_points);
     for (fi, f) in roof.iter().enumerate() {
         for p in rings(f) {
             let k = key(p);
@@ -379,6 +421,7 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
                 faces_of.push(Vec::new());
                 verts.len() - 1
             });
+            ring_ids.push(id);
             if faces_of[id].last() != Some(&fi) {
                 faces_of[id].push(fi);
             }
@@ -394,11 +437,10 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
             }
         }
     };
-    // Clusters: union-find over pairs within ROOF_CLUSTER.
-    let mut by_cell: Map<Vec<usize>> = Map::default();
-    for (i, (k, _)) in verts.iter().enumerate() {
-        by_cell.entry(cell(*k)).or_default().push(i);
-    }
+    // Clusters: union-find over the pairs within ROOF_CLUSTER whose cells (of ROOF_CLUSTER)
+    // are neighbours. The pairs are found by a sweep in x: a pair farther apart than
+    // ROOF_CLUSTER in x is farther apart than that. A component's root is its smallest index
+    // whatever the order of the unions.
     let mut parent: Vec<usize> = (0..verts.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -409,15 +451,20 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
     }
     let r2 = ROOF_CLUSTER * ROOF_CLUSTER;
     let mut any = false;
-    for i in 0..verts.len() {
-        let mut others = Vec::new();
-        near(verts[i].0, &mut |c| {
-            if let Some(v) = by_cell.get(&c) {
-                others.extend(v.iter().copied().filter(|&j| j > i));
+    let cells: Vec<Key> = verts.iter().map(|v| cell(v.0)).collect();
+    let mut by_x: Vec<usize> = (0..verts.len()).collect();
+    by_x.sort_unstable_by(|&a, &b| verts[a].1.x.total_cmp(&verts[b].1.x).then(a.cmp(&b)));
+    for (n, &i) in by_x.iter().enumerate() {
+        let (pi, ci) = (verts[i].1, cells[i]);
+        for &j in &by_x[n + 1..] {
+            let pj = verts[j].1;
+            if pj.x - pi.x >= ROOF_CLUSTER {
+                break;
             }
-        });
-        for j in others {
-            if verts[i].1.distance_squared(verts[j].1) < r2 {
+            let cj = cells[j];
+            let neighbours =
+                (ci.0 - cj.0).abs() <= 1 && (ci.1 - cj.1).abs() <= 1 && (ci.2 - cj.2).abs() <= 1;
+            if neighbours && pi.distance_squared(pj) < r2 {
                 let (a, b) = (root(&mut parent, i), root(&mut parent, j));
                 if a != b {
                     parent[a.max(b)] = a.min(b);
@@ -428,11 +475,14 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
     }
     // The roof's edges shorter than ROOF_SHORT_EDGE, shortest first.
     let mut edges: Vec<(f64, usize, usize)> = Vec::new();
+    let mut at = 0;
     for f in roof {
         for r in std::iter::once(&f.outer).chain(f.holes.iter()) {
             let n = r.len();
+            let rid = &ring_ids[at..at + n];
+            at += n;
             for i in 0..n {
-                let (a, b) = (ids[&key(r[i])], ids[&key(r[(i + 1) % n])]);
+                let (a, b) = (rid[i], rid[(i + 1) % n]);
                 let l = verts[a].1.distance(verts[b].1);
                 if a != b && l < ROOF_SHORT_EDGE {
                     edges.push((l, a.min(b), a.max(b)));
@@ -575,7 +625,7 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
 /// ring is simple in its face's plane (no vertex passed twice, no edge crossing or touching
 /// another).
 fn sound(faces: &[Vec<Vec<Key>>], alive: &[bool]) -> bool {
-    let mut count: HashMap<(Key, Key), i32, crate::derive::massing::CellHash> = HashMap::default();
+    let mut count: HashMap<(Key, Key), i32, crate::geometry::CellHash> = HashMap::default();
     for r in faces
         .iter()
         .zip(alive)
@@ -613,22 +663,34 @@ fn sound(faces: &[Vec<Vec<Key>>], alive: &[bool]) -> bool {
 /// The part's faces on grid keys, vertices within [`MIN_GAP`] merged, rings
 /// cleaned and T-junctions closed; with each face's liveness.
 fn on_keys(ground: &Face, walls: &[Wall], roof: &[Face]) -> (Vec<Vec<Vec<Key>>>, Vec<bool>) {
-    let mut reps = Reps::default();
-    let mut to_keys = |f: &Face, gap: i64| -> Vec<Vec<Key>> {
-        std::iter::once(&f.outer)
-            .chain(f.holes.iter())
-            .map(|r| r.iter().map(|p| reps.of(key(*p), gap)).collect())
-            .collect()
+    let points = |f: &Face| f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>();
+    let n_points = points(ground)
+        + walls.iter().map(|w| w.outline.outer.len()).sum::<usize>()
+        + roof.iter().map(points).sum::<usize>();
+    let mut reps = Reps::with_capacity(n_points);
+    let mut ring_keys = |r: &Vec<DVec3>| -> Vec<Key> {
+        r.iter().map(|p| reps.of(key(*p), MIN_GAP_STEPS)).collect()
     };
     // Ground, then the walls (base first in each outline), then the roof: one list of faces,
-    // each a list of rings (the outer first).
-    let mut faces: Vec<Vec<Vec<Key>>> = vec![to_keys(ground, MIN_GAP_STEPS)];
-    faces.extend(
-        walls
-            .iter()
-            .map(|w| to_keys(&Face::new(w.outline.outer.clone()), MIN_GAP_STEPS)),
+    // each a list of rings (the outer first). A wall is its outline's outer ring.
+    let mut faces: Vec<Vec<Vec<Key>>> = Vec::with_capacity(1 + walls.len() + roof.len());
+    faces.push(
+        std::iter::once(&ground.outer)
+            .chain(ground.holes.iter())
+            .map(&mut ring_keys)
+            .collect(),
     );
-    faces.extend(roof.iter().map(|f| to_keys(f, MIN_GAP_STEPS)));
+    for w in walls {
+        faces.push(vec![ring_keys(&w.outline.outer)]);
+    }
+    for f in roof {
+        faces.push(
+            std::iter::once(&f.outer)
+                .chain(f.holes.iter())
+                .map(&mut ring_keys)
+                .collect(),
+        );
+    }
     let roof0 = 1 + walls.len();
     let mut alive = vec![true; faces.len()];
     let tidy = |faces: &mut Vec<Vec<Vec<Key>>>, alive: &mut Vec<bool>| {
@@ -655,8 +717,6 @@ fn on_keys(ground: &Face, walls: &[Wall], roof: &[Face]) -> (Vec<Vec<Vec<Key>>>,
     tidy(&mut faces, &mut alive);
     // T-junctions: an edge without its twin takes the vertices lying on it.
     for _ in 0..3 {
-        let mut count: HashMap<(Key, Key), i32, crate::derive::massing::CellHash> =
-            HashMap::default();
         let live = || {
             faces
                 .iter()
@@ -664,16 +724,54 @@ fn on_keys(ground: &Face, walls: &[Wall], roof: &[Face]) -> (Vec<Vec<Vec<Key>>>,
                 .filter(|(_, a)| **a)
                 .flat_map(|(f, _)| f.iter())
         };
-        for r in live() {
+        // Every directed edge of the live faces, by its ends' representatives' indices (every
+        // vertex of a face is a representative), sorted: an edge is lonely when its reverse is
+        // not among them.
+        let id = |k: &Key| -> u64 { u64::from(reps.seen[k]) };
+        let ring_ids: Vec<Vec<u64>> = live().map(|r| r.iter().map(id).collect()).collect();
+        let mut count: Vec<u64> = Vec::with_capacity(ring_ids.iter().map(Vec::len).sum());
+        for r in &ring_ids {
             let n = r.len();
             for i in 0..n {
-                *count.entry((r[i], r[(i + 1) % n])).or_default() += 1;
+                count.push(r[i] << 32 | r[(i + 1) % n]);
             }
         }
+        count.sort_unstable();
+        let lonely_ids = |a: u64, b: u64| count.binary_search(&(b << 32 | a)).is_err();
+        // Nothing to do (the usual case) unless some edge is lonely, a wall's base aside.
+        let mut any = false;
+        let mut at = 0;
+        for (fi, f) in faces.iter().enumerate() {
+            if !alive[fi] {
+                continue;
+            }
+            let is_wall = (1..roof0).contains(&fi);
+            for (ri, r) in ring_ids[at..at + f.len()].iter().enumerate() {
+                let n = r.len();
+                any |= (0..n)
+                    .any(|i| !(is_wall && ri == 0 && i == 0) && lonely_ids(r[i], r[(i + 1) % n]));
+            }
+            at += f.len();
+            if any {
+                break;
+            }
+        }
+        if !any {
+            break;
+        }
+        let lonely = |a: Key, b: Key| lonely_ids(id(&a), id(&b));
         let mut verts: Vec<Key> = live().flat_map(|r| r.iter().copied()).collect();
         verts.sort_unstable();
         verts.dedup();
-        let lonely = |a: Key, b: Key| count.get(&(b, a)).copied().unwrap_or(0) == 0;
+        // The vertices that may lie on the segment u v (`on_segment`: within 1.5 steps of a
+        // point of it): those whose x is within 2 steps of its x range (`verts` is sorted by x
+        // first).
+        let near_x = |u: Key, v: Key| -> &[Key] {
+            let (lo, hi) = (u.0.min(v.0) - 2, u.0.max(v.0) + 2);
+            let a = verts.partition_point(|w| w.0 < lo);
+            let b = verts.partition_point(|w| w.0 <= hi);
+            &verts[a..b.max(a)]
+        };
         let mut changed = false;
         for (fi, f) in faces.iter_mut().enumerate() {
             if !alive[fi] {
@@ -690,7 +788,7 @@ fn on_keys(ground: &Face, walls: &[Wall], roof: &[Face]) -> (Vec<Vec<Vec<Key>>>,
                     if (is_wall && ri == 0 && i == 0) || !lonely(u, v) {
                         continue;
                     }
-                    let mut on: Vec<(f64, Key)> = verts
+                    let mut on: Vec<(f64, Key)> = near_x(u, v)
                         .iter()
                         .filter_map(|&w| on_segment(u, v, w).map(|s| (s, w)))
                         .collect();

@@ -9,7 +9,7 @@ use glam::{DVec2, DVec3};
 
 use crate::color::Color;
 use crate::derive::roof::{self, RoofGeometry};
-use crate::geometry::{ring, Polygon};
+use crate::geometry::{ring, CellHash, Polygon};
 use crate::model::{on_grid, Face, Lod, Part, RoofShape, Wall};
 
 pub mod grid;
@@ -89,13 +89,8 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         let r = b.to_radians();
         DVec2::new(r.sin(), r.cos())
     });
-    let pitched = if mass.roof == RoofShape::Gabled && mass.roof_across {
-        let short = crate::derive::roof::shapes::short_axis(footprint);
-        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
-    } else {
-        roof::build(footprint, mass.roof, pitch, down)
-    }
-    .map_err(|e| fallback(e.to_string()))?;
+    let pitched = pitched_roof(footprint, mass.roof, pitch, down, mass.roof_across)
+        .map_err(|e| fallback(e.to_string()))?;
     let pitched = match mass.roof_height {
         Some(h) if h > MIN_ROOF_HEIGHT => pitched.scaled_to_height(h),
         _ => pitched,
@@ -107,6 +102,22 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
         )));
     }
     Ok(pitched)
+}
+
+/// The roof of [`roof_geometry`] before it is fitted to a height.
+fn pitched_roof(
+    footprint: &Polygon,
+    shape: RoofShape,
+    pitch: f64,
+    down: Option<DVec2>,
+    across: bool,
+) -> Result<RoofGeometry, roof::RoofError> {
+    if shape == RoofShape::Gabled && across {
+        let short = crate::derive::roof::shapes::short_axis(footprint);
+        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
+    } else {
+        roof::build(footprint, shape, pitch, down)
+    }
 }
 
 /// Builds the walls, ground and roof of one part at the given LOD.
@@ -271,7 +282,12 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
     // Canonical vertices, bucketed on a grid of cell `tol`: ground and walls first, so the
     // footprint's exact corners win. (A hash map with a fixed hasher: only looked up, never
     // iterated, so its order cannot reach the output.)
+    // Up to WELD_LINEAR canonical vertices they are scanned one by one (cheaper than 27
+    // probes), taking the one the cells would give first: the nearest cell in (dx, dy, dz)
+    // order, then the first made.
+    const WELD_LINEAR: usize = 64;
     let mut canon: Vec<DVec3> = Vec::new();
+    let mut canon_cells: Vec<(i64, i64, i64)> = Vec::new();
     let mut grid: std::collections::HashMap<(i64, i64, i64), Vec<usize>, CellHash> =
         Default::default();
     let cell = |p: DVec3| {
@@ -281,22 +297,67 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
             (p.z / tol).floor() as i64,
         )
     };
+    // The canonical vertices bit for bit: a vertex that is one of them stays as it is (no
+    // other canonical vertex is within `tol` of it in the cells around it, or one of the two
+    // would have joined the other when it came).
+    let n_points = ground.outer.len()
+        + ground.holes.iter().map(Vec::len).sum::<usize>()
+        + walls.iter().map(|w| w.outline.outer.len()).sum::<usize>()
+        + roof
+            .iter()
+            .map(|f| f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>())
+            .sum::<usize>();
+    let mut canon_bits: std::collections::HashSet<(u64, u64, u64), CellHash> =
+        std::collections::HashSet::with_capacity_and_hasher(n_points, CellHash);
+    let bits = |p: &DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
     let mut snap = |p: &mut DVec3| {
+        if canon_bits.contains(&bits(p)) {
+            return;
+        }
         let c = cell(*p);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    if let Some(v) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
-                        if let Some(&i) = v.iter().find(|&&i| canon[i].distance(*p) <= tol) {
-                            *p = canon[i];
-                            return;
+        if canon.len() <= WELD_LINEAR {
+            let mut best: Option<(i64, usize)> = None;
+            for (i, (q, qc)) in canon.iter().zip(&canon_cells).enumerate() {
+                let d = (qc.0 - c.0, qc.1 - c.1, qc.2 - c.2);
+                if d.0.abs() > 1 || d.1.abs() > 1 || d.2.abs() > 1 {
+                    continue;
+                }
+                let rank = (d.0 + 1) * 9 + (d.1 + 1) * 3 + (d.2 + 1);
+                if best.is_some_and(|(r, _)| r <= rank) {
+                    continue;
+                }
+                if q.distance(*p) <= tol {
+                    best = Some((rank, i));
+                }
+            }
+            if let Some((_, i)) = best {
+                *p = canon[i];
+                return;
+            }
+        } else {
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if let Some(v) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
+                            if let Some(&i) = v.iter().find(|&&i| canon[i].distance(*p) <= tol) {
+                                *p = canon[i];
+                                return;
+                            }
                         }
                     }
                 }
             }
         }
-        grid.entry(c).or_default().push(canon.len());
         canon.push(*p);
+        canon_bits.insert(bits(p));
+        canon_cells.push(c);
+        if canon.len() == WELD_LINEAR + 1 {
+            for (i, qc) in canon_cells.iter().enumerate() {
+                grid.entry(*qc).or_default().push(i);
+            }
+        } else if canon.len() > WELD_LINEAR + 1 {
+            grid.entry(c).or_default().push(canon.len() - 1);
+        }
     };
     {
         let mut all: Vec<&mut Vec<DVec3>> = Vec::new();
@@ -367,7 +428,12 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
                 let row = cy * n_side;
                 for &k in &members[start[row + x0]..start[row + x1 + 1]] {
                     let q = canon[k];
-                    let s = (q - u).dot(d) / l2;
+                    let along = (q - u).dot(d);
+                    // Off the segment's span (then `s` below is too): spares the division.
+                    if along <= 0.0 || along >= l2 {
+                        continue;
+                    }
+                    let s = along / l2;
                     if s <= 0.0 || s >= 1.0 || q == u || q == v {
                         continue;
                     }
@@ -395,38 +461,6 @@ fn weld(footprint: &Polygon, ground: &mut Face, walls: &mut [Wall], roof: &mut [
         for h in f.holes.iter_mut() {
             split(h, false);
         }
-    }
-}
-
-/// A fixed, fast hasher for integer grid cells (FxHash's multiply-rotate): no per-process
-/// random seed, which is fine because the maps using it are never iterated.
-#[derive(Default, Clone, Copy)]
-struct CellHash;
-
-impl std::hash::BuildHasher for CellHash {
-    type Hasher = CellHasher;
-    fn build_hasher(&self) -> CellHasher {
-        CellHasher(0)
-    }
-}
-
-/// See [`CellHash`].
-struct CellHasher(u64);
-
-impl std::hash::Hasher for CellHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for b in bytes {
-            self.write_u64(u64::from(*b));
-        }
-    }
-    fn write_u64(&mut self, v: u64) {
-        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-    }
-    fn write_i64(&mut self, v: i64) {
-        self.write_u64(v as u64);
     }
 }
 

@@ -52,12 +52,14 @@
 //! A half-hip cuts the gable at the fraction [`HALF_HIP_FRACTION`] of its height: the wall stops
 //! at a horizontal line there, and a small hip rises from it to the ridge.
 
+use std::collections::HashSet;
+
 use glam::{DVec2, DVec3};
 
 use super::{RoofError, RoofGeometry};
 use crate::geometry::hull::convex_hull;
 use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton, straight_skeleton_merged};
-use crate::geometry::Polygon;
+use crate::geometry::{CellHash, Polygon};
 use crate::model::Face;
 
 /// Pitch of the mansard's lower (steep) slope, degrees.
@@ -393,15 +395,18 @@ fn to_one_apex(poly: &Polygon, faces: &mut [Option<TFace>], size: f64) -> bool {
 fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
     type K = (u64, u64, u64);
     let key = |p: DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
-    let mut edges: Vec<(K, K)> = Vec::new();
+    let n_edges = faces
+        .iter()
+        .map(|f| f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>())
+        .sum();
+    let mut edges: HashSet<(K, K), CellHash> = HashSet::with_capacity_and_hasher(n_edges, CellHash);
     for f in faces.iter() {
         for r in std::iter::once(&f.outer).chain(f.holes.iter()) {
             for i in 0..r.len() {
-                edges.push((key(r[i]), key(r[(i + 1) % r.len()])));
+                edges.insert((key(r[i]), key(r[(i + 1) % r.len()])));
             }
         }
     }
-    edges.sort_unstable();
     let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
     // The place of a point on the footprint: (ring, edge index + fraction along the edge).
     let place = |q: DVec2| -> Option<(usize, f64)> {
@@ -427,20 +432,26 @@ fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
         }
         best.map(|(_, ri, p)| (ri, p))
     };
+    // The places of a ring's vertices, each found once (an edge's end is the next one's start).
+    let mut places: Vec<Option<Option<(usize, f64)>>> = Vec::new();
     for f in faces.iter_mut() {
         for r in std::iter::once(&mut f.outer).chain(f.holes.iter_mut()) {
             let n = r.len();
             let mut out = Vec::with_capacity(n);
+            places.clear();
+            places.resize(n, None);
             for i in 0..n {
                 let (u, v) = (r[i], r[(i + 1) % n]);
                 out.push(u);
                 let d = (v - u).truncate();
                 let l2 = d.length_squared();
-                if l2 <= 1e-12 || edges.binary_search(&(key(v), key(u))).is_ok() {
+                if l2 <= 1e-12 || edges.contains(&(key(v), key(u))) {
                     continue;
                 }
-                let (Some((ru, pu)), Some((rv, pv))) = (place(u.truncate()), place(v.truncate()))
-                else {
+                let pu = *places[i].get_or_insert_with(|| place(u.truncate()));
+                let j = (i + 1) % n;
+                let pv = *places[j].get_or_insert_with(|| place(v.truncate()));
+                let (Some((ru, pu)), Some((rv, pv))) = (pu, pv) else {
                     continue;
                 };
                 if ru != rv {
@@ -511,8 +522,10 @@ pub struct RoofLine<'a> {
     /// Boundary vertices above the eave with the footprint edge (ring, edge) nearest to them
     /// in plan, within [`RoofLine::TOL`].
     above: Vec<(DVec3, (usize, usize))>,
-    /// Every boundary vertex (for the heights at the footprint's corners).
+    /// Every boundary vertex (for the heights at the footprint's corners), sorted by x.
     boundary: Vec<DVec3>,
+    /// No x is NaN, so that `boundary` is ordered by `<` on x too.
+    sorted: bool,
 }
 
 impl<'a> RoofLine<'a> {
@@ -531,18 +544,18 @@ impl<'a> RoofLine<'a> {
                 .iter()
                 .flat_map(|f| std::iter::once(&f.outer).chain(f.holes.iter()))
         };
-        let mut edges: Vec<(K, K)> = Vec::new();
+        let mut edges: HashSet<(K, K), CellHash> =
+            HashSet::with_capacity_and_hasher(rings().map(Vec::len).sum(), CellHash);
         for r in rings() {
             for i in 0..r.len() {
-                edges.push((key(r[i]), key(r[(i + 1) % r.len()])));
+                edges.insert((key(r[i]), key(r[(i + 1) % r.len()])));
             }
         }
-        edges.sort_unstable();
         let mut boundary: Vec<DVec3> = Vec::new();
         for r in rings() {
             for i in 0..r.len() {
                 let (u, v) = (r[i], r[(i + 1) % r.len()]);
-                if edges.binary_search(&(key(v), key(u))).is_err() {
+                if !edges.contains(&(key(v), key(u))) {
                     boundary.push(u);
                     boundary.push(v);
                 }
@@ -581,10 +594,12 @@ impl<'a> RoofLine<'a> {
                 above.push((*p, e));
             }
         }
+        let sorted = boundary.iter().all(|p| !p.x.is_nan());
         RoofLine {
             footprint,
             above,
             boundary,
+            sorted,
         }
     }
 
@@ -608,11 +623,25 @@ impl<'a> RoofLine<'a> {
         // roof built on the footprint before it was put on the grid).
         let corner = tol.max(crate::model::MIN_VERTEX_GAP);
         let (mut za, mut zb) = (0.0f64, 0.0f64);
-        for p in &self.boundary {
-            let g = p.truncate();
-            if g.distance(a) <= corner {
+        // The boundary is sorted by x: only the points within (a little more than) `corner`
+        // of a corner in x can be within `corner` of it.
+        let near = |c: DVec2| -> &[DVec3] {
+            if !self.sorted {
+                return &self.boundary;
+            }
+            let m = corner * (1.0 + 1e-6) + 1e-6;
+            let lo = self.boundary.partition_point(|p| p.x < c.x - m);
+            let hi = self.boundary.partition_point(|p| p.x <= c.x + m);
+            &self.boundary[lo..hi.max(lo)]
+        };
+        for p in near(a) {
+            if p.truncate().distance(a) <= corner {
                 za = za.max(p.z);
-            } else if g.distance(b) <= corner {
+            }
+        }
+        for p in near(b) {
+            let g = p.truncate();
+            if g.distance(a) > corner && g.distance(b) <= corner {
                 zb = zb.max(p.z);
             }
         }

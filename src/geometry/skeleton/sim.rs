@@ -31,6 +31,22 @@ pub(super) struct Sim {
     /// it was to meet, `usize::MAX` for its own edge's collapse): skipped until time moves on,
     /// so that an event the point handling cannot resolve never stalls the propagation.
     pub(super) stale: Vec<(usize, usize)>,
+    /// Buffers reused from event to event.
+    pub(super) scratch: Scratch,
+}
+
+/// Buffers of [`Sim`]'s steps, kept between them (their contents are rebuilt every time).
+#[derive(Default)]
+pub(super) struct Scratch {
+    alive: Vec<usize>,
+    member: Vec<bool>,
+    visited: Vec<bool>,
+    pos: Vec<DVec2>,
+    fronts: Vec<(usize, usize, DVec2, DVec2)>,
+    /// The wavefront edges' starts and normals by coordinate (x, y of the start, x, y of the
+    /// normal), and which of them a vertex may meet.
+    front_xy: [Vec<f64>; 4],
+    keep: Vec<bool>,
 }
 
 impl Sim {
@@ -46,6 +62,7 @@ impl Sim {
             size,
             edges,
             stale: Vec::new(),
+            scratch: Scratch::default(),
         };
         for r in 0..ring_starts.len() - 1 {
             let (s, e) = (ring_starts[r], ring_starts[r + 1]);
@@ -101,15 +118,24 @@ impl Sim {
             .collect()
     }
 
+    /// [`Sim::alive`] into `out`.
+    fn alive_into(&self, out: &mut Vec<usize>) {
+        out.clear();
+        out.extend((0..self.verts.len()).filter(|&i| self.verts[i].alive));
+    }
+
     pub(super) fn run(&mut self) -> Result<(), SkeletonError> {
         let budget = 40 * self.edges.len() + 100;
         for _ in 0..budget {
-            let alive = self.alive();
+            let mut alive = std::mem::take(&mut self.scratch.alive);
+            self.alive_into(&mut alive);
             if alive.is_empty() {
                 return Ok(());
             }
             let before = self.t;
-            let (points, found) = self.next_events(&alive)?;
+            let events = self.next_events(&alive);
+            self.scratch.alive = alive;
+            let (points, found) = events?;
             if self.t > before + self.eps {
                 self.stale.clear();
             }
@@ -161,13 +187,41 @@ impl Sim {
         let eps = self.eps;
         let mut best = f64::INFINITY;
         let mut cands: Vec<(f64, usize, usize)> = Vec::new();
+        let mut pos_now = std::mem::take(&mut self.scratch.pos);
+        let mut fronts = std::mem::take(&mut self.scratch.fronts);
         let is_stale = |v: usize, with: usize| self.stale.contains(&(v, with));
-        let pos_now: Vec<DVec2> = self
-            .verts
-            .iter()
-            .enumerate()
-            .map(|(i, _)| self.pos(i, t))
-            .collect();
+        pos_now.clear();
+        pos_now.extend((0..self.verts.len()).map(|i| self.pos(i, t)));
+        // The wavefront edges (the edge leaving each alive vertex u), gathered once: u, the
+        // vertex after it, and the edge's start and inward normal.
+        fronts.clear();
+        fronts.extend(alive.iter().map(|&u| {
+            let uu = &self.verts[u];
+            let f = &self.edges[uu.r];
+            (u, uu.next, f.a, f.n)
+        }));
+        let [mut ax, mut ay, mut nx, mut ny] = std::mem::take(&mut self.scratch.front_xy);
+        let mut keep = std::mem::take(&mut self.scratch.keep);
+        for c in [&mut ax, &mut ay, &mut nx, &mut ny] {
+            c.clear();
+        }
+        for &(_, _, a, n) in &fronts {
+            ax.push(a.x);
+            ay.push(a.y);
+            nx.push(n.x);
+            ny.push(n.y);
+        }
+        let no_stale = self.stale.is_empty();
+        // `h / r > lim(best)` (h ≥ 0, r > 0) is checked as `h > r * lim(best)` first, which
+        // spares the division for most pairs: `lim` is `best + eps - t` widened by relative
+        // margins of 1e-12 and two units in the last place of `best + eps`, so that whenever
+        // the product says so, `t + h / r` computed in floating point exceeds `best + eps`
+        // (the test below, which decides). Infinite while `best` is.
+        let lim = |best: f64| {
+            let b = best + eps;
+            ((b - t) * (1.0 + 1e-12) + b * 4.5e-16) * (1.0 + 1e-12)
+        };
+        let mut best_lim = f64::INFINITY;
         for &v in alive {
             let vv = &self.verts[v];
             if vv.degenerate {
@@ -182,19 +236,38 @@ impl Sim {
                 let dt = (len / -rate).max(0.0);
                 if t + dt <= best + eps {
                     best = best.min(t + dt);
+                    best_lim = lim(best);
                     cands.push((t + dt, v, usize::MAX));
                 }
             }
-            // Split events of v against every non-incident edge.
-            for &u in alive {
-                let uu = &self.verts[u];
-                if u == v || uu.next == v || is_stale(v, u) {
+            // Split events of v against every non-incident edge. First, without branches, the
+            // edges v may meet before `best` as it stands now (it only comes down): the tests
+            // of the loop below, on the same values.
+            let (pv_now, vel) = (pos_now[v], vv.vel);
+            let lim0 = best_lim;
+            keep.clear();
+            // Negated as the loop's tests are, so that a NaN goes on to them as it would.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            keep.extend(ax.iter().zip(&ay).zip(nx.iter().zip(&ny)).map(
+                |((&ax, &ay), (&nx, &ny))| {
+                    let h = (pv_now.x - ax) * nx + (pv_now.y - ay) * ny - t;
+                    let rate = vel.x * nx + vel.y * ny - 1.0;
+                    !(rate >= -1e-12 || h < -eps) & !(h.max(0.0) > -rate * lim0)
+                },
+            ));
+            for (&(u, next, fa, fnorm), &kept) in fronts.iter().zip(&keep) {
+                if !kept || u == v || next == v {
                     continue;
                 }
-                let f = &self.edges[uu.r];
-                let h = (pos_now[v] - f.a).dot(f.n) - t;
-                let rate = vv.vel.dot(f.n) - 1.0;
+                let h = (pv_now - fa).dot(fnorm) - t;
+                let rate = vel.dot(fnorm) - 1.0;
                 if rate >= -1e-12 || h < -eps {
+                    continue;
+                }
+                if !no_stale && is_stale(v, u) {
+                    continue;
+                }
+                if h.max(0.0) > -rate * best_lim {
                     continue;
                 }
                 let dt = h.max(0.0) / -rate;
@@ -202,6 +275,8 @@ impl Sim {
                 if te > best + eps {
                     continue;
                 }
+                let uu = &self.verts[u];
+                let f = &self.edges[uu.r];
                 let pv = self.pos(v, te);
                 let pa = self.pos(u, te);
                 let pb = self.pos(uu.next, te);
@@ -218,10 +293,15 @@ impl Sim {
                 let stale = h <= eps && (s <= rad || s >= l - rad);
                 if s >= -eps && s <= l + eps && onto_start && onto_end && !stale {
                     best = best.min(te);
+                    best_lim = lim(best);
                     cands.push((te, v, u));
                 }
             }
         }
+        self.scratch.pos = pos_now;
+        self.scratch.fronts = fronts;
+        self.scratch.front_xy = [ax, ay, nx, ny];
+        self.scratch.keep = keep;
         if !best.is_finite() {
             return Err(SkeletonError::Inconsistent(
                 "a wavefront ring has no further event",
@@ -277,25 +357,45 @@ impl Sim {
         x: DVec2,
         at: Option<usize>,
     ) -> Result<bool, SkeletonError> {
+        let mut alive = std::mem::take(&mut self.scratch.alive);
+        let mut member = std::mem::take(&mut self.scratch.member);
+        let mut visited = std::mem::take(&mut self.scratch.visited);
+        let r = self.handle_point_with(x, at, &mut alive, &mut member, &mut visited);
+        self.scratch.alive = alive;
+        self.scratch.member = member;
+        self.scratch.visited = visited;
+        r
+    }
+
+    /// [`Sim::handle_point_at`] with its buffers (contents rebuilt here).
+    fn handle_point_with(
+        &mut self,
+        x: DVec2,
+        at: Option<usize>,
+        alive: &mut Vec<usize>,
+        member: &mut Vec<bool>,
+        visited: &mut Vec<bool>,
+    ) -> Result<bool, SkeletonError> {
         let t = self.t;
         let rad = self.radius();
-        let alive = self.alive();
+        self.alive_into(alive);
+        let alive = &*alive;
         // Vertices this close take part (see [`RADIUS_REL`]): two reflex corners meeting
         // head-on pass a little apart once the footprint is rounded.
         let reach = RADIUS_REL * self.size;
-        let member: Vec<bool> = {
-            let mut m = vec![false; self.verts.len()];
-            for &v in &alive {
-                m[v] = self.pos(v, t).distance(x) <= self.tol(v).max(reach);
-            }
-            m
-        };
+        member.clear();
+        member.resize(self.verts.len(), false);
+        for &v in alive {
+            member[v] = self.pos(v, t).distance(x) <= self.tol(v).max(reach);
+        }
+        let member = &*member;
         let members: Vec<usize> = alive.iter().copied().filter(|&v| member[v]).collect();
         if members.is_empty() {
             return Ok(false);
         }
         let mut passes: Vec<Pass> = Vec::new();
-        let mut visited = vec![false; self.verts.len()];
+        visited.clear();
+        visited.resize(self.verts.len(), false);
         for &m in &members {
             if member[self.verts[m].prev] {
                 continue;
@@ -321,7 +421,7 @@ impl Sim {
         }
         // Rings that lie entirely at the point vanish there.
         let vanished: Vec<usize> = members.iter().copied().filter(|&m| !visited[m]).collect();
-        for &u in &alive {
+        for &u in alive {
             let w = self.verts[u].next;
             if member[u] || member[w] {
                 continue;
@@ -583,6 +683,10 @@ impl Sim {
         let mut any = false;
         let limit = 4 * self.verts.len() + 16;
         for _ in 0..limit {
+            // Nothing to do (the usual case) is found without gathering the alive vertices.
+            if !self.verts.iter().any(|v| v.alive && v.degenerate) {
+                return Ok(any);
+            }
             let alive = self.alive();
             let Some(&v) = alive.iter().find(|&&v| self.verts[v].degenerate) else {
                 return Ok(any);
