@@ -215,7 +215,7 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
     }
 
     /// Renders [`PARALLEL_BATCH`] buildings at a time in parallel, each against the shared
-    /// caches as the batch found them (see [`cache`]), and appends them in order; a building
+    /// caches as the batch found them (see `cache`), and appends them in order; a building
     /// whose rendering did not see the caches as the buildings before it left them is rendered
     /// again. The same bytes as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {

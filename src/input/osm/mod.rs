@@ -13,7 +13,7 @@
 //! when decoded; the read then starts again with every pass decoding every blob. Blocks are
 //! decoded in parallel (rayon) in batches, and the per-block results are merged in file order,
 //! then sorted by id, so the output does not depend on the thread count. The ways and nodes
-//! passes decode their blocks directly ([`wire`]), falling back to osmpbf for any block the
+//! passes decode their blocks directly (`wire`), falling back to osmpbf for any block the
 //! direct decoder does not take.
 //!
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
