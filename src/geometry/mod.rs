@@ -235,4 +235,7 @@ impl std::hash::Hasher for CellHasher {
     fn write_i64(&mut self, v: i64) {
         self.write_u64(v as u64);
     }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
 }

@@ -410,21 +410,16 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
     let n_points: usize = roof.iter().map(|f| rings(f).count()).sum();
     let mut ids: Map<usize> = Map::with_capacity_and_hasher(n_points, Default::default());
     let mut verts: Vec<(Key, DVec3)> = Vec::new();
-    let mut faces_of: Vec<Vec<usize>> = Vec::new();
     // The id of every ring vertex, in the order of the faces' rings.
     let mut ring_ids: Vec<usize> = Vec::with_capacity(n_points);
-    for (fi, f) in roof.iter().enumerate() {
+    for f in roof {
         for p in rings(f) {
             let k = key(p);
             let id = *ids.entry(k).or_insert_with(|| {
                 verts.push((k, p));
-                faces_of.push(Vec::new());
                 verts.len() - 1
             });
             ring_ids.push(id);
-            if faces_of[id].last() != Some(&fi) {
-                faces_of[id].push(fi);
-            }
         }
     }
     let near = |k: Key, f: &mut dyn FnMut(Key)| {
@@ -494,6 +489,18 @@ fn collapse_clusters(ground: &Face, walls: &[Wall], roof: &[Face]) -> Option<Vec
     edges.dedup_by(|x, y| x.1 == y.1 && x.2 == y.2);
     if !any && edges.is_empty() {
         return None;
+    }
+    // The faces of each vertex (made only when something may move).
+    let mut faces_of: Vec<Vec<usize>> = vec![Vec::new(); verts.len()];
+    let mut at = 0;
+    for (fi, f) in roof.iter().enumerate() {
+        let n = rings(f).count();
+        for &id in &ring_ids[at..at + n] {
+            if faces_of[id].last() != Some(&fi) {
+                faces_of[id].push(fi);
+            }
+        }
+        at += n;
     }
     // Vertices of the ground and walls, by cell: they do not move.
     let mut fixed: Map<Vec<DVec3>> = Map::default();

@@ -399,16 +399,27 @@ fn attempt(
                 .iter()
                 .any(|r| (0..r.len()).any(|i| point_seg_dist(q, r[i], r[(i + 1) % r.len()]) <= tol))
     };
+    // The first edge covering each input edge (ring, edge), and the points found inside (a
+    // node is a vertex of several faces).
+    let mut edge_of: std::collections::HashMap<(usize, usize), usize, super::CellHash> =
+        Default::default();
+    for (k, e) in edges.iter().enumerate() {
+        for x in &e.inputs {
+            edge_of.entry((e.ring, x.0)).or_insert(k);
+        }
+    }
+    let mut known: std::collections::HashSet<(u64, u64), super::CellHash> = Default::default();
+    let mut inside_known = |q: DVec2| {
+        let b = (q.x.to_bits(), q.y.to_bits());
+        known.contains(&b) || (inside(q) && known.insert(b))
+    };
     for f in &faces {
-        let e = edges
-            .iter()
-            .find(|e| e.ring == f.edge.0 && e.inputs.iter().any(|x| x.0 == f.edge.1));
-        let Some(e) = e else {
+        let Some(e) = edge_of.get(&f.edge).map(|&k| &edges[k]) else {
             return Err(SkeletonError::Inconsistent("a face has no edge"));
         };
         for p in &f.polygon {
             let d = (p.truncate() - e.a).dot(e.n);
-            if !((d - p.z).abs() <= tol && p.z >= -tol && inside(p.truncate())) {
+            if !((d - p.z).abs() <= tol && p.z >= -tol && inside_known(p.truncate())) {
                 return Err(SkeletonError::Inconsistent(
                     "a face vertex is outside the polygon, or not as high as it is far from its edge",
                 ));
