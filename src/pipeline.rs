@@ -17,7 +17,9 @@ use crate::derive::{merged_tags, Generator, Rules};
 use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
-use crate::export::{AtomicFile, BuildingWriter, Checked, ExportError, OutputContext, PendingFile};
+use crate::export::{
+    AtomicFile, BuildingWriter, Checked, ExportError, OutputContext, PendingFile, StreamSink,
+};
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
 use crate::kb::{self, tools::Explanation, KnowledgeBase};
@@ -706,7 +708,7 @@ fn write_batches(
 
 /// Where one writer's bytes go: a temporary file to publish, or (dry run) nowhere.
 enum Sink {
-    File(AtomicFile),
+    File(AtomicFile, StreamSink),
     Discard,
 }
 
@@ -747,12 +749,15 @@ fn open_output(
         (Box::new(std::io::sink()), Sink::Discard)
     } else {
         let f = AtomicFile::create(path).map_err(io_err(path))?;
-        (Box::new(f.file().map_err(io_err(path))?), Sink::File(f))
+        let (w, done) = f.stream().map_err(io_err(path))?;
+        (w, Sink::File(f, done))
     };
     let bytes = Arc::new(AtomicU64::new(0));
-    // A dry run's CityGML writer hands over whole buildings, which only need counting: no
-    // buffer to copy them into.
-    let capacity = if dry_run && elements.is_some() {
+    // No buffer to copy the bytes into where the sink buffers them itself (Linux's stream of a
+    // written file: aligned blocks), or where a dry run's CityGML writer hands over whole
+    // buildings, which only need counting. The writers hand over whole buildings or batches.
+    let sink_buffers = !dry_run && cfg!(target_os = "linux");
+    let capacity = if sink_buffers || (dry_run && elements.is_some()) {
         0
     } else {
         1 << 20
@@ -890,7 +895,8 @@ fn write_lots(
         drop(writer);
         written.bytes += counted.load(Ordering::Relaxed);
         match sink {
-            Sink::File(file) => {
+            Sink::File(file, done) => {
+                done.finish().map_err(io_err(&path))?;
                 let closed = file.close().map_err(io_err(&path))?;
                 written.pending.push((path, closed));
             }

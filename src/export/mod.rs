@@ -2,6 +2,8 @@
 //! values one at a time (streaming) and nothing else.
 
 pub mod citygml;
+#[cfg(target_os = "linux")]
+mod direct;
 #[cfg(test)]
 pub(crate) mod fixtures;
 mod format;
@@ -179,6 +181,22 @@ impl AtomicFile {
         self.file.try_clone()
     }
 
+    /// A writer of the temporary file for a large output: on Linux it writes past the page cache
+    /// from a background thread (`O_DIRECT`, see `export::direct`), elsewhere it is the file
+    /// itself. Write through a `BufWriter` or in large pieces. Drop the writer, then call
+    /// [`StreamSink::finish`] before [`AtomicFile::close`]: only then are the bytes complete.
+    pub fn stream(&self) -> io::Result<(Box<dyn io::Write + Send>, StreamSink)> {
+        #[cfg(target_os = "linux")]
+        {
+            let (w, sink) = direct::open(&self.tmp)?;
+            Ok((Box::new(w), StreamSink(Some(sink))))
+        }
+        #[cfg(not(target_os = "linux"))]
+        {
+            Ok((Box::new(self.file()?), StreamSink(None)))
+        }
+    }
+
     /// A buffered writer on the temporary file. Flush it before [`AtomicFile::commit`].
     pub fn writer(&self) -> io::Result<BufWriter<File>> {
         Ok(BufWriter::with_capacity(1 << 20, self.file.try_clone()?))
@@ -200,6 +218,24 @@ impl AtomicFile {
             tmp: std::mem::take(&mut self.tmp),
             committed: false,
         })
+    }
+}
+
+/// The completion of an [`AtomicFile::stream`] writer.
+pub struct StreamSink(
+    #[cfg(target_os = "linux")] Option<direct::DirectSink>,
+    #[cfg(not(target_os = "linux"))] Option<()>,
+);
+
+impl StreamSink {
+    /// Waits until every byte given to the (dropped) writer is in the file; returns the first
+    /// error of any write.
+    pub fn finish(self) -> io::Result<()> {
+        #[cfg(target_os = "linux")]
+        if let Some(s) = self.0 {
+            return s.finish();
+        }
+        Ok(())
     }
 }
 
