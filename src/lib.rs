@@ -36,5 +36,6 @@ pub mod pipeline;
 pub mod prepare;
 pub mod report;
 pub mod rng;
+pub mod selex;
 #[cfg(any(test, feature = "testkit"))]
 pub mod testkit;

@@ -34,6 +34,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ),
     // The two languages.
     ("grammar", &["geometry", "rng", "color"]),
+    ("selex", &["grammar", "geometry", "rng", "color"]),
     (
         "kb",
         &["grammar", "input", "model", "rng", "geometry", "color"],
@@ -42,8 +43,8 @@ const LAYERS: &[(&str, &[&str])] = &[
     (
         "derive",
         &[
-            "kb", "grammar", "prepare", "input", "model", "report", "rng", "geometry", "color",
-            "guard",
+            "kb", "grammar", "selex", "prepare", "input", "model", "report", "rng", "geometry",
+            "color", "guard",
         ],
     ),
     // Writers see only the model (and the ground floor).
@@ -52,8 +53,8 @@ const LAYERS: &[(&str, &[&str])] = &[
     (
         "pipeline",
         &[
-            "derive", "export", "kb", "grammar", "prepare", "input", "model", "report", "rng",
-            "geometry", "crs", "color", "guard",
+            "derive", "export", "kb", "grammar", "selex", "prepare", "input", "model", "report",
+            "rng", "geometry", "crs", "color", "guard",
         ],
     ),
     ("testkit", &["input", "model", "geometry", "color"]),
