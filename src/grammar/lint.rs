@@ -54,7 +54,7 @@ pub const CONTEXT_CHARS: usize = 80;
 pub const MAX_PER_CODE: usize = 100;
 
 /// Symbol names longer than this many characters are cut (with `…`) in messages.
-const MAX_NAME_CHARS: usize = 64;
+pub(crate) const MAX_NAME_CHARS: usize = 64;
 
 /// Sizes at most this are skipped by the interpreter (`shape::EPS`).
 const EPS_SIZE: f64 = 1e-9;
@@ -1525,7 +1525,11 @@ fn list_names(shown: &[String], total: usize) -> String {
 /// whose length differs by more than 2 are skipped unmeasured; each distance measured costs
 /// its table's cells from `budget`, and a spent budget gives no suggestion (so that a file of
 /// thousands of similar names stays fast). Names longer than [`MAX_NAME_CHARS`] get none.
-fn suggest<'c>(name: &str, candidates: &[(&'c str, usize)], budget: &mut usize) -> Option<&'c str> {
+pub(crate) fn suggest<'c>(
+    name: &str,
+    candidates: &[(&'c str, usize)],
+    budget: &mut usize,
+) -> Option<&'c str> {
     let len = name.chars().count();
     if len > MAX_NAME_CHARS {
         return None;
@@ -1569,7 +1573,7 @@ fn fmt_num(v: f64) -> String {
 }
 
 /// Levenshtein distance in characters (insert, delete, substitute each cost 1).
-fn edit_distance(a: &str, b: &str) -> usize {
+pub(crate) fn edit_distance(a: &str, b: &str) -> usize {
     let a: Vec<char> = a.chars().collect();
     let b: Vec<char> = b.chars().collect();
     let mut prev: Vec<usize> = (0..=b.len()).collect();

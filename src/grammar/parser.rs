@@ -117,36 +117,53 @@ const CONTEXT_CHARS: usize = 80;
 
 impl fmt::Display for GrammarError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(
+        fmt_located(
             f,
-            "{}:{}:{}: {}",
-            self.file, self.line, self.col, self.message
-        )?;
-        // A long line (a generated file, a hostile one) is shown as a window around the place.
-        let chars: Vec<char> = self.line_text.chars().collect();
-        let at = (self.col.saturating_sub(1) as usize).min(chars.len());
-        let (from, to) = if chars.len() > 2 * CONTEXT_CHARS {
-            let from = at.saturating_sub(CONTEXT_CHARS);
-            (from, (at + CONTEXT_CHARS).min(chars.len()))
-        } else {
-            (0, chars.len())
-        };
-        let (head, tail) = (
-            if from > 0 { "…" } else { "" },
-            if to < chars.len() { "…" } else { "" },
-        );
-        let shown: String = chars[from..to].iter().collect();
-        writeln!(f, "{head}{shown}{tail}")?;
-        // The caret line reproduces tabs so that it lines up under the offending character.
-        let pad: String = std::iter::repeat_n(' ', head.chars().count())
-            .chain(
-                chars[from..at]
-                    .iter()
-                    .map(|&c| if c == '\t' { '\t' } else { ' ' }),
-            )
-            .collect();
-        write!(f, "{pad}^")
+            &self.file,
+            self.line,
+            self.col,
+            &self.message,
+            &self.line_text,
+        )
     }
+}
+
+/// Writes `file:line:col: message`, then the offending line (a window around the place when the
+/// line is long) and a caret under the place: the layout of every located message of the
+/// languages (the grammar's and SELEX's errors and warnings).
+pub(crate) fn fmt_located(
+    f: &mut fmt::Formatter<'_>,
+    file: &str,
+    line: u32,
+    col: u32,
+    message: &str,
+    line_text: &str,
+) -> fmt::Result {
+    writeln!(f, "{file}:{line}:{col}: {message}")?;
+    // A long line (a generated file, a hostile one) is shown as a window around the place.
+    let chars: Vec<char> = line_text.chars().collect();
+    let at = (col.saturating_sub(1) as usize).min(chars.len());
+    let (from, to) = if chars.len() > 2 * CONTEXT_CHARS {
+        let from = at.saturating_sub(CONTEXT_CHARS);
+        (from, (at + CONTEXT_CHARS).min(chars.len()))
+    } else {
+        (0, chars.len())
+    };
+    let (head, tail) = (
+        if from > 0 { "…" } else { "" },
+        if to < chars.len() { "…" } else { "" },
+    );
+    let shown: String = chars[from..to].iter().collect();
+    writeln!(f, "{head}{shown}{tail}")?;
+    // The caret line reproduces tabs so that it lines up under the offending character.
+    let pad: String = std::iter::repeat_n(' ', head.chars().count())
+        .chain(
+            chars[from..at]
+                .iter()
+                .map(|&c| if c == '\t' { '\t' } else { ' ' }),
+        )
+        .collect();
+    write!(f, "{pad}^")
 }
 
 #[derive(Clone, Debug, PartialEq)]

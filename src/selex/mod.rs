@@ -30,3 +30,8 @@ pub mod ast;
 pub mod grid;
 pub mod parser;
 pub mod pattern;
+
+#[cfg(test)]
+mod doc_tests;
+#[cfg(test)]
+mod tests;
