@@ -53,6 +53,35 @@ enum Command {
     /// Check, compile, explain and learn knowledge bases.
     #[command(subcommand)]
     Kb(KbCommand),
+    /// Check and try SELEX programs (selection expressions and facade grids, docs/selex.md).
+    #[command(subcommand)]
+    Selex(SelexCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum SelexCommand {
+    /// Parse a SELEX program, warn about what parses but looks wrong (the seed's `>` arrow, a
+    /// bare word taken as a string, a pattern shorter than its grid), then run it and warn
+    /// about every rule whose selection picks nothing (it is skipped) and every constraint
+    /// dropped. Exit code 1 on errors, 0 with warnings only.
+    Check {
+        /// The program (.slx).
+        file: PathBuf,
+        /// Run it on a box `building` of width x depth x height metres made first, for a
+        /// program that only lays out facades (its paths name building_front, ...).
+        #[arg(long, value_name = "WxDxH", value_parser = parse_box)]
+        lot: Option<(f64, f64, f64)>,
+    },
+    /// Run a SELEX program and print its shape tree: volumes, faces, grids, the elements with
+    /// their rectangles on their face (metres from the bottom-left seen from outside), the
+    /// cover, the constraints kept, then the warnings.
+    Derive {
+        /// The program (.slx).
+        file: PathBuf,
+        /// Run it on a box `building` of width x depth x height metres made first.
+        #[arg(long, value_name = "WxDxH", value_parser = parse_box)]
+        lot: Option<(f64, f64, f64)>,
+    },
 }
 
 #[derive(Subcommand, Debug)]
@@ -377,8 +406,87 @@ fn main() -> ExitCode {
     match cli.command {
         Some(Command::Rules(cmd)) => rules_command(cmd),
         Some(Command::Kb(cmd)) => kb_command(cmd),
+        Some(Command::Selex(cmd)) => selex_command(cmd),
         None => run_main(cli.run),
     }
+}
+
+/// `WxDxH` in metres, each positive.
+fn parse_box(s: &str) -> Result<(f64, f64, f64), String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let [w, d, h] = parts.as_slice() else {
+        return Err(format!(
+            "expected WIDTHxDEPTHxHEIGHT in metres, e.g. 12x10x9, not {s:?}"
+        ));
+    };
+    let num = |t: &str| -> Result<f64, String> {
+        match t.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 && v <= 10_000.0 => Ok(v),
+            _ => Err(format!("{t:?} is not a size in metres (0 to 10 km)")),
+        }
+    };
+    Ok((num(w)?, num(d)?, num(h)?))
+}
+
+/// `citygen selex ...`.
+fn selex_command(cmd: SelexCommand) -> ExitCode {
+    let (file, lot, print_tree) = match cmd {
+        SelexCommand::Check { file, lot } => (file, lot, false),
+        SelexCommand::Derive { file, lot } => (file, lot, true),
+    };
+    let text = match citygen::grammar::read_source(&file) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("citygen: error: {}: {e}", file.display());
+            return ExitCode::from(1);
+        }
+    };
+    let name = file.display().to_string();
+    let program = match citygen::selex::parser::parse(&text, &name) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(1);
+        }
+    };
+    let mut warnings: Vec<String> = citygen::selex::parser::check(&program, &text, &name)
+        .into_iter()
+        .map(|w| w.to_string())
+        .collect();
+    let run = match lot {
+        Some(b) => citygen::selex::eval::run_on_box(&program, &text, &name, b),
+        None => citygen::selex::eval::run(&program, &text, &name),
+    };
+    let derivation = match run {
+        Ok(d) => d,
+        Err(e) => {
+            for w in &warnings {
+                eprintln!("{w}");
+            }
+            eprintln!("{e}");
+            return ExitCode::from(1);
+        }
+    };
+    warnings.extend(
+        derivation
+            .warnings
+            .iter()
+            .map(|n| format!("{name}:{}:{}: warning: {}", n.line, n.col, n.message)),
+    );
+    if print_tree {
+        print!("{}", derivation.to_text());
+    }
+    for w in &warnings {
+        eprintln!("{w}");
+    }
+    eprintln!(
+        "{name}: {} commands, {} shapes, {} elements, {} warnings",
+        program.commands.len(),
+        derivation.shapes.len(),
+        derivation.elements().count(),
+        warnings.len()
+    );
+    ExitCode::SUCCESS
 }
 
 /// `citygen rules ...`.

@@ -1075,3 +1075,53 @@ fn a_fifty_kilometre_lot_gives_a_valid_ifc_or_a_clear_error() {
         );
     }
 }
+
+#[test]
+fn selex_derive_prints_the_tree_and_check_fails_with_a_caret() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("facade.slx");
+    std::fs::write(
+        &good,
+        r#"{< descendant() [label == "building_front"] > -> createStoreyGrid("g", 3.0)};
+{< descendant() [label == "g"] / [rowIdx == 1] [colIdx == 2] > -> addRoundFacade("door", ["top_left", "top_right"], 0.5, 6, 0.5)};
+{< descendant() [label == "g"] / [rowIdx > 1] [pattern("(XA)*", "A")] > -> addFacade("window")};
+{< descendant() [label == "nowhere"] > -> coverShape()};
+"#,
+    )
+    .unwrap();
+    let good = good.to_str().unwrap();
+    let out = citygen(&["selex", "derive", good, "--lot", "12x10x9"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let tree = String::from_utf8_lossy(&out.stdout);
+    // 9 m: three storeys; 12 m: four bays; the pattern picks bays 2 and 4 of the upper rows.
+    assert!(tree.contains("g — grid 3 rows x 4 columns"), "{tree}");
+    assert_eq!(tree.matches("door — element").count(), 1, "{tree}");
+    assert_eq!(tree.matches("window — element").count(), 4, "{tree}");
+    // The rule that selects nothing is skipped, with a warning at its place.
+    assert!(
+        err.contains("facade.slx:4:2: warning: the selection picks no shape"),
+        "{err}"
+    );
+    // Without the lot, nothing has a building_front: every rule is skipped.
+    let out = citygen(&["selex", "check", good]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("4 warnings"), "{err}");
+
+    let bad = dir.path().join("bad.slx");
+    std::fs::write(&bad, "{< cell() [rowIdz == 1] > -> addFacade(\"door\")};\n").unwrap();
+    let out = citygen(&["selex", "check", bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("bad.slx:1:12: unknown attribute `rowIdz`"),
+        "{err}"
+    );
+    assert!(
+        err.contains("did you mean `rowIdx`?") && err.contains('^'),
+        "{err}"
+    );
+    let out = citygen(&["selex", "derive", bad.to_str().unwrap(), "--lot", "0x1x1"]);
+    assert_eq!(out.status.code(), Some(2));
+}

@@ -586,6 +586,9 @@ pub enum ActionKind {
     /// `cols` are counts or lists of row/column labels (`["gnd", "mid", "top"]`, bottom to top;
     /// columns left to right).
     CreateGrid,
+    /// `createStoreyGrid(label, bayWidth)`: a metric grid on a facade, one row per storey and
+    /// bays of about `bayWidth` metres (issue 23: a grid that fits a real wall).
+    CreateStoreyGrid,
     /// `updateGrid(rows, cols)`: re-divides the selected grid in place.
     UpdateGrid,
     /// `setHeadNode()`: makes the selected shape the working node (Jiang).
@@ -616,9 +619,10 @@ pub enum ActionKind {
 
 impl ActionKind {
     /// Every action, in documentation order.
-    pub const ALL: [ActionKind; 13] = [
+    pub const ALL: [ActionKind; 14] = [
         ActionKind::CreateShape,
         ActionKind::CreateGrid,
+        ActionKind::CreateStoreyGrid,
         ActionKind::UpdateGrid,
         ActionKind::SetHeadNode,
         ActionKind::AddShape,
@@ -637,6 +641,7 @@ impl ActionKind {
         match self {
             ActionKind::CreateShape => "createShape",
             ActionKind::CreateGrid => "createGrid",
+            ActionKind::CreateStoreyGrid => "createStoreyGrid",
             ActionKind::UpdateGrid => "updateGrid",
             ActionKind::SetHeadNode => "setHeadNode",
             ActionKind::AddShape => "addShape",
@@ -680,6 +685,7 @@ impl ActionKind {
                     ]
                 }
             }
+            ActionKind::CreateStoreyGrid => const { &[p("label", Str), p("bayWidth", Number)] },
             ActionKind::UpdateGrid => {
                 const { &[p("rows", CountOrLabels), p("cols", CountOrLabels)] }
             }

@@ -27,11 +27,14 @@
 //!   and the grouping functions.
 
 pub mod ast;
+pub mod eval;
 pub mod grid;
 pub mod parser;
 pub mod pattern;
 
 #[cfg(test)]
 mod doc_tests;
+#[cfg(test)]
+mod eval_tests;
 #[cfg(test)]
 mod tests;

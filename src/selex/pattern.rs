@@ -648,23 +648,53 @@ impl Pattern {
     /// grid's convention (row 1 is the ground floor). The set may be empty: the caller warns when
     /// `pat` is not among [`Pattern::letters`].
     pub fn select(&self, pat: &str, rows: usize, cols: usize) -> Result<CellSet, PatternError> {
+        self.select_with(pat, rows, cols, false).map(|(set, _)| set)
+    }
+
+    /// [`Pattern::select`], but a pattern without `*` that ends before the grid is full is not
+    /// an error: the cells after its end are not selected, as the seed says (L927). Also
+    /// returns how many cells the pattern left out (0 when it tiles), for the caller's warning.
+    /// Every other error stays an error.
+    pub fn select_allowing_short(
+        &self,
+        pat: &str,
+        rows: usize,
+        cols: usize,
+    ) -> Result<(CellSet, usize), PatternError> {
+        self.select_with(pat, rows, cols, true)
+    }
+
+    fn select_with(
+        &self,
+        pat: &str,
+        rows: usize,
+        cols: usize,
+        allow_short: bool,
+    ) -> Result<(CellSet, usize), PatternError> {
         let mut chars = pat.chars();
         let letter = match (chars.next(), chars.next()) {
             (Some(c), None) if c.is_alphabetic() => c,
             _ => return Err(self.err(0, PatternErrorKind::BadLetter(pat.to_string()))),
         };
-        let k = self.fill_count(rows, cols)?;
+        let (k, left_out) = match self.fill_count(rows, cols) {
+            Ok(k) => (k, 0),
+            Err(PatternError {
+                kind: PatternErrorKind::Short { got, .. },
+                ..
+            }) if allow_short => (0, rows * cols - got),
+            Err(e) => return Err(e),
+        };
         let mut set = CellSet::empty(rows, cols)
             .map_err(|_| self.err(0, PatternErrorKind::BadGrid { rows, cols }))?;
         let mut i = 0usize;
         walk(&self.items, k, &mut |c| {
             if c == letter {
-                // In range: the expansion has exactly rows × cols cells.
+                // In range: the expansion has at most rows × cols cells.
                 let _ = set.insert(rows - i / cols, i % cols + 1);
             }
             i += 1;
         });
-        Ok(set)
+        Ok((set, left_out))
     }
 }
 
@@ -688,6 +718,24 @@ mod tests {
             Err(e) => e,
             Ok(x) => x.expand(rows, cols).unwrap_err(),
         }
+    }
+
+    #[test]
+    fn a_short_pattern_leaves_the_rest_unselected_when_allowed() {
+        let p = parse("X{10}(XA{8}X){8}").unwrap();
+        assert!(matches!(
+            p.select("A", 40, 10).unwrap_err().kind,
+            K::Short { got: 90, .. }
+        ));
+        let (set, left) = p.select_allowing_short("A", 40, 10).unwrap();
+        assert_eq!((set.len(), left), (64, 310));
+        // Rows 39 down to 32 (the top row is 40), columns 2 to 9.
+        assert!(set.contains(39, 2) && set.contains(32, 9) && !set.contains(31, 5));
+        // Other errors stay errors.
+        assert!(parse("X{500}")
+            .unwrap()
+            .select_allowing_short("X", 4, 4)
+            .is_err());
     }
 
     #[test]
