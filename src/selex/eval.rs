@@ -1111,14 +1111,7 @@ impl Runner<'_> {
                     }
                 }
                 .map_err(|e| self.err(span, e.to_string()))?;
-                let set = set
-                    .intersect(&sel)
-                    .map_err(|e| self.err(span, e.to_string()))?;
-                Ok(Some(Item::Cells {
-                    grid,
-                    set,
-                    grouping,
-                }))
+                self.narrowed(grid, &set, grouping, &sel, span)
             }
             (
                 Filter::In {
@@ -1158,14 +1151,7 @@ impl Runner<'_> {
                     }
                 }
                 .map_err(|e| self.err(span, e.to_string()))?;
-                let set = set
-                    .intersect(&sel)
-                    .map_err(|e| self.err(span, e.to_string()))?;
-                Ok(Some(Item::Cells {
-                    grid,
-                    set,
-                    grouping,
-                }))
+                self.narrowed(grid, &set, grouping, &sel, span)
             }
             (
                 Filter::Compare {
@@ -1223,6 +1209,25 @@ impl Runner<'_> {
                 Ok(keep.then_some(Item::Shape(s)))
             }
         }
+    }
+
+    /// The cells of `set` that are also in `sel`, with the same grid and grouping.
+    fn narrowed(
+        &self,
+        grid: ShapeId,
+        set: &CellSet,
+        grouping: Option<grid::Grouping>,
+        sel: &CellSet,
+        span: Span,
+    ) -> Result<Option<Item>, RunError> {
+        let set = set
+            .intersect(sel)
+            .map_err(|e| self.err(span, e.to_string()))?;
+        Ok(Some(Item::Cells {
+            grid,
+            set,
+            grouping,
+        }))
     }
 
     fn not_cells(&self, attr: Attr, s: ShapeId, span: Span) -> RunError {
