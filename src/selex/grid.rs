@@ -1354,6 +1354,69 @@ mod tests {
         assert!(g.all().intersect(&other).is_err());
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+        /// Every grouping covers the selection exactly once, with rectangles in the documented
+        /// order, and regions never join cells of different components.
+        #[test]
+        fn groupings_partition_the_selection(
+            rows in 1usize..=12,
+            cols in 1usize..=12,
+            bits in proptest::collection::vec(proptest::prelude::any::<bool>(), 144),
+        ) {
+            let g = Grid::uniform(cols as f64, rows as f64 * 3.0, rows, cols).unwrap();
+            let mut set = g.none();
+            for r in 1..=rows {
+                for c in 1..=cols {
+                    if bits[(r - 1) * 12 + (c - 1)] {
+                        set.insert(r, c).unwrap();
+                    }
+                }
+            }
+            for grouping in [Grouping::Each, Grouping::Rows, Grouping::Cols, Grouping::Pairs, Grouping::Regions] {
+                let elements = g.group(&set, grouping).unwrap();
+                let mut seen = g.none();
+                let mut total = 0;
+                for e in &elements {
+                    for r in e.cells.row_from..=e.cells.row_to {
+                        for c in e.cells.col_from..=e.cells.col_to {
+                            proptest::prop_assert!(set.contains(r, c));
+                            proptest::prop_assert!(!seen.contains(r, c));
+                            seen.insert(r, c).unwrap();
+                        }
+                    }
+                    total += e.cells.cells();
+                    let rect = g.group_rect(e.cells).unwrap();
+                    proptest::prop_assert!((rect.w - e.cells.width() as f64).abs() < 1e-9);
+                    proptest::prop_assert!((rect.h - 3.0 * e.cells.height() as f64).abs() < 1e-9);
+                }
+                proptest::prop_assert_eq!(total, set.len());
+                proptest::prop_assert_eq!(&seen, &set);
+                let keys: Vec<_> = elements.iter().map(|e| (e.cells.row_from, e.cells.col_from)).collect();
+                let mut sorted = keys.clone();
+                sorted.sort();
+                proptest::prop_assert_eq!(keys, sorted);
+                if grouping == Grouping::Regions {
+                    // Rectangles of different regions never touch edge to edge.
+                    for a in &elements {
+                        for b in &elements {
+                            if a.region == b.region {
+                                continue;
+                            }
+                            let (x, y) = (a.cells, b.cells);
+                            let rows_overlap = x.row_from <= y.row_to && y.row_from <= x.row_to;
+                            let cols_overlap = x.col_from <= y.col_to && y.col_from <= x.col_to;
+                            let side = rows_overlap && (x.col_to + 1 == y.col_from || y.col_to + 1 == x.col_from);
+                            let above = cols_overlap && (x.row_to + 1 == y.row_from || y.row_to + 1 == x.row_from);
+                            proptest::prop_assert!(!side && !above);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn cell_set_basics() {
         let mut s = CellSet::empty(3, 50).unwrap();
