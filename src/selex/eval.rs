@@ -442,6 +442,59 @@ pub struct FacadeSpec {
     pub side: Side,
 }
 
+/// The facades of a footprint for [`run_on_facades`]: one per edge of every ring (outer first,
+/// in ring order, as the derivation numbers walls), each standing on `base_z` with `storeys`.
+/// `front` is the unit direction from the building to its street (`None`: −Y, the grammar's
+/// thesis front); each facade's side is the one its outward normal is closest to, as the
+/// grammar's `comp` names faces: `front` towards the street, `back` away, `left` and `right`
+/// as seen from the street. Edges shorter than a millimetre are left out.
+pub fn facade_specs(
+    footprint: &crate::geometry::Polygon,
+    base_z: f64,
+    storeys: &[f64],
+    front: Option<glam::DVec2>,
+) -> Vec<FacadeSpec> {
+    let f = front
+        .filter(|f| f.is_finite() && f.length() > 0.5)
+        .map(|f| f.normalize())
+        .unwrap_or(glam::DVec2::NEG_Y);
+    let right = glam::DVec2::new(-f.y, f.x);
+    let mut out = Vec::new();
+    for ring in footprint.rings() {
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            let d = b - a;
+            let len = d.length();
+            if !(len > 1e-3) {
+                continue;
+            }
+            // Outer rings run counter-clockwise and holes clockwise: the outward normal is on
+            // the right of the edge either way.
+            let n = glam::DVec2::new(d.y, -d.x) / len;
+            let (along, across) = (n.dot(f), n.dot(right));
+            let side = if along.abs() >= across.abs() {
+                if along > 0.0 {
+                    Side::Front
+                } else {
+                    Side::Back
+                }
+            } else if across > 0.0 {
+                Side::Right
+            } else {
+                Side::Left
+            };
+            out.push(FacadeSpec {
+                start: a,
+                end: b,
+                base_z,
+                storeys: storeys.to_vec(),
+                side,
+            });
+        }
+    }
+    out
+}
+
 /// Runs `program` on a building's facades: the root holds a volume `building` whose faces are
 /// labelled `facade`, one per [`FacadeSpec`], with their `side`. So a program written once,
 /// `< descendant() [label == "facade"] [side == "front"] / ... >`, applies to any footprint.
@@ -452,6 +505,7 @@ pub fn run_on_facades(
     facades: &[FacadeSpec],
 ) -> Result<Derivation, RunError> {
     let mut r = Runner::new(src, file);
+    r.facades = true;
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for f in facades {
@@ -514,6 +568,7 @@ impl<'a> Runner<'a> {
             file,
             last_volume: None,
             storeys: HashMap::new(),
+            facades: false,
             pending: Default::default(),
         }
     }
@@ -601,6 +656,9 @@ struct Runner<'a> {
     last_volume: Option<ShapeId>,
     /// The storey heights of real facades ([`run_on_facades`]), for metric grids.
     storeys: HashMap<ShapeId, Vec<f64>>,
+    /// Whether the tree holds a real building's facades ([`run_on_facades`]): a selector that
+    /// does not fit one grid's size skips that grid ([`Runner::skip_grid`]) instead of failing.
+    facades: bool,
     /// Warnings of the selectors (which only read the tree), moved to the derivation's after
     /// each selection.
     pending: std::cell::RefCell<Vec<Note>>,
@@ -1020,9 +1078,20 @@ impl Runner<'_> {
                 let g = self.grid(grid);
                 let p =
                     pattern::parse(regex).map_err(|e| self.pattern_err(*regex_span, regex, &e))?;
-                let (chosen, left_out) = p
-                    .select_allowing_short(pat, g.rows(), g.cols())
-                    .map_err(|e| self.pattern_err(*regex_span, regex, &e))?;
+                let (chosen, left_out) = match p.select_allowing_short(pat, g.rows(), g.cols()) {
+                    Ok(r) => r,
+                    Err(e)
+                        if self.facades
+                            && matches!(
+                                e.kind,
+                                pattern::PatternErrorKind::Overflow { .. }
+                                    | pattern::PatternErrorKind::StarNotDividing { .. }
+                            ) =>
+                    {
+                        return Ok(self.skip_grid(grid, *regex_span, &e.to_string()));
+                    }
+                    Err(e) => return Err(self.pattern_err(*regex_span, regex, &e)),
+                };
                 if left_out > 0 {
                     self.pending.borrow_mut().push(Note {
                         line: regex_span.line,
@@ -1109,8 +1178,14 @@ impl Runner<'_> {
                             grouping,
                         }))
                     }
-                }
-                .map_err(|e| self.err(span, e.to_string()))?;
+                };
+                let sel = match sel {
+                    Ok(sel) => sel,
+                    Err(e) if self.facades && e.depends_on_size() => {
+                        return Ok(self.skip_grid(grid, span, &e.to_string()))
+                    }
+                    Err(e) => return Err(self.err(span, e.to_string())),
+                };
                 self.narrowed(grid, &set, grouping, &sel, span)
             }
             (
@@ -1149,8 +1224,14 @@ impl Runner<'_> {
                             grouping,
                         }));
                     }
-                }
-                .map_err(|e| self.err(span, e.to_string()))?;
+                };
+                let sel = match sel {
+                    Ok(sel) => sel,
+                    Err(e) if self.facades && e.depends_on_size() => {
+                        return Ok(self.skip_grid(grid, span, &e.to_string()))
+                    }
+                    Err(e) => return Err(self.err(span, e.to_string())),
+                };
                 self.narrowed(grid, &set, grouping, &sel, span)
             }
             (
@@ -1209,6 +1290,29 @@ impl Runner<'_> {
                 Ok(keep.then_some(Item::Shape(s)))
             }
         }
+    }
+
+    /// On a real building's facades ([`run_on_facades`]), a selector that cannot apply to one
+    /// grid's size (an index past its bays, a pattern that does not tile it) leaves that grid
+    /// out of the selection, with a warning: one program serves facades of every width.
+    fn skip_grid(&self, grid: ShapeId, at: Span, why: &str) -> Option<Item> {
+        let face = self.d.shapes[grid].parent.unwrap_or(grid);
+        let g = self.grid(grid);
+        self.pending.borrow_mut().push(Note {
+            line: at.line,
+            col: at.col,
+            message: format!(
+                "on the {} m facade {} ({} x {} grid): {why}; the facade is left out of this rule",
+                match self.d.frame(face) {
+                    Some(f) => format!("{:.1}", f.width),
+                    None => "?".into(),
+                },
+                face,
+                g.rows(),
+                g.cols()
+            ),
+        });
+        None
     }
 
     /// The cells of `set` that are also in `sel`, with the same grid and grouping.

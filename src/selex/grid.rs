@@ -179,6 +179,17 @@ pub enum GridError {
     LabelOrdering,
 }
 
+impl GridError {
+    /// Whether the error comes from the grid's size (an index or range past its rows or
+    /// columns), so that the same selector fits a larger grid.
+    pub fn depends_on_size(&self) -> bool {
+        matches!(
+            self,
+            GridError::IndexOutOfRange { .. } | GridError::ReversedRange { .. }
+        )
+    }
+}
+
 fn check_dims(rows: usize, cols: usize) -> Result<(), GridError> {
     if rows == 0 {
         return Err(GridError::ZeroCount(Axis::Row));

@@ -1,0 +1,110 @@
+//! SELEX programs on real footprints: the facades of Monaco's buildings, each with its side
+//! towards the street (issue 23). The seed's printed programs, written for its box, run here
+//! on every facade of a real building, their paths naming `facade` and `side` instead of the
+//! box's `building_front`.
+
+mod common;
+
+use citygen::report::Report;
+use citygen::selex::eval::{facade_specs, run_on_facades, Side};
+use citygen::selex::parser::parse;
+use common::*;
+
+const MONACO: &str = "data/monaco/monaco.osm.pbf";
+
+/// The lots of Monaco with a street in front, largest first.
+fn monaco_lots() -> Vec<citygen::prepare::Lot> {
+    let mut report = Report::default();
+    let read = citygen::input::osm::read_osm(&root().join(MONACO), &mut report).unwrap();
+    let mut site = citygen::prepare::prepare(read.footprints, None, None, &mut report);
+    citygen::prepare::assign_fronts(&mut site, &read.streets, None);
+    let mut lots: Vec<_> = site
+        .lots
+        .into_iter()
+        .filter(|l| l.front.is_some())
+        .collect();
+    lots.sort_by(|a, b| {
+        let area = |l: &citygen::prepare::Lot| l.polygons.iter().map(|p| p.area()).sum::<f64>();
+        area(b)
+            .total_cmp(&area(a))
+            .then(a.id.to_string().cmp(&b.id.to_string()))
+    });
+    lots
+}
+
+/// Anchiêta's framed windows (Código-fonte 9) and rounded door (Código-fonte 4), on the
+/// facades facing the street, with storey grids instead of the seed's uniform ones.
+const ON_FACADES: &str = r#"
+{< descendant() [label == "facade"] > -> createStoreyGrid("g", 3.0)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [type == "cell"] [rowIdx == 1] [colIdx == 2] [::groupRegions] > -> addRoundFacade("door", ["top_left", "top_right"], 0.4, 5, 0.5)};
+{< descendant() [label == "facade"] [side != "front"] / [label == "g"] / [type == "cell"] [rowIdx > 1] > -> addFacadeWithFrame("windows", "frame", 0.2, 0.1)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [type == "cell"] [rowIdx > 1] [pattern("(XA)*X", "A")] > -> addFacadeWithFrame("windows", "frame", 0.2, 0.1)};
+{< descendant() [label == "facade"] > -> coverShape()};
+"#;
+
+#[test]
+fn the_seeds_facade_rules_run_on_every_facade_of_real_monaco_buildings() {
+    let program = parse(ON_FACADES, "facades.slx").unwrap();
+    let lots = monaco_lots();
+    assert!(lots.len() > 100, "{} lots with a front", lots.len());
+    let storeys = [3.5, 3.0, 3.0, 3.0];
+    let (mut tried, mut skipped) = (0, 0);
+    for lot in lots.iter().take(40) {
+        for polygon in &lot.polygons {
+            let specs = facade_specs(polygon, 0.0, &storeys, lot.front);
+            assert_eq!(
+                specs.len(),
+                polygon.rings().map(Vec::len).sum::<usize>(),
+                "{}: one facade per edge",
+                lot.id
+            );
+            // The street side exists: the edge whose normal is the front is a front facade.
+            assert!(specs.iter().any(|s| s.side == Side::Front), "{}", lot.id);
+            // A selector that does not fit one facade's grid (no second bay, a pattern that
+            // does not tile its cells) leaves that facade out of the rule, with a warning.
+            let d = run_on_facades(&program, ON_FACADES, "facades.slx", &specs)
+                .unwrap_or_else(|e| panic!("{}: {e}", lot.id));
+            skipped += d
+                .warnings
+                .iter()
+                .filter(|w| w.message.contains("left out of this rule"))
+                .count();
+            tried += 1;
+            let faces = d.find("facade");
+            assert_eq!(faces.len(), specs.len());
+            for (face, spec) in faces.iter().zip(&specs) {
+                let frame = d.frame(*face).unwrap();
+                // Each facade stands on its footprint edge and looks out of the building.
+                let n = frame.normal().truncate();
+                let mid = (spec.start + spec.end) / 2.0;
+                assert!(
+                    !polygon.contains(mid + 0.05 * n),
+                    "{}: facade looks in",
+                    lot.id
+                );
+                for &c in &d.shapes[*face].children {
+                    if let citygen::selex::eval::ShapeKind::Element(e) = &d.shapes[c].kind {
+                        // Inside its facade, doors on the ground floor only.
+                        assert!(e.rect.x >= -1e-9 && e.rect.x + e.rect.w <= frame.width + 1e-9);
+                        assert!(e.rect.y + e.rect.h <= frame.height + 1e-9);
+                        if d.shapes[c].label == "door" {
+                            assert!(e.rect.y.abs() < 1e-9 && spec.side == Side::Front);
+                            assert!(e.rounding.is_some());
+                        }
+                    }
+                }
+            }
+            // Every front facade wide enough for two bays has its door.
+            let fronts = specs
+                .iter()
+                .filter(|s| s.side == Side::Front && s.start.distance(s.end) >= 4.5)
+                .count();
+            assert_eq!(d.count("door"), fronts, "{}", lot.id);
+        }
+    }
+    assert!(tried >= 40, "only {tried} buildings ran");
+    assert!(
+        skipped > 0,
+        "no facade too narrow or too odd for the rules?"
+    );
+}
