@@ -465,7 +465,7 @@ pub fn facade_specs(
             let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
             let d = b - a;
             let len = d.length();
-            if !(len > 1e-3) {
+            if len.is_nan() || len <= 1e-3 {
                 continue;
             }
             // Outer rings run counter-clockwise and holes clockwise: the outward normal is on
