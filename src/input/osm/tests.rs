@@ -30,23 +30,33 @@ fn n(x: i64, y: i64) -> i64 {
 
 /// [`assemble`] with an interner of its own.
 fn assemble_fresh(
-    ways: &mut [WayRec],
+    ways: &mut Vec<WayBlock>,
     rels: &[RelRec],
     nodes: &Nodes,
     report: &mut Report,
 ) -> ReadResult {
-    assemble(ways, rels, nodes, &TagInterner::default(), report)
+    let mut ways = Ways::from_blocks(std::mem::take(ways));
+    assemble(&mut ways, rels, nodes, &TagInterner::default(), report)
 }
 
-fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
+/// A block of one way.
+fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayBlock {
     let kind = kind_of(tags.iter().copied());
-    WayRec {
-        id,
+    let mut b = WayBlock {
         refs,
+        ..WayBlock::default()
+    };
+    let w = WayRec {
+        id,
+        block: 0,
+        start: 0,
+        end: 0,
         kind,
         street: is_street(tags.iter().copied()),
         tags: kind.map(|_| std::sync::Arc::new(BuildingTags::from_pairs(tags.iter().copied()))),
-    }
+    };
+    b.push(w, 0);
+    b
 }
 
 fn rel(id: i64, kind: RelKind, members: &[(i64, Role)], tags: &[(&str, &str)]) -> RelRec {
@@ -263,9 +273,7 @@ fn streets_keep_runs_of_known_nodes_in_way_order() {
         ),
         way(2, vec![n(0, 4), n(4, 4)], &[("highway", "primary")]),
     ];
-    let mut ways = ways;
-    ways.sort_by_key(|w| w.id);
-    let s = streets_of(&ways, &nodes);
+    let s = streets_of(&Ways::from_blocks(ways), &nodes);
     let lines: Vec<&[(f64, f64)]> = s.lines().collect();
     assert_eq!(s.len(), 2);
     assert_eq!(lines[0], &[(0.0, 4.0), (4.0, 4.0)][..]);
@@ -622,14 +630,12 @@ type Blocks = Vec<(BlobKind, Vec<u8>)>;
 /// The inflated data blocks of Monaco with the kind the sweep saw.
 fn monaco_blocks() -> Blocks {
     let pbf = Pbf::open(&monaco()).unwrap();
-    let locs = pbf.sweep().unwrap();
-    let mut file = pbf.file().unwrap();
+    let file = pbf.load().unwrap();
+    let locs = pbf.sweep(&file).unwrap();
     locs.iter()
         .map(|l| {
-            let mut bytes = vec![0u8; l.len];
-            file.seek(SeekFrom::Start(l.start)).unwrap();
-            file.read_exact(&mut bytes).unwrap();
-            let frame = frame_of(l.index, bytes);
+            let start = l.start as usize;
+            let frame = frame_of(l.index, &file[start..start + l.len]);
             let mut scratch = Scratch::default();
             let block = inflated(&frame, &mut scratch)
                 .expect("a zlib data blob")
@@ -639,8 +645,8 @@ fn monaco_blocks() -> Blocks {
         .collect()
 }
 
-/// A data frame holding `block` uncompressed.
-fn raw_frame(block: &[u8]) -> Frame {
+/// The bytes of a data frame holding `block` uncompressed (see [`frame_of`]).
+fn raw_frame(block: &[u8]) -> Vec<u8> {
     fn varint_to(out: &mut Vec<u8>, mut v: u64) {
         while v >= 0x80 {
             out.push(v as u8 | 0x80);
@@ -658,10 +664,10 @@ fn raw_frame(block: &[u8]) -> Frame {
     let mut bytes = (header.len() as u32).to_be_bytes().to_vec();
     bytes.extend_from_slice(&header);
     bytes.extend_from_slice(&blob);
-    frame_of(1, bytes)
+    bytes
 }
 
-fn frame_of(index: usize, bytes: Vec<u8>) -> Frame {
+fn frame_of(index: usize, bytes: &[u8]) -> Frame<'_> {
     Frame {
         index,
         start: 0,
@@ -680,9 +686,19 @@ type WayView = (
     Option<BuildingTags>,
 );
 
-fn way_view(ways: Vec<WayRec>) -> Vec<WayView> {
-    ways.into_iter()
-        .map(|w| (w.id, w.refs, w.kind, w.street, w.tags.map(|t| (*t).clone())))
+fn way_view(b: WayBlock) -> Vec<WayView> {
+    b.ways
+        .iter()
+        .map(|w| {
+            let refs = b.refs_of(w).to_vec();
+            (
+                w.id,
+                refs,
+                w.kind,
+                w.street,
+                w.tags.clone().map(|t| (*t).clone()),
+            )
+        })
         .collect()
 }
 
@@ -738,7 +754,7 @@ fn some_node_ids(blocks: &[(BlobKind, Vec<u8>)]) -> Vec<i64> {
         .iter()
         .filter(|(k, _)| *k == BlobKind::Nodes)
         .flat_map(|(_, b)| {
-            pbf.decode(&raw_frame(b), |b| {
+            pbf.decode(&frame_of(1, &raw_frame(b)), |b| {
                 b.groups()
                     .flat_map(|g| g.dense_nodes().map(|n| n.id()).collect::<Vec<_>>())
                     .collect::<Vec<_>>()
@@ -761,7 +777,11 @@ fn direct_decoding_matches_osmpbf() {
         if *kind == BlobKind::Relations {
             continue;
         }
-        assert!(same_as_osmpbf(&raw_frame(block), *kind, &needed));
+        assert!(same_as_osmpbf(
+            &frame_of(1, &raw_frame(block)),
+            *kind,
+            &needed
+        ));
         seen[usize::from(*kind == BlobKind::Ways)] += 1;
     }
     assert!(seen[0] > 0 && seen[1] > 0, "{seen:?}");
@@ -772,7 +792,11 @@ fn direct_decoding_matches_osmpbf() {
         } else {
             BlobKind::Ways
         };
-        assert!(!same_as_osmpbf(&raw_frame(block), other, &needed));
+        assert!(!same_as_osmpbf(
+            &frame_of(1, &raw_frame(block)),
+            other,
+            &needed
+        ));
     }
 }
 
@@ -796,6 +820,6 @@ proptest::proptest! {
         for (at, byte) in edits {
             b[at % n] = byte;
         }
-        same_as_osmpbf(&raw_frame(&b), *kind, needed);
+        same_as_osmpbf(&frame_of(1, &raw_frame(&b)), *kind, needed);
     }
 }

@@ -341,10 +341,10 @@ pub(super) fn fast_ways(
     scratch: &mut Scratch,
     member_ways: &[i64],
     interner: &TagInterner,
-) -> Option<Vec<WayRec>> {
+) -> Option<WayBlock> {
     let bytes = inflated(frame, scratch)?;
     let block = Block::parse(bytes)?;
-    let mut out = Vec::new();
+    let mut out = WayBlock::default();
     let mut tags: Vec<(&str, &str)> = Vec::new();
     let mut known: Vec<(&str, &str)> = Vec::new();
     for g in &block.groups {
@@ -399,16 +399,18 @@ pub(super) fn fast_ways(
             if kind.is_none() && !member && !street {
                 continue;
             }
-            let n = refs.iter().filter(|&&b| b < 0x80).count();
-            let mut nodes = Vec::with_capacity(n);
+            let start = out.refs.len();
+            out.refs.reserve(refs.iter().filter(|&&b| b < 0x80).count());
             let (mut pos, mut current) = (0, 0i64);
             while pos < refs.len() {
                 current = current.wrapping_add(zigzag(varint(refs, &mut pos)?));
-                nodes.push(current);
+                out.refs.push(current);
             }
-            out.push(WayRec {
+            let w = WayRec {
                 id,
-                refs: nodes,
+                block: 0,
+                start: 0,
+                end: 0,
                 kind,
                 tags: kind.map(|_| {
                     known.clear();
@@ -416,7 +418,8 @@ pub(super) fn fast_ways(
                     interner.intern_pairs(&known)
                 }),
                 street,
-            });
+            };
+            out.push(w, start);
         }
     }
     Some(out)
@@ -432,19 +435,10 @@ pub(super) fn fast_nodes(
     let bytes = inflated(frame, scratch)?;
     let block = Block::parse(bytes)?;
     let mut out = Vec::new();
-    let mut j = 0usize;
-    let mut last = i64::MAX;
+    let mut cursor = NeededCursor::new(needed);
     let (g, lat0, lon0) = (block.granularity, block.lat_offset, block.lon_offset);
     let mut visit = |out: &mut Vec<(usize, i64, i64)>, id: i64, lat: i64, lon: i64| {
-        if id < last {
-            j = needed.partition_point(|&x| x < id);
-        } else {
-            while j < needed.len() && needed[j] < id {
-                j += 1;
-            }
-        }
-        last = id;
-        if needed.get(j) == Some(&id) {
+        if let Some(j) = cursor.find(id) {
             out.push((
                 j,
                 lon0.wrapping_add(g.wrapping_mul(lon)),
