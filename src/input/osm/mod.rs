@@ -138,9 +138,7 @@ fn read_passes(
     // Each block's ways come with the node ids they need, sorted and deduplicated in the
     // parallel pass; the file's list is then a merge of sorted runs.
     let with_needed = |b: WayBlock| {
-        let mut needed = b.refs.clone();
-        needed.sort_unstable();
-        needed.dedup();
+        let needed = b.needed();
         (b, needed)
     };
     let (blocks, mixed) = pbf.pass(
@@ -192,22 +190,56 @@ fn read_passes(
     Ok(Some(result))
 }
 
-/// The union of sorted, deduplicated runs, sorted and deduplicated. Runs that follow each other
-/// (each one's ids above the last one's, as the blocks of a sorted file give them) are only
-/// concatenated.
+/// The union of sorted, deduplicated runs, sorted and deduplicated. The blocks of a sorted file
+/// give runs that mostly follow each other (each one's ids above the last one's, but for a few
+/// shared nodes): each run is appended, merging only its first ids that are not above the ids
+/// so far into the tail they overlap. When that merging grows beyond the ids' count (an
+/// unsorted file), everything is sorted instead.
 fn merge_runs(runs: Vec<Vec<i64>>) -> Vec<i64> {
-    let mut last = None;
-    let ordered = runs.iter().filter(|r| !r.is_empty()).all(|r| {
-        let ok = last.is_none_or(|l| l < r[0]);
-        last = r.last().copied();
-        ok
-    });
-    let mut all = runs.concat();
-    if !ordered {
-        all.par_sort_unstable();
-        all.dedup();
+    let total = runs.iter().map(Vec::len).sum();
+    let mut out: Vec<i64> = Vec::with_capacity(total);
+    let mut work = 0usize;
+    for (n, r) in runs.iter().enumerate() {
+        let Some(&last) = out.last() else {
+            out.extend_from_slice(r);
+            continue;
+        };
+        let k = r.partition_point(|&x| x <= last);
+        if k > 0 {
+            let p = out.partition_point(|&x| x < r[0]);
+            work += out.len() - p + k;
+            if work > total {
+                for r in &runs[n..] {
+                    out.extend_from_slice(r);
+                }
+                out.par_sort_unstable();
+                out.dedup();
+                return out;
+            }
+            let tail = out.split_off(p);
+            merge_into(&mut out, &tail, &r[..k]);
+        }
+        out.extend_from_slice(&r[k..]);
     }
-    all
+    out
+}
+
+/// Appends the sorted union of sorted `a` and `b` to `out`, without duplicates (nor the last of
+/// `out` again).
+pub(super) fn merge_into(out: &mut Vec<i64>, a: &[i64], b: &[i64]) {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        let x = if j >= b.len() || (i < a.len() && a[i] <= b[j]) {
+            i += 1;
+            a[i - 1]
+        } else {
+            j += 1;
+            b[j - 1]
+        };
+        if out.last() != Some(&x) {
+            out.push(x);
+        }
+    }
 }
 
 /// The `highway=*` values read as streets a front door can face, with their `_link` roads.

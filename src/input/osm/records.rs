@@ -71,6 +71,35 @@ impl WayBlock {
         self.ways.push(w);
     }
 
+    /// The node ids of the block's ways, sorted, without duplicates. The ids of a block mostly
+    /// come ascending (way after way, but for each closed way's last node, its first again):
+    /// they are taken in one run, and only the few that step back are sorted and merged in.
+    pub(super) fn needed(&self) -> Vec<i64> {
+        let mut run = Vec::with_capacity(self.refs.len());
+        let mut back = Vec::new();
+        for w in &self.ways {
+            let refs = &self.refs[w.start as usize..w.end as usize];
+            for (i, &r) in refs.iter().enumerate() {
+                match run.last() {
+                    Some(&l) if r <= l => {
+                        if r != l && (i == 0 || r != refs[0]) {
+                            back.push(r);
+                        }
+                    }
+                    _ => run.push(r),
+                }
+            }
+        }
+        if back.is_empty() {
+            return run;
+        }
+        back.sort_unstable();
+        back.dedup();
+        let mut out = Vec::with_capacity(run.len() + back.len());
+        merge_into(&mut out, &run, &back);
+        out
+    }
+
     /// The node ids of `w`, a way of this block.
     #[cfg(test)]
     pub(super) fn refs_of(&self, w: &WayRec) -> &[i64] {

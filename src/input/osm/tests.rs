@@ -39,6 +39,42 @@ fn assemble_fresh(
     assemble(&mut ways, rels, nodes, &TagInterner::default(), report)
 }
 
+#[test]
+fn needed_ids_are_the_sorted_union() {
+    let cases: Vec<Vec<Vec<i64>>> = vec![
+        vec![],
+        vec![vec![], vec![1, 2], vec![], vec![3]],
+        vec![vec![1, 5, 9], vec![2, 5, 10, 11], vec![12], vec![0, 11, 13]],
+        vec![vec![4, 5, 6, 4], vec![7, 8, 9, 7], vec![6, 10, 3, 6, 10]],
+        // Runs out of order: the merge falls back to a sort.
+        (0..50).map(|i| ((50 - i)..(60 - i)).collect()).collect(),
+    ];
+    for runs in cases {
+        let mut want = runs.concat();
+        want.sort_unstable();
+        want.dedup();
+        // As one block's ways.
+        let mut block = WayBlock::default();
+        for (i, r) in runs.iter().enumerate() {
+            let start = block.refs.len();
+            block.refs.extend(r);
+            let w = way(i as i64, Vec::new(), &[]).ways.remove(0);
+            block.push(w, start);
+        }
+        assert_eq!(block.needed(), want);
+        // As sorted runs of blocks.
+        let runs = runs
+            .into_iter()
+            .map(|mut r| {
+                r.sort_unstable();
+                r.dedup();
+                r
+            })
+            .collect();
+        assert_eq!(merge_runs(runs), want);
+    }
+}
+
 /// A block of one way.
 fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayBlock {
     let kind = kind_of(tags.iter().copied());
