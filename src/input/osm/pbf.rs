@@ -424,33 +424,33 @@ pub(super) fn peek_kind(blob: &[u8]) -> BlobKind {
     let Some(z) = zlib else {
         return BlobKind::Any;
     };
-    let mut inflater = flate2::Decompress::new(true);
-    let mut buf: Vec<u8> = Vec::with_capacity(16 * 1024);
+    // Inflated in small steps into a buffer that grows (miniz_oxide's core decoder stops when
+    // the buffer is full, where a stream inflater decodes 32 KiB at a time): a block of nodes
+    // tells its kind within its first hundred bytes.
+    use miniz_oxide::inflate::core::{decompress, inflate_flags, DecompressorOxide};
+    use miniz_oxide::inflate::TINFLStatus;
+    let flags = inflate_flags::TINFL_FLAG_PARSE_ZLIB_HEADER
+        | inflate_flags::TINFL_FLAG_USING_NON_WRAPPING_OUTPUT_BUF
+        | inflate_flags::TINFL_FLAG_IGNORE_ADLER32;
+    let mut inflater = Box::<DecompressorOxide>::default();
+    let mut buf = vec![0u8; 1024];
+    let (mut read, mut written) = (0usize, 0usize);
     loop {
-        if buf.len() == buf.capacity() {
-            if buf.len() as u64 >= MAX_BLOB {
-                return BlobKind::Any;
-            }
-            buf.reserve(buf.len());
-        }
-        let consumed = usize::try_from(inflater.total_in()).unwrap_or(usize::MAX);
-        let Some(input) = z.get(consumed..) else {
+        let Some(input) = z.get(read..) else {
             return BlobKind::Any;
         };
-        let before = buf.len();
-        let status = match inflater.decompress_vec(input, &mut buf, flate2::FlushDecompress::None) {
-            Ok(s) => s,
-            Err(_) => return BlobKind::Any,
-        };
-        let done = status == flate2::Status::StreamEnd;
-        if let Some(kind) = first_group_kind(&buf, done) {
+        let (status, r, w) = decompress(&mut inflater, input, &mut buf, written, flags);
+        read += r;
+        written += w;
+        let done = status == TINFLStatus::Done;
+        if let Some(kind) = first_group_kind(&buf[..written], done) {
             return kind;
         }
-        let stuck = buf.len() == before
-            && usize::try_from(inflater.total_in()).unwrap_or(usize::MAX) == consumed;
-        if done || stuck {
+        if status != TINFLStatus::HasMoreOutput || buf.len() as u64 >= MAX_BLOB {
             return BlobKind::Any;
         }
+        let more = buf.len() * 2;
+        buf.resize(more, 0);
     }
 }
 
