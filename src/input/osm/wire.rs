@@ -347,6 +347,9 @@ pub(super) fn fast_ways(
     let mut out = WayBlock::default();
     let mut tags: Vec<(&str, &str)> = Vec::new();
     let mut known: Vec<(&str, &str)> = Vec::new();
+    type TagsGive = (Option<FootprintKind>, bool, Option<SharedTags>);
+    let mut seen: std::collections::HashMap<(&[u8], &[u8]), TagsGive> =
+        std::collections::HashMap::new();
     for g in &block.groups {
         for f in fields(g) {
             let Value::Bytes(w) = (match f.ok()? {
@@ -376,31 +379,46 @@ pub(super) fn fast_ways(
                 vals.unwrap_or_default(),
                 refs.unwrap_or_default(),
             );
-            if !check_packed(keys, Packed::U32)
-                || !check_packed(vals, Packed::U32)
-                || !check_packed(refs, Packed::Any64)
-            {
-                return None;
-            }
-            // osmpbf's tag iterator: pairs until either list ends or a string is unusable.
-            tags.clear();
-            let (mut kp, mut vp) = (0, 0);
-            while let (Ok(Some(k)), Ok(Some(v))) =
-                (next_u32(keys, &mut kp), next_u32(vals, &mut vp))
-            {
-                match (block.string(k), block.string(v)) {
-                    (Some(k), Some(v)) => tags.push((k, v)),
-                    _ => break,
+            // What the tags give depends only on their bytes: worked out once per tag set of
+            // the block (most ways of a block share a few).
+            let (kind, street, shared) = match seen.get(&(keys, vals)) {
+                Some(v) => v.clone(),
+                None => {
+                    if !check_packed(keys, Packed::U32) || !check_packed(vals, Packed::U32) {
+                        return None;
+                    }
+                    // osmpbf's tag iterator: pairs until either list ends or a string is
+                    // unusable.
+                    tags.clear();
+                    let (mut kp, mut vp) = (0, 0);
+                    while let (Ok(Some(k)), Ok(Some(v))) =
+                        (next_u32(keys, &mut kp), next_u32(vals, &mut vp))
+                    {
+                        match (block.string(k), block.string(v)) {
+                            (Some(k), Some(v)) => tags.push((k, v)),
+                            _ => break,
+                        }
+                    }
+                    let kind = kind_of(tags.iter().copied());
+                    let street = is_street(tags.iter().copied());
+                    let shared = kind.map(|_| {
+                        known.clear();
+                        known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
+                        interner.intern_pairs(&known)
+                    });
+                    seen.insert((keys, vals), (kind, street, shared.clone()));
+                    (kind, street, shared)
                 }
-            }
-            let kind = kind_of(tags.iter().copied());
+            };
             let member = member_ways.binary_search(&id).is_ok();
-            let street = is_street(tags.iter().copied());
             if kind.is_none() && !member && !street {
+                if !check_packed(refs, Packed::Any64) {
+                    return None;
+                }
                 continue;
             }
+            // Decoding the node ids checks them too.
             let start = out.refs.len();
-            out.refs.reserve(refs.iter().filter(|&&b| b < 0x80).count());
             let (mut pos, mut current) = (0, 0i64);
             while pos < refs.len() {
                 current = current.wrapping_add(zigzag(varint(refs, &mut pos)?));
@@ -412,11 +430,7 @@ pub(super) fn fast_ways(
                 start: 0,
                 end: 0,
                 kind,
-                tags: kind.map(|_| {
-                    known.clear();
-                    known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
-                    interner.intern_pairs(&known)
-                }),
+                tags: shared,
                 street,
             };
             out.push(w, start);
@@ -476,13 +490,8 @@ pub(super) fn fast_nodes(
                 lats.unwrap_or_default(),
                 lons.unwrap_or_default(),
             );
-            if !check_packed(ids, Packed::Any64)
-                || !check_packed(lats, Packed::Any64)
-                || !check_packed(lons, Packed::Any64)
-            {
-                return None;
-            }
             out.reserve(ids.iter().filter(|&&b| b < 0x80).count());
+            // Decoding checks the arrays as it goes; what is left of the longer ones after.
             let (mut pi, mut pa, mut po) = (0, 0, 0);
             let (mut id, mut lat, mut lon) = (0i64, 0i64, 0i64);
             while pi < ids.len() && pa < lats.len() && po < lons.len() {
@@ -490,6 +499,12 @@ pub(super) fn fast_nodes(
                 lat = lat.wrapping_add(zigzag(varint(lats, &mut pa)?));
                 lon = lon.wrapping_add(zigzag(varint(lons, &mut po)?));
                 visit(&mut out, id, lat, lon);
+            }
+            if !check_packed(&ids[pi..], Packed::Any64)
+                || !check_packed(&lats[pa..], Packed::Any64)
+                || !check_packed(&lons[po..], Packed::Any64)
+            {
+                return None;
             }
         }
         for n in &plain {
