@@ -167,8 +167,8 @@ fn read_passes(
     // Pass 3: nodes.
     let mut nodes = Nodes::new(needed);
     // Each block's found nodes sorted by index in the parallel pass, for `Nodes::fill`.
-    let by_index = |mut found: Vec<(usize, i64, i64)>| {
-        found.sort_by_key(|e| e.0);
+    let by_index = |mut found: Found| {
+        found.sort();
         found
     };
     let (found, mixed) = pbf.pass(

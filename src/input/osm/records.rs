@@ -177,9 +177,9 @@ impl Nodes {
 
     /// Sets the nodes the blocks found, as setting them one by one in file order would (the
     /// last coordinate of a node found twice stays), in parallel over ranges of indices. Each
-    /// block's `(index, nano lon, nano lat)` (nanodegrees, as osmpbf gives them) are sorted by
-    /// index, stably; the blocks are in file order.
-    pub(super) fn fill(&mut self, found: &[Vec<(usize, i64, i64)>]) {
+    /// block's nodes are sorted by index, stably ([`Found::sort`]); the blocks are in file
+    /// order.
+    pub(super) fn fill(&mut self, found: &[Found]) {
         const CHUNK: usize = 1 << 16;
         let exact: Vec<Vec<(usize, f64, f64)>> = self
             .coords
@@ -190,13 +190,23 @@ impl Nodes {
                 let end = base + coords.len();
                 let mut exact = Vec::new();
                 for b in found {
-                    let lo = b.partition_point(|e| e.0 < base);
-                    for &(i, lon, lat) in b[lo..].iter().take_while(|e| e.0 < end) {
-                        match (small(lon), small(lat)) {
-                            (Some(x), Some(y)) => coords[i - base] = [x, y],
-                            _ => {
-                                coords[i - base] = [EXACT; 2];
-                                exact.push((i, degrees(lon), degrees(lat)));
+                    match b {
+                        Found::Small(v) => {
+                            let lo = v.partition_point(|e| (e.0 as usize) < base);
+                            for &(i, c) in v[lo..].iter().take_while(|e| (e.0 as usize) < end) {
+                                coords[i as usize - base] = c;
+                            }
+                        }
+                        Found::Wide(v) => {
+                            let lo = v.partition_point(|e| e.0 < base);
+                            for &(i, lon, lat) in v[lo..].iter().take_while(|e| e.0 < end) {
+                                match (small(lon), small(lat)) {
+                                    (Some(x), Some(y)) => coords[i - base] = [x, y],
+                                    _ => {
+                                        coords[i - base] = [EXACT; 2];
+                                        exact.push((i, degrees(lon), degrees(lat)));
+                                    }
+                                }
                             }
                         }
                     }
@@ -280,6 +290,58 @@ impl Nodes {
                 Some((self.exact[k].1, self.exact[k].2))
             }
             [x, y] => Some((degrees(i64::from(x) * 100), degrees(i64::from(y) * 100))),
+        }
+    }
+}
+
+/// The needed nodes one block holds, in file order: (index in the needed ids, lon, lat).
+/// Compact (12 bytes a node) while every index fits a u32 and every coordinate is a whole
+/// number of 1e-7 degrees, as [`Nodes`] keeps it; else as found (nanodegrees).
+#[derive(Debug, PartialEq)]
+pub(super) enum Found {
+    Small(Vec<(u32, [i32; 2])>),
+    Wide(Vec<(usize, i64, i64)>),
+}
+
+impl Default for Found {
+    fn default() -> Self {
+        Found::Small(Vec::new())
+    }
+}
+
+impl Found {
+    /// Adds node `j` of the needed ids at nanodegrees (as osmpbf gives them).
+    #[inline]
+    pub(super) fn push(&mut self, j: usize, nano_lon: i64, nano_lat: i64) {
+        if let Found::Small(v) = self {
+            if let (Ok(i), Some(x), Some(y)) = (u32::try_from(j), small(nano_lon), small(nano_lat))
+            {
+                v.push((i, [x, y]));
+                return;
+            }
+            let wide = v
+                .iter()
+                .map(|&(i, [x, y])| (i as usize, i64::from(x) * 100, i64::from(y) * 100))
+                .collect();
+            *self = Found::Wide(wide);
+        }
+        if let Found::Wide(v) = self {
+            v.push((j, nano_lon, nano_lat));
+        }
+    }
+
+    pub(super) fn reserve(&mut self, n: usize) {
+        match self {
+            Found::Small(v) => v.reserve(n),
+            Found::Wide(v) => v.reserve(n),
+        }
+    }
+
+    /// Sorts the nodes by index, stably (a node found twice keeps its file order).
+    pub(super) fn sort(&mut self) {
+        match self {
+            Found::Small(v) => v.sort_by_key(|e| e.0),
+            Found::Wide(v) => v.sort_by_key(|e| e.0),
         }
     }
 }
@@ -446,13 +508,13 @@ impl<'a> NeededCursor<'a> {
     }
 }
 
-/// The needed nodes of a block as (index in `needed`, nanodegrees lon, lat).
-pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, i64, i64)> {
-    let mut out = Vec::new();
+/// The needed nodes of a block.
+pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Found {
+    let mut out = Found::default();
     let mut cursor = NeededCursor::new(needed);
     let mut visit = |id: i64, lon: i64, lat: i64| {
         if let Some(j) = cursor.find(id) {
-            out.push((j, lon, lat));
+            out.push(j, lon, lat);
         }
     };
     for g in block.groups() {

@@ -441,23 +441,19 @@ pub(super) fn fast_ways(
 
 /// The needed nodes of a block of nodes (see [`nodes_of_block`]), or `None` for osmpbf to
 /// decode it.
-pub(super) fn fast_nodes(
-    frame: &Frame,
-    scratch: &mut Scratch,
-    needed: &[i64],
-) -> Option<Vec<(usize, i64, i64)>> {
+pub(super) fn fast_nodes(frame: &Frame, scratch: &mut Scratch, needed: &[i64]) -> Option<Found> {
     let bytes = inflated(frame, scratch)?;
     let block = Block::parse(bytes)?;
-    let mut out = Vec::new();
+    let mut out = Found::default();
     let mut cursor = NeededCursor::new(needed);
     let (g, lat0, lon0) = (block.granularity, block.lat_offset, block.lon_offset);
-    let mut visit = |out: &mut Vec<(usize, i64, i64)>, id: i64, lat: i64, lon: i64| {
+    let mut visit = |out: &mut Found, id: i64, lat: i64, lon: i64| {
         if let Some(j) = cursor.find(id) {
-            out.push((
+            out.push(
                 j,
                 lon0.wrapping_add(g.wrapping_mul(lon)),
                 lat0.wrapping_add(g.wrapping_mul(lat)),
-            ));
+            );
         }
     };
     let mut plain: Vec<&[u8]> = Vec::new();
