@@ -166,7 +166,12 @@ pub(super) const EXACT: i32 = i32::MAX;
 
 impl Nodes {
     pub(super) fn new(ids: Vec<i64>) -> Nodes {
-        let coords = vec![[MISSING; 2]; ids.len()];
+        // Written in parallel: the first touch of the pages is most of the cost.
+        let mut coords = Vec::new();
+        (0..ids.len())
+            .into_par_iter()
+            .map(|_| [MISSING; 2])
+            .collect_into_vec(&mut coords);
         Nodes {
             fences: ids.iter().step_by(FENCE).copied().collect(),
             ids,
