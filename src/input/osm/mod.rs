@@ -11,7 +11,7 @@
 //!
 //! A block that holds more than one kind of element (no common writer makes one) is noticed
 //! when decoded; the read then starts again with every pass decoding every blob. Blocks are
-//! decoded in parallel (rayon) in batches, and the per-block results are merged in file order,
+//! decoded in parallel (rayon), and the per-block results are merged in file order,
 //! then sorted by id, so the output does not depend on the thread count. The ways and nodes
 //! passes decode their blocks directly (`wire`), falling back to osmpbf for any block the
 //! direct decoder does not take.
@@ -19,8 +19,6 @@
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
 //! `report.read` / `report.parts_read` count them all, skipped ones included.
 
-use std::fs::File;
-use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
@@ -45,10 +43,6 @@ use pbf::*;
 use records::*;
 use wire::*;
 
-/// Blobs decoded per parallel batch: enough to keep the cores busy, few enough that the
-/// compressed blobs held at once stay small.
-const BATCH: usize = 64;
-
 /// At most this many ids are listed in one report reason.
 const MAX_LISTED: usize = 5;
 
@@ -62,15 +56,17 @@ type Tags = Vec<(String, String)>;
 /// [`InputError`] naming the file and the block. Never panics.
 pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputError> {
     let pbf = Pbf::open(path)?;
-    let mut locs = pbf.sweep()?;
-    if let Some(r) = read_passes(&pbf, &locs, report)? {
+    let file = pbf.load()?;
+    let mut locs = pbf.sweep(&file)?;
+    if let Some(r) = read_passes(&pbf, &file, &locs, report)? {
         return Ok(r);
     }
     // A block held more than one kind of element: every pass decodes every block.
     for l in &mut locs {
         l.kind = BlobKind::Any;
     }
-    read_passes(&pbf, &locs, report)?.ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
+    read_passes(&pbf, &file, &locs, report)?
+        .ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
 }
 
 /// One report note per id that appears more than once in `sorted_ids` (an extract merged
@@ -111,11 +107,18 @@ fn note_duplicates(
 /// then).
 fn read_passes(
     pbf: &Pbf,
+    file: &[u8],
     locs: &[BlobLoc],
     report: &mut Report,
 ) -> Result<Option<ReadResult>, InputError> {
     // Pass 1: relations.
-    let (rels, mixed) = pbf.pass(locs, BlobKind::Relations, |_, _| None, relations_of_block)?;
+    let (rels, mixed) = pbf.pass(
+        file,
+        locs,
+        BlobKind::Relations,
+        |_, _| None,
+        relations_of_block,
+    )?;
     if mixed {
         return Ok(None);
     }
@@ -134,13 +137,12 @@ fn read_passes(
     let interner = TagInterner::default();
     // Each block's ways come with the node ids they need, sorted and deduplicated in the
     // parallel pass; the file's list is then a merge of sorted runs.
-    let with_needed = |ways: Vec<WayRec>| {
-        let mut needed: Vec<i64> = ways.iter().flat_map(|w| w.refs.iter().copied()).collect();
-        needed.sort_unstable();
-        needed.dedup();
-        (ways, needed)
+    let with_needed = |b: WayBlock| {
+        let needed = b.needed();
+        (b, needed)
     };
     let (blocks, mixed) = pbf.pass(
+        file,
         locs,
         BlobKind::Ways,
         |f, s| fast_ways(f, s, &member_ways, &interner).map(with_needed),
@@ -149,45 +151,97 @@ fn read_passes(
     if mixed {
         return Ok(None);
     }
-    let (ways, needed): (Vec<Vec<WayRec>>, Vec<Vec<i64>>) = blocks.into_iter().unzip();
-    let mut all = Vec::with_capacity(ways.iter().map(Vec::len).sum());
-    for w in ways {
-        all.extend(w);
-    }
-    let mut ways = all;
-    ways.sort_by_key(|w| w.id);
+    let (blocks, needed): (Vec<WayBlock>, Vec<Vec<i64>>) = blocks.into_iter().unzip();
+    let mut ways = Ways::from_blocks(blocks);
     note_duplicates(
-        ways.iter().filter(|w| w.kind.is_some()).map(|w| w.id),
+        ways.recs.iter().filter(|w| w.kind.is_some()).map(|w| w.id),
         SourceId::Way,
         report,
     );
-    ways.dedup_by_key(|w| w.id);
+    ways.recs.dedup_by_key(|w| w.id);
     drop(member_ways);
     // The ids of ways dropped as duplicates may stay: an id too many in the index changes no
     // lookup.
-    let mut needed = needed.concat();
-    needed.par_sort();
-    needed.dedup();
+    let needed = merge_runs(needed);
 
     // Pass 3: nodes.
     let mut nodes = Nodes::new(needed);
+    // Each block's found nodes sorted by index in the parallel pass, for `Nodes::fill`.
+    let by_index = |mut found: Found| {
+        found.sort();
+        found
+    };
     let (found, mixed) = pbf.pass(
+        file,
         locs,
         BlobKind::Nodes,
-        |f, s| fast_nodes(f, s, &nodes.ids),
-        |b| nodes_of_block(b, &nodes.ids),
+        |f, s| fast_nodes(f, s, &nodes.ids).map(by_index),
+        |b| by_index(nodes_of_block(b, &nodes.ids)),
     )?;
     if mixed {
         return Ok(None);
     }
-    for (i, lon, lat) in found.into_iter().flatten() {
-        nodes.set(i, lon, lat);
-    }
+    nodes.fill(&found);
+    drop(found);
     nodes.finish();
 
     let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
     result.streets = streets_of(&ways, &nodes);
+    // Freeing the large lists is a fair share of the read: both at once.
+    rayon::join(move || drop(ways), move || drop(nodes));
     Ok(Some(result))
+}
+
+/// The union of sorted, deduplicated runs, sorted and deduplicated. The blocks of a sorted file
+/// give runs that mostly follow each other (each one's ids above the last one's, but for a few
+/// shared nodes): each run is appended, merging only its first ids that are not above the ids
+/// so far into the tail they overlap. When that merging grows beyond the ids' count (an
+/// unsorted file), everything is sorted instead.
+fn merge_runs(runs: Vec<Vec<i64>>) -> Vec<i64> {
+    let total = runs.iter().map(Vec::len).sum();
+    let mut out: Vec<i64> = Vec::with_capacity(total);
+    let mut work = 0usize;
+    for (n, r) in runs.iter().enumerate() {
+        let Some(&last) = out.last() else {
+            out.extend_from_slice(r);
+            continue;
+        };
+        let k = r.partition_point(|&x| x <= last);
+        if k > 0 {
+            let p = out.partition_point(|&x| x < r[0]);
+            work += out.len() - p + k;
+            if work > total {
+                for r in &runs[n..] {
+                    out.extend_from_slice(r);
+                }
+                out.par_sort_unstable();
+                out.dedup();
+                return out;
+            }
+            let tail = out.split_off(p);
+            merge_into(&mut out, &tail, &r[..k]);
+        }
+        out.extend_from_slice(&r[k..]);
+    }
+    out
+}
+
+/// Appends the sorted union of sorted `a` and `b` to `out`, without duplicates (nor the last of
+/// `out` again).
+pub(super) fn merge_into(out: &mut Vec<i64>, a: &[i64], b: &[i64]) {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        let x = if j >= b.len() || (i < a.len() && a[i] <= b[j]) {
+            i += 1;
+            a[i - 1]
+        } else {
+            j += 1;
+            b[j - 1]
+        };
+        if out.last() != Some(&x) {
+            out.push(x);
+        }
+    }
 }
 
 /// The `highway=*` values read as streets a front door can face, with their `_link` roads.
@@ -234,12 +288,12 @@ fn is_street<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> bool {
 
 /// The street ways as polylines in way-id order. A way with missing nodes keeps its runs of
 /// consecutive known nodes (a street clipped by the extract's border is still a street).
-fn streets_of(ways: &[WayRec], nodes: &Nodes) -> super::Streets {
+fn streets_of(ways: &Ways, nodes: &Nodes) -> super::Streets {
     let mut streets = super::Streets::default();
     let mut run: Ring = Vec::new();
-    for w in ways.iter().filter(|w| w.street) {
+    for w in ways.recs.iter().filter(|w| w.street) {
         run.clear();
-        for &r in &w.refs {
+        for &r in ways.refs(w) {
             match nodes.get(r) {
                 Some(p) => run.push(p),
                 None => {
@@ -258,7 +312,7 @@ type RelOutcome = (Option<Footprint>, Vec<(Outcome, String)>, RelRec);
 
 /// Turns the three passes' results into footprints and report entries.
 fn assemble(
-    ways: &mut [WayRec],
+    ways: &mut Ways,
     rels: &[RelRec],
     nodes: &Nodes,
     interner: &TagInterner,
@@ -274,11 +328,7 @@ fn assemble(
     let mut old_style: Vec<(i64, i64, Vec<Ring>)> = Vec::new();
     // (way id, note) for building ways whose old-style relation could not be assembled.
     let mut old_style_notes: Vec<(i64, String)> = Vec::new();
-    let way_kind = |id: i64| {
-        ways.binary_search_by_key(&id, |w| w.id)
-            .ok()
-            .and_then(|i| ways[i].kind)
-    };
+    let way_kind = |id: i64| ways.find(id).and_then(|w| w.kind);
 
     for rel in rels {
         let a = assemble_relation(rel, ways, nodes);
@@ -372,14 +422,15 @@ fn assemble(
     // The polygons of the building/part ways, built in parallel: the costly part (node
     // lookups, clean-up, checks, orientation); report entries are then added in way order.
     let old_style_at = |w: i64| old_style.binary_search_by_key(&w, |(x, _, _)| *x).ok();
-    let polygons: Vec<Option<Result<SourcePolygon, String>>> = ways
+    let polygons: Vec<Option<Result<Vec<SourcePolygon>, String>>> = ways
+        .recs
         .par_iter()
         .map(|w| {
             w.kind.map(|_| {
-                way_ring(w, &built_by, nodes).map(|outer| {
+                way_ring(w, ways.refs(w), &built_by, nodes).map(|outer| {
                     let holes =
                         old_style_at(w.id).map_or_else(Vec::new, |i| old_style[i].2.clone());
-                    oriented_polygon(outer, holes)
+                    vec![oriented_polygon(outer, holes)]
                 })
             })
         })
@@ -388,13 +439,13 @@ fn assemble(
     result
         .footprints
         .reserve(polygons.iter().flatten().count() + rel_out.len());
-    for (w, polygon) in ways.iter_mut().zip(polygons) {
-        let (Some(kind), Some(polygon)) = (w.kind, polygon) else {
+    for (w, polygons) in ways.recs.iter_mut().zip(polygons) {
+        let (Some(kind), Some(polygons)) = (w.kind, polygons) else {
             continue;
         };
         let id = SourceId::Way(w.id);
         count_read(report, kind);
-        let polygon = match polygon {
+        let polygons = match polygons {
             Ok(p) => p,
             Err(why) => {
                 report.skipped += 1;
@@ -425,7 +476,7 @@ fn assemble(
         result.footprints.push(Footprint {
             id,
             kind,
-            polygons: vec![polygon],
+            polygons,
             tags,
         });
     }
@@ -456,24 +507,30 @@ fn assemble(
     result
 }
 
-/// The cleaned outer ring of a building/part way, or why it is skipped. `built_by` is sorted.
-fn way_ring(w: &WayRec, built_by: &[(i64, i64)], nodes: &Nodes) -> Result<Ring, String> {
+/// The cleaned outer ring of a building/part way, or why it is skipped. `built_by` is sorted;
+/// `refs` are the way's node ids.
+fn way_ring(
+    w: &WayRec,
+    refs: &[i64],
+    built_by: &[(i64, i64)],
+    nodes: &Nodes,
+) -> Result<Ring, String> {
     let first = built_by.partition_point(|(x, _)| *x < w.id);
     if let Some((_, r)) = built_by.get(first).filter(|(x, _)| *x == w.id) {
         return Err(format!(
             "outer ring of multipolygon relation/{r}, which is built instead"
         ));
     }
-    if w.refs.len() < 2 || w.refs.first() != w.refs.last() {
-        return Err(match (w.refs.first(), w.refs.last()) {
-            (Some(a), Some(b)) if w.refs.len() >= 2 => {
+    if refs.len() < 2 || refs.first() != refs.last() {
+        return Err(match (refs.first(), refs.last()) {
+            (Some(a), Some(b)) if refs.len() >= 2 => {
                 format!("unclosed way: first node node/{a}, last node node/{b}")
             }
-            _ => format!("way with {} node(s)", w.refs.len()),
+            _ => format!("way with {} node(s)", refs.len()),
         });
     }
-    let mut outer = resolve(&w.refs, nodes)
-        .map_err(|n| format!("{n} of {} nodes missing from the file", w.refs.len()))?;
+    let mut outer = resolve(refs, nodes)
+        .map_err(|n| format!("{n} of {} nodes missing from the file", refs.len()))?;
     ring::dedup_by(&mut outer, |a, b| a == b);
     if let Some(why) = ring_problem(&outer) {
         return Err(why.to_string());

@@ -77,7 +77,7 @@ pub(super) struct Assembled {
     pub(super) problems: Vec<String>,
 }
 
-pub(super) fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) -> Assembled {
+pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Assembled {
     let mut problems = Vec::new();
     let mut missing_ways = Vec::new();
     let mut missing_nodes = Vec::new();
@@ -93,20 +93,20 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) ->
             continue;
         }
         seen.push(m.way);
-        let Ok(i) = ways.binary_search_by_key(&m.way, |w| w.id) else {
+        let Some(w) = ways.find(m.way) else {
             missing_ways.push(m.way);
             if m.role == Role::Outer {
                 missing_outer += 1;
             }
             continue;
         };
-        let w = &ways[i];
-        match resolve(&w.refs, nodes) {
+        let refs = ways.refs(w);
+        match resolve(refs, nodes) {
             Ok(pts) => {
                 // Drop consecutive duplicate nodes, keeping ids and points in step.
-                let mut ids = Vec::with_capacity(w.refs.len());
+                let mut ids = Vec::with_capacity(refs.len());
                 let mut clean = Vec::with_capacity(pts.len());
-                for (id, p) in w.refs.iter().zip(pts) {
+                for (id, p) in refs.iter().zip(pts) {
                     if ids.last() != Some(id) {
                         ids.push(*id);
                         clean.push(p);
@@ -124,7 +124,7 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &[WayRec], nodes: &Nodes) ->
                 }
             }
             Err(n) => {
-                missing_nodes.push((w.id, n, w.refs.len()));
+                missing_nodes.push((w.id, n, refs.len()));
                 if m.role == Role::Outer {
                     missing_outer += 1;
                 }

@@ -1,5 +1,5 @@
 //! File access: the blob framing of the PBF file, the sweep's peek at each data blob's first
-//! group, and the decoding of the blobs of one kind in parallel batches.
+//! group, and the decoding of the blobs of one kind in parallel.
 
 use super::*;
 
@@ -35,12 +35,12 @@ pub(super) struct BlobLoc {
     pub(super) kind: BlobKind,
 }
 
-/// One framed blob read from the file.
-pub(super) struct Frame {
+/// One framed blob of the file.
+pub(super) struct Frame<'a> {
     pub(super) index: usize,
     pub(super) start: u64,
     /// The whole frame: 4-byte length, BlobHeader, Blob.
-    pub(super) bytes: Vec<u8>,
+    pub(super) bytes: &'a [u8],
     /// Where the Blob message starts in `bytes`.
     pub(super) data: usize,
     /// The header's type: `OSMHeader`, `OSMData` or something else.
@@ -92,8 +92,9 @@ impl Pbf {
         }
     }
 
-    pub(super) fn file(&self) -> Result<File, InputError> {
-        File::open(&self.path).map_err(|source| InputError::Io {
+    /// The whole file, read once: the passes take their blobs from it.
+    pub(super) fn load(&self) -> Result<Vec<u8>, InputError> {
+        std::fs::read(&self.path).map_err(|source| InputError::Io {
             path: self.path.clone(),
             source,
         })
@@ -111,119 +112,105 @@ impl Pbf {
         }
     }
 
-    /// Reads the frame of blob `index` starting at `start`, or `None` at the end of the file.
-    /// Checks the sizes the format allows before allocating.
-    pub(super) fn read_frame(
+    /// The frame of blob `index` starting at `start` in `file`, or `None` at the end of the
+    /// file. Checks the sizes the format allows.
+    pub(super) fn read_frame<'a>(
         &self,
-        r: &mut impl Read,
+        file: &'a [u8],
         index: usize,
-        start: u64,
-    ) -> Result<Option<Frame>, InputError> {
-        let err = |reason: &str| self.framing_error(index, start, reason);
-        let mut len4 = [0u8; 4];
-        let got = read_full(r, &mut len4).map_err(|e| err(&e.to_string()))?;
-        if got == 0 {
+        start: usize,
+    ) -> Result<Option<Frame<'a>>, InputError> {
+        let err = |reason: &str| self.framing_error(index, start as u64, reason);
+        let rest = file.get(start..).unwrap_or_default();
+        if rest.is_empty() {
             return Ok(None);
         }
-        if got < 4 {
+        let Some(len4) = rest.get(..4) else {
             return Err(self.corrupt(
                 index,
-                Some(start),
+                Some(start as u64),
                 format!(
-                    "{got} bytes after the last complete block: the file is truncated or has trailing garbage"
+                    "{} bytes after the last complete block: the file is truncated or has trailing garbage",
+                    rest.len()
                 ),
             ));
-        }
-        let hlen = u32::from_be_bytes(len4) as usize;
+        };
+        let hlen = u32::from_be_bytes([len4[0], len4[1], len4[2], len4[3]]) as usize;
         if hlen > MAX_HEADER {
             return Err(err(&format!(
                 "blob header of {hlen} bytes (at most {MAX_HEADER})"
             )));
         }
-        let mut bytes = vec![0u8; 4 + hlen];
-        bytes[..4].copy_from_slice(&len4);
-        if read_full(r, &mut bytes[4..]).map_err(|e| err(&e.to_string()))? < hlen {
+        let Some(header) = rest.get(4..4 + hlen) else {
             return Err(err("the file ends inside a blob header"));
-        }
-        let (data_blob, size) = parse_blob_header(&bytes[4..])
+        };
+        let (data_blob, size) = parse_blob_header(header)
             .map(|(kind, size)| (kind == b"OSMData", size))
             .ok_or_else(|| err("unreadable blob header"))?;
         if size > MAX_BLOB {
             return Err(err(&format!("blob of {size} bytes (at most {MAX_BLOB})")));
         }
-        let data = bytes.len();
-        bytes.resize(data + size as usize, 0);
-        if read_full(r, &mut bytes[data..]).map_err(|e| err(&e.to_string()))? < size as usize {
+        let data = 4 + hlen;
+        let Some(bytes) = rest.get(..data + size as usize) else {
             return Err(err("the file ends inside a blob"));
-        }
+        };
         Ok(Some(Frame {
             index,
-            start,
+            start: start as u64,
             bytes,
             data,
             data_blob,
         }))
     }
 
-    /// Frames every blob of the file once, checks the header block, and peeks at each data
-    /// blob's first group to tell its kind. Checks the framing: the first blob must be an
-    /// OSMHeader, and the blobs must end exactly at the end of the file.
-    pub(super) fn sweep(&self) -> Result<Vec<BlobLoc>, InputError> {
-        let mut r = BufReader::new(self.file()?);
-        let mut locs = Vec::new();
-        let mut index = 0usize;
-        let mut pos = 0u64;
-        loop {
-            let mut batch = Vec::with_capacity(BATCH);
-            while batch.len() < BATCH {
-                let Some(frame) = self.read_frame(&mut r, index, pos)? else {
-                    break;
-                };
-                pos += frame.bytes.len() as u64;
-                index += 1;
-                batch.push(frame);
-            }
-            if batch.is_empty() {
-                break;
-            }
-            let kinds: Vec<Result<Option<BlobKind>, InputError>> = batch
-                .par_iter()
-                .map(|f| {
-                    if f.data_blob && f.index > 0 {
-                        let kind = catch_unwind(AssertUnwindSafe(|| peek_kind(&f.bytes[f.data..])));
-                        return Ok(Some(kind.unwrap_or(BlobKind::Any)));
-                    }
-                    // The header block, a data block in its place, or an unknown type: fully
-                    // decoded, as osmpbf sees them.
-                    self.decode(f, |_| ()).map(|_| None)
-                })
-                .collect();
-            for (f, k) in batch.iter().zip(kinds) {
-                if let Some(kind) = k? {
-                    locs.push(BlobLoc {
-                        index: f.index,
-                        start: f.start,
-                        len: f.bytes.len(),
-                        kind,
-                    });
-                }
-            }
+    /// Frames every blob of `file` (the whole file) once, checks the header block, and peeks
+    /// at each data blob's first group to tell its kind, in parallel. Checks the framing: the
+    /// first blob must be an OSMHeader, and the blobs must end exactly at the end of the file.
+    pub(super) fn sweep(&self, file: &[u8]) -> Result<Vec<BlobLoc>, InputError> {
+        let mut frames = Vec::new();
+        let mut pos = 0usize;
+        while let Some(frame) = self.read_frame(file, frames.len(), pos)? {
+            pos += frame.bytes.len();
+            frames.push(frame);
         }
-        if index == 0 {
+        if frames.is_empty() {
             return Err(InputError::NotPbf {
                 path: self.path.clone(),
                 reason: "no PBF blocks found".into(),
             });
         }
-        if pos != self.len {
+        if pos as u64 != self.len {
             return Err(self.corrupt(
-                index,
-                Some(pos),
+                frames.len(),
+                Some(pos as u64),
                 format!(
                     "{} bytes after the last complete block: the file is truncated or has trailing garbage",
-                    self.len.saturating_sub(pos)
+                    self.len.saturating_sub(pos as u64)
                 ),
             ));
+        }
+        let kinds: Vec<Result<Option<BlobKind>, InputError>> = frames
+            .par_iter()
+            .map(|f| {
+                if f.data_blob && f.index > 0 {
+                    let kind = catch_unwind(AssertUnwindSafe(|| peek_kind(&f.bytes[f.data..])));
+                    return Ok(Some(kind.unwrap_or(BlobKind::Any)));
+                }
+                // The header block, a data block in its place, or an unknown type: fully
+                // decoded, as osmpbf sees them.
+                self.decode(f, |_| ()).map(|_| None)
+            })
+            .collect();
+        let mut locs = Vec::new();
+        for (f, k) in frames.iter().zip(kinds) {
+            if let Some(kind) = k? {
+                locs.push(BlobLoc {
+                    index: f.index,
+                    start: f.start,
+                    len: f.bytes.len(),
+                    kind,
+                });
+            }
         }
         Ok(locs)
     }
@@ -237,7 +224,7 @@ impl Pbf {
     {
         let i = frame.index;
         let decoded = catch_unwind(AssertUnwindSafe(|| {
-            let blob = match BlobReader::new(frame.bytes.as_slice()).next() {
+            let blob = match BlobReader::new(frame.bytes).next() {
                 Some(Ok(b)) => b,
                 Some(Err(e)) => return Err(e.to_string()),
                 None => return Err("empty blob".to_string()),
@@ -277,13 +264,14 @@ impl Pbf {
         }
     }
 
-    /// Runs `f` on every data block of kind `want` (and every `Any` block), in parallel
-    /// batches, and returns the results in file order, with whether a block held elements of
+    /// Runs `f` on every data block of kind `want` (and every `Any` block) of `file`, in
+    /// parallel, and returns the results in file order, with whether a block held elements of
     /// another kind than the sweep saw (then the caller starts again with every blob `Any`).
     /// `fast` is tried first on each block of kind `want`: the same result from the raw frame
     /// ([`wire`]), or `None` to leave the block to osmpbf and `f`.
     pub(super) fn pass<T, F, G>(
         &self,
+        file: &[u8],
         locs: &[BlobLoc],
         want: BlobKind,
         fast: G,
@@ -294,73 +282,50 @@ impl Pbf {
         F: Fn(&PrimitiveBlock) -> T + Sync,
         G: Fn(&Frame, &mut Scratch) -> Option<T> + Sync,
     {
-        let mut file = self.file()?;
-        let mut out = Vec::new();
-        let mut mixed = false;
         let wanted: Vec<&BlobLoc> = locs
             .iter()
             .filter(|l| l.kind == want || l.kind == BlobKind::Any)
             .collect();
-        for chunk in wanted.chunks(BATCH) {
-            let mut batch = Vec::with_capacity(chunk.len());
-            for l in chunk {
-                let mut bytes = vec![0u8; l.len];
-                file.seek(SeekFrom::Start(l.start))
-                    .and_then(|_| file.read_exact(&mut bytes))
-                    .map_err(|e| self.corrupt(l.index, Some(l.start), e.to_string()))?;
-                batch.push((
-                    l.kind,
-                    Frame {
-                        index: l.index,
-                        start: l.start,
-                        data: 0,
-                        bytes,
-                        data_blob: true,
-                    },
-                ));
-            }
-            let results: Vec<Result<Option<(T, bool)>, InputError>> = batch
-                .par_iter()
-                .map_init(Scratch::default, |scratch, (kind, frame)| {
-                    if *kind == want {
-                        let v = catch_unwind(AssertUnwindSafe(|| fast(frame, scratch)));
-                        if let Ok(Some(v)) = v {
-                            return Ok(Some((v, false)));
-                        }
-                        // A panic (never expected) leaves the inflater in an unknown state.
-                        if v.is_err() {
-                            *scratch = Scratch::default();
-                        }
+        let results: Vec<Result<Option<(T, bool)>, InputError>> = wanted
+            .par_iter()
+            .map_init(Scratch::default, |scratch, l| {
+                let bytes = usize::try_from(l.start)
+                    .ok()
+                    .and_then(|s| file.get(s..s.checked_add(l.len)?))
+                    .ok_or_else(|| self.corrupt(l.index, Some(l.start), "blob out of the file"))?;
+                let frame = Frame {
+                    index: l.index,
+                    start: l.start,
+                    data: 0,
+                    bytes,
+                    data_blob: true,
+                };
+                if l.kind == want {
+                    let v = catch_unwind(AssertUnwindSafe(|| fast(&frame, scratch)));
+                    if let Ok(Some(v)) = v {
+                        return Ok(Some((v, false)));
                     }
-                    self.decode(frame, |block| {
-                        let foreign = *kind != BlobKind::Any && holds_other_than(block, want);
-                        (f(block), foreign)
-                    })
-                })
-                .collect();
-            for r in results {
-                if let Some((v, foreign)) = r? {
-                    mixed |= foreign;
-                    out.push(v);
+                    // A panic (never expected) leaves the inflater in an unknown state.
+                    if v.is_err() {
+                        *scratch = Scratch::default();
+                    }
                 }
+                self.decode(&frame, |block| {
+                    let foreign = l.kind != BlobKind::Any && holds_other_than(block, want);
+                    (f(block), foreign)
+                })
+            })
+            .collect();
+        let mut out = Vec::with_capacity(results.len());
+        let mut mixed = false;
+        for r in results {
+            if let Some((v, foreign)) = r? {
+                mixed |= foreign;
+                out.push(v);
             }
         }
         Ok((out, mixed))
     }
-}
-
-/// Reads until `buf` is full or the end of the input; returns the bytes read.
-pub(super) fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while n < buf.len() {
-        match r.read(&mut buf[n..]) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(n)
 }
 
 /// Whether a block holds elements of another kind than `want`.
@@ -459,33 +424,33 @@ pub(super) fn peek_kind(blob: &[u8]) -> BlobKind {
     let Some(z) = zlib else {
         return BlobKind::Any;
     };
-    let mut inflater = flate2::Decompress::new(true);
-    let mut buf: Vec<u8> = Vec::with_capacity(16 * 1024);
+    // Inflated in small steps into a buffer that grows (miniz_oxide's core decoder stops when
+    // the buffer is full, where a stream inflater decodes 32 KiB at a time): a block of nodes
+    // tells its kind within its first hundred bytes.
+    use miniz_oxide::inflate::core::{decompress, inflate_flags, DecompressorOxide};
+    use miniz_oxide::inflate::TINFLStatus;
+    let flags = inflate_flags::TINFL_FLAG_PARSE_ZLIB_HEADER
+        | inflate_flags::TINFL_FLAG_USING_NON_WRAPPING_OUTPUT_BUF
+        | inflate_flags::TINFL_FLAG_IGNORE_ADLER32;
+    let mut inflater = Box::<DecompressorOxide>::default();
+    let mut buf = vec![0u8; 1024];
+    let (mut read, mut written) = (0usize, 0usize);
     loop {
-        if buf.len() == buf.capacity() {
-            if buf.len() as u64 >= MAX_BLOB {
-                return BlobKind::Any;
-            }
-            buf.reserve(buf.len());
-        }
-        let consumed = usize::try_from(inflater.total_in()).unwrap_or(usize::MAX);
-        let Some(input) = z.get(consumed..) else {
+        let Some(input) = z.get(read..) else {
             return BlobKind::Any;
         };
-        let before = buf.len();
-        let status = match inflater.decompress_vec(input, &mut buf, flate2::FlushDecompress::None) {
-            Ok(s) => s,
-            Err(_) => return BlobKind::Any,
-        };
-        let done = status == flate2::Status::StreamEnd;
-        if let Some(kind) = first_group_kind(&buf, done) {
+        let (status, r, w) = decompress(&mut inflater, input, &mut buf, written, flags);
+        read += r;
+        written += w;
+        let done = status == TINFLStatus::Done;
+        if let Some(kind) = first_group_kind(&buf[..written], done) {
             return kind;
         }
-        let stuck = buf.len() == before
-            && usize::try_from(inflater.total_in()).unwrap_or(usize::MAX) == consumed;
-        if done || stuck {
+        if status != TINFLStatus::HasMoreOutput || buf.len() as u64 >= MAX_BLOB {
             return BlobKind::Any;
         }
+        let more = buf.len() * 2;
+        buf.resize(more, 0);
     }
 }
 

@@ -41,7 +41,11 @@ pub(super) struct RelRec {
 #[derive(Clone, Debug)]
 pub(super) struct WayRec {
     pub(super) id: i64,
-    pub(super) refs: Vec<i64>,
+    /// Its node ids: `refs[start..end]` of its block (see [`Ways`]); `block` is set when the
+    /// blocks are merged.
+    pub(super) block: u32,
+    pub(super) start: u32,
+    pub(super) end: u32,
     /// `Some` for a building or part way.
     pub(super) kind: Option<FootprintKind>,
     /// Parsed tags of building/part ways only, parsed in the parallel pass; taken (moved into
@@ -49,6 +53,93 @@ pub(super) struct WayRec {
     pub(super) tags: Option<SharedTags>,
     /// Whether the way is a street (see [`STREET_KINDS`]).
     pub(super) street: bool,
+}
+
+/// The ways one block keeps, their node ids in one list (no allocation per way).
+#[derive(Default)]
+pub(super) struct WayBlock {
+    pub(super) ways: Vec<WayRec>,
+    pub(super) refs: Vec<i64>,
+}
+
+impl WayBlock {
+    /// Adds a way whose node ids were just pushed onto `refs` from `start` on.
+    pub(super) fn push(&mut self, mut w: WayRec, start: usize) {
+        // A block is at most `MAX_BLOB` bytes, at least one byte a node id: far below u32::MAX.
+        w.start = start as u32;
+        w.end = self.refs.len() as u32;
+        self.ways.push(w);
+    }
+
+    /// The node ids of the block's ways, sorted, without duplicates. The ids of a block mostly
+    /// come ascending (way after way, but for each closed way's last node, its first again):
+    /// they are taken in one run, and only the few that step back are sorted and merged in.
+    pub(super) fn needed(&self) -> Vec<i64> {
+        let mut run = Vec::with_capacity(self.refs.len());
+        let mut back = Vec::new();
+        for w in &self.ways {
+            let refs = &self.refs[w.start as usize..w.end as usize];
+            for (i, &r) in refs.iter().enumerate() {
+                match run.last() {
+                    Some(&l) if r <= l => {
+                        if r != l && (i == 0 || r != refs[0]) {
+                            back.push(r);
+                        }
+                    }
+                    _ => run.push(r),
+                }
+            }
+        }
+        if back.is_empty() {
+            return run;
+        }
+        back.sort_unstable();
+        back.dedup();
+        let mut out = Vec::with_capacity(run.len() + back.len());
+        merge_into(&mut out, &run, &back);
+        out
+    }
+
+    /// The node ids of `w`, a way of this block.
+    #[cfg(test)]
+    pub(super) fn refs_of(&self, w: &WayRec) -> &[i64] {
+        &self.refs[w.start as usize..w.end as usize]
+    }
+}
+
+/// The ways of all blocks, sorted by id; their node ids stay in their blocks' lists.
+pub(super) struct Ways {
+    pub(super) recs: Vec<WayRec>,
+    refs: Vec<Vec<i64>>,
+}
+
+impl Ways {
+    /// Merges the blocks' ways in file order, then sorts them by id (stable: the first of
+    /// duplicates stays first).
+    pub(super) fn from_blocks(blocks: Vec<WayBlock>) -> Ways {
+        let mut recs = Vec::with_capacity(blocks.iter().map(|b| b.ways.len()).sum());
+        let mut refs = Vec::with_capacity(blocks.len());
+        for (i, b) in blocks.into_iter().enumerate() {
+            recs.extend(b.ways.into_iter().map(|mut w| {
+                w.block = i as u32;
+                w
+            }));
+            refs.push(b.refs);
+        }
+        recs.sort_by_key(|w| w.id);
+        Ways { recs, refs }
+    }
+
+    /// The node ids of `w`, one of `recs`.
+    pub(super) fn refs(&self, w: &WayRec) -> &[i64] {
+        &self.refs[w.block as usize][w.start as usize..w.end as usize]
+    }
+
+    /// The way with id `id`.
+    pub(super) fn find(&self, id: i64) -> Option<&WayRec> {
+        let i = self.recs.binary_search_by_key(&id, |w| w.id).ok()?;
+        Some(&self.recs[i])
+    }
 }
 
 /// Coordinates of the needed nodes: `coords[i]` belongs to `ids[i]`.
@@ -75,7 +166,12 @@ pub(super) const EXACT: i32 = i32::MAX;
 
 impl Nodes {
     pub(super) fn new(ids: Vec<i64>) -> Nodes {
-        let coords = vec![[MISSING; 2]; ids.len()];
+        // Written in parallel: the first touch of the pages is most of the cost.
+        let mut coords = Vec::new();
+        (0..ids.len())
+            .into_par_iter()
+            .map(|_| [MISSING; 2])
+            .collect_into_vec(&mut coords);
         Nodes {
             fences: ids.iter().step_by(FENCE).copied().collect(),
             ids,
@@ -84,21 +180,50 @@ impl Nodes {
         }
     }
 
-    /// Sets node `i` from nanodegrees (as osmpbf gives them).
-    pub(super) fn set(&mut self, i: usize, nano_lon: i64, nano_lat: i64) {
-        let small = |n: i64| {
-            (n % 100 == 0)
-                .then_some(n / 100)
-                .and_then(|d| i32::try_from(d).ok())
-                .filter(|d| *d != MISSING && *d != EXACT)
-        };
-        match (small(nano_lon), small(nano_lat)) {
-            (Some(x), Some(y)) => self.coords[i] = [x, y],
-            _ => self.set_exact(i, degrees(nano_lon), degrees(nano_lat)),
-        }
+    /// Sets the nodes the blocks found, as setting them one by one in file order would (the
+    /// last coordinate of a node found twice stays), in parallel over ranges of indices. Each
+    /// block's nodes are sorted by index, stably ([`Found::sort`]); the blocks are in file
+    /// order.
+    pub(super) fn fill(&mut self, found: &[Found]) {
+        const CHUNK: usize = 1 << 16;
+        let exact: Vec<Vec<(usize, f64, f64)>> = self
+            .coords
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, coords)| {
+                let base = c * CHUNK;
+                let end = base + coords.len();
+                let mut exact = Vec::new();
+                for b in found {
+                    match b {
+                        Found::Small(v) => {
+                            let lo = v.partition_point(|e| (e.0 as usize) < base);
+                            for &(i, c) in v[lo..].iter().take_while(|e| (e.0 as usize) < end) {
+                                coords[i as usize - base] = c;
+                            }
+                        }
+                        Found::Wide(v) => {
+                            let lo = v.partition_point(|e| e.0 < base);
+                            for &(i, lon, lat) in v[lo..].iter().take_while(|e| e.0 < end) {
+                                match (small(lon), small(lat)) {
+                                    (Some(x), Some(y)) => coords[i - base] = [x, y],
+                                    _ => {
+                                        coords[i - base] = [EXACT; 2];
+                                        exact.push((i, degrees(lon), degrees(lat)));
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                exact
+            })
+            .collect();
+        self.exact.extend(exact.into_iter().flatten());
     }
 
     /// Sets node `i` to exact degrees.
+    #[cfg(test)]
     pub(super) fn set_exact(&mut self, i: usize, lon: f64, lat: f64) {
         self.coords[i] = [EXACT; 2];
         self.exact.push((i, lon, lat));
@@ -172,6 +297,66 @@ impl Nodes {
             [x, y] => Some((degrees(i64::from(x) * 100), degrees(i64::from(y) * 100))),
         }
     }
+}
+
+/// The needed nodes one block holds, in file order: (index in the needed ids, lon, lat).
+/// Compact (12 bytes a node) while every index fits a u32 and every coordinate is a whole
+/// number of 1e-7 degrees, as [`Nodes`] keeps it; else as found (nanodegrees).
+#[derive(Debug, PartialEq)]
+pub(super) enum Found {
+    Small(Vec<(u32, [i32; 2])>),
+    Wide(Vec<(usize, i64, i64)>),
+}
+
+impl Default for Found {
+    fn default() -> Self {
+        Found::Small(Vec::new())
+    }
+}
+
+impl Found {
+    /// Adds node `j` of the needed ids at nanodegrees (as osmpbf gives them).
+    #[inline]
+    pub(super) fn push(&mut self, j: usize, nano_lon: i64, nano_lat: i64) {
+        if let Found::Small(v) = self {
+            if let (Ok(i), Some(x), Some(y)) = (u32::try_from(j), small(nano_lon), small(nano_lat))
+            {
+                v.push((i, [x, y]));
+                return;
+            }
+            let wide = v
+                .iter()
+                .map(|&(i, [x, y])| (i as usize, i64::from(x) * 100, i64::from(y) * 100))
+                .collect();
+            *self = Found::Wide(wide);
+        }
+        if let Found::Wide(v) = self {
+            v.push((j, nano_lon, nano_lat));
+        }
+    }
+
+    pub(super) fn reserve(&mut self, n: usize) {
+        match self {
+            Found::Small(v) => v.reserve(n),
+            Found::Wide(v) => v.reserve(n),
+        }
+    }
+
+    /// Sorts the nodes by index, stably (a node found twice keeps its file order).
+    pub(super) fn sort(&mut self) {
+        match self {
+            Found::Small(v) => v.sort_by_key(|e| e.0),
+            Found::Wide(v) => v.sort_by_key(|e| e.0),
+        }
+    }
+}
+
+/// A coordinate in nanodegrees as the 1e-7 degree integer [`Nodes`] keeps, if it is one.
+fn small(n: i64) -> Option<i32> {
+    (n % 100 == 0)
+        .then_some(n / 100)
+        .and_then(|d| i32::try_from(d).ok())
+        .filter(|d| *d != MISSING && *d != EXACT)
 }
 
 /// Degrees from nanodegrees, computed as osmpbf's `lat()`/`lon()` do.
@@ -265,8 +450,8 @@ pub(super) fn ways_of_block(
     block: &PrimitiveBlock,
     member_ways: &[i64],
     interner: &TagInterner,
-) -> Vec<WayRec> {
-    let mut out = Vec::new();
+) -> WayBlock {
+    let mut out = WayBlock::default();
     for group in block.groups() {
         for way in group.ways() {
             let kind = kind_of(way.tags());
@@ -275,36 +460,66 @@ pub(super) fn ways_of_block(
             if kind.is_none() && !member && !street {
                 continue;
             }
-            out.push(WayRec {
-                id: way.id(),
-                refs: way.refs().collect(),
-                kind,
-                tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(way.tags()))),
-                street,
-            });
+            let start = out.refs.len();
+            out.refs.extend(way.refs());
+            out.push(
+                WayRec {
+                    id: way.id(),
+                    block: 0,
+                    start: 0,
+                    end: 0,
+                    kind,
+                    tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(way.tags()))),
+                    street,
+                },
+                start,
+            );
         }
     }
     out
 }
 
-/// The needed nodes of a block as (index in `needed`, nanodegrees lon, lat). Node ids in a
-/// block are usually ascending, so the index is found by walking forward (binary search only
-/// for the first node and after a step back).
-pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Vec<(usize, i64, i64)> {
-    let mut out = Vec::new();
-    let mut j = 0usize;
-    let mut last = i64::MAX;
-    let mut visit = |id: i64, lon: i64, lat: i64| {
-        if id < last {
-            j = needed.partition_point(|&x| x < id);
+/// Finds a block's node ids in the sorted list of needed ids. Node ids in a block are usually
+/// ascending, so the index is found by walking forward (binary search only for the first node
+/// and after a step back).
+pub(super) struct NeededCursor<'a> {
+    needed: &'a [i64],
+    j: usize,
+    last: i64,
+}
+
+impl<'a> NeededCursor<'a> {
+    pub(super) fn new(needed: &'a [i64]) -> Self {
+        NeededCursor {
+            needed,
+            j: 0,
+            last: i64::MAX,
+        }
+    }
+
+    /// The index of `id` in the needed list, if it is needed.
+    #[inline]
+    pub(super) fn find(&mut self, id: i64) -> Option<usize> {
+        let needed = self.needed;
+        if id < self.last {
+            self.j = needed.partition_point(|&x| x < id);
         } else {
-            while j < needed.len() && needed[j] < id {
-                j += 1;
+            while self.j < needed.len() && needed[self.j] < id {
+                self.j += 1;
             }
         }
-        last = id;
-        if needed.get(j) == Some(&id) {
-            out.push((j, lon, lat));
+        self.last = id;
+        (needed.get(self.j) == Some(&id)).then_some(self.j)
+    }
+}
+
+/// The needed nodes of a block.
+pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Found {
+    let mut out = Found::default();
+    let mut cursor = NeededCursor::new(needed);
+    let mut visit = |id: i64, lon: i64, lat: i64| {
+        if let Some(j) = cursor.find(id) {
+            out.push(j, lon, lat);
         }
     };
     for g in block.groups() {

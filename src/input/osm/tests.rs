@@ -30,23 +30,69 @@ fn n(x: i64, y: i64) -> i64 {
 
 /// [`assemble`] with an interner of its own.
 fn assemble_fresh(
-    ways: &mut [WayRec],
+    ways: &mut Vec<WayBlock>,
     rels: &[RelRec],
     nodes: &Nodes,
     report: &mut Report,
 ) -> ReadResult {
-    assemble(ways, rels, nodes, &TagInterner::default(), report)
+    let mut ways = Ways::from_blocks(std::mem::take(ways));
+    assemble(&mut ways, rels, nodes, &TagInterner::default(), report)
 }
 
-fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayRec {
+#[test]
+fn needed_ids_are_the_sorted_union() {
+    let cases: Vec<Vec<Vec<i64>>> = vec![
+        vec![],
+        vec![vec![], vec![1, 2], vec![], vec![3]],
+        vec![vec![1, 5, 9], vec![2, 5, 10, 11], vec![12], vec![0, 11, 13]],
+        vec![vec![4, 5, 6, 4], vec![7, 8, 9, 7], vec![6, 10, 3, 6, 10]],
+        // Runs out of order: the merge falls back to a sort.
+        (0..50).map(|i| ((50 - i)..(60 - i)).collect()).collect(),
+    ];
+    for runs in cases {
+        let mut want = runs.concat();
+        want.sort_unstable();
+        want.dedup();
+        // As one block's ways.
+        let mut block = WayBlock::default();
+        for (i, r) in runs.iter().enumerate() {
+            let start = block.refs.len();
+            block.refs.extend(r);
+            let w = way(i as i64, Vec::new(), &[]).ways.remove(0);
+            block.push(w, start);
+        }
+        assert_eq!(block.needed(), want);
+        // As sorted runs of blocks.
+        let runs = runs
+            .into_iter()
+            .map(|mut r| {
+                r.sort_unstable();
+                r.dedup();
+                r
+            })
+            .collect();
+        assert_eq!(merge_runs(runs), want);
+    }
+}
+
+/// A block of one way.
+fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayBlock {
     let kind = kind_of(tags.iter().copied());
-    WayRec {
-        id,
+    let mut b = WayBlock {
         refs,
+        ..WayBlock::default()
+    };
+    let w = WayRec {
+        id,
+        block: 0,
+        start: 0,
+        end: 0,
         kind,
         street: is_street(tags.iter().copied()),
         tags: kind.map(|_| std::sync::Arc::new(BuildingTags::from_pairs(tags.iter().copied()))),
-    }
+    };
+    b.push(w, 0);
+    b
 }
 
 fn rel(id: i64, kind: RelKind, members: &[(i64, Role)], tags: &[(&str, &str)]) -> RelRec {
@@ -263,9 +309,7 @@ fn streets_keep_runs_of_known_nodes_in_way_order() {
         ),
         way(2, vec![n(0, 4), n(4, 4)], &[("highway", "primary")]),
     ];
-    let mut ways = ways;
-    ways.sort_by_key(|w| w.id);
-    let s = streets_of(&ways, &nodes);
+    let s = streets_of(&Ways::from_blocks(ways), &nodes);
     let lines: Vec<&[(f64, f64)]> = s.lines().collect();
     assert_eq!(s.len(), 2);
     assert_eq!(lines[0], &[(0.0, 4.0), (4.0, 4.0)][..]);
@@ -622,14 +666,12 @@ type Blocks = Vec<(BlobKind, Vec<u8>)>;
 /// The inflated data blocks of Monaco with the kind the sweep saw.
 fn monaco_blocks() -> Blocks {
     let pbf = Pbf::open(&monaco()).unwrap();
-    let locs = pbf.sweep().unwrap();
-    let mut file = pbf.file().unwrap();
+    let file = pbf.load().unwrap();
+    let locs = pbf.sweep(&file).unwrap();
     locs.iter()
         .map(|l| {
-            let mut bytes = vec![0u8; l.len];
-            file.seek(SeekFrom::Start(l.start)).unwrap();
-            file.read_exact(&mut bytes).unwrap();
-            let frame = frame_of(l.index, bytes);
+            let start = l.start as usize;
+            let frame = frame_of(l.index, &file[start..start + l.len]);
             let mut scratch = Scratch::default();
             let block = inflated(&frame, &mut scratch)
                 .expect("a zlib data blob")
@@ -639,8 +681,8 @@ fn monaco_blocks() -> Blocks {
         .collect()
 }
 
-/// A data frame holding `block` uncompressed.
-fn raw_frame(block: &[u8]) -> Frame {
+/// The bytes of a data frame holding `block` uncompressed (see [`frame_of`]).
+fn raw_frame(block: &[u8]) -> Vec<u8> {
     fn varint_to(out: &mut Vec<u8>, mut v: u64) {
         while v >= 0x80 {
             out.push(v as u8 | 0x80);
@@ -658,10 +700,10 @@ fn raw_frame(block: &[u8]) -> Frame {
     let mut bytes = (header.len() as u32).to_be_bytes().to_vec();
     bytes.extend_from_slice(&header);
     bytes.extend_from_slice(&blob);
-    frame_of(1, bytes)
+    bytes
 }
 
-fn frame_of(index: usize, bytes: Vec<u8>) -> Frame {
+fn frame_of(index: usize, bytes: &[u8]) -> Frame<'_> {
     Frame {
         index,
         start: 0,
@@ -680,9 +722,19 @@ type WayView = (
     Option<BuildingTags>,
 );
 
-fn way_view(ways: Vec<WayRec>) -> Vec<WayView> {
-    ways.into_iter()
-        .map(|w| (w.id, w.refs, w.kind, w.street, w.tags.map(|t| (*t).clone())))
+fn way_view(b: WayBlock) -> Vec<WayView> {
+    b.ways
+        .iter()
+        .map(|w| {
+            let refs = b.refs_of(w).to_vec();
+            (
+                w.id,
+                refs,
+                w.kind,
+                w.street,
+                w.tags.clone().map(|t| (*t).clone()),
+            )
+        })
         .collect()
 }
 
@@ -738,7 +790,7 @@ fn some_node_ids(blocks: &[(BlobKind, Vec<u8>)]) -> Vec<i64> {
         .iter()
         .filter(|(k, _)| *k == BlobKind::Nodes)
         .flat_map(|(_, b)| {
-            pbf.decode(&raw_frame(b), |b| {
+            pbf.decode(&frame_of(1, &raw_frame(b)), |b| {
                 b.groups()
                     .flat_map(|g| g.dense_nodes().map(|n| n.id()).collect::<Vec<_>>())
                     .collect::<Vec<_>>()
@@ -761,7 +813,11 @@ fn direct_decoding_matches_osmpbf() {
         if *kind == BlobKind::Relations {
             continue;
         }
-        assert!(same_as_osmpbf(&raw_frame(block), *kind, &needed));
+        assert!(same_as_osmpbf(
+            &frame_of(1, &raw_frame(block)),
+            *kind,
+            &needed
+        ));
         seen[usize::from(*kind == BlobKind::Ways)] += 1;
     }
     assert!(seen[0] > 0 && seen[1] > 0, "{seen:?}");
@@ -772,7 +828,11 @@ fn direct_decoding_matches_osmpbf() {
         } else {
             BlobKind::Ways
         };
-        assert!(!same_as_osmpbf(&raw_frame(block), other, &needed));
+        assert!(!same_as_osmpbf(
+            &frame_of(1, &raw_frame(block)),
+            other,
+            &needed
+        ));
     }
 }
 
@@ -796,6 +856,6 @@ proptest::proptest! {
         for (at, byte) in edits {
             b[at % n] = byte;
         }
-        same_as_osmpbf(&raw_frame(&b), *kind, needed);
+        same_as_osmpbf(&frame_of(1, &raw_frame(&b)), *kind, needed);
     }
 }

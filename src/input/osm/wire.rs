@@ -341,12 +341,15 @@ pub(super) fn fast_ways(
     scratch: &mut Scratch,
     member_ways: &[i64],
     interner: &TagInterner,
-) -> Option<Vec<WayRec>> {
+) -> Option<WayBlock> {
     let bytes = inflated(frame, scratch)?;
     let block = Block::parse(bytes)?;
-    let mut out = Vec::new();
+    let mut out = WayBlock::default();
     let mut tags: Vec<(&str, &str)> = Vec::new();
     let mut known: Vec<(&str, &str)> = Vec::new();
+    type TagsGive = (Option<FootprintKind>, bool, Option<SharedTags>);
+    let mut seen: std::collections::HashMap<(&[u8], &[u8]), TagsGive> =
+        std::collections::HashMap::new();
     for g in &block.groups {
         for f in fields(g) {
             let Value::Bytes(w) = (match f.ok()? {
@@ -376,47 +379,61 @@ pub(super) fn fast_ways(
                 vals.unwrap_or_default(),
                 refs.unwrap_or_default(),
             );
-            if !check_packed(keys, Packed::U32)
-                || !check_packed(vals, Packed::U32)
-                || !check_packed(refs, Packed::Any64)
-            {
-                return None;
-            }
-            // osmpbf's tag iterator: pairs until either list ends or a string is unusable.
-            tags.clear();
-            let (mut kp, mut vp) = (0, 0);
-            while let (Ok(Some(k)), Ok(Some(v))) =
-                (next_u32(keys, &mut kp), next_u32(vals, &mut vp))
-            {
-                match (block.string(k), block.string(v)) {
-                    (Some(k), Some(v)) => tags.push((k, v)),
-                    _ => break,
+            // What the tags give depends only on their bytes: worked out once per tag set of
+            // the block (most ways of a block share a few).
+            let (kind, street, shared) = match seen.get(&(keys, vals)) {
+                Some(v) => v.clone(),
+                None => {
+                    if !check_packed(keys, Packed::U32) || !check_packed(vals, Packed::U32) {
+                        return None;
+                    }
+                    // osmpbf's tag iterator: pairs until either list ends or a string is
+                    // unusable.
+                    tags.clear();
+                    let (mut kp, mut vp) = (0, 0);
+                    while let (Ok(Some(k)), Ok(Some(v))) =
+                        (next_u32(keys, &mut kp), next_u32(vals, &mut vp))
+                    {
+                        match (block.string(k), block.string(v)) {
+                            (Some(k), Some(v)) => tags.push((k, v)),
+                            _ => break,
+                        }
+                    }
+                    let kind = kind_of(tags.iter().copied());
+                    let street = is_street(tags.iter().copied());
+                    let shared = kind.map(|_| {
+                        known.clear();
+                        known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
+                        interner.intern_pairs(&known)
+                    });
+                    seen.insert((keys, vals), (kind, street, shared.clone()));
+                    (kind, street, shared)
                 }
-            }
-            let kind = kind_of(tags.iter().copied());
+            };
             let member = member_ways.binary_search(&id).is_ok();
-            let street = is_street(tags.iter().copied());
             if kind.is_none() && !member && !street {
+                if !check_packed(refs, Packed::Any64) {
+                    return None;
+                }
                 continue;
             }
-            let n = refs.iter().filter(|&&b| b < 0x80).count();
-            let mut nodes = Vec::with_capacity(n);
+            // Decoding the node ids checks them too.
+            let start = out.refs.len();
             let (mut pos, mut current) = (0, 0i64);
             while pos < refs.len() {
                 current = current.wrapping_add(zigzag(varint(refs, &mut pos)?));
-                nodes.push(current);
+                out.refs.push(current);
             }
-            out.push(WayRec {
+            let w = WayRec {
                 id,
-                refs: nodes,
+                block: 0,
+                start: 0,
+                end: 0,
                 kind,
-                tags: kind.map(|_| {
-                    known.clear();
-                    known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
-                    interner.intern_pairs(&known)
-                }),
+                tags: shared,
                 street,
-            });
+            };
+            out.push(w, start);
         }
     }
     Some(out)
@@ -424,32 +441,19 @@ pub(super) fn fast_ways(
 
 /// The needed nodes of a block of nodes (see [`nodes_of_block`]), or `None` for osmpbf to
 /// decode it.
-pub(super) fn fast_nodes(
-    frame: &Frame,
-    scratch: &mut Scratch,
-    needed: &[i64],
-) -> Option<Vec<(usize, i64, i64)>> {
+pub(super) fn fast_nodes(frame: &Frame, scratch: &mut Scratch, needed: &[i64]) -> Option<Found> {
     let bytes = inflated(frame, scratch)?;
     let block = Block::parse(bytes)?;
-    let mut out = Vec::new();
-    let mut j = 0usize;
-    let mut last = i64::MAX;
+    let mut out = Found::default();
+    let mut cursor = NeededCursor::new(needed);
     let (g, lat0, lon0) = (block.granularity, block.lat_offset, block.lon_offset);
-    let mut visit = |out: &mut Vec<(usize, i64, i64)>, id: i64, lat: i64, lon: i64| {
-        if id < last {
-            j = needed.partition_point(|&x| x < id);
-        } else {
-            while j < needed.len() && needed[j] < id {
-                j += 1;
-            }
-        }
-        last = id;
-        if needed.get(j) == Some(&id) {
-            out.push((
+    let mut visit = |out: &mut Found, id: i64, lat: i64, lon: i64| {
+        if let Some(j) = cursor.find(id) {
+            out.push(
                 j,
                 lon0.wrapping_add(g.wrapping_mul(lon)),
                 lat0.wrapping_add(g.wrapping_mul(lat)),
-            ));
+            );
         }
     };
     let mut plain: Vec<&[u8]> = Vec::new();
@@ -482,13 +486,8 @@ pub(super) fn fast_nodes(
                 lats.unwrap_or_default(),
                 lons.unwrap_or_default(),
             );
-            if !check_packed(ids, Packed::Any64)
-                || !check_packed(lats, Packed::Any64)
-                || !check_packed(lons, Packed::Any64)
-            {
-                return None;
-            }
             out.reserve(ids.iter().filter(|&&b| b < 0x80).count());
+            // Decoding checks the arrays as it goes; what is left of the longer ones after.
             let (mut pi, mut pa, mut po) = (0, 0, 0);
             let (mut id, mut lat, mut lon) = (0i64, 0i64, 0i64);
             while pi < ids.len() && pa < lats.len() && po < lons.len() {
@@ -496,6 +495,12 @@ pub(super) fn fast_nodes(
                 lat = lat.wrapping_add(zigzag(varint(lats, &mut pa)?));
                 lon = lon.wrapping_add(zigzag(varint(lons, &mut po)?));
                 visit(&mut out, id, lat, lon);
+            }
+            if !check_packed(&ids[pi..], Packed::Any64)
+                || !check_packed(&lats[pa..], Packed::Any64)
+                || !check_packed(&lons[po..], Packed::Any64)
+            {
+                return None;
             }
         }
         for n in &plain {
