@@ -231,6 +231,9 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         ..opts.caps
     };
     let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
+    if matches!(generator.rules, Rules::Kb) {
+        generator.load_selex().map_err(RunError::Input)?;
+    }
     if opts.lod >= Lod::Lod3 {
         // Party walls: every building the run writes, and those that touch one, at LOD2 first.
         let keep = match opts.bbox {

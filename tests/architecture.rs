@@ -37,7 +37,9 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("selex", &["grammar", "geometry", "rng", "color"]),
     (
         "kb",
-        &["grammar", "input", "model", "rng", "geometry", "color"],
+        &[
+            "grammar", "selex", "input", "model", "rng", "geometry", "color",
+        ],
     ),
     // One lot to one building.
     (

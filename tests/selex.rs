@@ -108,3 +108,127 @@ fn the_seeds_facade_rules_run_on_every_facade_of_real_monaco_buildings() {
         "no facade too narrow or too odd for the rules?"
     );
 }
+
+/// A knowledge base whose Monaco-Ville appearance names `selex` (or none).
+fn rock_kb(dir: &std::path::Path, selex: bool) -> std::path::PathBuf {
+    std::fs::write(
+        dir.join("rock.slx"),
+        r#"# Monaco-Ville: bays of about 2.6 m, a door in the first bay towards the street,
+# windows of 1.1 x 1.6 m centred in every bay of the upper storeys, framed.
+{< descendant() [label == "facade"] > -> createStoreyGrid("g", 2.6)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [rowIdx == 1] [colIdx == 1] > -> addFacade("door")};
+{< descendant() [label == "facade"] / [label == "g"] / [rowIdx > 1] > -> addShape("window", 1.1, 1.6)};
+"#,
+    )
+    .unwrap();
+    let kb = dir.join(if selex { "kb.xml" } else { "plain.xml" });
+    std::fs::write(
+        &kb,
+        format!(
+            r##"<earth>
+  <country designation="Monaco">
+    <info lat="43.7384" lon="7.4246" dist="3" nbfloor="4"/>
+    <town designation="Monaco-Ville">
+      <info lat="43.7308" lon="7.4206" dist="0.5" nbfloor="4"/>
+      <appearance>
+        <values bdRooftype="hipped" color="#d8a05a" roofColor="#c0653f" floorsize="3" minFloors="3" maxFloors="5"/>
+        {}
+      </appearance>
+    </town>
+  </country>
+</earth>
+"##,
+            if selex { r#"<selex file="rock.slx"/>"# } else { "" }
+        ),
+    )
+    .unwrap();
+    kb
+}
+
+#[test]
+fn a_kb_appearance_with_selex_lays_out_the_facades_of_its_district() {
+    let dir = tempfile::tempdir().unwrap();
+    let bbox = "7.4180,43.7290,7.4240,43.7330";
+    let run = |kb: &std::path::Path, tag: &str| {
+        let out = |ext: &str| dir.path().join(format!("{tag}.{ext}"));
+        let o = citygen(&[
+            "--osm",
+            MONACO,
+            "--kb",
+            kb.to_str().unwrap(),
+            "--lod",
+            "3",
+            "--bbox",
+            bbox,
+            "--ifc",
+            out("ifc").to_str().unwrap(),
+            "--citygml",
+            out("gml").to_str().unwrap(),
+            "--gltf",
+            out("glb").to_str().unwrap(),
+            "--report",
+            out("json").to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            std::fs::read_to_string(out("gml")).unwrap(),
+            std::fs::read_to_string(out("json")).unwrap(),
+            [out("ifc"), out("gml"), out("glb")],
+        )
+    };
+    let (with, report, files) = run(&rock_kb(dir.path(), true), "selex");
+    let (without, _, _) = run(&rock_kb(dir.path(), false), "rules");
+    let count = |gml: &str, what: &str| gml.matches(what).count();
+    let (doors, windows) = (count(&with, "<bldg:Door"), count(&with, "<bldg:Window"));
+    eprintln!("SELEX district: {doors} doors, {windows} windows");
+    assert!(doors > 10, "{doors} doors");
+    assert!(windows > 100, "{windows} windows");
+    assert_ne!(
+        (doors, windows),
+        (
+            count(&without, "<bldg:Door"),
+            count(&without, "<bldg:Window")
+        ),
+        "the program changed nothing"
+    );
+    let _ = report;
+    if let Some(tool) = citygen::testkit::validators::validate_outputs("a SELEX district") {
+        let v = std::process::Command::new(tool)
+            .arg("--geometry")
+            .args(&files)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&v.stdout);
+        assert!(v.status.success() && text.contains(" 0 failed"), "{text}");
+    }
+}
+
+#[test]
+fn a_selex_program_that_does_not_parse_stops_the_run_naming_its_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let kb = rock_kb(dir.path(), true);
+    std::fs::write(
+        dir.path().join("rock.slx"),
+        "{< cell() [rowIdz == 1] > -> addFacade(\"d\")};\n",
+    )
+    .unwrap();
+    let out = dir.path().join("x.ifc");
+    let o = citygen(&[
+        "--osm",
+        MONACO,
+        "--kb",
+        kb.to_str().unwrap(),
+        "--lod",
+        "3",
+        "--ifc",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("rock.slx:1:12: unknown attribute `rowIdz`"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

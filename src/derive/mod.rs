@@ -8,6 +8,7 @@ pub(crate) mod frontage;
 pub mod interior;
 pub mod massing;
 pub mod roof;
+pub mod selex;
 pub mod surroundings;
 
 use self::massing::Mass;
@@ -66,6 +67,10 @@ pub struct Generator {
     pub caps: Caps,
     /// Rulesets compiled from appearances.
     compiled: Mutex<RuleCache>,
+    /// The SELEX programs the knowledge base's appearances name, by resolved path
+    /// ([`selex::load_all`]; empty until [`Generator::load_selex`]). At LOD3 an appearance with
+    /// one has its facades laid out by it.
+    pub selex: HashMap<std::path::PathBuf, Arc<selex::SelexProgram>>,
     /// The other buildings around each lot, for party walls at LOD3 and above (empty: every
     /// building stands alone). See [`Generator::surroundings`].
     pub surroundings: surroundings::Surroundings,
@@ -93,8 +98,16 @@ impl Generator {
             seed,
             caps,
             compiled: Mutex::new(RuleCache::default()),
+            selex: HashMap::new(),
             surroundings: Default::default(),
         }
+    }
+
+    /// Reads and parses the SELEX programs of the knowledge base ([`selex::load_all`]): an
+    /// error names the file and the place.
+    pub fn load_selex(&mut self) -> Result<(), String> {
+        self.selex = selex::load_all(&self.kb)?;
+        Ok(())
     }
 
     /// The parts of every lot `keep` selects, derived at LOD2 (their footprints, bases and tops:
@@ -458,7 +471,20 @@ impl Generator {
             .into_iter()
             .zip(nodes)
             .map(|(m, i)| {
-                let f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+                let mut f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+                if let Some(program) = style.selex.as_ref().and_then(|p| self.selex.get(p)) {
+                    match selex::apply(program, &m.footprint, m.base_z, front, &mut f) {
+                        Ok(warnings) => notes.extend(
+                            warnings
+                                .into_iter()
+                                .map(|w| (Outcome::Note, format!("facade program: {w}"))),
+                        ),
+                        Err(why) => notes.push((
+                            Outcome::Note,
+                            format!("facade program not applied ({why}): the rules' facades kept"),
+                        )),
+                    }
+                }
                 (m, Some(f))
             })
             .collect();

@@ -443,6 +443,7 @@ mod tests {
             opening: None,
             zone_path: "earth/X".into(),
             appearance_label: "earth/X#1".into(),
+            selex: None,
             storeys_from_tags: false,
             pitch_from_tags: false,
         }

@@ -308,6 +308,10 @@ pub struct Style {
     pub zone_path: String,
     /// `<owner zone path>#<1-based appearance index>`, or `<zone path>#info` with no appearance.
     pub appearance_label: String,
+    /// The chosen appearance's SELEX program ([`KnowledgeBase::selex_path`]): it lays out the
+    /// facades at LOD3 instead of the rules' windows and doors. `None` when it names none (or
+    /// names one outside the KB's folder, which `kb check` and the run's start refuse).
+    pub selex: Option<PathBuf>,
     /// Whether `storeys` came from `building:levels` (then [`Style::fit_total_height`] keeps it).
     pub storeys_from_tags: bool,
     /// Whether the pitch came from `roof:angle`. A roof whose height follows from the
@@ -814,6 +818,7 @@ impl KnowledgeBase {
             opening,
             zone_path,
             appearance_label,
+            selex: pick.and_then(|(owner, i)| self.selex_path(owner, i).ok().flatten()),
             storeys_from_tags: false,
             pitch_from_tags: false,
         };
@@ -830,6 +835,26 @@ impl KnowledgeBase {
         appearance: usize,
         allow_outside: bool,
     ) -> Result<Option<PathBuf>, KbError> {
+        self.appearance_file(zone, appearance, "ruleset", allow_outside, |a| {
+            a.ruleset.as_deref()
+        })
+    }
+
+    /// Where an appearance's `selex file=` points, resolved against the KB's folder, with the
+    /// same refusals as [`KnowledgeBase::ruleset_path`] (a SELEX program is always inside the
+    /// KB's folder: no `allow_outside`). `Ok(None)` when the appearance names none.
+    pub fn selex_path(&self, zone: usize, appearance: usize) -> Result<Option<PathBuf>, KbError> {
+        self.appearance_file(zone, appearance, "selex", false, |a| a.selex.as_deref())
+    }
+
+    fn appearance_file(
+        &self,
+        zone: usize,
+        appearance: usize,
+        what: &str,
+        allow_outside: bool,
+        file: impl Fn(&Appearance) -> Option<&str>,
+    ) -> Result<Option<PathBuf>, KbError> {
         let Some(app) = self
             .zones
             .get(zone)
@@ -837,7 +862,7 @@ impl KnowledgeBase {
         else {
             return Ok(None);
         };
-        let Some(file) = app.ruleset.as_deref() else {
+        let Some(file) = file(app) else {
             return Ok(None);
         };
         let rel = Path::new(file);
@@ -859,8 +884,13 @@ impl KnowledgeBase {
                 file: self.source.clone(),
                 line: app.line,
                 message: format!(
-                    "ruleset file \"{file}\" lies outside the knowledge base's folder; \
-                     move it next to the KB or allow outside rulesets explicitly"
+                    "{what} file \"{file}\" lies outside the knowledge base's folder; \
+                     move it next to the KB{}",
+                    if what == "ruleset" {
+                        " or allow outside rulesets explicitly"
+                    } else {
+                        ""
+                    }
                 ),
             });
         }

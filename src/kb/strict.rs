@@ -269,6 +269,7 @@ impl Ctx<'_> {
                 (&["values"], 1, 1),
                 (&["opening"], 0, 1),
                 (&["ruleset"], 0, 1),
+                (&["selex"], 0, 1),
             ],
         )?;
         let values: Vec<(&str, Ty)> = DESCRIPTORS

@@ -322,6 +322,7 @@ fn absent_probas_share_the_remainder() {
         values: Values::default(),
         opening: None,
         ruleset: None,
+        selex: None,
         buildings: Vec::new(),
         line: 1,
     };
@@ -1496,4 +1497,46 @@ fn infer_is_inherited_and_read_in_both_modes() {
     let (kb, repairs) = KnowledgeBase::parse_str(bad, "t.xml").unwrap();
     assert_eq!(repairs.len(), 1, "{repairs:?}");
     assert_eq!(kb.inference_by_zone(), [Inference::NONE]);
+}
+
+#[test]
+fn selex_programs_are_read_and_checked_and_kept_inside_the_kb_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("good.slx"),
+        "{< descendant() [label == facade] > -> createStoreyGrid(\"g\", 3)};\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("bad.slx"),
+        "{< cell() [rowIdz == 1] > -> addFacade(\"d\")};\n",
+    )
+    .unwrap();
+    let kb_text = r#"<earth><appearance><values/><selex file="good.slx"/></appearance><appearance><values/><selex file="bad.slx"/></appearance><appearance><values/><selex file="../out.slx"/></appearance></earth>"#;
+    let path = dir.path().join("kb.xml");
+    std::fs::write(&path, kb_text).unwrap();
+    let (kb, _) = KnowledgeBase::load(&path).unwrap();
+    assert_eq!(
+        kb.selex_path(0, 0).unwrap(),
+        Some(dir.path().join("good.slx"))
+    );
+    assert!(kb.selex_path(0, 2).is_err());
+    let report = tools::check_report(&path, ReadMode::Lenient).unwrap();
+    let errors: Vec<&str> = report.errors.iter().map(|e| e.what.as_str()).collect();
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(errors
+        .iter()
+        .any(|e| e.contains("bad.slx:1:12: unknown attribute `rowIdz`")));
+    assert!(errors
+        .iter()
+        .any(|e| e.contains("selex file \"../out.slx\" lies outside")));
+    // The bare word `facade` of the good program is a warning.
+    assert!(
+        report.warnings.iter().any(
+            |w| w.what.contains("good.slx:1:") && w.what.contains("bare")
+                || w.what.contains("taken as the string")
+        ),
+        "{:?}",
+        report.warnings
+    );
 }

@@ -171,6 +171,39 @@ fn check_ruleset(path: &Path, line: usize, warnings: &mut Vec<KbRepair>) {
     }
 }
 
+/// Reads and parses the SELEX program an appearance names (at KB line `line`): a file that
+/// cannot be read or does not parse is an error (a run refuses it before any work), and the
+/// parser's warnings (`selex check`'s static ones) are warnings, each with the program's own
+/// file:line:col.
+fn check_selex(path: &Path, line: usize, errors: &mut Vec<KbRepair>, warnings: &mut Vec<KbRepair>) {
+    let name = path.display().to_string();
+    let text = match crate::grammar::read_source(path) {
+        Ok(t) => t,
+        Err(why) => {
+            errors.push(KbRepair {
+                line,
+                what: format!("selex file {name} cannot be read: {why}"),
+            });
+            return;
+        }
+    };
+    match crate::selex::parser::parse(&text, &name) {
+        Ok(program) => {
+            for w in crate::selex::parser::check(&program, &text, &name) {
+                let first = w.to_string().lines().next().unwrap_or_default().to_string();
+                warnings.push(KbRepair { line, what: first });
+            }
+        }
+        Err(e) => {
+            let first = e.to_string().lines().next().unwrap_or_default().to_string();
+            errors.push(KbRepair {
+                line,
+                what: format!("selex program does not parse: {first}"),
+            });
+        }
+    }
+}
+
 /// The report for an already loaded KB (what [`check_report_with`] does after loading).
 pub fn report_for(
     kb: &KnowledgeBase,
@@ -273,6 +306,17 @@ pub fn report_for(
                 Ok(Some(path)) => {
                     check_ruleset(&path, a.line, &mut warnings);
                 }
+                Ok(None) => {}
+            }
+            match kb.selex_path(i, k) {
+                Err(e) => {
+                    let what = match e {
+                        KbError::Structure { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    errors.push(KbRepair { line: a.line, what });
+                }
+                Ok(Some(path)) => check_selex(&path, a.line, &mut errors, &mut warnings),
                 Ok(None) => {}
             }
         }

@@ -266,6 +266,9 @@ pub struct Appearance {
     pub opening: Option<OpeningTree>,
     /// `<ruleset file="..."/>` as written (see [`KnowledgeBase::ruleset_path`]).
     pub ruleset: Option<String>,
+    /// `<selex file="..."/>` as written: a SELEX program (docs/selex.md) that lays out the
+    /// facades of this appearance's buildings at LOD3 (see [`KnowledgeBase::selex_path`]).
+    pub selex: Option<String>,
     /// The `building` attribute: the OSM `building=*` kinds (lower-case; `yes` also stands
     /// for an untagged kind) this appearance is for. Empty: any building. When a building's
     /// kind is listed by some of a zone's appearances, it is drawn among those alone;

@@ -32,7 +32,7 @@ use crate::color::Color;
 use crate::model::RoofShape;
 
 /// Element names the pre-pass may add a missing `<` in front of.
-const KNOWN_ELEMENTS: [&str; 15] = [
+const KNOWN_ELEMENTS: [&str; 16] = [
     "earth",
     "country",
     "region",
@@ -46,6 +46,7 @@ const KNOWN_ELEMENTS: [&str; 15] = [
     "split",
     "elements",
     "ruleset",
+    "selex",
     "zone",
     "polygon",
 ];
@@ -482,6 +483,7 @@ impl ZoneReader {
             values: Values::default(),
             opening: None,
             ruleset: None,
+            selex: None,
             buildings: Vec::new(),
             line: el.line,
         };
@@ -520,6 +522,14 @@ impl ZoneReader {
                 {
                     Some(f) => app.ruleset = Some(f),
                     None => self.note(child.line, "<ruleset> without a file ignored"),
+                },
+                "selex" => match child
+                    .attr("file")
+                    .and_then(|(k, v, l)| self.clean(k, v, *l))
+                {
+                    Some(f) if app.selex.is_none() => app.selex = Some(f),
+                    Some(_) => self.note(child.line, "second <selex> in one appearance ignored"),
+                    None => self.note(child.line, "<selex> without a file ignored"),
                 },
                 _ => self.note(
                     child.line,
