@@ -1075,7 +1075,7 @@ impl Runner<'_> {
                     grouping,
                 },
             ) => {
-                let g = self.grid(grid);
+                let g = self.grid(grid, span)?;
                 let p =
                     pattern::parse(regex).map_err(|e| self.pattern_err(*regex_span, regex, &e))?;
                 let (chosen, left_out) = match p.select_allowing_short(pat, g.rows(), g.cols()) {
@@ -1133,7 +1133,7 @@ impl Runner<'_> {
                     grouping,
                 },
             ) => {
-                let g = self.grid(grid);
+                let g = self.grid(grid, span)?;
                 let sel = match attr {
                     Attr::RowIdx | Attr::ColIdx => {
                         let v = self.integer(value)?;
@@ -1198,7 +1198,7 @@ impl Runner<'_> {
                     grouping,
                 },
             ) => {
-                let g = self.grid(grid);
+                let g = self.grid(grid, span)?;
                 let sel = match attr {
                     Attr::RowIdx | Attr::ColIdx => {
                         let items = self.index_items(list)?;
@@ -1297,7 +1297,7 @@ impl Runner<'_> {
     /// out of the selection, with a warning: one program serves facades of every width.
     fn skip_grid(&self, grid: ShapeId, at: Span, why: &str) -> Option<Item> {
         let face = self.d.shapes[grid].parent.unwrap_or(grid);
-        let g = self.grid(grid);
+        let g = self.grid(grid, at).ok()?;
         self.pending.borrow_mut().push(Note {
             line: at.line,
             col: at.col,
@@ -1405,11 +1405,18 @@ impl Runner<'_> {
         })
     }
 
-    fn grid(&self, id: ShapeId) -> &Grid {
+    /// The grid of a cell selection. Cells are only ever made from grids, so the error is an
+    /// internal one, reported at `span` rather than a panic.
+    fn grid(&self, id: ShapeId, span: Span) -> Result<&Grid, RunError> {
         match &self.d.shapes[id].kind {
-            ShapeKind::Grid(g) => g,
-            // Cells are only ever made from grids.
-            _ => unreachable!("cells of a shape that is not a grid"),
+            ShapeKind::Grid(g) => Ok(g),
+            _ => Err(self.err(
+                span,
+                format!(
+                    "internal: cells of `{}`, which is not a grid",
+                    self.d.shapes[id].label
+                ),
+            )),
         }
     }
 
@@ -1487,7 +1494,7 @@ impl Runner<'_> {
                 set,
                 grouping,
             } => {
-                let g = self.grid(*grid);
+                let g = self.grid(*grid, a.span)?;
                 let elements = g
                     .group(set, grouping.unwrap_or(grid::Grouping::Each))
                     .map_err(|e| self.err(a.span, e.to_string()))?;
@@ -1690,7 +1697,7 @@ impl Runner<'_> {
                 let Some(frame) = self.d.frame(face) else {
                     return Err(self.err(a.span, "addVolume needs a grid on a face".into()));
                 };
-                let parent_grid = self.grid(grid).clone();
+                let parent_grid = self.grid(grid, a.span)?.clone();
                 for (rect, cells) in groups {
                     let n = frame.normal();
                     let base = frame.at(rect.x, rect.y);
