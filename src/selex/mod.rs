@@ -25,6 +25,8 @@
 //!   cells, or an error naming where it stops tiling.
 //! - [`grid`] — virtual grids (uniform or metric), cell selection by index, label and pattern,
 //!   and the grouping functions.
+//! - [`eval`] — the interpreter: the shape tree, selection, actions and constraints, on box lots
+//!   ([`eval::run`]) and on a real building's facades ([`eval::run_on_facades`]).
 
 pub mod ast;
 pub mod eval;
