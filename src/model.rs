@@ -347,8 +347,13 @@ pub struct Opening {
     pub frame_color: Color,
     /// Transparent glass (`material=glass`).
     pub glazed: bool,
-    /// With a frame (`style=framed`).
+    /// With a frame (`style=framed`, SELEX `addFacadeWithFrame`).
     pub framed: bool,
+    /// The frame's size when `framed` and not the writers' standard one (SELEX
+    /// `addFacadeWithFrame`); `None`: the standard frame.
+    pub frame_size: Option<FrameSize>,
+    /// Rounded corners (SELEX `addRoundFacade`); `None`: a rectangle.
+    pub rounding: Option<Rounding>,
 }
 
 impl Opening {
@@ -360,6 +365,114 @@ impl Opening {
     /// Height.
     pub fn height(&self) -> f64 {
         self.z1 - self.z0
+    }
+
+    /// The opening shrunk by `d` metres on every side, its corners' radius shrunk with it (the
+    /// inner edge of a frame `d` wide).
+    pub fn inset(&self, d: f64) -> Opening {
+        let mut o = self.clone();
+        o.u0 += d;
+        o.u1 -= d;
+        o.z0 += d;
+        o.z1 -= d;
+        if let Some(r) = &mut o.rounding {
+            r.radius = (r.radius - d).max(0.0);
+        }
+        o
+    }
+
+    /// The opening's outline in wall coordinates (x: metres along the wall from its `start`, y:
+    /// absolute height), counter-clockwise seen from outside, starting at the bottom-left
+    /// corner: the rectangle `u0..u1` by `z0..z1`, its rounded corners cut by arcs of
+    /// [`Rounding::segments`] straight segments. Every point lies in the rectangle; a wall's hole
+    /// and the opening's own polygons are this ring (the hole reversed), so they match exactly.
+    pub fn outline(&self) -> Vec<DVec2> {
+        let corners = [
+            DVec2::new(self.u0, self.z0),
+            DVec2::new(self.u1, self.z0),
+            DVec2::new(self.u1, self.z1),
+            DVec2::new(self.u0, self.z1),
+        ];
+        let Some(r) = self.rounding.filter(|r| r.is_rounded()) else {
+            return corners.to_vec();
+        };
+        // The corners in ring order (bottom-left, bottom-right, top-right, top-left) against
+        // `Rounding::corners` (top-left, top-right, bottom-right, bottom-left).
+        let rounded = [r.corners[3], r.corners[2], r.corners[1], r.corners[0]];
+        let radius = r.radius.min(0.5 * self.width().min(self.height()));
+        let mut ring: Vec<DVec2> = Vec::new();
+        for i in 0..4 {
+            let k = corners[i];
+            if !rounded[i] || !(radius > 1e-4) {
+                ring.push(k);
+                continue;
+            }
+            let prev = (corners[(i + 3) % 4] - k).normalize();
+            let next = (corners[(i + 1) % 4] - k).normalize();
+            let centre = k + (prev + next) * radius;
+            let n = r.exponent();
+            let segments = r.segments.clamp(1, Rounding::MAX_SEGMENTS);
+            for s in 0..=segments {
+                let t = f64::from(s) / f64::from(segments) * std::f64::consts::FRAC_PI_2;
+                let f = |x: f64| x.max(0.0).powf(2.0 / n);
+                ring.push(centre - next * radius * f(t.cos()) - prev * radius * f(t.sin()));
+            }
+        }
+        // Two arcs meeting halfway along an edge share their end point: keep it once.
+        ring.dedup_by(|a, b| a.distance(*b) < 1e-9);
+        if ring.len() > 1 && ring[0].distance(ring[ring.len() - 1]) < 1e-9 {
+            ring.pop();
+        }
+        ring
+    }
+}
+
+/// An opening's frame, where it is not the standard one (SELEX `addFacadeWithFrame(label,
+/// edgeExtrusion, thickness, width)`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameSize {
+    /// Width of the frame's members in the wall's plane, metres (SELEX `thickness`).
+    pub width: f64,
+    /// How far the frame stands out of the wall's outer face, metres (SELEX `width`; 0: flush).
+    pub protrusion: f64,
+}
+
+/// Rounded corners of an opening (SELEX `addRoundFacade(label, corners, offset, segments,
+/// profile)`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rounding {
+    /// Which corners are rounded: top-left, top-right, bottom-right, bottom-left, left and right
+    /// as seen from outside.
+    pub corners: [bool; 4],
+    /// How far from the corner each arc starts along both edges, metres (SELEX `offset`); at
+    /// most half the opening's width and height where drawn.
+    pub radius: f64,
+    /// Straight segments of each arc (SELEX `segments`), 1 to [`Rounding::MAX_SEGMENTS`].
+    pub segments: u32,
+    /// The arc's shape (SELEX `profile`), 0 to 1: 0.5 a quarter circle, 0.25 a straight chamfer,
+    /// towards 1 a square corner, towards 0 a concave cut. Drawn as the superellipse of exponent
+    /// `2^(4 profile - 1)` ([`Rounding::exponent`]).
+    pub profile: f64,
+}
+
+impl Rounding {
+    /// The most segments an arc is drawn with.
+    pub const MAX_SEGMENTS: u32 = 32;
+
+    /// Whether any corner is rounded by a usable radius.
+    pub fn is_rounded(&self) -> bool {
+        self.corners.iter().any(|c| *c) && self.radius.is_finite() && self.radius > 0.0
+    }
+
+    /// The superellipse exponent of the profile: 2 for 0.5 (a circle), 1 for 0.25 (a
+    /// chamfer), 8 for 1, 0.5 for 0.
+    pub fn exponent(&self) -> f64 {
+        let p = if self.profile.is_finite() {
+            self.profile.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        2f64.powf(4.0 * p - 1.0)
     }
 }
 

@@ -16,7 +16,9 @@ use crate::derive::massing::grid::along_on_grid;
 use crate::geometry::Polygon;
 use crate::grammar::{AttrValue, Attrs, FaceKind, Geometry, Label, ShapeNode, ShapeTree, Terminal};
 pub use crate::model::OpeningKind;
-use crate::model::{Balcony, Face, Opening, Part, Wall, LINTEL, OPENING_MARGIN};
+use crate::model::{
+    Balcony, Face, FrameSize, Opening, Part, Rounding, Wall, LINTEL, OPENING_MARGIN,
+};
 
 /// How far (metres) a face may be from a footprint edge and still stand on it.
 const ON_EDGE: f64 = 0.01;
@@ -45,6 +47,10 @@ pub struct FoundOpening {
     pub glazed: bool,
     /// `style=framed`.
     pub framed: bool,
+    /// The frame's size, where not the standard one (SELEX).
+    pub frame_size: Option<FrameSize>,
+    /// Rounded corners (SELEX).
+    pub rounding: Option<Rounding>,
 }
 
 /// A balcony found on a wall: the facade piece it belongs to.
@@ -260,6 +266,8 @@ fn place(
             // A window is glass unless its material says otherwise; a door only when it says so.
             glazed: look.glass.unwrap_or(t == Terminal::Window),
             framed: look.framed,
+            frame_size: None,
+            rounding: None,
         }),
     }
 }
@@ -398,6 +406,8 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                     frame_color: f.frame_color.unwrap_or(colors.frame),
                     glazed: f.glazed,
                     framed: f.framed,
+                    frame_size: f.frame_size,
+                    rounding: f.rounding,
                 };
                 // Kept or dropped on its extent as derived; the kept ones narrowed after.
                 let overlaps = openings.iter().any(|q| {
@@ -422,11 +432,15 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
             outline.holes = openings
                 .iter()
                 .map(|o| {
-                    let p = |u: f64, z: f64| {
-                        let q = full.start + dir * u;
-                        DVec3::new(q.x, q.y, z)
-                    };
-                    vec![p(o.u0, o.z0), p(o.u0, o.z1), p(o.u1, o.z1), p(o.u1, o.z0)]
+                    // The outline reversed, from the same first point.
+                    let mut ring = o.outline();
+                    ring[1..].reverse();
+                    ring.iter()
+                        .map(|p| {
+                            let q = full.start + dir * p.x;
+                            DVec3::new(q.x, q.y, p.y)
+                        })
+                        .collect()
                 })
                 .collect();
             let balconies = facades.balconies[k]
@@ -549,6 +563,8 @@ mod tests {
             frame_color: None,
             glazed: true,
             framed: false,
+            frame_size: None,
+            rounding: None,
         };
         let found = vec![
             pane(2.0, 2.5, 1.0),

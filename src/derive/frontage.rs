@@ -209,6 +209,8 @@ fn template(d: &Draft<'_>, lo: f64, hi: f64, from_style: bool) -> Option<Templat
             frame_color: None,
             glazed: s.window_material == "glass",
             framed: s.window_style == "framed",
+            frame_size: None,
+            rounding: None,
         },
     })
 }
@@ -531,6 +533,8 @@ fn entrance(
         frame_color: None,
         glazed: false,
         framed: false,
+        frame_size: None,
+        rounding: None,
     };
     // Whatever it covers, with the margin facade::apply keeps between openings, gives way.
     let m = 2.0 * OPENING_MARGIN;

@@ -19,6 +19,7 @@ use std::sync::Arc;
 use crate::derive::facade::{Facades, FoundBalcony, FoundOpening, OpeningKind};
 use crate::geometry::Polygon;
 use crate::kb::KnowledgeBase;
+use crate::model::{FrameSize, Rounding};
 use crate::selex::ast::Program;
 use crate::selex::eval::{facade_specs, run_on_facades, ShapeKind};
 
@@ -133,12 +134,27 @@ pub fn apply(
             } else {
                 OpeningKind::Window
             };
-            // One opening per storey the element spans.
+            let frame_size = e.frame.map(|f| FrameSize {
+                width: f.thickness,
+                protrusion: f.width,
+            });
+            // One opening per storey the element spans; the top corners' rounding goes to the
+            // top piece, the bottom corners' to the bottom one.
             for l in &facades.levels {
                 let (lo, hi) = (z0.max(l.z0), z1.min(l.z1));
                 if hi - lo < 0.3 {
                     continue;
                 }
+                let rounding = e.rounding.map(|r| {
+                    let (top, bottom) = (hi >= z1 - 1e-9, lo <= z0 + 1e-9);
+                    let c = r.corners;
+                    Rounding {
+                        corners: [c[0] && top, c[1] && top, c[2] && bottom, c[3] && bottom],
+                        radius: r.offset,
+                        segments: r.segments,
+                        profile: r.profile,
+                    }
+                });
                 openings[k].push(FoundOpening {
                     kind,
                     u0,
@@ -149,6 +165,8 @@ pub fn apply(
                     frame_color: None,
                     glazed: kind == OpeningKind::Window,
                     framed: e.frame.is_some(),
+                    frame_size,
+                    rounding: rounding.filter(Rounding::is_rounded),
                 });
             }
         }

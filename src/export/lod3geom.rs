@@ -77,25 +77,23 @@ pub fn opening_is_valid(o: &Opening) -> bool {
     [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()) && o.width() > 0.0 && o.height() > 0.0
 }
 
-/// The opening's rectangle `depth` metres inward of the wall's outer face (0: in the wall plane,
-/// filling the wall's hole exactly), facing outward like the wall. `None` for a degenerate wall
-/// or opening.
+/// The opening's outline ([`Opening::outline`]: its rectangle, or the rectangle with rounded
+/// corners) `depth` metres inward of the wall's outer face (0: in the wall plane, filling the
+/// wall's hole exactly), facing outward like the wall. `None` for a degenerate wall or opening.
 pub fn opening_face(wall: &Wall, o: &Opening, depth: f64) -> Option<Face> {
     let f = WallFrame::of(wall)?;
     if !opening_is_valid(o) {
         return None;
     }
-    Some(Face::new(vec![
-        f.at(o.u0, o.z0, depth),
-        f.at(o.u1, o.z0, depth),
-        f.at(o.u1, o.z1, depth),
-        f.at(o.u0, o.z1, depth),
-    ]))
+    Some(Face::new(
+        o.outline().iter().map(|p| f.at(p.x, p.y, depth)).collect(),
+    ))
 }
 
-/// The four reveal faces lining the wall's hole from its outer face to `depth` metres inward
-/// (sill, head, two jambs), each facing into the opening. Empty for a degenerate wall, opening
-/// or depth.
+/// The reveal faces lining the wall's hole from its outer face to `depth` metres inward, each
+/// facing into the opening: for a rectangle the sill, the head and the two jambs; for a rounded
+/// outline one quad per edge of the outline, in its order. Empty for a degenerate wall,
+/// opening or depth.
 pub fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
     let Some(f) = WallFrame::of(wall) else {
         return Vec::new();
@@ -103,15 +101,81 @@ pub fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
     if !(opening_is_valid(o) && depth.is_finite() && depth > 0.0) {
         return Vec::new();
     }
+    if o.rounding.is_some_and(|r| r.is_rounded()) {
+        return ring_band(&f, &o.outline(), 0.0, depth, true);
+    }
+    let into = f.inward3() * depth;
     let along = f.dir3() * o.width();
     let up = DVec3::Z * o.height();
-    let into = f.inward3() * depth;
     vec![
         quad(f.at(o.u0, o.z0, 0.0), along, into), // sill, facing up
         quad(f.at(o.u0, o.z1, 0.0), into, along), // head, facing down
         quad(f.at(o.u0, o.z0, 0.0), into, up),    // jamb at u0, facing +dir
         quad(f.at(o.u1, o.z0, 0.0), up, into),    // jamb at u1, facing -dir
     ]
+}
+
+/// One quad per edge of `ring` (wall coordinates, counter-clockwise seen from outside),
+/// spanning the depths `from..to` inward of the wall's outer face (`from < to`), each facing
+/// the inside of the ring (`inside`) or its outside.
+fn ring_band(f: &WallFrame, ring: &[DVec2], from: f64, to: f64, inside: bool) -> Vec<Face> {
+    let n = ring.len();
+    let span = f.inward3() * (to - from);
+    (0..n)
+        .filter_map(|i| {
+            let (a, b) = (ring[i], ring[(i + 1) % n]);
+            let p = f.at(a.x, a.y, from);
+            let e = f.at(b.x, b.y, from) - p;
+            (e.length() > 1e-9).then(|| {
+                if inside {
+                    quad(p, e, span)
+                } else {
+                    quad(p, span, e)
+                }
+            })
+        })
+        .collect()
+}
+
+/// A frame of explicit size ([`Opening::frame_size`]) drawn round the pane: its members
+/// `width` wide in the wall's plane, from `protrusion` metres outside the wall's outer face to
+/// the pane `depth` metres inward of it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameFaces {
+    /// The pane: the outline inset by the frame's width, `depth` inward, facing out.
+    pub pane: Face,
+    /// The frame's front (the outline with the pane's outline as a hole, at the frame's
+    /// front), its outer side where it stands out of the wall, and its inner side down to the
+    /// pane.
+    pub frame: Vec<Face>,
+}
+
+/// The frame and pane of an opening with an explicit frame size (see [`FrameFaces`]); `None`
+/// for an opening without one, or one too small to hold its frame.
+pub fn opening_frame(wall: &Wall, o: &Opening, depth: f64) -> Option<FrameFaces> {
+    let size = o.frame_size.filter(|_| o.framed)?;
+    let f = WallFrame::of(wall)?;
+    let fw = size.width.min(0.25 * o.width().min(o.height()));
+    if !(opening_is_valid(o) && fw.is_finite() && fw > 1e-3 && depth.is_finite()) {
+        return None;
+    }
+    let front = -size.protrusion.clamp(0.0, 2.0);
+    let inner = o.inset(fw);
+    let (outer_ring, inner_ring) = (o.outline(), inner.outline());
+    let pane = Face::new(inner_ring.iter().map(|p| f.at(p.x, p.y, depth)).collect());
+    let mut frame = vec![Face {
+        outer: outer_ring.iter().map(|p| f.at(p.x, p.y, front)).collect(),
+        holes: vec![inner_ring
+            .iter()
+            .rev()
+            .map(|p| f.at(p.x, p.y, front))
+            .collect()],
+    }];
+    if front < 0.0 {
+        frame.extend(ring_band(&f, &outer_ring, front, 0.0, false));
+    }
+    frame.extend(ring_band(&f, &inner_ring, front, depth, true));
+    Some(FrameFaces { pane, frame })
 }
 
 /// A balcony's geometry: the slab, the railing's metal (handrail and posts) and its infill,
@@ -467,6 +531,8 @@ mod tests {
             frame_color: Color::WHITE,
             glazed: true,
             framed: false,
+            frame_size: None,
+            rounding: None,
         }
     }
 
@@ -716,6 +782,8 @@ pub(crate) mod samples {
             frame_color: FRAME,
             glazed: true,
             framed: true,
+            frame_size: None,
+            rounding: None,
         }
     }
 
@@ -725,6 +793,8 @@ pub(crate) mod samples {
             color: DOOR,
             glazed: false,
             framed: false,
+            frame_size: None,
+            rounding: None,
             ..window(u0, u1, z0, z1)
         }
     }

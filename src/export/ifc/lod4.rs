@@ -100,6 +100,8 @@ impl Render<'_> {
                         frame_color: lod4geom::DOOR_FRAME_COLOR,
                         glazed: false,
                         framed: true,
+                        frame_size: None,
+                        rounding: None,
                     };
                     let dpath = format!("{path}/door/{di}");
                     if let Some(fill) = self.opening(

@@ -610,6 +610,8 @@ fn open(part: &mut Part, i: usize, kind: OpeningKind, u: (f64, f64), z: (f64, f6
         frame_color: Color::rgb(1.0, 1.0, 1.0),
         glazed: kind == OpeningKind::Window,
         framed: true,
+        frame_size: None,
+        rounding: None,
     });
 }
 
