@@ -403,7 +403,7 @@ impl Opening {
         let mut ring: Vec<DVec2> = Vec::new();
         for i in 0..4 {
             let k = corners[i];
-            if !rounded[i] || !(radius > 1e-4) {
+            if !rounded[i] || radius.is_nan() || radius <= 1e-4 {
                 ring.push(k);
                 continue;
             }
