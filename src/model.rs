@@ -387,44 +387,59 @@ impl Opening {
     /// [`Rounding::segments`] straight segments. Every point lies in the rectangle; a wall's hole
     /// and the opening's own polygons are this ring (the hole reversed), so they match exactly.
     pub fn outline(&self) -> Vec<DVec2> {
-        let corners = [
+        rounded_rect(
             DVec2::new(self.u0, self.z0),
-            DVec2::new(self.u1, self.z0),
             DVec2::new(self.u1, self.z1),
-            DVec2::new(self.u0, self.z1),
-        ];
-        let Some(r) = self.rounding.filter(|r| r.is_rounded()) else {
-            return corners.to_vec();
-        };
-        // The corners in ring order (bottom-left, bottom-right, top-right, top-left) against
-        // `Rounding::corners` (top-left, top-right, bottom-right, bottom-left).
-        let rounded = [r.corners[3], r.corners[2], r.corners[1], r.corners[0]];
-        let radius = r.radius.min(0.5 * self.width().min(self.height()));
-        let mut ring: Vec<DVec2> = Vec::new();
-        for i in 0..4 {
-            let k = corners[i];
-            if !rounded[i] || radius.is_nan() || radius <= 1e-4 {
-                ring.push(k);
-                continue;
-            }
-            let prev = (corners[(i + 3) % 4] - k).normalize();
-            let next = (corners[(i + 1) % 4] - k).normalize();
-            let centre = k + (prev + next) * radius;
-            let n = r.exponent();
-            let segments = r.segments.clamp(1, Rounding::MAX_SEGMENTS);
-            for s in 0..=segments {
-                let t = f64::from(s) / f64::from(segments) * std::f64::consts::FRAC_PI_2;
-                let f = |x: f64| x.max(0.0).powf(2.0 / n);
-                ring.push(centre - next * radius * f(t.cos()) - prev * radius * f(t.sin()));
-            }
-        }
-        // Two arcs meeting halfway along an edge share their end point: keep it once.
-        ring.dedup_by(|a, b| a.distance(*b) < 1e-9);
-        if ring.len() > 1 && ring[0].distance(ring[ring.len() - 1]) < 1e-9 {
-            ring.pop();
-        }
-        ring
+            self.rounding.as_ref(),
+        )
     }
+}
+
+/// The rectangle from `min` to `max` (x to the right, y up), counter-clockwise from its
+/// bottom-left corner, with the corners `rounding` names cut by its arcs (see
+/// [`Opening::outline`]).
+pub fn rounded_rect(min: DVec2, max: DVec2, rounding: Option<&Rounding>) -> Vec<DVec2> {
+    let corners = [min, DVec2::new(max.x, min.y), max, DVec2::new(min.x, max.y)];
+    let Some(r) = rounding.filter(|r| r.is_rounded()) else {
+        return corners.to_vec();
+    };
+    // The corners in ring order (bottom-left, bottom-right, top-right, top-left) against
+    // `Rounding::corners` (top-left, top-right, bottom-right, bottom-left).
+    let rounded = [r.corners[3], r.corners[2], r.corners[1], r.corners[0]];
+    let size = max - min;
+    let radius = r.radius.min(0.5 * size.x.min(size.y));
+    let mut ring: Vec<DVec2> = Vec::new();
+    for i in 0..4 {
+        let k = corners[i];
+        if !rounded[i] || radius.is_nan() || radius <= 1e-4 {
+            ring.push(k);
+            continue;
+        }
+        let prev = (corners[(i + 3) % 4] - k).normalize();
+        let next = (corners[(i + 1) % 4] - k).normalize();
+        let centre = k + (prev + next) * radius;
+        let n = r.exponent();
+        let segments = r.segments.clamp(1, Rounding::MAX_SEGMENTS);
+        for s in 0..=segments {
+            // The ends exactly on the edges, so two arcs meeting halfway share their point.
+            let (cos, sin) = match s {
+                0 => (1.0, 0.0),
+                s if s == segments => (0.0, 1.0),
+                s => {
+                    let t = f64::from(s) / f64::from(segments) * std::f64::consts::FRAC_PI_2;
+                    (t.cos(), t.sin())
+                }
+            };
+            let f = |x: f64| x.max(0.0).powf(2.0 / n);
+            ring.push(centre - next * radius * f(cos) - prev * radius * f(sin));
+        }
+    }
+    // Two arcs meeting halfway along an edge share their end point: keep it once.
+    ring.dedup_by(|a, b| a.distance(*b) < 1e-9);
+    if ring.len() > 1 && ring[0].distance(ring[ring.len() - 1]) < 1e-9 {
+        ring.pop();
+    }
+    ring
 }
 
 /// An opening's frame, where it is not the standard one (SELEX `addFacadeWithFrame(label,

@@ -1,7 +1,7 @@
 //! SELEX programs on real footprints: the facades of Monaco's buildings, each with its side
-//! towards the street (issue 23). The seed's printed programs, written for its box, run here
-//! on every facade of a real building, their paths naming `facade` and `side` instead of the
-//! box's `building_front`.
+//! towards the street (issue 23). Programs written for real buildings name `facade` and
+//! `side`; the seed's printed programs, written for its box, also run unchanged (their
+//! `createShape` becomes the building's mass: tested in `derive::selex`).
 
 mod common;
 
@@ -113,11 +113,13 @@ fn the_seeds_facade_rules_run_on_every_facade_of_real_monaco_buildings() {
 fn rock_kb(dir: &std::path::Path, selex: bool) -> std::path::PathBuf {
     std::fs::write(
         dir.join("rock.slx"),
-        r#"# Monaco-Ville: bays of about 2.6 m, a door in the first bay towards the street,
-# windows of 1.1 x 1.6 m centred in every bay of the upper storeys, framed.
+        r#"# Monaco-Ville: bays of about 2.6 m; an arched door in the first bay towards the street;
+# windows of 1.1 x 1.6 m centred in the bays of the middle storeys; arched windows with a
+# frame standing 5 cm out filling the bays of the top storey.
 {< descendant() [label == "facade"] > -> createStoreyGrid("g", 2.6)};
-{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [rowIdx == 1] [colIdx == 1] > -> addFacade("door")};
-{< descendant() [label == "facade"] / [label == "g"] / [rowIdx > 1] > -> addShape("window", 1.1, 1.6)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [rowIdx == 1] [colIdx == 1] > -> addRoundFacade("door", ["top_left", "top_right"], 1.3, 8, 0.5)};
+{< descendant() [label == "facade"] / [label == "g"] / [rowIdx in rowRange(2, -2)] > -> addShape("window", 1.1, 1.6)};
+{< descendant() [label == "facade"] / [label == "g"] / [rowIdx == -1] > -> addRoundFacadeWithFrame("window", ["top_left", "top_right"], 1.3, 8, 0.5, "frame", 0.08, 0.05)};
 "#,
     )
     .unwrap();
@@ -193,6 +195,30 @@ fn a_kb_appearance_with_selex_lays_out_the_facades_of_its_district() {
         "the program changed nothing"
     );
     let _ = report;
+    // Rounded and framed openings are typed IFC windows and doors carrying their parameters.
+    let ifc = std::fs::read_to_string(&files[0]).unwrap();
+    let arched_doors = ifc
+        .lines()
+        .filter(|l| l.contains("IFCDOORTYPE(") && l.contains("rounded top_left,top_right"))
+        .count();
+    let framed_windows = ifc
+        .lines()
+        .filter(|l| l.contains("IFCWINDOWTYPE(") && l.contains(" frame 80mm+50mm"))
+        .count();
+    eprintln!("{arched_doors} arched door types, {framed_windows} framed arched window types");
+    assert!(arched_doors > 0 && framed_windows > 0);
+    assert!(ifc.contains("IFCWINDOWLININGPROPERTIES(") && ifc.contains("'Citygen_OpeningShape'"));
+    // CityGML's windows and doors have the arched outline: polygons of more than 4 corners.
+    let rounded = with
+        .split("<bldg:Door")
+        .skip(1)
+        .filter(|d| {
+            let ring = d.split("<gml:posList").nth(1).unwrap_or_default();
+            let ring = &ring[..ring.find("</gml:posList>").unwrap_or(0)];
+            ring.split_whitespace().count() > 3 * 6
+        })
+        .count();
+    assert!(rounded > 10, "{rounded} arched doors in CityGML");
     if let Some(tool) = citygen::testkit::validators::validate_outputs("a SELEX district") {
         let v = std::process::Command::new(tool)
             .arg("--geometry")

@@ -75,6 +75,9 @@ pub struct Facades {
     pub balconies: Vec<Vec<FoundBalcony>>,
     /// Opening and balcony terminals that stand on no footprint edge.
     pub off_envelope: usize,
+    /// Laid out by a SELEX program ([`crate::derive::selex::apply`]): its ground-storey doors
+    /// are the building's entrances (`derive::frontage`).
+    pub programmed: bool,
 }
 
 /// One footprint edge in the local frame.
@@ -106,6 +109,7 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
         openings: vec![Vec::new(); edges.len()],
         balconies: vec![Vec::new(); edges.len()],
         off_envelope: 0,
+        programmed: false,
     };
     let mut looks: Vec<(Rc<Attrs>, Look)> = Vec::new();
     let mut stack = vec![mass];

@@ -18,7 +18,9 @@
 //!    which it replaces. Its size is the style's ([`Style::door_width`], `door_height`: 0.8 to
 //!    2.5 m by 2.0 to 2.6 m), narrowed to its stretch, never below 0.8 m, always under the
 //!    storey's lintel. Other doors become windows of their storey where one fits
-//!    ([`FacadeCounts`] says how many of each).
+//!    ([`FacadeCounts`] says how many of each). Facades a SELEX program laid out
+//!    (`derive::facade::Facades::programmed`) keep the doors it put on the ground storey, each an entrance
+//!    (sized like any door); only a building whose program put none gets one placed.
 
 use glam::DVec2;
 
@@ -127,8 +129,50 @@ pub fn arrange(
         }
     }
     let wanted = doors_to_windows(drafts, &out.spans, &mut out.counts);
-    entrance(drafts, front, wanted, &mut out);
+    if !programmed_entrances(drafts, &mut out) {
+        entrance(drafts, front, wanted, &mut out);
+    }
     out
+}
+
+/// The storey (floor, next floor) of `storeys` holding the middle of `o`.
+fn in_storey(storeys: &[(f64, f64)], o: &FoundOpening) -> Option<(f64, f64)> {
+    let mid = 0.5 * (o.z0 + o.z1);
+    storeys.iter().copied().find(|&(a, b)| mid >= a && mid < b)
+}
+
+/// The doors a SELEX program put on the ground storey of a part standing on the ground (kept
+/// by [`doors_to_windows`], sized like any door): the building's entrances, counted in
+/// [`FacadeCounts::entrances`]; the first is the one [`Arrangement::entrance`] names. `false`
+/// when there is none, and [`entrance`] places one.
+fn programmed_entrances(drafts: &[Draft<'_>], out: &mut Arrangement) -> bool {
+    let mut first = None;
+    for (p, d) in drafts.iter().enumerate() {
+        if !d.facades.programmed || d.part.base_z > GROUND {
+            continue;
+        }
+        let storeys = facade::storeys(d.part, d.facades);
+        let ground = storeys.first().copied();
+        for (k, ops) in d.facades.openings.iter().enumerate() {
+            for o in ops {
+                if o.kind != OpeningKind::Door
+                    || on_balcony(o, &d.facades.balconies[k])
+                    || in_storey(&storeys, o) != ground
+                {
+                    continue;
+                }
+                out.counts.entrances += 1;
+                if first.is_none() {
+                    if let Some(w) = d.part.walls.get(k).filter(|w| w.length() > 0.0) {
+                        let dir = (w.end - w.start) / w.length();
+                        first = Some((p, DVec2::new(dir.y, -dir.x)));
+                    }
+                }
+            }
+        }
+    }
+    out.entrance = out.entrance.or(first);
+    first.is_some()
 }
 
 /// The wall area and the party-wall area of a part after [`facade::apply`] (its walls cut per
@@ -327,11 +371,15 @@ fn doors_to_windows(
         let mut want = None;
         #[allow(clippy::needless_range_loop)] // k indexes openings, balconies, walls and spans
         for k in 0..d.facades.openings.len() {
+            // A program's doors on the ground storey are entrances where it put them.
+            let programmed = d.facades.programmed && on_ground;
             let (doors, kept): (Vec<FoundOpening>, Vec<FoundOpening>) =
                 std::mem::take(&mut d.facades.openings[k])
                     .into_iter()
                     .partition(|o| {
-                        o.kind == OpeningKind::Door && !on_balcony(o, &d.facades.balconies[k])
+                        o.kind == OpeningKind::Door
+                            && !on_balcony(o, &d.facades.balconies[k])
+                            && !(programmed && in_storey(&storeys, o) == ground_storey)
                     });
             d.facades.openings[k] = kept;
             // Balcony doors at a door's size: at most 2.5 by 2.6 m, dropped below 0.8 by 2.0 m.

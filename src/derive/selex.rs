@@ -4,13 +4,16 @@
 //!
 //! Each mass's footprint edges become the program's `facade` faces
 //! ([`crate::selex::eval::facade_specs`]), each with its side towards the street and the mass's
-//! storeys (the levels the rules made), so one program serves every footprint. The elements it
+//! storeys (the levels the rules made), so one program serves every footprint; a program
+//! written for the seed's box (`createShape`) finds them as `building_front`, ... too. The elements it
 //! places become openings and balconies on their edge, cut at the storeys (a wall is one storey
 //! high at LOD3: an element two storeys high becomes one opening on each). Labels decide what an
 //! element is: `door…` and `entrance…` are doors, `balcony…` and `ledge…` balconies, `wall` and
 //! covers nothing, anything else a window; framed elements (`addFacadeWithFrame`) are framed
-//! windows. Elements on bays (`addVolume`) stand on no footprint edge and are counted as off the
-//! envelope.
+//! windows; a rounded element keeps its rounding (its top corners on its top storey's piece, its
+//! bottom corners on its bottom one's), a framed one its frame's size. Elements on bays
+//! (`addVolume`) stand on no footprint edge and are counted as off the envelope. The doors a
+//! program puts on the ground storey are the building's entrances (`derive::facade::Facades::programmed`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -95,18 +98,28 @@ pub fn apply(
     }
     let d = run_on_facades(&program.program, &program.source, &program.file, &specs)
         .map_err(|e| e.to_string().lines().next().unwrap_or_default().to_string())?;
-    let faces = d.find("facade");
     let mut openings: Vec<Vec<FoundOpening>> = vec![Vec::new(); edges.len()];
     let mut balconies: Vec<Vec<FoundBalcony>> = vec![Vec::new(); edges.len()];
     let mut off = 0usize;
-    for (face, spec) in faces.iter().zip(&specs) {
+    // Every face standing on a footprint edge: the `facade` faces, and their copies a
+    // `createShape` made (`building_front`, ...). A bay's faces stand on none.
+    for (face, shape) in d.shapes.iter().enumerate() {
+        let ShapeKind::Face { frame, .. } = &shape.kind else {
+            continue;
+        };
+        let start = frame.origin.truncate();
+        let end = start + frame.u.truncate() * frame.width;
+        let near = |p: glam::DVec2, q: glam::DVec2| p.distance(q) < 1e-6;
         let Some(k) = edges
             .iter()
-            .position(|&(a, b)| a == spec.start && b == spec.end)
+            .position(|&(a, b)| near(a, start) && near(b, end))
         else {
             continue;
         };
-        for &c in &d.shapes[*face].children {
+        if (frame.origin.z - base).abs() > 1e-6 {
+            continue;
+        }
+        for &c in &d.shapes[face].children {
             let ShapeKind::Element(e) = &d.shapes[c].kind else {
                 if matches!(d.shapes[c].kind, ShapeKind::Volume { .. }) {
                     off += 1;
@@ -177,8 +190,123 @@ pub fn apply(
     facades.openings = openings;
     facades.balconies = balconies;
     facades.off_envelope += off;
+    facades.programmed = true;
     Ok(d.warnings
         .iter()
         .map(|n| format!("{}:{}:{}: {}", program.file, n.line, n.col, n.message))
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lots of Monaco with a street in front, largest first.
+    fn monaco_lots() -> Vec<crate::prepare::Lot> {
+        let mut report = crate::report::Report::default();
+        let pbf = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/monaco/monaco.osm.pbf");
+        let read = crate::input::osm::read_osm(&pbf, &mut report).unwrap();
+        let mut site = crate::prepare::prepare(read.footprints, None, None, &mut report);
+        crate::prepare::assign_fronts(&mut site, &read.streets, None);
+        let mut lots: Vec<_> = site
+            .lots
+            .into_iter()
+            .filter(|l| l.front.is_some())
+            .collect();
+        lots.sort_by(|a, b| {
+            let area = |l: &crate::prepare::Lot| l.polygons.iter().map(|p| p.area()).sum::<f64>();
+            area(b)
+                .total_cmp(&area(a))
+                .then(a.id.to_string().cmp(&b.id.to_string()))
+        });
+        lots
+    }
+
+    /// The seed's printed programs, unchanged: their `createShape` box becomes the real building's
+    /// mass, its `<label>_front` the facades facing the street, so each front facade of Monaco's
+    /// largest buildings gets what the box's front got (golden counts of src/selex/eval_tests.rs).
+    #[test]
+    fn the_seeds_printed_programs_run_unchanged_on_real_monaco_footprints() {
+        use crate::derive::facade::{Facades, Level};
+        use crate::selex::eval::Side;
+        use crate::selex::parser::parse;
+        // (file, per front facade: (label, count), ...)
+        let cases: [(&str, &[(&str, usize)]); 5] = [
+            ("brito_mass_model.slx", &[("entrance", 1)]),
+            ("rounded_door.slx", &[("entrance", 1), ("door", 1)]),
+            ("update_grid.slx", &[("door", 1), ("window", 2)]),
+            ("framed_windows.slx", &[("entrance", 1), ("windows", 2)]),
+            ("clock_tower.slx", &[("clock", 1), ("windows", 6)]),
+        ];
+        let lots = monaco_lots();
+        let storeys = [3.5, 3.0, 3.0, 3.0];
+        for (file, expect) in cases {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/data/selex")
+                .join(file);
+            let source = std::fs::read_to_string(&path).unwrap();
+            let program = parse(&source, file).unwrap_or_else(|e| panic!("{e}"));
+            let selex = SelexProgram {
+                file: file.into(),
+                source: source.clone(),
+                program: program.clone(),
+            };
+            let mut fronts_seen = 0;
+            for lot in lots.iter().take(20) {
+                for polygon in &lot.polygons {
+                    let specs = facade_specs(polygon, 0.0, &storeys, lot.front);
+                    let fronts = specs.iter().filter(|s| s.side == Side::Front).count();
+                    fronts_seen += fronts;
+                    let d = run_on_facades(&program, &source, file, &specs)
+                        .unwrap_or_else(|e| panic!("{}: {e}", lot.id));
+                    for (label, n) in expect {
+                        let found = d.find(label).len();
+                        assert_eq!(
+                            found,
+                            n * fronts,
+                            "{file} on {}: {label} {:?}",
+                            lot.id,
+                            d.warnings.first()
+                        );
+                    }
+                    // Into a city run's facades: the clock and the windows on the front facades
+                    // are openings of their walls, rounded (the clock also framed).
+                    let edges = polygon.rings().map(Vec::len).sum::<usize>();
+                    let mut levels = Vec::new();
+                    let mut z = 0.0;
+                    for h in storeys {
+                        levels.push(Level { z0: z, z1: z + h });
+                        z += h;
+                    }
+                    let mut f = Facades {
+                        levels,
+                        openings: vec![Vec::new(); edges],
+                        balconies: vec![Vec::new(); edges],
+                        ..Facades::default()
+                    };
+                    apply(&selex, polygon, 0.0, lot.front, &mut f)
+                        .unwrap_or_else(|e| panic!("{file} on {}: {e}", lot.id));
+                    if file == "clock_tower.slx" {
+                        let all: Vec<_> = f.openings.iter().flatten().collect();
+                        let clocks = all
+                            .iter()
+                            .filter(|o| o.framed && o.rounding.is_some() && o.frame_size.is_some())
+                            .count();
+                        let rounded = all
+                            .iter()
+                            .filter(|o| !o.framed && o.rounding.is_some())
+                            .count();
+                        assert!(clocks >= fronts, "{}: {clocks} clock pieces", lot.id);
+                        assert!(rounded >= 6 * fronts, "{}: {rounded} windows", lot.id);
+                    }
+                    if file == "rounded_door.slx" {
+                        // The door stands on its bay, off the footprint: not an opening of a wall.
+                        assert!(f.openings.iter().flatten().next().is_none());
+                        assert_eq!(f.off_envelope, fronts, "{}", lot.id);
+                    }
+                }
+            }
+            assert!(fronts_seen >= 20, "{file}: {fronts_seen} front facades");
+        }
+    }
 }

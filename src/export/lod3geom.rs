@@ -557,6 +557,139 @@ mod tests {
         assert!(opening_reveals(&w, &window(), 0.0).is_empty());
     }
 
+    fn arched(segments: u32, profile: f64) -> Opening {
+        Opening {
+            rounding: Some(crate::model::Rounding {
+                corners: [true, true, false, false],
+                radius: 0.9,
+                segments,
+                profile,
+            }),
+            ..window()
+        }
+    }
+
+    /// Twice the signed area of a ring (positive: counter-clockwise).
+    fn area2(r: &[DVec2]) -> f64 {
+        (0..r.len())
+            .map(|i| r[i].perp_dot(r[(i + 1) % r.len()]))
+            .sum()
+    }
+
+    #[test]
+    fn a_rounded_outline_is_an_arch_of_its_segments_inside_the_rectangle() {
+        let o = window();
+        assert_eq!(o.outline().len(), 4, "a rectangle without rounding");
+        for profile in [0.0, 0.25, 0.5, 0.8, 1.0] {
+            let a = arched(5, profile);
+            let r = a.outline();
+            // Two bottom corners, then two arcs of 6 points meeting at the top's middle (the
+            // radius is clamped to half the 1 m width).
+            assert_eq!(r.len(), 2 + 6 + 5, "profile {profile}");
+            assert!(area2(&r) > 0.0, "counter-clockwise seen from outside");
+            for p in &r {
+                assert!(p.x >= 1.0 - 1e-12 && p.x <= 2.0 + 1e-12);
+                assert!(p.y >= 1.0 - 1e-12 && p.y <= 2.5 + 1e-12);
+            }
+            assert_eq!(
+                r[0],
+                DVec2::new(1.0, 1.0),
+                "starts at the bottom-left corner"
+            );
+        }
+        // Profile 0.5: a half circle of radius 0.5 round (1.5, 2.0).
+        let r = arched(8, 0.5).outline();
+        for p in &r[2..] {
+            assert!((p.distance(DVec2::new(1.5, 2.0)) - 0.5).abs() < 1e-9, "{p}");
+        }
+        // Profile 0.25: straight chamfers, so the area is the rectangle less two triangles.
+        let r = arched(4, 0.25).outline();
+        assert!((area2(&r) / 2.0 - (1.5 - 2.0 * 0.125)).abs() < 1e-9);
+        // Convex profiles keep more of the corner than a circle; concave ones less.
+        let areas: Vec<f64> = [0.0, 0.5, 1.0]
+            .iter()
+            .map(|p| area2(&arched(16, *p).outline()))
+            .collect();
+        assert!(areas[0] < areas[1] && areas[1] < areas[2], "{areas:?}");
+    }
+
+    #[test]
+    fn a_rounded_opening_has_a_reveal_per_edge_facing_into_it() {
+        let w = wall(DVec2::new(0.0, 0.0), DVec2::new(10.0, 0.0));
+        let o = arched(5, 0.5);
+        let ring = o.outline();
+        let reveals = opening_reveals(&w, &o, 0.1);
+        assert_eq!(reveals.len(), ring.len());
+        let centre = DVec3::new(1.5, 0.05, 1.75);
+        for f in &reveals {
+            let c = f.outer.iter().copied().sum::<DVec3>() / 4.0;
+            assert!(
+                n(f).dot(centre - c) > 0.0,
+                "a reveal faces into the opening"
+            );
+            assert!(planar(f));
+        }
+        // The pane is the outline, facing out like the wall.
+        let pane = opening_face(&w, &o, 0.0).unwrap();
+        assert_eq!(pane.outer.len(), ring.len());
+        assert!((n(&pane) - w.outline.normal()).length() < 1e-12);
+    }
+
+    #[test]
+    fn an_explicit_frame_stands_out_round_a_smaller_pane() {
+        let w = wall(DVec2::new(0.0, 0.0), DVec2::new(10.0, 0.0)); // outside is -y
+        let o = Opening {
+            framed: true,
+            frame_size: Some(crate::model::FrameSize {
+                width: 0.1,
+                protrusion: 0.05,
+            }),
+            ..arched(5, 0.5)
+        };
+        assert!(
+            opening_frame(&w, &window(), 0.1).is_none(),
+            "no explicit frame"
+        );
+        let f = opening_frame(&w, &o, 0.1).unwrap();
+        // The pane: the outline inset by 0.1 m, 0.1 m into the wall.
+        assert!(f.pane.outer.iter().all(|p| (p.y - 0.1).abs() < 1e-12));
+        let xs = f.pane.outer.iter().map(|p| p.x);
+        assert!(xs.clone().fold(f64::MAX, f64::min) >= 1.1 - 1e-12);
+        assert!(xs.fold(f64::MIN, f64::max) <= 1.9 + 1e-12);
+        // The front ring 5 cm out of the wall, facing out, with the pane's outline as its hole.
+        let front = &f.frame[0];
+        assert!(front.outer.iter().all(|p| (p.y + 0.05).abs() < 1e-12));
+        assert!((n(front) - w.outline.normal()).length() < 1e-12);
+        assert_eq!(front.holes.len(), 1);
+        let ring = o.outline().len();
+        let inner = o.inset(0.1).outline().len();
+        assert_eq!(
+            f.frame.len(),
+            1 + ring + inner,
+            "front, outer and inner sides"
+        );
+        // The outer sides face away from the opening, the inner ones into it.
+        let centre = DVec3::new(1.5, 0.0, 1.75);
+        for (i, face) in f.frame[1..].iter().enumerate() {
+            let c = face.outer.iter().copied().sum::<DVec3>() / 4.0;
+            let towards = DVec3::new(centre.x - c.x, 0.0, centre.z - c.z);
+            let into = n(face).dot(towards) > 0.0;
+            assert_eq!(into, i >= ring, "side {i}");
+        }
+        // Flush frames have no outer sides.
+        let flush = Opening {
+            frame_size: Some(crate::model::FrameSize {
+                width: 0.1,
+                protrusion: 0.0,
+            }),
+            ..o.clone()
+        };
+        assert_eq!(
+            opening_frame(&w, &flush, 0.1).unwrap().frame.len(),
+            1 + inner
+        );
+    }
+
     /// The sum of the area vectors of `faces`: zero for a closed surface.
     fn area_sum(faces: &[Face]) -> DVec3 {
         faces

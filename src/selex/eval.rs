@@ -1543,7 +1543,13 @@ impl Runner<'_> {
                 let w = self.positive(&args[1], "width")?;
                 let d = self.positive(&args[2], "depth")?;
                 let h = self.positive(&args[3], "height")?;
-                self.make_box(s, &label, w, d, h);
+                if self.facades && s == 0 {
+                    // On a real building the mass is its footprint's: the sizes are the box's
+                    // the program was written for.
+                    self.footprint_volume(&label);
+                } else {
+                    self.make_box(s, &label, w, d, h);
+                }
                 Ok(())
             }
             ActionKind::CreateGrid => {
@@ -1817,6 +1823,36 @@ impl Runner<'_> {
     }
 
     /// A box centred on the origin with its four faces (`createShape`).
+    /// `createShape(label, ...)` on a real building ([`run_on_facades`]): a volume `label`
+    /// like the building's, with a copy of each of its `facade` faces labelled
+    /// `<label>_<side>` (`building_front`, ... as on a box; `<label>_side` for the walls that
+    /// face no side of the street), so a program written for the seed's box runs on the
+    /// footprint unchanged.
+    fn footprint_volume(&mut self, label: &str) {
+        let Some(&building) = self.d.shapes[0].children.first() else {
+            return;
+        };
+        let kind = self.d.shapes[building].kind.clone();
+        let vol = self.add(0, label, kind);
+        let faces: Vec<ShapeId> = self.d.shapes[building]
+            .children
+            .iter()
+            .copied()
+            .filter(|&c| self.d.shapes[c].label == "facade")
+            .collect();
+        for f in faces {
+            let kind = self.d.shapes[f].kind.clone();
+            let ShapeKind::Face { side, .. } = &kind else {
+                continue;
+            };
+            let name = format!("{label}_{}", side.name());
+            let id = self.add(vol, &name, kind);
+            if let Some(st) = self.storeys.get(&f).cloned() {
+                self.storeys.insert(id, st);
+            }
+        }
+    }
+
     fn make_box(&mut self, parent: ShapeId, label: &str, w: f64, d: f64, h: f64) {
         let vol = self.add(
             parent,

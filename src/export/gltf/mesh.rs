@@ -2,7 +2,7 @@
 //! triangulated (flat shaded) and laid out as vertex and index bytes.
 
 use crate::color::Color;
-use crate::export::lod3geom::{balcony_faces, opening_face, opening_reveals};
+use crate::export::lod3geom::{balcony_faces, opening_face, opening_frame, opening_reveals};
 use crate::export::{check_finite, ExportError};
 use crate::model::{Building, OpeningKind, Part};
 
@@ -43,7 +43,13 @@ pub(super) fn add_openings(
             0.0
         };
         for o in w.openings.iter().filter(|o| o.kind == kind) {
-            let Some(pane) = opening_face(w, o, depth) else {
+            // An explicitly sized frame is drawn round a smaller pane.
+            let framed = opening_frame(w, o, depth);
+            let Some(pane) = framed
+                .as_ref()
+                .map(|f| f.pane.clone())
+                .or_else(|| opening_face(w, o, depth))
+            else {
                 continue;
             };
             if kind == OpeningKind::Window && o.glazed {
@@ -64,6 +70,9 @@ pub(super) fn add_openings(
             opening_reveals(w, o, depth)
                 .iter()
                 .for_each(|f| g.add_face(f));
+            if let Some(f) = &framed {
+                f.frame.iter().for_each(|f| g.add_face(f));
+            }
         }
     }
 }

@@ -530,9 +530,10 @@ struct Caches {
     /// `IfcCartesianTransformationOperator3D` at the origin (mapped items are placed by their
     /// product's placement).
     identity_op: Cache<(), Id>,
-    /// Product shape of an opening body per (width, height, depth) in micrometres (at most
-    /// [`SHARED_CACHE_LIMIT`] entries).
-    opening_shapes: Cache<[i64; 3], Id>,
+    /// Product shape of an opening body per (width, height, depth) in micrometres and rounding
+    /// (corner bits, radius and profile in micrometres or millionths, segments; zeros for a
+    /// rectangle) (at most [`SHARED_CACHE_LIMIT`] entries).
+    opening_shapes: Cache<[i64; 7], Id>,
     /// `IfcAxis2Placement3D` of a window/door in its opening, per offset in micrometres (at
     /// most [`SHARED_CACHE_LIMIT`] entries).
     fill_offsets: Cache<[i64; 3], Id>,
@@ -578,7 +579,7 @@ struct Render<'a> {
 struct Lod3Views<'a> {
     vertical: View<'a, (), Id>,
     identity_op: View<'a, (), Id>,
-    opening_shapes: View<'a, [i64; 3], Id>,
+    opening_shapes: View<'a, [i64; 7], Id>,
     fill_offsets: View<'a, [i64; 3], Id>,
     renderings: View<'a, ([u16; 4], u16), Id>,
     types: View<'a, TypeKey, (Id, Id)>,
@@ -612,7 +613,7 @@ struct Logs {
     styles: Log<[u16; 4], Id>,
     vertical: Log<(), Id>,
     identity_op: Log<(), Id>,
-    opening_shapes: Log<[i64; 3], Id>,
+    opening_shapes: Log<[i64; 7], Id>,
     fill_offsets: Log<[i64; 3], Id>,
     renderings: Log<([u16; 4], u16), Id>,
     types: Log<TypeKey, (Id, Id)>,

@@ -6,7 +6,7 @@ use glam::{DVec2, DVec3};
 use crate::color::Color;
 use crate::export::step::{global_id, Id};
 use crate::export::ExportError;
-use crate::model::{Opening, OpeningKind, Wall};
+use crate::model::{rounded_rect, Opening, OpeningKind, Rounding, Wall};
 
 use super::styles::color_key;
 use super::{
@@ -26,12 +26,18 @@ pub(super) struct TypeKey {
     framed: bool,
     color: [u16; 4],
     frame_color: [u16; 4],
+    /// Rounded corners: (corners as bits top-left 1, top-right 2, bottom-right 4, bottom-left
+    /// 8; radius in mm; segments; profile in thousandths).
+    rounding: Option<(u8, i64, u32, i64)>,
+    /// An explicit frame: (width, protrusion) in mm.
+    frame: Option<(i64, i64)>,
 }
 
 impl TypeKey {
     /// The key of an opening in a wall of `thickness`; `None` if it is under a centimetre.
     fn of(o: &Opening, thickness: f64) -> Option<TypeKey> {
         let cm = |v: f64| (v * 100.0 + 1e-6).floor() as i64;
+        let mm = |v: f64| (v.max(0.0) * 1000.0).round() as i64;
         let (width_cm, height_cm) = (cm(o.width()), cm(o.height()));
         let depth_mm = (FRAME_DEPTH.min(thickness) * 1000.0).round() as i64;
         (width_cm >= 1 && height_cm >= 1 && depth_mm >= 1).then_some(TypeKey {
@@ -43,7 +49,41 @@ impl TypeKey {
             framed: o.framed,
             color: color_key(o.color),
             frame_color: color_key(o.frame_color),
+            rounding: o.rounding.filter(|r| r.is_rounded()).map(|r| {
+                let bits = r
+                    .corners
+                    .iter()
+                    .enumerate()
+                    .fold(0u8, |b, (i, c)| if *c { b | 1 << i } else { b });
+                (
+                    bits,
+                    mm(r.radius),
+                    r.segments.clamp(1, Rounding::MAX_SEGMENTS),
+                    (r.profile.clamp(0.0, 1.0) * 1000.0).round() as i64,
+                )
+            }),
+            frame: o
+                .frame_size
+                .filter(|_| o.framed)
+                .map(|f| (mm(f.width), mm(f.protrusion.clamp(0.0, 2.0)))),
         })
+    }
+
+    /// The rounding of the type's body, in metres.
+    pub(super) fn rounding(&self) -> Option<Rounding> {
+        self.rounding
+            .map(|(bits, radius, segments, profile)| Rounding {
+                corners: [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0],
+                radius: radius as f64 / 1000.0,
+                segments,
+                profile: profile as f64 / 1000.0,
+            })
+    }
+
+    /// The explicit frame's (width, protrusion) in metres.
+    pub(super) fn frame_size(&self) -> Option<(f64, f64)> {
+        self.frame
+            .map(|(w, p)| (w as f64 / 1000.0, p as f64 / 1000.0))
     }
 
     pub(super) fn width(&self) -> f64 {
@@ -70,7 +110,7 @@ impl TypeKey {
                 c(k[3])
             )
         };
-        format!(
+        let mut name = format!(
             "{} {}x{} cm{}{} d{} {}/{}",
             if self.door { "Door" } else { "Window" },
             self.width_cm,
@@ -80,8 +120,29 @@ impl TypeKey {
             self.depth_mm,
             hex(self.color),
             hex(self.frame_color)
-        )
+        );
+        if let Some((bits, radius, segments, profile)) = self.rounding {
+            name.push_str(&format!(
+                " rounded {} r{radius}mm s{segments} p{profile}",
+                corner_names(bits)
+            ));
+        }
+        if let Some((w, p)) = self.frame {
+            name.push_str(&format!(" frame {w}mm+{p}mm"));
+        }
+        name
     }
+}
+
+/// The rounded corners of a type's bits, e.g. `top_left,top_right` (the SELEX names).
+fn corner_names(bits: u8) -> String {
+    ["top_left", "top_right", "bottom_right", "bottom_left"]
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| bits & (1 << i) != 0)
+        .map(|(_, n)| *n)
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 /// The wall an opening is cut into, as written: the model's wall, its `IfcWallStandardCase`
@@ -116,7 +177,16 @@ impl Render<'_> {
         };
         let q = |v: f64| (v * 1e6).round() as i64;
         let depth = wall.thickness + 2.0 * OPENING_TOLERANCE;
-        let skey = [q(w), q(h), q(depth)];
+        let rounding = o.rounding.filter(|r| r.is_rounded());
+        let rkey = rounding.map_or([0; 4], |r| {
+            let bits = r
+                .corners
+                .iter()
+                .enumerate()
+                .fold(0i64, |b, (i, c)| if *c { b | 1 << i } else { b });
+            [bits, q(r.radius), i64::from(r.segments), q(r.profile)]
+        });
+        let skey = [q(w), q(h), q(depth), rkey[0], rkey[1], rkey[2], rkey[3]];
         let shape = match self.shared.opening_shapes.get(&skey) {
             Some(id) => id,
             None => {
@@ -125,7 +195,14 @@ impl Render<'_> {
                     skey[1] as f64 / 1e6,
                     skey[2] as f64 / 1e6,
                 );
-                let profile = self.rect_profile(0.0, 0.0, w, h)?;
+                let profile = match rounding {
+                    // The outline, from the opening's bottom-left corner.
+                    Some(r) => {
+                        let ring = rounded_rect(DVec2::ZERO, DVec2::new(w, h), Some(&r));
+                        self.arbitrary_profile(&ring, &[])?
+                    }
+                    None => self.rect_profile(0.0, 0.0, w, h)?,
+                };
                 let solid = self.through_wall(profile, 0.0, depth)?;
                 let body_ctx = self.g.body_ctx;
                 let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -163,10 +240,16 @@ impl Render<'_> {
 
         let type_shape = self.fill_type(&tkey)?;
         // The type's body is floored to the cm: centre it in the opening, and centre its
-        // depth in the wall.
+        // depth in the wall; a type with an explicit frame stands at the wall's outer face (its
+        // frame stands out of it).
+        let across = if tkey.frame.is_some() {
+            0.0
+        } else {
+            (wall.thickness - tkey.depth()).max(0.0) / 2.0
+        };
         let off = DVec3::new(
             (w - tkey.width()) / 2.0,
-            OPENING_TOLERANCE + (wall.thickness - tkey.depth()).max(0.0) / 2.0,
+            OPENING_TOLERANCE + across,
             (h - tkey.height()) / 2.0,
         );
         let okey = [q(off.x), q(off.y), q(off.z)];
@@ -234,23 +317,47 @@ impl Render<'_> {
         };
         let alpha_transparency = |c: [u16; 4]| 1.0 - f64::from(c[3]) / 1000.0;
         let mut items = Vec::new();
-        let fw = FRAME_WIDTH.min(w.min(h) / 4.0);
-        let inset = if k.framed {
-            let centre = self.point2(DVec2::new(w / 2.0, h / 2.0))?;
-            let pos = self.w.entity("IFCAXIS2PLACEMENT2D", |a| {
-                a.id(centre).null();
-            })?;
-            let profile = self.w.entity("IFCRECTANGLEHOLLOWPROFILEDEF", |a| {
-                a.enumeration("AREA")
-                    .null()
-                    .id(pos)
-                    .positive(w)
-                    .positive(h)
-                    .positive(fw)
-                    .null()
-                    .null();
-            })?;
-            let frame = self.through_wall(profile, 0.0, d)?;
+        let rounding = k.rounding();
+        let explicit = k.frame_size();
+        let fw = explicit
+            .map_or(FRAME_WIDTH, |(fw, _)| fw)
+            .min(w.min(h) / 4.0);
+        // A rounded or explicitly sized frame is drawn from its outlines; the standard frame
+        // of a rectangle is a hollow rectangle.
+        let outlines = rounding.is_some() || explicit.is_some();
+        let inner = |inset: f64| {
+            let r = rounding.map(|r| Rounding {
+                radius: (r.radius - inset).max(0.0),
+                ..r
+            });
+            rounded_rect(
+                DVec2::new(inset, inset),
+                DVec2::new(w - inset, h - inset),
+                r.as_ref(),
+            )
+        };
+        let inset = if k.framed && fw > 0.0 {
+            let profile = if outlines {
+                self.arbitrary_profile(&inner(0.0), &[inner(fw)])?
+            } else {
+                let centre = self.point2(DVec2::new(w / 2.0, h / 2.0))?;
+                let pos = self.w.entity("IFCAXIS2PLACEMENT2D", |a| {
+                    a.id(centre).null();
+                })?;
+                self.w.entity("IFCRECTANGLEHOLLOWPROFILEDEF", |a| {
+                    a.enumeration("AREA")
+                        .null()
+                        .id(pos)
+                        .positive(w)
+                        .positive(h)
+                        .positive(fw)
+                        .null()
+                        .null();
+                })?
+            };
+            // An explicit frame stands out of the wall's face by its protrusion.
+            let protrusion = explicit.map_or(0.0, |(_, p)| p);
+            let frame = self.through_wall(profile, -protrusion, d + protrusion)?;
             self.rendered(
                 frame,
                 color(k.frame_color),
@@ -267,7 +374,11 @@ impl Render<'_> {
             GLASS_THICKNESS
         }
         .min(d);
-        let profile = self.rect_profile(inset, inset, w - 2.0 * inset, h - 2.0 * inset)?;
+        let profile = if rounding.is_some() {
+            self.arbitrary_profile(&inner(inset), &[])?
+        } else {
+            self.rect_profile(inset, inset, w - 2.0 * inset, h - 2.0 * inset)?
+        };
         let panel = self.through_wall(profile, (d - pane) / 2.0, pane)?;
         let transparency = if k.glazed {
             GLASS_TRANSPARENCY
@@ -285,15 +396,26 @@ impl Render<'_> {
         })?;
         let name = k.name();
         let gid = global_id(&self.g.ns, &format!("type/{name}"));
+        let psets = self.type_psets(k, &name, fw, d)?;
         let id = if k.door {
             self.w.entity("IFCDOORTYPE", |a| {
-                a.string(&gid).null().string(&name).null().null().null();
+                a.string(&gid).null().string(&name).null().null();
+                if psets.is_empty() {
+                    a.null();
+                } else {
+                    a.ids(&psets);
+                }
                 a.ids(&[map]).null().null().enumeration("DOOR");
                 a.enumeration("NOTDEFINED").boolean(false).null();
             })?
         } else {
             self.w.entity("IFCWINDOWTYPE", |a| {
-                a.string(&gid).null().string(&name).null().null().null();
+                a.string(&gid).null().string(&name).null().null();
+                if psets.is_empty() {
+                    a.null();
+                } else {
+                    a.ids(&psets);
+                }
                 a.ids(&[map]).null().null().enumeration("WINDOW");
                 a.enumeration("SINGLE_PANEL").boolean(false).null();
             })?
@@ -316,5 +438,105 @@ impl Render<'_> {
         let shape = self.shape(&[rep])?;
         self.shared.types.insert(*k, (id, shape));
         Ok(shape)
+    }
+
+    /// The property sets a window or door type carries beyond the standard ones (none for
+    /// those): for an explicit frame the `IfcWindowLiningProperties` or
+    /// `IfcDoorLiningProperties` (lining depth: the frame's depth and protrusion; lining
+    /// thickness: its width `fw`), and for rounded corners or an explicit frame a
+    /// `Citygen_OpeningShape` set with the SELEX parameters (RoundedCorners, CornerRadius,
+    /// ArcSegments, CornerProfile; FrameWidth, FrameProtrusion).
+    fn type_psets(
+        &mut self,
+        k: &TypeKey,
+        name: &str,
+        fw: f64,
+        d: f64,
+    ) -> Result<Vec<Id>, ExportError> {
+        let mut psets = Vec::new();
+        let mut props = Vec::new();
+        let single = |w: &mut crate::export::step::StepBuf,
+                      prop: &str,
+                      ty: &str,
+                      f: &dyn Fn(&mut crate::export::step::Args<'_>)| {
+            w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+                a.string(prop).null().typed(ty, |t| f(t)).null();
+            })
+        };
+        if let Some((bits, _, segments, _)) = k.rounding {
+            let r = k.rounding().map_or(0.0, |r| r.radius);
+            let p = k.rounding().map_or(0.5, |r| r.profile);
+            let corners = corner_names(bits);
+            props.push(single(&mut self.w, "RoundedCorners", "IFCLABEL", &|t| {
+                t.string(&corners);
+            })?);
+            props.push(single(
+                &mut self.w,
+                "CornerRadius",
+                "IFCPOSITIVELENGTHMEASURE",
+                &|t| {
+                    t.positive(r.max(0.001));
+                },
+            )?);
+            props.push(single(&mut self.w, "ArcSegments", "IFCINTEGER", &|t| {
+                t.int(i64::from(segments));
+            })?);
+            props.push(single(
+                &mut self.w,
+                "CornerProfile",
+                "IFCNORMALISEDRATIOMEASURE",
+                &|t| {
+                    t.real(p);
+                },
+            )?);
+        }
+        if let Some((_, protrusion)) = k.frame_size().filter(|_| k.framed && fw > 0.0) {
+            props.push(single(
+                &mut self.w,
+                "FrameWidth",
+                "IFCPOSITIVELENGTHMEASURE",
+                &|t| {
+                    t.positive(fw);
+                },
+            )?);
+            props.push(single(
+                &mut self.w,
+                "FrameProtrusion",
+                "IFCLENGTHMEASURE",
+                &|t| {
+                    t.real(protrusion);
+                },
+            )?);
+            let gid = global_id(&self.g.ns, &format!("type/{name}/lining"));
+            let lining = if k.door {
+                self.w.entity("IFCDOORLININGPROPERTIES", |a| {
+                    a.string(&gid).null().string("Frame").null();
+                    a.positive(d + protrusion).positive(fw);
+                    for _ in 0..11 {
+                        a.null();
+                    }
+                })?
+            } else {
+                self.w.entity("IFCWINDOWLININGPROPERTIES", |a| {
+                    a.string(&gid).null().string("Frame").null();
+                    a.positive(d + protrusion).positive(fw);
+                    for _ in 0..10 {
+                        a.null();
+                    }
+                })?
+            };
+            psets.push(lining);
+        }
+        if !props.is_empty() {
+            let gid = global_id(&self.g.ns, &format!("type/{name}/shape"));
+            psets.push(self.w.entity("IFCPROPERTYSET", |a| {
+                a.string(&gid)
+                    .null()
+                    .string("Citygen_OpeningShape")
+                    .null()
+                    .ids(&props);
+            })?);
+        }
+        Ok(psets)
     }
 }

@@ -103,6 +103,28 @@ impl Render<'_> {
         })?)
     }
 
+    /// An area profile bounded by the closed polyline `outer` with the closed polylines `inner`
+    /// as voids: an `IfcArbitraryClosedProfileDef`, or an `IfcArbitraryProfileDefWithVoids`.
+    pub(super) fn arbitrary_profile(
+        &mut self,
+        outer: &[DVec2],
+        inner: &[Vec<DVec2>],
+    ) -> Result<Id, ExportError> {
+        let outer = self.closed_polyline2(outer)?;
+        if inner.is_empty() {
+            return Ok(self.w.entity("IFCARBITRARYCLOSEDPROFILEDEF", |a| {
+                a.enumeration("AREA").null().id(outer);
+            })?);
+        }
+        let mut voids = Vec::with_capacity(inner.len());
+        for r in inner {
+            voids.push(self.closed_polyline2(r)?);
+        }
+        Ok(self.w.entity("IFCARBITRARYPROFILEDEFWITHVOIDS", |a| {
+            a.enumeration("AREA").null().id(outer).ids(&voids);
+        })?)
+    }
+
     /// The shared `IfcAxis2Placement3D(origin, -Y, X)` of profiles drawn in a wall's plane.
     fn vertical(&mut self) -> Result<Id, ExportError> {
         if let Some(id) = self.shared.vertical.get(&()) {

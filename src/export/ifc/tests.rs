@@ -938,6 +938,141 @@ fn lod3_sample_passes_the_reference_validator() {
     );
 }
 
+/// A box with SELEX's shapes: an arched door (top corners rounded), an arched window with an
+/// explicit frame standing 5 cm out, a round (all corners) framed window and a plain
+/// rectangle, on the front wall.
+fn shaped_sample() -> Building {
+    use crate::model::{FrameSize, Rounding};
+    use OpeningKind::{Door, Window};
+    let fp = Polygon::new(rect(0.0, 0.0, 12.0, 6.0), vec![]);
+    let mut p = storeyed(flat_part("p0", fp, 0.0, 4.0, 1), &[0.0]);
+    let arch = |r: f64, all: bool| Rounding {
+        corners: [true, true, all, all],
+        radius: r,
+        segments: 6,
+        profile: 0.5,
+    };
+    let frame = FrameSize {
+        width: 0.08,
+        protrusion: 0.05,
+    };
+    let shapes = [
+        (Door, (1.0, 2.4), (0.02, 3.0), Some(arch(0.7, false)), None),
+        (
+            Window,
+            (4.0, 5.2),
+            (1.0, 3.0),
+            Some(arch(0.6, false)),
+            Some(frame),
+        ),
+        (
+            Window,
+            (6.5, 8.5),
+            (1.0, 3.0),
+            Some(arch(1.0, true)),
+            Some(frame),
+        ),
+        (Window, (9.5, 10.7), (1.0, 2.6), None, Some(frame)),
+    ];
+    for (kind, u, z, rounding, frame_size) in shapes {
+        let w = &mut p.walls[0];
+        let o = Opening {
+            kind,
+            u0: u.0,
+            u1: u.1,
+            z0: z.0,
+            z1: z.1,
+            color: Color::rgb(0.6, 0.8, 1.0),
+            frame_color: Color::rgb(1.0, 1.0, 1.0),
+            glazed: kind == Window,
+            framed: frame_size.is_some(),
+            frame_size,
+            rounding,
+        };
+        let dir = (w.end - w.start).normalize();
+        let mut ring = o.outline();
+        ring[1..].reverse();
+        w.outline.holes.push(
+            ring.iter()
+                .map(|q| (w.start + dir * q.x).extend(q.y))
+                .collect(),
+        );
+        w.openings.push(o);
+    }
+    lod3(building(SourceId::Way(11), Some("Shapes"), vec![p]))
+}
+
+#[test]
+fn rounded_and_framed_openings_are_typed_windows_and_doors_with_their_parameters() {
+    let bytes = write_lod3(&[shaped_sample()]);
+    let m = parse(&bytes);
+    let text = String::from_utf8_lossy(&bytes);
+    // The rounded openings void their wall with their outline; the rectangle with a rectangle.
+    assert_eq!(ids_of(&m, "IFCOPENINGELEMENT").len(), 4);
+    let plain = parse(&write_lod3(&[{
+        let mut b = shaped_sample();
+        for w in &mut b.parts[0].walls {
+            w.openings.clear();
+            w.outline.holes.clear();
+        }
+        b
+    }]));
+    let closed =
+        |m: &BTreeMap<u64, (String, String)>| ids_of(m, "IFCARBITRARYCLOSEDPROFILEDEF").len();
+    assert_eq!(closed(&m) - closed(&plain), 3 + 3, "3 voids, 3 panes");
+    // Three framed types draw their frame from the outlines (with the pane's as a void).
+    assert_eq!(ids_of(&m, "IFCARBITRARYPROFILEDEFWITHVOIDS").len(), 3);
+    // The types carry the parameters: lining properties for the frames, and the shape set.
+    assert_eq!(ids_of(&m, "IFCWINDOWLININGPROPERTIES").len(), 3);
+    assert!(
+        ids_of(&m, "IFCDOORLININGPROPERTIES").is_empty(),
+        "the door has no frame"
+    );
+    let types: Vec<&String> = ids_of(&m, "IFCWINDOWTYPE")
+        .into_iter()
+        .chain(ids_of(&m, "IFCDOORTYPE"))
+        .map(|id| &m[&id].1)
+        .collect();
+    assert_eq!(types.len(), 4);
+    assert!(
+        types.iter().all(|t| !t.contains(",$,$,$,(#")),
+        "every type has its psets"
+    );
+    assert!(types
+        .iter()
+        .any(|t| t.contains("rounded top_left,top_right r700mm s6 p500")));
+    assert!(types.iter().any(|t| t.contains(
+        "rounded top_left,top_right,bottom_right,bottom_left r1000mm s6 p500 frame 80mm+50mm"
+    )));
+    assert_eq!(text.matches("'Citygen_OpeningShape'").count(), 4);
+    for p in [
+        "'RoundedCorners'",
+        "'CornerRadius'",
+        "'ArcSegments'",
+        "'CornerProfile'",
+    ] {
+        assert_eq!(text.matches(p).count(), 3, "{p}");
+    }
+    assert_eq!(text.matches("'FrameProtrusion'").count(), 3);
+    // A window with an explicit frame stands at the wall's outer face (its frame 5 cm out).
+    let Some(tool) =
+        crate::testkit::validators::validate_outputs("IFC rounded and framed openings")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("shapes.ifc");
+    std::fs::write(&path, &bytes).unwrap();
+    let out = std::process::Command::new(tool)
+        .arg("--geometry")
+        .arg(&path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains(" 0 failed"), "{text}");
+    assert!(text.contains("OpeningElement=4 Window=3 Door=1"), "{text}");
+}
+
 proptest::proptest! {
     #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
     /// Rotated and shifted boxes: the file stays well-formed, every wall keeps its length,
