@@ -12,8 +12,10 @@
 //! covers nothing, anything else a window; framed elements (`addFacadeWithFrame`) are framed
 //! windows; a rounded element keeps its rounding (its top corners on its top storey's piece, its
 //! bottom corners on its bottom one's), a framed one its frame's size. Elements on bays
-//! (`addVolume`) stand on no footprint edge and are counted as off the envelope. The doors a
-//! program puts on the ground storey are the building's entrances (`derive::facade::Facades::programmed`).
+//! (`addVolume`) stand on no footprint edge and are counted as off the envelope. A door stands
+//! on the floor of the storey its foot is in (moved down, its height kept: `addShape` centres
+//! an element in its cell). The doors a program puts on the ground storey are the building's
+//! entrances (`derive::facade::Facades::programmed`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -128,7 +130,7 @@ pub fn apply(
             };
             let label = d.shapes[c].label.to_ascii_lowercase();
             let (u0, u1) = (e.rect.x, e.rect.x + e.rect.w);
-            let (z0, z1) = (base + e.rect.y, base + e.rect.y + e.rect.h);
+            let (mut z0, mut z1) = (base + e.rect.y, base + e.rect.y + e.rect.h);
             if label == "wall" {
                 continue;
             }
@@ -147,6 +149,13 @@ pub fn apply(
             } else {
                 OpeningKind::Window
             };
+            if kind == OpeningKind::Door {
+                // A door stands on the floor of the storey its foot is in (an `addShape`
+                // centres it in its cell): moved down, its height kept.
+                if let Some(l) = facades.levels.iter().find(|l| z0 >= l.z0 && z0 < l.z1) {
+                    (z0, z1) = (l.z0, z1 - (z0 - l.z0));
+                }
+            }
             let frame_size = e.frame.map(|f| FrameSize {
                 width: f.thickness,
                 protrusion: f.width,
@@ -308,5 +317,45 @@ mod tests {
             }
             assert!(fronts_seen >= 20, "{file}: {fronts_seen} front facades");
         }
+    }
+
+    #[test]
+    fn a_door_centred_in_its_cell_stands_on_its_floor() {
+        use crate::derive::facade::{Facades, Level};
+        let src = r#"{< descendant() [label == "facade"] > -> createStoreyGrid("g", 3.0)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [rowIdx == 1] [colIdx == 1] > -> addShape("door", 1.2, 2.2)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [rowIdx == 2] > -> addShape("window", 1.0, 1.4)};
+"#;
+        let program = SelexProgram {
+            file: "door.slx".into(),
+            source: src.into(),
+            program: crate::selex::parser::parse(src, "door.slx").unwrap(),
+        };
+        // A 9 x 6 m box whose first edge (south) faces the street.
+        let fp = Polygon::new(
+            vec![
+                glam::DVec2::new(0.0, 0.0),
+                glam::DVec2::new(9.0, 0.0),
+                glam::DVec2::new(9.0, 6.0),
+                glam::DVec2::new(0.0, 6.0),
+            ],
+            vec![],
+        );
+        let mut f = Facades {
+            levels: vec![Level { z0: 0.0, z1: 4.0 }, Level { z0: 4.0, z1: 7.0 }],
+            openings: vec![Vec::new(); 4],
+            balconies: vec![Vec::new(); 4],
+            ..Facades::default()
+        };
+        apply(&program, &fp, 0.0, Some(glam::DVec2::NEG_Y), &mut f).unwrap();
+        assert!(f.programmed);
+        let front = &f.openings[0];
+        let door = front.iter().find(|o| o.kind == OpeningKind::Door).unwrap();
+        // Centred in its 4 m cell the door's foot was 0.9 m up; it stands on the floor now.
+        assert!(door.z0.abs() < 1e-9 && (door.z1 - 2.2).abs() < 1e-9, "{door:?}");
+        assert!((door.u1 - door.u0 - 1.2).abs() < 1e-9);
+        // Windows stay where the program put them: centred in their cells.
+        let w = front.iter().find(|o| o.kind == OpeningKind::Window).unwrap();
+        assert!((w.z0 - (4.0 + 0.8)).abs() < 1e-9, "{w:?}");
     }
 }
