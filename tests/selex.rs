@@ -113,11 +113,13 @@ fn the_seeds_facade_rules_run_on_every_facade_of_real_monaco_buildings() {
 fn rock_kb(dir: &std::path::Path, selex: bool) -> std::path::PathBuf {
     std::fs::write(
         dir.join("rock.slx"),
-        r#"# Monaco-Ville: bays of about 2.6 m; an arched door in the first bay towards the street;
-# windows of 1.1 x 1.6 m centred in the bays of the middle storeys; arched windows with a
-# frame standing 5 cm out filling the bays of the top storey.
+        r#"# Monaco-Ville: bays of about 2.6 m; a porch 1.5 m deep, one storey high, in the second
+# bay of every street facade, with an arched door; windows of 1.1 x 1.6 m centred in the bays
+# of the middle storeys; arched windows with a frame standing 5 cm out filling the bays of the
+# top storey.
 {< descendant() [label == "facade"] > -> createStoreyGrid("g", 2.6)};
-{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [rowIdx == 1] [colIdx == 1] > -> addRoundFacade("door", ["top_left", "top_right"], 1.3, 8, 0.5)};
+{< descendant() [label == "facade"] [side == "front"] / [label == "g"] / [type == "cell"] [rowIdx == 1] [colIdx == 2] [::groupRegions] > -> addVolume("porch", "facade", 1.5, ["porch_front", "porch_left", "porch_right"])};
+{< descendant() [label == "porch_front"] / [label == "porch_front_grid"] / [type == "cell"] [::groupRegions] > -> addRoundFacade("door", ["top_left", "top_right"], 1.3, 8, 0.5)};
 {< descendant() [label == "facade"] / [label == "g"] / [rowIdx in rowRange(2, -2)] > -> addShape("window", 1.1, 1.6)};
 {< descendant() [label == "facade"] / [label == "g"] / [rowIdx == -1] > -> addRoundFacadeWithFrame("window", ["top_left", "top_right"], 1.3, 8, 0.5, "frame", 0.08, 0.05)};
 "#,
@@ -194,7 +196,21 @@ fn a_kb_appearance_with_selex_lays_out_the_facades_of_its_district() {
         ),
         "the program changed nothing"
     );
-    let _ = report;
+    // The porches are parts of their buildings, each with its arched door (the entrances).
+    let parts = count(&with, "<bldg:BuildingPart ");
+    let porch_doors = with
+        .split("<bldg:BuildingPart ")
+        .skip(1)
+        .filter(|p| {
+            p.split("</bldg:BuildingPart>")
+                .next()
+                .unwrap_or("")
+                .contains("<bldg:Door")
+        })
+        .count();
+    eprintln!("{parts} building parts, {porch_doors} with a door");
+    assert!(porch_doors > 50, "{porch_doors} porches with a door");
+    assert!(report.contains("\"entrances\": ") && !report.contains("\"entrances\": 0,"));
     // Rounded and framed openings are typed IFC windows and doors carrying their parameters.
     let ifc = std::fs::read_to_string(&files[0]).unwrap();
     let arched_doors = ifc

@@ -467,29 +467,101 @@ impl Generator {
             return Ok(masses.into_iter().map(|m| (m, None)).collect());
         }
         let nodes = mass_nodes(&tree);
-        let out = masses
-            .into_iter()
-            .zip(nodes)
-            .map(|(m, i)| {
-                let mut f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
-                if let Some(program) = style.selex.as_ref().and_then(|p| self.selex.get(p)) {
-                    match selex::apply(program, &m.footprint, m.base_z, front, &mut f) {
-                        Ok(warnings) => notes.extend(
-                            warnings
+        let footprints: Vec<Polygon> = masses.iter().map(|m| m.footprint.clone()).collect();
+        let mut out = Vec::with_capacity(masses.len());
+        for (m, i) in masses.into_iter().zip(nodes) {
+            let mut f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+            let mut bays = Vec::new();
+            if let Some(program) = style.selex.as_ref().and_then(|p| self.selex.get(p)) {
+                match selex::apply(program, &m.footprint, m.base_z, front, &mut f) {
+                    Ok(applied) => {
+                        notes.extend(
+                            applied
+                                .warnings
                                 .into_iter()
                                 .map(|w| (Outcome::Note, format!("facade program: {w}"))),
-                        ),
-                        Err(why) => notes.push((
-                            Outcome::Note,
-                            format!("facade program not applied ({why}): the rules' facades kept"),
-                        )),
+                        );
+                        bays = applied.bays;
                     }
+                    Err(why) => notes.push((
+                        Outcome::Note,
+                        format!("facade program not applied ({why}): the rules' facades kept"),
+                    )),
                 }
-                (m, Some(f))
-            })
-            .collect();
+            }
+            let bay_masses = self.bay_masses(id, &m, bays, &footprints, notes);
+            out.push((m, Some(f)));
+            out.extend(bay_masses);
+        }
         grammar::recycle(tree);
         Ok(out)
+    }
+
+    /// The bays a SELEX program pushed out of mass `m`'s walls as masses of their own (flat
+    /// roofs, `m`'s colours), each with its facades. A bay that would overlap another mass of
+    /// the piece (`footprints`) or a neighbouring building is left out, with a note; a rounded
+    /// one is drawn with a straight front, with a note.
+    fn bay_masses(
+        &self,
+        owner: SourceId,
+        m: &Mass,
+        bays: Vec<selex::Bay>,
+        footprints: &[Polygon],
+        notes: &mut Vec<Note>,
+    ) -> Vec<(Mass, Option<facade::Facades>)> {
+        let mut out = Vec::new();
+        let mut taken: Vec<Polygon> = Vec::new();
+        for b in bays {
+            let (lo, hi) = b.footprint.bounds();
+            let near = self.surroundings.near(owner, lo, hi);
+            let neighbours = near
+                .iter()
+                .filter(|n| n.z0 < b.z1 && b.z0 < n.z1)
+                .filter_map(|n| {
+                    let (outer, holes) = n.rings.split_first()?;
+                    Some(Polygon::new(outer.clone(), holes.to_vec()))
+                });
+            let blocked = footprints
+                .iter()
+                .chain(taken.iter())
+                .cloned()
+                .chain(neighbours)
+                .any(|p| overlap_area(&b.footprint, &p) > 0.01);
+            if blocked {
+                notes.push((
+                    Outcome::Note,
+                    format!(
+                        "facade program: bay `{}` left out: it would stand in another building or part",
+                        b.label
+                    ),
+                ));
+                continue;
+            }
+            if b.rounded {
+                notes.push((
+                    Outcome::Note,
+                    format!(
+                        "facade program: bay `{}` drawn with a straight front (roundShape)",
+                        b.label
+                    ),
+                ));
+            }
+            taken.push(b.footprint.clone());
+            let storeys = b.facades.levels.len().max(1) as u32;
+            out.push((
+                Mass {
+                    footprint: b.footprint,
+                    base_z: b.z0,
+                    eave_z: b.z1,
+                    storeys,
+                    roof: RoofShape::Flat,
+                    roof_height: None,
+                    ..m.clone()
+                },
+                Some(b.facades),
+            ));
+        }
+        out
     }
 }
 
@@ -542,6 +614,16 @@ fn flatten_covered_roofs(styled: &mut [(&LotPiece, BuildingTags, Style, Rng)]) {
 }
 
 /// Whether two pieces' plans overlap: a point inside one of them lies in the other.
+/// The area two polygons share, square metres (0 for polygons that only touch).
+fn overlap_area(a: &Polygon, b: &Polygon) -> f64 {
+    let left: f64 =
+        crate::geometry::clip::difference(std::slice::from_ref(a), std::slice::from_ref(b))
+            .iter()
+            .map(|p| p.area())
+            .sum();
+    (a.area() - left).max(0.0)
+}
+
 fn plans_overlap(a: &[Polygon], b: &[Polygon]) -> bool {
     let inside = |p: &[Polygon], q: &[Polygon]| {
         p.iter()

@@ -21,12 +21,14 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::derive::facade::{Facades, FoundBalcony, FoundOpening, OpeningKind};
+use glam::DVec2;
+
+use crate::derive::facade::{Facades, FoundBalcony, FoundOpening, Level, OpeningKind};
 use crate::geometry::Polygon;
 use crate::kb::KnowledgeBase;
 use crate::model::{FrameSize, Rounding};
 use crate::selex::ast::Program;
-use crate::selex::eval::{facade_specs, run_on_facades, ShapeKind};
+use crate::selex::eval::{facade_specs, run_on_facades, Derivation, ShapeKind};
 
 /// A parsed SELEX program with its text and file name (for messages).
 #[derive(Debug)]
@@ -71,17 +73,54 @@ pub fn load(path: &Path) -> Result<SelexProgram, String> {
     })
 }
 
+/// What [`apply`] made besides the facades it laid out.
+#[derive(Debug, Default)]
+pub struct Applied {
+    /// The program's warnings, `file:line:col: message`.
+    pub warnings: Vec<String>,
+    /// The bays (`addVolume`) standing against the mass's walls, each to become a part of the
+    /// building: a box from the wall out, as high as the cells it was pushed out of, with its
+    /// own facades (the elements the program put on its faces).
+    pub bays: Vec<Bay>,
+}
+
+/// A bay a program pushed out of a wall (`addVolume`), as a mass of its own.
+#[derive(Debug)]
+pub struct Bay {
+    /// Its label in the program.
+    pub label: String,
+    /// Its footprint: front, right side, back (on the wall), left side; counter-clockwise.
+    pub footprint: Polygon,
+    /// Its bottom, metres.
+    pub z0: f64,
+    /// Its top, metres.
+    pub z1: f64,
+    /// Its openings and balconies per footprint edge, its levels those of the mass it stands
+    /// against.
+    pub facades: Facades,
+    /// `roundShape` asked for a rounded front: drawn straight.
+    pub rounded: bool,
+}
+
+/// The edges of a footprint, outer ring then holes, in ring order.
+fn edges_of(footprint: &Polygon) -> Vec<(DVec2, DVec2)> {
+    footprint
+        .rings()
+        .flat_map(|r| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()])))
+        .collect()
+}
+
 /// Lays out `facades` (found by the rules on a mass of `footprint` standing on `base_z`) with
-/// `program`: its openings and balconies replace the rules'. Returns the program's warnings
-/// (`file:line:col: message`); an error of the program leaves `facades` as the rules made them
-/// and is returned as the note.
+/// `program`: its openings and balconies replace the rules'. Returns the program's warnings and
+/// the bays it pushed out; an error of the program leaves `facades` as the rules made them and
+/// is returned as the note.
 pub fn apply(
     program: &SelexProgram,
     footprint: &Polygon,
     base_z: f64,
-    front: Option<glam::DVec2>,
+    front: Option<DVec2>,
     facades: &mut Facades,
-) -> Result<Vec<String>, String> {
+) -> Result<Applied, String> {
     let storeys: Vec<f64> = facades
         .levels
         .iter()
@@ -90,120 +129,198 @@ pub fn apply(
         .collect();
     let base = facades.levels.first().map_or(base_z, |l| l.z0);
     let specs = facade_specs(footprint, base, &storeys, front);
-    // Edge k of the footprint is facade_specs' k-th face, unless an edge was too short.
-    let edges: Vec<(glam::DVec2, glam::DVec2)> = footprint
-        .rings()
-        .flat_map(|r| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()])))
-        .collect();
+    let edges = edges_of(footprint);
     if edges.len() != facades.openings.len() {
         return Err("the footprint's edges are not the facades'".into());
     }
     let d = run_on_facades(&program.program, &program.source, &program.file, &specs)
         .map_err(|e| e.to_string().lines().next().unwrap_or_default().to_string())?;
-    let mut openings: Vec<Vec<FoundOpening>> = vec![Vec::new(); edges.len()];
-    let mut balconies: Vec<Vec<FoundBalcony>> = vec![Vec::new(); edges.len()];
-    let mut off = 0usize;
-    // Every face standing on a footprint edge: the `facade` faces, and their copies a
-    // `createShape` made (`building_front`, ...). A bay's faces stand on none.
-    for (face, shape) in d.shapes.iter().enumerate() {
-        let ShapeKind::Face { frame, .. } = &shape.kind else {
-            continue;
-        };
-        let start = frame.origin.truncate();
-        let end = start + frame.u.truncate() * frame.width;
-        let near = |p: glam::DVec2, q: glam::DVec2| p.distance(q) < 1e-6;
-        let Some(k) = edges
+    let mut out = Applied {
+        warnings: d
+            .warnings
             .iter()
-            .position(|&(a, b)| near(a, start) && near(b, end))
-        else {
-            continue;
-        };
-        if (frame.origin.z - base).abs() > 1e-6 {
-            continue;
-        }
-        for &c in &d.shapes[face].children {
-            let ShapeKind::Element(e) = &d.shapes[c].kind else {
-                if matches!(d.shapes[c].kind, ShapeKind::Volume { .. }) {
-                    off += 1;
-                }
-                continue;
-            };
-            let label = d.shapes[c].label.to_ascii_lowercase();
-            let (u0, u1) = (e.rect.x, e.rect.x + e.rect.w);
-            let (mut z0, mut z1) = (base + e.rect.y, base + e.rect.y + e.rect.h);
-            if label == "wall" {
-                continue;
-            }
-            if label.starts_with("balcony") || label.starts_with("ledge") {
-                balconies[k].push(FoundBalcony {
-                    u0,
-                    u1,
-                    z0,
-                    z1,
-                    color: None,
-                });
-                continue;
-            }
-            let kind = if label.starts_with("door") || label.starts_with("entrance") {
-                OpeningKind::Door
-            } else {
-                OpeningKind::Window
-            };
-            if kind == OpeningKind::Door {
-                // A door stands on the floor of the storey its foot is in (an `addShape`
-                // centres it in its cell): moved down, its height kept.
-                if let Some(l) = facades.levels.iter().find(|l| z0 >= l.z0 && z0 < l.z1) {
-                    (z0, z1) = (l.z0, z1 - (z0 - l.z0));
-                }
-            }
-            let frame_size = e.frame.map(|f| FrameSize {
-                width: f.thickness,
-                protrusion: f.width,
-            });
-            // One opening per storey the element spans; the top corners' rounding goes to the
-            // top piece, the bottom corners' to the bottom one.
-            for l in &facades.levels {
-                let (lo, hi) = (z0.max(l.z0), z1.min(l.z1));
-                if hi - lo < 0.3 {
-                    continue;
-                }
-                let rounding = e.rounding.map(|r| {
-                    let (top, bottom) = (hi >= z1 - 1e-9, lo <= z0 + 1e-9);
-                    let c = r.corners;
-                    Rounding {
-                        corners: [c[0] && top, c[1] && top, c[2] && bottom, c[3] && bottom],
-                        radius: r.offset,
-                        segments: r.segments,
-                        profile: r.profile,
-                    }
-                });
-                openings[k].push(FoundOpening {
-                    kind,
-                    u0,
-                    u1,
-                    z0: lo,
-                    z1: hi,
-                    color: None,
-                    frame_color: None,
-                    glazed: kind == OpeningKind::Window,
-                    framed: e.frame.is_some(),
-                    frame_size,
-                    rounding: rounding.filter(Rounding::is_rounded),
-                });
-            }
+            .map(|n| format!("{}:{}:{}: {}", program.file, n.line, n.col, n.message))
+            .collect(),
+        bays: Vec::new(),
+    };
+    // Every face standing on a footprint edge: the `facade` faces, and their copies a
+    // `createShape` made (`building_front`, ...). A bay's faces stand on the bay's.
+    let mut laid = Facades {
+        levels: facades.levels.clone(),
+        openings: vec![Vec::new(); edges.len()],
+        balconies: vec![Vec::new(); edges.len()],
+        ..Facades::default()
+    };
+    let mut bays: Vec<usize> = Vec::new();
+    for (face, shape) in d.shapes.iter().enumerate() {
+        if place(&d, face, &edges, &mut laid) {
+            bays.extend(
+                shape
+                    .children
+                    .iter()
+                    .copied()
+                    .filter(|&c| matches!(d.shapes[c].kind, ShapeKind::Volume { .. })),
+            );
         }
     }
-    for v in &mut openings {
+    for v in bays {
+        match bay(&d, v, &facades.levels) {
+            Some(b) => out.bays.push(b),
+            None => laid.off_envelope += 1,
+        }
+    }
+    facades.openings = laid.openings;
+    facades.balconies = laid.balconies;
+    facades.off_envelope += laid.off_envelope;
+    facades.programmed = true;
+    Ok(out)
+}
+
+/// The bay volume `v` of `d` (standing on a face of the mass) as a [`Bay`], with the elements
+/// on its faces; `None` when it is too small to build (under 0.3 m deep, wide or high).
+fn bay(d: &Derivation, v: usize, levels: &[Level]) -> Option<Bay> {
+    let shape = &d.shapes[v];
+    let ShapeKind::Volume { rounding, .. } = &shape.kind else {
+        return None;
+    };
+    let frames: Vec<_> = shape.children.iter().filter_map(|&c| d.frame(c)).collect();
+    let (front, left) = (frames.first()?, frames.get(1)?);
+    let (w, depth, h) = (front.width, left.width, front.height);
+    if !(w >= 0.3 && depth >= 0.3 && h >= 0.3) {
+        return None;
+    }
+    let p1 = front.origin.truncate();
+    let p0 = left.origin.truncate();
+    let u = front.u.truncate();
+    let footprint = Polygon::new(vec![p1, p1 + u * w, p0 + u * w, p0], vec![]);
+    let (z0, z1) = (front.origin.z, front.origin.z + h);
+    // The mass's storeys, cut to the bay.
+    let levels: Vec<Level> = levels
+        .iter()
+        .map(|l| Level {
+            z0: l.z0.max(z0),
+            z1: l.z1.min(z1),
+        })
+        .filter(|l| l.z1 - l.z0 > 1e-6)
+        .collect();
+    let levels = if levels.is_empty() {
+        vec![Level { z0, z1 }]
+    } else {
+        levels
+    };
+    let edges = edges_of(&footprint);
+    let mut facades = Facades {
+        levels,
+        openings: vec![Vec::new(); edges.len()],
+        balconies: vec![Vec::new(); edges.len()],
+        programmed: true,
+        ..Facades::default()
+    };
+    for &c in &shape.children {
+        place(d, c, &edges, &mut facades);
+    }
+    for v in &mut facades.openings {
         v.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
     }
-    facades.openings = openings;
-    facades.balconies = balconies;
-    facades.off_envelope += off;
-    facades.programmed = true;
-    Ok(d.warnings
+    Some(Bay {
+        label: shape.label.clone(),
+        footprint,
+        z0,
+        z1,
+        facades,
+        rounded: rounding.is_some(),
+    })
+}
+
+/// Places the elements of `face` (if it is a face standing on one of `edges` at the bottom of
+/// `facades`' levels) as openings and balconies of that edge; returns whether it stood on one.
+fn place(d: &Derivation, face: usize, edges: &[(DVec2, DVec2)], facades: &mut Facades) -> bool {
+    let ShapeKind::Face { frame, .. } = &d.shapes[face].kind else {
+        return false;
+    };
+    let start = frame.origin.truncate();
+    let end = start + frame.u.truncate() * frame.width;
+    let near = |p: DVec2, q: DVec2| p.distance(q) < 1e-6;
+    let Some(k) = edges
         .iter()
-        .map(|n| format!("{}:{}:{}: {}", program.file, n.line, n.col, n.message))
-        .collect())
+        .position(|&(a, b)| near(a, start) && near(b, end))
+    else {
+        return false;
+    };
+    let base = facades.levels.first().map_or(frame.origin.z, |l| l.z0);
+    if (frame.origin.z - base).abs() > 1e-6 {
+        return false;
+    }
+    for &c in &d.shapes[face].children {
+        let ShapeKind::Element(e) = &d.shapes[c].kind else {
+            continue;
+        };
+        let label = d.shapes[c].label.to_ascii_lowercase();
+        let (u0, u1) = (e.rect.x, e.rect.x + e.rect.w);
+        let (mut z0, mut z1) = (base + e.rect.y, base + e.rect.y + e.rect.h);
+        if label == "wall" {
+            continue;
+        }
+        if label.starts_with("balcony") || label.starts_with("ledge") {
+            facades.balconies[k].push(FoundBalcony {
+                u0,
+                u1,
+                z0,
+                z1,
+                color: None,
+            });
+            continue;
+        }
+        let kind = if label.starts_with("door") || label.starts_with("entrance") {
+            OpeningKind::Door
+        } else {
+            OpeningKind::Window
+        };
+        if kind == OpeningKind::Door {
+            // A door stands on the floor of the storey its foot is in (an `addShape` centres
+            // it in its cell): moved down, its height kept.
+            if let Some(l) = facades.levels.iter().find(|l| z0 >= l.z0 && z0 < l.z1) {
+                (z0, z1) = (l.z0, z1 - (z0 - l.z0));
+            }
+        }
+        let frame_size = e.frame.map(|f| FrameSize {
+            width: f.thickness,
+            protrusion: f.width,
+        });
+        // One opening per storey the element spans; the top corners' rounding goes to the top
+        // piece, the bottom corners' to the bottom one.
+        for l in &facades.levels {
+            let (lo, hi) = (z0.max(l.z0), z1.min(l.z1));
+            if hi - lo < 0.3 {
+                continue;
+            }
+            let rounding = e.rounding.map(|r| {
+                let (top, bottom) = (hi >= z1 - 1e-9, lo <= z0 + 1e-9);
+                let c = r.corners;
+                Rounding {
+                    corners: [c[0] && top, c[1] && top, c[2] && bottom, c[3] && bottom],
+                    radius: r.offset,
+                    segments: r.segments,
+                    profile: r.profile,
+                }
+            });
+            facades.openings[k].push(FoundOpening {
+                kind,
+                u0,
+                u1,
+                z0: lo,
+                z1: hi,
+                color: None,
+                frame_color: None,
+                glazed: kind == OpeningKind::Window,
+                framed: e.frame.is_some(),
+                frame_size,
+                rounding: rounding.filter(Rounding::is_rounded),
+            });
+        }
+    }
+    facades.openings[k].sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
+    true
 }
 
 #[cfg(test)]
@@ -293,7 +410,7 @@ mod tests {
                         balconies: vec![Vec::new(); edges],
                         ..Facades::default()
                     };
-                    apply(&selex, polygon, 0.0, lot.front, &mut f)
+                    let applied = apply(&selex, polygon, 0.0, lot.front, &mut f)
                         .unwrap_or_else(|e| panic!("{file} on {}: {e}", lot.id));
                     if file == "clock_tower.slx" {
                         let all: Vec<_> = f.openings.iter().flatten().collect();
@@ -309,9 +426,20 @@ mod tests {
                         assert!(rounded >= 6 * fronts, "{}: {rounded} windows", lot.id);
                     }
                     if file == "rounded_door.slx" {
-                        // The door stands on its bay, off the footprint: not an opening of a wall.
+                        // The door stands on its bay, not in a wall of the mass; every bay is a
+                        // mass of its own with the door on its front (edge 0), or too small.
                         assert!(f.openings.iter().flatten().next().is_none());
-                        assert_eq!(f.off_envelope, fronts, "{}", lot.id);
+                        assert_eq!(applied.bays.len() + f.off_envelope, fronts, "{}", lot.id);
+                        for b in &applied.bays {
+                            assert!(b.rounded && b.footprint.area() > 0.09);
+                            assert!((b.z0, b.z1) == (0.0, 12.5 * 3.0 / 4.0), "{b:?}");
+                            let door = &b.facades.openings[0];
+                            // 6.25 m high (two of the bay's three rows): cut at the 3.5 m floor.
+                            assert_eq!(door.len(), 2, "{}: the door cut at a floor", lot.id);
+                            assert!(door.iter().all(|o| o.kind == OpeningKind::Door));
+                            let top = door.iter().filter(|o| o.rounding.is_some()).count();
+                            assert_eq!(top, 1, "the top piece is rounded");
+                        }
                     }
                 }
             }
@@ -352,10 +480,16 @@ mod tests {
         let front = &f.openings[0];
         let door = front.iter().find(|o| o.kind == OpeningKind::Door).unwrap();
         // Centred in its 4 m cell the door's foot was 0.9 m up; it stands on the floor now.
-        assert!(door.z0.abs() < 1e-9 && (door.z1 - 2.2).abs() < 1e-9, "{door:?}");
+        assert!(
+            door.z0.abs() < 1e-9 && (door.z1 - 2.2).abs() < 1e-9,
+            "{door:?}"
+        );
         assert!((door.u1 - door.u0 - 1.2).abs() < 1e-9);
         // Windows stay where the program put them: centred in their cells.
-        let w = front.iter().find(|o| o.kind == OpeningKind::Window).unwrap();
+        let w = front
+            .iter()
+            .find(|o| o.kind == OpeningKind::Window)
+            .unwrap();
         assert!((w.z0 - (4.0 + 0.8)).abs() < 1e-9, "{w:?}");
     }
 }
