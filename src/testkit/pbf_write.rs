@@ -50,6 +50,8 @@ pub struct PbfWriter<W: Write> {
     /// The string table of the block being filled; index 0 is the empty string by convention.
     strings: Vec<String>,
     index: std::collections::HashMap<String, u32>,
+    /// Groups held back to share one block ([`PbfWriter::join_groups`]).
+    held: Option<Vec<Vec<u8>>>,
 }
 
 impl<W: Write> PbfWriter<W> {
@@ -64,6 +66,7 @@ impl<W: Write> PbfWriter<W> {
             pending: None,
             strings: Vec::new(),
             index: Default::default(),
+            held: None,
         };
         pw.reset_strings();
         pw.write_blob("OSMHeader", &header)?;
@@ -110,8 +113,27 @@ impl<W: Write> PbfWriter<W> {
         Ok(())
     }
 
+    /// From here until [`PbfWriter::end_join`], the blocks that a change of kind would start
+    /// are groups of one block instead (its first group's kind the first entity's): a block
+    /// holding more than one kind of element, which some writers make and readers must take.
+    pub fn join_groups(&mut self) -> io::Result<()> {
+        self.flush_block()?;
+        self.held = Some(Vec::new());
+        Ok(())
+    }
+
+    /// Writes the joined groups ([`PbfWriter::join_groups`]) as one block.
+    pub fn end_join(&mut self) -> io::Result<()> {
+        self.flush_block()?;
+        let Some(groups) = self.held.take() else {
+            return Ok(());
+        };
+        self.write_block(&groups)
+    }
+
     /// Writes the last block and returns the underlying writer (flushed).
     pub fn finish(mut self) -> io::Result<W> {
+        self.end_join()?;
         self.flush_block()?;
         self.out.flush()?;
         Ok(self.out)
@@ -212,13 +234,26 @@ impl<W: Write> PbfWriter<W> {
                 }
             }
         }
+        if let Some(held) = &mut self.held {
+            // The string table goes on: the block's groups share it.
+            held.push(group);
+            return Ok(());
+        }
+        self.write_block(&[group])
+    }
+
+    /// Writes one `PrimitiveBlock` of `groups` with the string table so far, then starts a new
+    /// table.
+    fn write_block(&mut self, groups: &[Vec<u8>]) -> io::Result<()> {
         let mut table = Vec::new();
         for s in &self.strings {
             field_bytes(&mut table, 1, s.as_bytes());
         }
         let mut block = Vec::new();
         field_bytes(&mut block, 1, &table);
-        field_bytes(&mut block, 2, &group);
+        for group in groups {
+            field_bytes(&mut block, 2, group);
+        }
         field_varint(&mut block, 17, 100);
         self.reset_strings();
         self.write_blob("OSMData", &block)

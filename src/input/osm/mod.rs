@@ -111,6 +111,9 @@ fn read_passes(
     locs: &[BlobLoc],
     report: &mut Report,
 ) -> Result<Option<ReadResult>, InputError> {
+    // What the passes note is taken back when a later pass finds a mixed block (the caller
+    // reads the file again, and would note it twice).
+    let mark = report.entries.len();
     // Pass 1: relations.
     let (rels, mixed) = pbf.pass(
         file,
@@ -120,6 +123,7 @@ fn read_passes(
         relations_of_block,
     )?;
     if mixed {
+        report.entries.truncate(mark);
         return Ok(None);
     }
     let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
@@ -149,6 +153,7 @@ fn read_passes(
         |b| with_needed(ways_of_block(b, &member_ways, &interner)),
     )?;
     if mixed {
+        report.entries.truncate(mark);
         return Ok(None);
     }
     let (blocks, needed): (Vec<WayBlock>, Vec<Vec<i64>>) = blocks.into_iter().unzip();
@@ -179,6 +184,7 @@ fn read_passes(
         |b| by_index(nodes_of_block(b, &nodes.ids)),
     )?;
     if mixed {
+        report.entries.truncate(mark);
         return Ok(None);
     }
     nodes.fill(&found);

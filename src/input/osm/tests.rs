@@ -859,3 +859,55 @@ proptest::proptest! {
         same_as_osmpbf(&frame_of(1, &raw_frame(&b)), *kind, needed);
     }
 }
+
+/// A block holding two kinds of element makes the reader read the file again: what the first
+/// read noted (a relation given twice) is noted once, and the mixed block's elements are read.
+#[test]
+fn a_mixed_block_reads_again_and_notes_each_duplicate_once() {
+    use crate::testkit::pbf_write::{MemberKind, PbfWriter};
+    let mut w = PbfWriter::new(Vec::new()).unwrap();
+    let square = |x: f64| [(x, 0.0), (x + 1e-4, 0.0), (x + 1e-4, 1e-4), (x, 1e-4)];
+    let mut id = 0;
+    let mut rings = Vec::new();
+    for x in [7.0, 7.001, 7.002] {
+        let mut refs = Vec::new();
+        for (lon, lat) in square(x) {
+            id += 1;
+            w.node(id, lon, 43.7 + lat, &[]).unwrap();
+            refs.push(id);
+        }
+        refs.push(refs[0]);
+        rings.push(refs);
+    }
+    w.way(10, &rings[0], &[("building", "yes")]).unwrap();
+    // One block: a way group, then a relation group.
+    w.join_groups().unwrap();
+    w.way(11, &rings[1], &[("building", "yes")]).unwrap();
+    w.way(12, &rings[2], &[]).unwrap();
+    let mp = [("type", "multipolygon"), ("building", "yes")];
+    w.relation(21, &[(MemberKind::Way, 12, "outer")], &mp)
+        .unwrap();
+    w.end_join().unwrap();
+    // A relation given twice, in a block of relations.
+    w.relation(20, &[(MemberKind::Way, 12, "outer")], &mp)
+        .unwrap();
+    w.relation(20, &[(MemberKind::Way, 12, "outer")], &mp)
+        .unwrap();
+    let bytes = w.finish().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("mixed.osm.pbf");
+    std::fs::write(&path, bytes).unwrap();
+    let mut report = Report::default();
+    let r = read_osm(&path, &mut report).unwrap();
+    let twice: Vec<_> = report
+        .entries
+        .iter()
+        .filter(|e| e.id == "relation/20" && e.reason.contains("appears 2 times"))
+        .collect();
+    assert_eq!(twice.len(), 1, "{:?}", report.entries);
+    // Both ways and the relation of the mixed block are read.
+    let ids: Vec<String> = r.footprints.iter().map(|f| f.id.to_string()).collect();
+    for id in ["way/10", "way/11", "relation/21"] {
+        assert!(ids.iter().any(|i| i == id), "{id} not read: {ids:?}");
+    }
+}
