@@ -38,20 +38,7 @@ fn close(a: f64, b: f64) -> bool {
 /// Jiang et al. 2018, Fig. 13 (seed L508-L546), with the arguments the paper elides written
 /// out: a 17.6 m × 12.8 m facade, four storeys, five bays labelled left, left, mid, right,
 /// right.
-const JIANG: &str = r#"
-facW = 17.6; facH = 12.8;
-{<> -> addShape("facade", facW, facH)};
-{<[label == "facade"]> -> createGrid("main", 4, ["left", "left", "mid", "right", "right"])};
-{<[label == "facade"]/[label == main]> -> setHeadNode();}
-{<cell()[colLabel == "mid"][rowLabel == "gnd"]> -> addShape("door")};
-{<cell()[colLabel == "mid"][rowIdx > 1][::groupCols()]> -> addShape("glass")};
-{<cell()[colLabel == "left"][rowLabel == "top"][::groupPairs()]> -> addShape("ledge")};
-{<cell()[colLabel == "right"][rowLabel == "top"][::groupRows()]> -> addShape("win4")};
-{<cell()[colLabel in ("left", "right")][rowIdx == 1]> -> addShape("win1")};
-{<cell()[colLabel in ("left", "right")][rowIdx in rowRange(2, -2)]> -> addShape("win2")};
-{<cell()[colLabel == "left"][rowLabel == "top"]> -> addShape("win3")};
-{<root()/[label == "facade"]> -> coverShape()};
-"#;
+const JIANG: &str = include_str!("../../tests/data/selex/jiang.slx");
 
 #[test]
 fn jiang_fig_13_places_every_element_family() {
@@ -89,18 +76,7 @@ fn jiang_fig_13_places_every_element_family() {
 
 /// Brito et al. 2021, the mass model (Código-fonte 1, seed L598-L620), with its `>` arrows.
 /// Rows (2, 3) of the 3-row grid counted from the top are rows (2, 1) from the ground.
-const BRITO: &str = r#"
-#C1: Initial settings
-label = "building"; width = 9; depth = 11; height = 5;
-#C2: Generating mass model
-{<> > createShape(label, width, depth, height)};
-#C3: Adding virtual shape
-{<descendant() [label=="building"] / [label=="building_front"]> > createGrid("main_front_grid", 3, 7)};
-#C4: Selecting regions and performing extrusion
-{<descendant() [label=="building"] / [label=="building_front"] / [label=="main_front_grid"] / [type=="cell"] [rowIdx in (1, 2)] [colIdx in (3, 4, 5)] [::groupRegions()]> > addVolume("entrance", "building_front", 3, ["entrance_front", "entrance_left", "entrance_right"])};
-#C5: Applying roundShape deformation
-{<descendant() [label=="building"] / [label=="building_front"] / [label=="entrance"] / [label=="entrance_front"]> > roundShape("front", "outside", 0.42, 30, "main_front", "vertical")};
-"#;
+const BRITO: &str = include_str!("../../tests/data/selex/brito.slx");
 
 #[test]
 fn brito_mass_model_pushes_out_a_rounded_bay() {
@@ -145,20 +121,7 @@ fn brito_mass_model_pushes_out_a_rounded_bay() {
 /// Anchiêta, Código-fonte 4 (seed L1004-L1036): a rounded door on a rounded bay. Rows
 /// (2, 3, 4) of the 4-row wall grid are rows (3, 2, 1) from the ground; rows (2, 3) of the
 /// bay's 3-row grid are rows (2, 1).
-const ROUNDED_DOOR: &str = r#"
-#C1 Variables
-label = "building"; width = 9; depth = 5; height = 5;
-#C2 Create construction shape
-{<> -> createShape(label, width, depth, height)};
-#C3 Add virtual shape
-{< descendant() [label=="building"] / [label=="building_front"] > -> createGrid("main_front_grid", 4, 7)};
-#C4 Add volume to selected cells
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="main_front_grid"] / [type=="cell"] [rowIdx in (3, 2, 1)] [colIdx in (3, 4, 5)] [::groupRegions()] > -> addVolume("entrance", "building_front", 3, ["entrance_front", "entrance_left", "entrance_right"])};
-#C5 Add deformation in construction shape
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="entrance"] / [label=="entrance_front"] > -> roundShape("front", "outside", 0.42, 30, "main_front", "vertical")};
-#C6 Add round facade in construction shape
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="entrance"] / [label=="entrance_front"] / [label=="entrance_front_grid"] / [type=="cell"] [rowIdx in (2,1)] [colIdx in (2)] [::groupRegions] > -> addRoundFacade("door", ["top_left", "top_right"], 0.9, 5, 0.5)}
-"#;
+const ROUNDED_DOOR: &str = include_str!("../../tests/data/selex/rounded_door.slx");
 
 #[test]
 fn rounded_door_stands_on_the_ground_of_its_bay() {
@@ -178,17 +141,7 @@ fn rounded_door_stands_on_the_ground_of_its_bay() {
 /// Anchiêta, Código-fonte 8 (seed L1232-L1268): `updateGrid` on the bay's grid and on the
 /// wall's. Rows (3, 4, 5) of 5 are (3, 2, 1) from the ground; rows (3, 4, 5) of 7 are
 /// (5, 4, 3).
-const UPDATE_GRID: &str = r#"
-label = "building"; width = 10; depth = 5; height = 5;
-{<> -> createShape(label, width, depth, height)};
-{< descendant() [label=="building"] / [label=="building_front"] > -> createGrid("main_front_grid", 1, 3)};
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="main_front_grid"] / [type=="cell"] [rowIdx in (1)] [colIdx in (1)] [::groupRegions()] > -> addVolume("entrance", "building_front", 3, ["entrance_front", "entrance_left", "entrance_right"])};
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="entrance"] / [label=="entrance_front"] > -> roundShape("front", "outside", 0.42, 10, "main_front", "vertical")};
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="entrance"] / [label=="entrance_front"] / [label=="entrance_front_grid"] > -> updateGrid(5, 4)};
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="entrance"] / [label=="entrance_front"] / [label=="entrance_front_grid"] / [type=="cell"] [rowIdx in (3,2,1)] [colIdx in (2,3)] [::groupRegions] > -> addRoundFacade("door", ["top_left", "top_right"], 0.9, 5, 0.5)}
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="main_front_grid"] > -> updateGrid(7, 7)};
-{< descendant() [label=="building"] / [label=="building_front"] / [label=="main_front_grid"] / [type=="cell"] [rowIdx in (5,4,3)] [colIdx in (4,6)] [::groupRegions] > -> addRoundFacade("window", ["top_left", "top_right"], 0.9, 5, 0.5)}
-"#;
+const UPDATE_GRID: &str = include_str!("../../tests/data/selex/update_grid.slx");
 
 #[test]
 fn update_grid_redivides_the_bay_and_the_wall() {
@@ -213,15 +166,7 @@ fn update_grid_redivides_the_bay_and_the_wall() {
 
 /// Anchiêta, Código-fonte 9 (seed L1322-L1352): framed windows on a tower's bay. Rows
 /// (2, 3, 5, 6) of 7 from the top are rows (6, 5, 3, 2) from the ground: the same set.
-const FRAMED: &str = r#"
-label = "tower"; width = 5; depth = 3; height = 10;
-{<> -> createShape(label, width, depth, height)};
-{< descendant() [label=="tower"] / [label=="tower_front"] > -> createGrid("main_front_grid", 1, 1)};
-{< descendant() [label=="tower"] / [label=="tower_front"] / [label=="main_front_grid"] / [type=="cell"] [rowIdx in (1)] [colIdx in (1)] [::groupRegions()] > -> addVolume("entrance", "tower_front", 1.6, ["entrance_front", "entrance_left", "entrance_right"])};
-{< descendant() [label=="tower"] / [label=="tower_front"] / [label=="entrance"] / [label=="entrance_front"] > -> roundShape("front", "outside", 1, 10, "main_front", "vertical")};
-{< descendant() [label=="tower"] / [label=="tower_front"] / [label=="entrance"] / [label=="entrance_front"] / [label=="entrance_front_grid"] > -> updateGrid(7, 6)};
-{< descendant() [label=="tower"] / [label=="tower_front"] / [label=="entrance"] / [label=="entrance_front"] / [label=="entrance_front_grid"] / [type=="cell"] [rowIdx in (2,3,5,6)] [colIdx in (3,4)] [::groupRegions] > -> addFacadeWithFrame("windows", "frame", 0.2, 0.2)}
-"#;
+const FRAMED: &str = include_str!("../../tests/data/selex/framed.slx");
 
 #[test]
 fn framed_windows_are_two_regions_with_frames() {
@@ -241,15 +186,7 @@ fn framed_windows_are_two_regions_with_frames() {
 /// rows (7, 8, 10, 11, 13, 14) of 20 from the top are (14, 13, 11, 10, 8, 7) from the ground:
 /// the same set. (The listing's door rule, seed L1476, follows a line the thesis does not
 /// print, so its grid is unknown: it is left out.)
-const CLOCK_TOWER: &str = r#"
-label = "clock_tower"; width = 3; depth = 3; height = 12;
-{<> -> createShape(label, width, depth, height)};
-{< descendant() [label=="clock_tower"] / [label=="clock_tower_front"] > -> createGrid("main_front_grid", 1, 1)};
-{< descendant() [label=="clock_tower"] / [label=="clock_tower_front"] / [label=="main_front_grid"] > -> updateGrid(40, 10)};
-{< descendant() [label=="clock_tower"] / [label=="clock_tower_front"] / [label=="main_front_grid"] / [type=="cell"] [pattern("X{10}(XA{8}X){8}", "A")] [::groupRegions] > -> addRoundFacadeWithFrame("clock", ["top_left", "top_right", "bottom_left", "bottom_right"], 1, 5, 0.5, "frame", 0.1, 0.2)}
-{< descendant() [label=="clock_tower"] / [label=="clock_tower_front"] / [label=="main_front_grid"] > -> updateGrid(20, 7)};
-{<descendant() [label=="clock_tower"] / [label=="clock_tower_front"] / [label=="main_front_grid"] / [type=="cell"] [rowIdx in (7,8,10,11,13,14)] [colIdx in (2,3,5,6)] [::groupRegions] > -> addRoundFacade("windows", ["top_left", "top_right"], 1, 5, 0.7)}
-"#;
+const CLOCK_TOWER: &str = include_str!("../../tests/data/selex/clock_tower.slx");
 
 #[test]
 fn clock_tower_has_one_clock_and_six_windows() {
