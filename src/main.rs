@@ -513,12 +513,15 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
             return ExitCode::from(1);
         }
     };
-    warnings.extend(
-        derivation
-            .warnings
-            .iter()
-            .map(|n| format!("{name}:{}:{}: warning: {}", n.line, n.col, n.message)),
-    );
+    // Written, the run's warnings are the report's notes (printed with its entries).
+    if write.is_none() {
+        warnings.extend(
+            derivation
+                .warnings
+                .iter()
+                .map(|n| format!("{name}:{}:{}: warning: {}", n.line, n.col, n.message)),
+        );
+    }
     if print_tree {
         print!("{}", derivation.to_text());
     }

@@ -266,3 +266,32 @@ fn floors_move_off_the_elements_and_a_storey_grid_wins() {
     let f = floors_between(0.0, 9.0, &[(-0.1, 9.5)]);
     assert_eq!(f, vec![3.0, 6.0]);
 }
+
+#[test]
+fn an_inside_rounding_curves_the_front_in_and_a_top_rounding_is_drawn_square() {
+    let src = |how: &str| {
+        format!(
+            r#"{{<> -> createShape("b", 10, 6, 6)}};
+{{< descendant() [label == "b_front"] > -> createGrid("g", 2, 5)}};
+{{< descendant() [label == "g"] / [rowIdx == 1] [colIdx in (2, 3, 4)] [::groupRegions] > -> addVolume("bay", "b_front", 2, ["bay_front", "bay_left", "bay_right"])}};
+{{< descendant() [label == "bay"] > -> roundShape({how}, 8, "main_front", "vertical")}};
+"#
+        )
+    };
+    let (b, notes) = build(&src(r#""front", "inside", 0.5"#), Lod::Lod3);
+    let bay = &b.parts[1].footprint;
+    // 6 m wide, 2 m deep: the front dips by 0.5 x min(2 - 0.05, 3) in its middle.
+    assert!(
+        (bay.area() - (12.0 - 0.975 * 6.0 * 2.0 / 3.0)).abs() < 0.3,
+        "{}",
+        bay.area()
+    );
+    assert_eq!(bay.outer.len(), 4 + 7, "{:?}", bay.outer);
+    assert!(notes.is_empty(), "{notes:?}");
+    let (b, notes) = build(&src(r#""top", "outside", 0.5"#), Lod::Lod3);
+    assert_eq!(b.parts[1].footprint.outer.len(), 4);
+    assert!(
+        notes.iter().any(|(_, t)| t.contains("drawn square")),
+        "{notes:?}"
+    );
+}
