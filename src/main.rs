@@ -74,13 +74,34 @@ enum SelexCommand {
     },
     /// Run a SELEX program and print its shape tree: volumes, faces, grids, the elements with
     /// their rectangles on their face (metres from the bottom-left seen from outside), the
-    /// cover, the constraints kept, then the warnings.
+    /// cover, the constraints kept, then the warnings. With --ifc, --citygml or --gltf, write
+    /// the building it makes instead: each volume (box or bay) a part with a flat roof, a bay's
+    /// rounded front an arc, the elements doors (door*, entrance*), balconies (balcony*,
+    /// ledge*) or windows, rounded and framed as the program asks (docs/selex.md §9).
     Derive {
         /// The program (.slx).
         file: PathBuf,
         /// Run it on a box `building` of width x depth x height metres made first.
         #[arg(long, value_name = "WxDxH", value_parser = parse_box)]
         lot: Option<(f64, f64, f64)>,
+        /// Level of detail of the outputs, 1 to 3 (3: storeys, openings, balconies).
+        #[arg(long, value_parser = parse_lod, default_value = "3")]
+        lod: Lod,
+        /// Where the building stands (lon,lat in degrees): it picks the UTM zone of the outputs.
+        #[arg(long, value_name = "LON,LAT", value_parser = parse_lonlat, default_value = "1.4442,43.6045")]
+        at: (f64, f64),
+        /// Write IFC4 (STEP) here.
+        #[arg(long, value_name = "OUT.ifc")]
+        ifc: Option<PathBuf>,
+        /// Write CityGML 2.0 here.
+        #[arg(long, value_name = "OUT.gml")]
+        citygml: Option<PathBuf>,
+        /// Write glTF 2.0 binary (.glb) here.
+        #[arg(long, value_name = "OUT.glb")]
+        gltf: Option<PathBuf>,
+        /// Write the JSON report here (with an output).
+        #[arg(long, value_name = "OUT.json")]
+        report: Option<PathBuf>,
     },
 }
 
@@ -430,9 +451,34 @@ fn parse_box(s: &str) -> Result<(f64, f64, f64), String> {
 
 /// `citygen selex ...`.
 fn selex_command(cmd: SelexCommand) -> ExitCode {
-    let (file, lot, print_tree) = match cmd {
-        SelexCommand::Check { file, lot } => (file, lot, false),
-        SelexCommand::Derive { file, lot } => (file, lot, true),
+    let (file, lot, print_tree, write) = match cmd {
+        SelexCommand::Check { file, lot } => (file, lot, false, None),
+        SelexCommand::Derive {
+            file,
+            lot,
+            lod,
+            at,
+            ifc,
+            citygml,
+            gltf,
+            report,
+        } => {
+            let targets = citygen::pipeline::Targets {
+                ifc,
+                citygml,
+                gltf,
+                report,
+                dry_run: false,
+                allow_empty: false,
+            };
+            let outputs =
+                targets.ifc.is_some() || targets.citygml.is_some() || targets.gltf.is_some();
+            if targets.report.is_some() && !outputs {
+                eprintln!("citygen: error: --report goes with --ifc, --citygml or --gltf");
+                return ExitCode::from(2);
+            }
+            (file, lot, !outputs, outputs.then_some((targets, lod, at)))
+        }
     };
     let text = match citygen::grammar::read_source(&file) {
         Ok(t) => t,
@@ -467,17 +513,42 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
             return ExitCode::from(1);
         }
     };
-    warnings.extend(
-        derivation
-            .warnings
-            .iter()
-            .map(|n| format!("{name}:{}:{}: warning: {}", n.line, n.col, n.message)),
-    );
+    // Written, the run's warnings are the report's notes (printed with its entries).
+    if write.is_none() {
+        warnings.extend(
+            derivation
+                .warnings
+                .iter()
+                .map(|n| format!("{name}:{}:{}: warning: {}", n.line, n.col, n.message)),
+        );
+    }
     if print_tree {
         print!("{}", derivation.to_text());
     }
     for w in &warnings {
         eprintln!("{w}");
+    }
+    if let Some((targets, lod, at)) = write {
+        return match citygen::pipeline::derive_selex_lot(&file, &derivation, at, lod, &targets) {
+            Ok(summary) => {
+                let r = &summary.report;
+                for e in &r.entries {
+                    eprintln!("  {} {:?}: {}", e.id, e.outcome, e.reason);
+                }
+                eprintln!(
+                    "citygen: {} building(s), {} polygons",
+                    r.generated, summary.polygons
+                );
+                for p in &summary.outputs {
+                    eprintln!("  wrote {}", p.display());
+                }
+                ExitCode::from(if r.generated == 1 { 0 } else { 1 })
+            }
+            Err(e) => {
+                eprintln!("citygen: error: {e}");
+                ExitCode::from(exit_code(&e))
+            }
+        };
     }
     eprintln!(
         "{name}: {} commands, {} shapes, {} elements, {} warnings",

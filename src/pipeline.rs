@@ -272,7 +272,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let mut summary = write_batches(
         &site,
         &batches,
-        &generator,
+        &Maker::Generator(&generator),
         &source_name,
         &targets,
         report,
@@ -494,6 +494,81 @@ pub fn derive_lot(
     )
 }
 
+/// `citygen selex derive FILE --ifc ...`: the building that `derivation` (the shape tree of the
+/// SELEX program `program`, run on its own box lot) describes
+/// ([`crate::derive::selex_lot::building`]), placed at `lonlat` and written to `targets` as
+/// `rules derive` writes its lot: outputs checked first, written atomically, with the report.
+/// LOD 1 to 3 (LOD4's interiors are not planned for it: a usage error).
+pub fn derive_selex_lot(
+    program: &Path,
+    derivation: &crate::selex::eval::Derivation,
+    lonlat: (f64, f64),
+    lod: Lod,
+    targets: &Targets,
+) -> Result<Summary, RunError> {
+    if lod > Lod::Lod3 {
+        return Err(RunError::Usage(
+            "selex derive writes LOD 1 to 3 (no interiors are planned for it)".into(),
+        ));
+    }
+    outputs::check(
+        &targets.flagged(),
+        &[("the program", program.to_path_buf())],
+        false,
+    )?;
+    let name = file_name(program);
+    let mut report = Report::default();
+    let (building, notes) =
+        crate::derive::selex_lot::building(derivation, SourceId::Lot(0), &name, lod)
+            .map_err(RunError::Input)?;
+    // The lot is the building's plan bounds (it only places the site).
+    let (mut lo, mut hi) = (
+        glam::DVec2::splat(f64::INFINITY),
+        glam::DVec2::splat(f64::NEG_INFINITY),
+    );
+    for p in &building.parts {
+        let (a, b) = p.footprint.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    let lot = crate::geometry::Polygon::new(
+        vec![
+            lo,
+            glam::DVec2::new(hi.x, lo.y),
+            hi,
+            glam::DVec2::new(lo.x, hi.y),
+        ],
+        vec![],
+    );
+    let site = prepare::single_lot(lot, lonlat, None, &mut report)
+        .ok_or_else(|| RunError::Input(format!("{name}: the building's plan is degenerate")))?;
+    let made = move |lot: &prepare::Lot| {
+        let mut b = building.clone();
+        b.id = lot.id;
+        for p in &mut b.parts {
+            p.source = Some(lot.id);
+        }
+        Ok((b, notes.clone()))
+    };
+    let all = [Batch {
+        suffix: None,
+        range: 0..site.lots.len(),
+    }];
+    write_batches(
+        &site,
+        &all,
+        &Maker::Made {
+            lod,
+            seed: 0,
+            make: &made,
+        },
+        &name,
+        targets,
+        report,
+        &|_, _| {},
+    )
+}
+
 fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, RunError> {
     match path {
         Some(p) => {
@@ -568,12 +643,48 @@ pub fn generate_and_write(
     write_batches(
         site,
         &all,
-        generator,
+        &Maker::Generator(generator),
         source_name,
         targets,
         report,
         progress,
     )
+}
+
+/// What makes each lot's building for [`write_batches`]: the generator, or (`selex derive`)
+/// a function, with the LOD and seed the outputs name.
+enum Maker<'a> {
+    Generator(&'a Generator),
+    Made {
+        lod: Lod,
+        seed: u64,
+        #[allow(clippy::type_complexity)]
+        make: &'a (dyn Fn(&prepare::Lot) -> Result<(Building, Vec<crate::derive::Note>), String>
+                 + Sync),
+    },
+}
+
+impl Maker<'_> {
+    fn lod(&self) -> Lod {
+        match self {
+            Maker::Generator(g) => g.lod,
+            Maker::Made { lod, .. } => *lod,
+        }
+    }
+
+    fn seed(&self) -> u64 {
+        match self {
+            Maker::Generator(g) => g.seed,
+            Maker::Made { seed, .. } => *seed,
+        }
+    }
+
+    fn make(&self, lot: &prepare::Lot) -> Result<(Building, Vec<crate::derive::Note>), String> {
+        match self {
+            Maker::Generator(g) => g.generate(lot),
+            Maker::Made { make, .. } => make(lot),
+        }
+    }
 }
 
 /// A run of consecutive lots written to one set of files: the whole site, or one tile.
@@ -588,7 +699,7 @@ struct Batch {
 fn write_batches(
     site: &prepare::Site,
     batches: &[Batch],
-    generator: &Generator,
+    maker: &Maker<'_>,
     source_name: &str,
     targets: &Targets,
     mut report: Report,
@@ -619,7 +730,7 @@ fn write_batches(
         write_lots(
             site,
             lots,
-            generator,
+            maker,
             &FileSet {
                 name: &name,
                 targets: &tile_targets,
@@ -804,7 +915,7 @@ struct Written {
 fn write_lots(
     site: &prepare::Site,
     lots: &[prepare::Lot],
-    generator: &Generator,
+    maker: &Maker<'_>,
     files: &FileSet<'_>,
     report: &mut Report,
     written: &mut Written,
@@ -815,9 +926,9 @@ fn write_lots(
         crs: site.crs,
         origin: DVec3::new(site.origin.x, site.origin.y, 0.0),
         origin_lonlat: site.origin_lonlat,
-        lod: generator.lod,
+        lod: maker.lod(),
         source_name: source_name.to_string(),
-        seed: generator.seed,
+        seed: maker.seed(),
     };
 
     // Open every output before the work, so a bad path fails fast.
@@ -857,7 +968,7 @@ fn write_lots(
             || {
                 chunk
                     .par_iter()
-                    .map(|lot| generator.generate(lot))
+                    .map(|lot| maker.make(lot))
                     .collect::<Vec<_>>()
             },
             || write_chunk(&mut outputs, &ready),

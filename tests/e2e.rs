@@ -1125,3 +1125,88 @@ fn selex_derive_prints_the_tree_and_check_fails_with_a_caret() {
     let out = citygen(&["selex", "derive", bad.to_str().unwrap(), "--lot", "0x1x1"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn selex_derive_writes_the_building_of_a_program_on_its_lot() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("bay.slx");
+    std::fs::write(
+        &program,
+        r#"{< descendant() [label == "building_front"] > -> createGrid("g", 3, 5)};
+{< descendant() [label == "g"] / [rowIdx == 1] [colIdx in (2, 3, 4)] [::groupRegions] > -> addVolume("bay", "building_front", 2, ["bay_front", "bay_left", "bay_right"])};
+{< descendant() [label == "bay"] > -> roundShape("front", "outside", 0.5, 12, "main_front", "vertical")};
+{< descendant() [label == "bay_front_grid"] / [colIdx == 2] > -> addRoundFacade("door", ["top_left", "top_right"], 0.5, 6, 0.5)};
+{< descendant() [label == "g"] / [rowIdx > 1] > -> addFacadeWithFrame("window", "frame", 0.1, 0.1)};
+"#,
+    )
+    .unwrap();
+    let p = program.to_str().unwrap();
+    let glb = dir.path().join("bay.glb");
+    let out = citygen(&[
+        "selex",
+        "derive",
+        p,
+        "--lot",
+        "12x10x9",
+        "--gltf",
+        glb.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    // The outputs instead of the tree.
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(err.contains("citygen: 1 building(s)"), "{err}");
+    let (json, _) = glb_json(&glb);
+    assert!(!json["meshes"].as_array().unwrap().is_empty());
+    // The default is LOD3: doors and windows have meshes of their own.
+    let names: Vec<String> = json["meshes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|m| m["name"].as_str().map(str::to_string))
+        .collect();
+    assert!(names.iter().any(|n| n.contains("door")), "{names:?}");
+    assert!(names.iter().any(|n| n.contains("window")), "{names:?}");
+
+    // LOD2 has none.
+    let glb2 = dir.path().join("lod2.glb");
+    let out = citygen(&[
+        "selex",
+        "derive",
+        p,
+        "--lot",
+        "12x10x9",
+        "--lod",
+        "2",
+        "--gltf",
+        glb2.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let (json, _) = glb_json(&glb2);
+    let text = json["meshes"].to_string();
+    assert!(!text.contains("door") && !text.contains("window"), "{text}");
+
+    // Usage errors before any work: LOD4, an output on the program, a report alone.
+    for args in [
+        vec!["--lod", "4", "--gltf", glb2.to_str().unwrap()],
+        vec!["--ifc", p],
+        vec!["--report", "r.json"],
+    ] {
+        let mut all = vec!["selex", "derive", p, "--lot", "12x10x9"];
+        all.extend(args.iter().copied());
+        let out = citygen(&all);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{all:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert!(std::fs::read_to_string(&program)
+        .unwrap()
+        .contains("addVolume"));
+}

@@ -274,3 +274,56 @@ fn a_selex_program_that_does_not_parse_stops_the_run_naming_its_place() {
     );
     assert!(!out.exists());
 }
+
+/// The seed's printed programs (tests/data/selex) written as buildings by `selex derive`: valid
+/// IFC (with `--geometry`), CityGML and glTF, with the openings and parts each program makes.
+#[test]
+fn the_seeds_programs_are_written_as_valid_buildings() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    // (program, parts, windows, doors) as the CityGML counts them.
+    for (name, parts, windows, doors) in [
+        ("clock_tower", 0, 7, 0),
+        ("rounded_door", 2, 0, 1),
+        ("framed", 2, 2, 0),
+        ("brito", 2, 0, 0),
+        ("jiang", 0, 18, 1),
+    ] {
+        let out = |ext: &str| dir.path().join(format!("{name}.{ext}"));
+        let program = format!("tests/data/selex/{name}.slx");
+        let o = citygen(&[
+            "selex",
+            "derive",
+            &program,
+            "--ifc",
+            out("ifc").to_str().unwrap(),
+            "--citygml",
+            out("gml").to_str().unwrap(),
+            "--gltf",
+            out("glb").to_str().unwrap(),
+            "--report",
+            out("json").to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {err}");
+        assert!(err.contains("citygen: 1 building(s)"), "{name}: {err}");
+        let gml = std::fs::read_to_string(out("gml")).unwrap();
+        let count = |what: &str| gml.matches(what).count();
+        assert_eq!(count("<bldg:BuildingPart "), parts, "{name}");
+        assert_eq!(count("<bldg:Window"), windows, "{name}");
+        assert_eq!(count("<bldg:Door"), doors, "{name}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out("json")).unwrap()).unwrap();
+        assert_eq!(report["generated"], 1, "{name}");
+        files.extend([out("ifc"), out("gml"), out("glb")]);
+    }
+    if let Some(tool) = citygen::testkit::validators::validate_outputs("the seed's programs") {
+        let v = std::process::Command::new(tool)
+            .arg("--geometry")
+            .args(&files)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&v.stdout);
+        assert!(v.status.success() && text.contains(" 0 failed"), "{text}");
+    }
+}

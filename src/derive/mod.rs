@@ -9,6 +9,7 @@ pub mod interior;
 pub mod massing;
 pub mod roof;
 pub mod selex;
+pub mod selex_lot;
 pub mod surroundings;
 
 use self::massing::Mass;

@@ -28,7 +28,7 @@ use crate::geometry::Polygon;
 use crate::kb::KnowledgeBase;
 use crate::model::{FrameSize, Rounding};
 use crate::selex::ast::Program;
-use crate::selex::eval::{facade_specs, run_on_facades, Derivation, ShapeKind};
+use crate::selex::eval::{facade_specs, run_on_facades, Derivation, Element, ShapeKind};
 
 /// A parsed SELEX program with its text and file name (for messages).
 #[derive(Debug)]
@@ -255,72 +255,106 @@ fn place(d: &Derivation, face: usize, edges: &[(DVec2, DVec2)], facades: &mut Fa
         let ShapeKind::Element(e) = &d.shapes[c].kind else {
             continue;
         };
-        let label = d.shapes[c].label.to_ascii_lowercase();
         let (u0, u1) = (e.rect.x, e.rect.x + e.rect.w);
-        let (mut z0, mut z1) = (base + e.rect.y, base + e.rect.y + e.rect.h);
-        if label == "wall" {
-            continue;
-        }
-        if label.starts_with("balcony") || label.starts_with("ledge") {
-            facades.balconies[k].push(FoundBalcony {
-                u0,
-                u1,
-                z0,
-                z1,
-                color: None,
-            });
-            continue;
-        }
-        let kind = if label.starts_with("door") || label.starts_with("entrance") {
-            OpeningKind::Door
-        } else {
-            OpeningKind::Window
-        };
-        if kind == OpeningKind::Door {
-            // A door stands on the floor of the storey its foot is in (an `addShape` centres
-            // it in its cell): moved down, its height kept.
-            if let Some(l) = facades.levels.iter().find(|l| z0 >= l.z0 && z0 < l.z1) {
-                (z0, z1) = (l.z0, z1 - (z0 - l.z0));
-            }
-        }
-        let frame_size = e.frame.map(|f| FrameSize {
-            width: f.thickness,
-            protrusion: f.width,
-        });
-        // One opening per storey the element spans; the top corners' rounding goes to the top
-        // piece, the bottom corners' to the bottom one.
-        for l in &facades.levels {
-            let (lo, hi) = (z0.max(l.z0), z1.min(l.z1));
-            if hi - lo < 0.3 {
-                continue;
-            }
-            let rounding = e.rounding.map(|r| {
-                let (top, bottom) = (hi >= z1 - 1e-9, lo <= z0 + 1e-9);
-                let c = r.corners;
-                Rounding {
-                    corners: [c[0] && top, c[1] && top, c[2] && bottom, c[3] && bottom],
-                    radius: r.offset,
-                    segments: r.segments,
-                    profile: r.profile,
-                }
-            });
-            facades.openings[k].push(FoundOpening {
-                kind,
-                u0,
-                u1,
-                z0: lo,
-                z1: hi,
-                color: None,
-                frame_color: None,
-                glazed: kind == OpeningKind::Window,
-                framed: e.frame.is_some(),
-                frame_size,
-                rounding: rounding.filter(Rounding::is_rounded),
-            });
+        let (z0, z1) = (base + e.rect.y, base + e.rect.y + e.rect.h);
+        match element_on_edge(&d.shapes[c].label, e, (u0, u1), (z0, z1), &facades.levels) {
+            Placed::Nothing => {}
+            Placed::Balcony(b) => facades.balconies[k].push(b),
+            Placed::Openings(o) => facades.openings[k].extend(o),
         }
     }
     facades.openings[k].sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
     true
+}
+
+/// What one SELEX element becomes on a footprint edge ([`element_on_edge`]).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Placed {
+    /// Nothing: the cover (`wall`).
+    Nothing,
+    /// A balcony (`balcony…`, `ledge…`).
+    Balcony(FoundBalcony),
+    /// A door or a window, one opening per storey it spans (none where it spans less than
+    /// 0.3 m of every storey).
+    Openings(Vec<FoundOpening>),
+}
+
+/// The opening(s) or balcony an element labelled `label` becomes where it stands at `u0..u1`
+/// along its footprint edge (metres from the edge's start) and `z0..z1` (absolute heights),
+/// on a wall cut at `levels`. Labels decide: `door…` and `entrance…` are doors, `balcony…` and
+/// `ledge…` balconies, `wall` nothing, anything else a window (case does not matter). A door
+/// stands on the floor of the storey its foot is in (moved down, its height kept). An
+/// opening spanning several storeys is cut at them, the top corners' rounding going to the top
+/// piece and the bottom corners' to the bottom one; a frame (`addFacadeWithFrame`) makes it
+/// framed, with its size.
+pub(crate) fn element_on_edge(
+    label: &str,
+    e: &Element,
+    (u0, u1): (f64, f64),
+    (z0, z1): (f64, f64),
+    levels: &[Level],
+) -> Placed {
+    let label = label.to_ascii_lowercase();
+    if label == "wall" {
+        return Placed::Nothing;
+    }
+    if label.starts_with("balcony") || label.starts_with("ledge") {
+        return Placed::Balcony(FoundBalcony {
+            u0,
+            u1,
+            z0,
+            z1,
+            color: None,
+        });
+    }
+    let kind = if label.starts_with("door") || label.starts_with("entrance") {
+        OpeningKind::Door
+    } else {
+        OpeningKind::Window
+    };
+    let (mut z0, mut z1) = (z0, z1);
+    if kind == OpeningKind::Door {
+        // A door stands on the floor of the storey its foot is in (an `addShape` centres it
+        // in its cell): moved down, its height kept.
+        if let Some(l) = levels.iter().find(|l| z0 >= l.z0 && z0 < l.z1) {
+            (z0, z1) = (l.z0, z1 - (z0 - l.z0));
+        }
+    }
+    let frame_size = e.frame.map(|f| FrameSize {
+        width: f.thickness,
+        protrusion: f.width,
+    });
+    let mut out = Vec::new();
+    for l in levels {
+        let (lo, hi) = (z0.max(l.z0), z1.min(l.z1));
+        if hi - lo < 0.3 {
+            continue;
+        }
+        let rounding = e.rounding.map(|r| {
+            let (top, bottom) = (hi >= z1 - 1e-9, lo <= z0 + 1e-9);
+            let c = r.corners;
+            Rounding {
+                corners: [c[0] && top, c[1] && top, c[2] && bottom, c[3] && bottom],
+                radius: r.offset,
+                segments: r.segments,
+                profile: r.profile,
+            }
+        });
+        out.push(FoundOpening {
+            kind,
+            u0,
+            u1,
+            z0: lo,
+            z1: hi,
+            color: None,
+            frame_color: None,
+            glazed: kind == OpeningKind::Window,
+            framed: e.frame.is_some(),
+            frame_size,
+            rounding: rounding.filter(Rounding::is_rounded),
+        });
+    }
+    Placed::Openings(out)
 }
 
 #[cfg(test)]
@@ -358,10 +392,10 @@ mod tests {
         use crate::selex::parser::parse;
         // (file, per front facade: (label, count), ...)
         let cases: [(&str, &[(&str, usize)]); 5] = [
-            ("brito_mass_model.slx", &[("entrance", 1)]),
+            ("brito.slx", &[("entrance", 1)]),
             ("rounded_door.slx", &[("entrance", 1), ("door", 1)]),
             ("update_grid.slx", &[("door", 1), ("window", 2)]),
-            ("framed_windows.slx", &[("entrance", 1), ("windows", 2)]),
+            ("framed.slx", &[("entrance", 1), ("windows", 2)]),
             ("clock_tower.slx", &[("clock", 1), ("windows", 6)]),
         ];
         let lots = monaco_lots();

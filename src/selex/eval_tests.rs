@@ -38,7 +38,7 @@ fn close(a: f64, b: f64) -> bool {
 /// Jiang et al. 2018, Fig. 13 (seed L508-L546), with the arguments the paper elides written
 /// out: a 17.6 m × 12.8 m facade, four storeys, five bays labelled left, left, mid, right,
 /// right.
-const JIANG: &str = include_str!("../../tests/data/selex/jiang_fig13.slx");
+const JIANG: &str = include_str!("../../tests/data/selex/jiang.slx");
 
 #[test]
 fn jiang_fig_13_places_every_element_family() {
@@ -76,7 +76,7 @@ fn jiang_fig_13_places_every_element_family() {
 
 /// Brito et al. 2021, the mass model (Código-fonte 1, seed L598-L620), with its `>` arrows.
 /// Rows (2, 3) of the 3-row grid counted from the top are rows (2, 1) from the ground.
-const BRITO: &str = include_str!("../../tests/data/selex/brito_mass_model.slx");
+const BRITO: &str = include_str!("../../tests/data/selex/brito.slx");
 
 #[test]
 fn brito_mass_model_pushes_out_a_rounded_bay() {
@@ -166,7 +166,7 @@ fn update_grid_redivides_the_bay_and_the_wall() {
 
 /// Anchiêta, Código-fonte 9 (seed L1322-L1352): framed windows on a tower's bay. Rows
 /// (2, 3, 5, 6) of 7 from the top are rows (6, 5, 3, 2) from the ground: the same set.
-const FRAMED: &str = include_str!("../../tests/data/selex/framed_windows.slx");
+const FRAMED: &str = include_str!("../../tests/data/selex/framed.slx");
 
 #[test]
 fn framed_windows_are_two_regions_with_frames() {
