@@ -529,26 +529,13 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
         eprintln!("{w}");
     }
     if let Some((targets, lod, at)) = write {
-        return match citygen::pipeline::derive_selex_lot(&file, &derivation, at, lod, &targets) {
-            Ok(summary) => {
-                let r = &summary.report;
-                for e in &r.entries {
-                    eprintln!("  {} {:?}: {}", e.id, e.outcome, e.reason);
-                }
-                eprintln!(
-                    "citygen: {} building(s), {} polygons",
-                    r.generated, summary.polygons
-                );
-                for p in &summary.outputs {
-                    eprintln!("  wrote {}", p.display());
-                }
-                ExitCode::from(if r.generated == 1 { 0 } else { 1 })
-            }
-            Err(e) => {
-                eprintln!("citygen: error: {e}");
-                ExitCode::from(exit_code(&e))
-            }
-        };
+        return lot_outcome(citygen::pipeline::derive_selex_lot(
+            &file,
+            &derivation,
+            at,
+            lod,
+            &targets,
+        ));
     }
     eprintln!(
         "{name}: {} commands, {} shapes, {} elements, {} warnings",
@@ -611,7 +598,7 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
             let Some(polygon) = lot.or(wkt) else {
                 return ExitCode::from(2);
             };
-            match citygen::pipeline::derive_lot(
+            lot_outcome(citygen::pipeline::derive_lot(
                 &file,
                 polygon,
                 at,
@@ -626,26 +613,34 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     dry_run: false,
                     allow_empty: false,
                 },
-            ) {
-                Ok(summary) => {
-                    let r = &summary.report;
-                    for e in &r.entries {
-                        eprintln!("  {} {:?}: {}", e.id, e.outcome, e.reason);
-                    }
-                    eprintln!(
-                        "citygen: {} building(s), {} polygons",
-                        r.generated, summary.polygons
-                    );
-                    for p in &summary.outputs {
-                        eprintln!("  wrote {}", p.display());
-                    }
-                    ExitCode::from(if r.generated == 1 { 0 } else { 1 })
-                }
-                Err(e) => {
-                    eprintln!("citygen: error: {e}");
-                    ExitCode::from(exit_code(&e))
-                }
+            ))
+        }
+    }
+}
+
+/// The exit of a one-lot derivation (`rules derive`, `selex derive` with outputs): its report's
+/// entries, the count, the files written; 0 when the building was made.
+fn lot_outcome(
+    result: Result<citygen::pipeline::Summary, citygen::pipeline::RunError>,
+) -> ExitCode {
+    match result {
+        Ok(summary) => {
+            let r = &summary.report;
+            for e in &r.entries {
+                eprintln!("  {} {:?}: {}", e.id, e.outcome, e.reason);
             }
+            eprintln!(
+                "citygen: {} building(s), {} polygons",
+                r.generated, summary.polygons
+            );
+            for p in &summary.outputs {
+                eprintln!("  wrote {}", p.display());
+            }
+            ExitCode::from(if r.generated == 1 { 0 } else { 1 })
+        }
+        Err(e) => {
+            eprintln!("citygen: error: {e}");
+            ExitCode::from(exit_code(&e))
         }
     }
 }

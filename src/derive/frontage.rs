@@ -5,7 +5,7 @@
 //!    bay, turning little at each corner (a round tower, a curved street front), is laid out as
 //!    one facade: windows at bay spacing along the run, each cut into the real walls it spans
 //!    (one pane per facet, a mullion at each corner). The grammar gives such edges none: each
-//!    is narrower than a bay.
+//!    is narrower than a bay. Facades a SELEX program laid out keep what it put.
 //! 2. **Party walls.** Where a wall touches or faces another part of the building or another
 //!    building closer than [`PARTY_REACH`], up to that one's top, no window, door or balcony
 //!    is kept ([`party_spans`]); above the neighbour's roof the wall is a facade again.
@@ -263,7 +263,8 @@ fn template(d: &Draft<'_>, lo: f64, hi: f64, from_style: bool) -> Option<Templat
 fn windows_on_runs(d: &mut Draft<'_>, from_style: bool) -> usize {
     let bay = compile::bay_width(d.style);
     let walls = &d.part.walls;
-    if walls.len() != d.facades.openings.len() {
+    // A program's facades (a bay's rounded front among them) have what it put, no more.
+    if walls.len() != d.facades.openings.len() || d.facades.programmed {
         return 0;
     }
     let lens: Vec<f64> = walls.iter().map(|w| w.length()).collect();

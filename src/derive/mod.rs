@@ -10,6 +10,7 @@ pub mod massing;
 pub mod roof;
 pub mod selex;
 pub mod selex_lot;
+pub mod selex_place;
 pub mod surroundings;
 
 use self::massing::Mass;
@@ -500,8 +501,8 @@ impl Generator {
 
     /// The bays a SELEX program pushed out of mass `m`'s walls as masses of their own (flat
     /// roofs, `m`'s colours), each with its facades. A bay that would overlap another mass of
-    /// the piece (`footprints`) or a neighbouring building is left out, with a note; a rounded
-    /// one is drawn with a straight front, with a note.
+    /// the piece (`footprints`) or a neighbouring building is left out, with a note; one whose
+    /// rounding cannot be drawn (`selex::Bay::rounded`) is drawn square, with a note.
     fn bay_masses(
         &self,
         owner: SourceId,
@@ -542,7 +543,7 @@ impl Generator {
                 notes.push((
                     Outcome::Note,
                     format!(
-                        "facade program: bay `{}` drawn with a straight front (roundShape)",
+                        "facade program: bay `{}` drawn square: its roundShape is not on its front about a vertical axis",
                         b.label
                     ),
                 ));

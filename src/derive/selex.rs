@@ -23,12 +23,12 @@ use std::sync::Arc;
 
 use glam::DVec2;
 
-use crate::derive::facade::{Facades, FoundBalcony, FoundOpening, Level, OpeningKind};
+use crate::derive::facade::{Facades, Level};
+use crate::derive::selex_place::{self, element_on_edge, Placed};
 use crate::geometry::Polygon;
 use crate::kb::KnowledgeBase;
-use crate::model::{FrameSize, Rounding};
 use crate::selex::ast::Program;
-use crate::selex::eval::{facade_specs, run_on_facades, Derivation, Element, ShapeKind};
+use crate::selex::eval::{facade_specs, run_on_facades, Derivation, ShapeKind};
 
 /// A parsed SELEX program with its text and file name (for messages).
 #[derive(Debug)]
@@ -98,7 +98,9 @@ pub struct Bay {
     /// Its openings and balconies per footprint edge, its levels those of the mass it stands
     /// against.
     pub facades: Facades,
-    /// `roundShape` asked for a rounded front: drawn straight.
+    /// `roundShape` asked for a rounding this cannot draw (not the front, not about a vertical
+    /// axis, or no valid arc): drawn square. A rounded front is an arc of chords in the
+    /// footprint, each element on a flat facet of it.
     pub rounded: bool,
 }
 
@@ -192,7 +194,44 @@ fn bay(d: &Derivation, v: usize, levels: &[Level]) -> Option<Bay> {
     let p1 = front.origin.truncate();
     let p0 = left.origin.truncate();
     let u = front.u.truncate();
-    let footprint = Polygon::new(vec![p1, p1 + u * w, p0 + u * w, p0], vec![]);
+    let mut footprint = Polygon::new(vec![p1, p1 + u * w, p0 + u * w, p0], vec![]);
+    // A front rounded about a vertical axis: an arc of chords (as `selex derive` draws it), each
+    // element on a flat facet of its own.
+    let front_id = shape
+        .children
+        .iter()
+        .copied()
+        .find(|&c| d.frame(c).is_some());
+    let mut arc = None;
+    if let (Some(r), Some(front_id)) = (rounding, front_id) {
+        let vertical = r.axis.as_deref().is_none_or(|a| a == "vertical");
+        let spans = selex_place::element_spans(d, front_id);
+        let outside = r.direction != "inside";
+        let drawn = (r.face == "front" && vertical)
+            .then(|| selex_place::rounded_front(w, depth, r.degree, r.segments, outside, &spans))
+            .flatten();
+        if let Some((local, facets, _)) = drawn {
+            let n = front.normal().truncate();
+            let world = |p: DVec2| p0 + u * p.x + n * p.y;
+            let round = Polygon::new(local.iter().map(|&p| world(p)).collect(), vec![]);
+            let valid = crate::geometry::is_simple(&round.outer)
+                && edges_of(&round)
+                    .iter()
+                    .all(|(a, b)| a.distance(*b) >= selex_place::MIN_EDGE - 1e-6);
+            if valid {
+                footprint = round;
+                let facets: Vec<selex_place::Facet> = facets
+                    .into_iter()
+                    .map(|f| selex_place::Facet {
+                        a: world(f.a),
+                        b: world(f.b),
+                        ..f
+                    })
+                    .collect();
+                arc = Some((front_id, facets));
+            }
+        }
+    }
     let (z0, z1) = (front.origin.z, front.origin.z + h);
     // The mass's storeys, cut to the bay.
     let levels: Vec<Level> = levels
@@ -216,9 +255,28 @@ fn bay(d: &Derivation, v: usize, levels: &[Level]) -> Option<Bay> {
         programmed: true,
         ..Facades::default()
     };
+    let mut unplaced = Vec::new();
     for &c in &shape.children {
-        place(d, c, &edges, &mut facades);
+        if arc.as_ref().is_some_and(|a| a.0 == c) {
+            continue;
+        }
+        if !place(d, c, &edges, &mut facades) {
+            // A side the rounding shortened: its elements stand on no wall.
+            unplaced.extend(selex_place::element_spans(d, c));
+        }
     }
+    if let Some((f, facets)) = &arc {
+        let mut lost = Vec::new();
+        for (k, label, e, u, z) in selex_place::on_facets(d, *f, facets, &edges, z0, &mut lost) {
+            match element_on_edge(label, e, u, z, &facades.levels) {
+                Placed::Nothing => {}
+                Placed::Balcony(b) => facades.balconies[k].push(b),
+                Placed::Openings(o) => facades.openings[k].extend(o),
+            }
+        }
+        facades.off_envelope += lost.len();
+    }
+    facades.off_envelope += unplaced.len();
     for v in &mut facades.openings {
         v.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
     }
@@ -228,7 +286,7 @@ fn bay(d: &Derivation, v: usize, levels: &[Level]) -> Option<Bay> {
         z0,
         z1,
         facades,
-        rounded: rounding.is_some(),
+        rounded: rounding.is_some() && arc.is_none(),
     })
 }
 
@@ -267,99 +325,10 @@ fn place(d: &Derivation, face: usize, edges: &[(DVec2, DVec2)], facades: &mut Fa
     true
 }
 
-/// What one SELEX element becomes on a footprint edge ([`element_on_edge`]).
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) enum Placed {
-    /// Nothing: the cover (`wall`).
-    Nothing,
-    /// A balcony (`balcony…`, `ledge…`).
-    Balcony(FoundBalcony),
-    /// A door or a window, one opening per storey it spans (none where it spans less than
-    /// 0.3 m of every storey).
-    Openings(Vec<FoundOpening>),
-}
-
-/// The opening(s) or balcony an element labelled `label` becomes where it stands at `u0..u1`
-/// along its footprint edge (metres from the edge's start) and `z0..z1` (absolute heights),
-/// on a wall cut at `levels`. Labels decide: `door…` and `entrance…` are doors, `balcony…` and
-/// `ledge…` balconies, `wall` nothing, anything else a window (case does not matter). A door
-/// stands on the floor of the storey its foot is in (moved down, its height kept). An
-/// opening spanning several storeys is cut at them, the top corners' rounding going to the top
-/// piece and the bottom corners' to the bottom one; a frame (`addFacadeWithFrame`) makes it
-/// framed, with its size.
-pub(crate) fn element_on_edge(
-    label: &str,
-    e: &Element,
-    (u0, u1): (f64, f64),
-    (z0, z1): (f64, f64),
-    levels: &[Level],
-) -> Placed {
-    let label = label.to_ascii_lowercase();
-    if label == "wall" {
-        return Placed::Nothing;
-    }
-    if label.starts_with("balcony") || label.starts_with("ledge") {
-        return Placed::Balcony(FoundBalcony {
-            u0,
-            u1,
-            z0,
-            z1,
-            color: None,
-        });
-    }
-    let kind = if label.starts_with("door") || label.starts_with("entrance") {
-        OpeningKind::Door
-    } else {
-        OpeningKind::Window
-    };
-    let (mut z0, mut z1) = (z0, z1);
-    if kind == OpeningKind::Door {
-        // A door stands on the floor of the storey its foot is in (an `addShape` centres it
-        // in its cell): moved down, its height kept.
-        if let Some(l) = levels.iter().find(|l| z0 >= l.z0 && z0 < l.z1) {
-            (z0, z1) = (l.z0, z1 - (z0 - l.z0));
-        }
-    }
-    let frame_size = e.frame.map(|f| FrameSize {
-        width: f.thickness,
-        protrusion: f.width,
-    });
-    let mut out = Vec::new();
-    for l in levels {
-        let (lo, hi) = (z0.max(l.z0), z1.min(l.z1));
-        if hi - lo < 0.3 {
-            continue;
-        }
-        let rounding = e.rounding.map(|r| {
-            let (top, bottom) = (hi >= z1 - 1e-9, lo <= z0 + 1e-9);
-            let c = r.corners;
-            Rounding {
-                corners: [c[0] && top, c[1] && top, c[2] && bottom, c[3] && bottom],
-                radius: r.offset,
-                segments: r.segments,
-                profile: r.profile,
-            }
-        });
-        out.push(FoundOpening {
-            kind,
-            u0,
-            u1,
-            z0: lo,
-            z1: hi,
-            color: None,
-            frame_color: None,
-            glazed: kind == OpeningKind::Window,
-            framed: e.frame.is_some(),
-            frame_size,
-            rounding: rounding.filter(Rounding::is_rounded),
-        });
-    }
-    Placed::Openings(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::OpeningKind;
 
     /// The lots of Monaco with a street in front, largest first.
     fn monaco_lots() -> Vec<crate::prepare::Lot> {
@@ -411,7 +380,7 @@ mod tests {
                 source: source.clone(),
                 program: program.clone(),
             };
-            let mut fronts_seen = 0;
+            let (mut fronts_seen, mut bays) = (0, 0);
             for lot in lots.iter().take(20) {
                 for polygon in &lot.polygons {
                     let specs = facade_specs(polygon, 0.0, &storeys, lot.front);
@@ -464,20 +433,37 @@ mod tests {
                         // mass of its own with the door on its front (edge 0), or too small.
                         assert!(f.openings.iter().flatten().next().is_none());
                         assert_eq!(applied.bays.len() + f.off_envelope, fronts, "{}", lot.id);
+                        bays += applied.bays.len();
                         for b in &applied.bays {
-                            assert!(b.rounded && b.footprint.area() > 0.09);
+                            // The front an arc of chords (roundShape, 30 segments).
+                            assert!(!b.rounded && b.footprint.outer.len() > 8, "{b:?}");
+                            assert!(crate::geometry::is_simple(&b.footprint.outer));
+                            assert!(b.footprint.area() > 0.09);
                             assert!((b.z0, b.z1) == (0.0, 12.5 * 3.0 / 4.0), "{b:?}");
-                            let door = &b.facades.openings[0];
-                            // 6.25 m high (two of the bay's three rows): cut at the 3.5 m floor.
+                            // 6.25 m high (two of the bay's three rows): cut at the 3.5 m
+                            // floor, on one facet of the arc.
+                            let with: Vec<_> = b
+                                .facades
+                                .openings
+                                .iter()
+                                .filter(|o| !o.is_empty())
+                                .collect();
+                            assert_eq!(with.len(), 1, "{}: one facet", lot.id);
+                            let door = with[0];
                             assert_eq!(door.len(), 2, "{}: the door cut at a floor", lot.id);
-                            assert!(door.iter().all(|o| o.kind == OpeningKind::Door));
-                            let top = door.iter().filter(|o| o.rounding.is_some()).count();
-                            assert_eq!(top, 1, "the top piece is rounded");
+                            // The door on the ground storey, its fanlight above, rounded.
+                            assert_eq!(door[0].kind, OpeningKind::Door);
+                            assert!(door[0].rounding.is_none());
+                            assert_eq!(door[1].kind, OpeningKind::Window);
+                            assert!(door[1].glazed && door[1].rounding.is_some());
                         }
                     }
                 }
             }
             assert!(fronts_seen >= 20, "{file}: {fronts_seen} front facades");
+            if file == "rounded_door.slx" {
+                assert!(bays >= 20, "{bays} bays drawn");
+            }
         }
     }
 

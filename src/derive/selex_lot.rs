@@ -58,7 +58,9 @@ use glam::{DVec2, DVec3};
 
 use crate::derive::facade::{self, Facades, FoundOpening, Level, OpeningColors};
 use crate::derive::massing::{self, Mass};
-use crate::derive::selex::{element_on_edge, Placed};
+use crate::derive::selex_place::{
+    element_on_edge, element_spans, is_cover, on_facets, rounded_front, Facet, Placed,
+};
 use crate::derive::Note;
 use crate::geometry::Polygon;
 use crate::kb::defaults;
@@ -70,8 +72,7 @@ use crate::selex::eval::{Derivation, Element, Frame, ShapeId, ShapeKind, DEFAULT
 
 /// How deep (metres) the block behind a free-standing face is.
 pub const FREE_FACE_DEPTH: f64 = 8.0;
-/// The shortest edge of a rounded bay's footprint, metres.
-pub const MIN_EDGE: f64 = 0.05;
+pub use crate::derive::selex_place::MIN_EDGE;
 /// The lowest storey the floors are moved to make, metres.
 pub const MIN_STOREY: f64 = 2.0;
 /// How far (metres) a face may lie from a footprint edge's line and still stand on it.
@@ -87,16 +88,6 @@ struct PartPlan {
     faces: Vec<ShapeId>,
     /// The rounded front: its face and the facets carrying its elements.
     arc: Option<(ShapeId, Vec<Facet>)>,
-}
-
-/// A flat facet of a rounded front: the span `u0..u1` of the flat front it replaces, and its
-/// ends (left, right seen from outside) in plan.
-#[derive(Clone, Copy, Debug)]
-struct Facet {
-    u0: f64,
-    u1: f64,
-    a: DVec2,
-    b: DVec2,
 }
 
 /// The building of `d`, the shape tree of a program run on its own box lot, cut at `lod`:
@@ -308,16 +299,7 @@ fn volume_plan(d: &Derivation, v: ShapeId, notes: &mut Vec<Note>) -> Option<Part
     let w = front.width;
     let depth = (max - min).truncate().dot(n.abs());
     let a = front.origin.truncate() - n * depth;
-    let spans: Vec<(f64, f64)> = d.shapes[front_id]
-        .children
-        .iter()
-        .filter_map(|&c| match &d.shapes[c].kind {
-            ShapeKind::Element(e) if !is_cover(&d.shapes[c].label) => {
-                Some((e.rect.x, e.rect.x + e.rect.w))
-            }
-            _ => None,
-        })
-        .collect();
+    let spans = element_spans(d, front_id);
     let outside = r.direction != "inside";
     let Some((local, facets, asked)) =
         rounded_front(w, depth, r.degree, r.segments, outside, &spans)
@@ -358,12 +340,6 @@ fn volume_plan(d: &Derivation, v: ShapeId, notes: &mut Vec<Note>) -> Option<Part
     })
 }
 
-/// Whether an element's label is the cover's (nothing is drawn for it).
-fn is_cover(label: &str) -> bool {
-    label.eq_ignore_ascii_case("wall")
-}
-
-/// The block behind a free-standing face.
 fn free_face_plan(face: ShapeId, f: &Frame) -> Option<PartPlan> {
     let (u, n) = (f.u.truncate(), f.normal().truncate());
     if !(f.width > MIN_EDGE && f.height > 0.1 && u.is_finite() && n.length() > 0.5) {
@@ -396,119 +372,6 @@ fn on_grid(p: Polygon) -> Polygon {
 fn edges(p: &Polygon) -> impl Iterator<Item = (DVec2, DVec2)> + '_ {
     p.rings()
         .flat_map(|r| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()])))
-}
-
-/// A bay's footprint with a rounded front, in the bay's own axes (x along the wall from the
-/// bay's left end seen from outside, y outwards; the wall at y = 0): the path from (0, 0) round
-/// the front to (w, 0), the facets carrying the elements whose flat spans are `spans`, and the
-/// segments drawn. `None` when there is nothing to round.
-#[allow(clippy::type_complexity)]
-fn rounded_front(
-    w: f64,
-    depth: f64,
-    degree: f64,
-    segments: u32,
-    outside: bool,
-    spans: &[(f64, f64)],
-) -> Option<(Vec<DVec2>, Vec<Facet>, u32)> {
-    let degree = if degree.is_finite() {
-        degree.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let most = if outside {
-        depth.min(w / 2.0)
-    } else {
-        (depth - MIN_EDGE).min(w / 2.0)
-    };
-    let mut rise = degree * most;
-    if rise < MIN_EDGE / 2.0 || w < 2.0 * MIN_EDGE {
-        return None;
-    }
-    // Sides shorter than an edge may be: the arc starts on the wall.
-    if outside && depth - rise < MIN_EDGE {
-        rise = depth;
-    }
-    let r = (w * w / 4.0 + rise * rise) / (2.0 * rise);
-    let phi = (w / 2.0).atan2(r - rise);
-    let at = |t: f64| {
-        let alpha = phi * (2.0 * t - 1.0);
-        let x = w / 2.0 + r * alpha.sin();
-        let y_out = depth - r + r * alpha.cos();
-        let y = if outside {
-            y_out
-        } else {
-            depth - rise + (depth - y_out)
-        };
-        DVec2::new(x, y)
-    };
-    let length = 2.0 * phi * r;
-    let most_segments = ((length / MIN_EDGE).floor() as u32).max(1);
-    let n = segments.clamp(1, most_segments);
-    // The elements' spans on the arc, merged, as shares of the front's width.
-    let mut sp: Vec<(f64, f64)> = spans
-        .iter()
-        .filter(|(a, b)| a.is_finite() && b.is_finite() && b > a)
-        .map(|&(a, b)| ((a / w).clamp(0.0, 1.0), (b / w).clamp(0.0, 1.0)))
-        .filter(|(a, b)| b > a)
-        .collect();
-    sp.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut merged: Vec<(f64, f64)> = Vec::new();
-    for (a, b) in sp {
-        match merged.last_mut() {
-            Some(last) if a <= last.1 => last.1 = last.1.max(b),
-            _ => merged.push((a, b)),
-        }
-    }
-    // A span's end within a short chord of the arc's end goes to the end.
-    let near = MIN_EDGE / length;
-    for s in &mut merged {
-        if s.0 < near {
-            s.0 = 0.0;
-        }
-        if s.1 > 1.0 - near {
-            s.1 = 1.0;
-        }
-    }
-    let mut ts: Vec<f64> = (0..=n)
-        .map(|k| f64::from(k) / f64::from(n))
-        .filter(|&t| {
-            !merged
-                .iter()
-                .any(|&(a, b)| t > a - near && t < b + near && t != 0.0 && t != 1.0)
-        })
-        .collect();
-    for &(a, b) in &merged {
-        ts.push(a);
-        ts.push(b);
-    }
-    ts.sort_by(f64::total_cmp);
-    ts.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
-    let mut path = vec![DVec2::ZERO];
-    for &t in &ts {
-        let p = at(t);
-        if path.last().is_none_or(|q| q.distance(p) > 1e-9) {
-            path.push(p);
-        }
-    }
-    let end = DVec2::new(w, 0.0);
-    if path.last().is_some_and(|q| q.distance(end) > 1e-9) {
-        path.push(end);
-    }
-    // The last point repeats the first when the arc ends on the wall.
-    if path.len() > 1 && path[path.len() - 1].distance(path[0]) < 1e-9 {
-        path.pop();
-    }
-    let facets = merged
-        .iter()
-        .map(|&(a, b)| Facet {
-            u0: a * w,
-            u1: b * w,
-            a: at(a),
-            b: at(b),
-        })
-        .collect();
-    Some((path, facets, n))
 }
 
 /// The storeys of a part (see the module docs).
@@ -670,40 +533,9 @@ fn facades_of(
     }
     if let Some((f, facets)) = &plan.arc {
         let z0 = d.frame(*f).map_or(plan.base_z, |fr| fr.origin.z);
-        for &c in &d.shapes[*f].children {
-            let ShapeKind::Element(e) = &d.shapes[c].kind else {
-                continue;
-            };
-            let label = &d.shapes[c].label;
-            if is_cover(label) {
-                continue;
-            }
-            let mid = e.rect.x + e.rect.w / 2.0;
-            let facet = facets
-                .iter()
-                .find(|ft| mid >= ft.u0 - 1e-9 && mid <= ft.u1 + 1e-9);
-            let k = facet.and_then(|ft| {
-                edges
-                    .iter()
-                    .position(|&(s, t)| s.distance(ft.a) < 0.005 && t.distance(ft.b) < 0.005)
-            });
-            let (Some(ft), Some(k)) = (facet, k) else {
-                unplaced.push(format!(
-                    "{label} at ({:.2}, {:.2}) on the rounded `{}`: on no facet of the arc",
-                    e.rect.x, e.rect.y, d.shapes[*f].label
-                ));
-                continue;
-            };
-            let len = edges[k].0.distance(edges[k].1);
-            let share = if ft.u1 - ft.u0 > 1e-9 {
-                (mid - ft.u0) / (ft.u1 - ft.u0)
-            } else {
-                0.5
-            };
-            let half = (e.rect.w / 2.0).min(len / 2.0);
-            let centre = (share * len).clamp(half, len - half);
-            let z = (z0 + e.rect.y, z0 + e.rect.y + e.rect.h);
-            put(&mut out, k, label, e, (centre - half, centre + half), z);
+        let placed = on_facets(d, *f, facets, &edges, z0, unplaced);
+        for (k, label, e, u, z) in placed {
+            put(&mut out, k, label, e, u, z);
         }
     }
     for v in &mut out.openings {
