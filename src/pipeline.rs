@@ -15,6 +15,7 @@ mod outputs;
 use crate::crs::Crs;
 use crate::derive::{merged_tags, Generator, Rules};
 use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
+use crate::export::cityjson::{CityJsonSeqWriter, CityJsonWriter};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
 use crate::export::{
@@ -68,6 +69,10 @@ pub struct Options {
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here (`--gltf`).
     pub gltf: Option<PathBuf>,
+    /// Write CityJSON 2.0 (`.city.json`) here (`--cityjson`).
+    pub cityjson: Option<PathBuf>,
+    /// Write CityJSONSeq (`.city.jsonl`) here (`--cityjsonseq`).
+    pub cityjsonseq: Option<PathBuf>,
     /// Write the JSON run report here (`--report`); one file for the whole run, even with
     /// `tile`.
     pub report: Option<PathBuf>,
@@ -199,6 +204,8 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         ifc: opts.ifc.clone(),
         citygml: opts.citygml.clone(),
         gltf: opts.gltf.clone(),
+        cityjson: opts.cityjson.clone(),
+        cityjsonseq: opts.cityjsonseq.clone(),
         report: opts.report.clone(),
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
@@ -528,6 +535,10 @@ pub struct Targets {
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here.
     pub gltf: Option<PathBuf>,
+    /// Write CityJSON 2.0 (`.city.json`) here.
+    pub cityjson: Option<PathBuf>,
+    /// Write CityJSONSeq (`.city.jsonl`) here.
+    pub cityjsonseq: Option<PathBuf>,
     /// Write the JSON run report here.
     pub report: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
@@ -543,6 +554,8 @@ impl Targets {
             ("--ifc", &self.ifc),
             ("--citygml", &self.citygml),
             ("--gltf", &self.gltf),
+            ("--cityjson", &self.cityjson),
+            ("--cityjsonseq", &self.cityjsonseq),
             ("--report", &self.report),
         ]
         .into_iter()
@@ -607,6 +620,8 @@ fn write_batches(
             ifc: path(&targets.ifc),
             citygml: path(&targets.citygml),
             gltf: path(&targets.gltf),
+            cityjson: path(&targets.cityjson),
+            cityjsonseq: path(&targets.cityjsonseq),
             report: None,
             dry_run: targets.dry_run,
             allow_empty: targets.allow_empty,
@@ -842,6 +857,15 @@ fn write_lots(
             GltfWriter::beside(w, p).map_err(io_err(p))?
         };
         outputs.push((p.clone(), Box::new(w), sink, bytes));
+    }
+    if let Some(p) = &targets.cityjson {
+        let (w, sink, bytes) = open_output(p, dry, None)?;
+        let w = CityJsonWriter::beside(w, p).map_err(io_err(p))?;
+        outputs.push((p.clone(), Box::new(w), sink, bytes));
+    }
+    if let Some(p) = &targets.cityjsonseq {
+        let (w, sink, bytes) = open_output(p, dry, None)?;
+        outputs.push((p.clone(), Box::new(CityJsonSeqWriter::new(w)), sink, bytes));
     }
     for (path, w, _, _) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;

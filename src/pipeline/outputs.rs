@@ -16,6 +16,8 @@ fn extensions(flag: &str) -> &'static [&'static str] {
         "--ifc" => &["ifc"],
         "--citygml" => &["gml", "xml"],
         "--gltf" => &["glb"],
+        "--cityjson" => &["json", "cityjson"],
+        "--cityjsonseq" => &["jsonl"],
         "--report" => &["json"],
         _ => &[],
     }
