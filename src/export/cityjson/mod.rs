@@ -63,7 +63,6 @@
 //! buffer with its own vertices, then number the vertices in order: the bytes do not depend on
 //! the thread count.
 
-use std::collections::HashMap;
 use std::fs::File;
 use std::io::{self, BufWriter, Seek, Write};
 use std::path::Path;
@@ -74,13 +73,14 @@ use crate::export::format::push_uint;
 use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
-use render::{Frag, Vertex};
+use render::{Frag, Vertex, VertexMap};
 
 mod render;
 
-/// The most vertices the `.city.json` writer remembers to share them between buildings
-/// (about 40 bytes each); the table is emptied when full.
-pub const SHARED_VERTICES: usize = 1 << 20;
+/// The most vertices the `.city.json` writer remembers to share them between buildings: 7/8
+/// of 2^20, what a hash table of 2^20 buckets of 33 bytes (35 MB) holds; the table is emptied
+/// when full.
+pub const SHARED_VERTICES: usize = 917_504;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum State {
@@ -131,22 +131,39 @@ fn header(ctx: &OutputContext, writer: &str) -> Result<Vec<u8>, ExportError> {
     Ok(h)
 }
 
-/// Appends `[x,y,z]`.
+/// Appends `[x,y,z]` (formatted on the stack, appended at once).
 fn push_vertex(out: &mut Vec<u8>, v: Vertex) {
-    out.push(b'[');
-    push_int(out, v.0);
-    out.push(b',');
-    push_int(out, v.1);
-    out.push(b',');
-    push_int(out, v.2);
-    out.push(b']');
-}
-
-fn push_int(out: &mut Vec<u8>, v: i64) {
-    if v < 0 {
-        out.push(b'-');
+    let mut buf = [0u8; 64];
+    let mut n = 0;
+    let mut put = |b: u8| {
+        buf[n] = b;
+        n += 1;
+    };
+    put(b'[');
+    for (k, c) in [v.0, v.1, v.2].into_iter().enumerate() {
+        if k > 0 {
+            put(b',');
+        }
+        if c < 0 {
+            put(b'-');
+        }
+        let mut digits = [0u8; 20];
+        let mut m = c.unsigned_abs();
+        let mut d = digits.len();
+        loop {
+            d -= 1;
+            digits[d] = b'0' + (m % 10) as u8;
+            m /= 10;
+            if m == 0 {
+                break;
+            }
+        }
+        for &b in &digits[d..] {
+            put(b);
+        }
     }
-    push_uint(out, v.unsigned_abs());
+    put(b']');
+    out.extend_from_slice(&buf[..n]);
 }
 
 /// The frag's text with every mark replaced by `index(local vertex)`.
@@ -199,7 +216,7 @@ pub struct CityJsonWriter<W: Write + Send> {
     spool: Spool,
     _guard: ScratchGuard,
     /// The vertices written so far (up to [`SHARED_VERTICES`]), by value.
-    shared: HashMap<Vertex, u64>,
+    shared: VertexMap<u64>,
     /// Vertices written.
     count: u64,
     /// No building written yet.
@@ -254,7 +271,7 @@ impl<W: Write + Send> CityJsonWriter<W> {
             lod: Lod::Lod2,
             spool,
             _guard: guard,
-            shared: HashMap::new(),
+            shared: VertexMap::default(),
             count: 0,
             first: true,
             slots: Vec::new(),
@@ -374,7 +391,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
         }
         self.out.write_all(b"\n]}\n")?;
         self.out.flush()?;
-        self.shared = HashMap::new();
+        self.shared = VertexMap::default();
         self.slots = Vec::new();
         self.bufs = Vec::new();
         self.tables = Vec::new();

@@ -3,6 +3,7 @@
 //! writers can render buildings in parallel and number their vertices afterwards, in order.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
 
@@ -16,6 +17,35 @@ use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, RoofShape, 
 /// origin), [`grid_key`].
 pub(super) type Vertex = (i64, i64, i64);
 
+/// A fast hasher for [`Vertex`] keys (a multiply-rotate mix per coordinate and a final
+/// avalanche): the maps are only looked up, never iterated, so the output does not depend on it.
+#[derive(Default, Clone, Copy)]
+pub(super) struct VertexHasher(u64);
+
+impl Hasher for VertexHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(u64::from(*b));
+        }
+    }
+
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(23) ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+
+    fn finish(&self) -> u64 {
+        let h = self.0 ^ (self.0 >> 31);
+        h.wrapping_mul(0xBF58_476D_1CE4_E5B9) ^ (h >> 29)
+    }
+}
+
+/// A map keyed by vertices.
+pub(super) type VertexMap<V> = HashMap<Vertex, V, BuildHasherDefault<VertexHasher>>;
+
 /// One rendered building: the text of its CityObjects (`"id":{...}` pairs joined by commas,
 /// without the vertex indices) and where each index goes.
 #[derive(Default)]
@@ -27,7 +57,7 @@ pub(super) struct Frag {
     /// The building's distinct vertices in first-use order.
     pub(super) verts: Vec<Vertex>,
     /// `verts` by value (scratch, emptied per building).
-    index: HashMap<Vertex, u32>,
+    index: VertexMap<u32>,
     /// The building's id (`B_way_1`), the CityJSONFeature's `id`.
     pub(super) id: String,
 }
