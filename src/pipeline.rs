@@ -962,14 +962,28 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     results.into_iter().collect()
 }
 
-/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`.
+/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`; the
+/// CityJSON names keep their double extension (`NAME.city.json` gives `NAME_SUFFIX.city.json`).
 fn tile_path(p: &Path, suffix: &str) -> PathBuf {
-    let stem = p
+    let mut stem = p
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let name = match p.extension() {
-        Some(ext) => format!("{stem}_{suffix}.{}", ext.to_string_lossy()),
+        Some(ext) => {
+            let mut ext = ext.to_string_lossy().into_owned();
+            let json = matches!(ext.to_ascii_lowercase().as_str(), "json" | "jsonl");
+            let cut = stem.len().saturating_sub(5);
+            if json
+                && cut > 0
+                && stem.is_char_boundary(cut)
+                && stem[cut..].eq_ignore_ascii_case(".city")
+            {
+                ext = format!("{}.{ext}", &stem[cut + 1..]);
+                stem.truncate(cut);
+            }
+            format!("{stem}_{suffix}.{ext}")
+        }
         None => format!("{stem}_{suffix}"),
     };
     p.with_file_name(name)
@@ -1028,6 +1042,17 @@ mod tests {
         fn finish(&mut self) -> Result<(), ExportError> {
             Ok(())
         }
+    }
+
+    #[test]
+    fn tile_paths_insert_the_suffix_before_the_extension() {
+        let t = |p: &str| tile_path(Path::new(p), "100_200").display().to_string();
+        assert_eq!(t("out/m.gml"), "out/m_100_200.gml");
+        assert_eq!(t("out/m.city.json"), "out/m_100_200.city.json");
+        assert_eq!(t("out/m.City.jsonl"), "out/m_100_200.City.jsonl");
+        assert_eq!(t("out/m.city.gml"), "out/m.city_100_200.gml");
+        assert_eq!(t("out/.city.json"), "out/.city_100_200.json");
+        assert_eq!(t("out/m"), "out/m_100_200");
     }
 
     #[test]
