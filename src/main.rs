@@ -236,7 +236,7 @@ enum RulesCommand {
 #[derive(Args, Debug)]
 #[command(group(ArgGroup::new("input").required(true).args(["osm", "shp"])))]
 #[command(group(ArgGroup::new("style").required(true).args(["kb", "rules"])))]
-#[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf"])))]
+#[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf", "cityjson", "cityjsonseq"])))]
 struct RunArgs {
     /// OpenStreetMap extract (.osm.pbf) to read building footprints from.
     #[arg(long, value_name = "FILE.pbf")]
@@ -263,6 +263,12 @@ struct RunArgs {
     /// Write glTF 2.0 binary (.glb) here.
     #[arg(long, value_name = "OUT.glb")]
     gltf: Option<PathBuf>,
+    /// Write CityJSON 2.0 here (one file; vertices in millimetres around the run's origin).
+    #[arg(long, value_name = "OUT.city.json")]
+    cityjson: Option<PathBuf>,
+    /// Write CityJSONSeq here (a header line, then one CityJSONFeature line per building).
+    #[arg(long, value_name = "OUT.city.jsonl")]
+    cityjsonseq: Option<PathBuf>,
     /// Write the JSON report (counts, skipped and repaired footprints with reasons) here.
     #[arg(long, value_name = "OUT.json")]
     report: Option<PathBuf>,
@@ -609,6 +615,8 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     ifc,
                     citygml,
                     gltf,
+                    cityjson: None,
+                    cityjsonseq: None,
                     report,
                     dry_run: false,
                     allow_empty: false,
@@ -850,6 +858,8 @@ fn run_main(cli: RunArgs) -> ExitCode {
         ifc: cli.ifc.clone(),
         citygml: cli.citygml.clone(),
         gltf: cli.gltf.clone(),
+        cityjson: cli.cityjson.clone(),
+        cityjsonseq: cli.cityjsonseq.clone(),
         report: cli.report.clone(),
         seed: cli.seed,
         crs: cli.crs,

@@ -15,6 +15,7 @@ mod outputs;
 use crate::crs::Crs;
 use crate::derive::{merged_tags, Generator, Rules};
 use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
+use crate::export::cityjson::{CityJsonSeqWriter, CityJsonWriter};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
 use crate::export::{
@@ -68,6 +69,10 @@ pub struct Options {
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here (`--gltf`).
     pub gltf: Option<PathBuf>,
+    /// Write CityJSON 2.0 (`.city.json`) here (`--cityjson`).
+    pub cityjson: Option<PathBuf>,
+    /// Write CityJSONSeq (`.city.jsonl`) here (`--cityjsonseq`).
+    pub cityjsonseq: Option<PathBuf>,
     /// Write the JSON run report here (`--report`); one file for the whole run, even with
     /// `tile`.
     pub report: Option<PathBuf>,
@@ -199,6 +204,8 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         ifc: opts.ifc.clone(),
         citygml: opts.citygml.clone(),
         gltf: opts.gltf.clone(),
+        cityjson: opts.cityjson.clone(),
+        cityjsonseq: opts.cityjsonseq.clone(),
         report: opts.report.clone(),
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
@@ -603,6 +610,10 @@ pub struct Targets {
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here.
     pub gltf: Option<PathBuf>,
+    /// Write CityJSON 2.0 (`.city.json`) here.
+    pub cityjson: Option<PathBuf>,
+    /// Write CityJSONSeq (`.city.jsonl`) here.
+    pub cityjsonseq: Option<PathBuf>,
     /// Write the JSON run report here.
     pub report: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
@@ -618,6 +629,8 @@ impl Targets {
             ("--ifc", &self.ifc),
             ("--citygml", &self.citygml),
             ("--gltf", &self.gltf),
+            ("--cityjson", &self.cityjson),
+            ("--cityjsonseq", &self.cityjsonseq),
             ("--report", &self.report),
         ]
         .into_iter()
@@ -718,6 +731,8 @@ fn write_batches(
             ifc: path(&targets.ifc),
             citygml: path(&targets.citygml),
             gltf: path(&targets.gltf),
+            cityjson: path(&targets.cityjson),
+            cityjsonseq: path(&targets.cityjsonseq),
             report: None,
             dry_run: targets.dry_run,
             allow_empty: targets.allow_empty,
@@ -954,6 +969,15 @@ fn write_lots(
         };
         outputs.push((p.clone(), Box::new(w), sink, bytes));
     }
+    if let Some(p) = &targets.cityjson {
+        let (w, sink, bytes) = open_output(p, dry, None)?;
+        let w = CityJsonWriter::beside(w, p).map_err(io_err(p))?;
+        outputs.push((p.clone(), Box::new(w), sink, bytes));
+    }
+    if let Some(p) = &targets.cityjsonseq {
+        let (w, sink, bytes) = open_output(p, dry, None)?;
+        outputs.push((p.clone(), Box::new(CityJsonSeqWriter::new(w)), sink, bytes));
+    }
     for (path, w, _, _) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;
     }
@@ -1049,14 +1073,28 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     results.into_iter().collect()
 }
 
-/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`.
+/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`; the
+/// CityJSON names keep their double extension (`NAME.city.json` gives `NAME_SUFFIX.city.json`).
 fn tile_path(p: &Path, suffix: &str) -> PathBuf {
-    let stem = p
+    let mut stem = p
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let name = match p.extension() {
-        Some(ext) => format!("{stem}_{suffix}.{}", ext.to_string_lossy()),
+        Some(ext) => {
+            let mut ext = ext.to_string_lossy().into_owned();
+            let json = matches!(ext.to_ascii_lowercase().as_str(), "json" | "jsonl");
+            let cut = stem.len().saturating_sub(5);
+            if json
+                && cut > 0
+                && stem.is_char_boundary(cut)
+                && stem[cut..].eq_ignore_ascii_case(".city")
+            {
+                ext = format!("{}.{ext}", &stem[cut + 1..]);
+                stem.truncate(cut);
+            }
+            format!("{stem}_{suffix}.{ext}")
+        }
         None => format!("{stem}_{suffix}"),
     };
     p.with_file_name(name)
@@ -1115,6 +1153,17 @@ mod tests {
         fn finish(&mut self) -> Result<(), ExportError> {
             Ok(())
         }
+    }
+
+    #[test]
+    fn tile_paths_insert_the_suffix_before_the_extension() {
+        let t = |p: &str| tile_path(Path::new(p), "100_200").display().to_string();
+        assert_eq!(t("out/m.gml"), "out/m_100_200.gml");
+        assert_eq!(t("out/m.city.json"), "out/m_100_200.city.json");
+        assert_eq!(t("out/m.City.jsonl"), "out/m_100_200.City.jsonl");
+        assert_eq!(t("out/m.city.gml"), "out/m.city_100_200.gml");
+        assert_eq!(t("out/.city.json"), "out/.city_100_200.json");
+        assert_eq!(t("out/m"), "out/m_100_200");
     }
 
     #[test]

@@ -118,6 +118,10 @@ fn one_two_and_eight_threads_write_the_same_bytes() {
                     p("o.gml"),
                     "--gltf".into(),
                     p("o.glb"),
+                    "--cityjson".into(),
+                    p("o.city.json"),
+                    "--cityjsonseq".into(),
+                    p("o.city.jsonl"),
                     "--report".into(),
                     p("o.json"),
                     "--quiet".into(),
@@ -130,13 +134,28 @@ fn one_two_and_eight_threads_write_the_same_bytes() {
                     "{}",
                     String::from_utf8_lossy(&out.stderr)
                 );
-                ["o.ifc", "o.gml", "o.glb", "o.json"]
-                    .iter()
-                    .map(|n| std::fs::read(dir.path().join(n)).unwrap())
-                    .collect()
+                [
+                    "o.ifc",
+                    "o.gml",
+                    "o.glb",
+                    "o.city.json",
+                    "o.city.jsonl",
+                    "o.json",
+                ]
+                .iter()
+                .map(|n| std::fs::read(dir.path().join(n)).unwrap())
+                .collect()
             })
             .collect();
-        for (i, name) in ["IFC", "CityGML", "glTF", "report"].iter().enumerate() {
+        let names = [
+            "IFC",
+            "CityGML",
+            "glTF",
+            "CityJSON",
+            "CityJSONSeq",
+            "report",
+        ];
+        for (i, name) in names.iter().enumerate() {
             assert!(
                 runs[0][i] == runs[1][i],
                 "{name} differs between 1 and 2 threads ({extra:?})"

@@ -1,7 +1,8 @@
-//! Writers: IFC4 (STEP), CityGML 2.0 and glTF 2.0 binary. Each consumes [`crate::model::Building`]
-//! values one at a time (streaming) and nothing else.
+//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq) and glTF 2.0 binary.
+//! Each consumes [`crate::model::Building`] values one at a time (streaming) and nothing else.
 
 pub mod citygml;
+pub mod cityjson;
 #[cfg(target_os = "linux")]
 mod direct;
 #[cfg(test)]

@@ -16,6 +16,8 @@ fn extensions(flag: &str) -> &'static [&'static str] {
         "--ifc" => &["ifc"],
         "--citygml" => &["gml", "xml"],
         "--gltf" => &["glb"],
+        "--cityjson" => &["json", "cityjson"],
+        "--cityjsonseq" => &["jsonl"],
         "--report" => &["json"],
         _ => &[],
     }
@@ -218,5 +220,24 @@ mod tests {
         )
         .is_ok());
         assert!(check(&[("--ifc", &d.join("x.step"))], &[], true).is_ok());
+        // CityJSON: .city.json (or .cityjson), CityJSONSeq: .city.jsonl; the report's .json
+        // is another file.
+        assert!(check(
+            &[
+                ("--cityjson", &d.join("x.city.json")),
+                ("--cityjsonseq", &d.join("x.city.jsonl")),
+                ("--report", &j)
+            ],
+            &[],
+            false
+        )
+        .is_ok());
+        let m = msg(&[("--cityjsonseq", &d.join("x.city.json"))], &[]);
+        assert!(m.contains("--cityjsonseq") && m.contains(".jsonl"), "{m}");
+        let m = msg(
+            &[("--cityjson", &j), ("--report", &d.join("./x.json"))],
+            &[],
+        );
+        assert!(m.contains("are the same file"), "{m}");
     }
 }

@@ -1,0 +1,504 @@
+//! CityJSON 2.0 writers: one `.city.json` file ([`CityJsonWriter`]) and a CityJSONSeq stream
+//! ([`CityJsonSeqWriter`], `.city.jsonl`), both streamed.
+//!
+//! Both write the same CityObjects. Vertices are integers: whole millimetres from the
+//! `transform`'s `translate`, the run's local origin ([`OutputContext::origin`]), with `scale`
+//! 0.001, so a vertex is `translate + 0.001 * v` in the output CRS, within 0.5 mm of the model
+//! point ([`crate::model::grid_key`]). `metadata.referenceSystem` names the output CRS as an
+//! OGC URL (`https://www.opengis.net/def/crs/EPSG/0/<code>`, the EPSG code the CityGML writer
+//! names). The model's faces already follow CityJSON's orientation: an outer ring is
+//! counter-clockwise seen from outside the solid (its normal points out), holes run the other
+//! way.
+//!
+//! What each building gets (ids as the CityGML writer's: `B_way_123`, its parts
+//! `B_way_123_p0`):
+//!
+//! - a `Building` with `attributes` `sourceId`, `name` (when it has one), `zone`,
+//!   `appearance`, `partSourceId` (one part traced to another footprint), `measuredHeight`,
+//!   `storeysAboveGround` and `roofType` (the SIG3D code the CityGML writer's `bldg:roofType`
+//!   holds). A building of several parts has one `BuildingPart` per part (`parents`/`children`
+//!   linked; attributes `sourceId` where the part comes from its own footprint,
+//!   `measuredHeight`, `storeysAboveGround`, `roofType`) and the parts carry the geometry;
+//!   otherwise the building does.
+//! - **LOD1**: one `Solid` of lod `"1"`: ground, walls, flat top.
+//! - **LOD2**: one `Solid` of lod `"2.2"` with semantics `GroundSurface`, `WallSurface`,
+//!   `RoofSurface`.
+//! - **LOD3**: one `Solid` of lod `"3"`: walls with a hole per opening, and each opening's
+//!   polygon (which fills its hole, [`crate::export::lod3geom::opening_face`] at depth 0) in the
+//!   same shell; the `Window` and `Door` semantic objects are `children` of their wall's own
+//!   `WallSurface` object (and name it as `parent`); a wall against a neighbour has its own
+//!   `WallSurface` with `partyWallShare` (as the CityGML). Ground and walls are those of
+//!   [`crate::export::lod3geom::seated_changes`] (a vertex under each jamb of a low opening),
+//!   as the CityGML's solid. Balconies are `BuildingInstallation` children (`function`
+//!   `balcony`) with a `MultiSurface` of lod `"3"` (slab, railing, infill).
+//! - **LOD4**: CityJSON 2.0 has no LOD4; as CityGML 3.0 does, the interior is written at LOD3
+//!   in the objects CityJSON 2.0 has for it. The exterior is the LOD3 one; under the building
+//!   (or its part) each room is a `BuildingRoom` (attributes `name`, `usage`, `storey`: the
+//!   storey's index from the ground) with a closed `Solid` of lod `"3"`, semantics
+//!   `FloorSurface`, `CeilingSurface`, `InteriorWallSurface` and `Door` (an interior door's
+//!   polygon, in each of its two rooms' shells, a child of that side's own
+//!   `InteriorWallSurface`); each interior wall a `BuildingConstructiveElement` (`function`
+//!   `interior wall`, `storey`) with its body as a `Solid` of lod `"3"` (door holes lined by
+//!   their reveals); each stair a `BuildingInstallation` (`function` `stairs`, `storey`) with a
+//!   `MultiSurface` of lod `"3"` of its steps. All of them name the building or part as
+//!   `parents` and are in its `children`.
+//!
+//! Colours are not written (CityJSON materials would need the whole file's list up front).
+//!
+//! **The `.city.json` file** ([`CityJsonWriter`]) is `{"type":"CityJSON","version":"2.0",
+//! "transform":..,"metadata":..,"CityObjects":{..},"vertices":[..]}`: the buildings' objects
+//! go to the output as they come, the vertices are appended to a scratch file as they are
+//! first used and copied after the objects at the end. A building's vertices are each written
+//! once; across buildings a vertex is shared through a table of the vertices written so far,
+//! emptied when it holds [`SHARED_VERTICES`] (so memory does not grow with the city: past that,
+//! a vertex two buildings far apart in the input share may be written twice, which CityJSON
+//! allows and cjval notes as a warning).
+//!
+//! **The CityJSONSeq stream** ([`CityJsonSeqWriter`]): a first line, the CityJSON object with
+//! the transform and metadata and empty `CityObjects` and `vertices`, then one line per
+//! building: a `CityJSONFeature` whose `id` is the building's, with its objects and its own
+//! vertices.
+//!
+//! Both render [`super::PARALLEL_BATCH`] buildings at a time in parallel, each into its own
+//! buffer with its own vertices, then number the vertices in order: the bytes do not depend on
+//! the thread count.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Seek, Write};
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use crate::export::format::push_uint;
+use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
+use crate::model::{Building, Lod};
+
+use render::{Frag, Vertex, VertexMap};
+
+mod render;
+
+/// The most vertices the `.city.json` writer remembers to share them between buildings: 7/8
+/// of 2^20, what a hash table of 2^20 buckets of 33 bytes (35 MB) holds; the table is emptied
+/// when full.
+pub const SHARED_VERTICES: usize = 917_504;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    New,
+    Open,
+    Finished,
+}
+
+fn check_state(writer: &str, state: State, expected: State, call: &str) -> Result<(), ExportError> {
+    if state == expected {
+        return Ok(());
+    }
+    let why = match state {
+        State::New => "before begin()",
+        State::Open => "after begin()",
+        State::Finished => "after finish()",
+    };
+    Err(ExportError::Invalid(format!(
+        "{writer}: {call} called {why}"
+    )))
+}
+
+/// The header's members after `"version"`: transform and metadata.
+fn header(ctx: &OutputContext, writer: &str) -> Result<Vec<u8>, ExportError> {
+    if !ctx.origin.is_finite() {
+        return Err(ExportError::Invalid(format!(
+            "{writer}: the local origin {:?} is not finite",
+            ctx.origin
+        )));
+    }
+    let o = ctx.origin;
+    let title = format!(
+        "Generated by citygen from {}, seed {}, LOD{} geometry",
+        ctx.source_name,
+        ctx.seed,
+        ctx.lod.number()
+    );
+    let mut h = format!(
+        "{{\"type\":\"CityJSON\",\"version\":\"2.0\",\"transform\":{{\"scale\":[0.001,0.001,0.001],\"translate\":[{},{},{}]}},\"metadata\":{{\"referenceSystem\":\"https://www.opengis.net/def/crs/EPSG/0/{}\",\"title\":",
+        o.x,
+        o.y,
+        o.z,
+        ctx.crs.epsg()
+    )
+    .into_bytes();
+    serde_json::to_writer(&mut h, &title).map_err(io::Error::other)?;
+    h.extend_from_slice(b"},\"CityObjects\":{");
+    Ok(h)
+}
+
+/// Appends `[x,y,z]` (formatted on the stack, appended at once).
+fn push_vertex(out: &mut Vec<u8>, v: Vertex) {
+    let mut buf = [0u8; 64];
+    let mut n = 0;
+    let mut put = |b: u8| {
+        buf[n] = b;
+        n += 1;
+    };
+    put(b'[');
+    for (k, c) in [v.0, v.1, v.2].into_iter().enumerate() {
+        if k > 0 {
+            put(b',');
+        }
+        if c < 0 {
+            put(b'-');
+        }
+        let mut digits = [0u8; 20];
+        let mut m = c.unsigned_abs();
+        let mut d = digits.len();
+        loop {
+            d -= 1;
+            digits[d] = b'0' + (m % 10) as u8;
+            m /= 10;
+            if m == 0 {
+                break;
+            }
+        }
+        for &b in &digits[d..] {
+            put(b);
+        }
+    }
+    put(b']');
+    out.extend_from_slice(&buf[..n]);
+}
+
+/// The frag's text with every mark replaced by `index(local vertex)`.
+fn splice(frag: &Frag, index: impl Fn(u32) -> u64, out: &mut Vec<u8>) {
+    let mut at = 0;
+    for &(pos, li) in &frag.marks {
+        out.extend_from_slice(&frag.text[at..pos]);
+        push_uint(out, index(li));
+        at = pos;
+    }
+    out.extend_from_slice(&frag.text[at..]);
+}
+
+/// Where the `.city.json` writer keeps the vertices until the end.
+enum Spool {
+    /// A scratch file (its bytes copied to the output by `finish`).
+    File(BufWriter<File>),
+    /// In memory (tests, small outputs).
+    Memory(Vec<u8>),
+}
+
+impl Spool {
+    fn write_all(&mut self, b: &[u8]) -> io::Result<()> {
+        match self {
+            Spool::File(w) => w.write_all(b),
+            Spool::Memory(v) => {
+                v.extend_from_slice(b);
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Removes scratch files that could not be unlinked while open (not on Unix).
+struct ScratchGuard(Option<std::path::PathBuf>);
+
+impl Drop for ScratchGuard {
+    fn drop(&mut self) {
+        if let Some(p) = self.0.take() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// Streaming CityJSON 2.0 writer of one `.city.json` file (see the module documentation).
+pub struct CityJsonWriter<W: Write + Send> {
+    out: W,
+    state: State,
+    lod: Lod,
+    spool: Spool,
+    _guard: ScratchGuard,
+    /// The vertices written so far (up to [`SHARED_VERTICES`]), by value.
+    shared: VertexMap<u64>,
+    /// Vertices written.
+    count: u64,
+    /// No building written yet.
+    first: bool,
+    slots: Vec<Frag>,
+    bufs: Vec<Vec<u8>>,
+    tables: Vec<Vec<u64>>,
+    /// New vertices of a batch, as text (scratch).
+    vtext: Vec<u8>,
+}
+
+impl<W: Write + Send> CityJsonWriter<W> {
+    /// A writer to `out` that keeps the vertices in memory until `finish` (tests, small files).
+    pub fn new(out: W) -> CityJsonWriter<W> {
+        CityJsonWriter::with_spool(out, Spool::Memory(Vec::new()), ScratchGuard(None))
+    }
+
+    /// A writer to `out` whose vertices wait in a scratch file beside `target` (the final
+    /// output path, whose folder must exist), deleted when the writer is dropped (on Unix it is
+    /// unlinked at once and only the open handle keeps it).
+    pub fn beside(out: W, target: &Path) -> io::Result<CityJsonWriter<W>> {
+        let dir = target
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let path = dir.join(format!(".{name}.{}.vertices.tmp", std::process::id()));
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)?;
+        let guard = match std::fs::remove_file(&path) {
+            Ok(()) => ScratchGuard(None),
+            Err(_) => ScratchGuard(Some(path)),
+        };
+        Ok(CityJsonWriter::with_spool(
+            out,
+            Spool::File(BufWriter::with_capacity(1 << 20, file)),
+            guard,
+        ))
+    }
+
+    fn with_spool(out: W, spool: Spool, guard: ScratchGuard) -> CityJsonWriter<W> {
+        CityJsonWriter {
+            out,
+            state: State::New,
+            lod: Lod::Lod2,
+            spool,
+            _guard: guard,
+            shared: VertexMap::default(),
+            count: 0,
+            first: true,
+            slots: Vec::new(),
+            bufs: Vec::new(),
+            tables: Vec::new(),
+            vtext: Vec::new(),
+        }
+    }
+
+    /// Gives the sink back (complete after [`BuildingWriter::finish`]).
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+
+    /// Writes the buildings already rendered into `slots[..n]`: their vertices numbered in
+    /// order (new ones spooled), their text spliced in parallel, then appended in order.
+    fn append(&mut self, n: usize) -> Result<(), ExportError> {
+        self.tables.resize_with(n.max(self.tables.len()), Vec::new);
+        self.bufs.resize_with(n.max(self.bufs.len()), Vec::new);
+        self.vtext.clear();
+        for (frag, table) in self.slots[..n].iter().zip(&mut self.tables) {
+            table.clear();
+            let mut fresh = true;
+            for &v in &frag.verts {
+                if self.shared.len() >= SHARED_VERTICES {
+                    self.shared.clear();
+                }
+                let next = self.count;
+                let i = *self.shared.entry(v).or_insert(next);
+                if i == next {
+                    if self.count > 0 {
+                        self.vtext.push(b',');
+                    }
+                    if fresh {
+                        self.vtext.push(b'\n');
+                        fresh = false;
+                    }
+                    push_vertex(&mut self.vtext, v);
+                    self.count += 1;
+                }
+                table.push(i);
+            }
+        }
+        self.spool.write_all(&self.vtext)?;
+        let first = self.first;
+        self.slots[..n]
+            .par_iter()
+            .zip(self.tables[..n].par_iter())
+            .zip(self.bufs[..n].par_iter_mut())
+            .enumerate()
+            .for_each(|(k, ((frag, table), buf))| {
+                buf.clear();
+                buf.extend_from_slice(if first && k == 0 { b"\n" } else { b",\n" });
+                splice(frag, |li| table[li as usize], buf);
+            });
+        for buf in &self.bufs[..n] {
+            self.out.write_all(buf)?;
+        }
+        self.first &= n == 0;
+        Ok(())
+    }
+}
+
+impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
+    fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
+        check_state("CityJSON writer", self.state, State::New, "begin()")?;
+        let h = header(ctx, "CityJSON writer")?;
+        self.lod = ctx.lod;
+        self.out.write_all(&h)?;
+        self.state = State::Open;
+        Ok(())
+    }
+
+    fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        check_state("CityJSON writer", self.state, State::Open, "write()")?;
+        check_finite("CityJSON writer", building)?;
+        if self.slots.is_empty() {
+            self.slots.push(Frag::default());
+        }
+        render::building(&mut self.slots[0], building, self.lod);
+        self.append(1)
+    }
+
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    /// Renders [`super::PARALLEL_BATCH`] buildings at a time in parallel and appends them in
+    /// order: the same bytes as `write` on each.
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
+        check_state("CityJSON writer", self.state, State::Open, "write()")?;
+        let lod = self.lod;
+        for batch in checked.finite().chunks(super::PARALLEL_BATCH) {
+            if self.slots.len() < batch.len() {
+                self.slots.resize_with(batch.len(), Frag::default);
+            }
+            batch
+                .par_iter()
+                .zip(self.slots.par_iter_mut())
+                .for_each(|(b, f)| render::building(f, b, lod));
+            self.append(batch.len())?;
+        }
+        checked.refused("CityJSON writer")
+    }
+
+    fn finish(&mut self) -> Result<(), ExportError> {
+        check_state("CityJSON writer", self.state, State::Open, "finish()")?;
+        self.state = State::Finished;
+        self.out.write_all(b"\n},\"vertices\":[")?;
+        match std::mem::replace(&mut self.spool, Spool::Memory(Vec::new())) {
+            Spool::Memory(v) => self.out.write_all(&v)?,
+            Spool::File(w) => {
+                let mut file = w.into_inner().map_err(|e| e.into_error())?;
+                file.rewind()?;
+                io::copy(&mut file, &mut self.out)?;
+            }
+        }
+        self.out.write_all(b"\n]}\n")?;
+        self.out.flush()?;
+        self.shared = VertexMap::default();
+        self.slots = Vec::new();
+        self.bufs = Vec::new();
+        self.tables = Vec::new();
+        Ok(())
+    }
+}
+
+/// Streaming CityJSONSeq writer (`.city.jsonl`, see the module documentation): the header
+/// line, then one `CityJSONFeature` line per building with its own vertices.
+pub struct CityJsonSeqWriter<W: Write + Send> {
+    out: W,
+    state: State,
+    lod: Lod,
+    slots: Vec<(Frag, Vec<u8>)>,
+}
+
+impl<W: Write + Send> CityJsonSeqWriter<W> {
+    /// A writer to `out`.
+    pub fn new(out: W) -> CityJsonSeqWriter<W> {
+        CityJsonSeqWriter {
+            out,
+            state: State::New,
+            lod: Lod::Lod2,
+            slots: Vec::new(),
+        }
+    }
+
+    /// Gives the sink back (complete after [`BuildingWriter::finish`]).
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+}
+
+/// One building's `CityJSONFeature` line into `buf`.
+fn feature(frag: &mut Frag, buf: &mut Vec<u8>, b: &Building, lod: Lod) {
+    render::building(frag, b, lod);
+    buf.clear();
+    buf.extend_from_slice(b"{\"type\":\"CityJSONFeature\",\"id\":");
+    // Writing a &str to a Vec cannot fail.
+    let _ = serde_json::to_writer(&mut *buf, &frag.id);
+    buf.extend_from_slice(b",\"CityObjects\":{");
+    splice(frag, u64::from, buf);
+    buf.extend_from_slice(b"},\"vertices\":[");
+    for (i, v) in frag.verts.iter().enumerate() {
+        if i > 0 {
+            buf.push(b',');
+        }
+        push_vertex(buf, *v);
+    }
+    buf.extend_from_slice(b"]}\n");
+}
+
+impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
+    fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
+        check_state("CityJSONSeq writer", self.state, State::New, "begin()")?;
+        let mut h = header(ctx, "CityJSONSeq writer")?;
+        h.extend_from_slice(b"},\"vertices\":[]}\n");
+        self.lod = ctx.lod;
+        self.out.write_all(&h)?;
+        self.state = State::Open;
+        Ok(())
+    }
+
+    fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        check_state("CityJSONSeq writer", self.state, State::Open, "write()")?;
+        check_finite("CityJSONSeq writer", building)?;
+        if self.slots.is_empty() {
+            self.slots.push(Default::default());
+        }
+        let (frag, buf) = &mut self.slots[0];
+        feature(frag, buf, building, self.lod);
+        self.out.write_all(buf)?;
+        Ok(())
+    }
+
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    /// Renders [`super::PARALLEL_BATCH`] buildings at a time in parallel and writes them in
+    /// order: the same bytes as `write` on each.
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
+        check_state("CityJSONSeq writer", self.state, State::Open, "write()")?;
+        let lod = self.lod;
+        for batch in checked.finite().chunks(super::PARALLEL_BATCH) {
+            if self.slots.len() < batch.len() {
+                self.slots.resize_with(batch.len(), Default::default);
+            }
+            batch
+                .par_iter()
+                .zip(self.slots.par_iter_mut())
+                .for_each(|(b, (frag, buf))| feature(frag, buf, b, lod));
+            for (_, buf) in &self.slots[..batch.len()] {
+                self.out.write_all(buf)?;
+            }
+        }
+        checked.refused("CityJSONSeq writer")
+    }
+
+    fn finish(&mut self) -> Result<(), ExportError> {
+        check_state("CityJSONSeq writer", self.state, State::Open, "finish()")?;
+        self.state = State::Finished;
+        self.out.flush()?;
+        self.slots = Vec::new();
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;

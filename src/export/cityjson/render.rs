@@ -1,0 +1,728 @@
+//! One building as CityJSON CityObjects: the text of its objects with a mark wherever a vertex
+//! index goes, and the building's own vertices (integer millimetres, each once), so that the
+//! writers can render buildings in parallel and number their vertices afterwards, in order.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+use glam::DVec3;
+
+use crate::export::format::{push_fixed3, push_uint};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
+use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
+use crate::geometry::ring::{dedup_by, remove_spikes_by};
+use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, RoofShape, Wall};
+
+/// A vertex as the file holds it: whole millimetres from the transform's translate (the local
+/// origin), [`grid_key`].
+pub(super) type Vertex = (i64, i64, i64);
+
+/// A fast hasher for [`Vertex`] keys (a multiply-rotate mix per coordinate and a final
+/// avalanche): the maps are only looked up, never iterated, so the output does not depend on it.
+#[derive(Default, Clone, Copy)]
+pub(super) struct VertexHasher(u64);
+
+impl Hasher for VertexHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.write_u64(u64::from(*b));
+        }
+    }
+
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(23) ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+
+    fn finish(&self) -> u64 {
+        let h = self.0 ^ (self.0 >> 31);
+        h.wrapping_mul(0xBF58_476D_1CE4_E5B9) ^ (h >> 29)
+    }
+}
+
+/// A map keyed by vertices.
+pub(super) type VertexMap<V> = HashMap<Vertex, V, BuildHasherDefault<VertexHasher>>;
+
+/// One rendered building: the text of its CityObjects (`"id":{...}` pairs joined by commas,
+/// without the vertex indices) and where each index goes.
+#[derive(Default)]
+pub(super) struct Frag {
+    /// The objects' text, vertex indices left out.
+    pub(super) text: Vec<u8>,
+    /// (byte offset in `text`, index into `verts`): an index to insert there.
+    pub(super) marks: Vec<(usize, u32)>,
+    /// The building's distinct vertices in first-use order.
+    pub(super) verts: Vec<Vertex>,
+    /// `verts` by value (scratch, emptied per building).
+    index: VertexMap<u32>,
+    /// The building's id (`B_way_1`), the CityJSONFeature's `id`.
+    pub(super) id: String,
+}
+
+impl Frag {
+    pub(super) fn clear(&mut self) {
+        self.text.clear();
+        self.marks.clear();
+        self.verts.clear();
+        self.index.clear();
+        self.id.clear();
+    }
+
+    fn s(&mut self, s: &str) {
+        self.text.extend_from_slice(s.as_bytes());
+    }
+
+    /// A JSON string (quoted and escaped).
+    fn string(&mut self, s: &str) {
+        // Writing a &str to a Vec cannot fail.
+        let _ = serde_json::to_writer(&mut self.text, s);
+    }
+
+    fn uint(&mut self, v: u64) {
+        push_uint(&mut self.text, v);
+    }
+
+    fn fixed3(&mut self, v: f64) {
+        push_fixed3(&mut self.text, v);
+    }
+
+    /// The index of vertex `v`, marked at the end of the text.
+    fn vertex(&mut self, v: Vertex) {
+        let next = self.verts.len() as u32;
+        let i = *self.index.entry(v).or_insert(next);
+        if i == next {
+            self.verts.push(v);
+        }
+        self.marks.push((self.text.len(), i));
+    }
+
+    /// A ring `[i,j,k,...]` of the points as written: millimetres, without consecutive repeats
+    /// (the closing one included) and spikes that the rounding makes; a ring that would keep
+    /// fewer than 3 points is written as it was (as the CityGML writer does).
+    fn ring(&mut self, points: &[DVec3]) {
+        let raw: Vec<Vertex> = points.iter().map(|p| grid_key(*p)).collect();
+        let mut keys = raw.clone();
+        dedup_by(&mut keys, |a, b| a == b);
+        remove_spikes_by(&mut keys, |a, b| a == b);
+        if keys.len() < 3 {
+            keys = raw;
+        }
+        self.s("[");
+        for (i, k) in keys.into_iter().enumerate() {
+            if i > 0 {
+                self.s(",");
+            }
+            self.vertex(k);
+        }
+        self.s("]");
+    }
+
+    /// A surface `[[outer],[hole],...]`.
+    fn surface(&mut self, f: &Face) {
+        self.s("[");
+        if let Some(outer) = ring(&f.outer) {
+            self.ring(outer);
+        }
+        for h in f.holes.iter().filter_map(|h| ring(h)) {
+            self.s(",");
+            self.ring(h);
+        }
+        self.s("]");
+    }
+
+    /// `"boundaries":[[s,s,...]]` of a solid's one shell, `,"semantics":{...}` when given.
+    fn solid(&mut self, lod: &str, faces: &[&Face], sem: Option<&Semantics>) {
+        self.s("{\"type\":\"Solid\",\"lod\":\"");
+        self.s(lod);
+        self.s("\",\"boundaries\":[[");
+        for (i, f) in faces.iter().enumerate() {
+            if i > 0 {
+                self.s(",");
+            }
+            self.surface(f);
+        }
+        self.s("]]");
+        if let Some(sem) = sem {
+            self.s(",\"semantics\":");
+            sem.write(self, true);
+        }
+        self.s("}");
+    }
+
+    /// A MultiSurface of the faces, without semantics.
+    fn multi_surface(&mut self, lod: &str, faces: &[&Face]) {
+        self.s("{\"type\":\"MultiSurface\",\"lod\":\"");
+        self.s(lod);
+        self.s("\",\"boundaries\":[");
+        for (i, f) in faces.iter().enumerate() {
+            if i > 0 {
+                self.s(",");
+            }
+            self.surface(f);
+        }
+        self.s("]}");
+    }
+
+    /// `"id":{"type":"T","parents":[..],"children":[..],` — the caller writes the rest and `}`.
+    fn open_object(&mut self, id: &str, kind: &str, parent: Option<&str>, children: &[String]) {
+        self.string(id);
+        self.s(":{\"type\":\"");
+        self.s(kind);
+        self.s("\"");
+        if let Some(p) = parent {
+            self.s(",\"parents\":[");
+            self.string(p);
+            self.s("]");
+        }
+        if !children.is_empty() {
+            self.s(",\"children\":[");
+            for (i, c) in children.iter().enumerate() {
+                if i > 0 {
+                    self.s(",");
+                }
+                self.string(c);
+            }
+            self.s("]");
+        }
+    }
+
+    fn attr_str(&mut self, first: &mut bool, name: &str, value: &str) {
+        self.attr_name(first, name);
+        self.string(value);
+    }
+
+    fn attr_name(&mut self, first: &mut bool, name: &str) {
+        if !*first {
+            self.s(",");
+        }
+        *first = false;
+        self.string(name);
+        self.s(":");
+    }
+}
+
+/// The ring without a closing duplicate of its first vertex, or `None` if fewer than 3 remain
+/// (the faces the CityGML writer leaves out, left out here too).
+pub(super) fn ring(points: &[DVec3]) -> Option<&[DVec3]> {
+    let mut r = points;
+    while r.len() > 1 && r.first() == r.last() {
+        r = &r[..r.len() - 1];
+    }
+    (r.len() >= 3).then_some(r)
+}
+
+/// A semantic object: its type, its parent's and children's indices in the list, and the
+/// share of a wall that faces a neighbour (`partyWallShare`).
+struct SemObject {
+    kind: &'static str,
+    parent: Option<usize>,
+    children: Vec<usize>,
+    party: Option<f64>,
+}
+
+/// A geometry's `semantics`: the objects and one value per surface.
+#[derive(Default)]
+struct Semantics {
+    objects: Vec<SemObject>,
+    values: Vec<usize>,
+}
+
+impl Semantics {
+    fn object(&mut self, kind: &'static str) -> usize {
+        self.objects.push(SemObject {
+            kind,
+            parent: None,
+            children: Vec::new(),
+            party: None,
+        });
+        self.objects.len() - 1
+    }
+
+    /// A child of `parent` (a Window or Door of a wall surface).
+    fn child(&mut self, kind: &'static str, parent: usize) -> usize {
+        let i = self.object(kind);
+        self.objects[i].parent = Some(parent);
+        self.objects[parent].children.push(i);
+        i
+    }
+
+    /// `{"surfaces":[...],"values":[...]}`, the values in one shell (`[[...]]`) for a solid.
+    fn write(&self, f: &mut Frag, solid: bool) {
+        f.s("{\"surfaces\":[");
+        for (i, o) in self.objects.iter().enumerate() {
+            if i > 0 {
+                f.s(",");
+            }
+            f.s("{\"type\":\"");
+            f.s(o.kind);
+            f.s("\"");
+            if let Some(p) = o.parent {
+                f.s(",\"parent\":");
+                f.uint(p as u64);
+            }
+            if !o.children.is_empty() {
+                f.s(",\"children\":[");
+                for (k, c) in o.children.iter().enumerate() {
+                    if k > 0 {
+                        f.s(",");
+                    }
+                    f.uint(*c as u64);
+                }
+                f.s("]");
+            }
+            if let Some(share) = o.party {
+                f.s(",\"partyWallShare\":");
+                f.s(&format!("{:.2}", share.min(1.0)));
+            }
+            f.s("}");
+        }
+        f.s(if solid {
+            "],\"values\":[["
+        } else {
+            "],\"values\":["
+        });
+        for (i, v) in self.values.iter().enumerate() {
+            if i > 0 {
+                f.s(",");
+            }
+            f.uint(*v as u64);
+        }
+        f.s(if solid { "]]}" } else { "]}" });
+    }
+}
+
+/// Keeps ASCII letters, digits, `_`, `-` and `.`, replacing anything else by `_` (the ids of the
+/// CityGML writer).
+fn id_fragment(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The building's id: `B_` and its source key (`B_way_123`), as in the CityGML.
+pub(super) fn building_id(b: &Building) -> String {
+    format!("B_{}", id_fragment(&b.key()))
+}
+
+/// The parts' ids: `<building id>_<part key>`, or `<building id>_p<index>` for all parts when
+/// the keys are empty or not unique.
+fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
+    let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
+    let usable = keys
+        .iter()
+        .enumerate()
+        .all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
+    keys.iter()
+        .enumerate()
+        .map(|(i, k)| {
+            if usable {
+                format!("{building_id}_{k}")
+            } else {
+                format!("{building_id}_p{i}")
+            }
+        })
+        .collect()
+}
+
+/// What a part's exterior polygons are.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Ground,
+    Wall(usize),
+    Roof,
+}
+
+/// The writable polygons of a part: ground, walls, roof faces (those with 3 points or more).
+fn surfaces(part: &Part) -> impl Iterator<Item = (Kind, &Face)> {
+    std::iter::once((Kind::Ground, &part.ground))
+        .chain(
+            part.walls
+                .iter()
+                .enumerate()
+                .map(|(i, w)| (Kind::Wall(i), &w.outline)),
+        )
+        .chain(part.roof.iter().map(|f| (Kind::Roof, f)))
+        .filter(|(_, f)| ring(&f.outer).is_some())
+}
+
+/// An object hanging under a part's geometry holder (LOD3 and LOD4).
+enum Extra<'a> {
+    /// A balcony of wall `wall`.
+    Balcony {
+        wall: &'a Wall,
+        index: usize,
+        id: String,
+    },
+    /// Room `room` of storey `storey` (index in the part's interior).
+    Room {
+        storey: usize,
+        room: usize,
+        id: String,
+    },
+    /// Interior wall `wall` of storey `storey`.
+    InteriorWall {
+        storey: usize,
+        wall: usize,
+        id: String,
+    },
+    /// The stair of storey `storey`.
+    Stair { storey: usize, id: String },
+}
+
+impl Extra<'_> {
+    fn id(&self) -> &str {
+        match self {
+            Extra::Balcony { id, .. }
+            | Extra::Room { id, .. }
+            | Extra::InteriorWall { id, .. }
+            | Extra::Stair { id, .. } => id,
+        }
+    }
+}
+
+/// The objects under a part: its balconies (LOD3+), then per storey its rooms, interior walls
+/// and stair (LOD4), those with a geometry to write.
+fn extras<'a>(part: &'a Part, pid: &str, lod: Lod) -> Vec<Extra<'a>> {
+    let mut out = Vec::new();
+    if lod < Lod::Lod3 {
+        return out;
+    }
+    for (kind, _) in surfaces(part) {
+        let Kind::Wall(wi) = kind else { continue };
+        let wall = &part.walls[wi];
+        for (k, b) in wall.balconies.iter().enumerate() {
+            if balcony_faces(wall, b).is_some() {
+                out.push(Extra::Balcony {
+                    wall,
+                    index: k,
+                    id: format!("{pid}_w{wi}_b{k}"),
+                });
+            }
+        }
+    }
+    if lod < Lod::Lod4 {
+        return out;
+    }
+    for (k, s) in part.interior.iter().enumerate() {
+        // A storey whose heights are not finite is left out, as every writer does.
+        if !(s.floor_z.is_finite() && s.ceiling_z.is_finite()) {
+            continue;
+        }
+        for r in 0..s.rooms.len() {
+            if room_shell(s, r).is_some() {
+                out.push(Extra::Room {
+                    storey: k,
+                    room: r,
+                    id: format!("{pid}_s{k}_r{r}"),
+                });
+            }
+        }
+        for w in 0..s.walls.len() {
+            if wall_body(s, w).is_some() {
+                out.push(Extra::InteriorWall {
+                    storey: k,
+                    wall: w,
+                    id: format!("{pid}_s{k}_iw{w}"),
+                });
+            }
+        }
+        if s.stair
+            .as_ref()
+            .is_some_and(|st| !stair_steps(s, st).is_empty())
+        {
+            out.push(Extra::Stair {
+                storey: k,
+                id: format!("{pid}_s{k}_stair"),
+            });
+        }
+    }
+    out
+}
+
+/// Renders building `b` at `lod` into `f` (cleared first).
+pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
+    f.clear();
+    let id = building_id(b);
+    let pids = part_ids(&id, &b.parts);
+    f.id.clone_from(&id);
+    let single = b.parts.len() == 1;
+    // The building's children: its parts, or (one part) the part's extras.
+    let part_extras: Vec<Vec<Extra<'_>>> = b
+        .parts
+        .iter()
+        .zip(&pids)
+        .map(|(p, pid)| extras(p, if single { &id } else { pid }, lod))
+        .collect();
+    let children: Vec<String> = if single {
+        part_extras[0].iter().map(|e| e.id().to_string()).collect()
+    } else {
+        pids.clone()
+    };
+    f.open_object(&id, "Building", None, &children);
+    f.s(",\"attributes\":{");
+    let mut first = true;
+    f.attr_str(&mut first, "sourceId", &b.id.to_string());
+    if let Some(name) = &b.name {
+        f.attr_str(&mut first, "name", name);
+    }
+    if !b.zone.is_empty() {
+        f.attr_str(&mut first, "zone", &b.zone);
+    }
+    if !b.appearance.is_empty() {
+        f.attr_str(&mut first, "appearance", &b.appearance);
+    }
+    if let [part] = b.parts.as_slice() {
+        if let Some(source) = part.traced_source(b.id) {
+            f.attr_str(&mut first, "partSourceId", &source.to_string());
+        }
+    }
+    building_attributes(
+        f,
+        &mut first,
+        b.roof_shape,
+        b.measured_height,
+        b.storeys_above_ground,
+    );
+    f.s("}");
+    if single {
+        geometry(f, &b.parts[0], lod);
+        f.s("}");
+        extra_objects(f, &b.parts[0], &id, &part_extras[0]);
+        return;
+    }
+    f.s("}");
+    for ((part, pid), ex) in b.parts.iter().zip(&pids).zip(&part_extras) {
+        let kids: Vec<String> = ex.iter().map(|e| e.id().to_string()).collect();
+        f.s(",");
+        f.open_object(pid, "BuildingPart", Some(&id), &kids);
+        f.s(",\"attributes\":{");
+        let mut first = true;
+        if let Some(source) = part.traced_source(b.id) {
+            f.attr_str(&mut first, "sourceId", &source.to_string());
+        }
+        building_attributes(
+            f,
+            &mut first,
+            part.roof_shape,
+            part.top_z - part.base_z,
+            part.storeys,
+        );
+        f.s("}");
+        geometry(f, part, lod);
+        f.s("}");
+        extra_objects(f, part, pid, ex);
+    }
+}
+
+/// `measuredHeight`, `storeysAboveGround` and `roofType` (the CityGML code, as the CityGML
+/// writer's `bldg:roofType`).
+fn building_attributes(f: &mut Frag, first: &mut bool, roof: RoofShape, height: f64, storeys: u32) {
+    f.attr_name(first, "measuredHeight");
+    f.fixed3(height);
+    f.attr_name(first, "storeysAboveGround");
+    f.uint(u64::from(storeys));
+    f.attr_str(first, "roofType", roof.citygml_code());
+}
+
+/// `,"geometry":[...]` of a part at the LOD (nothing for a part without surfaces).
+fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
+    if surfaces(part).next().is_none() {
+        return;
+    }
+    f.s(",\"geometry\":[");
+    match lod {
+        Lod::Lod1 => {
+            let faces: Vec<&Face> = surfaces(part).map(|(_, f)| f).collect();
+            f.solid("1", &faces, None);
+        }
+        Lod::Lod2 => {
+            let mut sem = Semantics::default();
+            let (g, w, r) = (
+                sem.object("GroundSurface"),
+                sem.object("WallSurface"),
+                sem.object("RoofSurface"),
+            );
+            let mut faces = Vec::new();
+            for (kind, face) in surfaces(part) {
+                sem.values.push(match kind {
+                    Kind::Ground => g,
+                    Kind::Wall(_) => w,
+                    Kind::Roof => r,
+                });
+                faces.push(face);
+            }
+            f.solid("2.2", &faces, Some(&sem));
+        }
+        Lod::Lod3 | Lod::Lod4 => lod3_solid(f, part),
+    }
+    f.s("]");
+}
+
+/// The LOD3 solid: ground and walls as [`seated_changes`] gives them, walls with their
+/// openings' holes, roofs, then every opening's polygon (filling its hole); semantics with one
+/// WallSurface per wall that has openings or faces a neighbour (its Windows and Doors its
+/// children), one shared by the others.
+fn lod3_solid(f: &mut Frag, part: &Part) {
+    let seated = seated_changes(part);
+    let mut sem = Semantics::default();
+    let (g, w, r) = (
+        sem.object("GroundSurface"),
+        sem.object("WallSurface"),
+        sem.object("RoofSurface"),
+    );
+    let mut faces: Vec<&Face> = Vec::new();
+    let mut openings: Vec<(Face, usize)> = Vec::new();
+    for (kind, face) in surfaces(part) {
+        let fi = match kind {
+            Kind::Ground => Some(0),
+            Kind::Wall(i) => Some(i + 1),
+            Kind::Roof => None,
+        };
+        let face = fi
+            .and_then(|fi| seated.iter().find(|c| c.0 == fi))
+            .map_or(face, |c| &c.1);
+        faces.push(face);
+        let value = match kind {
+            Kind::Ground => g,
+            Kind::Roof => r,
+            Kind::Wall(i) => {
+                let wall = &part.walls[i];
+                let ops: Vec<(Face, OpeningKind)> = wall
+                    .openings
+                    .iter()
+                    .filter_map(|o| opening_face(wall, o, 0.0).map(|face| (face, o.kind)))
+                    .collect();
+                if ops.is_empty() && wall.party < 0.005 {
+                    w
+                } else {
+                    let own = sem.object("WallSurface");
+                    if wall.party >= 0.005 {
+                        sem.objects[own].party = Some(wall.party);
+                    }
+                    for (face, kind) in ops {
+                        let k = sem.child(
+                            match kind {
+                                OpeningKind::Window => "Window",
+                                OpeningKind::Door => "Door",
+                            },
+                            own,
+                        );
+                        openings.push((face, k));
+                    }
+                    own
+                }
+            }
+        };
+        sem.values.push(value);
+    }
+    for (face, k) in &openings {
+        faces.push(face);
+        sem.values.push(*k);
+    }
+    f.solid("3", &faces, Some(&sem));
+}
+
+/// The part's extras as CityObjects (`,\n"id":{...}` each).
+fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) {
+    for e in extras {
+        match e {
+            Extra::Balcony { wall, index, id } => {
+                let Some(faces) = balcony_faces(wall, &wall.balconies[*index]) else {
+                    continue;
+                };
+                f.s(",");
+                f.open_object(id, "BuildingInstallation", Some(parent), &[]);
+                f.s(",\"attributes\":{\"function\":\"balcony\"},\"geometry\":[");
+                let all: Vec<&Face> = faces.all().collect();
+                f.multi_surface("3", &all);
+                f.s("]}");
+            }
+            Extra::Room { storey, room, id } => {
+                let s = &part.interior[*storey];
+                let Some(shell) = room_shell(s, *room) else {
+                    continue;
+                };
+                let rm = &s.rooms[*room];
+                f.s(",");
+                f.open_object(id, "BuildingRoom", Some(parent), &[]);
+                f.s(",\"attributes\":{");
+                let mut first = true;
+                f.attr_str(&mut first, "name", &rm.name);
+                f.attr_str(&mut first, "usage", &rm.usage);
+                f.attr_name(&mut first, "storey");
+                f.uint(s.storey as u64);
+                f.s("},\"geometry\":[");
+                let mut sem = Semantics::default();
+                let (fl, ce, iw) = (
+                    sem.object("FloorSurface"),
+                    sem.object("CeilingSurface"),
+                    sem.object("InteriorWallSurface"),
+                );
+                let mut faces: Vec<&Face> = vec![&shell.floor, &shell.ceiling];
+                sem.values.extend([fl, ce]);
+                let mut doors: Vec<(&Face, usize)> = Vec::new();
+                for side in &shell.sides {
+                    faces.push(&side.face);
+                    if side.door_faces.is_empty() {
+                        sem.values.push(iw);
+                        continue;
+                    }
+                    let own = sem.object("InteriorWallSurface");
+                    sem.values.push(own);
+                    for d in &side.door_faces {
+                        doors.push((d, sem.child("Door", own)));
+                    }
+                }
+                for (d, k) in doors {
+                    faces.push(d);
+                    sem.values.push(k);
+                }
+                f.solid("3", &faces, Some(&sem));
+                f.s("]}");
+            }
+            Extra::InteriorWall { storey, wall, id } => {
+                let s = &part.interior[*storey];
+                let Some(body) = wall_body(s, *wall) else {
+                    continue;
+                };
+                f.s(",");
+                f.open_object(id, "BuildingConstructiveElement", Some(parent), &[]);
+                f.s(",\"attributes\":{\"function\":\"interior wall\",\"storey\":");
+                f.uint(s.storey as u64);
+                f.s("},\"geometry\":[");
+                let faces: Vec<&Face> = body.iter().collect();
+                f.solid("3", &faces, None);
+                f.s("]}");
+            }
+            Extra::Stair { storey, id } => {
+                let s = &part.interior[*storey];
+                let steps = s
+                    .stair
+                    .as_ref()
+                    .map(|st| stair_steps(s, st))
+                    .unwrap_or_default();
+                f.s(",");
+                f.open_object(id, "BuildingInstallation", Some(parent), &[]);
+                f.s(",\"attributes\":{\"function\":\"stairs\",\"storey\":");
+                f.uint(s.storey as u64);
+                f.s("},\"geometry\":[");
+                let blocks: Vec<Face> = steps
+                    .iter()
+                    .flat_map(|st| prism_faces(&st.ring, st.z0, st.z1))
+                    .collect();
+                let faces: Vec<&Face> = blocks.iter().collect();
+                f.multi_surface("3", &faces);
+                f.s("]}");
+            }
+        }
+    }
+}
