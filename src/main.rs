@@ -74,7 +74,8 @@ enum SelexCommand {
     },
     /// Run a SELEX program and print its shape tree: volumes, faces, grids, the elements with
     /// their rectangles on their face (metres from the bottom-left seen from outside), the
-    /// cover, the constraints kept, then the warnings. With --ifc, --citygml or --gltf, write
+    /// cover, the constraints kept, then the warnings. With an output (--ifc, --citygml,
+    /// --gltf, --cityjson, --cityjsonseq), write
     /// the building it makes instead: each volume (box or bay) a part with a flat roof, a bay's
     /// rounded front an arc, the elements doors (door*, entrance*), balconies (balcony*,
     /// ledge*) or windows, rounded and framed as the program asks (docs/selex.md §9).
@@ -99,6 +100,12 @@ enum SelexCommand {
         /// Write glTF 2.0 binary (.glb) here.
         #[arg(long, value_name = "OUT.glb")]
         gltf: Option<PathBuf>,
+        /// Write CityJSON 2.0 here.
+        #[arg(long, value_name = "OUT.city.json")]
+        cityjson: Option<PathBuf>,
+        /// Write CityJSONSeq here.
+        #[arg(long, value_name = "OUT.city.jsonl")]
+        cityjsonseq: Option<PathBuf>,
         /// Write the JSON report here (with an output).
         #[arg(long, value_name = "OUT.json")]
         report: Option<PathBuf>,
@@ -467,20 +474,27 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
             ifc,
             citygml,
             gltf,
+            cityjson,
+            cityjsonseq,
             report,
         } => {
             let targets = citygen::pipeline::Targets {
                 ifc,
                 citygml,
                 gltf,
+                cityjson,
+                cityjsonseq,
                 report,
                 dry_run: false,
                 allow_empty: false,
             };
-            let outputs =
-                targets.ifc.is_some() || targets.citygml.is_some() || targets.gltf.is_some();
+            let outputs = targets.ifc.is_some()
+                || targets.citygml.is_some()
+                || targets.gltf.is_some()
+                || targets.cityjson.is_some()
+                || targets.cityjsonseq.is_some();
             if targets.report.is_some() && !outputs {
-                eprintln!("citygen: error: --report goes with --ifc, --citygml or --gltf");
+                eprintln!("citygen: error: --report goes with an output (--ifc, --citygml, --gltf, --cityjson, --cityjsonseq)");
                 return ExitCode::from(2);
             }
             (file, lot, !outputs, outputs.then_some((targets, lod, at)))
