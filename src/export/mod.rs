@@ -144,6 +144,30 @@ pub trait BuildingWriter: Send {
     fn finish(&mut self) -> Result<(), ExportError>;
 }
 
+/// A scratch file beside `target` (in its folder, so on the output's disk rather than a possibly
+/// small temporary file system), named `.{file name}.{pid}.{tag}.tmp`, open for reading and
+/// writing. It is unlinked at once where the system allows (Unix: only the handle keeps it);
+/// otherwise its path is returned, for the caller to remove when done.
+pub(crate) fn scratch_beside(target: &Path, tag: &str) -> io::Result<(File, Option<PathBuf>)> {
+    let dir = target
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let path = dir.join(format!(".{name}.{}.{tag}.tmp", std::process::id()));
+    let file = File::options()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&path)?;
+    let left = std::fs::remove_file(&path).is_err().then_some(path);
+    Ok((file, left))
+}
+
 /// A file written atomically: bytes go to a temporary file beside the target, which is renamed
 /// over the target by [`AtomicFile::commit`]. Dropped without commit, the temporary is removed and
 /// the target is untouched, so a failed or killed run never leaves a half-written output.

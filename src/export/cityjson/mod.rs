@@ -238,25 +238,8 @@ impl<W: Write + Send> CityJsonWriter<W> {
     /// output path, whose folder must exist), deleted when the writer is dropped (on Unix it is
     /// unlinked at once and only the open handle keeps it).
     pub fn beside(out: W, target: &Path) -> io::Result<CityJsonWriter<W>> {
-        let dir = target
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let path = dir.join(format!(".{name}.{}.vertices.tmp", std::process::id()));
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)?;
-        let guard = match std::fs::remove_file(&path) {
-            Ok(()) => ScratchGuard(None),
-            Err(_) => ScratchGuard(Some(path)),
-        };
+        let (file, left) = crate::export::scratch_beside(target, "vertices")?;
+        let guard = ScratchGuard(left);
         Ok(CityJsonWriter::with_spool(
             out,
             Spool::File(BufWriter::with_capacity(1 << 20, file)),

@@ -281,37 +281,13 @@ impl<W: Write + Send> GltfWriter<W> {
     /// possibly small temporary file system. The scratch file is deleted when the writer is
     /// dropped (on Unix it is unlinked at once and only the open handle keeps it).
     pub fn beside(out: W, target: &Path) -> io::Result<GltfWriter<W>> {
-        let dir = target
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let path = dir.join(format!(".{name}.{}.bin.tmp", std::process::id()));
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)?;
+        let (file, left) = crate::export::scratch_beside(target, "bin")?;
         let mut w = GltfWriter::new(out, file);
         // Unlinking an open file works on Unix; elsewhere it is removed on drop.
-        if std::fs::remove_file(&path).is_err() {
-            w.scratch_guard.0.push(path);
-        }
+        w.scratch_guard.0.extend(left);
         for (i, array) in ["nodes", "meshes", "accessors", "views"].iter().enumerate() {
-            let path = dir.join(format!(".{name}.{}.{array}.tmp", std::process::id()));
-            let file = File::options()
-                .read(true)
-                .write(true)
-                .create(true)
-                .truncate(true)
-                .open(&path)?;
-            if std::fs::remove_file(&path).is_err() {
-                w.scratch_guard.0.push(path);
-            }
+            let (file, left) = crate::export::scratch_beside(target, array)?;
+            w.scratch_guard.0.extend(left);
             w.spools[i] = Spool::File {
                 w: BufWriter::with_capacity(1 << 18, file),
                 len: 0,
