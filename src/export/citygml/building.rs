@@ -122,7 +122,7 @@ impl Renderer<'_> {
 
 /// Keeps ASCII letters, digits, `_`, `-` and `.` (NCName-safe after a letter prefix), replacing
 /// anything else by `_`.
-pub(super) fn id_fragment(s: &str) -> String {
+pub(crate) fn id_fragment(s: &str) -> String {
     s.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
@@ -136,7 +136,7 @@ pub(super) fn id_fragment(s: &str) -> String {
 
 /// The id prefixes of the parts: `<building id>_<part key>`, or `<building id>_p<index>` for all
 /// parts when the keys are empty or not unique (ids must be unique in the file).
-pub(super) fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
+pub(crate) fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
     let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
     let usable = keys
         .iter()

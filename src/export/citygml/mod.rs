@@ -64,7 +64,7 @@ use crate::model::{Building, Lod};
 use xml::Xml;
 
 mod appearance;
-mod building;
+pub(crate) mod building;
 mod lod4;
 mod material;
 mod openings;

@@ -7,6 +7,8 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
 
+use crate::export::citygml::building::{id_fragment, part_ids};
+
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
@@ -294,43 +296,9 @@ impl Semantics {
     }
 }
 
-/// Keeps ASCII letters, digits, `_`, `-` and `.`, replacing anything else by `_` (the ids of the
-/// CityGML writer).
-fn id_fragment(s: &str) -> String {
-    s.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
 /// The building's id: `B_` and its source key (`B_way_123`), as in the CityGML.
 pub(super) fn building_id(b: &Building) -> String {
     format!("B_{}", id_fragment(&b.key()))
-}
-
-/// The parts' ids: `<building id>_<part key>`, or `<building id>_p<index>` for all parts when
-/// the keys are empty or not unique.
-fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
-    let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
-    let usable = keys
-        .iter()
-        .enumerate()
-        .all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
-    keys.iter()
-        .enumerate()
-        .map(|(i, k)| {
-            if usable {
-                format!("{building_id}_{k}")
-            } else {
-                format!("{building_id}_p{i}")
-            }
-        })
-        .collect()
 }
 
 /// What a part's exterior polygons are.
