@@ -56,6 +56,31 @@ enum Command {
     /// Check and try SELEX programs (selection expressions and facade grids, docs/selex.md).
     #[command(subcommand)]
     Selex(SelexCommand),
+    /// Put the shards of a tiled run together (`--shard I/N`), after checking that their
+    /// manifests add up: one run, every shard, tile and building once, every file as listed.
+    /// Writes the merged report and the region's CityJSONSeq.
+    Merge(MergeArgs),
+}
+
+/// `citygen merge`.
+#[derive(Args, Debug)]
+struct MergeArgs {
+    /// Folders holding the shards' outputs and `citygen-manifest.I-of-N.json` files.
+    #[arg(required = true, value_name = "OUT_DIR")]
+    dirs: Vec<PathBuf>,
+    /// Write the merged run report here.
+    #[arg(long, value_name = "OUT.json")]
+    report: Option<PathBuf>,
+    /// Write the region's CityJSONSeq here: one header, then every tile's buildings in grid
+    /// order (the shards must have written --cityjsonseq).
+    #[arg(long, value_name = "OUT.city.jsonl")]
+    cityjsonseq: Option<PathBuf>,
+    /// Check the files' sizes only, not their SHA-256 (faster on a slow shared disk).
+    #[arg(long)]
+    no_verify: bool,
+    /// No summary.
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -335,6 +360,17 @@ struct RunArgs {
     /// report note.
     #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]
     infer: InferArg,
+    /// Write only shard I of N (counted from 0) of a tiled run (needs --tile), and its
+    /// manifest `citygen-manifest.I-of-N.json` beside the outputs; `citygen merge` puts the
+    /// shards together. Every shard reads the whole input and computes the same assignment of
+    /// tiles to shards, so N processes need no coordinator. `auto` takes I from
+    /// JOB_COMPLETION_INDEX (Kubernetes Indexed Job) or SLURM_ARRAY_TASK_ID (Slurm array) and
+    /// N from --shards or SLURM_ARRAY_TASK_COUNT.
+    #[arg(long, value_name = "I/N|auto", value_parser = citygen::pipeline::shard::parse_shard)]
+    shard: Option<citygen::pipeline::shard::ShardArg>,
+    /// The number of shards for --shard auto (a Kubernetes Indexed Job's completions).
+    #[arg(long, value_name = "N", requires = "shard", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    shards: Option<u32>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -441,7 +477,43 @@ fn main() -> ExitCode {
         Some(Command::Rules(cmd)) => rules_command(cmd),
         Some(Command::Kb(cmd)) => kb_command(cmd),
         Some(Command::Selex(cmd)) => selex_command(cmd),
+        Some(Command::Merge(args)) => merge_command(args),
         None => run_main(cli.run),
+    }
+}
+
+/// `citygen merge`.
+fn merge_command(args: MergeArgs) -> ExitCode {
+    let opts = citygen::pipeline::merge::MergeOptions {
+        dirs: args.dirs,
+        report: args.report,
+        cityjsonseq: args.cityjsonseq,
+        verify: !args.no_verify,
+    };
+    match citygen::pipeline::merge::merge(&opts) {
+        Ok(s) => {
+            if !args.quiet {
+                eprintln!(
+                    "citygen merge: {} shards, {} tiles, {} buildings ({} skipped), {} files of {} bytes checked{} in {:.2} s",
+                    s.shards,
+                    s.tiles,
+                    s.buildings,
+                    s.skipped,
+                    s.files,
+                    s.bytes,
+                    if opts.verify { " (SHA-256)" } else { " (sizes)" },
+                    s.elapsed.as_secs_f64()
+                );
+                for p in &s.outputs {
+                    eprintln!("  wrote {}", p.display());
+                }
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("citygen: error: {e}");
+            ExitCode::from(exit_code(&e))
+        }
     }
 }
 
@@ -487,6 +559,7 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
                 report,
                 dry_run: false,
                 allow_empty: false,
+                manifest: None,
             };
             let outputs = targets.ifc.is_some()
                 || targets.citygml.is_some()
@@ -634,6 +707,7 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     report,
                     dry_run: false,
                     allow_empty: false,
+                    manifest: None,
                 },
             ))
         }
@@ -864,6 +938,34 @@ fn run_main(cli: RunArgs) -> ExitCode {
         },
         (None, None) => unreachable!("clap requires --osm or --shp"),
     };
+    use citygen::pipeline::shard::{self, ShardArg};
+    let shard = match cli.shard {
+        None => None,
+        Some(ShardArg::Fixed(s)) => {
+            if cli.shards.is_some_and(|n| n as usize != s.count) {
+                eprintln!(
+                    "citygen: error: --shard {s} and --shards {} disagree",
+                    cli.shards.unwrap_or(0)
+                );
+                return ExitCode::from(2);
+            }
+            Some((s, format!("--shard {s}")))
+        }
+        Some(ShardArg::Auto) => {
+            match shard::from_env(cli.shards.map(|n| n as usize), &|k| std::env::var(k).ok()) {
+                Ok(found) => {
+                    if !cli.quiet {
+                        eprintln!("citygen: {}", found.1);
+                    }
+                    Some(found)
+                }
+                Err(e) => {
+                    eprintln!("citygen: error: {e}");
+                    return ExitCode::from(2);
+                }
+            }
+        }
+    };
     let opts = Options {
         source,
         kb: cli.kb.clone(),
@@ -889,6 +991,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         force_extension: cli.force_extension,
         allow_empty: cli.allow_empty,
         infer: cli.infer.0,
+        shard,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

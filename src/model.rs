@@ -728,7 +728,7 @@ pub struct Building {
 }
 
 /// What the LOD3 facade rules (`derive::frontage`) did to one building, or summed over a run.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FacadeCounts {
     /// Windows and doors the rules put where the wall faces a neighbour: left out.
     pub openings_on_party_walls: usize,
@@ -823,6 +823,14 @@ impl Building {
     /// branch per number (an exponent of all ones is an infinity or a NaN).
     fn all_finite(&self) -> bool {
         let mut c = FiniteCheck(0);
+        self.walk_numbers(&mut c);
+        c.0 != FiniteCheck::EXP
+    }
+
+    /// Every number of the building's exterior, in a fixed order: its heights, and per part its
+    /// heights, footprint, ground, walls (ends, heights, thickness, outline, openings and
+    /// balconies), storey levels and roof.
+    fn walk_numbers<N: Numbers>(&self, c: &mut N) {
         c.v(self.base_z);
         c.v(self.measured_height);
         for p in &self.parts {
@@ -859,7 +867,34 @@ impl Building {
                 c.face(r);
             }
         }
-        c.0 != FiniteCheck::EXP
+    }
+
+    /// A 64-bit digest of what the building is: its id, zone and appearance, the counts of its
+    /// parts, walls, openings, balconies, roof faces and LOD4 rooms, and every number
+    /// [`Building::check_finite`] checks, bit for bit. Two runs that derived the building alike
+    /// give the same digest; shard manifests record it per building, so that a merge (or a
+    /// test) can tell that sharding changed no building. Not cryptographic.
+    pub fn digest(&self) -> u64 {
+        let mut d = Digest(0x6a09_e667_f3bc_c908);
+        for s in [&self.id.to_string(), &self.zone, &self.appearance] {
+            d.bytes(s.as_bytes());
+        }
+        d.word(self.parts.len() as u64);
+        for p in &self.parts {
+            d.word(p.walls.len() as u64);
+            d.word(p.roof.len() as u64);
+            for w in &p.walls {
+                d.word(((w.openings.len() as u64) << 32) | w.balconies.len() as u64);
+            }
+            for s in &p.interior {
+                d.word(((s.rooms.len() as u64) << 32) | s.walls.len() as u64);
+                for r in &s.rooms {
+                    d.p2(&r.polygon.outer);
+                }
+            }
+        }
+        self.walk_numbers(&mut d);
+        d.0
     }
 
     /// The message of [`Building::check_finite`] for a building that is not all finite.
@@ -909,17 +944,9 @@ impl Building {
     }
 }
 
-/// The accumulator of [`Building::all_finite`]: the largest exponent field seen (all ones for
-/// an infinity or a NaN), so that a check has no branch.
-struct FiniteCheck(u64);
-
-impl FiniteCheck {
-    const EXP: u64 = 0x7FF0_0000_0000_0000;
-
-    #[inline]
-    fn v(&mut self, v: f64) {
-        self.0 = self.0.max(v.to_bits() & FiniteCheck::EXP);
-    }
+/// What [`Building::walk_numbers`] hands each number to.
+trait Numbers {
+    fn v(&mut self, v: f64);
 
     #[inline]
     fn p2(&mut self, ps: &[DVec2]) {
@@ -944,6 +971,52 @@ impl FiniteCheck {
         for h in &f.holes {
             self.p3(h);
         }
+    }
+}
+
+/// The accumulator of [`Building::all_finite`]: the largest exponent field seen (all ones for
+/// an infinity or a NaN), so that a check has no branch.
+struct FiniteCheck(u64);
+
+impl FiniteCheck {
+    const EXP: u64 = 0x7FF0_0000_0000_0000;
+}
+
+impl Numbers for FiniteCheck {
+    #[inline]
+    fn v(&mut self, v: f64) {
+        self.0 = self.0.max(v.to_bits() & FiniteCheck::EXP);
+    }
+}
+
+/// The accumulator of [`Building::digest`]: each 64-bit word mixed in (multiply, rotate, xor;
+/// the finaliser of splitmix64 on every word, so that one changed bit changes the digest).
+struct Digest(u64);
+
+impl Digest {
+    #[inline]
+    fn word(&mut self, w: u64) {
+        let mut z = w.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        self.0 = (self.0.rotate_left(23) ^ z).wrapping_mul(0x0000_0100_0000_01b3);
+    }
+
+    fn bytes(&mut self, b: &[u8]) {
+        self.word(b.len() as u64);
+        for c in b.chunks(8) {
+            let mut w = [0u8; 8];
+            w[..c.len()].copy_from_slice(c);
+            self.word(u64::from_le_bytes(w));
+        }
+    }
+}
+
+impl Numbers for Digest {
+    #[inline]
+    fn v(&mut self, v: f64) {
+        self.word(v.to_bits());
     }
 }
 

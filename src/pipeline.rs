@@ -3,7 +3,7 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -11,6 +11,10 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 mod outputs;
+pub mod merge;
+pub mod shard;
+
+use sha2::{Digest as _, Sha256};
 
 use crate::crs::Crs;
 use crate::derive::{merged_tags, Generator, Rules};
@@ -104,6 +108,10 @@ pub struct Options {
     /// `None` as each building's zone says (`<info infer=...>`, off where no zone says), else
     /// this everywhere (`--infer`). Each building so changed has a report note.
     pub infer: Option<crate::model::Inference>,
+    /// Write only this shard's tiles, and its manifest (`--shard`; needs `tile`), with the
+    /// sentence saying where the shard came from. A tiled run without it is shard 0 of 1 and
+    /// writes its manifest too.
+    pub shard: Option<(shard::Shard, String)>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -209,8 +217,10 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         report: opts.report.clone(),
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
+        manifest: None,
     };
     outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
+    let (targets, shard) = shard_targets(opts, targets)?;
     let mut report = Report::default();
     let read = read_source(&opts.source, opts.src_crs, &mut report)?;
     let source_crs = opts.src_crs.or(read.source_crs);
@@ -241,11 +251,29 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     if matches!(generator.rules, Rules::Kb) {
         generator.load_selex().map_err(RunError::Input)?;
     }
+    // The lots this run writes: those in --bbox, and of a shard, those of its tiles.
+    let mut selected: Vec<bool> = match opts.bbox {
+        Some(b) => site
+            .lots
+            .iter()
+            .map(|l| prepare::in_bbox(l.lonlat, b))
+            .collect(),
+        None => vec![true; site.lots.len()],
+    };
+    let grid = opts
+        .tile
+        .map(|size| GridPlan::new(&site, size, &selected, shard.0));
+    if let Some(g) = &grid {
+        for (flag, lot) in selected.iter_mut().zip(&site.lots) {
+            *flag = *flag && g.is_mine(site.crs, lot);
+        }
+    }
     if opts.lod >= Lod::Lod3 {
         // Party walls: every building the run writes, and those that touch one, at LOD2 first.
-        let keep = match opts.bbox {
-            Some(b) => prepare::near_bbox(&site.lots, b, 1.0),
-            None => vec![true; site.lots.len()],
+        let keep = if selected.iter().all(|k| *k) {
+            selected
+        } else {
+            prepare::near_selected(&site.lots, &selected, 1.0)
         };
         generator.surroundings = generator.neighbours_of(&site.lots, |i| keep[i]);
     }
@@ -263,6 +291,15 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             report.add(Some(lot.id), Outcome::Note, note);
         }
     }
+    let manifest = match (&grid, &targets.manifest) {
+        (Some(g), Some(path)) => {
+            let head = g.manifest_head(opts, &shard, &site, &mut report)?;
+            let crs = site.crs;
+            site.lots.retain(|l| g.is_mine(crs, l));
+            Some((path.clone(), head))
+        }
+        _ => None,
+    };
     let batches: Vec<Batch> = match opts.tile {
         None => vec![Batch {
             suffix: None,
@@ -280,13 +317,218 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         &site,
         &batches,
         &Maker::Generator(&generator),
-        &source_name,
-        &targets,
+        &FileSet {
+            name: &source_name,
+            targets: &targets,
+        },
         report,
+        manifest,
         progress,
     )?;
     summary.elapsed = start.elapsed();
     Ok(summary)
+}
+
+/// The targets of a shard (`--shard`) or of any tiled run: its manifest's path (in the folder
+/// of the first output of `--report`, `--cityjsonseq`, `--cityjson`, `--gltf`, `--citygml`,
+/// `--ifc`), and for a shard of several its report named `NAME_shard-I-of-N.json`. Also the
+/// shard (shard 0 of 1 for an unsharded run).
+fn shard_targets(
+    opts: &Options,
+    mut targets: Targets,
+) -> Result<(Targets, (shard::Shard, String)), RunError> {
+    let shard = opts
+        .shard
+        .clone()
+        .unwrap_or((shard::Shard::ONE, "an unsharded tiled run".into()));
+    if opts.tile.is_none() {
+        if opts.shard.is_some() {
+            return Err(RunError::Usage(
+                "--shard needs --tile METRES: shards share out the tiles of the run (e.g. --tile 500)"
+                    .into(),
+            ));
+        }
+        return Ok((targets, shard));
+    }
+    let first = [
+        &targets.report,
+        &targets.cityjsonseq,
+        &targets.cityjson,
+        &targets.gltf,
+        &targets.citygml,
+        &targets.ifc,
+    ]
+    .into_iter()
+    .find_map(|p| p.clone());
+    let Some(first) = first else {
+        if opts.shard.is_some() {
+            return Err(RunError::Usage(
+                "--shard writes its tiles and a manifest beside them: name at least one output"
+                    .into(),
+            ));
+        }
+        return Ok((targets, shard));
+    };
+    let dir = first
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    targets.manifest = Some(dir.join(shard.0.manifest_name()));
+    if shard.0.count > 1 {
+        let sfx = format!("shard-{}-of-{}", shard.0.index, shard.0.count);
+        targets.report = targets.report.map(|p| tile_path(&p, &sfx));
+        // A shard may hold no tile, or only buildings that fail: the merge judges the whole.
+        targets.allow_empty = true;
+    }
+    Ok((targets, shard))
+}
+
+/// The tile grid of a tiled run, and which shard writes each tile.
+struct GridPlan {
+    size: u32,
+    shard: shard::Shard,
+    /// Every tile holding a selected lot, in grid order.
+    tiles: Vec<shard::GridTile>,
+    /// The shard of each tile, by grid cell.
+    of_cell: std::collections::BTreeMap<(i64, i64), usize>,
+    /// Selected lots in all.
+    lots: usize,
+}
+
+impl GridPlan {
+    /// The grid over the `selected` lots of `site` (those `--bbox` keeps), `size`-metre tiles,
+    /// assigned to `shard.count` shards by [`shard::assign`].
+    fn new(site: &prepare::Site, size: u32, selected: &[bool], shard: shard::Shard) -> GridPlan {
+        let mut counts: std::collections::BTreeMap<(i64, i64), usize> = Default::default();
+        for (lot, _) in site.lots.iter().zip(selected).filter(|(_, s)| **s) {
+            *counts
+                .entry(prepare::tile_cell(site.crs, lot, size))
+                .or_default() += 1;
+        }
+        let loads: Vec<usize> = counts.values().copied().collect();
+        let assigned = shard::assign(&loads, shard.count);
+        let size_m = i64::from(size.max(1));
+        let tiles: Vec<shard::GridTile> = counts
+            .iter()
+            .zip(&assigned)
+            .map(|((cell, lots), s)| {
+                let corner = [cell.0 * size_m, cell.1 * size_m];
+                shard::GridTile {
+                    suffix: format!("{}_{}", corner[0], corner[1]),
+                    corner,
+                    lots: *lots,
+                    shard: *s,
+                }
+            })
+            .collect();
+        let of_cell = counts.keys().copied().zip(assigned).collect();
+        GridPlan {
+            size,
+            shard,
+            tiles,
+            of_cell,
+            lots: loads.iter().sum(),
+        }
+    }
+
+    /// Whether the lot's tile is this shard's.
+    fn is_mine(&self, crs: Crs, lot: &prepare::Lot) -> bool {
+        self.of_cell.get(&prepare::tile_cell(crs, lot, self.size)) == Some(&self.shard.index)
+    }
+
+    /// The manifest without its tiles: the run's key, the grid, and the shard's share of the
+    /// report so far, which becomes `report` (the entries of the read and prepare stages that
+    /// name one of this shard's lots, or for shard 0 no lot of the run).
+    fn manifest_head(
+        &self,
+        opts: &Options,
+        shard: &(shard::Shard, String),
+        site: &prepare::Site,
+        report: &mut Report,
+    ) -> Result<shard::Manifest, RunError> {
+        let key = |p: &Path| {
+            shard::file_key(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))
+        };
+        let inputs = match &opts.source {
+            Source::Osm(p) => vec![key(p)?],
+            Source::Shp { path, .. } => outputs::shapefile_parts(path)
+                .iter()
+                .filter(|p| p.exists())
+                .map(|p| key(p))
+                .collect::<Result<_, _>>()?,
+        };
+        let owner: std::collections::BTreeMap<String, usize> = site
+            .lots
+            .iter()
+            .map(|l| {
+                let cell = prepare::tile_cell(site.crs, l, self.size);
+                (
+                    l.id.to_string(),
+                    self.of_cell.get(&cell).copied().unwrap_or(0),
+                )
+            })
+            .collect();
+        let mut prepared = Vec::new();
+        let mut kept = Vec::new();
+        for (i, e) in std::mem::take(&mut report.entries).into_iter().enumerate() {
+            if shard::owner_of(&e, &owner) == shard.0.index {
+                prepared.push((i, e.clone()));
+                kept.push(e);
+            }
+        }
+        report.entries = kept;
+        let mut outputs: Vec<String> = [
+            ("ifc", opts.ifc.is_some()),
+            ("citygml", opts.citygml.is_some()),
+            ("gltf", opts.gltf.is_some()),
+            ("cityjson", opts.cityjson.is_some()),
+            ("cityjsonseq", opts.cityjsonseq.is_some()),
+        ]
+        .into_iter()
+        .filter(|(_, on)| *on)
+        .map(|(k, _)| k.to_string())
+        .collect();
+        if opts.dry_run {
+            outputs.push("dry-run".into());
+        }
+        Ok(shard::Manifest {
+            format: shard::MANIFEST_FORMAT.into(),
+            citygen: env!("CARGO_PKG_VERSION").into(),
+            shard: shard.0,
+            shard_from: shard.1.clone(),
+            run: shard::RunKey {
+                inputs,
+                kb: opts.kb.as_deref().map(key).transpose()?,
+                rules: opts.rules.as_deref().map(key).transpose()?,
+                seed: opts.seed,
+                lod: opts.lod as u8,
+                crs: site.crs.to_string(),
+                origin: [site.origin.x, site.origin.y],
+                tile_size: self.size,
+                options: format!(
+                    "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
+                    opts.bbox,
+                    opts.crs.map(|c| c.to_string()),
+                    opts.src_crs.map(|c| c.to_string()),
+                    opts.caps.max_depth,
+                    opts.caps.max_shapes,
+                    opts.infer
+                ),
+                outputs,
+            },
+            grid: shard::Grid {
+                lots: self.lots,
+                tiles: self.tiles.clone(),
+            },
+            tiles: Vec::new(),
+            report: shard::ShardReport {
+                read: report.read,
+                parts_read: report.parts_read,
+                prepared,
+                ..Default::default()
+            },
+        })
+    }
 }
 
 /// The output CRS for a run without `--crs` ([`prepare::choose_output_crs`]), or an error when
@@ -569,9 +811,12 @@ pub fn derive_selex_lot(
             seed: 0,
             make: &made,
         },
-        &name,
-        targets,
+        &FileSet {
+            name: &name,
+            targets,
+        },
         report,
+        None,
         &|_, _| {},
     )
 }
@@ -620,6 +865,8 @@ pub struct Targets {
     pub dry_run: bool,
     /// Publish the outputs even when no building was generated ([`Options::allow_empty`]).
     pub allow_empty: bool,
+    /// Write a shard manifest here ([`shard::Manifest`]): every output is hashed as written.
+    pub manifest: Option<PathBuf>,
 }
 
 impl Targets {
@@ -657,9 +904,12 @@ pub fn generate_and_write(
         site,
         &all,
         &Maker::Generator(generator),
-        source_name,
-        targets,
+        &FileSet {
+            name: source_name,
+            targets,
+        },
         report,
+        None,
         progress,
     )
 }
@@ -713,11 +963,12 @@ fn write_batches(
     site: &prepare::Site,
     batches: &[Batch],
     maker: &Maker<'_>,
-    source_name: &str,
-    targets: &Targets,
+    files: &FileSet<'_>,
     mut report: Report,
+    mut manifest: Option<(PathBuf, shard::Manifest)>,
     progress: Progress<'_>,
 ) -> Result<Summary, RunError> {
+    let (source_name, targets) = (files.name, files.targets);
     let start = Instant::now();
     let total = site.lots.len();
     let mut done = 0usize;
@@ -736,12 +987,25 @@ fn write_batches(
             report: None,
             dry_run: targets.dry_run,
             allow_empty: targets.allow_empty,
+            manifest: None,
         };
         let name = match &batch.suffix {
             Some(sfx) => format!("{source_name} tile {sfx}"),
             None => source_name.to_string(),
         };
         let lots = &site.lots[batch.range.clone()];
+        let mark = report.entries.len();
+        written.tile = manifest.as_ref().map(|(path, _)| TileLog {
+            record: shard::TileRecord {
+                suffix: batch.suffix.clone().unwrap_or_default(),
+                ..Default::default()
+            },
+            dir: path
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .unwrap_or(Path::new("."))
+                .to_path_buf(),
+        });
         write_lots(
             site,
             lots,
@@ -754,6 +1018,10 @@ fn write_batches(
             &mut written,
             &|n| progress(done + n, total),
         )?;
+        if let (Some((_, m)), Some(mut log)) = (manifest.as_mut(), written.tile.take()) {
+            log.record.entries = report.entries[mark..].to_vec();
+            m.tiles.push(log.record);
+        }
         done += lots.len();
     }
     report.skipped = report
@@ -773,6 +1041,7 @@ fn write_batches(
         bytes,
         largest_citygml,
         citygml_over_cap,
+        tile: _,
     } = written;
     if report.generated == 0 && !targets.allow_empty {
         let shown: Vec<String> = report
@@ -811,6 +1080,22 @@ fn write_batches(
     for w in &warnings {
         report.add(None, Outcome::Note, w.clone());
     }
+    let manifest_file = match &mut manifest {
+        Some((path, m)) => {
+            m.report.generated = report.generated;
+            m.report.facades = report.facades.clone();
+            m.report.notes = warnings
+                .iter()
+                .map(|w| crate::report::Entry {
+                    id: String::new(),
+                    outcome: Outcome::Note,
+                    reason: w.clone(),
+                })
+                .collect();
+            Some((&*path, render_json(path, m).map_err(io_err(path))?))
+        }
+        None => None,
+    };
     // Every file, the report too, is complete and closed before the first is renamed into
     // place, so a failure up to here leaves every target as it was.
     let report_file = match &targets.report {
@@ -823,6 +1108,11 @@ fn write_batches(
     }
     if let Some((p, file)) = report_file {
         file.commit().map_err(io_err(p))?;
+    }
+    // Last: a manifest on disk says that every file it lists is in place.
+    if let Some((p, file)) = manifest_file {
+        file.commit().map_err(io_err(p))?;
+        paths.push(p.to_path_buf());
     }
     Ok(Summary {
         report,
@@ -847,12 +1137,18 @@ struct Counted<W> {
     inner: W,
     bytes: Arc<AtomicU64>,
     elements: Option<(Arc<AtomicU64>, bool)>,
+    hash: Option<SharedHash>,
 }
 
 impl<W: Write> Write for Counted<W> {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
         let n = self.inner.write(buf)?;
         self.bytes.fetch_add(n as u64, Ordering::Relaxed);
+        if let Some(h) = &self.hash {
+            h.lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .update(&buf[..n]);
+        }
         if let Some((count, after_lt)) = &mut self.elements {
             let e = crate::export::citygml::count_elements(&buf[..n], after_lt);
             count.fetch_add(e, Ordering::Relaxed);
@@ -873,7 +1169,8 @@ fn open_output(
     path: &Path,
     dry_run: bool,
     elements: Option<Arc<AtomicU64>>,
-) -> Result<(OutWriter, Sink, Arc<AtomicU64>), RunError> {
+    hashed: bool,
+) -> Result<(OutWriter, Sink, Arc<AtomicU64>, Option<SharedHash>), RunError> {
     let (inner, sink): (Box<dyn Write + Send>, Sink) = if dry_run {
         (Box::new(std::io::sink()), Sink::Discard)
     } else {
@@ -891,15 +1188,17 @@ fn open_output(
     } else {
         1 << 20
     };
+    let hash = hashed.then(|| Arc::new(Mutex::new(Sha256::new())));
     let w = BufWriter::with_capacity(
         capacity,
         Counted {
             inner,
             bytes: Arc::clone(&bytes),
             elements: elements.map(|e| (e, false)),
+            hash: hash.clone(),
         },
     );
-    Ok((w, sink, bytes))
+    Ok((w, sink, bytes, hash))
 }
 
 /// One set of files of a run (the whole site, or one tile): the name the files give as their
@@ -922,6 +1221,8 @@ struct Written {
     largest_citygml: Option<(PathBuf, u64)>,
     /// CityGML files with more than [`VALIDATOR_MAX_ELEMENTS`] elements.
     citygml_over_cap: usize,
+    /// What the tile being written records for the manifest (a tiled run).
+    tile: Option<TileLog>,
 }
 
 /// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the file set,
@@ -937,6 +1238,7 @@ fn write_lots(
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<(), RunError> {
     let (source_name, targets) = (files.name, files.targets);
+    let hashed = written.tile.is_some();
     let ctx = OutputContext {
         crs: site.crs,
         origin: DVec3::new(site.origin.x, site.origin.y, 0.0),
@@ -950,35 +1252,48 @@ fn write_lots(
     let dry = targets.dry_run;
     let mut outputs: Vec<Output> = Vec::new();
     if let Some(p) = &targets.ifc {
-        let (w, sink, bytes) = open_output(p, dry, None)?;
+        let (w, sink, bytes, hash) = open_output(p, dry, None, hashed)?;
         let w = IfcWriter::new(w).with_file_name(&file_name(p));
-        outputs.push((p.clone(), Box::new(w), sink, bytes));
+        outputs.push((p.clone(), Box::new(w), sink, bytes, hash));
     }
     let citygml_elements = Arc::new(AtomicU64::new(0));
     if let Some(p) = &targets.citygml {
-        let (w, sink, bytes) = open_output(p, dry, Some(Arc::clone(&citygml_elements)))?;
-        outputs.push((p.clone(), Box::new(CityGmlWriter::new(w)), sink, bytes));
+        let (w, sink, bytes, hash) =
+            open_output(p, dry, Some(Arc::clone(&citygml_elements)), hashed)?;
+        outputs.push((
+            p.clone(),
+            Box::new(CityGmlWriter::new(w)),
+            sink,
+            bytes,
+            hash,
+        ));
     }
     if let Some(p) = &targets.gltf {
-        let (w, sink, bytes) = open_output(p, dry, None)?;
+        let (w, sink, bytes, hash) = open_output(p, dry, None, hashed)?;
         // A dry run keeps nothing, so its writer needs no scratch files.
         let w = if dry {
             GltfWriter::discarding(w)
         } else {
             GltfWriter::beside(w, p).map_err(io_err(p))?
         };
-        outputs.push((p.clone(), Box::new(w), sink, bytes));
+        outputs.push((p.clone(), Box::new(w), sink, bytes, hash));
     }
     if let Some(p) = &targets.cityjson {
-        let (w, sink, bytes) = open_output(p, dry, None)?;
+        let (w, sink, bytes, hash) = open_output(p, dry, None, hashed)?;
         let w = CityJsonWriter::beside(w, p).map_err(io_err(p))?;
-        outputs.push((p.clone(), Box::new(w), sink, bytes));
+        outputs.push((p.clone(), Box::new(w), sink, bytes, hash));
     }
     if let Some(p) = &targets.cityjsonseq {
-        let (w, sink, bytes) = open_output(p, dry, None)?;
-        outputs.push((p.clone(), Box::new(CityJsonSeqWriter::new(w)), sink, bytes));
+        let (w, sink, bytes, hash) = open_output(p, dry, None, hashed)?;
+        outputs.push((
+            p.clone(),
+            Box::new(CityJsonSeqWriter::new(w)),
+            sink,
+            bytes,
+            hash,
+        ));
     }
-    for (path, w, _, _) in &mut outputs {
+    for (path, w, ..) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;
     }
 
@@ -988,35 +1303,51 @@ fn write_lots(
     // every building in lot order; at most two chunks of buildings are held.
     let mut ready: Vec<Building> = Vec::new();
     for (ci, chunk) in lots.chunks(CHUNK).enumerate() {
-        let (results, written) = rayon::join(
+        let (results, chunk_written) = rayon::join(
             || {
                 chunk
                     .par_iter()
-                    .map(|lot| maker.make(lot))
+                    .map(|lot| {
+                        maker.make(lot).map(|(b, notes)| {
+                            let digest = hashed.then(|| b.digest());
+                            (b, notes, digest)
+                        })
+                    })
                     .collect::<Vec<_>>()
             },
             || write_chunk(&mut outputs, &ready),
         );
-        written?;
+        chunk_written?;
         ready.clear();
         for (lot, result) in chunk.iter().zip(results) {
             match result {
-                Ok((building, notes)) => {
+                Ok((building, notes, digest)) => {
                     for (outcome, text) in notes {
                         report.add(Some(lot.id), outcome, text);
+                    }
+                    if let (Some(log), Some(d)) = (written.tile.as_mut(), digest) {
+                        log.record.buildings.push(shard::BuildingRecord {
+                            id: building.id.to_string(),
+                            digest: format!("{d:016x}"),
+                        });
                     }
                     polygons += building.polygon_count();
                     report.facades.add(&building.facade);
                     report.generated += 1;
                     ready.push(building);
                 }
-                Err(reason) => report.add(Some(lot.id), Outcome::Skipped, reason),
+                Err(reason) => {
+                    if let Some(log) = written.tile.as_mut() {
+                        log.record.skipped.push(lot.id.to_string());
+                    }
+                    report.add(Some(lot.id), Outcome::Skipped, reason)
+                }
             }
         }
         progress(((ci + 1) * CHUNK).min(lots.len()));
     }
     write_chunk(&mut outputs, &ready)?;
-    for (path, w, _, _) in &mut outputs {
+    for (path, w, ..) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
     written.polygons += polygons;
@@ -1029,9 +1360,25 @@ fn write_lots(
             written.citygml_over_cap += 1;
         }
     }
-    for (path, writer, sink, counted) in outputs {
+    for (path, writer, sink, counted, hash) in outputs {
         drop(writer);
-        written.bytes += counted.load(Ordering::Relaxed);
+        let bytes = counted.load(Ordering::Relaxed);
+        written.bytes += bytes;
+        if let (Some(log), Some(hash)) = (written.tile.as_mut(), hash) {
+            let sha = match Arc::try_unwrap(hash) {
+                Ok(m) => m.into_inner().unwrap_or_else(|p| p.into_inner()).finalize(),
+                Err(shared) => shared
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .clone()
+                    .finalize(),
+            };
+            log.record.files.push(shard::FileRecord {
+                path: relative_to(&path, &log.dir),
+                bytes,
+                sha256: shard::hex(&sha),
+            });
+        }
         match sink {
             Sink::File(file, done) => {
                 done.finish().map_err(io_err(&path))?;
@@ -1045,7 +1392,32 @@ fn write_lots(
 }
 
 /// An open output: target path, format writer, where its bytes go, and their count.
-type Output = (PathBuf, Box<dyn BuildingWriter>, Sink, Arc<AtomicU64>);
+type Output = (
+    PathBuf,
+    Box<dyn BuildingWriter>,
+    Sink,
+    Arc<AtomicU64>,
+    Option<SharedHash>,
+);
+
+/// The SHA-256 of an output's bytes, fed as they pass [`Counted`].
+type SharedHash = Arc<Mutex<Sha256>>;
+
+/// What one tile of a manifest'd run records as it is written, and the manifest's folder (the
+/// files' paths are relative to it).
+struct TileLog {
+    record: shard::TileRecord,
+    dir: PathBuf,
+}
+
+/// `path` relative to `dir` with `/` separators where it lies below it, else as given.
+fn relative_to(path: &Path, dir: &Path) -> String {
+    let rel = path.strip_prefix(dir).unwrap_or(path);
+    rel.components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join("/")
+}
 
 /// Writes `buildings` in order with every writer, the writers in parallel; the first error in
 /// writer order wins, so the error reported does not depend on scheduling.
@@ -1059,7 +1431,7 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
     let checked = Checked::check(buildings);
     let results: Vec<Result<(), RunError>> = outputs
         .par_iter_mut()
-        .map(|(path, w, _, _)| {
+        .map(|(path, w, ..)| {
             let what = || {
                 let (first, last) = (&buildings[0].id, &buildings[buildings.len() - 1].id);
                 format!("writing the buildings from {first} to {last}")
@@ -1102,9 +1474,17 @@ fn tile_path(p: &Path, suffix: &str) -> PathBuf {
 
 /// The report as JSON in a closed temporary file beside `path`, ready to be renamed over it.
 fn render_report(path: &Path, report: &Report) -> std::io::Result<PendingFile> {
+    render_json(path, report)
+}
+
+/// `value` as pretty JSON in a closed temporary file beside `path`, ready to be renamed over it.
+pub(crate) fn render_json(
+    path: &Path,
+    value: &impl serde::Serialize,
+) -> std::io::Result<PendingFile> {
     let f = AtomicFile::create(path)?;
     let mut w = f.writer()?;
-    serde_json::to_writer_pretty(&mut w, report).map_err(std::io::Error::other)?;
+    serde_json::to_writer_pretty(&mut w, value).map_err(std::io::Error::other)?;
     std::io::Write::write_all(&mut w, b"\n")?;
     std::io::Write::flush(&mut w)?;
     drop(w);
@@ -1174,6 +1554,7 @@ mod tests {
             Box::new(Faulty(0)),
             Sink::Discard,
             Arc::new(AtomicU64::new(0)),
+            None,
         )];
         let buildings = vec![lod4_house(), lod4_house()];
         let e = write_chunk(&mut outputs, &buildings)

@@ -957,25 +957,30 @@ impl Tile {
     }
 }
 
+/// The grid cell (easting, northing divided by `size`, rounded down) of the `size`-metre tile
+/// holding the lot's representative point in `crs`: its tile's corner is the cell times `size`.
+pub fn tile_cell(crs: Crs, lot: &Lot, size: u32) -> (i64, i64) {
+    let size = f64::from(size.max(1));
+    let (x, y) = crs.from_lonlat(lot.lonlat.0, lot.lonlat.1);
+    // A non-finite point (cannot happen for a prepared lot) goes to the origin's tile rather
+    // than being lost.
+    let cell = |v: f64| {
+        if v.is_finite() {
+            (v / size).floor() as i64
+        } else {
+            0
+        }
+    };
+    (cell(x), cell(y))
+}
+
 /// Groups the lots by the `size`-metre square of the output CRS grid holding their
 /// representative point, and reorders `site.lots` so that each tile's lots are contiguous.
 /// Tiles come in (easting, northing) order of their corners; inside a tile the lots keep their
 /// input order, so the outputs stay deterministic. Every lot is in exactly one tile.
 pub fn group_into_tiles(site: &mut Site, size: u32) -> Vec<Tile> {
+    let key = |lot: &Lot| tile_cell(site.crs, lot, size);
     let size = i64::from(size.max(1));
-    let key = |lot: &Lot| {
-        let (x, y) = site.crs.from_lonlat(lot.lonlat.0, lot.lonlat.1);
-        // A non-finite point (cannot happen for a prepared lot) goes to the origin's tile
-        // rather than being lost.
-        let cell = |v: f64| {
-            if v.is_finite() {
-                (v / size as f64).floor() as i64
-            } else {
-                0
-            }
-        };
-        (cell(x), cell(y))
-    };
     let mut keyed: Vec<((i64, i64), Lot)> = std::mem::take(&mut site.lots)
         .into_iter()
         .map(|l| (key(&l), l))
@@ -1156,13 +1161,21 @@ fn nearest_on_segment(a: DVec2, b: DVec2, p: DVec2) -> DVec2 {
 
 /// Whether a representative point (lon, lat) is in `--bbox` b (west, south, east, north), as
 /// [`retain_in_bbox`] decides.
-fn in_bbox((lon, lat): (f64, f64), b: [f64; 4]) -> bool {
+pub fn in_bbox((lon, lat): (f64, f64), b: [f64; 4]) -> bool {
     lon >= b[0] && lon < b[2] && lat >= b[1] && lat < b[3]
 }
 
 /// Which lots `--bbox` keeps or whose outline comes within `margin` metres of one it keeps: the
 /// lots a run in the box needs as neighbours.
 pub fn near_bbox(lots: &[Lot], bbox: [f64; 4], margin: f64) -> Vec<bool> {
+    let kept: Vec<bool> = lots.iter().map(|l| in_bbox(l.lonlat, bbox)).collect();
+    near_selected(lots, &kept, margin)
+}
+
+/// Which lots are `selected` or have an outline within `margin` metres of a selected one's (the
+/// lots a run writing the selected ones needs as neighbours: a `--bbox`, a shard's tiles).
+/// `selected` has one flag per lot.
+pub fn near_selected(lots: &[Lot], selected: &[bool], margin: f64) -> Vec<bool> {
     let bounds = |l: &Lot| {
         let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
         for p in l
@@ -1177,16 +1190,19 @@ pub fn near_bbox(lots: &[Lot], bbox: [f64; 4], margin: f64) -> Vec<bool> {
         (lo.is_finite() && hi.is_finite())
             .then(|| AABB::from_corners((lo - margin).to_array(), (hi + margin).to_array()))
     };
+    let is_selected = |i: usize| selected.get(i).copied().unwrap_or(false);
     let kept: Vec<rstar::primitives::Rectangle<[f64; 2]>> = lots
         .iter()
-        .filter(|l| in_bbox(l.lonlat, bbox))
-        .filter_map(&bounds)
+        .enumerate()
+        .filter(|(i, _)| is_selected(*i))
+        .filter_map(|(_, l)| bounds(l))
         .map(|b| rstar::primitives::Rectangle::from_corners(b.lower(), b.upper()))
         .collect();
     let tree = RTree::bulk_load(kept);
     lots.iter()
-        .map(|l| {
-            in_bbox(l.lonlat, bbox)
+        .enumerate()
+        .map(|(i, l)| {
+            is_selected(i)
                 || bounds(l)
                     .is_some_and(|b| tree.locate_in_envelope_intersecting(b).next().is_some())
         })

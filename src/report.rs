@@ -1,12 +1,12 @@
 //! The run report: counts and one entry per skipped or repaired footprint, with its reason.
 //! Written as JSON by `--report`; nothing is ever dropped silently.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::model::SourceId;
 
 /// What happened to one input record.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Outcome {
     /// Not in the outputs.
@@ -18,7 +18,7 @@ pub enum Outcome {
 }
 
 /// One report line about one record.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Entry {
     /// `way/123`, `relation/45`, `shp/7`, or empty for file-level notes.
     pub id: String,
@@ -29,7 +29,7 @@ pub struct Entry {
 }
 
 /// Counts and entries of one run.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Report {
     /// Building footprints read (outlines and multipolygons).
     pub read: usize,

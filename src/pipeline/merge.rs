@@ -1,0 +1,540 @@
+//! `citygen merge OUT_DIR...`: the shards of a run put together, after proving they add up.
+//!
+//! The manifests ([`super::shard::Manifest`]) of every folder given are read and checked as a
+//! set before anything is written: one run (the same citygen version, inputs, knowledge base,
+//! rules, seed, LOD, CRS and origin, tile size, options and outputs), every shard of it once,
+//! every tile of its grid written once and by its shard, every lot of the grid once in all
+//! (generated or skipped), and every file listed present with its size and SHA-256. A set that
+//! does not add up is refused with a message naming the manifest, shard, tile, building or file.
+//! Then the merge writes what a region needs from the tiles: the merged report, the region's
+//! CityJSONSeq (one header, every tile's features in grid order), and the tileset of the 3D
+//! Tiles contents. Outputs are written atomically, all closed before the first is renamed.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+
+use super::shard::{self, Manifest};
+use super::{render_json, RunError};
+use crate::export::{AtomicFile, PendingFile};
+use crate::report::{Entry, Outcome, Report};
+
+/// What `citygen merge` is asked to do.
+#[derive(Clone, Debug, Default)]
+pub struct MergeOptions {
+    /// Folders holding the shards' manifests and outputs.
+    pub dirs: Vec<PathBuf>,
+    /// Write the merged report here.
+    pub report: Option<PathBuf>,
+    /// Write the region's CityJSONSeq here (the shards must have written `--cityjsonseq`).
+    pub cityjsonseq: Option<PathBuf>,
+    /// Check the files' SHA-256 (on by default; sizes are always checked).
+    pub verify: bool,
+}
+
+/// What a merge found and wrote.
+#[derive(Clone, Debug, Default)]
+pub struct MergeSummary {
+    /// Shards merged.
+    pub shards: usize,
+    /// Tiles in the grid.
+    pub tiles: usize,
+    /// Buildings generated in all.
+    pub buildings: usize,
+    /// Lots skipped in all (with reasons in the report).
+    pub skipped: usize,
+    /// Files the shards wrote, checked.
+    pub files: usize,
+    /// Their bytes.
+    pub bytes: u64,
+    /// The files the merge wrote.
+    pub outputs: Vec<PathBuf>,
+    /// Wall-clock time.
+    pub elapsed: Duration,
+}
+
+/// A manifest read back, with where it was found.
+struct Found {
+    path: PathBuf,
+    dir: PathBuf,
+    manifest: Manifest,
+}
+
+/// Merges the shards in `opts.dirs`.
+pub fn merge(opts: &MergeOptions) -> Result<MergeSummary, RunError> {
+    let start = Instant::now();
+    if opts.dirs.is_empty() {
+        return Err(RunError::Usage("merge: name the shards' output folders".into()));
+    }
+    let found = read_manifests(&opts.dirs)?;
+    let shards = check_set(&found)?;
+    let (files, bytes) = check_files(&shards, opts.verify)?;
+    let first = &shards[0].manifest;
+
+    // Everything is rendered into closed temporary files first.
+    let mut pending: Vec<(PathBuf, PendingFile)> = Vec::new();
+    if let Some(p) = &opts.cityjsonseq {
+        pending.push((p.clone(), region_seq(p, &shards)?));
+    }
+    let report = merged_report(&shards);
+    if let Some(p) = &opts.report {
+        let file = render_json(p, &report).map_err(io_err(p))?;
+        pending.push((p.clone(), file));
+    }
+    let mut outputs = Vec::new();
+    for (p, f) in pending {
+        f.commit().map_err(io_err(&p))?;
+        outputs.push(p);
+    }
+    Ok(MergeSummary {
+        shards: first.shard.count,
+        tiles: first.grid.tiles.len(),
+        buildings: report.generated,
+        skipped: report.skipped,
+        files,
+        bytes,
+        outputs,
+        elapsed: start.elapsed(),
+    })
+}
+
+fn io_err(p: &Path) -> impl Fn(std::io::Error) -> RunError + '_ {
+    move |e| RunError::Input(format!("{}: {e}", p.display()))
+}
+
+/// Every `citygen-manifest.I-of-N.json` of the folders, parsed, in folder then name order.
+fn read_manifests(dirs: &[PathBuf]) -> Result<Vec<Found>, RunError> {
+    let mut found = Vec::new();
+    for dir in dirs {
+        let entries = std::fs::read_dir(dir).map_err(io_err(dir))?;
+        let mut names: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok())
+            .map(|e| e.path())
+            .filter(|p| {
+                p.file_name()
+                    .and_then(|n| n.to_str())
+                    .is_some_and(|n| n.starts_with("citygen-manifest.") && n.ends_with(".json"))
+            })
+            .collect();
+        if names.is_empty() {
+            return Err(RunError::Input(format!(
+                "merge: {} holds no citygen-manifest.I-of-N.json (a shard writes its manifest \
+                 beside its outputs when it succeeds)",
+                dir.display()
+            )));
+        }
+        names.sort();
+        for path in names {
+            let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
+            let manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
+                RunError::Input(format!("{}: not a citygen manifest: {e}", path.display()))
+            })?;
+            if manifest.format != shard::MANIFEST_FORMAT {
+                return Err(RunError::Input(format!(
+                    "{}: manifest format {:?}, this citygen reads {:?}",
+                    path.display(),
+                    manifest.format,
+                    shard::MANIFEST_FORMAT
+                )));
+            }
+            found.push(Found {
+                path,
+                dir: dir.clone(),
+                manifest,
+            });
+        }
+    }
+    Ok(found)
+}
+
+/// Checks that the manifests are the shards of one run, each once, and that their tiles and
+/// buildings add up to its grid; returns them in shard order.
+fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
+    let refuse = |m: String| Err(RunError::Input(format!("merge refused: {m}")));
+    let first = &found[0];
+    let a = &first.manifest;
+    for f in &found[1..] {
+        let b = &f.manifest;
+        let differ = |what: &str, x: String, y: String| {
+            format!(
+                "{} was made with {what} {y}, {} with {what} {x}: they are not shards of one run",
+                f.path.display(),
+                first.path.display()
+            )
+        };
+        let (ra, rb) = (&a.run, &b.run);
+        let names = |k: &[shard::FileKey]| {
+            k.iter()
+                .map(|k| format!("{} (sha256 {}…)", k.name, &k.sha256[..k.sha256.len().min(12)]))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let opt = |k: &Option<shard::FileKey>| match k {
+            Some(k) => names(std::slice::from_ref(k)),
+            None => "none".into(),
+        };
+        let mismatch = if a.citygen != b.citygen {
+            Some(differ("citygen", a.citygen.clone(), b.citygen.clone()))
+        } else if ra.seed != rb.seed {
+            Some(differ("seed", ra.seed.to_string(), rb.seed.to_string()))
+        } else if ra.inputs != rb.inputs {
+            Some(differ("input", names(&ra.inputs), names(&rb.inputs)))
+        } else if ra.kb != rb.kb {
+            Some(differ("knowledge base", opt(&ra.kb), opt(&rb.kb)))
+        } else if ra.rules != rb.rules {
+            Some(differ("rules", opt(&ra.rules), opt(&rb.rules)))
+        } else if ra.lod != rb.lod {
+            Some(differ("LOD", ra.lod.to_string(), rb.lod.to_string()))
+        } else if ra.tile_size != rb.tile_size {
+            Some(differ(
+                "tile size",
+                ra.tile_size.to_string(),
+                rb.tile_size.to_string(),
+            ))
+        } else if a.shard.count != b.shard.count {
+            Some(differ(
+                "shard count",
+                a.shard.count.to_string(),
+                b.shard.count.to_string(),
+            ))
+        } else if ra != rb {
+            Some(differ(
+                "options",
+                format!("{} {:?} {} {:?}", ra.crs, ra.origin, ra.options, ra.outputs),
+                format!("{} {:?} {} {:?}", rb.crs, rb.origin, rb.options, rb.outputs),
+            ))
+        } else if a.grid != b.grid {
+            Some(differ(
+                "a tile grid of",
+                format!("{} tiles, {} lots", a.grid.tiles.len(), a.grid.lots),
+                format!("{} tiles, {} lots", b.grid.tiles.len(), b.grid.lots),
+            ))
+        } else {
+            None
+        };
+        if let Some(m) = mismatch {
+            return refuse(m);
+        }
+    }
+    let n = a.shard.count;
+    let mut by_index: Vec<Option<&Found>> = vec![None; n];
+    for f in found {
+        let i = f.manifest.shard.index;
+        if i >= n {
+            return refuse(format!(
+                "{} says shard {i} of {n}, which does not exist",
+                f.path.display()
+            ));
+        }
+        if let Some(other) = by_index[i] {
+            return refuse(format!(
+                "shard {i} of {n} is there twice: {} and {}",
+                other.path.display(),
+                f.path.display()
+            ));
+        }
+        by_index[i] = Some(f);
+    }
+    let missing: Vec<usize> = (0..n).filter(|i| by_index[*i].is_none()).collect();
+    if let Some(&i) = missing.first() {
+        let tiles: Vec<&str> = a
+            .grid
+            .tiles
+            .iter()
+            .filter(|t| t.shard == i)
+            .map(|t| t.suffix.as_str())
+            .collect();
+        let dirs: BTreeSet<String> = found.iter().map(|f| f.dir.display().to_string()).collect();
+        return refuse(format!(
+            "shard {i} of {n} is missing: no {} in {} ({} shard(s) missing in all; its {} tile(s): {}{})",
+            shard::Shard { index: i, count: n }.manifest_name(),
+            dirs.into_iter().collect::<Vec<_>>().join(", "),
+            missing.len(),
+            tiles.len(),
+            tiles.iter().take(5).copied().collect::<Vec<_>>().join(", "),
+            if tiles.len() > 5 { ", ..." } else { "" }
+        ));
+    }
+    let shards: Vec<&Found> = by_index.into_iter().flatten().collect();
+
+    // Tiles: each grid tile once, written by its shard, with its lots.
+    let grid: BTreeMap<&str, &shard::GridTile> = a
+        .grid
+        .tiles
+        .iter()
+        .map(|t| (t.suffix.as_str(), t))
+        .collect();
+    let mut seen_tiles: BTreeMap<&str, &Path> = BTreeMap::new();
+    let mut seen_ids: BTreeMap<&str, &str> = BTreeMap::new();
+    let mut lots = 0usize;
+    for f in &shards {
+        for t in &f.manifest.tiles {
+            let Some(g) = grid.get(t.suffix.as_str()) else {
+                return refuse(format!(
+                    "{} lists tile {}, which is not in the run's grid",
+                    f.path.display(),
+                    t.suffix
+                ));
+            };
+            if g.shard != f.manifest.shard.index {
+                return refuse(format!(
+                    "{} lists tile {}, which the grid gives to shard {}",
+                    f.path.display(),
+                    t.suffix,
+                    g.shard
+                ));
+            }
+            if let Some(other) = seen_tiles.insert(&t.suffix, &f.path) {
+                return refuse(format!(
+                    "tile {} is there twice: in {} and {}",
+                    t.suffix,
+                    other.display(),
+                    f.path.display()
+                ));
+            }
+            let here = t.buildings.len() + t.skipped.len();
+            if here != g.lots {
+                return refuse(format!(
+                    "tile {} of {} holds {here} buildings (generated or skipped), its grid {}",
+                    t.suffix,
+                    f.path.display(),
+                    g.lots
+                ));
+            }
+            lots += here;
+            for id in t
+                .buildings
+                .iter()
+                .map(|b| b.id.as_str())
+                .chain(t.skipped.iter().map(|s| s.as_str()))
+            {
+                if let Some(other) = seen_ids.insert(id, &t.suffix) {
+                    return refuse(format!(
+                        "building {id} is there twice: in tile {other} and in tile {} ({})",
+                        t.suffix,
+                        f.path.display()
+                    ));
+                }
+            }
+        }
+    }
+    if let Some(g) = a
+        .grid
+        .tiles
+        .iter()
+        .find(|g| !seen_tiles.contains_key(g.suffix.as_str()))
+    {
+        return refuse(format!(
+            "tile {} ({} buildings) is missing: shard {} of {n} ({}) does not list it",
+            g.suffix,
+            g.lots,
+            g.shard,
+            shards[g.shard].path.display()
+        ));
+    }
+    if lots != a.grid.lots {
+        return refuse(format!(
+            "the tiles hold {lots} buildings, the run's grid {}",
+            a.grid.lots
+        ));
+    }
+    Ok(shards)
+}
+
+/// Checks that every file the manifests list is there with its size (and with `verify` its
+/// SHA-256); returns the files and bytes.
+fn check_files(shards: &[&Found], verify: bool) -> Result<(usize, u64), RunError> {
+    let files: Vec<(&Found, &shard::FileRecord)> = shards
+        .iter()
+        .flat_map(|f| {
+            f.manifest
+                .tiles
+                .iter()
+                .flat_map(move |t| t.files.iter().map(move |r| (*f, r)))
+        })
+        .collect();
+    if shards[0].manifest.run.outputs.iter().any(|o| o == "dry-run") {
+        return Err(RunError::Input(format!(
+            "merge refused: {} is a dry run's manifest: its files were never written",
+            shards[0].path.display()
+        )));
+    }
+    let problems: Vec<String> = files
+        .par_iter()
+        .filter_map(|(f, r)| {
+            let path = f.dir.join(&r.path);
+            let meta = match std::fs::metadata(&path) {
+                Ok(m) => m,
+                Err(e) => {
+                    return Some(format!(
+                        "{} (listed by {}): {e}",
+                        path.display(),
+                        f.path.display()
+                    ))
+                }
+            };
+            if meta.len() != r.bytes {
+                return Some(format!(
+                    "{} has {} bytes, {} lists {}",
+                    path.display(),
+                    meta.len(),
+                    f.path.display(),
+                    r.bytes
+                ));
+            }
+            if verify {
+                match shard::file_key(&path) {
+                    Ok(k) if k.sha256 == r.sha256 => {}
+                    Ok(_) => {
+                        return Some(format!(
+                            "{} is not the file {} lists (its SHA-256 differs)",
+                            path.display(),
+                            f.path.display()
+                        ))
+                    }
+                    Err(e) => return Some(format!("{}: {e}", path.display())),
+                }
+            }
+            None
+        })
+        .collect();
+    if let Some(first) = problems.first() {
+        return Err(RunError::Input(format!(
+            "merge refused: {first}{}",
+            if problems.len() > 1 {
+                format!(" (and {} more files)", problems.len() - 1)
+            } else {
+                String::new()
+            }
+        )));
+    }
+    Ok((files.len(), files.iter().map(|(_, r)| r.bytes).sum()))
+}
+
+/// The run's report from the shards': the counts summed, the read and prepare entries in the
+/// single run's order, then each tile's in grid order, then the shards' notes.
+fn merged_report(shards: &[&Found]) -> Report {
+    let first = &shards[0].manifest;
+    let mut report = Report {
+        read: first.report.read,
+        parts_read: first.report.parts_read,
+        ..Default::default()
+    };
+    let mut prepared: Vec<&(usize, Entry)> = shards
+        .iter()
+        .flat_map(|f| &f.manifest.report.prepared)
+        .collect();
+    prepared.sort_by_key(|(i, _)| *i);
+    report.entries = prepared.into_iter().map(|(_, e)| e.clone()).collect();
+    let mut tiles: Vec<&shard::TileRecord> =
+        shards.iter().flat_map(|f| &f.manifest.tiles).collect();
+    let order: BTreeMap<&str, usize> = first
+        .grid
+        .tiles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (t.suffix.as_str(), i))
+        .collect();
+    tiles.sort_by_key(|t| order.get(t.suffix.as_str()).copied().unwrap_or(usize::MAX));
+    for t in tiles {
+        report.entries.extend(t.entries.iter().cloned());
+    }
+    for f in shards {
+        report.generated += f.manifest.report.generated;
+        report.facades.add(&f.manifest.report.facades);
+        report.entries.extend(f.manifest.report.notes.iter().cloned());
+    }
+    report.skipped = report
+        .entries
+        .iter()
+        .filter(|e| e.outcome == Outcome::Skipped)
+        .count();
+    report.repaired = report
+        .entries
+        .iter()
+        .filter(|e| e.outcome == Outcome::Repaired)
+        .count();
+    report
+}
+
+/// The tiles of the run in grid order, each with the folder of the shard that wrote it.
+fn tiles_in_order<'a>(shards: &[&'a Found]) -> Vec<(&'a Found, &'a shard::TileRecord)> {
+    let first = &shards[0].manifest;
+    let by_suffix: BTreeMap<&str, (&Found, &shard::TileRecord)> = shards
+        .iter()
+        .flat_map(|f| f.manifest.tiles.iter().map(move |t| (t.suffix.as_str(), (*f, t))))
+        .collect();
+    first
+        .grid
+        .tiles
+        .iter()
+        .filter_map(|g| by_suffix.get(g.suffix.as_str()).copied())
+        .collect()
+}
+
+/// The region's CityJSONSeq: one header (the tiles' header, which is the same but for the
+/// tile named in its title), then every tile's feature lines in grid order.
+fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError> {
+    let first = &shards[0].manifest;
+    if !first.run.outputs.iter().any(|o| o == "cityjsonseq") {
+        return Err(RunError::Usage(format!(
+            "merge --cityjsonseq: the shards wrote no CityJSONSeq ({} lists {}); run them with \
+             --cityjsonseq",
+            shards[0].path.display(),
+            first.run.outputs.join(", ")
+        )));
+    }
+    let tiles = tiles_in_order(shards);
+    let file = AtomicFile::create(target).map_err(io_err(target))?;
+    let mut w = file.writer().map_err(io_err(target))?;
+    let mut header: Option<String> = None;
+    let n_tiles = tiles.len();
+    for (f, t) in tiles {
+        let Some(rec) = t.files.iter().find(|r| r.path.ends_with(".city.jsonl")) else {
+            continue;
+        };
+        let path = f.dir.join(&rec.path);
+        let mut lines = BufReader::new(std::fs::File::open(&path).map_err(io_err(&path))?).lines();
+        let head = match lines.next() {
+            Some(l) => l.map_err(io_err(&path))?,
+            None => {
+                return Err(RunError::Input(format!(
+                    "{}: empty, no CityJSON header line",
+                    path.display()
+                )))
+            }
+        };
+        let tile_words = format!(" tile {}", t.suffix);
+        let region_head = head.replacen(
+            &tile_words,
+            &format!(" ({n_tiles} tiles of {} m)", first.run.tile_size),
+            1,
+        );
+        match &header {
+            None => {
+                w.write_all(region_head.as_bytes()).map_err(io_err(target))?;
+                w.write_all(b"\n").map_err(io_err(target))?;
+                header = Some(region_head);
+            }
+            Some(h) if *h == region_head => {}
+            Some(_) => {
+                return Err(RunError::Input(format!(
+                    "merge refused: the CityJSON header of {} differs from the first tile's \
+                     (transform, CRS or LOD): not one run",
+                    path.display()
+                )))
+            }
+        }
+        for line in lines {
+            let line = line.map_err(io_err(&path))?;
+            w.write_all(line.as_bytes()).map_err(io_err(target))?;
+            w.write_all(b"\n").map_err(io_err(target))?;
+        }
+    }
+    w.flush().map_err(io_err(target))?;
+    drop(w);
+    file.close().map_err(io_err(target))
+}

@@ -1,0 +1,443 @@
+//! Shards: N processes share one tiled run with no coordinator (`--shard I/N`, `--shard auto`).
+//!
+//! Every shard reads the whole input and prepares it exactly as a single run would (the same
+//! lots, the same output CRS and origin), computes the same tile grid, and the same assignment
+//! of tiles to shards ([`assign`]: the tiles by building count, largest first, each to the
+//! least-loaded shard, ties to the lower tile and shard; it depends on the input and N alone,
+//! not on which machine runs which shard). It then derives and writes only its own tiles — each
+//! tile's files the same bytes the single run writes, since a building's derivation depends
+//! only on the input, the seed and its neighbours, which every shard derives alike — and a
+//! [`Manifest`]: what was run (version, input, KB and rules hashes, seed, LOD, options), the
+//! whole grid with each tile's shard and lot count, and for each of its tiles the buildings
+//! with a per-building digest ([`crate::model::Building::digest`]), the lots skipped, the
+//! report entries, and every file with its size and SHA-256. `citygen merge` reads the
+//! manifests back ([`crate::pipeline::merge`]).
+//!
+//! Report entries of the read and prepare stages are the same in every shard; each goes to the
+//! shard owning the lot it names, and those naming no lot of the run (a footprint skipped
+//! while reading, a part, the run itself) to shard 0, each with its place in the single run's
+//! order, so that the merged report holds every entry once.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::report::Entry;
+
+/// The manifest's `format` value; a merge refuses any other.
+pub const MANIFEST_FORMAT: &str = "citygen-manifest/1";
+
+/// The most shards a run may be split into.
+pub const MAX_SHARDS: usize = 100_000;
+
+/// Shard `index` (0-based) of `count`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    /// 0-based: shard 0 is the first.
+    pub index: usize,
+    /// How many shards share the run (at least 1).
+    pub count: usize,
+}
+
+impl Shard {
+    /// The whole run as one shard (a tiled run without `--shard`).
+    pub const ONE: Shard = Shard { index: 0, count: 1 };
+
+    /// `citygen-manifest.{index}-of-{count}.json`: the manifest's file name.
+    pub fn manifest_name(&self) -> String {
+        format!("citygen-manifest.{}-of-{}.json", self.index, self.count)
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// What `--shard` says: a fixed shard, or `auto` (from the job's environment).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShardArg {
+    /// `--shard I/N`.
+    Fixed(Shard),
+    /// `--shard auto`.
+    Auto,
+}
+
+/// Parses `--shard`'s value: `I/N` (0 <= I < N <= [`MAX_SHARDS`]) or `auto`.
+pub fn parse_shard(s: &str) -> Result<ShardArg, String> {
+    let s = s.trim();
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(ShardArg::Auto);
+    }
+    let (i, n) = s
+        .split_once('/')
+        .ok_or_else(|| format!("{s:?} is not I/N (e.g. 0/4, shards counted from 0) or auto"))?;
+    let num = |t: &str, what: &str| {
+        t.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("{s:?}: {what} {t:?} is not a whole number"))
+    };
+    let shard = Shard {
+        index: num(i, "the index")?,
+        count: num(n, "the count")?,
+    };
+    check(shard).map(ShardArg::Fixed)
+}
+
+fn check(s: Shard) -> Result<Shard, String> {
+    if s.count == 0 || s.count > MAX_SHARDS {
+        return Err(format!(
+            "shard count {} is not between 1 and {MAX_SHARDS}",
+            s.count
+        ));
+    }
+    if s.index >= s.count {
+        return Err(format!(
+            "shard index {} is not below the count {} (shards are counted from 0: 0/{} to {}/{})",
+            s.index,
+            s.count,
+            s.count,
+            s.count - 1,
+            s.count
+        ));
+    }
+    Ok(s)
+}
+
+/// The shard of `--shard auto` from the job's environment (`env` looks a variable up):
+/// `JOB_COMPLETION_INDEX` (a Kubernetes Indexed Job), else `SLURM_ARRAY_TASK_ID` (a Slurm
+/// array, less `SLURM_ARRAY_TASK_MIN` when set, so `--array=1-8` works too). The count is
+/// `shards` (`--shards N`), else `SLURM_ARRAY_TASK_COUNT`; Kubernetes does not tell a pod the
+/// job's completions, so an Indexed Job passes `--shards`. Returns the shard and a sentence
+/// saying where it came from.
+pub fn from_env(
+    shards: Option<usize>,
+    env: &dyn Fn(&str) -> Option<String>,
+) -> Result<(Shard, String), String> {
+    let var = |name: &str| -> Result<Option<usize>, String> {
+        match env(name) {
+            None => Ok(None),
+            Some(v) if v.trim().is_empty() => Ok(None),
+            Some(v) => v
+                .trim()
+                .parse::<usize>()
+                .map(Some)
+                .map_err(|_| format!("--shard auto: {name}={v:?} is not a whole number")),
+        }
+    };
+    let (index, source) = if let Some(i) = var("JOB_COMPLETION_INDEX")? {
+        (i, format!("JOB_COMPLETION_INDEX={i}"))
+    } else if let Some(id) = var("SLURM_ARRAY_TASK_ID")? {
+        match var("SLURM_ARRAY_TASK_MIN")? {
+            Some(min) if min <= id => (
+                id - min,
+                format!("SLURM_ARRAY_TASK_ID={id} less SLURM_ARRAY_TASK_MIN={min}"),
+            ),
+            Some(min) => {
+                return Err(format!(
+                    "--shard auto: SLURM_ARRAY_TASK_ID={id} is below SLURM_ARRAY_TASK_MIN={min}"
+                ))
+            }
+            None => (id, format!("SLURM_ARRAY_TASK_ID={id}")),
+        }
+    } else {
+        return Err(
+            "--shard auto: neither JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) nor \
+             SLURM_ARRAY_TASK_ID (a Slurm array) is set; pass --shard I/N"
+                .into(),
+        );
+    };
+    let (count, how) = match (shards, var("SLURM_ARRAY_TASK_COUNT")?) {
+        (Some(n), _) => (n, "--shards".to_string()),
+        (None, Some(n)) => (n, format!("SLURM_ARRAY_TASK_COUNT={n}")),
+        (None, None) => {
+            return Err(format!(
+                "--shard auto: {source} gives the index but nothing gives the count; pass \
+                 --shards N (the Job's completions)"
+            ))
+        }
+    };
+    let shard = check(Shard { index, count }).map_err(|e| format!("--shard auto: {e}"))?;
+    Ok((
+        shard,
+        format!("shard {shard} (index from {source}, count from {how})"),
+    ))
+}
+
+/// The shard of each tile: tiles by `counts` (their building counts), largest first, ties to
+/// the lower tile, each to the shard with the fewest buildings so far, ties to the lower
+/// shard (the longest-processing-time rule: no shard gets more than 4/3 of the best possible
+/// maximum). Depends on `counts` and `n` alone.
+pub fn assign(counts: &[usize], n: usize) -> Vec<usize> {
+    let n = n.max(1);
+    let mut order: Vec<usize> = (0..counts.len()).collect();
+    order.sort_by(|&a, &b| counts[b].cmp(&counts[a]).then(a.cmp(&b)));
+    let mut heap: std::collections::BinaryHeap<std::cmp::Reverse<(usize, usize)>> =
+        (0..n).map(|s| std::cmp::Reverse((0, s))).collect();
+    let mut shard = vec![0; counts.len()];
+    for t in order {
+        if let Some(std::cmp::Reverse((load, s))) = heap.pop() {
+            shard[t] = s;
+            heap.push(std::cmp::Reverse((load + counts[t], s)));
+        }
+    }
+    shard
+}
+
+/// A shard's manifest (`citygen-manifest.{I}-of-{N}.json`, beside its outputs).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Manifest {
+    /// [`MANIFEST_FORMAT`].
+    pub format: String,
+    /// citygen's version (`CARGO_PKG_VERSION`).
+    pub citygen: String,
+    /// Which shard wrote it.
+    pub shard: Shard,
+    /// Where the shard index came from (`--shard 2/7`, `JOB_COMPLETION_INDEX=2`, ...).
+    pub shard_from: String,
+    /// What decides the outputs: shards of one run have equal keys.
+    pub run: RunKey,
+    /// The whole grid, the same in every shard of the run.
+    pub grid: Grid,
+    /// The tiles this shard wrote, in grid order.
+    pub tiles: Vec<TileRecord>,
+    /// The shard's share of the run's report: the counts and the entries of the read and
+    /// prepare stages it owns (those of its tiles are in `tiles`).
+    pub report: ShardReport,
+}
+
+/// What decides a run's outputs, and so must be equal in the manifests of one merge.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunKey {
+    /// The input files (an OSM PBF, or a shapefile's parts).
+    pub inputs: Vec<FileKey>,
+    /// The knowledge base, if any.
+    pub kb: Option<FileKey>,
+    /// The ruleset, if any.
+    pub rules: Option<FileKey>,
+    /// `--seed`.
+    pub seed: u64,
+    /// `--lod` (1 to 4).
+    pub lod: u8,
+    /// The output CRS, e.g. `EPSG:32632`.
+    pub crs: String,
+    /// The local origin in the output CRS (metres).
+    pub origin: [f64; 2],
+    /// `--tile` (metres).
+    pub tile_size: u32,
+    /// The other options that change outputs, as one string (`--bbox`, caps, `--infer`, ...).
+    pub options: String,
+    /// The outputs each shard writes per tile, by kind (`ifc`, `citygml`, `gltf`, `cityjson`,
+    /// `cityjsonseq`, `tiles3d`), and whether the run is a dry run.
+    pub outputs: Vec<String>,
+}
+
+/// An input file: its name (not its folder: machines mount inputs at different places), its
+/// size and SHA-256.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FileKey {
+    /// File name only.
+    pub name: String,
+    /// Size in bytes.
+    pub bytes: u64,
+    /// Lower-case hex SHA-256 of the whole file.
+    pub sha256: String,
+}
+
+/// The run's tile grid: every tile holding a building, its lots and its shard.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Grid {
+    /// Lots the run writes (after `--bbox`), over all tiles.
+    pub lots: usize,
+    /// Every tile of the run, in grid order (easting, then northing, of the lower-left corner).
+    pub tiles: Vec<GridTile>,
+}
+
+/// One tile of the grid.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GridTile {
+    /// `{easting}_{northing}` of the lower-left corner: the files' suffix.
+    pub suffix: String,
+    /// The lower-left corner in the output CRS, whole metres.
+    pub corner: [i64; 2],
+    /// Lots in the tile.
+    pub lots: usize,
+    /// The shard writing it.
+    pub shard: usize,
+}
+
+/// What a shard wrote for one tile.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct TileRecord {
+    /// The tile's suffix ([`GridTile::suffix`]).
+    pub suffix: String,
+    /// The buildings written, in file order.
+    pub buildings: Vec<BuildingRecord>,
+    /// The tile's lots that could not be generated (their reasons are in `entries`).
+    pub skipped: Vec<String>,
+    /// The report entries of deriving the tile, in order.
+    pub entries: Vec<Entry>,
+    /// The files written, paths relative to the manifest's folder, `/`-separated.
+    pub files: Vec<FileRecord>,
+    /// The 3D Tiles contents' facts, for the tileset.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tiles3d: Option<serde_json::Value>,
+}
+
+/// One building of a tile.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BuildingRecord {
+    /// Source id (`way/123`).
+    pub id: String,
+    /// [`crate::model::Building::digest`] in hex (16 digits).
+    pub digest: String,
+}
+
+/// One file written.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FileRecord {
+    /// Relative to the manifest's folder, `/`-separated.
+    pub path: String,
+    /// Size in bytes.
+    pub bytes: u64,
+    /// Lower-case hex SHA-256 (of the bytes rendered, for a dry run).
+    pub sha256: String,
+}
+
+/// A shard's share of the report.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct ShardReport {
+    /// Footprints read (the whole input: equal in every shard).
+    pub read: usize,
+    /// `building:part`s read (the whole input).
+    pub parts_read: usize,
+    /// Buildings this shard generated.
+    pub generated: usize,
+    /// The facade counts of this shard's buildings.
+    pub facades: crate::model::FacadeCounts,
+    /// Entries of the read and prepare stages owned by this shard, each with its index in the
+    /// single run's list of them.
+    pub prepared: Vec<(usize, Entry)>,
+    /// Notes about the shard's outputs as a whole (a CityGML tile over the validator's cap).
+    pub notes: Vec<Entry>,
+}
+
+/// Lower-case hex of a digest's bytes.
+pub fn hex(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    let mut s = String::with_capacity(bytes.len() * 2);
+    for b in bytes {
+        let _ = write!(s, "{b:02x}");
+    }
+    s
+}
+
+/// The [`FileKey`] of a file: its name, size and SHA-256, read in 1 MiB blocks.
+pub fn file_key(path: &Path) -> std::io::Result<FileKey> {
+    let mut f = std::fs::File::open(path)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut bytes = 0u64;
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+        bytes += n as u64;
+    }
+    Ok(FileKey {
+        name: path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        bytes,
+        sha256: hex(&h.finalize()),
+    })
+}
+
+/// Which shard owns each entry of the read and prepare stages: the shard of the lot it names,
+/// else shard 0. `owner` maps a lot's id to its shard.
+pub fn owner_of(entry: &Entry, owner: &BTreeMap<String, usize>) -> usize {
+    owner.get(&entry.id).copied().unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shard_values_parse_or_say_what_is_wrong() {
+        assert_eq!(
+            parse_shard("2/7"),
+            Ok(ShardArg::Fixed(Shard { index: 2, count: 7 }))
+        );
+        assert_eq!(parse_shard("AUTO"), Ok(ShardArg::Auto));
+        for (bad, says) in [
+            ("7/7", "counted from 0"),
+            ("1/0", "between 1"),
+            ("x/3", "index \"x\""),
+            ("3", "I/N"),
+            ("0/100001", "between 1"),
+        ] {
+            let e = parse_shard(bad).unwrap_err();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+
+    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
+        move |k| {
+            vars.iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    }
+
+    #[test]
+    fn auto_reads_kubernetes_then_slurm_and_says_which() {
+        let (s, how) = from_env(Some(4), &env(&[("JOB_COMPLETION_INDEX", "3")])).unwrap();
+        assert_eq!(s, Shard { index: 3, count: 4 });
+        assert!(how.contains("JOB_COMPLETION_INDEX=3") && how.contains("--shards"));
+        let e = from_env(None, &env(&[("JOB_COMPLETION_INDEX", "3")])).unwrap_err();
+        assert!(e.contains("--shards N"), "{e}");
+        let vars = [
+            ("SLURM_ARRAY_TASK_ID", "5"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", "7"),
+        ];
+        let (s, how) = from_env(None, &env(&vars)).unwrap();
+        assert_eq!(s, Shard { index: 4, count: 7 });
+        assert!(how.contains("SLURM_ARRAY_TASK_COUNT=7"), "{how}");
+        let e = from_env(None, &env(&[])).unwrap_err();
+        assert!(e.contains("JOB_COMPLETION_INDEX"), "{e}");
+        let e = from_env(Some(2), &env(&[("JOB_COMPLETION_INDEX", "2")])).unwrap_err();
+        assert!(e.contains("counted from 0"), "{e}");
+        let e = from_env(Some(2), &env(&[("SLURM_ARRAY_TASK_ID", "one")])).unwrap_err();
+        assert!(e.contains("not a whole number"), "{e}");
+    }
+
+    #[test]
+    fn tiles_are_balanced_largest_first_and_alike_everywhere() {
+        let counts = [10, 1, 7, 7, 3, 9, 2];
+        let a = assign(&counts, 3);
+        assert_eq!(a, assign(&counts, 3));
+        let mut load = [0; 3];
+        for (t, s) in a.iter().enumerate() {
+            load[*s] += counts[t];
+        }
+        // 39 buildings: the best maximum is 13; LPT gives 10+3, 9+2+1... at most 4/3 of it.
+        assert!(
+            load.iter().max().unwrap() - load.iter().min().unwrap() <= 3,
+            "{load:?}"
+        );
+        assert_eq!(a[0], 0, "the largest tile goes to shard 0");
+        assert_eq!(assign(&counts, 1), vec![0; 7]);
+        // More shards than tiles: each tile alone, the rest empty.
+        let a = assign(&[5, 4], 4);
+        assert_eq!(a, vec![0, 1]);
+    }
+}
