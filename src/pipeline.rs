@@ -10,8 +10,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use thiserror::Error;
 
-mod outputs;
 pub mod merge;
+mod outputs;
 pub mod shard;
 
 use sha2::{Digest as _, Sha256};

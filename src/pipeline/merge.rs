@@ -67,7 +67,9 @@ struct Found {
 pub fn merge(opts: &MergeOptions) -> Result<MergeSummary, RunError> {
     let start = Instant::now();
     if opts.dirs.is_empty() {
-        return Err(RunError::Usage("merge: name the shards' output folders".into()));
+        return Err(RunError::Usage(
+            "merge: name the shards' output folders".into(),
+        ));
     }
     let found = read_manifests(&opts.dirs)?;
     let shards = check_set(&found)?;
@@ -168,7 +170,13 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
         let (ra, rb) = (&a.run, &b.run);
         let names = |k: &[shard::FileKey]| {
             k.iter()
-                .map(|k| format!("{} (sha256 {}…)", k.name, &k.sha256[..k.sha256.len().min(12)]))
+                .map(|k| {
+                    format!(
+                        "{} (sha256 {}…)",
+                        k.name,
+                        &k.sha256[..k.sha256.len().min(12)]
+                    )
+                })
                 .collect::<Vec<_>>()
                 .join(", ")
         };
@@ -356,7 +364,13 @@ fn check_files(shards: &[&Found], verify: bool) -> Result<(usize, u64), RunError
                 .flat_map(move |t| t.files.iter().map(move |r| (*f, r)))
         })
         .collect();
-    if shards[0].manifest.run.outputs.iter().any(|o| o == "dry-run") {
+    if shards[0]
+        .manifest
+        .run
+        .outputs
+        .iter()
+        .any(|o| o == "dry-run")
+    {
         return Err(RunError::Input(format!(
             "merge refused: {} is a dry run's manifest: its files were never written",
             shards[0].path.display()
@@ -445,7 +459,9 @@ fn merged_report(shards: &[&Found]) -> Report {
     for f in shards {
         report.generated += f.manifest.report.generated;
         report.facades.add(&f.manifest.report.facades);
-        report.entries.extend(f.manifest.report.notes.iter().cloned());
+        report
+            .entries
+            .extend(f.manifest.report.notes.iter().cloned());
     }
     report.skipped = report
         .entries
@@ -465,7 +481,12 @@ fn tiles_in_order<'a>(shards: &[&'a Found]) -> Vec<(&'a Found, &'a shard::TileRe
     let first = &shards[0].manifest;
     let by_suffix: BTreeMap<&str, (&Found, &shard::TileRecord)> = shards
         .iter()
-        .flat_map(|f| f.manifest.tiles.iter().map(move |t| (t.suffix.as_str(), (*f, t))))
+        .flat_map(|f| {
+            f.manifest
+                .tiles
+                .iter()
+                .map(move |t| (t.suffix.as_str(), (*f, t)))
+        })
         .collect();
     first
         .grid
@@ -515,7 +536,8 @@ fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError>
         );
         match &header {
             None => {
-                w.write_all(region_head.as_bytes()).map_err(io_err(target))?;
+                w.write_all(region_head.as_bytes())
+                    .map_err(io_err(target))?;
                 w.write_all(b"\n").map_err(io_err(target))?;
                 header = Some(region_head);
             }

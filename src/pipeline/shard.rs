@@ -110,10 +110,12 @@ fn check(s: Shard) -> Result<Shard, String> {
 
 /// The shard of `--shard auto` from the job's environment (`env` looks a variable up):
 /// `JOB_COMPLETION_INDEX` (a Kubernetes Indexed Job), else `SLURM_ARRAY_TASK_ID` (a Slurm
-/// array, less `SLURM_ARRAY_TASK_MIN` when set, so `--array=1-8` works too). The count is
-/// `shards` (`--shards N`), else `SLURM_ARRAY_TASK_COUNT`; Kubernetes does not tell a pod the
-/// job's completions, so an Indexed Job passes `--shards`. Returns the shard and a sentence
-/// saying where it came from.
+/// array, `--array=0-(N-1)`: the task id is the index as it is, so that re-submitting the
+/// failed tasks alone, `--array=3,5`, runs shards 3 and 5). The count is `shards` (`--shards
+/// N`), else `SLURM_ARRAY_TASK_COUNT` where the array is the whole run (`SLURM_ARRAY_TASK_MIN`
+/// 0 and `SLURM_ARRAY_TASK_MAX` one less than the count; a partial array must pass
+/// `--shards`); Kubernetes does not tell a pod the job's completions, so an Indexed Job passes
+/// `--shards`. Returns the shard and a sentence saying where it came from.
 pub fn from_env(
     shards: Option<usize>,
     env: &dyn Fn(&str) -> Option<String>,
@@ -132,18 +134,7 @@ pub fn from_env(
     let (index, source) = if let Some(i) = var("JOB_COMPLETION_INDEX")? {
         (i, format!("JOB_COMPLETION_INDEX={i}"))
     } else if let Some(id) = var("SLURM_ARRAY_TASK_ID")? {
-        match var("SLURM_ARRAY_TASK_MIN")? {
-            Some(min) if min <= id => (
-                id - min,
-                format!("SLURM_ARRAY_TASK_ID={id} less SLURM_ARRAY_TASK_MIN={min}"),
-            ),
-            Some(min) => {
-                return Err(format!(
-                    "--shard auto: SLURM_ARRAY_TASK_ID={id} is below SLURM_ARRAY_TASK_MIN={min}"
-                ))
-            }
-            None => (id, format!("SLURM_ARRAY_TASK_ID={id}")),
-        }
+        (id, format!("SLURM_ARRAY_TASK_ID={id}"))
     } else {
         return Err(
             "--shard auto: neither JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) nor \
@@ -151,10 +142,25 @@ pub fn from_env(
                 .into(),
         );
     };
-    let (count, how) = match (shards, var("SLURM_ARRAY_TASK_COUNT")?) {
+    let slurm = (
+        var("SLURM_ARRAY_TASK_COUNT")?,
+        var("SLURM_ARRAY_TASK_MIN")?,
+        var("SLURM_ARRAY_TASK_MAX")?,
+    );
+    let (count, how) = match (shards, slurm) {
         (Some(n), _) => (n, "--shards".to_string()),
-        (None, Some(n)) => (n, format!("SLURM_ARRAY_TASK_COUNT={n}")),
-        (None, None) => {
+        (None, (Some(n), Some(0), Some(max))) if n > 0 && max == n - 1 => {
+            (n, format!("SLURM_ARRAY_TASK_COUNT={n}"))
+        }
+        (None, (Some(n), min, max)) => {
+            return Err(format!(
+                "--shard auto: the Slurm array is not 0-{} (SLURM_ARRAY_TASK_MIN={},                  SLURM_ARRAY_TASK_MAX={}): a partial array (a re-submission) does not tell the                  run's shard count; pass --shards N",
+                n.saturating_sub(1),
+                min.map_or("unset".into(), |v| v.to_string()),
+                max.map_or("unset".into(), |v| v.to_string()),
+            ))
+        }
+        (None, _) => {
             return Err(format!(
                 "--shard auto: {source} gives the index but nothing gives the count; pass \
                  --shards N (the Job's completions)"
@@ -406,12 +412,25 @@ mod tests {
         assert!(e.contains("--shards N"), "{e}");
         let vars = [
             ("SLURM_ARRAY_TASK_ID", "5"),
-            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "6"),
             ("SLURM_ARRAY_TASK_COUNT", "7"),
         ];
         let (s, how) = from_env(None, &env(&vars)).unwrap();
-        assert_eq!(s, Shard { index: 4, count: 7 });
+        assert_eq!(s, Shard { index: 5, count: 7 });
         assert!(how.contains("SLURM_ARRAY_TASK_COUNT=7"), "{how}");
+        // A re-submission of two failed tasks (--array=3,5): the ids are the shards, and the
+        // count must come from --shards.
+        let partial = [
+            ("SLURM_ARRAY_TASK_ID", "5"),
+            ("SLURM_ARRAY_TASK_MIN", "3"),
+            ("SLURM_ARRAY_TASK_MAX", "5"),
+            ("SLURM_ARRAY_TASK_COUNT", "2"),
+        ];
+        let e = from_env(None, &env(&partial)).unwrap_err();
+        assert!(e.contains("pass --shards N"), "{e}");
+        let (s, _) = from_env(Some(7), &env(&partial)).unwrap();
+        assert_eq!(s, Shard { index: 5, count: 7 });
         let e = from_env(None, &env(&[])).unwrap_err();
         assert!(e.contains("JOB_COMPLETION_INDEX"), "{e}");
         let e = from_env(Some(2), &env(&[("JOB_COMPLETION_INDEX", "2")])).unwrap_err();
