@@ -45,7 +45,7 @@ mod glb;
 mod png;
 mod raster;
 
-pub use glb::{glb_triangles, GlbError, GlbMesh};
+pub use glb::{glb_triangles, GlbError, GlbMesh, MAX_VERTICES};
 
 /// How a scene is drawn: picture size and camera.
 #[derive(Clone, Debug, PartialEq)]
