@@ -1,4 +1,5 @@
-//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq) and glTF 2.0 binary.
+//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq), glTF 2.0 binary, and a
+//! PNG preview picture.
 //! Each consumes [`crate::model::Building`] values one at a time (streaming) and nothing else.
 
 pub mod citygml;
@@ -12,6 +13,7 @@ pub mod gltf;
 pub mod ifc;
 pub mod lod3geom;
 pub mod lod4geom;
+pub mod preview;
 pub mod step;
 
 use std::fs::File;

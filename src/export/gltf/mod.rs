@@ -417,6 +417,74 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
     }
 }
 
+/// A building's triangles as its GLB draws them (the same faces, triangulation and faces left
+/// out between parts), for a writer that draws buildings itself (`export::preview`). `each` is
+/// called once per primitive with the colour as drawn (sRGB; glazed panes darkened as their
+/// material is, [`GLASS_SHADE`]), the positions in the model frame (x east, y north, z up,
+/// metres, as `f32`) and the triangles' indices into them. Only what is seen from outside is
+/// given: walls and roofs, and with `detail` (LOD3 and up) windows, doors and balconies; not
+/// the ground (it faces down) nor the LOD4 interior.
+pub(crate) fn outside_triangles<F>(
+    b: &Building,
+    detail: bool,
+    mut each: F,
+) -> Result<(), ExportError>
+where
+    F: FnMut(Color, &[[f32; 3]], &[u32]),
+{
+    let mut e = Encoded::default();
+    encode(b, detail, false, &mut e)?;
+    let f32_at = |bytes: &[u8], at: usize| {
+        bytes
+            .get(at..at + 4)
+            .and_then(|s| s.try_into().ok())
+            .map_or(0.0, f32::from_le_bytes)
+    };
+    let (mut positions, mut indices) = (Vec::new(), Vec::new());
+    for p in e.layouts.iter().flatten() {
+        if !matches!(
+            p.class,
+            SurfaceClass::Walls
+                | SurfaceClass::Roof
+                | SurfaceClass::Windows
+                | SurfaceClass::Doors
+                | SurfaceClass::Balconies
+        ) {
+            continue;
+        }
+        positions.clear();
+        indices.clear();
+        let at = p.pos_offset as usize;
+        // glTF's frame (x, z, -y) back to the model's.
+        positions.extend((0..p.count as usize).map(|i| {
+            let g = |k: usize| f32_at(&e.vertex_bytes, at + 12 * i + 4 * k);
+            [g(0), -g(2), g(1)]
+        }));
+        let at = p.idx_offset as usize;
+        indices.extend((0..p.idx_count as usize).map(|i| {
+            match p.idx_type {
+                UNSIGNED_SHORT => e
+                    .index_bytes
+                    .get(at + 2 * i..at + 2 * i + 2)
+                    .map_or(0, |s| u32::from(u16::from_le_bytes([s[0], s[1]]))),
+                _ => e
+                    .index_bytes
+                    .get(at + 4 * i..at + 4 * i + 4)
+                    .and_then(|s| s.try_into().ok())
+                    .map_or(0, u32::from_le_bytes),
+            }
+        }));
+        let mut color = materials::sanitize(p.color);
+        if p.finish == Finish::Glass && color.a >= 1.0 {
+            color.r *= GLASS_SHADE;
+            color.g *= GLASS_SHADE;
+            color.b *= GLASS_SHADE;
+        }
+        each(color, &positions, &indices);
+    }
+    Ok(())
+}
+
 /// `EPSG:n` for the asset's extras.
 fn crs_label(crs: &Crs) -> String {
     format!("EPSG:{}", crs.epsg())
