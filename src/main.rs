@@ -304,6 +304,10 @@ struct RunArgs {
     /// Write the JSON report (counts, skipped and repaired footprints with reasons) here.
     #[arg(long, value_name = "OUT.json")]
     report: Option<PathBuf>,
+    /// Write an overview picture of the run's buildings (PNG, a bird's-eye view rendered in
+    /// citygen, no browser needed): one picture for the whole run, even with --tile.
+    #[arg(long, value_name = "OUT.png")]
+    preview: Option<PathBuf>,
     /// Seed of every random choice (appearances, rand() in rules).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -557,6 +561,7 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
                 cityjson,
                 cityjsonseq,
                 report,
+                preview: None,
                 dry_run: false,
                 allow_empty: false,
                 manifest: None,
@@ -705,6 +710,7 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     cityjson: None,
                     cityjsonseq: None,
                     report,
+                    preview: None,
                     dry_run: false,
                     allow_empty: false,
                     manifest: None,
@@ -977,6 +983,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         cityjson: cli.cityjson.clone(),
         cityjsonseq: cli.cityjsonseq.clone(),
         report: cli.report.clone(),
+        preview: cli.preview.clone(),
         seed: cli.seed,
         crs: cli.crs,
         src_crs: cli.src_crs,

@@ -80,6 +80,9 @@ pub struct Options {
     /// Write the JSON run report here (`--report`); one file for the whole run, even with
     /// `tile`.
     pub report: Option<PathBuf>,
+    /// Write an overview picture of the run's buildings here (`--preview`, PNG, rendered by
+    /// [`crate::export::preview`]); one picture for the whole run, even with `tile`.
+    pub preview: Option<PathBuf>,
     /// Seed of every random choice (`--seed`, default 0): the same inputs and seed give
     /// byte-identical outputs, whatever the thread count.
     pub seed: u64,
@@ -215,6 +218,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         cityjson: opts.cityjson.clone(),
         cityjsonseq: opts.cityjsonseq.clone(),
         report: opts.report.clone(),
+        preview: opts.preview.clone(),
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
         manifest: None,
@@ -861,6 +865,8 @@ pub struct Targets {
     pub cityjsonseq: Option<PathBuf>,
     /// Write the JSON run report here.
     pub report: Option<PathBuf>,
+    /// Write an overview picture (PNG) of the buildings here.
+    pub preview: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
     pub dry_run: bool,
     /// Publish the outputs even when no building was generated ([`Options::allow_empty`]).
@@ -879,6 +885,7 @@ impl Targets {
             ("--cityjson", &self.cityjson),
             ("--cityjsonseq", &self.cityjsonseq),
             ("--report", &self.report),
+            ("--preview", &self.preview),
         ]
         .into_iter()
         .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
@@ -972,7 +979,13 @@ fn write_batches(
     let start = Instant::now();
     let total = site.lots.len();
     let mut done = 0usize;
-    let mut written = Written::default();
+    let mut written = Written {
+        preview: targets
+            .preview
+            .as_ref()
+            .map(|_| crate::export::preview::Scene::new()),
+        ..Default::default()
+    };
     for batch in batches {
         let path = |p: &Option<PathBuf>| match (&batch.suffix, p) {
             (Some(sfx), Some(p)) => Some(tile_path(p, sfx)),
@@ -985,6 +998,7 @@ fn write_batches(
             cityjson: path(&targets.cityjson),
             cityjsonseq: path(&targets.cityjsonseq),
             report: None,
+            preview: None,
             dry_run: targets.dry_run,
             allow_empty: targets.allow_empty,
             manifest: None,
@@ -1042,6 +1056,7 @@ fn write_batches(
         largest_citygml,
         citygml_over_cap,
         tile: _,
+        preview,
     } = written;
     if report.generated == 0 && !targets.allow_empty {
         let shown: Vec<String> = report
@@ -1084,12 +1099,21 @@ fn write_batches(
         Some((path, m)) => {
             m.report.generated = report.generated;
             m.report.facades = report.facades.clone();
+            // Paths relative to the manifest, so that a shard run again elsewhere, or on
+            // another machine's mount, writes the same manifest.
+            let dir = path
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .map(|d| format!("{}{}", d.display(), std::path::MAIN_SEPARATOR));
             m.report.notes = warnings
                 .iter()
                 .map(|w| crate::report::Entry {
                     id: String::new(),
                     outcome: Outcome::Note,
-                    reason: w.clone(),
+                    reason: match &dir {
+                        Some(d) => w.replace(d.as_str(), ""),
+                        None => w.clone(),
+                    },
                 })
                 .collect();
             Some((&*path, render_json(path, m).map_err(io_err(path))?))
@@ -1098,6 +1122,20 @@ fn write_batches(
     };
     // Every file, the report too, is complete and closed before the first is renamed into
     // place, so a failure up to here leaves every target as it was.
+    let preview_file = match (&targets.preview, preview) {
+        (Some(p), Some(scene)) => {
+            let png = scene
+                .render(&crate::export::preview::View::default())
+                .to_png();
+            let f = AtomicFile::create(p).map_err(io_err(p))?;
+            let mut w = f.writer().map_err(io_err(p))?;
+            w.write_all(&png).map_err(io_err(p))?;
+            w.flush().map_err(io_err(p))?;
+            drop(w);
+            Some((p, f.close().map_err(io_err(p))?))
+        }
+        _ => None,
+    };
     let report_file = match &targets.report {
         Some(p) => Some((p, render_report(p, &report).map_err(io_err(p))?)),
         None => None,
@@ -1105,6 +1143,10 @@ fn write_batches(
     for (path, file) in pending {
         file.commit().map_err(io_err(&path))?;
         paths.push(path);
+    }
+    if let Some((p, file)) = preview_file {
+        file.commit().map_err(io_err(p))?;
+        paths.push(p.clone());
     }
     if let Some((p, file)) = report_file {
         file.commit().map_err(io_err(p))?;
@@ -1223,6 +1265,8 @@ struct Written {
     citygml_over_cap: usize,
     /// What the tile being written records for the manifest (a tiled run).
     tile: Option<TileLog>,
+    /// The run's overview picture so far (`--preview`): every tile's buildings.
+    preview: Option<crate::export::preview::Scene>,
 }
 
 /// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the file set,
@@ -1302,6 +1346,18 @@ fn write_lots(
     // task, so every core stays busy although each writer is sequential. Each writer still gets
     // every building in lot order; at most two chunks of buildings are held.
     let mut ready: Vec<Building> = Vec::new();
+    let mut preview = written.preview.take();
+    let detail = maker.lod() >= Lod::Lod3;
+    let mut write_ready = |outputs: &mut [Output], ready: &[Building]| {
+        let wrote = write_chunk(outputs, ready);
+        if let Some(scene) = preview.as_mut() {
+            for b in ready {
+                // A building the writers refuse (not finite) is left out of the picture too.
+                let _ = scene.add_building(b, detail);
+            }
+        }
+        wrote
+    };
     for (ci, chunk) in lots.chunks(CHUNK).enumerate() {
         let (results, chunk_written) = rayon::join(
             || {
@@ -1315,7 +1371,7 @@ fn write_lots(
                     })
                     .collect::<Vec<_>>()
             },
-            || write_chunk(&mut outputs, &ready),
+            || write_ready(&mut outputs, &ready),
         );
         chunk_written?;
         ready.clear();
@@ -1346,7 +1402,8 @@ fn write_lots(
         }
         progress(((ci + 1) * CHUNK).min(lots.len()));
     }
-    write_chunk(&mut outputs, &ready)?;
+    write_ready(&mut outputs, &ready)?;
+    written.preview = preview;
     for (path, w, ..) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }

@@ -19,6 +19,7 @@ fn extensions(flag: &str) -> &'static [&'static str] {
         "--cityjson" => &["json", "cityjson"],
         "--cityjsonseq" => &["jsonl"],
         "--report" => &["json"],
+        "--preview" => &["png"],
         _ => &[],
     }
 }
