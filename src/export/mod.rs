@@ -1,4 +1,5 @@
-//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq) and glTF 2.0 binary.
+//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq), glTF 2.0 binary and OGC
+//! 3D Tiles 1.1 (GLB contents and the tileset).
 //! Each consumes [`crate::model::Building`] values one at a time (streaming) and nothing else.
 
 pub mod citygml;
@@ -13,6 +14,7 @@ pub mod ifc;
 pub mod lod3geom;
 pub mod lod4geom;
 pub mod step;
+pub mod tiles3d;
 
 use std::fs::File;
 use std::io::{self, BufWriter};
