@@ -635,6 +635,10 @@ fn tileset_is_a_quadtree_with_nested_volumes_and_decreasing_errors() {
     assert_eq!(child["content"]["uri"], "content/3_2.glb");
     assert!(child.get("transform").is_none());
     assert_eq!(child["geometricError"].as_f64().unwrap(), 0.0);
+    // The same text from entries read back from JSON (a shard's manifest).
+    let json = serde_json::to_string(&tiles).unwrap();
+    let back: Vec<TileEntry> = serde_json::from_str(&json).unwrap();
+    assert_eq!(tileset_json(&back).unwrap(), text);
     // Deterministic whatever the order of the entries.
     let mut reversed = tiles.clone();
     reversed.reverse();
@@ -650,6 +654,8 @@ fn tileset_of_one_tile_refuses_duplicates_and_skips_empty_tiles() {
         doc["geometricError"].as_f64().unwrap() > 10.0,
         "the root's size"
     );
+    assert_eq!(TileEntry::cell_of((-300, 4_842_900), 150), (-2, 32_286));
+    assert_eq!(TileEntry::cell_of((-301, 0), 150), (-3, 0));
     let twice = [tiles[0].clone(), tiles[0].clone()];
     let e = tileset_json(&twice).unwrap_err();
     assert!(e.to_string().contains("twice"), "{e}");
@@ -777,7 +783,7 @@ fn write_monaco(dir: &Path, lod: Lod, size: u32) -> Vec<TileEntry> {
         };
         let s = t.suffix();
         entries.push(TileEntry {
-            cell: (t.corner.0 / i64::from(size), t.corner.1 / i64::from(size)),
+            cell: TileEntry::cell_of(t.corner, size),
             full: content(Detail::Full, format!("content/{s}.glb")),
             blocks: content(Detail::Blocks, format!("content/{s}-blocks.glb")),
         });

@@ -56,6 +56,16 @@ pub struct TileEntry {
 /// are fewer).
 const MAX_SPAN: u64 = 1 << 32;
 
+impl TileEntry {
+    /// The cell of the tile whose lower-left corner is `corner` (easting, northing in metres, as
+    /// `prepare::Tile::corner`) in a grid of `size` metres (floored, so a corner off the grid
+    /// still has its cell).
+    pub fn cell_of(corner: (i64, i64), size: u32) -> (i64, i64) {
+        let size = i64::from(size.max(1));
+        (corner.0.div_euclid(size), corner.1.div_euclid(size))
+    }
+}
+
 /// A node of the tree being built.
 struct Node {
     region: [f64; 6],
