@@ -249,6 +249,25 @@ impl Crs {
     }
 }
 
+/// WGS84 longitude and latitude (degrees) and ellipsoidal height (metres) to geocentric
+/// cartesian coordinates (EPSG:4978, ECEF: X towards (0°, 0°), Z towards the north pole,
+/// metres), as 3D Tiles places its contents.
+///
+/// ```
+/// let [x, y, z] = citygen::crs::wgs84_to_ecef(0.0, 0.0, 0.0);
+/// assert!((x - 6_378_137.0).abs() < 1e-9 && y.abs() < 1e-9 && z.abs() < 1e-9);
+/// ```
+pub fn wgs84_to_ecef(lon: f64, lat: f64, h: f64) -> [f64; 3] {
+    Ellipsoid::WGS84.geodetic_to_geocentric(lon.to_radians(), lat.to_radians(), h)
+}
+
+/// Inverse of [`wgs84_to_ecef`]: ECEF metres to WGS84 (longitude, latitude) degrees and
+/// ellipsoidal height in metres (exact near the surface, see the ellipsoid's iteration).
+pub fn ecef_to_wgs84(xyz: [f64; 3]) -> (f64, f64, f64) {
+    let (lon, lat, h) = Ellipsoid::WGS84.geocentric_to_geodetic(xyz);
+    (lon.to_degrees(), lat.to_degrees(), h)
+}
+
 /// `EPSG:n (name)`, e.g. `EPSG:2154 (RGF93 v1 / Lambert-93)`.
 impl fmt::Display for Crs {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

@@ -1,5 +1,5 @@
-//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq), glTF 2.0 binary, and a
-//! PNG preview picture.
+//! Writers: IFC4 (STEP), CityGML 2.0, CityJSON 2.0 (and CityJSONSeq), glTF 2.0 binary, OGC 3D
+//! Tiles 1.1 (GLB contents and the tileset), and a PNG preview picture.
 //! Each consumes [`crate::model::Building`] values one at a time (streaming) and nothing else.
 
 pub mod citygml;
@@ -15,6 +15,7 @@ pub mod lod3geom;
 pub mod lod4geom;
 pub mod preview;
 pub mod step;
+pub mod tiles3d;
 
 use std::fs::File;
 use std::io::{self, BufWriter};

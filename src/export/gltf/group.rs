@@ -1,5 +1,7 @@
 //! Faces grouped by colour within one surface class of a building, as flat-shaded triangle
-//! data in glTF's frame: what the exterior (`mesh`) and the interior (`lod4`) add faces to.
+//! data in the model frame (f64; the glTF writer turns it to glTF's frame with [`to_gltf`] as it
+//! lays it out, the 3D Tiles writer to its tile's frame): what the exterior (`mesh`) and the
+//! interior (`lod4`) add faces to.
 
 use std::cell::RefCell;
 
@@ -13,26 +15,27 @@ use super::materials::{color_key, Finish};
 
 /// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
 /// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
-pub(super) fn to_gltf(p: DVec3) -> [f32; 3] {
+pub(crate) fn to_gltf(p: DVec3) -> [f32; 3] {
     [p.x as f32 + 0.0, p.z as f32 + 0.0, (-p.y) as f32 + 0.0]
 }
 
 /// Faces of one surface class, one colour and one finish in one building.
-pub(super) struct Group {
-    pub(super) color: Color,
+pub(crate) struct Group {
+    pub(crate) color: Color,
     pub(super) color_key: [u32; 4],
-    pub(super) finish: Finish,
-    pub(super) mesh: MeshData,
+    pub(crate) finish: Finish,
+    pub(crate) mesh: MeshData,
 }
 
 impl Group {
-    pub(super) fn add_face(&mut self, face: &Face) {
+    /// Triangulates `face` into the group (see [`MeshData::add_face`]).
+    pub(crate) fn add_face(&mut self, face: &Face) {
         self.mesh.add_face(face);
     }
 }
 
 /// The matte group of `color` in `groups`, created (last) on first use.
-pub(super) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
+pub(crate) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
     group_with(groups, color, Finish::Matte)
 }
 
@@ -62,16 +65,19 @@ thread_local! {
     static TRIANGULATOR: RefCell<Triangulator> = RefCell::new(Triangulator::default());
 }
 
-/// Flat-shaded triangle data of one primitive.
+/// Flat-shaded triangle data of one primitive, in the model frame (x east, y north, z up,
+/// metres from the run's local origin).
 #[derive(Default)]
-pub(super) struct MeshData {
-    pub(super) positions: Vec<[f32; 3]>,
-    pub(super) normals: Vec<[f32; 3]>,
-    pub(super) indices: Vec<u32>,
+pub(crate) struct MeshData {
+    pub(crate) positions: Vec<DVec3>,
+    /// The unit normal of each vertex's face.
+    pub(crate) normals: Vec<DVec3>,
+    pub(crate) indices: Vec<u32>,
 }
 
 impl MeshData {
-    /// Appends a face with its own vertices and normal; degenerate faces add nothing.
+    /// Appends a face with its own vertices and normal; degenerate faces, and faces with a
+    /// vertex beyond f32 range in glTF's frame, add nothing.
     pub(super) fn add_face(&mut self, face: &Face) {
         TRIANGULATOR.with_borrow_mut(|tri| self.add_triangulated(face, tri));
     }
@@ -86,35 +92,30 @@ impl MeshData {
         if u32::try_from(self.positions.len() + t.vertices.len()).is_err() {
             return;
         }
-        let start = self.positions.len();
-        self.positions
-            .extend(t.vertices.iter().map(|p| to_gltf(*p)));
         // Coordinates beyond f32 range (never in a local frame, but input is input).
-        if self.positions[start..]
+        if t.vertices
             .iter()
-            .flatten()
-            .any(|c| !c.is_finite())
+            .any(|p| to_gltf(*p).iter().any(|c| !c.is_finite()))
         {
-            self.positions.truncate(start);
             return;
         }
-        let n = to_gltf(t.normal);
+        self.positions.extend_from_slice(t.vertices);
         self.normals
-            .extend(std::iter::repeat_n(n, t.vertices.len()));
+            .extend(std::iter::repeat_n(t.normal, t.vertices.len()));
         self.indices
             .extend(t.triangles.iter().flatten().map(|i| base + i));
     }
+}
 
-    /// Component-wise min and max of the positions (as glTF requires for POSITION).
-    pub(super) fn bounds(&self) -> ([f32; 3], [f32; 3]) {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for p in &self.positions {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
+/// Component-wise min and max of `positions` (as glTF requires for POSITION).
+pub(crate) fn bounds(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
         }
-        (lo, hi)
     }
+    (lo, hi)
 }

@@ -13,7 +13,7 @@ use super::{GltfWriter, SurfaceClass, GLASS_METALLIC, GLASS_ROUGHNESS, GLASS_SHA
 
 /// How a material renders its colour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub(super) enum Finish {
+pub(crate) enum Finish {
     /// Matte, in the colour as given (building materials).
     Matte,
     /// Glazing: smooth and slightly metallic; opaque and darker than the given colour when the
@@ -40,21 +40,10 @@ impl<W: Write + Send> GltfWriter<W> {
         } else {
             format!("{} {}", class.name(), c.to_hex())
         };
-        let (c, metallic, roughness) = match finish {
-            Finish::Matte => (c, 0.0, ROUGHNESS),
-            Finish::Glass => {
-                name.push_str(" glass");
-                // Transparent glass shows what is behind it; opaque glass is darker.
-                let shade = if c.a < 1.0 { 1.0 } else { GLASS_SHADE };
-                let c = Color {
-                    r: c.r * shade,
-                    g: c.g * shade,
-                    b: c.b * shade,
-                    a: c.a,
-                };
-                (c, GLASS_METALLIC, GLASS_ROUGHNESS)
-            }
-        };
+        if finish == Finish::Glass {
+            name.push_str(" glass");
+        }
+        let (c, metallic, roughness) = finish_params(color, finish);
         self.doc.materials.push(MaterialRec {
             name,
             pbr: Pbr {
@@ -72,6 +61,27 @@ impl<W: Write + Send> GltfWriter<W> {
         });
         self.material_index.insert(key, i);
         i
+    }
+}
+
+/// The colour (sRGB, sanitised: [`sanitize`]) and the metallic and roughness factors a
+/// surface of `color` in `finish` is drawn with: matte as given; glass smooth and a little
+/// metallic, and darker ([`GLASS_SHADE`]) when opaque, since transparent glass shows what is
+/// behind it.
+pub(crate) fn finish_params(color: Color, finish: Finish) -> (Color, f32, f32) {
+    let c = sanitize(color);
+    match finish {
+        Finish::Matte => (c, 0.0, ROUGHNESS),
+        Finish::Glass => {
+            let shade = if c.a < 1.0 { 1.0 } else { GLASS_SHADE };
+            let c = Color {
+                r: c.r * shade,
+                g: c.g * shade,
+                b: c.b * shade,
+                a: c.a,
+            };
+            (c, GLASS_METALLIC, GLASS_ROUGHNESS)
+        }
     }
 }
 
@@ -93,7 +103,7 @@ pub(super) fn color_key(c: Color) -> [u32; 4] {
 }
 
 /// sRGB transfer function inverse (IEC 61966-2-1): glTF colour factors are linear.
-pub(super) fn srgb_to_linear(c: f32) -> f32 {
+pub(crate) fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
         c / 12.92
     } else {

@@ -7,7 +7,7 @@ use crate::export::{check_finite, ExportError};
 use crate::model::{Building, OpeningKind, Part};
 
 use super::contact::{self, Exposed};
-use super::group::{group, group_with, Group};
+use super::group::{bounds, group, group_with, to_gltf, Group};
 use super::lod4::add_interior;
 use super::materials::Finish;
 use super::{
@@ -87,21 +87,12 @@ pub(super) struct Encoded {
     pub(super) index_bytes: Vec<u8>,
 }
 
-/// Triangulates and lays out one building (`detail`: LOD3 and up classes are written) into
-/// `out`, whose buffers are reused. `checked`: the building is known finite
-/// ([`crate::export::Checked`]), else it is checked here.
-pub(super) fn encode(
-    b: &Building,
-    detail: bool,
-    checked: bool,
-    out: &mut Encoded,
-) -> Result<(), ExportError> {
-    out.layouts.clear();
-    out.vertex_bytes.clear();
-    out.index_bytes.clear();
-    if !checked {
-        check_finite("glTF writer", b)?;
-    }
+/// One building's faces, triangulated (flat shaded, in the model frame) and grouped by surface
+/// class (in [`SurfaceClass::ALL`]'s order, the detail classes only with `detail`: LOD3 and up)
+/// and within a class by colour and finish (in first-seen order); faces against another part
+/// of the building are left out (`contact`), and classes and groups without a triangle too.
+/// What the glTF writer lays out ([`encode`]) and the 3D Tiles writer batches.
+pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, Vec<Group>)> {
     // Faces against another part of the building are inside it: not drawn.
     let exposed = contact::exposed(b);
     let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
@@ -156,6 +147,27 @@ pub(super) fn encode(
             classes.push((class, groups));
         }
     }
+    classes
+}
+
+/// Triangulates and lays out one building (`detail`: LOD3 and up classes are written) into
+/// `out`, whose buffers are reused. `checked`: the building is known finite
+/// ([`crate::export::Checked`]), else it is checked here.
+pub(super) fn encode(
+    b: &Building,
+    detail: bool,
+    checked: bool,
+    out: &mut Encoded,
+) -> Result<(), ExportError> {
+    out.layouts.clear();
+    out.vertex_bytes.clear();
+    out.index_bytes.clear();
+    if !checked {
+        check_finite("glTF writer", b)?;
+    }
+    let classes = building_groups(b, detail);
+    // Positions in glTF's frame, reused from primitive to primitive.
+    let mut gltf_positions: Vec<[f32; 3]> = Vec::new();
 
     // Binary layout of one building: one vertex view (per primitive: positions, then
     // normals) and one index view (per primitive: indices padded to 4 bytes).
@@ -178,14 +190,17 @@ pub(super) fn encode(
             };
             let count = u32::try_from(m.positions.len()).map_err(|_| too_big())?;
             let idx_count = u32::try_from(m.indices.len()).map_err(|_| too_big())?;
+            gltf_positions.clear();
+            gltf_positions.extend(m.positions.iter().map(|p| to_gltf(*p)));
             let pos_offset = vertex_bytes.len() as u64;
-            for p in &m.positions {
+            for p in &gltf_positions {
                 p.iter()
                     .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
             }
             let nrm_offset = vertex_bytes.len() as u64;
             for n in &m.normals {
-                n.iter()
+                to_gltf(*n)
+                    .iter()
                     .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
             }
             let idx_offset = index_bytes.len() as u64;
@@ -204,7 +219,7 @@ pub(super) fn encode(
             while index_bytes.len() % 4 != 0 {
                 index_bytes.push(0);
             }
-            let (min, max) = m.bounds();
+            let (min, max) = bounds(&gltf_positions);
             prims.push(PrimLayout {
                 class: *class,
                 color: g.color,

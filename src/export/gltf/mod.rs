@@ -62,9 +62,14 @@ use crate::export::{BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 use json::{AssetExtras, Document};
-use materials::Finish;
 use mesh::{encode, Encoded};
 use spool::Spool;
+
+// What the 3D Tiles writer (`export::tiles3d`) shares: the faces of a building grouped and
+// triangulated, and how a colour and finish become a PBR material.
+pub(crate) use group::{group, Group};
+pub(crate) use materials::{finish_params, srgb_to_linear, Finish};
+pub(crate) use mesh::building_groups;
 
 mod contact;
 mod group;
@@ -123,7 +128,7 @@ pub const GLASS_METALLIC: f32 = 0.2;
 
 /// Semantic class of a group of surfaces: one child node per class and building.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-enum SurfaceClass {
+pub(crate) enum SurfaceClass {
     Walls,
     Roof,
     Ground,
@@ -154,7 +159,8 @@ impl SurfaceClass {
         SurfaceClass::Slabs,
     ];
 
-    fn name(self) -> &'static str {
+    /// The class's node name (`walls`, `interior walls`, ...).
+    pub(crate) fn name(self) -> &'static str {
         match self {
             SurfaceClass::Walls => "walls",
             SurfaceClass::Roof => "roof",

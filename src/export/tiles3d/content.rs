@@ -1,0 +1,336 @@
+//! The batched primitives of a content: every building's triangles, one primitive per kind of
+//! material (matte or glass, opaque or blended) with the colour per vertex (`COLOR_0`) and the
+//! building's feature id per vertex (`_FEATURE_ID_0`), so a tile of thousands of buildings is
+//! drawn in at most four draw calls.
+//!
+//! A building is encoded on its own (in parallel): its faces grouped and triangulated as the
+//! glTF writer does, each vertex mapped to ECEF by the building's affine map, kept as an f32
+//! offset from the building's anchor. The content's frame is only known at the end, when the
+//! offsets are put in it ([`Primitive::positions_in`]).
+
+use glam::DVec3;
+use serde_json::{json, Value};
+
+use crate::color::Color;
+use crate::export::gltf::{finish_params, srgb_to_linear, Finish, Group, SurfaceClass};
+
+use super::frame::{BuildingMap, EnuFrame};
+use super::glb::Bin;
+
+/// glTF component types and buffer view targets.
+const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
+const UNSIGNED_INT: u32 = 5125;
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+
+/// The kinds of material of a content, in primitive order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kind {
+    Matte,
+    Glass,
+    MatteBlend,
+    GlassBlend,
+}
+
+impl Kind {
+    pub(crate) const ALL: [Kind; 4] =
+        [Kind::Matte, Kind::Glass, Kind::MatteBlend, Kind::GlassBlend];
+
+    fn of(finish: Finish, alpha: f32) -> Kind {
+        match (finish, alpha < 1.0) {
+            (Finish::Matte, false) => Kind::Matte,
+            (Finish::Glass, false) => Kind::Glass,
+            (Finish::Matte, true) => Kind::MatteBlend,
+            (Finish::Glass, true) => Kind::GlassBlend,
+        }
+    }
+
+    fn index(self) -> usize {
+        self as usize
+    }
+
+    fn finish(self) -> Finish {
+        match self {
+            Kind::Matte | Kind::MatteBlend => Finish::Matte,
+            Kind::Glass | Kind::GlassBlend => Finish::Glass,
+        }
+    }
+
+    fn blend(self) -> bool {
+        matches!(self, Kind::MatteBlend | Kind::GlassBlend)
+    }
+
+    /// The material: white, so the vertex colours show as they are; the finish's metallic and
+    /// roughness factors.
+    fn material(self) -> Value {
+        let (_, metallic, roughness) = finish_params(Color::WHITE, self.finish());
+        let name = match self {
+            Kind::Matte => "matte",
+            Kind::Glass => "glass",
+            Kind::MatteBlend => "matte translucent",
+            Kind::GlassBlend => "glass translucent",
+        };
+        let mut m = json!({
+            "name": name,
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                "metallicFactor": short(metallic),
+                "roughnessFactor": short(roughness)
+            }
+        });
+        if self.blend() {
+            m["alphaMode"] = json!("BLEND");
+        }
+        m
+    }
+}
+
+/// The triangles of one kind of material, from one building or a whole content.
+#[derive(Default)]
+pub(crate) struct Primitive {
+    /// ECEF offsets from the anchor of the vertex's building.
+    offsets: Vec<[f32; 3]>,
+    /// Unit ECEF normals.
+    normals: Vec<[f32; 3]>,
+    /// Linear RGBA, normalised u16.
+    colors: Vec<[u16; 4]>,
+    /// The vertex's building: its feature id (empty in a building's own primitives).
+    features: Vec<u32>,
+    indices: Vec<u32>,
+}
+
+impl Primitive {
+    fn vertices(&self) -> usize {
+        self.offsets.len()
+    }
+
+    /// Triangles so far.
+    pub(crate) fn triangles(&self) -> u64 {
+        self.indices.len() as u64 / 3
+    }
+
+    /// Whether `b`'s vertices can be appended (the content stays under 2^32 vertices).
+    pub(crate) fn fits(&self, b: &Primitive) -> bool {
+        u32::try_from(self.vertices() + b.vertices()).is_ok()
+    }
+
+    /// Appends a building's primitive, its vertices tagged with feature id `feature`; call
+    /// [`Primitive::fits`] first.
+    pub(crate) fn append(&mut self, b: &Primitive, feature: u32) {
+        let base = self.vertices() as u32;
+        self.offsets.extend_from_slice(&b.offsets);
+        self.normals.extend_from_slice(&b.normals);
+        self.colors.extend_from_slice(&b.colors);
+        self.features
+            .extend(std::iter::repeat_n(feature, b.vertices()));
+        self.indices.extend(b.indices.iter().map(|i| base + i));
+    }
+}
+
+/// One building's primitives (by [`Kind`]) and where its offsets start from.
+pub(crate) struct EncodedBuilding {
+    pub(crate) anchor_ecef: DVec3,
+    pub(crate) prims: [Primitive; 4],
+}
+
+/// Encodes the faces `classes` of a building (grouped by [`crate::export::gltf::building_groups`]
+/// or Blocks) through its map `map`.
+pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) -> EncodedBuilding {
+    let mut prims: [Primitive; 4] = Default::default();
+    for g in classes.iter().flat_map(|(_, gs)| gs) {
+        let (c, _, _) = finish_params(g.color, g.finish);
+        let kind = Kind::of(g.finish, c.a);
+        let p = &mut prims[kind.index()];
+        let Ok(base) = u32::try_from(p.vertices()) else {
+            continue;
+        };
+        let unit = |v: f32| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
+        let color = [
+            unit(srgb_to_linear(c.r)),
+            unit(srgb_to_linear(c.g)),
+            unit(srgb_to_linear(c.b)),
+            unit(c.a),
+        ];
+        let m = &g.mesh;
+        p.offsets.extend(
+            m.positions
+                .iter()
+                .map(|&q| map.offset(q).as_vec3().to_array()),
+        );
+        p.normals.extend(
+            m.normals
+                .iter()
+                .map(|&n| map.normal(n).as_vec3().to_array()),
+        );
+        p.colors
+            .extend(std::iter::repeat_n(color, m.positions.len()));
+        p.indices.extend(m.indices.iter().map(|i| base + i));
+    }
+    EncodedBuilding {
+        anchor_ecef: map.anchor_ecef,
+        prims,
+    }
+}
+
+/// A glTF number for an f32: its shortest decimal, which reads back as the same f32 (rather than
+/// the f64 widening's long tail).
+pub(crate) fn short(v: f32) -> f64 {
+    format!("{v}").parse().unwrap_or(0.0)
+}
+
+/// The batched content in its frame: per [`Kind`] the primitive, and the bounds of all
+/// positions (east, north, up).
+pub(crate) struct Laid {
+    pub(crate) primitives: Vec<Value>,
+    pub(crate) materials: Vec<Value>,
+    pub(crate) accessors: Vec<Value>,
+    pub(crate) lo: DVec3,
+    pub(crate) hi: DVec3,
+}
+
+/// Puts the content's primitives in `frame` (glTF's y-up axes: x east, y up, z south) and lays
+/// out their data in `bin`. `anchors` are the buildings' anchors in ECEF, by feature id.
+pub(crate) fn lay_out(
+    prims: &[Primitive; 4],
+    anchors: &[DVec3],
+    frame: &EnuFrame,
+    bin: &mut Bin,
+) -> Laid {
+    let mut laid = Laid {
+        primitives: Vec::new(),
+        materials: Vec::new(),
+        accessors: Vec::new(),
+        lo: DVec3::INFINITY,
+        hi: DVec3::NEG_INFINITY,
+    };
+    // Each anchor in the frame, once.
+    let anchors: Vec<DVec3> = anchors.iter().map(|&a| frame.to_enu(a)).collect();
+    for kind in Kind::ALL {
+        let p = &prims[kind.index()];
+        if p.indices.is_empty() {
+            continue;
+        }
+        let mut positions: Vec<[f32; 3]> = Vec::with_capacity(p.vertices());
+        for (o, &f) in p.offsets.iter().zip(&p.features) {
+            let a = anchors.get(f as usize).copied().unwrap_or_default();
+            let enu = a + frame.rotate_in(glam::Vec3::from(*o).as_dvec3());
+            positions.push([enu.x as f32, enu.z as f32, -enu.y as f32]);
+        }
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for q in &positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+        // Back to east, north, up for the bounding volumes.
+        laid.lo = laid
+            .lo
+            .min(DVec3::new(lo[0].into(), (-hi[2]).into(), lo[1].into()));
+        laid.hi = laid
+            .hi
+            .max(DVec3::new(hi[0].into(), (-lo[2]).into(), hi[1].into()));
+        let normals: Vec<[f32; 3]> = p
+            .normals
+            .iter()
+            .map(|n| {
+                let e = frame
+                    .rotate_in(glam::Vec3::from(*n).as_dvec3())
+                    .normalize_or_zero();
+                [e.x as f32, e.z as f32, -e.y as f32]
+            })
+            .collect();
+        let features: Vec<f32> = p.features.iter().map(|&f| f as f32).collect();
+        let count = p.vertices();
+        let mut accessor = |laid: &mut Laid, data: &[u8], target: u32, extra: Value| {
+            let view = bin.view(data, Some(target));
+            let mut a = json!({"bufferView": view, "count": count});
+            if let (Value::Object(a), Value::Object(extra)) = (&mut a, extra) {
+                a.extend(extra);
+            }
+            laid.accessors.push(a);
+            laid.accessors.len() - 1
+        };
+        let bytes_f32 = |v: &[[f32; 3]]| -> Vec<u8> {
+            v.iter().flatten().flat_map(|c| c.to_le_bytes()).collect()
+        };
+        let position = accessor(
+            &mut laid,
+            &bytes_f32(&positions),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "type": "VEC3",
+                   "min": lo.map(short), "max": hi.map(short)}),
+        );
+        let normal = accessor(
+            &mut laid,
+            &bytes_f32(&normals),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "type": "VEC3"}),
+        );
+        let colors: Vec<u8> = p
+            .colors
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let color = accessor(
+            &mut laid,
+            &colors,
+            ARRAY_BUFFER,
+            json!({"componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC4"}),
+        );
+        let feature_bytes: Vec<u8> = features.iter().flat_map(|c| c.to_le_bytes()).collect();
+        let feature = accessor(
+            &mut laid,
+            &feature_bytes,
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "type": "SCALAR"}),
+        );
+        // 65535 is the primitive-restart value of u16 indices: never an index.
+        let (index_bytes, index_type): (Vec<u8>, u32) = if count <= 65535 {
+            let b = p
+                .indices
+                .iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect();
+            (b, UNSIGNED_SHORT)
+        } else {
+            let b = p.indices.iter().flat_map(|&i| i.to_le_bytes()).collect();
+            (b, UNSIGNED_INT)
+        };
+        let view = bin.view(&index_bytes, Some(ELEMENT_ARRAY_BUFFER));
+        laid.accessors.push(json!({
+            "bufferView": view,
+            "componentType": index_type,
+            "count": p.indices.len(),
+            "type": "SCALAR"
+        }));
+        let indices = laid.accessors.len() - 1;
+        let mut ids: Vec<u32> = p.features.clone();
+        ids.sort_unstable();
+        ids.dedup();
+        laid.materials.push(kind.material());
+        laid.primitives.push(json!({
+            "attributes": {
+                "POSITION": position,
+                "NORMAL": normal,
+                "COLOR_0": color,
+                "_FEATURE_ID_0": feature
+            },
+            "indices": indices,
+            "material": laid.materials.len() - 1,
+            "mode": 4,
+            "extensions": {
+                "EXT_mesh_features": {
+                    "featureIds": [{
+                        "featureCount": ids.len(),
+                        "attribute": 0,
+                        "propertyTable": 0
+                    }]
+                }
+            }
+        }));
+    }
+    laid
+}

@@ -1,0 +1,79 @@
+//! The GLB container of a content: the binary buffer built view by view, and the framing
+//! (header, JSON chunk, BIN chunk).
+
+use std::io::Write;
+
+use serde_json::{json, Value};
+
+use crate::export::ExportError;
+
+/// GLB magic `glTF`, chunk types `JSON` and `BIN\0`, little-endian.
+const GLB_MAGIC: u32 = 0x4654_6C67;
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
+
+/// Every buffer view starts at a multiple of this: 4 as glTF asks of vertex data, 8 as
+/// `EXT_structural_metadata` asks of property columns (FLOAT64).
+const ALIGN: usize = 8;
+
+/// The binary chunk and its buffer views.
+#[derive(Default)]
+pub(crate) struct Bin {
+    pub(crate) bytes: Vec<u8>,
+    pub(crate) views: Vec<Value>,
+}
+
+impl Bin {
+    /// Appends `data` as a new buffer view (with `target`, an `ARRAY_BUFFER` or
+    /// `ELEMENT_ARRAY_BUFFER`, for vertex and index data); returns its index.
+    pub(crate) fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+        while self.bytes.len() % ALIGN != 0 {
+            self.bytes.push(0);
+        }
+        let mut v = json!({
+            "buffer": 0,
+            "byteOffset": self.bytes.len(),
+            "byteLength": data.len(),
+        });
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        self.bytes.extend_from_slice(data);
+        self.views.push(v);
+        self.views.len() - 1
+    }
+}
+
+/// Writes the GLB of `doc` and `bin` to `out`; returns its length. Refuses a GLB over the
+/// format's 4 GiB (its length field is a u32).
+pub(crate) fn write_glb(out: &mut impl Write, doc: &Value, bin: &[u8]) -> Result<u64, ExportError> {
+    let mut json = serde_json::to_vec(doc).map_err(|e| ExportError::Invalid(e.to_string()))?;
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let bin_padded = bin.len().next_multiple_of(4);
+    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin_padded };
+    let total = 12 + 8 + json.len() as u64 + bin_chunk as u64;
+    let too_big = || {
+        ExportError::Invalid(format!(
+            "3D Tiles writer: the tile's GLB would be {total} bytes, over glTF's 4 GiB: use smaller tiles (--tile)"
+        ))
+    };
+    let total32 = u32::try_from(total).map_err(|_| too_big())?;
+    let json_len = u32::try_from(json.len()).map_err(|_| too_big())?;
+    let mut head = Vec::with_capacity(20);
+    for v in [GLB_MAGIC, 2, total32, json_len, CHUNK_JSON] {
+        head.extend_from_slice(&v.to_le_bytes());
+    }
+    out.write_all(&head)?;
+    out.write_all(&json)?;
+    if !bin.is_empty() {
+        let len = u32::try_from(bin_padded).map_err(|_| too_big())?;
+        out.write_all(&len.to_le_bytes())?;
+        out.write_all(&CHUNK_BIN.to_le_bytes())?;
+        out.write_all(bin)?;
+        out.write_all(&[0u8; 3][..bin_padded - bin.len()])?;
+    }
+    out.flush()?;
+    Ok(total)
+}

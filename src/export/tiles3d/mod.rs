@@ -1,0 +1,387 @@
+//! OGC 3D Tiles 1.1: one GLB content per tile of a run ([`Tiles3dWriter`]) and the
+//! `tileset.json` over them ([`tileset_json`]).
+//!
+//! A run writes two contents per tile: [`Detail::Full`], the buildings as derived (the glTF
+//! writer's faces: `export::gltf::building_groups`), and [`Detail::Blocks`], a coarse LOD1 of
+//! them for the upper levels of the tree (`blocks`). The tileset makes each tile a node whose
+//! content is its Blocks, refined (REPLACE) by one child whose content is its Full, under a
+//! quadtree over the tile grid.
+//!
+//! A content is a glTF 2.0 binary in the tile's east-north-up frame (glTF's y-up axes: x east,
+//! y up, z south, which 3D Tiles turns to z-up), placed on the earth by the tile's `transform`
+//! (ENU to ECEF, EPSG:4978). The frame's origin is the centre of the plan bounding box of the
+//! tile's footprints (all parts), at the lowest base: the same for both details of a tile, so
+//! the Full child needs no transform of its own. Model points go to ECEF through the output CRS
+//! (`frame`: the model z plus the origin's is taken as the ellipsoidal height).
+//!
+//! Every building is a feature: all its vertices carry its row in the property table
+//! (`EXT_mesh_features`, `_FEATURE_ID_0`), whose columns (`EXT_structural_metadata`,
+//! `metadata`) are its source id, name, zone, appearance, height, base height, storeys and roof
+//! shape. The buildings' triangles are batched into one primitive per kind of material (matte,
+//! glass, each opaque or blended), coloured per vertex (`content`), so a tile is a handful of
+//! draw calls whatever its number of colours.
+//!
+//! The writer keeps the tile in memory (about 45 bytes a vertex, twice that while the GLB is
+//! assembled: a LOD3 tile of 150 m in Monaco-Ville is 50,000 triangles, 4 MB of GLB) and writes
+//! the GLB in [`BuildingWriter::finish`], when the frame is known. It then gives the content's facts ([`ContentInfo`]: placement, bounding
+//! volumes, counts) through the [`ContentInfoHandle`] it was made with, for the tileset. A tile
+//! with nothing to draw (no building, or no triangle) is a valid GLB of an empty scene, and its
+//! [`ContentInfo::placement`] is `None`: the tileset then references no content for it.
+//! Output is a pure function of the context and the buildings.
+
+mod blocks;
+mod content;
+mod frame;
+mod glb;
+mod metadata;
+pub mod tileset;
+
+#[cfg(test)]
+mod tests;
+
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use crate::export::gltf::building_groups;
+use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
+use crate::model::{Building, Lod};
+
+use content::{EncodedBuilding, Primitive};
+use frame::{BuildingMap, EnuFrame, ModelFrame};
+
+pub use tileset::{tileset_json, write_tileset, TileContent, TileEntry};
+
+/// Which geometry a content holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Detail {
+    /// The buildings as derived, at the run's LOD.
+    Full,
+    /// Every part's footprint extruded from its base to its top: a coarse LOD1 for the upper
+    /// levels of the tileset.
+    Blocks,
+}
+
+/// What the tileset needs to know of a content, without opening it: given by the writer after
+/// [`BuildingWriter::finish`]. Serialisable, so that a shard's manifest can carry it to the
+/// merge step.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ContentInfo {
+    /// Which geometry the content holds.
+    pub detail: Detail,
+    /// Buildings written (the property table's rows).
+    pub buildings: usize,
+    /// Triangles drawn.
+    pub triangles: u64,
+    /// Length of the GLB in bytes.
+    pub bytes: u64,
+    /// The geometric error of this tile's Blocks content (metres): how far the blocks stray
+    /// from the buildings (the highest roof above its eaves, the facade relief at LOD3 and
+    /// above), at least 0.5 m. The same in both contents of a tile.
+    pub blocks_error: f64,
+    /// Where the content lies; `None` when it draws nothing.
+    pub placement: Option<Placement>,
+}
+
+/// Where a content lies on the earth.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Placement {
+    /// The content's frame (east-north-up at its origin) to ECEF: a column-major 4×4 matrix, the
+    /// 3D Tiles tile `transform`.
+    pub transform: [f64; 16],
+    /// The WGS84 origin of that frame: longitude and latitude in degrees, ellipsoidal height.
+    pub origin: [f64; 3],
+    /// 3D Tiles `region` holding the content: west, south, east, north (radians), lowest and
+    /// highest ellipsoidal height (metres), with a 5 cm margin.
+    pub region: [f64; 6],
+    /// 3D Tiles `box` holding the content, in its frame (apply `transform`): centre, then the
+    /// east, north and up half-axes; the exact bounds of its positions.
+    #[serde(rename = "box")]
+    pub bounding_box: [f64; 12],
+}
+
+/// Where a writer leaves its [`ContentInfo`]: a shared slot, empty until `finish` succeeds.
+#[derive(Clone, Debug, Default)]
+pub struct ContentInfoHandle(Arc<Mutex<Option<ContentInfo>>>);
+
+impl ContentInfoHandle {
+    /// The content's facts, once its writer has finished.
+    pub fn get(&self) -> Option<ContentInfo> {
+        self.0
+            .lock()
+            .map(|g| g.clone())
+            .unwrap_or_else(|p| p.into_inner().clone())
+    }
+
+    fn set(&self, info: ContentInfo) {
+        match self.0.lock() {
+            Ok(mut g) => *g = Some(info),
+            Err(p) => *p.into_inner() = Some(info),
+        }
+    }
+}
+
+/// Where the writer is in its `begin` / `write` / `finish` life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    New,
+    Open,
+    Finished,
+}
+
+/// The most buildings of one content: feature ids are f32 vertex attributes, exact to 2^24.
+const MAX_FEATURES: usize = 1 << 24;
+
+/// Buildings encoded in parallel at a time by `write_all`: a bound on the encoded buildings
+/// held besides the tile.
+const PARALLEL_CHUNK: usize = 256;
+
+/// Writes one 3D Tiles content (a GLB) of one tile (see the module documentation).
+pub struct Tiles3dWriter<W: Write + Send> {
+    out: W,
+    detail: Detail,
+    state: State,
+    model: Option<ModelFrame>,
+    /// The run's origin height: a model z plus it is an ellipsoidal height.
+    origin_z: f64,
+    /// LOD3 and above: openings and balconies are drawn.
+    detailed: bool,
+    prims: [Primitive; 4],
+    /// Each building's anchor in ECEF, by feature id.
+    anchors: Vec<DVec3>,
+    rows: metadata::Rows,
+    /// The plan bounding box of every part's footprint and the lowest part base (model frame).
+    plan: Option<(DVec2, DVec2, f64)>,
+    blocks_error: f64,
+    info: ContentInfoHandle,
+}
+
+impl<W: Write + Send> Tiles3dWriter<W> {
+    /// A writer of `detail` to `out` (nothing is written before `finish`), and the handle that
+    /// gives its [`ContentInfo`] after `finish`.
+    pub fn new(out: W, detail: Detail) -> (Tiles3dWriter<W>, ContentInfoHandle) {
+        let info = ContentInfoHandle::default();
+        let w = Tiles3dWriter {
+            out,
+            detail,
+            state: State::New,
+            model: None,
+            origin_z: 0.0,
+            detailed: false,
+            prims: Default::default(),
+            anchors: Vec::new(),
+            rows: metadata::Rows::default(),
+            plan: None,
+            blocks_error: 0.0,
+            info: info.clone(),
+        };
+        (w, info)
+    }
+
+    /// Gives back the output (complete after a successful `finish`).
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+
+    fn open(&self, what: &str) -> Result<ModelFrame, ExportError> {
+        match (self.state, self.model) {
+            (State::Open, Some(m)) => Ok(m),
+            (State::New, _) => Err(ExportError::Invalid(format!(
+                "3D Tiles writer: {what} called before begin"
+            ))),
+            _ => Err(ExportError::Invalid(format!(
+                "3D Tiles writer: {what} called after finish"
+            ))),
+        }
+    }
+
+    /// Appends one encoded building.
+    fn add(&mut self, b: &Building, e: EncodedBuilding) -> Result<(), ExportError> {
+        let feature = self.rows.len();
+        if feature >= MAX_FEATURES {
+            return Err(ExportError::Invalid(format!(
+                "3D Tiles writer: more than {MAX_FEATURES} buildings in one tile: use smaller tiles (--tile)"
+            )));
+        }
+        if !self.prims.iter().zip(&e.prims).all(|(all, p)| all.fits(p)) {
+            return Err(ExportError::Invalid(format!(
+                "3D Tiles writer: building {}: the tile passes 2^32 vertices: use smaller tiles (--tile)",
+                b.id
+            )));
+        }
+        for (all, p) in self.prims.iter_mut().zip(&e.prims) {
+            all.append(p, feature as u32);
+        }
+        self.anchors.push(e.anchor_ecef);
+        self.rows.push(b, b.base_z + self.origin_z);
+        for p in &b.parts {
+            let (lo, hi) = footprint_bounds(p);
+            let (plo, phi, base) = self.plan.get_or_insert((lo, hi, p.base_z));
+            *plo = plo.min(lo);
+            *phi = phi.max(hi);
+            *base = base.min(p.base_z);
+        }
+        self.blocks_error = self
+            .blocks_error
+            .max(blocks::blocks_error(b, self.detailed));
+        Ok(())
+    }
+
+    /// Writes the GLB and publishes the content's facts.
+    fn write_content(&mut self) -> Result<(), ExportError> {
+        let triangles: u64 = self.prims.iter().map(Primitive::triangles).sum();
+        let blocks_error = self.blocks_error.max(blocks::MIN_BLOCKS_ERROR);
+        let generator = concat!("citygen ", env!("CARGO_PKG_VERSION"));
+        let (model, plan) = match (self.model, self.plan) {
+            (Some(m), Some(p)) if triangles > 0 => (m, p),
+            _ => {
+                let doc = json!({
+                    "asset": {"version": "2.0", "generator": generator},
+                    "scene": 0,
+                    "scenes": [{}]
+                });
+                let bytes = glb::write_glb(&mut self.out, &doc, &[])?;
+                self.info.set(ContentInfo {
+                    detail: self.detail,
+                    buildings: self.rows.len(),
+                    triangles: 0,
+                    bytes,
+                    blocks_error,
+                    placement: None,
+                });
+                return Ok(());
+            }
+        };
+        let (lo, hi, base) = plan;
+        let centre = ((lo + hi) / 2.0).extend(base);
+        let (lon, lat, h) = model.to_wgs84(centre);
+        let frame = EnuFrame::at(lon, lat, h);
+        let mut bin = glb::Bin::default();
+        let laid = content::lay_out(&self.prims, &self.anchors, &frame, &mut bin);
+        let table = metadata::property_table(&self.rows, &mut bin);
+        let doc = json!({
+            "asset": {"version": "2.0", "generator": generator},
+            "extensionsUsed": ["EXT_mesh_features", "EXT_structural_metadata"],
+            "extensions": {
+                "EXT_structural_metadata": {
+                    "schema": metadata::schema(),
+                    "propertyTables": [table]
+                }
+            },
+            "scene": 0,
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"name": "buildings", "mesh": 0}],
+            "meshes": [{"primitives": laid.primitives}],
+            "materials": laid.materials,
+            "accessors": laid.accessors,
+            "bufferViews": bin.views,
+            "buffers": [{"byteLength": bin.bytes.len()}]
+        });
+        let bytes = glb::write_glb(&mut self.out, &doc, &bin.bytes)?;
+        let (c, half) = ((laid.lo + laid.hi) / 2.0, (laid.hi - laid.lo) / 2.0);
+        self.info.set(ContentInfo {
+            detail: self.detail,
+            buildings: self.rows.len(),
+            triangles,
+            bytes,
+            blocks_error,
+            placement: Some(Placement {
+                transform: frame.transform(),
+                origin: [lon, lat, h],
+                region: frame::region_of_box(&frame, laid.lo, laid.hi),
+                bounding_box: [
+                    c.x, c.y, c.z, half.x, 0.0, 0.0, 0.0, half.y, 0.0, 0.0, 0.0, half.z,
+                ],
+            }),
+        });
+        Ok(())
+    }
+}
+
+/// The plan bounding box of a part's footprint.
+fn footprint_bounds(p: &crate::model::Part) -> (DVec2, DVec2) {
+    p.footprint
+        .outer
+        .iter()
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), q| {
+            (lo.min(*q), hi.max(*q))
+        })
+}
+
+/// Encodes one building (a pure function of it, run in parallel).
+fn encode(b: &Building, model: &ModelFrame, detail: Detail, detailed: bool) -> EncodedBuilding {
+    let groups = match detail {
+        Detail::Full => building_groups(b, detailed),
+        Detail::Blocks => blocks::block_groups(b),
+    };
+    // The anchor: the middle of the building's plan, at its base.
+    let (lo, hi) = b.parts.iter().map(footprint_bounds).fold(
+        (DVec2::INFINITY, DVec2::NEG_INFINITY),
+        |(lo, hi), (a, c)| (lo.min(a), hi.max(c)),
+    );
+    let anchor = if lo.x <= hi.x && lo.y <= hi.y {
+        ((lo + hi) / 2.0).extend(b.base_z)
+    } else {
+        DVec3::new(0.0, 0.0, b.base_z)
+    };
+    content::encode(&groups, &BuildingMap::at(model, anchor))
+}
+
+impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
+    fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
+        if self.state != State::New {
+            return Err(ExportError::Invalid(
+                "3D Tiles writer: begin called twice".into(),
+            ));
+        }
+        if ctx.crs.is_geographic() {
+            return Err(ExportError::Invalid(
+                "3D Tiles writer: the output CRS must be projected (metres), not EPSG:4326".into(),
+            ));
+        }
+        self.model = Some(ModelFrame::new(ctx));
+        self.origin_z = ctx.origin.z;
+        self.detailed = ctx.lod >= Lod::Lod3;
+        self.state = State::Open;
+        Ok(())
+    }
+
+    fn write(&mut self, building: &Building) -> Result<(), ExportError> {
+        let model = self.open("write")?;
+        check_finite("3D Tiles writer", building)?;
+        let e = encode(building, &model, self.detail, self.detailed);
+        self.add(building, e)
+    }
+
+    /// Encodes the buildings in parallel and appends them in order: the same bytes as `write`
+    /// on each.
+    fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
+        self.write_checked(&Checked::check(buildings))
+    }
+
+    fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
+        let model = self.open("write")?;
+        let (detail, detailed) = (self.detail, self.detailed);
+        for chunk in checked.finite().chunks(PARALLEL_CHUNK) {
+            let encoded: Vec<EncodedBuilding> = chunk
+                .par_iter()
+                .map(|b| encode(b, &model, detail, detailed))
+                .collect();
+            for (b, e) in chunk.iter().zip(encoded) {
+                self.add(b, e)?;
+            }
+        }
+        checked.refused("3D Tiles writer")
+    }
+
+    fn finish(&mut self) -> Result<(), ExportError> {
+        self.open("finish")?;
+        self.state = State::Finished;
+        self.write_content()
+    }
+}
