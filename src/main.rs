@@ -58,7 +58,7 @@ enum Command {
     Selex(SelexCommand),
     /// Put the shards of a tiled run together (`--shard I/N`), after checking that their
     /// manifests add up: one run, every shard, tile and building once, every file as listed.
-    /// Writes the merged report and the region's CityJSONSeq.
+    /// Writes the merged report, the region's CityJSONSeq, its 3D Tiles tileset and a picture.
     Merge(MergeArgs),
 }
 
@@ -75,6 +75,14 @@ struct MergeArgs {
     /// order (the shards must have written --cityjsonseq).
     #[arg(long, value_name = "OUT.city.jsonl")]
     cityjsonseq: Option<PathBuf>,
+    /// Write the region's OGC 3D Tiles tileset.json into this folder, over the shards' contents
+    /// (the shards must have written --tiles3d; URIs relative to the folder).
+    #[arg(long, value_name = "DIR")]
+    tiles3d: Option<PathBuf>,
+    /// Write an overview picture of the region (PNG, rendered in citygen from the 3D Tiles
+    /// contents).
+    #[arg(long, value_name = "OUT.png")]
+    preview: Option<PathBuf>,
     /// Check the files' sizes only, not their SHA-256 (faster on a slow shared disk).
     #[arg(long)]
     no_verify: bool,
@@ -268,7 +276,7 @@ enum RulesCommand {
 #[derive(Args, Debug)]
 #[command(group(ArgGroup::new("input").required(true).args(["osm", "shp"])))]
 #[command(group(ArgGroup::new("style").required(true).args(["kb", "rules"])))]
-#[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf", "cityjson", "cityjsonseq"])))]
+#[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf", "cityjson", "cityjsonseq", "tiles3d", "preview"])))]
 struct RunArgs {
     /// OpenStreetMap extract (.osm.pbf) to read building footprints from.
     #[arg(long, value_name = "FILE.pbf")]
@@ -308,6 +316,13 @@ struct RunArgs {
     /// citygen, no browser needed): one picture for the whole run, even with --tile.
     #[arg(long, value_name = "OUT.png")]
     preview: Option<PathBuf>,
+    /// Write OGC 3D Tiles 1.1 into this folder: tileset.json and per tile two GLB contents in
+    /// the tile's east-north-up frame (content/{tile}.glb as derived, content/{tile}-blocks.glb
+    /// LOD1 blocks for distant views), every building a feature with its id, zone, appearance,
+    /// height and storeys (EXT_mesh_features, EXT_structural_metadata). With --shard,
+    /// `citygen merge --tiles3d` writes the tileset.
+    #[arg(long, value_name = "DIR")]
+    tiles3d: Option<PathBuf>,
     /// Seed of every random choice (appearances, rand() in rules).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -492,6 +507,8 @@ fn merge_command(args: MergeArgs) -> ExitCode {
         dirs: args.dirs,
         report: args.report,
         cityjsonseq: args.cityjsonseq,
+        tiles3d: args.tiles3d,
+        preview: args.preview,
         verify: !args.no_verify,
     };
     match citygen::pipeline::merge::merge(&opts) {
@@ -562,6 +579,7 @@ fn selex_command(cmd: SelexCommand) -> ExitCode {
                 cityjsonseq,
                 report,
                 preview: None,
+                tiles3d: None,
                 dry_run: false,
                 allow_empty: false,
                 manifest: None,
@@ -711,6 +729,7 @@ fn rules_command(cmd: RulesCommand) -> ExitCode {
                     cityjsonseq: None,
                     report,
                     preview: None,
+                    tiles3d: None,
                     dry_run: false,
                     allow_empty: false,
                     manifest: None,
@@ -984,6 +1003,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         cityjsonseq: cli.cityjsonseq.clone(),
         report: cli.report.clone(),
         preview: cli.preview.clone(),
+        tiles3d: cli.tiles3d.clone(),
         seed: cli.seed,
         crs: cli.crs,
         src_crs: cli.src_crs,

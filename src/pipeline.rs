@@ -83,6 +83,10 @@ pub struct Options {
     /// Write an overview picture of the run's buildings here (`--preview`, PNG, rendered by
     /// [`crate::export::preview`]); one picture for the whole run, even with `tile`.
     pub preview: Option<PathBuf>,
+    /// Write OGC 3D Tiles 1.1 into this folder (`--tiles3d`): per tile `content/{suffix}.glb`
+    /// and `content/{suffix}-blocks.glb` (an untiled run: `content/all…`), and `tileset.json`
+    /// (a shard of several leaves the tileset to `citygen merge`).
+    pub tiles3d: Option<PathBuf>,
     /// Seed of every random choice (`--seed`, default 0): the same inputs and seed give
     /// byte-identical outputs, whatever the thread count.
     pub seed: u64,
@@ -219,6 +223,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         cityjsonseq: opts.cityjsonseq.clone(),
         report: opts.report.clone(),
         preview: opts.preview.clone(),
+        tiles3d: opts.tiles3d.clone(),
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
         manifest: None,
@@ -308,11 +313,13 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         None => vec![Batch {
             suffix: None,
             range: 0..site.lots.len(),
+            cell: (0, 0),
         }],
         Some(size) => prepare::group_into_tiles(&mut site, size)
             .into_iter()
             .map(|t| Batch {
                 suffix: Some(t.suffix()),
+                cell: crate::export::tiles3d::TileEntry::cell_of(t.corner, size),
                 range: t.range,
             })
             .collect(),
@@ -806,6 +813,7 @@ pub fn derive_selex_lot(
     let all = [Batch {
         suffix: None,
         range: 0..site.lots.len(),
+        cell: (0, 0),
     }];
     write_batches(
         &site,
@@ -867,6 +875,8 @@ pub struct Targets {
     pub report: Option<PathBuf>,
     /// Write an overview picture (PNG) of the buildings here.
     pub preview: Option<PathBuf>,
+    /// Write OGC 3D Tiles into this folder ([`Options::tiles3d`]).
+    pub tiles3d: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
     pub dry_run: bool,
     /// Publish the outputs even when no building was generated ([`Options::allow_empty`]).
@@ -876,6 +886,14 @@ pub struct Targets {
 }
 
 impl Targets {
+    /// `tileset.json` in the `--tiles3d` folder.
+    fn tileset_path(&self) -> Option<&'static Path> {
+        // Leaked once per run for the check's borrowed list (a few bytes).
+        self.tiles3d
+            .as_ref()
+            .map(|d| &*Box::leak(d.join("tileset.json").into_boxed_path()))
+    }
+
     /// The paths asked for, each with the flag that names it (for [`outputs::check`]).
     fn flagged(&self) -> Vec<(&'static str, &Path)> {
         [
@@ -889,6 +907,7 @@ impl Targets {
         ]
         .into_iter()
         .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+        .chain(self.tileset_path().map(|p| ("--tiles3d", p)))
         .collect()
     }
 }
@@ -906,6 +925,7 @@ pub fn generate_and_write(
     let all = [Batch {
         suffix: None,
         range: 0..site.lots.len(),
+        cell: (0, 0),
     }];
     write_batches(
         site,
@@ -962,6 +982,8 @@ struct Batch {
     /// Inserted before the extension of every output path (`None`: the paths as given).
     suffix: Option<String>,
     range: std::ops::Range<usize>,
+    /// The tile's grid cell (its corner over the tile size; `(0, 0)` untiled), for 3D Tiles.
+    cell: (i64, i64),
 }
 
 /// Writes each batch to its own files. Every file is complete and closed before any is renamed
@@ -999,6 +1021,7 @@ fn write_batches(
             cityjsonseq: path(&targets.cityjsonseq),
             report: None,
             preview: None,
+            tiles3d: targets.tiles3d.clone(),
             dry_run: targets.dry_run,
             allow_empty: targets.allow_empty,
             manifest: None,
@@ -1009,6 +1032,8 @@ fn write_batches(
         };
         let lots = &site.lots[batch.range.clone()];
         let mark = report.entries.len();
+        written.cell = batch.cell;
+        written.content_name = batch.suffix.clone().unwrap_or_else(|| "all".into());
         written.tile = manifest.as_ref().map(|(path, _)| TileLog {
             record: shard::TileRecord {
                 suffix: batch.suffix.clone().unwrap_or_default(),
@@ -1057,6 +1082,9 @@ fn write_batches(
         citygml_over_cap,
         tile: _,
         preview,
+        tiles3d,
+        cell: _,
+        content_name: _,
     } = written;
     if report.generated == 0 && !targets.allow_empty {
         let shown: Vec<String> = report
@@ -1095,6 +1123,7 @@ fn write_batches(
     for w in &warnings {
         report.add(None, Outcome::Note, w.clone());
     }
+    let several = manifest.as_ref().is_some_and(|(_, m)| m.shard.count > 1);
     let manifest_file = match &mut manifest {
         Some((path, m)) => {
             m.report.generated = report.generated;
@@ -1127,12 +1156,18 @@ fn write_batches(
             let png = scene
                 .render(&crate::export::preview::View::default())
                 .to_png();
-            let f = AtomicFile::create(p).map_err(io_err(p))?;
-            let mut w = f.writer().map_err(io_err(p))?;
-            w.write_all(&png).map_err(io_err(p))?;
-            w.flush().map_err(io_err(p))?;
-            drop(w);
-            Some((p, f.close().map_err(io_err(p))?))
+            Some((p, render_bytes(p, &png).map_err(io_err(p))?))
+        }
+        _ => None,
+    };
+    let tileset_file = match &targets.tiles3d {
+        Some(dir) if !several && !targets.dry_run => {
+            let p = dir.join("tileset.json");
+            let text = crate::export::tiles3d::tileset_json(&tiles3d).map_err(out_err(&p))?;
+            Some((
+                p.clone(),
+                render_bytes(&p, text.as_bytes()).map_err(io_err(&p))?,
+            ))
         }
         _ => None,
     };
@@ -1143,6 +1178,10 @@ fn write_batches(
     for (path, file) in pending {
         file.commit().map_err(io_err(&path))?;
         paths.push(path);
+    }
+    if let Some((p, file)) = tileset_file {
+        file.commit().map_err(io_err(&p))?;
+        paths.push(p);
     }
     if let Some((p, file)) = preview_file {
         file.commit().map_err(io_err(p))?;
@@ -1267,6 +1306,12 @@ struct Written {
     tile: Option<TileLog>,
     /// The run's overview picture so far (`--preview`): every tile's buildings.
     preview: Option<crate::export::preview::Scene>,
+    /// The 3D Tiles contents written so far, URIs relative to the `--tiles3d` folder.
+    tiles3d: Vec<crate::export::tiles3d::TileEntry>,
+    /// The cell of the tile being written.
+    cell: (i64, i64),
+    /// The name of its 3D Tiles contents: the tile's suffix, `all` untiled.
+    content_name: String,
 }
 
 /// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the file set,
@@ -1337,6 +1382,18 @@ fn write_lots(
             hash,
         ));
     }
+    let mut contents = Vec::new();
+    if let Some(dir) = &targets.tiles3d {
+        use crate::export::tiles3d::{Detail, Tiles3dWriter};
+        let name = written.content_name.clone();
+        for (detail, sfx) in [(Detail::Full, ""), (Detail::Blocks, "-blocks")] {
+            let p = dir.join("content").join(format!("{name}{sfx}.glb"));
+            let (w, sink, bytes, hash) = open_output(&p, dry, None, hashed)?;
+            let (w, info) = Tiles3dWriter::new(w, detail);
+            contents.push((p.clone(), info));
+            outputs.push((p, Box::new(w), sink, bytes, hash));
+        }
+    }
     for (path, w, ..) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;
     }
@@ -1406,6 +1463,31 @@ fn write_lots(
     written.preview = preview;
     for (path, w, ..) in &mut outputs {
         w.finish().map_err(out_err(path))?;
+    }
+    if let (Some(dir), [(full, full_info), (blocks, blocks_info)]) =
+        (&targets.tiles3d, contents.as_slice())
+    {
+        let content = |p: &Path, info: &crate::export::tiles3d::ContentInfoHandle| {
+            info.get()
+                .map(|info| crate::export::tiles3d::TileContent {
+                    uri: relative_to(p, dir),
+                    info,
+                })
+                .ok_or_else(|| out_err(p)(ExportError::Invalid("no content facts".into())))
+        };
+        let entry = crate::export::tiles3d::TileEntry {
+            cell: written.cell,
+            full: content(full, full_info)?,
+            blocks: content(blocks, blocks_info)?,
+        };
+        if let Some(log) = written.tile.as_mut() {
+            // In the manifest, URIs relative to the manifest's folder.
+            let mut rebased = entry.clone();
+            rebased.full.uri = relative_to(full, &log.dir);
+            rebased.blocks.uri = relative_to(blocks, &log.dir);
+            log.record.tiles3d = serde_json::to_value(&rebased).ok();
+        }
+        written.tiles3d.push(entry);
     }
     written.polygons += polygons;
     if let Some(p) = &targets.citygml {
@@ -1532,6 +1614,16 @@ fn tile_path(p: &Path, suffix: &str) -> PathBuf {
 /// The report as JSON in a closed temporary file beside `path`, ready to be renamed over it.
 fn render_report(path: &Path, report: &Report) -> std::io::Result<PendingFile> {
     render_json(path, report)
+}
+
+/// `bytes` in a closed temporary file beside `path`, ready to be renamed over it.
+pub(crate) fn render_bytes(path: &Path, bytes: &[u8]) -> std::io::Result<PendingFile> {
+    let f = AtomicFile::create(path)?;
+    let mut w = f.writer()?;
+    w.write_all(bytes)?;
+    w.flush()?;
+    drop(w);
+    f.close()
 }
 
 /// `value` as pretty JSON in a closed temporary file beside `path`, ready to be renamed over it.

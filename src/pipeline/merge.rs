@@ -31,6 +31,11 @@ pub struct MergeOptions {
     pub report: Option<PathBuf>,
     /// Write the region's CityJSONSeq here (the shards must have written `--cityjsonseq`).
     pub cityjsonseq: Option<PathBuf>,
+    /// Write the region's 3D Tiles `tileset.json` into this folder, over the shards' contents
+    /// (the shards must have written `--tiles3d`).
+    pub tiles3d: Option<PathBuf>,
+    /// Write an overview picture of the region here (PNG), drawn from the 3D Tiles contents.
+    pub preview: Option<PathBuf>,
     /// Check the files' SHA-256 (on by default; sizes are always checked).
     pub verify: bool,
 }
@@ -80,6 +85,26 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeSummary, RunError> {
     let mut pending: Vec<(PathBuf, PendingFile)> = Vec::new();
     if let Some(p) = &opts.cityjsonseq {
         pending.push((p.clone(), region_seq(p, &shards)?));
+    }
+    let entries = if opts.tiles3d.is_some() || opts.preview.is_some() {
+        tile_entries(&shards)?
+    } else {
+        Vec::new()
+    };
+    if let Some(dir) = &opts.tiles3d {
+        let p = dir.join("tileset.json");
+        let tiles = rebased(&entries, dir);
+        let text = crate::export::tiles3d::tileset_json(&tiles).map_err(|e| RunError::Output {
+            path: p.clone(),
+            source: e,
+        })?;
+        let file = super::render_bytes(&p, text.as_bytes()).map_err(io_err(&p))?;
+        pending.push((p, file));
+    }
+    if let Some(p) = &opts.preview {
+        let png = region_picture(&entries)?;
+        let file = super::render_bytes(p, &png).map_err(io_err(p))?;
+        pending.push((p.clone(), file));
     }
     let report = merged_report(&shards);
     if let Some(p) = &opts.report {
@@ -559,4 +584,115 @@ fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError>
     w.flush().map_err(io_err(target))?;
     drop(w);
     file.close().map_err(io_err(target))
+}
+
+/// The 3D Tiles entries of every tile in grid order, their URIs as absolute paths.
+fn tile_entries(shards: &[&Found]) -> Result<Vec<crate::export::tiles3d::TileEntry>, RunError> {
+    let mut out = Vec::new();
+    for (f, t) in tiles_in_order(shards) {
+        let Some(v) = &t.tiles3d else {
+            return Err(RunError::Usage(format!(
+                "merge --tiles3d/--preview: tile {} of {} has no 3D Tiles contents; run the \
+                 shards with --tiles3d DIR",
+                t.suffix,
+                f.path.display()
+            )));
+        };
+        let mut e: crate::export::tiles3d::TileEntry =
+            serde_json::from_value(v.clone()).map_err(|e| {
+                RunError::Input(format!(
+                    "{}: tile {}: bad 3D Tiles facts: {e}",
+                    f.path.display(),
+                    t.suffix
+                ))
+            })?;
+        for c in [&mut e.full, &mut e.blocks] {
+            c.uri = super::outputs::resolve(&f.dir.join(&c.uri))
+                .display()
+                .to_string();
+        }
+        out.push(e);
+    }
+    Ok(out)
+}
+
+/// The entries with URIs relative to the tileset's folder `dir` (`..` where a content lies
+/// outside it), `/`-separated.
+fn rebased(
+    entries: &[crate::export::tiles3d::TileEntry],
+    dir: &Path,
+) -> Vec<crate::export::tiles3d::TileEntry> {
+    let base = super::outputs::resolve(dir);
+    entries
+        .iter()
+        .map(|e| {
+            let mut e = e.clone();
+            for c in [&mut e.full, &mut e.blocks] {
+                c.uri = relative_uri(Path::new(&c.uri), &base);
+            }
+            e
+        })
+        .collect()
+}
+
+/// `path` relative to the folder `base` (both absolute), `/`-separated.
+fn relative_uri(path: &Path, base: &Path) -> String {
+    let p: Vec<_> = path.components().collect();
+    let b: Vec<_> = base.components().collect();
+    let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut parts: Vec<String> = vec!["..".to_string(); b.len() - common];
+    parts.extend(
+        p[common..]
+            .iter()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+    );
+    parts.join("/")
+}
+
+/// The region drawn from its tiles' contents (the Full ones; the Blocks beyond 20 million
+/// triangles), in an east-north-up frame at the first tile's origin, as a PNG.
+fn region_picture(entries: &[crate::export::tiles3d::TileEntry]) -> Result<Vec<u8>, RunError> {
+    use crate::export::preview::{glb_triangles, Scene, View};
+    let placed: Vec<_> = entries
+        .iter()
+        .filter_map(|e| e.full.info.placement.as_ref().map(|p| (e, p)))
+        .collect();
+    let Some((_, first)) = placed.first() else {
+        return Err(RunError::Input(
+            "merge --preview: the region has no building to draw".into(),
+        ));
+    };
+    let triangles: u64 = placed.iter().map(|(e, _)| e.full.info.triangles).sum();
+    let blocks = triangles > 20_000_000;
+    let [lon, lat, h] = first.origin;
+    let o = crate::crs::wgs84_to_ecef(lon, lat, h);
+    let (sl, cl) = lon.to_radians().sin_cos();
+    let (sp, cp) = lat.to_radians().sin_cos();
+    let east = [-sl, cl, 0.0];
+    let north = [-sp * cl, -sp * sl, cp];
+    let up = [cp * cl, cp * sl, sp];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut scene = Scene::new();
+    for (e, _) in &placed {
+        let content = if blocks { &e.blocks } else { &e.full };
+        let Some(place) = &content.info.placement else {
+            continue;
+        };
+        let m = place.transform;
+        let to_frame = |p: [f64; 3]| {
+            // The tile transform (column-major), then ECEF to the region's frame.
+            let x = [
+                m[0] * p[0] + m[4] * p[1] + m[8] * p[2] + m[12] - o[0],
+                m[1] * p[0] + m[5] * p[1] + m[9] * p[2] + m[13] - o[1],
+                m[2] * p[0] + m[6] * p[1] + m[10] * p[2] + m[14] - o[2],
+            ];
+            [dot(x, east), dot(x, north), dot(x, up)]
+        };
+        let path = Path::new(&content.uri);
+        let bytes = std::fs::read(path).map_err(io_err(path))?;
+        let meshes = glb_triangles(&bytes, &to_frame)
+            .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))?;
+        scene.add_glb_meshes(&meshes);
+    }
+    Ok(scene.render(&View::default()).to_png())
 }

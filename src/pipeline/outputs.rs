@@ -20,6 +20,7 @@ fn extensions(flag: &str) -> &'static [&'static str] {
         "--cityjsonseq" => &["jsonl"],
         "--report" => &["json"],
         "--preview" => &["png"],
+        "--tiles3d" => &["json"],
         _ => &[],
     }
 }

@@ -89,7 +89,8 @@ pub fn glb_triangles(
         if let Some(m) = node.get("mesh") {
             let m = index(m, &format!("node {n}'s mesh"))?;
             for prim in gltf.primitives(m)? {
-                let Some((color, positions, indices)) = gltf.primitive(prim, m)? else {
+                let Some((color, vertex_colors, positions, indices)) = gltf.primitive(prim, m)?
+                else {
                     continue;
                 };
                 vertices = vertices.saturating_add(positions.len());
@@ -103,11 +104,14 @@ pub fn glb_triangles(
                         to_frame([w.x, -w.z, w.y])
                     })
                     .collect();
-                out.push(GlbMesh {
-                    color,
-                    positions,
-                    indices,
-                });
+                match vertex_colors {
+                    None => out.push(GlbMesh {
+                        color,
+                        positions,
+                        indices,
+                    }),
+                    Some(colors) => split_by_color(&positions, &indices, &colors, &mut out),
+                }
             }
         }
         if let Some(children) = node.get("children") {
@@ -218,7 +222,9 @@ struct Gltf<'a> {
 }
 
 /// One primitive read: its colour, positions (glTF space) and triangle indices.
-type Primitive = ([u8; 3], Vec<[f64; 3]>, Vec<u32>);
+/// A primitive's colour (its material's), its vertex colours (`COLOR_0`, sRGB) if any, its
+/// positions and its triangles' indices.
+type Primitive = ([u8; 3], Option<Vec<[u8; 3]>>, Vec<[f64; 3]>, Vec<u32>);
 
 impl<'a> Gltf<'a> {
     /// A top-level array (empty when absent).
@@ -350,7 +356,33 @@ impl<'a> Gltf<'a> {
             Some(v) => self.base_color(index(v, &format!("{what}'s material"))?)?,
             None => [255; 3],
         };
-        Ok(Some((color, positions, indices)))
+        let vertex_colors = match prim.get("attributes").and_then(|a| a.get("COLOR_0")) {
+            None => None,
+            Some(v) => {
+                let acc = self.accessor(index(v, &format!("{what}'s COLOR_0"))?)?;
+                if !matches!(acc.kind, "VEC3" | "VEC4") || acc.count != positions.len() {
+                    return err(format!(
+                        "{what}'s COLOR_0 is not one VEC3 or VEC4 per vertex"
+                    ));
+                }
+                // Vertex colours are linear, times the material's (white here).
+                let tint: [f32; 3] = std::array::from_fn(|k| srgb_to_linear_u8(color[k]));
+                let cols = (0..acc.count)
+                    .map(|i| {
+                        let mut c = [0u8; 3];
+                        for (k, out) in c.iter_mut().enumerate() {
+                            let v = acc.unorm(i, k).ok_or_else(|| {
+                                GlbError(format!("{what}'s COLOR_0 has an unknown component type"))
+                            })?;
+                            *out = linear_to_srgb(v * tint[k]);
+                        }
+                        Ok(c)
+                    })
+                    .collect::<Result<Vec<_>, GlbError>>()?;
+                Some(cols)
+            }
+        };
+        Ok(Some((color, vertex_colors, positions, indices)))
     }
 
     /// Material `i`'s base colour factor as 8-bit sRGB (white without one).
@@ -478,6 +510,25 @@ struct Accessor<'a> {
 }
 
 impl Accessor<'_> {
+    /// Component `k` of element `i` of a colour: `FLOAT`, or normalized unsigned byte or short,
+    /// as 0 to 1; `None` for another component type.
+    fn unorm(&self, i: usize, k: usize) -> Option<f32> {
+        match self.component {
+            FLOAT => Some(self.f32(i, k).clamp(0.0, 1.0)),
+            UNSIGNED_BYTE => {
+                let at = i * self.stride + k;
+                Some(self.bytes.get(at).map_or(0.0, |&b| f32::from(b) / 255.0))
+            }
+            UNSIGNED_SHORT => {
+                let at = i * self.stride + 2 * k;
+                Some(self.bytes.get(at..at + 2).map_or(0.0, |s| {
+                    f32::from(u16::from_le_bytes([s[0], s[1]])) / 65535.0
+                }))
+            }
+            _ => None,
+        }
+    }
+
     /// Component `k` of element `i` as `f32` (a `FLOAT` accessor), 0 if out of range.
     fn f32(&self, i: usize, k: usize) -> f32 {
         let at = i * self.stride + 4 * k;
@@ -503,5 +554,53 @@ impl Accessor<'_> {
                 .map(u32::from_le_bytes),
             _ => None,
         }
+    }
+}
+
+/// An 8-bit sRGB component as linear 0 to 1.
+fn srgb_to_linear_u8(c: u8) -> f32 {
+    let c = f32::from(c) / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A primitive with vertex colours as one mesh per colour (each triangle takes its first
+/// vertex's), each with only the vertices it uses, in first-seen order of the colours.
+fn split_by_color(
+    positions: &[[f64; 3]],
+    indices: &[u32],
+    colors: &[[u8; 3]],
+    out: &mut Vec<GlbMesh>,
+) {
+    let mut groups: Vec<([u8; 3], Vec<u32>)> = Vec::new();
+    let mut slot: std::collections::HashMap<[u8; 3], usize> = Default::default();
+    for t in indices.chunks_exact(3) {
+        let c = colors.get(t[0] as usize).copied().unwrap_or([255; 3]);
+        let g = *slot.entry(c).or_insert_with(|| {
+            groups.push((c, Vec::new()));
+            groups.len() - 1
+        });
+        groups[g].1.extend_from_slice(t);
+    }
+    for (color, idx) in groups {
+        let mut remap: std::collections::HashMap<u32, u32> = Default::default();
+        let mut pos = Vec::new();
+        let indices = idx
+            .iter()
+            .map(|&i| {
+                *remap.entry(i).or_insert_with(|| {
+                    pos.push(positions.get(i as usize).copied().unwrap_or([0.0; 3]));
+                    (pos.len() - 1) as u32
+                })
+            })
+            .collect();
+        out.push(GlbMesh {
+            color,
+            positions: pos,
+            indices,
+        });
     }
 }
