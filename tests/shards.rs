@@ -22,6 +22,8 @@ fn run_in(dir: &Path, extra: &[&str], env: &[(&str, &str)]) -> Output {
     .map(|s| s.to_string())
     .collect();
     args.extend([
+        "--tiles3d".into(),
+        p("3dtiles"),
         "--cityjsonseq".into(),
         p("m.city.jsonl"),
         "--gltf".into(),
@@ -182,9 +184,26 @@ fn three_shards_and_merge_give_the_single_run() {
             &s.join("merged.json").display().to_string(),
             "--cityjsonseq",
             &s.join("region.city.jsonl").display().to_string(),
+            "--tiles3d",
+            &s.join("3dtiles").display().to_string(),
+            "--preview",
+            &s.join("region.png").display().to_string(),
         ],
     );
     ok(&out);
+    // The region's tileset is the single run's, and so are its contents.
+    let tileset = |d: &Path| std::fs::read(d.join("3dtiles/tileset.json")).unwrap();
+    assert!(tileset(s) == tileset(single.path()));
+    assert_eq!(
+        files(&s.join("3dtiles/content")),
+        files(&single.path().join("3dtiles/content"))
+    );
+    let png = std::fs::read(s.join("region.png")).unwrap();
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 50_000,
+        "{} bytes",
+        png.len()
+    );
     let report = |p: PathBuf| -> serde_json::Value {
         serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
     };
