@@ -674,7 +674,7 @@ pub fn learn_kb(
             .collect(),
     };
     inputs.extend(zones.map(|z| ("--zones", z.to_path_buf())));
-    outputs::check(&[("--out", out)], &inputs, true)?;
+    outputs::check(&[("--out", out.to_path_buf())], &inputs, true)?;
     let zones_kb = match zones {
         Some(z) => Some(
             KnowledgeBase::load(z)
@@ -886,16 +886,10 @@ pub struct Targets {
 }
 
 impl Targets {
-    /// `tileset.json` in the `--tiles3d` folder.
-    fn tileset_path(&self) -> Option<&'static Path> {
-        // Leaked once per run for the check's borrowed list (a few bytes).
-        self.tiles3d
-            .as_ref()
-            .map(|d| &*Box::leak(d.join("tileset.json").into_boxed_path()))
-    }
 
-    /// The paths asked for, each with the flag that names it (for [`outputs::check`]).
-    fn flagged(&self) -> Vec<(&'static str, &Path)> {
+    /// The paths asked for, each with the flag that names it (for [`outputs::check`]); for
+    /// `--tiles3d`, its `tileset.json`.
+    fn flagged(&self) -> Vec<(&'static str, PathBuf)> {
         [
             ("--ifc", &self.ifc),
             ("--citygml", &self.citygml),
@@ -906,8 +900,12 @@ impl Targets {
             ("--preview", &self.preview),
         ]
         .into_iter()
-        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
-        .chain(self.tileset_path().map(|p| ("--tiles3d", p)))
+        .filter_map(|(flag, p)| p.clone().map(|p| (flag, p)))
+        .chain(
+            self.tiles3d
+                .as_ref()
+                .map(|d| ("--tiles3d", d.join("tileset.json"))),
+        )
         .collect()
     }
 }

@@ -91,12 +91,12 @@ pub(crate) fn shapefile_parts(shp: &Path) -> Vec<PathBuf> {
 /// Checks the run's outputs (`(flag, path)`) against its inputs (`(flag, path)`): see the
 /// module documentation. `force_extension` accepts any extension.
 pub(crate) fn check(
-    outputs: &[(&'static str, &Path)],
+    outputs: &[(&'static str, PathBuf)],
     inputs: &[(&'static str, PathBuf)],
     force_extension: bool,
 ) -> Result<(), RunError> {
     let usage = |m: String| Err(RunError::Usage(m));
-    for &(flag, path) in outputs {
+    for (flag, path) in outputs.iter().map(|(f, p)| (*f, p.as_path())) {
         let ext = path
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
@@ -134,7 +134,7 @@ pub(crate) fn check(
         .filter(|(_, p)| p.exists())
         .map(|(flag, p)| (*flag, p, resolve(p)))
         .collect();
-    for (i, &(flag, path)) in outputs.iter().enumerate() {
+    for (i, &(flag, ref path)) in outputs.iter().enumerate() {
         for &(in_flag, input, ref at) in &read {
             if *at == resolved[i] {
                 return usage(format!(
@@ -144,7 +144,7 @@ pub(crate) fn check(
                 ));
             }
         }
-        for (j, &(other, other_path)) in outputs.iter().enumerate().skip(i + 1) {
+        for (j, &(other, ref other_path)) in outputs.iter().enumerate().skip(i + 1) {
             if resolved[i] == resolved[j] {
                 return usage(format!(
                     "{flag} {} and {other} {} are the same file ({}): give each output its own path",
@@ -161,6 +161,17 @@ pub(crate) fn check(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`super::check`] on borrowed paths.
+    fn check(
+        outs: &[(&'static str, &Path)],
+        ins: &[(&'static str, PathBuf)],
+        force_extension: bool,
+    ) -> Result<(), RunError> {
+        let owned: Vec<(&'static str, PathBuf)> =
+            outs.iter().map(|(f, p)| (*f, p.to_path_buf())).collect();
+        super::check(&owned, ins, force_extension)
+    }
 
     #[test]
     fn spellings_of_one_file_resolve_alike_existing_or_not() {
