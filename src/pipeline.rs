@@ -886,7 +886,6 @@ pub struct Targets {
 }
 
 impl Targets {
-
     /// The paths asked for, each with the flag that names it (for [`outputs::check`]); for
     /// `--tiles3d`, its `tileset.json`.
     fn flagged(&self) -> Vec<(&'static str, PathBuf)> {
