@@ -352,7 +352,7 @@ fn shard_targets(
         .shard
         .clone()
         .unwrap_or((shard::Shard::ONE, "an unsharded tiled run".into()));
-    if opts.tile.is_none() {
+    if opts.tile.is_none() || (opts.dry_run && opts.shard.is_none()) {
         if opts.shard.is_some() {
             return Err(RunError::Usage(
                 "--shard needs --tile METRES: shards share out the tiles of the run (e.g. --tile 500)"
@@ -360,6 +360,13 @@ fn shard_targets(
             ));
         }
         return Ok((targets, shard));
+    }
+    if opts.dry_run {
+        return Err(RunError::Usage(
+            "--shard with --dry-run: a shard's manifest lists the files it wrote, and a dry run \
+             writes none"
+                .into(),
+        ));
     }
     let first = [
         &targets.report,
@@ -1190,7 +1197,6 @@ fn write_batches(
     // Last: a manifest on disk says that every file it lists is in place.
     if let Some((p, file)) = manifest_file {
         file.commit().map_err(io_err(p))?;
-        paths.push(p.to_path_buf());
     }
     Ok(Summary {
         report,

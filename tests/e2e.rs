@@ -936,13 +936,26 @@ fn tiled_run_puts_every_building_in_exactly_one_tile_with_the_same_bytes() {
 #[test]
 fn dry_run_writes_no_model_file_and_counts_the_bytes_a_real_run_writes() {
     let real = run_all("--shp", CLIFTON, "2", &["--tile", "250"]);
-    let real_bytes: u64 = std::fs::read_dir(real.dir.path())
+    // The model files: not the report, nor the tiled run's manifest (a dry run writes neither
+    // a manifest nor any file it would list).
+    let model_files: Vec<std::fs::DirEntry> = std::fs::read_dir(real.dir.path())
         .unwrap()
         .map(|e| e.unwrap())
-        .filter(|e| e.file_name() != "report.json")
+        .filter(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n != "report.json" && !n.starts_with("citygen-manifest.")
+        })
+        .collect();
+    assert!(real
+        .dir
+        .path()
+        .join("citygen-manifest.0-of-1.json")
+        .exists());
+    let real_bytes: u64 = model_files
+        .iter()
         .map(|e| e.metadata().unwrap().len())
         .sum();
-    let real_files = std::fs::read_dir(real.dir.path()).unwrap().count() - 1;
+    let real_files = model_files.len();
 
     let dir = tempfile::tempdir().unwrap();
     let outs = dir.path().join("not-yet");
