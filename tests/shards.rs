@@ -277,6 +277,18 @@ fn merge_refuses_a_set_that_does_not_add_up_and_names_why() {
     std::fs::write(a.path().join(&tile), bytes).unwrap();
     let e = err(merge(&[a.path()], &[]));
     assert!(e.contains(&tile) && e.contains("SHA-256"), "{e}");
+    // A damaged manifest (its grid gives a tile to a shard that does not exist): refused, no
+    // panic.
+    let e2 = tempfile::tempdir().unwrap();
+    for i in 0..3 {
+        let n = format!("citygen-manifest.{i}-of-3.json");
+        let mut m: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(a.path().join(&n)).unwrap()).unwrap();
+        m["grid"]["tiles"][0]["shard"] = serde_json::json!(99);
+        std::fs::write(e2.path().join(&n), serde_json::to_vec(&m).unwrap()).unwrap();
+    }
+    let e = err(merge(&[e2.path()], &[]));
+    assert!(e.contains("to shard 99") && e.contains("damaged"), "{e}");
     // Sharding needs tiles.
     let glb = d.path().join("x.glb").display().to_string();
     let out = citygen(&[

@@ -199,7 +199,7 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
                     format!(
                         "{} (sha256 {}…)",
                         k.name,
-                        &k.sha256[..k.sha256.len().min(12)]
+                        k.sha256.chars().take(12).collect::<String>()
                     )
                 })
                 .collect::<Vec<_>>()
@@ -253,6 +253,16 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
         }
     }
     let n = a.shard.count;
+    // A manifest is read from disk: a grid naming a shard the run does not have is refused,
+    // not indexed.
+    if let Some(t) = a.grid.tiles.iter().find(|t| t.shard >= n) {
+        return refuse(format!(
+            "{} gives tile {} to shard {}, but the run has {n} shards: the manifest is damaged",
+            first.path.display(),
+            t.suffix,
+            t.shard
+        ));
+    }
     let mut by_index: Vec<Option<&Found>> = vec![None; n];
     for f in found {
         let i = f.manifest.shard.index;
