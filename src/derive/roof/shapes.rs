@@ -619,36 +619,51 @@ impl<'a> RoofLine<'a> {
             return vec![b.extend(0.0), a.extend(0.0)];
         }
         let tol = 1e-6 * len2.sqrt().max(1.0);
-        // The roof at the corners: its boundary vertices there (within the grid's gap, for a
-        // roof built on the footprint before it was put on the grid).
-        let corner = tol.max(crate::model::MIN_VERTEX_GAP);
-        let (mut za, mut zb) = (0.0f64, 0.0f64);
-        // The boundary is sorted by x: only the points within (a little more than) `corner`
-        // of a corner in x can be within `corner` of it.
+        // The roof at the corners: its boundary vertices standing there, within a grid step
+        // (the footprint's corner rounded to the grid: the roof was built on it before); else
+        // those within the grid's vertex gap (a vertex the grid moved farther). Near ones win,
+        // so that a roof vertex a few millimetres from a corner (a gable point just past a
+        // kink of the side) stays a vertex of the line instead of being pulled onto the
+        // corner, which would leave the wall short of the roof.
+        let snap = tol.max(1.0 / crate::model::GRID_STEPS_PER_M);
+        let gap = tol.max(crate::model::MIN_VERTEX_GAP);
+        // The boundary is sorted by x: only the points within (a little more than) `gap` of a
+        // corner in x can be within `gap` of it.
         let near = |c: DVec2| -> &[DVec3] {
             if !self.sorted {
                 return &self.boundary;
             }
-            let m = corner * (1.0 + 1e-6) + 1e-6;
+            let m = gap * (1.0 + 1e-6) + 1e-6;
             let lo = self.boundary.partition_point(|p| p.x < c.x - m);
             let hi = self.boundary.partition_point(|p| p.x <= c.x + m);
             &self.boundary[lo..hi.max(lo)]
         };
-        for p in near(a) {
-            if p.truncate().distance(a) <= corner {
-                za = za.max(p.z);
-            }
-        }
-        for p in near(b) {
-            let g = p.truncate();
-            if g.distance(a) > corner && g.distance(b) <= corner {
-                zb = zb.max(p.z);
-            }
-        }
+        // The highest z within `r` of corner `c` (not within `r` of `other`), if any.
+        let top_at = |c: DVec2, other: Option<DVec2>, r: f64| -> Option<f64> {
+            near(c)
+                .iter()
+                .filter(|p| {
+                    let g = p.truncate();
+                    g.distance(c) <= r && other.is_none_or(|o| g.distance(o) > r)
+                })
+                .map(|p| p.z)
+                .reduce(f64::max)
+        };
+        // Exactly at a corner, only a vertex above the eave counts: the eave's own corner is
+        // always there.
+        let raised = |z: Option<f64>| z.filter(|&z| z > 1e-6);
+        let (za, ca) = match raised(top_at(a, None, snap)) {
+            Some(z) => (z, snap),
+            None => (top_at(a, None, gap).unwrap_or(0.0).max(0.0), gap),
+        };
+        let (zb, cb) = match raised(top_at(b, Some(a), snap)) {
+            Some(z) => (z, snap),
+            None => (top_at(b, Some(a), gap).unwrap_or(0.0).max(0.0), gap),
+        };
         let mut mid: Vec<(f64, DVec3)> = Vec::new();
         for &(p, e) in &self.above {
             let g = p.truncate();
-            if e != (ring, i) || g.distance(a) <= corner || g.distance(b) <= corner {
+            if e != (ring, i) || g.distance(a) <= ca || g.distance(b) <= cb {
                 continue;
             }
             let s = (g - a).dot(d) / len2;

@@ -890,3 +890,39 @@ fn a_square_takes_half_hips_at_two_opposite_ends() {
         );
     }
 }
+
+/// The star ring of `shapes_general`: point i at angle (i + 0.1 + 0.8 j) / n of a turn and
+/// radius r, scaled by `size`.
+fn star(pts: &[(f64, f64)], size: f64) -> Polygon {
+    let n = pts.len();
+    let ring: Vec<DVec2> = pts
+        .iter()
+        .enumerate()
+        .map(|(i, &(j, r))| {
+            let a = (i as f64 + 0.1 + 0.8 * j) / n as f64 * std::f64::consts::TAU;
+            DVec2::new(a.cos(), a.sin()) * r * size
+        })
+        .collect();
+    Polygon::new(ring, vec![])
+}
+
+#[test]
+fn a_small_arc_with_a_spur_closes_its_gabled_roof() {
+    // Found by `shapes_general` in CI (2026-12-04): a 16-sided arc of 0.43 m radius and a
+    // spur of five points, 2.1 m across, gabled at 33°, left a 3 mm triangle of the roof open.
+    let mut pts = vec![(0.0, 0.2); 16];
+    pts.extend([
+        (0.25406973368238495, 0.20936447601288027),
+        (0.6132069981254028, 0.5343493446644739),
+        (0.6306154509226558, 0.46027327809836055),
+        (0.9048405364692078, 0.435278086050924),
+        (0.9967843047503764, 0.22906785220971468),
+        (0.0, 0.2),
+    ]);
+    let p = star(&pts, 2.1381250817159962);
+    for shape in CHECKED {
+        if let Err(e) = check_shape(&p, shape, 33.02319772424959) {
+            panic!("{e}");
+        }
+    }
+}
