@@ -390,6 +390,16 @@ struct RunArgs {
     /// The number of shards for --shard auto (a Kubernetes Indexed Job's completions).
     #[arg(long, value_name = "N", requires = "shard", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     shards: Option<u32>,
+    /// Yesterday's tiled output folder (its citygen-manifest.*.json and tiles; needs --tile):
+    /// every tile whose buildings and their content keys are unchanged is copied from it
+    /// (checked by SHA-256) instead of derived; the report's "changes" lists the buildings
+    /// added, removed, changed and affected, and the tiles reused, rewritten and gone.
+    #[arg(long, value_name = "DIR", requires = "tile")]
+    previous: Option<PathBuf>,
+    /// An OSM change file (osmChange XML, .osc or .osc.gz, e.g. a replication diff) applied on
+    /// top of the --osm extract: the run reads the extract as the change leaves it.
+    #[arg(long, value_name = "FILE.osc[.gz]", requires = "osm")]
+    osc: Option<PathBuf>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -1019,6 +1029,8 @@ fn run_main(cli: RunArgs) -> ExitCode {
         allow_empty: cli.allow_empty,
         infer: cli.infer.0,
         shard,
+        previous: cli.previous.clone(),
+        osc: cli.osc.clone(),
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

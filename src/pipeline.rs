@@ -10,6 +10,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use thiserror::Error;
 
+pub mod incremental;
 pub mod merge;
 mod outputs;
 pub mod shard;
@@ -119,6 +120,13 @@ pub struct Options {
     /// sentence saying where the shard came from. A tiled run without it is shard 0 of 1 and
     /// writes its manifest too.
     pub shard: Option<(shard::Shard, String)>,
+    /// Yesterday's tiled output (`--previous DIR`, needs `tile`): tiles whose lots and content
+    /// keys are unchanged are copied from it instead of derived ([`incremental`]), and the
+    /// report lists the buildings added, removed, changed and affected.
+    pub previous: Option<PathBuf>,
+    /// An OSM change file applied on top of the `--osm` extract (`--osc`, `.osc` or
+    /// `.osc.gz`): the run reads the extract as the change leaves it.
+    pub osc: Option<PathBuf>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -230,8 +238,24 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
     let (targets, shard) = shard_targets(opts, targets)?;
+    let previous = match &opts.previous {
+        None => None,
+        Some(_) if opts.tile.is_none() || targets.manifest.is_none() => {
+            return Err(RunError::Usage(
+                "--previous needs --tile METRES and a model output: it reuses the tiles of a                  tiled run"
+                    .into(),
+            ))
+        }
+        Some(_) if opts.preview.is_some() => {
+            return Err(RunError::Usage(
+                "--previous with --preview: a reused tile is not derived, so this run cannot                  draw it; draw the region with `citygen merge DIR --preview F.png` (from the                  3D Tiles contents, --tiles3d)"
+                    .into(),
+            ))
+        }
+        Some(d) => Some(incremental::load_previous(d).map_err(RunError::Input)?),
+    };
     let mut report = Report::default();
-    let read = read_source(&opts.source, opts.src_crs, &mut report)?;
+    let read = read_source(&opts.source, opts.osc.as_deref(), opts.src_crs, &mut report)?;
     let source_crs = opts.src_crs.or(read.source_crs);
     let source_name = match &opts.source {
         Source::Osm(p) | Source::Shp { path: p, .. } => file_name(p),
@@ -249,6 +273,8 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
     prepare::assign_fronts(&mut site, &read.streets, source_crs);
+    // The lots as read, before anything is lent to them (a tiled run records content keys).
+    let own_keys = opts.tile.map(|_| incremental::own_keys(&site.lots));
     // Before --bbox, so that the neighbours outside the box count; noted for the buildings
     // the run keeps.
     let mut inferred_notes = infer_from_neighbours(&kb, &mut site.lots, opts.infer);
@@ -286,6 +312,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         };
         generator.surroundings = generator.neighbours_of(&site.lots, |i| keep[i]);
     }
+    // Every lot's keys without the run's context (added with the manifest), over every lot:
+    // neighbours outside --bbox count.
+    let lot_keys = own_keys
+        .as_ref()
+        .map(|own| incremental::full_keys(&site.lots, own, opts.lod));
     if let Some(b) = opts.bbox {
         if let Err(why) = prepare::retain_in_bbox(&mut site, b, &mut report) {
             if !opts.allow_empty {
@@ -300,15 +331,52 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             report.add(Some(lot.id), Outcome::Note, note);
         }
     }
+    let mut keyed = Keyed::default();
     let manifest = match (&grid, &targets.manifest) {
         (Some(g), Some(path)) => {
-            let head = g.manifest_head(opts, &shard, &site, &mut report)?;
+            let mut head = g.manifest_head(opts, &shard, &site, &mut report)?;
+            let dir = path
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            let mut outs: Vec<String> = targets
+                .flagged()
+                .into_iter()
+                .map(|(flag, p)| format!("{flag} {}", relative_to(&p, dir)))
+                .collect();
+            outs.sort();
+            let context = incremental::context_key(&head.run, &source_name, &outs);
+            head.context = incremental::key_hex(&context);
+            if let Some(keys) = lot_keys {
+                keyed.keys = incremental::with_context(&context, keys);
+            }
+            if let Some(prev) = &previous {
+                let run_lots: std::collections::BTreeMap<String, (String, String)> = site
+                    .lots
+                    .iter()
+                    .filter_map(|l| {
+                        let k = keyed.keys.get(&l.id)?;
+                        Some((l.id.to_string(), (k.own.clone(), k.key.clone())))
+                    })
+                    .collect();
+                let mut changes = incremental::changes(prev, &run_lots);
+                let here: std::collections::BTreeSet<&str> =
+                    g.tiles.iter().map(|t| t.suffix.as_str()).collect();
+                changes.tiles_removed = prev
+                    .tiles
+                    .keys()
+                    .filter(|s| !here.contains(s.as_str()))
+                    .cloned()
+                    .collect();
+                keyed.changes = Some(changes);
+            }
             let crs = site.crs;
             site.lots.retain(|l| g.is_mine(crs, l));
             Some((path.clone(), head))
         }
         _ => None,
     };
+    keyed.previous = previous;
     let batches: Vec<Batch> = match opts.tile {
         None => vec![Batch {
             suffix: None,
@@ -333,11 +401,31 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             targets: &targets,
         },
         report,
-        manifest,
+        Ledger {
+            manifest,
+            keys: keyed,
+        },
         progress,
     )?;
     summary.elapsed = start.elapsed();
     Ok(summary)
+}
+
+/// What a tiled run records besides its files: its manifest (path and content so far), and
+/// the keys.
+#[derive(Default)]
+struct Ledger {
+    manifest: Option<(PathBuf, shard::Manifest)>,
+    keys: Keyed,
+}
+
+/// The content keys of a tiled run's lots, and yesterday's run with what changed since
+/// (`--previous`).
+#[derive(Default)]
+struct Keyed {
+    keys: std::collections::HashMap<crate::model::SourceId, shard::LotKey>,
+    previous: Option<incremental::Previous>,
+    changes: Option<crate::report::Changes>,
 }
 
 /// The targets of a shard (`--shard`) or of any tiled run: its manifest's path (in the folder
@@ -545,6 +633,8 @@ impl GridPlan {
                 prepared,
                 ..Default::default()
             },
+            context: String::new(),
+            changes: None,
         })
     }
 }
@@ -584,11 +674,17 @@ fn zone_for(
 /// Reads the footprints of the source (with `src_crs` overriding a shapefile's `.prj`).
 fn read_source(
     source: &Source,
+    osc: Option<&Path>,
     src_crs: Option<Crs>,
     report: &mut Report,
 ) -> Result<input::ReadResult, RunError> {
     match source {
-        Source::Osm(p) => input::osm::read_osm(p, report),
+        Source::Osm(p) => input::osm::read_osm_with_changes(p, osc, report),
+        Source::Shp { .. } if osc.is_some() => {
+            return Err(RunError::Usage(
+                "--osc applies an OSM change file to an --osm extract, not to a shapefile".into(),
+            ))
+        }
         Source::Shp {
             path,
             height_field,
@@ -626,7 +722,7 @@ pub fn explain_building(
         )));
     };
     let mut report = Report::default();
-    let read = read_source(source, None, &mut report)?;
+    let read = read_source(source, None, None, &mut report)?;
     let mut site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
     let mut inferred = infer_from_neighbours(kb, &mut site.lots, infer);
     let found = site.lots.iter().find_map(|lot| {
@@ -694,7 +790,7 @@ pub fn learn_kb(
         Source::Osm(p) | Source::Shp { path: p, .. } => p.clone(),
     };
     let mut report = Report::default();
-    let read = read_source(source, None, &mut report)?;
+    let read = read_source(source, None, None, &mut report)?;
     if read.footprints.is_empty() {
         return Err(RunError::Input(format!(
             "{}: no building footprint to learn from",
@@ -835,7 +931,7 @@ pub fn derive_selex_lot(
             targets,
         },
         report,
-        None,
+        Ledger::default(),
         &|_, _| {},
     )
 }
@@ -940,7 +1036,7 @@ pub fn generate_and_write(
             targets,
         },
         report,
-        None,
+        Ledger::default(),
         progress,
     )
 }
@@ -998,12 +1094,17 @@ fn write_batches(
     maker: &Maker<'_>,
     files: &FileSet<'_>,
     mut report: Report,
-    mut manifest: Option<(PathBuf, shard::Manifest)>,
+    ledger: Ledger,
     progress: Progress<'_>,
 ) -> Result<Summary, RunError> {
+    let Ledger {
+        mut manifest,
+        keys: keyed,
+    } = ledger;
     let (source_name, targets) = (files.name, files.targets);
     let start = Instant::now();
     let total = site.lots.len();
+    let mut changes = keyed.changes.clone();
     let mut done = 0usize;
     let mut written = Written {
         preview: targets
@@ -1038,9 +1139,14 @@ fn write_batches(
         let mark = report.entries.len();
         written.cell = batch.cell;
         written.content_name = batch.suffix.clone().unwrap_or_else(|| "all".into());
+        let lot_keys: Vec<shard::LotKey> = lots
+            .iter()
+            .filter_map(|l| keyed.keys.get(&l.id).cloned())
+            .collect();
         written.tile = manifest.as_ref().map(|(path, _)| TileLog {
             record: shard::TileRecord {
                 suffix: batch.suffix.clone().unwrap_or_default(),
+                lots: lot_keys,
                 ..Default::default()
             },
             dir: path
@@ -1049,6 +1155,43 @@ fn write_batches(
                 .unwrap_or(Path::new("."))
                 .to_path_buf(),
         });
+        if let (Some(prev), Some(log)) = (&keyed.previous, written.tile.as_ref()) {
+            match reuse_tile(prev, log, &tile_targets, &written.content_name)? {
+                Some((record, files)) => {
+                    let Some((_, m)) = manifest.as_mut() else {
+                        return Err(RunError::Input("a reused tile without a manifest".into()));
+                    };
+                    report.entries.extend(record.entries.iter().cloned());
+                    report.generated += record.buildings.len();
+                    report.facades.add(&record.facades);
+                    written.polygons += record.polygons;
+                    written.bytes += record.files.iter().map(|f| f.bytes).sum::<u64>();
+                    if let (Some(dir), Some(v)) = (&targets.tiles3d, &record.tiles3d) {
+                        written.tiles3d.push(rebased_entry(v, &log.dir, dir)?);
+                    }
+                    for (path, file) in files {
+                        match file {
+                            Some(f) => written.pending.push((path, f)),
+                            None => written.rendered.push(path),
+                        }
+                    }
+                    m.tiles.push(record);
+                    written.tile = None;
+                    if let Some(c) = changes.as_mut() {
+                        c.tiles_reused += 1;
+                    }
+                    done += lots.len();
+                    progress(done, total);
+                    continue;
+                }
+                None => {
+                    if let Some(c) = changes.as_mut() {
+                        c.tiles_rewritten
+                            .push(batch.suffix.clone().unwrap_or_default());
+                    }
+                }
+            }
+        }
         write_lots(
             site,
             lots,
@@ -1077,6 +1220,10 @@ fn write_batches(
         .iter()
         .filter(|e| e.outcome == Outcome::Repaired)
         .count();
+    if let Some((_, m)) = manifest.as_mut() {
+        m.changes = changes.clone();
+    }
+    report.changes = changes;
     let Written {
         pending,
         rendered: mut paths,
@@ -1449,6 +1596,10 @@ fn write_lots(
                     }
                     polygons += building.polygon_count();
                     report.facades.add(&building.facade);
+                    if let Some(log) = written.tile.as_mut() {
+                        log.record.facades.add(&building.facade);
+                        log.record.polygons += building.polygon_count();
+                    }
                     report.generated += 1;
                     ready.push(building);
                 }
@@ -1531,6 +1682,92 @@ fn write_lots(
         }
     }
     Ok(())
+}
+
+/// The files a tile writes: its model outputs and its 3D Tiles contents.
+fn tile_files(targets: &Targets, content_name: &str) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = [
+        &targets.ifc,
+        &targets.citygml,
+        &targets.gltf,
+        &targets.cityjson,
+        &targets.cityjsonseq,
+    ]
+    .into_iter()
+    .flatten()
+    .cloned()
+    .collect();
+    if let Some(dir) = &targets.tiles3d {
+        for sfx in ["", "-blocks"] {
+            out.push(dir.join("content").join(format!("{content_name}{sfx}.glb")));
+        }
+    }
+    out
+}
+
+/// The previous run's record of the tile `log` is writing, and its files copied (checked) to
+/// this run's targets, when the tile's lots and keys are the same and its files are those
+/// this tile writes ([`incremental::Previous::reusable`]); `None` to derive the tile. A
+/// previous file that is not what its manifest lists is a tile derived again, with a note.
+#[allow(clippy::type_complexity)]
+fn reuse_tile(
+    prev: &incremental::Previous,
+    log: &TileLog,
+    targets: &Targets,
+    content_name: &str,
+) -> Result<Option<(shard::TileRecord, Vec<(PathBuf, Option<PendingFile>)>)>, RunError> {
+    if targets.dry_run {
+        return Ok(None);
+    }
+    let paths = tile_files(targets, content_name);
+    let rel: std::collections::BTreeMap<String, PathBuf> = paths
+        .iter()
+        .map(|p| (relative_to(p, &log.dir), p.clone()))
+        .collect();
+    let names = rel.keys().cloned().collect();
+    let Some((folder, record)) = prev.reusable(&log.record.suffix, &log.record.lots, &names) else {
+        return Ok(None);
+    };
+    let mut files = Vec::with_capacity(record.files.len());
+    for f in &record.files {
+        let Some(dst) = rel.get(&f.path) else {
+            return Ok(None);
+        };
+        let src = folder.join(&f.path);
+        match incremental::copy_checked(&src, dst, f.bytes, &f.sha256) {
+            Ok(p) => files.push((dst.clone(), p)),
+            // Derived again; the temporaries made so far are dropped (removed).
+            Err(_) => return Ok(None),
+        }
+    }
+    // Its paths (the 3D Tiles URIs too) are relative to the manifest's folder, and the same
+    // here: the files land at the same places relative to this run's manifest.
+    let mut record = record.clone();
+    record.lots = log.record.lots.clone();
+    Ok(Some((record, files)))
+}
+
+/// Rebases the `uri`s of a manifest's 3D Tiles facts (`full`, `blocks`) from folder `from` to
+/// folder `to`.
+fn rebase_uris(v: &mut serde_json::Value, from: &Path, to: &Path) {
+    for part in ["full", "blocks"] {
+        if let Some(serde_json::Value::String(u)) = v.get_mut(part).and_then(|c| c.get_mut("uri")) {
+            *u = relative_to(&from.join(&*u), to);
+        }
+    }
+}
+
+/// A manifest's 3D Tiles facts (URIs relative to `manifest_dir`) as a tileset entry with URIs
+/// relative to the `--tiles3d` folder.
+fn rebased_entry(
+    v: &serde_json::Value,
+    manifest_dir: &Path,
+    tiles3d: &Path,
+) -> Result<crate::export::tiles3d::TileEntry, RunError> {
+    let mut v = v.clone();
+    rebase_uris(&mut v, manifest_dir, tiles3d);
+    serde_json::from_value(v)
+        .map_err(|e| RunError::Input(format!("a previous manifest's 3D Tiles facts: {e}")))
 }
 
 /// An open output: target path, format writer, where its bytes go, and their count.

@@ -48,6 +48,35 @@ pub struct Report {
     /// One entry per skipped or repaired record and per note, in the order they were found:
     /// reading the input, loading the knowledge base, preparing, then deriving in lot order.
     pub entries: Vec<Entry>,
+    /// What changed since the run given by `--previous` (absent without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub changes: Option<Changes>,
+}
+
+/// What changed since a previous run (`--previous DIR`), by source id, sorted.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Changes {
+    /// The previous run's folder, as given.
+    pub previous: String,
+    /// Why nothing could be reused, when so (another seed, LOD, knowledge base...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_reused: Option<String>,
+    /// Buildings in this run and not in the previous one.
+    pub added: Vec<String>,
+    /// Buildings in the previous run and not in this one.
+    pub removed: Vec<String>,
+    /// Buildings whose own data changed: geometry, parts or tags as read.
+    pub changed: Vec<String>,
+    /// Buildings unchanged themselves whose output may change through what they take from
+    /// others: a neighbour's values inferred, a street (their front), at LOD3 a neighbour they
+    /// touch; or the run's context (another seed, knowledge base, citygen...).
+    pub affected: Vec<String>,
+    /// Tiles whose files were reused (copied from the previous run, checked by SHA-256).
+    pub tiles_reused: usize,
+    /// Tiles derived and written again, by suffix.
+    pub tiles_rewritten: Vec<String>,
+    /// Tiles of the previous run that this run no longer has, by suffix.
+    pub tiles_removed: Vec<String>,
 }
 
 impl Report {

@@ -498,6 +498,8 @@ fn merged_report(shards: &[&Found]) -> Report {
             .entries
             .extend(f.manifest.report.notes.iter().cloned());
     }
+    // Every shard of an incremental run lists the same changes (the whole region's).
+    report.changes = first.changes.clone();
     report.skipped = report
         .entries
         .iter()

@@ -214,6 +214,14 @@ pub struct Manifest {
     /// The shard's share of the run's report: the counts and the entries of the read and
     /// prepare stages it owns (those of its tiles are in `tiles`).
     pub report: ShardReport,
+    /// The run's context key ([`crate::pipeline::incremental::context_key`]): every lot key
+    /// of the run includes it.
+    #[serde(default)]
+    pub context: String,
+    /// What changed since `--previous` (the whole region's buildings; every shard lists the
+    /// same).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub changes: Option<crate::report::Changes>,
 }
 
 /// What decides a run's outputs, and so must be equal in the manifests of one merge.
@@ -292,6 +300,31 @@ pub struct TileRecord {
     /// The 3D Tiles contents' facts, for the tileset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tiles3d: Option<serde_json::Value>,
+    /// Every lot of the tile, in file order, with its content keys: a later run
+    /// (`--previous`) reuses the tile's files when its lots and keys are the same
+    /// ([`crate::pipeline::incremental`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lots: Vec<LotKey>,
+    /// The facade counts of the tile's buildings (a reused tile adds them to the report).
+    #[serde(default)]
+    pub facades: crate::model::FacadeCounts,
+    /// The polygons of the tile's buildings (for the run's summary).
+    #[serde(default)]
+    pub polygons: usize,
+}
+
+/// One lot's content keys ([`crate::pipeline::incremental`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LotKey {
+    /// Source id (`way/123`).
+    pub id: String,
+    /// The lot as read: geometry, parts and tags (hex, 32 digits). Differs between two runs
+    /// when the building itself was edited.
+    pub own: String,
+    /// Everything that decides the lot's output bytes: `own`, the run's context (seed, LOD,
+    /// knowledge base, CRS, outputs, citygen's output format...), what its neighbours and the
+    /// streets lend it (inferred tags, the front, at LOD3 the neighbours it may touch).
+    pub key: String,
 }
 
 /// One building of a tile.

@@ -1,0 +1,458 @@
+//! Nightly, incremental runs: content keys per building, and `--previous DIR`.
+//!
+//! Every tiled run records in its manifest, for each tile, its lots in file order with two
+//! keys (128-bit, SHA-256 truncated, hex):
+//!
+//! - **own** ([`own_keys`]): the lot as read and prepared, before anything from other lots is
+//!   lent to it: its id, its outline polygons (every coordinate bit for bit, in the run's local
+//!   frame), the drawn part of the outline, its `building:part`s (ids, polygons, tags) and its
+//!   parsed tags. Two runs give a building different own keys exactly when it was edited.
+//! - **key** ([`full_keys`]): what decides the lot's bytes in the outputs: the run's context
+//!   ([`context_key`]: citygen's version and [`OUTPUT_FORMAT`], the input's name, the knowledge
+//!   base's and ruleset's SHA-256, seed, LOD, output CRS and origin, tile size, the options and
+//!   outputs), the own key, the tags as derived (after `--infer` lent it its neighbours'
+//!   values), its front (from the nearest street), and at LOD3 and LOD4 the keys of the lots
+//!   within [`NEIGHBOUR_MARGIN_M`] of it (party walls and what stands in front of a bay are
+//!   read from them). A building's random stream is seeded from the run's seed and its own id
+//!   alone ([`crate::derive::Generator`]), never from its place in the file or its neighbours.
+//!
+//! With `--previous DIR` (yesterday's tiled output, its manifests in DIR: one run's, or the
+//! shards' of a merged run), a tile whose lots and keys are those of a tile of DIR, in the same
+//! order, has the same bytes: its files are copied from DIR (each checked against the size
+//! and SHA-256 the manifest recorded; a file that fails is a tile derived again), its report
+//! entries and manifest record taken over, and it is not derived. Every other tile is derived
+//! and written as usual. [`changes`] compares the two runs' lots: added, removed, changed (own
+//! key), affected (same own key, another key), with the tiles reused, rewritten and gone.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+
+use crate::geometry::Polygon;
+use crate::model::{Lod, SourceId};
+use crate::prepare::Lot;
+use crate::report::Changes;
+
+use super::shard::{self, LotKey, Manifest, TileRecord};
+
+/// The version of what citygen writes for a given lot and context: raised whenever a change to
+/// citygen changes output bytes without changing its version number, so that a `--previous`
+/// run of another build reuses nothing.
+pub const OUTPUT_FORMAT: u32 = 1;
+
+/// How far (metres, in plan) a lot's neighbours may stand and still be read by its derivation
+/// at LOD3 and LOD4 (the surroundings of the run are derived for the lots within this of a
+/// written one).
+pub const NEIGHBOUR_MARGIN_M: f64 = 1.0;
+
+/// A content key: SHA-256 truncated to 128 bits.
+pub type Key = [u8; 16];
+
+fn finish(h: Sha256) -> Key {
+    let d = h.finalize();
+    let mut k = [0u8; 16];
+    k.copy_from_slice(&d[..16]);
+    k
+}
+
+fn put_str(h: &mut Sha256, s: &str) {
+    h.update((s.len() as u64).to_le_bytes());
+    h.update(s.as_bytes());
+}
+
+fn put_polygon(h: &mut Sha256, p: &Polygon) {
+    h.update((p.holes.len() as u64 + 1).to_le_bytes());
+    for ring in std::iter::once(&p.outer).chain(&p.holes) {
+        h.update((ring.len() as u64).to_le_bytes());
+        for q in ring {
+            h.update(q.x.to_bits().to_le_bytes());
+            h.update(q.y.to_bits().to_le_bytes());
+        }
+    }
+}
+
+fn put_polygons(h: &mut Sha256, ps: &[Polygon]) {
+    h.update((ps.len() as u64).to_le_bytes());
+    for p in ps {
+        put_polygon(h, p);
+    }
+}
+
+/// The own key of one lot (see the module documentation).
+pub fn own_key(lot: &Lot) -> Key {
+    let mut h = Sha256::new();
+    put_str(&mut h, "citygen-lot/1");
+    put_str(&mut h, &lot.id.to_string());
+    // Debug of the parsed tags: every field, floats exactly (Rust prints the shortest string
+    // that reads back to the same f64), in declaration order.
+    put_str(&mut h, &format!("{:?}", lot.tags));
+    put_polygons(&mut h, &lot.polygons);
+    put_polygons(&mut h, &lot.drawn_outline);
+    h.update((lot.parts.len() as u64).to_le_bytes());
+    for part in &lot.parts {
+        put_str(&mut h, &part.id.to_string());
+        put_str(&mut h, &format!("{:?}", part.tags));
+        put_polygons(&mut h, &part.polygons);
+    }
+    h.update(lot.lonlat.0.to_bits().to_le_bytes());
+    h.update(lot.lonlat.1.to_bits().to_le_bytes());
+    finish(h)
+}
+
+/// The own keys of `lots` by id, computed in parallel.
+pub fn own_keys(lots: &[Lot]) -> HashMap<SourceId, Key> {
+    lots.par_iter().map(|l| (l.id, own_key(l))).collect()
+}
+
+/// The run's context key from what its manifest records, the input's name (it is written into
+/// the files) and the output paths relative to the manifest's folder (file names are written
+/// into some files, and a tile's files are reused only where they land at the same place).
+pub fn context_key(run: &shard::RunKey, source_name: &str, outputs: &[String]) -> Key {
+    let mut h = Sha256::new();
+    put_str(&mut h, "citygen-context/1");
+    put_str(&mut h, env!("CARGO_PKG_VERSION"));
+    h.update(OUTPUT_FORMAT.to_le_bytes());
+    put_str(&mut h, source_name);
+    for f in [&run.kb, &run.rules] {
+        put_str(&mut h, f.as_ref().map_or("-", |k| k.sha256.as_str()));
+    }
+    h.update(run.seed.to_le_bytes());
+    h.update([run.lod]);
+    put_str(&mut h, &run.crs);
+    h.update(run.origin[0].to_bits().to_le_bytes());
+    h.update(run.origin[1].to_bits().to_le_bytes());
+    h.update(run.tile_size.to_le_bytes());
+    put_str(&mut h, &run.options);
+    for o in run.outputs.iter().chain(outputs) {
+        put_str(&mut h, o);
+    }
+    finish(h)
+}
+
+/// Every lot's own key and its key without the run's context ([`with_context`] adds it), by
+/// id. `own` are [`own_keys`] taken before `--infer` (a lot missing there, which cannot happen,
+/// gets its own key now); `lots` are the lots as they will be derived, every lot of the run
+/// (neighbours outside `--bbox` too).
+pub fn full_keys(
+    lots: &[Lot],
+    own: &HashMap<SourceId, Key>,
+    lod: Lod,
+) -> HashMap<SourceId, (Key, Key)> {
+    // What a lot is as derived at LOD2: its own key, the tags as derived, its front.
+    let base: Vec<(Key, Key)> = lots
+        .par_iter()
+        .map(|l| {
+            let o = own.get(&l.id).copied().unwrap_or_else(|| own_key(l));
+            let mut h = Sha256::new();
+            h.update(o);
+            put_str(&mut h, &format!("{:?}", l.tags));
+            match l.front {
+                Some(f) => {
+                    h.update([1]);
+                    h.update(f.x.to_bits().to_le_bytes());
+                    h.update(f.y.to_bits().to_le_bytes());
+                }
+                None => h.update([0]),
+            }
+            (o, finish(h))
+        })
+        .collect();
+    let near: Vec<Vec<usize>> = if lod >= Lod::Lod3 {
+        neighbours(lots, NEIGHBOUR_MARGIN_M)
+    } else {
+        vec![Vec::new(); lots.len()]
+    };
+    lots.par_iter()
+        .enumerate()
+        .map(|(i, l)| {
+            let mut h = Sha256::new();
+            h.update(base[i].1);
+            // Neighbours by id, so their order in the file does not count.
+            let mut ns: Vec<(String, Key)> = near[i]
+                .iter()
+                .map(|&j| (lots[j].id.to_string(), base[j].1))
+                .collect();
+            ns.sort();
+            h.update((ns.len() as u64).to_le_bytes());
+            for (id, k) in ns {
+                put_str(&mut h, &id);
+                h.update(k);
+            }
+            (l.id, (base[i].0, finish(h)))
+        })
+        .collect()
+}
+
+/// The lots' [`LotKey`]s: the keys of [`full_keys`] with the run's `context` folded in.
+pub fn with_context(
+    context: &Key,
+    keys: HashMap<SourceId, (Key, Key)>,
+) -> HashMap<SourceId, LotKey> {
+    keys.into_par_iter()
+        .map(|(id, (own, partial))| {
+            let mut h = Sha256::new();
+            h.update(context);
+            h.update(partial);
+            let key = finish(h);
+            (
+                id,
+                LotKey {
+                    id: id.to_string(),
+                    own: key_hex(&own),
+                    key: key_hex(&key),
+                },
+            )
+        })
+        .collect()
+}
+
+/// For each lot, the other lots whose bounds (outline and parts) come within `margin` of its
+/// own, in index order.
+fn neighbours(lots: &[Lot], margin: f64) -> Vec<Vec<usize>> {
+    use rstar::{primitives::GeomWithData, primitives::Rectangle, RTree, AABB};
+    let bounds = |l: &Lot| -> Option<([f64; 2], [f64; 2])> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in l
+            .polygons
+            .iter()
+            .chain(l.parts.iter().flat_map(|p| &p.polygons))
+        {
+            let (a, b) = p.bounds();
+            lo = [lo[0].min(a.x), lo[1].min(a.y)];
+            hi = [hi[0].max(b.x), hi[1].max(b.y)];
+        }
+        (lo.iter().chain(&hi).all(|v| v.is_finite())).then_some((lo, hi))
+    };
+    let boxes: Vec<Option<([f64; 2], [f64; 2])>> = lots.iter().map(bounds).collect();
+    let tree = RTree::bulk_load(
+        boxes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, b)| {
+                b.map(|(lo, hi)| GeomWithData::new(Rectangle::from_corners(lo, hi), i))
+            })
+            .collect(),
+    );
+    boxes
+        .par_iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let Some((lo, hi)) = b else {
+                return Vec::new();
+            };
+            let env = AABB::from_corners(
+                [lo[0] - margin, lo[1] - margin],
+                [hi[0] + margin, hi[1] + margin],
+            );
+            let mut found: Vec<usize> = tree
+                .locate_in_envelope_intersecting(env)
+                .map(|g| g.data)
+                .filter(|&j| j != i)
+                .collect();
+            found.sort_unstable();
+            found
+        })
+        .collect()
+}
+
+/// Lower-case hex of a key.
+pub fn key_hex(k: &Key) -> String {
+    shard::hex(k)
+}
+
+/// Yesterday's run, read from its manifests.
+#[derive(Debug, Default)]
+pub struct Previous {
+    /// The folder given.
+    pub dir: PathBuf,
+    /// Its tiles by suffix, each with the folder of its manifest (the files' paths are
+    /// relative to it).
+    pub tiles: BTreeMap<String, (PathBuf, TileRecord)>,
+}
+
+/// Reads the manifests `citygen-manifest.*.json` of `dir`. Errors name the folder or file:
+/// no manifest, one that does not parse or is of another format, or a tile in two of them.
+pub fn load_previous(dir: &Path) -> Result<Previous, String> {
+    let entries = std::fs::read_dir(dir).map_err(|e| {
+        format!(
+            "--previous {}: {e} (give the folder of a tiled run: its manifests and tiles)",
+            dir.display()
+        )
+    })?;
+    let mut names: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("citygen-manifest.") && n.ends_with(".json"))
+        })
+        .collect();
+    names.sort();
+    if names.is_empty() {
+        return Err(format!(
+            "--previous {}: no citygen-manifest.*.json there (a tiled run, --tile with an output, \
+             writes one beside its first output)",
+            dir.display()
+        ));
+    }
+    let mut prev = Previous {
+        dir: dir.to_path_buf(),
+        ..Default::default()
+    };
+    for p in names {
+        let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+        let m: Manifest = serde_json::from_str(&text)
+            .map_err(|e| format!("{}: not a citygen manifest: {e}", p.display()))?;
+        if m.format != shard::MANIFEST_FORMAT {
+            return Err(format!(
+                "{}: manifest format {:?}, this citygen reads {:?}",
+                p.display(),
+                m.format,
+                shard::MANIFEST_FORMAT
+            ));
+        }
+        let folder = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."))
+            .to_path_buf();
+        for t in m.tiles {
+            if let Some((other, _)) = prev.tiles.get(&t.suffix) {
+                if other == &folder {
+                    return Err(format!(
+                        "--previous {}: tile {} is in two manifests (shards of two runs in one \
+                         folder?)",
+                        dir.display(),
+                        t.suffix
+                    ));
+                }
+            }
+            prev.tiles.insert(t.suffix.clone(), (folder.clone(), t));
+        }
+    }
+    Ok(prev)
+}
+
+impl Previous {
+    /// The previous record of tile `suffix` when its lots and keys are `lots`, in order, and it
+    /// wrote the files `files` (paths relative to the manifest's folder), with the folder its
+    /// paths are relative to.
+    pub fn reusable(
+        &self,
+        suffix: &str,
+        lots: &[LotKey],
+        files: &BTreeSet<String>,
+    ) -> Option<&(PathBuf, TileRecord)> {
+        let found = self.tiles.get(suffix)?;
+        let t = &found.1;
+        let same_files =
+            t.files.len() == files.len() && t.files.iter().all(|f| files.contains(&f.path));
+        (!lots.is_empty() && t.lots == lots && same_files).then_some(found)
+    }
+
+    /// Every lot of the previous run: id to (own, key).
+    fn lots(&self) -> BTreeMap<&str, (&str, &str)> {
+        self.tiles
+            .values()
+            .flat_map(|(_, t)| &t.lots)
+            .map(|l| (l.id.as_str(), (l.own.as_str(), l.key.as_str())))
+            .collect()
+    }
+}
+
+/// The lots added, removed, changed and affected between `prev` and this run's `lots` (every
+/// lot of the run, all shards'). The tile lists are filled as the tiles are written.
+pub fn changes(prev: &Previous, lots: &BTreeMap<String, (String, String)>) -> Changes {
+    let before = prev.lots();
+    let mut c = Changes {
+        previous: prev.dir.display().to_string(),
+        ..Default::default()
+    };
+    for (id, (own, key)) in lots {
+        match before.get(id.as_str()) {
+            None => c.added.push(id.clone()),
+            Some((o, _)) if *o != own => c.changed.push(id.clone()),
+            Some((_, k)) if *k != key => c.affected.push(id.clone()),
+            Some(_) => {}
+        }
+    }
+    c.removed = before
+        .keys()
+        .filter(|id| !lots.contains_key(**id))
+        .map(|s| s.to_string())
+        .collect();
+    // Ids sort as strings (`way/10` before `way/9`) in both lists' maps: kept so.
+    c
+}
+
+/// Copies `src` to a temporary beside `dst`, checking that it has `bytes` bytes and SHA-256
+/// `sha256`; returns the closed temporary, to be renamed over `dst` with the run's other
+/// files. `Ok(None)` when `src` is `dst` itself (a run updating its own folder) and checks
+/// out. `Err` says what did not match.
+pub fn copy_checked(
+    src: &Path,
+    dst: &Path,
+    bytes: u64,
+    sha256: &str,
+) -> Result<Option<crate::export::PendingFile>, String> {
+    let same = match (
+        std::fs::canonicalize(src),
+        dst.parent().map(std::fs::canonicalize),
+    ) {
+        (Ok(s), Some(Ok(d))) => dst.file_name().is_some_and(|n| s == d.join(n)),
+        _ => false,
+    };
+    let mut input = std::fs::File::open(src).map_err(|e| format!("{}: {e}", src.display()))?;
+    let mut out = if same {
+        None
+    } else {
+        Some(
+            crate::export::AtomicFile::create(dst)
+                .map_err(|e| format!("{}: {e}", dst.display()))?,
+        )
+    };
+    let mut writer = match &out {
+        Some(f) => Some(f.writer().map_err(|e| format!("{}: {e}", dst.display()))?),
+        None => None,
+    };
+    let mut h = Sha256::new();
+    let mut n = 0u64;
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let k = input
+            .read(&mut buf)
+            .map_err(|e| format!("{}: {e}", src.display()))?;
+        if k == 0 {
+            break;
+        }
+        h.update(&buf[..k]);
+        n += k as u64;
+        if let Some(w) = writer.as_mut() {
+            w.write_all(&buf[..k])
+                .map_err(|e| format!("{}: {e}", dst.display()))?;
+        }
+    }
+    let got = shard::hex(&h.finalize());
+    if n != bytes || got != sha256 {
+        return Err(format!(
+            "{} is not the file its manifest lists ({n} bytes, SHA-256 {}…; listed {bytes} bytes, \
+             {}…)",
+            src.display(),
+            &got[..12.min(got.len())],
+            sha256.chars().take(12).collect::<String>()
+        ));
+    }
+    if let Some(mut w) = writer {
+        w.flush().map_err(|e| format!("{}: {e}", dst.display()))?;
+    }
+    match out.take() {
+        Some(f) => f
+            .close()
+            .map(Some)
+            .map_err(|e| format!("{}: {e}", dst.display())),
+        None => Ok(None),
+    }
+}

@@ -1,0 +1,429 @@
+//! Nightly, incremental runs (issue 25) on synthetic towns written in code: a building's bytes
+//! do not depend on the buildings around it that it does not touch, and `--previous` gives the
+//! bytes of a full run while copying every tile without an edit, with the exact list of
+//! buildings added, removed and changed. The 100k-building version is `scripts/nightly-check`.
+
+mod common;
+use common::*;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use citygen::testkit::pbf_write::PbfWriter;
+
+/// One building of a synthetic town: way id, centre (metres east and north of the town's
+/// corner), size (metres), tags.
+#[derive(Clone)]
+struct B {
+    id: i64,
+    at: (f64, f64),
+    size: (f64, f64),
+    tags: Vec<(&'static str, String)>,
+}
+
+const LON0: f64 = 7.4200;
+const LAT0: f64 = 43.7300;
+
+fn lonlat(x: f64, y: f64) -> (f64, f64) {
+    let m_lat = 111_132.0;
+    let m_lon = m_lat * LAT0.to_radians().cos();
+    (LON0 + x / m_lon, LAT0 + y / m_lat)
+}
+
+/// A town of `n` × `n` fully tagged buildings (so that `--infer` lends them nothing), 24 m
+/// apart; ids 1000 + k.
+fn town(n: usize) -> Vec<B> {
+    let mut out = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let k = (j * n + i) as i64;
+            out.push(B {
+                id: 1000 + k,
+                at: (i as f64 * 24.0 + 12.0, j as f64 * 24.0 + 12.0),
+                size: (10.0 + (k % 5) as f64, 8.0 + (k % 3) as f64),
+                tags: vec![
+                    ("building", "house".into()),
+                    ("building:levels", (2 + k % 4).to_string()),
+                    (
+                        "roof:shape",
+                        ["gabled", "hipped", "flat"][k as usize % 3].into(),
+                    ),
+                    ("building:colour", "#d8c8a8".into()),
+                    ("roof:colour", "#a05030".into()),
+                ],
+            });
+        }
+    }
+    out
+}
+
+/// Writes `town` as an OSM PBF (nodes 4 per building, ids from the way id).
+fn write_pbf(path: &Path, town: &[B]) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    let mut w = PbfWriter::new(std::fs::File::create(path).unwrap()).unwrap();
+    let mut bs = town.to_vec();
+    bs.sort_by_key(|b| b.id);
+    for b in &bs {
+        let (hx, hy) = (b.size.0 / 2.0, b.size.1 / 2.0);
+        let corners = [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)];
+        for (c, (dx, dy)) in corners.iter().enumerate() {
+            let (lon, lat) = lonlat(b.at.0 + dx, b.at.1 + dy);
+            w.node(b.id * 10 + c as i64, lon, lat, &[]).unwrap();
+        }
+    }
+    for b in &bs {
+        let refs: Vec<i64> = (0..4).chain([0]).map(|c| b.id * 10 + c).collect();
+        let tags: Vec<(&str, &str)> = b.tags.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        w.way(b.id, &refs, &tags).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+fn run(input: &Path, out: &Path, lod: &str, tile: &str, extra: &[&str]) {
+    let p = |n: &str| out.join(n).display().to_string();
+    let mut args: Vec<String> = [
+        "--osm",
+        &input.display().to_string(),
+        "--kb",
+        KB,
+        "--lod",
+        lod,
+        "--tile",
+        tile,
+        "--quiet",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    args.extend(
+        [
+            "--cityjsonseq",
+            &p("t.city.jsonl"),
+            "--ifc",
+            &p("t.ifc"),
+            "--gltf",
+            &p("t.glb"),
+            "--tiles3d",
+            &p("3d"),
+            "--report",
+            &p("report.json"),
+        ]
+        .iter()
+        .map(|s| s.to_string()),
+    );
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    let o = citygen(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// Every file under `dir` (relative path → bytes), the report and manifests left out.
+fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    fn walk(base: &Path, dir: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk(base, &p, out);
+            } else {
+                let rel = p.strip_prefix(base).unwrap().display().to_string();
+                if rel != "report.json" && !rel.starts_with("citygen-manifest.") {
+                    out.insert(rel, std::fs::read(&p).unwrap());
+                }
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+fn manifest(dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("citygen-manifest.0-of-1.json")).unwrap())
+        .unwrap()
+}
+
+/// A building's CityJSONSeq feature line (its own vertices: no other building's bytes in it),
+/// its digest and its keys, from a run's folder.
+fn building(dir: &Path, id: &str) -> (String, String, String, String) {
+    let m = manifest(dir);
+    let mut found = None;
+    for t in m["tiles"].as_array().unwrap() {
+        let digest = t["buildings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|b| b["id"] == id)
+            .map(|b| b["digest"].as_str().unwrap().to_string());
+        let Some(digest) = digest else { continue };
+        let lot = t["lots"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|l| l["id"] == id)
+            .unwrap()
+            .clone();
+        let file = dir.join(format!("t_{}.city.jsonl", t["suffix"].as_str().unwrap()));
+        let text = std::fs::read_to_string(file).unwrap();
+        let line = text
+            .lines()
+            .find(|l| l.contains(&format!("\"sourceId\":\"{id}\"")))
+            .unwrap_or_else(|| panic!("{id} not in its tile's CityJSONSeq"))
+            .to_string();
+        found = Some((
+            line,
+            digest,
+            lot["own"].as_str().unwrap().to_string(),
+            lot["key"].as_str().unwrap().to_string(),
+        ));
+    }
+    found.unwrap_or_else(|| panic!("{id} is in no tile"))
+}
+
+fn changes(dir: &Path) -> serde_json::Value {
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    r["changes"].clone()
+}
+
+fn ids(v: &serde_json::Value) -> BTreeSet<String> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn a_buildings_bytes_do_not_depend_on_the_buildings_it_does_not_touch() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let day1 = town(6);
+    // Building 1014 (row 2, column 2); a new one 4 m east of it (not touching), and one far
+    // away removed (before it in the file, so that its place in the file moves too).
+    let target = day1.iter().find(|b| b.id == 1014).unwrap().clone();
+    let mut day2: Vec<B> = day1.iter().filter(|b| b.id != 1003).cloned().collect();
+    day2.push(B {
+        id: 5000,
+        at: (target.at.0 + target.size.0 / 2.0 + 4.0 + 2.0, target.at.1),
+        size: (4.0, 6.0),
+        tags: vec![("building", "shed".into()), ("building:levels", "1".into())],
+    });
+    for lod in ["2", "3"] {
+        let (a, b) = (t.join(format!("a{lod}")), t.join(format!("b{lod}")));
+        // The same file name both days: the input's name is written into the files.
+        write_pbf(&a.join("in/town.osm.pbf"), &day1);
+        write_pbf(&b.join("in/town.osm.pbf"), &day2);
+        // Tiles of 1 km: everything in one tile, so the tile's files change and only the
+        // building's own bytes can be compared.
+        run(&a.join("in/town.osm.pbf"), &a.join("out"), lod, "1000", &[]);
+        run(&b.join("in/town.osm.pbf"), &b.join("out"), lod, "1000", &[]);
+        let (x, y) = (
+            building(&a.join("out"), "way/1014"),
+            building(&b.join("out"), "way/1014"),
+        );
+        assert_eq!(x.0, y.0, "LOD{lod}: way/1014's CityJSONSeq feature changed");
+        assert_eq!(x.1, y.1, "LOD{lod}: way/1014's geometry digest changed");
+        assert_eq!(x.2, y.2, "LOD{lod}: way/1014's own key changed");
+        assert_eq!(x.3, y.3, "LOD{lod}: way/1014's content key changed");
+        let c = changes_between(&a.join("out"), &b.join("out"));
+        assert_eq!(c, (vec!["way/5000".into()], vec!["way/1003".into()]));
+    }
+    // At LOD3 a building that touches it does count (its party wall): the key says so.
+    let mut day3 = day1.clone();
+    day3.push(B {
+        id: 6000,
+        at: (target.at.0 + target.size.0 / 2.0 + 2.0, target.at.1),
+        size: (4.0, 6.0),
+        tags: vec![
+            ("building", "house".into()),
+            ("building:levels", "3".into()),
+        ],
+    });
+    let c = t.join("c3");
+    write_pbf(&c.join("in/town.osm.pbf"), &day3);
+    run(&c.join("in/town.osm.pbf"), &c.join("out"), "3", "1000", &[]);
+    let (x, z) = (
+        building(&t.join("a3/out"), "way/1014"),
+        building(&c.join("out"), "way/1014"),
+    );
+    assert_eq!(x.2, z.2, "the own key is the building's alone");
+    assert_ne!(
+        x.3, z.3,
+        "a touching neighbour is in the content key at LOD3"
+    );
+}
+
+/// Added and removed ids between two runs' manifests.
+fn changes_between(a: &Path, b: &Path) -> (Vec<String>, Vec<String>) {
+    let lots = |d: &Path| -> BTreeSet<String> {
+        manifest(d)["tiles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|t| t["lots"].as_array().unwrap().clone())
+            .map(|l| l["id"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let (x, y) = (lots(a), lots(b));
+    (
+        y.difference(&x).cloned().collect(),
+        x.difference(&y).cloned().collect(),
+    )
+}
+
+/// Day 1 and day 2 of a town of 100 buildings in 50 m tiles; day 2 edits: tags of way/1011,
+/// geometry and tags of way/1047 (moved 0.6 m), way/1090 removed, way/7000 added in a gap.
+fn two_days(t: &Path) -> (PathBuf, PathBuf, Vec<B>) {
+    let day1 = town(10);
+    let mut day2: Vec<B> = day1.iter().filter(|b| b.id != 1090).cloned().collect();
+    for b in &mut day2 {
+        if b.id == 1011 {
+            b.tags[1].1 = "7".into();
+        }
+        if b.id == 1047 {
+            b.at.0 += 0.6;
+            b.tags[2].1 = "pyramidal".into();
+        }
+    }
+    day2.push(B {
+        id: 7000,
+        at: (24.0 * 5.0, 24.0 * 5.0),
+        size: (5.0, 5.0),
+        tags: vec![
+            ("building", "kiosk".into()),
+            ("building:levels", "1".into()),
+        ],
+    });
+    let (d1, d2) = (t.join("day1/town.osm.pbf"), t.join("day2/town.osm.pbf"));
+    write_pbf(&d1, &day1);
+    write_pbf(&d2, &day2);
+    (d1, d2, day1)
+}
+
+#[test]
+fn previous_reuses_the_unchanged_tiles_and_gives_the_full_runs_bytes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (d1, d2, _) = two_days(t);
+    let (o1, full, inc) = (t.join("o1"), t.join("full2"), t.join("inc2"));
+    run(&d1, &o1, "2", "50", &[]);
+    run(&d2, &full, "2", "50", &[]);
+    run(&d2, &inc, "2", "50", &["--previous", o1.to_str().unwrap()]);
+    let (f1, ff, fi) = (files(&o1), files(&full), files(&inc));
+    assert_eq!(
+        ff.keys().collect::<Vec<_>>(),
+        fi.keys().collect::<Vec<_>>(),
+        "the same files"
+    );
+    for (name, bytes) in &ff {
+        assert!(
+            fi[name] == *bytes,
+            "{name}: the incremental run's bytes differ"
+        );
+    }
+    let c = changes(&inc);
+    assert_eq!(ids(&c["added"]), ["way/7000".to_string()].into());
+    assert_eq!(ids(&c["removed"]), ["way/1090".to_string()].into());
+    assert_eq!(
+        ids(&c["changed"]),
+        ["way/1011".to_string(), "way/1047".to_string()].into()
+    );
+    assert_eq!(ids(&c["affected"]), BTreeSet::new());
+    // The tiles rewritten are those of the edited buildings; every other tile kept its bytes.
+    let tile_of = |dir: &Path, id: &str| -> String {
+        manifest(dir)["tiles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["lots"].as_array().unwrap().iter().any(|l| l["id"] == id))
+            .map(|t| t["suffix"].as_str().unwrap().to_string())
+            .unwrap()
+    };
+    let edited: BTreeSet<String> = [
+        tile_of(&inc, "way/1011"),
+        tile_of(&inc, "way/1047"),
+        tile_of(&o1, "way/1090"),
+        tile_of(&inc, "way/7000"),
+    ]
+    .into();
+    assert_eq!(ids(&c["tiles_rewritten"]), edited);
+    let tiles = manifest(&inc)["tiles"].as_array().unwrap().len();
+    assert_eq!(
+        c["tiles_reused"].as_u64().unwrap() as usize,
+        tiles - edited.len()
+    );
+    let mut kept = 0;
+    for (name, bytes) in &fi {
+        if name.ends_with("tileset.json") {
+            continue;
+        }
+        if edited.iter().any(|s| name.contains(s.as_str())) {
+            assert!(
+                f1.get(name) != Some(bytes),
+                "{name}: an edited tile kept its bytes"
+            );
+        } else {
+            assert!(
+                f1.get(name) == Some(bytes),
+                "{name}: an unchanged tile changed"
+            );
+            kept += 1;
+        }
+    }
+    assert!(kept >= 4 * (tiles - edited.len()), "{kept} files kept");
+    // The region's merge is the full run's too.
+    let merged = |d: &Path| {
+        let seq = d.join("region.city.jsonl");
+        let o = citygen(&[
+            "merge",
+            d.to_str().unwrap(),
+            "--cityjsonseq",
+            seq.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(seq).unwrap()
+    };
+    assert!(
+        merged(&full) == merged(&inc),
+        "the merged CityJSONSeq differs"
+    );
+    // A previous file damaged: its tile is derived again, still the full run's bytes.
+    let victim = o1.join(
+        fi.keys()
+            .find(|n| n.ends_with(".ifc") && !edited.iter().any(|s| n.contains(s.as_str())))
+            .unwrap(),
+    );
+    let mut bytes = std::fs::read(&victim).unwrap();
+    bytes[100] ^= 1;
+    std::fs::write(&victim, bytes).unwrap();
+    let inc3 = t.join("inc3");
+    run(&d2, &inc3, "2", "50", &["--previous", o1.to_str().unwrap()]);
+    assert!(files(&inc3) == ff, "after a damaged previous file");
+    assert_eq!(
+        changes(&inc3)["tiles_rewritten"].as_array().unwrap().len(),
+        edited.len() + 1
+    );
+}
+
+#[test]
+fn previous_refuses_what_it_cannot_do() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("x.ifc");
+    let o = citygen(&[
+        "--osm",
+        MONACO,
+        "--kb",
+        KB,
+        "--ifc",
+        out.to_str().unwrap(),
+        "--tile",
+        "500",
+        "--previous",
+        tmp.path().to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no citygen-manifest"), "{err}");
+    assert!(!out.exists());
+}
