@@ -400,6 +400,12 @@ struct RunArgs {
     /// top of the --osm extract: the run reads the extract as the change leaves it.
     #[arg(long, value_name = "FILE.osc[.gz]", requires = "osm")]
     osc: Option<PathBuf>,
+    /// The source's name written into the outputs (titles, the IFC project and its GUIDs'
+    /// namespace), instead of the input's file name: a nightly job whose extract carries the
+    /// date in its name (region-20261204.osm.pbf) passes a stable one, so that unchanged
+    /// buildings keep their bytes and GUIDs from day to day.
+    #[arg(long, value_name = "NAME")]
+    source_name: Option<String>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -1031,6 +1037,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         shard,
         previous: cli.previous.clone(),
         osc: cli.osc.clone(),
+        source_name: cli.source_name.clone(),
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

@@ -127,6 +127,10 @@ pub struct Options {
     /// An OSM change file applied on top of the `--osm` extract (`--osc`, `.osc` or
     /// `.osc.gz`): the run reads the extract as the change leaves it.
     pub osc: Option<PathBuf>,
+    /// The source's name written into the files (titles, the IFC project, its GUIDs'
+    /// namespace) instead of the input's file name (`--source-name`): a nightly job whose
+    /// extract's name carries the date keeps one, so that its files stay the same bytes.
+    pub source_name: Option<String>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -240,15 +244,23 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let (targets, shard) = shard_targets(opts, targets)?;
     let previous = match &opts.previous {
         None => None,
+        Some(_) if opts.dry_run => {
+            return Err(RunError::Usage(
+                "--previous with --dry-run: a dry run writes no tile to reuse into".into(),
+            ))
+        }
         Some(_) if opts.tile.is_none() || targets.manifest.is_none() => {
             return Err(RunError::Usage(
-                "--previous needs --tile METRES and a model output: it reuses the tiles of a                  tiled run"
+                "--previous needs --tile METRES and a model output: it reuses the tiles of a \
+                 tiled run"
                     .into(),
             ))
         }
         Some(_) if opts.preview.is_some() => {
             return Err(RunError::Usage(
-                "--previous with --preview: a reused tile is not derived, so this run cannot                  draw it; draw the region with `citygen merge DIR --preview F.png` (from the                  3D Tiles contents, --tiles3d)"
+                "--previous with --preview: a reused tile is not derived, so this run cannot \
+                 draw it; draw the region with `citygen merge DIR --preview F.png` (from the \
+                 3D Tiles contents, --tiles3d)"
                     .into(),
             ))
         }
@@ -257,8 +269,9 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let mut report = Report::default();
     let read = read_source(&opts.source, opts.osc.as_deref(), opts.src_crs, &mut report)?;
     let source_crs = opts.src_crs.or(read.source_crs);
-    let source_name = match &opts.source {
-        Source::Osm(p) | Source::Shp { path: p, .. } => file_name(p),
+    let source_name = match (&opts.source_name, &opts.source) {
+        (Some(n), _) => n.clone(),
+        (None, Source::Osm(p) | Source::Shp { path: p, .. }) => file_name(p),
     };
 
     let kb = load_kb(opts.kb.as_deref(), &mut report)?;

@@ -498,8 +498,23 @@ fn merged_report(shards: &[&Found]) -> Report {
             .entries
             .extend(f.manifest.report.notes.iter().cloned());
     }
-    // Every shard of an incremental run lists the same changes (the whole region's).
-    report.changes = first.changes.clone();
+    // Every shard of an incremental run lists the same changes of buildings (the whole
+    // region's); the tiles each reused or rewrote are its own.
+    report.changes = first.changes.clone().map(|mut c| {
+        c.tiles_reused = shards
+            .iter()
+            .filter_map(|f| f.manifest.changes.as_ref())
+            .map(|c| c.tiles_reused)
+            .sum();
+        let mut rewritten: Vec<String> = shards
+            .iter()
+            .filter_map(|f| f.manifest.changes.as_ref())
+            .flat_map(|c| c.tiles_rewritten.iter().cloned())
+            .collect();
+        rewritten.sort_by_key(|s| order.get(s.as_str()).copied().unwrap_or(usize::MAX));
+        c.tiles_rewritten = rewritten;
+        c
+    });
     report.skipped = report
         .entries
         .iter()
