@@ -311,25 +311,79 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let grid = opts
         .tile
         .map(|size| GridPlan::new(&site, size, &selected, shard.0));
+    // The lots of the run, all shards' (for the changes since --previous).
+    let in_run = selected.clone();
     if let Some(g) = &grid {
         for (flag, lot) in selected.iter_mut().zip(&site.lots) {
             *flag = *flag && g.is_mine(site.crs, lot);
         }
     }
+    // A tiled run's content keys; with --previous, what changed and the tiles reused (copied
+    // now, so that the LOD3 surroundings are derived only around the tiles derived).
+    let mut keyed = Keyed::default();
+    let mut run_key = None;
+    if let (Some(g), Some(path), Some(own)) = (&grid, &targets.manifest, &own_keys) {
+        let rk = g.run_key(opts, &site)?;
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."))
+            .to_path_buf();
+        let mut outs: Vec<String> = targets
+            .flagged()
+            .into_iter()
+            .map(|(flag, p)| format!("{flag} {}", relative_to(&p, &dir)))
+            .collect();
+        outs.sort();
+        let context = incremental::context_key(&rk, &source_name, &outs);
+        keyed.context = incremental::key_hex(&context);
+        // Over every lot: neighbours outside --bbox count.
+        keyed.keys =
+            incremental::with_context(&context, incremental::full_keys(&site.lots, own, opts.lod));
+        if let Some(prev) = &previous {
+            let run_lots: std::collections::BTreeMap<String, (String, String)> = site
+                .lots
+                .iter()
+                .zip(&in_run)
+                .filter(|(_, s)| **s)
+                .filter_map(|(l, _)| {
+                    let k = keyed.keys.get(&l.id)?;
+                    Some((l.id.to_string(), (k.own.clone(), k.key.clone())))
+                })
+                .collect();
+            let mut changes = incremental::changes(prev, &run_lots);
+            let here: std::collections::BTreeSet<&str> =
+                g.tiles.iter().map(|t| t.suffix.as_str()).collect();
+            changes.tiles_removed = prev
+                .tiles
+                .keys()
+                .filter(|s| !here.contains(s.as_str()))
+                .cloned()
+                .collect();
+            keyed.changes = Some(changes);
+            keyed.reused = plan_reuse(prev, &site, g, &selected, &keyed.keys, &targets, &dir);
+        }
+        run_key = Some(rk);
+    }
     if opts.lod >= Lod::Lod3 {
-        // Party walls: every building the run writes, and those that touch one, at LOD2 first.
-        let keep = if selected.iter().all(|k| *k) {
-            selected
+        // Party walls: every building the run derives, and those that touch one, at LOD2
+        // first (not those of tiles reused from --previous).
+        let derived: Vec<bool> = match &grid {
+            Some(g) if !keyed.reused.is_empty() => site
+                .lots
+                .iter()
+                .zip(&selected)
+                .map(|(l, s)| *s && !keyed.reused.contains_key(&g.suffix_of(site.crs, l)))
+                .collect(),
+            _ => selected,
+        };
+        let keep = if derived.iter().all(|k| *k) {
+            derived
         } else {
-            prepare::near_selected(&site.lots, &selected, 1.0)
+            prepare::near_selected(&site.lots, &derived, incremental::NEIGHBOUR_MARGIN_M)
         };
         generator.surroundings = generator.neighbours_of(&site.lots, |i| keep[i]);
     }
-    // Every lot's keys without the run's context (added with the manifest), over every lot:
-    // neighbours outside --bbox count.
-    let lot_keys = own_keys
-        .as_ref()
-        .map(|own| incremental::full_keys(&site.lots, own, opts.lod));
     if let Some(b) = opts.bbox {
         if let Err(why) = prepare::retain_in_bbox(&mut site, b, &mut report) {
             if !opts.allow_empty {
@@ -344,45 +398,14 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             report.add(Some(lot.id), Outcome::Note, note);
         }
     }
-    let mut keyed = Keyed::default();
     let manifest = match (&grid, &targets.manifest) {
         (Some(g), Some(path)) => {
-            let mut head = g.manifest_head(opts, &shard, &site, &mut report)?;
-            let dir = path
-                .parent()
-                .filter(|d| !d.as_os_str().is_empty())
-                .unwrap_or(Path::new("."));
-            let mut outs: Vec<String> = targets
-                .flagged()
-                .into_iter()
-                .map(|(flag, p)| format!("{flag} {}", relative_to(&p, dir)))
-                .collect();
-            outs.sort();
-            let context = incremental::context_key(&head.run, &source_name, &outs);
-            head.context = incremental::key_hex(&context);
-            if let Some(keys) = lot_keys {
-                keyed.keys = incremental::with_context(&context, keys);
-            }
-            if let Some(prev) = &previous {
-                let run_lots: std::collections::BTreeMap<String, (String, String)> = site
-                    .lots
-                    .iter()
-                    .filter_map(|l| {
-                        let k = keyed.keys.get(&l.id)?;
-                        Some((l.id.to_string(), (k.own.clone(), k.key.clone())))
-                    })
-                    .collect();
-                let mut changes = incremental::changes(prev, &run_lots);
-                let here: std::collections::BTreeSet<&str> =
-                    g.tiles.iter().map(|t| t.suffix.as_str()).collect();
-                changes.tiles_removed = prev
-                    .tiles
-                    .keys()
-                    .filter(|s| !here.contains(s.as_str()))
-                    .cloned()
-                    .collect();
-                keyed.changes = Some(changes);
-            }
+            let rk = match run_key {
+                Some(rk) => rk,
+                None => g.run_key(opts, &site)?,
+            };
+            let mut head = g.manifest_head(rk, &shard, &site, &mut report)?;
+            head.context = keyed.context.clone();
             let crs = site.crs;
             site.lots.retain(|l| g.is_mine(crs, l));
             Some((path.clone(), head))
@@ -436,9 +459,48 @@ struct Ledger {
 /// (`--previous`).
 #[derive(Default)]
 struct Keyed {
+    /// The run's context key, hex.
+    context: String,
     keys: std::collections::HashMap<crate::model::SourceId, shard::LotKey>,
     previous: Option<incremental::Previous>,
     changes: Option<crate::report::Changes>,
+    /// The tiles reused from `previous`, by suffix: their records and files, copied and
+    /// checked.
+    reused: std::collections::BTreeMap<String, ReusedTile>,
+}
+
+/// A tile reused from `--previous`: its record and its files (closed temporaries, to be
+/// renamed with the run's others; `None` for a file that is already in place).
+type ReusedTile = (shard::TileRecord, Vec<(PathBuf, Option<PendingFile>)>);
+
+/// The tiles of this shard that `prev` holds with the same lots, in the same order, with the
+/// same keys, and the same files: each one's files copied beside their targets (checked
+/// against the previous manifest's size and SHA-256; a tile whose file fails is left out, to
+/// be derived). `dir` is the manifest's folder. Tiles are copied in parallel.
+fn plan_reuse(
+    prev: &incremental::Previous,
+    site: &prepare::Site,
+    grid: &GridPlan,
+    selected: &[bool],
+    keys: &std::collections::HashMap<SourceId, shard::LotKey>,
+    targets: &Targets,
+    dir: &Path,
+) -> std::collections::BTreeMap<String, ReusedTile> {
+    // Each tile's lots in file order: input order within a tile (prepare::group_into_tiles).
+    let mut lots: std::collections::BTreeMap<String, Vec<shard::LotKey>> = Default::default();
+    for (lot, _) in site.lots.iter().zip(selected).filter(|(_, s)| **s) {
+        let Some(k) = keys.get(&lot.id) else { continue };
+        lots.entry(grid.suffix_of(site.crs, lot))
+            .or_default()
+            .push(k.clone());
+    }
+    lots.into_par_iter()
+        .filter_map(|(suffix, lots)| {
+            let tile = tile_targets(targets, Some(&suffix));
+            let found = reuse_tile(prev, dir, &suffix, &lots, &tile)?;
+            Some((suffix, found))
+        })
+        .collect()
 }
 
 /// The targets of a shard (`--shard`) or of any tiled run: its manifest's path (in the folder
@@ -550,25 +612,25 @@ impl GridPlan {
         }
     }
 
+    /// The suffix of the lot's tile ([`shard::GridTile::suffix`]).
+    fn suffix_of(&self, crs: Crs, lot: &prepare::Lot) -> String {
+        let (x, y) = prepare::tile_cell(crs, lot, self.size);
+        let s = i64::from(self.size.max(1));
+        format!("{}_{}", x * s, y * s)
+    }
+
     /// Whether the lot's tile is this shard's.
     fn is_mine(&self, crs: Crs, lot: &prepare::Lot) -> bool {
         self.of_cell.get(&prepare::tile_cell(crs, lot, self.size)) == Some(&self.shard.index)
     }
 
-    /// The manifest without its tiles: the run's key, the grid, and the shard's share of the
-    /// report so far, which becomes `report` (the entries of the read and prepare stages that
-    /// name one of this shard's lots, or for shard 0 no lot of the run).
-    fn manifest_head(
-        &self,
-        opts: &Options,
-        shard: &(shard::Shard, String),
-        site: &prepare::Site,
-        report: &mut Report,
-    ) -> Result<shard::Manifest, RunError> {
+    /// What decides the run's outputs ([`shard::RunKey`]): the inputs' and KB's hashes, seed,
+    /// LOD, CRS, origin, tile size, options and outputs.
+    fn run_key(&self, opts: &Options, site: &prepare::Site) -> Result<shard::RunKey, RunError> {
         let key = |p: &Path| {
             shard::file_key(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))
         };
-        let inputs = match &opts.source {
+        let mut inputs = match &opts.source {
             Source::Osm(p) => vec![key(p)?],
             Source::Shp { path, .. } => outputs::shapefile_parts(path)
                 .iter()
@@ -576,6 +638,55 @@ impl GridPlan {
                 .map(|p| key(p))
                 .collect::<Result<_, _>>()?,
         };
+        if let Some(p) = &opts.osc {
+            inputs.push(key(p)?);
+        }
+        let mut outputs: Vec<String> = [
+            ("ifc", opts.ifc.is_some()),
+            ("citygml", opts.citygml.is_some()),
+            ("gltf", opts.gltf.is_some()),
+            ("cityjson", opts.cityjson.is_some()),
+            ("cityjsonseq", opts.cityjsonseq.is_some()),
+        ]
+        .into_iter()
+        .filter(|(_, on)| *on)
+        .map(|(k, _)| k.to_string())
+        .collect();
+        if opts.dry_run {
+            outputs.push("dry-run".into());
+        }
+        Ok(shard::RunKey {
+            inputs,
+            kb: opts.kb.as_deref().map(key).transpose()?,
+            rules: opts.rules.as_deref().map(key).transpose()?,
+            seed: opts.seed,
+            lod: opts.lod as u8,
+            crs: site.crs.to_string(),
+            origin: [site.origin.x, site.origin.y],
+            tile_size: self.size,
+            options: format!(
+                "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
+                opts.bbox,
+                opts.crs.map(|c| c.to_string()),
+                opts.src_crs.map(|c| c.to_string()),
+                opts.caps.max_depth,
+                opts.caps.max_shapes,
+                opts.infer
+            ),
+            outputs,
+        })
+    }
+
+    /// The manifest without its tiles: the run's key, the grid, and the shard's share of the
+    /// report so far, which becomes `report` (the entries of the read and prepare stages that
+    /// name one of this shard's lots, or for shard 0 no lot of the run).
+    fn manifest_head(
+        &self,
+        run: shard::RunKey,
+        shard: &(shard::Shard, String),
+        site: &prepare::Site,
+        report: &mut Report,
+    ) -> Result<shard::Manifest, RunError> {
         let owner: std::collections::BTreeMap<String, usize> = site
             .lots
             .iter()
@@ -596,45 +707,12 @@ impl GridPlan {
             }
         }
         report.entries = kept;
-        let mut outputs: Vec<String> = [
-            ("ifc", opts.ifc.is_some()),
-            ("citygml", opts.citygml.is_some()),
-            ("gltf", opts.gltf.is_some()),
-            ("cityjson", opts.cityjson.is_some()),
-            ("cityjsonseq", opts.cityjsonseq.is_some()),
-        ]
-        .into_iter()
-        .filter(|(_, on)| *on)
-        .map(|(k, _)| k.to_string())
-        .collect();
-        if opts.dry_run {
-            outputs.push("dry-run".into());
-        }
         Ok(shard::Manifest {
             format: shard::MANIFEST_FORMAT.into(),
             citygen: env!("CARGO_PKG_VERSION").into(),
             shard: shard.0,
             shard_from: shard.1.clone(),
-            run: shard::RunKey {
-                inputs,
-                kb: opts.kb.as_deref().map(key).transpose()?,
-                rules: opts.rules.as_deref().map(key).transpose()?,
-                seed: opts.seed,
-                lod: opts.lod as u8,
-                crs: site.crs.to_string(),
-                origin: [site.origin.x, site.origin.y],
-                tile_size: self.size,
-                options: format!(
-                    "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
-                    opts.bbox,
-                    opts.crs.map(|c| c.to_string()),
-                    opts.src_crs.map(|c| c.to_string()),
-                    opts.caps.max_depth,
-                    opts.caps.max_shapes,
-                    opts.infer
-                ),
-                outputs,
-            },
+            run,
             grid: shard::Grid {
                 lots: self.lots,
                 tiles: self.tiles.clone(),
@@ -1112,7 +1190,7 @@ fn write_batches(
 ) -> Result<Summary, RunError> {
     let Ledger {
         mut manifest,
-        keys: keyed,
+        keys: mut keyed,
     } = ledger;
     let (source_name, targets) = (files.name, files.targets);
     let start = Instant::now();
@@ -1127,23 +1205,7 @@ fn write_batches(
         ..Default::default()
     };
     for batch in batches {
-        let path = |p: &Option<PathBuf>| match (&batch.suffix, p) {
-            (Some(sfx), Some(p)) => Some(tile_path(p, sfx)),
-            (_, p) => p.clone(),
-        };
-        let tile_targets = Targets {
-            ifc: path(&targets.ifc),
-            citygml: path(&targets.citygml),
-            gltf: path(&targets.gltf),
-            cityjson: path(&targets.cityjson),
-            cityjsonseq: path(&targets.cityjsonseq),
-            report: None,
-            preview: None,
-            tiles3d: targets.tiles3d.clone(),
-            dry_run: targets.dry_run,
-            allow_empty: targets.allow_empty,
-            manifest: None,
-        };
+        let tile_targets = tile_targets(targets, batch.suffix.as_deref());
         let name = match &batch.suffix {
             Some(sfx) => format!("{source_name} tile {sfx}"),
             None => source_name.to_string(),
@@ -1168,42 +1230,44 @@ fn write_batches(
                 .unwrap_or(Path::new("."))
                 .to_path_buf(),
         });
-        if let (Some(prev), Some(log)) = (&keyed.previous, written.tile.as_ref()) {
-            match reuse_tile(prev, log, &tile_targets, &written.content_name)? {
-                Some((record, files)) => {
-                    let Some((_, m)) = manifest.as_mut() else {
-                        return Err(RunError::Input("a reused tile without a manifest".into()));
-                    };
-                    report.entries.extend(record.entries.iter().cloned());
-                    report.generated += record.buildings.len();
-                    report.facades.add(&record.facades);
-                    written.polygons += record.polygons;
-                    written.bytes += record.files.iter().map(|f| f.bytes).sum::<u64>();
-                    if let (Some(dir), Some(v)) = (&targets.tiles3d, &record.tiles3d) {
-                        written.tiles3d.push(rebased_entry(v, &log.dir, dir)?);
-                    }
-                    for (path, file) in files {
-                        match file {
-                            Some(f) => written.pending.push((path, f)),
-                            None => written.rendered.push(path),
-                        }
-                    }
-                    m.tiles.push(record);
-                    written.tile = None;
-                    if let Some(c) = changes.as_mut() {
-                        c.tiles_reused += 1;
-                    }
-                    done += lots.len();
-                    progress(done, total);
-                    continue;
-                }
-                None => {
-                    if let Some(c) = changes.as_mut() {
-                        c.tiles_rewritten
-                            .push(batch.suffix.clone().unwrap_or_default());
-                    }
+        let reused = batch
+            .suffix
+            .as_ref()
+            .and_then(|sfx| keyed.reused.remove(sfx));
+        if let Some((record, files)) = reused {
+            let Some(log) = written.tile.take() else {
+                return Err(RunError::Input("a reused tile without a manifest".into()));
+            };
+            let Some((_, m)) = manifest.as_mut() else {
+                return Err(RunError::Input("a reused tile without a manifest".into()));
+            };
+            report.entries.extend(record.entries.iter().cloned());
+            report.generated += record.buildings.len();
+            report.facades.add(&record.facades);
+            written.polygons += record.polygons;
+            written.bytes += record.files.iter().map(|f| f.bytes).sum::<u64>();
+            if let (Some(dir), Some(v)) = (&targets.tiles3d, &record.tiles3d) {
+                written.tiles3d.push(rebased_entry(v, &log.dir, dir)?);
+            }
+            for (path, file) in files {
+                match file {
+                    Some(f) => written.pending.push((path, f)),
+                    None => written.rendered.push(path),
                 }
             }
+            m.tiles.push(shard::TileRecord {
+                lots: log.record.lots,
+                ..record
+            });
+            if let Some(c) = changes.as_mut() {
+                c.tiles_reused += 1;
+            }
+            done += lots.len();
+            progress(done, total);
+            continue;
+        }
+        if let (Some(c), Some(sfx)) = (changes.as_mut(), &batch.suffix) {
+            c.tiles_rewritten.push(sfx.clone());
         }
         write_lots(
             site,
@@ -1697,6 +1761,28 @@ fn write_lots(
     Ok(())
 }
 
+/// The targets of one tile (`suffix`; `None` untiled: the run's own paths): every model
+/// output's path with the suffix inserted, the 3D Tiles folder as it is, no report.
+fn tile_targets(targets: &Targets, suffix: Option<&str>) -> Targets {
+    let path = |p: &Option<PathBuf>| match (suffix, p) {
+        (Some(sfx), Some(p)) => Some(tile_path(p, sfx)),
+        (_, p) => p.clone(),
+    };
+    Targets {
+        ifc: path(&targets.ifc),
+        citygml: path(&targets.citygml),
+        gltf: path(&targets.gltf),
+        cityjson: path(&targets.cityjson),
+        cityjsonseq: path(&targets.cityjsonseq),
+        report: None,
+        preview: None,
+        tiles3d: targets.tiles3d.clone(),
+        dry_run: targets.dry_run,
+        allow_empty: targets.allow_empty,
+        manifest: None,
+    }
+}
+
 /// The files a tile writes: its model outputs and its 3D Tiles contents.
 fn tile_files(targets: &Targets, content_name: &str) -> Vec<PathBuf> {
     let mut out: Vec<PathBuf> = [
@@ -1718,46 +1804,39 @@ fn tile_files(targets: &Targets, content_name: &str) -> Vec<PathBuf> {
     out
 }
 
-/// The previous run's record of the tile `log` is writing, and its files copied (checked) to
-/// this run's targets, when the tile's lots and keys are the same and its files are those
-/// this tile writes ([`incremental::Previous::reusable`]); `None` to derive the tile. A
-/// previous file that is not what its manifest lists is a tile derived again, with a note.
-#[allow(clippy::type_complexity)]
+/// The previous run's record of tile `suffix`, and its files copied (checked) to this run's
+/// `targets` for the tile, when the tile's lots and keys are `lots` (in order) and its files
+/// are those this tile writes ([`incremental::Previous::reusable`]); `None` to derive the tile
+/// (also when a previous file is not what its manifest lists). `dir` is this run's manifest's
+/// folder.
 fn reuse_tile(
     prev: &incremental::Previous,
-    log: &TileLog,
+    dir: &Path,
+    suffix: &str,
+    lots: &[shard::LotKey],
     targets: &Targets,
-    content_name: &str,
-) -> Result<Option<(shard::TileRecord, Vec<(PathBuf, Option<PendingFile>)>)>, RunError> {
+) -> Option<ReusedTile> {
     if targets.dry_run {
-        return Ok(None);
+        return None;
     }
-    let paths = tile_files(targets, content_name);
+    let paths = tile_files(targets, suffix);
     let rel: std::collections::BTreeMap<String, PathBuf> = paths
         .iter()
-        .map(|p| (relative_to(p, &log.dir), p.clone()))
+        .map(|p| (relative_to(p, dir), p.clone()))
         .collect();
     let names = rel.keys().cloned().collect();
-    let Some((folder, record)) = prev.reusable(&log.record.suffix, &log.record.lots, &names) else {
-        return Ok(None);
-    };
+    let (folder, record) = prev.reusable(suffix, lots, &names)?;
     let mut files = Vec::with_capacity(record.files.len());
     for f in &record.files {
-        let Some(dst) = rel.get(&f.path) else {
-            return Ok(None);
-        };
+        let dst = rel.get(&f.path)?;
         let src = folder.join(&f.path);
-        match incremental::copy_checked(&src, dst, f.bytes, &f.sha256) {
-            Ok(p) => files.push((dst.clone(), p)),
-            // Derived again; the temporaries made so far are dropped (removed).
-            Err(_) => return Ok(None),
-        }
+        // On a mismatch the temporaries made so far are dropped (removed).
+        let p = incremental::copy_checked(&src, dst, f.bytes, &f.sha256).ok()?;
+        files.push((dst.clone(), p));
     }
     // Its paths (the 3D Tiles URIs too) are relative to the manifest's folder, and the same
     // here: the files land at the same places relative to this run's manifest.
-    let mut record = record.clone();
-    record.lots = log.record.lots.clone();
-    Ok(Some((record, files)))
+    Some((record.clone(), files))
 }
 
 /// Rebases the `uri`s of a manifest's 3D Tiles facts (`full`, `blocks`) from folder `from` to

@@ -437,3 +437,71 @@ fn previous_refuses_what_it_cannot_do() {
     assert!(err.contains("no citygen-manifest"), "{err}");
     assert!(!out.exists());
 }
+
+#[test]
+fn at_lod3_a_touching_neighbour_in_another_tile_is_rederived_too() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    // A town, and a terrace of 14 houses 6 m wide sharing their walls: 84 m, so two of them
+    // stand on either side of a border of the 50 m tiles.
+    let mut day1 = town(4);
+    for k in 0..14 {
+        day1.push(B {
+            id: 8000 + k,
+            at: (3.0 + 6.0 * k as f64, 110.0),
+            size: (6.0, 9.0),
+            tags: vec![
+                ("building", "house".into()),
+                ("building:levels", "3".into()),
+                ("roof:shape", "flat".into()),
+            ],
+        });
+    }
+    let d1 = t.join("day1/town.osm.pbf");
+    write_pbf(&d1, &day1);
+    let o1 = t.join("o1");
+    run(&d1, &o1, "3", "50", &[]);
+    let tile_of = |dir: &Path, id: i64| -> String {
+        let id = format!("way/{id}");
+        manifest(dir)["tiles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["lots"].as_array().unwrap().iter().any(|l| l["id"] == id))
+            .map(|t| t["suffix"].as_str().unwrap().to_string())
+            .unwrap()
+    };
+    // The house left of the first border (not the terrace's first).
+    let left = (8001..8013)
+        .find(|&k| tile_of(&o1, k) != tile_of(&o1, k + 1))
+        .expect("the terrace crosses a tile border");
+    let mut day2 = day1.clone();
+    for b in &mut day2 {
+        if b.id == left {
+            b.tags[1].1 = "5".into();
+        }
+    }
+    let d2 = t.join("day2/town.osm.pbf");
+    write_pbf(&d2, &day2);
+    let (full, inc) = (t.join("full"), t.join("inc"));
+    run(&d2, &full, "3", "50", &[]);
+    run(&d2, &inc, "3", "50", &["--previous", o1.to_str().unwrap()]);
+    assert!(
+        files(&full) == files(&inc),
+        "LOD3: the incremental run's bytes differ"
+    );
+    let c = changes(&inc);
+    assert_eq!(ids(&c["changed"]), [format!("way/{left}")].into());
+    // Its party-wall neighbours are derived again, the one across the border too.
+    assert_eq!(
+        ids(&c["affected"]),
+        [format!("way/{}", left - 1), format!("way/{}", left + 1)].into()
+    );
+    let want: BTreeSet<String> = [left - 1, left, left + 1]
+        .iter()
+        .map(|&k| tile_of(&o1, k))
+        .collect();
+    assert_eq!(want.len(), 2);
+    assert_eq!(ids(&c["tiles_rewritten"]), want);
+    assert!(c["tiles_reused"].as_u64().unwrap() >= 1);
+}
