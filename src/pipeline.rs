@@ -1246,6 +1246,9 @@ fn write_batches(
             report.facades.add(&record.facades);
             written.polygons += record.polygons;
             written.bytes += record.files.iter().map(|f| f.bytes).sum::<u64>();
+            if let Some(p) = &tile_targets.citygml {
+                written.count_citygml(p, record.citygml_elements);
+            }
             if let (Some(dir), Some(v)) = (&targets.tiles3d, &record.tiles3d) {
                 written.tiles3d.push(rebased_entry(v, &log.dir, dir)?);
             }
@@ -1541,6 +1544,19 @@ struct Written {
     content_name: String,
 }
 
+impl Written {
+    /// Counts a CityGML file of `n` XML elements, for the warning of files over the
+    /// validator's cap.
+    fn count_citygml(&mut self, p: &Path, n: u64) {
+        if self.largest_citygml.as_ref().is_none_or(|(_, m)| n > *m) {
+            self.largest_citygml = Some((p.to_path_buf(), n));
+        }
+        if n > VALIDATOR_MAX_ELEMENTS {
+            self.citygml_over_cap += 1;
+        }
+    }
+}
+
 /// Derives `lots` (in parallel, chunk by chunk) and writes them in order to the file set,
 /// whose files are left closed in `written.pending`, ready to be renamed (for a dry run, their
 /// paths go to `written.rendered`); adds the polygons and the bytes written.
@@ -1723,11 +1739,9 @@ fn write_lots(
     written.polygons += polygons;
     if let Some(p) = &targets.citygml {
         let n = citygml_elements.load(Ordering::Relaxed);
-        if written.largest_citygml.as_ref().is_none_or(|(_, m)| n > *m) {
-            written.largest_citygml = Some((p.clone(), n));
-        }
-        if n > VALIDATOR_MAX_ELEMENTS {
-            written.citygml_over_cap += 1;
+        written.count_citygml(p, n);
+        if let Some(log) = written.tile.as_mut() {
+            log.record.citygml_elements = n;
         }
     }
     for (path, writer, sink, counted, hash) in outputs {

@@ -321,6 +321,14 @@ fn previous_reuses_the_unchanged_tiles_and_gives_the_full_runs_bytes() {
             "{name}: the incremental run's bytes differ"
         );
     }
+    // The report is the full run's, but for the changes.
+    let report = |d: &Path| {
+        let mut r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.join("report.json")).unwrap()).unwrap();
+        r.as_object_mut().unwrap().remove("changes");
+        r
+    };
+    assert_eq!(report(&full), report(&inc));
     let c = changes(&inc);
     assert_eq!(ids(&c["added"]), ["way/7000".to_string()].into());
     assert_eq!(ids(&c["removed"]), ["way/1090".to_string()].into());

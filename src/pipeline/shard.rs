@@ -311,6 +311,10 @@ pub struct TileRecord {
     /// The polygons of the tile's buildings (for the run's summary).
     #[serde(default)]
     pub polygons: usize,
+    /// The XML elements of the tile's CityGML file, if any (for the warning of files over the
+    /// schema validator's cap).
+    #[serde(default)]
+    pub citygml_elements: u64,
 }
 
 /// One lot's content keys ([`crate::pipeline::incremental`]).
