@@ -18,6 +18,13 @@
 //!
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
 //! `report.read` / `report.parts_read` count them all, skipped ones included.
+//!
+//! [`read_osm_with_changes`] also applies an OSM change file ([`read_osc`], module `osc`):
+//! after pass 1 the change's relations replace and add to the file's (so member ways are chosen
+//! from the changed relations), after pass 2 its ways (kept by the same rules, their tags parsed
+//! with the same interner; their node ids join the needed ones), after pass 3 its nodes
+//! (moved, created, or deleted: missing). Each step is a lookup per kept record in the change's
+//! sorted maps, nothing per element of the file; without a change the read is unchanged.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};

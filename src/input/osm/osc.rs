@@ -248,14 +248,16 @@ impl Parser<'_> {
                     "node" => Kind::Node,
                     "way" => Kind::Way,
                     "relation" => Kind::Relation,
-                    _ => return Err(self.err(
-                        at,
-                        None,
-                        format!(
+                    _ => {
+                        return Err(self.err(
+                            at,
+                            None,
+                            format!(
                             "unexpected <{name}> in <{}> (expected <node>, <way> or <relation>)",
                             action.name()
                         ),
-                    )),
+                        ))
+                    }
                 };
                 let attrs = self.attrs(e, at)?;
                 let get = |k: &str| attrs.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
