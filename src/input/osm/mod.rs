@@ -77,7 +77,14 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
 /// are chosen; a created or modified way's tags are parsed as the PBF's are, and its nodes are
 /// taken from the change or the PBF; a moved node moves every building and street using it; a
 /// way using a deleted node is a way with a missing node. Footprints stay sorted (ways by id,
-/// then relations by id). The change file is read first: its errors
+/// then relations by id).
+///
+/// The change should cover the extract's area only (a diff between two extracts, e.g.
+/// `osmium derive-changes`, or a replication diff cut to the area): applied as is, a
+/// planet-wide diff adds every building created anywhere, and its modified ways outside the
+/// extract, whose nodes the PBF lacks, are reported as ways with missing nodes.
+///
+/// The change file is read first: its errors
 /// ([`InputError::OsmChange`], [`InputError::Io`]) name it. Never panics.
 pub fn read_osm_with_changes(
     path: &Path,
