@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use thiserror::Error;
 
-pub use osm::read_osm;
+pub use osm::{read_osm, read_osm_with_changes};
 pub use shp::{read_shp, ShpOptions};
 pub use tags::{BuildingTags, SharedTags, TagInterner};
 
@@ -72,6 +72,18 @@ pub enum InputError {
         record: usize,
         /// What is wrong, e.g. `undecodable record` or `no attribute row (deleted or missing rows in
         /// the .dbf)`.
+        reason: String,
+    },
+    /// An OSM change file (osmChange XML, plain or gzip) cannot be decompressed or parsed, or
+    /// names an element with an invalid id, coordinate, node reference, member or tag.
+    #[error("{}: osmChange {place}: {reason}", .path.display())]
+    OsmChange {
+        /// The change file.
+        path: PathBuf,
+        /// Where: `line 12, node/34` (the element when one is known), or `gzip stream, after N
+        /// decompressed bytes`.
+        place: String,
+        /// What is wrong, e.g. `lat 91.5 is outside -90..90`.
         reason: String,
     },
     /// The `.prj` names a CRS citygen cannot use, or there is no CRS at all.

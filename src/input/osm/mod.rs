@@ -18,6 +18,13 @@
 //!
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
 //! `report.read` / `report.parts_read` count them all, skipped ones included.
+//!
+//! [`read_osm_with_changes`] also applies an OSM change file ([`read_osc`], module `osc`):
+//! after pass 1 the change's relations replace and add to the file's (so member ways are chosen
+//! from the changed relations), after pass 2 its ways (kept by the same rules, their tags parsed
+//! with the same interner; their node ids join the needed ones), after pass 3 its nodes
+//! (moved, created, or deleted: missing). Each step is a lookup per kept record in the change's
+//! sorted maps, nothing per element of the file; without a change the read is unchanged.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -34,9 +41,12 @@ use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
 mod multipolygon;
+mod osc;
 mod pbf;
 mod records;
 mod wire;
+
+pub use osc::{read_osc, Change, MemberType, OscRelation, OscTags, OscWay, MAX_OSC_BYTES};
 
 use multipolygon::*;
 use pbf::*;
@@ -55,17 +65,45 @@ type Tags = Vec<(String, String)>;
 /// file-level problems (missing file, not a PBF, corrupt or truncated block) are an
 /// [`InputError`] naming the file and the block. Never panics.
 pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputError> {
+    read_osm_with_changes(path, None, report)
+}
+
+/// Reads the building footprints of an OSM PBF file with an OSM change file applied
+/// (osmChange XML, plain or gzip: [`read_osc`]); `None` reads the PBF alone, as [`read_osm`].
+///
+/// The result is that of [`read_osm`] on the extract with the changes applied: the change's
+/// relations, ways and nodes replace the PBF's of the same id (a deleted one is as if absent
+/// from the file), the created ones are added. Relations are changed before their member ways
+/// are chosen; a created or modified way's tags are parsed as the PBF's are, and its nodes are
+/// taken from the change or the PBF; a moved node moves every building and street using it; a
+/// way using a deleted node is a way with a missing node. Footprints stay sorted (ways by id,
+/// then relations by id).
+///
+/// The change should cover the extract's area only (a diff between two extracts, e.g.
+/// `osmium derive-changes`, or a replication diff cut to the area): applied as is, a
+/// planet-wide diff adds every building created anywhere, and its modified ways outside the
+/// extract, whose nodes the PBF lacks, are reported as ways with missing nodes.
+///
+/// The change file is read first: its errors
+/// ([`InputError::OsmChange`], [`InputError::Io`]) name it. Never panics.
+pub fn read_osm_with_changes(
+    path: &Path,
+    osc: Option<&Path>,
+    report: &mut Report,
+) -> Result<ReadResult, InputError> {
+    let change = osc.map(read_osc).transpose()?;
+    let change = change.as_ref();
     let pbf = Pbf::open(path)?;
     let file = pbf.load()?;
     let mut locs = pbf.sweep(&file)?;
-    if let Some(r) = read_passes(&pbf, &file, &locs, report)? {
+    if let Some(r) = read_passes(&pbf, &file, &locs, change, report)? {
         return Ok(r);
     }
     // A block held more than one kind of element: every pass decodes every block.
     for l in &mut locs {
         l.kind = BlobKind::Any;
     }
-    read_passes(&pbf, &file, &locs, report)?
+    read_passes(&pbf, &file, &locs, change, report)?
         .ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
 }
 
@@ -102,13 +140,14 @@ fn note_duplicates(
     flush(run, report);
 }
 
-/// The three passes over the blobs `locs` (relations, ways, needed nodes) and the assembly;
-/// `None` when a block held another kind of element than the sweep saw (nothing was reported
-/// then).
+/// The three passes over the blobs `locs` (relations, ways, needed nodes) and the assembly,
+/// with `change` applied after each pass; `None` when a block held another kind of element than
+/// the sweep saw (nothing was reported then).
 fn read_passes(
     pbf: &Pbf,
     file: &[u8],
     locs: &[BlobLoc],
+    change: Option<&Change>,
     report: &mut Report,
 ) -> Result<Option<ReadResult>, InputError> {
     // What the passes note is taken back when a later pass finds a mixed block (the caller
@@ -127,9 +166,17 @@ fn read_passes(
         return Ok(None);
     }
     let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
+    if let Some(c) = change {
+        // The change's relations replace the file's (a duplicate in the file included).
+        rels.retain(|r| !c.relations.contains_key(&r.id));
+    }
     rels.sort_by_key(|r| r.id);
     note_duplicates(rels.iter().map(|r| r.id), SourceId::Relation, report);
     rels.dedup_by_key(|r| r.id);
+    if let Some(c) = change {
+        rels.extend(changed_relations(c));
+        rels.sort_by_key(|r| r.id);
+    }
     let mut member_ways: Vec<i64> = rels
         .iter()
         .flat_map(|r| r.members.iter().map(|m| m.way))
@@ -158,16 +205,35 @@ fn read_passes(
     }
     let (blocks, needed): (Vec<WayBlock>, Vec<Vec<i64>>) = blocks.into_iter().unzip();
     let mut ways = Ways::from_blocks(blocks);
+    if let Some(c) = change {
+        ways.recs.retain(|w| !c.ways.contains_key(&w.id));
+    }
     note_duplicates(
         ways.recs.iter().filter(|w| w.kind.is_some()).map(|w| w.id),
         SourceId::Way,
         report,
     );
     ways.recs.dedup_by_key(|w| w.id);
+    // The ids of ways dropped as duplicates or replaced by the change may stay: an id too many
+    // in the index changes no lookup.
+    let mut needed = merge_runs(needed);
+    if let Some(c) = change {
+        let mut block = WayBlock::default();
+        for (&id, w) in &c.ways {
+            if let Some((refs, tags)) = w {
+                let tags = || tags.iter().map(|(k, v)| (k.as_str(), v.as_str()));
+                block.keep_way(id, tags, refs.iter().copied(), &member_ways, &interner);
+            }
+        }
+        let extra = block.needed();
+        if !extra.is_empty() {
+            let mut all = Vec::with_capacity(needed.len() + extra.len());
+            merge_into(&mut all, &needed, &extra);
+            needed = all;
+        }
+        ways.add_block(block);
+    }
     drop(member_ways);
-    // The ids of ways dropped as duplicates may stay: an id too many in the index changes no
-    // lookup.
-    let needed = merge_runs(needed);
 
     // Pass 3: nodes.
     let mut nodes = Nodes::new(needed);
@@ -189,6 +255,13 @@ fn read_passes(
     }
     nodes.fill(&found);
     drop(found);
+    if let Some(c) = change {
+        for (&id, &pos) in &c.nodes {
+            if let Some(i) = nodes.index_of(id) {
+                nodes.set(i, pos);
+            }
+        }
+    }
     nodes.finish();
 
     let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
@@ -196,6 +269,20 @@ fn read_passes(
     // Freeing the large lists is a fair share of the read: both at once.
     rayon::join(move || drop(ways), move || drop(nodes));
     Ok(Some(result))
+}
+
+/// The change's created and modified relations that pass 1 keeps (see [`relation_rec`]).
+fn changed_relations(c: &Change) -> impl Iterator<Item = RelRec> + '_ {
+    c.relations.iter().filter_map(|(&id, r)| {
+        let (members, tags) = r.as_ref()?;
+        relation_rec(
+            id,
+            || tags.iter().map(|(k, v)| (k.as_str(), v.as_str())),
+            members
+                .iter()
+                .map(|(t, id, role)| (*t == MemberType::Way, *id, Some(role.as_str()))),
+        )
+    })
 }
 
 /// The union of sorted, deduplicated runs, sorted and deduplicated. The blocks of a sorted file
@@ -565,6 +652,8 @@ pub(crate) fn note_ignored(report: &mut Report, id: SourceId, tags: &BuildingTag
     }
 }
 
+#[cfg(test)]
+mod osc_tests;
 #[cfg(test)]
 mod tests;
 

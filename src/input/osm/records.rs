@@ -130,6 +130,19 @@ impl Ways {
         Ways { recs, refs }
     }
 
+    /// Adds the ways of one more block (their ids not among `recs`), keeping `recs` sorted by
+    /// id.
+    pub(super) fn add_block(&mut self, b: WayBlock) {
+        let block = self.refs.len() as u32;
+        self.recs.extend(b.ways.into_iter().map(|mut w| {
+            w.block = block;
+            w
+        }));
+        self.refs.push(b.refs);
+        // Two sorted runs: the stable sort merges them in linear time.
+        self.recs.sort_by_key(|w| w.id);
+    }
+
     /// The node ids of `w`, one of `recs`.
     pub(super) fn refs(&self, w: &WayRec) -> &[i64] {
         &self.refs[w.block as usize][w.start as usize..w.end as usize]
@@ -229,8 +242,46 @@ impl Nodes {
         self.exact.push((i, lon, lat));
     }
 
-    /// Sorts the exact table; call once all nodes are set.
+    /// Sets node `i` to (`lon`, `lat`) degrees (`None`: deleted, as if not in the file), after
+    /// the pass: compact when the degrees are a whole number of 1e-7 degrees read as the
+    /// PBF reader reads them, else exact.
+    pub(super) fn set(&mut self, i: usize, pos: Option<(f64, f64)>) {
+        let Some(c) = self.coords.get_mut(i) else {
+            return;
+        };
+        let Some((lon, lat)) = pos else {
+            *c = [MISSING; 2];
+            return;
+        };
+        let compact = |deg: f64| {
+            let nano = (deg * 1e9).round();
+            if nano.is_nan() || nano.abs() >= 9e18 {
+                return None;
+            }
+            let nano = nano as i64;
+            (degrees(nano).to_bits() == deg.to_bits())
+                .then(|| small(nano))
+                .flatten()
+        };
+        match (compact(lon), compact(lat)) {
+            (Some(x), Some(y)) => *c = [x, y],
+            _ => {
+                *c = [EXACT; 2];
+                self.exact.push((i, lon, lat));
+            }
+        }
+    }
+
+    /// The index of node `id` among the needed ones.
+    pub(super) fn index_of(&self, id: i64) -> Option<usize> {
+        self.index(id)
+    }
+
+    /// Sorts the exact table, keeping the last entry set for an index; call once all nodes are
+    /// set.
     pub(super) fn finish(&mut self) {
+        // Reversed, then sorted stably: of one index's entries the last set comes first.
+        self.exact.reverse();
         self.exact.sort_by_key(|e| e.0);
         self.exact.dedup_by_key(|e| e.0);
     }
@@ -401,45 +452,57 @@ pub(super) fn relations_of_block(block: &PrimitiveBlock) -> Vec<RelRec> {
     let mut out = Vec::new();
     for group in block.groups() {
         for rel in group.relations() {
-            if !rel
-                .tags()
-                .any(|(k, v)| k == "type" && v.trim() == "multipolygon")
-            {
-                continue;
-            }
-            let kind = match kind_of(rel.tags()) {
-                Some(FootprintKind::Building) => RelKind::Building,
-                Some(FootprintKind::Part) => RelKind::Part,
-                None if rel.tags().all(|(k, _)| is_metadata_key(k)) => RelKind::Untagged,
-                None => continue,
-            };
-            let mut members = Vec::new();
-            let mut other_members = 0;
-            for m in rel.members() {
-                if m.member_type == RelMemberType::Way {
-                    let role = match m.role().map(|r| r.trim()) {
-                        Ok("outer") => Role::Outer,
-                        Ok("inner") => Role::Inner,
-                        _ => Role::Unknown,
-                    };
-                    members.push(Member {
-                        way: m.member_id,
-                        role,
-                    });
-                } else {
-                    other_members += 1;
-                }
-            }
-            out.push(RelRec {
-                id: rel.id(),
-                kind,
-                tags: owned(rel.tags()),
-                members,
-                other_members,
+            let members = rel.members().map(|m| {
+                (
+                    m.member_type == RelMemberType::Way,
+                    m.member_id,
+                    m.role().ok(),
+                )
             });
+            out.extend(relation_rec(rel.id(), || rel.tags(), members));
         }
     }
     out
+}
+
+/// What pass 1 keeps of a relation: `Some` for a `type=multipolygon` relation tagged
+/// `building`/`building:part`, or with only metadata tags. `tags` gives the tags afresh at each
+/// call; `members` are (is a way, id, role).
+pub(super) fn relation_rec<'a, T: Iterator<Item = (&'a str, &'a str)>>(
+    id: i64,
+    tags: impl Fn() -> T,
+    members: impl Iterator<Item = (bool, i64, Option<&'a str>)>,
+) -> Option<RelRec> {
+    if !tags().any(|(k, v)| k == "type" && v.trim() == "multipolygon") {
+        return None;
+    }
+    let kind = match kind_of(tags()) {
+        Some(FootprintKind::Building) => RelKind::Building,
+        Some(FootprintKind::Part) => RelKind::Part,
+        None if tags().all(|(k, _)| is_metadata_key(k)) => RelKind::Untagged,
+        None => return None,
+    };
+    let mut way_members = Vec::new();
+    let mut other_members = 0;
+    for (is_way, way, role) in members {
+        if is_way {
+            let role = match role.map(str::trim) {
+                Some("outer") => Role::Outer,
+                Some("inner") => Role::Inner,
+                _ => Role::Unknown,
+            };
+            way_members.push(Member { way, role });
+        } else {
+            other_members += 1;
+        }
+    }
+    Some(RelRec {
+        id,
+        kind,
+        tags: owned(tags()),
+        members: way_members,
+        other_members,
+    })
 }
 
 pub(super) fn owned<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Tags {
@@ -454,29 +517,44 @@ pub(super) fn ways_of_block(
     let mut out = WayBlock::default();
     for group in block.groups() {
         for way in group.ways() {
-            let kind = kind_of(way.tags());
-            let member = member_ways.binary_search(&way.id()).is_ok();
-            let street = is_street(way.tags());
-            if kind.is_none() && !member && !street {
-                continue;
-            }
-            let start = out.refs.len();
-            out.refs.extend(way.refs());
-            out.push(
-                WayRec {
-                    id: way.id(),
-                    block: 0,
-                    start: 0,
-                    end: 0,
-                    kind,
-                    tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(way.tags()))),
-                    street,
-                },
-                start,
-            );
+            out.keep_way(way.id(), || way.tags(), way.refs(), member_ways, interner);
         }
     }
     out
+}
+
+impl WayBlock {
+    /// Adds the way when the ways pass keeps it: a building or part way, a member of a kept
+    /// relation (`member_ways`, sorted) or a street. `tags` gives the tags afresh at each call.
+    pub(super) fn keep_way<'a, T: Iterator<Item = (&'a str, &'a str)>>(
+        &mut self,
+        id: i64,
+        tags: impl Fn() -> T,
+        refs: impl Iterator<Item = i64>,
+        member_ways: &[i64],
+        interner: &TagInterner,
+    ) {
+        let kind = kind_of(tags());
+        let member = member_ways.binary_search(&id).is_ok();
+        let street = is_street(tags());
+        if kind.is_none() && !member && !street {
+            return;
+        }
+        let start = self.refs.len();
+        self.refs.extend(refs);
+        self.push(
+            WayRec {
+                id,
+                block: 0,
+                start: 0,
+                end: 0,
+                kind,
+                tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(tags()))),
+                street,
+            },
+            start,
+        );
+    }
 }
 
 /// Finds a block's node ids in the sorted list of needed ids. Node ids in a block are usually
