@@ -273,7 +273,7 @@ fn changes_between(a: &Path, b: &Path) -> (Vec<String>, Vec<String>) {
 
 /// Day 1 and day 2 of a town of 100 buildings in 50 m tiles; day 2 edits: tags of way/1011,
 /// geometry and tags of way/1047 (moved 0.6 m), way/1090 removed, way/7000 added in a gap.
-fn two_days(t: &Path) -> (PathBuf, PathBuf, Vec<B>) {
+fn two_days(t: &Path) -> (PathBuf, PathBuf, PathBuf) {
     let day1 = town(10);
     let mut day2: Vec<B> = day1.iter().filter(|b| b.id != 1090).cloned().collect();
     for b in &mut day2 {
@@ -297,14 +297,82 @@ fn two_days(t: &Path) -> (PathBuf, PathBuf, Vec<B>) {
     let (d1, d2) = (t.join("day1/town.osm.pbf"), t.join("day2/town.osm.pbf"));
     write_pbf(&d1, &day1);
     write_pbf(&d2, &day2);
-    (d1, d2, day1)
+    let osc = t.join("day2/changes.osc.gz");
+    write_osc(&osc, &day1, &day2);
+    (d1, d2, osc)
+}
+
+/// The osmChange (gzipped) that turns `day1` into `day2` as [`write_pbf`] writes them.
+fn write_osc(path: &Path, day1: &[B], day2: &[B]) {
+    use std::fmt::Write as _;
+    let esc = |v: &str| {
+        v.replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('"', "&quot;")
+    };
+    let element = |out: &mut String, b: &B, nodes_too: bool| {
+        if nodes_too {
+            let (hx, hy) = (b.size.0 / 2.0, b.size.1 / 2.0);
+            for (c, (dx, dy)) in [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)]
+                .iter()
+                .enumerate()
+            {
+                let (lon, lat) = lonlat(b.at.0 + dx, b.at.1 + dy);
+                let _ = writeln!(
+                    out,
+                    r#"  <node id="{}" version="2" lat="{lat:.7}" lon="{lon:.7}"/>"#,
+                    b.id * 10 + c as i64
+                );
+            }
+        }
+        let _ = writeln!(out, r#"  <way id="{}" version="2">"#, b.id);
+        for c in (0..4).chain([0]) {
+            let _ = writeln!(out, r#"   <nd ref="{}"/>"#, b.id * 10 + c);
+        }
+        for (k, v) in &b.tags {
+            let _ = writeln!(out, r#"   <tag k="{k}" v="{}"/>"#, esc(v));
+        }
+        out.push_str("  </way>\n");
+    };
+    let old: BTreeMap<i64, &B> = day1.iter().map(|b| (b.id, b)).collect();
+    let new: BTreeMap<i64, &B> = day2.iter().map(|b| (b.id, b)).collect();
+    let mut x = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<osmChange version=\"0.6\" generator=\"citygen tests\">\n",
+    );
+    x.push_str(" <create>\n");
+    for b in new.values().filter(|b| !old.contains_key(&b.id)) {
+        element(&mut x, b, true);
+    }
+    x.push_str(" </create>\n <modify>\n");
+    for b in new.values() {
+        if let Some(a) = old.get(&b.id) {
+            let moved = a.at != b.at || a.size != b.size;
+            if moved || a.tags != b.tags {
+                element(&mut x, b, moved);
+            }
+        }
+    }
+    x.push_str(" </modify>\n <delete>\n");
+    for a in old.values().filter(|a| !new.contains_key(&a.id)) {
+        let _ = writeln!(x, r#"  <way id="{}" version="2"/>"#, a.id);
+        for c in 0..4 {
+            let _ = writeln!(x, r#"  <node id="{}" version="2"/>"#, a.id * 10 + c);
+        }
+    }
+    x.push_str(" </delete>\n</osmChange>\n");
+    let mut gz = flate2::write::GzEncoder::new(
+        std::fs::File::create(path).unwrap(),
+        flate2::Compression::default(),
+    );
+    std::io::Write::write_all(&mut gz, x.as_bytes()).unwrap();
+    gz.finish().unwrap();
 }
 
 #[test]
 fn previous_reuses_the_unchanged_tiles_and_gives_the_full_runs_bytes() {
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
-    let (d1, d2, _) = two_days(t);
+    let (d1, d2, osc) = two_days(t);
     let (o1, full, inc) = (t.join("o1"), t.join("full2"), t.join("inc2"));
     run(&d1, &o1, "2", "50", &[]);
     run(&d2, &full, "2", "50", &[]);
@@ -379,6 +447,27 @@ fn previous_reuses_the_unchanged_tiles_and_gives_the_full_runs_bytes() {
         }
     }
     assert!(kept >= 4 * (tiles - edited.len()), "{kept} files kept");
+    // Day 1's extract with the change file on top: the same run.
+    let with_osc = t.join("osc2");
+    run(
+        &d1,
+        &with_osc,
+        "2",
+        "50",
+        &[
+            "--osc",
+            osc.to_str().unwrap(),
+            "--previous",
+            o1.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        files(&with_osc) == ff,
+        "--osc: the files differ from the full run's"
+    );
+    assert_eq!(changes(&with_osc)["changed"], c["changed"]);
+    assert_eq!(changes(&with_osc)["added"], c["added"]);
+    assert_eq!(changes(&with_osc)["removed"], c["removed"]);
     // The region's merge is the full run's too.
     let merged = |d: &Path| {
         let seq = d.join("region.city.jsonl");

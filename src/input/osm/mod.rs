@@ -656,18 +656,3 @@ pub(crate) fn note_ignored(report: &mut Report, id: SourceId, tags: &BuildingTag
 mod osc_tests;
 #[cfg(test)]
 mod tests;
-
-/// Placeholder until the change-file reader lands: `osc` must be `None`.
-pub fn read_osm_with_changes(
-    path: &Path,
-    osc: Option<&Path>,
-    report: &mut Report,
-) -> Result<ReadResult, InputError> {
-    match osc {
-        None => read_osm(path, report),
-        Some(p) => Err(InputError::NotPbf {
-            path: p.to_path_buf(),
-            reason: "change files are not read yet".into(),
-        }),
-    }
-}
