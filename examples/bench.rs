@@ -49,6 +49,8 @@ fn main() -> Result<(), Error> {
     let mut formats: Vec<Format> = Format::ALL.to_vec();
     let mut kb = PathBuf::from("knowledge_base/kb.xml");
     let mut extra: Vec<String> = Vec::new();
+    let mut day2: Option<(usize, PathBuf)> = None;
+    let mut seed = 1u64;
     let mut i = 0;
     while i < args.len() {
         let a = args[i].as_str();
@@ -64,6 +66,11 @@ fn main() -> Result<(), Error> {
                 let out = PathBuf::from(value()?);
                 return make_tiled(n, &out);
             }
+            "--make-day2" => {
+                let n = parse_count(&value()?)?;
+                day2 = Some((n, PathBuf::from(value()?)));
+            }
+            "--seed" => seed = value()?.parse()?,
             "--reps" => reps = Some(value()?.parse()?),
             // Only the read comparison (raw osmpbf decode vs citygen's read phase).
             "--read" => lods.clear(),
@@ -97,6 +104,9 @@ fn main() -> Result<(), Error> {
             }
         }
         i += 1;
+    }
+    if let Some((n, dir)) = day2 {
+        return make_day2(n, &dir, seed);
     }
     if inputs.is_empty() {
         inputs.push("data/monaco/monaco.osm.pbf".into());
@@ -428,6 +438,40 @@ fn make_tiled(n: usize, out: &Path) -> Result<(), Error> {
         made.per_copy,
         made.columns,
         std::fs::metadata(out)?.len() as f64 / 1e6,
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Writes day 1, day 2, the osmChange and the edit list of `n` buildings into `dir`
+/// ([`citygen::testkit::day2`]), then checks the edit list with citygen's reader.
+fn make_day2(n: usize, dir: &Path, seed: u64) -> Result<(), Error> {
+    use citygen::testkit::day2;
+    let t = Instant::now();
+    let d = day2::make_day2(n, dir, seed)?;
+    let made = t.elapsed().as_secs_f64();
+    let (create, modify, delete) = d.osc_counts();
+    println!(
+        "made {} (seed {seed}): day 1 {n} buildings ({} copies of {}), {} changed ({} moved), \
+         {} added, {} removed; osmChange: {create} create, {modify} modify, {delete} delete \
+         elements, in {made:.1} s",
+        dir.display(),
+        d.tiled.copies,
+        d.tiled.per_copy,
+        d.changed.len(),
+        d.moved.len(),
+        d.added.len(),
+        d.removed.len(),
+    );
+    let t = Instant::now();
+    let v = day2::verify_day2(dir)?;
+    println!(
+        "checked with citygen's reader: {} footprints on day 1, {} on day 2, {} changed in tags, \
+         {} in rings; every other footprint the same, in {:.1} s",
+        v.day1_footprints,
+        v.day2_footprints,
+        v.tags_changed,
+        v.rings_changed,
         t.elapsed().as_secs_f64()
     );
     Ok(())
