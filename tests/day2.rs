@@ -121,11 +121,13 @@ fn day2_edit_list_is_what_citygen_reads() {
 
 /// Every element of a PBF: nodes (lon, lat in 1e-7 degrees), ways (refs, tags), relations
 /// (members as text, tags).
+type Tags = Vec<(String, String)>;
+
 #[derive(Debug, Default, PartialEq)]
 struct Elements {
     nodes: BTreeMap<i64, (i32, i32)>,
-    ways: BTreeMap<i64, (Vec<i64>, Vec<(String, String)>)>,
-    relations: BTreeMap<i64, (Vec<String>, Vec<(String, String)>)>,
+    ways: BTreeMap<i64, (Vec<i64>, Tags)>,
+    relations: BTreeMap<i64, (Vec<String>, Tags)>,
 }
 
 fn elements(path: &Path) -> Elements {
@@ -183,7 +185,7 @@ fn day2_osc_turns_day1_into_day2() {
     let (mut block, mut root) = (String::new(), String::new());
     let mut counts: BTreeMap<String, usize> = BTreeMap::new();
     // The way being read: (id, refs, tags).
-    let mut way: Option<(i64, Vec<i64>, Vec<(String, String)>)> = None;
+    let mut way: Option<(i64, Vec<i64>, Tags)> = None;
     let attr = |e: &quick_xml::events::BytesStart, name: &str| -> Option<String> {
         e.try_get_attribute(name).unwrap().map(|a| {
             a.normalized_value(XmlVersion::Implicit1_0)

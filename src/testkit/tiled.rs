@@ -2,7 +2,7 @@
 //! (converted to lon/lat and moved beside Monaco, keeping their size in metres) repeated in a
 //! grid of copies with coordinate offsets and new node/way/relation ids per copy, until there are
 //! `n` buildings (the last copy is partial). Every copy is turned, scaled and its nodes moved by
-//! a few centimetres ([`Jitter`]), so no two footprints are the same shape. The `bench` example's
+//! a few centimetres, so no two footprints are the same shape. The `bench` example's
 //! `--make N OUT` writes one; [`super::day2`] edits one into a "day 2".
 //!
 //! The data files are read relative to the working directory (the repository root, as for
