@@ -5,6 +5,7 @@
 //! cargo run --release --example bench -- data/monaco/monaco.osm.pbf 5      # a file, best of 5
 //! cargo run --release --example bench -- 10000 100000                      # tiled inputs
 //! cargo run --release --example bench -- --make 100000 target/bench-inputs/x.osm.pbf
+//! cargo run --release --example bench -- --make-day2 100000 target/bench-inputs/day2 --seed 1
 //! ```
 //!
 //! Inputs: a path (`.osm.pbf` or `.shp`), or a building count `N` (`10000`, `100k`, `1M`): the
@@ -13,7 +14,14 @@
 //! (converted to lon/lat and moved beside Monaco, keeping their size in metres) are repeated in
 //! a grid of copies with coordinate offsets and new node/way/relation ids per copy, until there
 //! are N buildings (the last copy is partial). Every copy is turned, scaled and its nodes moved
-//! by a few centimetres ([`Jitter`]), so no two footprints are the same shape.
+//! by a few centimetres, so no two footprints are the same shape ([`citygen::testkit::tiled`]).
+//!
+//! `--make-day2 N DIR [--seed S]` (seed 1 by default) makes the input of an incremental run
+//! ([`citygen::testkit::day2`]): in DIR, `day1.osm.pbf` (the bytes of `--make N`),
+//! `day2.osm.pbf` (about 1 % of the N buildings changed, 0.5 % added, 0.5 % removed),
+//! `changes.osc.gz` (the gzipped osmChange from day 1 to day 2) and `edits.json`
+//! (`{"added": [...], "removed": [...], "changed": [...]}` as `way/ID`, sorted by id), then
+//! checks with citygen's reader that the list is exactly what differs between the two days.
 //!
 //! For each input it runs the `citygen` binary next to this example (target/release/citygen)
 //! as a child process per configuration: LOD 1, 2, 3 × (IFC, CityGML, glTF, all three), and
