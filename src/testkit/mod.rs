@@ -3,5 +3,7 @@
 //! through the self dev-dependency in Cargo.toml). Synthetic, corrupt and tiled inputs are
 //! built in code with them instead of being committed as fixtures.
 
+pub mod day2;
 pub mod pbf_write;
+pub mod tiled;
 pub mod validators;
