@@ -253,6 +253,17 @@ fn a_buildings_bytes_do_not_depend_on_the_buildings_it_does_not_touch() {
     );
 }
 
+/// The suffix of the tile holding lot `id` in a run's manifest.
+fn tile_of(dir: &Path, id: &str) -> String {
+    manifest(dir)["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["lots"].as_array().unwrap().iter().any(|l| l["id"] == id))
+        .map(|t| t["suffix"].as_str().unwrap().to_string())
+        .unwrap()
+}
+
 /// Added and removed ids between two runs' manifests.
 fn changes_between(a: &Path, b: &Path) -> (Vec<String>, Vec<String>) {
     let lots = |d: &Path| -> BTreeSet<String> {
@@ -406,15 +417,6 @@ fn previous_reuses_the_unchanged_tiles_and_gives_the_full_runs_bytes() {
     );
     assert_eq!(ids(&c["affected"]), BTreeSet::new());
     // The tiles rewritten are those of the edited buildings; every other tile kept its bytes.
-    let tile_of = |dir: &Path, id: &str| -> String {
-        manifest(dir)["tiles"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|t| t["lots"].as_array().unwrap().iter().any(|l| l["id"] == id))
-            .map(|t| t["suffix"].as_str().unwrap().to_string())
-            .unwrap()
-    };
     let edited: BTreeSet<String> = [
         tile_of(&inc, "way/1011"),
         tile_of(&inc, "way/1047"),
@@ -558,16 +560,7 @@ fn at_lod3_a_touching_neighbour_in_another_tile_is_rederived_too() {
     write_pbf(&d1, &day1);
     let o1 = t.join("o1");
     run(&d1, &o1, "3", "50", &[]);
-    let tile_of = |dir: &Path, id: i64| -> String {
-        let id = format!("way/{id}");
-        manifest(dir)["tiles"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|t| t["lots"].as_array().unwrap().iter().any(|l| l["id"] == id))
-            .map(|t| t["suffix"].as_str().unwrap().to_string())
-            .unwrap()
-    };
+    let tile_of = |dir: &Path, id: i64| tile_of(dir, &format!("way/{id}"));
     // The house left of the first border (not the terrace's first).
     let left = (8001..8013)
         .find(|&k| tile_of(&o1, k) != tile_of(&o1, k + 1))
