@@ -270,30 +270,55 @@ impl StreamSink {
 /// Removes the temporaries `.{name}.{pid}.tmp` that killed runs left beside a target: those
 /// whose process is gone (on Linux, no `/proc/{pid}`). Elsewhere, where liveness cannot be
 /// told, nothing is removed. Best effort: errors are ignored.
+///
+/// Each folder is listed once per process (a tiled run creates thousands of files in one
+/// folder: listing it for each was quadratic), and what it held of dead runs is kept by name
+/// until a file of that name is created.
 fn remove_stale_temporaries(dir: &Path, name: &str) {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    type Stale = HashMap<String, Vec<PathBuf>>;
+    static SEEN: OnceLock<Mutex<HashMap<PathBuf, Stale>>> = OnceLock::new();
     if !Path::new("/proc/self").exists() {
         return;
     }
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
+    let key = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    let stale = {
+        let mut seen = SEEN
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        seen.entry(key)
+            .or_insert_with(|| stale_temporaries(dir))
+            .remove(name)
     };
-    let prefix = format!(".{name}.");
+    for p in stale.into_iter().flatten() {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
+/// The temporaries `.{name}.{pid}.tmp` in `dir` of processes that are gone, by name.
+fn stale_temporaries(dir: &Path) -> std::collections::HashMap<String, Vec<PathBuf>> {
+    let mut out: std::collections::HashMap<String, Vec<PathBuf>> = Default::default();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return out;
+    };
     for e in entries.flatten() {
         let file = e.file_name();
-        let Some(file) = file.to_str() else {
-            continue;
-        };
-        let Some(pid) = file
-            .strip_prefix(&prefix)
-            .and_then(|r| r.strip_suffix(".tmp"))
-            .and_then(|p| p.parse::<u32>().ok())
+        let Some((name, pid)) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix('.'))
+            .and_then(|f| f.strip_suffix(".tmp"))
+            .and_then(|f| f.rsplit_once('.'))
+            .and_then(|(n, p)| Some((n, p.parse::<u32>().ok()?)))
         else {
             continue;
         };
         if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = std::fs::remove_file(e.path());
+            out.entry(name.to_string()).or_default().push(e.path());
         }
     }
+    out
 }
 
 /// A complete, closed temporary file waiting to be renamed over its target
@@ -305,6 +330,31 @@ pub struct PendingFile {
 }
 
 impl PendingFile {
+    /// A hard link to `src` as the temporary of `target` (in its folder, created if needed):
+    /// renamed over `target` on commit, it publishes `src`'s bytes without copying them.
+    /// Fails where `src` and `target` are on two file systems or links are not supported.
+    pub fn link(src: &Path, target: &Path) -> io::Result<PendingFile> {
+        let dir = target
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir)?;
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        remove_stale_temporaries(dir, &name);
+        let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        // A temporary of ours left by an earlier attempt in this process.
+        let _ = std::fs::remove_file(&tmp);
+        std::fs::hard_link(src, &tmp)?;
+        Ok(PendingFile {
+            target: target.to_path_buf(),
+            tmp,
+            committed: false,
+        })
+    }
+
     /// Renames the temporary over the target.
     pub fn commit(mut self) -> io::Result<()> {
         std::fs::rename(&self.tmp, &self.target)?;
