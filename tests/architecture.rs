@@ -41,6 +41,8 @@ const LAYERS: &[(&str, &[&str])] = &[
             "grammar", "selex", "input", "model", "rng", "geometry", "color",
         ],
     ),
+    // Rules written by a genetic search (`citygen evolve`).
+    ("evolve", &["grammar", "kb", "rng", "geometry", "color"]),
     // One lot to one building.
     (
         "derive",
