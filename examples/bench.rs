@@ -5,7 +5,7 @@
 //! cargo run --release --example bench -- data/monaco/monaco.osm.pbf 5      # a file, best of 5
 //! cargo run --release --example bench -- 10000 100000                      # tiled inputs
 //! cargo run --release --example bench -- --make 100000 target/bench-inputs/x.osm.pbf
-//! cargo run --release --example bench -- --make-day2 100000 target/bench-inputs/day2 --seed 1
+//! cargo run --release --example bench -- --make-day2 100000 target/bench-inputs/day2 --seed 1 [--clustered]
 //! ```
 //!
 //! Inputs: a path (`.osm.pbf` or `.shp`), or a building count `N` (`10000`, `100k`, `1M`): the
@@ -16,7 +16,8 @@
 //! are N buildings (the last copy is partial). Every copy is turned, scaled and its nodes moved
 //! by a few centimetres, so no two footprints are the same shape ([`citygen::testkit::tiled`]).
 //!
-//! `--make-day2 N DIR [--seed S]` (seed 1 by default) makes the input of an incremental run
+//! `--make-day2 N DIR [--seed S] [--clustered]` (seed 1 by default; edits anywhere, or in
+//! clusters as a day of OSM changesets) makes the input of an incremental run
 //! ([`citygen::testkit::day2`]): in DIR, `day1.osm.pbf` (the bytes of `--make N`),
 //! `day2.osm.pbf` (about 1 % of the N buildings changed, 0.5 % added, 0.5 % removed),
 //! `changes.osc.gz` (the gzipped osmChange from day 1 to day 2) and `edits.json`
@@ -59,6 +60,7 @@ fn main() -> Result<(), Error> {
     let mut extra: Vec<String> = Vec::new();
     let mut day2: Option<(usize, PathBuf)> = None;
     let mut seed = 1u64;
+    let mut spread = citygen::testkit::day2::Spread::Uniform;
     let mut i = 0;
     while i < args.len() {
         let a = args[i].as_str();
@@ -79,6 +81,7 @@ fn main() -> Result<(), Error> {
                 day2 = Some((n, PathBuf::from(value()?)));
             }
             "--seed" => seed = value()?.parse()?,
+            "--clustered" => spread = citygen::testkit::day2::Spread::Clustered,
             "--reps" => reps = Some(value()?.parse()?),
             // Only the read comparison (raw osmpbf decode vs citygen's read phase).
             "--read" => lods.clear(),
@@ -114,7 +117,7 @@ fn main() -> Result<(), Error> {
         i += 1;
     }
     if let Some((n, dir)) = day2 {
-        return make_day2(n, &dir, seed);
+        return make_day2(n, &dir, seed, spread);
     }
     if inputs.is_empty() {
         inputs.push("data/monaco/monaco.osm.pbf".into());
@@ -453,14 +456,19 @@ fn make_tiled(n: usize, out: &Path) -> Result<(), Error> {
 
 /// Writes day 1, day 2, the osmChange and the edit list of `n` buildings into `dir`
 /// ([`citygen::testkit::day2`]), then checks the edit list with citygen's reader.
-fn make_day2(n: usize, dir: &Path, seed: u64) -> Result<(), Error> {
+fn make_day2(
+    n: usize,
+    dir: &Path,
+    seed: u64,
+    spread: citygen::testkit::day2::Spread,
+) -> Result<(), Error> {
     use citygen::testkit::day2;
     let t = Instant::now();
-    let d = day2::make_day2(n, dir, seed)?;
+    let d = day2::make_day2_spread(n, dir, seed, spread)?;
     let made = t.elapsed().as_secs_f64();
     let (create, modify, delete) = d.osc_counts();
     println!(
-        "made {} (seed {seed}): day 1 {n} buildings ({} copies of {}), {} changed ({} moved), \
+        "made {} (seed {seed}, {spread:?} edits): day 1 {n} buildings ({} copies of {}), {} changed ({} moved), \
          {} added, {} removed; osmChange: {create} create, {modify} modify, {delete} delete \
          elements, in {made:.1} s",
         dir.display(),

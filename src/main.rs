@@ -396,6 +396,12 @@ struct RunArgs {
     /// added, removed, changed and affected, and the tiles reused, rewritten and gone.
     #[arg(long, value_name = "DIR", requires = "tile")]
     previous: Option<PathBuf>,
+    /// Reuse --previous's files as hard links instead of copies (as rsync --link-dest): no
+    /// bytes copied where both folders are on one file system (copied where they are not).
+    /// The two runs then share those files' inodes: citygen never writes a file in place, but
+    /// another tool that does would change both.
+    #[arg(long, requires = "previous")]
+    link_previous: bool,
     /// An OSM change file (osmChange XML, .osc or .osc.gz, e.g. a replication diff) applied on
     /// top of the --osm extract: the run reads the extract as the change leaves it.
     #[arg(long, value_name = "FILE.osc[.gz]", requires = "osm")]
@@ -1036,6 +1042,7 @@ fn run_main(cli: RunArgs) -> ExitCode {
         infer: cli.infer.0,
         shard,
         previous: cli.previous.clone(),
+        link_previous: cli.link_previous,
         osc: cli.osc.clone(),
         source_name: cli.source_name.clone(),
     };

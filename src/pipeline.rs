@@ -124,6 +124,9 @@ pub struct Options {
     /// keys are unchanged are copied from it instead of derived ([`incremental`]), and the
     /// report lists the buildings added, removed, changed and affected.
     pub previous: Option<PathBuf>,
+    /// Reused files are hard links to `previous`'s rather than copies (`--link-previous`),
+    /// where both folders are on one file system: no bytes copied, one inode shared.
+    pub link_previous: bool,
     /// An OSM change file applied on top of the `--osm` extract (`--osc`, `.osc` or
     /// `.osc.gz`): the run reads the extract as the change leaves it.
     pub osc: Option<PathBuf>,
@@ -264,7 +267,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
                     .into(),
             ))
         }
-        Some(d) => Some(incremental::load_previous(d).map_err(RunError::Input)?),
+        Some(d) => {
+            let mut prev = incremental::load_previous(d).map_err(RunError::Input)?;
+            prev.link = opts.link_previous;
+            Some(prev)
+        }
     };
     let mut report = Report::default();
     let read = read_source(&opts.source, opts.osc.as_deref(), opts.src_crs, &mut report)?;
@@ -1845,7 +1852,7 @@ fn reuse_tile(
         let dst = rel.get(&f.path)?;
         let src = folder.join(&f.path);
         // On a mismatch the temporaries made so far are dropped (removed).
-        let p = incremental::copy_checked(&src, dst, f.bytes, &f.sha256).ok()?;
+        let p = incremental::copy_checked(&src, dst, f.bytes, &f.sha256, prev.link).ok()?;
         files.push((dst.clone(), p));
     }
     // Its paths (the 3D Tiles URIs too) are relative to the manifest's folder, and the same

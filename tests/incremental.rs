@@ -503,6 +503,48 @@ fn previous_reuses_the_unchanged_tiles_and_gives_the_full_runs_bytes() {
         changes(&inc3)["tiles_rewritten"].as_array().unwrap().len(),
         edited.len() + 1
     );
+    // --link-previous: the same bytes; unchanged tiles' files are day 1's inodes, and the
+    // damaged file's tile is derived again, not linked.
+    let inc4 = t.join("inc4");
+    run(
+        &d2,
+        &inc4,
+        "2",
+        "50",
+        &["--previous", o1.to_str().unwrap(), "--link-previous"],
+    );
+    assert!(files(&inc4) == ff, "--link-previous: the files differ");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let ino = |p: &Path| std::fs::metadata(p).unwrap().ino();
+        let victim_name = victim.strip_prefix(&o1).unwrap();
+        let victim_tile = edited_or_damaged(&changes(&inc4), victim_name);
+        let mut linked = 0;
+        for name in fi.keys().filter(|n| !n.ends_with("tileset.json")) {
+            let rewritten = edited.iter().any(|s| of_tile(name, s)) || of_tile(name, &victim_tile);
+            let same = o1.join(name).exists() && ino(&o1.join(name)) == ino(&inc4.join(name));
+            assert_eq!(
+                same, !rewritten,
+                "{name}: linked {same}, rewritten {rewritten}"
+            );
+            linked += usize::from(same);
+        }
+        assert!(linked >= 4, "{linked} files linked");
+    }
+}
+
+/// The one tile of `changes`' rewritten tiles that holds file `name`.
+#[cfg(unix)]
+fn edited_or_damaged(changes: &serde_json::Value, name: &Path) -> String {
+    let name = name.to_string_lossy();
+    changes["tiles_rewritten"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().to_string())
+        .find(|s| of_tile(&name, s))
+        .unwrap()
 }
 
 /// Whether file `name` (`t_{suffix}.ifc`, `3d/content/{suffix}-blocks.glb`...) is tile

@@ -271,6 +271,9 @@ pub struct Previous {
     /// Its tiles by suffix, each with the folder of its manifest (the files' paths are
     /// relative to it).
     pub tiles: BTreeMap<String, (PathBuf, TileRecord)>,
+    /// Reused files are hard-linked rather than copied (`--link-previous`), where the two
+    /// folders are on one file system.
+    pub link: bool,
 }
 
 /// Reads the manifests `citygen-manifest.*.json` of `dir`. Errors name the folder or file:
@@ -388,15 +391,39 @@ pub fn changes(prev: &Previous, lots: &BTreeMap<String, (String, String)>) -> Ch
     c
 }
 
+/// `Err` unless `n` bytes of SHA-256 `got` (read from `src`) are the `bytes` and `sha256` its
+/// manifest lists.
+fn matches(src: &Path, n: u64, got: &str, bytes: u64, sha256: &str) -> Result<(), String> {
+    if n == bytes && got == sha256 {
+        return Ok(());
+    }
+    Err(format!(
+        "{} is not the file its manifest lists ({n} bytes, SHA-256 {}…; listed {bytes} bytes, {}…)",
+        src.display(),
+        got.chars().take(12).collect::<String>(),
+        sha256.chars().take(12).collect::<String>()
+    ))
+}
+
+/// Reads `src` through and checks its size and SHA-256 ([`matches`]).
+fn check_file(src: &Path, bytes: u64, sha256: &str) -> Result<(), String> {
+    let mut input = std::fs::File::open(src).map_err(|e| format!("{}: {e}", src.display()))?;
+    let mut h = Sha256::new();
+    let n = std::io::copy(&mut input, &mut h).map_err(|e| format!("{}: {e}", src.display()))?;
+    matches(src, n, &shard::hex(&h.finalize()), bytes, sha256)
+}
+
 /// Copies `src` to a temporary beside `dst`, checking that it has `bytes` bytes and SHA-256
 /// `sha256`; returns the closed temporary, to be renamed over `dst` with the run's other
 /// files. `Ok(None)` when `src` is `dst` itself (a run updating its own folder) and checks
-/// out. `Err` says what did not match.
+/// out. `Err` says what did not match. With `link`, `src` is checked, then hard-linked
+/// (copied when it cannot be: another file system, or a system without links).
 pub fn copy_checked(
     src: &Path,
     dst: &Path,
     bytes: u64,
     sha256: &str,
+    link: bool,
 ) -> Result<Option<crate::export::PendingFile>, String> {
     let same = match (
         std::fs::canonicalize(src),
@@ -405,6 +432,12 @@ pub fn copy_checked(
         (Ok(s), Some(Ok(d))) => dst.file_name().is_some_and(|n| s == d.join(n)),
         _ => false,
     };
+    if link && !same {
+        check_file(src, bytes, sha256)?;
+        if let Ok(p) = crate::export::PendingFile::link(src, dst) {
+            return Ok(Some(p));
+        }
+    }
     let mut input = std::fs::File::open(src).map_err(|e| format!("{}: {e}", src.display()))?;
     let mut out = if same {
         None
@@ -435,16 +468,7 @@ pub fn copy_checked(
                 .map_err(|e| format!("{}: {e}", dst.display()))?;
         }
     }
-    let got = shard::hex(&h.finalize());
-    if n != bytes || got != sha256 {
-        return Err(format!(
-            "{} is not the file its manifest lists ({n} bytes, SHA-256 {}…; listed {bytes} bytes, \
-             {}…)",
-            src.display(),
-            &got[..12.min(got.len())],
-            sha256.chars().take(12).collect::<String>()
-        ));
-    }
+    matches(src, n, &shard::hex(&h.finalize()), bytes, sha256)?;
     if let Some(mut w) = writer {
         w.flush().map_err(|e| format!("{}: {e}", dst.display()))?;
     }

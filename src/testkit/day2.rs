@@ -25,6 +25,9 @@
 //! by [`ADDED_CLEARANCE_M`] meets no other way's box. New node and way ids follow day 1's
 //! largest.
 //!
+//! Edits fall anywhere ([`Spread::Uniform`]) or, as a day of OSM changesets does, in clusters
+//! ([`Spread::Clustered`]: groups of [`CLUSTER_EDITS`] within [`CLUSTER_RADIUS_M`] of a centre).
+//!
 //! [`verify_day2`] reads both days with citygen's reader and checks the edit list against them.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -110,14 +113,39 @@ impl Day2 {
     }
 }
 
+/// Where the day's edits fall.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Spread {
+    /// Each edit anywhere: removed and changed buildings drawn from every editable one, added
+    /// buildings at random points of the whole area.
+    #[default]
+    Uniform,
+    /// As a day of OSM changesets: edits in groups of [`CLUSTER_EDITS`], each group the
+    /// editable buildings nearest to a centre (an editable building drawn at random; no
+    /// farther than [`CLUSTER_RADIUS_M`]) and added buildings within that radius of a centre.
+    Clustered,
+}
+
+/// Edits in one cluster of [`Spread::Clustered`] (a mapper's changeset on one street block).
+pub const CLUSTER_EDITS: usize = 25;
+
+/// Radius of one cluster of [`Spread::Clustered`], in metres.
+pub const CLUSTER_RADIUS_M: f64 = 250.0;
+
 /// Writes day 1 (`n` tiled buildings), day 2, the osmChange and the edit list into `dir` (see
-/// the module documentation). The same `n` and `seed` give the same bytes.
+/// the module documentation), with edits spread uniformly. The same `n` and `seed` give the
+/// same bytes.
 pub fn make_day2(n: usize, dir: &Path, seed: u64) -> Result<Day2> {
+    make_day2_spread(n, dir, seed, Spread::Uniform)
+}
+
+/// [`make_day2`] with the edits spread as `spread` says.
+pub fn make_day2_spread(n: usize, dir: &Path, seed: u64, spread: Spread) -> Result<Day2> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     let day1 = dir.join(DAY1);
     let tiled = make_tiled(n, &day1)?;
     let osm = Osm::read(&day1)?;
-    let plan = plan_edits(&osm, &day1, n, seed)?;
+    let plan = plan_edits(&osm, &day1, n, seed, spread)?;
     write_day2(&osm, &plan, &dir.join(DAY2))?;
     write_osc(&osm, &plan, &dir.join(CHANGES))?;
     let edits = plan.edit_list();
@@ -534,7 +562,7 @@ pub fn edit_counts(n: usize) -> (usize, usize, usize) {
     (pct(1.0), pct(0.5), pct(0.5))
 }
 
-fn plan_edits(osm: &Osm, day1: &Path, n: usize, seed: u64) -> Result<Plan> {
+fn plan_edits(osm: &Osm, day1: &Path, n: usize, seed: u64, spread: Spread) -> Result<Plan> {
     let (n_changed, n_added, n_removed) = edit_counts(n);
     let mut rng = Rng(seed ^ 0x6461_7932_6564_6974);
     if osm.nodes.is_empty() {
@@ -632,6 +660,64 @@ fn plan_edits(osm: &Osm, day1: &Path, n: usize, seed: u64) -> Result<Plan> {
     for i in (1..order.len()).rev() {
         order.swap(i, rng.below(i + 1));
     }
+    let n_clusters = (n_changed + n_removed + n_added).div_ceil(CLUSTER_EDITS);
+    // Clustered: the centres are the first of the shuffled buildings; each takes its nearest
+    // not yet taken (within the radius), in turns, until the removals and changes are drawn.
+    let mut centres: Vec<(f64, f64)> = Vec::new();
+    if spread == Spread::Clustered && n_clusters > 0 {
+        let centre_of = |i: usize| {
+            let b = osm.ways.get(i).map_or([0.0; 4], way_box);
+            ((b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0)
+        };
+        let at: Vec<(f64, f64)> = order.iter().map(|&i| centre_of(i)).collect();
+        centres = at.iter().take(n_clusters).copied().collect();
+        let mut near: Vec<std::vec::IntoIter<usize>> = centres
+            .iter()
+            .map(|c| {
+                let mut by: Vec<(f64, usize)> = at
+                    .iter()
+                    .enumerate()
+                    .map(|(k, p)| ((p.0 - c.0).hypot(p.1 - c.1), k))
+                    .filter(|(d, _)| *d <= CLUSTER_RADIUS_M)
+                    .collect();
+                by.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                by.into_iter()
+                    .map(|(_, k)| k)
+                    .collect::<Vec<_>>()
+                    .into_iter()
+            })
+            .collect();
+        let mut taken = vec![false; order.len()];
+        let mut picked: Vec<usize> = Vec::new();
+        let want = n_changed + n_removed;
+        while picked.len() < want {
+            let before = picked.len();
+            for it in near.iter_mut() {
+                if picked.len() == want {
+                    break;
+                }
+                if let Some(k) = it.by_ref().find(|&k| !taken[k]) {
+                    taken[k] = true;
+                    picked.push(k);
+                }
+            }
+            if picked.len() == before {
+                // Every cluster is exhausted: the rest from anywhere, in shuffled order.
+                picked.extend((0..order.len()).filter(|&k| !taken[k]).take(want - before));
+                break;
+            }
+        }
+        // Removals and changes mixed within each cluster: shuffle the picked ones.
+        for i in (1..picked.len()).rev() {
+            picked.swap(i, rng.below(i + 1));
+        }
+        let mut taken = vec![false; order.len()];
+        for &k in &picked {
+            taken[k] = true;
+        }
+        let rest = (0..order.len()).filter(|&k| !taken[k]).map(|k| order[k]);
+        order = picked.iter().map(|&k| order[k]).chain(rest).collect();
+    }
     let mut next_node = osm.nodes.iter().map(|n| n.0).max().unwrap_or(0) + 1;
     let mut next_way = osm.ways.iter().map(|w| w.id).max().unwrap_or(0) + 1;
     let mut plan = Plan {
@@ -703,10 +789,22 @@ fn plan_edits(osm: &Osm, day1: &Path, n: usize, seed: u64) -> Result<Plan> {
             let Some(shape) = shapes.get(rng.below(shapes.len())) else {
                 break;
             };
-            let (px, py) = (
-                area[0] + rng.unit() * (area[2] - area[0]),
-                area[1] + rng.unit() * (area[3] - area[1]),
-            );
+            let centre = match spread {
+                Spread::Clustered => centres.get(rng.below(centres.len())),
+                Spread::Uniform => None,
+            };
+            let (px, py) = match centre {
+                // Uniform in the cluster's disc.
+                Some(c) => {
+                    let r = CLUSTER_RADIUS_M * rng.unit().sqrt();
+                    let a = rng.unit() * std::f64::consts::TAU;
+                    (c.0 + r * a.cos(), c.1 + r * a.sin())
+                }
+                _ => (
+                    area[0] + rng.unit() * (area[2] - area[0]),
+                    area[1] + rng.unit() * (area[3] - area[1]),
+                ),
+            };
             let pts: Vec<(f64, f64)> = shape.iter().map(|&(x, y)| (x + px, y + py)).collect();
             let b = bbox(pts.iter().copied());
             if !all.hits(&grow(b, ADDED_CLEARANCE_M)) {
