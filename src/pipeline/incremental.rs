@@ -21,7 +21,8 @@
 //! order, has the same bytes: its files are copied from DIR (each checked against the size
 //! and SHA-256 the manifest recorded; a file that fails is a tile derived again), its report
 //! entries and manifest record taken over, and it is not derived. Every other tile is derived
-//! and written as usual. [`changes`] compares the two runs' lots: added, removed, changed (own
+//! and written as usual (with `--link-previous`, [`Previous::link`], a reused file is
+//! hard-linked after its check instead of copied). [`changes`] compares the two runs' lots: added, removed, changed (own
 //! key), affected (same own key, another key), with the tiles reused, rewritten and gone.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
