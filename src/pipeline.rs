@@ -305,6 +305,9 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
     if matches!(generator.rules, Rules::Kb) {
         generator.load_selex().map_err(RunError::Input)?;
+        for n in generator.load_rulesets() {
+            report.add(None, Outcome::Note, n);
+        }
     }
     // The lots this run writes: those in --bbox, and of a shard, those of its tiles.
     let mut selected: Vec<bool> = match opts.bbox {
@@ -330,7 +333,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let mut keyed = Keyed::default();
     let mut run_key = None;
     if let (Some(g), Some(path), Some(own)) = (&grid, &targets.manifest, &own_keys) {
-        let rk = g.run_key(opts, &site)?;
+        let rk = g.run_key(opts, &site, &generator.kb)?;
         let dir = path
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
@@ -409,7 +412,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         (Some(g), Some(path)) => {
             let rk = match run_key {
                 Some(rk) => rk,
-                None => g.run_key(opts, &site)?,
+                None => g.run_key(opts, &site, &generator.kb)?,
             };
             let mut head = g.manifest_head(rk, &shard, &site, &mut report)?;
             head.context = keyed.context.clone();
@@ -633,7 +636,12 @@ impl GridPlan {
 
     /// What decides the run's outputs ([`shard::RunKey`]): the inputs' and KB's hashes, seed,
     /// LOD, CRS, origin, tile size, options and outputs.
-    fn run_key(&self, opts: &Options, site: &prepare::Site) -> Result<shard::RunKey, RunError> {
+    fn run_key(
+        &self,
+        opts: &Options,
+        site: &prepare::Site,
+        kb: &kb::KnowledgeBase,
+    ) -> Result<shard::RunKey, RunError> {
         let key = |p: &Path| {
             shard::file_key(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))
         };
@@ -662,9 +670,29 @@ impl GridPlan {
         if opts.dry_run {
             outputs.push("dry-run".into());
         }
+        // The files the KB's appearances name, keyed by the name the KB gives them.
+        let mut kb_files = std::collections::BTreeMap::new();
+        for (z, zone) in kb.zones().iter().enumerate() {
+            for (a, app) in zone.appearances.iter().enumerate() {
+                let named = [
+                    (app.ruleset.as_deref(), kb.ruleset_path(z, a, false)),
+                    (app.selex.as_deref(), kb.selex_path(z, a)),
+                ];
+                for (name, path) in named {
+                    if let (Some(name), Ok(Some(path))) = (name, path) {
+                        if path.is_file() && !kb_files.contains_key(name) {
+                            let mut k = key(&path)?;
+                            k.name = name.to_string();
+                            kb_files.insert(name.to_string(), k);
+                        }
+                    }
+                }
+            }
+        }
         Ok(shard::RunKey {
             inputs,
             kb: opts.kb.as_deref().map(key).transpose()?,
+            kb_files: kb_files.into_values().collect(),
             rules: opts.rules.as_deref().map(key).transpose()?,
             seed: opts.seed,
             lod: opts.lod as u8,

@@ -1743,7 +1743,7 @@ fn data_across_the_antimeridian_gets_the_zone_there() {
 }
 
 #[test]
-fn rulesets_the_kb_names_are_reported_as_not_applied_or_refused() {
+fn rulesets_the_kb_names_are_applied_or_reported_as_not_applied_or_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let kb = d.join("kb.xml");
@@ -1751,13 +1751,15 @@ fn rulesets_the_kb_names_are_reported_as_not_applied_or_refused() {
         &kb,
         r#"<earth>
   <info nbfloor="2" rooftype="flat"/>
-  <appearance><values proba="0.5"/><ruleset file="near.cga"/></appearance>
-  <appearance><values proba="0.5"/><ruleset file="../far.cga"/></appearance>
+  <appearance><values proba="0.4"/><ruleset file="near.cga"/></appearance>
+  <appearance><values proba="0.3"/><ruleset file="../far.cga"/></appearance>
+  <appearance><values proba="0.3"/><ruleset file="broken.cga"/></appearance>
 </earth>
 "#,
     )
     .unwrap();
-    std::fs::write(d.join("near.cga"), "Lot --> extrude(3) Mass\n").unwrap();
+    std::fs::write(d.join("near.cga"), "lot -> extrude(7.5){building}\n").unwrap();
+    std::fs::write(d.join("broken.cga"), "Lot --> extrude(3) Mass\n").unwrap();
     let pbf = d.join("in.osm.pbf");
     let mut osm = Osm::default();
     osm.good(1, 0);
@@ -1773,11 +1775,68 @@ fn rulesets_the_kb_names_are_reported_as_not_applied_or_refused() {
     let about = |needle: &str| notes.iter().find(|n| n.contains(needle)).cloned();
     let near = about("near.cga").unwrap_or_else(|| panic!("no note on near.cga: {notes:?}"));
     assert!(
-        near.contains("kb.xml:3") && near.contains("does not apply"),
+        near.contains("kb.xml:3") && near.contains("derived with it"),
         "{near}"
     );
     let far = about("far.cga").unwrap_or_else(|| panic!("no note on ../far.cga: {notes:?}"));
     assert!(far.contains("kb.xml:4") && far.contains("refused"), "{far}");
+    let broken = notes
+        .iter()
+        .find(|n| n.contains("broken.cga") && n.contains("not applied"))
+        .unwrap_or_else(|| panic!("no note on broken.cga not applied: {notes:?}"));
+    assert!(broken.contains("kb.xml:5"), "{broken}");
+}
+
+#[test]
+fn an_appearances_ruleset_file_derives_its_buildings() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let kb = d.join("kb.xml");
+    let pbf = d.join("in.osm.pbf");
+    let mut osm = Osm::default();
+    osm.good(1, 0);
+    osm.write(&pbf);
+    let height = |ruleset: Option<&str>| {
+        let app = match ruleset {
+            Some(r) => {
+                std::fs::write(d.join("r.cga"), r).unwrap();
+                r#"<appearance><values proba="1"/><ruleset file="r.cga"/></appearance>"#
+            }
+            None => r#"<appearance><values proba="1"/></appearance>"#,
+        };
+        std::fs::write(
+            &kb,
+            format!("<earth>\n  <info nbfloor=\"2\" floorsize=\"3\" rooftype=\"flat\"/>\n  {app}\n</earth>\n"),
+        )
+        .unwrap();
+        let seq = d.join("out.city.jsonl");
+        ok_run(
+            d,
+            "--osm",
+            &pbf,
+            &[
+                "--kb",
+                kb.to_str().unwrap(),
+                "--cityjsonseq",
+                seq.to_str().unwrap(),
+            ],
+        );
+        let text = std::fs::read_to_string(&seq).unwrap();
+        let line = text.lines().nth(1).unwrap();
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let objects = v["CityObjects"].as_object().unwrap();
+        objects
+            .values()
+            .find_map(|o| o["attributes"]["measuredHeight"].as_f64())
+            .unwrap()
+    };
+    // From the values (a flat roof: the eave is the height).
+    let eave = height(None);
+    assert!((height(Some("lot -> extrude(7.5){building}\n")) - 7.5).abs() < 1e-6);
+    assert!((eave - 7.5).abs() > 0.1, "{eave}");
+    // The values still give the axiom's attributes.
+    let plus = height(Some("lot -> extrude(eave + 1){building}\n"));
+    assert!((plus - (eave + 1.0)).abs() < 1e-6, "{plus} {eave}");
 }
 
 #[test]

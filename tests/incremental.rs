@@ -80,12 +80,17 @@ fn write_pbf(path: &Path, town: &[B]) {
 }
 
 fn run(input: &Path, out: &Path, lod: &str, tile: &str, extra: &[&str]) {
+    run_kb(input, out, lod, tile, KB, extra)
+}
+
+/// [`run`] with knowledge base `kb`.
+fn run_kb(input: &Path, out: &Path, lod: &str, tile: &str, kb: &str, extra: &[&str]) {
     let p = |n: &str| out.join(n).display().to_string();
     let mut args: Vec<String> = [
         "--osm",
         &input.display().to_string(),
         "--kb",
-        KB,
+        kb,
         "--lod",
         lod,
         "--tile",
@@ -555,6 +560,36 @@ fn of_tile(name: &str, suffix: &str) -> bool {
             .iter()
             .any(|b| name.contains(&format!("{a}{suffix}{b}")))
     })
+}
+
+#[test]
+fn a_ruleset_file_the_kb_names_is_part_of_every_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (d1, _, _) = two_days(t);
+    let kb = t.join("kb.xml");
+    std::fs::write(
+        &kb,
+        "<earth>\n  <info nbfloor=\"2\" rooftype=\"flat\"/>\n  \
+         <appearance><values proba=\"1\"/><ruleset file=\"r.cga\"/></appearance>\n</earth>\n",
+    )
+    .unwrap();
+    let rules = t.join("r.cga");
+    std::fs::write(&rules, "lot -> extrude(eave){building}\n").unwrap();
+    let kb = kb.to_str().unwrap();
+    let (o1, same, edited) = (t.join("o1"), t.join("same"), t.join("edited"));
+    run_kb(&d1, &o1, "2", "50", kb, &[]);
+    let prev = ["--previous", o1.to_str().unwrap()];
+    run_kb(&d1, &same, "2", "50", kb, &prev);
+    let c = changes(&same);
+    assert!(c["tiles_rewritten"].as_array().unwrap().is_empty(), "{c}");
+    assert!(c["tiles_reused"].as_u64().unwrap() > 0);
+    // The KB file is the same; the ruleset it names is not: nothing is reused.
+    std::fs::write(&rules, "lot -> extrude(eave + 2){building}\n").unwrap();
+    run_kb(&d1, &edited, "2", "50", kb, &prev);
+    let c = changes(&edited);
+    assert_eq!(c["tiles_reused"].as_u64(), Some(0), "{c}");
+    assert!(files(&edited) != files(&o1));
 }
 
 #[test]

@@ -73,6 +73,10 @@ pub struct Generator {
     /// ([`selex::load_all`]; empty until [`Generator::load_selex`]). At LOD3 an appearance with
     /// one has its facades laid out by it.
     pub selex: HashMap<std::path::PathBuf, Arc<selex::SelexProgram>>,
+    /// The ruleset files the knowledge base's appearances name, by resolved path, parsed
+    /// ([`Generator::load_rulesets`]; empty until then). An appearance with one is derived with
+    /// it instead of the rules compiled from its values.
+    pub rulesets: HashMap<std::path::PathBuf, Arc<RuleSet>>,
     /// The other buildings around each lot, for party walls at LOD3 and above (empty: every
     /// building stands alone). See [`Generator::surroundings`].
     pub surroundings: surroundings::Surroundings,
@@ -101,6 +105,7 @@ impl Generator {
             caps,
             compiled: Mutex::new(RuleCache::default()),
             selex: HashMap::new(),
+            rulesets: HashMap::new(),
             surroundings: Default::default(),
         }
     }
@@ -110,6 +115,50 @@ impl Generator {
     pub fn load_selex(&mut self) -> Result<(), String> {
         self.selex = selex::load_all(&self.kb)?;
         Ok(())
+    }
+
+    /// Reads and parses the ruleset files the knowledge base's appearances name (inside its
+    /// folder), once each. Returns a note for each one that cannot be read or does not parse
+    /// (its appearance is then derived from its values, as `kb check` warns); the others are
+    /// applied to their appearances' buildings.
+    pub fn load_rulesets(&mut self) -> Vec<String> {
+        let mut notes = Vec::new();
+        let mut seen = std::collections::BTreeSet::new();
+        for (z, zone) in self.kb.zones().iter().enumerate() {
+            for (a, app) in zone.appearances.iter().enumerate() {
+                let Ok(Some(path)) = self.kb.ruleset_path(z, a, false) else {
+                    continue;
+                };
+                if !seen.insert(path.clone()) {
+                    continue;
+                }
+                let file = path.display().to_string();
+                let at = format!("{}:{}", self.kb.source(), app.line);
+                let parsed = grammar::read_source(&path)
+                    .map_err(|e| format!("{file}: {e}"))
+                    .and_then(|text| grammar::parse(&text, &file).map_err(|e| e.to_string()));
+                match parsed {
+                    Ok(r) => {
+                        self.rulesets.insert(path, Arc::new(r));
+                    }
+                    Err(e) => notes.push(format!(
+                        "{at}: ruleset not applied ({e}): the appearance's values compile into \
+                         its rules"
+                    )),
+                }
+            }
+        }
+        notes
+    }
+
+    /// The ruleset file `style`'s appearance names, when it was loaded
+    /// ([`Generator::load_rulesets`]).
+    fn file_rules(&self, style: &Style) -> Option<Arc<RuleSet>> {
+        style
+            .ruleset
+            .as_ref()
+            .and_then(|p| self.rulesets.get(p))
+            .cloned()
     }
 
     /// The parts of every lot `keep` selects, derived at LOD2 (their footprints, bases and tops:
@@ -234,7 +283,10 @@ impl Generator {
                     index.push(i);
                 }
             }
-            let from_style = matches!(self.rules, Rules::Kb);
+            // Facades from the knowledge base's values are arranged over the building; those
+            // of a ruleset file (--rules, or an appearance's) are kept as its rules made them.
+            let from_style = matches!(self.rules, Rules::Kb)
+                && !styles.iter().any(|(s, _)| self.file_rules(s).is_some());
             let a = frontage::arrange(
                 &mut views,
                 lot.id,
@@ -357,6 +409,9 @@ impl Generator {
         match &self.rules {
             Rules::File(r) => Ok(r.clone()),
             Rules::Kb => {
+                if let Some(r) = self.file_rules(style) {
+                    return Ok(r);
+                }
                 // By the style's inputs to the rule text first: most buildings share them, and
                 // then the text is not written again.
                 let h = compile::RulesInputs::hash_of(style);

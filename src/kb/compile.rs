@@ -444,6 +444,7 @@ mod tests {
             zone_path: "earth/X".into(),
             appearance_label: "earth/X#1".into(),
             selex: None,
+            ruleset: None,
             storeys_from_tags: false,
             pitch_from_tags: false,
         }

@@ -312,6 +312,11 @@ pub struct Style {
     /// facades at LOD3 instead of the rules' windows and doors. `None` when it names none (or
     /// names one outside the KB's folder, which `kb check` and the run's start refuse).
     pub selex: Option<PathBuf>,
+    /// The chosen appearance's ruleset file ([`KnowledgeBase::ruleset_path`], inside the KB's
+    /// folder): its buildings are derived with it instead of the rules compiled from the
+    /// values (which still give the axiom's attributes: `eave`, `floorsize`, ...). `None` when
+    /// it names none or names one outside the folder.
+    pub ruleset: Option<PathBuf>,
     /// Whether `storeys` came from `building:levels` (then [`Style::fit_total_height`] keeps it).
     pub storeys_from_tags: bool,
     /// Whether the pitch came from `roof:angle`. A roof whose height follows from the
@@ -819,6 +824,7 @@ impl KnowledgeBase {
             zone_path,
             appearance_label,
             selex: pick.and_then(|(owner, i)| self.selex_path(owner, i).ok().flatten()),
+            ruleset: pick.and_then(|(owner, i)| self.ruleset_path(owner, i, false).ok().flatten()),
             storeys_from_tags: false,
             pitch_from_tags: false,
         };

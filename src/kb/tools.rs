@@ -93,10 +93,10 @@ pub fn check_report_with(
 }
 
 /// What a run says about the `<ruleset file>`s a knowledge base names, one note each (for the
-/// report): a refused path (outside the KB's folder) says why, and every other says that the
-/// run does not apply knowledge-base ruleset files (yet): the appearance's values compile into
-/// rules as for any appearance, and `--rules` applies one ruleset to every building. Empty when
-/// the KB names none.
+/// report): a refused path (outside the KB's folder) says why (the appearance's values compile
+/// into its rules), and every other that the appearance's buildings are derived with it (a file
+/// that cannot be read or parsed gets a second note from `derive::Generator::load_rulesets`).
+/// Empty when the KB names none.
 pub fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
     let mut notes = Vec::new();
     for (i, z) in kb.zones().iter().enumerate() {
@@ -120,9 +120,8 @@ pub fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
                     format!("{at}: ruleset refused: {why}; its values are used")
                 }
                 Ok(_) => format!(
-                    "{at} names ruleset file \"{file}\", which the run does not apply (knowledge-base \
-                     ruleset files are checked by `kb check` only): its values compile into rules \
-                     as for any appearance; --rules FILE applies one ruleset to every building"
+                    "{at} names ruleset file \"{file}\": its buildings are derived with it (the \
+                     values give the axiom's attributes)"
                 ),
             });
         }
@@ -133,8 +132,9 @@ pub fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
 /// Reads, parses and lints the ruleset an appearance names (at KB line `line`), and lists as
 /// warnings a file that cannot be read or does not parse and every lint finding (a rule that
 /// can never terminate, probabilities above 1, ...), each with the ruleset's own file:line:col.
-/// Warnings, not errors: the run derives an appearance from its values and does not apply
-/// ruleset files (yet), so none of these stops a run.
+/// Warnings, not errors: a run derives an appearance whose ruleset cannot be read or parsed
+/// from its values (with a note), and applies one with lint findings as it is, so none of
+/// these stops a run.
 fn check_ruleset(path: &Path, line: usize, warnings: &mut Vec<KbRepair>) {
     let name = path.display().to_string();
     // At most grammar::MAX_SOURCE_BYTES are read (rule files are a few kilobytes).

@@ -8,9 +8,9 @@
 //!   frame), the drawn part of the outline, its `building:part`s (ids, polygons, tags) and its
 //!   parsed tags. Two runs give a building different own keys exactly when it was edited.
 //! - **key** ([`full_keys`]): what decides the lot's bytes in the outputs: the run's context
-//!   ([`context_key`]: citygen's version and [`OUTPUT_FORMAT`], the input's name, the knowledge
-//!   base's and ruleset's SHA-256, seed, LOD, output CRS and origin, tile size, the options and
-//!   outputs), the own key, the tags as derived (after `--infer` lent it its neighbours'
+//!   ([`context_key`]: citygen's version and [`OUTPUT_FORMAT`], the input's name, the SHA-256
+//!   of the knowledge base, of the rulesets and SELEX programs it names and of `--rules`,
+//!   seed, LOD, output CRS and origin, tile size, the options and outputs), the own key, the tags as derived (after `--infer` lent it its neighbours'
 //!   values), its front (from the nearest street), and at LOD3 and LOD4 the keys of the lots
 //!   within [`NEIGHBOUR_MARGIN_M`] of it (party walls and what stands in front of a bay are
 //!   read from them). A building's random stream is seeded from the run's seed and its own id
@@ -119,6 +119,11 @@ pub fn context_key(run: &shard::RunKey, source_name: &str, outputs: &[String]) -
     put_str(&mut h, source_name);
     for f in [&run.kb, &run.rules] {
         put_str(&mut h, f.as_ref().map_or("-", |k| k.sha256.as_str()));
+    }
+    h.update((run.kb_files.len() as u64).to_le_bytes());
+    for f in &run.kb_files {
+        put_str(&mut h, &f.name);
+        put_str(&mut h, &f.sha256);
     }
     h.update(run.seed.to_le_bytes());
     h.update([run.lod]);

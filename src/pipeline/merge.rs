@@ -217,6 +217,12 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
             Some(differ("input", names(&ra.inputs), names(&rb.inputs)))
         } else if ra.kb != rb.kb {
             Some(differ("knowledge base", opt(&ra.kb), opt(&rb.kb)))
+        } else if ra.kb_files != rb.kb_files {
+            Some(differ(
+                "the knowledge base's files",
+                names(&ra.kb_files),
+                names(&rb.kb_files),
+            ))
         } else if ra.rules != rb.rules {
             Some(differ("rules", opt(&ra.rules), opt(&rb.rules)))
         } else if ra.lod != rb.lod {

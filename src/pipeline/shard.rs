@@ -231,6 +231,10 @@ pub struct RunKey {
     pub inputs: Vec<FileKey>,
     /// The knowledge base, if any.
     pub kb: Option<FileKey>,
+    /// The files the knowledge base names (appearances' rulesets and SELEX programs, those
+    /// that exist), named as the KB writes them, sorted: they decide outputs as the KB does.
+    #[serde(default)]
+    pub kb_files: Vec<FileKey>,
     /// The ruleset, if any.
     pub rules: Option<FileKey>,
     /// `--seed`.
