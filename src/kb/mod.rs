@@ -11,6 +11,7 @@
 
 pub(crate) mod compile;
 mod dom;
+pub mod edit;
 pub mod learn;
 pub(crate) mod polygon;
 mod strict;
