@@ -10,6 +10,17 @@
 //! Layering: `evolve` may import `grammar`, `kb`, `rng`, `geometry` and `color`
 //! (ARCHITECTURE.md).
 
+pub mod nsga2;
+pub mod objectives;
+pub mod plot;
+
+#[cfg(test)]
+mod nsga2_tests;
+#[cfg(test)]
+mod objectives_tests;
+#[cfg(test)]
+mod plot_tests;
+
 /// A terminal's kind, its code in the terminal matrix.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[repr(u8)]
