@@ -1,7 +1,7 @@
 //! `citygen evolve`: facade rules written by a genetic search (seed 003 §3.7, issue 26).
 //!
 //! A population of fixed-length integer genomes ([`genome`]) is decoded into rules of
-//! citygen's own grammar ([`decode`]); each ruleset is derived on a test facade and read back as
+//! citygen's own grammar ([`decode`](mod@decode)); each ruleset is derived on a test facade and read back as
 //! a [`Facade`]: its terminals (wall, window, door) with their rectangles, the terminal matrix
 //! (rows bottom to top, columns left to right, as the facade is seen from outside) and the
 //! counts of subdivisions per iteration. The aesthetic objectives and the global constraints
@@ -10,9 +10,14 @@
 //! Layering: `evolve` may import `grammar`, `kb`, `rng`, `geometry` and `color`
 //! (ARCHITECTURE.md).
 
+pub mod decode;
+pub mod facade;
+pub mod genome;
 pub mod nsga2;
 pub mod objectives;
 pub mod plot;
+pub mod run;
+pub mod svg;
 
 #[cfg(test)]
 mod nsga2_tests;
@@ -20,6 +25,11 @@ mod nsga2_tests;
 mod objectives_tests;
 #[cfg(test)]
 mod plot_tests;
+
+pub use decode::{decode, decode_for, Decoded};
+pub use facade::{derive_facade, derive_lot_facade};
+pub use genome::Genome;
+pub use svg::facade_svg;
 
 /// A terminal's kind, its code in the terminal matrix.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
