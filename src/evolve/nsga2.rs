@@ -16,6 +16,11 @@
 //! child is mutated at all; when it is, one gene, chosen uniformly, is reset to a different
 //! value of its alphabet, chosen uniformly.
 //!
+//! **Novel children**: a child equal to a genome evaluated before, or to another child of the
+//! generation, is mutated again, one gene at a time, up to [`NOVEL_TRIES`] times: in a
+//! converging population most crossovers give back a parent, and an evaluation budget spent on
+//! copies is an exploration lost (random search, its baseline, evaluates distinct genomes too).
+//!
 //! **Determinism**: every random draw is made in sequence from one [`Rng`] seeded by
 //! [`Config::seed`], never inside the parallel evaluation, whose results are collected in index
 //! order; so the result is the same whatever rayon's thread count. Evaluations are cached by
@@ -39,6 +44,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::rng::Rng;
+
+/// How many times a child equal to a genome already evaluated (or to a sibling) is mutated
+/// again (one gene each time) before it is kept as it is.
+pub const NOVEL_TRIES: usize = 8;
 
 /// The RNG stream of [`run`] (mixed with [`Config::seed`]).
 const NSGA2_STREAM: u64 = 0x4E53_4741_2D49_4901;
@@ -515,6 +524,11 @@ where
         }
     }
 
+    /// Whether `genome` was evaluated before.
+    fn seen(&self, genome: &[u32]) -> bool {
+        self.cache.contains_key(genome)
+    }
+
     /// Evaluates the genomes not seen before, in parallel, in index order, then returns every
     /// genome's values.
     fn evaluate(&mut self, genomes: &[Vec<u32>]) -> Vec<Vec<f64>> {
@@ -669,8 +683,15 @@ where
             let (mut x, mut y) = crossover(&mut rng, config.crossover, &genomes[a], &genomes[b]);
             mutate(&mut rng, p_mut, &mut x, alphabet);
             mutate(&mut rng, p_mut, &mut y, alphabet);
-            children.push(x);
-            children.push(y);
+            for mut c in [x, y] {
+                // A child seen before would cost nothing and add nothing: mutated again.
+                let mut tries = 0;
+                while tries < NOVEL_TRIES && (evaluator.seen(&c) || children.contains(&c)) {
+                    mutate(&mut rng, 1.0, &mut c, alphabet);
+                    tries += 1;
+                }
+                children.push(c);
+            }
         }
         children.truncate(n);
         let child_objs = evaluator.evaluate(&children);

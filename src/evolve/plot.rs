@@ -310,7 +310,14 @@ pub fn front_svg(history: &History, names: &[&str]) -> String {
             )
         })
         .collect();
-    let all = || evaluated.values().chain(front.iter());
+    // Genomes past the reference point (penalised: a violated constraint costs 100 on every
+    // objective) would squeeze the front into a corner: they are counted, not drawn.
+    let reference = &history.config.reference;
+    let within = |p: &(f64, f64)| {
+        reference.first().is_none_or(|r| p.0 <= *r) && reference.get(1).is_none_or(|r| p.1 <= *r)
+    };
+    let beyond = evaluated.values().filter(|p| !within(p)).count();
+    let all = || evaluated.values().filter(|p| within(p)).chain(front.iter());
     let (xlo, xhi) = bounds(all().map(|p| p.0));
     let (ylo, yhi) = bounds(all().map(|p| p.1));
     let panel = Panel {
@@ -331,7 +338,7 @@ pub fn front_svg(history: &History, names: &[&str]) -> String {
     let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
     let left_out = all().filter(|p| !finite(p)).count();
     let mut notes = vec![format!(
-        "{} genomes evaluated (grey), {} on the final front (colour)",
+        "{} evaluated (grey), {} on the front (colour)",
         evaluated.len(),
         front.len()
     )];
@@ -341,11 +348,14 @@ pub fn front_svg(history: &History, names: &[&str]) -> String {
             history.objectives
         ));
     }
+    if beyond > 0 {
+        notes.push(format!("{beyond} penalised past the reference, not drawn"));
+    }
     if left_out > 0 {
         notes.push(format!("{left_out} points not finite, not drawn"));
     }
     note(&mut out, TOP - 22.0, &notes.join("; "));
-    for p in evaluated.values().filter(finite) {
+    for p in evaluated.values().filter(finite).filter(|p| within(p)) {
         let _ = writeln!(
             out,
             r##"<circle cx="{:.2}" cy="{:.2}" r="2.5" fill="#808080" fill-opacity="0.3"/>"##,
@@ -393,6 +403,17 @@ pub fn convergence_svg(history: &History, names: &[&str]) -> String {
         .iter()
         .flat_map(|g| g.min.iter().chain(&g.mean).copied());
     let (ylo, yhi) = bounds(values);
+    // Penalised values (a violated constraint costs 100 on every objective) would flatten the
+    // curves: the axis stops at the reference point and what is above is drawn at the top.
+    let cap = history
+        .config
+        .reference
+        .iter()
+        .copied()
+        .filter(|r| r.is_finite())
+        .reduce(f64::max)
+        .filter(|r| *r > ylo && *r < yhi);
+    let yhi = cap.unwrap_or(yhi);
     let top = Panel {
         x0: LEFT,
         y0: TOP + 20.0,
@@ -403,7 +424,11 @@ pub fn convergence_svg(history: &History, names: &[&str]) -> String {
     };
     top.axes(
         &mut out,
-        "objectives per generation: minimum (solid), mean (dashed)",
+        if cap.is_some() {
+            "minimum (solid) and mean (dashed) per generation, capped at the reference"
+        } else {
+            "objectives per generation: minimum (solid), mean (dashed)"
+        },
         "generation",
         "objective value (minimised)",
     );
@@ -412,7 +437,10 @@ pub fn convergence_svg(history: &History, names: &[&str]) -> String {
         let colour = COLOURS[k % COLOURS.len()];
         let series = |pick: fn(&super::nsga2::Generation) -> &Vec<f64>| -> Vec<(f64, f64)> {
             gens.iter()
-                .map(|g| (g.index as f64, pick(g).get(k).copied().unwrap_or(f64::NAN)))
+                .map(|g| {
+                    let v = pick(g).get(k).copied().unwrap_or(f64::NAN);
+                    (g.index as f64, v.min(yhi))
+                })
                 .collect()
         };
         top.line(&mut out, &series(|g| &g.min), colour, false);
