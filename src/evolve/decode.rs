@@ -9,9 +9,7 @@
 //! building -> comp(){side : facade}
 //! facade -> repeat(Z, 3){shape1}
 //! shape1 -> repeat(X, 4){shape2}
-//! shape2 -> wall = 0.4
-//! shape2 -> window = 0.45
-//! shape2 -> door = 0.15
+//! shape2 -> window
 //! ```
 //!
 //! `eave` is the axiom's wall height, which a city run gives every building from its knowledge
@@ -55,9 +53,12 @@
 //! `n` pieces, stretched (a pattern as long as the whole shape would not fit on a smaller
 //! facade, which would then lose everything below it).
 //!
-//! **Terminals** (§3.9). Every leaf marker becomes a terminal by a weighted random choice,
-//! written as stochastic rules (`shape4 -> window = 0.7`, one draw per shape when derived).
-//! The weights depend on the iteration its name carries ([`terminal_weights`]): doors, the
+//! **Terminals** (§3.9: "at the end many right-hand sides are non-terminals; they are replaced
+//! by terminals via a weighted random choice"). Every leaf marker becomes one terminal, drawn
+//! when the rules are written ([`choose_terminal`], from a stream seeded by the genes of the
+//! step that made the marker), so the rules are deterministic (`shape4 -> window`): every shape
+//! of a marker is the same kind, a facade is the same at each derivation, and a bay repeated
+//! along a city's facade stays a bay of windows. The weights depend on the iteration its name carries ([`terminal_weights`]): doors, the
 //! openings' locations, only in the first iterations; windows peak in the middle; walls are
 //! likely at the start, least likely at iteration 4, and grow again towards the end (walls
 //! beside or inside the windows). The facade left whole (no step applies) is one `wall`.
@@ -369,24 +370,44 @@ fn write_rules(genome: &Genome, width: f64, height: f64, markers: &[Marker]) -> 
                 }
             }
             None => {
-                let w = terminal_weights(m.iteration);
-                let chosen: Vec<(usize, f64)> = w
-                    .iter()
-                    .copied()
-                    .enumerate()
-                    .filter(|&(_, p)| p > 0.0)
-                    .collect();
-                if chosen.len() == 1 {
-                    out.push_str(&format!("{} -> {}\n", m.name, TERMINALS[chosen[0].0]));
-                } else {
-                    for (t, p) in chosen {
-                        out.push_str(&format!("{} -> {} = {}\n", m.name, TERMINALS[t], num(p)));
-                    }
-                }
+                let t = choose_terminal(genome, m.iteration);
+                out.push_str(&format!("{} -> {}\n", m.name, TERMINALS[t]));
             }
         }
     }
     out
+}
+
+/// The terminal (an index into [`TERMINALS`]) of the leaf marker of `iteration`: a draw by
+/// [`terminal_weights`] from a stream seeded by the genes of the step that made the marker
+/// (its action, arrangement and parameter; iteration 0, the facade left whole, is a wall), so
+/// a change of one step's genes redraws only that step's markers.
+pub fn choose_terminal(genome: &Genome, iteration: usize) -> usize {
+    let w = terminal_weights(iteration);
+    let genes = genome.genes();
+    let step = iteration.checked_sub(1);
+    let gene = |i: Option<usize>| i.and_then(|i| genes.get(i)).copied().unwrap_or(0);
+    let mut x = 0x5EED_7E2A_0026_u64 ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    for g in [
+        gene(step.map(|k| 2 * k)),
+        gene(step.map(|k| 2 * k + 1)),
+        gene(step.map(|k| 2 * super::genome::STEPS + k)),
+    ] {
+        x = (x ^ u64::from(g)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        x ^= x >> 31;
+    }
+    x = x.wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^= x >> 29;
+    let u = (x >> 11) as f64 / (1u64 << 53) as f64;
+    let mut acc = 0.0;
+    for (t, p) in w.iter().enumerate() {
+        acc += p;
+        if *p > 0.0 && u < acc {
+            return t;
+        }
+    }
+    // Rounding: the last kind with a weight.
+    w.iter().rposition(|p| *p > 0.0).unwrap_or(0)
 }
 
 /// The operation cutting `count` pieces of `size` m along `axis` with a pattern of `len`
@@ -482,6 +503,7 @@ mod tests {
         ]))
         .unwrap();
         let rules: Vec<&str> = d.text.lines().filter(|l| !l.starts_with('#')).collect();
+        let leaf = |k: usize| format!("shape{k} -> {}", TERMINALS[choose_terminal(&d.genome, k)]);
         assert_eq!(
             rules,
             [
@@ -492,11 +514,8 @@ mod tests {
                 "shape1 -> rsplit(X, 1, 1, 1){shape3 | shape2 | shape3}",
                 "shape3 -> repeat(Z, 1.5){shape5_row}",
                 "shape5_row -> repeat(X, 2){shape5}",
-                "shape2 -> wall = 0.4",
-                "shape2 -> window = 0.45",
-                "shape2 -> door = 0.15",
-                "shape5 -> wall = 0.3",
-                "shape5 -> window = 0.7",
+                leaf(2).as_str(),
+                leaf(5).as_str(),
             ]
         );
         let levels: Vec<(&str, usize)> = d
@@ -518,6 +537,39 @@ mod tests {
         assert_eq!(d.terminal_count(), 27);
         lint_clean(&d.text);
         assert!(d.facade_rules().starts_with("facade -> repeat(Z, 3)"));
+    }
+
+    #[test]
+    fn terminals_are_drawn_by_the_weights_from_the_markers_step_genes() {
+        let mut rng = crate::rng::Rng::new(5, 26);
+        let mut counts = [[0usize; 3]; 11];
+        for _ in 0..3000 {
+            let g = Genome::random(&mut rng);
+            for (k, row) in counts.iter_mut().enumerate() {
+                row[choose_terminal(&g, k)] += 1;
+            }
+        }
+        for (k, row) in counts.iter().enumerate() {
+            let w = terminal_weights(k);
+            for t in 0..3 {
+                let f = row[t] as f64 / 3000.0;
+                // A step has 3 x 3 x 7 = 63 gene triples: the frequencies are sixty-thirds.
+                assert!(
+                    (f - w[t]).abs() < 0.12,
+                    "iteration {k} kind {t}: {f} vs {}",
+                    w[t]
+                );
+                if w[t] == 0.0 {
+                    assert_eq!(row[t], 0);
+                }
+            }
+        }
+        // Only the marker's own step decides: other steps' genes change nothing.
+        let mut a: Vec<u32> = vec![0; 30];
+        let t = choose_terminal(&Genome::new(&a).unwrap(), 3);
+        a[0] = 1;
+        a[20] = 4;
+        assert_eq!(choose_terminal(&Genome::new(&a).unwrap(), 3), t);
     }
 
     #[test]
