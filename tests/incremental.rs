@@ -124,22 +124,9 @@ fn run_kb(input: &Path, out: &Path, lod: &str, tile: &str, kb: &str, extra: &[&s
 
 /// Every file under `dir` (relative path → bytes), the report and manifests left out.
 fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    fn walk(base: &Path, dir: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
-        for e in std::fs::read_dir(dir).unwrap().flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                walk(base, &p, out);
-            } else {
-                let rel = p.strip_prefix(base).unwrap().display().to_string();
-                if rel != "report.json" && !rel.starts_with("citygen-manifest.") {
-                    out.insert(rel, std::fs::read(&p).unwrap());
-                }
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(dir, dir, &mut out);
-    out
+    common::files_under(dir, |rel| {
+        rel != "report.json" && !rel.starts_with("citygen-manifest.")
+    })
 }
 
 fn manifest(dir: &Path) -> serde_json::Value {

@@ -184,17 +184,7 @@ pub struct AtomicFile {
 impl AtomicFile {
     /// Creates the temporary file in the target's folder, creating the folder if needed.
     pub fn create(target: &Path) -> io::Result<AtomicFile> {
-        let dir = target
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        std::fs::create_dir_all(dir)?;
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        remove_stale_temporaries(dir, &name);
-        let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        let tmp = temporary_of(target)?;
         let file = File::create(&tmp)?;
         Ok(AtomicFile {
             target: target.to_path_buf(),
@@ -267,6 +257,22 @@ impl StreamSink {
     }
 }
 
+/// The temporary `.{name}.{pid}.tmp` beside `target` ([`AtomicFile`], [`PendingFile::link`]),
+/// its folder created if needed and dead runs' temporaries of that name removed.
+fn temporary_of(target: &Path) -> io::Result<PathBuf> {
+    let dir = target
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir)?;
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    remove_stale_temporaries(dir, &name);
+    Ok(dir.join(format!(".{name}.{}.tmp", std::process::id())))
+}
+
 /// Removes the temporaries `.{name}.{pid}.tmp` that killed runs left beside a target: those
 /// whose process is gone (on Linux, no `/proc/{pid}`). Elsewhere, where liveness cannot be
 /// told, nothing is removed. Best effort: errors are ignored.
@@ -334,17 +340,7 @@ impl PendingFile {
     /// renamed over `target` on commit, it publishes `src`'s bytes without copying them.
     /// Fails where `src` and `target` are on two file systems or links are not supported.
     pub fn link(src: &Path, target: &Path) -> io::Result<PendingFile> {
-        let dir = target
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        std::fs::create_dir_all(dir)?;
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        remove_stale_temporaries(dir, &name);
-        let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        let tmp = temporary_of(target)?;
         // A temporary of ours left by an earlier attempt in this process.
         let _ = std::fs::remove_file(&tmp);
         std::fs::hard_link(src, &tmp)?;

@@ -246,3 +246,31 @@ pub fn ifc_openings_per_building(
     }
     out
 }
+
+/// Every file under `dir`, by path relative to it, with its bytes, but those `keep` refuses.
+pub fn files_under(
+    dir: &Path,
+    keep: impl Fn(&str) -> bool,
+) -> std::collections::BTreeMap<String, Vec<u8>> {
+    fn walk(
+        base: &Path,
+        dir: &Path,
+        keep: &dyn Fn(&str) -> bool,
+        out: &mut std::collections::BTreeMap<String, Vec<u8>>,
+    ) {
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk(base, &p, keep, out);
+            } else {
+                let rel = p.strip_prefix(base).unwrap().display().to_string();
+                if keep(&rel) {
+                    out.insert(rel, std::fs::read(&p).unwrap());
+                }
+            }
+        }
+    }
+    let mut out = std::collections::BTreeMap::new();
+    walk(dir, dir, &keep, &mut out);
+    out
+}
