@@ -19,6 +19,8 @@
 //!   cells), and the number of pieces of an `ajoute` alternation — lowered by the decoder where
 //!   pieces would be under 0.3 m ([`super::decode::MIN_PIECE`]).
 //!
+//! * **Crossover** cuts between steps ([`cut_order`]), so a child inherits whole steps.
+//!
 //! A genome of any other length, or with a gene outside its alphabet, is rejected with an error
 //! naming the gene: the thesis's rectilinear + monolithic chromosome (Fig. 3.44) has 29 genes,
 //! one parameter lost in print; it decodes once a parameter is appended (see the tests).
@@ -48,6 +50,17 @@ pub fn alphabet() -> [u32; LENGTH] {
         *v = if i % 2 == 0 { ACTIONS } else { ARRANGEMENTS };
     }
     a
+}
+
+/// The gene positions step by step (`0, 1, 20, 2, 3, 21, …`: step `k`'s action, arrangement and
+/// parameter), the order one-point crossover reads a genome in (`nsga2::Config::cut_order`):
+/// the thesis prints the actions and arrangements first and the parameters after, and a cut in
+/// that order would give a child the first steps of one parent with every parameter of the
+/// other, breaking each step it crosses. Cut between steps, a child inherits whole steps.
+pub fn cut_order() -> Vec<usize> {
+    (0..STEPS)
+        .flat_map(|k| [2 * k, 2 * k + 1, 2 * STEPS + k])
+        .collect()
 }
 
 /// What a step does to the rules (see [`super::decode`](mod@super::decode) for the rules each one writes).
@@ -205,6 +218,22 @@ mod tests {
         let a = alphabet();
         assert!(a[..20].iter().all(|&v| v == 3));
         assert!(a[20..].iter().all(|&v| v == 7));
+    }
+
+    #[test]
+    fn the_cut_order_lists_each_step_s_three_genes_together_once() {
+        let order = cut_order();
+        assert_eq!(order.len(), LENGTH);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..LENGTH).collect::<Vec<_>>());
+        let g: Vec<u32> = (0..LENGTH as u32).map(|i| i % 3).collect();
+        let genome = Genome::new(&[g[..20].to_vec(), vec![0; 10]].concat()).unwrap();
+        for (k, step) in genome.steps().iter().enumerate() {
+            let [a, r, p] = [order[3 * k], order[3 * k + 1], order[3 * k + 2]];
+            assert_eq!((a, r, p), (2 * k, 2 * k + 1, 20 + k));
+            assert_eq!(step.iteration, k + 1);
+        }
     }
 
     #[test]

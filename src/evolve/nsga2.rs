@@ -6,7 +6,8 @@
 //! facades.
 //!
 //! One generation of [`run`]: binary tournaments by (rank, crowding) pick parents; one-point
-//! crossover (probability [`Config::crossover`]) makes two children per pair; each child is
+//! crossover (probability [`Config::crossover`], the cut taken along [`Config::cut_order`]) makes
+//! two children per pair; each child is
 //! mutated with a probability falling linearly from [`Config::mutation`]`.0` to `.1` over the
 //! generations ([`mutation_probability`]); the children are evaluated in parallel; parents ∪
 //! children (2N) are cut back to N by fronts, then by crowding distance ([`select`]).
@@ -66,6 +67,11 @@ pub struct Config {
     /// Probability that a pair of parents is crossed (one-point); otherwise the children are
     /// copies.
     pub crossover: f64,
+    /// The gene positions in the order one-point crossover reads them: the cut falls between
+    /// two consecutive entries, so genes that belong together (a step's action, arrangement and
+    /// parameter, `super::genome::cut_order`) stay together. Empty: the genome's own order. A
+    /// list that is not a permutation of the genome's positions is ignored (own order).
+    pub cut_order: Vec<usize>,
     /// Mutation probability per child: `(first generation, last generation)`, linear between.
     pub mutation: (f64, f64),
     /// The run's seed.
@@ -87,6 +93,7 @@ impl Default for Config {
             population: 50,
             generations: 30,
             crossover: 0.7,
+            cut_order: Vec::new(),
             mutation: (0.5, 0.3),
             seed: 0,
             window: 5,
@@ -123,6 +130,8 @@ pub struct Generation {
     /// The mutation probability used to breed this generation (0 for the initial one and for
     /// random search).
     pub mutation: f64,
+    /// Distinct genomes evaluated so far, this generation's included.
+    pub evaluations: usize,
 }
 
 /// Why a run stopped.
@@ -160,6 +169,20 @@ pub struct History {
     pub stopped: Stopped,
     /// Calls made to `eval` (distinct genomes).
     pub evaluations: usize,
+}
+
+impl History {
+    /// The distinct evaluations made by the end of the first generation whose hypervolume
+    /// reached `target` (within a relative 1e-12); `None` when none did. With `target` the
+    /// final hypervolume it says how soon a run found what it ends with: the figure that still
+    /// tells two runs apart when both end on the optimum.
+    pub fn evaluations_to_reach(&self, target: f64) -> Option<usize> {
+        let tolerance = 1e-12 * target.abs().max(1.0);
+        self.generations
+            .iter()
+            .find(|g| g.hypervolume >= target - tolerance)
+            .map(|g| g.evaluations)
+    }
 }
 
 /// Whether `a` dominates `b` (minimisation): no worse on every objective, better on one.
@@ -296,17 +319,48 @@ pub fn random_genome(rng: &mut Rng, alphabet: &[u32]) -> Vec<u32> {
 /// different lengths) copies of the parents. Either way, at each position the two children
 /// hold the parents' two genes.
 pub fn crossover(rng: &mut Rng, p: f64, a: &[u32], b: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    crossover_along(rng, p, a, b, &[])
+}
+
+/// [`crossover`] with the genome read in `order` (gene positions): the children take the genes
+/// of `order[..c]` from one parent and those of `order[c..]` from the other. An `order` that is
+/// not a permutation of `0..len` is replaced by the genome's own order. Draws from `rng` exactly
+/// as [`crossover`] does.
+pub fn crossover_along(
+    rng: &mut Rng,
+    p: f64,
+    a: &[u32],
+    b: &[u32],
+    order: &[usize],
+) -> (Vec<u32>, Vec<u32>) {
     let fires = rng.next_f64() < p;
     let len = a.len();
     if !fires || len < 2 || b.len() != len {
         return (a.to_vec(), b.to_vec());
     }
     let cut = 1 + below(rng, (len - 1) as u64) as usize;
-    let mut x = a[..cut].to_vec();
-    x.extend_from_slice(&b[cut..]);
-    let mut y = b[..cut].to_vec();
-    y.extend_from_slice(&a[cut..]);
+    let own: Vec<usize>;
+    let order = if is_permutation(order, len) {
+        order
+    } else {
+        own = (0..len).collect();
+        &own
+    };
+    let (mut x, mut y) = (a.to_vec(), b.to_vec());
+    for &i in &order[cut..] {
+        x[i] = b[i];
+        y[i] = a[i];
+    }
     (x, y)
+}
+
+/// Whether `order` holds each of `0..len` once.
+fn is_permutation(order: &[usize], len: usize) -> bool {
+    let mut seen = vec![false; len];
+    order.len() == len
+        && order
+            .iter()
+            .all(|&i| i < len && !std::mem::replace(&mut seen[i], true))
 }
 
 /// Random-reset mutation, per individual: with probability `p`, one gene chosen uniformly is
@@ -582,6 +636,7 @@ fn record(
     m: usize,
     hv: f64,
     mutation: f64,
+    evaluations: usize,
 ) -> Generation {
     let (min, mean) = min_mean(objs, m);
     Generation {
@@ -598,6 +653,7 @@ fn record(
         min,
         mean,
         mutation,
+        evaluations,
     }
 }
 
@@ -670,6 +726,7 @@ where
         m,
         hypervolume(&objs, &config.reference),
         0.0,
+        evaluator.calls,
     )];
     let mut stopped = Stopped::Cap;
 
@@ -680,7 +737,13 @@ where
         while children.len() < n {
             let a = tournament(&mut rng, &rank, &crowd);
             let b = tournament(&mut rng, &rank, &crowd);
-            let (mut x, mut y) = crossover(&mut rng, config.crossover, &genomes[a], &genomes[b]);
+            let (mut x, mut y) = crossover_along(
+                &mut rng,
+                config.crossover,
+                &genomes[a],
+                &genomes[b],
+                &config.cut_order,
+            );
             mutate(&mut rng, p_mut, &mut x, alphabet);
             mutate(&mut rng, p_mut, &mut y, alphabet);
             for mut c in [x, y] {
@@ -705,7 +768,15 @@ where
         objs = survivors.iter().map(|&i| pool_objs[i].clone()).collect();
 
         let hv = hypervolume(&objs, &config.reference);
-        generations.push(record(step + 1, &genomes, &objs, m, hv, p_mut));
+        generations.push(record(
+            step + 1,
+            &genomes,
+            &objs,
+            m,
+            hv,
+            p_mut,
+            evaluator.calls,
+        ));
         if converged(&generations, config.window, config.epsilon) {
             stopped = Stopped::Converged {
                 generation: step + 1,
@@ -772,7 +843,15 @@ where
         archive = first_front(&genomes, &values);
         let hv = hypervolume(&values_of(&archive), &config.reference);
         let m = evaluator.objectives();
-        generations.push(record(generations.len(), &batch, &objs, m, hv, 0.0));
+        generations.push(record(
+            generations.len(),
+            &batch,
+            &objs,
+            m,
+            hv,
+            0.0,
+            evaluator.calls,
+        ));
     }
 
     let hypervolume = hypervolume(&values_of(&archive), &config.reference);

@@ -238,6 +238,79 @@ fn crossover_keeps_each_positions_genes_and_cuts_inside() {
 }
 
 #[test]
+fn crossover_along_an_order_cuts_between_its_groups_and_draws_as_crossover_does() {
+    // Genes of three "steps" stored apart, as the evolve genome does: (0, 1, 6), (2, 3, 7),
+    // (4, 5, 8). Read in step order, a cut never splits a step's genes between parents at a
+    // cut that falls between steps.
+    let order = [0, 1, 6, 2, 3, 7, 4, 5, 8];
+    let a: Vec<u32> = (0..9).collect();
+    let b: Vec<u32> = (10..19).collect();
+    let mut rng = Rng::new(4, 4);
+    let mut twin = Rng::new(4, 4);
+    let mut cuts = std::collections::BTreeSet::new();
+    for _ in 0..300 {
+        let (x, y) = crossover_along(&mut rng, 1.0, &a, &b, &order);
+        // The same draws as the plain crossover: its cut, read along the order.
+        let (px, _) = crossover(&mut twin, 1.0, &a, &b);
+        let c = px.iter().position(|g| *g >= 10).unwrap();
+        for (k, &i) in order.iter().enumerate() {
+            let from_a = k < c;
+            assert_eq!(x[i], if from_a { a[i] } else { b[i] }, "{x:?} cut {c}");
+            assert_eq!(y[i], if from_a { b[i] } else { a[i] }, "{y:?} cut {c}");
+        }
+        cuts.insert(c);
+    }
+    assert_eq!(cuts.len(), 8, "every cut point is used");
+    // Not a permutation of the positions (short, repeated, out of range): the genome's order.
+    for bad in [
+        &[0usize, 1][..],
+        &[0, 0, 1, 2, 3, 4, 5, 6, 7],
+        &[0, 1, 2, 3, 4, 5, 6, 7, 9],
+    ] {
+        let mut r1 = Rng::new(8, 1);
+        let mut r2 = Rng::new(8, 1);
+        assert_eq!(
+            crossover_along(&mut r1, 1.0, &a, &b, bad),
+            crossover(&mut r2, 1.0, &a, &b)
+        );
+    }
+}
+
+#[test]
+fn evaluations_to_reach_is_the_first_generation_at_the_target() {
+    let config = Config {
+        population: 10,
+        generations: 6,
+        seed: 5,
+        window: 0,
+        reference: vec![10.0],
+        ..Config::default()
+    };
+    // Minimise the sum of genes: the optimum, 0, is one genome among 8^4.
+    let h = run(&config, &[8, 8, 8, 8], |g| {
+        vec![g.iter().map(|&v| f64::from(v)).sum()]
+    });
+    let target = h.hypervolume;
+    let e = h.evaluations_to_reach(target).unwrap();
+    let first = h
+        .generations
+        .iter()
+        .position(|g| g.hypervolume >= target)
+        .unwrap();
+    assert_eq!(e, h.generations[first].evaluations);
+    assert!(h
+        .generations
+        .windows(2)
+        .all(|w| w[0].evaluations <= w[1].evaluations));
+    assert_eq!(h.generations.last().unwrap().evaluations, h.evaluations);
+    assert_eq!(h.evaluations_to_reach(target + 1.0), None);
+    assert_eq!(
+        h.evaluations_to_reach(0.0),
+        Some(h.generations[0].evaluations)
+    );
+}
+
+#[test]
 fn mutation_resets_one_gene_within_its_alphabet() {
     let mut rng = Rng::new(9, 9);
     let alphabet = [3, 1, 7, 0, 2];

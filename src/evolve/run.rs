@@ -156,10 +156,17 @@ pub fn score(genes: &[u32], settings: &Settings) -> Vec<f64> {
     sum.iter().map(|s| s / SAMPLES as f64).collect()
 }
 
-/// The search's settings with the reference point of the objectives.
+/// The search's settings with the reference point of the objectives and the genome's cut
+/// order (crossover between steps, [`genome::cut_order`]) unless the settings give one.
 fn config_of(settings: &Settings) -> Config {
+    let cut_order = if settings.config.cut_order.is_empty() {
+        genome::cut_order()
+    } else {
+        settings.config.cut_order.clone()
+    };
     Config {
         reference: objectives::reference_point(&settings.objectives),
+        cut_order,
         ..settings.config.clone()
     }
 }
@@ -194,6 +201,10 @@ pub struct BaselineRow {
     pub random: f64,
     /// That number.
     pub evaluations: usize,
+    /// The evaluations NSGA-II had made when it first reached its final hypervolume.
+    pub nsga2_evaluations_to_final: Option<usize>,
+    /// The evaluations random search had made when it first reached its own final hypervolume.
+    pub random_evaluations_to_final: Option<usize>,
     /// NSGA-II's generations and wall time per generation, seconds.
     pub generations: usize,
     /// Seconds per generation of NSGA-II.
@@ -213,6 +224,8 @@ pub fn baseline(settings: &Settings, seeds: u64) -> Vec<BaselineRow> {
                 nsga2: h.hypervolume,
                 random: r.hypervolume,
                 evaluations: h.evaluations,
+                nsga2_evaluations_to_final: h.evaluations_to_reach(h.hypervolume),
+                random_evaluations_to_final: r.evaluations_to_reach(r.hypervolume),
                 generations: h.generations.len(),
                 seconds_per_generation: secs / h.generations.len().max(1) as f64,
             }
@@ -285,8 +298,21 @@ fn header(names: &[&str], ind: &Individual, test: &TestObject) -> String {
         .zip(&ind.objectives)
         .map(|(n, v)| format!("{n} {v}"))
         .collect();
+    let object = match *test {
+        TestObject::Facade { width, height } => format!("a {width} x {height} m facade"),
+        TestObject::Lot {
+            width,
+            depth,
+            height,
+        } => format!("the front of a {width} x {depth} m box building, {height} m high"),
+    };
+    let derivations = if SAMPLES == 1 {
+        "one derivation".to_string()
+    } else {
+        format!("means over {SAMPLES} derivations")
+    };
     format!(
-        "# Objectives (means over {SAMPLES} derivations of the test object {test:?}): {}\n",
+        "# Objectives ({derivations} of the test object, {object}): {}\n",
         values.join(", ")
     )
 }
