@@ -88,8 +88,15 @@ struct Edge {
 }
 
 /// Reads the levels and the openings of the mass at node `mass` of `tree`, whose footprint is
-/// `footprint` and whose walls span `z0..z1`.
-pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z1: f64) -> Facades {
+/// `footprint` and whose walls span `z0..z1`. When the rules cut no storey, the walls get the
+/// storeys of [`storeys_around_openings`] for the style's `floor_height`.
+pub fn facades_of(
+    tree: &ShapeTree,
+    mass: usize,
+    footprint: &Polygon,
+    (z0, z1): (f64, f64),
+    floor_height: f64,
+) -> Facades {
     let edges: Vec<Edge> = footprint
         .rings()
         .flat_map(|r| {
@@ -138,11 +145,75 @@ pub fn facades_of(tree: &ShapeTree, mass: usize, footprint: &Polygon, z0: f64, z
         }
         stack.extend(node.children.clone().rev());
     }
-    out.levels = levels(out.levels, z0, z1);
     for v in &mut out.openings {
         *v = panes_joined(v);
     }
+    out.levels = if out.levels.is_empty() {
+        storeys_around_openings(&out, z0, z1, floor_height)
+    } else {
+        levels(out.levels, z0, z1)
+    };
     out
+}
+
+/// The lowest storey height [`storeys_around_openings`] makes, as a share of the floor height.
+const LOWEST_STOREY: f64 = 0.6;
+
+/// Storeys for walls `z0..z1` whose rules cut none (a ruleset written for a facade, like
+/// `citygen evolve`'s): `⌊(z1 − z0) / floor_height⌋` storeys (at least one), each floor line
+/// moved from its even place to the nearest height that crosses no opening or balcony of any
+/// wall (kept [`OPENING_MARGIN`] clear of them), so a floor never cuts a window. A line that
+/// would leave a storey under [`LOWEST_STOREY`] × `floor_height` is dropped. A non-finite or
+/// non-positive floor height gives one storey over the whole wall.
+pub fn storeys_around_openings(f: &Facades, z0: f64, z1: f64, floor_height: f64) -> Vec<Level> {
+    let whole = vec![Level { z0, z1 }];
+    let h = z1 - z0;
+    if !(floor_height > 0.0 && floor_height.is_finite() && h.is_finite() && h > 0.0) {
+        return whole;
+    }
+    // Past a few hundred storeys the walls are not a building's: one storey, like no rules.
+    let n = (h / floor_height + 1e-9).floor().min(1000.0) as usize;
+    if n < 2 {
+        return whole;
+    }
+    let mut blocked: Vec<(f64, f64)> = f
+        .openings
+        .iter()
+        .flatten()
+        .map(|o| (o.z0, o.z1))
+        .chain(f.balconies.iter().flatten().map(|b| (b.z0, b.z1)))
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| (a.min(b) - OPENING_MARGIN, a.max(b) + OPENING_MARGIN))
+        .collect();
+    blocked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut merged: Vec<(f64, f64)> = Vec::with_capacity(blocked.len());
+    for (a, b) in blocked {
+        match merged.last_mut() {
+            Some(last) if a <= last.1 => last.1 = last.1.max(b),
+            _ => merged.push((a, b)),
+        }
+    }
+    // The free height nearest to `z`: `z` itself, or an end of the blocked run holding it.
+    let free_near = |z: f64| match merged.iter().find(|(a, b)| *a < z && z < *b) {
+        Some(&(a, b)) if z - a <= b - z => a,
+        Some(&(_, b)) => b,
+        None => z,
+    };
+    let lowest = LOWEST_STOREY * floor_height;
+    let mut floors = vec![z0];
+    for k in 1..n {
+        let z = free_near(z0 + h * k as f64 / n as f64);
+        let last = floors.last().copied().unwrap_or(z0);
+        if z - last >= lowest && z1 - z >= lowest {
+            floors.push(z);
+        }
+    }
+    (0..floors.len())
+        .map(|i| Level {
+            z0: floors[i],
+            z1: floors.get(i + 1).copied().unwrap_or(z1),
+        })
+        .collect()
 }
 
 /// The finest storey partition of the ranges found: a storey cut again along Z (`building ->
@@ -517,7 +588,7 @@ mod tests {
         .unwrap();
         let masses = mass_nodes(&tree);
         assert_eq!(masses.len(), 1);
-        let f = facades_of(&tree, masses[0], &lot, 0.0, 9.0);
+        let f = facades_of(&tree, masses[0], &lot, (0.0, 9.0), 3.0);
         assert_eq!(f.levels.len(), 3);
         assert!((f.levels[1].z0 - 3.0).abs() < 1e-9 && (f.levels[2].z1 - 9.0).abs() < 1e-9);
         assert_eq!(f.off_envelope, 0);
@@ -595,9 +666,93 @@ mod tests {
             &Caps::default(),
         )
         .unwrap();
-        let f = facades_of(&tree, 1, &lot, 0.0, 5.0);
+        let f = facades_of(&tree, 1, &lot, (0.0, 5.0), 3.0);
         assert_eq!(f.levels, vec![Level { z0: 0.0, z1: 5.0 }]);
         assert!(f.openings.iter().all(Vec::is_empty));
+        // No opening: the storeys fall evenly (5 m of 2.5 m floors, 12.5 m of 3 m floors).
+        let f = facades_of(&tree, 1, &lot, (0.0, 5.0), 2.5);
+        assert_eq!(f.levels.len(), 2);
+        assert!((f.levels[1].z0 - 2.5).abs() < 1e-12);
+        let f = facades_of(&tree, 1, &lot, (0.0, 12.5), 3.0);
+        let floors: Vec<f64> = f.levels.iter().map(|l| l.z0).collect();
+        assert_eq!(floors, vec![0.0, 3.125, 6.25, 9.375]);
+        assert_eq!(f.levels.last().unwrap().z1, 12.5);
+    }
+
+    fn opening_at(z0: f64, z1: f64) -> FoundOpening {
+        FoundOpening {
+            kind: OpeningKind::Window,
+            u0: 1.0,
+            u1: 2.0,
+            z0,
+            z1,
+            color: None,
+            frame_color: None,
+            glazed: true,
+            framed: false,
+            frame_size: None,
+            rounding: None,
+        }
+    }
+
+    #[test]
+    fn storeys_of_a_facade_ruleset_go_between_its_windows() {
+        // A 12 m wall in rows of 2.4 m, a window in each row from 0.5 to 2.0 above its sill
+        // line, on two walls, one of them with a balcony across the third row's window.
+        let mut f = Facades {
+            openings: vec![Vec::new(), Vec::new()],
+            balconies: vec![Vec::new(), Vec::new()],
+            ..Facades::default()
+        };
+        for r in 0..5 {
+            let b = 2.4 * f64::from(r);
+            f.openings[0].push(opening_at(b + 0.5, b + 2.0));
+            f.openings[1].push(opening_at(b + 0.6, b + 2.1));
+        }
+        f.balconies[1].push(FoundBalcony {
+            u0: 0.0,
+            u1: 3.0,
+            z0: 4.8,
+            z1: 6.0,
+            color: None,
+        });
+        let levels = storeys_around_openings(&f, 0.0, 12.0, 3.0);
+        // Four storeys asked (12 / 3); their even lines 3, 6, 9 each move to a free height.
+        assert_eq!(levels.len(), 4, "{levels:?}");
+        assert_eq!(levels[0].z0, 0.0);
+        assert_eq!(levels[3].z1, 12.0);
+        for w in levels.windows(2) {
+            assert_eq!(w[0].z1, w[1].z0);
+            assert!(w[1].z0 - w[0].z0 >= LOWEST_STOREY * 3.0);
+        }
+        for l in &levels[1..] {
+            let crossed = f
+                .openings
+                .iter()
+                .flatten()
+                .map(|o| (o.z0, o.z1))
+                .chain(f.balconies.iter().flatten().map(|b| (b.z0, b.z1)))
+                .any(|(a, b)| a - OPENING_MARGIN < l.z0 && l.z0 < b + OPENING_MARGIN);
+            assert!(!crossed, "floor {} crosses an opening: {levels:?}", l.z0);
+        }
+        // 3.0 is inside the second row's windows (2.9-4.5, blocked 2.88-4.52 with the
+        // margins): it goes to the nearer end, 2.88.
+        assert!(
+            (levels[1].z0 - (2.9 - OPENING_MARGIN)).abs() < 1e-9,
+            "{levels:?}"
+        );
+        // One storey asked, or a bad floor height: the whole wall.
+        for fh in [5.0, 0.0, -3.0, f64::NAN, f64::INFINITY] {
+            let one = storeys_around_openings(&f, 0.0, 9.0, fh);
+            assert_eq!(one, vec![Level { z0: 0.0, z1: 9.0 }], "{fh}");
+        }
+        // A wall glazed from top to bottom: no free line, one storey.
+        let mut glass = Facades {
+            openings: vec![vec![opening_at(0.05, 11.95)]],
+            ..Facades::default()
+        };
+        glass.balconies = vec![Vec::new()];
+        assert_eq!(storeys_around_openings(&glass, 0.0, 12.0, 3.0).len(), 1);
     }
 }
 
@@ -647,7 +802,7 @@ mod apply_tests {
             .into_iter()
             .zip(mass_nodes(&tree))
             .map(|(m, i)| {
-                let f = facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+                let f = facades_of(&tree, i, &m.footprint, (m.base_z, m.eave_z), 3.0);
                 let roof = massing::roof_geometry(&m)
                     .unwrap_or_else(|_| crate::derive::roof::flat(&m.footprint));
                 let mut part = massing::build_part("p0".into(), &m, &roof, Lod::Lod3);

@@ -527,7 +527,13 @@ impl Generator {
         let footprints: Vec<Polygon> = masses.iter().map(|m| m.footprint.clone()).collect();
         let mut out = Vec::with_capacity(masses.len());
         for (m, i) in masses.into_iter().zip(nodes) {
-            let mut f = facade::facades_of(&tree, i, &m.footprint, m.base_z, m.eave_z);
+            let mut f = facade::facades_of(
+                &tree,
+                i,
+                &m.footprint,
+                (m.base_z, m.eave_z),
+                style.floor_height,
+            );
             let mut bays = Vec::new();
             if let Some(program) = style.selex.as_ref().and_then(|p| self.selex.get(p)) {
                 match selex::apply(program, &m.footprint, m.base_z, front, &mut f) {

@@ -13,9 +13,10 @@
 //! ```
 //!
 //! `eave` is the axiom's wall height, which a city run gives every building from its knowledge
-//! base (`kb::compile::axiom_attributes`). The facade carries no storey cut: a building derived
-//! from these rules is one storey high in the model; its windows and doors sit where the
-//! facade rules put them.
+//! base (`kb::compile::axiom_attributes`). The facade carries no storey cut: at LOD3 and LOD4 a
+//! building derived from these rules gets the storeys of its zone's floor height, each floor
+//! put where it crosses no window or door (`derive::facade::storeys_around_openings`); its
+//! windows and doors sit where the facade rules put them.
 //!
 //! **Markers** (§3.9). The facade is the marker of iteration 0 (symbol `facade`); the marker
 //! made by step `k` is `shape{k}` (`k` = 1..=10, the iteration its name carries); a grid's rows
