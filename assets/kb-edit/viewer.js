@@ -98,7 +98,7 @@ Viewer.prototype.show = function (buf) {
   if (this.meshes.length) {
     this.centre = [0, 1, 2].map((k) => (lo[k] + hi[k]) / 2);
     const size = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
-    this.dist = size * 1.6 + 5;
+    this.dist = size * 1.2 + 5;
   }
   this.draw();
 };
