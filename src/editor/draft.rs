@@ -276,12 +276,28 @@ impl Draft {
         check(&self.text, &self.path, self.mode).map(|(kb, _)| kb)
     }
 
+    /// The line of zone `path`'s start tag (text edits find zones by it). Refused when another
+    /// zone starts on the same line: an edit could not tell them apart.
     fn zone_line(&self, path: &str) -> Result<usize, String> {
-        self.kb
+        let line = self
+            .kb
             .find(path)
             .and_then(|i| self.kb.zone(i))
             .map(|z| z.line)
-            .ok_or_else(|| format!("no zone {path:?} in the draft"))
+            .ok_or_else(|| format!("no zone {path:?} in the draft"))?;
+        if let Some(other) = self
+            .kb
+            .zones()
+            .iter()
+            .find(|z| z.line == line && z.path != path)
+        {
+            return Err(format!(
+                "zones {path:?} and {:?} start on line {line}: put them on lines of their own to \
+                 edit them",
+                other.path
+            ));
+        }
+        Ok(line)
     }
 
     /// Applies `e` to the draft. The edited text is checked ([`check`]: the strict reader and
@@ -523,4 +539,56 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     w.flush().map_err(io)?;
     drop(w);
     f.commit().map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn draft_of(text: &str) -> (tempfile::TempDir, Draft) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("kb.xml");
+        std::fs::write(&path, text).unwrap();
+        let d = Draft::open(&path).unwrap();
+        (dir, d)
+    }
+
+    fn set_info(zone: &str, k: &str, v: &str) -> Edit {
+        Edit::SetInfo {
+            zone: zone.into(),
+            values: vec![(k.into(), Some(v.into()))],
+        }
+    }
+
+    #[test]
+    fn zones_sharing_a_line_are_not_edited() {
+        let text = "<earth>\n  <town designation=\"A\"/><town designation=\"B\"/>\n  <town designation=\"C\"/>\n</earth>\n";
+        let (_dir, mut d) = draft_of(text);
+        let e = d.apply(set_info("earth/B", "nbfloor", "3")).unwrap_err();
+        assert!(e.contains("line 2"), "{e}");
+        assert!(d.apply(set_info("earth/A", "nbfloor", "3")).is_err());
+        assert_eq!(d.text(), text);
+        d.apply(set_info("earth/C", "nbfloor", "3")).unwrap();
+        assert!(
+            d.text()
+                .contains("<town designation=\"C\">\n    <info nbfloor=\"3\"/>\n  </town>"),
+            "{}",
+            d.text()
+        );
+    }
+
+    #[test]
+    fn a_lenient_file_is_opened_with_its_repairs_and_not_saved() {
+        let text = "<earth>\n  <info nbfloor=\"2\" floorsize=\"3,5\"/>\n  <town designation=\"C\"/>\n</earth>\n";
+        let (_dir, mut d) = draft_of(text);
+        let st = d.state();
+        assert_eq!(st["mode"], "lenient");
+        assert!(st["strict_error"].as_str().is_some());
+        let repairs = st["repairs"].as_array().map_or(0, Vec::len);
+        assert!(repairs > 0, "{st}");
+        d.apply(set_info("earth/C", "nbfloor", "3")).unwrap();
+        let e = d.save().unwrap_err();
+        assert!(e.contains("strict"), "{e}");
+        assert_eq!(std::fs::read_to_string(d.path()).unwrap(), text);
+    }
 }
