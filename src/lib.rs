@@ -25,6 +25,7 @@ pub use pipeline::{run, Options, RunError, Summary};
 pub mod color;
 pub mod crs;
 pub mod derive;
+pub mod editor;
 pub mod evolve;
 pub mod export;
 pub mod geometry;

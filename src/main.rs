@@ -29,7 +29,7 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 /// atomically. Same inputs and --seed give byte-identical files, whatever --threads is.
 ///
 /// Subcommands: `citygen rules check|derive` for rule authors, `citygen kb
-/// check|compile|explain|learn` for knowledge-base authors (`citygen rules --help`, `citygen kb
+/// check|compile|explain|learn|edit` for knowledge-base authors (`citygen rules --help`, `citygen kb
 /// --help`).
 ///
 /// Exit codes: 0 success; 1 bad input (file, knowledge base, rules; a run that generates no
@@ -245,6 +245,27 @@ enum KbCommand {
         /// The run's --infer: what the building takes from its tagged neighbours.
         #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]
         infer: InferArg,
+    },
+    /// Edit a knowledge base in a browser: serves a page on 127.0.0.1 (the address, with the
+    /// session's token, is printed on start) with the input's footprints on a map, the zone
+    /// tree, values, appearances and drawn window splits, and a 3D preview of a building.
+    /// Edits are checked as `kb check --strict` checks; saving writes the KB atomically.
+    /// Runs until stopped (Ctrl-C). See docs/kb-editor.md.
+    Edit {
+        /// The knowledge base to edit (the one file saved).
+        kb: PathBuf,
+        /// An OpenStreetMap extract whose footprints the map shows.
+        #[arg(long, value_name = "FILE.pbf", conflicts_with = "shp")]
+        osm: Option<PathBuf>,
+        /// A shapefile whose footprints the map shows.
+        #[arg(long, value_name = "FILE.shp")]
+        shp: Option<PathBuf>,
+        /// The port to listen on (127.0.0.1 only); 0 picks a free one.
+        #[arg(long, default_value_t = 0)]
+        port: u16,
+        /// The seed of the appearance picks and previews (a run's --seed).
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
     },
     /// Learn a knowledge base from an extract's tags: storeys (building:levels), roof shape,
     /// floor height, colours and material per grid cell or per zone, written as zones and
@@ -1020,6 +1041,33 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
                     Err(code) => code,
                 },
                 Err(e) => fail(e.to_string()),
+            }
+        }
+        KbCommand::Edit {
+            kb,
+            osm,
+            shp,
+            port,
+            seed,
+        } => {
+            let source = match (osm, shp) {
+                (Some(p), _) => Some(citygen::pipeline::Source::Osm(p)),
+                (None, Some(p)) => Some(citygen::pipeline::Source::Shp {
+                    path: p,
+                    height_field: None,
+                    levels_field: None,
+                }),
+                (None, None) => None,
+            };
+            let opts = citygen::editor::EditOptions {
+                kb,
+                source,
+                port,
+                seed,
+            };
+            match citygen::editor::run(&opts) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => fail(e),
             }
         }
         KbCommand::Compile { kb, zone } => {

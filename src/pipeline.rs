@@ -10,6 +10,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use thiserror::Error;
 
+pub mod building;
 pub mod incremental;
 pub mod merge;
 mod outputs;

@@ -62,6 +62,14 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     ("testkit", &["input", "model", "geometry", "color"]),
+    // The knowledge base edited in a browser (`citygen kb edit`): a server over the run.
+    (
+        "editor",
+        &[
+            "pipeline", "derive", "export", "kb", "grammar", "selex", "prepare", "input", "model",
+            "report", "rng", "geometry", "crs", "color", "guard",
+        ],
+    ),
 ];
 
 /// One `crate::` path found in the code, resolved to module components.

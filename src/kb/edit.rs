@@ -273,6 +273,746 @@ fn fmt_proba(p: f64) -> String {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// The editor's edits (`citygen kb edit`): zones, shapes, values, appearances and openings.
+//
+// Each reads the text into a tree of element spans ([`Element`]), changes the smallest range
+// it can (one attribute value, one element) and leaves every other byte as it was. Zones are
+// found by the line their start tag is on, as above.
+
+/// One element of the text, with its byte span.
+#[derive(Clone, Debug)]
+struct Element {
+    name: String,
+    /// Offset of its `<`.
+    start: usize,
+    /// Offset just past the `>` of its start tag.
+    tag_end: usize,
+    /// Offset just past its end tag (`tag_end` for an empty element).
+    end: usize,
+    empty: bool,
+    line: usize,
+    children: Vec<Element>,
+}
+
+impl Element {
+    fn child(&self, name: &str) -> Option<&Element> {
+        self.children.iter().find(|c| c.name == name)
+    }
+
+    fn children_named<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Element> + 'a {
+        self.children.iter().filter(move |c| c.name == name)
+    }
+
+    fn find_line(&self, line: usize) -> Option<&Element> {
+        if self.line == line && is_zone(&self.name) {
+            return Some(self);
+        }
+        self.children.iter().find_map(|c| c.find_line(line))
+    }
+}
+
+/// The element tree of `text` (its root element).
+fn element_tree(text: &str) -> Result<Element, String> {
+    let mut reader = Reader::from_str(text);
+    let mut stack: Vec<Element> = Vec::new();
+    let mut root: Option<Element> = None;
+    // Lines counted as the reader goes (one count from the start per tag is quadratic).
+    let (mut seen, mut line) = (0usize, 1usize);
+    let mut line_at = |offset: usize| {
+        if offset > seen {
+            line += text.as_bytes()[seen..offset.min(text.len())]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
+            seen = offset.min(text.len());
+        }
+        line
+    };
+    loop {
+        let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
+        let ev = reader.read_event().map_err(|e| {
+            format!(
+                "line {}: {e}",
+                line_of(text, usize::try_from(reader.error_position()).unwrap_or(0))
+            )
+        })?;
+        let after = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
+        let tag_at = text
+            .get(before..after)
+            .and_then(|s| s.find('<'))
+            .map_or(before, |i| before + i);
+        match &ev {
+            Event::Start(e) | Event::Empty(e) => {
+                let empty = matches!(ev, Event::Empty(_));
+                let el = Element {
+                    name: AsRef::<str>::as_ref(&e.name()).to_string(),
+                    start: tag_at,
+                    tag_end: after,
+                    end: after,
+                    empty,
+                    line: line_at(tag_at),
+                    children: Vec::new(),
+                };
+                if empty {
+                    match stack.last_mut() {
+                        Some(parent) => parent.children.push(el),
+                        None => root = Some(el),
+                    }
+                } else {
+                    stack.push(el);
+                }
+            }
+            Event::End(_) => {
+                let Some(mut el) = stack.pop() else {
+                    return Err(format!("line {}: unmatched end tag", line_of(text, tag_at)));
+                };
+                el.end = after;
+                match stack.last_mut() {
+                    Some(parent) => parent.children.push(el),
+                    None => root = Some(el),
+                }
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    root.ok_or_else(|| "no root element".to_string())
+}
+
+/// One attribute of a start tag: its name, raw value, the span of the whole `name="value"`
+/// and of the value between the quotes.
+struct RawAttr {
+    name: String,
+    value: String,
+    span: (usize, usize),
+    value_span: (usize, usize),
+}
+
+/// The attributes of the start tag at `el` (the text is well-formed: the tree read it).
+fn raw_attrs(text: &str, el: &Element) -> Vec<RawAttr> {
+    let b = text.as_bytes();
+    let end = if el.empty {
+        el.tag_end.saturating_sub(2)
+    } else {
+        el.tag_end.saturating_sub(1)
+    };
+    let mut i = el.start + 1 + el.name.len();
+    let mut out = Vec::new();
+    while i < end {
+        while i < end && b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let name_start = i;
+        while i < end && b[i] != b'=' && !b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let name = text.get(name_start..i).unwrap_or("").to_string();
+        while i < end && (b[i] == b'=' || b[i].is_ascii_whitespace()) {
+            i += 1;
+        }
+        if i >= end || name.is_empty() {
+            break;
+        }
+        let quote = b[i];
+        let value_start = i + 1;
+        let mut j = value_start;
+        while j < end && b[j] != quote {
+            j += 1;
+        }
+        out.push(RawAttr {
+            name,
+            value: text.get(value_start..j).unwrap_or("").to_string(),
+            span: (name_start, (j + 1).min(end)),
+            value_span: (value_start, j),
+        });
+        i = j + 1;
+    }
+    out
+}
+
+/// The unescaped value of a raw attribute (the five XML entities and character references).
+fn unescape(raw: &str) -> String {
+    quick_xml::escape::unescape(raw).map_or_else(|_| raw.to_string(), |c| c.into_owned())
+}
+
+/// A zone's start tag by line, or an error naming the line.
+fn zone_at(root: &Element, zone_line: usize) -> Result<&Element, String> {
+    root.find_line(zone_line)
+        .ok_or_else(|| format!("no zone element starts on line {zone_line}"))
+}
+
+/// The indentation of the line `offset` is on (spaces and tabs at its start).
+fn indent_at(text: &str, offset: usize) -> String {
+    let line_start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
+    text[line_start..]
+        .chars()
+        .take_while(|c| *c == ' ' || *c == '\t')
+        .collect()
+}
+
+/// The indentation of `el`'s children: that of its first child element, else one step (two
+/// spaces) deeper than its own.
+fn child_indent(text: &str, el: &Element) -> String {
+    match el.children.first() {
+        Some(c) if text[..c.start].ends_with([' ', '\t', '\n']) => indent_at(text, c.start),
+        _ => format!("{}  ", indent_at(text, el.start)),
+    }
+}
+
+/// `text` with `content` (one or more lines, without leading newline or indentation of its
+/// first line) inserted as a child of `el` right after offset `at` (the end of a child, or
+/// `el.tag_end` for the first place). An empty element is opened and closed around it.
+fn insert_child(text: &str, el: &Element, at: usize, content: &str) -> String {
+    let inner = child_indent(text, el);
+    let add = format!("\n{inner}{content}");
+    let mut out = String::with_capacity(text.len() + add.len() + 32);
+    if el.empty {
+        let close = text[..el.tag_end].rfind("/>").unwrap_or(el.tag_end);
+        out.push_str(text[..close].trim_end());
+        out.push('>');
+        out.push_str(&add);
+        out.push_str(&format!("\n{}</{}>", indent_at(text, el.start), el.name));
+        out.push_str(&text[el.tag_end..]);
+    } else {
+        out.push_str(&text[..at]);
+        out.push_str(&add);
+        out.push_str(&text[at..]);
+    }
+    out
+}
+
+/// `text` without `el`: with the whitespace before it on its line and that line's newline when
+/// nothing else precedes it there.
+fn remove_element(text: &str, el: &Element) -> String {
+    let line_start = text[..el.start].rfind('\n').map_or(0, |i| i + 1);
+    let from = if text[line_start..el.start].trim().is_empty() {
+        line_start.saturating_sub(1)
+    } else {
+        el.start
+    };
+    format!("{}{}", &text[..from], &text[el.end..])
+}
+
+/// `text` with the attributes of `el`'s start tag changed: each `(name, Some(value))` set (in
+/// place when present, appended otherwise), each `(name, None)` removed. Values are given
+/// unescaped and escaped here; untouched attributes keep their bytes.
+fn set_attrs(text: &str, el: &Element, changes: &[(String, Option<String>)]) -> String {
+    let attrs = raw_attrs(text, el);
+    // (span, replacement), applied from the end.
+    let mut edits: Vec<((usize, usize), String)> = Vec::new();
+    let mut appended = String::new();
+    for (name, value) in changes {
+        match (attrs.iter().find(|a| &a.name == name), value) {
+            (Some(a), Some(v)) => {
+                if unescape(&a.value) != *v {
+                    edits.push((a.value_span, escape_attr(v)));
+                }
+            }
+            (Some(a), None) => {
+                // The attribute and the whitespace before it.
+                let mut from = a.span.0;
+                while from > el.start && text.as_bytes()[from - 1].is_ascii_whitespace() {
+                    from -= 1;
+                }
+                edits.push(((from, a.span.1), String::new()));
+            }
+            (None, Some(v)) => appended.push_str(&format!(" {name}=\"{}\"", escape_attr(v))),
+            (None, None) => {}
+        }
+    }
+    if !appended.is_empty() {
+        // After the last attribute (or the name), before `/>` or `>`.
+        let at = attrs
+            .last()
+            .map_or(el.start + 1 + el.name.len(), |a| a.span.1);
+        edits.push(((at, at), appended));
+    }
+    edits.sort_by_key(|(span, _)| std::cmp::Reverse(span.0));
+    let mut out = text.to_string();
+    for ((a, b), r) in edits {
+        out.replace_range(a..b, &r);
+    }
+    out
+}
+
+/// The element names a zone may have in the clean format.
+pub const ZONE_ELEMENTS: [&str; 6] = ["continent", "country", "region", "town", "district", "zone"];
+
+/// A zone's circle: centre in degrees and radius in kilometres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CircleText {
+    /// Latitude of the centre.
+    pub lat: f64,
+    /// Longitude of the centre.
+    pub lon: f64,
+    /// Radius, km.
+    pub dist: f64,
+}
+
+/// A number written short: at most `decimals` decimals, no trailing zeros.
+pub fn fmt_number(x: f64, decimals: usize) -> String {
+    let s = format!("{x:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" || s.is_empty() {
+        "0".into()
+    } else {
+        s
+    }
+}
+
+/// A ring as the `points` attribute writes it: `lon lat, lon lat, ...` at 7 decimals (1 cm).
+pub fn points_text(points: &[(f64, f64)]) -> String {
+    points
+        .iter()
+        .map(|(lon, lat)| format!("{} {}", fmt_number(*lon, 7), fmt_number(*lat, 7)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A zone's shape when it is made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NewShape {
+    /// A circle on `<info lat lon dist>`.
+    Circle(CircleText),
+    /// A `<polygon>` ring of (lon, lat) points.
+    Polygon(Vec<(f64, f64)>),
+}
+
+/// `text` with a new zone `<element designation=...>` holding `shape` added as the last child
+/// of the zone whose start tag is on `parent_line` (after its appearances and sub-zones).
+pub fn add_zone(
+    text: &str,
+    parent_line: usize,
+    element: &str,
+    designation: &str,
+    shape: &NewShape,
+) -> Result<String, String> {
+    if !ZONE_ELEMENTS.contains(&element) {
+        return Err(format!(
+            "{element:?} is not a zone element (one of {})",
+            ZONE_ELEMENTS.join(", ")
+        ));
+    }
+    let root = element_tree(text)?;
+    let parent = zone_at(&root, parent_line)?;
+    let inner = format!("{}  ", child_indent(text, parent));
+    let shape = match shape {
+        NewShape::Circle(c) => format!(
+            "<info lat=\"{}\" lon=\"{}\" dist=\"{}\"/>",
+            fmt_number(c.lat, 7),
+            fmt_number(c.lon, 7),
+            fmt_number(c.dist, 4)
+        ),
+        NewShape::Polygon(p) => format!("<polygon points=\"{}\"/>", points_text(p)),
+    };
+    let outer = child_indent(text, parent);
+    let content = format!(
+        "<{element} designation=\"{}\">\n{inner}{shape}\n{outer}</{element}>",
+        escape_attr(designation)
+    );
+    let at = parent.children.last().map_or(parent.tag_end, |c| c.end);
+    Ok(insert_child(text, parent, at, &content))
+}
+
+/// `text` without the zone whose start tag is on `zone_line` (and its sub-zones). Earth cannot
+/// be deleted.
+pub fn delete_zone(text: &str, zone_line: usize) -> Result<String, String> {
+    let root = element_tree(text)?;
+    let zone = zone_at(&root, zone_line)?;
+    if zone.start == root.start {
+        return Err("earth cannot be deleted".into());
+    }
+    Ok(remove_element(text, zone))
+}
+
+/// `text` with the `<info>` of the zone on `zone_line` changed: each `(name, Some(value))` set,
+/// each `(name, None)` removed. An `<info/>` is made (first child) when the zone has none, and
+/// removed when it is left without attributes.
+pub fn set_info(
+    text: &str,
+    zone_line: usize,
+    changes: &[(String, Option<String>)],
+) -> Result<String, String> {
+    let root = element_tree(text)?;
+    let zone = zone_at(&root, zone_line)?;
+    match zone.child("info") {
+        Some(info) => {
+            let out = set_attrs(text, info, changes);
+            // An <info/> without attributes says nothing: remove it.
+            let root2 = element_tree(&out)?;
+            let zone2 = zone_at(&root2, zone_line)?;
+            if let Some(info2) = zone2.child("info") {
+                if info2.empty && raw_attrs(&out, info2).is_empty() {
+                    return Ok(remove_element(&out, info2));
+                }
+            }
+            Ok(out)
+        }
+        None => {
+            let set: Vec<String> = changes
+                .iter()
+                .filter_map(|(k, v)| v.as_ref().map(|v| format!(" {k}=\"{}\"", escape_attr(v))))
+                .collect();
+            if set.is_empty() {
+                return Ok(text.to_string());
+            }
+            Ok(insert_child(
+                text,
+                zone,
+                zone.tag_end,
+                &format!("<info{}/>", set.concat()),
+            ))
+        }
+    }
+}
+
+/// `text` with the circle of the zone on `zone_line` set (or removed: `None`): on its
+/// `<location>` when it has one, else on its `<info>`.
+pub fn set_circle(
+    text: &str,
+    zone_line: usize,
+    circle: Option<CircleText>,
+) -> Result<String, String> {
+    let root = element_tree(text)?;
+    let zone = zone_at(&root, zone_line)?;
+    if let Some(loc) = zone.child("location") {
+        return Ok(match circle {
+            Some(c) => set_attrs(text, loc, &circle_changes(Some(c))),
+            None => remove_element(text, loc),
+        });
+    }
+    set_info(text, zone_line, &circle_changes(circle))
+}
+
+fn circle_changes(c: Option<CircleText>) -> Vec<(String, Option<String>)> {
+    vec![
+        ("lat".into(), c.map(|c| fmt_number(c.lat, 7))),
+        ("lon".into(), c.map(|c| fmt_number(c.lon, 7))),
+        ("dist".into(), c.map(|c| fmt_number(c.dist, 4))),
+    ]
+}
+
+/// `text` with polygon `index` (0-based, document order) of the zone on `zone_line` replaced
+/// by `points` (or removed: `None`); `index` `None` adds a polygon after the zone's shapes.
+pub fn set_polygon(
+    text: &str,
+    zone_line: usize,
+    index: Option<usize>,
+    points: Option<&[(f64, f64)]>,
+) -> Result<String, String> {
+    let root = element_tree(text)?;
+    let zone = zone_at(&root, zone_line)?;
+    match index {
+        Some(i) => {
+            let Some(poly) = zone.children_named("polygon").nth(i) else {
+                return Err(format!("the zone has no polygon {}", i + 1));
+            };
+            Ok(match points {
+                Some(p) => set_attrs(text, poly, &[("points".into(), Some(points_text(p)))]),
+                None => remove_element(text, poly),
+            })
+        }
+        None => {
+            let Some(p) = points else {
+                return Ok(text.to_string());
+            };
+            let at = zone
+                .children
+                .iter()
+                .take_while(|c| matches!(c.name.as_str(), "info" | "location" | "polygon"))
+                .last()
+                .map_or(zone.tag_end, |c| c.end);
+            Ok(insert_child(
+                text,
+                zone,
+                at,
+                &format!("<polygon points=\"{}\"/>", points_text(p)),
+            ))
+        }
+    }
+}
+
+/// An opening subdivision as the editor sends it: `<split>`s from the root node down.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpeningText {
+    /// The node standing for the whole window (`<elements parent>`).
+    pub root: String,
+    /// `(axis, parent, children, shares)`: one `<split>` each.
+    pub splits: Vec<(String, String, Vec<String>, Vec<f64>)>,
+    /// The leaves (`<elements terms>`).
+    pub terms: Vec<String>,
+}
+
+/// An appearance as the editor sends it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AppearanceText {
+    /// The `building` attribute (`None`: any kind).
+    pub building: Option<String>,
+    /// The `<values>` attributes (unescaped), `proba` among them, in order.
+    pub values: Vec<(String, String)>,
+    /// The `<opening>` (`None`: one pane per window).
+    pub opening: Option<OpeningText>,
+    /// The `<ruleset file>` (`None`: none).
+    pub ruleset: Option<String>,
+}
+
+fn opening_xml(o: &OpeningText, indent: &str) -> String {
+    let inner = format!("{indent}  ");
+    let mut s = String::from("<opening>");
+    for (axis, parent, children, shares) in &o.splits {
+        s.push_str(&format!(
+            "\n{inner}<split axis=\"{}\" parent=\"{}\" children=\"{}\" splitvalues=\"{}\"/>",
+            escape_attr(axis),
+            escape_attr(parent),
+            escape_attr(&children.join("|")),
+            shares
+                .iter()
+                .map(|x| fmt_number(*x, 4))
+                .collect::<Vec<_>>()
+                .join(",")
+        ));
+    }
+    s.push_str(&format!(
+        "\n{inner}<elements parent=\"{}\" terms=\"{}\"/>",
+        escape_attr(&o.root),
+        escape_attr(&o.terms.join(","))
+    ));
+    s.push_str(&format!("\n{indent}</opening>"));
+    s
+}
+
+fn appearance_xml(a: &AppearanceText, indent: &str) -> String {
+    let inner = format!("{indent}  ");
+    let building = a
+        .building
+        .as_ref()
+        .map(|b| format!(" building=\"{}\"", escape_attr(b)))
+        .unwrap_or_default();
+    let values: String = a
+        .values
+        .iter()
+        .map(|(k, v)| format!(" {k}=\"{}\"", escape_attr(v)))
+        .collect();
+    let mut s = format!("<appearance{building}>\n{inner}<values{values}/>");
+    if let Some(o) = &a.opening {
+        s.push_str(&format!("\n{inner}{}", opening_xml(o, &inner)));
+    }
+    if let Some(r) = &a.ruleset {
+        s.push_str(&format!("\n{inner}<ruleset file=\"{}\"/>", escape_attr(r)));
+    }
+    s.push_str(&format!("\n{indent}</appearance>"));
+    s
+}
+
+/// `text` with appearance `a` added to the zone on `zone_line`, after its last appearance (or
+/// its shapes).
+pub fn add_appearance(text: &str, zone_line: usize, a: &AppearanceText) -> Result<String, String> {
+    let root = element_tree(text)?;
+    let zone = zone_at(&root, zone_line)?;
+    let at = zone
+        .children
+        .iter()
+        .take_while(|c| {
+            matches!(
+                c.name.as_str(),
+                "info" | "location" | "polygon" | "appearance"
+            )
+        })
+        .last()
+        .map_or(zone.tag_end, |c| c.end);
+    let indent = child_indent(text, zone);
+    Ok(insert_child(text, zone, at, &appearance_xml(a, &indent)))
+}
+
+fn nth_appearance(zone: &Element, index: usize) -> Result<&Element, String> {
+    zone.children_named("appearance")
+        .nth(index)
+        .ok_or_else(|| format!("the zone has no appearance {}", index + 1))
+}
+
+/// `text` without appearance `index` (0-based) of the zone on `zone_line`.
+pub fn delete_appearance(text: &str, zone_line: usize, index: usize) -> Result<String, String> {
+    let root = element_tree(text)?;
+    let zone = zone_at(&root, zone_line)?;
+    Ok(remove_element(text, nth_appearance(zone, index)?))
+}
+
+/// `text` with appearance `index` (0-based) of the zone on `zone_line` set to `a`: its
+/// `building` and `<values>` attributes changed in place (attributes `a` does not have are
+/// removed), its `<opening>` and `<ruleset>` replaced, added or removed; a `<selex>` and
+/// everything else of the element kept.
+pub fn set_appearance(
+    text: &str,
+    zone_line: usize,
+    index: usize,
+    a: &AppearanceText,
+) -> Result<String, String> {
+    // Each step re-reads the text: the spans move.
+    let step = |text: &str, f: &dyn Fn(&str, &Element) -> Result<String, String>| {
+        let root = element_tree(text)?;
+        let zone = zone_at(&root, zone_line)?;
+        f(text, nth_appearance(zone, index)?)
+    };
+    let mut out = step(text, &|t, app| {
+        Ok(set_attrs(
+            t,
+            app,
+            &[("building".into(), a.building.clone())],
+        ))
+    })?;
+    out = step(&out, &|t, app| match app.child("values") {
+        Some(v) => {
+            let mut changes: Vec<(String, Option<String>)> = raw_attrs(t, v)
+                .into_iter()
+                .filter(|r| !a.values.iter().any(|(k, _)| *k == r.name))
+                .map(|r| (r.name, None))
+                .collect();
+            changes.extend(a.values.iter().map(|(k, v)| (k.clone(), Some(v.clone()))));
+            Ok(set_attrs(t, v, &changes))
+        }
+        None => {
+            let values: String = a
+                .values
+                .iter()
+                .map(|(k, v)| format!(" {k}=\"{}\"", escape_attr(v)))
+                .collect();
+            Ok(insert_child(
+                t,
+                app,
+                app.tag_end,
+                &format!("<values{values}/>"),
+            ))
+        }
+    })?;
+    for (name, make) in [
+        (
+            "opening",
+            a.opening.as_ref().map(|o| {
+                Box::new(move |ind: &str| opening_xml(o, ind)) as Box<dyn Fn(&str) -> String>
+            }),
+        ),
+        (
+            "ruleset",
+            a.ruleset.as_ref().map(|r| {
+                Box::new(move |_: &str| format!("<ruleset file=\"{}\"/>", escape_attr(r)))
+                    as Box<dyn Fn(&str) -> String>
+            }),
+        ),
+    ] {
+        out = step(&out, &|t, app| {
+            let existing = app.child(name);
+            match (existing, &make) {
+                (Some(el), None) => Ok(remove_element(t, el)),
+                (Some(el), Some(make)) => {
+                    let indent = indent_at(t, el.start);
+                    Ok(format!(
+                        "{}{}{}",
+                        &t[..el.start],
+                        make(&indent),
+                        &t[el.end..]
+                    ))
+                }
+                (None, Some(make)) => {
+                    // After <values> (and <opening> for a ruleset).
+                    let at = app
+                        .children
+                        .iter()
+                        .take_while(|c| {
+                            c.name == "values" || (name == "ruleset" && c.name == "opening")
+                        })
+                        .last()
+                        .map_or(app.tag_end, |c| c.end);
+                    let indent = child_indent(t, app);
+                    Ok(insert_child(t, app, at, &make(&indent)))
+                }
+                (None, None) => Ok(t.to_string()),
+            }
+        })?;
+    }
+    Ok(out)
+}
+
+/// What the editor shows of a zone's own text: its `<info>` attributes and its appearances'
+/// `building`, `<values>`, `<opening>` and files, all unescaped, in document order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ZoneText {
+    /// The `<info>` attributes.
+    pub info: Vec<(String, String)>,
+    /// `<location>`'s attributes when the zone has one.
+    pub location: Option<Vec<(String, String)>>,
+    /// The appearances.
+    pub appearances: Vec<AppearanceView>,
+}
+
+/// One appearance as written.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AppearanceView {
+    /// The `building` attribute.
+    pub building: Option<String>,
+    /// The `<values>` attributes.
+    pub values: Vec<(String, String)>,
+    /// The `<split>`s' attributes, in order.
+    pub splits: Vec<Vec<(String, String)>>,
+    /// The `<elements>` attributes.
+    pub elements: Option<Vec<(String, String)>>,
+    /// `<ruleset file>`.
+    pub ruleset: Option<String>,
+    /// `<selex file>`.
+    pub selex: Option<String>,
+}
+
+/// The own text of every zone, by the line its start tag is on.
+pub fn zone_texts(text: &str) -> Result<std::collections::BTreeMap<usize, ZoneText>, String> {
+    let root = element_tree(text)?;
+    let mut out = std::collections::BTreeMap::new();
+    let attrs_of = |el: &Element| -> Vec<(String, String)> {
+        raw_attrs(text, el)
+            .into_iter()
+            .map(|a| (a.name, unescape(&a.value)))
+            .collect()
+    };
+    let mut stack = vec![&root];
+    while let Some(z) = stack.pop() {
+        let mut zt = ZoneText {
+            info: z.child("info").map(attrs_of).unwrap_or_default(),
+            location: z.child("location").map(attrs_of),
+            appearances: Vec::new(),
+        };
+        for app in z.children_named("appearance") {
+            let file = |n: &str| {
+                app.child(n).and_then(|e| {
+                    attrs_of(e)
+                        .into_iter()
+                        .find(|(k, _)| k == "file")
+                        .map(|(_, v)| v)
+                })
+            };
+            let opening = app.child("opening");
+            zt.appearances.push(AppearanceView {
+                building: attrs_of(app)
+                    .into_iter()
+                    .find(|(k, _)| k == "building")
+                    .map(|(_, v)| v),
+                values: app.child("values").map(attrs_of).unwrap_or_default(),
+                splits: opening
+                    .map(|o| o.children_named("split").map(attrs_of).collect())
+                    .unwrap_or_default(),
+                elements: opening.and_then(|o| o.child("elements")).map(attrs_of),
+                ruleset: file("ruleset"),
+                selex: file("selex"),
+            });
+        }
+        out.insert(z.line, zt);
+        stack.extend(z.children.iter().filter(|c| is_zone(&c.name)));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -362,5 +1102,207 @@ mod tests {
         assert_eq!(fmt_proba(1.0), "1");
         assert_eq!(fmt_proba(1.0 / 3.0), "0.333333");
         assert_eq!(fmt_proba(0.0), "0");
+    }
+
+    /// `text` read strictly (the test KB's `#fff` written long, which strict reading asks).
+    fn strict(text: &str) -> crate::kb::KnowledgeBase {
+        let text = text.replace("color=\"#fff\"", "color=\"#ffffff\"");
+        match crate::kb::KnowledgeBase::parse_str_with(&text, "kb.xml", crate::kb::ReadMode::Strict)
+        {
+            Ok((kb, _)) => kb,
+            Err(e) => panic!("{e}\n{text}"),
+        }
+    }
+
+    /// What is left of `out` once `added` is taken out of it, at one place.
+    fn without(out: &str, added: &str) -> String {
+        assert_eq!(out.matches(added).count(), 1, "{added:?} in\n{out}");
+        out.replacen(added, "", 1)
+    }
+
+    #[test]
+    fn a_zone_is_added_last_and_deleted_with_its_line() {
+        let ring = [(2.0, 1.0), (2.01, 1.0), (2.01, 1.01)];
+        let out = add_zone(
+            KB,
+            11,
+            "district",
+            "D & E",
+            &NewShape::Polygon(ring.to_vec()),
+        )
+        .unwrap();
+        let added = "\n      <district designation=\"D &amp; E\">\n        <polygon points=\"2 1, 2.01 1, 2.01 1.01\"/>\n      </district>";
+        assert_eq!(without(&out, added), KB);
+        let kb = strict(&out);
+        let d = kb.find("earth/X/U/D & E").unwrap();
+        assert_eq!(kb.zones()[d].polygons.len(), 1);
+        assert_eq!(delete_zone(&out, kb.zones()[d].line).unwrap(), KB);
+        // Into an empty element, with a circle.
+        let c = CircleText {
+            lat: 1.5,
+            lon: 2.25,
+            dist: 0.5,
+        };
+        let out = add_zone(KB, 10, "zone", "B", &NewShape::Circle(c)).unwrap();
+        assert!(out.contains("<town designation=\"T\">\n      <zone designation=\"B\">\n        <info lat=\"1.5\" lon=\"2.25\" dist=\"0.5\"/>\n      </zone>\n    </town>"), "{out}");
+        strict(&out);
+        assert!(add_zone(KB, 10, "info", "B", &NewShape::Circle(c)).is_err());
+        assert!(delete_zone(KB, 1).is_err(), "earth stays");
+        assert!(delete_zone(KB, 3).is_err(), "line 3 starts no zone");
+    }
+
+    #[test]
+    fn circles_and_polygons_change_in_place() {
+        let c = CircleText {
+            lat: -1.25,
+            lon: 3.0,
+            dist: 2.0,
+        };
+        let out = set_circle(KB, 11, Some(c)).unwrap();
+        assert_eq!(
+            out.replace(
+                "<info lat=\"-1.25\" lon=\"3\" dist=\"2\"/>",
+                "<info lat=\"1\" lon=\"2\" dist=\"1\"/>"
+            ),
+            KB
+        );
+        // Removed: the info is left without attributes and goes.
+        let out = set_circle(KB, 11, None).unwrap();
+        assert_eq!(
+            out,
+            KB.replace("\n      <info lat=\"1\" lon=\"2\" dist=\"1\"/>", "")
+        );
+        // On a <location>.
+        let loc = KB.replace("<town designation=\"T\"/>", "<town designation=\"T\">\n      <location lat=\"1\" lon=\"2\" dist=\"3\"/>\n    </town>");
+        let out = set_circle(&loc, 10, Some(c)).unwrap();
+        assert!(out.contains("<location lat=\"-1.25\" lon=\"3\" dist=\"2\"/>"));
+        strict(&out);
+        // Polygons: added after the shapes, replaced, removed.
+        let ring = [(2.0, 1.0), (2.01, 1.0), (2.01, 1.01)];
+        let out = set_polygon(KB, 4, None, Some(&ring)).unwrap();
+        assert_eq!(
+            without(&out, "\n    <polygon points=\"2 1, 2.01 1, 2.01 1.01\"/>"),
+            KB
+        );
+        assert!(out.contains("dist=\"3\"/>\n    <polygon"));
+        let moved = [(2.0, 1.0), (2.02, 1.0), (2.02, 1.02)];
+        let out2 = set_polygon(&out, 4, Some(0), Some(&moved)).unwrap();
+        assert_eq!(
+            out2,
+            out.replace("2 1, 2.01 1, 2.01 1.01", "2 1, 2.02 1, 2.02 1.02")
+        );
+        assert_eq!(set_polygon(&out2, 4, Some(0), None).unwrap(), KB);
+        assert!(set_polygon(KB, 4, Some(0), None).is_err());
+    }
+
+    #[test]
+    fn info_values_are_set_and_removed_keeping_the_others() {
+        let ch = |k: &str, v: Option<&str>| (k.to_string(), v.map(str::to_string));
+        let out = set_info(KB, 4, &[ch("color", Some("#aabbcc")), ch("dist", None)]).unwrap();
+        assert_eq!(
+            out,
+            KB.replace(
+                "<info lat=\"1\" lon=\"2\" dist=\"3\"/>",
+                "<info lat=\"1\" lon=\"2\" color=\"#aabbcc\"/>"
+            )
+        );
+        let out = set_info(KB, 10, &[ch("nbfloor", Some("3"))]).unwrap();
+        assert!(
+            out.contains("<town designation=\"T\">\n      <info nbfloor=\"3\"/>\n    </town>"),
+            "{out}"
+        );
+        strict(&out);
+        let texts = zone_texts(&out).unwrap();
+        assert_eq!(
+            texts[&10].info,
+            vec![("nbfloor".to_string(), "3".to_string())]
+        );
+    }
+
+    #[test]
+    fn appearances_are_added_set_and_deleted_with_their_openings() {
+        let a = AppearanceText {
+            building: None,
+            values: vec![("proba".into(), "1".into()), ("color".into(), "red".into())],
+            opening: Some(OpeningText {
+                root: "w".into(),
+                splits: vec![
+                    (
+                        "X".into(),
+                        "w".into(),
+                        vec!["a".into(), "b".into()],
+                        vec![0.5, 0.5],
+                    ),
+                    (
+                        "Z".into(),
+                        "a".into(),
+                        vec!["a1".into(), "a2".into()],
+                        vec![0.3, 0.7],
+                    ),
+                ],
+                terms: vec!["a1".into(), "a2".into(), "b".into()],
+            }),
+            ruleset: None,
+        };
+        let out = add_appearance(KB, 11, &a).unwrap();
+        let added = "\n      <appearance>\n        <values proba=\"1\" color=\"red\"/>\n        <opening>\n          <split axis=\"X\" parent=\"w\" children=\"a|b\" splitvalues=\"0.5,0.5\"/>\n          <split axis=\"Z\" parent=\"a\" children=\"a1|a2\" splitvalues=\"0.3,0.7\"/>\n          <elements parent=\"w\" terms=\"a1,a2,b\"/>\n        </opening>\n      </appearance>";
+        assert_eq!(without(&out, added), KB);
+        let kb = strict(&out);
+        let u = kb.find("earth/X/U").unwrap();
+        let o = kb.zones()[u].appearances[0].opening.as_ref().unwrap();
+        assert_eq!(o.splits.len(), 2);
+        assert_eq!(o.terms, vec!["a1", "a2", "b"]);
+        let texts = zone_texts(&out).unwrap();
+        assert_eq!(texts[&11].appearances[0].splits.len(), 2);
+        // Set: values changed in place, an attribute dropped, the opening removed.
+        let b = AppearanceText {
+            building: Some("house".into()),
+            values: vec![
+                ("proba".into(), "0.7".into()),
+                ("bdRooftype".into(), "flat".into()),
+            ],
+            opening: None,
+            ruleset: Some("rules/x.cga".into()),
+        };
+        let out = set_appearance(KB, 4, 1, &b).unwrap();
+        assert_eq!(
+            out,
+            KB.replace(
+                "<appearance>\n      <values proba=\"0.3\" color=\"#fff\" bdRooftype=\"flat\"/>\n    </appearance>",
+                "<appearance building=\"house\">\n      <values proba=\"0.7\" bdRooftype=\"flat\"/>\n      <ruleset file=\"rules/x.cga\"/>\n    </appearance>"
+            ),
+            "{out}"
+        );
+        // The other appearance and everything around them are kept.
+        assert!(out.contains(
+            "<appearance building=\"house\"><values proba=\"0.7\" color=\"red\"/></appearance>"
+        ));
+        let back = set_appearance(
+            &out,
+            4,
+            1,
+            &AppearanceText {
+                building: None,
+                values: vec![
+                    ("proba".into(), "0.3".into()),
+                    ("color".into(), "#fff".into()),
+                    ("bdRooftype".into(), "flat".into()),
+                ],
+                opening: None,
+                ruleset: None,
+            },
+        )
+        .unwrap();
+        // A value given back comes after the ones kept.
+        assert_eq!(
+            back,
+            KB.replace(
+                "proba=\"0.3\" color=\"#fff\" bdRooftype=\"flat\"",
+                "proba=\"0.3\" bdRooftype=\"flat\" color=\"#fff\""
+            )
+        );
+        let out = delete_appearance(KB, 4, 0).unwrap();
+        assert_eq!(out, KB.replace("\n    <appearance building=\"house\"><values proba=\"0.7\" color=\"red\"/></appearance>", ""));
+        assert!(delete_appearance(KB, 4, 2).is_err());
     }
 }

@@ -450,6 +450,20 @@ impl KnowledgeBase {
         Ok((KnowledgeBase::from_zones(zones, file_name), repairs))
     }
 
+    /// Parses KB text in the given mode as if it were the file at `path`: errors name it, and
+    /// `ruleset file=` paths are relative to its folder (what [`KnowledgeBase::load_with`]
+    /// gives for the same bytes; the editor checks its draft with it).
+    pub fn parse_str_at(
+        text: &str,
+        path: &Path,
+        mode: ReadMode,
+    ) -> Result<(KnowledgeBase, Vec<KbRepair>), KbError> {
+        let (mut kb, repairs) =
+            KnowledgeBase::parse_str_with(text, &path.display().to_string(), mode)?;
+        kb.base_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
+        Ok((kb, repairs))
+    }
+
     /// A knowledge base with only the earth zone and the built-in defaults (used with `--rules`
     /// and no `--kb`).
     pub fn earth_only() -> KnowledgeBase {

@@ -609,6 +609,35 @@ pub fn explain(
     }
 }
 
+/// The values a zone resolves to from its own and its ancestors' `<info>` (no appearance),
+/// each with the path of the zone that set it: what [`explain`] lists before the appearance,
+/// for the zone itself (the editor shows it beside the zone's own values). Empty for an
+/// unknown zone.
+pub fn zone_values(kb: &KnowledgeBase, zone: usize) -> Vec<ValueSource> {
+    let mut values: Vec<ValueSource> = Vec::new();
+    if kb.zone(zone).is_none() {
+        return values;
+    }
+    for i in kb.lineage(zone) {
+        let Some(z) = kb.zone(i) else { continue };
+        for (attribute, value) in value_fields(&z.info) {
+            match values.iter_mut().find(|s| s.attribute == attribute) {
+                Some(s) => {
+                    s.value = value;
+                    s.from = z.path.clone();
+                }
+                None => values.push(ValueSource {
+                    attribute,
+                    value,
+                    from: z.path.clone(),
+                }),
+            }
+        }
+    }
+    values.sort_by_key(|v| ATTRIBUTE_ORDER.iter().position(|a| *a == v.attribute));
+    values
+}
+
 /// KB attribute names in the order [`value_fields`] lists them.
 const ATTRIBUTE_ORDER: [&str; 22] = [
     "color",

@@ -1,0 +1,594 @@
+//! The knowledge base being edited: its text (the draft), the edits applied to it through
+//! [`crate::kb::edit`], each checked as `kb check --strict` checks a file before it is taken,
+//! what the page is shown of it, and the writes: the KB itself and rulesets in its folder.
+
+use std::path::{Component, Path, PathBuf};
+
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use crate::export::AtomicFile;
+use crate::kb::edit::{self, AppearanceText, CircleText, NewShape, OpeningText};
+use crate::kb::tools::{self, CheckReport};
+use crate::kb::{KbRepair, KnowledgeBase, ReadMode};
+
+/// The draft and where it came from.
+pub struct Draft {
+    /// The KB file, resolved (symlinks followed): the one file [`Draft::save`] writes.
+    path: PathBuf,
+    /// Its folder, resolved: rulesets are written only inside it.
+    dir: PathBuf,
+    /// The draft's text.
+    text: String,
+    /// The file's bytes as last read or saved (a save refuses when the file changed since).
+    on_disk: String,
+    /// How edits are checked: strict when the file read strictly at the start.
+    mode: ReadMode,
+    /// Why the file did not read strictly (then `mode` is lenient and saving is refused).
+    strict_error: Option<String>,
+    /// What the lenient reader repaired in the file as read.
+    repairs: Vec<KbRepair>,
+    /// The draft parsed.
+    kb: KnowledgeBase,
+    /// `kb check` of the draft.
+    report: CheckReport,
+}
+
+fn repairs_json(list: &[KbRepair]) -> Value {
+    Value::Array(
+        list.iter()
+            .map(|r| json!({"line": r.line, "what": r.what}))
+            .collect(),
+    )
+}
+
+fn pairs_json(pairs: &[(String, String)]) -> Value {
+    Value::Array(pairs.iter().map(|(k, v)| json!([k, v])).collect())
+}
+
+/// A circle as the page sends it.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CircleJson {
+    lat: f64,
+    lon: f64,
+    /// Radius, km.
+    dist: f64,
+}
+
+impl From<CircleJson> for CircleText {
+    fn from(c: CircleJson) -> CircleText {
+        CircleText {
+            lat: c.lat,
+            lon: c.lon,
+            dist: c.dist,
+        }
+    }
+}
+
+/// One `<split>` as the page sends it.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SplitJson {
+    axis: String,
+    parent: String,
+    children: Vec<String>,
+    values: Vec<f64>,
+}
+
+/// An `<opening>` as the page sends it.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpeningJson {
+    root: String,
+    splits: Vec<SplitJson>,
+    terms: Vec<String>,
+}
+
+/// An appearance as the page sends it.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AppearanceJson {
+    #[serde(default)]
+    building: Option<String>,
+    /// `[name, value]` pairs, `proba` among them.
+    values: Vec<(String, String)>,
+    #[serde(default)]
+    opening: Option<OpeningJson>,
+    #[serde(default)]
+    ruleset: Option<String>,
+}
+
+/// One edit of the draft (`POST /api/edit`, docs/kb-editor.md). Zones are named by their
+/// path (`earth/Monaco/Fontvieille`), appearances by their 0-based index in the zone.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Edit {
+    /// A new zone, last child of `parent`, with a circle or a polygon.
+    AddZone {
+        /// The parent zone's path.
+        parent: String,
+        /// `country`, `region`, `town`, `district`, `zone` or `continent`.
+        element: String,
+        /// Its name.
+        designation: String,
+        /// Its circle.
+        #[serde(default)]
+        circle: Option<CircleJson>,
+        /// Or its polygon, `[lon, lat]` points.
+        #[serde(default)]
+        polygon: Option<Vec<[f64; 2]>>,
+    },
+    /// The zone and its sub-zones removed.
+    DeleteZone {
+        /// The zone's path.
+        zone: String,
+    },
+    /// The zone's circle moved, resized or removed (`null`).
+    SetCircle {
+        /// The zone's path.
+        zone: String,
+        /// The new circle.
+        circle: Option<CircleJson>,
+    },
+    /// A polygon replaced (`index`), removed (`points: null`) or added (`index: null`).
+    SetPolygon {
+        /// The zone's path.
+        zone: String,
+        /// 0-based polygon index; `null` adds one.
+        #[serde(default)]
+        index: Option<usize>,
+        /// `[lon, lat]` points; `null` removes polygon `index`.
+        points: Option<Vec<[f64; 2]>>,
+    },
+    /// `<info>` attributes set (`[name, value]`) or removed (`[name, null]`).
+    SetInfo {
+        /// The zone's path.
+        zone: String,
+        /// The changes.
+        values: Vec<(String, Option<String>)>,
+    },
+    /// A new appearance after the zone's last one.
+    AddAppearance {
+        /// The zone's path.
+        zone: String,
+        /// The appearance.
+        appearance: AppearanceJson,
+    },
+    /// Appearance `index` replaced by this one (its comments and `<selex>` kept).
+    SetAppearance {
+        /// The zone's path.
+        zone: String,
+        /// 0-based index among the zone's own appearances.
+        index: usize,
+        /// The appearance.
+        appearance: AppearanceJson,
+    },
+    /// Appearance `index` removed.
+    DeleteAppearance {
+        /// The zone's path.
+        zone: String,
+        /// 0-based index among the zone's own appearances.
+        index: usize,
+    },
+}
+
+/// An attribute name the editor may write: an XML name of ASCII letters, digits, `_` and `-`.
+fn check_name(name: &str) -> Result<(), String> {
+    let ok = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    if ok {
+        Ok(())
+    } else {
+        Err(format!("{name:?} is not an attribute name"))
+    }
+}
+
+fn points(p: &[[f64; 2]]) -> Result<Vec<(f64, f64)>, String> {
+    if p.iter().flatten().any(|x| !x.is_finite()) {
+        return Err("a polygon point is not a finite number".into());
+    }
+    Ok(p.iter().map(|[lon, lat]| (*lon, *lat)).collect())
+}
+
+impl From<AppearanceJson> for AppearanceText {
+    fn from(a: AppearanceJson) -> AppearanceText {
+        AppearanceText {
+            building: a.building.filter(|b| !b.trim().is_empty()),
+            values: a.values,
+            opening: a.opening.map(|o| OpeningText {
+                root: o.root,
+                splits: o
+                    .splits
+                    .into_iter()
+                    .map(|s| (s.axis, s.parent, s.children, s.values))
+                    .collect(),
+                terms: o.terms,
+            }),
+            ruleset: a.ruleset.filter(|r| !r.trim().is_empty()),
+        }
+    }
+}
+
+fn check_appearance(a: &AppearanceJson) -> Result<(), String> {
+    for (k, _) in &a.values {
+        check_name(k)?;
+    }
+    Ok(())
+}
+
+impl Draft {
+    /// Reads the KB at `path`. A file that does not read leniently is an error; one that reads
+    /// only leniently is opened with its repairs listed, edits checked leniently, and saving
+    /// refused until it reads strictly.
+    pub fn open(path: &Path) -> Result<Draft, String> {
+        let resolved =
+            std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let dir = resolved
+            .parent()
+            .map(Path::to_path_buf)
+            .ok_or_else(|| format!("{}: no folder", path.display()))?;
+        let text =
+            std::fs::read_to_string(&resolved).map_err(|e| format!("{}: {e}", path.display()))?;
+        let (mode, strict_error, repairs) =
+            match KnowledgeBase::parse_str_at(&text, &resolved, ReadMode::Strict) {
+                Ok(_) => (ReadMode::Strict, None, Vec::new()),
+                Err(e) => {
+                    let (_, repairs) =
+                        KnowledgeBase::parse_str_at(&text, &resolved, ReadMode::Lenient)
+                            .map_err(|e| e.to_string())?;
+                    (ReadMode::Lenient, Some(e.to_string()), repairs)
+                }
+            };
+        let (kb, report) = check(&text, &resolved, mode)?;
+        Ok(Draft {
+            path: resolved,
+            dir,
+            on_disk: text.clone(),
+            text,
+            mode,
+            strict_error,
+            repairs,
+            kb,
+            report,
+        })
+    }
+
+    /// The draft's text.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// The KB file written by [`Draft::save`].
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The draft parsed.
+    pub fn kb(&self) -> &KnowledgeBase {
+        &self.kb
+    }
+
+    /// The draft parsed afresh (for a derivation that takes the KB).
+    pub fn parsed(&self) -> Result<KnowledgeBase, String> {
+        check(&self.text, &self.path, self.mode).map(|(kb, _)| kb)
+    }
+
+    /// The line of zone `path`'s start tag (text edits find zones by it). Refused when another
+    /// zone starts on the same line: an edit could not tell them apart.
+    fn zone_line(&self, path: &str) -> Result<usize, String> {
+        let line = self
+            .kb
+            .find(path)
+            .and_then(|i| self.kb.zone(i))
+            .map(|z| z.line)
+            .ok_or_else(|| format!("no zone {path:?} in the draft"))?;
+        if let Some(other) = self
+            .kb
+            .zones()
+            .iter()
+            .find(|z| z.line == line && z.path != path)
+        {
+            return Err(format!(
+                "zones {path:?} and {:?} start on line {line}: put them on lines of their own to \
+                 edit them",
+                other.path
+            ));
+        }
+        Ok(line)
+    }
+
+    /// Applies `e` to the draft. The edited text is checked ([`check`]: the strict reader and
+    /// `kb check`'s errors); when it fails the draft is unchanged and the message says why.
+    pub fn apply(&mut self, e: Edit) -> Result<(), String> {
+        let t = &self.text;
+        let new = match e {
+            Edit::AddZone {
+                parent,
+                element,
+                designation,
+                circle,
+                polygon,
+            } => {
+                let name = designation.trim();
+                if name.is_empty() || name.contains('/') || name != designation {
+                    return Err(format!(
+                        "{designation:?} is not a zone name (not empty, no '/', no surrounding spaces)"
+                    ));
+                }
+                let full = format!("{parent}/{name}");
+                if self.kb.find(&full).is_some() {
+                    return Err(format!("there is already a zone {full:?}"));
+                }
+                let shape = match (circle, polygon) {
+                    (Some(c), None) => NewShape::Circle(c.into()),
+                    (None, Some(p)) => NewShape::Polygon(points(&p)?),
+                    _ => return Err("a new zone needs a circle or a polygon (one)".into()),
+                };
+                edit::add_zone(t, self.zone_line(&parent)?, &element, name, &shape)?
+            }
+            Edit::DeleteZone { zone } => edit::delete_zone(t, self.zone_line(&zone)?)?,
+            Edit::SetCircle { zone, circle } => {
+                edit::set_circle(t, self.zone_line(&zone)?, circle.map(Into::into))?
+            }
+            Edit::SetPolygon {
+                zone,
+                index,
+                points: p,
+            } => {
+                let p = p.as_deref().map(points).transpose()?;
+                edit::set_polygon(t, self.zone_line(&zone)?, index, p.as_deref())?
+            }
+            Edit::SetInfo { zone, values } => {
+                for (k, _) in &values {
+                    check_name(k)?;
+                }
+                edit::set_info(t, self.zone_line(&zone)?, &values)?
+            }
+            Edit::AddAppearance { zone, appearance } => {
+                check_appearance(&appearance)?;
+                edit::add_appearance(t, self.zone_line(&zone)?, &appearance.into())?
+            }
+            Edit::SetAppearance {
+                zone,
+                index,
+                appearance,
+            } => {
+                check_appearance(&appearance)?;
+                edit::set_appearance(t, self.zone_line(&zone)?, index, &appearance.into())?
+            }
+            Edit::DeleteAppearance { zone, index } => {
+                edit::delete_appearance(t, self.zone_line(&zone)?, index)?
+            }
+        };
+        let (kb, report) = check(&new, &self.path, self.mode)?;
+        self.text = new;
+        self.kb = kb;
+        self.report = report;
+        Ok(())
+    }
+
+    /// Writes the draft over the KB file atomically (a temporary beside it, renamed). Refused
+    /// when the file did not read strictly, when the draft does not pass the check, and when
+    /// the file changed on disk since it was read or last saved.
+    pub fn save(&mut self) -> Result<(), String> {
+        if let Some(e) = &self.strict_error {
+            return Err(format!(
+                "the file does not read in the strict format ({e}); the lenient reader's repairs \
+                 are listed: make them in the file, then open it again"
+            ));
+        }
+        check(&self.text, &self.path, ReadMode::Strict)?;
+        let now = std::fs::read_to_string(&self.path)
+            .map_err(|e| format!("{}: {e}", self.path.display()))?;
+        if now != self.on_disk {
+            return Err(format!(
+                "{} changed on disk since it was opened: not overwritten",
+                self.path.display()
+            ));
+        }
+        write_atomic(&self.path, self.text.as_bytes())?;
+        self.on_disk = self.text.clone();
+        Ok(())
+    }
+
+    /// Writes a ruleset `file` (relative to the KB's folder, `.cga`) with `text`, which must
+    /// parse. Refused: absolute paths, `..`, a folder that is not inside the KB's (symlinks
+    /// resolved), a target that is a symlink or not a file.
+    pub fn write_ruleset(&self, file: &str, text: &str) -> Result<PathBuf, String> {
+        let target = ruleset_target(&self.dir, file)?;
+        crate::grammar::parse(text, file).map_err(|e| e.to_string())?;
+        write_atomic(&target, text.as_bytes())?;
+        Ok(target)
+    }
+
+    /// What the page shows: the zone tree with shapes, own and inherited values (with the zone
+    /// each comes from), appearances; the check's warnings and errors; the lenient repairs.
+    pub fn state(&self) -> Value {
+        let texts = edit::zone_texts(&self.text).unwrap_or_default();
+        let kb = &self.kb;
+        let zones: Vec<Value> = kb
+            .zones()
+            .iter()
+            .enumerate()
+            .map(|(i, z)| {
+                let own = texts.get(&z.line).cloned().unwrap_or_default();
+                let (owner, _) = kb.appearances_for(i);
+                let appearances: Vec<Value> = own
+                    .appearances
+                    .iter()
+                    .zip(&z.appearances)
+                    .map(|(t, a)| {
+                        json!({
+                            "building": t.building,
+                            "values": pairs_json(&t.values),
+                            "proba": a.proba,
+                            "opening": a.opening.as_ref().map(|o| json!({
+                                "root": o.root,
+                                "terms": o.terms,
+                                "splits": o.splits.iter().map(|s| json!({
+                                    "axis": s.axis.as_str(),
+                                    "parent": s.parent,
+                                    "children": s.children,
+                                    "values": s.fractions,
+                                })).collect::<Vec<_>>(),
+                            })),
+                            "ruleset": t.ruleset,
+                            "selex": t.selex,
+                            "line": a.line,
+                        })
+                    })
+                    .collect();
+                json!({
+                    "path": z.path,
+                    "name": z.name,
+                    "element": z.kind.as_str(),
+                    "depth": z.depth,
+                    "parent": z.parent.map(|p| kb.zone_path(p)),
+                    "line": z.line,
+                    "circle": z.circle.map(|c| json!({"lat": c.lat, "lon": c.lon, "dist": c.radius_km})),
+                    "polygons": z.polygons.iter().map(|p| p.ring.clone()).collect::<Vec<_>>(),
+                    "info": pairs_json(&own.info),
+                    "location": own.location.as_deref().map(pairs_json),
+                    "resolved": tools::zone_values(kb, i).iter().map(|v| json!({
+                        "attribute": v.attribute, "value": v.value, "from": v.from,
+                    })).collect::<Vec<_>>(),
+                    "appearances": appearances,
+                    "appearances_from": kb.zone_path(owner),
+                })
+            })
+            .collect();
+        json!({
+            "file": self.path.file_name().map(|n| n.to_string_lossy().into_owned()),
+            "mode": match self.mode { ReadMode::Strict => "strict", ReadMode::Lenient => "lenient" },
+            "strict_error": self.strict_error,
+            "dirty": self.text != self.on_disk,
+            "repairs": repairs_json(&self.repairs),
+            "errors": repairs_json(&self.report.errors),
+            "warnings": repairs_json(&self.report.warnings),
+            "zones": zones,
+        })
+    }
+}
+
+/// The draft text read as `kb check` reads the file at `path` in `mode`: the reader, then
+/// the check's errors (a ruleset or SELEX program outside the folder, a SELEX program that
+/// does not parse). `Err` is the message to show.
+pub fn check(
+    text: &str,
+    path: &Path,
+    mode: ReadMode,
+) -> Result<(KnowledgeBase, CheckReport), String> {
+    let (kb, repairs) = KnowledgeBase::parse_str_at(text, path, mode).map_err(|e| e.to_string())?;
+    let report = tools::report_for(&kb, mode, repairs, false);
+    if report.has_errors() {
+        let list: Vec<String> = report
+            .errors
+            .iter()
+            .map(|r| format!("{}:{}: {}", path.display(), r.line, r.what))
+            .collect();
+        return Err(list.join("\n"));
+    }
+    Ok((kb, report))
+}
+
+/// Where ruleset `file` goes in `dir` (resolved), or why it may not.
+fn ruleset_target(dir: &Path, file: &str) -> Result<PathBuf, String> {
+    let rel = Path::new(file);
+    if file.is_empty() || rel.is_absolute() {
+        return Err(format!(
+            "ruleset {file:?}: give a path relative to the KB's folder"
+        ));
+    }
+    if !rel.components().all(|c| matches!(c, Component::Normal(_))) {
+        return Err(format!(
+            "ruleset {file:?} climbs out of the KB's folder (no '..', '.' or root)"
+        ));
+    }
+    if rel.extension().and_then(|e| e.to_str()) != Some("cga") {
+        return Err(format!("ruleset {file:?}: the name must end in .cga"));
+    }
+    let target = dir.join(rel);
+    let parent = target
+        .parent()
+        .ok_or_else(|| format!("ruleset {file:?}: no folder"))?;
+    let real_parent =
+        std::fs::canonicalize(parent).map_err(|e| format!("ruleset {file:?}: its folder: {e}"))?;
+    if !real_parent.starts_with(dir) {
+        return Err(format!(
+            "ruleset {file:?}: its folder lies outside the KB's folder (through a symlink)"
+        ));
+    }
+    match std::fs::symlink_metadata(&target) {
+        Ok(m) if m.file_type().is_symlink() => {
+            Err(format!("ruleset {file:?} is a symlink: not written"))
+        }
+        Ok(m) if !m.is_file() => Err(format!("ruleset {file:?} is not a file")),
+        _ => Ok(real_parent.join(rel.file_name().unwrap_or_default())),
+    }
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    use std::io::Write;
+    let io = |e: std::io::Error| format!("{}: {e}", path.display());
+    let f = AtomicFile::create(path).map_err(io)?;
+    let mut w = f.writer().map_err(io)?;
+    w.write_all(bytes).map_err(io)?;
+    w.flush().map_err(io)?;
+    drop(w);
+    f.commit().map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn draft_of(text: &str) -> (tempfile::TempDir, Draft) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("kb.xml");
+        std::fs::write(&path, text).unwrap();
+        let d = Draft::open(&path).unwrap();
+        (dir, d)
+    }
+
+    fn set_info(zone: &str, k: &str, v: &str) -> Edit {
+        Edit::SetInfo {
+            zone: zone.into(),
+            values: vec![(k.into(), Some(v.into()))],
+        }
+    }
+
+    #[test]
+    fn zones_sharing_a_line_are_not_edited() {
+        let text = "<earth>\n  <town designation=\"A\"/><town designation=\"B\"/>\n  <town designation=\"C\"/>\n</earth>\n";
+        let (_dir, mut d) = draft_of(text);
+        let e = d.apply(set_info("earth/B", "nbfloor", "3")).unwrap_err();
+        assert!(e.contains("line 2"), "{e}");
+        assert!(d.apply(set_info("earth/A", "nbfloor", "3")).is_err());
+        assert_eq!(d.text(), text);
+        d.apply(set_info("earth/C", "nbfloor", "3")).unwrap();
+        assert!(
+            d.text()
+                .contains("<town designation=\"C\">\n    <info nbfloor=\"3\"/>\n  </town>"),
+            "{}",
+            d.text()
+        );
+    }
+
+    #[test]
+    fn a_lenient_file_is_opened_with_its_repairs_and_not_saved() {
+        let text = "<earth>\n  <info nbfloor=\"2\" floorsize=\"3,5\"/>\n  <town designation=\"C\"/>\n</earth>\n";
+        let (_dir, mut d) = draft_of(text);
+        let st = d.state();
+        assert_eq!(st["mode"], "lenient");
+        assert!(st["strict_error"].as_str().is_some());
+        let repairs = st["repairs"].as_array().map_or(0, Vec::len);
+        assert!(repairs > 0, "{st}");
+        d.apply(set_info("earth/C", "nbfloor", "3")).unwrap();
+        let e = d.save().unwrap_err();
+        assert!(e.contains("strict"), "{e}");
+        assert_eq!(std::fs::read_to_string(d.path()).unwrap(), text);
+    }
+}

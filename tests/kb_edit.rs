@@ -1,0 +1,427 @@
+//! `citygen kb edit` through the real binary and plain HTTP: the session's defences (token,
+//! Host, Origin), writes confined to the KB and its folder, refused edits that leave the file
+//! as it was, and an edit saved that `kb check --strict` and `kb explain` then read.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+use common::{citygen, root, KB, MONACO};
+use serde_json::{json, Value};
+
+/// A running editor, stopped when dropped.
+struct Session {
+    child: Child,
+    port: u16,
+    token: String,
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start(kb: &Path, osm: bool) -> Session {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_citygen"));
+    cmd.current_dir(root()).arg("kb").arg("edit").arg(kb);
+    if osm {
+        cmd.args(["--osm", MONACO]);
+    }
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start citygen kb edit");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("the address line");
+    let url = line.trim();
+    let rest = url
+        .strip_prefix("http://127.0.0.1:")
+        .unwrap_or_else(|| panic!("printed {url:?}"));
+    let (port, token) = rest.split_once("/?token=").expect("port and token");
+    assert_eq!(token.len(), 32, "128 bits in hex");
+    Session {
+        child,
+        port: port.parse().expect("port"),
+        token: token.to_string(),
+    }
+}
+
+/// One raw request; the status and body of the answer.
+fn raw(port: u16, request: &str) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connect");
+    s.write_all(request.as_bytes()).expect("send");
+    let mut out = Vec::new();
+    s.read_to_end(&mut out).expect("answer");
+    let head_end = out
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("a head");
+    let head = String::from_utf8_lossy(&out[..head_end]).to_string();
+    let status = head
+        .split(' ')
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .expect("a status");
+    (status, out[head_end + 4..].to_vec())
+}
+
+impl Session {
+    fn host(&self) -> String {
+        format!("127.0.0.1:{}", self.port)
+    }
+
+    fn get(&self, path: &str, headers: &[(&str, &str)]) -> (u16, Vec<u8>) {
+        let mut req = format!("GET {path} HTTP/1.1\r\n");
+        for (k, v) in headers {
+            req.push_str(&format!("{k}: {v}\r\n"));
+        }
+        req.push_str("\r\n");
+        raw(self.port, &req)
+    }
+
+    fn api_get(&self, path: &str) -> (u16, Value) {
+        let host = self.host();
+        let (status, body) = self.get(path, &[("Host", &host), ("X-Citygen-Token", &self.token)]);
+        (status, serde_json::from_slice(&body).unwrap_or(Value::Null))
+    }
+
+    fn post_with(&self, path: &str, body: &Value, headers: &[(&str, &str)]) -> (u16, Value) {
+        let body = body.to_string();
+        let mut req = format!(
+            "POST {path} HTTP/1.1\r\nContent-Type: application/json\r\nContent-Length: {}\r\n",
+            body.len()
+        );
+        for (k, v) in headers {
+            req.push_str(&format!("{k}: {v}\r\n"));
+        }
+        req.push_str("\r\n");
+        req.push_str(&body);
+        let (status, out) = raw(self.port, &req);
+        (status, serde_json::from_slice(&out).unwrap_or(Value::Null))
+    }
+
+    fn post(&self, path: &str, body: &Value) -> (u16, Value) {
+        let host = self.host();
+        let origin = format!("http://{host}");
+        self.post_with(
+            path,
+            body,
+            &[
+                ("Host", &host),
+                ("Origin", &origin),
+                ("X-Citygen-Token", &self.token),
+            ],
+        )
+    }
+}
+
+const SMALL_KB: &str = r##"<?xml version="1.0" encoding="UTF-8"?>
+<earth>
+  <!-- A comment the editor keeps. -->
+  <info nbfloor="2" color="white"/>
+  <country designation="Monaco">
+    <info lat="43.7384" lon="7.4246" dist="3" rooftype="hipped"/>
+    <appearance>
+      <values proba="1" color="#f3e5c0"/>
+    </appearance>
+    <town designation="Fontvieille">
+      <!-- Reclaimed land. -->
+      <info lat="43.7283" lon="7.4150" dist="0.5" nbfloor="9"/>
+    </town>
+  </country>
+</earth>
+"##;
+
+fn small_kb() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let kb = dir.path().join("kb").join("kb.xml");
+    std::fs::create_dir_all(kb.parent().unwrap()).unwrap();
+    std::fs::write(&kb, SMALL_KB).unwrap();
+    (dir, kb)
+}
+
+#[test]
+fn requests_without_the_token_or_from_another_host_or_origin_are_refused() {
+    let (_dir, kb) = small_kb();
+    let s = start(&kb, false);
+    let host = s.host();
+    let tok = s.token.clone();
+    let page = format!("/?token={tok}");
+    // The page and the API with everything right.
+    let (status, body) = s.get(&page, &[("Host", &host)]);
+    assert_eq!(status, 200);
+    let html = String::from_utf8_lossy(&body);
+    assert!(html.contains(&format!("app.js?token={tok}")), "{html}");
+    let (status, state) = s.api_get("/api/state");
+    assert_eq!(status, 200);
+    assert_eq!(state["zones"].as_array().map(Vec::len), Some(3));
+    let localhost = format!("localhost:{}", s.port);
+    assert_eq!(s.get(&page, &[("Host", &localhost)]).0, 200);
+
+    let refused = |path: &str, headers: &[(&str, &str)]| {
+        let (status, body) = s.get(path, headers);
+        let msg = String::from_utf8_lossy(&body).to_string();
+        assert_eq!(status, 403, "{path} {headers:?}: {msg}");
+        assert!(msg.contains("refused"), "{msg}");
+        msg
+    };
+    // No token, a wrong one, the page's token on the API in the query instead of the header.
+    refused("/", &[("Host", &host)]);
+    refused("/app.js", &[("Host", &host)]);
+    refused("/api/state", &[("Host", &host)]);
+    let wrong = "0".repeat(32);
+    refused(&format!("/?token={wrong}"), &[("Host", &host)]);
+    refused(
+        "/api/state",
+        &[("Host", &host), ("X-Citygen-Token", &wrong)],
+    );
+    refused(&format!("/api/state?token={tok}"), &[("Host", &host)]);
+    // A rebound name, another port, no Host at all.
+    let msg = refused(&page, &[("Host", &format!("attacker.example:{}", s.port))]);
+    assert!(msg.contains("Host"), "{msg}");
+    refused(
+        &page,
+        &[("Host", &format!("127.0.0.1:{}", s.port.wrapping_add(1)))],
+    );
+    refused(&page, &[]);
+    // A foreign Origin, even with the token (a page elsewhere that learnt it).
+    let msg = refused(
+        "/api/state",
+        &[
+            ("Host", &host),
+            ("X-Citygen-Token", &tok),
+            ("Origin", "http://attacker.example"),
+        ],
+    );
+    assert!(msg.contains("Origin"), "{msg}");
+    refused(
+        "/api/state",
+        &[
+            ("Host", &host),
+            ("X-Citygen-Token", &tok),
+            (
+                "Origin",
+                &format!("http://127.0.0.1:{}", s.port.wrapping_add(1)),
+            ),
+        ],
+    );
+    // And the writes: a foreign origin's save and edit change nothing.
+    let edit = json!({"op": "set_info", "zone": "earth", "values": [["nbfloor", "5"]]});
+    let (status, _) = s.post_with(
+        "/api/edit",
+        &edit,
+        &[
+            ("Host", &host),
+            ("X-Citygen-Token", &tok),
+            ("Origin", "null"),
+        ],
+    );
+    assert_eq!(status, 403);
+    let (status, _) = s.post_with(
+        "/api/save",
+        &json!({}),
+        &[("Host", &host), ("Origin", &format!("http://{host}"))],
+    );
+    assert_eq!(status, 403);
+    assert_eq!(std::fs::read_to_string(&kb).unwrap(), SMALL_KB);
+    // Nothing but loopback is bound: the port refuses on another address of this machine.
+    // (The listener's address is 127.0.0.1 itself: the printed URL says so.)
+}
+
+#[test]
+fn rulesets_are_written_only_inside_the_kb_folder() {
+    let (dir, kb) = small_kb();
+    let outside = dir.path().join("outside");
+    std::fs::create_dir_all(&outside).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&outside, kb.parent().unwrap().join("escape")).unwrap();
+    let s = start(&kb, false);
+    let rules = "lot -> extrude(10){building:color=red}\n";
+    let absolute = outside.join("x.cga").to_string_lossy().into_owned();
+    for file in [
+        "../x.cga",
+        "sub/../../x.cga",
+        absolute.as_str(),
+        "escape/x.cga",
+        "./x.cga",
+        "x.txt",
+        "",
+    ] {
+        let (status, body) = s.post("/api/ruleset", &json!({"file": file, "text": rules}));
+        assert_eq!(status, 422, "{file:?}: {body}");
+        assert!(body["error"].as_str().is_some_and(|m| !m.is_empty()));
+    }
+    assert!(!dir.path().join("x.cga").exists());
+    assert!(!outside.join("x.cga").exists());
+    // A ruleset that does not parse is refused too; a good one inside is written.
+    let (status, _) = s.post(
+        "/api/ruleset",
+        &json!({"file": "bad.cga", "text": "lot ->"}),
+    );
+    assert_eq!(status, 422);
+    let (status, body) = s.post("/api/ruleset", &json!({"file": "good.cga", "text": rules}));
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(
+        std::fs::read_to_string(kb.parent().unwrap().join("good.cga")).unwrap(),
+        rules
+    );
+    // An appearance naming a ruleset outside the folder is what `kb check` calls an error.
+    let app = json!({"values": [["proba", "1"]], "ruleset": "../x.cga"});
+    let (status, body) = s.post(
+        "/api/edit",
+        &json!({"op": "add_appearance", "zone": "earth/Monaco/Fontvieille", "appearance": app}),
+    );
+    assert_eq!(status, 422, "{body}");
+    assert!(
+        body["error"].as_str().unwrap().contains("outside"),
+        "{body}"
+    );
+    assert_eq!(std::fs::read_to_string(&kb).unwrap(), SMALL_KB);
+}
+
+#[test]
+fn an_invalid_edit_leaves_the_draft_and_the_file_untouched() {
+    let (_dir, kb) = small_kb();
+    let s = start(&kb, false);
+    let (_, before) = s.api_get("/api/state");
+    let zone = "earth/Monaco/Fontvieille";
+    let bad = [
+        json!({"op": "set_info", "zone": zone, "values": [["nbfloor", "many"]]}),
+        json!({"op": "set_info", "zone": zone, "values": [["color", "not a colour"]]}),
+        json!({"op": "set_info", "zone": zone, "values": [["x\"/><evil a=\"", "1"]]}),
+        json!({"op": "set_circle", "zone": zone, "circle": {"lat": 95.0, "lon": 7.0, "dist": 1.0}}),
+        json!({"op": "set_polygon", "zone": zone, "points": [[7.41, 43.72], [7.42, 43.73], [7.42, 43.72], [7.41, 43.73]]}),
+        json!({"op": "add_zone", "parent": zone, "element": "district", "designation": "a/b",
+               "polygon": [[7.41, 43.72], [7.42, 43.72], [7.42, 43.73]]}),
+        json!({"op": "add_zone", "parent": zone, "element": "info", "designation": "D",
+               "polygon": [[7.41, 43.72], [7.42, 43.72], [7.42, 43.73]]}),
+        json!({"op": "add_appearance", "zone": zone, "appearance": {"values": [["proba", "1"]],
+               "opening": {"root": "w", "splits": [{"axis": "Q", "parent": "w", "children": ["a", "b"], "values": [1, 1]}], "terms": ["a", "b"]}}}),
+        json!({"op": "delete_appearance", "zone": zone, "index": 3}),
+        json!({"op": "delete_zone", "zone": "earth"}),
+        json!({"op": "set_info", "zone": "earth/Nowhere", "values": [["nbfloor", "3"]]}),
+        json!({"op": "no_such_op"}),
+    ];
+    for e in &bad {
+        let (status, body) = s.post("/api/edit", e);
+        assert!(status == 422 || status == 400, "{e}: {status} {body}");
+        let msg = body["error"].as_str().unwrap_or("");
+        assert!(!msg.is_empty(), "{e}: a message");
+        let (_, now) = s.api_get("/api/state");
+        assert_eq!(now, before, "{e} changed the draft");
+    }
+    // Saving the untouched draft writes the same bytes.
+    let (status, _) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 200);
+    assert_eq!(std::fs::read_to_string(&kb).unwrap(), SMALL_KB);
+}
+
+/// The Monaco acceptance flow without a browser: a polygon district with an appearance whose
+/// window is split, saved, then read by `kb check --strict` and `kb explain`.
+#[test]
+fn a_drawn_district_is_saved_strict_and_explained() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let kb = dir.path().join("kb.xml");
+    let original = std::fs::read_to_string(root().join(KB)).unwrap();
+    std::fs::write(&kb, &original).unwrap();
+    let s = start(&kb, true);
+    let (status, footprints) = s.api_get("/api/footprints");
+    assert_eq!(status, 200);
+    let footprints = footprints.as_array().cloned().unwrap_or_default();
+    assert!(footprints.len() > 1000, "{} footprints", footprints.len());
+    // A box around Fontvieille's buildings.
+    let (w, so, e, n) = (7.4140, 43.7265, 7.4175, 43.7290);
+    let inside: Vec<&Value> = footprints
+        .iter()
+        .filter(|f| {
+            let (lon, lat) = (f["at"][0].as_f64().unwrap(), f["at"][1].as_f64().unwrap());
+            lon > w && lon < e && lat > so && lat < n
+        })
+        .collect();
+    assert!(inside.len() >= 3, "{} buildings in the box", inside.len());
+    let parent = "earth/Mediterranean Europe/Monaco/Fontvieille";
+    let zone = format!("{parent}/Test district");
+    let (status, body) = s.post(
+        "/api/edit",
+        &json!({"op": "add_zone", "parent": parent, "element": "district",
+                "designation": "Test district", "polygon": [[w, so], [e, so], [e, n], [w, n]]}),
+    );
+    assert_eq!(status, 200, "{body}");
+    let app = json!({
+        "values": [["proba", "1"], ["color", "#aa2222"], ["bdRooftype", "hipped"],
+                   ["roofColor", "#b85a38"], ["windowheight", "tall"], ["minFloors", "3"], ["maxFloors", "3"]],
+        "opening": {"root": "w", "terms": ["w_l", "w_t", "w_b"], "splits": [
+            {"axis": "X", "parent": "w", "children": ["w_l", "w_r"], "values": [0.5, 0.5]},
+            {"axis": "Z", "parent": "w_r", "children": ["w_b", "w_t"], "values": [0.7, 0.3]}]}
+    });
+    let (status, body) = s.post(
+        "/api/edit",
+        &json!({"op": "add_appearance", "zone": zone, "appearance": app}),
+    );
+    assert_eq!(status, 200, "{body}");
+    // The page's view of the building: the new zone and appearance.
+    let id = inside[0]["id"].as_str().unwrap().to_string();
+    let (status, b) = s.api_get(&format!("/api/building?id={id}"));
+    assert_eq!(status, 200, "{b}");
+    assert_eq!(b["zone"], zone.as_str());
+    assert_eq!(b["appearance"], format!("{zone}#1").as_str());
+    // The preview is a GLB.
+    let (status, glb) = s.get(
+        &format!("/api/preview?id={id}&lod=3"),
+        &[("Host", &s.host()), ("X-Citygen-Token", &s.token)],
+    );
+    assert_eq!(status, 200);
+    assert_eq!(&glb[..4], b"glTF");
+    assert_eq!(
+        std::fs::read_to_string(&kb).unwrap(),
+        original,
+        "not saved yet"
+    );
+    let (status, body) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 200, "{body}");
+    drop(s);
+
+    let saved = std::fs::read_to_string(&kb).unwrap();
+    let check = citygen(&["kb", "check", "--strict", kb.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "{out}");
+    assert!(out.contains("0 errors"), "{out}");
+    // Everything else of the file byte for byte: the saved text is the original with one
+    // block of lines added.
+    let (a, b): (Vec<&str>, Vec<&str>) = (original.lines().collect(), saved.lines().collect());
+    let first = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let last = a
+        .iter()
+        .rev()
+        .zip(b.iter().rev())
+        .take_while(|(x, y)| x == y)
+        .count();
+    assert_eq!(first + last, a.len(), "only lines added");
+    let added = b[first..b.len() - last].join("\n");
+    assert!(
+        added.contains("<district designation=\"Test district\">"),
+        "{added}"
+    );
+    assert!(added.contains("splitvalues=\"0.7,0.3\""), "{added}");
+    let explain = citygen(&[
+        "kb",
+        "explain",
+        kb.to_str().unwrap(),
+        "--osm",
+        MONACO,
+        "--id",
+        &id,
+    ]);
+    let text = String::from_utf8_lossy(&explain.stdout);
+    assert!(explain.status.success(), "{text}");
+    assert!(text.contains("Test district"), "{text}");
+    assert!(text.contains(&format!("{zone}#1")), "{text}");
+}
