@@ -96,6 +96,8 @@ fn places(text: &str, zone_line: usize) -> Result<Places, String> {
     let mut after_shapes = true;
     let mut found = ZoneAppearances::default();
     let mut in_appearance = false;
+    // The line of `tag_at`, counted on from the last tag's (one pass over the text in all).
+    let (mut counted_to, mut line) = (0usize, 1usize);
     loop {
         let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
         let ev = reader.read_event().map_err(|e| {
@@ -114,8 +116,12 @@ fn places(text: &str, zone_line: usize) -> Result<Places, String> {
             Event::Start(e) | Event::Empty(e) => {
                 let name = AsRef::<str>::as_ref(&e.name()).to_string();
                 let empty = matches!(ev, Event::Empty(_));
+                if let Some(skipped) = text.get(counted_to..tag_at) {
+                    line += skipped.bytes().filter(|&b| b == b'\n').count();
+                    counted_to = tag_at;
+                }
                 match &zone {
-                    None if line_of(text, tag_at) == zone_line && is_zone(&name) => {
+                    None if line == zone_line && is_zone(&name) => {
                         let line_start = text[..tag_at].rfind('\n').map_or(0, |i| i + 1);
                         let indent: String = text[line_start..tag_at]
                             .chars()
