@@ -698,6 +698,98 @@ mod tests {
         assert_same(&kb, &back);
     }
 
+    /// Attributes as the lenient reader meets them: good, misspelt, out of range, decimal
+    /// commas, markup characters.
+    const ATTRS: [&str; 24] = [
+        "color=\"Pink\"",
+        "color=\"0.3;0.2;0.9\"",
+        "roofColor=\"#ABC\"",
+        "nbfloor=\"2,5\"",
+        "floorsize=\" 3.25 \"",
+        "rooftype=\"gabbled\"",
+        "bdRooftype=\"hip\"",
+        "roofangle=\"95\"",
+        "maxrotation=\"-720\"",
+        "balconies=\"0,3\"",
+        "infer=\"Roof\"",
+        "programme=\"flats\"",
+        "windowheight=\"low\"",
+        "windowstyle=\"A &amp; B &lt;x&gt;\"",
+        "material=\"&quot;brick&quot;\"",
+        "minFloors=\"1\"",
+        "maxHeight=\"0.000001\"",
+        "lat=\"43.6\"",
+        "lon=\"1,44\"",
+        "dist=\"0.1\"",
+        "proba=\"0.33333333333333331\"",
+        "shade=\"deep\"",
+        "nbfloor=\"\"",
+        "windowwidth=\"-1\"",
+    ];
+
+    fn kb_text(picks: &[(u8, u8, u8)]) -> String {
+        let mut t = String::from("<earth>\n");
+        let mut open: Vec<&str> = Vec::new();
+        for (k, (what, a, b)) in picks.iter().enumerate() {
+            let attr = |i: u8| ATTRS[usize::from(i) % ATTRS.len()];
+            match what % 6 {
+                0 if open.len() < 4 => {
+                    let el = ["town", "Country", "district", "quarter"][usize::from(*a) % 4];
+                    t.push_str(&format!("<{el} designation=\" Z{} \">\n", b % 3));
+                    open.push(el);
+                }
+                1 if !open.is_empty() => {
+                    let el = open.pop().unwrap_or("town");
+                    t.push_str(&format!("</{el}>\n<!-- c -->\n"));
+                }
+                2 => t.push_str(&format!("<info {} {}/>\n", attr(*a), attr(*b))),
+                3 => t.push_str(&format!(
+                    "<appearance building=\"House, {k}\"><values {} {}/></appearance>\n",
+                    attr(*a),
+                    attr(*b)
+                )),
+                4 => t.push_str(&format!(
+                    "<appearance><values {}/><opening><split axis=\"x\" parent=\"w\" children=\"a|b\" splitvalues=\"{},{}\"/><split axis=\"Z\" parent=\"{}\" children=\"c|d\" splitvalues=\"1,2\"/></opening></appearance>\n",
+                    attr(*a),
+                    a % 5 + 1,
+                    b % 7,
+                    ["a", "b", "w", "q"][usize::from(*b) % 4]
+                )),
+                _ => t.push_str(&format!(
+                    "<polygon points=\"1.44 43.6, 1.4{} 43.6, 1.45 43.6{}\"/>\n",
+                    a % 10,
+                    b % 10
+                )),
+            }
+        }
+        while let Some(el) = open.pop() {
+            t.push_str(&format!("</{el}>\n"));
+        }
+        t.push_str("</earth>\n");
+        t
+    }
+
+    proptest::proptest! {
+        /// Whatever the lenient reader reads, the strict reader reads the writer's output, and
+        /// to the same model when the writer notes nothing.
+        #[test]
+        fn every_lenient_model_is_written_strictly(picks in proptest::collection::vec((0u8..6, 0u8..255, 0u8..255), 0..24)) {
+            let text = kb_text(&picks);
+            let Ok((kb, _)) = KnowledgeBase::parse_str(&text, "p.xml") else {
+                return Ok(());
+            };
+            let out = to_strict(&kb);
+            let back = KnowledgeBase::parse_str_with(&out.text, "out.xml", ReadMode::Strict);
+            proptest::prop_assert!(back.is_ok(), "{:?}\n{text}\n{}", back.err(), out.text);
+            if let (Ok((back, _)), true) = (back, out.notes.is_empty()) {
+                proptest::prop_assert_eq!(kb.zones().len(), back.zones().len());
+                for (x, y) in kb.zones().iter().zip(back.zones()) {
+                    proptest::prop_assert_eq!(unlined(x), unlined(y));
+                }
+            }
+        }
+    }
+
     #[test]
     fn attribute_values_are_escaped_and_numbers_read_back_exactly() {
         assert_eq!(
