@@ -425,3 +425,71 @@ fn a_drawn_district_is_saved_strict_and_explained() {
     assert!(text.contains("Test district"), "{text}");
     assert!(text.contains(&format!("{zone}#1")), "{text}");
 }
+
+#[test]
+fn a_lenient_kb_is_saved_in_the_strict_format_with_its_repairs_shown_first() {
+    use citygen::kb::{KnowledgeBase, ReadMode, Zone};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let kb = dir.path().join("annex.xml");
+    let original = std::fs::read_to_string(root().join("tests/data/thesis_annex.xml")).unwrap();
+    std::fs::write(&kb, &original).unwrap();
+    let s = start(&kb, false);
+    let (status, st) = s.api_get("/api/state");
+    assert_eq!(status, 200);
+    assert_eq!(st["mode"], "lenient", "{st}");
+    assert!(st["strict_error"].as_str().is_some(), "{st}");
+    let repairs = st["repairs"].as_array().cloned().unwrap_or_default();
+    assert!(repairs.len() > 10, "{st}");
+    assert!(repairs
+        .iter()
+        .any(|r| r["line"] == 74 && r["what"].as_str().unwrap_or("").contains("missing '<'")));
+    assert!(st["conversion"].is_array(), "{st}");
+    assert_eq!(std::fs::read_to_string(&kb).unwrap(), original);
+
+    let (status, body) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 200, "{body}");
+    let (_, st) = s.api_get("/api/state");
+    assert_eq!(st["mode"], "strict", "{st}");
+    assert_eq!(st["dirty"], false);
+    assert_eq!(st["repairs"].as_array().map(Vec::len), Some(0), "{st}");
+    // Later edits are text edits of the strict file: one line changes.
+    let saved = std::fs::read_to_string(&kb).unwrap();
+    let (status, body) = s.post(
+        "/api/edit",
+        &json!({"op": "set_info", "zone": "earth/France/Midi-Pyrenees/Paris",
+                "values": [["nbfloor", "6"]]}),
+    );
+    assert_eq!(status, 200, "{body}");
+    drop(s);
+    assert_eq!(
+        std::fs::read_to_string(&kb).unwrap(),
+        saved,
+        "edited, not saved"
+    );
+
+    let check = citygen(&["kb", "check", "--strict", kb.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "{out}");
+    assert!(out.contains("0 errors"), "{out}");
+    // The same zones and appearances as the lenient reading of the original.
+    let (before, _) = KnowledgeBase::load_with(
+        &root().join("tests/data/thesis_annex.xml"),
+        ReadMode::Lenient,
+    )
+    .unwrap();
+    let (after, repairs) = KnowledgeBase::load_with(&kb, ReadMode::Strict).unwrap();
+    assert!(repairs.is_empty());
+    let unlined = |z: &Zone| {
+        let mut z = z.clone();
+        z.line = 0;
+        z.appearances.iter_mut().for_each(|a| a.line = 0);
+        z
+    };
+    assert_eq!(before.zones().len(), after.zones().len());
+    for (a, b) in before.zones().iter().zip(after.zones()) {
+        assert_eq!(unlined(a), unlined(b), "{}", a.path);
+    }
+    let appearances =
+        |k: &KnowledgeBase| k.zones().iter().map(|z| z.appearances.len()).sum::<usize>();
+    assert_eq!((appearances(&before), appearances(&after)), (4, 4));
+}

@@ -534,15 +534,25 @@ function renderBuilding() {
 
 function render() {
   if (!app.st) return;
-  $("file").textContent = app.st.file + (app.st.mode === "lenient" ? " (lenient: cannot be saved until it reads strictly)" : "");
+  $("file").textContent = app.st.file + (app.st.mode === "lenient" ? " (lenient: Save rewrites it in the strict format)" : "");
   $("dirty").textContent = app.st.dirty ? "● unsaved changes" : "saved";
   renderTree();
   renderZone();
   renderBuilding();
-  const rep = app.st.repairs.map((r) => `<li>line ${r.line}: ${esc(r.what)}</li>`).join("");
-  $("repairs").innerHTML = (app.st.strict_error ? `<p class="bad">${esc(app.st.strict_error)}</p>` : "") +
-    (rep ? `<h3>Lenient reader's repairs</h3><ul>${rep}</ul>` : "");
+  const items = (list) => list.map((r) => `<li>line ${r.line}: ${esc(r.what)}</li>`).join("");
+  const rep = items(app.st.repairs), conv = items(app.st.conversion);
+  $("repairs").innerHTML = (app.st.mode === "lenient" ? `<p id="save-notice" class="bad">${esc(saveNotice())}</p>` : "") +
+    (app.st.strict_error ? `<p class="bad">${esc(app.st.strict_error)}</p>` : "") +
+    (rep ? `<h3>Lenient reader's repairs</h3><ul>${rep}</ul>` : "") +
+    (conv ? `<h3>Changed to fit the strict format</h3><ul>${conv}</ul>` : "");
   drawMap();
+}
+
+// What saving a lenient KB does, for the notice and the save button's confirmation.
+function saveNotice() {
+  const n = app.st.repairs.length + app.st.conversion.length;
+  return `Saving rewrites ${app.st.file} in the strict format with ${n} repair${n === 1 ? "" : "s"} ` +
+    "(listed below) applied; its comments and layout are not kept.";
 }
 
 async function reload() {
@@ -560,6 +570,11 @@ $("tool-circle").onclick = () => setTool("circle");
 $("finish").onclick = finishShape;
 $("lod").onchange = preview;
 $("save").onclick = async () => {
+  if (app.st && app.st.mode === "lenient") {
+    const list = app.st.repairs.concat(app.st.conversion).map((r) => `line ${r.line}: ${r.what}`);
+    const shown = list.slice(0, 30).join("\n") + (list.length > 30 ? `\n... and ${list.length - 30} more` : "");
+    if (!window.confirm(saveNotice() + "\n\n" + shown)) return;
+  }
   try {
     await api("/api/save", {});
     say("Saved.");

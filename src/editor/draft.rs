@@ -10,7 +10,7 @@ use serde_json::{json, Value};
 use crate::export::AtomicFile;
 use crate::kb::edit::{self, AppearanceText, CircleText, NewShape, OpeningText};
 use crate::kb::tools::{self, CheckReport};
-use crate::kb::{KbRepair, KnowledgeBase, ReadMode};
+use crate::kb::{write, KbRepair, KnowledgeBase, ReadMode};
 
 /// The draft and where it came from.
 pub struct Draft {
@@ -24,9 +24,10 @@ pub struct Draft {
     on_disk: String,
     /// How edits are checked: strict when the file read strictly at the start.
     mode: ReadMode,
-    /// Why the file did not read strictly (then `mode` is lenient and saving is refused).
+    /// Why the file did not read strictly (then `mode` is lenient and saving writes the strict
+    /// form of the draft).
     strict_error: Option<String>,
-    /// What the lenient reader repaired in the file as read.
+    /// What the lenient reader repaired in the draft (empty once it reads strictly).
     repairs: Vec<KbRepair>,
     /// The draft parsed.
     kb: KnowledgeBase,
@@ -221,8 +222,8 @@ fn check_appearance(a: &AppearanceJson) -> Result<(), String> {
 
 impl Draft {
     /// Reads the KB at `path`. A file that does not read leniently is an error; one that reads
-    /// only leniently is opened with its repairs listed, edits checked leniently, and saving
-    /// refused until it reads strictly.
+    /// only leniently is opened with its repairs listed and edits checked leniently; saving
+    /// writes it in the strict format ([`Draft::save`]).
     pub fn open(path: &Path) -> Result<Draft, String> {
         let resolved =
             std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -364,6 +365,9 @@ impl Draft {
             }
         };
         let (kb, report) = check(&new, &self.path, self.mode)?;
+        if self.mode == ReadMode::Lenient {
+            self.repairs.clone_from(&report.repairs);
+        }
         self.text = new;
         self.kb = kb;
         self.report = report;
@@ -371,16 +375,26 @@ impl Draft {
     }
 
     /// Writes the draft over the KB file atomically (a temporary beside it, renamed). Refused
-    /// when the file did not read strictly, when the draft does not pass the check, and when
-    /// the file changed on disk since it was read or last saved.
+    /// when the draft does not pass the strict check, and when the file changed on disk since
+    /// it was read or last saved.
+    ///
+    /// A draft read leniently is written in the strict format ([`write::to_strict`] of the
+    /// draft's model: the lenient reader's repairs applied, comments lost); after the save the
+    /// draft is that text, read strictly, and later edits keep its bytes as for any strict KB.
     pub fn save(&mut self) -> Result<(), String> {
-        if let Some(e) = &self.strict_error {
-            return Err(format!(
-                "the file does not read in the strict format ({e}); the lenient reader's repairs \
-                 are listed: make them in the file, then open it again"
-            ));
-        }
-        check(&self.text, &self.path, ReadMode::Strict)?;
+        let (text, (kb, report)) = match self.mode {
+            ReadMode::Strict => {
+                let read = check(&self.text, &self.path, ReadMode::Strict)?;
+                (self.text.clone(), read)
+            }
+            ReadMode::Lenient => {
+                let text = write::to_strict(&self.kb).text;
+                let read = check(&text, &self.path, ReadMode::Strict).map_err(|e| {
+                    format!("the strict form of the draft does not pass the check: {e}")
+                })?;
+                (text, read)
+            }
+        };
         let now = std::fs::read_to_string(&self.path)
             .map_err(|e| format!("{}: {e}", self.path.display()))?;
         if now != self.on_disk {
@@ -389,8 +403,14 @@ impl Draft {
                 self.path.display()
             ));
         }
-        write_atomic(&self.path, self.text.as_bytes())?;
-        self.on_disk = self.text.clone();
+        write_atomic(&self.path, text.as_bytes())?;
+        self.on_disk.clone_from(&text);
+        self.text = text;
+        self.kb = kb;
+        self.report = report;
+        self.mode = ReadMode::Strict;
+        self.strict_error = None;
+        self.repairs.clear();
         Ok(())
     }
 
@@ -466,6 +486,10 @@ impl Draft {
             "strict_error": self.strict_error,
             "dirty": self.text != self.on_disk,
             "repairs": repairs_json(&self.repairs),
+            "conversion": match self.mode {
+                ReadMode::Strict => Value::Array(Vec::new()),
+                ReadMode::Lenient => repairs_json(&write::to_strict(kb).notes),
+            },
             "errors": repairs_json(&self.report.errors),
             "warnings": repairs_json(&self.report.warnings),
             "zones": zones,
@@ -578,17 +602,61 @@ mod tests {
     }
 
     #[test]
-    fn a_lenient_file_is_opened_with_its_repairs_and_not_saved() {
-        let text = "<earth>\n  <info nbfloor=\"2\" floorsize=\"3,5\"/>\n  <town designation=\"C\"/>\n</earth>\n";
+    fn a_lenient_file_is_saved_in_the_strict_format_then_edited_as_text() {
+        let text = "<earth>\n  <!-- lost -->\n  <info nbfloor=\"2\" floorsize=\"3,5\"/>\n  <town designation=\"C\"/>\n</earth>\n";
         let (_dir, mut d) = draft_of(text);
         let st = d.state();
         assert_eq!(st["mode"], "lenient");
         assert!(st["strict_error"].as_str().is_some());
         let repairs = st["repairs"].as_array().map_or(0, Vec::len);
         assert!(repairs > 0, "{st}");
+        assert_eq!(st["conversion"].as_array().map(Vec::len), Some(0), "{st}");
         d.apply(set_info("earth/C", "nbfloor", "3")).unwrap();
+        let lenient = d.kb().zones().to_vec();
+        d.save().unwrap();
+        let saved = std::fs::read_to_string(d.path()).unwrap();
+        assert_eq!(saved, d.text());
+        assert!(
+            !saved.contains("lost") && saved.contains("floorsize=\"3.5\""),
+            "{saved}"
+        );
+        let (kb, _) = KnowledgeBase::parse_str_with(&saved, "s.xml", ReadMode::Strict).unwrap();
+        let strip = |zs: &[crate::kb::Zone]| {
+            zs.iter()
+                .map(|z| {
+                    (
+                        z.path.clone(),
+                        z.info.clone(),
+                        z.circle,
+                        z.appearances.len(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(strip(kb.zones()), strip(&lenient));
+        let st = d.state();
+        assert_eq!(st["mode"], "strict");
+        assert!(st["strict_error"].is_null() && st["dirty"] == false, "{st}");
+        assert_eq!(st["repairs"].as_array().map(Vec::len), Some(0));
+        // Now a strict draft: an edit changes only its own line.
+        d.apply(set_info("earth/C", "nbfloor", "4")).unwrap();
+        let changed: Vec<_> = saved
+            .lines()
+            .zip(d.text().lines())
+            .filter(|(a, b)| a != b)
+            .collect();
+        assert_eq!(changed.len(), 1, "{changed:?}");
+        assert_eq!(saved.lines().count(), d.text().lines().count());
+    }
+
+    #[test]
+    fn a_lenient_save_is_refused_when_the_file_changed_on_disk() {
+        let text = "<earth>\n  <info floorsize=\"3,5\"/>\n</earth>\n";
+        let (_dir, mut d) = draft_of(text);
+        std::fs::write(d.path(), "<earth/>\n").unwrap();
         let e = d.save().unwrap_err();
-        assert!(e.contains("strict"), "{e}");
-        assert_eq!(std::fs::read_to_string(d.path()).unwrap(), text);
+        assert!(e.contains("changed on disk"), "{e}");
+        assert_eq!(std::fs::read_to_string(d.path()).unwrap(), "<earth/>\n");
+        assert_eq!(d.state()["mode"], "lenient");
     }
 }

@@ -10,7 +10,8 @@
 //!
 //! The KB being edited is a [`draft::Draft`] behind a mutex; each edit goes through
 //! [`crate::kb::edit`] and is checked as `kb check --strict` checks a file before the draft
-//! takes it. Saving writes the KB file only (atomically); rulesets are written only inside its
+//! takes it. Saving writes the KB file only (atomically; a KB read leniently in the strict format,
+//! [`crate::kb::write`]); rulesets are written only inside its
 //! folder.
 
 pub mod draft;

@@ -17,6 +17,7 @@ pub(crate) mod polygon;
 mod strict;
 pub mod tools;
 mod values;
+pub mod write;
 pub(crate) mod xml;
 
 use std::path::{Component, Path, PathBuf};
