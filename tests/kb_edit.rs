@@ -63,7 +63,14 @@ fn raw(port: u16, request: &str) -> (u16, Vec<u8>) {
     let head_end = out
         .windows(4)
         .position(|w| w == b"\r\n\r\n")
-        .expect("a head");
+        .unwrap_or_else(|| {
+            panic!(
+                "no HTTP head in the answer to {:?} ({} bytes: {:?})",
+                request.lines().next().unwrap_or(""),
+                out.len(),
+                String::from_utf8_lossy(&out)
+            )
+        });
     let head = String::from_utf8_lossy(&out[..head_end]).to_string();
     let status = head
         .split(' ')

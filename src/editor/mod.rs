@@ -154,7 +154,10 @@ impl Editor {
         for conn in self.listener.incoming() {
             let Ok(stream) = conn else { continue };
             let shared = Arc::clone(&shared);
-            std::thread::spawn(move || shared.handle(stream));
+            // A thread the system cannot make loses this connection, not the server.
+            if let Err(e) = std::thread::Builder::new().spawn(move || shared.handle(stream)) {
+                eprintln!("citygen kb edit: a connection dropped: no thread for it ({e})");
+            }
         }
     }
 }
@@ -183,7 +186,19 @@ impl Shared {
         let _ = stream.set_read_timeout(Some(Duration::from_secs(30)));
         let _ = stream.set_write_timeout(Some(Duration::from_secs(30)));
         let resp = match http::read_request(&mut stream) {
-            Ok(req) => self.respond(&req),
+            // A bug met while answering is a 500 with its message, never a closed connection
+            // (the draft's lock recovers from it: `Shared::lock`).
+            Ok(req) => {
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.respond(&req)))
+                    .unwrap_or_else(|p| {
+                        let what = p
+                            .downcast_ref::<&str>()
+                            .map(|s| s.to_string())
+                            .or_else(|| p.downcast_ref::<String>().cloned())
+                            .unwrap_or_default();
+                        Response::error(500, &format!("internal error: {what}"))
+                    })
+            }
             Err(bad) => Response::error(bad.status, &bad.message),
         };
         let _ = http::write_response(&mut stream, &resp);
