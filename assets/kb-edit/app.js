@@ -543,8 +543,8 @@ function render() {
   const rep = items(app.st.repairs), conv = items(app.st.conversion);
   $("repairs").innerHTML = (app.st.mode === "lenient" ? `<p id="save-notice" class="bad">${esc(saveNotice())}</p>` : "") +
     (app.st.strict_error ? `<p class="bad">${esc(app.st.strict_error)}</p>` : "") +
-    (rep ? `<h3>Lenient reader's repairs</h3><ul>${rep}</ul>` : "") +
-    (conv ? `<h3>Changed to fit the strict format</h3><ul>${conv}</ul>` : "");
+    (rep ? `<details><summary>Lenient reader's repairs (${app.st.repairs.length})</summary><ul>${rep}</ul></details>` : "") +
+    (conv ? `<details><summary>Changed to fit the strict format (${app.st.conversion.length})</summary><ul>${conv}</ul></details>` : "");
   drawMap();
 }
 
