@@ -1540,3 +1540,28 @@ fn selex_programs_are_read_and_checked_and_kept_inside_the_kb_folder() {
         report.warnings
     );
 }
+
+#[test]
+fn colours_spelt_otherwise_than_the_clean_format_are_listed_as_repairs() {
+    // `#rrggbb` and lower-case names read as they are; `#rgb`, other case and thesis triples
+    // are read too, each listed with the colour it became (a strict save writes that one).
+    let clean = r##"<earth><info color="#aa2222" roofColor="peru"/></earth>"##;
+    let (_, repairs) = KnowledgeBase::parse_str(clean, "t.xml").unwrap();
+    assert!(repairs.is_empty(), "{repairs:?}");
+    let text = r##"<earth><info color="#FFF" roofColor="AliceBlue" doorCol="1;0;0"/></earth>"##;
+    let (kb, repairs) = KnowledgeBase::parse_str(text, "t.xml").unwrap();
+    let said: Vec<String> = repairs.iter().map(|r| r.to_string()).collect();
+    assert_eq!(said.len(), 3, "{said:?}");
+    for (attr, hex) in [
+        ("color", "#ffffff"),
+        ("roofColor", "#f0f8ff"),
+        ("doorCol", "#ff0000"),
+    ] {
+        assert!(
+            said.iter()
+                .any(|s| s.contains(&format!("'{attr}'")) && s.contains(hex)),
+            "{attr} -> {hex} in {said:?}"
+        );
+    }
+    assert_eq!(kb.zones[0].info.wall_color, Color::parse("#ffffff"));
+}

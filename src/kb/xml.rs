@@ -247,6 +247,14 @@ fn swallowed_name(value: &str) -> bool {
 
 /// Reads zones from KB text leniently: zone 0 is earth, parents before children. Used by
 /// [`super::KnowledgeBase::parse_str`].
+/// Whether a colour is spelt as the clean format writes it: `#rrggbb`, or a lower-case name.
+fn clean_color(v: &str) -> bool {
+    let hex = v
+        .strip_prefix('#')
+        .is_some_and(|h| h.len() == 6 && h.bytes().all(|b| b.is_ascii_hexdigit()));
+    hex || (v.bytes().all(|b| b.is_ascii_lowercase()) && Color::parse(v).is_some())
+}
+
 #[cfg(test)]
 pub(crate) fn read_zones(text: &str, file: &str) -> Result<(Vec<Zone>, Vec<KbRepair>), KbError> {
     read_zones_with(text, file, ReadMode::Lenient)
@@ -611,8 +619,15 @@ impl ZoneReader {
     fn color(&mut self, key: &str, raw: &str, line: usize) -> Option<Color> {
         let t = self.clean(key, raw, line)?;
         let c = Color::parse(&t);
-        if c.is_none() {
-            self.note(line, format!("unknown colour '{key}'=\"{t}\" ignored"));
+        match c {
+            None => self.note(line, format!("unknown colour '{key}'=\"{t}\" ignored")),
+            // The clean format's spellings (`#rrggbb`, a lower-case name) read as they are;
+            // any other (`#rgb`, `AliceBlue`, a thesis `r;g;b` triple) is a repair, listed.
+            Some(c) if !clean_color(&t) => self.note(
+                line,
+                format!("colour '{key}'=\"{t}\" read as {}", c.to_hex()),
+            ),
+            Some(_) => {}
         }
         c
     }
