@@ -67,6 +67,28 @@ fn is_zone(name: &str) -> bool {
     )
 }
 
+/// The next event of `reader` (reading `text`), where it starts (for a tag, its `<`: the
+/// whitespace before a tag belongs to the text event before it) and where it ends. A syntax
+/// error names its line.
+fn next_event<'a>(
+    reader: &mut Reader<&'a [u8]>,
+    text: &str,
+) -> Result<(Event<'a>, usize, usize), String> {
+    let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
+    let ev = reader.read_event().map_err(|e| {
+        format!(
+            "line {}: {e}",
+            line_of(text, usize::try_from(reader.error_position()).unwrap_or(0))
+        )
+    })?;
+    let after = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
+    let at = text
+        .get(before..after)
+        .and_then(|s| s.find('<'))
+        .map_or(before, |i| before + i);
+    Ok((ev, at, after))
+}
+
 fn line_of(text: &str, offset: usize) -> usize {
     1 + text
         .as_bytes()
@@ -99,19 +121,7 @@ fn places(text: &str, zone_line: usize) -> Result<Places, String> {
     // The line of `tag_at`, counted on from the last tag's (one pass over the text in all).
     let (mut counted_to, mut line) = (0usize, 1usize);
     loop {
-        let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
-        let ev = reader.read_event().map_err(|e| {
-            format!(
-                "line {}: {e}",
-                line_of(text, usize::try_from(reader.error_position()).unwrap_or(0))
-            )
-        })?;
-        let after = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
-        // Leading whitespace is part of the text event before a tag: the tag starts at the '<'.
-        let tag_at = text
-            .get(before..after)
-            .and_then(|s| s.find('<'))
-            .map_or(before, |i| before + i);
+        let (ev, tag_at, after) = next_event(&mut reader, text)?;
         match &ev {
             Event::Start(e) | Event::Empty(e) => {
                 let name = AsRef::<str>::as_ref(&e.name()).to_string();
@@ -336,18 +346,7 @@ fn element_tree(text: &str) -> Result<Element, String> {
         line
     };
     loop {
-        let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
-        let ev = reader.read_event().map_err(|e| {
-            format!(
-                "line {}: {e}",
-                line_of(text, usize::try_from(reader.error_position()).unwrap_or(0))
-            )
-        })?;
-        let after = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
-        let tag_at = text
-            .get(before..after)
-            .and_then(|s| s.find('<'))
-            .map_or(before, |i| before + i);
+        let (ev, tag_at, after) = next_event(&mut reader, text)?;
         match &ev {
             Event::Start(e) | Event::Empty(e) => {
                 let empty = matches!(ev, Event::Empty(_));
