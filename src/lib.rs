@@ -15,7 +15,7 @@
 //! `rules derive`), in the order data flows: [`input`] → [`prepare`] → [`mod@derive`] →
 //! [`export`], run by [`pipeline`]; the two languages [`kb`] and [`grammar`]; the ground floor
 //! [`model`], [`geometry`], [`crs`], [`color`], [`rng`], [`report`]. Their layering (what may
-//! import what) is in ARCHITECTURE.md and is enforced by `tests/architecture.rs`.
+//! import what) is in ARCHITECTURE.md and is enforced by `tests/it/architecture.rs`.
 
 #![forbid(unsafe_code)]
 

@@ -109,7 +109,7 @@ const ANTIPARALLEL_DEN: f64 = 2e-8;
 /// Most edges a skeleton is computed for. The propagation is cheap on real footprints (a
 /// 1,500-edge star takes 40 ms in release) but some many-edged shapes make it cubic: a
 /// 10,000-vertex footprint (5,688 edges once collinear runs merge) ran for hours. The samples'
-/// largest footprints are far below the limit (tests/roofs.rs builds a roof on every one).
+/// largest footprints are far below the limit (tests/it/roofs.rs builds a roof on every one).
 pub const MAX_EDGES: usize = 1000;
 
 /// Why a straight skeleton could not be computed.

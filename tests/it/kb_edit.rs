@@ -2,14 +2,12 @@
 //! Host, Origin), writes confined to the KB and its folder, refused edits that leave the file
 //! as it was, and an edit saved that `kb check --strict` and `kb explain` then read.
 
-mod common;
-
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
-use common::{citygen, root, KB, MONACO};
+use crate::common::{citygen, root, KB, MONACO};
 use serde_json::{json, Value};
 
 /// A running editor, stopped when dropped.

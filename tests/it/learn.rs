@@ -6,8 +6,7 @@
 //! variation distance, overall and per cell). The buildings keep their `building=*` kind, so
 //! the generator draws each among the per-kind group that names its kind, where one is learned.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::collections::BTreeMap;
 

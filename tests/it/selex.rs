@@ -3,12 +3,10 @@
 //! `side`; the seed's printed programs, written for its box, also run unchanged (their
 //! `createShape` becomes the building's mass: tested in `derive::selex`).
 
-mod common;
-
+use crate::common::*;
 use citygen::report::Report;
 use citygen::selex::eval::{facade_specs, run_on_facades, Side};
 use citygen::selex::parser::parse;
-use common::*;
 
 const MONACO: &str = "data/monaco/monaco.osm.pbf";
 

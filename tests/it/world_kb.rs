@@ -4,8 +4,7 @@
 //! file reads in strict mode and stays within its size budget. The load time is printed, not
 //! asserted. `CITYGEN_WORLD_KB=FILE` checks another file (a draft) instead.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::path::PathBuf;
 use std::time::Instant;

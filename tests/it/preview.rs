@@ -5,8 +5,7 @@
 //! a plate under the sky, red roofs and light walls in many tones). `CITYGEN_PREVIEW_KEEP=DIR` keeps the picture (docs/images/preview-monaco.png
 //! is one).
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use citygen::export::gltf::GltfWriter;
 use citygen::export::preview::{glb_triangles, PreviewWriter, Scene, View};

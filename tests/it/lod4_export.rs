@@ -3,8 +3,7 @@
 //! files are well-formed, hold every room, and pass the reference validator with the geometry
 //! kernel when it is installed.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use citygen::export::citygml::CityGmlWriter;
 use citygen::export::gltf::GltfWriter;

@@ -1,8 +1,7 @@
 //! LOD4 through the whole generator: the floor plans of real Monaco buildings, mapped into the
 //! model the writers consume, keep their doors and their connectivity.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use citygen::model::{Lod, StoreyInterior};
 

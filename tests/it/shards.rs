@@ -3,8 +3,7 @@
 //! shard killed with SIGKILL and run again. The 100k-building version of the same checks is
 //! `scripts/shard-check` (a CI step).
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

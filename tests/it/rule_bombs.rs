@@ -3,12 +3,12 @@
 //! (`ulimit -v`), where every one of the first group used to abort with "memory allocation
 //! failed"; and the bomb lints with their file:line:col.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Command, Output};
 
-use common::root;
+use crate::common::root;
 
 /// The address-space cap the held-out corpus ran under: 2 GiB, in KiB for `ulimit -v`.
 const ADDRESS_SPACE_KIB: u64 = 2 * 1024 * 1024;

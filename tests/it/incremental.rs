@@ -3,8 +3,8 @@
 //! bytes of a full run while copying every tile without an edit, with the exact list of
 //! buildings added, removed and changed. The 100k-building version is `scripts/nightly-check`.
 
-mod common;
-use common::*;
+use crate::common;
+use crate::common::*;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

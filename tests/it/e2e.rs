@@ -1,10 +1,8 @@
 //! End-to-end tests: the real binary on the real samples in data/.
 
-mod common;
-
 use std::collections::{BTreeMap, BTreeSet};
 
-use common::*;
+use crate::common::*;
 use osmpbf::{Element, ElementReader};
 
 /// Building ways and relations of the Monaco extract, counted independently of citygen, with
@@ -235,7 +233,7 @@ fn levels_without_height_give_walls_of_levels_times_the_zone_floor_height() {
         else {
             continue;
         };
-        // A roof on pillars has no storeys: its levels say how high it stands (tests/s3db.rs).
+        // A roof on pillars has no storeys: its levels say how high it stands (tests/it/s3db.rs).
         if t.is_roof() {
             continue;
         }

@@ -6,8 +6,7 @@
 //! scripts with `SLURM_ARRAY_TASK_ID` and `SLURM_ARRAY_TASK_COUNT` set (stand-ins for `srun`
 //! and `sbatch` on the PATH), and the xargs script for one machine.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

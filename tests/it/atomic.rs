@@ -1,8 +1,7 @@
 //! Outputs survive a killed run (issue 7): SIGKILL in the middle of writing leaves the previous
 //! files intact, and the next run clears the killed run's temporaries.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::path::Path;
 use std::process::Command;

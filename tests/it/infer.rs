@@ -4,8 +4,7 @@
 //! predicted by the knowledge base alone and by the inference (the knowledge base where it
 //! infers nothing). Storeys: mean absolute error; roofs: the share of right shapes.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use citygen::derive::{Generator, Rules};
 use citygen::input::osm::read_osm;

@@ -5,14 +5,14 @@
 //! per-footprint problems are repaired or reported with the source id, and the other buildings
 //! of the same input are still written.
 
-mod common;
+use crate::common;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
+use crate::common::{citygen, KB, MONACO};
 use citygen::testkit::pbf_write::{MemberKind, PbfWriter};
-use common::{citygen, KB, MONACO};
 use serde_json::Value;
 
 // ---- running and asserting ------------------------------------------------------------------

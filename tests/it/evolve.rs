@@ -2,12 +2,12 @@
 //! `--into-kb` on a copy of the shipped knowledge base, whose Monaco district then derives its
 //! buildings with the evolved rules.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::{citygen, KB, MONACO};
+use crate::common::{citygen, KB, MONACO};
 
 fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     common::files_under(dir, |_| true)

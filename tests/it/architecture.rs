@@ -560,7 +560,7 @@ fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) ->
             if a != b {
                 match allowed.get(a.as_str()) {
                     None => out.push(Violation(format!(
-                        "{}:{}: module `{a}` has no row in the layer table (tests/architecture.rs LAYERS)",
+                        "{}:{}: module `{a}` has no row in the layer table (tests/it/architecture.rs LAYERS)",
                         u.file, u.line
                     ))),
                     Some(ok) if !ok.contains(&b.as_str()) => out.push(Violation(format!(

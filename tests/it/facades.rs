@@ -8,8 +8,7 @@
 //! derived at LOD2 through the public `generate`, its parts' footprints and height ranges), and
 //! the openings are probed by points outside them, not by the generator's own spans.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use citygen::derive::{Generator, Rules};
 use citygen::geometry::Polygon;
