@@ -10,6 +10,7 @@ mod direct;
 pub(crate) mod fixtures;
 mod format;
 pub mod gltf;
+pub(crate) mod ids;
 pub mod ifc;
 pub mod lod3geom;
 pub mod lod4geom;

@@ -3,7 +3,10 @@
 //! Reads every `src/**/*.rs` (test code left out: `tests.rs` files and `#[cfg(test)]` items),
 //! resolves every `crate::`, `super::` and `self::` path, and fails, naming file and line:
 //! - when a top-level module imports one that its row of [`LAYERS`] does not list;
-//! - when the modules of any folder (the top level included) import each other in a cycle.
+//! - when the modules of any folder (the top level included) import each other in a cycle;
+//! - when a child of a folder named in [`SIBLINGS`] imports a sibling its row there does not
+//!   list (the writers of `export/` do not import each other);
+//! - when `src/main.rs` (another crate) names anything of the library but [`MAIN_MAY_IMPORT`].
 //!
 //! The checker is a small tokenizer, not a Rust parser: it skips comments, strings and
 //! character literals, follows brace nesting for inline modules and `#[cfg(test)]` items, and
@@ -61,7 +64,10 @@ const LAYERS: &[(&str, &[&str])] = &[
             "rng", "geometry", "crs", "color", "guard",
         ],
     ),
-    ("testkit", &["input", "model", "geometry", "color"]),
+    (
+        "testkit",
+        &["input", "model", "report", "geometry", "color"],
+    ),
     // The knowledge base edited in a browser (`citygen kb edit`): a server over the run.
     (
         "editor",
@@ -71,6 +77,31 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
 ];
+
+/// Direction inside a folder: for the folder (module path), each listed child and the listed
+/// siblings it may import. Children of the folder that are not listed (shared files such as
+/// `export::step`) may be imported by any child; a listed child may import an unlisted one.
+/// Keep in step with ARCHITECTURE.md's "Layers".
+const SIBLINGS: &[(&str, &[(&str, &[&str])])] = &[
+    // The writers: one format each, none imports another, but for glTF, which is the content
+    // of 3D Tiles and what the preview draws.
+    (
+        "export",
+        &[
+            ("ifc", &[]),
+            ("citygml", &[]),
+            ("cityjson", &[]),
+            ("gltf", &[]),
+            ("tiles3d", &["gltf"]),
+            ("preview", &["gltf"]),
+        ],
+    ),
+    // The readers: one format each.
+    ("input", &[("osm", &[]), ("shp", &[])]),
+];
+
+/// What `src/main.rs` may name of the library (`citygen::...`): the commands, nothing deeper.
+const MAIN_MAY_IMPORT: &[&str] = &["app"];
 
 /// One `crate::` path found in the code, resolved to module components.
 #[derive(Debug, Clone)]
@@ -379,7 +410,11 @@ fn is_cfg_test(toks: &[(Tok, usize)], i: usize) -> bool {
             _ => None,
         })
         .collect();
-    words.first() == Some(&"cfg") && words.contains(&"test") && !words.contains(&"not")
+    // `cfg(any(test, feature = "testkit"))` is code that also ships (the test kit): checked.
+    words.first() == Some(&"cfg")
+        && words.contains(&"test")
+        && !words.contains(&"not")
+        && !words.contains(&"any")
 }
 
 /// The paths a file's non-test code names, with the module each is named in.
@@ -533,6 +568,15 @@ struct Violation(String);
 /// Checks the files (path relative to the crate, module path, source) against [`LAYERS`] and
 /// for cycles; returns every violation, each naming file and line.
 fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) -> Vec<Violation> {
+    check_with(files, layers, &[])
+}
+
+/// [`check`], and the direction inside the folders of `siblings` (as [`SIBLINGS`]).
+fn check_with(
+    files: &[(String, Vec<String>, String)],
+    layers: &[(&str, &[&str])],
+    siblings: &[(&str, &[(&str, &[&str])])],
+) -> Vec<Violation> {
     let modules: BTreeSet<Vec<String>> = files
         .iter()
         .flat_map(|(_, m, _)| (1..=m.len()).map(move |k| m[..k].to_vec()))
@@ -577,6 +621,23 @@ fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) ->
         // The folder both sit in, and the two children of it that the edge joins.
         let common = u.from.iter().zip(to).take_while(|(x, y)| x == y).count();
         if common < u.from.len() && common < to.len() {
+            let folder = u.from[..common].join("::");
+            let (a, b) = (u.from[common].as_str(), to[common].as_str());
+            let rows = siblings.iter().find(|s| s.0 == folder).map(|s| s.1);
+            if let Some(rows) = rows {
+                let row = |c: &str| rows.iter().find(|r| r.0 == c).map(|r| r.1);
+                if let (Some(ok), Some(_)) = (row(a), row(b)) {
+                    if !ok.contains(&b) {
+                        out.push(Violation(format!(
+                            "{}:{}: `{folder}::{a}` imports `crate::{}`, but inside `{folder}` `{a}` may import only [{}] of its siblings (layers in ARCHITECTURE.md)",
+                            u.file,
+                            u.line,
+                            u.to.join("::"),
+                            ok.join(", ")
+                        )));
+                    }
+                }
+            }
             edges
                 .entry(u.from[..common].to_vec())
                 .or_default()
@@ -603,6 +664,34 @@ fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) ->
                 "import cycle in `{place}`: {}",
                 steps.join(", ")
             )));
+        }
+    }
+    out
+}
+
+/// `src/main.rs` is another crate: every `citygen::X` path it names must have `X` in `allowed`.
+fn check_main(file: &str, src: &str, allowed: &[&str]) -> Vec<Violation> {
+    let toks = tokenize(src);
+    let mut out = Vec::new();
+    for (i, t) in toks.iter().enumerate() {
+        if t.0 != Tok::Ident("citygen".into())
+            || toks.get(i + 1).map(|t| &t.0) != Some(&Tok::ColonColon)
+            || (i > 0 && toks[i - 1].0 == Tok::ColonColon)
+        {
+            continue;
+        }
+        let mut paths = Vec::new();
+        use_tree(&toks, i + 2, Vec::new(), &mut paths);
+        for p in paths {
+            let top = p.first().map(String::as_str).unwrap_or("");
+            if !allowed.contains(&top) {
+                out.push(Violation(format!(
+                    "{file}:{}: the binary names `citygen::{}`, but main.rs may use only [{}] (ARCHITECTURE.md)",
+                    t.1,
+                    p.join("::"),
+                    allowed.join(", ")
+                )));
+            }
         }
     }
     out
@@ -684,7 +773,36 @@ fn the_layers_of_architecture_md_hold_and_no_module_cycle() {
         .difference(&tops)
         .map(|r| format!("LAYERS has a row for `{r}`, which is not a module of src/"))
         .collect();
-    problems.extend(check(&files, LAYERS).into_iter().map(|v| v.0));
+    problems.extend(
+        check_with(&files, LAYERS, SIBLINGS)
+            .into_iter()
+            .map(|v| v.0),
+    );
+    // Every folder of SIBLINGS and every child it lists exist.
+    for (folder, rows) in SIBLINGS {
+        for (child, ok) in rows.iter() {
+            for name in std::iter::once(child).chain(ok.iter()) {
+                let m: Vec<String> = folder
+                    .split("::")
+                    .chain([*name])
+                    .map(String::from)
+                    .collect();
+                if !files.iter().any(|(_, fm, _)| fm.starts_with(&m)) {
+                    problems.push(format!(
+                        "SIBLINGS names `{}`, which is not a module of src/",
+                        m.join("::")
+                    ));
+                }
+            }
+        }
+    }
+    let main = root.join("src/main.rs");
+    let main_src = std::fs::read_to_string(&main).unwrap();
+    problems.extend(
+        check_main("src/main.rs", &main_src, MAIN_MAY_IMPORT)
+            .into_iter()
+            .map(|v| v.0),
+    );
     assert!(
         problems.is_empty(),
         "{} layering violation(s):\n{}",
@@ -816,6 +934,95 @@ fn paths_inside_types_and_expressions_count() {
     assert_eq!(check(&files, TEST_LAYERS).len(), 2);
 }
 
+#[test]
+fn a_writer_importing_another_writer_fails_but_shared_files_and_listed_siblings_pass() {
+    const SIB: &[(&str, &[(&str, &[&str])])] = &[(
+        "export",
+        &[
+            ("ifc", &[]),
+            ("citygml", &[]),
+            ("tiles3d", &["gltf"]),
+            ("gltf", &[]),
+        ],
+    )];
+    let files = [
+        file("src/export/mod.rs", "export", "pub mod step;"),
+        file("src/export/step.rs", "export::step", ""),
+        file(
+            "src/export/ifc/mod.rs",
+            "export::ifc",
+            "use crate::export::step::StepBuf;\nuse super::citygml::building::id;",
+        ),
+        file("src/export/citygml/mod.rs", "export::citygml", ""),
+        file(
+            "src/export/citygml/building.rs",
+            "export::citygml::building",
+            "",
+        ),
+        file("src/export/gltf/mod.rs", "export::gltf", ""),
+        file(
+            "src/export/tiles3d/mod.rs",
+            "export::tiles3d",
+            "use crate::export::gltf::Group;",
+        ),
+        file("src/model.rs", "model", ""),
+    ];
+    let v = check_with(&files, TEST_LAYERS, SIB);
+    assert_eq!(v.len(), 1, "{v:?}");
+    assert!(
+        v[0].0.starts_with(
+            "src/export/ifc/mod.rs:2: `export::ifc` imports `crate::export::citygml::building::id`"
+        ),
+        "{}",
+        v[0].0
+    );
+    // Without the table, the same files pass: the rule is the table's.
+    assert!(check(&files, TEST_LAYERS).is_empty());
+}
+
+#[test]
+fn main_may_name_only_the_commands() {
+    let ok = "use citygen::app::{self, Cli};\nfn main() { citygen::app::run(Cli::parse()); }";
+    assert!(check_main("src/main.rs", ok, &["app"]).is_empty());
+    let bad = "use citygen::app;\n// citygen::kb in a comment\nfn main() {\n  let o = citygen::pipeline::Options::default();\n  use citygen::{app::x, kb::KnowledgeBase};\n}";
+    let v = check_main("src/main.rs", bad, &["app"]);
+    assert_eq!(v.len(), 2, "{v:?}");
+    assert!(
+        v[0].0
+            .starts_with("src/main.rs:4: the binary names `citygen::pipeline::Options::default`"),
+        "{}",
+        v[0].0
+    );
+    assert!(
+        v[1].0.contains("`citygen::kb::KnowledgeBase`"),
+        "{}",
+        v[1].0
+    );
+}
+
+#[test]
+fn a_test_kit_under_cfg_any_test_is_checked_but_cfg_test_is_not() {
+    let files = [
+        file(
+            "src/lib.rs",
+            "",
+            "#[cfg(any(test, feature = \"testkit\"))]\npub mod testkit;\n#[cfg(test)]\nmod fixtures;",
+        ),
+        file("src/testkit/mod.rs", "testkit", "use crate::export::Writer;"),
+        file("src/fixtures.rs", "fixtures", "use crate::export::Writer;"),
+        file("src/export/mod.rs", "export", ""),
+    ];
+    let layers: &[(&str, &[&str])] = &[("testkit", &[]), ("fixtures", &[]), ("export", &[])];
+    let v = check(&files, layers);
+    assert_eq!(v.len(), 1, "{v:?}");
+    assert!(
+        v[0].0
+            .starts_with("src/testkit/mod.rs:1: `testkit` imports `crate::export::Writer`"),
+        "{}",
+        v[0].0
+    );
+}
+
 /// The backticked paths of ARCHITECTURE.md's code map (`input/osm/pbf.rs`, `kb/`, ...).
 fn code_map_paths(doc: &str) -> Vec<String> {
     let start = doc
@@ -836,21 +1043,27 @@ fn code_map_paths(doc: &str) -> Vec<String> {
         .collect()
 }
 
-/// What the code map must name for a file of `src/`: `a/b.rs` for a module file, `a/` for a
-/// folder's `mod.rs`; `None` for test code (`tests.rs`, files under a `tests/` folder).
-fn code_map_name(rel: &str) -> Option<String> {
+/// What the code map must name for a file of `src/` (one paragraph per module or folder, as
+/// rust-analyzer's is): a top-level module file `a.rs`, or a folder, `a/b/` for `a/b/mod.rs`
+/// and for `a/b.rs` when `has_children` (its children are in `a/b/`). Files inside a folder
+/// are the folder's paragraph's business (named there if it helps, but not required); `None`
+/// for those and for test code (`tests.rs`, files under a `tests/` folder).
+fn code_map_name(rel: &str, has_children: bool) -> Option<String> {
     let parts: Vec<&str> = rel.split('/').collect();
     if parts.last() == Some(&"tests.rs") || parts[..parts.len() - 1].contains(&"tests") {
         return None;
     }
-    Some(match rel.strip_suffix("mod.rs") {
-        Some(folder) => folder.to_string(),
-        None => rel.to_string(),
-    })
+    if let Some(folder) = rel.strip_suffix("mod.rs") {
+        return Some(folder.to_string());
+    }
+    if parts.len() == 1 {
+        return Some(rel.to_string());
+    }
+    has_children.then(|| format!("{}/", rel.trim_end_matches(".rs")))
 }
 
 #[test]
-fn the_code_map_of_architecture_md_names_every_module_and_nothing_else() {
+fn the_code_map_of_architecture_md_names_every_module_and_folder_and_nothing_else() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let doc = std::fs::read_to_string(root.join("ARCHITECTURE.md")).unwrap();
     let named: BTreeSet<String> = code_map_paths(&doc).into_iter().collect();
@@ -865,7 +1078,8 @@ fn the_code_map_of_architecture_md_names_every_module_and_nothing_else() {
             .unwrap()
             .to_string_lossy()
             .replace('\\', "/");
-        if let Some(name) = code_map_name(&rel) {
+        let has_children = path.with_extension("").is_dir();
+        if let Some(name) = code_map_name(&rel, has_children) {
             if !named.contains(&name) {
                 problems.push(format!("src/{rel} is not in the code map (as `{name}`)"));
             }
@@ -888,15 +1102,27 @@ fn the_code_map_of_architecture_md_names_every_module_and_nothing_else() {
 #[test]
 fn code_map_names_follow_the_tree() {
     assert_eq!(
-        code_map_name("input/osm/mod.rs").as_deref(),
+        code_map_name("input/osm/mod.rs", false).as_deref(),
         Some("input/osm/")
     );
+    assert_eq!(code_map_name("input/osm/pbf.rs", false), None);
     assert_eq!(
-        code_map_name("input/osm/pbf.rs").as_deref(),
-        Some("input/osm/pbf.rs")
+        code_map_name("geometry/clip.rs", true).as_deref(),
+        Some("geometry/clip/")
     );
-    assert_eq!(code_map_name("input/osm/tests.rs"), None);
-    assert_eq!(code_map_name("derive/roof/tests/real_footprints.rs"), None);
+    assert_eq!(
+        code_map_name("prepare.rs", true).as_deref(),
+        Some("prepare.rs")
+    );
+    assert_eq!(
+        code_map_name("model.rs", false).as_deref(),
+        Some("model.rs")
+    );
+    assert_eq!(code_map_name("input/osm/tests.rs", false), None);
+    assert_eq!(
+        code_map_name("derive/roof/tests/real_footprints.rs", false),
+        None
+    );
     let doc = "x\n## Code map\n- `a/b.rs` — and `c/` and `Polygon` and `x::y`\n## Layers\n`z.rs`";
     assert_eq!(code_map_paths(doc), vec!["a/b.rs", "c/"]);
 }

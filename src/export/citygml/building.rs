@@ -1,8 +1,9 @@
 //! The building element of the CityGML writer: `bldg:Building` with its envelope, attributes and
 //! parts (`bldg:BuildingPart`), and the ids derived from the source id.
 
+use crate::export::ids::{id_fragment, part_ids};
 use crate::export::lod3geom::balcony_faces;
-use crate::model::{Building, Part, RoofShape};
+use crate::model::{Building, RoofShape};
 
 use super::surfaces::{surfaces, written_walls};
 use super::{GeometryLod, Renderer, ROOF_TYPE_CODESPACE};
@@ -118,38 +119,4 @@ impl Renderer<'_> {
         x.uint(u64::from(storeys));
         x.s("</bldg:storeysAboveGround>\n");
     }
-}
-
-/// Keeps ASCII letters, digits, `_`, `-` and `.` (NCName-safe after a letter prefix), replacing
-/// anything else by `_`.
-pub(crate) fn id_fragment(s: &str) -> String {
-    s.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
-/// The id prefixes of the parts: `<building id>_<part key>`, or `<building id>_p<index>` for all
-/// parts when the keys are empty or not unique (ids must be unique in the file).
-pub(crate) fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
-    let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
-    let usable = keys
-        .iter()
-        .enumerate()
-        .all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
-    keys.iter()
-        .enumerate()
-        .map(|(i, k)| {
-            if usable {
-                format!("{building_id}_{k}")
-            } else {
-                format!("{building_id}_p{i}")
-            }
-        })
-        .collect()
 }

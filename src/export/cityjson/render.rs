@@ -7,7 +7,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::DVec3;
 
-use crate::export::citygml::building::{id_fragment, part_ids};
+use crate::export::ids::{id_fragment, part_ids};
 
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};

@@ -1,0 +1,39 @@
+//! The id scheme of the city-model writers: a building's source key made safe for an XML id
+//! (`id_fragment`) and its parts' ids (`part_ids`). CityGML and CityJSON name buildings and
+//! parts alike, so that a part is found by the same id in both.
+
+use crate::model::Part;
+
+/// Keeps ASCII letters, digits, `_`, `-` and `.` (NCName-safe after a letter prefix), replacing
+/// anything else by `_`.
+pub(crate) fn id_fragment(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The id prefixes of the parts: `<building id>_<part key>`, or `<building id>_p<index>` for all
+/// parts when the keys are empty or not unique (ids must be unique in the file).
+pub(crate) fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
+    let keys: Vec<String> = parts.iter().map(|p| id_fragment(&p.key)).collect();
+    let usable = keys
+        .iter()
+        .enumerate()
+        .all(|(i, k)| !k.is_empty() && !keys[..i].contains(k));
+    keys.iter()
+        .enumerate()
+        .map(|(i, k)| {
+            if usable {
+                format!("{building_id}_{k}")
+            } else {
+                format!("{building_id}_p{i}")
+            }
+        })
+        .collect()
+}
