@@ -22,6 +22,7 @@
 pub use export::BuildingWriter;
 pub use pipeline::{run, Options, RunError, Summary};
 
+pub mod app;
 pub mod color;
 pub mod crs;
 pub mod derive;

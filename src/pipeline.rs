@@ -13,13 +13,13 @@ use thiserror::Error;
 pub mod building;
 pub mod incremental;
 pub mod merge;
-mod outputs;
+pub(crate) mod outputs;
 pub mod shard;
 
 use sha2::{Digest as _, Sha256};
 
 use crate::crs::Crs;
-use crate::derive::{merged_tags, Generator, Rules};
+use crate::derive::{Generator, Rules};
 use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
 use crate::export::cityjson::{CityJsonSeqWriter, CityJsonWriter};
 use crate::export::gltf::GltfWriter;
@@ -29,7 +29,7 @@ use crate::export::{
 };
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
-use crate::kb::{self, tools::Explanation, KnowledgeBase};
+use crate::kb::{self, KnowledgeBase};
 use crate::model::{Building, Lod, SourceId};
 use crate::prepare;
 use crate::report::{Outcome, Report};
@@ -160,7 +160,7 @@ pub fn inference_wanted(
 
 /// Infers what the lots lack from their tagged neighbours ([`prepare::infer`]) and returns
 /// the report note of each lot changed, by id.
-fn infer_from_neighbours(
+pub(crate) fn infer_from_neighbours(
     kb: &KnowledgeBase,
     lots: &mut [prepare::Lot],
     over: Option<crate::model::Inference>,
@@ -203,7 +203,7 @@ pub struct Summary {
     /// Planar polygons of all generated buildings, as [`Building::polygon_count`] counts them.
     pub polygons: usize,
     /// Wall-clock time: of the whole run for [`run`]; of deriving and writing for
-    /// [`generate_and_write`] and [`derive_lot`].
+    /// [`generate_and_write`] and `rules derive`.
     pub elapsed: Duration,
     /// The files written, or with `dry_run` the files that would have been.
     pub outputs: Vec<PathBuf>,
@@ -461,7 +461,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
 /// What a tiled run records besides its files: its manifest (path and content so far), and
 /// the keys.
 #[derive(Default)]
-struct Ledger {
+pub(crate) struct Ledger {
     manifest: Option<(PathBuf, shard::Manifest)>,
     keys: Keyed,
 }
@@ -799,7 +799,7 @@ fn zone_for(
 }
 
 /// Reads the footprints of the source (with `src_crs` overriding a shapefile's `.prj`).
-fn read_source(
+pub(crate) fn read_source(
     source: &Source,
     osc: Option<&Path>,
     src_crs: Option<Crs>,
@@ -828,242 +828,7 @@ fn read_source(
     .map_err(|e| RunError::Input(e.to_string()))
 }
 
-/// `citygen kb explain`: reads the source and prepares it as a run does, finds building `id`
-/// (`way/123`, `relation/45`, or for a shapefile also a bare 0-based record number; a
-/// `building:part` gets its outline's tags under its own) and explains, for the knowledge base,
-/// its zone chain, inherited values and the appearance the run's `seed` picks for it.
-pub fn explain_building(
-    kb: &KnowledgeBase,
-    source: &Source,
-    id: &str,
-    seed: u64,
-    infer: Option<crate::model::Inference>,
-) -> Result<Explanation, RunError> {
-    let wanted = match (source, SourceId::parse(id)) {
-        (Source::Shp { .. }, None) => id.trim().parse().ok().map(SourceId::Shape),
-        (_, parsed) => parsed,
-    };
-    let Some(wanted) = wanted else {
-        return Err(RunError::Input(format!(
-            "{id:?} is not a building id (way/123, relation/45 or a record number)"
-        )));
-    };
-    let mut report = Report::default();
-    let read = read_source(source, None, None, &mut report)?;
-    let mut site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
-    let mut inferred = infer_from_neighbours(kb, &mut site.lots, infer);
-    let found = site.lots.iter().find_map(|lot| {
-        if lot.id == wanted {
-            return Some((lot.lonlat, (*lot.tags).clone()));
-        }
-        let part = lot.parts.iter().find(|p| p.id == wanted)?;
-        Some((lot.lonlat, merged_tags(&part.tags, &lot.tags, true)))
-    });
-    let Some((lonlat, tags)) = found else {
-        let why = report
-            .entries
-            .iter()
-            .find(|e| e.id == wanted.to_string())
-            .map(|e| e.reason.clone());
-        return Err(RunError::Input(match why {
-            Some(r) => format!("{wanted} was not generated: {r}"),
-            None => format!("no building {wanted} in the input"),
-        }));
-    };
-    let mut e = kb::tools::explain(kb, lonlat.0, lonlat.1, &tags, wanted.seed_value(), seed);
-    // A part's own tags win over what its outline inferred; the outline's note tells what.
-    let outline = site
-        .lots
-        .iter()
-        .find(|l| l.id == wanted || l.parts.iter().any(|p| p.id == wanted))
-        .map(|l| l.id);
-    if let Some(note) = outline.and_then(|id| inferred.remove(&id)) {
-        e.inferred = note.split("; ").map(str::to_string).collect();
-    }
-    Ok(e)
-}
-
-/// `citygen kb learn`: reads and prepares the source as a run does, takes one
-/// [`kb::learn::Sample`] per lot (its outline's tags at its representative point, the point
-/// the generator locates; `building=roof` canopies left out), learns a knowledge base
-/// ([`kb::learn::learn`]) grouped by a grid or by the zones of the `--zones` knowledge base
-/// (`options.grouping` is then replaced), and writes it atomically to `out`. The output may
-/// not be an input. Errors name the file: an input that cannot be read or holds no building
-/// is an input error, as is a `--zones` KB that does not load.
-pub fn learn_kb(
-    source: &Source,
-    zones: Option<&Path>,
-    options: &kb::learn::LearnOptions<'_>,
-    out: &Path,
-) -> Result<kb::learn::Learned, RunError> {
-    let mut inputs: Vec<(&'static str, PathBuf)> = match source {
-        Source::Osm(p) => vec![("--osm", p.clone())],
-        Source::Shp { path, .. } => outputs::shapefile_parts(path)
-            .into_iter()
-            .map(|p| ("--shp", p))
-            .collect(),
-    };
-    inputs.extend(zones.map(|z| ("--zones", z.to_path_buf())));
-    outputs::check(&[("--out", out.to_path_buf())], &inputs, true)?;
-    let zones_kb = match zones {
-        Some(z) => Some(
-            KnowledgeBase::load(z)
-                .map(|(kb, _)| kb)
-                .map_err(|e| RunError::Input(e.to_string()))?,
-        ),
-        None => None,
-    };
-    let file = match source {
-        Source::Osm(p) | Source::Shp { path: p, .. } => p.clone(),
-    };
-    let mut report = Report::default();
-    let read = read_source(source, None, None, &mut report)?;
-    if read.footprints.is_empty() {
-        return Err(RunError::Input(format!(
-            "{}: no building footprint to learn from",
-            file.display()
-        )));
-    }
-    let site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
-    let samples: Vec<kb::learn::Sample> = site
-        .lots
-        .iter()
-        .filter_map(|lot| kb::learn::Sample::from_tags(lot.lonlat, &lot.tags))
-        .collect();
-    let mut o = options.clone();
-    if let Some(kb) = &zones_kb {
-        o.grouping = kb::learn::Grouping::Zones(kb);
-    }
-    let learned = kb::learn::learn(&samples, &o)
-        .map_err(|e| RunError::Input(format!("{}: {e}", file.display())))?;
-    let write = || -> std::io::Result<()> {
-        let f = AtomicFile::create(out)?;
-        let mut w = f.writer()?;
-        w.write_all(learned.text.as_bytes())?;
-        w.flush()?;
-        drop(w);
-        f.commit()
-    };
-    write().map_err(|e| RunError::Output {
-        path: out.to_path_buf(),
-        source: ExportError::Io(e),
-    })?;
-    Ok(learned)
-}
-
-/// `citygen rules derive`: one ruleset on one test lot (local metres) placed at `lonlat`.
-pub fn derive_lot(
-    rules_path: &Path,
-    lot: crate::geometry::Polygon,
-    lonlat: (f64, f64),
-    kb: Option<&Path>,
-    lod: Lod,
-    seed: u64,
-    targets: &Targets,
-) -> Result<Summary, RunError> {
-    let mut inputs = vec![("the ruleset", rules_path.to_path_buf())];
-    inputs.extend(kb.map(|p| ("--kb", p.to_path_buf())));
-    outputs::check(&targets.flagged(), &inputs, false)?;
-    let mut report = Report::default();
-    let rules = read_rules(rules_path)?;
-    let kb = load_kb(kb, &mut report)?;
-    let site = prepare::single_lot(lot, lonlat, None, &mut report)
-        .ok_or_else(|| RunError::Input("the lot is degenerate (see the report)".into()))?;
-    let caps = Caps {
-        facades: lod >= Lod::Lod3,
-        ..Caps::default()
-    };
-    let generator = Generator::new(kb, Rules::File(Arc::new(rules)), lod, seed, caps);
-    generate_and_write(
-        &site,
-        &generator,
-        &file_name(rules_path),
-        targets,
-        report,
-        &|_, _| {},
-    )
-}
-
-/// `citygen selex derive FILE --ifc ...`: the building that `derivation` (the shape tree of the
-/// SELEX program `program`, run on its own box lot) describes
-/// ([`crate::derive::selex_lot::building`]), placed at `lonlat` and written to `targets` as
-/// `rules derive` writes its lot: outputs checked first, written atomically, with the report.
-/// LOD 1 to 3 (LOD4's interiors are not planned for it: a usage error).
-pub fn derive_selex_lot(
-    program: &Path,
-    derivation: &crate::selex::eval::Derivation,
-    lonlat: (f64, f64),
-    lod: Lod,
-    targets: &Targets,
-) -> Result<Summary, RunError> {
-    if lod > Lod::Lod3 {
-        return Err(RunError::Usage(
-            "selex derive writes LOD 1 to 3 (no interiors are planned for it)".into(),
-        ));
-    }
-    outputs::check(
-        &targets.flagged(),
-        &[("the program", program.to_path_buf())],
-        false,
-    )?;
-    let name = file_name(program);
-    let mut report = Report::default();
-    let (building, notes) =
-        crate::derive::selex_lot::building(derivation, SourceId::Lot(0), &name, lod)
-            .map_err(RunError::Input)?;
-    // The lot is the building's plan bounds (it only places the site).
-    let (mut lo, mut hi) = (
-        glam::DVec2::splat(f64::INFINITY),
-        glam::DVec2::splat(f64::NEG_INFINITY),
-    );
-    for p in &building.parts {
-        let (a, b) = p.footprint.bounds();
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    let lot = crate::geometry::Polygon::new(
-        vec![
-            lo,
-            glam::DVec2::new(hi.x, lo.y),
-            hi,
-            glam::DVec2::new(lo.x, hi.y),
-        ],
-        vec![],
-    );
-    let site = prepare::single_lot(lot, lonlat, None, &mut report)
-        .ok_or_else(|| RunError::Input(format!("{name}: the building's plan is degenerate")))?;
-    let made = move |lot: &prepare::Lot| {
-        let mut b = building.clone();
-        b.id = lot.id;
-        for p in &mut b.parts {
-            p.source = Some(lot.id);
-        }
-        Ok((b, notes.clone()))
-    };
-    let all = [Batch {
-        suffix: None,
-        range: 0..site.lots.len(),
-        cell: (0, 0),
-    }];
-    write_batches(
-        &site,
-        &all,
-        &Maker::Made {
-            lod,
-            seed: 0,
-            make: &made,
-        },
-        &FileSet {
-            name: &name,
-            targets,
-        },
-        report,
-        Ledger::default(),
-        &|_, _| {},
-    )
-}
-
-fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, RunError> {
+pub(crate) fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, RunError> {
     match path {
         Some(p) => {
             let (kb, repairs) =
@@ -1080,7 +845,7 @@ fn load_kb(path: Option<&Path>, report: &mut Report) -> Result<KnowledgeBase, Ru
     }
 }
 
-fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> {
+pub(crate) fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> {
     // At most grammar::MAX_SOURCE_BYTES are read: a huge file is refused, not read whole.
     let text = crate::grammar::read_source(p)
         .map_err(|e| RunError::Input(format!("{}: {e}", p.display())))?;
@@ -1118,7 +883,7 @@ pub struct Targets {
 impl Targets {
     /// The paths asked for, each with the flag that names it (for [`outputs::check`]); for
     /// `--tiles3d`, its `tileset.json`.
-    fn flagged(&self) -> Vec<(&'static str, PathBuf)> {
+    pub(crate) fn flagged(&self) -> Vec<(&'static str, PathBuf)> {
         [
             ("--ifc", &self.ifc),
             ("--citygml", &self.citygml),
@@ -1170,7 +935,7 @@ pub fn generate_and_write(
 
 /// What makes each lot's building for [`write_batches`]: the generator, or (`selex derive`)
 /// a function, with the LOD and seed the outputs name.
-enum Maker<'a> {
+pub(crate) enum Maker<'a> {
     Generator(&'a Generator),
     Made {
         lod: Lod,
@@ -1205,17 +970,17 @@ impl Maker<'_> {
 }
 
 /// A run of consecutive lots written to one set of files: the whole site, or one tile.
-struct Batch {
+pub(crate) struct Batch {
     /// Inserted before the extension of every output path (`None`: the paths as given).
-    suffix: Option<String>,
-    range: std::ops::Range<usize>,
+    pub(crate) suffix: Option<String>,
+    pub(crate) range: std::ops::Range<usize>,
     /// The tile's grid cell (its corner over the tile size; `(0, 0)` untiled), for 3D Tiles.
-    cell: (i64, i64),
+    pub(crate) cell: (i64, i64),
 }
 
 /// Writes each batch to its own files. Every file is complete and closed before any is renamed
 /// over its target, so a run that fails (or is killed) part-way publishes nothing.
-fn write_batches(
+pub(crate) fn write_batches(
     site: &prepare::Site,
     batches: &[Batch],
     maker: &Maker<'_>,
@@ -1550,9 +1315,9 @@ fn open_output(
 
 /// One set of files of a run (the whole site, or one tile): the name the files give as their
 /// source, and their paths.
-struct FileSet<'a> {
-    name: &'a str,
-    targets: &'a Targets,
+pub(crate) struct FileSet<'a> {
+    pub(crate) name: &'a str,
+    pub(crate) targets: &'a Targets,
 }
 
 /// What the batches of a run have written so far.
@@ -2038,7 +1803,7 @@ fn io_err(p: &Path) -> impl Fn(std::io::Error) -> RunError + '_ {
     }
 }
 
-fn file_name(p: &Path) -> String {
+pub(crate) fn file_name(p: &Path) -> String {
     p.file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default()

@@ -76,6 +76,14 @@ const LAYERS: &[(&str, &[&str])] = &[
             "report", "rng", "geometry", "crs", "color", "guard",
         ],
     ),
+    // The command line (`citygen`'s arguments, commands and exit codes): the top floor.
+    (
+        "app",
+        &[
+            "editor", "pipeline", "evolve", "derive", "export", "kb", "grammar", "selex",
+            "prepare", "input", "model", "report", "rng", "geometry", "crs", "color", "guard",
+        ],
+    ),
 ];
 
 /// Direction inside a folder: for the folder (module path), each listed child and the listed

@@ -1,0 +1,328 @@
+//! The main job (`citygen --osm ... --kb ... --gltf ...`): its arguments, the thread pool,
+//! the progress bar, the summary line (with the peak RSS) and the warnings.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use clap::{ArgGroup, Args};
+
+use super::args::{parse_bbox, parse_crs, parse_infer, parse_lod, parse_output_crs, InferArg};
+use super::{AppError, Outcome};
+use crate::crs::Crs;
+use crate::grammar::Caps;
+use crate::model::Lod;
+use crate::pipeline::{self, Options, Source};
+
+/// The main job's arguments.
+#[derive(Args, Debug)]
+#[command(group(ArgGroup::new("input").required(true).args(["osm", "shp"])))]
+#[command(group(ArgGroup::new("style").required(true).args(["kb", "rules"])))]
+#[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf", "cityjson", "cityjsonseq", "tiles3d", "preview"])))]
+pub(crate) struct RunArgs {
+    /// OpenStreetMap extract (.osm.pbf) to read building footprints from.
+    #[arg(long, value_name = "FILE.pbf")]
+    osm: Option<PathBuf>,
+    /// ESRI shapefile (.shp with its .shx, .dbf and .prj) to read footprints from.
+    #[arg(long, value_name = "FILE.shp")]
+    shp: Option<PathBuf>,
+    /// Knowledge base of regional appearance (XML, seed 003 format).
+    #[arg(long, value_name = "KB.xml")]
+    kb: Option<PathBuf>,
+    /// Grammar ruleset applied to every footprint instead of the knowledge base's rules.
+    #[arg(long, value_name = "FILE")]
+    rules: Option<PathBuf>,
+    /// Level of detail: 1 (blocks), 2 (roofs and semantic surfaces), 3 (storeys, facades,
+    /// windows, doors and balconies) or 4 (interiors: rooms, interior walls and doors, stairs).
+    #[arg(long, value_parser = parse_lod, default_value = "2")]
+    lod: Lod,
+    /// Write IFC4 (STEP) here.
+    #[arg(long, value_name = "OUT.ifc")]
+    ifc: Option<PathBuf>,
+    /// Write CityGML 2.0 here.
+    #[arg(long, value_name = "OUT.gml")]
+    citygml: Option<PathBuf>,
+    /// Write glTF 2.0 binary (.glb) here.
+    #[arg(long, value_name = "OUT.glb")]
+    gltf: Option<PathBuf>,
+    /// Write CityJSON 2.0 here (one file; vertices in millimetres around the run's origin).
+    #[arg(long, value_name = "OUT.city.json")]
+    cityjson: Option<PathBuf>,
+    /// Write CityJSONSeq here (a header line, then one CityJSONFeature line per building).
+    #[arg(long, value_name = "OUT.city.jsonl")]
+    cityjsonseq: Option<PathBuf>,
+    /// Write the JSON report (counts, skipped and repaired footprints with reasons) here.
+    #[arg(long, value_name = "OUT.json")]
+    report: Option<PathBuf>,
+    /// Write an overview picture of the run's buildings (PNG, a bird's-eye view rendered in
+    /// citygen, no browser needed): one picture for the whole run, even with --tile.
+    #[arg(long, value_name = "OUT.png")]
+    preview: Option<PathBuf>,
+    /// Write OGC 3D Tiles 1.1 into this folder: tileset.json and per tile two GLB contents in
+    /// the tile's east-north-up frame (content/{tile}.glb as derived, content/{tile}-blocks.glb
+    /// LOD1 blocks for distant views), every building a feature with its id, zone, appearance,
+    /// height and storeys (EXT_mesh_features, EXT_structural_metadata). With --shard,
+    /// `citygen merge --tiles3d` writes the tileset.
+    #[arg(long, value_name = "DIR")]
+    tiles3d: Option<PathBuf>,
+    /// Seed of every random choice (appearances, rand() in rules).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output CRS, projected (metres), e.g. EPSG:2154 (Lambert-93). Default: the UTM zone of
+    /// the data's centre (inside --bbox); data too wide for one zone needs --crs or --bbox.
+    #[arg(long, value_name = "EPSG:n", value_parser = parse_output_crs)]
+    crs: Option<Crs>,
+    /// CRS of the input coordinates, overriding a shapefile's .prj.
+    #[arg(long, value_name = "EPSG:n", value_parser = parse_crs)]
+    src_crs: Option<Crs>,
+    /// Shapefile attribute holding the building height in metres (default: detected).
+    #[arg(long, value_name = "NAME")]
+    shp_height_field: Option<String>,
+    /// Shapefile attribute holding the number of storeys (default: detected).
+    #[arg(long, value_name = "NAME")]
+    shp_levels_field: Option<String>,
+    /// Worker threads for derivation (default: all cores). Outputs do not depend on it.
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+    /// Maximum derivation depth per building.
+    #[arg(long, default_value_t = Caps::default().max_depth)]
+    max_depth: usize,
+    /// Maximum number of shapes per building.
+    #[arg(long, default_value_t = Caps::default().max_shapes)]
+    max_shapes: usize,
+    /// Only generate the buildings whose representative point lies in this box (degrees:
+    /// min lon, min lat, max lon, max lat), e.g. to split a region across machines. The others
+    /// are counted in the report.
+    #[arg(long, value_name = "LON0,LAT0,LON1,LAT1", value_parser = parse_bbox)]
+    bbox: Option<[f64; 4]>,
+    /// Split the outputs into square tiles of this many metres of the output CRS: `out.gml`
+    /// becomes `out_{easting}_{northing}.gml` per tile holding buildings (the lower-left
+    /// corner of the tile). A building belongs to the tile of its representative point.
+    #[arg(long, value_name = "METRES", value_parser = clap::value_parser!(u32).range(10..))]
+    tile: Option<u32>,
+    /// Derive every building and render every output, but write none of them (the --report
+    /// is still written): the summary says which files and how many bytes a real run would
+    /// write. For checking a region's input, or sizing its outputs, before a nightly run.
+    #[arg(long)]
+    dry_run: bool,
+    /// Accept output file names whose extension is not the format's (.ifc, .gml or .xml, .glb,
+    /// .json for the report).
+    #[arg(long)]
+    force_extension: bool,
+    /// Write the outputs even when no building is generated (an empty --bbox, every footprint
+    /// skipped); without it such a run is an error (exit 1) and writes nothing.
+    #[arg(long)]
+    allow_empty: bool,
+    /// What a building lacking tags takes from the tagged buildings around it: kb (as its
+    /// knowledge-base zone says, <info infer="...">), none, all, or a comma-separated list of
+    /// levels (storeys: distance-weighted median of the 8 nearest within 300 m, of its own
+    /// building=* kind when 3 of them are; at least 3), roof (roof:shape) and colour
+    /// (building:colour, roof:colour; the weighted majority). Each building changed has a
+    /// report note.
+    #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]
+    infer: InferArg,
+    /// Write only shard I of N (counted from 0) of a tiled run (needs --tile), and its
+    /// manifest `citygen-manifest.I-of-N.json` beside the outputs; `citygen merge` puts the
+    /// shards together. Every shard reads the whole input and computes the same assignment of
+    /// tiles to shards, so N processes need no coordinator. `auto` takes I from
+    /// JOB_COMPLETION_INDEX (Kubernetes Indexed Job) or SLURM_ARRAY_TASK_ID (Slurm array) and
+    /// N from --shards or SLURM_ARRAY_TASK_COUNT.
+    #[arg(long, value_name = "I/N|auto", value_parser = crate::pipeline::shard::parse_shard)]
+    shard: Option<crate::pipeline::shard::ShardArg>,
+    /// The number of shards for --shard auto (a Kubernetes Indexed Job's completions).
+    #[arg(long, value_name = "N", requires = "shard", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    shards: Option<u32>,
+    /// Yesterday's tiled output folder (its citygen-manifest.*.json and tiles; needs --tile):
+    /// every tile whose buildings and their content keys are unchanged is copied from it
+    /// (checked by SHA-256) instead of derived; the report's "changes" lists the buildings
+    /// added, removed, changed and affected, and the tiles reused, rewritten and gone.
+    #[arg(long, value_name = "DIR", requires = "tile")]
+    previous: Option<PathBuf>,
+    /// Reuse --previous's files as hard links instead of copies (as rsync --link-dest): no
+    /// bytes copied where both folders are on one file system (copied where they are not).
+    /// The two runs then share those files' inodes: citygen never writes a file in place, but
+    /// another tool that does would change both.
+    #[arg(long, requires = "previous")]
+    link_previous: bool,
+    /// An OSM change file (osmChange XML, .osc or .osc.gz, e.g. a replication diff) applied on
+    /// top of the --osm extract: the run reads the extract as the change leaves it.
+    #[arg(long, value_name = "FILE.osc[.gz]", requires = "osm")]
+    osc: Option<PathBuf>,
+    /// The source's name written into the outputs (titles, the IFC project and its GUIDs'
+    /// namespace), instead of the input's file name: a nightly job whose extract carries the
+    /// date in its name (region-20261204.osm.pbf) passes a stable one, so that unchanged
+    /// buildings keep their bytes and GUIDs from day to day.
+    #[arg(long, value_name = "NAME")]
+    source_name: Option<String>,
+    /// No progress bar and no summary.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// The main job.
+pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
+    if let Some(asked) = cli.threads {
+        // More threads than cores buys nothing (the outputs do not depend on the count) and
+        // thousands take longer to start than the run.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let cap = (4 * cores).max(1);
+        let n = asked.clamp(1, cap);
+        if n != asked && !cli.quiet {
+            eprintln!("citygen: note: --threads {asked} runs {n} threads (at least 1, at most 4 per core: {cores} cores)");
+        }
+        if let Err(source) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
+            return Err(AppError::Threads { threads: n, source });
+        }
+    }
+    let source = match (&cli.osm, &cli.shp) {
+        (Some(p), _) => Source::Osm(p.clone()),
+        (None, Some(p)) => Source::Shp {
+            path: p.clone(),
+            height_field: cli.shp_height_field.clone(),
+            levels_field: cli.shp_levels_field.clone(),
+        },
+        (None, None) => unreachable!("clap requires --osm or --shp"),
+    };
+    use crate::pipeline::shard::{self, ShardArg};
+    let shard = match cli.shard {
+        None => None,
+        Some(ShardArg::Fixed(s)) => {
+            if cli.shards.is_some_and(|n| n as usize != s.count) {
+                return Err(AppError::Usage(format!(
+                    "--shard {s} and --shards {} disagree",
+                    cli.shards.unwrap_or(0)
+                )));
+            }
+            Some((s, format!("--shard {s}")))
+        }
+        Some(ShardArg::Auto) => {
+            match shard::from_env(cli.shards.map(|n| n as usize), &|k| std::env::var(k).ok()) {
+                Ok(found) => {
+                    if !cli.quiet {
+                        eprintln!("citygen: {}", found.1);
+                    }
+                    Some(found)
+                }
+                Err(e) => return Err(AppError::Usage(e)),
+            }
+        }
+    };
+    let opts = Options {
+        source,
+        kb: cli.kb.clone(),
+        rules: cli.rules.clone(),
+        lod: cli.lod,
+        ifc: cli.ifc.clone(),
+        citygml: cli.citygml.clone(),
+        gltf: cli.gltf.clone(),
+        cityjson: cli.cityjson.clone(),
+        cityjsonseq: cli.cityjsonseq.clone(),
+        report: cli.report.clone(),
+        preview: cli.preview.clone(),
+        tiles3d: cli.tiles3d.clone(),
+        seed: cli.seed,
+        crs: cli.crs,
+        src_crs: cli.src_crs,
+        caps: Caps {
+            max_depth: cli.max_depth,
+            max_shapes: cli.max_shapes,
+            ..Caps::default()
+        },
+        bbox: cli.bbox,
+        tile: cli.tile,
+        dry_run: cli.dry_run,
+        force_extension: cli.force_extension,
+        allow_empty: cli.allow_empty,
+        infer: cli.infer.0,
+        shard,
+        previous: cli.previous.clone(),
+        link_previous: cli.link_previous,
+        osc: cli.osc.clone(),
+        source_name: cli.source_name.clone(),
+    };
+    let show = !cli.quiet && std::io::stderr().is_terminal();
+    let bar = indicatif::ProgressBar::hidden();
+    if show {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} buildings  {per_sec}  eta {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+    }
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    match pipeline::run(&opts, &progress) {
+        Ok(summary) => {
+            bar.finish_and_clear();
+            if !cli.quiet {
+                let r = &summary.report;
+                let secs = summary.elapsed.as_secs_f64().max(1e-9);
+                eprintln!(
+                    "citygen: read {} buildings and {} parts; generated {}, repaired {}, skipped {} in {:.2} s ({:.0} buildings/s, {:.0} polygons/s)",
+                    r.read,
+                    r.parts_read,
+                    r.generated,
+                    r.repaired,
+                    r.skipped,
+                    secs,
+                    r.generated as f64 / secs,
+                    summary.polygons as f64 / secs
+                );
+                let files = summary.outputs.len();
+                let rss = peak_rss_kib()
+                    .map(|kib| format!("; peak RSS {:.1} MiB", kib as f64 / 1024.0))
+                    .unwrap_or_default();
+                let split = match (summary.tiles, cli.tile) {
+                    (0, _) | (_, None) => String::new(),
+                    (n, Some(size)) => format!(" ({n} tiles of {size} m)"),
+                };
+                eprintln!(
+                    "  output: {} polygons, {} bytes in {files} file(s){split}{rss}{}",
+                    summary.polygons,
+                    summary.bytes,
+                    if cli.dry_run {
+                        " (dry run: nothing written)"
+                    } else {
+                        ""
+                    }
+                );
+                let verb = if cli.dry_run { "would write" } else { "wrote" };
+                // One screen: a tiled run may write thousands of files.
+                const SHOWN: usize = 9;
+                for p in summary.outputs.iter().take(SHOWN) {
+                    eprintln!("  {verb} {}", p.display());
+                }
+                if files > SHOWN {
+                    eprintln!("  ... and {} more files ({files} in all)", files - SHOWN);
+                }
+            }
+            for w in &summary.warnings {
+                eprintln!("citygen: warning: {w}");
+            }
+            Ok(Outcome::Done)
+        }
+        Err(e) => {
+            bar.finish_and_clear();
+            Err(e.into())
+        }
+    }
+}
+
+/// This process's peak resident set size in KiB (`VmHWM` of /proc/self/status), on Linux only;
+/// `None` where the kernel does not report it.
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.trim_start_matches("VmHWM:")
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()
+}
