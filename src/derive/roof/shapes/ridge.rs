@@ -1,0 +1,155 @@
+//! Roofs on one plane or one ridge: skillion, and the ridge roofs (saltbox and the like) along
+//! a footprint's short axis.
+
+use super::*;
+
+/// A skillion (shed) roof: the footprint as one plane rising against `down`, the unit vector
+/// (in plan) the slope faces, with rise `slope` per metre, the lowest corner at z = 0.
+pub fn skillion(poly: &Polygon, down: DVec2, slope: f64) -> Result<RoofGeometry, RoofError> {
+    if !(slope.is_finite() && slope > 0.0) {
+        return Err(RoofError::InvalidParameter(
+            "skillion slope must be positive",
+        ));
+    }
+    let down = down.normalize_or_zero();
+    if down == DVec2::ZERO || !down.is_finite() {
+        return Err(RoofError::InvalidParameter("skillion direction is zero"));
+    }
+    check_simple(poly)?;
+    let smax = poly
+        .outer
+        .iter()
+        .map(|p| p.dot(down))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let lift = |r: &Vec<DVec2>| -> Vec<DVec3> {
+        r.iter()
+            .map(|p| p.extend((smax - p.dot(down)) * slope))
+            .collect()
+    };
+    let face = Face {
+        outer: lift(&poly.outer),
+        holes: poly.holes.iter().map(lift).collect(),
+    };
+    let faces = vec![face];
+    let walls = gable_walls(poly, &faces);
+    Ok(RoofGeometry::from_parts(faces, walls))
+}
+
+/// Where a saltbox's ridge stands across the footprint (fraction of the width from the side of
+/// the short, steep slope): the long slope covers the other 65 %.
+pub const SALTBOX_RIDGE_AT: f64 = 0.35;
+
+/// A roof of two planes meeting along one straight ridge parallel to `ridge_dir`, standing at
+/// fraction `at` (0..1) of the footprint's width measured along `ridge_dir.perp()`, both eaves
+/// at z = 0 on the farthest footprint points. The steeper side has the pitch `pitch_deg`.
+///
+/// This is the roof of `roof:shape=saltbox` (`at` = [`SALTBOX_RIDGE_AT`]: asymmetric slopes) and
+/// of a gabled roof with `roof:orientation=across` (`at` = 0.5, ridge parallel to the short
+/// side). It works on any simple polygon, with or without holes: each plane covers the part of
+/// the footprint on its side of the ridge line (clipped exactly), and the walls rise to the roof
+/// line (`gable_walls`). On an L or T the ridge crosses the wings as a carpenter's single
+/// ridge would; the skeleton gables ([`profile_roof`]) are the better answer there and stay the
+/// default for `gabled`.
+pub fn ridge_roof(
+    poly: &Polygon,
+    ridge_dir: DVec2,
+    at: f64,
+    pitch_deg: f64,
+) -> Result<RoofGeometry, RoofError> {
+    if !(pitch_deg.is_finite() && pitch_deg > 0.0 && pitch_deg < 90.0) {
+        return Err(RoofError::InvalidParameter("pitch must be in (0°, 90°)"));
+    }
+    if !(at.is_finite() && at > 0.0 && at < 1.0) {
+        return Err(RoofError::InvalidParameter(
+            "ridge position must be in (0, 1)",
+        ));
+    }
+    let dir = ridge_dir.normalize_or_zero();
+    if dir == DVec2::ZERO || !dir.is_finite() {
+        return Err(RoofError::InvalidParameter("ridge direction is zero"));
+    }
+    check_simple(poly)?;
+    let n = dir.perp();
+    let (smin, smax) = poly
+        .outer
+        .iter()
+        .map(|p| p.dot(n))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| {
+            (a.min(s), b.max(s))
+        });
+    let width = smax - smin;
+    let ridge = smin + at * width;
+    let (da, db) = (ridge - smin, smax - ridge);
+    if !(da > 1e-6 * width.max(1.0) && db > 1e-6 * width.max(1.0)) {
+        return Err(RoofError::InvalidParameter(
+            "footprint too thin for a ridge",
+        ));
+    }
+    let h = pitch_deg.to_radians().tan() * da.min(db);
+    let margin = width + 1.0;
+    let mut faces = Vec::new();
+    for (lo, hi, z) in [
+        (
+            smin - margin,
+            ridge,
+            Box::new(move |s: f64| h * (s - smin) / da) as Box<dyn Fn(f64) -> f64>,
+        ),
+        (
+            ridge,
+            smax + margin,
+            Box::new(move |s: f64| h * (smax - s) / db),
+        ),
+    ] {
+        for piece in crate::geometry::clip::clip_slab(poly, DVec2::ZERO, n, lo, hi) {
+            let lift = |r: &Vec<DVec2>| -> Vec<DVec3> {
+                r.iter()
+                    .map(|p| p.extend(z(p.dot(n)).clamp(0.0, h)))
+                    .collect()
+            };
+            faces.push(Face {
+                outer: lift(&piece.outer),
+                holes: piece.holes.iter().map(lift).collect(),
+            });
+        }
+    }
+    let walls = gable_walls(poly, &faces);
+    Ok(RoofGeometry::from_parts(faces, walls))
+}
+
+/// Validates a footprint the way the skeleton does (so that every shape rejects the same
+/// invalid input).
+fn check_simple(poly: &Polygon) -> Result<(), RoofError> {
+    straight_skeleton(poly)?;
+    Ok(())
+}
+
+/// The direction (unit, in plan) across the footprint's minimum-area bounding rectangle's
+/// shorter side: a shed roof slopes along it.
+pub fn short_axis(poly: &Polygon) -> DVec2 {
+    let hull = convex_hull(&poly.outer);
+    let mut best = (f64::INFINITY, DVec2::Y);
+    for i in 0..hull.len() {
+        let d = (hull[(i + 1) % hull.len()] - hull[i]).normalize_or_zero();
+        if d == DVec2::ZERO {
+            continue;
+        }
+        let n = d.perp();
+        let (mut a0, mut a1, mut b0, mut b1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for p in &hull {
+            a0 = a0.min(p.dot(d));
+            a1 = a1.max(p.dot(d));
+            b0 = b0.min(p.dot(n));
+            b1 = b1.max(p.dot(n));
+        }
+        let area = (a1 - a0) * (b1 - b0);
+        if area < best.0 - 1e-9 * area.abs() {
+            best = (area, if a1 - a0 < b1 - b0 { d } else { n });
+        }
+    }
+    best.1
+}

@@ -1,0 +1,180 @@
+//! Appearance choice: the appearances a zone offers a building's kind, their weights, the
+//! draw, and the rule and SELEX files an appearance names.
+
+use super::*;
+
+impl KnowledgeBase {
+    /// The appearances that apply to a zone: its own, or if it has none those of the nearest
+    /// ancestor that has some. Returns the owning zone index and the slice (empty, owner 0, when
+    /// no zone up to earth has any).
+    pub fn appearances_for(&self, zone: usize) -> (usize, &[Appearance]) {
+        for i in self.lineage(zone).into_iter().rev() {
+            if let Some(z) = self.zones.get(i) {
+                if !z.appearances.is_empty() {
+                    return (i, &z.appearances);
+                }
+            }
+        }
+        (0, &[])
+    }
+
+    /// Which of the appearances that apply to `zone` ([`KnowledgeBase::appearances_for`]) a
+    /// building of this OSM `building=*` kind may be drawn from: those whose `building` list
+    /// names the kind (`None` and `yes` both stand for `yes`); if none does, those with no
+    /// list; if every appearance has a list, all of them. Returns the owning zone and the
+    /// indices, in appearance order (empty when no zone up to earth has an appearance).
+    pub fn eligible_appearances(&self, zone: usize, kind: Option<&str>) -> (usize, Vec<usize>) {
+        let (owner, apps) = self.appearances_for(zone);
+        (owner, eligible(apps, kind))
+    }
+
+    /// Chooses one of the appearances that apply to `zone` for a building of this `building=*`
+    /// kind ([`KnowledgeBase::eligible_appearances`]).
+    ///
+    /// Weights among the eligible appearances ([`appearance_weights`]): a given `proba` is
+    /// used as is; appearances without one share what the given ones leave of 1 equally
+    /// (nothing when they already sum to 1 or more); the weights are then normalised. If every
+    /// weight is zero the choice is uniform. Draws exactly one number from `rng` when there is
+    /// at least one eligible appearance. Returns (owner zone, index).
+    pub fn pick_appearance(
+        &self,
+        zone: usize,
+        kind: Option<&str>,
+        rng: &mut Rng,
+    ) -> Option<(usize, usize)> {
+        let (owner, apps) = self.appearances_for(zone);
+        let ids = eligible(apps, kind);
+        let weights = proba_weights(ids.iter().map(|&i| apps[i].proba));
+        rng.pick_weighted(&weights)
+            .and_then(|k| ids.get(k).copied())
+            .map(|i| (owner, i))
+    }
+}
+
+impl KnowledgeBase {
+    /// Where an appearance's `ruleset file=` points, resolved against the KB's folder.
+    /// Refuses absolute paths and paths that climb out of that folder (`..`) unless
+    /// `allow_outside` is set. `Ok(None)` when the appearance names no ruleset.
+    pub fn ruleset_path(
+        &self,
+        zone: usize,
+        appearance: usize,
+        allow_outside: bool,
+    ) -> Result<Option<PathBuf>, KbError> {
+        self.appearance_file(zone, appearance, "ruleset", allow_outside, |a| {
+            a.ruleset.as_deref()
+        })
+    }
+
+    /// Where an appearance's `selex file=` points, resolved against the KB's folder, with the
+    /// same refusals as [`KnowledgeBase::ruleset_path`] (a SELEX program is always inside the
+    /// KB's folder: no `allow_outside`). `Ok(None)` when the appearance names none.
+    pub fn selex_path(&self, zone: usize, appearance: usize) -> Result<Option<PathBuf>, KbError> {
+        self.appearance_file(zone, appearance, "selex", false, |a| a.selex.as_deref())
+    }
+
+    fn appearance_file(
+        &self,
+        zone: usize,
+        appearance: usize,
+        what: &str,
+        allow_outside: bool,
+        file: impl Fn(&Appearance) -> Option<&str>,
+    ) -> Result<Option<PathBuf>, KbError> {
+        let Some(app) = self
+            .zones
+            .get(zone)
+            .and_then(|z| z.appearances.get(appearance))
+        else {
+            return Ok(None);
+        };
+        let Some(file) = file(app) else {
+            return Ok(None);
+        };
+        let rel = Path::new(file);
+        let mut depth: i64 = 0;
+        let mut escapes = rel.is_absolute();
+        for c in rel.components() {
+            match c {
+                Component::ParentDir => depth -= 1,
+                Component::Normal(_) => depth += 1,
+                Component::CurDir => {}
+                Component::RootDir | Component::Prefix(_) => escapes = true,
+            }
+            if depth < 0 {
+                escapes = true;
+            }
+        }
+        if escapes && !allow_outside {
+            return Err(KbError::Structure {
+                file: self.source.clone(),
+                line: app.line,
+                message: format!(
+                    "{what} file \"{file}\" lies outside the knowledge base's folder; \
+                     move it next to the KB{}",
+                    if what == "ruleset" {
+                        " or allow outside rulesets explicitly"
+                    } else {
+                        ""
+                    }
+                ),
+            });
+        }
+        Ok(Some(match &self.base_dir {
+            Some(d) => d.join(rel),
+            None => rel.to_path_buf(),
+        }))
+    }
+}
+
+/// Indices of the appearances a building of this kind is drawn from; see
+/// [`KnowledgeBase::eligible_appearances`].
+pub fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
+    let kind = kind
+        .map(str::trim)
+        .filter(|k| !k.is_empty())
+        .unwrap_or("yes");
+    let named: Vec<usize> = (0..apps.len())
+        .filter(|&i| {
+            apps[i]
+                .buildings
+                .iter()
+                .any(|b| b.eq_ignore_ascii_case(kind))
+        })
+        .collect();
+    if !named.is_empty() {
+        return named;
+    }
+    let open: Vec<usize> = (0..apps.len())
+        .filter(|&i| apps[i].buildings.is_empty())
+        .collect();
+    if open.is_empty() {
+        (0..apps.len()).collect()
+    } else {
+        open
+    }
+}
+
+/// The weights [`KnowledgeBase::pick_appearance`] uses over a set of appearances, in order.
+pub fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
+    proba_weights(apps.iter().map(|a| a.proba))
+}
+
+/// The weights of appearances with these `proba`s, in order: given ones as they are, absent
+/// ones sharing what the given leave of 1, normalised (see [`KnowledgeBase::pick_appearance`]).
+pub fn proba_weights(probas: impl Iterator<Item = Option<f64>> + Clone) -> Vec<f64> {
+    let given: f64 = probas.clone().flatten().sum();
+    let missing = probas.clone().filter(Option::is_none).count();
+    let share = if missing > 0 {
+        ((1.0 - given) / missing as f64).max(0.0)
+    } else {
+        0.0
+    };
+    let raw: Vec<f64> = probas.map(|p| p.unwrap_or(share)).collect();
+    let total: f64 = raw.iter().sum();
+    if total > 0.0 {
+        raw.iter().map(|w| w / total).collect()
+    } else {
+        raw
+    }
+}
