@@ -22,6 +22,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("rng", &[]),
     ("crs", &[]),
     ("geometry", &[]),
+    ("fsio", &[]),
     // The semantic building model every writer consumes, and the run's report.
     ("model", &["geometry", "color"]),
     ("report", &["model"]),
@@ -42,7 +43,10 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     // Rules written by a genetic search (`citygen evolve`).
-    ("evolve", &["grammar", "kb", "rng", "geometry", "color"]),
+    (
+        "evolve",
+        &["grammar", "kb", "rng", "geometry", "color", "fsio"],
+    ),
     // One lot to one building.
     (
         "derive",
@@ -52,13 +56,16 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     // Writers see only the model (and the ground floor).
-    ("export", &["model", "geometry", "color", "crs", "guard"]),
+    (
+        "export",
+        &["model", "geometry", "color", "crs", "guard", "fsio"],
+    ),
     // The run, and the test kit (feature `testkit`) that builds inputs for tests and benches.
     (
         "pipeline",
         &[
             "derive", "export", "kb", "grammar", "selex", "prepare", "input", "model", "report",
-            "rng", "geometry", "crs", "color", "guard",
+            "rng", "geometry", "crs", "color", "guard", "fsio",
         ],
     ),
     ("testkit", &["input", "model", "geometry", "color"]),
@@ -67,7 +74,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         "editor",
         &[
             "pipeline", "derive", "export", "kb", "grammar", "selex", "prepare", "input", "model",
-            "report", "rng", "geometry", "crs", "color", "guard",
+            "report", "rng", "geometry", "crs", "color", "guard", "fsio",
         ],
     ),
 ];
