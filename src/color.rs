@@ -82,6 +82,21 @@ impl Color {
 }
 
 /// `rgb` or `rrggbb` without the `#`.
+/// sRGB transfer function inverse (IEC 61966-2-1): an sRGB component, 0 to 1, as linear light
+/// (glTF colour factors are linear). The one sRGB decoding of the writers and the preview.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// An 8-bit sRGB component as linear light, 0..=1 ([`srgb_to_linear`] of `c / 255`).
+pub fn srgb_u8_to_linear(c: u8) -> f32 {
+    srgb_to_linear(f32::from(c) / 255.0)
+}
+
 fn parse_hex(hex: &str) -> Option<Color> {
     if !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
         return None;

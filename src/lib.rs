@@ -14,8 +14,9 @@
 //! The stages are public modules for the tests, the examples and the tools (`kb explain`,
 //! `rules derive`), in the order data flows: [`input`] → [`prepare`] → [`mod@derive`] →
 //! [`export`], run by [`pipeline`]; the two languages [`kb`] and [`grammar`]; the ground floor
-//! [`model`], [`geometry`], [`crs`], [`color`], [`rng`], [`report`]. Their layering (what may
-//! import what) is in ARCHITECTURE.md and is enforced by `tests/it/architecture.rs`.
+//! [`model`], [`geometry`], [`crs`], [`color`], [`rng`], [`report`], [`fsio`] (files written
+//! atomically). Their layering (what may import what) is in ARCHITECTURE.md and is enforced by
+//! `tests/it/architecture.rs`.
 
 #![forbid(unsafe_code)]
 
@@ -29,6 +30,7 @@ pub mod derive;
 pub mod editor;
 pub mod evolve;
 pub mod export;
+pub mod fsio;
 pub mod geometry;
 pub mod grammar;
 pub(crate) mod guard;

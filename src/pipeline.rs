@@ -24,9 +24,8 @@ use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
 use crate::export::cityjson::{CityJsonSeqWriter, CityJsonWriter};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
-use crate::export::{
-    AtomicFile, BuildingWriter, Checked, ExportError, OutputContext, PendingFile, StreamSink,
-};
+use crate::export::{BuildingWriter, Checked, ExportError, OutputContext};
+use crate::fsio::{AtomicFile, PendingFile, StreamSink};
 use crate::grammar::Caps;
 use crate::input::{self, shp::ShpOptions};
 use crate::kb::{self, KnowledgeBase};

@@ -7,7 +7,6 @@ use std::path::{Component, Path, PathBuf};
 use serde::Deserialize;
 use serde_json::{json, Value};
 
-use crate::export::AtomicFile;
 use crate::kb::edit::{self, AppearanceText, CircleText, NewShape, OpeningText};
 use crate::kb::tools::{self, CheckReport};
 use crate::kb::{write, KbRepair, KnowledgeBase, ReadMode};
@@ -554,15 +553,9 @@ fn ruleset_target(dir: &Path, file: &str) -> Result<PathBuf, String> {
     }
 }
 
+/// [`crate::fsio::write_atomic`], its error naming `path` whatever failed.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    use std::io::Write;
-    let io = |e: std::io::Error| format!("{}: {e}", path.display());
-    let f = AtomicFile::create(path).map_err(io)?;
-    let mut w = f.writer().map_err(io)?;
-    w.write_all(bytes).map_err(io)?;
-    w.flush().map_err(io)?;
-    drop(w);
-    f.commit().map_err(io)
+    crate::fsio::write_atomic(path, bytes).map_err(|e| format!("{}: {}", path.display(), e.error))
 }
 
 #[cfg(test)]

@@ -75,7 +75,7 @@ fn new_token() -> Result<String, String> {
     std::fs::File::open("/dev/urandom")
         .and_then(|mut f| f.read_exact(&mut bytes))
         .map_err(|e| format!("no random source for the session token (/dev/urandom): {e}"))?;
-    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+    Ok(crate::fsio::hex(&bytes))
 }
 
 fn footprints_json(site: &Site) -> Vec<u8> {

@@ -272,23 +272,10 @@ pub struct Report<'a> {
     pub history: &'a History,
 }
 
-/// Writes `bytes` to `path` through a temporary beside it.
+/// Writes `bytes` to `path` through a temporary beside it ([`crate::fsio::write_atomic`]); the
+/// error names the folder, temporary or target that failed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        format!("{}: {e}", path.display())
-    })
+    crate::fsio::write_atomic(path, bytes).map_err(|e| e.to_string())
 }
 
 /// The header comment of a front member's ruleset file.
@@ -612,17 +599,13 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, S
             made.push(p.clone());
         }
     }
-    let name = target
-        .kb
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.evolve.tmp", std::process::id()));
-    let checked = std::fs::write(&tmp, &edited)
-        .map_err(|e| format!("{}: {e}", tmp.display()))
-        .and_then(|_| {
-            let lenient =
-                tools::check_report(&tmp, ReadMode::Lenient).map_err(|e| e.to_string())?;
+    // The edited KB in a temporary beside it, checked there, then renamed over it (dropped on
+    // an error, the temporary is removed).
+    let checked = crate::fsio::write_pending(&target.kb, Some("evolve"), edited.as_bytes())
+        .map_err(|e| e.to_string())
+        .and_then(|pending| {
+            let tmp = pending.temporary();
+            let lenient = tools::check_report(tmp, ReadMode::Lenient).map_err(|e| e.to_string())?;
             if lenient.has_errors() {
                 return Err(format!("the edited knowledge base has errors:\n{lenient}"));
             }
@@ -631,17 +614,16 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, S
                 .unwrap_or(false);
             if was_strict {
                 let strict =
-                    tools::check_report(&tmp, ReadMode::Strict).map_err(|e| e.to_string())?;
+                    tools::check_report(tmp, ReadMode::Strict).map_err(|e| e.to_string())?;
                 if strict.has_errors() {
                     return Err(format!(
                         "the edited knowledge base fails the strict check:\n{strict}"
                     ));
                 }
             }
-            std::fs::rename(&tmp, &target.kb).map_err(|e| format!("{kb_file}: {e}"))
+            pending.commit().map_err(|e| format!("{kb_file}: {e}"))
         });
     if let Err(e) = checked {
-        let _ = std::fs::remove_file(&tmp);
         undo(&made);
         return Err(e);
     }

@@ -4,11 +4,10 @@
 
 pub mod citygml;
 pub mod cityjson;
-#[cfg(target_os = "linux")]
-mod direct;
 #[cfg(test)]
 pub(crate) mod fixtures;
 mod format;
+mod glb;
 pub mod gltf;
 pub(crate) mod ids;
 pub mod ifc;
@@ -18,14 +17,14 @@ pub mod preview;
 pub mod step;
 pub mod tiles3d;
 
-use std::fs::File;
-use std::io::{self, BufWriter};
-use std::path::{Path, PathBuf};
+use std::io;
 
 use glam::DVec3;
 use thiserror::Error;
 
 use crate::crs::Crs;
+pub(crate) use crate::fsio::scratch_beside;
+pub use crate::fsio::{AtomicFile, PendingFile, StreamSink};
 use crate::model::{Building, Lod};
 
 /// What every writer needs to know about the run, given once before the first building.
@@ -148,307 +147,9 @@ pub trait BuildingWriter: Send {
     fn finish(&mut self) -> Result<(), ExportError>;
 }
 
-/// A scratch file beside `target` (in its folder, so on the output's disk rather than a possibly
-/// small temporary file system), named `.{file name}.{pid}.{tag}.tmp`, open for reading and
-/// writing. It is unlinked at once where the system allows (Unix: only the handle keeps it);
-/// otherwise its path is returned, for the caller to remove when done.
-pub(crate) fn scratch_beside(target: &Path, tag: &str) -> io::Result<(File, Option<PathBuf>)> {
-    let dir = target
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = target
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let path = dir.join(format!(".{name}.{}.{tag}.tmp", std::process::id()));
-    let file = File::options()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .open(&path)?;
-    let left = std::fs::remove_file(&path).is_err().then_some(path);
-    Ok((file, left))
-}
-
-/// A file written atomically: bytes go to a temporary file beside the target, which is renamed
-/// over the target by [`AtomicFile::commit`]. Dropped without commit, the temporary is removed and
-/// the target is untouched, so a failed or killed run never leaves a half-written output.
-pub struct AtomicFile {
-    target: PathBuf,
-    tmp: PathBuf,
-    file: File,
-    committed: bool,
-}
-
-impl AtomicFile {
-    /// Creates the temporary file in the target's folder, creating the folder if needed.
-    pub fn create(target: &Path) -> io::Result<AtomicFile> {
-        let tmp = temporary_of(target)?;
-        let file = File::create(&tmp)?;
-        Ok(AtomicFile {
-            target: target.to_path_buf(),
-            tmp,
-            file,
-            committed: false,
-        })
-    }
-
-    /// The temporary file itself (another handle on it), unbuffered.
-    pub fn file(&self) -> io::Result<File> {
-        self.file.try_clone()
-    }
-
-    /// A writer of the temporary file for a large output: on Linux it writes past the page cache
-    /// from a background thread (`O_DIRECT`, see `export::direct`), elsewhere it is the file
-    /// itself. Write through a `BufWriter` or in large pieces. Drop the writer, then call
-    /// [`StreamSink::finish`] before [`AtomicFile::close`]: only then are the bytes complete.
-    pub fn stream(&self) -> io::Result<(Box<dyn io::Write + Send>, StreamSink)> {
-        #[cfg(target_os = "linux")]
-        {
-            let (w, sink) = direct::open(&self.tmp)?;
-            Ok((Box::new(w), StreamSink(Some(sink))))
-        }
-        #[cfg(not(target_os = "linux"))]
-        {
-            Ok((Box::new(self.file()?), StreamSink(None)))
-        }
-    }
-
-    /// A buffered writer on the temporary file. Flush it before [`AtomicFile::commit`].
-    pub fn writer(&self) -> io::Result<BufWriter<File>> {
-        Ok(BufWriter::with_capacity(1 << 20, self.file.try_clone()?))
-    }
-
-    /// Syncs the temporary file and renames it over the target.
-    pub fn commit(self) -> io::Result<()> {
-        self.close()?.commit()
-    }
-
-    /// Syncs and closes the temporary file without renaming it yet, so that a run writing many
-    /// files (tiles) can publish them all at the end without holding a descriptor per file.
-    pub fn close(mut self) -> io::Result<PendingFile> {
-        self.file.sync_all()?;
-        // Hand the temporary over: this AtomicFile must not delete it when dropped.
-        self.committed = true;
-        Ok(PendingFile {
-            target: std::mem::take(&mut self.target),
-            tmp: std::mem::take(&mut self.tmp),
-            committed: false,
-        })
-    }
-}
-
-/// The completion of an [`AtomicFile::stream`] writer.
-pub struct StreamSink(
-    #[cfg(target_os = "linux")] Option<direct::DirectSink>,
-    #[cfg(not(target_os = "linux"))] Option<()>,
-);
-
-impl StreamSink {
-    /// Waits until every byte given to the (dropped) writer is in the file; returns the first
-    /// error of any write.
-    pub fn finish(self) -> io::Result<()> {
-        #[cfg(target_os = "linux")]
-        if let Some(s) = self.0 {
-            return s.finish();
-        }
-        Ok(())
-    }
-}
-
-/// The temporary `.{name}.{pid}.tmp` beside `target` ([`AtomicFile`], [`PendingFile::link`]),
-/// its folder created if needed and dead runs' temporaries of that name removed.
-fn temporary_of(target: &Path) -> io::Result<PathBuf> {
-    let dir = target
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir)?;
-    let name = target
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    remove_stale_temporaries(dir, &name);
-    Ok(dir.join(format!(".{name}.{}.tmp", std::process::id())))
-}
-
-/// Removes the temporaries `.{name}.{pid}.tmp` that killed runs left beside a target: those
-/// whose process is gone (on Linux, no `/proc/{pid}`). Elsewhere, where liveness cannot be
-/// told, nothing is removed. Best effort: errors are ignored.
-///
-/// Each folder is listed once per process (a tiled run creates thousands of files in one
-/// folder: listing it for each was quadratic), and what it held of dead runs is kept by name
-/// until a file of that name is created.
-fn remove_stale_temporaries(dir: &Path, name: &str) {
-    use std::collections::HashMap;
-    use std::sync::{Mutex, OnceLock};
-    type Stale = HashMap<String, Vec<PathBuf>>;
-    static SEEN: OnceLock<Mutex<HashMap<PathBuf, Stale>>> = OnceLock::new();
-    if !Path::new("/proc/self").exists() {
-        return;
-    }
-    let key = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let stale = {
-        let mut seen = SEEN
-            .get_or_init(Default::default)
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        seen.entry(key)
-            .or_insert_with(|| stale_temporaries(dir))
-            .remove(name)
-    };
-    for p in stale.into_iter().flatten() {
-        let _ = std::fs::remove_file(p);
-    }
-}
-
-/// The temporaries `.{name}.{pid}.tmp` in `dir` of processes that are gone, by name.
-fn stale_temporaries(dir: &Path) -> std::collections::HashMap<String, Vec<PathBuf>> {
-    let mut out: std::collections::HashMap<String, Vec<PathBuf>> = Default::default();
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return out;
-    };
-    for e in entries.flatten() {
-        let file = e.file_name();
-        let Some((name, pid)) = file
-            .to_str()
-            .and_then(|f| f.strip_prefix('.'))
-            .and_then(|f| f.strip_suffix(".tmp"))
-            .and_then(|f| f.rsplit_once('.'))
-            .and_then(|(n, p)| Some((n, p.parse::<u32>().ok()?)))
-        else {
-            continue;
-        };
-        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
-            out.entry(name.to_string()).or_default().push(e.path());
-        }
-    }
-    out
-}
-
-/// A complete, closed temporary file waiting to be renamed over its target
-/// ([`AtomicFile::close`]). Dropped without commit, the temporary is removed.
-pub struct PendingFile {
-    target: PathBuf,
-    tmp: PathBuf,
-    committed: bool,
-}
-
-impl PendingFile {
-    /// A hard link to `src` as the temporary of `target` (in its folder, created if needed):
-    /// renamed over `target` on commit, it publishes `src`'s bytes without copying them.
-    /// Fails where `src` and `target` are on two file systems or links are not supported.
-    pub fn link(src: &Path, target: &Path) -> io::Result<PendingFile> {
-        let tmp = temporary_of(target)?;
-        // A temporary of ours left by an earlier attempt in this process.
-        let _ = std::fs::remove_file(&tmp);
-        std::fs::hard_link(src, &tmp)?;
-        Ok(PendingFile {
-            target: target.to_path_buf(),
-            tmp,
-            committed: false,
-        })
-    }
-
-    /// Renames the temporary over the target.
-    pub fn commit(mut self) -> io::Result<()> {
-        std::fs::rename(&self.tmp, &self.target)?;
-        self.committed = true;
-        Ok(())
-    }
-}
-
-impl Drop for PendingFile {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
-}
-
-impl Drop for AtomicFile {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write;
-
-    #[test]
-    fn temporaries_of_dead_runs_are_removed_and_others_kept() {
-        let dir = tempfile::tempdir().unwrap();
-        let target = dir.path().join("out.gml");
-        // Above Linux's largest pid (2^22), so never a live process.
-        let dead = dir.path().join(".out.gml.4194305.tmp");
-        let alive = dir
-            .path()
-            .join(format!(".out.gml.{}.tmp.keep", std::process::id()));
-        let other = dir.path().join(".other.gml.4194305.tmp");
-        for p in [&dead, &alive, &other] {
-            std::fs::write(p, b"x").unwrap();
-        }
-        let f = AtomicFile::create(&target).unwrap();
-        f.commit().unwrap();
-        assert!(!dead.exists() || !Path::new("/proc/self").exists());
-        assert!(alive.exists() && other.exists());
-    }
-
-    #[test]
-    fn closed_file_is_published_only_on_commit_and_removed_when_dropped() {
-        let dir = tempfile::tempdir().unwrap();
-        let target = dir.path().join("tile.gml");
-        std::fs::write(&target, b"old").unwrap();
-        let write = |bytes: &[u8]| {
-            let f = AtomicFile::create(&target).unwrap();
-            let mut w = f.writer().unwrap();
-            w.write_all(bytes).unwrap();
-            w.flush().unwrap();
-            drop(w);
-            f.close().unwrap()
-        };
-        drop(write(b"abandoned"));
-        assert_eq!(std::fs::read(&target).unwrap(), b"old");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-        let pending = write(b"new");
-        assert_eq!(std::fs::read(&target).unwrap(), b"old", "not before commit");
-        pending.commit().unwrap();
-        assert_eq!(std::fs::read(&target).unwrap(), b"new");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-    }
-
-    #[test]
-    fn atomic_file_replaces_only_on_commit() {
-        let dir = tempfile::tempdir().unwrap();
-        let target = dir.path().join("out.txt");
-        std::fs::write(&target, b"old").unwrap();
-        {
-            let f = AtomicFile::create(&target).unwrap();
-            let mut w = f.writer().unwrap();
-            w.write_all(b"half").unwrap();
-            w.flush().unwrap();
-            // dropped without commit
-        }
-        assert_eq!(std::fs::read(&target).unwrap(), b"old");
-        assert_eq!(
-            std::fs::read_dir(dir.path()).unwrap().count(),
-            1,
-            "temporary left behind"
-        );
-        let f = AtomicFile::create(&target).unwrap();
-        let mut w = f.writer().unwrap();
-        w.write_all(b"new").unwrap();
-        w.flush().unwrap();
-        f.commit().unwrap();
-        assert_eq!(std::fs::read(&target).unwrap(), b"new");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-    }
 
     /// Several batches of buildings, LOD4 and LOD3 alike, for the `write_all` checks.
     fn many_buildings() -> Vec<Building> {

@@ -266,7 +266,7 @@ fn neighbours(lots: &[Lot], margin: f64) -> Vec<Vec<usize>> {
 
 /// Lower-case hex of a key.
 pub fn key_hex(k: &Key) -> String {
-    shard::hex(k)
+    crate::fsio::hex(k)
 }
 
 /// Yesterday's run, read from its manifests.
@@ -413,10 +413,8 @@ fn matches(src: &Path, n: u64, got: &str, bytes: u64, sha256: &str) -> Result<()
 
 /// Reads `src` through and checks its size and SHA-256 ([`matches`]).
 fn check_file(src: &Path, bytes: u64, sha256: &str) -> Result<(), String> {
-    let mut input = std::fs::File::open(src).map_err(|e| format!("{}: {e}", src.display()))?;
-    let mut h = Sha256::new();
-    let n = std::io::copy(&mut input, &mut h).map_err(|e| format!("{}: {e}", src.display()))?;
-    matches(src, n, &shard::hex(&h.finalize()), bytes, sha256)
+    let (n, got) = crate::fsio::file_sha256(src).map_err(|e| format!("{}: {e}", src.display()))?;
+    matches(src, n, &got, bytes, sha256)
 }
 
 /// Copies `src` to a temporary beside `dst`, checking that it has `bytes` bytes and SHA-256
@@ -430,7 +428,7 @@ pub fn copy_checked(
     bytes: u64,
     sha256: &str,
     link: bool,
-) -> Result<Option<crate::export::PendingFile>, String> {
+) -> Result<Option<crate::fsio::PendingFile>, String> {
     let same = match (
         std::fs::canonicalize(src),
         dst.parent().map(std::fs::canonicalize),
@@ -440,7 +438,7 @@ pub fn copy_checked(
     };
     if link && !same {
         check_file(src, bytes, sha256)?;
-        if let Ok(p) = crate::export::PendingFile::link(src, dst) {
+        if let Ok(p) = crate::fsio::PendingFile::link(src, dst) {
             return Ok(Some(p));
         }
     }
@@ -448,10 +446,7 @@ pub fn copy_checked(
     let mut out = if same {
         None
     } else {
-        Some(
-            crate::export::AtomicFile::create(dst)
-                .map_err(|e| format!("{}: {e}", dst.display()))?,
-        )
+        Some(crate::fsio::AtomicFile::create(dst).map_err(|e| format!("{}: {e}", dst.display()))?)
     };
     let mut writer = match &out {
         Some(f) => Some(f.writer().map_err(|e| format!("{}: {e}", dst.display()))?),
@@ -474,7 +469,7 @@ pub fn copy_checked(
                 .map_err(|e| format!("{}: {e}", dst.display()))?;
         }
     }
-    matches(src, n, &shard::hex(&h.finalize()), bytes, sha256)?;
+    matches(src, n, &crate::fsio::hex(&h.finalize()), bytes, sha256)?;
     if let Some(mut w) = writer {
         w.flush().map_err(|e| format!("{}: {e}", dst.display()))?;
     }

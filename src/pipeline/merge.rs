@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::shard::{self, Manifest};
 use super::{render_json, RunError};
-use crate::export::{AtomicFile, PendingFile};
+use crate::fsio::{AtomicFile, PendingFile};
 use crate::report::{Entry, Outcome, Report};
 
 /// What `citygen merge` is asked to do.

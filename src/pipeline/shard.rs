@@ -19,12 +19,11 @@
 //! order, so that the merged report holds every entry once.
 
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
+pub use crate::fsio::hex;
 use crate::report::Entry;
 
 /// The manifest's `format` value; a merge refuses any other.
@@ -373,37 +372,16 @@ pub struct ShardReport {
     pub notes: Vec<Entry>,
 }
 
-/// Lower-case hex of a digest's bytes.
-pub fn hex(bytes: &[u8]) -> String {
-    use std::fmt::Write;
-    let mut s = String::with_capacity(bytes.len() * 2);
-    for b in bytes {
-        let _ = write!(s, "{b:02x}");
-    }
-    s
-}
-
-/// The [`FileKey`] of a file: its name, size and SHA-256, read in 1 MiB blocks.
+/// The [`FileKey`] of a file: its name, size and SHA-256 ([`crate::fsio::file_sha256`]).
 pub fn file_key(path: &Path) -> std::io::Result<FileKey> {
-    let mut f = std::fs::File::open(path)?;
-    let mut h = Sha256::new();
-    let mut buf = vec![0u8; 1 << 20];
-    let mut bytes = 0u64;
-    loop {
-        let n = f.read(&mut buf)?;
-        if n == 0 {
-            break;
-        }
-        h.update(&buf[..n]);
-        bytes += n as u64;
-    }
+    let (bytes, sha256) = crate::fsio::file_sha256(path)?;
     Ok(FileKey {
         name: path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default(),
         bytes,
-        sha256: hex(&h.finalize()),
+        sha256,
     })
 }
 

@@ -25,6 +25,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("rng", &[]),
     ("crs", &[]),
     ("geometry", &[]),
+    ("fsio", &[]),
     // The semantic building model every writer consumes, and the run's report.
     ("model", &["geometry", "color"]),
     ("report", &["model"]),
@@ -45,7 +46,10 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     // Rules written by a genetic search (`citygen evolve`).
-    ("evolve", &["grammar", "kb", "rng", "geometry", "color"]),
+    (
+        "evolve",
+        &["grammar", "kb", "rng", "geometry", "color", "fsio"],
+    ),
     // One lot to one building.
     (
         "derive",
@@ -55,13 +59,16 @@ const LAYERS: &[(&str, &[&str])] = &[
         ],
     ),
     // Writers see only the model (and the ground floor).
-    ("export", &["model", "geometry", "color", "crs", "guard"]),
+    (
+        "export",
+        &["model", "geometry", "color", "crs", "guard", "fsio"],
+    ),
     // The run, and the test kit (feature `testkit`) that builds inputs for tests and benches.
     (
         "pipeline",
         &[
             "derive", "export", "kb", "grammar", "selex", "prepare", "input", "model", "report",
-            "rng", "geometry", "crs", "color", "guard",
+            "rng", "geometry", "crs", "color", "guard", "fsio",
         ],
     ),
     (
@@ -73,7 +80,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         "editor",
         &[
             "pipeline", "derive", "export", "kb", "grammar", "selex", "prepare", "input", "model",
-            "report", "rng", "geometry", "crs", "color", "guard",
+            "report", "rng", "geometry", "crs", "color", "guard", "fsio",
         ],
     ),
     // The command line (`citygen`'s arguments, commands and exit codes): the top floor.

@@ -6,7 +6,7 @@
 
 use std::io::Write;
 
-use crate::color::Color;
+use crate::color::{srgb_to_linear, Color};
 
 use super::json::{MaterialRec, Pbr};
 use super::{GltfWriter, SurfaceClass, GLASS_METALLIC, GLASS_ROUGHNESS, GLASS_SHADE, ROUGHNESS};
@@ -100,13 +100,4 @@ pub(super) fn sanitize(c: Color) -> Color {
 pub(super) fn color_key(c: Color) -> [u32; 4] {
     let c = sanitize(c);
     [c.r.to_bits(), c.g.to_bits(), c.b.to_bits(), c.a.to_bits()]
-}
-
-/// sRGB transfer function inverse (IEC 61966-2-1): glTF colour factors are linear.
-pub(crate) fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }

@@ -68,7 +68,7 @@ use spool::Spool;
 // What the 3D Tiles writer (`export::tiles3d`) shares: the faces of a building grouped and
 // triangulated, and how a colour and finish become a PBR material.
 pub(crate) use group::{group, Group};
-pub(crate) use materials::{finish_params, srgb_to_linear, Finish};
+pub(crate) use materials::{finish_params, Finish};
 pub(crate) use mesh::building_groups;
 
 mod contact;
@@ -78,15 +78,6 @@ mod lod4;
 mod materials;
 mod mesh;
 mod spool;
-
-/// GLB magic `glTF`, little-endian.
-const GLB_MAGIC: u32 = 0x4654_6C67;
-
-/// Chunk type `JSON`.
-const CHUNK_JSON: u32 = 0x4E4F_534A;
-
-/// Chunk type `BIN\0`.
-const CHUNK_BIN: u32 = 0x004E_4942;
 
 /// glTF component types.
 const FLOAT: u32 = 5126;
@@ -287,12 +278,12 @@ impl<W: Write + Send> GltfWriter<W> {
     /// possibly small temporary file system. The scratch file is deleted when the writer is
     /// dropped (on Unix it is unlinked at once and only the open handle keeps it).
     pub fn beside(out: W, target: &Path) -> io::Result<GltfWriter<W>> {
-        let (file, left) = crate::export::scratch_beside(target, "bin")?;
+        let (file, left) = crate::fsio::scratch_beside(target, "bin")?;
         let mut w = GltfWriter::new(out, file);
         // Unlinking an open file works on Unix; elsewhere it is removed on drop.
         w.scratch_guard.0.extend(left);
         for (i, array) in ["nodes", "meshes", "accessors", "views"].iter().enumerate() {
-            let (file, left) = crate::export::scratch_beside(target, array)?;
+            let (file, left) = crate::fsio::scratch_beside(target, array)?;
             w.scratch_guard.0.extend(left);
             w.spools[i] = Spool::File {
                 w: BufWriter::with_capacity(1 << 18, file),

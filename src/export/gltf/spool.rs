@@ -6,6 +6,7 @@ use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
 
 use serde::Serialize;
 
+use crate::export::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GLB_VERSION};
 use crate::export::ExportError;
 use crate::model::Building;
 
@@ -15,10 +16,7 @@ use super::json::{
 };
 use super::json::{ACCESSORS, MESHES, NODES, VIEWS};
 use super::mesh::{Encoded, PrimLayout};
-use super::{
-    GltfWriter, State, ARRAY_BUFFER, CHUNK_BIN, CHUNK_JSON, ELEMENT_ARRAY_BUFFER, FLOAT, GLB_MAGIC,
-    VEC3_STRIDE,
-};
+use super::{GltfWriter, State, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, VEC3_STRIDE};
 
 /// The serialised records of one JSON array, comma-separated, without the brackets.
 pub(super) enum Spool {
@@ -355,7 +353,7 @@ impl<W: Write + Send> GltfWriter<W> {
 
         let mut w = BufWriter::with_capacity(1 << 20, &mut self.out);
         w.write_all(&GLB_MAGIC.to_le_bytes())?;
-        w.write_all(&2u32.to_le_bytes())?;
+        w.write_all(&GLB_VERSION.to_le_bytes())?;
         w.write_all(&total32.to_le_bytes())?;
         w.write_all(&(json_padded as u32).to_le_bytes())?;
         w.write_all(&CHUNK_JSON.to_le_bytes())?;

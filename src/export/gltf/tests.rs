@@ -1,7 +1,7 @@
 use glam::{DVec2, DVec3};
 
-use super::materials::srgb_to_linear;
 use super::*;
+use crate::color::srgb_to_linear;
 use crate::export::lod3geom::{balcony_faces, samples};
 use crate::export::lod4geom;
 use crate::geometry::Polygon;

@@ -25,6 +25,8 @@ use serde_json::Value;
 use thiserror::Error;
 
 use super::raster::linear_to_srgb;
+use crate::color::srgb_u8_to_linear;
+use crate::export::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GLB_VERSION};
 
 /// The most vertices [`glb_triangles`] returns (instanced meshes counted each time): past it,
 /// an error rather than memory without bound.
@@ -134,11 +136,11 @@ fn chunks(glb: &[u8]) -> Result<(&[u8], &[u8]), GlbError> {
             .and_then(|s| s.try_into().ok())
             .map(u32::from_le_bytes)
     };
-    if glb.get(0..4) != Some(b"glTF") {
+    if u32_at(0) != Some(GLB_MAGIC) {
         return err("not a GLB file (no glTF magic)");
     }
     match u32_at(4) {
-        Some(2) => {}
+        Some(GLB_VERSION) => {}
         Some(v) => return err(format!("version {v}, not 2")),
         None => return err("truncated header"),
     }
@@ -162,8 +164,8 @@ fn chunks(glb: &[u8]) -> Result<(&[u8], &[u8]), GlbError> {
             .filter(|&e| e <= glb.len())
             .ok_or_else(|| GlbError(format!("the chunk at byte {at} runs past the file")))?;
         match kind {
-            0x4E4F_534A if json.is_none() && at == 12 => json = Some(&glb[start..end]),
-            0x004E_4942 if bin.is_none() && json.is_some() => bin = Some(&glb[start..end]),
+            CHUNK_JSON if json.is_none() && at == 12 => json = Some(&glb[start..end]),
+            CHUNK_BIN if bin.is_none() && json.is_some() => bin = Some(&glb[start..end]),
             // Other chunks are skipped, as glTF asks.
             _ if at > 12 => {}
             _ => return err("the first chunk is not JSON"),
@@ -366,7 +368,7 @@ impl<'a> Gltf<'a> {
                     ));
                 }
                 // Vertex colours are linear, times the material's (white here).
-                let tint: [f32; 3] = std::array::from_fn(|k| srgb_to_linear_u8(color[k]));
+                let tint: [f32; 3] = std::array::from_fn(|k| srgb_u8_to_linear(color[k]));
                 let cols = (0..acc.count)
                     .map(|i| {
                         let mut c = [0u8; 3];
@@ -554,16 +556,6 @@ impl Accessor<'_> {
                 .map(u32::from_le_bytes),
             _ => None,
         }
-    }
-}
-
-/// An 8-bit sRGB component as linear 0 to 1.
-fn srgb_to_linear_u8(c: u8) -> f32 {
-    let c = f32::from(c) / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 

@@ -16,6 +16,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Image, Scene, View, MAX_SAMPLES, MAX_SIDE};
+use crate::color::srgb_u8_to_linear;
 
 /// Where the sunlight comes from, relative to the camera: its bearing is the view's plus
 /// `SUN_TURN` degrees (240: behind the camera, on its left), and its height above the horizon.
@@ -398,7 +399,7 @@ impl Light {
         // The side facing the camera is the one seen.
         let n = if n.dot(self.forward) > 0.0 { -n } else { n };
         let light = AMBIENT + SKY * (0.5 + 0.5 * n.z) + SUN * n.dot(self.sun).max(0.0);
-        base.map(|c| linear_to_srgb(srgb_to_linear(c) * light))
+        base.map(|c| linear_to_srgb(linear_of(c) * light))
     }
 }
 
@@ -517,7 +518,7 @@ fn resolve(frame: &Frame, depth: &[f32], color: &[[u8; 3]]) -> Image {
             0.0
         };
         let sky: [f32; 3] = std::array::from_fn(|k| {
-            srgb_to_linear(SKY_TOP[k]) * (1.0 - t) + srgb_to_linear(SKY_BOTTOM[k]) * t
+            linear_of(SKY_TOP[k]) * (1.0 - t) + linear_of(SKY_BOTTOM[k]) * t
         });
         for x in 0..w {
             let mut sum = [0f32; 3];
@@ -526,7 +527,7 @@ fn resolve(frame: &Frame, depth: &[f32], color: &[[u8; 3]]) -> Image {
                     let i = sy * sw + sx;
                     if depth[i].is_finite() {
                         for k in 0..3 {
-                            sum[k] += srgb_to_linear(color[i][k]);
+                            sum[k] += linear_of(color[i][k]);
                         }
                     } else {
                         for k in 0..3 {
@@ -548,19 +549,10 @@ fn resolve(frame: &Frame, depth: &[f32], color: &[[u8; 3]]) -> Image {
     }
 }
 
-/// An 8-bit sRGB value as linear light, 0..=1 (IEC 61966-2-1).
-fn srgb_to_linear(c: u8) -> f32 {
+/// An 8-bit sRGB value as linear light, 0..=1 ([`srgb_u8_to_linear`], from a table).
+fn linear_of(c: u8) -> f32 {
     static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
-    TABLE.get_or_init(|| {
-        std::array::from_fn(|i| {
-            let c = i as f32 / 255.0;
-            if c <= 0.04045 {
-                c / 12.92
-            } else {
-                ((c + 0.055) / 1.055).powf(2.4)
-            }
-        })
-    })[usize::from(c)]
+    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_u8_to_linear(i as u8)))[usize::from(c)]
 }
 
 /// Linear light (clamped to 0..=1, NaN as 0) as an 8-bit sRGB value.

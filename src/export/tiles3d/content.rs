@@ -11,8 +11,8 @@
 use glam::DVec3;
 use serde_json::{json, Value};
 
-use crate::color::Color;
-use crate::export::gltf::{finish_params, srgb_to_linear, Finish, Group, SurfaceClass};
+use crate::color::{srgb_to_linear, Color};
+use crate::export::gltf::{finish_params, Finish, Group, SurfaceClass};
 
 use super::frame::{BuildingMap, EnuFrame};
 use super::glb::Bin;

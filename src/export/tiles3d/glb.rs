@@ -5,12 +5,8 @@ use std::io::Write;
 
 use serde_json::{json, Value};
 
+use crate::export::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GLB_VERSION};
 use crate::export::ExportError;
-
-/// GLB magic `glTF`, chunk types `JSON` and `BIN\0`, little-endian.
-const GLB_MAGIC: u32 = 0x4654_6C67;
-const CHUNK_JSON: u32 = 0x4E4F_534A;
-const CHUNK_BIN: u32 = 0x004E_4942;
 
 /// Every buffer view starts at a multiple of this: 4 as glTF asks of vertex data, 8 as
 /// `EXT_structural_metadata` asks of property columns (FLOAT64).
@@ -62,7 +58,7 @@ pub(crate) fn write_glb(out: &mut impl Write, doc: &Value, bin: &[u8]) -> Result
     let total32 = u32::try_from(total).map_err(|_| too_big())?;
     let json_len = u32::try_from(json.len()).map_err(|_| too_big())?;
     let mut head = Vec::with_capacity(20);
-    for v in [GLB_MAGIC, 2, total32, json_len, CHUNK_JSON] {
+    for v in [GLB_MAGIC, GLB_VERSION, total32, json_len, CHUNK_JSON] {
         head.extend_from_slice(&v.to_le_bytes());
     }
     out.write_all(&head)?;

@@ -419,8 +419,7 @@ fn full_content_structure_features_and_metadata() {
         // The walls' colour is there, linear, per vertex.
         let (col, _) = g.accessor(prims[0]["attributes"]["COLOR_0"].as_u64().unwrap());
         let wall = bs[1].parts[0].wall_color;
-        let want =
-            [wall.r, wall.g, wall.b].map(|c| f64::from(crate::export::gltf::srgb_to_linear(c)));
+        let want = [wall.r, wall.g, wall.b].map(|c| f64::from(crate::color::srgb_to_linear(c)));
         assert!(
             col.chunks(4)
                 .any(|c| (0..3).all(|k| (c[k] - want[k]).abs() < 1e-4) && c[3] == 1.0),

@@ -25,7 +25,8 @@ use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
 use crate::crs::wgs84_to_ecef;
-use crate::export::{AtomicFile, ExportError};
+use crate::export::ExportError;
+use crate::fsio::AtomicFile;
 
 use super::blocks::MIN_BLOCKS_ERROR;
 use super::frame::region_union;

@@ -3,7 +3,7 @@
 //!
 //! Pure functions: [`Sample`]s (one per building, from its parsed tags and representative
 //! point) in, the KB text out; reading the input and writing the file are the caller's
-//! (`pipeline::learn_kb`).
+//! (`app::kb::learn_kb`).
 //!
 //! **Grouping.** Either a grid ([`Grouping::Grid`]): rows of `metres` in latitude, each row cut
 //! into columns of `metres` at the row's middle latitude (an equirectangular projection per
