@@ -557,7 +557,7 @@ fn parse_lot(s: &str) -> Result<Polygon, String> {
 }
 
 fn parse_wkt(s: &str) -> Result<Polygon, String> {
-    citygen::input::wkt::parse_polygon(s)
+    citygen::input::wkt::parse_polygon(s).map_err(|e| e.to_string())
 }
 
 fn parse_bbox(s: &str) -> Result<[f64; 4], String> {
@@ -626,7 +626,7 @@ fn evolve_command(args: EvolveArgs) -> ExitCode {
     };
     let test = match test {
         Ok(t) => t,
-        Err(e) => return fail(e),
+        Err(e) => return fail(e.to_string()),
     };
     if args.lot.is_some() && !(args.height.is_finite() && (2.0..=200.0).contains(&args.height)) {
         return fail(format!("--height {}: give 2-200 m", args.height));
@@ -741,7 +741,7 @@ fn evolve_command(args: EvolveArgs) -> ExitCode {
                     eprintln!("    proba {w:.4}: {}", p.display());
                 }
             }
-            Err(e) => return fail(e),
+            Err(e) => return fail(e.to_string()),
         }
     }
     ExitCode::SUCCESS
@@ -1067,7 +1067,7 @@ fn kb_command(cmd: KbCommand) -> ExitCode {
             };
             match citygen::editor::run(&opts) {
                 Ok(()) => ExitCode::SUCCESS,
-                Err(e) => fail(e),
+                Err(e) => fail(e.to_string()),
             }
         }
         KbCommand::Compile { kb, zone } => {

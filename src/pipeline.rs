@@ -305,7 +305,9 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
     if matches!(generator.rules, Rules::Kb) {
-        generator.load_selex().map_err(RunError::Input)?;
+        generator
+            .load_selex()
+            .map_err(|e| RunError::Input(e.to_string()))?;
         for n in generator.load_rulesets() {
             report.add(None, Outcome::Note, n);
         }
@@ -1959,7 +1961,7 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
             };
             match crate::guard::caught(what, || w.write_checked(&checked)) {
                 Ok(written) => written.map_err(out_err(path)),
-                Err(e) => Err(out_err(path)(ExportError::Invalid(e))),
+                Err(e) => Err(out_err(path)(ExportError::Invalid(e.to_string()))),
             }
         })
         .collect();

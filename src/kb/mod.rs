@@ -31,7 +31,7 @@ use crate::model::RoofShape;
 use crate::rng::Rng;
 
 pub use crate::model::Inference;
-pub use polygon::ZonePolygon;
+pub use polygon::{PolygonError, ZonePolygon};
 pub use values::{
     Appearance, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, ZoneKind,
 };
