@@ -269,7 +269,8 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             ))
         }
         Some(d) => {
-            let mut prev = incremental::load_previous(d).map_err(RunError::Input)?;
+            let mut prev =
+                incremental::load_previous(d).map_err(|e| RunError::Input(e.to_string()))?;
             prev.link = opts.link_previous;
             Some(prev)
         }
