@@ -3,19 +3,26 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-/// Runs `f`; a panic inside it becomes `Err` with the message
+/// A panic caught by [`caught`]: what was being done and the panic's message. It reads
 /// "internal error while {what}: {panic message} (a citygen bug: please report it)".
-/// `what` is built only when a panic happened.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("internal error while {what}: {message} (a citygen bug: please report it)")]
+pub struct Panicked {
+    /// What was being done, e.g. "deriving the building".
+    pub what: String,
+    /// The text the panic was raised with ("no message" when it had none).
+    pub message: String,
+}
+
+/// Runs `f`; a panic inside it becomes a [`Panicked`] error. `what` is built only when a panic
+/// happened.
 pub fn caught<T, W: std::fmt::Display>(
     what: impl FnOnce() -> W,
     f: impl FnOnce() -> T,
-) -> Result<T, String> {
-    catch_unwind(AssertUnwindSafe(f)).map_err(|payload| {
-        format!(
-            "internal error while {}: {} (a citygen bug: please report it)",
-            what(),
-            panic_message(payload.as_ref())
-        )
+) -> Result<T, Panicked> {
+    catch_unwind(AssertUnwindSafe(f)).map_err(|payload| Panicked {
+        what: what().to_string(),
+        message: panic_message(payload.as_ref()),
     })
 }
 
@@ -34,17 +41,18 @@ mod tests {
 
     #[test]
     fn a_panic_becomes_an_error_naming_what_was_done_and_the_message() {
-        let r: Result<(), String> = caught(|| "deriving the building", || panic!("ring {} bad", 7));
-        let e = r.unwrap_err();
+        let r: Result<(), Panicked> =
+            caught(|| "deriving the building", || panic!("ring {} bad", 7));
+        let e = r.unwrap_err().to_string();
         assert!(
             e.starts_with("internal error while deriving the building: ring 7 bad"),
             "{e}"
         );
         assert!(e.ends_with("(a citygen bug: please report it)"), "{e}");
-        let r: Result<(), String> = caught(|| "x", || panic!("static text"));
-        assert!(r.unwrap_err().contains(": static text ("));
-        let r: Result<(), String> = caught(|| "x", || std::panic::panic_any(42_u8));
-        assert!(r.unwrap_err().contains(": no message ("));
+        let r: Result<(), Panicked> = caught(|| "x", || panic!("static text"));
+        assert!(r.unwrap_err().to_string().contains(": static text ("));
+        let r: Result<(), Panicked> = caught(|| "x", || std::panic::panic_any(42_u8));
+        assert!(r.unwrap_err().to_string().contains(": no message ("));
     }
 
     #[test]

@@ -812,7 +812,7 @@ impl Building {
     /// building and what is not finite, e.g. `building way/1: a coordinate of wall 2 of part p0
     /// is not finite`. Every writer calls it before writing anything of a building, so that a
     /// refused building leaves nothing half-written.
-    pub fn check_finite(&self) -> Result<(), String> {
+    pub fn check_finite(&self) -> Result<(), NotFinite> {
         if self.all_finite() {
             return Ok(());
         }
@@ -897,27 +897,36 @@ impl Building {
         d.0
     }
 
-    /// The message of [`Building::check_finite`] for a building that is not all finite.
-    fn find_non_finite(&self) -> Result<(), String> {
-        let bad = |what: String| Err(format!("building {}: {what} is not finite", self.id));
+    /// The error of [`Building::check_finite`] for a building that is not all finite.
+    fn find_non_finite(&self) -> Result<(), NotFinite> {
+        let building = self.id;
         let f2 = |p: &DVec2| p.is_finite();
         let f3 = |p: &DVec3| p.is_finite();
         let face_ok = |f: &Face| f.outer.iter().all(f3) && f.holes.iter().flatten().all(f3);
         if !(self.base_z.is_finite() && self.measured_height.is_finite()) {
-            return bad("the base or measured height".into());
+            return Err(NotFinite::Heights { building });
         }
         for p in &self.parts {
-            let pk = &p.key;
+            let part = || p.key.clone();
             if !(p.base_z.is_finite() && p.eave_z.is_finite() && p.top_z.is_finite()) {
-                return bad(format!("the height of part {pk}"));
+                return Err(NotFinite::PartHeight {
+                    building,
+                    part: part(),
+                });
             }
             if !p.footprint.rings().flatten().all(f2) {
-                return bad(format!("a footprint coordinate of part {pk}"));
+                return Err(NotFinite::Footprint {
+                    building,
+                    part: part(),
+                });
             }
             if !face_ok(&p.ground) {
-                return bad(format!("a ground coordinate of part {pk}"));
+                return Err(NotFinite::Ground {
+                    building,
+                    part: part(),
+                });
             }
-            for (i, w) in p.walls.iter().enumerate() {
+            for (wall, w) in p.walls.iter().enumerate() {
                 let ok = f2(&w.start)
                     && f2(&w.end)
                     && w.base_z.is_finite()
@@ -925,23 +934,111 @@ impl Building {
                     && w.thickness.is_finite()
                     && face_ok(&w.outline);
                 if !ok {
-                    return bad(format!("a coordinate of wall {i} of part {pk}"));
+                    return Err(NotFinite::Wall {
+                        building,
+                        part: part(),
+                        wall,
+                    });
                 }
                 let openings = w.openings.iter().flat_map(|o| [o.u0, o.u1, o.z0, o.z1]);
                 let balconies = w.balconies.iter().flat_map(|b| [b.u0, b.u1, b.z, b.depth]);
                 if !openings.chain(balconies).all(f64::is_finite) {
-                    return bad(format!("an opening or balcony of wall {i} of part {pk}"));
+                    return Err(NotFinite::OpeningOrBalcony {
+                        building,
+                        part: part(),
+                        wall,
+                    });
                 }
             }
             if !p.levels.iter().all(|z| z.is_finite()) {
-                return bad(format!("a storey level of part {pk}"));
+                return Err(NotFinite::Level {
+                    building,
+                    part: part(),
+                });
             }
             if !p.roof.iter().all(face_ok) {
-                return bad(format!("a roof coordinate of part {pk}"));
+                return Err(NotFinite::Roof {
+                    building,
+                    part: part(),
+                });
             }
         }
         Ok(())
     }
+}
+
+/// Why [`Building::check_finite`] refuses a building: what of it is not finite (the first
+/// found), with the building's id and the part's key (and the wall's index).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum NotFinite {
+    /// Its base or measured height.
+    #[error("building {building}: the base or measured height is not finite")]
+    Heights {
+        /// The building.
+        building: SourceId,
+    },
+    /// A height of a part.
+    #[error("building {building}: the height of part {part} is not finite")]
+    PartHeight {
+        /// The building.
+        building: SourceId,
+        /// The part\'s key.
+        part: String,
+    },
+    /// A footprint coordinate of a part.
+    #[error("building {building}: a footprint coordinate of part {part} is not finite")]
+    Footprint {
+        /// The building.
+        building: SourceId,
+        /// The part\'s key.
+        part: String,
+    },
+    /// A ground coordinate of a part.
+    #[error("building {building}: a ground coordinate of part {part} is not finite")]
+    Ground {
+        /// The building.
+        building: SourceId,
+        /// The part\'s key.
+        part: String,
+    },
+    /// An end, height, thickness or outline coordinate of a wall.
+    #[error("building {building}: a coordinate of wall {wall} of part {part} is not finite")]
+    Wall {
+        /// The building.
+        building: SourceId,
+        /// The part's key.
+        part: String,
+        /// The wall's index in the part.
+        wall: usize,
+    },
+    /// An opening or balcony of a wall.
+    #[error(
+        "building {building}: an opening or balcony of wall {wall} of part {part} is not finite"
+    )]
+    OpeningOrBalcony {
+        /// The building.
+        building: SourceId,
+        /// The part's key.
+        part: String,
+        /// The wall's index in the part.
+        wall: usize,
+    },
+    /// A storey level of a part.
+    #[error("building {building}: a storey level of part {part} is not finite")]
+    Level {
+        /// The building.
+        building: SourceId,
+        /// The part\'s key.
+        part: String,
+    },
+    /// A roof coordinate of a part.
+    #[error("building {building}: a roof coordinate of part {part} is not finite")]
+    Roof {
+        /// The building.
+        building: SourceId,
+        /// The part\'s key.
+        part: String,
+    },
 }
 
 /// What [`Building::walk_numbers`] hands each number to.

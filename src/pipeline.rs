@@ -268,7 +268,8 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
             ))
         }
         Some(d) => {
-            let mut prev = incremental::load_previous(d).map_err(RunError::Input)?;
+            let mut prev =
+                incremental::load_previous(d).map_err(|e| RunError::Input(e.to_string()))?;
             prev.link = opts.link_previous;
             Some(prev)
         }
@@ -304,7 +305,9 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     };
     let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
     if matches!(generator.rules, Rules::Kb) {
-        generator.load_selex().map_err(RunError::Input)?;
+        generator
+            .load_selex()
+            .map_err(|e| RunError::Input(e.to_string()))?;
         for n in generator.load_rulesets() {
             report.add(None, Outcome::Note, n);
         }
@@ -1723,7 +1726,7 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
             };
             match crate::guard::caught(what, || w.write_checked(&checked)) {
                 Ok(written) => written.map_err(out_err(path)),
-                Err(e) => Err(out_err(path)(ExportError::Invalid(e))),
+                Err(e) => Err(out_err(path)(ExportError::Invalid(e.to_string()))),
             }
         })
         .collect();

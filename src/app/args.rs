@@ -113,7 +113,7 @@ pub(crate) fn parse_lot(s: &str) -> Result<Polygon, ArgError> {
 }
 
 pub(crate) fn parse_wkt(s: &str) -> Result<Polygon, ArgError> {
-    crate::input::wkt::parse_polygon(s).map_err(ArgError::Wkt)
+    crate::input::wkt::parse_polygon(s).map_err(|e| ArgError::Wkt(e.to_string()))
 }
 
 pub(crate) fn parse_bbox(s: &str) -> Result<[f64; 4], ArgError> {

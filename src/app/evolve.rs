@@ -79,7 +79,7 @@ pub(crate) fn run(args: EvolveArgs) -> Result<Outcome, AppError> {
     };
     let test = match test {
         Ok(t) => t,
-        Err(e) => return fail(e),
+        Err(e) => return fail(e.to_string()),
     };
     if args.lot.is_some() && !(args.height.is_finite() && (2.0..=200.0).contains(&args.height)) {
         return fail(format!("--height {}: give 2-200 m", args.height));
@@ -98,7 +98,7 @@ pub(crate) fn run(args: EvolveArgs) -> Result<Outcome, AppError> {
     let (history, secs) = run::search(&settings);
     let w = match run::write_outputs(&args.out, &settings, &history) {
         Ok(w) => w,
-        Err(e) => return Err(AppError::Output(e)),
+        Err(e) => return Err(AppError::Output(e.to_string())),
     };
     let gens = history.generations.len();
     eprintln!(
@@ -190,7 +190,7 @@ pub(crate) fn run(args: EvolveArgs) -> Result<Outcome, AppError> {
                     eprintln!("    proba {w:.4}: {}", p.display());
                 }
             }
-            Err(e) => return fail(e),
+            Err(e) => return fail(e.to_string()),
         }
     }
     Ok(Outcome::Done)

@@ -162,7 +162,7 @@ pub(crate) fn run(cmd: KbCommand) -> Result<Outcome, AppError> {
                 port,
                 seed,
             };
-            crate::editor::run(&opts).map_err(AppError::Editor)?;
+            crate::editor::run(&opts).map_err(|e| AppError::Editor(e.to_string()))?;
             Ok(Outcome::Done)
         }
         KbCommand::Compile { kb, zone } => {

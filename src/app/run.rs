@@ -205,7 +205,7 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
                     }
                     Some(found)
                 }
-                Err(e) => return Err(AppError::Usage(e)),
+                Err(e) => return Err(AppError::Usage(e.to_string())),
             }
         }
     };

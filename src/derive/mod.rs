@@ -112,7 +112,7 @@ impl Generator {
 
     /// Reads and parses the SELEX programs of the knowledge base ([`selex::load_all`]): an
     /// error names the file and the place.
-    pub fn load_selex(&mut self) -> Result<(), String> {
+    pub fn load_selex(&mut self) -> Result<(), selex::ProgramError> {
         self.selex = selex::load_all(&self.kb)?;
         Ok(())
     }
@@ -198,7 +198,7 @@ impl Generator {
     /// caught and becomes that reason, so it costs one building, not the whole run.
     pub fn generate(&self, lot: &Lot) -> Result<(Building, Vec<Note>), String> {
         crate::guard::caught(|| "deriving the building", || self.derive(lot, self.lod))
-            .unwrap_or_else(Err)
+            .unwrap_or_else(|e| Err(e.to_string()))
     }
 
     /// The building of `lot` at `lod` (the generator's own, or LOD2 for its neighbours).

@@ -26,9 +26,36 @@ use glam::DVec2;
 use crate::derive::facade::{Facades, Level};
 use crate::derive::selex_place::{self, element_on_edge, Placed};
 use crate::geometry::Polygon;
-use crate::kb::KnowledgeBase;
+use crate::kb::{KbError, KnowledgeBase};
 use crate::selex::ast::Program;
-use crate::selex::eval::{facade_specs, run_on_facades, Derivation, ShapeKind};
+use crate::selex::eval::{facade_specs, run_on_facades, Derivation, RunError, ShapeKind};
+use crate::selex::parser::SelexError;
+
+/// Why a SELEX program of the knowledge base was not loaded ([`load_all`], [`load`]) or not
+/// applied to a mass ([`apply`]).
+#[derive(Debug, thiserror::Error)]
+pub enum ProgramError {
+    /// The KB's `<selex file>` is refused (e.g. outside its folder).
+    #[error("{0}")]
+    Path(#[from] KbError),
+    /// The file could not be read.
+    #[error("{file}: {source}")]
+    Read {
+        /// The file, as messages name it.
+        file: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The program does not parse.
+    #[error("{0}")]
+    Parse(#[from] SelexError),
+    /// The mass's facades are not one per footprint edge.
+    #[error("the footprint's edges are not the facades'")]
+    EdgesNotFacades,
+    /// The program stopped with an error on the facades: the message is its first line.
+    #[error("{}", .0.to_string().lines().next().unwrap_or_default())]
+    Run(#[source] RunError),
+}
 
 /// A parsed SELEX program with its text and file name (for messages).
 #[derive(Debug)]
@@ -44,11 +71,11 @@ pub struct SelexProgram {
 /// Reads and parses every SELEX program the knowledge base's appearances name, once each.
 /// An unreadable file, a path outside the KB's folder or a program that does not parse is an
 /// error naming the file (and the place), so a run stops before any work.
-pub fn load_all(kb: &KnowledgeBase) -> Result<HashMap<PathBuf, Arc<SelexProgram>>, String> {
+pub fn load_all(kb: &KnowledgeBase) -> Result<HashMap<PathBuf, Arc<SelexProgram>>, ProgramError> {
     let mut out: HashMap<PathBuf, Arc<SelexProgram>> = HashMap::new();
     for (z, zone) in kb.zones().iter().enumerate() {
         for a in 0..zone.appearances.len() {
-            let Some(path) = kb.selex_path(z, a).map_err(|e| e.to_string())? else {
+            let Some(path) = kb.selex_path(z, a)? else {
                 continue;
             };
             if out.contains_key(&path) {
@@ -62,10 +89,13 @@ pub fn load_all(kb: &KnowledgeBase) -> Result<HashMap<PathBuf, Arc<SelexProgram>
 }
 
 /// Reads and parses one program.
-pub fn load(path: &Path) -> Result<SelexProgram, String> {
+pub fn load(path: &Path) -> Result<SelexProgram, ProgramError> {
     let file = path.display().to_string();
-    let source = crate::grammar::read_source(path).map_err(|e| format!("{file}: {e}"))?;
-    let program = crate::selex::parser::parse(&source, &file).map_err(|e| e.to_string())?;
+    let source = match crate::grammar::read_source(path) {
+        Ok(s) => s,
+        Err(source) => return Err(ProgramError::Read { file, source }),
+    };
+    let program = crate::selex::parser::parse(&source, &file)?;
     Ok(SelexProgram {
         file,
         source,
@@ -122,7 +152,7 @@ pub fn apply(
     base_z: f64,
     front: Option<DVec2>,
     facades: &mut Facades,
-) -> Result<Applied, String> {
+) -> Result<Applied, ProgramError> {
     let storeys: Vec<f64> = facades
         .levels
         .iter()
@@ -133,10 +163,10 @@ pub fn apply(
     let specs = facade_specs(footprint, base, &storeys, front);
     let edges = edges_of(footprint);
     if edges.len() != facades.openings.len() {
-        return Err("the footprint's edges are not the facades'".into());
+        return Err(ProgramError::EdgesNotFacades);
     }
     let d = run_on_facades(&program.program, &program.source, &program.file, &specs)
-        .map_err(|e| e.to_string().lines().next().unwrap_or_default().to_string())?;
+        .map_err(ProgramError::Run)?;
     let mut out = Applied {
         warnings: d
             .warnings

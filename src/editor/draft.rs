@@ -7,9 +7,168 @@ use std::path::{Component, Path, PathBuf};
 use serde::Deserialize;
 use serde_json::{json, Value};
 
-use crate::kb::edit::{self, AppearanceText, CircleText, NewShape, OpeningText};
+use crate::grammar::GrammarError;
+use crate::kb::edit::{self, AppearanceText, CircleText, EditError, NewShape, OpeningText};
 use crate::kb::tools::{self, CheckReport};
-use crate::kb::{write, KbRepair, KnowledgeBase, ReadMode};
+use crate::kb::{write, KbError, KbRepair, KnowledgeBase, ReadMode};
+
+/// Why the draft cannot be opened, an edit is refused, or a save or a ruleset is not written:
+/// the message the page shows.
+#[derive(Debug, thiserror::Error)]
+pub enum DraftError {
+    /// A file cannot be found or read.
+    #[error("{}: {source}", .path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The KB file has no folder.
+    #[error("{}: no folder", .path.display())]
+    NoFolder {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The text does not read (in the draft's mode).
+    #[error(transparent)]
+    Kb(#[from] KbError),
+    /// The text reads but has `kb check` errors: one `file:line: what` line each.
+    #[error("{}", check_errors(.path, .errors))]
+    Check {
+        /// The KB file.
+        path: PathBuf,
+        /// The errors.
+        errors: Vec<KbRepair>,
+    },
+    /// A lenient draft's strict form does not pass the check.
+    #[error("the strict form of the draft does not pass the check: {0}")]
+    StrictForm(Box<DraftError>),
+    /// The file changed on disk since it was opened or saved.
+    #[error("{} changed on disk since it was opened: not overwritten", .path.display())]
+    Changed {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A file could not be written: the message of `write_atomic`, which names it.
+    #[error("{0}")]
+    Write(String),
+    /// An attribute name the editor may not write.
+    #[error("{name:?} is not an attribute name")]
+    AttributeName {
+        /// The name.
+        name: String,
+    },
+    /// A polygon point that is not finite.
+    #[error("a polygon point is not a finite number")]
+    PointNotFinite,
+    /// No zone has this path.
+    #[error("no zone {zone:?} in the draft")]
+    NoZone {
+        /// The path.
+        zone: String,
+    },
+    /// Two zones start on one line: an edit could not tell them apart.
+    #[error(
+        "zones {zone:?} and {other:?} start on line {line}: put them on lines of their own to \
+         edit them"
+    )]
+    SharedLine {
+        /// The zone edited.
+        zone: String,
+        /// The other zone.
+        other: String,
+        /// The line.
+        line: usize,
+    },
+    /// A new zone's name is empty, has a `/` or surrounding spaces.
+    #[error("{designation:?} is not a zone name (not empty, no '/', no surrounding spaces)")]
+    ZoneName {
+        /// The name given.
+        designation: String,
+    },
+    /// A new zone's path is taken.
+    #[error("there is already a zone {zone:?}")]
+    ZoneExists {
+        /// The path.
+        zone: String,
+    },
+    /// A new zone given neither or both of a circle and a polygon.
+    #[error("a new zone needs a circle or a polygon (one)")]
+    Shape,
+    /// The text edit is refused.
+    #[error(transparent)]
+    Edit(#[from] EditError),
+    /// A ruleset's text does not parse.
+    #[error(transparent)]
+    Ruleset(#[from] GrammarError),
+    /// A ruleset path that is empty or absolute.
+    #[error("ruleset {file:?}: give a path relative to the KB's folder")]
+    RulesetNotRelative {
+        /// The path given.
+        file: String,
+    },
+    /// A ruleset path with `..`, `.` or a root.
+    #[error("ruleset {file:?} climbs out of the KB's folder (no '..', '.' or root)")]
+    RulesetClimbs {
+        /// The path given.
+        file: String,
+    },
+    /// A ruleset name not ending in `.cga`.
+    #[error("ruleset {file:?}: the name must end in .cga")]
+    RulesetExtension {
+        /// The path given.
+        file: String,
+    },
+    /// A ruleset path without a folder.
+    #[error("ruleset {file:?}: no folder")]
+    RulesetNoFolder {
+        /// The path given.
+        file: String,
+    },
+    /// A ruleset's folder cannot be resolved.
+    #[error("ruleset {file:?}: its folder: {source}")]
+    RulesetFolder {
+        /// The path given.
+        file: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// A ruleset's folder outside the KB's (through a symlink).
+    #[error("ruleset {file:?}: its folder lies outside the KB's folder (through a symlink)")]
+    RulesetOutside {
+        /// The path given.
+        file: String,
+    },
+    /// A ruleset target that is a symlink.
+    #[error("ruleset {file:?} is a symlink: not written")]
+    RulesetSymlink {
+        /// The path given.
+        file: String,
+    },
+    /// A ruleset target that is not a file.
+    #[error("ruleset {file:?} is not a file")]
+    RulesetNotFile {
+        /// The path given.
+        file: String,
+    },
+}
+
+/// `write_atomic`'s error (a message naming the file).
+impl From<String> for DraftError {
+    fn from(message: String) -> DraftError {
+        DraftError::Write(message)
+    }
+}
+
+/// The message of [`DraftError::Check`]: `file:line: what`, one line each.
+fn check_errors(path: &Path, errors: &[KbRepair]) -> String {
+    let list: Vec<String> = errors
+        .iter()
+        .map(|r| format!("{}:{}: {}", path.display(), r.line, r.what))
+        .collect();
+    list.join("\n")
+}
 
 /// The draft and where it came from.
 pub struct Draft {
@@ -174,7 +333,7 @@ pub enum Edit {
 }
 
 /// An attribute name the editor may write: an XML name of ASCII letters, digits, `_` and `-`.
-fn check_name(name: &str) -> Result<(), String> {
+fn check_name(name: &str) -> Result<(), DraftError> {
     let ok = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
         && name
             .chars()
@@ -182,13 +341,15 @@ fn check_name(name: &str) -> Result<(), String> {
     if ok {
         Ok(())
     } else {
-        Err(format!("{name:?} is not an attribute name"))
+        Err(DraftError::AttributeName {
+            name: name.to_string(),
+        })
     }
 }
 
-fn points(p: &[[f64; 2]]) -> Result<Vec<(f64, f64)>, String> {
+fn points(p: &[[f64; 2]]) -> Result<Vec<(f64, f64)>, DraftError> {
     if p.iter().flatten().any(|x| !x.is_finite()) {
-        return Err("a polygon point is not a finite number".into());
+        return Err(DraftError::PointNotFinite);
     }
     Ok(p.iter().map(|[lon, lat]| (*lon, *lat)).collect())
 }
@@ -212,7 +373,7 @@ impl From<AppearanceJson> for AppearanceText {
     }
 }
 
-fn check_appearance(a: &AppearanceJson) -> Result<(), String> {
+fn check_appearance(a: &AppearanceJson) -> Result<(), DraftError> {
     for (k, _) in &a.values {
         check_name(k)?;
     }
@@ -223,22 +384,25 @@ impl Draft {
     /// Reads the KB at `path`. A file that does not read leniently is an error; one that reads
     /// only leniently is opened with its repairs listed and edits checked leniently; saving
     /// writes it in the strict format ([`Draft::save`]).
-    pub fn open(path: &Path) -> Result<Draft, String> {
-        let resolved =
-            std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    pub fn open(path: &Path) -> Result<Draft, DraftError> {
+        let io = |source| DraftError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let resolved = std::fs::canonicalize(path).map_err(io)?;
         let dir = resolved
             .parent()
             .map(Path::to_path_buf)
-            .ok_or_else(|| format!("{}: no folder", path.display()))?;
-        let text =
-            std::fs::read_to_string(&resolved).map_err(|e| format!("{}: {e}", path.display()))?;
+            .ok_or_else(|| DraftError::NoFolder {
+                path: path.to_path_buf(),
+            })?;
+        let text = std::fs::read_to_string(&resolved).map_err(io)?;
         let (mode, strict_error, repairs) =
             match KnowledgeBase::parse_str_at(&text, &resolved, ReadMode::Strict) {
                 Ok(_) => (ReadMode::Strict, None, Vec::new()),
                 Err(e) => {
                     let (_, repairs) =
-                        KnowledgeBase::parse_str_at(&text, &resolved, ReadMode::Lenient)
-                            .map_err(|e| e.to_string())?;
+                        KnowledgeBase::parse_str_at(&text, &resolved, ReadMode::Lenient)?;
                     (ReadMode::Lenient, Some(e.to_string()), repairs)
                 }
             };
@@ -272,37 +436,39 @@ impl Draft {
     }
 
     /// The draft parsed afresh (for a derivation that takes the KB).
-    pub fn parsed(&self) -> Result<KnowledgeBase, String> {
+    pub fn parsed(&self) -> Result<KnowledgeBase, DraftError> {
         check(&self.text, &self.path, self.mode).map(|(kb, _)| kb)
     }
 
     /// The line of zone `path`'s start tag (text edits find zones by it). Refused when another
     /// zone starts on the same line: an edit could not tell them apart.
-    fn zone_line(&self, path: &str) -> Result<usize, String> {
+    fn zone_line(&self, path: &str) -> Result<usize, DraftError> {
         let line = self
             .kb
             .find(path)
             .and_then(|i| self.kb.zone(i))
             .map(|z| z.line)
-            .ok_or_else(|| format!("no zone {path:?} in the draft"))?;
+            .ok_or_else(|| DraftError::NoZone {
+                zone: path.to_string(),
+            })?;
         if let Some(other) = self
             .kb
             .zones()
             .iter()
             .find(|z| z.line == line && z.path != path)
         {
-            return Err(format!(
-                "zones {path:?} and {:?} start on line {line}: put them on lines of their own to \
-                 edit them",
-                other.path
-            ));
+            return Err(DraftError::SharedLine {
+                zone: path.to_string(),
+                other: other.path.clone(),
+                line,
+            });
         }
         Ok(line)
     }
 
     /// Applies `e` to the draft. The edited text is checked ([`check`]: the strict reader and
     /// `kb check`'s errors); when it fails the draft is unchanged and the message says why.
-    pub fn apply(&mut self, e: Edit) -> Result<(), String> {
+    pub fn apply(&mut self, e: Edit) -> Result<(), DraftError> {
         let t = &self.text;
         let new = match e {
             Edit::AddZone {
@@ -314,18 +480,16 @@ impl Draft {
             } => {
                 let name = designation.trim();
                 if name.is_empty() || name.contains('/') || name != designation {
-                    return Err(format!(
-                        "{designation:?} is not a zone name (not empty, no '/', no surrounding spaces)"
-                    ));
+                    return Err(DraftError::ZoneName { designation });
                 }
                 let full = format!("{parent}/{name}");
                 if self.kb.find(&full).is_some() {
-                    return Err(format!("there is already a zone {full:?}"));
+                    return Err(DraftError::ZoneExists { zone: full });
                 }
                 let shape = match (circle, polygon) {
                     (Some(c), None) => NewShape::Circle(c.into()),
                     (None, Some(p)) => NewShape::Polygon(points(&p)?),
-                    _ => return Err("a new zone needs a circle or a polygon (one)".into()),
+                    _ => return Err(DraftError::Shape),
                 };
                 edit::add_zone(t, self.zone_line(&parent)?, &element, name, &shape)?
             }
@@ -380,7 +544,7 @@ impl Draft {
     /// A draft read leniently is written in the strict format ([`write::to_strict`] of the
     /// draft's model: the lenient reader's repairs applied, comments lost); after the save the
     /// draft is that text, read strictly, and later edits keep its bytes as for any strict KB.
-    pub fn save(&mut self) -> Result<(), String> {
+    pub fn save(&mut self) -> Result<(), DraftError> {
         let (text, (kb, report)) = match self.mode {
             ReadMode::Strict => {
                 let read = check(&self.text, &self.path, ReadMode::Strict)?;
@@ -388,19 +552,19 @@ impl Draft {
             }
             ReadMode::Lenient => {
                 let text = write::to_strict(&self.kb).text;
-                let read = check(&text, &self.path, ReadMode::Strict).map_err(|e| {
-                    format!("the strict form of the draft does not pass the check: {e}")
-                })?;
+                let read = check(&text, &self.path, ReadMode::Strict)
+                    .map_err(|e| DraftError::StrictForm(Box::new(e)))?;
                 (text, read)
             }
         };
-        let now = std::fs::read_to_string(&self.path)
-            .map_err(|e| format!("{}: {e}", self.path.display()))?;
+        let now = std::fs::read_to_string(&self.path).map_err(|source| DraftError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
         if now != self.on_disk {
-            return Err(format!(
-                "{} changed on disk since it was opened: not overwritten",
-                self.path.display()
-            ));
+            return Err(DraftError::Changed {
+                path: self.path.clone(),
+            });
         }
         write_atomic(&self.path, text.as_bytes())?;
         self.on_disk.clone_from(&text);
@@ -416,9 +580,9 @@ impl Draft {
     /// Writes a ruleset `file` (relative to the KB's folder, `.cga`) with `text`, which must
     /// parse. Refused: absolute paths, `..`, a folder that is not inside the KB's (symlinks
     /// resolved), a target that is a symlink or not a file.
-    pub fn write_ruleset(&self, file: &str, text: &str) -> Result<PathBuf, String> {
+    pub fn write_ruleset(&self, file: &str, text: &str) -> Result<PathBuf, DraftError> {
         let target = ruleset_target(&self.dir, file)?;
-        crate::grammar::parse(text, file).map_err(|e| e.to_string())?;
+        crate::grammar::parse(text, file)?;
         write_atomic(&target, text.as_bytes())?;
         Ok(target)
     }
@@ -503,52 +667,45 @@ pub fn check(
     text: &str,
     path: &Path,
     mode: ReadMode,
-) -> Result<(KnowledgeBase, CheckReport), String> {
-    let (kb, repairs) = KnowledgeBase::parse_str_at(text, path, mode).map_err(|e| e.to_string())?;
+) -> Result<(KnowledgeBase, CheckReport), DraftError> {
+    let (kb, repairs) = KnowledgeBase::parse_str_at(text, path, mode)?;
     let report = tools::report_for(&kb, mode, repairs, false);
     if report.has_errors() {
-        let list: Vec<String> = report
-            .errors
-            .iter()
-            .map(|r| format!("{}:{}: {}", path.display(), r.line, r.what))
-            .collect();
-        return Err(list.join("\n"));
+        return Err(DraftError::Check {
+            path: path.to_path_buf(),
+            errors: report.errors,
+        });
     }
     Ok((kb, report))
 }
 
 /// Where ruleset `file` goes in `dir` (resolved), or why it may not.
-fn ruleset_target(dir: &Path, file: &str) -> Result<PathBuf, String> {
+fn ruleset_target(dir: &Path, file: &str) -> Result<PathBuf, DraftError> {
     let rel = Path::new(file);
+    let file = file.to_string();
     if file.is_empty() || rel.is_absolute() {
-        return Err(format!(
-            "ruleset {file:?}: give a path relative to the KB's folder"
-        ));
+        return Err(DraftError::RulesetNotRelative { file });
     }
     if !rel.components().all(|c| matches!(c, Component::Normal(_))) {
-        return Err(format!(
-            "ruleset {file:?} climbs out of the KB's folder (no '..', '.' or root)"
-        ));
+        return Err(DraftError::RulesetClimbs { file });
     }
     if rel.extension().and_then(|e| e.to_str()) != Some("cga") {
-        return Err(format!("ruleset {file:?}: the name must end in .cga"));
+        return Err(DraftError::RulesetExtension { file });
     }
     let target = dir.join(rel);
-    let parent = target
-        .parent()
-        .ok_or_else(|| format!("ruleset {file:?}: no folder"))?;
-    let real_parent =
-        std::fs::canonicalize(parent).map_err(|e| format!("ruleset {file:?}: its folder: {e}"))?;
+    let Some(parent) = target.parent() else {
+        return Err(DraftError::RulesetNoFolder { file });
+    };
+    let real_parent = match std::fs::canonicalize(parent) {
+        Ok(p) => p,
+        Err(source) => return Err(DraftError::RulesetFolder { file, source }),
+    };
     if !real_parent.starts_with(dir) {
-        return Err(format!(
-            "ruleset {file:?}: its folder lies outside the KB's folder (through a symlink)"
-        ));
+        return Err(DraftError::RulesetOutside { file });
     }
     match std::fs::symlink_metadata(&target) {
-        Ok(m) if m.file_type().is_symlink() => {
-            Err(format!("ruleset {file:?} is a symlink: not written"))
-        }
-        Ok(m) if !m.is_file() => Err(format!("ruleset {file:?} is not a file")),
+        Ok(m) if m.file_type().is_symlink() => Err(DraftError::RulesetSymlink { file }),
+        Ok(m) if !m.is_file() => Err(DraftError::RulesetNotFile { file }),
         _ => Ok(real_parent.join(rel.file_name().unwrap_or_default())),
     }
 }
@@ -581,7 +738,10 @@ mod tests {
     fn zones_sharing_a_line_are_not_edited() {
         let text = "<earth>\n  <town designation=\"A\"/><town designation=\"B\"/>\n  <town designation=\"C\"/>\n</earth>\n";
         let (_dir, mut d) = draft_of(text);
-        let e = d.apply(set_info("earth/B", "nbfloor", "3")).unwrap_err();
+        let e = d
+            .apply(set_info("earth/B", "nbfloor", "3"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2"), "{e}");
         assert!(d.apply(set_info("earth/A", "nbfloor", "3")).is_err());
         assert_eq!(d.text(), text);
@@ -647,7 +807,7 @@ mod tests {
         let text = "<earth>\n  <info floorsize=\"3,5\"/>\n</earth>\n";
         let (_dir, mut d) = draft_of(text);
         std::fs::write(d.path(), "<earth/>\n").unwrap();
-        let e = d.save().unwrap_err();
+        let e = d.save().unwrap_err().to_string();
         assert!(e.contains("changed on disk"), "{e}");
         assert_eq!(std::fs::read_to_string(d.path()).unwrap(), "<earth/>\n");
         assert_eq!(d.state()["mode"], "lenient");

@@ -69,12 +69,37 @@ pub struct Editor {
     scratch: PathBuf,
 }
 
+/// Why the editor does not start.
+#[derive(Debug, thiserror::Error)]
+pub enum EditorError {
+    /// The KB does not open.
+    #[error(transparent)]
+    Draft(#[from] draft::DraftError),
+    /// The footprints (`--osm`, `--shp`) do not load.
+    #[error(transparent)]
+    Footprints(#[from] crate::pipeline::RunError),
+    /// The port cannot be bound.
+    #[error("binding 127.0.0.1:{port}: {source}")]
+    Bind {
+        /// The port asked for.
+        port: u16,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The bound address cannot be read.
+    #[error("the bound address: {0}")]
+    Address(std::io::Error),
+    /// No random bytes for the session token.
+    #[error("no random source for the session token (/dev/urandom): {0}")]
+    Token(std::io::Error),
+}
+
 /// 128 random bits from the system, as 32 hex digits.
-fn new_token() -> Result<String, String> {
+fn new_token() -> Result<String, EditorError> {
     let mut bytes = [0u8; 16];
     std::fs::File::open("/dev/urandom")
         .and_then(|mut f| f.read_exact(&mut bytes))
-        .map_err(|e| format!("no random source for the session token (/dev/urandom): {e}"))?;
+        .map_err(EditorError::Token)?;
     Ok(crate::fsio::hex(&bytes))
 }
 
@@ -109,22 +134,22 @@ fn footprints_json(site: &Site) -> Vec<u8> {
 impl Editor {
     /// Opens the KB, reads and prepares the footprints, binds 127.0.0.1 (`port` 0: a free
     /// one) and makes the session token.
-    pub fn bind(opts: &EditOptions) -> Result<Editor, String> {
+    pub fn bind(opts: &EditOptions) -> Result<Editor, EditorError> {
         let draft = Draft::open(&opts.kb)?;
         let footprints = match &opts.source {
             Some(s) => {
-                let (site, name) = building::load_site(s).map_err(|e| e.to_string())?;
+                let (site, name) = building::load_site(s)?;
                 let json = footprints_json(&site);
                 Some(Footprints { site, name, json })
             }
             None => None,
         };
-        let listener = TcpListener::bind(("127.0.0.1", opts.port))
-            .map_err(|e| format!("binding 127.0.0.1:{}: {e}", opts.port))?;
-        let port = listener
-            .local_addr()
-            .map_err(|e| format!("the bound address: {e}"))?
-            .port();
+        let listener =
+            TcpListener::bind(("127.0.0.1", opts.port)).map_err(|source| EditorError::Bind {
+                port: opts.port,
+                source,
+            })?;
+        let port = listener.local_addr().map_err(EditorError::Address)?.port();
         Ok(Editor {
             listener,
             port,
@@ -274,7 +299,7 @@ impl Shared {
             ("POST", "/api/edit") => self.edit(req),
             ("POST", "/api/save") => match self.lock().save() {
                 Ok(()) => Response::json(200, &json!({"saved": true})),
-                Err(e) => Response::error(409, &e),
+                Err(e) => Response::error(409, &e.to_string()),
             },
             ("POST", "/api/ruleset") => self.ruleset(req),
             (_, "/" | "/app.js" | "/viewer.js" | "/style.css")
@@ -316,7 +341,7 @@ impl Shared {
         let mut d = self.lock();
         match d.apply(e) {
             Ok(()) => Response::json(200, &d.state()),
-            Err(msg) => Response::error(422, &msg),
+            Err(msg) => Response::error(422, &msg.to_string()),
         }
     }
 
@@ -333,7 +358,7 @@ impl Shared {
         };
         match self.lock().write_ruleset(&b.file, &b.text) {
             Ok(_) => Response::json(200, &json!({"written": b.file})),
-            Err(e) => Response::error(422, &e),
+            Err(e) => Response::error(422, &e.to_string()),
         }
     }
 
@@ -364,7 +389,7 @@ impl Shared {
         };
         let kb = match self.lock().parsed() {
             Ok(kb) => kb,
-            Err(e) => return Response::error(500, &e),
+            Err(e) => return Response::error(500, &e.to_string()),
         };
         let Some(e) = building::explain_lot(&kb, &f.site, i, self.seed) else {
             return Response::error(404, "no such building");
@@ -404,7 +429,7 @@ impl Shared {
         };
         let kb = match self.lock().parsed() {
             Ok(kb) => kb,
-            Err(e) => return Response::error(500, &e),
+            Err(e) => return Response::error(500, &e.to_string()),
         };
         match building::derive_glb(kb, &f.site, i, lod, self.seed, &f.name, &self.scratch) {
             Ok(bytes) => Response {
@@ -419,7 +444,7 @@ impl Shared {
 
 /// Binds the editor, prints its address (one line on stdout, flushed) and serves until the
 /// process is stopped.
-pub fn run(opts: &EditOptions) -> Result<(), String> {
+pub fn run(opts: &EditOptions) -> Result<(), EditorError> {
     use std::io::Write;
     let editor = Editor::bind(opts)?;
     let mut out = std::io::stdout();

@@ -65,6 +65,7 @@
 //! beside or inside the windows). The facade left whole (no step applies) is one `wall`.
 
 use super::genome::{Action, Arrangement, Genome};
+use super::EvolveError;
 
 /// Width of the reference test facade [`decode`] writes sizes for, metres (four 3 m bays).
 pub const REFERENCE_WIDTH: f64 = 12.0;
@@ -215,17 +216,15 @@ impl Decoded {
 
 /// Decodes a genome for the reference facade ([`REFERENCE_WIDTH`] × [`REFERENCE_HEIGHT`]).
 /// The error says why the genes are not a genome (length, a gene out of its alphabet).
-pub fn decode(genome: &[u32]) -> Result<Decoded, String> {
+pub fn decode(genome: &[u32]) -> Result<Decoded, EvolveError> {
     decode_for(genome, REFERENCE_WIDTH, REFERENCE_HEIGHT)
 }
 
 /// Decodes a genome, writing the sizes for a `width` × `height` m test facade (both finite and
 /// positive). See the module docs for the rules written.
-pub fn decode_for(genome: &[u32], width: f64, height: f64) -> Result<Decoded, String> {
+pub fn decode_for(genome: &[u32], width: f64, height: f64) -> Result<Decoded, EvolveError> {
     if !(width.is_finite() && height.is_finite() && width > 0.0 && height > 0.0) {
-        return Err(format!(
-            "the test facade must have a positive width and height (got {width} x {height} m)"
-        ));
+        return Err(EvolveError::DecodeSize { width, height });
     }
     let genome = Genome::new(genome)?;
     // The working tree: every marker ever made, with its parent, its size on the reference
@@ -603,7 +602,7 @@ mod tests {
             lint_clean(&d.text);
         }
         // The 29-gene one is refused; with its lost parameter restored as 0 it decodes.
-        let e = decode(THESIS_CHROMOSOMES[3]).unwrap_err();
+        let e = decode(THESIS_CHROMOSOMES[3]).unwrap_err().to_string();
         assert!(e.contains("this one has 29"), "{e}");
         let mut padded = THESIS_CHROMOSOMES[3].to_vec();
         padded.push(0);

@@ -44,7 +44,7 @@
 
 use glam::{DVec2, DVec3};
 
-use super::{Facade, Kind, Matrix, Terminal};
+use super::{EvolveError, Facade, Kind, Matrix, Terminal};
 use crate::geometry::Polygon;
 use crate::grammar::{
     derive, parse, recycle, AttrValue, Attrs, Caps, FaceKind, Geometry, Label, Op, RuleSet,
@@ -91,13 +91,13 @@ pub fn try_derive_facade(
     height: f64,
     seed: u64,
     caps: &Caps,
-) -> Result<Facade, String> {
+) -> Result<Facade, EvolveError> {
     check_size(width, height)?;
     let text = format!(
         "evolve_test_lot -> extrude({height}){{evolve_test_box}}\n\
          evolve_test_box -> comp(){{front : {FACADE}}}\n{rules}"
     );
-    let set = parse(&text, "<evolve test facade>").map_err(|e| e.to_string())?;
+    let set = parse(&text, "<evolve test facade>")?;
     let lot = rectangle(width, width / 2.0);
     derive_and_read(&set, &lot, Attrs::new(), seed, caps)
 }
@@ -124,10 +124,10 @@ pub fn try_derive_lot_facade(
     height: f64,
     seed: u64,
     caps: &Caps,
-) -> Result<Facade, String> {
+) -> Result<Facade, EvolveError> {
     check_size(lot_width, height)?;
     check_size(lot_depth, height)?;
-    let set = parse(rules, "<evolve lot>").map_err(|e| e.to_string())?;
+    let set = parse(rules, "<evolve lot>")?;
     let mut attrs = Attrs::new();
     attrs.insert("eave".into(), AttrValue::Num(height));
     derive_and_read(&set, &rectangle(lot_width, lot_depth), attrs, seed, caps)
@@ -143,13 +143,11 @@ fn failed(width: f64, height: f64) -> Facade {
     }
 }
 
-fn check_size(width: f64, height: f64) -> Result<(), String> {
+fn check_size(width: f64, height: f64) -> Result<(), EvolveError> {
     if width.is_finite() && height.is_finite() && width > 0.0 && height > 0.0 {
         Ok(())
     } else {
-        Err(format!(
-            "a test facade needs a positive size (got {width} x {height} m)"
-        ))
+        Err(EvolveError::FacadeSize { width, height })
     }
 }
 
@@ -172,13 +170,13 @@ fn derive_and_read(
     attrs: Attrs,
     seed: u64,
     caps: &Caps,
-) -> Result<Facade, String> {
+) -> Result<Facade, EvolveError> {
     let mut rng = Rng::new(seed, STREAM);
-    let tree = derive(rules, lot, attrs, &mut rng, caps).map_err(|e| e.to_string())?;
+    let tree = derive(rules, lot, attrs, &mut rng, caps)?;
     let found = south_facade(&tree);
     let facade = found.map(|i| facade_of(&tree, rules, i));
     recycle(tree);
-    facade.ok_or_else(|| format!("the rules make no side face named `{FACADE}`"))
+    facade.ok_or(EvolveError::NoFacade)
 }
 
 /// The side face named `facade` whose outward normal points most to the south (−Y), the first
@@ -539,6 +537,7 @@ mod tests {
         assert!(
             try_derive_lot_facade("lot -> extrude(3){m}\n", 10.0, 5.0, 3.0, 0, &EVAL_CAPS)
                 .unwrap_err()
+                .to_string()
                 .contains("no side face")
         );
         // A leaf that is no known terminal is a violation, kept as a wall.

@@ -25,6 +25,7 @@
 //! naming the gene: the thesis's rectilinear + monolithic chromosome (Fig. 3.44) has 29 genes,
 //! one parameter lost in print; it decodes once a parameter is appended (see the tests).
 
+use super::EvolveError;
 use crate::rng::Rng;
 
 /// Genes in a genome.
@@ -115,13 +116,9 @@ pub struct Genome(Vec<u32>);
 impl Genome {
     /// Checks `genes` and wraps them. The error names the length or the first gene out of its
     /// alphabet (`gene 21 is 9, expected 0..=6 (a parameter)`).
-    pub fn new(genes: &[u32]) -> Result<Genome, String> {
+    pub fn new(genes: &[u32]) -> Result<Genome, EvolveError> {
         if genes.len() != LENGTH {
-            return Err(format!(
-                "a genome has {LENGTH} genes (20 action and arrangement genes in 0..=2, then 10 \
-                 parameter genes in 0..=6); this one has {}",
-                genes.len()
-            ));
+            return Err(EvolveError::GenomeLength { found: genes.len() });
         }
         let alpha = alphabet();
         for (i, (&g, &a)) in genes.iter().zip(alpha.iter()).enumerate() {
@@ -133,7 +130,12 @@ impl Genome {
                 } else {
                     "an arrangement"
                 };
-                return Err(format!("gene {i} is {g}, expected 0..={} ({what})", a - 1));
+                return Err(EvolveError::Gene {
+                    index: i,
+                    value: g,
+                    max: a - 1,
+                    what,
+                });
             }
         }
         Ok(Genome(genes.to_vec()))
@@ -241,7 +243,7 @@ mod tests {
         for c in &THESIS_CHROMOSOMES[..3] {
             assert!(Genome::new(c).is_ok(), "{c:?}");
         }
-        let e = Genome::new(THESIS_CHROMOSOMES[3]).unwrap_err();
+        let e = Genome::new(THESIS_CHROMOSOMES[3]).unwrap_err().to_string();
         assert!(e.contains("30 genes") && e.contains("has 29"), "{e}");
     }
 
@@ -250,13 +252,13 @@ mod tests {
         let mut g = THESIS_CHROMOSOMES[0].to_vec();
         g[21] = 7;
         assert_eq!(
-            Genome::new(&g).unwrap_err(),
+            Genome::new(&g).unwrap_err().to_string(),
             "gene 21 is 7, expected 0..=6 (a parameter)"
         );
         g[21] = 0;
         g[3] = 3;
         assert_eq!(
-            Genome::new(&g).unwrap_err(),
+            Genome::new(&g).unwrap_err().to_string(),
             "gene 3 is 3, expected 0..=2 (an arrangement)"
         );
     }

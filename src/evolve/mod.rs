@@ -27,9 +27,138 @@ mod objectives_tests;
 mod plot_tests;
 
 pub use decode::{decode, decode_for, Decoded};
+
 pub use facade::{derive_facade, derive_lot_facade};
 pub use genome::Genome;
 pub use svg::facade_svg;
+
+/// Why a step of `citygen evolve` failed: a genome that is not one, a test facade or lot that
+/// cannot be derived, an output that cannot be written, or a knowledge base that `--into-kb`
+/// cannot add to (nothing is then changed).
+#[derive(Debug, thiserror::Error)]
+pub enum EvolveError {
+    /// Not [`genome::LENGTH`] genes.
+    #[error(
+        "a genome has {} genes (20 action and arrangement genes in 0..=2, then 10 parameter \
+         genes in 0..=6); this one has {found}",
+        genome::LENGTH
+    )]
+    GenomeLength {
+        /// How many genes it has.
+        found: usize,
+    },
+    /// A gene out of its alphabet.
+    #[error("gene {index} is {value}, expected 0..={max} ({what})")]
+    Gene {
+        /// The gene's index.
+        index: usize,
+        /// Its value.
+        value: u32,
+        /// The largest value of its alphabet.
+        max: u32,
+        /// What kind of gene it is ("a parameter", "an action", "an arrangement").
+        what: &'static str,
+    },
+    /// A facade size to decode for that is not positive and finite.
+    #[error("the test facade must have a positive width and height (got {width} x {height} m)")]
+    DecodeSize {
+        /// The width, metres.
+        width: f64,
+        /// The height, metres.
+        height: f64,
+    },
+    /// A test facade or lot size that is not positive and finite.
+    #[error("a test facade needs a positive size (got {width} x {height} m)")]
+    FacadeSize {
+        /// The width (or depth), metres.
+        width: f64,
+        /// The height, metres.
+        height: f64,
+    },
+    /// The rules do not parse.
+    #[error("{0}")]
+    Rules(#[from] crate::grammar::GrammarError),
+    /// The derivation failed.
+    #[error("{0}")]
+    Derive(#[from] crate::grammar::DeriveError),
+    /// The rules make no side face named [`decode::FACADE`].
+    #[error("the rules make no side face named `{}`", decode::FACADE)]
+    NoFacade,
+    /// `--facade`/`--lot` is not `WxH`.
+    #[error("{text:?}: give WIDTHxHEIGHT in metres, e.g. 12x9")]
+    SizeFormat {
+        /// The text given.
+        text: String,
+    },
+    /// A side of `--facade`/`--lot` is not a number.
+    #[error("{text:?}: {side:?} is not a number of metres")]
+    SizeNumber {
+        /// The text given.
+        text: String,
+        /// The side as written.
+        side: String,
+    },
+    /// A side of `--facade`/`--lot` outside 1-200 m.
+    #[error("{text:?}: {value} m is outside 1-200 m")]
+    SizeRange {
+        /// The text given.
+        text: String,
+        /// The side, metres.
+        value: f64,
+    },
+    /// A file could not be written: the message of [`run::write_atomic`], which names it.
+    #[error("{0}")]
+    Write(String),
+    /// `evolve.json` could not be made.
+    #[error("{0}")]
+    Json(#[from] serde_json::Error),
+    /// `--into-kb` with an empty front.
+    #[error("no ruleset to add (the front is empty)")]
+    NoMembers,
+    /// The knowledge base does not load or check.
+    #[error("{0}")]
+    Kb(#[from] crate::kb::KbError),
+    /// `--zone` names no zone of the knowledge base.
+    #[error("{file}: no zone {zone:?} (see `citygen kb explain`)")]
+    NoZone {
+        /// The knowledge base file.
+        file: String,
+        /// The zone asked for.
+        zone: String,
+    },
+    /// A file could not be read, written or renamed.
+    #[error("{file}: {source}")]
+    Io {
+        /// The file.
+        file: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The knowledge base's text could not be edited.
+    #[error("{file}: {source}")]
+    Edit {
+        /// The knowledge base file.
+        file: String,
+        /// Why.
+        source: crate::kb::edit::EditError,
+    },
+    /// `--share` not strictly between 0 and 1.
+    #[error("--share {0}: give a share between 0 and 1 (exclusive) of the zone's buildings")]
+    Share(f64),
+    /// The edited knowledge base has `kb check` errors.
+    #[error("the edited knowledge base has errors:\n{0}")]
+    EditedErrors(Box<crate::kb::tools::CheckReport>),
+    /// The edited knowledge base, strict-clean before, fails the strict check.
+    #[error("the edited knowledge base fails the strict check:\n{0}")]
+    EditedNotStrict(Box<crate::kb::tools::CheckReport>),
+}
+
+/// [`run::write_atomic`]'s error (a message naming the file).
+impl From<String> for EvolveError {
+    fn from(message: String) -> EvolveError {
+        EvolveError::Write(message)
+    }
+}
 
 /// A terminal's kind, its code in the terminal matrix.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

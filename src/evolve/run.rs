@@ -16,7 +16,7 @@ use serde::Serialize;
 
 use super::nsga2::{self, Config, History, Individual};
 use super::objectives::{self, Objective};
-use super::{decode, facade, genome, Facade};
+use super::{decode, facade, genome, EvolveError, Facade};
 
 /// The test object every genome is derived on.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -60,19 +60,24 @@ impl TestObject {
     }
 
     /// `WxH` (a facade) or `WxD` (a lot, with `height`) in metres.
-    pub fn parse(text: &str, lot: bool, height: f64) -> Result<TestObject, String> {
+    pub fn parse(text: &str, lot: bool, height: f64) -> Result<TestObject, EvolveError> {
         let (a, b) = text
             .split_once(['x', 'X'])
-            .ok_or_else(|| format!("{text:?}: give WIDTHxHEIGHT in metres, e.g. 12x9"))?;
-        let num = |s: &str| -> Result<f64, String> {
-            let v: f64 = s
-                .trim()
-                .parse()
-                .map_err(|_| format!("{text:?}: {s:?} is not a number of metres"))?;
+            .ok_or_else(|| EvolveError::SizeFormat {
+                text: text.to_string(),
+            })?;
+        let num = |s: &str| -> Result<f64, EvolveError> {
+            let v: f64 = s.trim().parse().map_err(|_| EvolveError::SizeNumber {
+                text: text.to_string(),
+                side: s.to_string(),
+            })?;
             if v.is_finite() && (1.0..=200.0).contains(&v) {
                 Ok(v)
             } else {
-                Err(format!("{text:?}: {v} m is outside 1-200 m"))
+                Err(EvolveError::SizeRange {
+                    text: text.to_string(),
+                    value: v,
+                })
             }
         };
         let (a, b) = (num(a)?, num(b)?);
@@ -360,10 +365,10 @@ pub fn write_outputs(
     out: &Path,
     settings: &Settings,
     history: &History,
-) -> Result<Written, String> {
+) -> Result<Written, EvolveError> {
     let names: Vec<&'static str> = settings.objectives.iter().map(|o| o.name()).collect();
     let mut written = Vec::new();
-    let mut put = |rel: &str, bytes: &[u8]| -> Result<(), String> {
+    let mut put = |rel: &str, bytes: &[u8]| -> Result<(), EvolveError> {
         let p = out.join(rel);
         write_atomic(&p, bytes)?;
         written.push(p);
@@ -439,7 +444,7 @@ pub fn write_outputs(
         best: best.clone(),
         history,
     };
-    let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string_pretty(&report)?;
     put("evolve.json", (json + "\n").as_bytes())?;
     Ok(Written {
         members,
@@ -479,22 +484,28 @@ pub struct Added {
 /// and weights that give them `share` of its buildings together. The new KB text is read back
 /// (lenient, and strict when the KB was strict-clean) before it replaces the file; on any
 /// error nothing is changed.
-pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, String> {
+pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, EvolveError> {
     use crate::kb::{edit, tools, KnowledgeBase, ReadMode};
     if members.is_empty() {
-        return Err("no ruleset to add (the front is empty)".into());
+        return Err(EvolveError::NoMembers);
     }
     let kb_file = target.kb.display().to_string();
-    let (kb, _) = KnowledgeBase::load(&target.kb).map_err(|e| e.to_string())?;
-    let z = tools::find_zone(&kb, &target.zone).ok_or_else(|| {
-        format!(
-            "{kb_file}: no zone {:?} (see `citygen kb explain`)",
-            target.zone
-        )
+    let io = |file: &str| {
+        let file = file.to_string();
+        move |source| EvolveError::Io { file, source }
+    };
+    let edit_err = |source| EvolveError::Edit {
+        file: kb_file.clone(),
+        source,
+    };
+    let (kb, _) = KnowledgeBase::load(&target.kb)?;
+    let z = tools::find_zone(&kb, &target.zone).ok_or_else(|| EvolveError::NoZone {
+        file: kb_file.clone(),
+        zone: target.zone.clone(),
     })?;
     let zone = &kb.zones()[z];
-    let text = std::fs::read_to_string(&target.kb).map_err(|e| format!("{kb_file}: {e}"))?;
-    let own = edit::zone_appearances(&text, zone.line).map_err(|e| format!("{kb_file}: {e}"))?;
+    let text = std::fs::read_to_string(&target.kb).map_err(io(&kb_file))?;
+    let own = edit::zone_appearances(&text, zone.line).map_err(edit_err)?;
     // The zone's own weights as the run normalises them: given ones as they are, absent ones
     // sharing what the given leave of 1.
     let given: Vec<Option<f64>> = own
@@ -518,10 +529,7 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, S
         (1.0, 1.0)
     } else {
         if !(target.share > 0.0 && target.share < 1.0) {
-            return Err(format!(
-                "--share {}: give a share between 0 and 1 (exclusive) of the zone's buildings",
-                target.share
-            ));
+            return Err(EvolveError::Share(target.share));
         }
         (
             target.share,
@@ -581,8 +589,7 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, S
             comment: Some(format!("citygen evolve: {name}")),
         });
     }
-    let edited =
-        edit::add_appearances(&text, zone.line, &new).map_err(|e| format!("{kb_file}: {e}"))?;
+    let edited = edit::add_appearances(&text, zone.line, &new).map_err(edit_err)?;
     // Rulesets first (new files), then the KB checked from a temporary beside it.
     let mut made = Vec::new();
     let undo = |made: &[PathBuf]| {
@@ -594,7 +601,7 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, S
         if !p.exists() {
             if let Err(e) = write_atomic(p, rules.as_bytes()) {
                 undo(&made);
-                return Err(e);
+                return Err(e.into());
             }
             made.push(p.clone());
         }
@@ -602,26 +609,23 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, S
     // The edited KB in a temporary beside it, checked there, then renamed over it (dropped on
     // an error, the temporary is removed).
     let checked = crate::fsio::write_pending(&target.kb, Some("evolve"), edited.as_bytes())
-        .map_err(|e| e.to_string())
+        .map_err(|e| EvolveError::Write(e.to_string()))
         .and_then(|pending| {
             let tmp = pending.temporary();
-            let lenient = tools::check_report(tmp, ReadMode::Lenient).map_err(|e| e.to_string())?;
+            let lenient = tools::check_report(tmp, ReadMode::Lenient)?;
             if lenient.has_errors() {
-                return Err(format!("the edited knowledge base has errors:\n{lenient}"));
+                return Err(EvolveError::EditedErrors(Box::new(lenient)));
             }
             let was_strict = tools::check_report(&target.kb, ReadMode::Strict)
                 .map(|r| !r.has_errors())
                 .unwrap_or(false);
             if was_strict {
-                let strict =
-                    tools::check_report(tmp, ReadMode::Strict).map_err(|e| e.to_string())?;
+                let strict = tools::check_report(tmp, ReadMode::Strict)?;
                 if strict.has_errors() {
-                    return Err(format!(
-                        "the edited knowledge base fails the strict check:\n{strict}"
-                    ));
+                    return Err(EvolveError::EditedNotStrict(Box::new(strict)));
                 }
             }
-            pending.commit().map_err(|e| format!("{kb_file}: {e}"))
+            pending.commit().map_err(io(&kb_file))
         });
     if let Err(e) = checked {
         undo(&made);
@@ -772,6 +776,7 @@ mod tests {
         };
         assert!(into_kb(&bad_zone, &[member("c")])
             .unwrap_err()
+            .to_string()
             .contains("no zone"));
         let bad_share = IntoKb {
             share: 1.0,
@@ -779,6 +784,7 @@ mod tests {
         };
         assert!(into_kb(&bad_share, &[member("c")])
             .unwrap_err()
+            .to_string()
             .contains("--share"));
         assert_eq!(std::fs::read(&kb).unwrap(), before);
         assert_eq!(

@@ -73,7 +73,7 @@ pub struct Checked<'a> {
     buildings: &'a [Building],
     /// How many buildings are finite before the first refused one.
     ok: usize,
-    refused: Option<String>,
+    refused: Option<crate::model::NotFinite>,
 }
 
 impl<'a> Checked<'a> {

@@ -290,7 +290,7 @@ impl BuildingTags {
                 t.ignore(key, value, "empty value");
                 continue;
             }
-            let res: Result<(), String> = match key {
+            let res: Result<(), TagError> = match key {
                 "building" => {
                     t.building = Some(v.to_ascii_lowercase());
                     Ok(())
@@ -308,7 +308,7 @@ impl BuildingTags {
                         t.height = Some(h);
                         Ok(())
                     } else {
-                        Err("a height of zero is no height".to_string())
+                        Err(TagError::ZeroHeight)
                     }
                 }),
                 "min_height" => parse_length_checked(v).map(|h| t.min_height = Some(h)),
@@ -323,7 +323,7 @@ impl BuildingTags {
                     }
                     None => {
                         t.invalid_roof_shape = Some(v.to_string());
-                        Err("unknown roof shape".to_string())
+                        Err(TagError::UnknownRoofShape)
                     }
                 },
                 "roof:angle" => parse_angle(v).map(|a| t.roof_angle = Some(a)),
@@ -333,7 +333,7 @@ impl BuildingTags {
                         t.roof_orientation = Some(o);
                         Ok(())
                     } else {
-                        Err("roof:orientation must be along or across".to_string())
+                        Err(TagError::RoofOrientation)
                     }
                 }
                 "roof:direction" => parse_direction(v).map(|d| t.roof_direction = Some(d)),
@@ -342,14 +342,14 @@ impl BuildingTags {
                         t.colour = Some(c);
                         Ok(())
                     }
-                    None => Err("unknown colour".to_string()),
+                    None => Err(TagError::UnknownColour),
                 },
                 "roof:colour" | "roof:color" => match Color::parse(first_value(v)) {
                     Some(c) => {
                         t.roof_colour = Some(c);
                         Ok(())
                     }
-                    None => Err("unknown colour".to_string()),
+                    None => Err(TagError::UnknownColour),
                 },
                 "building:material" => {
                     t.material = Some(first_value(v).to_ascii_lowercase());
@@ -362,7 +362,7 @@ impl BuildingTags {
                 _ => Ok(()),
             };
             if let Err(reason) = res {
-                t.ignore(key, value, &reason);
+                t.ignore(key, value, &reason.to_string());
             }
         }
         t.has_building = t.building.as_deref().is_some_and(|b| b != "no");
@@ -414,12 +414,68 @@ fn first_value(s: &str) -> &str {
     s.split(';').next().unwrap_or("").trim()
 }
 
+/// Why a known tag's value is ignored (the reason [`BuildingTags::ignored`] lists).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TagError {
+    /// A number was expected and the value is blank.
+    #[error("no number")]
+    NoNumber,
+    /// Not a plain decimal number.
+    #[error("not a number")]
+    NotANumber,
+    /// Two decimal commas, or a comma and a point.
+    #[error("ambiguous decimal separators")]
+    AmbiguousSeparators,
+    /// NaN or an infinity.
+    #[error("not a finite number")]
+    NotFinite,
+    /// A length with `'` or `"` that does not read as feet and inches.
+    #[error("cannot read feet and inches")]
+    FeetAndInches,
+    /// A negative length.
+    #[error("negative length")]
+    NegativeLength,
+    /// A length unit not known.
+    #[error("unknown unit `{unit}`")]
+    UnknownUnit {
+        /// The unit as written (lower case).
+        unit: String,
+    },
+    /// A length over [`MAX_LENGTH_M`].
+    #[error("absurd length (over {} m)", MAX_LENGTH_M)]
+    AbsurdLength,
+    /// `height=0`.
+    #[error("a height of zero is no height")]
+    ZeroHeight,
+    /// A negative level count.
+    #[error("negative level count")]
+    NegativeLevels,
+    /// A level count over [`MAX_LEVELS`].
+    #[error("absurd level count (over {})", MAX_LEVELS)]
+    AbsurdLevels,
+    /// `roof:shape` not known.
+    #[error("unknown roof shape")]
+    UnknownRoofShape,
+    /// `roof:angle` outside 0..90.
+    #[error("roof angle outside 0..90 degrees")]
+    AngleOutOfRange,
+    /// `roof:orientation` other than `along` or `across`.
+    #[error("roof:orientation must be along or across")]
+    RoofOrientation,
+    /// `roof:direction` neither degrees nor a compass point.
+    #[error("not a direction (degrees or N, NE, E...)")]
+    NotADirection,
+    /// A colour that does not parse.
+    #[error("unknown colour")]
+    UnknownColour,
+}
+
 /// Parses a plain decimal number, accepting one decimal comma (`12,5`). Rejects NaN and
 /// infinities (Rust's float parser would accept `inf` and `NaN`).
-fn parse_number(s: &str) -> Result<f64, String> {
+fn parse_number(s: &str) -> Result<f64, TagError> {
     let s = s.trim();
     if s.is_empty() {
-        return Err("no number".to_string());
+        return Err(TagError::NoNumber);
     }
     // Only digits, one sign, one separator and an exponent are numbers here: this rejects
     // `inf`, `NaN` and `0x10` before the float parser sees them.
@@ -427,21 +483,21 @@ fn parse_number(s: &str) -> Result<f64, String> {
         .chars()
         .all(|c| c.is_ascii_digit() || matches!(c, '.' | ',' | '+' | '-' | 'e' | 'E'))
     {
-        return Err("not a number".to_string());
+        return Err(TagError::NotANumber);
     }
     let normalised;
     let s = if s.contains(',') {
         if s.matches(',').count() > 1 || s.contains('.') {
-            return Err("ambiguous decimal separators".to_string());
+            return Err(TagError::AmbiguousSeparators);
         }
         normalised = s.replace(',', ".");
         normalised.as_str()
     } else {
         s
     };
-    let v: f64 = s.parse().map_err(|_| "not a number".to_string())?;
+    let v: f64 = s.parse().map_err(|_| TagError::NotANumber)?;
     if !v.is_finite() {
-        return Err("not a finite number".to_string());
+        return Err(TagError::NotFinite);
     }
     Ok(v)
 }
@@ -449,7 +505,7 @@ fn parse_number(s: &str) -> Result<f64, String> {
 /// Parses a length in metres leniently: `12`, `12 m`, `12m`, `12,5`, `12;15` (first value),
 /// `40'` or `40 ft` (feet), `12'6"`. Rejects NaN, infinities, negative values and absurd ones
 /// (over [`MAX_LENGTH_M`]), with the reason.
-pub fn parse_length_checked(s: &str) -> Result<f64, String> {
+pub fn parse_length_checked(s: &str) -> Result<f64, TagError> {
     let s = first_value(s);
     let lower = s.to_ascii_lowercase();
     let lower = lower.trim();
@@ -463,10 +519,10 @@ pub fn parse_length_checked(s: &str) -> Result<f64, String> {
         let inches = match rest.strip_suffix('"') {
             Some(i) => parse_number(i)?,
             None if rest.is_empty() => 0.0,
-            None => return Err("cannot read feet and inches".to_string()),
+            None => return Err(TagError::FeetAndInches),
         };
         if feet < 0.0 || inches < 0.0 {
-            return Err("negative length".to_string());
+            return Err(TagError::NegativeLength);
         }
         return check_length(feet * FOOT_M + inches * INCH_M);
     }
@@ -476,7 +532,7 @@ pub fn parse_length_checked(s: &str) -> Result<f64, String> {
 }
 
 /// Splits a trailing unit off a length and gives the factor to metres.
-fn split_unit(s: &str) -> Result<(&str, f64), String> {
+fn split_unit(s: &str) -> Result<(&str, f64), TagError> {
     const UNITS: [(&str, f64); 12] = [
         ("metres", 1.0),
         ("meters", 1.0),
@@ -498,17 +554,19 @@ fn split_unit(s: &str) -> Result<(&str, f64), String> {
     }
     match UNITS.iter().find(|(u, _)| *u == unit) {
         Some((_, f)) => Ok((end.trim(), *f)),
-        None => Err(format!("unknown unit `{unit}`")),
+        None => Err(TagError::UnknownUnit {
+            unit: unit.to_string(),
+        }),
     }
 }
 
-fn check_length(v: f64) -> Result<f64, String> {
+fn check_length(v: f64) -> Result<f64, TagError> {
     if !v.is_finite() {
-        Err("not a finite number".to_string())
+        Err(TagError::NotFinite)
     } else if v < 0.0 {
-        Err("negative length".to_string())
+        Err(TagError::NegativeLength)
     } else if v > MAX_LENGTH_M {
-        Err(format!("absurd length (over {MAX_LENGTH_M} m)"))
+        Err(TagError::AbsurdLength)
     } else {
         Ok(v)
     }
@@ -521,19 +579,19 @@ fn parse_length(s: &str) -> Option<f64> {
 }
 
 /// A level count: a non-negative number, first of a list, decimal comma accepted.
-fn parse_levels(s: &str) -> Result<f64, String> {
+fn parse_levels(s: &str) -> Result<f64, TagError> {
     let v = parse_number(first_value(s))?;
     if v < 0.0 {
-        Err("negative level count".to_string())
+        Err(TagError::NegativeLevels)
     } else if v > MAX_LEVELS {
-        Err(format!("absurd level count (over {MAX_LEVELS})"))
+        Err(TagError::AbsurdLevels)
     } else {
         Ok(v)
     }
 }
 
 /// A roof angle in degrees (`30`, `30°`, `30 deg`), in 0..=90.
-fn parse_angle(s: &str) -> Result<f64, String> {
+fn parse_angle(s: &str) -> Result<f64, TagError> {
     let s = first_value(s);
     let s = s
         .trim_end_matches('°')
@@ -544,12 +602,12 @@ fn parse_angle(s: &str) -> Result<f64, String> {
     if (0.0..=90.0).contains(&v) {
         Ok(v)
     } else {
-        Err("roof angle outside 0..90 degrees".to_string())
+        Err(TagError::AngleOutOfRange)
     }
 }
 
 /// A direction in degrees from north (wrapped into 0..360), or a 16-wind compass point.
-fn parse_direction(s: &str) -> Result<f64, String> {
+fn parse_direction(s: &str) -> Result<f64, TagError> {
     const WINDS: [&str; 16] = [
         "N", "NNE", "NE", "ENE", "E", "ESE", "SE", "SSE", "S", "SSW", "SW", "WSW", "W", "WNW",
         "NW", "NNW",
@@ -559,8 +617,7 @@ fn parse_direction(s: &str) -> Result<f64, String> {
     if let Some(i) = WINDS.iter().position(|w| *w == up) {
         return Ok(i as f64 * 22.5);
     }
-    let v = parse_number(s.trim_end_matches('°').trim())
-        .map_err(|_| "not a direction (degrees or N, NE, E...)".to_string())?;
+    let v = parse_number(s.trim_end_matches('°').trim()).map_err(|_| TagError::NotADirection)?;
     let d = v.rem_euclid(360.0);
     // rem_euclid rounds tiny negative values up to exactly 360.
     Ok(if d >= 360.0 { 0.0 } else { d })
@@ -667,8 +724,14 @@ mod tests {
         ] {
             assert_eq!(parse_length(bad), None, "{bad:?} should be rejected");
         }
-        assert!(parse_length_checked("2000").unwrap_err().contains("absurd"));
-        assert!(parse_length_checked("-1").unwrap_err().contains("negative"));
+        assert!(parse_length_checked("2000")
+            .unwrap_err()
+            .to_string()
+            .contains("absurd"));
+        assert!(parse_length_checked("-1")
+            .unwrap_err()
+            .to_string()
+            .contains("negative"));
     }
 
     #[test]

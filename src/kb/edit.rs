@@ -7,8 +7,62 @@
 //! after its `info`, `location` and `polygon` children when it has none: the order the format
 //! asks for). The caller checks the result with the strict reader before writing it.
 
+use quick_xml::events::attributes::AttrError;
 use quick_xml::events::Event;
 use quick_xml::Reader;
+
+/// Why an edit of a knowledge base's text is refused: the text does not read, or the edit names
+/// a zone, polygon or appearance it does not have.
+#[derive(Debug, thiserror::Error)]
+pub enum EditError {
+    /// The XML does not read.
+    #[error("line {line}: {source}")]
+    Syntax {
+        /// The line of the error.
+        line: usize,
+        /// quick-xml's error.
+        source: quick_xml::Error,
+    },
+    /// A start tag's attributes do not read.
+    #[error("{0}")]
+    Attribute(#[from] AttrError),
+    /// An end tag with no start tag.
+    #[error("line {line}: unmatched end tag")]
+    UnmatchedEnd {
+        /// Its line.
+        line: usize,
+    },
+    /// No element at all.
+    #[error("no root element")]
+    NoRoot,
+    /// The line given starts no zone.
+    #[error("no zone element starts on line {line}")]
+    NoZone {
+        /// The line.
+        line: usize,
+    },
+    /// A new zone's element is not a zone element.
+    #[error("{element:?} is not a zone element (one of {})", ZONE_ELEMENTS.join(", "))]
+    NotAZoneElement {
+        /// The element asked for.
+        element: String,
+    },
+    /// The root zone cannot be deleted.
+    #[error("earth cannot be deleted")]
+    DeleteEarth,
+    /// The zone has no polygon of that index.
+    #[error("the zone has no polygon {}", .index + 1)]
+    NoPolygon {
+        /// The 0-based index asked for.
+        index: usize,
+    },
+    /// The zone has no appearance of that index.
+    #[error("the zone has no appearance {}", .index + 1)]
+    NoAppearance {
+        /// The 0-based index asked for.
+        index: usize,
+    },
+}
 
 /// An appearance to add.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,13 +127,11 @@ fn is_zone(name: &str) -> bool {
 fn next_event<'a>(
     reader: &mut Reader<&'a [u8]>,
     text: &str,
-) -> Result<(Event<'a>, usize, usize), String> {
+) -> Result<(Event<'a>, usize, usize), EditError> {
     let before = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
-    let ev = reader.read_event().map_err(|e| {
-        format!(
-            "line {}: {e}",
-            line_of(text, usize::try_from(reader.error_position()).unwrap_or(0))
-        )
+    let ev = reader.read_event().map_err(|source| EditError::Syntax {
+        line: line_of(text, usize::try_from(reader.error_position()).unwrap_or(0)),
+        source,
     })?;
     let after = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
     let at = text
@@ -98,10 +150,10 @@ fn line_of(text: &str, offset: usize) -> usize {
         .count()
 }
 
-fn attrs(e: &quick_xml::events::BytesStart<'_>) -> Result<Vec<(String, String)>, String> {
+fn attrs(e: &quick_xml::events::BytesStart<'_>) -> Result<Vec<(String, String)>, EditError> {
     e.attributes()
         .map(|a| {
-            let a = a.map_err(|e| e.to_string())?;
+            let a = a?;
             let key = AsRef::<str>::as_ref(&a.key).to_string();
             let value = a.value.to_string();
             Ok((key, value))
@@ -109,7 +161,7 @@ fn attrs(e: &quick_xml::events::BytesStart<'_>) -> Result<Vec<(String, String)>,
         .collect()
 }
 
-fn places(text: &str, zone_line: usize) -> Result<Places, String> {
+fn places(text: &str, zone_line: usize) -> Result<Places, EditError> {
     let mut reader = Reader::from_str(text);
     let mut depth = 0usize;
     // (depth of the zone's children, zone start, name, indent)
@@ -215,11 +267,11 @@ fn places(text: &str, zone_line: usize) -> Result<Places, String> {
             _ => {}
         }
     }
-    Err(format!("no zone element starts on line {zone_line}"))
+    Err(EditError::NoZone { line: zone_line })
 }
 
 /// The direct appearances of the zone whose start tag is on `zone_line`.
-pub fn zone_appearances(text: &str, zone_line: usize) -> Result<ZoneAppearances, String> {
+pub fn zone_appearances(text: &str, zone_line: usize) -> Result<ZoneAppearances, EditError> {
     places(text, zone_line).map(|p| p.found)
 }
 
@@ -235,7 +287,7 @@ pub fn add_appearances(
     text: &str,
     zone_line: usize,
     new: &[NewAppearance],
-) -> Result<String, String> {
+) -> Result<String, EditError> {
     let p = places(text, zone_line)?;
     let inner = format!("{}  ", p.indent);
     let mut add = String::new();
@@ -329,7 +381,7 @@ impl Element {
 }
 
 /// The element tree of `text` (its root element).
-fn element_tree(text: &str) -> Result<Element, String> {
+fn element_tree(text: &str) -> Result<Element, EditError> {
     let mut reader = Reader::from_str(text);
     let mut stack: Vec<Element> = Vec::new();
     let mut root: Option<Element> = None;
@@ -370,7 +422,9 @@ fn element_tree(text: &str) -> Result<Element, String> {
             }
             Event::End(_) => {
                 let Some(mut el) = stack.pop() else {
-                    return Err(format!("line {}: unmatched end tag", line_of(text, tag_at)));
+                    return Err(EditError::UnmatchedEnd {
+                        line: line_of(text, tag_at),
+                    });
                 };
                 el.end = after;
                 match stack.last_mut() {
@@ -382,7 +436,7 @@ fn element_tree(text: &str) -> Result<Element, String> {
             _ => {}
         }
     }
-    root.ok_or_else(|| "no root element".to_string())
+    root.ok_or(EditError::NoRoot)
 }
 
 /// One attribute of a start tag: its name, raw value, the span of the whole `name="value"`
@@ -442,9 +496,9 @@ fn unescape(raw: &str) -> String {
 }
 
 /// A zone's start tag by line, or an error naming the line.
-fn zone_at(root: &Element, zone_line: usize) -> Result<&Element, String> {
+fn zone_at(root: &Element, zone_line: usize) -> Result<&Element, EditError> {
     root.find_line(zone_line)
-        .ok_or_else(|| format!("no zone element starts on line {zone_line}"))
+        .ok_or(EditError::NoZone { line: zone_line })
 }
 
 /// The indentation of the line `offset` is on (spaces and tabs at its start).
@@ -596,12 +650,11 @@ pub fn add_zone(
     element: &str,
     designation: &str,
     shape: &NewShape,
-) -> Result<String, String> {
+) -> Result<String, EditError> {
     if !ZONE_ELEMENTS.contains(&element) {
-        return Err(format!(
-            "{element:?} is not a zone element (one of {})",
-            ZONE_ELEMENTS.join(", ")
-        ));
+        return Err(EditError::NotAZoneElement {
+            element: element.to_string(),
+        });
     }
     let root = element_tree(text)?;
     let parent = zone_at(&root, parent_line)?;
@@ -626,11 +679,11 @@ pub fn add_zone(
 
 /// `text` without the zone whose start tag is on `zone_line` (and its sub-zones). Earth cannot
 /// be deleted.
-pub fn delete_zone(text: &str, zone_line: usize) -> Result<String, String> {
+pub fn delete_zone(text: &str, zone_line: usize) -> Result<String, EditError> {
     let root = element_tree(text)?;
     let zone = zone_at(&root, zone_line)?;
     if zone.start == root.start {
-        return Err("earth cannot be deleted".into());
+        return Err(EditError::DeleteEarth);
     }
     Ok(remove_element(text, zone))
 }
@@ -642,7 +695,7 @@ pub fn set_info(
     text: &str,
     zone_line: usize,
     changes: &[(String, Option<String>)],
-) -> Result<String, String> {
+) -> Result<String, EditError> {
     let root = element_tree(text)?;
     let zone = zone_at(&root, zone_line)?;
     match zone.child("info") {
@@ -682,7 +735,7 @@ pub fn set_circle(
     text: &str,
     zone_line: usize,
     circle: Option<CircleText>,
-) -> Result<String, String> {
+) -> Result<String, EditError> {
     let root = element_tree(text)?;
     let zone = zone_at(&root, zone_line)?;
     if let Some(loc) = zone.child("location") {
@@ -709,13 +762,13 @@ pub fn set_polygon(
     zone_line: usize,
     index: Option<usize>,
     points: Option<&[(f64, f64)]>,
-) -> Result<String, String> {
+) -> Result<String, EditError> {
     let root = element_tree(text)?;
     let zone = zone_at(&root, zone_line)?;
     match index {
         Some(i) => {
             let Some(poly) = zone.children_named("polygon").nth(i) else {
-                return Err(format!("the zone has no polygon {}", i + 1));
+                return Err(EditError::NoPolygon { index: i });
             };
             Ok(match points {
                 Some(p) => set_attrs(text, poly, &[("points".into(), Some(points_text(p)))]),
@@ -816,7 +869,11 @@ fn appearance_xml(a: &AppearanceText, indent: &str) -> String {
 
 /// `text` with appearance `a` added to the zone on `zone_line`, after its last appearance (or
 /// its shapes).
-pub fn add_appearance(text: &str, zone_line: usize, a: &AppearanceText) -> Result<String, String> {
+pub fn add_appearance(
+    text: &str,
+    zone_line: usize,
+    a: &AppearanceText,
+) -> Result<String, EditError> {
     let root = element_tree(text)?;
     let zone = zone_at(&root, zone_line)?;
     let at = zone
@@ -834,14 +891,14 @@ pub fn add_appearance(text: &str, zone_line: usize, a: &AppearanceText) -> Resul
     Ok(insert_child(text, zone, at, &appearance_xml(a, &indent)))
 }
 
-fn nth_appearance(zone: &Element, index: usize) -> Result<&Element, String> {
+fn nth_appearance(zone: &Element, index: usize) -> Result<&Element, EditError> {
     zone.children_named("appearance")
         .nth(index)
-        .ok_or_else(|| format!("the zone has no appearance {}", index + 1))
+        .ok_or(EditError::NoAppearance { index })
 }
 
 /// `text` without appearance `index` (0-based) of the zone on `zone_line`.
-pub fn delete_appearance(text: &str, zone_line: usize, index: usize) -> Result<String, String> {
+pub fn delete_appearance(text: &str, zone_line: usize, index: usize) -> Result<String, EditError> {
     let root = element_tree(text)?;
     let zone = zone_at(&root, zone_line)?;
     Ok(remove_element(text, nth_appearance(zone, index)?))
@@ -856,9 +913,9 @@ pub fn set_appearance(
     zone_line: usize,
     index: usize,
     a: &AppearanceText,
-) -> Result<String, String> {
+) -> Result<String, EditError> {
     // Each step re-reads the text: the spans move.
-    let step = |text: &str, f: &dyn Fn(&str, &Element) -> Result<String, String>| {
+    let step = |text: &str, f: &dyn Fn(&str, &Element) -> Result<String, EditError>| {
         let root = element_tree(text)?;
         let zone = zone_at(&root, zone_line)?;
         f(text, nth_appearance(zone, index)?)
@@ -972,7 +1029,7 @@ pub struct AppearanceView {
 }
 
 /// The own text of every zone, by the line its start tag is on.
-pub fn zone_texts(text: &str) -> Result<std::collections::BTreeMap<usize, ZoneText>, String> {
+pub fn zone_texts(text: &str) -> Result<std::collections::BTreeMap<usize, ZoneText>, EditError> {
     let root = element_tree(text)?;
     let mut out = std::collections::BTreeMap::new();
     let attrs_of = |el: &Element| -> Vec<(String, String)> {

@@ -34,7 +34,7 @@ use crate::rng::Rng;
 
 pub use crate::model::Inference;
 pub use choice::{appearance_weights, eligible, proba_weights};
-pub use polygon::ZonePolygon;
+pub use polygon::{PolygonError, ZonePolygon};
 pub use style::{material_color, Style, ROOF_SLAB_M};
 pub use values::{
     Appearance, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, ZoneKind,

@@ -112,39 +112,93 @@ impl Bands {
     }
 }
 
+/// Why a zone polygon is refused ([`ZonePolygon::parse`], [`ZonePolygon::new`]). Points are
+/// numbered from 1.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PolygonError {
+    /// A point that is not two numbers separated by spaces.
+    #[error(
+        "point {point} \"{text}\" is not a 'lon lat' pair (pairs are separated by commas, \
+         decimals written with a point)"
+    )]
+    NotAPair {
+        /// The point's number.
+        point: usize,
+        /// Its text, trimmed.
+        text: String,
+    },
+    /// A point whose two words are not finite numbers.
+    #[error("point {point} \"{text}\" is not two numbers")]
+    NotNumbers {
+        /// The point's number.
+        point: usize,
+        /// Its text, trimmed.
+        text: String,
+    },
+    /// A point outside lon -180..180, lat -90..90.
+    #[error("point {point} ({lon} {lat}) is outside lon -180..180, lat -90..90")]
+    OutsideRange {
+        /// The point's number.
+        point: usize,
+        /// Its longitude.
+        lon: f64,
+        /// Its latitude.
+        lat: f64,
+    },
+    /// More points than one polygon may have (`MAX_POLYGON_POINTS`).
+    #[error("more than {} points in one polygon", MAX_POLYGON_POINTS)]
+    TooManyPoints,
+    /// Fewer than 3 distinct points.
+    #[error("a polygon needs at least 3 distinct points")]
+    FewPoints,
+    /// Wider than 180 degrees of longitude.
+    #[error(
+        "the polygon spans more than 180 degrees of longitude; split a ring that crosses the \
+         antimeridian into two polygons"
+    )]
+    TooWide,
+    /// Two edges cross (numbered from 1).
+    #[error("the ring crosses itself (edges {first} and {second})")]
+    Crossing {
+        /// The first edge's number.
+        first: usize,
+        /// The second edge's number.
+        second: usize,
+    },
+    /// No area.
+    #[error("the polygon has no area")]
+    NoArea,
+}
+
 impl ZonePolygon {
     /// Parses a `points` attribute: `lon lat` pairs separated by commas, numbers with a decimal
     /// point. Returns a description of the first problem.
-    pub fn parse(points: &str) -> Result<ZonePolygon, String> {
+    pub fn parse(points: &str) -> Result<ZonePolygon, PolygonError> {
         let mut ring: Vec<[f64; 2]> = Vec::new();
         for (k, pair) in points.split(',').enumerate() {
             let mut nums = pair.split_whitespace();
             let (Some(lon), Some(lat), None) = (nums.next(), nums.next(), nums.next()) else {
-                return Err(format!(
-                    "point {} \"{}\" is not a 'lon lat' pair (pairs are separated by commas, \
-                     decimals written with a point)",
-                    k + 1,
-                    pair.trim()
-                ));
+                return Err(PolygonError::NotAPair {
+                    point: k + 1,
+                    text: pair.trim().to_string(),
+                });
             };
             let num = |s: &str| s.parse::<f64>().ok().filter(|x| x.is_finite());
             let (Some(lon), Some(lat)) = (num(lon), num(lat)) else {
-                return Err(format!(
-                    "point {} \"{}\" is not two numbers",
-                    k + 1,
-                    pair.trim()
-                ));
+                return Err(PolygonError::NotNumbers {
+                    point: k + 1,
+                    text: pair.trim().to_string(),
+                });
             };
             if !(-180.0..=180.0).contains(&lon) || !(-90.0..=90.0).contains(&lat) {
-                return Err(format!(
-                    "point {} ({lon} {lat}) is outside lon -180..180, lat -90..90",
-                    k + 1
-                ));
+                return Err(PolygonError::OutsideRange {
+                    point: k + 1,
+                    lon,
+                    lat,
+                });
             }
             if k >= MAX_POLYGON_POINTS {
-                return Err(format!(
-                    "more than {MAX_POLYGON_POINTS} points in one polygon"
-                ));
+                return Err(PolygonError::TooManyPoints);
             }
             ring.push([lon, lat]);
         }
@@ -152,13 +206,13 @@ impl ZonePolygon {
     }
 
     /// Builds a polygon from a ring (closed or not); see the module docs for the rules.
-    pub fn new(mut ring: Vec<[f64; 2]>) -> Result<ZonePolygon, String> {
+    pub fn new(mut ring: Vec<[f64; 2]>) -> Result<ZonePolygon, PolygonError> {
         ring.dedup();
         if ring.len() > 1 && ring.first() == ring.last() {
             ring.pop();
         }
         if ring.len() < 3 {
-            return Err("a polygon needs at least 3 distinct points".into());
+            return Err(PolygonError::FewPoints);
         }
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
@@ -169,23 +223,18 @@ impl ZonePolygon {
             }
         }
         if hi[0] - lo[0] > 180.0 {
-            return Err(
-                "the polygon spans more than 180 degrees of longitude; split a ring that \
-                 crosses the antimeridian into two polygons"
-                    .into(),
-            );
+            return Err(PolygonError::TooWide);
         }
         let bands = Bands::new(&ring, lo[1], hi[1]);
         if let Some((i, j)) = first_crossing(&ring, &bands) {
-            return Err(format!(
-                "the ring crosses itself (edges {} and {})",
-                i + 1,
-                j + 1
-            ));
+            return Err(PolygonError::Crossing {
+                first: i + 1,
+                second: j + 1,
+            });
         }
         let area_km2 = area_km2(&ring);
         if area_km2.is_nan() || area_km2 <= 0.0 {
-            return Err("the polygon has no area".into());
+            return Err(PolygonError::NoArea);
         }
         Ok(ZonePolygon {
             ring,
@@ -375,7 +424,7 @@ mod tests {
         for (s, want) in bad {
             match ZonePolygon::parse(s) {
                 Ok(p) => panic!("{s} accepted: {p:?}"),
-                Err(e) => assert!(e.contains(want), "{s}: {e}"),
+                Err(e) => assert!(e.to_string().contains(want), "{s}: {e}"),
             }
         }
     }

@@ -8,7 +8,7 @@
 //! the XSD only checks as lower-case words), it is stricter, never looser.
 
 use super::dom::{Elem, KbError};
-use super::polygon::ZonePolygon;
+use super::polygon::{PolygonError, ZonePolygon};
 use crate::color::Color;
 use crate::model::RoofShape;
 
@@ -322,8 +322,57 @@ impl Ctx<'_> {
     }
 }
 
+/// Why an attribute's value is refused by the strict reader (the end of its message, after
+/// `<element> name="value": `).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub(crate) enum ValueError {
+    #[error("decimal comma: write the number with a point")]
+    DecimalComma,
+    #[error("not a decimal number (digits with an optional '.', no exponent)")]
+    NotDecimal,
+    /// Decimal digits that are not a finite number.
+    #[error("not a decimal number")]
+    NotFinite,
+    #[error("empty value (leave the attribute out instead)")]
+    Empty,
+    #[error("spaces or line breaks around the value")]
+    Padded,
+    #[error("empty or space-padded entry in the '{sep}'-separated list")]
+    ListEntry { sep: char },
+    #[error("out of range {lo}..{hi}")]
+    OutOfRange { lo: f64, hi: f64 },
+    #[error("must be positive")]
+    NotPositive,
+    #[error("an angle in degrees from 0 to below 90")]
+    Angle,
+    #[error("not a whole number")]
+    NotWhole,
+    #[error("out of range 0..10000")]
+    Count,
+    #[error("a colour is #rrggbb or a lower-case CSS colour name")]
+    Colour,
+    #[error("a roof shape by its OSM roof:shape name (flat, gabled, hipped, ...)")]
+    Roof,
+    #[error("tall, short or irregular")]
+    WindowHeight,
+    #[error("none, all, or a comma-separated list of levels, roof, colour")]
+    Infer,
+    #[error("house, apartments, office, retail or openplan")]
+    Programme,
+    #[error("line break or tab in the value")]
+    LineBreak,
+    #[error("a zone name has no '/' and no line break")]
+    Designation,
+    #[error("{0}")]
+    Polygon(#[from] PolygonError),
+    #[error("X, Y or Z")]
+    Axis,
+    #[error("split values must be positive")]
+    SplitValues,
+}
+
 /// `[+-]?(d+(.d*)?|.d+)`: the xs:decimal lexical space.
-fn decimal(s: &str) -> Result<f64, String> {
+fn decimal(s: &str) -> Result<f64, ValueError> {
     let body = s.strip_prefix(['+', '-']).unwrap_or(s);
     let (int, frac) = body.split_once('.').unwrap_or((body, ""));
     let digits = |t: &str| t.bytes().all(|b| b.is_ascii_digit());
@@ -333,28 +382,26 @@ fn decimal(s: &str) -> Result<f64, String> {
         || (int.is_empty() && body.ends_with('.'))
     {
         if s.contains(',') && !s.contains('.') {
-            return Err("decimal comma: write the number with a point".into());
+            return Err(ValueError::DecimalComma);
         }
-        return Err("not a decimal number (digits with an optional '.', no exponent)".into());
+        return Err(ValueError::NotDecimal);
     }
     s.parse::<f64>()
         .ok()
         .filter(|x| x.is_finite())
-        .ok_or_else(|| "not a decimal number".into())
+        .ok_or(ValueError::NotFinite)
 }
 
-fn check_value(ty: Ty, v: &str) -> Result<(), String> {
+fn check_value(ty: Ty, v: &str) -> Result<(), ValueError> {
     if v.is_empty() {
-        return Err("empty value (leave the attribute out instead)".into());
+        return Err(ValueError::Empty);
     }
     if v.trim() != v {
-        return Err("spaces or line breaks around the value".into());
+        return Err(ValueError::Padded);
     }
-    let names = |list: &str, sep: char| -> Result<(), String> {
+    let names = |list: &str, sep: char| -> Result<(), ValueError> {
         if list.split(sep).any(|p| p.is_empty() || p.trim() != p) {
-            return Err(format!(
-                "empty or space-padded entry in the '{sep}'-separated list"
-            ));
+            return Err(ValueError::ListEntry { sep });
         }
         Ok(())
     };
@@ -362,27 +409,27 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
         Ty::Dec(lo, hi) => {
             let x = decimal(v)?;
             if !(lo..=hi).contains(&x) {
-                return Err(format!("out of range {lo}..{hi}"));
+                return Err(ValueError::OutOfRange { lo, hi });
             }
         }
         Ty::Pos => {
             if decimal(v)? <= 0.0 {
-                return Err("must be positive".into());
+                return Err(ValueError::NotPositive);
             }
         }
         Ty::Angle => {
             let x = decimal(v)?;
             if !(0.0..90.0).contains(&x) {
-                return Err("an angle in degrees from 0 to below 90".into());
+                return Err(ValueError::Angle);
             }
         }
         Ty::Count => {
             let digits = v.strip_prefix('+').unwrap_or(v);
             if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-                return Err("not a whole number".into());
+                return Err(ValueError::NotWhole);
             }
             if digits.len() > 5 || digits.parse::<u32>().map_or(true, |n| n > 10_000) {
-                return Err("out of range 0..10000".into());
+                return Err(ValueError::Count);
             }
         }
         Ty::Color => {
@@ -391,19 +438,17 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
                 .is_some_and(|h| h.len() == 6 && h.bytes().all(|b| b.is_ascii_hexdigit()));
             let name = v.bytes().all(|b| b.is_ascii_lowercase()) && Color::parse(v).is_some();
             if !hex && !name {
-                return Err("a colour is #rrggbb or a lower-case CSS colour name".into());
+                return Err(ValueError::Colour);
             }
         }
         Ty::Roof => {
             if RoofShape::parse(v).map(RoofShape::osm_name) != Some(v) {
-                return Err(
-                    "a roof shape by its OSM roof:shape name (flat, gabled, hipped, ...)".into(),
-                );
+                return Err(ValueError::Roof);
             }
         }
         Ty::WindowHeight => {
             if !matches!(v, "tall" | "short" | "irregular") {
-                return Err("tall, short or irregular".into());
+                return Err(ValueError::WindowHeight);
             }
         }
         Ty::Infer => {
@@ -411,22 +456,22 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
                 || v.split(',')
                     .all(|w| matches!(w, "levels" | "roof" | "colour"));
             if !ok {
-                return Err("none, all, or a comma-separated list of levels, roof, colour".into());
+                return Err(ValueError::Infer);
             }
         }
         Ty::Programme => {
             if !matches!(v, "house" | "apartments" | "office" | "retail" | "openplan") {
-                return Err("house, apartments, office, retail or openplan".into());
+                return Err(ValueError::Programme);
             }
         }
         Ty::Token => {
             if v.contains(['\n', '\r', '\t']) {
-                return Err("line break or tab in the value".into());
+                return Err(ValueError::LineBreak);
             }
         }
         Ty::Designation => {
             if v.contains('/') || v.contains(['\n', '\r', '\t']) {
-                return Err("a zone name has no '/' and no line break".into());
+                return Err(ValueError::Designation);
             }
         }
         Ty::Points => {
@@ -434,7 +479,7 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
         }
         Ty::Axis => {
             if !matches!(v, "X" | "Y" | "Z") {
-                return Err("X, Y or Z".into());
+                return Err(ValueError::Axis);
             }
         }
         Ty::Children => names(v, '|')?,
@@ -442,7 +487,7 @@ fn check_value(ty: Ty, v: &str) -> Result<(), String> {
         Ty::SplitValues => {
             for p in v.split(',') {
                 if decimal(p)? <= 0.0 {
-                    return Err("split values must be positive".into());
+                    return Err(ValueError::SplitValues);
                 }
             }
         }

@@ -88,7 +88,9 @@ pub fn derive_glb(
         ..Caps::default()
     };
     let mut generator = Generator::new(kb, Rules::Kb, lod, seed, caps);
-    generator.load_selex().map_err(RunError::Input)?;
+    generator
+        .load_selex()
+        .map_err(|e| RunError::Input(e.to_string()))?;
     generator.load_rulesets();
     if lod >= Lod::Lod3 {
         let mut selected = vec![false; lots.len()];

@@ -282,14 +282,98 @@ pub struct Previous {
     pub link: bool,
 }
 
+/// Why the previous run's manifests cannot be used, or a file of it cannot be reused.
+#[derive(Debug, thiserror::Error)]
+pub enum PreviousError {
+    /// The `--previous` folder cannot be listed.
+    #[error(
+        "--previous {}: {source} (give the folder of a tiled run: its manifests and tiles)",
+        .dir.display()
+    )]
+    Folder {
+        /// The folder.
+        dir: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The folder has no manifest.
+    #[error(
+        "--previous {}: no citygen-manifest.*.json there (a tiled run, --tile with an output, \
+         writes one beside its first output)",
+        .dir.display()
+    )]
+    NoManifest {
+        /// The folder.
+        dir: PathBuf,
+    },
+    /// A file cannot be read or written.
+    #[error("{}: {source}", .path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// A manifest does not parse.
+    #[error("{}: not a citygen manifest: {source}", .path.display())]
+    NotAManifest {
+        /// The manifest.
+        path: PathBuf,
+        /// serde_json's error.
+        source: serde_json::Error,
+    },
+    /// A manifest of another format.
+    #[error(
+        "{}: manifest format {found:?}, this citygen reads {:?}",
+        .path.display(),
+        shard::MANIFEST_FORMAT
+    )]
+    Format {
+        /// The manifest.
+        path: PathBuf,
+        /// Its format.
+        found: String,
+    },
+    /// A tile listed by two manifests of one folder.
+    #[error(
+        "--previous {}: tile {tile} is in two manifests (shards of two runs in one \
+         folder?)",
+        .dir.display()
+    )]
+    TileTwice {
+        /// The `--previous` folder.
+        dir: PathBuf,
+        /// The tile's suffix.
+        tile: String,
+    },
+    /// A file that is not the one its manifest lists (its SHA-256s are shown by their first 12
+    /// digits).
+    #[error(
+        "{} is not the file its manifest lists ({bytes} bytes, SHA-256 {}…; listed {listed_bytes} bytes, {}…)",
+        .path.display(),
+        .sha256.chars().take(12).collect::<String>(),
+        .listed_sha256.chars().take(12).collect::<String>()
+    )]
+    Mismatch {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// Its SHA-256, hex.
+        sha256: String,
+        /// The size listed.
+        listed_bytes: u64,
+        /// The SHA-256 listed, hex.
+        listed_sha256: String,
+    },
+}
+
 /// Reads the manifests `citygen-manifest.*.json` of `dir`. Errors name the folder or file:
 /// no manifest, one that does not parse or is of another format, or a tile in two of them.
-pub fn load_previous(dir: &Path) -> Result<Previous, String> {
-    let entries = std::fs::read_dir(dir).map_err(|e| {
-        format!(
-            "--previous {}: {e} (give the folder of a tiled run: its manifests and tiles)",
-            dir.display()
-        )
+pub fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
+    let entries = std::fs::read_dir(dir).map_err(|source| PreviousError::Folder {
+        dir: dir.to_path_buf(),
+        source,
     })?;
     let mut names: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -301,27 +385,26 @@ pub fn load_previous(dir: &Path) -> Result<Previous, String> {
         .collect();
     names.sort();
     if names.is_empty() {
-        return Err(format!(
-            "--previous {}: no citygen-manifest.*.json there (a tiled run, --tile with an output, \
-             writes one beside its first output)",
-            dir.display()
-        ));
+        return Err(PreviousError::NoManifest {
+            dir: dir.to_path_buf(),
+        });
     }
     let mut prev = Previous {
         dir: dir.to_path_buf(),
         ..Default::default()
     };
     for p in names {
-        let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-        let m: Manifest = serde_json::from_str(&text)
-            .map_err(|e| format!("{}: not a citygen manifest: {e}", p.display()))?;
+        let text = std::fs::read_to_string(&p).map_err(io(&p))?;
+        let m: Manifest =
+            serde_json::from_str(&text).map_err(|source| PreviousError::NotAManifest {
+                path: p.clone(),
+                source,
+            })?;
         if m.format != shard::MANIFEST_FORMAT {
-            return Err(format!(
-                "{}: manifest format {:?}, this citygen reads {:?}",
-                p.display(),
-                m.format,
-                shard::MANIFEST_FORMAT
-            ));
+            return Err(PreviousError::Format {
+                path: p,
+                found: m.format,
+            });
         }
         let folder = p
             .parent()
@@ -331,12 +414,10 @@ pub fn load_previous(dir: &Path) -> Result<Previous, String> {
         for t in m.tiles {
             if let Some((other, _)) = prev.tiles.get(&t.suffix) {
                 if other == &folder {
-                    return Err(format!(
-                        "--previous {}: tile {} is in two manifests (shards of two runs in one \
-                         folder?)",
-                        dir.display(),
-                        t.suffix
-                    ));
+                    return Err(PreviousError::TileTwice {
+                        dir: dir.to_path_buf(),
+                        tile: t.suffix,
+                    });
                 }
             }
             prev.tiles.insert(t.suffix.clone(), (folder.clone(), t));
@@ -399,21 +480,30 @@ pub fn changes(prev: &Previous, lots: &BTreeMap<String, (String, String)>) -> Ch
 
 /// `Err` unless `n` bytes of SHA-256 `got` (read from `src`) are the `bytes` and `sha256` its
 /// manifest lists.
-fn matches(src: &Path, n: u64, got: &str, bytes: u64, sha256: &str) -> Result<(), String> {
+fn matches(src: &Path, n: u64, got: &str, bytes: u64, sha256: &str) -> Result<(), PreviousError> {
     if n == bytes && got == sha256 {
         return Ok(());
     }
-    Err(format!(
-        "{} is not the file its manifest lists ({n} bytes, SHA-256 {}…; listed {bytes} bytes, {}…)",
-        src.display(),
-        got.chars().take(12).collect::<String>(),
-        sha256.chars().take(12).collect::<String>()
-    ))
+    Err(PreviousError::Mismatch {
+        path: src.to_path_buf(),
+        bytes: n,
+        sha256: got.to_string(),
+        listed_bytes: bytes,
+        listed_sha256: sha256.to_string(),
+    })
+}
+
+/// The [`PreviousError::Io`] of `path`.
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PreviousError + '_ {
+    move |source| PreviousError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
 }
 
 /// Reads `src` through and checks its size and SHA-256 ([`matches`]).
-fn check_file(src: &Path, bytes: u64, sha256: &str) -> Result<(), String> {
-    let (n, got) = crate::fsio::file_sha256(src).map_err(|e| format!("{}: {e}", src.display()))?;
+fn check_file(src: &Path, bytes: u64, sha256: &str) -> Result<(), PreviousError> {
+    let (n, got) = crate::fsio::file_sha256(src).map_err(io(src))?;
     matches(src, n, &got, bytes, sha256)
 }
 
@@ -428,7 +518,7 @@ pub fn copy_checked(
     bytes: u64,
     sha256: &str,
     link: bool,
-) -> Result<Option<crate::fsio::PendingFile>, String> {
+) -> Result<Option<crate::fsio::PendingFile>, PreviousError> {
     let same = match (
         std::fs::canonicalize(src),
         dst.parent().map(std::fs::canonicalize),
@@ -442,42 +532,36 @@ pub fn copy_checked(
             return Ok(Some(p));
         }
     }
-    let mut input = std::fs::File::open(src).map_err(|e| format!("{}: {e}", src.display()))?;
+    let mut input = std::fs::File::open(src).map_err(io(src))?;
     let mut out = if same {
         None
     } else {
-        Some(crate::fsio::AtomicFile::create(dst).map_err(|e| format!("{}: {e}", dst.display()))?)
+        Some(crate::fsio::AtomicFile::create(dst).map_err(io(dst))?)
     };
     let mut writer = match &out {
-        Some(f) => Some(f.writer().map_err(|e| format!("{}: {e}", dst.display()))?),
+        Some(f) => Some(f.writer().map_err(io(dst))?),
         None => None,
     };
     let mut h = Sha256::new();
     let mut n = 0u64;
     let mut buf = vec![0u8; 1 << 20];
     loop {
-        let k = input
-            .read(&mut buf)
-            .map_err(|e| format!("{}: {e}", src.display()))?;
+        let k = input.read(&mut buf).map_err(io(src))?;
         if k == 0 {
             break;
         }
         h.update(&buf[..k]);
         n += k as u64;
         if let Some(w) = writer.as_mut() {
-            w.write_all(&buf[..k])
-                .map_err(|e| format!("{}: {e}", dst.display()))?;
+            w.write_all(&buf[..k]).map_err(io(dst))?;
         }
     }
     matches(src, n, &crate::fsio::hex(&h.finalize()), bytes, sha256)?;
     if let Some(mut w) = writer {
-        w.flush().map_err(|e| format!("{}: {e}", dst.display()))?;
+        w.flush().map_err(io(dst))?;
     }
     match out.take() {
-        Some(f) => f
-            .close()
-            .map(Some)
-            .map_err(|e| format!("{}: {e}", dst.display())),
+        Some(f) => f.close().map(Some).map_err(io(dst)),
         None => Ok(None),
     }
 }

@@ -66,19 +66,101 @@ pub enum ShardArg {
     Auto,
 }
 
+/// Why `--shard` or its environment gives no shard.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ShardError {
+    /// Neither `I/N` nor `auto`.
+    #[error("{text:?} is not I/N (e.g. 0/4, shards counted from 0) or auto")]
+    NotIN {
+        /// The value given.
+        text: String,
+    },
+    /// The index or the count of `I/N` is not a whole number.
+    #[error("{text:?}: {what} {word:?} is not a whole number")]
+    NotWhole {
+        /// The value given.
+        text: String,
+        /// "the index" or "the count".
+        what: &'static str,
+        /// The word that is not a number.
+        word: String,
+    },
+    /// A count of 0 or over [`MAX_SHARDS`].
+    #[error("shard count {count} is not between 1 and {}", MAX_SHARDS)]
+    Count {
+        /// The count.
+        count: usize,
+    },
+    /// An index not below the count.
+    #[error(
+        "shard index {index} is not below the count {count} (shards are counted from 0: \
+         0/{count} to {}/{count})",
+        .count - 1
+    )]
+    Index {
+        /// The index.
+        index: usize,
+        /// The count.
+        count: usize,
+    },
+    /// A variable of the job's environment that is not a whole number.
+    #[error("--shard auto: {name}={value:?} is not a whole number")]
+    Variable {
+        /// The variable.
+        name: String,
+        /// Its value.
+        value: String,
+    },
+    /// No variable gives the index.
+    #[error(
+        "--shard auto: neither JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) nor \
+         SLURM_ARRAY_TASK_ID (a Slurm array) is set; pass --shard I/N"
+    )]
+    NoIndex,
+    /// A Slurm array that is not the whole run.
+    #[error(
+        "--shard auto: the Slurm array is not 0-{} (SLURM_ARRAY_TASK_MIN={},                  SLURM_ARRAY_TASK_MAX={}): a partial array (a re-submission) does not tell the                  run's shard count; pass --shards N",
+        .count.saturating_sub(1),
+        .min.map_or("unset".into(), |v| v.to_string()),
+        .max.map_or("unset".into(), |v| v.to_string()),
+    )]
+    PartialArray {
+        /// `SLURM_ARRAY_TASK_COUNT`.
+        count: usize,
+        /// `SLURM_ARRAY_TASK_MIN`.
+        min: Option<usize>,
+        /// `SLURM_ARRAY_TASK_MAX`.
+        max: Option<usize>,
+    },
+    /// The index is found, the count is not.
+    #[error(
+        "--shard auto: {from} gives the index but nothing gives the count; pass \
+         --shards N (the Job's completions)"
+    )]
+    NoCount {
+        /// Where the index came from (`NAME=VALUE`).
+        from: String,
+    },
+    /// The shard found in the environment is not valid.
+    #[error("--shard auto: {0}")]
+    Auto(Box<ShardError>),
+}
+
 /// Parses `--shard`'s value: `I/N` (0 <= I < N <= [`MAX_SHARDS`]) or `auto`.
-pub fn parse_shard(s: &str) -> Result<ShardArg, String> {
+pub fn parse_shard(s: &str) -> Result<ShardArg, ShardError> {
     let s = s.trim();
     if s.eq_ignore_ascii_case("auto") {
         return Ok(ShardArg::Auto);
     }
-    let (i, n) = s
-        .split_once('/')
-        .ok_or_else(|| format!("{s:?} is not I/N (e.g. 0/4, shards counted from 0) or auto"))?;
-    let num = |t: &str, what: &str| {
-        t.trim()
-            .parse::<usize>()
-            .map_err(|_| format!("{s:?}: {what} {t:?} is not a whole number"))
+    let (i, n) = s.split_once('/').ok_or_else(|| ShardError::NotIN {
+        text: s.to_string(),
+    })?;
+    let num = |t: &str, what: &'static str| {
+        t.trim().parse::<usize>().map_err(|_| ShardError::NotWhole {
+            text: s.to_string(),
+            what,
+            word: t.to_string(),
+        })
     };
     let shard = Shard {
         index: num(i, "the index")?,
@@ -87,22 +169,15 @@ pub fn parse_shard(s: &str) -> Result<ShardArg, String> {
     check(shard).map(ShardArg::Fixed)
 }
 
-fn check(s: Shard) -> Result<Shard, String> {
+fn check(s: Shard) -> Result<Shard, ShardError> {
     if s.count == 0 || s.count > MAX_SHARDS {
-        return Err(format!(
-            "shard count {} is not between 1 and {MAX_SHARDS}",
-            s.count
-        ));
+        return Err(ShardError::Count { count: s.count });
     }
     if s.index >= s.count {
-        return Err(format!(
-            "shard index {} is not below the count {} (shards are counted from 0: 0/{} to {}/{})",
-            s.index,
-            s.count,
-            s.count,
-            s.count - 1,
-            s.count
-        ));
+        return Err(ShardError::Index {
+            index: s.index,
+            count: s.count,
+        });
     }
     Ok(s)
 }
@@ -118,8 +193,8 @@ fn check(s: Shard) -> Result<Shard, String> {
 pub fn from_env(
     shards: Option<usize>,
     env: &dyn Fn(&str) -> Option<String>,
-) -> Result<(Shard, String), String> {
-    let var = |name: &str| -> Result<Option<usize>, String> {
+) -> Result<(Shard, String), ShardError> {
+    let var = |name: &str| -> Result<Option<usize>, ShardError> {
         match env(name) {
             None => Ok(None),
             Some(v) if v.trim().is_empty() => Ok(None),
@@ -127,7 +202,10 @@ pub fn from_env(
                 .trim()
                 .parse::<usize>()
                 .map(Some)
-                .map_err(|_| format!("--shard auto: {name}={v:?} is not a whole number")),
+                .map_err(|_| ShardError::Variable {
+                    name: name.to_string(),
+                    value: v,
+                }),
         }
     };
     let (index, source) = if let Some(i) = var("JOB_COMPLETION_INDEX")? {
@@ -135,11 +213,7 @@ pub fn from_env(
     } else if let Some(id) = var("SLURM_ARRAY_TASK_ID")? {
         (id, format!("SLURM_ARRAY_TASK_ID={id}"))
     } else {
-        return Err(
-            "--shard auto: neither JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) nor \
-             SLURM_ARRAY_TASK_ID (a Slurm array) is set; pass --shard I/N"
-                .into(),
-        );
+        return Err(ShardError::NoIndex);
     };
     let slurm = (
         var("SLURM_ARRAY_TASK_COUNT")?,
@@ -151,22 +225,10 @@ pub fn from_env(
         (None, (Some(n), Some(0), Some(max))) if n > 0 && max == n - 1 => {
             (n, format!("SLURM_ARRAY_TASK_COUNT={n}"))
         }
-        (None, (Some(n), min, max)) => {
-            return Err(format!(
-                "--shard auto: the Slurm array is not 0-{} (SLURM_ARRAY_TASK_MIN={},                  SLURM_ARRAY_TASK_MAX={}): a partial array (a re-submission) does not tell the                  run's shard count; pass --shards N",
-                n.saturating_sub(1),
-                min.map_or("unset".into(), |v| v.to_string()),
-                max.map_or("unset".into(), |v| v.to_string()),
-            ))
-        }
-        (None, _) => {
-            return Err(format!(
-                "--shard auto: {source} gives the index but nothing gives the count; pass \
-                 --shards N (the Job's completions)"
-            ))
-        }
+        (None, (Some(n), min, max)) => return Err(ShardError::PartialArray { count: n, min, max }),
+        (None, _) => return Err(ShardError::NoCount { from: source }),
     };
-    let shard = check(Shard { index, count }).map_err(|e| format!("--shard auto: {e}"))?;
+    let shard = check(Shard { index, count }).map_err(|e| ShardError::Auto(Box::new(e)))?;
     Ok((
         shard,
         format!("shard {shard} (index from {source}, count from {how})"),
@@ -409,7 +471,7 @@ mod tests {
             ("3", "I/N"),
             ("0/100001", "between 1"),
         ] {
-            let e = parse_shard(bad).unwrap_err();
+            let e = parse_shard(bad).unwrap_err().to_string();
             assert!(e.contains(says), "{bad}: {e}");
         }
     }
@@ -427,7 +489,9 @@ mod tests {
         let (s, how) = from_env(Some(4), &env(&[("JOB_COMPLETION_INDEX", "3")])).unwrap();
         assert_eq!(s, Shard { index: 3, count: 4 });
         assert!(how.contains("JOB_COMPLETION_INDEX=3") && how.contains("--shards"));
-        let e = from_env(None, &env(&[("JOB_COMPLETION_INDEX", "3")])).unwrap_err();
+        let e = from_env(None, &env(&[("JOB_COMPLETION_INDEX", "3")]))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--shards N"), "{e}");
         let vars = [
             ("SLURM_ARRAY_TASK_ID", "5"),
@@ -446,15 +510,19 @@ mod tests {
             ("SLURM_ARRAY_TASK_MAX", "5"),
             ("SLURM_ARRAY_TASK_COUNT", "2"),
         ];
-        let e = from_env(None, &env(&partial)).unwrap_err();
+        let e = from_env(None, &env(&partial)).unwrap_err().to_string();
         assert!(e.contains("pass --shards N"), "{e}");
         let (s, _) = from_env(Some(7), &env(&partial)).unwrap();
         assert_eq!(s, Shard { index: 5, count: 7 });
-        let e = from_env(None, &env(&[])).unwrap_err();
+        let e = from_env(None, &env(&[])).unwrap_err().to_string();
         assert!(e.contains("JOB_COMPLETION_INDEX"), "{e}");
-        let e = from_env(Some(2), &env(&[("JOB_COMPLETION_INDEX", "2")])).unwrap_err();
+        let e = from_env(Some(2), &env(&[("JOB_COMPLETION_INDEX", "2")]))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("counted from 0"), "{e}");
-        let e = from_env(Some(2), &env(&[("SLURM_ARRAY_TASK_ID", "one")])).unwrap_err();
+        let e = from_env(Some(2), &env(&[("SLURM_ARRAY_TASK_ID", "one")]))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("not a whole number"), "{e}");
     }
 

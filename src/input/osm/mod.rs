@@ -515,7 +515,7 @@ fn assemble(
     // The polygons of the building/part ways, built in parallel: the costly part (node
     // lookups, clean-up, checks, orientation); report entries are then added in way order.
     let old_style_at = |w: i64| old_style.binary_search_by_key(&w, |(x, _, _)| *x).ok();
-    let polygons: Vec<Option<Result<Vec<SourcePolygon>, String>>> = ways
+    let polygons: Vec<Option<Result<Vec<SourcePolygon>, WayError>>> = ways
         .recs
         .par_iter()
         .map(|w| {
@@ -542,7 +542,7 @@ fn assemble(
             Ok(p) => p,
             Err(why) => {
                 report.skipped += 1;
-                report.add(Some(id), Outcome::Skipped, why);
+                report.add(Some(id), Outcome::Skipped, why.to_string());
                 continue;
             }
         };
@@ -600,6 +600,29 @@ fn assemble(
     result
 }
 
+/// Why a building/part way is skipped (the reason its report entry gives).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+enum WayError {
+    /// It is the outer ring of a multipolygon relation built instead.
+    #[error("outer ring of multipolygon relation/{relation}, which is built instead")]
+    BuiltByRelation { relation: i64 },
+    /// Its first and last nodes differ.
+    #[error("unclosed way: first node node/{first}, last node node/{last}")]
+    Unclosed { first: i64, last: i64 },
+    /// Fewer than 2 nodes.
+    #[error("way with {nodes} node(s)")]
+    FewNodes { nodes: usize },
+    /// Nodes it names are not in the file.
+    #[error("{missing} of {nodes} nodes missing from the file")]
+    MissingNodes { missing: usize, nodes: usize },
+    /// The cleaned ring cannot be used ([`ring_problem`]).
+    #[error("{0}")]
+    BadRing(&'static str),
+    /// A point is not on the Earth ([`lonlat_problem`]'s message).
+    #[error("{0}")]
+    OutsideEarth(String),
+}
+
 /// The cleaned outer ring of a building/part way, or why it is skipped. `built_by` is sorted;
 /// `refs` are the way's node ids.
 fn way_ring(
@@ -607,29 +630,30 @@ fn way_ring(
     refs: &[i64],
     built_by: &[(i64, i64)],
     nodes: &Nodes,
-) -> Result<Ring, String> {
+) -> Result<Ring, WayError> {
     let first = built_by.partition_point(|(x, _)| *x < w.id);
     if let Some((_, r)) = built_by.get(first).filter(|(x, _)| *x == w.id) {
-        return Err(format!(
-            "outer ring of multipolygon relation/{r}, which is built instead"
-        ));
+        return Err(WayError::BuiltByRelation { relation: *r });
     }
     if refs.len() < 2 || refs.first() != refs.last() {
         return Err(match (refs.first(), refs.last()) {
-            (Some(a), Some(b)) if refs.len() >= 2 => {
-                format!("unclosed way: first node node/{a}, last node node/{b}")
-            }
-            _ => format!("way with {} node(s)", refs.len()),
+            (Some(a), Some(b)) if refs.len() >= 2 => WayError::Unclosed {
+                first: *a,
+                last: *b,
+            },
+            _ => WayError::FewNodes { nodes: refs.len() },
         });
     }
-    let mut outer = resolve(refs, nodes)
-        .map_err(|n| format!("{n} of {} nodes missing from the file", refs.len()))?;
+    let mut outer = resolve(refs, nodes).map_err(|missing| WayError::MissingNodes {
+        missing,
+        nodes: refs.len(),
+    })?;
     ring::dedup_by(&mut outer, |a, b| a == b);
     if let Some(why) = ring_problem(&outer) {
-        return Err(why.to_string());
+        return Err(WayError::BadRing(why));
     }
     if let Some(why) = lonlat_problem(&outer) {
-        return Err(why);
+        return Err(WayError::OutsideEarth(why));
     }
     Ok(outer)
 }
