@@ -3,10 +3,8 @@
 //!
 //! Every footprint comes out either as (part of) a [`Lot`] or as a report entry with its reason.
 
-use geo::BooleanOps;
 use glam::DVec2;
 use rayon::prelude::*;
-use rstar::{RTree, RTreeObject, AABB};
 
 mod clean;
 mod fronts;
@@ -23,8 +21,8 @@ pub use tiles::{
 };
 
 use crate::crs::Crs;
-use crate::geometry::{ring, ring_signed_area, Polygon};
-use crate::input::{Footprint, FootprintKind, SharedTags, SourcePolygon, Streets};
+use crate::geometry::{ring_signed_area, Polygon};
+use crate::input::{Footprint, FootprintKind, SharedTags, SourcePolygon};
 use crate::model::SourceId;
 use crate::report::{Outcome, Report};
 

@@ -19,6 +19,22 @@ pub struct Span {
     pub len: usize,
 }
 
+impl Span {
+    /// The span from the start of `self` to the end of `other` (line and column of `self`).
+    pub fn to(self, other: Span) -> Span {
+        let end = (other.offset + other.len).max(self.offset + self.len);
+        Span {
+            len: end - self.offset.min(end),
+            ..self
+        }
+    }
+
+    /// One past the last byte.
+    pub fn end(self) -> usize {
+        self.offset + self.len
+    }
+}
+
 /// A scope axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Axis {

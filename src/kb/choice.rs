@@ -1,7 +1,10 @@
 //! Appearance choice: the appearances a zone offers a building's kind, their weights, the
 //! draw, and the rule and SELEX files an appearance names.
 
-use super::*;
+use std::path::{Component, Path, PathBuf};
+
+use super::{Appearance, KbError, KnowledgeBase};
+use crate::rng::Rng;
 
 impl KnowledgeBase {
     /// The appearances that apply to a zone: its own, or if it has none those of the nearest

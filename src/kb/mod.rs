@@ -22,15 +22,13 @@ mod values;
 pub mod write;
 pub(crate) mod xml;
 
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::RTree;
 
 use crate::color::Color;
-use crate::input::BuildingTags;
 use crate::model::RoofShape;
-use crate::rng::Rng;
 
 pub use crate::model::Inference;
 pub use choice::{appearance_weights, eligible, proba_weights};

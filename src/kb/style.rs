@@ -1,7 +1,16 @@
 //! A building's `Style`: the zone's values and the drawn appearance resolved, heights drawn,
 //! OSM tags applied over them.
 
-use super::*;
+use std::path::PathBuf;
+
+use super::{
+    defaults, KnowledgeBase, OpeningTree, Values, WindowHeight, MAX_TAGGED_PITCH_DEG,
+    MAX_TAGGED_ROOF_HEIGHT_M,
+};
+use crate::color::Color;
+use crate::input::BuildingTags;
+use crate::model::RoofShape;
+use crate::rng::Rng;
 
 /// Everything one building needs, resolved from the KB, the chosen appearance and the tags.
 ///

@@ -3,6 +3,8 @@
 //! shipped world KB and the thesis's.
 
 use super::*;
+use crate::input::BuildingTags;
+use crate::rng::Rng;
 
 /// The 21-zone KB shipped before the world KB (France, Monaco, UK), kept as a fixture.
 fn shipped() -> KnowledgeBase {

@@ -1,7 +1,13 @@
 //! Polygons cleaned as they are read: rings merged, validity checked, self-intersections
 //! repaired, each repair or skip reported.
 
-use super::*;
+use geo::BooleanOps;
+use glam::DVec2;
+
+use super::{MAX_CHECKED_VERTICES, MERGE_TOLERANCE, MIN_AREA};
+use crate::geometry::{ring, Polygon};
+use crate::model::SourceId;
+use crate::report::{Outcome, Report};
 
 /// Cleans polygons: merges near-duplicate vertices, drops spikes and degenerate rings,
 /// repairs self-intersections and stray holes with a boolean union, drops slivers.

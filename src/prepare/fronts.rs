@@ -1,7 +1,14 @@
 //! The street front of each lot: the edge facing the nearest street, unless another building
 //! stands against it.
 
-use super::*;
+use glam::DVec2;
+use rayon::prelude::*;
+use rstar::{RTree, RTreeObject, AABB};
+
+use super::{Site, MERGE_TOLERANCE};
+use crate::crs::Crs;
+use crate::geometry::Polygon;
+use crate::input::Streets;
 
 /// A street farther than this (metres) from every facing outline edge does not make a front:
 /// beyond it a building stands in a park, a compound or behind other buildings, and the nearest
@@ -29,8 +36,9 @@ impl RTreeObject for StreetSegment {
     }
 }
 
-/// Sets [`Lot::front`] of every lot from the street centre lines the reader gave (in the same
-/// source coordinates as the footprints, `source_crs` as for [`prepare`]).
+/// Sets [`Lot::front`](super::Lot::front) of every lot from the street centre lines the reader
+/// gave (in the same source coordinates as the footprints, `source_crs` as for
+/// [`prepare`](super::prepare)).
 ///
 /// For each outer edge of the outline (edges shorter than 2 m are passed over when longer ones
 /// exist) and each street segment near the lot (an rstar index over the segments), the edge

@@ -1,9 +1,17 @@
 //! A lot's outline and parts made consistent: nearly straight vertices dropped, vertices
 //! shared along common boundaries, parts cut out of their outline.
 
+use glam::DVec2;
+use rstar::{RTree, RTreeObject, AABB};
+
 use super::clean::{clean_polygons_quietly, is_valid};
 use super::fronts::nearest_on_segment;
-use super::*;
+use super::{
+    interior_point, ring_perimeter, Lot, LotPiece, STRAIGHTEN_MAX_TURN_DEG, STRAIGHTEN_TOLERANCE,
+};
+use crate::geometry::{ring, Polygon};
+use crate::model::SourceId;
+use crate::report::{Outcome, Report};
 
 /// Straightens the rings of a lot ([`ring::straighten`] within [`STRAIGHTEN_TOLERANCE`]): the
 /// outline, its drawn rest and its parts. A vertex within 1 cm of another of the lot's rings

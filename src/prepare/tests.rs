@@ -3,6 +3,8 @@
 use super::clean::{is_valid, merge_ring};
 use super::fronts::{front_of, StreetSegment};
 use super::*;
+use crate::input::Streets;
+use rstar::RTree;
 
 fn sq(x0: f64, y0: f64, s: f64) -> Vec<DVec2> {
     vec![

@@ -1,7 +1,12 @@
 //! Which lots a run keeps and writes where: the `--bbox` selection and its margins, and the
 //! square tiles of `--tile`.
 
-use super::*;
+use glam::DVec2;
+use rstar::{RTree, AABB};
+
+use super::{Lot, Site};
+use crate::crs::Crs;
+use crate::report::{Outcome, Report};
 
 /// Keeps the lots whose representative point lies in `bbox` = [min lon, min lat, max lon,
 /// max lat] (degrees), so a region can be split across runs or machines: every footprint lies in

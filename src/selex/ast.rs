@@ -45,34 +45,9 @@
 
 use std::fmt;
 
-/// A place in the source: 1-based line and column (in characters) and the byte range.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub struct Span {
-    /// 1-based line of the first character.
-    pub line: u32,
-    /// 1-based column of the first character, counted in characters.
-    pub col: u32,
-    /// Byte offset of the first character.
-    pub offset: usize,
-    /// Length in bytes (0 at end of file).
-    pub len: usize,
-}
-
-impl Span {
-    /// The span from the start of `self` to the end of `other` (line and column of `self`).
-    pub fn to(self, other: Span) -> Span {
-        let end = (other.offset + other.len).max(self.offset + self.len);
-        Span {
-            len: end - self.offset.min(end),
-            ..self
-        }
-    }
-
-    /// One past the last byte.
-    pub fn end(self) -> usize {
-        self.offset + self.len
-    }
-}
+/// A place in the source: the grammar's span (1-based line and column in characters, and the
+/// byte range), which the diagnostics share.
+pub use crate::grammar::ast::Span;
 
 /// A whole program: assignments and rules, executed one at a time in file order.
 #[derive(Clone, Debug, PartialEq, Default)]

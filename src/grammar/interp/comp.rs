@@ -1,8 +1,12 @@
 //! `comp`: a volume into its faces, each with its scope and orientation.
 
-use super::*;
+use glam::{DVec2, DVec3};
 
-/// Vertical-face orientation relative to the parent scope (see the module doc).
+use super::{face_scope, geometry_name, polygon_points, Ctx, DeriveError, Piece};
+use crate::grammar::ast::Selector;
+use crate::grammar::shape::{FaceKind, Geometry, Scope, EPS};
+
+/// Vertical-face orientation relative to the parent scope (see the module doc of `interp`).
 fn orientation(normal: DVec2, scope: &Scope) -> Selector {
     let (nx, ny) = (normal.dot(scope.x2()), normal.dot(scope.y2()));
     if ny.abs() >= nx.abs() {

@@ -60,12 +60,11 @@ use std::rc::Rc;
 
 use glam::{DVec2, DVec3};
 
-use super::ast::{AttrValue, Attrs, Axis, Expr, Op, RuleSet, Selector, SplitKind, SymbolId};
+use super::ast::{AttrValue, Attrs, Axis, Expr, Op, RuleSet, SymbolId};
 use super::expr::{eval, EvalError};
 use super::shape::{
     FaceKind, Geometry, Label, Scope, ShapeNode, ShapeTree, Terminal, EPS, MIN_AREA,
 };
-use crate::geometry::clip::{clip_slab, map_polygon};
 use crate::geometry::hull::scope_direction;
 use crate::geometry::Polygon;
 use crate::rng::Rng;

@@ -1,6 +1,10 @@
 //! `split`: the 1D layout of a split along an axis, and the footprint or face cut into its slabs.
 
-use super::*;
+use super::{face_scope, h2, polygon_points, Ctx, DeriveError, Piece, FIT_TOL};
+use crate::geometry::clip::clip_slab;
+use crate::geometry::Polygon;
+use crate::grammar::ast::{Axis, SplitKind};
+use crate::grammar::shape::{Geometry, Scope, EPS};
 
 /// A 1D layout: (successor or wall, start, length) along an axis of length `len`.
 fn layout(

@@ -1,6 +1,11 @@
 //! The operations that move or grow a shape: extrude, S (scale), T (translate), R (rotate).
 
-use super::*;
+use glam::{DVec2, DVec3};
+
+use super::{face_scope, h2, Ctx, DeriveError};
+use crate::geometry::clip::map_polygon;
+use crate::geometry::Polygon;
+use crate::grammar::shape::{FaceKind, Geometry, Scope, EPS};
 
 pub(super) fn extrude(geom: &Geometry, scope: &Scope, h: f64) -> (Geometry, Scope) {
     match geom {

@@ -2,7 +2,8 @@
 //! not fit them.
 
 use super::names::cut;
-use super::*;
+use super::{kind_name, Cx, Kinds, Severity, Sink, FACE, LOT, VOLUME};
+use crate::grammar::ast::{Axis, Op, SymbolId};
 
 impl Cx<'_> {
     /// The shape kinds each symbol can meet, from the axiom (a lot), to a fixpoint.

@@ -33,10 +33,10 @@
 //! are), name lists in messages stop after a few names, long symbol names are cut, and the
 //! "did you mean" search has a fixed budget.
 
-use std::collections::{BTreeMap, BTreeSet, BinaryHeap};
+use std::collections::{BTreeMap, BinaryHeap};
 use std::fmt;
 
-use super::ast::{Axis, BinOp, Expr, Op, Rule, RuleSet, Selector, Span, SplitKind, SymbolId};
+use super::ast::{Rule, RuleSet, Span, SymbolId};
 
 mod kinds;
 mod names;

@@ -1,6 +1,6 @@
 //! Names and numbers in messages: quoted and cut names, lists, plurals, did-you-mean.
 
-use super::*;
+use super::MAX_NAME_CHARS;
 
 /// `` `name` ``, cut to [`MAX_NAME_CHARS`] characters with `…` (a generated file may have
 /// megabyte names).

@@ -1,9 +1,12 @@
 //! Recursions only a cap stops: the rule graph, its strongly connected components, growth
 //! (a Perron bound) and non-termination.
 
+use std::collections::{BTreeMap, BTreeSet};
+
 use super::kinds::op_label;
 use super::names::{fmt_num, list_names};
-use super::*;
+use super::{Cx, Kinds, Severity, Sink, EPS_SIZE, FACE, LOT, MAX_LISTED, PROB_EPS, VOLUME};
+use crate::grammar::ast::{Axis, BinOp, Expr, Op, Rule, Selector, SplitKind, SymbolId};
 
 impl Cx<'_> {
     /// Recursions that only the caps stop: `exponential-growth` and `non-terminating`.

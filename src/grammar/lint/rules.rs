@@ -1,8 +1,14 @@
 //! Checks on the rules themselves: undefined symbols, unreachable rules, probability sums,
 //! duplicates.
 
+use std::collections::BTreeSet;
+
 use super::names::{cut, fmt_num, list_names, plural, quote, suggest};
-use super::*;
+use super::{
+    Cx, Severity, Sink, KNOWN_TERMINALS, MAX_LISTED, MAX_NAME_CHARS, MAX_PER_CODE, PROB_EPS,
+    SUGGEST_BUDGET,
+};
+use crate::grammar::ast::{Rule, SymbolId};
 
 impl Cx<'_> {
     /// Successor symbols with no rule that are not known terminals.

@@ -1,8 +1,11 @@
 //! The joint distribution of roof shapes and storeys: fitted to the marginals, merged into at
 //! most so many bins, rounded to probabilities.
 
+use std::collections::BTreeMap;
+
 use super::format::num;
-use super::*;
+use super::Joint;
+use crate::model::RoofShape;
 
 /// A roof shape as a key: its OSM name; `""` for none.
 pub(super) fn roof_key(r: Option<RoofShape>) -> &'static str {

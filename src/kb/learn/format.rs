@@ -1,7 +1,9 @@
 //! How names, comments, numbers and coordinates are written, and the mode and median of
 //! values.
 
-use super::*;
+use std::collections::BTreeMap;
+
+use super::round7;
 
 /// A name the strict reader takes as a designation: no `/`, no tab or line break, trimmed,
 /// not empty.

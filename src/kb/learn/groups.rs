@@ -1,7 +1,10 @@
 //! The groups samples are learned in: the cells of a grid, or the zones of a KB.
 
+use std::collections::BTreeMap;
+
 use super::format::{designation, num};
-use super::*;
+use super::{round7, Group, Sample, Shape, MAX_CELLS, MAX_GRID_LATITUDE};
+use crate::kb::{KnowledgeBase, ZoneKind, KM_PER_DEG};
 
 /// The grid's cells as zones under one town: group 0 earth, 1 the town, then the cells by row
 /// (south to north) and column (west to east).

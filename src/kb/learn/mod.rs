@@ -51,10 +51,9 @@
 //! Deterministic: ordered maps only, ties broken by key; the same samples give the same bytes.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 
 use super::compile::color_word;
-use super::{defaults, KnowledgeBase, ZoneKind, KM_PER_DEG};
+use super::KnowledgeBase;
 use crate::input::BuildingTags;
 use crate::model::RoofShape;
 

@@ -1,9 +1,13 @@
 //! What the writer counts per group: tagged samples, the group each attribute is learned from,
 //! distributions, matching samples, colours and floor heights.
 
+use std::collections::BTreeMap;
+
 use super::fit::{fit_joint, normalise, roof_key, Bin};
 use super::format::{median, mode};
-use super::*;
+use super::{
+    kind_class, Attr, Group, Joint, Sample, Writer, ATTRS, KIND_CLASSES, MIN_PER_APPEARANCE,
+};
 
 impl<'a> Writer<'a> {
     /// Counts, and what each zone's values describe. A zone's values serve only the buildings

@@ -2,7 +2,7 @@
 
 use super::fit::{fit_joint, merge_bins, round_probas, Bin};
 use super::*;
-use crate::kb::ReadMode;
+use crate::kb::{ReadMode, ZoneKind, KM_PER_DEG};
 
 fn sample(lon: f64, lat: f64, storeys: Option<u32>, roof: Option<RoofShape>) -> Sample {
     Sample {

@@ -1,8 +1,13 @@
 //! The KB text: its header, and the zones with their values and appearances.
 
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
 use super::fit::{merge_bins, round_probas, Bin};
 use super::format::{comment_text, coord, escape, num};
-use super::*;
+use super::{Attr, Grouping, LearnOptions, Shape, Writer, ATTRS, KIND_CLASSES, MIN_PER_APPEARANCE};
+use crate::kb::compile::color_word;
+use crate::kb::defaults;
 
 impl Writer<'_> {
     fn line(&mut self, indent: usize, text: &str) {

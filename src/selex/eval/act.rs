@@ -1,7 +1,14 @@
 //! Actions: what a rule does to each shape or cell group its selection picked.
 
+use glam::DVec3;
+
 use super::values::describe;
-use super::*;
+use super::{
+    cover, EdgeExtrusion, Element, ElementFrame, Frame, Group, Item, Rounding, RunError, Runner,
+    ShapeId, ShapeKind, Side, Value, VolumeRounding, DEFAULT_STOREY,
+};
+use crate::selex::ast::{Action, ActionKind, Expr, Span};
+use crate::selex::grid::{self, Grid, Rect};
 
 impl Runner<'_> {
     pub(super) fn act(&mut self, a: &Action, items: &[Item]) -> Result<(), RunError> {

@@ -2,7 +2,9 @@
 //! the program has run.
 
 use super::rects::{overlap, too_close};
-use super::*;
+use super::{same, RunError, Runner, ShapeId};
+use crate::selex::ast::{ConstraintAxis, ConstraintKind, Expr};
+use crate::selex::grid::Rect;
 
 impl Runner<'_> {
     fn constraint_label(&self, e: &Expr) -> Result<String, RunError> {

@@ -53,12 +53,8 @@ use std::fmt;
 
 use glam::DVec3;
 
-use super::ast::{
-    Action, ActionKind, Attr, BinOp, Cmp, Command, Constraint, ConstraintAxis, ConstraintKind,
-    Expr, ExprKind, Filter, IndexSet, Program, Selection, Span, Topo,
-};
-use super::grid::{self, Axis, CellRect, CellSet, CmpOp, Grid, IndexItem, Rect};
-use super::pattern;
+use super::ast::{ActionKind, Command, Constraint, Program, Span};
+use super::grid::{self, CellRect, CellSet, Grid, Rect};
 
 mod act;
 mod constrain;

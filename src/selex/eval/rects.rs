@@ -1,7 +1,8 @@
 //! Rectangles on a face: overlap, contact, distance to the edge, and the cover of a face
 //! minus its holes.
 
-use super::*;
+use super::same;
+use crate::selex::grid::Rect;
 
 /// Whether two rectangles share interior.
 pub(super) fn overlap(a: &Rect, b: &Rect) -> bool {

@@ -2,7 +2,10 @@
 
 use super::rects::{overlap, touch};
 use super::values::describe;
-use super::*;
+use super::{Frame, Item, Note, RunError, Runner, ShapeId, ShapeKind, Side, Value};
+use crate::selex::ast::{Attr, Cmp, Expr, Filter, IndexSet, Selection, Span, Topo};
+use crate::selex::grid::{self, Axis, CellSet, CmpOp, Grid, IndexItem, Rect};
+use crate::selex::pattern;
 
 impl Runner<'_> {
     pub(super) fn select(&mut self, sel: &Selection) -> Result<Vec<Item>, RunError> {

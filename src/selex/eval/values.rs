@@ -1,7 +1,9 @@
 //! The values of expressions: variables, numbers, strings, lists, and what a value is called in
 //! an error.
 
-use super::*;
+use super::{Labels, RunError, Runner, Value};
+use crate::selex::ast::{BinOp, Expr, ExprKind};
+use crate::selex::grid::{self};
 
 impl Runner<'_> {
     pub(super) fn value(&self, e: &Expr) -> Result<Value, RunError> {

@@ -1,7 +1,13 @@
 //! Actions and their arguments (arity and kinds, messages naming the parameter), and
 //! constraint terms.
 
-use super::*;
+use super::lexer::{clip, Tok};
+use super::{describe_expr, quoted_list, PResult, ParseErrorKind, Parser};
+use crate::grammar::lint::suggest;
+use crate::selex::ast::{
+    Action, ActionKind, Constraint, ConstraintAxis, ConstraintKind, Expr, ExprKind, Param,
+    ParamKind, Span, ValueKind, CORNERS,
+};
 
 impl Parser<'_> {
     pub(super) fn action(&mut self) -> PResult<Action> {

@@ -1,6 +1,8 @@
 //! The lexer: SELEX source to tokens with their spans.
 
-use super::*;
+use super::{Ctx, ParseErrorKind, SelexError};
+use crate::grammar::lint::MAX_NAME_CHARS;
+use crate::selex::ast::Span;
 
 #[derive(Clone, Debug, PartialEq)]
 pub(super) enum Tok {

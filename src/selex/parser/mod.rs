@@ -15,12 +15,8 @@
 use std::collections::BTreeMap;
 use std::fmt;
 
-use super::ast::{
-    Action, ActionKind, Arrow, Attr, BinOp, Cmp, Command, Constraint, ConstraintAxis,
-    ConstraintKind, Expr, ExprKind, Filter, Grouping, IndexSet, Param, ParamKind, Program, Rule,
-    Selection, Span, Step, Topo, ValueKind, CORNERS,
-};
-use crate::grammar::lint::{suggest, MAX_NAME_CHARS};
+use super::ast::{Expr, ExprKind, Program, Span, Topo, ValueKind};
+use crate::grammar::lint::suggest;
 use crate::grammar::parser::fmt_located;
 
 mod actions;
@@ -56,14 +52,14 @@ pub enum ParseErrorKind {
     /// A topology selector other than child, descendant, parent, root, neighbor, contained,
     /// cell.
     UnknownTopology,
-    /// An attribute other than those of [`Attr`].
+    /// An attribute other than those of [`Attr`](super::ast::Attr).
     UnknownAttribute,
     /// A selection function other than `pattern` (or `in` followed by an unknown range).
     UnknownSelector,
     /// A grouping function other than groupRegions, groupRows, groupCols, groupPairs,
     /// groupEach.
     UnknownGrouping,
-    /// An action not among [`ActionKind`].
+    /// An action not among [`ActionKind`](super::ast::ActionKind).
     UnknownAction,
     /// A constraint term other than align, symmetric, boundaryDistance, noIntersection.
     UnknownConstraint,

@@ -1,7 +1,12 @@
 //! The program, its assignments and rules, and a rule's selection: steps, topology selectors,
 //! filters, index sets and patterns.
 
-use super::*;
+use super::lexer::{clip, Tok};
+use super::{describe_expr, topo_names, PResult, ParseErrorKind, Parser};
+use crate::selex::ast::{
+    ActionKind, Arrow, Attr, Cmp, Command, Expr, ExprKind, Filter, Grouping, IndexSet, Program,
+    Rule, Selection, Span, Step, Topo, ValueKind,
+};
 
 impl Parser<'_> {
     pub(super) fn program(&mut self) -> PResult<Program> {

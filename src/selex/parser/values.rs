@@ -1,6 +1,8 @@
 //! Values: expressions, their kinds, arithmetic and lists.
 
-use super::*;
+use super::lexer::{clip, Tok};
+use super::{describe_expr, PResult, ParseErrorKind, Parser};
+use crate::selex::ast::{BinOp, Expr, ExprKind, Span, ValueKind};
 
 impl Parser<'_> {
     /// The kind an expression evaluates to (variables by their assigned kind).

@@ -1,6 +1,11 @@
 //! `check`: what parses but is suspicious.
 
-use super::*;
+use super::lexer::clip;
+use super::{line_at, quoted_list, Warning, WarningKind};
+use crate::selex::ast::{
+    ActionKind, Arrow, Attr, Cmp, Command, ConstraintKind, Expr, ExprKind, Filter, Grouping,
+    IndexSet, Program, Span, Topo,
+};
 
 /// Lists what parses but is suspicious in `program` (parsed from `src`, named `file`): the `>`
 /// arrow, bare words taken as strings, groupings in steps that select no cells, two groupings

@@ -1,6 +1,8 @@
-//! Hip ends turned into gables or half-hips (see the module documentation).
+//! Hip ends turned into gables or half-hips (see the documentation of `shapes`).
 
-use super::*;
+use glam::{DVec2, DVec3};
+
+use super::{Ends, TFace, GABLE_APEX_CLUSTER, GABLE_MIN_OPPOSITE_DEG};
 
 /// Most faces one end of a wing may be made of: a side whose vertex is a little off straight
 /// (beyond the skeleton's collinear tolerance, within [`GABLE_MAX_KINK_DEG`]) has a face on
@@ -10,7 +12,7 @@ pub const GABLE_MAX_CHAIN: usize = 3;
 /// Most turn (degrees) between the parts of one end of a wing (see [`GABLE_MAX_CHAIN`]).
 pub const GABLE_MAX_KINK_DEG: f64 = 1.0;
 
-/// Turns hip ends into gables or half-hips in place (see the module documentation).
+/// Turns hip ends into gables or half-hips in place (see the documentation of `shapes`).
 ///
 /// A hip end is a face — or a run of up to [`GABLE_MAX_CHAIN`] faces of consecutive sides that
 /// turn by less than [`GABLE_MAX_KINK_DEG`] from each other (one side with a vertex a little

@@ -57,8 +57,7 @@ use std::collections::HashSet;
 use glam::{DVec2, DVec3};
 
 use super::{RoofError, RoofGeometry};
-use crate::geometry::hull::convex_hull;
-use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton, straight_skeleton_merged};
+use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton_merged};
 use crate::geometry::{CellHash, Polygon};
 use crate::model::Face;
 

@@ -1,7 +1,14 @@
 //! Roofs on one plane or one ridge: skillion, and the ridge roofs (saltbox and the like) along
 //! a footprint's short axis.
 
-use super::*;
+use glam::{DVec2, DVec3};
+
+use super::gable_walls;
+use crate::derive::roof::{RoofError, RoofGeometry};
+use crate::geometry::hull::convex_hull;
+use crate::geometry::skeleton::straight_skeleton;
+use crate::geometry::Polygon;
+use crate::model::Face;
 
 /// A skillion (shed) roof: the footprint as one plane rising against `down`, the unit vector
 /// (in plan) the slope faces, with rise `slope` per metre, the lowest corner at z = 0.
@@ -48,8 +55,8 @@ pub const SALTBOX_RIDGE_AT: f64 = 0.35;
 /// side). It works on any simple polygon, with or without holes: each plane covers the part of
 /// the footprint on its side of the ridge line (clipped exactly), and the walls rise to the roof
 /// line (`gable_walls`). On an L or T the ridge crosses the wings as a carpenter's single
-/// ridge would; the skeleton gables ([`profile_roof`]) are the better answer there and stay the
-/// default for `gabled`.
+/// ridge would; the skeleton gables ([`profile_roof`](super::profile_roof)) are the better
+/// answer there and stay the default for `gabled`.
 pub fn ridge_roof(
     poly: &Polygon,
     ridge_dir: DVec2,

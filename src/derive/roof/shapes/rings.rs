@@ -1,7 +1,7 @@
 //! A ring split by a level into the pieces below and above, each cut point computed so that the
 //! two faces sharing a segment get the same bits.
 
-use super::*;
+use glam::{DVec2, DVec3};
 
 /// Splits a simple ring of points `(x, y, t)` by the level `t = l` (no vertex on it) into the
 /// pieces below and above. Pieces keep the ring's orientation.

@@ -1,6 +1,11 @@
 //! The roof line over a footprint edge, read from a roof's faces.
 
-use super::*;
+use std::collections::HashSet;
+
+use glam::{DVec2, DVec3};
+
+use crate::geometry::{CellHash, Polygon};
+use crate::model::Face;
 
 /// Where the walls meet a roof: the vertices of the roof's boundary (those of the roof faces'
 /// edges that no other face runs back along: the eaves, gable lines and the points on them),
