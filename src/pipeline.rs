@@ -195,7 +195,8 @@ pub struct Summary {
     /// The run report (what `--report` writes), with its `skipped` and `repaired` counts
     /// computed from its entries.
     pub report: Report,
-    /// Planar polygons of all generated buildings, as [`Building::polygon_count`] counts them.
+    /// Planar polygons of all generated buildings, as
+    /// [`Building::polygon_count`](crate::model::Building::polygon_count) counts them.
     pub polygons: usize,
     /// Wall-clock time: of the whole run for [`run`]; of deriving and writing for
     /// [`generate_and_write`] and [`derive_lot`].

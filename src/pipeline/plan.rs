@@ -1,10 +1,10 @@
 //! The plan of a run before any work: the targets of a shard or tiled run
 //! ([`shard_targets`]), the tile grid and which shard writes each tile ([`GridPlan`], with the
-//! run's key and the manifest's head), and the output CRS when none is given ([`zone_for`]).
+//! run's key and the manifest's head), the output CRS when none is given ([`zone_for`]), and
+//! the files of each tile ([`tile_targets`], [`tile_files`], named by [`tile_path`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use super::write::tile_path;
 use super::{outputs, shard, Options, RunError, Source, Targets};
 use crate::crs::Crs;
 use crate::input;
@@ -287,5 +287,89 @@ pub(super) fn zone_for(
             )))
         }
         _ => Ok(choice.crs),
+    }
+}
+
+/// The targets of one tile (`suffix`; `None` untiled: the run's own paths): every model
+/// output's path with the suffix inserted, the 3D Tiles folder as it is, no report.
+pub(super) fn tile_targets(targets: &Targets, suffix: Option<&str>) -> Targets {
+    let mut tile = Targets {
+        report: None,
+        preview: None,
+        manifest: None,
+        ..targets.clone()
+    };
+    if let Some(sfx) = suffix {
+        for p in tile.models_mut().into_iter().flatten() {
+            *p = tile_path(p, sfx);
+        }
+    }
+    tile
+}
+
+/// The files a tile writes: its model outputs and its 3D Tiles contents.
+pub(super) fn tile_files(targets: &Targets, content_name: &str) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = targets
+        .models()
+        .into_iter()
+        .filter_map(|(_, p)| p.clone())
+        .collect();
+    if let Some(dir) = &targets.tiles3d {
+        out.extend(tiles3d_contents(dir, content_name).map(|(_, p)| p));
+    }
+    out
+}
+
+/// The 3D Tiles contents of the tile named `name` in the `--tiles3d` folder `dir`: full
+/// detail, then blocks.
+pub(super) fn tiles3d_contents(
+    dir: &Path,
+    name: &str,
+) -> [(crate::export::tiles3d::Detail, PathBuf); 2] {
+    use crate::export::tiles3d::Detail;
+    [(Detail::Full, ""), (Detail::Blocks, "-blocks")]
+        .map(|(detail, sfx)| (detail, dir.join("content").join(format!("{name}{sfx}.glb"))))
+}
+
+/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`; the
+/// CityJSON names keep their double extension (`NAME.city.json` gives `NAME_SUFFIX.city.json`).
+fn tile_path(p: &Path, suffix: &str) -> PathBuf {
+    let mut stem = p
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match p.extension() {
+        Some(ext) => {
+            let mut ext = ext.to_string_lossy().into_owned();
+            let json = matches!(ext.to_ascii_lowercase().as_str(), "json" | "jsonl");
+            let cut = stem.len().saturating_sub(5);
+            if json
+                && cut > 0
+                && stem.is_char_boundary(cut)
+                && stem[cut..].eq_ignore_ascii_case(".city")
+            {
+                ext = format!("{}.{ext}", &stem[cut + 1..]);
+                stem.truncate(cut);
+            }
+            format!("{stem}_{suffix}.{ext}")
+        }
+        None => format!("{stem}_{suffix}"),
+    };
+    p.with_file_name(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tile_paths_insert_the_suffix_before_the_extension() {
+        let t = |p: &str| tile_path(Path::new(p), "100_200").display().to_string();
+        assert_eq!(t("out/m.gml"), "out/m_100_200.gml");
+        assert_eq!(t("out/m.city.json"), "out/m_100_200.city.json");
+        assert_eq!(t("out/m.City.jsonl"), "out/m_100_200.City.jsonl");
+        assert_eq!(t("out/m.city.gml"), "out/m.city_100_200.gml");
+        assert_eq!(t("out/.city.json"), "out/.city_100_200.json");
+        assert_eq!(t("out/m"), "out/m_100_200");
     }
 }

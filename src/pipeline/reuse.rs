@@ -6,8 +6,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use super::plan::GridPlan;
-use super::write::{tile_files, tile_targets};
+use super::plan::{tile_files, tile_targets, GridPlan};
 use super::{incremental, relative_to, shard, RunError, RunState, Targets};
 use crate::export::PendingFile;
 use crate::model::SourceId;

@@ -2,8 +2,7 @@
 //! one tile) chunk by chunk in parallel and writes them in order to the batch's files
 //! ([`write_lots`]), takes the tiles reused from `--previous` as written, and publishes every
 //! file once all are complete and closed (the manifest last). Also the files themselves: each
-//! output opened on a temporary file, counted and hashed as it streams ([`Counted`]), and the
-//! names of a tile's files ([`tile_path`]).
+//! output opened on a temporary file, counted and hashed as it streams ([`Counted`]).
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -15,6 +14,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sha2::{Digest as _, Sha256};
 
+use super::plan::{tile_targets, tiles3d_contents};
 use super::reuse::{rebased_entry, Keyed, ReusedTile};
 use super::{
     file_name, io_err, out_err, relative_to, shard, Model, Progress, RunError, Summary, Targets,
@@ -676,14 +676,6 @@ fn open_outputs(targets: &Targets, content_name: &str, hashed: bool) -> Result<O
     })
 }
 
-/// The 3D Tiles contents of the tile named `name` in the `--tiles3d` folder `dir`: full
-/// detail, then blocks.
-fn tiles3d_contents(dir: &Path, name: &str) -> [(crate::export::tiles3d::Detail, PathBuf); 2] {
-    use crate::export::tiles3d::Detail;
-    [(Detail::Full, ""), (Detail::Blocks, "-blocks")]
-        .map(|(detail, sfx)| (detail, dir.join("content").join(format!("{name}{sfx}.glb"))))
-}
-
 /// Derives `lots` chunk by chunk and writes each chunk to every output, in lot order; notes
 /// each lot's outcome in the report and in the tile's record; returns the polygons written.
 fn derive_and_write(
@@ -800,36 +792,6 @@ fn close_outputs(outputs: Vec<Output>, written: &mut Written) -> Result<(), RunE
     Ok(())
 }
 
-/// The targets of one tile (`suffix`; `None` untiled: the run's own paths): every model
-/// output's path with the suffix inserted, the 3D Tiles folder as it is, no report.
-pub(super) fn tile_targets(targets: &Targets, suffix: Option<&str>) -> Targets {
-    let mut tile = Targets {
-        report: None,
-        preview: None,
-        manifest: None,
-        ..targets.clone()
-    };
-    if let Some(sfx) = suffix {
-        for p in tile.models_mut().into_iter().flatten() {
-            *p = tile_path(p, sfx);
-        }
-    }
-    tile
-}
-
-/// The files a tile writes: its model outputs and its 3D Tiles contents.
-pub(super) fn tile_files(targets: &Targets, content_name: &str) -> Vec<PathBuf> {
-    let mut out: Vec<PathBuf> = targets
-        .models()
-        .into_iter()
-        .filter_map(|(_, p)| p.clone())
-        .collect();
-    if let Some(dir) = &targets.tiles3d {
-        out.extend(tiles3d_contents(dir, content_name).map(|(_, p)| p));
-    }
-    out
-}
-
 /// An open output: target path, format writer, where its bytes go, and their count.
 type Output = (
     PathBuf,
@@ -873,33 +835,6 @@ fn write_chunk(outputs: &mut [Output], buildings: &[Building]) -> Result<(), Run
         })
         .collect();
     results.into_iter().collect()
-}
-
-/// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`; the
-/// CityJSON names keep their double extension (`NAME.city.json` gives `NAME_SUFFIX.city.json`).
-pub(super) fn tile_path(p: &Path, suffix: &str) -> PathBuf {
-    let mut stem = p
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let name = match p.extension() {
-        Some(ext) => {
-            let mut ext = ext.to_string_lossy().into_owned();
-            let json = matches!(ext.to_ascii_lowercase().as_str(), "json" | "jsonl");
-            let cut = stem.len().saturating_sub(5);
-            if json
-                && cut > 0
-                && stem.is_char_boundary(cut)
-                && stem[cut..].eq_ignore_ascii_case(".city")
-            {
-                ext = format!("{}.{ext}", &stem[cut + 1..]);
-                stem.truncate(cut);
-            }
-            format!("{stem}_{suffix}.{ext}")
-        }
-        None => format!("{stem}_{suffix}"),
-    };
-    p.with_file_name(name)
 }
 
 /// The report as JSON in a closed temporary file beside `path`, ready to be renamed over it.
@@ -951,17 +886,6 @@ mod tests {
         fn finish(&mut self) -> Result<(), ExportError> {
             Ok(())
         }
-    }
-
-    #[test]
-    fn tile_paths_insert_the_suffix_before_the_extension() {
-        let t = |p: &str| tile_path(Path::new(p), "100_200").display().to_string();
-        assert_eq!(t("out/m.gml"), "out/m_100_200.gml");
-        assert_eq!(t("out/m.city.json"), "out/m_100_200.city.json");
-        assert_eq!(t("out/m.City.jsonl"), "out/m_100_200.City.jsonl");
-        assert_eq!(t("out/m.city.gml"), "out/m.city_100_200.gml");
-        assert_eq!(t("out/.city.json"), "out/.city_100_200.json");
-        assert_eq!(t("out/m"), "out/m_100_200");
     }
 
     #[test]
