@@ -180,7 +180,20 @@ fn read_manifests(dirs: &[PathBuf]) -> Result<Vec<Found>, RunError> {
 /// Checks that the manifests are the shards of one run, each once, and that their tiles and
 /// buildings add up to its grid; returns them in shard order.
 fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
-    let refuse = |m: String| Err(RunError::Input(format!("merge refused: {m}")));
+    check_one_run(found)?;
+    let shards = check_shards(found)?;
+    check_tiles(&found[0], &shards)?;
+    Ok(shards)
+}
+
+/// A refusal of the set.
+fn refuse<T>(m: String) -> Result<T, RunError> {
+    Err(RunError::Input(format!("merge refused: {m}")))
+}
+
+/// Checks that every manifest was made by the first one's run: the same citygen, seed,
+/// inputs, knowledge base and its files, rules, LOD, tile size, shard count, options and grid.
+fn check_one_run(found: &[Found]) -> Result<(), RunError> {
     let first = &found[0];
     let a = &first.manifest;
     for f in &found[1..] {
@@ -258,6 +271,14 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
             return refuse(m);
         }
     }
+    Ok(())
+}
+
+/// Checks that the manifests hold every shard of the run once (and a grid that names no other
+/// shard); returns them in shard order.
+fn check_shards(found: &[Found]) -> Result<Vec<&Found>, RunError> {
+    let first = &found[0];
+    let a = &first.manifest;
     let n = a.shard.count;
     // A manifest is read from disk: a grid naming a shard the run does not have is refused,
     // not indexed.
@@ -307,9 +328,14 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
             if tiles.len() > 5 { ", ..." } else { "" }
         ));
     }
-    let shards: Vec<&Found> = by_index.into_iter().flatten().collect();
+    Ok(by_index.into_iter().flatten().collect())
+}
 
-    // Tiles: each grid tile once, written by its shard, with its lots.
+/// Checks the tiles of the `shards` against the grid of `first`'s run: each grid tile once,
+/// written by its shard, with its lots, and each building once in all.
+fn check_tiles(first: &Found, shards: &[&Found]) -> Result<(), RunError> {
+    let a = &first.manifest;
+    let n = a.shard.count;
     let grid: BTreeMap<&str, &shard::GridTile> = a
         .grid
         .tiles
@@ -319,7 +345,7 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
     let mut seen_tiles: BTreeMap<&str, &Path> = BTreeMap::new();
     let mut seen_ids: BTreeMap<&str, &str> = BTreeMap::new();
     let mut lots = 0usize;
-    for f in &shards {
+    for f in shards {
         for t in &f.manifest.tiles {
             let Some(g) = grid.get(t.suffix.as_str()) else {
                 return refuse(format!(
@@ -390,7 +416,7 @@ fn check_set(found: &[Found]) -> Result<Vec<&Found>, RunError> {
             a.grid.lots
         ));
     }
-    Ok(shards)
+    Ok(())
 }
 
 /// Checks that every file the manifests list is there with its size (and with `verify` its

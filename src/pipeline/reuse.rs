@@ -1,0 +1,183 @@
+//! Incremental runs' side of a tiled run: the content keys of its lots, and with `--previous`
+//! what changed since and the tiles reused ([`key_lots`]: planned and copied before the LOD3
+//! surroundings, so that only the derived tiles' neighbours are derived).
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use super::plan::{tile_files, tile_targets, GridPlan};
+use super::{incremental, relative_to, shard, RunError, RunState, Targets};
+use crate::export::PendingFile;
+use crate::model::SourceId;
+use crate::prepare;
+
+/// The content keys of a tiled run's lots, and yesterday's run with what changed since
+/// (`--previous`).
+#[derive(Default)]
+pub(super) struct Keyed {
+    /// The run's context key, hex.
+    pub(super) context: String,
+    pub(super) keys: std::collections::HashMap<crate::model::SourceId, shard::LotKey>,
+    pub(super) previous: Option<incremental::Previous>,
+    pub(super) changes: Option<crate::report::Changes>,
+    /// The tiles reused from `previous`, by suffix: their records and files, copied and
+    /// checked.
+    pub(super) reused: std::collections::BTreeMap<String, ReusedTile>,
+}
+
+/// A tile reused from `--previous`: its record and its files (closed temporaries, to be
+/// renamed with the run's others; `None` for a file that is already in place).
+pub(super) type ReusedTile = (shard::TileRecord, Vec<(PathBuf, Option<PendingFile>)>);
+
+/// A tiled run's content keys, and the run key computed on the way; with `previous`, what
+/// changed since and the tiles reused (copied now, [`plan_reuse`]). Nothing for a run without
+/// a manifest.
+pub(super) fn key_lots(
+    run: &RunState<'_>,
+    previous: Option<&incremental::Previous>,
+) -> Result<(Keyed, Option<shard::RunKey>), RunError> {
+    let mut keyed = Keyed::default();
+    let (Some(g), Some(path), Some(own)) = (&run.grid, &run.targets.manifest, &run.own_keys) else {
+        return Ok((keyed, None));
+    };
+    let (opts, site) = (run.opts, &run.site);
+    let rk = g.run_key(opts, &run.targets, site, &run.generator.kb)?;
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    let mut outs: Vec<String> = run
+        .targets
+        .flagged()
+        .into_iter()
+        .map(|(flag, p)| format!("{flag} {}", relative_to(&p, &dir)))
+        .collect();
+    outs.sort();
+    let context = incremental::context_key(&rk, &run.source_name, &outs);
+    keyed.context = incremental::key_hex(&context);
+    // Over every lot: neighbours outside --bbox count.
+    keyed.keys =
+        incremental::with_context(&context, incremental::full_keys(&site.lots, own, opts.lod));
+    if let Some(prev) = previous {
+        let run_lots: std::collections::BTreeMap<String, (String, String)> = site
+            .lots
+            .iter()
+            .zip(&run.in_run)
+            .filter(|(_, s)| **s)
+            .filter_map(|(l, _)| {
+                let k = keyed.keys.get(&l.id)?;
+                Some((l.id.to_string(), (k.own.clone(), k.key.clone())))
+            })
+            .collect();
+        let mut changes = incremental::changes(prev, &run_lots);
+        let here: std::collections::BTreeSet<&str> =
+            g.tiles.iter().map(|t| t.suffix.as_str()).collect();
+        changes.tiles_removed = prev
+            .tiles
+            .keys()
+            .filter(|s| !here.contains(s.as_str()))
+            .cloned()
+            .collect();
+        keyed.changes = Some(changes);
+        keyed.reused = plan_reuse(
+            prev,
+            site,
+            g,
+            &run.selected,
+            &keyed.keys,
+            &run.targets,
+            &dir,
+        );
+    }
+    Ok((keyed, Some(rk)))
+}
+
+/// The tiles of this shard that `prev` holds with the same lots, in the same order, with the
+/// same keys, and the same files: each one's files copied beside their targets (checked
+/// against the previous manifest's size and SHA-256; a tile whose file fails is left out, to
+/// be derived). `dir` is the manifest's folder. Tiles are copied in parallel.
+fn plan_reuse(
+    prev: &incremental::Previous,
+    site: &prepare::Site,
+    grid: &GridPlan,
+    selected: &[bool],
+    keys: &std::collections::HashMap<SourceId, shard::LotKey>,
+    targets: &Targets,
+    dir: &Path,
+) -> std::collections::BTreeMap<String, ReusedTile> {
+    // Each tile's lots in file order: input order within a tile (prepare::group_into_tiles).
+    let mut lots: std::collections::BTreeMap<String, Vec<shard::LotKey>> = Default::default();
+    for (lot, _) in site.lots.iter().zip(selected).filter(|(_, s)| **s) {
+        let Some(k) = keys.get(&lot.id) else { continue };
+        lots.entry(grid.suffix_of(site.crs, lot))
+            .or_default()
+            .push(k.clone());
+    }
+    lots.into_par_iter()
+        .filter_map(|(suffix, lots)| {
+            let tile = tile_targets(targets, Some(&suffix));
+            let found = reuse_tile(prev, dir, &suffix, &lots, &tile)?;
+            Some((suffix, found))
+        })
+        .collect()
+}
+
+/// The previous run's record of tile `suffix`, and its files copied (checked) to this run's
+/// `targets` for the tile, when the tile's lots and keys are `lots` (in order) and its files
+/// are those this tile writes ([`incremental::Previous::reusable`]); `None` to derive the tile
+/// (also when a previous file is not what its manifest lists). `dir` is this run's manifest's
+/// folder.
+fn reuse_tile(
+    prev: &incremental::Previous,
+    dir: &Path,
+    suffix: &str,
+    lots: &[shard::LotKey],
+    targets: &Targets,
+) -> Option<ReusedTile> {
+    if targets.dry_run {
+        return None;
+    }
+    let paths = tile_files(targets, suffix);
+    let rel: std::collections::BTreeMap<String, PathBuf> = paths
+        .iter()
+        .map(|p| (relative_to(p, dir), p.clone()))
+        .collect();
+    let names = rel.keys().cloned().collect();
+    let (folder, record) = prev.reusable(suffix, lots, &names)?;
+    let mut files = Vec::with_capacity(record.files.len());
+    for f in &record.files {
+        let dst = rel.get(&f.path)?;
+        let src = folder.join(&f.path);
+        // On a mismatch the temporaries made so far are dropped (removed).
+        let p = incremental::copy_checked(&src, dst, f.bytes, &f.sha256, prev.link).ok()?;
+        files.push((dst.clone(), p));
+    }
+    // Its paths (the 3D Tiles URIs too) are relative to the manifest's folder, and the same
+    // here: the files land at the same places relative to this run's manifest.
+    Some((record.clone(), files))
+}
+
+/// Rebases the `uri`s of a manifest's 3D Tiles facts (`full`, `blocks`) from folder `from` to
+/// folder `to`.
+fn rebase_uris(v: &mut serde_json::Value, from: &Path, to: &Path) {
+    for part in ["full", "blocks"] {
+        if let Some(serde_json::Value::String(u)) = v.get_mut(part).and_then(|c| c.get_mut("uri")) {
+            *u = relative_to(&from.join(&*u), to);
+        }
+    }
+}
+
+/// A manifest's 3D Tiles facts (URIs relative to `manifest_dir`) as a tileset entry with URIs
+/// relative to the `--tiles3d` folder.
+pub(super) fn rebased_entry(
+    v: &serde_json::Value,
+    manifest_dir: &Path,
+    tiles3d: &Path,
+) -> Result<crate::export::tiles3d::TileEntry, RunError> {
+    let mut v = v.clone();
+    rebase_uris(&mut v, manifest_dir, tiles3d);
+    serde_json::from_value(v)
+        .map_err(|e| RunError::Input(format!("a previous manifest's 3D Tiles facts: {e}")))
+}
