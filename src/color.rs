@@ -45,7 +45,7 @@ impl Color {
     }
 
     /// An opaque colour from a packed `0xRRGGBB` value.
-    pub const fn from_rgb24(v: u32) -> Color {
+    pub(crate) const fn from_rgb24(v: u32) -> Color {
         Color::rgb(
             ((v >> 16) & 0xff) as f32 / 255.0,
             ((v >> 8) & 0xff) as f32 / 255.0,
@@ -56,14 +56,14 @@ impl Color {
     /// The CSS Color 4 name of this colour when it is exactly one (after rounding each
     /// component to 8 bits; `gray` is preferred over `grey`, the first name in alphabetical
     /// order otherwise), else `None`.
-    pub fn css_name(self) -> Option<&'static str> {
+    pub(crate) fn css_name(self) -> Option<&'static str> {
         let [r, g, b] = self.bytes();
         let v = u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b);
         CSS_NAMES.iter().find(|(_, c)| *c == v).map(|(n, _)| *n)
     }
 
     /// `#rrggbb`.
-    pub fn to_hex(self) -> String {
+    pub(crate) fn to_hex(self) -> String {
         const DIGITS: &[u8; 16] = b"0123456789abcdef";
         let mut s = String::with_capacity(7);
         s.push('#');
@@ -84,7 +84,7 @@ impl Color {
 /// `rgb` or `rrggbb` without the `#`.
 /// sRGB transfer function inverse (IEC 61966-2-1): an sRGB component, 0 to 1, as linear light
 /// (glTF colour factors are linear). The one sRGB decoding of the writers and the preview.
-pub fn srgb_to_linear(c: f32) -> f32 {
+pub(crate) fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
         c / 12.92
     } else {
@@ -93,7 +93,7 @@ pub fn srgb_to_linear(c: f32) -> f32 {
 }
 
 /// An 8-bit sRGB component as linear light, 0..=1 ([`srgb_to_linear`] of `c / 255`).
-pub fn srgb_u8_to_linear(c: u8) -> f32 {
+pub(crate) fn srgb_u8_to_linear(c: u8) -> f32 {
     srgb_to_linear(f32::from(c) / 255.0)
 }
 

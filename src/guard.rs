@@ -7,7 +7,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 /// "internal error while {what}: {panic message} (a citygen bug: please report it)".
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("internal error while {what}: {message} (a citygen bug: please report it)")]
-pub struct Panicked {
+pub(crate) struct Panicked {
     /// What was being done, e.g. "deriving the building".
     pub what: String,
     /// The text the panic was raised with ("no message" when it had none).

@@ -18,23 +18,23 @@ use crate::geometry::Polygon;
 /// Grid steps per metre of the output grid: the millimetre, the precision CityGML files are
 /// written to (three decimals). The local origin is a whole number of metres, so a local
 /// coordinate on this grid is on the output CRS's millimetre grid too.
-pub const GRID_STEPS_PER_M: f64 = 1000.0;
+pub(crate) const GRID_STEPS_PER_M: f64 = 1000.0;
 
 /// Distinct vertices of a part (and of a footprint) are at least this far apart (metres) before
 /// they are put on the grid: three grid steps, so that on the grid two distinct vertices are at
 /// least √2 mm apart and a validator's 1 mm snapping merges none of them
 /// (`derive::massing::grid`).
-pub const MIN_VERTEX_GAP: f64 = 0.003;
+pub(crate) const MIN_VERTEX_GAP: f64 = 0.003;
 
 /// A coordinate on the output grid: the nearest whole millimetre (`k / 1000` for the nearest
 /// integer `k`, so that writing it to three decimals gives back `k` exactly).
-pub fn on_grid(v: f64) -> f64 {
+pub(crate) fn on_grid(v: f64) -> f64 {
     (v * GRID_STEPS_PER_M).round() / GRID_STEPS_PER_M
 }
 
 /// A point's place on the output grid, in whole grid steps (millimetres): the integers its
 /// coordinates are written as. Two points are one vertex in the files when their keys agree.
-pub fn grid_key(p: glam::DVec3) -> (i64, i64, i64) {
+pub(crate) fn grid_key(p: glam::DVec3) -> (i64, i64, i64) {
     let s = |v: f64| (v * GRID_STEPS_PER_M).round() as i64;
     (s(p.x), s(p.y), s(p.z))
 }
@@ -119,7 +119,7 @@ impl Programme {
     /// The programme for a `building=*` value. `yes` and missing values are dwellings: a
     /// house when the whole building is small (usable area over all storeys ≤ 200 m²),
     /// apartments otherwise.
-    pub fn for_building(building: Option<&str>, total_area: f64) -> Programme {
+    pub(crate) fn for_building(building: Option<&str>, total_area: f64) -> Programme {
         match building.map(|b| b.trim().to_ascii_lowercase()).as_deref() {
             Some(
                 "house" | "detached" | "semidetached_house" | "semi" | "terrace" | "bungalow"
@@ -267,7 +267,7 @@ impl RoofShape {
     /// The CityGML 2.0 `bldg:roofType` code (SIG3D code list: 1000 flat, 1010 monopitch,
     /// 1020 dual pent, 1030 gabled, 1040 hipped, 1050 half-hipped, 1060 mansard, 1070 pavilion,
     /// 1080 cone, 1090 cupola, 1100 sawtooth, 1110 arch, 1120 pyramidal broach, 1130 combination).
-    pub fn citygml_code(self) -> &'static str {
+    pub(crate) fn citygml_code(self) -> &'static str {
         match self {
             RoofShape::Flat => "1000",
             RoofShape::Skillion => "1010",
@@ -322,22 +322,22 @@ pub enum OpeningKind {
 /// A window or door in a wall (LOD3).
 ///
 /// `u0..u1` runs along the wall from its `start`, `z0..z1` are absolute heights. An opening
-/// lies strictly inside the rectangular part of its wall (at least [`OPENING_MARGIN`] from every
+/// lies strictly inside the rectangular part of its wall (at least `OPENING_MARGIN` from every
 /// border) and overlaps no other opening of the wall; its hole is also in the wall's
 /// `outline.holes`, in the same order as `openings`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Opening {
     /// Window or door: decides the default colour and whether the pane is glass by default.
     pub kind: OpeningKind,
-    /// Left edge: metres along the wall from its `start`, at least [`OPENING_MARGIN`].
+    /// Left edge: metres along the wall from its `start`, at least `OPENING_MARGIN`.
     pub u0: f64,
     /// Right edge: metres along the wall from its `start`, at most the wall's length minus
-    /// [`OPENING_MARGIN`].
+    /// `OPENING_MARGIN`.
     pub u1: f64,
     /// Bottom edge (sill, or the foot of a door): absolute height in metres, at least
-    /// [`OPENING_MARGIN`] above the wall's base, so a door stands 2 cm above its floor.
+    /// `OPENING_MARGIN` above the wall's base, so a door stands 2 cm above its floor.
     pub z0: f64,
-    /// Top edge: absolute height in metres, at least [`LINTEL`] below the storey's top (the
+    /// Top edge: absolute height in metres, at least `LINTEL` below the storey's top (the
     /// eave for the top storey).
     pub z1: f64,
     /// Glass or door-panel colour.
@@ -369,7 +369,7 @@ impl Opening {
 
     /// The opening shrunk by `d` metres on every side, its corners' radius shrunk with it (the
     /// inner edge of a frame `d` wide).
-    pub fn inset(&self, d: f64) -> Opening {
+    pub(crate) fn inset(&self, d: f64) -> Opening {
         let mut o = self.clone();
         o.u0 += d;
         o.u1 -= d;
@@ -398,7 +398,7 @@ impl Opening {
 /// The rectangle from `min` to `max` (x to the right, y up), counter-clockwise from its
 /// bottom-left corner, with the corners `rounding` names cut by its arcs (see
 /// [`Opening::outline`]).
-pub fn rounded_rect(min: DVec2, max: DVec2, rounding: Option<&Rounding>) -> Vec<DVec2> {
+pub(crate) fn rounded_rect(min: DVec2, max: DVec2, rounding: Option<&Rounding>) -> Vec<DVec2> {
     let corners = [min, DVec2::new(max.x, min.y), max, DVec2::new(min.x, max.y)];
     let Some(r) = rounding.filter(|r| r.is_rounded()) else {
         return corners.to_vec();
@@ -462,26 +462,26 @@ pub struct Rounding {
     /// How far from the corner each arc starts along both edges, metres (SELEX `offset`); at
     /// most half the opening's width and height where drawn.
     pub radius: f64,
-    /// Straight segments of each arc (SELEX `segments`), 1 to [`Rounding::MAX_SEGMENTS`].
+    /// Straight segments of each arc (SELEX `segments`), 1 to `Rounding::MAX_SEGMENTS`.
     pub segments: u32,
     /// The arc's shape (SELEX `profile`), 0 to 1: 0.5 a quarter circle, 0.25 a straight chamfer,
     /// towards 1 a square corner, towards 0 a concave cut. Drawn as the superellipse of exponent
-    /// `2^(4 profile - 1)` ([`Rounding::exponent`]).
+    /// `2^(4 profile - 1)` (`Rounding::exponent`).
     pub profile: f64,
 }
 
 impl Rounding {
     /// The most segments an arc is drawn with.
-    pub const MAX_SEGMENTS: u32 = 32;
+    pub(crate) const MAX_SEGMENTS: u32 = 32;
 
     /// Whether any corner is rounded by a usable radius.
-    pub fn is_rounded(&self) -> bool {
+    pub(crate) fn is_rounded(&self) -> bool {
         self.corners.iter().any(|c| *c) && self.radius.is_finite() && self.radius > 0.0
     }
 
     /// The superellipse exponent of the profile: 2 for 0.5 (a circle), 1 for 0.25 (a
     /// chamfer), 8 for 1, 0.5 for 0.
-    pub fn exponent(&self) -> f64 {
+    pub(crate) fn exponent(&self) -> f64 {
         let p = if self.profile.is_finite() {
             self.profile.clamp(0.0, 1.0)
         } else {
@@ -493,17 +493,17 @@ impl Rounding {
 
 /// Smallest distance between an opening and the border of its wall, or another opening
 /// (metres). Keeps wall polygons with holes valid (no touching rings).
-pub const OPENING_MARGIN: f64 = 0.02;
+pub(crate) const OPENING_MARGIN: f64 = 0.02;
 
 /// Least wall between an opening's head and the top of its storey (metres): the lintel and the
 /// floor above. A door that filled its storey would also leave a strip of wall 2 cm high above
 /// it, whose long thin triangles a validator finds tilted once the opening's corners are
 /// rounded to the millimetre (val3dity's 204).
-pub const LINTEL: f64 = 0.3;
+pub(crate) const LINTEL: f64 = 0.3;
 
 /// Height of a balcony's railing above its slab (metres): the writers draw it, and the facade
 /// rules keep a balcony clear of neighbours up to it.
-pub const RAILING_HEIGHT: f64 = 1.0;
+pub(crate) const RAILING_HEIGHT: f64 = 1.0;
 
 /// A balcony on a wall (LOD3): a slab of `depth` metres in front of the wall at floor height
 /// `z`, spanning `u0..u1` along it, with a railing.
@@ -615,7 +615,7 @@ pub struct Part {
 impl Part {
     /// The part's source where it is not the building's own (`building`): a `building:part`'s
     /// id, which the writers record on the part.
-    pub fn traced_source(&self, building: SourceId) -> Option<SourceId> {
+    pub(crate) fn traced_source(&self, building: SourceId) -> Option<SourceId> {
         self.source.filter(|s| *s != building)
     }
 }
@@ -672,7 +672,7 @@ pub struct InteriorWall {
 }
 
 /// A door in an interior wall: `u0..u1` metres along the wall from `a`, from the floor up to
-/// `height`. It lies inside the wall with at least [`OPENING_MARGIN`] to its ends.
+/// `height`. It lies inside the wall with at least `OPENING_MARGIN` to its ends.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InteriorDoor {
     /// Index in [`StoreyInterior::walls`].
@@ -782,7 +782,7 @@ impl Building {
     /// roof faces and grounds, plus at LOD3 one per window or door and the 9 faces of each
     /// balcony (a 6-face slab and 3 railing panels), and at LOD4 per storey each room's floor,
     /// ceiling and sides, 6 faces per interior wall and door leaf and per stair step.
-    pub fn polygon_count(&self) -> usize {
+    pub(crate) fn polygon_count(&self) -> usize {
         self.parts
             .iter()
             .map(|p| {
@@ -812,7 +812,7 @@ impl Building {
     /// building and what is not finite, e.g. `building way/1: a coordinate of wall 2 of part p0
     /// is not finite`. Every writer calls it before writing anything of a building, so that a
     /// refused building leaves nothing half-written.
-    pub fn check_finite(&self) -> Result<(), NotFinite> {
+    pub(crate) fn check_finite(&self) -> Result<(), NotFinite> {
         if self.all_finite() {
             return Ok(());
         }
@@ -871,7 +871,7 @@ impl Building {
 
     /// A 64-bit digest of what the building is: its id, zone and appearance, the counts of its
     /// parts, walls, openings, balconies, roof faces and LOD4 rooms, and every number
-    /// [`Building::check_finite`] checks, bit for bit. Two runs that derived the building alike
+    /// `Building::check_finite` checks, bit for bit. Two runs that derived the building alike
     /// give the same digest; shard manifests record it per building, so that a merge (or a
     /// test) can tell that sharding changed no building. Not cryptographic.
     pub fn digest(&self) -> u64 {
@@ -970,7 +970,7 @@ impl Building {
 /// Why [`Building::check_finite`] refuses a building: what of it is not finite (the first
 /// found), with the building's id and the part's key (and the wall's index).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum NotFinite {
+pub(crate) enum NotFinite {
     /// Its base or measured height.
     #[error("building {building}: the base or measured height is not finite")]
     Heights {
@@ -1170,7 +1170,7 @@ impl Inference {
     }
 
     /// The attribute as written back: `none` or the list.
-    pub fn as_string(self) -> String {
+    pub(crate) fn as_string(self) -> String {
         let words: Vec<&str> = [
             (self.levels, "levels"),
             (self.roof, "roof"),

@@ -42,10 +42,10 @@ pub enum Source {
         /// The `.shp` file.
         path: PathBuf,
         /// The `.dbf` field holding the building height in metres (`--shp-height-field`); `None`
-        /// detects it from [`HEIGHT_FIELDS`](crate::input::shp::HEIGHT_FIELDS).
+        /// detects it from `HEIGHT_FIELDS`.
         height_field: Option<String>,
         /// The `.dbf` field holding the number of storeys (`--shp-levels-field`); `None` detects it
-        /// from [`LEVELS_FIELDS`](crate::input::shp::LEVELS_FIELDS).
+        /// from `LEVELS_FIELDS`.
         levels_field: Option<String>,
     },
 }
@@ -56,7 +56,7 @@ pub struct Options {
     /// The footprints to read (`--osm` or `--shp`).
     pub source: Source,
     /// The knowledge base (`--kb`); `None` uses the built-in defaults alone
-    /// ([`KnowledgeBase::earth_only`]).
+    /// (`KnowledgeBase::earth_only`).
     pub kb: Option<PathBuf>,
     /// A ruleset file applied to every building (`--rules`); `None` compiles the rules of each
     /// building's appearance from the knowledge base.
@@ -134,7 +134,7 @@ pub struct Options {
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
 /// `infer` ([`KnowledgeBase::inference_by_zone`]). The zone lookups are skipped when no zone
 /// infers anything.
-pub fn inference_wanted(
+pub(crate) fn inference_wanted(
     kb: &KnowledgeBase,
     lots: &[prepare::Lot],
     over: Option<crate::model::Inference>,
@@ -195,10 +195,10 @@ pub struct Summary {
     /// computed from its entries.
     pub report: Report,
     /// Planar polygons of all generated buildings, as
-    /// [`Building::polygon_count`](crate::model::Building::polygon_count) counts them.
+    /// `Building::polygon_count` counts them.
     pub polygons: usize,
     /// Wall-clock time: of the whole run for [`run`]; of deriving and writing for
-    /// [`generate_and_write`] and [`derive_lot`].
+    /// `generate_and_write` and `derive_lot`.
     pub elapsed: Duration,
     /// The files written, or with `dry_run` the files that would have been.
     pub outputs: Vec<PathBuf>,
@@ -212,7 +212,7 @@ pub struct Summary {
 }
 
 /// Called after each chunk with (buildings done, buildings in all).
-pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
+pub(crate) type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 
 /// Runs the pipeline and writes every requested output atomically.
 pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> {
@@ -568,7 +568,7 @@ pub(crate) fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> 
 
 /// Where a run writes.
 #[derive(Clone, Debug, Default)]
-pub struct Targets {
+pub(crate) struct Targets {
     /// Write IFC4 (STEP) here.
     pub ifc: Option<PathBuf>,
     /// Write CityGML 2.0 here.
@@ -665,7 +665,7 @@ impl Model {
 
 /// Derives every lot of the site (in parallel, chunk by chunk) and writes the buildings in lot
 /// order to every target, atomically. `report` already holds what reading and preparing said.
-pub fn generate_and_write(
+pub(crate) fn generate_and_write(
     site: &prepare::Site,
     generator: &Generator,
     source_name: &str,

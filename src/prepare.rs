@@ -14,10 +14,10 @@ mod tiles;
 
 use clean::{clean_polygons, clean_polygons_quietly, Cleaned};
 pub use fronts::{assign_fronts, FRONT_MAX_DISTANCE, FRONT_PARTY_PROBE};
-pub use parts::cut_out;
+pub(crate) use parts::cut_out;
 use parts::{group_parts, straighten_lot};
 pub use tiles::{
-    group_into_tiles, in_bbox, near_bbox, near_selected, retain_in_bbox, tile_cell, Tile,
+    group_into_tiles, in_bbox, near_bbox, near_selected, retain_in_bbox, tile_cell, EmptyBox, Tile,
 };
 
 use crate::crs::Crs;
@@ -28,14 +28,14 @@ use crate::report::{Outcome, Report};
 
 /// Vertices closer than this (metres) are merged.
 const MERGE_TOLERANCE: f64 = 1e-3;
-/// A vertex where a footprint bends by less than [`STRAIGHTEN_MAX_TURN_DEG`] and that lies
+/// A vertex where a footprint bends by less than `STRAIGHTEN_MAX_TURN_DEG` and that lies
 /// within this distance (metres) of the line through its neighbours is dropped
 /// (`straighten_lot`): a straight wall drawn with a node a few centimetres off (most often a
 /// neighbour's corner), which would give the roof a crease along the whole building and cost
 /// a gable its end.
 pub const STRAIGHTEN_TOLERANCE: f64 = 0.05;
 /// See [`STRAIGHTEN_TOLERANCE`] (degrees).
-pub const STRAIGHTEN_MAX_TURN_DEG: f64 = 1.0;
+pub(crate) const STRAIGHTEN_MAX_TURN_DEG: f64 = 1.0;
 /// Footprint polygons smaller than this (square metres) are dropped.
 const MIN_AREA: f64 = 0.5;
 /// Rings with more vertices than this are not checked for self-intersection pair by pair.
@@ -51,7 +51,7 @@ pub struct LotPiece {
     /// counter-clockwise.
     pub polygons: Vec<Polygon>,
     /// The piece's own tags; when it is derived, a part without colours or material takes its
-    /// outline's ([`crate::derive::merged_tags`]).
+    /// outline's (`crate::derive::merged_tags`).
     pub tags: SharedTags,
 }
 
@@ -115,11 +115,11 @@ pub struct Site {
 /// per metre), 2.5 times the worst of UTM within its own zone (0.1 % at the zone's edge on the
 /// equator). It lets a city overhang its zone by a degree or more (London across 0°, any
 /// town on a zone boundary) and refuses a file of places hundreds of kilometres apart.
-pub const MAX_SCALE_ERROR: f64 = 0.0025;
+pub(crate) const MAX_SCALE_ERROR: f64 = 0.0025;
 
 /// The output CRS [`choose_output_crs`] picked, and how well it fits the data.
 #[derive(Clone, Debug, PartialEq)]
-pub struct CrsChoice {
+pub(crate) struct CrsChoice {
     /// The WGS84 UTM zone of the centre of the data.
     pub crs: Crs,
     /// The data's longitudes, west to east (west > east when they cross the antimeridian).
@@ -134,7 +134,7 @@ pub struct CrsChoice {
 /// antimeridian is centred on it, not on Greenwich). With `bbox` (lon/lat), only the vertices
 /// inside it count when some are, so that a region cut from a larger file gets its own zone.
 /// Also finds the vertex the zone stretches most (see [`MAX_SCALE_ERROR`]).
-pub fn choose_output_crs(
+pub(crate) fn choose_output_crs(
     footprints: &[Footprint],
     source_crs: Option<Crs>,
     bbox: Option<[f64; 4]>,
@@ -392,7 +392,7 @@ pub fn interior_point(p: &Polygon) -> DVec2 {
 }
 
 /// Area centroid of a ring (vertex mean for a degenerate ring).
-pub fn ring_centroid(r: &[DVec2]) -> DVec2 {
+pub(crate) fn ring_centroid(r: &[DVec2]) -> DVec2 {
     let a = ring_signed_area(r);
     if a.abs() < 1e-12 {
         return r.iter().copied().sum::<DVec2>() / r.len().max(1) as f64;
@@ -409,7 +409,7 @@ pub fn ring_centroid(r: &[DVec2]) -> DVec2 {
 
 /// A site holding one lot given in local metres, placed at `lonlat` (the local origin), for
 /// trying a ruleset without a city (`citygen rules derive`).
-pub fn single_lot(
+pub(crate) fn single_lot(
     polygon: Polygon,
     lonlat: (f64, f64),
     crs: Option<Crs>,

@@ -31,7 +31,7 @@ impl Rng {
     }
 
     /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         let result = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
         let t = self.s[1] << 17;
         self.s[2] ^= self.s[0];
@@ -44,7 +44,7 @@ impl Rng {
     }
 
     /// Uniform in [0, 1).
-    pub fn next_f64(&mut self) -> f64 {
+    pub(crate) fn next_f64(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
@@ -55,7 +55,7 @@ impl Rng {
 
     /// Picks an index by weights (non-negative; all zero or empty means uniform).
     /// Returns `None` only for an empty slice.
-    pub fn pick_weighted(&mut self, weights: &[f64]) -> Option<usize> {
+    pub(crate) fn pick_weighted(&mut self, weights: &[f64]) -> Option<usize> {
         if weights.is_empty() {
             return None;
         }

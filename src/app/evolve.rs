@@ -154,7 +154,7 @@ pub(crate) fn run(args: EvolveArgs) -> Result<Outcome, AppError> {
         let json = serde_json::to_string_pretty(&rows).unwrap_or_default() + "\n";
         let p = args.out.join("baseline.json");
         if let Err(e) = run::write_atomic(&p, json.as_bytes()) {
-            return Err(AppError::Output(e));
+            return Err(AppError::Output(e.to_string()));
         }
         eprintln!("  wrote {}", p.display());
     }

@@ -1,5 +1,5 @@
 //! `citygen kb check|compile|explain|learn|edit`: their arguments, the reports printed, one
-//! building explained ([`explain_building`]) and a knowledge base learned ([`learn_kb`]).
+//! building explained (`explain_building`) and a knowledge base learned (`learn_kb`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -280,7 +280,7 @@ fn emit(text: &str) -> Result<(), AppError> {
 /// (`way/123`, `relation/45`, or for a shapefile also a bare 0-based record number; a
 /// `building:part` gets its outline's tags under its own) and explains, for the knowledge base,
 /// its zone chain, inherited values and the appearance the run's `seed` picks for it.
-pub fn explain_building(
+pub(crate) fn explain_building(
     kb: &KnowledgeBase,
     source: &Source,
     id: &str,
@@ -338,7 +338,7 @@ pub fn explain_building(
 /// (`options.grouping` is then replaced), and writes it atomically to `out`. The output may
 /// not be an input. Errors name the file: an input that cannot be read or holds no building
 /// is an input error, as is a `--zones` KB that does not load.
-pub fn learn_kb(
+pub(crate) fn learn_kb(
     source: &Source,
     zones: Option<&Path>,
     options: &kb::learn::LearnOptions<'_>,

@@ -1,5 +1,5 @@
 //! `citygen rules check|derive`: their arguments, the lint, and one ruleset derived on one test
-//! lot ([`derive_lot`]).
+//! lot (`derive_lot`).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -137,7 +137,7 @@ pub(crate) fn run(cmd: RulesCommand) -> Result<Outcome, AppError> {
 }
 
 /// `citygen rules derive`: one ruleset on one test lot (local metres) placed at `lonlat`.
-pub fn derive_lot(
+pub(crate) fn derive_lot(
     rules_path: &Path,
     lot: crate::geometry::Polygon,
     lonlat: (f64, f64),

@@ -1,5 +1,5 @@
 //! `citygen selex check|derive`: their arguments, the program parsed, checked and run, its
-//! shape tree printed or (`derive` with outputs) its building written ([`derive_selex_lot`]).
+//! shape tree printed or (`derive` with outputs) its building written (`derive_selex_lot`).
 
 use std::path::{Path, PathBuf};
 
@@ -164,7 +164,7 @@ pub(crate) fn run(cmd: SelexCommand) -> Result<Outcome, AppError> {
 /// ([`crate::derive::selex_lot::building`]), placed at `lonlat` and written to `targets` as
 /// `rules derive` writes its lot: outputs checked first, written atomically, with the report.
 /// LOD 1 to 3 (LOD4's interiors are not planned for it: a usage error).
-pub fn derive_selex_lot(
+pub(crate) fn derive_selex_lot(
     program: &Path,
     derivation: &crate::selex::eval::Derivation,
     lonlat: (f64, f64),

@@ -11,40 +11,40 @@ pub(crate) struct Ellipsoid {
 
 impl Ellipsoid {
     /// WGS 84 (EPSG:7030).
-    pub const WGS84: Ellipsoid = Ellipsoid {
+    pub(crate) const WGS84: Ellipsoid = Ellipsoid {
         a: 6_378_137.0,
         f: 1.0 / 298.257_223_563,
     };
     /// GRS 1980 (EPSG:7019), the ellipsoid of ETRS89 and RGF93.
-    pub const GRS80: Ellipsoid = Ellipsoid {
+    pub(crate) const GRS80: Ellipsoid = Ellipsoid {
         a: 6_378_137.0,
         f: 1.0 / 298.257_222_101,
     };
     /// Airy 1830 (EPSG:7001), the ellipsoid of OSGB36. The Ordnance Survey defines it by
     /// a = 6377563.396 m and b = 6356256.909 m, so the flattening is derived from both.
-    pub const AIRY1830: Ellipsoid = Ellipsoid {
+    pub(crate) const AIRY1830: Ellipsoid = Ellipsoid {
         a: 6_377_563.396,
         f: (6_377_563.396 - 6_356_256.909) / 6_377_563.396,
     };
 
     /// First eccentricity squared, `f (2 - f)`.
-    pub fn e2(&self) -> f64 {
+    pub(crate) fn e2(&self) -> f64 {
         self.f * (2.0 - self.f)
     }
 
     /// First eccentricity.
-    pub fn e(&self) -> f64 {
+    pub(crate) fn e(&self) -> f64 {
         self.e2().sqrt()
     }
 
     /// Third flattening `n = f / (2 - f)`, the small parameter of the Krüger series.
-    pub fn n(&self) -> f64 {
+    pub(crate) fn n(&self) -> f64 {
         self.f / (2.0 - self.f)
     }
 
     /// Geodetic (longitude, latitude in radians, ellipsoidal height in metres) to geocentric
     /// cartesian (X, Y, Z) metres.
-    pub fn geodetic_to_geocentric(&self, lon: f64, lat: f64, h: f64) -> [f64; 3] {
+    pub(crate) fn geodetic_to_geocentric(&self, lon: f64, lat: f64, h: f64) -> [f64; 3] {
         let e2 = self.e2();
         let (sphi, cphi) = lat.sin_cos();
         let (slam, clam) = lon.sin_cos();
@@ -62,7 +62,7 @@ impl Ellipsoid {
     ///
     /// Iterates `tan φ = (Z + e² ν sin φ) / p`, which is exact for any height and converges to
     /// machine precision in a handful of steps for points near the surface.
-    pub fn geocentric_to_geodetic(&self, xyz: [f64; 3]) -> (f64, f64, f64) {
+    pub(crate) fn geocentric_to_geodetic(&self, xyz: [f64; 3]) -> (f64, f64, f64) {
         let [x, y, z] = xyz;
         let e2 = self.e2();
         let p = x.hypot(y);

@@ -24,7 +24,7 @@ pub(crate) struct LambertConic2Sp {
 impl LambertConic2Sp {
     /// A projection on `ell` with false origin (`lon_f_deg`, `lat_f_deg`), standard parallels
     /// `lat1_deg` and `lat2_deg` (distinct, same hemisphere) and false easting/northing metres.
-    pub fn new(
+    pub(crate) fn new(
         ell: Ellipsoid,
         lon_f_deg: f64,
         lat_f_deg: f64,
@@ -54,7 +54,7 @@ impl LambertConic2Sp {
     }
 
     /// Geodetic degrees on this projection's ellipsoid to (easting, northing) metres.
-    pub fn project(&self, lon_deg: f64, lat_deg: f64) -> (f64, f64) {
+    pub(crate) fn project(&self, lon_deg: f64, lat_deg: f64) -> (f64, f64) {
         let t = t_of(self.e, lat_deg.to_radians());
         let r = self.af * t.powf(self.n);
         let theta = self.n * super::tmerc::wrap_pi(lon_deg.to_radians() - self.lon_f);
@@ -63,7 +63,7 @@ impl LambertConic2Sp {
     }
 
     /// Inverse of [`LambertConic2Sp::project`]: (easting, northing) metres to degrees.
-    pub fn unproject(&self, easting: f64, northing: f64) -> (f64, f64) {
+    pub(crate) fn unproject(&self, easting: f64, northing: f64) -> (f64, f64) {
         let dx = easting - self.easting_f;
         let dy = self.r_f - (northing - self.northing_f);
         let sign = self.n.signum();

@@ -108,7 +108,7 @@ impl Crs {
     }
 
     /// The CRS with EPSG code `code`, or [`CrsError::Unsupported`] naming `EPSG:code`.
-    pub fn from_epsg(code: u32) -> Result<Crs, CrsError> {
+    pub(crate) fn from_epsg(code: u32) -> Result<Crs, CrsError> {
         match code {
             4326 => Ok(Crs::Wgs84),
             2154 => Ok(Crs::Lambert93),
@@ -129,7 +129,7 @@ impl Crs {
     }
 
     /// The EPSG code.
-    pub fn epsg(&self) -> u32 {
+    pub(crate) fn epsg(&self) -> u32 {
         match *self {
             Crs::Wgs84 => 4326,
             Crs::Utm { zone, north: true } => 32600 + u32::from(zone),
@@ -155,7 +155,7 @@ impl Crs {
 
     /// True for the geographic CRS (coordinates in degrees); false for the projected ones
     /// (metres, easting then northing).
-    pub fn is_geographic(&self) -> bool {
+    pub(crate) fn is_geographic(&self) -> bool {
         matches!(self, Crs::Wgs84)
     }
 
@@ -163,7 +163,7 @@ impl Crs {
     /// into [-180, 180)), with the exceptions of zone 32V (Norway, 56-64°N, 3-12°E) and zones
     /// 31X/33X/35X/37X (Svalbard, 72-84°N). North is `lat >= 0`. Never panics; a non-finite
     /// input gives zone 1 or 31 rather than an error.
-    pub fn utm_for(lon: f64, lat: f64) -> Crs {
+    pub(crate) fn utm_for(lon: f64, lat: f64) -> Crs {
         let lon = if lon.is_finite() {
             (lon + 180.0).rem_euclid(360.0) - 180.0
         } else {
@@ -193,7 +193,7 @@ impl Crs {
     /// Spherical formula, k = 0.9996 / √(1 − (cos φ sin Δλ)²), Δλ from the zone's central
     /// meridian: within 1e-5 of the ellipsoid's over a zone, which is all a bound needs. `None`
     /// for the other CRSs.
-    pub fn utm_scale_error(&self, lon: f64, lat: f64) -> Option<f64> {
+    pub(crate) fn utm_scale_error(&self, lon: f64, lat: f64) -> Option<f64> {
         let zone = match *self {
             Crs::Utm { zone, .. } | Crs::EtrsUtm { zone } => zone,
             _ => return None,
@@ -211,7 +211,7 @@ impl Crs {
     /// otherwise the projection method and parameters on the datum decide, and failing that the
     /// CRS name. Malformed text is [`CrsError::BadPrj`] with the byte offset; a well-formed but
     /// unknown CRS is [`CrsError::Unsupported`] naming what was found.
-    pub fn from_prj(wkt: &str) -> Result<Crs, CrsError> {
+    pub(crate) fn from_prj(wkt: &str) -> Result<Crs, CrsError> {
         wkt::identify(wkt)
     }
 
@@ -263,7 +263,7 @@ pub fn wgs84_to_ecef(lon: f64, lat: f64, h: f64) -> [f64; 3] {
 
 /// Inverse of [`wgs84_to_ecef`]: ECEF metres to WGS84 (longitude, latitude) degrees and
 /// ellipsoidal height in metres (exact near the surface, see the ellipsoid's iteration).
-pub fn ecef_to_wgs84(xyz: [f64; 3]) -> (f64, f64, f64) {
+pub(crate) fn ecef_to_wgs84(xyz: [f64; 3]) -> (f64, f64, f64) {
     let (lon, lat, h) = Ellipsoid::WGS84.geocentric_to_geodetic(xyz);
     (lon.to_degrees(), lat.to_degrees(), h)
 }

@@ -30,7 +30,7 @@ pub(crate) struct KruegerSeries {
 
 impl KruegerSeries {
     /// The series for `ell`.
-    pub fn new(ell: Ellipsoid) -> Self {
+    pub(crate) fn new(ell: Ellipsoid) -> Self {
         let n = ell.n();
         let n2 = n * n;
         let n3 = n2 * n;
@@ -98,7 +98,7 @@ impl KruegerSeries {
     /// Unit-scale projection: latitude `lat` and longitude `dlon` from the central meridian
     /// (radians) to (η, ξ) multiplied by `A`, i.e. metres for k₀ = 1 with the origin on the
     /// equator.
-    pub fn forward(&self, dlon: f64, lat: f64) -> (f64, f64) {
+    pub(crate) fn forward(&self, dlon: f64, lat: f64) -> (f64, f64) {
         let taup = self.taup(lat.tan());
         let (slam, clam) = dlon.sin_cos();
         let xip = taup.atan2(clam);
@@ -114,7 +114,7 @@ impl KruegerSeries {
     }
 
     /// Inverse of [`KruegerSeries::forward`]: (x, y) metres at k₀ = 1 to (dlon, lat) radians.
-    pub fn inverse(&self, x: f64, y: f64) -> (f64, f64) {
+    pub(crate) fn inverse(&self, x: f64, y: f64) -> (f64, f64) {
         let eta = x / self.big_a;
         let xi = y / self.big_a;
         let mut xip = xi;
@@ -150,7 +150,14 @@ pub(crate) struct TransverseMercator {
 impl TransverseMercator {
     /// A projection on `ell` with natural origin (`lon0_deg`, `lat0_deg`), central scale `k0`
     /// and false origin (`fe`, `fn_`) metres.
-    pub fn new(ell: Ellipsoid, lon0_deg: f64, lat0_deg: f64, k0: f64, fe: f64, fn_: f64) -> Self {
+    pub(crate) fn new(
+        ell: Ellipsoid,
+        lon0_deg: f64,
+        lat0_deg: f64,
+        k0: f64,
+        fe: f64,
+        fn_: f64,
+    ) -> Self {
         let series = KruegerSeries::new(ell);
         // On the central meridian ξ is the rectifying latitude, so this is the meridian arc.
         let (_, m0) = series.forward(0.0, lat0_deg.to_radians());
@@ -165,7 +172,7 @@ impl TransverseMercator {
 
     /// The UTM projection of `zone` (1-60) with a precomputed `series`. Cheap: UTM's origin
     /// is on the equator, so no meridian arc is needed.
-    pub fn utm(series: &KruegerSeries, zone: u8, north: bool) -> Self {
+    pub(crate) fn utm(series: &KruegerSeries, zone: u8, north: bool) -> Self {
         TransverseMercator {
             series: *series,
             lon0: (-183.0 + 6.0 * f64::from(zone)).to_radians(),
@@ -176,7 +183,7 @@ impl TransverseMercator {
     }
 
     /// Geodetic degrees on this projection's ellipsoid to (easting, northing) metres.
-    pub fn project(&self, lon_deg: f64, lat_deg: f64) -> (f64, f64) {
+    pub(crate) fn project(&self, lon_deg: f64, lat_deg: f64) -> (f64, f64) {
         let dlon = wrap_pi(lon_deg.to_radians() - self.lon0);
         let (x, y) = self.series.forward(dlon, lat_deg.to_radians());
         (
@@ -186,7 +193,7 @@ impl TransverseMercator {
     }
 
     /// Inverse of [`TransverseMercator::project`]: (easting, northing) metres to degrees.
-    pub fn unproject(&self, e: f64, n: f64) -> (f64, f64) {
+    pub(crate) fn unproject(&self, e: f64, n: f64) -> (f64, f64) {
         let x = (e - self.false_easting) / self.k0;
         let y = (n - self.northing_offset) / self.k0;
         let (dlon, lat) = self.series.inverse(x, y);

@@ -90,7 +90,7 @@ struct Edge {
 /// Reads the levels and the openings of the mass at node `mass` of `tree`, whose footprint is
 /// `footprint` and whose walls span `z0..z1`. When the rules cut no storey, the walls get the
 /// storeys of [`storeys_around_openings`] for the style's `floor_height`.
-pub fn facades_of(
+pub(crate) fn facades_of(
     tree: &ShapeTree,
     mass: usize,
     footprint: &Polygon,
@@ -349,17 +349,17 @@ fn place(
 
 /// Default colours of openings whose terminals set none.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct OpeningColors {
+pub(crate) struct OpeningColors {
     pub window: Color,
     pub frame: Color,
     pub door: Color,
 }
 
 /// Smallest window or door kept (metres, each side).
-pub const MIN_OPENING: f64 = 0.1;
+pub(crate) const MIN_OPENING: f64 = 0.1;
 /// How far (metres) a jamb may move into its opening to stand on a grid point by its wall's
 /// line ([`along_on_grid`]).
-pub const JAMB_SNAP: f64 = 0.02;
+pub(crate) const JAMB_SNAP: f64 = 0.02;
 /// Default balcony depth (metres).
 const BALCONY_DEPTH: f64 = 1.2;
 

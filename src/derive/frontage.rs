@@ -32,22 +32,22 @@ use crate::model::{
 };
 
 /// A part whose base is this close to the ground (metres) stands on it.
-pub const GROUND: f64 = 0.1;
+pub(crate) const GROUND: f64 = 0.1;
 /// The narrowest door drawn (metres, after the jambs' snap to the grid).
-pub const DOOR_MIN_WIDTH: f64 = defaults::DOOR_WIDTH_RANGE.0;
+pub(crate) const DOOR_MIN_WIDTH: f64 = defaults::DOOR_WIDTH_RANGE.0;
 /// The lowest door drawn (metres).
-pub const DOOR_MIN_HEIGHT: f64 = defaults::DOOR_HEIGHT_RANGE.0;
+pub(crate) const DOOR_MIN_HEIGHT: f64 = defaults::DOOR_HEIGHT_RANGE.0;
 /// The widest door drawn (metres).
-pub const DOOR_MAX_WIDTH: f64 = defaults::DOOR_WIDTH_RANGE.1;
+pub(crate) const DOOR_MAX_WIDTH: f64 = defaults::DOOR_WIDTH_RANGE.1;
 /// The tallest door drawn (metres).
-pub const DOOR_MAX_HEIGHT: f64 = defaults::DOOR_HEIGHT_RANGE.1;
+pub(crate) const DOOR_MAX_HEIGHT: f64 = defaults::DOOR_HEIGHT_RANGE.1;
 /// The most a footprint edge of a run may turn at its corner (degrees).
 const RUN_MAX_TURN_DEG: f64 = 35.0;
 /// The narrowest window pane cut on a facet of a run (metres).
 const RUN_MIN_PANE: f64 = 0.15;
 
 /// One part of the building with the openings found on it, before [`facade::apply`].
-pub struct Draft<'a> {
+pub(crate) struct Draft<'a> {
     /// The part with one wall per footprint edge (as `massing::build_part` makes it).
     pub part: &'a Part,
     /// The openings, balconies and levels its rules made.
@@ -73,7 +73,7 @@ pub struct Arrangement {
 /// side is `front`, among `around`. `windows_from_style`: a part whose rules made no window at
 /// all still gets windows on its runs, from the style (the knowledge base's rules; a ruleset
 /// file that draws no windows is obeyed).
-pub fn arrange(
+pub(crate) fn arrange(
     drafts: &mut [Draft<'_>],
     owner: SourceId,
     front: Option<DVec2>,
@@ -177,7 +177,7 @@ fn programmed_entrances(drafts: &[Draft<'_>], out: &mut Arrangement) -> bool {
 
 /// The wall area and the party-wall area of a part after [`facade::apply`] (its walls cut per
 /// storey), with `spans` per footprint edge; sets each wall's [`crate::model::Wall::party`].
-pub fn mark_party_walls(part: &mut Part, spans: &[Vec<Span>], counts: &mut FacadeCounts) {
+pub(crate) fn mark_party_walls(part: &mut Part, spans: &[Vec<Span>], counts: &mut FacadeCounts) {
     let edges = spans.len();
     if edges == 0 || part.walls.len() % edges != 0 {
         return;

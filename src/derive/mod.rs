@@ -53,7 +53,7 @@ pub enum Rules {
 /// Everything needed to turn lots into buildings.
 pub struct Generator {
     /// The knowledge base that gives every lot its zone and style (`--kb`, or
-    /// [`KnowledgeBase::earth_only`] when none is given).
+    /// `KnowledgeBase::earth_only` when none is given).
     pub kb: KnowledgeBase,
     /// Where each building's grammar rules come from.
     pub rules: Rules,
@@ -70,11 +70,11 @@ pub struct Generator {
     /// Rulesets compiled from appearances.
     compiled: Mutex<RuleCache>,
     /// The SELEX programs the knowledge base's appearances name, by resolved path
-    /// ([`selex::load_all`]; empty until [`Generator::load_selex`]). At LOD3 an appearance with
+    /// (`selex::load_all`; empty until `Generator::load_selex`). At LOD3 an appearance with
     /// one has its facades laid out by it.
     pub selex: HashMap<std::path::PathBuf, Arc<selex::SelexProgram>>,
     /// The ruleset files the knowledge base's appearances name, by resolved path, parsed
-    /// ([`Generator::load_rulesets`]; empty until then). An appearance with one is derived with
+    /// (`Generator::load_rulesets`; empty until then). An appearance with one is derived with
     /// it instead of the rules compiled from its values.
     pub rulesets: HashMap<std::path::PathBuf, Arc<RuleSet>>,
     /// The other buildings around each lot, for party walls at LOD3 and above (empty: every
@@ -112,7 +112,7 @@ impl Generator {
 
     /// Reads and parses the SELEX programs of the knowledge base ([`selex::load_all`]): an
     /// error names the file and the place.
-    pub fn load_selex(&mut self) -> Result<(), selex::ProgramError> {
+    pub(crate) fn load_selex(&mut self) -> Result<(), selex::ProgramError> {
         self.selex = selex::load_all(&self.kb)?;
         Ok(())
     }
@@ -121,7 +121,7 @@ impl Generator {
     /// folder), once each. Returns a note for each one that cannot be read or does not parse
     /// (its appearance is then derived from its values, as `kb check` warns); the others are
     /// applied to their appearances' buildings.
-    pub fn load_rulesets(&mut self) -> Vec<String> {
+    pub(crate) fn load_rulesets(&mut self) -> Vec<String> {
         let mut notes = Vec::new();
         let mut seen = std::collections::BTreeSet::new();
         for (z, zone) in self.kb.zones().iter().enumerate() {
@@ -762,7 +762,11 @@ fn floating_note(styled: &[(&LotPiece, BuildingTags, Style, Rng)]) -> Option<Str
 }
 
 /// Part tags take precedence; a part without colours takes its outline's.
-pub fn merged_tags(piece: &BuildingTags, outline: &BuildingTags, is_part: bool) -> BuildingTags {
+pub(crate) fn merged_tags(
+    piece: &BuildingTags,
+    outline: &BuildingTags,
+    is_part: bool,
+) -> BuildingTags {
     let mut t = piece.clone();
     if is_part {
         t.colour = t.colour.or(outline.colour);
@@ -775,7 +779,7 @@ pub fn merged_tags(piece: &BuildingTags, outline: &BuildingTags, is_part: bool) 
 /// Indices of the masses of a derived tree, in tree order: volumes labelled building or
 /// building part that contain no other such volume (seed 003 §3.5: "each shape marked building
 /// part that contains no building part becomes an IfcBuilding").
-pub fn mass_nodes(tree: &ShapeTree) -> Vec<usize> {
+pub(crate) fn mass_nodes(tree: &ShapeTree) -> Vec<usize> {
     let is_mass = |i: usize| {
         matches!(tree.nodes[i].label, Label::Building | Label::BuildingPart)
             && matches!(tree.nodes[i].geometry, Geometry::Volume { .. })
@@ -821,7 +825,7 @@ fn storey_count(tree: &ShapeTree, mass: usize, z0: f64, z1: f64) -> u32 {
 }
 
 /// The masses of a derived tree (see [`mass_nodes`]) with their heights, roofs and colours.
-pub fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
+pub(crate) fn masses_of(tree: &ShapeTree, style: &Style) -> Vec<Mass> {
     let mut out = Vec::new();
     for i in mass_nodes(tree) {
         let node = &tree.nodes[i];

@@ -31,7 +31,7 @@ use crate::selex::ast::Program;
 use crate::selex::eval::{facade_specs, run_on_facades, Derivation, RunError, ShapeKind};
 use crate::selex::parser::SelexError;
 
-/// Why a SELEX program of the knowledge base was not loaded ([`load_all`], [`load`]) or not
+/// Why a SELEX program of the knowledge base was not loaded (`load_all`, [`load`]) or not
 /// applied to a mass ([`apply`]).
 #[derive(Debug, thiserror::Error)]
 pub enum ProgramError {
@@ -71,7 +71,9 @@ pub struct SelexProgram {
 /// Reads and parses every SELEX program the knowledge base's appearances name, once each.
 /// An unreadable file, a path outside the KB's folder or a program that does not parse is an
 /// error naming the file (and the place), so a run stops before any work.
-pub fn load_all(kb: &KnowledgeBase) -> Result<HashMap<PathBuf, Arc<SelexProgram>>, ProgramError> {
+pub(crate) fn load_all(
+    kb: &KnowledgeBase,
+) -> Result<HashMap<PathBuf, Arc<SelexProgram>>, ProgramError> {
     let mut out: HashMap<PathBuf, Arc<SelexProgram>> = HashMap::new();
     for (z, zone) in kb.zones().iter().enumerate() {
         for a in 0..zone.appearances.len() {

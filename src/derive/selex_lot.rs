@@ -10,7 +10,7 @@
 //!   against the wall it was pushed out of, from the bay's bottom to its top. Volumes are
 //!   axis-aligned boxes (every `createShape` box and every bay of one is).
 //! - A free-standing face on the root (`addShape(label, w, h)`, Jiang's facade) is the front of
-//!   a block [`FREE_FACE_DEPTH`] deep behind it.
+//!   a block `FREE_FACE_DEPTH` deep behind it.
 //! - A bay rounded by `roundShape("front", direction, degree, segments, ...)` with a vertical
 //!   (or no) axis has its front drawn as a circular arc of `segments` chords, ending on the
 //!   bay's sides. `degree` is the arc's rise as a share of the most it can be: the rise is
@@ -18,7 +18,7 @@
 //!   gives a half-round front on a bay at least half as deep as it is wide, and the side walls
 //!   are shortened by the rise. `outside` bulges out (the arc stays inside the bay's box, its
 //!   apex on the box's front); `inside` curves in by the same rise (at most the depth less
-//!   [`MIN_EDGE`]). Chords are at least [`MIN_EDGE`] long (fewer segments otherwise, with a
+//!   `MIN_EDGE`). Chords are at least `MIN_EDGE` long (fewer segments otherwise, with a
 //!   note). Other roundings (`top`, `left`, a horizontal axis, a rounded box) are drawn square,
 //!   with a note.
 //!
@@ -26,10 +26,10 @@
 //!
 //! A face of the part whose latest grid has rows of storey height (2 to 4.5 m each) gives the
 //! storeys (Jiang's 4 × 3.2 m). Otherwise the part has storeys of about
-//! [`DEFAULT_STOREY`] (n = round(H / 3), as `createStoreyGrid` makes on a box), each floor
+//! `DEFAULT_STOREY` (n = round(H / 3), as `createStoreyGrid` makes on a box), each floor
 //! moved to the nearest height that cuts no element (a floor must lie at least a lintel above
-//! an opening's top and [`OPENING_MARGIN`] below its bottom), within half a storey and keeping
-//! storeys at least [`MIN_STOREY`] high; a top storey up to two storeys high is kept whole
+//! an opening's top and `OPENING_MARGIN` below its bottom), within half a storey and keeping
+//! storeys at least `MIN_STOREY` high; a top storey up to two storeys high is kept whole
 //! rather than cut through elements it holds whole. An element that still spans floors becomes one opening
 //! per storey, as in city runs ([`crate::derive::selex`]).
 //!
@@ -40,7 +40,7 @@
 //! rounded corners and frames are kept (`FrameSize { width: thickness, protrusion: width }`).
 //! An element on a flat face goes on the footprint edge its face stands on (same line, same
 //! outward normal), `u` from the edge's start, which is its left end seen from outside, as the
-//! face's `x` is. Each is inset by [`OPENING_MARGIN`] at its sides and top, so that elements on
+//! face's `x` is. Each is inset by `OPENING_MARGIN` at its sides and top, so that elements on
 //! neighbouring cells stay apart as the writers need.
 //!
 //! On the rounded front of a bay, each element is put on one flat facet of the arc: the arc's
@@ -71,10 +71,10 @@ use crate::report::Outcome;
 use crate::selex::eval::{Derivation, Element, Frame, ShapeId, ShapeKind, DEFAULT_STOREY};
 
 /// How deep (metres) the block behind a free-standing face is.
-pub const FREE_FACE_DEPTH: f64 = 8.0;
-pub use crate::derive::selex_place::MIN_EDGE;
+pub(crate) const FREE_FACE_DEPTH: f64 = 8.0;
+pub(crate) use crate::derive::selex_place::MIN_EDGE;
 /// The lowest storey the floors are moved to make, metres.
-pub const MIN_STOREY: f64 = 2.0;
+pub(crate) const MIN_STOREY: f64 = 2.0;
 /// How far (metres) a face may lie from a footprint edge's line and still stand on it.
 const ON_EDGE: f64 = 0.01;
 

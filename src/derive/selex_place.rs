@@ -11,7 +11,7 @@ use crate::model::{FrameSize, Rounding};
 use crate::selex::eval::{Derivation, Element, ShapeId, ShapeKind};
 
 /// The shortest edge of a rounded bay's footprint, metres.
-pub const MIN_EDGE: f64 = 0.05;
+pub(crate) const MIN_EDGE: f64 = 0.05;
 
 /// A flat facet of a rounded front: the span `u0..u1` of the flat front it replaces, and its
 /// ends (left, right seen from outside) in plan.

@@ -1,7 +1,7 @@
 //! What stands around a building: every other building's parts as derived (footprint and height
-//! range), and the stretches of a wall that face one of them ([`party_spans`]).
+//! range), and the stretches of a wall that face one of them (`party_spans`).
 //!
-//! At LOD3 a wall that touches or faces a neighbour closer than [`PARTY_REACH`] is a party
+//! At LOD3 a wall that touches or faces a neighbour closer than `PARTY_REACH` is a party
 //! wall up to the neighbour's top: `derive::frontage` cuts no window, door or balcony
 //! there. The neighbours' heights are those of their own derivation: [`Surroundings`] is built
 //! before the run by deriving every building that may touch one of the run's at LOD2
@@ -16,7 +16,7 @@ use crate::model::{Part, SourceId};
 
 /// How far outside a wall (metres) a neighbouring footprint makes it a party wall: a window
 /// whose outside, up to this far, lies in another building opens into it.
-pub const PARTY_REACH: f64 = 0.5;
+pub(crate) const PARTY_REACH: f64 = 0.5;
 
 /// Where the strip outside a wall starts (metres): a neighbour that only meets the wall's line
 /// (a corner on it) is not in front of the wall.
@@ -37,7 +37,7 @@ pub struct Neighbour {
 
 impl Neighbour {
     /// The neighbour of building `owner` that part `p` makes.
-    pub fn of_part(owner: SourceId, p: &Part) -> Neighbour {
+    pub(crate) fn of_part(owner: SourceId, p: &Part) -> Neighbour {
         Neighbour {
             owner,
             rings: p.footprint.rings().cloned().collect(),
@@ -137,7 +137,7 @@ impl Span {
 /// `n`'s footprint. Exact for any footprint: the strip's stretches crossed by an edge of `n`,
 /// and those between where no edge crosses and the strip lies inside `n`. Appended to `out`,
 /// merged where they touch.
-pub fn party_spans(a: DVec2, b: DVec2, n: &Neighbour, out: &mut Vec<Span>) {
+pub(crate) fn party_spans(a: DVec2, b: DVec2, n: &Neighbour, out: &mut Vec<Span>) {
     let len = a.distance(b);
     if len.is_nan() || len <= 1e-9 || n.z1 <= n.z0 {
         return;

@@ -51,8 +51,13 @@ pub enum DraftError {
         path: PathBuf,
     },
     /// A file could not be written: the message of `write_atomic`, which names it.
-    #[error("{0}")]
-    Write(String),
+    #[error("{}: {source}", .path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
     /// An attribute name the editor may not write.
     #[error("{name:?} is not an attribute name")]
     AttributeName {
@@ -154,13 +159,6 @@ pub enum DraftError {
     },
 }
 
-/// `write_atomic`'s error (a message naming the file).
-impl From<String> for DraftError {
-    fn from(message: String) -> DraftError {
-        DraftError::Write(message)
-    }
-}
-
 /// The message of [`DraftError::Check`]: `file:line: what`, one line each.
 fn check_errors(path: &Path, errors: &[KbRepair]) -> String {
     let list: Vec<String> = errors
@@ -171,7 +169,7 @@ fn check_errors(path: &Path, errors: &[KbRepair]) -> String {
 }
 
 /// The draft and where it came from.
-pub struct Draft {
+pub(crate) struct Draft {
     /// The KB file, resolved (symlinks followed): the one file [`Draft::save`] writes.
     path: PathBuf,
     /// Its folder, resolved: rulesets are written only inside it.
@@ -228,7 +226,7 @@ impl From<CircleJson> for CircleText {
 /// One `<split>` as the page sends it.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct SplitJson {
+pub(crate) struct SplitJson {
     axis: String,
     parent: String,
     children: Vec<String>,
@@ -238,7 +236,7 @@ pub struct SplitJson {
 /// An `<opening>` as the page sends it.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct OpeningJson {
+pub(crate) struct OpeningJson {
     root: String,
     splits: Vec<SplitJson>,
     terms: Vec<String>,
@@ -262,7 +260,7 @@ pub struct AppearanceJson {
 /// path (`earth/Monaco/Fontvieille`), appearances by their 0-based index in the zone.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
-pub enum Edit {
+pub(crate) enum Edit {
     /// A new zone, last child of `parent`, with a circle or a polygon.
     AddZone {
         /// The parent zone's path.
@@ -384,7 +382,7 @@ impl Draft {
     /// Reads the KB at `path`. A file that does not read leniently is an error; one that reads
     /// only leniently is opened with its repairs listed and edits checked leniently; saving
     /// writes it in the strict format ([`Draft::save`]).
-    pub fn open(path: &Path) -> Result<Draft, DraftError> {
+    pub(crate) fn open(path: &Path) -> Result<Draft, DraftError> {
         let io = |source| DraftError::Io {
             path: path.to_path_buf(),
             source,
@@ -421,22 +419,25 @@ impl Draft {
     }
 
     /// The draft's text.
-    pub fn text(&self) -> &str {
+    #[cfg(test)]
+    pub(crate) fn text(&self) -> &str {
         &self.text
     }
 
     /// The KB file written by [`Draft::save`].
-    pub fn path(&self) -> &Path {
+    #[cfg(test)]
+    pub(crate) fn path(&self) -> &Path {
         &self.path
     }
 
     /// The draft parsed.
-    pub fn kb(&self) -> &KnowledgeBase {
+    #[cfg(test)]
+    pub(crate) fn kb(&self) -> &KnowledgeBase {
         &self.kb
     }
 
     /// The draft parsed afresh (for a derivation that takes the KB).
-    pub fn parsed(&self) -> Result<KnowledgeBase, DraftError> {
+    pub(crate) fn parsed(&self) -> Result<KnowledgeBase, DraftError> {
         check(&self.text, &self.path, self.mode).map(|(kb, _)| kb)
     }
 
@@ -468,7 +469,7 @@ impl Draft {
 
     /// Applies `e` to the draft. The edited text is checked ([`check`]: the strict reader and
     /// `kb check`'s errors); when it fails the draft is unchanged and the message says why.
-    pub fn apply(&mut self, e: Edit) -> Result<(), DraftError> {
+    pub(crate) fn apply(&mut self, e: Edit) -> Result<(), DraftError> {
         let t = &self.text;
         let new = match e {
             Edit::AddZone {
@@ -544,7 +545,7 @@ impl Draft {
     /// A draft read leniently is written in the strict format ([`write::to_strict`] of the
     /// draft's model: the lenient reader's repairs applied, comments lost); after the save the
     /// draft is that text, read strictly, and later edits keep its bytes as for any strict KB.
-    pub fn save(&mut self) -> Result<(), DraftError> {
+    pub(crate) fn save(&mut self) -> Result<(), DraftError> {
         let (text, (kb, report)) = match self.mode {
             ReadMode::Strict => {
                 let read = check(&self.text, &self.path, ReadMode::Strict)?;
@@ -580,7 +581,7 @@ impl Draft {
     /// Writes a ruleset `file` (relative to the KB's folder, `.cga`) with `text`, which must
     /// parse. Refused: absolute paths, `..`, a folder that is not inside the KB's (symlinks
     /// resolved), a target that is a symlink or not a file.
-    pub fn write_ruleset(&self, file: &str, text: &str) -> Result<PathBuf, DraftError> {
+    pub(crate) fn write_ruleset(&self, file: &str, text: &str) -> Result<PathBuf, DraftError> {
         let target = ruleset_target(&self.dir, file)?;
         crate::grammar::parse(text, file)?;
         write_atomic(&target, text.as_bytes())?;
@@ -589,7 +590,7 @@ impl Draft {
 
     /// What the page shows: the zone tree with shapes, own and inherited values (with the zone
     /// each comes from), appearances; the check's warnings and errors; the lenient repairs.
-    pub fn state(&self) -> Value {
+    pub(crate) fn state(&self) -> Value {
         let texts = edit::zone_texts(&self.text).unwrap_or_default();
         let kb = &self.kb;
         let zones: Vec<Value> = kb
@@ -711,8 +712,11 @@ fn ruleset_target(dir: &Path, file: &str) -> Result<PathBuf, DraftError> {
 }
 
 /// [`crate::fsio::write_atomic`], its error naming `path` whatever failed.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    crate::fsio::write_atomic(path, bytes).map_err(|e| format!("{}: {}", path.display(), e.error))
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), DraftError> {
+    crate::fsio::write_atomic(path, bytes).map_err(|e| DraftError::Write {
+        path: path.to_path_buf(),
+        source: e.error,
+    })
 }
 
 #[cfg(test)]

@@ -5,15 +5,15 @@
 use std::io::{self, BufRead, BufReader, Read, Write};
 
 /// The longest request line or header line, bytes.
-pub const MAX_LINE: usize = 8 * 1024;
+pub(crate) const MAX_LINE: usize = 8 * 1024;
 /// The most header lines.
-pub const MAX_HEADERS: usize = 64;
+pub(crate) const MAX_HEADERS: usize = 64;
 /// The largest body, bytes (a ruleset is at most 4 MiB; the draft's edits are small).
-pub const MAX_BODY: usize = 8 * 1024 * 1024;
+pub(crate) const MAX_BODY: usize = 8 * 1024 * 1024;
 
 /// One request.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Request {
+pub(crate) struct Request {
     /// `GET`, `POST`, ...
     pub method: String,
     /// The path, without the query.
@@ -28,7 +28,7 @@ pub struct Request {
 
 impl Request {
     /// The first header of this (lower-case) name.
-    pub fn header(&self, name: &str) -> Option<&str> {
+    pub(crate) fn header(&self, name: &str) -> Option<&str> {
         self.headers
             .iter()
             .find(|(k, _)| k == name)
@@ -36,7 +36,7 @@ impl Request {
     }
 
     /// The first query value of this key.
-    pub fn query(&self, key: &str) -> Option<&str> {
+    pub(crate) fn query(&self, key: &str) -> Option<&str> {
         self.query
             .iter()
             .find(|(k, _)| k == key)
@@ -46,7 +46,7 @@ impl Request {
 
 /// Why a request was not read: the status to answer with and a message.
 #[derive(Clone, Debug, PartialEq)]
-pub struct BadRequest {
+pub(crate) struct BadRequest {
     /// 400, 411, 413, 431, 501, ...
     pub status: u16,
     /// What was wrong.
@@ -87,7 +87,7 @@ fn read_line(r: &mut impl BufRead) -> Result<String, BadRequest> {
 }
 
 /// `%xx` and `+` decoded.
-pub fn percent_decode(s: &str) -> Result<String, BadRequest> {
+pub(crate) fn percent_decode(s: &str) -> Result<String, BadRequest> {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
@@ -115,7 +115,7 @@ pub fn percent_decode(s: &str) -> Result<String, BadRequest> {
 }
 
 /// Reads one request from `stream`.
-pub fn read_request(stream: impl Read) -> Result<Request, BadRequest> {
+pub(crate) fn read_request(stream: impl Read) -> Result<Request, BadRequest> {
     let mut r = BufReader::new(stream);
     let line = read_line(&mut r)?;
     let mut parts = line.split(' ');
@@ -195,7 +195,7 @@ pub fn read_request(stream: impl Read) -> Result<Request, BadRequest> {
 
 /// One response.
 #[derive(Clone, Debug)]
-pub struct Response {
+pub(crate) struct Response {
     /// The status code.
     pub status: u16,
     /// The `Content-Type`.
@@ -206,7 +206,7 @@ pub struct Response {
 
 impl Response {
     /// A JSON response.
-    pub fn json(status: u16, value: &serde_json::Value) -> Response {
+    pub(crate) fn json(status: u16, value: &serde_json::Value) -> Response {
         Response {
             status,
             content_type: "application/json",
@@ -215,7 +215,7 @@ impl Response {
     }
 
     /// A JSON `{"error": message}` with this status.
-    pub fn error(status: u16, message: &str) -> Response {
+    pub(crate) fn error(status: u16, message: &str) -> Response {
         Response::json(status, &serde_json::json!({ "error": message }))
     }
 }
@@ -242,7 +242,7 @@ fn reason(status: u16) -> &'static str {
 
 /// Writes `resp` with headers that keep the page to itself: no caching, no sniffing, no
 /// referrer (the token is in the page's URL), scripts and styles from this server only.
-pub fn write_response(mut w: impl Write, resp: &Response) -> io::Result<()> {
+pub(crate) fn write_response(mut w: impl Write, resp: &Response) -> io::Result<()> {
     let head = format!(
         "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\nCache-Control: no-store\r\n\
          X-Content-Type-Options: nosniff\r\nReferrer-Policy: no-referrer\r\nX-Frame-Options: DENY\r\n\

@@ -8,7 +8,7 @@
 //! refused) and, when it has one, an `Origin` that is this server's. The page and its scripts
 //! are compiled into the binary (`assets/kb-edit/`).
 //!
-//! The KB being edited is a [`draft::Draft`] behind a mutex; each edit goes through
+//! The KB being edited is a `draft::Draft` behind a mutex; each edit goes through
 //! [`crate::kb::edit`] and is checked as `kb check --strict` checks a file before the draft
 //! takes it. Saving writes the KB file only (atomically; a KB read leniently in the strict format,
 //! [`crate::kb::write`]); rulesets are written only inside its
@@ -59,7 +59,7 @@ struct Footprints {
 }
 
 /// A bound editor, ready to serve.
-pub struct Editor {
+pub(crate) struct Editor {
     listener: TcpListener,
     port: u16,
     token: String,
@@ -134,7 +134,7 @@ fn footprints_json(site: &Site) -> Vec<u8> {
 impl Editor {
     /// Opens the KB, reads and prepares the footprints, binds 127.0.0.1 (`port` 0: a free
     /// one) and makes the session token.
-    pub fn bind(opts: &EditOptions) -> Result<Editor, EditorError> {
+    pub(crate) fn bind(opts: &EditOptions) -> Result<Editor, EditorError> {
         let draft = Draft::open(&opts.kb)?;
         let footprints = match &opts.source {
             Some(s) => {
@@ -162,12 +162,12 @@ impl Editor {
     }
 
     /// The page's address with the token.
-    pub fn url(&self) -> String {
+    pub(crate) fn url(&self) -> String {
         format!("http://127.0.0.1:{}/?token={}", self.port, self.token)
     }
 
     /// Serves until the process ends: each connection on its own thread.
-    pub fn serve(self) {
+    pub(crate) fn serve(self) {
         let shared = Arc::new(Shared {
             port: self.port,
             token: self.token,

@@ -78,13 +78,13 @@ pub const REFERENCE_HEIGHT: f64 = 9.0;
 pub const MIN_PIECE: f64 = 0.3;
 
 /// The symbol of the facade: the marker of iteration 0, the predecessor of the evolved rules.
-pub const FACADE: &str = "facade";
+pub(crate) const FACADE: &str = "facade";
 
 /// Prefix of the markers made by the steps (`shape1` … `shape10`).
-pub const MARKER_PREFIX: &str = "shape";
+pub(crate) const MARKER_PREFIX: &str = "shape";
 
 /// Suffix of a grid's row symbol (`shape3_row`).
-pub const ROW_SUFFIX: &str = "_row";
+pub(crate) const ROW_SUFFIX: &str = "_row";
 
 /// The terminal weights (wall, window, door) of a leaf marker, by the iteration its name
 /// carries (row `k` for `shape{k}`, row 0 for the facade left whole). Each row sums to 1.
@@ -94,7 +94,7 @@ pub const ROW_SUFFIX: &str = "_row";
 /// | wall | 1 | 0.5 | 0.4 | 0.3 | 0.25 | 0.3 | 0.4 | 0.5 | 0.6 | 0.7 | 0.8 |
 /// | window | 0 | 0.3 | 0.45 | 0.6 | 0.7 | 0.7 | 0.6 | 0.5 | 0.4 | 0.3 | 0.2 |
 /// | door | 0 | 0.2 | 0.15 | 0.1 | 0.05 | 0 | 0 | 0 | 0 | 0 | 0 |
-pub const TERMINAL_WEIGHTS: [[f64; 3]; 11] = [
+pub(crate) const TERMINAL_WEIGHTS: [[f64; 3]; 11] = [
     [1.0, 0.0, 0.0],
     [0.5, 0.3, 0.2],
     [0.4, 0.45, 0.15],
@@ -109,7 +109,7 @@ pub const TERMINAL_WEIGHTS: [[f64; 3]; 11] = [
 ];
 
 /// The terminal symbols in the order of [`TERMINAL_WEIGHTS`]' columns.
-pub const TERMINALS: [&str; 3] = ["wall", "window", "door"];
+pub(crate) const TERMINALS: [&str; 3] = ["wall", "window", "door"];
 
 /// The (wall, window, door) weights of a leaf marker of `iteration` (iterations past 10 get
 /// row 10's).
@@ -177,17 +177,19 @@ pub struct Decoded {
 
 impl Decoded {
     /// The facade rules alone: the text from the `facade` rule on (what a test facade derives).
-    pub fn facade_rules(&self) -> &str {
+    pub(crate) fn facade_rules(&self) -> &str {
         let at = self.text.find("\nfacade ->").map_or(0, |i| i + 1);
         &self.text[at..]
     }
 
     /// The terminals the rules make on the reference facade (leaf shapes, before the weighted
     /// choice of their kind), computed from the rules, not derived. Saturates at `usize::MAX`.
-    pub fn terminal_count(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn terminal_count(&self) -> usize {
         self.count_from(0, 0)
     }
 
+    #[cfg(test)]
     fn count_from(&self, m: usize, depth: usize) -> usize {
         let Some(marker) = self.markers.get(m) else {
             return 0;
@@ -378,7 +380,7 @@ fn write_rules(genome: &Genome, width: f64, height: f64, markers: &[Marker]) -> 
     out
 }
 
-/// The terminal (an index into [`TERMINALS`]) of the leaf marker of `iteration`: a draw by
+/// The terminal (an index into `TERMINALS`) of the leaf marker of `iteration`: a draw by
 /// [`terminal_weights`] from a stream seeded by the genes of the step that made the marker
 /// (its action, arrangement and parameter; iteration 0, the facade left whole, is a wall), so
 /// a change of one step's genes redraws only that step's markers.

@@ -2,18 +2,18 @@
 //! §3.7.2.8-9: "generation runs on a single simple facade object"; the evaluation reads the
 //! terminal matrix and the shape tree).
 //!
-//! **The test facade.** [`derive_facade`] derives the `facade` rules of a ruleset (any rule text
-//! that defines the symbol [`super::decode::FACADE`], e.g. [`super::decode::Decoded::text`]) on
+//! **The test facade.** `derive_facade` derives the `facade` rules of a ruleset (any rule text
+//! that defines the symbol `super::decode::FACADE`, e.g. [`super::decode::Decoded::text`]) on
 //! the front face of a box `width` × `width / 2` × `height` m: two rules are put in front of the
 //! text (`lot -> extrude(height){box}`, `box -> comp(){front : facade}`; the other three faces
-//! become plain walls and are not read). [`derive_lot_facade`] instead derives the whole
+//! become plain walls and are not read). `derive_lot_facade` instead derives the whole
 //! ruleset, from its own axiom, on a `width` × `depth` m lot with `eave = height` (what a city
 //! run gives the axiom) and reads its south face (`front` for such a lot), so a ruleset is
 //! judged exactly as a city will derive it (four facades: about four times the work).
 //!
 //! **Reading.** Every leaf under the facade shape is a [`Terminal`] with its rectangle in facade
 //! metres: x from the facade's left edge seen from outside, y up from its bottom; `wall`,
-//! `window` and `door` give their [`Kind`]. The **terminal matrix** ([`terminal_matrix`]) has
+//! `window` and `door` give their [`Kind`]. The **terminal matrix** (`terminal_matrix`) has
 //! one row per distinct bottom edge (y snapped to 1 cm), bottom to top; a terminal is listed in
 //! every row whose bottom edge lies within its height (a tall window beside three stacked ones
 //! appears in each of their three rows, as Fig. 3.31's door column does), ordered by x (snapped
@@ -32,10 +32,10 @@
 //! every nested facade.
 //!
 //! **Violations** (each one adds the objectives' penalty), counted as:
-//! * the rules do not parse, or the derivation fails (a cap of [`EVAL_CAPS`] is hit, or any
+//! * the rules do not parse, or the derivation fails (a cap of `EVAL_CAPS` is hit, or any
 //!   other derive error): 1, and the facade has no terminals;
-//! * each terminal narrower or lower than [`MIN_SIZE`] (a zero-size shape): 1;
-//! * each door whose bottom edge is above [`MIN_SIZE`] (a door off the ground): 1;
+//! * each terminal narrower or lower than `MIN_SIZE` (a zero-size shape): 1;
+//! * each door whose bottom edge is above `MIN_SIZE` (a door off the ground): 1;
 //! * each leaf that is not `wall`, `window` or `door` (kept as a wall): 1;
 //! * the terminals do not tile the facade (their areas differ from the facade's by more than
 //!   a millionth, or one sticks out by more than 1 mm): 1.
@@ -56,15 +56,15 @@ use super::decode::{FACADE, MARKER_PREFIX, ROW_SUFFIX};
 
 /// Smallest terminal width or height that is not a violation, metres; also the height above
 /// which a door is off the ground.
-pub const MIN_SIZE: f64 = 0.01;
+pub(crate) const MIN_SIZE: f64 = 0.01;
 
 /// Grid the matrix snaps bottom edges and left edges to, metres.
-pub const SNAP: f64 = 0.01;
+pub(crate) const SNAP: f64 = 0.01;
 
 /// The caps a test facade is derived with: the grammar's defaults, but at most 20,000 shapes
 /// (a facade of more terminals than that is no facade, and a cap hit costs the time of the
 /// shapes made before it).
-pub const EVAL_CAPS: Caps = Caps {
+pub(crate) const EVAL_CAPS: Caps = Caps {
     max_depth: 64,
     max_shapes: 20_000,
     max_pieces: 10_000,
@@ -78,14 +78,14 @@ const STREAM: u64 = 0x0E70_1FE0_0026;
 /// Derives `rules` on a `width` × `height` m test facade with [`EVAL_CAPS`] and reads it
 /// (module docs). A ruleset that does not parse or derive gives a facade of that size with no
 /// terminals and one violation.
-pub fn derive_facade(rules: &str, width: f64, height: f64, seed: u64) -> Facade {
+pub(crate) fn derive_facade(rules: &str, width: f64, height: f64, seed: u64) -> Facade {
     try_derive_facade(rules, width, height, seed, &EVAL_CAPS)
         .unwrap_or_else(|_| failed(width, height))
 }
 
 /// [`derive_facade`] with the caps given and the reason of a failure (the rules do not parse,
 /// the size is not positive, the derivation fails, no `facade` shape is made).
-pub fn try_derive_facade(
+pub(crate) fn try_derive_facade(
     rules: &str,
     width: f64,
     height: f64,
@@ -105,7 +105,7 @@ pub fn try_derive_facade(
 /// Derives a whole ruleset (from its axiom, e.g. a [`super::decode::Decoded::text`]) on a
 /// `lot_width` × `lot_depth` m lot with the axiom attribute `eave = height` and reads its
 /// south-facing `facade` shape, with [`EVAL_CAPS`]. Failures as in [`derive_facade`].
-pub fn derive_lot_facade(
+pub(crate) fn derive_lot_facade(
     rules: &str,
     lot_width: f64,
     lot_depth: f64,
@@ -117,7 +117,7 @@ pub fn derive_lot_facade(
 }
 
 /// [`derive_lot_facade`] with the caps given and the reason of a failure.
-pub fn try_derive_lot_facade(
+pub(crate) fn try_derive_lot_facade(
     rules: &str,
     lot_width: f64,
     lot_depth: f64,
@@ -229,7 +229,7 @@ fn name_kind(symbol: &str) -> Name {
 /// Reads the facade shape `node` of a derived tree (a side face) as a [`Facade`]: terminals,
 /// matrix, subdivisions and violations (module docs). A node that is not a face gives an
 /// empty facade with one violation.
-pub fn facade_of(tree: &ShapeTree, rules: &RuleSet, node: usize) -> Facade {
+pub(crate) fn facade_of(tree: &ShapeTree, rules: &RuleSet, node: usize) -> Facade {
     let Some(Geometry::Face {
         origin,
         x_axis,
@@ -332,7 +332,7 @@ pub fn facade_of(tree: &ShapeTree, rules: &RuleSet, node: usize) -> Facade {
 
 /// Violations of a terminal layout on a `width` × `height` facade: each terminal under
 /// [`MIN_SIZE`], each door off the ground, and one if the terminals do not tile the facade.
-pub fn layout_violations(width: f64, height: f64, terminals: &[Terminal]) -> usize {
+pub(crate) fn layout_violations(width: f64, height: f64, terminals: &[Terminal]) -> usize {
     let small = terminals
         .iter()
         .filter(|t| t.w.is_nan() || t.h.is_nan() || t.w < MIN_SIZE || t.h < MIN_SIZE)
@@ -370,7 +370,7 @@ fn snap(v: f64) -> i64 {
 /// [`SNAP`]), bottom to top; each row lists, left to right, the codes of the terminals whose
 /// vertical extent `[bottom, top)` contains the row's bottom edge (ties on x: lower first, then
 /// the order given).
-pub fn terminal_matrix(terminals: &[Terminal]) -> Matrix {
+pub(crate) fn terminal_matrix(terminals: &[Terminal]) -> Matrix {
     let mut bottoms: Vec<i64> = terminals.iter().map(|t| snap(t.y)).collect();
     bottoms.sort_unstable();
     bottoms.dedup();

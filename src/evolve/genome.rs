@@ -7,7 +7,7 @@
 //!
 //! * **Layout.** 10 steps. Step `k` (1-based, `k` = 1..=10) reads the action gene `2(k−1)`,
 //!   the arrangement gene `2(k−1) + 1` and the parameter gene `20 + (k−1)`. Genes 0..20 are
-//!   in {0, 1, 2}, genes 20..30 in {0..6} ([`alphabet`]).
+//!   in {0, 1, 2}, genes 20..30 in {0..6} (`alphabet`).
 //! * **Action** (gene value → [`Action`]): 0 = `ajoute`, 1 = `contient`, 2 = skip (the step
 //!   does nothing: the thesis names two actions but its genes take three values, and a neutral
 //!   value lets a chromosome use fewer than 10 steps). Their effect on the rules is specified
@@ -19,33 +19,34 @@
 //!   cells), and the number of pieces of an `ajoute` alternation — lowered by the decoder where
 //!   pieces would be under 0.3 m ([`super::decode::MIN_PIECE`]).
 //!
-//! * **Crossover** cuts between steps ([`cut_order`]), so a child inherits whole steps.
+//! * **Crossover** cuts between steps (`cut_order`), so a child inherits whole steps.
 //!
 //! A genome of any other length, or with a gene outside its alphabet, is rejected with an error
 //! naming the gene: the thesis's rectilinear + monolithic chromosome (Fig. 3.44) has 29 genes,
 //! one parameter lost in print; it decodes once a parameter is appended (see the tests).
 
 use super::EvolveError;
+#[cfg(test)]
 use crate::rng::Rng;
 
 /// Genes in a genome.
-pub const LENGTH: usize = 30;
+pub(crate) const LENGTH: usize = 30;
 
 /// Steps a genome describes (one action, one arrangement and one parameter each).
-pub const STEPS: usize = 10;
+pub(crate) const STEPS: usize = 10;
 
 /// Values an action gene takes (0 `ajoute`, 1 `contient`, 2 skip).
-pub const ACTIONS: u32 = 3;
+pub(crate) const ACTIONS: u32 = 3;
 
 /// Values an arrangement gene takes (0 vertical, 1 horizontal, 2 grid).
-pub const ARRANGEMENTS: u32 = 3;
+pub(crate) const ARRANGEMENTS: u32 = 3;
 
 /// Values a parameter gene takes (0..=6, a count of 1..=7).
-pub const PARAMETERS: u32 = 7;
+pub(crate) const PARAMETERS: u32 = 7;
 
 /// The number of values each gene may take: 20 × 3 (action and arrangement genes, interleaved),
 /// then 10 × 7 (parameter genes). Gene `i` is valid when `gene < alphabet()[i]`.
-pub fn alphabet() -> [u32; LENGTH] {
+pub(crate) fn alphabet() -> [u32; LENGTH] {
     let mut a = [PARAMETERS; LENGTH];
     for (i, v) in a.iter_mut().enumerate().take(2 * STEPS) {
         *v = if i % 2 == 0 { ACTIONS } else { ARRANGEMENTS };
@@ -58,7 +59,7 @@ pub fn alphabet() -> [u32; LENGTH] {
 /// the thesis prints the actions and arrangements first and the parameters after, and a cut in
 /// that order would give a child the first steps of one parent with every parameter of the
 /// other, breaking each step it crosses. Cut between steps, a child inherits whole steps.
-pub fn cut_order() -> Vec<usize> {
+pub(crate) fn cut_order() -> Vec<usize> {
     (0..STEPS)
         .flat_map(|k| [2 * k, 2 * k + 1, 2 * STEPS + k])
         .collect()
@@ -109,14 +110,14 @@ impl Step {
     }
 }
 
-/// A valid genome: [`LENGTH`] genes, each within its [`alphabet`].
+/// A valid genome: `LENGTH` genes, each within its `alphabet`.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Genome(Vec<u32>);
 
 impl Genome {
     /// Checks `genes` and wraps them. The error names the length or the first gene out of its
     /// alphabet (`gene 21 is 9, expected 0..=6 (a parameter)`).
-    pub fn new(genes: &[u32]) -> Result<Genome, EvolveError> {
+    pub(crate) fn new(genes: &[u32]) -> Result<Genome, EvolveError> {
         if genes.len() != LENGTH {
             return Err(EvolveError::GenomeLength { found: genes.len() });
         }
@@ -142,7 +143,8 @@ impl Genome {
     }
 
     /// A uniformly random genome (each gene uniform in its alphabet), drawn from `rng`.
-    pub fn random(rng: &mut Rng) -> Genome {
+    #[cfg(test)]
+    pub(crate) fn random(rng: &mut Rng) -> Genome {
         let genes = alphabet()
             .iter()
             .map(|&a| ((rng.next_f64() * f64::from(a)) as u32).min(a - 1))
@@ -151,12 +153,12 @@ impl Genome {
     }
 
     /// The genes.
-    pub fn genes(&self) -> &[u32] {
+    pub(crate) fn genes(&self) -> &[u32] {
         &self.0
     }
 
     /// The 10 steps, in order (see the module docs for which genes each reads).
-    pub fn steps(&self) -> Vec<Step> {
+    pub(crate) fn steps(&self) -> Vec<Step> {
         (0..STEPS)
             .map(|s| {
                 let g = |i: usize| self.0.get(i).copied().unwrap_or(0);
@@ -196,7 +198,8 @@ impl std::fmt::Display for Genome {
 /// The chromosomes printed in the thesis (seed 003 Figs 3.38, 3.40, 3.42, 3.44), verbatim:
 /// horizontal symmetry, vertical symmetry (identical to the first, as printed), both
 /// symmetries, rectilinear + monolithic (29 genes as printed).
-pub const THESIS_CHROMOSOMES: [&[u32]; 4] = [
+#[cfg(test)]
+pub(crate) const THESIS_CHROMOSOMES: [&[u32]; 4] = [
     &[
         1, 2, 2, 2, 0, 0, 1, 2, 0, 1, 1, 0, 2, 0, 0, 0, 2, 0, 2, 2, 2, 5, 3, 3, 3, 6, 5, 4, 4, 3,
     ],

@@ -28,16 +28,12 @@ mod plot_tests;
 
 pub use decode::{decode, decode_for, Decoded};
 
-pub use facade::{derive_facade, derive_lot_facade};
-pub use genome::Genome;
-pub use svg::facade_svg;
-
 /// Why a step of `citygen evolve` failed: a genome that is not one, a test facade or lot that
 /// cannot be derived, an output that cannot be written, or a knowledge base that `--into-kb`
 /// cannot add to (nothing is then changed).
 #[derive(Debug, thiserror::Error)]
 pub enum EvolveError {
-    /// Not [`genome::LENGTH`] genes.
+    /// Not `genome::LENGTH` genes.
     #[error(
         "a genome has {} genes (20 action and arrangement genes in 0..=2, then 10 parameter \
          genes in 0..=6); this one has {found}",
@@ -81,7 +77,7 @@ pub enum EvolveError {
     /// The derivation failed.
     #[error("{0}")]
     Derive(#[from] crate::grammar::DeriveError),
-    /// The rules make no side face named [`decode::FACADE`].
+    /// The rules make no side face named `decode::FACADE`.
     #[error("the rules make no side face named `{}`", decode::FACADE)]
     NoFacade,
     /// `--facade`/`--lot` is not `WxH`.
@@ -106,9 +102,9 @@ pub enum EvolveError {
         /// The side, metres.
         value: f64,
     },
-    /// A file could not be written: the message of [`run::write_atomic`], which names it.
-    #[error("{0}")]
-    Write(String),
+    /// A file could not be written (the error names the folder, temporary or target).
+    #[error(transparent)]
+    Write(#[from] crate::fsio::WriteError),
     /// `evolve.json` could not be made.
     #[error("{0}")]
     Json(#[from] serde_json::Error),
@@ -153,13 +149,6 @@ pub enum EvolveError {
     EditedNotStrict(Box<crate::kb::tools::CheckReport>),
 }
 
-/// [`run::write_atomic`]'s error (a message naming the file).
-impl From<String> for EvolveError {
-    fn from(message: String) -> EvolveError {
-        EvolveError::Write(message)
-    }
-}
-
 /// A terminal's kind, its code in the terminal matrix.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[repr(u8)]
@@ -197,7 +186,7 @@ pub struct Terminal {
 
 /// A terminal matrix: `rows[i][j]` is the code of the terminal at row `i` (0 = bottom) and
 /// column `j` (0 = left). Rows may differ in length when the facade is not a grid.
-pub type Matrix = Vec<Vec<u8>>;
+pub(crate) type Matrix = Vec<Vec<u8>>;
 
 /// A derived test facade, as the objectives read it.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -213,7 +202,7 @@ pub struct Facade {
     /// Subdivisions made at each iteration of the decoded rules (index = iteration), for the
     /// global constraint "fewer subdivisions than at the previous iteration".
     pub subdivisions: Vec<usize>,
-    /// Rule violations found while decoding or deriving (each adds [`objectives::PENALTY`] to
+    /// Rule violations found while decoding or deriving (each adds `objectives::PENALTY` to
     /// every objective).
     pub violations: usize,
 }

@@ -9,8 +9,8 @@
 //! crossover (probability [`Config::crossover`], the cut taken along [`Config::cut_order`]) makes
 //! two children per pair; each child is
 //! mutated with a probability falling linearly from [`Config::mutation`]`.0` to `.1` over the
-//! generations ([`mutation_probability`]); the children are evaluated in parallel; parents ∪
-//! children (2N) are cut back to N by fronts, then by crowding distance ([`select`]).
+//! generations (`mutation_probability`); the children are evaluated in parallel; parents ∪
+//! children (2N) are cut back to N by fronts, then by crowding distance (`select`).
 //!
 //! **Mutation, per individual**: the thesis's 0.5 → 0.3 cannot be a per-gene rate (half the
 //! genes reset at each generation would be a random search), so it is the probability that a
@@ -18,7 +18,7 @@
 //! value of its alphabet, chosen uniformly.
 //!
 //! **Novel children**: a child equal to a genome evaluated before, or to another child of the
-//! generation, is mutated again, one gene at a time, up to [`NOVEL_TRIES`] times: in a
+//! generation, is mutated again, one gene at a time, up to `NOVEL_TRIES` times: in a
 //! converging population most crossovers give back a parent, and an evaluation budget spent on
 //! copies is an exploration lost (random search, its baseline, evaluates distinct genomes too).
 //!
@@ -48,7 +48,7 @@ use crate::rng::Rng;
 
 /// How many times a child equal to a genome already evaluated (or to a sibling) is mutated
 /// again (one gene each time) before it is kept as it is.
-pub const NOVEL_TRIES: usize = 8;
+pub(crate) const NOVEL_TRIES: usize = 8;
 
 /// The RNG stream of [`run`] (mixed with [`Config::seed`]).
 const NSGA2_STREAM: u64 = 0x4E53_4741_2D49_4901;
@@ -176,7 +176,7 @@ impl History {
     /// reached `target` (within a relative 1e-12); `None` when none did. With `target` the
     /// final hypervolume it says how soon a run found what it ends with: the figure that still
     /// tells two runs apart when both end on the optimum.
-    pub fn evaluations_to_reach(&self, target: f64) -> Option<usize> {
+    pub(crate) fn evaluations_to_reach(&self, target: f64) -> Option<usize> {
         let tolerance = 1e-12 * target.abs().max(1.0);
         self.generations
             .iter()
@@ -187,7 +187,7 @@ impl History {
 
 /// Whether `a` dominates `b` (minimisation): no worse on every objective, better on one.
 /// Compares the common length; NaN compares as neither better nor worse.
-pub fn dominates(a: &[f64], b: &[f64]) -> bool {
+pub(crate) fn dominates(a: &[f64], b: &[f64]) -> bool {
     let mut better = false;
     for (x, y) in a.iter().zip(b) {
         if x > y {
@@ -204,7 +204,7 @@ pub fn dominates(a: &[f64], b: &[f64]) -> bool {
 
 /// Fast non-dominated sort (Deb 2002), O(M N²): the indices of `objs` by front, the first
 /// front (non-dominated) first; each front in ascending index order.
-pub fn fast_non_dominated_sort(objs: &[Vec<f64>]) -> Vec<Vec<usize>> {
+pub(crate) fn fast_non_dominated_sort(objs: &[Vec<f64>]) -> Vec<Vec<usize>> {
     let n = objs.len();
     let mut dominated_by_me: Vec<Vec<usize>> = vec![Vec::new(); n];
     let mut domination_count = vec![0usize; n];
@@ -246,7 +246,7 @@ pub fn fast_non_dominated_sort(objs: &[Vec<f64>]) -> Vec<Vec<usize>> {
 /// `front`); the two ends get +∞ and each inner member adds `(next − previous) / (max − min)`.
 /// An objective on which the whole front is equal (max = min) adds nothing and marks no end.
 /// Fronts of one or two members are all +∞.
-pub fn crowding_distance(front: &[usize], objs: &[Vec<f64>]) -> Vec<f64> {
+pub(crate) fn crowding_distance(front: &[usize], objs: &[Vec<f64>]) -> Vec<f64> {
     let k = front.len();
     let mut distance = vec![0.0; k];
     if k <= 2 {
@@ -282,7 +282,7 @@ pub fn crowding_distance(front: &[usize], objs: &[Vec<f64>]) -> Vec<f64> {
 /// The mutation probability of bred generation `step` of `steps` (0-based): `schedule.0` at the
 /// first, `schedule.1` at the last, linear between; `schedule.0` when `steps <= 1`. Clamped
 /// to [0, 1].
-pub fn mutation_probability(schedule: (f64, f64), step: usize, steps: usize) -> f64 {
+pub(crate) fn mutation_probability(schedule: (f64, f64), step: usize, steps: usize) -> f64 {
     let (start, end) = schedule;
     let p = if steps <= 1 {
         start
@@ -308,7 +308,7 @@ fn gene_values(alphabet: &[u32], i: usize) -> u32 {
 }
 
 /// A uniformly random genome of `alphabet`.
-pub fn random_genome(rng: &mut Rng, alphabet: &[u32]) -> Vec<u32> {
+pub(crate) fn random_genome(rng: &mut Rng, alphabet: &[u32]) -> Vec<u32> {
     (0..alphabet.len())
         .map(|i| below(rng, u64::from(gene_values(alphabet, i))) as u32)
         .collect()
@@ -318,7 +318,8 @@ pub fn random_genome(rng: &mut Rng, alphabet: &[u32]) -> Vec<u32> {
 /// `a[..c] + b[c..]` and `b[..c] + a[c..]`; otherwise (or for genomes shorter than 2, or of
 /// different lengths) copies of the parents. Either way, at each position the two children
 /// hold the parents' two genes.
-pub fn crossover(rng: &mut Rng, p: f64, a: &[u32], b: &[u32]) -> (Vec<u32>, Vec<u32>) {
+#[cfg(test)]
+pub(crate) fn crossover(rng: &mut Rng, p: f64, a: &[u32], b: &[u32]) -> (Vec<u32>, Vec<u32>) {
     crossover_along(rng, p, a, b, &[])
 }
 
@@ -326,7 +327,7 @@ pub fn crossover(rng: &mut Rng, p: f64, a: &[u32], b: &[u32]) -> (Vec<u32>, Vec<
 /// of `order[..c]` from one parent and those of `order[c..]` from the other. An `order` that is
 /// not a permutation of `0..len` is replaced by the genome's own order. Draws from `rng` exactly
 /// as [`crossover`] does.
-pub fn crossover_along(
+pub(crate) fn crossover_along(
     rng: &mut Rng,
     p: f64,
     a: &[u32],
@@ -366,7 +367,7 @@ fn is_permutation(order: &[usize], len: usize) -> bool {
 /// Random-reset mutation, per individual: with probability `p`, one gene chosen uniformly is
 /// set to another value of its alphabet, chosen uniformly (a gene with a single value cannot
 /// change). Returns whether the genome changed.
-pub fn mutate(rng: &mut Rng, p: f64, genome: &mut [u32], alphabet: &[u32]) -> bool {
+pub(crate) fn mutate(rng: &mut Rng, p: f64, genome: &mut [u32], alphabet: &[u32]) -> bool {
     if genome.is_empty() || rng.next_f64() >= p {
         return false;
     }
@@ -381,7 +382,7 @@ pub fn mutate(rng: &mut Rng, p: f64, genome: &mut [u32], alphabet: &[u32]) -> bo
 }
 
 /// Each individual's front rank (0 = first front) and crowding distance within its front.
-pub fn rank_and_crowding(objs: &[Vec<f64>]) -> (Vec<usize>, Vec<f64>) {
+pub(crate) fn rank_and_crowding(objs: &[Vec<f64>]) -> (Vec<usize>, Vec<f64>) {
     let mut rank = vec![0usize; objs.len()];
     let mut crowd = vec![0.0; objs.len()];
     for (r, front) in fast_non_dominated_sort(objs).iter().enumerate() {
@@ -396,7 +397,7 @@ pub fn rank_and_crowding(objs: &[Vec<f64>]) -> (Vec<usize>, Vec<f64>) {
 /// Binary tournament: two indices drawn uniformly (with replacement); the lower rank wins, then
 /// the larger crowding distance, then the first drawn.
 /// Returns 0 for an empty population; a missing crowding distance reads as 0.
-pub fn tournament(rng: &mut Rng, rank: &[usize], crowd: &[f64]) -> usize {
+pub(crate) fn tournament(rng: &mut Rng, rank: &[usize], crowd: &[f64]) -> usize {
     if rank.is_empty() {
         return 0;
     }
@@ -420,7 +421,7 @@ pub fn tournament(rng: &mut Rng, rank: &[usize], crowd: &[f64]) -> usize {
 /// offspring), whole fronts first, the last front admitted cut by crowding distance (largest
 /// first, ties by index). Candidates whose genome repeats an earlier one's (`duplicate[i]`) are
 /// taken only when the distinct ones do not fill `n`, so the population keeps its diversity.
-pub fn select(objs: &[Vec<f64>], duplicate: &[bool], n: usize) -> Vec<usize> {
+pub(crate) fn select(objs: &[Vec<f64>], duplicate: &[bool], n: usize) -> Vec<usize> {
     let unique: Vec<usize> = (0..objs.len())
         .filter(|&i| !duplicate.get(i).copied().unwrap_or(false))
         .collect();
@@ -460,7 +461,7 @@ fn select_distinct(objs: &[Vec<f64>], among: &[usize], n: usize) -> Vec<usize> {
 /// ignored). Exact: a sweep for M ≤ 2, the WFG algorithm for M ≥ 3 (exclusive volumes,
 /// recursively on the non-dominated limited sets). Fast enough for a run's population
 /// (N = 50) with all six objectives.
-pub fn hypervolume(points: &[Vec<f64>], reference: &[f64]) -> f64 {
+pub(crate) fn hypervolume(points: &[Vec<f64>], reference: &[f64]) -> f64 {
     let m = reference.len();
     if m == 0 {
         return 0.0;
@@ -804,7 +805,12 @@ where
 /// as a generation whose hypervolume is that of everything evaluated so far; the front is the
 /// non-dominated set of everything evaluated. Uses [`Config::seed`] (on its own RNG stream),
 /// [`Config::population`] and [`Config::reference`] only; stops with [`Stopped::Budget`].
-pub fn random_search<F>(config: &Config, alphabet: &[u32], eval: F, evaluations: usize) -> History
+pub(crate) fn random_search<F>(
+    config: &Config,
+    alphabet: &[u32],
+    eval: F,
+    evaluations: usize,
+) -> History
 where
     F: Fn(&[u32]) -> Vec<f64> + Sync,
 {

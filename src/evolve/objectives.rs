@@ -1,18 +1,18 @@
 //! The aesthetic objectives and the global constraints of seed 003 §3.7.2.8, all minimised.
 //!
 //! Every objective is a pure function of a derived [`Facade`] (the symmetries and the
-//! uniformity read only its terminal [`Matrix`]). [`score`] adds to each chosen objective the
-//! global penalty: [`PENALTY`] (100, the thesis's figure) for each broken global constraint and
+//! uniformity read only its terminal `Matrix`). `score` adds to each chosen objective the
+//! global penalty: `PENALTY` (100, the thesis's figure) for each broken global constraint and
 //! for each rule violation recorded in [`Facade::violations`]. The thesis adds its global
-//! measures to every aesthetic objective; so does [`score`].
+//! measures to every aesthetic objective; so does `score`.
 //!
 //! What the thesis leaves open, chosen here:
-//! - **rectilinear**: the thresholds on width / height ([`RECTILINEAR_WINDOW`],
-//!   [`RECTILINEAR_DOOR`]) and the measure (the summed excess of the ratio, not a count);
+//! - **rectilinear**: the thresholds on width / height (`RECTILINEAR_WINDOW`,
+//!   `RECTILINEAR_DOOR`) and the measure (the summed excess of the ratio, not a count);
 //! - **fragmented**: the minimised form of "maximise the terminal count":
 //!   `PENALTY / (1 + count)`;
-//! - the global bounds: opening sizes ([`WINDOW_WIDTH`], [`WINDOW_HEIGHT`], [`DOOR_WIDTH`],
-//!   [`DOOR_HEIGHT`]) and the minimum number of openings ([`MIN_OPENINGS`]).
+//! - the global bounds: opening sizes (`WINDOW_WIDTH`, `WINDOW_HEIGHT`, `DOOR_WIDTH`,
+//!   `DOOR_HEIGHT`) and the minimum number of openings (`MIN_OPENINGS`).
 
 use std::fmt;
 use std::str::FromStr;
@@ -21,31 +21,31 @@ use super::{Facade, Kind, Matrix, Terminal};
 
 /// What one rule violation or one broken global constraint adds to every objective (seed 003
 /// L1347: "each rule violation adds a penalty of 100").
-pub const PENALTY: f64 = 100.0;
+pub(crate) const PENALTY: f64 = 100.0;
 
 /// Allowed window width, metres, inclusive: `(min, max)`. A window narrower than 0.6 m is a
 /// slit; one wider than 3 m is a shop front or a curtain wall, neither of which the grammar's
 /// `window` means.
-pub const WINDOW_WIDTH: (f64, f64) = (0.6, 3.0);
+pub(crate) const WINDOW_WIDTH: (f64, f64) = (0.6, 3.0);
 /// Allowed window height, metres, inclusive: `(min, max)`. At most 3 m, a storey's height.
-pub const WINDOW_HEIGHT: (f64, f64) = (0.8, 3.0);
+pub(crate) const WINDOW_HEIGHT: (f64, f64) = (0.8, 3.0);
 /// Allowed door width, metres, inclusive: `(min, max)`: a single leaf (0.8 m, the usual
 /// accessible minimum) up to a wide double door.
-pub const DOOR_WIDTH: (f64, f64) = (0.8, 2.5);
+pub(crate) const DOOR_WIDTH: (f64, f64) = (0.8, 2.5);
 /// Allowed door height, metres, inclusive: `(min, max)`: a person passes (2 m) and the door
 /// stays within a tall ground storey (3.5 m).
-pub const DOOR_HEIGHT: (f64, f64) = (2.0, 3.5);
+pub(crate) const DOOR_HEIGHT: (f64, f64) = (2.0, 3.5);
 /// The fewest openings (windows and doors) a facade may have; each missing one is one
 /// violation. Three, so that a facade has a pattern at all (the symmetries and the uniformity
 /// are empty on a blank wall) — the thesis's "minimum number of facade elements".
-pub const MIN_OPENINGS: usize = 3;
+pub(crate) const MIN_OPENINGS: usize = 3;
 
 /// The rectilinear style's largest width / height ratio of a window: 0.75, so a window is
 /// at least a third taller than it is wide (the tall, narrow openings of the style).
-pub const RECTILINEAR_WINDOW: f64 = 0.75;
+pub(crate) const RECTILINEAR_WINDOW: f64 = 0.75;
 /// The rectilinear style's largest width / height ratio of a door: 0.6 (a 0.9 × 2.1 m door is
 /// 0.43; a 1.4 m double door of 2.3 m is 0.61, just over).
-pub const RECTILINEAR_DOOR: f64 = 0.6;
+pub(crate) const RECTILINEAR_DOOR: f64 = 0.6;
 
 /// One aesthetic objective of seed 003 §3.7.2.8; every one is minimised (0 is ideal, except
 /// for [`Objective::Fragmented`], which tends to 0).
@@ -93,7 +93,7 @@ impl Objective {
 
     /// The command-line name: `vsym`, `hsym`, `uniform`, `rectilinear`, `monolithic`,
     /// `fragmented`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Objective::VerticalSymmetry => "vsym",
             Objective::HorizontalSymmetry => "hsym",
@@ -106,7 +106,7 @@ impl Objective {
 
     /// Parses a comma-separated list (`"vsym,hsym"`; spaces around names are allowed), in the
     /// order given. Errors name the first unknown or repeated name, or say the list is empty.
-    pub fn parse_list(list: &str) -> Result<Vec<Objective>, ObjectiveError> {
+    pub(crate) fn parse_list(list: &str) -> Result<Vec<Objective>, ObjectiveError> {
         let mut out: Vec<Objective> = Vec::new();
         for part in list.split(',') {
             let name = part.trim();
@@ -126,7 +126,7 @@ impl Objective {
     }
 
     /// The objective's own value on a facade, without the global penalty (see [`score`]).
-    pub fn value(self, facade: &Facade) -> f64 {
+    pub(crate) fn value(self, facade: &Facade) -> f64 {
         match self {
             Objective::VerticalSymmetry => vertical_symmetry(&facade.matrix) as f64,
             Objective::HorizontalSymmetry => horizontal_symmetry(&facade.matrix) as f64,
@@ -165,7 +165,7 @@ impl serde::Serialize for Objective {
 /// ends towards the centre, `a[i][j]` with `a[i][m-1-j]` for `j < m-1-j`, and each inequality
 /// counts one. Each row is mirrored about its own centre (`m` is that row's length), so rows of
 /// different lengths need no special case; a middle cell is its own mirror.
-pub fn vertical_symmetry(matrix: &Matrix) -> usize {
+pub(crate) fn vertical_symmetry(matrix: &Matrix) -> usize {
     matrix
         .iter()
         .map(|row| {
@@ -178,7 +178,7 @@ pub fn vertical_symmetry(matrix: &Matrix) -> usize {
 /// Horizontal symmetry: the same on the columns, `a[i][j]` with `a[n-1-i][j]` for `i < n-1-i`,
 /// each inequality counting one. When the two mirrored rows differ in length, the cells of the
 /// longer one beyond the shorter's end have no mirror and each counts as one inequality.
-pub fn horizontal_symmetry(matrix: &Matrix) -> usize {
+pub(crate) fn horizontal_symmetry(matrix: &Matrix) -> usize {
     let n = matrix.len();
     (0..n / 2)
         .map(|i| {
@@ -192,7 +192,7 @@ pub fn horizontal_symmetry(matrix: &Matrix) -> usize {
 
 /// What a cell without a counterpart costs in [`uniformity`]: the largest distance between two
 /// codes (door 2 − wall 0), so a missing cell is as different as two cells can be.
-pub const UNMATCHED_CELL: usize = (Kind::Door as usize) - (Kind::Wall as usize);
+pub(crate) const UNMATCHED_CELL: usize = (Kind::Door as usize) - (Kind::Wall as usize);
 
 /// Uniformity (seed 003 L1365-1370): the smallest, over the rows `r`, of the distance
 /// `d(A, B_r) = Σ_i Σ_j |a_ij − b_ij|` between the matrix `A` and the matrix `B_r` whose every
@@ -200,7 +200,7 @@ pub const UNMATCHED_CELL: usize = (Kind::Door as usize) - (Kind::Wall as usize);
 /// distance depends on them, as in the thesis. Rows of different lengths are compared on their
 /// common columns; each cell beyond that has no counterpart and costs [`UNMATCHED_CELL`]. An
 /// empty matrix has uniformity 0.
-pub fn uniformity(matrix: &Matrix) -> usize {
+pub(crate) fn uniformity(matrix: &Matrix) -> usize {
     matrix
         .iter()
         .map(|reference| {
@@ -221,7 +221,7 @@ pub fn uniformity(matrix: &Matrix) -> usize {
 
 /// The rectilinear style's largest width / height of a terminal kind; `None` for walls, which
 /// are what is left between openings and whose proportions follow from theirs.
-pub fn rectilinear_threshold(kind: Kind) -> Option<f64> {
+pub(crate) fn rectilinear_threshold(kind: Kind) -> Option<f64> {
     match kind {
         Kind::Wall => None,
         Kind::Window => Some(RECTILINEAR_WINDOW),
@@ -235,7 +235,7 @@ pub fn rectilinear_threshold(kind: Kind) -> Option<f64> {
 /// search sees a window become narrower before it passes. A degenerate opening (height not
 /// positive, or a size not finite) counts an excess of 1 (the global size bounds penalise it
 /// too).
-pub fn rectilinear(facade: &Facade) -> f64 {
+pub(crate) fn rectilinear(facade: &Facade) -> f64 {
     facade
         .terminals
         .iter()
@@ -251,7 +251,7 @@ pub fn rectilinear(facade: &Facade) -> f64 {
 
 /// Monolithism (seed 003 L1380): the number of terminals (walls, windows and doors); fewer
 /// terminals, more monolithic.
-pub fn monolithic(facade: &Facade) -> usize {
+pub(crate) fn monolithic(facade: &Facade) -> usize {
     facade.terminals.len()
 }
 
@@ -260,7 +260,7 @@ pub fn monolithic(facade: &Facade) -> usize {
 /// bad as one violation), 50 for one terminal, 1 for 99, tending to 0. The global constraints
 /// (opening sizes) are what bound the count. Scaled by [`PENALTY`] so that it spans the same
 /// range as the other objectives below one penalty, which [`reference_point`] relies on.
-pub fn fragmented(facade: &Facade) -> f64 {
+pub(crate) fn fragmented(facade: &Facade) -> f64 {
     PENALTY / (1.0 + facade.terminals.len() as f64)
 }
 
@@ -288,7 +288,7 @@ fn size_violations(t: &Terminal) -> usize {
 ///   one per increase.
 ///
 /// The rule violations of [`Facade::violations`] are not included (see [`penalty`]).
-pub fn global_violations(facade: &Facade) -> usize {
+pub(crate) fn global_violations(facade: &Facade) -> usize {
     let sizes: usize = facade.terminals.iter().map(size_violations).sum();
     let openings = facade
         .terminals
@@ -305,13 +305,13 @@ pub fn global_violations(facade: &Facade) -> usize {
 }
 
 /// The penalty added to every objective: [`PENALTY`] × (global violations + rule violations).
-pub fn penalty(facade: &Facade) -> f64 {
+pub(crate) fn penalty(facade: &Facade) -> f64 {
     PENALTY * (global_violations(facade) + facade.violations) as f64
 }
 
 /// The fitness of a facade: for each objective, in the order given, its value
 /// ([`Objective::value`]) plus the [`penalty`]. All minimised.
-pub fn score(facade: &Facade, objectives: &[Objective]) -> Vec<f64> {
+pub(crate) fn score(facade: &Facade, objectives: &[Objective]) -> Vec<f64> {
     let penalty = penalty(facade);
     objectives
         .iter()
@@ -325,6 +325,6 @@ pub fn score(facade: &Facade, objectives: &[Objective]) -> Vec<f64> {
 /// most 100 by construction, and the counts of the other objectives stay below 100 on test
 /// facades of a few dozen terminals. The same point must be used for every run that is
 /// compared (NSGA-II against random search).
-pub fn reference_point(objectives: &[Objective]) -> Vec<f64> {
+pub(crate) fn reference_point(objectives: &[Objective]) -> Vec<f64> {
     vec![PENALTY; objectives.len()]
 }

@@ -1,5 +1,5 @@
-//! SVG pictures of a run: the Pareto front ([`front_svg`]) and the convergence
-//! ([`convergence_svg`]). Hand-written SVG 1.1, deterministic text (coordinates to 0.01 px),
+//! SVG pictures of a run: the Pareto front (`front_svg`) and the convergence
+//! (`convergence_svg`). Hand-written SVG 1.1, deterministic text (coordinates to 0.01 px),
 //! labels XML-escaped, axes with tick labels. Non-finite values are not drawn (a note says how
 //! many were left out).
 
@@ -245,7 +245,7 @@ fn note(out: &mut String, y: f64, text: &str) {
 ///   front ([`History::front`]) in colour, joined as a staircase.
 /// - One objective: the best value per generation.
 /// - No objective or no generation: a picture saying there is nothing to draw.
-pub fn front_svg(history: &History, names: &[&str]) -> String {
+pub(crate) fn front_svg(history: &History, names: &[&str]) -> String {
     let height = TOP + PANEL + BOTTOM + 20.0;
     let mut out = header(height);
     let panel_box = (LEFT, TOP + 20.0, WIDTH - LEFT - RIGHT, PANEL);
@@ -389,7 +389,7 @@ pub fn front_svg(history: &History, names: &[&str]) -> String {
 /// The convergence of a run, `names` the objectives' names in the run's order: on top, per
 /// generation, each objective's population minimum (solid) and mean (dashed), one colour per
 /// objective; below, the hypervolume per generation ([`super::nsga2::Generation::hypervolume`]).
-pub fn convergence_svg(history: &History, names: &[&str]) -> String {
+pub(crate) fn convergence_svg(history: &History, names: &[&str]) -> String {
     let height = 2.0 * (TOP + PANEL + BOTTOM) + 20.0;
     let mut out = header(height);
     if history.generations.is_empty() {

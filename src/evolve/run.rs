@@ -108,7 +108,11 @@ pub struct Settings {
 }
 
 /// One genome's evaluation: its decoded ruleset and its facade as derived.
-pub fn evaluate(genes: &[u32], test: &TestObject, seed: u64) -> (Option<decode::Decoded>, Facade) {
+pub(crate) fn evaluate(
+    genes: &[u32],
+    test: &TestObject,
+    seed: u64,
+) -> (Option<decode::Decoded>, Facade) {
     let (w, h) = test.size();
     let decoded = match decode::decode_for(genes, w, h) {
         Ok(d) => d,
@@ -141,11 +145,11 @@ pub fn evaluate(genes: &[u32], test: &TestObject, seed: u64) -> (Option<decode::
 /// their means. The decoded rules choose their terminals when written ([`decode::choose_terminal`]),
 /// so a derivation is the same whatever its seed and one is enough; more would average the
 /// draws of rules with stochastic choices.
-pub const SAMPLES: u64 = 1;
+pub(crate) const SAMPLES: u64 = 1;
 
 /// The objective values of one genome (each with the global constraints' penalty): means
 /// over [`SAMPLES`] derivations.
-pub fn score(genes: &[u32], settings: &Settings) -> Vec<f64> {
+pub(crate) fn score(genes: &[u32], settings: &Settings) -> Vec<f64> {
     let mut sum = vec![0.0; settings.objectives.len()];
     for k in 0..SAMPLES {
         let (decoded, f) = evaluate(genes, &settings.test, settings.config.seed.wrapping_add(k));
@@ -197,7 +201,7 @@ pub fn random(settings: &Settings, evaluations: usize) -> History {
 
 /// One seed of the comparison with random search.
 #[derive(Clone, Debug, Serialize)]
-pub struct BaselineRow {
+pub(crate) struct BaselineRow {
     /// The seed.
     pub seed: u64,
     /// NSGA-II's final hypervolume.
@@ -217,7 +221,7 @@ pub struct BaselineRow {
 }
 
 /// NSGA-II against random search on `seeds` consecutive seeds from the settings' seed.
-pub fn baseline(settings: &Settings, seeds: u64) -> Vec<BaselineRow> {
+pub(crate) fn baseline(settings: &Settings, seeds: u64) -> Vec<BaselineRow> {
     (0..seeds)
         .map(|i| {
             let mut s = settings.clone();
@@ -279,8 +283,8 @@ pub struct Report<'a> {
 
 /// Writes `bytes` to `path` through a temporary beside it ([`crate::fsio::write_atomic`]); the
 /// error names the folder, temporary or target that failed.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    crate::fsio::write_atomic(path, bytes).map_err(|e| e.to_string())
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), EvolveError> {
+    Ok(crate::fsio::write_atomic(path, bytes)?)
 }
 
 /// The header comment of a front member's ruleset file.
@@ -312,7 +316,7 @@ fn header(names: &[&str], ind: &Individual, test: &TestObject) -> String {
 /// The rules a city gets for the decoded `text`: the same, but each window and door cell of
 /// the test facade becomes a pane or a door framed by wall (a cell is a whole bay of the
 /// facade; as a city's opening it would touch its neighbours and fill its storey).
-pub fn city_rules(text: &str) -> String {
+pub(crate) fn city_rules(text: &str) -> String {
     let mut out = String::with_capacity(text.len() + 512);
     for line in text.lines() {
         let framed = line.split_once(" -> ").and_then(|(lhs, rhs)| {
@@ -350,7 +354,7 @@ pub fn city_rules(text: &str) -> String {
 
 /// What [`write_outputs`] wrote.
 #[derive(Clone, Debug)]
-pub struct Written {
+pub(crate) struct Written {
     /// The front as written.
     pub members: Vec<Member>,
     /// The best member of each objective (index into `members`), by objective name.
@@ -361,7 +365,7 @@ pub struct Written {
 
 /// Writes the run's files into `out`: `front/NN.cga` and `front/NN.svg` per member,
 /// `best-OBJECTIVE.cga|svg`, `front.svg`, `convergence.svg`, `evolve.json`.
-pub fn write_outputs(
+pub(crate) fn write_outputs(
     out: &Path,
     settings: &Settings,
     history: &History,
@@ -455,7 +459,7 @@ pub fn write_outputs(
 
 /// `--into-kb`: what to add and where.
 #[derive(Clone, Debug)]
-pub struct IntoKb {
+pub(crate) struct IntoKb {
     /// The knowledge base file, edited in place (atomically).
     pub kb: PathBuf,
     /// The zone's path (`kb explain` spelling; a tail such as `Monaco/Fontvieille` works).
@@ -465,7 +469,7 @@ pub struct IntoKb {
     pub share: f64,
 }
 
-/// What [`into_kb`] did.
+/// What `into_kb` did.
 #[derive(Clone, Debug)]
 pub struct Added {
     /// The zone's full path.
@@ -484,7 +488,7 @@ pub struct Added {
 /// and weights that give them `share` of its buildings together. The new KB text is read back
 /// (lenient, and strict when the KB was strict-clean) before it replaces the file; on any
 /// error nothing is changed.
-pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, EvolveError> {
+pub(crate) fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, EvolveError> {
     use crate::kb::{edit, tools, KnowledgeBase, ReadMode};
     if members.is_empty() {
         return Err(EvolveError::NoMembers);
@@ -601,7 +605,7 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, E
         if !p.exists() {
             if let Err(e) = write_atomic(p, rules.as_bytes()) {
                 undo(&made);
-                return Err(e.into());
+                return Err(e);
             }
             made.push(p.clone());
         }
@@ -609,7 +613,7 @@ pub fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<Added, E
     // The edited KB in a temporary beside it, checked there, then renamed over it (dropped on
     // an error, the temporary is removed).
     let checked = crate::fsio::write_pending(&target.kb, Some("evolve"), edited.as_bytes())
-        .map_err(|e| EvolveError::Write(e.to_string()))
+        .map_err(EvolveError::Write)
         .and_then(|pending| {
             let tmp = pending.temporary();
             let lenient = tools::check_report(tmp, ReadMode::Lenient)?;

@@ -1,7 +1,7 @@
 //! A derived facade drawn to scale as SVG: the picture of a front member or of the best facade
 //! per objective (issue 26, output).
 //!
-//! [`facade_svg`] draws the facade outline and every terminal as a rectangle, 40 px per metre
+//! `facade_svg` draws the facade outline and every terminal as a rectangle, 40 px per metre
 //! with a 10 px margin, the ground at the bottom: walls grey, windows blue, doors brown. The
 //! text depends only on the [`Facade`] (coordinates written with 2 decimals), so the same
 //! facade gives the same bytes; it is well-formed XML with no text from the rules in it.
@@ -9,10 +9,10 @@
 use super::{Facade, Kind};
 
 /// Pixels per metre.
-pub const SCALE: f64 = 40.0;
+pub(crate) const SCALE: f64 = 40.0;
 
 /// Margin around the facade, pixels.
-pub const MARGIN: f64 = 10.0;
+pub(crate) const MARGIN: f64 = 10.0;
 
 /// Fill colour of each kind: wall, window, door.
 pub fn fill(kind: Kind) -> &'static str {
@@ -36,7 +36,7 @@ fn px(v: f64) -> String {
 
 /// The SVG document of a facade (module docs). A facade of no or non-finite size is drawn as
 /// 1 m × 1 m; terminals with non-finite coordinates are left out.
-pub fn facade_svg(f: &Facade) -> String {
+pub(crate) fn facade_svg(f: &Facade) -> String {
     let size = |v: f64| if v.is_finite() && v > 0.0 { v } else { 1.0 };
     let (w, h) = (size(f.width), size(f.height));
     let (pw, ph) = (w * SCALE + 2.0 * MARGIN, h * SCALE + 2.0 * MARGIN);

@@ -33,7 +33,7 @@ fn room(ring: Vec<DVec2>, usage: &str, name: &str) -> Room {
 /// hall/north, south/north), two doors (hall to each room, both on the hall's east side). The
 /// ground storey's hall holds a stair (x 0.5..1.5, y 3..7.5, rising north, 17 risers of 3 m);
 /// the upper storey has none. The front wall has a door into the hall and windows.
-pub fn lod4_house() -> Building {
+pub(crate) fn lod4_house() -> Building {
     let openings = [
         (0, 0, samples::door(1.8, 2.8, 0.02, 2.2)),
         (0, 0, samples::window(6.0, 7.2, 0.9, 2.2)),
@@ -116,7 +116,7 @@ pub fn lod4_house() -> Building {
 }
 
 /// The LOD4 house and the LOD3 samples (exteriors only) as a LOD4 run would write them.
-pub fn lod4_all() -> Vec<Building> {
+pub(crate) fn lod4_all() -> Vec<Building> {
     let mut all = vec![lod4_house()];
     for mut b in samples::all() {
         b.lod = Lod::Lod4;

@@ -89,7 +89,7 @@ fn round_i64(x: f64) -> i64 {
 /// round-trip form of the rounded value is exactly `k / 1e6` written out with its trailing
 /// zeros dropped, which is what is written here with integer arithmetic (the property test
 /// `fast_real_matches_display` in `step` checks it against `Display`).
-pub fn push_real(out: &mut impl Ascii, v: f64) {
+pub(crate) fn push_real(out: &mut impl Ascii, v: f64) {
     if !v.is_finite() {
         out.push_ascii(b"0.");
         return;

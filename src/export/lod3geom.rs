@@ -14,7 +14,7 @@ use crate::model::{Balcony, Face, Opening, Part, Wall};
 
 /// The horizontal frame of a wall: unit `dir` along start->end and unit `inward` (left of it).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WallFrame {
+pub(crate) struct WallFrame {
     /// The wall's start point on the footprint (u = 0).
     pub start: DVec2,
     /// Unit vector from start to end (increasing u).
@@ -25,7 +25,7 @@ pub struct WallFrame {
 
 impl WallFrame {
     /// The frame of `wall`, or `None` when its edge has no length or is not finite.
-    pub fn of(wall: &Wall) -> Option<WallFrame> {
+    pub(crate) fn of(wall: &Wall) -> Option<WallFrame> {
         let d = wall.end - wall.start;
         let len = d.length();
         if !(len.is_finite() && len > 0.0 && wall.start.is_finite()) {
@@ -41,7 +41,7 @@ impl WallFrame {
 
     /// The point `u` metres along the wall at height `z`, moved `depth` metres inward (negative:
     /// outward).
-    pub fn at(&self, u: f64, z: f64, depth: f64) -> DVec3 {
+    pub(crate) fn at(&self, u: f64, z: f64, depth: f64) -> DVec3 {
         (self.start + self.dir * u + self.inward * depth).extend(z)
     }
 
@@ -73,14 +73,14 @@ fn cuboid(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Vec<Face> {
 }
 
 /// Whether an opening has a finite, non-empty rectangle.
-pub fn opening_is_valid(o: &Opening) -> bool {
+pub(crate) fn opening_is_valid(o: &Opening) -> bool {
     [o.u0, o.u1, o.z0, o.z1].iter().all(|v| v.is_finite()) && o.width() > 0.0 && o.height() > 0.0
 }
 
 /// The opening's outline ([`Opening::outline`]: its rectangle, or the rectangle with rounded
 /// corners) `depth` metres inward of the wall's outer face (0: in the wall plane, filling the
 /// wall's hole exactly), facing outward like the wall. `None` for a degenerate wall or opening.
-pub fn opening_face(wall: &Wall, o: &Opening, depth: f64) -> Option<Face> {
+pub(crate) fn opening_face(wall: &Wall, o: &Opening, depth: f64) -> Option<Face> {
     let f = WallFrame::of(wall)?;
     if !opening_is_valid(o) {
         return None;
@@ -94,7 +94,7 @@ pub fn opening_face(wall: &Wall, o: &Opening, depth: f64) -> Option<Face> {
 /// facing into the opening: for a rectangle the sill, the head and the two jambs; for a rounded
 /// outline one quad per edge of the outline, in its order. Empty for a degenerate wall,
 /// opening or depth.
-pub fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
+pub(crate) fn opening_reveals(wall: &Wall, o: &Opening, depth: f64) -> Vec<Face> {
     let Some(f) = WallFrame::of(wall) else {
         return Vec::new();
     };
@@ -141,7 +141,7 @@ fn ring_band(f: &WallFrame, ring: &[DVec2], from: f64, to: f64, inside: bool) ->
 /// `width` wide in the wall's plane, from `protrusion` metres outside the wall's outer face to
 /// the pane `depth` metres inward of it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct FrameFaces {
+pub(crate) struct FrameFaces {
     /// The pane: the outline inset by the frame's width, `depth` inward, facing out.
     pub pane: Face,
     /// The frame's front (the outline with the pane's outline as a hole, at the frame's
@@ -152,7 +152,7 @@ pub struct FrameFaces {
 
 /// The frame and pane of an opening with an explicit frame size (see [`FrameFaces`]); `None`
 /// for an opening without one, or one too small to hold its frame.
-pub fn opening_frame(wall: &Wall, o: &Opening, depth: f64) -> Option<FrameFaces> {
+pub(crate) fn opening_frame(wall: &Wall, o: &Opening, depth: f64) -> Option<FrameFaces> {
     let size = o.frame_size.filter(|_| o.framed)?;
     let f = WallFrame::of(wall)?;
     let fw = size.width.min(0.25 * o.width().min(o.height()));
@@ -192,7 +192,7 @@ pub fn opening_frame(wall: &Wall, o: &Opening, depth: f64) -> Option<FrameFaces>
 /// faces. The slab box and the two U prisms are closed, so each has faces in the wall's plane
 /// ([`BalconyFaces::against_wall`]).
 #[derive(Clone, Debug, PartialEq)]
-pub struct BalconyFaces {
+pub(crate) struct BalconyFaces {
     /// Six faces: the slab from `z - SLAB_THICKNESS` to `z`, `depth` metres out from the wall.
     pub slab: Vec<Face>,
     /// The handrail's ten faces, then four per post; in [`RAILING_COLOR`]. Empty when the
@@ -206,13 +206,16 @@ pub struct BalconyFaces {
 
 impl BalconyFaces {
     /// All faces: slab, railing, infill.
-    pub fn all(&self) -> impl Iterator<Item = &Face> {
+    pub(crate) fn all(&self) -> impl Iterator<Item = &Face> {
         self.slab.iter().chain(&self.railing).chain(&self.infill)
     }
 
     /// All faces in the order of [`BalconyFaces::all`], each with its colour: the slab in the
     /// balcony's, the railing in [`RAILING_COLOR`], the infill in [`INFILL_COLOR`].
-    pub fn colored<'a>(&'a self, b: &Balcony) -> impl Iterator<Item = (&'a Face, Color)> + 'a {
+    pub(crate) fn colored<'a>(
+        &'a self,
+        b: &Balcony,
+    ) -> impl Iterator<Item = (&'a Face, Color)> + 'a {
         let slab = b.color;
         self.slab
             .iter()
@@ -224,7 +227,7 @@ impl BalconyFaces {
     /// Whether `face` (one of these) lies in the wall's outer plane, facing into the wall: the
     /// slab's back and the ends of the handrail and infill. A closed solid needs them; a view
     /// never sees them, and they coincide with the wall's face.
-    pub fn against_wall(&self, face: &Face) -> bool {
+    pub(crate) fn against_wall(&self, face: &Face) -> bool {
         face.outer.iter().all(|p| {
             (p.truncate() - self.frame.start)
                 .dot(self.frame.inward)
@@ -235,32 +238,32 @@ impl BalconyFaces {
 }
 
 /// Thickness of a balcony slab below its floor height (metres).
-pub const SLAB_THICKNESS: f64 = 0.2;
+pub(crate) const SLAB_THICKNESS: f64 = 0.2;
 /// Height of a balcony railing's top above the slab (metres): the model's, which the facade
 /// rules keep clear of neighbours.
-pub const RAILING_HEIGHT: f64 = crate::model::RAILING_HEIGHT;
+pub(crate) const RAILING_HEIGHT: f64 = crate::model::RAILING_HEIGHT;
 /// How far the railing's centre line lies in from the slab's free edges (metres).
-pub const RAILING_INSET: f64 = 0.05;
+pub(crate) const RAILING_INSET: f64 = 0.05;
 /// Width of the handrail's section (metres).
-pub const HANDRAIL_WIDTH: f64 = 0.06;
+pub(crate) const HANDRAIL_WIDTH: f64 = 0.06;
 /// Height of the handrail's section (metres).
-pub const HANDRAIL_HEIGHT: f64 = 0.05;
+pub(crate) const HANDRAIL_HEIGHT: f64 = 0.05;
 /// Side of a post's square section (metres).
-pub const POST_WIDTH: f64 = 0.04;
+pub(crate) const POST_WIDTH: f64 = 0.04;
 /// The longest distance between two posts along the railing (metres).
-pub const POST_SPACING: f64 = 1.25;
+pub(crate) const POST_SPACING: f64 = 1.25;
 /// Thickness of the infill panel (metres).
-pub const INFILL_THICKNESS: f64 = 0.015;
+pub(crate) const INFILL_THICKNESS: f64 = 0.015;
 /// Height of the infill's bottom above the slab (metres).
-pub const INFILL_BOTTOM: f64 = 0.1;
+pub(crate) const INFILL_BOTTOM: f64 = 0.1;
 /// Height of the infill's top above the slab (metres; below the handrail, not touching it).
-pub const INFILL_TOP: f64 = 0.9;
+pub(crate) const INFILL_TOP: f64 = 0.9;
 /// A balcony narrower or shallower than this (metres) gets no railing.
-pub const MIN_RAILED: f64 = 0.3;
+pub(crate) const MIN_RAILED: f64 = 0.3;
 /// Colour of the railing's handrail and posts: dark painted iron.
-pub const RAILING_COLOR: Color = Color::rgb(0.2, 0.21, 0.23);
+pub(crate) const RAILING_COLOR: Color = Color::rgb(0.2, 0.21, 0.23);
 /// Colour of the railing's infill: grey-green tinted glass, half transparent.
-pub const INFILL_COLOR: Color = Color {
+pub(crate) const INFILL_COLOR: Color = Color {
     r: 0.55,
     g: 0.65,
     b: 0.65,
@@ -277,7 +280,7 @@ fn prism(mut ring: Vec<DVec2>, z0: f64, z1: f64) -> Vec<Face> {
 }
 
 /// The geometry of balcony `b` on `wall`, or `None` for a degenerate wall or balcony.
-pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
+pub(crate) fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
     let f = WallFrame::of(wall)?;
     let ok =
         [b.u0, b.u1, b.z, b.depth].iter().all(|v| v.is_finite()) && b.u1 > b.u0 && b.depth > 0.0;
@@ -358,7 +361,7 @@ pub fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
 
 /// Sills lower than this above their wall's base (metres: a door, a French window) stand over
 /// vertices of the base ([`seated_faces`]).
-pub const LOW_SILL: f64 = 0.3;
+pub(crate) const LOW_SILL: f64 = 0.3;
 
 /// The ground and wall outlines of a LOD3 part as a solid writes them: a vertex on a wall's
 /// base under each jamb of an opening whose sill is lower than [`LOW_SILL`], and the same
@@ -375,7 +378,8 @@ pub const LOW_SILL: f64 = 0.3;
 ///
 /// `None` when no wall has such an opening (write the model's faces), else every ground and
 /// wall face, in the model's order.
-pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
+#[cfg(test)]
+pub(crate) fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
     let changes = seated_changes(part);
     if changes.is_empty() {
         return None;
@@ -392,7 +396,7 @@ pub fn seated_faces(part: &Part) -> Option<(Face, Vec<Face>)> {
 
 /// The faces [`seated_faces`] changes, and only those, as (index, face): index 0 is the
 /// ground, `i + 1` wall `i`'s outline; in increasing index order. Empty when it changes none.
-pub fn seated_changes(part: &Part) -> Vec<(usize, Face)> {
+pub(crate) fn seated_changes(part: &Part) -> Vec<(usize, Face)> {
     let is_low = |w: &Wall, o: &Opening| opening_is_valid(o) && o.z0 - w.base_z < LOW_SILL;
     let low = |w: &Wall| w.openings.iter().any(|o| is_low(w, o));
     if !part.walls.iter().any(low) {
@@ -899,10 +903,10 @@ pub(crate) mod samples {
     use crate::model::SourceId;
     use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
 
-    pub const GLASS: Color = Color::rgb(0.55, 0.7, 0.8);
-    pub const DOOR: Color = Color::rgb(0.4, 0.25, 0.1);
-    pub const FRAME: Color = Color::rgb(0.95, 0.95, 0.95);
-    pub const BALCONY: Color = Color::rgb(0.6, 0.6, 0.6);
+    pub(crate) const GLASS: Color = Color::rgb(0.55, 0.7, 0.8);
+    pub(crate) const DOOR: Color = Color::rgb(0.4, 0.25, 0.1);
+    pub(crate) const FRAME: Color = Color::rgb(0.95, 0.95, 0.95);
+    pub(crate) const BALCONY: Color = Color::rgb(0.6, 0.6, 0.6);
 
     pub fn window(u0: f64, u1: f64, z0: f64, z1: f64) -> Opening {
         Opening {
@@ -1087,7 +1091,7 @@ pub(crate) mod samples {
 
     /// Two parts: a 2-storey box with a balcony and a French window on its first floor, and a
     /// lower annex with a door.
-    pub fn with_balcony() -> Building {
+    pub(crate) fn with_balcony() -> Building {
         let balcony = Balcony {
             u0: 3.0,
             u1: 7.0,
@@ -1169,7 +1173,7 @@ pub(crate) mod samples {
 
     /// Wall area minus opening area of a building, from the model (rectangles and the gable
     /// pentagons via their Newell normals).
-    pub fn net_wall_area(b: &Building) -> f64 {
+    pub(crate) fn net_wall_area(b: &Building) -> f64 {
         b.parts
             .iter()
             .flat_map(|p| &p.walls)

@@ -9,9 +9,9 @@
 //!   out of the room (the room is a closed solid), so a side is counter-clockwise seen from the
 //!   neighbouring room. Sides lie on the room polygon's edges, i.e. on the centre lines of the
 //!   interior walls.
-//! - An interior door is cut from [`DOOR_SILL`] above the floor (so that its hole never touches
+//! - An interior door is cut from `DOOR_SILL` above the floor (so that its hole never touches
 //!   the border of the wall or room side it is in) up to `floor_z + height`, and never closer
-//!   than [`DOOR_SILL`] to the ceiling. A door whose rectangle does not fit on one side of each
+//!   than `DOOR_SILL` to the ceiling. A door whose rectangle does not fit on one side of each
 //!   of its wall's two rooms gets no hole in that room.
 //! - A stair flight is `risers` steps, each a solid block from the floor up to its tread
 //!   (`floor_z + k * rise / risers` for step k = 1..=risers), over equal slices of the bounding
@@ -24,32 +24,32 @@ use crate::geometry::{clean_ring, is_simple, Polygon};
 use crate::model::{Face, InteriorDoor, InteriorWall, Stair, StoreyInterior, OPENING_MARGIN};
 
 /// Colour of interior walls (the model gives them none): off-white plaster.
-pub const INTERIOR_WALL_COLOR: Color = Color::rgb(0.93, 0.92, 0.88);
+pub(crate) const INTERIOR_WALL_COLOR: Color = Color::rgb(0.93, 0.92, 0.88);
 /// Colour of room floors: light oak.
-pub const FLOOR_COLOR: Color = Color::rgb(0.72, 0.58, 0.4);
+pub(crate) const FLOOR_COLOR: Color = Color::rgb(0.72, 0.58, 0.4);
 /// Colour of interior door leaves: mid-brown wood.
-pub const DOOR_COLOR: Color = Color::rgb(0.55, 0.38, 0.22);
+pub(crate) const DOOR_COLOR: Color = Color::rgb(0.55, 0.38, 0.22);
 /// Colour of interior door frames.
-pub const DOOR_FRAME_COLOR: Color = Color::rgb(0.95, 0.95, 0.95);
+pub(crate) const DOOR_FRAME_COLOR: Color = Color::rgb(0.95, 0.95, 0.95);
 /// Colour of stairs: concrete grey.
-pub const STAIR_COLOR: Color = Color::rgb(0.62, 0.62, 0.6);
+pub(crate) const STAIR_COLOR: Color = Color::rgb(0.62, 0.62, 0.6);
 /// Colour of floor slabs' edges and undersides (ceilings): white.
-pub const SLAB_COLOR: Color = Color::rgb(0.97, 0.97, 0.97);
+pub(crate) const SLAB_COLOR: Color = Color::rgb(0.97, 0.97, 0.97);
 
 /// Height of an interior door's sill above the floor, and the least gap between the door and
 /// the ceiling (metres).
-pub const DOOR_SILL: f64 = OPENING_MARGIN;
+pub(crate) const DOOR_SILL: f64 = OPENING_MARGIN;
 /// Thickness of a floor slab when the storey below gives none (metres).
-pub const DEFAULT_SLAB_THICKNESS: f64 = 0.2;
+pub(crate) const DEFAULT_SLAB_THICKNESS: f64 = 0.2;
 /// A stair never gets more steps than this, whatever its `risers` says.
-pub const MAX_STEPS: u32 = 64;
+pub(crate) const MAX_STEPS: u32 = 64;
 /// Lengths below this are zero (metres).
 const EPS: f64 = 1e-6;
 /// Least distance between a door and the ends of the room side holding it, and how far a door
 /// may lie off the side's line (metres).
 const DOOR_FIT: f64 = 0.005;
 
-/// The ring of a room: its polygon's outer ring cleaned ([`clean_ring`]), or `None` when it is
+/// The ring of a room: its polygon's outer ring cleaned (`clean_ring`), or `None` when it is
 /// degenerate or not simple (two non-adjacent edges touch or cross, e.g. two pieces joined by a
 /// zero-width seam), which no writer can build a valid solid from. The model promises simple
 /// rooms; this guards the writers against a plan that breaks the promise.
@@ -60,7 +60,7 @@ pub fn room_ring(room: &crate::model::Room) -> Option<Vec<DVec2>> {
 
 /// The faces of a vertical prism over a counter-clockwise ring from `z0` up to `z1`, pointing
 /// out: bottom (clockwise seen from above), top, then one quad per edge.
-pub fn prism_faces(ring: &[DVec2], z0: f64, z1: f64) -> Vec<Face> {
+pub(crate) fn prism_faces(ring: &[DVec2], z0: f64, z1: f64) -> Vec<Face> {
     let mut faces = Vec::with_capacity(ring.len() + 2);
     faces.push(Face::new(ring.iter().rev().map(|p| p.extend(z0)).collect()));
     faces.push(Face::new(ring.iter().map(|p| p.extend(z1)).collect()));
@@ -79,7 +79,7 @@ pub fn prism_faces(ring: &[DVec2], z0: f64, z1: f64) -> Vec<Face> {
 /// Where a door lies on a room side: `t0 < t1` along the side from its first vertex, and the
 /// door's height range.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DoorSpan {
+pub(crate) struct DoorSpan {
     /// Index of the door in [`StoreyInterior::doors`].
     pub door: usize,
     /// Start of the door along the side, metres from the side's first vertex.
@@ -96,7 +96,7 @@ pub struct DoorSpan {
 /// room) with one hole per door in it, and the doors' own rectangles (same orientation as the
 /// side, each filling its hole exactly).
 #[derive(Clone, Debug, PartialEq)]
-pub struct RoomSide {
+pub(crate) struct RoomSide {
     /// The side's first vertex (the room ring's vertex it starts at, local metres).
     pub a: DVec2,
     /// The side's last vertex.
@@ -115,7 +115,7 @@ pub struct RoomSide {
 /// A room as a closed solid: floor (pointing down), ceiling (pointing up) and sides. Together
 /// with the sides' door rectangles, every edge of the shell is shared by exactly two faces.
 #[derive(Clone, Debug, PartialEq)]
-pub struct RoomShell {
+pub(crate) struct RoomShell {
     /// The room's polygon at floor height, pointing down.
     pub floor: Face,
     /// The room's polygon at ceiling height, pointing up.
@@ -126,7 +126,8 @@ pub struct RoomShell {
 
 impl RoomShell {
     /// Every face of the closed shell: floor, ceiling, sides, then the door rectangles.
-    pub fn faces(&self) -> impl Iterator<Item = &Face> {
+    #[cfg(test)]
+    pub(crate) fn faces(&self) -> impl Iterator<Item = &Face> {
         [&self.floor, &self.ceiling]
             .into_iter()
             .chain(self.sides.iter().map(|s| &s.face))
@@ -136,7 +137,7 @@ impl RoomShell {
 
 /// The door's height range on its storey: from [`DOOR_SILL`] above the floor to its height,
 /// at most [`DOOR_SILL`] under the ceiling; `None` when nothing is left.
-pub fn door_heights(s: &StoreyInterior, d: &InteriorDoor) -> Option<(f64, f64)> {
+pub(crate) fn door_heights(s: &StoreyInterior, d: &InteriorDoor) -> Option<(f64, f64)> {
     let z0 = s.floor_z + DOOR_SILL;
     let z1 = (s.floor_z + d.height).min(s.ceiling_z - DOOR_SILL);
     (z0.is_finite() && z1.is_finite() && z1 - z0 > 0.01).then_some((z0, z1))
@@ -144,7 +145,7 @@ pub fn door_heights(s: &StoreyInterior, d: &InteriorDoor) -> Option<(f64, f64)> 
 
 /// The door's end points on its wall's centre line, or `None` for a door outside its wall or a
 /// wall without length.
-pub fn door_points(s: &StoreyInterior, d: &InteriorDoor) -> Option<(DVec2, DVec2)> {
+pub(crate) fn door_points(s: &StoreyInterior, d: &InteriorDoor) -> Option<(DVec2, DVec2)> {
     let w = s.walls.get(d.wall)?;
     let len = w.a.distance(w.b);
     let inside = len > EPS && d.u0 >= 0.0 && d.u1 <= len && d.u1 - d.u0 > 0.01;
@@ -156,7 +157,7 @@ pub fn door_points(s: &StoreyInterior, d: &InteriorDoor) -> Option<(DVec2, DVec2
 }
 
 /// The shell of room `room` of storey `s`, or `None` when its polygon or height is degenerate.
-pub fn room_shell(s: &StoreyInterior, room: usize) -> Option<RoomShell> {
+pub(crate) fn room_shell(s: &StoreyInterior, room: usize) -> Option<RoomShell> {
     let ring = room_ring(s.rooms.get(room)?)?;
     let (f, c) = (s.floor_z, s.ceiling_z);
     if !(f.is_finite() && c.is_finite() && c - f > 0.01) {
@@ -292,7 +293,7 @@ fn on_segment(w: &InteriorWall, a: DVec2, b: DVec2) -> bool {
 /// floor to the ceiling, with the door holes through it. Faces point out of the wall: the two
 /// long faces (with one hole per door), the two ends, top and bottom, and per door its
 /// reveals (two jambs and the head, facing into the hole). `None` for a degenerate wall.
-pub fn wall_body(s: &StoreyInterior, wall: usize) -> Option<Vec<Face>> {
+pub(crate) fn wall_body(s: &StoreyInterior, wall: usize) -> Option<Vec<Face>> {
     let w = s.walls.get(wall)?;
     let len = w.a.distance(w.b);
     let h = w.thickness / 2.0;
@@ -397,7 +398,7 @@ pub fn wall_body(s: &StoreyInterior, wall: usize) -> Option<Vec<Face>> {
 
 /// A door leaf in the plane of its wall's centre line: the door's rectangle, seen from the
 /// wall's right (`front`) and its mirror seen from the left.
-pub fn door_leaf(s: &StoreyInterior, d: &InteriorDoor) -> Option<[Face; 2]> {
+pub(crate) fn door_leaf(s: &StoreyInterior, d: &InteriorDoor) -> Option<[Face; 2]> {
     let (p, q) = door_points(s, d)?;
     let (z0, z1) = door_heights(s, d)?;
     let front = Face::new(vec![p.extend(z0), q.extend(z0), q.extend(z1), p.extend(z1)]);
@@ -418,7 +419,7 @@ pub struct Step {
 
 /// The steps of the stair of storey `s` (see the module documentation); empty for a degenerate
 /// stair (no run direction, no area, no rise or no riser).
-pub fn stair_steps(s: &StoreyInterior, stair: &Stair) -> Vec<Step> {
+pub(crate) fn stair_steps(s: &StoreyInterior, stair: &Stair) -> Vec<Step> {
     let Some(run) = stair.run.try_normalize() else {
         return Vec::new();
     };
@@ -458,7 +459,10 @@ pub fn stair_steps(s: &StoreyInterior, stair: &Stair) -> Vec<Step> {
 /// minus the stair well of the stair rising from `below`, as polygons (outer CCW, holes CW),
 /// with the slab's thickness (down from `s.floor_z`). Empty for the ground storey (the base
 /// slab is the exterior's) or when nothing is left.
-pub fn floor_slab(below: Option<&StoreyInterior>, s: &StoreyInterior) -> (Vec<Polygon>, f64) {
+pub(crate) fn floor_slab(
+    below: Option<&StoreyInterior>,
+    s: &StoreyInterior,
+) -> (Vec<Polygon>, f64) {
     use geo::BooleanOps;
     if s.storey == 0 {
         return (Vec::new(), 0.0);
@@ -511,7 +515,7 @@ pub fn floor_slab(below: Option<&StoreyInterior>, s: &StoreyInterior) -> (Vec<Po
 }
 
 /// The faces of a slab piece: top at `z_top`, bottom `thickness` lower, sides of every ring.
-pub fn slab_faces(p: &Polygon, z_top: f64, thickness: f64) -> Vec<Face> {
+pub(crate) fn slab_faces(p: &Polygon, z_top: f64, thickness: f64) -> Vec<Face> {
     let z0 = z_top - thickness;
     let lift = |r: &Vec<DVec2>, z: f64| r.iter().map(|q| q.extend(z)).collect::<Vec<DVec3>>();
     let rev = |r: &Vec<DVec2>, z: f64| r.iter().rev().map(|q| q.extend(z)).collect::<Vec<DVec3>>();

@@ -65,7 +65,7 @@ pub(crate) fn check_finite(writer: &str, b: &Building) -> Result<(), ExportError
         .map_err(|e| ExportError::Invalid(format!("{writer}: {e}")))
 }
 
-/// Buildings checked once for every writer ([`Building::check_finite`]): those before the
+/// Buildings checked once for every writer (`Building::check_finite`): those before the
 /// first that is refused, and why that one is. It borrows the buildings, so they cannot
 /// change while it is held: a writer given one ([`BuildingWriter::write_checked`]) need not
 /// check again.
@@ -117,7 +117,7 @@ impl<'a> Checked<'a> {
 
 /// Buildings a writer's `write_all` renders in parallel at a time: enough to keep the cores
 /// busy, few enough that their rendered bytes (a few MB a LOD4 building) stay small.
-pub const PARALLEL_BATCH: usize = 16;
+pub(crate) const PARALLEL_BATCH: usize = 16;
 
 /// A streaming writer of one output format.
 ///

@@ -20,25 +20,25 @@ use std::io::{self, Write};
 
 use crate::export::format::push_uint;
 
-/// A reference to an entity instance of the file (`#n`), or, with [`Id::LOCAL`] set, to the
+/// A reference to an entity instance of the file (`#n`), or, with `Id::LOCAL` set, to the
 /// entity numbered `n & !LOCAL` (from 0) of a [`StepBuf`], whose final number is known only
-/// when the buffer is appended ([`StepWriter::append`]).
+/// when the buffer is appended (`StepWriter::append`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Id(pub u64);
 
 impl Id {
     /// The bit that marks an id local to a [`StepBuf`]: local ids sort after every file id,
     /// in creation order, as their final numbers will.
-    pub const LOCAL: u64 = 1 << 63;
+    pub(crate) const LOCAL: u64 = 1 << 63;
 
     /// Whether this is an id local to a [`StepBuf`].
-    pub fn is_local(self) -> bool {
+    pub(crate) fn is_local(self) -> bool {
         self.0 & Id::LOCAL != 0
     }
 
     /// The file id of this id once the buffer it is local to starts at entity number `start`
     /// (a file id is returned unchanged).
-    pub fn relocate(self, start: u64) -> Id {
+    pub(crate) fn relocate(self, start: u64) -> Id {
         if self.is_local() {
             Id(start + (self.0 & !Id::LOCAL))
         } else {
@@ -60,19 +60,20 @@ impl fmt::Display for Id {
 /// Values of magnitude 1e9 or more are not rounded (a multiply by 1e6 would lose their low
 /// digits). `-0` prints as `0.`. Non-finite values cannot be encoded; they print as `0.` and
 /// callers are expected to reject them before (the IFC writer does).
-pub fn format_real(v: f64) -> String {
+#[cfg(test)]
+pub(crate) fn format_real(v: f64) -> String {
     let mut s = String::with_capacity(24);
     push_real(&mut s, v);
     s
 }
 
 /// Appends [`format_real`]`(v)` to `out` without allocating.
-pub use crate::export::format::push_real;
+pub(crate) use crate::export::format::push_real;
 
 /// Encodes a STRING literal with its quotes: `'` doubled, `\` doubled, printable ASCII as is,
 /// anything else (non-ASCII, control characters) as `\X2\HHHH..\X0\` runs of UTF-16 code units
 /// for the Basic Multilingual Plane and `\X4\HHHHHHHH..\X0\` runs for the other planes.
-pub fn encode_string(s: &str) -> String {
+pub(crate) fn encode_string(s: &str) -> String {
     let mut out = Vec::with_capacity(s.len() + 2);
     push_string(&mut out, s);
     // Only ASCII is pushed.
@@ -80,7 +81,7 @@ pub fn encode_string(s: &str) -> String {
 }
 
 /// Appends [`encode_string`]`(s)` to `out` (ASCII bytes).
-pub fn push_string(out: &mut Vec<u8>, s: &str) {
+pub(crate) fn push_string(out: &mut Vec<u8>, s: &str) {
     #[derive(PartialEq, Clone, Copy)]
     enum Run {
         None,
@@ -135,7 +136,7 @@ pub fn push_string(out: &mut Vec<u8>, s: &str) {
 }
 
 /// The 64 characters of IFC's base-64 encoding of GUIDs, in digit order.
-pub const IFC_BASE64: &[u8; 64] =
+pub(crate) const IFC_BASE64: &[u8; 64] =
     b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$";
 
 /// FNV-1a over `bytes`, continuing from each of the two states (two independent streams in
@@ -160,7 +161,7 @@ fn mix64(mut z: u64) -> u64 {
 /// A deterministic 128-bit hash of (namespace, path): two independent FNV-1a streams, each
 /// finished with SplitMix64 and cross-mixed. A 0xFF byte (never in UTF-8) separates the two
 /// strings so that ("ab", "c") and ("a", "bc") differ.
-pub fn hash128(namespace: &str, path: &str) -> u128 {
+pub(crate) fn hash128(namespace: &str, path: &str) -> u128 {
     let h = [0xCBF2_9CE4_8422_2325, 0x6C62_272E_07BB_0142];
     let [a, b] = fnv1a2(
         fnv1a2(fnv1a2(h, namespace.as_bytes()), &[0xFF]),
@@ -173,7 +174,7 @@ pub fn hash128(namespace: &str, path: &str) -> u128 {
 
 /// The 22-character IFC GlobalId encoding of a 128-bit value: the first character carries the
 /// top 2 bits, each of the 21 others 6 bits, most significant first.
-pub fn encode_guid(v: u128) -> String {
+pub(crate) fn encode_guid(v: u128) -> String {
     String::from_utf8(guid_bytes(v).to_vec()).unwrap_or_default()
 }
 
@@ -190,7 +191,7 @@ fn guid_bytes(v: u128) -> [u8; 22] {
 /// A deterministic IFC GlobalId for the object at `path` (e.g. `p0/wall/3`) of the object family
 /// `namespace` (e.g. a building key): equal inputs give equal ids in every run, distinct inputs
 /// give distinct ids (up to a 128-bit hash collision).
-pub fn global_id(namespace: &str, path: &str) -> String {
+pub(crate) fn global_id(namespace: &str, path: &str) -> String {
     encode_guid(hash128(namespace, path))
 }
 
@@ -201,7 +202,7 @@ pub struct Header {
     pub description: Vec<String>,
     /// FILE_NAME.name.
     pub name: String,
-    /// FILE_NAME.time_stamp (ISO 8601). Fixed, never the clock: see [`timestamp_from_env`].
+    /// FILE_NAME.time_stamp (ISO 8601). Fixed, never the clock: see `timestamp_from_env`.
     pub time_stamp: String,
     /// FILE_NAME.author.
     pub author: String,
@@ -218,7 +219,7 @@ pub struct Header {
 }
 
 impl Header {
-    /// A header for `name` in `schema`, stamped by [`timestamp_from_env`], with citygen as the
+    /// A header for `name` in `schema`, stamped by `timestamp_from_env`, with citygen as the
     /// originating system.
     pub fn new(name: &str, schema: &str) -> Header {
         Header {
@@ -238,7 +239,7 @@ impl Header {
 /// The time stamp to write: `SOURCE_DATE_EPOCH` (seconds since 1970, the reproducible-builds
 /// convention) when it is set and valid, else `1970-01-01T00:00:00`. Never the clock, so equal
 /// runs give byte-identical files.
-pub fn timestamp_from_env() -> String {
+pub(crate) fn timestamp_from_env() -> String {
     let secs = std::env::var("SOURCE_DATE_EPOCH")
         .ok()
         .and_then(|s| s.trim().parse::<i64>().ok())
@@ -248,7 +249,7 @@ pub fn timestamp_from_env() -> String {
 
 /// `YYYY-MM-DDTHH:MM:SS` (UTC) of a Unix time, proleptic Gregorian calendar. Years outside
 /// 0..=9999 are clamped to that range's ends.
-pub fn iso8601_utc(secs: i64) -> String {
+pub(crate) fn iso8601_utc(secs: i64) -> String {
     // Clamp to 0000-01-01 .. 9999-12-31T23:59:59 so the format stays fixed-width.
     let secs = secs.clamp(-62_167_219_200, 253_402_300_799);
     let days = secs.div_euclid(86_400);
@@ -290,7 +291,7 @@ type Hole = (usize, u64);
 /// writer refuses it rather than write an invalid file. Carried inside the `io::Error` that
 /// [`StepWriter::entity`] returns; [`broken_rule`] finds it.
 #[derive(Debug)]
-pub struct BrokenRule(pub String);
+pub(crate) struct BrokenRule(pub String);
 
 impl std::fmt::Display for BrokenRule {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -301,7 +302,7 @@ impl std::fmt::Display for BrokenRule {
 impl std::error::Error for BrokenRule {}
 
 /// The [`BrokenRule`] inside an error of [`StepWriter::entity`], if that is what it is.
-pub fn broken_rule(e: &io::Error) -> Option<&BrokenRule> {
+pub(crate) fn broken_rule(e: &io::Error) -> Option<&BrokenRule> {
     e.get_ref()
         .and_then(|inner| inner.downcast_ref::<BrokenRule>())
 }
@@ -328,14 +329,6 @@ impl Args<'_> {
         self
     }
 
-    /// A reference, or `$` when absent.
-    pub fn opt_id(&mut self, id: Option<Id>) -> &mut Self {
-        match id {
-            Some(id) => self.id(id),
-            None => self.null(),
-        }
-    }
-
     /// A list of references `(#a,#b)`.
     pub fn ids(&mut self, ids: &[Id]) -> &mut Self {
         self.list(|a| {
@@ -345,7 +338,7 @@ impl Args<'_> {
         })
     }
 
-    /// A REAL (see [`format_real`]).
+    /// A REAL (see `format_real`).
     pub fn real(&mut self, v: f64) -> &mut Self {
         push_real(self.sep(), v);
         self
@@ -354,7 +347,7 @@ impl Args<'_> {
     /// A REAL that the schema requires to be above zero (`IfcPositiveLengthMeasure`: profile
     /// sizes, extrusion depths). One that is not, or that would be written as `0.` (below half
     /// a micrometre), makes [`StepWriter::entity`] refuse the entity.
-    pub fn positive(&mut self, v: f64) -> &mut Self {
+    pub(crate) fn positive(&mut self, v: f64) -> &mut Self {
         let written_positive = v.is_finite() && (v >= 1e9 || (v * 1e6).round() > 0.0);
         if !written_positive && self.bad.is_none() {
             self.bad = Some(format!(
@@ -385,7 +378,7 @@ impl Args<'_> {
     }
 
     /// A list of INTEGERs.
-    pub fn ints(&mut self, vs: &[i64]) -> &mut Self {
+    pub(crate) fn ints(&mut self, vs: &[i64]) -> &mut Self {
         self.list(|a| {
             for v in vs {
                 a.int(*v);
@@ -393,14 +386,14 @@ impl Args<'_> {
         })
     }
 
-    /// A STRING (see [`encode_string`]).
+    /// A STRING (see `encode_string`).
     pub fn string(&mut self, s: &str) -> &mut Self {
         push_string(self.sep(), s);
         self
     }
 
     /// The STRING of [`global_id`]`(namespace, path)`.
-    pub fn guid(&mut self, namespace: &str, path: &str) -> &mut Self {
+    pub(crate) fn guid(&mut self, namespace: &str, path: &str) -> &mut Self {
         let b = self.sep();
         b.push(b'\'');
         b.extend_from_slice(&guid_bytes(hash128(namespace, path)));
@@ -409,7 +402,7 @@ impl Args<'_> {
     }
 
     /// A STRING, or `$` when absent.
-    pub fn opt_string(&mut self, s: Option<&str>) -> &mut Self {
+    pub(crate) fn opt_string(&mut self, s: Option<&str>) -> &mut Self {
         match s {
             Some(s) => self.string(s),
             None => self.null(),
@@ -429,7 +422,7 @@ impl Args<'_> {
     }
 
     /// An enumeration value `.NAME.`; `name` must be the bare upper-case identifier.
-    pub fn enumeration(&mut self, name: &str) -> &mut Self {
+    pub(crate) fn enumeration(&mut self, name: &str) -> &mut Self {
         let b = self.sep();
         b.push(b'.');
         b.extend_from_slice(name.as_bytes());
@@ -474,9 +467,9 @@ impl Args<'_> {
     }
 }
 
-/// Entity instances rendered apart from the file, numbered locally from 0 ([`Id::LOCAL`] ids),
+/// Entity instances rendered apart from the file, numbered locally from 0 (`Id::LOCAL` ids),
 /// so that several can be rendered in parallel and appended in order
-/// ([`StepWriter::append`]): appending only writes the final numbers of the local ids into the
+/// (`StepWriter::append`): appending only writes the final numbers of the local ids into the
 /// rendered text. References to file ids are written as they are.
 #[derive(Default)]
 pub struct StepBuf {
@@ -531,7 +524,7 @@ impl StepBuf {
     }
 
     /// Bytes the buffer holds without reallocating.
-    pub fn capacity(&self) -> usize {
+    pub(crate) fn capacity(&self) -> usize {
         self.bytes.capacity()
     }
 
@@ -543,7 +536,7 @@ impl StepBuf {
     }
 
     /// Appends the text of the entities to `out`, local id `k` numbered `start + k`.
-    pub fn append_to(&self, out: &mut Vec<u8>, start: u64) {
+    pub(crate) fn append_to(&self, out: &mut Vec<u8>, start: u64) {
         out.reserve(self.bytes.len() + 8 * self.holes.len());
         let mut pos = 0;
         for &(at, k) in &self.holes {
@@ -623,7 +616,7 @@ impl<W: Write> StepWriter<W> {
 
     /// Writes the entities of `buf` and returns the number its local id 0 gets (the number
     /// of the next entity when `buf` is empty).
-    pub fn append(&mut self, buf: &StepBuf) -> io::Result<u64> {
+    pub(crate) fn append(&mut self, buf: &StepBuf) -> io::Result<u64> {
         let start = self.next;
         self.line.clear();
         buf.append_to(&mut self.line, start);
@@ -633,12 +626,13 @@ impl<W: Write> StepWriter<W> {
     }
 
     /// The number the next entity gets.
-    pub fn next_number(&self) -> u64 {
+    pub(crate) fn next_number(&self) -> u64 {
         self.next
     }
 
     /// Number of entities written so far.
-    pub fn entity_count(&self) -> u64 {
+    #[cfg(test)]
+    pub(crate) fn entity_count(&self) -> u64 {
         self.next - 1
     }
 

@@ -1,5 +1,5 @@
 //! Files, on the ground floor: the one atomic write ([`AtomicFile`], [`PendingFile`],
-//! [`write_atomic`]), scratch files beside an output, the SHA-256 of a file and the one hex
+//! `write_atomic`), scratch files beside an output, the SHA-256 of a file and the one hex
 //! encoder. It imports nothing of ours.
 //!
 //! Every file citygen publishes goes through a temporary `.{name}.{pid}.tmp` beside its target,
@@ -93,7 +93,7 @@ impl AtomicFile {
     /// A writer of the temporary file for a large output: on Linux it writes past the page cache
     /// from a background thread (`O_DIRECT`, see `fsio::direct`), elsewhere it is the file
     /// itself. Write through a `BufWriter` or in large pieces. Drop the writer, then call
-    /// [`StreamSink::finish`] before [`AtomicFile::close`]: only then are the bytes complete.
+    /// `StreamSink::finish` before [`AtomicFile::close`]: only then are the bytes complete.
     pub fn stream(&self) -> io::Result<(Box<dyn io::Write + Send>, StreamSink)> {
         #[cfg(target_os = "linux")]
         {
@@ -139,7 +139,7 @@ pub struct StreamSink(
 impl StreamSink {
     /// Waits until every byte given to the (dropped) writer is in the file; returns the first
     /// error of any write.
-    pub fn finish(self) -> io::Result<()> {
+    pub(crate) fn finish(self) -> io::Result<()> {
         #[cfg(target_os = "linux")]
         if let Some(s) = self.0 {
             return s.finish();
@@ -223,7 +223,7 @@ impl PendingFile {
     /// A hard link to `src` as the temporary of `target` (in its folder, created if needed):
     /// renamed over `target` on commit, it publishes `src`'s bytes without copying them.
     /// Fails where `src` and `target` are on two file systems or links are not supported.
-    pub fn link(src: &Path, target: &Path) -> io::Result<PendingFile> {
+    pub(crate) fn link(src: &Path, target: &Path) -> io::Result<PendingFile> {
         let tmp = temporary_of(target, None)?;
         // A temporary of ours left by an earlier attempt in this process.
         let _ = std::fs::remove_file(&tmp);
@@ -236,12 +236,12 @@ impl PendingFile {
     }
 
     /// The temporary file's path (complete: it can be read, e.g. checked, before the commit).
-    pub fn temporary(&self) -> &Path {
+    pub(crate) fn temporary(&self) -> &Path {
         &self.tmp
     }
 
     /// Renames the temporary over the target.
-    pub fn commit(mut self) -> io::Result<()> {
+    pub(crate) fn commit(mut self) -> io::Result<()> {
         std::fs::rename(&self.tmp, &self.target)?;
         self.committed = true;
         Ok(())
@@ -264,7 +264,7 @@ impl Drop for AtomicFile {
     }
 }
 
-/// Why [`write_atomic`] or [`write_pending`] failed: the path that could not be written (the
+/// Why `write_atomic` or `write_pending` failed: the path that could not be written (the
 /// target's folder, the temporary or the target) and the system's error. Shown as
 /// `{path}: {error}`.
 #[derive(Debug)]
@@ -286,7 +286,7 @@ impl std::error::Error for WriteError {}
 /// `bytes` written to a complete, closed temporary beside `target` (`.{name}.{pid}.tmp`, or
 /// `.{name}.{pid}.{tag}.tmp` with a `tag`), the folder created if needed: the [`PendingFile`]
 /// to check and commit. Dropped, the temporary is removed.
-pub fn write_pending(
+pub(crate) fn write_pending(
     target: &Path,
     tag: Option<&str>,
     bytes: &[u8],
@@ -306,7 +306,7 @@ pub fn write_pending(
 }
 
 /// Writes `bytes` to `target` atomically ([`write_pending`], then the rename over `target`).
-pub fn write_atomic(target: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+pub(crate) fn write_atomic(target: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     write_pending(target, None, bytes)?
         .commit()
         .map_err(|error| WriteError {
@@ -326,7 +326,7 @@ pub fn hex(bytes: &[u8]) -> String {
 }
 
 /// The size of the file at `path` and its SHA-256 ([`hex`]), read in 1 MiB blocks.
-pub fn file_sha256(path: &Path) -> io::Result<(u64, String)> {
+pub(crate) fn file_sha256(path: &Path) -> io::Result<(u64, String)> {
     let mut f = File::open(path)?;
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];

@@ -6,9 +6,9 @@ use glam::DVec2;
 use super::Polygon;
 
 /// Lengths below this (metres) are treated as zero: empty split pieces, degenerate edges.
-pub const EPS: f64 = 1e-9;
+pub(crate) const EPS: f64 = 1e-9;
 /// Pieces of a clipped footprint smaller than this (m²) are slivers and are dropped.
-pub const MIN_AREA: f64 = 1e-6;
+pub(crate) const MIN_AREA: f64 = 1e-6;
 
 /// Whether a ring is convex (counter-clockwise, collinear vertices allowed).
 fn is_convex(ring: &[DVec2]) -> bool {
@@ -28,7 +28,13 @@ fn is_convex(ring: &[DVec2]) -> bool {
 /// the two half-planes; anything else goes through `geo`'s boolean intersection with a large
 /// rectangle, which is exact for concave outlines and holes and may return several polygons.
 /// Slivers under [`MIN_AREA`] are dropped.
-pub fn clip_slab(poly: &Polygon, origin: DVec2, axis: DVec2, lo: f64, hi: f64) -> Vec<Polygon> {
+pub(crate) fn clip_slab(
+    poly: &Polygon,
+    origin: DVec2,
+    axis: DVec2,
+    lo: f64,
+    hi: f64,
+) -> Vec<Polygon> {
     let proj = |p: &DVec2| (*p - origin).dot(axis);
     let (mut pmin, mut pmax) = (f64::INFINITY, f64::NEG_INFINITY);
     for p in &poly.outer {
@@ -139,7 +145,7 @@ fn from_geo(p: &geo::Polygon<f64>) -> Polygon {
 }
 
 /// Applies `f` to every vertex of a polygon, then restores the orientation convention.
-pub fn map_polygon(poly: &Polygon, f: impl Fn(DVec2) -> DVec2) -> Polygon {
+pub(crate) fn map_polygon(poly: &Polygon, f: impl Fn(DVec2) -> DVec2) -> Polygon {
     Polygon::new(
         poly.outer.iter().map(|p| f(*p)).collect(),
         poly.holes

@@ -9,7 +9,7 @@ use super::Polygon;
 /// bounding rectangle (rotating calipers over the convex hull of the outer ring). Of the four
 /// directions along that side, the one closest to world +X is taken (ties: closest to +Y), so
 /// that an east-west rectangle gets X = east, Y = north and its south facade is `front`.
-pub fn dominant_direction(poly: &Polygon) -> DVec2 {
+pub(crate) fn dominant_direction(poly: &Polygon) -> DVec2 {
     let Some((d, square)) = min_area_rectangle(poly) else {
         return DVec2::X;
     };
@@ -40,7 +40,7 @@ pub fn dominant_direction(poly: &Polygon) -> DVec2 {
 /// `front` face of `comp` (ties at 45° go to front, see `grammar::interp`), while the scope stays
 /// aligned with the building's main axes, so that X/Y splits of rule files, `repeat`s and top
 /// faces keep following the mass and differ from the thesis only by a quarter or half turn.
-pub fn scope_direction(poly: &Polygon, front: Option<DVec2>) -> DVec2 {
+pub(crate) fn scope_direction(poly: &Polygon, front: Option<DVec2>) -> DVec2 {
     let thesis = dominant_direction(poly);
     let Some(front) = front.and_then(DVec2::try_normalize) else {
         return thesis;
@@ -68,7 +68,7 @@ pub fn scope_direction(poly: &Polygon, front: Option<DVec2>) -> DVec2 {
 /// The direction of one side of the minimum-area bounding rectangle of the outer ring
 /// (rotating calipers over its convex hull): the longer side, and whether the rectangle is a
 /// square. `None` for fewer than two distinct points.
-pub fn min_area_rectangle(poly: &Polygon) -> Option<(DVec2, bool)> {
+pub(crate) fn min_area_rectangle(poly: &Polygon) -> Option<(DVec2, bool)> {
     let hull = convex_hull(&poly.outer);
     if hull.len() < 2 {
         return None;
@@ -114,7 +114,7 @@ fn snap(v: f64) -> f64 {
 }
 
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
-pub fn convex_hull(pts: &[DVec2]) -> Vec<DVec2> {
+pub(crate) fn convex_hull(pts: &[DVec2]) -> Vec<DVec2> {
     let mut p: Vec<DVec2> = pts.iter().copied().filter(|q| q.is_finite()).collect();
     p.sort_by(|a, b| {
         (a.x, a.y)

@@ -13,7 +13,7 @@ pub mod triangulate;
 
 use glam::{DVec2, DVec3};
 
-pub use ring::clean_ring;
+pub(crate) use ring::clean_ring;
 
 /// A simple polygon with holes in the local frame (metres).
 #[derive(Clone, Debug, PartialEq)]
@@ -94,7 +94,7 @@ impl Polygon {
     }
 
     /// Translates every vertex.
-    pub fn translated(&self, d: DVec2) -> Polygon {
+    pub(crate) fn translated(&self, d: DVec2) -> Polygon {
         Polygon {
             outer: self.outer.iter().map(|p| *p + d).collect(),
             holes: self
@@ -107,7 +107,7 @@ impl Polygon {
 }
 
 /// Crossing-number point-in-ring test.
-pub fn ring_contains(ring: &[DVec2], p: DVec2) -> bool {
+pub(crate) fn ring_contains(ring: &[DVec2], p: DVec2) -> bool {
     let n = ring.len();
     let mut inside = false;
     let mut j = n.wrapping_sub(1);
@@ -122,7 +122,7 @@ pub fn ring_contains(ring: &[DVec2], p: DVec2) -> bool {
 }
 
 /// Newell normal of a 3D polygon ring (not normalised; its length is twice the area).
-pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
+pub(crate) fn newell_normal(ring: &[DVec3]) -> DVec3 {
     let mut n = DVec3::ZERO;
     for i in 0..ring.len() {
         let a = ring[i];
@@ -136,7 +136,7 @@ pub fn newell_normal(ring: &[DVec3]) -> DVec3 {
 
 /// Two unit axes spanning the plane whose unit normal is `normal` (`ex`, `ey`, `normal` right-handed):
 /// for projecting a face into its own plane.
-pub fn plane_axes(normal: DVec3) -> (DVec3, DVec3) {
+pub(crate) fn plane_axes(normal: DVec3) -> (DVec3, DVec3) {
     let t = if normal.x.abs() < 0.9 {
         DVec3::X
     } else {
@@ -147,7 +147,7 @@ pub fn plane_axes(normal: DVec3) -> (DVec3, DVec3) {
 }
 
 /// The length of a closed ring (closing edge included).
-pub fn ring_perimeter(r: &[DVec2]) -> f64 {
+pub(crate) fn ring_perimeter(r: &[DVec2]) -> f64 {
     (0..r.len())
         .map(|i| r[i].distance(r[(i + 1) % r.len()]))
         .sum()
@@ -156,10 +156,10 @@ pub fn ring_perimeter(r: &[DVec2]) -> f64 {
 /// Two non-adjacent edges closer than this touch, for [`is_simple`] (metres): the distance
 /// under which [`clean_ring`] merges vertices, and ten times the precision our IFC files
 /// declare, so that what IfcOpenShell sees as self-touching is never called simple here.
-pub const TOUCH_TOLERANCE: f64 = 1e-4;
+pub(crate) const TOUCH_TOLERANCE: f64 = 1e-4;
 
 /// Whether no two non-adjacent edges of the ring touch (within [`TOUCH_TOLERANCE`]) or cross.
-pub fn is_simple(r: &[DVec2]) -> bool {
+pub(crate) fn is_simple(r: &[DVec2]) -> bool {
     let n = r.len();
     let orient = |a: DVec2, b: DVec2, c: DVec2| {
         let v = (b - a).perp_dot(c - a);

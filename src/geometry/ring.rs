@@ -39,7 +39,7 @@ impl Point for DVec3 {
 
 /// Drops the points at the end of the ring that `same` calls equal to the first one (a
 /// closing vertex, repeated or not), keeping at least one point.
-pub fn pop_closing_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) {
+pub(crate) fn pop_closing_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) {
     while ring.len() > 1 && same(ring[0], ring[ring.len() - 1]) {
         ring.pop();
     }
@@ -48,7 +48,7 @@ pub fn pop_closing_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) {
 /// Drops every point that `same` calls equal to the last point kept before it (of a run of
 /// equal points the first stays), then the closing points ([`pop_closing_by`]). With exact
 /// equality (`|a, b| a == b`) this is `Vec::dedup` plus the closing vertex.
-pub fn dedup_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) {
+pub(crate) fn dedup_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) {
     ring.dedup_by(|a, b| same(*b, *a));
     pop_closing_by(ring, same);
 }
@@ -56,7 +56,7 @@ pub fn dedup_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) {
 /// [`dedup_by`] within a distance: a point is kept when it is farther than `tol` from the last
 /// point kept, and the closing points within `tol` of the first are dropped. A point at a
 /// non-finite distance (NaN) from the last one kept is dropped; at the end it is kept.
-pub fn dedup_within<P: Point>(ring: &mut Vec<P>, tol: f64) {
+pub(crate) fn dedup_within<P: Point>(ring: &mut Vec<P>, tol: f64) {
     let mut kept = 0;
     for i in 0..ring.len() {
         let p = ring[i];
@@ -74,7 +74,7 @@ pub fn dedup_within<P: Point>(ring: &mut Vec<P>, tol: f64) {
 /// from the first vertex, until no spike is left or fewer than 3 vertices remain. Returns the
 /// number of spikes removed. On a ring without consecutive duplicates (after [`dedup_by`] with
 /// the same exact equality) no removal creates one.
-pub fn remove_spikes_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) -> usize {
+pub(crate) fn remove_spikes_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool) -> usize {
     let mut spikes = 0;
     while ring.len() >= 3 {
         let n = ring.len();
@@ -92,7 +92,7 @@ pub fn remove_spikes_by<T: Copy>(ring: &mut Vec<T>, same: impl Fn(T, T) -> bool)
 /// Removes collinear vertices one at a time, the first in ring order each time: a vertex whose
 /// distance to the line through its two neighbours is at most `tol`, or whose neighbours are
 /// within `degenerate` of each other. Stops when none is left or fewer than 3 vertices remain.
-pub fn remove_collinear(ring: &mut Vec<DVec2>, tol: f64, degenerate: f64) {
+pub(crate) fn remove_collinear(ring: &mut Vec<DVec2>, tol: f64, degenerate: f64) {
     let mut changed = true;
     while changed && ring.len() >= 3 {
         changed = false;
@@ -114,7 +114,7 @@ pub fn remove_collinear(ring: &mut Vec<DVec2>, tol: f64, degenerate: f64) {
 /// in the ring as the round found it, and drops those closer than `near` to the previous vertex
 /// or whose turn has a sine below `sine` (straight on, or a zero-width spike). Rounds repeat
 /// until one drops nothing; a round that would leave fewer than 3 vertices leaves what it kept.
-pub fn remove_straight(ring: &mut Vec<DVec2>, near: f64, sine: f64) {
+pub(crate) fn remove_straight(ring: &mut Vec<DVec2>, near: f64, sine: f64) {
     let mut changed = true;
     while changed && ring.len() >= 3 {
         changed = false;
@@ -143,7 +143,7 @@ pub fn remove_straight(ring: &mut Vec<DVec2>, near: f64, sine: f64) {
 /// replaces it — a straight wall drawn with an extra node a little off the line — except those
 /// `keep` holds (a corner another ring shares). The least bent vertex goes first, one at a
 /// time; a ring is never left with fewer than 3 vertices. Returns the ring's kept points.
-pub fn straighten(
+pub(crate) fn straighten(
     ring: &[DVec2],
     tol: f64,
     max_turn_deg: f64,
@@ -200,7 +200,7 @@ pub fn straighten(
 /// neighbours is under `col` goes. A vertex where the ring turns back on itself, the far end
 /// of the shorter edge less than `spike` off the longer one's line, is an error (a spike):
 /// `Err(index)`. One removal at a time, the first in ring order.
-pub fn simplified_indices(
+pub(crate) fn simplified_indices(
     ring: &[DVec2],
     dup: f64,
     col: f64,
@@ -250,7 +250,7 @@ const RING_EPS: f64 = 1e-6;
 /// The writers' ring: without repeated (closer than 0.1 mm), closing or collinear (within
 /// 1 µm) vertices, counter-clockwise; `None` when a point is not finite, or fewer than 3
 /// vertices or no area remain.
-pub fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
+pub(crate) fn clean_ring(ring: &[DVec2]) -> Option<Vec<DVec2>> {
     if ring.iter().any(|p| !p.is_finite()) {
         return None;
     }

@@ -18,7 +18,7 @@ use glam::{DVec2, DVec3};
 
 /// Triangles of one planar 3D face.
 #[derive(Clone, Debug, PartialEq)]
-pub struct FaceTriangles {
+pub(crate) struct FaceTriangles {
     /// Unit normal of the face (Newell normal of its outer ring).
     pub normal: DVec3,
     /// The face's vertices that some triangle uses, in ring order (outer ring, then holes).
@@ -59,7 +59,7 @@ pub fn triangulate_2d(outer: &[DVec2], holes: &[Vec<DVec2>]) -> Vec<[u32; 3]> {
 /// the outer ring, so triangles come out counter-clockwise seen from the normal's side. Returns
 /// `None` for a degenerate face: fewer than 3 points, non-finite coordinates, zero area, or no
 /// triangle left. Only vertices used by a triangle are returned.
-pub fn triangulate_face(outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTriangles> {
+pub(crate) fn triangulate_face(outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTriangles> {
     let mut t = Triangulator::default();
     let f = t.face(outer, holes)?;
     Some(FaceTriangles {
@@ -71,7 +71,7 @@ pub fn triangulate_face(outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTri
 
 /// [`triangulate_face`]'s result, borrowed from the [`Triangulator`] that made it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FaceTrianglesRef<'a> {
+pub(crate) struct FaceTrianglesRef<'a> {
     /// Unit normal of the face (Newell normal of its outer ring).
     pub normal: DVec3,
     /// The face's vertices that some triangle uses, in ring order (outer ring, then holes).
@@ -89,7 +89,7 @@ pub struct FaceTrianglesRef<'a> {
 /// pass would hand over to earcut's later passes (no ear found in a whole loop), earcut itself
 /// cuts the ring from the start.
 #[derive(Default)]
-pub struct Triangulator {
+pub(crate) struct Triangulator {
     /// The rings' 3D points relative to the outer ring's first one (outer ring only).
     rel: Vec<DVec3>,
     /// All rings' points, flat (2D: projected), and where each ring ends in it.
@@ -113,11 +113,15 @@ pub struct Triangulator {
 
 /// The most points of a hole-free ring that [`Triangulator`] cuts itself: earcut switches to
 /// its z-order hashed search above 80 points.
-pub const SMALL_RING: usize = 80;
+pub(crate) const SMALL_RING: usize = 80;
 
 impl Triangulator {
     /// [`triangulate_face`] into this triangulator's buffers.
-    pub fn face(&mut self, outer: &[DVec3], holes: &[Vec<DVec3>]) -> Option<FaceTrianglesRef<'_>> {
+    pub(crate) fn face(
+        &mut self,
+        outer: &[DVec3],
+        holes: &[Vec<DVec3>],
+    ) -> Option<FaceTrianglesRef<'_>> {
         if outer.len() < 3 {
             return None;
         }

@@ -48,7 +48,7 @@ pub enum Axis {
 
 impl Axis {
     /// Index 0, 1, 2.
-    pub fn index(self) -> usize {
+    pub(crate) fn index(self) -> usize {
         match self {
             Axis::X => 0,
             Axis::Y => 1,
@@ -57,7 +57,7 @@ impl Axis {
     }
 
     /// The axis name as written in rules.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Axis::X => "X",
             Axis::Y => "Y",
@@ -109,7 +109,7 @@ pub enum SplitKind {
 
 impl SplitKind {
     /// The operation name as written in rules.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             SplitKind::Absolute => "split",
             SplitKind::Relative => "rsplit",
@@ -146,7 +146,7 @@ pub enum Op {
 
 impl Op {
     /// A short name for messages.
-    pub fn name(&self) -> &'static str {
+    pub(crate) fn name(&self) -> &'static str {
         match self {
             Op::Relabel => "relabel",
             Op::Extrude(_) => "extrude",
@@ -182,7 +182,7 @@ pub enum Selector {
 
 impl Selector {
     /// Parses a selector keyword.
-    pub fn from_name(s: &str) -> Option<Selector> {
+    pub(crate) fn from_name(s: &str) -> Option<Selector> {
         Some(match s {
             "front" => Selector::Front,
             "back" => Selector::Back,
@@ -288,16 +288,9 @@ impl RuleSet {
         &self.file
     }
 
-    /// The axiom symbol: the predecessor of the first rule unless overridden with
-    /// [`RuleSet::set_axiom`].
+    /// The axiom symbol: the predecessor of the first rule.
     pub fn axiom(&self) -> &str {
         &self.symbols[self.axiom as usize]
-    }
-
-    /// Overrides the axiom (e.g. `grass` for a vegetation layer). A symbol with no rule is
-    /// accepted: derivation then yields the lot alone, as a terminal.
-    pub fn set_axiom(&mut self, symbol: &str) {
-        self.axiom = self.intern(symbol);
     }
 
     /// All rules in source order.
@@ -312,7 +305,7 @@ impl RuleSet {
 
     /// The rules (with their resolved probabilities) whose predecessor is `symbol`, in source
     /// order. Empty for a terminal.
-    pub fn rules_for(&self, symbol: &str) -> Vec<(&Rule, f64)> {
+    pub(crate) fn rules_for(&self, symbol: &str) -> Vec<(&Rule, f64)> {
         match self.index.get(symbol) {
             Some(&id) => self.by_pred[id as usize]
                 .iter()
@@ -320,13 +313,6 @@ impl RuleSet {
                 .collect(),
             None => Vec::new(),
         }
-    }
-
-    /// Whether `symbol` has no rule (it is a terminal: a leaf of the shape tree).
-    pub fn is_terminal(&self, symbol: &str) -> bool {
-        self.index
-            .get(symbol)
-            .is_none_or(|&id| self.by_pred[id as usize].is_empty())
     }
 
     /// `file:line:col (pred -> op)` for messages about a rule.

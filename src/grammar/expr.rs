@@ -7,7 +7,7 @@ use crate::rng::Rng;
 
 /// Why an expression could not be evaluated (the interpreter adds the rule's place).
 #[derive(Clone, Debug, PartialEq)]
-pub enum EvalError {
+pub(crate) enum EvalError {
     /// An identifier that is neither `sx`/`sy`/`sz` nor an attribute of the shape.
     MissingAttribute(String),
     /// An attribute used in an expression whose value is text.

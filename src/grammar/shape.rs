@@ -9,7 +9,7 @@ use glam::{DVec2, DVec3};
 use super::ast::Attrs;
 use crate::geometry::Polygon;
 
-pub use crate::geometry::clip::{EPS, MIN_AREA};
+pub(crate) use crate::geometry::clip::{EPS, MIN_AREA};
 
 /// An oriented box: origin (its minimum corner), three orthonormal axes, and sizes along them.
 ///
@@ -32,7 +32,7 @@ pub struct Scope {
 impl Scope {
     /// The smallest box with horizontal X axis `x_dir` (normalised here), Y = Z × X, Z up, that
     /// holds `poly` between heights `z0` and `z0 + height`.
-    pub fn around(poly: &Polygon, x_dir: DVec2, z0: f64, height: f64) -> Scope {
+    pub(crate) fn around(poly: &Polygon, x_dir: DVec2, z0: f64, height: f64) -> Scope {
         let x2 = x_dir.try_normalize().unwrap_or(DVec2::X);
         let y2 = x2.perp();
         let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
@@ -56,17 +56,17 @@ impl Scope {
     }
 
     /// The horizontal X direction as a 2D vector.
-    pub fn x2(&self) -> DVec2 {
+    pub(crate) fn x2(&self) -> DVec2 {
         DVec2::new(self.x.x, self.x.y)
     }
 
     /// The horizontal Y direction as a 2D vector.
-    pub fn y2(&self) -> DVec2 {
+    pub(crate) fn y2(&self) -> DVec2 {
         DVec2::new(self.y.x, self.y.y)
     }
 
     /// The origin projected on the ground plane.
-    pub fn origin2(&self) -> DVec2 {
+    pub(crate) fn origin2(&self) -> DVec2 {
         DVec2::new(self.origin.x, self.origin.y)
     }
 }
@@ -107,7 +107,7 @@ pub enum Terminal {
 
 impl Terminal {
     /// The terminal kind of a symbol name.
-    pub fn of(symbol: &str) -> Terminal {
+    pub(crate) fn of(symbol: &str) -> Terminal {
         match symbol {
             "wall" => Terminal::Wall,
             "window" => Terminal::Window,
@@ -175,7 +175,7 @@ pub enum Geometry {
 
 impl Geometry {
     /// The outward normal of a face (`None` for other geometries).
-    pub fn face_normal(&self) -> Option<DVec3> {
+    pub(crate) fn face_normal(&self) -> Option<DVec3> {
         match self {
             Geometry::Face { x_axis, z_axis, .. } => Some(x_axis.cross(*z_axis)),
             _ => None,
@@ -230,7 +230,8 @@ impl ShapeTree {
     }
 
     /// The nearest ancestor of node `i` (itself included) with `label`.
-    pub fn ancestor_with(&self, mut i: usize, label: Label) -> Option<usize> {
+    #[cfg(test)]
+    pub(crate) fn ancestor_with(&self, mut i: usize, label: Label) -> Option<usize> {
         loop {
             let n = self.nodes.get(i)?;
             if n.label == label {

@@ -100,7 +100,7 @@ pub use crate::model::SourceId;
 
 /// One polygon ring in source coordinates: (x, y) = (lon, lat) in degrees for OSM,
 /// or the shapefile's native coordinates. Not closed (first point not repeated).
-pub type Ring = Vec<(f64, f64)>;
+pub(crate) type Ring = Vec<(f64, f64)>;
 
 /// One polygon of a footprint in source coordinates. Readers hand them out with the outer ring
 /// counter-clockwise and the holes clockwise (x east, y north), at least 3 distinct points and
@@ -146,7 +146,7 @@ pub struct ReadResult {
     /// the `.prj` or `--src-crs`.
     pub source_crs: Option<crate::crs::Crs>,
     /// Street centre lines in the same coordinates as the footprints, used to turn each
-    /// building's front door towards its street. OSM gives them ([`osm::STREET_KINDS`]);
+    /// building's front door towards its street. OSM gives them (`osm::STREET_KINDS`);
     /// shapefiles of building footprints carry none, so their buildings keep the thesis front.
     pub streets: Streets,
 }

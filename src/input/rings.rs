@@ -26,7 +26,7 @@ pub fn signed_area(ring: &[(f64, f64)]) -> f64 {
 }
 
 /// Even-odd point-in-ring test. Points exactly on an edge may go either way.
-pub fn ring_contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
+pub(crate) fn ring_contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
     let n = ring.len();
     let mut inside = false;
     let mut j = n.wrapping_sub(1);
@@ -44,7 +44,7 @@ pub fn ring_contains(ring: &[(f64, f64)], p: (f64, f64)) -> bool {
 /// Why a ring of WGS84 (lon, lat) degrees cannot be a place on the Earth, if it cannot: a
 /// latitude beyond ±90° or a longitude beyond ±180° (a broken writer or a projected file read
 /// as OSM), which a projection would otherwise wrap and use.
-pub fn lonlat_problem(ring: &[(f64, f64)]) -> Option<String> {
+pub(crate) fn lonlat_problem(ring: &[(f64, f64)]) -> Option<String> {
     let &(lon, lat) = ring
         .iter()
         .find(|&&(lon, lat)| !(-180.0..=180.0).contains(&lon) || !(-90.0..=90.0).contains(&lat))?;
@@ -54,7 +54,7 @@ pub fn lonlat_problem(ring: &[(f64, f64)]) -> Option<String> {
 }
 
 /// Why a cleaned ring cannot be used, if it cannot.
-pub fn ring_problem(ring: &[(f64, f64)]) -> Option<&'static str> {
+pub(crate) fn ring_problem(ring: &[(f64, f64)]) -> Option<&'static str> {
     if ring.iter().any(|&(x, y)| !x.is_finite() || !y.is_finite()) {
         return Some("non-finite coordinates");
     }
@@ -117,7 +117,7 @@ pub struct Grouping {
 /// (`Some(true)` outer, `Some(false)` hole, `None` unknown). A ring's parent is the smallest
 /// ring containing it; rings at even depth are outers, at odd depth holes of their parent. An
 /// island inside a courtyard is thus an outer again (its own polygon).
-pub fn group_rings(rings: &[Ring], claims: &[Option<bool>]) -> Grouping {
+pub(crate) fn group_rings(rings: &[Ring], claims: &[Option<bool>]) -> Grouping {
     let n = rings.len();
     let areas: Vec<f64> = rings.iter().map(|r| signed_area(r).abs()).collect();
     let mut parent: Vec<Option<usize>> = vec![None; n];
@@ -173,7 +173,7 @@ pub fn group_rings(rings: &[Ring], claims: &[Option<bool>]) -> Grouping {
 
 /// Builds a [`SourcePolygon`] with the citygen orientation: outer counter-clockwise, holes
 /// clockwise.
-pub fn oriented_polygon(mut outer: Ring, mut holes: Vec<Ring>) -> SourcePolygon {
+pub(crate) fn oriented_polygon(mut outer: Ring, mut holes: Vec<Ring>) -> SourcePolygon {
     if signed_area(&outer) < 0.0 {
         outer.reverse();
     }

@@ -7,7 +7,7 @@
 //!
 //! Attributes: a height field and a levels field are mapped to the OSM keys `height` and
 //! `building:levels` and parsed by [`BuildingTags`]. Without `--shp-height-field`, the first field
-//! whose name matches [`HEIGHT_FIELDS`] (case-insensitively, in that order) is used.
+//! whose name matches `HEIGHT_FIELDS` (case-insensitively, in that order) is used.
 //!
 //! About the Clifton sample (`data/clifton/clifton_test.dbf`): `MEAN_mean`, `MIN_min` and
 //! `MAX_max` are zonal statistics (mean, min, max) of a LiDAR normalised surface model (heights
@@ -16,7 +16,7 @@
 //! (median 8 m, 61 m at most) and absolute heights in Clifton, Nottingham (the data lie at
 //! BNG 454000-456300 E, 333000-335900 N) would be some 25 to 90 m above datum. `MEAN_mean` is dragged down by those ground pixels at the edges (median 4.4 m), so
 //! `MAX_max`, the top of the roof, is what matches OSM `height`; it comes before `MEAN_mean`
-//! in [`HEIGHT_FIELDS`]. `MAX_max = 0` (no LiDAR return) is reported as an ignored height.
+//! in `HEIGHT_FIELDS`. `MAX_max = 0` (no LiDAR return) is reported as an ignored height.
 
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -34,7 +34,7 @@ use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
 /// Height field names tried, in order, when no field is named (compared case-insensitively).
-pub const HEIGHT_FIELDS: [&str; 14] = [
+pub(crate) const HEIGHT_FIELDS: [&str; 14] = [
     "height",
     "hauteur",
     "building_height",
@@ -52,7 +52,7 @@ pub const HEIGHT_FIELDS: [&str; 14] = [
 ];
 
 /// Level-count field names tried, in order, when no field is named.
-pub const LEVELS_FIELDS: [&str; 10] = [
+pub(crate) const LEVELS_FIELDS: [&str; 10] = [
     "building:levels",
     "levels",
     "building_l",
@@ -69,9 +69,9 @@ pub const LEVELS_FIELDS: [&str; 10] = [
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShpOptions {
     /// The `.dbf` field holding the height in metres (`--shp-height-field`); auto-detected from
-    /// [`HEIGHT_FIELDS`] when `None`. Naming a field that does not exist is an error.
+    /// `HEIGHT_FIELDS` when `None`. Naming a field that does not exist is an error.
     pub height_field: Option<String>,
-    /// The `.dbf` field holding the number of levels; auto-detected from [`LEVELS_FIELDS`].
+    /// The `.dbf` field holding the number of levels; auto-detected from `LEVELS_FIELDS`.
     pub levels_field: Option<String>,
     /// The source CRS (`--src-crs`); overrides the `.prj`.
     pub src_crs: Option<crate::crs::Crs>,

@@ -8,10 +8,10 @@ use crate::color::Color;
 use crate::model::RoofShape;
 
 /// Lengths above this (metres) are rejected as absurd: the tallest building stands at 828 m.
-pub const MAX_LENGTH_M: f64 = 1000.0;
+pub(crate) const MAX_LENGTH_M: f64 = 1000.0;
 
 /// Level counts above this are rejected as absurd (the tallest building has 163 floors).
-pub const MAX_LEVELS: f64 = 300.0;
+pub(crate) const MAX_LEVELS: f64 = 300.0;
 
 const FOOT_M: f64 = 0.3048;
 const INCH_M: f64 = 0.0254;
@@ -129,7 +129,7 @@ fn pairs_hash(pairs: &[(&str, &str)]) -> u64 {
 
 impl TagInterner {
     /// The shared copy of `tags`: an existing one equal bit for bit, or `tags` itself, kept.
-    pub fn intern(&self, tags: BuildingTags) -> SharedTags {
+    pub(crate) fn intern(&self, tags: BuildingTags) -> SharedTags {
         let h = tags.bits_hash();
         let shard = &self.shards[(h % INTERN_SHARDS as u64) as usize];
         // A poisoned lock only means another thread panicked mid-insert; the map is still a
@@ -146,7 +146,7 @@ impl TagInterner {
 
     /// The shared parsed tags of raw key/value pairs: [`Self::intern`] of
     /// [`BuildingTags::from_pairs`], parsing each distinct set of the pairs it reads once.
-    pub fn intern_pairs(&self, pairs: &[(&str, &str)]) -> SharedTags {
+    pub(crate) fn intern_pairs(&self, pairs: &[(&str, &str)]) -> SharedTags {
         let filtered: Vec<(&str, &str)>;
         let known = if pairs.iter().all(|(k, _)| is_known_key(k)) {
             pairs
@@ -277,7 +277,9 @@ impl BuildingTags {
     /// Builds the parsed tags from raw key/value pairs (OSM tags or shapefile attributes mapped
     /// to OSM keys). Unknown keys are ignored silently; known keys with bad values go to `ignored`.
     /// Never panics. When a key appears twice, the last usable value wins.
-    pub fn from_pairs<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> BuildingTags {
+    pub(crate) fn from_pairs<'a>(
+        pairs: impl IntoIterator<Item = (&'a str, &'a str)>,
+    ) -> BuildingTags {
         let mut t = BuildingTags::default();
         let mut part: Option<String> = None;
         for (key, value) in pairs {
@@ -416,7 +418,7 @@ fn first_value(s: &str) -> &str {
 
 /// Why a known tag's value is ignored (the reason [`BuildingTags::ignored`] lists).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum TagError {
+pub(crate) enum TagError {
     /// A number was expected and the value is blank.
     #[error("no number")]
     NoNumber,
@@ -505,7 +507,7 @@ fn parse_number(s: &str) -> Result<f64, TagError> {
 /// Parses a length in metres leniently: `12`, `12 m`, `12m`, `12,5`, `12;15` (first value),
 /// `40'` or `40 ft` (feet), `12'6"`. Rejects NaN, infinities, negative values and absurd ones
 /// (over [`MAX_LENGTH_M`]), with the reason.
-pub fn parse_length_checked(s: &str) -> Result<f64, TagError> {
+pub(crate) fn parse_length_checked(s: &str) -> Result<f64, TagError> {
     let s = first_value(s);
     let lower = s.to_ascii_lowercase();
     let lower = lower.trim();

@@ -6,7 +6,7 @@ use glam::DVec2;
 /// Why WKT text is not a polygon: what was expected, and at which byte of the text between
 /// the outer parentheses.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum WktError {
+pub(crate) enum WktError {
     /// The text does not start with `POLYGON`.
     #[error("expected `POLYGON ((x y, ...))`")]
     NotAPolygon,
@@ -53,7 +53,7 @@ pub enum WktError {
 /// Parses a WKT `POLYGON` (2D; a Z value is ignored) into a polygon in local metres.
 ///
 /// Errors say what was expected and at which byte.
-pub fn parse_polygon(text: &str) -> Result<Polygon, WktError> {
+pub(crate) fn parse_polygon(text: &str) -> Result<Polygon, WktError> {
     let t = text.trim();
     let upper = t.to_ascii_uppercase();
     let Some(rest) = upper.strip_prefix("POLYGON") else {

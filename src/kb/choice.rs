@@ -10,7 +10,7 @@ impl KnowledgeBase {
     /// The appearances that apply to a zone: its own, or if it has none those of the nearest
     /// ancestor that has some. Returns the owning zone index and the slice (empty, owner 0, when
     /// no zone up to earth has any).
-    pub fn appearances_for(&self, zone: usize) -> (usize, &[Appearance]) {
+    pub(crate) fn appearances_for(&self, zone: usize) -> (usize, &[Appearance]) {
         for i in self.lineage(zone).into_iter().rev() {
             if let Some(z) = self.zones.get(i) {
                 if !z.appearances.is_empty() {
@@ -26,7 +26,12 @@ impl KnowledgeBase {
     /// names the kind (`None` and `yes` both stand for `yes`); if none does, those with no
     /// list; if every appearance has a list, all of them. Returns the owning zone and the
     /// indices, in appearance order (empty when no zone up to earth has an appearance).
-    pub fn eligible_appearances(&self, zone: usize, kind: Option<&str>) -> (usize, Vec<usize>) {
+    #[cfg(test)]
+    pub(crate) fn eligible_appearances(
+        &self,
+        zone: usize,
+        kind: Option<&str>,
+    ) -> (usize, Vec<usize>) {
         let (owner, apps) = self.appearances_for(zone);
         (owner, eligible(apps, kind))
     }
@@ -39,7 +44,7 @@ impl KnowledgeBase {
     /// (nothing when they already sum to 1 or more); the weights are then normalised. If every
     /// weight is zero the choice is uniform. Draws exactly one number from `rng` when there is
     /// at least one eligible appearance. Returns (owner zone, index).
-    pub fn pick_appearance(
+    pub(crate) fn pick_appearance(
         &self,
         zone: usize,
         kind: Option<&str>,
@@ -58,7 +63,7 @@ impl KnowledgeBase {
     /// Where an appearance's `ruleset file=` points, resolved against the KB's folder.
     /// Refuses absolute paths and paths that climb out of that folder (`..`) unless
     /// `allow_outside` is set. `Ok(None)` when the appearance names no ruleset.
-    pub fn ruleset_path(
+    pub(crate) fn ruleset_path(
         &self,
         zone: usize,
         appearance: usize,
@@ -72,7 +77,11 @@ impl KnowledgeBase {
     /// Where an appearance's `selex file=` points, resolved against the KB's folder, with the
     /// same refusals as [`KnowledgeBase::ruleset_path`] (a SELEX program is always inside the
     /// KB's folder: no `allow_outside`). `Ok(None)` when the appearance names none.
-    pub fn selex_path(&self, zone: usize, appearance: usize) -> Result<Option<PathBuf>, KbError> {
+    pub(crate) fn selex_path(
+        &self,
+        zone: usize,
+        appearance: usize,
+    ) -> Result<Option<PathBuf>, KbError> {
         self.appearance_file(zone, appearance, "selex", false, |a| a.selex.as_deref())
     }
 
@@ -132,7 +141,7 @@ impl KnowledgeBase {
 
 /// Indices of the appearances a building of this kind is drawn from; see
 /// [`KnowledgeBase::eligible_appearances`].
-pub fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
+pub(crate) fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
     let kind = kind
         .map(str::trim)
         .filter(|k| !k.is_empty())
@@ -159,13 +168,14 @@ pub fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
 }
 
 /// The weights [`KnowledgeBase::pick_appearance`] uses over a set of appearances, in order.
-pub fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
+#[cfg(test)]
+pub(crate) fn appearance_weights(apps: &[Appearance]) -> Vec<f64> {
     proba_weights(apps.iter().map(|a| a.proba))
 }
 
 /// The weights of appearances with these `proba`s, in order: given ones as they are, absent
 /// ones sharing what the given leave of 1, normalised (see [`KnowledgeBase::pick_appearance`]).
-pub fn proba_weights(probas: impl Iterator<Item = Option<f64>> + Clone) -> Vec<f64> {
+pub(crate) fn proba_weights(probas: impl Iterator<Item = Option<f64>> + Clone) -> Vec<f64> {
     let given: f64 = probas.clone().flatten().sum();
     let missing = probas.clone().filter(Option::is_none).count();
     let share = if missing > 0 {

@@ -36,11 +36,11 @@ use crate::model::RoofShape;
 use super::{OpeningTree, Style, WindowHeight};
 
 /// Width of the wall piers on each side of a window, metres (a bay is window + 2 piers).
-pub const PIER_WIDTH: f64 = 0.9;
+pub(crate) const PIER_WIDTH: f64 = 0.9;
 
 /// A per-building value of the axiom shape: a number or a word.
 #[derive(Clone, Debug, PartialEq)]
-pub enum AxiomValue {
+pub(crate) enum AxiomValue {
     Num(f64),
     Text(String),
 }
@@ -79,7 +79,7 @@ pub fn axiom_attributes(style: &Style) -> Vec<(&'static str, AxiomValue)> {
 }
 
 /// [`axiom_attributes`] as the grammar's attribute map, ready for [`crate::grammar::derive`].
-pub fn axiom_attrs(style: &Style) -> crate::grammar::Attrs {
+pub(crate) fn axiom_attrs(style: &Style) -> crate::grammar::Attrs {
     use crate::grammar::AttrValue;
     // The keys are shared by every building (the map holds `Arc<str>` keys).
     static KEYS: std::sync::OnceLock<std::collections::HashMap<&'static str, Arc<str>>> =
@@ -122,18 +122,18 @@ const AXIOM_KEYS: [&str; 14] = [
 ];
 
 /// Bay width: the window plus a pier on each side.
-pub fn bay_width(style: &Style) -> f64 {
+pub(crate) fn bay_width(style: &Style) -> f64 {
     style.window_width + 2.0 * PIER_WIDTH
 }
 
 /// A colour as the grammar writes it: its CSS name when it has one, else `#rrggbb`.
-pub fn color_word(c: Color) -> String {
+pub(crate) fn color_word(c: Color) -> String {
     c.css_name().map_or_else(|| c.to_hex(), str::to_string)
 }
 
 /// A roof shape as a grammar word: the OSM name with `-` written `_` (so `half_hipped` is one
 /// identifier; [`RoofShape::parse`] reads it back).
-pub fn roof_word(r: RoofShape) -> String {
+pub(crate) fn roof_word(r: RoofShape) -> String {
     r.osm_name().replace('-', "_")
 }
 
@@ -149,7 +149,7 @@ fn num(x: f64) -> String {
 }
 
 /// Sill, window and lintel fractions of a storey for a window height class.
-pub fn window_rows(h: WindowHeight) -> Vec<([f64; 3], Option<f64>)> {
+pub(crate) fn window_rows(h: WindowHeight) -> Vec<([f64; 3], Option<f64>)> {
     const TALL: [f64; 3] = [0.25, 0.6, 0.15];
     const SHORT: [f64; 3] = [0.4, 0.35, 0.25];
     match h {
@@ -162,7 +162,7 @@ pub fn window_rows(h: WindowHeight) -> Vec<([f64; 3], Option<f64>)> {
 
 /// The grammar rules of a style, one rule per line, axiom `lot`. Same style → same text; styles
 /// that differ only in heights, storeys or base give the same text (see the module docs).
-pub fn ruleset_text(style: &Style) -> String {
+pub(crate) fn ruleset_text(style: &Style) -> String {
     let mut out = Vec::new();
     out.push(format!(
         "lot -> extrude(eave){{building : color={}, roof={}, roofcolor={}, roofangle={}}}",
@@ -237,7 +237,7 @@ pub fn ruleset_text(style: &Style) -> String {
 /// get the same text, so a ruleset compiled for one serves the other without writing the text
 /// again ([`RulesInputs::matches`]).
 #[derive(Clone, Debug)]
-pub struct RulesInputs {
+pub(crate) struct RulesInputs {
     colors: [Color; 5],
     roof: RoofShape,
     numbers: [f64; 3],
@@ -249,7 +249,7 @@ pub struct RulesInputs {
 
 impl RulesInputs {
     /// The inputs of `style`.
-    pub fn of(style: &Style) -> RulesInputs {
+    pub(crate) fn of(style: &Style) -> RulesInputs {
         RulesInputs {
             colors: rules_colors(style),
             roof: style.roof,
@@ -262,7 +262,7 @@ impl RulesInputs {
     }
 
     /// Whether `style` has exactly these inputs (numbers and colours compared bit for bit).
-    pub fn matches(&self, style: &Style) -> bool {
+    pub(crate) fn matches(&self, style: &Style) -> bool {
         let colors = rules_colors(style);
         let numbers = rules_numbers(style);
         self.roof == style.roof
@@ -284,7 +284,7 @@ impl RulesInputs {
 
     /// A hash of the inputs of `style` (the same for styles that [`RulesInputs::matches`]
     /// tells apart from none), cheap: the opening tree counts by its root and size only.
-    pub fn hash_of(style: &Style) -> u64 {
+    pub(crate) fn hash_of(style: &Style) -> u64 {
         use std::hash::{Hash, Hasher};
         let mut h = std::collections::hash_map::DefaultHasher::new();
         rules_colors(style).map(color_bits).hash(&mut h);
@@ -373,7 +373,7 @@ fn ident(s: &str) -> String {
 
 /// The rules of a drawn opening: the root is the non-terminal `opening`, each split
 /// `parent -> rsplit(axis, f...){child | ...}`, and every leaf the `window` successor.
-pub fn opening_rules(tree: &OpeningTree, window: &str) -> Vec<String> {
+pub(crate) fn opening_rules(tree: &OpeningTree, window: &str) -> Vec<String> {
     let split_parents: std::collections::BTreeSet<&str> =
         tree.splits.iter().map(|s| s.parent.as_str()).collect();
     let name = |n: &str| {

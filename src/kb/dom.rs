@@ -102,15 +102,15 @@ pub enum KbError {
 
 /// Largest knowledge-base file read, bytes (64 MiB). A real KB is a few hundred kilobytes; the
 /// cap bounds memory and time on hostile or mistaken input (a PBF passed as `--kb`).
-pub const MAX_FILE_BYTES: u64 = 64 * 1024 * 1024;
+pub(crate) const MAX_FILE_BYTES: u64 = 64 * 1024 * 1024;
 /// Deepest element nesting accepted (earth is level 1). The zone tree plus appearance, opening
 /// and split levels needs about 12; 64 leaves room while bounding the recursive reader.
 pub const MAX_DEPTH: usize = 64;
 /// Most attributes on one element. `<values>` has about 20 legitimate ones.
-pub const MAX_ATTRIBUTES: usize = 256;
+pub(crate) const MAX_ATTRIBUTES: usize = 256;
 /// Most vertices in one `<polygon points>`: bounds the simple-ring check (quadratic) and the
 /// point-in-polygon test.
-pub const MAX_POLYGON_POINTS: usize = 4096;
+pub(crate) const MAX_POLYGON_POINTS: usize = 4096;
 
 /// How forgiving the reader is.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -66,7 +66,7 @@ pub enum EditError {
 
 /// An appearance to add.
 #[derive(Clone, Debug, PartialEq)]
-pub struct NewAppearance {
+pub(crate) struct NewAppearance {
     /// Its `proba`.
     pub proba: f64,
     /// Its `<values>` attributes besides `proba`, in order (raw attribute values, escaped as
@@ -80,7 +80,7 @@ pub struct NewAppearance {
 
 /// A zone's direct `<appearance>` children as the text has them.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct ZoneAppearances {
+pub(crate) struct ZoneAppearances {
     /// Each appearance's `<values>` attributes (raw), in order, with `proba` among them.
     pub values: Vec<Vec<(String, String)>>,
     /// Each appearance's `building` attribute (raw), if any.
@@ -271,7 +271,7 @@ fn places(text: &str, zone_line: usize) -> Result<Places, EditError> {
 }
 
 /// The direct appearances of the zone whose start tag is on `zone_line`.
-pub fn zone_appearances(text: &str, zone_line: usize) -> Result<ZoneAppearances, EditError> {
+pub(crate) fn zone_appearances(text: &str, zone_line: usize) -> Result<ZoneAppearances, EditError> {
     places(text, zone_line).map(|p| p.found)
 }
 
@@ -283,7 +283,7 @@ fn escape_attr(s: &str) -> String {
 
 /// `text` with `new` appearances added to the zone whose start tag is on `zone_line`, after
 /// its last appearance (or its shapes), indented one step (two spaces) deeper than the zone.
-pub fn add_appearances(
+pub(crate) fn add_appearances(
     text: &str,
     zone_line: usize,
     new: &[NewAppearance],
@@ -596,7 +596,8 @@ fn set_attrs(text: &str, el: &Element, changes: &[(String, Option<String>)]) -> 
 }
 
 /// The element names a zone may have in the clean format.
-pub const ZONE_ELEMENTS: [&str; 6] = ["continent", "country", "region", "town", "district", "zone"];
+pub(crate) const ZONE_ELEMENTS: [&str; 6] =
+    ["continent", "country", "region", "town", "district", "zone"];
 
 /// A zone's circle: centre in degrees and radius in kilometres.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -610,7 +611,7 @@ pub struct CircleText {
 }
 
 /// A number written short: at most `decimals` decimals, no trailing zeros.
-pub fn fmt_number(x: f64, decimals: usize) -> String {
+pub(crate) fn fmt_number(x: f64, decimals: usize) -> String {
     let s = format!("{x:.decimals$}");
     let s = if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -625,7 +626,7 @@ pub fn fmt_number(x: f64, decimals: usize) -> String {
 }
 
 /// A ring as the `points` attribute writes it: `lon lat, lon lat, ...` at 7 decimals (1 cm).
-pub fn points_text(points: &[(f64, f64)]) -> String {
+pub(crate) fn points_text(points: &[(f64, f64)]) -> String {
     points
         .iter()
         .map(|(lon, lat)| format!("{} {}", fmt_number(*lon, 7), fmt_number(*lat, 7)))
@@ -908,7 +909,7 @@ pub fn delete_appearance(text: &str, zone_line: usize, index: usize) -> Result<S
 /// `building` and `<values>` attributes changed in place (attributes `a` does not have are
 /// removed), its `<opening>` and `<ruleset>` replaced, added or removed; a `<selex>` and
 /// everything else of the element kept.
-pub fn set_appearance(
+pub(crate) fn set_appearance(
     text: &str,
     zone_line: usize,
     index: usize,
@@ -1002,7 +1003,7 @@ pub fn set_appearance(
 /// What the editor shows of a zone's own text: its `<info>` attributes and its appearances'
 /// `building`, `<values>`, `<opening>` and files, all unescaped, in document order.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct ZoneText {
+pub(crate) struct ZoneText {
     /// The `<info>` attributes.
     pub info: Vec<(String, String)>,
     /// `<location>`'s attributes when the zone has one.
@@ -1013,7 +1014,7 @@ pub struct ZoneText {
 
 /// One appearance as written.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct AppearanceView {
+pub(crate) struct AppearanceView {
     /// The `building` attribute.
     pub building: Option<String>,
     /// The `<values>` attributes.
@@ -1029,7 +1030,9 @@ pub struct AppearanceView {
 }
 
 /// The own text of every zone, by the line its start tag is on.
-pub fn zone_texts(text: &str) -> Result<std::collections::BTreeMap<usize, ZoneText>, EditError> {
+pub(crate) fn zone_texts(
+    text: &str,
+) -> Result<std::collections::BTreeMap<usize, ZoneText>, EditError> {
     let root = element_tree(text)?;
     let mut out = std::collections::BTreeMap::new();
     let attrs_of = |el: &Element| -> Vec<(String, String)> {

@@ -31,8 +31,8 @@ use crate::color::Color;
 use crate::model::RoofShape;
 
 pub use crate::model::Inference;
-pub use choice::{appearance_weights, eligible, proba_weights};
-pub use polygon::{PolygonError, ZonePolygon};
+pub(crate) use choice::{eligible, proba_weights};
+pub use polygon::ZonePolygon;
 pub use style::{material_color, Style, ROOF_SLAB_M};
 pub use values::{
     Appearance, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, ZoneKind,
@@ -43,12 +43,12 @@ pub use xml::{KbError, KbRepair, ReadMode};
 /// The steepest `roof:angle` drawn as tagged, in degrees. Steeper tags (up to 90°, which
 /// `roof:angle` allows) are drawn at this pitch with a note: near 90° the height of a roof
 /// from its pitch grows without bound (89.9999° over a 10 m house is 2,858 km).
-pub const MAX_TAGGED_PITCH_DEG: f64 = 85.0;
+pub(crate) const MAX_TAGGED_PITCH_DEG: f64 = 85.0;
 
 /// The highest roof a tag may ask for (`roof:height`, or `roof:levels` × floor height), in
 /// metres: twice the tallest church spire (Ulm Minster's, 161.5 m above the street). Higher
 /// tags are drawn at this height with a note.
-pub const MAX_TAGGED_ROOF_HEIGHT_M: f64 = 320.0;
+pub(crate) const MAX_TAGGED_ROOF_HEIGHT_M: f64 = 320.0;
 
 const EARTH_RADIUS_KM: f64 = 6371.0088;
 /// Kilometres per degree of latitude on the mean sphere.
@@ -60,33 +60,33 @@ pub mod defaults {
     use crate::model::RoofShape;
 
     /// Storey height, metres.
-    pub const FLOOR_HEIGHT: f64 = 3.0;
+    pub(crate) const FLOOR_HEIGHT: f64 = 3.0;
     /// Storeys above ground.
-    pub const STOREYS: u32 = 2;
+    pub(crate) const STOREYS: u32 = 2;
     /// Roof shape.
-    pub const ROOF: RoofShape = RoofShape::Gabled;
+    pub(crate) const ROOF: RoofShape = RoofShape::Gabled;
     /// Roof pitch, degrees.
-    pub const ROOF_ANGLE_DEG: f64 = 30.0;
+    pub(crate) const ROOF_ANGLE_DEG: f64 = 30.0;
     /// Walls: white.
-    pub const WALL_COLOR: Color = Color::WHITE;
+    pub(crate) const WALL_COLOR: Color = Color::WHITE;
     /// Roof: CSS `darkred` (#8b0000).
-    pub const ROOF_COLOR: Color = Color::from_rgb24(0x8b0000);
+    pub(crate) const ROOF_COLOR: Color = Color::from_rgb24(0x8b0000);
     /// Glass: CSS `lightsteelblue`.
-    pub const WINDOW_COLOR: Color = Color::from_rgb24(0xb0c4de);
+    pub(crate) const WINDOW_COLOR: Color = Color::from_rgb24(0xb0c4de);
     /// Window frames: white.
-    pub const FRAME_COLOR: Color = Color::WHITE;
+    pub(crate) const FRAME_COLOR: Color = Color::WHITE;
     /// Doors: CSS `saddlebrown`.
-    pub const DOOR_COLOR: Color = Color::from_rgb24(0x8b4513);
+    pub(crate) const DOOR_COLOR: Color = Color::from_rgb24(0x8b4513);
     /// Window width, metres.
-    pub const WINDOW_WIDTH: f64 = 1.2;
+    pub(crate) const WINDOW_WIDTH: f64 = 1.2;
     /// Main entrance door width without a `doorwidth` (metres).
-    pub const DOOR_WIDTH: f64 = 1.0;
+    pub(crate) const DOOR_WIDTH: f64 = 1.0;
     /// The widths an entrance door is drawn at: a KB value outside is brought inside.
-    pub const DOOR_WIDTH_RANGE: (f64, f64) = (0.8, 2.5);
+    pub(crate) const DOOR_WIDTH_RANGE: (f64, f64) = (0.8, 2.5);
     /// Main entrance door height without a `doorheight` (metres).
-    pub const DOOR_HEIGHT: f64 = 2.2;
+    pub(crate) const DOOR_HEIGHT: f64 = 2.2;
     /// The heights an entrance door is drawn at.
-    pub const DOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 2.6);
+    pub(crate) const DOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 2.6);
 }
 
 /// A zone circle: centre in WGS84 degrees, radius in kilometres.
@@ -102,7 +102,7 @@ pub struct Circle {
 
 impl Circle {
     /// Great-circle (haversine) distance in km from the centre to (lon, lat).
-    pub fn distance_km(&self, lon: f64, lat: f64) -> f64 {
+    pub(crate) fn distance_km(&self, lon: f64, lat: f64) -> f64 {
         let (p1, p2) = (self.lat.to_radians(), lat.to_radians());
         let dp = p2 - p1;
         let dl = (lon - self.lon).to_radians();
@@ -179,7 +179,7 @@ pub struct Zone {
     pub line: usize,
 }
 
-/// How a point relates to one zone's shapes ([`KnowledgeBase::zone_match`]).
+/// How a point relates to one zone's shapes (`KnowledgeBase::zone_match`).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ZoneMatch {
     /// Inside the circle (`distance_km <= radius_km`), and no smaller polygon of the zone
@@ -212,7 +212,7 @@ pub enum ZoneMatch {
 impl ZoneMatch {
     /// Area of the containing shape, km² (a circle counts as π r²); `None` when the point is
     /// not in the zone.
-    pub fn area_km2(&self) -> Option<f64> {
+    pub(crate) fn area_km2(&self) -> Option<f64> {
         match self {
             ZoneMatch::Circle { radius_km, .. } => {
                 Some(std::f64::consts::PI * radius_km * radius_km)
@@ -317,7 +317,7 @@ impl KnowledgeBase {
     /// Parses KB text in the given mode as if it were the file at `path`: errors name it, and
     /// `ruleset file=` paths are relative to its folder (what [`KnowledgeBase::load_with`]
     /// gives for the same bytes; the editor checks its draft with it).
-    pub fn parse_str_at(
+    pub(crate) fn parse_str_at(
         text: &str,
         path: &Path,
         mode: ReadMode,
@@ -330,7 +330,7 @@ impl KnowledgeBase {
 
     /// A knowledge base with only the earth zone and the built-in defaults (used with `--rules`
     /// and no `--kb`).
-    pub fn earth_only() -> KnowledgeBase {
+    pub(crate) fn earth_only() -> KnowledgeBase {
         match KnowledgeBase::parse_str("<earth/>", "<built-in>") {
             Ok((kb, _)) => kb,
             Err(_) => unreachable!("the built-in knowledge base parses"),
@@ -448,7 +448,7 @@ impl KnowledgeBase {
 
     /// How (lon, lat) relates to one zone's own shapes: the smallest containing shape, or why
     /// none contains it. Used by [`KnowledgeBase::locate`] and to explain its choice.
-    pub fn zone_match(&self, zone: usize, lon: f64, lat: f64) -> ZoneMatch {
+    pub(crate) fn zone_match(&self, zone: usize, lon: f64, lat: f64) -> ZoneMatch {
         let Some(z) = self.zones.get(zone) else {
             return ZoneMatch::NoShape;
         };
@@ -492,7 +492,7 @@ impl KnowledgeBase {
     }
 
     /// Indices from earth down to `zone` (inclusive). Empty for an unknown zone.
-    pub fn lineage(&self, zone: usize) -> Vec<usize> {
+    pub(crate) fn lineage(&self, zone: usize) -> Vec<usize> {
         let mut out = Vec::new();
         let mut cur = if zone < self.zones.len() {
             Some(zone)
@@ -509,7 +509,7 @@ impl KnowledgeBase {
     }
 
     /// The zone's info values inherited from earth down: each zone's `<info>` is laid over its
-    /// ancestors' ([`Values::overlay`]), so the most specific zone wins for every key it sets.
+    /// ancestors' (`Values::overlay`), so the most specific zone wins for every key it sets.
     pub fn resolved(&self, zone: usize) -> Values {
         let mut v = Values::default();
         for i in self.lineage(zone) {
@@ -522,7 +522,7 @@ impl KnowledgeBase {
 
     /// Per zone (in order): what its buildings may infer from tagged neighbours, its resolved
     /// `infer` value (nothing where no zone up to earth sets one).
-    pub fn inference_by_zone(&self) -> Vec<Inference> {
+    pub(crate) fn inference_by_zone(&self) -> Vec<Inference> {
         let mut out: Vec<Inference> = Vec::with_capacity(self.zones.len());
         for z in &self.zones {
             // Parents precede children: a zone's is its own or its parent's.

@@ -14,7 +14,7 @@ use super::KM_PER_DEG;
 
 /// One polygon of a zone: a simple ring in (lon, lat) degrees, not closed.
 ///
-/// Built by [`ZonePolygon::new`] or [`ZonePolygon::parse`], which also index its edges by
+/// Built by `ZonePolygon::new` or `ZonePolygon::parse`, which also index its edges by
 /// latitude bands; the public fields are read-only in effect (changing `ring` afterwards leaves
 /// the index describing the old ring).
 #[derive(Clone, Debug, PartialEq)]
@@ -115,7 +115,7 @@ impl Bands {
 /// Why a zone polygon is refused ([`ZonePolygon::parse`], [`ZonePolygon::new`]). Points are
 /// numbered from 1.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum PolygonError {
+pub(crate) enum PolygonError {
     /// A point that is not two numbers separated by spaces.
     #[error(
         "point {point} \"{text}\" is not a 'lon lat' pair (pairs are separated by commas, \
@@ -173,7 +173,7 @@ pub enum PolygonError {
 impl ZonePolygon {
     /// Parses a `points` attribute: `lon lat` pairs separated by commas, numbers with a decimal
     /// point. Returns a description of the first problem.
-    pub fn parse(points: &str) -> Result<ZonePolygon, PolygonError> {
+    pub(crate) fn parse(points: &str) -> Result<ZonePolygon, PolygonError> {
         let mut ring: Vec<[f64; 2]> = Vec::new();
         for (k, pair) in points.split(',').enumerate() {
             let mut nums = pair.split_whitespace();
@@ -206,7 +206,7 @@ impl ZonePolygon {
     }
 
     /// Builds a polygon from a ring (closed or not); see the module docs for the rules.
-    pub fn new(mut ring: Vec<[f64; 2]>) -> Result<ZonePolygon, PolygonError> {
+    pub(crate) fn new(mut ring: Vec<[f64; 2]>) -> Result<ZonePolygon, PolygonError> {
         ring.dedup();
         if ring.len() > 1 && ring.first() == ring.last() {
             ring.pop();
@@ -247,7 +247,7 @@ impl ZonePolygon {
     /// Whether (lon, lat) lies inside (even-odd rule; points on an edge may fall either way).
     /// Only the edges of the point's latitude band are tested, with the same arithmetic as the
     /// plain even-odd loop over every edge, so the answer is the same bit for bit.
-    pub fn contains(&self, lon: f64, lat: f64) -> bool {
+    pub(crate) fn contains(&self, lon: f64, lat: f64) -> bool {
         let (lo, hi) = self.bbox;
         if lon < lo[0] || lon > hi[0] || lat < lo[1] || lat > hi[1] {
             return false;

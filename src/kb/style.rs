@@ -22,7 +22,7 @@ pub struct Style {
     pub eave_height: f64,
     /// OSM `height` when given: the top of the roof. When it is `Some` and `roof_height` is
     /// `None` on a pitched roof, `eave_height` is only a bound: the caller computes the roof
-    /// height from the footprint and calls [`Style::fit_total_height`].
+    /// height from the footprint and calls `Style::fit_total_height`.
     pub total_height: Option<f64>,
     /// Storey height in metres: the KB's `floorsize`, default 3 m. Turns `building:levels`,
     /// `building:min_level` and `roof:levels` into heights, and is the grammar's `floorsize`.
@@ -32,7 +32,7 @@ pub struct Style {
     /// Roof shape: OSM `roof:shape` when it is tagged and known (an unknown value gives
     /// [`RoofShape::Flat`]), else the KB's `rooftype`, else gabled.
     pub roof: RoofShape,
-    /// Roof pitch in degrees, 0 ≤ angle < 90: OSM `roof:angle` (at most [`MAX_TAGGED_PITCH_DEG`]),
+    /// Roof pitch in degrees, 0 ≤ angle < 90: OSM `roof:angle` (at most `MAX_TAGGED_PITCH_DEG`),
     /// else the KB's `roofangle`, else 30.
     pub roof_angle_deg: f64,
     /// OSM `roof:direction`: the compass bearing (degrees from north) the main roof face looks
@@ -59,10 +59,10 @@ pub struct Style {
     /// Window width, metres.
     pub window_width: f64,
     /// Main entrance door width, metres: the KB's `doorwidth` within
-    /// [`defaults::DOOR_WIDTH_RANGE`], else [`defaults::DOOR_WIDTH`].
+    /// `defaults::DOOR_WIDTH_RANGE`, else `defaults::DOOR_WIDTH`.
     pub door_width: f64,
     /// Main entrance door height, metres: the KB's `doorheight` within
-    /// [`defaults::DOOR_HEIGHT_RANGE`], else [`defaults::DOOR_HEIGHT`].
+    /// `defaults::DOOR_HEIGHT_RANGE`, else `defaults::DOOR_HEIGHT`.
     pub door_height: f64,
     /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
     pub balconies: f64,
@@ -83,16 +83,16 @@ pub struct Style {
     pub zone_path: String,
     /// `<owner zone path>#<1-based appearance index>`, or `<zone path>#info` with no appearance.
     pub appearance_label: String,
-    /// The chosen appearance's SELEX program ([`KnowledgeBase::selex_path`]): it lays out the
+    /// The chosen appearance's SELEX program (`KnowledgeBase::selex_path`): it lays out the
     /// facades at LOD3 instead of the rules' windows and doors. `None` when it names none (or
     /// names one outside the KB's folder, which `kb check` and the run's start refuse).
     pub selex: Option<PathBuf>,
-    /// The chosen appearance's ruleset file ([`KnowledgeBase::ruleset_path`], inside the KB's
+    /// The chosen appearance's ruleset file (`KnowledgeBase::ruleset_path`, inside the KB's
     /// folder): its buildings are derived with it instead of the rules compiled from the
     /// values (which still give the axiom's attributes: `eave`, `floorsize`, ...). `None` when
     /// it names none or names one outside the folder.
     pub ruleset: Option<PathBuf>,
-    /// Whether `storeys` came from `building:levels` (then [`Style::fit_total_height`] keeps it).
+    /// Whether `storeys` came from `building:levels` (then `Style::fit_total_height` keeps it).
     pub storeys_from_tags: bool,
     /// Whether the pitch came from `roof:angle`. A roof whose height follows from the
     /// knowledge base's pitch alone is capped at the height of its walls (the caller applies
@@ -103,7 +103,7 @@ pub struct Style {
 impl Style {
     /// Draws the roof flat (a piece that another stands on): the walls take the whole height
     /// when `total_height` is known, and the storeys follow unless `building:levels` fixed them.
-    pub fn make_flat(&mut self) {
+    pub(crate) fn make_flat(&mut self) {
         self.roof = RoofShape::Flat;
         self.roof_height = Some(0.0);
         if let Some(total) = self.total_height {
@@ -118,7 +118,7 @@ impl Style {
     /// `total_height - roof_height` (never below `min_height` + 1 m, or + half the height below
     /// 2 m), recomputing `storeys` from
     /// the floor height unless `building:levels` fixed them.
-    pub fn fit_total_height(&mut self, roof_height: f64) {
+    pub(crate) fn fit_total_height(&mut self, roof_height: f64) {
         if !roof_height.is_finite() || roof_height < 0.0 {
             return;
         }
@@ -159,7 +159,7 @@ impl KnowledgeBase {
     /// `<values>` (its ranges drawn with `rng`); then the OSM tags, which always win:
     /// - `height` (total, roof included) sets `total_height`; the eave is `height - roof:height`
     ///   when `roof:height` is tagged or the roof is flat, else the caller fits it
-    ///   ([`Style::fit_total_height`]); without `height`, `building:levels` L sets the eave to
+    ///   (`Style::fit_total_height`); without `height`, `building:levels` L sets the eave to
     ///   L × floor height;
     /// - `building:levels` L sets `storeys` (minus `building:min_level`);
     /// - `min_height` (else `building:min_level` × floor height) sets the base;
@@ -185,7 +185,7 @@ impl KnowledgeBase {
     /// appearance index) as [`KnowledgeBase::pick_appearance`] returns it, or `None` for the
     /// zone's info values alone. Draws the heights from `rng` as `style_for` does. An
     /// out-of-range `zone` is earth; an out-of-range `pick` is ignored (info values alone).
-    pub fn style_with_appearance(
+    pub(crate) fn style_with_appearance(
         &self,
         zone: usize,
         pick: Option<(usize, usize)>,

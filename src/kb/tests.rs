@@ -2,6 +2,7 @@
 //! before the world KB (tests/data/kb-21-zones.xml: small, its zones known by heart), the
 //! shipped world KB and the thesis's.
 
+use super::choice::appearance_weights;
 use super::*;
 use crate::input::BuildingTags;
 use crate::rng::Rng;

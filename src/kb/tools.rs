@@ -14,7 +14,7 @@ use crate::input::BuildingTags;
 use crate::rng::Rng;
 
 /// The result of `kb check`: counts, repairs, problems and warnings. Loading errors are the
-/// `Err` of [`check_report`] instead.
+/// `Err` of `check_report` instead.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CheckReport {
     /// The file as given.
@@ -41,7 +41,7 @@ pub struct CheckReport {
 
 impl CheckReport {
     /// Whether `kb check` should fail: errors found (repairs and warnings do not fail it).
-    pub fn has_errors(&self) -> bool {
+    pub(crate) fn has_errors(&self) -> bool {
         !self.errors.is_empty()
     }
 }
@@ -78,12 +78,12 @@ impl fmt::Display for CheckReport {
 
 /// Reads a KB file and reports on it (`kb check`). Rulesets outside the KB's folder are
 /// errors; see [`check_report_with`] to allow them.
-pub fn check_report(path: &Path, mode: ReadMode) -> Result<CheckReport, KbError> {
+pub(crate) fn check_report(path: &Path, mode: ReadMode) -> Result<CheckReport, KbError> {
     check_report_with(path, mode, false)
 }
 
 /// [`check_report`], with `allow_external` rulesets (`--allow-external-rulesets`).
-pub fn check_report_with(
+pub(crate) fn check_report_with(
     path: &Path,
     mode: ReadMode,
     allow_external: bool,
@@ -97,7 +97,7 @@ pub fn check_report_with(
 /// into its rules), and every other that the appearance's buildings are derived with it (a file
 /// that cannot be read or parsed gets a second note from `derive::Generator::load_rulesets`).
 /// Empty when the KB names none.
-pub fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
+pub(crate) fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
     let mut notes = Vec::new();
     for (i, z) in kb.zones().iter().enumerate() {
         for (k, a) in z.appearances.iter().enumerate() {
@@ -205,7 +205,7 @@ fn check_selex(path: &Path, line: usize, errors: &mut Vec<KbRepair>, warnings: &
 }
 
 /// The report for an already loaded KB (what [`check_report_with`] does after loading).
-pub fn report_for(
+pub(crate) fn report_for(
     kb: &KnowledgeBase,
     mode: ReadMode,
     repairs: Vec<KbRepair>,
@@ -342,7 +342,7 @@ pub fn report_for(
 /// may leave out the first levels (`France/Occitanie/Toulouse` for
 /// `earth/Western Europe/France/Occitanie/Toulouse`): it then finds the one zone whose path
 /// ends with it at a `/`, and nothing when several do.
-pub fn find_zone(kb: &KnowledgeBase, zone_path: &str) -> Option<usize> {
+pub(crate) fn find_zone(kb: &KnowledgeBase, zone_path: &str) -> Option<usize> {
     if let Some(i) = find_zone_from_earth(kb, zone_path) {
         return Some(i);
     }
@@ -380,7 +380,10 @@ fn find_zone_from_earth(kb: &KnowledgeBase, zone_path: &str) -> Option<usize> {
 /// has any. Each entry is (appearance label `zone path#n` as in [`Style::appearance_label`],
 /// rule text as the generator compiles it, without OSM tags). The text is what
 /// [`crate::grammar::parse`] reads.
-pub fn compile_zone(kb: &KnowledgeBase, zone_path: &str) -> Result<Vec<(String, String)>, KbError> {
+pub(crate) fn compile_zone(
+    kb: &KnowledgeBase,
+    zone_path: &str,
+) -> Result<Vec<(String, String)>, KbError> {
     let Some(zone) = find_zone(kb, zone_path) else {
         let known: Vec<&str> = kb
             .zones()
@@ -422,7 +425,7 @@ pub struct ChainLink {
     pub path: String,
     /// Depth in the tree: 0 for earth.
     pub depth: usize,
-    /// How the point relates to this zone's own shapes ([`KnowledgeBase::zone_match`]).
+    /// How the point relates to this zone's own shapes (`KnowledgeBase::zone_match`).
     pub matched: ZoneMatch,
 }
 
@@ -445,13 +448,13 @@ pub struct Candidate {
     pub label: String,
     /// `proba` as written (`None`: empty or absent).
     pub proba: Option<f64>,
-    /// The normalised weight the draw uses ([`proba_weights`] over the eligible
+    /// The normalised weight the draw uses (`proba_weights` over the eligible
     /// appearances); 0 for an appearance this building's kind may not take.
     pub weight: f64,
     /// The appearance's `building` list (empty: any kind).
     pub buildings: Vec<String>,
     /// Whether the building's kind may take this appearance
-    /// ([`KnowledgeBase::eligible_appearances`]).
+    /// (`KnowledgeBase::eligible_appearances`).
     pub eligible: bool,
     /// Whether this is the appearance drawn for the building with this seed.
     pub chosen: bool,
@@ -613,7 +616,7 @@ pub fn explain(
 /// each with the path of the zone that set it: what [`explain`] lists before the appearance,
 /// for the zone itself (the editor shows it beside the zone's own values). Empty for an
 /// unknown zone.
-pub fn zone_values(kb: &KnowledgeBase, zone: usize) -> Vec<ValueSource> {
+pub(crate) fn zone_values(kb: &KnowledgeBase, zone: usize) -> Vec<ValueSource> {
     let mut values: Vec<ValueSource> = Vec::new();
     if kb.zone(zone).is_none() {
         return values;

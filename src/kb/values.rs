@@ -26,7 +26,7 @@ pub enum ZoneKind {
 
 impl ZoneKind {
     /// The kind for an element name (case-insensitive).
-    pub fn from_element(name: &str) -> ZoneKind {
+    pub(crate) fn from_element(name: &str) -> ZoneKind {
         match name.to_ascii_lowercase().as_str() {
             "earth" => ZoneKind::Earth,
             "country" => ZoneKind::Country,
@@ -38,7 +38,7 @@ impl ZoneKind {
     }
 
     /// The element name.
-    pub fn as_str(&self) -> &str {
+    pub(crate) fn as_str(&self) -> &str {
         match self {
             ZoneKind::Earth => "earth",
             ZoneKind::Country => "country",
@@ -63,7 +63,7 @@ pub enum WindowHeight {
 
 impl WindowHeight {
     /// Parses `tall`, `short`, `irregular` (case-insensitive, trimmed).
-    pub fn parse(s: &str) -> Option<WindowHeight> {
+    pub(crate) fn parse(s: &str) -> Option<WindowHeight> {
         match s.trim().to_ascii_lowercase().as_str() {
             "tall" | "high" => Some(WindowHeight::Tall),
             "short" | "low" => Some(WindowHeight::Short),
@@ -73,7 +73,7 @@ impl WindowHeight {
     }
 
     /// The lower-case name.
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             WindowHeight::Tall => "tall",
             WindowHeight::Short => "short",
@@ -165,7 +165,7 @@ pub struct Values {
 impl Values {
     /// Lays `more_specific` over `self`: every field it sets replaces ours; `extra` entries merge
     /// with its entries winning.
-    pub fn overlay(&mut self, more_specific: &Values) {
+    pub(crate) fn overlay(&mut self, more_specific: &Values) {
         macro_rules! over {
             ($($f:ident),*) => { $( if more_specific.$f.is_some() { self.$f = more_specific.$f.clone(); } )* };
         }
@@ -215,7 +215,7 @@ pub enum SplitAxis {
 
 impl SplitAxis {
     /// `X`, `Y` or `Z`.
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             SplitAxis::X => "X",
             SplitAxis::Y => "Y",
@@ -257,23 +257,23 @@ pub struct OpeningTree {
 /// One `<appearance>`: a style alternative of a zone.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Appearance {
-    /// `proba` in 0..=1, `None` when empty or absent (see [`KnowledgeBase::pick_appearance`]).
+    /// `proba` in 0..=1, `None` when empty or absent (see `KnowledgeBase::pick_appearance`).
     pub proba: Option<f64>,
     /// The appearance's `<values>`, laid over the zone's resolved `<info>` when it is chosen.
     pub values: Values,
     /// The appearance's `<opening>`: how each window is subdivided into panes; `None` (or a tree
     /// without splits) draws one pane per window.
     pub opening: Option<OpeningTree>,
-    /// `<ruleset file="..."/>` as written (see [`KnowledgeBase::ruleset_path`]).
+    /// `<ruleset file="..."/>` as written (see `KnowledgeBase::ruleset_path`).
     pub ruleset: Option<String>,
     /// `<selex file="..."/>` as written: a SELEX program (docs/selex.md) that lays out the
-    /// facades of this appearance's buildings at LOD3 (see [`KnowledgeBase::selex_path`]).
+    /// facades of this appearance's buildings at LOD3 (see `KnowledgeBase::selex_path`).
     pub selex: Option<String>,
     /// The `building` attribute: the OSM `building=*` kinds (lower-case; `yes` also stands
     /// for an untagged kind) this appearance is for. Empty: any building. When a building's
     /// kind is listed by some of a zone's appearances, it is drawn among those alone;
     /// otherwise among the appearances with no list (among all when every one has a list).
-    /// See [`KnowledgeBase::eligible_appearances`].
+    /// See `KnowledgeBase::eligible_appearances`.
     pub buildings: Vec<String>,
     /// Line of the `<appearance>` element.
     pub line: usize,

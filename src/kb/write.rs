@@ -1,6 +1,6 @@
 //! The strict writer: a knowledge base, as either reader gives it, written in the clean format
 //! of docs/knowledge-base.md and `schemas/kb.xsd`, so that the strict reader reads it back to
-//! the same zones, shapes, values, appearances and openings ([`to_strict`]).
+//! the same zones, shapes, values, appearances and openings (`to_strict`).
 //!
 //! **From the model, not from the element tree.** The lenient reader's repairs are made in
 //! three places: the textual pre-pass, the element tree, and the zone reader (decimal commas,
@@ -31,7 +31,7 @@ use crate::model::Programme;
 
 /// A knowledge base written in the clean format, and what the writing changed.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct StrictText {
+pub(crate) struct StrictText {
     /// The clean-format XML (UTF-8, ends with a line break).
     pub text: String,
     /// What the clean format could not hold and how it was written instead, each at the line of
@@ -44,7 +44,7 @@ pub struct StrictText {
 /// check on the thesis annex, hand-made lenient inputs and the world KB) to the same zones,
 /// shapes, values, appearances and openings as `kb`, except for what [`StrictText::notes`]
 /// lists.
-pub fn to_strict(kb: &KnowledgeBase) -> StrictText {
+pub(crate) fn to_strict(kb: &KnowledgeBase) -> StrictText {
     let zones = kb.zones();
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); zones.len()];
     for (i, z) in zones.iter().enumerate() {

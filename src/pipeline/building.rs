@@ -1,6 +1,6 @@
 //! One building of a prepared site, for `citygen kb edit`: the site read and prepared as a run
-//! prepares it ([`load_site`]), a lot explained ([`explain_lot`], what `kb explain` says) and
-//! derived into a GLB held in memory ([`derive_glb`], the run's own derivation: inference from
+//! prepares it (`load_site`), a lot explained (`explain_lot`, what `kb explain` says) and
+//! derived into a GLB held in memory (`derive_glb`, the run's own derivation: inference from
 //! the neighbours, the KB's rulesets and SELEX programs, at LOD3 the surroundings).
 
 use std::io::Write;
@@ -21,7 +21,7 @@ use crate::report::Report;
 /// The site of `source` as [`super::run`] prepares it without `--crs`, `--bbox` or `--tile`:
 /// read, projected to the UTM zone of its centre, cleaned, parts grouped, fronts assigned. The
 /// source's file name comes with it.
-pub fn load_site(source: &Source) -> Result<(Site, String), RunError> {
+pub(crate) fn load_site(source: &Source) -> Result<(Site, String), RunError> {
     let name = match source {
         Source::Osm(p) | Source::Shp { path: p, .. } => file_name(p),
     };
@@ -44,7 +44,7 @@ fn inferred_lots(kb: &KnowledgeBase, site: &Site) -> Vec<prepare::Lot> {
 /// What `kb explain` says of lot `index` of `site` under `kb` and `seed` (the lot's own tags
 /// after inference; its zone, values and appearance as the generator picks them). `None` for
 /// an index out of range.
-pub fn explain_lot(
+pub(crate) fn explain_lot(
     kb: &KnowledgeBase,
     site: &Site,
     index: usize,
@@ -70,7 +70,7 @@ static PREVIEWS: AtomicU64 = AtomicU64::new(0);
 /// party walls) and written as a binary glTF into memory by the run's glTF writer. The
 /// scratch file the writer spools to lies in `scratch_dir`. Errors: the index, a KB whose
 /// SELEX programs do not load, a building that cannot be derived (the reason), a write error.
-pub fn derive_glb(
+pub(crate) fn derive_glb(
     kb: KnowledgeBase,
     site: &Site,
     index: usize,

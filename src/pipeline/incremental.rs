@@ -3,16 +3,16 @@
 //! Every tiled run records in its manifest, for each tile, its lots in file order with two
 //! keys (128-bit, SHA-256 truncated, hex):
 //!
-//! - **own** ([`own_keys`]): the lot as read and prepared, before anything from other lots is
+//! - **own** (`own_keys`): the lot as read and prepared, before anything from other lots is
 //!   lent to it: its id, its outline polygons (every coordinate bit for bit, in the run's local
 //!   frame), the drawn part of the outline, its `building:part`s (ids, polygons, tags) and its
 //!   parsed tags. Two runs give a building different own keys exactly when it was edited.
-//! - **key** ([`full_keys`]): what decides the lot's bytes in the outputs: the run's context
-//!   ([`context_key`]: citygen's version and [`OUTPUT_FORMAT`], the input's name, the SHA-256
+//! - **key** (`full_keys`): what decides the lot's bytes in the outputs: the run's context
+//!   (`context_key`: citygen's version and `OUTPUT_FORMAT`, the input's name, the SHA-256
 //!   of the knowledge base, of the rulesets and SELEX programs it names and of `--rules`,
 //!   seed, LOD, output CRS and origin, tile size, the options and outputs), the own key, the tags as derived (after `--infer` lent it its neighbours'
 //!   values), its front (from the nearest street), and at LOD3 and LOD4 the keys of the lots
-//!   within [`NEIGHBOUR_MARGIN_M`] of it (party walls and what stands in front of a bay are
+//!   within `NEIGHBOUR_MARGIN_M` of it (party walls and what stands in front of a bay are
 //!   read from them). A building's random stream is seeded from the run's seed and its own id
 //!   alone ([`crate::derive::Generator`]), never from its place in the file or its neighbours.
 //!
@@ -42,12 +42,12 @@ use super::shard::{self, LotKey, Manifest, TileRecord};
 /// The version of what citygen writes for a given lot and context: raised whenever a change to
 /// citygen changes output bytes without changing its version number, so that a `--previous`
 /// run of another build reuses nothing.
-pub const OUTPUT_FORMAT: u32 = 1;
+pub(crate) const OUTPUT_FORMAT: u32 = 1;
 
 /// How far (metres, in plan) a lot's neighbours may stand and still be read by its derivation
 /// at LOD3 and LOD4 (the surroundings of the run are derived for the lots within this of a
 /// written one).
-pub const NEIGHBOUR_MARGIN_M: f64 = 1.0;
+pub(crate) const NEIGHBOUR_MARGIN_M: f64 = 1.0;
 
 /// A content key: SHA-256 truncated to 128 bits.
 pub type Key = [u8; 16];
@@ -83,7 +83,7 @@ fn put_polygons(h: &mut Sha256, ps: &[Polygon]) {
 }
 
 /// The own key of one lot (see the module documentation).
-pub fn own_key(lot: &Lot) -> Key {
+pub(crate) fn own_key(lot: &Lot) -> Key {
     let mut h = Sha256::new();
     put_str(&mut h, "citygen-lot/1");
     put_str(&mut h, &lot.id.to_string());
@@ -104,14 +104,14 @@ pub fn own_key(lot: &Lot) -> Key {
 }
 
 /// The own keys of `lots` by id, computed in parallel.
-pub fn own_keys(lots: &[Lot]) -> HashMap<SourceId, Key> {
+pub(crate) fn own_keys(lots: &[Lot]) -> HashMap<SourceId, Key> {
     lots.par_iter().map(|l| (l.id, own_key(l))).collect()
 }
 
 /// The run's context key from what its manifest records, the input's name (it is written into
 /// the files) and the output paths relative to the manifest's folder (file names are written
 /// into some files, and a tile's files are reused only where they land at the same place).
-pub fn context_key(run: &shard::RunKey, source_name: &str, outputs: &[String]) -> Key {
+pub(crate) fn context_key(run: &shard::RunKey, source_name: &str, outputs: &[String]) -> Key {
     let mut h = Sha256::new();
     put_str(&mut h, "citygen-context/1");
     put_str(&mut h, env!("CARGO_PKG_VERSION"));
@@ -142,7 +142,7 @@ pub fn context_key(run: &shard::RunKey, source_name: &str, outputs: &[String]) -
 /// id. `own` are [`own_keys`] taken before `--infer` (a lot missing there, which cannot happen,
 /// gets its own key now); `lots` are the lots as they will be derived, every lot of the run
 /// (neighbours outside `--bbox` too).
-pub fn full_keys(
+pub(crate) fn full_keys(
     lots: &[Lot],
     own: &HashMap<SourceId, Key>,
     lod: Lod,
@@ -193,7 +193,7 @@ pub fn full_keys(
 }
 
 /// The lots' [`LotKey`]s: the keys of [`full_keys`] with the run's `context` folded in.
-pub fn with_context(
+pub(crate) fn with_context(
     context: &Key,
     keys: HashMap<SourceId, (Key, Key)>,
 ) -> HashMap<SourceId, LotKey> {
@@ -265,7 +265,7 @@ fn neighbours(lots: &[Lot], margin: f64) -> Vec<Vec<usize>> {
 }
 
 /// Lower-case hex of a key.
-pub fn key_hex(k: &Key) -> String {
+pub(crate) fn key_hex(k: &Key) -> String {
     crate::fsio::hex(k)
 }
 
@@ -284,7 +284,7 @@ pub struct Previous {
 
 /// Why the previous run's manifests cannot be used, or a file of it cannot be reused.
 #[derive(Debug, thiserror::Error)]
-pub enum PreviousError {
+pub(crate) enum PreviousError {
     /// The `--previous` folder cannot be listed.
     #[error(
         "--previous {}: {source} (give the folder of a tiled run: its manifests and tiles)",
@@ -370,7 +370,7 @@ pub enum PreviousError {
 
 /// Reads the manifests `citygen-manifest.*.json` of `dir`. Errors name the folder or file:
 /// no manifest, one that does not parse or is of another format, or a tile in two of them.
-pub fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
+pub(crate) fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
     let entries = std::fs::read_dir(dir).map_err(|source| PreviousError::Folder {
         dir: dir.to_path_buf(),
         source,
@@ -430,7 +430,7 @@ impl Previous {
     /// The previous record of tile `suffix` when its lots and keys are `lots`, in order, and it
     /// wrote the files `files` (paths relative to the manifest's folder), with the folder its
     /// paths are relative to.
-    pub fn reusable(
+    pub(crate) fn reusable(
         &self,
         suffix: &str,
         lots: &[LotKey],
@@ -512,7 +512,7 @@ fn check_file(src: &Path, bytes: u64, sha256: &str) -> Result<(), PreviousError>
 /// files. `Ok(None)` when `src` is `dst` itself (a run updating its own folder) and checks
 /// out. `Err` says what did not match. With `link`, `src` is checked, then hard-linked
 /// (copied when it cannot be: another file system, or a system without links).
-pub fn copy_checked(
+pub(crate) fn copy_checked(
     src: &Path,
     dst: &Path,
     bytes: u64,

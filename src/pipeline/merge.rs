@@ -1,6 +1,6 @@
 //! `citygen merge OUT_DIR...`: the shards of a run put together, after proving they add up.
 //!
-//! The manifests ([`super::shard::Manifest`]) of every folder given are read and checked as a
+//! The manifests (`super::shard::Manifest`) of every folder given are read and checked as a
 //! set before anything is written: one run (the same citygen version, inputs, knowledge base,
 //! rules, seed, LOD, CRS and origin, tile size, options and outputs), every shard of it once,
 //! every tile of its grid written once and by its shard, every lot of the grid once in all

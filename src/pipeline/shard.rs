@@ -2,12 +2,12 @@
 //!
 //! Every shard reads the whole input and prepares it exactly as a single run would (the same
 //! lots, the same output CRS and origin), computes the same tile grid, and the same assignment
-//! of tiles to shards ([`assign`]: the tiles by building count, largest first, each to the
+//! of tiles to shards (`assign`: the tiles by building count, largest first, each to the
 //! least-loaded shard, ties to the lower tile and shard; it depends on the input and N alone,
 //! not on which machine runs which shard). It then derives and writes only its own tiles — each
 //! tile's files the same bytes the single run writes, since a building's derivation depends
 //! only on the input, the seed and its neighbours, which every shard derives alike — and a
-//! [`Manifest`]: what was run (version, input, KB and rules hashes, seed, LOD, options), the
+//! `Manifest`: what was run (version, input, KB and rules hashes, seed, LOD, options), the
 //! whole grid with each tile's shard and lot count, and for each of its tiles the buildings
 //! with a per-building digest ([`crate::model::Building::digest`]), the lots skipped, the
 //! report entries, and every file with its size and SHA-256. `citygen merge` reads the
@@ -27,10 +27,10 @@ pub use crate::fsio::hex;
 use crate::report::Entry;
 
 /// The manifest's `format` value; a merge refuses any other.
-pub const MANIFEST_FORMAT: &str = "citygen-manifest/1";
+pub(crate) const MANIFEST_FORMAT: &str = "citygen-manifest/1";
 
 /// The most shards a run may be split into.
-pub const MAX_SHARDS: usize = 100_000;
+pub(crate) const MAX_SHARDS: usize = 100_000;
 
 /// Shard `index` (0-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -43,10 +43,10 @@ pub struct Shard {
 
 impl Shard {
     /// The whole run as one shard (a tiled run without `--shard`).
-    pub const ONE: Shard = Shard { index: 0, count: 1 };
+    pub(crate) const ONE: Shard = Shard { index: 0, count: 1 };
 
     /// `citygen-manifest.{index}-of-{count}.json`: the manifest's file name.
-    pub fn manifest_name(&self) -> String {
+    pub(crate) fn manifest_name(&self) -> String {
         format!("citygen-manifest.{}-of-{}.json", self.index, self.count)
     }
 }
@@ -59,7 +59,7 @@ impl std::fmt::Display for Shard {
 
 /// What `--shard` says: a fixed shard, or `auto` (from the job's environment).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ShardArg {
+pub(crate) enum ShardArg {
     /// `--shard I/N`.
     Fixed(Shard),
     /// `--shard auto`.
@@ -68,7 +68,7 @@ pub enum ShardArg {
 
 /// Why `--shard` or its environment gives no shard.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum ShardError {
+pub(crate) enum ShardError {
     /// Neither `I/N` nor `auto`.
     #[error("{text:?} is not I/N (e.g. 0/4, shards counted from 0) or auto")]
     NotIN {
@@ -147,7 +147,7 @@ pub enum ShardError {
 }
 
 /// Parses `--shard`'s value: `I/N` (0 <= I < N <= [`MAX_SHARDS`]) or `auto`.
-pub fn parse_shard(s: &str) -> Result<ShardArg, ShardError> {
+pub(crate) fn parse_shard(s: &str) -> Result<ShardArg, ShardError> {
     let s = s.trim();
     if s.eq_ignore_ascii_case("auto") {
         return Ok(ShardArg::Auto);
@@ -190,7 +190,7 @@ fn check(s: Shard) -> Result<Shard, ShardError> {
 /// 0 and `SLURM_ARRAY_TASK_MAX` one less than the count; a partial array must pass
 /// `--shards`); Kubernetes does not tell a pod the job's completions, so an Indexed Job passes
 /// `--shards`. Returns the shard and a sentence saying where it came from.
-pub fn from_env(
+pub(crate) fn from_env(
     shards: Option<usize>,
     env: &dyn Fn(&str) -> Option<String>,
 ) -> Result<(Shard, String), ShardError> {
@@ -239,7 +239,7 @@ pub fn from_env(
 /// the lower tile, each to the shard with the fewest buildings so far, ties to the lower
 /// shard (the longest-processing-time rule: no shard gets more than 4/3 of the best possible
 /// maximum). Depends on `counts` and `n` alone.
-pub fn assign(counts: &[usize], n: usize) -> Vec<usize> {
+pub(crate) fn assign(counts: &[usize], n: usize) -> Vec<usize> {
     let n = n.max(1);
     let mut order: Vec<usize> = (0..counts.len()).collect();
     order.sort_by(|&a, &b| counts[b].cmp(&counts[a]).then(a.cmp(&b)));
@@ -257,7 +257,7 @@ pub fn assign(counts: &[usize], n: usize) -> Vec<usize> {
 
 /// A shard's manifest (`citygen-manifest.{I}-of-{N}.json`, beside its outputs).
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Manifest {
+pub(crate) struct Manifest {
     /// [`MANIFEST_FORMAT`].
     pub format: String,
     /// citygen's version (`CARGO_PKG_VERSION`).
@@ -287,7 +287,7 @@ pub struct Manifest {
 
 /// What decides a run's outputs, and so must be equal in the manifests of one merge.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RunKey {
+pub(crate) struct RunKey {
     /// The input files (an OSM PBF, or a shapefile's parts).
     pub inputs: Vec<FileKey>,
     /// The knowledge base, if any.
@@ -318,7 +318,7 @@ pub struct RunKey {
 /// An input file: its name (not its folder: machines mount inputs at different places), its
 /// size and SHA-256.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct FileKey {
+pub(crate) struct FileKey {
     /// File name only.
     pub name: String,
     /// Size in bytes.
@@ -418,7 +418,7 @@ pub struct FileRecord {
 
 /// A shard's share of the report.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
-pub struct ShardReport {
+pub(crate) struct ShardReport {
     /// Footprints read (the whole input: equal in every shard).
     pub read: usize,
     /// `building:part`s read (the whole input).
@@ -435,7 +435,7 @@ pub struct ShardReport {
 }
 
 /// The [`FileKey`] of a file: its name, size and SHA-256 ([`crate::fsio::file_sha256`]).
-pub fn file_key(path: &Path) -> std::io::Result<FileKey> {
+pub(crate) fn file_key(path: &Path) -> std::io::Result<FileKey> {
     let (bytes, sha256) = crate::fsio::file_sha256(path)?;
     Ok(FileKey {
         name: path
@@ -449,7 +449,7 @@ pub fn file_key(path: &Path) -> std::io::Result<FileKey> {
 
 /// Which shard owns each entry of the read and prepare stages: the shard of the lot it names,
 /// else shard 0. `owner` maps a lot's id to its shard.
-pub fn owner_of(entry: &Entry, owner: &BTreeMap<String, usize>) -> usize {
+pub(crate) fn owner_of(entry: &Entry, owner: &BTreeMap<String, usize>) -> usize {
     owner.get(&entry.id).copied().unwrap_or(0)
 }
 

@@ -30,7 +30,7 @@ use crate::model::Inference;
 use crate::model::RoofShape;
 
 /// The storey height a neighbour's `height` is divided by when it has no `building:levels`.
-pub const STOREY_FROM_HEIGHT_M: f64 = 3.0;
+pub(crate) const STOREY_FROM_HEIGHT_M: f64 = 3.0;
 
 /// How values are inferred.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -322,7 +322,7 @@ pub fn infer_levels(lots: &[Lot], opts: InferOptions) -> Vec<Option<Found<f64>>>
 
 /// What one lot's inference says, for the report and `kb explain`: one phrase per value, e.g.
 /// `building:levels 5 from 8 tagged neighbours within 120 m`.
-pub fn describe(inf: &Inferred) -> Vec<String> {
+pub(crate) fn describe(inf: &Inferred) -> Vec<String> {
     fn phrase<T>(key: &str, shown: String, f: &Found<T>) -> String {
         let agree = if f.agree < 1.0 {
             format!(", {:.0} % agreeing", 100.0 * f.agree)

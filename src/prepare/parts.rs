@@ -306,7 +306,7 @@ pub(super) fn group_parts(
 /// What of `polygons` lies outside every polygon of `cutters`, cleaned as footprints are, and
 /// without the slivers that nearly shared edges leave (pieces under 2 m² or 0.25 m of mean
 /// width).
-pub fn cut_out(polygons: &[Polygon], cutters: &[Polygon]) -> Vec<Polygon> {
+pub(crate) fn cut_out(polygons: &[Polygon], cutters: &[Polygon]) -> Vec<Polygon> {
     let rest: Vec<Polygon> = crate::geometry::clip::difference(polygons, cutters)
         .into_iter()
         .filter(|p| {

@@ -8,6 +8,42 @@ use super::{Lot, Site};
 use crate::crs::Crs;
 use crate::report::{Outcome, Report};
 
+/// A `--bbox` that holds none of the buildings ([`retain_in_bbox`]): the data's extent, and
+/// whether the box with its longitudes and latitudes swapped would hold some.
+#[derive(Debug, Clone)]
+pub struct EmptyBox {
+    /// The box asked for: west, south, east, north.
+    pub bbox: [f64; 4],
+    /// How many buildings there were.
+    pub buildings: usize,
+    /// The data's south-west corner (longitude, latitude).
+    pub lo: (f64, f64),
+    /// The data's north-east corner.
+    pub hi: (f64, f64),
+    /// Whether the box with its corners swapped holds some.
+    pub swapped_holds_some: bool,
+}
+
+impl std::fmt::Display for EmptyBox {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [w, s, e, n] = self.bbox;
+        write!(
+            f,
+            "--bbox {w},{s},{e},{n} holds none of the {} buildings, which lie in longitude {:.5} to {:.5}, latitude {:.5} to {:.5}",
+            self.buildings, self.lo.0, self.hi.0, self.lo.1, self.hi.1
+        )?;
+        if self.swapped_holds_some {
+            write!(
+                f,
+                "; its corners look swapped: --bbox {s},{w},{n},{e} (longitude first) holds some"
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for EmptyBox {}
+
 /// Keeps the lots whose representative point lies in `bbox` = [min lon, min lat, max lon,
 /// max lat] (degrees), so a region can be split across runs or machines: every footprint lies in
 /// exactly one of several boxes that tile the region (min inclusive, max exclusive). The lots
@@ -15,7 +51,11 @@ use crate::report::{Outcome, Report};
 /// some) leaves none and is an `Err` naming the data's extent, and saying so when the box with
 /// its longitudes and latitudes swapped would hold some: the caller decides whether an empty
 /// run is an error (`--allow-empty`).
-pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) -> Result<(), String> {
+pub fn retain_in_bbox(
+    site: &mut Site,
+    bbox: [f64; 4],
+    report: &mut Report,
+) -> Result<(), EmptyBox> {
     let inside = in_bbox;
     let before = site.lots.len();
     if before > 0 && !site.lots.iter().any(|l| inside(l.lonlat, bbox)) {
@@ -28,20 +68,15 @@ pub fn retain_in_bbox(site: &mut Site, bbox: [f64; 4], report: &mut Report) -> R
             hi = (hi.0.max(l.lonlat.0), hi.1.max(l.lonlat.1));
         }
         let swapped = [bbox[1], bbox[0], bbox[3], bbox[2]];
-        let hint = if site.lots.iter().any(|l| inside(l.lonlat, swapped)) {
-            format!(
-                "; its corners look swapped: --bbox {},{},{},{} (longitude first) holds some",
-                swapped[0], swapped[1], swapped[2], swapped[3]
-            )
-        } else {
-            String::new()
+        let why = EmptyBox {
+            bbox,
+            buildings: before,
+            lo,
+            hi,
+            swapped_holds_some: site.lots.iter().any(|l| inside(l.lonlat, swapped)),
         };
-        let why = format!(
-            "--bbox {},{},{},{} holds none of the {before} buildings, which lie in longitude {:.5} to {:.5}, latitude {:.5} to {:.5}{hint}",
-            bbox[0], bbox[1], bbox[2], bbox[3], lo.0, hi.0, lo.1, hi.1
-        );
         site.lots.clear();
-        report.add(None, Outcome::Note, why.clone());
+        report.add(None, Outcome::Note, why.to_string());
         return Err(why);
     }
     site.lots.retain(|l| inside(l.lonlat, bbox));
@@ -71,7 +106,7 @@ pub struct Tile {
 impl Tile {
     /// The file-name suffix of the tile, `{easting}_{northing}` of its lower-left corner, so
     /// that the same grid gives the same names night after night.
-    pub fn suffix(&self) -> String {
+    pub(crate) fn suffix(&self) -> String {
         format!("{}_{}", self.corner.0, self.corner.1)
     }
 }

@@ -174,7 +174,7 @@ impl Topo {
     }
 
     /// The selector of that name.
-    pub fn from_name(s: &str) -> Option<Topo> {
+    pub(crate) fn from_name(s: &str) -> Option<Topo> {
         Topo::ALL.into_iter().find(|t| t.name() == s)
     }
 }
@@ -276,7 +276,7 @@ impl Attr {
     ];
 
     /// The name as written in a selector.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Attr::Label => "label",
             Attr::Type => "type",
@@ -290,13 +290,13 @@ impl Attr {
     }
 
     /// The attribute of that name.
-    pub fn from_name(s: &str) -> Option<Attr> {
+    pub(crate) fn from_name(s: &str) -> Option<Attr> {
         Attr::ALL.into_iter().find(|a| a.name() == s)
     }
 
     /// Whether the attribute is a grid index (an integer, compared with numbers, allowed in
     /// `indexRange`/`rowRange`); the others are strings.
-    pub fn is_index(self) -> bool {
+    pub(crate) fn is_index(self) -> bool {
         matches!(self, Attr::RowIdx | Attr::ColIdx)
     }
 }
@@ -320,7 +320,7 @@ pub enum Cmp {
 
 impl Cmp {
     /// The operator as written.
-    pub fn symbol(self) -> &'static str {
+    pub(crate) fn symbol(self) -> &'static str {
         match self {
             Cmp::Eq => "==",
             Cmp::Ne => "!=",
@@ -381,7 +381,7 @@ impl Grouping {
     }
 
     /// The grouping of that name (`groupColumns` is `groupCols`).
-    pub fn from_name(s: &str) -> Option<Grouping> {
+    pub(crate) fn from_name(s: &str) -> Option<Grouping> {
         if s == "groupColumns" {
             return Some(Grouping::Cols);
         }
@@ -433,7 +433,7 @@ pub enum BinOp {
 
 /// What an expression evaluates to, as far as the parser knows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ValueKind {
+pub(crate) enum ValueKind {
     /// A number.
     Number,
     /// A string.
@@ -455,7 +455,7 @@ impl fmt::Display for ValueKind {
 impl Expr {
     /// The value of an expression made of literals only (no variable), or `None`. Division by
     /// zero and other non-finite results are `None` too.
-    pub fn constant(&self) -> Option<f64> {
+    pub(crate) fn constant(&self) -> Option<f64> {
         let v = match &self.kind {
             ExprKind::Number(v) => *v,
             ExprKind::Neg(e) => -e.constant()?,
@@ -509,7 +509,7 @@ pub enum ParamKind {
     Count,
     /// A count, or a non-empty list of labels, one per row or column (its length is the count).
     CountOrLabels,
-    /// A non-empty list of distinct corner names among [`CORNERS`].
+    /// A non-empty list of distinct corner names among `CORNERS`.
     Corners,
     /// One of these strings.
     Choice(&'static [&'static str]),
@@ -520,7 +520,7 @@ pub enum ParamKind {
 }
 
 /// The corner names of `addRoundFacade`'s `corners`.
-pub const CORNERS: [&str; 4] = ["top_left", "top_right", "bottom_right", "bottom_left"];
+pub(crate) const CORNERS: [&str; 4] = ["top_left", "top_right", "bottom_right", "bottom_left"];
 
 /// One parameter of an action.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -632,7 +632,7 @@ impl ActionKind {
     }
 
     /// The action of that name.
-    pub fn from_name(s: &str) -> Option<ActionKind> {
+    pub(crate) fn from_name(s: &str) -> Option<ActionKind> {
         ActionKind::ALL.into_iter().find(|a| a.name() == s)
     }
 
@@ -742,7 +742,8 @@ impl ActionKind {
     }
 
     /// The signature as docs write it: `addFacade(label)`, optional parameters with `?`.
-    pub fn signature(self) -> String {
+    #[cfg(test)]
+    pub(crate) fn signature(self) -> String {
         let params: Vec<String> = self
             .params()
             .iter()
@@ -803,7 +804,7 @@ pub enum ConstraintKind {
 
 impl ConstraintKind {
     /// The term names, in documentation order.
-    pub const NAMES: [&'static str; 4] =
+    pub(crate) const NAMES: [&'static str; 4] =
         ["align", "symmetric", "boundaryDistance", "noIntersection"];
 }
 

@@ -13,8 +13,8 @@
 //!   Fig. 13) use them. A one-row grid's only row carries both `gnd` and `top`, a one-column
 //!   grid's only column both `left` and `right`; a two-row (two-column) grid has no `mid`. An index
 //!   may carry any number of labels: `rowLabel == "x"` keeps the cells whose row carries `x`
-//!   among its labels, `rowLabel != "x"` those whose row does not. [`Grid::with_col_labels`] and
-//!   [`Grid::with_row_labels`] replace the defaults (Jiang's figure labels several columns
+//!   among its labels, `rowLabel != "x"` those whose row does not. `Grid::with_col_labels` and
+//!   `Grid::with_row_labels` replace the defaults (Jiang's figure labels several columns
 //!   `left`).
 //! - A selection is a [`CellSet`]; selectors on one step are intersected, so `[rowIdx in R]`
 //!   `[colIdx in C]` gives the Cartesian product R × C as the seed does.
@@ -50,7 +50,7 @@ impl fmt::Display for Axis {
 
 /// A comparison operator of an attribute selector (`rowIdx > 1`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum CmpOp {
+pub(crate) enum CmpOp {
     /// `==`
     Eq,
     /// `!=`
@@ -84,7 +84,7 @@ impl CmpOp {
 /// both inclusive, both resolve a negative bound from the end of the axis they index
 /// (`rowRange(2, -2)` on 5 rows is rows 2, 3, 4; on columns it counts columns).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum IndexItem {
+pub(crate) enum IndexItem {
     /// One index, 1-based, negative from the end.
     One(i64),
     /// An inclusive range `from..=to`, each bound 1-based or negative from the end.
@@ -182,7 +182,7 @@ pub enum GridError {
 impl GridError {
     /// Whether the error comes from the grid's size (an index or range past its rows or
     /// columns), so that the same selector fits a larger grid.
-    pub fn depends_on_size(&self) -> bool {
+    pub(crate) fn depends_on_size(&self) -> bool {
         matches!(
             self,
             GridError::IndexOutOfRange { .. } | GridError::ReversedRange { .. }
@@ -212,7 +212,7 @@ fn check_size(what: &'static str, value: f64) -> Result<f64, GridError> {
 }
 
 /// Resolves a 1-based index (negative from the end) on an axis of `count` entries.
-pub fn resolve_index(axis: Axis, index: i64, count: usize) -> Result<usize, GridError> {
+pub(crate) fn resolve_index(axis: Axis, index: i64, count: usize) -> Result<usize, GridError> {
     let out = GridError::IndexOutOfRange { axis, index, count };
     if index == 0 {
         return Err(GridError::IndexZero(axis));
@@ -225,7 +225,7 @@ pub fn resolve_index(axis: Axis, index: i64, count: usize) -> Result<usize, Grid
 }
 
 /// Resolves an `in (...)` list to sorted, de-duplicated 1-based indices.
-pub fn resolve_items(
+pub(crate) fn resolve_items(
     axis: Axis,
     items: &[IndexItem],
     count: usize,
@@ -538,7 +538,7 @@ impl Grid {
 
     /// A metric grid that fits a real wall: one row per storey, from the storey heights given
     /// bottom up, and `n = max(1, round(width / bay))` equal columns of `width / n`.
-    pub fn metric(width: f64, storey_heights: &[f64], bay: f64) -> Result<Grid, GridError> {
+    pub(crate) fn metric(width: f64, storey_heights: &[f64], bay: f64) -> Result<Grid, GridError> {
         let width = check_size("wall width", width)?;
         let bay = check_size("bay width", bay)?;
         for &h in storey_heights {
@@ -561,12 +561,13 @@ impl Grid {
 
     /// The same wall re-divided uniformly into `rows` × `cols` (the seed's `updateGrid`);
     /// labels return to the defaults.
-    pub fn update(&self, rows: usize, cols: usize) -> Result<Grid, GridError> {
+    #[cfg(test)]
+    pub(crate) fn update(&self, rows: usize, cols: usize) -> Result<Grid, GridError> {
         Grid::uniform(self.width(), self.height(), rows, cols)
     }
 
     /// Replaces the row labels: one list per row, bottom row first.
-    pub fn with_row_labels(mut self, labels: Vec<Vec<String>>) -> Result<Grid, GridError> {
+    pub(crate) fn with_row_labels(mut self, labels: Vec<Vec<String>>) -> Result<Grid, GridError> {
         if labels.len() != self.rows() {
             return Err(GridError::LabelCount {
                 axis: Axis::Row,
@@ -579,7 +580,7 @@ impl Grid {
     }
 
     /// Replaces the column labels: one list per column, leftmost first.
-    pub fn with_col_labels(mut self, labels: Vec<Vec<String>>) -> Result<Grid, GridError> {
+    pub(crate) fn with_col_labels(mut self, labels: Vec<Vec<String>>) -> Result<Grid, GridError> {
         if labels.len() != self.cols() {
             return Err(GridError::LabelCount {
                 axis: Axis::Col,
@@ -602,22 +603,25 @@ impl Grid {
     }
 
     /// Row heights in metres, row 1 (ground) first.
-    pub fn row_heights(&self) -> &[f64] {
+    pub(crate) fn row_heights(&self) -> &[f64] {
         &self.row_heights
     }
 
     /// Column widths in metres, column 1 (left) first.
-    pub fn col_widths(&self) -> &[f64] {
+    #[cfg(test)]
+    pub(crate) fn col_widths(&self) -> &[f64] {
         &self.col_widths
     }
 
     /// The labels of each row, row 1 first.
-    pub fn row_labels(&self) -> &[Vec<String>] {
+    #[cfg(test)]
+    pub(crate) fn row_labels(&self) -> &[Vec<String>] {
         &self.row_labels
     }
 
     /// The labels of each column, column 1 first.
-    pub fn col_labels(&self) -> &[Vec<String>] {
+    #[cfg(test)]
+    pub(crate) fn col_labels(&self) -> &[Vec<String>] {
         &self.col_labels
     }
 
@@ -687,20 +691,30 @@ impl Grid {
     /// `[rowIdx op v]` / `[colIdx op v]`: `v` must be a valid index (1-based or negative from the
     /// end, resolved first) for every operator, so `rowIdx > 7` on a 4-row grid is an error, not
     /// an empty selection.
-    pub fn select_cmp(&self, axis: Axis, op: CmpOp, value: i64) -> Result<CellSet, GridError> {
+    pub(crate) fn select_cmp(
+        &self,
+        axis: Axis,
+        op: CmpOp,
+        value: i64,
+    ) -> Result<CellSet, GridError> {
         let v = resolve_index(axis, value, self.count(axis))?;
         Ok(self.select_by(axis, |i| op.holds(i, v)))
     }
 
     /// `[rowIdx in (...)]` / `[colIdx in (...)]` with single indices and inclusive ranges.
-    pub fn select_in(&self, axis: Axis, items: &[IndexItem]) -> Result<CellSet, GridError> {
+    pub(crate) fn select_in(&self, axis: Axis, items: &[IndexItem]) -> Result<CellSet, GridError> {
         let keep = resolve_items(axis, items, self.count(axis))?;
         Ok(self.select_by(axis, |i| keep.binary_search(&i).is_ok()))
     }
 
     /// `[rowLabel == "x"]` (the row carries `x`) or `[rowLabel != "x"]` (it does not); the
     /// ordering operators are an error.
-    pub fn select_label(&self, axis: Axis, op: CmpOp, label: &str) -> Result<CellSet, GridError> {
+    pub(crate) fn select_label(
+        &self,
+        axis: Axis,
+        op: CmpOp,
+        label: &str,
+    ) -> Result<CellSet, GridError> {
         let want = match op {
             CmpOp::Eq => true,
             CmpOp::Ne => false,
@@ -711,7 +725,7 @@ impl Grid {
     }
 
     /// `[rowLabel in ("a", "b")]`: the row carries any of the labels.
-    pub fn select_label_in(&self, axis: Axis, labels: &[&str]) -> CellSet {
+    pub(crate) fn select_label_in(&self, axis: Axis, labels: &[&str]) -> CellSet {
         let have = self.labels(axis);
         self.select_by(axis, |i| {
             have[i - 1].iter().any(|l| labels.contains(&l.as_str()))
@@ -720,7 +734,12 @@ impl Grid {
 
     /// The Cartesian product of row and column index lists (1-based, negative from the end), as
     /// the seed's `selectCells` does.
-    pub fn product(&self, rows: &[IndexItem], cols: &[IndexItem]) -> Result<CellSet, GridError> {
+    #[cfg(test)]
+    pub(crate) fn product(
+        &self,
+        rows: &[IndexItem],
+        cols: &[IndexItem],
+    ) -> Result<CellSet, GridError> {
         self.select_in(Axis::Row, rows)?
             .intersect(&self.select_in(Axis::Col, cols)?)
     }
@@ -739,7 +758,7 @@ impl Grid {
     }
 
     /// Cell (row, col)'s rectangle on the wall: row 1 has y = 0, column 1 has x = 0.
-    pub fn cell_rect(&self, row: usize, col: usize) -> Result<Rect, GridError> {
+    pub(crate) fn cell_rect(&self, row: usize, col: usize) -> Result<Rect, GridError> {
         self.group_rect(CellRect {
             row_from: row,
             row_to: row,
@@ -749,7 +768,7 @@ impl Grid {
     }
 
     /// A rectangle of cells' rectangle on the wall; an error if it is reversed or leaves the grid.
-    pub fn group_rect(&self, cells: CellRect) -> Result<Rect, GridError> {
+    pub(crate) fn group_rect(&self, cells: CellRect) -> Result<Rect, GridError> {
         self.check_cell(cells.row_from, cells.col_from)?;
         self.check_cell(cells.row_to, cells.col_to)?;
         if cells.row_from > cells.row_to {
@@ -783,7 +802,7 @@ impl Grid {
     /// The sub-grid of a rectangle of cells, on its own wall (origin at the rectangle's
     /// bottom-left): what `addVolume` gives its bay's front. Its sizes are the parent's; its
     /// labels are the defaults of its own size (its bottom row is `gnd`, and so on).
-    pub fn crop(&self, cells: CellRect) -> Result<Grid, GridError> {
+    pub(crate) fn crop(&self, cells: CellRect) -> Result<Grid, GridError> {
         self.group_rect(cells)?;
         Ok(Grid::from_sizes(
             self.row_heights[cells.row_from - 1..cells.row_to].to_vec(),

@@ -327,7 +327,13 @@ pub fn parse(regex: &str) -> Result<Pattern, PatternError> {
 }
 
 /// Parses `regex` and selects the cells of a rows × cols grid whose letter is `pat`.
-pub fn select(regex: &str, pat: &str, rows: usize, cols: usize) -> Result<CellSet, PatternError> {
+#[cfg(test)]
+pub(crate) fn select(
+    regex: &str,
+    pat: &str,
+    rows: usize,
+    cols: usize,
+) -> Result<CellSet, PatternError> {
     parse(regex)?.select(pat, rows, cols)
 }
 
@@ -537,6 +543,7 @@ fn locate(items: &[Item], mut t: usize, k: usize) -> Option<usize> {
     None
 }
 
+#[cfg(test)]
 fn collect_letters(items: &[Item], out: &mut Vec<char>) {
     for item in items {
         match &item.node {
@@ -561,19 +568,10 @@ impl Pattern {
         self.star
     }
 
-    /// Cells the pattern gives with its `*` repeated zero times (all of it without a `*`).
-    pub fn fixed_len(&self) -> usize {
-        self.fixed
-    }
-
-    /// Cells one more repeat of the `*` adds (0 without a `*`).
-    pub fn star_unit(&self) -> usize {
-        self.unit
-    }
-
     /// The distinct letters of the pattern, in order of first appearance (for a warning when the
     /// letter to select is not among them).
-    pub fn letters(&self) -> Vec<char> {
+    #[cfg(test)]
+    pub(crate) fn letters(&self) -> Vec<char> {
         let mut out = Vec::new();
         collect_letters(&self.items, &mut out);
         out
@@ -589,7 +587,7 @@ impl Pattern {
 
     /// How many times the `*` repeats on a rows × cols grid (0 without a `*`), or the error
     /// saying where the pattern stops tiling it.
-    pub fn fill_count(&self, rows: usize, cols: usize) -> Result<usize, PatternError> {
+    pub(crate) fn fill_count(&self, rows: usize, cols: usize) -> Result<usize, PatternError> {
         let need = rows
             .checked_mul(cols)
             .filter(|&n| rows > 0 && cols > 0 && n <= MAX_CELLS)
@@ -647,7 +645,13 @@ impl Pattern {
     /// The cells of a rows × cols grid whose letter is `pat` (one alphabetic character), in the
     /// grid's convention (row 1 is the ground floor). The set may be empty: the caller warns when
     /// `pat` is not among [`Pattern::letters`].
-    pub fn select(&self, pat: &str, rows: usize, cols: usize) -> Result<CellSet, PatternError> {
+    #[cfg(test)]
+    pub(crate) fn select(
+        &self,
+        pat: &str,
+        rows: usize,
+        cols: usize,
+    ) -> Result<CellSet, PatternError> {
         self.select_with(pat, rows, cols, false).map(|(set, _)| set)
     }
 
@@ -655,7 +659,7 @@ impl Pattern {
     /// an error: the cells after its end are not selected, as the seed says (L927). Also
     /// returns how many cells the pattern left out (0 when it tiles), for the caller's warning.
     /// Every other error stays an error.
-    pub fn select_allowing_short(
+    pub(crate) fn select_allowing_short(
         &self,
         pat: &str,
         rows: usize,

@@ -52,7 +52,7 @@ use crate::report::Report;
 pub const ADDED_CLEARANCE_M: f64 = 3.0;
 
 /// An edited building's bounding box grown by this many metres meets no `building:part`'s.
-pub const PART_MARGIN_M: f64 = 2.0;
+pub(crate) const PART_MARGIN_M: f64 = 2.0;
 
 /// Metres per degree of latitude (the same figure as the tiled input's jitter).
 const METRE_PER_DEG: f64 = 111_320.0;
@@ -64,13 +64,13 @@ const GRID_CELL_M: f64 = 50.0;
 const PLACE_ATTEMPTS: usize = 10_000;
 
 /// File names written by [`make_day2`].
-pub const DAY1: &str = "day1.osm.pbf";
+pub(crate) const DAY1: &str = "day1.osm.pbf";
 /// Day 2's PBF.
-pub const DAY2: &str = "day2.osm.pbf";
+pub(crate) const DAY2: &str = "day2.osm.pbf";
 /// The osmChange from day 1 to day 2.
-pub const CHANGES: &str = "changes.osc.gz";
+pub(crate) const CHANGES: &str = "changes.osc.gz";
 /// The edit list.
-pub const EDITS: &str = "edits.json";
+pub(crate) const EDITS: &str = "edits.json";
 
 /// The edit list of `edits.json`: citygen source ids (`way/123`), each list sorted by number.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -127,10 +127,10 @@ pub enum Spread {
 }
 
 /// Edits in one cluster of [`Spread::Clustered`] (a mapper's changeset on one street block).
-pub const CLUSTER_EDITS: usize = 25;
+pub(crate) const CLUSTER_EDITS: usize = 25;
 
 /// Radius of one cluster of [`Spread::Clustered`], in metres.
-pub const CLUSTER_RADIUS_M: f64 = 250.0;
+pub(crate) const CLUSTER_RADIUS_M: f64 = 250.0;
 
 /// Writes day 1 (`n` tiled buildings), day 2, the osmChange and the edit list into `dir` (see
 /// the module documentation), with edits spread uniformly. The same `n` and `seed` give the
@@ -557,7 +557,7 @@ impl Plan {
 }
 
 /// Edit counts of `n` buildings: (changed, added, removed), 1 %, 0.5 %, 0.5 % rounded.
-pub fn edit_counts(n: usize) -> (usize, usize, usize) {
+pub(crate) fn edit_counts(n: usize) -> (usize, usize, usize) {
     let pct = |p: f64| (n as f64 * p / 100.0).round() as usize;
     (pct(1.0), pct(0.5), pct(0.5))
 }

@@ -17,7 +17,7 @@ use flate2::write::ZlibEncoder;
 use flate2::Compression;
 
 /// Entities of one kind per `PrimitiveBlock` (osmium writes 8,000 too).
-pub const BLOCK_ENTITIES: usize = 8_000;
+pub(crate) const BLOCK_ENTITIES: usize = 8_000;
 
 /// The type of a relation member.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,14 +116,15 @@ impl<W: Write> PbfWriter<W> {
     /// From here until [`PbfWriter::end_join`], the blocks that a change of kind would start
     /// are groups of one block instead (its first group's kind the first entity's): a block
     /// holding more than one kind of element, which some writers make and readers must take.
-    pub fn join_groups(&mut self) -> io::Result<()> {
+    #[cfg(test)]
+    pub(crate) fn join_groups(&mut self) -> io::Result<()> {
         self.flush_block()?;
         self.held = Some(Vec::new());
         Ok(())
     }
 
     /// Writes the joined groups ([`PbfWriter::join_groups`]) as one block.
-    pub fn end_join(&mut self) -> io::Result<()> {
+    pub(crate) fn end_join(&mut self) -> io::Result<()> {
         self.flush_block()?;
         let Some(groups) = self.held.take() else {
             return Ok(());

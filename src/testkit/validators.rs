@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 /// Where the validators' environment is installed.
-pub fn validate_home() -> Option<PathBuf> {
+pub(crate) fn validate_home() -> Option<PathBuf> {
     std::env::var_os("CITYGEN_VALIDATE_HOME")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/citygen-validate")))
@@ -28,7 +28,7 @@ fn wrapper() -> Option<PathBuf> {
 }
 
 /// Whether this run is CI's (`CI` set to anything but `false` or `0`).
-pub fn under_ci() -> bool {
+pub(crate) fn under_ci() -> bool {
     std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false" && v != "0")
 }
 

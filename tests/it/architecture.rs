@@ -93,11 +93,17 @@ const LAYERS: &[(&str, &[&str])] = &[
     ),
 ];
 
+/// A folder's children and the siblings each may import (see [`SIBLINGS`]).
+type Siblings = &'static [(
+    &'static str,
+    &'static [(&'static str, &'static [&'static str])],
+)];
+
 /// Direction inside a folder: for the folder (module path), each listed child and the listed
 /// siblings it may import. Children of the folder that are not listed (shared files such as
 /// `export::step`) may be imported by any child; a listed child may import an unlisted one.
 /// Keep in step with ARCHITECTURE.md's "Layers".
-const SIBLINGS: &[(&str, &[(&str, &[&str])])] = &[
+const SIBLINGS: Siblings = &[
     // The writers: one format each, none imports another, but for glTF, which is the content
     // of 3D Tiles and what the preview draws.
     (
@@ -590,7 +596,7 @@ fn check(files: &[(String, Vec<String>, String)], layers: &[(&str, &[&str])]) ->
 fn check_with(
     files: &[(String, Vec<String>, String)],
     layers: &[(&str, &[&str])],
-    siblings: &[(&str, &[(&str, &[&str])])],
+    siblings: Siblings,
 ) -> Vec<Violation> {
     let modules: BTreeSet<Vec<String>> = files
         .iter()
@@ -951,7 +957,7 @@ fn paths_inside_types_and_expressions_count() {
 
 #[test]
 fn a_writer_importing_another_writer_fails_but_shared_files_and_listed_siblings_pass() {
-    const SIB: &[(&str, &[(&str, &[&str])])] = &[(
+    const SIB: Siblings = &[(
         "export",
         &[
             ("ifc", &[]),

@@ -8,20 +8,20 @@ use glam::DVec2;
 use crate::geometry::{ring, ring_signed_area, Polygon};
 
 /// A `geo` polygon (f64).
-pub type GPoly = geo::Polygon<f64>;
+pub(crate) type GPoly = geo::Polygon<f64>;
 /// A `geo` multipolygon (f64).
-pub type GMulti = geo::MultiPolygon<f64>;
+pub(crate) type GMulti = geo::MultiPolygon<f64>;
 
 /// Distance under which two points or a point and a line count as coincident (metres).
 /// Boolean operations snap coordinates to a grid much finer than this.
-pub const EPS: f64 = 1e-3;
+pub(crate) const EPS: f64 = 1e-3;
 
 fn ring_to_geo(r: &[DVec2]) -> geo::LineString<f64> {
     geo::LineString::from(r.iter().map(|q| (q.x, q.y)).collect::<Vec<_>>())
 }
 
 /// Our polygon as a `geo` polygon.
-pub fn to_geo(p: &Polygon) -> GPoly {
+pub(crate) fn to_geo(p: &Polygon) -> GPoly {
     GPoly::new(
         ring_to_geo(&p.outer),
         p.holes.iter().map(|h| ring_to_geo(h)).collect(),
@@ -33,7 +33,7 @@ fn ring_from_geo(ls: &geo::LineString<f64>) -> Vec<DVec2> {
 }
 
 /// A `geo` polygon as ours: orientation normalised, rings cleaned, degenerate holes dropped.
-pub fn from_geo(g: &GPoly) -> Polygon {
+pub(crate) fn from_geo(g: &GPoly) -> Polygon {
     let holes = g
         .interiors()
         .iter()
@@ -46,19 +46,19 @@ pub fn from_geo(g: &GPoly) -> Polygon {
 /// Drops the closing vertex ([`ring::pop_closing_by`], 1 nm) and near-duplicate and straight
 /// vertices ([`ring::remove_straight`], 0.1 µm and a sine of 1e-7), so that rings stay small
 /// and shared-edge tests see straight edges as one edge.
-pub fn straighten(mut r: Vec<DVec2>) -> Vec<DVec2> {
+pub(crate) fn straighten(mut r: Vec<DVec2>) -> Vec<DVec2> {
     ring::pop_closing_by(&mut r, |a, b| a.distance(b) < 1e-9);
     ring::remove_straight(&mut r, 1e-7, 1e-7);
     r
 }
 
 /// Unsigned area of a `geo` multipolygon.
-pub fn garea(m: &GMulti) -> f64 {
+pub(crate) fn garea(m: &GMulti) -> f64 {
     m.unsigned_area()
 }
 
 /// Axis-aligned bounds of a multipolygon (min, max); infinite when empty.
-pub fn gbounds(m: &GMulti) -> (DVec2, DVec2) {
+pub(crate) fn gbounds(m: &GMulti) -> (DVec2, DVec2) {
     let mut lo = DVec2::splat(f64::INFINITY);
     let mut hi = DVec2::splat(f64::NEG_INFINITY);
     for p in &m.0 {
@@ -138,7 +138,7 @@ fn rings_area_below(rings: &[(bool, Vec<DVec2>)], axis: Axis, t: f64) -> f64 {
 }
 
 /// The cut position `t` on `axis` where the region below holds `frac` of the area (bisection).
-pub fn cut_at_fraction(m: &GMulti, axis: Axis, frac: f64) -> f64 {
+pub(crate) fn cut_at_fraction(m: &GMulti, axis: Axis, frac: f64) -> f64 {
     let (lo, hi) = gbounds(m);
     let (mut a, mut b) = (coord(lo, axis), coord(hi, axis));
     if !(a.is_finite() && b.is_finite()) {
@@ -203,14 +203,14 @@ pub fn band(m: &GMulti, axis: Axis, a: f64, b: f64) -> GMulti {
 }
 
 /// Whether a `geo` polygon is valid (simple rings, holes inside, no self-touching).
-pub fn is_valid(p: &GPoly) -> bool {
+pub(crate) fn is_valid(p: &GPoly) -> bool {
     p.is_valid()
 }
 
 /// Whether the rectangle `[lo, hi]` lies inside `poly` (its interior may touch the boundary
 /// only along edges): every corner inside or on the boundary, no ring vertex strictly inside
 /// the rectangle, and no ring edge crossing a rectangle edge properly.
-pub fn rect_inside(poly: &Polygon, lo: DVec2, hi: DVec2) -> bool {
+pub(crate) fn rect_inside(poly: &Polygon, lo: DVec2, hi: DVec2) -> bool {
     let corners = [lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)];
     let centre = 0.5 * (lo + hi);
     // Corners shrunk a hair toward the centre, so that corners on the boundary count inside.
@@ -257,7 +257,7 @@ fn segments_cross(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
 
 /// Shared boundary of two rings: the overlaps of anti-parallel (or parallel) collinear edges,
 /// each longer than [`EPS`]. Returns segments in the direction of `a`'s edges.
-pub fn shared_segments(a: &[DVec2], b: &[DVec2]) -> Vec<(DVec2, DVec2)> {
+pub(crate) fn shared_segments(a: &[DVec2], b: &[DVec2]) -> Vec<(DVec2, DVec2)> {
     let mut out = Vec::new();
     let (na, nb) = (a.len(), b.len());
     for i in 0..na {
@@ -297,7 +297,7 @@ const TOUCH: f64 = crate::geometry::TOUCH_TOLERANCE;
 /// run clockwise are holes pinched onto the ring: they are returned in the second list, for the
 /// caller to cut the polygon through them. A ring that still crosses itself is returned as it
 /// is (never seen from the planner's own cuts; the plan tests check it).
-pub fn simple_parts(ring: &[DVec2]) -> (Vec<Vec<DVec2>>, Vec<Vec<DVec2>>) {
+pub(crate) fn simple_parts(ring: &[DVec2]) -> (Vec<Vec<DVec2>>, Vec<Vec<DVec2>>) {
     let (mut outers, mut holes) = (Vec::new(), Vec::new());
     let Some(first) = crate::geometry::clean_ring(ring) else {
         return (outers, holes);

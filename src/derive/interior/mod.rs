@@ -51,7 +51,7 @@
 //!
 //! # Programmes
 //!
-//! [`Programme::for_building`] maps `building=*`; the knowledge base may override it.
+//! `Programme::for_building` maps `building=*`; the knowledge base may override it.
 //! Dwellings follow seed 001: the typology Tx (x bedrooms) is the largest whose RGEU Art. 67
 //! gross area fits the dwelling's usable area, rooms start at the RGEU Art. 66 minimum and the
 //! surplus is shared by weight. When the minimums do not fit the area, they are dropped for

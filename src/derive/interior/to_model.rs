@@ -6,17 +6,17 @@ use super::{BuildingPlan, Door, StoreyPlan};
 use crate::model::{InteriorDoor, InteriorWall, Part, Room, Stair, StoreyInterior, OPENING_MARGIN};
 
 /// Interior wall thickness (metres): a 10 cm partition.
-pub const INTERIOR_WALL_THICKNESS: f64 = 0.1;
+pub(crate) const INTERIOR_WALL_THICKNESS: f64 = 0.1;
 /// Thickness of a floor slab (metres): the ceiling of a storey is this far below the next
 /// storey's floor.
-pub const SLAB_THICKNESS: f64 = 0.2;
+pub(crate) const SLAB_THICKNESS: f64 = 0.2;
 /// Interior door height (metres), lowered to fit a low storey.
-pub const DOOR_HEIGHT: f64 = 2.1;
+pub(crate) const DOOR_HEIGHT: f64 = 2.1;
 
 /// The interior of every storey of `part` from its plan. A plan without a stair covers the
 /// ground storey only (the upper storeys cannot be reached), so the other storeys stay empty.
 /// A plan with a stair gives every storey: storeys beyond the plan's repeat its last one.
-pub fn storeys_of(part: &Part, plan: &BuildingPlan) -> Vec<StoreyInterior> {
+pub(crate) fn storeys_of(part: &Part, plan: &BuildingPlan) -> Vec<StoreyInterior> {
     let levels = &part.levels;
     let planned = if plan.stair.is_some() {
         levels.len()

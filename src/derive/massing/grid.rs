@@ -1,12 +1,12 @@
 //! Parts at the precision they are written: every vertex on the output grid (the millimetre,
-//! [`crate::model::GRID_STEPS_PER_M`]), distinct vertices at least [`MIN_GAP`] apart.
+//! `crate::model::GRID_STEPS_PER_M`), distinct vertices at least `MIN_GAP` apart.
 //!
 //! The writers round coordinates (CityGML to three decimals). Rounding a part vertex by vertex
 //! can merge two vertices that were distinct, fold a ring back on itself (`x, y, x`), or leave
 //! a short edge whose tilt, once rounded, turns a triangle of its face by tens of degrees; a
 //! validator that snaps vertices within 1 mm (val3dity's default) merges vertices one grid step
 //! apart. So the model itself is put on the grid once, as a whole part, before anything is
-//! written: [`polygon_on_grid`] for footprints, [`finish`] for the built surfaces. What every
+//! written: `polygon_on_grid` for footprints, [`finish`] for the built surfaces. What every
 //! writer then rounds is already round, and the part checked in memory
 //! ([`super::check_part`], [`super::written_defects`]) is the part in the files.
 //!
@@ -25,7 +25,7 @@ use crate::model::{on_grid, Face, Wall, GRID_STEPS_PER_M};
 /// Distinct vertices of a part are at least this far apart before they are put on the grid
 /// ([`crate::model::MIN_VERTEX_GAP`]). A part vertex moves by at most this much (a roof node
 /// merged into its neighbour) plus half a grid step.
-pub const MIN_GAP: f64 = crate::model::MIN_VERTEX_GAP;
+pub(crate) const MIN_GAP: f64 = crate::model::MIN_VERTEX_GAP;
 
 /// [`MIN_GAP`] in grid steps: two vertices of the ground and the walls closer than this are one.
 const MIN_GAP_STEPS: i64 = 3;
@@ -46,7 +46,7 @@ fn point(k: Key) -> DVec3 {
 }
 
 /// A 2D point on the grid.
-pub fn point2_on_grid(p: DVec2) -> DVec2 {
+pub(crate) fn point2_on_grid(p: DVec2) -> DVec2 {
     DVec2::new(on_grid(p.x), on_grid(p.y))
 }
 
@@ -61,7 +61,7 @@ pub fn point2_on_grid(p: DVec2) -> DVec2 {
 /// every multiple of `1 / |end - start|` steps from it, so within a few steps along the line
 /// there is one a hundredth of a step from it, or closer: the jamb moves there. `u` comes back
 /// unchanged when `start` or `end` is not on the grid, or the line has no length.
-pub fn along_on_grid(start: DVec2, end: DVec2, u: f64, shift: f64) -> f64 {
+pub(crate) fn along_on_grid(start: DVec2, end: DVec2, u: f64, shift: f64) -> f64 {
     let steps = |v: f64| v * GRID_STEPS_PER_M;
     let whole = |p: DVec2| {
         let (x, y) = (steps(p.x), steps(p.y));
@@ -134,7 +134,7 @@ pub fn along_on_grid(start: DVec2, end: DVec2, u: f64, shift: f64) -> f64 {
 /// ([`is_simple`]): the caller keeps the polygon as it was (a footprint a millimetre from
 /// touching itself; the writers round it as they can). Idempotent: a polygon on the grid whose
 /// vertices are [`MIN_GAP`] apart is returned unchanged.
-pub fn polygon_on_grid(p: &Polygon) -> Option<Polygon> {
+pub(crate) fn polygon_on_grid(p: &Polygon) -> Option<Polygon> {
     let snap_ring = |r: &Vec<DVec2>| -> Option<Vec<DVec2>> {
         let mut v: Vec<DVec2> = r.iter().map(|q| point2_on_grid(*q)).collect();
         // Within the gap (measured on the grid, with a little slack for the division).
@@ -321,9 +321,9 @@ fn on_segment(u: Key, v: Key, w: Key) -> Option<f64> {
 }
 
 /// Puts a built part on the grid (see the module documentation). `ground` and the walls'
-/// bases must already be on it (the footprint through [`polygon_on_grid`], the heights through
-/// [`on_grid`]): they are offered first, so they keep their places and every roof vertex within
-/// [`MIN_GAP`] of one of them joins it. A wall keeps its outline's first two vertices (its
+/// bases must already be on it (the footprint through `polygon_on_grid`, the heights through
+/// `on_grid`): they are offered first, so they keep their places and every roof vertex within
+/// `MIN_GAP` of one of them joins it. A wall keeps its outline's first two vertices (its
 /// base); walls have no openings yet (they are cut at LOD3, after this). Roof faces that
 /// collapse are dropped.
 pub fn finish(ground: &mut Face, walls: &mut [Wall], roof: &mut Vec<Face>) {
@@ -362,11 +362,11 @@ pub fn finish(ground: &mut Face, walls: &mut [Wall], roof: &mut Vec<Face>) {
 
 /// Roof vertices closer than this (metres), directly or through a chain of such neighbours,
 /// form a cluster that `finish` makes one vertex where one fits (see `collapse_clusters`).
-pub const ROOF_CLUSTER: f64 = 0.03;
+pub(crate) const ROOF_CLUSTER: f64 = 0.03;
 
 /// Roof edges shorter than this (metres) have their ends made one by `collapse_clusters`
 /// where a point fits.
-pub const ROOF_SHORT_EDGE: f64 = 0.1;
+pub(crate) const ROOF_SHORT_EDGE: f64 = 0.1;
 
 /// Vertices become one only where one point lies within this (metres) of the plane of every
 /// roof face they touch: a millimetre, the rounding's own size, so that faces stay as flat as

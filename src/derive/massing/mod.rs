@@ -15,10 +15,10 @@ use crate::model::{on_grid, Face, Lod, Part, RoofShape, Wall};
 pub mod grid;
 
 /// Default exterior wall thickness in metres.
-pub const WALL_THICKNESS: f64 = 0.3;
+pub(crate) const WALL_THICKNESS: f64 = 0.3;
 
 /// Pitch used when a mass carries none usable (a KB angle of 0 or 90 on a pitched roof).
-pub const DEFAULT_PITCH_DEG: f64 = 30.0;
+pub(crate) const DEFAULT_PITCH_DEG: f64 = 30.0;
 
 /// Roofs lower than this are drawn flat (a pitched roof of a few centimetres is noise).
 const MIN_ROOF_HEIGHT: f64 = 0.05;
@@ -186,7 +186,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
 
 /// The footprint a mass is built on: its own on the output grid ([`grid::polygon_on_grid`]),
 /// or as it is when rounding would make it touch itself.
-pub fn built_footprint(mass: &Mass) -> std::borrow::Cow<'_, Polygon> {
+pub(crate) fn built_footprint(mass: &Mass) -> std::borrow::Cow<'_, Polygon> {
     match grid::polygon_on_grid(&mass.footprint) {
         Some(p) if p != mass.footprint => std::borrow::Cow::Owned(p),
         _ => std::borrow::Cow::Borrowed(&mass.footprint),
@@ -221,7 +221,7 @@ pub fn walls(footprint: &Polygon, base: f64, top: f64) -> Vec<Wall> {
 }
 
 /// Floor elevations of `n` equal storeys between `base` and `eave`.
-pub fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
+pub(crate) fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
     let n = n.max(1);
     let h = (eave - base) / f64::from(n);
     (0..n).map(|i| base + h * f64::from(i)).collect()
@@ -231,7 +231,7 @@ pub fn even_levels(base: f64, eave: f64, n: u32) -> Vec<f64> {
 /// the roof line over the edge from the end back to the start ([`crate::derive::roof::shapes::RoofLine::over`]): a rectangle
 /// under eaves, a pentagon (or more, under a profile roof) under a gable, a trapezoid under a
 /// skillion. `roof` is at z = 0 at the eave; the eave is at `eave`.
-pub fn walls_under_roof(
+pub(crate) fn walls_under_roof(
     footprint: &Polygon,
     base: f64,
     eave: f64,
@@ -525,12 +525,12 @@ pub fn closure_defects(part: &Part) -> Vec<String> {
 /// violation (empty when all hold):
 ///
 /// * every coordinate is finite;
-/// * every face (ground, wall outlines, roof faces) is planar within [`PLANAR_TOL`] and has an
+/// * every face (ground, wall outlines, roof faces) is planar within `PLANAR_TOL` and has an
 ///   area above 1e-6 m² (no zero-area face or sliver triangle face);
-/// * wall outlines stand on their footprint edge's vertical plane (within [`PLANAR_TOL`]), face
+/// * wall outlines stand on their footprint edge's vertical plane (within `PLANAR_TOL`), face
 ///   out of the building (their normal points to the right of start → end) and start with their
 ///   base edge;
-/// * roof faces face up, lie within [`PLANAR_TOL`] of the footprint in plan, and their plan areas add up
+/// * roof faces face up, lie within `PLANAR_TOL` of the footprint in plan, and their plan areas add up
 ///   to the footprint's area within 0.1 %;
 /// * the surfaces bound a closed solid ([`closure_defects`]).
 pub fn check_part(part: &Part) -> Vec<String> {
@@ -622,9 +622,9 @@ pub fn check_part(part: &Part) -> Vec<String> {
 ///   plane);
 /// * the rounded surfaces bound a closed solid: every edge used exactly once in each
 ///   direction;
-/// * every face is planar within [`WRITTEN_PLANARITY`] (1 cm) and has no sliver: each triangle
+/// * every face is planar within `WRITTEN_PLANARITY` (1 cm) and has no sliver: each triangle
 ///   of the face (`geometry::triangulate`, an ear clipper) has its normal within
-///   [`WRITTEN_NORMAL_DEG`] (20°) of the face's normal. These lines start with `sliver:`; the
+///   `WRITTEN_NORMAL_DEG` (20°) of the face's normal. These lines start with `sliver:`; the
 ///   ear clipper also cuts ears of three boundary vertices of one straight run (a footprint's
 ///   collinear vertex on an eave, moved off the line by the rounding), which a constrained
 ///   Delaunay triangulation (val3dity's) would not, so this check is stricter than the
@@ -746,15 +746,15 @@ pub fn written_defects(part: &Part, origin: DVec3) -> Vec<String> {
 /// Most distance (metres) of a part's vertex from its face's plane ([`check_part`]): a vertex
 /// on the grid ([`grid`]) is half a millimetre step from where it was computed, and one merged
 /// into a neighbour less than [`grid::MIN_GAP`] away.
-pub const PLANAR_TOL: f64 = 0.01;
+pub(crate) const PLANAR_TOL: f64 = 0.01;
 
 /// Most distance (metres) of a written face's vertex from the face's plane
 /// ([`written_defects`]): val3dity's default planarity tolerance.
-pub const WRITTEN_PLANARITY: f64 = 0.01;
+pub(crate) const WRITTEN_PLANARITY: f64 = 0.01;
 
 /// Most angle (degrees) between a written face's normal and the normal of any of its triangles
 /// ([`written_defects`]): val3dity's default normal deviation.
-pub const WRITTEN_NORMAL_DEG: f64 = 20.0;
+pub(crate) const WRITTEN_NORMAL_DEG: f64 = 20.0;
 
 fn dist_to_boundary(p: &Polygon, q: DVec2) -> f64 {
     p.rings()
@@ -770,7 +770,7 @@ fn dist_to_boundary(p: &Polygon, q: DVec2) -> f64 {
 }
 
 /// The footprint as a horizontal face at `z`, facing up (a roof) or down (a ground).
-pub fn horizontal_face(footprint: &Polygon, z: f64, up: bool) -> Face {
+pub(crate) fn horizontal_face(footprint: &Polygon, z: f64, up: bool) -> Face {
     let ring = |r: &Vec<DVec2>, reverse: bool| {
         let mut v: Vec<DVec3> = r.iter().map(|p| at(*p, z)).collect();
         if reverse {

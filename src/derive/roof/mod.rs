@@ -1,8 +1,8 @@
 //! Roof surfaces over a footprint: flat, pyramidal, hipped (from the straight skeleton) and
 //! gabled (the hipped roof with its end triangles raised to vertical gables).
 //!
-//! All constructions put the eave at z = 0; [`RoofGeometry::translated_z`] lifts them onto the
-//! walls and [`RoofGeometry::scaled_to_height`] fits them to a known roof height (OSM
+//! All constructions put the eave at z = 0; `RoofGeometry::translated_z` lifts them onto the
+//! walls and `RoofGeometry::scaled_to_height` fits them to a known roof height (OSM
 //! `roof:height`). Faces are planar, their outer ring counter-clockwise seen from above (their
 //! normal points up and out of the building), in the `Face` convention of [`crate::model`].
 
@@ -47,7 +47,7 @@ pub struct RoofGeometry {
 
 impl RoofGeometry {
     /// Builds the geometry from its faces and gable walls; `height` is the highest z.
-    pub fn from_parts(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
+    pub(crate) fn from_parts(faces: Vec<Face>, gable_walls: Vec<Face>) -> RoofGeometry {
         RoofGeometry::new(faces, gable_walls)
     }
 
@@ -66,7 +66,7 @@ impl RoofGeometry {
     }
 
     /// Whether every face meets at the highest point: a pyramid, a cone, or a round outline's
-    /// roof risen to one apex (see [`shapes::ONE_APEX_SPREAD`]).
+    /// roof risen to one apex (see `shapes::ONE_APEX_SPREAD`).
     pub fn has_one_apex(&self) -> bool {
         let top = self
             .faces
@@ -78,7 +78,7 @@ impl RoofGeometry {
     }
 
     /// How far (degrees) a face of a roof risen to one apex may be off `pitch_deg`, the slope
-    /// its side was given: the apex stands up to [`shapes::ONE_APEX_SPREAD`] of the largest
+    /// its side was given: the apex stands up to `shapes::ONE_APEX_SPREAD` of the largest
     /// skeleton distance farther from a side than that side's own top would (2.5° at 35°).
     pub fn one_apex_pitch_tolerance(pitch_deg: f64) -> f64 {
         let k = pitch_deg.to_radians().tan();
@@ -87,7 +87,7 @@ impl RoofGeometry {
 
     /// Scales heights (about z = 0, the eave) so that the highest point is at `height`. A flat
     /// roof (height 0) is left unchanged. Planarity is preserved (a vertical scale is affine).
-    pub fn scaled_to_height(mut self, height: f64) -> RoofGeometry {
+    pub(crate) fn scaled_to_height(mut self, height: f64) -> RoofGeometry {
         if self.height > 0.0 && height.is_finite() && height >= 0.0 {
             let k = height / self.height;
             for f in self.faces.iter_mut().chain(self.gable_walls.iter_mut()) {
@@ -101,7 +101,8 @@ impl RoofGeometry {
     }
 
     /// Moves every vertex up by `dz` (the eave height). `height` stays relative to the eave.
-    pub fn translated_z(mut self, dz: f64) -> RoofGeometry {
+    #[cfg(test)]
+    pub(crate) fn translated_z(mut self, dz: f64) -> RoofGeometry {
         for f in self.faces.iter_mut().chain(self.gable_walls.iter_mut()) {
             for p in f.outer.iter_mut().chain(f.holes.iter_mut().flatten()) {
                 p.z += dz;
@@ -219,7 +220,7 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
 /// `pitch_deg` is the pitch of hipped, gabled, half-hipped, side-hipped, saltbox, skillion,
 /// pyramidal and cone roofs; the mansard and gambrel use their own two pitches (see
 /// [`shapes`]) and dome, onion and round roofs a height from the inscribed radius. The
-/// caller scales the result with [`RoofGeometry::scaled_to_height`] when the height is known.
+/// caller scales the result with `RoofGeometry::scaled_to_height` when the height is known.
 /// `down` is the direction (in plan) a skillion faces (OSM `roof:direction`), else the short
 /// axis of the footprint's minimum bounding rectangle. Pyramidal and cone roofs rise to one
 /// apex over the centroid when the footprint has no holes and is star-shaped from it, and are

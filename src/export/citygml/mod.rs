@@ -17,7 +17,7 @@
 //!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
 //!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose
 //!   `bldg:lod3Geometry` is a `gml:MultiSurface` of the slab (a closed box) and the railing
-//!   (handrail, posts and infill panel, [`crate::export::lod3geom::balcony_faces`]).
+//!   (handrail, posts and infill panel, `crate::export::lod3geom::balcony_faces`).
 //!   `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
 //!   together close the shell. Elements follow the schema's order: installations, boundary
 //!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`
@@ -79,12 +79,12 @@ const ROOF_TYPE_CODESPACE: &str =
 /// The most elements an XML document may have for the reference schema validator (xmlschema's
 /// `MAX_XML_ELEMENTS`, which `validate-outputs` uses): a larger file is refused unread. The run
 /// counts each CityGML file's elements and warns past it ([`count_elements`]).
-pub const VALIDATOR_MAX_ELEMENTS: u64 = 1_000_000;
+pub(crate) const VALIDATOR_MAX_ELEMENTS: u64 = 1_000_000;
 
 /// Counts the element start tags (`<name`, `<name/>`; not `</`, `<?`, `<!`) in `bytes`, a
 /// piece of a CityGML stream; `after_lt` carries a `<` that ended the previous piece. The
 /// writer escapes `<` in text and attributes, so every other `<` opens an element.
-pub fn count_elements(bytes: &[u8], after_lt: &mut bool) -> u64 {
+pub(crate) fn count_elements(bytes: &[u8], after_lt: &mut bool) -> u64 {
     let Some(&first) = bytes.first() else {
         return 0;
     };
@@ -199,7 +199,8 @@ impl<W: Write + Send> CityGmlWriter<W> {
 
     /// A writer to `out` that writes `srs_name` verbatim as every `srsName` (e.g. a compound
     /// `urn:ogc:def:crs,crs:EPSG::25832,crs:EPSG::5783`) instead of `EPSG:<code>`.
-    pub fn with_srs_name(out: W, srs_name: impl Into<String>) -> CityGmlWriter<W> {
+    #[cfg(test)]
+    pub(crate) fn with_srs_name(out: W, srs_name: impl Into<String>) -> CityGmlWriter<W> {
         let mut w = CityGmlWriter::new(out);
         w.srs_override = Some(srs_name.into());
         w
@@ -291,7 +292,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         Ok(())
     }
 
-    /// Renders the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, each into its
+    /// Renders the buildings in parallel, `super::PARALLEL_BATCH` at a time, each into its
     /// own buffer (kept from batch to batch), and writes them in order: the same bytes as
     /// `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {

@@ -1,10 +1,10 @@
-//! CityJSON 2.0 writers: one `.city.json` file ([`CityJsonWriter`]) and a CityJSONSeq stream
-//! ([`CityJsonSeqWriter`], `.city.jsonl`), both streamed.
+//! CityJSON 2.0 writers: one `.city.json` file (`CityJsonWriter`) and a CityJSONSeq stream
+//! (`CityJsonSeqWriter`, `.city.jsonl`), both streamed.
 //!
 //! Both write the same CityObjects. Vertices are integers: whole millimetres from the
 //! `transform`'s `translate`, the run's local origin ([`OutputContext::origin`]), with `scale`
 //! 0.001, so a vertex is `translate + 0.001 * v` in the output CRS, within 0.5 mm of the model
-//! point ([`crate::model::grid_key`]). `metadata.referenceSystem` names the output CRS as an
+//! point (`crate::model::grid_key`). `metadata.referenceSystem` names the output CRS as an
 //! OGC URL (`https://www.opengis.net/def/crs/EPSG/0/<code>`, the EPSG code the CityGML writer
 //! names). The model's faces already follow CityJSON's orientation: an outer ring is
 //! counter-clockwise seen from outside the solid (its normal points out), holes run the other
@@ -24,11 +24,11 @@
 //! - **LOD2**: one `Solid` of lod `"2.2"` with semantics `GroundSurface`, `WallSurface`,
 //!   `RoofSurface`.
 //! - **LOD3**: one `Solid` of lod `"3"`: walls with a hole per opening, and each opening's
-//!   polygon (which fills its hole, [`crate::export::lod3geom::opening_face`] at depth 0) in the
+//!   polygon (which fills its hole, `crate::export::lod3geom::opening_face` at depth 0) in the
 //!   same shell; the `Window` and `Door` semantic objects are `children` of their wall's own
 //!   `WallSurface` object (and name it as `parent`); a wall against a neighbour has its own
 //!   `WallSurface` with `partyWallShare` (as the CityGML). Ground and walls are those of
-//!   [`crate::export::lod3geom::seated_changes`] (a vertex under each jamb of a low opening),
+//!   `crate::export::lod3geom::seated_changes` (a vertex under each jamb of a low opening),
 //!   as the CityGML's solid. Balconies are `BuildingInstallation` children (`function`
 //!   `balcony`) with a `MultiSurface` of lod `"3"` (slab, railing, infill).
 //! - **LOD4**: CityJSON 2.0 has no LOD4; as CityGML 3.0 does, the interior is written at LOD3
@@ -45,21 +45,21 @@
 //!
 //! Colours are not written (CityJSON materials would need the whole file's list up front).
 //!
-//! **The `.city.json` file** ([`CityJsonWriter`]) is `{"type":"CityJSON","version":"2.0",
+//! **The `.city.json` file** (`CityJsonWriter`) is `{"type":"CityJSON","version":"2.0",
 //! "transform":..,"metadata":..,"CityObjects":{..},"vertices":[..]}`: the buildings' objects
 //! go to the output as they come, the vertices are appended to a scratch file as they are
 //! first used and copied after the objects at the end. A building's vertices are each written
 //! once; across buildings a vertex is shared through a table of the vertices written so far,
-//! emptied when it holds [`SHARED_VERTICES`] (so memory does not grow with the city: past that,
+//! emptied when it holds `SHARED_VERTICES` (so memory does not grow with the city: past that,
 //! a vertex two buildings far apart in the input share may be written twice, which CityJSON
 //! allows and cjval notes as a warning).
 //!
-//! **The CityJSONSeq stream** ([`CityJsonSeqWriter`]): a first line, the CityJSON object with
+//! **The CityJSONSeq stream** (`CityJsonSeqWriter`): a first line, the CityJSON object with
 //! the transform and metadata and empty `CityObjects` and `vertices`, then one line per
 //! building: a `CityJSONFeature` whose `id` is the building's, with its objects and its own
 //! vertices.
 //!
-//! Both render [`super::PARALLEL_BATCH`] buildings at a time in parallel, each into its own
+//! Both render `super::PARALLEL_BATCH` buildings at a time in parallel, each into its own
 //! buffer with its own vertices, then number the vertices in order: the bytes do not depend on
 //! the thread count.
 
@@ -80,7 +80,7 @@ mod render;
 /// The most vertices the `.city.json` writer remembers to share them between buildings: 7/8
 /// of 2^20, what a hash table of 2^20 buckets of 33 bytes (35 MB) holds; the table is emptied
 /// when full.
-pub const SHARED_VERTICES: usize = 917_504;
+pub(crate) const SHARED_VERTICES: usize = 917_504;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum State {
@@ -209,7 +209,7 @@ impl Drop for ScratchGuard {
 }
 
 /// Streaming CityJSON 2.0 writer of one `.city.json` file (see the module documentation).
-pub struct CityJsonWriter<W: Write + Send> {
+pub(crate) struct CityJsonWriter<W: Write + Send> {
     out: W,
     state: State,
     lod: Lod,
@@ -230,14 +230,15 @@ pub struct CityJsonWriter<W: Write + Send> {
 
 impl<W: Write + Send> CityJsonWriter<W> {
     /// A writer to `out` that keeps the vertices in memory until `finish` (tests, small files).
-    pub fn new(out: W) -> CityJsonWriter<W> {
+    #[cfg(test)]
+    pub(crate) fn new(out: W) -> CityJsonWriter<W> {
         CityJsonWriter::with_spool(out, Spool::Memory(Vec::new()), ScratchGuard(None))
     }
 
     /// A writer to `out` whose vertices wait in a scratch file beside `target` (the final
     /// output path, whose folder must exist), deleted when the writer is dropped (on Unix it is
     /// unlinked at once and only the open handle keeps it).
-    pub fn beside(out: W, target: &Path) -> io::Result<CityJsonWriter<W>> {
+    pub(crate) fn beside(out: W, target: &Path) -> io::Result<CityJsonWriter<W>> {
         let (file, left) = crate::export::scratch_beside(target, "vertices")?;
         let guard = ScratchGuard(left);
         Ok(CityJsonWriter::with_spool(
@@ -265,7 +266,8 @@ impl<W: Write + Send> CityJsonWriter<W> {
     }
 
     /// Gives the sink back (complete after [`BuildingWriter::finish`]).
-    pub fn into_inner(self) -> W {
+    #[cfg(test)]
+    pub(crate) fn into_inner(self) -> W {
         self.out
     }
 
@@ -384,7 +386,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
 
 /// Streaming CityJSONSeq writer (`.city.jsonl`, see the module documentation): the header
 /// line, then one `CityJSONFeature` line per building with its own vertices.
-pub struct CityJsonSeqWriter<W: Write + Send> {
+pub(crate) struct CityJsonSeqWriter<W: Write + Send> {
     out: W,
     state: State,
     lod: Lod,
@@ -393,7 +395,7 @@ pub struct CityJsonSeqWriter<W: Write + Send> {
 
 impl<W: Write + Send> CityJsonSeqWriter<W> {
     /// A writer to `out`.
-    pub fn new(out: W) -> CityJsonSeqWriter<W> {
+    pub(crate) fn new(out: W) -> CityJsonSeqWriter<W> {
         CityJsonSeqWriter {
             out,
             state: State::New,
@@ -403,7 +405,8 @@ impl<W: Write + Send> CityJsonSeqWriter<W> {
     }
 
     /// Gives the sink back (complete after [`BuildingWriter::finish`]).
-    pub fn into_inner(self) -> W {
+    #[cfg(test)]
+    pub(crate) fn into_inner(self) -> W {
         self.out
     }
 }

@@ -13,14 +13,14 @@
 //! parts meet. The CityGML and IFC solids keep them.
 //!
 //! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
-//! and door is a pane in its opening's rectangle set back [`OPENING_SETBACK`] into the wall
+//! and door is a pane in its opening's rectangle set back `OPENING_SETBACK` into the wall
 //! (towards the inside, never deeper than the wall is thick) so it reads as recessed, plus four
 //! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
 //! else the wall colour. The shell behind a pane is hollow, so glazed windows' glass is opaque:
-//! the window colour darkened ([`GLASS_SHADE`]), smooth and a little metallic, as glass with an
+//! the window colour darkened (`GLASS_SHADE`), smooth and a little metallic, as glass with an
 //! unlit room behind it looks from the street; only a part with an interior (LOD4) has
-//! transparent glass (alpha [`GLASS_ALPHA`], `BLEND`). Doors and unglazed windows are opaque in
-//! their colour. Balconies ([`crate::export::lod3geom::balcony_faces`]) are the slab in the
+//! transparent glass (alpha `GLASS_ALPHA`, `BLEND`). Doors and unglazed windows are opaque in
+//! their colour. Balconies (`crate::export::lod3geom::balcony_faces`) are the slab in the
 //! balcony's colour, a railing of handrail and posts in dark iron, and its infill of tinted glass
 //! (`BLEND`), without their faces in the wall's plane. No material is double-sided: every face
 //! is the outside of a body.
@@ -102,20 +102,20 @@ const ROUGHNESS: f32 = 0.9;
 const GROUND_COLOR: Color = Color::GREY;
 
 /// How far window and door panes sit behind the wall's outer face (metres).
-pub const OPENING_SETBACK: f64 = 0.1;
+pub(crate) const OPENING_SETBACK: f64 = 0.1;
 
 /// Opacity of glazed windows' glass in parts with an interior (LOD4); elsewhere glass is opaque.
-pub const GLASS_ALPHA: f32 = 0.35;
+pub(crate) const GLASS_ALPHA: f32 = 0.35;
 
 /// Opaque glass is the window colour times this (in sRGB): dark, as a pane with an unlit room
 /// behind it looks from the street.
-pub const GLASS_SHADE: f32 = 0.4;
+pub(crate) const GLASS_SHADE: f32 = 0.4;
 
 /// Roughness of glass: smooth, so that viewers with an environment light show reflections.
-pub const GLASS_ROUGHNESS: f32 = 0.1;
+pub(crate) const GLASS_ROUGHNESS: f32 = 0.1;
 
 /// Metalness of glass: a little, for a stronger reflection than a plain dielectric's.
-pub const GLASS_METALLIC: f32 = 0.2;
+pub(crate) const GLASS_METALLIC: f32 = 0.2;
 
 /// Semantic class of a group of surfaces: one child node per class and building.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -255,7 +255,7 @@ impl<W: Write + Send> GltfWriter<W> {
     /// scratch file and no spool: the binary data and the records are only counted. The GLB it
     /// writes to `out` has the right header and length, the JSON chunk's fixed parts, and
     /// blanks (spaces, zero bytes) in place of the records and the binary data.
-    pub fn discarding(out: W) -> GltfWriter<W> {
+    pub(crate) fn discarding(out: W) -> GltfWriter<W> {
         GltfWriter {
             out,
             scratch: None,
@@ -361,7 +361,7 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
         }
     }
 
-    /// Encodes (triangulates) the buildings in parallel, [`super::PARALLEL_BATCH`] at a time, and
+    /// Encodes (triangulates) the buildings in parallel, `super::PARALLEL_BATCH` at a time, and
     /// appends them in order: the same bytes as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         self.write_checked(&Checked::check(buildings))

@@ -70,7 +70,7 @@
 //! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior
 //! doors, stairs, upper floor slabs) by the child module `lod4` (see there).
 //!
-//! GlobalIds are deterministic ([`global_id`](crate::export::step::global_id)) from the building key and the element's path, so
+//! GlobalIds are deterministic (`global_id`) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
 //! usages, and at LOD3 the shared opening shapes and fill offsets (at most
@@ -214,7 +214,7 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
         self.write_all(std::slice::from_ref(building))
     }
 
-    /// Renders [`PARALLEL_BATCH`] buildings at a time in parallel, each against the shared
+    /// Renders `PARALLEL_BATCH` buildings at a time in parallel, each against the shared
     /// caches as the batch found them (see `cache`), and appends them in order; a building
     /// whose rendering did not see the caches as the buildings before it left them is rendered
     /// again. The same bytes as `write` on each.
@@ -433,7 +433,7 @@ fn render(
 }
 
 /// The IFC4 `IfcRoofTypeEnum` value for a roof shape.
-pub fn roof_type(shape: RoofShape) -> &'static str {
+pub(crate) fn roof_type(shape: RoofShape) -> &'static str {
     match shape {
         RoofShape::Flat => "FLAT_ROOF",
         RoofShape::Skillion => "SHED_ROOF",
@@ -452,7 +452,7 @@ pub fn roof_type(shape: RoofShape) -> &'static str {
 /// An angle in decimal degrees as an `IfcCompoundPlaneAngleMeasure`: degrees, minutes, seconds,
 /// millionths of a second, all carrying the sign of the angle (as the schema's WHERE rule wants).
 /// `None` for a non-finite angle or one outside (-360, 360).
-pub fn compound_angle(deg: f64) -> Option<[i64; 4]> {
+pub(crate) fn compound_angle(deg: f64) -> Option<[i64; 4]> {
     if !deg.is_finite() || deg.abs() >= 360.0 {
         return None;
     }

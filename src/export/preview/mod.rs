@@ -26,7 +26,7 @@
 //! indices, one colour a primitive. Monaco at LOD2 takes 560 bytes a building (28 triangles,
 //! 27 vertices), so 100,000 such buildings some 60 MB; the picture's own buffers are 7 bytes a
 //! sample, 45 MB at the default size (1600 x 1000, supersampled 2 x 2). To keep one picture
-//! of a run written in tiles, keep one [`Scene`] across them ([`Scene::add_building`]) and
+//! of a run written in tiles, keep one [`Scene`] across them (`Scene::add_building`) and
 //! render it at the end.
 //!
 //! Code layout: this module holds the scene and the writer, `raster` the camera, rasterizer
@@ -50,9 +50,9 @@ pub use glb::{glb_triangles, GlbError, GlbMesh, MAX_VERTICES};
 /// How a scene is drawn: picture size and camera.
 #[derive(Clone, Debug, PartialEq)]
 pub struct View {
-    /// Picture width in pixels (1 to [`MAX_SIDE`]; outside, clamped).
+    /// Picture width in pixels (1 to `MAX_SIDE`; outside, clamped).
     pub width: u32,
-    /// Picture height in pixels (1 to [`MAX_SIDE`]; outside, clamped).
+    /// Picture height in pixels (1 to `MAX_SIDE`; outside, clamped).
     pub height: u32,
     /// The compass bearing the camera looks towards, degrees clockwise from north (22.5 looks
     /// north-north-east, from the south-south-west). `None`: square to the scene plan's longer
@@ -61,7 +61,7 @@ pub struct View {
     /// How far the camera looks down, degrees below the horizon (clamped to 5..=90).
     pub elevation: f64,
     /// Samples per pixel along each axis (1 to 4; the sample buffers are kept under
-    /// [`MAX_SAMPLES`] by lowering it).
+    /// `MAX_SAMPLES` by lowering it).
     pub supersample: u32,
     /// The empty border around the scene, as a fraction of the picture's smaller side.
     pub margin: f64,
@@ -84,10 +84,10 @@ impl Default for View {
 }
 
 /// The largest picture side [`Scene::render`] draws.
-pub const MAX_SIDE: u32 = 8192;
+pub(crate) const MAX_SIDE: u32 = 8192;
 
 /// The most samples (pixels times supersampling squared) a render holds: 7 bytes each.
-pub const MAX_SAMPLES: u64 = 1 << 26;
+pub(crate) const MAX_SAMPLES: u64 = 1 << 26;
 
 /// A rendered picture: 8-bit sRGB, rows top to bottom.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -211,7 +211,7 @@ impl Scene {
     /// Adds a building as its glTF is drawn (see the module documentation); `detail`: its
     /// LOD3 windows, doors and balconies too. A building with a non-finite coordinate is
     /// refused, as every writer refuses it.
-    pub fn add_building(&mut self, b: &Building, detail: bool) -> Result<(), ExportError> {
+    pub(crate) fn add_building(&mut self, b: &Building, detail: bool) -> Result<(), ExportError> {
         let mut meshes = Vec::new();
         building_meshes(b, detail, &mut meshes)?;
         for (color, positions, indices) in &meshes {
@@ -296,7 +296,8 @@ impl<W: Write + Send> PreviewWriter<W> {
     }
 
     /// The same writer drawing with `view`.
-    pub fn with_view(mut self, view: View) -> PreviewWriter<W> {
+    #[cfg(test)]
+    pub(crate) fn with_view(mut self, view: View) -> PreviewWriter<W> {
         self.view = view;
         self
     }
@@ -341,7 +342,7 @@ impl<W: Write + Send> BuildingWriter for PreviewWriter<W> {
         self.scene.add_building(building, self.detail)
     }
 
-    /// Triangulates [`super::PARALLEL_BATCH`] buildings at a time in parallel and adds them in
+    /// Triangulates `super::PARALLEL_BATCH` buildings at a time in parallel and adds them in
     /// order: the same scene as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         self.open()?;

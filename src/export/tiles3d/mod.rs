@@ -1,5 +1,5 @@
-//! OGC 3D Tiles 1.1: one GLB content per tile of a run ([`Tiles3dWriter`]) and the
-//! `tileset.json` over them ([`tileset_json`]).
+//! OGC 3D Tiles 1.1: one GLB content per tile of a run (`Tiles3dWriter`) and the
+//! `tileset.json` over them (`tileset_json`).
 //!
 //! A run writes two contents per tile: [`Detail::Full`], the buildings as derived (the glTF
 //! writer's faces: `export::gltf::building_groups`), and [`Detail::Blocks`], a coarse LOD1 of
@@ -24,7 +24,7 @@
 //! The writer keeps the tile in memory (about 45 bytes a vertex, twice that while the GLB is
 //! assembled: a LOD3 tile of 150 m in Monaco-Ville is 50,000 triangles, 4 MB of GLB) and writes
 //! the GLB in [`BuildingWriter::finish`], when the frame is known. It then gives the content's facts ([`ContentInfo`]: placement, bounding
-//! volumes, counts) through the [`ContentInfoHandle`] it was made with, for the tileset. A tile
+//! volumes, counts) through the `ContentInfoHandle` it was made with, for the tileset. A tile
 //! with nothing to draw (no building, or no triangle) is a valid GLB of an empty scene, and its
 //! [`ContentInfo::placement`] is `None`: the tileset then references no content for it.
 //! Output is a pure function of the context and the buildings.
@@ -54,7 +54,7 @@ use crate::model::{Building, Lod};
 use content::{EncodedBuilding, Primitive};
 use frame::{BuildingMap, EnuFrame, ModelFrame};
 
-pub use tileset::{tileset_json, write_tileset, TileContent, TileEntry};
+pub(crate) use tileset::{tileset_json, TileContent, TileEntry};
 
 /// Which geometry a content holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -107,11 +107,11 @@ pub struct Placement {
 
 /// Where a writer leaves its [`ContentInfo`]: a shared slot, empty until `finish` succeeds.
 #[derive(Clone, Debug, Default)]
-pub struct ContentInfoHandle(Arc<Mutex<Option<ContentInfo>>>);
+pub(crate) struct ContentInfoHandle(Arc<Mutex<Option<ContentInfo>>>);
 
 impl ContentInfoHandle {
     /// The content's facts, once its writer has finished.
-    pub fn get(&self) -> Option<ContentInfo> {
+    pub(crate) fn get(&self) -> Option<ContentInfo> {
         self.0
             .lock()
             .map(|g| g.clone())
@@ -142,7 +142,7 @@ const MAX_FEATURES: usize = 1 << 24;
 const PARALLEL_CHUNK: usize = 256;
 
 /// Writes one 3D Tiles content (a GLB) of one tile (see the module documentation).
-pub struct Tiles3dWriter<W: Write + Send> {
+pub(crate) struct Tiles3dWriter<W: Write + Send> {
     out: W,
     detail: Detail,
     state: State,
@@ -164,7 +164,7 @@ pub struct Tiles3dWriter<W: Write + Send> {
 impl<W: Write + Send> Tiles3dWriter<W> {
     /// A writer of `detail` to `out` (nothing is written before `finish`), and the handle that
     /// gives its [`ContentInfo`] after `finish`.
-    pub fn new(out: W, detail: Detail) -> (Tiles3dWriter<W>, ContentInfoHandle) {
+    pub(crate) fn new(out: W, detail: Detail) -> (Tiles3dWriter<W>, ContentInfoHandle) {
         let info = ContentInfoHandle::default();
         let w = Tiles3dWriter {
             out,
@@ -184,7 +184,8 @@ impl<W: Write + Send> Tiles3dWriter<W> {
     }
 
     /// Gives back the output (complete after a successful `finish`).
-    pub fn into_inner(self) -> W {
+    #[cfg(test)]
+    pub(crate) fn into_inner(self) -> W {
         self.out
     }
 

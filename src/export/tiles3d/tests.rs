@@ -5,6 +5,7 @@ use glam::{DVec2, DVec3};
 use serde_json::Value;
 
 use super::frame::{region_of_box, BuildingMap, EnuFrame, ModelFrame};
+use super::tileset::write_tileset;
 use super::*;
 use crate::crs::{ecef_to_wgs84, wgs84_to_ecef, Crs};
 use crate::export::fixtures;

@@ -18,7 +18,9 @@
 //! Output is deterministic: tiles in cell order, numbers in Rust's shortest round-trip form.
 
 use std::collections::BTreeMap;
+#[cfg(test)]
 use std::io::Write;
+#[cfg(test)]
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -26,6 +28,7 @@ use serde_json::{json, Value};
 
 use crate::crs::wgs84_to_ecef;
 use crate::export::ExportError;
+#[cfg(test)]
 use crate::fsio::AtomicFile;
 
 use super::blocks::MIN_BLOCKS_ERROR;
@@ -34,7 +37,7 @@ use super::{ContentInfo, Placement};
 
 /// One content of a tile: where it is and what it holds.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TileContent {
+pub(crate) struct TileContent {
     /// The GLB's URI relative to the folder of `tileset.json`, e.g. `content/574000_6279000.glb`.
     pub uri: String,
     /// What its writer reported ([`super::ContentInfoHandle::get`]).
@@ -43,7 +46,7 @@ pub struct TileContent {
 
 /// One tile of the run's grid.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TileEntry {
+pub(crate) struct TileEntry {
     /// The tile's cell in the grid: its lower-left corner's easting and northing (metres of the
     /// output CRS) divided by the tile size; `(0, 0)` for an untiled run (one tile).
     pub cell: (i64, i64),
@@ -61,7 +64,7 @@ impl TileEntry {
     /// The cell of the tile whose lower-left corner is `corner` (easting, northing in metres, as
     /// `prepare::Tile::corner`) in a grid of `size` metres (floored, so a corner off the grid
     /// still has its cell).
-    pub fn cell_of(corner: (i64, i64), size: u32) -> (i64, i64) {
+    pub(crate) fn cell_of(corner: (i64, i64), size: u32) -> (i64, i64) {
         let size = i64::from(size.max(1));
         (corner.0.div_euclid(size), corner.1.div_euclid(size))
     }
@@ -77,7 +80,7 @@ struct Node {
 /// The `tileset.json` text over `tiles` (see the module documentation). Tiles whose contents
 /// draw nothing are left out. Errors: two entries for one cell, an empty URI, no tile with
 /// anything to draw.
-pub fn tileset_json(tiles: &[TileEntry]) -> Result<String, ExportError> {
+pub(crate) fn tileset_json(tiles: &[TileEntry]) -> Result<String, ExportError> {
     let mut cells: BTreeMap<(i64, i64), Node> = BTreeMap::new();
     let mut seen = std::collections::BTreeSet::new();
     for t in tiles {
@@ -133,7 +136,8 @@ pub fn tileset_json(tiles: &[TileEntry]) -> Result<String, ExportError> {
 
 /// Writes [`tileset_json`] of `tiles` to `path` atomically ([`AtomicFile`]: the path holds the
 /// old file or the complete new one, never a part).
-pub fn write_tileset(path: &Path, tiles: &[TileEntry]) -> Result<(), ExportError> {
+#[cfg(test)]
+pub(crate) fn write_tileset(path: &Path, tiles: &[TileEntry]) -> Result<(), ExportError> {
     let text = tileset_json(tiles)?;
     let file = AtomicFile::create(path)?;
     let mut w = file.writer()?;

@@ -24,15 +24,15 @@
 //!
 //! All tolerances scale with `size`, the larger side of the polygon's bounding box:
 //!
-//! * [`DUPLICATE_REL`]` × size`: consecutive vertices closer than this are merged (the edge
+//! * `DUPLICATE_REL`` × size`: consecutive vertices closer than this are merged (the edge
 //!   between them owns no face);
-//! * [`COLLINEAR_REL`]` × size`: a vertex closer than this to the line through its neighbours,
+//! * `COLLINEAR_REL`` × size`: a vertex closer than this to the line through its neighbours,
 //!   with both edges running the same way, is removed before the propagation; the merged edge's
 //!   face is cut back into one face per input edge afterwards (so the contract "one face per
 //!   input edge" still holds, with the face's base moved by at most this distance);
-//! * [`EVENT_REL`]` × size`: events closer than this in time and place are one event.
+//! * `EVENT_REL`` × size`: events closer than this in time and place are one event.
 //!
-//! Directions that differ by less than [`ANGLE_TOL`] radians are treated as equal.
+//! Directions that differ by less than `ANGLE_TOL` radians are treated as equal.
 //!
 //! A vertex between edges within about 2e-4 rad of antiparallel (corridors one wall apart,
 //! nearly rectangular footprints) would move at over 10⁴ times the wavefront speed; it is
@@ -60,10 +60,10 @@ mod sim;
 use sim::*;
 
 /// Consecutive vertices closer than `DUPLICATE_REL × size` are one vertex.
-pub const DUPLICATE_REL: f64 = 1e-7;
+pub(crate) const DUPLICATE_REL: f64 = 1e-7;
 /// Vertices closer than `COLLINEAR_REL × size` to the line through their neighbours are removed
 /// (or closer than [`COLLINEAR_ABS`], whichever is larger: see [`collinear_tolerance`]).
-pub const COLLINEAR_REL: f64 = 1e-6;
+pub(crate) const COLLINEAR_REL: f64 = 1e-6;
 /// Vertices closer than this (metres) to the chord of their neighbours, going straight on, are
 /// removed whatever the polygon's size: footprints on the millimetre grid carry straight walls
 /// with a node a millimetre off the line (the rounding of a point that was on it), and nearly
@@ -75,19 +75,19 @@ pub const COLLINEAR_ABS: f64 = 0.005;
 /// The distance under which a vertex going straight on is removed, for a polygon whose
 /// bounding box's larger side is `size`: [`COLLINEAR_ABS`], but no more than a thousandth of the
 /// size (a kiosk of 2 m keeps a 3 mm kink).
-pub fn collinear_tolerance(size: f64) -> f64 {
+pub(crate) fn collinear_tolerance(size: f64) -> f64 {
     (COLLINEAR_REL * size).max(COLLINEAR_ABS.min(1e-3 * size))
 }
 
 /// Events closer than `EVENT_REL × size` (in time and in position) are simultaneous.
-pub const EVENT_REL: f64 = 1e-9;
+pub(crate) const EVENT_REL: f64 = 1e-9;
 /// Wavefront vertices and edges within `RADIUS_REL × size` of an event point at its time take
 /// part in it: two reflex corners that meet head-on on the exact footprint pass a few hundredths
 /// of a millimetre apart once it is rounded to the grid, and must still be one event.
-pub const RADIUS_REL: f64 = 5e-6;
+pub(crate) const RADIUS_REL: f64 = 5e-6;
 /// Skeleton nodes closer than `NODE_MERGE_REL × size` (in place and time), and at most
 /// [`NODE_MERGE_MAX`], are one node (see `Sim::merge_nodes`).
-pub const NODE_MERGE_REL: f64 = 1e-4;
+pub(crate) const NODE_MERGE_REL: f64 = 1e-4;
 /// The most distance (metres) at which two skeleton nodes are merged: half the millimetre to
 /// which footprints are cleaned and outputs written (two nodes closer would often be one point,
 /// or a zero-length edge shared by four faces, once written), so a node's time stays within
@@ -95,9 +95,9 @@ pub const NODE_MERGE_REL: f64 = 1e-4;
 /// antiparallel vertex can place its node up to `distance × angle / 2` off, 0.45 mm on a 12 m
 /// rectangle skewed by 0.01°: such ends are recognised by the gable rule instead, see
 /// `derive::roof::shapes`.)
-pub const NODE_MERGE_MAX: f64 = 5e-4;
+pub(crate) const NODE_MERGE_MAX: f64 = 5e-4;
 /// Directions closer than this (radians) are parallel.
-pub const ANGLE_TOL: f64 = 1e-9;
+pub(crate) const ANGLE_TOL: f64 = 1e-9;
 
 /// Two edges whose normals `n1`, `n2` have `1 + n1·n2` below this (an angle under about 2e-4
 /// rad from antiparallel) meet in a *degenerate* vertex, resolved by sliding it along their
@@ -110,7 +110,7 @@ const ANTIPARALLEL_DEN: f64 = 2e-8;
 /// 1,500-edge star takes 40 ms in release) but some many-edged shapes make it cubic: a
 /// 10,000-vertex footprint (5,688 edges once collinear runs merge) ran for hours. The samples'
 /// largest footprints are far below the limit (tests/it/roofs.rs builds a roof on every one).
-pub const MAX_EDGES: usize = 1000;
+pub(crate) const MAX_EDGES: usize = 1000;
 
 /// Why a straight skeleton could not be computed.
 #[derive(Clone, Debug, Error, PartialEq)]
@@ -168,7 +168,7 @@ pub enum SkeletonError {
     TooComplex {
         /// The polygon's edges after collinear runs are merged.
         edges: usize,
-        /// The limit, [`MAX_EDGES`].
+        /// The limit, `MAX_EDGES`.
         max: usize,
     },
     /// The propagation did not finish within its event budget.
@@ -262,7 +262,7 @@ pub fn straight_skeleton(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
 /// propagation merged, see the module documentation) instead of one per input edge: a face's
 /// `edge` is the first input edge of its run, and the run's inner vertices lie on the face's
 /// base. A roof plane over a footprint side with collinear vertices is one face.
-pub fn straight_skeleton_merged(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
+pub(crate) fn straight_skeleton_merged(poly: &Polygon) -> Result<Skeleton, SkeletonError> {
     skeleton(poly, false)
 }
 

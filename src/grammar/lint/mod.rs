@@ -1,6 +1,6 @@
 //! The rule linter behind `citygen rules check FILE` (issue 3 item 6).
 //!
-//! [`lint`] inspects a parsed [`RuleSet`] for mistakes that parse fine but derive something the
+//! `lint` inspects a parsed [`RuleSet`] for mistakes that parse fine but derive something the
 //! author did not mean. Each finding is a [`Diagnostic`] with a stable `code`:
 //!
 //! | code | severity | what |
@@ -28,8 +28,8 @@
 //! symbol) must not make the linter itself the rule bomb. Every pass is linear in the size of
 //! the file, or bounded by a constant: cycles are found with one strongly-connected-component
 //! pass (not a symbol × symbol table), each diagnostic keeps a window of
-//! [`CONTEXT_CHARS`] characters on each side of its column (not its whole line), at most
-//! [`MAX_PER_CODE`] diagnostics of one code are listed (then one saying how many more there
+//! `CONTEXT_CHARS` characters on each side of its column (not its whole line), at most
+//! `MAX_PER_CODE` diagnostics of one code are listed (then one saying how many more there
 //! are), name lists in messages stop after a few names, long symbol names are cut, and the
 //! "did you mean" search has a fixed budget.
 
@@ -48,18 +48,18 @@ pub(crate) use names::suggest;
 
 /// The symbols that the model builder and the exporters turn into building elements; a
 /// successor with one of these names and no rule is a deliberate leaf, not a typo.
-pub const KNOWN_TERMINALS: [&str; 4] = ["wall", "window", "door", "balcony"];
+pub(crate) const KNOWN_TERMINALS: [&str; 4] = ["wall", "window", "door", "balcony"];
 
 /// Tolerance on probability sums (`0.4 + 0.2 + 0.2 + 0.2` is not exactly 1 in binary).
 const PROB_EPS: f64 = 1e-9;
 
 /// Characters of a long source line a [`Diagnostic`] keeps on each side of its column (the
 /// parser's errors show the same window).
-pub const CONTEXT_CHARS: usize = 80;
+pub(crate) const CONTEXT_CHARS: usize = 80;
 
 /// The most diagnostics of one code [`lint`] lists; past it, one more diagnostic of that code
 /// says how many were left out.
-pub const MAX_PER_CODE: usize = 100;
+pub(crate) const MAX_PER_CODE: usize = 100;
 
 /// Symbol names longer than this many characters are cut (with `…`) in messages.
 pub(crate) const MAX_NAME_CHARS: usize = 64;
@@ -120,8 +120,8 @@ pub struct Diagnostic {
     /// The explanation, with a hint at the fix where there is one.
     pub message: String,
     /// The text of the source line (without its newline); empty when `source` did not have
-    /// that line. A line longer than 2 × [`CONTEXT_CHARS`] characters is cut to the
-    /// [`CONTEXT_CHARS`] characters on each side of `col`, with `…` where it is cut.
+    /// that line. A line longer than 2 × `CONTEXT_CHARS` characters is cut to the
+    /// `CONTEXT_CHARS` characters on each side of `col`, with `…` where it is cut.
     pub line_text: String,
     /// The 1-based character column of `line_text` the caret goes under: `col`, unless the
     /// line was cut.
@@ -185,7 +185,7 @@ fn caret_pad(line: &str, col: u32) -> String {
 }
 
 /// Whether any diagnostic is an error (then `citygen rules check` exits non-zero).
-pub fn has_errors(d: &[Diagnostic]) -> bool {
+pub(crate) fn has_errors(d: &[Diagnostic]) -> bool {
     d.iter().any(|d| d.severity == Severity::Error)
 }
 
@@ -194,7 +194,7 @@ pub fn has_errors(d: &[Diagnostic]) -> bool {
 ///
 /// Returns every finding, sorted by (line, col, code, message), at most [`MAX_PER_CODE`] of
 /// each code (then one more of that code counting the rest); empty for a clean file.
-pub fn lint(rules: &RuleSet, source: &str) -> Vec<Diagnostic> {
+pub(crate) fn lint(rules: &RuleSet, source: &str) -> Vec<Diagnostic> {
     let cx = Cx::new(rules, source);
     let mut out = Sink::default();
     cx.undefined_symbols(&mut out);
@@ -336,7 +336,7 @@ struct Cx<'a> {
     by_pred: Vec<Vec<usize>>,
     /// The resolved selection weight of each rule, as the interpreter uses it.
     weights: Vec<f64>,
-    /// The axiom's id, if it is interned (a `set_axiom` to an unknown name is not).
+    /// The axiom's id, if it is interned.
     axiom: Option<SymbolId>,
 }
 

@@ -5,7 +5,7 @@
 //! of its kind, so every blob is decoded once:
 //! 1. relations: `type=multipolygon` relations tagged `building`/`building:part`, and untagged
 //!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
-//! 2. ways: building/part ways, the member ways of pass 1 and street ways ([`STREET_KINDS`]);
+//! 2. ways: building/part ways, the member ways of pass 1 and street ways (`STREET_KINDS`);
 //!    collect the node ids they need;
 //! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside).
 //!
@@ -19,7 +19,7 @@
 //! Every building or part object ends as exactly one footprint or one `Skipped` report entry;
 //! `report.read` / `report.parts_read` count them all, skipped ones included.
 //!
-//! [`read_osm_with_changes`] also applies an OSM change file ([`read_osc`], module `osc`):
+//! [`read_osm_with_changes`] also applies an OSM change file (`read_osc`, module `osc`):
 //! after pass 1 the change's relations replace and add to the file's (so member ways are chosen
 //! from the changed relations), after pass 2 its ways (kept by the same rules, their tags parsed
 //! with the same interner; their node ids join the needed ones), after pass 3 its nodes
@@ -46,7 +46,7 @@ mod pbf;
 mod records;
 mod wire;
 
-pub use osc::{read_osc, Change, MemberType, OscRelation, OscTags, OscWay, MAX_OSC_BYTES};
+pub(crate) use osc::{read_osc, Change, MemberType};
 
 use multipolygon::*;
 use pbf::*;
@@ -69,7 +69,7 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
 }
 
 /// Reads the building footprints of an OSM PBF file with an OSM change file applied
-/// (osmChange XML, plain or gzip: [`read_osc`]); `None` reads the PBF alone, as [`read_osm`].
+/// (osmChange XML, plain or gzip: `read_osc`); `None` reads the PBF alone, as [`read_osm`].
 ///
 /// The result is that of [`read_osm`] on the extract with the changes applied: the change's
 /// relations, ways and nodes replace the PBF's of the same id (a deleted one is as if absent
@@ -346,7 +346,7 @@ pub(super) fn merge_into(out: &mut Vec<i64>, a: &[i64], b: &[i64]) {
 /// `path`, `cycleway`, `bridleway` (rarely what a house faces), `corridor` (indoor),
 /// `proposed`/`construction`, and any way in a tunnel (Monaco runs roads under whole
 /// districts), indoors or a parking aisle (a car park lane, not an address street).
-pub const STREET_KINDS: &[&str] = &[
+pub(crate) const STREET_KINDS: &[&str] = &[
     "trunk",
     "trunk_link",
     "primary",

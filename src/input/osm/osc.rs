@@ -21,11 +21,11 @@ use super::InputError;
 
 /// Largest change file read, after decompression (8 GiB; a daily planet diff is about 1.5 GiB).
 /// Bounds memory on a hostile or mistaken input (a gzip bomb).
-pub const MAX_OSC_BYTES: u64 = 8 << 30;
+pub(crate) const MAX_OSC_BYTES: u64 = 8 << 30;
 
 /// The type of a relation member in a change file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MemberType {
+pub(crate) enum MemberType {
     /// `type="node"`.
     Node,
     /// `type="way"`.
@@ -35,18 +35,18 @@ pub enum MemberType {
 }
 
 /// Raw OSM tags, (key, value) in file order.
-pub type OscTags = Vec<(String, String)>;
+pub(crate) type OscTags = Vec<(String, String)>;
 
 /// A way's new state: its node ids in order and its tags.
-pub type OscWay = (Vec<i64>, OscTags);
+pub(crate) type OscWay = (Vec<i64>, OscTags);
 
 /// A relation's new state: its members as (type, id, role) in order and its tags.
-pub type OscRelation = (Vec<(MemberType, i64, String)>, OscTags);
+pub(crate) type OscRelation = (Vec<(MemberType, i64, String)>, OscTags);
 
 /// The final state of every element a change file names: `Some` = created or modified to this,
 /// `None` = deleted. An element the file names several times has the last one's state.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Change {
+pub(crate) struct Change {
     /// Node id → (lon, lat) in degrees, as the PBF reader gives coordinates (the file's decimal
     /// value to the nanodegree, `1e-9 * nanodegrees`).
     pub nodes: BTreeMap<i64, Option<(f64, f64)>>,
@@ -58,7 +58,8 @@ pub struct Change {
 
 impl Change {
     /// Whether the change names no element.
-    pub fn is_empty(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn is_empty(&self) -> bool {
         self.nodes.is_empty() && self.ways.is_empty() && self.relations.is_empty()
     }
 }
@@ -72,7 +73,7 @@ impl Change {
 /// (-180..=180), a way's `nd` or a relation's `member` without a valid `ref`, a member of
 /// unknown type, a tag without `k` or `v`, a truncated file or gzip stream. Elements inside
 /// `<delete>` need only their id. Never panics.
-pub fn read_osc(path: &Path) -> Result<Change, InputError> {
+pub(crate) fn read_osc(path: &Path) -> Result<Change, InputError> {
     let io = |source| InputError::Io {
         path: path.to_path_buf(),
         source,

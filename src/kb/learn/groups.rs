@@ -1,5 +1,6 @@
 //! The groups samples are learned in: the cells of a grid, or the zones of a KB.
 
+use super::LearnError;
 use std::collections::BTreeMap;
 
 use super::format::{designation, num};
@@ -12,9 +13,9 @@ pub(super) fn grid_groups(
     samples: &[&Sample],
     metres: f64,
     name: &str,
-) -> Result<Vec<Group>, String> {
+) -> Result<Vec<Group>, LearnError> {
     if !(metres.is_finite() && metres >= 1.0) {
-        return Err(format!("a grid of {metres} m: cells must be at least 1 m"));
+        return Err(LearnError::GridCell { metres });
     }
     let lat_min = samples
         .iter()
@@ -29,15 +30,13 @@ pub(super) fn grid_groups(
         .map(|s| s.lonlat.0)
         .fold(f64::INFINITY, f64::min);
     if lat_min < -MAX_GRID_LATITUDE || lat_max > MAX_GRID_LATITUDE {
-        return Err(format!(
-            "buildings at latitude {:.2}: a grid covers latitudes -{MAX_GRID_LATITUDE} to \
-             {MAX_GRID_LATITUDE} only (use --zones)",
-            if lat_max > MAX_GRID_LATITUDE {
+        return Err(LearnError::GridLatitude {
+            latitude: if lat_max > MAX_GRID_LATITUDE {
                 lat_max
             } else {
                 lat_min
-            }
-        ));
+            },
+        });
     }
     // Anchored on the south-west corner of the data, floored to the written precision.
     let lat0 = (lat_min * 1e7).floor() / 1e7;
@@ -70,12 +69,10 @@ pub(super) fn grid_groups(
         cells.entry((j, i)).or_default().push(k);
     }
     if cells.len() > MAX_CELLS {
-        return Err(format!(
-            "a grid of {} m puts the buildings in {} cells, more than the {MAX_CELLS} a learned \
-             knowledge base may have: use larger cells (--grid)",
-            num(metres, 3),
-            cells.len()
-        ));
+        return Err(LearnError::GridCells {
+            metres: num(metres, 3),
+            cells: cells.len(),
+        });
     }
     let rect = |j: i64, i: i64| {
         [
@@ -101,11 +98,10 @@ pub(super) fn grid_groups(
         ];
     }
     if bounds[0] < -180.0 || bounds[2] > 180.0 || bounds[2] - bounds[0] > 180.0 {
-        return Err(format!(
-            "the buildings span longitudes {:.4} to {:.4}: a grid covers at most 180° between \
-             -180 and 180 (an extract across the antimeridian needs --zones)",
-            bounds[0], bounds[2]
-        ));
+        return Err(LearnError::GridLongitudes {
+            west: bounds[0],
+            east: bounds[2],
+        });
     }
     let mut groups = vec![
         // Earth holds no sample: the extract (the town) is the top of the statistics, and

@@ -28,12 +28,12 @@
 //! the most common roof (the cost of each step: the L1 error it adds to the joint). Each
 //! appearance's `color`, `roofColor` and `floorsize` are the most frequent colour and median
 //! floor height of the zone's buildings of that combination when the attribute is the zone's
-//! own and at least [`MIN_PER_APPEARANCE`] of them are tagged, else the zone's (an inherited
+//! own and at least `MIN_PER_APPEARANCE` of them are tagged, else the zone's (an inherited
 //! one: the parent's overall value). Probas are rounded to 4 decimals summing
 //! to exactly 1. A zone writes appearances only where one of their attributes is its own; the
 //! others inherit their parent's (the KB's rule: the nearest zone with appearances).
 //!
-//! **Per-kind groups.** Buildings are sorted into the kind classes of [`KIND_CLASSES`] by their
+//! **Per-kind groups.** Buildings are sorted into the kind classes of `KIND_CLASSES` by their
 //! `building=*` (houses; flats and commercial; industrial; any other kind, `yes` and none in no
 //! class). In a zone that writes appearances, a class with at least `min_samples` tagged values
 //! of its own of one of the appearance attributes (storeys, roof shape, floor height, colour,
@@ -66,18 +66,18 @@ mod text;
 use groups::{grid_groups, zone_groups};
 
 /// Default grid cell size, metres.
-pub const DEFAULT_GRID_M: f64 = 500.0;
+pub(crate) const DEFAULT_GRID_M: f64 = 500.0;
 /// Default least number of tagged values of an attribute for a zone to have its own
 /// distribution of it.
-pub const DEFAULT_MIN_SAMPLES: usize = 20;
+pub(crate) const DEFAULT_MIN_SAMPLES: usize = 20;
 /// Default most appearances per zone.
-pub const DEFAULT_MAX_APPEARANCES: usize = 12;
+pub(crate) const DEFAULT_MAX_APPEARANCES: usize = 12;
 /// Least tagged buildings of one appearance's (storeys, roof) combination for the appearance to
 /// take their most frequent colour or median floor height instead of the zone's.
-pub const MIN_PER_APPEARANCE: usize = 5;
+pub(crate) const MIN_PER_APPEARANCE: usize = 5;
 /// The kind classes that get appearance groups of their own: (name, the `building=*` kinds of
 /// the class, written as the group's `building` list).
-pub const KIND_CLASSES: [(&str, &[&str]); 3] = [
+pub(crate) const KIND_CLASSES: [(&str, &[&str]); 3] = [
     (
         "houses",
         &[
@@ -133,7 +133,7 @@ pub const KIND_CLASSES: [(&str, &[&str]); 3] = [
 ];
 
 /// The index in [`KIND_CLASSES`] of the class of a `building=*` kind (`None`: in no class).
-pub fn kind_class(kind: Option<&str>) -> Option<usize> {
+pub(crate) fn kind_class(kind: Option<&str>) -> Option<usize> {
     let k = kind?.trim();
     KIND_CLASSES
         .iter()
@@ -142,12 +142,12 @@ pub fn kind_class(kind: Option<&str>) -> Option<usize> {
 
 /// Floor heights outside this range (metres) are not learned: a `height` that includes an
 /// untagged roof, or a mistyped level count.
-pub const FLOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 6.0);
+pub(crate) const FLOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 6.0);
 /// The most grid cells with buildings: about 300 bytes to 3 KB each, more would pass the
 /// 64 MiB a knowledge-base file may have.
 pub const MAX_CELLS: usize = 100_000;
 /// The latitudes a grid may cover (degrees): near the poles a column would span the globe.
-pub const MAX_GRID_LATITUDE: f64 = 85.0;
+pub(crate) const MAX_GRID_LATITUDE: f64 = 85.0;
 
 /// What one building says, from its parsed tags.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -159,7 +159,7 @@ pub struct Sample {
     pub storeys: Option<u32>,
     /// Storey height, metres: (`height` - `roof:height` when tagged, 0 for a flat roof) /
     /// `building:levels`, when both are tagged, the building stands on the ground (no
-    /// `min_height`, no `building:min_level`) and the result lies in [`FLOOR_HEIGHT_RANGE`].
+    /// `min_height`, no `building:min_level`) and the result lies in `FLOOR_HEIGHT_RANGE`.
     pub floor_height: Option<f64>,
     /// `roof:shape` (known values only).
     pub roof: Option<RoofShape>,
@@ -343,15 +343,73 @@ struct Group {
     members: Vec<usize>,
 }
 
+/// Why [`learn`] writes no knowledge base.
+#[derive(Debug, thiserror::Error)]
+pub enum LearnError {
+    /// No sample has a finite position.
+    #[error("no building to learn from")]
+    NoBuilding,
+    /// A grid cell under 1 m (or not a number).
+    #[error("a grid of {metres} m: cells must be at least 1 m")]
+    GridCell {
+        /// The cell size asked for.
+        metres: f64,
+    },
+    /// Buildings beyond the latitudes a grid covers.
+    #[error(
+        "buildings at latitude {latitude:.2}: a grid covers latitudes -{lat} to {lat} only (use \
+         --zones)",
+        lat = MAX_GRID_LATITUDE
+    )]
+    GridLatitude {
+        /// The farthest latitude found.
+        latitude: f64,
+    },
+    /// A grid with more cells than a learned knowledge base may have.
+    #[error(
+        "a grid of {metres} m puts the buildings in {cells} cells, more than the {max} a learned \
+         knowledge base may have: use larger cells (--grid)",
+        max = MAX_CELLS
+    )]
+    GridCells {
+        /// The cell size, as written.
+        metres: String,
+        /// The cells the buildings fall in.
+        cells: usize,
+    },
+    /// Buildings spanning more than a grid covers in longitude.
+    #[error(
+        "the buildings span longitudes {west:.4} to {east:.4}: a grid covers at most 180° \
+         between -180 and 180 (an extract across the antimeridian needs --zones)"
+    )]
+    GridLongitudes {
+        /// The westernmost longitude.
+        west: f64,
+        /// The easternmost.
+        east: f64,
+    },
+    /// The text would pass the size a knowledge base may have.
+    #[error(
+        "the learned knowledge base would be {bytes} bytes, more than the {max} a knowledge base \
+         may have: use larger cells (--grid) or fewer zones"
+    )]
+    TooLarge {
+        /// The text's size.
+        bytes: usize,
+        /// The cap.
+        max: u64,
+    },
+}
+
 /// Learns a knowledge base from `samples`; `Err` with a message when there is nothing to learn
 /// from (no sample) or the grid cannot hold the extract.
-pub fn learn(samples: &[Sample], o: &LearnOptions<'_>) -> Result<Learned, String> {
+pub fn learn(samples: &[Sample], o: &LearnOptions<'_>) -> Result<Learned, LearnError> {
     let samples: Vec<&Sample> = samples
         .iter()
         .filter(|s| s.lonlat.0.is_finite() && s.lonlat.1.is_finite())
         .collect();
     if samples.is_empty() {
-        return Err("no building to learn from".into());
+        return Err(LearnError::NoBuilding);
     }
     let min = o.min_samples.max(1);
     let max_apps = o.max_appearances.max(1);
@@ -369,12 +427,10 @@ pub fn learn(samples: &[Sample], o: &LearnOptions<'_>) -> Result<Learned, String
     }
     let text = w.out;
     if text.len() as u64 > super::dom::MAX_FILE_BYTES {
-        return Err(format!(
-            "the learned knowledge base would be {} bytes, more than the {} a knowledge base may \
-             have: use larger cells (--grid) or fewer zones",
-            text.len(),
-            super::dom::MAX_FILE_BYTES
-        ));
+        return Err(LearnError::TooLarge {
+            bytes: text.len(),
+            max: super::dom::MAX_FILE_BYTES,
+        });
     }
     Ok(Learned {
         text,

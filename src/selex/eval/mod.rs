@@ -62,14 +62,14 @@ mod rects;
 mod select;
 mod values;
 
-pub use rects::cover;
+pub(crate) use rects::cover;
 
 /// The storey height `createStoreyGrid` assumes on a face that has no storeys of its own (a
 /// box made by `createShape`), metres.
-pub const DEFAULT_STOREY: f64 = 3.0;
+pub(crate) const DEFAULT_STOREY: f64 = 3.0;
 
 /// Index of a shape in [`Derivation::shapes`]; the root is 0.
-pub type ShapeId = usize;
+pub(crate) type ShapeId = usize;
 
 /// Where a face looks, for `[side == "front"]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -241,7 +241,7 @@ pub struct Shape {
 
 impl Shape {
     /// `type`: `"construction"`, `"virtual"` or `"root"`.
-    pub fn type_name(&self) -> &'static str {
+    pub(crate) fn type_name(&self) -> &'static str {
         match self.kind {
             ShapeKind::Root => "root",
             ShapeKind::Grid(_) => "virtual",
@@ -336,7 +336,7 @@ impl Derivation {
     /// and normal, grids with their rows and columns, elements and cover pieces with their
     /// rectangles on the face (x, y, width, height in metres from the bottom-left seen from
     /// outside); then the constraints kept. `selex derive` prints it.
-    pub fn to_text(&self) -> String {
+    pub(crate) fn to_text(&self) -> String {
         let mut out = String::new();
         let mut stack = vec![(0usize, 0usize)];
         while let Some((id, depth)) = stack.pop() {
@@ -420,7 +420,7 @@ pub fn run(program: &Program, src: &str, file: &str) -> Result<Derivation, RunEr
 /// Runs `program` on a tree that already holds a box `building` of `width × depth × height`
 /// metres (as `createShape("building", width, depth, height)` makes it), for programs that
 /// only lay out facades: their paths start `descendant() [label == "building_front"]`.
-pub fn run_on_box(
+pub(crate) fn run_on_box(
     program: &Program,
     src: &str,
     file: &str,

@@ -30,7 +30,7 @@ pub(super) fn too_close(r: &Rect, w: f64, h: f64, min: f64) -> bool {
 /// The rectangle `w × h` minus `holes`, as rectangles: the plane cut at every hole edge into
 /// slabs, the free cells of each horizontal band merged into runs, and runs merged upwards
 /// with the run directly below when they span the same columns.
-pub fn cover(w: f64, h: f64, holes: &[Rect]) -> Vec<Rect> {
+pub(crate) fn cover(w: f64, h: f64, holes: &[Rect]) -> Vec<Rect> {
     let clamp = |v: f64, hi: f64| v.clamp(0.0, hi);
     let mut xs = vec![0.0, w];
     let mut ys = vec![0.0, h];

@@ -5,7 +5,7 @@
 //! constraint terms (with a did-you-mean), the place of topology selectors, the arity and the
 //! argument kinds of every action (messages name the parameter), literal indices (whole,
 //! non-zero), and it caps the input's size ([`MAX_SOURCE_BYTES`]) and nesting
-//! ([`MAX_NESTING`]). Every error is `file:line:col: message`, the offending line and a caret;
+//! (`MAX_NESTING`). Every error is `file:line:col: message`, the offending line and a caret;
 //! the parser never panics. [`check`] lists what parses but is suspicious.
 //!
 //! Identifiers are variables when an assignment before them bound that name. A bare identifier
@@ -35,7 +35,7 @@ pub const MAX_SOURCE_BYTES: usize = crate::grammar::MAX_SOURCE_BYTES;
 /// The deepest nesting of a value: each `(`, `[`, unary `-` and binary operator on the way
 /// down counts one. Real programs nest a few levels; the cap bounds the parser's recursion and
 /// every later walk of an expression.
-pub const MAX_NESTING: usize = 128;
+pub(crate) const MAX_NESTING: usize = 128;
 
 /// Work spent on did-you-mean suggestions in one parse (cells of edit-distance tables).
 const SUGGEST_BUDGET: usize = 1_000_000;
@@ -89,7 +89,7 @@ pub enum ParseErrorKind {
     WrongArgKind,
     /// Arguments elided with `...` as the seed's Fig. 13 prints them.
     Elided,
-    /// A value nested deeper than [`MAX_NESTING`].
+    /// A value nested deeper than `MAX_NESTING`.
     TooDeep,
     /// A program longer than [`MAX_SOURCE_BYTES`].
     TooLarge,

@@ -7,10 +7,10 @@ use super::{Ends, TFace, GABLE_APEX_CLUSTER, GABLE_MIN_OPPOSITE_DEG};
 /// Most faces one end of a wing may be made of: a side whose vertex is a little off straight
 /// (beyond the skeleton's collinear tolerance, within [`GABLE_MAX_KINK_DEG`]) has a face on
 /// each part, and the two together are the end.
-pub const GABLE_MAX_CHAIN: usize = 3;
+pub(crate) const GABLE_MAX_CHAIN: usize = 3;
 
 /// Most turn (degrees) between the parts of one end of a wing (see [`GABLE_MAX_CHAIN`]).
-pub const GABLE_MAX_KINK_DEG: f64 = 1.0;
+pub(crate) const GABLE_MAX_KINK_DEG: f64 = 1.0;
 
 /// Turns hip ends into gables or half-hips in place (see the documentation of `shapes`).
 ///

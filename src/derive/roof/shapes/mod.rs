@@ -9,12 +9,12 @@
 //! piecewise-linear function `z = h(t)`, the same for every face (the *profile*):
 //!
 //! * hipped: `h(t) = t·tan(pitch)`;
-//! * mansard: steep ([`MANSARD_LOWER_DEG`]) up to the break distance `t0`, then shallow
-//!   ([`MANSARD_UPPER_DEG`]); gambrel the same with gable ends ([`GAMBREL_LOWER_DEG`],
-//!   [`GAMBREL_UPPER_DEG`]);
+//! * mansard: steep (`MANSARD_LOWER_DEG`) up to the break distance `t0`, then shallow
+//!   (`MANSARD_UPPER_DEG`); gambrel the same with gable ends (`GAMBREL_LOWER_DEG`,
+//!   `GAMBREL_UPPER_DEG`);
 //! * dome: a quarter circle of radius `T` (the largest `t`, the inscribed radius) in
-//!   [`CURVE_BANDS`] chords; round (a barrel vault): the same circle with gable ends; onion: a
-//!   bulb profile ([`ONION_PROFILE`]) that rises almost vertically from the eave, bulges and
+//!   `CURVE_BANDS` chords; round (a barrel vault): the same circle with gable ends; onion: a
+//!   bulb profile (`ONION_PROFILE`) that rises almost vertically from the eave, bulges and
 //!   ends in a concave spire, kept inside the footprint (a skeleton roof cannot overhang).
 //!
 //! Each face is cut at the profile's break distances into bands; within a band `t` is affine on
@@ -36,20 +36,20 @@
 //!
 //! A *hip end* is a triangular skeleton face (edge `a → b`, apex `m`) whose apex lies on
 //! exactly three faces — its own and those of the two edges next to it — and whose two
-//! neighbouring edges run roughly opposite (more than [`GABLE_MIN_OPPOSITE_DEG`] apart: the end
+//! neighbouring edges run roughly opposite (more than `GABLE_MIN_OPPOSITE_DEG` apart: the end
 //! of a wing, not a chamfered corner). The apex is moved along the ridge (the line where the
 //! two neighbouring planes meet) onto the vertical plane of the edge: the point `p` of `a b`
 //! equidistant from the two neighbouring edges' lines. The neighbours take over the two halves of
 //! the end triangle; `p` lies on both their planes, so they stay planar and the roof stays
 //! closed. The wall under the edge is then closed by the roof line `b → p → a` (see
-//! [`RoofLine::over`]). On an L, T, U, H or a courtyard block each wing ends in its own gable
+//! `RoofLine::over`). On an L, T, U, H or a courtyard block each wing ends in its own gable
 //! and the wings' ridges meet in valleys and hips, as a carpenter frames them. An end whose
 //! side has a vertex a little off straight (more than the skeleton's collinear tolerance, less
-//! than [`GABLE_MAX_KINK_DEG`]) is made of two or three faces and is still one end; a square's
+//! than `GABLE_MAX_KINK_DEG`) is made of two or three faces and is still one end; a square's
 //! four hips meet in one apex, and two opposite ones become gables. An end that is no hip end
 //! (an irregular junction) stays hipped, which is still a closed roof.
 //!
-//! A half-hip cuts the gable at the fraction [`HALF_HIP_FRACTION`] of its height: the wall stops
+//! A half-hip cuts the gable at the fraction `HALF_HIP_FRACTION` of its height: the wall stops
 //! at a horizontal line there, and a small hip rises from it to the ridge.
 
 use std::collections::HashSet;
@@ -67,31 +67,30 @@ mod rings;
 mod roofline;
 
 use gables::make_gables;
-pub use gables::{GABLE_MAX_CHAIN, GABLE_MAX_KINK_DEG};
 pub use ridge::{ridge_roof, short_axis, skillion, SALTBOX_RIDGE_AT};
 use rings::split_ring;
-pub use roofline::RoofLine;
+pub(crate) use roofline::RoofLine;
 
 /// Pitch of the mansard's lower (steep) slope, degrees.
-pub const MANSARD_LOWER_DEG: f64 = 70.0;
+pub(crate) const MANSARD_LOWER_DEG: f64 = 70.0;
 /// Pitch of the mansard's upper (shallow) slope, degrees.
-pub const MANSARD_UPPER_DEG: f64 = 25.0;
+pub(crate) const MANSARD_UPPER_DEG: f64 = 25.0;
 /// Horizontal depth of the mansard's lower slope, metres (about one storey at 70°), at most
 /// [`MANSARD_BREAK_REL`] of the inscribed radius.
-pub const MANSARD_BREAK_M: f64 = 1.0;
+pub(crate) const MANSARD_BREAK_M: f64 = 1.0;
 /// Upper bound of the mansard break as a fraction of the inscribed radius `T`.
-pub const MANSARD_BREAK_REL: f64 = 0.35;
+pub(crate) const MANSARD_BREAK_REL: f64 = 0.35;
 /// Gambrel (barn) lower slope, degrees.
-pub const GAMBREL_LOWER_DEG: f64 = 60.0;
+pub(crate) const GAMBREL_LOWER_DEG: f64 = 60.0;
 /// Gambrel upper slope, degrees.
-pub const GAMBREL_UPPER_DEG: f64 = 30.0;
+pub(crate) const GAMBREL_UPPER_DEG: f64 = 30.0;
 /// Gambrel break as a fraction of the inscribed radius `T` (a barn's lower slope covers
 /// about 40 % of its half-width).
-pub const GAMBREL_BREAK_REL: f64 = 0.4;
+pub(crate) const GAMBREL_BREAK_REL: f64 = 0.4;
 /// Number of chords of the dome and barrel-vault quarter circles.
-pub const CURVE_BANDS: usize = 6;
+pub(crate) const CURVE_BANDS: usize = 6;
 /// Onion profile as (t / T, z / H) points, H = [`ONION_HEIGHT_REL`] · T.
-pub const ONION_PROFILE: [(f64, f64); 8] = [
+pub(crate) const ONION_PROFILE: [(f64, f64); 8] = [
     (0.0, 0.0),
     (0.03, 0.2),
     (0.12, 0.38),
@@ -102,24 +101,24 @@ pub const ONION_PROFILE: [(f64, f64); 8] = [
     (1.0, 1.0),
 ];
 /// Onion height over the inscribed radius.
-pub const ONION_HEIGHT_REL: f64 = 1.6;
+pub(crate) const ONION_HEIGHT_REL: f64 = 1.6;
 /// Two edges next to a triangular end face must differ in direction by more than this for the
 /// end to become a gable.
-pub const GABLE_MIN_OPPOSITE_DEG: f64 = 135.0;
+pub(crate) const GABLE_MIN_OPPOSITE_DEG: f64 = 135.0;
 /// The top of a hip end (its vertices off the base) may spread over this fraction of the
 /// base's length and still be one apex (see `make_gables`).
-pub const GABLE_APEX_CLUSTER: f64 = 0.05;
+pub(crate) const GABLE_APEX_CLUSTER: f64 = 0.05;
 /// A footprint's skeleton whose inner nodes all lie within this fraction of its largest `t`
 /// (in plan) of the deepest node rises to that one apex (see `to_one_apex`).
-pub const ONE_APEX_SPREAD: f64 = 0.1;
+pub(crate) const ONE_APEX_SPREAD: f64 = 0.1;
 /// Fewest sides of an outline that `to_one_apex` takes for round (an octagonal tower).
-pub const ONE_APEX_MIN_SIDES: usize = 8;
+pub(crate) const ONE_APEX_MIN_SIDES: usize = 8;
 /// Height fraction of the gable wall under a half-hip.
-pub const HALF_HIP_FRACTION: f64 = 0.6;
+pub(crate) const HALF_HIP_FRACTION: f64 = 0.6;
 
 /// What happens to the hip ends of a profile roof.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Ends {
+pub(crate) enum Ends {
     /// Keep every hip.
     Hipped,
     /// Every hip end becomes a gable.
@@ -133,16 +132,16 @@ pub enum Ends {
 /// A piecewise-linear height profile `z = h(t)`: points `(t, z)` with increasing `t`, starting
 /// at (0, 0); beyond the last point the last slope continues.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Profile(pub Vec<(f64, f64)>);
+pub(crate) struct Profile(pub Vec<(f64, f64)>);
 
 impl Profile {
     /// `z = t·tan(pitch)`.
-    pub fn linear(slope: f64) -> Profile {
+    pub(crate) fn linear(slope: f64) -> Profile {
         Profile(vec![(0.0, 0.0), (1.0, slope)])
     }
 
     /// Steep `lower` slope up to `t0`, then `upper`.
-    pub fn broken(lower: f64, upper: f64, t0: f64) -> Profile {
+    pub(crate) fn broken(lower: f64, upper: f64, t0: f64) -> Profile {
         Profile(vec![
             (0.0, 0.0),
             (t0, lower * t0),
@@ -151,7 +150,7 @@ impl Profile {
     }
 
     /// A quarter circle of radius `r` (a dome or a barrel vault), in [`CURVE_BANDS`] chords.
-    pub fn circle(r: f64) -> Profile {
+    pub(crate) fn circle(r: f64) -> Profile {
         Profile(
             (0..=CURVE_BANDS)
                 .map(|i| {
@@ -163,13 +162,13 @@ impl Profile {
     }
 
     /// The onion bulb over inscribed radius `r`.
-    pub fn onion(r: f64) -> Profile {
+    pub(crate) fn onion(r: f64) -> Profile {
         let h = ONION_HEIGHT_REL * r;
         Profile(ONION_PROFILE.iter().map(|&(t, z)| (t * r, z * h)).collect())
     }
 
     /// Evaluates `h(t)`.
-    pub fn eval(&self, t: f64) -> f64 {
+    pub(crate) fn eval(&self, t: f64) -> f64 {
         let p = &self.0;
         let n = p.len();
         if n < 2 {
@@ -199,7 +198,7 @@ struct TFace {
 ///
 /// `profile` receives `T`, the largest skeleton distance (the inscribed radius), and returns
 /// the height profile. Errors: any straight-skeleton error (an invalid footprint).
-pub fn profile_roof(
+pub(crate) fn profile_roof(
     poly: &Polygon,
     ends: Ends,
     profile: impl Fn(f64) -> Profile,

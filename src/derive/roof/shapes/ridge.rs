@@ -55,7 +55,7 @@ pub const SALTBOX_RIDGE_AT: f64 = 0.35;
 /// side). It works on any simple polygon, with or without holes: each plane covers the part of
 /// the footprint on its side of the ridge line (clipped exactly), and the walls rise to the roof
 /// line (`gable_walls`). On an L or T the ridge crosses the wings as a carpenter's single
-/// ridge would; the skeleton gables ([`profile_roof`](super::profile_roof)) are the better
+/// ridge would; the skeleton gables (`profile_roof`) are the better
 /// answer there and stay the default for `gabled`.
 pub fn ridge_roof(
     poly: &Polygon,

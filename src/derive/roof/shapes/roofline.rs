@@ -10,7 +10,7 @@ use crate::model::Face;
 /// Where the walls meet a roof: the vertices of the roof's boundary (those of the roof faces'
 /// edges that no other face runs back along: the eaves, gable lines and the points on them),
 /// each with the footprint edge it stands on.
-pub struct RoofLine<'a> {
+pub(crate) struct RoofLine<'a> {
     footprint: &'a Polygon,
     /// Boundary vertices above the eave with the footprint edge (ring, edge) nearest to them
     /// in plan, within [`RoofLine::TOL`].
@@ -26,10 +26,10 @@ impl<'a> RoofLine<'a> {
     /// the skeleton's collinear tolerance ([`crate::geometry::skeleton::COLLINEAR_ABS`]), since
     /// a roof built on a side with a vertex a few millimetres off straight puts the side's
     /// gable point on the side's chord.
-    pub const TOL: f64 = 2.0 * crate::geometry::skeleton::COLLINEAR_ABS;
+    pub(crate) const TOL: f64 = 2.0 * crate::geometry::skeleton::COLLINEAR_ABS;
 
     /// The boundary of `faces` (edges compared on exact coordinates) over `footprint`.
-    pub fn new(faces: &[Face], footprint: &'a Polygon) -> RoofLine<'a> {
+    pub(crate) fn new(faces: &[Face], footprint: &'a Polygon) -> RoofLine<'a> {
         type K = (u64, u64, u64);
         let key = |p: DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
         let rings = || {
@@ -101,7 +101,7 @@ impl<'a> RoofLine<'a> {
     /// any other), ordered from `b` back to `a`, with `b` and `a` first and last (at the
     /// highest roof vertex there, 0 if none is higher). A wall on this edge closes the roof when
     /// its outline is `a(base), b(base), then these points`.
-    pub fn over(&self, ring: usize, i: usize) -> Vec<DVec3> {
+    pub(crate) fn over(&self, ring: usize, i: usize) -> Vec<DVec3> {
         let Some(r) = self.footprint.rings().nth(ring) else {
             return Vec::new();
         };
