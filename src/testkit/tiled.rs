@@ -9,14 +9,13 @@
 //! `cargo run` and `cargo test`).
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 use osmpbf::{Element, ElementReader, RelMemberType};
 
 use super::pbf_write::{MemberKind, PbfWriter};
+use crate::fsio::AtomicFile;
 
 /// OSM tags as owned (key, value) pairs.
 type Tags = Vec<(String, String)>;
@@ -332,7 +331,7 @@ pub struct Tiled {
 }
 
 /// Writes `n` buildings tiled from the template to `out` (see the module documentation),
-/// through a `.tmp` file renamed at the end. `n` must be at least 1.
+/// atomically (`fsio::AtomicFile`: a temporary renamed at the end). `n` must be at least 1.
 pub fn make_tiled(n: usize, out: &Path) -> Result<Tiled> {
     if n == 0 {
         return Err(anyhow!(
@@ -365,9 +364,11 @@ pub fn make_tiled(n: usize, out: &Path) -> Result<Tiled> {
     if let Some(dir) = out.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
     }
-    let tmp = out.with_extension("tmp");
-    let file = File::create(&tmp).with_context(|| format!("{}", tmp.display()))?;
-    let mut w = PbfWriter::new(BufWriter::with_capacity(1 << 20, file))?;
+    let file = AtomicFile::create(out).with_context(|| format!("{}", out.display()))?;
+    let mut w = PbfWriter::new(
+        file.writer()
+            .with_context(|| format!("{}", out.display()))?,
+    )?;
     for c in 0..copies {
         let (ox, oy) = ((c % cols) as f64 * dx, (c / cols) as f64 * dy);
         let s = sel(c);
@@ -413,8 +414,9 @@ pub fn make_tiled(n: usize, out: &Path) -> Result<Tiled> {
         }
     }
     w.finish()
-        .with_context(|| format!("{}: writing", tmp.display()))?;
-    std::fs::rename(&tmp, out).with_context(|| format!("{}: renaming", tmp.display()))?;
+        .with_context(|| format!("{}: writing", out.display()))?;
+    file.commit()
+        .with_context(|| format!("{}: renaming", out.display()))?;
     Ok(Tiled {
         buildings: n,
         copies,

@@ -73,7 +73,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ),
     (
         "testkit",
-        &["input", "model", "report", "geometry", "color"],
+        &["input", "model", "report", "geometry", "color", "fsio"],
     ),
     // The knowledge base edited in a browser (`citygen kb edit`): a server over the run.
     (

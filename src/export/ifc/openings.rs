@@ -103,11 +103,8 @@ impl TypeKey {
         let hex = |k: [u16; 4]| {
             let c = |v: u16| (f64::from(v) / 1000.0 * 255.0).round() as u8;
             format!(
-                "#{:02x}{:02x}{:02x}{:02x}",
-                c(k[0]),
-                c(k[1]),
-                c(k[2]),
-                c(k[3])
+                "#{}",
+                crate::fsio::hex(&[c(k[0]), c(k[1]), c(k[2]), c(k[3])])
             )
         };
         let mut name = format!(
