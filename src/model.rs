@@ -1117,6 +1117,58 @@ impl Numbers for Digest {
     }
 }
 
+/// Where a value a building is drawn with came from (issue 42: nothing invented silently).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum ValueSource {
+    /// The building's own tag or GIS attribute.
+    Tag,
+    /// Its tagged neighbours (similarity- and distance-weighted votes over the model).
+    Neighbours,
+    /// The estimator fitted on this run's tagged buildings (cross-validated in the run).
+    Fitted,
+    /// The compact model shipped with the knowledge base (fitted offline, `docs/truth.md`).
+    Model,
+    /// The knowledge base's appearance, drawn from the zone's mix.
+    #[default]
+    Kb,
+}
+
+impl ValueSource {
+    /// The word written in every output: `tag`, `neighbours`, `fitted`, `model`, `kb`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ValueSource::Tag => "tag",
+            ValueSource::Neighbours => "neighbours",
+            ValueSource::Fitted => "fitted",
+            ValueSource::Model => "model",
+            ValueSource::Kb => "kb",
+        }
+    }
+}
+
+/// Where a building's storeys, height and roof came from, with their uncertainty: written as
+/// attributes in every output and counted in the report. Set on the tags by the estimator
+/// (`prepare::estimate`); a building without one has tag or KB provenance from its tags.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Provenance {
+    /// Source of the storey count.
+    pub storeys: ValueSource,
+    /// Its uncertainty, ± storeys (the estimator's cross-validated or fitted mean absolute
+    /// error, or half the KB's range); `None` for a tag.
+    pub storeys_error: Option<f64>,
+    /// Source of the height (top of the roof above the base).
+    pub height: ValueSource,
+    /// Its uncertainty, ± metres; `None` for a tag.
+    pub height_error: Option<f64>,
+    /// Source of the roof shape.
+    pub roof: ValueSource,
+    /// The probability that the roof's family (flat or pitched) is right; `None` for a tag.
+    pub roof_probability: Option<f64>,
+}
+
 /// The `infer` attribute: which values of an untagged building may come from its tagged
 /// neighbours. Written as `none`, `all`, or a comma-separated list of `levels`, `roof` and
 /// `colour` (`color` accepted).

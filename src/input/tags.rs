@@ -69,6 +69,10 @@ pub struct BuildingTags {
     pub roof_material: Option<String>,
     /// Values that were present but could not be used: (key, value, reason).
     pub ignored: Vec<(String, String, String)>,
+    /// Set when some of `height`, `building:levels` or `roof:shape` were estimated rather
+    /// than read (`prepare::estimate`, `prepare::infer`): where each came from. `None`: every
+    /// value above is the input's own.
+    pub provenance: Option<crate::model::Provenance>,
 }
 
 /// Parsed tags shared by every footprint that has the same ones: most buildings of a region
@@ -238,8 +242,15 @@ impl BuildingTags {
             material,
             roof_material,
             ignored,
+            provenance,
         } = self;
         let f = |x: &Option<f64>| x.map(f64::to_bits);
+        let p = provenance.map(|p| {
+            (
+                [p.storeys, p.height, p.roof],
+                [p.storeys_error, p.height_error, p.roof_probability].map(|x| x.map(f64::to_bits)),
+            )
+        });
         let c = |x: &Option<Color>| x.map(|c| [c.r, c.g, c.b, c.a].map(f32::to_bits));
         (
             (building, building_part, has_building, name),
@@ -256,6 +267,7 @@ impl BuildingTags {
                 f(roof_direction),
             ],
             [c(colour), c(roof_colour)],
+            p,
         )
     }
 
