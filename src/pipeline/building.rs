@@ -37,7 +37,7 @@ pub(crate) fn load_site(source: &Source) -> Result<(Site, String), RunError> {
 /// read, so that another KB infers afresh).
 fn inferred_lots(kb: &KnowledgeBase, site: &Site) -> Vec<prepare::Lot> {
     let mut lots = site.lots.clone();
-    infer_from_neighbours(kb, &mut lots, None);
+    let _ = infer_from_neighbours(kb, &mut lots, None);
     lots
 }
 

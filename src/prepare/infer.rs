@@ -59,7 +59,7 @@ impl Default for InferOptions {
         InferOptions {
             k: 8,
             radius: 300.0,
-            min_neighbours: 2,
+            min_neighbours: 3,
             majority: 0.5,
             min_votes: 3,
             category_radius: 150.0,
