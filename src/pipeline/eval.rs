@@ -448,7 +448,7 @@ fn fit_models(kb: &KnowledgeBase, cases: &[&Loaded]) -> estimate::Models {
                 rows_r.push((
                     m.features[i],
                     f64::from(u8::from(r)),
-                    estimate::prior_roof(&mix),
+                    estimate::prior_roof(&mix, &m.features[i]),
                 ));
             }
         }

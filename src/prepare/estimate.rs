@@ -170,10 +170,19 @@ fn logit(p: f64) -> f64 {
     (p / (1.0 - p)).ln()
 }
 
-/// The roof prior's log-odds from the zone's mix (half-weighted: the KB's weights are
-/// estimates, docs/world-kb.md).
-pub(crate) fn prior_roof(mix: &RoofMix) -> f64 {
-    0.5 * logit(mix.pitched)
+/// The roof prior's log-odds: the zone's mix (half-weighted: the KB's weights are estimates,
+/// docs/world-kb.md) and the footprint's size (houses under 150 m² are mostly pitched, blocks
+/// over 600 m² mostly flat: Biljecki & Dehbi 2019 find area the strongest single predictor).
+pub(crate) fn prior_roof(mix: &RoofMix, f: &Features) -> f64 {
+    let area = f64::from(f[0]).exp();
+    let size = match area {
+        a if a < 30.0 => 0.0,
+        a if a < 150.0 => 0.6,
+        a if a < 300.0 => 0.2,
+        a if a < 600.0 => -0.4,
+        _ => -1.2,
+    };
+    0.5 * logit(mix.pitched) + size
 }
 
 /// The height of a pitched roof over a footprint of this width at this pitch (metres), at
@@ -347,7 +356,7 @@ pub(crate) fn estimate(
         .collect();
     let base_r: Vec<f64> = (0..lots.len())
         .into_par_iter()
-        .map(|i| prior_roof(&known[i].mix) + models.roof.predict(&m.features[i]))
+        .map(|i| prior_roof(&known[i].mix, &m.features[i]) + models.roof.predict(&m.features[i]))
         .collect();
     let heights = Side::fit(
         &m,
