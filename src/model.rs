@@ -1117,6 +1117,31 @@ impl Numbers for Digest {
     }
 }
 
+/// What a zone's appearances say about one kind's roofs and storeys, the regional prior of the
+/// height and roof estimator (`prepare::estimate`), from `KnowledgeBase::roof_mix`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct RoofMix {
+    /// The share of the eligible appearances' weight whose roof is not flat (the zone's info
+    /// `rooftype`, else gabled, where an appearance sets none).
+    pub pitched: f64,
+    /// The pitched shape of most weight (gabled when none is pitched).
+    pub shape: RoofShape,
+    /// The roof pitch of that shape's appearances, else the zone's, else 30°.
+    pub angle_deg: f64,
+    /// The storey height of most weight (`floorsize`), else 3 m.
+    pub floor_height: f64,
+}
+
+impl RoofMix {
+    /// Without a knowledge base: half pitched (gabled at 30°), 3 m storeys.
+    pub(crate) const DEFAULT: RoofMix = RoofMix {
+        pitched: 0.5,
+        shape: RoofShape::Gabled,
+        angle_deg: 30.0,
+        floor_height: 3.0,
+    };
+}
+
 /// Where a value a building is drawn with came from (issue 42: nothing invented silently).
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,

@@ -180,7 +180,8 @@ pub(crate) fn infer_from_neighbours(
             .map(|(i, note)| (lots[i].id, note))
             .collect();
     let models = prepare::estimate::Models::shipped();
-    let outcome = prepare::estimate::estimate(kb, lots, &zones, &wanted, &models);
+    let mixes = roof_mixes(kb, lots, &zones);
+    let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models);
     if outcome.estimates.iter().all(Option::is_none) {
         return Inferred {
             notes,
@@ -203,6 +204,26 @@ pub(crate) fn infer_from_neighbours(
         lines: prepare::estimate::describe(&outcome),
         outcome,
     }
+}
+
+/// Per lot, its zone's roof and storey prior for its kind ([`KnowledgeBase::roof_mix`]), each
+/// (zone, kind) computed once.
+pub(crate) fn roof_mixes(
+    kb: &KnowledgeBase,
+    lots: &[prepare::Lot],
+    zones: &[usize],
+) -> Vec<crate::model::RoofMix> {
+    let mut cache: std::collections::HashMap<(usize, Option<&str>), crate::model::RoofMix> =
+        std::collections::HashMap::new();
+    lots.iter()
+        .zip(zones)
+        .map(|(l, &zone)| {
+            let kind = l.tags.building.as_deref();
+            *cache
+                .entry((zone, kind))
+                .or_insert_with(|| kb.roof_mix(zone, kind))
+        })
+        .collect()
 }
 
 /// What [`infer_from_neighbours`] found.

@@ -126,9 +126,7 @@ pub(crate) fn run(args: EvalArgs) -> Result<Outcome, AppError> {
     let scores = crate::pipeline::eval::run(&opts)?;
     print(&scores);
     if let Some(p) = &args.json {
-        let text = serde_json::to_string_pretty(&scores).unwrap_or_default();
-        crate::fsio::write_atomic(p, text.as_bytes())
-            .map_err(|e| AppError::Output(format!("{}: {e}", p.display())))?;
+        crate::pipeline::eval::write_scores(p, &scores)?;
     }
     Ok(Outcome::Done)
 }

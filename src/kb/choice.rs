@@ -4,7 +4,7 @@
 use std::path::{Component, Path, PathBuf};
 
 use super::{Appearance, KbError, KnowledgeBase};
-use crate::model::RoofShape;
+use crate::model::{RoofMix, RoofShape};
 use crate::rng::Rng;
 
 impl KnowledgeBase {
@@ -58,21 +58,6 @@ impl KnowledgeBase {
             .and_then(|k| ids.get(k).copied())
             .map(|i| (owner, i))
     }
-}
-
-/// What a zone's appearances say about one kind's roofs and storeys, the regional prior of the
-/// height and roof estimator (`prepare::estimate`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct RoofMix {
-    /// The share of the eligible appearances' weight whose roof is not flat (the zone's info
-    /// `rooftype`, else gabled, where an appearance sets none).
-    pub pitched: f64,
-    /// The pitched shape of most weight (gabled when none is pitched).
-    pub shape: RoofShape,
-    /// The roof pitch of that shape's appearances, else the zone's, else 30°.
-    pub angle_deg: f64,
-    /// The storey height of most weight (`floorsize`), else 3 m.
-    pub floor_height: f64,
 }
 
 impl KnowledgeBase {

@@ -31,7 +31,7 @@ use crate::color::Color;
 use crate::model::RoofShape;
 
 pub use crate::model::Inference;
-pub(crate) use choice::{eligible, proba_weights, RoofMix};
+pub(crate) use choice::{eligible, proba_weights};
 pub use polygon::ZonePolygon;
 pub use style::{material_color, Style, ROOF_SLAB_M};
 pub use values::{

@@ -828,10 +828,10 @@ impl fmt::Display for Explanation {
             writeln!(f, "OSM tag overrides: {}", self.overrides.join(", "))?;
         }
         if self.inferred.is_empty() {
-            writeln!(f, "inferred from neighbours: nothing")?;
+            writeln!(f, "inferred from neighbours or estimated: nothing")?;
         } else {
             for i in &self.inferred {
-                writeln!(f, "inferred from neighbours (used as a tag): {i}")?;
+                writeln!(f, "inferred or estimated (used as a tag): {i}")?;
             }
         }
         for n in &self.notes {

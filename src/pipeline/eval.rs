@@ -286,7 +286,8 @@ fn score(
         let hide =
             |i: usize| case.truth.is_some() || fold_of(case.lots[i].id, o.seed, folds) == fold;
         let lots = hidden(&case.lots, hide);
-        let out = estimate::estimate(kb, &lots, &case.kb_zones, &want, models);
+        let mixes = super::roof_mixes(kb, &lots, &case.kb_zones);
+        let out = estimate::estimate(&lots, &mixes, &want, models);
         let mut base = (Vec::new(), Vec::new(), Vec::new());
         for (i, (h, s, r)) in truths.iter().enumerate() {
             if hide(i) {
@@ -500,4 +501,11 @@ fn write_models(dir: &Path, m: &estimate::Models) -> Result<(), RunError> {
             .map_err(|e| RunError::Input(format!("{}: {e}", p.display())))?;
     }
     Ok(())
+}
+
+/// Writes the scores as JSON (atomically).
+pub fn write_scores(path: &Path, scores: &[CaseScore]) -> Result<(), RunError> {
+    let text = serde_json::to_string_pretty(scores).unwrap_or_default();
+    crate::fsio::write_atomic(path, text.as_bytes())
+        .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))
 }

@@ -37,8 +37,7 @@ use super::gbt::{self, Loss, Model, Params};
 use super::morph::{self, Features, Morphology};
 use super::Lot;
 use crate::input::{BuildingTags, TagInterner};
-use crate::kb::{KnowledgeBase, RoofMix};
-use crate::model::{Inference, Provenance, RoofShape, SourceId, ValueSource};
+use crate::model::{Inference, Provenance, RoofMix, RoofShape, SourceId, ValueSource};
 
 /// The fewest tagged buildings an input needs for a model of its own.
 pub(crate) const MIN_FIT: usize = 40;
@@ -221,6 +220,9 @@ fn fold_of(p: Option<DVec2>) -> usize {
     (h as usize) % FOLDS
 }
 
+/// One fold's summed errors per candidate tree count, and its rows' predictions per count.
+type FoldScores = (Vec<f64>, Vec<(usize, Vec<f64>)>);
+
 /// Fits one model in the run (module docs, step 4): rows `rows` (lot indices), targets `y`,
 /// priors `prior`. Returns the model and its fit, and the out-of-fold predictions (over the
 /// prior) of every row, which the neighbours' votes use.
@@ -240,7 +242,7 @@ fn fit_in_run(
         Loss::Logistic => f64::from(u8::from((s > 0.0) != (t > 0.5))),
     };
     // Per fold: the model on the other folds, scored at every candidate tree count.
-    let per_fold: Vec<(Vec<f64>, Vec<(usize, Vec<f64>)>)> = (0..FOLDS)
+    let per_fold: Vec<FoldScores> = (0..FOLDS)
         .into_par_iter()
         .map(|k| {
             let train: Vec<usize> = (0..x.len()).filter(|&i| folds[i] != k).collect();
@@ -318,12 +320,11 @@ fn fit_in_run(
     (model, fit, oof)
 }
 
-/// Estimates every lot `want` allows that lacks a value (module docs). `zones[i]` is lot `i`'s
-/// zone; `models` the shipped models.
+/// Estimates every lot `want` allows that lacks a value (module docs). `mixes[i]` is lot `i`'s
+/// regional prior (its zone's appearances for its kind); `models` the shipped models.
 pub(crate) fn estimate(
-    kb: &KnowledgeBase,
     lots: &[Lot],
-    zones: &[usize],
+    mixes: &[RoofMix],
     want: &[Inference],
     models: &Models,
 ) -> Outcome {
@@ -334,14 +335,9 @@ pub(crate) fn estimate(
         };
     }
     let m = morph::measure(lots);
-    let mut mixes: HashMap<(usize, Option<&str>), RoofMix> = HashMap::new();
     let known: Vec<Known> = (0..lots.len())
         .map(|i| {
-            let kind = lots[i].tags.building.as_deref();
-            let zone = zones.get(i).copied().unwrap_or(0);
-            let mix = *mixes
-                .entry((zone, kind))
-                .or_insert_with(|| kb.roof_mix(zone, kind));
+            let mix = mixes.get(i).copied().unwrap_or(RoofMix::DEFAULT);
             known(&lots[i].tags, m.width[i], mix)
         })
         .collect();
@@ -695,6 +691,9 @@ fn harmonise(ctx: &Context, members: &[usize], estimates: &mut [Option<Estimate>
                 .find_map(|&i| estimates[i].map(|e| e.shape))
                 .filter(|s| *s != RoofShape::Flat)
         });
+    // One eaves line: the storeys from the row's median width.
+    let width =
+        weighted_median(members.iter().map(|&i| (ctx.m.width[i], 1.0)).collect()).unwrap_or(0.0);
     for &i in members {
         let Some(e) = estimates[i].as_mut() else {
             continue;
@@ -726,7 +725,7 @@ fn harmonise(ctx: &Context, members: &[usize], estimates: &mut [Option<Estimate>
         let allow = if e.shape == RoofShape::Flat {
             0.0
         } else {
-            roof_allowance(ctx.m.width[i], k.mix.angle_deg)
+            roof_allowance(width, k.mix.angle_deg)
         };
         e.storeys = ((e.height - allow) / k.mix.floor_height).round().max(1.0);
     }
@@ -747,7 +746,8 @@ fn weighted_mean(v: &[(f64, f64)]) -> Option<f64> {
     (total > 0.0).then(|| v.iter().map(|x| x.0 * x.1).sum::<f64>() / total)
 }
 
-/// Sets the estimates on the lots' tags (`height`, `roof:shape`, with their [`Provenance`]),
+/// Sets the estimates on the lots' tags (`height`, `building:levels`, `roof:shape`, with their
+/// [`Provenance`]),
 /// sharing one tag set among lots that end alike. Returns the count of lots changed.
 pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
     let interner = TagInterner::default();
@@ -760,6 +760,9 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
             // Quantised: neighbours alike share tags, and a nightly run's small changes
             // elsewhere rarely move a building's height.
             t.height = Some((e.height * 10.0).round() / 10.0);
+            // The storeys too: a row's members share them, and the walls are shared out
+            // evenly among them whatever the appearance's storey height.
+            t.levels = Some(e.storeys);
             p.height = e.height_source;
             p.height_error = Some((e.height_error * 10.0).round() / 10.0);
             p.storeys = e.height_source;
@@ -839,19 +842,30 @@ pub(crate) fn describe(o: &Outcome) -> Vec<String> {
 /// Per lot id, a short phrase of its estimate (for `kb explain`).
 pub(crate) fn phrase(e: &Estimate) -> String {
     format!(
-        "height {:.1} ± {:.1} m ({} storeys) from the {}; roof {} (p = {:.2}) from the {}",
+        "height {:.1} ± {:.1} m ({} storeys) from {}; roof {} (p = {:.2}) from {}",
         e.height,
         e.height_error,
         e.storeys,
-        e.height_source.name(),
+        from(e.height_source),
         e.shape.osm_name(),
         if e.shape == RoofShape::Flat {
             1.0 - e.pitched
         } else {
             e.pitched
         },
-        e.roof_source.name()
+        from(e.roof_source)
     )
+}
+
+/// How a source reads in a phrase: `the fitted model`, `tagged neighbours`, ...
+fn from(s: ValueSource) -> &'static str {
+    match s {
+        ValueSource::Tag => "its tag",
+        ValueSource::Neighbours => "tagged neighbours",
+        ValueSource::Fitted => "the model fitted on this input",
+        ValueSource::Model => "the shipped model",
+        ValueSource::Kb => "the knowledge base",
+    }
 }
 
 /// `kb explain`'s lines on lot `i`: its estimate and the features the models read.

@@ -378,8 +378,7 @@ fn best_split(
     let mut best: Option<(f64, usize, u8)> = None;
     for (f, c) in cuts.iter().enumerate() {
         let (mut g, mut h, mut count) = (0.0, 0.0, 0usize);
-        for bin in 0..c.len() {
-            let e = hist[f][bin];
+        for (bin, e) in hist[f].iter().take(c.len()).enumerate() {
             g += e.0;
             h += e.1;
             count += e.2 as usize;

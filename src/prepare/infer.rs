@@ -452,13 +452,14 @@ mod tests {
             lot(1, 0.0, Some(5.0), "yes"),
             lot(2, 20.0, None, "yes"),
             lot(3, 40.0, Some(3.0), "yes"),
+            lot(4, 60.0, Some(4.0), "yes"),
         ];
         let o = InferOptions::default();
-        assert_eq!(infer_levels(&lots[..2], o)[1], None, "one neighbour");
+        assert_eq!(infer_levels(&lots[..3], o)[1], None, "two neighbours");
         assert_eq!(
             infer_levels(&lots, o)[1].map(|f| f.value),
-            Some(3.0),
-            "the lower median"
+            Some(4.0),
+            "the weighted median of three"
         );
     }
 

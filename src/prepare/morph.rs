@@ -348,7 +348,7 @@ fn touching_pairs(lots: &[Lot]) -> Vec<(u32, u32, f32)> {
             found
         })
         .collect();
-    pairs.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    pairs.sort_by_key(|p| (p.0, p.1));
     pairs
 }
 
@@ -495,7 +495,10 @@ mod tests {
             lots.push(rect(10 + k, 20.0 + 15.0 * k as f64, 20.0, 8.0, 8.0, "yes"));
         }
         let m = measure(&lots);
-        assert!((m.features[0][5] - 0.75).abs() < 1e-4, "75 of 100 m² hull");
+        assert!(
+            (m.features[0][5] - 75.0 / 87.5).abs() < 1e-4,
+            "75 of 87.5 m² hull"
+        );
         assert!(m.features[0][9] > m.features[0][8] - 1e-6);
         assert!(m.features[0][11] > 0.0);
     }
