@@ -873,7 +873,7 @@ impl Building {
         }
     }
 
-    /// A 64-bit digest of what the building is: its id, zone and appearance, the counts of its
+    /// A 64-bit digest of what the building is: its id, zone, appearance and provenance, the counts of its
     /// parts, walls, openings, balconies, roof faces and LOD4 rooms, and every number
     /// `Building::check_finite` checks, bit for bit. Two runs that derived the building alike
     /// give the same digest; shard manifests record it per building, so that a merge (or a

@@ -97,7 +97,7 @@ pub struct Style {
     /// The uncertainty of the storeys drawn from the knowledge base, ± storeys: half the
     /// appearance's floor range (`(maxFloors - minFloors) / 2`), or half its height range over
     /// the floor height; 0 when the storeys are fixed (`nbfloor`, one floor count, a
-    /// `building=roof`). Written as the KB's `storeysError` ([`Style::provenance`]).
+    /// `building=roof`). Written as the KB's `storeysError` (`Style::provenance`).
     pub storeys_error: f64,
     /// The share of the weight of the appearances this building could have been drawn from
     /// (the zone's eligible ones) whose roof has the drawn roof's family, flat or pitched: the

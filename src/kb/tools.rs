@@ -494,7 +494,7 @@ pub struct Explanation {
     /// among `overrides`, used like tags.
     pub inferred: Vec<String>,
     /// Where the storeys, height and roof drawn come from, with their uncertainty
-    /// ([`Style::provenance`] of these tags: what a run writes for a building of one part).
+    /// (`Style::provenance` of these tags: what a run writes for a building of one part).
     pub provenance: crate::model::Provenance,
     /// The style citygen uses.
     pub style: Style,
