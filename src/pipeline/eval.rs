@@ -51,6 +51,8 @@ pub struct Score {
     pub exact: Option<f64>,
     /// Spearman rank correlation of estimates and truth (heights and storeys).
     pub rank: Option<f64>,
+    /// Median of the estimates and of the truth (heights and storeys).
+    pub medians: Option<(f64, f64)>,
 }
 
 impl Score {
@@ -364,6 +366,10 @@ fn numeric(pairs: &[(f64, f64)], baseline: &[f64], whole: bool) -> Option<Score>
         baseline: base,
         exact,
         rank: Some(spearman(pairs)),
+        medians: Some((
+            median(&pairs.iter().map(|p| p.0).collect::<Vec<_>>()),
+            median(&pairs.iter().map(|p| p.1).collect::<Vec<_>>()),
+        )),
     })
 }
 
@@ -385,6 +391,7 @@ fn roofs(pairs: &[(bool, bool)], baseline: &[f64]) -> Option<Score> {
         baseline: base,
         exact: None,
         rank: None,
+        medians: None,
     })
 }
 

@@ -156,12 +156,14 @@ pub(crate) fn prior_log_height(f: &Features) -> f64 {
             a if a < 30.0 => 1.0,
             a if a < 90.0 => 1.6,
             a if a < 250.0 => 2.2,
-            a if a < 1000.0 => 3.0,
-            _ => 3.5,
+            // Large footprints are blocks in towns and halls (sheds, barns, factories) in
+            // the country: the density factor below tells them apart.
+            a if a < 1000.0 => 2.7,
+            _ => 2.4,
         }
     };
     let dense = f64::from(f[11]).clamp(0.0, 1.0);
-    (storeys * 3.0 * (1.0 + 0.8 * dense) + 1.5).ln()
+    (storeys * 3.0 * (1.0 + 1.2 * dense) + 1.5).ln()
 }
 
 fn logit(p: f64) -> f64 {
@@ -513,6 +515,11 @@ impl Context<'_> {
 
     fn one(&self, i: usize, want: Inference) -> Option<Estimate> {
         let k = &self.known[i];
+        let tags = &self.lots[i].tags;
+        if tags.is_roof() {
+            // A canopy or roof on pillars keeps its own rule (a slab at the storey height).
+            return None;
+        }
         let need_h = want.levels && k.log_height.is_none();
         let need_r =
             want.roof && k.pitched.is_none() && self.lots[i].tags.invalid_roof_shape.is_none();
@@ -552,15 +559,18 @@ impl Context<'_> {
             None => (model_log + lent).exp(),
         };
         let fh = k.mix.floor_height;
-        let caps = [
-            morph::kind_cap(self.lots[i].tags.building.as_deref()),
-            Some(morph::area_cap(self.m.area[i])),
-        ];
-        let cap = caps.into_iter().flatten().fold(f64::INFINITY, f64::min);
         if k.log_height.is_none() {
             height = height
                 .clamp(HEIGHT_RANGE.0, HEIGHT_RANGE.1)
-                .min(cap * fh + allow + 0.5);
+                .min(self.cap_height(i, allow));
+            // A tagged base (`min_height`, `building:min_level`) lifts the whole building.
+            let base = tags
+                .min_height
+                .or_else(|| tags.min_level.map(|l| l * fh))
+                .filter(|b| b.is_finite() && *b > 0.0);
+            if let Some(b) = base {
+                height = height.max(b + fh + allow);
+            }
         }
         let height_source = match (k.log_height, near_h.is_empty() || lent.abs() < 0.05) {
             (Some(_), _) => ValueSource::Tag,
@@ -579,6 +589,17 @@ impl Context<'_> {
             storeys,
             storeys_error: height_error / fh,
         })
+    }
+
+    /// The most an untagged lot `i` may be drawn (metres): its kind's and its footprint's
+    /// storeys at the zone's storey height, plus its roof (`allow`) and half a metre.
+    fn cap_height(&self, i: usize, allow: f64) -> f64 {
+        let caps = [
+            morph::kind_cap(self.lots[i].tags.building.as_deref()),
+            Some(morph::area_cap(self.m.area[i])),
+        ];
+        let cap = caps.into_iter().flatten().fold(f64::INFINITY, f64::min);
+        cap * self.known[i].mix.floor_height + allow + 0.5
     }
 
     /// The pitched shape most of the neighbours' weight has, when they are pitched.
@@ -727,6 +748,9 @@ fn harmonise(ctx: &Context, members: &[usize], estimates: &mut [Option<Estimate>
         } else {
             roof_allowance(width, k.mix.angle_deg)
         };
+        if k.log_height.is_none() {
+            e.height = e.height.min(ctx.cap_height(i, allow));
+        }
         e.storeys = ((e.height - allow) / k.mix.floor_height).round().max(1.0);
     }
 }
