@@ -132,10 +132,12 @@ pub struct Options {
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
-/// `infer` ([`KnowledgeBase::inference_by_zone`]). The zone lookups are skipped when no zone
-/// infers anything.
+/// `infer` ([`KnowledgeBase::inference_by_zone`]), the zone found as the generator finds it
+/// (`boundaries` first, [`KnowledgeBase::locate_with`]). The zone lookups are skipped when no
+/// zone infers anything.
 pub(crate) fn inference_wanted(
     kb: &KnowledgeBase,
+    boundaries: &crate::kb::BoundaryZones,
     lots: &[prepare::Lot],
     over: Option<crate::model::Inference>,
 ) -> Vec<crate::model::Inference> {
@@ -148,7 +150,7 @@ pub(crate) fn inference_wanted(
         return vec![crate::model::Inference::NONE; lots.len()];
     }
     lots.par_iter()
-        .map(|l| by_zone[kb.locate(l.lonlat.0, l.lonlat.1)])
+        .map(|l| by_zone[kb.locate_with(boundaries, l.lonlat.0, l.lonlat.1).zone])
         .collect()
 }
 
@@ -156,15 +158,63 @@ pub(crate) fn inference_wanted(
 /// the report note of each lot changed, by id.
 pub(crate) fn infer_from_neighbours(
     kb: &KnowledgeBase,
+    boundaries: &crate::kb::BoundaryZones,
     lots: &mut [prepare::Lot],
     over: Option<crate::model::Inference>,
 ) -> std::collections::HashMap<SourceId, String> {
-    let wanted = inference_wanted(kb, lots, over);
+    let wanted = inference_wanted(kb, boundaries, lots, over);
     let inferred = prepare::infer::infer(lots, |i| wanted[i], Default::default());
     prepare::infer::apply(lots, &inferred)
         .into_iter()
         .map(|(i, note)| (lots[i].id, note))
         .collect()
+}
+
+/// The buildings of `lots` (those `keep` selects) whose zone came through one of the input's
+/// matched admin boundaries, counted per boundary into `report.boundaries`; nothing when no
+/// boundary matched a zone.
+pub(crate) fn count_boundary_zones(
+    generator: &Generator,
+    lots: &[prepare::Lot],
+    keep: impl Fn(usize) -> bool + Sync,
+    report: &mut Report,
+) {
+    use rayon::prelude::*;
+    let matched = generator.boundaries().matched();
+    if matched.is_empty() {
+        return;
+    }
+    let counts = lots
+        .par_iter()
+        .enumerate()
+        .fold(
+            || vec![0usize; matched.len()],
+            |mut acc, (i, lot)| {
+                if keep(i) {
+                    if let Some(b) = generator.zone_of(lot).boundary {
+                        acc[b] += 1;
+                    }
+                }
+                acc
+            },
+        )
+        .reduce(
+            || vec![0usize; matched.len()],
+            |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect(),
+        );
+    let kb = &generator.kb;
+    let section = report.boundaries.get_or_insert_with(Default::default);
+    section.zones = matched
+        .iter()
+        .zip(counts)
+        .map(|(m, buildings)| crate::report::BoundaryZone {
+            boundary: m.id.to_string(),
+            name: m.name.clone(),
+            admin_level: m.admin_level,
+            zone: kb.zone_path(m.zone).to_string(),
+            buildings,
+        })
+        .collect();
 }
 
 /// What went wrong, for the exit code and the message.
@@ -344,16 +394,23 @@ impl<'a> RunState<'a> {
             None => zone_for(&read.footprints, source_crs, opts.bbox, &source_name)?,
         };
         let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
+        site.boundaries = read.boundaries;
         prepare::assign_fronts(&mut site, &read.streets, source_crs);
         let own_keys = opts.tile.map(|_| incremental::own_keys(&site.lots));
-        // Before --bbox, so that the neighbours outside the box count; noted for the buildings
-        // the run keeps.
-        let inferred_notes = infer_from_neighbours(&kb, &mut site.lots, opts.infer);
         let caps = Caps {
             facades: opts.lod >= Lod::Lod3,
             ..opts.caps
         };
         let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
+        generator.match_boundaries(&site.boundaries);
+        // Before --bbox, so that the neighbours outside the box count; noted for the buildings
+        // the run keeps.
+        let inferred_notes = infer_from_neighbours(
+            &generator.kb,
+            generator.boundaries(),
+            &mut site.lots,
+            opts.infer,
+        );
         if matches!(generator.rules, Rules::Kb) {
             generator
                 .load_selex()
@@ -399,6 +456,12 @@ impl<'a> RunState<'a> {
                 *flag = *flag && g.is_mine(site.crs, lot);
             }
         }
+        count_boundary_zones(
+            &self.generator,
+            &site.lots,
+            |i| selected[i],
+            &mut self.report,
+        );
         self.selected = selected;
         self.grid = grid;
     }
