@@ -27,3 +27,4 @@ mod s3db;
 mod selex;
 mod shards;
 mod world_kb;
+mod zones;
