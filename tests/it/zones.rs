@@ -50,7 +50,8 @@ fn write_extract(path: &Path) {
         refs.push(refs[0]);
         refs
     };
-    let mut ways: Vec<(i64, Vec<i64>, Vec<(&str, &str)>)> = Vec::new();
+    type Way = (i64, Vec<i64>, Vec<(&'static str, &'static str)>);
+    let mut ways: Vec<Way> = Vec::new();
     for (id, km) in HOUSES {
         let x = 10.0 + km * KM;
         let refs = square(
