@@ -493,23 +493,26 @@ pub(super) const BOUNDARY_KEYS: &[&str] = &[
     "ISO3166-2",
 ];
 
-/// The [`BOUNDARY_KEYS`] tags when `tags` make an admin boundary: `boundary=administrative`
+/// The [`BOUNDARY_KEYS`] tags when `tags` (given afresh at each call) make an admin boundary: `boundary=administrative`
 /// and an `admin_level` in [`crate::input::ADMIN_LEVELS`].
-pub(super) fn admin_boundary<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<Tags> {
-    let mut admin = false;
-    let mut kept = Vec::new();
-    for (k, v) in tags {
-        if k == "boundary" {
-            admin = v.trim() == "administrative";
-        } else if BOUNDARY_KEYS.contains(&k) {
-            kept.push((k.to_string(), v.trim().to_string()));
-        }
+pub(super) fn admin_boundary<'a, T: Iterator<Item = (&'a str, &'a str)>>(
+    tags: impl Fn() -> T,
+) -> Option<Tags> {
+    // Nothing allocated for the ways and relations that are no boundary (nearly all).
+    if !tags().any(|(k, v)| k == "boundary" && v.trim() == "administrative") {
+        return None;
     }
+    let kept: Tags = tags()
+        .filter(|(k, _)| BOUNDARY_KEYS.contains(k))
+        .map(|(k, v)| (k.to_string(), v.trim().to_string()))
+        .collect();
     let level = kept
         .iter()
         .find(|(k, _)| k == "admin_level")
         .and_then(|(_, v)| v.parse::<u8>().ok());
-    (admin && level.is_some_and(|l| crate::input::ADMIN_LEVELS.contains(&l))).then_some(kept)
+    level
+        .is_some_and(|l| crate::input::ADMIN_LEVELS.contains(&l))
+        .then_some(kept)
 }
 
 /// What pass 1 keeps of a relation: `Some` for a `type=multipolygon` relation tagged
@@ -527,10 +530,10 @@ pub(super) fn relation_rec<'a, T: Iterator<Item = (&'a str, &'a str)>>(
             Some(FootprintKind::Building) => (RelKind::Building, owned(tags())),
             Some(FootprintKind::Part) => (RelKind::Part, owned(tags())),
             None if tags().all(|(k, _)| is_metadata_key(k)) => (RelKind::Untagged, owned(tags())),
-            None => (RelKind::Boundary, admin_boundary(tags())?),
+            None => (RelKind::Boundary, admin_boundary(&tags)?),
         }
     } else if is_type("boundary") {
-        (RelKind::Boundary, admin_boundary(tags())?)
+        (RelKind::Boundary, admin_boundary(&tags)?)
     } else {
         return None;
     };
@@ -590,7 +593,7 @@ impl WayBlock {
         let kind = kind_of(tags());
         let member = member_ways.binary_search(&id).is_ok();
         let street = is_street(tags());
-        let boundary = admin_boundary(tags());
+        let boundary = admin_boundary(&tags);
         if kind.is_none() && !member && !street && boundary.is_none() {
             return;
         }

@@ -406,7 +406,7 @@ pub(super) fn fast_ways(
                     }
                     let kind = kind_of(tags.iter().copied());
                     let street = is_street(tags.iter().copied());
-                    let boundary = admin_boundary(tags.iter().copied());
+                    let boundary = admin_boundary(|| tags.iter().copied());
                     let shared = kind.map(|_| {
                         known.clear();
                         known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
