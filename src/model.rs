@@ -725,6 +725,10 @@ pub struct Building {
     pub lod: Lod,
     /// What the LOD3 facade rules left out or added on this building (for the report).
     pub facade: FacadeCounts,
+    /// Where `storeys_above_ground`, `measured_height` and `roof_shape` came from, with their
+    /// uncertainty (those of the tallest part, as the values themselves): written by every
+    /// writer and counted in the report.
+    pub provenance: Provenance,
 }
 
 /// What the LOD3 facade rules (`derive::frontage`) did to one building, or summed over a run.
@@ -869,7 +873,7 @@ impl Building {
         }
     }
 
-    /// A 64-bit digest of what the building is: its id, zone and appearance, the counts of its
+    /// A 64-bit digest of what the building is: its id, zone, appearance and provenance, the counts of its
     /// parts, walls, openings, balconies, roof faces and LOD4 rooms, and every number
     /// `Building::check_finite` checks, bit for bit. Two runs that derived the building alike
     /// give the same digest; shard manifests record it per building, so that a merge (or a
@@ -878,6 +882,13 @@ impl Building {
         let mut d = Digest(0x6a09_e667_f3bc_c908);
         for s in [&self.id.to_string(), &self.zone, &self.appearance] {
             d.bytes(s.as_bytes());
+        }
+        let p = &self.provenance;
+        for s in [p.storeys, p.height, p.roof] {
+            d.bytes(s.name().as_bytes());
+        }
+        for x in [p.storeys_error, p.height_error, p.roof_probability] {
+            d.word(x.map_or(u64::MAX, f64::to_bits));
         }
         d.word(self.parts.len() as u64);
         for p in &self.parts {
@@ -1117,6 +1128,31 @@ impl Numbers for Digest {
     }
 }
 
+/// What a zone's appearances say about one kind's roofs and storeys, the regional prior of the
+/// height and roof estimator (`prepare::estimate`), from `KnowledgeBase::roof_mix`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct RoofMix {
+    /// The share of the eligible appearances' weight whose roof is not flat (the zone's info
+    /// `rooftype`, else gabled, where an appearance sets none).
+    pub pitched: f64,
+    /// The pitched shape of most weight (gabled when none is pitched).
+    pub shape: RoofShape,
+    /// The roof pitch of that shape's appearances, else the zone's, else 30°.
+    pub angle_deg: f64,
+    /// The storey height of most weight (`floorsize`), else 3 m.
+    pub floor_height: f64,
+}
+
+impl RoofMix {
+    /// Without a knowledge base: half pitched (gabled at 30°), 3 m storeys.
+    pub(crate) const DEFAULT: RoofMix = RoofMix {
+        pitched: 0.5,
+        shape: RoofShape::Gabled,
+        angle_deg: 30.0,
+        floor_height: 3.0,
+    };
+}
+
 /// Where a value a building is drawn with came from (issue 42: nothing invented silently).
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
@@ -1167,6 +1203,24 @@ pub struct Provenance {
     pub roof: ValueSource,
     /// The probability that the roof's family (flat or pitched) is right; `None` for a tag.
     pub roof_probability: Option<f64>,
+}
+
+impl Provenance {
+    /// These values as the writers write them: every uncertainty and probability rounded to
+    /// 0.001 (a non-finite or negative one dropped, a probability kept within 0..=1), so
+    /// that every output says the same number.
+    pub(crate) fn rounded(self) -> Provenance {
+        let r = |x: Option<f64>| {
+            x.filter(|v| v.is_finite() && *v >= 0.0)
+                .map(|v| (v * 1000.0).round() / 1000.0)
+        };
+        Provenance {
+            storeys_error: r(self.storeys_error),
+            height_error: r(self.height_error),
+            roof_probability: r(self.roof_probability).map(|p| p.min(1.0)),
+            ..self
+        }
+    }
 }
 
 /// The `infer` attribute: which values of an untagged building may come from its tagged

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use thiserror::Error;
 
 pub mod building;
+pub mod eval;
 pub mod incremental;
 pub mod merge;
 pub(crate) mod outputs;
@@ -132,42 +133,108 @@ pub struct Options {
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
-/// `infer` ([`KnowledgeBase::inference_by_zone`]), the zone found as the generator finds it
-/// (`boundaries` first, [`KnowledgeBase::locate_with`]). The zone lookups are skipped when no
-/// zone infers anything.
+/// `infer` ([`KnowledgeBase::inference_by_zone`]); `zones[i]` is lot `i`'s zone.
 pub(crate) fn inference_wanted(
     kb: &KnowledgeBase,
-    boundaries: &crate::kb::BoundaryZones,
-    lots: &[prepare::Lot],
+    zones: &[usize],
     over: Option<crate::model::Inference>,
 ) -> Vec<crate::model::Inference> {
-    use rayon::prelude::*;
     if let Some(o) = over {
-        return vec![o; lots.len()];
+        return vec![o; zones.len()];
     }
     let by_zone = kb.inference_by_zone();
-    if !by_zone.iter().any(|i| i.any()) {
-        return vec![crate::model::Inference::NONE; lots.len()];
-    }
-    lots.par_iter()
-        .map(|l| by_zone[kb.locate_with(boundaries, l.lonlat.0, l.lonlat.1).zone])
+    zones
+        .iter()
+        .map(|&z| {
+            by_zone
+                .get(z)
+                .copied()
+                .unwrap_or(crate::model::Inference::NONE)
+        })
         .collect()
 }
 
-/// Infers what the lots lack from their tagged neighbours ([`prepare::infer`]) and returns
-/// the report note of each lot changed, by id.
+/// What the lots' tags leave out: colours from tagged neighbours' votes ([`prepare::infer`]),
+/// heights and roofs from the estimator ([`prepare::estimate`]), each where the zone or
+/// `--infer` asks. Returns the report note of each lot its neighbours changed, by id, and the
+/// run's lines on the estimator's fit, and the estimator's outcome.
 pub(crate) fn infer_from_neighbours(
     kb: &KnowledgeBase,
     boundaries: &crate::kb::BoundaryZones,
     lots: &mut [prepare::Lot],
     over: Option<crate::model::Inference>,
-) -> std::collections::HashMap<SourceId, String> {
-    let wanted = inference_wanted(kb, boundaries, lots, over);
-    let inferred = prepare::infer::infer(lots, |i| wanted[i], Default::default());
-    prepare::infer::apply(lots, &inferred)
-        .into_iter()
-        .map(|(i, note)| (lots[i].id, note))
+) -> Inferred {
+    use rayon::prelude::*;
+    let zones: Vec<usize> = lots
+        .par_iter()
+        .map(|l| kb.locate_with(boundaries, l.lonlat.0, l.lonlat.1).zone)
+        .collect();
+    let wanted = inference_wanted(kb, &zones, over);
+    let colours = |i: usize| crate::model::Inference {
+        colour: wanted[i].colour,
+        ..crate::model::Inference::NONE
+    };
+    let inferred = prepare::infer::infer(lots, colours, Default::default());
+    let mut notes: std::collections::HashMap<SourceId, String> =
+        prepare::infer::apply(lots, &inferred)
+            .into_iter()
+            .map(|(i, note)| (lots[i].id, note))
+            .collect();
+    let models = prepare::estimate::Models::shipped();
+    let mixes = roof_mixes(kb, lots, &zones);
+    let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models);
+    if outcome.estimates.iter().all(Option::is_none) {
+        return Inferred {
+            notes,
+            lines: Vec::new(),
+            outcome,
+        };
+    }
+    for (id, phrase) in prepare::estimate::neighbour_notes(lots, &outcome) {
+        notes
+            .entry(id)
+            .and_modify(|n| {
+                n.push_str("; ");
+                n.push_str(&phrase);
+            })
+            .or_insert(phrase);
+    }
+    prepare::estimate::apply(lots, &outcome.estimates);
+    Inferred {
+        notes,
+        lines: prepare::estimate::describe(&outcome),
+        outcome,
+    }
+}
+
+/// Per lot, its zone's roof and storey prior for its kind ([`KnowledgeBase::roof_mix`]), each
+/// (zone, kind) computed once.
+pub(crate) fn roof_mixes(
+    kb: &KnowledgeBase,
+    lots: &[prepare::Lot],
+    zones: &[usize],
+) -> Vec<crate::model::RoofMix> {
+    let mut cache: std::collections::HashMap<(usize, Option<&str>), crate::model::RoofMix> =
+        std::collections::HashMap::new();
+    lots.iter()
+        .zip(zones)
+        .map(|(l, &zone)| {
+            let kind = l.tags.building.as_deref();
+            *cache
+                .entry((zone, kind))
+                .or_insert_with(|| kb.roof_mix(zone, kind))
+        })
         .collect()
+}
+
+/// What [`infer_from_neighbours`] found.
+pub(crate) struct Inferred {
+    /// The report note of each lot its neighbours changed, by id.
+    pub notes: std::collections::HashMap<SourceId, String>,
+    /// The run's lines on the estimator's fit.
+    pub lines: Vec<String>,
+    /// The estimator's outcome, lot by lot.
+    pub outcome: prepare::estimate::Outcome,
 }
 
 /// The buildings of `lots` (those `keep` selects) whose zone came through one of the input's
@@ -405,12 +472,16 @@ impl<'a> RunState<'a> {
         generator.match_boundaries(&site.boundaries);
         // Before --bbox, so that the neighbours outside the box count; noted for the buildings
         // the run keeps.
-        let inferred_notes = infer_from_neighbours(
+        let inferred = infer_from_neighbours(
             &generator.kb,
             generator.boundaries(),
             &mut site.lots,
             opts.infer,
         );
+        for line in inferred.lines {
+            report.add(None, Outcome::Note, line);
+        }
+        let inferred_notes = inferred.notes;
         if matches!(generator.rules, Rules::Kb) {
             generator
                 .load_selex()

@@ -7,8 +7,11 @@ use glam::DVec2;
 use rayon::prelude::*;
 
 mod clean;
+pub(crate) mod estimate;
 mod fronts;
+pub(crate) mod gbt;
 pub mod infer;
+pub(crate) mod morph;
 mod parts;
 mod tiles;
 

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::model::SourceId;
+use crate::model::{Provenance, SourceId, ValueSource};
 
 /// What happened to one input record.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -45,6 +45,10 @@ pub struct Report {
     /// openings and balconies left out on party walls, entrances placed, doors made windows,
     /// windows on curved runs, wall and party-wall areas.
     pub facades: crate::model::FacadeCounts,
+    /// Where the buildings written got their storeys, height and roof from: per value, the
+    /// count of buildings per source (`tag`, `neighbours`, `fitted`, `model`, `kb`).
+    #[serde(default)]
+    pub provenance: ProvenanceCounts,
     /// One entry per skipped or repaired record and per note, in the order they were found:
     /// reading the input, loading the knowledge base, preparing, then deriving in lot order.
     pub entries: Vec<Entry>,
@@ -124,5 +128,69 @@ impl Report {
             outcome,
             reason: reason.into(),
         });
+    }
+}
+
+/// Buildings counted by where one of their values came from ([`ValueSource`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SourceCounts {
+    /// From the building's own tags.
+    pub tag: usize,
+    /// From its tagged neighbours.
+    pub neighbours: usize,
+    /// From the estimator fitted on the run's tagged buildings.
+    pub fitted: usize,
+    /// From the model shipped with the knowledge base.
+    pub model: usize,
+    /// From the knowledge base's appearance.
+    pub kb: usize,
+}
+
+impl SourceCounts {
+    fn count(&mut self, s: ValueSource) {
+        *match s {
+            ValueSource::Tag => &mut self.tag,
+            ValueSource::Neighbours => &mut self.neighbours,
+            ValueSource::Fitted => &mut self.fitted,
+            ValueSource::Model => &mut self.model,
+            ValueSource::Kb => &mut self.kb,
+        } += 1;
+    }
+
+    fn add(&mut self, o: &SourceCounts) {
+        self.tag += o.tag;
+        self.neighbours += o.neighbours;
+        self.fitted += o.fitted;
+        self.model += o.model;
+        self.kb += o.kb;
+    }
+}
+
+/// The provenance of a run's buildings ([`crate::model::Building::provenance`]), counted:
+/// `provenance: {storeys: {tag: n, neighbours: n, fitted: n, model: n, kb: n}, height: {..},
+/// roof: {..}}` in the report's JSON.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ProvenanceCounts {
+    /// Sources of the storey counts.
+    pub storeys: SourceCounts,
+    /// Sources of the heights.
+    pub height: SourceCounts,
+    /// Sources of the roof shapes.
+    pub roof: SourceCounts,
+}
+
+impl ProvenanceCounts {
+    /// Counts one building's provenance.
+    pub(crate) fn count(&mut self, p: &Provenance) {
+        self.storeys.count(p.storeys);
+        self.height.count(p.height);
+        self.roof.count(p.roof);
+    }
+
+    /// Adds another set of counts (a tile's, a shard's) to these.
+    pub(crate) fn add(&mut self, o: &ProvenanceCounts) {
+        self.storeys.add(&o.storeys);
+        self.height.add(&o.height);
+        self.roof.add(&o.roof);
     }
 }

@@ -300,7 +300,8 @@ pub(crate) fn explain_building(
     let read = read_source(source, None, None, &mut report)?;
     let mut site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
     let boundaries = kb::BoundaryZones::new(kb, &read.boundaries);
-    let mut inferred = infer_from_neighbours(kb, &boundaries, &mut site.lots, infer);
+    let inferred = infer_from_neighbours(kb, &boundaries, &mut site.lots, infer);
+    let mut notes = inferred.notes;
     let found = site.lots.iter().find_map(|lot| {
         if lot.id == wanted {
             return Some((lot.lonlat, (*lot.tags).clone()));
@@ -334,8 +335,13 @@ pub(crate) fn explain_building(
         .iter()
         .find(|l| l.id == wanted || l.parts.iter().any(|p| p.id == wanted))
         .map(|l| l.id);
-    if let Some(note) = outline.and_then(|id| inferred.remove(&id)) {
+    if let Some(note) = outline.and_then(|id| notes.remove(&id)) {
         e.inferred = note.split("; ").map(str::to_string).collect();
+    }
+    let index = outline.and_then(|id| site.lots.iter().position(|l| l.id == id));
+    if let Some(i) = index {
+        e.inferred
+            .extend(prepare::estimate::explain(&inferred.outcome, i));
     }
     Ok(e)
 }

@@ -12,6 +12,7 @@ use crate::kb::KbError;
 use crate::pipeline::{RunError, Summary};
 
 mod args;
+pub mod eval;
 pub mod evolve;
 pub mod kb;
 pub mod merge;
@@ -63,6 +64,11 @@ enum Command {
     /// aesthetic objectives (all minimised). Writes the Pareto front as ruleset files with
     /// pictures, the front and convergence as SVG, and evolve.json.
     Evolve(evolve::EvolveArgs),
+    /// Measure the height and roof estimator: hide an extract's own tags fold by fold, or
+    /// compare with measured city models (footprints in, heights and roofs out); print MAE,
+    /// the constant-median baseline, their ratio, storey and roof accuracy. `--save-model`
+    /// fits the shipped models.
+    Eval(eval::EvalArgs),
 }
 
 /// The command line as given (clap exits with its usage message, code 2, on bad arguments).
@@ -78,6 +84,7 @@ pub fn run(cli: Cli) -> Result<Outcome, AppError> {
         Some(Command::Selex(cmd)) => selex::run(cmd),
         Some(Command::Merge(args)) => merge::run(args),
         Some(Command::Evolve(args)) => evolve::run(args),
+        Some(Command::Eval(args)) => eval::run(args),
         None => run::run(cli.run),
     }
 }

@@ -324,7 +324,9 @@ impl Generator {
             spans = index.into_iter().zip(a.spans).collect::<Vec<_>>();
         }
         let mut parts: Vec<Part> = Vec::with_capacity(drafts.len());
+        let mut part_styles = Vec::with_capacity(drafts.len());
         for (i, (mut part, facades, s)) in drafts.into_iter().enumerate() {
+            part_styles.push(s);
             let (style, tags) = &styles[s];
             if let Some(f) = facades {
                 let colors = facade::OpeningColors {
@@ -368,11 +370,15 @@ impl Generator {
             .iter()
             .map(|p| p.top_z)
             .fold(f64::NEG_INFINITY, f64::max);
-        let tallest = parts
-            .iter()
-            .max_by(|a, b| a.top_z.total_cmp(&b.top_z))
-            .map(|p| (p.storeys, p.roof_shape));
-        let (storeys, roof_shape) = tallest.unwrap_or((1, RoofShape::Flat));
+        // The building's storeys, roof and their provenance are its tallest part's.
+        let tallest = (0..parts.len()).max_by(|&a, &b| parts[a].top_z.total_cmp(&parts[b].top_z));
+        let (storeys, roof_shape) = tallest.map_or((1, RoofShape::Flat), |i| {
+            (parts[i].storeys, parts[i].roof_shape)
+        });
+        let provenance = tallest
+            .and_then(|i| styles.get(part_styles[i]))
+            .map(|(style, tags)| style.provenance(tags))
+            .unwrap_or_default();
         Ok((
             Building {
                 id: lot.id,
@@ -389,6 +395,7 @@ impl Generator {
                 parts,
                 lod,
                 facade: counts,
+                provenance,
             },
             notes,
         ))
@@ -920,6 +927,57 @@ mod tests {
                 DVec2::new(d.y, -d.x)
             })
             .collect()
+    }
+
+    /// A building's provenance is its tags' (the estimator's, when it set one) with the KB's
+    /// uncertainty where the KB drew the value.
+    #[test]
+    fn a_building_carries_the_provenance_of_its_values() {
+        use crate::model::{Provenance, ValueSource};
+        let gen = Generator::new(
+            KnowledgeBase::earth_only(),
+            Rules::Kb,
+            Lod::Lod2,
+            0,
+            Caps::default(),
+        );
+        let ring = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(12.0, 0.0),
+            DVec2::new(12.0, 9.0),
+            DVec2::new(0.0, 9.0),
+        ];
+        let mut report = Report::default();
+        let site = single_lot(Polygon::new(ring, vec![]), (7.42, 43.73), None, &mut report);
+        let mut lot = site.unwrap().lots.pop().unwrap();
+        let (b, _) = gen.generate(&lot).unwrap();
+        let p = b.provenance;
+        assert_eq!(
+            (p.storeys, p.height, p.roof),
+            (ValueSource::Kb, ValueSource::Kb, ValueSource::Kb)
+        );
+        assert!(
+            p.storeys_error.is_some() && p.height_error.is_some(),
+            "{p:?}"
+        );
+
+        let model = Provenance {
+            storeys: ValueSource::Model,
+            storeys_error: Some(0.5),
+            height: ValueSource::Model,
+            height_error: Some(1.25),
+            roof: ValueSource::Fitted,
+            roof_probability: Some(0.9),
+        };
+        lot.tags = std::sync::Arc::new(crate::input::BuildingTags {
+            height: Some(7.0),
+            roof_shape: Some(RoofShape::Flat),
+            provenance: Some(model),
+            ..Default::default()
+        });
+        let (b, _) = gen.generate(&lot).unwrap();
+        assert_eq!(b.provenance, model);
+        assert!((b.measured_height - 7.0).abs() < 1e-6);
     }
 
     /// A street along the north side turns the door north, whichever way the footprint lies;

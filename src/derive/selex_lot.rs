@@ -210,6 +210,7 @@ pub fn building(
             parts,
             lod,
             facade: FacadeCounts::default(),
+            provenance: Default::default(),
         },
         notes,
     ))

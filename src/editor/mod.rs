@@ -414,6 +414,7 @@ impl Shared {
                 "overrides": e.overrides,
                 "inferred": e.inferred,
                 "notes": e.notes,
+                "provenance": e.provenance,
             }),
         )
     }

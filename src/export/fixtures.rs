@@ -125,6 +125,20 @@ pub(crate) fn lod4_all() -> Vec<Building> {
     all
 }
 
+/// A provenance as the estimator sets it: storeys and height from the shipped model, the roof
+/// from the knowledge base, every uncertainty known (0.75 storeys, 2.25 m, 0.8).
+pub(crate) fn model_provenance() -> crate::model::Provenance {
+    use crate::model::ValueSource;
+    crate::model::Provenance {
+        storeys: ValueSource::Model,
+        storeys_error: Some(0.75),
+        height: ValueSource::Model,
+        height_error: Some(2.25),
+        roof: ValueSource::Kb,
+        roof_probability: Some(0.8),
+    }
+}
+
 /// The reference validator for the test `what` ([`crate::testkit::validators::validate_outputs`]:
 /// skipped with a note where it is not installed, a failure under CI).
 pub fn validator(what: &str) -> Option<std::path::PathBuf> {

@@ -1047,6 +1047,7 @@ pub(crate) mod samples {
             parts,
             lod: Lod::Lod3,
             facade: Default::default(),
+            provenance: Default::default(),
         }
     }
 

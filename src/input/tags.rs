@@ -5,7 +5,7 @@
 //! [`BuildingTags::ignored`] with the reason, so the run report can show it.
 
 use crate::color::Color;
-use crate::model::RoofShape;
+use crate::model::{Provenance, RoofShape, ValueSource};
 
 /// Lengths above this (metres) are rejected as absurd: the tallest building stands at 828 m.
 pub(crate) const MAX_LENGTH_M: f64 = 1000.0;
@@ -72,7 +72,7 @@ pub struct BuildingTags {
     /// Set when some of `height`, `building:levels` or `roof:shape` were estimated rather
     /// than read (`prepare::estimate`, `prepare::infer`): where each came from. `None`: every
     /// value above is the input's own.
-    pub provenance: Option<crate::model::Provenance>,
+    pub provenance: Option<Provenance>,
 }
 
 /// Parsed tags shared by every footprint that has the same ones: most buildings of a region
@@ -209,6 +209,30 @@ impl TagInterner {
 }
 
 impl BuildingTags {
+    /// Where this footprint's storeys, height and roof come from: `provenance` when the
+    /// estimator or the neighbours' inference set it; otherwise read off the tags themselves:
+    /// storeys [`ValueSource::Tag`] when `building:levels` or `height` is tagged (the storeys
+    /// then follow the tagged height), height `Tag` when `height` is tagged and else the
+    /// storeys' source (levels times the floor height), roof `Tag` when `roof:shape` is
+    /// present (an unknown value is drawn flat, still the tag's doing); everything else
+    /// [`ValueSource::Kb`] with its uncertainty unknown here (`None`): the style drawn from the
+    /// knowledge base fills it (`kb::Style::provenance`).
+    pub(crate) fn provenance(&self) -> Provenance {
+        if let Some(p) = self.provenance {
+            return p;
+        }
+        let tagged = |x: Option<f64>, least: f64| x.is_some_and(|v| v.is_finite() && v > least);
+        let by = |t: bool| if t { ValueSource::Tag } else { ValueSource::Kb };
+        let height = tagged(self.height, 0.0);
+        let storeys = by(height || tagged(self.levels, 0.0));
+        Provenance {
+            storeys,
+            height: if height { ValueSource::Tag } else { storeys },
+            roof: by(self.roof_shape.is_some() || self.invalid_roof_shape.is_some()),
+            ..Provenance::default()
+        }
+    }
+
     /// `building=roof`, or `building:part=roof` (a roof with no walls under it: a canopy, a
     /// roof on pillars). A part's own `building:part` value decides over `building`.
     pub fn is_roof(&self) -> bool {

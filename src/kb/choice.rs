@@ -4,6 +4,7 @@
 use std::path::{Component, Path, PathBuf};
 
 use super::{Appearance, KbError, KnowledgeBase};
+use crate::model::{RoofMix, RoofShape};
 use crate::rng::Rng;
 
 impl KnowledgeBase {
@@ -56,6 +57,84 @@ impl KnowledgeBase {
         rng.pick_weighted(&weights)
             .and_then(|k| ids.get(k).copied())
             .map(|i| (owner, i))
+    }
+}
+
+impl KnowledgeBase {
+    /// The roof and storey prior of `zone` for a building of this `building=*` kind: the
+    /// eligible appearances weighted as [`KnowledgeBase::pick_appearance`] draws them.
+    pub(crate) fn roof_mix(&self, zone: usize, kind: Option<&str>) -> RoofMix {
+        let info = self.resolved(zone);
+        let (_, apps) = self.appearances_for(zone);
+        let ids = eligible(apps, kind);
+        let weights = proba_weights(ids.iter().map(|&i| apps[i].proba));
+        let zone_roof = info.roof.unwrap_or(RoofShape::Gabled);
+        let zone_angle = info
+            .roof_angle
+            .filter(|a| (5.0..80.0).contains(a))
+            .unwrap_or(30.0);
+        let zone_floor = info
+            .floor_height
+            .filter(|f| (2.0..8.0).contains(f))
+            .unwrap_or(3.0);
+        if ids.is_empty() {
+            let pitched = f64::from(u8::from(zone_roof != RoofShape::Flat));
+            let shape = if pitched > 0.0 {
+                zone_roof
+            } else {
+                RoofShape::Gabled
+            };
+            return RoofMix {
+                pitched,
+                shape,
+                angle_deg: zone_angle,
+                floor_height: zone_floor,
+            };
+        }
+        let mut shapes: Vec<(RoofShape, f64, f64)> = Vec::new();
+        let mut floors: Vec<(f64, f64)> = Vec::new();
+        let mut pitched = 0.0;
+        for (&i, &w) in ids.iter().zip(&weights) {
+            let v = &apps[i].values;
+            let roof = v.roof.unwrap_or(zone_roof);
+            let floor = v
+                .floor_height
+                .filter(|f| (2.0..8.0).contains(f))
+                .unwrap_or(zone_floor);
+            match floors.iter_mut().find(|f| f.0 == floor) {
+                Some(f) => f.1 += w,
+                None => floors.push((floor, w)),
+            }
+            if roof == RoofShape::Flat {
+                continue;
+            }
+            pitched += w;
+            let angle = v
+                .roof_angle
+                .filter(|a| (5.0..80.0).contains(a))
+                .unwrap_or(zone_angle);
+            match shapes.iter_mut().find(|s| s.0 == roof) {
+                Some(s) => s.1 += w,
+                None => shapes.push((roof, w, angle)),
+            }
+        }
+        let best = |v: &[(RoofShape, f64, f64)]| {
+            v.iter()
+                .copied()
+                .reduce(|a, b| if b.1 > a.1 { b } else { a })
+        };
+        let (shape, _, angle_deg) = best(&shapes).unwrap_or((RoofShape::Gabled, 0.0, zone_angle));
+        let floor_height = floors
+            .iter()
+            .copied()
+            .reduce(|a, b| if b.1 > a.1 { b } else { a })
+            .map_or(zone_floor, |f| f.0);
+        RoofMix {
+            pitched: pitched.clamp(0.0, 1.0),
+            shape,
+            angle_deg,
+            floor_height,
+        }
     }
 }
 

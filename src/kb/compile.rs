@@ -446,6 +446,8 @@ mod tests {
             selex: None,
             ruleset: None,
             storeys_from_tags: false,
+            storeys_error: 0.0,
+            roof_probability: None,
             pitch_from_tags: false,
         }
     }

@@ -9,7 +9,7 @@ use super::{
 };
 use crate::color::Color;
 use crate::input::BuildingTags;
-use crate::model::RoofShape;
+use crate::model::{Provenance, RoofShape, ValueSource};
 use crate::rng::Rng;
 
 /// Everything one building needs, resolved from the KB, the chosen appearance and the tags.
@@ -94,6 +94,15 @@ pub struct Style {
     pub ruleset: Option<PathBuf>,
     /// Whether `storeys` came from `building:levels` (then `Style::fit_total_height` keeps it).
     pub storeys_from_tags: bool,
+    /// The uncertainty of the storeys drawn from the knowledge base, ± storeys: half the
+    /// appearance's floor range (`(maxFloors - minFloors) / 2`), or half its height range over
+    /// the floor height; 0 when the storeys are fixed (`nbfloor`, one floor count, a
+    /// `building=roof`). Written as the KB's `storeysError` (`Style::provenance`).
+    pub storeys_error: f64,
+    /// The share of the weight of the appearances this building could have been drawn from
+    /// (the zone's eligible ones) whose roof has the drawn roof's family, flat or pitched: the
+    /// KB's own odds for its roof. `None` when no appearance applies (the zone's values alone).
+    pub roof_probability: Option<f64>,
     /// Whether the pitch came from `roof:angle`. A roof whose height follows from the
     /// knowledge base's pitch alone is capped at the height of its walls (the caller applies
     /// it: see `derive`); a tagged pitch is drawn as tagged.
@@ -101,6 +110,24 @@ pub struct Style {
 }
 
 impl Style {
+    /// Where the storeys, height and roof drawn with this style come from, for a piece with
+    /// these tags ([`BuildingTags::provenance`]), every value from the knowledge base given
+    /// its uncertainty: `storeys_error`, the height's as that times the floor height, and
+    /// `roof_probability` (each only where the tags' provenance leaves it unknown).
+    pub(crate) fn provenance(&self, tags: &BuildingTags) -> Provenance {
+        let mut p = tags.provenance();
+        if p.storeys == ValueSource::Kb && p.storeys_error.is_none() {
+            p.storeys_error = Some(self.storeys_error);
+        }
+        if p.height == ValueSource::Kb && p.height_error.is_none() {
+            p.height_error = Some(self.storeys_error * self.floor_height);
+        }
+        if p.roof == ValueSource::Kb && p.roof_probability.is_none() {
+            p.roof_probability = self.roof_probability;
+        }
+        p.rounded()
+    }
+
     /// Draws the roof flat (a piece that another stands on): the walls take the whole height
     /// when `total_height` is known, and the storeys follow unless `building:levels` fixed them.
     pub(crate) fn make_flat(&mut self) {
@@ -200,6 +227,7 @@ impl KnowledgeBase {
             .map(|z| z.path.clone())
             .unwrap_or_else(|| "earth".into());
         let mut v = self.resolved(zone);
+        let info_roof = v.roof;
         let mut opening = None;
         let app = pick.and_then(|(owner, i)| {
             let z = self.zones.get(owner)?;
@@ -218,7 +246,7 @@ impl KnowledgeBase {
             .floor_height
             .filter(|h| h.is_finite() && *h > 0.0)
             .unwrap_or(defaults::FLOOR_HEIGHT);
-        let (storeys, wall_height) = draw_heights(&v, floor_height, rng, &mut notes);
+        let (storeys, wall_height, storeys_error) = draw_heights(&v, floor_height, rng, &mut notes);
 
         let mut style = Style {
             eave_height: wall_height,
@@ -276,15 +304,55 @@ impl KnowledgeBase {
             selex: pick.and_then(|(owner, i)| self.selex_path(owner, i).ok().flatten()),
             ruleset: pick.and_then(|(owner, i)| self.ruleset_path(owner, i, false).ok().flatten()),
             storeys_from_tags: false,
+            storeys_error,
+            roof_probability: None,
             pitch_from_tags: false,
         };
+        style.roof_probability = pick.and_then(|(owner, _)| {
+            self.roof_share(owner, tags.building.as_deref(), info_roof, style.roof)
+        });
         apply_tags(&mut style, tags, &mut notes);
         (style, notes)
     }
 }
 
-/// Draws (storeys, eave height) from the merged values; see [`KnowledgeBase::style_for`].
-fn draw_heights(v: &Values, fh: f64, rng: &mut Rng, notes: &mut Vec<String>) -> (u32, f64) {
+impl KnowledgeBase {
+    /// The share of the weight of `owner`'s appearances eligible for this `building=*` kind
+    /// whose roof (their own `rooftype`, else `info_roof`, else the default) is flat exactly
+    /// when `drawn` is: see [`Style::roof_probability`]. `None` without eligible appearances.
+    fn roof_share(
+        &self,
+        owner: usize,
+        kind: Option<&str>,
+        info_roof: Option<RoofShape>,
+        drawn: RoofShape,
+    ) -> Option<f64> {
+        let apps = &self.zones.get(owner)?.appearances;
+        let ids = super::choice::eligible(apps, kind);
+        if ids.is_empty() {
+            return None;
+        }
+        let mut weights = super::choice::proba_weights(ids.iter().map(|&i| apps[i].proba));
+        if weights.iter().sum::<f64>() <= 0.0 {
+            // Every weight zero: the draw is uniform.
+            weights = vec![1.0; ids.len()];
+        }
+        let flat =
+            |r: Option<RoofShape>| r.or(info_roof).unwrap_or(defaults::ROOF) == RoofShape::Flat;
+        let (mut same, mut total) = (0.0, 0.0);
+        for (&i, w) in ids.iter().zip(&weights) {
+            total += w;
+            if flat(apps[i].values.roof) == (drawn == RoofShape::Flat) {
+                same += w;
+            }
+        }
+        Some(same / total)
+    }
+}
+
+/// Draws (storeys, eave height, ± storeys of the draw) from the merged values; see
+/// [`KnowledgeBase::style_for`] and [`Style::storeys_error`].
+fn draw_heights(v: &Values, fh: f64, rng: &mut Rng, notes: &mut Vec<String>) -> (u32, f64, f64) {
     let ok = |x: &f64| x.is_finite() && *x > 0.0;
     let (min_h, max_h) = (v.min_height.filter(ok), v.max_height.filter(ok));
     let height_range = match (min_h, max_h) {
@@ -314,15 +382,15 @@ fn draw_heights(v: &Values, fh: f64, rng: &mut Rng, notes: &mut Vec<String>) -> 
                     h = c;
                 }
             }
-            (n, h)
+            (n, h, f64::from(f1 - f0) / 2.0)
         }
         (None, Some((a, b))) => {
             let h = if b > a { rng.range(a, b) } else { a };
-            (storeys_for(h, fh), h)
+            (storeys_for(h, fh), h, (b - a) / 2.0 / fh)
         }
         (None, None) => {
             let n = v.storeys.filter(|n| *n > 0).unwrap_or(defaults::STOREYS);
-            (n, f64::from(n) * fh)
+            (n, f64::from(n) * fh, 0.0)
         }
     }
 }
@@ -485,9 +553,12 @@ fn roof_on_pillars(s: &mut Style, t: &BuildingTags) {
         .unwrap_or_else(|| base_tag.map_or(fh, |b| b + ROOF_SLAB_M));
     s.storeys = 1;
     s.storeys_from_tags = true;
+    s.storeys_error = 0.0;
     if t.roof_shape.is_none() {
         s.roof = RoofShape::Flat;
         s.roof_height = Some(0.0);
+        // Flat by the kind, whatever the zone's appearances say.
+        s.roof_probability = Some(1.0);
     }
     // The slab's top: under a roof of known height, that much lower; under one of unknown
     // height, the slab's own thickness above its base, the roof fitted into the rest.

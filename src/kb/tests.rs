@@ -1568,3 +1568,102 @@ fn colours_spelt_otherwise_than_the_clean_format_are_listed_as_repairs() {
     }
     assert_eq!(kb.zones[0].info.wall_color, Color::parse("#ffffff"));
 }
+
+/// The KB's uncertainty in a style: half the drawn appearance's floor range (and that times the
+/// floor height for the height), the eligible weight of the drawn roof's family; tags and a
+/// provenance on the tags win.
+#[test]
+fn a_style_carries_the_kbs_uncertainty_and_the_tags_provenance() {
+    use crate::model::{Provenance, ValueSource};
+    let t = r#"<earth><info floorsize="3"/>
+        <appearance><values proba="0.75" rooftype="flat" minFloors="2" maxFloors="5"/></appearance>
+        <appearance><values proba="0.25" rooftype="gabled" nbfloor="2"/></appearance>
+        </earth>"#;
+    let (kb, _) = KnowledgeBase::parse_str(t, "t.xml").unwrap_or_else(|e| panic!("{e}"));
+    let untagged = BuildingTags::default();
+    let mut seen = [false; 2];
+    for seed in 0..40 {
+        let (s, _) = kb.style_for(0, &untagged, &mut Rng::new(seed, 7));
+        let p = s.provenance(&untagged);
+        assert_eq!(
+            (p.storeys, p.height, p.roof),
+            (ValueSource::Kb, ValueSource::Kb, ValueSource::Kb)
+        );
+        if s.roof == RoofShape::Flat {
+            seen[0] = true;
+            assert_eq!(s.storeys_error, 1.5);
+            assert_eq!((p.storeys_error, p.height_error), (Some(1.5), Some(4.5)));
+            assert_eq!(p.roof_probability, Some(0.75));
+        } else {
+            seen[1] = true;
+            assert_eq!((p.storeys_error, p.height_error), (Some(0.0), Some(0.0)));
+            assert_eq!(p.roof_probability, Some(0.25));
+        }
+    }
+    assert_eq!(seen, [true, true], "both appearances drawn");
+
+    // Tagged levels: storeys and height from the tag, the roof still the KB's.
+    let levels = BuildingTags {
+        levels: Some(3.0),
+        ..Default::default()
+    };
+    let (s, _) = kb.style_for(0, &levels, &mut Rng::new(1, 7));
+    let p = s.provenance(&levels);
+    assert_eq!((p.storeys, p.storeys_error), (ValueSource::Tag, None));
+    assert_eq!((p.height, p.height_error), (ValueSource::Tag, None));
+    assert_eq!(p.roof, ValueSource::Kb);
+    assert!(p.roof_probability.is_some());
+    // A tagged roof (even an unreadable one) and height.
+    let roofed = BuildingTags {
+        height: Some(9.0),
+        invalid_roof_shape: Some("many".into()),
+        ..Default::default()
+    };
+    let (s, _) = kb.style_for(0, &roofed, &mut Rng::new(1, 7));
+    let p = s.provenance(&roofed);
+    assert_eq!(
+        p,
+        Provenance {
+            storeys: ValueSource::Tag,
+            height: ValueSource::Tag,
+            roof: ValueSource::Tag,
+            ..Default::default()
+        }
+    );
+
+    // The estimator's provenance is kept, its numbers rounded to 0.001; a KB value it leaves
+    // without uncertainty gets the KB's.
+    let estimated = BuildingTags {
+        height: Some(7.5),
+        provenance: Some(Provenance {
+            storeys: ValueSource::Model,
+            storeys_error: Some(0.61234),
+            height: ValueSource::Model,
+            height_error: Some(1.8),
+            roof: ValueSource::Kb,
+            roof_probability: None,
+        }),
+        ..Default::default()
+    };
+    let (s, _) = kb.style_for(0, &estimated, &mut Rng::new(1, 7));
+    let p = s.provenance(&estimated);
+    assert_eq!(
+        (p.storeys, p.storeys_error),
+        (ValueSource::Model, Some(0.612))
+    );
+    assert_eq!((p.height, p.height_error), (ValueSource::Model, Some(1.8)));
+    assert_eq!(p.roof, ValueSource::Kb);
+    assert_eq!(p.roof_probability, s.roof_probability);
+
+    // building=roof: one storey and a flat roof by its kind.
+    let canopy = BuildingTags {
+        building: Some("roof".into()),
+        ..Default::default()
+    };
+    let (s, _) = kb.style_for(0, &canopy, &mut Rng::new(1, 7));
+    let p = s.provenance(&canopy);
+    assert_eq!(
+        (p.storeys_error, p.roof_probability),
+        (Some(0.0), Some(1.0))
+    );
+}

@@ -498,6 +498,9 @@ pub struct Explanation {
     /// by `kb explain`, which runs it as a run does), one phrase per value; these values are
     /// among `overrides`, used like tags.
     pub inferred: Vec<String>,
+    /// Where the storeys, height and roof drawn come from, with their uncertainty
+    /// (`Style::provenance` of these tags: what a run writes for a building of one part).
+    pub provenance: crate::model::Provenance,
     /// The style citygen uses.
     pub style: Style,
 }
@@ -643,6 +646,7 @@ pub(crate) fn explain_at(
         overrides: tag_overrides(tags),
         notes,
         inferred: Vec::new(),
+        provenance: style.provenance(tags),
         style,
     }
 }
@@ -674,6 +678,24 @@ pub(crate) fn zone_values(kb: &KnowledgeBase, zone: usize) -> Vec<ValueSource> {
     }
     values.sort_by_key(|v| ATTRIBUTE_ORDER.iter().position(|a| *a == v.attribute));
     values
+}
+
+/// A provenance in words: `storeys kb ±1, height kb ±3 m, roof kb (p 0.667)`.
+fn provenance_text(p: &crate::model::Provenance) -> String {
+    let with = |source: crate::model::ValueSource, v: Option<f64>, fmt: &dyn Fn(f64) -> String| {
+        let mut s = source.name().to_string();
+        if let Some(v) = v {
+            s.push(' ');
+            s.push_str(&fmt(v));
+        }
+        s
+    };
+    format!(
+        "storeys {}, height {}, roof {}",
+        with(p.storeys, p.storeys_error, &|v| format!("±{v}")),
+        with(p.height, p.height_error, &|v| format!("±{v} m")),
+        with(p.roof, p.roof_probability, &|v| format!("(p {v})")),
+    )
 }
 
 /// KB attribute names in the order [`value_fields`] lists them.
@@ -870,15 +892,16 @@ impl fmt::Display for Explanation {
             writeln!(f, "OSM tag overrides: {}", self.overrides.join(", "))?;
         }
         if self.inferred.is_empty() {
-            writeln!(f, "inferred from neighbours: nothing")?;
+            writeln!(f, "inferred from neighbours or estimated: nothing")?;
         } else {
             for i in &self.inferred {
-                writeln!(f, "inferred from neighbours (used as a tag): {i}")?;
+                writeln!(f, "inferred or estimated (used as a tag): {i}")?;
             }
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
         }
+        writeln!(f, "provenance: {}", provenance_text(&self.provenance))?;
         let s = &self.style;
         writeln!(f, "style:")?;
         writeln!(

@@ -38,7 +38,7 @@ pub(crate) fn load_site(source: &Source) -> Result<(Site, String), RunError> {
 /// read, so that another KB infers afresh).
 fn inferred_lots(kb: &KnowledgeBase, boundaries: &BoundaryZones, site: &Site) -> Vec<prepare::Lot> {
     let mut lots = site.lots.clone();
-    infer_from_neighbours(kb, boundaries, &mut lots, None);
+    let _ = infer_from_neighbours(kb, boundaries, &mut lots, None);
     lots
 }
 

@@ -42,8 +42,8 @@ use super::shard::{self, LotKey, Manifest, TileRecord};
 
 /// The version of what citygen writes for a given lot and context: raised whenever a change to
 /// citygen changes output bytes without changing its version number, so that a `--previous`
-/// run of another build reuses nothing.
-pub(crate) const OUTPUT_FORMAT: u32 = 1;
+/// run of another build reuses nothing (2: every building carries its provenance, issue 42).
+pub(crate) const OUTPUT_FORMAT: u32 = 2;
 
 /// How far (metres, in plan) a lot's neighbours may stand and still be read by its derivation
 /// at LOD3 and LOD4 (the surroundings of the run are derived for the lots within this of a

@@ -527,6 +527,7 @@ fn merged_report(shards: &[&Found]) -> Report {
     for f in shards {
         report.generated += f.manifest.report.generated;
         report.facades.add(&f.manifest.report.facades);
+        report.provenance.add(&f.manifest.report.provenance);
         report
             .entries
             .extend(f.manifest.report.notes.iter().cloned());

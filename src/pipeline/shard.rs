@@ -373,6 +373,9 @@ pub struct TileRecord {
     /// The facade counts of the tile's buildings (a reused tile adds them to the report).
     #[serde(default)]
     pub facades: crate::model::FacadeCounts,
+    /// The provenance counts of the tile's buildings (a reused tile adds them to the report).
+    #[serde(default)]
+    pub provenance: crate::report::ProvenanceCounts,
     /// The polygons of the tile's buildings (for the run's summary).
     #[serde(default)]
     pub polygons: usize,
@@ -427,6 +430,9 @@ pub(crate) struct ShardReport {
     pub generated: usize,
     /// The facade counts of this shard's buildings.
     pub facades: crate::model::FacadeCounts,
+    /// The provenance counts of this shard's buildings.
+    #[serde(default)]
+    pub provenance: crate::report::ProvenanceCounts,
     /// Entries of the read and prepare stages owned by this shard, each with its index in the
     /// single run's list of them.
     pub prepared: Vec<(usize, Entry)>,

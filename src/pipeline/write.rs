@@ -221,6 +221,7 @@ impl Batches<'_> {
         report.entries.extend(record.entries.iter().cloned());
         report.generated += record.buildings.len();
         report.facades.add(&record.facades);
+        report.provenance.add(&record.provenance);
         written.polygons += record.polygons;
         written.bytes += record.files.iter().map(|f| f.bytes).sum::<u64>();
         if let Some(p) = &tile_targets.citygml {
@@ -415,6 +416,7 @@ fn render_manifest<'m>(
     };
     m.report.generated = report.generated;
     m.report.facades = report.facades.clone();
+    m.report.provenance = report.provenance;
     // Paths relative to the manifest, so that a shard run again elsewhere, or on
     // another machine's mount, writes the same manifest.
     let dir = path
@@ -735,8 +737,10 @@ fn derive_and_write(
                     }
                     polygons += building.polygon_count();
                     report.facades.add(&building.facade);
+                    report.provenance.count(&building.provenance);
                     if let Some(log) = written.tile.as_mut() {
                         log.record.facades.add(&building.facade);
+                        log.record.provenance.count(&building.provenance);
                         log.record.polygons += building.polygon_count();
                     }
                     report.generated += 1;

@@ -59,7 +59,7 @@ impl Default for InferOptions {
         InferOptions {
             k: 8,
             radius: 300.0,
-            min_neighbours: 2,
+            min_neighbours: 3,
             majority: 0.5,
             min_votes: 3,
             category_radius: 150.0,
@@ -452,13 +452,14 @@ mod tests {
             lot(1, 0.0, Some(5.0), "yes"),
             lot(2, 20.0, None, "yes"),
             lot(3, 40.0, Some(3.0), "yes"),
+            lot(4, 60.0, Some(4.0), "yes"),
         ];
         let o = InferOptions::default();
-        assert_eq!(infer_levels(&lots[..2], o)[1], None, "one neighbour");
+        assert_eq!(infer_levels(&lots[..3], o)[1], None, "two neighbours");
         assert_eq!(
             infer_levels(&lots, o)[1].map(|f| f.value),
-            Some(3.0),
-            "the lower median"
+            Some(4.0),
+            "the weighted median of three"
         );
     }
 

@@ -378,6 +378,7 @@ fn a_drawn_district_is_saved_strict_and_explained() {
     assert_eq!(status, 200, "{b}");
     assert_eq!(b["zone"], zone.as_str());
     assert_eq!(b["appearance"], format!("{zone}#1").as_str());
+    assert!(b["provenance"]["storeys"].is_string(), "{b}");
     // The preview is a GLB.
     let (status, glb) = s.get(
         &format!("/api/preview?id={id}&lod=3"),

@@ -21,6 +21,7 @@ mod learn;
 mod lod4;
 mod lod4_export;
 mod preview;
+mod provenance;
 mod roofs;
 mod rule_bombs;
 mod s3db;

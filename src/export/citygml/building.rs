@@ -3,7 +3,7 @@
 
 use crate::export::ids::{id_fragment, part_ids};
 use crate::export::lod3geom::balcony_faces;
-use crate::model::{Building, RoofShape};
+use crate::model::{Building, Provenance, RoofShape};
 
 use super::surfaces::{surfaces, written_walls};
 use super::{GeometryLod, Renderer, ROOF_TYPE_CODESPACE};
@@ -29,6 +29,7 @@ impl Renderer<'_> {
         if !b.appearance.is_empty() {
             self.string_attribute("appearance", &b.appearance);
         }
+        self.provenance(&b.provenance);
         if let [part] = b.parts.as_slice() {
             if let Some(source) = part.traced_source(b.id) {
                 self.string_attribute("partSourceId", &source.to_string());
@@ -105,6 +106,29 @@ impl Renderer<'_> {
         x.s("\">\n<gen:value>");
         x.escaped(value, false);
         x.s("</gen:value>\n</gen:stringAttribute>\n");
+    }
+
+    /// The building's provenance ([`crate::model::Provenance`]): `storeysSource`,
+    /// `heightSource` and `roofSource` as strings, `storeysError`, `heightError` (metres) and
+    /// `roofProbability` as doubles, each left out when unknown.
+    fn provenance(&mut self, p: &Provenance) {
+        let values = [
+            ("storeys", p.storeys, "Error", p.storeys_error),
+            ("height", p.height, "Error", p.height_error),
+            ("roof", p.roof, "Probability", p.roof_probability),
+        ];
+        for (what, source, suffix, value) in values {
+            self.string_attribute(&format!("{what}Source"), source.name());
+            if let Some(v) = value {
+                let x = &mut *self.x;
+                x.s("<gen:doubleAttribute name=\"");
+                x.s(what);
+                x.s(suffix);
+                x.s("\">\n<gen:value>");
+                x.fixed3(v);
+                x.s("</gen:value>\n</gen:doubleAttribute>\n");
+            }
+        }
     }
 
     fn building_attributes(&mut self, roof: RoofShape, height: f64, storeys: u32) {

@@ -27,6 +27,13 @@
 //!   the LOD number), plus stairs (`bldg:interiorBuildingInstallation`) and rooms
 //!   (`bldg:interiorRoom`), written by the child module `lod4` (see there).
 //!
+//! Every `bldg:Building` carries generic attributes: `sourceId`, `zone`, `appearance`, and the
+//! provenance of its storeys, height and roof ([`crate::model::Provenance`]):
+//! `gen:stringAttribute`s `storeysSource`, `heightSource` and `roofSource` (`tag`,
+//! `neighbours`, `fitted`, `model` or `kb`) and `gen:doubleAttribute`s `storeysError` (±
+//! storeys), `heightError` (± metres) and `roofProbability` (0..1), each double left out when
+//! unknown.
+//!
 //! A building with one part carries its geometry itself; with several parts each part becomes a
 //! `bldg:BuildingPart` (with its own roof type, height, storeys and geometry) under
 //! `bldg:consistsOfBuildingPart`. Colours are a local `app:appearance` per building (theme

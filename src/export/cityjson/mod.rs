@@ -14,7 +14,10 @@
 //! `B_way_123_p0`):
 //!
 //! - a `Building` with `attributes` `sourceId`, `name` (when it has one), `zone`,
-//!   `appearance`, `partSourceId` (one part traced to another footprint), `measuredHeight`,
+//!   `appearance`, the provenance of its storeys, height and roof (`storeysSource`,
+//!   `heightSource`, `roofSource`: `tag`, `neighbours`, `fitted`, `model` or `kb`;
+//!   `storeysError`, `heightError` in metres and `roofProbability`, numbers left out when
+//!   unknown), `partSourceId` (one part traced to another footprint), `measuredHeight`,
 //!   `storeysAboveGround` and `roofType` (the SIG3D code the CityGML writer's `bldg:roofType`
 //!   holds). A building of several parts has one `BuildingPart` per part (`parents`/`children`
 //!   linked; attributes `sourceId` where the part comes from its own footprint,

@@ -13,7 +13,7 @@ use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::geometry::ring::{dedup_by, remove_spikes_by};
-use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, RoofShape, Wall};
+use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, Provenance, RoofShape, Wall};
 
 /// A vertex as the file holds it: whole millimetres from the transform's translate (the local
 /// origin), [`grid_key`].
@@ -448,6 +448,7 @@ pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
     if !b.appearance.is_empty() {
         f.attr_str(&mut first, "appearance", &b.appearance);
     }
+    provenance(f, &mut first, &b.provenance);
     if let [part] = b.parts.as_slice() {
         if let Some(source) = part.traced_source(b.id) {
             f.attr_str(&mut first, "partSourceId", &source.to_string());
@@ -488,6 +489,24 @@ pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
         geometry(f, part, lod);
         f.s("}");
         extra_objects(f, part, pid, ex);
+    }
+}
+
+/// The building's provenance: `storeysSource`, `heightSource`, `roofSource` (strings) and
+/// `storeysError`, `heightError` (metres), `roofProbability` (numbers, left out when unknown),
+/// as the CityGML writer's generic attributes.
+fn provenance(f: &mut Frag, first: &mut bool, p: &Provenance) {
+    let values = [
+        ("storeysSource", p.storeys, "storeysError", p.storeys_error),
+        ("heightSource", p.height, "heightError", p.height_error),
+        ("roofSource", p.roof, "roofProbability", p.roof_probability),
+    ];
+    for (name, source, value_name, value) in values {
+        f.attr_str(first, name, source.name());
+        if let Some(v) = value {
+            f.attr_name(first, value_name);
+            f.fixed3(v);
+        }
     }
 }
 

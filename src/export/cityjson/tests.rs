@@ -474,3 +474,39 @@ fn validates_with_cjval() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// Provenance is in the building's attributes, in the file and in the sequence: sources as
+/// strings, uncertainties as numbers, an unknown uncertainty left out.
+#[test]
+fn provenance_is_written_in_the_buildings_attributes() {
+    let mut buildings = samples_at(Lod::Lod2);
+    buildings[0].provenance = fixtures::model_provenance();
+    buildings[1].provenance = crate::model::Provenance {
+        storeys: crate::model::ValueSource::Neighbours,
+        ..Default::default()
+    };
+    let check = |objects: &Value| {
+        let a = &objects[format!("B_{}", buildings[0].key())]["attributes"];
+        assert_eq!(a["storeysSource"], "model");
+        assert_eq!(a["heightSource"], "model");
+        assert_eq!(a["roofSource"], "kb");
+        assert_eq!(a["storeysError"].as_f64(), Some(0.75));
+        assert_eq!(a["heightError"].as_f64(), Some(2.25));
+        assert_eq!(a["roofProbability"].as_f64(), Some(0.8));
+        let a = &objects[format!("B_{}", buildings[1].key())]["attributes"];
+        assert_eq!(a["storeysSource"], "neighbours");
+        assert_eq!(a["roofSource"], "kb");
+        for k in ["storeysError", "heightError", "roofProbability"] {
+            assert!(a.get(k).is_none(), "{k}");
+        }
+    };
+    check(&parse(&write_file(Lod::Lod2, &buildings, true))["CityObjects"]);
+    let text = String::from_utf8(write_seq(Lod::Lod2, &buildings, false)).unwrap();
+    let mut objects = serde_json::Map::new();
+    for line in text.lines().skip(1) {
+        if let Some(o) = parse(line.as_bytes())["CityObjects"].as_object() {
+            objects.extend(o.clone());
+        }
+    }
+    check(&Value::Object(objects));
+}

@@ -146,11 +146,43 @@ pub(super) struct BuildingExtras<'a> {
     pub(super) storeys: u32,
     pub(super) roof_shape: &'static str,
     pub(super) lod: u8,
+    /// Where storeys, height and roof came from, flattened into these extras.
+    #[serde(flatten)]
+    pub(super) provenance: ProvenanceExtras,
     /// The building's parts, listed when one of them comes from a `building:part` (its id
     /// differs from the building's): key, source id, base and top, so that every part can be
     /// traced back to the map although the meshes merge the parts.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub(super) parts: Vec<PartExtras<'a>>,
+}
+
+/// The provenance keys of [`BuildingExtras`]: `storeys_source`, `height_source` and
+/// `roof_source` (`tag`, `neighbours`, `fitted`, `model`, `kb`), `storeys_error`,
+/// `height_error` (metres) and `roof_probability`, each number left out when unknown.
+#[derive(Serialize)]
+pub(super) struct ProvenanceExtras {
+    pub(super) storeys_source: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) storeys_error: Option<f64>,
+    pub(super) height_source: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) height_error: Option<f64>,
+    pub(super) roof_source: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) roof_probability: Option<f64>,
+}
+
+impl From<&crate::model::Provenance> for ProvenanceExtras {
+    fn from(p: &crate::model::Provenance) -> Self {
+        ProvenanceExtras {
+            storeys_source: p.storeys.name(),
+            storeys_error: p.storeys_error,
+            height_source: p.height.name(),
+            height_error: p.height_error,
+            roof_source: p.roof.name(),
+            roof_probability: p.roof_probability,
+        }
+    }
 }
 
 /// One part in [`BuildingExtras::parts`].

@@ -1,7 +1,9 @@
 //! glTF 2.0 binary (`.glb`) writer.
 //!
 //! Layout of the output: one scene; one node per building, named by the building key
-//! (`way_123`) with the source id, zone, appearance and heights in its `extras`; under it one
+//! (`way_123`) with the source id, zone, appearance, heights and the provenance of its storeys,
+//! height and roof (`storeys_source`, `height_source`, `roof_source`; `storeys_error`,
+//! `height_error`, `roof_probability` when known) in its `extras`; under it one
 //! child node per surface class (`walls`, `roof`, `ground`, in LOD3 runs `windows`, `doors`,
 //! `balconies`, and for parts with an interior (LOD4) `floors`, `interior walls`, `interior
 //! doors`, `stairs`, `slabs`) holding one mesh, with one triangle primitive per material (usually one). Classes

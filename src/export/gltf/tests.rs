@@ -118,6 +118,7 @@ fn building(id: i64, parts: Vec<Part>) -> Building {
         parts,
         lod: Lod::Lod2,
         facade: Default::default(),
+        provenance: Default::default(),
     }
 }
 
@@ -589,13 +590,40 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     })
 }
 
+/// The GLB with the extras of a default provenance (every source `kb`, no uncertainty, which
+/// every building has carried since issue 42) taken out of its JSON chunk.
+fn without_kb_provenance(glb: &[u8]) -> Vec<u8> {
+    let json_len = u32_at(glb, 12) as usize;
+    let json = std::str::from_utf8(&glb[20..20 + json_len]).unwrap();
+    let mut json = json
+        .replace(
+            r#","storeys_source":"kb","height_source":"kb","roof_source":"kb""#,
+            "",
+        )
+        .trim_end()
+        .to_string();
+    while json.len() % 4 != 0 {
+        json.push(' ');
+    }
+    let bin = &glb[20 + json_len..];
+    let mut out = Vec::new();
+    out.extend_from_slice(&glb[..8]);
+    out.extend_from_slice(&((20 + json.len() + bin.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&glb[16..20]);
+    out.extend_from_slice(json.as_bytes());
+    out.extend_from_slice(bin);
+    out
+}
+
 /// LOD2 output is byte-identical to the writer before LOD3 support (fingerprint taken from
 /// that writer on the same samples, then once more when the walls between two parts of a
-/// building were left out: only `two_part_building` changed, by its shared wall).
+/// building were left out: only `two_part_building` changed, by its shared wall), but for the
+/// provenance extras added since.
 #[test]
 fn lod2_output_unchanged_by_lod3_support() {
     assert_eq!(
-        fnv1a(&write_glb(&all_buildings())),
+        fnv1a(&without_kb_provenance(&write_glb(&all_buildings()))),
         6_307_124_370_317_660_226
     );
 }
@@ -1056,4 +1084,24 @@ fn dump_lod3_sample() {
         write_glb_at(Lod::Lod3, &samples::all()),
     )
     .unwrap();
+}
+
+/// Provenance is in the building node's extras, an unknown uncertainty left out.
+#[test]
+fn provenance_is_in_the_building_extras() {
+    let mut buildings = vec![box_building(), courtyard_building()];
+    buildings[0].provenance = crate::export::fixtures::model_provenance();
+    let (json, _) = parse_glb(&write_glb(&buildings));
+    let roots = json["scenes"][0]["nodes"].as_array().unwrap();
+    let extras = |i: usize| &json["nodes"][roots[i].as_u64().unwrap() as usize]["extras"];
+    let x = extras(0);
+    assert_eq!(x["storeys_source"], "model");
+    assert_eq!(x["storeys_error"].as_f64(), Some(0.75));
+    assert_eq!(x["height_source"], "model");
+    assert_eq!(x["height_error"].as_f64(), Some(2.25));
+    assert_eq!(x["roof_source"], "kb");
+    assert_eq!(x["roof_probability"].as_f64(), Some(0.8));
+    let x = extras(1);
+    assert_eq!(x["storeys_source"], "kb");
+    assert!(x.get("storeys_error").is_none() && x.get("roof_probability").is_none());
 }

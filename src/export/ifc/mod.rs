@@ -35,7 +35,10 @@
 //! - Colours: one `IfcSurfaceStyle` per distinct colour in the file, applied through
 //!   `IfcStyledItem` to wall and roof bodies.
 //! - Per building, property sets `Citygen_Source` (SourceId, Zone, Appearance, MeasuredHeight,
-//!   Lod, RoofShape) and `Pset_BuildingCommon` (NumberOfStoreys), and per building a
+//!   Lod, RoofShape, and the provenance of storeys, height and roof: StoreysSource,
+//!   HeightSource, RoofSource as `IfcLabel`s `tag`/`neighbours`/`fitted`/`model`/`kb`,
+//!   StoreysError `IfcReal` ± storeys, HeightError `IfcLengthMeasure` ± metres, RoofProbability
+//!   `IfcNormalisedRatioMeasure`, each uncertainty left out when unknown) and `Pset_BuildingCommon` (NumberOfStoreys), and per building a
 //!   `Pset_WallCommon` with IsExternal true on its walls and false on those wholly against a
 //!   neighbour (`Wall::party` 1, LOD3), and `Citygen_Wall` (PartyWallShare, one set per
 //!   share) on every wall that faces a neighbour.

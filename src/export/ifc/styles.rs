@@ -190,6 +190,41 @@ impl Render<'_> {
         props.push(single(&mut self.w, "RoofShape", "IFCLABEL", &|t| {
             t.string(b.roof_shape.osm_name());
         })?);
+        // Where storeys, height and roof came from; an unknown uncertainty is left out. A
+        // height error may be 0 (a fixed KB height): IfcLengthMeasure, not the positive one.
+        let p = &b.provenance;
+        let values = [
+            ("Storeys", p.storeys, "Error", p.storeys_error, "IFCREAL"),
+            (
+                "Height",
+                p.height,
+                "Error",
+                p.height_error,
+                "IFCLENGTHMEASURE",
+            ),
+            (
+                "Roof",
+                p.roof,
+                "Probability",
+                p.roof_probability,
+                "IFCNORMALISEDRATIOMEASURE",
+            ),
+        ];
+        for (what, source, suffix, value, ty) in values {
+            props.push(single(
+                &mut self.w,
+                &format!("{what}Source"),
+                "IFCLABEL",
+                &|t| {
+                    t.string(source.name());
+                },
+            )?);
+            if let Some(v) = value {
+                props.push(single(&mut self.w, &format!("{what}{suffix}"), ty, &|t| {
+                    t.real(v);
+                })?);
+            }
+        }
         // A building of one part that is a building:part (its outline not drawn): the part's id.
         if let [part] = b.parts.as_slice() {
             if let Some(source) = part.traced_source(b.id) {

@@ -115,6 +115,7 @@ fn building(id: SourceId, name: Option<&str>, parts: Vec<Part>) -> Building {
         parts,
         lod: Lod::Lod2,
         facade: Default::default(),
+        provenance: Default::default(),
     }
 }
 
@@ -399,7 +400,9 @@ fn file_hash(bytes: &[u8]) -> String {
 }
 
 /// LOD1 and LOD2 files are byte-identical to those written before LOD3 was added (hashes
-/// of the sample taken at that commit).
+/// of the sample taken at that commit; taken again when every building got its provenance
+/// properties, issue 42: without them the files differed only in the GlobalIds of the
+/// material associations, which follow entity numbers).
 #[test]
 fn lod1_and_lod2_output_is_unchanged() {
     let bs = sample();
@@ -416,8 +419,8 @@ fn lod1_and_lod2_output_is_unchanged() {
     assert_eq!(
         got,
         [
-            "4771904b886d95b8478c8e3ac6d5e37a",
-            "5447e28037551ac9622b57ba40da9fdd"
+            "f1b6c6c6e5d0f20f04847df98872057b",
+            "0e1a7edf758f0e0cb06b6d09d904e1e3"
         ]
     );
 }
@@ -1511,4 +1514,50 @@ fn write_all_writes_the_bytes_of_one_write_per_building() {
             "limit {limit}: write_all differs from write"
         );
     }
+}
+
+/// Provenance is in `Citygen_Source`: sources as `IfcLabel`s, the storeys' uncertainty an
+/// `IfcReal`, the height's an `IfcLengthMeasure`, the roof's probability an
+/// `IfcNormalisedRatioMeasure`; an unknown uncertainty is left out.
+#[test]
+fn provenance_is_in_the_source_property_set() {
+    let mut bs = sample();
+    bs[0].provenance = crate::export::fixtures::model_provenance();
+    bs[1].provenance = crate::model::Provenance {
+        storeys: crate::model::ValueSource::Tag,
+        height: crate::model::ValueSource::Fitted,
+        height_error: Some(1.5),
+        ..Default::default()
+    };
+    let m = parse(&write_all(&bs[..2]));
+    let props: Vec<&str> = m
+        .values()
+        .filter(|(k, _)| k == "IFCPROPERTYSINGLEVALUE")
+        .map(|(_, a)| a.as_str())
+        .collect();
+    let has = |p: &str| props.contains(&p);
+    for p in [
+        "'StoreysSource',$,IFCLABEL('model'),$",
+        "'StoreysError',$,IFCREAL(0.75),$",
+        "'HeightSource',$,IFCLABEL('model'),$",
+        "'HeightError',$,IFCLENGTHMEASURE(2.25),$",
+        "'RoofSource',$,IFCLABEL('kb'),$",
+        "'RoofProbability',$,IFCNORMALISEDRATIOMEASURE(0.8),$",
+        "'StoreysSource',$,IFCLABEL('tag'),$",
+        "'HeightSource',$,IFCLABEL('fitted'),$",
+        "'HeightError',$,IFCLENGTHMEASURE(1.5),$",
+    ] {
+        assert!(has(p), "{p} not in {props:#?}");
+    }
+    let count = |name: &str| props.iter().filter(|p| p.starts_with(name)).count();
+    assert_eq!(count("'StoreysSource'"), 2);
+    assert_eq!(count("'StoreysError'"), 1, "a tag has no uncertainty");
+    assert_eq!(count("'RoofProbability'"), 1);
+    // All in the Citygen_Source set, with the building's other values.
+    let pset = m
+        .values()
+        .find(|(k, a)| k == "IFCPROPERTYSET" && a.contains("'Citygen_Source'"))
+        .map(|(_, a)| refs(a))
+        .unwrap();
+    assert_eq!(pset.len(), 6 + 6);
 }

@@ -23,7 +23,33 @@ pub(crate) struct Rows {
     base_height: Vec<f64>,
     storeys: Vec<u32>,
     roof_shape: Vec<&'static str>,
+    /// Sources of storeys, height and roof ([`crate::model::ValueSource::name`]).
+    sources: [Vec<&'static str>; 3],
+    /// Storeys error, height error, roof probability; [`NO_DATA`] when unknown.
+    uncertainty: [Vec<f32>; 3],
 }
+
+/// The `noData` of the uncertainty columns (an error or a probability is never negative).
+const NO_DATA: f32 = -1.0;
+
+/// The provenance properties: (source key, uncertainty key, the uncertainty's description).
+const PROVENANCE: [(&str, &str, &str); 3] = [
+    (
+        "storeysSource",
+        "storeysError",
+        "Uncertainty of the storeys, ± storeys; -1 when unknown (a tag).",
+    ),
+    (
+        "heightSource",
+        "heightError",
+        "Uncertainty of the height, ± metres; -1 when unknown (a tag).",
+    ),
+    (
+        "roofSource",
+        "roofProbability",
+        "Probability (0..1) that the roof's family (flat or pitched) is right; -1 when unknown (a tag).",
+    ),
+];
 
 impl Rows {
     /// Adds `b`'s row; `base_height` is its base as an ellipsoidal height.
@@ -36,6 +62,14 @@ impl Rows {
         self.base_height.push(base_height);
         self.storeys.push(b.storeys_above_ground);
         self.roof_shape.push(b.roof_shape.osm_name());
+        let p = &b.provenance;
+        for (col, source) in self.sources.iter_mut().zip([p.storeys, p.height, p.roof]) {
+            col.push(source.name());
+        }
+        let values = [p.storeys_error, p.height_error, p.roof_probability];
+        for (col, v) in self.uncertainty.iter_mut().zip(values) {
+            col.push(v.map_or(NO_DATA, |v| v as f32));
+        }
     }
 
     /// Rows so far.
@@ -47,7 +81,7 @@ impl Rows {
 /// The schema of the `building` class.
 pub(crate) fn schema() -> Value {
     let string = |description: &str| json!({"type": "STRING", "description": description});
-    json!({
+    let mut schema = json!({
         "id": SCHEMA_ID,
         "name": "citygen buildings",
         "classes": {
@@ -82,7 +116,29 @@ pub(crate) fn schema() -> Value {
                 }
             }
         }
-    })
+    });
+    if let Some(props) = schema["classes"][CLASS]["properties"].as_object_mut() {
+        for ((source, value, description), what) in
+            PROVENANCE.iter().zip(["storeys", "height", "roof"])
+        {
+            props.insert(
+                (*source).into(),
+                string(&format!(
+                    "Where the {what} came from: tag, neighbours, fitted, model or kb."
+                )),
+            );
+            props.insert(
+                (*value).into(),
+                json!({
+                    "type": "SCALAR",
+                    "componentType": "FLOAT32",
+                    "noData": NO_DATA,
+                    "description": description
+                }),
+            );
+        }
+    }
+    schema
 }
 
 /// The property table of `rows`, its columns appended to `bin`. A string column whose strings
@@ -90,7 +146,7 @@ pub(crate) fn schema() -> Value {
 /// the schema's properties are optional (`name`'s no-data value is the empty string).
 pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
     let mut props = serde_json::Map::new();
-    let string_cols: [(&str, Vec<&str>); 5] = [
+    let string_cols: [(&str, Vec<&str>); 8] = [
         ("id", rows.id.iter().map(String::as_str).collect()),
         ("name", rows.name.iter().map(String::as_str).collect()),
         ("zone", rows.zone.iter().map(String::as_str).collect()),
@@ -99,6 +155,9 @@ pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
             rows.appearance.iter().map(String::as_str).collect(),
         ),
         ("roofShape", rows.roof_shape.clone()),
+        (PROVENANCE[0].0, rows.sources[0].clone()),
+        (PROVENANCE[1].0, rows.sources[1].clone()),
+        (PROVENANCE[2].0, rows.sources[2].clone()),
     ];
     for (key, col) in string_cols {
         let mut data = Vec::new();
@@ -124,6 +183,10 @@ pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
     }
     let data: Vec<u8> = rows.storeys.iter().flat_map(|v| v.to_le_bytes()).collect();
     props.insert("storeys".into(), json!({"values": bin.view(&data, None)}));
+    for ((_, key, _), col) in PROVENANCE.iter().zip(&rows.uncertainty) {
+        let data: Vec<u8> = col.iter().flat_map(|v| v.to_le_bytes()).collect();
+        props.insert((*key).into(), json!({"values": bin.view(&data, None)}));
+    }
     json!({
         "name": "buildings",
         "class": CLASS,

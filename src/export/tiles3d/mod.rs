@@ -16,8 +16,10 @@
 //!
 //! Every building is a feature: all its vertices carry its row in the property table
 //! (`EXT_mesh_features`, `_FEATURE_ID_0`), whose columns (`EXT_structural_metadata`,
-//! `metadata`) are its source id, name, zone, appearance, height, base height, storeys and roof
-//! shape. The buildings' triangles are batched into one primitive per kind of material (matte,
+//! `metadata`) are its source id, name, zone, appearance, height, base height, storeys, roof
+//! shape, and the provenance of storeys, height and roof (`storeysSource`, `heightSource`,
+//! `roofSource` strings; `storeysError`, `heightError`, `roofProbability` FLOAT32 with noData
+//! -1). The buildings' triangles are batched into one primitive per kind of material (matte,
 //! glass, each opaque or blended), coloured per vertex (`content`), so a tile is a handful of
 //! draw calls whatever its number of colours.
 //!

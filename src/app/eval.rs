@@ -1,0 +1,132 @@
+//! `citygen eval`: the truth benchmark of the height and roof estimator, and the offline fit
+//! of its shipped models (`crate::pipeline::eval`).
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use super::{AppError, Outcome};
+use crate::pipeline::eval::{Case, CaseScore, EvalOptions, Score};
+use crate::pipeline::Source;
+
+/// `citygen eval`.
+#[derive(Args, Debug)]
+pub(crate) struct EvalArgs {
+    /// The inputs: `FILE.osm.pbf` or `FILE.shp` to hide the input's own tags fold by fold, or
+    /// `FILE=TRUTH.csv` to compare with measured heights and roofs (`id,height_m,roof`; every
+    /// tag of height, storeys and roof removed first).
+    #[arg(required = true, value_name = "INPUT[=TRUTH.csv]")]
+    cases: Vec<String>,
+    /// The knowledge base (regional roof priors and storey heights).
+    #[arg(long, value_name = "FILE.xml", default_value = "knowledge_base/kb.xml")]
+    kb: PathBuf,
+    /// Folds for hidden tags: a 1/FOLDS share hidden at a time.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(2..=20))]
+    folds: u64,
+    /// Chooses the folds.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Use the models in this folder (`height.gbt`, `roof.gbt`) instead of the shipped ones.
+    #[arg(long, value_name = "DIR")]
+    model: Option<PathBuf>,
+    /// Fit the shipped models on every input's truth or tags and write them into this folder.
+    #[arg(long, value_name = "DIR")]
+    save_model: Option<PathBuf>,
+    /// Measure each input with models fitted on the other inputs only (leave one city out).
+    #[arg(long)]
+    loco: bool,
+    /// Write the scores as JSON here.
+    #[arg(long, value_name = "OUT.json")]
+    json: Option<PathBuf>,
+}
+
+fn case(arg: &str) -> Case {
+    let (input, truth) = match arg.split_once('=') {
+        Some((a, b)) => (a, Some(PathBuf::from(b))),
+        None => (arg, None),
+    };
+    let path = PathBuf::from(input);
+    let shp = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("shp"));
+    let source = if shp {
+        Source::Shp {
+            path,
+            height_field: None,
+            levels_field: None,
+        }
+    } else {
+        Source::Osm(path)
+    };
+    Case { source, truth }
+}
+
+fn cell(s: &Option<Score>, unit: &str) -> String {
+    match s {
+        Some(s) => format!(
+            "{:>5} {:>6.2}{unit} {:>6.2}{unit} {:>5.2}{}",
+            s.n,
+            s.error,
+            s.baseline,
+            s.ratio(),
+            s.rank.map_or(String::new(), |r| format!(" ρ {r:.2}"))
+        ),
+        None => "-".to_string(),
+    }
+}
+
+fn print(scores: &[CaseScore]) {
+    println!("case | mode | height: n, MAE, constant median, ratio, rank | storeys: n, MAE, constant, ratio (exact) | roof flat/pitched: n, wrong, majority wrong, ratio");
+    for s in scores {
+        let exact = s
+            .storeys
+            .as_ref()
+            .and_then(|x| x.exact)
+            .map_or(String::new(), |e| format!(" ({:.0} % exact)", 100.0 * e));
+        println!(
+            "{} | {} | {} | {}{exact} | {}",
+            s.name,
+            s.mode,
+            cell(&s.height, " m"),
+            cell(&s.storeys, ""),
+            cell(&s.roof, "")
+        );
+    }
+    let total = |get: fn(&CaseScore) -> &Option<Score>| {
+        let v: Vec<&Score> = scores.iter().filter_map(|s| get(s).as_ref()).collect();
+        let n: usize = v.iter().map(|s| s.n).sum();
+        let e: f64 = v.iter().map(|s| s.error * s.n as f64).sum::<f64>();
+        let b: f64 = v.iter().map(|s| s.baseline * s.n as f64).sum::<f64>();
+        (n, e / n.max(1) as f64, b / n.max(1) as f64)
+    };
+    let (n, e, b) = total(|s| &s.height);
+    println!(
+        "all heights: n {n}, MAE {e:.2} m, constant {b:.2} m, ratio {:.2}",
+        e / b.max(1e-9)
+    );
+    let (n, e, b) = total(|s| &s.roof);
+    println!(
+        "all roofs: n {n}, right {:.1} %, majority right {:.1} %",
+        100.0 * (1.0 - e),
+        100.0 * (1.0 - b)
+    );
+}
+
+/// `citygen eval`.
+pub(crate) fn run(args: EvalArgs) -> Result<Outcome, AppError> {
+    let opts = EvalOptions {
+        cases: args.cases.iter().map(|c| case(c)).collect(),
+        kb: Some(args.kb),
+        folds: args.folds as usize,
+        seed: args.seed,
+        model: args.model,
+        save_model: args.save_model,
+        loco: args.loco,
+    };
+    let scores = crate::pipeline::eval::run(&opts)?;
+    print(&scores);
+    if let Some(p) = &args.json {
+        crate::pipeline::eval::write_scores(p, &scores)?;
+    }
+    Ok(Outcome::Done)
+}

@@ -1,0 +1,901 @@
+//! Heights and roofs where the map is silent (issue 42): an estimate for every building without
+//! a `height`, `building:levels` or `roof:shape`, from its form, its neighbours and its region,
+//! never silent (each estimate carries its [`Provenance`]).
+//!
+//! Per lot, in this order:
+//!
+//! 1. **Features** ([`super::morph`]): size, shape, shared walls, density, the kind's usual
+//!    storeys.
+//! 2. **Prior**: a rule of thumb ([`prior_log_height`]) for the height, the zone's appearance
+//!    mix ([`crate::kb::KnowledgeBase::roof_mix`]) for the roof (log-odds of a pitched roof,
+//!    half-weighted).
+//! 3. **Shipped model**: boosted trees fitted offline on measured city models and tagged
+//!    extracts (`assets/models/`, datasets in `docs/truth.md`), added to the prior.
+//! 4. **Fitted model**: where the input has at least [`MIN_FIT`] tagged buildings, more trees
+//!    boosted from (prior + shipped) on them, their number chosen by 5-fold spatial cross-
+//!    validation (0 trees: the shipped model stands); the report gives the fit.
+//! 5. **Neighbours**: the out-of-fold errors of at least [`MIN_VOTES`] tagged neighbours within
+//!    [`NEIGHBOUR_RADIUS_M`], weighed by distance, size, kind and attachment, move the estimate
+//!    (shrunk towards none, at most by a factor [`MAX_LEND`]).
+//! 6. **Plausibility**: a kind's cap (sheds, garages, stables stay low) and a footprint's
+//!    (a storey needs room): [`super::morph::kind_cap`], [`super::morph::area_cap`].
+//! 7. **Rows**: touching lots of like size and height share one height and one roof (the
+//!    tagged members' when any).
+//!
+//! The height set is the top of the roof (OSM `height`); the storeys follow from it and the
+//! zone's storey height when the building is styled. Pure function of the lots and the KB:
+//! deterministic at any thread count.
+
+use std::collections::HashMap;
+
+use glam::DVec2;
+use rayon::prelude::*;
+use rstar::primitives::GeomWithData;
+use rstar::RTree;
+
+use super::gbt::{self, Loss, Model, Params};
+use super::morph::{self, Features, Morphology};
+use super::Lot;
+use crate::input::{BuildingTags, TagInterner};
+use crate::model::{Inference, Provenance, RoofMix, RoofShape, SourceId, ValueSource};
+
+/// The fewest tagged buildings an input needs for a model of its own.
+pub(crate) const MIN_FIT: usize = 40;
+/// The fewest tagged neighbours that move an estimate.
+pub(crate) const MIN_VOTES: usize = 3;
+/// The farthest a tagged neighbour may be (metres).
+pub(crate) const NEIGHBOUR_RADIUS_M: f64 = 250.0;
+/// The most the neighbours may move an estimate: this factor up or down.
+pub(crate) const MAX_LEND: f64 = 1.6;
+/// The most tagged rows a fit uses (every k-th beyond: the cost stays bounded).
+const MAX_ROWS: usize = 12_000;
+/// Folds of the in-run cross-validation.
+const FOLDS: usize = 5;
+/// Tree counts the cross-validation chooses among.
+const ROUNDS: [usize; 6] = [0, 1, 15, 40, 90, 160];
+/// The relative error of the shipped height model on held-out cities (mean |log error|,
+/// leave-one-city-out on the corpus of `docs/truth.md`): an untrained estimate's ± .
+const SHIPPED_LOG_ERROR: f64 = 0.30;
+/// The lowest and highest heights an estimate takes (metres).
+const HEIGHT_RANGE: (f64, f64) = (2.5, 250.0);
+
+/// The shipped models' text (fitted by `citygen eval --save-model`).
+const SHIPPED_HEIGHT: &str = include_str!("../../assets/models/height.gbt");
+const SHIPPED_ROOF: &str = include_str!("../../assets/models/roof.gbt");
+
+/// The shipped height and roof models.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Models {
+    /// Log height over [`prior_log_height`].
+    pub height: Model,
+    /// Log-odds of a pitched roof over the zone's prior.
+    pub roof: Model,
+}
+
+impl Models {
+    /// The models compiled into citygen; the zero models if they cannot be read (a test
+    /// checks that they can).
+    pub(crate) fn shipped() -> Models {
+        Models {
+            height: Model::from_text(SHIPPED_HEIGHT).unwrap_or_else(|_| Model::zero(Loss::Squared)),
+            roof: Model::from_text(SHIPPED_ROOF).unwrap_or_else(|_| Model::zero(Loss::Logistic)),
+        }
+    }
+}
+
+/// What is known of one lot before estimating.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Known {
+    /// Log of its tagged height (the top of the roof), or of `levels × storey + roof`.
+    pub log_height: Option<f64>,
+    /// 1 for a tagged pitched roof, 0 for a flat one.
+    pub pitched: Option<f64>,
+    /// Its zone's roof prior for its kind.
+    pub mix: RoofMix,
+}
+
+/// One lot's estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Estimate {
+    /// Height (top of the roof above the base), metres.
+    pub height: f64,
+    /// Its ± metres.
+    pub height_error: f64,
+    /// Where it came from.
+    pub height_source: ValueSource,
+    /// The probability of a pitched roof.
+    pub pitched: f64,
+    /// The roof shape drawn: flat, or the pitched shape of the neighbours or the zone.
+    pub shape: RoofShape,
+    /// Where the roof family came from.
+    pub roof_source: ValueSource,
+    /// The storeys the height gives at the zone's storey height.
+    pub storeys: f64,
+    /// Its ± storeys.
+    pub storeys_error: f64,
+}
+
+/// How one of the two models fitted in the run (for the report and `citygen eval`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct Fit {
+    /// Tagged rows it was fitted on.
+    pub rows: usize,
+    /// Trees the cross-validation chose (0: the shipped model stands).
+    pub rounds: usize,
+    /// Cross-validated error with those trees: mean |log height error|, or the share of
+    /// roofs wrong.
+    pub error: f64,
+    /// The same for the shipped model alone (0 trees).
+    pub shipped_error: f64,
+    /// The same for a constant (the median log height; the majority roof family).
+    pub constant_error: f64,
+}
+
+/// Everything [`estimate`] found.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Outcome {
+    /// Per lot, its estimate (`None`: nothing to estimate, everything tagged or not wanted).
+    pub estimates: Vec<Option<Estimate>>,
+    /// The height model's fit in the run, when there was one.
+    pub height_fit: Option<Fit>,
+    /// The roof model's fit, when there was one.
+    pub roof_fit: Option<Fit>,
+    /// Per lot, the features the models read (empty when nothing was estimated).
+    pub features: Vec<Features>,
+}
+
+/// The rule-of-thumb log height a model is boosted from: the kind's usual storeys, else a
+/// footprint-size guess, at 3 m a storey plus a roof allowance; denser places a little taller.
+pub(crate) fn prior_log_height(f: &Features) -> f64 {
+    let area = f64::from(f[0]).exp();
+    let kind = f64::from(f[14]);
+    let storeys = if kind > 0.0 {
+        kind
+    } else {
+        match area {
+            a if a < 30.0 => 1.0,
+            a if a < 90.0 => 1.6,
+            a if a < 250.0 => 2.2,
+            a if a < 1000.0 => 3.0,
+            _ => 3.5,
+        }
+    };
+    let dense = f64::from(f[11]).clamp(0.0, 1.0);
+    (storeys * 3.0 * (1.0 + 0.8 * dense) + 1.5).ln()
+}
+
+fn logit(p: f64) -> f64 {
+    let p = p.clamp(0.05, 0.95);
+    (p / (1.0 - p)).ln()
+}
+
+/// The roof prior's log-odds: the zone's mix (half-weighted: the KB's weights are estimates,
+/// docs/world-kb.md) and the footprint's size (houses under 150 m² are mostly pitched, blocks
+/// over 600 m² mostly flat: Biljecki & Dehbi 2019 find area the strongest single predictor).
+pub(crate) fn prior_roof(mix: &RoofMix, f: &Features) -> f64 {
+    let area = f64::from(f[0]).exp();
+    let size = match area {
+        a if a < 30.0 => 0.0,
+        a if a < 150.0 => 0.6,
+        a if a < 300.0 => 0.2,
+        a if a < 600.0 => -0.4,
+        _ => -1.2,
+    };
+    0.5 * logit(mix.pitched) + size
+}
+
+/// The height of a pitched roof over a footprint of this width at this pitch (metres), at
+/// most 8 m.
+pub(crate) fn roof_allowance(width: f64, angle_deg: f64) -> f64 {
+    (0.5 * width * angle_deg.to_radians().tan()).clamp(0.0, 8.0)
+}
+
+/// What a lot's own tags say: its known log height and roof family.
+pub(crate) fn known(tags: &BuildingTags, width: f64, mix: RoofMix) -> Known {
+    let pitched = tags
+        .roof_shape
+        .map(|r| f64::from(u8::from(r != RoofShape::Flat)));
+    let allow = roof_allowance(width, mix.angle_deg) * pitched.unwrap_or(mix.pitched);
+    let log_height = tags
+        .height
+        .filter(|h| h.is_finite() && *h >= 1.0)
+        .map(f64::ln)
+        .or_else(|| {
+            tags.levels
+                .filter(|l| l.is_finite() && *l >= 1.0)
+                .map(|l| (l * mix.floor_height + allow).ln())
+        });
+    Known {
+        log_height,
+        pitched,
+        mix,
+    }
+}
+
+/// The cross-validation fold of a lot: its 250 m block, hashed.
+fn fold_of(p: Option<DVec2>) -> usize {
+    let Some(p) = p else { return 0 };
+    let (x, y) = ((p.x / 250.0).floor() as i64, (p.y / 250.0).floor() as i64);
+    let h = (x.wrapping_mul(0x9E37_79B9) ^ y.wrapping_mul(0x85EB_CA6B)).rem_euclid(1 << 30);
+    (h as usize) % FOLDS
+}
+
+/// One fold's summed errors per candidate tree count, and its rows' predictions per count.
+type FoldScores = (Vec<f64>, Vec<(usize, Vec<f64>)>);
+
+/// Fits one model in the run (module docs, step 4): rows `rows` (lot indices), targets `y`,
+/// priors `prior`. Returns the model and its fit, and the out-of-fold predictions (over the
+/// prior) of every row, which the neighbours' votes use.
+fn fit_in_run(
+    x: &[Features],
+    y: &[f64],
+    prior: &[f64],
+    folds: &[usize],
+    loss: Loss,
+) -> (Model, Fit, Vec<f64>) {
+    let params = Params {
+        rounds: *ROUNDS.last().unwrap_or(&0),
+        ..Params::default()
+    };
+    let err = |s: f64, t: f64| match loss {
+        Loss::Squared => (s - t).abs(),
+        Loss::Logistic => f64::from(u8::from((s > 0.0) != (t > 0.5))),
+    };
+    // Per fold: the model on the other folds, scored at every candidate tree count.
+    let per_fold: Vec<FoldScores> = (0..FOLDS)
+        .into_par_iter()
+        .map(|k| {
+            let train: Vec<usize> = (0..x.len()).filter(|&i| folds[i] != k).collect();
+            let test: Vec<usize> = (0..x.len()).filter(|&i| folds[i] == k).collect();
+            let tx: Vec<Features> = train.iter().map(|&i| x[i]).collect();
+            let ty: Vec<f64> = train.iter().map(|&i| y[i]).collect();
+            let tp: Vec<f64> = train.iter().map(|&i| prior[i]).collect();
+            let m = gbt::fit(&tx, &ty, &tp, loss, &params);
+            let errors = ROUNDS
+                .iter()
+                .map(|&r| {
+                    test.iter()
+                        .map(|&i| err(prior[i] + m.predict_first(&x[i], r), y[i]))
+                        .sum::<f64>()
+                })
+                .collect();
+            let oof = test
+                .iter()
+                .map(|&i| {
+                    (
+                        i,
+                        ROUNDS.iter().map(|&r| m.predict_first(&x[i], r)).collect(),
+                    )
+                })
+                .collect();
+            (errors, oof)
+        })
+        .collect();
+    let n = x.len().max(1) as f64;
+    let totals: Vec<f64> = (0..ROUNDS.len())
+        .map(|r| per_fold.iter().map(|f| f.0[r]).sum::<f64>() / n)
+        .collect();
+    let best = (0..ROUNDS.len())
+        .reduce(|a, b| if totals[b] < totals[a] - 1e-9 { b } else { a })
+        .unwrap_or(0);
+    let mut oof = vec![0.0; x.len()];
+    for (_, rows) in &per_fold {
+        for (i, v) in rows {
+            oof[*i] = v[best];
+        }
+    }
+    let constant = match loss {
+        Loss::Squared => {
+            let mut v = y.to_vec();
+            v.sort_by(f64::total_cmp);
+            let m = v.get(v.len() / 2).copied().unwrap_or(0.0);
+            y.iter().map(|t| (t - m).abs()).sum::<f64>() / n
+        }
+        Loss::Logistic => {
+            let share = y.iter().sum::<f64>() / n;
+            share.min(1.0 - share)
+        }
+    };
+    let model = if ROUNDS[best] == 0 {
+        Model::zero(loss)
+    } else {
+        gbt::fit(
+            x,
+            y,
+            prior,
+            loss,
+            &Params {
+                rounds: ROUNDS[best],
+                ..params
+            },
+        )
+    };
+    let fit = Fit {
+        rows: x.len(),
+        rounds: ROUNDS[best],
+        error: totals[best],
+        shipped_error: totals[0],
+        constant_error: constant,
+    };
+    (model, fit, oof)
+}
+
+/// Estimates every lot `want` allows that lacks a value (module docs). `mixes[i]` is lot `i`'s
+/// regional prior (its zone's appearances for its kind); `models` the shipped models.
+pub(crate) fn estimate(
+    lots: &[Lot],
+    mixes: &[RoofMix],
+    want: &[Inference],
+    models: &Models,
+) -> Outcome {
+    if !want.iter().any(|w| w.levels || w.roof) {
+        return Outcome {
+            estimates: vec![None; lots.len()],
+            ..Outcome::default()
+        };
+    }
+    let m = morph::measure(lots);
+    let known: Vec<Known> = (0..lots.len())
+        .map(|i| {
+            let mix = mixes.get(i).copied().unwrap_or(RoofMix::DEFAULT);
+            known(&lots[i].tags, m.width[i], mix)
+        })
+        .collect();
+    let points: Vec<Option<DVec2>> = lots
+        .iter()
+        .map(|l| l.bounds().map(|(lo, hi)| 0.5 * (lo + hi)))
+        .collect();
+    let base_h: Vec<f64> = m
+        .features
+        .par_iter()
+        .map(|f| prior_log_height(f) + models.height.predict(f))
+        .collect();
+    let base_r: Vec<f64> = (0..lots.len())
+        .into_par_iter()
+        .map(|i| prior_roof(&known[i].mix, &m.features[i]) + models.roof.predict(&m.features[i]))
+        .collect();
+    let heights = Side::fit(
+        &m,
+        &known,
+        &points,
+        &base_h,
+        |k| k.log_height,
+        Loss::Squared,
+    );
+    let roofs = Side::fit(&m, &known, &points, &base_r, |k| k.pitched, Loss::Logistic);
+    let ctx = Context {
+        lots,
+        m: &m,
+        known: &known,
+        points: &points,
+        heights: &heights,
+        roofs: &roofs,
+    };
+    let mut estimates: Vec<Option<Estimate>> = (0..lots.len())
+        .into_par_iter()
+        .map(|i| ctx.one(i, want[i]))
+        .collect();
+    rows(&ctx, &mut estimates);
+    Outcome {
+        estimates,
+        height_fit: heights.fit,
+        roof_fit: roofs.fit,
+        features: m.features,
+    }
+}
+
+/// One of the two estimates (height or roof) over all lots: the base (prior + shipped), the
+/// in-run model, and each tagged lot's out-of-fold error.
+struct Side {
+    base: Vec<f64>,
+    model: Model,
+    fit: Option<Fit>,
+    /// Per lot: its target minus its out-of-fold estimate (tagged lots only).
+    residual: Vec<Option<f64>>,
+    /// The index of tagged lots.
+    tree: RTree<GeomWithData<[f64; 2], u32>>,
+    /// The relative error of an estimate (mean |log error|, or the share of roofs wrong).
+    error: f64,
+}
+
+impl Side {
+    fn fit(
+        m: &Morphology,
+        known: &[Known],
+        points: &[Option<DVec2>],
+        base: &[f64],
+        target: impl Fn(&Known) -> Option<f64>,
+        loss: Loss,
+    ) -> Side {
+        let tagged: Vec<usize> = (0..known.len())
+            .filter(|&i| target(&known[i]).is_some() && points[i].is_some())
+            .collect();
+        let step = tagged.len().div_ceil(MAX_ROWS).max(1);
+        let rows: Vec<usize> = tagged.iter().copied().step_by(step).collect();
+        let shipped_error = match loss {
+            Loss::Squared => SHIPPED_LOG_ERROR,
+            Loss::Logistic => 0.2,
+        };
+        let mut residual = vec![None; known.len()];
+        let (model, fit) = if rows.len() >= MIN_FIT {
+            let x: Vec<Features> = rows.iter().map(|&i| m.features[i]).collect();
+            let y: Vec<f64> = rows.iter().filter_map(|&i| target(&known[i])).collect();
+            let p: Vec<f64> = rows.iter().map(|&i| base[i]).collect();
+            let folds: Vec<usize> = rows.iter().map(|&i| fold_of(points[i])).collect();
+            let (model, fit, oof) = fit_in_run(&x, &y, &p, &folds, loss);
+            for (k, &i) in rows.iter().enumerate() {
+                residual[i] = Some(y[k] - (p[k] + oof[k]));
+            }
+            (model, Some(fit))
+        } else {
+            for &i in &tagged {
+                residual[i] = target(&known[i]).map(|t| t - base[i]);
+            }
+            (Model::zero(loss), None)
+        };
+        let error = fit.as_ref().map_or(shipped_error, |f| f.error);
+        let tree = RTree::bulk_load(
+            (0..known.len())
+                .filter(|&i| residual[i].is_some())
+                .filter_map(|i| Some(GeomWithData::new(points[i]?.to_array(), i as u32)))
+                .collect(),
+        );
+        Side {
+            base: base.to_vec(),
+            model,
+            fit,
+            residual,
+            tree,
+            error,
+        }
+    }
+
+    /// The source of an estimate without neighbours.
+    fn source(&self) -> ValueSource {
+        match &self.fit {
+            Some(f) if f.rounds > 0 => ValueSource::Fitted,
+            _ => ValueSource::Model,
+        }
+    }
+}
+
+struct Context<'a> {
+    lots: &'a [Lot],
+    m: &'a Morphology,
+    known: &'a [Known],
+    points: &'a [Option<DVec2>],
+    heights: &'a Side,
+    roofs: &'a Side,
+}
+
+impl Context<'_> {
+    /// The weighed tagged neighbours of lot `i` on one side: (lot, weight).
+    fn neighbours(&self, side: &Side, i: usize, p: DVec2) -> Vec<(usize, f64)> {
+        let f = &self.m.features[i];
+        let kind = self.lots[i].tags.building.as_deref();
+        let near: Vec<(usize, f64)> = side
+            .tree
+            .nearest_neighbor_iter_with_distance_2(p.to_array())
+            .map(|(e, d2)| (e.data as usize, d2.sqrt()))
+            .filter(|&(j, _)| j != i)
+            .take(12)
+            .take_while(|&(_, d)| d <= NEIGHBOUR_RADIUS_M)
+            .map(|(j, d)| {
+                let g = &self.m.features[j];
+                let size = (-(f[0] - g[0]).abs() as f64).exp();
+                let same = if self.lots[j].tags.building.as_deref() == kind {
+                    1.0
+                } else {
+                    0.5
+                };
+                let attach = 1.0 - f64::from((f[6] - g[6]).abs()).min(1.0);
+                (j, size * same * (0.25 + 0.75 * attach) / (d + 20.0))
+            })
+            .collect();
+        if near.len() < MIN_VOTES {
+            Vec::new()
+        } else {
+            near
+        }
+    }
+
+    /// The shrunk weighted mean of the neighbours' residuals, and whether they counted.
+    fn lend(&self, side: &Side, near: &[(usize, f64)]) -> f64 {
+        let (sw, sw2, swr) = near.iter().fold((0.0, 0.0, 0.0), |(a, b, c), &(j, w)| {
+            (a + w, b + w * w, c + w * side.residual[j].unwrap_or(0.0))
+        });
+        if sw <= 0.0 {
+            return 0.0;
+        }
+        let n_eff = sw * sw / sw2.max(1e-12);
+        (swr / sw) * n_eff / (n_eff + 3.0)
+    }
+
+    fn one(&self, i: usize, want: Inference) -> Option<Estimate> {
+        let k = &self.known[i];
+        let need_h = want.levels && k.log_height.is_none();
+        let need_r =
+            want.roof && k.pitched.is_none() && self.lots[i].tags.invalid_roof_shape.is_none();
+        if !need_h && !need_r {
+            return None;
+        }
+        let f = &self.m.features[i];
+        let p = self.points[i]?;
+        // Roof first: the height's roof allowance depends on it.
+        let (hs, rs) = (self.heights, self.roofs);
+        let near_r = self.neighbours(rs, i, p);
+        let z = rs.base[i] + rs.model.predict(f) + self.lend(rs, &near_r);
+        let pitched = match k.pitched {
+            Some(t) => t,
+            None => gbt::sigmoid(z),
+        };
+        let roof_source = match (k.pitched, near_r.is_empty()) {
+            (Some(_), _) => ValueSource::Tag,
+            (None, false) => ValueSource::Neighbours,
+            (None, true) => rs.source(),
+        };
+        let shape = if pitched >= 0.5 {
+            self.pitched_shape(&near_r).unwrap_or(k.mix.shape)
+        } else {
+            RoofShape::Flat
+        };
+        let allow = if pitched >= 0.5 {
+            roof_allowance(self.m.width[i], k.mix.angle_deg)
+        } else {
+            0.0
+        };
+        let near_h = self.neighbours(hs, i, p);
+        let model_log = hs.base[i] + hs.model.predict(f);
+        let lent = self.lend(hs, &near_h).clamp(-MAX_LEND.ln(), MAX_LEND.ln());
+        let mut height = match k.log_height {
+            Some(t) => t.exp(),
+            None => (model_log + lent).exp(),
+        };
+        let fh = k.mix.floor_height;
+        let caps = [
+            morph::kind_cap(self.lots[i].tags.building.as_deref()),
+            Some(morph::area_cap(self.m.area[i])),
+        ];
+        let cap = caps.into_iter().flatten().fold(f64::INFINITY, f64::min);
+        if k.log_height.is_none() {
+            height = height
+                .clamp(HEIGHT_RANGE.0, HEIGHT_RANGE.1)
+                .min(cap * fh + allow + 0.5);
+        }
+        let height_source = match (k.log_height, near_h.is_empty() || lent.abs() < 0.05) {
+            (Some(_), _) => ValueSource::Tag,
+            (None, false) => ValueSource::Neighbours,
+            (None, true) => hs.source(),
+        };
+        let height_error = height * (hs.error.exp() - 1.0);
+        let storeys = ((height - allow) / fh).round().max(1.0);
+        Some(Estimate {
+            height,
+            height_error,
+            height_source,
+            pitched,
+            shape,
+            roof_source,
+            storeys,
+            storeys_error: height_error / fh,
+        })
+    }
+
+    /// The pitched shape most of the neighbours' weight has, when they are pitched.
+    fn pitched_shape(&self, near: &[(usize, f64)]) -> Option<RoofShape> {
+        let mut tally: Vec<(RoofShape, f64)> = Vec::new();
+        for &(j, w) in near {
+            match self.lots[j].tags.roof_shape {
+                Some(RoofShape::Flat) | None => {}
+                Some(r) => match tally.iter_mut().find(|t| t.0 == r) {
+                    Some(t) => t.1 += w,
+                    None => tally.push((r, w)),
+                },
+            }
+        }
+        tally
+            .into_iter()
+            .reduce(|a, b| if b.1 > a.1 { b } else { a })
+            .map(|t| t.0)
+    }
+}
+
+/// Attached rows share one height and one roof (module docs, step 7).
+fn rows(ctx: &Context, estimates: &mut [Option<Estimate>]) {
+    let n = ctx.lots.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    let height = |i: usize| -> Option<f64> {
+        ctx.known[i]
+            .log_height
+            .map(f64::exp)
+            .or_else(|| estimates[i].map(|e| e.height))
+    };
+    for &(a, b, shared) in &ctx.m.touching {
+        let (a, b) = (a as usize, b as usize);
+        let (aa, ab) = (ctx.m.area[a], ctx.m.area[b]);
+        let like_size = aa.max(ab) / aa.min(ab).max(1.0) <= 3.0;
+        let like_height = match (height(a), height(b)) {
+            (Some(x), Some(y)) => x.max(y) / x.min(y).max(0.1) <= 1.35,
+            _ => false,
+        };
+        if shared >= 2.0 && like_size && like_height {
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            if ra != rb {
+                parent[ra.max(rb)] = ra.min(rb);
+            }
+        }
+    }
+    let mut groups: HashMap<usize, Vec<usize>> = HashMap::new();
+    for i in 0..n {
+        let r = find(&mut parent, i);
+        groups.entry(r).or_default().push(i);
+    }
+    let mut keys: Vec<usize> = groups.keys().copied().collect();
+    keys.sort_unstable();
+    for key in keys {
+        let members = &groups[&key];
+        if members.len() < 2 || members.iter().all(|&i| estimates[i].is_none()) {
+            continue;
+        }
+        harmonise(ctx, members, estimates);
+    }
+}
+
+/// One row: the tagged members' median height and majority roof when any, else the
+/// area-weighted ones of the estimates.
+fn harmonise(ctx: &Context, members: &[usize], estimates: &mut [Option<Estimate>]) {
+    let tagged_h: Vec<(f64, f64)> = members
+        .iter()
+        .filter_map(|&i| ctx.known[i].log_height.map(|h| (h.exp(), ctx.m.area[i])))
+        .collect();
+    let tagged_r: Vec<(f64, f64)> = members
+        .iter()
+        .filter_map(|&i| ctx.known[i].pitched.map(|p| (p, ctx.m.area[i])))
+        .collect();
+    let est_h: Vec<(f64, f64)> = members
+        .iter()
+        .filter_map(|&i| estimates[i].map(|e| (e.height, ctx.m.area[i])))
+        .collect();
+    let est_r: Vec<(f64, f64)> = members
+        .iter()
+        .filter_map(|&i| estimates[i].map(|e| (e.pitched, ctx.m.area[i])))
+        .collect();
+    let (h, h_src) = if tagged_h.is_empty() {
+        (weighted_median(est_h), None)
+    } else {
+        (weighted_median(tagged_h), Some(ValueSource::Neighbours))
+    };
+    let (r, r_src) = if tagged_r.is_empty() {
+        (weighted_mean(&est_r), None)
+    } else {
+        (weighted_mean(&tagged_r), Some(ValueSource::Neighbours))
+    };
+    let shape = members
+        .iter()
+        .find_map(|&i| {
+            ctx.lots[i]
+                .tags
+                .roof_shape
+                .filter(|s| *s != RoofShape::Flat)
+        })
+        .or_else(|| {
+            members
+                .iter()
+                .find_map(|&i| estimates[i].map(|e| e.shape))
+                .filter(|s| *s != RoofShape::Flat)
+        });
+    // One eaves line: the storeys from the row's median width.
+    let width =
+        weighted_median(members.iter().map(|&i| (ctx.m.width[i], 1.0)).collect()).unwrap_or(0.0);
+    for &i in members {
+        let Some(e) = estimates[i].as_mut() else {
+            continue;
+        };
+        let k = &ctx.known[i];
+        if k.log_height.is_none() {
+            if let Some(h) = h {
+                e.height_error *= h / e.height.max(0.1);
+                e.storeys_error *= h / e.height.max(0.1);
+                e.height = h;
+                if let Some(s) = h_src {
+                    e.height_source = s;
+                }
+            }
+        }
+        if k.pitched.is_none() {
+            if let Some(r) = r {
+                e.pitched = r;
+                e.shape = if r >= 0.5 {
+                    shape.unwrap_or(k.mix.shape)
+                } else {
+                    RoofShape::Flat
+                };
+                if let Some(s) = r_src {
+                    e.roof_source = s;
+                }
+            }
+        }
+        let allow = if e.shape == RoofShape::Flat {
+            0.0
+        } else {
+            roof_allowance(width, k.mix.angle_deg)
+        };
+        e.storeys = ((e.height - allow) / k.mix.floor_height).round().max(1.0);
+    }
+}
+
+fn weighted_median(mut v: Vec<(f64, f64)>) -> Option<f64> {
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = v.iter().map(|x| x.1).sum();
+    let mut acc = 0.0;
+    v.iter().find_map(|&(x, w)| {
+        acc += w;
+        (acc >= 0.5 * total).then_some(x)
+    })
+}
+
+fn weighted_mean(v: &[(f64, f64)]) -> Option<f64> {
+    let total: f64 = v.iter().map(|x| x.1).sum();
+    (total > 0.0).then(|| v.iter().map(|x| x.0 * x.1).sum::<f64>() / total)
+}
+
+/// Sets the estimates on the lots' tags (`height`, `building:levels`, `roof:shape`, with their
+/// [`Provenance`]),
+/// sharing one tag set among lots that end alike. Returns the count of lots changed.
+pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
+    let interner = TagInterner::default();
+    let mut changed = 0;
+    for (lot, e) in lots.iter_mut().zip(estimates) {
+        let Some(e) = e else { continue };
+        let mut t = (*lot.tags).clone();
+        let mut p = t.provenance.unwrap_or_else(|| from_tags(&t));
+        if e.height_source != ValueSource::Tag {
+            // Quantised: neighbours alike share tags, and a nightly run's small changes
+            // elsewhere rarely move a building's height.
+            t.height = Some((e.height * 10.0).round() / 10.0);
+            // The storeys too: a row's members share them, and the walls are shared out
+            // evenly among them whatever the appearance's storey height.
+            t.levels = Some(e.storeys);
+            p.height = e.height_source;
+            p.height_error = Some((e.height_error * 10.0).round() / 10.0);
+            p.storeys = e.height_source;
+            p.storeys_error = Some((e.storeys_error * 10.0).round() / 10.0);
+        }
+        if e.roof_source != ValueSource::Tag {
+            t.roof_shape = Some(e.shape);
+            p.roof = e.roof_source;
+            let right = if e.shape == RoofShape::Flat {
+                1.0 - e.pitched
+            } else {
+                e.pitched
+            };
+            p.roof_probability = Some((right * 100.0).round() / 100.0);
+        }
+        t.provenance = Some(p);
+        lot.tags = interner.intern(t);
+        changed += 1;
+    }
+    changed
+}
+
+/// The provenance of a lot's own tags: tag where a value is tagged, the KB elsewhere.
+fn from_tags(t: &BuildingTags) -> Provenance {
+    let source = |tagged: bool| {
+        if tagged {
+            ValueSource::Tag
+        } else {
+            ValueSource::Kb
+        }
+    };
+    let storeys = source(t.levels.is_some() || t.height.is_some());
+    Provenance {
+        storeys,
+        height: if t.height.is_some() {
+            ValueSource::Tag
+        } else {
+            storeys
+        },
+        roof: source(t.roof_shape.is_some()),
+        ..Provenance::default()
+    }
+}
+
+/// The report's lines on the run's fits.
+pub(crate) fn describe(o: &Outcome) -> Vec<String> {
+    let mut out = Vec::new();
+    let n = o.estimates.iter().flatten().count();
+    out.push(format!(
+        "heights and roofs estimated for {n} buildings without tags (provenance in every output)"
+    ));
+    if let Some(f) = &o.height_fit {
+        out.push(format!(
+            "height model fitted on {} tagged buildings: {} trees; cross-validated error {:.0} % \
+             (shipped model {:.0} %, constant median {:.0} %)",
+            f.rows,
+            f.rounds,
+            100.0 * (f.error.exp() - 1.0),
+            100.0 * (f.shipped_error.exp() - 1.0),
+            100.0 * (f.constant_error.exp() - 1.0)
+        ));
+    }
+    if let Some(f) = &o.roof_fit {
+        out.push(format!(
+            "roof model fitted on {} tagged buildings: {} trees; cross-validated flat/pitched \
+             right {:.0} % (shipped model {:.0} %, majority {:.0} %)",
+            f.rows,
+            f.rounds,
+            100.0 * (1.0 - f.error),
+            100.0 * (1.0 - f.shipped_error),
+            100.0 * (1.0 - f.constant_error)
+        ));
+    }
+    out
+}
+
+/// Per lot id, a short phrase of its estimate (for `kb explain`).
+pub(crate) fn phrase(e: &Estimate) -> String {
+    format!(
+        "height {:.1} ± {:.1} m ({} storeys) from {}; roof {} (p = {:.2}) from {}",
+        e.height,
+        e.height_error,
+        e.storeys,
+        from(e.height_source),
+        e.shape.osm_name(),
+        if e.shape == RoofShape::Flat {
+            1.0 - e.pitched
+        } else {
+            e.pitched
+        },
+        from(e.roof_source)
+    )
+}
+
+/// How a source reads in a phrase: `the fitted model`, `tagged neighbours`, ...
+fn from(s: ValueSource) -> &'static str {
+    match s {
+        ValueSource::Tag => "its tag",
+        ValueSource::Neighbours => "tagged neighbours",
+        ValueSource::Fitted => "the model fitted on this input",
+        ValueSource::Model => "the shipped model",
+        ValueSource::Kb => "the knowledge base",
+    }
+}
+
+/// `kb explain`'s lines on lot `i`: its estimate and the features the models read.
+pub(crate) fn explain(o: &Outcome, i: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(e) = o.estimates.get(i).copied().flatten() {
+        out.push(phrase(&e));
+    }
+    if let Some(f) = o.features.get(i) {
+        let list: Vec<String> = morph::FEATURE_NAMES
+            .iter()
+            .zip(f)
+            .map(|(n, v)| format!("{n} {v:.2}"))
+            .collect();
+        out.push(format!("form and context: {}", list.join(", ")));
+    }
+    out
+}
+
+/// The ids of the lots whose estimate the neighbours moved, with a phrase each.
+pub(crate) fn neighbour_notes(lots: &[Lot], o: &Outcome) -> Vec<(SourceId, String)> {
+    lots.iter()
+        .zip(&o.estimates)
+        .filter_map(|(l, e)| {
+            let e = e.as_ref()?;
+            (e.height_source == ValueSource::Neighbours || e.roof_source == ValueSource::Neighbours)
+                .then(|| (l.id, phrase(e)))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests;
