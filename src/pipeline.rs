@@ -160,13 +160,14 @@ pub(crate) fn inference_wanted(
 /// run's lines on the estimator's fit, and the estimator's outcome.
 pub(crate) fn infer_from_neighbours(
     kb: &KnowledgeBase,
+    boundaries: &crate::kb::BoundaryZones,
     lots: &mut [prepare::Lot],
     over: Option<crate::model::Inference>,
 ) -> Inferred {
     use rayon::prelude::*;
     let zones: Vec<usize> = lots
         .par_iter()
-        .map(|l| kb.locate(l.lonlat.0, l.lonlat.1))
+        .map(|l| kb.locate_with(boundaries, l.lonlat.0, l.lonlat.1).zone)
         .collect();
     let wanted = inference_wanted(kb, &zones, over);
     let colours = |i: usize| crate::model::Inference {
@@ -234,6 +235,53 @@ pub(crate) struct Inferred {
     pub lines: Vec<String>,
     /// The estimator's outcome, lot by lot.
     pub outcome: prepare::estimate::Outcome,
+}
+
+/// The buildings of `lots` (those `keep` selects) whose zone came through one of the input's
+/// matched admin boundaries, counted per boundary into `report.boundaries`; nothing when no
+/// boundary matched a zone.
+pub(crate) fn count_boundary_zones(
+    generator: &Generator,
+    lots: &[prepare::Lot],
+    keep: impl Fn(usize) -> bool + Sync,
+    report: &mut Report,
+) {
+    use rayon::prelude::*;
+    let matched = generator.boundaries().matched();
+    if matched.is_empty() {
+        return;
+    }
+    let counts = lots
+        .par_iter()
+        .enumerate()
+        .fold(
+            || vec![0usize; matched.len()],
+            |mut acc, (i, lot)| {
+                if keep(i) {
+                    if let Some(b) = generator.zone_of(lot).boundary {
+                        acc[b] += 1;
+                    }
+                }
+                acc
+            },
+        )
+        .reduce(
+            || vec![0usize; matched.len()],
+            |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect(),
+        );
+    let kb = &generator.kb;
+    let section = report.boundaries.get_or_insert_with(Default::default);
+    section.zones = matched
+        .iter()
+        .zip(counts)
+        .map(|(m, buildings)| crate::report::BoundaryZone {
+            boundary: m.id.to_string(),
+            name: m.name.clone(),
+            admin_level: m.admin_level,
+            zone: kb.zone_path(m.zone).to_string(),
+            buildings,
+        })
+        .collect();
 }
 
 /// What went wrong, for the exit code and the message.
@@ -413,20 +461,27 @@ impl<'a> RunState<'a> {
             None => zone_for(&read.footprints, source_crs, opts.bbox, &source_name)?,
         };
         let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
+        site.boundaries = read.boundaries;
         prepare::assign_fronts(&mut site, &read.streets, source_crs);
         let own_keys = opts.tile.map(|_| incremental::own_keys(&site.lots));
-        // Before --bbox, so that the neighbours outside the box count; noted for the buildings
-        // the run keeps.
-        let inferred = infer_from_neighbours(&kb, &mut site.lots, opts.infer);
-        for line in inferred.lines {
-            report.add(None, Outcome::Note, line);
-        }
-        let inferred_notes = inferred.notes;
         let caps = Caps {
             facades: opts.lod >= Lod::Lod3,
             ..opts.caps
         };
         let mut generator = Generator::new(kb, rules, opts.lod, opts.seed, caps);
+        generator.match_boundaries(&site.boundaries);
+        // Before --bbox, so that the neighbours outside the box count; noted for the buildings
+        // the run keeps.
+        let inferred = infer_from_neighbours(
+            &generator.kb,
+            generator.boundaries(),
+            &mut site.lots,
+            opts.infer,
+        );
+        for line in inferred.lines {
+            report.add(None, Outcome::Note, line);
+        }
+        let inferred_notes = inferred.notes;
         if matches!(generator.rules, Rules::Kb) {
             generator
                 .load_selex()
@@ -472,6 +527,12 @@ impl<'a> RunState<'a> {
                 *flag = *flag && g.is_mine(site.crs, lot);
             }
         }
+        count_boundary_zones(
+            &self.generator,
+            &site.lots,
+            |i| selected[i],
+            &mut self.report,
+        );
         self.selected = selected;
         self.grid = grid;
     }

@@ -112,6 +112,9 @@ pub struct Site {
     /// by number). [`group_into_tiles`] reorders them tile by tile and [`retain_in_bbox`] drops
     /// those outside `--bbox` (counted in one report note).
     pub lots: Vec<Lot>,
+    /// The input's admin boundaries as read (lon/lat; OSM only), for the knowledge base's zone
+    /// lookup; set by the caller from [`crate::input::ReadResult::boundaries`].
+    pub boundaries: Vec<crate::input::AdminBoundary>,
 }
 
 /// The most a projection chosen by citygen may stretch a building's lengths: 0.25 % (2.5 mm
@@ -350,6 +353,7 @@ pub fn prepare(
         origin,
         origin_lonlat,
         lots,
+        boundaries: Vec::new(),
     }
 }
 
@@ -439,6 +443,7 @@ pub(crate) fn single_lot(
         origin,
         origin_lonlat: crs.to_lonlat(origin.x, origin.y),
         lots: vec![lot],
+        boundaries: Vec::new(),
     })
 }
 

@@ -55,6 +55,43 @@ pub struct Report {
     /// What changed since the run given by `--previous` (absent without it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub changes: Option<Changes>,
+    /// The input's admin boundaries and the buildings that took their zone from one (absent
+    /// when the input has none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundaries: Option<Boundaries>,
+}
+
+/// The input's administrative boundaries (OSM `boundary=administrative`, `admin_level`
+/// 2..=10), and what the knowledge base's zone lookup took from them.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Boundaries {
+    /// Boundaries assembled (relations and closed ways).
+    pub read: usize,
+    /// Boundary relations assembled without some of their members (an extract cut by a box):
+    /// only their rings that close are used, by id.
+    pub partial: Vec<String>,
+    /// Boundaries dropped because the extract lacks members or nodes of theirs and no ring of
+    /// theirs closes (or an inner ring is lost), by id.
+    pub incomplete: Vec<String>,
+    /// Per boundary that matched a zone of the knowledge base, the buildings located through
+    /// it, in boundary order (admin level, then id).
+    pub zones: Vec<BoundaryZone>,
+}
+
+/// One input boundary matched to a zone, and how many buildings it placed.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BoundaryZone {
+    /// The boundary's id, `relation/45`.
+    pub boundary: String,
+    /// Its name (`name`, else `name:en`, else `int_name`).
+    pub name: String,
+    /// Its `admin_level`.
+    pub admin_level: u8,
+    /// The path of the KB zone it matched; a building in it takes the deepest zone of that
+    /// zone's subtree containing it, or this one.
+    pub zone: String,
+    /// Buildings of the run whose zone came through this boundary.
+    pub buildings: usize,
 }
 
 /// What changed since a previous run (`--previous DIR`), by source id, sorted.

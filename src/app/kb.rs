@@ -299,7 +299,8 @@ pub(crate) fn explain_building(
     let mut report = Report::default();
     let read = read_source(source, None, None, &mut report)?;
     let mut site = prepare::prepare(read.footprints, read.source_crs, None, &mut report);
-    let inferred = infer_from_neighbours(kb, &mut site.lots, infer);
+    let boundaries = kb::BoundaryZones::new(kb, &read.boundaries);
+    let inferred = infer_from_neighbours(kb, &boundaries, &mut site.lots, infer);
     let mut notes = inferred.notes;
     let found = site.lots.iter().find_map(|lot| {
         if lot.id == wanted {
@@ -319,7 +320,15 @@ pub(crate) fn explain_building(
             None => format!("no building {wanted} in the input"),
         }));
     };
-    let mut e = kb::tools::explain(kb, lonlat.0, lonlat.1, &tags, wanted.seed_value(), seed);
+    let mut e = kb::tools::explain_at(
+        kb,
+        &boundaries,
+        lonlat.0,
+        lonlat.1,
+        &tags,
+        wanted.seed_value(),
+        seed,
+    );
     // A part's own tags win over what its outline inferred; the outline's note tells what.
     let outline = site
         .lots

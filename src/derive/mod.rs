@@ -22,7 +22,7 @@ use crate::color::Color;
 use crate::geometry::Polygon;
 use crate::grammar::{self, AttrValue, Attrs, Caps, Geometry, Label, RuleSet, ShapeTree};
 use crate::input::BuildingTags;
-use crate::kb::{compile, KnowledgeBase, Style};
+use crate::kb::{self, compile, KnowledgeBase, Style};
 use crate::model::SourceId;
 use crate::model::{Building, Lod, Part, RoofShape};
 use crate::prepare::{Lot, LotPiece};
@@ -80,6 +80,9 @@ pub struct Generator {
     /// The other buildings around each lot, for party walls at LOD3 and above (empty: every
     /// building stands alone). See [`Generator::surroundings`].
     pub surroundings: surroundings::Surroundings,
+    /// The input's admin boundaries matched to the knowledge base's zones
+    /// ([`Generator::match_boundaries`]; empty until then): tried before the KB's own shapes.
+    boundaries: kb::BoundaryZones,
 }
 
 /// Rulesets compiled from the knowledge base: by rule text, and by the styles' inputs to it
@@ -107,7 +110,26 @@ impl Generator {
             selex: HashMap::new(),
             rulesets: HashMap::new(),
             surroundings: Default::default(),
+            boundaries: Default::default(),
         }
+    }
+
+    /// Matches the input's admin boundaries to the knowledge base's zones
+    /// ([`kb::BoundaryZones`]): from then on [`Generator::zone_of`] tries them first.
+    pub(crate) fn match_boundaries(&mut self, input: &[crate::input::AdminBoundary]) {
+        self.boundaries = kb::BoundaryZones::new(&self.kb, input);
+    }
+
+    /// The matched boundaries ([`Generator::match_boundaries`]).
+    pub(crate) fn boundaries(&self) -> &kb::BoundaryZones {
+        &self.boundaries
+    }
+
+    /// Where a lot is: its zone ([`KnowledgeBase::locate_with`] at its representative point,
+    /// the input's matched boundaries first) and the boundary it came through, if any.
+    pub(crate) fn zone_of(&self, lot: &Lot) -> kb::Located {
+        self.kb
+            .locate_with(&self.boundaries, lot.lonlat.0, lot.lonlat.1)
     }
 
     /// Reads and parses the SELEX programs of the knowledge base ([`selex::load_all`]): an
@@ -203,7 +225,7 @@ impl Generator {
 
     /// The building of `lot` at `lod` (the generator's own, or LOD2 for its neighbours).
     fn derive(&self, lot: &Lot, lod: Lod) -> Result<(Building, Vec<Note>), String> {
-        let zone = self.kb.locate(lot.lonlat.0, lot.lonlat.1);
+        let zone = self.zone_of(lot).zone;
         let mut notes = Vec::new();
         let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
         let outline;

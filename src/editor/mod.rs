@@ -401,6 +401,7 @@ impl Shared {
                 "id": f.site.lots[i].id.to_string(),
                 "lon": e.lon, "lat": e.lat,
                 "zone": kb.zone_path(e.zone),
+                "boundary": e.boundary,
                 "chain": e.chain.iter().map(|c| c.path.clone()).collect::<Vec<_>>(),
                 "appearance": e.style.appearance_label,
                 "candidates": e.candidates.iter().map(|c| json!({

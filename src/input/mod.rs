@@ -17,6 +17,9 @@ pub use osm::{read_osm, read_osm_with_changes};
 pub use shp::{read_shp, ShpOptions};
 pub use tags::{BuildingTags, SharedTags, TagInterner};
 
+/// The `admin_level`s read as boundaries: a country (2) down to a neighbourhood (10).
+pub(crate) const ADMIN_LEVELS: std::ops::RangeInclusive<u8> = 2..=10;
+
 /// A file-level failure of a reader: the file cannot be read at all, or is corrupt in a way that
 /// makes the rest of it untrustworthy. Record-level problems are report entries instead. Every
 /// message names the file, and the place (blob, record) where one is known.
@@ -149,6 +152,28 @@ pub struct ReadResult {
     /// building's front door towards its street. OSM gives them (`osm::STREET_KINDS`);
     /// shapefiles of building footprints carry none, so their buildings keep the thesis front.
     pub streets: Streets,
+    /// Administrative boundaries (`boundary=administrative`, `admin_level` 2..=10) in the same
+    /// coordinates as the footprints, sorted by id: what the knowledge base's zone lookup tries
+    /// before its own, simplified shapes. OSM gives those the extract holds whole (relations and
+    /// closed ways); shapefiles carry none.
+    pub boundaries: Vec<AdminBoundary>,
+}
+
+/// An administrative boundary of the input: its polygons and the tags that name it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AdminBoundary {
+    /// `relation/45` or `way/123`.
+    pub id: SourceId,
+    /// `admin_level`, 2 (a country) to 10.
+    pub admin_level: u8,
+    /// Its names, each once, in this order: `name`, `name:en`, `int_name` (those present).
+    pub names: Vec<String>,
+    /// `ISO3166-1` or `ISO3166-1:alpha2` (a country's two-letter code), as tagged.
+    pub iso3166_1: Option<String>,
+    /// `ISO3166-2` (a subdivision's code, `FR-OCC`), as tagged.
+    pub iso3166_2: Option<String>,
+    /// Its polygons: outer rings counter-clockwise, holes clockwise, as a footprint's.
+    pub polygons: Vec<SourcePolygon>,
 }
 
 /// Street centre lines, stored flat to stay small on a whole country: every vertex of every

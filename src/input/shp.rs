@@ -173,13 +173,15 @@ pub fn read_shp(
         );
     }
 
-    // A footprint shapefile has no streets: its buildings keep the thesis front.
-    // Rows with the same attributes share their parsed tags.
+    // A footprint shapefile has no streets (its buildings keep the thesis front) and no admin
+    // boundaries (the KB's own zones place them). Rows with the same attributes share their
+    // parsed tags.
     let interner = TagInterner::default();
     let mut result = ReadResult {
         footprints: Vec::new(),
         source_crs,
         streets: Default::default(),
+        boundaries: Vec::new(),
     };
     let mut role_fixes = 0usize;
     let mut shape_iter = shapes.iter_shapes_as::<Shape>();

@@ -9,6 +9,7 @@
 //! [`KnowledgeBase::locate`] and [`KnowledgeBase::style_for`] never panic and depend only on
 //! their arguments (no clocks, no hash order).
 
+pub(crate) mod boundaries;
 mod choice;
 pub(crate) mod compile;
 mod dom;
@@ -31,6 +32,7 @@ use crate::color::Color;
 use crate::model::RoofShape;
 
 pub use crate::model::Inference;
+pub(crate) use boundaries::{BoundaryZones, Located};
 pub(crate) use choice::{eligible, proba_weights};
 pub use polygon::ZonePolygon;
 pub use style::{material_color, Style, ROOF_SLAB_M};
@@ -405,8 +407,33 @@ impl KnowledgeBase {
     /// to the first in document order. Earth (0) when no shape contains the point or the point
     /// is not finite. A zone need not lie inside its parent's shapes: depth in the tree decides.
     pub fn locate(&self, lon: f64, lat: f64) -> usize {
+        self.locate_where(lon, lat, |_| true).unwrap_or(0)
+    }
+
+    /// The deepest zone of `root`'s subtree (`root` included) containing (lon, lat), by
+    /// [`KnowledgeBase::locate`]'s rules; `root` itself when none does.
+    pub(crate) fn locate_within(&self, root: usize, lon: f64, lat: f64) -> usize {
+        self.locate_where(lon, lat, |i| self.is_within(i, root))
+            .unwrap_or(root)
+    }
+
+    /// Whether zone `zone` is `root` or below it.
+    pub(crate) fn is_within(&self, mut zone: usize, root: usize) -> bool {
+        // Parents precede children: walking up from `zone` passes `root` or goes below it.
+        while zone > root {
+            match self.zones.get(zone).and_then(|z| z.parent) {
+                Some(p) if p < zone => zone = p,
+                _ => return false,
+            }
+        }
+        zone == root
+    }
+
+    /// [`KnowledgeBase::locate`] among the zones `keep` accepts; `None` when no shape of those
+    /// contains the point or the point is not finite.
+    fn locate_where(&self, lon: f64, lat: f64, keep: impl Fn(usize) -> bool) -> Option<usize> {
         if !lon.is_finite() || !lat.is_finite() {
-            return 0;
+            return None;
         }
         let lon = normalize_lon(lon);
         let mut best: Option<(usize, f64, usize)> = None; // (depth, area, index)
@@ -417,6 +444,9 @@ impl KnowledgeBase {
         for b in self.index.locate_all_at_point([lon, lat]) {
             let (i, shape) = b.data;
             let Some(z) = self.zones.get(i) else { continue };
+            if !keep(i) {
+                continue;
+            }
             let circle = z
                 .circle
                 .filter(|c| c.contains(lon, lat))
@@ -443,7 +473,7 @@ impl KnowledgeBase {
                 best = Some((z.depth, area, i));
             }
         }
-        best.map_or(0, |(_, _, i)| i)
+        best.map(|(_, _, i)| i)
     }
 
     /// How (lon, lat) relates to one zone's own shapes: the smallest containing shape, or why

@@ -252,20 +252,82 @@ impl ZonePolygon {
         if lon < lo[0] || lon > hi[0] || lat < lo[1] || lat > hi[1] {
             return false;
         }
-        let n = self.ring.len();
-        let mut inside = false;
-        for &k in self.bands.edges_of(self.bands.band(lat)) {
-            let k = k as usize;
-            // The even-odd loop's pair (ring[i], ring[i - 1]) with i = k + 1.
-            let (a, b) = (self.ring[(k + 1) % n], self.ring[k]);
-            if (a[1] > lat) != (b[1] > lat) {
-                let x = a[0] + (lat - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-                if lon < x {
-                    inside = !inside;
-                }
+        odd_crossings(&self.ring, &self.bands, lon, lat)
+    }
+}
+
+/// Whether a ray from (lon, lat) towards +lon crosses the ring an odd number of times, looking
+/// at the edges of the point's latitude band only (the even-odd loop's arithmetic).
+fn odd_crossings(ring: &[[f64; 2]], bands: &Bands, lon: f64, lat: f64) -> bool {
+    let n = ring.len();
+    let mut inside = false;
+    for &k in bands.edges_of(bands.band(lat)) {
+        let k = k as usize;
+        // The even-odd loop's pair (ring[i], ring[i - 1]) with i = k + 1.
+        let (a, b) = (ring[(k + 1) % n], ring[k]);
+        if (a[1] > lat) != (b[1] > lat) {
+            let x = a[0] + (lat - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if lon < x {
+                inside = !inside;
             }
         }
-        inside
+    }
+    inside
+}
+
+/// A polygon with holes from the input (an admin boundary's): containment by the even-odd
+/// rule over all its rings, each ring's edges indexed by latitude band as a zone polygon's.
+/// Unlike a zone polygon it is not checked for crossings or size: a boundary of a hundred
+/// thousand vertices is looked up in time proportional to the edges of one band.
+#[derive(Clone, Debug)]
+pub(crate) struct RingSet {
+    rings: Vec<(Vec<[f64; 2]>, Bands)>,
+    /// Lower-left and upper-right corners (lon, lat).
+    pub(crate) bbox: ([f64; 2], [f64; 2]),
+}
+
+impl RingSet {
+    /// The rings (lon, lat, not closed; each of at least 3 points, else left out); `None` when
+    /// no ring is left or a coordinate is not finite.
+    pub(crate) fn new(rings: Vec<Vec<[f64; 2]>>) -> Option<RingSet> {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        let mut out = Vec::with_capacity(rings.len());
+        for ring in rings.into_iter().filter(|r| r.len() >= 3) {
+            let (mut rlo, mut rhi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for p in &ring {
+                if !p[0].is_finite() || !p[1].is_finite() {
+                    return None;
+                }
+                for d in 0..2 {
+                    lo[d] = lo[d].min(p[d]);
+                    hi[d] = hi[d].max(p[d]);
+                }
+                rlo = rlo.min(p[1]);
+                rhi = rhi.max(p[1]);
+            }
+            let bands = Bands::new(&ring, rlo, rhi);
+            out.push((ring, bands));
+        }
+        (!out.is_empty()).then_some(RingSet {
+            rings: out,
+            bbox: (lo, hi),
+        })
+    }
+
+    /// Whether (lon, lat) lies inside: in an odd number of the rings (points on an edge may
+    /// fall either way).
+    pub(crate) fn contains(&self, lon: f64, lat: f64) -> bool {
+        let (lo, hi) = self.bbox;
+        if !(lon >= lo[0] && lon <= hi[0] && lat >= lo[1] && lat <= hi[1]) {
+            return false;
+        }
+        self.rings
+            .iter()
+            .filter(|(ring, bands)| odd_crossings(ring, bands, lon, lat))
+            .count()
+            % 2
+            == 1
     }
 }
 

@@ -473,8 +473,13 @@ pub struct Explanation {
     /// The building's [`SourceId::seed_value`](crate::model::SourceId::seed_value); with `seed` it
     /// seeds the building's random stream.
     pub seed_value: u64,
-    /// The matched zone (what [`KnowledgeBase::locate`] returns).
+    /// The matched zone (what [`KnowledgeBase::locate`] returns, or, where the input's admin
+    /// boundaries decided, the zone they gave).
     pub zone: usize,
+    /// The input's admin boundary the zone came through, when one did: its id, name and level
+    /// and the zone it matched by name (the zone is then the deepest of that zone's subtree
+    /// containing the point).
+    pub boundary: Option<String>,
     /// Earth down to the matched zone.
     pub chain: Vec<ChainLink>,
     /// Other zones at the matched depth that also contain the point and lost the tie.
@@ -505,7 +510,8 @@ pub struct Explanation {
 ///
 /// Uses the generator's own calls: `kb.locate(lon, lat)` then
 /// `kb.style_for(zone, tags, &mut Rng::new(seed, seed_value))`; the chosen appearance is read
-/// from the resulting style, never recomputed differently.
+/// from the resulting style, never recomputed differently. Without the input's admin
+/// boundaries: `kb explain` on an extract goes through `explain_at` with them.
 pub fn explain(
     kb: &KnowledgeBase,
     lon: f64,
@@ -514,7 +520,35 @@ pub fn explain(
     seed_value: u64,
     seed: u64,
 ) -> Explanation {
-    let zone = kb.locate(lon, lat);
+    let none = super::BoundaryZones::default();
+    explain_at(kb, &none, lon, lat, tags, seed_value, seed)
+}
+
+/// [`explain`] with the input's matched admin boundaries tried first, as the generator tries
+/// them ([`KnowledgeBase::locate_with`]).
+pub(crate) fn explain_at(
+    kb: &KnowledgeBase,
+    boundaries: &super::BoundaryZones,
+    lon: f64,
+    lat: f64,
+    tags: &BuildingTags,
+    seed_value: u64,
+    seed: u64,
+) -> Explanation {
+    let located = kb.locate_with(boundaries, lon, lat);
+    let zone = located.zone;
+    let boundary = located
+        .boundary
+        .and_then(|m| boundaries.matched().get(m))
+        .map(|m| {
+            format!(
+                "{} \"{}\" (admin_level {}), matched by name to {}",
+                m.id,
+                m.name,
+                m.admin_level,
+                kb.zone_path(m.zone)
+            )
+        });
     let mut rng = Rng::new(seed, seed_value);
     let (style, notes) = kb.style_for(zone, tags, &mut rng);
 
@@ -604,6 +638,7 @@ pub fn explain(
         seed,
         seed_value,
         zone,
+        boundary,
         chain,
         tied,
         values,
@@ -795,6 +830,13 @@ impl fmt::Display for Explanation {
             f,
             "zone chain (deepest containing zone wins; ties: smaller area, then document order):"
         )?;
+        if let Some(b) = &self.boundary {
+            writeln!(
+                f,
+                "  from the input's admin boundary {b}: the zone is the deepest of its subtree \
+                 containing the point, whatever the shapes above it say"
+            )?;
+        }
         for l in &self.chain {
             let why = if l.zone == 0 && self.zone == 0 {
                 "no zone contains the point: earth".to_string()

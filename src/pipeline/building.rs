@@ -13,7 +13,7 @@ use crate::derive::{Generator, Rules};
 use crate::export::gltf::GltfWriter;
 use crate::export::{BuildingWriter, ExportError, OutputContext};
 use crate::grammar::Caps;
-use crate::kb::{tools::Explanation, KnowledgeBase};
+use crate::kb::{tools::Explanation, BoundaryZones, KnowledgeBase};
 use crate::model::Lod;
 use crate::prepare::{self, Site};
 use crate::report::Report;
@@ -29,15 +29,16 @@ pub(crate) fn load_site(source: &Source) -> Result<(Site, String), RunError> {
     let read = read_source(source, None, None, &mut report)?;
     let crs = zone_for(&read.footprints, read.source_crs, None, &name)?;
     let mut site = prepare::prepare(read.footprints, read.source_crs, Some(crs), &mut report);
+    site.boundaries = read.boundaries;
     prepare::assign_fronts(&mut site, &read.streets, read.source_crs);
     Ok((site, name))
 }
 
 /// The lots of `site` after the inference `kb`'s zones ask for (a copy: the site stays as
 /// read, so that another KB infers afresh).
-fn inferred_lots(kb: &KnowledgeBase, site: &Site) -> Vec<prepare::Lot> {
+fn inferred_lots(kb: &KnowledgeBase, boundaries: &BoundaryZones, site: &Site) -> Vec<prepare::Lot> {
     let mut lots = site.lots.clone();
-    let _ = infer_from_neighbours(kb, &mut lots, None);
+    let _ = infer_from_neighbours(kb, boundaries, &mut lots, None);
     lots
 }
 
@@ -50,10 +51,12 @@ pub(crate) fn explain_lot(
     index: usize,
     seed: u64,
 ) -> Option<Explanation> {
-    let lots = inferred_lots(kb, site);
+    let boundaries = BoundaryZones::new(kb, &site.boundaries);
+    let lots = inferred_lots(kb, &boundaries, site);
     let lot = lots.get(index)?;
-    Some(crate::kb::tools::explain(
+    Some(crate::kb::tools::explain_at(
         kb,
+        &boundaries,
         lot.lonlat.0,
         lot.lonlat.1,
         &lot.tags,
@@ -79,15 +82,16 @@ pub(crate) fn derive_glb(
     source_name: &str,
     scratch_dir: &std::path::Path,
 ) -> Result<Vec<u8>, RunError> {
-    let lots = inferred_lots(&kb, site);
-    let Some(lot) = lots.get(index) else {
-        return Err(RunError::Usage(format!("no lot {index}")));
-    };
     let caps = Caps {
         facades: lod >= Lod::Lod3,
         ..Caps::default()
     };
     let mut generator = Generator::new(kb, Rules::Kb, lod, seed, caps);
+    generator.match_boundaries(&site.boundaries);
+    let lots = inferred_lots(&generator.kb, generator.boundaries(), site);
+    let Some(lot) = lots.get(index) else {
+        return Err(RunError::Usage(format!("no lot {index}")));
+    };
     generator
         .load_selex()
         .map_err(|e| RunError::Input(e.to_string()))?;

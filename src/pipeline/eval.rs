@@ -150,6 +150,8 @@ fn load(kb: &KnowledgeBase, case: &Case) -> Result<Loaded, RunError> {
     let read = read_source(&case.source, None, None, &mut report)?;
     let streets = read.streets.clone();
     let source_crs = read.source_crs;
+    // The zones as a run finds them: the input's admin boundaries first.
+    let boundaries = crate::kb::BoundaryZones::new(kb, &read.boundaries);
     let mut site = prepare::prepare(read.footprints, source_crs, None, &mut report);
     prepare::assign_fronts(&mut site, &streets, source_crs);
     let name = match &case.source {
@@ -162,7 +164,7 @@ fn load(kb: &KnowledgeBase, case: &Case) -> Result<Loaded, RunError> {
     let kb_zones = site
         .lots
         .par_iter()
-        .map(|l| kb.locate(l.lonlat.0, l.lonlat.1))
+        .map(|l| kb.locate_with(&boundaries, l.lonlat.0, l.lonlat.1).zone)
         .collect();
     Ok(Loaded {
         name,

@@ -11,7 +11,8 @@
 //!   (`context_key`: citygen's version and `OUTPUT_FORMAT`, the input's name, the SHA-256
 //!   of the knowledge base, of the rulesets and SELEX programs it names and of `--rules`,
 //!   seed, LOD, output CRS and origin, tile size, the options and outputs), the own key, the tags as derived (after `--infer` lent it its neighbours'
-//!   values), its front (from the nearest street), and at LOD3 and LOD4 the keys of the lots
+//!   values), its front (from the nearest street), the zone an admin boundary of the input
+//!   gave it (where one did: `kb::BoundaryZones`), and at LOD3 and LOD4 the keys of the lots
 //!   within `NEIGHBOUR_MARGIN_M` of it (party walls and what stands in front of a bay are
 //!   read from them). A building's random stream is seeded from the run's seed and its own id
 //!   alone ([`crate::derive::Generator`]), never from its place in the file or its neighbours.
@@ -146,8 +147,11 @@ pub(crate) fn full_keys(
     lots: &[Lot],
     own: &HashMap<SourceId, Key>,
     lod: Lod,
+    boundary_zone: impl Fn(&Lot) -> Option<String> + Sync,
 ) -> HashMap<SourceId, (Key, Key)> {
-    // What a lot is as derived at LOD2: its own key, the tags as derived, its front.
+    // What a lot is as derived at LOD2: its own key, the tags as derived, its front, and the
+    // zone an input boundary gave it (nothing added where none did: such keys stay as they
+    // were before boundaries counted).
     let base: Vec<(Key, Key)> = lots
         .par_iter()
         .map(|l| {
@@ -162,6 +166,10 @@ pub(crate) fn full_keys(
                     h.update(f.y.to_bits().to_le_bytes());
                 }
                 None => h.update([0]),
+            }
+            if let Some(zone) = boundary_zone(l) {
+                put_str(&mut h, "boundary-zone");
+                put_str(&mut h, &zone);
             }
             (o, finish(h))
         })

@@ -502,6 +502,7 @@ fn merged_report(shards: &[&Found]) -> Report {
     let mut report = Report {
         read: first.report.read,
         parts_read: first.report.parts_read,
+        boundaries: merged_boundaries(shards),
         ..Default::default()
     };
     let mut prepared: Vec<&(usize, Entry)> = shards
@@ -559,6 +560,26 @@ fn merged_report(shards: &[&Found]) -> Report {
         .filter(|e| e.outcome == Outcome::Repaired)
         .count();
     report
+}
+
+/// The input's boundaries as every shard read them, with the buildings each placed summed
+/// over the shards (their lists are in one order: the boundaries' of the one input).
+fn merged_boundaries(shards: &[&Found]) -> Option<crate::report::Boundaries> {
+    let mut out = shards[0].manifest.report.boundaries.clone()?;
+    for z in &mut out.zones {
+        z.buildings = 0;
+    }
+    for f in shards {
+        let Some(b) = &f.manifest.report.boundaries else {
+            continue;
+        };
+        for (z, theirs) in out.zones.iter_mut().zip(&b.zones) {
+            if z.boundary == theirs.boundary {
+                z.buildings += theirs.buildings;
+            }
+        }
+    }
+    Some(out)
 }
 
 /// The tiles of the run in grid order, each with the folder of the shard that wrote it.

@@ -249,6 +249,7 @@ impl GridPlan {
             report: shard::ShardReport {
                 read: report.read,
                 parts_read: report.parts_read,
+                boundaries: report.boundaries.clone(),
                 prepared,
                 ..Default::default()
             },

@@ -58,8 +58,17 @@ pub(super) fn key_lots(
     let context = incremental::context_key(&rk, &run.source_name, &outs);
     keyed.context = incremental::key_hex(&context);
     // Over every lot: neighbours outside --bbox count.
-    keyed.keys =
-        incremental::with_context(&context, incremental::full_keys(&site.lots, own, opts.lod));
+    // The zone an input boundary gave a lot is part of what decides its bytes (the boundary
+    // may be edited while the building is not).
+    let gen = &run.generator;
+    let zone = |l: &crate::prepare::Lot| {
+        let at = gen.zone_of(l);
+        at.boundary.map(|_| gen.kb.zone_path(at.zone).to_string())
+    };
+    keyed.keys = incremental::with_context(
+        &context,
+        incremental::full_keys(&site.lots, own, opts.lod, zone),
+    );
     if let Some(prev) = previous {
         let run_lots: std::collections::BTreeMap<String, (String, String)> = site
             .lots

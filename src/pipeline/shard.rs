@@ -438,6 +438,10 @@ pub(crate) struct ShardReport {
     pub prepared: Vec<(usize, Entry)>,
     /// Notes about the shard's outputs as a whole (a CityGML tile over the validator's cap).
     pub notes: Vec<Entry>,
+    /// The input's admin boundaries (equal in every shard) with the buildings of this shard
+    /// each placed (absent when the input has none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boundaries: Option<crate::report::Boundaries>,
 }
 
 /// The [`FileKey`] of a file: its name, size and SHA-256 ([`crate::fsio::file_sha256`]).

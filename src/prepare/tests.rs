@@ -207,6 +207,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
             lot(2, 370_240.0, 4_842_240.0),
             lot(5, 370_100.0, 4_842_100.0),
         ],
+        boundaries: Vec::new(),
     };
     let tiles = group_into_tiles(&mut site, 250);
     let ids: Vec<SourceId> = site.lots.iter().map(|l| l.id).collect();

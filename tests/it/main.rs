@@ -28,3 +28,4 @@ mod s3db;
 mod selex;
 mod shards;
 mod world_kb;
+mod zones;

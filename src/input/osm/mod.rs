@@ -9,6 +9,11 @@
 //!    collect the node ids they need;
 //! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside).
 //!
+//! Admin boundaries ride along (`boundaries`): pass 1 keeps `boundary=administrative`
+//! relations of `admin_level` 2..=10 with only their naming tags, pass 2 their member ways and
+//! the closed ways tagged as boundaries themselves; they are assembled as multipolygons after
+//! the footprints. Nothing else of a relation or way that is not a building is held.
+//!
 //! A block that holds more than one kind of element (no common writer makes one) is noticed
 //! when decoded; the read then starts again with every pass decoding every blob. Blocks are
 //! decoded in parallel (rayon), and the per-block results are merged in file order,
@@ -40,6 +45,7 @@ use super::{
 use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
+mod boundaries;
 mod multipolygon;
 mod osc;
 mod pbf;
@@ -266,6 +272,7 @@ fn read_passes(
 
     let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
     result.streets = streets_of(&ways, &nodes);
+    result.boundaries = boundaries::admin_boundaries(&ways, &rels, &nodes, report);
     // Freeing the large lists is a fair share of the read: both at once.
     rayon::join(move || drop(ways), move || drop(nodes));
     Ok(Some(result))
@@ -423,9 +430,11 @@ fn assemble(
     let mut old_style_notes: Vec<(i64, String)> = Vec::new();
     let way_kind = |id: i64| ways.find(id).and_then(|w| w.kind);
 
-    for rel in rels {
+    for rel in rels.iter().filter(|r| r.kind != RelKind::Boundary) {
         let a = assemble_relation(rel, ways, nodes);
         match rel.kind {
+            // Left out by the filter: `boundaries::admin_boundaries` builds them.
+            RelKind::Boundary => {}
             RelKind::Untagged => {
                 let mut used = false;
                 for (_, holes, outer_ways) in &a.polygons {

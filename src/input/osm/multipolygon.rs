@@ -75,6 +75,11 @@ pub(super) struct Assembled {
     pub(super) polygons: Vec<(Ring, Vec<Ring>, Vec<i64>)>,
     /// Problems met on the way, for the report.
     pub(super) problems: Vec<String>,
+    /// Whether every member way was there with all its nodes and every ring closed and was
+    /// usable: nothing of the relation was left out.
+    pub(super) whole: bool,
+    /// Whether an `inner` member was left out (missing, or in a ring that did not close).
+    pub(super) inner_lost: bool,
 }
 
 pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Assembled {
@@ -87,6 +92,7 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
     // Outer members the file lacks (way or nodes): an inner ring must then not be promoted to
     // an outer one, or a courtyard would be built as a building.
     let mut missing_outer = 0usize;
+    let mut inner_lost = false;
     for m in &rel.members {
         if seen.contains(&m.way) {
             duplicate_members += 1;
@@ -98,6 +104,7 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
             if m.role == Role::Outer {
                 missing_outer += 1;
             }
+            inner_lost |= m.role == Role::Inner;
             continue;
         };
         let refs = ways.refs(w);
@@ -128,6 +135,7 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
                 if m.role == Role::Outer {
                     missing_outer += 1;
                 }
+                inner_lost |= m.role == Role::Inner;
             }
         }
     }
@@ -152,7 +160,14 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
             rel.other_members
         ));
     }
+    let inner_ways: Vec<i64> = pool
+        .iter()
+        .filter(|s| s.role == Role::Inner)
+        .map(|s| s.way)
+        .collect();
     let (joined, open) = join_segments(pool);
+    let mut whole = missing_ways.is_empty() && missing_nodes.is_empty() && open.is_empty();
+    inner_lost |= open.iter().flatten().any(|w| inner_ways.contains(w));
     for ways in &open {
         problems.push(format!(
             "ring that cannot be closed dropped ({})",
@@ -172,6 +187,8 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
                 "ring of {} dropped: {why}",
                 list_ids(&r.ways, "way")
             ));
+            whole = false;
+            inner_lost |= r.claim != Some(true);
             continue;
         }
         rings.push(r.pts);
@@ -186,6 +203,8 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
         return Assembled {
             polygons: Vec::new(),
             problems,
+            whole: false,
+            inner_lost,
         };
     }
     if g.role_fixes > 0 {
@@ -205,5 +224,10 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
             )
         })
         .collect();
-    Assembled { polygons, problems }
+    Assembled {
+        polygons,
+        problems,
+        whole,
+        inner_lost,
+    }
 }

@@ -13,6 +13,9 @@ pub(super) enum RelKind {
     /// A multipolygon without tags of its own: an old-style multipolygon whose outer way may
     /// carry `building=*`.
     Untagged,
+    /// An administrative boundary (`type=boundary` or `multipolygon`, `boundary=administrative`,
+    /// `admin_level` 2..=10); its tags are only those of [`BOUNDARY_KEYS`].
+    Boundary,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,6 +63,9 @@ pub(super) struct WayRec {
 pub(super) struct WayBlock {
     pub(super) ways: Vec<WayRec>,
     pub(super) refs: Vec<i64>,
+    /// Closed ways tagged as an admin boundary themselves, with their [`BOUNDARY_KEYS`] tags
+    /// (few: most boundaries are relations).
+    pub(super) boundaries: Vec<(i64, Tags)>,
 }
 
 impl WayBlock {
@@ -111,6 +117,8 @@ impl WayBlock {
 pub(super) struct Ways {
     pub(super) recs: Vec<WayRec>,
     refs: Vec<Vec<i64>>,
+    /// The blocks' closed boundary ways ([`WayBlock::boundaries`]), sorted by id.
+    pub(super) boundaries: Vec<(i64, Tags)>,
 }
 
 impl Ways {
@@ -119,15 +127,22 @@ impl Ways {
     pub(super) fn from_blocks(blocks: Vec<WayBlock>) -> Ways {
         let mut recs = Vec::with_capacity(blocks.iter().map(|b| b.ways.len()).sum());
         let mut refs = Vec::with_capacity(blocks.len());
+        let mut boundaries = Vec::new();
         for (i, b) in blocks.into_iter().enumerate() {
             recs.extend(b.ways.into_iter().map(|mut w| {
                 w.block = i as u32;
                 w
             }));
             refs.push(b.refs);
+            boundaries.extend(b.boundaries);
         }
         recs.sort_by_key(|w| w.id);
-        Ways { recs, refs }
+        boundaries.sort_by_key(|b| b.0);
+        Ways {
+            recs,
+            refs,
+            boundaries,
+        }
     }
 
     /// Adds the ways of one more block (their ids not among `recs`), keeping `recs` sorted by
@@ -141,6 +156,8 @@ impl Ways {
         self.refs.push(b.refs);
         // Two sorted runs: the stable sort merges them in linear time.
         self.recs.sort_by_key(|w| w.id);
+        self.boundaries.extend(b.boundaries);
+        self.boundaries.sort_by_key(|b| b.0);
     }
 
     /// The node ids of `w`, one of `recs`.
@@ -465,22 +482,60 @@ pub(super) fn relations_of_block(block: &PrimitiveBlock) -> Vec<RelRec> {
     out
 }
 
+/// The tags an admin boundary keeps: its level and what names it.
+pub(super) const BOUNDARY_KEYS: &[&str] = &[
+    "admin_level",
+    "name",
+    "name:en",
+    "int_name",
+    "ISO3166-1",
+    "ISO3166-1:alpha2",
+    "ISO3166-2",
+];
+
+/// The [`BOUNDARY_KEYS`] tags when `tags` (given afresh at each call) make an admin boundary: `boundary=administrative`
+/// and an `admin_level` in [`crate::input::ADMIN_LEVELS`].
+pub(super) fn admin_boundary<'a, T: Iterator<Item = (&'a str, &'a str)>>(
+    tags: impl Fn() -> T,
+) -> Option<Tags> {
+    // Nothing allocated for the ways and relations that are no boundary (nearly all).
+    if !tags().any(|(k, v)| k == "boundary" && v.trim() == "administrative") {
+        return None;
+    }
+    let kept: Tags = tags()
+        .filter(|(k, _)| BOUNDARY_KEYS.contains(k))
+        .map(|(k, v)| (k.to_string(), v.trim().to_string()))
+        .collect();
+    let level = kept
+        .iter()
+        .find(|(k, _)| k == "admin_level")
+        .and_then(|(_, v)| v.parse::<u8>().ok());
+    level
+        .is_some_and(|l| crate::input::ADMIN_LEVELS.contains(&l))
+        .then_some(kept)
+}
+
 /// What pass 1 keeps of a relation: `Some` for a `type=multipolygon` relation tagged
-/// `building`/`building:part`, or with only metadata tags. `tags` gives the tags afresh at each
-/// call; `members` are (is a way, id, role).
+/// `building`/`building:part`, or with only metadata tags, and for an admin boundary
+/// ([`admin_boundary`], `type=boundary` or `multipolygon`). `tags` gives the tags afresh at
+/// each call; `members` are (is a way, id, role).
 pub(super) fn relation_rec<'a, T: Iterator<Item = (&'a str, &'a str)>>(
     id: i64,
     tags: impl Fn() -> T,
     members: impl Iterator<Item = (bool, i64, Option<&'a str>)>,
 ) -> Option<RelRec> {
-    if !tags().any(|(k, v)| k == "type" && v.trim() == "multipolygon") {
+    let is_type = |t: &str| tags().any(|(k, v)| k == "type" && v.trim() == t);
+    let (kind, kept) = if is_type("multipolygon") {
+        match kind_of(tags()) {
+            Some(FootprintKind::Building) => (RelKind::Building, owned(tags())),
+            Some(FootprintKind::Part) => (RelKind::Part, owned(tags())),
+            None if tags().all(|(k, _)| is_metadata_key(k)) => (RelKind::Untagged, owned(tags())),
+            None => (RelKind::Boundary, admin_boundary(&tags)?),
+        }
+    } else if is_type("boundary") {
+        (RelKind::Boundary, admin_boundary(&tags)?)
+    } else {
         return None;
-    }
-    let kind = match kind_of(tags()) {
-        Some(FootprintKind::Building) => RelKind::Building,
-        Some(FootprintKind::Part) => RelKind::Part,
-        None if tags().all(|(k, _)| is_metadata_key(k)) => RelKind::Untagged,
-        None => return None,
     };
     let mut way_members = Vec::new();
     let mut other_members = 0;
@@ -499,7 +554,7 @@ pub(super) fn relation_rec<'a, T: Iterator<Item = (&'a str, &'a str)>>(
     Some(RelRec {
         id,
         kind,
-        tags: owned(tags()),
+        tags: kept,
         members: way_members,
         other_members,
     })
@@ -525,7 +580,8 @@ pub(super) fn ways_of_block(
 
 impl WayBlock {
     /// Adds the way when the ways pass keeps it: a building or part way, a member of a kept
-    /// relation (`member_ways`, sorted) or a street. `tags` gives the tags afresh at each call.
+    /// relation (`member_ways`, sorted), a street or a closed admin boundary way
+    /// ([`admin_boundary`]). `tags` gives the tags afresh at each call.
     pub(super) fn keep_way<'a, T: Iterator<Item = (&'a str, &'a str)>>(
         &mut self,
         id: i64,
@@ -537,11 +593,16 @@ impl WayBlock {
         let kind = kind_of(tags());
         let member = member_ways.binary_search(&id).is_ok();
         let street = is_street(tags());
-        if kind.is_none() && !member && !street {
+        let boundary = admin_boundary(&tags);
+        if kind.is_none() && !member && !street && boundary.is_none() {
             return;
         }
         let start = self.refs.len();
         self.refs.extend(refs);
+        if !self.keep_boundary(id, boundary, start) && kind.is_none() && !member && !street {
+            self.refs.truncate(start);
+            return;
+        }
         self.push(
             WayRec {
                 id,
@@ -554,6 +615,21 @@ impl WayBlock {
             },
             start,
         );
+    }
+}
+
+impl WayBlock {
+    /// Records way `id`, whose node ids were just pushed from `start` on, as a boundary way
+    /// when it has `boundary` tags and is closed; whether it was.
+    pub(super) fn keep_boundary(&mut self, id: i64, boundary: Option<Tags>, start: usize) -> bool {
+        let refs = &self.refs[start..];
+        match boundary {
+            Some(tags) if refs.len() >= 4 && refs.first() == refs.last() => {
+                self.boundaries.push((id, tags));
+                true
+            }
+            _ => false,
+        }
     }
 }
 

@@ -911,3 +911,100 @@ fn a_mixed_block_reads_again_and_notes_each_duplicate_once() {
         assert!(ids.iter().any(|i| i == id), "{id} not read: {ids:?}");
     }
 }
+
+/// Admin boundaries: a closed boundary way, a whole relation with a hole, a relation cut by
+/// the extract that keeps its closed ring (partial), one that loses its hole and one with no
+/// closed ring (both dropped, listed as incomplete).
+#[test]
+fn admin_boundaries_keep_what_closes_and_count_the_rest() {
+    let nodes = grid_nodes(20);
+    let admin = |level: &'static str, name: &'static str| {
+        vec![("admin_level", level), ("name", name), ("ISO3166-1", "XA")]
+    };
+    let mut closed = way(1, square_refs(0, 0, 2), &[]);
+    closed
+        .boundaries
+        .push((1, owned(admin("8", "Closed").into_iter())));
+    let mut blocks = vec![
+        closed,
+        way(2, square_refs(4, 4, 8), &[]),
+        way(3, square_refs(6, 6, 2), &[]),
+        way(4, square_refs(14, 14, 2), &[]),
+        // Half a ring: an open line.
+        way(5, vec![n(0, 10), n(3, 10), n(3, 13)], &[]),
+    ];
+    let ways = Ways::from_blocks(std::mem::take(&mut blocks));
+    let t = |level, name| admin(level, name);
+    let rels = vec![
+        rel(
+            10,
+            RelKind::Boundary,
+            &[(2, Role::Outer), (3, Role::Inner)],
+            &t("2", "Whole"),
+        ),
+        // Way 99 is not in the file: the island (way 4) still closes.
+        rel(
+            11,
+            RelKind::Boundary,
+            &[(4, Role::Outer), (99, Role::Outer)],
+            &t("4", "Cut"),
+        ),
+        rel(
+            12,
+            RelKind::Boundary,
+            &[(2, Role::Outer), (98, Role::Inner)],
+            &t("6", "Holeless"),
+        ),
+        rel(13, RelKind::Boundary, &[(5, Role::Outer)], &t("6", "Open")),
+    ];
+    let mut report = Report::default();
+    let got = boundaries::admin_boundaries(&ways, &rels, &nodes, &mut report);
+    let ids: Vec<String> = got.iter().map(|b| b.id.to_string()).collect();
+    assert_eq!(ids, ["way/1", "relation/10", "relation/11"]);
+    assert_eq!(got[0].names, ["Closed"]);
+    assert_eq!(got[0].admin_level, 8);
+    assert_eq!(got[0].iso3166_1.as_deref(), Some("XA"));
+    assert_eq!(got[1].polygons.len(), 1);
+    assert_eq!(got[1].polygons[0].holes.len(), 1);
+    let counts = report.boundaries.unwrap();
+    assert_eq!(counts.read, 3);
+    assert_eq!(counts.partial, ["relation/11"]);
+    assert_eq!(counts.incomplete, ["relation/12", "relation/13"]);
+    // No footprint and no report entry: boundaries are not buildings.
+    assert!(report.entries.is_empty());
+}
+
+/// What pass 1 keeps: boundary relations of levels 2..=10 with their naming tags only.
+#[test]
+fn boundary_relations_are_kept_with_their_naming_tags_only() {
+    let keep = |tags: &[(&'static str, &'static str)]| {
+        relation_rec(7, || tags.iter().copied(), std::iter::empty())
+    };
+    let r = keep(&[
+        ("type", "boundary"),
+        ("boundary", "administrative"),
+        ("admin_level", "2"),
+        ("name", "X"),
+        ("wikidata", "Q1"),
+    ])
+    .unwrap();
+    assert_eq!(r.kind, RelKind::Boundary);
+    assert_eq!(
+        r.tags,
+        owned([("admin_level", "2"), ("name", "X")].into_iter())
+    );
+    for level in ["1", "11", "x"] {
+        let tags = [
+            ("type", "boundary"),
+            ("boundary", "administrative"),
+            ("admin_level", level),
+        ];
+        assert!(keep(&tags).is_none(), "{level}");
+    }
+    assert!(keep(&[
+        ("type", "boundary"),
+        ("boundary", "political"),
+        ("admin_level", "2")
+    ])
+    .is_none());
+}

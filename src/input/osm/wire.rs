@@ -347,7 +347,12 @@ pub(super) fn fast_ways(
     let mut out = WayBlock::default();
     let mut tags: Vec<(&str, &str)> = Vec::new();
     let mut known: Vec<(&str, &str)> = Vec::new();
-    type TagsGive = (Option<FootprintKind>, bool, Option<SharedTags>);
+    type TagsGive = (
+        Option<FootprintKind>,
+        bool,
+        Option<SharedTags>,
+        Option<Tags>,
+    );
     let mut seen: std::collections::HashMap<(&[u8], &[u8]), TagsGive> =
         std::collections::HashMap::new();
     for g in &block.groups {
@@ -381,7 +386,7 @@ pub(super) fn fast_ways(
             );
             // What the tags give depends only on their bytes: worked out once per tag set of
             // the block (most ways of a block share a few).
-            let (kind, street, shared) = match seen.get(&(keys, vals)) {
+            let (kind, street, shared, boundary) = match seen.get(&(keys, vals)) {
                 Some(v) => v.clone(),
                 None => {
                     if !check_packed(keys, Packed::U32) || !check_packed(vals, Packed::U32) {
@@ -401,17 +406,20 @@ pub(super) fn fast_ways(
                     }
                     let kind = kind_of(tags.iter().copied());
                     let street = is_street(tags.iter().copied());
+                    let boundary = admin_boundary(|| tags.iter().copied());
                     let shared = kind.map(|_| {
                         known.clear();
                         known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
                         interner.intern_pairs(&known)
                     });
-                    seen.insert((keys, vals), (kind, street, shared.clone()));
-                    (kind, street, shared)
+                    let give = (kind, street, shared, boundary);
+                    seen.insert((keys, vals), give.clone());
+                    give
                 }
             };
             let member = member_ways.binary_search(&id).is_ok();
-            if kind.is_none() && !member && !street {
+            let kept = kind.is_some() || member || street;
+            if !kept && boundary.is_none() {
                 if !check_packed(refs, Packed::Any64) {
                     return None;
                 }
@@ -423,6 +431,10 @@ pub(super) fn fast_ways(
             while pos < refs.len() {
                 current = current.wrapping_add(zigzag(varint(refs, &mut pos)?));
                 out.refs.push(current);
+            }
+            if !out.keep_boundary(id, boundary, start) && !kept {
+                out.refs.truncate(start);
+                continue;
             }
             let w = WayRec {
                 id,
