@@ -180,8 +180,11 @@ pub(crate) fn infer_from_neighbours(
             .into_iter()
             .map(|(i, note)| (lots[i].id, note))
             .collect();
+    // Freed before the estimator's own working set (a peak of memory otherwise).
+    drop(inferred);
     let models = prepare::estimate::Models::shipped();
     let mixes = roof_mixes(kb, lots, &zones);
+    drop(zones);
     let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models);
     if outcome.estimates.iter().all(Option::is_none) {
         return Inferred {

@@ -70,7 +70,8 @@ fn cell(s: &Option<Score>, unit: &str) -> String {
             s.baseline,
             s.ratio(),
             s.rank.map_or(String::new(), |r| format!(" ρ {r:.2}"))
-                + &s.medians.map_or(String::new(), |(e, t)| format!(" med {e:.1}/{t:.1}"))
+                + &s.medians
+                    .map_or(String::new(), |(e, t)| format!(" med {e:.1}/{t:.1}"))
         ),
         None => "-".to_string(),
     }

@@ -356,15 +356,8 @@ pub(crate) fn estimate(
         .into_par_iter()
         .map(|i| prior_roof(&known[i].mix, &m.features[i]) + models.roof.predict(&m.features[i]))
         .collect();
-    let heights = Side::fit(
-        &m,
-        &known,
-        &points,
-        &base_h,
-        |k| k.log_height,
-        Loss::Squared,
-    );
-    let roofs = Side::fit(&m, &known, &points, &base_r, |k| k.pitched, Loss::Logistic);
+    let heights = Side::fit(&m, &known, &points, base_h, |k| k.log_height, Loss::Squared);
+    let roofs = Side::fit(&m, &known, &points, base_r, |k| k.pitched, Loss::Logistic);
     let ctx = Context {
         lots,
         m: &m,
@@ -405,7 +398,7 @@ impl Side {
         m: &Morphology,
         known: &[Known],
         points: &[Option<DVec2>],
-        base: &[f64],
+        base: Vec<f64>,
         target: impl Fn(&Known) -> Option<f64>,
         loss: Loss,
     ) -> Side {
@@ -443,7 +436,7 @@ impl Side {
                 .collect(),
         );
         Side {
-            base: base.to_vec(),
+            base,
             model,
             fit,
             residual,
@@ -770,6 +763,13 @@ fn weighted_mean(v: &[(f64, f64)]) -> Option<f64> {
     (total > 0.0).then(|| v.iter().map(|x| x.0 * x.1).sum::<f64>() / total)
 }
 
+/// `v` to the nearest multiple of `step`: lots that end alike share one tag set (a city of a
+/// million buildings holds tens of thousands, not a million), and a nightly run's small
+/// changes elsewhere rarely move a building's values.
+fn quantise(v: f64, step: f64) -> f64 {
+    (v / step).round() * step
+}
+
 /// Sets the estimates on the lots' tags (`height`, `building:levels`, `roof:shape`, with their
 /// [`Provenance`]),
 /// sharing one tag set among lots that end alike. Returns the count of lots changed.
@@ -781,16 +781,14 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
         let mut t = (*lot.tags).clone();
         let mut p = t.provenance.unwrap_or_else(|| from_tags(&t));
         if e.height_source != ValueSource::Tag {
-            // Quantised: neighbours alike share tags, and a nightly run's small changes
-            // elsewhere rarely move a building's height.
-            t.height = Some((e.height * 10.0).round() / 10.0);
+            t.height = Some(quantise(e.height, 0.25));
             // The storeys too: a row's members share them, and the walls are shared out
             // evenly among them whatever the appearance's storey height.
             t.levels = Some(e.storeys);
             p.height = e.height_source;
-            p.height_error = Some((e.height_error * 10.0).round() / 10.0);
+            p.height_error = Some(quantise(e.height_error, 0.5));
             p.storeys = e.height_source;
-            p.storeys_error = Some((e.storeys_error * 10.0).round() / 10.0);
+            p.storeys_error = Some(quantise(e.storeys_error, 0.25));
         }
         if e.roof_source != ValueSource::Tag {
             t.roof_shape = Some(e.shape);
@@ -800,7 +798,7 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
             } else {
                 e.pitched
             };
-            p.roof_probability = Some((right * 100.0).round() / 100.0);
+            p.roof_probability = Some(quantise(right, 0.05));
         }
         t.provenance = Some(p);
         lot.tags = interner.intern(t);
