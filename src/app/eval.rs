@@ -94,6 +94,18 @@ fn print(scores: &[CaseScore]) {
             cell(&s.roof, "")
         );
     }
+    for s in scores {
+        if let Some(f) = &s.form {
+            println!(
+                "{} as a run draws it: {} estimated, {:.1} % at 5+ storeys, {:.1} % of those under 60 m² above 2 storeys, storeys-area rank {:.2}",
+                s.name,
+                f.estimated,
+                100.0 * f.five_plus,
+                100.0 * f.small_above_two,
+                f.storey_area_rank
+            );
+        }
+    }
     let total = |get: fn(&CaseScore) -> &Option<Score>| {
         let v: Vec<&Score> = scores.iter().filter_map(|s| get(s).as_ref()).collect();
         let n: usize = v.iter().map(|s| s.n).sum();

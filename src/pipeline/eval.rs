@@ -79,6 +79,46 @@ pub struct CaseScore {
     pub storeys: Option<Score>,
     /// Flat versus pitched.
     pub roof: Option<Score>,
+    /// What a run draws for the buildings it estimates (nothing hidden): their plausibility.
+    pub form: Option<Form>,
+}
+
+/// The plausibility of a run's estimates (issue 42's village checks).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Form {
+    /// Buildings whose height was estimated (no height or storeys tag).
+    pub estimated: usize,
+    /// Share of them at 5 storeys or more.
+    pub five_plus: f64,
+    /// Share of those under 60 m² above 2 storeys.
+    pub small_above_two: f64,
+    /// Spearman rank correlation of their storeys and footprint areas.
+    pub storey_area_rank: f64,
+}
+
+/// [`Form`] of one run's estimates.
+fn form(out: &estimate::Outcome) -> Option<Form> {
+    let rows: Vec<(f64, f64)> = out
+        .estimates
+        .iter()
+        .zip(&out.features)
+        .filter_map(|(e, f)| {
+            e.filter(|e| e.height_source != crate::model::ValueSource::Tag)
+                .map(|e| (e.storeys, f64::from(f[0]).exp()))
+        })
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    let n = rows.len() as f64;
+    let small: Vec<&(f64, f64)> = rows.iter().filter(|r| r.1 < 60.0).collect();
+    Some(Form {
+        estimated: rows.len(),
+        five_plus: rows.iter().filter(|r| r.0 >= 5.0).count() as f64 / n,
+        small_above_two: small.iter().filter(|r| r.0 > 2.0).count() as f64
+            / small.len().max(1) as f64,
+        storey_area_rank: spearman(&rows),
+    })
 }
 
 /// The benchmark's options.
@@ -321,7 +361,15 @@ fn score(
         pairs.baseline_storeys.extend(std::iter::repeat_n(bs, ns));
         pairs.baseline_roof.extend(std::iter::repeat_n(br, nr));
     }
+    let mixes = super::roof_mixes(kb, &case.lots, &case.kb_zones);
+    let as_run = if case.truth.is_some() {
+        let lots = hidden(&case.lots, |_| true);
+        estimate::estimate(&lots, &mixes, &want, models)
+    } else {
+        estimate::estimate(&case.lots, &mixes, &want, models)
+    };
     CaseScore {
+        form: form(&as_run),
         name: case.name.clone(),
         mode: if case.truth.is_some() {
             "truth"
