@@ -185,7 +185,7 @@ pub(crate) fn infer_from_neighbours(
     let models = prepare::estimate::Models::shipped();
     let mixes = roof_mixes(kb, lots, &zones);
     drop(zones);
-    let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models);
+    let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models, false);
     if outcome.estimates.iter().all(Option::is_none) {
         return Inferred {
             notes,

@@ -35,6 +35,10 @@ pub(crate) struct EvalArgs {
     /// Measure each input with models fitted on the other inputs only (leave one city out).
     #[arg(long)]
     loco: bool,
+    /// Also fit a model on each input's visible tags (cross-validated; runs do not, so that an
+    /// estimate depends on its surroundings only and a nightly increment stays local).
+    #[arg(long)]
+    fit: bool,
     /// Write the scores as JSON here.
     #[arg(long, value_name = "OUT.json")]
     json: Option<PathBuf>,
@@ -136,6 +140,7 @@ pub(crate) fn run(args: EvalArgs) -> Result<Outcome, AppError> {
         model: args.model,
         save_model: args.save_model,
         loco: args.loco,
+        fit: args.fit,
     };
     let scores = crate::pipeline::eval::run(&opts)?;
     print(&scores);

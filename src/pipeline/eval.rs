@@ -138,6 +138,8 @@ pub struct EvalOptions {
     pub save_model: Option<PathBuf>,
     /// Measure each case with models fitted on the others.
     pub loco: bool,
+    /// Fit a model on each input's visible tags, as `prepare::estimate` can (runs do not).
+    pub fit: bool,
 }
 
 /// One case read and measured once.
@@ -331,7 +333,7 @@ fn score(
             |i: usize| case.truth.is_some() || fold_of(case.lots[i].id, o.seed, folds) == fold;
         let lots = hidden(&case.lots, hide);
         let mixes = super::roof_mixes(kb, &lots, &case.kb_zones);
-        let out = estimate::estimate(&lots, &mixes, &want, models);
+        let out = estimate::estimate(&lots, &mixes, &want, models, o.fit);
         let mut base = (Vec::new(), Vec::new(), Vec::new());
         for (i, (h, s, r)) in truths.iter().enumerate() {
             if hide(i) {
@@ -364,9 +366,9 @@ fn score(
     let mixes = super::roof_mixes(kb, &case.lots, &case.kb_zones);
     let as_run = if case.truth.is_some() {
         let lots = hidden(&case.lots, |_| true);
-        estimate::estimate(&lots, &mixes, &want, models)
+        estimate::estimate(&lots, &mixes, &want, models, o.fit)
     } else {
-        estimate::estimate(&case.lots, &mixes, &want, models)
+        estimate::estimate(&case.lots, &mixes, &want, models, o.fit)
     };
     CaseScore {
         form: form(&as_run),

@@ -53,7 +53,14 @@ fn eval(args: &[&str]) -> serde_json::Value {
 fn monaco_storeys_estimated_from_a_third_hidden_beat_the_median_of_the_rest() {
     // The estimator (prepare::estimate) as `citygen eval` runs it: a third of the tagged
     // buildings lose height, storeys and roof, fold by fold, and are estimated from the rest.
-    let scores = eval(&[MONACO, "--folds", "3"]);
+    // Without the in-run fit (what a run does: estimates stay local) and with it.
+    let local = eval(&[MONACO, "--folds", "3"]);
+    let l = &local[0]["storeys"];
+    assert!(
+        l["error"].as_f64().unwrap() <= 0.95 * l["baseline"].as_f64().unwrap(),
+        "{l}"
+    );
+    let scores = eval(&[MONACO, "--folds", "3", "--fit"]);
     let s = &scores[0]["storeys"];
     let (n, error, baseline) = (
         s["n"].as_u64().unwrap(),

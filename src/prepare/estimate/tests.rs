@@ -42,7 +42,7 @@ fn tower(levels: f64) -> BuildingTags {
 fn run(lots: &[Lot]) -> Outcome {
     let want = vec![Inference::ALL; lots.len()];
     let mixes = vec![RoofMix::DEFAULT; lots.len()];
-    estimate(lots, &mixes, &want, &Models::shipped())
+    estimate(lots, &mixes, &want, &Models::shipped(), false)
 }
 
 #[test]
