@@ -11,7 +11,9 @@
 //!    half-weighted).
 //! 3. **Shipped model**: boosted trees fitted offline on measured city models and tagged
 //!    extracts (`assets/models/`, datasets in `docs/truth.md`), added to the prior.
-//! 4. **Fitted model**: where the input has at least [`MIN_FIT`] tagged buildings, more trees
+//! 4. **Fitted model** (only when asked: `citygen eval --fit`; runs keep estimates local so
+//!    that a nightly increment rewrites only the tiles near the edits): where the input has at
+//!    least [`MIN_FIT`] tagged buildings, more trees
 //!    boosted from (prior + shipped) on them, their number chosen by 5-fold spatial cross-
 //!    validation (0 trees: the shipped model stands); the report gives the fit.
 //! 5. **Neighbours**: the out-of-fold errors of at least [`MIN_VOTES`] tagged neighbours within
