@@ -1,6 +1,6 @@
 //! Heights and roofs where the map is silent (issue 42): an estimate for every building without
 //! a `height`, `building:levels` or `roof:shape`, from its form, its neighbours and its region,
-//! never silent (each estimate carries its [`Provenance`]).
+//! never silent (each estimate carries its [`crate::model::Provenance`]).
 //!
 //! Per lot, in this order:
 //!
@@ -39,7 +39,7 @@ use super::gbt::{self, Loss, Model, Params};
 use super::morph::{self, Features, Morphology};
 use super::Lot;
 use crate::input::{BuildingTags, TagInterner};
-use crate::model::{Inference, Provenance, RoofMix, RoofShape, SourceId, ValueSource};
+use crate::model::{Inference, RoofMix, RoofShape, SourceId, ValueSource};
 
 /// The fewest tagged buildings an input needs for a model of its own.
 pub(crate) const MIN_FIT: usize = 40;
@@ -792,7 +792,7 @@ fn quantise(v: f64, step: f64) -> f64 {
 }
 
 /// Sets the estimates on the lots' tags (`height`, `building:levels`, `roof:shape`, with their
-/// [`Provenance`]),
+/// [`crate::model::Provenance`]),
 /// sharing one tag set among lots that end alike. Returns the count of lots changed.
 pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
     let interner = TagInterner::default();
@@ -800,7 +800,7 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
     for (lot, e) in lots.iter_mut().zip(estimates) {
         let Some(e) = e else { continue };
         let mut t = (*lot.tags).clone();
-        let mut p = t.provenance.unwrap_or_else(|| from_tags(&t));
+        let mut p = t.provenance();
         if e.height_source != ValueSource::Tag {
             t.height = Some(quantise(e.height, 0.25));
             // The storeys too: a row's members share them, and the walls are shared out
@@ -826,28 +826,6 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
         changed += 1;
     }
     changed
-}
-
-/// The provenance of a lot's own tags: tag where a value is tagged, the KB elsewhere.
-fn from_tags(t: &BuildingTags) -> Provenance {
-    let source = |tagged: bool| {
-        if tagged {
-            ValueSource::Tag
-        } else {
-            ValueSource::Kb
-        }
-    };
-    let storeys = source(t.levels.is_some() || t.height.is_some());
-    Provenance {
-        storeys,
-        height: if t.height.is_some() {
-            ValueSource::Tag
-        } else {
-            storeys
-        },
-        roof: source(t.roof_shape.is_some()),
-        ..Provenance::default()
-    }
 }
 
 /// The report's lines on the run's fits.

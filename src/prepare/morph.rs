@@ -419,7 +419,7 @@ pub(crate) fn measure(lots: &[Lot]) -> Morphology {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::geometry::Polygon;
     use crate::input::BuildingTags;

@@ -1,5 +1,4 @@
 use super::*;
-use crate::geometry::Polygon;
 
 #[test]
 fn the_shipped_models_read() {
@@ -7,21 +6,11 @@ fn the_shipped_models_read() {
     assert!(Model::from_text(SHIPPED_ROOF).is_ok());
 }
 
+/// A `w` by `d` rectangle at (x, y) with these tags (the footprint of `morph`'s tests).
 fn lot(i: i64, x: f64, y: f64, w: f64, d: f64, tags: BuildingTags) -> Lot {
-    let v = DVec2::new;
-    let p = Polygon::new(
-        vec![v(x, y), v(x + w, y), v(x + w, y + d), v(x, y + d)],
-        vec![],
-    );
-    Lot {
-        id: SourceId::Way(i),
-        tags: std::sync::Arc::new(tags),
-        polygons: vec![p.clone()],
-        parts: Vec::new(),
-        drawn_outline: vec![p],
-        lonlat: (0.0, 0.0),
-        front: None,
-    }
+    let mut l = crate::prepare::morph::tests::rect(i, x, y, w, d, "yes");
+    l.tags = std::sync::Arc::new(tags);
+    l
 }
 
 fn kind(k: &str) -> BuildingTags {
