@@ -1141,6 +1141,13 @@ pub(crate) struct RoofMix {
     pub angle_deg: f64,
     /// The storey height of most weight (`floorsize`), else 3 m.
     pub floor_height: f64,
+    /// The usual storeys of the zone's built-up fabric: its resolved `nbfloor` (clamped to
+    /// 1..=12), at most 3 outside the KB's towns (a country's `nbfloor` describes its cities'
+    /// blocks, not its small towns and villages). The level the height estimate rises to
+    /// where the place is dense.
+    pub storeys: f64,
+    /// The zone is a town or part of one (a `<town>`, `<district>` or deeper zone).
+    pub urban: bool,
 }
 
 impl RoofMix {
@@ -1150,6 +1157,8 @@ impl RoofMix {
         shape: RoofShape::Gabled,
         angle_deg: 30.0,
         floor_height: 3.0,
+        storeys: 2.0,
+        urban: false,
     };
 }
 

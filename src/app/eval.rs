@@ -42,6 +42,10 @@ pub(crate) struct EvalArgs {
     /// Write the scores as JSON here.
     #[arg(long, value_name = "OUT.json")]
     json: Option<PathBuf>,
+    /// Write every compared building as a CSV line here: its features, its zone's prior, the
+    /// estimate and the truth (for analysis outside citygen).
+    #[arg(long, value_name = "OUT.csv")]
+    dump: Option<PathBuf>,
 }
 
 fn case(arg: &str) -> Case {
@@ -101,12 +105,14 @@ fn print(scores: &[CaseScore]) {
     for s in scores {
         if let Some(f) = &s.form {
             println!(
-                "{} as a run draws it: {} estimated, {:.1} % at 5+ storeys, {:.1} % of those under 60 m² above 2 storeys, storeys-area rank {:.2}",
+                "{} as a run draws it: {} estimated, {:.1} % at 5+ storeys, {:.1} % of those under 60 m² above 2 storeys, storeys-area rank {:.2}, {:.1} % of {} touching pairs differ in roof family",
                 s.name,
                 f.estimated,
                 100.0 * f.five_plus,
                 100.0 * f.small_above_two,
-                f.storey_area_rank
+                f.storey_area_rank,
+                100.0 * f.pairs_differing,
+                f.touching_pairs
             );
         }
     }
@@ -146,6 +152,9 @@ pub(crate) fn run(args: EvalArgs) -> Result<Outcome, AppError> {
     print(&scores);
     if let Some(p) = &args.json {
         crate::pipeline::eval::write_scores(p, &scores)?;
+    }
+    if let Some(p) = &args.dump {
+        crate::pipeline::eval::write_dump(p, &scores)?;
     }
     Ok(Outcome::Done)
 }

@@ -117,8 +117,8 @@ pub(crate) struct RunArgs {
     /// comma-separated list of levels (height and storeys), roof (flat or pitched, and the
     /// shape) and colour (building:colour, roof:colour: the weighted majority of at least 3
     /// tagged neighbours). Heights and roofs come from the estimator: a prior from the
-    /// footprint's form and context and the zone, a model fitted on the input's own tagged
-    /// buildings when it has 40 or more, at least 3 tagged neighbours within 250 m, caps by
+    /// footprint's form and context and the zone's level (its nbfloor), at least 3 tagged
+    /// neighbours (the nearest 24 within 500 m), caps by
     /// kind and size, attached rows made one. Every estimate carries its source and
     /// uncertainty in every output; buildings its neighbours moved have a report note.
     #[arg(long, value_name = "WHAT", default_value = "kb", value_parser = parse_infer)]

@@ -3,7 +3,7 @@
 
 use std::path::{Component, Path, PathBuf};
 
-use super::{Appearance, KbError, KnowledgeBase};
+use super::{Appearance, KbError, KnowledgeBase, ZoneKind};
 use crate::model::{RoofMix, RoofShape};
 use crate::rng::Rng;
 
@@ -77,6 +77,19 @@ impl KnowledgeBase {
             .floor_height
             .filter(|f| (2.0..8.0).contains(f))
             .unwrap_or(3.0);
+        let urban = self.lineage(zone).iter().any(|&i| {
+            self.zones.get(i).is_some_and(|z| {
+                !matches!(
+                    z.kind,
+                    ZoneKind::Earth | ZoneKind::Country | ZoneKind::Region
+                )
+            })
+        });
+        let storeys = info
+            .storeys
+            .filter(|&n| n > 0)
+            .map_or(2.0, |n| f64::from(n.min(12)))
+            .min(if urban { 12.0 } else { 3.0 });
         if ids.is_empty() {
             let pitched = f64::from(u8::from(zone_roof != RoofShape::Flat));
             let shape = if pitched > 0.0 {
@@ -89,6 +102,8 @@ impl KnowledgeBase {
                 shape,
                 angle_deg: zone_angle,
                 floor_height: zone_floor,
+                storeys,
+                urban,
             };
         }
         let mut shapes: Vec<(RoofShape, f64, f64)> = Vec::new();
@@ -134,6 +149,8 @@ impl KnowledgeBase {
             shape,
             angle_deg,
             floor_height,
+            storeys,
+            urban,
         }
     }
 }

@@ -1667,3 +1667,31 @@ fn a_style_carries_the_kbs_uncertainty_and_the_tags_provenance() {
         (Some(0.0), Some(1.0))
     );
 }
+
+/// The height estimator's regional level (issue 42): a town's `nbfloor` stands, a country's
+/// is held to 3 (it describes the cities' blocks, not the villages), and town zones say so.
+#[test]
+fn the_storey_level_of_a_zone_is_its_towns_and_at_most_3_outside_them() {
+    let t = r#"<earth>
+  <info nbfloor="2" rooftype="gabled"/>
+  <country designation="C">
+    <info lat="10" lon="10" dist="500" nbfloor="8"/>
+    <town designation="T">
+      <info lat="10" lon="10" dist="5" nbfloor="6" floorsize="3.2"/>
+    </town>
+  </country>
+</earth>"#;
+    let (kb, _) = KnowledgeBase::parse_str(t, "s.xml").unwrap_or_else(|e| panic!("{e}"));
+    let town = kb.locate(10.0, 10.0);
+    let country = kb.locate(12.0, 12.0);
+    assert_eq!(path_of(&kb, town), "earth/C/T");
+    assert_eq!(path_of(&kb, country), "earth/C");
+    let (t, c, e) = (
+        kb.roof_mix(town, None),
+        kb.roof_mix(country, None),
+        kb.roof_mix(0, None),
+    );
+    assert_eq!((t.storeys, t.urban, t.floor_height), (6.0, true, 3.2));
+    assert_eq!((c.storeys, c.urban), (3.0, false));
+    assert_eq!((e.storeys, e.urban), (2.0, false));
+}

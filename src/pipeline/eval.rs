@@ -81,6 +81,32 @@ pub struct CaseScore {
     pub roof: Option<Score>,
     /// What a run draws for the buildings it estimates (nothing hidden): their plausibility.
     pub form: Option<Form>,
+    /// One CSV line per building compared ([`dump_header`]), for offline analysis.
+    #[serde(skip)]
+    pub rows: Vec<String>,
+}
+
+/// The header of `citygen eval --dump`: the case, the building, its features
+/// (the estimator's feature names), its zone's prior, the estimate and the truth (empty when
+/// unknown).
+pub fn dump_header() -> String {
+    let mut h = vec!["case".to_string(), "id".to_string()];
+    h.extend(morph::FEATURE_NAMES.iter().map(|s| (*s).to_string()));
+    h.extend(
+        [
+            "zone_storeys",
+            "zone_pitched",
+            "zone_floor_height",
+            "est_height",
+            "est_storeys",
+            "est_pitched",
+            "height",
+            "storeys",
+            "pitched",
+        ]
+        .map(String::from),
+    );
+    h.join(",")
 }
 
 /// The plausibility of a run's estimates (issue 42's village checks).
@@ -94,6 +120,10 @@ pub struct Form {
     pub small_above_two: f64,
     /// Spearman rank correlation of their storeys and footprint areas.
     pub storey_area_rank: f64,
+    /// Touching pairs (2 m of wall shared or more) with both roofs estimated.
+    pub touching_pairs: usize,
+    /// Share of them whose roof families (flat, pitched) differ.
+    pub pairs_differing: f64,
 }
 
 /// [`Form`] of one run's estimates.
@@ -112,7 +142,25 @@ fn form(out: &estimate::Outcome) -> Option<Form> {
     }
     let n = rows.len() as f64;
     let small: Vec<&(f64, f64)> = rows.iter().filter(|r| r.1 < 60.0).collect();
+    let pairs: Vec<bool> = out
+        .touching
+        .iter()
+        .filter(|p| p.2 >= 2.0)
+        .filter_map(|&(a, b, _)| {
+            let roof = |i: u32| {
+                out.estimates
+                    .get(i as usize)
+                    .copied()
+                    .flatten()
+                    .filter(|e| e.roof_source != crate::model::ValueSource::Tag)
+                    .map(|e| e.pitched >= 0.5)
+            };
+            Some(roof(a)? != roof(b)?)
+        })
+        .collect();
     Some(Form {
+        touching_pairs: pairs.len(),
+        pairs_differing: pairs.iter().filter(|d| **d).count() as f64 / pairs.len().max(1) as f64,
         estimated: rows.len(),
         five_plus: rows.iter().filter(|r| r.0 >= 5.0).count() as f64 / n,
         small_above_two: small.iter().filter(|r| r.0 > 2.0).count() as f64
@@ -323,6 +371,7 @@ fn score(
     let want = vec![Inference::ALL; case.lots.len()];
     let truths: Vec<_> = case.lots.iter().map(|l| truth_of(case, l)).collect();
     let mut pairs = Pairs::default();
+    let mut rows = Vec::new();
     let folds = if case.truth.is_some() {
         1
     } else {
@@ -338,6 +387,27 @@ fn score(
         for (i, (h, s, r)) in truths.iter().enumerate() {
             if hide(i) {
                 let Some(e) = out.estimates[i] else { continue };
+                if h.is_some() || s.is_some() || r.is_some() {
+                    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
+                    let mut line = vec![case.name.clone(), case.lots[i].id.to_string()];
+                    line.extend(out.features[i].iter().map(|v| format!("{v:.4}")));
+                    let mix = mixes
+                        .get(i)
+                        .copied()
+                        .unwrap_or(crate::model::RoofMix::DEFAULT);
+                    line.extend([
+                        format!("{}", mix.storeys),
+                        format!("{:.3}", mix.pitched),
+                        format!("{}", mix.floor_height),
+                        format!("{:.3}", e.height),
+                        format!("{}", e.storeys),
+                        format!("{:.3}", e.pitched),
+                        opt(*h),
+                        opt(*s),
+                        opt(r.map(|p| f64::from(u8::from(p)))),
+                    ]);
+                    rows.push(line.join(","));
+                }
                 if let Some(h) = h {
                     pairs.height.push((e.height, *h));
                 }
@@ -382,6 +452,7 @@ fn score(
         height: numeric(&pairs.height, &pairs.baseline_height, false),
         storeys: numeric(&pairs.storeys, &pairs.baseline_storeys, true),
         roof: roofs(&pairs.roof, &pairs.baseline_roof),
+        rows,
     }
 }
 
@@ -502,7 +573,11 @@ fn fit_models(kb: &KnowledgeBase, cases: &[&Loaded]) -> estimate::Models {
                 (None, _) => known.log_height.filter(|_| h.is_some() || s.is_some()),
             };
             if let Some(y) = log_h {
-                rows_h.push((m.features[i], y));
+                rows_h.push((
+                    m.features[i],
+                    y,
+                    estimate::prior_log_height(&m.features[i], &mix),
+                ));
             }
             if let Some(r) = r {
                 rows_r.push((
@@ -514,8 +589,8 @@ fn fit_models(kb: &KnowledgeBase, cases: &[&Loaded]) -> estimate::Models {
         }
         let step = |n: usize| n.div_ceil(ROWS_PER_CASE).max(1);
         let sh = step(rows_h.len());
-        for (f, y) in rows_h.into_iter().step_by(sh) {
-            hp.push(estimate::prior_log_height(&f));
+        for (f, y, p) in rows_h.into_iter().step_by(sh) {
+            hp.push(p);
             hx.push(f);
             hy.push(y);
         }
@@ -565,6 +640,18 @@ fn write_models(dir: &Path, m: &estimate::Models) -> Result<(), RunError> {
 /// Writes the scores as JSON (atomically).
 pub fn write_scores(path: &Path, scores: &[CaseScore]) -> Result<(), RunError> {
     let text = serde_json::to_string_pretty(scores).unwrap_or_default();
+    crate::fsio::write_atomic(path, text.as_bytes())
+        .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))
+}
+
+/// Writes every case's compared buildings as one CSV ([`dump_header`]).
+pub fn write_dump(path: &Path, scores: &[CaseScore]) -> Result<(), RunError> {
+    let mut text = dump_header();
+    text.push('\n');
+    for line in scores.iter().flat_map(|s| &s.rows) {
+        text.push_str(line);
+        text.push('\n');
+    }
     crate::fsio::write_atomic(path, text.as_bytes())
         .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))
 }

@@ -362,7 +362,10 @@ fn infer_levels_is_a_flag_with_provenance_and_kb_explain_tells_why() {
     let out = citygen(&["kb", "explain", KB, "--osm", MONACO, "--id", "way/23715051"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains(" ± ") && text.contains("form and context: log_area"),
+        text.contains(" ± ")
+            && text.contains("form and context: log_area")
+            && text.contains("prior: ")
+            && text.contains("the zone's level"),
         "{text}"
     );
     let none = citygen(&[
