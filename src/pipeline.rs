@@ -639,6 +639,9 @@ impl<'a> RunState<'a> {
             &Maker::Generator(&generator),
             &FileSet {
                 name: &source_name,
+                input: Some(match &opts.source {
+                    Source::Osm(p) | Source::Shp { path: p, .. } => p.as_path(),
+                }),
                 targets: &targets,
             },
             report,
@@ -821,6 +824,7 @@ pub(crate) fn generate_and_write(
         &Maker::Generator(generator),
         &FileSet {
             name: source_name,
+            input: None,
             targets,
         },
         report,

@@ -179,6 +179,15 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
             return Err(AppError::Threads { threads: n, source });
         }
     }
+    if let (Some(p), Some(c)) = (&cli.osm, cli.src_crs) {
+        if c != crate::crs::Crs::Wgs84 {
+            return Err(AppError::Usage(format!(
+                "--src-crs {} does not apply to --osm {}: OpenStreetMap coordinates are always longitude and latitude (EPSG:4326); --src-crs is for shapefiles whose .prj is missing or wrong",
+                c.epsg(),
+                p.display()
+            )));
+        }
+    }
     let source = match (&cli.osm, &cli.shp) {
         (Some(p), _) => Source::Osm(p.clone()),
         (None, Some(p)) => Source::Shp {

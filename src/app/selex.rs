@@ -230,6 +230,7 @@ pub(crate) fn derive_selex_lot(
         },
         &FileSet {
             name: &name,
+            input: None,
             targets,
         },
         report,

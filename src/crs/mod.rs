@@ -67,10 +67,10 @@ pub enum Crs {
 #[derive(Debug, Error, PartialEq)]
 pub enum CrsError {
     /// A well-formed CRS that citygen does not implement; the text names it.
-    #[error("unsupported CRS {0}: citygen knows EPSG:4326, 326xx/327xx (UTM), 258xx (ETRS89 UTM), 2154 (Lambert-93), 27700 (British National Grid), 3857 is not supported")]
+    #[error("unsupported CRS {0}: citygen reads EPSG:4326 (longitude/latitude), EPSG:326xx and 327xx (WGS 84 / UTM), EPSG:258xx (ETRS89 / UTM), EPSG:2154 (Lambert-93) and EPSG:27700 (British National Grid); reproject the data to one of them first, e.g. `ogr2ogr -t_srs EPSG:4326 out.shp in.shp`")]
     Unsupported(String),
     /// A `.prj` that is not valid WKT; the text says where.
-    #[error("cannot understand the .prj: {0}")]
+    #[error("cannot understand the .prj: {0} (give the data's CRS with --src-crs EPSG:n, or reproject it, e.g. `ogr2ogr -t_srs EPSG:4326 out.shp in.shp`)")]
     BadPrj(String),
 }
 

@@ -260,8 +260,13 @@ impl Generator {
         // at the whole building.
         let mut drafts: Vec<(Part, Option<facade::Facades>, usize)> = Vec::new();
         let mut styles: Vec<(Style, BuildingTags)> = Vec::with_capacity(styled.len());
+        // The rule files that drew the parts, for a message when they drew nothing.
+        let mut files: Vec<Arc<str>> = Vec::new();
         for ((piece, tags, style, mut rng), plan) in styled.into_iter().zip(plans) {
             let rules = self.rules_for(&style)?;
+            if !files.contains(&rules.file) {
+                files.push(rules.file.clone());
+            }
             for polygon in &plan {
                 let on = Piece {
                     id: piece.id,
@@ -363,7 +368,10 @@ impl Generator {
             parts.push(part);
         }
         if parts.is_empty() {
-            return Err("the rules produced no building mass".into());
+            return Err(format!(
+                "the rules produced no building mass ({}: no rule extrudes the lot)",
+                files.join(", ")
+            ));
         }
         let base_z = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
         let top = parts
@@ -458,13 +466,16 @@ impl Generator {
                 let r = match cache.by_text.get(&text) {
                     Some(r) => r.clone(),
                     None => {
-                        let parsed =
-                            grammar::parse(&text, &format!("<kb {}>", style.appearance_label))
-                                .map_err(|e| {
-                                    format!(
-                                        "rules compiled from the knowledge base do not parse: {e}"
-                                    )
-                                })?;
+                        let parsed = grammar::parse(
+                            &text,
+                            &format!("<kb {}>", style.appearance_label),
+                        )
+                        .map_err(|e| {
+                            format!(
+                                "rules compiled from the knowledge base {} do not parse: {e}",
+                                self.kb.source()
+                            )
+                        })?;
                         let r = Arc::new(parsed);
                         cache.by_text.insert(text, r.clone());
                         r
@@ -545,8 +556,16 @@ impl Generator {
             facades: self.caps.facades && lod >= Lod::Lod3,
             ..self.caps
         };
-        let tree = grammar::derive_facing(rules, polygon, front, attrs, rng, &caps)
-            .map_err(|e| format!("derivation failed for {id}: {e}"))?;
+        let tree =
+            grammar::derive_facing(rules, polygon, front, attrs, rng, &caps).map_err(|e| {
+                // Rules the KB compiled are named by their appearance: say which KB file.
+                let kb = if rules.file.starts_with("<kb ") {
+                    format!(" (rules compiled from {})", self.kb.source())
+                } else {
+                    String::new()
+                };
+                format!("derivation failed for {id}: {e}{kb}")
+            })?;
         let masses = masses_of(&tree, &style);
         if lod < Lod::Lod3 {
             grammar::recycle(tree);

@@ -105,6 +105,7 @@ pub(crate) fn write_batches(
     let mut run = Batches {
         site,
         source_name,
+        input: files.input,
         targets,
         report,
         manifest,
@@ -130,6 +131,8 @@ pub(crate) fn write_batches(
 struct Batches<'a> {
     site: &'a prepare::Site,
     source_name: &'a str,
+    /// The input as given, for messages.
+    input: Option<&'a Path>,
     targets: &'a Targets,
     report: Report,
     manifest: Option<(PathBuf, shard::Manifest)>,
@@ -189,6 +192,7 @@ impl Batches<'_> {
             maker,
             &FileSet {
                 name: &name,
+                input: self.input,
                 targets: &tile_targets,
             },
             &mut self.report,
@@ -291,7 +295,10 @@ impl Batches<'_> {
             content_name: _,
         } = written;
         if report.generated == 0 && !targets.allow_empty {
-            return Err(nothing_generated(&report, source_name, total));
+            let named = self
+                .input
+                .map_or_else(|| source_name.to_string(), |p| p.display().to_string());
+            return Err(nothing_generated(&report, &named, total));
         }
         let tiled = batches.iter().any(|b| b.suffix.is_some());
         let warnings = citygml_warnings(largest_citygml, citygml_over_cap, tiled, batches.len());
@@ -517,6 +524,8 @@ fn open_output(
 /// source, and their paths.
 pub(crate) struct FileSet<'a> {
     pub(crate) name: &'a str,
+    /// The input as the user gave it (for messages), when there is one.
+    pub(crate) input: Option<&'a Path>,
     pub(crate) targets: &'a Targets,
 }
 
@@ -656,6 +665,12 @@ fn open_outputs(targets: &Targets, content_name: &str, hashed: bool) -> Result<O
             // A dry run keeps nothing, so its writer needs no scratch files.
             Model::Gltf if dry => Box::new(GltfWriter::discarding(w)),
             Model::Gltf => Box::new(GltfWriter::beside(w, p).map_err(io_err(p))?),
+            // A dry run may name a folder that does not exist: its vertices wait in the
+            // system's temporary folder instead.
+            Model::CityJson if dry => Box::new(
+                CityJsonWriter::beside(w, &std::env::temp_dir().join(file_name(p)))
+                    .map_err(io_err(p))?,
+            ),
             Model::CityJson => Box::new(CityJsonWriter::beside(w, p).map_err(io_err(p))?),
             Model::CityJsonSeq => Box::new(CityJsonSeqWriter::new(w)),
         };

@@ -72,6 +72,12 @@ impl Pbf {
                 reason: "the file is empty".into(),
             });
         }
+        if let Some(reason) = sniff(path) {
+            return Err(InputError::NotPbf {
+                path: path.to_path_buf(),
+                reason,
+            });
+        }
         Ok(Pbf {
             path: path.to_path_buf(),
             len: meta.len(),
@@ -486,5 +492,74 @@ pub(super) fn first_group_kind(b: &[u8], complete: bool) -> Option<BlobKind> {
         if skip_field(b, &mut pos, key & 7).is_none() {
             return more;
         }
+    }
+}
+
+/// What a file that cannot be an OSM PBF is, and what to do, from its first bytes (`None`: it
+/// may be a PBF; the block reader decides). A PBF starts with the 4-byte length of its first
+/// blob header (at most 64 KiB), so its first two bytes are 0.
+fn sniff(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut head = [0u8; 64];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| f.read(&mut head))
+        .ok()?;
+    describe_head(&head[..n])
+}
+
+/// [`sniff`] on the bytes.
+fn describe_head(head: &[u8]) -> Option<String> {
+    const CONVERT: &str =
+        "convert it with `osmium cat FILE -o FILE.osm.pbf` (or `osmconvert FILE -o=FILE.osm.pbf`)";
+    if head.len() >= 2 && head[0] == 0 && head[1] == 0 {
+        return None;
+    }
+    let text = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(head);
+    let start = text
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .map_or(&[][..], |i| &text[i..]);
+    let what = if start.starts_with(b"<?xml") || start.starts_with(b"<osm") {
+        format!("it is OSM XML; citygen reads OSM PBF: {CONVERT}")
+    } else if head.starts_with(&[0x1f, 0x8b]) {
+        format!("it is gzip-compressed (an .osm.gz, or a gzipped PBF): decompress it with `gunzip`; if it then is OSM XML, {CONVERT}")
+    } else if head.starts_with(b"BZh") {
+        format!("it is bzip2-compressed (an .osm.bz2): decompress it with `bunzip2`; if it then is OSM XML, {CONVERT}")
+    } else if head.starts_with(&[0x28, 0xb5, 0x2f, 0xfd])
+        || head.starts_with(&[0xfd, b'7', b'z', b'X', b'Z', 0])
+    {
+        "it is zstd- or xz-compressed: decompress it first".to_string()
+    } else if head.starts_with(&[0xff, 0xe0])
+        && head.get(3..7).is_some_and(|m| m.starts_with(b"o5"))
+    {
+        format!("it is o5m/o5c; {CONVERT}")
+    } else if head.starts_with(b"PK\x03\x04") {
+        "it is a zip archive: unpack the .osm.pbf inside it".to_string()
+    } else if start.starts_with(b"{") {
+        "it is JSON (GeoJSON?); citygen reads OSM PBF and ESRI shapefiles (--shp)".to_string()
+    } else {
+        return None;
+    };
+    Some(what)
+}
+
+#[cfg(test)]
+mod sniff_tests {
+    use super::describe_head;
+
+    #[test]
+    fn the_formats_people_give_instead_of_a_pbf_are_named() {
+        let named = |head: &[u8], word: &str| {
+            let r = describe_head(head).unwrap_or_default();
+            assert!(r.contains(word), "{head:?}: {r}");
+        };
+        named(b"<?xml version='1.0'?><osm>", "OSM XML");
+        named(b"\xEF\xBB\xBF  <osm version=\"0.6\">", "OSM XML");
+        named(&[0x1f, 0x8b, 8, 0], "gzip");
+        named(b"BZh91AY", "bzip2");
+        named(&[0xff, 0xe0, 0x04, b'o', b'5', b'm', b'2'], "o5m");
+        named(b"PK\x03\x04rest", "zip");
+        // A PBF's first blob header length: not judged here.
+        assert_eq!(describe_head(&[0, 0, 0, 14, 10, 9]), None);
     }
 }
