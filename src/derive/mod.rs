@@ -466,16 +466,14 @@ impl Generator {
                 let r = match cache.by_text.get(&text) {
                     Some(r) => r.clone(),
                     None => {
-                        let parsed = grammar::parse(
-                            &text,
-                            &format!("<kb {}>", style.appearance_label),
-                        )
-                        .map_err(|e| {
-                            format!(
+                        let parsed =
+                            grammar::parse(&text, &format!("<kb {}>", style.appearance_label))
+                                .map_err(|e| {
+                                    format!(
                                 "rules compiled from the knowledge base {} do not parse: {e}",
                                 self.kb.source()
                             )
-                        })?;
+                                })?;
                         let r = Arc::new(parsed);
                         cache.by_text.insert(text, r.clone());
                         r

@@ -45,14 +45,24 @@ impl KnowledgeBase {
     /// (nothing when they already sum to 1 or more); the weights are then normalised. If every
     /// weight is zero the choice is uniform. Draws exactly one number from `rng` when there is
     /// at least one eligible appearance. Returns (owner zone, index).
+    ///
+    /// With the building's `storeys` known (tagged, or estimated where the map is silent), the
+    /// draw is among the eligible appearances whose storey range holds them ([`fitting`]): a
+    /// nine-storey block is not drawn as a one-storey cottage.
     pub(crate) fn pick_appearance(
         &self,
         zone: usize,
         kind: Option<&str>,
+        storeys: Option<f64>,
         rng: &mut Rng,
     ) -> Option<(usize, usize)> {
         let (owner, apps) = self.appearances_for(zone);
-        let ids = eligible(apps, kind);
+        let floor = self
+            .resolved(zone)
+            .floor_height
+            .filter(|f| (2.0..8.0).contains(f))
+            .unwrap_or(3.0);
+        let ids = fitting(apps, eligible(apps, kind), storeys, floor);
         let weights = proba_weights(ids.iter().map(|&i| apps[i].proba));
         rng.pick_weighted(&weights)
             .and_then(|k| ids.get(k).copied())
@@ -261,6 +271,45 @@ pub(crate) fn eligible(apps: &[Appearance], kind: Option<&str>) -> Vec<usize> {
     } else {
         open
     }
+}
+
+/// The storey range an appearance draws from: `minFloors..maxFloors`, else its eave height
+/// range over its storey height (`floor`: the zone's), else `None` (any).
+fn storey_range(a: &Appearance, floor: f64) -> Option<(f64, f64)> {
+    let v = &a.values;
+    match (v.min_floors, v.max_floors) {
+        (Some(lo), Some(hi)) => return Some((f64::from(lo.min(hi)), f64::from(lo.max(hi)))),
+        (Some(n), None) | (None, Some(n)) => return Some((f64::from(n), f64::from(n))),
+        (None, None) => {}
+    }
+    let floor = v
+        .floor_height
+        .filter(|f| (2.0..8.0).contains(f))
+        .unwrap_or(floor);
+    let (lo, hi) = match (v.min_height, v.max_height) {
+        (Some(lo), Some(hi)) => (lo.min(hi), lo.max(hi)),
+        (Some(h), None) | (None, Some(h)) => (h, h),
+        (None, None) => return None,
+    };
+    Some(((lo / floor).round().max(1.0), (hi / floor).round().max(1.0)))
+}
+
+/// Of the eligible appearances `ids`, those whose storey range ([`storey_range`]) holds
+/// `storeys` (an appearance without a range holds any); when none does, those whose range is
+/// nearest. `storeys` unknown: `ids` unchanged.
+fn fitting(apps: &[Appearance], ids: Vec<usize>, storeys: Option<f64>, floor: f64) -> Vec<usize> {
+    let Some(s) = storeys.filter(|s| s.is_finite() && *s >= 1.0) else {
+        return ids;
+    };
+    let gap = |i: usize| match storey_range(&apps[i], floor) {
+        None => 0.0,
+        Some((lo, hi)) => (lo - s).max(s - hi).max(0.0),
+    };
+    let best = ids.iter().map(|&i| gap(i)).fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        return ids;
+    }
+    ids.into_iter().filter(|&i| gap(i) <= best).collect()
 }
 
 /// The weights [`KnowledgeBase::pick_appearance`] uses over a set of appearances, in order.

@@ -204,7 +204,17 @@ impl KnowledgeBase {
         rng: &mut Rng,
     ) -> (Style, Vec<String>) {
         let zone = if zone < self.zones.len() { zone } else { 0 };
-        let pick = self.pick_appearance(zone, tags.building.as_deref(), rng);
+        // The storeys the building has (tagged or estimated), for an appearance that fits.
+        let storeys = tags.levels.or_else(|| {
+            let floor = self
+                .resolved(zone)
+                .floor_height
+                .filter(|f| (2.0..8.0).contains(f))
+                .unwrap_or(3.0);
+            tags.height
+                .map(|h| ((h - tags.min_height.unwrap_or(0.0)) / floor).round())
+        });
+        let pick = self.pick_appearance(zone, tags.building.as_deref(), storeys, rng);
         self.style_with_appearance(zone, pick, tags, rng)
     }
 

@@ -306,7 +306,7 @@ fn appearance_picks_follow_proba() {
     let n = 20_000;
     for seed in 0..n {
         let mut rng = Rng::new(seed, 99);
-        if let Some((owner, i)) = kb.pick_appearance(cap, None, &mut rng) {
+        if let Some((owner, i)) = kb.pick_appearance(cap, None, None, &mut rng) {
             assert_eq!(owner, cap);
             counts[i] += 1;
         }
@@ -1457,9 +1457,14 @@ fn an_appearance_for_some_building_kinds_is_drawn_only_for_them() {
     assert_eq!(kb.eligible_appearances(0, Some("church")).1, [2, 3]);
     for s in 0..50 {
         let mut rng = Rng::new(s, 7);
-        assert_eq!(kb.pick_appearance(0, Some("house"), &mut rng), Some((0, 0)));
+        assert_eq!(
+            kb.pick_appearance(0, Some("house"), None, &mut rng),
+            Some((0, 0))
+        );
         let mut rng = Rng::new(s, 7);
-        let (_, i) = kb.pick_appearance(0, Some("apartments"), &mut rng).unwrap();
+        let (_, i) = kb
+            .pick_appearance(0, Some("apartments"), None, &mut rng)
+            .unwrap();
         assert!(i == 2 || i == 3);
     }
     // Every appearance listed and none names the kind: all of them.
@@ -1694,4 +1699,49 @@ fn the_storey_level_of_a_zone_is_its_towns_and_at_most_3_outside_them() {
     assert_eq!((t.storeys, t.urban, t.floor_height), (6.0, true, 3.2));
     assert_eq!((c.storeys, c.urban), (3.0, false));
     assert_eq!((e.storeys, e.urban), (2.0, false));
+}
+
+/// Issue 42 step 4: an appearance is drawn among those whose storey range fits the building.
+#[test]
+fn a_tall_building_is_drawn_among_the_appearances_that_fit_its_storeys() {
+    let t = r#"<earth>
+  <info nbfloor="2" floorsize="3"/>
+  <appearance><values proba="0.5" material="wood" minFloors="1" maxFloors="2"/></appearance>
+  <appearance><values proba="0.5" material="concrete" minFloors="5" maxFloors="10"/></appearance>
+  <appearance><values proba="0.2" material="brick" minHeight="6" maxHeight="12"/></appearance>
+</earth>"#;
+    let (kb, _) = KnowledgeBase::parse_str(t, "f.xml").unwrap_or_else(|e| panic!("{e}"));
+    let mut rng = Rng::new(7, 0);
+    let mut seen = std::collections::BTreeSet::new();
+    for _ in 0..200 {
+        assert_eq!(
+            kb.pick_appearance(0, None, Some(9.0), &mut rng),
+            Some((0, 1))
+        );
+        assert_eq!(
+            kb.pick_appearance(0, None, Some(1.0), &mut rng),
+            Some((0, 0))
+        );
+        // 3 storeys: the brick one (6-12 m of eaves at 3 m a storey is 2-4 storeys).
+        assert_eq!(
+            kb.pick_appearance(0, None, Some(3.0), &mut rng),
+            Some((0, 2))
+        );
+        // 30 storeys: the nearest range.
+        assert_eq!(
+            kb.pick_appearance(0, None, Some(30.0), &mut rng),
+            Some((0, 1))
+        );
+        seen.extend(kb.pick_appearance(0, None, None, &mut rng).map(|p| p.1));
+    }
+    assert_eq!(seen.len(), 3, "unknown storeys draw from all");
+    // Through the style: a tagged 9-storey building is concrete.
+    let tags = BuildingTags {
+        levels: Some(9.0),
+        ..Default::default()
+    };
+    for _ in 0..50 {
+        let (style, _) = kb.style_for(0, &tags, &mut rng);
+        assert_eq!(style.material.as_deref(), Some("concrete"));
+    }
 }
