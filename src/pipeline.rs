@@ -367,6 +367,7 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
     };
     inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
     inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
+    inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
     let targets = Targets {
         ifc: opts.ifc.clone(),
         citygml: opts.citygml.clone(),

@@ -1,11 +1,13 @@
 //! Files, on the ground floor: the one atomic write ([`AtomicFile`], [`PendingFile`],
 //! `write_atomic`), scratch files beside an output, the SHA-256 of a file and the one hex
-//! encoder. It imports nothing of ours.
+//! encoder, and the files a manifest or KB names opened only inside their folder
+//! (`contained::open_contained`). It imports nothing of ours.
 //!
 //! Every file citygen publishes goes through a temporary `.{name}.{pid}.tmp` beside its target,
 //! renamed over it once complete: a failed or killed run never leaves a half-written file, and
 //! the next run removes the temporaries that dead runs left.
 
+pub(crate) mod contained;
 #[cfg(target_os = "linux")]
 mod direct;
 
@@ -327,7 +329,11 @@ pub fn hex(bytes: &[u8]) -> String {
 
 /// The size of the file at `path` and its SHA-256 ([`hex`]), read in 1 MiB blocks.
 pub(crate) fn file_sha256(path: &Path) -> io::Result<(u64, String)> {
-    let mut f = File::open(path)?;
+    read_sha256(&mut File::open(path)?)
+}
+
+/// The bytes read from `f` to its end and their SHA-256 ([`hex`]), in 1 MiB blocks.
+pub(crate) fn read_sha256(f: &mut impl Read) -> io::Result<(u64, String)> {
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];
     let mut bytes = 0u64;

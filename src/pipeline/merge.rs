@@ -6,12 +6,16 @@
 //! every tile of its grid written once and by its shard, every lot of the grid once in all
 //! (generated or skipped), and every file listed present with its size and SHA-256. A set that
 //! does not add up is refused with a message naming the manifest, shard, tile, building or file.
+//! Every file is read through `fsio::contained::open_contained`: a listed path or content URI
+//! leaving its shard's folder (`..`, absolute, a URI, a symlink out) or a file that is not a
+//! regular file is refused. The outputs are checked before anything is written: none on a file
+//! the merge reads, no new manifest in a shard's folder, no two on one path.
 //! Then the merge writes what a region needs from the tiles: the merged report, the region's
 //! CityJSONSeq (one header, every tile's features in grid order), and the tileset of the 3D
 //! Tiles contents. Outputs are written atomically, all closed before the first is renamed.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -19,6 +23,7 @@ use rayon::prelude::*;
 
 use super::shard::{self, Manifest};
 use super::{render_json, RunError};
+use crate::fsio::contained::{open_contained, relative_inside};
 use crate::fsio::{AtomicFile, PendingFile};
 use crate::report::{Entry, Outcome, Report};
 
@@ -78,6 +83,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeSummary, RunError> {
     }
     let found = read_manifests(&opts.dirs)?;
     let shards = check_set(&found)?;
+    check_outputs(opts, &shards)?;
     let (files, bytes) = check_files(&shards, opts.verify)?;
     let first = &shards[0].manifest;
 
@@ -140,11 +146,7 @@ fn read_manifests(dirs: &[PathBuf]) -> Result<Vec<Found>, RunError> {
         let mut names: Vec<PathBuf> = entries
             .filter_map(|e| e.ok())
             .map(|e| e.path())
-            .filter(|p| {
-                p.file_name()
-                    .and_then(|n| n.to_str())
-                    .is_some_and(|n| n.starts_with("citygen-manifest.") && n.ends_with(".json"))
-            })
+            .filter(|p| is_manifest_name(p))
             .collect();
         if names.is_empty() {
             return Err(RunError::Input(format!(
@@ -155,7 +157,7 @@ fn read_manifests(dirs: &[PathBuf]) -> Result<Vec<Found>, RunError> {
         }
         names.sort();
         for path in names {
-            let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
+            let text = read_manifest(dir, &path)?;
             let manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
                 RunError::Input(format!("{}: not a citygen manifest: {e}", path.display()))
             })?;
@@ -175,6 +177,27 @@ fn read_manifests(dirs: &[PathBuf]) -> Result<Vec<Found>, RunError> {
         }
     }
     Ok(found)
+}
+
+/// Whether `p`'s file name is a shard manifest's (`citygen-manifest.*.json`).
+fn is_manifest_name(p: &Path) -> bool {
+    p.file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.starts_with("citygen-manifest.") && n.ends_with(".json"))
+}
+
+/// The text of the manifest `path` found in `dir`: a regular file in the folder itself
+/// ([`open_contained`]: not a symlink, not a FIFO).
+fn read_manifest(dir: &Path, path: &Path) -> Result<String, RunError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let (mut file, _) = open_contained(dir, &name)
+        .map_err(|e| RunError::Input(format!("merge refused: {}: {e}", path.display())))?;
+    let mut text = String::new();
+    file.read_to_string(&mut text).map_err(io_err(path))?;
+    Ok(text)
 }
 
 /// Checks that the manifests are the shards of one run, each once, and that their tiles and
@@ -419,18 +442,30 @@ fn check_tiles(first: &Found, shards: &[&Found]) -> Result<(), RunError> {
     Ok(())
 }
 
-/// Checks that every file the manifests list is there with its size (and with `verify` its
-/// SHA-256); returns the files and bytes.
-fn check_files(shards: &[&Found], verify: bool) -> Result<(usize, u64), RunError> {
-    let files: Vec<(&Found, &shard::FileRecord)> = shards
+/// Where a manifest lists a file: `{manifest}, tile {suffix}, file {rel:?}`.
+fn entry(f: &Found, t: &shard::TileRecord, what: &str, rel: &str) -> String {
+    format!("{}, tile {}, {what} {rel:?}", f.path.display(), t.suffix)
+}
+
+/// Every file the shards list, with its manifest and tile.
+fn listed<'a>(
+    shards: &[&'a Found],
+) -> Vec<(&'a Found, &'a shard::TileRecord, &'a shard::FileRecord)> {
+    shards
         .iter()
         .flat_map(|f| {
             f.manifest
                 .tiles
                 .iter()
-                .flat_map(move |t| t.files.iter().map(move |r| (*f, r)))
+                .flat_map(move |t| t.files.iter().map(move |r| (*f, t, r)))
         })
-        .collect();
+        .collect()
+}
+
+/// Checks that every file the manifests list is there, inside its shard's folder, with its
+/// size (and with `verify` its SHA-256); returns the files and bytes.
+fn check_files(shards: &[&Found], verify: bool) -> Result<(usize, u64), RunError> {
+    let files = listed(shards);
     if shards[0]
         .manifest
         .run
@@ -445,42 +480,7 @@ fn check_files(shards: &[&Found], verify: bool) -> Result<(usize, u64), RunError
     }
     let problems: Vec<String> = files
         .par_iter()
-        .filter_map(|(f, r)| {
-            let path = f.dir.join(&r.path);
-            let meta = match std::fs::metadata(&path) {
-                Ok(m) => m,
-                Err(e) => {
-                    return Some(format!(
-                        "{} (listed by {}): {e}",
-                        path.display(),
-                        f.path.display()
-                    ))
-                }
-            };
-            if meta.len() != r.bytes {
-                return Some(format!(
-                    "{} has {} bytes, {} lists {}",
-                    path.display(),
-                    meta.len(),
-                    f.path.display(),
-                    r.bytes
-                ));
-            }
-            if verify {
-                match shard::file_key(&path) {
-                    Ok(k) if k.sha256 == r.sha256 => {}
-                    Ok(_) => {
-                        return Some(format!(
-                            "{} is not the file {} lists (its SHA-256 differs)",
-                            path.display(),
-                            f.path.display()
-                        ))
-                    }
-                    Err(e) => return Some(format!("{}: {e}", path.display())),
-                }
-            }
-            None
-        })
+        .filter_map(|(f, t, r)| check_file(f, t, r, verify).err())
         .collect();
     if let Some(first) = problems.first() {
         return Err(RunError::Input(format!(
@@ -492,7 +492,145 @@ fn check_files(shards: &[&Found], verify: bool) -> Result<(usize, u64), RunError
             }
         )));
     }
-    Ok((files.len(), files.iter().map(|(_, r)| r.bytes).sum()))
+    Ok((files.len(), files.iter().map(|(_, _, r)| r.bytes).sum()))
+}
+
+/// `Err` (in words) unless the file `r` that `f` lists for tile `t` is a regular file inside
+/// `f`'s folder with the size (and with `verify` the SHA-256) listed.
+fn check_file(
+    f: &Found,
+    t: &shard::TileRecord,
+    r: &shard::FileRecord,
+    verify: bool,
+) -> Result<(), String> {
+    let (mut file, path) = open_contained(&f.dir, &r.path)
+        .map_err(|e| format!("{}: {e}", entry(f, t, "file", &r.path)))?;
+    let meta = file
+        .metadata()
+        .map_err(|e| format!("{} (listed by {}): {e}", path.display(), f.path.display()))?;
+    if meta.len() != r.bytes {
+        return Err(format!(
+            "{} has {} bytes, {} lists {}",
+            path.display(),
+            meta.len(),
+            f.path.display(),
+            r.bytes
+        ));
+    }
+    if verify {
+        match crate::fsio::read_sha256(&mut file) {
+            Ok((n, sha)) if n == r.bytes && sha == r.sha256 => {}
+            Ok(_) => {
+                return Err(format!(
+                    "{} is not the file {} lists (its SHA-256 differs)",
+                    path.display(),
+                    f.path.display()
+                ))
+            }
+            Err(e) => return Err(format!("{}: {e}", path.display())),
+        }
+    }
+    Ok(())
+}
+
+/// The content URIs of tile `t`'s 3D Tiles facts (Full, Blocks), each checked to be a path
+/// inside `f`'s folder that the tile lists among its files (so that its size and SHA-256 are
+/// checked): no `..`, no absolute path, no `file:` or `http:` URI.
+fn content_uris(f: &Found, t: &shard::TileRecord) -> Result<Vec<String>, RunError> {
+    let Some(v) = &t.tiles3d else {
+        return Ok(Vec::new());
+    };
+    let mut out = Vec::new();
+    for part in ["full", "blocks"] {
+        let Some(uri) = v
+            .get(part)
+            .and_then(|c| c.get("uri"))
+            .and_then(|u| u.as_str())
+        else {
+            continue;
+        };
+        let at = entry(f, t, "3D Tiles content uri", uri);
+        if let Err(e) = relative_inside(uri) {
+            return refuse(format!("{at}: {e}"));
+        }
+        if !t.files.iter().any(|r| r.path == uri) {
+            return refuse(format!(
+                "{at}: not one of the files the tile lists (a content must be a file the \
+                 shard wrote and listed)"
+            ));
+        }
+        out.push(uri.to_string());
+    }
+    Ok(out)
+}
+
+/// The outputs merge is asked for, each with its flag.
+fn merge_outputs(opts: &MergeOptions) -> Vec<(&'static str, PathBuf)> {
+    let mut outs = Vec::new();
+    outs.extend(opts.report.iter().map(|p| ("--report", p.clone())));
+    outs.extend(
+        opts.cityjsonseq
+            .iter()
+            .map(|p| ("--cityjsonseq", p.clone())),
+    );
+    outs.extend(
+        opts.tiles3d
+            .iter()
+            .map(|d| ("--tiles3d", d.join("tileset.json"))),
+    );
+    outs.extend(opts.preview.iter().map(|p| ("--preview", p.clone())));
+    outs
+}
+
+/// Checks merge's outputs before anything is read past the manifests or written: each with its
+/// format's extension, in a folder, on its own path (`super::outputs::check`), and none on a
+/// file merge reads (a manifest, a file a manifest lists, a 3D Tiles content) nor a new
+/// manifest in a shard's folder (the next merge would read it). Also checks every content URI
+/// ([`content_uris`]).
+fn check_outputs(opts: &MergeOptions, shards: &[&Found]) -> Result<(), RunError> {
+    let outs = merge_outputs(opts);
+    for f in shards {
+        for t in &f.manifest.tiles {
+            content_uris(f, t)?;
+        }
+    }
+    super::outputs::check(&outs, &[], false)?;
+    let dirs: BTreeSet<PathBuf> = shards
+        .iter()
+        .map(|f| super::outputs::resolve(&f.dir))
+        .collect();
+    let mut read: BTreeMap<PathBuf, String> = BTreeMap::new();
+    for f in shards {
+        read.insert(
+            super::outputs::resolve(&f.path),
+            format!("the shard manifest {}", f.path.display()),
+        );
+    }
+    for (f, t, r) in listed(shards) {
+        if relative_inside(&r.path).is_ok() {
+            read.entry(super::outputs::resolve(&f.dir.join(&r.path)))
+                .or_insert_with(|| format!("the file {}", entry(f, t, "file", &r.path)));
+        }
+    }
+    for (flag, p) in &outs {
+        let at = super::outputs::resolve(p);
+        if let Some(what) = read.get(&at) {
+            return Err(RunError::Usage(format!(
+                "merge {flag} {} is {what}, which merge reads: refusing to overwrite a shard's \
+                 file (write the merge's outputs elsewhere)",
+                p.display()
+            )));
+        }
+        let in_shard = at.parent().is_some_and(|d| dirs.contains(d));
+        if in_shard && is_manifest_name(&at) {
+            return Err(RunError::Usage(format!(
+                "merge {flag} {}: a file of that name in a shard's folder would be read as a \
+                 shard manifest by the next merge; name the output otherwise",
+                p.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The run's report from the shards': the counts summed, the read and prepare entries in the
@@ -623,8 +761,13 @@ fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError>
         let Some(rec) = t.files.iter().find(|r| r.path.ends_with(".city.jsonl")) else {
             continue;
         };
-        let path = f.dir.join(&rec.path);
-        let mut lines = BufReader::new(std::fs::File::open(&path).map_err(io_err(&path))?).lines();
+        let (file, path) = open_contained(&f.dir, &rec.path).map_err(|e| {
+            RunError::Input(format!(
+                "merge refused: {}: {e}",
+                entry(f, t, "file", &rec.path)
+            ))
+        })?;
+        let mut lines = BufReader::new(file).lines();
         let head = match lines.next() {
             Some(l) => l.map_err(io_err(&path))?,
             None => {
@@ -667,8 +810,16 @@ fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError>
     file.close().map_err(io_err(target))
 }
 
+/// A tile's 3D Tiles entry (its URIs as absolute paths) with the shard folder its contents
+/// lie in and their URIs relative to it, as the manifest gives them (Full, Blocks).
+struct Placed<'a> {
+    entry: crate::export::tiles3d::TileEntry,
+    dir: &'a Path,
+    rel: [String; 2],
+}
+
 /// The 3D Tiles entries of every tile in grid order, their URIs as absolute paths.
-fn tile_entries(shards: &[&Found]) -> Result<Vec<crate::export::tiles3d::TileEntry>, RunError> {
+fn tile_entries<'a>(shards: &[&'a Found]) -> Result<Vec<Placed<'a>>, RunError> {
     let mut out = Vec::new();
     for (f, t) in tiles_in_order(shards) {
         let Some(v) = &t.tiles3d else {
@@ -687,27 +838,35 @@ fn tile_entries(shards: &[&Found]) -> Result<Vec<crate::export::tiles3d::TileEnt
                     t.suffix
                 ))
             })?;
+        let rel = [e.full.uri.clone(), e.blocks.uri.clone()];
         for c in [&mut e.full, &mut e.blocks] {
+            relative_inside(&c.uri).map_err(|err| {
+                RunError::Input(format!(
+                    "merge refused: {}: {err}",
+                    entry(f, t, "3D Tiles content uri", &c.uri)
+                ))
+            })?;
             c.uri = super::outputs::resolve(&f.dir.join(&c.uri))
                 .display()
                 .to_string();
         }
-        out.push(e);
+        out.push(Placed {
+            entry: e,
+            dir: &f.dir,
+            rel,
+        });
     }
     Ok(out)
 }
 
 /// The entries with URIs relative to the tileset's folder `dir` (`..` where a content lies
 /// outside it), `/`-separated.
-fn rebased(
-    entries: &[crate::export::tiles3d::TileEntry],
-    dir: &Path,
-) -> Vec<crate::export::tiles3d::TileEntry> {
+fn rebased(entries: &[Placed<'_>], dir: &Path) -> Vec<crate::export::tiles3d::TileEntry> {
     let base = super::outputs::resolve(dir);
     entries
         .iter()
-        .map(|e| {
-            let mut e = e.clone();
+        .map(|p| {
+            let mut e = p.entry.clone();
             for c in [&mut e.full, &mut e.blocks] {
                 c.uri = relative_uri(Path::new(&c.uri), &base);
             }
@@ -732,18 +891,21 @@ fn relative_uri(path: &Path, base: &Path) -> String {
 
 /// The region drawn from its tiles' contents (the Full ones; the Blocks beyond 20 million
 /// triangles), in an east-north-up frame at the first tile's origin, as a PNG.
-fn region_picture(entries: &[crate::export::tiles3d::TileEntry]) -> Result<Vec<u8>, RunError> {
+fn region_picture(entries: &[Placed<'_>]) -> Result<Vec<u8>, RunError> {
     use crate::export::preview::{glb_triangles, Scene, View};
     let placed: Vec<_> = entries
         .iter()
-        .filter_map(|e| e.full.info.placement.as_ref().map(|p| (e, p)))
+        .filter_map(|e| e.entry.full.info.placement.as_ref().map(|p| (e, p)))
         .collect();
     let Some((_, first)) = placed.first() else {
         return Err(RunError::Input(
             "merge --preview: the region has no building to draw".into(),
         ));
     };
-    let triangles: u64 = placed.iter().map(|(e, _)| e.full.info.triangles).sum();
+    let triangles: u64 = placed
+        .iter()
+        .map(|(e, _)| e.entry.full.info.triangles)
+        .sum();
     let blocks = triangles > 20_000_000;
     let [lon, lat, h] = first.origin;
     let o = crate::crs::wgs84_to_ecef(lon, lat, h);
@@ -754,8 +916,12 @@ fn region_picture(entries: &[crate::export::tiles3d::TileEntry]) -> Result<Vec<u
     let up = [cp * cl, cp * sl, sp];
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let mut scene = Scene::new();
-    for (e, _) in &placed {
-        let content = if blocks { &e.blocks } else { &e.full };
+    for (p, _) in &placed {
+        let (content, rel) = if blocks {
+            (&p.entry.blocks, &p.rel[1])
+        } else {
+            (&p.entry.full, &p.rel[0])
+        };
         let Some(place) = &content.info.placement else {
             continue;
         };
@@ -769,8 +935,12 @@ fn region_picture(entries: &[crate::export::tiles3d::TileEntry]) -> Result<Vec<u
             ];
             [dot(x, east), dot(x, north), dot(x, up)]
         };
-        let path = Path::new(&content.uri);
-        let bytes = std::fs::read(path).map_err(io_err(path))?;
+        let (mut file, path) = open_contained(p.dir, rel).map_err(|e| {
+            RunError::Input(format!("merge refused: 3D Tiles content {rel:?}: {e}"))
+        })?;
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).map_err(io_err(&path))?;
+        let path = path.as_path();
         let meshes = glb_triangles(&bytes, &to_frame)
             .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))?;
         scene.add_glb_meshes(&meshes);

@@ -21,6 +21,7 @@ mod kb_edit;
 mod learn;
 mod lod4;
 mod lod4_export;
+mod merge_guard;
 mod preview;
 mod provenance;
 mod roofs;

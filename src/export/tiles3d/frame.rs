@@ -11,6 +11,8 @@
 //! the second order leaves out is third order, well under a micrometre at 150 m (`tests.rs`
 //! measures both).
 
+use std::f64::consts::{FRAC_PI_2, PI};
+
 use glam::{DMat3, DVec3};
 
 use crate::crs::{ecef_to_wgs84, wgs84_to_ecef, Crs};
@@ -216,14 +218,25 @@ pub(crate) fn region_of_box(frame: &EnuFrame, lo: DVec3, hi: DVec3) -> [f64; 6] 
     let lat = r[1].abs().max(r[3].abs()).min(1.5);
     let d_lat = REGION_MARGIN / EARTH_RADIUS;
     let d_lon = d_lat / lat.cos();
-    [
-        r[0] - d_lon,
+    // A box across the antimeridian has corners near both -π and π: its longitudes then span
+    // more than half the earth, and the region takes every longitude.
+    let across = r[2] - r[0] > PI;
+    in_range([
+        if across { -PI } else { r[0] - d_lon },
         r[1] - d_lat,
-        r[2] + d_lon,
+        if across { PI } else { r[2] + d_lon },
         r[3] + d_lat,
         r[4] - REGION_MARGIN,
         r[5] + REGION_MARGIN,
-    ]
+    ])
+}
+
+/// `r` with its west and east held to [-π, π] and its south and north to [-π/2, π/2], as the 3D
+/// Tiles schema wants (a margin near the antimeridian or a pole would pass them).
+pub(crate) fn in_range(r: [f64; 6]) -> [f64; 6] {
+    let lon = |x: f64| x.clamp(-PI, PI);
+    let lat = |x: f64| x.clamp(-FRAC_PI_2, FRAC_PI_2);
+    [lon(r[0]), lat(r[1]), lon(r[2]), lat(r[3]), r[4], r[5]]
 }
 
 /// The union of two regions (neither crossing the antimeridian).

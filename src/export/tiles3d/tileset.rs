@@ -32,7 +32,7 @@ use crate::export::ExportError;
 use crate::fsio::AtomicFile;
 
 use super::blocks::MIN_BLOCKS_ERROR;
-use super::frame::region_union;
+use super::frame::{in_range, region_union};
 use super::{ContentInfo, Placement};
 
 /// One content of a tile: where it is and what it holds.
@@ -198,8 +198,14 @@ fn quad(cells: Vec<((i64, i64), Node)>, x: i64, y: i64, size: i64) -> Option<Nod
 /// A grid tile's node: Blocks, refined by Full (see the module documentation); `None` when
 /// neither content draws anything.
 fn grid_node(t: &TileEntry) -> Option<Node> {
-    let blocks = t.blocks.info.placement.as_ref();
-    let full = t.full.info.placement.as_ref();
+    // Regions as a shard's manifest gives them (perhaps from before they were held in range).
+    let held = |p: &Placement| Placement {
+        region: in_range(p.region),
+        ..p.clone()
+    };
+    let blocks = t.blocks.info.placement.as_ref().map(held);
+    let full = t.full.info.placement.as_ref().map(held);
+    let (blocks, full) = (blocks.as_ref(), full.as_ref());
     let blocks_error = t.blocks.info.blocks_error.max(MIN_BLOCKS_ERROR);
     let full_node = full.map(|f| {
         let mut n = json!({
