@@ -340,6 +340,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let (targets, shard) = checked_targets(opts)?;
     let previous = previous_run(opts, &targets)?;
     let mut run = RunState::prepare(opts, targets, shard)?;
+    check_kb_files(&run)?;
     run.select();
     // A tiled run's content keys; with --previous, what changed and the tiles reused (copied
     // now, so that the LOD3 surroundings are derived only around the tiles derived).
@@ -383,6 +384,26 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
     };
     outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
     shard_targets(opts, targets)
+}
+
+/// Checks the run's outputs against the files the knowledge base's appearances name (their
+/// rulesets and SELEX programs: inputs too, known once the KB is read), before anything is
+/// written ([`outputs::check`]).
+fn check_kb_files(run: &RunState<'_>) -> Result<(), RunError> {
+    let kb = &run.generator.kb;
+    let mut inputs = Vec::new();
+    for (z, zone) in kb.zones().iter().enumerate() {
+        for a in 0..zone.appearances.len() {
+            let named = [kb.ruleset_path(z, a, false), kb.selex_path(z, a)];
+            for p in named.into_iter().filter_map(|p| p.ok().flatten()) {
+                inputs.push(("a --kb appearance", p));
+            }
+        }
+    }
+    if inputs.is_empty() {
+        return Ok(());
+    }
+    outputs::check(&run.targets.flagged(), &inputs, run.opts.force_extension)
 }
 
 /// Yesterday's run (`--previous`), loaded, or the usage error of asking for it where it

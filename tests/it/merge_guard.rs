@@ -487,3 +487,47 @@ fn a_tileset_across_the_antimeridian_keeps_its_regions_within_pi() {
     );
     regions_in_range(&tmp.path().join("m3d/tileset.json"));
 }
+
+#[test]
+fn an_output_on_a_kb_appearances_ruleset_is_refused_and_the_ruleset_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let pbf = d.join("town.osm.pbf");
+    write_town(&pbf, 7.42, 43.73, 2);
+    let rules = b"lot -> extrude(7.5){building}\n";
+    std::fs::write(d.join("r.cga"), rules).unwrap();
+    let kb = d.join("kb.xml");
+    std::fs::write(
+        &kb,
+        "<earth>\n  <info nbfloor=\"2\" floorsize=\"3\" rooftype=\"flat\"/>\n  \
+         <appearance><values proba=\"1\"/><ruleset file=\"r.cga\"/></appearance>\n</earth>\n",
+    )
+    .unwrap();
+    let at = |n: &str| d.join(n).display().to_string();
+    let out = citygen(&[
+        "--osm",
+        &at("town.osm.pbf"),
+        "--kb",
+        &at("kb.xml"),
+        "--force-extension",
+        "--gltf",
+        &at("t.glb"),
+        "--report",
+        &at("r.cga"),
+    ]);
+    refused(
+        &out,
+        2,
+        &[
+            "--report",
+            "a --kb appearance",
+            "r.cga",
+            "refusing to overwrite",
+        ],
+    );
+    assert_eq!(std::fs::read(d.join("r.cga")).unwrap(), rules);
+    assert!(
+        !d.join("t.glb").exists(),
+        "a refused run published its model"
+    );
+}
