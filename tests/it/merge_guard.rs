@@ -265,6 +265,17 @@ fn merge_refuses_a_tile_that_is_a_fifo_without_hanging() {
     let made = Command::new("mkfifo").arg(s.join(&tile)).status().unwrap();
     assert!(made.success());
     merge_refused(tmp.path(), &s, &[&format!("{tile:?}"), "named pipe"]);
+
+    // A FIFO named as a manifest: refused, not waited on.
+    let (tmp, s) = fresh();
+    let fifo = s.join("citygen-manifest.1-of-2.json");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let out_dir = tmp.path().join("out");
+    let report = out_dir.join("r.json").display().to_string();
+    let out = merge(&[&s.display().to_string(), "--report", &report]);
+    refused(&out, 1, &[&fifo.display().to_string(), "named pipe"]);
+    assert!(!out_dir.exists());
 }
 
 #[test]
