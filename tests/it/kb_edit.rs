@@ -629,3 +629,55 @@ fn the_page_is_answered_under_500_idle_connections_and_30_slow_clients() {
     assert!(s.child.try_wait().unwrap().is_none(), "the editor ended");
     assert_eq!(std::fs::read_to_string(&kb).unwrap(), SMALL_KB);
 }
+
+/// A KB swapped for a symlink to a file outside its folder while it is edited (the outside
+/// file a copy, so that it looks unchanged): the save is refused naming the KB, the outside
+/// file and the symlink stay as they were, and nothing else is left in the folder.
+#[test]
+fn a_save_through_a_kb_swapped_for_a_symlink_is_refused() {
+    let (dir, kb) = small_kb();
+    let s = start(&kb, false);
+    let edit = json!({"op": "set_info", "zone": "earth", "values": [["nbfloor", "5"]]});
+    assert_eq!(s.post("/api/edit", &edit).0, 200);
+    let outside = dir.path().join("elsewhere.xml");
+    std::fs::write(&outside, SMALL_KB).unwrap();
+    std::fs::remove_file(&kb).unwrap();
+    std::os::unix::fs::symlink(&outside, &kb).unwrap();
+    let (status, answer) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 409, "{answer}");
+    let msg = answer["error"].as_str().unwrap_or_default();
+    assert!(
+        msg.contains(&kb.display().to_string()) && msg.contains("symlink"),
+        "{msg}"
+    );
+    assert_eq!(std::fs::read_to_string(&outside).unwrap(), SMALL_KB);
+    assert!(std::fs::symlink_metadata(&kb)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let names: Vec<_> = std::fs::read_dir(kb.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["kb.xml"], "no temporary left");
+    // Its folder swapped for a symlink to another folder holding a copy: refused too.
+    std::fs::remove_file(&kb).unwrap();
+    std::fs::write(&kb, SMALL_KB).unwrap();
+    let folder = kb.parent().unwrap();
+    let moved = dir.path().join("moved");
+    std::fs::rename(folder, &moved).unwrap();
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("kb.xml"), SMALL_KB).unwrap();
+    std::os::unix::fs::symlink(&other, folder).unwrap();
+    let (status, answer) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 409, "{answer}");
+    assert_eq!(
+        std::fs::read_to_string(other.join("kb.xml")).unwrap(),
+        SMALL_KB
+    );
+    assert_eq!(
+        std::fs::read_to_string(moved.join("kb.xml")).unwrap(),
+        SMALL_KB
+    );
+}
