@@ -148,7 +148,9 @@ impl Generator {
         let mut seen = std::collections::BTreeSet::new();
         for (z, zone) in self.kb.zones().iter().enumerate() {
             for (a, app) in zone.appearances.iter().enumerate() {
-                let Ok(Some(path)) = self.kb.ruleset_path(z, a, false) else {
+                // A refused file (outside the folder, not a file) is said by the report's
+                // ruleset notes; it is never read.
+                let Ok(Some(path)) = self.kb.ruleset_file(z, a, false) else {
                     continue;
                 };
                 if !seen.insert(path.clone()) {
@@ -156,7 +158,9 @@ impl Generator {
                 }
                 let file = path.display().to_string();
                 let at = format!("{}:{}", self.kb.source(), app.line);
-                let parsed = grammar::read_source(&path)
+                let parsed = self
+                    .kb
+                    .read_appearance_file(&path)
                     .map_err(|e| format!("{file}: {e}"))
                     .and_then(|text| grammar::parse(&text, &file).map_err(|e| e.to_string()));
                 match parsed {

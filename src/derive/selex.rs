@@ -77,13 +77,18 @@ pub(crate) fn load_all(
     let mut out: HashMap<PathBuf, Arc<SelexProgram>> = HashMap::new();
     for (z, zone) in kb.zones().iter().enumerate() {
         for a in 0..zone.appearances.len() {
-            let Some(path) = kb.selex_path(z, a)? else {
+            let Some(path) = kb.selex_file(z, a)? else {
                 continue;
             };
             if out.contains_key(&path) {
                 continue;
             }
-            let program = load(&path)?;
+            // Read only inside the KB's folder, as it is when opened.
+            let file = path.display().to_string();
+            let program = match kb.read_appearance_file(&path) {
+                Ok(source) => from_source(file, source)?,
+                Err(source) => return Err(ProgramError::Read { file, source }),
+            };
             out.insert(path, Arc::new(program));
         }
     }
@@ -97,6 +102,11 @@ pub fn load(path: &Path) -> Result<SelexProgram, ProgramError> {
         Ok(s) => s,
         Err(source) => return Err(ProgramError::Read { file, source }),
     };
+    from_source(file, source)
+}
+
+/// A program parsed from its text (`file` as messages name it).
+fn from_source(file: String, source: String) -> Result<SelexProgram, ProgramError> {
     let program = crate::selex::parser::parse(&source, &file)?;
     Ok(SelexProgram {
         file,

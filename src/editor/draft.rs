@@ -2,6 +2,7 @@
 //! [`crate::kb::edit`], each checked as `kb check --strict` checks a file before it is taken,
 //! what the page is shown of it, and the writes: the KB itself and rulesets in its folder.
 
+use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 
 use serde::Deserialize;
@@ -44,6 +45,15 @@ pub enum DraftError {
     /// A lenient draft's strict form does not pass the check.
     #[error("the strict form of the draft does not pass the check: {0}")]
     StrictForm(Box<DraftError>),
+    /// At save, the KB file is no longer the regular file in its folder that was opened (a
+    /// symlink now, or its folder leads elsewhere): nothing is written.
+    #[error("{}: not saved: {why}", .path.display())]
+    NotInPlace {
+        /// The KB file as given.
+        path: PathBuf,
+        /// What changed.
+        why: String,
+    },
     /// The file changed on disk since it was opened or saved.
     #[error("{} changed on disk since it was opened: not overwritten", .path.display())]
     Changed {
@@ -172,6 +182,8 @@ fn check_errors(path: &Path, errors: &[KbRepair]) -> String {
 pub(crate) struct Draft {
     /// The KB file, resolved (symlinks followed): the one file [`Draft::save`] writes.
     path: PathBuf,
+    /// The KB file as given (for messages).
+    given: PathBuf,
     /// Its folder, resolved: rulesets are written only inside it.
     dir: PathBuf,
     /// The draft's text.
@@ -407,6 +419,7 @@ impl Draft {
         let (kb, report) = check(&text, &resolved, mode)?;
         Ok(Draft {
             path: resolved,
+            given: path.to_path_buf(),
             dir,
             on_disk: text.clone(),
             text,
@@ -558,11 +571,8 @@ impl Draft {
                 (text, read)
             }
         };
-        let now = std::fs::read_to_string(&self.path).map_err(|source| DraftError::Io {
-            path: self.path.clone(),
-            source,
-        })?;
-        if now != self.on_disk {
+        let now = self.read_in_place()?;
+        if now != self.on_disk.as_bytes() {
             return Err(DraftError::Changed {
                 path: self.path.clone(),
             });
@@ -576,6 +586,51 @@ impl Draft {
         self.strict_error = None;
         self.repairs.clear();
         Ok(())
+    }
+
+    /// The KB file's bytes now, read only if it is still the regular file in the KB's folder
+    /// that was opened: not a symlink (to a file outside or anywhere), its folder still the
+    /// same folder. The save then renames a new file over that name, never writing through it.
+    fn read_in_place(&self) -> Result<Vec<u8>, DraftError> {
+        let refused = |why: String| DraftError::NotInPlace {
+            path: self.given.clone(),
+            why,
+        };
+        let io = |source| DraftError::Io {
+            path: self.given.clone(),
+            source,
+        };
+        let folder = self.path.parent().unwrap_or(&self.dir);
+        match std::fs::canonicalize(folder) {
+            Ok(real) if real == self.dir => {}
+            Ok(real) => {
+                return Err(refused(format!(
+                    "its folder {} now leads to {}",
+                    self.dir.display(),
+                    real.display()
+                )))
+            }
+            Err(source) => return Err(io(source)),
+        }
+        let meta = std::fs::symlink_metadata(&self.path).map_err(io)?;
+        if meta.file_type().is_symlink() {
+            let to = std::fs::read_link(&self.path)
+                .map(|t| format!(" (to {})", t.display()))
+                .unwrap_or_default();
+            return Err(refused(format!(
+                "it was replaced by a symlink{to} while it was edited"
+            )));
+        }
+        if !meta.is_file() {
+            return Err(refused("it is no longer a regular file".into()));
+        }
+        let file = crate::fsio::open_inside(&self.dir, &self.path)
+            .map_err(|e| refused(format!("it cannot be opened in its folder: {e}")))?;
+        // One byte over what was read at the start is enough to see that it changed.
+        let cap = self.on_disk.len() as u64 + 1;
+        let mut bytes = Vec::new();
+        file.take(cap).read_to_end(&mut bytes).map_err(io)?;
+        Ok(bytes)
     }
 
     /// Writes a ruleset `file` (relative to the KB's folder, `.cga`) with `text`, which must

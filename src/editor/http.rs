@@ -1,11 +1,12 @@
-//! A small, strict HTTP/1.1 server side: one request read from a connection (request line,
-//! headers, a `Content-Length` body) with caps on every size, and one response written. No
-//! chunked bodies, no keep-alive: every response closes its connection.
+//! The HTTP/1.1 of `kb edit`, server side: one request's head parsed by `httparse` (the
+//! request line and headers, with caps on their sizes), its `Content-Length` body, and one
+//! response written. No chunked bodies, no keep-alive: every response closes its connection.
+//! Reading from sockets (timeouts, the connection cap) is `editor::conn`'s.
 
-use std::io::{self, BufRead, BufReader, Read, Write};
+use std::io::{self, Write};
 
-/// The longest request line or header line, bytes.
-pub(crate) const MAX_LINE: usize = 8 * 1024;
+/// The largest request head (request line and headers), bytes.
+pub(crate) const MAX_HEAD: usize = 16 * 1024;
 /// The most header lines.
 pub(crate) const MAX_HEADERS: usize = 64;
 /// The largest body, bytes (a ruleset is at most 4 MiB; the draft's edits are small).
@@ -47,43 +48,17 @@ impl Request {
 /// Why a request was not read: the status to answer with and a message.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct BadRequest {
-    /// 400, 411, 413, 431, 501, ...
+    /// 400, 408, 411, 413, 431, 501, 503, ...
     pub status: u16,
     /// What was wrong.
     pub message: String,
 }
 
-fn bad(status: u16, message: impl Into<String>) -> BadRequest {
+pub(crate) fn bad(status: u16, message: impl Into<String>) -> BadRequest {
     BadRequest {
         status,
         message: message.into(),
     }
-}
-
-/// One line (without CRLF) of at most [`MAX_LINE`] bytes.
-fn read_line(r: &mut impl BufRead) -> Result<String, BadRequest> {
-    let mut buf = Vec::new();
-    let n = r
-        .take(MAX_LINE as u64 + 1)
-        .read_until(b'\n', &mut buf)
-        .map_err(|e| bad(400, format!("reading the request: {e}")))?;
-    if n == 0 {
-        return Err(bad(400, "the connection closed before the request ended"));
-    }
-    if !buf.ends_with(b"\n") && n <= MAX_LINE {
-        return Err(bad(400, "the connection closed before the request ended"));
-    }
-    if !buf.ends_with(b"\n") {
-        return Err(bad(
-            431,
-            format!("a request line is longer than {MAX_LINE} bytes"),
-        ));
-    }
-    buf.pop();
-    if buf.ends_with(b"\r") {
-        buf.pop();
-    }
-    String::from_utf8(buf).map_err(|_| bad(400, "a request line is not UTF-8"))
 }
 
 /// `%xx` and `+` decoded.
@@ -114,19 +89,30 @@ pub(crate) fn percent_decode(s: &str) -> Result<String, BadRequest> {
     String::from_utf8(out).map_err(|_| bad(400, "the query is not UTF-8"))
 }
 
-/// Reads one request from `stream`.
-pub(crate) fn read_request(stream: impl Read) -> Result<Request, BadRequest> {
-    let mut r = BufReader::new(stream);
-    let line = read_line(&mut r)?;
-    let mut parts = line.split(' ');
-    let (Some(method), Some(target), Some(version), None) =
-        (parts.next(), parts.next(), parts.next(), parts.next())
-    else {
+/// A complete request head at the start of `buf`: the request (its body still empty), where
+/// its body starts and how long it is. `Ok(None)` while the head is incomplete (and within
+/// [`MAX_HEAD`]).
+pub(crate) fn parse_head(buf: &[u8]) -> Result<Option<(Request, usize, usize)>, BadRequest> {
+    let mut slots = [httparse::EMPTY_HEADER; MAX_HEADERS];
+    let mut parsed = httparse::Request::new(&mut slots);
+    let head_len = match parsed.parse(buf) {
+        Ok(httparse::Status::Complete(n)) => n,
+        Ok(httparse::Status::Partial) if buf.len() >= MAX_HEAD => {
+            return Err(bad(431, format!("a request head over {MAX_HEAD} bytes")))
+        }
+        Ok(httparse::Status::Partial) => return Ok(None),
+        Err(httparse::Error::TooManyHeaders) => {
+            return Err(bad(431, format!("more than {MAX_HEADERS} headers")))
+        }
+        Err(httparse::Error::Version) => return Err(bad(505, "not HTTP/1.1")),
+        Err(e) => return Err(bad(400, format!("a malformed request: {e}"))),
+    };
+    if head_len > MAX_HEAD {
+        return Err(bad(431, format!("a request head over {MAX_HEAD} bytes")));
+    }
+    let (Some(method), Some(target)) = (parsed.method, parsed.path) else {
         return Err(bad(400, "a malformed request line"));
     };
-    if version != "HTTP/1.1" && version != "HTTP/1.0" {
-        return Err(bad(505, format!("{version} is not HTTP/1.1")));
-    }
     if method.is_empty() || !method.bytes().all(|c| c.is_ascii_uppercase()) {
         return Err(bad(400, "a malformed method"));
     }
@@ -140,56 +126,62 @@ pub(crate) fn read_request(stream: impl Read) -> Result<Request, BadRequest> {
         let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
         q.push((percent_decode(k)?, percent_decode(v)?));
     }
-    let mut headers = Vec::new();
-    loop {
-        let line = read_line(&mut r)?;
-        if line.is_empty() {
-            break;
-        }
-        if headers.len() == MAX_HEADERS {
-            return Err(bad(431, format!("more than {MAX_HEADERS} headers")));
-        }
-        let Some((k, v)) = line.split_once(':') else {
-            return Err(bad(400, "a header line without a colon"));
-        };
-        if k.is_empty() || k.bytes().any(|c| c.is_ascii_whitespace()) {
-            return Err(bad(400, "a malformed header name"));
-        }
-        headers.push((k.to_ascii_lowercase(), v.trim().to_string()));
+    let mut headers = Vec::with_capacity(parsed.headers.len());
+    for h in parsed.headers.iter() {
+        let value =
+            std::str::from_utf8(h.value).map_err(|_| bad(400, "a header value is not UTF-8"))?;
+        headers.push((h.name.to_ascii_lowercase(), value.trim().to_string()));
     }
-    let mut req = Request {
+    let req = Request {
         method: method.to_string(),
         path,
         query: q,
         headers,
         body: Vec::new(),
     };
+    let len = body_length(&req)?;
+    Ok(Some((req, head_len, len)))
+}
+
+/// The body's length: its one `Content-Length` (at most [`MAX_BODY`]); 0 without one, except
+/// for a POST.
+fn body_length(req: &Request) -> Result<usize, BadRequest> {
     if req.header("transfer-encoding").is_some() {
         return Err(bad(501, "chunked or encoded bodies are not accepted"));
     }
-    let lengths: Vec<&str> = req
-        .headers
-        .iter()
-        .filter(|(k, _)| k == "content-length")
-        .map(|(_, v)| v.as_str())
-        .collect();
-    if lengths.len() > 1 {
+    let mut lengths = req.headers.iter().filter(|(k, _)| k == "content-length");
+    let (first, second) = (lengths.next(), lengths.next());
+    if second.is_some() {
         return Err(bad(400, "more than one Content-Length"));
     }
-    if let Some(len) = lengths.first() {
-        let len: usize = len
-            .parse()
-            .map_err(|_| bad(400, "a malformed Content-Length"))?;
-        if len > MAX_BODY {
-            return Err(bad(413, format!("a body over {MAX_BODY} bytes")));
+    let Some((_, len)) = first else {
+        if req.method == "POST" {
+            return Err(bad(411, "a POST needs a Content-Length"));
         }
-        let mut body = vec![0; len];
-        r.read_exact(&mut body)
-            .map_err(|e| bad(400, format!("reading the body: {e}")))?;
-        req.body = body;
-    } else if req.method == "POST" {
-        return Err(bad(411, "a POST needs a Content-Length"));
+        return Ok(0);
+    };
+    if len.is_empty() || !len.bytes().all(|c| c.is_ascii_digit()) {
+        return Err(bad(400, "a malformed Content-Length"));
     }
+    match len.parse::<usize>() {
+        Ok(n) if n <= MAX_BODY => Ok(n),
+        _ => Err(bad(413, format!("a body over {MAX_BODY} bytes"))),
+    }
+}
+
+/// Reads one whole request from `r` (a test's bytes; the server reads through `editor::conn`).
+#[cfg(test)]
+pub(crate) fn read_request(mut r: impl std::io::Read) -> Result<Request, BadRequest> {
+    let mut buf = Vec::new();
+    r.read_to_end(&mut buf)
+        .map_err(|e| bad(400, format!("reading the request: {e}")))?;
+    let Some((mut req, start, len)) = parse_head(&buf)? else {
+        return Err(bad(400, "the connection closed before the request ended"));
+    };
+    let body = buf
+        .get(start..start + len)
+        .ok_or_else(|| bad(400, "the connection closed before the body ended"))?;
+    req.body = body.to_vec();
     Ok(req)
 }
 
@@ -224,6 +216,7 @@ fn reason(status: u16) -> &'static str {
     match status {
         200 => "OK",
         400 => "Bad Request",
+        408 => "Request Timeout",
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
@@ -235,6 +228,7 @@ fn reason(status: u16) -> &'static str {
         431 => "Request Header Fields Too Large",
         500 => "Internal Server Error",
         501 => "Not Implemented",
+        503 => "Service Unavailable",
         505 => "HTTP Version Not Supported",
         _ => "Status",
     }
@@ -288,7 +282,7 @@ mod tests {
             status(b"POST / HTTP/1.1\r\nContent-Length: 99999999999\r\n\r\n"),
             413
         );
-        let long = format!("GET /{} HTTP/1.1\r\n\r\n", "a".repeat(MAX_LINE));
+        let long = format!("GET /{} HTTP/1.1\r\n\r\n", "a".repeat(MAX_HEAD));
         assert_eq!(status(long.as_bytes()), 431);
         let many = format!(
             "GET / HTTP/1.1\r\n{}\r\n",

@@ -1,7 +1,9 @@
 //! `citygen kb edit`: the knowledge base edited in a browser (docs/kb-editor.md).
 //!
 //! A local web server on `std::net` (no async runtime): it binds 127.0.0.1 only, on the given
-//! port or a free one, and answers one request per connection, each on its own thread. Every
+//! port or a free one, and answers one request per connection with bounded resources
+//! (`conn`: a cap on open connections, head and request timeouts, size caps, a fixed pool of
+//! workers; `http`: heads parsed by `httparse`). Every
 //! request must come with the session's token (128 bits from the system's random source:
 //! `?token=` for the page and its scripts, the `X-Citygen-Token` header for the API), a `Host`
 //! that is this server's (`127.0.0.1:PORT` or `localhost:PORT`, so a DNS-rebound name is
@@ -14,14 +16,14 @@
 //! [`crate::kb::write`]); rulesets are written only inside its
 //! folder.
 
+mod conn;
 pub mod draft;
 pub mod http;
 
 use std::io::Read;
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpListener;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
 use serde_json::{json, Value};
 
@@ -166,7 +168,8 @@ impl Editor {
         format!("http://127.0.0.1:{}/?token={}", self.port, self.token)
     }
 
-    /// Serves until the process ends: each connection on its own thread.
+    /// Serves until the process ends, with bounded connections, timeouts and workers
+    /// (`conn`).
     pub(crate) fn serve(self) {
         let shared = Arc::new(Shared {
             port: self.port,
@@ -176,18 +179,11 @@ impl Editor {
             seed: self.seed,
             scratch: self.scratch,
         });
-        for conn in self.listener.incoming() {
-            let Ok(stream) = conn else { continue };
-            let shared = Arc::clone(&shared);
-            // A thread the system cannot make loses this connection, not the server.
-            if let Err(e) = std::thread::Builder::new().spawn(move || shared.handle(stream)) {
-                eprintln!("citygen kb edit: a connection dropped: no thread for it ({e})");
-            }
-        }
+        conn::serve(self.listener, move |req| shared.answer(req));
     }
 }
 
-/// What every connection's thread shares.
+/// What every worker shares.
 struct Shared {
     port: u16,
     token: String,
@@ -207,26 +203,19 @@ fn same_secret(a: &str, b: &str) -> bool {
 }
 
 impl Shared {
-    fn handle(&self, mut stream: TcpStream) {
-        let _ = stream.set_read_timeout(Some(Duration::from_secs(30)));
-        let _ = stream.set_write_timeout(Some(Duration::from_secs(30)));
-        let resp = match http::read_request(&mut stream) {
-            // A bug met while answering is a 500 with its message, never a closed connection
-            // (the draft's lock recovers from it: `Shared::lock`).
-            Ok(req) => {
-                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.respond(&req)))
-                    .unwrap_or_else(|p| {
-                        let what = p
-                            .downcast_ref::<&str>()
-                            .map(|s| s.to_string())
-                            .or_else(|| p.downcast_ref::<String>().cloned())
-                            .unwrap_or_default();
-                        Response::error(500, &format!("internal error: {what}"))
-                    })
-            }
-            Err(bad) => Response::error(bad.status, &bad.message),
-        };
-        let _ = http::write_response(&mut stream, &resp);
+    /// The answer to one request. A bug met while answering is a 500 with its message, never
+    /// a closed connection (the draft's lock recovers from it: `Shared::lock`).
+    fn answer(&self, req: &Request) -> Response {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.respond(req))).unwrap_or_else(
+            |p| {
+                let what = p
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| p.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                Response::error(500, &format!("internal error: {what}"))
+            },
+        )
     }
 
     /// The refusal of a request that is not this session's, or `None`.

@@ -1,7 +1,8 @@
 //! Files, on the ground floor: the one atomic write ([`AtomicFile`], [`PendingFile`],
 //! `write_atomic`), scratch files beside an output, the SHA-256 of a file and the one hex
 //! encoder, and the files a manifest or KB names opened only inside their folder
-//! (`contained::open_contained`). It imports nothing of ours.
+//! (`contained::open_contained` for a name relative to a folder, `open_inside` for a path
+//! already resolved). It imports nothing of ours.
 //!
 //! Every file citygen publishes goes through a temporary `.{name}.{pid}.tmp` beside its target,
 //! renamed over it once complete: a failed or killed run never leaves a half-written file, and
@@ -10,6 +11,10 @@
 pub(crate) mod contained;
 #[cfg(target_os = "linux")]
 mod direct;
+mod inside;
+
+pub(crate) use inside::open_inside;
+pub use inside::InsideError;
 
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Write};
@@ -78,7 +83,10 @@ impl AtomicFile {
     /// [`AtomicFile::create`] with the temporary named `.{name}.{pid}.{tag}.tmp`.
     fn open(target: &Path, tag: Option<&str>) -> io::Result<AtomicFile> {
         let tmp = temporary_of(target, tag)?;
-        let file = File::create(&tmp)?;
+        // A new file, never one planted at the temporary's name (a symlink there is replaced,
+        // not followed).
+        let _ = std::fs::remove_file(&tmp);
+        let file = File::options().write(true).create_new(true).open(&tmp)?;
         Ok(AtomicFile {
             target: target.to_path_buf(),
             tmp,

@@ -29,6 +29,7 @@ pub use ast::{
     AttrValue, Attrs, Axis, Op, Rule, RuleSet, Selector, SplitKind, Successor, SymbolId,
 };
 pub use interp::{derive, derive_facing, recycle, Caps, DeriveError};
+pub(crate) use parser::read_capped;
 pub use parser::{
     parse, read_source, GrammarError, ParseErrorKind, MAX_EXPR_DEPTH, MAX_SOURCE_BYTES,
 };

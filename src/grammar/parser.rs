@@ -78,10 +78,14 @@ pub const MAX_SOURCE_BYTES: usize = 4 * 1024 * 1024;
 /// `InvalidData` error that says so); an unreadable or non-UTF-8 file is the same error as
 /// `std::fs::read_to_string` gives.
 pub fn read_source(path: &std::path::Path) -> std::io::Result<String> {
+    read_capped(std::fs::File::open(path)?)
+}
+
+/// [`read_source`] of an open file (or any reader): at most [`MAX_SOURCE_BYTES`].
+pub(crate) fn read_capped(r: impl std::io::Read) -> std::io::Result<String> {
     use std::io::Read;
     let mut text = String::new();
-    std::fs::File::open(path)?
-        .take(MAX_SOURCE_BYTES as u64 + 1)
+    r.take(MAX_SOURCE_BYTES as u64 + 1)
         .read_to_string(&mut text)?;
     if text.len() > MAX_SOURCE_BYTES {
         return Err(std::io::Error::new(

@@ -4,6 +4,7 @@
 use std::path::{Component, Path, PathBuf};
 
 use super::{Appearance, KbError, KnowledgeBase, ZoneKind};
+use crate::fsio::InsideError;
 use crate::model::{RoofMix, RoofShape};
 use crate::rng::Rng;
 
@@ -242,6 +243,87 @@ impl KnowledgeBase {
             Some(d) => d.join(rel),
             None => rel.to_path_buf(),
         }))
+    }
+
+    /// [`KnowledgeBase::ruleset_path`], and the file as it is now: a symlink leaving the KB's
+    /// folder or something other than a regular file is refused, with the appearance's line
+    /// (`allow_outside` skips this check as it does the path's). What reads the file reads it
+    /// with [`KnowledgeBase::read_appearance_file`], which checks again as it opens.
+    pub(crate) fn ruleset_file(
+        &self,
+        zone: usize,
+        appearance: usize,
+        allow_outside: bool,
+    ) -> Result<Option<PathBuf>, KbError> {
+        let path = self.ruleset_path(zone, appearance, allow_outside)?;
+        if !allow_outside {
+            self.check_inside(zone, appearance, "ruleset", path.as_deref())?;
+        }
+        Ok(path)
+    }
+
+    /// [`KnowledgeBase::selex_path`] with the checks of [`KnowledgeBase::ruleset_file`].
+    pub(crate) fn selex_file(
+        &self,
+        zone: usize,
+        appearance: usize,
+    ) -> Result<Option<PathBuf>, KbError> {
+        let path = self.selex_path(zone, appearance)?;
+        self.check_inside(zone, appearance, "selex", path.as_deref())?;
+        Ok(path)
+    }
+
+    /// `path` (of appearance `appearance` of `zone`) refused when it leads outside the KB's
+    /// folder or is not a regular file. A file that is not there is the reader's to report.
+    fn check_inside(
+        &self,
+        zone: usize,
+        appearance: usize,
+        what: &str,
+        path: Option<&Path>,
+    ) -> Result<(), KbError> {
+        let (Some(path), Some(app)) = (
+            path,
+            self.zones
+                .get(zone)
+                .and_then(|z| z.appearances.get(appearance)),
+        ) else {
+            return Ok(());
+        };
+        match self.open_inside(path) {
+            Ok(_) | Err(InsideError::Io(_)) => Ok(()),
+            Err(e) => Err(KbError::Structure {
+                file: self.source.clone(),
+                line: app.line,
+                message: format!("{what} file {} is refused: {e}", path.display()),
+            }),
+        }
+    }
+
+    /// `path` opened only inside the KB's folder (`fsio::open_inside`; the working folder for
+    /// a KB read from text).
+    fn open_inside(&self, path: &Path) -> Result<std::fs::File, InsideError> {
+        let dir = match &self.base_dir {
+            Some(d) if !d.as_os_str().is_empty() => d.as_path(),
+            _ => Path::new("."),
+        };
+        crate::fsio::open_inside(dir, path)
+    }
+
+    /// The text of a file an appearance names ([`KnowledgeBase::ruleset_path`],
+    /// [`KnowledgeBase::selex_path`]), read only if at the moment it is opened it still lies
+    /// inside the KB's folder and is a regular file (`fsio::open_inside`), at most
+    /// `grammar::MAX_SOURCE_BYTES`. A refusal is an error that says why (the file's content
+    /// is never in it).
+    pub(crate) fn read_appearance_file(&self, path: &Path) -> std::io::Result<String> {
+        let file = self.open_inside(path).map_err(|e| match e {
+            InsideError::Io(e) => e,
+            refused => std::io::Error::new(
+                std::io::ErrorKind::PermissionDenied,
+                format!("refused: {refused}"),
+            ),
+        })?;
+        crate::grammar::read_capped(file)
     }
 }
 

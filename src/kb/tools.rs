@@ -111,7 +111,7 @@ pub(crate) fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
                 z.path,
                 k + 1
             );
-            notes.push(match kb.ruleset_path(i, k, false) {
+            notes.push(match kb.ruleset_file(i, k, false) {
                 Err(e) => {
                     let why = match e {
                         KbError::Structure { message, .. } => message,
@@ -135,10 +135,22 @@ pub(crate) fn ruleset_notes(kb: &KnowledgeBase) -> Vec<String> {
 /// Warnings, not errors: a run derives an appearance whose ruleset cannot be read or parsed
 /// from its values (with a note), and applies one with lint findings as it is, so none of
 /// these stops a run.
-fn check_ruleset(path: &Path, line: usize, warnings: &mut Vec<KbRepair>) {
+fn check_ruleset(
+    kb: &KnowledgeBase,
+    path: &Path,
+    allow_external: bool,
+    line: usize,
+    warnings: &mut Vec<KbRepair>,
+) {
     let name = path.display().to_string();
-    // At most grammar::MAX_SOURCE_BYTES are read (rule files are a few kilobytes).
-    let text = crate::grammar::read_source(path).map_err(|e| e.to_string());
+    // At most grammar::MAX_SOURCE_BYTES are read (rule files are a few kilobytes), and only
+    // inside the KB's folder unless outside rulesets are allowed.
+    let text = if allow_external {
+        crate::grammar::read_source(path)
+    } else {
+        kb.read_appearance_file(path)
+    };
+    let text = text.map_err(|e| e.to_string());
     let text = match text {
         Ok(t) => t,
         Err(why) => {
@@ -175,9 +187,15 @@ fn check_ruleset(path: &Path, line: usize, warnings: &mut Vec<KbRepair>) {
 /// cannot be read or does not parse is an error (a run refuses it before any work), and the
 /// parser's warnings (`selex check`'s static ones) are warnings, each with the program's own
 /// file:line:col.
-fn check_selex(path: &Path, line: usize, errors: &mut Vec<KbRepair>, warnings: &mut Vec<KbRepair>) {
+fn check_selex(
+    kb: &KnowledgeBase,
+    path: &Path,
+    line: usize,
+    errors: &mut Vec<KbRepair>,
+    warnings: &mut Vec<KbRepair>,
+) {
     let name = path.display().to_string();
-    let text = match crate::grammar::read_source(path) {
+    let text = match kb.read_appearance_file(path) {
         Ok(t) => t,
         Err(why) => {
             errors.push(KbRepair {
@@ -295,7 +313,7 @@ pub(crate) fn report_for(
                     });
                 }
             }
-            match kb.ruleset_path(i, k, allow_external) {
+            match kb.ruleset_file(i, k, allow_external) {
                 Err(e) => {
                     let what = match e {
                         KbError::Structure { message, .. } => message,
@@ -304,11 +322,11 @@ pub(crate) fn report_for(
                     errors.push(KbRepair { line: a.line, what });
                 }
                 Ok(Some(path)) => {
-                    check_ruleset(&path, a.line, &mut warnings);
+                    check_ruleset(kb, &path, allow_external, a.line, &mut warnings);
                 }
                 Ok(None) => {}
             }
-            match kb.selex_path(i, k) {
+            match kb.selex_file(i, k) {
                 Err(e) => {
                     let what = match e {
                         KbError::Structure { message, .. } => message,
@@ -316,7 +334,7 @@ pub(crate) fn report_for(
                     };
                     errors.push(KbRepair { line: a.line, what });
                 }
-                Ok(Some(path)) => check_selex(&path, a.line, &mut errors, &mut warnings),
+                Ok(Some(path)) => check_selex(kb, &path, a.line, &mut errors, &mut warnings),
                 Ok(None) => {}
             }
         }

@@ -168,8 +168,8 @@ impl GridPlan {
         for (z, zone) in kb.zones().iter().enumerate() {
             for (a, app) in zone.appearances.iter().enumerate() {
                 let named = [
-                    (app.ruleset.as_deref(), kb.ruleset_path(z, a, false)),
-                    (app.selex.as_deref(), kb.selex_path(z, a)),
+                    (app.ruleset.as_deref(), kb.ruleset_file(z, a, false)),
+                    (app.selex.as_deref(), kb.selex_file(z, a)),
                 ];
                 for (name, path) in named {
                     if let (Some(name), Ok(Some(path))) = (name, path) {

@@ -42,7 +42,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     (
         "kb",
         &[
-            "grammar", "selex", "input", "model", "rng", "geometry", "color",
+            "grammar", "selex", "input", "model", "rng", "geometry", "color", "fsio",
         ],
     ),
     // Rules written by a genetic search (`citygen evolve`).

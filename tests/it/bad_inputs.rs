@@ -9,7 +9,7 @@ use crate::common;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::process::Output;
+use std::process::{Command, Output};
 
 use crate::common::{citygen, KB, MONACO};
 use citygen::testkit::pbf_write::{MemberKind, PbfWriter};
@@ -1785,6 +1785,108 @@ fn rulesets_the_kb_names_are_applied_or_reported_as_not_applied_or_refused() {
         .find(|n| n.contains("broken.cga") && n.contains("not applied"))
         .unwrap_or_else(|| panic!("no note on broken.cga not applied: {notes:?}"));
     assert!(broken.contains("kb.xml:5"), "{broken}");
+}
+
+/// A ruleset (or a SELEX program) symlinked to a file outside the KB's folder, or a FIFO, is
+/// refused where it is read: the run notes it refused at the appearance's line and uses the
+/// values, `kb check --strict` fails naming the KB file and the line, and the outside file's
+/// content is in neither.
+#[test]
+fn a_ruleset_symlinked_out_of_the_kb_folder_is_refused_by_the_run_and_the_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let folder = d.join("kb");
+    std::fs::create_dir_all(&folder).unwrap();
+    let secret = "root-SECRET-7f3a:x:0:0:root:/root:/bin/sh";
+    let outside = d.join("passwd");
+    std::fs::write(&outside, format!("{secret}\n")).unwrap();
+    std::os::unix::fs::symlink(&outside, folder.join("r.cga")).unwrap();
+    std::os::unix::fs::symlink("../passwd", folder.join("p.selex")).unwrap();
+    let fifo = folder.join("fifo.cga");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let kb = folder.join("kb.xml");
+    std::fs::write(
+        &kb,
+        r#"<earth>
+  <info nbfloor="2" rooftype="flat"/>
+  <appearance><values proba="0.5"/><ruleset file="r.cga"/></appearance>
+  <appearance><values proba="0.5"/><ruleset file="fifo.cga"/></appearance>
+</earth>
+"#,
+    )
+    .unwrap();
+    let pbf = d.join("in.osm.pbf");
+    let mut osm = Osm::default();
+    osm.good(1, 0);
+    osm.write(&pbf);
+    let r = ok_run(d, "--osm", &pbf, &["--kb", kb.to_str().unwrap()]);
+    let text = std::fs::read_to_string(d.join("report.json")).unwrap();
+    assert!(
+        !text.contains("SECRET"),
+        "the outside file in the report: {text}"
+    );
+    let notes: Vec<String> = r.report()["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["id"] == "")
+        .map(|e| e["reason"].as_str().unwrap().to_string())
+        .collect();
+    for (file, line) in [("r.cga", 3), ("fifo.cga", 4)] {
+        let note = notes
+            .iter()
+            .find(|n| n.contains(file))
+            .unwrap_or_else(|| panic!("no note on {file}: {notes:?}"));
+        assert!(
+            note.contains(&format!("kb.xml:{line}")) && note.contains("refused"),
+            "{note}"
+        );
+    }
+    let kb_arg = kb.to_str().unwrap();
+    let out = citygen(&["kb", "check", "--strict", kb_arg]);
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(1), "{}", show(&out));
+    let said = show(&out);
+    assert!(!said.contains("SECRET"), "{said}");
+    for (file, line) in [("r.cga", 3), ("fifo.cga", 4)] {
+        let at = format!("{kb_arg}:{line}: error:");
+        assert!(
+            said.lines()
+                .any(|l| l.contains(&at) && l.contains(file) && l.contains("refused")),
+            "no error at {at} on {file}: {said}"
+        );
+    }
+    // A SELEX program through the same kind of symlink: the check's error, the run refused
+    // before any work, the content in neither.
+    std::fs::write(
+        &kb,
+        "<earth>\n  <info nbfloor=\"2\"/>\n  <appearance><values proba=\"1\"/><selex file=\"p.selex\"/></appearance>\n</earth>\n",
+    )
+    .unwrap();
+    let out = citygen(&["kb", "check", "--strict", kb_arg]);
+    assert_eq!(out.status.code(), Some(1), "{}", show(&out));
+    let said = show(&out);
+    assert!(
+        said.contains(&format!("{kb_arg}:3: error:")) && said.contains("refused"),
+        "{said}"
+    );
+    assert!(!said.contains("SECRET"), "{said}");
+    let r = run_in(d, "--osm", &pbf, &["--kb", kb_arg]);
+    no_panic(&r.out);
+    assert_ne!(r.out.status.code(), Some(0), "{}", show(&r.out));
+    let said = show(&r.out);
+    assert!(
+        said.contains("refused") && !said.contains("SECRET"),
+        "{said}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&outside).unwrap(),
+        format!("{secret}\n")
+    );
 }
 
 #[test]

@@ -6,6 +6,7 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
 
 use crate::common::{citygen, root, KB, MONACO};
 use serde_json::{json, Value};
@@ -25,7 +26,11 @@ impl Drop for Session {
 }
 
 fn start(kb: &Path, osm: bool) -> Session {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_citygen"));
+    start_with(Command::new(env!("CARGO_BIN_EXE_citygen")), kb, osm)
+}
+
+/// The editor started by `cmd` (the binary itself, or a shell that execs it).
+fn start_with(mut cmd: Command, kb: &Path, osm: bool) -> Session {
     cmd.current_dir(root()).arg("kb").arg("edit").arg(kb);
     if osm {
         cmd.args(["--osm", MONACO]);
@@ -498,4 +503,181 @@ fn a_lenient_kb_is_saved_in_the_strict_format_with_its_repairs_shown_first() {
     let appearances =
         |k: &KnowledgeBase| k.zones().iter().map(|z| z.appearances.len()).sum::<usize>();
     assert_eq!((appearances(&before), appearances(&after)), (4, 4));
+}
+
+/// The resident memory of process `pid`, bytes (`VmRSS` of /proc/PID/status).
+fn rss_bytes(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("proc status");
+    let kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .expect("VmRSS");
+    kb * 1024
+}
+
+/// The page, timed: its status and how long the answer took (a client giving up at 2 s).
+fn timed_page(s: &Session) -> (u16, Duration) {
+    let t = Instant::now();
+    let req = format!(
+        "GET /?token={} HTTP/1.1\r\nHost: {}\r\n\r\n",
+        s.token,
+        s.host()
+    );
+    let status = TcpStream::connect(("127.0.0.1", s.port))
+        .and_then(|mut c| {
+            c.set_read_timeout(Some(Duration::from_secs(2)))?;
+            c.write_all(req.as_bytes())?;
+            let mut out = Vec::new();
+            c.read_to_end(&mut out)?;
+            Ok(out)
+        })
+        .ok()
+        .filter(|out| String::from_utf8_lossy(out).contains("app.js?token="))
+        .and_then(|out| {
+            String::from_utf8_lossy(&out)
+                .split(' ')
+                .nth(1)
+                .and_then(|c| c.parse().ok())
+        })
+        .unwrap_or(0);
+    (status, t.elapsed())
+}
+
+/// The editor under an idle flood and slow clients (the 130 idle connections took a
+/// thread each and, in a 2 GiB address space, stopped it): run in that address space, it
+/// keeps answering its page within 2 s with 500 idle loopback connections and 30 clients
+/// sending a byte a second, its memory stays under 200 MiB, the KB is untouched, and the idle
+/// connections are closed (cap or head timeout) rather than held.
+#[test]
+fn the_page_is_answered_under_500_idle_connections_and_30_slow_clients() {
+    let (_dir, kb) = small_kb();
+    let mut sh = Command::new("sh");
+    sh.args([
+        "-c",
+        "ulimit -v 2097152 && exec \"$0\" \"$@\"",
+        env!("CARGO_BIN_EXE_citygen"),
+    ]);
+    let mut s = start_with(sh, &kb, false);
+    let pid = s.child.id();
+    let idle: Vec<TcpStream> = (0..500)
+        .map(|_| TcpStream::connect(("127.0.0.1", s.port)).expect("an idle connection"))
+        .collect();
+    let slow: Vec<TcpStream> = (0..30)
+        .map(|_| TcpStream::connect(("127.0.0.1", s.port)).expect("a slow connection"))
+        .collect();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let dripping = {
+        let stop = std::sync::Arc::clone(&stop);
+        let request = format!(
+            "GET /?token={} HTTP/1.1\r\nHost: {}\r\n\r\n",
+            s.token,
+            s.host()
+        );
+        std::thread::spawn(move || {
+            let mut slow = slow;
+            for byte in request.bytes().cycle() {
+                if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    break;
+                }
+                for c in &mut slow {
+                    let _ = c.write_all(&[byte]);
+                }
+                std::thread::sleep(Duration::from_secs(1));
+            }
+        })
+    };
+    // Past the 5 s head timeout, so that both the held and the dropped phases are seen.
+    let (mut worst, mut peak) = (Duration::ZERO, 0u64);
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(8) {
+        let (status, took) = timed_page(&s);
+        assert_eq!(
+            status,
+            200,
+            "the page after {:?} (took {took:?})",
+            start.elapsed()
+        );
+        worst = worst.max(took);
+        peak = peak.max(rss_bytes(pid));
+        std::thread::sleep(Duration::from_millis(250));
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let _ = dripping.join();
+    eprintln!(
+        "kb edit under load: slowest page {worst:?}, peak RSS {} KiB",
+        peak / 1024
+    );
+    assert!(worst < Duration::from_secs(2), "slowest page {worst:?}");
+    assert!(peak < 200 << 20, "peak RSS {peak} bytes");
+    // Every idle connection has been answered and closed by now (503 over the cap, 408 past
+    // the head timeout): none is held open.
+    for (i, mut c) in idle.into_iter().enumerate() {
+        c.set_read_timeout(Some(Duration::from_secs(1))).unwrap();
+        let mut out = Vec::new();
+        let closed = match c.read_to_end(&mut out) {
+            Ok(_) => true,
+            Err(e) => e.kind() == std::io::ErrorKind::ConnectionReset,
+        };
+        assert!(closed, "idle connection {i} still open after 8 s");
+        let head = String::from_utf8_lossy(&out);
+        assert!(
+            out.is_empty() || head.starts_with("HTTP/1.1 408") || head.starts_with("HTTP/1.1 503"),
+            "idle connection {i}: {head}"
+        );
+    }
+    assert!(s.child.try_wait().unwrap().is_none(), "the editor ended");
+    assert_eq!(std::fs::read_to_string(&kb).unwrap(), SMALL_KB);
+}
+
+/// A KB swapped for a symlink to a file outside its folder while it is edited (the outside
+/// file a copy, so that it looks unchanged): the save is refused naming the KB, the outside
+/// file and the symlink stay as they were, and nothing else is left in the folder.
+#[test]
+fn a_save_through_a_kb_swapped_for_a_symlink_is_refused() {
+    let (dir, kb) = small_kb();
+    let s = start(&kb, false);
+    let edit = json!({"op": "set_info", "zone": "earth", "values": [["nbfloor", "5"]]});
+    assert_eq!(s.post("/api/edit", &edit).0, 200);
+    let outside = dir.path().join("elsewhere.xml");
+    std::fs::write(&outside, SMALL_KB).unwrap();
+    std::fs::remove_file(&kb).unwrap();
+    std::os::unix::fs::symlink(&outside, &kb).unwrap();
+    let (status, answer) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 409, "{answer}");
+    let msg = answer["error"].as_str().unwrap_or_default();
+    assert!(
+        msg.contains(&kb.display().to_string()) && msg.contains("symlink"),
+        "{msg}"
+    );
+    assert_eq!(std::fs::read_to_string(&outside).unwrap(), SMALL_KB);
+    assert!(std::fs::symlink_metadata(&kb)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let names: Vec<_> = std::fs::read_dir(kb.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["kb.xml"], "no temporary left");
+    // Its folder swapped for a symlink to another folder holding a copy: refused too.
+    std::fs::remove_file(&kb).unwrap();
+    std::fs::write(&kb, SMALL_KB).unwrap();
+    let folder = kb.parent().unwrap();
+    let moved = dir.path().join("moved");
+    std::fs::rename(folder, &moved).unwrap();
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("kb.xml"), SMALL_KB).unwrap();
+    std::os::unix::fs::symlink(&other, folder).unwrap();
+    let (status, answer) = s.post("/api/save", &json!({}));
+    assert_eq!(status, 409, "{answer}");
+    assert_eq!(
+        std::fs::read_to_string(other.join("kb.xml")).unwrap(),
+        SMALL_KB
+    );
+    assert_eq!(
+        std::fs::read_to_string(moved.join("kb.xml")).unwrap(),
+        SMALL_KB
+    );
 }
