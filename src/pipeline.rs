@@ -339,6 +339,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let start = Instant::now();
     let (targets, shard) = checked_targets(opts)?;
     let previous = previous_run(opts, &targets)?;
+    if let Some(prev) = &previous {
+        // No output on a file the run reads from yesterday's folder (its manifests, its
+        // tiles); the outputs were checked against each other and the rest above.
+        outputs::check(&targets.flagged(), &prev.read_files(), true)?;
+    }
     let mut run = RunState::prepare(opts, targets, shard)?;
     run.select();
     // A tiled run's content keys; with --previous, what changed and the tiles reused (copied
@@ -367,6 +372,7 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
     };
     inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
     inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
+    inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
     let targets = Targets {
         ifc: opts.ifc.clone(),
         citygml: opts.citygml.clone(),
