@@ -579,7 +579,8 @@ impl Previous {
         }
         if why.is_empty() {
             why.push(
-                "citygen's output format, the input's name or the output files' names differ"
+                "citygen's output format, the input's name, the output files' names, or how \
+                 the citygen that wrote the previous run keyed it"
                     .into(),
             );
         }

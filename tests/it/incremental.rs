@@ -1001,3 +1001,42 @@ fn dated_report_names_reuse_every_unchanged_tile_and_a_tile_not_reused_says_why(
         tiles
     );
 }
+
+#[test]
+fn an_update_in_place_of_two_shards_by_one_run_leaves_one_manifest() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let d1 = t.join("day1/town.osm.pbf");
+    write_pbf(&d1, &town(4));
+    let (place, full) = (t.join("place"), t.join("full"));
+    run(&d1, &place, "2", "50", &["--shard", "0/2"]);
+    run(&d1, &place, "2", "50", &["--shard", "1/2"]);
+    run(&d1, &full, "2", "50", &[]);
+    run(
+        &d1,
+        &place,
+        "2",
+        "50",
+        &["--previous", place.to_str().unwrap()],
+    );
+    // The shards' reports (`report_shard-I-of-N.json`) stay: reports are the operator's
+    // (dated ones are kept on purpose); no manifest lists them.
+    let all = |d: &Path| common::files_under(d, |n| !n.starts_with("report_shard-"));
+    assert_eq!(
+        all(&full).keys().collect::<Vec<_>>(),
+        all(&place).keys().collect::<Vec<_>>(),
+        "the shards' manifests are gone"
+    );
+    let tiles = |d: &Path| {
+        let mut f = files(d);
+        f.retain(|n, _| !n.starts_with("report_shard-"));
+        f
+    };
+    assert!(tiles(&full) == tiles(&place), "the same bytes");
+    let c = changes(&place);
+    assert_eq!(
+        c["tiles_reused"].as_u64(),
+        Some(suffixes(&place).len() as u64),
+        "{c}"
+    );
+}
