@@ -363,16 +363,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
 /// The run's targets as its options name them, checked against each other and the inputs
 /// ([`outputs::check`]) before any work, and its shard ([`plan::shard_targets`]).
 fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), RunError> {
-    let mut inputs = match &opts.source {
-        Source::Osm(p) => vec![("--osm", p.clone())],
-        Source::Shp { path, .. } => outputs::shapefile_parts(path)
-            .into_iter()
-            .map(|p| ("--shp", p))
-            .collect(),
-    };
-    inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
-    inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
-    inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
+    let inputs = run_inputs(opts);
     let targets = Targets {
         ifc: opts.ifc.clone(),
         citygml: opts.citygml.clone(),
@@ -388,6 +379,22 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
     };
     outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
     shard_targets(opts, targets)
+}
+
+/// The files the run reads as its options name them, each with its flag: the source (a
+/// shapefile's parts), `--kb`, `--rules` and `--osc`.
+fn run_inputs(opts: &Options) -> Vec<(&'static str, PathBuf)> {
+    let mut inputs = match &opts.source {
+        Source::Osm(p) => vec![("--osm", p.clone())],
+        Source::Shp { path, .. } => outputs::shapefile_parts(path)
+            .into_iter()
+            .map(|p| ("--shp", p))
+            .collect(),
+    };
+    inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
+    inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
+    inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
+    inputs
 }
 
 /// Yesterday's run (`--previous`), loaded, or the usage error of asking for it where it

@@ -823,6 +823,17 @@ fn hash_reader(
     Ok((n, crate::fsio::hex(&h.finalize())))
 }
 
+/// Whether the file `rel` of the previous run's `folder` is still what its manifest lists
+/// (`bytes`, `sha256`): a regular file inside the folder ([`open_previous_file`]) with that
+/// size and SHA-256. An update in place removes only such files, never one put there since.
+pub(crate) fn still_listed(folder: &Path, rel: &str, bytes: u64, sha256: &str) -> bool {
+    let Ok((mut f, meta)) = open_previous_file(folder, rel) else {
+        return false;
+    };
+    meta.len() == bytes
+        && hash_reader(&mut f, |_| Ok(())).is_ok_and(|(n, got)| n == bytes && got == sha256)
+}
+
 /// `Err` unless `n` bytes of SHA-256 `got` (read from `src`) are the `bytes` and `sha256` its
 /// manifest lists.
 fn matches(src: &Path, n: u64, got: &str, bytes: u64, sha256: &str) -> Result<(), PreviousError> {

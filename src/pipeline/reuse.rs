@@ -109,7 +109,11 @@ pub(super) fn key_lots(
         changes.tiles_not_reused = why;
         keyed.changes = Some(changes);
         keyed.reused = reused;
-        keyed.stale = stale_files(prev, g, &run.targets, &dir);
+        let inputs: Vec<PathBuf> = super::run_inputs(opts)
+            .into_iter()
+            .map(|(_, p)| super::outputs::resolve(&p))
+            .collect();
+        keyed.stale = stale_files(prev, g, (&run.targets, &inputs), &dir);
     }
     Ok((keyed, Some(rk)))
 }
@@ -202,12 +206,13 @@ fn reuse_tile(
 /// In an update in place (a folder of `prev`'s manifests is this run's manifest folder
 /// `dir`): the files its manifests there list that no tile of this run's `grid` (every
 /// shard's) writes with these `targets`, and its manifests of another shard count than this
-/// run's. Only plain relative paths ([`incremental::plain_relative`]) are listed; empty for
-/// another folder.
+/// run's. Only files still as listed ([`incremental::still_listed`]: regular, inside the
+/// folder, same size and SHA-256) and none of the run's `inputs` (resolved paths) are
+/// listed; empty for another folder.
 fn stale_files(
     prev: &incremental::Previous,
     grid: &GridPlan,
-    targets: &Targets,
+    (targets, inputs): (&Targets, &[PathBuf]),
     dir: &Path,
 ) -> Vec<PathBuf> {
     let here = super::outputs::resolve(dir);
@@ -223,9 +228,13 @@ fn stale_files(
         .tiles
         .values()
         .filter(|(folder, _)| in_place(folder))
-        .flat_map(|(_, t)| &t.files)
-        .filter(|f| !written.contains(&f.path) && incremental::plain_relative(&f.path).is_ok())
-        .map(|f| dir.join(&f.path))
+        .flat_map(|(folder, t)| t.files.iter().map(move |f| (folder, f)))
+        .filter(|(folder, f)| {
+            !written.contains(&f.path)
+                && incremental::still_listed(folder, &f.path, f.bytes, &f.sha256)
+        })
+        .map(|(_, f)| dir.join(&f.path))
+        .filter(|p| !inputs.contains(&super::outputs::resolve(p)))
         .collect();
     // This run's shard count, from its manifest's name `citygen-manifest.I-of-N.json`.
     let count = targets
@@ -242,7 +251,8 @@ fn stale_files(
             (Some(c), Some(n)) => !n.ends_with(&format!("-of-{c}")),
             _ => false,
         };
-        if other_count && in_place(folder) {
+        let regular = std::fs::symlink_metadata(&m.path).is_ok_and(|m| m.is_file());
+        if other_count && regular && in_place(folder) {
             if let Some(n) = name {
                 stale.insert(dir.join(n));
             }
