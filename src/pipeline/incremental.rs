@@ -906,3 +906,43 @@ pub(crate) fn copy_checked(
     drop(w);
     out.close().map(Some).map_err(io(dst))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_regular_files_inside_the_folder_are_opened() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (dir, out) = (tmp.path().join("prev"), tmp.path().join("outside"));
+        std::fs::create_dir_all(dir.join("3d/content")).unwrap();
+        std::fs::create_dir_all(&out).unwrap();
+        std::fs::write(dir.join("3d/content/a.glb"), b"tile").unwrap();
+        std::fs::write(out.join("b.glb"), b"secret").unwrap();
+        std::os::unix::fs::symlink(out.join("b.glb"), dir.join("link.glb")).unwrap();
+        std::os::unix::fs::symlink(&out, dir.join("3d/away")).unwrap();
+        let fifo = std::process::Command::new("mkfifo")
+            .arg(dir.join("pipe.glb"))
+            .status()
+            .unwrap();
+        assert!(fifo.success());
+        let (mut f, meta) = open_previous_file(&dir, "3d/content/a.glb").unwrap();
+        assert_eq!(meta.len(), 4);
+        assert_eq!(hash_reader(&mut f, |_| Ok(())).unwrap().0, 4);
+        let err = |rel: &str| open_previous_file(&dir, rel).unwrap_err().to_string();
+        assert!(
+            err("link.glb").contains("symbolic link"),
+            "{}",
+            err("link.glb")
+        );
+        assert!(err("3d/away/b.glb").contains("symbolic link on the way"));
+        assert!(err("pipe.glb").contains("named pipe"));
+        assert!(err("3d/content").contains("a folder"));
+        assert!(err("../outside/b.glb").contains("outside the --previous folder"));
+        assert!(err("3d/./content/a.glb").contains("outside"));
+        assert!(err(&out.join("b.glb").display().to_string()).contains("absolute"));
+        assert!(err("gone.glb").contains("tile file missing"));
+        // The error names the path as the folder was given.
+        assert!(err("pipe.glb").starts_with(&dir.join("pipe.glb").display().to_string()));
+    }
+}
