@@ -339,6 +339,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     let start = Instant::now();
     let (targets, shard) = checked_targets(opts)?;
     let previous = previous_run(opts, &targets)?;
+    if let Some(prev) = &previous {
+        // No output on a file the run reads from yesterday's folder (its manifests, its
+        // tiles); the outputs were checked against each other and the rest above.
+        outputs::check(&targets.flagged(), &prev.read_files(), true)?;
+    }
     let mut run = RunState::prepare(opts, targets, shard)?;
     check_kb_files(&run)?;
     run.select();
@@ -359,16 +364,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
 /// The run's targets as its options name them, checked against each other and the inputs
 /// ([`outputs::check`]) before any work, and its shard ([`plan::shard_targets`]).
 fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), RunError> {
-    let mut inputs = match &opts.source {
-        Source::Osm(p) => vec![("--osm", p.clone())],
-        Source::Shp { path, .. } => outputs::shapefile_parts(path)
-            .into_iter()
-            .map(|p| ("--shp", p))
-            .collect(),
-    };
-    inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
-    inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
-    inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
+    let inputs = run_inputs(opts);
     let targets = Targets {
         ifc: opts.ifc.clone(),
         citygml: opts.citygml.clone(),
@@ -404,6 +400,22 @@ fn check_kb_files(run: &RunState<'_>) -> Result<(), RunError> {
         return Ok(());
     }
     outputs::check(&run.targets.flagged(), &inputs, run.opts.force_extension)
+}
+
+/// The files the run reads as its options name them, each with its flag: the source (a
+/// shapefile's parts), `--kb`, `--rules` and `--osc`.
+fn run_inputs(opts: &Options) -> Vec<(&'static str, PathBuf)> {
+    let mut inputs = match &opts.source {
+        Source::Osm(p) => vec![("--osm", p.clone())],
+        Source::Shp { path, .. } => outputs::shapefile_parts(path)
+            .into_iter()
+            .map(|p| ("--shp", p))
+            .collect(),
+    };
+    inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
+    inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
+    inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
+    inputs
 }
 
 /// Yesterday's run (`--previous`), loaded, or the usage error of asking for it where it

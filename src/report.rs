@@ -118,6 +118,11 @@ pub struct Changes {
     pub tiles_rewritten: Vec<String>,
     /// Tiles of the previous run that this run no longer has, by suffix.
     pub tiles_removed: Vec<String>,
+    /// Why each tile derived again was not reused, by suffix: a new tile, its buildings
+    /// (added, removed, edited, affected), the run's context, or a previous file missing, not a
+    /// regular file inside the folder, or not what its manifest lists.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub tiles_not_reused: std::collections::BTreeMap<String, String>,
 }
 
 impl Report {

@@ -10,8 +10,9 @@
 //! - **key** (`full_keys`): what decides the lot's bytes in the outputs: the run's context
 //!   (`context_key`: citygen's version and `OUTPUT_FORMAT`, the input's name, the SHA-256
 //!   of the knowledge base, of the rulesets and SELEX programs it names and of `--rules`,
-//!   seed, LOD, output CRS and origin, tile size, the options and outputs), the own key, the tags as derived (after `--infer` lent it its neighbours'
-//!   values), its front (from the nearest street), the zone an admin boundary of the input
+//!   seed, LOD, output CRS and origin, tile size, the options and the model and 3D Tiles
+//!   outputs: not the report's or the preview's path, which decide no tile's bytes), the own
+//!   key, the tags as derived (after `--infer` lent it its neighbours' values), its front (from the nearest street), the zone an admin boundary of the input
 //!   gave it (where one did: `kb::BoundaryZones`), and at LOD3 and LOD4 the keys of the lots
 //!   within `NEIGHBOUR_MARGIN_M` of it (party walls and what stands in front of a bay are
 //!   read from them). A building's random stream is seeded from the run's seed and its own id
@@ -19,15 +20,17 @@
 //!
 //! With `--previous DIR` (yesterday's tiled output, its manifests in DIR: one run's, or the
 //! shards' of a merged run), a tile whose lots and keys are those of a tile of DIR, in the same
-//! order, has the same bytes: its files are copied from DIR (each checked against the size
-//! and SHA-256 the manifest recorded; a file that fails is a tile derived again), its report
+//! order, has the same bytes: its files are copied from DIR (each opened only where it is a
+//! regular file inside DIR, `open_previous_file`, and checked against the size and SHA-256
+//! the manifest recorded; a file that fails is a tile derived again, the report's
+//! `tiles_not_reused` saying why), its report
 //! entries and manifest record taken over, and it is not derived. Every other tile is derived
 //! and written as usual (with `--link-previous`, [`Previous::link`], a reused file is
 //! hard-linked after its check instead of copied). [`changes`] compares the two runs' lots: added, removed, changed (own
 //! key), affected (same own key, another key), with the tiles reused, rewritten and gone.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::io::{Read, Write};
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
@@ -288,6 +291,21 @@ pub struct Previous {
     /// Reused files are hard-linked rather than copied (`--link-previous`), where the two
     /// folders are on one file system.
     pub link: bool,
+    /// The manifests read, in name order.
+    pub(crate) manifests: Vec<PreviousManifest>,
+}
+
+/// What a previous manifest says of its run: enough to say why its tiles are not reused.
+#[derive(Debug)]
+pub(crate) struct PreviousManifest {
+    /// The manifest's path (in the `--previous` folder as given).
+    pub(crate) path: PathBuf,
+    /// Its run's context key, hex (empty in manifests older than context keys).
+    pub(crate) context: String,
+    /// Its run's key.
+    pub(crate) run: shard::RunKey,
+    /// The citygen that wrote it.
+    pub(crate) citygen: String,
 }
 
 /// Why the previous run's manifests cannot be used, or a file of it cannot be reused.
@@ -354,6 +372,28 @@ pub(crate) enum PreviousError {
         /// The tile's suffix.
         tile: String,
     },
+    /// A file of the previous run that is not a regular file: never opened, never followed.
+    #[error("{}: not a regular file ({kind}): citygen reads only regular files inside --previous", .path.display())]
+    NotRegular {
+        /// The file.
+        path: PathBuf,
+        /// What it is (a symbolic link, a named pipe...).
+        kind: &'static str,
+    },
+    /// A path a manifest lists that would leave the `--previous` folder.
+    #[error("{}: outside the --previous folder ({why})", .path.display())]
+    Outside {
+        /// The path.
+        path: PathBuf,
+        /// Why (`..`, absolute, a symbolic link on the way).
+        why: &'static str,
+    },
+    /// A file the manifest lists that is not there.
+    #[error("{}: tile file missing", .path.display())]
+    Missing {
+        /// The file.
+        path: PathBuf,
+    },
     /// A file that is not the one its manifest lists (its SHA-256s are shown by their first 12
     /// digits).
     #[error(
@@ -402,7 +442,10 @@ pub(crate) fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
         ..Default::default()
     };
     for p in names {
-        let text = std::fs::read_to_string(&p).map_err(io(&p))?;
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+        let (mut file, _) = open_previous_file(dir, name.as_deref().unwrap_or_default())?;
+        let mut text = String::new();
+        file.read_to_string(&mut text).map_err(io(&p))?;
         let m: Manifest =
             serde_json::from_str(&text).map_err(|source| PreviousError::NotAManifest {
                 path: p.clone(),
@@ -419,6 +462,12 @@ pub(crate) fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
             .filter(|d| !d.as_os_str().is_empty())
             .unwrap_or(Path::new("."))
             .to_path_buf();
+        prev.manifests.push(PreviousManifest {
+            path: p.clone(),
+            context: m.context.clone(),
+            run: m.run.clone(),
+            citygen: m.citygen.clone(),
+        });
         for t in m.tiles {
             if let Some((other, _)) = prev.tiles.get(&t.suffix) {
                 if other == &folder {
@@ -437,18 +486,105 @@ pub(crate) fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
 impl Previous {
     /// The previous record of tile `suffix` when its lots and keys are `lots`, in order, and it
     /// wrote the files `files` (paths relative to the manifest's folder), with the folder its
-    /// paths are relative to.
+    /// paths are relative to; else why not (`context_changed`: the run's context differs from
+    /// the previous run's, [`Previous::context_change`]).
     pub(crate) fn reusable(
         &self,
         suffix: &str,
         lots: &[LotKey],
         files: &BTreeSet<String>,
-    ) -> Option<&(PathBuf, TileRecord)> {
-        let found = self.tiles.get(suffix)?;
+        context_changed: bool,
+    ) -> Result<&(PathBuf, TileRecord), String> {
+        let Some(found) = self.tiles.get(suffix) else {
+            return Err("a new tile (not in the previous run)".into());
+        };
         let t = &found.1;
+        if lots.is_empty() {
+            return Err("no building".into());
+        }
+        if t.lots != lots {
+            return Err(lots_differ(&t.lots, lots, context_changed));
+        }
         let same_files =
             t.files.len() == files.len() && t.files.iter().all(|f| files.contains(&f.path));
-        (!lots.is_empty() && t.lots == lots && same_files).then_some(found)
+        if !same_files {
+            return Err("the previous run wrote other files for it (other outputs)".into());
+        }
+        Ok(found)
+    }
+
+    /// The files the run reads from the previous folder, with the flag `--previous`: its
+    /// manifests and the files they list (for [`super::outputs::check`]: no output may be
+    /// one of them).
+    pub(crate) fn read_files(&self) -> Vec<(&'static str, PathBuf)> {
+        let manifests = self.manifests.iter().map(|m| m.path.clone());
+        let files = self
+            .tiles
+            .values()
+            .flat_map(|(folder, t)| t.files.iter().map(|f| folder.join(&f.path)));
+        manifests.chain(files).map(|p| ("--previous", p)).collect()
+    }
+
+    /// Why the run's `context` key (hex) and `run` key are not those of the previous run,
+    /// naming what differs (`None` when every manifest has this context).
+    pub(crate) fn context_change(&self, context: &str, run: &shard::RunKey) -> Option<String> {
+        let m = self.manifests.iter().find(|m| m.context != context)?;
+        if m.context.is_empty() {
+            return Some(format!(
+                "{}: the previous run records no context key (an older citygen)",
+                m.path.display()
+            ));
+        }
+        let sha = |f: &Option<shard::FileKey>| f.as_ref().map(|k| k.sha256.clone());
+        let mut why: Vec<String> = Vec::new();
+        if m.citygen != env!("CARGO_PKG_VERSION") {
+            why.push(format!(
+                "citygen {} then, {} now",
+                m.citygen,
+                env!("CARGO_PKG_VERSION")
+            ));
+        }
+        let (a, b) = (&m.run, run);
+        let checks: [(bool, &str); 7] = [
+            (
+                sha(&a.kb) != sha(&b.kb),
+                "the knowledge base's SHA-256 differs",
+            ),
+            (
+                a.kb_files != b.kb_files,
+                "a ruleset or SELEX program the knowledge base names differs",
+            ),
+            (sha(&a.rules) != sha(&b.rules), "--rules' SHA-256 differs"),
+            (a.seed != b.seed, "another --seed"),
+            (a.lod != b.lod, "another --lod"),
+            (
+                a.crs != b.crs || a.origin != b.origin,
+                "another output CRS or local origin",
+            ),
+            (a.tile_size != b.tile_size, "another --tile size"),
+        ];
+        why.extend(checks.iter().filter(|c| c.0).map(|c| c.1.to_string()));
+        if a.options != b.options {
+            why.push(format!(
+                "other options ({} then, {} now)",
+                a.options, b.options
+            ));
+        }
+        if a.outputs != b.outputs {
+            why.push(format!(
+                "other outputs ({} then, {} now)",
+                a.outputs.join(" "),
+                b.outputs.join(" ")
+            ));
+        }
+        if why.is_empty() {
+            why.push(
+                "citygen's output format, the input's name, the output files' names, or how \
+                 the citygen that wrote the previous run keyed it"
+                    .into(),
+            );
+        }
+        Some(format!("context changed: {}", why.join("; ")))
     }
 
     /// Every lot of the previous run: id to (own, key).
@@ -486,6 +622,218 @@ pub fn changes(prev: &Previous, lots: &BTreeMap<String, (String, String)>) -> Ch
     c
 }
 
+/// Why a tile whose lots were `before` is not reused now that they are `now`: the buildings
+/// added, removed, edited and affected, counted.
+fn lots_differ(before: &[LotKey], now: &[LotKey], context_changed: bool) -> String {
+    let old: HashMap<&str, &LotKey> = before.iter().map(|l| (l.id.as_str(), l)).collect();
+    let ids: BTreeSet<&str> = now.iter().map(|l| l.id.as_str()).collect();
+    let (mut added, mut edited, mut affected) = (0, 0, 0);
+    for l in now {
+        match old.get(l.id.as_str()) {
+            None => added += 1,
+            Some(o) if o.own != l.own => edited += 1,
+            Some(o) if o.key != l.key => affected += 1,
+            Some(_) => {}
+        }
+    }
+    let removed = before
+        .iter()
+        .filter(|l| !ids.contains(l.id.as_str()))
+        .count();
+    let mut parts: Vec<String> = [(added, "added"), (removed, "removed"), (edited, "edited")]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} building(s) {what}"))
+        .collect();
+    if affected > 0 {
+        parts.push(if context_changed {
+            format!("{affected} building(s) affected: the run's context changed (see not_reused)")
+        } else {
+            format!(
+                "{affected} building(s) affected (a neighbour, a street, an inferred value or a \
+                 boundary's zone changed)"
+            )
+        });
+    }
+    if parts.is_empty() {
+        parts.push("its buildings are in another order".into());
+    }
+    parts.join(", ")
+}
+
+/// What a file that is not a regular one is, in words.
+fn kind_of(ft: std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if ft.is_fifo() {
+            return "a named pipe";
+        }
+        if ft.is_socket() {
+            return "a socket";
+        }
+        if ft.is_block_device() || ft.is_char_device() {
+            return "a device";
+        }
+    }
+    if ft.is_symlink() {
+        "a symbolic link"
+    } else if ft.is_dir() {
+        "a folder"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Whether two metadata are of one file (device and inode; on other systems, true).
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        a.dev() == b.dev() && a.ino() == b.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (a, b);
+        true
+    }
+}
+
+/// Opens `path` for reading without following a symbolic link at its end and without
+/// blocking on a named pipe (`O_NOFOLLOW | O_NONBLOCK` on Unix).
+fn open_nofollow(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut o = std::fs::OpenOptions::new();
+    o.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        o.custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK);
+    }
+    o.open(path)
+}
+
+/// The path `rel` (`/`-separated, as a manifest lists it) below `folder` when it is a plain
+/// relative path, each component inside the folder: no `..`, `.`, empty component or absolute
+/// path; else why not.
+pub(crate) fn plain_relative(rel: &str) -> Result<Vec<&str>, &'static str> {
+    if rel.starts_with('/') || Path::new(rel).is_absolute() {
+        return Err("an absolute path");
+    }
+    let parts: Vec<&str> = rel.split('/').collect();
+    if parts
+        .iter()
+        .any(|c| c.is_empty() || *c == "." || *c == "..")
+    {
+        return Err("a path with `..`, `.` or an empty component");
+    }
+    Ok(parts)
+}
+
+/// Opens the file `rel` (a manifest's `/`-separated path) of the previous run's `folder` for
+/// reading, only where it is a regular file inside the folder: a plain relative path
+/// ([`plain_relative`]), no symbolic link on the way or at the end (every component's
+/// `symlink_metadata`, the last opened with `O_NOFOLLOW | O_NONBLOCK`), the opened file the
+/// regular file found, and its canonical path inside the folder's at the moment of use. A
+/// named pipe or a device is never opened, so it cannot hang the run. The nightly's own
+/// containment check (merge has its own; to be unified).
+pub(crate) fn open_previous_file(
+    folder: &Path,
+    rel: &str,
+) -> Result<(std::fs::File, std::fs::Metadata), PreviousError> {
+    let path = folder.join(rel);
+    let parts = plain_relative(rel).map_err(|why| PreviousError::Outside {
+        path: path.clone(),
+        why,
+    })?;
+    let mut cur = folder.to_path_buf();
+    let mut found = None;
+    for (i, c) in parts.iter().enumerate() {
+        cur.push(c);
+        let meta = match std::fs::symlink_metadata(&cur) {
+            Ok(m) => m,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(PreviousError::Missing { path })
+            }
+            Err(source) => return Err(PreviousError::Io { path: cur, source }),
+        };
+        let (ft, last) = (meta.file_type(), i + 1 == parts.len());
+        if !last && ft.is_symlink() {
+            return Err(PreviousError::Outside {
+                path,
+                why: "a symbolic link on the way",
+            });
+        }
+        if (!last && !ft.is_dir()) || (last && !ft.is_file()) {
+            return Err(PreviousError::NotRegular {
+                path: if last { path } else { cur },
+                kind: kind_of(ft),
+            });
+        }
+        found = Some(meta);
+    }
+    let file = open_nofollow(&path).map_err(|source| match source.raw_os_error() {
+        #[cfg(unix)]
+        Some(libc::ELOOP) => PreviousError::NotRegular {
+            path: path.clone(),
+            kind: "a symbolic link",
+        },
+        _ => PreviousError::Io {
+            path: path.clone(),
+            source,
+        },
+    })?;
+    let meta = file.metadata().map_err(io(&path))?;
+    if !meta.is_file() || !found.is_some_and(|f| same_file(&f, &meta)) {
+        return Err(PreviousError::NotRegular {
+            path,
+            kind: "replaced while it was opened",
+        });
+    }
+    let inside = match (std::fs::canonicalize(&path), std::fs::canonicalize(folder)) {
+        (Ok(p), Ok(f)) => p.starts_with(f),
+        _ => false,
+    };
+    if !inside {
+        return Err(PreviousError::Outside {
+            path,
+            why: "its canonical path leaves the folder",
+        });
+    }
+    Ok((file, meta))
+}
+
+/// The size and SHA-256 (hex) of what is left to read of `f`, read in 1 MiB blocks, each
+/// also handed to `each` (to copy it).
+fn hash_reader(
+    f: &mut std::fs::File,
+    mut each: impl FnMut(&[u8]) -> std::io::Result<()>,
+) -> std::io::Result<(u64, String)> {
+    let mut h = Sha256::new();
+    let mut n = 0u64;
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let k = f.read(&mut buf)?;
+        if k == 0 {
+            break;
+        }
+        h.update(&buf[..k]);
+        n += k as u64;
+        each(&buf[..k])?;
+    }
+    Ok((n, crate::fsio::hex(&h.finalize())))
+}
+
+/// Whether the file `rel` of the previous run's `folder` is still what its manifest lists
+/// (`bytes`, `sha256`): a regular file inside the folder ([`open_previous_file`]) with that
+/// size and SHA-256. An update in place removes only such files, never one put there since.
+pub(crate) fn still_listed(folder: &Path, rel: &str, bytes: u64, sha256: &str) -> bool {
+    let Ok((mut f, meta)) = open_previous_file(folder, rel) else {
+        return false;
+    };
+    meta.len() == bytes
+        && hash_reader(&mut f, |_| Ok(())).is_ok_and(|(n, got)| n == bytes && got == sha256)
+}
+
 /// `Err` unless `n` bytes of SHA-256 `got` (read from `src`) are the `bytes` and `sha256` its
 /// manifest lists.
 fn matches(src: &Path, n: u64, got: &str, bytes: u64, sha256: &str) -> Result<(), PreviousError> {
@@ -509,67 +857,92 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PreviousError + '_ {
     }
 }
 
-/// Reads `src` through and checks its size and SHA-256 ([`matches`]).
-fn check_file(src: &Path, bytes: u64, sha256: &str) -> Result<(), PreviousError> {
-    let (n, got) = crate::fsio::file_sha256(src).map_err(io(src))?;
-    matches(src, n, &got, bytes, sha256)
-}
-
-/// Copies `src` to a temporary beside `dst`, checking that it has `bytes` bytes and SHA-256
-/// `sha256`; returns the closed temporary, to be renamed over `dst` with the run's other
-/// files. `Ok(None)` when `src` is `dst` itself (a run updating its own folder) and checks
-/// out. `Err` says what did not match. With `link`, `src` is checked, then hard-linked
-/// (copied when it cannot be: another file system, or a system without links).
+/// Checks the file `rel` of the previous run's `folder` (opened only where it is a regular file
+/// inside it, [`open_previous_file`]) against its manifest's `bytes` and `sha256` and brings it
+/// to `dst`: copied to a temporary beside `dst` (returned closed, to be renamed over `dst` with
+/// the run's other files), or with `link` hard-linked there (copied when it cannot be: another
+/// file system, or a system without links). `Ok(None)` when `dst` is that file itself (a run
+/// updating its own folder) and it checks out. `Err` says why it is not reused.
 pub(crate) fn copy_checked(
-    src: &Path,
+    folder: &Path,
+    rel: &str,
     dst: &Path,
-    bytes: u64,
-    sha256: &str,
+    (bytes, sha256): (u64, &str),
     link: bool,
 ) -> Result<Option<crate::fsio::PendingFile>, PreviousError> {
-    let same = match (
-        std::fs::canonicalize(src),
-        dst.parent().map(std::fs::canonicalize),
-    ) {
-        (Ok(s), Some(Ok(d))) => dst.file_name().is_some_and(|n| s == d.join(n)),
-        _ => false,
-    };
-    if link && !same {
-        check_file(src, bytes, sha256)?;
-        if let Ok(p) = crate::fsio::PendingFile::link(src, dst) {
-            return Ok(Some(p));
+    let src = folder.join(rel);
+    let (mut input, meta) = open_previous_file(folder, rel)?;
+    let same = std::fs::symlink_metadata(dst).is_ok_and(|d| same_file(&d, &meta));
+    if same || link {
+        let (n, got) = hash_reader(&mut input, |_| Ok(())).map_err(io(&src))?;
+        matches(&src, n, &got, bytes, sha256)?;
+        if same {
+            return Ok(None);
         }
-    }
-    let mut input = std::fs::File::open(src).map_err(io(src))?;
-    let mut out = if same {
-        None
-    } else {
-        Some(crate::fsio::AtomicFile::create(dst).map_err(io(dst))?)
-    };
-    let mut writer = match &out {
-        Some(f) => Some(f.writer().map_err(io(dst))?),
-        None => None,
-    };
-    let mut h = Sha256::new();
-    let mut n = 0u64;
-    let mut buf = vec![0u8; 1 << 20];
-    loop {
-        let k = input.read(&mut buf).map_err(io(src))?;
-        if k == 0 {
-            break;
+        if let Ok(p) = crate::fsio::PendingFile::link(&src, dst) {
+            // The link is of the file checked (not of what a swapped path names now).
+            let linked = std::fs::symlink_metadata(p.temporary())
+                .is_ok_and(|m| m.is_file() && same_file(&m, &meta));
+            if linked {
+                return Ok(Some(p));
+            }
         }
-        h.update(&buf[..k]);
-        n += k as u64;
-        if let Some(w) = writer.as_mut() {
-            w.write_all(&buf[..k]).map_err(io(dst))?;
-        }
+        input.seek(SeekFrom::Start(0)).map_err(io(&src))?;
     }
-    matches(src, n, &crate::fsio::hex(&h.finalize()), bytes, sha256)?;
-    if let Some(mut w) = writer {
-        w.flush().map_err(io(dst))?;
-    }
-    match out.take() {
-        Some(f) => f.close().map(Some).map_err(io(dst)),
-        None => Ok(None),
+    let out = crate::fsio::AtomicFile::create(dst).map_err(io(dst))?;
+    let mut w = out.writer().map_err(io(dst))?;
+    let mut failed_write = None;
+    let read = hash_reader(&mut input, |b| {
+        w.write_all(b)
+            .inspect_err(|e| failed_write = Some(e.kind()))
+    });
+    let (n, got) = match (read, failed_write) {
+        (Ok(r), _) => r,
+        (Err(e), Some(_)) => return Err(io(dst)(e)),
+        (Err(e), None) => return Err(io(&src)(e)),
+    };
+    matches(&src, n, &got, bytes, sha256)?;
+    w.flush().map_err(io(dst))?;
+    drop(w);
+    out.close().map(Some).map_err(io(dst))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_regular_files_inside_the_folder_are_opened() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (dir, out) = (tmp.path().join("prev"), tmp.path().join("outside"));
+        std::fs::create_dir_all(dir.join("3d/content")).unwrap();
+        std::fs::create_dir_all(&out).unwrap();
+        std::fs::write(dir.join("3d/content/a.glb"), b"tile").unwrap();
+        std::fs::write(out.join("b.glb"), b"secret").unwrap();
+        std::os::unix::fs::symlink(out.join("b.glb"), dir.join("link.glb")).unwrap();
+        std::os::unix::fs::symlink(&out, dir.join("3d/away")).unwrap();
+        let fifo = std::process::Command::new("mkfifo")
+            .arg(dir.join("pipe.glb"))
+            .status()
+            .unwrap();
+        assert!(fifo.success());
+        let (mut f, meta) = open_previous_file(&dir, "3d/content/a.glb").unwrap();
+        assert_eq!(meta.len(), 4);
+        assert_eq!(hash_reader(&mut f, |_| Ok(())).unwrap().0, 4);
+        let err = |rel: &str| open_previous_file(&dir, rel).unwrap_err().to_string();
+        assert!(
+            err("link.glb").contains("symbolic link"),
+            "{}",
+            err("link.glb")
+        );
+        assert!(err("3d/away/b.glb").contains("symbolic link on the way"));
+        assert!(err("pipe.glb").contains("named pipe"));
+        assert!(err("3d/content").contains("a folder"));
+        assert!(err("../outside/b.glb").contains("outside the --previous folder"));
+        assert!(err("3d/./content/a.glb").contains("outside"));
+        assert!(err(&out.join("b.glb").display().to_string()).contains("absolute"));
+        assert!(err("gone.glb").contains("tile file missing"));
+        // The error names the path as the folder was given.
+        assert!(err("pipe.glb").starts_with(&dir.join("pipe.glb").display().to_string()));
     }
 }

@@ -685,6 +685,11 @@ fn merged_report(shards: &[&Found]) -> Report {
             .collect();
         rewritten.sort_by_key(|s| order.get(s.as_str()).copied().unwrap_or(usize::MAX));
         c.tiles_rewritten = rewritten;
+        c.tiles_not_reused = shards
+            .iter()
+            .filter_map(|f| f.manifest.changes.as_ref())
+            .flat_map(|c| c.tiles_not_reused.clone())
+            .collect();
         c
     });
     report.skipped = report

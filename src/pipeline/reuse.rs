@@ -24,6 +24,11 @@ pub(super) struct Keyed {
     /// The tiles reused from `previous`, by suffix: their records and files, copied and
     /// checked.
     pub(super) reused: std::collections::BTreeMap<String, ReusedTile>,
+    /// In an update in place (`--previous` is the manifest's folder): the previous run's files
+    /// that no tile of this run (any shard's) writes, and its manifests of another shard
+    /// count, to remove once every new file is in place and before the manifest
+    /// ([`stale_files`]).
+    pub(super) stale: Vec<PathBuf>,
 }
 
 /// A tile reused from `--previous`: its record and its files (closed temporaries, to be
@@ -48,10 +53,13 @@ pub(super) fn key_lots(
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."))
         .to_path_buf();
+    // The outputs whose names decide the tiles' bytes and places: not the report's or the
+    // preview's (an operator's dated report names must not make every tile new).
     let mut outs: Vec<String> = run
         .targets
         .flagged()
         .into_iter()
+        .filter(|(flag, _)| !matches!(*flag, "--report" | "--preview"))
         .map(|(flag, p)| format!("{flag} {}", relative_to(&p, &dir)))
         .collect();
     outs.sort();
@@ -89,16 +97,23 @@ pub(super) fn key_lots(
             .filter(|s| !here.contains(s.as_str()))
             .cloned()
             .collect();
-        keyed.changes = Some(changes);
-        keyed.reused = plan_reuse(
+        changes.not_reused = prev.context_change(&keyed.context, &rk);
+        let (reused, why) = plan_reuse(
             prev,
             site,
-            g,
-            &run.selected,
+            (g, &run.selected),
             &keyed.keys,
             &run.targets,
-            &dir,
+            (&dir, changes.not_reused.is_some()),
         );
+        changes.tiles_not_reused = why;
+        keyed.changes = Some(changes);
+        keyed.reused = reused;
+        let inputs: Vec<PathBuf> = super::run_inputs(opts)
+            .into_iter()
+            .map(|(_, p)| super::outputs::resolve(&p))
+            .collect();
+        keyed.stale = stale_files(prev, g, (&run.targets, &inputs), &dir);
     }
     Ok((keyed, Some(rk)))
 }
@@ -106,16 +121,20 @@ pub(super) fn key_lots(
 /// The tiles of this shard that `prev` holds with the same lots, in the same order, with the
 /// same keys, and the same files: each one's files copied beside their targets (checked
 /// against the previous manifest's size and SHA-256; a tile whose file fails is left out, to
-/// be derived). `dir` is the manifest's folder. Tiles are copied in parallel.
+/// be derived); and why each other tile is not reused. `dir` is the manifest's folder;
+/// `context_changed` whether the run's context is not the previous run's. Tiles are copied in
+/// parallel.
 fn plan_reuse(
     prev: &incremental::Previous,
     site: &prepare::Site,
-    grid: &GridPlan,
-    selected: &[bool],
+    (grid, selected): (&GridPlan, &[bool]),
     keys: &std::collections::HashMap<SourceId, shard::LotKey>,
     targets: &Targets,
-    dir: &Path,
-) -> std::collections::BTreeMap<String, ReusedTile> {
+    (dir, context_changed): (&Path, bool),
+) -> (
+    std::collections::BTreeMap<String, ReusedTile>,
+    std::collections::BTreeMap<String, String>,
+) {
     // Each tile's lots in file order: input order within a tile (prepare::group_into_tiles).
     let mut lots: std::collections::BTreeMap<String, Vec<shard::LotKey>> = Default::default();
     for (lot, _) in site.lots.iter().zip(selected).filter(|(_, s)| **s) {
@@ -124,29 +143,43 @@ fn plan_reuse(
             .or_default()
             .push(k.clone());
     }
-    lots.into_par_iter()
-        .filter_map(|(suffix, lots)| {
+    let found: Vec<(String, Result<ReusedTile, String>)> = lots
+        .into_par_iter()
+        .map(|(suffix, lots)| {
             let tile = tile_targets(targets, Some(&suffix));
-            let found = reuse_tile(prev, dir, &suffix, &lots, &tile)?;
-            Some((suffix, found))
+            let found = reuse_tile(prev, (dir, context_changed), &suffix, &lots, &tile);
+            (suffix, found)
         })
-        .collect()
+        .collect();
+    let mut reused = std::collections::BTreeMap::new();
+    let mut why = std::collections::BTreeMap::new();
+    for (suffix, found) in found {
+        match found {
+            Ok(t) => {
+                reused.insert(suffix, t);
+            }
+            Err(reason) => {
+                why.insert(suffix, reason);
+            }
+        }
+    }
+    (reused, why)
 }
 
 /// The previous run's record of tile `suffix`, and its files copied (checked) to this run's
 /// `targets` for the tile, when the tile's lots and keys are `lots` (in order) and its files
-/// are those this tile writes ([`incremental::Previous::reusable`]); `None` to derive the tile
-/// (also when a previous file is not what its manifest lists). `dir` is this run's manifest's
-/// folder.
+/// are those this tile writes ([`incremental::Previous::reusable`]); else why the tile is
+/// derived (its lots, or a previous file missing, not a regular file inside the folder, or not
+/// what its manifest lists). `dir` is this run's manifest's folder.
 fn reuse_tile(
     prev: &incremental::Previous,
-    dir: &Path,
+    (dir, context_changed): (&Path, bool),
     suffix: &str,
     lots: &[shard::LotKey],
     targets: &Targets,
-) -> Option<ReusedTile> {
+) -> Result<ReusedTile, String> {
     if targets.dry_run {
-        return None;
+        return Err("a dry run".into());
     }
     let paths = tile_files(targets, suffix);
     let rel: std::collections::BTreeMap<String, PathBuf> = paths
@@ -154,18 +187,78 @@ fn reuse_tile(
         .map(|p| (relative_to(p, dir), p.clone()))
         .collect();
     let names = rel.keys().cloned().collect();
-    let (folder, record) = prev.reusable(suffix, lots, &names)?;
+    let (folder, record) = prev.reusable(suffix, lots, &names, context_changed)?;
     let mut files = Vec::with_capacity(record.files.len());
     for f in &record.files {
-        let dst = rel.get(&f.path)?;
-        let src = folder.join(&f.path);
-        // On a mismatch the temporaries made so far are dropped (removed).
-        let p = incremental::copy_checked(&src, dst, f.bytes, &f.sha256, prev.link).ok()?;
+        let dst = rel
+            .get(&f.path)
+            .ok_or_else(|| format!("{}: not a file of this run", f.path))?;
+        // On a failure the temporaries made so far are dropped (removed).
+        let p = incremental::copy_checked(folder, &f.path, dst, (f.bytes, &f.sha256), prev.link)
+            .map_err(|e| e.to_string())?;
         files.push((dst.clone(), p));
     }
     // Its paths (the 3D Tiles URIs too) are relative to the manifest's folder, and the same
     // here: the files land at the same places relative to this run's manifest.
-    Some((record.clone(), files))
+    Ok((record.clone(), files))
+}
+
+/// In an update in place (a folder of `prev`'s manifests is this run's manifest folder
+/// `dir`): the files its manifests there list that no tile of this run's `grid` (every
+/// shard's) writes with these `targets`, and its manifests of another shard count than this
+/// run's. Only files still as listed ([`incremental::still_listed`]: regular, inside the
+/// folder, same size and SHA-256) and none of the run's `inputs` (resolved paths) are
+/// listed; empty for another folder.
+fn stale_files(
+    prev: &incremental::Previous,
+    grid: &GridPlan,
+    (targets, inputs): (&Targets, &[PathBuf]),
+    dir: &Path,
+) -> Vec<PathBuf> {
+    let here = super::outputs::resolve(dir);
+    let in_place = |folder: &Path| super::outputs::resolve(folder) == here;
+    let written: std::collections::BTreeSet<String> = grid
+        .tiles
+        .iter()
+        .flat_map(|t| tile_files(&tile_targets(targets, Some(&t.suffix)), &t.suffix))
+        .chain(targets.flagged().into_iter().map(|(_, p)| p))
+        .map(|p| relative_to(&p, dir))
+        .collect();
+    let mut stale: std::collections::BTreeSet<PathBuf> = prev
+        .tiles
+        .values()
+        .filter(|(folder, _)| in_place(folder))
+        .flat_map(|(folder, t)| t.files.iter().map(move |f| (folder, f)))
+        .filter(|(folder, f)| {
+            !written.contains(&f.path)
+                && incremental::still_listed(folder, &f.path, f.bytes, &f.sha256)
+        })
+        .map(|(_, f)| dir.join(&f.path))
+        .filter(|p| !inputs.contains(&super::outputs::resolve(p)))
+        .collect();
+    // This run's shard count, from its manifest's name `citygen-manifest.I-of-N.json`.
+    let count = targets
+        .manifest
+        .as_ref()
+        .and_then(|m| m.file_name())
+        .and_then(|n| n.to_str())
+        .and_then(|n| n.rsplit_once("-of-"))
+        .map(|(_, n)| n.to_string());
+    for m in &prev.manifests {
+        let folder = m.path.parent().unwrap_or(Path::new("."));
+        let name = m.path.file_name().and_then(|n| n.to_str());
+        let other_count = match (&count, name) {
+            (Some(c), Some(n)) => !n.ends_with(&format!("-of-{c}")),
+            _ => false,
+        };
+        let regular = std::fs::symlink_metadata(&m.path).is_ok_and(|m| m.is_file());
+        if other_count && regular && in_place(folder) {
+            if let Some(n) = name {
+                stale.insert(dir.join(n));
+            }
+        }
+    }
+    stale.into_iter().collect()
 }
 
 /// Rebases the `uri`s of a manifest's 3D Tiles facts (`full`, `blocks`) from folder `from` to

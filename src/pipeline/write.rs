@@ -264,8 +264,10 @@ impl Batches<'_> {
             mut manifest,
             changes,
             written,
+            keyed,
             ..
         } = self;
+        let stale = keyed.stale;
         let total = site.lots.len();
         report.skipped = report
             .entries
@@ -348,6 +350,12 @@ impl Batches<'_> {
         if let Some((p, file)) = report_file {
             file.commit().map_err(io_err(p))?;
         }
+        // An update in place: the previous run's files that this run no longer has go before
+        // the manifest (a run killed here leaves the old manifest, whose missing files the
+        // next run derives again).
+        for p in &stale {
+            remove_stale(p, targets)?;
+        }
         // Last: a manifest on disk says that every file it lists is in place.
         if let Some((p, file)) = manifest_file {
             file.commit().map_err(io_err(p))?;
@@ -361,6 +369,33 @@ impl Batches<'_> {
             tiles: if tiled { batches.len() } else { 0 },
             warnings,
         })
+    }
+}
+
+/// Removes `path`, a previous run's file that an update in place no longer has, when it lies
+/// in the manifest's folder with no symbolic link on the way (a link at the end is removed
+/// itself, never what it names); a file already gone is fine.
+fn remove_stale(path: &Path, targets: &Targets) -> Result<(), RunError> {
+    let dir = targets
+        .manifest
+        .as_deref()
+        .and_then(Path::parent)
+        .unwrap_or(Path::new("."));
+    let Ok(rel) = path.strip_prefix(dir) else {
+        return Ok(());
+    };
+    let mut cur = dir.to_path_buf();
+    let parts: Vec<_> = rel.components().collect();
+    for c in &parts[..parts.len().saturating_sub(1)] {
+        cur.push(c);
+        match std::fs::symlink_metadata(&cur) {
+            Ok(m) if m.is_dir() => {}
+            _ => return Ok(()),
+        }
+    }
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(io_err(path)(e)),
+        _ => Ok(()),
     }
 }
 

@@ -85,6 +85,19 @@ fn run(input: &Path, out: &Path, lod: &str, tile: &str, extra: &[&str]) {
 
 /// [`run`] with knowledge base `kb`.
 fn run_kb(input: &Path, out: &Path, lod: &str, tile: &str, kb: &str, extra: &[&str]) {
+    let o = citygen_timed(&args(input, out, (lod, tile, kb), "report.json", extra));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The arguments of a run of `input` into folder `out` (CityJSONSeq, IFC, glTF, 3D Tiles, the
+/// report `report`) at (LOD, tile size, knowledge base), then `extra`.
+fn args(
+    input: &Path,
+    out: &Path,
+    (lod, tile, kb): (&str, &str, &str),
+    report: &str,
+    extra: &[&str],
+) -> Vec<String> {
     let p = |n: &str| out.join(n).display().to_string();
     let mut args: Vec<String> = [
         "--osm",
@@ -111,15 +124,51 @@ fn run_kb(input: &Path, out: &Path, lod: &str, tile: &str, kb: &str, extra: &[&s
             "--tiles3d",
             &p("3d"),
             "--report",
-            &p("report.json"),
+            &p(report),
         ]
         .iter()
         .map(|s| s.to_string()),
     );
     args.extend(extra.iter().map(|s| s.to_string()));
-    let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
-    let o = citygen(&a);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    args
+}
+
+/// Runs citygen with `args` from the repository root, killed and failed after 300 s: a run
+/// that hangs (on a named pipe) fails the test instead of blocking it.
+fn citygen_timed(args: &[String]) -> std::process::Output {
+    use std::io::Read as _;
+    let tmp = tempfile::tempdir().unwrap();
+    let (out, err) = (tmp.path().join("out"), tmp.path().join("err"));
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_citygen"))
+        .current_dir(common::root())
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::fs::File::create(&out).unwrap())
+        .stderr(std::fs::File::create(&err).unwrap())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > std::time::Duration::from_secs(300) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("citygen {args:?} did not finish in 300 s (a hang)");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let read = |p: &Path| {
+        let mut v = Vec::new();
+        std::fs::File::open(p).unwrap().read_to_end(&mut v).unwrap();
+        v
+    };
+    std::process::Output {
+        status,
+        stdout: read(&out),
+        stderr: read(&err),
+    }
 }
 
 /// Every file under `dir` (relative path → bytes), the report and manifests left out.
@@ -658,4 +707,336 @@ fn at_lod3_a_touching_neighbour_in_another_tile_is_rederived_too() {
     assert_eq!(want.len(), 2);
     assert_eq!(ids(&c["tiles_rewritten"]), want);
     assert!(c["tiles_reused"].as_u64().unwrap() >= 1);
+}
+
+/// The suffixes of a run's tiles, from its manifest, in grid order.
+fn suffixes(dir: &Path) -> Vec<String> {
+    manifest(dir)["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["suffix"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// A tile's buildings as written in its CityJSONSeq file (their `sourceId`s).
+fn seq_ids(path: &Path) -> BTreeSet<String> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter_map(|l| {
+            let at = l.find("\"sourceId\":\"")? + 12;
+            Some(l[at..at + l[at..].find('"')?].to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn previous_reuses_only_regular_files_inside_its_folder_and_says_why() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let d1 = t.join("day1/town.osm.pbf");
+    write_pbf(&d1, &town(4));
+    let o1 = t.join("o1");
+    run(&d1, &o1, "2", "50", &[]);
+    let full = files(&o1);
+    let sfx = suffixes(&o1);
+    assert!(sfx.len() >= 4, "{sfx:?}");
+    // Tile 0's CityJSONSeq: a symlink to an outside file of the attacker's, the manifest
+    // listing that file's size and SHA-256 (whoever writes the folder writes its manifest).
+    let seq0 = format!("t_{}.city.jsonl", sfx[0]);
+    let outside = t.join("outside.city.jsonl");
+    let evil = b"{\"type\":\"CityJSONFeature\",\"id\":\"evil\"}\n".to_vec();
+    std::fs::write(&outside, &evil).unwrap();
+    std::fs::remove_file(o1.join(&seq0)).unwrap();
+    std::os::unix::fs::symlink(&outside, o1.join(&seq0)).unwrap();
+    let mpath = o1.join("citygen-manifest.0-of-1.json");
+    let mut m = manifest(&o1);
+    for tile in m["tiles"].as_array_mut().unwrap() {
+        for f in tile["files"].as_array_mut().unwrap() {
+            if f["path"] == seq0.as_str() {
+                use sha2::Digest as _;
+                f["bytes"] = evil.len().into();
+                f["sha256"] = citygen::fsio::hex(&sha2::Sha256::digest(&evil)).into();
+            }
+        }
+    }
+    std::fs::write(&mpath, serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+    // Tile 1's IFC: a named pipe nobody writes (opening it would block forever); tile 2's
+    // glTF: gone.
+    let ifc1 = o1.join(format!("t_{}.ifc", sfx[1]));
+    std::fs::remove_file(&ifc1).unwrap();
+    let st = std::process::Command::new("mkfifo")
+        .arg(&ifc1)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    std::fs::remove_file(o1.join(format!("t_{}.glb", sfx[2]))).unwrap();
+    let inc = t.join("inc");
+    run(&d1, &inc, "2", "50", &["--previous", o1.to_str().unwrap()]);
+    // The run finished; every file is the full run's: the symlinked tile derived again, its
+    // buildings there, nothing of the outside file.
+    assert!(files(&inc) == full, "the files differ from the full run's");
+    let ids0 = seq_ids(&inc.join(&seq0));
+    assert!(!ids0.is_empty() && !ids0.contains("evil"), "{ids0:?}");
+    assert!(!std::fs::symlink_metadata(inc.join(&seq0))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let c = changes(&inc);
+    let why = &c["tiles_not_reused"];
+    let reason = |s: &str| why[s].as_str().unwrap_or_default().to_string();
+    assert!(reason(&sfx[0]).contains("symbolic link"), "{c}");
+    assert!(reason(&sfx[0]).contains(&seq0), "{c}");
+    assert!(reason(&sfx[1]).contains("named pipe"), "{c}");
+    assert!(reason(&sfx[2]).contains("missing"), "{c}");
+    assert_eq!(
+        ids(&c["tiles_rewritten"]),
+        sfx[..3].iter().cloned().collect::<BTreeSet<String>>()
+    );
+    assert_eq!(c["tiles_reused"].as_u64(), Some(sfx.len() as u64 - 3));
+    // --link-previous links no symlink either.
+    let inc2 = t.join("inc2");
+    run(
+        &d1,
+        &inc2,
+        "2",
+        "50",
+        &["--previous", o1.to_str().unwrap(), "--link-previous"],
+    );
+    assert!(files(&inc2) == full, "--link-previous: the files differ");
+    assert_eq!(std::fs::read(&outside).unwrap(), evil);
+}
+
+#[test]
+fn a_named_pipe_manifest_is_refused_without_hanging() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let d1 = t.join("day1/town.osm.pbf");
+    write_pbf(&d1, &town(2));
+    let prev = t.join("prev");
+    std::fs::create_dir_all(&prev).unwrap();
+    let st = std::process::Command::new("mkfifo")
+        .arg(prev.join("citygen-manifest.0-of-1.json"))
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let out = t.join("out");
+    let a = args(
+        &d1,
+        &out,
+        ("2", "50", KB),
+        "report.json",
+        &["--previous", prev.to_str().unwrap()],
+    );
+    let o = citygen_timed(&a);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("citygen-manifest.0-of-1.json") && err.contains("named pipe"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn no_output_on_a_file_the_run_reads_from_previous_or_osc() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (d1, _, osc) = two_days(t);
+    let o1 = t.join("o1");
+    run(&d1, &o1, "2", "50", &[]);
+    let before = common::files_under(&o1, |_| true);
+    let manifest = o1.join("citygen-manifest.0-of-1.json");
+    let tile = o1.join(format!("t_{}.ifc", suffixes(&o1)[0]));
+    let out = t.join("out");
+    let prev = ["--previous", o1.to_str().unwrap()];
+    // --report on yesterday's manifest, on one of its tiles; on the change file.
+    let osc_flag = ["--osc", osc.to_str().unwrap()];
+    let cases: [(&Path, &[&str]); 3] = [(&manifest, &prev), (&tile, &prev), (&osc, &osc_flag)];
+    let osc_bytes = std::fs::read(&osc).unwrap();
+    for (target, extra) in cases {
+        let mut a = args(&d1, &out, ("2", "50", KB), target.to_str().unwrap(), extra);
+        a.push("--force-extension".into());
+        let o = citygen_timed(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{}: {err}", target.display());
+        assert!(
+            err.contains("refusing to overwrite an input")
+                && err.contains(&*target.display().to_string()),
+            "{err}"
+        );
+        assert!(!out.exists(), "{}", target.display());
+    }
+    assert!(
+        common::files_under(&o1, |_| true) == before,
+        "the previous folder changed"
+    );
+    assert_eq!(std::fs::read(&osc).unwrap(), osc_bytes);
+}
+
+#[test]
+fn an_update_in_place_leaves_exactly_the_files_of_a_full_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    // A town, and two buildings well outside it that hold the data's bounds (so its centre,
+    // the local origin, stays when a tile of the town goes).
+    let mut day1 = town(4);
+    for (id, at) in [(9001, (-60.0, -60.0)), (9002, (160.0, 160.0))] {
+        day1.push(B {
+            id,
+            at,
+            ..day1[0].clone()
+        });
+    }
+    let d1 = t.join("day1/town.osm.pbf");
+    write_pbf(&d1, &day1);
+    let (place, full) = (t.join("place"), t.join("full"));
+    run(&d1, &place, "2", "50", &[]);
+    // Day 2: every building of a tile of the town deleted.
+    let lots = |t: &serde_json::Value| -> BTreeSet<String> {
+        t["lots"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l["id"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let gone = manifest(&place)["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(lots)
+        .find(|ids| !ids.iter().any(|id| id.starts_with("way/900")))
+        .unwrap();
+    let day2: Vec<B> = day1
+        .iter()
+        .filter(|b| !gone.contains(&format!("way/{}", b.id)))
+        .cloned()
+        .collect();
+    assert!(!gone.is_empty() && day2.len() + gone.len() == day1.len());
+    let d2 = t.join("day2/town.osm.pbf");
+    write_pbf(&d2, &day2);
+    run(&d2, &full, "2", "50", &[]);
+    run(
+        &d2,
+        &place,
+        "2",
+        "50",
+        &["--previous", place.to_str().unwrap()],
+    );
+    let all = |d: &Path| common::files_under(d, |_| true);
+    let (a, b) = (all(&full), all(&place));
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "the same files"
+    );
+    assert!(files(&full) == files(&place), "the same bytes");
+    // The manifests are the full run's but for the changes.
+    let mut m = manifest(&place);
+    let c = m.as_object_mut().unwrap().remove("changes").unwrap();
+    assert_eq!(m, manifest(&full));
+    assert_eq!(c["tiles_removed"].as_array().unwrap().len(), 1, "{c}");
+    assert_eq!(
+        c["tiles_reused"].as_u64(),
+        Some(suffixes(&place).len() as u64),
+        "every other tile reused in place: {c}"
+    );
+}
+
+#[test]
+fn dated_report_names_reuse_every_unchanged_tile_and_a_tile_not_reused_says_why() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (d1, d2, _) = two_days(t);
+    let (o1, o2, o3) = (t.join("o1"), t.join("o2"), t.join("o3"));
+    let go = |input: &Path, out: &Path, report: &str, extra: &[&str]| {
+        let o = citygen_timed(&args(input, out, ("2", "50", KB), report, extra));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join(report)).unwrap()).unwrap();
+        r["changes"].clone()
+    };
+    go(&d1, &o1, "report-2026-12-05.json", &[]);
+    let prev = ["--previous", o1.to_str().unwrap()];
+    let tiles = suffixes(&o1).len() as u64;
+    // The same input the next day: every tile reused.
+    let c = go(&d1, &o2, "report-2026-12-06.json", &prev);
+    assert_eq!(c["tiles_reused"].as_u64(), Some(tiles), "{c}");
+    assert_eq!(ids(&c["affected"]), BTreeSet::new());
+    assert!(
+        c.get("not_reused").is_none() && c.get("tiles_not_reused").is_none(),
+        "{c}"
+    );
+    // Day 2's edits: only the edited tiles are derived, each with its reason.
+    let c = go(&d2, &o3, "report-2026-12-06.json", &prev);
+    assert_eq!(ids(&c["affected"]), BTreeSet::new(), "{c}");
+    let rewritten = ids(&c["tiles_rewritten"]);
+    assert_eq!(rewritten.len(), 4, "{c}");
+    assert_eq!(c["tiles_reused"].as_u64(), Some(tiles - 4), "{c}");
+    let why = c["tiles_not_reused"].as_object().unwrap();
+    assert_eq!(why.keys().cloned().collect::<BTreeSet<_>>(), rewritten);
+    let edited = &why[&tile_of(&o3, "way/1011")];
+    assert!(
+        edited.as_str().unwrap().contains("1 building(s) edited"),
+        "{c}"
+    );
+    // Another seed: nothing reused, and the report says why.
+    let o4 = t.join("o4");
+    let c = go(
+        &d1,
+        &o4,
+        "report-2026-12-07.json",
+        &["--previous", o1.to_str().unwrap(), "--seed", "7"],
+    );
+    assert_eq!(c["tiles_reused"].as_u64(), Some(0));
+    let not = c["not_reused"].as_str().unwrap_or_default();
+    assert!(
+        not.contains("context changed") && not.contains("--seed"),
+        "{c}"
+    );
+    assert_eq!(
+        c["tiles_not_reused"].as_object().unwrap().len() as u64,
+        tiles
+    );
+}
+
+#[test]
+fn an_update_in_place_of_two_shards_by_one_run_leaves_one_manifest() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let d1 = t.join("day1/town.osm.pbf");
+    write_pbf(&d1, &town(4));
+    let (place, full) = (t.join("place"), t.join("full"));
+    run(&d1, &place, "2", "50", &["--shard", "0/2"]);
+    run(&d1, &place, "2", "50", &["--shard", "1/2"]);
+    run(&d1, &full, "2", "50", &[]);
+    run(
+        &d1,
+        &place,
+        "2",
+        "50",
+        &["--previous", place.to_str().unwrap()],
+    );
+    // The shards' reports (`report_shard-I-of-N.json`) stay: reports are the operator's
+    // (dated ones are kept on purpose); no manifest lists them.
+    let all = |d: &Path| common::files_under(d, |n| !n.starts_with("report_shard-"));
+    assert_eq!(
+        all(&full).keys().collect::<Vec<_>>(),
+        all(&place).keys().collect::<Vec<_>>(),
+        "the shards' manifests are gone"
+    );
+    let tiles = |d: &Path| {
+        let mut f = files(d);
+        f.retain(|n, _| !n.starts_with("report_shard-"));
+        f
+    };
+    assert!(tiles(&full) == tiles(&place), "the same bytes");
+    let c = changes(&place);
+    assert_eq!(
+        c["tiles_reused"].as_u64(),
+        Some(suffixes(&place).len() as u64),
+        "{c}"
+    );
 }
