@@ -480,7 +480,7 @@ fn label_indexes_select_what_the_walk_selects() {
     assert!(programs.len() >= 4, "{} selex blocks", programs.len());
     programs.push(NESTED.to_string());
     programs.push(format!(
-        "{NESTED}\n{{< descendant() [label == 3] > -> addFacade(\"x\")}};"
+        "{NESTED}\n{{< descendant() [label == \"g\"] > -> setHeadNode()}};"
     ));
     programs.push(format!(
         "{NESTED}\n{{< [label == \"root\"] > -> setHeadNode()}};"
