@@ -181,6 +181,10 @@ pub(crate) fn derive_selex_lot(
         &[("the program", program.to_path_buf())],
         false,
     )?;
+    // A box too large to build (a 1e300 m side) is refused before any storey is planned.
+    if let Some(why) = crate::derive::selex_lot::too_large(derivation) {
+        return Err(RunError::Input(format!("{}: {why}", program.display())));
+    }
     let name = file_name(program);
     let mut report = Report::default();
     let (building, notes) =

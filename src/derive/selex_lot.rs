@@ -99,6 +99,9 @@ pub fn building(
     appearance: &str,
     lod: Lod,
 ) -> Result<(Building, Vec<Note>), String> {
+    if let Some(why) = too_large(d) {
+        return Err(format!("{appearance}: {why}"));
+    }
     let mut notes: Vec<Note> = Vec::new();
     let mut plans: Vec<PartPlan> = Vec::new();
     for (i, s) in d.shapes.iter().enumerate() {
@@ -214,6 +217,49 @@ pub fn building(
         },
         notes,
     ))
+}
+
+/// The largest side of a volume or face `selex derive` builds, metres (the `--lot` limit):
+/// storeys, walls and openings are made for the whole size, so a 1e300 m box would ask for
+/// more memory than there is.
+pub(crate) const MAX_SIDE: f64 = 10_000.0;
+
+/// Why the tree is too large to build, if it is: a volume or a face with a side over
+/// [`MAX_SIDE`] (or not finite), named with its size.
+pub(crate) fn too_large(d: &Derivation) -> Option<String> {
+    let fits = |v: f64| v.is_finite() && v <= MAX_SIDE;
+    let m = |v: f64| {
+        if v.abs() < 1e6 {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    };
+    d.shapes.iter().find_map(|s| match &s.kind {
+        ShapeKind::Volume { min, max, .. } => {
+            let size = *max - *min;
+            (!(fits(size.x) && fits(size.y) && fits(size.z))).then(|| {
+                format!(
+                    "volume `{}` of {} x {} x {} m is larger than the limit of {MAX_SIDE} m a \
+                     side: nothing is built",
+                    s.label,
+                    m(size.x),
+                    m(size.y),
+                    m(size.z)
+                )
+            })
+        }
+        ShapeKind::Face { frame, .. } => (!(fits(frame.width) && fits(frame.height))).then(|| {
+            format!(
+                "face `{}` of {} x {} m is larger than the limit of {MAX_SIDE} m a side: \
+                 nothing is built",
+                s.label,
+                m(frame.width),
+                m(frame.height)
+            )
+        }),
+        _ => None,
+    })
 }
 
 fn note(text: String) -> Note {

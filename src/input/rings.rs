@@ -121,8 +121,11 @@ pub(crate) fn group_rings(rings: &[Ring], claims: &[Option<bool>]) -> Grouping {
     let n = rings.len();
     let areas: Vec<f64> = rings.iter().map(|r| signed_area(r).abs()).collect();
     let mut parent: Vec<Option<usize>> = vec![None; n];
+    let around = Around::new(rings);
+    let mut near = Vec::new();
     for i in 0..n {
-        for j in 0..n {
+        around.candidates(i, &mut near);
+        for &j in &near {
             if i != j && ring_inside(&rings[i], &rings[j], areas[i], areas[j]) {
                 let better = match parent[i] {
                     None => true,
@@ -169,6 +172,69 @@ pub(crate) fn group_rings(rings: &[Ring], claims: &[Option<bool>]) -> Grouping {
         }
     }
     g
+}
+
+/// A ring's bounding box in an R-tree, with the ring's index.
+type RingBox = rstar::primitives::GeomWithData<rstar::primitives::Rectangle<[f64; 2]>, usize>;
+
+/// The rings that may contain a ring: those whose bounding box meets its own (a ring holds a
+/// point only within its box; a relation of 10,000 courtyards then costs O(n log n), not
+/// 10⁸ ring tests). Boxes are widened by a billionth of the coordinates' size, so that
+/// rounding in the point test cannot matter; with a coordinate that is not finite every ring
+/// is a candidate, as before.
+struct Around {
+    boxes: Vec<[[f64; 2]; 2]>,
+    tree: Option<rstar::RTree<RingBox>>,
+}
+
+impl Around {
+    fn new(rings: &[Ring]) -> Around {
+        let boxes: Vec<[[f64; 2]; 2]> = rings
+            .iter()
+            .map(|r| {
+                let mut b = [[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]];
+                for &(x, y) in r {
+                    b[0] = [b[0][0].min(x), b[0][1].min(y)];
+                    b[1] = [b[1][0].max(x), b[1][1].max(y)];
+                }
+                let pad = 1e-9 * (1.0 + b.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs())));
+                [
+                    [b[0][0] - pad, b[0][1] - pad],
+                    [b[1][0] + pad, b[1][1] + pad],
+                ]
+            })
+            .collect();
+        let finite = boxes.iter().flatten().flatten().all(|v| v.is_finite());
+        let tree = finite.then(|| {
+            rstar::RTree::bulk_load(
+                boxes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| {
+                        rstar::primitives::GeomWithData::new(
+                            rstar::primitives::Rectangle::from_corners(b[0], b[1]),
+                            i,
+                        )
+                    })
+                    .collect(),
+            )
+        });
+        Around { boxes, tree }
+    }
+
+    /// The candidates for ring `i`, in index order (the order the grouping decides ties by).
+    fn candidates(&self, i: usize, out: &mut Vec<usize>) {
+        out.clear();
+        match &self.tree {
+            Some(tree) => {
+                let b = self.boxes[i];
+                let env = rstar::AABB::from_corners(b[0], b[1]);
+                out.extend(tree.locate_in_envelope_intersecting(env).map(|g| g.data));
+                out.sort_unstable();
+            }
+            None => out.extend(0..self.boxes.len()),
+        }
+    }
 }
 
 /// Builds a [`SourcePolygon`] with the citygen orientation: outer counter-clockwise, holes

@@ -2,6 +2,7 @@
 //! shared along common boundaries, parts cut out of their outline.
 
 use glam::DVec2;
+use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{RTree, RTreeObject, AABB};
 
 use super::clean::{clean_polygons_quietly, is_valid};
@@ -12,6 +13,9 @@ use super::{
 use crate::geometry::{ring, Polygon};
 use crate::model::SourceId;
 use crate::report::{Outcome, Report};
+
+/// An edge of a lot's ring in an R-tree: (owner, start, end).
+type OwnedEdge = GeomWithData<Rectangle<[f64; 2]>, (usize, DVec2, DVec2)>;
 
 /// Straightens the rings of a lot ([`ring::straighten`] within [`STRAIGHTEN_TOLERANCE`]): the
 /// outline, its drawn rest and its parts. A vertex within 1 cm of another of the lot's rings
@@ -27,17 +31,41 @@ pub(super) fn straighten_lot(lot: &mut Lot) {
     let outline = rings_of(&lot.polygons);
     let drawn = rings_of(&lot.drawn_outline);
     let parts: Vec<Vec<Vec<DVec2>>> = lot.parts.iter().map(|p| rings_of(&p.polygons)).collect();
-    let near = |q: DVec2, rings: &[&Vec<DVec2>]| {
-        rings.iter().any(|r| {
-            (0..r.len())
-                .any(|i| nearest_on_segment(r[i], r[(i + 1) % r.len()], q).distance(q) <= NEAR)
+    // Every edge of the lot's rings, by owner (0 the outline, 1 its drawn rest, 2 + k part
+    // k), in an R-tree: a lot of 10,000 parts asks each vertex about the few edges near it,
+    // not about every ring of the lot.
+    let owners = [&outline, &drawn].into_iter().chain(&parts);
+    let edges: Vec<OwnedEdge> = owners
+        .enumerate()
+        .flat_map(|(owner, rings)| {
+            rings
+                .iter()
+                .flat_map(move |r| (0..r.len()).map(move |i| (owner, r[i], r[(i + 1) % r.len()])))
+        })
+        .filter(|(_, a, b)| a.is_finite() && b.is_finite())
+        .map(|(owner, a, b)| {
+            let (lo, hi) = (a.min(b), a.max(b));
+            GeomWithData::new(
+                Rectangle::from_corners([lo.x, lo.y], [hi.x, hi.y]),
+                (owner, a, b),
+            )
+        })
+        .collect();
+    let tree = RTree::bulk_load(edges);
+    // Whether q lies within NEAR of an edge of an owner that `keeps` accepts.
+    let near = |q: DVec2, keeps: &dyn Fn(usize) -> bool| {
+        let r = NEAR + 1e-9;
+        let env = AABB::from_corners([q.x - r, q.y - r], [q.x + r, q.y + r]);
+        tree.locate_in_envelope_intersecting(env).any(|e| {
+            let (owner, a, b) = e.data;
+            keeps(owner) && nearest_on_segment(a, b, q).distance(q) <= NEAR
         })
     };
-    let fix = |ps: &mut Vec<Polygon>, keepers: &[&Vec<DVec2>]| {
+    let fix = |ps: &mut Vec<Polygon>, keeps: &dyn Fn(usize) -> bool| {
         for p in ps.iter_mut() {
             let straight = |r: &Vec<DVec2>| {
                 ring::straighten(r, STRAIGHTEN_TOLERANCE, STRAIGHTEN_MAX_TURN_DEG, |q| {
-                    !keepers.is_empty() && near(q, keepers)
+                    near(q, keeps)
                 })
             };
             let candidate =
@@ -47,22 +75,12 @@ pub(super) fn straighten_lot(lot: &mut Lot) {
             }
         }
     };
-    let all_parts: Vec<&Vec<DVec2>> = parts.iter().flatten().collect();
-    fix(&mut lot.polygons, &all_parts);
-    fix(&mut lot.drawn_outline, &all_parts);
+    // The outline and its drawn rest keep what is near a part; a part what is near the
+    // outline, the drawn rest or another part.
+    fix(&mut lot.polygons, &|owner| owner >= 2);
+    fix(&mut lot.drawn_outline, &|owner| owner >= 2);
     for (k, part) in lot.parts.iter_mut().enumerate() {
-        let keepers: Vec<&Vec<DVec2>> = outline
-            .iter()
-            .chain(&drawn)
-            .chain(
-                parts
-                    .iter()
-                    .enumerate()
-                    .filter(|(j, _)| *j != k)
-                    .flat_map(|(_, r)| r),
-            )
-            .collect();
-        fix(&mut part.polygons, &keepers);
+        fix(&mut part.polygons, &|owner| owner != k + 2);
     }
     share_vertices(lot);
 }
@@ -90,6 +108,15 @@ fn share_vertices(lot: &mut Lot) {
             verts.extend(p.rings().flatten().map(|&v| (k, v)));
         }
     }
+    // The vertices in an R-tree (those that are not finite never lie near an edge): each edge
+    // looks at the vertices in its box, not at every vertex of the lot.
+    let tree = RTree::bulk_load(
+        verts
+            .iter()
+            .filter(|(_, v)| v.is_finite())
+            .map(|&(k, v)| GeomWithData::new([v.x, v.y], (k, v)))
+            .collect(),
+    );
     let insert = |k: usize, r: &Vec<DVec2>| -> Vec<DVec2> {
         let n = r.len();
         let mut out = Vec::with_capacity(n);
@@ -99,8 +126,11 @@ fn share_vertices(lot: &mut Lot) {
             let (lo, hi) = (a.min(b), a.max(b));
             let d = b - a;
             let l2 = d.length_squared();
-            let mut on: Vec<(f64, DVec2)> = verts
-                .iter()
+            let t = SHARED_VERTEX_TOLERANCE;
+            let env = AABB::from_corners([lo.x - t, lo.y - t], [hi.x + t, hi.y + t]);
+            let mut on: Vec<(f64, DVec2)> = tree
+                .locate_in_envelope(env)
+                .map(|g| &g.data)
                 .filter(|(j, v)| {
                     *j != k
                         && v.x >= lo.x - SHARED_VERTEX_TOLERANCE

@@ -461,3 +461,69 @@ fn a_storey_grid_on_a_box_takes_storeys_of_about_three_metres() {
     assert_eq!((g.rows(), g.cols()), (3, 4));
     assert!(close(g.col_widths()[0], 2.5));
 }
+
+/// The label indexes (`descendant() [label == "x"]` and `[label == "x"]` answered without
+/// walking the tree, issue 43) give the walk's shapes in the walk's order: the same tree, the
+/// same warnings, the same errors, on the document's programs, on a box lot and on a program
+/// that nests bays in bays, repeats labels at every depth and moves its head.
+#[test]
+fn label_indexes_select_what_the_walk_selects() {
+    use super::eval::{run_on_box, run_walking};
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/selex.md"))
+        .unwrap_or_else(|e| panic!("docs/selex.md: {e}"));
+    let mut programs: Vec<String> = doc
+        .split("```selex\n")
+        .skip(1)
+        .filter_map(|b| b.split("```").next())
+        .map(str::to_string)
+        .collect();
+    assert!(programs.len() >= 4, "{} selex blocks", programs.len());
+    programs.push(NESTED.to_string());
+    programs.push(format!(
+        "{NESTED}\n{{< descendant() [label == \"g\"] > -> setHeadNode()}};"
+    ));
+    programs.push(format!(
+        "{NESTED}\n{{< [label == \"root\"] > -> setHeadNode()}};"
+    ));
+    let (mut ran, mut failed) = (0, 0);
+    for src in &programs {
+        let program = parse(src, "t.slx").unwrap_or_else(|e| panic!("{e}\n{src}"));
+        for lot in [None, Some((12.0, 10.0, 9.0))] {
+            let indexed = match lot {
+                None => run(&program, src, "t.slx"),
+                Some(b) => run_on_box(&program, src, "t.slx", b),
+            };
+            let walked = run_walking(&program, src, "t.slx", lot);
+            assert_eq!(indexed, walked, "{src}\nlot {lot:?}");
+            if indexed.is_ok() {
+                ran += 1;
+            } else {
+                failed += 1;
+            }
+        }
+    }
+    assert!(ran >= 8 && failed >= 1, "{ran} ran, {failed} failed");
+}
+
+/// Bays on bays: labels repeated under different parents and at different depths, so that the
+/// order of `descendant()` (pre-order) differs from the order of creation.
+const NESTED: &str = r#"
+{<> -> createShape("building", 20, 12, 12)};
+{< descendant() [label == "building_front"] > -> createGrid("g", 4, 5)};
+{< descendant() [label == "building_back"] > -> createGrid("g", 2, 2)};
+{< descendant() [label == "g"] / [type == "cell"] [rowIdx == 2] [colIdx == 2] > -> addVolume("bay", "building_front", 2, ["w", "w", "w"])};
+{< descendant() [label == "w"] > -> createGrid("g", 2, 1)};
+{< descendant() [label == "g"] / [type == "cell"] [rowIdx == 1] > -> addFacade("win")};
+{< descendant() [label == "w"] / [label == "g"] / [type == "cell"] [rowIdx == 2] > -> addVolume("bay", "w", 0.5, ["w", "w", "w"])};
+{< descendant() [label == "building_front"] / [label == "g"] / [type == "cell"] [rowIdx == 4] > -> addFacade("win")};
+{< descendant() [label == "w"] > -> addShape("win", 0.2, 0.2)};
+{< descendant() [label == "bay"] / [label == "w"] > -> createGrid("g", 1, 1)};
+{< descendant() [label == "win"] > -> addFacade("none")};
+{< [label == "building"] / [label == "building_left"] > -> createGrid("g", 1, 3)};
+{< descendant() [label == "building"] / [label == "building_left"] / [label == "g"] / [type == "cell"] [colIdx == 2] > -> addFacade("win")};
+{< descendant() [label == "building"] > -> setHeadNode()};
+{< descendant() [label == "win"] > -> addFacade("more")};
+{< descendant() [label == "g"] > -> addFacade("more")};
+{< [label == "building_front"] / [label == "win"] > -> addFacade("more")};
+{< descendant() [label == "building_front"] > -> coverShape()};
+"#;

@@ -8,6 +8,7 @@ mod common;
 mod architecture;
 mod atomic;
 mod bad_inputs;
+mod budgets;
 mod clear_errors;
 mod day2;
 mod deploy;

@@ -20,30 +20,60 @@ pub(super) struct JoinedRing {
 
 /// Joins segments end to end into closed rings (by node id, reversing segments as needed).
 /// Returns the closed rings and the ways of the pieces that could not be closed.
-pub(super) fn join_segments(mut pool: Vec<Segment>) -> (Vec<JoinedRing>, Vec<Vec<i64>>) {
+///
+/// Rings start from the earliest member left; at each open end the earliest member left that
+/// meets it is taken, one of the same role as the ring's first if there is one. The members
+/// are found by an index of their end nodes, so a relation of many members costs
+/// O(n log n), not a scan of the pool at every end.
+pub(super) fn join_segments(pool: Vec<Segment>) -> (Vec<JoinedRing>, Vec<Vec<i64>>) {
+    use std::collections::{BTreeSet, HashMap};
     let mut rings = Vec::new();
     let mut open = Vec::new();
-    pool.reverse(); // pop() then takes members in relation order
-    while let Some(first) = pool.pop() {
+    // End node -> the members (by place) that start or end there and are not used yet.
+    let mut ends: HashMap<i64, BTreeSet<usize>> = HashMap::new();
+    for (k, s) in pool.iter().enumerate() {
+        for id in [s.ids.first(), s.ids.last()].into_iter().flatten() {
+            ends.entry(*id).or_default().insert(k);
+        }
+    }
+    let roles: Vec<Role> = pool.iter().map(|s| s.role).collect();
+    let mut pool: Vec<Option<Segment>> = pool.into_iter().map(Some).collect();
+    let mut take = |k: usize, ends: &mut HashMap<i64, BTreeSet<usize>>| {
+        let s = pool.get_mut(k).and_then(Option::take)?;
+        for id in [s.ids.first(), s.ids.last()].into_iter().flatten() {
+            if let Some(set) = ends.get_mut(id) {
+                set.remove(&k);
+            }
+        }
+        Some(s)
+    };
+    for first in 0..roles.len() {
+        let Some(first) = take(first, &mut ends) else {
+            continue;
+        };
         let mut ids = first.ids;
         let mut pts = first.pts;
         let mut ways = vec![first.way];
-        let mut roles = vec![first.role];
+        let mut ring_roles = vec![first.role];
         while let (Some(&start), Some(&end)) = (ids.first(), ids.last()) {
             if start == end && ids.len() > 1 {
                 break;
             }
-            // Prefer a segment with the same role, then any; last in pool = earliest member.
+            // Prefer a segment with the same role, then any; the earliest member first.
+            let at = ends.get(&end);
             let pick = |same_role: bool| {
-                pool.iter().rposition(|s| {
-                    (!same_role || s.role == roles[0])
-                        && (s.ids.first() == Some(&end) || s.ids.last() == Some(&end))
+                at.and_then(|set| {
+                    set.iter()
+                        .copied()
+                        .find(|&k| !same_role || roles[k] == ring_roles[0])
                 })
             };
             let Some(k) = pick(true).or_else(|| pick(false)) else {
                 break;
             };
-            let mut s = pool.remove(k);
+            let Some(mut s) = take(k, &mut ends) else {
+                break;
+            };
             if s.ids.first() != Some(&end) {
                 s.ids.reverse();
                 s.pts.reverse();
@@ -51,12 +81,12 @@ pub(super) fn join_segments(mut pool: Vec<Segment>) -> (Vec<JoinedRing>, Vec<Vec
             ids.extend_from_slice(&s.ids[1..]);
             pts.extend_from_slice(&s.pts[1..]);
             ways.push(s.way);
-            roles.push(s.role);
+            ring_roles.push(s.role);
         }
         if ids.len() > 1 && ids.first() == ids.last() {
-            let claim = if roles.iter().all(|r| *r == Role::Outer) {
+            let claim = if ring_roles.iter().all(|r| *r == Role::Outer) {
                 Some(true)
-            } else if roles.iter().all(|r| *r == Role::Inner) {
+            } else if ring_roles.iter().all(|r| *r == Role::Inner) {
                 Some(false)
             } else {
                 None
@@ -87,18 +117,17 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
     let mut missing_ways = Vec::new();
     let mut missing_nodes = Vec::new();
     let mut duplicate_members = 0;
-    let mut seen: Vec<i64> = Vec::new();
+    let mut seen: std::collections::HashSet<i64> = std::collections::HashSet::new();
     let mut pool = Vec::new();
     // Outer members the file lacks (way or nodes): an inner ring must then not be promoted to
     // an outer one, or a courtyard would be built as a building.
     let mut missing_outer = 0usize;
     let mut inner_lost = false;
     for m in &rel.members {
-        if seen.contains(&m.way) {
+        if !seen.insert(m.way) {
             duplicate_members += 1;
             continue;
         }
-        seen.push(m.way);
         let Some(w) = ways.find(m.way) else {
             missing_ways.push(m.way);
             if m.role == Role::Outer {
@@ -160,7 +189,7 @@ pub(super) fn assemble_relation(rel: &RelRec, ways: &Ways, nodes: &Nodes) -> Ass
             rel.other_members
         ));
     }
-    let inner_ways: Vec<i64> = pool
+    let inner_ways: std::collections::HashSet<i64> = pool
         .iter()
         .filter(|s| s.role == Role::Inner)
         .map(|s| s.way)

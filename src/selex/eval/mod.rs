@@ -574,6 +574,9 @@ impl<'a> Runner<'a> {
             storeys: HashMap::new(),
             facades: false,
             pending: Default::default(),
+            by_label: HashMap::from([("root".to_string(), vec![0])]),
+            children_by_label: HashMap::new(),
+            walk_only: false,
         }
     }
 
@@ -612,7 +615,30 @@ fn run_with(
     file: &str,
     lot: Option<(f64, f64, f64)>,
 ) -> Result<Derivation, RunError> {
+    run_indexed(program, src, file, lot, true)
+}
+
+/// [`run`] (`lot` `None`) or [`run_on_box`] with every selection made by walking the tree, as
+/// before the label indexes: tests compare the two.
+#[cfg(test)]
+pub(crate) fn run_walking(
+    program: &Program,
+    src: &str,
+    file: &str,
+    lot: Option<(f64, f64, f64)>,
+) -> Result<Derivation, RunError> {
+    run_indexed(program, src, file, lot, false)
+}
+
+fn run_indexed(
+    program: &Program,
+    src: &str,
+    file: &str,
+    lot: Option<(f64, f64, f64)>,
+    indexed: bool,
+) -> Result<Derivation, RunError> {
     let mut r = Runner::new(src, file);
+    r.walk_only = !indexed;
     if let Some((w, d, h)) = lot {
         if !(w > 0.0 && d > 0.0 && h > 0.0 && w.is_finite() && d.is_finite() && h.is_finite()) {
             return Err(r.err(
@@ -666,6 +692,14 @@ struct Runner<'a> {
     /// Warnings of the selectors (which only read the tree), moved to the derivation's after
     /// each selection.
     pending: std::cell::RefCell<Vec<Note>>,
+    /// The shapes of each label, in creation order (labels never change), for the selections
+    /// `descendant() [label == "x"]` and `[label == "x"]` ([`select`]): a program of many
+    /// rules then does not walk the whole tree once per rule.
+    by_label: HashMap<String, Vec<ShapeId>>,
+    /// The children of each shape by label, in creation order (which is their order).
+    children_by_label: HashMap<(ShapeId, String), Vec<ShapeId>>,
+    /// Selections walk the tree without the label indexes (tests compare the two).
+    walk_only: bool,
 }
 
 /// Whether two lengths are the same to a tenth of a millimetre.
@@ -706,6 +740,11 @@ impl Runner<'_> {
             children: Vec::new(),
         });
         self.d.shapes[parent].children.push(id);
+        self.by_label.entry(label.to_string()).or_default().push(id);
+        self.children_by_label
+            .entry((parent, label.to_string()))
+            .or_default()
+            .push(id);
         id
     }
 }

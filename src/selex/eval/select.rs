@@ -1,9 +1,11 @@
 //! Selection: a path's topology steps and filters over the shape tree and its grids.
 
+use std::collections::HashMap;
+
 use super::rects::{overlap, touch};
 use super::values::describe;
 use super::{Frame, Item, Note, RunError, Runner, ShapeId, ShapeKind, Side, Value};
-use crate::selex::ast::{Attr, Cmp, Expr, Filter, IndexSet, Selection, Span, Topo};
+use crate::selex::ast::{Attr, Cmp, Expr, Filter, IndexSet, Selection, Span, Step, Topo};
 use crate::selex::grid::{self, Axis, CellSet, CmpOp, Grid, IndexItem, Rect};
 use crate::selex::pattern;
 
@@ -11,19 +13,90 @@ impl Runner<'_> {
     pub(super) fn select(&mut self, sel: &Selection) -> Result<Vec<Item>, RunError> {
         let mut items = vec![Item::Shape(self.head)];
         for step in &sel.steps {
-            let mut next: Vec<Item> = Vec::new();
             let topo = step.topo.unwrap_or(Topo::Child);
-            let span = step.topo_span.unwrap_or(step.span);
-            for it in &items {
-                self.topo(topo, it, span, &mut next)?;
-            }
-            dedup(&mut next);
-            for f in &step.filters {
+            let (mut next, filters) = match self.by_label(topo, step, &items) {
+                Some(next) => (next, step.filters.get(1..).unwrap_or_default()),
+                None => {
+                    let mut next: Vec<Item> = Vec::new();
+                    let span = step.topo_span.unwrap_or(step.span);
+                    for it in &items {
+                        self.topo(topo, it, span, &mut next)?;
+                    }
+                    dedup(&mut next);
+                    (next, &step.filters[..])
+                }
+            };
+            for f in filters {
                 next = self.filter(f, next)?;
             }
             items = next;
         }
         Ok(items)
+    }
+
+    /// A step `[label == "x"] ...` or `descendant() [label == "x"] ...` answered from the label
+    /// indexes: the shapes the topology and its first filter give, in the order the walk
+    /// would give them (children in creation order, descendants in pre-order), without
+    /// walking the tree. `None` when the step is not of that form, when the label is not a
+    /// string (the walk then reports it as before), or when the shapes so labelled are too
+    /// many or too deep for the index to beat the walk.
+    fn by_label(&self, topo: Topo, step: &Step, items: &[Item]) -> Option<Vec<Item>> {
+        let Some(Filter::Compare {
+            attr: Attr::Label,
+            op: Cmp::Eq,
+            value,
+            ..
+        }) = step.filters.first()
+        else {
+            return None;
+        };
+        if self.walk_only || !matches!(topo, Topo::Child | Topo::Descendant) {
+            return None;
+        }
+        let label = self.string(value).ok()?;
+        let shapes = &self.d.shapes;
+        let mut out = Vec::new();
+        // Cells have no label: the cells a walk gives never pass `label == "x"`.
+        let inputs = items.iter().filter_map(|it| match it {
+            Item::Shape(s) => Some(*s),
+            Item::Cells { .. } => None,
+        });
+        if topo == Topo::Child {
+            for s in inputs {
+                if matches!(shapes[s].kind, ShapeKind::Grid(_)) {
+                    continue;
+                }
+                if let Some(c) = self.children_by_label.get(&(s, label.clone())) {
+                    out.extend(c.iter().map(|&c| Item::Shape(c)));
+                }
+            }
+        } else {
+            let candidates = self.by_label.get(&label).map_or(&[][..], Vec::as_slice);
+            let mut budget = 8 * shapes.len() + 64;
+            for s in inputs {
+                // (the path from s down to c, c) for each c below s.
+                let mut below: Vec<(Vec<ShapeId>, ShapeId)> = Vec::new();
+                for &c in candidates {
+                    let mut path = vec![c];
+                    let mut at = c;
+                    while let Some(p) = shapes[at].parent {
+                        budget = budget.checked_sub(1)?;
+                        if p == s {
+                            path.reverse();
+                            below.push((path, c));
+                            break;
+                        }
+                        path.push(p);
+                        at = p;
+                    }
+                }
+                // Children come in creation order, so a path's ids order the walk.
+                below.sort_unstable();
+                out.extend(below.into_iter().map(|(_, c)| Item::Shape(c)));
+            }
+        }
+        dedup(&mut out);
+        Some(out)
     }
 
     fn cells_of(&self, grid: ShapeId) -> Option<Item> {
@@ -642,23 +715,31 @@ pub(super) fn cmp(c: Cmp) -> CmpOp {
     }
 }
 
-/// Removes repeated shapes (and merges repeated grids' cells), keeping first places.
+/// Removes repeated shapes (and merges repeated grids' cells), keeping first places. Linear:
+/// a map from each shape or grid to its place in the output (a `descendant()` step from the
+/// root gives every shape of the tree, and a program of many rules runs one per rule).
 pub(super) fn dedup(items: &mut Vec<Item>) {
     let mut out: Vec<Item> = Vec::with_capacity(items.len());
+    // (is a cell selection, shape id) -> index in `out`.
+    let mut at: HashMap<(bool, ShapeId), usize> = HashMap::with_capacity(items.len());
     for it in items.drain(..) {
-        let dup = out.iter_mut().find(|o| match (&**o, &it) {
-            (Item::Shape(a), Item::Shape(b)) => a == b,
-            (Item::Cells { grid: a, .. }, Item::Cells { grid: b, .. }) => a == b,
-            _ => false,
-        });
-        match (dup, it) {
-            (None, it) => out.push(it),
-            (Some(Item::Cells { set, .. }), Item::Cells { set: more, .. }) => {
-                if let Ok(u) = set.union(&more) {
-                    *set = u;
+        let key = match &it {
+            Item::Shape(s) => (false, *s),
+            Item::Cells { grid, .. } => (true, *grid),
+        };
+        match at.get(&key) {
+            None => {
+                at.insert(key, out.len());
+                out.push(it);
+            }
+            Some(&k) => {
+                if let (Item::Cells { set, .. }, Item::Cells { set: more, .. }) = (&mut out[k], it)
+                {
+                    if let Ok(u) = set.union(&more) {
+                        *set = u;
+                    }
                 }
             }
-            _ => {}
         }
     }
     *items = out;
