@@ -1301,3 +1301,123 @@ impl Inference {
         }
     }
 }
+
+/// The ground's heights on a regular grid of the run's local frame (issue 44: terrain from a
+/// DEM): what the DEM reader hands on, resampled into the frame the buildings are in, for the
+/// terrain the writers write. Heights are metres in the DEM's vertical datum.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElevationGrid {
+    /// Local-frame (x, y) of sample (0, 0), the south-west corner of the grid.
+    pub origin: DVec2,
+    /// Distance between neighbouring samples along x and along y, metres (> 0).
+    pub step: f64,
+    /// Samples along x (columns).
+    pub nx: usize,
+    /// Samples along y (rows).
+    pub ny: usize,
+    /// Heights row by row from the south (`z[j * nx + i]` is at `origin + step * (i, j)`);
+    /// `NaN` where the DEM has no data.
+    pub z: Vec<f32>,
+}
+
+impl ElevationGrid {
+    /// The sample at column `i`, row `j`; `None` outside the grid or where it has no data.
+    pub fn get(&self, i: usize, j: usize) -> Option<f64> {
+        if i >= self.nx || j >= self.ny {
+            return None;
+        }
+        let v = *self.z.get(j * self.nx + i)?;
+        v.is_finite().then_some(f64::from(v))
+    }
+
+    /// The height at local point `p`, bilinear between the four samples around it; `None`
+    /// outside the grid or when one of the four has no data.
+    pub fn height_at(&self, p: DVec2) -> Option<f64> {
+        if self.step.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+            || self.nx == 0
+            || self.ny == 0
+        {
+            return None;
+        }
+        let g = (p - self.origin) / self.step;
+        let (max_i, max_j) = ((self.nx - 1) as f64, (self.ny - 1) as f64);
+        if !(g.x >= 0.0 && g.y >= 0.0 && g.x <= max_i && g.y <= max_j) {
+            return None;
+        }
+        // The cell's lower-left sample, kept one short of the last so the point at the far
+        // edge interpolates inside the last cell.
+        let i = (g.x.floor() as usize).min(self.nx.saturating_sub(2));
+        let j = (g.y.floor() as usize).min(self.ny.saturating_sub(2));
+        let (fx, fy) = (g.x - i as f64, g.y - j as f64);
+        // Samples of weight 0 are not needed: a point on a sample or an edge between two
+        // known samples has a height even beside a nodata sample.
+        let mut sum = 0.0;
+        for (di, dj, w) in [
+            (0, 0, (1.0 - fx) * (1.0 - fy)),
+            (1, 0, fx * (1.0 - fy)),
+            (0, 1, (1.0 - fx) * fy),
+            (1, 1, fx * fy),
+        ] {
+            if w > 0.0 {
+                sum += w * self.get(i + di, j + dj)?;
+            }
+        }
+        Some(sum)
+    }
+}
+
+/// A triangulated terrain surface (TIN) for one output file (a run, or one tile of it), in the
+/// local frame: what the writers write as CityGML/CityJSON `TINRelief`, a glTF terrain node,
+/// the IFC site's terrain and a 3D Tiles terrain content.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Terrain {
+    /// The TIN's points (local frame, metres; z in the output's vertical datum).
+    pub vertices: Vec<DVec3>,
+    /// Triangles as indices into `vertices`, counter-clockwise seen from above.
+    pub triangles: Vec<[u32; 3]>,
+    /// The largest vertical distance, metres, between the TIN and the grid it simplifies.
+    pub tolerance: f64,
+}
+
+/// What the heights of a run's outputs are measured from (issue 44). Without terrain (no
+/// `--dem`, no `--ground-height`) a run states none: every building stands on z = 0.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VerticalDatum {
+    /// Heights above a geoid or mean sea level (orthometric), as a DEM gives them: the
+    /// datum's EPSG code when the DEM names it (e.g. 5773 for EGM96, 3855 for EGM2008), and a
+    /// name for headers.
+    Orthometric {
+        /// EPSG code of the vertical CRS, when known.
+        epsg: Option<u32>,
+        /// Its name (e.g. `EGM96 height`), or a description when the code is unknown.
+        name: String,
+    },
+}
+
+#[cfg(test)]
+mod elevation_tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_inside_none_outside_and_at_nodata() {
+        // z = x + 10 y on a 3 x 2 grid of 2 m, origin (100, 200).
+        let g = ElevationGrid {
+            origin: DVec2::new(100.0, 200.0),
+            step: 2.0,
+            nx: 3,
+            ny: 2,
+            z: vec![0.0, 2.0, 4.0, 20.0, 22.0, f32::NAN],
+        };
+        let h = g.height_at(DVec2::new(101.0, 201.0)).unwrap();
+        assert!((h - 11.0).abs() < 1e-9, "{h}");
+        // The far corner of the first cell, on the grid's edge.
+        assert_eq!(g.height_at(DVec2::new(102.0, 202.0)), Some(22.0));
+        assert_eq!(g.height_at(DVec2::new(99.9, 201.0)), None);
+        assert_eq!(
+            g.height_at(DVec2::new(103.0, 201.0)),
+            None,
+            "a nodata corner"
+        );
+        assert_eq!(g.get(2, 1), None);
+    }
+}

@@ -43,6 +43,12 @@ pub struct OutputContext {
     /// The run's `--seed`: written in the files' descriptions, and part of the namespace of
     /// the IFC GlobalIds.
     pub seed: u64,
+    /// What the heights are measured from (`None` without terrain: buildings stand on z = 0
+    /// and no datum is stated). Issue 44.
+    pub vertical_datum: Option<crate::model::VerticalDatum>,
+    /// The terrain of this file's extent, to be written beside the buildings (`None` without
+    /// `--dem`).
+    pub terrain: Option<std::sync::Arc<crate::model::Terrain>>,
 }
 
 /// Why a writer could not write.
@@ -171,6 +177,8 @@ mod tests {
             lod: Lod::Lod4,
             source_name: "batches.osm.pbf".into(),
             seed: 3,
+            vertical_datum: None,
+            terrain: None,
         }
     }
 

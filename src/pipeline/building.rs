@@ -121,6 +121,8 @@ pub(crate) fn derive_glb(
         lod,
         source_name: source_name.to_string(),
         seed,
+        vertical_datum: None,
+        terrain: None,
     };
     let written = w
         .begin(&ctx)

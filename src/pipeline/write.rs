@@ -623,6 +623,8 @@ fn write_lots(
         lod: maker.lod(),
         source_name: source_name.to_string(),
         seed: maker.seed(),
+        vertical_datum: None,
+        terrain: None,
     };
 
     // Open every output before the work, so a bad path fails fast.

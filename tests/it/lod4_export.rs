@@ -37,6 +37,8 @@ fn monaco_ville_lod4() -> (OutputContext, Vec<Building>) {
         lod: Lod::Lod4,
         source_name: "monaco-ville".into(),
         seed: 0,
+        vertical_datum: None,
+        terrain: None,
     };
     (ctx, buildings)
 }

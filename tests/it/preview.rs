@@ -37,6 +37,8 @@ fn monaco(lod: Lod) -> (OutputContext, Vec<Building>) {
         lod,
         source_name: "monaco".into(),
         seed: 0,
+        vertical_datum: None,
+        terrain: None,
     };
     (ctx, buildings)
 }

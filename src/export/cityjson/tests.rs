@@ -20,6 +20,8 @@ fn ctx(lod: Lod) -> OutputContext {
         lod,
         source_name: "tiny \"town\".osm.pbf".into(),
         seed: 42,
+        vertical_datum: None,
+        terrain: None,
     }
 }
 

@@ -236,6 +236,8 @@ fn ctx() -> OutputContext {
         lod: Lod::Lod2,
         source_name: "toulouse.osm.pbf".into(),
         seed: 7,
+        vertical_datum: None,
+        terrain: None,
     }
 }
 

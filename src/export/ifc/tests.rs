@@ -21,6 +21,8 @@ fn ctx() -> OutputContext {
         lod: Lod::Lod2,
         source_name: "test.osm.pbf".into(),
         seed: 7,
+        vertical_datum: None,
+        terrain: None,
     }
 }
 
@@ -1179,6 +1181,8 @@ mod lod4 {
             lod: Lod::Lod4,
             source_name: "lod4.osm.pbf".into(),
             seed: 7,
+            vertical_datum: None,
+            terrain: None,
         }
     }
 

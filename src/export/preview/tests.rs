@@ -164,6 +164,8 @@ fn ctx(lod: Lod) -> OutputContext {
         lod,
         source_name: "test".into(),
         seed: 0,
+        vertical_datum: None,
+        terrain: None,
     }
 }
 

@@ -23,6 +23,8 @@ fn ctx(lod: Lod) -> OutputContext {
         lod,
         source_name: "tiles.osm.pbf".into(),
         seed: 5,
+        vertical_datum: None,
+        terrain: None,
     }
 }
 
@@ -759,6 +761,8 @@ fn monaco(lod: Lod, size: u32) -> (OutputContext, Vec<(crate::prepare::Tile, Vec
         lod,
         source_name: "monaco".into(),
         seed: 0,
+        vertical_datum: None,
+        terrain: None,
     };
     (ctx, out)
 }
