@@ -115,6 +115,9 @@ pub struct Site {
     /// The input's admin boundaries as read (lon/lat; OSM only), for the knowledge base's zone
     /// lookup; set by the caller from [`crate::input::ReadResult::boundaries`].
     pub boundaries: Vec<crate::input::AdminBoundary>,
+    /// The ground under the run's extent in the local frame (issue 44), when `--dem` gave
+    /// one: what the terrain written beside the buildings is made from. `None` without terrain.
+    pub elevation: Option<crate::model::ElevationGrid>,
 }
 
 /// The most a projection chosen by citygen may stretch a building's lengths: 0.25 % (2.5 mm
@@ -354,6 +357,7 @@ pub fn prepare(
         origin_lonlat,
         lots,
         boundaries: Vec::new(),
+        elevation: None,
     }
 }
 
@@ -444,6 +448,7 @@ pub(crate) fn single_lot(
         origin_lonlat: crs.to_lonlat(origin.x, origin.y),
         lots: vec![lot],
         boundaries: Vec::new(),
+        elevation: None,
     })
 }
 

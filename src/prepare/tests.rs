@@ -208,6 +208,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
             lot(5, 370_100.0, 4_842_100.0),
         ],
         boundaries: Vec::new(),
+        elevation: None,
     };
     let tiles = group_into_tiles(&mut site, 250);
     let ids: Vec<SourceId> = site.lots.iter().map(|l| l.id).collect();
