@@ -1693,7 +1693,8 @@ fn data_too_wide_for_one_zone_is_refused_and_a_bbox_or_crs_takes_one_place() {
         &out,
         1,
         &[
-            "two-cities.osm.pbf",
+            // The path as given, not only the file name.
+            pbf.to_str().unwrap(),
             "too wide for one projection",
             "UTM zones 29 to 32",
             "--bbox",
