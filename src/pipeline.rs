@@ -186,6 +186,10 @@ pub(crate) fn infer_from_neighbours(
     let mixes = roof_mixes(kb, lots, &zones);
     drop(zones);
     let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models, false);
+    if kb.has_conditions() {
+        // The KB draws appearances by the footprint's form: every lot's, tagged or not.
+        prepare::estimate::apply_forms(lots, &outcome.features);
+    }
     if outcome.estimates.iter().all(Option::is_none) {
         return Inferred {
             notes,

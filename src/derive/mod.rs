@@ -245,10 +245,17 @@ impl Generator {
         // Every piece's style first: whether a piece's roof is drawn depends on the pieces
         // stacked on it.
         let mut styled = Vec::with_capacity(pieces.len());
+        // The building's footprint for the KB's appearance conditions (issue 42).
+        let footprint = (
+            Some(lot.polygons.iter().map(Polygon::area).sum::<f64>()),
+            lot.tags.form,
+        );
         for piece in pieces {
             let mut rng = Rng::new(self.seed, piece.id.seed_value());
             let tags = merged_tags(&piece.tags, &lot.tags, piece.id != lot.id);
-            let (style, style_notes) = self.kb.style_for(zone, &tags, &mut rng);
+            let (style, style_notes) = self
+                .kb
+                .style_for_footprint(zone, &tags, footprint, &mut rng);
             notes.extend(style_notes.into_iter().map(|n| (Outcome::Note, n)));
             if label.is_none() {
                 label = Some(style.appearance_label.clone());

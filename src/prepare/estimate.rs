@@ -921,6 +921,31 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
     changed
 }
 
+/// Sets every lot's [`crate::model::Form`] on its tags (attached when a tenth of its outline
+/// touches another; density from the built-up share within 250 m), for the KB's appearance
+/// conditions: from `features` when the estimator measured them, else measured here.
+pub(crate) fn apply_forms(lots: &mut [Lot], features: &[Features]) {
+    let measured;
+    let features = if features.len() == lots.len() {
+        features
+    } else {
+        measured = morph::measure(lots).features;
+        &measured
+    };
+    let interner = TagInterner::default();
+    for (lot, f) in lots.iter_mut().zip(features) {
+        let form = crate::model::Form {
+            attached: f[6] >= 0.1,
+            density: crate::model::Density::of_share(f64::from(f[11])),
+        };
+        if lot.tags.form != Some(form) {
+            let mut t = (*lot.tags).clone();
+            t.form = Some(form);
+            lot.tags = interner.intern(t);
+        }
+    }
+}
+
 /// The report's lines on the run's fits.
 pub(crate) fn describe(o: &Outcome) -> Vec<String> {
     let mut out = Vec::new();
