@@ -250,7 +250,10 @@ impl Triangulator {
         let min_area = REL_EPS * extent * extent;
 
         let small = self.hole_starts.is_empty() && self.data.len() <= SMALL_RING;
-        if !(small && ear_slice(&self.data, &mut self.ring, &mut self.raw)) {
+        let many = self.hole_starts.len() > MANY_HOLES;
+        if many && cdt_cut(&self.data, &self.hole_starts, &mut self.raw) {
+            // Cut by the constrained Delaunay triangulation.
+        } else if !(small && ear_slice(&self.data, &mut self.ring, &mut self.raw)) {
             self.earcut
                 .earcut(self.data.iter().copied(), &self.hole_starts, &mut self.raw);
         }
@@ -275,6 +278,100 @@ impl Triangulator {
             }
         }
     }
+}
+
+/// The most holes a face may have for earcut: past them [`cdt_cut`] triangulates it. Earcut
+/// bridges every hole to the outer ring by walking the ring, which grows with each bridged
+/// hole: O(holes × points), 10 s for the 10,000 holes the rest of an outline with 10,000
+/// parts has (issue 43). Ordinary faces (a few courtyards) keep earcut's triangles.
+pub(crate) const MANY_HOLES: usize = 64;
+
+/// The constrained Delaunay triangulation (`spade`) of the rings in `data` (outer ring, then
+/// holes from each of `hole_starts`), its triangles inside the polygon as indices into `data`
+/// in `out` (orientation fixed by the caller), O(n log n). The inside is found by flooding
+/// from the convex hull, crossing a ring's edge flipping in and out. Points at the same place
+/// are one vertex (the first one's index); an edge that would cross one already added is left
+/// out (rings that touch or cross: the flood may then misjudge a region). Returns `false`
+/// when the triangulation cannot be built, for the caller to use earcut.
+fn cdt_cut(data: &[[f64; 2]], hole_starts: &[u32], out: &mut Vec<u32>) -> bool {
+    use spade::handles::FixedFaceHandle;
+    use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+    use std::collections::{HashMap, VecDeque};
+    out.clear();
+    // One vertex per place (spade would drop the later ones and shift the indices).
+    let mut first_at: HashMap<(u64, u64), u32> = HashMap::with_capacity(data.len());
+    let mut vertex_of = Vec::with_capacity(data.len());
+    let mut points = Vec::with_capacity(data.len());
+    let mut index_of = Vec::with_capacity(data.len());
+    for (i, p) in data.iter().enumerate() {
+        let key = (p[0].to_bits(), p[1].to_bits());
+        let v = *first_at.entry(key).or_insert_with(|| {
+            points.push(Point2::new(p[0], p[1]));
+            index_of.push(i as u32);
+            (points.len() - 1) as u32
+        });
+        vertex_of.push(v as usize);
+    }
+    let mut edges = Vec::with_capacity(data.len());
+    let starts: Vec<usize> = std::iter::once(0)
+        .chain(hole_starts.iter().map(|&s| s as usize))
+        .chain(std::iter::once(data.len()))
+        .collect();
+    for w in starts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        for k in a..b {
+            let next = if k + 1 == b { a } else { k + 1 };
+            let (u, v) = (vertex_of[k], vertex_of[next]);
+            if u != v {
+                edges.push([u, v]);
+            }
+        }
+    }
+    let Ok(cdt) =
+        ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(points, edges, |_| {})
+    else {
+        return false;
+    };
+    // Flood from the outer face: a face's depth is the fewest ring edges crossed to reach it.
+    let mut depth: Vec<Option<u32>> = vec![None; cdt.num_all_faces()];
+    let mut queue: VecDeque<(FixedFaceHandle<spade::handles::PossiblyOuterTag>, u32)> =
+        VecDeque::new();
+    queue.push_back((cdt.outer_face().fix(), 0));
+    while let Some((f, d)) = queue.pop_front() {
+        let slot = &mut depth[f.index()];
+        if slot.is_some_and(|old| old <= d) {
+            continue;
+        }
+        *slot = Some(d);
+        let face = cdt.face(f);
+        let edges: Vec<_> = match face.as_inner() {
+            Some(inner) => inner.adjacent_edges().to_vec(),
+            // The hull's edges turned to have the outer face on their left.
+            None => cdt
+                .convex_hull()
+                .map(|e| if e.face().is_outer() { e } else { e.rev() })
+                .collect(),
+        };
+        for e in edges {
+            let across = e.rev().face().fix();
+            if depth[across.index()].is_some() {
+                continue;
+            }
+            if cdt.is_constraint_edge(e.as_undirected().fix()) {
+                queue.push_back((across, d + 1));
+            } else {
+                queue.push_front((across, d));
+            }
+        }
+    }
+    for f in cdt.inner_faces() {
+        if depth[f.fix().index()].is_some_and(|d| d % 2 == 1) {
+            for v in f.vertices() {
+                out.push(index_of[v.fix().index()]);
+            }
+        }
+    }
+    true
 }
 
 /// Earcut's first pass on one ring without holes of at most [`SMALL_RING`] points (earcut
@@ -666,5 +763,111 @@ mod tests {
                 prop_assert!(f.triangles.iter().flatten().all(|&i| (i as usize) < f.vertices.len()));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod many_holes_tests {
+    use super::*;
+
+    fn square(x: f64, y: f64, s: f64, ccw: bool) -> Vec<DVec2> {
+        let mut r = vec![
+            DVec2::new(x, y),
+            DVec2::new(x + s, y),
+            DVec2::new(x + s, y + s),
+            DVec2::new(x, y + s),
+        ];
+        if !ccw {
+            r.reverse();
+        }
+        r
+    }
+
+    fn area(pts: &[DVec2], tris: &[[u32; 3]]) -> f64 {
+        tris.iter()
+            .map(|t| {
+                let (a, b, c) = (pts[t[0] as usize], pts[t[1] as usize], pts[t[2] as usize]);
+                0.5 * (b - a).perp_dot(c - a)
+            })
+            .sum()
+    }
+
+    /// Issue 43: a face with thousands of holes (the rest of an outline with many parts) is
+    /// cut in O(n log n), covering exactly the polygon minus its holes, every triangle
+    /// counter-clockwise and on the input's vertices; earcut's result past `MANY_HOLES` only
+    /// differs in which triangles, not in what they cover.
+    #[test]
+    fn a_face_with_many_holes_is_covered_exactly_and_quickly() {
+        for n in [MANY_HOLES + 1, 2_500] {
+            let side = (n as f64).sqrt().ceil() as usize;
+            let outer = square(0.0, 0.0, 10.0 * side as f64 + 10.0, true);
+            let holes: Vec<Vec<DVec2>> = (0..n)
+                .map(|k| {
+                    let (i, j) = ((k % side) as f64, (k / side) as f64);
+                    square(
+                        10.0 + 10.0 * i,
+                        10.0 + 10.0 * j,
+                        4.0 + (k % 3) as f64,
+                        false,
+                    )
+                })
+                .collect();
+            let start = std::time::Instant::now();
+            let tris = triangulate_2d(&outer, &holes);
+            let took = start.elapsed();
+            let mut pts = outer.clone();
+            pts.extend(holes.iter().flatten());
+            let want = (10.0 * side as f64 + 10.0).powi(2)
+                - holes
+                    .iter()
+                    .map(|h| (h[1].x - h[0].x).abs().powi(2))
+                    .sum::<f64>();
+            let got = area(&pts, &tris);
+            assert!(
+                (got - want).abs() < 1e-6 * want,
+                "{n} holes: {got} vs {want}"
+            );
+            for t in &tris {
+                let (a, b, c) = (pts[t[0] as usize], pts[t[1] as usize], pts[t[2] as usize]);
+                assert!((b - a).perp_dot(c - a) > 0.0, "CCW");
+                // No triangle's centre is in a hole.
+                let m = (a + b + c) / 3.0;
+                assert!(!holes.iter().any(|h| m.x > h[0].x.min(h[1].x)
+                    && m.x < h[0].x.max(h[1].x)
+                    && m.y > h[0].y.min(h[2].y)
+                    && m.y < h[0].y.max(h[2].y)));
+            }
+            // Generous for debug builds on shared machines: earcut took minutes here.
+            assert!(took.as_secs_f64() < 20.0, "{n} holes took {took:?}");
+        }
+    }
+
+    /// The same polygon cut by earcut (few holes) and by the triangulation (many) covers the
+    /// same area; a hole touching the outer ring at a vertex is one vertex, not a crash.
+    #[test]
+    fn shared_vertices_and_touching_rings_do_not_break_the_cut() {
+        let outer = square(0.0, 0.0, 1000.0, true);
+        let mut holes: Vec<Vec<DVec2>> = (0..100)
+            .map(|k| {
+                square(
+                    20.0 + 90.0 * (k % 10) as f64,
+                    20.0 + 90.0 * (k / 10) as f64,
+                    30.0,
+                    false,
+                )
+            })
+            .collect();
+        // A hole sharing the outer ring's corner.
+        holes.push(vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(5.0, 10.0),
+            DVec2::new(10.0, 5.0),
+        ]);
+        let tris = triangulate_2d(&outer, &holes);
+        let mut pts = outer.clone();
+        pts.extend(holes.iter().flatten());
+        let got = area(&pts, &tris);
+        let want = 1_000_000.0 - 100.0 * 900.0 - 37.5;
+        assert!((got - want).abs() < 1e-6 * want, "{got} vs {want}");
     }
 }
