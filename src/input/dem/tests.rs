@@ -199,3 +199,59 @@ fn refusals_name_the_file() {
         .to_string();
     assert!(e.contains("missing.tif"), "{e}");
 }
+
+/// The files GDAL made (`scripts/make_dem_fixtures.py`: tiled with deflate and the float
+/// predictor and a nodata hole, PixelIsPoint int16 in LZW strips, WGS84 degrees with EGM96
+/// heights): at the pixel centres where GDAL places them, citygen reads the pixels' values.
+#[test]
+fn georeferencing_agrees_with_gdal() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/dem");
+    let points: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("points.json")).unwrap()).unwrap();
+    let crs = Crs::Utm {
+        zone: 32,
+        north: true,
+    };
+    let files = points.as_object().unwrap();
+    assert_eq!(files.len(), 3);
+    for (name, pts) in files {
+        let set = DemSet::open(&[dir.join(name)]).unwrap();
+        let f = set.framed(crs, DVec2::ZERO);
+        let mut s = f.sampler();
+        let pts = pts.as_array().unwrap();
+        assert!(pts.len() >= 3, "{name}");
+        for p in pts {
+            let (x, y, v) = (
+                p[0].as_f64().unwrap(),
+                p[1].as_f64().unwrap(),
+                p[2].as_f64().unwrap(),
+            );
+            let local = if name.starts_with("geo") {
+                let (e, n) = crs.from_lonlat(x, y);
+                DVec2::new(e, n)
+            } else {
+                DVec2::new(x, y)
+            };
+            let z = value(s.sample(local).unwrap());
+            assert!((z - v).abs() < 1e-3, "{name} at ({x}, {y}): {z}, GDAL {v}");
+        }
+        if name.starts_with("geo") {
+            assert_eq!(set.vertical_epsg().unwrap(), Some(5773), "{name}");
+        }
+        // GDAL wrote the raster type the file's name says.
+        assert_eq!(
+            set.dems[0].georef.pixel_is_point,
+            name.contains("point"),
+            "{name}"
+        );
+    }
+    // The tiled file's hole (pixels 30..34 of rows 20..24, 2 m from (370000, 4842000)).
+    let set = DemSet::open(&[dir.join("utm_tiled_deflate.tif")]).unwrap();
+    let f = set.framed(crs, DVec2::ZERO);
+    assert_eq!(
+        f.sampler()
+            .sample(DVec2::new(370_064.0, 4_841_956.0))
+            .unwrap(),
+        Sample::NoData
+    );
+}
