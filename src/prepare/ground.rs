@@ -110,7 +110,7 @@ pub fn grounds(
     framed: &Framed<'_>,
 ) -> Result<Vec<Option<f64>>, DemError> {
     let mut order: Vec<usize> = (0..lots.len()).filter(|&i| wanted(i)).collect();
-    order.sort_by_key(|&i| (z_order(&lots[i]), i));
+    order.sort_by_cached_key(|&i| (z_order(&lots[i]), i));
     let found: Vec<(usize, Result<Option<f64>, DemError>)> = order
         .par_chunks(BATCH)
         .flat_map_iter(|batch| {

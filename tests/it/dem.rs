@@ -387,6 +387,17 @@ fn two_tiles_in_two_crss_and_pixel_is_point() {
     // within the resampling of the geographic tile at the cliff.
     let plain = GeoTiff::projected(32632, (x0 - 40.0, y0 + 140.0), 1.0, (200, 180), terrain);
     check_seated(&out_dir, &plain);
+    // The same bytes at another thread count.
+    let threads = dir.path().join("threads");
+    std::fs::create_dir(&threads).unwrap();
+    let dems = ["--dem", pw.to_str().unwrap(), "--dem", pe.to_str().unwrap()];
+    ok(&run(
+        &pbf,
+        &threads,
+        "2",
+        &[&dems[..], &["--threads", "3"]].concat(),
+    ));
+    assert_eq!(output_hashes(&out_dir), output_hashes(&threads));
 }
 
 #[test]
@@ -589,4 +600,66 @@ fn a_run_without_terrain_keeps_its_bytes() {
         let got: Vec<(&str, &str)> = got.iter().map(|(a, b)| (a.as_str(), b.as_str())).collect();
         assert_eq!(got, want, "LOD{lod}: the outputs without terrain changed");
     }
+}
+
+/// A nightly run whose DEM changed reuses no tile: the DEMs' SHA-256 are in the context key.
+#[test]
+fn a_changed_dem_rewrites_every_tile() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    let dem = dir.path().join("dem.tif");
+    let mut t = utm_dem();
+    t.write(&dem).unwrap();
+    // One folder a day, the report (where the manifest goes) in it.
+    let day = |name: &str, previous: Option<&Path>| -> Value {
+        let out = dir.path().join(name);
+        std::fs::create_dir(&out).unwrap();
+        let (json, report) = (out.join("out.city.json"), out.join("report.json"));
+        let mut args = vec![
+            "--osm",
+            pbf.to_str().unwrap(),
+            "--kb",
+            KB,
+            "--report",
+            report.to_str().unwrap(),
+            "--cityjson",
+            json.to_str().unwrap(),
+            "--tile",
+            "50",
+            "--dem",
+            dem.to_str().unwrap(),
+            "--quiet",
+        ];
+        if let Some(p) = previous {
+            args.extend(["--previous", p.to_str().unwrap()]);
+        }
+        ok(&citygen(&args));
+        serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap()
+    };
+    day("day1", None);
+    let day1 = dir.path().join("day1");
+    // The same DEM: every tile reused.
+    let r = day("same", Some(&day1));
+    assert!(
+        r["changes"]["tiles_reused"].as_u64().unwrap() > 1,
+        "{}",
+        r["changes"]
+    );
+    assert!(r["changes"]["not_reused"].is_null(), "{}", r["changes"]);
+    // The ground 1 m higher: none.
+    t.values
+        .iter_mut()
+        .filter(|v| **v != NODATA)
+        .for_each(|v| *v += 1.0);
+    t.write(&dem).unwrap();
+    let r = day("moved", Some(&day1));
+    assert_eq!(r["changes"]["tiles_reused"], 0, "{}", r["changes"]);
+    assert!(
+        r["changes"]["not_reused"]
+            .to_string()
+            .contains("--dem files differ"),
+        "{}",
+        r["changes"]
+    );
 }

@@ -537,17 +537,18 @@ impl Sampler<'_> {
         let dem = &self.framed.set.dems[d];
         let (index, col, row) = dem.locate(i, j);
         let key = (d, index);
-        let chunk = match self.memo.iter().position(|(k, _)| *k == key) {
-            Some(k) => self.memo[k].1.clone(),
+        let k = match self.memo.iter().position(|(k, _)| *k == key) {
+            Some(k) => k,
             None => {
                 let c = self.framed.set.chunk(d, index)?;
                 if self.memo.len() == MEMO {
                     self.memo.remove(0);
                 }
-                self.memo.push((key, c.clone()));
-                c
+                self.memo.push((key, c));
+                self.memo.len() - 1
             }
         };
+        let chunk = &self.memo[k].1;
         Ok(chunk
             .z
             .get(row * chunk.w + col)
