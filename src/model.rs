@@ -873,6 +873,41 @@ impl Building {
         }
     }
 
+    /// Moves the whole building up by `dz` metres (its ground height, issue 44): every part's
+    /// heights, storey levels, walls with their openings and balconies, roof, ground and
+    /// interiors. Plans and relative sizes (wall heights, door heights, stair rises) do not
+    /// change.
+    pub(crate) fn raise(&mut self, dz: f64) {
+        let up = |f: &mut Face| {
+            for p in f.outer.iter_mut().chain(f.holes.iter_mut().flatten()) {
+                p.z += dz;
+            }
+        };
+        self.base_z += dz;
+        for p in &mut self.parts {
+            p.base_z += dz;
+            p.eave_z += dz;
+            p.top_z += dz;
+            p.levels.iter_mut().for_each(|z| *z += dz);
+            up(&mut p.ground);
+            p.roof.iter_mut().for_each(up);
+            for w in &mut p.walls {
+                w.base_z += dz;
+                w.top_z += dz;
+                up(&mut w.outline);
+                for o in &mut w.openings {
+                    o.z0 += dz;
+                    o.z1 += dz;
+                }
+                w.balconies.iter_mut().for_each(|b| b.z += dz);
+            }
+            for s in &mut p.interior {
+                s.floor_z += dz;
+                s.ceiling_z += dz;
+            }
+        }
+    }
+
     /// A 64-bit digest of what the building is: its id, zone, appearance and provenance, the counts of its
     /// parts, walls, openings, balconies, roof faces and LOD4 rooms, and every number
     /// `Building::check_finite` checks, bit for bit. Two runs that derived the building alike

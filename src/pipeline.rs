@@ -14,6 +14,7 @@ pub(crate) mod outputs;
 mod plan;
 mod reuse;
 pub mod shard;
+mod terrain;
 mod write;
 
 use crate::crs::Crs;
@@ -130,6 +131,12 @@ pub struct Options {
     /// namespace) instead of the input's file name (`--source-name`): a nightly job whose
     /// extract's name carries the date keeps one, so that its files stay the same bytes.
     pub source_name: Option<String>,
+    /// Digital elevation models (`--dem`, GeoTIFF, several tiles in any order of priority):
+    /// every building stands on the lowest terrain under its footprint, and the run's
+    /// [`prepare::Site::elevation`] is resampled from them. Issue 44.
+    pub dem: Vec<PathBuf>,
+    /// Without a DEM, the height every building stands at (`--ground-height`, metres).
+    pub ground_height: Option<f64>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -348,9 +355,12 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         // tiles); the outputs were checked against each other and the rest above.
         outputs::check(&targets.flagged(), &prev.read_files(), true)?;
     }
+    // The DEMs' headers first: a file that cannot serve fails the run before any reading.
+    let dems = terrain::open(opts)?;
     let mut run = RunState::prepare(opts, targets, shard)?;
     check_kb_files(&run)?;
     run.select();
+    run.seat(dems.as_ref())?;
     // A tiled run's content keys; with --previous, what changed and the tiles reused (copied
     // now, so that the LOD3 surroundings are derived only around the tiles derived).
     let (mut keyed, run_key) = reuse::key_lots(&run, previous.as_ref())?;
@@ -419,6 +429,7 @@ fn run_inputs(opts: &Options) -> Vec<(&'static str, PathBuf)> {
     inputs.extend(opts.kb.iter().map(|p| ("--kb", p.clone())));
     inputs.extend(opts.rules.iter().map(|p| ("--rules", p.clone())));
     inputs.extend(opts.osc.iter().map(|p| ("--osc", p.clone())));
+    inputs.extend(opts.dem.iter().map(|p| ("--dem", p.clone())));
     inputs
 }
 

@@ -10,6 +10,7 @@ mod clean;
 pub(crate) mod estimate;
 mod fronts;
 pub(crate) mod gbt;
+pub mod ground;
 pub mod infer;
 pub(crate) mod morph;
 mod parts;
@@ -82,6 +83,10 @@ pub struct Lot {
     /// within [`FRONT_MAX_DISTANCE`] (and for shapefile input, which has no streets): the
     /// grammar then keeps the thesis front.
     pub front: Option<DVec2>,
+    /// The ground the building stands on, metres (issue 44): the lowest DEM height under its
+    /// footprint (`--dem`, [`ground::grounds`]) or `--ground-height`; 0 without terrain. The
+    /// derived building is raised by it whole.
+    pub ground: f64,
 }
 
 impl Lot {
@@ -118,6 +123,10 @@ pub struct Site {
     /// The ground under the run's extent in the local frame (issue 44), when `--dem` gave
     /// one: what the terrain written beside the buildings is made from. `None` without terrain.
     pub elevation: Option<crate::model::ElevationGrid>,
+    /// What the run's heights are measured from (issue 44): set with `--dem` or
+    /// `--ground-height`, `None` without terrain (buildings on z = 0). The writers get it as
+    /// [`crate::export::OutputContext::vertical_datum`].
+    pub vertical_datum: Option<crate::model::VerticalDatum>,
 }
 
 /// The most a projection chosen by citygen may stretch a building's lengths: 0.25 % (2.5 mm
@@ -338,6 +347,7 @@ pub fn prepare(
                 parts: Vec::new(),
                 lonlat: p.lonlat,
                 front: None,
+                ground: 0.0,
             }),
             FootprintKind::Part => pieces.push((
                 LotPiece {
@@ -358,6 +368,7 @@ pub fn prepare(
         lots,
         boundaries: Vec::new(),
         elevation: None,
+        vertical_datum: None,
     }
 }
 
@@ -440,6 +451,7 @@ pub(crate) fn single_lot(
         parts: Vec::new(),
         lonlat,
         front: None,
+        ground: 0.0,
     };
     straighten_lot(&mut lot);
     Some(Site {
@@ -449,6 +461,7 @@ pub(crate) fn single_lot(
         lots: vec![lot],
         boundaries: Vec::new(),
         elevation: None,
+        vertical_datum: None,
     })
 }
 

@@ -59,7 +59,14 @@ pub struct Report {
     /// when the input has none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub boundaries: Option<Boundaries>,
+    /// The ground the buildings stand on (issue 44): the `--dem` files, the `--ground-height`
+    /// constant, or `no terrain: buildings stand on z = 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub terrain: Option<String>,
 }
+
+/// [`Report::terrain`] of a run without `--dem` or `--ground-height`.
+pub const NO_TERRAIN: &str = "no terrain: buildings stand on z = 0";
 
 /// The input's administrative boundaries (OSM `boundary=administrative`, `admin_level`
 /// 2..=10), and what the knowledge base's zone lookup took from them.

@@ -48,6 +48,17 @@ pub(crate) enum ArgError {
     BoxShape(String),
     #[error("{0:?} is not a size in metres (0 to 10 km)")]
     BoxSize(String),
+    #[error("{0:?} is not a height in metres between -500 and 9000")]
+    GroundHeight(String),
+}
+
+/// `--ground-height METRES`: a finite height between the Dead Sea's shore and Everest's top,
+/// rounded.
+pub(crate) fn parse_ground_height(s: &str) -> Result<f64, ArgError> {
+    match s.trim().parse::<f64>() {
+        Ok(h) if (-500.0..=9000.0).contains(&h) => Ok(h),
+        _ => Err(ArgError::GroundHeight(s.to_string())),
+    }
 }
 
 pub(crate) fn parse_lod(s: &str) -> Result<Lod, ArgError> {

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 use clap::{ArgGroup, Args};
 
-use super::args::{parse_bbox, parse_crs, parse_infer, parse_lod, parse_output_crs, InferArg};
+use super::args::{
+    parse_bbox, parse_crs, parse_ground_height, parse_infer, parse_lod, parse_output_crs, InferArg,
+};
 use super::{AppError, Outcome};
 use crate::crs::Crs;
 use crate::grammar::Caps;
@@ -156,6 +158,15 @@ pub(crate) struct RunArgs {
     /// buildings keep their bytes and GUIDs from day to day.
     #[arg(long, value_name = "NAME")]
     source_name: Option<String>,
+    /// A digital elevation model (GeoTIFF, heights in metres; repeat for several tiles, the
+    /// first given that has a height at a point wins): every building stands on the lowest
+    /// terrain under its footprint. Its CRS must be one citygen knows (reproject with
+    /// `gdalwarp -t_srs EPSG:...`).
+    #[arg(long, value_name = "FILE.tif", conflicts_with = "ground_height")]
+    dem: Vec<PathBuf>,
+    /// Without a DEM: the height (metres) every building stands at.
+    #[arg(long, value_name = "METRES", value_parser = parse_ground_height)]
+    ground_height: Option<f64>,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
@@ -253,6 +264,8 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
         link_previous: cli.link_previous,
         osc: cli.osc.clone(),
         source_name: cli.source_name.clone(),
+        dem: cli.dem.clone(),
+        ground_height: cli.ground_height,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

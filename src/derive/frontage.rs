@@ -69,13 +69,14 @@ pub struct Arrangement {
     pub note: Option<String>,
 }
 
-/// Applies the rules of the module docs to the drafts of one building (`owner`), whose street
+/// Applies the rules of the module docs to the drafts of one building (`owner`, standing on
+/// `ground`: the drafts are on z = 0, `around` at its neighbours' own grounds), whose street
 /// side is `front`, among `around`. `windows_from_style`: a part whose rules made no window at
 /// all still gets windows on its runs, from the style (the knowledge base's rules; a ruleset
 /// file that draws no windows is obeyed).
 pub(crate) fn arrange(
     drafts: &mut [Draft<'_>],
-    owner: SourceId,
+    (owner, ground): (SourceId, f64),
     front: Option<DVec2>,
     around: &Surroundings,
     windows_from_style: bool,
@@ -106,8 +107,16 @@ pub(crate) fn arrange(
                         party_spans(w.start, w.end, own.part(q), &mut s);
                     }
                 }
+                let first = s.len();
                 for n in &others {
                     party_spans(w.start, w.end, n, &mut s);
+                }
+                // The neighbours' heights seen from this building's ground.
+                if ground != 0.0 {
+                    for span in &mut s[first..] {
+                        span.z0 -= ground;
+                        span.z1 -= ground;
+                    }
                 }
                 s
             })

@@ -38,6 +38,8 @@ struct Piece<'a> {
     id: SourceId,
     /// The lot's street direction ([`Lot::front`]).
     front: Option<glam::DVec2>,
+    /// The lot's ground ([`Lot::ground`]): the neighbours' heights are seen from it.
+    ground: f64,
     style: &'a Style,
     rules: &'a RuleSet,
 }
@@ -282,6 +284,7 @@ impl Generator {
                 let on = Piece {
                     id: piece.id,
                     front: lot.front,
+                    ground: lot.ground,
                     style: &style,
                     rules: &rules,
                 };
@@ -327,7 +330,7 @@ impl Generator {
                 && !styles.iter().any(|(s, _)| self.file_rules(s).is_some());
             let a = frontage::arrange(
                 &mut views,
-                lot.id,
+                (lot.id, lot.ground),
                 lot.front,
                 &self.surroundings,
                 from_style,
@@ -403,26 +406,28 @@ impl Generator {
             .and_then(|i| styles.get(part_styles[i]))
             .map(|(style, tags)| style.provenance(tags))
             .unwrap_or_default();
-        Ok((
-            Building {
-                id: lot.id,
-                name: lot.tags.name.clone(),
-                zone: self.kb.zone_path(zone).to_string(),
-                appearance: match &self.rules {
-                    Rules::Kb => label.unwrap_or_default(),
-                    Rules::File(r) => format!("rules:{}", r.file()),
-                },
-                base_z,
-                measured_height: top - base_z,
-                storeys_above_ground: storeys,
-                roof_shape,
-                parts,
-                lod,
-                facade: counts,
-                provenance,
+        let mut building = Building {
+            id: lot.id,
+            name: lot.tags.name.clone(),
+            zone: self.kb.zone_path(zone).to_string(),
+            appearance: match &self.rules {
+                Rules::Kb => label.unwrap_or_default(),
+                Rules::File(r) => format!("rules:{}", r.file()),
             },
-            notes,
-        ))
+            base_z,
+            measured_height: top - base_z,
+            storeys_above_ground: storeys,
+            roof_shape,
+            parts,
+            lod,
+            facade: counts,
+            provenance,
+        };
+        // Seated on its ground (issue 44): derived on z = 0, then raised whole.
+        if lot.ground != 0.0 {
+            building.raise(lot.ground);
+        }
+        Ok((building, notes))
     }
 
     /// The LOD4 interior of a finished part: floor plans on its footprint, one per storey.
@@ -519,6 +524,7 @@ impl Generator {
         let Piece {
             id,
             front,
+            ground,
             style,
             rules,
         } = *piece;
@@ -614,7 +620,7 @@ impl Generator {
                     )),
                 }
             }
-            let bay_masses = self.bay_masses(id, &m, bays, &footprints, notes);
+            let bay_masses = self.bay_masses((id, ground), &m, bays, &footprints, notes);
             out.push((m, Some(f)));
             out.extend(bay_masses);
         }
@@ -628,7 +634,7 @@ impl Generator {
     /// rounding cannot be drawn (`selex::Bay::rounded`) is drawn square, with a note.
     fn bay_masses(
         &self,
-        owner: SourceId,
+        (owner, ground): (SourceId, f64),
         m: &Mass,
         bays: Vec<selex::Bay>,
         footprints: &[Polygon],
@@ -641,7 +647,7 @@ impl Generator {
             let near = self.surroundings.near(owner, lo, hi);
             let neighbours = near
                 .iter()
-                .filter(|n| n.z0 < b.z1 && b.z0 < n.z1)
+                .filter(|n| n.z0 - ground < b.z1 && b.z0 < n.z1 - ground)
                 .filter_map(|n| {
                     let (outer, holes) = n.rings.split_first()?;
                     Some(Polygon::new(outer.clone(), holes.to_vec()))

@@ -3,6 +3,7 @@
 //! Readers know nothing of the knowledge base, the grammar or the outputs. Every record they
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
 
+pub mod dem;
 pub mod osm;
 pub(crate) mod rings;
 pub mod shp;

@@ -10,7 +10,8 @@
 //! - **key** (`full_keys`): what decides the lot's bytes in the outputs: the run's context
 //!   (`context_key`: citygen's version and `OUTPUT_FORMAT`, the input's name, the SHA-256
 //!   of the knowledge base, of the rulesets and SELEX programs it names and of `--rules`,
-//!   seed, LOD, output CRS and origin, tile size, the options and the model and 3D Tiles
+//!   seed, LOD, output CRS and origin, tile size, the options (`--ground-height` among them),
+//!   the SHA-256 of the `--dem` files, and the model and 3D Tiles
 //!   outputs: not the report's or the preview's path, which decide no tile's bytes), the own
 //!   key, the tags as derived (after `--infer` lent it its neighbours' values), its front (from the nearest street), the zone an admin boundary of the input
 //!   gave it (where one did: `kb::BoundaryZones`), and at LOD3 and LOD4 the keys of the lots
@@ -138,6 +139,16 @@ pub(crate) fn context_key(run: &shard::RunKey, source_name: &str, outputs: &[Str
     put_str(&mut h, &run.options);
     for o in run.outputs.iter().chain(outputs) {
         put_str(&mut h, o);
+    }
+    // The DEMs decide every building's height (nothing hashed without: the keys of runs
+    // without terrain are those of before).
+    if !run.dems.is_empty() {
+        put_str(&mut h, "dems");
+        h.update((run.dems.len() as u64).to_le_bytes());
+        for f in &run.dems {
+            put_str(&mut h, &f.name);
+            put_str(&mut h, &f.sha256);
+        }
     }
     finish(h)
 }
@@ -545,7 +556,14 @@ impl Previous {
             ));
         }
         let (a, b) = (&m.run, run);
-        let checks: [(bool, &str); 7] = [
+        let dems = |k: &shard::RunKey| -> Vec<(String, String)> {
+            k.dems
+                .iter()
+                .map(|f| (f.name.clone(), f.sha256.clone()))
+                .collect()
+        };
+        let checks: [(bool, &str); 8] = [
+            (dems(a) != dems(b), "the --dem files differ"),
             (
                 sha(&a.kb) != sha(&b.kb),
                 "the knowledge base's SHA-256 differs",

@@ -641,6 +641,13 @@ fn merged_report(shards: &[&Found]) -> Report {
         read: first.report.read,
         parts_read: first.report.parts_read,
         boundaries: merged_boundaries(shards),
+        terrain: Some(
+            first
+                .report
+                .terrain
+                .clone()
+                .unwrap_or_else(|| crate::report::NO_TERRAIN.into()),
+        ),
         ..Default::default()
     };
     let mut prepared: Vec<&(usize, Entry)> = shards

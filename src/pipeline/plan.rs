@@ -201,15 +201,20 @@ impl GridPlan {
             origin: [site.origin.x, site.origin.y],
             tile_size: self.size,
             options: format!(
-                "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
+                "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}{}",
                 opts.bbox,
                 opts.crs.map(|c| c.to_string()),
                 opts.src_crs.map(|c| c.to_string()),
                 opts.caps.max_depth,
                 opts.caps.max_shapes,
-                opts.infer
+                opts.infer,
+                // Only when given: the options of runs without terrain are those of before.
+                opts.ground_height
+                    .map(|h| format!(" ground_height={h}"))
+                    .unwrap_or_default()
             ),
             outputs,
+            dems: opts.dem.iter().map(|p| key(p)).collect::<Result<_, _>>()?,
         })
     }
 
@@ -258,6 +263,10 @@ impl GridPlan {
                 read: report.read,
                 parts_read: report.parts_read,
                 boundaries: report.boundaries.clone(),
+                terrain: report
+                    .terrain
+                    .clone()
+                    .filter(|t| t != crate::report::NO_TERRAIN),
                 prepared,
                 ..Default::default()
             },

@@ -313,6 +313,9 @@ pub(crate) struct RunKey {
     /// The outputs each shard writes per tile, by kind (`ifc`, `citygml`, `gltf`, `cityjson`,
     /// `cityjsonseq`, `tiles3d`), and whether the run is a dry run.
     pub outputs: Vec<String>,
+    /// The `--dem` files in the order given (absent without: older manifests' bytes kept).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub dems: Vec<FileKey>,
 }
 
 /// An input file: its name (not its folder: machines mount inputs at different places), its
@@ -442,6 +445,10 @@ pub(crate) struct ShardReport {
     /// each placed (absent when the input has none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub boundaries: Option<crate::report::Boundaries>,
+    /// The run's terrain (the report's `terrain`) where it has one (absent without `--dem` or
+    /// `--ground-height`, so that such a run's manifest keeps its bytes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub terrain: Option<String>,
 }
 
 /// The [`FileKey`] of a file: its name, size and SHA-256 ([`crate::fsio::file_sha256`]).

@@ -623,7 +623,7 @@ fn write_lots(
         lod: maker.lod(),
         source_name: source_name.to_string(),
         seed: maker.seed(),
-        vertical_datum: None,
+        vertical_datum: site.vertical_datum.clone(),
         terrain: None,
     };
 

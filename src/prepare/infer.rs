@@ -412,6 +412,7 @@ mod tests {
             drawn_outline: vec![p],
             lonlat: (0.0, 0.0),
             front: None,
+            ground: 0.0,
         }
     }
 

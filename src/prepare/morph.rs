@@ -442,6 +442,7 @@ pub(crate) mod tests {
             drawn_outline: vec![p],
             lonlat: (0.0, 0.0),
             front: None,
+            ground: 0.0,
         }
     }
 

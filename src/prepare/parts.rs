@@ -242,6 +242,7 @@ pub(super) fn group_parts(
             drawn_outline: p.polygons.clone(),
             lonlat: *lonlat,
             front: None,
+            ground: 0.0,
         })
         .collect();
     let ctree = outline_index(&containers);
@@ -290,6 +291,7 @@ pub(super) fn group_parts(
                     drawn_outline: piece.polygons,
                     lonlat,
                     front: None,
+                    ground: 0.0,
                 });
             }
         }

@@ -193,6 +193,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
             drawn_outline: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
             lonlat: (lon, lat),
             front: None,
+            ground: 0.0,
         }
     };
     // Input order mixes the tiles; 5 and 2 share a tile with 1, in that input order.
@@ -209,6 +210,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
         ],
         boundaries: Vec::new(),
         elevation: None,
+        vertical_datum: None,
     };
     let tiles = group_into_tiles(&mut site, 250);
     let ids: Vec<SourceId> = site.lots.iter().map(|l| l.id).collect();

@@ -4,6 +4,7 @@
 //! built in code with them instead of being committed as fixtures.
 
 pub mod day2;
+pub mod geotiff;
 pub mod pbf_write;
 pub mod tiled;
 pub mod validators;

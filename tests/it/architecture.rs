@@ -118,7 +118,7 @@ const SIBLINGS: Siblings = &[
         ],
     ),
     // The readers: one format each.
-    ("input", &[("osm", &[]), ("shp", &[])]),
+    ("input", &[("osm", &[]), ("shp", &[]), ("dem", &[])]),
 ];
 
 /// What `src/main.rs` may name of the library (`citygen::...`): the commands, nothing deeper.

@@ -727,3 +727,35 @@ fn lod3_solids_of_both_whole_samples_are_valid() {
     ];
     assert_valid(&files);
 }
+
+/// Seated on a DEM (issue 44: every building raised whole by its ground, rounded to the
+/// millimetre), Monaco's LOD2 solids stay valid.
+#[test]
+fn solids_seated_on_a_dem_are_valid() {
+    use citygen::testkit::geotiff::GeoTiff;
+    let dir = tempfile::tempdir().unwrap();
+    let kb = root().join("knowledge_base/kb.xml");
+    // A hillside with waves over the whole sample (UTM 32N, 20 m pixels): grounds that are
+    // no round numbers.
+    let dem = dir.path().join("hill.tif");
+    GeoTiff::projected(
+        32632,
+        (360_000.0, 4_850_000.0),
+        20.0,
+        (1000, 1000),
+        |x, y| {
+            ((y - 4_838_000.0) * 0.071).max(0.0) + 7.3 * (x / 97.0).sin() * (y / 113.0).cos() + 3.21
+        },
+    )
+    .write(&dem)
+    .unwrap();
+    let gml = citygml(
+        dir.path(),
+        "monaco-dem-lod2",
+        &MONACO,
+        &kb,
+        2,
+        &["--dem", dem.to_str().unwrap()],
+    );
+    assert_valid(&[gml]);
+}

@@ -11,6 +11,7 @@ mod bad_inputs;
 mod budgets;
 mod clear_errors;
 mod day2;
+mod dem;
 mod deploy;
 mod e2e;
 mod evolve;

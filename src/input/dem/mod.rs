@@ -1,0 +1,597 @@
+//! `--dem`: digital elevation models read from GeoTIFF files (issue 44).
+//!
+//! The `tiff` crate decodes the file's strips or tiles (any sample format of 8 to 64 bits,
+//! integer or float; uncompressed, deflate or LZW, with their predictors); the georeferencing
+//! is read here from the GeoTIFF tags themselves (`geokeys`). Only the header is read when a
+//! file is opened: its strips or tiles are decoded when a sample needs them and kept in a cache
+//! shared by all the files of a run, emptied whenever it passes [`CACHE_BYTES`], so that a run
+//! holds the DEM around its buildings, never a whole big file.
+//!
+//! Heights are sampled bilinearly between pixel centres. A point within half a pixel outside
+//! the outermost centres (still on the raster's area) takes the edge's values. A pixel equal to
+//! `GDAL_NODATA` (or NaN) has no height: the bilinear weights of the known pixels around a
+//! point are renormalised, and a point whose weighted pixels are all unknown has no height.
+//! Several files are tried in the order given: the first that has a height at a point gives it.
+
+mod geokeys;
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+
+use glam::DVec2;
+use thiserror::Error;
+use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::tags::Tag;
+use tiff::ColorType;
+
+use crate::crs::Crs;
+
+pub(crate) use geokeys::vertical_name;
+use geokeys::{GeoError, GeoTags, Georef};
+
+/// The most decoded DEM data (bytes of `f32` samples) a run keeps at once; past it the cache is
+/// emptied and what is needed again is decoded again.
+pub const CACHE_BYTES: usize = 256 << 20;
+
+/// The largest strip or tile decoded (bytes): a file stored as one huge strip is refused with
+/// the command that tiles it.
+const MAX_CHUNK_BYTES: usize = 64 << 20;
+
+/// Why a DEM cannot be used. Every message names the file as given on the command line.
+#[derive(Debug, Error)]
+pub enum DemError {
+    /// The file cannot be opened or read.
+    #[error("{}: cannot read the DEM: {source}", .path.display())]
+    Io {
+        /// The `--dem` file.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not a TIFF the decoder reads, or a strip or tile that does not decode.
+    #[error("{}: not a readable GeoTIFF: {reason}", .path.display())]
+    Tiff {
+        /// The `--dem` file.
+        path: PathBuf,
+        /// The decoder's error, with the strip or tile when one failed.
+        reason: String,
+    },
+    /// A TIFF whose georeferencing is missing or unusable.
+    #[error("{}: {reason}; citygen reads GeoTIFF DEMs (e.g. from `gdal_translate -of GTiff`)", .path.display())]
+    Georef {
+        /// The `--dem` file.
+        path: PathBuf,
+        /// What is wrong with its tags.
+        reason: String,
+    },
+    /// A CRS citygen does not implement.
+    #[error("{}: the DEM's CRS ({what}) is not one citygen knows (EPSG:4326, WGS 84 / UTM EPSG:326xx and 327xx, ETRS89 / UTM EPSG:258xx, Lambert-93 EPSG:2154, British National Grid EPSG:27700); reproject it first, e.g. `gdalwarp -t_srs EPSG:4326 {} dem-4326.tif` (or the run's UTM zone, EPSG:326zz)", .path.display(), .path.display())]
+    UnknownCrs {
+        /// The `--dem` file.
+        path: PathBuf,
+        /// The CRS as the file names it.
+        what: String,
+    },
+    /// A raster citygen does not read as heights (colour, complex samples, feet).
+    #[error("{}: {what}", .path.display())]
+    Unsupported {
+        /// The `--dem` file.
+        path: PathBuf,
+        /// What, and how to convert it.
+        what: String,
+    },
+    /// Two files state different vertical datums.
+    #[error("{} and {}: the DEMs state different vertical datums ({a} and {b}); convert them to one first", .first.display(), .second.display())]
+    MixedDatums {
+        /// A file of the first datum.
+        first: PathBuf,
+        /// A file of the second.
+        second: PathBuf,
+        /// The first datum.
+        a: String,
+        /// The second.
+        b: String,
+    },
+}
+
+/// One decoded strip or tile: `w` by `h` heights row by row, NaN where the file has none.
+struct Chunk {
+    w: usize,
+    z: Vec<f32>,
+}
+
+/// One opened GeoTIFF: its header, its georeferencing and a decoder for its strips or tiles.
+struct Dem {
+    path: PathBuf,
+    decoder: Mutex<Decoder<BufReader<File>>>,
+    width: u32,
+    height: u32,
+    /// Width and height of a strip or tile.
+    chunk: (u32, u32),
+    /// Strips or tiles across (1 for strips).
+    across: u32,
+    /// Samples per pixel in a decoded chunk (the first is the height).
+    stride: usize,
+    nodata: Option<f64>,
+    georef: Georef,
+    crs: Crs,
+}
+
+/// The value of a sample at one point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Sample {
+    /// The height there, metres.
+    Value(f64),
+    /// On a DEM, where it has no data.
+    NoData,
+    /// On none of the DEMs.
+    Outside,
+}
+
+/// The decoded chunks of every file of a set, by (file, chunk index).
+#[derive(Default)]
+struct Cache {
+    chunks: HashMap<(usize, u32), Arc<Chunk>>,
+    bytes: usize,
+}
+
+/// The `--dem` files of a run, in the order given.
+pub struct DemSet {
+    dems: Vec<Dem>,
+    cache: Mutex<Cache>,
+}
+
+impl std::fmt::Debug for DemSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.paths()).finish()
+    }
+}
+
+fn tiff_err(path: &Path) -> impl Fn(tiff::TiffError) -> DemError + '_ {
+    move |e| DemError::Tiff {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    }
+}
+
+impl Dem {
+    /// Opens `path` and reads its header and georeferencing (no pixel).
+    fn open(path: &Path) -> Result<Dem, DemError> {
+        let file = File::open(path).map_err(|source| DemError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        if file.metadata().is_ok_and(|m| m.is_dir()) {
+            return Err(DemError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::other("it is a directory"),
+            });
+        }
+        let mut limits = Limits::default();
+        limits.decoding_buffer_size = MAX_CHUNK_BYTES;
+        let mut dec = Decoder::new(BufReader::new(file))
+            .map_err(tiff_err(path))?
+            .with_limits(limits);
+        let (width, height) = dec.dimensions().map_err(tiff_err(path))?;
+        let unsupported = |what: String| DemError::Unsupported {
+            path: path.to_path_buf(),
+            what,
+        };
+        let planar = dec
+            .find_tag_unsigned::<u16>(Tag::PlanarConfiguration)
+            .map_err(tiff_err(path))?
+            .unwrap_or(1);
+        let stride = match dec.colortype().map_err(tiff_err(path))? {
+            _ if planar == 2 => 1,
+            ColorType::Gray(_) => 1,
+            ColorType::GrayA(_) => 2,
+            ColorType::Multiband { num_samples, .. } => usize::from(num_samples.max(1)),
+            other => {
+                return Err(unsupported(format!(
+                    "a {other:?} image, not heights: a DEM has one band of heights \
+                     (`gdal_translate -b 1` keeps the first)"
+                )))
+            }
+        };
+        let tags = geo_tags(&mut dec).map_err(tiff_err(path))?;
+        let georef = geokeys::georef(&tags).map_err(|e: GeoError| DemError::Georef {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        if let Some(what) = &georef.non_metre {
+            return Err(unsupported(format!(
+                "{what}: citygen reads heights and projected coordinates in metres; convert \
+                 them first (e.g. `gdalwarp -t_srs EPSG:4326` and `gdal_calc.py`)"
+            )));
+        }
+        let crs = match georef.epsg {
+            Some(code) => Crs::from_epsg(u32::from(code)).map_err(|_| DemError::UnknownCrs {
+                path: path.to_path_buf(),
+                what: format!("EPSG:{code}"),
+            })?,
+            None => {
+                return Err(DemError::UnknownCrs {
+                    path: path.to_path_buf(),
+                    what: georef
+                        .citation
+                        .clone()
+                        .map_or("no EPSG code".into(), |c| format!("user-defined: {c}")),
+                })
+            }
+        };
+        let nodata = match dec.find_tag(Tag::GdalNodata).map_err(tiff_err(path))? {
+            None => None,
+            Some(v) => {
+                let s = v.into_string().map_err(tiff_err(path))?;
+                let s = s.trim_matches(|c: char| c.is_whitespace() || c == '\0');
+                Some(
+                    s.parse::<f64>()
+                        .map_err(|_| unsupported(format!("GDAL_NODATA {s:?} is not a number")))?,
+                )
+            }
+        };
+        let chunk = dec.chunk_dimensions();
+        let across = match dec.get_chunk_type() {
+            tiff::decoder::ChunkType::Strip => 1,
+            tiff::decoder::ChunkType::Tile => width.div_ceil(chunk.0.max(1)),
+        };
+        if chunk.0 == 0 || chunk.1 == 0 || width == 0 || height == 0 {
+            return Err(unsupported("an empty raster".into()));
+        }
+        Ok(Dem {
+            path: path.to_path_buf(),
+            decoder: Mutex::new(dec),
+            width,
+            height,
+            chunk,
+            across,
+            stride,
+            nodata,
+            georef,
+            crs,
+        })
+    }
+
+    /// The chunk holding pixel (i, j), and the pixel's column and row in it.
+    fn locate(&self, i: u32, j: u32) -> (u32, usize, usize) {
+        let (cw, ch) = self.chunk;
+        let index = (j / ch) * self.across + i / cw;
+        if self.across == 1 {
+            // Strips span the width.
+            return (index, i as usize, (j % ch) as usize);
+        }
+        (index, (i % cw) as usize, (j % ch) as usize)
+    }
+
+    /// Decodes chunk `index` into heights.
+    fn decode(&self, index: u32) -> Result<Chunk, DemError> {
+        let bad = |e: tiff::TiffError| DemError::Tiff {
+            path: self.path.clone(),
+            reason: format!("strip or tile {index}: {e}"),
+        };
+        let mut dec = self.decoder.lock().unwrap_or_else(PoisonError::into_inner);
+        let (w, _) = dec.chunk_data_dimensions(index);
+        let raw = dec.read_chunk(index).map_err(bad)?;
+        drop(dec);
+        let nd = self.nodata;
+        let keep = |v: f64| -> f32 {
+            match nd {
+                Some(n) if v == n || (v as f32) == (n as f32) => f32::NAN,
+                _ => v as f32,
+            }
+        };
+        let s = self.stride;
+        let z: Vec<f32> = match raw {
+            DecodingResult::U8(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::I8(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::U16(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::I16(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::U32(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::I32(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::U64(v) => v.iter().step_by(s).map(|x| keep(*x as f64)).collect(),
+            DecodingResult::I64(v) => v.iter().step_by(s).map(|x| keep(*x as f64)).collect(),
+            DecodingResult::F16(v) => v
+                .iter()
+                .step_by(s)
+                .map(|x| keep(f64::from(x.to_f32())))
+                .collect(),
+            DecodingResult::F32(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
+            DecodingResult::F64(v) => v.iter().step_by(s).map(|x| keep(*x)).collect(),
+        };
+        Ok(Chunk { w: w as usize, z })
+    }
+}
+
+/// The GeoTIFF tags of the decoder's image.
+fn geo_tags(dec: &mut Decoder<BufReader<File>>) -> tiff::TiffResult<GeoTags> {
+    let f64s = |dec: &mut Decoder<BufReader<File>>, t: Tag| -> tiff::TiffResult<_> {
+        dec.find_tag(t)?.map(|v| v.into_f64_vec()).transpose()
+    };
+    Ok(GeoTags {
+        scale: f64s(dec, Tag::ModelPixelScaleTag)?,
+        tiepoints: f64s(dec, Tag::ModelTiepointTag)?,
+        transformation: f64s(dec, Tag::ModelTransformationTag)?,
+        doubles: f64s(dec, Tag::GeoDoubleParamsTag)?,
+        keys: dec
+            .find_tag(Tag::GeoKeyDirectoryTag)?
+            .map(|v| v.into_u16_vec())
+            .transpose()?,
+        ascii: dec
+            .find_tag(Tag::GeoAsciiParamsTag)?
+            .map(|v| v.into_string())
+            .transpose()?,
+    })
+}
+
+impl DemSet {
+    /// Opens every file (headers and georeferencing only), in the order given.
+    pub fn open(paths: &[PathBuf]) -> Result<DemSet, DemError> {
+        let dems = paths
+            .iter()
+            .map(|p| Dem::open(p))
+            .collect::<Result<_, _>>()?;
+        let set = DemSet {
+            dems,
+            cache: Mutex::new(Cache::default()),
+        };
+        set.vertical_epsg()?;
+        Ok(set)
+    }
+
+    /// The files, as given.
+    pub fn paths(&self) -> Vec<&Path> {
+        self.dems.iter().map(|d| d.path.as_path()).collect()
+    }
+
+    /// The vertical CRS the files state (the one code those that state one agree on), or
+    /// `None` when none states one.
+    pub fn vertical_epsg(&self) -> Result<Option<u16>, DemError> {
+        let mut found: Option<(&Dem, u16)> = None;
+        for d in &self.dems {
+            let Some(code) = d.georef.vertical_epsg else {
+                continue;
+            };
+            match found {
+                Some((f, c)) if c != code => {
+                    return Err(DemError::MixedDatums {
+                        first: f.path.clone(),
+                        second: d.path.clone(),
+                        a: vertical_name(c),
+                        b: vertical_name(code),
+                    })
+                }
+                Some(_) => {}
+                None => found = Some((d, code)),
+            }
+        }
+        Ok(found.map(|(_, c)| c))
+    }
+
+    /// The set seen from a run's local frame: output CRS `crs`, origin `origin` in it.
+    pub fn framed(&self, crs: Crs, origin: DVec2) -> Framed<'_> {
+        let mut f = Framed {
+            set: self,
+            crs,
+            origin,
+            cells: Vec::new(),
+        };
+        f.cells = (0..self.dems.len()).map(|d| f.cell_size_of(d)).collect();
+        f
+    }
+
+    fn chunk(&self, d: usize, index: u32) -> Result<Arc<Chunk>, DemError> {
+        let key = (d, index);
+        if let Some(c) = self
+            .cache
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .chunks
+            .get(&key)
+        {
+            return Ok(c.clone());
+        }
+        let c = Arc::new(self.dems[d].decode(index)?);
+        let mut cache = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+        let size = 4 * c.z.len();
+        if cache.bytes + size > CACHE_BYTES {
+            cache.chunks.clear();
+            cache.bytes = 0;
+        }
+        if cache.chunks.insert(key, c.clone()).is_none() {
+            cache.bytes += size;
+        }
+        Ok(c)
+    }
+}
+
+/// A [`DemSet`] in a run's local frame.
+pub struct Framed<'a> {
+    set: &'a DemSet,
+    crs: Crs,
+    origin: DVec2,
+    /// Each file's pixel size in the local frame, metres (the smaller side).
+    cells: Vec<f64>,
+}
+
+impl Framed<'_> {
+    /// The smallest pixel of the files in the local frame, metres.
+    pub fn cell_size(&self) -> f64 {
+        self.cells.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
+    /// File `d`'s model coordinates of local point `p`.
+    fn to_model(&self, d: usize, p: DVec2) -> DVec2 {
+        let q = self.origin + p;
+        let crs = self.set.dems[d].crs;
+        if crs == self.crs {
+            return q;
+        }
+        let (lon, lat) = self.crs.to_lonlat(q.x, q.y);
+        let (x, y) = crs.from_lonlat(lon, lat);
+        DVec2::new(x, y)
+    }
+
+    /// The local point of file `d`'s model coordinates `m`.
+    fn to_local(&self, d: usize, m: DVec2) -> DVec2 {
+        let crs = self.set.dems[d].crs;
+        if crs == self.crs {
+            return m - self.origin;
+        }
+        let (lon, lat) = crs.to_lonlat(m.x, m.y);
+        let (x, y) = self.crs.from_lonlat(lon, lat);
+        DVec2::new(x, y) - self.origin
+    }
+
+    fn cell_size_of(&self, d: usize) -> f64 {
+        let dem = &self.set.dems[d];
+        let c = DVec2::new(f64::from(dem.width) / 2.0, f64::from(dem.height) / 2.0);
+        let at = |c: DVec2| self.to_local(d, dem.georef.to_model(c));
+        let o = at(c);
+        let s = at(c + DVec2::X)
+            .distance(o)
+            .min(at(c + DVec2::Y).distance(o));
+        if s.is_finite() && s > 0.0 {
+            s
+        } else {
+            1.0
+        }
+    }
+
+    /// The local positions of every pixel centre of every file inside the local rectangle
+    /// `lo..hi` (a footprint's bounds), file by file.
+    pub fn centres_in(&self, lo: DVec2, hi: DVec2) -> Vec<DVec2> {
+        let mut out = Vec::new();
+        for (d, dem) in self.set.dems.iter().enumerate() {
+            let corners = [lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)];
+            let px: Vec<DVec2> = corners
+                .iter()
+                .map(|c| dem.georef.to_pixel(self.to_model(d, *c)))
+                .collect();
+            let (mut a, mut b) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+            for p in &px {
+                a = a.min(*p);
+                b = b.max(*p);
+            }
+            if !(a.is_finite() && b.is_finite()) {
+                continue;
+            }
+            let i0 = a.x.ceil().max(0.0);
+            let j0 = a.y.ceil().max(0.0);
+            let i1 = b.x.floor().min(f64::from(dem.width) - 1.0);
+            let j1 = b.y.floor().min(f64::from(dem.height) - 1.0);
+            if i0 > i1 || j0 > j1 || (i1 - i0 + 1.0) * (j1 - j0 + 1.0) > 4.0e6 {
+                continue;
+            }
+            for j in (j0 as u32)..=(j1 as u32) {
+                for i in (i0 as u32)..=(i1 as u32) {
+                    let m = dem.georef.to_model(DVec2::new(f64::from(i), f64::from(j)));
+                    out.push(self.to_local(d, m));
+                }
+            }
+        }
+        out
+    }
+
+    /// A sampler (each thread its own: it remembers the last chunks it read).
+    pub fn sampler(&self) -> Sampler<'_> {
+        Sampler {
+            framed: self,
+            memo: Vec::with_capacity(MEMO),
+        }
+    }
+}
+
+/// How many chunks a [`Sampler`] remembers.
+const MEMO: usize = 4;
+
+/// Samples a [`Framed`] set at local points.
+pub struct Sampler<'a> {
+    framed: &'a Framed<'a>,
+    memo: Vec<((usize, u32), Arc<Chunk>)>,
+}
+
+impl Sampler<'_> {
+    /// The height at local point `p`: from the first file that has one there.
+    pub fn sample(&mut self, p: DVec2) -> Result<Sample, DemError> {
+        let mut covered = false;
+        for d in 0..self.framed.set.dems.len() {
+            let m = self.framed.to_model(d, p);
+            match self.bilinear(d, m)? {
+                Sample::Value(z) => return Ok(Sample::Value(z)),
+                Sample::NoData => covered = true,
+                Sample::Outside => {}
+            }
+        }
+        Ok(if covered {
+            Sample::NoData
+        } else {
+            Sample::Outside
+        })
+    }
+
+    fn pixel(&mut self, d: usize, i: u32, j: u32) -> Result<f32, DemError> {
+        let dem = &self.framed.set.dems[d];
+        let (index, col, row) = dem.locate(i, j);
+        let key = (d, index);
+        let k = match self.memo.iter().position(|(k, _)| *k == key) {
+            Some(k) => k,
+            None => {
+                let c = self.framed.set.chunk(d, index)?;
+                if self.memo.len() == MEMO {
+                    self.memo.remove(0);
+                }
+                self.memo.push((key, c));
+                self.memo.len() - 1
+            }
+        };
+        let chunk = &self.memo[k].1;
+        Ok(chunk
+            .z
+            .get(row * chunk.w + col)
+            .copied()
+            .unwrap_or(f32::NAN))
+    }
+
+    /// File `d`'s bilinear height at its model point `m`.
+    fn bilinear(&mut self, d: usize, m: DVec2) -> Result<Sample, DemError> {
+        let dem = &self.framed.set.dems[d];
+        let c = dem.georef.to_pixel(m);
+        let (w, h) = (f64::from(dem.width), f64::from(dem.height));
+        if !(c.x >= -0.5 && c.y >= -0.5 && c.x <= w - 0.5 && c.y <= h - 0.5) {
+            return Ok(Sample::Outside);
+        }
+        let cx = c.x.clamp(0.0, w - 1.0);
+        let cy = c.y.clamp(0.0, h - 1.0);
+        let i0 = (cx.floor() as u32).min(dem.width.saturating_sub(2));
+        let j0 = (cy.floor() as u32).min(dem.height.saturating_sub(2));
+        let (fx, fy) = (cx - f64::from(i0), cy - f64::from(j0));
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for (di, dj, wt) in [
+            (0, 0, (1.0 - fx) * (1.0 - fy)),
+            (1, 0, fx * (1.0 - fy)),
+            (0, 1, (1.0 - fx) * fy),
+            (1, 1, fx * fy),
+        ] {
+            if wt <= 0.0 {
+                continue;
+            }
+            let v = self.pixel(d, i0 + di, j0 + dj)?;
+            if v.is_finite() {
+                sum += wt * f64::from(v);
+                weight += wt;
+            }
+        }
+        Ok(if weight > 0.0 {
+            Sample::Value(sum / weight)
+        } else {
+            Sample::NoData
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,205 @@
+//! Where each lot stands (issue 44): its ground height from the `--dem` files, and the
+//! elevation grid of the run's extent.
+//!
+//! A building's base is the lowest terrain under its footprint (OSM Simple 3D Buildings: its
+//! `height` counts from there, so on a slope the low side's walls reach the ground and the
+//! high side's lower part is below it). The lowest point is searched at every DEM pixel centre
+//! inside the footprint (outlines and parts, holes excluded) and along every ring at most half
+//! the finest pixel apart, vertices included: bilinear heights have no minimum inside a
+//! pixel's cell, so this misses the true minimum by at most the curvature over half a pixel.
+//! Samples over the DEM's nodata are skipped; a footprint with no known sample, or with a
+//! sample outside every DEM, is *uncovered*. The base is rounded to the millimetre grid the
+//! outputs are written at.
+
+use glam::DVec2;
+use rayon::prelude::*;
+
+use super::Lot;
+use crate::geometry::Polygon;
+use crate::input::dem::{DemError, Framed, Sample, Sampler};
+use crate::model::ElevationGrid;
+
+/// Margin around the run's buildings covered by [`elevation_grid`], metres.
+pub const GRID_MARGIN: f64 = 50.0;
+
+/// The most samples [`elevation_grid`] holds (2048 x 2048): a larger extent takes coarser
+/// steps than the DEM's.
+pub const GRID_MAX_CELLS: usize = 1 << 22;
+
+/// The most samples taken along one ring edge.
+const MAX_EDGE_SAMPLES: usize = 20_000;
+
+/// Lots per parallel batch of [`grounds`] (one sampler each).
+const BATCH: usize = 64;
+
+/// The ground of one footprint, or `None` where the DEMs do not cover it.
+fn ground_under(
+    polygons: &[&Polygon],
+    framed: &Framed<'_>,
+    s: &mut Sampler<'_>,
+) -> Result<Option<f64>, DemError> {
+    let step = (framed.cell_size() / 2.0).max(0.01);
+    let mut low = f64::INFINITY;
+    let mut take = |v: Sample| -> bool {
+        match v {
+            Sample::Value(z) => {
+                low = low.min(z);
+                true
+            }
+            Sample::NoData => true,
+            Sample::Outside => false,
+        }
+    };
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for p in polygons {
+        for ring in p.rings() {
+            for (k, a) in ring.iter().enumerate() {
+                let b = ring[(k + 1) % ring.len()];
+                lo = lo.min(*a);
+                hi = hi.max(*a);
+                let n = ((a.distance(b) / step).ceil() as usize).clamp(1, MAX_EDGE_SAMPLES);
+                for i in 0..n {
+                    if !take(s.sample(a.lerp(b, i as f64 / n as f64))?) {
+                        return Ok(None);
+                    }
+                }
+            }
+        }
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Ok(None);
+    }
+    for c in framed.centres_in(lo, hi) {
+        if polygons.iter().any(|p| p.contains(c)) && !take(s.sample(c)?) {
+            return Ok(None);
+        }
+    }
+    Ok(low.is_finite().then(|| (low * 1000.0).round() / 1000.0))
+}
+
+/// Every polygon of a lot: its outline's and its parts'.
+fn footprint(lot: &Lot) -> Vec<&Polygon> {
+    lot.polygons
+        .iter()
+        .chain(lot.parts.iter().flat_map(|p| &p.polygons))
+        .collect()
+}
+
+/// A key along the Z-order curve of a lot's centre (64 m cells), so that lots sampled together
+/// read the same strips and tiles.
+fn z_order(lot: &Lot) -> u64 {
+    let Some((lo, hi)) = lot.bounds() else {
+        return u64::MAX;
+    };
+    let c = (lo + hi) / 128.0;
+    let q = |v: f64| (v + f64::from(1u32 << 31)).clamp(0.0, f64::from(u32::MAX)) as u32;
+    let (x, y) = (q(c.x), q(c.y));
+    let mut k = 0u64;
+    for b in 0..32 {
+        k |= u64::from((x >> b) & 1) << (2 * b);
+        k |= u64::from((y >> b) & 1) << (2 * b + 1);
+    }
+    k
+}
+
+/// The ground of every lot `wanted` selects (`None` for the others and where the DEMs do not
+/// cover the lot), in lot order; the first error of a file in lot order.
+pub fn grounds(
+    lots: &[Lot],
+    wanted: impl Fn(usize) -> bool + Sync,
+    framed: &Framed<'_>,
+) -> Result<Vec<Option<f64>>, DemError> {
+    let mut order: Vec<usize> = (0..lots.len()).filter(|&i| wanted(i)).collect();
+    order.sort_by_cached_key(|&i| (z_order(&lots[i]), i));
+    let found: Vec<(usize, Result<Option<f64>, DemError>)> = order
+        .par_chunks(BATCH)
+        .flat_map_iter(|batch| {
+            let mut s = framed.sampler();
+            batch
+                .iter()
+                .map(|&i| (i, ground_under(&footprint(&lots[i]), framed, &mut s)))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let mut out: Vec<Option<f64>> = vec![None; lots.len()];
+    let mut first_err: Option<(usize, DemError)> = None;
+    for (i, r) in found {
+        match r {
+            Ok(g) => out[i] = g,
+            Err(e) => {
+                if first_err.as_ref().is_none_or(|(j, _)| i < *j) {
+                    first_err = Some((i, e));
+                }
+            }
+        }
+    }
+    match first_err {
+        Some((_, e)) => Err(e),
+        None => Ok(out),
+    }
+}
+
+/// The DEM resampled (bilinear) on a regular grid of the local frame over the bounds of the
+/// lots `wanted` selects plus [`GRID_MARGIN`]: at the finest DEM's pixel size, coarser where
+/// that would pass [`GRID_MAX_CELLS`]; NaN where no DEM has a height. `None` without a lot.
+pub fn elevation_grid(
+    lots: &[Lot],
+    wanted: impl Fn(usize) -> bool,
+    framed: &Framed<'_>,
+) -> Result<Option<ElevationGrid>, DemError> {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for (i, l) in lots.iter().enumerate() {
+        if let Some((a, b)) = l.bounds().filter(|_| wanted(i)) {
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Ok(None);
+    }
+    lo -= DVec2::splat(GRID_MARGIN);
+    hi += DVec2::splat(GRID_MARGIN);
+    let size = hi - lo;
+    let fine = framed.cell_size().max(0.1);
+    let coarse = (size.x * size.y / GRID_MAX_CELLS as f64).sqrt();
+    let mut step = (fine.max(coarse) * 1000.0).ceil() / 1000.0;
+    let cells = |step: f64| {
+        (
+            (size.x / step).ceil() as usize + 1,
+            (size.y / step).ceil() as usize + 1,
+        )
+    };
+    while {
+        let (nx, ny) = cells(step);
+        nx * ny > GRID_MAX_CELLS
+    } {
+        step *= 1.01;
+    }
+    let (nx, ny) = cells(step);
+    let rows: Vec<Result<Vec<f32>, DemError>> = (0..ny)
+        .into_par_iter()
+        .map(|j| {
+            let mut s = framed.sampler();
+            (0..nx)
+                .map(|i| {
+                    let p = lo + DVec2::new(i as f64, j as f64) * step;
+                    Ok(match s.sample(p)? {
+                        Sample::Value(z) => z as f32,
+                        _ => f32::NAN,
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    let mut z = Vec::with_capacity(nx * ny);
+    for r in rows {
+        z.extend(r?);
+    }
+    Ok(Some(ElevationGrid {
+        origin: lo,
+        step,
+        nx,
+        ny,
+        z,
+    }))
+}

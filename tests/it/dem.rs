@@ -1,0 +1,665 @@
+//! `--dem` and `--ground-height` through the binary (issue 44): buildings seated on synthetic
+//! GeoTIFF DEMs written in code (a slope with a cliff and a nodata hole, two tiles side by side
+//! in two CRSs, PixelIsPoint), read back from the CityJSON: every base at the DEM's minimum
+//! under the footprint, no wall bottom above the terrain, tagged heights from the base, parts'
+//! `min_height` kept; the refusals (a building the DEM does not cover, an unknown CRS) before
+//! anything is written; every format raised by `--ground-height`; and a run without either
+//! byte for byte as before.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use citygen::crs::Crs;
+use citygen::testkit::geotiff::{GeoTiff, Packing, SampleType};
+use citygen::testkit::pbf_write::PbfWriter;
+use serde_json::Value;
+
+use super::common::{citygen, glb_json, step_entities, KB};
+
+const UTM32: Crs = Crs::Utm {
+    zone: 32,
+    north: true,
+};
+/// Near Monaco (UTM zone 32N).
+const LON0: f64 = 7.42;
+const LAT0: f64 = 43.735;
+/// Where the cliff is, metres east of the origin: it crosses the second column of buildings.
+const CLIFF_X: f64 = 37.0;
+const NODATA: f64 = -9999.0;
+
+/// The UTM origin of the synthetic district (whole metres).
+fn origin() -> (f64, f64) {
+    let (x, y) = UTM32.from_lonlat(LON0, LAT0);
+    (x.round(), y.round())
+}
+
+/// The terrain at UTM (x, y): a slope rising 1 in 8 to the east and 1 in 16 to the north, and a
+/// cliff 6 m high at `CLIFF_X`.
+fn terrain(x: f64, y: f64) -> f64 {
+    let (x0, y0) = origin();
+    let (u, v) = (x - x0, y - y0);
+    50.0 + 0.125 * u + 0.0625 * v + if u > CLIFF_X { 6.0 } else { 0.0 }
+}
+
+/// The footprints: 3 x 3 rectangles of 14 x 10 m, 30 m apart east and 25 m north, as local
+/// (x, y) corners counter-clockwise; building `k` is way `100 + k`.
+fn footprints() -> Vec<[(f64, f64); 4]> {
+    let mut out = Vec::new();
+    for j in 0..3 {
+        for i in 0..3 {
+            let (x, y) = (f64::from(i) * 30.0, f64::from(j) * 25.0);
+            out.push([(x, y), (x + 14.0, y), (x + 14.0, y + 10.0), (x, y + 10.0)]);
+        }
+    }
+    out
+}
+
+/// Writes the district as an OSM PBF: every building `height=12`, 4 levels, flat; building 4
+/// also has a `building:part` over its west half from `min_height=6` to 15 m.
+fn write_pbf(path: &Path) {
+    let (x0, y0) = origin();
+    let mut w = PbfWriter::new(std::fs::File::create(path).unwrap()).unwrap();
+    let mut node = 1i64;
+    let mut ways = Vec::new();
+    let ll = |x: f64, y: f64| UTM32.to_lonlat(x0 + x, y0 + y);
+    for (k, f) in footprints().iter().enumerate() {
+        let mut refs = Vec::new();
+        for (x, y) in f {
+            let (lon, lat) = ll(*x, *y);
+            w.node(node, lon, lat, &[]).unwrap();
+            refs.push(node);
+            node += 1;
+        }
+        refs.push(refs[0]);
+        ways.push((100 + k as i64, refs, false));
+        if k == 4 {
+            let (x, y) = f[0];
+            let mut part = Vec::new();
+            for (px, py) in [(x, y), (x + 7.0, y), (x + 7.0, y + 10.0), (x, y + 10.0)] {
+                // The outline's own corners where they coincide.
+                let (lon, lat) = ll(px, py);
+                w.node(node, lon, lat, &[]).unwrap();
+                part.push(node);
+                node += 1;
+            }
+            part.push(part[0]);
+            ways.push((200, part, true));
+        }
+    }
+    for (id, refs, is_part) in ways {
+        let tags: Vec<(&str, &str)> = if is_part {
+            vec![
+                ("building:part", "yes"),
+                ("min_height", "6"),
+                ("height", "15"),
+                ("roof:shape", "flat"),
+            ]
+        } else {
+            vec![
+                ("building", "yes"),
+                ("height", "12"),
+                ("building:levels", "4"),
+                ("roof:shape", "flat"),
+            ]
+        };
+        w.way(id, &refs, &tags).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// A UTM DEM of 1 m pixels from local (-40, 140) (its top-left corner) over 200 x 180 m, with
+/// a nodata hole of 4 x 4 m under the south-west corner of building 5.
+fn utm_dem() -> GeoTiff {
+    let (x0, y0) = origin();
+    let mut t = GeoTiff::projected(32632, (x0 - 40.0, y0 + 140.0), 1.0, (200, 180), terrain);
+    t.nodata = Some(NODATA);
+    t.vertical = Some(5773);
+    t.packing = Packing::Deflate;
+    // Building 5: local x 60..74, y 25..35; the hole's pixel centres at x 59.5..62.5 and
+    // y 24.5..27.5 (rows from the top at 140).
+    for row in 112..116 {
+        for col in 99..103 {
+            t.values[row * 200 + col] = NODATA;
+        }
+    }
+    t
+}
+
+/// Bilinear height of `t` (projected, PixelIsArea) at UTM (x, y), nodata skipped as citygen
+/// does (the known pixels' weights renormalised); `None` off the raster or over nodata only.
+fn dem_height(t: &GeoTiff, x: f64, y: f64) -> Option<f64> {
+    let c = (x - t.tiepoint.0) / t.scale.0 - 0.5;
+    let r = (t.tiepoint.1 - y) / t.scale.1 - 0.5;
+    let (w, h) = (f64::from(t.width), f64::from(t.height));
+    if !(c >= -0.5 && r >= -0.5 && c <= w - 0.5 && r <= h - 0.5) {
+        return None;
+    }
+    let (c, r) = (c.clamp(0.0, w - 1.0), r.clamp(0.0, h - 1.0));
+    let i0 = (c.floor() as usize).min(t.width as usize - 2);
+    let j0 = (r.floor() as usize).min(t.height as usize - 2);
+    let (fx, fy) = (c - i0 as f64, r - j0 as f64);
+    let (mut sum, mut weight) = (0.0, 0.0);
+    for (di, dj, wt) in [
+        (0, 0, (1.0 - fx) * (1.0 - fy)),
+        (1, 0, fx * (1.0 - fy)),
+        (0, 1, (1.0 - fx) * fy),
+        (1, 1, fx * fy),
+    ] {
+        let v = t.values[(j0 + dj) * t.width as usize + i0 + di];
+        if wt > 0.0 && v != NODATA {
+            sum += wt * v;
+            weight += wt;
+        }
+    }
+    (weight > 0.0).then(|| sum / weight)
+}
+
+/// The lowest DEM height under footprint `f` (local), sampled every 10 cm inside and along it.
+fn dem_min_under(t: &GeoTiff, f: &[(f64, f64); 4]) -> f64 {
+    let (x0, y0) = origin();
+    let (lo, hi) = (f[0], f[2]);
+    let mut low = f64::INFINITY;
+    let n = 140;
+    for a in 0..=n {
+        for b in 0..=n {
+            let x = lo.0 + (hi.0 - lo.0) * f64::from(a) / f64::from(n);
+            let y = lo.1 + (hi.1 - lo.1) * f64::from(b) / f64::from(n);
+            if let Some(z) = dem_height(t, x0 + x, y0 + y) {
+                low = low.min(z);
+            }
+        }
+    }
+    low
+}
+
+/// Per building (`way/N`), the lowest and highest z of its CityJSON objects (the building and
+/// its parts), and per part key (`way/N_p1`) the same.
+fn cityjson_heights(path: &Path) -> BTreeMap<String, (f64, f64)> {
+    let j: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let scale = j["transform"]["scale"][2].as_f64().unwrap();
+    let translate = j["transform"]["translate"][2].as_f64().unwrap();
+    let verts = j["vertices"].as_array().unwrap();
+    let mut out: BTreeMap<String, (f64, f64)> = BTreeMap::new();
+    fn indices(v: &Value, out: &mut Vec<usize>) {
+        match v {
+            Value::Array(a) => a.iter().for_each(|x| indices(x, out)),
+            Value::Number(n) => out.push(n.as_u64().unwrap() as usize),
+            _ => {}
+        }
+    }
+    for (id, o) in j["CityObjects"].as_object().unwrap() {
+        let mut idx = Vec::new();
+        for g in o["geometry"].as_array().into_iter().flatten() {
+            indices(&g["boundaries"], &mut idx);
+        }
+        let Some(rest) = id.strip_prefix("B_way_") else {
+            continue;
+        };
+        let building = format!("way/{}", rest.split('_').next().unwrap());
+        let part = rest
+            .split_once('_')
+            .map(|(n, p)| format!("way/{n}_{}", p.split('_').next().unwrap()));
+        for i in idx {
+            let z = verts[i][2].as_f64().unwrap() * scale + translate;
+            for key in std::iter::once(building.clone()).chain(part.clone()) {
+                let e = out.entry(key).or_insert((f64::INFINITY, f64::NEG_INFINITY));
+                e.0 = e.0.min(z);
+                e.1 = e.1.max(z);
+            }
+        }
+    }
+    out
+}
+
+/// Runs citygen on `pbf` into `dir` with CityJSON, CityGML, glTF, IFC, 3D Tiles and the report,
+/// plus `extra`; the process output.
+fn run(pbf: &Path, dir: &Path, lod: &str, extra: &[&str]) -> std::process::Output {
+    let p = |n: &str| dir.join(n).display().to_string();
+    let mut args: Vec<String> = vec![
+        "--osm".into(),
+        pbf.display().to_string(),
+        "--kb".into(),
+        KB.into(),
+        "--lod".into(),
+        lod.into(),
+        "--cityjson".into(),
+        p("out.city.json"),
+        "--citygml".into(),
+        p("out.gml"),
+        "--gltf".into(),
+        p("out.glb"),
+        "--ifc".into(),
+        p("out.ifc"),
+        "--tiles3d".into(),
+        p("3dtiles"),
+        "--report".into(),
+        p("report.json"),
+        "--quiet".into(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    citygen(&refs)
+}
+
+fn ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "citygen failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Checks the seated district of `dir` against DEM `t`: bases, wall bottoms, heights, the part.
+fn check_seated(dir: &Path, t: &GeoTiff) {
+    let (x0, y0) = origin();
+    let h = cityjson_heights(&dir.join("out.city.json"));
+    for (k, f) in footprints().iter().enumerate() {
+        let id = format!("way/{}", 100 + k);
+        let (base, top) = h[&id];
+        let want = dem_min_under(t, f);
+        assert!(
+            (base - want).abs() <= 0.3,
+            "{id}: base {base:.3} but the DEM's minimum under it is {want:.3}"
+        );
+        // No wall bottom above the terrain: along every edge, every 10 cm.
+        for e in 0..4 {
+            let (a, b) = (f[e], f[(e + 1) % 4]);
+            for s in 0..=200 {
+                let q = f64::from(s) / 200.0;
+                let (x, y) = (a.0 + (b.0 - a.0) * q, a.1 + (b.1 - a.1) * q);
+                if let Some(z) = dem_height(t, x0 + x, y0 + y) {
+                    assert!(
+                        base <= z + 0.05,
+                        "{id}: wall bottom {base:.3} above the terrain {z:.3} at ({x}, {y})"
+                    );
+                }
+            }
+        }
+        let tagged = if k == 4 { 15.0 } else { 12.0 };
+        assert!(
+            (top - base - tagged).abs() <= 0.2,
+            "{id}: {:.3} m from its base, tagged {tagged}",
+            top - base
+        );
+    }
+    // Building 4's part stands 6 m above the building's base (its min_height).
+    let base = h["way/104"].0;
+    let part = h
+        .iter()
+        .filter(|(k, _)| k.starts_with("way/104_"))
+        .map(|(_, v)| v.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        (part - base - 6.0).abs() <= 0.2,
+        "the part's bottom is {:.3} m above the base",
+        part - base
+    );
+}
+
+#[test]
+fn buildings_stand_on_the_lowest_terrain_under_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    let t = utm_dem();
+    let dem = dir.path().join("dem.tif");
+    t.write(&dem).unwrap();
+    for lod in ["2", "3"] {
+        let out_dir = dir.path().join(format!("lod{lod}"));
+        std::fs::create_dir(&out_dir).unwrap();
+        ok(&run(&pbf, &out_dir, lod, &["--dem", dem.to_str().unwrap()]));
+        check_seated(&out_dir, &t);
+        let report: Value =
+            serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap();
+        let terrain = report["terrain"].as_str().unwrap();
+        assert!(
+            terrain.contains("dem.tif") && terrain.contains("EGM96"),
+            "{terrain}"
+        );
+    }
+    // The cliff: building 1 straddles it, its base is the foot's.
+    let h = cityjson_heights(&dir.path().join("lod2/out.city.json"));
+    let (x0, y0) = origin();
+    let foot = terrain(x0 + 30.0, y0);
+    assert!(
+        (h["way/101"].0 - foot).abs() < 0.3,
+        "{:?} vs {foot}",
+        h["way/101"]
+    );
+}
+
+#[test]
+fn two_tiles_in_two_crss_and_pixel_is_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    let (x0, y0) = origin();
+    // West: UTM up to local x = 20, PixelIsPoint (the tiepoint on the first centre).
+    let mut west = GeoTiff::projected(32632, (x0 - 40.0, y0 + 140.0), 1.0, (60, 180), terrain);
+    west.pixel_is_point = true;
+    west.tiepoint = (x0 - 39.5, y0 + 139.5);
+    west.packing = Packing::Lzw;
+    west.sample = SampleType::F64;
+    // East: WGS84 degrees of about 0.9 x 1.1 m over the rest (and beyond).
+    let (lon_w, lat_n) = UTM32.to_lonlat(x0 + 15.0, y0 + 145.0);
+    let (lon_e, lat_s) = UTM32.to_lonlat(x0 + 165.0, y0 - 45.0);
+    let cell = 0.00001;
+    let (w, h) = (
+        ((lon_e - lon_w) / cell).ceil() as u32,
+        ((lat_n - lat_s) / cell).ceil() as u32,
+    );
+    let mut values = Vec::new();
+    for j in 0..h {
+        for i in 0..w {
+            let lon = lon_w + (f64::from(i) + 0.5) * cell;
+            let lat = lat_n - (f64::from(j) + 0.5) * cell;
+            let (x, y) = UTM32.from_lonlat(lon, lat);
+            values.push(terrain(x, y));
+        }
+    }
+    let east = GeoTiff {
+        width: w,
+        height: h,
+        values,
+        tiepoint: (lon_w, lat_n),
+        scale: (cell, cell),
+        epsg: 4326,
+        geographic: true,
+        pixel_is_point: false,
+        nodata: None,
+        vertical: Some(5773),
+        sample: SampleType::F32,
+        packing: Packing::Deflate,
+        rows_per_strip: 32,
+    };
+    let (pw, pe) = (dir.path().join("west.tif"), dir.path().join("east.tif"));
+    west.write(&pw).unwrap();
+    east.write(&pe).unwrap();
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    ok(&run(
+        &pbf,
+        &out_dir,
+        "2",
+        &["--dem", pw.to_str().unwrap(), "--dem", pe.to_str().unwrap()],
+    ));
+    // The same terrain as the one UTM file (without its hole): the checks hold against it,
+    // within the resampling of the geographic tile at the cliff.
+    let plain = GeoTiff::projected(32632, (x0 - 40.0, y0 + 140.0), 1.0, (200, 180), terrain);
+    check_seated(&out_dir, &plain);
+    // The same bytes at another thread count.
+    let threads = dir.path().join("threads");
+    std::fs::create_dir(&threads).unwrap();
+    let dems = ["--dem", pw.to_str().unwrap(), "--dem", pe.to_str().unwrap()];
+    ok(&run(
+        &pbf,
+        &threads,
+        "2",
+        &[&dems[..], &["--threads", "3"]].concat(),
+    ));
+    assert_eq!(output_hashes(&out_dir), output_hashes(&threads));
+}
+
+#[test]
+fn refusals_come_before_any_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    let (x0, y0) = origin();
+    // Covers the first column only.
+    let part = GeoTiff::projected(32632, (x0 - 20.0, y0 + 100.0), 1.0, (40, 130), terrain);
+    let p = dir.path().join("part.tif");
+    part.write(&p).unwrap();
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = run(&pbf, &out_dir, "2", &["--dem", p.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("part.tif") && err.contains("way/101") && err.contains("6 building(s)"),
+        "{err}"
+    );
+    assert!(!err.contains("way/100,"), "way/100 is covered: {err}");
+    // A DEM whose every pixel under a building is nodata: that building is uncovered too.
+    let mut holes = utm_dem();
+    for v in holes.values.iter_mut() {
+        *v = NODATA;
+    }
+    let ph = dir.path().join("holes.tif");
+    holes.write(&ph).unwrap();
+    let out = run(&pbf, &out_dir, "2", &["--dem", ph.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("9 building(s)"));
+    // A CRS citygen does not know.
+    let mut laea = utm_dem();
+    laea.epsg = 3035;
+    let pl = dir.path().join("laea.tif");
+    laea.write(&pl).unwrap();
+    let out = run(&pbf, &out_dir, "2", &["--dem", pl.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("laea.tif") && err.contains("EPSG:3035") && err.contains("gdalwarp"),
+        "{err}"
+    );
+    let written: Vec<PathBuf> = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert!(written.is_empty(), "a refused run wrote {written:?}");
+    // Both flags at once.
+    let dem = dir.path().join("dem.tif");
+    utm_dem().write(&dem).unwrap();
+    let out = run(
+        &pbf,
+        &out_dir,
+        "2",
+        &["--dem", dem.to_str().unwrap(), "--ground-height", "5"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+}
+
+/// The lowest building base in each format of `dir`: CityGML posList z, glTF position y (up),
+/// IFC `IfcBuilding` elevations, 3D Tiles bounding-region heights (ellipsoidal: compared as a
+/// shift only).
+fn lowest_in_every_format(dir: &Path) -> [f64; 4] {
+    let gml = std::fs::read_to_string(dir.join("out.gml")).unwrap();
+    let mut zmin = f64::INFINITY;
+    for chunk in gml.split("<gml:posList").skip(1) {
+        let body = &chunk[chunk.find('>').unwrap() + 1..chunk.find("</gml:posList>").unwrap()];
+        let v: Vec<f64> = body
+            .split_whitespace()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        for p in v.chunks(3) {
+            zmin = zmin.min(p[2]);
+        }
+    }
+    let (gltf, _) = glb_json(&dir.join("out.glb"));
+    let mut ymin = f64::INFINITY;
+    for m in gltf["meshes"].as_array().unwrap() {
+        for p in m["primitives"].as_array().unwrap() {
+            let a = p["attributes"]["POSITION"].as_u64().unwrap() as usize;
+            ymin = ymin.min(gltf["accessors"][a]["min"][1].as_f64().unwrap());
+        }
+    }
+    let ifc = step_entities(&dir.join("out.ifc"));
+    let elev = ifc
+        .values()
+        .filter(|(kind, _)| kind == "IFCBUILDING")
+        .filter_map(|(_, args)| {
+            let at = args
+                .find(".ELEMENT.,")
+                .or_else(|| args.find(".COMPLEX.,"))?;
+            let tail = &args[at..];
+            let tail = &tail[tail.find(',')? + 1..];
+            tail.split(',').next()?.trim().parse::<f64>().ok()
+        })
+        .fold(f64::INFINITY, f64::min);
+    let tileset: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("3dtiles/tileset.json")).unwrap()).unwrap();
+    let region = tileset["root"]["boundingVolume"]["region"][4]
+        .as_f64()
+        .unwrap();
+    [zmin, ymin, elev, region]
+}
+
+#[test]
+fn ground_height_raises_every_format_and_states_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir(&a).unwrap();
+    std::fs::create_dir(&b).unwrap();
+    ok(&run(&pbf, &a, "3", &[]));
+    ok(&run(&pbf, &b, "3", &["--ground-height", "100"]));
+    let (low, high) = (lowest_in_every_format(&a), lowest_in_every_format(&b));
+    assert!(low.iter().all(|v| v.is_finite()), "{low:?}");
+    for (k, (l, h)) in low.iter().zip(high).enumerate() {
+        assert!(
+            (h - l - 100.0).abs() < 0.05,
+            "format {k}: {l} without, {h} with --ground-height 100"
+        );
+    }
+    let report = |d: &Path| -> Value {
+        serde_json::from_slice(&std::fs::read(d.join("report.json")).unwrap()).unwrap()
+    };
+    assert_eq!(
+        report(&a)["terrain"],
+        "no terrain: buildings stand on z = 0"
+    );
+    assert!(report(&b)["terrain"]
+        .as_str()
+        .unwrap()
+        .contains("--ground-height 100"));
+}
+
+/// SHA-256 of every file under `dir` (relative path, hash), sorted by path, the report left out.
+fn output_hashes(dir: &Path) -> Vec<(String, String)> {
+    use sha2::{Digest, Sha256};
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().unwrap() != "report.json" {
+                let rel = p.strip_prefix(dir).unwrap().display().to_string();
+                let h = Sha256::digest(std::fs::read(&p).unwrap());
+                let hex: String = h.iter().map(|b| format!("{b:02x}")).collect();
+                out.push((rel, hex[..16].to_string()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The outputs of the district without `--dem` or `--ground-height`, as citygen wrote them
+/// before issue 44 (main at 3288e3d; LOD2 and LOD3, every format): a run without terrain keeps
+/// every byte. A deliberate change to the outputs updates these (print `output_hashes`).
+const BEFORE_TERRAIN: [(&str, &[(&str, &str)]); 2] = [
+    (
+        "2",
+        &[
+            ("3dtiles/content/all-blocks.glb", "40714e8ae2a45eff"),
+            ("3dtiles/content/all.glb", "e018b0ab3cd7a404"),
+            ("3dtiles/tileset.json", "964f5aac9c980dca"),
+            ("out.city.json", "77c640adebb273ca"),
+            ("out.glb", "0d69d9f56b2026d0"),
+            ("out.gml", "48edcb58cd8f7c59"),
+            ("out.ifc", "b10688c1c6ed885a"),
+        ],
+    ),
+    (
+        "3",
+        &[
+            ("3dtiles/content/all-blocks.glb", "40714e8ae2a45eff"),
+            ("3dtiles/content/all.glb", "103012398d5755c9"),
+            ("3dtiles/tileset.json", "964f5aac9c980dca"),
+            ("out.city.json", "b5d37e1458b4c85d"),
+            ("out.glb", "9a4ef84872a26a5f"),
+            ("out.gml", "41c36cd577975903"),
+            ("out.ifc", "dec2a196bc41e44c"),
+        ],
+    ),
+];
+
+#[test]
+fn a_run_without_terrain_keeps_its_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    for (lod, want) in BEFORE_TERRAIN {
+        let out_dir = dir.path().join(format!("lod{lod}"));
+        std::fs::create_dir(&out_dir).unwrap();
+        ok(&run(&pbf, &out_dir, lod, &[]));
+        let got = output_hashes(&out_dir);
+        let got: Vec<(&str, &str)> = got.iter().map(|(a, b)| (a.as_str(), b.as_str())).collect();
+        assert_eq!(got, want, "LOD{lod}: the outputs without terrain changed");
+    }
+}
+
+/// A nightly run whose DEM changed reuses no tile: the DEMs' SHA-256 are in the context key.
+#[test]
+fn a_changed_dem_rewrites_every_tile() {
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("district.osm.pbf");
+    write_pbf(&pbf);
+    let dem = dir.path().join("dem.tif");
+    let mut t = utm_dem();
+    t.write(&dem).unwrap();
+    // One folder a day, the report (where the manifest goes) in it.
+    let day = |name: &str, previous: Option<&Path>| -> Value {
+        let out = dir.path().join(name);
+        std::fs::create_dir(&out).unwrap();
+        let (json, report) = (out.join("out.city.json"), out.join("report.json"));
+        let mut args = vec![
+            "--osm",
+            pbf.to_str().unwrap(),
+            "--kb",
+            KB,
+            "--report",
+            report.to_str().unwrap(),
+            "--cityjson",
+            json.to_str().unwrap(),
+            "--tile",
+            "50",
+            "--dem",
+            dem.to_str().unwrap(),
+            "--quiet",
+        ];
+        if let Some(p) = previous {
+            args.extend(["--previous", p.to_str().unwrap()]);
+        }
+        ok(&citygen(&args));
+        serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap()
+    };
+    day("day1", None);
+    let day1 = dir.path().join("day1");
+    // The same DEM: every tile reused.
+    let r = day("same", Some(&day1));
+    assert!(
+        r["changes"]["tiles_reused"].as_u64().unwrap() > 1,
+        "{}",
+        r["changes"]
+    );
+    assert!(r["changes"]["not_reused"].is_null(), "{}", r["changes"]);
+    // The ground 1 m higher: none.
+    t.values
+        .iter_mut()
+        .filter(|v| **v != NODATA)
+        .for_each(|v| *v += 1.0);
+    t.write(&dem).unwrap();
+    let r = day("moved", Some(&day1));
+    assert_eq!(r["changes"]["tiles_reused"], 0, "{}", r["changes"]);
+    assert!(
+        r["changes"]["not_reused"]
+            .to_string()
+            .contains("--dem files differ"),
+        "{}",
+        r["changes"]
+    );
+}
