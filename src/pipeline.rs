@@ -14,6 +14,7 @@ pub(crate) mod outputs;
 mod plan;
 mod reuse;
 pub mod shard;
+pub mod terrain;
 mod write;
 
 use crate::crs::Crs;
@@ -130,6 +131,14 @@ pub struct Options {
     /// namespace) instead of the input's file name (`--source-name`): a nightly job whose
     /// extract's name carries the date keeps one, so that its files stay the same bytes.
     pub source_name: Option<String>,
+    /// The largest vertical distance, metres, between the terrain written and the elevation
+    /// grid's samples (`--terrain-tolerance`, default [`terrain::DEFAULT_TOLERANCE`]).
+    pub terrain_tolerance: f64,
+    /// Write no terrain even when the run has an elevation grid (`--no-terrain`).
+    pub no_terrain: bool,
+    /// Heights from a function, for a run that reads no DEM of its own: tests and programs
+    /// that embed citygen give the run an elevation grid this way (no flag sets it).
+    pub ground_fn: Option<terrain::GroundFn>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -377,6 +386,10 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
         manifest: None,
+        terrain: (!opts.no_terrain).then_some(TerrainPlan {
+            tolerance: opts.terrain_tolerance,
+            tile: opts.tile,
+        }),
     };
     outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
     shard_targets(opts, targets)
@@ -652,6 +665,11 @@ impl<'a> RunState<'a> {
             generator,
             ..
         } = self;
+        if site.elevation.is_none() {
+            if let Some(f) = &opts.ground_fn {
+                site.elevation = f.grid(&site.lots, site.origin);
+            }
+        }
         let batches: Vec<Batch> = match opts.tile {
             None => vec![Batch {
                 suffix: None,
@@ -765,6 +783,17 @@ pub(crate) struct Targets {
     pub allow_empty: bool,
     /// Write a shard manifest here ([`shard::Manifest`]): every output is hashed as written.
     pub manifest: Option<PathBuf>,
+    /// Write the terrain of the site's elevation grid, when it has one (not `--no-terrain`).
+    pub terrain: Option<TerrainPlan>,
+}
+
+/// How a run writes its terrain ([`terrain`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct TerrainPlan {
+    /// [`Options::terrain_tolerance`].
+    pub tolerance: f64,
+    /// The tile size (`--tile`): each tile's terrain is cut to its square.
+    pub tile: Option<u32>,
 }
 
 impl Targets {

@@ -332,6 +332,13 @@ pub(super) fn tiles3d_contents(
         .map(|(detail, sfx)| (detail, dir.join("content").join(format!("{name}{sfx}.glb"))))
 }
 
+/// The terrain content of the tile named `name` ([`Detail::Terrain`](crate::export::tiles3d::Detail)):
+/// `dir/content/{name}-terrain.glb`.
+pub(super) fn tiles3d_terrain(dir: &Path, name: &str) -> (crate::export::tiles3d::Detail, PathBuf) {
+    let p = dir.join("content").join(format!("{name}-terrain.glb"));
+    (crate::export::tiles3d::Detail::Terrain, p)
+}
+
 /// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`; the
 /// CityJSON names keep their double extension (`NAME.city.json` gives `NAME_SUFFIX.city.json`).
 fn tile_path(p: &Path, suffix: &str) -> PathBuf {

@@ -80,6 +80,7 @@ mod lod4;
 mod materials;
 mod mesh;
 mod spool;
+mod terrain;
 
 /// glTF component types.
 const FLOAT: u32 = 5126;
@@ -134,6 +135,8 @@ pub(crate) enum SurfaceClass {
     InteriorDoors,
     Stairs,
     Slabs,
+    /// The file's terrain (not a building's: never in [`SurfaceClass::ALL`]).
+    Terrain,
 }
 
 impl SurfaceClass {
@@ -166,6 +169,7 @@ impl SurfaceClass {
             SurfaceClass::InteriorDoors => "interior doors",
             SurfaceClass::Stairs => "stairs",
             SurfaceClass::Slabs => "slabs",
+            SurfaceClass::Terrain => "terrain",
         }
     }
 
@@ -214,6 +218,8 @@ pub struct GltfWriter<W: Write + Send> {
     material_index: BTreeMap<(SurfaceClass, [u32; 4], Finish), u32>,
     /// Whether the run is LOD3 or above (openings and balconies are written).
     detail: bool,
+    /// The file's terrain, written after the buildings (`terrain`).
+    terrain: Option<std::sync::Arc<crate::model::Terrain>>,
     /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
     /// `scratch` so that the file is closed before it is removed.
     scratch_guard: ScratchGuard,
@@ -248,6 +254,7 @@ impl<W: Write + Send> GltfWriter<W> {
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
             detail: false,
+            terrain: None,
             scratch_guard: ScratchGuard(Vec::new()),
         }
     }
@@ -271,6 +278,7 @@ impl<W: Write + Send> GltfWriter<W> {
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
             detail: false,
+            terrain: None,
             scratch_guard: ScratchGuard(Vec::new()),
         }
     }
@@ -324,6 +332,7 @@ impl<W: Write + Send> GltfWriter<W> {
             source: ctx.source_name.clone(),
         };
         self.detail = ctx.lod >= Lod::Lod3;
+        self.terrain = ctx.terrain.clone();
         self.state = State::Open;
         Ok(())
     }
@@ -400,6 +409,9 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
     fn finish(&mut self) -> Result<(), ExportError> {
         match self.state {
             State::Open => {
+                if let Some(t) = self.terrain.take() {
+                    self.add_terrain(&t)?;
+                }
                 self.state = State::Finished;
                 self.write_glb()
             }

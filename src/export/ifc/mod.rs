@@ -108,6 +108,7 @@ mod roofs;
 mod shapes;
 mod spatial;
 mod styles;
+mod terrain;
 mod walls;
 
 /// Thickness of the base slab, extruded down from the ground surface (metres).
@@ -487,6 +488,8 @@ struct Open<W: Write> {
     /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
     /// repeats (16 bytes a building rather than the key's string).
     keys: BTreeSet<u128>,
+    /// The file's terrain, written by `finish` (`terrain`).
+    terrain: Option<std::sync::Arc<crate::model::Terrain>>,
 }
 
 /// The entities and settings of the file that every building refers to, written by `begin`.
