@@ -96,7 +96,7 @@ fn cityjson_has_a_tin_relief_with_one_surface_a_triangle() {
         .collect();
     assert_eq!(reliefs.len(), 1);
     let g = &reliefs[0]["geometry"][0];
-    assert_eq!(g["type"], "TIN");
+    assert_eq!(g["type"], "CompositeSurface");
     let surfaces = g["boundaries"].as_array().unwrap();
     assert_eq!(surfaces.len(), t.triangles.len());
     let n = doc["vertices"].as_array().unwrap().len() as u64;

@@ -55,6 +55,10 @@
 //! rejects the whole building with [`ExportError::Invalid`] and nothing of it is written. Openings
 //! or balconies with an empty extent (or on a wall without length) are left out.
 //!
+//! A context with a terrain ([`OutputContext::terrain`]) gets it after the buildings as one
+//! `dem:ReliefFeature` (`relief`), the relief namespace and schema added to the root; without
+//! one the file is as it was.
+//!
 //! Code layout: this module holds the writer and the per-building renderer; `building` writes
 //! the building element and its parts, `surfaces` the boundary surfaces and LOD1/LOD2 solids,
 //! `openings` the LOD3 openings, balconies and solid, `appearance` the X3D materials, `lod4` the

@@ -46,6 +46,10 @@
 //!   `MultiSurface` of lod `"3"` of its steps. All of them name the building or part as
 //!   `parents` and are in its `children`.
 //!
+//! A context with a terrain ([`OutputContext::terrain`]) gets it after the buildings as a
+//! `TINRelief` object (id `TIN_<E>_<N>`, attribute `tolerance`) with one `CompositeSurface` of
+//! triangles; in CityJSONSeq its own `CityJSONFeature` line, the last.
+//!
 //! Colours are not written (CityJSON materials would need the whole file's list up front).
 //!
 //! **The `.city.json` file** (`CityJsonWriter`) is `{"type":"CityJSON","version":"2.0",
@@ -435,7 +439,7 @@ fn terrain_of(ctx: &OutputContext) -> Option<(std::sync::Arc<crate::model::Terra
     Some((t, id))
 }
 
-/// The lod of the terrain's `TIN`: the run's (CityJSON has none past 3).
+/// The lod of the terrain's surface: the run's (CityJSON has none past 3).
 fn terrain_lod(lod: Lod) -> &'static str {
     match lod {
         Lod::Lod1 => "1",

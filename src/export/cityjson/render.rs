@@ -296,9 +296,9 @@ impl Semantics {
     }
 }
 
-/// The building's id: `B_` and its source key (`B_way_123`), as in the CityGML.
 /// A file's terrain as its `TINRelief` object (`"id":{...}`): attribute `tolerance` (metres,
-/// [`crate::model::Terrain::tolerance`]) and one `TIN` geometry of lod `lod`, a triangle per
+/// [`crate::model::Terrain::tolerance`]) and one `CompositeSurface` of lod `lod` (CityJSON has no `TIN`
+/// geometry: its schema gives `TINRelief` a `CompositeSurface`), a triangle per
 /// surface.
 pub(super) fn terrain(f: &mut Frag, t: &crate::model::Terrain, id: &str, lod: &str) {
     f.clear();
@@ -306,7 +306,7 @@ pub(super) fn terrain(f: &mut Frag, t: &crate::model::Terrain, id: &str, lod: &s
     f.string(id);
     f.s(":{\"type\":\"TINRelief\",\"attributes\":{\"tolerance\":");
     f.fixed3(t.tolerance);
-    f.s("},\"geometry\":[{\"type\":\"TIN\",\"lod\":");
+    f.s("},\"geometry\":[{\"type\":\"CompositeSurface\",\"lod\":");
     f.string(lod);
     f.s(",\"boundaries\":[");
     for (k, tri) in t.triangles.iter().enumerate() {
@@ -323,6 +323,7 @@ pub(super) fn terrain(f: &mut Frag, t: &crate::model::Terrain, id: &str, lod: &s
     f.s("]}]}");
 }
 
+/// The building's id: `B_` and its source key (`B_way_123`), as in the CityGML.
 pub(super) fn building_id(b: &Building) -> String {
     format!("B_{}", id_fragment(&b.key()))
 }

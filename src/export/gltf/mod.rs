@@ -46,6 +46,8 @@
 //! the materials and 4 bytes per building (the scene's root list). Output is a pure function of
 //! the context and the buildings.
 //!
+//! A context with a terrain gets a root node `terrain` after the buildings' (`terrain`).
+//!
 //! Code layout: this module holds the writer, its state and the surface classes; `mesh` groups
 //! and triangulates a building's faces (`lod4` its interior's, `contact` leaves out those
 //! between parts), `materials` makes the PBR materials, `spool` spools the data and records and assembles the GLB, `json` holds the JSON

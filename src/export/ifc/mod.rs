@@ -73,6 +73,9 @@
 //! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior
 //! doors, stairs, upper floor slabs) by the child module `lod4` (see there).
 //!
+//! A context with a terrain gets it as an `IfcGeographicElement` `.TERRAIN.` in the site, its
+//! body an `IfcTriangulatedFaceSet` (`terrain`), written by `finish`.
+//!
 //! GlobalIds are deterministic (`global_id`) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material

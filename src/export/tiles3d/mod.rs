@@ -1,7 +1,8 @@
 //! OGC 3D Tiles 1.1: one GLB content per tile of a run (`Tiles3dWriter`) and the
 //! `tileset.json` over them (`tileset_json`).
 //!
-//! A run writes two contents per tile: [`Detail::Full`], the buildings as derived (the glTF
+//! A run writes two contents per tile (three with a terrain: [`Detail::Terrain`], the file's
+//! terrain in the same frame, shown beside both): [`Detail::Full`], the buildings as derived (the glTF
 //! writer's faces: `export::gltf::building_groups`), and [`Detail::Blocks`], a coarse LOD1 of
 //! them for the upper levels of the tree (`blocks`). The tileset makes each tile a node whose
 //! content is its Blocks, refined (REPLACE) by one child whose content is its Full, under a
