@@ -182,6 +182,20 @@ impl GridPlan {
                 }
             }
         }
+        let mut options = format!(
+            "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
+            opts.bbox,
+            opts.crs.map(|c| c.to_string()),
+            opts.src_crs.map(|c| c.to_string()),
+            opts.caps.max_depth,
+            opts.caps.max_shapes,
+            opts.infer
+        );
+        // The terrain's tolerance, in a run that writes one (a run without keeps its key).
+        let grid = site.elevation.is_some() || opts.ground_fn.is_some();
+        if grid && !opts.no_terrain {
+            options.push_str(&format!(" terrain={}", opts.terrain_tolerance));
+        }
         Ok(shard::RunKey {
             inputs,
             kb: opts.kb.as_deref().map(key).transpose()?,
@@ -192,15 +206,7 @@ impl GridPlan {
             crs: site.crs.to_string(),
             origin: [site.origin.x, site.origin.y],
             tile_size: self.size,
-            options: format!(
-                "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
-                opts.bbox,
-                opts.crs.map(|c| c.to_string()),
-                opts.src_crs.map(|c| c.to_string()),
-                opts.caps.max_depth,
-                opts.caps.max_shapes,
-                opts.infer
-            ),
+            options,
             outputs,
         })
     }
