@@ -1421,3 +1421,58 @@ mod elevation_tests {
         assert_eq!(g.get(2, 1), None);
     }
 }
+
+/// How built-up a footprint's surroundings are: the built-up share of the ground within
+/// 250 m (issue 42: a village's houses and a centre's blocks draw different appearances).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Density {
+    /// Under 10 % built: villages, suburbs of detached houses, the countryside.
+    Low,
+    /// 10 to 25 % built: towns, suburbs of rows and small blocks.
+    Medium,
+    /// 25 % built or more: town and city centres.
+    High,
+}
+
+impl Density {
+    /// The class of a built-up share (0..1).
+    pub fn of_share(share: f64) -> Density {
+        if share >= 0.25 {
+            Density::High
+        } else if share >= 0.10 {
+            Density::Medium
+        } else {
+            Density::Low
+        }
+    }
+
+    /// The word the knowledge base writes: `low`, `medium`, `high`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Density::Low => "low",
+            Density::Medium => "medium",
+            Density::High => "high",
+        }
+    }
+
+    /// The class a knowledge-base word names.
+    pub fn parse(s: &str) -> Option<Density> {
+        match s {
+            "low" => Some(Density::Low),
+            "medium" => Some(Density::Medium),
+            "high" => Some(Density::High),
+            _ => None,
+        }
+    }
+}
+
+/// A footprint's place among its neighbours, as the knowledge base's appearance conditions
+/// read it (set on the tags by `prepare` when the KB has conditions; the footprint's own area
+/// is read from the lot when the building is derived).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Form {
+    /// It shares a wall with a neighbour (at least a tenth of its outline touches another).
+    pub attached: bool,
+    /// Its surroundings' built-up class.
+    pub density: Density,
+}

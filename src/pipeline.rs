@@ -195,6 +195,10 @@ pub(crate) fn infer_from_neighbours(
     let mixes = roof_mixes(kb, lots, &zones);
     drop(zones);
     let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models, false);
+    if kb.has_conditions() {
+        // The KB draws appearances by the footprint's form: every lot's, tagged or not.
+        prepare::estimate::apply_forms(lots, &outcome.features);
+    }
     if outcome.estimates.iter().all(Option::is_none) {
         return Inferred {
             notes,
@@ -508,7 +512,8 @@ impl<'a> RunState<'a> {
 
         let crs = match opts.crs {
             Some(c) => c,
-            None => zone_for(&read.footprints, source_crs, opts.bbox, &source_name)?,
+            // Errors name the input as given (two `b.shp` in two folders are two inputs).
+            None => zone_for(&read.footprints, source_crs, opts.bbox, &source_label(opts))?,
         };
         let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
         site.boundaries = read.boundaries;
@@ -918,6 +923,14 @@ fn io_err(p: &Path) -> impl Fn(std::io::Error) -> RunError + '_ {
     move |e| RunError::Output {
         path: p.to_path_buf(),
         source: e.into(),
+    }
+}
+
+/// The run's input as errors name it: its path as given (`--source-name` when set).
+fn source_label(opts: &Options) -> String {
+    match (&opts.source_name, &opts.source) {
+        (Some(n), _) => n.clone(),
+        (None, Source::Osm(p) | Source::Shp { path: p, .. }) => p.display().to_string(),
     }
 }
 

@@ -22,6 +22,7 @@
 //! accuracy over a UTM zone), Lambert Conic Conformal 2SP in closed form (IOGP GN 7-2).
 
 mod ellipsoid;
+pub(crate) mod geoid;
 mod lcc;
 mod osgb;
 mod tmerc;

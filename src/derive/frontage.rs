@@ -81,24 +81,29 @@ pub(crate) fn arrange(
     windows_from_style: bool,
 ) -> Arrangement {
     let mut out = Arrangement::default();
-    // Every part of the building as a neighbour of the others.
-    let own: Vec<Neighbour> = drafts
-        .iter()
-        .map(|d| Neighbour::of_part(owner, d.part))
-        .collect();
+    // Every part of the building as a neighbour of the others, indexed by their bounds (a
+    // part whose bounds do not meet the strip along a wall makes no span on it): a building
+    // of 10,000 parts asks each about its neighbours, not about every part.
+    let own = Surroundings::new(
+        drafts
+            .iter()
+            .map(|d| Neighbour::of_part(owner, d.part))
+            .collect(),
+    );
     for (p, d) in drafts.iter().enumerate() {
         let (lo, hi) = d.part.footprint.bounds();
         let m = DVec2::splat(PARTY_REACH + 0.1);
         let others = around.near(owner, lo - m, hi + m);
+        let mine = own.indices_near(lo - m, hi + m);
         let spans = d
             .part
             .walls
             .iter()
             .map(|w| {
                 let mut s = Vec::new();
-                for (q, n) in own.iter().enumerate() {
+                for &q in &mine {
                     if q != p {
-                        party_spans(w.start, w.end, n, &mut s);
+                        party_spans(w.start, w.end, own.part(q), &mut s);
                     }
                 }
                 for n in &others {

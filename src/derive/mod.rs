@@ -245,10 +245,17 @@ impl Generator {
         // Every piece's style first: whether a piece's roof is drawn depends on the pieces
         // stacked on it.
         let mut styled = Vec::with_capacity(pieces.len());
+        // The building's footprint for the KB's appearance conditions (issue 42).
+        let footprint = (
+            Some(lot.polygons.iter().map(Polygon::area).sum::<f64>()),
+            lot.tags.form,
+        );
         for piece in pieces {
             let mut rng = Rng::new(self.seed, piece.id.seed_value());
             let tags = merged_tags(&piece.tags, &lot.tags, piece.id != lot.id);
-            let (style, style_notes) = self.kb.style_for(zone, &tags, &mut rng);
+            let (style, style_notes) = self
+                .kb
+                .style_for_footprint(zone, &tags, footprint, &mut rng);
             notes.extend(style_notes.into_iter().map(|n| (Outcome::Note, n)));
             if label.is_none() {
                 label = Some(style.appearance_label.clone());
@@ -350,7 +357,12 @@ impl Generator {
                         format!("{dropped} opening(s) too small or overlapping were left out"),
                     ));
                 }
-                if let Some((_, sp)) = spans.iter().find(|(j, _)| *j == i) {
+                // `spans` is in draft order: found by halves, not by a walk over every part.
+                if let Some((_, sp)) = spans
+                    .binary_search_by_key(&i, |(j, _)| *j)
+                    .ok()
+                    .and_then(|k| spans.get(k))
+                {
                     frontage::mark_party_walls(&mut part, sp, &mut counts);
                 }
             }
@@ -705,13 +717,15 @@ const STACK_TOLERANCE: f64 = 0.5;
 /// the knowledge base's roof is for untagged outlines and the top pieces only. Without this,
 /// each roof of a stack of parts runs up through the parts above it.
 fn flatten_covered_roofs(styled: &mut [(&LotPiece, BuildingTags, Style, Rng)]) {
+    let near = boxes_meeting(styled);
     let covered: Vec<bool> = (0..styled.len())
         .map(|i| {
             let (below, tags, style, _) = &styled[i];
             if tags.roof_shape.is_some() || style.roof == RoofShape::Flat {
                 return false;
             }
-            styled.iter().enumerate().any(|(j, (above, _, s, _))| {
+            near[i].iter().any(|&j| {
+                let (above, _, s, _) = &styled[j];
                 j != i
                     && s.min_height > style.min_height
                     && s.min_height >= style.eave_height - STACK_TOLERANCE
@@ -724,6 +738,65 @@ fn flatten_covered_roofs(styled: &mut [(&LotPiece, BuildingTags, Style, Rng)]) {
             style.make_flat();
         }
     }
+}
+
+/// For each piece, the pieces (itself included, in order) whose plan's bounding box meets its
+/// own, closed: the only ones its plan can overlap. An R-tree of the boxes, so that a building
+/// of 10,000 parts asks each about its neighbours, not about every other part. A piece with a
+/// coordinate that is not finite has no box and meets every piece.
+fn boxes_meeting(styled: &[(&LotPiece, BuildingTags, Style, Rng)]) -> Vec<Vec<usize>> {
+    use rstar::primitives::{GeomWithData, Rectangle};
+    use rstar::{RTree, RTreeObject};
+    let n = styled.len();
+    let bounds = |ps: &[Polygon]| {
+        let (mut lo, mut hi) = (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY);
+        for p in ps.iter().flat_map(|p| p.rings()).flatten() {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        (lo, hi)
+    };
+    let boxes: Vec<Option<(glam::DVec2, glam::DVec2)>> = styled
+        .iter()
+        .map(|(p, ..)| {
+            let all_finite = p
+                .polygons
+                .iter()
+                .flat_map(|p| p.rings())
+                .flatten()
+                .all(|q| q.is_finite());
+            let (lo, hi) = bounds(&p.polygons);
+            (all_finite && lo.x <= hi.x && lo.y <= hi.y).then_some((lo, hi))
+        })
+        .collect();
+    let unboxed: Vec<usize> = (0..n).filter(|&i| boxes[i].is_none()).collect();
+    let tree = RTree::bulk_load(
+        boxes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, b)| {
+                b.map(|(lo, hi)| {
+                    GeomWithData::new(Rectangle::from_corners(lo.to_array(), hi.to_array()), i)
+                })
+            })
+            .collect::<Vec<_>>(),
+    );
+    (0..n)
+        .map(|i| {
+            let mut near: Vec<usize> = match boxes[i] {
+                Some((lo, hi)) => {
+                    let env = Rectangle::from_corners(lo.to_array(), hi.to_array()).envelope();
+                    tree.locate_in_envelope_intersecting(env)
+                        .map(|g| g.data)
+                        .chain(unboxed.iter().copied())
+                        .collect()
+                }
+                None => (0..n).collect(),
+            };
+            near.sort_unstable();
+            near
+        })
+        .collect()
 }
 
 /// Whether two pieces' plans overlap: a point inside one of them lies in the other.
@@ -762,9 +835,13 @@ fn resolve_overlaps(
         return plans;
     }
     let areas: Vec<f64> = plans.iter().map(|p| area(p)).collect();
+    // Only a piece whose box meets this one's can cut it.
+    let near = boxes_meeting(styled);
     for i in 0..styled.len() {
         let (_, _, si, _) = &styled[i];
-        let winners: Vec<&Polygon> = (0..styled.len())
+        let winners: Vec<&Polygon> = near[i]
+            .iter()
+            .copied()
             .filter(|&j| j != i)
             .filter(|&j| {
                 let (_, _, sj, _) = &styled[j];

@@ -86,6 +86,23 @@ impl Surroundings {
         self.parts.is_empty()
     }
 
+    /// The indices of the parts whose bounds meet `lo..hi`, whatever their building, in index
+    /// order (for a building's own parts among themselves: [`Surroundings::part`]).
+    pub(crate) fn indices_near(&self, lo: DVec2, hi: DVec2) -> Vec<usize> {
+        let mut found: Vec<usize> = self
+            .tree
+            .locate_in_envelope_intersecting(AABB::from_corners(lo.to_array(), hi.to_array()))
+            .map(|e| e.data)
+            .collect();
+        found.sort_unstable();
+        found
+    }
+
+    /// Part `i` of the index.
+    pub(crate) fn part(&self, i: usize) -> &Neighbour {
+        &self.parts[i]
+    }
+
     /// The parts of buildings other than `owner` whose bounds meet `lo..hi`, in index order.
     pub fn near(&self, owner: SourceId, lo: DVec2, hi: DVec2) -> Vec<&Neighbour> {
         let mut found: Vec<usize> = self

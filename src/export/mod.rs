@@ -5,6 +5,8 @@
 pub mod citygml;
 pub mod cityjson;
 #[cfg(test)]
+mod datum_tests;
+#[cfg(test)]
 pub(crate) mod fixtures;
 mod format;
 mod glb;
@@ -51,6 +53,17 @@ pub struct OutputContext {
     /// The terrain of this file's extent, to be written beside the buildings (`None` without
     /// `--dem`).
     pub terrain: Option<std::sync::Arc<crate::model::Terrain>>,
+}
+
+/// The heights' datum the run states, as (EPSG code when known, name); `None` when it states
+/// none (no terrain: buildings on z = 0). Each writer states it its own way (docs/terrain.md):
+/// a compound CRS or a vertical CRS beside the horizontal one where a code fits, the name where
+/// a name does.
+pub(crate) fn vertical_datum(ctx: &OutputContext) -> Option<(Option<u32>, &str)> {
+    match &ctx.vertical_datum {
+        Some(crate::model::VerticalDatum::Orthometric { epsg, name }) => Some((*epsg, name)),
+        None => None,
+    }
 }
 
 /// Why a writer could not write.

@@ -73,6 +73,9 @@ pub struct BuildingTags {
     /// than read (`prepare::estimate`, `prepare::infer`): where each came from. `None`: every
     /// value above is the input's own.
     pub provenance: Option<Provenance>,
+    /// The footprint's form among its neighbours (attached, density), set by `prepare` when
+    /// the knowledge base's appearances have conditions on it; `None` otherwise.
+    pub form: Option<crate::model::Form>,
 }
 
 /// Parsed tags shared by every footprint that has the same ones: most buildings of a region
@@ -267,6 +270,7 @@ impl BuildingTags {
             roof_material,
             ignored,
             provenance,
+            form,
         } = self;
         let f = |x: &Option<f64>| x.map(f64::to_bits);
         let p = provenance.map(|p| {
@@ -291,7 +295,7 @@ impl BuildingTags {
                 f(roof_direction),
             ],
             [c(colour), c(roof_colour)],
-            p,
+            (p, form),
         )
     }
 

@@ -50,11 +50,26 @@ impl KnowledgeBase {
     /// With the building's `storeys` known (tagged, or estimated where the map is silent), the
     /// draw is among the eligible appearances whose storey range holds them ([`fitting`]): a
     /// nine-storey block is not drawn as a one-storey cottage.
+    #[cfg(test)]
     pub(crate) fn pick_appearance(
         &self,
         zone: usize,
         kind: Option<&str>,
         storeys: Option<f64>,
+        rng: &mut Rng,
+    ) -> Option<(usize, usize)> {
+        self.pick_appearance_for(zone, kind, storeys, (None, None), rng)
+    }
+
+    /// [`KnowledgeBase::pick_appearance`] for a footprint of this area (m²) and form: among
+    /// the eligible appearances, those whose conditions hold ([`conditioned`]) before the
+    /// storeys choose.
+    pub(crate) fn pick_appearance_for(
+        &self,
+        zone: usize,
+        kind: Option<&str>,
+        storeys: Option<f64>,
+        (area, form): (Option<f64>, Option<crate::model::Form>),
         rng: &mut Rng,
     ) -> Option<(usize, usize)> {
         let (owner, apps) = self.appearances_for(zone);
@@ -63,7 +78,8 @@ impl KnowledgeBase {
             .floor_height
             .filter(|f| (2.0..8.0).contains(f))
             .unwrap_or(3.0);
-        let ids = fitting(apps, eligible(apps, kind), storeys, floor);
+        let ids = conditioned(apps, eligible(apps, kind), area, form);
+        let ids = fitting(apps, ids, storeys, floor);
         let weights = proba_weights(ids.iter().map(|&i| apps[i].proba));
         rng.pick_weighted(&weights)
             .and_then(|k| ids.get(k).copied())
@@ -72,6 +88,14 @@ impl KnowledgeBase {
 }
 
 impl KnowledgeBase {
+    /// Whether any appearance has conditions on the footprint's form
+    /// ([`super::values::Conditions`]): the run then measures every footprint's form.
+    pub(crate) fn has_conditions(&self) -> bool {
+        self.zones
+            .iter()
+            .any(|z| z.appearances.iter().any(|a| !a.when.is_empty()))
+    }
+
     /// The roof and storey prior of `zone` for a building of this `building=*` kind: the
     /// eligible appearances weighted as [`KnowledgeBase::pick_appearance`] draws them.
     pub(crate) fn roof_mix(&self, zone: usize, kind: Option<&str>) -> RoofMix {
@@ -374,6 +398,28 @@ fn storey_range(a: &Appearance, floor: f64) -> Option<(f64, f64)> {
         (None, None) => return None,
     };
     Some(((lo / floor).round().max(1.0), (hi / floor).round().max(1.0)))
+}
+
+/// Of the eligible appearances `ids`, those whose conditions hold for a footprint of `area` m²
+/// and `form` ([`super::values::Conditions::hold`]; an appearance without conditions holds
+/// everywhere); all of `ids` when none holds (conditions narrow a draw, they never leave a
+/// building without an appearance).
+fn conditioned(
+    apps: &[Appearance],
+    ids: Vec<usize>,
+    area: Option<f64>,
+    form: Option<crate::model::Form>,
+) -> Vec<usize> {
+    let holding: Vec<usize> = ids
+        .iter()
+        .copied()
+        .filter(|&i| apps[i].when.hold(area, form))
+        .collect();
+    if holding.is_empty() {
+        ids
+    } else {
+        holding
+    }
 }
 
 /// Of the eligible appearances `ids`, those whose storey range ([`storey_range`]) holds

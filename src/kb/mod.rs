@@ -37,7 +37,7 @@ pub(crate) use choice::{eligible, proba_weights};
 pub use polygon::ZonePolygon;
 pub use style::{material_color, Style, ROOF_SLAB_M};
 pub use values::{
-    Appearance, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, ZoneKind,
+    Appearance, Conditions, OpeningSplit, OpeningTree, SplitAxis, Values, WindowHeight, ZoneKind,
 };
 pub use xml::{KbError, KbRepair, ReadMode};
 

@@ -15,6 +15,12 @@ use crate::model::RoofShape;
 /// The value type of an attribute.
 #[derive(Clone, Copy)]
 enum Ty {
+    /// An appearance's footprint area range: `lo-hi`, `lo-` or `-hi`, m², decimals.
+    AreaRange,
+    /// `yes` or `no`.
+    YesNo,
+    /// A comma-separated list of `low`, `medium`, `high`.
+    Densities,
     /// Decimal in a closed range.
     Dec(f64, f64),
     /// Decimal > 0.
@@ -262,7 +268,16 @@ impl Ctx<'_> {
     }
 
     fn appearance(&self, el: &Elem) -> Result<(), KbError> {
-        self.attrs(el, &[("building", Ty::Terms)], &[])?;
+        self.attrs(
+            el,
+            &[
+                ("building", Ty::Terms),
+                ("area", Ty::AreaRange),
+                ("attached", Ty::YesNo),
+                ("density", Ty::Densities),
+            ],
+            &[],
+        )?;
         self.children(
             el,
             &[
@@ -355,6 +370,12 @@ pub(crate) enum ValueError {
     Roof,
     #[error("tall, short or irregular")]
     WindowHeight,
+    #[error("an area range in m²: lo-hi, lo- or -hi (e.g. 60-250), lo below hi")]
+    AreaRange,
+    #[error("yes or no")]
+    YesNo,
+    #[error("a comma-separated list of low, medium, high")]
+    Densities,
     #[error("none, all, or a comma-separated list of levels, roof, colour")]
     Infer,
     #[error("house, apartments, office, retail or openplan")]
@@ -484,6 +505,29 @@ fn check_value(ty: Ty, v: &str) -> Result<(), ValueError> {
         }
         Ty::Children => names(v, '|')?,
         Ty::Terms => names(v, ',')?,
+        Ty::AreaRange => {
+            let (lo, hi) = v.split_once('-').ok_or(ValueError::AreaRange)?;
+            for b in [lo, hi].into_iter().filter(|b| !b.is_empty()) {
+                decimal(b)?;
+            }
+            if super::values::Conditions::parse_area(v).is_none() {
+                return Err(ValueError::AreaRange);
+            }
+        }
+        Ty::YesNo => {
+            if !matches!(v, "yes" | "no") {
+                return Err(ValueError::YesNo);
+            }
+        }
+        Ty::Densities => {
+            names(v, ',')?;
+            if !v
+                .split(',')
+                .all(|w| crate::model::Density::parse(w).is_some())
+            {
+                return Err(ValueError::Densities);
+            }
+        }
         Ty::SplitValues => {
             for p in v.split(',') {
                 if decimal(p)? <= 0.0 {

@@ -203,6 +203,19 @@ impl KnowledgeBase {
         tags: &BuildingTags,
         rng: &mut Rng,
     ) -> (Style, Vec<String>) {
+        self.style_for_footprint(zone, tags, (None, None), rng)
+    }
+
+    /// [`KnowledgeBase::style_for`] for a footprint of this area (m²) and form among its
+    /// neighbours: the appearance is drawn among those whose conditions hold
+    /// ([`super::Conditions`]). The same draws from `rng`.
+    pub fn style_for_footprint(
+        &self,
+        zone: usize,
+        tags: &BuildingTags,
+        footprint: (Option<f64>, Option<crate::model::Form>),
+        rng: &mut Rng,
+    ) -> (Style, Vec<String>) {
         let zone = if zone < self.zones.len() { zone } else { 0 };
         // The storeys the building has (tagged or estimated), for an appearance that fits.
         let storeys = tags.levels.or_else(|| {
@@ -214,7 +227,8 @@ impl KnowledgeBase {
             tags.height
                 .map(|h| ((h - tags.min_height.unwrap_or(0.0)) / floor).round())
         });
-        let pick = self.pick_appearance(zone, tags.building.as_deref(), storeys, rng);
+        let pick =
+            self.pick_appearance_for(zone, tags.building.as_deref(), storeys, footprint, rng);
         self.style_with_appearance(zone, pick, tags, rng)
     }
 

@@ -327,6 +327,7 @@ fn absent_probas_share_the_remainder() {
         ruleset: None,
         selex: None,
         buildings: Vec::new(),
+        when: Default::default(),
         line: 1,
     };
     assert_eq!(appearance_weights(&[app(None), app(None)]), vec![0.5, 0.5]);
@@ -1743,5 +1744,110 @@ fn a_tall_building_is_drawn_among_the_appearances_that_fit_its_storeys() {
     for _ in 0..50 {
         let (style, _) = kb.style_for(0, &tags, &mut rng);
         assert_eq!(style.material.as_deref(), Some("concrete"));
+    }
+}
+
+/// Issue 42 step 4: appearances conditioned on the footprint's area, attachment and the
+/// density around it; read by both readers, written back, and drawn where they hold.
+#[test]
+fn appearances_are_drawn_where_their_footprint_conditions_hold() {
+    use crate::model::{Density, Form};
+    let t = r#"<earth>
+  <info nbfloor="2" floorsize="3"/>
+  <appearance area="-60"><values proba="0.3" material="wood"/></appearance>
+  <appearance area="60-" attached="no" density="low,medium"><values proba="0.3" material="plaster"/></appearance>
+  <appearance attached="yes" density="high"><values proba="0.3" material="brick"/></appearance>
+</earth>"#;
+    for mode in [ReadMode::Lenient, ReadMode::Strict] {
+        let (kb, _) =
+            KnowledgeBase::parse_str_with(t, "c.xml", mode).unwrap_or_else(|e| panic!("{e}"));
+        let apps = &kb.zones()[0].appearances;
+        assert_eq!(apps[0].when.area, Some((0.0, 60.0)));
+        assert_eq!(apps[1].when.area, Some((60.0, f64::INFINITY)));
+        assert_eq!(apps[1].when.attached, Some(false));
+        assert_eq!(apps[1].when.density, vec![Density::Low, Density::Medium]);
+        assert_eq!(apps[2].when.attached, Some(true));
+        assert!(kb.has_conditions());
+        // Written back by the strict writer and read again: the same conditions.
+        let text = super::write::to_strict(&kb).text;
+        assert!(
+            text.contains(r#"area="60-" attached="no" density="low,medium""#),
+            "{text}"
+        );
+        let (again, _) = KnowledgeBase::parse_str_with(&text, "c.xml", ReadMode::Strict)
+            .unwrap_or_else(|e| panic!("{e}\n{text}"));
+        let whens = |k: &KnowledgeBase| -> Vec<_> {
+            k.zones()[0]
+                .appearances
+                .iter()
+                .map(|a| a.when.clone())
+                .collect()
+        };
+        assert_eq!(whens(&again), whens(&kb));
+
+        let mut rng = Rng::new(3, 0);
+        let village = Form {
+            attached: false,
+            density: Density::Low,
+        };
+        let centre = Form {
+            attached: true,
+            density: Density::High,
+        };
+        let town = Form {
+            attached: true,
+            density: Density::Medium,
+        };
+        for _ in 0..100 {
+            let pick = |area: f64, form: Form, rng: &mut Rng| {
+                kb.pick_appearance_for(0, None, None, (Some(area), Some(form)), rng)
+                    .map(|p| p.1)
+            };
+            assert_eq!(
+                pick(40.0, village, &mut rng),
+                Some(0),
+                "a shed in a village"
+            );
+            assert_eq!(
+                pick(120.0, village, &mut rng),
+                Some(1),
+                "a house in a village"
+            );
+            assert_eq!(
+                pick(120.0, centre, &mut rng),
+                Some(2),
+                "a block in a centre"
+            );
+            // A 120 m² row house in a medium town meets no condition: drawn among all.
+            assert!(pick(120.0, town, &mut rng).is_some());
+        }
+        let seen: std::collections::BTreeSet<usize> = (0..100)
+            .filter_map(|_| {
+                kb.pick_appearance_for(0, None, None, (Some(120.0), Some(town)), &mut rng)
+            })
+            .map(|p| p.1)
+            .collect();
+        assert_eq!(seen.len(), 3, "no appearance holds: all are drawn");
+    }
+    // The strict reader names a bad condition at its place.
+    let bad = "<earth>\n  <appearance area=\"250-60\"><values proba=\"1\"/></appearance>\n</earth>";
+    match KnowledgeBase::parse_str_with(bad, "s.xml", ReadMode::Strict) {
+        Err(e) => assert!(e.to_string().contains("s.xml:2:"), "{e}"),
+        Ok(_) => panic!("250-60 is not a range"),
+    }
+    for (attr, want) in [
+        ("attached=\"maybe\"", "yes or no"),
+        ("density=\"dense\"", "low, medium, high"),
+    ] {
+        let text =
+            format!("<earth>\n  <appearance {attr}><values proba=\"1\"/></appearance>\n</earth>");
+        match KnowledgeBase::parse_str_with(&text, "s.xml", ReadMode::Strict) {
+            Err(e) => assert!(e.to_string().contains(want), "{e}"),
+            Ok(_) => panic!("{attr} accepted"),
+        }
+        // The lenient reader keeps the appearance and notes the bad condition.
+        let (kb, repairs) = KnowledgeBase::parse_str(&text, "s.xml").unwrap();
+        assert!(kb.zones()[0].appearances[0].when.is_empty());
+        assert!(!repairs.is_empty());
     }
 }

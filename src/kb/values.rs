@@ -275,6 +275,79 @@ pub struct Appearance {
     /// otherwise among the appearances with no list (among all when every one has a list).
     /// See `KnowledgeBase::eligible_appearances`.
     pub buildings: Vec<String>,
+    /// Where the appearance applies among the eligible ones (footprint area, attached or
+    /// detached, density of the surroundings); empty: everywhere. See [`Conditions`].
+    pub when: Conditions,
     /// Line of the `<appearance>` element.
     pub line: usize,
+}
+
+/// An appearance's conditions on the footprint's form (issue 42): `<appearance area="60-250"
+/// attached="no" density="low,medium">`. Each given condition must hold for the appearance
+/// to be drawn (one without conditions holds everywhere); a building that no eligible
+/// appearance fits draws among all of them (conditions narrow a draw, they never leave a
+/// building without an appearance).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Conditions {
+    /// Footprint area range in m², `[lo, hi)`; `area="60-"` has no upper bound, `area="-60"`
+    /// a lower bound of 0.
+    pub area: Option<(f64, f64)>,
+    /// `attached="yes"` (shares a wall) or `"no"`.
+    pub attached: Option<bool>,
+    /// The density classes it applies in (`density="low,medium"`).
+    pub density: Vec<crate::model::Density>,
+}
+
+impl Conditions {
+    /// No condition at all.
+    pub fn is_empty(&self) -> bool {
+        self.area.is_none() && self.attached.is_none() && self.density.is_empty()
+    }
+
+    /// Whether a footprint of `area` m² and `form` meets every condition; a condition on
+    /// what is not known (no area, no form) holds.
+    pub fn hold(&self, area: Option<f64>, form: Option<crate::model::Form>) -> bool {
+        let area_ok = match (self.area, area) {
+            (Some((lo, hi)), Some(a)) => a >= lo && a < hi,
+            _ => true,
+        };
+        let attached_ok = match (self.attached, form) {
+            (Some(want), Some(f)) => f.attached == want,
+            _ => true,
+        };
+        let density_ok = match form {
+            Some(f) if !self.density.is_empty() => self.density.contains(&f.density),
+            _ => true,
+        };
+        area_ok && attached_ok && density_ok
+    }
+
+    /// Parses `area="lo-hi"` (either bound may be left out): `None` for anything else.
+    pub fn parse_area(v: &str) -> Option<(f64, f64)> {
+        let (lo, hi) = v.split_once('-')?;
+        let bound = |s: &str, empty: f64| -> Option<f64> {
+            let s = s.trim();
+            if s.is_empty() {
+                return Some(empty);
+            }
+            s.parse::<f64>().ok().filter(|x| x.is_finite() && *x >= 0.0)
+        };
+        let (lo, hi) = (bound(lo, 0.0)?, bound(hi, f64::INFINITY)?);
+        (lo < hi).then_some((lo, hi))
+    }
+
+    /// The `area` attribute as written back: `lo-hi`, `lo-`, `-hi`.
+    pub fn area_text(&self) -> Option<String> {
+        let (lo, hi) = self.area?;
+        let n = |x: f64| {
+            let s = format!("{x:.3}");
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        };
+        Some(match (lo > 0.0, hi.is_finite()) {
+            (true, true) => format!("{}-{}", n(lo), n(hi)),
+            (true, false) => format!("{}-", n(lo)),
+            (false, true) => format!("-{}", n(hi)),
+            (false, false) => "0-".to_string(),
+        })
+    }
 }

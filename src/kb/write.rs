@@ -439,6 +439,16 @@ impl Writer {
                 head.push(("building", kinds.join(",")));
             }
         }
+        if let Some(area) = a.when.area_text() {
+            head.push(("area", area));
+        }
+        if let Some(attached) = a.when.attached {
+            head.push(("attached", if attached { "yes" } else { "no" }.to_string()));
+        }
+        if !a.when.density.is_empty() {
+            let d: Vec<&str> = a.when.density.iter().map(|d| d.name()).collect();
+            head.push(("density", d.join(",")));
+        }
         self.indent(level);
         self.out.push_str("<appearance");
         for (k, v) in &head {

@@ -354,6 +354,42 @@ pub(crate) fn building_kinds(v: &str) -> Vec<String> {
 }
 
 impl ZoneReader {
+    /// An appearance's `area`, `attached` and `density` conditions; an unreadable one is
+    /// left out with a note (the appearance then applies there too).
+    fn conditions(&mut self, el: &Elem, when: &mut super::values::Conditions) {
+        if let Some((_, v, l)) = el.attr("area") {
+            when.area = super::values::Conditions::parse_area(v);
+            if when.area.is_none() {
+                self.note(
+                    *l,
+                    format!("area=\"{v}\" is not lo-hi in m² (60-250, 60-, -60): ignored"),
+                );
+            }
+        }
+        if let Some((_, v, l)) = el.attr("attached") {
+            when.attached = match v.trim().to_ascii_lowercase().as_str() {
+                "yes" | "true" | "1" => Some(true),
+                "no" | "false" | "0" => Some(false),
+                _ => {
+                    self.note(*l, format!("attached=\"{v}\" is not yes or no: ignored"));
+                    None
+                }
+            };
+        }
+        if let Some((_, v, l)) = el.attr("density") {
+            for w in v.split([',', ' ']).map(str::trim).filter(|w| !w.is_empty()) {
+                match crate::model::Density::parse(&w.to_ascii_lowercase()) {
+                    Some(d) if !when.density.contains(&d) => when.density.push(d),
+                    Some(_) => {}
+                    None => self.note(
+                        *l,
+                        format!("density \"{w}\" is not low, medium or high: ignored"),
+                    ),
+                }
+            }
+        }
+    }
+
     fn note(&mut self, line: usize, what: impl Into<String>) {
         self.repairs.push(KbRepair {
             line,
@@ -493,11 +529,13 @@ impl ZoneReader {
             ruleset: None,
             selex: None,
             buildings: Vec::new(),
+            when: Default::default(),
             line: el.line,
         };
         if let Some((_, v, _)) = el.attr("building") {
             app.buildings = building_kinds(v);
         }
+        self.conditions(el, &mut app.when);
         let mut dummy = CircleParts::default();
         let mut proba = el.attr("proba").and_then(|(k, v, l)| self.number(k, v, *l));
         let mut seen_values = false;

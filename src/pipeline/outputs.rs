@@ -158,6 +158,27 @@ pub(crate) fn check(
     Ok(())
 }
 
+/// Refuses an output that a tiled run writes at its own path (`outputs`: the report, the
+/// picture, the tileset; the model outputs get a tile's suffix) when it is the `manifest` the
+/// run writes beside its outputs: one would replace the other. Named like the other clashes,
+/// before anything is read or written.
+pub(crate) fn check_manifest(
+    outputs: &[(&'static str, PathBuf)],
+    manifest: &Path,
+) -> Result<(), RunError> {
+    let at = resolve(manifest);
+    match outputs.iter().find(|(_, p)| resolve(p) == at) {
+        Some((flag, path)) => Err(RunError::Usage(format!(
+            "{flag} {} is the manifest this tiled run writes beside its outputs ({}): give the \
+             {} another name",
+            path.display(),
+            manifest.display(),
+            flag.trim_start_matches("--")
+        ))),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -56,13 +56,21 @@ pub(super) fn shard_targets(
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    targets.manifest = Some(dir.join(shard.0.manifest_name()));
+    let manifest = dir.join(shard.0.manifest_name());
     if shard.0.count > 1 {
         let sfx = format!("shard-{}-of-{}", shard.0.index, shard.0.count);
         targets.report = targets.report.map(|p| tile_path(&p, &sfx));
         // A shard may hold no tile, or only buildings that fail: the merge judges the whole.
         targets.allow_empty = true;
     }
+    // The outputs written at their own path (not a tile's) are not the manifest.
+    let own: Vec<(&'static str, PathBuf)> = targets
+        .flagged()
+        .into_iter()
+        .filter(|(flag, _)| matches!(*flag, "--report" | "--preview" | "--tiles3d"))
+        .collect();
+    outputs::check_manifest(&own, &manifest)?;
+    targets.manifest = Some(manifest);
     Ok((targets, shard))
 }
 

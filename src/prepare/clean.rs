@@ -3,6 +3,8 @@
 
 use geo::BooleanOps;
 use glam::DVec2;
+use rstar::primitives::{GeomWithData, Rectangle};
+use rstar::{RTree, RTreeObject};
 
 use super::{MAX_CHECKED_VERTICES, MERGE_TOLERANCE, MIN_AREA};
 use crate::geometry::{ring, Polygon};
@@ -103,35 +105,54 @@ pub(super) fn merge_ring(r: &[DVec2]) -> Option<(Vec<DVec2>, usize)> {
 }
 
 /// Whether rings are simple, do not cross each other, and holes lie inside the outer ring.
+/// The segments in an R-tree: each is tested against those whose box meets its own (two
+/// segments that touch do), so that a polygon of many rings (an outline with the holes of
+/// thousands of parts) costs O(n log n), not O(n²).
 pub(super) fn is_valid(p: &Polygon) -> bool {
     let total: usize = p.rings().map(Vec::len).sum();
     if total > MAX_CHECKED_VERTICES {
-        return true; // too large to check pairwise; the writers cope with it
+        return true; // too large to check; the writers cope with it
     }
-    let segs: Vec<(DVec2, DVec2, usize, usize)> = p
+    let segs: Vec<Segment> = p
         .rings()
         .enumerate()
         .flat_map(|(ri, r)| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()], ri, i)))
         .collect();
-    for (i, a) in segs.iter().enumerate() {
-        for b in &segs[i + 1..] {
-            let adjacent = a.2 == b.2 && {
-                let n = p.rings().nth(a.2).map_or(0, Vec::len);
-                b.3 == a.3 + 1 || (a.3 == 0 && b.3 == n - 1)
-            };
-            if adjacent {
-                continue;
-            }
-            if segments_touch(a.0, a.1, b.0, b.1) {
-                return false;
-            }
-        }
-    }
-    p.holes.iter().all(|h| {
-        h.iter()
-            .all(|q| crate::geometry::ring_contains(&p.outer, *q))
-    })
+    let lens: Vec<usize> = p.rings().map(Vec::len).collect();
+    // Whether segments i < j of `segs` touch, neighbours along one ring excepted.
+    let touch = |i: usize, j: usize| {
+        let (a, b) = (&segs[i], &segs[j]);
+        let adjacent =
+            a.2 == b.2 && (b.3 == a.3 + 1 || (a.3 == 0 && b.3 == lens[a.2].saturating_sub(1)));
+        !adjacent && segments_touch(a.0, a.1, b.0, b.1)
+    };
+    let crossing = if segs.iter().all(|s| s.0.is_finite() && s.1.is_finite()) {
+        let boxes: Vec<GeomWithData<Rectangle<[f64; 2]>, usize>> = segs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let (lo, hi) = (s.0.min(s.1), s.0.max(s.1));
+                GeomWithData::new(Rectangle::from_corners(lo.to_array(), hi.to_array()), i)
+            })
+            .collect();
+        let tree = RTree::bulk_load(boxes.clone());
+        boxes.iter().any(|b| {
+            tree.locate_in_envelope_intersecting(b.envelope())
+                .any(|o| o.data > b.data && touch(b.data, o.data))
+        })
+    } else {
+        // Not finite: no box to index (such a segment may still cross a finite one).
+        (0..segs.len()).any(|i| (i + 1..segs.len()).any(|j| touch(i, j)))
+    };
+    !crossing
+        && p.holes.iter().all(|h| {
+            h.iter()
+                .all(|q| crate::geometry::ring_contains(&p.outer, *q))
+        })
 }
+
+/// A segment of a polygon's ring: its ends, the ring's index and the segment's.
+type Segment = (DVec2, DVec2, usize, usize);
 
 fn segments_touch(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
     let orient = |p: DVec2, q: DVec2, r: DVec2| (q - p).perp_dot(r - p);

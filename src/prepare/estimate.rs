@@ -161,6 +161,10 @@ pub(crate) struct Outcome {
     pub touching: Vec<(u32, u32, f32)>,
 }
 
+/// The footprint (m²) at which a detached building has its zone's storey level
+/// ([`prior_storeys`]).
+pub(crate) const DETACHED_PIVOT_M2: f64 = 250.0;
+
 /// The rule-of-thumb storeys a model is boosted from (fitted by hand on the measured cities of
 /// `docs/truth.md`; per-city medians there follow the zone's level, footprint area adds
 /// little once a building is big enough to be a dwelling):
@@ -170,9 +174,14 @@ pub(crate) struct Outcome {
 /// - a footprint under 30 m² (a shed, a garage, a kiosk) one storey; one under 60 m² one
 ///   and a half when it stands alone, the zone's level when it is part of a row (a narrow
 ///   town house; at most 2 outside the KB's towns: small towns' narrow houses are low);
-/// - larger footprints the zone's level ([`RoofMix::storeys`]), rising slowly with area over
-///   the usual footprint around (the geometric mean within 250 m, else 100 m²): a building 8
-///   times the usual size half as high again;
+/// - larger footprints in a row the zone's level ([`RoofMix::storeys`]), rising slowly with
+///   area over the usual footprint around (the geometric mean within 250 m, else 100 m²): a
+///   building 8 times the usual size half as high again;
+/// - larger detached footprints the zone's level scaled by their size against
+///   [`DETACHED_PIVOT_M2`] (power 0.35, between 0.45 and 1.25 times the level, never under 2
+///   storeys or the level when that is lower): a villa of 80 m² in a town of 4-storey blocks
+///   gets under 3, a free-standing block of 250 m² the level (measured: detached buildings'
+///   heights rise with their footprint in every city of `docs/truth.md`);
 /// - where the surroundings are known to be open (5 or more buildings within 250 m covering
 ///   under 10 % of the ground: a suburb, a village), detached buildings at most 2 storeys,
 ///   rising to the zone's level as the ground within 250 m fills up to 30 %.
@@ -196,7 +205,8 @@ pub(crate) fn prior_storeys(f: &Features, mix: &RoofMix) -> f64 {
         a if a < 60.0 && attached && mix.urban => level,
         a if a < 60.0 && attached => level.min(2.0),
         a if a < 60.0 => return 1.5_f64.min(level),
-        a => level * (a / usual).powf(0.2).clamp(1.0, 1.5),
+        a if attached => level * (a / usual).powf(0.2).clamp(1.0, 1.5),
+        a => (level * (a / DETACHED_PIVOT_M2).powf(0.35).clamp(0.45, 1.25)).max(level.min(2.0)),
     };
     if attached || neighbours < 5.0 {
         return storeys;
@@ -909,6 +919,31 @@ pub(crate) fn apply(lots: &mut [Lot], estimates: &[Option<Estimate>]) -> usize {
         changed += 1;
     }
     changed
+}
+
+/// Sets every lot's [`crate::model::Form`] on its tags (attached when a tenth of its outline
+/// touches another; density from the built-up share within 250 m), for the KB's appearance
+/// conditions: from `features` when the estimator measured them, else measured here.
+pub(crate) fn apply_forms(lots: &mut [Lot], features: &[Features]) {
+    let measured;
+    let features = if features.len() == lots.len() {
+        features
+    } else {
+        measured = morph::measure(lots).features;
+        &measured
+    };
+    let interner = TagInterner::default();
+    for (lot, f) in lots.iter_mut().zip(features) {
+        let form = crate::model::Form {
+            attached: f[6] >= 0.1,
+            density: crate::model::Density::of_share(f64::from(f[11])),
+        };
+        if lot.tags.form != Some(form) {
+            let mut t = (*lot.tags).clone();
+            t.form = Some(form);
+            lot.tags = interner.intern(t);
+        }
+    }
 }
 
 /// The report's lines on the run's fits.

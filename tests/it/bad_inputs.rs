@@ -1293,6 +1293,90 @@ fn two_outputs_on_one_path_exit_2_before_writing_anything() {
     );
 }
 
+/// A tiled run writes its manifest (`citygen-manifest.I-of-N.json`) beside its outputs:
+/// `--report` (or `--preview`, extensions waived) on that path is refused before anything is
+/// written, whichever spelling names it, and a file already there stays as it was.
+#[test]
+fn the_report_on_the_runs_own_manifest_is_refused_before_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let files = existing(
+        d,
+        &[
+            "citygen-manifest.0-of-1.json",
+            "citygen-manifest.1-of-2.json",
+        ],
+    );
+    let manifest = d.join("citygen-manifest.0-of-1.json");
+    let m = manifest.to_str().unwrap();
+    // The manifest goes into the report's folder, on the report's path.
+    let city = d.join("models/x.city.json");
+    let c = city.to_str().unwrap();
+    let out = monaco_with(&["--tile", "500", "--cityjson", c, "--report", m]);
+    fatal(
+        &out,
+        2,
+        &["--report", m, "is the manifest this tiled run writes"],
+    );
+    unchanged(&files);
+    // Spelled through `..`.
+    let again = d.join("sub/../citygen-manifest.0-of-1.json");
+    let out = monaco_with(&[
+        "--tile",
+        "500",
+        "--cityjson",
+        c,
+        "--report",
+        again.to_str().unwrap(),
+    ]);
+    fatal(
+        &out,
+        2,
+        &[
+            "--report",
+            "sub/../citygen-manifest.0-of-1.json",
+            "manifest",
+        ],
+    );
+    unchanged(&files);
+    // A shard's picture on its manifest (the shard's report is renamed, its picture is not).
+    let shard_manifest = d.join("citygen-manifest.1-of-2.json");
+    let out = monaco_with(&[
+        "--tile",
+        "500",
+        "--shard",
+        "1/2",
+        "--cityjson",
+        d.join("x.city.json").to_str().unwrap(),
+        "--preview",
+        shard_manifest.to_str().unwrap(),
+        "--force-extension",
+    ]);
+    fatal(
+        &out,
+        2,
+        &["--preview", "citygen-manifest.1-of-2.json", "manifest"],
+    );
+    unchanged(&files);
+    assert_eq!(
+        std::fs::read_dir(d).unwrap().count(),
+        2,
+        "a refused run left a file"
+    );
+    // The same run with the report elsewhere goes through and writes the manifest.
+    let report = d.join("report.json");
+    let out = monaco_with(&[
+        "--tile",
+        "500",
+        "--cityjson",
+        c,
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", show(&out));
+    assert_ne!(std::fs::read(&manifest).unwrap(), files[0].1);
+}
+
 #[test]
 fn an_output_in_a_folder_that_is_a_file_or_of_the_wrong_format_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -1693,7 +1777,8 @@ fn data_too_wide_for_one_zone_is_refused_and_a_bbox_or_crs_takes_one_place() {
         &out,
         1,
         &[
-            "two-cities.osm.pbf",
+            // The path as given, not only the file name.
+            pbf.to_str().unwrap(),
             "too wide for one projection",
             "UTM zones 29 to 32",
             "--bbox",

@@ -257,6 +257,31 @@ fn a_multipolygon_of_many_courtyards_costs_n_log_n() {
     });
 }
 
+#[test]
+fn a_relation_of_many_parts_costs_n_log_n() {
+    let dir = tempfile::tempdir().unwrap();
+    // Parts grouped under their outline, the outline's rest cut out in one boolean operation,
+    // the pieces' overlaps and covered roofs looked up in R-trees, the rest's rings checked
+    // and put on the grid in O(n log n): quadratic would be 16.
+    scales_linearly("parts", 400, (8.0, Duration::from_secs(60)), |n| {
+        let pbf = dir.path().join(format!("p{n}.osm.pbf"));
+        many_parts(&pbf, n);
+        let (out, t) = run_osm(dir.path(), &pbf);
+        ok(&out);
+        // Every part is drawn, and the outline's rest around them.
+        let city: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("out.city.json")).unwrap())
+                .unwrap();
+        let objects = city["CityObjects"].as_object().unwrap();
+        let parts = objects
+            .values()
+            .filter(|o| o["type"] == "BuildingPart")
+            .count();
+        assert_eq!(parts, n + 1, "{n} parts and the rest");
+        t
+    });
+}
+
 /// `selex derive` of a 1e300 m box with an output is refused, naming the program, the
 /// volume and the limit, instead of aborting on the storeys' allocation; nothing is written.
 #[test]
@@ -287,7 +312,8 @@ fn selex_derive_refuses_a_box_too_large_to_build() {
     assert!(!glb.exists());
 }
 
-/// Writes the acceptance sizes' inputs (20,000 rules, 10,000 parts, 10,000 courtyards) into
+/// Writes the acceptance sizes' inputs (20,000 rules, 10,000 parts, 10,000 courtyards) and the
+/// smaller ones the issue timed (1,000 and 3,000 parts, 3,000 courtyards) into
 /// `$CITYGEN_BUDGET_DIR`, to time the release binary on them by hand.
 #[test]
 #[ignore]
@@ -300,5 +326,6 @@ fn write_acceptance_inputs() {
     many_parts(&dir.join("parts10000.osm.pbf"), 10_000);
     many_courtyards(&dir.join("courtyards10000.osm.pbf"), 10_000);
     many_parts(&dir.join("parts3000.osm.pbf"), 3_000);
+    many_parts(&dir.join("parts1000.osm.pbf"), 1_000);
     many_courtyards(&dir.join("courtyards3000.osm.pbf"), 3_000);
 }

@@ -151,16 +151,47 @@ pub(crate) fn polygon_on_grid(p: &Polygon) -> Option<Polygon> {
     let outer = snap_ring(&p.outer)?;
     let holes = p.holes.iter().map(snap_ring).collect::<Option<Vec<_>>>()?;
     let out = Polygon::new(outer, holes);
-    // Holes still inside the outer ring and apart from each other.
-    let ok =
-        out.holes.iter().enumerate().all(|(i, h)| {
-            h.iter()
-                .all(|q| crate::geometry::ring_contains(&out.outer, *q))
-                && out.holes.iter().enumerate().all(|(j, g)| {
-                    i == j || !h.iter().any(|q| crate::geometry::ring_contains(g, *q))
-                })
-        });
-    ok.then_some(out)
+    holes_inside_and_apart(&out).then_some(out)
+}
+
+/// Whether every hole of `p` lies inside its outer ring and has no vertex inside another hole.
+/// A vertex inside a ring lies in the ring's bounding box, so each hole is tested only against
+/// the holes whose boxes meet its own, found in an R-tree: an outline with the holes of 10,000
+/// parts costs O(n log n), not O(n²).
+fn holes_inside_and_apart(p: &Polygon) -> bool {
+    use rstar::primitives::{GeomWithData, Rectangle};
+    use rstar::{RTree, RTreeObject};
+    let contains = crate::geometry::ring_contains;
+    let inside_outer = |h: &Vec<DVec2>| h.iter().all(|q| contains(&p.outer, *q));
+    let apart = |i: usize, j: usize| {
+        let (h, g) = (&p.holes[i], &p.holes[j]);
+        i == j || !h.iter().any(|q| contains(g, *q))
+    };
+    if !p.holes.iter().all(inside_outer) {
+        return false;
+    }
+    if !p.holes.iter().flatten().all(|q| q.is_finite()) {
+        let n = p.holes.len();
+        return (0..n).all(|i| (0..n).all(|j| apart(i, j)));
+    }
+    let boxes: Vec<GeomWithData<Rectangle<[f64; 2]>, usize>> = p
+        .holes
+        .iter()
+        .enumerate()
+        .map(|(i, h)| {
+            let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+            for q in h {
+                lo = lo.min(*q);
+                hi = hi.max(*q);
+            }
+            GeomWithData::new(Rectangle::from_corners(lo.to_array(), hi.to_array()), i)
+        })
+        .collect();
+    let tree = RTree::bulk_load(boxes.clone());
+    boxes.iter().all(|b| {
+        tree.locate_in_envelope_intersecting(b.envelope())
+            .all(|o| apart(b.data, o.data) && apart(o.data, b.data))
+    })
 }
 
 /// Representatives of the part's vertices: each vertex goes to the first representative (in

@@ -1,7 +1,10 @@
 //! CityGML 2.0 writer: one `core:cityObjectMember` per building, streamed.
 //!
 //! The file is a `core:CityModel` in the output CRS. Coordinates are `origin + local point`,
-//! written in metres with 3 decimals (millimetres). What each LOD gets:
+//! written in metres with 3 decimals (millimetres). Every `srsName` is `EPSG:<code>`; when the
+//! run states a vertical datum ([`OutputContext::vertical_datum`]) of known EPSG code, it is the
+//! compound `urn:ogc:def:crs,crs:EPSG::<horizontal>,crs:EPSG::<vertical>`, and the header's
+//! `gml:description` names the datum (its only statement when the code is unknown). What each LOD gets:
 //!
 //! - **LOD1**: `bldg:lod1Solid` whose `gml:CompositeSurface` holds the ground, wall and roof
 //!   polygons inline.
@@ -69,7 +72,9 @@ use std::io::Write;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
+use crate::export::{
+    check_finite, vertical_datum, BuildingWriter, Checked, ExportError, OutputContext,
+};
 use crate::model::{Building, Lod};
 
 use xml::Xml;
@@ -249,9 +254,14 @@ impl<W: Write + Send> CityGmlWriter<W> {
     }
 }
 
-/// `EPSG:<code>` of the context's CRS.
+/// `EPSG:<code>` of the context's CRS; with a stated vertical datum of known code, the compound
+/// of both in OGC's URN form (`urn:ogc:def:crs,crs:EPSG::32632,crs:EPSG::5773`, as CityGML 2.0's
+/// own examples and 3DCityDB write it).
 fn epsg_srs_name(ctx: &OutputContext) -> String {
-    format!("EPSG:{}", ctx.crs.epsg())
+    match vertical_datum(ctx) {
+        Some((Some(v), _)) => format!("urn:ogc:def:crs,crs:EPSG::{},crs:EPSG::{v}", ctx.crs.epsg()),
+        _ => format!("EPSG:{}", ctx.crs.epsg()),
+    }
 }
 
 impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
@@ -305,7 +315,18 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         x.uint(ctx.seed);
         x.s(", LOD");
         x.s(self.lod.digit());
-        x.s(" geometry</gml:description>\n");
+        x.s(" geometry");
+        if let Some((epsg, name)) = vertical_datum(ctx) {
+            // The datum by name too: the only statement of it when its code is unknown.
+            x.s("; heights: ");
+            x.escaped(name, false);
+            if let Some(v) = epsg {
+                x.s(" (EPSG:");
+                x.uint(u64::from(v));
+                x.s(")");
+            }
+        }
+        x.s("</gml:description>\n");
         if !ctx.source_name.is_empty() {
             x.s("<gml:name>");
             x.escaped(&ctx.source_name, false);

@@ -111,6 +111,12 @@ pub(super) struct Asset<'a> {
 #[derive(Serialize, Default)]
 pub(super) struct AssetExtras {
     pub(super) crs: String,
+    /// The heights' vertical CRS, `EPSG:n`, when the run states one of known code.
+    #[serde(rename = "verticalCrs", skip_serializing_if = "Option::is_none")]
+    pub(super) vertical_crs: Option<String>,
+    /// The heights' datum by name, when the run states one.
+    #[serde(rename = "verticalDatum", skip_serializing_if = "Option::is_none")]
+    pub(super) vertical_datum: Option<String>,
     pub(super) origin: [f64; 3],
     pub(super) lod: u8,
     pub(super) source: String,

@@ -35,7 +35,8 @@
 //! so their undersides are the ceilings below. Materials are PBR metallic-roughness, one per distinct
 //! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
 //! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
-//! "origin": [E, N, H]}`). Faces are flat shaded: every face has its own vertices and normal.
+//! "origin": [E, N, H]}`; when the run states a vertical datum, also `"verticalCrs": "EPSG:5773"`
+//! when its code is known and `"verticalDatum"`, its name). Faces are flat shaded: every face has its own vertices and normal.
 //!
 //! Streaming: a GLB starts with its JSON chunk, which must know the binary chunk's length, so the
 //! vertex and index bytes are spooled to a scratch file as buildings arrive and copied after the
@@ -62,7 +63,7 @@ use rayon::prelude::*;
 
 use crate::color::Color;
 use crate::crs::Crs;
-use crate::export::{BuildingWriter, Checked, ExportError, OutputContext};
+use crate::export::{vertical_datum, BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 use json::{AssetExtras, Document};
@@ -327,8 +328,13 @@ impl<W: Write + Send> GltfWriter<W> {
             scratch.get_mut().set_len(0)?;
             scratch.seek(SeekFrom::Start(0))?;
         }
+        let datum = vertical_datum(ctx);
         self.doc.asset_extras = AssetExtras {
             crs: crs_label,
+            vertical_crs: datum
+                .and_then(|(code, _)| code)
+                .map(|v| format!("EPSG:{v}")),
+            vertical_datum: datum.map(|(_, name)| name.to_string()),
             origin: [ctx.origin.x, ctx.origin.y, ctx.origin.z],
             lod: ctx.lod.number(),
             source: ctx.source_name.clone(),

@@ -5,7 +5,11 @@
 //! - `IfcProject` (SI units: metre, square metre, cubic metre, radian) with a 3D `Model` context,
 //!   its `Body` (MODEL_VIEW) and `Axis` (GRAPH_VIEW) sub-contexts, and an `IfcMapConversion`
 //!   from the project's engineering frame to an `IfcProjectedCRS` named `EPSG:n`: the model's
-//!   (0, 0, 0) is at [`OutputContext::origin`] in that CRS.
+//!   (0, 0, 0) is at [`OutputContext::origin`] in that CRS, its height the map conversion's
+//!   `OrthogonalHeight`. When the run states a vertical datum
+//!   ([`OutputContext::vertical_datum`]), the CRS's `VerticalDatum` is its `EPSG:n` (its name
+//!   when the code is unknown) and its description `<horizontal name> + <vertical name>`: the
+//!   heights, `OrthogonalHeight` included, are in that datum.
 //! - One `IfcSite` at the local origin, with `RefLatitude`/`RefLongitude` from
 //!   [`OutputContext::origin_lonlat`].
 //! - Per building, an `IfcBuilding` placed (relative to the site) at the first vertex of its first

@@ -8,7 +8,7 @@ use std::io::Write;
 use glam::{DVec2, DVec3};
 
 use crate::export::step::{global_id, Header, Id, StepWriter};
-use crate::export::{ExportError, OutputContext};
+use crate::export::{vertical_datum, ExportError, OutputContext};
 use crate::model::{Building, Lod, Part};
 
 use super::openings::Host;
@@ -96,15 +96,21 @@ impl<W: Write> Open<W> {
         })?;
 
         let epsg = ctx.crs.epsg();
-        let crs_name = ctx.crs.name();
+        let mut crs_name = ctx.crs.name();
+        // The heights' datum (issue 44): IfcProjectedCRS.VerticalDatum, an IfcIdentifier, holds
+        // its EPSG code or, without one, its name; the description names the compound.
+        let vertical = vertical_datum(ctx).map(|(code, name)| {
+            crs_name = format!("{crs_name} + {name}");
+            // (IfcIdentifier is at most 255 characters.)
+            code.map_or_else(|| name.chars().take(255).collect(), |v| format!("EPSG:{v}"))
+        });
         let crs = w.entity("IFCPROJECTEDCRS", |a| {
-            a.string(&format!("EPSG:{epsg}"))
-                .string(&crs_name)
-                .null()
-                .null()
-                .null()
-                .null()
-                .id(metre);
+            a.string(&format!("EPSG:{epsg}")).string(&crs_name).null();
+            match &vertical {
+                Some(v) => a.string(v),
+                None => a.null(),
+            };
+            a.null().null().id(metre);
         })?;
         w.entity("IFCMAPCONVERSION", |a| {
             a.id(model_ctx)

@@ -131,6 +131,8 @@ impl Primitive {
 /// One building's primitives (by [`Kind`]) and where its offsets start from.
 pub(crate) struct EncodedBuilding {
     pub(crate) anchor_ecef: DVec3,
+    /// What lifts the building's heights to ellipsoidal ones (`BuildingMap::lift`).
+    pub(crate) lift: Option<f64>,
     pub(crate) prims: [Primitive; 4],
 }
 
@@ -169,6 +171,7 @@ pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) 
     }
     EncodedBuilding {
         anchor_ecef: map.anchor_ecef,
+        lift: map.lift,
         prims,
     }
 }

@@ -13,7 +13,10 @@
 //! (ENU to ECEF, EPSG:4978). The frame's origin is the centre of the plan bounding box of the
 //! tile's footprints (all parts), at the lowest base: the same for both details of a tile, so
 //! the Full child needs no transform of its own. Model points go to ECEF through the output CRS
-//! (`frame`: the model z plus the origin's is taken as the ellipsoidal height).
+//! (`frame`: the model z plus the origin's is taken as the ellipsoidal height; when the run
+//! states a vertical datum, [`OutputContext::vertical_datum`], that height is orthometric and
+//! each building is lifted by the EGM96 geoid undulation at its middle, h = H + N, so contents,
+//! regions and the `baseHeight` column are ellipsoidal either way).
 //!
 //! Every building is a feature: all its vertices carry its row in the property table
 //! (`EXT_mesh_features`, `_FEATURE_ID_0`), whose columns (`EXT_structural_metadata`,
@@ -229,7 +232,14 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             all.append(p, feature as u32);
         }
         self.anchors.push(e.anchor_ecef);
-        self.rows.push(b, b.base_z + self.origin_z);
+        let base = b.base_z + self.origin_z;
+        self.rows.push(
+            b,
+            match e.lift {
+                Some(n) => base + n,
+                None => base,
+            },
+        );
         self.track(b);
         Ok(())
     }
@@ -280,6 +290,10 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         let (lo, hi, base) = plan;
         let centre = ((lo + hi) / 2.0).extend(base);
         let (lon, lat, h) = model.to_wgs84(centre);
+        let h = match model.lift_at(centre) {
+            Some(n) => h + n,
+            None => h,
+        };
         let frame = EnuFrame::at(lon, lat, h);
         let mut bin = glb::Bin::default();
         if let (Detail::Terrain, Some(t)) = (self.detail, self.terrain.clone()) {

@@ -1,8 +1,9 @@
 //! The terrain content of a tile ([`super::Detail::Terrain`]): the file's TIN in the tile's
 //! east-north-up frame (the frame of its other two contents, so the three share the tile's
 //! `transform`), one mesh of one triangle primitive with smooth normals in a matte ground
-//! material. Each vertex goes to ECEF exactly ([`ModelFrame::to_ecef`]) and then into the
-//! frame: the terrain spans the whole tile, where a building's second-order map would not do.
+//! material. Each vertex goes to ECEF exactly, raised by the geoid undulation at it when the
+//! heights are orthometric ([`ModelFrame::lift_at`]), and then into the frame: the terrain
+//! spans the whole tile, where a building's second-order map would not do.
 
 use glam::{DVec3, Vec3};
 use serde_json::{json, Value};
@@ -32,7 +33,7 @@ pub(super) fn lay_out(
     let enu: Vec<DVec3> = t
         .vertices
         .iter()
-        .map(|v| frame.to_enu(model.to_ecef(*v)))
+        .map(|v| frame.to_enu(model.to_ecef_lifted(*v, model.lift_at(*v))))
         .collect();
     let mut normals = vec![DVec3::ZERO; enu.len()];
     for tri in &t.triangles {

@@ -771,8 +771,15 @@ fn monaco(lod: Lod, size: u32) -> (OutputContext, Vec<(crate::prepare::Tile, Vec
 
 /// Writes a tileset of Monaco-Ville at `lod` into `dir` as a run would: per tile
 /// `content/{suffix}.glb` and `content/{suffix}-blocks.glb`, then `tileset.json`.
-fn write_monaco(dir: &Path, lod: Lod, size: u32) -> Vec<TileEntry> {
-    let (ctx, tiles) = monaco(lod, size);
+/// Heights are in `datum` (orthometric: lifted by the geoid) when it is given.
+fn write_monaco_in(
+    dir: &Path,
+    lod: Lod,
+    size: u32,
+    datum: Option<crate::model::VerticalDatum>,
+) -> Vec<TileEntry> {
+    let (mut ctx, tiles) = monaco(lod, size);
+    ctx.vertical_datum = datum;
     let mut entries = Vec::new();
     for (t, bs) in &tiles {
         let content = |detail: Detail, name: String| {
@@ -799,9 +806,10 @@ fn write_monaco(dir: &Path, lod: Lod, size: u32) -> Vec<TileEntry> {
     entries
 }
 
-/// Runs `validate-outputs` on Monaco-Ville tilesets at LOD2 and LOD3 (tiles of 150 m): no
-/// error, no warning but gltf-validator's note that it does not know the two metadata
-/// extensions. `CITYGEN_TILES3D_KEEP=DIR` keeps them in DIR/lod2, DIR/lod3.
+/// Runs `validate-outputs` on Monaco-Ville tilesets at LOD2 and LOD3 (tiles of 150 m), and at
+/// LOD2 with EGM96 heights (lifted by the geoid): no error, no warning but gltf-validator's
+/// note that it does not know the two metadata extensions. `CITYGEN_TILES3D_KEEP=DIR` keeps
+/// them in DIR/lod2, DIR/lod3, DIR/lod2-egm96.
 #[test]
 fn monaco_tilesets_pass_the_reference_validator() {
     let Some(validator) = fixtures::validator("3D Tiles (Monaco-Ville LOD2, LOD3)") else {
@@ -810,9 +818,34 @@ fn monaco_tilesets_pass_the_reference_validator() {
     let dir = tempfile::tempdir().unwrap();
     let keep = std::env::var_os("CITYGEN_TILES3D_KEEP").map(std::path::PathBuf::from);
     let out = keep.as_deref().unwrap_or(dir.path());
-    for lod in [Lod::Lod2, Lod::Lod3] {
-        let sub = out.join(format!("lod{}", lod.number()));
-        let entries = write_monaco(&sub, lod, 150);
+    let egm96 = crate::model::VerticalDatum::Orthometric {
+        epsg: Some(5773),
+        name: "EGM96 height".into(),
+    };
+    for (lod, datum) in [
+        (Lod::Lod2, None),
+        (Lod::Lod3, None),
+        (Lod::Lod2, Some(egm96)),
+    ] {
+        let lifted = datum.is_some();
+        let sub = out.join(format!(
+            "lod{}{}",
+            lod.number(),
+            if lifted { "-egm96" } else { "" }
+        ));
+        let entries = write_monaco_in(&sub, lod, 150, datum);
+        // Monaco's buildings stand on z = 0; with EGM96 heights they are lifted by N there
+        // (48.7 m): every content's lowest height is N within a few decimetres.
+        for e in &entries {
+            let low = e
+                .full
+                .info
+                .placement
+                .as_ref()
+                .map_or(f64::NAN, |p| p.region[4]);
+            let want = if lifted { 48.7 } else { 0.0 };
+            assert!((low - want).abs() < 0.5, "{}: lowest {low}", e.full.uri);
+        }
         let buildings: usize = entries.iter().map(|e| e.full.info.buildings).sum();
         assert!(
             entries.len() >= 4 && buildings > 50,
@@ -870,4 +903,125 @@ fn provenance_is_in_the_property_table() {
     assert_eq!(floats("storeysError")[..2], [0.75, -1.0]);
     assert_eq!(floats("heightError")[..2], [2.25, -1.0]);
     assert_eq!(floats("roofProbability")[..2], [0.8, -1.0]);
+}
+
+// ---- heights in a vertical datum (issue 44) ----
+
+/// A tile's content written in `c`.
+fn write_in(c: &OutputContext, detail: Detail, bs: &[Building]) -> (Vec<u8>, ContentInfo) {
+    let (mut w, info) = Tiles3dWriter::new(Vec::new(), detail);
+    w.begin(c).unwrap();
+    w.write_all(bs).unwrap();
+    w.finish().unwrap();
+    (w.into_inner(), info.get().expect("facts after finish"))
+}
+
+/// The ellipsoidal heights of every position of a content.
+fn heights(glb: &[u8], placement: &Placement) -> Vec<f64> {
+    let g = parse(glb);
+    let mut hs = Vec::new();
+    for p in g.primitives() {
+        let (pos, _) = g.accessor(p["attributes"]["POSITION"].as_u64().unwrap());
+        for q in pos.chunks(3) {
+            let (_, _, h) = ecef_to_wgs84(to_ecef(placement, [q[0], q[1], q[2]]).to_array());
+            hs.push(h);
+        }
+    }
+    hs
+}
+
+/// With a vertical datum the model's heights are orthometric (H, above the geoid) and the
+/// contents are at h = H + N: at NGA's published EGM96 test points (N from -31.6 m in the
+/// eastern US to +50.1 m in Spain, and near 0 in Brazil) the lowest base is at the origin's
+/// H plus that N within 0.1 m (the acceptance asks 1 m), the regions hold every position, and
+/// the `baseHeight` column says the same. Without a datum, heights are the model's as before.
+#[test]
+fn orthometric_heights_become_ellipsoidal_with_the_geoid() {
+    // (latitude, longitude, N) from NGA's OUTINTPT.DAT, and the point's UTM zone.
+    let places = [
+        (38.628_155, -90.220_845, -31.628, 15, true),
+        (38.625_473, -0.000_500, 50.066, 30, true),
+        (-23.617_446, 133.874_712, 15.871, 53, false),
+        (-14.621_217, -54.978_886, -2.969, 21, false),
+    ];
+    let bs = buildings(0.0);
+    let lowest = bs
+        .iter()
+        .flat_map(|b| b.parts.iter().map(|p| p.base_z))
+        .fold(f64::INFINITY, f64::min);
+    for (lat, lon, n, zone, north) in places {
+        let crs = Crs::Utm { zone, north };
+        let (x, y) = crs.from_lonlat(lon, lat);
+        let mut c = ctx(Lod::Lod4);
+        c.crs = crs;
+        c.origin = DVec3::new(x.round(), y.round(), 230.0);
+        c.origin_lonlat = (lon, lat);
+        let (plain_glb, plain) = write_in(&c, Detail::Full, &bs);
+        c.vertical_datum = Some(crate::model::VerticalDatum::Orthometric {
+            epsg: Some(5773),
+            name: "EGM96 height".into(),
+        });
+        for detail in [Detail::Full, Detail::Blocks] {
+            let (glb, info) = write_in(&c, detail, &bs);
+            let placement = info.placement.unwrap();
+            let hs = heights(&glb, &placement);
+            let low = hs.iter().copied().fold(f64::INFINITY, f64::min);
+            let high = hs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let want = 230.0 + lowest + n;
+            assert!(
+                (low - want).abs() < 0.1,
+                "({lat}, {lon}) {detail:?}: lowest base at {low}, H + N = {want}"
+            );
+            let r = placement.region;
+            assert!(
+                r[4] <= low && high <= r[5],
+                "region {r:?} holds {low}..{high}"
+            );
+            assert!(r[4] > low - 0.1 && r[5] < high + 0.1, "and is tight");
+            let base = parse(&glb).numbers("baseHeight", 8);
+            for (b, got) in bs.iter().zip(&base) {
+                let want = 230.0 + b.base_z + n;
+                assert!((got - want).abs() < 0.1, "baseHeight {got} vs {want}");
+            }
+        }
+        // Without the datum: the model's heights, as ellipsoidal ones.
+        let low = heights(&plain_glb, plain.placement.as_ref().unwrap())
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        assert!((low - (230.0 + lowest)).abs() < 0.01, "{low}");
+    }
+}
+
+/// One N per building (at its anchor) is exact there and within the geoid's slope times the
+/// distance elsewhere: in the steepest EGM96 (the Himalaya's southern edge, 9.7 m between
+/// posts) a vertex 60 m from its anchor is within 3 cm of its own H + N.
+#[test]
+fn one_undulation_per_building_is_close_everywhere_on_it() {
+    let crs = Crs::Utm {
+        zone: 44,
+        north: true,
+    };
+    let (x, y) = crs.from_lonlat(79.5, 30.0);
+    let mut c = ctx(Lod::Lod2);
+    c.crs = crs;
+    c.origin = DVec3::new(x.round(), y.round(), 3000.0);
+    c.vertical_datum = Some(crate::model::VerticalDatum::Orthometric {
+        epsg: None,
+        name: "DEM".into(),
+    });
+    let model = ModelFrame::new(&c);
+    let anchor = DVec3::new(20.0, -30.0, 5.0);
+    let map = BuildingMap::at(&model, anchor);
+    for d in [
+        DVec3::new(60.0, 0.0, 0.0),
+        DVec3::new(0.0, 60.0, 0.0),
+        DVec3::new(-42.0, 42.0, 20.0),
+    ] {
+        let p = anchor + d;
+        let got = map.anchor_ecef + map.offset(p);
+        let (lon, lat, _) = model.to_wgs84(p);
+        let (_, _, h) = ecef_to_wgs84(got.to_array());
+        let want = c.origin.z + p.z + crate::crs::geoid::undulation(lon, lat);
+        assert!((h - want).abs() < 0.03, "{d:?}: {h} vs {want}");
+    }
 }

@@ -255,3 +255,41 @@ fn a_city_of_blocks_rises_to_its_zones_level() {
         );
     }
 }
+
+/// Issue 42 step 4: every lot's form is set for the KB's appearance conditions, from the
+/// estimator's features or measured anew: a row's members are attached, a lone house is not,
+/// and a dense block's density class is above a hamlet's.
+#[test]
+fn forms_tell_rows_from_lone_houses_and_dense_blocks_from_hamlets() {
+    use crate::model::Density;
+    // A row of ten 6 x 10 m houses wall to wall, and 2 km away one house alone.
+    let mut lots: Vec<Lot> = (0..10)
+        .map(|k| lot(k, 6.0 * k as f64, 0.0, 6.0, 10.0, kind("yes")))
+        .collect();
+    // A dense block: 9 x 9 buildings of 20 x 20 m on a 25 m grid.
+    for k in 0..81 {
+        let (x, y) = (1000.0 + 25.0 * (k % 9) as f64, 25.0 * (k / 9) as f64);
+        lots.push(lot(100 + k, x, y, 20.0, 20.0, kind("yes")));
+    }
+    lots.push(lot(500, 2000.0, 2000.0, 10.0, 10.0, kind("house")));
+    for features in [Vec::new(), run(&lots).features] {
+        let mut lots = lots.clone();
+        apply_forms(&mut lots, &features);
+        let form = |i: usize| {
+            lots[i]
+                .tags
+                .form
+                .unwrap_or_else(|| panic!("lot {i} has a form"))
+        };
+        assert!((1..9).all(|i| form(i).attached), "the row");
+        assert!(!form(91).attached, "the lone house");
+        assert_eq!(form(91).density, Density::Low);
+        assert_eq!(
+            form(10 + 40).density,
+            Density::High,
+            "the middle of the block"
+        );
+        // The interned tags are shared: the row's inner houses have one tag set.
+        assert!(std::sync::Arc::ptr_eq(&lots[3].tags, &lots[4].tags));
+    }
+}
