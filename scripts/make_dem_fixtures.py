@@ -4,8 +4,8 @@ for each file, a few pixel centres as GDAL places them (rasterio's `xy`, centre 
 with the pixel's value, which citygen's own GeoTIFF georeferencing must read back exactly.
 
 Synthetic heights, no outside data. Run with rasterio installed:
-    python3 -m venv /tmp/dem-venv && /tmp/dem-venv/bin/pip install rasterio
-    /tmp/dem-venv/bin/python scripts/make_dem_fixtures.py
+    python3 -m venv "$VENV" && "$VENV/bin/pip" install rasterio
+    "$VENV/bin/python" scripts/make_dem_fixtures.py      (VENV: any scratch folder)
 """
 import json
 import os

@@ -8,13 +8,14 @@ use thiserror::Error;
 
 pub mod building;
 pub mod eval;
+mod ground;
 pub mod incremental;
 pub mod merge;
 pub(crate) mod outputs;
 mod plan;
 mod reuse;
 pub mod shard;
-mod terrain;
+pub mod terrain;
 mod write;
 
 use crate::crs::Crs;
@@ -137,6 +138,14 @@ pub struct Options {
     pub dem: Vec<PathBuf>,
     /// Without a DEM, the height every building stands at (`--ground-height`, metres).
     pub ground_height: Option<f64>,
+    /// The largest vertical distance, metres, between the terrain written and the elevation
+    /// grid's samples (`--terrain-tolerance`, default [`terrain::DEFAULT_TOLERANCE`]).
+    pub terrain_tolerance: f64,
+    /// Write no terrain even when the run has an elevation grid (`--no-terrain`).
+    pub no_terrain: bool,
+    /// Heights from a function, for a run that reads no DEM of its own: tests and programs
+    /// that embed citygen give the run an elevation grid this way (no flag sets it).
+    pub ground_fn: Option<terrain::GroundFn>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -356,7 +365,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
         outputs::check(&targets.flagged(), &prev.read_files(), true)?;
     }
     // The DEMs' headers first: a file that cannot serve fails the run before any reading.
-    let dems = terrain::open(opts)?;
+    let dems = ground::open(opts)?;
     let mut run = RunState::prepare(opts, targets, shard)?;
     check_kb_files(&run)?;
     run.select();
@@ -391,6 +400,10 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
         dry_run: opts.dry_run,
         allow_empty: opts.allow_empty,
         manifest: None,
+        terrain: (!opts.no_terrain).then_some(TerrainPlan {
+            tolerance: opts.terrain_tolerance,
+            tile: opts.tile,
+        }),
     };
     outputs::check(&targets.flagged(), &inputs, opts.force_extension)?;
     shard_targets(opts, targets)
@@ -668,6 +681,11 @@ impl<'a> RunState<'a> {
             generator,
             ..
         } = self;
+        if site.elevation.is_none() {
+            if let Some(f) = &opts.ground_fn {
+                site.elevation = f.grid(&site.lots, site.origin);
+            }
+        }
         let batches: Vec<Batch> = match opts.tile {
             None => vec![Batch {
                 suffix: None,
@@ -781,6 +799,17 @@ pub(crate) struct Targets {
     pub allow_empty: bool,
     /// Write a shard manifest here ([`shard::Manifest`]): every output is hashed as written.
     pub manifest: Option<PathBuf>,
+    /// Write the terrain of the site's elevation grid, when it has one (not `--no-terrain`).
+    pub terrain: Option<TerrainPlan>,
+}
+
+/// How a run writes its terrain ([`terrain`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct TerrainPlan {
+    /// [`Options::terrain_tolerance`].
+    pub tolerance: f64,
+    /// The tile size (`--tile`): each tile's terrain is cut to its square.
+    pub tile: Option<u32>,
 }
 
 impl Targets {

@@ -130,6 +130,7 @@ pub(crate) fn run(cmd: RulesCommand) -> Result<Outcome, AppError> {
                     dry_run: false,
                     allow_empty: false,
                     manifest: None,
+                    terrain: None,
                 },
             ))
         }

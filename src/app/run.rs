@@ -167,9 +167,25 @@ pub(crate) struct RunArgs {
     /// Without a DEM: the height (metres) every building stands at.
     #[arg(long, value_name = "METRES", value_parser = parse_ground_height)]
     ground_height: Option<f64>,
+    /// The largest vertical distance, in metres, between the terrain written beside the
+    /// buildings and the elevation samples it simplifies (a TIN; see docs/terrain-output.md).
+    #[arg(long, value_name = "M", default_value_t = crate::pipeline::terrain::DEFAULT_TOLERANCE, value_parser = parse_tolerance)]
+    terrain_tolerance: f64,
+    /// Write no terrain: by default a run with an elevation grid writes the terrain beside the
+    /// buildings in every model output and 3D Tiles.
+    #[arg(long)]
+    no_terrain: bool,
     /// No progress bar and no summary.
     #[arg(long, short)]
     quiet: bool,
+}
+
+/// `--terrain-tolerance`: a finite number of metres, 0 to 1000.
+fn parse_tolerance(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && (0.0..=1000.0).contains(&v) => Ok(v),
+        _ => Err(format!("{s:?} is not a tolerance in metres from 0 to 1000")),
+    }
 }
 
 /// The main job.
@@ -266,6 +282,9 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
         source_name: cli.source_name.clone(),
         dem: cli.dem.clone(),
         ground_height: cli.ground_height,
+        terrain_tolerance: cli.terrain_tolerance,
+        no_terrain: cli.no_terrain,
+        ground_fn: None,
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

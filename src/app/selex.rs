@@ -96,6 +96,7 @@ pub(crate) fn run(cmd: SelexCommand) -> Result<Outcome, AppError> {
                 dry_run: false,
                 allow_empty: false,
                 manifest: None,
+                terrain: None,
             };
             let outputs = targets.ifc.is_some()
                 || targets.citygml.is_some()

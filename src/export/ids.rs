@@ -37,3 +37,17 @@ pub(crate) fn part_ids(building_id: &str, parts: &[Part]) -> Vec<String> {
         })
         .collect()
 }
+
+/// The id of a file's terrain (CityGML `dem:ReliefFeature`, CityJSON `TINRelief`):
+/// `TIN_<easting>_<northing>` of its south-west corner in whole metres of the output CRS
+/// (`origin + local`), so that the terrains of a run's tiles, merged, keep distinct ids.
+pub(crate) fn terrain_id(t: &crate::model::Terrain, origin: glam::DVec3) -> String {
+    let (x, y) = t
+        .vertices
+        .iter()
+        .fold((f64::INFINITY, f64::INFINITY), |(x, y), v| {
+            (x.min(v.x), y.min(v.y))
+        });
+    let m = |v: f64| if v.is_finite() { v.floor() as i64 } else { 0 };
+    format!("TIN_{}_{}", m(x + origin.x), m(y + origin.y))
+}

@@ -17,6 +17,8 @@ pub mod lod3geom;
 pub mod lod4geom;
 pub mod preview;
 pub mod step;
+#[cfg(test)]
+mod terrain_tests;
 pub mod tiles3d;
 
 use std::io;

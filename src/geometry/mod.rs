@@ -9,6 +9,7 @@ pub(crate) mod clip;
 pub(crate) mod hull;
 pub(crate) mod ring;
 pub mod skeleton;
+pub mod tin;
 pub mod triangulate;
 
 use glam::{DVec2, DVec3};

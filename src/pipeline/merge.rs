@@ -851,7 +851,7 @@ fn tile_entries<'a>(shards: &[&'a Found]) -> Result<Vec<Placed<'a>>, RunError> {
                 ))
             })?;
         let rel = [e.full.uri.clone(), e.blocks.uri.clone()];
-        for c in [&mut e.full, &mut e.blocks] {
+        for c in e.contents_mut() {
             relative_inside(&c.uri).map_err(|err| {
                 RunError::Input(format!(
                     "merge refused: {}: {err}",
@@ -879,7 +879,7 @@ fn rebased(entries: &[Placed<'_>], dir: &Path) -> Vec<crate::export::tiles3d::Ti
         .iter()
         .map(|p| {
             let mut e = p.entry.clone();
-            for c in [&mut e.full, &mut e.blocks] {
+            for c in e.contents_mut() {
                 c.uri = relative_uri(Path::new(&c.uri), &base);
             }
             e

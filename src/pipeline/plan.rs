@@ -190,6 +190,24 @@ impl GridPlan {
                 }
             }
         }
+        let mut options = format!(
+            "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}",
+            opts.bbox,
+            opts.crs.map(|c| c.to_string()),
+            opts.src_crs.map(|c| c.to_string()),
+            opts.caps.max_depth,
+            opts.caps.max_shapes,
+            opts.infer
+        );
+        // The terrain's tolerance, in a run that writes one (a run without keeps its key).
+        let grid = site.elevation.is_some() || opts.ground_fn.is_some();
+        if grid && !opts.no_terrain {
+            options.push_str(&format!(" terrain={}", opts.terrain_tolerance));
+        }
+        // Only when given: the options of runs without a ground height are those of before.
+        if let Some(h) = opts.ground_height {
+            options.push_str(&format!(" ground_height={h}"));
+        }
         Ok(shard::RunKey {
             inputs,
             kb: opts.kb.as_deref().map(key).transpose()?,
@@ -200,19 +218,7 @@ impl GridPlan {
             crs: site.crs.to_string(),
             origin: [site.origin.x, site.origin.y],
             tile_size: self.size,
-            options: format!(
-                "bbox={:?} crs={:?} src_crs={:?} max_depth={} max_shapes={} infer={:?}{}",
-                opts.bbox,
-                opts.crs.map(|c| c.to_string()),
-                opts.src_crs.map(|c| c.to_string()),
-                opts.caps.max_depth,
-                opts.caps.max_shapes,
-                opts.infer,
-                // Only when given: the options of runs without terrain are those of before.
-                opts.ground_height
-                    .map(|h| format!(" ground_height={h}"))
-                    .unwrap_or_default()
-            ),
+            options,
             outputs,
             dems: opts.dem.iter().map(|p| key(p)).collect::<Result<_, _>>()?,
         })
@@ -347,6 +353,13 @@ pub(super) fn tiles3d_contents(
     use crate::export::tiles3d::Detail;
     [(Detail::Full, ""), (Detail::Blocks, "-blocks")]
         .map(|(detail, sfx)| (detail, dir.join("content").join(format!("{name}{sfx}.glb"))))
+}
+
+/// The terrain content of the tile named `name` ([`Detail::Terrain`](crate::export::tiles3d::Detail)):
+/// `dir/content/{name}-terrain.glb`.
+pub(super) fn tiles3d_terrain(dir: &Path, name: &str) -> (crate::export::tiles3d::Detail, PathBuf) {
+    let p = dir.join("content").join(format!("{name}-terrain.glb"));
+    (crate::export::tiles3d::Detail::Terrain, p)
 }
 
 /// `dir/NAME.EXT` with `_SUFFIX` inserted before the extension: `dir/NAME_SUFFIX.EXT`; the

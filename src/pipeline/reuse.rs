@@ -221,6 +221,14 @@ fn stale_files(
         .tiles
         .iter()
         .flat_map(|t| tile_files(&tile_targets(targets, Some(&t.suffix)), &t.suffix))
+        // A tile's terrain content, which a run with terrain may write: never stale.
+        .chain(grid.tiles.iter().filter_map(|t| {
+            let dir = targets
+                .tiles3d
+                .as_ref()
+                .filter(|_| targets.terrain.is_some())?;
+            Some(super::plan::tiles3d_terrain(dir, &t.suffix).1)
+        }))
         .chain(targets.flagged().into_iter().map(|(_, p)| p))
         .map(|p| relative_to(&p, dir))
         .collect();

@@ -1,132 +1,328 @@
-//! The ground a run stands on (issue 44): `--dem` files opened before any reading, every lot's
-//! ground ([`prepare::ground::grounds`]) and the run's elevation grid once the lots are
-//! selected, or `--ground-height` for all; the vertical datum the writers are given and the
-//! report's `terrain` line.
+//! The terrain written beside the buildings (issue 44): the run's elevation grid
+//! (`prepare::Site::elevation`) simplified once into RTIN error bounds
+//! ([`crate::geometry::tin`]), then cut for each output file to its extent.
+//!
+//! A file's extent: for a tile (`--tile`), its square of the output CRS grid grown to hold the
+//! footprints of its buildings (a building belongs to the tile of its representative point and
+//! may reach past the square); for an untiled run, the footprints' bounding box and
+//! [`MARGIN_M`] around it. Both are cut to the grid. Tiles cut from the one mesh meet without
+//! cracks: along a shared edge both have the same points, bit for bit (the points are put on
+//! the output's millimetre grid, the same way on both sides).
+//!
+//! Terrain is written whenever the run has an elevation grid, unless `--no-terrain`: a DEM
+//! given to seat the buildings is a terrain worth showing, and one flag turns it off.
 
-use std::path::Path;
+use std::sync::Arc;
 
-use super::{RunError, RunState};
-use crate::input::dem::{vertical_name, DemSet};
-use crate::model::{Lod, VerticalDatum};
-use crate::prepare;
-use crate::report::NO_TERRAIN;
+use glam::{DVec2, DVec3};
 
-/// How many uncovered buildings the error names.
-const NAMED: usize = 10;
+use crate::geometry::tin::{self, Heights, Rect, Rtin};
+use crate::model::{grid_key, on_grid, ElevationGrid, Terrain};
+use crate::prepare::Lot;
 
-/// The `--dem` files, opened (headers and georeferencing), or `None` without.
-pub(super) fn open(opts: &super::Options) -> Result<Option<DemSet>, RunError> {
-    if opts.dem.is_empty() {
-        return Ok(None);
-    }
-    if opts.ground_height.is_some() {
-        return Err(RunError::Usage(
-            "--ground-height and --dem: the DEM gives the ground; give one of them".into(),
-        ));
-    }
-    DemSet::open(&opts.dem)
-        .map(Some)
-        .map_err(|e| RunError::Input(e.to_string()))
+/// The default largest vertical distance between the terrain written and the DEM's samples
+/// (`--terrain-tolerance`), metres: about a DEM's own vertical accuracy (a lidar DEM's 0.1-0.3
+/// m, SRTM's several metres), and a few times fewer triangles than 0.1 m on hilly ground.
+pub const DEFAULT_TOLERANCE: f64 = 0.5;
+
+/// Metres of terrain around the buildings of an untiled run.
+pub const MARGIN_M: f64 = 25.0;
+
+/// The run's ground, ready to be cut per file.
+pub(crate) struct Ground<'a> {
+    rtin: Rtin<'a>,
+    tolerance: f64,
+    /// The output CRS's tile size (`--tile`), if tiled, and the local origin's CRS coordinates.
+    tile: Option<u32>,
+    origin: DVec2,
 }
 
-/// The files as a list for messages: `a.tif, b.tif`.
-fn listed(paths: &[&Path]) -> String {
-    paths
-        .iter()
-        .map(|p| p.display().to_string())
-        .collect::<Vec<_>>()
-        .join(", ")
-}
+impl<'a> Ground<'a> {
+    /// The ground of `grid` at `tolerance` metres; `None` for an empty or malformed grid.
+    pub(crate) fn new(
+        grid: &'a ElevationGrid,
+        tolerance: f64,
+        tile: Option<u32>,
+        origin: DVec2,
+    ) -> Option<Ground<'a>> {
+        let ok = grid.step.is_finite()
+            && grid.step > 0.0
+            && grid.origin.is_finite()
+            && grid.nx >= 2
+            && grid.ny >= 2
+            && grid.z.len() == grid.nx * grid.ny
+            && tolerance.is_finite()
+            && tolerance >= 0.0;
+        if !ok {
+            return None;
+        }
+        let rtin = Rtin::new(Heights {
+            origin: grid.origin,
+            step: grid.step,
+            nx: grid.nx,
+            ny: grid.ny,
+            z: &grid.z,
+            // Blocks anchored on the output CRS, so that the shards of a tiled run, each with
+            // its own grid, cut one mesh.
+            shift: tin::block_shift(grid.origin + origin, grid.step),
+        });
+        Some(Ground {
+            rtin,
+            tolerance,
+            tile,
+            origin,
+        })
+    }
 
-impl RunState<'_> {
-    /// Sets every lot's ground, the site's elevation grid and vertical datum, and the report's
-    /// terrain: from `dems`, else `--ground-height`, else nothing (z = 0). A building of the
-    /// run that the DEMs do not cover is an input error naming the files and the first
-    /// buildings, before anything is written.
-    pub(super) fn seat(&mut self, dems: Option<&DemSet>) -> Result<(), RunError> {
-        if let Some(h) = self.opts.ground_height {
-            let g = (h * 1000.0).round() / 1000.0;
-            for l in &mut self.site.lots {
-                l.ground = g;
+    /// The terrain of the file holding `lots` (of the tile at `cell` when tiled); `None` when
+    /// it has no triangle.
+    pub(crate) fn terrain(&self, lots: &[Lot], cell: (i64, i64)) -> Option<Arc<Terrain>> {
+        let extent = self.extent(lots, cell)?;
+        let tin = self.rtin.mesh(self.tolerance, extent);
+        let terrain = on_the_grid(tin.vertices, &tin.triangles, self.tolerance);
+        (!terrain.triangles.is_empty()).then(|| Arc::new(terrain))
+    }
+
+    /// The extent of a file (see the module documentation).
+    fn extent(&self, lots: &[Lot], cell: (i64, i64)) -> Option<Rect> {
+        let footprints = footprint_bounds(lots);
+        match self.tile {
+            Some(size) => {
+                let size = f64::from(size.max(1));
+                let min = DVec2::new(cell.0 as f64, cell.1 as f64) * size - self.origin;
+                let square = Rect {
+                    min,
+                    max: min + size,
+                };
+                Some(match footprints {
+                    Some(f) => Rect {
+                        min: square.min.min(f.min),
+                        max: square.max.max(f.max),
+                    },
+                    None => square,
+                })
             }
-            self.site.vertical_datum = Some(VerticalDatum::Orthometric {
-                epsg: None,
-                name: "heights above the ground level given by --ground-height (datum not \
-                       stated)"
-                    .into(),
-            });
-            self.report.terrain = Some(format!(
-                "--ground-height {g} m: every building stands at {g} m (no DEM)"
-            ));
-            return Ok(());
+            None => footprints.map(|f| Rect {
+                min: f.min - MARGIN_M,
+                max: f.max + MARGIN_M,
+            }),
         }
-        let Some(dems) = dems else {
-            self.report.terrain = Some(NO_TERRAIN.into());
-            return Ok(());
-        };
-        let input = |e: crate::input::dem::DemError| RunError::Input(e.to_string());
-        let framed = dems.framed(self.site.crs, self.site.origin);
-        // The run's buildings, and at LOD3 and above the neighbours their facades look at.
-        let wanted = if self.opts.lod >= Lod::Lod3 {
-            prepare::near_selected(
-                &self.site.lots,
-                &self.in_run,
-                super::incremental::NEIGHBOUR_MARGIN_M,
-            )
-        } else {
-            self.in_run.clone()
-        };
-        let grounds =
-            prepare::ground::grounds(&self.site.lots, |i| wanted[i], &framed).map_err(input)?;
-        let uncovered: Vec<String> = self
-            .site
-            .lots
-            .iter()
-            .zip(&grounds)
-            .zip(&self.in_run)
-            .filter(|((_, g), run)| **run && g.is_none())
-            .map(|((l, _), _)| l.id.to_string())
+    }
+}
+
+/// Heights from a function of the output CRS's (easting, northing), sampled every `step`
+/// metres over the run's buildings: the elevation grid of a run that reads no DEM, for tests
+/// and programs that embed citygen ([`super::Options::ground_fn`]). The grid's samples are on
+/// the CRS's lattice of `step`, so every shard of a run samples the same points. NaN heights
+/// are holes.
+#[derive(Clone)]
+pub struct GroundFn {
+    /// Metres between samples (> 0).
+    pub step: f64,
+    /// The height at (easting, northing) of the output CRS, metres.
+    pub height: Arc<dyn Fn(f64, f64) -> f64 + Send + Sync>,
+}
+
+impl std::fmt::Debug for GroundFn {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GroundFn")
+            .field("step", &self.step)
+            .finish()
+    }
+}
+
+impl GroundFn {
+    /// The grid over `lots` (local frame around `origin`, CRS metres) and `2 * MARGIN_M`
+    /// around them; `None` without lots or with a bad step.
+    pub(crate) fn grid(&self, lots: &[Lot], origin: DVec2) -> Option<ElevationGrid> {
+        let b = footprint_bounds(lots)?;
+        let step = self.step;
+        if !(step.is_finite() && step > 0.0) {
+            return None;
+        }
+        let lo = ((b.min + origin - 2.0 * MARGIN_M) / step).floor();
+        let hi = ((b.max + origin + 2.0 * MARGIN_M) / step).ceil();
+        let (nx, ny) = ((hi.x - lo.x) as usize + 1, (hi.y - lo.y) as usize + 1);
+        let z = (0..ny)
+            .flat_map(|j| (0..nx).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let p = (lo + DVec2::new(i as f64, j as f64)) * step;
+                (self.height)(p.x, p.y) as f32
+            })
             .collect();
-        if !uncovered.is_empty() {
-            let more = uncovered.len().saturating_sub(NAMED);
-            return Err(RunError::Input(format!(
-                "{}: the DEM does not cover {} building(s) of the run: {}{} (no height under \
-                 the whole footprint: outside every file, or only nodata); give DEM tiles \
-                 that cover them, or leave them out with --bbox",
-                listed(&dems.paths()),
-                uncovered.len(),
-                uncovered[..uncovered.len().min(NAMED)].join(", "),
-                if more > 0 {
-                    format!(" and {more} more")
-                } else {
-                    String::new()
-                }
-            )));
+        Some(ElevationGrid {
+            origin: lo * step - origin,
+            step,
+            nx,
+            ny,
+            z,
+        })
+    }
+}
+
+/// The bounding box of every outline and part of `lots` (local frame).
+fn footprint_bounds(lots: &[Lot]) -> Option<Rect> {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    let polygons = lots.iter().flat_map(|l| {
+        l.polygons
+            .iter()
+            .chain(l.parts.iter().flat_map(|p| &p.polygons))
+    });
+    for p in polygons {
+        for q in &p.outer {
+            if q.is_finite() {
+                lo = lo.min(*q);
+                hi = hi.max(*q);
+            }
         }
-        for (l, g) in self.site.lots.iter_mut().zip(grounds) {
-            // A neighbour outside the DEMs (not written by this run) stays on z = 0.
-            l.ground = g.unwrap_or(0.0);
+    }
+    (lo.x <= hi.x && lo.y <= hi.y).then_some(Rect { min: lo, max: hi })
+}
+
+/// The TIN as the files write it: every point on the output's millimetre grid, points that
+/// fall on one grid point made one, and triangles that became degenerate dropped.
+fn on_the_grid(vertices: Vec<DVec3>, triangles: &[[u32; 3]], tolerance: f64) -> Terrain {
+    let mut index = std::collections::HashMap::with_capacity(vertices.len());
+    let mut out = Terrain {
+        tolerance,
+        ..Terrain::default()
+    };
+    let remap: Vec<u32> = vertices
+        .into_iter()
+        .map(|v| {
+            let snapped = DVec3::new(on_grid(v.x), on_grid(v.y), on_grid(v.z));
+            let next = out.vertices.len() as u32;
+            *index.entry(grid_key(snapped)).or_insert_with(|| {
+                out.vertices.push(snapped);
+                next
+            })
+        })
+        .collect();
+    for t in triangles {
+        let t = t.map(|k| remap[k as usize]);
+        let p = t.map(|k| out.vertices[k as usize]);
+        if tin::cross2(p[0], p[1], p[2]) > MIN_WRITTEN_DOUBLE_AREA {
+            out.triangles.push(t);
         }
-        let in_run = &self.in_run;
-        self.site.elevation =
-            prepare::ground::elevation_grid(&self.site.lots, |i| in_run[i], &framed)
-                .map_err(input)?;
-        let epsg = dems.vertical_epsg().map_err(input)?;
-        self.site.vertical_datum = Some(VerticalDatum::Orthometric {
-            epsg: epsg.map(u32::from),
-            name: epsg.map_or_else(
-                || "DEM heights (the DEM states no vertical datum)".to_string(),
-                vertical_name,
-            ),
+    }
+    out
+}
+
+/// Twice the smallest area (m²) of a triangle written: one square millimetre.
+pub(crate) const MIN_WRITTEN_DOUBLE_AREA: f64 = 2e-6;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A grid of `n` x `n` samples `step` apart from `origin`, heights `f(x, y)` (local).
+    pub(crate) fn grid_of(
+        origin: DVec2,
+        step: f64,
+        n: usize,
+        f: impl Fn(f64, f64) -> f32,
+    ) -> ElevationGrid {
+        let z = (0..n * n)
+            .map(|k| {
+                let p = origin + step * DVec2::new((k % n) as f64, (k / n) as f64);
+                f(p.x, p.y)
+            })
+            .collect();
+        ElevationGrid {
+            origin,
+            step,
+            nx: n,
+            ny: n,
+            z,
+        }
+    }
+
+    fn lot_at(lo: DVec2, hi: DVec2) -> Lot {
+        let d = hi - lo;
+        crate::prepare::morph::tests::rect(1, lo.x, lo.y, d.x, d.y, "yes")
+    }
+
+    /// Whether `p` lies in (or on) a triangle of `t`, and the TIN's height there.
+    fn height_on(t: &Terrain, p: DVec2) -> Option<f64> {
+        t.triangles.iter().find_map(|k| {
+            let v = k.map(|i| t.vertices[i as usize]);
+            let q = p.extend(0.0);
+            let w = [
+                tin::cross2(v[1], v[2], q),
+                tin::cross2(v[2], v[0], q),
+                tin::cross2(v[0], v[1], q),
+            ];
+            if w.iter().any(|w| *w < -1e-9) {
+                return None;
+            }
+            let s: f64 = w.iter().sum();
+            Some((w[0] * v[0].z + w[1] * v[1].z + w[2] * v[2].z) / s)
+        })
+    }
+
+    #[test]
+    fn tiles_cover_their_buildings_and_share_their_edges() {
+        // Local origin at (500_000, 4_000_000); 100 m tiles; a hill with a cliff.
+        let origin = DVec2::new(500_000.0, 4_000_000.0);
+        let grid = grid_of(DVec2::new(-0.5, -0.5), 1.0, 302, |x, y| {
+            (30.0 * (-((x - 120.0).powi(2) + (y - 80.0).powi(2)) / 4000.0).exp()
+                + if x > 170.0 { 8.0 } else { 0.0 }) as f32
         });
-        let grid = self.site.elevation.as_ref().map_or(String::new(), |g| {
-            format!("; elevation grid {} x {} at {:.2} m", g.nx, g.ny, g.step)
+        let ground = Ground::new(&grid, 0.5, Some(100), origin).unwrap();
+        // A building of tile (5000, 40000) reaching 7 m into the next tile east: that tile's
+        // terrain grows to hold it.
+        let b = lot_at(DVec2::new(80.0, 10.0), DVec2::new(107.0, 30.0));
+        let grown = ground
+            .terrain(std::slice::from_ref(&b), (5000, 40000))
+            .unwrap();
+        for p in &b.polygons[0].outer {
+            let h = height_on(&grown, *p).expect("footprint covered");
+            let g = grid.height_at(*p).unwrap();
+            assert!((h - g).abs() <= 0.5 + 0.01, "{h} vs {g}");
+        }
+        // Tiles with buildings inside their squares meet along x = 100 with the same points.
+        let inside = lot_at(DVec2::new(20.0, 10.0), DVec2::new(40.0, 30.0));
+        let west = ground
+            .terrain(std::slice::from_ref(&inside), (5000, 40000))
+            .unwrap();
+        let east = ground.terrain(&[], (5001, 40000)).unwrap();
+        let on_edge = |t: &Terrain| -> Vec<(i64, i64, i64)> {
+            let mut v: Vec<_> = t
+                .vertices
+                .iter()
+                .filter(|p| p.x == 100.0)
+                .map(|p| grid_key(*p))
+                .collect();
+            v.sort_unstable();
+            v
+        };
+        let (w, e) = (on_edge(&west), on_edge(&east));
+        assert!(e.len() > 2);
+        assert_eq!(w, e);
+        // The grown tile has no edge at x = 100 but covers past it.
+        assert!(on_edge(&grown).len() < e.len());
+        assert!(height_on(&grown, DVec2::new(105.0, 90.0)).is_some());
+        for t in [&west, &east, &grown] {
+            for k in &t.triangles {
+                let v = k.map(|i| t.vertices[i as usize]);
+                assert!(tin::cross2(v[0], v[1], v[2]) > MIN_WRITTEN_DOUBLE_AREA);
+            }
+        }
+    }
+
+    #[test]
+    fn an_untiled_run_gets_its_buildings_and_a_margin() {
+        let grid = grid_of(DVec2::new(-100.0, -100.0), 2.0, 200, |x, y| {
+            (0.1 * x + 0.05 * y) as f32
         });
-        self.report.terrain = Some(format!(
-            "DEM {} ({}): each building stands on the lowest terrain under its footprint{grid}",
-            listed(&dems.paths()),
-            epsg.map_or_else(|| "vertical datum not stated".to_string(), vertical_name),
-        ));
-        Ok(())
+        let ground = Ground::new(&grid, 0.5, None, DVec2::ZERO).unwrap();
+        let b = lot_at(DVec2::new(0.0, 0.0), DVec2::new(20.0, 10.0));
+        let t = ground.terrain(std::slice::from_ref(&b), (0, 0)).unwrap();
+        let (lo, hi) = t.vertices.iter().fold(
+            (DVec2::splat(f64::MAX), DVec2::splat(f64::MIN)),
+            |(lo, hi), v| (lo.min(v.truncate()), hi.max(v.truncate())),
+        );
+        assert_eq!((lo, hi), (DVec2::splat(-MARGIN_M), DVec2::new(45.0, 35.0)));
+        assert!(ground.terrain(&[], (0, 0)).is_none());
     }
 }

@@ -14,7 +14,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sha2::{Digest as _, Sha256};
 
-use super::plan::{tile_targets, tiles3d_contents};
+use super::plan::{tile_targets, tiles3d_contents, tiles3d_terrain};
 use super::reuse::{rebased_entry, Keyed, ReusedTile};
 use super::{
     file_name, io_err, out_err, relative_to, shard, Model, Progress, RunError, Summary, Targets,
@@ -112,6 +112,12 @@ pub(crate) fn write_batches(
         changes: keyed.changes.clone(),
         keyed,
         done: 0,
+        ground: match (&site.elevation, targets.terrain) {
+            (Some(grid), Some(plan)) => {
+                super::terrain::Ground::new(grid, plan.tolerance, plan.tile, site.origin)
+            }
+            _ => None,
+        },
         written: Written {
             preview: targets
                 .preview
@@ -141,6 +147,8 @@ struct Batches<'a> {
     changes: Option<crate::report::Changes>,
     /// Lots written so far (derived or reused).
     done: usize,
+    /// The site's ground, cut for each file set's terrain (`None`: no terrain written).
+    ground: Option<super::terrain::Ground<'a>>,
     written: Written,
     progress: Progress<'a>,
 }
@@ -186,6 +194,10 @@ impl Batches<'_> {
             c.tiles_rewritten.push(sfx.clone());
         }
         let (done, total, progress) = (self.done, site.lots.len(), self.progress);
+        self.written.terrain = self
+            .ground
+            .as_ref()
+            .and_then(|g| g.terrain(lots, batch.cell));
         write_lots(
             site,
             lots,
@@ -295,6 +307,7 @@ impl Batches<'_> {
             tiles3d,
             cell: _,
             content_name: _,
+            terrain: _,
         } = written;
         if report.generated == 0 && !targets.allow_empty {
             let named = self
@@ -587,6 +600,8 @@ struct Written {
     cell: (i64, i64),
     /// The name of its 3D Tiles contents: the tile's suffix, `all` untiled.
     content_name: String,
+    /// The terrain of the file set being written.
+    terrain: Option<Arc<crate::model::Terrain>>,
 }
 
 impl Written {
@@ -624,7 +639,7 @@ fn write_lots(
         source_name: source_name.to_string(),
         seed: maker.seed(),
         vertical_datum: site.vertical_datum.clone(),
-        terrain: None,
+        terrain: written.terrain.clone(),
     };
 
     // Open every output before the work, so a bad path fails fast.
@@ -632,7 +647,12 @@ fn write_lots(
         mut outputs,
         citygml_elements,
         contents,
-    } = open_outputs(targets, &written.content_name, hashed)?;
+    } = open_outputs(
+        targets,
+        &written.content_name,
+        hashed,
+        written.terrain.is_some(),
+    )?;
     for (path, w, ..) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;
     }
@@ -640,7 +660,7 @@ fn write_lots(
     for (path, w, ..) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
-    if let (Some(dir), [(full, full_info), (blocks, blocks_info)]) =
+    if let (Some(dir), [(full, full_info), (blocks, blocks_info), terrain @ ..]) =
         (&targets.tiles3d, contents.as_slice())
     {
         let content = |p: &Path, info: &crate::export::tiles3d::ContentInfoHandle| {
@@ -655,12 +675,19 @@ fn write_lots(
             cell: written.cell,
             full: content(full, full_info)?,
             blocks: content(blocks, blocks_info)?,
+            terrain: match terrain.first() {
+                Some((p, info)) => Some(content(p, info)?),
+                None => None,
+            },
         };
         if let Some(log) = written.tile.as_mut() {
             // In the manifest, URIs relative to the manifest's folder.
             let mut rebased = entry.clone();
             rebased.full.uri = relative_to(full, &log.dir);
             rebased.blocks.uri = relative_to(blocks, &log.dir);
+            if let (Some(t), Some((p, _))) = (rebased.terrain.as_mut(), terrain.first()) {
+                t.uri = relative_to(p, &log.dir);
+            }
             log.record.tiles3d = serde_json::to_value(&rebased).ok();
         }
         written.tiles3d.push(entry);
@@ -687,8 +714,14 @@ struct Opened {
 }
 
 /// Opens every output of the file set, each with its format's writer: the model outputs in
-/// [`Model`] order, then the 3D Tiles contents named `content_name`.
-fn open_outputs(targets: &Targets, content_name: &str, hashed: bool) -> Result<Opened, RunError> {
+/// [`Model`] order, then the 3D Tiles contents named `content_name` (with the terrain's when
+/// the file set has a `terrain`).
+fn open_outputs(
+    targets: &Targets,
+    content_name: &str,
+    hashed: bool,
+    terrain: bool,
+) -> Result<Opened, RunError> {
     let dry = targets.dry_run;
     let mut outputs: Vec<Output> = Vec::new();
     let citygml_elements = Arc::new(AtomicU64::new(0));
@@ -716,7 +749,11 @@ fn open_outputs(targets: &Targets, content_name: &str, hashed: bool) -> Result<O
     let mut contents = Vec::new();
     if let Some(dir) = &targets.tiles3d {
         use crate::export::tiles3d::Tiles3dWriter;
-        for (detail, p) in tiles3d_contents(dir, content_name) {
+        let terrain = terrain.then(|| tiles3d_terrain(dir, content_name));
+        for (detail, p) in tiles3d_contents(dir, content_name)
+            .into_iter()
+            .chain(terrain)
+        {
             let (w, sink, bytes, hash) = open_output(&p, dry, None, hashed)?;
             let (w, info) = Tiles3dWriter::new(w, detail);
             contents.push((p.clone(), info));

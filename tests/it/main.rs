@@ -31,5 +31,6 @@ mod rule_bombs;
 mod s3db;
 mod selex;
 mod shards;
+mod terrain;
 mod world_kb;
 mod zones;

@@ -50,6 +50,10 @@
 //!   `MultiSurface` of lod `"3"` of its steps. All of them name the building or part as
 //!   `parents` and are in its `children`.
 //!
+//! A context with a terrain ([`OutputContext::terrain`]) gets it after the buildings as a
+//! `TINRelief` object (id `TIN_<E>_<N>`, attribute `tolerance`) with one `CompositeSurface` of
+//! triangles; in CityJSONSeq its own `CityJSONFeature` line, the last.
+//!
 //! Colours are not written (CityJSON materials would need the whole file's list up front).
 //!
 //! **The `.city.json` file** (`CityJsonWriter`) is `{"type":"CityJSON","version":"2.0",
@@ -249,6 +253,8 @@ pub(crate) struct CityJsonWriter<W: Write + Send> {
     tables: Vec<Vec<u64>>,
     /// New vertices of a batch, as text (scratch).
     vtext: Vec<u8>,
+    /// The file's terrain and its id, written after the buildings.
+    terrain: Option<(std::sync::Arc<crate::model::Terrain>, String)>,
 }
 
 impl<W: Write + Send> CityJsonWriter<W> {
@@ -285,6 +291,7 @@ impl<W: Write + Send> CityJsonWriter<W> {
             bufs: Vec::new(),
             tables: Vec::new(),
             vtext: Vec::new(),
+            terrain: None,
         }
     }
 
@@ -348,6 +355,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
         check_state("CityJSON writer", self.state, State::New, "begin()")?;
         let h = header(ctx, "CityJSON writer")?;
         self.lod = ctx.lod;
+        self.terrain = terrain_of(ctx);
         self.out.write_all(&h)?;
         self.state = State::Open;
         Ok(())
@@ -387,6 +395,13 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
 
     fn finish(&mut self) -> Result<(), ExportError> {
         check_state("CityJSON writer", self.state, State::Open, "finish()")?;
+        if let Some((t, id)) = self.terrain.take() {
+            if self.slots.is_empty() {
+                self.slots.push(Frag::default());
+            }
+            render::terrain(&mut self.slots[0], &t, &id, terrain_lod(self.lod));
+            self.append(1)?;
+        }
         self.state = State::Finished;
         self.out.write_all(b"\n},\"vertices\":[")?;
         match std::mem::replace(&mut self.spool, Spool::Memory(Vec::new())) {
@@ -414,6 +429,8 @@ pub(crate) struct CityJsonSeqWriter<W: Write + Send> {
     state: State,
     lod: Lod,
     slots: Vec<(Frag, Vec<u8>)>,
+    /// The file's terrain and its id, its own feature after the buildings'.
+    terrain: Option<(std::sync::Arc<crate::model::Terrain>, String)>,
 }
 
 impl<W: Write + Send> CityJsonSeqWriter<W> {
@@ -424,6 +441,7 @@ impl<W: Write + Send> CityJsonSeqWriter<W> {
             state: State::New,
             lod: Lod::Lod2,
             slots: Vec::new(),
+            terrain: None,
         }
     }
 
@@ -434,9 +452,30 @@ impl<W: Write + Send> CityJsonSeqWriter<W> {
     }
 }
 
+/// The terrain the context gives, with its id.
+fn terrain_of(ctx: &OutputContext) -> Option<(std::sync::Arc<crate::model::Terrain>, String)> {
+    let t = ctx.terrain.clone()?;
+    let id = crate::export::ids::terrain_id(&t, ctx.origin);
+    Some((t, id))
+}
+
+/// The lod of the terrain's surface: the run's (CityJSON has none past 3).
+fn terrain_lod(lod: Lod) -> &'static str {
+    match lod {
+        Lod::Lod1 => "1",
+        Lod::Lod2 => "2",
+        Lod::Lod3 | Lod::Lod4 => "3",
+    }
+}
+
 /// One building's `CityJSONFeature` line into `buf`.
 fn feature(frag: &mut Frag, buf: &mut Vec<u8>, b: &Building, lod: Lod) {
     render::building(frag, b, lod);
+    feature_line(frag, buf);
+}
+
+/// The `CityJSONFeature` line of a rendered fragment into `buf`, with its own vertices.
+fn feature_line(frag: &Frag, buf: &mut Vec<u8>) {
     buf.clear();
     buf.extend_from_slice(b"{\"type\":\"CityJSONFeature\",\"id\":");
     // Writing a &str to a Vec cannot fail.
@@ -459,6 +498,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
         let mut h = header(ctx, "CityJSONSeq writer")?;
         h.extend_from_slice(b"},\"vertices\":[]}\n");
         self.lod = ctx.lod;
+        self.terrain = terrain_of(ctx);
         self.out.write_all(&h)?;
         self.state = State::Open;
         Ok(())
@@ -502,6 +542,12 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
 
     fn finish(&mut self) -> Result<(), ExportError> {
         check_state("CityJSONSeq writer", self.state, State::Open, "finish()")?;
+        if let Some((t, id)) = self.terrain.take() {
+            let (mut frag, mut buf) = (Frag::default(), Vec::new());
+            render::terrain(&mut frag, &t, &id, terrain_lod(self.lod));
+            feature_line(&frag, &mut buf);
+            self.out.write_all(&buf)?;
+        }
         self.state = State::Finished;
         self.out.flush()?;
         self.slots = Vec::new();

@@ -296,6 +296,33 @@ impl Semantics {
     }
 }
 
+/// A file's terrain as its `TINRelief` object (`"id":{...}`): attribute `tolerance` (metres,
+/// [`crate::model::Terrain::tolerance`]) and one `CompositeSurface` of lod `lod` (CityJSON has no `TIN`
+/// geometry: its schema gives `TINRelief` a `CompositeSurface`), a triangle per
+/// surface.
+pub(super) fn terrain(f: &mut Frag, t: &crate::model::Terrain, id: &str, lod: &str) {
+    f.clear();
+    f.id = id.to_string();
+    f.string(id);
+    f.s(":{\"type\":\"TINRelief\",\"attributes\":{\"tolerance\":");
+    f.fixed3(t.tolerance);
+    f.s("},\"geometry\":[{\"type\":\"CompositeSurface\",\"lod\":");
+    f.string(lod);
+    f.s(",\"boundaries\":[");
+    for (k, tri) in t.triangles.iter().enumerate() {
+        f.s(if k > 0 { ",[[" } else { "[[" });
+        for (i, &v) in tri.iter().enumerate() {
+            if i > 0 {
+                f.s(",");
+            }
+            let p = t.vertices.get(v as usize).copied().unwrap_or_default();
+            f.vertex(grid_key(p));
+        }
+        f.s("]]");
+    }
+    f.s("]}]}");
+}
+
 /// The building's id: `B_` and its source key (`B_way_123`), as in the CityGML.
 pub(super) fn building_id(b: &Building) -> String {
     format!("B_{}", id_fragment(&b.key()))

@@ -140,6 +140,7 @@ pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, 
                 | SurfaceClass::InteriorDoors
                 | SurfaceClass::Stairs
                 | SurfaceClass::Slabs => add_interior(&mut groups, part, class),
+                SurfaceClass::Terrain => {}
             }
         }
         groups.retain(|g| !g.mesh.indices.is_empty());

@@ -47,6 +47,8 @@
 //! the materials and 4 bytes per building (the scene's root list). Output is a pure function of
 //! the context and the buildings.
 //!
+//! A context with a terrain gets a root node `terrain` after the buildings' (`terrain`).
+//!
 //! Code layout: this module holds the writer, its state and the surface classes; `mesh` groups
 //! and triangulates a building's faces (`lod4` its interior's, `contact` leaves out those
 //! between parts), `materials` makes the PBR materials, `spool` spools the data and records and assembles the GLB, `json` holds the JSON
@@ -81,6 +83,7 @@ mod lod4;
 mod materials;
 mod mesh;
 mod spool;
+mod terrain;
 
 /// glTF component types.
 const FLOAT: u32 = 5126;
@@ -135,6 +138,8 @@ pub(crate) enum SurfaceClass {
     InteriorDoors,
     Stairs,
     Slabs,
+    /// The file's terrain (not a building's: never in [`SurfaceClass::ALL`]).
+    Terrain,
 }
 
 impl SurfaceClass {
@@ -167,6 +172,7 @@ impl SurfaceClass {
             SurfaceClass::InteriorDoors => "interior doors",
             SurfaceClass::Stairs => "stairs",
             SurfaceClass::Slabs => "slabs",
+            SurfaceClass::Terrain => "terrain",
         }
     }
 
@@ -215,6 +221,8 @@ pub struct GltfWriter<W: Write + Send> {
     material_index: BTreeMap<(SurfaceClass, [u32; 4], Finish), u32>,
     /// Whether the run is LOD3 or above (openings and balconies are written).
     detail: bool,
+    /// The file's terrain, written after the buildings (`terrain`).
+    terrain: Option<std::sync::Arc<crate::model::Terrain>>,
     /// Deletes a scratch file this writer created (see [`GltfWriter::beside`]). Declared after
     /// `scratch` so that the file is closed before it is removed.
     scratch_guard: ScratchGuard,
@@ -249,6 +257,7 @@ impl<W: Write + Send> GltfWriter<W> {
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
             detail: false,
+            terrain: None,
             scratch_guard: ScratchGuard(Vec::new()),
         }
     }
@@ -272,6 +281,7 @@ impl<W: Write + Send> GltfWriter<W> {
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
             detail: false,
+            terrain: None,
             scratch_guard: ScratchGuard(Vec::new()),
         }
     }
@@ -330,6 +340,7 @@ impl<W: Write + Send> GltfWriter<W> {
             source: ctx.source_name.clone(),
         };
         self.detail = ctx.lod >= Lod::Lod3;
+        self.terrain = ctx.terrain.clone();
         self.state = State::Open;
         Ok(())
     }
@@ -406,6 +417,9 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
     fn finish(&mut self) -> Result<(), ExportError> {
         match self.state {
             State::Open => {
+                if let Some(t) = self.terrain.take() {
+                    self.add_terrain(&t)?;
+                }
                 self.state = State::Finished;
                 self.write_glb()
             }

@@ -77,6 +77,9 @@
 //! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior
 //! doors, stairs, upper floor slabs) by the child module `lod4` (see there).
 //!
+//! A context with a terrain gets it as an `IfcGeographicElement` `.TERRAIN.` in the site, its
+//! body an `IfcTriangulatedFaceSet` (`terrain`), written by `finish`.
+//!
 //! GlobalIds are deterministic (`global_id`) from the building key and the element's path, so
 //! equal inputs give byte-identical files. Memory held between buildings: the list of top-level
 //! building ids (8 bytes each), the hashes of the building keys seen (16 bytes each), the caches of shared styles and material
@@ -112,6 +115,7 @@ mod roofs;
 mod shapes;
 mod spatial;
 mod styles;
+mod terrain;
 mod walls;
 
 /// Thickness of the base slab, extruded down from the ground surface (metres).
@@ -491,6 +495,8 @@ struct Open<W: Write> {
     /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
     /// repeats (16 bytes a building rather than the key's string).
     keys: BTreeSet<u128>,
+    /// The file's terrain, written by `finish` (`terrain`).
+    terrain: Option<std::sync::Arc<crate::model::Terrain>>,
 }
 
 /// The entities and settings of the file that every building refers to, written by `begin`.

@@ -180,10 +180,14 @@ impl<W: Write> Open<W> {
             buildings: Vec::new(),
             pool: Vec::new(),
             keys: BTreeSet::new(),
+            terrain: ctx.terrain.clone(),
         })
     }
 
     pub(super) fn finish(mut self) -> Result<W, ExportError> {
+        if let Some(t) = self.terrain.take() {
+            self.terrain(&t)?;
+        }
         if !self.buildings.is_empty() {
             let (gid, site, buildings) = (
                 global_id(&self.g.ns, "site/buildings"),

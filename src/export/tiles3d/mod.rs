@@ -1,7 +1,8 @@
 //! OGC 3D Tiles 1.1: one GLB content per tile of a run (`Tiles3dWriter`) and the
 //! `tileset.json` over them (`tileset_json`).
 //!
-//! A run writes two contents per tile: [`Detail::Full`], the buildings as derived (the glTF
+//! A run writes two contents per tile (three with a terrain: [`Detail::Terrain`], the file's
+//! terrain in the same frame, shown beside both): [`Detail::Full`], the buildings as derived (the glTF
 //! writer's faces: `export::gltf::building_groups`), and [`Detail::Blocks`], a coarse LOD1 of
 //! them for the upper levels of the tree (`blocks`). The tileset makes each tile a node whose
 //! content is its Blocks, refined (REPLACE) by one child whose content is its Full, under a
@@ -39,6 +40,7 @@ mod content;
 mod frame;
 mod glb;
 mod metadata;
+mod terrain;
 pub mod tileset;
 
 #[cfg(test)]
@@ -70,6 +72,9 @@ pub enum Detail {
     /// Every part's footprint extruded from its base to its top: a coarse LOD1 for the upper
     /// levels of the tileset.
     Blocks,
+    /// The terrain of the tile ([`OutputContext::terrain`]), in the frame of the other two
+    /// (`terrain`): shown beside Blocks and beside Full.
+    Terrain,
 }
 
 /// What the tileset needs to know of a content, without opening it: given by the writer after
@@ -164,6 +169,8 @@ pub(crate) struct Tiles3dWriter<W: Write + Send> {
     plan: Option<(DVec2, DVec2, f64)>,
     blocks_error: f64,
     info: ContentInfoHandle,
+    /// The terrain a [`Detail::Terrain`] writer draws.
+    terrain: Option<Arc<crate::model::Terrain>>,
 }
 
 impl<W: Write + Send> Tiles3dWriter<W> {
@@ -184,6 +191,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             plan: None,
             blocks_error: 0.0,
             info: info.clone(),
+            terrain: None,
         };
         (w, info)
     }
@@ -232,6 +240,12 @@ impl<W: Write + Send> Tiles3dWriter<W> {
                 None => base,
             },
         );
+        self.track(b);
+        Ok(())
+    }
+
+    /// Grows the plan bounding box and the lowest base by `b`'s parts, and the blocks' error.
+    fn track(&mut self, b: &Building) {
         for p in &b.parts {
             let (lo, hi) = footprint_bounds(p);
             let (plo, phi, base) = self.plan.get_or_insert((lo, hi, p.base_z));
@@ -242,12 +256,15 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         self.blocks_error = self
             .blocks_error
             .max(blocks::blocks_error(b, self.detailed));
-        Ok(())
     }
 
     /// Writes the GLB and publishes the content's facts.
     fn write_content(&mut self) -> Result<(), ExportError> {
-        let triangles: u64 = self.prims.iter().map(Primitive::triangles).sum();
+        let triangles: u64 = match (self.detail, &self.terrain) {
+            (Detail::Terrain, Some(t)) => t.triangles.len() as u64,
+            (Detail::Terrain, None) => 0,
+            _ => self.prims.iter().map(Primitive::triangles).sum(),
+        };
         let blocks_error = self.blocks_error.max(blocks::MIN_BLOCKS_ERROR);
         let generator = concat!("citygen ", env!("CARGO_PKG_VERSION"));
         let (model, plan) = match (self.model, self.plan) {
@@ -279,6 +296,29 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         };
         let frame = EnuFrame::at(lon, lat, h);
         let mut bin = glb::Bin::default();
+        if let (Detail::Terrain, Some(t)) = (self.detail, self.terrain.clone()) {
+            let (parts, lo, hi) = terrain::lay_out(&t, &model, &frame, &mut bin);
+            let mut doc = json!({
+                "asset": {"version": "2.0", "generator": generator},
+                "scene": 0,
+                "scenes": [{"nodes": [0]}],
+                "bufferViews": bin.views,
+                "buffers": [{"byteLength": bin.bytes.len()}]
+            });
+            for key in ["nodes", "meshes", "materials", "accessors"] {
+                doc[key] = parts[key].clone();
+            }
+            let bytes = glb::write_glb(&mut self.out, &doc, &bin.bytes)?;
+            self.set_info(ContentFacts {
+                triangles,
+                bytes,
+                blocks_error,
+                frame: (&frame, [lon, lat, h]),
+                lo,
+                hi,
+            });
+            return Ok(());
+        }
         let laid = content::lay_out(&self.prims, &self.anchors, &frame, &mut bin);
         let table = metadata::property_table(&self.rows, &mut bin);
         let doc = json!({
@@ -300,24 +340,47 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             "buffers": [{"byteLength": bin.bytes.len()}]
         });
         let bytes = glb::write_glb(&mut self.out, &doc, &bin.bytes)?;
-        let (c, half) = ((laid.lo + laid.hi) / 2.0, (laid.hi - laid.lo) / 2.0);
-        self.info.set(ContentInfo {
-            detail: self.detail,
-            buildings: self.rows.len(),
+        self.set_info(ContentFacts {
             triangles,
             bytes,
             blocks_error,
+            frame: (&frame, [lon, lat, h]),
+            lo: laid.lo,
+            hi: laid.hi,
+        });
+        Ok(())
+    }
+
+    /// Publishes the facts of a content that draws something.
+    fn set_info(&self, f: ContentFacts<'_>) {
+        let (c, half) = ((f.lo + f.hi) / 2.0, (f.hi - f.lo) / 2.0);
+        self.info.set(ContentInfo {
+            detail: self.detail,
+            buildings: self.rows.len(),
+            triangles: f.triangles,
+            bytes: f.bytes,
+            blocks_error: f.blocks_error,
             placement: Some(Placement {
-                transform: frame.transform(),
-                origin: [lon, lat, h],
-                region: frame::region_of_box(&frame, laid.lo, laid.hi),
+                transform: f.frame.0.transform(),
+                origin: f.frame.1,
+                region: frame::region_of_box(f.frame.0, f.lo, f.hi),
                 bounding_box: [
                     c.x, c.y, c.z, half.x, 0.0, 0.0, 0.0, half.y, 0.0, 0.0, 0.0, half.z,
                 ],
             }),
         });
-        Ok(())
     }
+}
+
+/// What [`Tiles3dWriter::set_info`] publishes: counts, and the frame and bounds of the
+/// positions in it.
+struct ContentFacts<'a> {
+    triangles: u64,
+    bytes: u64,
+    blocks_error: f64,
+    frame: (&'a EnuFrame, [f64; 3]),
+    lo: DVec3,
+    hi: DVec3,
 }
 
 /// The plan bounding box of a part's footprint.
@@ -335,6 +398,7 @@ fn encode(b: &Building, model: &ModelFrame, detail: Detail, detailed: bool) -> E
     let groups = match detail {
         Detail::Full => building_groups(b, detailed),
         Detail::Blocks => blocks::block_groups(b),
+        Detail::Terrain => Vec::new(),
     };
     // The anchor: the middle of the building's plan, at its base.
     let (lo, hi) = b.parts.iter().map(footprint_bounds).fold(
@@ -364,6 +428,9 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
         self.model = Some(ModelFrame::new(ctx));
         self.origin_z = ctx.origin.z;
         self.detailed = ctx.lod >= Lod::Lod3;
+        if self.detail == Detail::Terrain {
+            self.terrain = ctx.terrain.clone();
+        }
         self.state = State::Open;
         Ok(())
     }
@@ -371,6 +438,10 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
     fn write(&mut self, building: &Building) -> Result<(), ExportError> {
         let model = self.open("write")?;
         check_finite("3D Tiles writer", building)?;
+        if self.detail == Detail::Terrain {
+            self.track(building);
+            return Ok(());
+        }
         let e = encode(building, &model, self.detail, self.detailed);
         self.add(building, e)
     }
@@ -384,6 +455,11 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         let model = self.open("write")?;
         let (detail, detailed) = (self.detail, self.detailed);
+        if detail == Detail::Terrain {
+            // Only the frame is needed: the buildings' plan and lowest base.
+            checked.finite().iter().for_each(|b| self.track(b));
+            return checked.refused("3D Tiles writer");
+        }
         for chunk in checked.finite().chunks(PARALLEL_CHUNK) {
             let encoded: Vec<EncodedBuilding> = chunk
                 .par_iter()

@@ -561,6 +561,7 @@ fn entries(cells: &[(i64, i64)]) -> Vec<TileEntry> {
             let (_, full) = write(Lod::Lod3, Detail::Full, &bs, true);
             let (_, blocks) = write(Lod::Lod3, Detail::Blocks, &bs, true);
             TileEntry {
+                terrain: None,
                 cell: (x, y),
                 full: TileContent {
                     uri: format!("content/{x}_{y}.glb"),
@@ -664,6 +665,7 @@ fn tileset_of_one_tile_refuses_duplicates_and_skips_empty_tiles() {
     let (_, empty) = write(Lod::Lod2, Detail::Full, &[], true);
     let mut with_empty = tiles.clone();
     with_empty.push(TileEntry {
+        terrain: None,
         cell: (9, 9),
         full: TileContent {
             uri: "content/9_9.glb".into(),
@@ -794,6 +796,7 @@ fn write_monaco_in(
         };
         let s = t.suffix();
         entries.push(TileEntry {
+            terrain: None,
             cell: TileEntry::cell_of(t.corner, size),
             full: content(Detail::Full, format!("content/{s}.glb")),
             blocks: content(Detail::Blocks, format!("content/{s}-blocks.glb")),

@@ -54,6 +54,9 @@ pub(crate) struct TileEntry {
     pub full: TileContent,
     /// Their blocks ([`super::Detail::Blocks`]).
     pub blocks: TileContent,
+    /// The tile's terrain ([`super::Detail::Terrain`]), when the run writes one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub terrain: Option<TileContent>,
 }
 
 /// The widest grid a tileset covers, in cells (2^32: tiles of a metre over the whole earth
@@ -61,6 +64,13 @@ pub(crate) struct TileEntry {
 const MAX_SPAN: u64 = 1 << 32;
 
 impl TileEntry {
+    /// Every content of the tile, to change (Full, Blocks, then the terrain's).
+    pub(crate) fn contents_mut(&mut self) -> impl Iterator<Item = &mut TileContent> {
+        [&mut self.full, &mut self.blocks]
+            .into_iter()
+            .chain(self.terrain.as_mut())
+    }
+
     /// The cell of the tile whose lower-left corner is `corner` (easting, northing in metres, as
     /// `prepare::Tile::corner`) in a grid of `size` metres (floored, so a corner off the grid
     /// still has its cell).
@@ -90,7 +100,7 @@ pub(crate) fn tileset_json(tiles: &[TileEntry]) -> Result<String, ExportError> {
                 t.cell, t.full.uri
             )));
         }
-        for c in [&t.full, &t.blocks] {
+        for c in [&t.full, &t.blocks].into_iter().chain(t.terrain.as_ref()) {
             if c.uri.trim().is_empty() {
                 return Err(ExportError::Invalid(format!(
                     "3D Tiles tileset: the tile of cell {:?} has a content without a URI",
@@ -206,13 +216,30 @@ fn grid_node(t: &TileEntry) -> Option<Node> {
     let blocks = t.blocks.info.placement.as_ref().map(held);
     let full = t.full.info.placement.as_ref().map(held);
     let (blocks, full) = (blocks.as_ref(), full.as_ref());
+    // The terrain, in the frame of the tile's other contents (it has none without them).
+    let terrain = t.terrain.as_ref().and_then(|c| {
+        let p = held(c.info.placement.as_ref()?);
+        let same = blocks.or(full).is_some_and(|o| o.transform == p.transform);
+        same.then(|| (c.uri.clone(), p.region))
+    });
+    let with_terrain = |content: Value, region: [f64; 6]| match &terrain {
+        Some((uri, r)) => (
+            json!({"contents": [content, {"uri": uri, "boundingVolume": {"region": r}}]}),
+            region_union(&region, r),
+        ),
+        None => (json!({ "content": content }), region),
+    };
     let blocks_error = t.blocks.info.blocks_error.max(MIN_BLOCKS_ERROR);
     let full_node = full.map(|f| {
+        let (contents, region) = with_terrain(
+            json!({"uri": t.full.uri, "boundingVolume": {"region": f.region}}),
+            f.region,
+        );
         let mut n = json!({
-            "boundingVolume": {"region": f.region},
+            "boundingVolume": {"region": region},
             "geometricError": 0.0,
-            "content": {"uri": t.full.uri, "boundingVolume": {"region": f.region}}
         });
+        merge_into(&mut n, contents);
         match blocks {
             Some(b) if b.transform != f.transform => {
                 n["transform"] = json!(relative(b, f));
@@ -222,12 +249,15 @@ fn grid_node(t: &TileEntry) -> Option<Node> {
         }
         n
     });
-    let (region, error) = match (blocks, full) {
+    let (mut region, error) = match (blocks, full) {
         (Some(b), Some(f)) => (region_union(&b.region, &f.region), blocks_error),
         (Some(b), None) => (b.region, blocks_error),
         (None, Some(f)) => (f.region, blocks_error),
         (None, None) => return None,
     };
+    if let Some((_, r)) = &terrain {
+        region = region_union(&region, r);
+    }
     let mut n = json!({
         "boundingVolume": {"region": region},
         "geometricError": error,
@@ -235,7 +265,11 @@ fn grid_node(t: &TileEntry) -> Option<Node> {
     });
     if let Some(b) = blocks {
         n["transform"] = json!(b.transform);
-        n["content"] = json!({"uri": t.blocks.uri, "boundingVolume": {"region": b.region}});
+        let (contents, _) = with_terrain(
+            json!({"uri": t.blocks.uri, "boundingVolume": {"region": b.region}}),
+            b.region,
+        );
+        merge_into(&mut n, contents);
     }
     if let Some(f) = full_node {
         n["children"] = json!([f]);
@@ -245,6 +279,13 @@ fn grid_node(t: &TileEntry) -> Option<Node> {
         error,
         json: n,
     })
+}
+
+/// Adds the members of the object `more` to the object `n`.
+fn merge_into(n: &mut Value, more: Value) {
+    if let (Some(n), Value::Object(more)) = (n.as_object_mut(), more) {
+        n.extend(more);
+    }
 }
 
 /// The transform of `child`'s frame relative to `parent`'s: parent⁻¹ · child, both rigid
