@@ -27,7 +27,11 @@ pub(crate) fn load_site(source: &Source) -> Result<(Site, String), RunError> {
     };
     let mut report = Report::default();
     let read = read_source(source, None, None, &mut report)?;
-    let crs = zone_for(&read.footprints, read.source_crs, None, &name)?;
+    // Errors name the input as given (two `b.shp` in two folders are two inputs).
+    let given = match source {
+        Source::Osm(p) | Source::Shp { path: p, .. } => p.display().to_string(),
+    };
+    let crs = zone_for(&read.footprints, read.source_crs, None, &given)?;
     let mut site = prepare::prepare(read.footprints, read.source_crs, Some(crs), &mut report);
     site.boundaries = read.boundaries;
     prepare::assign_fronts(&mut site, &read.streets, read.source_crs);
