@@ -107,10 +107,14 @@ impl RunState<'_> {
             // A neighbour outside the DEMs (not written by this run) stays on z = 0.
             l.ground = g.unwrap_or(0.0);
         }
-        let in_run = &self.in_run;
-        self.site.elevation =
-            prepare::ground::elevation_grid(&self.site.lots, |i| in_run[i], &framed)
-                .map_err(input)?;
+        // The grid only serves the terrain written beside the buildings: none with
+        // `--no-terrain` (a quarter of `--dem`'s cost on the bench, README).
+        if !self.opts.no_terrain {
+            let in_run = &self.in_run;
+            self.site.elevation =
+                prepare::ground::elevation_grid(&self.site.lots, |i| in_run[i], &framed)
+                    .map_err(input)?;
+        }
         let epsg = dems.vertical_epsg().map_err(input)?;
         self.site.vertical_datum = Some(VerticalDatum::Orthometric {
             epsg: epsg.map(u32::from),

@@ -317,6 +317,28 @@ fn buildings_stand_on_the_lowest_terrain_under_them() {
             "{terrain}"
         );
     }
+    // With the terrain written (the default) the run makes its elevation grid and writes
+    // a TIN; with --no-terrain the buildings stand as seated, with no grid and no TIN.
+    let off = dir.path().join("off");
+    std::fs::create_dir(&off).unwrap();
+    ok(&run(
+        &pbf,
+        &off,
+        "2",
+        &["--dem", dem.to_str().unwrap(), "--no-terrain"],
+    ));
+    check_seated(&off, &t);
+    let terrain_of = |d: &Path| -> (String, String) {
+        let report: Value =
+            serde_json::from_slice(&std::fs::read(d.join("report.json")).unwrap()).unwrap();
+        let city = std::fs::read_to_string(d.join("out.city.json")).unwrap();
+        (report["terrain"].as_str().unwrap().to_string(), city)
+    };
+    let (with, with_city) = terrain_of(&dir.path().join("lod2"));
+    let (without, without_city) = terrain_of(&off);
+    assert!(with.contains("elevation grid"), "{with}");
+    assert!(!without.contains("elevation grid"), "{without}");
+    assert!(with_city.contains("TINRelief") && !without_city.contains("TINRelief"));
     // The cliff: building 1 straddles it, its base is the foot's.
     let h = cityjson_heights(&dir.path().join("lod2/out.city.json"));
     let (x0, y0) = origin();
