@@ -104,10 +104,13 @@ pub(super) fn merge_ring(r: &[DVec2]) -> Option<(Vec<DVec2>, usize)> {
     (v.len() >= 3).then_some((v, spikes))
 }
 
+/// The most segments [`is_valid`] checks pairwise.
+const SMALL_CHECK: usize = 64;
+
 /// Whether rings are simple, do not cross each other, and holes lie inside the outer ring.
-/// The segments in an R-tree: each is tested against those whose box meets its own (two
-/// segments that touch do), so that a polygon of many rings (an outline with the holes of
-/// thousands of parts) costs O(n log n), not O(n²).
+/// Past [`SMALL_CHECK`] segments, the segments in an R-tree: each is tested against those
+/// whose box meets its own (two segments that touch do), so that a polygon of many rings (an
+/// outline with the holes of thousands of parts) costs O(n log n), not O(n²).
 pub(super) fn is_valid(p: &Polygon) -> bool {
     let total: usize = p.rings().map(Vec::len).sum();
     if total > MAX_CHECKED_VERTICES {
@@ -126,7 +129,12 @@ pub(super) fn is_valid(p: &Polygon) -> bool {
             a.2 == b.2 && (b.3 == a.3 + 1 || (a.3 == 0 && b.3 == lens[a.2].saturating_sub(1)));
         !adjacent && segments_touch(a.0, a.1, b.0, b.1)
     };
-    let crossing = if segs.iter().all(|s| s.0.is_finite() && s.1.is_finite()) {
+    // Small rings pairwise (an index costs more than it saves under a few dozen segments,
+    // and nearly every footprint is small); large ones through an R-tree of the segments'
+    // boxes (issue 43: a relation's outline with thousands of vertices). The same answer.
+    let indexed =
+        segs.len() > SMALL_CHECK && segs.iter().all(|s| s.0.is_finite() && s.1.is_finite());
+    let crossing = if indexed {
         let boxes: Vec<GeomWithData<Rectangle<[f64; 2]>, usize>> = segs
             .iter()
             .enumerate()
@@ -141,7 +149,7 @@ pub(super) fn is_valid(p: &Polygon) -> bool {
                 .any(|o| o.data > b.data && touch(b.data, o.data))
         })
     } else {
-        // Not finite: no box to index (such a segment may still cross a finite one).
+        // Small, or not finite: no box to index (such a segment may still cross a finite one).
         (0..segs.len()).any(|i| (i + 1..segs.len()).any(|j| touch(i, j)))
     };
     !crossing
