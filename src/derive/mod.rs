@@ -746,14 +746,23 @@ fn flatten_covered_roofs(styled: &mut [(&LotPiece, BuildingTags, Style, Rng)]) {
     }
 }
 
+/// Up to this many pieces, [`boxes_meeting`] gives every piece as a candidate of every other.
+const FEW_PIECES: usize = 16;
+
 /// For each piece, the pieces (itself included, in order) whose plan's bounding box meets its
 /// own, closed: the only ones its plan can overlap. An R-tree of the boxes, so that a building
 /// of 10,000 parts asks each about its neighbours, not about every other part. A piece with a
-/// coordinate that is not finite has no box and meets every piece.
+/// coordinate that is not finite has no box and meets every piece. Up to [`FEW_PIECES`]
+/// pieces, every piece is given (a superset: the callers test the plans).
 fn boxes_meeting(styled: &[(&LotPiece, BuildingTags, Style, Rng)]) -> Vec<Vec<usize>> {
     use rstar::primitives::{GeomWithData, Rectangle};
     use rstar::{RTree, RTreeObject};
     let n = styled.len();
+    if n <= FEW_PIECES {
+        // Every piece is a candidate (the callers test the plans themselves, as they did for
+        // every pair before the index): nearly every building has one piece or a few.
+        return (0..n).map(|_| (0..n).collect()).collect();
+    }
     let bounds = |ps: &[Polygon]| {
         let (mut lo, mut hi) = (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY);
         for p in ps.iter().flat_map(|p| p.rings()).flatten() {
