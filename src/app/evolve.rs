@@ -50,10 +50,16 @@ pub(crate) struct EvolveArgs {
     /// The zone for --into-kb (a path as `kb explain` prints it, or its tail).
     #[arg(long, value_name = "PATH", requires = "into_kb")]
     zone: Option<String>,
-    /// The share of the zone's buildings the new appearances take together (0 < S < 1; a
-    /// zone without appearances of its own gets only the new ones).
+    /// The share of the group's buildings the new appearances take together (0 < S < 1; a
+    /// group without appearances of its own gets only the new ones).
     #[arg(long, default_value_t = 0.5, requires = "into_kb")]
     share: f64,
+    /// The building kinds the evolved facades are for (OSM building=* values, comma-separated):
+    /// they join the zone's appearances whose `building` list holds them all, take that group's
+    /// values and its list (`yes`: the appearances without a list). Default: the appearances
+    /// without a list, else the group of `apartments`.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', requires = "into_kb")]
+    kinds: Option<Vec<String>>,
     /// Worker threads (default: all cores). The files do not depend on it.
     #[arg(long)]
     threads: Option<usize>,
@@ -176,11 +182,23 @@ pub(crate) fn run(args: EvolveArgs) -> Result<Outcome, AppError> {
             kb: kb.clone(),
             zone,
             share: args.share,
+            kinds: args.kinds.map(|k| {
+                k.into_iter()
+                    .map(|s| s.trim().to_string())
+                    .filter(|s| !s.is_empty())
+                    .collect()
+            }),
         };
         match run::into_kb(&target, &chosen) {
             Ok(a) => {
+                let kinds = if a.kinds.is_empty() {
+                    "without a building list (building=yes and kinds no group names)".to_string()
+                } else {
+                    format!("for building={}", a.kinds.join(","))
+                };
                 eprintln!(
-                    "  added {} appearance(s) to {} in {} ({:.0} % of its buildings):",
+                    "  added {} appearance(s) to {} in {}, among its appearances {kinds}: \
+                     {:.0} % of those buildings; the group's own weights scaled to the rest",
                     a.rulesets.len(),
                     a.zone,
                     kb.display(),

@@ -138,6 +138,18 @@ pub enum EvolveError {
         /// Why.
         source: crate::kb::edit::EditError,
     },
+    /// `--into-kb` without `--kinds` on a zone whose appearances all serve named kinds, none of
+    /// them `apartments`: which group the facades are for is the user's to say.
+    #[error(
+        "{file}: zone '{zone}' has no appearance for building=yes or apartments: say which \
+         kinds the evolved facades are for with --kinds (e.g. --kinds apartments,residential)"
+    )]
+    NoKinds {
+        /// The knowledge base, as given.
+        file: String,
+        /// The zone's path.
+        zone: String,
+    },
     /// `--share` not strictly between 0 and 1.
     #[error("--share {0}: give a share between 0 and 1 (exclusive) of the zone's buildings")]
     Share(f64),

@@ -464,9 +464,60 @@ pub(crate) struct IntoKb {
     pub kb: PathBuf,
     /// The zone's path (`kb explain` spelling; a tail such as `Monaco/Fontvieille` works).
     pub zone: String,
-    /// The share of the zone's buildings the new appearances take together, 0 < share < 1
-    /// (ignored for a zone without appearances of its own: there they take all).
+    /// The share of the group's buildings the new appearances take together, 0 < share < 1
+    /// (ignored for a group without appearances of its own: there they take all).
     pub share: f64,
+    /// The building kinds the new appearances are for (`--kinds`): the zone's group whose
+    /// `building` list holds them all; `yes` alone means the appearances without a list.
+    /// `None`: the appearances without a list, else the group of `apartments`.
+    pub kinds: Option<Vec<String>>,
+}
+
+/// The zone's appearances that one `building` list serves (the run draws among them and their
+/// weights sum to 1).
+#[derive(Clone, Debug, PartialEq)]
+struct Group {
+    /// The list as the text has it (`None`: the appearances without a list).
+    building: Option<String>,
+    /// Indices of the zone's appearances in the group.
+    members: Vec<usize>,
+}
+
+/// The group the evolved appearances join (see [`IntoKb::kinds`]); a list no group holds
+/// makes a new group of those kinds; `None` when no kinds are given and the zone has neither
+/// appearances without a list nor a group of `apartments`.
+fn target_group(buildings: &[Option<String>], kinds: Option<&[String]>) -> Option<Group> {
+    let list = |b: &Option<String>| -> Vec<String> {
+        b.iter()
+            .flat_map(|s| s.split(','))
+            .map(|k| k.trim().to_string())
+            .filter(|k| !k.is_empty())
+            .collect()
+    };
+    let group_of = |pick: &dyn Fn(&[String]) -> bool| -> Option<Group> {
+        let first = buildings.iter().position(|b| pick(&list(b)))?;
+        let key = list(&buildings[first]);
+        Some(Group {
+            building: buildings[first].clone().filter(|_| !key.is_empty()),
+            members: (0..buildings.len())
+                .filter(|&i| list(&buildings[i]) == key)
+                .collect(),
+        })
+    };
+    let unlisted = || group_of(&|l| l.is_empty());
+    match kinds {
+        Some(k) if k.iter().all(|k| k == "yes") => unlisted().or(Some(Group {
+            building: None,
+            members: Vec::new(),
+        })),
+        Some(k) => group_of(&|l| k.iter().all(|x| l.contains(x))).or_else(|| {
+            Some(Group {
+                building: Some(k.join(",")),
+                members: Vec::new(),
+            })
+        }),
+        None => unlisted().or_else(|| group_of(&|l| l.iter().any(|x| x == "apartments"))),
+    }
 }
 
 /// What `into_kb` did.
@@ -476,10 +527,12 @@ pub struct Added {
     pub zone: String,
     /// The ruleset files written beside the KB.
     pub rulesets: Vec<PathBuf>,
-    /// Each new appearance's weight.
+    /// Each new appearance's weight (its share of the group's buildings).
     pub probas: Vec<f64>,
-    /// The share of the zone's buildings they take together.
+    /// The share of the group's buildings they take together.
     pub share: f64,
+    /// The group's kinds (empty: the appearances without a `building` list).
+    pub kinds: Vec<String>,
 }
 
 /// Adds `members` (ruleset texts with a name) as appearances of a zone: the rulesets are
@@ -510,49 +563,50 @@ pub(crate) fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<A
     let zone = &kb.zones()[z];
     let text = std::fs::read_to_string(&target.kb).map_err(io(&kb_file))?;
     let own = edit::zone_appearances(&text, zone.line).map_err(edit_err)?;
-    // The zone's own weights as the run normalises them: given ones as they are, absent ones
+    let group = target_group(&own.buildings, target.kinds.as_deref()).ok_or_else(|| {
+        EvolveError::NoKinds {
+            file: kb_file.clone(),
+            zone: zone.path.clone(),
+        }
+    })?;
+    // The group's own weights as the run normalises them: given ones as they are, absent ones
     // sharing what the given leave of 1.
-    let given: Vec<Option<f64>> = own
-        .values
+    let given: Vec<Option<f64>> = group
+        .members
         .iter()
-        .map(|v| {
-            v.iter()
+        .map(|&i| {
+            own.values[i]
+                .iter()
                 .find(|(k, _)| k == "proba")
                 .and_then(|(_, p)| p.trim().parse::<f64>().ok())
                 .filter(|p| p.is_finite() && *p >= 0.0)
         })
         .collect();
-    let sum_given: f64 = given.iter().flatten().sum();
-    let absent = given.iter().filter(|g| g.is_none()).count();
-    let total_own = if absent > 0 {
-        sum_given.max(1.0)
+    let weights = crate::kb::proba_weights(given.iter().copied());
+    let share = if group.members.is_empty() || weights.iter().sum::<f64>() <= 0.0 {
+        1.0
+    } else if target.share > 0.0 && target.share < 1.0 {
+        target.share
     } else {
-        sum_given
+        return Err(EvolveError::Share(target.share));
     };
-    let (share, total_new) = if own.values.is_empty() || total_own <= 0.0 {
-        (1.0, 1.0)
-    } else {
-        if !(target.share > 0.0 && target.share < 1.0) {
-            return Err(EvolveError::Share(target.share));
-        }
-        (
-            target.share,
-            total_own * target.share / (1.0 - target.share),
-        )
-    };
-    // The values of the heaviest own appearance (the first of equals), without its weight.
-    let heaviest = given
+    // The values of the group's heaviest appearance (the first of equals), without its weight.
+    let heaviest = weights
         .iter()
         .enumerate()
-        .max_by(|a, b| {
-            let (x, y) = (a.1.unwrap_or(0.0), b.1.unwrap_or(0.0));
-            x.total_cmp(&y).then(b.0.cmp(&a.0))
-        })
-        .map(|(i, _)| i);
+        .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.cmp(&a.0)))
+        .map(|(k, _)| group.members[k]);
     let values: Vec<(String, String)> = heaviest
         .and_then(|i| own.values.get(i))
         .map(|v| v.iter().filter(|(k, _)| k != "proba").cloned().collect())
         .unwrap_or_default();
+    // The group's weights normalised: its own appearances keep 1 - share between them.
+    let rescaled: Vec<(usize, f64)> = group
+        .members
+        .iter()
+        .zip(&weights)
+        .map(|(&i, w)| (i, w * (1.0 - share)))
+        .collect();
     let dir = target
         .kb
         .parent()
@@ -573,7 +627,7 @@ pub(crate) fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<A
             }
         })
         .collect();
-    let each = total_new / members.len() as f64;
+    let each = share / members.len() as f64;
     let mut new = Vec::new();
     let mut files = Vec::new();
     for (name, rules) in members {
@@ -591,9 +645,12 @@ pub(crate) fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<A
             values: values.clone(),
             ruleset: rel,
             comment: Some(format!("citygen evolve: {name}")),
+            building: group.building.clone(),
         });
     }
-    let edited = edit::add_appearances(&text, zone.line, &new).map_err(edit_err)?;
+    let edited = edit::set_probas(&text, zone.line, &rescaled)
+        .and_then(|t| edit::add_appearances(&t, zone.line, &new))
+        .map_err(edit_err)?;
     // Rulesets first (new files), then the KB checked from a temporary beside it.
     let mut made = Vec::new();
     let undo = |made: &[PathBuf]| {
@@ -640,6 +697,13 @@ pub(crate) fn into_kb(target: &IntoKb, members: &[(String, String)]) -> Result<A
         rulesets: files.into_iter().map(|(p, _)| p).collect(),
         probas: new.iter().map(|n| n.proba).collect(),
         share,
+        kinds: group
+            .building
+            .iter()
+            .flat_map(|b| b.split(','))
+            .map(|k| k.trim().to_string())
+            .filter(|k| !k.is_empty())
+            .collect(),
     })
 }
 
@@ -744,18 +808,23 @@ mod tests {
             kb: kb.clone(),
             zone: "T".into(),
             share: 0.5,
+            kinds: None,
         };
         let a = into_kb(&target, &[member("a"), member("b")]).unwrap();
         assert_eq!(a.zone, "earth/T");
-        // Half of the town's buildings: the new weights sum to the old ones'.
-        assert_eq!(a.probas, vec![0.5, 0.5]);
+        // Half of the town's buildings: its own appearance keeps 0.5, the new ones 0.25 each,
+        // and the group still sums to 1.
+        assert_eq!(a.probas, vec![0.25, 0.25]);
+        assert!(a.kinds.is_empty());
         let text = std::fs::read_to_string(&kb).unwrap();
         assert!(
-            text.starts_with(&KB[..KB.find("  </town>").unwrap()]),
+            text.starts_with(
+                &KB[..KB.find("  </town>").unwrap()].replace("proba=\"1\"", "proba=\"0.5\"")
+            ),
             "{text}"
         );
         assert!(text.contains(
-            "<appearance><values proba=\"0.5\" color=\"#d8a05a\" floorsize=\"3\"/><ruleset file=\"evolved/t-a.cga\"/></appearance>"
+            "<appearance><values proba=\"0.25\" color=\"#d8a05a\" floorsize=\"3\"/><ruleset file=\"evolved/t-a.cga\"/></appearance>"
         ));
         assert!(dir.path().join("evolved/t-b.cga").exists());
         let r = crate::kb::tools::check_report(&kb, crate::kb::ReadMode::Strict).unwrap();
@@ -809,5 +878,93 @@ mod tests {
             std::fs::read_to_string(dir.path().join("evolved/t-z.cga")).unwrap(),
             "lot -> extrude(3){building}\n"
         );
+    }
+
+    const GROUPS: &str = r##"<earth>
+  <info nbfloor="2" rooftype="flat"/>
+  <town designation="U">
+    <info lat="40.7" lon="-74" dist="1"/>
+    <appearance building="house,terrace"><values proba="1" color="#aa0000" bdRooftype="gabled"/></appearance>
+    <appearance building="apartments,residential"><values proba="0.6" color="#884422" bdRooftype="flat" material="brick" floorsize="3.2"/></appearance>
+    <appearance building="apartments,residential"><values proba="0.4" color="#cccccc" bdRooftype="flat" material="plaster"/></appearance>
+    <appearance building="industrial,shed"><values proba="0.9" color="#777777" bdRooftype="gabled" material="metal" floorsize="5"/></appearance>
+    <appearance building="industrial,shed"><values proba="0.1" color="#666666"/></appearance>
+  </town>
+</earth>
+"##;
+
+    type Apps = Vec<(Vec<String>, Option<f64>)>;
+
+    /// Zone U's appearances in `kb`: (building list, proba).
+    fn group_of(kb: &Path) -> Apps {
+        let (k, _) = crate::kb::KnowledgeBase::load(kb).unwrap();
+        let u = crate::kb::tools::find_zone(&k, "U").unwrap();
+        k.zones()[u]
+            .appearances
+            .iter()
+            .map(|a| (a.buildings.clone(), a.proba))
+            .collect()
+    }
+
+    #[test]
+    fn into_kb_joins_the_group_of_the_kinds_it_is_for_and_keeps_its_weights_summing_to_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let kb = dir.path().join("kb.xml");
+        std::fs::write(&kb, GROUPS).unwrap();
+        let target = IntoKb {
+            kb: kb.clone(),
+            zone: "U".into(),
+            share: 0.5,
+            kinds: None,
+        };
+        // No list-less appearances: the default is the group of apartments (not the heaviest
+        // appearance of the zone, the metal sheds), its list and its heaviest values copied.
+        let a = into_kb(&target, &[member("a")]).unwrap();
+        assert_eq!(a.kinds, vec!["apartments", "residential"]);
+        assert_eq!(a.probas, vec![0.5]);
+        let text = std::fs::read_to_string(&kb).unwrap();
+        assert!(text.contains(
+            "<appearance building=\"apartments,residential\"><values proba=\"0.5\" color=\"#884422\" bdRooftype=\"flat\" material=\"brick\" floorsize=\"3.2\"/><ruleset file=\"evolved/u-a.cga\"/></appearance>"
+        ), "{text}");
+        let apps = group_of(&kb);
+        let sum = |list: &[&str]| -> f64 {
+            apps.iter()
+                .filter(|(b, _)| b.iter().map(String::as_str).eq(list.iter().copied()))
+                .filter_map(|(_, p)| *p)
+                .sum()
+        };
+        assert!((sum(&["apartments", "residential"]) - 1.0).abs() < 1e-9);
+        assert!((sum(&["house", "terrace"]) - 1.0).abs() < 1e-9);
+        assert!((sum(&["industrial", "shed"]) - 1.0).abs() < 1e-9);
+        // No appearance without a list was added: building=yes is not dressed by the search.
+        assert!(apps.iter().all(|(b, _)| !b.is_empty()));
+        let r = crate::kb::tools::check_report(&kb, crate::kb::ReadMode::Strict).unwrap();
+        assert!(!r.has_errors() && r.warnings.is_empty(), "{r}");
+
+        // --kinds house: the house group; --kinds yes: a new list-less group taking all of it.
+        let houses = IntoKb {
+            kinds: Some(vec!["house".into()]),
+            share: 0.25,
+            ..target.clone()
+        };
+        let a = into_kb(&houses, &[member("h")]).unwrap();
+        assert_eq!(a.kinds, vec!["house", "terrace"]);
+        assert_eq!(a.probas, vec![0.25]);
+        let yes = IntoKb {
+            kinds: Some(vec!["yes".into()]),
+            ..target.clone()
+        };
+        let a = into_kb(&yes, &[member("y")]).unwrap();
+        assert!(a.kinds.is_empty());
+        assert_eq!((a.share, a.probas.clone()), (1.0, vec![1.0]));
+        let r = crate::kb::tools::check_report(&kb, crate::kb::ReadMode::Strict).unwrap();
+        assert!(!r.has_errors() && r.warnings.is_empty(), "{r}");
+
+        // A zone with neither list-less appearances nor apartments: the user must say.
+        let only = GROUPS.replace("apartments,residential", "office");
+        std::fs::write(&kb, &only).unwrap();
+        let e = into_kb(&target, &[member("c")]).unwrap_err().to_string();
+        assert!(e.contains("--kinds") && e.contains("kb.xml"), "{e}");
+        assert_eq!(std::fs::read_to_string(&kb).unwrap(), only);
     }
 }

@@ -76,6 +76,9 @@ pub(crate) struct NewAppearance {
     pub ruleset: String,
     /// A comment written above it (without `--`).
     pub comment: Option<String>,
+    /// Its `building` list (raw), or `None` for an appearance that serves every kind without
+    /// a group of its own (`building=yes` among them).
+    pub building: Option<String>,
 }
 
 /// A zone's direct `<appearance>` children as the text has them.
@@ -305,8 +308,13 @@ pub(crate) fn add_appearances(
             }
         }
         values.push_str("/>");
+        let building = a
+            .building
+            .as_ref()
+            .map(|b| format!(" building=\"{}\"", escape_attr(b)))
+            .unwrap_or_default();
         add.push_str(&format!(
-            "\n{inner}<appearance>{values}<ruleset file=\"{}\"/></appearance>",
+            "\n{inner}<appearance{building}>{values}<ruleset file=\"{}\"/></appearance>",
             escape_attr(&a.ruleset)
         ));
     }
@@ -898,6 +906,33 @@ fn nth_appearance(zone: &Element, index: usize) -> Result<&Element, EditError> {
         .ok_or(EditError::NoAppearance { index })
 }
 
+/// `text` with the `proba` of the zone's appearances set: each `(index, proba)` (0-based
+/// appearance index) changes that appearance's `<values proba>` in place (added when absent);
+/// everything else keeps its bytes.
+pub(crate) fn set_probas(
+    text: &str,
+    zone_line: usize,
+    probas: &[(usize, f64)],
+) -> Result<String, EditError> {
+    let mut out = text.to_string();
+    for &(index, proba) in probas {
+        let root = element_tree(&out)?;
+        let zone = zone_at(&root, zone_line)?;
+        let app = nth_appearance(zone, index)?;
+        let change = [("proba".to_string(), Some(fmt_proba(proba)))];
+        out = match app.child("values") {
+            Some(v) => set_attrs(&out, v, &change),
+            None => insert_child(
+                &out,
+                app,
+                app.tag_end,
+                &format!("<values proba=\"{}\"/>", fmt_proba(proba)),
+            ),
+        };
+    }
+    Ok(out)
+}
+
 /// `text` without appearance `index` (0-based) of the zone on `zone_line`.
 pub fn delete_appearance(text: &str, zone_line: usize, index: usize) -> Result<String, EditError> {
     let root = element_tree(text)?;
@@ -1108,6 +1143,7 @@ mod tests {
             ],
             ruleset: "evolved/a.cga".into(),
             comment: Some("evolved -- hsym".into()),
+            building: None,
         }
     }
 
