@@ -54,10 +54,21 @@
 //! `TINRelief` object (id `TIN_<E>_<N>`, attribute `tolerance`) with one `CompositeSurface` of
 //! triangles; in CityJSONSeq its own `CityJSONFeature` line, the last.
 //!
-//! Colours are not written (CityJSON materials would need the whole file's list up front).
+//! **Colours** are materials of the appearance theme `citygen` (the CityGML writer's theme):
+//! each building solid has `"material":{"citygen":{"values":[[..]]}}`, one index per surface
+//! (walls: the part's wall colour, roofs: its roof colour, LOD3 openings: their own colour,
+//! glazed windows 0.6 transparent as in the CityGML; the ground `null`). A material is
+//! `{"name":"#rrggbb","diffuseColor":[r,g,b],"isSmooth":false}` (with `transparency` when not
+//! opaque), one per distinct colour. The `.city.json` numbers them in first-use order over
+//! the file and writes `"appearance":{"materials":[..]}` after the CityObjects; each
+//! CityJSONSeq feature carries its own `appearance` with its own materials.
+//!
+//! **The extent:** the `.city.json`'s `metadata` comes last, with `geographicalExtent` (the
+//! written vertices' bounds in the output CRS); the CityJSONSeq's first line has the metadata
+//! without it (the extent is known only at the end).
 //!
 //! **The `.city.json` file** (`CityJsonWriter`) is `{"type":"CityJSON","version":"2.0",
-//! "transform":..,"metadata":..,"CityObjects":{..},"vertices":[..]}`: the buildings' objects
+//! "transform":..,"CityObjects":{..},"appearance":..,"vertices":[..],"metadata":..}`: the buildings' objects
 //! go to the output as they come, the vertices are appended to a scratch file as they are
 //! first used and copied after the objects at the end. A building's vertices are each written
 //! once; across buildings a vertex is shared through a table of the vertices written so far,
@@ -116,8 +127,9 @@ fn check_state(writer: &str, state: State, expected: State, call: &str) -> Resul
     )))
 }
 
-/// The header's members after `"version"`: transform and metadata.
-fn header(ctx: &OutputContext, writer: &str) -> Result<Vec<u8>, ExportError> {
+/// The file's start, `{"type":"CityJSON","version":"2.0","transform":{..},`, and the members
+/// of its `metadata` (reference systems and title, without braces).
+fn header(ctx: &OutputContext, writer: &str) -> Result<(Vec<u8>, Vec<u8>), ExportError> {
     if !ctx.origin.is_finite() {
         return Err(ExportError::Invalid(format!(
             "{writer}: the local origin {:?} is not finite",
@@ -145,17 +157,30 @@ fn header(ctx: &OutputContext, writer: &str) -> Result<Vec<u8>, ExportError> {
         }
         _ => String::new(),
     };
-    let mut h = format!(
-        "{{\"type\":\"CityJSON\",\"version\":\"2.0\",\"transform\":{{\"scale\":[0.001,0.001,0.001],\"translate\":[{},{},{}]}},\"metadata\":{{\"referenceSystem\":\"https://www.opengis.net/def/crs/EPSG/0/{}\",{vertical}\"title\":",
-        o.x,
-        o.y,
-        o.z,
+    let start = format!(
+        "{{\"type\":\"CityJSON\",\"version\":\"2.0\",\"transform\":{{\"scale\":[0.001,0.001,0.001],\"translate\":[{},{},{}]}},",
+        o.x, o.y, o.z
+    )
+    .into_bytes();
+    let mut meta = format!(
+        "\"referenceSystem\":\"https://www.opengis.net/def/crs/EPSG/0/{}\",{vertical}\"title\":",
         ctx.crs.epsg()
     )
     .into_bytes();
-    serde_json::to_writer(&mut h, &title).map_err(io::Error::other)?;
-    h.extend_from_slice(b"},\"CityObjects\":{");
-    Ok(h)
+    serde_json::to_writer(&mut meta, &title).map_err(io::Error::other)?;
+    Ok((start, meta))
+}
+
+/// `"appearance":{"materials":[..]}` of these material keys.
+fn appearance(out: &mut Vec<u8>, mats: &[u32]) {
+    out.extend_from_slice(b"\"appearance\":{\"materials\":[");
+    for (i, &k) in mats.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        render::push_material(out, k);
+    }
+    out.extend_from_slice(b"]}");
 }
 
 /// Appends `[x,y,z]` (formatted on the stack, appended at once).
@@ -193,12 +218,22 @@ fn push_vertex(out: &mut Vec<u8>, v: Vertex) {
     out.extend_from_slice(&buf[..n]);
 }
 
-/// The frag's text with every mark replaced by `index(local vertex)`.
-fn splice(frag: &Frag, index: impl Fn(u32) -> u64, out: &mut Vec<u8>) {
+/// The frag's text with every mark replaced by `index(local vertex)` or, for a material mark,
+/// `material(local material)`.
+fn splice(
+    frag: &Frag,
+    index: impl Fn(u32) -> u64,
+    material: impl Fn(u32) -> u64,
+    out: &mut Vec<u8>,
+) {
     let mut at = 0;
     for &(pos, li) in &frag.marks {
         out.extend_from_slice(&frag.text[at..pos]);
-        push_uint(out, index(li));
+        if li & render::MATERIAL != 0 {
+            push_uint(out, material(li & !render::MATERIAL));
+        } else {
+            push_uint(out, index(li));
+        }
         at = pos;
     }
     out.extend_from_slice(&frag.text[at..]);
@@ -255,6 +290,17 @@ pub(crate) struct CityJsonWriter<W: Write + Send> {
     vtext: Vec<u8>,
     /// The file's terrain and its id, written after the buildings.
     terrain: Option<(std::sync::Arc<crate::model::Terrain>, String)>,
+    /// The file's materials ([`render::material_key`]) in first-use order, and their indices.
+    materials: Vec<u32>,
+    material_index: std::collections::HashMap<u32, u64>,
+    /// Each slot's materials' file indices (scratch).
+    mat_tables: Vec<Vec<u64>>,
+    /// The vertices' extent (millimetres from the translate): minimum and maximum.
+    extent: Option<(Vertex, Vertex)>,
+    /// The transform's translate and the `metadata` members (written at the end with the
+    /// extent).
+    translate: glam::DVec3,
+    metadata: Vec<u8>,
 }
 
 impl<W: Write + Send> CityJsonWriter<W> {
@@ -292,6 +338,12 @@ impl<W: Write + Send> CityJsonWriter<W> {
             tables: Vec::new(),
             vtext: Vec::new(),
             terrain: None,
+            materials: Vec::new(),
+            material_index: std::collections::HashMap::new(),
+            mat_tables: Vec::new(),
+            extent: None,
+            translate: glam::DVec3::ZERO,
+            metadata: Vec::new(),
         }
     }
 
@@ -306,7 +358,20 @@ impl<W: Write + Send> CityJsonWriter<W> {
     fn append(&mut self, n: usize) -> Result<(), ExportError> {
         self.tables.resize_with(n.max(self.tables.len()), Vec::new);
         self.bufs.resize_with(n.max(self.bufs.len()), Vec::new);
+        self.mat_tables
+            .resize_with(n.max(self.mat_tables.len()), Vec::new);
         self.vtext.clear();
+        for (frag, mt) in self.slots[..n].iter().zip(&mut self.mat_tables) {
+            mt.clear();
+            for &k in &frag.mats {
+                let next = self.materials.len() as u64;
+                let i = *self.material_index.entry(k).or_insert(next);
+                if i == next {
+                    self.materials.push(k);
+                }
+                mt.push(i);
+            }
+        }
         for (frag, table) in self.slots[..n].iter().zip(&mut self.tables) {
             table.clear();
             let mut fresh = true;
@@ -326,6 +391,13 @@ impl<W: Write + Send> CityJsonWriter<W> {
                     }
                     push_vertex(&mut self.vtext, v);
                     self.count += 1;
+                    self.extent = Some(match self.extent {
+                        None => (v, v),
+                        Some((lo, hi)) => (
+                            (lo.0.min(v.0), lo.1.min(v.1), lo.2.min(v.2)),
+                            (hi.0.max(v.0), hi.1.max(v.1), hi.2.max(v.2)),
+                        ),
+                    });
                 }
                 table.push(i);
             }
@@ -335,12 +407,13 @@ impl<W: Write + Send> CityJsonWriter<W> {
         self.slots[..n]
             .par_iter()
             .zip(self.tables[..n].par_iter())
+            .zip(self.mat_tables[..n].par_iter())
             .zip(self.bufs[..n].par_iter_mut())
             .enumerate()
-            .for_each(|(k, ((frag, table), buf))| {
+            .for_each(|(k, (((frag, table), mt), buf))| {
                 buf.clear();
                 buf.extend_from_slice(if first && k == 0 { b"\n" } else { b",\n" });
-                splice(frag, |li| table[li as usize], buf);
+                splice(frag, |li| table[li as usize], |mi| mt[mi as usize], buf);
             });
         for buf in &self.bufs[..n] {
             self.out.write_all(buf)?;
@@ -353,9 +426,12 @@ impl<W: Write + Send> CityJsonWriter<W> {
 impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
     fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
         check_state("CityJSON writer", self.state, State::New, "begin()")?;
-        let h = header(ctx, "CityJSON writer")?;
+        let (mut h, meta) = header(ctx, "CityJSON writer")?;
+        h.extend_from_slice(b"\"CityObjects\":{");
         self.lod = ctx.lod;
         self.terrain = terrain_of(ctx);
+        self.translate = ctx.origin;
+        self.metadata = meta;
         self.out.write_all(&h)?;
         self.state = State::Open;
         Ok(())
@@ -403,7 +479,14 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
             self.append(1)?;
         }
         self.state = State::Finished;
-        self.out.write_all(b"\n},\"vertices\":[")?;
+        self.out.write_all(b"\n},")?;
+        if !self.materials.is_empty() {
+            let mut a = Vec::new();
+            appearance(&mut a, &self.materials);
+            a.push(b',');
+            self.out.write_all(&a)?;
+        }
+        self.out.write_all(b"\"vertices\":[")?;
         match std::mem::replace(&mut self.spool, Spool::Memory(Vec::new())) {
             Spool::Memory(v) => self.out.write_all(&v)?,
             Spool::File(w) => {
@@ -412,7 +495,24 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
                 io::copy(&mut file, &mut self.out)?;
             }
         }
-        self.out.write_all(b"\n]}\n")?;
+        self.out.write_all(b"\n],\"metadata\":{")?;
+        if let Some((lo, hi)) = self.extent {
+            let t = self.translate;
+            let at = |v: Vertex| [v.0, v.1, v.2].map(|c| c as f64 * 0.001);
+            let (lo, hi) = (at(lo), at(hi));
+            let e = format!(
+                "\"geographicalExtent\":[{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}],",
+                t.x + lo[0],
+                t.y + lo[1],
+                t.z + lo[2],
+                t.x + hi[0],
+                t.y + hi[1],
+                t.z + hi[2]
+            );
+            self.out.write_all(e.as_bytes())?;
+        }
+        self.out.write_all(&self.metadata)?;
+        self.out.write_all(b"}}\n")?;
         self.out.flush()?;
         self.shared = VertexMap::default();
         self.slots = Vec::new();
@@ -481,8 +581,13 @@ fn feature_line(frag: &Frag, buf: &mut Vec<u8>) {
     // Writing a &str to a Vec cannot fail.
     let _ = serde_json::to_writer(&mut *buf, &frag.id);
     buf.extend_from_slice(b",\"CityObjects\":{");
-    splice(frag, u64::from, buf);
-    buf.extend_from_slice(b"},\"vertices\":[");
+    splice(frag, u64::from, u64::from, buf);
+    buf.extend_from_slice(b"},");
+    if !frag.mats.is_empty() {
+        appearance(buf, &frag.mats);
+        buf.push(b',');
+    }
+    buf.extend_from_slice(b"\"vertices\":[");
     for (i, v) in frag.verts.iter().enumerate() {
         if i > 0 {
             buf.push(b',');
@@ -495,8 +600,10 @@ fn feature_line(frag: &Frag, buf: &mut Vec<u8>) {
 impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
     fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
         check_state("CityJSONSeq writer", self.state, State::New, "begin()")?;
-        let mut h = header(ctx, "CityJSONSeq writer")?;
-        h.extend_from_slice(b"},\"vertices\":[]}\n");
+        let (mut h, meta) = header(ctx, "CityJSONSeq writer")?;
+        h.extend_from_slice(b"\"metadata\":{");
+        h.extend_from_slice(&meta);
+        h.extend_from_slice(b"},\"CityObjects\":{},\"vertices\":[]}\n");
         self.lod = ctx.lod;
         self.terrain = terrain_of(ctx);
         self.out.write_all(&h)?;

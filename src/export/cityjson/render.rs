@@ -9,11 +9,47 @@ use glam::DVec3;
 
 use crate::export::ids::{id_fragment, part_ids};
 
+use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::geometry::ring::{dedup_by, remove_spikes_by};
 use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, Provenance, RoofShape, Wall};
+
+/// A mark whose index has this bit set names a material (of [`Frag::mats`]), not a vertex.
+pub(super) const MATERIAL: u32 = 1 << 31;
+
+/// The appearance theme of the materials (the CityGML writer's theme).
+pub(super) const THEME: &str = "citygen";
+
+/// `transparency` of glazed windows' material (as the CityGML writer's glass).
+const GLASS_TRANSPARENCY: f32 = 0.6;
+
+/// A colour as a material key: RGBA, 8 bits each.
+pub(super) fn material_key(c: Color) -> u32 {
+    let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u32;
+    (q(c.r) << 24) | (q(c.g) << 16) | (q(c.b) << 8) | q(c.a)
+}
+
+/// A material object (`{"name":"#rrggbb","diffuseColor":[r,g,b],...}`) of key `k`.
+pub(super) fn push_material(out: &mut Vec<u8>, k: u32) {
+    let c = |shift: u32| (k >> shift) & 0xff;
+    let unit = |v: u32| format!("{:.4}", f64::from(v) / 255.0);
+    let mut s = format!(
+        "{{\"name\":\"#{:02x}{:02x}{:02x}\",\"diffuseColor\":[{},{},{}],\"isSmooth\":false",
+        c(24),
+        c(16),
+        c(8),
+        unit(c(24)),
+        unit(c(16)),
+        unit(c(8))
+    );
+    if c(0) < 255 {
+        s.push_str(&format!(",\"transparency\":{}", unit(255 - c(0))));
+    }
+    s.push('}');
+    out.extend_from_slice(s.as_bytes());
+}
 
 /// A vertex as the file holds it: whole millimetres from the transform's translate (the local
 /// origin), [`grid_key`].
@@ -54,8 +90,11 @@ pub(super) type VertexMap<V> = HashMap<Vertex, V, BuildHasherDefault<VertexHashe
 pub(super) struct Frag {
     /// The objects' text, vertex indices left out.
     pub(super) text: Vec<u8>,
-    /// (byte offset in `text`, index into `verts`): an index to insert there.
+    /// (byte offset in `text`, index into `verts`, or [`MATERIAL`] and an index into `mats`):
+    /// an index to insert there.
     pub(super) marks: Vec<(usize, u32)>,
+    /// The building's distinct materials ([`material_key`]) in first-use order.
+    pub(super) mats: Vec<u32>,
     /// The building's distinct vertices in first-use order.
     pub(super) verts: Vec<Vertex>,
     /// `verts` by value (scratch, emptied per building).
@@ -69,8 +108,26 @@ impl Frag {
         self.text.clear();
         self.marks.clear();
         self.verts.clear();
+        self.mats.clear();
         self.index.clear();
         self.id.clear();
+    }
+
+    /// The index of colour `c`'s material, marked at the end of the text (`null` for none).
+    fn material(&mut self, c: Option<Color>) {
+        let Some(c) = c else {
+            self.s("null");
+            return;
+        };
+        let k = material_key(c);
+        let i = match self.mats.iter().position(|&m| m == k) {
+            Some(i) => i,
+            None => {
+                self.mats.push(k);
+                self.mats.len() - 1
+            }
+        } as u32;
+        self.marks.push((self.text.len(), MATERIAL | i));
     }
 
     fn s(&mut self, s: &str) {
@@ -135,8 +192,15 @@ impl Frag {
         self.s("]");
     }
 
-    /// `"boundaries":[[s,s,...]]` of a solid's one shell, `,"semantics":{...}` when given.
-    fn solid(&mut self, lod: &str, faces: &[&Face], sem: Option<&Semantics>) {
+    /// `"boundaries":[[s,s,...]]` of a solid's one shell, `,"semantics":{...}` when given, and
+    /// `,"material":{"citygen":{"values":[[..]]}}` with a colour (or none) per face when given.
+    fn solid(
+        &mut self,
+        lod: &str,
+        faces: &[&Face],
+        sem: Option<&Semantics>,
+        colours: Option<&[Option<Color>]>,
+    ) {
         self.s("{\"type\":\"Solid\",\"lod\":\"");
         self.s(lod);
         self.s("\",\"boundaries\":[[");
@@ -150,6 +214,18 @@ impl Frag {
         if let Some(sem) = sem {
             self.s(",\"semantics\":");
             sem.write(self, true);
+        }
+        if let Some(colours) = colours.filter(|c| c.iter().any(Option::is_some)) {
+            self.s(",\"material\":{\"");
+            self.s(THEME);
+            self.s("\":{\"values\":[[");
+            for (i, c) in colours.iter().enumerate() {
+                if i > 0 {
+                    self.s(",");
+                }
+                self.material(*c);
+            }
+            self.s("]]}}");
         }
         self.s("}");
     }
@@ -556,7 +632,9 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
     match lod {
         Lod::Lod1 => {
             let faces: Vec<&Face> = surfaces(part).map(|(_, f)| f).collect();
-            f.solid("1", &faces, None);
+            let colours: Vec<Option<Color>> =
+                surfaces(part).map(|(k, _)| colour_of(part, k)).collect();
+            f.solid("1", &faces, None, Some(&colours));
         }
         Lod::Lod2 => {
             let mut sem = Semantics::default();
@@ -566,6 +644,7 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
                 sem.object("RoofSurface"),
             );
             let mut faces = Vec::new();
+            let mut colours = Vec::new();
             for (kind, face) in surfaces(part) {
                 sem.values.push(match kind {
                     Kind::Ground => g,
@@ -573,12 +652,34 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
                     Kind::Roof => r,
                 });
                 faces.push(face);
+                colours.push(colour_of(part, kind));
             }
-            f.solid("2.2", &faces, Some(&sem));
+            f.solid("2.2", &faces, Some(&sem), Some(&colours));
         }
         Lod::Lod3 | Lod::Lod4 => lod3_solid(f, part),
     }
     f.s("]");
+}
+
+/// The colour of a part's surface: its wall or roof colour; none for the ground.
+fn colour_of(part: &Part, kind: Kind) -> Option<Color> {
+    match kind {
+        Kind::Ground => None,
+        Kind::Wall(_) => Some(part.wall_color),
+        Kind::Roof => Some(part.roof_color),
+    }
+}
+
+/// An opening's material colour: its own, glazed windows' transparent.
+fn opening_colour(o: &crate::model::Opening) -> Color {
+    if o.kind == OpeningKind::Window && o.glazed {
+        Color {
+            a: 1.0 - GLASS_TRANSPARENCY,
+            ..o.color
+        }
+    } else {
+        Color { a: 1.0, ..o.color }
+    }
 }
 
 /// The LOD3 solid: ground and walls as [`seated_changes`] gives them, walls with their
@@ -594,7 +695,8 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
         sem.object("RoofSurface"),
     );
     let mut faces: Vec<&Face> = Vec::new();
-    let mut openings: Vec<(Face, usize)> = Vec::new();
+    let mut colours: Vec<Option<Color>> = Vec::new();
+    let mut openings: Vec<(Face, usize, Color)> = Vec::new();
     for (kind, face) in surfaces(part) {
         let fi = match kind {
             Kind::Ground => Some(0),
@@ -605,15 +707,18 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
             .and_then(|fi| seated.iter().find(|c| c.0 == fi))
             .map_or(face, |c| &c.1);
         faces.push(face);
+        colours.push(colour_of(part, kind));
         let value = match kind {
             Kind::Ground => g,
             Kind::Roof => r,
             Kind::Wall(i) => {
                 let wall = &part.walls[i];
-                let ops: Vec<(Face, OpeningKind)> = wall
+                let ops: Vec<(Face, OpeningKind, Color)> = wall
                     .openings
                     .iter()
-                    .filter_map(|o| opening_face(wall, o, 0.0).map(|face| (face, o.kind)))
+                    .filter_map(|o| {
+                        opening_face(wall, o, 0.0).map(|face| (face, o.kind, opening_colour(o)))
+                    })
                     .collect();
                 if ops.is_empty() && wall.party < 0.005 {
                     w
@@ -622,7 +727,7 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
                     if wall.party >= 0.005 {
                         sem.objects[own].party = Some(wall.party);
                     }
-                    for (face, kind) in ops {
+                    for (face, kind, colour) in ops {
                         let k = sem.child(
                             match kind {
                                 OpeningKind::Window => "Window",
@@ -630,7 +735,7 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
                             },
                             own,
                         );
-                        openings.push((face, k));
+                        openings.push((face, k, colour));
                     }
                     own
                 }
@@ -638,11 +743,12 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
         };
         sem.values.push(value);
     }
-    for (face, k) in &openings {
+    for (face, k, colour) in &openings {
         faces.push(face);
         sem.values.push(*k);
+        colours.push(Some(*colour));
     }
-    f.solid("3", &faces, Some(&sem));
+    f.solid("3", &faces, Some(&sem), Some(&colours));
 }
 
 /// The part's extras as CityObjects (`,\n"id":{...}` each).
@@ -700,7 +806,7 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                     faces.push(d);
                     sem.values.push(k);
                 }
-                f.solid("3", &faces, Some(&sem));
+                f.solid("3", &faces, Some(&sem), None);
                 f.s("]}");
             }
             Extra::InteriorWall { storey, wall, id } => {
@@ -714,7 +820,7 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.uint(s.storey as u64);
                 f.s("},\"geometry\":[");
                 let faces: Vec<&Face> = body.iter().collect();
-                f.solid("3", &faces, None);
+                f.solid("3", &faces, None, None);
                 f.s("]}");
             }
             Extra::Stair { storey, id } => {

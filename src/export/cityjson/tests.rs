@@ -512,3 +512,108 @@ fn provenance_is_written_in_the_buildings_attributes() {
     }
     check(&Value::Object(objects));
 }
+
+/// The colours of a solid's surfaces as its materials give them (`None` for `null`).
+fn surface_colours(g: &Value, materials: &[Value]) -> Vec<Option<String>> {
+    g["material"]["citygen"]["values"][0]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| {
+            v.as_u64()
+                .map(|i| materials[i as usize]["name"].as_str().unwrap().to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn colours_are_materials_per_surface_and_the_extent_bounds_every_vertex() {
+    let hex = |c: crate::color::Color| {
+        let q = |x: f32| (x * 255.0).round() as u8;
+        format!("#{:02x}{:02x}{:02x}", q(c.r), q(c.g), q(c.b))
+    };
+    for lod in [Lod::Lod1, Lod::Lod2, Lod::Lod3] {
+        let buildings = renumbered(samples_at(lod));
+        let doc = parse(&write_file(lod, &buildings, true));
+        let materials = doc["appearance"]["materials"].as_array().unwrap().clone();
+        // One material per distinct colour.
+        let names: HashSet<&str> = materials
+            .iter()
+            .map(|m| m["name"].as_str().unwrap())
+            .collect();
+        assert_eq!(names.len(), materials.len());
+        let mut walls = 0;
+        for b in &buildings {
+            let id = render::building_id(b);
+            let obj = &doc["CityObjects"][&id];
+            let part = &b.parts[0];
+            let g = if b.parts.len() == 1 {
+                &obj["geometry"][0]
+            } else {
+                &doc["CityObjects"][obj["children"][0].as_str().unwrap()]["geometry"][0]
+            };
+            let colours = surface_colours(g, &materials);
+            let n = g["boundaries"][0].as_array().unwrap().len();
+            assert_eq!(colours.len(), n, "{id}: a value per surface");
+            // Ground first (no material), then the walls in the part's colour.
+            assert_eq!(colours[0], None);
+            let wall = hex(part.wall_color);
+            let wall_faces = part
+                .walls
+                .iter()
+                .filter(|w| render::ring(&w.outline.outer).is_some());
+            for (c, _) in colours[1..].iter().zip(wall_faces) {
+                assert_eq!(
+                    c.as_deref(),
+                    Some(wall.as_str()),
+                    "{id} at LOD{}",
+                    lod.number()
+                );
+                walls += 1;
+            }
+            if lod == Lod::Lod3 {
+                let glazed = part
+                    .walls
+                    .iter()
+                    .flat_map(|w| &w.openings)
+                    .any(|o| o.glazed);
+                let clear = materials
+                    .iter()
+                    .any(|m| m["transparency"].as_f64() == Some(0.6));
+                assert!(!glazed || clear, "{id}: glazed windows are transparent");
+            }
+        }
+        assert!(walls > 0);
+        // The extent holds every vertex (in the output CRS, to the millimetre).
+        let e: Vec<f64> = doc["metadata"]["geographicalExtent"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let (s, t) = (&doc["transform"]["scale"], &doc["transform"]["translate"]);
+        for v in doc["vertices"].as_array().unwrap() {
+            for k in 0..3 {
+                let c = t[k].as_f64().unwrap() + v[k].as_f64().unwrap() * s[k].as_f64().unwrap();
+                assert!(
+                    c >= e[k] - 1e-3 && c <= e[k + 3] + 1e-3,
+                    "{c} outside {e:?}"
+                );
+            }
+        }
+    }
+    // Each CityJSONSeq feature carries its own materials, indexed from 0.
+    let buildings = renumbered(samples_at(Lod::Lod2));
+    let seq = write_seq(Lod::Lod2, &buildings, true);
+    for line in String::from_utf8(seq).unwrap().lines().skip(1) {
+        let f: Value = serde_json::from_str(line).unwrap();
+        let mats = f["appearance"]["materials"].as_array().unwrap();
+        for o in f["CityObjects"].as_object().unwrap().values() {
+            for g in o["geometry"].as_array().into_iter().flatten() {
+                for v in g["material"]["citygen"]["values"][0].as_array().unwrap() {
+                    assert!(v.is_null() || (v.as_u64().unwrap() as usize) < mats.len());
+                }
+            }
+        }
+    }
+}
