@@ -46,6 +46,11 @@
 //!   `Pset_WallCommon` with IsExternal true on its walls and false on those wholly against a
 //!   neighbour (`Wall::party` 1, LOD3), and `Citygen_Wall` (PartyWallShare, one set per
 //!   share) on every wall that faces a neighbour.
+//! - Base quantities (`quantities`): `Qto_BuildingBaseQuantities` (Height, EavesHeight,
+//!   FootprintArea, GrossFloorArea, GrossVolume) on every building and
+//!   `Qto_BuildingStoreyBaseQuantities` (GrossHeight, GrossPerimeter, GrossFloorArea,
+//!   GrossVolume) on every storey, measured on the model; LOD4 spaces have
+//!   `Qto_SpaceBaseQuantities`.
 //!
 //! At LOD3 (`OutputContext::lod >= Lod3`) a part is written differently (LOD1/LOD2 files are
 //! unchanged):
@@ -111,6 +116,7 @@ use openings::TypeKey;
 mod cache;
 mod lod4;
 mod openings;
+mod quantities;
 mod roofs;
 mod shapes;
 mod spatial;

@@ -281,6 +281,7 @@ impl Render<'_> {
             a.real(datum_z).real(datum_z).null();
         })?;
         self.building_psets(b, key, building)?;
+        self.building_quantities(b, key, building)?;
 
         let mut walls = Vec::new();
         if composite {
@@ -347,6 +348,7 @@ impl Render<'_> {
             if i == 0 {
                 storey0_pl = pl;
             }
+            self.storey_quantities(key, part, i as usize, storey, span.max(0.0) / f64::from(n))?;
             storeys.push(storey);
         }
         self.w.entity("IFCRELAGGREGATES", |a| {
@@ -423,6 +425,8 @@ impl Render<'_> {
         for (i, &level) in levels.iter().enumerate() {
             let elev = level - anchor.z;
             let (storey, pl) = self.storey(key, pk, i, holder_pl, elev)?;
+            let next = levels.get(i + 1).copied().unwrap_or(part.eave_z);
+            self.storey_quantities(key, part, i, storey, (next - level).max(0.0))?;
             storeys.push(storey);
             frames.push(ElementFrame {
                 origin: DVec3::new(anchor.x, anchor.y, level),

@@ -404,7 +404,8 @@ fn file_hash(bytes: &[u8]) -> String {
 /// LOD1 and LOD2 files are byte-identical to those written before LOD3 was added (hashes
 /// of the sample taken at that commit; taken again when every building got its provenance
 /// properties, issue 42: without them the files differed only in the GlobalIds of the
-/// material associations, which follow entity numbers).
+/// material associations, which follow entity numbers; and again when buildings and storeys
+/// got their base quantities, issue 47).
 #[test]
 fn lod1_and_lod2_output_is_unchanged() {
     let bs = sample();
@@ -421,8 +422,8 @@ fn lod1_and_lod2_output_is_unchanged() {
     assert_eq!(
         got,
         [
-            "f1b6c6c6e5d0f20f04847df98872057b",
-            "0e1a7edf758f0e0cb06b6d09d904e1e3"
+            "cebd9d4359457481d3d86c0fda571df8",
+            "5fcd8713ba65db320e84be33df850eeb"
         ]
     );
 }
@@ -1564,4 +1565,57 @@ fn provenance_is_in_the_source_property_set() {
         .map(|(_, a)| refs(a))
         .unwrap();
     assert_eq!(pset.len(), 6 + 6);
+}
+
+/// Every building and storey has its base quantities: the building's footprint, floor area,
+/// volume and heights, each storey's height, perimeter, floor area and volume (issue 47).
+#[test]
+fn buildings_and_storeys_carry_their_base_quantities() {
+    for lod in [Lod::Lod2, Lod::Lod3] {
+        let bs = sample();
+        let mut w = IfcWriter::new(Vec::new()).with_file_name("sample.ifc");
+        w.begin(&OutputContext { lod, ..ctx() }).unwrap();
+        for b in &bs {
+            w.write(b).unwrap();
+        }
+        w.finish().unwrap();
+        let bytes = w.into_inner().unwrap();
+        let m = parse(&bytes);
+        let qtos: Vec<&(String, String)> = m
+            .values()
+            .filter(|(k, _)| k == "IFCELEMENTQUANTITY")
+            .collect();
+        let named = |n: &str| qtos.iter().filter(|(_, a)| a.contains(n)).count();
+        assert_eq!(
+            named("'Qto_BuildingBaseQuantities'"),
+            bs.len(),
+            "LOD{}",
+            lod.number()
+        );
+        assert_eq!(
+            named("'Qto_BuildingStoreyBaseQuantities'"),
+            count(&m, "IFCBUILDINGSTOREY"),
+            "LOD{}",
+            lod.number()
+        );
+        // The first building's numbers: height and footprint as the model has them.
+        let text = String::from_utf8(bytes).unwrap();
+        let b = &bs[0];
+        let area: f64 = b
+            .parts
+            .iter()
+            .filter(|p| (p.base_z - b.base_z).abs() < 0.01)
+            .map(super::quantities::footprint_area)
+            .sum();
+        let find = |name: &str| -> f64 {
+            let at = text
+                .find(&format!("('{name}',$,$,"))
+                .unwrap_or_else(|| panic!("{name}"));
+            let rest = &text[at + name.len() + 8..];
+            rest[..rest.find(',').unwrap()].parse().unwrap()
+        };
+        assert!((find("Height") - b.measured_height).abs() < 1e-6);
+        assert!((find("FootprintArea") - area).abs() < 1e-6);
+        assert!(find("GrossVolume") > 0.0 && find("GrossFloorArea") >= area - 1e-6);
+    }
 }
