@@ -607,16 +607,50 @@ pub struct Part {
     pub interior: Vec<StoreyInterior>,
     /// The footprint the part was derived from: its `building:part` (or the outline, for the
     /// part the outline's own tags give), so that every part can be traced back to the map.
-    /// Writers record it where it differs from the building's id. `None` for parts built
-    /// without a source (tests, `rules derive` lots).
+    /// Writers record it where it differs from the building's id, or where the part is the
+    /// outline's uncovered rest ([`PartRole::OutlineRest`]). `None` for parts built without a
+    /// source (tests, `rules derive` lots).
     pub source: Option<SourceId>,
+    /// What the part is of its source: the footprint itself, or what an outline's parts leave
+    /// uncovered of it.
+    pub role: PartRole,
+}
+
+/// What a part is of its source footprint ([`Part::source`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PartRole {
+    /// The footprint itself: a `building:part`, or an outline drawn whole.
+    #[default]
+    Own,
+    /// What an outline's `building:part`s leave uncovered of it, drawn with the outline's own
+    /// tags (issue 45): written with the outline's id and the role `outline-rest`.
+    OutlineRest,
+}
+
+impl PartRole {
+    /// The role as the writers record it beside the source id (`sourceRole`), `None` for
+    /// [`PartRole::Own`], which they do not write.
+    pub fn name(self) -> Option<&'static str> {
+        match self {
+            PartRole::Own => None,
+            PartRole::OutlineRest => Some("outline-rest"),
+        }
+    }
 }
 
 impl Part {
-    /// The part's source where it is not the building's own (`building`): a `building:part`'s
-    /// id, which the writers record on the part.
+    /// The part's source where the writers record it on the part: a `building:part`'s id (not
+    /// the building's own), or the outline's id on its uncovered rest
+    /// ([`PartRole::OutlineRest`]).
     pub(crate) fn traced_source(&self, building: SourceId) -> Option<SourceId> {
-        self.source.filter(|s| *s != building)
+        self.source
+            .filter(|s| *s != building || self.role != PartRole::Own)
+    }
+
+    /// The part's top above the building's ground (`ground`: [`Building::ground_z`]), as OSM's
+    /// `height`: what the writers give as its height.
+    pub fn height_above(&self, ground: f64) -> f64 {
+        self.top_z - ground
     }
 }
 
@@ -710,9 +744,14 @@ pub struct Building {
     pub zone: String,
     /// Which appearance was chosen (e.g. `Toulouse#1`) or which ruleset was used.
     pub appearance: String,
-    /// Lowest base of all parts (the terrain height of the building, 0 without terrain).
+    /// Lowest base of all parts (the terrain height of the building, 0 without terrain, for a
+    /// building on the ground; higher for one whose every part floats).
     pub base_z: f64,
-    /// Overall height: highest top minus lowest base.
+    /// The ground the building stands on (its lot's, 0 without terrain): heights above the
+    /// ground (`measured_height`, a part's height and min height in the writers) count from
+    /// it.
+    pub ground_z: f64,
+    /// Overall height: the highest top above the ground (`ground_z`), as OSM's `height`.
     pub measured_height: f64,
     /// Storeys above ground of the tallest part.
     pub storeys_above_ground: u32,
@@ -884,6 +923,7 @@ impl Building {
             }
         };
         self.base_z += dz;
+        self.ground_z += dz;
         for p in &mut self.parts {
             p.base_z += dz;
             p.eave_z += dz;

@@ -18,7 +18,7 @@ mod tiles;
 
 use clean::{clean_polygons, clean_polygons_quietly, Cleaned};
 pub use fronts::{assign_fronts, FRONT_MAX_DISTANCE, FRONT_PARTY_PROBE};
-pub(crate) use parts::cut_out;
+pub(crate) use parts::cut_part;
 use parts::{group_parts, straighten_lot};
 pub use tiles::{
     group_into_tiles, in_bbox, near_bbox, near_selected, retain_in_bbox, tile_cell, EmptyBox, Tile,
@@ -40,8 +40,15 @@ const MERGE_TOLERANCE: f64 = 1e-3;
 pub const STRAIGHTEN_TOLERANCE: f64 = 0.05;
 /// See [`STRAIGHTEN_TOLERANCE`] (degrees).
 pub(crate) const STRAIGHTEN_MAX_TURN_DEG: f64 = 1.0;
-/// Footprint polygons smaller than this (square metres) are dropped.
+/// Outline polygons smaller than this (square metres) are dropped.
 const MIN_AREA: f64 = 0.5;
+/// A tagged `building:part` is drawn at any size (issue 45: the rings of a column are
+/// 0.02-0.5 m²): only a polygon with no area is dropped, under this many square metres (a
+/// square centimetre) or ...
+const MIN_PART_AREA: f64 = 1e-4;
+/// ... under this mean width (metres, twice the area over the perimeter: a line on the
+/// output's millimetre grid, not a footprint).
+const MIN_PART_WIDTH: f64 = 0.01;
 /// Rings with more vertices than this are not checked for self-intersection pair by pair.
 const MAX_CHECKED_VERTICES: usize = 20_000;
 
@@ -76,6 +83,11 @@ pub struct Lot {
     /// nothing; for a part that holds other parts (tagged `building=*` too, in no outline),
     /// the part itself.
     pub drawn_outline: Vec<Polygon>,
+    /// For an outline with parts, its own tags as read (issue 45): what its uncovered rest
+    /// ([`Lot::drawn_outline`]) is drawn with, never the values the estimator or the
+    /// neighbours lend [`Lot::tags`]. `None` for a lot without parts and for a part that holds
+    /// others (whose drawn outline is itself).
+    pub rest_tags: Option<SharedTags>,
     /// Representative point in WGS84 (lon, lat) degrees, for the knowledge-base zone.
     pub lonlat: (f64, f64),
     /// Where the building's front faces, set by [`assign_fronts`]: the unit outward normal (local
@@ -326,7 +338,11 @@ pub fn prepare(
                 .into_iter()
                 .map(|q| q.translated(-origin))
                 .collect();
-            (p, clean_polygons_quietly(local))
+            let least = match p.kind {
+                FootprintKind::Building => clean::Least::OUTLINE,
+                FootprintKind::Part => clean::Least::PART,
+            };
+            (p, clean_polygons_quietly(local, least))
         })
         .collect();
     let mut outlines = Vec::new();
@@ -343,6 +359,7 @@ pub fn prepare(
                 id: p.id,
                 tags: p.tags,
                 drawn_outline: polygons.clone(),
+                rest_tags: None,
                 polygons,
                 parts: Vec::new(),
                 lonlat: p.lonlat,
@@ -447,6 +464,7 @@ pub(crate) fn single_lot(
         id,
         tags: SharedTags::default(),
         drawn_outline: polygons.clone(),
+        rest_tags: None,
         polygons,
         parts: Vec::new(),
         lonlat,

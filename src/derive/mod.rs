@@ -7,6 +7,7 @@ pub(crate) mod facade;
 pub(crate) mod frontage;
 pub mod interior;
 pub mod massing;
+mod overlaps;
 pub mod roof;
 pub mod selex;
 pub mod selex_lot;
@@ -236,13 +237,20 @@ impl Generator {
         let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
         let outline;
         if !lot.drawn_outline.is_empty() {
+            // An outline's rest is drawn with the outline's own tags (issue 45), not with what
+            // the estimator or the neighbours lent the outline.
             outline = LotPiece {
                 id: lot.id,
                 polygons: lot.drawn_outline.clone(),
-                tags: lot.tags.clone(),
+                tags: lot.rest_tags.clone().unwrap_or_else(|| lot.tags.clone()),
             };
             pieces.insert(0, &outline);
         }
+        let rest_role = if lot.rest_tags.is_some() {
+            crate::model::PartRole::OutlineRest
+        } else {
+            crate::model::PartRole::Own
+        };
         let mut label = None;
         // Every piece's style first: whether a piece's roof is drawn depends on the pieces
         // stacked on it.
@@ -268,7 +276,7 @@ impl Generator {
         if let Some(note) = floating_note(&styled) {
             notes.push((Outcome::Note, note));
         }
-        let plans = resolve_overlaps(&styled, &mut notes);
+        let plans = overlaps::resolve_overlaps(&styled, &mut notes);
         // Every part first (at LOD3, with the openings its rules found): the facade rules look
         // at the whole building.
         let mut drafts: Vec<(Part, Option<facade::Facades>, usize)> = Vec::new();
@@ -280,12 +288,16 @@ impl Generator {
             if !files.contains(&rules.file) {
                 files.push(rules.file.clone());
             }
-            for polygon in &plan {
+            for (polygon, band) in plan
+                .iter()
+                .flat_map(|p| p.polygons.iter().map(move |q| (q, p.band)))
+            {
+                let banded = band.map(|b| overlaps::banded(&style, b));
                 let on = Piece {
                     id: piece.id,
                     front: lot.front,
                     ground: lot.ground,
-                    style: &style,
+                    style: banded.as_ref().unwrap_or(&style),
                     rules: &rules,
                 };
                 let masses = self.masses(&on, polygon, lod, &mut rng, &mut notes)?;
@@ -303,6 +315,9 @@ impl Generator {
                     let key = format!("p{}", drafts.len());
                     let mut part = massing::build_part(key, &mass, &roof, lod);
                     part.source = Some(piece.id);
+                    if piece.id == lot.id {
+                        part.role = rest_role;
+                    }
                     drafts.push((part, facades, styles.len()));
                 }
             }
@@ -415,7 +430,10 @@ impl Generator {
                 Rules::File(r) => format!("rules:{}", r.file()),
             },
             base_z,
-            measured_height: top - base_z,
+            // Derived on the ground at z = 0 (raised below): the top is above the ground, as
+            // OSM's `height`, also for a building whose every part floats.
+            ground_z: 0.0,
+            measured_height: top,
             storeys_above_ground: storeys,
             roof_shape,
             parts,
@@ -832,60 +850,6 @@ fn plans_overlap(a: &[Polygon], b: &[Polygon]) -> bool {
             .any(|pt| q.iter().any(|poly| poly.contains(pt)))
     };
     inside(a, b) || inside(b, a)
-}
-
-/// The plan each piece is drawn on, so that no two pieces fill one volume: where two pieces'
-/// plans overlap and their walls share more than [`STACK_TOLERANCE`] of height (a tower mapped
-/// inside the part around it, both from the ground), the smaller plan wins and is cut out of
-/// the larger (equal plans: the later id wins). A piece left with nothing is not drawn, with a
-/// note naming the piece that holds its volume. Pieces that only stand on each other keep
-/// their plans.
-fn resolve_overlaps(
-    styled: &[(&LotPiece, BuildingTags, Style, Rng)],
-    notes: &mut Vec<Note>,
-) -> Vec<Vec<Polygon>> {
-    let area = |p: &[Polygon]| p.iter().map(Polygon::area).sum::<f64>();
-    let mut plans: Vec<Vec<Polygon>> = styled.iter().map(|(p, ..)| p.polygons.clone()).collect();
-    if styled.len() < 2 {
-        return plans;
-    }
-    let areas: Vec<f64> = plans.iter().map(|p| area(p)).collect();
-    // Only a piece whose box meets this one's can cut it.
-    let near = boxes_meeting(styled);
-    for i in 0..styled.len() {
-        let (_, _, si, _) = &styled[i];
-        let winners: Vec<&Polygon> = near[i]
-            .iter()
-            .copied()
-            .filter(|&j| j != i)
-            .filter(|&j| {
-                let (_, _, sj, _) = &styled[j];
-                let shared = si.eave_height.min(sj.eave_height) - si.min_height.max(sj.min_height);
-                shared > STACK_TOLERANCE && (areas[j] < areas[i] || (areas[j] == areas[i] && j > i))
-            })
-            .flat_map(|j| styled[j].0.polygons.iter())
-            .collect();
-        if winners.is_empty() {
-            continue;
-        }
-        let cutters: Vec<Polygon> = winners.into_iter().cloned().collect();
-        let cut = crate::prepare::cut_out(&plans[i], &cutters);
-        // Only a real overlap changes the plan (a cut that removes nothing keeps the piece as
-        // it was, bytes included).
-        if area(&cut) < areas[i] - 0.5 {
-            if cut.is_empty() {
-                notes.push((
-                    Outcome::Note,
-                    format!(
-                        "{} lies inside other parts over the same heights: their volumes are drawn, not its own",
-                        styled[i].0.id
-                    ),
-                ));
-            }
-            plans[i] = cut;
-        }
-    }
-    plans
 }
 
 /// A note when every piece of a building starts above the ground (nothing is drawn under it),

@@ -207,6 +207,7 @@ pub fn building(
             zone: "selex".into(),
             appearance: appearance.to_string(),
             base_z,
+            ground_z: base_z,
             measured_height: top - base_z,
             storeys_above_ground: storeys,
             roof_shape: RoofShape::Flat,

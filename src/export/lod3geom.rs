@@ -901,7 +901,9 @@ pub(crate) mod samples {
     use crate::color::Color;
     use crate::geometry::Polygon;
     use crate::model::SourceId;
-    use crate::model::{Balcony, Building, Face, Lod, Opening, OpeningKind, Part, RoofShape, Wall};
+    use crate::model::{
+        Balcony, Building, Face, Lod, Opening, OpeningKind, Part, PartRole, RoofShape, Wall,
+    };
 
     pub(crate) const GLASS: Color = Color::rgb(0.55, 0.7, 0.8);
     pub(crate) const DOOR: Color = Color::rgb(0.4, 0.25, 0.1);
@@ -1026,6 +1028,7 @@ pub(crate) mod samples {
             ground,
             interior: Vec::new(),
             source: None,
+            role: PartRole::Own,
         }
     }
 
@@ -1041,6 +1044,7 @@ pub(crate) mod samples {
             zone: "earth/Europe/Monaco".into(),
             appearance: "Monaco#1".into(),
             base_z: base,
+            ground_z: base,
             measured_height: top - base,
             storeys_above_ground: parts.iter().map(|p| p.storeys).max().unwrap_or(1),
             roof_shape: parts[0].roof_shape,

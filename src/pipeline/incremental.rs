@@ -103,6 +103,11 @@ pub(crate) fn own_key(lot: &Lot) -> Key {
         put_str(&mut h, &format!("{:?}", part.tags));
         put_polygons(&mut h, &part.polygons);
     }
+    // The tags an outline's rest is drawn with (only lots with parts have them: every other
+    // key is as before).
+    if let Some(t) = &lot.rest_tags {
+        put_str(&mut h, &format!("rest {t:?}"));
+    }
     h.update(lot.lonlat.0.to_bits().to_le_bytes());
     h.update(lot.lonlat.1.to_bits().to_le_bytes());
     finish(h)

@@ -6,7 +6,7 @@ use glam::DVec2;
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{RTree, RTreeObject};
 
-use super::{MAX_CHECKED_VERTICES, MERGE_TOLERANCE, MIN_AREA};
+use super::{MAX_CHECKED_VERTICES, MERGE_TOLERANCE, MIN_AREA, MIN_PART_AREA, MIN_PART_WIDTH};
 use crate::geometry::{ring, Polygon};
 use crate::model::SourceId;
 use crate::report::{Outcome, Report};
@@ -19,7 +19,7 @@ pub(super) fn clean_polygons(
     polys: Vec<Polygon>,
     report: &mut Report,
 ) -> Option<Vec<Polygon>> {
-    let (polygons, entry) = clean_polygons_quietly(polys);
+    let (polygons, entry) = clean_polygons_quietly(polys, Least::OUTLINE);
     if let Some((outcome, text)) = entry {
         report.add(Some(id), outcome, text);
     }
@@ -30,10 +30,51 @@ pub(super) fn clean_polygons(
 /// entry for the footprint, if any.
 pub(super) type Cleaned = (Option<Vec<Polygon>>, Option<(Outcome, String)>);
 
-/// [`clean_polygons`] without a report: the cleaned polygons (`None`: the footprint is
-/// skipped) and the report entry to add for it, if any.
+/// The least a cleaned polygon keeps to be drawn: its area (m²) and its mean width (metres,
+/// twice the area over the perimeter).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Least {
+    area: f64,
+    width: f64,
+}
+
+impl Least {
+    /// An outline's polygons: [`MIN_AREA`].
+    pub(super) const OUTLINE: Least = Least {
+        area: MIN_AREA,
+        width: 0.0,
+    };
+    /// A tagged `building:part`'s: drawn at any size, dropped only with no area
+    /// ([`MIN_PART_AREA`], [`MIN_PART_WIDTH`]).
+    pub(super) const PART: Least = Least {
+        area: MIN_PART_AREA,
+        width: MIN_PART_WIDTH,
+    };
+
+    fn keeps(&self, p: &Polygon) -> bool {
+        let area = p.area();
+        let perimeter: f64 = p.rings().map(|r| super::ring_perimeter(r)).sum();
+        area >= self.area && 2.0 * area >= self.width * perimeter
+    }
+
+    /// What a polygon under it is, for the report.
+    fn describe(&self) -> String {
+        if self.width > 0.0 {
+            format!(
+                "with no area (under {} m², or under {} m wide)",
+                self.area, self.width
+            )
+        } else {
+            format!("smaller than {} m²", self.area)
+        }
+    }
+}
+
+/// [`clean_polygons`] without a report, keeping what `least` keeps: the cleaned polygons
+/// (`None`: the footprint is skipped) and the report entry to add for it, if any.
 pub(super) fn clean_polygons_quietly(
     polys: Vec<Polygon>,
+    least: Least,
 ) -> (Option<Vec<Polygon>>, Option<(Outcome, String)>) {
     let mut out = Vec::with_capacity(polys.len());
     let mut repaired = Vec::new();
@@ -71,11 +112,12 @@ pub(super) fn clean_polygons_quietly(
         }
     }
     let before = out.len();
-    out.retain(|p| p.area() >= MIN_AREA);
+    out.retain(|p| least.keeps(p));
     if out.len() < before {
         repaired.push(format!(
-            "dropped {} polygon(s) smaller than {MIN_AREA} m²",
-            before - out.len()
+            "dropped {} polygon(s) {}",
+            before - out.len(),
+            least.describe()
         ));
     }
     if out.is_empty() {

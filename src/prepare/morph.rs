@@ -440,6 +440,7 @@ pub(crate) mod tests {
             polygons: vec![p.clone()],
             parts: Vec::new(),
             drawn_outline: vec![p],
+            rest_tags: None,
             lonlat: (0.0, 0.0),
             front: None,
             ground: 0.0,

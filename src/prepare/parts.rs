@@ -5,7 +5,7 @@ use glam::DVec2;
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::{RTree, RTreeObject, AABB};
 
-use super::clean::{clean_polygons_quietly, is_valid};
+use super::clean::{clean_polygons_quietly, is_valid, Least};
 use super::fronts::nearest_on_segment;
 use super::{
     interior_point, ring_perimeter, Lot, LotPiece, STRAIGHTEN_MAX_TURN_DEG, STRAIGHTEN_TOLERANCE,
@@ -240,6 +240,7 @@ pub(super) fn group_parts(
             polygons: p.polygons.clone(),
             parts: Vec::new(),
             drawn_outline: p.polygons.clone(),
+            rest_tags: None,
             lonlat: *lonlat,
             front: None,
             ground: 0.0,
@@ -289,6 +290,7 @@ pub(super) fn group_parts(
                     polygons: piece.polygons.clone(),
                     parts: Vec::new(),
                     drawn_outline: piece.polygons,
+                    rest_tags: None,
                     lonlat,
                     front: None,
                     ground: 0.0,
@@ -314,12 +316,13 @@ pub(super) fn group_parts(
             .collect();
         let outline_area = area(&lot.polygons);
         lot.drawn_outline = cut_out(&lot.polygons, &parts);
+        lot.rest_tags = Some(lot.tags.clone());
         if !lot.drawn_outline.is_empty() {
             report.add(
                 Some(lot.id),
                 Outcome::Note,
                 format!(
-                    "building:parts cover {:.0} % of the outline; the rest ({:.0} m²) is drawn with the outline's tags",
+                    "building:parts cover {:.0} % of the outline; the rest ({:.0} m²) is drawn with the outline's own tags (traced as its outline-rest)",
                     100.0 * (1.0 - area(&lot.drawn_outline) / outline_area.max(1e-9)),
                     area(&lot.drawn_outline)
                 ),
@@ -338,15 +341,45 @@ pub(super) fn group_parts(
 /// What of `polygons` lies outside every polygon of `cutters`, cleaned as footprints are, and
 /// without the slivers that nearly shared edges leave (pieces under 2 m² or 0.25 m of mean
 /// width).
-pub(crate) fn cut_out(polygons: &[Polygon], cutters: &[Polygon]) -> Vec<Polygon> {
+fn cut_out(polygons: &[Polygon], cutters: &[Polygon]) -> Vec<Polygon> {
     let rest: Vec<Polygon> = crate::geometry::clip::difference(polygons, cutters)
         .into_iter()
-        .filter(|p| {
-            let perimeter: f64 = p.rings().map(|r| ring_perimeter(r)).sum();
-            p.area() >= MIN_REST_AREA && p.area() >= MIN_REST_WIDTH * 0.5 * perimeter
-        })
+        .filter(|p| p.area() >= MIN_REST_AREA && mean_width(p) >= MIN_REST_WIDTH)
         .collect();
-    clean_polygons_quietly(rest).0.unwrap_or_default()
+    clean_polygons_quietly(rest, Least::OUTLINE)
+        .0
+        .unwrap_or_default()
+}
+
+/// What of a tagged part's `polygons` lies outside every polygon of `cutters` (issue 45: a
+/// part is drawn at any size): the slivers [`cut_out`] drops are measured against the part
+/// itself, pieces under a twentieth of its area (at most 2 m²) or under a twentieth of its
+/// mean width (at most 0.25 m) dropped, so that a column of 0.3 m² keeps what a neighbour leaves of
+/// it and a ring around a shaft keeps the few centimetres it stands out; a part as large as an
+/// outline is cut as [`cut_out`] cuts.
+pub(crate) fn cut_part(polygons: &[Polygon], cutters: &[Polygon]) -> Vec<Polygon> {
+    let area: f64 = polygons.iter().map(Polygon::area).sum();
+    let width = polygons.iter().map(mean_width).fold(0.0, f64::max);
+    let least_area = MIN_REST_AREA.min(0.05 * area);
+    let least_width = MIN_REST_WIDTH.min(0.05 * width);
+    let rest: Vec<Polygon> = crate::geometry::clip::difference(polygons, cutters)
+        .into_iter()
+        .filter(|p| p.area() >= least_area && mean_width(p) >= least_width)
+        .collect();
+    clean_polygons_quietly(rest, Least::PART)
+        .0
+        .unwrap_or_default()
+}
+
+/// A polygon's mean width: twice its area over its perimeter (metres; the width of a long
+/// strip, the radius of the circle inscribed in a regular polygon).
+fn mean_width(p: &Polygon) -> f64 {
+    let perimeter: f64 = p.rings().map(|r| ring_perimeter(r)).sum();
+    if perimeter > 0.0 {
+        2.0 * p.area() / perimeter
+    } else {
+        0.0
+    }
 }
 
 /// The bounding boxes of lots' outlines, for finding the outlines around a point.

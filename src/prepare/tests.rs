@@ -191,6 +191,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
             polygons: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
             parts: Vec::new(),
             drawn_outline: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
+            rest_tags: None,
             lonlat: (lon, lat),
             front: None,
             ground: 0.0,

@@ -872,10 +872,20 @@ fn tags_honoured(sample: &str) {
             if let Some(r) = t.roof_shape {
                 count("roof:shape", parts.iter().all(|p| p.roof_shape == r));
             }
-            // A roof on pillars has no storeys: its levels say how high it stands.
+            // A roof on pillars has no storeys: its levels say how high it stands. A part drawn
+            // in bands (a smaller part stands in it over some of its heights) shares its
+            // storeys among them: summed over its bands.
             if let (Some(l), false) = (t.levels, t.is_roof()) {
                 let want = (l - t.min_level.unwrap_or(0.0)).round().max(1.0) as u32;
-                count("building:levels", parts.iter().all(|p| p.storeys == want));
+                let mut bands: BTreeMap<(i64, i64), u32> = BTreeMap::new();
+                for p in &parts {
+                    let band = (
+                        (p.base_z * 1e3).round() as i64,
+                        (p.eave_z * 1e3).round() as i64,
+                    );
+                    bands.insert(band, p.storeys);
+                }
+                count("building:levels", bands.values().sum::<u32>() == want);
             }
             if let Some(c) = t.colour {
                 count("building:colour", parts.iter().all(|p| p.wall_color == c));
@@ -957,4 +967,436 @@ fn a_tower_mapped_inside_the_part_around_it_is_cut_out_of_it() {
         "{:?}",
         d.notes(way(1))
     );
+}
+
+/// A regular 16-gon of `area` m² (as drawn in metres) around (x, y), counter-clockwise.
+fn disc(x: f64, y: f64, area: f64) -> Vec<(f64, f64)> {
+    let n = 16.0_f64;
+    let r = (2.0 * area / (n * (std::f64::consts::TAU / n).sin())).sqrt();
+    (0..16)
+        .map(|k| {
+            let a = std::f64::consts::TAU * f64::from(k) / n;
+            (x + r * a.cos(), y + r * a.sin())
+        })
+        .collect()
+}
+
+/// What the binary wrote for a case (issue 45): CityJSON, CityGML, IFC, glTF and the report,
+/// at LOD2, in a temporary folder.
+struct Written {
+    dir: tempfile::TempDir,
+    city: serde_json::Value,
+    report: serde_json::Value,
+}
+
+impl Written {
+    fn run(osm: &Osm) -> Written {
+        let dir = tempfile::tempdir().unwrap();
+        let p = |n: &str| dir.path().join(n).display().to_string();
+        osm.write(&dir.path().join("case.osm.pbf"));
+        let out = crate::common::citygen(&[
+            "--osm",
+            &p("case.osm.pbf"),
+            "--kb",
+            KB,
+            "--lod",
+            "2",
+            "--cityjson",
+            &p("out.city.json"),
+            "--citygml",
+            &p("out.gml"),
+            "--ifc",
+            &p("out.ifc"),
+            "--gltf",
+            &p("out.glb"),
+            "--report",
+            &p("report.json"),
+            "--quiet",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let read = |n: &str| serde_json::from_slice(&std::fs::read(dir.path().join(n)).unwrap());
+        Written {
+            city: read("out.city.json").unwrap(),
+            report: read("report.json").unwrap(),
+            dir,
+        }
+    }
+
+    /// The CityJSON objects traced to `id`: the parts whose `sourceId` it is, and a building of
+    /// one part whose `partSourceId` it is.
+    fn objects_of(&self, id: SourceId) -> Vec<&serde_json::Value> {
+        let id = id.to_string();
+        self.city["CityObjects"]
+            .as_object()
+            .unwrap()
+            .values()
+            .filter(|o| {
+                let a = &o["attributes"];
+                if o["type"] == "BuildingPart" {
+                    a["sourceId"] == id.as_str()
+                } else {
+                    a["partSourceId"] == id.as_str()
+                }
+            })
+            .collect()
+    }
+
+    /// The `measuredHeight` of the one CityJSON part traced to `id`.
+    fn height_of(&self, id: SourceId) -> f64 {
+        let o = self.objects_of(id);
+        assert_eq!(o.len(), 1, "{id}: {o:?}");
+        o[0]["attributes"]["measuredHeight"].as_f64().unwrap()
+    }
+
+    /// The report's reasons for `id`.
+    fn notes(&self, id: SourceId) -> Vec<String> {
+        let id = id.to_string();
+        self.report["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["id"] == id.as_str())
+            .map(|e| e["reason"].as_str().unwrap().to_string())
+            .collect()
+    }
+
+    /// The IFC's `Citygen_Part` property sets: per set, its properties' names and values as
+    /// written.
+    fn ifc_part_psets(&self) -> Vec<BTreeMap<String, String>> {
+        let e = crate::common::step_entities(&self.dir.path().join("out.ifc"));
+        e.values()
+            .filter(|(k, a)| k == "IFCPROPERTYSET" && a.contains("'Citygen_Part'"))
+            .map(|(_, a)| {
+                crate::common::step_refs(a)
+                    .into_iter()
+                    .map(|r| {
+                        let args = &e[&r].1;
+                        let name = args.split('\'').nth(1).unwrap().to_string();
+                        let value = args[args.find('(').unwrap() + 1..args.rfind(')').unwrap()]
+                            .trim_matches('\'')
+                            .to_string();
+                        (name, value)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Runs the reference validators (IFC with the geometry kernel) on the outputs; `false`
+    /// when they are not installed (outside CI).
+    fn validate(&self, what: &str) -> bool {
+        let Some(tool) = citygen::testkit::validators::validate_outputs(what) else {
+            return false;
+        };
+        let files =
+            ["out.ifc", "out.gml", "out.glb", "out.city.json"].map(|f| self.dir.path().join(f));
+        let res = std::process::Command::new(tool)
+            .arg("--geometry")
+            .args(files)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&res.stdout);
+        assert!(
+            res.status.success() && text.contains("4 passed, 0 failed"),
+            "{what}: {text}{}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        true
+    }
+}
+
+/// Issue 45: a monument of many small tagged parts, a plinth, a column, two gilded rings
+/// around the column standing out a few centimetres, and 12 drums of 0.5 down to 0.02 m²
+/// stacked from 24 to 48 m: every part is drawn, in every format, with its heights.
+#[test]
+fn a_monument_of_small_parts_draws_every_part() {
+    let mut o = Osm::default();
+    o.way(
+        1,
+        &rect(0.0, 0.0, 10.0, 10.0),
+        &[("building", "yes"), ("historic", "monument")],
+    );
+    o.way(
+        2,
+        &rect(0.0, 0.0, 10.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("height", "4"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        3,
+        &disc(5.0, 5.0, 1.0),
+        &[
+            ("building:part", "column"),
+            ("min_height", "4"),
+            ("height", "24"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    // Rings around the column: 1.3 m² discs over 1 m each, 8 cm proud of it.
+    for (id, z) in [(4, 10), (5, 16)] {
+        let (lo, hi) = (z.to_string(), (z + 1).to_string());
+        o.way(
+            id,
+            &disc(5.0, 5.0, 1.3),
+            &[
+                ("building:part", "yes"),
+                ("min_height", &lo),
+                ("height", &hi),
+                ("roof:shape", "flat"),
+                ("building:colour", "gold"),
+            ],
+        );
+    }
+    // The drums: 0.5 m² at 24 m down to 0.02 m² at 46-48 m.
+    let drums: Vec<(i64, f64, f64)> = (0..12)
+        .map(|k| {
+            let area = 0.5 * (0.04f64).powf(f64::from(k) / 11.0);
+            (10 + i64::from(k), area, 24.0 + 2.0 * f64::from(k))
+        })
+        .collect();
+    for &(id, area, z) in &drums {
+        let (lo, hi) = (z.to_string(), (z + 2.0).to_string());
+        o.way(
+            id,
+            &disc(5.0, 5.0, area),
+            &[
+                ("building:part", "yes"),
+                ("min_height", &lo),
+                ("height", &hi),
+                ("roof:shape", "flat"),
+            ],
+        );
+    }
+    let d = derive(&o);
+    assert_eq!(d.buildings.len(), 1);
+    for &(id, area, z) in &drums {
+        let p = d.one_part(way(id));
+        assert!(close(p.base_z, z) && close(p.top_z, z + 2.0), "{id}");
+        assert!(
+            (p.footprint.area() / area - 1.0).abs() < 0.05,
+            "{id}: {}",
+            p.footprint.area()
+        );
+        assert!(d.notes(way(id)).is_empty(), "{id}: {:?}", d.notes(way(id)));
+    }
+    // The rings keep what stands out of the column; the column stays whole.
+    for id in [4, 5] {
+        let p = d.one_part(way(id));
+        assert!(
+            (p.footprint.area() - 0.3).abs() < 0.03,
+            "{}",
+            p.footprint.area()
+        );
+    }
+    assert!((d.one_part(way(3)).footprint.area() - 1.0).abs() < 0.05);
+    assert!(d
+        .report
+        .entries
+        .iter()
+        .all(|e| !e.reason.contains("degenerate")));
+    assert_no_volume_overlap(&d);
+
+    // As written: a CityJSON part per tagged part, its measuredHeight its top above the
+    // ground; an IFC partial building per part with its numbers.
+    let w = Written::run(&o);
+    for &(id, _, z) in &drums {
+        assert!((w.height_of(way(id)) - (z + 2.0)).abs() < 0.1, "{id}");
+        assert!(w.notes(way(id)).is_empty(), "{id}: {:?}", w.notes(way(id)));
+    }
+    assert!((w.height_of(way(4)) - 11.0).abs() < 0.1);
+    assert!((w.height_of(way(3)) - 24.0).abs() < 0.1);
+    let psets = w.ifc_part_psets();
+    assert_eq!(psets.len(), 16, "{psets:?}");
+    let top_drum = psets
+        .iter()
+        .find(|p| p.get("SourceId").map(String::as_str) == Some("way/21"))
+        .expect("the top drum in the IFC");
+    assert_eq!(top_drum["RoofShape"], "flat");
+    assert_eq!(top_drum["NumberOfStoreys"], "1");
+    assert!(
+        (top_drum["Height"].parse::<f64>().unwrap() - 48.0).abs() < 0.1,
+        "{top_drum:?}"
+    );
+    assert!(
+        (top_drum["MinHeight"].parse::<f64>().unwrap() - 46.0).abs() < 0.1,
+        "{top_drum:?}"
+    );
+    w.validate("a monument of small parts");
+}
+
+/// Issue 45: a colonnade of 16 columns (0-6 m) under a deck (6-7 m), and a pillar with a
+/// band part inside its plan over 1 m of its 6: every column is drawn (the deck fills none of
+/// their heights), and the pillar is drawn around the band where the band stands and whole
+/// elsewhere.
+#[test]
+fn a_colonnade_under_a_deck_draws_every_column() {
+    let mut o = Osm::default();
+    o.way(1, &rect(0.0, 0.0, 40.0, 10.0), &[("building", "yes")]);
+    o.way(
+        2,
+        &rect(0.0, 0.0, 40.0, 10.0),
+        &[
+            ("building:part", "yes"),
+            ("min_height", "6"),
+            ("height", "7"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    let columns: Vec<i64> = (0..16).map(|k| 10 + k).collect();
+    for (k, &id) in columns.iter().enumerate() {
+        let (x, y) = (2.5 + 5.0 * (k % 8) as f64, if k < 8 { 1.5 } else { 8.5 });
+        o.way(
+            id,
+            &disc(x, y, 0.4),
+            &[
+                ("building:part", "column"),
+                ("height", "6"),
+                ("roof:shape", "flat"),
+            ],
+        );
+    }
+    // A pillar apart, with a band part inside its plan from 2 to 3 m.
+    o.way(40, &rect(60.0, 0.0, 4.0, 4.0), &[("building", "yes")]);
+    o.way(
+        41,
+        &rect(61.0, 1.0, 1.0, 1.0),
+        &[
+            ("building:part", "yes"),
+            ("height", "6"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    o.way(
+        42,
+        &rect(61.1, 1.1, 0.8, 0.8),
+        &[
+            ("building:part", "yes"),
+            ("min_height", "2"),
+            ("height", "3"),
+            ("roof:shape", "flat"),
+        ],
+    );
+    let d = derive(&o);
+    for &id in &columns {
+        let p = d.one_part(way(id));
+        assert!(close(p.base_z, 0.0) && close(p.top_z, 6.0), "{id}");
+        assert!((p.footprint.area() - 0.4).abs() < 0.02, "{id}");
+        assert!(d.notes(way(id)).is_empty(), "{id}: {:?}", d.notes(way(id)));
+    }
+    let deck = d.one_part(way(2));
+    assert!(close(deck.base_z, 6.0) && close(deck.top_z, 7.0));
+    // The pillar: whole below 2 m and above 3 m, a frame around the band between.
+    let mut pillar: Vec<(f64, f64, f64)> = d
+        .parts_of(way(41))
+        .iter()
+        .map(|p| (p.base_z, p.top_z, p.footprint.area()))
+        .collect();
+    pillar.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert_eq!(pillar.len(), 3, "{pillar:?}");
+    assert!(close(pillar[0].1, 2.0) && close(pillar[1].1, 3.0) && close(pillar[2].1, 6.0));
+    assert!((pillar[0].2 - 1.0).abs() < 0.02 && (pillar[2].2 - 1.0).abs() < 0.02);
+    assert!((pillar[1].2 - 0.36).abs() < 0.02, "{pillar:?}");
+    assert!(d.notes(way(41)).is_empty() && d.notes(way(40)).iter().all(|n| !n.contains("inside")));
+    assert!(close(d.one_part(way(42)).top_z, 3.0));
+    assert_no_volume_overlap(&d);
+
+    let w = Written::run(&o);
+    for &id in &columns {
+        assert!((w.height_of(way(id)) - 6.0).abs() < 0.1, "{id}");
+    }
+    // The deck: its top above the ground, not its thickness.
+    assert!((w.height_of(way(2)) - 7.0).abs() < 0.1);
+    assert_eq!(w.objects_of(way(41)).len(), 3);
+    w.validate("a colonnade under a deck");
+}
+
+/// Issue 45: a church whose nave part leaves the porch of its outline uncovered: the porch is
+/// drawn with the outline's own tags (height, colour, roof), traced to the outline with the
+/// role `outline-rest` in every format; and where the outline has no height, the rest is
+/// what the outline's tags alone give, never the estimator's height for the whole church.
+#[test]
+fn a_churchs_uncovered_rest_takes_the_outlines_own_tags_and_is_traced() {
+    let mut o = Osm::default();
+    let church = |o: &mut Osm, x: f64, id: i64, outline: &[(&str, &str)]| {
+        o.way(id, &rect(x, 0.0, 30.0, 12.0), outline);
+        o.way(
+            id + 1,
+            &rect(x + 6.0, 0.0, 24.0, 12.0),
+            &[
+                ("building:part", "yes"),
+                ("height", "18"),
+                ("roof:shape", "gabled"),
+                ("building:material", "brick"),
+                ("building:colour", "#8b3a3a"),
+            ],
+        );
+    };
+    church(
+        &mut o,
+        0.0,
+        1,
+        &[
+            ("building", "church"),
+            ("height", "5"),
+            ("roof:shape", "flat"),
+            ("building:colour", "#8b3a3a"),
+        ],
+    );
+    church(&mut o, 60.0, 11, &[("building", "church")]);
+    let d = derive(&o);
+    let rest = d.one_part(way(1));
+    assert!(close(rest.top_z, 5.0), "{}", rest.top_z);
+    assert_eq!(rest.roof_shape, RoofShape::Flat);
+    assert_eq!(
+        rest.wall_color,
+        citygen::color::Color::parse("#8b3a3a").unwrap()
+    );
+    assert_eq!(rest.role, citygen::model::PartRole::OutlineRest);
+    assert_eq!(d.one_part(way(2)).role, citygen::model::PartRole::Own);
+    // The untagged outline's rest as its own tags alone give it (no estimator here).
+    let bare = d.one_part(way(11)).top_z;
+
+    let w = Written::run(&o);
+    for (id, top) in [(1, 5.0), (11, bare)] {
+        let o = w.objects_of(way(id));
+        let rests: Vec<_> = o.iter().filter(|o| o["type"] == "BuildingPart").collect();
+        assert_eq!(rests.len(), 1, "{id}: {o:?}");
+        let a = &rests[0]["attributes"];
+        assert_eq!(a["sourceRole"], "outline-rest", "{a}");
+        assert!(
+            (a["measuredHeight"].as_f64().unwrap() - top).abs() < 0.1,
+            "{id}: {a}"
+        );
+    }
+    let gml = std::fs::read_to_string(w.dir.path().join("out.gml")).unwrap();
+    assert_eq!(
+        gml.matches(">outline-rest<").count(),
+        2,
+        "CityGML sourceRole"
+    );
+    let rests: Vec<_> = w
+        .ifc_part_psets()
+        .into_iter()
+        .filter(|p| p.get("SourceRole").map(String::as_str) == Some("outline-rest"))
+        .collect();
+    assert_eq!(rests.len(), 2, "{rests:?}");
+    assert_eq!(rests[0]["SourceId"], "way/1");
+    assert!((rests[0]["Height"].parse::<f64>().unwrap() - 5.0).abs() < 0.1);
+    let (glb, _) = crate::common::glb_json(&w.dir.path().join("out.glb"));
+    let roles = glb["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|n| n["extras"]["parts"].as_array())
+        .flatten()
+        .filter(|p| p["role"] == "outline-rest")
+        .count();
+    assert_eq!(roles, 2, "glTF extras.parts role");
 }

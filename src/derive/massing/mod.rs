@@ -10,7 +10,7 @@ use glam::{DVec2, DVec3};
 use crate::color::Color;
 use crate::derive::roof::{self, RoofGeometry};
 use crate::geometry::{ring, CellHash, Polygon};
-use crate::model::{on_grid, Face, Lod, Part, RoofShape, Wall};
+use crate::model::{on_grid, Face, Lod, Part, PartRole, RoofShape, Wall};
 
 pub mod grid;
 
@@ -181,6 +181,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         ground,
         interior: Vec::new(),
         source: None,
+        role: PartRole::Own,
     }
 }
 

@@ -48,9 +48,13 @@ impl Renderer<'_> {
                     if let Some(source) = part.traced_source(b.id) {
                         self.string_attribute("sourceId", &source.to_string());
                     }
+                    if let Some(role) = part.role.name() {
+                        self.string_attribute("sourceRole", role);
+                    }
+                    // Its top above the building's ground, as the building's own.
                     self.building_attributes(
                         part.roof_shape,
-                        part.top_z - part.base_z,
+                        part.height_above(b.ground_z),
                         part.storeys,
                     );
                     self.geometry(part, pid);

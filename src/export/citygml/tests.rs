@@ -9,7 +9,7 @@ use crate::color::Color;
 use crate::crs::Crs;
 use crate::export::lod3geom::samples;
 use crate::geometry::Polygon;
-use crate::model::{Face, OpeningKind, Part, RoofShape, SourceId, Wall};
+use crate::model::{Face, OpeningKind, Part, PartRole, RoofShape, SourceId, Wall};
 
 const ORIGIN: DVec3 = DVec3::new(574_321.5, 6_279_876.25, 146.0);
 
@@ -89,6 +89,7 @@ fn prism(
         ground,
         interior: Vec::new(),
         source: None,
+        role: PartRole::Own,
     }
 }
 
@@ -117,6 +118,7 @@ fn building(id: SourceId, parts: Vec<Part>) -> Building {
         zone: "earth/France/Occitanie/Toulouse".into(),
         appearance: "Toulouse#1".into(),
         base_z: base,
+        ground_z: base,
         measured_height: top - base,
         storeys_above_ground: tallest.as_ref().map_or(1, |p| p.storeys),
         roof_shape: tallest.as_ref().map_or(RoofShape::Flat, |p| p.roof_shape),

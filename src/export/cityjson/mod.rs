@@ -24,8 +24,10 @@
 //!   unknown), `partSourceId` (one part traced to another footprint), `measuredHeight`,
 //!   `storeysAboveGround` and `roofType` (the SIG3D code the CityGML writer's `bldg:roofType`
 //!   holds). A building of several parts has one `BuildingPart` per part (`parents`/`children`
-//!   linked; attributes `sourceId` where the part comes from its own footprint,
-//!   `measuredHeight`, `storeysAboveGround`, `roofType`) and the parts carry the geometry;
+//!   linked; attributes `sourceId` where the part comes from its own footprint or is its
+//!   outline's uncovered rest, `sourceRole` `outline-rest` on the rest, `measuredHeight` (its
+//!   top above the building's ground, as the building's), `storeysAboveGround`, `roofType`)
+//!   and the parts carry the geometry;
 //!   otherwise the building does.
 //! - **LOD1**: one `Solid` of lod `"1"`: ground, walls, flat top.
 //! - **LOD2**: one `Solid` of lod `"2.2"` with semantics `GroundSurface`, `WallSurface`,

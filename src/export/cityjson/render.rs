@@ -581,11 +581,15 @@ pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
         if let Some(source) = part.traced_source(b.id) {
             f.attr_str(&mut first, "sourceId", &source.to_string());
         }
+        if let Some(role) = part.role.name() {
+            f.attr_str(&mut first, "sourceRole", role);
+        }
+        // Its top above the building's ground, as the building's own.
         building_attributes(
             f,
             &mut first,
             part.roof_shape,
-            part.top_z - part.base_z,
+            part.height_above(b.ground_z),
             part.storeys,
         );
         f.s("}");

@@ -199,6 +199,9 @@ pub(super) struct PartExtras<'a> {
     pub(super) base: f64,
     pub(super) top: f64,
     pub(super) roof_shape: &'static str,
+    /// `outline-rest` on what an outline's parts leave of it ([`crate::model::PartRole`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) role: Option<&'static str>,
 }
 
 #[derive(Serialize)]

@@ -215,6 +215,7 @@ impl<W: Write + Send> GltfWriter<W> {
                                 base: p.base_z,
                                 top: p.top_z,
                                 roof_shape: p.roof_shape.osm_name(),
+                                role: p.role.name(),
                             })
                             .collect()
                     } else {

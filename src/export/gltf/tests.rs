@@ -5,7 +5,7 @@ use crate::color::srgb_to_linear;
 use crate::export::lod3geom::{balcony_faces, samples};
 use crate::export::lod4geom;
 use crate::geometry::Polygon;
-use crate::model::{Face, Lod, Part, RoofShape, SourceId, Wall};
+use crate::model::{Face, Lod, Part, PartRole, RoofShape, SourceId, Wall};
 use serde_json::Value;
 
 // ---- synthetic buildings ----
@@ -88,6 +88,7 @@ fn part(
         ground,
         interior: Vec::new(),
         source: None,
+        role: PartRole::Own,
     }
 }
 
@@ -112,6 +113,7 @@ fn building(id: i64, parts: Vec<Part>) -> Building {
         zone: "earth/France/Occitanie/Toulouse".into(),
         appearance: "Toulouse#1".into(),
         base_z: base,
+        ground_z: base,
         measured_height: top - base,
         storeys_above_ground: 2,
         roof_shape: parts[0].roof_shape,

@@ -42,7 +42,9 @@
 //!   Lod, RoofShape, and the provenance of storeys, height and roof: StoreysSource,
 //!   HeightSource, RoofSource as `IfcLabel`s `tag`/`neighbours`/`fitted`/`model`/`kb`,
 //!   StoreysError `IfcReal` ± storeys, HeightError `IfcLengthMeasure` ± metres, RoofProbability
-//!   `IfcNormalisedRatioMeasure`, each uncertainty left out when unknown) and `Pset_BuildingCommon` (NumberOfStoreys), and per building a
+//!   `IfcNormalisedRatioMeasure`, each uncertainty left out when unknown) and `Pset_BuildingCommon` (NumberOfStoreys), per partial
+//!   building a `Citygen_Part` (Height and MinHeight above the building's ground, NumberOfStoreys,
+//!   RoofShape, and SourceId and SourceRole where the part is traced), and per building a
 //!   `Pset_WallCommon` with IsExternal true on its walls and false on those wholly against a
 //!   neighbour (`Wall::party` 1, LOD3), and `Citygen_Wall` (PartyWallShare, one set per
 //!   share) on every wall that faces a neighbour.

@@ -276,8 +276,12 @@ impl Render<'_> {
         Ok(())
     }
 
-    /// A `Citygen_Part` property set (SourceId: the `building:part`'s id) on the partial
-    /// building of a part, when the part's source is not the building's own.
+    /// The `Citygen_Part` property set on the partial building of a part (issue 45): its
+    /// `Height` and `MinHeight` above the building's ground (`IfcLengthMeasure`, as OSM's
+    /// `height` and `min_height`), `NumberOfStoreys` (`IfcInteger`), `RoofShape` (`IfcLabel`,
+    /// OSM `roof:shape`), and where the part is traced ([`crate::model::Part::traced_source`])
+    /// its `SourceId` (`IfcIdentifier`) and, on an outline's rest, `SourceRole`
+    /// (`outline-rest`).
     pub(super) fn part_pset(
         &mut self,
         part: &crate::model::Part,
@@ -285,20 +289,41 @@ impl Render<'_> {
         key: &str,
         partial: Id,
     ) -> Result<(), ExportError> {
-        let Some(source) = part.traced_source(b.id) else {
-            return Ok(());
+        let mut props = Vec::with_capacity(6);
+        let mut single = |w: &mut StepBuf,
+                          name: &str,
+                          ty: &str,
+                          f: &dyn Fn(&mut crate::export::step::Args<'_>)| {
+            w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+                a.string(name).null().typed(ty, |t| f(t)).null();
+            })
+            .map(|id| props.push(id))
         };
-        let source = source.to_string();
-        let prop = self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
-            a.string("SourceId")
-                .null()
-                .typed("IFCIDENTIFIER", |t| {
-                    t.string(&source);
-                })
-                .null();
+        if let Some(source) = part.traced_source(b.id) {
+            let source = source.to_string();
+            single(&mut self.w, "SourceId", "IFCIDENTIFIER", &|t| {
+                t.string(&source);
+            })?;
+        }
+        if let Some(role) = part.role.name() {
+            single(&mut self.w, "SourceRole", "IFCLABEL", &|t| {
+                t.string(role);
+            })?;
+        }
+        single(&mut self.w, "Height", "IFCLENGTHMEASURE", &|t| {
+            t.real(part.height_above(b.ground_z));
+        })?;
+        single(&mut self.w, "MinHeight", "IFCLENGTHMEASURE", &|t| {
+            t.real(part.base_z - b.ground_z);
+        })?;
+        single(&mut self.w, "NumberOfStoreys", "IFCINTEGER", &|t| {
+            t.int(i64::from(part.storeys));
+        })?;
+        single(&mut self.w, "RoofShape", "IFCLABEL", &|t| {
+            t.string(part.roof_shape.osm_name());
         })?;
         let path = format!("{}/pset/source", part.key);
-        self.pset(key, &path, "Citygen_Part", &[prop], &[partial])
+        self.pset(key, &path, "Citygen_Part", &props, &[partial])
     }
 
     /// The property sets of a building's walls, given with their party-wall shares
