@@ -413,6 +413,7 @@ mod tests {
             lonlat: (0.0, 0.0),
             front: None,
             ground: 0.0,
+            terrain: None,
         }
     }
 

@@ -243,6 +243,7 @@ pub(super) fn group_parts(
             lonlat: *lonlat,
             front: None,
             ground: 0.0,
+            terrain: None,
         })
         .collect();
     let ctree = outline_index(&containers);
@@ -292,6 +293,7 @@ pub(super) fn group_parts(
                     lonlat,
                     front: None,
                     ground: 0.0,
+                    terrain: None,
                 });
             }
         }
