@@ -285,3 +285,49 @@ pub(crate) fn entrance(
     super::put_entrance(&mut d.facades.openings[c.k], door, wanted, out);
     out.entrance = Some((c.p, c.normal));
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A plane rising 0.5 m a metre east from 10 m, seen from a building standing on 10 m.
+    fn plane() -> ElevationGrid {
+        let (nx, ny) = (11, 11);
+        let z = (0..ny)
+            .flat_map(|_| (0..nx).map(|i| 10.0 + 0.5 * i as f32))
+            .collect();
+        ElevationGrid {
+            origin: DVec2::ZERO,
+            step: 1.0,
+            nx,
+            ny,
+            z,
+        }
+    }
+
+    #[test]
+    fn the_terrain_along_a_wall_is_its_lowest_and_highest_sample() {
+        let g = plane();
+        let s = Slope::new(&g, 10.0);
+        assert_eq!(s.at(DVec2::new(4.0, 3.0)), Some(2.0));
+        assert_eq!(s.at(DVec2::new(-1.0, 3.0)), None);
+        // A wall running east from (2, 5): 1..3 m along it is x 3..5.
+        let (lo, hi) = s
+            .range(DVec2::new(2.0, 5.0), DVec2::new(9.0, 5.0), 1.0, 3.0)
+            .unwrap();
+        assert!(
+            (lo - 1.5).abs() < 1e-9 && (hi - 2.5).abs() < 1e-9,
+            "{lo} {hi}"
+        );
+        // Running north, the terrain is level; off the grid it is unknown.
+        let (lo, hi) = s
+            .range(DVec2::new(4.0, 0.0), DVec2::new(4.0, 9.0), 0.0, 9.0)
+            .unwrap();
+        assert!((lo - 2.0).abs() < 1e-9 && (hi - 2.0).abs() < 1e-9);
+        assert_eq!(
+            s.range(DVec2::new(20.0, 0.0), DVec2::new(20.0, 9.0), 0.0, 9.0),
+            None
+        );
+        assert_eq!(s.range(DVec2::ZERO, DVec2::ZERO, 0.0, 1.0), None);
+    }
+}
