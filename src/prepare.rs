@@ -99,6 +99,11 @@ pub struct Lot {
     /// footprint (`--dem`, [`ground::grounds`]) or `--ground-height`; 0 without terrain. The
     /// derived building is raised by it whole.
     pub ground: f64,
+    /// The terrain around the footprint (issue 44, `--dem` at LOD3 and above,
+    /// [`ground::profiles`]): what its facades look at to put the entrance at the terrain and
+    /// keep every opening above it. `None` without a DEM, below LOD3, and for the neighbours a
+    /// run does not write.
+    pub terrain: Option<std::sync::Arc<crate::model::ElevationGrid>>,
 }
 
 impl Lot {
@@ -365,6 +370,7 @@ pub fn prepare(
                 lonlat: p.lonlat,
                 front: None,
                 ground: 0.0,
+                terrain: None,
             }),
             FootprintKind::Part => pieces.push((
                 LotPiece {
@@ -470,6 +476,7 @@ pub(crate) fn single_lot(
         lonlat,
         front: None,
         ground: 0.0,
+        terrain: None,
     };
     straighten_lot(&mut lot);
     Some(Site {

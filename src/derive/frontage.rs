@@ -21,6 +21,8 @@
 //!    ([`FacadeCounts`] says how many of each). Facades a SELEX program laid out
 //!    (`derive::facade::Facades::programmed`) keep the doors it put on the ground storey, each an entrance
 //!    (sized like any door); only a building whose program put none gets one placed.
+//! 4. **On a slope** (`--dem` at LOD3, [`slope`]): no opening or balcony below the terrain,
+//!    and the entrance where its sill stands at the terrain, on whichever storey that is.
 
 use glam::DVec2;
 
@@ -30,6 +32,10 @@ use crate::kb::{compile, defaults, Style, WindowHeight};
 use crate::model::{
     FacadeCounts, OpeningKind, Part, SourceId, LINTEL, OPENING_MARGIN, RAILING_HEIGHT,
 };
+
+pub(crate) mod slope;
+
+pub(crate) use slope::Slope;
 
 /// A part whose base is this close to the ground (metres) stands on it.
 pub(crate) const GROUND: f64 = 0.1;
@@ -67,19 +73,23 @@ pub struct Arrangement {
     pub counts: FacadeCounts,
     /// Why a building standing on the ground got no entrance.
     pub note: Option<String>,
+    /// What the terrain changed ([`slope`]): openings left out below it, an entrance above it.
+    pub slope_notes: Vec<String>,
 }
 
 /// Applies the rules of the module docs to the drafts of one building (`owner`, standing on
 /// `ground`: the drafts are on z = 0, `around` at its neighbours' own grounds), whose street
-/// side is `front`, among `around`. `windows_from_style`: a part whose rules made no window at
-/// all still gets windows on its runs, from the style (the knowledge base's rules; a ruleset
-/// file that draws no windows is obeyed).
+/// side is `front`, among `around`, on the terrain `slope` when it has one (`--dem`).
+/// `windows_from_style`: a part whose rules made no window at all still gets windows on its
+/// runs, from the style (the knowledge base's rules; a ruleset file that draws no windows is
+/// obeyed).
 pub(crate) fn arrange(
     drafts: &mut [Draft<'_>],
     (owner, ground): (SourceId, f64),
     front: Option<DVec2>,
     around: &Surroundings,
     windows_from_style: bool,
+    slope: Option<Slope<'_>>,
 ) -> Arrangement {
     let mut out = Arrangement::default();
     // Every part of the building as a neighbour of the others, indexed by their bounds (a
@@ -143,10 +153,64 @@ pub(crate) fn arrange(
         }
     }
     let wanted = doors_to_windows(drafts, &out.spans, &mut out.counts);
+    if let Some(s) = slope {
+        let buried = slope::drop_buried(drafts, s);
+        if buried > 0 {
+            out.slope_notes.push(format!(
+                "{buried} opening(s) or balcony(ies) below the terrain left out"
+            ));
+        }
+    }
     if !programmed_entrances(drafts, &mut out) {
-        entrance(drafts, front, wanted, &mut out);
+        match slope {
+            Some(s) => slope::entrance(drafts, front, &wanted, &mut out, s),
+            None => entrance(drafts, front, &wanted, &mut out),
+        }
     }
     out
+}
+
+/// How squarely a wall of outward normal `normal` faces the street side `front`: 0 within 5°
+/// (or without a street), 1 within 25°, 2 within 60°, 3 facing it at all, 4 facing away.
+fn tier(normal: DVec2, front: Option<DVec2>) -> u8 {
+    match front {
+        None => 0,
+        Some(f) => {
+            let c = normal.dot(f);
+            if c >= 5f64.to_radians().cos() {
+                0
+            } else if c >= 25f64.to_radians().cos() {
+                1
+            } else if c >= 0.5 {
+                2
+            } else if c > 0.0 {
+                3
+            } else {
+                4
+            }
+        }
+    }
+}
+
+/// Puts the main entrance `door` among the openings `ops` of its wall: whatever it covers,
+/// with the margin [`facade::apply`] keeps between openings, gives way; counted.
+fn put_entrance(
+    ops: &mut Vec<FoundOpening>,
+    door: FoundOpening,
+    wanted: &[Option<(usize, f64, Option<crate::color::Color>)>],
+    out: &mut Arrangement,
+) {
+    let m = 2.0 * OPENING_MARGIN;
+    ops.retain(|o| {
+        o.u1 + m <= door.u0 || door.u1 + m <= o.u0 || o.z0 >= door.z1 + m || o.z1 + m <= door.z0
+    });
+    ops.push(door);
+    ops.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
+    out.counts.entrances += 1;
+    // The door replaces the rules' own entrance, which was counted as extra.
+    if wanted.iter().any(Option::is_some) {
+        out.counts.extra_doors -= 1;
+    }
 }
 
 /// The storey (floor, next floor) of `storeys` holding the middle of `o`.
@@ -466,7 +530,7 @@ fn doors_to_windows(
 fn entrance(
     drafts: &mut [Draft<'_>],
     front: Option<DVec2>,
-    wanted: Vec<Option<(usize, f64, Option<crate::color::Color>)>>,
+    wanted: &[Option<(usize, f64, Option<crate::color::Color>)>],
     out: &mut Arrangement,
 ) {
     struct Choice {
@@ -514,23 +578,7 @@ fn entrance(
             if free.1 - free.0 < DOOR_MIN_WIDTH + 2.0 * JAMB_SNAP {
                 continue;
             }
-            let tier = match front {
-                None => 0,
-                Some(f) => {
-                    let c = normal.dot(f);
-                    if c >= 5f64.to_radians().cos() {
-                        0
-                    } else if c >= 25f64.to_radians().cos() {
-                        1
-                    } else if c >= 0.5 {
-                        2
-                    } else if c > 0.0 {
-                        3
-                    } else {
-                        4
-                    }
-                }
-            };
+            let tier = tier(normal, front);
             let rules_chose = wanted[p].is_some_and(|(wk, _, _)| wk == k);
             // Longer free stretches first, in centimetres up to 6 m (a wall that long has room).
             let room = -((free.1 - free.0).min(6.0) * 100.0).round() as i64;
@@ -599,18 +647,7 @@ fn entrance(
         frame_size: None,
         rounding: None,
     };
-    // Whatever it covers, with the margin facade::apply keeps between openings, gives way.
-    let m = 2.0 * OPENING_MARGIN;
-    ops.retain(|o| {
-        o.u1 + m <= door.u0 || door.u1 + m <= o.u0 || o.z0 >= door.z1 + m || o.z1 + m <= door.z0
-    });
-    ops.push(door);
-    ops.sort_by(|a, b| a.z0.total_cmp(&b.z0).then(a.u0.total_cmp(&b.u0)));
-    out.counts.entrances += 1;
-    // The door replaces the rules' own entrance, which was counted as extra.
-    if wanted.iter().any(Option::is_some) {
-        out.counts.extra_doors -= 1;
-    }
+    put_entrance(ops, door, wanted, out);
     out.entrance = Some((c.p, c.normal));
 }
 

@@ -343,16 +343,22 @@ impl Generator {
             // of a ruleset file (--rules, or an appearance's) are kept as its rules made them.
             let from_style = matches!(self.rules, Rules::Kb)
                 && !styles.iter().any(|(s, _)| self.file_rules(s).is_some());
+            let slope = lot
+                .terrain
+                .as_deref()
+                .map(|g| frontage::Slope::new(g, lot.ground));
             let a = frontage::arrange(
                 &mut views,
                 (lot.id, lot.ground),
                 lot.front,
                 &self.surroundings,
                 from_style,
+                slope,
             );
             if let Some(n) = a.note {
                 notes.push((Outcome::Note, n));
             }
+            notes.extend(a.slope_notes.into_iter().map(|n| (Outcome::Note, n)));
             counts = a.counts;
             entrance = a.entrance.map(|(v, n)| (index[v], n));
             spans = index.into_iter().zip(a.spans).collect::<Vec<_>>();

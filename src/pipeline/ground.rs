@@ -107,6 +107,16 @@ impl RunState<'_> {
             // A neighbour outside the DEMs (not written by this run) stays on z = 0.
             l.ground = g.unwrap_or(0.0);
         }
+        // At LOD3 and above the facades look at the terrain along their walls (the entrance
+        // at the terrain, no opening under it): each building of the run gets its patch.
+        if self.opts.lod >= Lod::Lod3 {
+            let in_run = &self.in_run;
+            let patches = prepare::ground::profiles(&self.site.lots, |i| in_run[i], &framed)
+                .map_err(input)?;
+            for (l, p) in self.site.lots.iter_mut().zip(patches) {
+                l.terrain = p.map(std::sync::Arc::new);
+            }
+        }
         // The grid only serves the terrain written beside the buildings: none with
         // `--no-terrain` (a quarter of `--dem`'s cost on the bench, README).
         if !self.opts.no_terrain {

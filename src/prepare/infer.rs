@@ -414,6 +414,7 @@ mod tests {
             lonlat: (0.0, 0.0),
             front: None,
             ground: 0.0,
+            terrain: None,
         }
     }
 

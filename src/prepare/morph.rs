@@ -444,6 +444,7 @@ pub(crate) mod tests {
             lonlat: (0.0, 0.0),
             front: None,
             ground: 0.0,
+            terrain: None,
         }
     }
 

@@ -244,6 +244,7 @@ pub(super) fn group_parts(
             lonlat: *lonlat,
             front: None,
             ground: 0.0,
+            terrain: None,
         })
         .collect();
     let ctree = outline_index(&containers);
@@ -294,6 +295,7 @@ pub(super) fn group_parts(
                     lonlat,
                     front: None,
                     ground: 0.0,
+                    terrain: None,
                 });
             }
         }

@@ -195,6 +195,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
             lonlat: (lon, lat),
             front: None,
             ground: 0.0,
+            terrain: None,
         }
     };
     // Input order mixes the tiles; 5 and 2 share a tile with 1, in that input order.

@@ -31,6 +31,7 @@ mod rule_bombs;
 mod s3db;
 mod selex;
 mod shards;
+mod slope;
 mod terrain;
 mod world_kb;
 mod zones;
