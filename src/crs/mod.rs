@@ -1,6 +1,7 @@
 //! Coordinate reference systems in pure Rust: WGS84 lon/lat, UTM zones (WGS84), Lambert-93
 //! (EPSG:2154), British National Grid (EPSG:27700, with the OSGB36 datum shift), and the CRS of
-//! a shapefile's `.prj`.
+//! a shapefile's `.prj`; and, read only (`--dem` rasters, never an output), WGS 84 /
+//! Pseudo-Mercator (EPSG:3857, `webmerc`).
 //!
 //! Every projected CRS converts to and from WGS84 longitude/latitude in degrees:
 //!
@@ -26,6 +27,7 @@ pub mod geoid;
 mod lcc;
 mod osgb;
 mod tmerc;
+pub(crate) mod webmerc;
 mod wkt;
 
 #[cfg(test)]

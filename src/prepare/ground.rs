@@ -4,9 +4,11 @@
 //! A building's base is the lowest terrain under its footprint (OSM Simple 3D Buildings: its
 //! `height` counts from there, so on a slope the low side's walls reach the ground and the
 //! high side's lower part is below it). The lowest point is searched at every DEM pixel centre
-//! inside the footprint (outlines and parts, holes excluded) and along every ring at most half
-//! the finest pixel apart, vertices included: bilinear heights have no minimum inside a
-//! pixel's cell, so this misses the true minimum by at most the curvature over half a pixel.
+//! inside the footprint (outlines and parts, holes excluded) and along every ring where a
+//! bilinear height can be lowest (`sample_edge`): bilinear heights have no minimum inside a
+//! pixel's cell, and along a straight edge they are one quadratic between two crossings of
+//! pixel-centre lines, so the search finds the true minimum (to a nodata hole's renormalised
+//! weights).
 //! Samples over the DEM's nodata are skipped; a footprint with no known sample, or with a
 //! sample outside every DEM, is *uncovered*. The base is rounded to the millimetre grid the
 //! outputs are written at.
@@ -26,7 +28,7 @@ pub const GRID_MARGIN: f64 = 50.0;
 /// steps than the DEM's.
 pub const GRID_MAX_CELLS: usize = 1 << 22;
 
-/// The most samples taken along one ring edge.
+/// The most pixel-line crossings sampled along one ring edge.
 const MAX_EDGE_SAMPLES: usize = 20_000;
 
 /// Lots per parallel batch of [`grounds`] (one sampler each).
@@ -38,7 +40,6 @@ fn ground_under(
     framed: &Framed<'_>,
     s: &mut Sampler<'_>,
 ) -> Result<Option<f64>, DemError> {
-    let step = (framed.cell_size() / 2.0).max(0.01);
     let mut low = f64::INFINITY;
     let mut take = |v: Sample| -> bool {
         match v {
@@ -57,11 +58,8 @@ fn ground_under(
                 let b = ring[(k + 1) % ring.len()];
                 lo = lo.min(*a);
                 hi = hi.max(*a);
-                let n = ((a.distance(b) / step).ceil() as usize).clamp(1, MAX_EDGE_SAMPLES);
-                for i in 0..n {
-                    if !take(s.sample(a.lerp(b, i as f64 / n as f64))?) {
-                        return Ok(None);
-                    }
+                if !sample_edge(*a, b, framed, s, &mut take)? {
+                    return Ok(None);
                 }
             }
         }
@@ -75,6 +73,47 @@ fn ground_under(
         }
     }
     Ok(low.is_finite().then(|| (low * 1000.0).round() / 1000.0))
+}
+
+/// Gives `take` the heights of edge `a`→`b` where the lowest can be: its ends, every crossing
+/// of a pixel-centre line ([`Framed::crossings`]), and between two of them (one quadratic
+/// there) the middle and, where the heights curve upwards, the quadratic's vertex. False as
+/// soon as `take` refuses a sample (outside every DEM).
+fn sample_edge(
+    a: DVec2,
+    b: DVec2,
+    framed: &Framed<'_>,
+    s: &mut Sampler<'_>,
+    take: &mut impl FnMut(Sample) -> bool,
+) -> Result<bool, DemError> {
+    let mut ts = vec![0.0];
+    ts.extend(framed.crossings(a, b, MAX_EDGE_SAMPLES));
+    ts.push(1.0);
+    let value = |v: Sample| match v {
+        Sample::Value(z) => Some(z),
+        _ => None,
+    };
+    let mut prev = s.sample(a)?;
+    if !take(prev) {
+        return Ok(false);
+    }
+    for w in ts.windows(2) {
+        let (t0, t1) = (w[0], w[1]);
+        let tm = (t0 + t1) / 2.0;
+        let (mid, end) = (s.sample(a.lerp(b, tm))?, s.sample(a.lerp(b, t1))?);
+        if !take(mid) || !take(end) {
+            return Ok(false);
+        }
+        if let (Some(y0), Some(ym), Some(y1)) = (value(prev), value(mid), value(end)) {
+            let curve = y0 - 2.0 * ym + y1;
+            let tv = tm - (t1 - t0) / 2.0 * (y1 - y0) / (2.0 * curve);
+            if curve > 0.0 && tv > t0 && tv < t1 && !take(s.sample(a.lerp(b, tv))?) {
+                return Ok(false);
+            }
+        }
+        prev = end;
+    }
+    Ok(true)
 }
 
 /// Every polygon of a lot: its outline's and its parts'.

@@ -1,4 +1,7 @@
-//! `--dem`: digital elevation models read from GeoTIFF files (issue 44).
+//! `--dem`: digital elevation models read from GeoTIFF files and SRTM `.hgt` tiles (issue 44).
+//!
+//! An `.hgt` file (`hgt`: NASA SRTM, 1201² or 3601² big-endian `i16`, named after its tile) is
+//! read in strips of rows straight from the file; everything else must be a GeoTIFF.
 //!
 //! The `tiff` crate decodes the file's strips or tiles (any sample format of 8 to 64 bits,
 //! integer or float; uncompressed, deflate or LZW, with their predictors); the georeferencing
@@ -14,6 +17,8 @@
 //! Several files are tried in the order given: the first that has a height at a point gives it.
 
 mod geokeys;
+mod hgt;
+mod segment;
 
 use std::collections::HashMap;
 use std::fs::File;
@@ -27,7 +32,7 @@ use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
-use crate::crs::Crs;
+use crate::crs::{webmerc, Crs};
 
 pub(crate) use geokeys::vertical_name;
 use geokeys::{GeoError, GeoTags, Georef};
@@ -68,8 +73,16 @@ pub enum DemError {
         /// What is wrong with its tags.
         reason: String,
     },
+    /// An `.hgt` file whose name or size is not an SRTM tile's.
+    #[error("{}: not an SRTM .hgt tile: {reason}", .path.display())]
+    Hgt {
+        /// The `--dem` file.
+        path: PathBuf,
+        /// What is wrong with its name or size.
+        reason: String,
+    },
     /// A CRS citygen does not implement.
-    #[error("{}: the DEM's CRS ({what}) is not one citygen knows (EPSG:4326, WGS 84 / UTM EPSG:326xx and 327xx, ETRS89 / UTM EPSG:258xx, Lambert-93 EPSG:2154, British National Grid EPSG:27700); reproject it first, e.g. `gdalwarp -t_srs EPSG:4326 {} dem-4326.tif` (or the run's UTM zone, EPSG:326zz)", .path.display(), .path.display())]
+    #[error("{}: the DEM's CRS ({what}) is not one citygen knows (EPSG:4326, WGS 84 / UTM EPSG:326xx and 327xx, ETRS89 / UTM EPSG:258xx, Lambert-93 EPSG:2154, British National Grid EPSG:27700, Pseudo-Mercator EPSG:3857); reproject it first, e.g. `gdalwarp -t_srs EPSG:4326 {} dem-4326.tif` (or the run's UTM zone, EPSG:326zz)", .path.display(), .path.display())]
     UnknownCrs {
         /// The `--dem` file.
         path: PathBuf,
@@ -104,10 +117,52 @@ struct Chunk {
     z: Vec<f32>,
 }
 
-/// One opened GeoTIFF: its header, its georeferencing and a decoder for its strips or tiles.
+/// Where a DEM's pixels come from.
+enum Source {
+    /// A GeoTIFF's decoder.
+    Tiff(Box<Mutex<Decoder<BufReader<File>>>>),
+    /// An SRTM `.hgt` tile (strips of `hgt::ROWS` rows).
+    Hgt(Mutex<File>),
+}
+
+/// The horizontal CRS of a DEM: one citygen writes in, or web mercator (read only: it is not
+/// an output CRS, its metres are not metres on the ground).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum DemCrs {
+    Known(Crs),
+    /// EPSG:3857, WGS 84 / Pseudo-Mercator.
+    PseudoMercator,
+}
+
+impl DemCrs {
+    fn from_epsg(code: u16) -> Option<DemCrs> {
+        match code {
+            3857 => Some(DemCrs::PseudoMercator),
+            c => Crs::from_epsg(u32::from(c)).ok().map(DemCrs::Known),
+        }
+    }
+
+    /// WGS 84 degrees to the DEM's coordinates.
+    fn project(self, lon: f64, lat: f64) -> (f64, f64) {
+        match self {
+            DemCrs::Known(c) => c.from_lonlat(lon, lat),
+            DemCrs::PseudoMercator => webmerc::from_lonlat(lon, lat),
+        }
+    }
+
+    /// The DEM's coordinates to WGS 84 degrees.
+    fn unproject(self, x: f64, y: f64) -> (f64, f64) {
+        match self {
+            DemCrs::Known(c) => c.to_lonlat(x, y),
+            DemCrs::PseudoMercator => webmerc::to_lonlat(x, y),
+        }
+    }
+}
+
+/// One opened DEM: its header, its georeferencing and a reader for its strips or tiles.
 struct Dem {
     path: PathBuf,
-    decoder: Mutex<Decoder<BufReader<File>>>,
+    source: Source,
     width: u32,
     height: u32,
     /// Width and height of a strip or tile.
@@ -118,7 +173,7 @@ struct Dem {
     stride: usize,
     nodata: Option<f64>,
     georef: Georef,
-    crs: Crs,
+    crs: DemCrs,
 }
 
 /// The value of a sample at one point.
@@ -159,17 +214,20 @@ fn tiff_err(path: &Path) -> impl Fn(tiff::TiffError) -> DemError + '_ {
 }
 
 impl Dem {
-    /// Opens `path` and reads its header and georeferencing (no pixel).
+    /// Opens `path` and reads its header and georeferencing (no pixel): an SRTM tile when
+    /// its extension is `.hgt`, else a GeoTIFF.
     fn open(path: &Path) -> Result<Dem, DemError> {
-        let file = File::open(path).map_err(|source| DemError::Io {
+        let io = |source| DemError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
-        if file.metadata().is_ok_and(|m| m.is_dir()) {
-            return Err(DemError::Io {
-                path: path.to_path_buf(),
-                source: std::io::Error::other("it is a directory"),
-            });
+        };
+        let file = File::open(path).map_err(io)?;
+        let meta = file.metadata().map_err(io)?;
+        if meta.is_dir() {
+            return Err(io(std::io::Error::other("it is a directory")));
+        }
+        if hgt::is_hgt(path) {
+            return Dem::open_hgt(path, file, meta.len());
         }
         let mut limits = Limits::default();
         limits.decoding_buffer_size = MAX_CHUNK_BYTES;
@@ -209,7 +267,7 @@ impl Dem {
             )));
         }
         let crs = match georef.epsg {
-            Some(code) => Crs::from_epsg(u32::from(code)).map_err(|_| DemError::UnknownCrs {
+            Some(code) => DemCrs::from_epsg(code).ok_or_else(|| DemError::UnknownCrs {
                 path: path.to_path_buf(),
                 what: format!("EPSG:{code}"),
             })?,
@@ -244,7 +302,7 @@ impl Dem {
         }
         Ok(Dem {
             path: path.to_path_buf(),
-            decoder: Mutex::new(dec),
+            source: Source::Tiff(Box::new(Mutex::new(dec))),
             width,
             height,
             chunk,
@@ -253,6 +311,26 @@ impl Dem {
             nodata,
             georef,
             crs,
+        })
+    }
+
+    /// Opens an SRTM `.hgt` tile of `bytes` bytes: its name and size checked, nothing read.
+    fn open_hgt(path: &Path, file: File, bytes: u64) -> Result<Dem, DemError> {
+        let tile = hgt::tile(path, bytes).map_err(|e| DemError::Hgt {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Ok(Dem {
+            path: path.to_path_buf(),
+            source: Source::Hgt(Mutex::new(file)),
+            width: tile.side,
+            height: tile.side,
+            chunk: (tile.side, hgt::ROWS),
+            across: 1,
+            stride: 1,
+            nodata: Some(hgt::VOID),
+            georef: tile.georef,
+            crs: DemCrs::Known(Crs::Wgs84),
         })
     }
 
@@ -269,11 +347,27 @@ impl Dem {
 
     /// Decodes chunk `index` into heights.
     fn decode(&self, index: u32) -> Result<Chunk, DemError> {
+        let decoder = match &self.source {
+            Source::Tiff(d) => d,
+            Source::Hgt(file) => {
+                let mut file = file.lock().unwrap_or_else(PoisonError::into_inner);
+                let z = hgt::read_strip(&mut file, self.width, index).map_err(|source| {
+                    DemError::Io {
+                        path: self.path.clone(),
+                        source,
+                    }
+                })?;
+                return Ok(Chunk {
+                    w: self.width as usize,
+                    z,
+                });
+            }
+        };
         let bad = |e: tiff::TiffError| DemError::Tiff {
             path: self.path.clone(),
             reason: format!("strip or tile {index}: {e}"),
         };
-        let mut dec = self.decoder.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut dec = decoder.lock().unwrap_or_else(PoisonError::into_inner);
         let (w, _) = dec.chunk_data_dimensions(index);
         let raw = dec.read_chunk(index).map_err(bad)?;
         drop(dec);
@@ -427,21 +521,21 @@ impl Framed<'_> {
     fn to_model(&self, d: usize, p: DVec2) -> DVec2 {
         let q = self.origin + p;
         let crs = self.set.dems[d].crs;
-        if crs == self.crs {
+        if crs == DemCrs::Known(self.crs) {
             return q;
         }
         let (lon, lat) = self.crs.to_lonlat(q.x, q.y);
-        let (x, y) = crs.from_lonlat(lon, lat);
+        let (x, y) = crs.project(lon, lat);
         DVec2::new(x, y)
     }
 
     /// The local point of file `d`'s model coordinates `m`.
     fn to_local(&self, d: usize, m: DVec2) -> DVec2 {
         let crs = self.set.dems[d].crs;
-        if crs == self.crs {
+        if crs == DemCrs::Known(self.crs) {
             return m - self.origin;
         }
-        let (lon, lat) = crs.to_lonlat(m.x, m.y);
+        let (lon, lat) = crs.unproject(m.x, m.y);
         let (x, y) = self.crs.from_lonlat(lon, lat);
         DVec2::new(x, y) - self.origin
     }

@@ -255,3 +255,199 @@ fn georeferencing_agrees_with_gdal() {
         Sample::NoData
     );
 }
+
+/// An SRTM3 tile's heights: `f(column, row)` rounded, big-endian `i16`, rows from the north.
+fn hgt_bytes(f: impl Fn(u32, u32) -> f64) -> Vec<u8> {
+    let mut out = Vec::with_capacity(1201 * 1201 * 2);
+    for r in 0..1201 {
+        for c in 0..1201 {
+            out.extend_from_slice(&(f(c, r).round() as i16).to_be_bytes());
+        }
+    }
+    out
+}
+
+/// A plane over N43E007 in whole metres: 1 m a column east, 2 m a row south.
+fn hgt_plane(c: u32, r: u32) -> f64 {
+    10.0 + f64::from(c) + 2.0 * f64::from(r)
+}
+
+#[test]
+fn srtm_hgt_tile_is_read_on_its_whole_degree_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("N43E007.hgt");
+    let mut bytes = hgt_bytes(hgt_plane);
+    // Voids: 3 x 3 samples around column 500, row 600.
+    for r in 599..602 {
+        for c in 499..502 {
+            let k = 2 * (r * 1201 + c);
+            bytes[k..k + 2].copy_from_slice(&(-32768i16).to_be_bytes());
+        }
+    }
+    std::fs::write(&p, &bytes).unwrap();
+    let set = DemSet::open(std::slice::from_ref(&p)).unwrap();
+    assert_eq!(set.vertical_epsg().unwrap(), Some(5773));
+    let crs = Crs::Utm {
+        zone: 32,
+        north: true,
+    };
+    let (ox, oy) = crs.from_lonlat(7.42, 43.735);
+    let origin = DVec2::new(ox.round(), oy.round());
+    let f = set.framed(crs, origin);
+    // 3" is about 67 m east and 93 m north at 43.7°N.
+    assert!((f.cell_size() - 67.0).abs() < 1.5, "{}", f.cell_size());
+    let mut s = f.sampler();
+    let local = |lon: f64, lat: f64| {
+        let (x, y) = crs.from_lonlat(lon, lat);
+        DVec2::new(x, y) - origin
+    };
+    // The plane at any point: column = (lon - 7) * 1200, row = (44 - lat) * 1200.
+    let want = |lon: f64, lat: f64| 10.0 + (lon - 7.0) * 1200.0 + 2.0 * (44.0 - lat) * 1200.0;
+    for (lon, lat) in [
+        (7.42, 43.735),
+        (7.0004, 43.9996),
+        (7.9999, 43.0001),
+        (7.5, 43.5),
+    ] {
+        let z = value(s.sample(local(lon, lat)).unwrap());
+        assert!((z - want(lon, lat)).abs() < 1e-3, "({lon}, {lat}): {z}");
+    }
+    // A void's centre has nothing around it; beside the voids the plane goes on.
+    let (lon, lat) = (7.0 + 500.0 / 1200.0, 44.0 - 600.0 / 1200.0);
+    assert_eq!(s.sample(local(lon, lat)).unwrap(), Sample::NoData);
+    let z = value(s.sample(local(lon + 3.0 / 1200.0, lat)).unwrap());
+    assert!((z - want(lon + 3.0 / 1200.0, lat)).abs() < 1e-3, "{z}");
+    assert_eq!(s.sample(local(8.01, 43.5)).unwrap(), Sample::Outside);
+}
+
+/// The same tile as a GeoTIFF the way `gdal_translate` writes one (PixelIsArea, the corner
+/// half a sample beyond the whole degree): the same heights everywhere.
+#[test]
+fn srtm_hgt_agrees_with_its_geotiff() {
+    let dir = tempfile::tempdir().unwrap();
+    let hgt = dir.path().join("s12w077.HGT");
+    let f = |c: u32, r: u32| (f64::from(c * 7 + r * 13) % 500.0) - 20.0;
+    std::fs::write(&hgt, hgt_bytes(f)).unwrap();
+    let step = 1.0 / 1200.0;
+    let mut values = Vec::new();
+    for r in 0..1201 {
+        for c in 0..1201 {
+            values.push(f(c, r).round());
+        }
+    }
+    let t = GeoTiff {
+        width: 1201,
+        height: 1201,
+        values,
+        tiepoint: (-77.0 - step / 2.0, -11.0 + step / 2.0),
+        scale: (step, step),
+        epsg: 4326,
+        geographic: true,
+        pixel_is_point: false,
+        nodata: Some(-32768.0),
+        vertical: None,
+        sample: SampleType::I16,
+        packing: Packing::Deflate,
+        rows_per_strip: 3,
+    };
+    let tif = write(dir.path(), "s12w077.tif", &t);
+    let crs = Crs::Utm {
+        zone: 18,
+        north: false,
+    };
+    let (ox, oy) = crs.from_lonlat(-76.5, -11.5);
+    let origin = DVec2::new(ox.round(), oy.round());
+    let (a, b) = (DemSet::open(&[hgt]).unwrap(), DemSet::open(&[tif]).unwrap());
+    let (fa, fb) = (a.framed(crs, origin), b.framed(crs, origin));
+    let (mut sa, mut sb) = (fa.sampler(), fb.sampler());
+    for k in 0..200 {
+        let q = DVec2::new(
+            f64::from(k * 523 % 100_000) - 50_000.0,
+            f64::from(k * 811 % 100_000) - 50_000.0,
+        );
+        let (za, zb) = (value(sa.sample(q).unwrap()), value(sb.sample(q).unwrap()));
+        assert!((za - zb).abs() < 1e-3, "{q}: hgt {za}, tiff {zb}");
+    }
+}
+
+#[test]
+fn hostile_hgt_files_are_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let plane = hgt_bytes(hgt_plane);
+    let cases: [(&str, &[u8], &str); 5] = [
+        ("N43E007.hgt", &plane[..plane.len() - 2], "2884800 bytes"),
+        ("N43E007.hgt", &[], "0 bytes"),
+        ("monaco.hgt", &plane, "named after its tile"),
+        ("N93E007.hgt", &plane, "named after its tile"),
+        (
+            "N43E007.hgt",
+            &[plane.as_slice(), &[0, 0]].concat(),
+            "2884804 bytes",
+        ),
+    ];
+    for (k, (name, bytes, what)) in cases.iter().enumerate() {
+        let sub = dir.path().join(format!("case{k}"));
+        std::fs::create_dir(&sub).unwrap();
+        let p = sub.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let e = DemSet::open(std::slice::from_ref(&p)).unwrap_err();
+        assert!(matches!(e, DemError::Hgt { .. }), "{name}: {e:?}");
+        let e = e.to_string();
+        assert!(
+            e.contains(&p.display().to_string()) && e.contains(what),
+            "{e}"
+        );
+    }
+    // A folder named like a tile.
+    let folder = dir.path().join("N10E010.hgt");
+    std::fs::create_dir(&folder).unwrap();
+    let e = DemSet::open(&[folder]).unwrap_err().to_string();
+    assert!(e.contains("N10E010.hgt") && e.contains("directory"), "{e}");
+    // Truncated after it was opened: the strip that is gone fails, naming the file.
+    let p = dir.path().join("N43E007.hgt");
+    std::fs::write(&p, &plane).unwrap();
+    let set = DemSet::open(std::slice::from_ref(&p)).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&p)
+        .unwrap()
+        .set_len(1000)
+        .unwrap();
+    let crs = Crs::Wgs84;
+    let f = set.framed(crs, DVec2::ZERO);
+    let e = f.sampler().sample(DVec2::new(7.5, 43.5)).unwrap_err();
+    assert!(matches!(e, DemError::Io { .. }), "{e:?}");
+    assert!(e.to_string().contains(&p.display().to_string()), "{e}");
+}
+
+/// A web-mercator DEM (EPSG:3857, as `gdalwarp -t_srs EPSG:3857` writes for web maps) is read
+/// through its own projection.
+#[test]
+fn pseudo_mercator_dem_samples_in_a_utm_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = |lon: f64, lat: f64| 50.0 + 1000.0 * (lon - 7.4) + 2000.0 * (43.74 - lat);
+    let (x0, y0) = crate::crs::webmerc::from_lonlat(7.40, 43.75);
+    let t = GeoTiff::projected(3857, (x0, y0), 10.0, (200, 200), |x, y| {
+        let (lon, lat) = crate::crs::webmerc::to_lonlat(x, y);
+        h(lon, lat)
+    });
+    let p = write(dir.path(), "web.tif", &t);
+    let set = DemSet::open(&[p]).unwrap();
+    let crs = Crs::Utm {
+        zone: 32,
+        north: true,
+    };
+    let (ox, oy) = crs.from_lonlat(7.41, 43.74);
+    let origin = DVec2::new(ox.round(), oy.round());
+    let f = set.framed(crs, origin);
+    // 10 m of web mercator is 10 cos φ on the ground.
+    let want_cell = 10.0 * 43.74f64.to_radians().cos();
+    assert!((f.cell_size() - want_cell).abs() < 0.1, "{}", f.cell_size());
+    let mut s = f.sampler();
+    for q in [DVec2::new(12.0, -7.0), DVec2::new(-300.0, 250.0)] {
+        let (lon, lat) = crs.to_lonlat(origin.x + q.x, origin.y + q.y);
+        let z = value(s.sample(q).unwrap());
+        // Linear in lon/lat, nearly linear in mercator metres over a pixel.
+        assert!((z - h(lon, lat)).abs() < 1e-2, "{z} vs {}", h(lon, lat));
+    }
+}
