@@ -125,6 +125,8 @@ impl RunState<'_> {
                 prepare::ground::elevation_grid(&self.site.lots, |i| in_run[i], &framed)
                     .map_err(input)?;
         }
+        // The decoded DEM is not sampled again: its memory goes to the buildings.
+        dems.release();
         let epsg = dems.vertical_epsg().map_err(input)?;
         self.site.vertical_datum = Some(VerticalDatum::Orthometric {
             epsg: epsg.map(u32::from),

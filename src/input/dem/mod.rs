@@ -380,6 +380,13 @@ impl Dem {
         };
         let s = self.stride;
         let z: Vec<f32> = match raw {
+            // The common case (one band of f32) in place: no second buffer of the chunk's size.
+            DecodingResult::F32(mut v) if s == 1 => {
+                if nd.is_some() {
+                    v.iter_mut().for_each(|x| *x = keep(f64::from(*x)));
+                }
+                v
+            }
             DecodingResult::U8(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
             DecodingResult::I8(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
             DecodingResult::U16(v) => v.iter().step_by(s).map(|x| keep(f64::from(*x))).collect(),
@@ -475,6 +482,13 @@ impl DemSet {
         };
         f.cells = (0..self.dems.len()).map(|d| f.cell_size_of(d)).collect();
         f
+    }
+
+    /// Forgets every decoded strip and tile (the samplers' own stay until they are dropped):
+    /// once the buildings are seated and the grid made, the run needs them no more.
+    pub fn release(&self) {
+        let mut cache = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+        *cache = Cache::default();
     }
 
     fn chunk(&self, d: usize, index: u32) -> Result<Arc<Chunk>, DemError> {
@@ -627,9 +641,8 @@ impl Sampler<'_> {
         })
     }
 
-    fn pixel(&mut self, d: usize, i: u32, j: u32) -> Result<f32, DemError> {
-        let dem = &self.framed.set.dems[d];
-        let (index, col, row) = dem.locate(i, j);
+    /// Chunk `index` of file `d`, remembered.
+    fn chunk(&mut self, d: usize, index: u32) -> Result<&Chunk, DemError> {
         let key = (d, index);
         let k = match self.memo.iter().position(|(k, _)| *k == key) {
             Some(k) => k,
@@ -642,12 +655,29 @@ impl Sampler<'_> {
                 self.memo.len() - 1
             }
         };
-        let chunk = &self.memo[k].1;
+        Ok(&self.memo[k].1)
+    }
+
+    fn pixel(&mut self, d: usize, i: u32, j: u32) -> Result<f32, DemError> {
+        let (index, col, row) = self.framed.set.dems[d].locate(i, j);
+        let chunk = self.chunk(d, index)?;
         Ok(chunk
             .z
             .get(row * chunk.w + col)
             .copied()
             .unwrap_or(f32::NAN))
+    }
+
+    /// Pixels (i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1) of file `d` when all four are in
+    /// one chunk (most of the time: one look-up instead of four).
+    fn quad(&mut self, d: usize, i: u32, j: u32) -> Result<Option<[f32; 4]>, DemError> {
+        let (index, col, row) = self.framed.set.dems[d].locate(i, j);
+        let chunk = self.chunk(d, index)?;
+        let (w, at) = (chunk.w, row * chunk.w + col);
+        Ok(match (col + 1 < w).then(|| chunk.z.get(at..at + w + 2)) {
+            Some(Some(z)) => Some([z[0], z[1], z[w], z[w + 1]]),
+            _ => None,
+        })
     }
 
     /// File `d`'s bilinear height at its model point `m`.
@@ -664,16 +694,23 @@ impl Sampler<'_> {
         let j0 = (cy.floor() as u32).min(dem.height.saturating_sub(2));
         let (fx, fy) = (cx - f64::from(i0), cy - f64::from(j0));
         let (mut sum, mut weight) = (0.0, 0.0);
-        for (di, dj, wt) in [
+        let quad = self.quad(d, i0, j0)?;
+        for (k, (di, dj, wt)) in [
             (0, 0, (1.0 - fx) * (1.0 - fy)),
             (1, 0, fx * (1.0 - fy)),
             (0, 1, (1.0 - fx) * fy),
             (1, 1, fx * fy),
-        ] {
+        ]
+        .into_iter()
+        .enumerate()
+        {
             if wt <= 0.0 {
                 continue;
             }
-            let v = self.pixel(d, i0 + di, j0 + dj)?;
+            let v = match quad {
+                Some(q) => q[k],
+                None => self.pixel(d, i0 + di, j0 + dj)?,
+            };
             if v.is_finite() {
                 sum += wt * f64::from(v);
                 weight += wt;
