@@ -293,12 +293,17 @@ impl Generator {
                 .flat_map(|p| p.polygons.iter().map(move |q| (q, p.band)))
             {
                 let banded = band.map(|b| overlaps::banded(&style, b));
+                // A band below the top is flat: its own rules, not the whole part's roof.
+                let band_rules = match &banded {
+                    Some(b) => Some(self.rules_for(b)?),
+                    None => None,
+                };
                 let on = Piece {
                     id: piece.id,
                     front: lot.front,
                     ground: lot.ground,
                     style: banded.as_ref().unwrap_or(&style),
-                    rules: &rules,
+                    rules: band_rules.as_ref().unwrap_or(&rules),
                 };
                 let masses = self.masses(&on, polygon, lod, &mut rng, &mut notes)?;
                 for (mass, facades) in masses {

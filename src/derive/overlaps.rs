@@ -129,7 +129,8 @@ pub(super) fn resolve_overlaps(
 /// which the same `winners` stand (indices into `winners`), bottom up, neighbouring bands with
 /// the same winners merged. A winner's base or top within [`STACK_TOLERANCE`] of the piece's
 /// ends counts as the piece's end (no band thinner than the tolerance at either end). One band
-/// with every winner: they fill the piece's whole height range.
+/// with every winner: they fill the piece's whole height range. A winner with a pitched roof
+/// counts up to the piece's top (its roof rises into the heights above its walls).
 fn bands_of(piece: &Style, winners: &[&Style]) -> Vec<(f64, f64, Vec<usize>)> {
     let (lo, hi) = (piece.min_height, piece.eave_height);
     let snap = |z: f64| {
@@ -141,9 +142,18 @@ fn bands_of(piece: &Style, winners: &[&Style]) -> Vec<(f64, f64, Vec<usize>)> {
             z
         }
     };
+    // A winner with a pitched roof fills the heights over its walls too, as far as its roof
+    // reaches: up to the piece's top, not knowing yet how high its roof will be.
     let ranges: Vec<(f64, f64)> = winners
         .iter()
-        .map(|w| (snap(w.min_height), snap(w.eave_height)))
+        .map(|w| {
+            let top = if w.roof == crate::model::RoofShape::Flat {
+                snap(w.eave_height)
+            } else {
+                hi
+            };
+            (snap(w.min_height), top)
+        })
         .collect();
     let mut cuts: Vec<f64> = vec![lo, hi];
     cuts.extend(ranges.iter().flat_map(|&(a, b)| [a, b]));
@@ -195,6 +205,7 @@ mod tests {
             .0;
         s.min_height = min;
         s.eave_height = eave;
+        s.make_flat();
         s
     }
 
@@ -213,6 +224,13 @@ mod tests {
         assert_eq!(
             bands_of(&column, &[&style(2.0, 3.0)]),
             vec![(0.0, 2.0, vec![]), (2.0, 3.0, vec![0]), (3.0, 6.0, vec![])]
+        );
+        // A winner with a pitched roof fills the heights over its walls up to the top.
+        let mut pitched = style(2.0, 3.0);
+        pitched.roof = crate::model::RoofShape::Hipped;
+        assert_eq!(
+            bands_of(&column, &[&pitched]),
+            vec![(0.0, 2.0, vec![]), (2.0, 6.0, vec![0])]
         );
         assert_eq!(
             bands_of(&column, &[&style(2.0, 8.0), &style(0.0, 3.0)]),
