@@ -160,22 +160,7 @@ pub fn grounds(
                 .collect::<Vec<_>>()
         })
         .collect();
-    let mut out: Vec<Option<f64>> = vec![None; lots.len()];
-    let mut first_err: Option<(usize, DemError)> = None;
-    for (i, r) in found {
-        match r {
-            Ok(g) => out[i] = g,
-            Err(e) => {
-                if first_err.as_ref().is_none_or(|(j, _)| i < *j) {
-                    first_err = Some((i, e));
-                }
-            }
-        }
-    }
-    match first_err {
-        Some((_, e)) => Err(e),
-        None => Ok(out),
-    }
+    in_lot_order(lots.len(), found)
 }
 
 /// The DEM resampled (bilinear) on a regular grid of the local frame over the bounds of the
@@ -275,22 +260,7 @@ pub fn profiles(
                 .collect::<Vec<_>>()
         })
         .collect();
-    let mut out: Vec<Option<ElevationGrid>> = (0..lots.len()).map(|_| None).collect();
-    let mut first_err: Option<(usize, DemError)> = None;
-    for (i, r) in found {
-        match r {
-            Ok(g) => out[i] = g,
-            Err(e) => {
-                if first_err.as_ref().is_none_or(|(j, _)| i < *j) {
-                    first_err = Some((i, e));
-                }
-            }
-        }
-    }
-    match first_err {
-        Some((_, e)) => Err(e),
-        None => Ok(out),
-    }
+    in_lot_order(lots.len(), found)
 }
 
 /// One lot's terrain patch for [`profiles`] (`None` for a lot without bounds).
@@ -329,4 +299,28 @@ fn profile(lot: &Lot, fine: f64, s: &mut Sampler<'_>) -> Result<Option<Elevation
         ny,
         z,
     }))
+}
+
+/// Per-lot results (lot index, value) gathered in any order, as one value per lot: the error
+/// of the first lot in lot order that failed, so the message does not depend on the threads.
+fn in_lot_order<T>(
+    n: usize,
+    found: Vec<(usize, Result<Option<T>, DemError>)>,
+) -> Result<Vec<Option<T>>, DemError> {
+    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    let mut first_err: Option<(usize, DemError)> = None;
+    for (i, r) in found {
+        match r {
+            Ok(g) => out[i] = g,
+            Err(e) => {
+                if first_err.as_ref().is_none_or(|(j, _)| i < *j) {
+                    first_err = Some((i, e));
+                }
+            }
+        }
+    }
+    match first_err {
+        Some((_, e)) => Err(e),
+        None => Ok(out),
+    }
 }
