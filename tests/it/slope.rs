@@ -6,8 +6,8 @@
 //! highest), no window or door is below the terrain, the building whose street wall stands
 //! a storey up the hill has its door there, on that storey; the CityGML solids pass the
 //! ISO 19107 checks, the bytes are the same at 1 and 3 threads and the LOD4 floors are level.
-//! Monaco-Ville on a wavy hill at LOD3: its
-//! solids valid and its IFC through `validate-outputs --geometry`.
+//! Monaco-Ville on a wavy hill at LOD3: its solids valid (its IFC on the SRTM crop goes through
+//! `validate-outputs --geometry` in .ci/run, the `monaco-ville-lod3` sample).
 
 use std::path::Path;
 
@@ -367,8 +367,7 @@ fn doors_stand_at_the_terrain_and_no_opening_is_under_it() {
     }
 }
 
-/// Monaco-Ville on a wavy hill at LOD3: the solids valid (ISO 19107) and the IFC through the
-/// reference validator's geometry kernel.
+/// Monaco-Ville on a wavy hill at LOD3: the solids valid (ISO 19107).
 #[test]
 fn monaco_ville_on_a_hill_at_lod3_is_valid() {
     let dir = tempfile::tempdir().unwrap();
@@ -390,7 +389,7 @@ fn monaco_ville_on_a_hill_at_lod3_is_valid() {
     )
     .write(&dem)
     .unwrap();
-    let (gml, ifc) = (dir.path().join("mv.gml"), dir.path().join("mv.ifc"));
+    let gml = dir.path().join("mv.gml");
     let report = dir.path().join("report.json");
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_citygen"))
         .current_dir(root())
@@ -407,8 +406,6 @@ fn monaco_ville_on_a_hill_at_lod3_is_valid() {
         .arg(&dem)
         .arg("--citygml")
         .arg(&gml)
-        .arg("--ifc")
-        .arg(&ifc)
         .arg("--report")
         .arg(&report)
         .output()
@@ -435,19 +432,7 @@ fn monaco_ville_on_a_hill_at_lod3_is_valid() {
     );
     let (n, defects) = super::iso19107::file_defects(&gml);
     assert!(n > 50 && defects.is_empty(), "{n} solids: {defects:#?}");
-    let Some(tool) = citygen::testkit::validators::validate_outputs("Monaco-Ville LOD3 on a DEM")
-    else {
-        return;
-    };
-    let res = std::process::Command::new(tool)
-        .arg("--geometry")
-        .arg(&ifc)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&res.stdout);
-    assert!(
-        res.status.success() && text.contains("1 passed, 0 failed"),
-        "{text}\n{}",
-        String::from_utf8_lossy(&res.stderr)
-    );
+    // The IFC of Monaco-Ville at LOD3 on a DEM goes through `validate-outputs --geometry` in
+    // .ci/run (the sample `monaco-ville-lod3` is drawn on the SRTM crop), where the release
+    // build and the validators' parallel groups make it cheap; here it cost 3 min of `cargo test`.
 }
