@@ -743,7 +743,11 @@ pub(crate) fn read_source(
                 levels_field: levels_field.clone(),
                 src_crs,
             };
-            input::shp::read_shp(path, &o, report)
+            if input::geojson::looks_like_geojson(path) {
+                input::geojson::read_geojson(path, &o, report)
+            } else {
+                input::shp::read_shp(path, &o, report)
+            }
         }
     }
     .map_err(|e| RunError::Input(e.to_string()))

@@ -24,8 +24,13 @@ pub(crate) struct RunArgs {
     /// OpenStreetMap extract (.osm.pbf) to read building footprints from.
     #[arg(long, value_name = "FILE.pbf")]
     osm: Option<PathBuf>,
-    /// ESRI shapefile (.shp with its .shx, .dbf and .prj) to read footprints from.
-    #[arg(long, value_name = "FILE.shp")]
+    /// GIS footprints to read: an ESRI shapefile (.shp with its .shx, .dbf and .prj) or a
+    /// GeoJSON FeatureCollection (told apart by content; also `--footprints`).
+    #[arg(
+        long,
+        visible_alias = "footprints",
+        value_name = "FILE.shp|FILE.geojson"
+    )]
     shp: Option<PathBuf>,
     /// Knowledge base of regional appearance (XML, seed 003 format).
     #[arg(long, value_name = "KB.xml")]
@@ -73,13 +78,15 @@ pub(crate) struct RunArgs {
     /// the data's centre (inside --bbox); data too wide for one zone needs --crs or --bbox.
     #[arg(long, value_name = "EPSG:n", value_parser = parse_output_crs)]
     crs: Option<Crs>,
-    /// CRS of the input coordinates, overriding a shapefile's .prj.
+    /// CRS of the input coordinates, overriding a shapefile's .prj or a GeoJSON's crs member.
     #[arg(long, value_name = "EPSG:n", value_parser = parse_crs)]
     src_crs: Option<Crs>,
-    /// Shapefile attribute holding the building height in metres (default: detected).
+    /// Shapefile attribute (or GeoJSON property) holding the building height in metres
+    /// (default: detected).
     #[arg(long, value_name = "NAME")]
     shp_height_field: Option<String>,
-    /// Shapefile attribute holding the number of storeys (default: detected).
+    /// Shapefile attribute (or GeoJSON property) holding the number of storeys (default:
+    /// detected).
     #[arg(long, value_name = "NAME")]
     shp_levels_field: Option<String>,
     /// Worker threads for derivation (default: all cores). Outputs do not depend on it.

@@ -1,9 +1,11 @@
-//! Input readers: OSM PBF and ESRI shapefiles, turned into [`Footprint`]s in the source CRS.
+//! Input readers: OSM PBF, ESRI shapefiles and GeoJSON, turned into [`Footprint`]s in the source
+//! CRS.
 //!
 //! Readers know nothing of the knowledge base, the grammar or the outputs. Every record they
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
 
 pub mod dem;
+pub mod geojson;
 pub mod osm;
 pub(crate) mod rings;
 pub mod shp;
