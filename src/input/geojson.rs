@@ -16,7 +16,8 @@
 //!   municipal name is found as in a shapefile (`--shp-height-field`, `--shp-levels-field`, else
 //!   the first of `shp::HEIGHT_FIELDS`/`LEVELS_FIELDS` present).
 //! - **Ids**: a feature `id` (or `@id` property) of the form `way/123`, `relation/45` keeps its
-//!   OSM id; a non-negative integer id `n` gives `feature/n`; else the feature's 0-based position
+//!   OSM id (and, without `building` or `building:part`, is skipped: an Overpass export holds
+//!   land use and streets too); a non-negative integer id `n` gives `feature/n`; else the feature's 0-based position
 //!   gives `feature/<position>`. When the file's ids are not unique, every feature is numbered by
 //!   position instead (a note says so).
 //! - **CRS**: `--src-crs`, else the `crs` member's EPSG code, else WGS84 longitude/latitude (RFC
@@ -168,6 +169,12 @@ impl Sink<'_> {
         let id = feature_id(f.id.as_ref(), &props).unwrap_or(SourceId::Feature(position));
         if !self.ids.insert(id) {
             self.duplicate = true;
+        }
+        // An OSM object (an Overpass export holds streets and land use beside the buildings)
+        // is a footprint only when it is tagged as one.
+        if matches!(id, SourceId::Way(_) | SourceId::Relation(_)) && tags.building.is_none() {
+            self.skip(id, "an OSM object without building or building:part".into());
+            return;
         }
         let mut rings = Vec::new();
         if let Err(why) = collect_rings(f.geometry.as_ref(), &mut rings, 0) {
@@ -539,7 +546,8 @@ mod tests {
             {{"type":"Feature","id":17,"properties":{{"num_floors":4,"roof_shape":"flat","class":"x"}},"geometry":{{"type":"MultiPolygon","coordinates":[{SQUARE}]}}}},
             {{"type":"Feature","properties":{{"HAUTEUR":"12.5","building:part":"yes"}},"geometry":{{"type":"Polygon","coordinates":{SQUARE}}}}},
             {{"type":"Feature","properties":{{}},"geometry":{{"type":"Point","coordinates":[7.42,43.73]}}}},
-            {{"type":"Feature","properties":{{}},"geometry":null}}
+            {{"type":"Feature","properties":{{}},"geometry":null}},
+            {{"type":"Feature","id":"way/7","properties":{{"landuse":"residential"}},"geometry":{{"type":"Polygon","coordinates":{SQUARE}}}}}
             ]}}"#
         );
         let (r, report) = read(&text, &ShpOptions::default());
@@ -551,7 +559,8 @@ mod tests {
         assert_eq!(r.footprints[1].tags.levels, Some(4.0));
         assert_eq!(r.footprints[2].tags.height, Some(12.5));
         assert_eq!(r.footprints[2].kind, FootprintKind::Part);
-        assert_eq!((report.read, report.parts_read, report.skipped), (4, 1, 2));
+        assert_eq!((report.read, report.parts_read, report.skipped), (5, 1, 3));
+        assert!(reasons_have(&report, "without building or building:part"));
         let reasons: Vec<&str> = report.entries.iter().map(|e| e.reason.as_str()).collect();
         assert!(
             reasons.iter().any(|r| r.contains("Point is not a polygon")),
@@ -561,6 +570,10 @@ mod tests {
             reasons.iter().any(|r| r.contains("no geometry")),
             "{reasons:?}"
         );
+    }
+
+    fn reasons_have(report: &Report, what: &str) -> bool {
+        report.entries.iter().any(|e| e.reason.contains(what))
     }
 
     #[test]
