@@ -745,6 +745,8 @@ pub(crate) fn read_source(
             };
             if input::geojson::looks_like_geojson(path) {
                 input::geojson::read_geojson(path, &o, report)
+            } else if input::gpkg::looks_like_gpkg(path) {
+                input::gpkg::read_gpkg(path, &o, report)
             } else {
                 input::shp::read_shp(path, &o, report)
             }

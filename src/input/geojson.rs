@@ -17,7 +17,8 @@
 //!   the first of `shp::HEIGHT_FIELDS`/`LEVELS_FIELDS` present).
 //! - **Ids**: a feature `id` (or `@id` property) of the form `way/123`, `relation/45` keeps its
 //!   OSM id (and, without `building` or `building:part`, is skipped: an Overpass export holds
-//!   land use and streets too); a non-negative integer id `n` gives `feature/n`; else the feature's 0-based position
+//!   land use and streets too); a non-negative integer id `n` (the feature's, else the first of
+//!   the columns `id`, `objectid`, `fid`, `osm_id`, `gml_id` holding one) gives `feature/n`; else the feature's 0-based position
 //!   gives `feature/<position>`. When the file's ids are not unique, every feature is numbered by
 //!   position instead (a note says so).
 //! - **CRS**: `--src-crs`, else the `crs` member's EPSG code, else WGS84 longitude/latitude (RFC
@@ -25,7 +26,6 @@
 //!
 //! Errors name the file and, for malformed JSON, the line and column.
 
-use std::collections::HashSet;
 use std::fmt;
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -35,28 +35,13 @@ use serde::de::{self, DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor
 use serde::Deserialize;
 use serde_json::{Map, Value};
 
-use super::rings::{group_rings, oriented_polygon, ring_problem};
-use super::shp::{ShpOptions, HEIGHT_FIELDS, LEVELS_FIELDS};
-use super::{
-    BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
-};
-use crate::geometry::ring;
-use crate::report::{Outcome, Report};
+use super::features::Sink;
+use super::shp::ShpOptions;
+use super::{InputError, ReadResult, Ring, SourceId};
+use crate::report::Report;
 
 /// At most this many bytes are looked at to tell a GeoJSON file from a shapefile.
 const SNIFF: usize = 64;
-
-/// Overture Maps' building properties and the OSM keys they mean.
-const OVERTURE_KEYS: [(&str, &str); 8] = [
-    ("num_floors", "building:levels"),
-    ("roof_shape", "roof:shape"),
-    ("roof_height", "roof:height"),
-    ("facade_color", "building:colour"),
-    ("roof_color", "roof:colour"),
-    ("facade_material", "building:material"),
-    ("roof_material", "roof:material"),
-    ("min_floor", "building:min_level"),
-];
 
 /// Whether the file starts like a JSON object (after an optional UTF-8 byte order mark and
 /// white space): what `--shp` reads as GeoJSON rather than as a shapefile.
@@ -95,25 +80,14 @@ pub fn read_geojson(
         path: path.to_path_buf(),
         source,
     })?;
-    let mut sink = Sink {
-        path,
-        opts,
-        report,
-        interner: TagInterner::default(),
-        footprints: Vec::new(),
-        positions: Vec::new(),
-        ids: HashSet::new(),
-        duplicate: false,
-        features: 0,
-        role_fixes: 0,
-    };
+    let mut sink = Sink::new(path, opts, report);
     let mut de = serde_json::Deserializer::from_reader(BufReader::new(file));
     let top = Top { sink: &mut sink }
         .deserialize(&mut de)
         .and_then(|t| de.end().map(|()| t))
         .map_err(|e| json_error(path, &e))?;
     if top.kind.as_deref() == Some("Feature") {
-        sink.feature(top.single);
+        feature(&mut sink, top.single);
     } else if top.kind.as_deref() != Some("FeatureCollection") {
         return Err(InputError::Shapefile {
             path: path.to_path_buf(),
@@ -141,188 +115,12 @@ pub fn read_geojson(
     sink.finish(source_crs)
 }
 
-/// Where the features go as they are read.
-struct Sink<'a> {
-    path: &'a Path,
-    opts: &'a ShpOptions,
-    report: &'a mut Report,
-    interner: TagInterner,
-    footprints: Vec<Footprint>,
-    /// Each footprint's 0-based position among the features, to renumber on duplicate ids.
-    positions: Vec<u64>,
-    ids: HashSet<SourceId>,
-    duplicate: bool,
-    features: u64,
-    role_fixes: usize,
-}
-
-impl Sink<'_> {
-    fn feature(&mut self, f: RawFeature) {
-        let position = self.features;
-        self.features += 1;
-        let props = f.properties.unwrap_or_default();
-        let (tags, kind) = self.tags(&props);
-        match kind {
-            FootprintKind::Building => self.report.read += 1,
-            FootprintKind::Part => self.report.parts_read += 1,
-        }
-        let id = feature_id(f.id.as_ref(), &props).unwrap_or(SourceId::Feature(position));
-        if !self.ids.insert(id) {
-            self.duplicate = true;
-        }
-        // An OSM object (an Overpass export holds streets and land use beside the buildings)
-        // is a footprint only when it is tagged as one.
-        if matches!(id, SourceId::Way(_) | SourceId::Relation(_)) && tags.building.is_none() {
-            self.skip(id, "an OSM object without building or building:part".into());
-            return;
-        }
-        let mut rings = Vec::new();
-        if let Err(why) = collect_rings(f.geometry.as_ref(), &mut rings, 0) {
-            self.skip(id, why);
-            return;
-        }
-        let mut problems = Vec::new();
-        let mut kept: Vec<Ring> = Vec::new();
-        let mut claims = Vec::new();
-        for (i, (mut r, outer)) in rings.into_iter().enumerate() {
-            ring::dedup_by(&mut r, |a, b| a == b);
-            if let Some(why) = ring_problem(&r) {
-                problems.push(format!("ring {i} dropped: {why}"));
-                continue;
-            }
-            kept.push(r);
-            claims.push(Some(outer));
-        }
-        let g = group_rings(&kept, &claims);
-        self.role_fixes += g.role_fixes;
-        if g.polygons.is_empty() {
-            let why = if problems.is_empty() {
-                "no rings".to_string()
-            } else {
-                format!("no usable ring: {}", problems.join("; "))
-            };
-            self.skip(id, why);
-            return;
-        }
-        if !problems.is_empty() {
-            self.report.repaired += 1;
-            self.report
-                .add(Some(id), Outcome::Repaired, problems.join("; "));
-        }
-        for (k, v, why) in &tags.ignored {
-            self.report
-                .add(Some(id), Outcome::Note, format!("{k}={v} ignored: {why}"));
-        }
-        let polygons = g
-            .polygons
-            .iter()
-            .map(|(o, hs)| {
-                oriented_polygon(
-                    kept[*o].clone(),
-                    hs.iter().map(|h| kept[*h].clone()).collect(),
-                )
-            })
-            .collect();
-        self.footprints.push(Footprint {
-            id,
-            kind,
-            polygons,
-            tags: self.interner.intern(tags),
-        });
-        self.positions.push(position);
-    }
-
-    /// The tags of a feature's properties, and whether it is a building or a part.
-    fn tags(&self, props: &Map<String, Value>) -> (BuildingTags, FootprintKind) {
-        let mut pairs: Vec<(String, String)> = Vec::new();
-        for (k, v) in props {
-            let Some(text) = value_text(v) else { continue };
-            let key = OVERTURE_KEYS
-                .iter()
-                .find(|(o, _)| o == k)
-                .map_or(k.as_str(), |(_, osm)| osm);
-            pairs.push((key.to_string(), text));
-        }
-        for (key, named, candidates) in [
-            (
-                "height",
-                self.opts.height_field.as_deref(),
-                &HEIGHT_FIELDS[..],
-            ),
-            (
-                "building:levels",
-                self.opts.levels_field.as_deref(),
-                &LEVELS_FIELDS[..],
-            ),
-        ] {
-            let field = match named {
-                Some(n) => props.keys().find(|k| k.eq_ignore_ascii_case(n)),
-                None if pairs.iter().any(|(k, _)| k == key) => None,
-                None => candidates
-                    .iter()
-                    .find_map(|c| props.keys().find(|k| k.eq_ignore_ascii_case(c))),
-            };
-            if let Some(text) = field.and_then(|f| value_text(&props[f])) {
-                pairs.retain(|(k, _)| k != key);
-                pairs.push((key.to_string(), text));
-            }
-        }
-        let part = pairs.iter().any(|(k, _)| k == "building:part")
-            && !pairs.iter().any(|(k, _)| k == "building");
-        let tags = BuildingTags::from_pairs(pairs.iter().map(|(k, v)| (k.as_str(), v.as_str())));
-        let kind = if part {
-            FootprintKind::Part
-        } else {
-            FootprintKind::Building
-        };
-        (tags, kind)
-    }
-
-    fn skip(&mut self, id: SourceId, why: String) {
-        self.report.skipped += 1;
-        self.report.add(Some(id), Outcome::Skipped, why);
-    }
-
-    fn finish(self, source_crs: Option<crate::crs::Crs>) -> Result<ReadResult, InputError> {
-        let mut footprints = self.footprints;
-        if self.duplicate {
-            for (f, &p) in footprints.iter_mut().zip(&self.positions) {
-                f.id = SourceId::Feature(p);
-            }
-            self.report.add(
-                None,
-                Outcome::Note,
-                format!(
-                    "{}: the features' ids are not unique; every feature is named by its position (feature/0 is the first)",
-                    self.path.display()
-                ),
-            );
-        }
-        if self.role_fixes > 0 {
-            self.report.add(
-                None,
-                Outcome::Note,
-                format!(
-                    "{}: {} ring(s) had an orientation that disagreed with how they nest (RFC 7946: outer rings counter-clockwise, holes clockwise); nesting was used",
-                    self.path.display(),
-                    self.role_fixes
-                ),
-            );
-        }
-        if let Some(f) = self.opts.height_field.as_deref() {
-            self.report.add(
-                None,
-                Outcome::Note,
-                format!("{}: height taken from property {f}", self.path.display()),
-            );
-        }
-        Ok(ReadResult {
-            footprints,
-            source_crs,
-            streets: Default::default(),
-            boundaries: Vec::new(),
-        })
-    }
+/// Hands one feature to the sink.
+fn feature(sink: &mut Sink, f: RawFeature) {
+    let props = f.properties.unwrap_or_default();
+    let mut rings = Vec::new();
+    let rings = collect_rings(f.geometry.as_ref(), &mut rings, 0).map(|()| rings);
+    sink.add(feature_id(f.id.as_ref(), &props), rings, &props);
 }
 
 /// The id a feature keeps: an OSM `way/n` or `relation/n` (the feature's `id`, else its `@id`
@@ -337,17 +135,6 @@ fn feature_id(id: Option<&Value>, props: &Map<String, Value>) -> Option<SourceId
         return Some(s);
     }
     id.and_then(Value::as_u64).map(SourceId::Feature)
-}
-
-/// A property as tag text: strings trimmed (empty ones dropped), numbers and booleans as
-/// written; arrays, objects and nulls are not tags.
-fn value_text(v: &Value) -> Option<String> {
-    match v {
-        Value::String(s) if !s.trim().is_empty() => Some(s.trim().to_string()),
-        Value::Number(n) => Some(n.to_string()),
-        Value::Bool(b) => Some(if *b { "yes" } else { "no" }.to_string()),
-        _ => None,
-    }
 }
 
 /// The rings of a geometry with their declared roles (the first ring of a polygon is its
@@ -503,7 +290,7 @@ impl<'de> Visitor<'de> for Features<'_, '_> {
     }
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
         while let Some(f) = seq.next_element::<RawFeature>()? {
-            self.sink.feature(f);
+            feature(self.sink, f);
         }
         Ok(())
     }
@@ -512,6 +299,7 @@ impl<'de> Visitor<'de> for Features<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::FootprintKind;
 
     fn read(text: &str, opts: &ShpOptions) -> (Result<ReadResult, InputError>, Report) {
         let dir = tempfile_dir();

@@ -1,11 +1,13 @@
-//! Input readers: OSM PBF, ESRI shapefiles and GeoJSON, turned into [`Footprint`]s in the source
+//! Input readers: OSM PBF, ESRI shapefiles, GeoJSON and GeoPackage, turned into [`Footprint`]s in the source
 //! CRS.
 //!
 //! Readers know nothing of the knowledge base, the grammar or the outputs. Every record they
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
 
 pub mod dem;
+pub(crate) mod features;
 pub mod geojson;
+pub mod gpkg;
 pub mod osm;
 pub(crate) mod rings;
 pub mod shp;
