@@ -168,6 +168,63 @@ impl Programme {
     }
 }
 
+/// What a building or part is when it is not a house (issue 45): a structure gets none of a
+/// house's programme. Decided once in `prepare` (`prepare::structure`) from the tags and the
+/// footprint's size, carried on the parsed tags (`input::BuildingTags::structure`) and on
+/// every derived [`Part::structure`]; `derive` honours it: no window, door or balcony (a tower
+/// keeps only the openings of its top storey), no interior at LOD4, and a roof is drawn as its
+/// slab with nothing under it. The table of tags is in docs/structures.md.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Structure {
+    /// A monument or memorial: `man_made=obelisk`, `building=monument|memorial|obelisk|statue`,
+    /// or `historic=monument|memorial` on a building that is not a house (see the docs).
+    /// Solid, no openings.
+    Monument,
+    /// A column or pillar: `man_made=column`, `building=column|pillar`,
+    /// `building:part=column|pillar`. Solid, no openings.
+    Column,
+    /// A tower: `man_made=tower|lighthouse`, a `tower:type`, `building=tower|bell_tower|
+    /// campanile|minaret|lighthouse`, or a tower part of a place of worship. Openings only on
+    /// its top storey (a belfry, a lantern, a platform), no door, no rooms.
+    Tower,
+    /// A roof with nothing under it: `building=roof|carport|canopy`,
+    /// `building:part=roof|canopy`. Drawn as its roof slab; no walls of a storey, no openings.
+    Roof,
+    /// A bridge: `building=bridge`, `man_made=bridge`, `building:part=bridge`. Solid, no
+    /// openings.
+    Bridge,
+    /// A building or part too small for a room (under [`SMALL_AREA`] square metres, or
+    /// narrower than [`SMALL_WIDTH`]). Solid, no openings.
+    Small,
+}
+
+/// A footprint under this area (square metres) holds no room: a [`Structure::Small`].
+pub const SMALL_AREA: f64 = 4.0;
+/// A footprint narrower than this (metres, its extent across its principal axis) holds no
+/// room: a [`Structure::Small`].
+pub const SMALL_WIDTH: f64 = 1.5;
+
+impl Structure {
+    /// The class as the writers and the report name it: `monument`, `column`, `tower`,
+    /// `roof`, `bridge`, `small`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Structure::Monument => "monument",
+            Structure::Column => "column",
+            Structure::Tower => "tower",
+            Structure::Roof => "roof",
+            Structure::Bridge => "bridge",
+            Structure::Small => "small",
+        }
+    }
+
+    /// Whether it keeps any opening: a tower keeps those of its top storey; every other
+    /// structure none.
+    pub fn keeps_top_openings(self) -> bool {
+        self == Structure::Tower
+    }
+}
+
 /// Level of detail of a run (seed 003 L975-977).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Lod {
@@ -621,6 +678,9 @@ pub struct Part {
     /// What the part is of its source: the footprint itself, or what an outline's parts leave
     /// uncovered of it.
     pub role: PartRole,
+    /// The structure the part is (issue 45), `None` for a part of a house: what its
+    /// facades and interior honour, and what the writers record (`structure`).
+    pub structure: Option<Structure>,
 }
 
 /// What a part is of its source footprint ([`Part::source`]).

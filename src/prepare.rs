@@ -14,6 +14,7 @@ pub mod ground;
 pub mod infer;
 pub(crate) mod morph;
 mod parts;
+pub(crate) mod structure;
 mod tiles;
 
 use clean::{clean_polygons, clean_polygons_quietly, Cleaned};
@@ -384,6 +385,8 @@ pub fn prepare(
     }
     let mut lots = group_parts(outlines, pieces, report);
     lots.par_iter_mut().for_each(straighten_lot);
+    // What is not a house, once: its tags carry the class (issue 45).
+    structure::classify(&mut lots);
     Site {
         crs,
         origin,

@@ -30,7 +30,7 @@ use crate::derive::facade::{self, Facades, FoundBalcony, FoundOpening, JAMB_SNAP
 use crate::derive::surroundings::{party_spans, share, Neighbour, Span, Surroundings, PARTY_REACH};
 use crate::kb::{compile, defaults, Style, WindowHeight};
 use crate::model::{
-    FacadeCounts, OpeningKind, Part, SourceId, LINTEL, OPENING_MARGIN, RAILING_HEIGHT,
+    FacadeCounts, OpeningKind, Part, SourceId, Structure, LINTEL, OPENING_MARGIN, RAILING_HEIGHT,
 };
 
 pub(crate) mod slope;
@@ -60,6 +60,17 @@ pub(crate) struct Draft<'a> {
     pub facades: &'a mut Facades,
     /// Its style: window and door sizes.
     pub style: &'a Style,
+    /// The structure the part is (issue 45): no openings, a tower's on its top storey only,
+    /// never the entrance ([`structure_gate`]).
+    pub structure: Option<Structure>,
+}
+
+impl Draft<'_> {
+    /// Whether the building's entrance may be on this part: a part on the ground that is no
+    /// structure.
+    pub(crate) fn takes_entrance(&self) -> bool {
+        self.part.base_z <= GROUND && self.structure.is_none()
+    }
 }
 
 /// What [`arrange`] decided, besides the changes to the drafts' openings.
@@ -136,6 +147,7 @@ pub(crate) fn arrange(
     for d in drafts.iter_mut() {
         out.counts.run_windows += windows_on_runs(d, windows_from_style);
     }
+    structure_gate(drafts);
     for (p, d) in drafts.iter_mut().enumerate() {
         for (k, spans) in out.spans[p].iter().enumerate() {
             let ops = &mut d.facades.openings[k];
@@ -168,6 +180,39 @@ pub(crate) fn arrange(
         }
     }
     out
+}
+
+/// What a structure keeps of the openings its rules found (issue 45, `model::Structure`):
+/// nothing, or for a tower the windows of its top storey, and only when that storey is in the
+/// upper half of the building (a belfry, a lantern, a viewing platform; a tower's shaft
+/// under its platform keeps none lower down). No balcony, no door.
+fn structure_gate(drafts: &mut [Draft<'_>]) {
+    let top = drafts
+        .iter()
+        .map(|d| d.part.top_z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    for d in drafts.iter_mut() {
+        let Some(class) = d.structure else {
+            continue;
+        };
+        let storeys = facade::storeys(d.part, d.facades);
+        let keep = storeys
+            .last()
+            .copied()
+            .filter(|&(lo, _)| class.keeps_top_openings() && lo >= 0.5 * top);
+        for ops in &mut d.facades.openings {
+            ops.retain(|o| {
+                o.kind == OpeningKind::Window
+                    && keep.is_some_and(|(lo, hi)| {
+                        let mid = 0.5 * (o.z0 + o.z1);
+                        mid >= lo && mid < hi
+                    })
+            });
+        }
+        for b in &mut d.facades.balconies {
+            b.clear();
+        }
+    }
 }
 
 /// How squarely a wall of outward normal `normal` faces the street side `front`: 0 within 5°
@@ -226,7 +271,7 @@ fn in_storey(storeys: &[(f64, f64)], o: &FoundOpening) -> Option<(f64, f64)> {
 fn programmed_entrances(drafts: &[Draft<'_>], out: &mut Arrangement) -> bool {
     let mut first = None;
     for (p, d) in drafts.iter().enumerate() {
-        if !d.facades.programmed || d.part.base_z > GROUND {
+        if !d.facades.programmed || !d.takes_entrance() {
             continue;
         }
         let storeys = facade::storeys(d.part, d.facades);
@@ -545,7 +590,7 @@ fn entrance(
     let mut grounded = false;
     let mut lowest_storey = f64::INFINITY;
     for (p, d) in drafts.iter().enumerate() {
-        if d.part.base_z > GROUND {
+        if !d.takes_entrance() {
             continue;
         }
         grounded = true;

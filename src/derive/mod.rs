@@ -320,6 +320,7 @@ impl Generator {
                     let key = format!("p{}", drafts.len());
                     let mut part = massing::build_part(key, &mass, &roof, lod);
                     part.source = Some(piece.id);
+                    part.structure = tags.structure;
                     if piece.id == lot.id {
                         part.role = rest_role;
                     }
@@ -336,10 +337,12 @@ impl Generator {
             let mut index = Vec::new();
             for (i, (part, facades, s)) in drafts.iter_mut().enumerate() {
                 if let Some(f) = facades.as_mut() {
+                    let structure = part.structure;
                     views.push(frontage::Draft {
                         part,
                         facades: f,
                         style: &styles[*s].0,
+                        structure,
                     });
                     index.push(i);
                 }
@@ -395,7 +398,8 @@ impl Generator {
                     frontage::mark_party_walls(&mut part, sp, &mut counts);
                 }
             }
-            if lod >= Lod::Lod4 {
+            // A structure has no rooms (issue 45).
+            if lod >= Lod::Lod4 && part.structure.is_none() {
                 // The entrance's wall is the plan's front; other parts face the street.
                 let front = match entrance {
                     Some((j, n)) if j == i => Some(n),
@@ -417,6 +421,9 @@ impl Generator {
                 "the rules produced no building mass ({}: no rule extrudes the lot)",
                 files.join(", ")
             ));
+        }
+        if let Some(note) = structure_note(&parts) {
+            notes.push((Outcome::Note, note));
         }
         let base_z = parts.iter().map(|p| p.base_z).fold(f64::INFINITY, f64::min);
         let top = parts
@@ -876,6 +883,31 @@ fn floating_note(styled: &[(&LotPiece, BuildingTags, Style, Rng)]) -> Option<Str
             "every part starts above the ground (the lowest at {lowest} m, from min_height or building:min_level): the building is drawn floating, with nothing under it"
         )
     })
+}
+
+/// The report's note on a building with structures (issue 45): how many parts of each class,
+/// drawn without a house's openings and rooms. `None` when no part is a structure.
+fn structure_note(parts: &[Part]) -> Option<String> {
+    let mut counts: Vec<(crate::model::Structure, usize)> = Vec::new();
+    for class in parts.iter().filter_map(|p| p.structure) {
+        match counts.iter_mut().find(|(c, _)| *c == class) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((class, 1)),
+        }
+    }
+    if counts.is_empty() {
+        return None;
+    }
+    let list: Vec<String> = counts
+        .iter()
+        .map(|(c, n)| format!("{} {n}", c.name()))
+        .collect();
+    Some(format!(
+        "structure: {} of {} part(s) ({}): no windows, doors, balconies or rooms (a tower's top storey keeps its windows)",
+        counts.iter().map(|(_, n)| n).sum::<usize>(),
+        parts.len(),
+        list.join(", ")
+    ))
 }
 
 /// Part tags take precedence; a part without colours takes its outline's.

@@ -1029,6 +1029,7 @@ pub(crate) mod samples {
             interior: Vec::new(),
             source: None,
             role: PartRole::Own,
+            structure: None,
         }
     }
 

@@ -5,7 +5,7 @@
 //! [`BuildingTags::ignored`] with the reason, so the run report can show it.
 
 use crate::color::Color;
-use crate::model::{Provenance, RoofShape, ValueSource};
+use crate::model::{Provenance, RoofShape, Structure, ValueSource};
 
 /// Lengths above this (metres) are rejected as absurd: the tallest building stands at 828 m.
 pub(crate) const MAX_LENGTH_M: f64 = 1000.0;
@@ -76,6 +76,18 @@ pub struct BuildingTags {
     /// The footprint's form among its neighbours (attached, density), set by `prepare` when
     /// the knowledge base's appearances have conditions on it; `None` otherwise.
     pub form: Option<crate::model::Form>,
+    /// `man_made=*`, trimmed and lower-cased (`column`, `obelisk`, `tower`, ...): read for
+    /// the structure class.
+    pub man_made: Option<String>,
+    /// `historic=*`, trimmed and lower-cased (`monument`, `memorial`, ...): read for the
+    /// structure class.
+    pub historic: Option<String>,
+    /// `tower:type=*`, trimmed and lower-cased (`bell_tower`, `observation`, ...): read for
+    /// the structure class.
+    pub tower_type: Option<String>,
+    /// What the footprint is when it is not a house (issue 45), set by `prepare` from the
+    /// tags above and the footprint's size (`prepare::structure`); `None` as read.
+    pub structure: Option<Structure>,
 }
 
 /// Parsed tags shared by every footprint that has the same ones: most buildings of a region
@@ -236,12 +248,14 @@ impl BuildingTags {
         }
     }
 
-    /// `building=roof`, or `building:part=roof` (a roof with no walls under it: a canopy, a
-    /// roof on pillars). A part's own `building:part` value decides over `building`.
+    /// `building=roof|carport|canopy`, or `building:part=roof|canopy` (a roof with no walls
+    /// under it: a canopy, a carport, a roof on pillars). A part's own `building:part` value
+    /// decides over `building`.
     pub fn is_roof(&self) -> bool {
+        let roof = |v: &str| matches!(v, "roof" | "carport" | "canopy");
         match &self.building_part {
-            Some(p) => p == "roof",
-            None => self.building.as_deref() == Some("roof"),
+            Some(p) => roof(p),
+            None => self.building.as_deref().is_some_and(roof),
         }
     }
 
@@ -271,6 +285,10 @@ impl BuildingTags {
             ignored,
             provenance,
             form,
+            man_made,
+            historic,
+            tower_type,
+            structure,
         } = self;
         let f = |x: &Option<f64>| x.map(f64::to_bits);
         let p = provenance.map(|p| {
@@ -296,6 +314,7 @@ impl BuildingTags {
             ],
             [c(colour), c(roof_colour)],
             (p, form),
+            (man_made, historic, tower_type, structure),
         )
     }
 
@@ -401,6 +420,18 @@ impl BuildingTags {
                     t.roof_material = Some(first_value(v).to_ascii_lowercase());
                     Ok(())
                 }
+                "man_made" => {
+                    t.man_made = Some(first_value(v).to_ascii_lowercase());
+                    Ok(())
+                }
+                "historic" => {
+                    t.historic = Some(first_value(v).to_ascii_lowercase());
+                    Ok(())
+                }
+                "tower:type" => {
+                    t.tower_type = Some(first_value(v).to_ascii_lowercase());
+                    Ok(())
+                }
                 _ => Ok(()),
             };
             if let Err(reason) = res {
@@ -448,6 +479,9 @@ pub(crate) fn is_known_key(key: &str) -> bool {
             | "roof:color"
             | "building:material"
             | "roof:material"
+            | "man_made"
+            | "historic"
+            | "tower:type"
     )
 }
 

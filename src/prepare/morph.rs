@@ -203,7 +203,7 @@ fn ring_edges(r: &[DVec2]) -> impl Iterator<Item = (DVec2, DVec2)> + '_ {
 }
 
 /// Extents along the principal axes of the points (short, long).
-fn extents(pts: &[DVec2]) -> (f64, f64) {
+pub(crate) fn extents(pts: &[DVec2]) -> (f64, f64) {
     if pts.len() < 2 {
         return (0.0, 0.0);
     }

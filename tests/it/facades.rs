@@ -1,8 +1,9 @@
 //! Facades a planner would sign (issue 20), through the whole generator on both samples:
 //! no window, door or balcony opens into another footprint below its top; one main entrance per
-//! building standing on the ground, on its street side (within 25°), at the ground, of a door's
-//! size (0.8-2.5 by 2.0-2.6 m, balcony doors too); no door
-//! in mid-air; round and many-edged towers have windows on every storey.
+//! building standing on the ground (on a part that is no structure, issue 45), on its street
+//! side (within 25°), at the ground, of a door's size (0.8-2.5 by 2.0-2.6 m, balcony doors
+//! too); no door in mid-air; round and many-edged towers (no structure) have windows on every
+//! storey.
 //!
 //! The neighbours are computed here from the buildings themselves (each lot near the district
 //! derived at LOD2 through the public `generate`, its parts' footprints and height ranges), and
@@ -204,7 +205,11 @@ fn check(name: &str, area: &Area) -> String {
                 ));
             }
         }
-        let on_ground = b.parts.iter().any(|p| p.base_z <= 0.1);
+        // A structure takes no entrance (issue 45): a building of structures only has none.
+        let on_ground = b
+            .parts
+            .iter()
+            .any(|p| p.base_z <= 0.1 && p.structure.is_none());
         if let (true, Some(front)) = (on_ground, lot.front) {
             fronted += 1;
             if main_doors.len() != 1 {
@@ -230,7 +235,8 @@ fn check(name: &str, area: &Area) -> String {
         for part in &b.parts {
             // A tower has storeys a window fits in (not a ring of canopy 0.5 m deep).
             let storey = (part.eave_z - part.base_z) / part.levels.len().max(1) as f64;
-            if !many_edged(&part.footprint.outer) || storey < 2.0 {
+            // A structure's tower keeps its top storey's windows only (issue 45).
+            if !many_edged(&part.footprint.outer) || storey < 2.0 || part.structure.is_some() {
                 continue;
             }
             towers += 1;

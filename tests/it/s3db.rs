@@ -20,6 +20,8 @@ use citygen::model::{Building, Lod, Part, RoofShape, SourceId};
 use citygen::report::Report;
 use citygen::testkit::pbf_write::PbfWriter;
 
+mod structures;
+
 const KB: &str = "knowledge_base/kb.xml";
 const LON0: f64 = 7.4200;
 const LAT0: f64 = 43.7300;

@@ -21,7 +21,7 @@
 
 use glam::DVec2;
 
-use super::{longest_free, on_balcony, tier, Arrangement, Draft, GROUND};
+use super::{longest_free, on_balcony, tier, Arrangement, Draft};
 use super::{DOOR_MIN_HEIGHT, DOOR_MIN_WIDTH};
 use crate::derive::facade::{self, FoundOpening, JAMB_SNAP};
 use crate::model::{ElevationGrid, OpeningKind, LINTEL, OPENING_MARGIN};
@@ -222,7 +222,7 @@ pub(crate) fn entrance(
     let mut best: Option<Place> = None;
     let mut grounded = false;
     for (p, d) in drafts.iter().enumerate() {
-        if d.part.base_z > GROUND {
+        if !d.takes_entrance() {
             continue;
         }
         grounded = true;

@@ -182,6 +182,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         interior: Vec::new(),
         source: None,
         role: PartRole::Own,
+        structure: None,
     }
 }
 

@@ -34,6 +34,9 @@ impl Renderer<'_> {
             if let Some(source) = part.traced_source(b.id) {
                 self.string_attribute("partSourceId", &source.to_string());
             }
+            if let Some(class) = part.structure {
+                self.string_attribute("structure", class.name());
+            }
         }
         self.appearance(&id, b, &parts);
         self.building_attributes(b.roof_shape, b.measured_height, b.storeys_above_ground);
@@ -50,6 +53,9 @@ impl Renderer<'_> {
                     }
                     if let Some(role) = part.role.name() {
                         self.string_attribute("sourceRole", role);
+                    }
+                    if let Some(class) = part.structure {
+                        self.string_attribute("structure", class.name());
                     }
                     // Its top above the building's ground, as the building's own.
                     self.building_attributes(

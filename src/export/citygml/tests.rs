@@ -90,6 +90,7 @@ fn prism(
         interior: Vec::new(),
         source: None,
         role: PartRole::Own,
+        structure: None,
     }
 }
 

@@ -556,6 +556,9 @@ pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
         if let Some(source) = part.traced_source(b.id) {
             f.attr_str(&mut first, "partSourceId", &source.to_string());
         }
+        if let Some(class) = part.structure {
+            f.attr_str(&mut first, "structure", class.name());
+        }
     }
     building_attributes(
         f,
@@ -583,6 +586,9 @@ pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
         }
         if let Some(role) = part.role.name() {
             f.attr_str(&mut first, "sourceRole", role);
+        }
+        if let Some(class) = part.structure {
+            f.attr_str(&mut first, "structure", class.name());
         }
         // Its top above the building's ground, as the building's own.
         building_attributes(

@@ -202,6 +202,9 @@ pub(super) struct PartExtras<'a> {
     /// `outline-rest` on what an outline's parts leave of it ([`crate::model::PartRole`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) role: Option<&'static str>,
+    /// What the part is when it is no house ([`crate::model::Structure`], issue 45).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) structure: Option<&'static str>,
 }
 
 #[derive(Serialize)]

@@ -206,7 +206,11 @@ impl<W: Write + Send> GltfWriter<W> {
                     roof_shape: b.roof_shape.osm_name(),
                     lod: b.lod.number(),
                     provenance: (&b.provenance).into(),
-                    parts: if b.parts.iter().any(|p| p.traced_source(b.id).is_some()) {
+                    parts: if b
+                        .parts
+                        .iter()
+                        .any(|p| p.traced_source(b.id).is_some() || p.structure.is_some())
+                    {
                         b.parts
                             .iter()
                             .map(|p| PartExtras {
@@ -216,6 +220,7 @@ impl<W: Write + Send> GltfWriter<W> {
                                 top: p.top_z,
                                 roof_shape: p.roof_shape.osm_name(),
                                 role: p.role.name(),
+                                structure: p.structure.map(|s| s.name()),
                             })
                             .collect()
                     } else {

@@ -89,6 +89,7 @@ fn part(
         interior: Vec::new(),
         source: None,
         role: PartRole::Own,
+        structure: None,
     }
 }
 

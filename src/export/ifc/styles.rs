@@ -238,6 +238,12 @@ impl Render<'_> {
                     },
                 )?);
             }
+            // What the building is when it is no house (issue 45).
+            if let Some(class) = part.structure {
+                props.push(single(&mut self.w, "Structure", "IFCLABEL", &|t| {
+                    t.string(class.name());
+                })?);
+            }
         }
         let storeys = single(&mut self.w, "NumberOfStoreys", "IFCINTEGER", &|t| {
             t.int(i64::from(b.storeys_above_ground));
@@ -281,7 +287,8 @@ impl Render<'_> {
     /// `height` and `min_height`), `NumberOfStoreys` (`IfcInteger`), `RoofShape` (`IfcLabel`,
     /// OSM `roof:shape`), and where the part is traced ([`crate::model::Part::traced_source`])
     /// its `SourceId` (`IfcIdentifier`) and, on an outline's rest, `SourceRole`
-    /// (`outline-rest`).
+    /// (`outline-rest`); on a structure, its `Structure` (`IfcLabel`,
+    /// [`crate::model::Structure::name`]).
     pub(super) fn part_pset(
         &mut self,
         part: &crate::model::Part,
@@ -308,6 +315,11 @@ impl Render<'_> {
         if let Some(role) = part.role.name() {
             single(&mut self.w, "SourceRole", "IFCLABEL", &|t| {
                 t.string(role);
+            })?;
+        }
+        if let Some(class) = part.structure {
+            single(&mut self.w, "Structure", "IFCLABEL", &|t| {
+                t.string(class.name());
             })?;
         }
         single(&mut self.w, "Height", "IFCLENGTHMEASURE", &|t| {
