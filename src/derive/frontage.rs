@@ -27,7 +27,9 @@
 use glam::DVec2;
 
 use crate::derive::facade::{self, Facades, FoundBalcony, FoundOpening, JAMB_SNAP};
-use crate::derive::surroundings::{party_spans, share, Neighbour, Span, Surroundings, PARTY_REACH};
+use crate::derive::surroundings::{
+    party_spans, share, strip_spans, Neighbour, Span, Surroundings, PARTY_REACH,
+};
 use crate::kb::{compile, defaults, Style, WindowHeight};
 use crate::model::{
     FacadeCounts, OpeningKind, Part, SourceId, LINTEL, OPENING_MARGIN, RAILING_HEIGHT,
@@ -152,6 +154,7 @@ pub(crate) fn arrange(
             out.counts.balconies_on_party_walls += before - bal.len();
         }
     }
+    out.counts.balconies_clipped += clip_balconies(drafts, (owner, ground), &own, around);
     let wanted = doors_to_windows(drafts, &out.spans, &mut out.counts);
     if let Some(s) = slope {
         let buried = slope::drop_buried(drafts, s);
@@ -168,6 +171,70 @@ pub(crate) fn arrange(
         }
     }
     out
+}
+
+/// How far out (metres) a balcony's slab must be free of every footprint: its depth and a
+/// little more.
+const BALCONY_REACH: f64 = facade::BALCONY_DEPTH + 0.05;
+/// The narrowest balcony kept after clipping (metres): room for a balcony door and its margins.
+const BALCONY_MIN_WIDTH: f64 = DOOR_MIN_WIDTH + 2.0 * OPENING_MARGIN;
+
+/// Narrows each balcony of `drafts` (building `owner` on `ground`) to the longest stretch of
+/// it whose slab, [`BALCONY_REACH`] out, meets no footprint over the balcony's height: not a
+/// neighbour's (`around`), not another part's, not its own part's (a re-entrant corner, a
+/// narrow court; `own` holds the building's parts in draft order); one narrower than
+/// [`BALCONY_MIN_WIDTH`] is left out (issue 45). Its door, no longer over a balcony, then
+/// becomes a window ([`doors_to_windows`]). How many were narrowed or left out.
+fn clip_balconies(
+    drafts: &mut [Draft<'_>],
+    (owner, ground): (SourceId, f64),
+    own: &Surroundings,
+    around: &Surroundings,
+) -> usize {
+    let mut clipped = 0;
+    for d in drafts.iter_mut() {
+        let (lo, hi) = d.part.footprint.bounds();
+        let m = DVec2::splat(BALCONY_REACH + 0.1);
+        let others = around.near(owner, lo - m, hi + m);
+        let mine = own.indices_near(lo - m, hi + m);
+        for (k, w) in d.part.walls.iter().enumerate() {
+            let Some(bal) = d.facades.balconies.get_mut(k).filter(|b| !b.is_empty()) else {
+                continue;
+            };
+            let mut s = Vec::new();
+            for &q in &mine {
+                // The part itself too: its own wings in front of the wall.
+                strip_spans(w.start, w.end, own.part(q), BALCONY_REACH, &mut s);
+            }
+            let first = s.len();
+            for n in &others {
+                strip_spans(w.start, w.end, n, BALCONY_REACH, &mut s);
+            }
+            for span in &mut s[first..] {
+                span.z0 -= ground;
+                span.z1 -= ground;
+            }
+            bal.retain_mut(|b| {
+                let blocked: Vec<(f64, f64)> = s
+                    .iter()
+                    .filter(|sp| sp.meets(b.u0, b.u1, b.z0, b.z0 + RAILING_HEIGHT))
+                    .map(|sp| (sp.u0 - OPENING_MARGIN, sp.u1 + OPENING_MARGIN))
+                    .collect();
+                if blocked.is_empty() {
+                    return true;
+                }
+                clipped += 1;
+                match longest_free(b.u0, b.u1, blocked) {
+                    Some((u0, u1)) if u1 - u0 >= BALCONY_MIN_WIDTH => {
+                        (b.u0, b.u1) = (u0, u1);
+                        true
+                    }
+                    _ => false,
+                }
+            });
+        }
+    }
+    clipped
 }
 
 /// How squarely a wall of outward normal `normal` faces the street side `front`: 0 within 5°
