@@ -844,6 +844,10 @@ pub struct FacadeCounts {
     pub openings_on_party_walls: usize,
     /// Balconies there: left out.
     pub balconies_on_party_walls: usize,
+    /// Balconies whose slab would reach into a footprint (a neighbour's, another part's or
+    /// their own part's, issue 45): narrowed to the longest free stretch, or left out.
+    #[serde(default)]
+    pub balconies_clipped: usize,
     /// Main entrances placed (one per building standing on the ground that has room for one).
     pub entrances: usize,
     /// Buildings standing on the ground with no ground-storey wall free for a door of at least
@@ -870,6 +874,7 @@ impl FacadeCounts {
     pub fn add(&mut self, o: &FacadeCounts) {
         self.openings_on_party_walls += o.openings_on_party_walls;
         self.balconies_on_party_walls += o.balconies_on_party_walls;
+        self.balconies_clipped += o.balconies_clipped;
         self.entrances += o.entrances;
         self.without_entrance += o.without_entrance;
         self.doors_off_ground += o.doors_off_ground;

@@ -6,7 +6,7 @@ const TOKEN = document.body.dataset.token;
 const $ = (id) => document.getElementById(id);
 const ATTRS = ["color", "material", "nbfloor", "minFloors", "maxFloors", "minHeight", "maxHeight",
   "floorsize", "rooftype", "roofangle", "roofColor", "doorCol", "openingCol", "windowfcolor",
-  "windowheight", "windowwidth", "doorwidth", "doorheight", "windowstyle", "windowmaterial",
+  "windowheight", "windowwidth", "doorwidth", "doorheight", "minopeningwidth", "windowstyle", "windowmaterial",
   "programme", "infer"];
 const KM_PER_DEG = 111.195;
 

@@ -347,12 +347,16 @@ fn place(
     }
 }
 
-/// Default colours of openings whose terminals set none.
+/// Default colours of openings whose terminals set none, and the narrowest opening drawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct OpeningColors {
     pub window: Color,
     pub frame: Color,
     pub door: Color,
+    /// The narrowest window or door drawn, metres, once fitted to its wall and its jambs on
+    /// the grid (the style's [`crate::kb::Style::min_opening_width`], issue 45): a narrower one
+    /// is left out, never drawn as a slit.
+    pub min_width: f64,
 }
 
 /// Smallest window or door kept (metres, each side).
@@ -361,7 +365,7 @@ pub(crate) const MIN_OPENING: f64 = 0.1;
 /// line ([`along_on_grid`]).
 pub(crate) const JAMB_SNAP: f64 = 0.02;
 /// Default balcony depth (metres).
-const BALCONY_DEPTH: f64 = 1.2;
+pub(crate) const BALCONY_DEPTH: f64 = 1.2;
 
 /// The openings of one edge with the panes of one window joined: a drawn subdivision (the
 /// knowledge base's `<opening>` splits) ends in panes that touch, each its own terminal; cut
@@ -419,7 +423,8 @@ pub fn storeys(part: &Part, facades: &Facades) -> Vec<(f64, f64)> {
 /// Turns a LOD2-style part (one wall per footprint edge, built by [`crate::derive::massing::build_part`])
 /// into LOD3: one wall per storey and edge, with the openings and balconies of `facades` placed
 /// on them and cut out of the wall outlines. Returns how many openings were left out because
-/// they were too small once kept [`OPENING_MARGIN`] inside their wall, or overlapped another.
+/// they were too small once kept [`OPENING_MARGIN`] inside their wall, overlapped another, or
+/// were narrower than [`OpeningColors::min_width`] once their jambs were on the grid.
 pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usize {
     let edges = part.walls.len();
     if edges != facades.openings.len() {
@@ -504,6 +509,10 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                 o.u0 = along_on_grid(full.start, full.end, o.u0, snap);
                 o.u1 = along_on_grid(full.start, full.end, o.u1, -snap);
             }
+            // No slit (issue 45): what is narrower than the minimum once fitted is left out.
+            let before = openings.len();
+            openings.retain(|o| o.width() >= colors.min_width - 1e-9);
+            dropped += before - openings.len();
             outline.holes = openings
                 .iter()
                 .map(|o| {
@@ -797,6 +806,7 @@ mod apply_tests {
             window: style.window_color,
             frame: style.frame_color,
             door: style.door_color,
+            min_width: style.min_opening_width,
         };
         masses_of(&tree, &style)
             .into_iter()

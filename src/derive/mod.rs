@@ -381,6 +381,7 @@ impl Generator {
                     window: style.window_color,
                     frame: style.frame_color,
                     door: style.door_color,
+                    min_width: style.min_opening_width,
                 };
                 let dropped = facade::apply(&mut part, &f, &colors);
                 if dropped > 0 {

@@ -131,6 +131,7 @@ pub fn building(
         window: defaults::WINDOW_COLOR,
         frame: defaults::FRAME_COLOR,
         door: defaults::DOOR_COLOR,
+        min_width: defaults::MIN_OPENING_WIDTH,
     };
     let mut placed_faces = vec![false; d.shapes.len()];
     let mut unplaced: Vec<String> = Vec::new();

@@ -155,6 +155,13 @@ impl Span {
 /// and those between where no edge crosses and the strip lies inside `n`. Appended to `out`,
 /// merged where they touch.
 pub(crate) fn party_spans(a: DVec2, b: DVec2, n: &Neighbour, out: &mut Vec<Span>) {
+    strip_spans(a, b, n, PARTY_REACH, out);
+}
+
+/// The stretches of the wall from `a` to `b` where some point up to `reach` outside it lies in
+/// `n`'s footprint, as [`party_spans`] (which is this at [`PARTY_REACH`]); what a balcony
+/// `reach` deep would reach into (issue 45).
+pub(crate) fn strip_spans(a: DVec2, b: DVec2, n: &Neighbour, reach: f64, out: &mut Vec<Span>) {
     let len = a.distance(b);
     if len.is_nan() || len <= 1e-9 || n.z1 <= n.z0 {
         return;
@@ -166,7 +173,7 @@ pub(crate) fn party_spans(a: DVec2, b: DVec2, n: &Neighbour, out: &mut Vec<Span>
     for r in &n.rings {
         for i in 0..r.len() {
             let (p, q) = (ut(r[i]), ut(r[(i + 1) % r.len()]));
-            if let Some((s, e)) = clip_to_strip(p, q, len) {
+            if let Some((s, e)) = clip_to_strip(p, q, len, reach) {
                 hits.push((s.min(e), s.max(e)));
             }
         }
@@ -176,7 +183,7 @@ pub(crate) fn party_spans(a: DVec2, b: DVec2, n: &Neighbour, out: &mut Vec<Span>
     cuts.extend(hits.iter().flat_map(|&(s, e)| [s, e]));
     cuts.sort_by(f64::total_cmp);
     cuts.dedup_by(|x, y| (*x - *y).abs() < 1e-9);
-    let mid_t = 0.5 * (PARTY_NEAR + PARTY_REACH);
+    let mid_t = 0.5 * (PARTY_NEAR + reach);
     for w in cuts.windows(2) {
         let m = 0.5 * (w[0] + w[1]);
         if hits.iter().any(|&(s, e)| s <= m && m <= e) {
@@ -212,15 +219,15 @@ pub(crate) fn party_spans(a: DVec2, b: DVec2, n: &Neighbour, out: &mut Vec<Span>
 }
 
 /// The part of segment `p`-`q` (wall coordinates: u along, t out) inside the strip
-/// `0..=len` by `PARTY_NEAR..=PARTY_REACH`, as its two ends' u (Liang-Barsky).
-fn clip_to_strip(p: DVec2, q: DVec2, len: f64) -> Option<(f64, f64)> {
+/// `0..=len` by `PARTY_NEAR..=reach`, as its two ends' u (Liang-Barsky).
+fn clip_to_strip(p: DVec2, q: DVec2, len: f64, reach: f64) -> Option<(f64, f64)> {
     let d = q - p;
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     for (den, num) in [
         (-d.x, p.x),
         (d.x, len - p.x),
         (-d.y, p.y - PARTY_NEAR),
-        (d.y, PARTY_REACH - p.y),
+        (d.y, reach - p.y),
     ] {
         if den == 0.0 {
             if num < 0.0 {

@@ -181,27 +181,100 @@ pub struct AdminBoundary {
     pub polygons: Vec<SourcePolygon>,
 }
 
+/// What kind of way a street is, for the front door (issue 45): a building faces a road
+/// rather than the service lane or footpath behind it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum StreetKind {
+    /// A road with frontage (trunk down to residential, living streets, pedestrian streets).
+    #[default]
+    Road,
+    /// A `highway=service` other than an alley or driveway (an access road in a compound).
+    Service,
+    /// A footway or steps (a sidewalk in front, a path or a stepped lane).
+    Foot,
+    /// `service=alley` or `service=driveway`: a back lane or a drive, what a row of houses
+    /// backs onto.
+    Lane,
+}
+
 /// Street centre lines, stored flat to stay small on a whole country: every vertex of every
 /// polyline in one vector, and where each polyline ends. Polyline `i` is
 /// `points[ends[i - 1]..ends[i]]` (from 0 for the first); each has at least 2 vertices.
+/// Each polyline has its [`StreetKind`] and its name, if any (issue 45: a building's
+/// `addr:street` names the street its door faces), and the buildings' `addr:street`s are
+/// kept beside them ([`Streets::address`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Streets {
     /// All vertices, polyline after polyline, in source coordinates (lon, lat for OSM).
     pub points: Vec<(f64, f64)>,
     /// The exclusive end of each polyline in `points`, ascending.
     pub ends: Vec<u32>,
+    /// The kind of each polyline.
+    pub kinds: Vec<StreetKind>,
+    /// The name of each polyline: an index into `names`, [`Streets::NO_NAME`] for none.
+    pub line_names: Vec<u32>,
+    /// The distinct street names (of polylines and addresses), each once.
+    pub names: Vec<String>,
+    /// The buildings' `addr:street` (an index into `names`), sorted by id.
+    pub addresses: Vec<(SourceId, u32)>,
 }
 
 impl Streets {
-    /// Appends one polyline; ignored when it has fewer than 2 vertices (no segment), or when
-    /// the vertex count no longer fits the `u32` index.
+    /// The name index of a polyline without a name.
+    pub const NO_NAME: u32 = u32::MAX;
+
+    /// Appends one polyline, a [`StreetKind::Road`] without a name; ignored when it has fewer
+    /// than 2 vertices (no segment), or when the vertex count no longer fits the `u32` index.
     pub fn push(&mut self, line: &[(f64, f64)]) {
+        self.push_street(line, StreetKind::Road, Self::NO_NAME);
+    }
+
+    /// Appends one polyline of `kind` named `name` (an index from [`Streets::name_index`], or
+    /// [`Streets::NO_NAME`]); ignored as [`Streets::push`].
+    pub fn push_street(&mut self, line: &[(f64, f64)], kind: StreetKind, name: u32) {
         let end = self.points.len() + line.len();
         if line.len() < 2 || u32::try_from(end).is_err() {
             return;
         }
         self.points.extend_from_slice(line);
         self.ends.push(end as u32);
+        self.kinds.push(kind);
+        self.line_names.push(name);
+    }
+
+    /// The index of `name` in [`Streets::names`], added when new; `index` maps the names
+    /// already there to theirs (the caller keeps it while it adds).
+    pub fn name_index(
+        &mut self,
+        name: &str,
+        index: &mut std::collections::HashMap<String, u32>,
+    ) -> u32 {
+        if let Some(&i) = index.get(name) {
+            return i;
+        }
+        let i = u32::try_from(self.names.len()).unwrap_or(Self::NO_NAME);
+        if i != Self::NO_NAME {
+            self.names.push(name.to_string());
+            index.insert(name.to_string(), i);
+        }
+        i
+    }
+
+    /// The `addr:street` name index of building `id`, if it has one.
+    pub fn address(&self, id: SourceId) -> Option<u32> {
+        self.addresses
+            .binary_search_by(|(a, _)| a.cmp(&id))
+            .ok()
+            .map(|i| self.addresses[i].1)
+    }
+
+    /// The kind and name index of each polyline, in the order of [`Streets::lines`] (a
+    /// polyline pushed before the kinds were kept is a nameless road).
+    pub fn line_info(&self, i: usize) -> (StreetKind, u32) {
+        (
+            self.kinds.get(i).copied().unwrap_or_default(),
+            self.line_names.get(i).copied().unwrap_or(Self::NO_NAME),
+        )
     }
 
     /// The polylines, in the order they were pushed.

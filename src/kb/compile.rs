@@ -434,6 +434,7 @@ mod tests {
             window_width: 1.2,
             door_width: 1.0,
             door_height: 2.2,
+            min_opening_width: 0.4,
             balconies: 0.0,
             programme: None,
             window_height: WindowHeight::Tall,

@@ -87,6 +87,8 @@ pub mod defaults {
     pub(crate) const DOOR_WIDTH_RANGE: (f64, f64) = (0.8, 2.5);
     /// Main entrance door height without a `doorheight` (metres).
     pub(crate) const DOOR_HEIGHT: f64 = 2.2;
+    /// The narrowest window or door drawn without a `minopeningwidth` (metres, issue 45).
+    pub(crate) const MIN_OPENING_WIDTH: f64 = 0.4;
     /// The heights an entrance door is drawn at.
     pub(crate) const DOOR_HEIGHT_RANGE: (f64, f64) = (2.0, 2.6);
 }

@@ -50,7 +50,7 @@ enum Ty {
     Terms,
 }
 
-const DESCRIPTORS: [(&str, Ty); 21] = [
+const DESCRIPTORS: [(&str, Ty); 22] = [
     ("color", Ty::Color),
     ("material", Ty::Token),
     ("nbfloor", Ty::Count),
@@ -64,6 +64,7 @@ const DESCRIPTORS: [(&str, Ty); 21] = [
     ("windowwidth", Ty::Pos),
     ("doorwidth", Ty::Pos),
     ("doorheight", Ty::Pos),
+    ("minopeningwidth", Ty::Pos),
     ("windowstyle", Ty::Token),
     ("windowmaterial", Ty::Token),
     ("minFloors", Ty::Count),

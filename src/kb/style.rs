@@ -64,6 +64,9 @@ pub struct Style {
     /// Main entrance door height, metres: the KB's `doorheight` within
     /// `defaults::DOOR_HEIGHT_RANGE`, else `defaults::DOOR_HEIGHT`.
     pub door_height: f64,
+    /// The narrowest window or door drawn, metres (issue 45): the KB's `minopeningwidth`, else
+    /// `defaults::MIN_OPENING_WIDTH`.
+    pub min_opening_width: f64,
     /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
     pub balconies: f64,
     /// LOD4 programme for buildings whose `building=*` names no type (value `programme`).
@@ -305,6 +308,10 @@ impl KnowledgeBase {
                 defaults::DOOR_HEIGHT_RANGE,
                 defaults::DOOR_HEIGHT,
             ),
+            min_opening_width: v
+                .min_opening_width
+                .filter(|w| w.is_finite() && *w > 0.0)
+                .unwrap_or(defaults::MIN_OPENING_WIDTH),
             balconies: v
                 .balconies
                 .filter(|b| b.is_finite())

@@ -717,7 +717,7 @@ fn provenance_text(p: &crate::model::Provenance) -> String {
 }
 
 /// KB attribute names in the order [`value_fields`] lists them.
-const ATTRIBUTE_ORDER: [&str; 22] = [
+const ATTRIBUTE_ORDER: [&str; 23] = [
     "color",
     "material",
     "nbfloor",
@@ -736,6 +736,7 @@ const ATTRIBUTE_ORDER: [&str; 22] = [
     "windowwidth",
     "doorwidth",
     "doorheight",
+    "minopeningwidth",
     "windowstyle",
     "windowmaterial",
     "maxrotation",
@@ -747,7 +748,7 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
     let c = |x: Option<crate::color::Color>| x.map(color_word);
     let n = |x: Option<f64>| x.map(|x| format!("{x}"));
     let u = |x: Option<u32>| x.map(|x| x.to_string());
-    let fields: [(&'static str, Option<String>); 22] = [
+    let fields: [(&'static str, Option<String>); 23] = [
         ("color", c(v.wall_color)),
         ("material", v.material.clone()),
         ("nbfloor", u(v.storeys)),
@@ -769,6 +770,7 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
         ("windowwidth", n(v.window_width)),
         ("doorwidth", n(v.door_width)),
         ("doorheight", n(v.door_height)),
+        ("minopeningwidth", n(v.min_opening_width)),
         ("windowstyle", v.window_style.clone()),
         ("windowmaterial", v.window_material.clone()),
         ("maxrotation", n(v.max_rotation)),

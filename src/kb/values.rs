@@ -141,6 +141,9 @@ pub struct Values {
     /// `doorheight`: height of the main entrance door in metres (positive; drawn within 2.0 to
     /// 2.6 m, and always under its storey's lintel).
     pub door_height: Option<f64>,
+    /// `minopeningwidth`: the narrowest window or door drawn, metres (positive; default 0.4,
+    /// issue 45): a narrower one is left out, never drawn as a slit.
+    pub min_opening_width: Option<f64>,
     /// `windowstyle`, lower-cased: `framed` gives the windows a frame; any other word (the thesis
     /// uses `simple`) none.
     pub window_style: Option<String>,
@@ -188,6 +191,7 @@ impl Values {
             window_width,
             door_width,
             door_height,
+            min_opening_width,
             window_style,
             window_material,
             max_rotation,

@@ -225,6 +225,7 @@ impl Writer {
             ("windowwidth", v.window_width),
             ("doorwidth", v.door_width),
             ("doorheight", v.door_height),
+            ("minopeningwidth", v.min_opening_width),
         ] {
             if let Some(x) = x {
                 a.push((k, num(x)));

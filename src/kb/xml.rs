@@ -750,6 +750,7 @@ impl ZoneReader {
                 "windowwidth" => v.window_width = self.positive(key, raw, line),
                 "doorwidth" => v.door_width = self.positive(key, raw, line),
                 "doorheight" => v.door_height = self.positive(key, raw, line),
+                "minopeningwidth" => v.min_opening_width = self.positive(key, raw, line),
                 "windowstyle" => {
                     v.window_style = self.clean(key, raw, line).map(|s| s.to_ascii_lowercase())
                 }

@@ -8,7 +8,7 @@ use rstar::{RTree, RTreeObject, AABB};
 use super::{Site, MERGE_TOLERANCE};
 use crate::crs::Crs;
 use crate::geometry::Polygon;
-use crate::input::Streets;
+use crate::input::{StreetKind, Streets};
 
 /// A street farther than this (metres) from every facing outline edge does not make a front:
 /// beyond it a building stands in a park, a compound or behind other buildings, and the nearest
@@ -26,8 +26,34 @@ const FRONT_TIE: f64 = 1.0;
 /// within 60° of its outward normal.
 const FRONT_COS_CONE: f64 = 0.5;
 
-/// A street segment in the front index, local metres.
-pub(super) struct StreetSegment(pub(super) [f64; 2], pub(super) [f64; 2]);
+/// How much farther (metres) a street of each kind counts than a road when the front is
+/// chosen (issue 45): a building faces its road rather than the back lane, drive or footpath
+/// behind it, unless the road is that much farther away. Sidewalks run in front of the facades
+/// anyway, and a house in an old town that opens only onto stepped lanes still faces them.
+fn kind_penalty(kind: StreetKind) -> f64 {
+    match kind {
+        StreetKind::Road => 0.0,
+        StreetKind::Service | StreetKind::Foot => 4.0,
+        StreetKind::Lane => 20.0,
+    }
+}
+
+/// A street segment in the front index, local metres, with its kind and name (an index into
+/// [`Streets::names`], [`Streets::NO_NAME`] for none).
+pub(super) struct StreetSegment(
+    pub(super) [f64; 2],
+    pub(super) [f64; 2],
+    pub(super) StreetKind,
+    pub(super) u32,
+);
+
+impl StreetSegment {
+    /// A nameless road from `a` to `b`.
+    #[cfg(test)]
+    pub(super) fn road(a: [f64; 2], b: [f64; 2]) -> StreetSegment {
+        StreetSegment(a, b, StreetKind::Road, Streets::NO_NAME)
+    }
+}
 
 impl RTreeObject for StreetSegment {
     type Envelope = AABB<[f64; 2]>;
@@ -46,7 +72,11 @@ impl RTreeObject for StreetSegment {
 /// of the edge's outward normal; its distance is that of the midpoint (so the long side of a
 /// building whose corner touches a street does not win over the end wall that faces it). The
 /// nearest facing edge within [`FRONT_MAX_DISTANCE`] — the longest of those within 1 m of the
-/// nearest — gives the front: its outward normal. Pure per lot, so it runs in parallel and the
+/// nearest — gives the front: its outward normal. Issue 45: an outline with an `addr:street`
+/// ([`Streets::address`]) that has an edge facing a street of that name takes its front among
+/// those edges only; otherwise each street's distance counts its kind's penalty
+/// (`kind_penalty`: a back lane or drive 20 m, a footway or other service road 4 m), so a
+/// row of houses between its street and a nearer alley faces the street. Pure per lot, so it runs in parallel and the
 /// result does not depend on the thread count. Street vertices that cannot be projected break
 /// their line.
 ///
@@ -71,12 +101,13 @@ pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>
         finite(DVec2::new(px, py) - origin)
     };
     let mut segments = Vec::new();
-    for line in streets.lines() {
+    for (i, line) in streets.lines().enumerate() {
+        let (kind, name) = streets.line_info(i);
         let pts: Vec<Option<DVec2>> = line.iter().map(|&(x, y)| local(x, y)).collect();
         for w in pts.windows(2) {
             if let [Some(a), Some(b)] = *w {
                 if a.distance(b) > MERGE_TOLERANCE {
-                    segments.push(StreetSegment([a.x, a.y], [b.x, b.y]));
+                    segments.push(StreetSegment([a.x, a.y], [b.x, b.y], kind, name));
                 }
             }
         }
@@ -107,7 +138,7 @@ pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>
                     .locate_all_at_point(p.to_array())
                     .any(|e| e.data.0 != i && lots[e.data.0].polygons[e.data.1].contains(p))
             };
-            front_of(&lot.polygons, &tree, &others)
+            front_of(&lot.polygons, &tree, streets.address(lot.id), &others)
         })
         .collect();
     for (lot, f) in site.lots.iter_mut().zip(fronts) {
@@ -136,10 +167,12 @@ pub(super) fn nearest_on_segment(a: DVec2, b: DVec2, p: DVec2) -> DVec2 {
     a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
 }
 
-/// The front of one outline (see [`assign_fronts`]).
+/// The front of one outline (see [`assign_fronts`]), whose `addr:street` is `address` (an
+/// index into [`Streets::names`]).
 pub(super) fn front_of(
     polygons: &[Polygon],
     tree: &RTree<StreetSegment>,
+    address: Option<u32>,
     in_another: &dyn Fn(DVec2) -> bool,
 ) -> Option<DVec2> {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
@@ -152,17 +185,19 @@ pub(super) fn front_of(
         return None;
     }
     let m = DVec2::splat(FRONT_MAX_DISTANCE);
-    let near: Vec<(DVec2, DVec2)> = tree
+    let near: Vec<(DVec2, DVec2, StreetKind, u32)> = tree
         .locate_in_envelope_intersecting(AABB::from_corners(
             (lo - m).to_array(),
             (hi + m).to_array(),
         ))
-        .map(|s| (DVec2::from(s.0), DVec2::from(s.1)))
+        .map(|s| (DVec2::from(s.0), DVec2::from(s.1), s.2, s.3))
         .collect();
     if near.is_empty() {
         return None;
     }
-    // (distance, length, outward normal) of every edge that faces a street.
+    // (score, length, outward normal, faces the addressed street) of every edge that faces a
+    // street: its best score, distance plus the street kind's penalty (the addressed street's
+    // distance alone where it faces that).
     let edges = || {
         polygons.iter().flat_map(|p| {
             let r = &p.outer;
@@ -170,7 +205,7 @@ pub(super) fn front_of(
         })
     };
     let long_exists = edges().any(|(a, b)| a.distance(b) >= FRONT_MIN_EDGE);
-    let mut facing: Vec<(f64, f64, DVec2)> = Vec::new();
+    let mut facing: Vec<(f64, f64, DVec2, bool)> = Vec::new();
     for (a, b) in edges() {
         let len = a.distance(b);
         if len <= MERGE_TOLERANCE || (long_exists && len < FRONT_MIN_EDGE) {
@@ -186,19 +221,32 @@ pub(super) fn front_of(
         if party {
             continue;
         }
-        let best = near
-            .iter()
-            .filter_map(|&(s0, s1)| {
-                let v = nearest_on_segment(s0, s1, mid) - mid;
-                let dist = v.length();
-                let faces = dist <= MERGE_TOLERANCE || normal.dot(v) >= FRONT_COS_CONE * dist;
-                (faces && dist <= FRONT_MAX_DISTANCE).then_some(dist)
-            })
-            .min_by(f64::total_cmp);
-        if let Some(dist) = best {
-            facing.push((dist, len, normal));
+        let mut best: Option<(f64, bool)> = None;
+        for &(s0, s1, kind, name) in &near {
+            let v = nearest_on_segment(s0, s1, mid) - mid;
+            let dist = v.length();
+            let faces = dist <= MERGE_TOLERANCE || normal.dot(v) >= FRONT_COS_CONE * dist;
+            if !faces || dist > FRONT_MAX_DISTANCE {
+                continue;
+            }
+            let addressed = address.is_some_and(|n| n == name);
+            let score = if addressed {
+                dist
+            } else {
+                dist + kind_penalty(kind)
+            };
+            // The addressed street first, then the lowest score.
+            if best.is_none_or(|(s, ad)| (addressed, -score) > (ad, -s)) {
+                best = Some((score, addressed));
+            }
+        }
+        if let Some((score, addressed)) = best {
+            facing.push((score, len, normal, addressed));
         }
     }
+    // An outline facing the street of its address faces it, whatever is nearer.
+    let addressed = facing.iter().any(|f| f.3);
+    facing.retain(|f| f.3 == addressed);
     let nearest = facing.iter().map(|f| f.0).min_by(f64::total_cmp)?;
     facing
         .iter()

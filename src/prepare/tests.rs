@@ -77,7 +77,7 @@ fn courtyard_stays_a_hole() {
 
 /// The front of a 20 m × 10 m block at the origin with one street from `a` to `b`.
 fn front_with_street(a: DVec2, b: DVec2) -> Option<DVec2> {
-    let tree = RTree::bulk_load(vec![StreetSegment(a.to_array(), b.to_array())]);
+    let tree = RTree::bulk_load(vec![StreetSegment::road(a.to_array(), b.to_array())]);
     let block = Polygon::new(
         vec![
             DVec2::new(0.0, 0.0),
@@ -87,7 +87,7 @@ fn front_with_street(a: DVec2, b: DVec2) -> Option<DVec2> {
         ],
         vec![],
     );
-    front_of(&[block], &tree, &|_| false)
+    front_of(&[block], &tree, None, &|_| false)
 }
 
 #[test]
@@ -119,7 +119,7 @@ fn the_front_is_the_normal_of_the_edge_that_faces_the_nearest_street() {
 #[test]
 fn a_wall_against_a_neighbour_is_no_front() {
     let v = DVec2::new;
-    let tree = RTree::bulk_load(vec![StreetSegment([-10.0, 30.0], [50.0, 30.0])]);
+    let tree = RTree::bulk_load(vec![StreetSegment::road([-10.0, 30.0], [50.0, 30.0])]);
     let block = Polygon::new(
         vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 10.0), v(0.0, 10.0)],
         vec![],
@@ -128,19 +128,19 @@ fn a_wall_against_a_neighbour_is_no_front() {
         vec![v(-5.0, 10.2), v(25.0, 10.2), v(25.0, 20.0), v(-5.0, 20.0)],
         vec![],
     );
-    let free = front_of(std::slice::from_ref(&block), &tree, &|_| false);
+    let free = front_of(std::slice::from_ref(&block), &tree, None, &|_| false);
     assert_eq!(free, Some(DVec2::Y));
     let against = |p: DVec2| neighbour.contains(p);
     assert_eq!(
-        front_of(std::slice::from_ref(&block), &tree, &against),
+        front_of(std::slice::from_ref(&block), &tree, None, &against),
         None
     );
     let both: Vec<StreetSegment> = vec![
-        StreetSegment([-10.0, 30.0], [50.0, 30.0]),
-        StreetSegment([50.0, -20.0], [50.0, 40.0]),
+        StreetSegment::road([-10.0, 30.0], [50.0, 30.0]),
+        StreetSegment::road([50.0, -20.0], [50.0, 40.0]),
     ];
     let both = RTree::bulk_load(both);
-    assert_eq!(front_of(&[block], &both, &against), Some(DVec2::X));
+    assert_eq!(front_of(&[block], &both, None, &against), Some(DVec2::X));
 }
 
 #[test]

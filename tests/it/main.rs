@@ -16,6 +16,7 @@ mod deploy;
 mod e2e;
 mod evolve;
 mod facades;
+mod fronts;
 mod geojson;
 mod incremental;
 mod infer;

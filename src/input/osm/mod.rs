@@ -33,6 +33,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use osmpbf::{BlobDecode, BlobReader, PrimitiveBlock, RelMemberType};
 use rayon::prelude::*;
@@ -40,7 +41,7 @@ use rayon::prelude::*;
 use super::rings::{group_rings, lonlat_problem, oriented_polygon, ring_problem};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SharedTags, SourceId,
-    SourcePolygon, TagInterner,
+    SourcePolygon, StreetKind, TagInterner,
 };
 use crate::geometry::ring;
 use crate::report::{Outcome, Report};
@@ -271,7 +272,7 @@ fn read_passes(
     nodes.finish();
 
     let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
-    result.streets = streets_of(&ways, &nodes);
+    result.streets = streets_of(&ways, &rels, &nodes);
     result.boundaries = boundaries::admin_boundaries(&ways, &rels, &nodes, report);
     // Freeing the large lists is a fair share of the read: both at once.
     rayon::join(move || drop(ways), move || drop(nodes));
@@ -372,38 +373,87 @@ pub(crate) const STREET_KINDS: &[&str] = &[
 ];
 
 /// Whether a way's tags make it a street (see [`STREET_KINDS`]).
+#[cfg(test)]
 fn is_street<'a>(tags: impl Iterator<Item = (&'a str, &'a str)>) -> bool {
-    let mut street = false;
+    street_of(tags).is_some()
+}
+
+/// The street a way's tags make (see [`STREET_KINDS`]): its kind and its `name`.
+fn street_of<'a>(
+    tags: impl Iterator<Item = (&'a str, &'a str)>,
+) -> Option<(StreetKind, Option<Arc<str>>)> {
+    let (mut kind, mut name, mut lane) = (None, None, false);
     for (k, v) in tags {
         let v = v.trim();
         match k {
-            "highway" => street = STREET_KINDS.contains(&v),
-            "tunnel" | "indoor" if v != "no" => return false,
-            "service" if v == "parking_aisle" => return false,
+            "highway" => {
+                kind = STREET_KINDS.contains(&v).then_some(match v {
+                    "service" => StreetKind::Service,
+                    "footway" | "steps" => StreetKind::Foot,
+                    _ => StreetKind::Road,
+                })
+            }
+            "tunnel" | "indoor" if v != "no" => return None,
+            "service" if v == "parking_aisle" => return None,
+            "service" => lane = v == "alley" || v == "driveway",
+            "name" if !v.is_empty() => name = Some(Arc::from(v)),
             _ => {}
         }
     }
-    street
+    match kind? {
+        StreetKind::Service if lane => Some((StreetKind::Lane, name)),
+        k => Some((k, name)),
+    }
 }
 
-/// The street ways as polylines in way-id order. A way with missing nodes keeps its runs of
-/// consecutive known nodes (a street clipped by the extract's border is still a street).
-fn streets_of(ways: &Ways, nodes: &Nodes) -> super::Streets {
+/// A building's `addr:street`, trimmed (a blank value is none).
+fn addr_street_of<'a>(mut tags: impl Iterator<Item = (&'a str, &'a str)>) -> Option<Arc<str>> {
+    tags.find(|(k, v)| *k == "addr:street" && !v.trim().is_empty())
+        .map(|(_, v)| Arc::from(v.trim()))
+}
+
+/// The street ways as polylines in way-id order, with their kinds and names, and the
+/// `addr:street` of the building ways and relations. A way with missing nodes keeps its runs
+/// of consecutive known nodes (a street clipped by the extract's border is still a street).
+fn streets_of(ways: &Ways, rels: &[RelRec], nodes: &Nodes) -> super::Streets {
     let mut streets = super::Streets::default();
+    let mut index = std::collections::HashMap::new();
     let mut run: Ring = Vec::new();
-    for w in ways.recs.iter().filter(|w| w.street) {
+    for w in &ways.recs {
+        let Some(kind) = w.street else {
+            if let (Some(_), Some(a)) = (w.kind, &w.name) {
+                let n = streets.name_index(a, &mut index);
+                streets.addresses.push((SourceId::Way(w.id), n));
+            }
+            continue;
+        };
+        let name = match &w.name {
+            Some(n) => streets.name_index(n, &mut index),
+            None => super::Streets::NO_NAME,
+        };
         run.clear();
         for &r in ways.refs(w) {
             match nodes.get(r) {
                 Some(p) => run.push(p),
                 None => {
-                    streets.push(&run);
+                    streets.push_street(&run, kind, name);
                     run.clear();
                 }
             }
         }
-        streets.push(&run);
+        streets.push_street(&run, kind, name);
     }
+    for r in rels
+        .iter()
+        .filter(|r| matches!(r.kind, RelKind::Building | RelKind::Part))
+    {
+        if let Some(a) = addr_street_of(r.tags.iter().map(|(k, v)| (k.as_str(), v.as_str()))) {
+            let n = streets.name_index(&a, &mut index);
+            streets.addresses.push((SourceId::Relation(r.id), n));
+        }
+    }
+    streets.addresses.sort_by_key(|a| a.0);
+    streets.addresses.dedup_by_key(|a| a.0);
     streets
 }
 

@@ -54,8 +54,11 @@ pub(super) struct WayRec {
     /// Parsed tags of building/part ways only, parsed in the parallel pass; taken (moved into
     /// the footprint) during assembly, so the raw strings are never all held at once.
     pub(super) tags: Option<SharedTags>,
-    /// Whether the way is a street (see [`STREET_KINDS`]).
-    pub(super) street: bool,
+    /// The street's kind when the way is a street (see [`STREET_KINDS`]).
+    pub(super) street: Option<StreetKind>,
+    /// A street's `name`, a building or part way's `addr:street` (issue 45: the street its
+    /// door faces).
+    pub(super) name: Option<Arc<str>>,
 }
 
 /// The ways one block keeps, their node ids in one list (no allocation per way).
@@ -592,14 +595,15 @@ impl WayBlock {
     ) {
         let kind = kind_of(tags());
         let member = member_ways.binary_search(&id).is_ok();
-        let street = is_street(tags());
+        let street = street_of(tags());
         let boundary = admin_boundary(&tags);
-        if kind.is_none() && !member && !street && boundary.is_none() {
+        if kind.is_none() && !member && street.is_none() && boundary.is_none() {
             return;
         }
         let start = self.refs.len();
         self.refs.extend(refs);
-        if !self.keep_boundary(id, boundary, start) && kind.is_none() && !member && !street {
+        if !self.keep_boundary(id, boundary, start) && kind.is_none() && !member && street.is_none()
+        {
             self.refs.truncate(start);
             return;
         }
@@ -611,7 +615,12 @@ impl WayBlock {
                 end: 0,
                 kind,
                 tags: kind.map(|_| interner.intern(BuildingTags::from_pairs(tags()))),
-                street,
+                name: match (&street, kind) {
+                    (Some((_, n)), _) => n.clone(),
+                    (None, Some(_)) => addr_street_of(tags()),
+                    (None, None) => None,
+                },
+                street: street.map(|s| s.0),
             },
             start,
         );

@@ -88,7 +88,8 @@ fn way(id: i64, refs: Vec<i64>, tags: &[(&str, &str)]) -> WayBlock {
         start: 0,
         end: 0,
         kind,
-        street: is_street(tags.iter().copied()),
+        street: street_of(tags.iter().copied()).map(|s| s.0),
+        name: None,
         tags: kind.map(|_| std::sync::Arc::new(BuildingTags::from_pairs(tags.iter().copied()))),
     };
     b.push(w, 0);
@@ -309,7 +310,7 @@ fn streets_keep_runs_of_known_nodes_in_way_order() {
         ),
         way(2, vec![n(0, 4), n(4, 4)], &[("highway", "primary")]),
     ];
-    let s = streets_of(&Ways::from_blocks(ways), &nodes);
+    let s = streets_of(&Ways::from_blocks(ways), &[], &nodes);
     let lines: Vec<&[(f64, f64)]> = s.lines().collect();
     assert_eq!(s.len(), 2);
     assert_eq!(lines[0], &[(0.0, 4.0), (4.0, 4.0)][..]);
@@ -718,7 +719,7 @@ type WayView = (
     i64,
     Vec<i64>,
     Option<FootprintKind>,
-    bool,
+    Option<StreetKind>,
     Option<BuildingTags>,
 );
 

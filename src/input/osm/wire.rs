@@ -349,7 +349,8 @@ pub(super) fn fast_ways(
     let mut known: Vec<(&str, &str)> = Vec::new();
     type TagsGive = (
         Option<FootprintKind>,
-        bool,
+        Option<StreetKind>,
+        Option<Arc<str>>,
         Option<SharedTags>,
         Option<Tags>,
     );
@@ -386,7 +387,7 @@ pub(super) fn fast_ways(
             );
             // What the tags give depends only on their bytes: worked out once per tag set of
             // the block (most ways of a block share a few).
-            let (kind, street, shared, boundary) = match seen.get(&(keys, vals)) {
+            let (kind, street, name, shared, boundary) = match seen.get(&(keys, vals)) {
                 Some(v) => v.clone(),
                 None => {
                     if !check_packed(keys, Packed::U32) || !check_packed(vals, Packed::U32) {
@@ -405,20 +406,26 @@ pub(super) fn fast_ways(
                         }
                     }
                     let kind = kind_of(tags.iter().copied());
-                    let street = is_street(tags.iter().copied());
+                    let street = street_of(tags.iter().copied());
+                    let name = match (&street, kind) {
+                        (Some((_, n)), _) => n.clone(),
+                        (None, Some(_)) => addr_street_of(tags.iter().copied()),
+                        (None, None) => None,
+                    };
+                    let street = street.map(|s| s.0);
                     let boundary = admin_boundary(|| tags.iter().copied());
                     let shared = kind.map(|_| {
                         known.clear();
                         known.extend(tags.iter().filter(|(k, _)| is_known_key(k)));
                         interner.intern_pairs(&known)
                     });
-                    let give = (kind, street, shared, boundary);
+                    let give = (kind, street, name, shared, boundary);
                     seen.insert((keys, vals), give.clone());
                     give
                 }
             };
             let member = member_ways.binary_search(&id).is_ok();
-            let kept = kind.is_some() || member || street;
+            let kept = kind.is_some() || member || street.is_some();
             if !kept && boundary.is_none() {
                 if !check_packed(refs, Packed::Any64) {
                     return None;
@@ -444,6 +451,7 @@ pub(super) fn fast_ways(
                 kind,
                 tags: shared,
                 street,
+                name,
             };
             out.push(w, start);
         }
