@@ -43,7 +43,8 @@ pub struct Mass {
     /// Compass bearing (degrees from north) a skillion slopes down towards (OSM
     /// `roof:direction`); `None`: across the footprint's short side.
     pub roof_direction: Option<f64>,
-    /// OSM `roof:orientation=across`: a gabled roof's ridge parallel to the short side.
+    /// OSM `roof:orientation=across`: the ridge of a gabled, saltbox, `gabled_height_moved`,
+    /// butterfly or sawtooth roof parallel to the short side (see `roof::build_oriented`).
     pub roof_across: bool,
     /// Height of the roof above the eave, when known (OSM `roof:height`).
     pub roof_height: Option<f64>,
@@ -112,12 +113,7 @@ fn pitched_roof(
     down: Option<DVec2>,
     across: bool,
 ) -> Result<RoofGeometry, roof::RoofError> {
-    if shape == RoofShape::Gabled && across {
-        let short = crate::derive::roof::shapes::short_axis(footprint);
-        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
-    } else {
-        roof::build(footprint, shape, pitch, down)
-    }
+    roof::build_oriented(footprint, shape, pitch, down, across)
 }
 
 /// Builds the walls, ground and roof of one part at the given LOD.

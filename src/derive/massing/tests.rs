@@ -23,7 +23,7 @@ pub(crate) fn mass(footprint: Polygon, roof: RoofShape) -> Mass {
     }
 }
 
-const ALL: [RoofShape; 14] = [
+pub(crate) const ALL: [RoofShape; 22] = [
     RoofShape::Flat,
     RoofShape::Skillion,
     RoofShape::Gabled,
@@ -38,6 +38,14 @@ const ALL: [RoofShape; 14] = [
     RoofShape::Onion,
     RoofShape::Round,
     RoofShape::Cone,
+    RoofShape::GabledHeightMoved,
+    RoofShape::SideHalfHipped,
+    RoofShape::HippedAndGabled,
+    RoofShape::BellcastGable,
+    RoofShape::Crosspitched,
+    RoofShape::Sawtooth,
+    RoofShape::Butterfly,
+    RoofShape::ApseGabled,
 ];
 
 fn rect() -> Polygon {
