@@ -545,7 +545,7 @@ fn overlaps(solids: &[&Solid]) -> Vec<String> {
 }
 
 /// Every defect of a CityGML file: (solids checked, defects as `building: line`).
-fn file_defects(path: &Path) -> (usize, Vec<String>) {
+pub(crate) fn file_defects(path: &Path) -> (usize, Vec<String>) {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let all = solids(&text);
     let mut out = Vec::new();

@@ -37,6 +37,45 @@ fn extent(poly: &Polygon, n: DVec2) -> (f64, f64) {
         })
 }
 
+/// Every vertex of the footprint (all rings).
+fn corners(poly: &Polygon) -> Vec<DVec2> {
+    poly.rings().flatten().copied().collect()
+}
+
+/// The value nearest to `c`, at most `reach` away, such that no footprint corner's `p·n` lies
+/// within the clearance of it: a cut through a corner, or a hair beside it, leaves slivers and
+/// heights that the millimetre grid cannot keep apart (a steep face turns a grid step into
+/// millimetres of height). The clearance is [`cut_clearance`]; `c` itself when nothing within
+/// reach is clear.
+fn clear_cut(corners: &[DVec2], n: DVec2, c: f64, size: f64, reach: f64) -> f64 {
+    let mut proj: Vec<f64> = corners.iter().map(|p| p.dot(n)).collect();
+    proj.sort_by(f64::total_cmp);
+    let eps = cut_clearance(size);
+    let clear = |l: f64| {
+        let i = proj.partition_point(|&t| t < l);
+        let d1 = proj.get(i).map_or(f64::INFINITY, |t| t - l);
+        let d0 = i.checked_sub(1).map_or(f64::INFINITY, |j| l - proj[j]);
+        d0.min(d1) > eps
+    };
+    (0..400)
+        .map(|j| c + (j / 2) as f64 * eps * if j % 2 == 0 { 1.0 } else { -1.0 })
+        .take_while(|l| (l - c).abs() <= reach)
+        .find(|&l| clear(l))
+        .unwrap_or(c)
+}
+
+/// How far (metres) a cut keeps from the footprint's corners: 1e-3 of its size, at least
+/// three times [`crate::model::MIN_VERTEX_GAP`].
+fn cut_clearance(size: f64) -> f64 {
+    (1e-3 * size).max(3.0 * crate::model::MIN_VERTEX_GAP)
+}
+
+/// The footprint's size: the larger side of its bounding box.
+fn size_of(poly: &Polygon) -> f64 {
+    let (lo, hi) = poly.bounds();
+    (hi - lo).max_element()
+}
+
 /// The roof of `height` over `poly`, cut by `cuts` (see the module documentation); heights
 /// below 0 are raised to 0.
 fn cut_roof(
@@ -91,7 +130,16 @@ pub fn butterfly(poly: &Polygon, valley_dir: DVec2, slope: f64) -> Result<RoofGe
     let n = unit(valley_dir, "butterfly valley direction is zero")?.perp();
     let (s0, s1) = extent(poly, n);
     let c = 0.5 * (s0 + s1);
-    cut_roof(poly, &[(n * c, n)], |p| slope * (p.dot(n) - c).abs())
+    // Each side at `slope` over the wider half: the outer eaves at one height.
+    let h = slope * (c - s0).max(s1 - c);
+    let z = move |s: f64| {
+        if s < c {
+            h * (c - s) / (c - s0)
+        } else {
+            h * (s - c) / (s1 - c)
+        }
+    };
+    cut_roof(poly, &[(n * c, n)], |p| z(p.dot(n)))
 }
 
 /// A sawtooth roof: skillions falling towards `down` (unit, in plan) at `slope`, each rising
@@ -116,30 +164,41 @@ pub fn sawtooth(poly: &Polygon, down: DVec2, slope: f64) -> Result<RoofGeometry,
     let glass = slope * run / steep;
     let pitch = run + glass;
     let top = slope * run;
+    let _ = steep;
     let n = teeth as usize;
-    let mut cuts = Vec::with_capacity(2 * n);
+    // The profile across the teeth: (s, z) at every foot and top, the cuts kept clear of the
+    // footprint's corners (each moved by millimetres at most: the slopes change a hair).
+    let (cs, size) = (corners(poly), size_of(poly));
+    let mut pts = vec![(s0, 0.0)];
     for i in 0..n.saturating_sub(1) {
         let b = s0 + i as f64 * pitch;
-        cuts.push((u * (b + run), u));
-        cuts.push((u * (b + pitch), u));
+        let reach = 0.25 * glass;
+        pts.push((clear_cut(&cs, u, b + run, size, reach), top));
+        pts.push((clear_cut(&cs, u, b + pitch, size, reach), 0.0));
     }
-    let last = n.saturating_sub(1);
+    pts.push((s1, top));
+    if pts.windows(2).any(|w| w[1].0 <= w[0].0) {
+        return Err(RoofError::InvalidParameter("sawtooth teeth too small"));
+    }
+    let cuts: Vec<Cut> = pts[1..pts.len() - 1]
+        .iter()
+        .map(|&(c, _)| (u * c, u))
+        .collect();
     cut_roof(poly, &cuts, |p| {
-        let s = p.dot(u) - s0;
-        let i = ((s / pitch).floor().max(0.0) as usize).min(last);
-        let x = s - i as f64 * pitch;
-        if x <= run || i == last {
-            slope * x
-        } else {
-            top - steep * (x - run)
-        }
+        let s = p.dot(u);
+        let i = pts.partition_point(|q| q.0 <= s).clamp(1, pts.len() - 1);
+        let (a, b) = (pts[i - 1], pts[i]);
+        a.1 + (s - a.0) * (b.1 - a.1) / (b.0 - a.0)
     })
 }
 
 /// A crosspitched roof: two gabled roofs of one height crossing at the middle of the footprint,
 /// one with its ridge along `ridge_dir`, the other across it; each gable falls to the
 /// footprint's farthest points on its sides, and the roof is the higher of the two (valleys
-/// where they meet). The height is `slope` times half the narrower of the two widths.
+/// where they meet). The height is `slope` times half the narrower of the two widths. The
+/// crossing moves off the middle by millimetres where a ridge or a valley would pass a hair
+/// beside a corner; a footprint where no crossing nearby is clear of every corner is drawn
+/// gabled.
 pub fn crosspitched(
     poly: &Polygon,
     ridge_dir: DVec2,
@@ -149,7 +208,6 @@ pub fn crosspitched(
     let na = a.perp();
     let (a0, a1) = extent(poly, na);
     let (b0, b1) = extent(poly, a);
-    let (ca, cb) = (0.5 * (a0 + a1), 0.5 * (b0 + b1));
     let (wa, wb) = (0.5 * (a1 - a0), 0.5 * (b1 - b0));
     let tiny = 1e-9 * (wa + wb).max(1.0);
     if !(wa > tiny && wb > tiny) {
@@ -158,17 +216,76 @@ pub fn crosspitched(
         ));
     }
     let h = slope * wa.min(wb);
-    let centre = na * ca + a * cb;
-    let diag = |m: DVec2| -> Result<Cut, RoofError> { Ok((centre, unit(m, "degenerate")?)) };
-    let cuts = [
-        (centre, na),
-        (centre, a),
-        diag(na / wa - a / wb)?,
-        diag(na / wa + a / wb)?,
-    ];
+    // The ridges cross at the middle, moved off the corners (see `clear_cut`) together with
+    // the four lines where the gables meet; each gable falls from its ridge to the farthest
+    // point on either side.
+    let (cs, size) = (corners(poly), size_of(poly));
+    let eps = cut_clearance(size);
+    let lines = |ca: f64, cb: f64| -> Option<Vec<Cut>> {
+        let centre = na * ca + a * cb;
+        let (ap, am, bp, bm) = (a1 - ca, ca - a0, b1 - cb, cb - b0);
+        let mut cuts = vec![(centre, na), (centre, a)];
+        // In each quarter the gables meet where |sa − ca| / da = |sb − cb| / db.
+        for m in [
+            na / ap - a / bp,
+            na / am + a / bp,
+            na / am - a / bm,
+            na / ap + a / bm,
+        ] {
+            cuts.push((centre, unit(m, "degenerate").ok()?));
+        }
+        Some(cuts)
+    };
+    // A line exactly through a corner (a rectangle's diagonal) cuts cleanly; one a hair
+    // beside it does not.
+    let exact = 1e-9 * size.max(1.0);
+    let rings: Vec<&Vec<DVec2>> = poly.rings().collect();
+    let clear = |cuts: &[Cut]| {
+        let corners_clear = cuts.iter().all(|&(o, m)| {
+            cs.iter().all(|p| {
+                let d = (*p - o).dot(m).abs();
+                d > eps || d < exact
+            })
+        });
+        // Nor may two lines cross an edge of the outline a hair apart (near a hole's corner).
+        let spaced = rings.iter().all(|r| {
+            (0..r.len()).all(|i| {
+                let (p, q) = (r[i], r[(i + 1) % r.len()]);
+                let len = p.distance(q);
+                let mut at: Vec<f64> = cuts
+                    .iter()
+                    .filter_map(|&(o, m)| {
+                        let (fp, fq) = ((p - o).dot(m), (q - o).dot(m));
+                        (fp * fq < 0.0).then(|| fp / (fp - fq) * len)
+                    })
+                    .collect();
+                at.sort_by(f64::total_cmp);
+                at.windows(2)
+                    .all(|w| w[1] - w[0] > eps || w[1] - w[0] < exact)
+            })
+        });
+        corners_clear && spaced
+    };
+    let (ca0, cb0) = (0.5 * (a0 + a1), 0.5 * (b0 + b1));
+    let steps = |j: i32| f64::from((j + 1) / 2) * eps * if j % 2 == 0 { 1.0 } else { -1.0 };
+    let found = (0..12)
+        .flat_map(|j| (0..12).map(move |k| (j, k)))
+        .map(|(j, k)| (ca0 + steps(j), cb0 + steps(k)))
+        .find_map(|(ca, cb)| lines(ca, cb).filter(|c| clear(c)).map(|c| (ca, cb, c)));
+    let Some((ca, cb, cuts)) = found else {
+        // Every centre near the middle has a line through a corner: drawn gabled.
+        return super::profile_roof(poly, super::Ends::Gabled, |_| super::Profile::linear(slope));
+    };
+    let fall = |s: f64, c: f64, lo: f64, hi: f64| {
+        if s < c {
+            (c - s) / (c - lo)
+        } else {
+            (s - c) / (hi - c)
+        }
+    };
     cut_roof(poly, &cuts, |p| {
-        let ga = h * (1.0 - (p.dot(na) - ca).abs() / wa);
-        let gb = h * (1.0 - (p.dot(a) - cb).abs() / wb);
+        let ga = h * (1.0 - fall(p.dot(na), ca, a0, a1));
+        let gb = h * (1.0 - fall(p.dot(a), cb, b0, b1));
         ga.max(gb)
     })
 }
