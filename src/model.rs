@@ -245,7 +245,8 @@ impl Lod {
     }
 }
 
-/// Roof shapes of the OSM Simple 3D Buildings catalogue that citygen knows.
+/// Roof shapes of the OSM Simple 3D Buildings catalogue (every `roof:shape` value the wiki's
+/// Key:roof:shape page documents, and `apse_gabled`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum RoofShape {
     /// `flat` (also an empty value): one horizontal face at the top of the walls.
@@ -282,6 +283,31 @@ pub enum RoofShape {
     Round,
     /// `cone`: drawn as the pyramidal roof, planar triangles to one apex.
     Cone,
+    /// `gabled_height_moved`: two planes on one straight ridge moved off the middle, at 25 % of
+    /// the width (the long slope facing `roof:direction` when tagged); both eaves at the top
+    /// of the walls.
+    GabledHeightMoved,
+    /// `side_half-hipped`: gabled with one end half-hipped (the first end in ring order), the
+    /// others gables.
+    SideHalfHipped,
+    /// `hipped-and-gabled`: hipped, each hip stopping at 0.6 of the roof's height under a small
+    /// steep gable (80°) set back on top of it (a Dutch gable).
+    HippedAndGabled,
+    /// `bellcast_gable`: gabled with the slopes flaring out at the eaves (the lowest quarter of
+    /// each slope at half the pitch).
+    BellcastGable,
+    /// `crosspitched`: two gabled roofs of the same height crossing at the middle of the
+    /// footprint, a gable on each of the four sides of a rectangle.
+    Crosspitched,
+    /// `sawtooth`: repeated skillions about 8 m deep falling towards `roof:direction` (else
+    /// along the long axis), each rising to a steep 80° glazed face.
+    Sawtooth,
+    /// `butterfly`: two planes falling inwards to a valley along the middle (an inverted
+    /// gable), the outer eaves high.
+    Butterfly,
+    /// `apse_gabled`: gabled, with a rounded end (a church's apse) drawn as a half cone of
+    /// planar faces; on a footprint without a rounded end, one end hipped.
+    ApseGabled,
 }
 
 impl RoofShape {
@@ -302,6 +328,14 @@ impl RoofShape {
             RoofShape::Onion => "onion",
             RoofShape::Round => "round",
             RoofShape::Cone => "cone",
+            RoofShape::GabledHeightMoved => "gabled_height_moved",
+            RoofShape::SideHalfHipped => "side_half-hipped",
+            RoofShape::HippedAndGabled => "hipped-and-gabled",
+            RoofShape::BellcastGable => "bellcast_gable",
+            RoofShape::Crosspitched => "crosspitched",
+            RoofShape::Sawtooth => "sawtooth",
+            RoofShape::Butterfly => "butterfly",
+            RoofShape::ApseGabled => "apse_gabled",
         }
     }
 
@@ -324,6 +358,14 @@ impl RoofShape {
             "onion" => RoofShape::Onion,
             "round" => RoofShape::Round,
             "cone" => RoofShape::Cone,
+            "gabled-height-moved" => RoofShape::GabledHeightMoved,
+            "side-half-hipped" => RoofShape::SideHalfHipped,
+            "hipped-and-gabled" | "hip-and-gable" => RoofShape::HippedAndGabled,
+            "bellcast-gable" => RoofShape::BellcastGable,
+            "crosspitched" | "cross-pitched" => RoofShape::Crosspitched,
+            "sawtooth" => RoofShape::Sawtooth,
+            "butterfly" => RoofShape::Butterfly,
+            "apse-gabled" => RoofShape::ApseGabled,
             _ => return None,
         })
     }
@@ -331,18 +373,34 @@ impl RoofShape {
     /// The CityGML 2.0 `bldg:roofType` code (SIG3D code list: 1000 flat, 1010 monopitch,
     /// 1020 dual pent, 1030 gabled, 1040 hipped, 1050 half-hipped, 1060 mansard, 1070 pavilion,
     /// 1080 cone, 1090 cupola, 1100 sawtooth, 1110 arch, 1120 pyramidal broach, 1130 combination).
+    ///
+    /// The new shapes: `gabled_height_moved`, `bellcast_gable` and `apse_gabled` are gabled
+    /// roofs (1030: two slopes on a ridge, gable walls); `side_half-hipped` and
+    /// `hipped-and-gabled` are half-hipped (1050: the code list's one class of a roof with both
+    /// a hip and a gable at an end); `sawtooth` is 1100; `butterfly` is 1020, "dual pent": two
+    /// pent (mono-pitch) roofs, here meeting at their low edges (the list has no inverted
+    /// gable); `crosspitched`, two gabled roofs crossing, is 1130 "combination".
     pub(crate) fn citygml_code(self) -> &'static str {
         match self {
             RoofShape::Flat => "1000",
             RoofShape::Skillion => "1010",
-            RoofShape::Gabled | RoofShape::Saltbox => "1030",
+            RoofShape::Butterfly => "1020",
+            RoofShape::Gabled
+            | RoofShape::Saltbox
+            | RoofShape::GabledHeightMoved
+            | RoofShape::BellcastGable
+            | RoofShape::ApseGabled => "1030",
             RoofShape::Hipped | RoofShape::SideHipped => "1040",
-            RoofShape::HalfHipped => "1050",
+            RoofShape::HalfHipped | RoofShape::SideHalfHipped | RoofShape::HippedAndGabled => {
+                "1050"
+            }
             RoofShape::Mansard | RoofShape::Gambrel => "1060",
             RoofShape::Pyramidal => "1070",
             RoofShape::Cone => "1080",
             RoofShape::Dome | RoofShape::Onion => "1090",
+            RoofShape::Sawtooth => "1100",
             RoofShape::Round => "1110",
+            RoofShape::Crosspitched => "1130",
         }
     }
 }

@@ -307,18 +307,12 @@ impl Generator {
                 };
                 let masses = self.masses(&on, polygon, lod, &mut rng, &mut notes)?;
                 for (mass, facades) in masses {
-                    let roof = match massing::roof_geometry(&mass) {
-                        Ok(r) => cap_guessed_roof(r, &mass, &style),
-                        Err(f) => {
-                            notes.push((
-                                Outcome::Note,
-                                format!("{} roof drawn flat: {}", f.asked.osm_name(), f.reason),
-                            ));
-                            crate::derive::roof::flat(&mass.footprint)
-                        }
-                    };
                     let key = format!("p{}", drafts.len());
-                    let mut part = massing::build_part(key, &mass, &roof, lod);
+                    let (mut part, roof_notes) =
+                        massing::part_with_roof(key, &mass, lod, &piece.id.to_string(), |m| {
+                            massing::roof_geometry(m).map(|r| cap_guessed_roof(r, m, &style))
+                        });
+                    notes.extend(roof_notes.into_iter().map(|n| (Outcome::Note, n)));
                     part.source = Some(piece.id);
                     part.structure = tags.structure;
                     if piece.id == lot.id {

@@ -518,6 +518,14 @@ fn every_roof_shape_on_a_part_is_drawn_as_tagged() {
         ("onion", RoofShape::Onion),
         ("round", RoofShape::Round),
         ("cone", RoofShape::Cone),
+        ("gabled_height_moved", RoofShape::GabledHeightMoved),
+        ("side_half-hipped", RoofShape::SideHalfHipped),
+        ("hipped-and-gabled", RoofShape::HippedAndGabled),
+        ("bellcast_gable", RoofShape::BellcastGable),
+        ("crosspitched", RoofShape::Crosspitched),
+        ("sawtooth", RoofShape::Sawtooth),
+        ("butterfly", RoofShape::Butterfly),
+        ("apse_gabled", RoofShape::ApseGabled),
     ];
     let mut o = Osm::default();
     for (i, (tag, _)) in shapes.iter().enumerate() {
@@ -1401,4 +1409,128 @@ fn a_churchs_uncovered_rest_takes_the_outlines_own_tags_and_is_traced() {
         .filter(|p| p["role"] == "outline-rest")
         .count();
     assert_eq!(roles, 2, "glTF extras.parts role");
+}
+
+/// The 22 documented roof shapes, one building each in a row 30 m apart (a church with an
+/// apse for `apse_gabled`), 12 m high with a 4 m roof: (roof:shape, way id, CityGML code).
+fn roof_catalogue() -> (Osm, Vec<(&'static str, i64, &'static str)>) {
+    let shapes = [
+        ("flat", "1000"),
+        ("skillion", "1010"),
+        ("gabled", "1030"),
+        ("gabled_height_moved", "1030"),
+        ("saltbox", "1030"),
+        ("hipped", "1040"),
+        ("half-hipped", "1050"),
+        ("side_hipped", "1040"),
+        ("side_half-hipped", "1050"),
+        ("hipped-and-gabled", "1050"),
+        ("mansard", "1060"),
+        ("gambrel", "1060"),
+        ("bellcast_gable", "1030"),
+        ("pyramidal", "1070"),
+        ("crosspitched", "1130"),
+        ("sawtooth", "1100"),
+        ("butterfly", "1020"),
+        ("cone", "1080"),
+        ("dome", "1090"),
+        ("onion", "1090"),
+        ("round", "1110"),
+        ("apse_gabled", "1030"),
+    ];
+    let mut o = Osm::default();
+    let mut out = Vec::new();
+    for (i, (tag, code)) in shapes.iter().enumerate() {
+        let x = 30.0 * i as f64;
+        let id = 500 + i as i64;
+        let ring = if *tag == "apse_gabled" {
+            // A 16 × 10 m nave and a semicircular apse of eight sides at its east end.
+            let mut r = vec![(x, 0.0), (x + 16.0, 0.0)];
+            for k in 1..8 {
+                let a = -std::f64::consts::FRAC_PI_2 + k as f64 / 8.0 * std::f64::consts::PI;
+                r.push((x + 16.0 + 5.0 * a.cos(), 5.0 + 5.0 * a.sin()));
+            }
+            r.extend([(x + 16.0, 10.0), (x, 10.0)]);
+            r
+        } else if ["dome", "onion", "cone", "pyramidal"].contains(tag) {
+            rect(x, 0.0, 14.0, 14.0)
+        } else {
+            rect(x, 0.0, 20.0, 12.0)
+        };
+        let roof_height = if *tag == "flat" { "0" } else { "4" };
+        o.way(
+            id,
+            &ring,
+            &[
+                ("building", "yes"),
+                ("height", "12"),
+                ("roof:height", roof_height),
+                ("roof:shape", tag),
+            ],
+        );
+        out.push((*tag, id, *code));
+    }
+    (o, out)
+}
+
+#[test]
+fn every_documented_roof_shape_is_written_with_its_type_as_a_valid_solid() {
+    // Run through the binary: CityGML and CityJSON carry each building's roof type, and every
+    // solid passes the ISO 19107 checks of `iso19107`.
+    let (o, cases) = roof_catalogue();
+    let dir = tempfile::tempdir().unwrap();
+    let pbf = dir.path().join("roofs.osm.pbf");
+    o.write(&pbf);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (gml, json) = (
+        dir.path().join("roofs.gml"),
+        dir.path().join("roofs.city.json"),
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_citygen"))
+        .arg("--osm")
+        .arg(&pbf)
+        .arg("--kb")
+        .arg(root.join(KB))
+        .args(["--lod", "2", "--quiet", "--citygml"])
+        .arg(&gml)
+        .arg("--cityjson")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&gml).unwrap();
+    let cj: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let objects = cj["CityObjects"].as_object().unwrap();
+    for (tag, id, code) in &cases {
+        // The building's element in CityGML, up to the next building.
+        let at = text
+            .find(&format!(">way/{id}<"))
+            .unwrap_or_else(|| panic!("roof:shape={tag}: way/{id} not written"));
+        let rest = &text[at..];
+        let end = rest[1..]
+            .find("<bldg:Building ")
+            .map_or(rest.len(), |e| e + 1);
+        let roof_type = format!(">{code}</bldg:roofType>");
+        assert!(
+            rest[..end].contains(&roof_type),
+            "roof:shape={tag}: no {roof_type}"
+        );
+        let obj = objects
+            .iter()
+            .find(|(_, v)| v["attributes"]["sourceId"].as_str() == Some(&format!("way/{id}")))
+            .unwrap_or_else(|| panic!("roof:shape={tag}: way/{id} not in CityJSON"));
+        assert_eq!(
+            obj.1["attributes"]["roofType"].as_str(),
+            Some(*code),
+            "roof:shape={tag}"
+        );
+    }
+    let (n, defects) = crate::iso19107::file_defects(&gml);
+    assert!(n >= cases.len(), "{n} solids");
+    assert!(defects.is_empty(), "{defects:#?}");
 }

@@ -43,7 +43,8 @@ pub struct Mass {
     /// Compass bearing (degrees from north) a skillion slopes down towards (OSM
     /// `roof:direction`); `None`: across the footprint's short side.
     pub roof_direction: Option<f64>,
-    /// OSM `roof:orientation=across`: a gabled roof's ridge parallel to the short side.
+    /// OSM `roof:orientation=across`: the ridge of a gabled, saltbox, `gabled_height_moved`,
+    /// butterfly or sawtooth roof parallel to the short side (see `roof::build_oriented`).
     pub roof_across: bool,
     /// Height of the roof above the eave, when known (OSM `roof:height`).
     pub roof_height: Option<f64>,
@@ -104,6 +105,83 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
     Ok(pitched)
 }
 
+/// The mass a roof drawn by cutting the footprint with lines falls back to when its part fails
+/// [`check_part`] (a safety net: the cuts keep clear of the footprint's corners, but a
+/// footprint may still leave a sliver the grid cannot keep planar): sawtooth and butterfly
+/// become a skillion, saltbox, `gabled_height_moved`, crosspitched and a gabled roof turned by
+/// `roof:direction`/`roof:orientation` the plain (straight-skeleton) gabled roof, a skillion
+/// flat. `None` for the roofs that are not cut (they are the fallbacks).
+pub(crate) fn simpler_roof(mass: &Mass) -> Option<Mass> {
+    let turned = mass.roof_direction.is_some() || mass.roof_across;
+    let roof = match mass.roof {
+        RoofShape::Sawtooth | RoofShape::Butterfly => RoofShape::Skillion,
+        RoofShape::Saltbox | RoofShape::GabledHeightMoved | RoofShape::Crosspitched => {
+            RoofShape::Gabled
+        }
+        RoofShape::Gabled if turned => RoofShape::Gabled,
+        RoofShape::Skillion => RoofShape::Flat,
+        _ => return None,
+    };
+    let plain = roof == RoofShape::Gabled;
+    Some(Mass {
+        roof,
+        roof_direction: if plain { None } else { mass.roof_direction },
+        roof_across: !plain && mass.roof_across,
+        ..mass.clone()
+    })
+}
+
+/// Builds the part of `mass` (see [`build_part`]) with the roof `roof_of` gives it; a roof that
+/// cannot be built is flat, and from LOD2 a cut roof whose part fails [`check_part`] is drawn
+/// as the next simpler shape ([`simpler_roof`]) until one passes. Returns the part and, for
+/// the report, a line for each fallback naming `id` (the building or part the mass is of).
+pub(crate) fn part_with_roof(
+    key: String,
+    mass: &Mass,
+    lod: Lod,
+    id: &str,
+    roof_of: impl Fn(&Mass) -> Result<RoofGeometry, RoofFallback>,
+) -> (Part, Vec<String>) {
+    let mut notes = Vec::new();
+    let mut m = std::borrow::Cow::Borrowed(mass);
+    loop {
+        let roof = match roof_of(&m) {
+            Ok(r) => r,
+            Err(f) => {
+                notes.push(format!(
+                    "{} roof of {id} drawn flat: {}",
+                    f.asked.osm_name(),
+                    f.reason
+                ));
+                return (build_part(key, &m, &roof::flat(&m.footprint), lod), notes);
+            }
+        };
+        let part = build_part(key.clone(), &m, &roof, lod);
+        let next = if lod == Lod::Lod1 {
+            None
+        } else {
+            simpler_roof(&m)
+        };
+        let Some(next) = next else {
+            return (part, notes);
+        };
+        let defects = check_part(&part);
+        let Some(first) = defects.first() else {
+            return (part, notes);
+        };
+        notes.push(format!(
+            "{} roof of {id} drawn {}: as cut, it failed the roof checks ({first})",
+            m.roof.osm_name(),
+            if next.roof == RoofShape::Flat {
+                "flat".to_string()
+            } else {
+                format!("as {}", next.roof.osm_name())
+            },
+        ));
+        m = std::borrow::Cow::Owned(next);
+    }
+}
+
 /// The roof of [`roof_geometry`] before it is fitted to a height.
 fn pitched_roof(
     footprint: &Polygon,
@@ -112,12 +190,7 @@ fn pitched_roof(
     down: Option<DVec2>,
     across: bool,
 ) -> Result<RoofGeometry, roof::RoofError> {
-    if shape == RoofShape::Gabled && across {
-        let short = crate::derive::roof::shapes::short_axis(footprint);
-        crate::derive::roof::shapes::ridge_roof(footprint, short, 0.5, pitch)
-    } else {
-        roof::build(footprint, shape, pitch, down)
-    }
+    roof::build_oriented(footprint, shape, pitch, down, across)
 }
 
 /// Builds the walls, ground and roof of one part at the given LOD.

@@ -23,7 +23,7 @@ pub(crate) fn mass(footprint: Polygon, roof: RoofShape) -> Mass {
     }
 }
 
-const ALL: [RoofShape; 14] = [
+pub(crate) const ALL: [RoofShape; 22] = [
     RoofShape::Flat,
     RoofShape::Skillion,
     RoofShape::Gabled,
@@ -38,6 +38,14 @@ const ALL: [RoofShape; 14] = [
     RoofShape::Onion,
     RoofShape::Round,
     RoofShape::Cone,
+    RoofShape::GabledHeightMoved,
+    RoofShape::SideHalfHipped,
+    RoofShape::HippedAndGabled,
+    RoofShape::BellcastGable,
+    RoofShape::Crosspitched,
+    RoofShape::Sawtooth,
+    RoofShape::Butterfly,
+    RoofShape::ApseGabled,
 ];
 
 fn rect() -> Polygon {
@@ -538,4 +546,59 @@ fn a_short_ridge_whose_planes_do_not_meet_in_one_point_is_kept() {
     assert_eq!(roof[0].outer.len(), 4, "{roof:?}");
     let on_grid = |p: DVec3| DVec3::new(on_grid(p.x), on_grid(p.y), on_grid(p.z));
     assert!(roof[0].outer.contains(&on_grid(a)) && roof[0].outer.contains(&on_grid(b)));
+}
+
+#[test]
+fn a_cut_roof_that_fails_the_part_checks_is_drawn_as_the_next_simpler_shape() {
+    // A sound sawtooth is drawn as asked, without a note.
+    let m = mass(rect(), RoofShape::Sawtooth);
+    let (part, notes) = part_with_roof("p0".into(), &m, Lod::Lod2, "way/7", roof_geometry);
+    assert!(notes.is_empty(), "{notes:?}");
+    assert_eq!(part.roof_shape, RoofShape::Sawtooth);
+    // A sawtooth with a corner of a face lifted by a metre (not planar) is drawn as a
+    // skillion, and the report names the building.
+    let broken = |m: &Mass| {
+        let r = roof_geometry(m)?;
+        if m.roof != RoofShape::Sawtooth {
+            return Ok(r);
+        }
+        let mut faces = r.faces.clone();
+        faces[0].outer[0].z += 1.0;
+        Ok(RoofGeometry::from_parts(faces, r.gable_walls))
+    };
+    let (part, notes) = part_with_roof("p0".into(), &m, Lod::Lod2, "way/7", broken);
+    assert_eq!(part.roof_shape, RoofShape::Skillion);
+    assert!(check_part(&part).is_empty(), "{:?}", check_part(&part));
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(
+        notes[0].starts_with("sawtooth roof of way/7 drawn as skillion: "),
+        "{notes:?}"
+    );
+    // Saltbox and a turned gabled roof fall back to the skeleton's gabled roof; a skillion to
+    // flat; the skeleton roofs have no fallback.
+    let saltbox = simpler_roof(&Mass {
+        roof_direction: Some(90.0),
+        ..mass(rect(), RoofShape::Saltbox)
+    });
+    assert_eq!(
+        saltbox.map(|m| (m.roof, m.roof_direction, m.roof_across)),
+        Some((RoofShape::Gabled, None, false))
+    );
+    let turned = simpler_roof(&Mass {
+        roof_across: true,
+        ..mass(rect(), RoofShape::Gabled)
+    });
+    assert_eq!(
+        turned.map(|m| (m.roof, m.roof_across)),
+        Some((RoofShape::Gabled, false))
+    );
+    let skillion = simpler_roof(&mass(rect(), RoofShape::Skillion));
+    assert_eq!(skillion.map(|m| m.roof), Some(RoofShape::Flat));
+    for shape in [RoofShape::Gabled, RoofShape::Hipped, RoofShape::Flat] {
+        assert!(simpler_roof(&mass(rect(), shape)).is_none(), "{shape:?}");
+    }
+    // At LOD1 the part is a block: nothing to fall back from.
+    let (part, notes) = part_with_roof("p0".into(), &m, Lod::Lod1, "way/7", broken);
+    assert!(notes.is_empty());
+    assert_eq!(part.roof_shape, RoofShape::Sawtooth);
 }

@@ -215,49 +215,117 @@ pub fn gabled(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
     shapes::profile_roof(poly, Ends::Gabled, |_| Profile::linear(k))
 }
 
-/// Builds any roof of the catalogue on `poly` with the eave at z = 0.
+/// Builds any roof of the catalogue on `poly` with the eave at z = 0, with no
+/// `roof:orientation` (see [`build_oriented`]).
 ///
-/// `pitch_deg` is the pitch of hipped, gabled, half-hipped, side-hipped, saltbox, skillion,
-/// pyramidal and cone roofs; the mansard and gambrel use their own two pitches (see
-/// [`shapes`]) and dome, onion and round roofs a height from the inscribed radius. The
-/// caller scales the result with `RoofGeometry::scaled_to_height` when the height is known.
-/// `down` is the direction (in plan) a skillion faces (OSM `roof:direction`), else the short
-/// axis of the footprint's minimum bounding rectangle. Pyramidal and cone roofs rise to one
-/// apex over the centroid when the footprint has no holes and is star-shaped from it, and are
-/// hipped otherwise. Saltbox is a two-plane ridge roof with the ridge at 35 % of the width
-/// ([`shapes::ridge_roof`]); its long slope faces `down` when given.
-///
-/// Errors: a pitch outside (0°, 90°), or an invalid footprint (a `SkeletonError`); never a
-/// fallback for a valid simple polygon.
+/// Errors: as [`build_oriented`].
 pub fn build(
     poly: &Polygon,
     shape: RoofShape,
     pitch_deg: f64,
     down: Option<DVec2>,
 ) -> Result<RoofGeometry, RoofError> {
+    build_oriented(poly, shape, pitch_deg, down, false)
+}
+
+/// Builds any roof of the catalogue on `poly` with the eave at z = 0.
+///
+/// `pitch_deg` is the pitch of hipped, gabled, half-hipped, side-hipped, saltbox, skillion,
+/// pyramidal, cone, butterfly, sawtooth and crosspitched roofs (the steeper slope of the
+/// asymmetric ones); the mansard and gambrel use their own two pitches (see [`shapes`]),
+/// bellcast its pitch and half of it at the eaves, and dome, onion and round roofs a height
+/// from the inscribed radius. The caller scales the result with
+/// `RoofGeometry::scaled_to_height` when the height is known.
+///
+/// `down` is OSM `roof:direction` (in plan, the way the main slope falls): a skillion or
+/// sawtooth falls towards it (else across the short side; a sawtooth along it with `across`); a
+/// saltbox's or `gabled_height_moved`'s long slope faces it; a butterfly's valley and a
+/// crosspitched roof's first ridge run across it; a gabled roof takes the ridge across it
+/// when it is nearer the footprint's long axis than its short one. `across` is
+/// `roof:orientation=across`: the ridge (or valley, or sawtooth ridges) of gabled, saltbox,
+/// `gabled_height_moved`, butterfly and sawtooth roofs parallel to the short side. The
+/// skeleton roofs (hipped and its variants, mansard, gambrel, round, ...) follow the
+/// footprint's wings and take neither.
+///
+/// Pyramidal and cone roofs rise to one apex over the centroid when the footprint has no
+/// holes and is star-shaped from it, and are hipped otherwise. Saltbox and
+/// `gabled_height_moved` are two-plane ridge roofs ([`shapes::ridge_roof`]) with the ridge at
+/// 35 % and 25 % of the width. Fallbacks to a simpler shape: a hipped-and-gabled end whose
+/// small gable does not fit stays hipped (a square's: no ridge); an `apse_gabled` footprint
+/// without a rounded end keeps its first end hipped (as side-hipped); a crosspitched roof whose
+/// crossing cannot keep clear of the corners is gabled. The cut roofs' runtime safety net (a
+/// part that fails its checks is drawn simpler) is `massing::part_with_roof`.
+///
+/// Errors: a pitch outside (0°, 90°), or an invalid footprint (a `SkeletonError`); never a
+/// fallback for a valid simple polygon.
+pub fn build_oriented(
+    poly: &Polygon,
+    shape: RoofShape,
+    pitch_deg: f64,
+    down: Option<DVec2>,
+    across: bool,
+) -> Result<RoofGeometry, RoofError> {
     let k = check_pitch(pitch_deg)?;
     let lin = |_: f64| Profile::linear(k);
     let tan = |d: f64| d.to_radians().tan();
+    let down = down
+        .map(|d| d.normalize_or_zero())
+        .filter(|d| *d != DVec2::ZERO && d.is_finite());
+    let short = || shapes::short_axis(poly);
+    // The direction of a ridge (or valley) when roof:direction does not give it.
+    let ridge = || if across { short() } else { short().perp() };
     match shape {
         RoofShape::Flat => {
             straight_skeleton(poly)?;
             Ok(flat(poly))
         }
         RoofShape::Hipped => shapes::profile_roof(poly, Ends::Hipped, lin),
-        RoofShape::Gabled => shapes::profile_roof(poly, Ends::Gabled, lin),
-        RoofShape::Saltbox => {
+        RoofShape::Gabled => {
+            // roof:direction along the long axis puts the ridge across.
+            let turned = down.is_some_and(|d| {
+                let s = short();
+                d.dot(s).abs() < d.dot(s.perp()).abs()
+            });
+            if across || turned {
+                shapes::ridge_roof(poly, short(), 0.5, pitch_deg)
+            } else {
+                shapes::profile_roof(poly, Ends::Gabled, lin)
+            }
+        }
+        RoofShape::Saltbox | RoofShape::GabledHeightMoved => {
+            let at = if shape == RoofShape::Saltbox {
+                shapes::SALTBOX_RIDGE_AT
+            } else {
+                shapes::HEIGHT_MOVED_RIDGE_AT
+            };
             // The long slope faces `down` (roof:direction) when given: the ridge stands on the
             // other side.
-            let across = shapes::short_axis(poly);
-            let (ridge_dir, at) = match down.map(|d| d.normalize_or_zero()) {
-                Some(d) if d != DVec2::ZERO => (d.perp(), shapes::SALTBOX_RIDGE_AT),
-                _ => (across.perp(), shapes::SALTBOX_RIDGE_AT),
-            };
+            let ridge_dir = down.map_or_else(ridge, |d| d.perp());
             shapes::ridge_roof(poly, -ridge_dir, at, pitch_deg)
         }
         RoofShape::SideHipped => shapes::profile_roof(poly, Ends::AllButOne, lin),
         RoofShape::HalfHipped => {
             shapes::profile_roof(poly, Ends::HalfHipped(shapes::HALF_HIP_FRACTION), lin)
+        }
+        RoofShape::SideHalfHipped => {
+            shapes::profile_roof(poly, Ends::SideHalfHipped(shapes::HALF_HIP_FRACTION), lin)
+        }
+        RoofShape::HippedAndGabled => {
+            let steep = tan(shapes::HIP_AND_GABLE_DEG) / k;
+            let ends = Ends::HipAndGable(shapes::HIP_AND_GABLE_FRACTION, steep);
+            shapes::profile_roof(poly, ends, lin)
+        }
+        RoofShape::BellcastGable => shapes::profile_roof(poly, Ends::Gabled, |t| {
+            let lower = tan(pitch_deg * shapes::BELLCAST_LOWER_REL);
+            Profile::broken(lower, k, shapes::BELLCAST_BREAK_REL * t)
+        }),
+        RoofShape::ApseGabled => {
+            let ends = if shapes::has_rounded_end(poly) {
+                Ends::Gabled
+            } else {
+                Ends::AllButOne
+            };
+            shapes::profile_roof(poly, ends, lin)
         }
         RoofShape::Mansard => shapes::profile_roof(poly, Ends::Hipped, |t| {
             let t0 = shapes::MANSARD_BREAK_M.min(shapes::MANSARD_BREAK_REL * t);
@@ -290,9 +358,18 @@ pub fn build(
                 Err(_) => shapes::profile_roof(poly, Ends::Hipped, lin),
             }
         }
-        RoofShape::Skillion => {
-            let d = down.unwrap_or_else(|| shapes::short_axis(poly));
-            shapes::skillion(poly, d, k)
+        RoofShape::Skillion => shapes::skillion(poly, down.unwrap_or_else(short), k),
+        RoofShape::Sawtooth => {
+            let d = down.unwrap_or_else(|| if across { short().perp() } else { short() });
+            shapes::sawtooth(poly, d, k)
+        }
+        RoofShape::Butterfly => {
+            let valley = down.map_or_else(ridge, |d| d.perp());
+            shapes::butterfly(poly, valley, k)
+        }
+        RoofShape::Crosspitched => {
+            let first = down.map_or_else(|| short().perp(), |d| d.perp());
+            shapes::crosspitched(poly, first, k)
         }
     }
 }

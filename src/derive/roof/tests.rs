@@ -685,6 +685,39 @@ const SLOPE_TOLERANCE_DEG: f64 = 0.01;
 
 const CHECKED: [RoofShape; 3] = [RoofShape::Hipped, RoofShape::Gabled, RoofShape::Mansard];
 
+/// Every shape of the catalogue but flat: each property case checks [`CHECKED`] and one of
+/// these (picked by the case), so that every shape meets every kind of footprint over a run.
+const ALL_PITCHED: [RoofShape; 21] = [
+    RoofShape::Skillion,
+    RoofShape::Gabled,
+    RoofShape::Hipped,
+    RoofShape::HalfHipped,
+    RoofShape::SideHipped,
+    RoofShape::Pyramidal,
+    RoofShape::Mansard,
+    RoofShape::Gambrel,
+    RoofShape::Saltbox,
+    RoofShape::Dome,
+    RoofShape::Onion,
+    RoofShape::Round,
+    RoofShape::Cone,
+    RoofShape::GabledHeightMoved,
+    RoofShape::SideHalfHipped,
+    RoofShape::HippedAndGabled,
+    RoofShape::BellcastGable,
+    RoofShape::Crosspitched,
+    RoofShape::Sawtooth,
+    RoofShape::Butterfly,
+    RoofShape::ApseGabled,
+];
+
+/// The shapes a property case checks: [`CHECKED`] and `ALL_PITCHED[pick]`.
+fn case_shapes(pick: usize) -> impl Iterator<Item = RoofShape> {
+    CHECKED
+        .into_iter()
+        .chain(std::iter::once(ALL_PITCHED[pick % ALL_PITCHED.len()]))
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: roof_cases(), ..ProptestConfig::default() })]
 
@@ -694,13 +727,14 @@ proptest! {
         angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
         scale in 0.5f64..20.0,
         pitch in 10.0f64..60.0,
+        pick in 0usize..21,
     ) {
         let (s, c) = angle.sin_cos();
         let pts: Vec<DVec2> = histogram(&cols).iter()
             .map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale)
             .collect();
         let p = Polygon::new(pts, vec![]);
-        for shape in CHECKED {
+        for shape in case_shapes(pick) {
             if let Err(e) = check_shape(&p, shape, pitch) {
                 return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
             }
@@ -714,6 +748,7 @@ proptest! {
         angle in prop_oneof![Just(0.0), 0.0..std::f64::consts::TAU],
         scale in 1.0f64..15.0,
         pitch in 10.0f64..60.0,
+        pick in 0usize..21,
     ) {
         let Some(p) = cell_union(&steps, carve) else { return Ok(()); };
         let (s, c) = angle.sin_cos();
@@ -721,7 +756,7 @@ proptest! {
             r.iter().map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale).collect()
         };
         let p = Polygon::new(rot(&p.outer), p.holes.iter().map(rot).collect());
-        for shape in CHECKED {
+        for shape in case_shapes(pick) {
             if let Err(e) = check_shape(&p, shape, pitch) {
                 return Err(TestCaseError::fail(format!("{e}: {:?} {:?}", p.outer, p.holes)));
             }
@@ -733,6 +768,7 @@ proptest! {
         pts in prop::collection::vec((0.0f64..1.0, 0.2f64..1.0), 3..24),
         size in 2.0f64..60.0,
         pitch in 10.0f64..60.0,
+        pick in 0usize..21,
         hole in any::<bool>(),
     ) {
         let n = pts.len();
@@ -753,7 +789,7 @@ proptest! {
             vec![]
         };
         let p = Polygon::new(ring, holes);
-        for shape in CHECKED {
+        for shape in case_shapes(pick) {
             if let Err(e) = check_shape(&p, shape, pitch) {
                 return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
             }
@@ -926,3 +962,4 @@ fn a_small_arc_with_a_spur_closes_its_gabled_roof() {
         }
     }
 }
+mod catalogue;

@@ -456,15 +456,24 @@ pub(crate) fn roof_type(shape: RoofShape) -> &'static str {
     match shape {
         RoofShape::Flat => "FLAT_ROOF",
         RoofShape::Skillion => "SHED_ROOF",
-        RoofShape::Gabled | RoofShape::Saltbox => "GABLE_ROOF",
+        RoofShape::Gabled
+        | RoofShape::Saltbox
+        | RoofShape::GabledHeightMoved
+        | RoofShape::BellcastGable
+        | RoofShape::ApseGabled => "GABLE_ROOF",
         RoofShape::Hipped | RoofShape::SideHipped => "HIP_ROOF",
-        RoofShape::HalfHipped => "HIPPED_GABLE_ROOF",
+        RoofShape::HalfHipped | RoofShape::SideHalfHipped | RoofShape::HippedAndGabled => {
+            "HIPPED_GABLE_ROOF"
+        }
+        RoofShape::Butterfly => "BUTTERFLY_ROOF",
         RoofShape::Pyramidal => "PAVILION_ROOF",
         RoofShape::Mansard => "MANSARD_ROOF",
         RoofShape::Gambrel => "GAMBREL_ROOF",
         RoofShape::Dome => "DOME_ROOF",
         RoofShape::Round => "BARREL_ROOF",
-        RoofShape::Onion | RoofShape::Cone => "FREEFORM",
+        RoofShape::Onion | RoofShape::Cone | RoofShape::Crosspitched | RoofShape::Sawtooth => {
+            "FREEFORM"
+        }
     }
 }
 

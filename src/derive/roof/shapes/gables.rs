@@ -25,8 +25,9 @@ pub(crate) const GABLE_MAX_KINK_DEG: f64 = 1.0;
 /// stay planar and share their new ridge end; a kink of the base between `a` and `p` is lifted
 /// onto the first neighbour's plane (the roof line over it), one between `p` and `b` onto the
 /// second's. A square's four hips meet in one apex: two opposite ones become the gables.
-pub(super) fn make_gables(faces: &mut [Option<TFace>], ends: Ends, tol: f64) {
+pub(super) fn make_gables(faces: &mut Vec<Option<TFace>>, ends: Ends, tol: f64) {
     let mut skipped_first = false;
+    let mut side_done = false;
     // The next face of the same ring, in ring order.
     let next_of = |faces: &[Option<TFace>], i: usize| -> Option<usize> {
         let e = faces[i].as_ref()?.edge;
@@ -42,7 +43,14 @@ pub(super) fn make_gables(faces: &mut [Option<TFace>], ends: Ends, tol: f64) {
         }
         let mut chain = vec![i];
         for _ in 0..GABLE_MAX_CHAIN {
-            if gable_chain(faces, &chain, ends, tol, &mut skipped_first).is_some() {
+            // A side-half-hipped roof: its first end half-hipped, the others gables.
+            let this = match ends {
+                Ends::SideHalfHipped(c) if !side_done => Ends::HalfHipped(c),
+                Ends::SideHalfHipped(_) => Ends::Gabled,
+                e => e,
+            };
+            if let Some(done) = gable_chain(faces, &chain, this, tol, &mut skipped_first) {
+                side_done |= done;
                 break;
             }
             let Some(n) = next_of(faces, *chain.last().unwrap_or(&i)) else {
@@ -152,7 +160,7 @@ fn opposite_lines(fp: &TFace, fnx: &TFace) -> Option<((DVec2, DVec2), (DVec2, DV
 /// but was left hipped on purpose (the first end of a side-hipped roof), `None` when the chain
 /// is no hip end.
 fn gable_chain(
-    faces: &mut [Option<TFace>],
+    faces: &mut Vec<Option<TFace>>,
     chain: &[usize],
     ends: Ends,
     tol: f64,
@@ -240,7 +248,14 @@ fn gable_chain(
         .iter()
         .map(|q| q.truncate().extend(tn(q.truncate())))
         .collect();
+    let mut extra = None;
     let (with_prev, with_next, hip) = match ends {
+        Ends::HipAndGable(c, steep) => {
+            let (hip, wp, wn, gable) =
+                hip_and_gable(faces, chain, &base, (jp, jn), (p, np - nn), c, steep, tol)?;
+            extra = Some(gable);
+            (wp, wn, Some(hip))
+        }
         Ends::HalfHipped(c) => {
             let c = c.clamp(0.05, 0.95);
             // The half-hip's base cuts the gable at c of its height, above every kink (a kink
@@ -287,6 +302,9 @@ fn gable_chain(
     if let Some(pts) = hip {
         faces[chain[0]] = Some(TFace { edge, pts });
     }
+    if let Some(pts) = extra {
+        faces.push(Some(TFace { edge, pts }));
+    }
     for (j, with) in [(jp, with_prev), (jn, with_next)] {
         if let Some(g) = faces[j].as_mut() {
             g.pts = replace_runs(&g.pts, &in_top, &with);
@@ -295,6 +313,81 @@ fn gable_chain(
     }
     Some(true)
 }
+
+/// A hipped-and-gabled end (see [`Ends::HipAndGable`]) of the one face `chain` on `base`
+/// between the neighbours `jp` (before it) and `jn`: the hip up to the fraction `c` of its
+/// lines to the top (`xa`, `xb`), and the small gable `xa, xb, r` rising `steep` in `t` per
+/// metre to the point `r` of the ridge (the line through the gable point `p` across
+/// `normals`, the difference of the neighbours' unit normals), which both neighbours reach
+/// instead of the old top. Returns the hip, the neighbours' new runs and the gable, or `None`
+/// when the gable would not stand between the hip and the old top.
+#[allow(clippy::too_many_arguments)]
+fn hip_and_gable(
+    faces: &[Option<TFace>],
+    chain: &[usize],
+    base: &[DVec3],
+    (jp, jn): (usize, usize),
+    (p, normals): (DVec3, DVec2),
+    c: f64,
+    steep: f64,
+    tol: f64,
+) -> Option<HipAndGable> {
+    if chain.len() != 1 || base.len() < 2 || !(steep.is_finite() && steep > 0.0) {
+        return None;
+    }
+    let (a, b) = (base[0], base[base.len() - 1]);
+    // The hip lines: a → ta (the vertex after a in jp), tb → b (the one before b in jn).
+    let g = faces[jp].as_ref()?;
+    let ia = g.pts.iter().position(|q| q.distance(a) <= tol)?;
+    let ta = g.pts[(ia + 1) % g.pts.len()];
+    let h = faces[jn].as_ref()?;
+    let ib = h.pts.iter().position(|q| q.distance(b) <= tol)?;
+    let tb = h.pts[(ib + h.pts.len() - 1) % h.pts.len()];
+    let c = c.clamp(0.05, 0.95);
+    let (xa, xb) = (a + (ta - a) * c, b + (tb - b) * c);
+    let e = (xb - xa).truncate().normalize_or_zero();
+    if e == DVec2::ZERO {
+        return None;
+    }
+    let inward = e.perp();
+    let dist = |x: DVec2| (x - xa.truncate()).dot(inward);
+    // Along the ridge from p, inwards: t rises as the first neighbour's plane does.
+    let mut d = normals.perp().normalize_or_zero();
+    if d.dot(inward) < 0.0 {
+        d = -d;
+    }
+    let np = {
+        // The first neighbour's inward normal: its side runs from its first vertex.
+        let dir = (g.pts[1] - g.pts[0]).truncate().normalize_or_zero();
+        dir.perp()
+    };
+    let rise = np.dot(d);
+    let tx = 0.5 * (xa.z + xb.z);
+    let p2 = p.truncate();
+    // t(s) - tx = steep · dist(s), both linear in s.
+    let den = rise - steep * d.dot(inward);
+    if den.abs() < 1e-12 {
+        return None;
+    }
+    let s = (steep * dist(p2) - (p.z - tx)) / den;
+    let r2 = p2 + d * s;
+    let r = r2.extend(p.z + rise * s);
+    let width = (b - a).truncate().length();
+    let room = dist(ta.truncate()).min(dist(tb.truncate()));
+    if !(s.is_finite()
+        && dist(r2) > 1e-3 * width
+        && dist(r2) < room - 1e-3 * width
+        && r.z > xa.z.max(xb.z) + tol)
+    {
+        return None;
+    }
+    let mut hip = base.to_vec();
+    hip.extend([xb, xa]);
+    Some((hip, vec![xa, r], vec![r, xb], vec![xa, xb, r]))
+}
+
+/// What [`hip_and_gable`] makes: the hip, the two neighbours' new runs and the gable.
+type HipAndGable = (Vec<DVec3>, Vec<DVec3>, Vec<DVec3>, Vec<DVec3>);
 
 /// A square's roof (four hips meeting in one apex) made gabled: face `i` and the face opposite
 /// it become the gables, the two others meet along a ridge between their gable points. Does

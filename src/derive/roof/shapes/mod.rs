@@ -61,13 +61,16 @@ use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton_merged};
 use crate::geometry::{CellHash, Polygon};
 use crate::model::Face;
 
+mod cut;
 mod gables;
 mod ridge;
 mod rings;
 mod roofline;
 
+pub use cut::{butterfly, crosspitched, sawtooth};
+pub use cut::{SAWTOOTH_DEPTH_M, SAWTOOTH_GLAZING_DEG};
 use gables::make_gables;
-pub use ridge::{ridge_roof, short_axis, skillion, SALTBOX_RIDGE_AT};
+pub use ridge::{ridge_roof, short_axis, skillion, HEIGHT_MOVED_RIDGE_AT, SALTBOX_RIDGE_AT};
 use rings::split_ring;
 pub(crate) use roofline::RoofLine;
 
@@ -115,6 +118,16 @@ pub(crate) const ONE_APEX_SPREAD: f64 = 0.1;
 pub(crate) const ONE_APEX_MIN_SIDES: usize = 8;
 /// Height fraction of the gable wall under a half-hip.
 pub(crate) const HALF_HIP_FRACTION: f64 = 0.6;
+/// Height fraction of the hip under a hipped-and-gabled roof's small gable.
+pub(crate) const HIP_AND_GABLE_FRACTION: f64 = 0.6;
+/// Slope of a hipped-and-gabled roof's small gable, degrees: steep but not vertical (it stands
+/// inside the footprint, where a face must face up).
+pub(crate) const HIP_AND_GABLE_DEG: f64 = 80.0;
+/// Flared eaves of `bellcast_gable`: the lowest fraction of the inscribed radius at this
+/// fraction of the pitch.
+pub(crate) const BELLCAST_BREAK_REL: f64 = 0.25;
+/// See [`BELLCAST_BREAK_REL`].
+pub(crate) const BELLCAST_LOWER_REL: f64 = 0.5;
 
 /// What happens to the hip ends of a profile roof.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -127,6 +140,13 @@ pub(crate) enum Ends {
     AllButOne,
     /// Every hip end becomes a gable up to the given fraction of its height, then a small hip.
     HalfHipped(f64),
+    /// The first hip end (in ring and edge order) is half-hipped as [`Ends::HalfHipped`], every
+    /// other one a gable.
+    SideHalfHipped(f64),
+    /// Every hip end stays a hip up to the fraction `.0` of its height, under a small steep
+    /// gable face set back on top of it (a Dutch gable), rising `.1` in `t` per metre (the
+    /// profile must be linear: [`HIP_AND_GABLE_DEG`] over the roof's slope).
+    HipAndGable(f64, f64),
 }
 
 /// A piecewise-linear height profile `z = h(t)`: points `(t, z)` with increasing `t`, starting
@@ -310,6 +330,47 @@ pub(crate) fn profile_roof(
     let walls = gable_walls(poly, &faces);
     Ok(RoofGeometry::from_parts(faces, walls))
 }
+
+/// Whether the footprint's outline has a rounded end (an apse): a run of at least
+/// [`APSE_MIN_CORNERS`] consecutive corners each turning outwards by 2° to 60°, turning by 90° or
+/// more in all. A polygonal apse of three sides or more counts; the corners of a rectangle do
+/// not.
+pub(crate) fn has_rounded_end(poly: &Polygon) -> bool {
+    let r = &poly.outer;
+    let n = r.len();
+    if n < APSE_MIN_CORNERS + 2 {
+        return false;
+    }
+    let turn = |i: usize| {
+        let (a, b, c) = (r[(i + n - 1) % n], r[i], r[(i + 1) % n]);
+        let (u, v) = (b - a, c - b);
+        u.perp_dot(v).atan2(u.dot(v)).to_degrees()
+    };
+    let turns: Vec<f64> = (0..n).map(turn).collect();
+    let soft = |t: f64| (2.0..=60.0).contains(&t);
+    // Start after a corner that is not soft, so that no run wraps around the start.
+    let Some(start) = (0..n).find(|&i| !soft(turns[i])) else {
+        return false;
+    };
+    let (mut count, mut total) = (0usize, 0.0);
+    for k in 1..=n {
+        let t = turns[(start + k) % n];
+        if soft(t) {
+            count += 1;
+            total += t;
+            if count >= APSE_MIN_CORNERS && total >= 90.0 {
+                return true;
+            }
+        } else {
+            count = 0;
+            total = 0.0;
+        }
+    }
+    false
+}
+
+/// Fewest corners of a rounded end (see [`has_rounded_end`]).
+pub(crate) const APSE_MIN_CORNERS: usize = 3;
 
 /// Makes the faces of a footprint whose skeleton nearly closes in one point (a round tower drawn
 /// as a polygon of many sides, a regular octagon) rise to one apex: each face becomes its base
@@ -505,7 +566,8 @@ fn insert_footprint_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
 
 /// Vertical faces closing the roof above the eave on each footprint edge whose roof line rises
 /// above it (gables, half-hips): `a, b, then the roof line from b back to a` (see
-/// [`RoofLine::over`]), counter-clockwise seen from outside.
+/// [`RoofLine::over`]), counter-clockwise seen from outside. A roof line that comes down to the
+/// eave between its ends (a valley's foot) closes one face on each stretch above the eave.
 fn gable_walls(poly: &Polygon, faces: &[Face]) -> Vec<Face> {
     let line = RoofLine::new(faces, poly);
     let mut out = Vec::new();
@@ -513,10 +575,27 @@ fn gable_walls(poly: &Polygon, faces: &[Face]) -> Vec<Face> {
         for i in 0..r.len() {
             let (a, b) = (r[i], r[(i + 1) % r.len()]);
             let top = line.over(ri, i);
-            if top.iter().any(|p| p.z > 0.0) {
-                let mut ring = vec![a.extend(0.0), b.extend(0.0)];
-                ring.extend(top.iter().filter(|p| p.z > 0.0));
-                out.push(Face::new(ring));
+            if !top.iter().any(|p| p.z > 0.0) {
+                continue;
+            }
+            // From b back to a: a stretch starts at an eave point (or b) and ends at the next.
+            let mut start = b.extend(0.0);
+            let mut run: Vec<DVec3> = Vec::new();
+            for (k, p) in top.iter().enumerate() {
+                let last = k + 1 == top.len();
+                if p.z > 0.0 {
+                    run.push(*p);
+                }
+                if p.z <= 0.0 && k > 0 || last {
+                    let end = if last { a.extend(0.0) } else { *p };
+                    if !run.is_empty() {
+                        let mut ring = vec![end, start];
+                        ring.append(&mut run);
+                        out.push(Face::new(ring));
+                    }
+                    start = end;
+                    run.clear();
+                }
             }
         }
     }

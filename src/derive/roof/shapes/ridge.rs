@@ -46,8 +46,13 @@ pub fn skillion(poly: &Polygon, down: DVec2, slope: f64) -> Result<RoofGeometry,
 /// the short, steep slope): the long slope covers the other 65 %.
 pub const SALTBOX_RIDGE_AT: f64 = 0.35;
 
+/// Where a `gabled_height_moved` roof's ridge stands across the footprint, as
+/// [`SALTBOX_RIDGE_AT`]: a quarter of the width, so that it reads apart from a saltbox.
+pub const HEIGHT_MOVED_RIDGE_AT: f64 = 0.25;
+
 /// A roof of two planes meeting along one straight ridge parallel to `ridge_dir`, standing at
-/// fraction `at` (0..1) of the footprint's width measured along `ridge_dir.perp()`, both eaves
+/// fraction `at` (0..1) of the footprint's width measured along `ridge_dir.perp()` (moved by
+/// up to 5 % of the width where it would pass a hair beside a corner), both eaves
 /// at z = 0 on the farthest footprint points. The steeper side has the pitch `pitch_deg`.
 ///
 /// This is the roof of `roof:shape=saltbox` (`at` = [`SALTBOX_RIDGE_AT`]: asymmetric slopes) and
@@ -85,7 +90,18 @@ pub fn ridge_roof(
             (a.min(s), b.max(s))
         });
     let width = smax - smin;
-    let ridge = smin + at * width;
+    // The ridge kept clear of the footprint's corners (moved by up to 5 % of the width): a
+    // ridge a hair beside a vertex leaves a sliver the millimetre grid cannot keep planar.
+    // The shallower slope sets the clearance.
+    let k = pitch_deg.to_radians().tan();
+    let shallow = k * at.min(1.0 - at) / at.max(1.0 - at);
+    let ridge = super::cut::clear_cut(
+        &super::cut::corners(poly),
+        n,
+        smin + at * width,
+        super::cut::cut_clearance(super::cut::size_of(poly), shallow),
+        0.05 * width,
+    );
     let (da, db) = (ridge - smin, smax - ridge);
     if !(da > 1e-6 * width.max(1.0) && db > 1e-6 * width.max(1.0)) {
         return Err(RoofError::InvalidParameter(
@@ -119,13 +135,70 @@ pub fn ridge_roof(
             });
         }
     }
+    // The boolean clip drops a footprint vertex where the outline runs straight through it:
+    // put it back, so that the walls on both sides of it meet the roof there.
+    insert_straight_vertices(&mut faces, poly, footprint_tolerance(poly));
     let walls = gable_walls(poly, &faces);
     Ok(RoofGeometry::from_parts(faces, walls))
 }
 
+/// The distance within which a roof's boundary vertex stands on the footprint (as the profile
+/// roofs take it: twice the skeleton's collinear tolerance at the footprint's size).
+pub(super) fn footprint_tolerance(poly: &Polygon) -> f64 {
+    let (lo, hi) = poly.bounds();
+    2.0 * crate::geometry::skeleton::collinear_tolerance((hi - lo).max_element())
+}
+
+/// Puts every footprint vertex that lies on a boundary edge of the roof (an edge no other face
+/// runs back along), strictly between its ends and within `tol` of it in plan, into that edge
+/// at the edge's height there. A boolean clip drops a vertex the outline runs straight
+/// through; without it the walls on either side of it would not meet the roof at their
+/// corner.
+pub(super) fn insert_straight_vertices(faces: &mut [Face], poly: &Polygon, tol: f64) {
+    type K = (u64, u64, u64);
+    let key = |p: DVec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+    let mut edges: std::collections::HashSet<(K, K), crate::geometry::CellHash> =
+        Default::default();
+    for f in faces.iter() {
+        for r in std::iter::once(&f.outer).chain(f.holes.iter()) {
+            for i in 0..r.len() {
+                edges.insert((key(r[i]), key(r[(i + 1) % r.len()])));
+            }
+        }
+    }
+    let corners: Vec<DVec2> = poly.rings().flatten().copied().collect();
+    for f in faces.iter_mut() {
+        for r in std::iter::once(&mut f.outer).chain(f.holes.iter_mut()) {
+            let n = r.len();
+            let mut out = Vec::with_capacity(n);
+            for i in 0..n {
+                let (u, v) = (r[i], r[(i + 1) % n]);
+                out.push(u);
+                let d = (v - u).truncate();
+                let l2 = d.length_squared();
+                if l2 <= 1e-12 || edges.contains(&(key(v), key(u))) {
+                    continue;
+                }
+                let mut on: Vec<(f64, DVec2)> = corners
+                    .iter()
+                    .filter_map(|&c| {
+                        let s = (c - u.truncate()).dot(d) / l2;
+                        let off = (c - u.truncate() - d * s).length();
+                        let len = l2.sqrt();
+                        (s * len > tol && (1.0 - s) * len > tol && off <= tol).then_some((s, c))
+                    })
+                    .collect();
+                on.sort_by(|a, b| a.0.total_cmp(&b.0));
+                out.extend(on.into_iter().map(|(s, c)| c.extend(u.z + s * (v.z - u.z))));
+            }
+            *r = out;
+        }
+    }
+}
+
 /// Validates a footprint the way the skeleton does (so that every shape rejects the same
 /// invalid input).
-fn check_simple(poly: &Polygon) -> Result<(), RoofError> {
+pub(super) fn check_simple(poly: &Polygon) -> Result<(), RoofError> {
     straight_skeleton(poly)?;
     Ok(())
 }

@@ -15,6 +15,9 @@ pub(crate) struct RoofLine<'a> {
     /// Boundary vertices above the eave with the footprint edge (ring, edge) nearest to them
     /// in plan, within [`RoofLine::TOL`].
     above: Vec<(DVec3, (usize, usize))>,
+    /// Boundary vertices on the eave (z = 0) the same way: the foot of a valley that comes
+    /// down to the eave in the middle of a wall (a butterfly's end wall, a sawtooth's side).
+    low: Vec<(DVec3, (usize, usize))>,
     /// Every boundary vertex (for the heights at the footprint's corners), sorted by x.
     boundary: Vec<DVec3>,
     /// No x is NaN, so that `boundary` is ordered by `<` on x too.
@@ -61,10 +64,8 @@ impl<'a> RoofLine<'a> {
         });
         boundary.dedup();
         let mut above = Vec::new();
+        let mut low = Vec::new();
         for p in &boundary {
-            if p.z <= 1e-6 {
-                continue;
-            }
             let g = p.truncate();
             let mut best: Option<(f64, (usize, usize))> = None;
             for (ri, r) in footprint.rings().enumerate() {
@@ -84,13 +85,18 @@ impl<'a> RoofLine<'a> {
                 }
             }
             if let Some((_, e)) = best {
-                above.push((*p, e));
+                if p.z > 1e-6 {
+                    above.push((*p, e));
+                } else {
+                    low.push((*p, e));
+                }
             }
         }
         let sorted = boundary.iter().all(|p| !p.x.is_nan());
         RoofLine {
             footprint,
             above,
+            low,
             boundary,
             sorted,
         }
@@ -100,7 +106,8 @@ impl<'a> RoofLine<'a> {
     /// eave (z = 0): the roof boundary's vertices standing on that edge (nearer to it than to
     /// any other), ordered from `b` back to `a`, with `b` and `a` first and last (at the
     /// highest roof vertex there, 0 if none is higher). A wall on this edge closes the roof when
-    /// its outline is `a(base), b(base), then these points`.
+    /// its outline is `a(base), b(base), then these points`. A vertex on the eave is one of them
+    /// only between two above it (a valley coming down to the eave in the middle of the wall).
     pub(crate) fn over(&self, ring: usize, i: usize) -> Vec<DVec3> {
         let Some(r) = self.footprint.rings().nth(ring) else {
             return Vec::new();
@@ -154,7 +161,7 @@ impl<'a> RoofLine<'a> {
             None => (top_at(b, Some(a), gap).unwrap_or(0.0).max(0.0), gap),
         };
         let mut mid: Vec<(f64, DVec3)> = Vec::new();
-        for &(p, e) in &self.above {
+        for &(p, e) in self.above.iter().chain(&self.low) {
             let g = p.truncate();
             if e != (ring, i) || g.distance(a) <= ca || g.distance(b) <= cb {
                 continue;
@@ -166,6 +173,17 @@ impl<'a> RoofLine<'a> {
         }
         mid.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.z.total_cmp(&y.1.z)));
         mid.dedup_by(|x, y| x.1.distance(y.1) <= tol);
+        // Eave vertices only between raised ones (the corners count).
+        let raised: Vec<bool> = mid.iter().map(|m| m.1.z > 1e-6).collect();
+        let keep: Vec<bool> = (0..mid.len())
+            .map(|i| {
+                raised[i]
+                    || ((zb > 1e-6 || raised[..i].iter().any(|&r| r))
+                        && (za > 1e-6 || raised[i + 1..].iter().any(|&r| r)))
+            })
+            .collect();
+        let mut k = keep.iter();
+        mid.retain(|_| k.next().copied().unwrap_or(false));
         let mut out = vec![b.extend(zb)];
         out.extend(mid.into_iter().map(|m| m.1));
         out.push(a.extend(za));
