@@ -16,6 +16,7 @@ mod deploy;
 mod e2e;
 mod evolve;
 mod facades;
+mod ifc_schemas;
 mod incremental;
 mod infer;
 mod iso19107;
