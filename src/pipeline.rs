@@ -66,8 +66,10 @@ pub struct Options {
     pub rules: Option<PathBuf>,
     /// The LOD every building is cut at (`--lod`, default 2).
     pub lod: Lod,
-    /// Write IFC4 (STEP) here (`--ifc`).
+    /// Write IFC (STEP) here (`--ifc`).
     pub ifc: Option<PathBuf>,
+    /// The IFC schema written (`--ifc-schema`, default IFC4).
+    pub ifc_schema: crate::export::ifc::IfcSchema,
     /// Write CityGML 2.0 here (`--citygml`).
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here (`--gltf`).
@@ -390,6 +392,7 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
     let inputs = run_inputs(opts);
     let targets = Targets {
         ifc: opts.ifc.clone(),
+        ifc_schema: opts.ifc_schema,
         citygml: opts.citygml.clone(),
         gltf: opts.gltf.clone(),
         cityjson: opts.cityjson.clone(),
@@ -783,8 +786,10 @@ pub(crate) fn read_rules(p: &Path) -> Result<crate::grammar::RuleSet, RunError> 
 /// Where a run writes.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Targets {
-    /// Write IFC4 (STEP) here.
+    /// Write IFC (STEP) here.
     pub ifc: Option<PathBuf>,
+    /// The IFC schema written (IFC4 unless `--ifc-schema` says otherwise).
+    pub ifc_schema: crate::export::ifc::IfcSchema,
     /// Write CityGML 2.0 here.
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here.

@@ -120,6 +120,7 @@ pub(crate) fn run(cmd: RulesCommand) -> Result<Outcome, AppError> {
                 seed,
                 &Targets {
                     ifc,
+                    ifc_schema: Default::default(),
                     citygml,
                     gltf,
                     cityjson: None,

@@ -42,9 +42,19 @@ pub(crate) struct RunArgs {
     /// windows, doors and balconies) or 4 (interiors: rooms, interior walls and doors, stairs).
     #[arg(long, value_parser = parse_lod, default_value = "2")]
     lod: Lod,
-    /// Write IFC4 (STEP) here.
+    /// Write IFC (STEP) here: IFC4 unless --ifc-schema says otherwise.
     #[arg(long, value_name = "OUT.ifc")]
     ifc: Option<PathBuf>,
+    /// The IFC schema of --ifc: IFC4 (the default), IFC2X3 (for tools that read nothing newer:
+    /// site latitude/longitude instead of a map conversion, window and door styles, a
+    /// surface-model terrain) or IFC4X3_ADD2 (IfcWall instead of IfcWallStandardCase).
+    #[arg(
+        long,
+        value_name = "IFC2X3|IFC4|IFC4X3_ADD2",
+        default_value = "IFC4",
+        requires = "ifc"
+    )]
+    ifc_schema: crate::export::ifc::IfcSchema,
     /// Write CityGML 2.0 here.
     #[arg(long, value_name = "OUT.gml")]
     citygml: Option<PathBuf>,
@@ -261,6 +271,7 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
         rules: cli.rules.clone(),
         lod: cli.lod,
         ifc: cli.ifc.clone(),
+        ifc_schema: cli.ifc_schema,
         citygml: cli.citygml.clone(),
         gltf: cli.gltf.clone(),
         cityjson: cli.cityjson.clone(),

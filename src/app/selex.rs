@@ -86,6 +86,7 @@ pub(crate) fn run(cmd: SelexCommand) -> Result<Outcome, AppError> {
         } => {
             let targets = Targets {
                 ifc,
+                ifc_schema: Default::default(),
                 citygml,
                 gltf,
                 cityjson,

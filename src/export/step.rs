@@ -329,6 +329,14 @@ impl Args<'_> {
         self
     }
 
+    /// An entity reference `#n`, or `$` for `None`.
+    pub(crate) fn opt_id(&mut self, id: Option<Id>) -> &mut Self {
+        match id {
+            Some(id) => self.id(id),
+            None => self.null(),
+        }
+    }
+
     /// A list of references `(#a,#b)`.
     pub fn ids(&mut self, ids: &[Id]) -> &mut Self {
         self.list(|a| {

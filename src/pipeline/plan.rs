@@ -204,6 +204,10 @@ impl GridPlan {
         if grid && !opts.no_terrain {
             options.push_str(&format!(" terrain={}", opts.terrain_tolerance));
         }
+        // Only when not IFC4: the options of IFC4 runs are those of before.
+        if opts.ifc.is_some() && opts.ifc_schema != crate::export::ifc::IfcSchema::Ifc4 {
+            options.push_str(&format!(" ifc_schema={}", opts.ifc_schema));
+        }
         // Only when given: the options of runs without a ground height are those of before.
         if let Some(h) = opts.ground_height {
             options.push_str(&format!(" ground_height={h}"));

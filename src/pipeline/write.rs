@@ -730,7 +730,11 @@ fn open_outputs(
         let elements = (model == Model::CityGml).then(|| Arc::clone(&citygml_elements));
         let (w, sink, bytes, hash) = open_output(p, dry, elements, hashed)?;
         let w: Box<dyn BuildingWriter> = match model {
-            Model::Ifc => Box::new(IfcWriter::new(w).with_file_name(&file_name(p))),
+            Model::Ifc => Box::new(
+                IfcWriter::new(w)
+                    .with_file_name(&file_name(p))
+                    .with_schema(targets.ifc_schema),
+            ),
             Model::CityGml => Box::new(CityGmlWriter::new(w)),
             // A dry run keeps nothing, so its writer needs no scratch files.
             Model::Gltf if dry => Box::new(GltfWriter::discarding(w)),

@@ -18,6 +18,7 @@ mod evolve;
 mod facades;
 mod fronts;
 mod geojson;
+mod ifc_schemas;
 mod incremental;
 mod infer;
 mod iso19107;

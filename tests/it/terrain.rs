@@ -41,6 +41,7 @@ fn opts(dir: &Path, tile: Option<u32>, ground: Option<GroundFn>) -> Options {
         rules: None,
         lod: citygen::model::Lod::Lod2,
         ifc: p("m.ifc"),
+        ifc_schema: Default::default(),
         citygml: p("m.gml"),
         gltf: p("m.glb"),
         cityjson: p("m.city.json"),

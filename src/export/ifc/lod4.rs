@@ -66,7 +66,7 @@ impl Render<'_> {
             if !spaces.is_empty() {
                 self.w.entity("IFCRELAGGREGATES", |a| {
                     a.guid(key, &format!("{path}/spaces"))
-                        .null()
+                        .opt_id(self.g.owner)
                         .null()
                         .null()
                         .id(storey)
@@ -189,7 +189,10 @@ impl Render<'_> {
         let profile = self.plan_profile(frame, &ring, &[])?;
         let up = self.g.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(up).positive(height);
+            a.id(profile)
+                .opt_id(self.g.position)
+                .id(up)
+                .positive(height);
         })?;
         let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -197,7 +200,7 @@ impl Render<'_> {
         let pl = self.level_placement(frame, s.floor_z)?;
         let space = self.w.entity("IFCSPACE", |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string(&room.name)
                 .null()
                 .null()
@@ -205,7 +208,12 @@ impl Render<'_> {
                 .id(shape)
                 .string(&room.usage)
                 .enumeration("ELEMENT")
-                .enumeration("SPACE")
+                // (IFC2X3: InteriorOrExteriorSpace.)
+                .enumeration(if self.g.schema.ifc4_attributes() {
+                    "SPACE"
+                } else {
+                    "INTERNAL"
+                })
                 .null();
         })?;
         let area = crate::geometry::ring_signed_area(&ring).abs();
@@ -220,12 +228,16 @@ impl Render<'_> {
             ("NetVolume", "IFCQUANTITYVOLUME", area * height),
         ] {
             quantities.push(self.w.entity(kind, |a| {
-                a.string(name).null().null().real(value).null();
+                a.string(name).null().null().real(value);
+                // Formula (IFC4).
+                if self.g.schema.ifc4_attributes() {
+                    a.null();
+                }
             })?);
         }
         let qto = self.w.entity("IFCELEMENTQUANTITY", |a| {
             a.guid(key, &format!("{path}/qto"))
-                .null()
+                .opt_id(self.g.owner)
                 .string("Qto_SpaceBaseQuantities")
                 .null()
                 .null()
@@ -233,7 +245,7 @@ impl Render<'_> {
         })?;
         self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
             a.guid(key, &format!("{path}/qto/rel"))
-                .null()
+                .opt_id(self.g.owner)
                 .null()
                 .null()
                 .ids(&[space])
@@ -276,23 +288,29 @@ impl Render<'_> {
         let profile = self.rect_profile(0.0, 0.0, len, w.thickness)?;
         let up = self.g.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(up).positive(height);
+            a.id(profile)
+                .opt_id(self.g.position)
+                .id(up)
+                .positive(height);
         })?;
         self.styled(solid, lod4geom::INTERIOR_WALL_COLOR)?;
         let body_ctx = self.g.body_ctx;
         let body_rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[axis_rep, body_rep])?;
         let name = format!("Interior wall {}.{wi}", s.storey);
-        let id = self.w.entity("IFCWALLSTANDARDCASE", |a| {
+        let schema = self.g.schema;
+        let id = self.w.entity(schema.wall(), |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string(&name)
                 .null()
                 .null()
                 .id(placement)
                 .id(shape)
                 .null();
-            a.enumeration("PARTITIONING");
+            if schema.ifc4_attributes() {
+                a.enumeration("PARTITIONING");
+            }
         })?;
         let (f, c) = (s.floor_z, s.ceiling_z);
         let wall = Wall {
@@ -333,7 +351,10 @@ impl Render<'_> {
         for step in &steps {
             let profile = self.plan_profile(frame, &step.ring, &[])?;
             items.push(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).null().id(up).positive(step.z1 - step.z0);
+                a.id(profile)
+                    .opt_id(self.g.position)
+                    .id(up)
+                    .positive(step.z1 - step.z0);
             })?);
         }
         for &item in &items {
@@ -345,7 +366,7 @@ impl Render<'_> {
         let pl = self.level_placement(frame, s.floor_z)?;
         Ok(Some(self.w.entity("IFCSTAIR", |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string("Stair")
                 .null()
                 .null()
@@ -375,7 +396,10 @@ impl Render<'_> {
         for p in &pieces {
             let profile = self.plan_profile(frame, &p.outer, &p.holes)?;
             items.push(self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).null().id(down).positive(thickness);
+                a.id(profile)
+                    .opt_id(self.g.position)
+                    .id(down)
+                    .positive(thickness);
             })?);
         }
         for &item in &items {
@@ -388,7 +412,7 @@ impl Render<'_> {
         let name = format!("Floor {}", s.storey);
         Ok(Some(self.w.entity("IFCSLAB", |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string(&name)
                 .null()
                 .null()

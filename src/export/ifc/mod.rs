@@ -1,4 +1,6 @@
-//! IFC4 writer (STEP Part 21), streaming one [`Building`] at a time.
+//! IFC writer (STEP Part 21), streaming one [`Building`] at a time: IFC4 by default, IFC2X3
+//! or IFC4X3_ADD2 with [`IfcWriter::with_schema`] (what differs is in `schema`; the layout
+//! below is IFC4's).
 //!
 //! Layout of a file:
 //!
@@ -99,7 +101,8 @@
 //! add to the open file's `impl` what they write: `spatial` (project, site, buildings, storeys,
 //! parts), `walls` (walls, balconies), `openings` (openings, windows, doors and their types),
 //! `roofs` (base slab, roof), `styles` (styles, materials, property sets), `shapes` (points,
-//! placements, profiles, breps) and `lod4` (interiors).
+//! placements, profiles, breps), `lod4` (interiors) and `schema` (what differs between the
+//! schemas).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -114,12 +117,14 @@ use crate::model::{Building, RoofShape};
 
 use cache::{Cache, Log, View};
 use openings::TypeKey;
+pub use schema::{IfcSchema, UnknownSchema};
 
 mod cache;
 mod lod4;
 mod openings;
 mod quantities;
 mod roofs;
+mod schema;
 mod shapes;
 mod spatial;
 mod styles;
@@ -154,7 +159,7 @@ const RAILING_HEIGHT: f64 = 1.0;
 /// Thickness of a balcony railing (metres).
 const RAILING_THICKNESS: f64 = 0.05;
 
-/// Streaming IFC4 writer. See the module documentation for what it writes.
+/// Streaming IFC writer (IFC4 unless [`IfcWriter::with_schema`] says otherwise). See the module documentation for what it writes.
 ///
 /// ```no_run
 /// use citygen::export::{AtomicFile, BuildingWriter, ifc::IfcWriter};
@@ -173,6 +178,7 @@ pub struct IfcWriter<W: Write + Send> {
     file_name: String,
     /// [`SHARED_CACHE_LIMIT`], smaller in tests.
     cache_limit: usize,
+    schema: IfcSchema,
 }
 
 enum State<W: Write + Send> {
@@ -190,7 +196,14 @@ impl<W: Write + Send> IfcWriter<W> {
             state: State::New(out),
             file_name: "citygen.ifc".to_string(),
             cache_limit: SHARED_CACHE_LIMIT,
+            schema: IfcSchema::Ifc4,
         }
+    }
+
+    /// Sets the schema written (default IFC4).
+    pub fn with_schema(mut self, schema: IfcSchema) -> IfcWriter<W> {
+        self.schema = schema;
+        self
     }
 
     /// Sets the name written in the header's FILE_NAME (default `citygen.ifc`).
@@ -222,7 +235,7 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
                 ));
             }
         };
-        let mut open = Open::begin(out, ctx, &self.file_name)?;
+        let mut open = Open::begin(out, ctx, &self.file_name, self.schema)?;
         open.caches.opening_shapes.set_limit(self.cache_limit);
         open.caches.fill_offsets.set_limit(self.cache_limit);
         self.state = State::Open(Box::new(open));
@@ -536,6 +549,13 @@ struct Globals {
     origin_z: f64,
     /// Whether the run is LOD3 or more (storeys per level, openings, windows, doors, balconies).
     lod3: bool,
+    /// The schema written.
+    schema: IfcSchema,
+    /// The `IfcOwnerHistory` of rooted entities (IFC2X3's is mandatory; `$` otherwise).
+    owner: Option<Id>,
+    /// The `Position` of swept solids written `$` in IFC4: the identity placement in IFC2X3,
+    /// where it is mandatory.
+    position: Option<Id>,
 }
 
 /// Most entries kept in each of the caches of shared opening bodies and fill offsets, whose keys

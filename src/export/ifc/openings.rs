@@ -184,7 +184,7 @@ impl Render<'_> {
             [bits, q(r.radius), i64::from(r.segments), q(r.profile)]
         });
         let skey = [q(w), q(h), q(depth), rkey[0], rkey[1], rkey[2], rkey[3]];
-        let shape = match self.shared.opening_shapes.get(&skey) {
+        let body = match self.shared.opening_shapes.get(&skey) {
             Some(id) => id,
             None => {
                 let (w, h, depth) = (
@@ -201,13 +201,12 @@ impl Render<'_> {
                     None => self.rect_profile(0.0, 0.0, w, h)?,
                 };
                 let solid = self.through_wall(profile, 0.0, depth)?;
-                let body_ctx = self.g.body_ctx;
-                let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
-                let shape = self.shape(&[rep])?;
-                self.shared.opening_shapes.insert(skey, shape);
-                shape
+                let body = self.shared_body(solid, "SweptSolid")?;
+                self.shared.opening_shapes.insert(skey, body);
+                body
             }
         };
+        let shape = self.own_shape(body, "SweptSolid")?;
         let loc = DVec3::new(o.u0, -OPENING_TOLERANCE, o.z0 - wall.base_z);
         let pl = self.placement(wall_pl, loc, DVec3::X)?;
         let (name, ifc, predefined) = match o.kind {
@@ -217,18 +216,20 @@ impl Render<'_> {
         let label = format!("{name} {}.{}", index.0, index.1);
         let opening = self.w.entity("IFCOPENINGELEMENT", |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string(&format!("Opening {}.{}", index.0, index.1))
                 .null()
                 .null()
                 .id(pl)
                 .id(shape)
-                .null()
-                .enumeration("OPENING");
+                .null();
+            if self.g.schema.ifc4_attributes() {
+                a.enumeration("OPENING");
+            }
         })?;
         self.w.entity("IFCRELVOIDSELEMENT", |a| {
             a.guid(key, &format!("{path}/voids"))
-                .null()
+                .opt_id(self.g.owner)
                 .null()
                 .null()
                 .id(wall_id)
@@ -264,7 +265,7 @@ impl Render<'_> {
         })?;
         let fill = self.w.entity(ifc, |a| {
             a.guid(key, &format!("{path}/fill"))
-                .null()
+                .opt_id(self.g.owner)
                 .string(&label)
                 .null()
                 .null()
@@ -272,17 +273,19 @@ impl Render<'_> {
                 .id(type_shape)
                 .null()
                 .positive(h)
-                .positive(w)
-                .enumeration(predefined);
-            match o.kind {
-                OpeningKind::Window => a.enumeration("SINGLE_PANEL"),
-                OpeningKind::Door => a.enumeration("NOTDEFINED"),
-            };
-            a.null();
+                .positive(w);
+            if self.g.schema.ifc4_attributes() {
+                a.enumeration(predefined);
+                match o.kind {
+                    OpeningKind::Window => a.enumeration("SINGLE_PANEL"),
+                    OpeningKind::Door => a.enumeration("NOTDEFINED"),
+                };
+                a.null();
+            }
         })?;
         self.w.entity("IFCRELFILLSELEMENT", |a| {
             a.guid(key, &format!("{path}/fills"))
-                .null()
+                .opt_id(self.g.owner)
                 .null()
                 .null()
                 .id(opening)
@@ -299,8 +302,8 @@ impl Render<'_> {
     /// from 0): a framed opening has a frame (a hollow rectangle, `FRAME_DEPTH` deep) and a
     /// glass pane or door panel in the middle of it; an unframed one is a single pane or panel.
     fn fill_type(&mut self, k: &TypeKey) -> Result<Id, ExportError> {
-        if let Some((_, shape)) = self.shared.types.get(k) {
-            return Ok(shape);
+        if let Some((_, body)) = self.shared.types.get(k) {
+            return self.own_shape(body, "MappedRepresentation");
         }
         let (w, h, d) = (k.width(), k.height(), k.depth());
         let color = |c: [u16; 4]| {
@@ -394,29 +397,38 @@ impl Render<'_> {
         let name = k.name();
         let gid = global_id(&self.g.ns, &format!("type/{name}"));
         let psets = self.type_psets(k, &name, fw, d)?;
-        let id = if k.door {
-            self.w.entity("IFCDOORTYPE", |a| {
-                a.string(&gid).null().string(&name).null().null();
-                if psets.is_empty() {
-                    a.null();
-                } else {
-                    a.ids(&psets);
+        let schema = self.g.schema;
+        let id = self.w.entity(schema.fill_type(k.door), |a| {
+            a.string(&gid)
+                .opt_id(self.g.owner)
+                .string(&name)
+                .null()
+                .null();
+            if psets.is_empty() {
+                a.null();
+            } else {
+                a.ids(&psets);
+            }
+            a.ids(&[map]).null();
+            match (schema.ifc4_attributes(), k.door) {
+                (true, true) => {
+                    a.null().enumeration("DOOR");
+                    a.enumeration("NOTDEFINED").boolean(false).null()
                 }
-                a.ids(&[map]).null().null().enumeration("DOOR");
-                a.enumeration("NOTDEFINED").boolean(false).null();
-            })?
-        } else {
-            self.w.entity("IFCWINDOWTYPE", |a| {
-                a.string(&gid).null().string(&name).null().null();
-                if psets.is_empty() {
-                    a.null();
-                } else {
-                    a.ids(&psets);
+                (true, false) => {
+                    a.null().enumeration("WINDOW");
+                    a.enumeration("SINGLE_PANEL").boolean(false).null()
                 }
-                a.ids(&[map]).null().null().enumeration("WINDOW");
-                a.enumeration("SINGLE_PANEL").boolean(false).null();
-            })?
-        };
+                // IFC2X3's IfcDoorStyle: OperationType, ConstructionType, ...
+                (false, true) => a.enumeration("NOTDEFINED").enumeration("NOTDEFINED"),
+                // ... and IfcWindowStyle: ConstructionType, OperationType, ...
+                (false, false) => a.enumeration("NOTDEFINED").enumeration("SINGLE_PANEL"),
+            };
+            if !schema.ifc4_attributes() {
+                // ParameterTakesPrecedence, Sizeable.
+                a.boolean(false).boolean(false);
+            }
+        })?;
         let op = match self.shared.identity_op.get(&()) {
             Some(op) => op,
             None => {
@@ -431,10 +443,32 @@ impl Render<'_> {
         let mapped = self.w.entity("IFCMAPPEDITEM", |a| {
             a.id(map).id(op);
         })?;
-        let rep = self.representation(body_ctx, "Body", "MappedRepresentation", &[mapped])?;
-        let shape = self.shape(&[rep])?;
-        self.shared.types.insert(*k, (id, shape));
-        Ok(shape)
+        let body = self.shared_body(mapped, "MappedRepresentation")?;
+        self.shared.types.insert(*k, (id, body));
+        self.own_shape(body, "MappedRepresentation")
+    }
+
+    /// What a body shared by several products is cached as: the product shape of a `Body`
+    /// representation (`kind`) of `item`, or in IFC2X3, where a product shape and its
+    /// representation belong to one product only, the item itself ([`Self::own_shape`]).
+    fn shared_body(&mut self, item: Id, kind: &str) -> Result<Id, ExportError> {
+        if !self.g.schema.shared_shapes() {
+            return Ok(item);
+        }
+        let body_ctx = self.g.body_ctx;
+        let rep = self.representation(body_ctx, "Body", kind, &[item])?;
+        self.shape(&[rep])
+    }
+
+    /// The product shape of one product from a cached shared body ([`Self::shared_body`]):
+    /// the shared product shape, or in IFC2X3 a representation and product shape of its own.
+    fn own_shape(&mut self, body: Id, kind: &str) -> Result<Id, ExportError> {
+        if self.g.schema.shared_shapes() {
+            return Ok(body);
+        }
+        let body_ctx = self.g.body_ctx;
+        let rep = self.representation(body_ctx, "Body", kind, &[body])?;
+        self.shape(&[rep])
     }
 
     /// The property sets a window or door type carries beyond the standard ones (none for
@@ -507,17 +541,17 @@ impl Render<'_> {
             let gid = global_id(&self.g.ns, &format!("type/{name}/lining"));
             let lining = if k.door {
                 self.w.entity("IFCDOORLININGPROPERTIES", |a| {
-                    a.string(&gid).null().string("Frame").null();
+                    a.string(&gid).opt_id(self.g.owner).string("Frame").null();
                     a.positive(d + protrusion).positive(fw);
-                    for _ in 0..11 {
+                    for _ in 0..self.g.schema.lining_tail(true) {
                         a.null();
                     }
                 })?
             } else {
                 self.w.entity("IFCWINDOWLININGPROPERTIES", |a| {
-                    a.string(&gid).null().string("Frame").null();
+                    a.string(&gid).opt_id(self.g.owner).string("Frame").null();
                     a.positive(d + protrusion).positive(fw);
-                    for _ in 0..10 {
+                    for _ in 0..self.g.schema.lining_tail(false) {
                         a.null();
                     }
                 })?
@@ -528,7 +562,7 @@ impl Render<'_> {
             let gid = global_id(&self.g.ns, &format!("type/{name}/shape"));
             psets.push(self.w.entity("IFCPROPERTYSET", |a| {
                 a.string(&gid)
-                    .null()
+                    .opt_id(self.g.owner)
                     .string("Citygen_OpeningShape")
                     .null()
                     .ids(&props);

@@ -108,7 +108,11 @@ impl Render<'_> {
                 continue;
             }
             ids.push(self.w.entity(q.entity(), |a| {
-                a.string(qname).null().null().real(v).null();
+                a.string(qname).null().null().real(v);
+                // Formula (IFC4).
+                if self.g.schema.ifc4_attributes() {
+                    a.null();
+                }
             })?);
         }
         if ids.is_empty() {
@@ -116,7 +120,7 @@ impl Render<'_> {
         }
         let qto = self.w.entity("IFCELEMENTQUANTITY", |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string(name)
                 .null()
                 .null()
@@ -124,7 +128,12 @@ impl Render<'_> {
         })?;
         let rel = global_id(key, &format!("{path}/rel"));
         self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
-            a.string(&rel).null().null().null().ids(&[object]).id(qto);
+            a.string(&rel)
+                .opt_id(self.g.owner)
+                .null()
+                .null()
+                .ids(&[object])
+                .id(qto);
         })?;
         Ok(())
     }

@@ -49,7 +49,10 @@ impl Render<'_> {
         };
         let down = self.g.dir_neg_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(down).positive(SLAB_THICKNESS);
+            a.id(profile)
+                .opt_id(self.g.position)
+                .id(down)
+                .positive(SLAB_THICKNESS);
         })?;
         let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -57,7 +60,7 @@ impl Render<'_> {
         let pl = self.placement(frame.placement, DVec3::ZERO, DVec3::X)?;
         Ok(Some(self.w.entity("IFCSLAB", |a| {
             a.string(gid)
-                .null()
+                .opt_id(self.g.owner)
                 .string("Ground slab")
                 .null()
                 .null()
@@ -179,7 +182,7 @@ impl Render<'_> {
         let pl = self.placement(frame.placement, DVec3::ZERO, DVec3::X)?;
         Ok(Some(self.w.entity("IFCROOF", |a| {
             a.string(gid)
-                .null()
+                .opt_id(self.g.owner)
                 .string("Roof")
                 .null()
                 .null()

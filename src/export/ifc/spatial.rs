@@ -12,6 +12,7 @@ use crate::export::{vertical_datum, ExportError, OutputContext};
 use crate::model::{Building, Lod, Part};
 
 use super::openings::Host;
+use super::schema::IfcSchema;
 use super::{
     compound_angle, Caches, ElementFrame, Globals, Open, Render, EPS, MAX_STOREYS,
     SHARED_CACHE_LIMIT,
@@ -22,10 +23,18 @@ impl<W: Write> Open<W> {
         out: W,
         ctx: &OutputContext,
         file_name: &str,
+        schema: IfcSchema,
     ) -> Result<Open<W>, ExportError> {
         let mut w = StepWriter::new(out);
-        w.write_header(&Header::new(file_name, "IFC4"))?;
+        let mut header = Header::new(file_name, schema.name());
+        header.description = vec![schema.view_definition().to_string()];
+        w.write_header(&header)?;
         let ns = format!("{}#{}", ctx.source_name, ctx.seed);
+        let owner = if schema.owner_history() {
+            Some(owner_history(&mut w)?)
+        } else {
+            None
+        };
 
         let origin3 = w.entity("IFCCARTESIANPOINT", |a| {
             a.reals(&[0.0, 0.0, 0.0]);
@@ -85,7 +94,9 @@ impl<W: Write> Open<W> {
             a.ids(&units);
         })?;
         let project = w.entity("IFCPROJECT", |a| {
-            a.guid(&ns, "project").null().string(&ctx.source_name);
+            a.guid(&ns, "project")
+                .opt_id(owner)
+                .string(&ctx.source_name);
             a.string(&format!(
                 "citygen model of {} (LOD{}, seed {})",
                 ctx.source_name,
@@ -95,31 +106,9 @@ impl<W: Write> Open<W> {
             a.null().null().null().ids(&[model_ctx]).id(unit_assignment);
         })?;
 
-        let epsg = ctx.crs.epsg();
-        let mut crs_name = ctx.crs.name();
-        // The heights' datum (issue 44): IfcProjectedCRS.VerticalDatum, an IfcIdentifier, holds
-        // its EPSG code or, without one, its name; the description names the compound.
-        let vertical = vertical_datum(ctx).map(|(code, name)| {
-            crs_name = format!("{crs_name} + {name}");
-            // (IfcIdentifier is at most 255 characters.)
-            code.map_or_else(|| name.chars().take(255).collect(), |v| format!("EPSG:{v}"))
-        });
-        let crs = w.entity("IFCPROJECTEDCRS", |a| {
-            a.string(&format!("EPSG:{epsg}")).string(&crs_name).null();
-            match &vertical {
-                Some(v) => a.string(v),
-                None => a.null(),
-            };
-            a.null().null().id(metre);
-        })?;
-        w.entity("IFCMAPCONVERSION", |a| {
-            a.id(model_ctx)
-                .id(crs)
-                .real(ctx.origin.x)
-                .real(ctx.origin.y)
-                .real(ctx.origin.z);
-            a.real(1.0).real(0.0).real(1.0);
-        })?;
+        if schema.ifc4_attributes() {
+            map_conversion(&mut w, ctx, model_ctx, metre)?;
+        }
 
         let site_placement = w.entity("IFCLOCALPLACEMENT", |a| {
             a.null().id(identity);
@@ -127,7 +116,7 @@ impl<W: Write> Open<W> {
         let (lon, lat) = ctx.origin_lonlat;
         let site = w.entity("IFCSITE", |a| {
             a.guid(&ns, "site")
-                .null()
+                .opt_id(owner)
                 .string("Site")
                 .null()
                 .null()
@@ -145,14 +134,17 @@ impl<W: Write> Open<W> {
         })?;
         w.entity("IFCRELAGGREGATES", |a| {
             a.guid(&ns, "project/site")
-                .null()
+                .opt_id(owner)
                 .null()
                 .null()
                 .id(project)
                 .ids(&[site]);
         })?;
         let wall_material = w.entity("IFCMATERIAL", |a| {
-            a.string("Wall").null().string("Wall");
+            a.string("Wall");
+            if schema.ifc4_attributes() {
+                a.null().string("Wall");
+            }
         })?;
 
         Ok(Open {
@@ -172,6 +164,9 @@ impl<W: Write> Open<W> {
                 wall_material,
                 origin_z: ctx.origin.z,
                 lod3: ctx.lod >= Lod::Lod3,
+                schema,
+                owner,
+                position: schema.position_mandatory().then_some(identity),
             },
             site,
             project,
@@ -194,8 +189,14 @@ impl<W: Write> Open<W> {
                 self.site,
                 &self.buildings,
             );
+            let owner = self.g.owner;
             self.w.entity("IFCRELAGGREGATES", |a| {
-                a.string(&gid).null().null().null().id(site).ids(buildings);
+                a.string(&gid)
+                    .opt_id(owner)
+                    .null()
+                    .null()
+                    .id(site)
+                    .ids(buildings);
             })?;
         }
         // Window and door types: one IfcRelDefinesByType each (a type has at most one), and
@@ -206,12 +207,19 @@ impl<W: Write> Open<W> {
                 continue;
             };
             let gid = global_id(&self.g.ns, &format!("type/{}/rel", key.name()));
+            let owner = self.g.owner;
             self.w.entity("IFCRELDEFINESBYTYPE", |a| {
-                a.string(&gid).null().null().null().ids(occurrences).id(id);
+                a.string(&gid)
+                    .opt_id(owner)
+                    .null()
+                    .null()
+                    .ids(occurrences)
+                    .id(id);
             })?;
             declared.push(id);
         }
-        if !declared.is_empty() {
+        // (IFC2X3 has no IfcRelDeclares.)
+        if !declared.is_empty() && self.g.schema.ifc4_attributes() {
             let (gid, project) = (global_id(&self.g.ns, "project/types"), self.project);
             self.w.entity("IFCRELDECLARES", |a| {
                 a.string(&gid)
@@ -238,9 +246,10 @@ impl Render<'_> {
         elev: f64,
     ) -> Result<(Id, Id), ExportError> {
         let pl = self.placement(holder_pl, DVec3::new(0.0, 0.0, elev), DVec3::X)?;
+        let owner = self.g.owner;
         let storey = self.w.entity("IFCBUILDINGSTOREY", |a| {
             a.guid(key, &format!("{pk}/storey/{i}"))
-                .null()
+                .opt_id(owner)
                 .string(&format!("Storey {i}"));
             a.null()
                 .null()
@@ -270,9 +279,10 @@ impl Render<'_> {
         let composite = b.parts.len() > 1;
         // Height of the building's +-0.00 above the CRS datum (storey elevations count from it).
         let datum_z = self.g.origin_z + b.base_z;
+        let owner = self.g.owner;
         let building = self.w.entity("IFCBUILDING", |a| {
             a.guid(key, "building")
-                .null()
+                .opt_id(owner)
                 .string(&name)
                 .string(&description)
                 .null();
@@ -291,7 +301,7 @@ impl Render<'_> {
                 let pname = format!("{name} {}", part.key);
                 let partial = self.w.entity("IFCBUILDING", |a| {
                     a.guid(key, &format!("{}/building", part.key))
-                        .null()
+                        .opt_id(owner)
                         .string(&pname);
                     a.null()
                         .null()
@@ -309,7 +319,7 @@ impl Render<'_> {
             }
             self.w.entity("IFCRELAGGREGATES", |a| {
                 a.guid(key, "building/parts")
-                    .null()
+                    .opt_id(owner)
                     .null()
                     .null()
                     .id(building)
@@ -351,9 +361,10 @@ impl Render<'_> {
             self.storey_quantities(key, part, i as usize, storey, span.max(0.0) / f64::from(n))?;
             storeys.push(storey);
         }
+        let owner = self.g.owner;
         self.w.entity("IFCRELAGGREGATES", |a| {
             a.guid(key, &format!("{pk}/storeys"))
-                .null()
+                .opt_id(owner)
                 .null()
                 .null()
                 .id(holder)
@@ -391,7 +402,10 @@ impl Render<'_> {
         if !contained.is_empty() {
             let storey0 = storeys[0];
             self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
-                a.guid(key, &format!("{pk}/contained")).null().null().null();
+                a.guid(key, &format!("{pk}/contained"))
+                    .opt_id(owner)
+                    .null()
+                    .null();
                 a.ids(&contained).id(storey0);
             })?;
         }
@@ -433,9 +447,10 @@ impl Render<'_> {
                 placement: pl,
             });
         }
+        let owner = self.g.owner;
         self.w.entity("IFCRELAGGREGATES", |a| {
             a.guid(key, &format!("{pk}/storeys"))
-                .null()
+                .opt_id(owner)
                 .null()
                 .null()
                 .id(holder)
@@ -500,11 +515,79 @@ impl Render<'_> {
             };
             let storey = storeys[s];
             self.w.entity("IFCRELCONTAINEDINSPATIALSTRUCTURE", |a| {
-                a.guid(key, &path).null().null().null();
+                a.guid(key, &path).opt_id(owner).null().null();
                 a.ids(ids).id(storey);
             })?;
         }
         self.associate_materials(key, pk, by_usage)?;
         Ok(walls)
     }
+}
+
+/// IFC2X3's mandatory owner history of rooted entities: citygen as person, organisation and
+/// application, created at `SOURCE_DATE_EPOCH` (0 without it: never the clock).
+fn owner_history<W: Write>(w: &mut StepWriter<W>) -> Result<Id, ExportError> {
+    let person = w.entity("IFCPERSON", |a| {
+        a.null().string("citygen");
+        for _ in 0..6 {
+            a.null();
+        }
+    })?;
+    let org = w.entity("IFCORGANIZATION", |a| {
+        a.null().string("citygen").null().null().null();
+    })?;
+    let user = w.entity("IFCPERSONANDORGANIZATION", |a| {
+        a.id(person).id(org).null();
+    })?;
+    let app = w.entity("IFCAPPLICATION", |a| {
+        a.id(org)
+            .string(env!("CARGO_PKG_VERSION"))
+            .string("citygen")
+            .string("citygen");
+    })?;
+    let created = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse::<i64>().ok())
+        .filter(|&v| v >= 0)
+        .unwrap_or(0);
+    Ok(w.entity("IFCOWNERHISTORY", |a| {
+        a.id(user).id(app).null().enumeration("ADDED");
+        a.null().null().null().int(created);
+    })?)
+}
+
+/// IFC4's georeferencing: an `IfcMapConversion` of the model context `model_ctx` to an
+/// `IfcProjectedCRS` `EPSG:n` in `metre`s (with its vertical datum when the run states one).
+fn map_conversion<W: Write>(
+    w: &mut StepWriter<W>,
+    ctx: &OutputContext,
+    model_ctx: Id,
+    metre: Id,
+) -> Result<(), ExportError> {
+    let epsg = ctx.crs.epsg();
+    let mut crs_name = ctx.crs.name();
+    // The heights' datum (issue 44): IfcProjectedCRS.VerticalDatum, an IfcIdentifier, holds
+    // its EPSG code or, without one, its name; the description names the compound.
+    let vertical = vertical_datum(ctx).map(|(code, name)| {
+        crs_name = format!("{crs_name} + {name}");
+        // (IfcIdentifier is at most 255 characters.)
+        code.map_or_else(|| name.chars().take(255).collect(), |v| format!("EPSG:{v}"))
+    });
+    let crs = w.entity("IFCPROJECTEDCRS", |a| {
+        a.string(&format!("EPSG:{epsg}")).string(&crs_name).null();
+        match &vertical {
+            Some(v) => a.string(v),
+            None => a.null(),
+        };
+        a.null().null().id(metre);
+    })?;
+    w.entity("IFCMAPCONVERSION", |a| {
+        a.id(model_ctx)
+            .id(crs)
+            .real(ctx.origin.x)
+            .real(ctx.origin.y)
+            .real(ctx.origin.z);
+        a.real(1.0).real(0.0).real(1.0);
+    })?;
+    Ok(())
 }

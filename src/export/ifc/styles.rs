@@ -32,7 +32,7 @@ impl Render<'_> {
             };
             self.w.entity("IFCRELASSOCIATESMATERIAL", |a| {
                 a.guid(key, &format!("{pk}/material/{number}"))
-                    .null()
+                    .opt_id(self.g.owner)
                     .null()
                     .null();
                 a.ids(&ids).id(usage);
@@ -53,9 +53,12 @@ impl Render<'_> {
                 .real(f64::from(key[1]) / 1000.0)
                 .real(f64::from(key[2]) / 1000.0);
         })?;
+        let schema = self.g.schema;
         let shading = self.w.entity("IFCSURFACESTYLESHADING", |a| {
             a.id(rgb);
-            if key[3] < 1000 {
+            if !schema.ifc4_attributes() {
+                // (IFC2X3 has no Transparency here.)
+            } else if key[3] < 1000 {
                 a.real(1.0 - f64::from(key[3]) / 1000.0);
             } else {
                 a.null();
@@ -65,8 +68,20 @@ impl Render<'_> {
         let style = self.w.entity("IFCSURFACESTYLE", |a| {
             a.string(&name).enumeration("BOTH").ids(&[shading]);
         })?;
+        let style = self.style_assignment(style)?;
         self.styles.insert(key, style);
         Ok(style)
+    }
+
+    /// What an `IfcStyledItem` refers to for surface style `style`: the style, or in IFC2X3
+    /// an `IfcPresentationStyleAssignment` of it (cached with the style).
+    fn style_assignment(&mut self, style: Id) -> Result<Id, ExportError> {
+        if !self.g.schema.style_assignments() {
+            return Ok(style);
+        }
+        Ok(self.w.entity("IFCPRESENTATIONSTYLEASSIGNMENT", |a| {
+            a.ids(&[style]);
+        })?)
     }
 
     pub(super) fn styled(&mut self, item: Id, c: Color) -> Result<(), ExportError> {
@@ -85,19 +100,28 @@ impl Render<'_> {
         }
         let t = key as f64 / 1e6;
         let mat = self.g.wall_material;
+        let ifc4 = self.g.schema.ifc4_attributes();
         let layer = self.w.entity("IFCMATERIALLAYER", |a| {
-            a.id(mat).real(t).null().string("Wall").null().null().null();
+            a.id(mat).real(t).null();
+            if ifc4 {
+                a.string("Wall").null().null().null();
+            }
         })?;
         let name = format!("Wall {:.0} mm", t * 1000.0);
         let set = self.w.entity("IFCMATERIALLAYERSET", |a| {
-            a.ids(&[layer]).string(&name).null();
+            a.ids(&[layer]).string(&name);
+            if ifc4 {
+                a.null();
+            }
         })?;
         let usage = self.w.entity("IFCMATERIALLAYERSETUSAGE", |a| {
             a.id(set)
                 .enumeration("AXIS2")
                 .enumeration("POSITIVE")
-                .real(0.0)
-                .null();
+                .real(0.0);
+            if ifc4 {
+                a.null();
+            }
         })?;
         self.usages.insert(key, usage);
         Ok(usage)
@@ -134,6 +158,7 @@ impl Render<'_> {
         let style = self.w.entity("IFCSURFACESTYLE", |a| {
             a.string(&name).enumeration("BOTH").ids(&[rendering]);
         })?;
+        let style = self.style_assignment(style)?;
         self.shared.renderings.insert((ck, tk), style);
         Ok(style)
     }
@@ -269,11 +294,15 @@ impl Render<'_> {
         objects: &[Id],
     ) -> Result<(), ExportError> {
         let pset = self.w.entity("IFCPROPERTYSET", |a| {
-            a.guid(key, path).null().string(name).null().ids(props);
+            a.guid(key, path)
+                .opt_id(self.g.owner)
+                .string(name)
+                .null()
+                .ids(props);
         })?;
         self.w.entity("IFCRELDEFINESBYPROPERTIES", |a| {
             a.guid(key, &format!("{path}/rel"))
-                .null()
+                .opt_id(self.g.owner)
                 .null()
                 .null()
                 .ids(objects)

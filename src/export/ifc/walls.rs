@@ -74,7 +74,10 @@ impl Render<'_> {
             })?;
             let up = self.g.dir_z;
             self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-                a.id(profile).null().id(up).positive(height);
+                a.id(profile)
+                    .opt_id(self.g.position)
+                    .id(up)
+                    .positive(height);
             })?
         } else {
             // Profile in the wall's vertical plane: Position maps profile x to the wall's X and
@@ -101,16 +104,19 @@ impl Render<'_> {
         let body_rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[axis_rep, body_rep])?;
         let name = format!("Wall {index}");
-        let id = self.w.entity("IFCWALLSTANDARDCASE", |a| {
+        let schema = self.g.schema;
+        let id = self.w.entity(schema.wall(), |a| {
             a.string(gid)
-                .null()
+                .opt_id(self.g.owner)
                 .string(&name)
                 .null()
                 .null()
                 .id(placement)
                 .id(shape)
                 .null();
-            a.enumeration("SOLIDWALL");
+            if schema.ifc4_attributes() {
+                a.enumeration("SOLIDWALL");
+            }
         })?;
         Ok(Some((id, placement)))
     }
@@ -141,7 +147,10 @@ impl Render<'_> {
         let profile = self.rect_profile(u0, -depth, w, depth)?;
         let down = self.g.dir_neg_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(down).positive(BALCONY_THICKNESS);
+            a.id(profile)
+                .opt_id(self.g.position)
+                .id(down)
+                .positive(BALCONY_THICKNESS);
         })?;
         self.styled(solid, b.color)?;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -152,7 +161,7 @@ impl Render<'_> {
         })?;
         let slab = self.w.entity("IFCSLAB", |a| {
             a.guid(key, path)
-                .null()
+                .opt_id(self.g.owner)
                 .string("Balcony")
                 .null()
                 .null()
@@ -181,7 +190,10 @@ impl Render<'_> {
         })?;
         let up = self.g.dir_z;
         let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
-            a.id(profile).null().id(up).positive(RAILING_HEIGHT);
+            a.id(profile)
+                .opt_id(self.g.position)
+                .id(up)
+                .positive(RAILING_HEIGHT);
         })?;
         self.styled(solid, b.color)?;
         let rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
@@ -191,7 +203,7 @@ impl Render<'_> {
         })?;
         let railing = self.w.entity("IFCRAILING", |a| {
             a.guid(key, &format!("{path}/railing"))
-                .null()
+                .opt_id(self.g.owner)
                 .string("Balcony railing")
                 .null()
                 .null()
