@@ -76,8 +76,21 @@ impl RunState<'_> {
         } else {
             self.in_run.clone()
         };
-        let grounds =
-            prepare::ground::grounds(&self.site.lots, |i| wanted[i], &framed).map_err(input)?;
+        // Grounds, LOD3's patches and the grid in one pass over the DEM (each strip or tile
+        // decoded about once); the errors reported in the order of three passes. The grid
+        // only serves the terrain written beside the buildings: none with `--no-terrain`.
+        let in_run = &self.in_run;
+        let (of_ground, of_run) = (|i: usize| wanted[i], |i: usize| in_run[i]);
+        let sampled = prepare::ground::sample_all(
+            &self.site.lots,
+            &prepare::ground::Wanted {
+                grounds: &of_ground,
+                patches: (self.opts.lod >= Lod::Lod3).then_some(&of_run as _),
+                grid: (!self.opts.no_terrain).then_some(&of_run as _),
+            },
+            &framed,
+        );
+        let grounds = sampled.grounds.map_err(input)?;
         let uncovered: Vec<String> = self
             .site
             .lots
@@ -108,22 +121,16 @@ impl RunState<'_> {
             l.ground = g.unwrap_or(0.0);
         }
         // At LOD3 and above the facades look at the terrain along their walls (the entrance
-        // at the terrain, no opening under it): each building of the run gets its patch.
+        // at the terrain, no opening under it): each building of the run has its patch.
+        let patches = sampled.patches.map_err(input)?;
         if self.opts.lod >= Lod::Lod3 {
-            let in_run = &self.in_run;
-            let patches = prepare::ground::profiles(&self.site.lots, |i| in_run[i], &framed)
-                .map_err(input)?;
             for (l, p) in self.site.lots.iter_mut().zip(patches) {
                 l.terrain = p.map(std::sync::Arc::new);
             }
         }
-        // The grid only serves the terrain written beside the buildings: none with
-        // `--no-terrain` (a quarter of `--dem`'s cost on the bench, README).
+        let grid = sampled.grid.map_err(input)?;
         if !self.opts.no_terrain {
-            let in_run = &self.in_run;
-            self.site.elevation =
-                prepare::ground::elevation_grid(&self.site.lots, |i| in_run[i], &framed)
-                    .map_err(input)?;
+            self.site.elevation = grid;
         }
         // The decoded DEM is not sampled again: its memory goes to the buildings.
         dems.release();

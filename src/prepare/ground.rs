@@ -124,8 +124,21 @@ fn footprint(lot: &Lot) -> Vec<&Polygon> {
         .collect()
 }
 
-/// A key along the Z-order curve of a lot's centre (64 m cells), so that lots sampled together
-/// read the same strips and tiles.
+/// The order lots are sampled in: by the DEM chunk (strip or tile) their centre reads
+/// ([`Framed::chunk_key`]), then along the Z-order curve of their centre, so that lots sampled
+/// together read the same strips and tiles and few are decoded at once.
+fn sampling_order(lots: &[Lot], wanted: impl Fn(usize) -> bool, framed: &Framed<'_>) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..lots.len()).filter(|&i| wanted(i)).collect();
+    order.sort_by_cached_key(|&i| {
+        let chunk = lots[i]
+            .bounds()
+            .map_or(u64::MAX, |(lo, hi)| framed.chunk_key((lo + hi) / 2.0));
+        (chunk, z_order(&lots[i]), i)
+    });
+    order
+}
+
+/// A key along the Z-order curve of a lot's centre (64 m cells).
 fn z_order(lot: &Lot) -> u64 {
     let Some((lo, hi)) = lot.bounds() else {
         return u64::MAX;
@@ -148,8 +161,7 @@ pub fn grounds(
     wanted: impl Fn(usize) -> bool + Sync,
     framed: &Framed<'_>,
 ) -> Result<Vec<Option<f64>>, DemError> {
-    let mut order: Vec<usize> = (0..lots.len()).filter(|&i| wanted(i)).collect();
-    order.sort_by_cached_key(|&i| (z_order(&lots[i]), i));
+    let order = sampling_order(lots, wanted, framed);
     let found: Vec<(usize, Result<Option<f64>, DemError>)> = order
         .par_chunks(BATCH)
         .flat_map_iter(|batch| {
@@ -163,14 +175,20 @@ pub fn grounds(
     in_lot_order(lots.len(), found)
 }
 
-/// The DEM resampled (bilinear) on a regular grid of the local frame over the bounds of the
-/// lots `wanted` selects plus [`GRID_MARGIN`]: at the finest DEM's pixel size, coarser where
-/// that would pass [`GRID_MAX_CELLS`]; NaN where no DEM has a height. `None` without a lot.
-pub fn elevation_grid(
+/// Where the elevation grid's samples are: its first sample, step and size.
+struct GridFrame {
+    lo: DVec2,
+    step: f64,
+    nx: usize,
+    ny: usize,
+}
+
+/// The frame of [`elevation_grid`] over the lots `wanted` selects, `None` without a lot.
+fn grid_frame(
     lots: &[Lot],
     wanted: impl Fn(usize) -> bool,
     framed: &Framed<'_>,
-) -> Result<Option<ElevationGrid>, DemError> {
+) -> Option<GridFrame> {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for (i, l) in lots.iter().enumerate() {
         if let Some((a, b)) = l.bounds().filter(|_| wanted(i)) {
@@ -179,7 +197,7 @@ pub fn elevation_grid(
         }
     }
     if !(lo.is_finite() && hi.is_finite()) {
-        return Ok(None);
+        return None;
     }
     lo -= DVec2::splat(GRID_MARGIN);
     hi += DVec2::splat(GRID_MARGIN);
@@ -200,32 +218,156 @@ pub fn elevation_grid(
         step *= 1.01;
     }
     let (nx, ny) = cells(step);
-    let rows: Vec<Result<Vec<f32>, DemError>> = (0..ny)
-        .into_par_iter()
-        .map(|j| {
-            let mut s = framed.sampler();
-            (0..nx)
-                .map(|i| {
-                    let p = lo + DVec2::new(i as f64, j as f64) * step;
-                    Ok(match s.sample(p)? {
-                        Sample::Value(z) => z as f32,
-                        _ => f32::NAN,
-                    })
+    Some(GridFrame { lo, step, nx, ny })
+}
+
+impl GridFrame {
+    /// Row `j` of the grid: the DEM's heights, NaN where none has one.
+    fn row(&self, j: usize, s: &mut Sampler<'_>) -> Result<Vec<f32>, DemError> {
+        (0..self.nx)
+            .map(|i| {
+                let p = self.lo + DVec2::new(i as f64, j as f64) * self.step;
+                Ok(match s.sample(p)? {
+                    Sample::Value(z) => z as f32,
+                    _ => f32::NAN,
                 })
-                .collect()
+            })
+            .collect()
+    }
+
+    /// The grid of its rows (in row order; the first error in row order).
+    fn grid(self, rows: Vec<Result<Vec<f32>, DemError>>) -> Result<ElevationGrid, DemError> {
+        let mut z = Vec::with_capacity(self.nx * self.ny);
+        for r in rows {
+            z.extend(r?);
+        }
+        Ok(ElevationGrid {
+            origin: self.lo,
+            step: self.step,
+            nx: self.nx,
+            ny: self.ny,
+            z,
+        })
+    }
+}
+
+/// The DEM resampled (bilinear) on a regular grid of the local frame over the bounds of the
+/// lots `wanted` selects plus [`GRID_MARGIN`]: at the finest DEM's pixel size, coarser where
+/// that would pass [`GRID_MAX_CELLS`]; NaN where no DEM has a height. `None` without a lot.
+pub fn elevation_grid(
+    lots: &[Lot],
+    wanted: impl Fn(usize) -> bool,
+    framed: &Framed<'_>,
+) -> Result<Option<ElevationGrid>, DemError> {
+    let Some(frame) = grid_frame(lots, wanted, framed) else {
+        return Ok(None);
+    };
+    let rows: Vec<Result<Vec<f32>, DemError>> = (0..frame.ny)
+        .into_par_iter()
+        .map(|j| frame.row(j, &mut framed.sampler()))
+        .collect();
+    frame.grid(rows).map(Some)
+}
+
+/// What [`sample_all`] samples: each lot's ground, and optionally each lot's terrain patch
+/// and the elevation grid, over the lots each selects.
+pub struct Wanted<'w> {
+    /// The lots whose ground is sampled ([`grounds`]).
+    pub grounds: &'w (dyn Fn(usize) -> bool + Sync),
+    /// The lots whose terrain patch is sampled ([`profiles`]), if any.
+    pub patches: Option<&'w (dyn Fn(usize) -> bool + Sync)>,
+    /// The lots the elevation grid covers ([`elevation_grid`]), if one is made.
+    pub grid: Option<&'w (dyn Fn(usize) -> bool + Sync)>,
+}
+
+/// The results of [`sample_all`], each as its own function gives it.
+pub struct Sampled {
+    /// As [`grounds`].
+    pub grounds: Result<Vec<Option<f64>>, DemError>,
+    /// As [`profiles`] (all `None` when not wanted).
+    pub patches: Result<Vec<Option<ElevationGrid>>, DemError>,
+    /// As [`elevation_grid`] (`None` when not wanted).
+    pub grid: Result<Option<ElevationGrid>, DemError>,
+}
+
+/// One piece of [`sample_all`]'s work.
+enum Job {
+    Ground(usize),
+    Patch(usize),
+    Row(usize),
+}
+
+/// One piece of [`sample_all`]'s results.
+enum Done {
+    Ground(usize, Result<Option<f64>, DemError>),
+    Patch(usize, Result<Option<ElevationGrid>, DemError>),
+    Row(usize, Result<Vec<f32>, DemError>),
+}
+
+/// [`grounds`], [`profiles`] and [`elevation_grid`] in one pass, the same values: every lot
+/// and grid row sampled in the order of the DEM chunks it reads ([`Framed::chunk_key`]), so
+/// that each strip or tile is decoded about once for all three and the cache stays small
+/// (three passes would decode the DEM three times, or hold all of it).
+pub fn sample_all(lots: &[Lot], wanted: &Wanted<'_>, framed: &Framed<'_>) -> Sampled {
+    let frame = wanted.grid.and_then(|g| grid_frame(lots, g, framed));
+    let patch_step = framed.cell_size().clamp(PROFILE_FINEST, PROFILE_STEP);
+    let lot_key = |i: usize| {
+        let chunk = lots[i]
+            .bounds()
+            .map_or(u64::MAX, |(lo, hi)| framed.chunk_key((lo + hi) / 2.0));
+        (chunk, z_order(&lots[i]), i)
+    };
+    let mut jobs: Vec<((u64, u64, usize), Job)> = Vec::new();
+    for i in (0..lots.len()).filter(|&i| (wanted.grounds)(i)) {
+        jobs.push((lot_key(i), Job::Ground(i)));
+    }
+    if let Some(p) = wanted.patches {
+        for i in (0..lots.len()).filter(|&i| p(i)) {
+            jobs.push((lot_key(i), Job::Patch(i)));
+        }
+    }
+    if let Some(f) = &frame {
+        for j in 0..f.ny {
+            let mid = f.lo + DVec2::new(f.nx as f64 / 2.0, j as f64) * f.step;
+            jobs.push(((framed.chunk_key(mid), u64::MAX, j), Job::Row(j)));
+        }
+    }
+    jobs.sort_by_key(|(k, job)| (*k, matches!(job, Job::Patch(_))));
+    let done: Vec<Done> = jobs
+        .par_chunks(BATCH)
+        .flat_map_iter(|batch| {
+            let mut s = framed.sampler();
+            batch
+                .iter()
+                .map(|(_, job)| match *job {
+                    Job::Ground(i) => {
+                        Done::Ground(i, ground_under(&footprint(&lots[i]), framed, &mut s))
+                    }
+                    Job::Patch(i) => Done::Patch(i, profile(&lots[i], patch_step, &mut s)),
+                    Job::Row(j) => Done::Row(
+                        j,
+                        frame.as_ref().map_or(Ok(Vec::new()), |f| f.row(j, &mut s)),
+                    ),
+                })
+                .collect::<Vec<_>>()
         })
         .collect();
-    let mut z = Vec::with_capacity(nx * ny);
-    for r in rows {
-        z.extend(r?);
+    let (mut grounds, mut patches, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+    for d in done {
+        match d {
+            Done::Ground(i, r) => grounds.push((i, r)),
+            Done::Patch(i, r) => patches.push((i, r)),
+            Done::Row(j, r) => rows.push((j, r)),
+        }
     }
-    Ok(Some(ElevationGrid {
-        origin: lo,
-        step,
-        nx,
-        ny,
-        z,
-    }))
+    rows.sort_by_key(|(j, _)| *j);
+    Sampled {
+        grounds: in_lot_order(lots.len(), grounds),
+        patches: in_lot_order(lots.len(), patches),
+        grid: frame.map_or(Ok(None), |f| {
+            f.grid(rows.into_iter().map(|(_, r)| r).collect()).map(Some)
+        }),
+    }
 }
 
 /// The finest step of a lot's terrain patch ([`profiles`]), metres.
@@ -248,8 +390,7 @@ pub fn profiles(
     framed: &Framed<'_>,
 ) -> Result<Vec<Option<ElevationGrid>>, DemError> {
     let fine = framed.cell_size().clamp(PROFILE_FINEST, PROFILE_STEP);
-    let mut order: Vec<usize> = (0..lots.len()).filter(|&i| wanted(i)).collect();
-    order.sort_by_cached_key(|&i| (z_order(&lots[i]), i));
+    let order = sampling_order(lots, wanted, framed);
     let found: Vec<(usize, Result<Option<ElevationGrid>, DemError>)> = order
         .par_chunks(BATCH)
         .flat_map_iter(|batch| {

@@ -7,8 +7,12 @@
 //! integer or float; uncompressed, deflate or LZW, with their predictors); the georeferencing
 //! is read here from the GeoTIFF tags themselves (`geokeys`). Only the header is read when a
 //! file is opened: its strips or tiles are decoded when a sample needs them and kept in a cache
-//! shared by all the files of a run, emptied whenever it passes [`CACHE_BYTES`], so that a run
-//! holds the DEM around its buildings, never a whole big file.
+//! shared by all the files of a run, the least recently used dropped past a few chunks a thread
+//! (never past [`CACHE_BYTES`]), so that a run holds the DEM around its buildings, never a
+//! whole big file. The buffers of dropped chunks that no sampler holds any more are decoded
+//! into again: sampled in chunk order ([`Framed::chunk_key`]), a run touches fresh memory for
+//! a few chunks only, not for every chunk it decodes (the kernel's clearing of fresh pages
+//! cost as much as inflating them).
 //!
 //! Heights are sampled bilinearly between pixel centres. A point within half a pixel outside
 //! the outermost centres (still on the raster's area) takes the edge's values. A pixel equal to
@@ -28,7 +32,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use glam::DVec2;
 use thiserror::Error;
-use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::decoder::{Decoder, DecodingResult, DecodingSampleType, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
@@ -44,6 +48,16 @@ pub const CACHE_BYTES: usize = 256 << 20;
 /// The largest strip or tile decoded (bytes): a file stored as one huge strip is refused with
 /// the command that tiles it.
 const MAX_CHUNK_BYTES: usize = 64 << 20;
+
+/// The decoded chunks kept per thread of the run before the least recently used is dropped
+/// (the cache's budget; at least [`MIN_BUDGET_BYTES`], at most [`CACHE_BYTES`]).
+const CHUNKS_PER_THREAD: usize = 4;
+
+/// The least budget of the cache, bytes.
+const MIN_BUDGET_BYTES: usize = 16 << 20;
+
+/// The most buffers of dropped chunks kept for the next decodes.
+const SPARE_BUFFERS: usize = 8;
 
 /// Why a DEM cannot be used. Every message names the file as given on the command line.
 #[derive(Debug, Error)]
@@ -187,17 +201,48 @@ pub enum Sample {
     Outside,
 }
 
-/// The decoded chunks of every file of a set, by (file, chunk index).
+/// The decoded chunks of every file of a set, by (file, chunk index), each with when it was
+/// last asked for; and the buffers of dropped chunks, decoded into again.
 #[derive(Default)]
 struct Cache {
-    chunks: HashMap<(usize, u32), Arc<Chunk>>,
+    chunks: HashMap<(usize, u32), (Arc<Chunk>, u64)>,
     bytes: usize,
+    clock: u64,
+    spare: Vec<Vec<f32>>,
+}
+
+impl Cache {
+    /// Drops the least recently used chunks until `size` more bytes fit in `budget` (or none
+    /// is left); keeps the buffers no sampler holds any more.
+    fn make_room(&mut self, size: usize, budget: usize) {
+        while self.bytes + size > budget {
+            let Some(key) = self
+                .chunks
+                .iter()
+                .min_by_key(|(k, (_, used))| (*used, **k))
+                .map(|(k, _)| *k)
+            else {
+                return;
+            };
+            let Some((c, _)) = self.chunks.remove(&key) else {
+                return;
+            };
+            self.bytes = self.bytes.saturating_sub(4 * c.z.len());
+            if let Ok(c) = Arc::try_unwrap(c) {
+                if self.spare.len() < SPARE_BUFFERS {
+                    self.spare.push(c.z);
+                }
+            }
+        }
+    }
 }
 
 /// The `--dem` files of a run, in the order given.
 pub struct DemSet {
     dems: Vec<Dem>,
     cache: Mutex<Cache>,
+    /// The most bytes the cache holds before dropping its least recently used chunk.
+    budget: usize,
 }
 
 impl std::fmt::Debug for DemSet {
@@ -345,8 +390,8 @@ impl Dem {
         (index, (i % cw) as usize, (j % ch) as usize)
     }
 
-    /// Decodes chunk `index` into heights.
-    fn decode(&self, index: u32) -> Result<Chunk, DemError> {
+    /// Decodes chunk `index` into heights (into `spare`'s memory when its samples are `f32`).
+    fn decode(&self, index: u32, spare: Vec<f32>) -> Result<Chunk, DemError> {
         let decoder = match &self.source {
             Source::Tiff(d) => d,
             Source::Hgt(file) => {
@@ -369,7 +414,7 @@ impl Dem {
         };
         let mut dec = decoder.lock().unwrap_or_else(PoisonError::into_inner);
         let (w, _) = dec.chunk_data_dimensions(index);
-        let raw = dec.read_chunk(index).map_err(bad)?;
+        let raw = read_chunk(&mut dec, index, spare).map_err(bad)?;
         drop(dec);
         let nd = self.nodata;
         let keep = |v: f64| -> f32 {
@@ -407,6 +452,25 @@ impl Dem {
     }
 }
 
+/// Chunk `index` of the decoder's image; `f32` samples into `spare`'s memory, zeroed first as
+/// a fresh buffer would be (a buffer already in memory: no fresh pages for the kernel to
+/// clear), other samples into a new buffer.
+fn read_chunk(
+    dec: &mut Decoder<BufReader<File>>,
+    index: u32,
+    mut spare: Vec<f32>,
+) -> tiff::TiffResult<DecodingResult> {
+    let layout = dec.image_chunk_buffer_layout(index)?;
+    if spare.capacity() == 0 || layout.sample_type != Some(DecodingSampleType::F32) {
+        return dec.read_chunk(index);
+    }
+    spare.clear();
+    spare.resize(layout.len.div_ceil(4), 0.0);
+    let mut raw = DecodingResult::F32(spare);
+    dec.read_chunk_bytes(index, raw.as_buffer(0).as_bytes_mut())?;
+    Ok(raw)
+}
+
 /// The GeoTIFF tags of the decoder's image.
 fn geo_tags(dec: &mut Decoder<BufReader<File>>) -> tiff::TiffResult<GeoTags> {
     let f64s = |dec: &mut Decoder<BufReader<File>>, t: Tag| -> tiff::TiffResult<_> {
@@ -431,13 +495,21 @@ fn geo_tags(dec: &mut Decoder<BufReader<File>>) -> tiff::TiffResult<GeoTags> {
 impl DemSet {
     /// Opens every file (headers and georeferencing only), in the order given.
     pub fn open(paths: &[PathBuf]) -> Result<DemSet, DemError> {
-        let dems = paths
+        let dems: Vec<Dem> = paths
             .iter()
             .map(|p| Dem::open(p))
             .collect::<Result<_, _>>()?;
+        let largest = dems
+            .iter()
+            .map(|d: &Dem| 4 * d.chunk.0 as usize * d.chunk.1 as usize)
+            .max()
+            .unwrap_or(0);
+        let budget = (CHUNKS_PER_THREAD * rayon::current_num_threads() * largest)
+            .clamp(MIN_BUDGET_BYTES, CACHE_BYTES);
         let set = DemSet {
             dems,
             cache: Mutex::new(Cache::default()),
+            budget,
         };
         set.vertical_epsg()?;
         Ok(set)
@@ -493,25 +565,25 @@ impl DemSet {
 
     fn chunk(&self, d: usize, index: u32) -> Result<Arc<Chunk>, DemError> {
         let key = (d, index);
-        if let Some(c) = self
-            .cache
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .chunks
-            .get(&key)
-        {
-            return Ok(c.clone());
-        }
-        let c = Arc::new(self.dems[d].decode(index)?);
+        let spare = {
+            let mut cache = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+            cache.clock += 1;
+            let now = cache.clock;
+            if let Some((c, used)) = cache.chunks.get_mut(&key) {
+                *used = now;
+                return Ok(c.clone());
+            }
+            cache.spare.pop()
+        };
+        let c = Arc::new(self.dems[d].decode(index, spare.unwrap_or_default())?);
         let mut cache = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
         let size = 4 * c.z.len();
-        if cache.bytes + size > CACHE_BYTES {
-            cache.chunks.clear();
-            cache.bytes = 0;
+        cache.make_room(size, self.budget);
+        let now = cache.clock;
+        if let Some((old, _)) = cache.chunks.insert(key, (c.clone(), now)) {
+            cache.bytes = cache.bytes.saturating_sub(4 * old.z.len());
         }
-        if cache.chunks.insert(key, c.clone()).is_none() {
-            cache.bytes += size;
-        }
+        cache.bytes += size;
         Ok(c)
     }
 }
@@ -602,6 +674,21 @@ impl Framed<'_> {
             }
         }
         out
+    }
+
+    /// Which decoded chunk local point `p` reads (file, then strip or tile in the file's
+    /// order), `u64::MAX` off every file: lots sampled in this order keep few chunks alive at
+    /// once, so the cache recycles their buffers instead of growing.
+    pub fn chunk_key(&self, p: DVec2) -> u64 {
+        for (d, dem) in self.set.dems.iter().enumerate() {
+            let c = dem.georef.to_pixel(self.to_model(d, p));
+            let (w, h) = (f64::from(dem.width), f64::from(dem.height));
+            if c.x >= 0.0 && c.y >= 0.0 && c.x < w && c.y < h {
+                let (index, _, _) = dem.locate(c.x as u32, c.y as u32);
+                return ((d as u64) << 32) | u64::from(index);
+            }
+        }
+        u64::MAX
     }
 
     /// A sampler (each thread its own: it remembers the last chunks it read).
