@@ -156,8 +156,8 @@ pub(super) fn detect(path: &Path) -> Result<Option<XmlPasses>, InputError> {
         Content::Json => Err(xml_error(
             path,
             "line 1".into(),
-            "JSON (Overpass JSON or GeoJSON?) is not read: ask Overpass for XML (`[out:xml]`) \
-             or convert it with `osmium cat FILE -o FILE.osm.pbf`",
+            "JSON: Overpass JSON is not read by --osm (ask Overpass for XML, `[out:xml]`); \
+             GeoJSON footprints are read with --footprints",
         )),
         Content::Other if compression == Compression::Plain => Ok(None),
         Content::Other => Err(xml_error(
