@@ -21,7 +21,8 @@ use crate::pipeline::{self, Options, Source};
 #[command(group(ArgGroup::new("style").required(true).args(["kb", "rules"])))]
 #[command(group(ArgGroup::new("outputs").required(true).multiple(true).args(["ifc", "citygml", "gltf", "cityjson", "cityjsonseq", "tiles3d", "preview"])))]
 pub(crate) struct RunArgs {
-    /// OpenStreetMap extract (.osm.pbf) to read building footprints from.
+    /// OpenStreetMap extract to read building footprints from: OSM PBF, or OSM XML (.osm, plain,
+    /// .osm.gz or .osm.bz2), told by the content.
     #[arg(long, value_name = "FILE.pbf")]
     osm: Option<PathBuf>,
     /// GIS footprints to read: an ESRI shapefile (.shp with its .shx, .dbf and .prj) or a

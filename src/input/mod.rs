@@ -1,5 +1,5 @@
-//! Input readers: OSM PBF, ESRI shapefiles, GeoJSON and GeoPackage, turned into [`Footprint`]s in the source
-//! CRS.
+//! Input readers: OSM (PBF or XML), ESRI shapefiles, GeoJSON and GeoPackage, turned into
+//! [`Footprint`]s in the source CRS.
 //!
 //! Readers know nothing of the knowledge base, the grammar or the outputs. Every record they
 //! skip or repair is reported through [`crate::report::Report`] with the record's id.
@@ -92,6 +92,18 @@ pub enum InputError {
         /// decompressed bytes`.
         place: String,
         /// What is wrong, e.g. `lat 91.5 is outside -90..90`.
+        reason: String,
+    },
+    /// An OSM XML file (`.osm`, plain, gzip or bzip2) cannot be decompressed or parsed, or
+    /// names an element with an invalid id, coordinate, node reference, member or tag.
+    #[error("{}: OSM XML {place}: {reason}", .path.display())]
+    OsmXml {
+        /// The `--osm` file.
+        path: PathBuf,
+        /// Where: `line 12 (byte 345), way/7` (the element when one is known; the byte offset
+        /// is in the decompressed XML for a compressed file).
+        place: String,
+        /// What is wrong, e.g. `lat 'x' is not a number`.
         reason: String,
     },
     /// The `.prj` names a CRS citygen cannot use, or there is no CRS at all.

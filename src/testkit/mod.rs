@@ -5,6 +5,7 @@
 
 pub mod day2;
 pub mod geotiff;
+pub mod osm_xml;
 pub mod pbf_write;
 pub mod tiled;
 pub mod validators;

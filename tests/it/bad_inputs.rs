@@ -323,9 +323,16 @@ fn pbf_empty_file() {
 
 #[test]
 fn pbf_text_file() {
+    // OSM XML named as a PBF is read as XML (the content decides): this one's node has no
+    // coordinates.
     osm_fatal(
         "text.osm.pbf",
         b"<?xml version='1.0'?>\n<osm version='0.6'><node id='1'/></osm>\n",
+        &["OSM XML line 2", "node/1", "no lat attribute"],
+    );
+    osm_fatal(
+        "text.osm.pbf",
+        b"name,height\nA,12\n",
         &["not an OSM PBF file"],
     );
 }

@@ -27,6 +27,7 @@ mod learn;
 mod lod4;
 mod lod4_export;
 mod merge_guard;
+mod osm_xml;
 mod preview;
 mod provenance;
 mod roofs;

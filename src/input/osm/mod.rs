@@ -1,4 +1,9 @@
-//! OSM PBF reader: building ways, building multipolygon relations and `building:part`s.
+//! OSM reader (PBF, or OSM XML through `xml`): building ways, building multipolygon relations
+//! and `building:part`s.
+//!
+//! OSM XML (plain, gzip or bzip2, told by the first bytes) goes through the same three passes
+//! and assembly as a PBF: `Passes` is what a format gives each pass; the rest of this text
+//! describes the PBF's.
 //!
 //! A sweep frames every blob and inflates only the start of each data blob to see the kind of
 //! its first group (nodes, ways or relations). Then three passes, each decoding only the blobs
@@ -52,6 +57,7 @@ mod osc;
 mod pbf;
 mod records;
 mod wire;
+mod xml;
 
 pub(crate) use osc::{read_osc, Change, MemberType};
 
@@ -65,7 +71,8 @@ const MAX_LISTED: usize = 5;
 
 type Tags = Vec<(String, String)>;
 
-/// Reads the building footprints of an OSM PBF file.
+/// Reads the building footprints of an OSM PBF or OSM XML file (plain, gzip or bzip2; told by
+/// its content, see `xml`).
 ///
 /// Returns the footprints sorted (ways by id, then relations by id), in WGS84 lon/lat
 /// (`source_crs` is `None`). Record-level problems become report entries with the OSM id;
@@ -75,7 +82,7 @@ pub fn read_osm(path: &Path, report: &mut Report) -> Result<ReadResult, InputErr
     read_osm_with_changes(path, None, report)
 }
 
-/// Reads the building footprints of an OSM PBF file with an OSM change file applied
+/// Reads the building footprints of an OSM PBF or XML file with an OSM change file applied
 /// (osmChange XML, plain or gzip: `read_osc`); `None` reads the PBF alone, as [`read_osm`].
 ///
 /// The result is that of [`read_osm`] on the extract with the changes applied: the change's
@@ -100,18 +107,35 @@ pub fn read_osm_with_changes(
 ) -> Result<ReadResult, InputError> {
     let change = osc.map(read_osc).transpose()?;
     let change = change.as_ref();
+    if let Some(xml) = xml::detect(path)? {
+        // The XML passes never find a mixed block.
+        return read_passes(&xml, change, report)?.ok_or_else(|| InputError::OsmXml {
+            path: path.to_path_buf(),
+            place: "the whole file".into(),
+            reason: "inconsistent passes".into(),
+        });
+    }
     let pbf = Pbf::open(path)?;
     let file = pbf.load()?;
     let mut locs = pbf.sweep(&file)?;
-    if let Some(r) = read_passes(&pbf, &file, &locs, change, report)? {
+    let src = PbfPasses {
+        pbf: &pbf,
+        file: &file,
+        locs: &locs,
+    };
+    if let Some(r) = read_passes(&src, change, report)? {
         return Ok(r);
     }
     // A block held more than one kind of element: every pass decodes every block.
     for l in &mut locs {
         l.kind = BlobKind::Any;
     }
-    read_passes(&pbf, &file, &locs, change, report)?
-        .ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
+    let src = PbfPasses {
+        pbf: &pbf,
+        file: &file,
+        locs: &locs,
+    };
+    read_passes(&src, change, report)?.ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
 }
 
 /// One report note per id that appears more than once in `sorted_ids` (an extract merged
@@ -147,13 +171,90 @@ fn note_duplicates(
     flush(run, report);
 }
 
-/// The three passes over the blobs `locs` (relations, ways, needed nodes) and the assembly,
-/// with `change` applied after each pass; `None` when a block held another kind of element than
-/// the sweep saw (nothing was reported then).
+/// A block's kept ways with the node ids they need (sorted, deduplicated).
+type WaysOfBlock = (WayBlock, Vec<i64>);
+
+/// Where the three passes take their elements from: a PBF's blocks ([`PbfPasses`]) or the
+/// elements of an OSM XML file ([`xml::XmlPasses`]). Each pass gives its results per block (a
+/// run of elements) in file order; `None` when a block held another kind of element than the
+/// sweep saw (PBF only: the read starts again with every block decoded by every pass).
+trait Passes {
+    /// Pass 1: the relations kept ([`relation_rec`]).
+    fn relations(&self) -> Result<Option<Vec<Vec<RelRec>>>, InputError>;
+    /// Pass 2: the ways kept ([`WayBlock::keep_way`]) with each block's needed node ids
+    /// ([`WayBlock::needed`]).
+    fn ways(
+        &self,
+        member_ways: &[i64],
+        interner: &TagInterner,
+    ) -> Result<Option<Vec<WaysOfBlock>>, InputError>;
+    /// Pass 3: the nodes of `needed` (sorted) found, each block's sorted by index
+    /// ([`Found::sort`]).
+    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<Found>>, InputError>;
+}
+
+/// The PBF's blobs `locs` of `file`, decoded in parallel by each pass.
+struct PbfPasses<'a> {
+    pbf: &'a Pbf,
+    file: &'a [u8],
+    locs: &'a [BlobLoc],
+}
+
+impl Passes for PbfPasses<'_> {
+    fn relations(&self) -> Result<Option<Vec<Vec<RelRec>>>, InputError> {
+        let (rels, mixed) = self.pbf.pass(
+            self.file,
+            self.locs,
+            BlobKind::Relations,
+            |_, _| None,
+            relations_of_block,
+        )?;
+        Ok((!mixed).then_some(rels))
+    }
+
+    fn ways(
+        &self,
+        member_ways: &[i64],
+        interner: &TagInterner,
+    ) -> Result<Option<Vec<WaysOfBlock>>, InputError> {
+        // Each block's ways come with the node ids they need, sorted and deduplicated in the
+        // parallel pass; the file's list is then a merge of sorted runs.
+        let with_needed = |b: WayBlock| {
+            let needed = b.needed();
+            (b, needed)
+        };
+        let (blocks, mixed) = self.pbf.pass(
+            self.file,
+            self.locs,
+            BlobKind::Ways,
+            |f, s| fast_ways(f, s, member_ways, interner).map(with_needed),
+            |b| with_needed(ways_of_block(b, member_ways, interner)),
+        )?;
+        Ok((!mixed).then_some(blocks))
+    }
+
+    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<Found>>, InputError> {
+        // Each block's found nodes sorted by index in the parallel pass, for `Nodes::fill`.
+        let by_index = |mut found: Found| {
+            found.sort();
+            found
+        };
+        let (found, mixed) = self.pbf.pass(
+            self.file,
+            self.locs,
+            BlobKind::Nodes,
+            |f, s| fast_nodes(f, s, needed).map(by_index),
+            |b| by_index(nodes_of_block(b, needed)),
+        )?;
+        Ok((!mixed).then_some(found))
+    }
+}
+
+/// The three passes of `src` (relations, ways, needed nodes) and the assembly, with `change`
+/// applied after each pass; `None` when a block held another kind of element than the sweep
+/// saw (nothing was reported then).
 fn read_passes(
-    pbf: &Pbf,
-    file: &[u8],
-    locs: &[BlobLoc],
+    src: &impl Passes,
     change: Option<&Change>,
     report: &mut Report,
 ) -> Result<Option<ReadResult>, InputError> {
@@ -161,17 +262,10 @@ fn read_passes(
     // reads the file again, and would note it twice).
     let mark = report.entries.len();
     // Pass 1: relations.
-    let (rels, mixed) = pbf.pass(
-        file,
-        locs,
-        BlobKind::Relations,
-        |_, _| None,
-        relations_of_block,
-    )?;
-    if mixed {
+    let Some(rels) = src.relations()? else {
         report.entries.truncate(mark);
         return Ok(None);
-    }
+    };
     let mut rels: Vec<RelRec> = rels.into_iter().flatten().collect();
     if let Some(c) = change {
         // The change's relations replace the file's (a duplicate in the file included).
@@ -193,23 +287,10 @@ fn read_passes(
 
     // Pass 2: ways. Their parsed tags are shared between ways with the same ones.
     let interner = TagInterner::default();
-    // Each block's ways come with the node ids they need, sorted and deduplicated in the
-    // parallel pass; the file's list is then a merge of sorted runs.
-    let with_needed = |b: WayBlock| {
-        let needed = b.needed();
-        (b, needed)
-    };
-    let (blocks, mixed) = pbf.pass(
-        file,
-        locs,
-        BlobKind::Ways,
-        |f, s| fast_ways(f, s, &member_ways, &interner).map(with_needed),
-        |b| with_needed(ways_of_block(b, &member_ways, &interner)),
-    )?;
-    if mixed {
+    let Some(blocks) = src.ways(&member_ways, &interner)? else {
         report.entries.truncate(mark);
         return Ok(None);
-    }
+    };
     let (blocks, needed): (Vec<WayBlock>, Vec<Vec<i64>>) = blocks.into_iter().unzip();
     let mut ways = Ways::from_blocks(blocks);
     if let Some(c) = change {
@@ -244,22 +325,10 @@ fn read_passes(
 
     // Pass 3: nodes.
     let mut nodes = Nodes::new(needed);
-    // Each block's found nodes sorted by index in the parallel pass, for `Nodes::fill`.
-    let by_index = |mut found: Found| {
-        found.sort();
-        found
-    };
-    let (found, mixed) = pbf.pass(
-        file,
-        locs,
-        BlobKind::Nodes,
-        |f, s| fast_nodes(f, s, &nodes.ids).map(by_index),
-        |b| by_index(nodes_of_block(b, &nodes.ids)),
-    )?;
-    if mixed {
+    let Some(found) = src.nodes(&nodes.ids)? else {
         report.entries.truncate(mark);
         return Ok(None);
-    }
+    };
     nodes.fill(&found);
     drop(found);
     if let Some(c) = change {
@@ -739,3 +808,5 @@ pub(crate) fn note_ignored(report: &mut Report, id: SourceId, tags: &BuildingTag
 mod osc_tests;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod xml_tests;

@@ -584,7 +584,8 @@ fn missing_empty_and_text_files_are_errors() {
     assert!(expect_err_naming(&empty).contains("not an OSM PBF"));
 
     let text = dir.path().join("text.osm.pbf");
-    std::fs::write(&text, b"<?xml version='1.0'?>\n<osm></osm>\n").unwrap();
+    // (OSM XML is read: xml_tests.)
+    std::fs::write(&text, b"name,height\nA,12\n").unwrap();
     assert!(expect_err_naming(&text).contains("not an OSM PBF"));
 
     let tiny = dir.path().join("tiny.osm.pbf");
