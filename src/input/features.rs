@@ -8,12 +8,10 @@ use std::path::Path;
 
 use serde_json::{Map, Value};
 
-use super::rings::{group_rings, oriented_polygon, ring_problem};
 use super::shp::{ShpOptions, HEIGHT_FIELDS, LEVELS_FIELDS};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
 };
-use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
 /// Overture Maps' building properties and the OSM keys they mean.
@@ -94,48 +92,24 @@ impl<'a> Sink<'a> {
                 return;
             }
         };
-        let mut problems = Vec::new();
-        let mut kept: Vec<Ring> = Vec::new();
-        let mut claims = Vec::new();
-        for (i, (mut r, outer)) in rings.into_iter().enumerate() {
-            ring::dedup_by(&mut r, |a, b| a == b);
-            if let Some(why) = ring_problem(&r) {
-                problems.push(format!("ring {i} dropped: {why}"));
-                continue;
+        let got = match super::rings::polygons_of(rings) {
+            Ok(g) => g,
+            Err(why) => {
+                self.skip(id, why);
+                return;
             }
-            kept.push(r);
-            claims.push(Some(outer));
-        }
-        let g = group_rings(&kept, &claims);
-        self.role_fixes += g.role_fixes;
-        if g.polygons.is_empty() {
-            let why = if problems.is_empty() {
-                "no rings".to_string()
-            } else {
-                format!("no usable ring: {}", problems.join("; "))
-            };
-            self.skip(id, why);
-            return;
-        }
-        if !problems.is_empty() {
+        };
+        self.role_fixes += got.role_fixes;
+        if !got.problems.is_empty() {
             self.report.repaired += 1;
             self.report
-                .add(Some(id), Outcome::Repaired, problems.join("; "));
+                .add(Some(id), Outcome::Repaired, got.problems.join("; "));
         }
         for (k, v, why) in &tags.ignored {
             self.report
                 .add(Some(id), Outcome::Note, format!("{k}={v} ignored: {why}"));
         }
-        let polygons = g
-            .polygons
-            .iter()
-            .map(|(o, hs)| {
-                oriented_polygon(
-                    kept[*o].clone(),
-                    hs.iter().map(|h| kept[*h].clone()).collect(),
-                )
-            })
-            .collect();
+        let polygons = got.polygons;
         self.footprints.push(Footprint {
             id,
             kind,

@@ -251,6 +251,57 @@ pub(crate) fn oriented_polygon(mut outer: Ring, mut holes: Vec<Ring>) -> SourceP
     SourcePolygon { outer, holes }
 }
 
+/// The polygons of a record's rings as declared (`(ring, declared outer)`), each cleaned
+/// (repeated points dropped) and grouped by nesting: what the shapefile and GIS feature readers
+/// share. `Err` says why none is usable ("no rings", or each ring's problem).
+pub(crate) struct Polygons {
+    /// The polygons, oriented the citygen way.
+    pub(crate) polygons: Vec<super::SourcePolygon>,
+    /// `ring i dropped: why`, for the rings left out (a repair when some polygon remains).
+    pub(crate) problems: Vec<String>,
+    /// How many rings had a declared role their nesting contradicts.
+    pub(crate) role_fixes: usize,
+}
+
+/// See [`Polygons`].
+pub(crate) fn polygons_of(rings: Vec<(Ring, bool)>) -> Result<Polygons, String> {
+    let mut problems = Vec::new();
+    let mut kept: Vec<Ring> = Vec::new();
+    let mut claims = Vec::new();
+    for (i, (mut r, outer)) in rings.into_iter().enumerate() {
+        crate::geometry::ring::dedup_by(&mut r, |a, b| a == b);
+        if let Some(why) = ring_problem(&r) {
+            problems.push(format!("ring {i} dropped: {why}"));
+            continue;
+        }
+        kept.push(r);
+        claims.push(Some(outer));
+    }
+    let g = group_rings(&kept, &claims);
+    if g.polygons.is_empty() {
+        return Err(if problems.is_empty() {
+            "no rings".to_string()
+        } else {
+            format!("no usable ring: {}", problems.join("; "))
+        });
+    }
+    let polygons = g
+        .polygons
+        .iter()
+        .map(|(o, hs)| {
+            oriented_polygon(
+                kept[*o].clone(),
+                hs.iter().map(|h| kept[*h].clone()).collect(),
+            )
+        })
+        .collect();
+    Ok(Polygons {
+        polygons,
+        problems,
+        role_fixes: g.role_fixes,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

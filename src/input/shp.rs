@@ -26,11 +26,9 @@ use std::path::{Path, PathBuf};
 use shapefile::dbase::{self, FieldValue};
 use shapefile::{Shape, ShapeReader, ShapeType};
 
-use super::rings::{group_rings, oriented_polygon, ring_problem};
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
 };
-use crate::geometry::ring;
 use crate::report::{Outcome, Report};
 
 /// Height field names tried, in order, when no field is named (compared case-insensitively).
@@ -254,32 +252,17 @@ pub fn read_shp(
             }
         };
 
-        let mut problems = Vec::new();
-        let mut kept: Vec<Ring> = Vec::new();
-        let mut claims = Vec::new();
-        for (i, (mut ring, outer)) in rings.into_iter().enumerate() {
-            ring::dedup_by(&mut ring, |a, b| a == b);
-            if let Some(why) = ring_problem(&ring) {
-                problems.push(format!("ring {i} dropped: {why}"));
+        let got = match super::rings::polygons_of(rings) {
+            Ok(g) => g,
+            Err(why) => {
+                skip(report, id, why);
                 continue;
             }
-            kept.push(ring);
-            claims.push(Some(outer));
-        }
-        let g = group_rings(&kept, &claims);
-        role_fixes += g.role_fixes;
-        if g.polygons.is_empty() {
-            let why = if problems.is_empty() {
-                "no rings".to_string()
-            } else {
-                format!("no usable ring: {}", problems.join("; "))
-            };
-            skip(report, id, why);
-            continue;
-        }
-        if !problems.is_empty() {
+        };
+        role_fixes += got.role_fixes;
+        if !got.problems.is_empty() {
             report.repaired += 1;
-            report.add(Some(id), Outcome::Repaired, problems.join("; "));
+            report.add(Some(id), Outcome::Repaired, got.problems.join("; "));
         }
 
         let mut pairs: Vec<(&str, String)> = Vec::new();
@@ -299,16 +282,7 @@ pub fn read_shp(
         for (k, v, why) in &tags.ignored {
             report.add(Some(id), Outcome::Note, format!("{k}={v} ignored: {why}"));
         }
-        let polygons = g
-            .polygons
-            .iter()
-            .map(|(o, hs)| {
-                oriented_polygon(
-                    kept[*o].clone(),
-                    hs.iter().map(|h| kept[*h].clone()).collect(),
-                )
-            })
-            .collect();
+        let polygons = got.polygons;
         result.footprints.push(Footprint {
             id,
             kind: FootprintKind::Building,
