@@ -14,7 +14,7 @@
 //!   `roof_shape`, `roof_height`, `facade_color`, `roof_color`, `facade_material`,
 //!   `roof_material`, `min_height`) map to their OSM keys; a height or levels property under a
 //!   municipal name is found as in a shapefile (`--shp-height-field`, `--shp-levels-field`, else
-//!   the first of `shp::HEIGHT_FIELDS`/`LEVELS_FIELDS` present).
+//!   the first of `features::HEIGHT_FIELDS`/`LEVELS_FIELDS` present).
 //! - **Ids**: a feature `id` (or `@id` property) of the form `way/123`, `relation/45` keeps its
 //!   OSM id (and, without `building` or `building:part`, is skipped: an Overpass export holds
 //!   land use and streets too); a non-negative integer id `n` (the feature's, else the first of
@@ -35,8 +35,8 @@ use serde::de::{self, DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor
 use serde::Deserialize;
 use serde_json::{Map, Value};
 
+use super::features::ShpOptions;
 use super::features::Sink;
-use super::shp::ShpOptions;
 use super::{InputError, ReadResult, Ring, SourceId};
 use crate::report::Report;
 

@@ -21,8 +21,8 @@ use rusqlite::types::ValueRef;
 use rusqlite::{Connection, OpenFlags};
 use serde_json::{Map, Value};
 
+use super::features::ShpOptions;
 use super::features::Sink;
-use super::shp::ShpOptions;
 use super::{InputError, ReadResult, Ring, SourceId};
 use crate::report::{Outcome, Report};
 

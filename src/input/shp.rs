@@ -31,49 +31,8 @@ use super::{
 };
 use crate::report::{Outcome, Report};
 
-/// Height field names tried, in order, when no field is named (compared case-insensitively).
-pub(crate) const HEIGHT_FIELDS: [&str; 14] = [
-    "height",
-    "hauteur",
-    "building_height",
-    "bldg_height",
-    "height_m",
-    "haut",
-    "h",
-    "h_mean",
-    "hmean",
-    "max_max",
-    "h_max",
-    "hmax",
-    "mean_mean",
-    "mean",
-];
-
-/// Level-count field names tried, in order, when no field is named.
-pub(crate) const LEVELS_FIELDS: [&str; 10] = [
-    "building:levels",
-    "levels",
-    "building_l",
-    "nb_etages",
-    "etages",
-    "nb_niveaux",
-    "floors",
-    "storeys",
-    "stories",
-    "num_floors",
-];
-
-/// How to read a shapefile.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ShpOptions {
-    /// The `.dbf` field holding the height in metres (`--shp-height-field`); auto-detected from
-    /// `HEIGHT_FIELDS` when `None`. Naming a field that does not exist is an error.
-    pub height_field: Option<String>,
-    /// The `.dbf` field holding the number of levels; auto-detected from `LEVELS_FIELDS`.
-    pub levels_field: Option<String>,
-    /// The source CRS (`--src-crs`); overrides the `.prj`.
-    pub src_crs: Option<crate::crs::Crs>,
-}
+pub use super::features::ShpOptions;
+pub(crate) use super::features::{HEIGHT_FIELDS, LEVELS_FIELDS};
 
 /// Reads the polygon records of a shapefile and their attributes.
 ///

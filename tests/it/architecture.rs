@@ -118,7 +118,16 @@ const SIBLINGS: Siblings = &[
         ],
     ),
     // The readers: one format each.
-    ("input", &[("osm", &[]), ("shp", &[]), ("dem", &[])]),
+    (
+        "input",
+        &[
+            ("osm", &[]),
+            ("shp", &[]),
+            ("geojson", &[]),
+            ("gpkg", &[]),
+            ("dem", &[]),
+        ],
+    ),
 ];
 
 /// What `src/main.rs` may name of the library (`citygen::...`): the commands, nothing deeper.

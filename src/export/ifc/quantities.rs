@@ -173,6 +173,34 @@ impl Render<'_> {
         )
     }
 
+    /// `Qto_BuildingBaseQuantities` of one part of a building of several, on its `.PARTIAL.`
+    /// `IfcBuilding`: the part's own height (top above its base), eaves, footprint, floors and
+    /// closed volume.
+    pub(super) fn part_quantities(
+        &mut self,
+        part: &Part,
+        key: &str,
+        partial: Id,
+    ) -> Result<(), ExportError> {
+        self.element_quantity(
+            key,
+            &format!("{}/qto", part.key),
+            "Qto_BuildingBaseQuantities",
+            &[
+                ("Height", Q::Length, part.top_z - part.base_z),
+                ("EavesHeight", Q::Length, part.eave_z - part.base_z),
+                ("FootprintArea", Q::Area, footprint_area(part)),
+                (
+                    "GrossFloorArea",
+                    Q::Area,
+                    footprint_area(part) * f64::from(part.storeys.max(1)),
+                ),
+                ("GrossVolume", Q::Volume, part_volume(part)),
+            ],
+            partial,
+        )
+    }
+
     /// `Qto_BuildingStoreyBaseQuantities` of storey `i` of `part` (floor at `floor_z`, `height`
     /// to the next floor or the eaves) on its `IfcBuildingStorey`.
     pub(super) fn storey_quantities(

@@ -315,6 +315,7 @@ impl Render<'_> {
                 })?;
                 partials.push(partial);
                 self.part_pset(part, b, key, partial)?;
+                self.part_quantities(part, key, partial)?;
                 walls.extend(self.part(part, key, partial, pl, anchor)?);
             }
             self.w.entity("IFCRELAGGREGATES", |a| {

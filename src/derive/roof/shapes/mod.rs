@@ -61,6 +61,7 @@ use crate::geometry::skeleton::{collinear_tolerance, straight_skeleton_merged};
 use crate::geometry::{CellHash, Polygon};
 use crate::model::Face;
 
+mod clearance;
 mod cut;
 mod gables;
 mod ridge;

@@ -95,11 +95,11 @@ pub fn ridge_roof(
     // The shallower slope sets the clearance.
     let k = pitch_deg.to_radians().tan();
     let shallow = k * at.min(1.0 - at) / at.max(1.0 - at);
-    let ridge = super::cut::clear_cut(
-        &super::cut::corners(poly),
+    let ridge = super::clearance::clear_cut(
+        &super::clearance::corners(poly),
         n,
         smin + at * width,
-        super::cut::cut_clearance(super::cut::size_of(poly), shallow),
+        super::clearance::cut_clearance(super::clearance::size_of(poly), shallow),
         0.05 * width,
     );
     let (da, db) = (ridge - smin, smax - ridge);
