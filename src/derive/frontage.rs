@@ -540,9 +540,11 @@ fn windows_on_runs(d: &mut Draft<'_>, from_style: bool) -> usize {
 
 /// Whether door `o` on edge `k` opens onto one of the edge's balconies.
 fn on_balcony(o: &FoundOpening, balconies: &[FoundBalcony]) -> bool {
+    // Within the balcony's span (5 cm play), not merely touching it: a balcony cut back by
+    // `clip_balconies` left doors that overlapped its old span standing over nothing.
     balconies
         .iter()
-        .any(|b| b.u0 < o.u1 && o.u0 < b.u1 && (o.z0 - b.z0).abs() < 0.5)
+        .any(|b| b.u0 - 0.05 <= o.u0 && o.u1 <= b.u1 + 0.05 && (o.z0 - b.z0).abs() < 0.5)
 }
 
 /// Takes every door not on a balcony out of the drafts (module docs, 3), putting a window of
