@@ -97,11 +97,11 @@ pub struct Lot {
     /// grammar then keeps the thesis front.
     pub front: Option<DVec2>,
     /// The ground the building stands on, metres (issue 44): the lowest DEM height under its
-    /// footprint (`--dem`, [`ground::grounds`]) or `--ground-height`; 0 without terrain. The
+    /// footprint (`--dem`, [`ground::sample_all`]) or `--ground-height`; 0 without terrain. The
     /// derived building is raised by it whole.
     pub ground: f64,
     /// The terrain around the footprint (issue 44, `--dem` at LOD3 and above,
-    /// [`ground::profiles`]): what its facades look at to put the entrance at the terrain and
+    /// [`ground::sample_all`]): what its facades look at to put the entrance at the terrain and
     /// keep every opening above it. `None` without a DEM, below LOD3, and for the neighbours a
     /// run does not write.
     pub terrain: Option<std::sync::Arc<crate::model::ElevationGrid>>,

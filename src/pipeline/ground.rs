@@ -1,5 +1,5 @@
 //! The ground a run stands on (issue 44): `--dem` files opened before any reading, every lot's
-//! ground ([`prepare::ground::grounds`]) and the run's elevation grid once the lots are
+//! ground ([`prepare::ground::sample_all`]) and the run's elevation grid once the lots are
 //! selected, or `--ground-height` for all; the vertical datum the writers are given and the
 //! report's `terrain` line.
 

@@ -21,17 +21,17 @@ use crate::geometry::Polygon;
 use crate::input::dem::{DemError, Framed, Sample, Sampler};
 use crate::model::ElevationGrid;
 
-/// Margin around the run's buildings covered by [`elevation_grid`], metres.
+/// Margin around the run's buildings covered by the elevation grid ([`sample_all`]), metres.
 pub const GRID_MARGIN: f64 = 50.0;
 
-/// The most samples [`elevation_grid`] holds (2048 x 2048): a larger extent takes coarser
+/// The most samples the elevation grid ([`sample_all`]) holds (2048 x 2048): a larger extent takes coarser
 /// steps than the DEM's.
 pub const GRID_MAX_CELLS: usize = 1 << 22;
 
 /// The most pixel-line crossings sampled along one ring edge.
 const MAX_EDGE_SAMPLES: usize = 20_000;
 
-/// Lots per parallel batch of [`grounds`] (one sampler each).
+/// Lots per parallel batch of [`sample_all`]'s grounds (one sampler each).
 const BATCH: usize = 64;
 
 /// The ground of one footprint, or `None` where the DEMs do not cover it.
@@ -124,20 +124,6 @@ fn footprint(lot: &Lot) -> Vec<&Polygon> {
         .collect()
 }
 
-/// The order lots are sampled in: by the DEM chunk (strip or tile) their centre reads
-/// ([`Framed::chunk_key`]), then along the Z-order curve of their centre, so that lots sampled
-/// together read the same strips and tiles and few are decoded at once.
-fn sampling_order(lots: &[Lot], wanted: impl Fn(usize) -> bool, framed: &Framed<'_>) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..lots.len()).filter(|&i| wanted(i)).collect();
-    order.sort_by_cached_key(|&i| {
-        let chunk = lots[i]
-            .bounds()
-            .map_or(u64::MAX, |(lo, hi)| framed.chunk_key((lo + hi) / 2.0));
-        (chunk, z_order(&lots[i]), i)
-    });
-    order
-}
-
 /// A key along the Z-order curve of a lot's centre (64 m cells).
 fn z_order(lot: &Lot) -> u64 {
     let Some((lo, hi)) = lot.bounds() else {
@@ -154,27 +140,6 @@ fn z_order(lot: &Lot) -> u64 {
     k
 }
 
-/// The ground of every lot `wanted` selects (`None` for the others and where the DEMs do not
-/// cover the lot), in lot order; the first error of a file in lot order.
-pub fn grounds(
-    lots: &[Lot],
-    wanted: impl Fn(usize) -> bool + Sync,
-    framed: &Framed<'_>,
-) -> Result<Vec<Option<f64>>, DemError> {
-    let order = sampling_order(lots, wanted, framed);
-    let found: Vec<(usize, Result<Option<f64>, DemError>)> = order
-        .par_chunks(BATCH)
-        .flat_map_iter(|batch| {
-            let mut s = framed.sampler();
-            batch
-                .iter()
-                .map(|&i| (i, ground_under(&footprint(&lots[i]), framed, &mut s)))
-                .collect::<Vec<_>>()
-        })
-        .collect();
-    in_lot_order(lots.len(), found)
-}
-
 /// Where the elevation grid's samples are: its first sample, step and size.
 struct GridFrame {
     lo: DVec2,
@@ -183,7 +148,7 @@ struct GridFrame {
     ny: usize,
 }
 
-/// The frame of [`elevation_grid`] over the lots `wanted` selects, `None` without a lot.
+/// The frame of the elevation grid over the lots `wanted` selects, `None` without a lot.
 fn grid_frame(
     lots: &[Lot],
     wanted: impl Fn(usize) -> bool,
@@ -251,42 +216,24 @@ impl GridFrame {
     }
 }
 
-/// The DEM resampled (bilinear) on a regular grid of the local frame over the bounds of the
-/// lots `wanted` selects plus [`GRID_MARGIN`]: at the finest DEM's pixel size, coarser where
-/// that would pass [`GRID_MAX_CELLS`]; NaN where no DEM has a height. `None` without a lot.
-pub fn elevation_grid(
-    lots: &[Lot],
-    wanted: impl Fn(usize) -> bool,
-    framed: &Framed<'_>,
-) -> Result<Option<ElevationGrid>, DemError> {
-    let Some(frame) = grid_frame(lots, wanted, framed) else {
-        return Ok(None);
-    };
-    let rows: Vec<Result<Vec<f32>, DemError>> = (0..frame.ny)
-        .into_par_iter()
-        .map(|j| frame.row(j, &mut framed.sampler()))
-        .collect();
-    frame.grid(rows).map(Some)
-}
-
 /// What [`sample_all`] samples: each lot's ground, and optionally each lot's terrain patch
 /// and the elevation grid, over the lots each selects.
 pub struct Wanted<'w> {
-    /// The lots whose ground is sampled ([`grounds`]).
+    /// The lots whose ground is sampled ([`sample_all`]'s grounds).
     pub grounds: &'w (dyn Fn(usize) -> bool + Sync),
-    /// The lots whose terrain patch is sampled ([`profiles`]), if any.
+    /// The lots whose terrain patch is sampled (in [`sample_all`]), if any.
     pub patches: Option<&'w (dyn Fn(usize) -> bool + Sync)>,
-    /// The lots the elevation grid covers ([`elevation_grid`]), if one is made.
+    /// The lots the elevation grid covers (the elevation grid ([`sample_all`])), if one is made.
     pub grid: Option<&'w (dyn Fn(usize) -> bool + Sync)>,
 }
 
 /// The results of [`sample_all`], each as its own function gives it.
 pub struct Sampled {
-    /// As [`grounds`].
+    /// As [`sample_all`]'s grounds.
     pub grounds: Result<Vec<Option<f64>>, DemError>,
-    /// As [`profiles`] (all `None` when not wanted).
+    /// As [`sample_all`]'s terrain patches (all `None` when not wanted).
     pub patches: Result<Vec<Option<ElevationGrid>>, DemError>,
-    /// As [`elevation_grid`] (`None` when not wanted).
+    /// As the elevation grid ([`sample_all`]) (`None` when not wanted).
     pub grid: Result<Option<ElevationGrid>, DemError>,
 }
 
@@ -304,7 +251,7 @@ enum Done {
     Row(usize, Result<Vec<f32>, DemError>),
 }
 
-/// [`grounds`], [`profiles`] and [`elevation_grid`] in one pass, the same values: every lot
+/// Every lot's ground, its LOD3 terrain patch and the elevation grid in one pass: every lot
 /// and grid row sampled in the order of the DEM chunks it reads ([`Framed::chunk_key`]), so
 /// that each strip or tile is decoded about once for all three and the cache stays small
 /// (three passes would decode the DEM three times, or hold all of it).
@@ -370,7 +317,7 @@ pub fn sample_all(lots: &[Lot], wanted: &Wanted<'_>, framed: &Framed<'_>) -> Sam
     }
 }
 
-/// The finest step of a lot's terrain patch ([`profiles`]), metres.
+/// The finest step of a lot's terrain patch (in [`sample_all`]), metres.
 const PROFILE_FINEST: f64 = 0.5;
 /// The coarsest step of a lot's terrain patch before its size coarsens it, metres.
 const PROFILE_STEP: f64 = 2.0;
@@ -379,32 +326,7 @@ const PROFILE_STEP: f64 = 2.0;
 /// about 1 KiB.
 pub const PROFILE_MAX_CELLS: usize = 1 << 12;
 
-/// The terrain under and around every lot `wanted` selects (`None` for the others), in lot
-/// order, for the facades at LOD3 (issue 44: the entrance at the terrain, no opening under
-/// it): the DEM resampled (bilinear) on a small grid over the lot's bounds plus one step, at
-/// the finest DEM pixel within 0.5..2 m, coarser where the lot would pass
-/// [`PROFILE_MAX_CELLS`]; NaN over nodata. The first error of a file in lot order.
-pub fn profiles(
-    lots: &[Lot],
-    wanted: impl Fn(usize) -> bool + Sync,
-    framed: &Framed<'_>,
-) -> Result<Vec<Option<ElevationGrid>>, DemError> {
-    let fine = framed.cell_size().clamp(PROFILE_FINEST, PROFILE_STEP);
-    let order = sampling_order(lots, wanted, framed);
-    let found: Vec<(usize, Result<Option<ElevationGrid>, DemError>)> = order
-        .par_chunks(BATCH)
-        .flat_map_iter(|batch| {
-            let mut s = framed.sampler();
-            batch
-                .iter()
-                .map(|&i| (i, profile(&lots[i], fine, &mut s)))
-                .collect::<Vec<_>>()
-        })
-        .collect();
-    in_lot_order(lots.len(), found)
-}
-
-/// One lot's terrain patch for [`profiles`] (`None` for a lot without bounds).
+/// One lot's terrain patch for [`sample_all`] (`None` for a lot without bounds).
 fn profile(lot: &Lot, fine: f64, s: &mut Sampler<'_>) -> Result<Option<ElevationGrid>, DemError> {
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for p in footprint(lot) {
