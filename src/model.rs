@@ -893,7 +893,31 @@ pub struct Building {
     /// uncertainty (those of the tallest part, as the values themselves): written by every
     /// writer and counted in the report.
     pub provenance: Provenance,
+    /// The input file's own attributes that citygen does not read itself (issue 47), carried
+    /// into every output; `None` for OSM input and for a feature without any.
+    pub attributes: Option<Attributes>,
 }
+
+/// A value of an input attribute, typed as the file types it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AttrValue {
+    /// Text.
+    Text(Box<str>),
+    /// A whole number.
+    Int(i64),
+    /// A real number (always finite).
+    Real(f64),
+    /// A boolean.
+    Bool(bool),
+    /// A date or date-time, as the file writes it (ISO 8601, `2021-05-04` or
+    /// `2021-05-04T10:00:00Z`).
+    Date(Box<str>),
+}
+
+/// The input attributes of one feature in the file's column order: each name is interned (one
+/// allocation per column of the file, shared by every feature), the whole row shared by the
+/// building and its copies.
+pub type Attributes = std::sync::Arc<[(std::sync::Arc<str>, AttrValue)]>;
 
 /// What the LOD3 facade rules (`derive::frontage`) did to one building, or summed over a run.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -1094,6 +1118,11 @@ impl Building {
         }
         for x in [p.storeys_error, p.height_error, p.roof_probability] {
             d.word(x.map_or(u64::MAX, f64::to_bits));
+        }
+        // Only with attributes: the digest of a building without them is unchanged.
+        for (k, v) in self.attributes.iter().flat_map(|a| a.iter()) {
+            d.bytes(k.as_bytes());
+            d.bytes(format!("{v:?}").as_bytes());
         }
         d.word(self.parts.len() as u64);
         for p in &self.parts {

@@ -50,6 +50,11 @@ pub enum Source {
         /// The `.dbf` field holding the number of storeys (`--shp-levels-field`); `None` detects it
         /// from `LEVELS_FIELDS`.
         levels_field: Option<String>,
+        /// Columns named for citygen's fields (`--field TARGET=COLUMN`; see
+        /// `input::features::TARGETS`).
+        fields: Vec<(String, String)>,
+        /// The GeoPackage layer to read (`--layer`).
+        layer: Option<String>,
     },
 }
 
@@ -531,6 +536,7 @@ impl<'a> RunState<'a> {
         };
         let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
         site.boundaries = read.boundaries;
+        site.attributes = read.attributes;
         prepare::assign_fronts(&mut site, &read.streets, source_crs);
         let own_keys = opts.tile.map(|_| incremental::own_keys(&site.lots));
         let caps = Caps {
@@ -740,16 +746,29 @@ pub(crate) fn read_source(
             path,
             height_field,
             levels_field,
+            fields,
+            layer,
         } => {
             let o = ShpOptions {
                 height_field: height_field.clone(),
                 levels_field: levels_field.clone(),
                 src_crs,
+                fields: fields.clone(),
+                layer: layer.clone(),
             };
+            let gpkg = input::gpkg::looks_like_gpkg(path);
+            if let (Some(l), false) = (layer, gpkg) {
+                return Err(RunError::Usage(format!(
+                    "--layer {l} names a GeoPackage layer, and {} is not a GeoPackage",
+                    path.display()
+                )));
+            }
             if input::geojson::looks_like_geojson(path) {
                 input::geojson::read_geojson(path, &o, report)
-            } else if input::gpkg::looks_like_gpkg(path) {
+            } else if gpkg {
                 input::gpkg::read_gpkg(path, &o, report)
+            } else if input::fgb::looks_like_fgb(path) {
+                input::fgb::read_fgb(path, &o, report)
             } else {
                 input::shp::read_shp(path, &o, report)
             }

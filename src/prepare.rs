@@ -145,6 +145,9 @@ pub struct Site {
     /// `--ground-height`, `None` without terrain (buildings on z = 0). The writers get it as
     /// [`crate::export::OutputContext::vertical_datum`].
     pub vertical_datum: Option<crate::model::VerticalDatum>,
+    /// The input file's other attributes by footprint id (issue 47), for the writers: set by
+    /// the caller from [`crate::input::ReadResult::attributes`]; empty for OSM input.
+    pub attributes: std::collections::HashMap<crate::model::SourceId, crate::model::Attributes>,
 }
 
 /// The most a projection chosen by citygen may stretch a building's lengths: 0.25 % (2.5 mm
@@ -395,6 +398,7 @@ pub fn prepare(
         boundaries: Vec::new(),
         elevation: None,
         vertical_datum: None,
+        attributes: Default::default(),
     }
 }
 
@@ -490,6 +494,7 @@ pub(crate) fn single_lot(
         boundaries: Vec::new(),
         elevation: None,
         vertical_datum: None,
+        attributes: Default::default(),
     })
 }
 

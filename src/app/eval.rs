@@ -62,6 +62,8 @@ fn case(arg: &str) -> Case {
             path,
             height_field: None,
             levels_field: None,
+            fields: Vec::new(),
+            layer: None,
         }
     } else {
         Source::Osm(path)

@@ -153,6 +153,8 @@ pub(crate) fn run(cmd: KbCommand) -> Result<Outcome, AppError> {
                     path: p,
                     height_field: None,
                     levels_field: None,
+                    fields: Vec::new(),
+                    layer: None,
                 }),
                 (None, None) => None,
             };
@@ -190,6 +192,8 @@ pub(crate) fn run(cmd: KbCommand) -> Result<Outcome, AppError> {
                     path,
                     height_field: None,
                     levels_field: None,
+                    fields: Vec::new(),
+                    layer: None,
                 },
                 (None, None) => return Err(AppError::Missing),
             };
@@ -214,6 +218,8 @@ pub(crate) fn run(cmd: KbCommand) -> Result<Outcome, AppError> {
                         path: path.clone(),
                         height_field: None,
                         levels_field: None,
+                        fields: Vec::new(),
+                        layer: None,
                     },
                     path,
                 ),

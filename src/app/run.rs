@@ -25,12 +25,13 @@ pub(crate) struct RunArgs {
     /// .osm.gz or .osm.bz2), told by the content.
     #[arg(long, value_name = "FILE.pbf")]
     osm: Option<PathBuf>,
-    /// GIS footprints to read: an ESRI shapefile (.shp with its .shx, .dbf and .prj) or a
-    /// GeoJSON FeatureCollection (told apart by content; also `--footprints`).
+    /// GIS footprints to read: an ESRI shapefile (.shp with its .shx, .dbf and .prj), a
+    /// GeoJSON FeatureCollection, a GeoPackage or a FlatGeobuf file (told apart by content;
+    /// also `--footprints`).
     #[arg(
         long,
         visible_alias = "footprints",
-        value_name = "FILE.shp|FILE.geojson"
+        value_name = "FILE.shp|FILE.geojson|FILE.gpkg|FILE.fgb"
     )]
     shp: Option<PathBuf>,
     /// Knowledge base of regional appearance (XML, seed 003 format).
@@ -100,6 +101,16 @@ pub(crate) struct RunArgs {
     /// detected).
     #[arg(long, value_name = "NAME")]
     shp_levels_field: Option<String>,
+    /// The column of the footprints file that gives one of citygen's fields, as
+    /// TARGET=COLUMN (e.g. height=HOEHE; repeatable). Targets: id, height, min_height, ground
+    /// (the elevation an absolute height counts from), levels, min_level, roof_shape,
+    /// roof_height, roof_colour, colour, material, roof_material, kind, name. Default: found
+    /// by common names (OSM keys, Overture's, 3DBAG's b3_*, HOEHE, heightroof, ...).
+    #[arg(long = "field", value_name = "TARGET=COLUMN", value_parser = crate::input::features::parse_field)]
+    fields: Vec<(String, String)>,
+    /// The GeoPackage layer to read (default: the only one, else the first polygon layer).
+    #[arg(long, value_name = "NAME")]
+    layer: Option<String>,
     /// Worker threads for derivation (default: all cores). Outputs do not depend on it.
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
@@ -239,6 +250,8 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
             path: p.clone(),
             height_field: cli.shp_height_field.clone(),
             levels_field: cli.shp_levels_field.clone(),
+            fields: cli.fields.clone(),
+            layer: cli.layer.clone(),
         },
         (None, None) => unreachable!("clap requires --osm or --shp"),
     };

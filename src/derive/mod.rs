@@ -453,6 +453,7 @@ impl Generator {
             lod,
             facade: counts,
             provenance,
+            attributes: None,
         };
         // Seated on its ground (issue 44): derived on z = 0, then raised whole.
         if lot.ground != 0.0 {

@@ -216,6 +216,7 @@ pub fn building(
             lod,
             facade: FacadeCounts::default(),
             provenance: Default::default(),
+            attributes: None,
         },
         notes,
     ))

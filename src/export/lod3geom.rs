@@ -1053,6 +1053,7 @@ pub(crate) mod samples {
             lod: Lod::Lod3,
             facade: Default::default(),
             provenance: Default::default(),
+            attributes: None,
         }
     }
 

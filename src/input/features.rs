@@ -1,16 +1,20 @@
-//! What the GIS feature readers (`input::geojson`, `input::gpkg`) share: a feature's
-//! attributes read as tags (OSM keys as they are, Overture's names mapped, a municipal height
-//! or levels column found as in a shapefile), its rings grouped by nesting, its id kept or
-//! numbered by position, and the report entries of what is skipped or repaired.
+//! What the GIS feature readers (`input::geojson`, `input::gpkg`, `input::fgb`) share: a
+//! feature's attributes read as tags (OSM keys as they are, Overture's names mapped, the
+//! columns of citygen's fields found by their common names in [`TARGETS`] or named with
+//! `--field TARGET=COLUMN`), its other attributes kept typed for the outputs
+//! ([`crate::model::Attributes`], column names interned), its rings grouped by nesting, its id
+//! kept or numbered by position, and the report entries of what is skipped or repaired.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
+use std::sync::Arc;
 
 use serde_json::{Map, Value};
 
 use super::{
     BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
 };
+use crate::model::{AttrValue, Attributes};
 use crate::report::{Outcome, Report};
 
 /// Height field names tried, in order, when no field is named (compared case-insensitively).
@@ -56,6 +60,183 @@ pub struct ShpOptions {
     pub levels_field: Option<String>,
     /// The source CRS (`--src-crs`); overrides the `.prj`.
     pub src_crs: Option<crate::crs::Crs>,
+    /// Columns named for citygen's fields (`--field TARGET=COLUMN`, repeatable; the target one
+    /// of `input::features::TARGETS`), in the order given: the last one of a target wins.
+    pub fields: Vec<(String, String)>,
+    /// The GeoPackage layer to read (`--layer`); `None` takes the only or first polygon layer.
+    pub layer: Option<String>,
+}
+
+impl ShpOptions {
+    /// The column named for `target` (`--field`, else `--shp-height-field`/`--shp-levels-field`).
+    pub(crate) fn named(&self, target: &str) -> Option<&str> {
+        self.fields
+            .iter()
+            .rev()
+            .find(|(t, _)| t == target)
+            .map(|(_, c)| c.as_str())
+            .or(match target {
+                "height" => self.height_field.as_deref(),
+                "levels" => self.levels_field.as_deref(),
+                _ => None,
+            })
+    }
+}
+
+/// Municipal and national height column names tried after [`HEIGHT_FIELDS`] (German `HOEHE`,
+/// `GEBHOEHE`; New York's `heightroof`; `HEIGHT_ROOF`; `HGT_AGL`, height above ground level).
+pub(crate) const MORE_HEIGHT_FIELDS: [&str; 7] = [
+    "hoehe",
+    "gebhoehe",
+    "gebaeudehoehe",
+    "height_roof",
+    "heightroof",
+    "hgt_agl",
+    "b3_h_dak_max",
+];
+
+/// Height columns in feet: New York City's `heightroof`.
+const FEET_COLUMNS: [&str; 1] = ["heightroof"];
+
+/// Level-count column names tried after [`LEVELS_FIELDS`] (3DBAG's `b3_bouwlagen`, German
+/// `GESCHOSSE`/`ANZ_GESCHOSSE`, `NUM_FLOORS`' other spellings).
+pub(crate) const MORE_LEVELS_FIELDS: [&str; 5] = [
+    "b3_bouwlagen",
+    "geschosse",
+    "anz_geschosse",
+    "numfloors",
+    "num_storeys",
+];
+
+/// citygen's fields a column can give: the target's name (`--field TARGET=COLUMN`), the OSM
+/// key it sets (empty: read apart), and the column names tried when none is named
+/// (case-insensitively, in order) and the OSM key itself is not a column. `ground` is the
+/// ground's elevation that an absolute height column counts from (3DBAG's `b3_h_maaiveld`
+/// under `b3_h_dak_max`): it is taken off the height.
+pub(crate) const TARGETS: [(&str, &str, &[&str]); 14] = [
+    ("id", "", &ID_COLUMNS),
+    ("height", "height", &[]),
+    (
+        "min_height",
+        "min_height",
+        &["minheight", "base_height", "height_min"],
+    ),
+    (
+        "ground",
+        "",
+        &["b3_h_maaiveld", "ground_height", "ground_z"],
+    ),
+    ("levels", "building:levels", &[]),
+    (
+        "min_level",
+        "building:min_level",
+        &["min_floor", "min_level"],
+    ),
+    (
+        "roof_shape",
+        "roof:shape",
+        &["roof_shape", "roofshape", "dachform", "b3_dak_type"],
+    ),
+    (
+        "roof_height",
+        "roof:height",
+        &["roof_height", "roofheight", "dachhoehe"],
+    ),
+    (
+        "roof_colour",
+        "roof:colour",
+        &["roof_color", "roof_colour", "roofcolor", "roofcolour"],
+    ),
+    (
+        "colour",
+        "building:colour",
+        &["facade_color", "facade_colour", "colour", "color"],
+    ),
+    (
+        "material",
+        "building:material",
+        &["facade_material", "material"],
+    ),
+    ("roof_material", "roof:material", &["roof_material"]),
+    (
+        "kind",
+        "building",
+        &["class", "subtype", "building_type", "bldg_type"],
+    ),
+    ("name", "name", &["name"]),
+];
+
+/// The names `--field` accepts, for its error.
+pub(crate) fn target_names() -> String {
+    TARGETS.iter().map(|t| t.0).collect::<Vec<_>>().join(", ")
+}
+
+/// Parses `--field TARGET=COLUMN`: an unknown target is an error naming the allowed ones.
+pub fn parse_field(s: &str) -> Result<(String, String), String> {
+    let Some((target, column)) = s.split_once('=') else {
+        return Err(format!(
+            "{s:?} is not TARGET=COLUMN (e.g. height=HOEHE); the targets are {}",
+            target_names()
+        ));
+    };
+    let target = target.trim().to_ascii_lowercase().replace('-', "_");
+    let target = match target.as_str() {
+        "roof_color" => "roof_colour".to_string(),
+        "color" => "colour".to_string(),
+        "storeys" | "floors" => "levels".to_string(),
+        _ => target,
+    };
+    let column = column.trim();
+    if !TARGETS.iter().any(|t| t.0 == target) {
+        return Err(format!(
+            "unknown field target {target:?} in {s:?}; the targets are {}",
+            target_names()
+        ));
+    }
+    if column.is_empty() {
+        return Err(format!("{s:?} names no column"));
+    }
+    Ok((target, column.to_string()))
+}
+
+/// The column names tried for `target` when none is named.
+fn candidates(target: &str) -> Vec<&'static str> {
+    match target {
+        "height" => HEIGHT_FIELDS
+            .iter()
+            .chain(&MORE_HEIGHT_FIELDS)
+            .copied()
+            .collect(),
+        "levels" => LEVELS_FIELDS
+            .iter()
+            .chain(&MORE_LEVELS_FIELDS)
+            .copied()
+            .collect(),
+        _ => TARGETS
+            .iter()
+            .find(|t| t.0 == target)
+            .map(|t| t.2.to_vec())
+            .unwrap_or_default(),
+    }
+}
+
+/// A roof shape column's value as `roof:shape`: 3DBAG's `b3_dak_type` (`horizontal` and
+/// `multiple horizontal` are flat; `slanted` says no more than that, so the knowledge base
+/// chooses) and the German names; anything else as written.
+fn roof_shape_value(v: &str) -> Option<String> {
+    let lower = v.trim().to_lowercase();
+    let mapped = match lower.as_str() {
+        "horizontal" | "multiple horizontal" | "flachdach" => "flat",
+        "slanted" | "could not be detected" | "no points" | "not planar" => return None,
+        "satteldach" => "gabled",
+        "walmdach" => "hipped",
+        "pultdach" => "skillion",
+        "zeltdach" => "pyramidal",
+        "mansarddach" => "mansard",
+        "krueppelwalmdach" | "krüppelwalmdach" => "half-hipped",
+        _ => return Some(v.trim().to_string()),
+    };
+    Some(mapped.to_string())
 }
 
 /// Overture Maps' building properties and the OSM keys they mean.
@@ -83,6 +264,25 @@ pub(super) struct Sink<'a> {
     duplicate: bool,
     features: u64,
     role_fixes: usize,
+    /// Every column name seen, interned: each feature's attributes share these.
+    keys: HashMap<String, Arc<str>>,
+    /// The columns whose text values are dates (a GeoPackage `DATE`/`DATETIME` column, a
+    /// FlatGeobuf `DateTime` one).
+    dates: HashSet<String>,
+    /// Each footprint's other attributes, by its position among the footprints.
+    attributes: Vec<(usize, Attributes)>,
+    /// The columns of citygen's fields for the last set of column names seen.
+    resolved: Option<Resolved>,
+}
+
+/// Which columns give citygen's fields, for one set of column names.
+struct Resolved {
+    /// The column names, in the order of the properties.
+    columns: Vec<String>,
+    /// The ground elevation's column.
+    ground: Option<String>,
+    /// (target, OSM key, column) of each field found.
+    fields: Vec<(&'static str, &'static str, String)>,
 }
 
 impl<'a> Sink<'a> {
@@ -99,7 +299,16 @@ impl<'a> Sink<'a> {
             duplicate: false,
             features: 0,
             role_fixes: 0,
+            keys: HashMap::new(),
+            dates: HashSet::new(),
+            attributes: Vec::new(),
+            resolved: None,
         }
+    }
+
+    /// Marks the column `name` as holding dates (its text values become [`AttrValue::Date`]).
+    pub(super) fn date_column(&mut self, name: &str) {
+        self.dates.insert(name.to_string());
     }
 
     /// Adds one feature: `own_id` is the id the file gives it (else its position names it),
@@ -112,14 +321,29 @@ impl<'a> Sink<'a> {
     ) {
         let position = self.features;
         self.features += 1;
-        let (tags, kind) = self.tags(props);
+        for k in props.keys() {
+            if !self.keys.contains_key(k) {
+                self.keys.insert(k.clone(), Arc::from(k.as_str()));
+            }
+        }
+        let (tags, kind, mut used) = self.tags(props);
         match kind {
             FootprintKind::Building => self.report.read += 1,
             FootprintKind::Part => self.report.parts_read += 1,
         }
-        let id = own_id
-            .or_else(|| id_column(props))
+        // The file's own id, else its id column; a column named with `--field id=` wins.
+        let from_column = match own_id {
+            Some(_) if self.opts.named("id").is_none() => None,
+            _ => self.id_column(props),
+        };
+        if let Some((column, _)) = &from_column {
+            used.push(column.clone());
+        }
+        let id = from_column
+            .map(|(_, id)| id)
+            .or(own_id)
             .unwrap_or(SourceId::Feature(position));
+        let attributes = self.attributes_of(props, &used);
         if !self.ids.insert(id) {
             self.duplicate = true;
         }
@@ -154,6 +378,9 @@ impl<'a> Sink<'a> {
                 .add(Some(id), Outcome::Note, format!("{k}={v} ignored: {why}"));
         }
         let polygons = got.polygons;
+        if let Some(a) = attributes {
+            self.attributes.push((self.footprints.len(), a));
+        }
         self.footprints.push(Footprint {
             id,
             kind,
@@ -163,40 +390,69 @@ impl<'a> Sink<'a> {
         self.positions.push(position);
     }
 
-    /// The tags of a feature's properties, and whether it is a building or a part.
-    fn tags(&self, props: &Map<String, Value>) -> (BuildingTags, FootprintKind) {
+    /// The tags of a feature's properties, whether it is a building or a part, and the
+    /// columns read into citygen's fields (left out of its other attributes).
+    fn tags(&mut self, props: &Map<String, Value>) -> (BuildingTags, FootprintKind, Vec<String>) {
         let mut pairs: Vec<(String, String)> = Vec::new();
+        let mut used: Vec<String> = Vec::new();
         for (k, v) in props {
             let Some(text) = value_text(v) else { continue };
             let key = OVERTURE_KEYS
                 .iter()
                 .find(|(o, _)| o == k)
                 .map_or(k.as_str(), |(_, osm)| osm);
+            if super::tags::is_known_key(key) {
+                used.push(k.clone());
+            }
             pairs.push((key.to_string(), text));
         }
-        for (key, named, candidates) in [
-            (
-                "height",
-                self.opts.height_field.as_deref(),
-                &HEIGHT_FIELDS[..],
-            ),
-            (
-                "building:levels",
-                self.opts.levels_field.as_deref(),
-                &LEVELS_FIELDS[..],
-            ),
-        ] {
-            let field = match named {
-                Some(n) => props.keys().find(|k| k.eq_ignore_ascii_case(n)),
-                None if pairs.iter().any(|(k, _)| k == key) => None,
-                None => candidates
-                    .iter()
-                    .find_map(|c| props.keys().find(|k| k.eq_ignore_ascii_case(c))),
-            };
-            if let Some(text) = field.and_then(|f| value_text(&props[f])) {
-                pairs.retain(|(k, _)| k != key);
-                pairs.push((key.to_string(), text));
+        // Which column gives which field depends on the column names alone: resolved once
+        // per distinct set of names (a GeoPackage's or FlatGeobuf's every feature shares one).
+        let resolved: &Resolved = match self.resolved.take() {
+            Some(r) if r.columns.iter().eq(props.keys()) => self.resolved.insert(r),
+            _ => {
+                let r = self.resolve(props);
+                self.resolved.insert(r)
             }
+        };
+        let ground = resolved.ground.as_ref().and_then(|c| {
+            let g = number(&props[c])?;
+            used.push(c.clone());
+            Some(g)
+        });
+        // A column's OSM key present with a value wins over the names tried, unless named.
+        let fields: Vec<(&str, &str, String)> = resolved
+            .fields
+            .iter()
+            .filter(|(target, key, _)| {
+                self.opts.named(target).is_some() || !pairs.iter().any(|(k, _)| k == key)
+            })
+            .map(|(t, k, c)| (*t, *k, c.clone()))
+            .collect();
+        for (target, key, field) in fields {
+            let Some(mut text) = value_text(&props[&field]) else {
+                continue;
+            };
+            match target {
+                "roof_shape" => match roof_shape_value(&text) {
+                    Some(t) => text = t,
+                    None => continue,
+                },
+                // An absolute height over the ground's elevation: the height above it.
+                "height" => {
+                    if let (Some(g), Some(h)) = (ground, number(&props[&field])) {
+                        text = format!("{}", h - g);
+                    } else if FEET_COLUMNS.iter().any(|c| field.eq_ignore_ascii_case(c))
+                        && number(&props[&field]).is_some()
+                    {
+                        text = format!("{text} ft");
+                    }
+                }
+                _ => {}
+            }
+            used.push(field);
+            pairs.retain(|(k, _)| k != key);
+            pairs.push((key.to_string(), text));
         }
         let part = pairs.iter().any(|(k, _)| k == "building:part")
             && !pairs.iter().any(|(k, _)| k == "building");
@@ -206,7 +462,72 @@ impl<'a> Sink<'a> {
         } else {
             FootprintKind::Building
         };
-        (tags, kind)
+        (tags, kind, used)
+    }
+
+    /// The columns that give citygen's fields among the column names of `props`: the one
+    /// named (`--field`), else the first of the names tried.
+    fn resolve(&self, props: &Map<String, Value>) -> Resolved {
+        let column = |target: &str| -> Option<String> {
+            match self.opts.named(target) {
+                Some(n) => props.keys().find(|k| k.eq_ignore_ascii_case(n)),
+                None => candidates(target)
+                    .iter()
+                    .find_map(|c| props.keys().find(|k| k.eq_ignore_ascii_case(c))),
+            }
+            .cloned()
+        };
+        Resolved {
+            columns: props.keys().cloned().collect(),
+            ground: column("ground"),
+            fields: TARGETS
+                .iter()
+                .filter(|t| !t.1.is_empty())
+                .filter_map(|&(target, key, _)| Some((target, key, column(target)?)))
+                .collect(),
+        }
+    }
+
+    /// The feature's own id from its id column (`--field id=COLUMN`, else the first of
+    /// [`ID_COLUMNS`] present) holding a non-negative integer, and that column's name.
+    fn id_column(&self, props: &Map<String, Value>) -> Option<(String, SourceId)> {
+        let named = self.opts.named("id");
+        let names: Vec<&str> = match named {
+            Some(n) => vec![n],
+            None => ID_COLUMNS.to_vec(),
+        };
+        names.iter().find_map(|c| {
+            let (k, v) = props.iter().find(|(k, _)| k.eq_ignore_ascii_case(c))?;
+            let n = v
+                .as_u64()
+                .or_else(|| v.as_str().and_then(|s| s.trim().parse().ok()))?;
+            Some((k.clone(), SourceId::Feature(n)))
+        })
+    }
+
+    /// The feature's other attributes, typed, in column order: every property not `used`
+    /// (nulls, arrays and objects left out); `None` when there is none.
+    fn attributes_of(&self, props: &Map<String, Value>, used: &[String]) -> Option<Attributes> {
+        let row: Vec<(Arc<str>, AttrValue)> = props
+            .iter()
+            .filter(|(k, _)| !used.contains(k))
+            .filter_map(|(k, v)| {
+                let value = match v {
+                    Value::String(t) if self.dates.contains(k) => {
+                        AttrValue::Date(t.as_str().into())
+                    }
+                    Value::String(t) => AttrValue::Text(t.as_str().into()),
+                    Value::Bool(b) => AttrValue::Bool(*b),
+                    Value::Number(n) => match n.as_i64() {
+                        Some(i) => AttrValue::Int(i),
+                        None => AttrValue::Real(n.as_f64().filter(|x| x.is_finite())?),
+                    },
+                    Value::Null | Value::Array(_) | Value::Object(_) => return None,
+                };
+                Some((self.keys[k.as_str()].clone(), value))
+            })
+            .collect();
+        (!row.is_empty()).then(|| Attributes::from(row))
     }
 
     fn skip(&mut self, id: SourceId, why: String) {
@@ -219,6 +540,19 @@ impl<'a> Sink<'a> {
         self,
         source_crs: Option<crate::crs::Crs>,
     ) -> Result<ReadResult, InputError> {
+        for (target, column) in self.opts.fields.iter() {
+            if !self.keys.keys().any(|k| k.eq_ignore_ascii_case(column)) && self.features > 0 {
+                let mut columns: Vec<&str> = self.keys.keys().map(String::as_str).collect();
+                columns.sort_unstable();
+                return Err(InputError::Shapefile {
+                    path: self.path.to_path_buf(),
+                    reason: format!(
+                        "--field {target}={column}: no feature has a column {column:?}; the columns are {}",
+                        columns.join(", ")
+                    ),
+                });
+            }
+        }
         let mut footprints = self.footprints;
         if self.duplicate {
             for (f, &p) in footprints.iter_mut().zip(&self.positions) {
@@ -251,11 +585,17 @@ impl<'a> Sink<'a> {
                 format!("{}: height taken from property {f}", self.path.display()),
             );
         }
+        let attributes = self
+            .attributes
+            .into_iter()
+            .map(|(i, a)| (footprints[i].id, a))
+            .collect();
         Ok(ReadResult {
             footprints,
             source_crs,
             streets: Default::default(),
             boundaries: Vec::new(),
+            attributes,
         })
     }
 }
@@ -274,13 +614,12 @@ pub(super) fn value_text(v: &Value) -> Option<String> {
 /// Attribute names that hold a file's own feature ids, tried in this order (case-insensitively).
 const ID_COLUMNS: [&str; 5] = ["id", "objectid", "fid", "osm_id", "gml_id"];
 
-/// The feature's own id from an id column holding a non-negative integer.
-fn id_column(props: &Map<String, Value>) -> Option<SourceId> {
-    ID_COLUMNS.iter().find_map(|c| {
-        let (_, v) = props.iter().find(|(k, _)| k.eq_ignore_ascii_case(c))?;
-        let n = v
-            .as_u64()
-            .or_else(|| v.as_str().and_then(|s| s.trim().parse().ok()))?;
-        Some(SourceId::Feature(n))
-    })
+/// A property as a number: a JSON number, or text that reads as one.
+fn number(v: &Value) -> Option<f64> {
+    v.as_f64()
+        .or_else(|| {
+            v.as_str()
+                .and_then(|s| s.trim().replace(',', ".").parse().ok())
+        })
+        .filter(|x: &f64| x.is_finite())
 }

@@ -1,13 +1,16 @@
 //! GeoPackage footprints (OGC 12-128r18): the features of one polygon layer, read row by row
 //! from the SQLite file opened read-only.
 //!
-//! - **Layer**: the only features layer, else the first (by name) whose geometry type is a
-//!   polygon, multipolygon or generic geometry; a note names the layer read and the others.
+//! - **Layer**: the one named with `--layer` (an error naming the file's layers when it has no
+//!   such features layer), else the only features layer, else the first (by name) whose
+//!   geometry type is a polygon, multipolygon or generic geometry; a note names the layer read
+//!   and the others.
 //! - **Geometry**: the GeoPackage binary header (magic `GP`, flags, envelope) then ISO WKB
 //!   (`Polygon`, `MultiPolygon`, `GeometryCollection`, with Z, M or ZM: z and m dropped; the
 //!   EWKB high-bit flags too). Empty geometries and other types are skipped report entries.
 //! - **Attributes**: every other column, read as `input::features` reads GeoJSON properties
-//!   (OSM keys, Overture's names, municipal height/levels columns).
+//!   (OSM keys, Overture's names, municipal height/levels columns); the others kept typed
+//!   (`INTEGER`, `REAL`, `TEXT`, and `DATE`/`DATETIME` columns as dates).
 //! - **Ids**: the layer's integer primary key (the `fid`), `feature/<fid>`.
 //! - **CRS**: `--src-crs`, else the layer's `srs_id` looked up in `gpkg_spatial_ref_sys`
 //!   (an `EPSG` organisation code); an undefined SRS needs `--src-crs`.
@@ -70,13 +73,21 @@ pub fn read_gpkg(
         }
     }
     let layers = layers(&db).map_err(sql)?;
-    let Some((table, column, srs_id)) = pick_layer(&layers) else {
+    if let Some(name) = &opts.layer {
+        if !layers.iter().any(|l| &l.0 == name) {
+            return Err(bad(format!(
+                "GeoPackage: no features layer {name:?} (--layer); the layers are {}",
+                names(&layers)
+            )));
+        }
+    }
+    let Some((table, column, srs_id)) = pick_layer(&layers, opts.layer.as_deref()) else {
         return Err(bad(format!(
             "GeoPackage: no polygon features layer (layers: {})",
             names(&layers)
         )));
     };
-    if layers.len() > 1 {
+    if layers.len() > 1 && opts.layer.is_none() {
         report.add(
             None,
             Outcome::Note,
@@ -104,8 +115,12 @@ pub fn read_gpkg(
         .prepare(&format!("SELECT * FROM {}", quote(&table)))
         .map_err(sql)?;
     let cols: Vec<String> = stmt.column_names().map(|c| c.to_string()).collect();
-    let mut rows = stmt.query([]).map_err(sql)?;
     let mut sink = Sink::new(path, opts, report);
+    let (dates, booleans) = typed_columns(&db, &table).map_err(sql)?;
+    for c in &dates {
+        sink.date_column(c);
+    }
+    let mut rows = stmt.query([]).map_err(sql)?;
     let mut row_no = 0usize;
     while let Some(row) = rows
         .next()
@@ -128,6 +143,8 @@ pub fn read_gpkg(
                 if let ValueRef::Integer(n) = v {
                     id = u64::try_from(n).ok().map(SourceId::Feature);
                 }
+            } else if let (ValueRef::Integer(n), true) = (v, booleans.contains(name)) {
+                props.insert(name.clone(), Value::Bool(n != 0));
             } else if let Some(value) = json(v) {
                 props.insert(name.clone(), value);
             }
@@ -170,8 +187,12 @@ fn names(layers: &[(String, String, String, i64)]) -> String {
         .join(", ")
 }
 
-/// The only layer, else the first whose geometry type can hold polygons.
-fn pick_layer(layers: &[(String, String, String, i64)]) -> Option<(String, String, i64)> {
+/// The layer `named`, else the only layer, else the first whose geometry type can hold
+/// polygons.
+fn pick_layer(
+    layers: &[(String, String, String, i64)],
+    named: Option<&str>,
+) -> Option<(String, String, i64)> {
     let polygonal = |t: &str| {
         matches!(
             t.to_ascii_uppercase().as_str(),
@@ -184,7 +205,9 @@ fn pick_layer(layers: &[(String, String, String, i64)]) -> Option<(String, Strin
                 | "CURVEPOLYGON"
         )
     };
-    let l = if layers.len() == 1 {
+    let l = if let Some(n) = named {
+        layers.iter().find(|l| l.0 == n)
+    } else if layers.len() == 1 {
         layers.first()
     } else {
         layers.iter().find(|l| polygonal(&l.2))
@@ -233,6 +256,23 @@ fn primary_key(db: &Connection, table: &str) -> rusqlite::Result<Option<String>>
         }
     }
     Ok(None)
+}
+
+/// The table's columns declared `DATE` or `DATETIME`, and those declared `BOOLEAN`
+/// (GeoPackage's date and boolean types, stored as text and as 0/1).
+fn typed_columns(db: &Connection, table: &str) -> rusqlite::Result<(Vec<String>, Vec<String>)> {
+    let mut stmt = db.prepare(&format!("PRAGMA table_info({})", quote(table)))?;
+    let cols = stmt.query_map([], |r| Ok((r.get::<_, String>(1)?, r.get::<_, String>(2)?)))?;
+    let (mut dates, mut booleans) = (Vec::new(), Vec::new());
+    for c in cols {
+        let (name, ty) = c?;
+        if ty.eq_ignore_ascii_case("date") || ty.eq_ignore_ascii_case("datetime") {
+            dates.push(name);
+        } else if ty.eq_ignore_ascii_case("boolean") {
+            booleans.push(name);
+        }
+    }
+    Ok((dates, booleans))
 }
 
 /// An SQL identifier, quoted.

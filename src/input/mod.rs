@@ -1,4 +1,4 @@
-//! Input readers: OSM (PBF or XML), ESRI shapefiles, GeoJSON and GeoPackage, turned into
+//! Input readers: OSM (PBF or XML), ESRI shapefiles, GeoJSON, GeoPackage and FlatGeobuf, turned into
 //! [`Footprint`]s in the source CRS.
 //!
 //! Readers know nothing of the knowledge base, the grammar or the outputs. Every record they
@@ -6,6 +6,7 @@
 
 pub mod dem;
 pub(crate) mod features;
+pub mod fgb;
 pub mod geojson;
 pub mod gpkg;
 pub mod osm;
@@ -174,6 +175,9 @@ pub struct ReadResult {
     /// before its own, simplified shapes. OSM gives those the extract holds whole (relations and
     /// closed ways); shapefiles carry none.
     pub boundaries: Vec<AdminBoundary>,
+    /// The GIS feature readers' other attributes (issue 47): the columns citygen does not read
+    /// itself, by footprint id; empty for OSM input and for a file without such columns.
+    pub attributes: std::collections::HashMap<SourceId, crate::model::Attributes>,
 }
 
 /// An administrative boundary of the input: its polygons and the tags that name it.

@@ -33,6 +33,7 @@ use crate::report::{Outcome, Report};
 
 pub use super::features::ShpOptions;
 pub(crate) use super::features::{HEIGHT_FIELDS, LEVELS_FIELDS};
+use super::features::{MORE_HEIGHT_FIELDS, MORE_LEVELS_FIELDS};
 
 /// Reads the polygon records of a shapefile and their attributes.
 ///
@@ -95,15 +96,31 @@ pub fn read_shp(
         .iter()
         .map(|f| f.name().to_string())
         .collect();
-    let height_field = pick_field(&field_names, opts.height_field.as_deref(), &HEIGHT_FIELDS)
-        .map_err(|reason| InputError::Shapefile {
-            path: dbf_path.clone(),
-            reason,
+    // The shapefile reads a height and a level count (`--field height=`/`levels=` too) with
+    // the municipal names; not 3DBAG's absolute heights, which need its ground column.
+    let heights: Vec<&str> = HEIGHT_FIELDS
+        .iter()
+        .chain(MORE_HEIGHT_FIELDS.iter().filter(|f| !f.starts_with("b3_")))
+        .copied()
+        .collect();
+    let levels: Vec<&str> = LEVELS_FIELDS
+        .iter()
+        .chain(&MORE_LEVELS_FIELDS)
+        .copied()
+        .collect();
+    let height_field =
+        pick_field(&field_names, opts.named("height"), &heights).map_err(|reason| {
+            InputError::Shapefile {
+                path: dbf_path.clone(),
+                reason,
+            }
         })?;
-    let levels_field = pick_field(&field_names, opts.levels_field.as_deref(), &LEVELS_FIELDS)
-        .map_err(|reason| InputError::Shapefile {
-            path: dbf_path.clone(),
-            reason,
+    let levels_field =
+        pick_field(&field_names, opts.named("levels"), &levels).map_err(|reason| {
+            InputError::Shapefile {
+                path: dbf_path.clone(),
+                reason,
+            }
         })?;
     for (what, f) in [
         ("height", &height_field),
@@ -139,6 +156,7 @@ pub fn read_shp(
         source_crs,
         streets: Default::default(),
         boundaries: Vec::new(),
+        attributes: Default::default(),
     };
     let mut role_fixes = 0usize;
     let mut shape_iter = shapes.iter_shapes_as::<Shape>();

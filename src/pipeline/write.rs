@@ -656,7 +656,15 @@ fn write_lots(
     for (path, w, ..) in &mut outputs {
         w.begin(&ctx).map_err(out_err(path))?;
     }
-    let polygons = derive_and_write(lots, maker, &mut outputs, report, written, progress)?;
+    let polygons = derive_and_write(
+        lots,
+        maker,
+        &site.attributes,
+        &mut outputs,
+        report,
+        written,
+        progress,
+    )?;
     for (path, w, ..) in &mut outputs {
         w.finish().map_err(out_err(path))?;
     }
@@ -776,6 +784,7 @@ fn open_outputs(
 fn derive_and_write(
     lots: &[prepare::Lot],
     maker: &Maker<'_>,
+    attributes: &std::collections::HashMap<crate::model::SourceId, crate::model::Attributes>,
     outputs: &mut [Output],
     report: &mut Report,
     written: &mut Written,
@@ -805,7 +814,9 @@ fn derive_and_write(
                 chunk
                     .par_iter()
                     .map(|lot| {
-                        maker.make(lot).map(|(b, notes)| {
+                        maker.make(lot).map(|(mut b, notes)| {
+                            // The input's other attributes (issue 47), shared, not copied.
+                            b.attributes = attributes.get(&b.id).cloned();
                             let digest = hashed.then(|| b.digest());
                             (b, notes, digest)
                         })

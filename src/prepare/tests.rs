@@ -213,6 +213,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
         boundaries: Vec::new(),
         elevation: None,
         vertical_datum: None,
+        attributes: Default::default(),
     };
     let tiles = group_into_tiles(&mut site, 250);
     let ids: Vec<SourceId> = site.lots.iter().map(|l| l.id).collect();

@@ -125,6 +125,7 @@ const SIBLINGS: Siblings = &[
             ("shp", &[]),
             ("geojson", &[]),
             ("gpkg", &[]),
+            ("fgb", &[]),
             ("dem", &[]),
         ],
     ),

@@ -18,6 +18,7 @@ mod evolve;
 mod facades;
 mod fronts;
 mod geojson;
+mod gis_attributes;
 mod ifc_schemas;
 mod incremental;
 mod infer;

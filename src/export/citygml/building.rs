@@ -3,7 +3,7 @@
 
 use crate::export::ids::{id_fragment, part_ids};
 use crate::export::lod3geom::balcony_faces;
-use crate::model::{Building, Provenance, RoofShape};
+use crate::model::{AttrValue, Attributes, Building, Provenance, RoofShape};
 
 use super::surfaces::{surfaces, written_walls};
 use super::{GeometryLod, Renderer, ROOF_TYPE_CODESPACE};
@@ -30,6 +30,9 @@ impl Renderer<'_> {
             self.string_attribute("appearance", &b.appearance);
         }
         self.provenance(&b.provenance);
+        if let Some(a) = &b.attributes {
+            self.input_attributes(a);
+        }
         if let [part] = b.parts.as_slice() {
             if let Some(source) = part.traced_source(b.id) {
                 self.string_attribute("partSourceId", &source.to_string());
@@ -141,6 +144,32 @@ impl Renderer<'_> {
         }
     }
 
+    /// The input file's other attributes (issue 47), typed: `gen:stringAttribute`,
+    /// `gen:intAttribute`, `gen:doubleAttribute`, `gen:dateAttribute` (an `xs:date`; a
+    /// date-time stays a string), a boolean as the string `true`/`false`.
+    fn input_attributes(&mut self, a: &Attributes) {
+        for (name, value) in a.iter() {
+            let (element, text) = match value {
+                AttrValue::Text(t) => ("stringAttribute", t.to_string()),
+                AttrValue::Int(i) => ("intAttribute", i.to_string()),
+                AttrValue::Real(r) => ("doubleAttribute", r.to_string()),
+                AttrValue::Bool(b) => ("stringAttribute", b.to_string()),
+                AttrValue::Date(d) if is_xs_date(d) => ("dateAttribute", d.to_string()),
+                AttrValue::Date(d) => ("stringAttribute", d.to_string()),
+            };
+            let x = &mut *self.x;
+            x.s("<gen:");
+            x.s(element);
+            x.s(" name=\"");
+            x.escaped(name, true);
+            x.s("\">\n<gen:value>");
+            x.escaped(&text, false);
+            x.s("</gen:value>\n</gen:");
+            x.s(element);
+            x.s(">\n");
+        }
+    }
+
     fn building_attributes(&mut self, roof: RoofShape, height: f64, storeys: u32) {
         let x = &mut *self.x;
         x.s("<bldg:roofType codeSpace=\"");
@@ -153,4 +182,15 @@ impl Renderer<'_> {
         x.uint(u64::from(storeys));
         x.s("</bldg:storeysAboveGround>\n");
     }
+}
+
+/// Whether `d` is an `xs:date` as written by GIS files (`YYYY-MM-DD`).
+pub(crate) fn is_xs_date(d: &str) -> bool {
+    let b = d.as_bytes();
+    b.len() == 10
+        && b[4] == b'-'
+        && b[7] == b'-'
+        && b.iter()
+            .enumerate()
+            .all(|(i, c)| i == 4 || i == 7 || c.is_ascii_digit())
 }

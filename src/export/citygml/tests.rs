@@ -127,6 +127,7 @@ fn building(id: SourceId, parts: Vec<Part>) -> Building {
         lod: Lod::Lod2,
         facade: Default::default(),
         provenance: Default::default(),
+        attributes: None,
     }
 }
 

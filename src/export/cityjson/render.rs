@@ -567,6 +567,9 @@ pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
         b.measured_height,
         b.storeys_above_ground,
     );
+    if let Some(a) = &b.attributes {
+        input_attributes(f, &mut first, a);
+    }
     f.s("}");
     if single {
         geometry(f, &b.parts[0], lod);
@@ -619,6 +622,47 @@ fn provenance(f: &mut Frag, first: &mut bool, p: &Provenance) {
         if let Some(v) = value {
             f.attr_name(first, value_name);
             f.fixed3(v);
+        }
+    }
+}
+
+/// The attribute names citygen writes on a building itself: an input attribute of the same
+/// name is left out (a JSON object holds each name once).
+const OWN_NAMES: [&str; 14] = [
+    "sourceId",
+    "name",
+    "zone",
+    "appearance",
+    "storeysSource",
+    "storeysError",
+    "heightSource",
+    "heightError",
+    "roofSource",
+    "roofProbability",
+    "partSourceId",
+    "structure",
+    "measuredHeight",
+    "storeysAboveGround",
+];
+
+/// The input file's other attributes (issue 47), typed as JSON: strings, integers, numbers,
+/// booleans, dates as ISO 8601 strings. One named as citygen's own (or `roofType`) is left
+/// out.
+fn input_attributes(f: &mut Frag, first: &mut bool, a: &crate::model::Attributes) {
+    use crate::model::AttrValue;
+    for (name, value) in a.iter() {
+        if OWN_NAMES.contains(&&**name) || &**name == "roofType" {
+            continue;
+        }
+        f.attr_name(first, name);
+        match value {
+            AttrValue::Text(t) | AttrValue::Date(t) => f.string(t),
+            AttrValue::Int(i) => f.s(&i.to_string()),
+            // Finite by construction; serde_json writes the shortest round trip.
+            AttrValue::Real(r) => {
+                f.s(&serde_json::Number::from_f64(*r).map_or("null".into(), |n| n.to_string()))
+            }
+            AttrValue::Bool(b) => f.s(if *b { "true" } else { "false" }),
         }
     }
 }

@@ -160,6 +160,30 @@ pub(super) struct BuildingExtras<'a> {
     /// traced back to the map although the meshes merge the parts.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub(super) parts: Vec<PartExtras<'a>>,
+    /// The input file's other attributes (issue 47), typed, in the file's column order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) attributes: Option<AttrsExtras<'a>>,
+}
+
+/// [`crate::model::Attributes`] as a JSON object: strings, integers, numbers, booleans, dates
+/// as ISO 8601 strings.
+pub(crate) struct AttrsExtras<'a>(pub(crate) &'a crate::model::Attributes);
+
+impl Serialize for AttrsExtras<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use crate::model::AttrValue;
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(self.0.len()))?;
+        for (k, v) in self.0.iter() {
+            match v {
+                AttrValue::Text(t) | AttrValue::Date(t) => m.serialize_entry(&**k, &**t)?,
+                AttrValue::Int(i) => m.serialize_entry(&**k, i)?,
+                AttrValue::Real(r) => m.serialize_entry(&**k, r)?,
+                AttrValue::Bool(b) => m.serialize_entry(&**k, b)?,
+            }
+        }
+        m.end()
+    }
 }
 
 /// The provenance keys of [`BuildingExtras`]: `storeys_source`, `height_source` and

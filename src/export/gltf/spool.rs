@@ -205,6 +205,7 @@ impl<W: Write + Send> GltfWriter<W> {
                     storeys: b.storeys_above_ground,
                     roof_shape: b.roof_shape.osm_name(),
                     lod: b.lod.number(),
+                    attributes: b.attributes.as_ref().map(super::json::AttrsExtras),
                     provenance: (&b.provenance).into(),
                     parts: if b
                         .parts

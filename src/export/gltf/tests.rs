@@ -122,6 +122,7 @@ fn building(id: i64, parts: Vec<Part>) -> Building {
         lod: Lod::Lod2,
         facade: Default::default(),
         provenance: Default::default(),
+        attributes: None,
     }
 }
 

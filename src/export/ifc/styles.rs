@@ -274,6 +274,39 @@ impl Render<'_> {
             t.int(i64::from(b.storeys_above_ground));
         })?;
         self.pset(key, "pset/source", "Citygen_Source", &props, &[building])?;
+        // The input file's other attributes (issue 47), typed; a date as its ISO 8601 text.
+        if let Some(a) = &b.attributes {
+            use crate::model::AttrValue;
+            let mut props = Vec::with_capacity(a.len());
+            for (name, value) in a.iter() {
+                let ty = match value {
+                    AttrValue::Text(_) | AttrValue::Date(_) => "IFCLABEL",
+                    AttrValue::Int(_) => "IFCINTEGER",
+                    AttrValue::Real(_) => "IFCREAL",
+                    AttrValue::Bool(_) => "IFCBOOLEAN",
+                };
+                props.push(self.w.entity("IFCPROPERTYSINGLEVALUE", |a| {
+                    a.string(name)
+                        .null()
+                        .typed(ty, |t| {
+                            match value {
+                                AttrValue::Text(v) | AttrValue::Date(v) => t.string(v),
+                                AttrValue::Int(i) => t.int(*i),
+                                AttrValue::Real(r) => t.real(*r),
+                                AttrValue::Bool(b) => t.boolean(*b),
+                            };
+                        })
+                        .null();
+                })?);
+            }
+            self.pset(
+                key,
+                "pset/attributes",
+                "Citygen_Attributes",
+                &props,
+                &[building],
+            )?;
+        }
         self.pset(
             key,
             "pset/common",

@@ -121,6 +121,7 @@ fn building(id: SourceId, name: Option<&str>, parts: Vec<Part>) -> Building {
         lod: Lod::Lod2,
         facade: Default::default(),
         provenance: Default::default(),
+        attributes: None,
     }
 }
 

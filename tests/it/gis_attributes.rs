@@ -1,0 +1,365 @@
+//! GIS attributes through the binary (issue 47): FlatGeobuf and GeoPackage footprints with
+//! German municipal column names (`tests/data/gis`, made by `make_fixtures.py` there) and a
+//! GeoJSON with Overture's, 3DBAG's and New York's: heights honoured within 5 cm, storeys and
+//! ids kept, and every other column in every output, typed (CityJSON attributes, CityGML
+//! generic attributes, the IFC `Citygen_Attributes` property set, glTF extras). `--layer`
+//! chooses the GeoPackage layer, `--field` names a column, an unknown target is refused.
+
+use super::common::{citygen, glb_json, root, KB};
+
+const FGB: &str = "tests/data/gis/municipal.fgb";
+const GPKG: &str = "tests/data/gis/municipal.gpkg";
+
+/// OBJECTID, HOEHE, GESCHOSSE, NUTZUNG, BAUJAHR, FLAECHE, DENKMAL, ERFASST.
+type Row = (u64, f64, u64, &'static str, i64, f64, bool, &'static str);
+
+/// The fixtures' rows (DACHFORM left out).
+const ROWS: [Row; 5] = [
+    (501, 7.2, 2, "Wohnen", 1965, 80.0, false, "2021-05-04"),
+    (502, 9.9, 3, "Gewerbe", 1990, 80.5, true, "2019-11-30"),
+    (
+        503,
+        12.34,
+        4,
+        "Wohnen & Büro",
+        2004,
+        79.25,
+        false,
+        "2020-01-15",
+    ),
+    (504, 5.0, 1, "Garage", 1978, 80.0, false, "2018-07-01"),
+    (505, 15.5, 5, "Schule", 1931, 81.75, true, "2022-03-09"),
+];
+
+struct Outputs {
+    _dir: tempfile::TempDir,
+    cityjson: serde_json::Value,
+    gml: String,
+    ifc: String,
+    glb: serde_json::Value,
+    files: Vec<std::path::PathBuf>,
+}
+
+/// Runs citygen on `input` with `extra` arguments, writing CityJSON, CityGML, IFC and glTF.
+fn run(input: &str, extra: &[&str]) -> Outputs {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    let (cj, gml, ifc, glb) = (p("o.city.json"), p("o.gml"), p("o.ifc"), p("o.glb"));
+    let mut args = vec![
+        "--footprints",
+        input,
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--cityjson",
+        &cj,
+        "--citygml",
+        &gml,
+        "--ifc",
+        &ifc,
+        "--gltf",
+        &glb,
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    let out = citygen(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let files = [&cj, &gml, &ifc, &glb]
+        .map(std::path::PathBuf::from)
+        .to_vec();
+    Outputs {
+        cityjson: serde_json::from_slice(&std::fs::read(&cj).unwrap()).unwrap(),
+        gml: std::fs::read_to_string(&gml).unwrap(),
+        ifc: std::fs::read_to_string(&ifc).unwrap(),
+        glb: glb_json(std::path::Path::new(&glb)).0,
+        files,
+        _dir: dir,
+    }
+}
+
+/// The buildings of a CityJSON file: attributes by source id.
+fn buildings(cj: &serde_json::Value) -> std::collections::BTreeMap<String, serde_json::Value> {
+    cj["CityObjects"]
+        .as_object()
+        .unwrap()
+        .values()
+        .filter(|o| o["type"] == "Building")
+        .map(|o| {
+            let a = o["attributes"].clone();
+            (a["sourceId"].as_str().unwrap().to_string(), a)
+        })
+        .collect()
+}
+
+/// Checks the five municipal buildings in every output.
+fn check_municipal(o: &Outputs) {
+    let b = buildings(&o.cityjson);
+    assert_eq!(b.len(), 5, "{:?}", b.keys().collect::<Vec<_>>());
+    for (id, h, storeys, use_, year, area, listed, date) in ROWS {
+        let a = &b[&format!("feature/{id}")];
+        let got = a["measuredHeight"].as_f64().unwrap();
+        assert!((got - h).abs() < 0.05, "feature/{id}: {got} for {h}");
+        assert_eq!(a["storeysAboveGround"], storeys, "feature/{id}");
+        // Typed as the file types them.
+        assert_eq!(a["NUTZUNG"], use_, "{a}");
+        assert_eq!(a["BAUJAHR"].as_i64(), Some(year), "{a}");
+        assert!(
+            a["FLAECHE"].is_f64() && a["FLAECHE"].as_f64() == Some(area),
+            "{a}"
+        );
+        assert_eq!(a["DENKMAL"].as_bool(), Some(listed), "{a}");
+        assert!(a["ERFASST"].as_str().unwrap().starts_with(date), "{a}");
+        // Read into citygen's fields: not repeated as attributes.
+        for used in ["HOEHE", "GESCHOSSE", "DACHFORM", "OBJECTID"] {
+            assert!(a.get(used).is_none(), "{used} in {a}");
+        }
+        // CityGML: the generic attributes, typed.
+        for needle in [
+            format!("<gen:intAttribute name=\"BAUJAHR\">\n<gen:value>{year}</gen:value>"),
+            format!("<gen:doubleAttribute name=\"FLAECHE\">\n<gen:value>{area}</gen:value>"),
+            format!("<gen:stringAttribute name=\"DENKMAL\">\n<gen:value>{listed}</gen:value>"),
+            format!(
+                "<gen:stringAttribute name=\"NUTZUNG\">\n<gen:value>{}</gen:value>",
+                use_.replace('&', "&amp;")
+            ),
+        ] {
+            assert!(o.gml.contains(&needle), "no {needle} in the CityGML");
+        }
+        // IFC: the Citygen_Attributes property set.
+        for needle in [
+            format!("'BAUJAHR',$,IFCINTEGER({year}),$"),
+            format!(
+                "'DENKMAL',$,IFCBOOLEAN(.{}.),$",
+                if listed { "T" } else { "F" }
+            ),
+        ] {
+            assert!(o.ifc.contains(&needle), "no {needle} in the IFC");
+        }
+        // glTF: the building node's extras.
+        let node = o.glb["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|n| n["extras"]["id"] == format!("feature/{id}"))
+            .unwrap_or_else(|| panic!("no glTF node of feature/{id}"));
+        let x = &node["extras"]["attributes"];
+        assert_eq!(x["BAUJAHR"].as_i64(), Some(year), "{x}");
+        assert_eq!(x["DENKMAL"].as_bool(), Some(listed), "{x}");
+        assert_eq!(x["FLAECHE"].as_f64(), Some(area), "{x}");
+        assert_eq!(x["NUTZUNG"], use_, "{x}");
+    }
+    assert_eq!(o.ifc.matches("'Citygen_Attributes'").count(), 5);
+    assert!(o
+        .ifc
+        .contains("'NUTZUNG',$,IFCLABEL('Wohnen & B\\X2\\00FC\\X0\\ro'),$"));
+    // A date column: an xs:date in CityGML.
+    assert!(
+        o.gml
+            .contains("<gen:dateAttribute name=\"ERFASST\">\n<gen:value>2021-05-04</gen:value>")
+            || o.gml
+                .contains("<gen:stringAttribute name=\"ERFASST\">\n<gen:value>2021-05-04T")
+    );
+}
+
+#[test]
+fn a_flatgeobuf_keeps_heights_storeys_ids_and_every_column() {
+    let o = run(FGB, &[]);
+    check_municipal(&o);
+    if let Ok(dir) = std::env::var("CITYGEN_KEEP_OUTPUTS") {
+        for f in &o.files {
+            std::fs::copy(f, std::path::Path::new(&dir).join(f.file_name().unwrap())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_geopackage_layer_is_chosen_by_name_and_the_id_column_by_field() {
+    // Without --layer: the first polygon layer by name, the one outbuilding of `anbau`.
+    let o = run(GPKG, &[]);
+    assert_eq!(buildings(&o.cityjson).len(), 1);
+    let o = run(GPKG, &["--layer", "gebaeude", "--field", "id=OBJECTID"]);
+    check_municipal(&o);
+    let tmp = tempfile::tempdir().unwrap();
+    let cj = tmp.path().join("o.city.json");
+    let out = citygen(&[
+        "--footprints",
+        GPKG,
+        "--kb",
+        KB,
+        "--layer",
+        "strassen",
+        "--cityjson",
+        cj.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("strassen") && err.contains("\"gebaeude\"") && err.contains("\"anbau\""),
+        "{err}"
+    );
+}
+
+#[test]
+fn field_targets_are_checked_and_columns_must_exist() {
+    let dir = tempfile::tempdir().unwrap();
+    let cj = dir.path().join("o.city.json");
+    let out = citygen(&[
+        "--footprints",
+        FGB,
+        "--kb",
+        KB,
+        "--field",
+        "hight=HOEHE",
+        "--cityjson",
+        cj.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("hight") && err.contains("height, min_height"),
+        "{err}"
+    );
+    let out = citygen(&[
+        "--footprints",
+        FGB,
+        "--kb",
+        KB,
+        "--field",
+        "height=HOEHE_M",
+        "--cityjson",
+        cj.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("municipal.fgb") && err.contains("HOEHE_M") && err.contains("GESCHOSSE"),
+        "{err}"
+    );
+    assert!(!cj.exists());
+}
+
+/// Overture's, 3DBAG's and New York's names in one GeoJSON, and a column named with --field.
+#[test]
+fn overture_3dbag_and_new_york_names_are_read_and_a_field_can_be_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let gj = dir.path().join("mixed.geojson");
+    let square = |i: usize| {
+        let (x, y) = (455_000.0 + 20.0 * i as f64, 334_000.0);
+        format!(
+            r#"[[[{x}, {y}], [{}, {y}], [{}, {}], [{x}, {}], [{x}, {y}]]]"#,
+            x + 10.0,
+            x + 10.0,
+            y + 8.0,
+            y + 8.0
+        )
+    };
+    let props = [
+        // Overture: height, num_floors, roof_shape, class; `sources` (an array) is left out.
+        r#"{"id": 11, "height": 10.5, "num_floors": 3, "roof_shape": "flat", "class": "residential", "sources": [1], "update_time": "2024-01-02"}"#,
+        // 3DBAG: an absolute roof height over the ground's elevation.
+        r#"{"fid": 12, "b3_h_dak_max": 14.25, "b3_h_maaiveld": 2.0, "b3_bouwlagen": 4, "b3_dak_type": "horizontal", "identificatie": "NL.IMBAG.Pand.0363100012"}"#,
+        // New York: heightroof in feet.
+        r#"{"objectid": 13, "heightroof": 30.0, "cnstrct_yr": 1931}"#,
+        // A height column named on the command line.
+        r#"{"objectid": 14, "HGT_X": 8.8, "NUM_FLOORS": 2}"#,
+    ];
+    let features: Vec<String> = props
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            format!(
+                r#"{{"type": "Feature", "properties": {p}, "geometry": {{"type": "Polygon", "coordinates": {}}}}}"#,
+                square(i)
+            )
+        })
+        .collect();
+    std::fs::write(
+        &gj,
+        format!(
+            r#"{{"type": "FeatureCollection", "crs": {{"type": "name", "properties": {{"name": "EPSG:27700"}}}}, "features": [{}]}}"#,
+            features.join(",")
+        ),
+    )
+    .unwrap();
+    let run = |extra: &[&str]| {
+        let cj = dir.path().join("o.city.json");
+        let mut args = vec![
+            "--footprints",
+            gj.to_str().unwrap(),
+            "--kb",
+            KB,
+            "--cityjson",
+            cj.to_str().unwrap(),
+            "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        let out = citygen(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        buildings(&serde_json::from_slice(&std::fs::read(&cj).unwrap()).unwrap())
+    };
+    let b = run(&[]);
+    let h = |id: &str| b[id]["measuredHeight"].as_f64().unwrap();
+    assert!((h("feature/11") - 10.5).abs() < 0.05, "{}", h("feature/11"));
+    assert_eq!(b["feature/11"]["storeysAboveGround"], 3);
+    assert_eq!(b["feature/11"]["update_time"], "2024-01-02");
+    assert!(b["feature/11"].get("sources").is_none());
+    assert!(b["feature/11"].get("class").is_none());
+    assert!(
+        (h("feature/12") - 12.25).abs() < 0.05,
+        "{}",
+        h("feature/12")
+    );
+    assert_eq!(b["feature/12"]["storeysAboveGround"], 4);
+    assert_eq!(b["feature/12"]["roofType"], "1000");
+    assert_eq!(b["feature/12"]["identificatie"], "NL.IMBAG.Pand.0363100012");
+    assert!(
+        (h("feature/13") - 30.0 * 0.3048).abs() < 0.05,
+        "{}",
+        h("feature/13")
+    );
+    assert_eq!(b["feature/13"]["cnstrct_yr"], 1931);
+    // Not a known name: an attribute, and the height comes from the storeys.
+    assert_eq!(b["feature/14"]["HGT_X"], 8.8);
+    assert_eq!(b["feature/14"]["storeysAboveGround"], 2);
+    // Named: its height, for every feature (one without the column has no height of its own).
+    let b = run(&["--field", "height=hgt_x"]);
+    let h = |id: &str| b[id]["measuredHeight"].as_f64().unwrap();
+    assert!((h("feature/14") - 8.8).abs() < 0.05, "{}", h("feature/14"));
+    assert!(b["feature/14"].get("HGT_X").is_none());
+    assert_eq!(b["feature/14"]["storeysAboveGround"], 2);
+    assert_eq!(b["feature/12"]["b3_h_dak_max"], 14.25);
+}
+
+/// A truncated FlatGeobuf is refused with the file and the feature named, nothing written.
+#[test]
+fn a_truncated_flatgeobuf_is_an_error_naming_the_feature() {
+    let bytes = std::fs::read(root().join(FGB)).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("cut.fgb");
+    std::fs::write(&bad, &bytes[..bytes.len() - 30]).unwrap();
+    let cj = dir.path().join("o.city.json");
+    let out = citygen(&[
+        "--footprints",
+        bad.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--cityjson",
+        cj.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("cut.fgb") && err.contains("feature 4"),
+        "{err}"
+    );
+    assert!(!cj.exists());
+}
