@@ -90,7 +90,7 @@ pub(crate) fn parse_output_crs(s: &str) -> Result<Crs, ArgError> {
             format!(": give its metre edition, --crs {t}")
         });
         return Err(ArgError::FeetCrs(format!(
-            "{crs} is in {}s; citygen writes its outputs in metres{twin}",
+            "{crs} is in feet (its unit is the {}); citygen writes its outputs in metres{twin}",
             crs.unit().name
         )));
     }
