@@ -159,7 +159,7 @@ pub(crate) const MAX_SCALE_ERROR: f64 = 0.0025;
 /// The output CRS [`choose_output_crs`] picked, and how well it fits the data.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct CrsChoice {
-    /// The WGS84 UTM zone of the centre of the data.
+    /// The input's projected CRS, or the WGS84 UTM zone of the centre of the data.
     pub crs: Crs,
     /// The data's longitudes, west to east (west > east when they cross the antimeridian).
     pub west_east: (f64, f64),
@@ -168,7 +168,9 @@ pub(crate) struct CrsChoice {
     pub worst: Option<(f64, SourceId, (f64, f64))>,
 }
 
-/// The UTM zone for data without `--crs`: the zone of the centre of the footprints' lon/lat
+/// The output CRS for data without `--crs`: the input's projected CRS (a `.prj`, a
+/// GeoPackage's SRS, GeoJSON's `crs`, `--src-crs`) when it stretches no vertex by more than
+/// [`MAX_SCALE_ERROR`], else the UTM zone of the centre of the footprints' lon/lat
 /// bounds, where the bounds take the shorter way round the globe (data on both sides of the
 /// antimeridian is centred on it, not on Greenwich). With `bbox` (lon/lat), only the vertices
 /// inside it count when some are, so that a region cut from a larger file gets its own zone.
@@ -180,7 +182,7 @@ pub(crate) fn choose_output_crs(
 ) -> CrsChoice {
     let to_lonlat = |x: f64, y: f64| match source_crs {
         None | Some(Crs::Wgs84) => (x, y),
-        Some(c) => c.to_lonlat(x, y),
+        Some(c) => c.file_to_lonlat(x, y),
     };
     let vertices = || {
         footprints.iter().flat_map(move |f| {
@@ -221,14 +223,35 @@ pub(crate) fn choose_output_crs(
     } else {
         plain
     };
-    let crs = Crs::utm_for(wrap(0.5 * (west + east)), 0.5 * (lat.0 + lat.1));
-    let mut worst: Option<(f64, SourceId, (f64, f64))> = None;
-    for (id, (lon, la)) in counted() {
-        let e = crs.utm_scale_error(lon, la).unwrap_or(0.0);
-        if worst.as_ref().is_none_or(|w| e > w.0) {
-            worst = Some((e, id, (lon, la)));
+    let worst_in = |crs: Crs| {
+        let mut worst: Option<(f64, SourceId, (f64, f64))> = None;
+        for (id, (lon, la)) in counted() {
+            let e = crs.scale_error(lon, la).unwrap_or(f64::INFINITY);
+            if worst.as_ref().is_none_or(|w| e > w.0) {
+                worst = Some((e, id, (lon, la)));
+            }
+        }
+        worst
+    };
+    // The input's own projected CRS when it fits the data (a national grid far outside its
+    // country does not, nor does a file spanning a continent); else the UTM zone.
+    // A CRS in feet gives its metre twin (State Plane ftUS -> the same zone in metres):
+    // citygen's outputs are in metres.
+    if let Some(c) = source_crs
+        .filter(|c| !c.is_geographic())
+        .and_then(|c| c.in_metres())
+    {
+        let worst = worst_in(c);
+        if worst.as_ref().is_some_and(|w| w.0 <= MAX_SCALE_ERROR) {
+            return CrsChoice {
+                crs: c,
+                west_east: (wrap(west), wrap(east)),
+                worst,
+            };
         }
     }
+    let crs = Crs::utm_for(wrap(0.5 * (west + east)), 0.5 * (lat.0 + lat.1));
+    let worst = worst_in(crs);
     CrsChoice {
         crs,
         west_east: (wrap(west), wrap(east)),
@@ -238,8 +261,8 @@ pub(crate) fn choose_output_crs(
 
 /// Projects and cleans every footprint, then groups parts under outlines.
 ///
-/// `source_crs` `None` means WGS84 degrees. `out_crs` `None` picks the UTM zone of the data's
-/// centre. The origin is the centre of the data's bounds, rounded to the metre.
+/// `source_crs` `None` means WGS84 degrees. `out_crs` `None` picks [`choose_output_crs`]'s CRS
+/// (the input's projected CRS, or the UTM zone of the data's centre). The origin is the centre of the data's bounds, rounded to the metre.
 pub fn prepare(
     footprints: Vec<Footprint>,
     source_crs: Option<Crs>,
@@ -248,13 +271,16 @@ pub fn prepare(
 ) -> Site {
     let to_lonlat = |x: f64, y: f64| match source_crs {
         None | Some(Crs::Wgs84) => (x, y),
-        Some(c) => c.to_lonlat(x, y),
+        Some(c) => c.file_to_lonlat(x, y),
     };
-    // Output CRS: the UTM zone of the centre of the data.
+    // Output CRS: the input's projected CRS or the UTM zone of the centre of the data.
     let crs = out_crs.unwrap_or_else(|| choose_output_crs(&footprints, source_crs, None).crs);
     let same = source_crs == Some(crs);
+    let unit = crs.unit().metres;
     let project = |x: f64, y: f64| -> (DVec2, (f64, f64)) {
         if same {
+            // The file's unit (feet for a State Plane file) to the model's metres.
+            let (x, y) = (x * unit, y * unit);
             (DVec2::new(x, y), crs.to_lonlat(x, y))
         } else {
             let ll = to_lonlat(x, y);

@@ -16,10 +16,13 @@ pub(crate) enum ArgError {
     Crs(#[from] CrsError),
     #[error(
         "{0} is geographic (degrees), and the output CRS must be projected (metres): a UTM \
-         zone (EPSG:326xx north, 327xx south, 258xx ETRS89), EPSG:2154 (Lambert-93) or \
-         EPSG:27700 (British National Grid); without --crs, citygen uses the UTM zone of the data"
+         zone (EPSG:326xx north, 327xx south, 258xx ETRS89), a national grid (EPSG:2154, \
+         27700, 28992, 2056...); without --crs, citygen uses the input's projected CRS or the \
+         UTM zone of the data"
     )]
     GeographicCrs(String),
+    #[error("{0}")]
+    FeetCrs(String),
     #[error("expected kb, none, all, or a list of levels, roof, colour")]
     Infer,
     #[error("expected WxD, e.g. 20x12")]
@@ -81,6 +84,15 @@ pub(crate) fn parse_output_crs(s: &str) -> Result<Crs, ArgError> {
     let crs = parse_crs(s)?;
     if crs.is_geographic() {
         return Err(ArgError::GeographicCrs(s.to_string()));
+    }
+    if !crs.unit().is_metre() {
+        let twin = crs.in_metres().map_or_else(String::new, |t| {
+            format!(": give its metre edition, --crs {t}")
+        });
+        return Err(ArgError::FeetCrs(format!(
+            "{crs} is in feet (its unit is the {}); citygen writes its outputs in metres{twin}",
+            crs.unit().name
+        )));
     }
     Ok(crs)
 }

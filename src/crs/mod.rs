@@ -23,6 +23,7 @@
 //! accuracy over a UTM zone), Lambert Conic Conformal 2SP in closed form (IOGP GN 7-2).
 
 mod ellipsoid;
+mod generic;
 pub mod geoid;
 mod lcc;
 mod osgb;
@@ -34,6 +35,7 @@ mod wkt;
 mod tests;
 
 use ellipsoid::Ellipsoid;
+pub use generic::Unit;
 use lcc::LambertConic2Sp;
 use std::fmt;
 use std::sync::LazyLock;
@@ -64,13 +66,18 @@ pub enum Crs {
         /// UTM zone number, 28..=38 (EPSG:25828-25838).
         zone: u8,
     },
+    /// Any other EPSG CRS of the `crs-definitions` table that `proj4rs` projects (State
+    /// Plane, RD New, LV95, Gauss-Krüger, LAEA...): see `generic.rs`. Its coordinates, as
+    /// [`Crs::from_lonlat`] gives them, are metres even when the CRS's unit is the foot
+    /// ([`Crs::unit`]).
+    Epsg(u16),
 }
 
 /// Why a CRS could not be identified.
 #[derive(Debug, Error, PartialEq)]
 pub enum CrsError {
     /// A well-formed CRS that citygen does not implement; the text names it.
-    #[error("unsupported CRS {0}: citygen reads EPSG:4326 (longitude/latitude), EPSG:326xx and 327xx (WGS 84 / UTM), EPSG:258xx (ETRS89 / UTM), EPSG:2154 (Lambert-93) and EPSG:27700 (British National Grid); reproject the data to one of them first, e.g. `ogr2ogr -t_srs EPSG:4326 out.shp in.shp`")]
+    #[error("unsupported CRS {0}: citygen reads EPSG:4326 (longitude/latitude) and the EPSG CRSs that proj4rs projects without a grid file (UTM, State Plane, national grids...); reproject the data to one of them first, e.g. `ogr2ogr -t_srs EPSG:4326 out.shp in.shp`")]
     Unsupported(String),
     /// A `.prj` that is not valid WKT; the text says where.
     #[error("cannot understand the .prj: {0} (give the data's CRS with --src-crs EPSG:n, or reproject it, e.g. `ogr2ogr -t_srs EPSG:4326 out.shp in.shp`)")]
@@ -127,7 +134,16 @@ impl Crs {
             25828..=25838 => Ok(Crs::EtrsUtm {
                 zone: (code - 25800) as u8,
             }),
-            _ => Err(CrsError::Unsupported(format!("EPSG:{code}"))),
+            // Pseudo-Mercator is no CRS to read or write buildings in (its metres are 1/cos φ
+            // ground metres); DEMs in it go through `webmerc`.
+            3857 => Err(CrsError::Unsupported(
+                "EPSG:3857 (WGS 84 / Pseudo-Mercator)".to_owned(),
+            )),
+            _ => u16::try_from(code)
+                .ok()
+                .filter(|&c| generic::get(c).is_some())
+                .map(Crs::Epsg)
+                .ok_or_else(|| CrsError::Unsupported(format!("EPSG:{code}"))),
         }
     }
 
@@ -140,6 +156,7 @@ impl Crs {
             Crs::Lambert93 => 2154,
             Crs::BritishNationalGrid => 27700,
             Crs::EtrsUtm { zone } => 25800 + u32::from(zone),
+            Crs::Epsg(code) => u32::from(code),
         }
     }
 
@@ -153,13 +170,74 @@ impl Crs {
             Crs::Lambert93 => "RGF93 v1 / Lambert-93".to_owned(),
             Crs::BritishNationalGrid => "OSGB36 / British National Grid".to_owned(),
             Crs::EtrsUtm { zone } => format!("ETRS89 / UTM zone {zone}N"),
+            Crs::Epsg(code) => {
+                generic::get(code).map_or_else(|| format!("EPSG:{code}"), |g| g.name.clone())
+            }
         }
+    }
+
+    /// The unit of the CRS's coordinates in its files: the metre, except for the CRSs in feet
+    /// (State Plane `ftUS`, ...). [`Crs::from_lonlat`] and [`Crs::to_lonlat`] work in metres
+    /// whatever this is; [`Crs::file_to_lonlat`] takes the file's own unit.
+    pub fn unit(&self) -> Unit {
+        match *self {
+            Crs::Epsg(code) => generic::get(code).map_or(Unit::METRE, |g| g.unit),
+            _ => Unit::METRE,
+        }
+    }
+
+    /// The metre CRS of the same projection, datum and false origin, for a CRS in feet
+    /// (EPSG:2263 NAD83 / New York Long Island (ftUS) -> EPSG:32118 NAD83 / New York Long
+    /// Island): what citygen writes in for it. Itself for a CRS in metres; `None` when the
+    /// EPSG table has no such twin.
+    pub fn in_metres(&self) -> Option<Crs> {
+        match *self {
+            Crs::Epsg(code) if !self.unit().is_metre() => generic::metre_twin(code).map(Crs::Epsg),
+            c => Some(c),
+        }
+    }
+
+    /// A file's coordinates in this CRS (its own unit: feet for a State Plane `ftUS` file) to
+    /// WGS84 lon/lat degrees.
+    pub fn file_to_lonlat(&self, x: f64, y: f64) -> (f64, f64) {
+        let m = self.unit().metres;
+        self.to_lonlat(x * m, y * m)
+    }
+
+    /// The largest |k − 1| at (`lon`, `lat`) degrees: how much the CRS stretches or shrinks
+    /// lengths there, north-south or east-west, measured by projecting 1e-6 rad steps and
+    /// comparing with the ellipsoid's arcs (WGS84). `None` for a geographic CRS or where the
+    /// projection fails.
+    pub(crate) fn scale_error(&self, lon: f64, lat: f64) -> Option<f64> {
+        if self.is_geographic() {
+            return None;
+        }
+        if let Some(e) = self.utm_scale_error(lon, lat) {
+            return Some(e);
+        }
+        let e = Ellipsoid::WGS84;
+        let phi = lat.to_radians();
+        let w = (1.0 - e.e2() * phi.sin().powi(2)).sqrt();
+        let n = e.a / w;
+        let m = e.a * (1.0 - e.e2()) / (w * w * w);
+        let d = 1e-6_f64;
+        let p0 = self.from_lonlat(lon, lat);
+        let pn = self.from_lonlat(lon, lat + d.to_degrees());
+        let pe = self.from_lonlat(lon + d.to_degrees(), lat);
+        let kn = (pn.0 - p0.0).hypot(pn.1 - p0.1) / (m * d);
+        let ke = (pe.0 - p0.0).hypot(pe.1 - p0.1) / (n * phi.cos() * d);
+        let k = (kn - 1.0).abs().max((ke - 1.0).abs());
+        k.is_finite().then_some(k)
     }
 
     /// True for the geographic CRS (coordinates in degrees); false for the projected ones
     /// (metres, easting then northing).
     pub(crate) fn is_geographic(&self) -> bool {
-        matches!(self, Crs::Wgs84)
+        match *self {
+            Crs::Wgs84 => true,
+            Crs::Epsg(code) => generic::get(code).is_some_and(|g| g.geographic),
+            _ => false,
+        }
     }
 
     /// The WGS84 UTM zone for (`lon`, `lat`) degrees: the standard 6° zone of `lon` (wrapped
@@ -219,8 +297,9 @@ impl Crs {
     }
 
     /// Projects WGS84 lon/lat degrees to this CRS's (x, y): metres (easting, northing) for the
-    /// projected CRSs, (lon, lat) unchanged for [`Crs::Wgs84`]. Non-finite input gives
-    /// non-finite output, never a panic.
+    /// projected CRSs, also for those whose unit is the foot (a foot grid's value times
+    /// [`Crs::unit`]'s metres), (lon, lat) unchanged for [`Crs::Wgs84`]. Non-finite input, or a
+    /// point outside a projection's domain, gives non-finite output, never a panic.
     pub fn from_lonlat(&self, lon: f64, lat: f64) -> (f64, f64) {
         match *self {
             Crs::Wgs84 => (lon, lat),
@@ -232,6 +311,9 @@ impl Crs {
             }
             Crs::Lambert93 => LAMBERT93.project(lon, lat),
             Crs::BritishNationalGrid => osgb::wgs84_to_grid(lon, lat),
+            Crs::Epsg(code) => {
+                generic::get(code).map_or((f64::NAN, f64::NAN), |g| g.project(lon, lat))
+            }
         }
     }
 
@@ -248,6 +330,9 @@ impl Crs {
             }
             Crs::Lambert93 => LAMBERT93.unproject(x, y),
             Crs::BritishNationalGrid => osgb::grid_to_wgs84(x, y),
+            Crs::Epsg(code) => {
+                generic::get(code).map_or((f64::NAN, f64::NAN), |g| g.unproject(x, y))
+            }
         }
     }
 }

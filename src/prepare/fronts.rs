@@ -94,8 +94,8 @@ pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>
     let local = |x: f64, y: f64| -> Option<DVec2> {
         let (lon, lat) = match source_crs {
             None | Some(Crs::Wgs84) => (x, y),
-            Some(c) if c == crs => return finite(DVec2::new(x, y) - origin),
-            Some(c) => c.to_lonlat(x, y),
+            Some(c) if c == crs => return finite(DVec2::new(x, y) * c.unit().metres - origin),
+            Some(c) => c.file_to_lonlat(x, y),
         };
         let (px, py) = crs.from_lonlat(lon, lat);
         finite(DVec2::new(px, py) - origin)

@@ -95,22 +95,35 @@ fn src_crs_with_an_osm_input_is_refused_naming_both() {
 fn an_unsupported_crs_is_refused_with_how_to_reproject() {
     let dir = tempfile::tempdir().unwrap();
     let glb = dir.path().join("x.glb");
-    // EPSG:2263 is New York Long Island in US survey feet.
-    let out = citygen(&[
-        "--osm",
-        MONACO,
-        "--kb",
-        KB,
-        "--gltf",
-        glb.to_str().unwrap_or_default(),
-        "--crs",
-        "EPSG:2263",
-        "-q",
-    ]);
+    let run = |crs: &str| {
+        citygen(&[
+            "--osm",
+            MONACO,
+            "--kb",
+            KB,
+            "--gltf",
+            glb.to_str().unwrap_or_default(),
+            "--crs",
+            crs,
+            "-q",
+        ])
+    };
+    // No such EPSG code.
+    let out = run("EPSG:9999");
     assert_eq!(out.status.code(), Some(2), "{}", text(&out));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("2263") && err.contains("reproject") && err.contains("ogr2ogr"),
+        err.contains("9999") && err.contains("reproject") && err.contains("ogr2ogr"),
+        "{}",
+        text(&out)
+    );
+    // EPSG:2263 is New York Long Island in US survey feet: outputs are in metres, and the
+    // message names the metre edition (issue 47).
+    let out = run("EPSG:2263");
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("2263") && err.contains("US survey foot") && err.contains("EPSG:32118"),
         "{}",
         text(&out)
     );

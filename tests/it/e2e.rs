@@ -172,9 +172,11 @@ fn clifton_shapefile_lod1_runs_and_counts_agree() {
     );
     let gml = std::fs::read_to_string(&run.gml).unwrap();
     assert_eq!(citygml_buildings(&gml).len(), generated);
+    // The default output CRS is the input's projected CRS (issue 47): the .prj's British
+    // National Grid, no longer the data's UTM zone.
     assert!(
-        gml.contains("EPSG:326"),
-        "default output CRS is the data's UTM zone"
+        gml.contains("srsName=\"EPSG:27700\"") && !gml.contains("EPSG:326"),
+        "default output CRS is the .prj's British National Grid"
     );
 }
 

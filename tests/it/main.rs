@@ -10,6 +10,7 @@ mod atomic;
 mod bad_inputs;
 mod budgets;
 mod clear_errors;
+mod crs;
 mod day2;
 mod dem;
 mod deploy;

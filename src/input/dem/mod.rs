@@ -152,7 +152,12 @@ impl DemCrs {
     fn from_epsg(code: u16) -> Option<DemCrs> {
         match code {
             3857 => Some(DemCrs::PseudoMercator),
-            c => Crs::from_epsg(u32::from(c)).ok().map(DemCrs::Known),
+            // A DEM in feet (its pixels' spacing and heights would need converting) is not
+            // read: reproject it to a metre CRS first.
+            c => Crs::from_epsg(u32::from(c))
+                .ok()
+                .filter(|c| c.unit().is_metre())
+                .map(DemCrs::Known),
         }
     }
 
