@@ -398,6 +398,66 @@ fn panes_joined(found: &[FoundOpening]) -> Vec<FoundOpening> {
     out
 }
 
+/// How far (metres) the sills and heads of two narrow openings [`merge_narrow`] joins may be
+/// apart.
+pub(crate) const MERGE_ROW: f64 = 0.1;
+
+/// Merges neighbouring openings of one wall storey that are each narrower than `min` (the
+/// style's minimum opening width, issue 45) into one when together they span at least `min`:
+/// of one kind, on one row (sill and head within [`MERGE_ROW`]), the mullion between
+/// them narrower than `min`, and the merged opening [`OPENING_MARGIN`] clear of every other.
+/// The merged opening keeps the left one's looks, spans both rows' heights, and its jambs
+/// are the pair's outer ones (on the grid already). Openings not merged keep their order.
+/// How many pairs were merged.
+pub(crate) fn merge_narrow(openings: &mut Vec<Opening>, min: f64) -> usize {
+    let narrow = |o: &Opening| o.width() < min - 1e-9;
+    let mut merged = 0;
+    'again: loop {
+        for i in 0..openings.len() {
+            let a = &openings[i];
+            if !narrow(a) {
+                continue;
+            }
+            // The nearest narrow neighbour to the right on the same row.
+            let right = (0..openings.len())
+                .filter(|&j| j != i)
+                .filter(|&j| {
+                    let b = &openings[j];
+                    narrow(b)
+                        && b.kind == a.kind
+                        && b.u0 >= a.u1
+                        && b.u0 - a.u1 < min
+                        && b.u1 - a.u0 >= min - 1e-9
+                        && (b.z0 - a.z0).abs() <= MERGE_ROW
+                        && (b.z1 - a.z1).abs() <= MERGE_ROW
+                })
+                .min_by(|&j, &k| openings[j].u0.total_cmp(&openings[k].u0));
+            let Some(j) = right else {
+                continue;
+            };
+            let b = &openings[j];
+            let (u0, u1, z0, z1) = (a.u0, b.u1, a.z0.min(b.z0), a.z1.max(b.z1));
+            let clear = openings.iter().enumerate().all(|(k, q)| {
+                k == i
+                    || k == j
+                    || u1 + OPENING_MARGIN <= q.u0
+                    || q.u1 + OPENING_MARGIN <= u0
+                    || z1 + OPENING_MARGIN <= q.z0
+                    || q.z1 + OPENING_MARGIN <= z0
+            });
+            if !clear {
+                continue;
+            }
+            let o = &mut openings[i];
+            (o.u1, o.z0, o.z1) = (u1, z0, z1);
+            openings.remove(j);
+            merged += 1;
+            continue 'again;
+        }
+        return merged;
+    }
+}
+
 /// The storey floors [`apply`] cuts `part`'s walls at: the levels' floors clamped to the walls,
 /// the first at the base (the last storey reaches up to the eave).
 pub fn floors(part: &Part, facades: &Facades) -> Vec<f64> {
@@ -424,7 +484,8 @@ pub fn storeys(part: &Part, facades: &Facades) -> Vec<(f64, f64)> {
 /// into LOD3: one wall per storey and edge, with the openings and balconies of `facades` placed
 /// on them and cut out of the wall outlines. Returns how many openings were left out because
 /// they were too small once kept [`OPENING_MARGIN`] inside their wall, overlapped another, or
-/// were narrower than [`OpeningColors::min_width`] once their jambs were on the grid.
+/// were narrower than [`OpeningColors::min_width`] once their jambs were on the grid and no
+/// narrow neighbour could be merged with them ([`merge_narrow`]).
 pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usize {
     let edges = part.walls.len();
     if edges != facades.openings.len() {
@@ -509,7 +570,9 @@ pub fn apply(part: &mut Part, facades: &Facades, colors: &OpeningColors) -> usiz
                 o.u0 = along_on_grid(full.start, full.end, o.u0, snap);
                 o.u1 = along_on_grid(full.start, full.end, o.u1, -snap);
             }
-            // No slit (issue 45): what is narrower than the minimum once fitted is left out.
+            // No slit (issue 45): two narrow neighbours become one opening; what is still
+            // narrower than the minimum once fitted is left out.
+            merge_narrow(&mut openings, colors.min_width);
             let before = openings.len();
             openings.retain(|o| o.width() >= colors.min_width - 1e-9);
             dropped += before - openings.len();
@@ -762,6 +825,71 @@ mod tests {
         };
         glass.balconies = vec![Vec::new()];
         assert_eq!(storeys_around_openings(&glass, 0.0, 12.0, 3.0).len(), 1);
+    }
+}
+
+#[cfg(test)]
+mod merge_tests {
+    use super::*;
+
+    fn window(u0: f64, u1: f64, z0: f64, z1: f64) -> Opening {
+        Opening {
+            kind: OpeningKind::Window,
+            u0,
+            u1,
+            z0,
+            z1,
+            color: Color::WHITE,
+            frame_color: Color::GREY,
+            glazed: true,
+            framed: false,
+            frame_size: None,
+            rounding: None,
+        }
+    }
+
+    #[test]
+    fn two_narrow_neighbours_merge_and_a_lone_one_does_not() {
+        // 0.25 and 0.3 m panes 0.1 m apart: one 0.65 m window. A 0.3 m one 2 m off stays
+        // narrow (the caller leaves it out); wide windows are never touched.
+        let mut v = vec![
+            window(1.0, 1.25, 1.0, 2.2),
+            window(5.0, 6.2, 1.0, 2.2),
+            window(1.35, 1.65, 1.05, 2.2),
+            window(3.65, 3.95, 1.0, 2.2),
+        ];
+        assert_eq!(merge_narrow(&mut v, 0.4), 1);
+        assert_eq!(v.len(), 3);
+        assert_eq!((v[0].u0, v[0].u1, v[0].z0, v[0].z1), (1.0, 1.65, 1.0, 2.2));
+        assert_eq!((v[1].u0, v[1].u1), (5.0, 6.2), "order kept");
+        assert_eq!((v[2].u0, v[2].u1), (3.65, 3.95));
+        // Not merged: a door beside a window, another row, a mullion wider than the minimum,
+        // or a third opening in the way.
+        let mut door = window(1.35, 1.65, 0.1, 2.2);
+        door.kind = OpeningKind::Door;
+        for pair in [
+            vec![window(1.0, 1.25, 1.0, 2.2), door],
+            vec![window(1.0, 1.25, 1.0, 2.2), window(1.35, 1.65, 1.6, 2.2)],
+            vec![window(1.0, 1.25, 1.0, 2.2), window(1.7, 1.95, 1.0, 2.2)],
+            vec![
+                window(1.0, 1.25, 1.0, 1.5),
+                window(1.35, 1.65, 1.0, 1.5),
+                window(1.0, 1.65, 1.51, 2.2),
+            ],
+        ] {
+            let mut v = pair.clone();
+            assert_eq!(merge_narrow(&mut v, 0.4), 0, "{pair:?}");
+            assert_eq!(v, pair);
+        }
+        // Three slits in a row: the first two merge, the third stays narrow.
+        let mut v = vec![
+            window(1.0, 1.2, 1.0, 2.0),
+            window(1.3, 1.5, 1.0, 2.0),
+            window(1.6, 1.8, 1.0, 2.0),
+        ];
+        assert_eq!(merge_narrow(&mut v, 0.4), 1);
+        assert_eq!(v.len(), 2);
+        assert!(v[0].width() >= 0.4 - 1e-9);
     }
 }
 

@@ -10,7 +10,8 @@
 //!    building closer than [`PARTY_REACH`], up to that one's top, no window, door or balcony
 //!    is kept ([`party_spans`]); above the neighbour's roof the wall is a facade again.
 //! 3. **One main entrance.** Doors the rules made are kept only on balconies. The building gets
-//!    one entrance on the ground storey of a part standing on the ground, on the wall facing
+//!    one entrance on the ground storey of a part standing on the ground that is no structure
+//!    (or, when it has none, at the base of a tower: [`towers_take_entrance`]), on the wall facing
 //!    its street ([`crate::prepare::Lot::front`]): among the walls free of neighbours for the
 //!    door's height, those within 5° of the street side first (the street-facing edge and
 //!    those parallel to it), then 25°, then 60°, then any facing it; the one the rules put a
@@ -69,10 +70,23 @@ pub(crate) struct Draft<'a> {
 
 impl Draft<'_> {
     /// Whether the building's entrance may be on this part: a part on the ground that is no
-    /// structure.
-    pub(crate) fn takes_entrance(&self) -> bool {
-        self.part.base_z <= GROUND && self.structure.is_none()
+    /// structure, or with `towers` a tower on the ground (its base door: see
+    /// [`towers_take_entrance`]).
+    pub(crate) fn takes_entrance(&self, towers: bool) -> bool {
+        self.part.base_z <= GROUND
+            && match self.structure {
+                None => true,
+                Some(Structure::Tower) => towers,
+                Some(_) => false,
+            }
     }
+}
+
+/// Whether a tower of `drafts` may take the building's entrance: when no part on the ground
+/// is a house (a lighthouse, an observation tower, a church's tower mapped on its own: the
+/// door at its base). A church whose nave stands on the ground keeps its entrance there.
+pub(crate) fn towers_take_entrance(drafts: &[Draft<'_>]) -> bool {
+    !drafts.iter().any(|d| d.takes_entrance(false))
 }
 
 /// What [`arrange`] decided, besides the changes to the drafts' openings.
@@ -188,7 +202,8 @@ pub(crate) fn arrange(
 /// What a structure keeps of the openings its rules found (issue 45, `model::Structure`):
 /// nothing, or for a tower the windows of its top storey, and only when that storey is in the
 /// upper half of the building (a belfry, a lantern, a viewing platform; a tower's shaft
-/// under its platform keeps none lower down). No balcony, no door.
+/// under its platform keeps none lower down). No balcony, no door (a tower's base door is the
+/// entrance, placed afterwards: [`towers_take_entrance`]).
 fn structure_gate(drafts: &mut [Draft<'_>]) {
     let top = drafts
         .iter()
@@ -338,7 +353,7 @@ fn in_storey(storeys: &[(f64, f64)], o: &FoundOpening) -> Option<(f64, f64)> {
 fn programmed_entrances(drafts: &[Draft<'_>], out: &mut Arrangement) -> bool {
     let mut first = None;
     for (p, d) in drafts.iter().enumerate() {
-        if !d.facades.programmed || !d.takes_entrance() {
+        if !d.facades.programmed || !d.takes_entrance(false) {
             continue;
         }
         let storeys = facade::storeys(d.part, d.facades);
@@ -658,8 +673,9 @@ fn entrance(
     let mut best: Option<Choice> = None;
     let mut grounded = false;
     let mut lowest_storey = f64::INFINITY;
+    let towers = towers_take_entrance(drafts);
     for (p, d) in drafts.iter().enumerate() {
-        if !d.takes_entrance() {
+        if !d.takes_entrance(towers) {
             continue;
         }
         grounded = true;

@@ -899,7 +899,7 @@ fn structure_note(parts: &[Part]) -> Option<String> {
         .map(|(c, n)| format!("{} {n}", c.name()))
         .collect();
     Some(format!(
-        "structure: {} of {} part(s) ({}): no windows, doors, balconies or rooms (a tower's top storey keeps its windows)",
+        "structure: {} of {} part(s) ({}): no windows, doors, balconies or rooms (a tower's top storey keeps its windows, a tower standing alone its base door)",
         counts.iter().map(|(_, n)| n).sum::<usize>(),
         parts.len(),
         list.join(", ")

@@ -466,6 +466,10 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
         .roof_direction
         .filter(|d| d.is_finite())
         .map(|d| d.rem_euclid(360.0));
+    // roof:orientation=across (parsed, but until issue 45 never reached the style).
+    if let Some(o) = &t.roof_orientation {
+        s.roof_across = o == "across";
+    }
     let bounded = |what: String, h: f64, notes: &mut Vec<String>| {
         if h > MAX_TAGGED_ROOF_HEIGHT_M {
             notes.push(format!(

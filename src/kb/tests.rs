@@ -1327,6 +1327,13 @@ fn roof_direction_tag_reaches_the_style() {
     let tags = BuildingTags::from_pairs([("building", "yes"), ("roof:direction", "-90")]);
     let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
     assert_eq!(s.roof_direction, Some(270.0));
+    assert!(!s.roof_across);
+    // roof:orientation reaches it too (issue 45: it was parsed and then dropped).
+    for (o, across) in [("across", true), ("along", false)] {
+        let tags = BuildingTags::from_pairs([("building", "yes"), ("roof:orientation", o)]);
+        let (s, _) = kb.style_for(zone, &tags, &mut Rng::new(1, 1));
+        assert_eq!(s.roof_across, across, "{o}");
+    }
 }
 
 #[test]

@@ -205,11 +205,11 @@ fn check(name: &str, area: &Area) -> String {
                 ));
             }
         }
-        // A structure takes no entrance (issue 45): a building of structures only has none.
-        let on_ground = b
-            .parts
-            .iter()
-            .any(|p| p.base_z <= 0.1 && p.structure.is_none());
+        // A structure takes no entrance (issue 45): a building of structures only has none,
+        // but for a tower's base door.
+        let on_ground = b.parts.iter().any(|p| {
+            p.base_z <= 0.1 && matches!(p.structure, None | Some(citygen::model::Structure::Tower))
+        });
         if let (true, Some(front)) = (on_ground, lot.front) {
             fronted += 1;
             if main_doors.len() != 1 {

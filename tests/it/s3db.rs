@@ -60,6 +60,12 @@ impl Osm {
         self.ways.push((id, refs, owned(tags)));
     }
 
+    /// An open way through the points (metres) with these tags (a street).
+    fn line(&mut self, id: i64, pts: &[(f64, f64)], tags: &[(&str, &str)]) {
+        self.way(id, pts, tags);
+        self.ways.last_mut().unwrap().1.pop();
+    }
+
     fn relation(&mut self, id: i64, members: &[(i64, &str)], tags: &[(&str, &str)]) {
         let m = members.iter().map(|&(w, r)| (w, r.to_string())).collect();
         self.rels.push((id, m, owned(tags)));

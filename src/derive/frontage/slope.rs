@@ -221,8 +221,9 @@ pub(crate) fn entrance(
 ) {
     let mut best: Option<Place> = None;
     let mut grounded = false;
+    let towers = super::towers_take_entrance(drafts);
     for (p, d) in drafts.iter().enumerate() {
-        if !d.takes_entrance() {
+        if !d.takes_entrance(towers) {
             continue;
         }
         grounded = true;

@@ -110,7 +110,9 @@ pub fn roof_geometry(mass: &Mass) -> Result<RoofGeometry, RoofFallback> {
 /// footprint may still leave a sliver the grid cannot keep planar): sawtooth and butterfly
 /// become a skillion, saltbox, `gabled_height_moved`, crosspitched and a gabled roof turned by
 /// `roof:direction`/`roof:orientation` the plain (straight-skeleton) gabled roof, a skillion
-/// flat. `None` for the roofs that are not cut (they are the fallbacks).
+/// flat; a skeleton roof turned by those tags (`shapes::turned_profile_roof`: hipped,
+/// half-hipped, mansard, gambrel, ...) the same shape unturned. `None` for the roofs that are
+/// not cut or turned (they are the fallbacks).
 pub(crate) fn simpler_roof(mass: &Mass) -> Option<Mass> {
     let turned = mass.roof_direction.is_some() || mass.roof_across;
     let roof = match mass.roof {
@@ -120,9 +122,22 @@ pub(crate) fn simpler_roof(mass: &Mass) -> Option<Mass> {
         }
         RoofShape::Gabled if turned => RoofShape::Gabled,
         RoofShape::Skillion => RoofShape::Flat,
+        RoofShape::Hipped
+        | RoofShape::HalfHipped
+        | RoofShape::SideHipped
+        | RoofShape::SideHalfHipped
+        | RoofShape::HippedAndGabled
+        | RoofShape::BellcastGable
+        | RoofShape::Mansard
+        | RoofShape::Gambrel
+        | RoofShape::Round
+            if turned =>
+        {
+            mass.roof
+        }
         _ => return None,
     };
-    let plain = roof == RoofShape::Gabled;
+    let plain = roof == RoofShape::Gabled || roof == mass.roof;
     Some(Mass {
         roof,
         roof_direction: if plain { None } else { mass.roof_direction },
@@ -170,13 +185,16 @@ pub(crate) fn part_with_roof(
             return (part, notes);
         };
         notes.push(format!(
-            "{} roof of {id} drawn {}: as cut, it failed the roof checks ({first})",
+            "{} roof of {id} drawn {}: as {}, it failed the roof checks ({first})",
             m.roof.osm_name(),
             if next.roof == RoofShape::Flat {
                 "flat".to_string()
+            } else if next.roof == m.roof {
+                "unturned".to_string()
             } else {
                 format!("as {}", next.roof.osm_name())
             },
+            if next.roof == m.roof { "turned" } else { "cut" },
         ));
         m = std::borrow::Cow::Owned(next);
     }

@@ -597,6 +597,16 @@ fn a_cut_roof_that_fails_the_part_checks_is_drawn_as_the_next_simpler_shape() {
     for shape in [RoofShape::Gabled, RoofShape::Hipped, RoofShape::Flat] {
         assert!(simpler_roof(&mass(rect(), shape)).is_none(), "{shape:?}");
     }
+    // A skeleton roof turned by roof:direction falls back to the same shape unturned.
+    let mansard = simpler_roof(&Mass {
+        roof_direction: Some(0.0),
+        ..mass(rect(), RoofShape::Mansard)
+    });
+    assert_eq!(
+        mansard.map(|m| (m.roof, m.roof_direction, m.roof_across)),
+        Some((RoofShape::Mansard, None, false))
+    );
+    assert!(simpler_roof(&mass(rect(), RoofShape::Dome)).is_none());
     // At LOD1 the part is a block: nothing to fall back from.
     let (part, notes) = part_with_roof("p0".into(), &m, Lod::Lod1, "way/7", broken);
     assert!(notes.is_empty());

@@ -244,8 +244,11 @@ pub fn build(
 /// when it is nearer the footprint's long axis than its short one. `across` is
 /// `roof:orientation=across`: the ridge (or valley, or sawtooth ridges) of gabled, saltbox,
 /// `gabled_height_moved`, butterfly and sawtooth roofs parallel to the short side. The
-/// skeleton roofs (hipped and its variants, mansard, gambrel, round, ...) follow the
-/// footprint's wings and take neither.
+/// skeleton roofs with a ridge (hipped and its variants, mansard, gambrel, bellcast, round)
+/// follow the footprint's wings unless `across` or a `down` nearer the long axis than the
+/// short one turns them (`shapes::turned_profile_roof`: the ridge parallel to the short
+/// side; a roof that cannot be turned is built unturned); dome, onion, pyramidal, cone and
+/// `apse_gabled` take neither.
 ///
 /// Pyramidal and cone roofs rise to one apex over the centroid when the footprint has no
 /// holes and is star-shaped from it, and are hipped otherwise. Saltbox and
@@ -274,19 +277,32 @@ pub fn build_oriented(
     let short = || shapes::short_axis(poly);
     // The direction of a ridge (or valley) when roof:direction does not give it.
     let ridge = || if across { short() } else { short().perp() };
+    // A skeleton roof's ridge turned across the wings (parallel to the short axis) when
+    // `roof:orientation=across` says so or `roof:direction` points along the long axis.
+    let turned = across
+        || down.is_some_and(|d| {
+            let s = short();
+            d.dot(s).abs() < d.dot(s.perp()).abs()
+        });
+    // A profile roof, turned when the tags say so; a turned roof that cannot be built on the
+    // squeezed footprint is built unturned.
+    let skeleton = |ends: Ends, profile: &dyn Fn(f64) -> Profile| {
+        if turned {
+            if let Ok(g) = shapes::turned_profile_roof(poly, short(), ends, profile) {
+                return Ok(g);
+            }
+        }
+        shapes::profile_roof(poly, ends, profile)
+    };
     match shape {
         RoofShape::Flat => {
             straight_skeleton(poly)?;
             Ok(flat(poly))
         }
-        RoofShape::Hipped => shapes::profile_roof(poly, Ends::Hipped, lin),
+        RoofShape::Hipped => skeleton(Ends::Hipped, &lin),
         RoofShape::Gabled => {
             // roof:direction along the long axis puts the ridge across.
-            let turned = down.is_some_and(|d| {
-                let s = short();
-                d.dot(s).abs() < d.dot(s.perp()).abs()
-            });
-            if across || turned {
+            if turned {
                 shapes::ridge_roof(poly, short(), 0.5, pitch_deg)
             } else {
                 shapes::profile_roof(poly, Ends::Gabled, lin)
@@ -303,19 +319,17 @@ pub fn build_oriented(
             let ridge_dir = down.map_or_else(ridge, |d| d.perp());
             shapes::ridge_roof(poly, -ridge_dir, at, pitch_deg)
         }
-        RoofShape::SideHipped => shapes::profile_roof(poly, Ends::AllButOne, lin),
-        RoofShape::HalfHipped => {
-            shapes::profile_roof(poly, Ends::HalfHipped(shapes::HALF_HIP_FRACTION), lin)
-        }
+        RoofShape::SideHipped => skeleton(Ends::AllButOne, &lin),
+        RoofShape::HalfHipped => skeleton(Ends::HalfHipped(shapes::HALF_HIP_FRACTION), &lin),
         RoofShape::SideHalfHipped => {
-            shapes::profile_roof(poly, Ends::SideHalfHipped(shapes::HALF_HIP_FRACTION), lin)
+            skeleton(Ends::SideHalfHipped(shapes::HALF_HIP_FRACTION), &lin)
         }
         RoofShape::HippedAndGabled => {
             let steep = tan(shapes::HIP_AND_GABLE_DEG) / k;
             let ends = Ends::HipAndGable(shapes::HIP_AND_GABLE_FRACTION, steep);
-            shapes::profile_roof(poly, ends, lin)
+            skeleton(ends, &lin)
         }
-        RoofShape::BellcastGable => shapes::profile_roof(poly, Ends::Gabled, |t| {
+        RoofShape::BellcastGable => skeleton(Ends::Gabled, &|t: f64| {
             let lower = tan(pitch_deg * shapes::BELLCAST_LOWER_REL);
             Profile::broken(lower, k, shapes::BELLCAST_BREAK_REL * t)
         }),
@@ -327,7 +341,7 @@ pub fn build_oriented(
             };
             shapes::profile_roof(poly, ends, lin)
         }
-        RoofShape::Mansard => shapes::profile_roof(poly, Ends::Hipped, |t| {
+        RoofShape::Mansard => skeleton(Ends::Hipped, &|t: f64| {
             let t0 = shapes::MANSARD_BREAK_M.min(shapes::MANSARD_BREAK_REL * t);
             Profile::broken(
                 tan(shapes::MANSARD_LOWER_DEG),
@@ -335,7 +349,7 @@ pub fn build_oriented(
                 t0,
             )
         }),
-        RoofShape::Gambrel => shapes::profile_roof(poly, Ends::Gabled, |t| {
+        RoofShape::Gambrel => skeleton(Ends::Gabled, &|t: f64| {
             Profile::broken(
                 tan(shapes::GAMBREL_LOWER_DEG),
                 tan(shapes::GAMBREL_UPPER_DEG),
@@ -343,7 +357,7 @@ pub fn build_oriented(
             )
         }),
         RoofShape::Dome => shapes::profile_roof(poly, Ends::Hipped, Profile::circle),
-        RoofShape::Round => shapes::profile_roof(poly, Ends::Gabled, Profile::circle),
+        RoofShape::Round => skeleton(Ends::Gabled, &Profile::circle),
         RoofShape::Onion => shapes::profile_roof(poly, Ends::Hipped, Profile::onion),
         RoofShape::Pyramidal | RoofShape::Cone => {
             let sk = straight_skeleton(poly)?;

@@ -607,6 +607,19 @@ fn roof_cases() -> u32 {
 /// and the slopes: hipped and gabled faces all at `pitch`, mansard faces at one of its two
 /// pitches.
 pub(super) fn check_shape(p: &Polygon, shape: RoofShape, pitch: f64) -> Result<(), String> {
+    check_oriented(p, shape, pitch, None, false)
+}
+
+/// [`check_shape`] with `roof:direction` (a bearing, degrees) and `roof:orientation=across`;
+/// the slopes are checked only without them (a turned skeleton roof has steeper ends, see
+/// `shapes::turned_profile_roof`).
+pub(super) fn check_oriented(
+    p: &Polygon,
+    shape: RoofShape,
+    pitch: f64,
+    bearing: Option<f64>,
+    across: bool,
+) -> Result<(), String> {
     use crate::derive::massing::{build_part, check_part, roof_geometry, Mass};
     let m = Mass {
         footprint: p.clone(),
@@ -615,8 +628,8 @@ pub(super) fn check_shape(p: &Polygon, shape: RoofShape, pitch: f64) -> Result<(
         storeys: 2,
         roof: shape,
         roof_angle_deg: pitch,
-        roof_direction: None,
-        roof_across: false,
+        roof_direction: bearing,
+        roof_across: across,
         roof_height: None,
         wall_color: crate::color::Color::WHITE,
         roof_color: crate::color::Color::GREY,
@@ -648,6 +661,9 @@ pub(super) fn check_shape(p: &Polygon, shape: RoofShape, pitch: f64) -> Result<(
         .collect();
     if !d.is_empty() {
         return Err(format!("{shape:?}: {}", d[..d.len().min(5)].join("; ")));
+    }
+    if bearing.is_some() || across {
+        return Ok(());
     }
     let slopes: Vec<f64> = match shape {
         RoofShape::Hipped | RoofShape::Gabled => vec![pitch],
@@ -728,6 +744,8 @@ proptest! {
         scale in 0.5f64..20.0,
         pitch in 10.0f64..60.0,
         pick in 0usize..21,
+        turn in prop::option::of(0.0f64..360.0),
+        across in any::<bool>(),
     ) {
         let (s, c) = angle.sin_cos();
         let pts: Vec<DVec2> = histogram(&cols).iter()
@@ -739,6 +757,9 @@ proptest! {
                 return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
             }
         }
+        if let Err(e) = check_oriented(&p, ALL_PITCHED[pick % ALL_PITCHED.len()], pitch, turn, across) {
+            return Err(TestCaseError::fail(format!("{e} ({turn:?}, across {across}): {:?}", p.outer)));
+        }
     }
 
     #[test]
@@ -749,6 +770,8 @@ proptest! {
         scale in 1.0f64..15.0,
         pitch in 10.0f64..60.0,
         pick in 0usize..21,
+        turn in prop::option::of(0.0f64..360.0),
+        across in any::<bool>(),
     ) {
         let Some(p) = cell_union(&steps, carve) else { return Ok(()); };
         let (s, c) = angle.sin_cos();
@@ -761,6 +784,11 @@ proptest! {
                 return Err(TestCaseError::fail(format!("{e}: {:?} {:?}", p.outer, p.holes)));
             }
         }
+        if let Err(e) = check_oriented(&p, ALL_PITCHED[pick % ALL_PITCHED.len()], pitch, turn, across) {
+            return Err(TestCaseError::fail(format!(
+                "{e} ({turn:?}, across {across}): {:?} {:?}", p.outer, p.holes
+            )));
+        }
     }
 
     #[test]
@@ -770,6 +798,8 @@ proptest! {
         pitch in 10.0f64..60.0,
         pick in 0usize..21,
         hole in any::<bool>(),
+        turn in prop::option::of(0.0f64..360.0),
+        across in any::<bool>(),
     ) {
         let n = pts.len();
         let ring: Vec<DVec2> = pts.iter().enumerate().map(|(i, &(j, r))| {
@@ -793,6 +823,9 @@ proptest! {
             if let Err(e) = check_shape(&p, shape, pitch) {
                 return Err(TestCaseError::fail(format!("{e}: {:?}", p.outer)));
             }
+        }
+        if let Err(e) = check_oriented(&p, ALL_PITCHED[pick % ALL_PITCHED.len()], pitch, turn, across) {
+            return Err(TestCaseError::fail(format!("{e} ({turn:?}, across {across}): {:?}", p.outer)));
         }
     }
 }

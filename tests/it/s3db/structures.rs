@@ -158,7 +158,7 @@ impl Out {
     /// type its geometry has.
     fn count(&self, id: i64, kind: &str) -> usize {
         if kind == "Window" || kind == "Door" {
-            return self.openings(id).iter().filter(|(k, _)| k == kind).count();
+            return self.openings(id).iter().filter(|(k, ..)| k == kind).count();
         }
         self.under(self.object_of(id))
             .iter()
@@ -167,8 +167,8 @@ impl Out {
     }
 
     /// The openings of the object of way `id`: the semantic surfaces of its geometry typed
-    /// `Window` or `Door`, each with its lowest height.
-    fn openings(&self, id: i64) -> Vec<(String, f64)> {
+    /// `Window` or `Door`, each with its lowest height and the mean of its vertices in plan.
+    fn openings(&self, id: i64) -> Vec<(String, f64, [f64; 2])> {
         fn pair(values: &Value, bounds: &Value, f: &mut dyn FnMut(u64, &Value)) {
             let (Some(vs), Some(bs)) = (values.as_array(), bounds.as_array()) else {
                 return;
@@ -191,7 +191,7 @@ impl Out {
                 &mut |v, face| {
                     let t = surfaces[v as usize]["type"].as_str().unwrap_or("");
                     if t == "Window" || t == "Door" {
-                        out.push((t.to_string(), self.lowest(face)));
+                        out.push((t.to_string(), self.lowest(face), self.centre(face)));
                     }
                 },
             );
@@ -209,8 +209,8 @@ impl Out {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// The lowest height of the vertices a boundary array names (metres).
-    fn lowest(&self, bounds: &Value) -> f64 {
+    /// The vertices a boundary array names.
+    fn points(&self, bounds: &Value) -> Vec<[f64; 3]> {
         fn walk(v: &Value, out: &mut Vec<usize>) {
             match v {
                 Value::Array(a) => a.iter().for_each(|x| walk(x, out)),
@@ -220,9 +220,25 @@ impl Out {
         }
         let mut idx = Vec::new();
         walk(bounds, &mut idx);
-        idx.iter()
-            .map(|&i| self.vertices[i][2])
+        idx.iter().map(|&i| self.vertices[i]).collect()
+    }
+
+    /// The lowest height of the vertices a boundary array names (metres).
+    fn lowest(&self, bounds: &Value) -> f64 {
+        self.points(bounds)
+            .iter()
+            .map(|p| p[2])
             .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The mean in plan of the vertices a boundary array names.
+    fn centre(&self, bounds: &Value) -> [f64; 2] {
+        let p = self.points(bounds);
+        let n = p.len().max(1) as f64;
+        [
+            p.iter().map(|q| q[0]).sum::<f64>() / n,
+            p.iter().map(|q| q[1]).sum::<f64>() / n,
+        ]
     }
 
     /// The report's notes on `id`.
@@ -412,8 +428,14 @@ fn a_canopy_and_a_carport_are_roofs_on_nothing() {
 }
 
 #[test]
-fn a_tower_with_a_viewing_platform_has_windows_near_its_top_only() {
+fn a_tower_with_a_viewing_platform_has_windows_near_its_top_and_a_door_at_its_base() {
     let mut osm = Osm::default();
+    // Its street runs along the south, 6 m off.
+    osm.line(
+        9,
+        &[(-30.0, -6.0), (40.0, -6.0)],
+        &[("highway", "residential"), ("name", "Tower Road")],
+    );
     osm.way(
         1,
         &rect(0.0, 0.0, 10.0, 10.0),
@@ -454,15 +476,43 @@ fn a_tower_with_a_viewing_platform_has_windows_near_its_top_only() {
         }
     }
     let mut windows = 0;
+    let mut doors = Vec::new();
     for id in [2, 3, 4] {
-        assert_eq!(l3.count(id, "Door"), 0, "way/{id}: a tower has no door");
-        for (_, z) in l3.openings(id) {
+        for (t, z, at) in l3.openings(id) {
+            if t == "Door" {
+                doors.push((id, z, at));
+                continue;
+            }
             windows += 1;
             assert!(z >= 31.0, "way/{id}: a window at {z} m");
         }
         assert_eq!(l4.count(id, "BuildingRoom"), 0, "way/{id}: a room");
     }
     assert!(windows > 0, "the platform has its windows");
+    // One door, at the foot of the shaft (way/2, 4 m square), on its south wall facing the
+    // street.
+    assert_eq!(doors.len(), 1, "one base door: {doors:?}");
+    let (id, z, [x, y]) = doors[0];
+    assert_eq!(id, 2, "the door is in the shaft");
+    assert!(z < 0.5, "the door stands on the ground: {z} m");
+    // The shaft's plan in the output's CRS.
+    let shaft = &l3.objects[l3.object_of(2)];
+    let pts: Vec<[f64; 3]> = shaft["geometry"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .flat_map(|g| l3.points(&g["boundaries"]))
+        .collect();
+    let lo = |i: usize| pts.iter().map(|p| p[i]).fold(f64::INFINITY, f64::min);
+    let hi = |i: usize| pts.iter().map(|p| p[i]).fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        (y - lo(1)).abs() < 0.5 && lo(0) < x && x < hi(0) && hi(1) - y > 3.5,
+        "on the south wall: {x}, {y} in x {}..{}, y {}..{}",
+        lo(0),
+        hi(0),
+        lo(1),
+        hi(1)
+    );
 }
 
 #[test]
@@ -507,7 +557,7 @@ fn a_church_keeps_its_windows_and_its_tower_a_belfry() {
     }
     // The belfry: windows on the tower's top storey only, under its 6 m roof; no door.
     let mut belfry = 0;
-    for (t, z) in l3.openings(3) {
+    for (t, z, _) in l3.openings(3) {
         assert_ne!(t, "Door", "a door in the tower");
         belfry += 1;
         assert!(z >= 25.0, "a tower window at {z} m");

@@ -215,6 +215,93 @@ struct TFace {
     pts: Vec<DVec3>,
 }
 
+/// How long a turned profile roof's footprint is drawn across its ridge, as a fraction of its
+/// extent along the ridge (see [`turned_profile_roof`]).
+pub(crate) const TURN_SQUEEZE: f64 = 0.5;
+
+/// A profile roof whose ridge runs parallel to `ridge` (in plan), across the footprint's
+/// wings: `roof:direction` or `roof:orientation=across` on a skeleton roof (half-hipped,
+/// gambrel, mansard, ...).
+///
+/// The skeleton lays a roof's ridges along the longest wings. To turn them, the footprint is
+/// squeezed across `ridge` until its extent across is [`TURN_SQUEEZE`] of its extent along;
+/// the profile roof of the squeezed footprint has its ridge along `ridge`, and is stretched
+/// back. The map is affine in plan (planes stay planes, vertical gable walls stay vertical,
+/// the squeezed footprint's vertices map back exactly onto the footprint's own, so the roof's
+/// projection is the footprint). Heights are divided by the squeeze so that the slopes facing
+/// `ridge`'s normal (the main slopes) keep the profile's pitch; the ends facing along the
+/// ridge come out steeper, as a carpenter frames a turned roof. This is the weighted straight
+/// skeleton for the two axes of the footprint.
+///
+/// Errors: as [`profile_roof`] on the squeezed footprint.
+pub(crate) fn turned_profile_roof(
+    poly: &Polygon,
+    ridge: DVec2,
+    ends: Ends,
+    profile: impl Fn(f64) -> Profile,
+) -> Result<RoofGeometry, RoofError> {
+    let r = ridge.normalize_or_zero();
+    let n = r.perp();
+    let (mut r0, mut r1, mut n0, mut n1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for p in &poly.outer {
+        r0 = r0.min(p.dot(r));
+        r1 = r1.max(p.dot(r));
+        n0 = n0.min(p.dot(n));
+        n1 = n1.max(p.dot(n));
+    }
+    let (along, across) = (r1 - r0, n1 - n0);
+    let squeeze = TURN_SQUEEZE * along / across;
+    if r == DVec2::ZERO || !(squeeze.is_finite() && squeeze > 0.0) {
+        return Err(RoofError::InvalidParameter(
+            "no direction to turn the roof to",
+        ));
+    }
+    let o = poly.outer[0];
+    let to = |p: DVec2| p + n * ((squeeze - 1.0) * (p - o).dot(n));
+    let back = |p: DVec2| p + n * ((1.0 / squeeze - 1.0) * (p - o).dot(n));
+    let mut exact = std::collections::HashMap::new();
+    let mut ring = |v: &Vec<DVec2>| -> Vec<DVec2> {
+        v.iter()
+            .map(|&p| {
+                let q = to(p);
+                exact.insert((q.x.to_bits(), q.y.to_bits()), p);
+                q
+            })
+            .collect()
+    };
+    let squeezed = Polygon::new(
+        ring(&poly.outer),
+        poly.holes.iter().map(&mut ring).collect(),
+    );
+    let g = profile_roof(&squeezed, ends, profile)?;
+    let unsqueeze = |f: Face| -> Face {
+        let map = |v: Vec<DVec3>| -> Vec<DVec3> {
+            v.into_iter()
+                .map(|p| {
+                    let q = exact
+                        .get(&(p.x.to_bits(), p.y.to_bits()))
+                        .copied()
+                        .unwrap_or_else(|| back(p.truncate()));
+                    q.extend(p.z / squeeze)
+                })
+                .collect()
+        };
+        Face {
+            outer: map(f.outer),
+            holes: f.holes.into_iter().map(map).collect(),
+        }
+    };
+    Ok(RoofGeometry::from_parts(
+        g.faces.into_iter().map(unsqueeze).collect(),
+        g.gable_walls.into_iter().map(unsqueeze).collect(),
+    ))
+}
+
 /// Builds a profile roof (see the module documentation) with the eave at z = 0.
 ///
 /// `profile` receives `T`, the largest skeleton distance (the inscribed radius), and returns

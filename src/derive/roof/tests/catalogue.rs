@@ -352,6 +352,97 @@ fn roof_direction_turns_the_ridge_of_a_gabled_roof() {
     assert_eq!(plain.faces, r.faces, "north is the skeleton's own ridge");
 }
 
+/// The skeleton roofs that `roof:direction` and `roof:orientation=across` turn
+/// (`shapes::turned_profile_roof`).
+const TURNABLE: [RoofShape; 9] = [
+    RoofShape::Hipped,
+    RoofShape::HalfHipped,
+    RoofShape::SideHipped,
+    RoofShape::SideHalfHipped,
+    RoofShape::HippedAndGabled,
+    RoofShape::BellcastGable,
+    RoofShape::Mansard,
+    RoofShape::Gambrel,
+    RoofShape::Round,
+];
+
+#[test]
+fn roof_direction_and_orientation_turn_the_ridge_of_every_skeleton_roof() {
+    // A 20 x 8 m rectangle long in x. Slopes facing east (or 80°, nearer east than north) or
+    // `across` put the ridge north-south through the middle; north keeps the skeleton's own
+    // roof, its ridge along x.
+    let p = rect(20.0, 8.0);
+    for shape in TURNABLE {
+        let plain = build_oriented(&p, shape, PITCH, None, false).unwrap();
+        let north = checked(&mass(&p, shape, Some(0.0), false));
+        assert_eq!(
+            plain.faces, north.faces,
+            "{shape:?}: north is the skeleton's own"
+        );
+        let top = top_points(&north);
+        assert!(
+            top.iter().all(|q| (q.y - 4.0).abs() < 1e-6),
+            "{shape:?} {top:?}"
+        );
+        for (bearing, across) in [
+            (Some(90.0), false),
+            (Some(270.0), false),
+            (Some(80.0), false),
+            (None, true),
+        ] {
+            let r = checked(&mass(&p, shape, bearing, across));
+            let top = top_points(&r);
+            assert!(
+                top.iter().all(|q| (q.x - 10.0).abs() < 1e-6),
+                "{shape:?} {bearing:?} {across}: ridge not north-south {top:?}"
+            );
+            let span = |f: fn(&DVec3) -> f64| {
+                let v: Vec<f64> = top.iter().map(f).collect();
+                v.iter().copied().fold(f64::MIN, f64::max)
+                    - v.iter().copied().fold(f64::MAX, f64::min)
+            };
+            assert!(
+                span(|q| q.y) > 1.0,
+                "{shape:?}: a ridge, not an apex {top:?}"
+            );
+            // The main slopes (facing east and west) keep the pitch: the ridge is 10 m from
+            // the eaves they rise from.
+            if matches!(shape, RoofShape::Hipped | RoofShape::HalfHipped) {
+                assert!((r.height - 10.0 * PITCH.to_radians().tan()).abs() < 1e-6);
+                for f in r.faces.iter().filter(|f| f.normal().x.abs() > 0.5) {
+                    assert!((slope(f) - PITCH).abs() < 1e-6, "{shape:?}: {}", slope(f));
+                }
+            }
+        }
+    }
+    // An L and a courtyard turn and close too.
+    let ell = poly(&[
+        (0., 0.),
+        (16., 0.),
+        (16., 6.),
+        (6., 6.),
+        (6., 14.),
+        (0., 14.),
+    ]);
+    let court = Polygon::new(
+        rect(24.0, 16.0).outer,
+        vec![vec![
+            DVec2::new(8., 5.),
+            DVec2::new(8., 11.),
+            DVec2::new(16., 11.),
+            DVec2::new(16., 5.),
+        ]],
+    );
+    for p in [ell, court, church()] {
+        for shape in TURNABLE {
+            for bearing in [0.0, 35.0, 90.0, 200.0] {
+                checked(&mass(&p, shape, Some(bearing), false));
+            }
+            checked(&mass(&p, shape, None, true));
+        }
+    }
+}
+
 #[test]
 fn new_names_parse_and_map_to_their_codes() {
     for (name, shape, code) in [
