@@ -1,4 +1,7 @@
-//! Colours: CSS/X11 colour names, `#rgb`/`#rrggbb` hex, and the thesis's `r;g;b` float triples.
+//! Colours: CSS/X11 colour names, `#rgb`/`#rrggbb` hex, and the thesis's `r;g;b` float triples;
+//! and surface materials ([`material`]).
+
+pub mod material;
 
 /// A linear RGBA colour with components in 0..=1 (sRGB encoded, as CSS gives them).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -12,6 +12,7 @@ use std::fmt;
 
 use glam::{DVec2, DVec3};
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::geometry::Polygon;
 
@@ -715,6 +716,11 @@ pub struct Part {
     /// `roof:colour`, then `roof:material`, then the knowledge base's `roofColor`, CSS `darkred` by
     /// default).
     pub roof_color: Color,
+    /// What the walls are made of (issue 49): the style's `building:material`, else the
+    /// knowledge base's `material` ([`Material::parse`]); how the writers make them reflect.
+    pub wall_material: Material,
+    /// What the roof is made of: the style's `roof:material` ([`Material::parse`]).
+    pub roof_material: Material,
     /// The roof shape derived for the part, or [`RoofShape::Flat`] when it fell back to flat (or is
     /// under 5 cm high). At LOD1, where every part is a flat-topped block, it still names the
     /// derived shape.

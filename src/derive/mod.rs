@@ -19,6 +19,7 @@ use self::massing::Mass;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::geometry::Polygon;
 use crate::grammar::{self, AttrValue, Attrs, Caps, Geometry, Label, RuleSet, ShapeTree};
@@ -315,6 +316,8 @@ impl Generator {
                     notes.extend(roof_notes.into_iter().map(|n| (Outcome::Note, n)));
                     part.source = Some(piece.id);
                     part.structure = tags.structure;
+                    part.wall_material = Material::of(style.material.as_deref());
+                    part.roof_material = Material::of(style.roof_material.as_deref());
                     if piece.id == lot.id {
                         part.role = rest_role;
                     }

@@ -1022,6 +1022,8 @@ pub(crate) mod samples {
             levels,
             wall_color: Color::rgb(0.96, 0.96, 0.86),
             roof_color: Color::rgb(0.7, 0.2, 0.1),
+            wall_material: Default::default(),
+            roof_material: Default::default(),
             roof_shape: RoofShape::Flat,
             walls,
             roof: vec![roof],

@@ -441,6 +441,7 @@ mod tests {
             window_style: "framed".into(),
             window_material: "glass".into(),
             material: None,
+            roof_material: None,
             opening: None,
             zone_path: "earth/X".into(),
             appearance_label: "earth/X#1".into(),

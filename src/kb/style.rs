@@ -79,6 +79,8 @@ pub struct Style {
     pub window_material: String,
     /// Wall material (`BricksBasic`, OSM `building:material`, ...), when known.
     pub material: Option<String>,
+    /// Roof material (OSM `roof:material`), when known.
+    pub roof_material: Option<String>,
     /// The chosen appearance's drawn window subdivision; `None`: one pane per window (zones'
     /// `<info>` have none).
     pub opening: Option<OpeningTree>,
@@ -329,6 +331,7 @@ impl KnowledgeBase {
                 .unwrap_or_else(|| "glass".into())
                 .to_ascii_lowercase(),
             material: v.material.clone(),
+            roof_material: None,
             opening,
             zone_path,
             appearance_label,
@@ -552,6 +555,9 @@ fn apply_tags(s: &mut Style, t: &BuildingTags, notes: &mut Vec<String>) {
     if let Some(m) = &t.material {
         s.material = Some(m.clone());
     }
+    if let Some(m) = &t.roof_material {
+        s.roof_material = Some(m.clone());
+    }
     if t.is_roof() {
         roof_on_pillars(s, t);
     }
@@ -613,30 +619,8 @@ fn roof_on_pillars(s: &mut Style, t: &BuildingTags) {
     }
 }
 
-/// The usual colour of an OSM `building:material` / `roof:material` value, when it has one.
+/// The usual colour of an OSM `building:material` / `roof:material` value, when it has one
+/// ([`crate::color::material::usual_color`]: the one table of materials).
 pub fn material_color(material: &str) -> Option<Color> {
-    let rgb = match material
-        .trim()
-        .to_ascii_lowercase()
-        .replace(['-', ' '], "_")
-        .as_str()
-    {
-        "roof_tiles" | "tiles" | "tile" | "clay" | "terracotta" => 0xb5523b,
-        "slate" => 0x4a5259,
-        "metal" | "metal_sheet" | "steel" | "tin" | "zinc" => 0x8a9197,
-        "copper" => 0x6f9f8a,
-        "concrete" | "cement_block" => 0xa8a8a0,
-        "glass" => 0xa8c8d8,
-        "thatch" => 0xb8a060,
-        "tar_paper" | "asphalt" | "bitumen" | "eternit" => 0x3c3c3c,
-        "wood" | "timber_framing" => 0x8b5a2b,
-        "gravel" => 0x9a9a92,
-        "grass" | "plants" => 0x6a8a3a,
-        "stone" | "sandstone" | "limestone" => 0xa89f8f,
-        "brick" | "bricks" => 0xa0522d,
-        "plaster" | "render" | "stucco" => 0xe8dcc8,
-        "marble" => 0xe8e6e0,
-        _ => return None,
-    };
-    Some(Color::from_rgb24(rgb))
+    crate::color::material::usual_color(material)
 }

@@ -28,6 +28,7 @@ mod kb_edit;
 mod learn;
 mod lod4;
 mod lod4_export;
+mod materials;
 mod merge_guard;
 mod osm_xml;
 mod preview;

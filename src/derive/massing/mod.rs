@@ -266,6 +266,8 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
             .collect(),
         wall_color: mass.wall_color,
         roof_color: mass.roof_color,
+        wall_material: Default::default(),
+        roof_material: Default::default(),
         roof_shape: if flat { RoofShape::Flat } else { mass.roof },
         walls,
         roof: roof_faces,

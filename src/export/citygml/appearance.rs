@@ -1,6 +1,8 @@
-//! Appearance of the CityGML writer: one `app:X3DMaterial` per distinct colour of a building,
-//! targeting its polygons by id.
+//! Appearance of the CityGML writer: one `app:X3DMaterial` per distinct (colour, material) of a
+//! building, targeting its polygons by id. A surface's material is the part's `wall_material`
+//! or `roof_material`, glass for a glazed window ([`Material::of_pane`]), none for the rest.
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::model::{Building, OpeningKind};
@@ -13,22 +15,23 @@ use super::{lod4, GeometryLod, Renderer, APPEARANCE_THEME, GLASS_TRANSPARENCY};
 pub(super) type Target = (usize, SurfaceKind, usize);
 
 impl Renderer<'_> {
-    /// The local appearance: one X3DMaterial per distinct colour, in order of first use.
+    /// The local appearance: one X3DMaterial per distinct (colour, material), in order of first
+    /// use.
     pub(super) fn appearance(&mut self, building_id: &str, b: &Building, part_ids: &[String]) {
         // (colour, [(part index, kind, index)]) in first-use order: deterministic, and the few
         // colours of a building make a linear search cheaper than hashing.
-        let mut materials: Vec<(ColorKey, Vec<Target>)> = Vec::new();
+        let mut materials: Vec<((ColorKey, Material), Vec<Target>)> = Vec::new();
         for (pi, part) in b.parts.iter().enumerate() {
             for s in surfaces(part) {
-                let color = match s.kind {
-                    SurfaceKind::Ground => Color::GREY,
-                    SurfaceKind::Roof => part.roof_color,
+                let (color, material) = match s.kind {
+                    SurfaceKind::Ground => (Color::GREY, Material::Unspecified),
+                    SurfaceKind::Roof => (part.roof_color, part.roof_material),
                     // `surfaces` yields no openings or balconies.
                     SurfaceKind::Wall
                     | SurfaceKind::Opening { .. }
-                    | SurfaceKind::Balcony { .. } => part.wall_color,
+                    | SurfaceKind::Balcony { .. } => (part.wall_color, part.wall_material),
                 };
-                add_target(&mut materials, color, (pi, s.kind, s.index));
+                add_target(&mut materials, color, material, (pi, s.kind, s.index));
             }
             if self.lod < GeometryLod::Lod3 {
                 continue;
@@ -48,6 +51,7 @@ impl Renderer<'_> {
                     add_target(
                         &mut materials,
                         color,
+                        Material::of_pane(o.kind == OpeningKind::Window && o.glazed),
                         (pi, SurfaceKind::Opening { wall: wi }, k),
                     );
                 }
@@ -60,7 +64,7 @@ impl Renderer<'_> {
                             wall: wi,
                             balcony: k,
                         };
-                        add_target(&mut materials, color, (pi, kind, i));
+                        add_target(&mut materials, color, Material::Unspecified, (pi, kind, i));
                     }
                 }
             }
@@ -91,13 +95,15 @@ impl Renderer<'_> {
     }
 }
 
-/// Adds `target` to the material of `color`, creating it (last) on first use.
+/// Adds `target` to the X3D material of `color` and `material`, creating it (last) on first
+/// use.
 pub(super) fn add_target(
-    materials: &mut Vec<(ColorKey, Vec<Target>)>,
+    materials: &mut Vec<((ColorKey, Material), Vec<Target>)>,
     color: Color,
+    material: Material,
     target: Target,
 ) {
-    let key = ColorKey::of(color);
+    let key = (ColorKey::of(color), material);
     match materials.iter_mut().find(|(k, _)| *k == key) {
         Some((_, targets)) => targets.push(target),
         None => materials.push((key, vec![target])),

@@ -28,6 +28,7 @@ use glam::DVec3;
 use super::material::{x3d_material, ColorKey};
 use super::surfaces::surfaces;
 use super::xml::Xml;
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::export::lod4geom::{self, prism_faces, room_shell, RoomShell};
 use crate::model::{Building, Face, Part};
@@ -249,6 +250,13 @@ pub(super) fn materials(x: &mut Xml, building_id: &str, b: &Building, part_ids: 
         }
         // The interior colours are opaque: no app:transparency is written.
         let key = ColorKey::of(*color);
-        x3d_material(x, [building_id, "_i"], n, key, targets, |x, t| x.s(t));
+        x3d_material(
+            x,
+            [building_id, "_i"],
+            n,
+            (key, Material::Unspecified),
+            targets,
+            |x, t| x.s(t),
+        );
     }
 }

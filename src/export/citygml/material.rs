@@ -1,6 +1,8 @@
-//! The X3D material of the CityGML writer: a colour as written, and the one
-//! `app:surfaceDataMember` writer that the exterior's appearance and the LOD4 interior's share.
+//! The X3D material of the CityGML writer: a colour as written with its surface material, and
+//! the one `app:surfaceDataMember` writer that the exterior's appearance and the LOD4
+//! interior's share.
 
+use crate::color::material::Material;
 use crate::color::Color;
 
 use super::xml::Xml;
@@ -31,14 +33,16 @@ impl ColorKey {
 }
 
 /// Writes one `app:surfaceDataMember` holding an `app:X3DMaterial` with id `{id[0]}{id[1]}{n}`
-/// (e.g. `B_way_1_m0`) of the colour `key` (its `app:transparency` only when not opaque),
+/// (e.g. `B_way_1_m0`) of the colour and material `key`: `app:diffuseColor`, the material's
+/// `app:shininess` when a material is known ([`Material::shininess`]: one minus its PBR
+/// roughness, so brick is 0.15, slate 0.4, glass 0.9), `app:transparency` only when not opaque,
 /// targeting each of `targets` by the polygon id `target` writes for it. Used for the
 /// exterior's materials (`appearance`) and for the LOD4 interior's (`lod4::materials`).
 pub(super) fn x3d_material<T>(
     x: &mut Xml,
     id: [&str; 2],
     n: usize,
-    key: ColorKey,
+    (key, material): (ColorKey, Material),
     targets: &[T],
     target: impl Fn(&mut Xml, &T),
 ) {
@@ -54,6 +58,11 @@ pub(super) fn x3d_material<T>(
         x.fixed4(*c);
     }
     x.s("</app:diffuseColor>\n");
+    if material != Material::Unspecified {
+        x.s("<app:shininess>");
+        x.fixed4((material.shininess() * 10_000.0).round() as u16);
+        x.s("</app:shininess>\n");
+    }
     if key.transparency > 0 {
         x.s("<app:transparency>");
         x.fixed4(key.transparency);

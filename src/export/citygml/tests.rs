@@ -83,6 +83,8 @@ fn prism(
         levels: vec![base],
         wall_color: wall,
         roof_color: roof,
+        wall_material: Default::default(),
+        roof_material: Default::default(),
         roof_shape: RoofShape::Flat,
         walls,
         roof: vec![roof_face],

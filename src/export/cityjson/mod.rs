@@ -61,7 +61,10 @@
 //! (walls: the part's wall colour, roofs: its roof colour, LOD3 openings: their own colour,
 //! glazed windows 0.6 transparent as in the CityGML; the ground `null`). A material is
 //! `{"name":"#rrggbb","diffuseColor":[r,g,b],"isSmooth":false}` (with `transparency` when not
-//! opaque), one per distinct colour. The `.city.json` numbers them in first-use order over
+//! opaque), one per distinct (colour, surface material); when the surface's material is known
+//! (`crate::color::material`: the part's `wall_material` / `roof_material`, glass for glazed
+//! windows) its name follows the colour's (`"#a0522d brick"`) and `shininess` (one minus its
+//! PBR roughness) comes after the colour, as in the CityGML's X3D materials. The `.city.json` numbers them in first-use order over
 //! the file and writes `"appearance":{"materials":[..]}` after the CityObjects; each
 //! CityJSONSeq feature carries its own `appearance` with its own materials.
 //!
@@ -174,7 +177,7 @@ fn header(ctx: &OutputContext, writer: &str) -> Result<(Vec<u8>, Vec<u8>), Expor
 }
 
 /// `"appearance":{"materials":[..]}` of these material keys.
-fn appearance(out: &mut Vec<u8>, mats: &[u32]) {
+fn appearance(out: &mut Vec<u8>, mats: &[u64]) {
     out.extend_from_slice(b"\"appearance\":{\"materials\":[");
     for (i, &k) in mats.iter().enumerate() {
         if i > 0 {
@@ -293,8 +296,8 @@ pub(crate) struct CityJsonWriter<W: Write + Send> {
     /// The file's terrain and its id, written after the buildings.
     terrain: Option<(std::sync::Arc<crate::model::Terrain>, String)>,
     /// The file's materials ([`render::material_key`]) in first-use order, and their indices.
-    materials: Vec<u32>,
-    material_index: std::collections::HashMap<u32, u64>,
+    materials: Vec<u64>,
+    material_index: std::collections::HashMap<u64, u64>,
     /// Each slot's materials' file indices (scratch).
     mat_tables: Vec<Vec<u64>>,
     /// The vertices' extent (millimetres from the translate): minimum and maximum.

@@ -9,6 +9,7 @@ use glam::DVec3;
 
 use crate::export::ids::{id_fragment, part_ids};
 
+use crate::color::material::{Material, ALL};
 use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
@@ -25,18 +26,27 @@ pub(super) const THEME: &str = "citygen";
 /// `transparency` of glazed windows' material (as the CityGML writer's glass).
 const GLASS_TRANSPARENCY: f32 = 0.6;
 
-/// A colour as a material key: RGBA, 8 bits each.
-pub(super) fn material_key(c: Color) -> u32 {
-    let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u32;
-    (q(c.r) << 24) | (q(c.g) << 16) | (q(c.b) << 8) | q(c.a)
+/// A colour and a surface material as a material key: the material's index above RGBA, 8 bits
+/// each.
+pub(super) fn material_key(c: Color, m: Material) -> u64 {
+    let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u64;
+    ((m as u64) << 32) | (q(c.r) << 24) | (q(c.g) << 16) | (q(c.b) << 8) | q(c.a)
 }
 
 /// A material object (`{"name":"#rrggbb","diffuseColor":[r,g,b],...}`) of key `k`.
-pub(super) fn push_material(out: &mut Vec<u8>, k: u32) {
-    let c = |shift: u32| (k >> shift) & 0xff;
+pub(super) fn push_material(out: &mut Vec<u8>, k: u64) {
+    let c = |shift: u32| ((k >> shift) & 0xff) as u32;
     let unit = |v: u32| format!("{:.4}", f64::from(v) / 255.0);
+    let material = ALL
+        .get((k >> 32) as usize)
+        .copied()
+        .unwrap_or(Material::Unspecified);
+    let name = match material {
+        Material::Unspecified => String::new(),
+        m => format!(" {}", m.name()),
+    };
     let mut s = format!(
-        "{{\"name\":\"#{:02x}{:02x}{:02x}\",\"diffuseColor\":[{},{},{}],\"isSmooth\":false",
+        "{{\"name\":\"#{:02x}{:02x}{:02x}{name}\",\"diffuseColor\":[{},{},{}],\"isSmooth\":false",
         c(24),
         c(16),
         c(8),
@@ -44,6 +54,9 @@ pub(super) fn push_material(out: &mut Vec<u8>, k: u32) {
         unit(c(16)),
         unit(c(8))
     );
+    if material != Material::Unspecified {
+        s.push_str(&format!(",\"shininess\":{:.2}", material.shininess()));
+    }
     if c(0) < 255 {
         s.push_str(&format!(",\"transparency\":{}", unit(255 - c(0))));
     }
@@ -94,7 +107,7 @@ pub(super) struct Frag {
     /// an index to insert there.
     pub(super) marks: Vec<(usize, u32)>,
     /// The building's distinct materials ([`material_key`]) in first-use order.
-    pub(super) mats: Vec<u32>,
+    pub(super) mats: Vec<u64>,
     /// The building's distinct vertices in first-use order.
     pub(super) verts: Vec<Vertex>,
     /// `verts` by value (scratch, emptied per building).
@@ -113,13 +126,14 @@ impl Frag {
         self.id.clear();
     }
 
-    /// The index of colour `c`'s material, marked at the end of the text (`null` for none).
-    fn material(&mut self, c: Option<Color>) {
-        let Some(c) = c else {
+    /// The index of the material of colour and surface material `c`, marked at the end of the
+    /// text (`null` for none).
+    fn material(&mut self, c: Option<(Color, Material)>) {
+        let Some((c, m)) = c else {
             self.s("null");
             return;
         };
-        let k = material_key(c);
+        let k = material_key(c, m);
         let i = match self.mats.iter().position(|&m| m == k) {
             Some(i) => i,
             None => {
@@ -199,7 +213,7 @@ impl Frag {
         lod: &str,
         faces: &[&Face],
         sem: Option<&Semantics>,
-        colours: Option<&[Option<Color>]>,
+        colours: Option<&[Option<(Color, Material)>]>,
     ) {
         self.s("{\"type\":\"Solid\",\"lod\":\"");
         self.s(lod);
@@ -686,7 +700,7 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
     match lod {
         Lod::Lod1 => {
             let faces: Vec<&Face> = surfaces(part).map(|(_, f)| f).collect();
-            let colours: Vec<Option<Color>> =
+            let colours: Vec<Option<(Color, Material)>> =
                 surfaces(part).map(|(k, _)| colour_of(part, k)).collect();
             f.solid("1", &faces, None, Some(&colours));
         }
@@ -715,24 +729,27 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
     f.s("]");
 }
 
-/// The colour of a part's surface: its wall or roof colour; none for the ground.
-fn colour_of(part: &Part, kind: Kind) -> Option<Color> {
+/// The colour and material of a part's surface: its wall or roof colour and material; none
+/// for the ground.
+fn colour_of(part: &Part, kind: Kind) -> Option<(Color, Material)> {
     match kind {
         Kind::Ground => None,
-        Kind::Wall(_) => Some(part.wall_color),
-        Kind::Roof => Some(part.roof_color),
+        Kind::Wall(_) => Some((part.wall_color, part.wall_material)),
+        Kind::Roof => Some((part.roof_color, part.roof_material)),
     }
 }
 
-/// An opening's material colour: its own, glazed windows' transparent.
-fn opening_colour(o: &crate::model::Opening) -> Color {
+/// An opening's material colour and material: its own colour, glazed windows' transparent
+/// glass.
+fn opening_colour(o: &crate::model::Opening) -> (Color, Material) {
     if o.kind == OpeningKind::Window && o.glazed {
-        Color {
+        let c = Color {
             a: 1.0 - GLASS_TRANSPARENCY,
             ..o.color
-        }
+        };
+        (c, Material::of_pane(true))
     } else {
-        Color { a: 1.0, ..o.color }
+        (Color { a: 1.0, ..o.color }, Material::Unspecified)
     }
 }
 
@@ -749,8 +766,8 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
         sem.object("RoofSurface"),
     );
     let mut faces: Vec<&Face> = Vec::new();
-    let mut colours: Vec<Option<Color>> = Vec::new();
-    let mut openings: Vec<(Face, usize, Color)> = Vec::new();
+    let mut colours: Vec<Option<(Color, Material)>> = Vec::new();
+    let mut openings: Vec<(Face, usize, (Color, Material))> = Vec::new();
     for (kind, face) in surfaces(part) {
         let fi = match kind {
             Kind::Ground => Some(0),
@@ -767,7 +784,7 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
             Kind::Roof => r,
             Kind::Wall(i) => {
                 let wall = &part.walls[i];
-                let ops: Vec<(Face, OpeningKind, Color)> = wall
+                let ops: Vec<(Face, OpeningKind, (Color, Material))> = wall
                     .openings
                     .iter()
                     .filter_map(|o| {

@@ -11,7 +11,8 @@ use crate::color::Color;
 use crate::geometry::triangulate::Triangulator;
 use crate::model::Face;
 
-use super::materials::{color_key, Finish};
+use super::materials::color_key;
+use crate::color::material::Material;
 
 /// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
 /// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
@@ -19,11 +20,11 @@ pub(crate) fn to_gltf(p: DVec3) -> [f32; 3] {
     [p.x as f32 + 0.0, p.z as f32 + 0.0, (-p.y) as f32 + 0.0]
 }
 
-/// Faces of one surface class, one colour and one finish in one building.
+/// Faces of one surface class, one colour and one material in one building.
 pub(crate) struct Group {
     pub(crate) color: Color,
     pub(super) color_key: [u32; 4],
-    pub(crate) finish: Finish,
+    pub(crate) material: Material,
     pub(crate) mesh: MeshData,
 }
 
@@ -36,22 +37,22 @@ impl Group {
 
 /// The matte group of `color` in `groups`, created (last) on first use.
 pub(crate) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
-    group_with(groups, color, Finish::Matte)
+    group_with(groups, color, Material::Unspecified)
 }
 
-/// The group of `color` and `finish` in `groups`, created (last) on first use.
-pub(super) fn group_with(groups: &mut Vec<Group>, color: Color, finish: Finish) -> &mut Group {
+/// The group of `color` and `material` in `groups`, created (last) on first use.
+pub(super) fn group_with(groups: &mut Vec<Group>, color: Color, material: Material) -> &mut Group {
     let key = color_key(color);
     let i = match groups
         .iter()
-        .position(|g| g.color_key == key && g.finish == finish)
+        .position(|g| g.color_key == key && g.material == material)
     {
         Some(i) => i,
         None => {
             groups.push(Group {
                 color,
                 color_key: key,
-                finish,
+                material,
                 mesh: MeshData::default(),
             });
             groups.len() - 1

@@ -1,35 +1,27 @@
 //! Materials of the glTF writer: one PBR metallic-roughness material per (surface class, colour,
-//! finish). Matte materials are the colour at [`ROUGHNESS`]; glass is smooth
-//! ([`GLASS_ROUGHNESS`]) and slightly metallic ([`GLASS_METALLIC`]), and opaque glass is the
-//! window colour darkened ([`GLASS_SHADE`]), so that a pane reads as glass with a dark room
-//! behind it rather than as a painted panel, without showing the hollow shell behind it.
+//! material). The roughness and metalness are the material's ([`Material`], the one table of
+//! `crate::color::material`): a surface of no known material is matte (roughness 0.9), glass is
+//! smooth and slightly metallic, and opaque glass is the window colour darkened
+//! ([`GLASS_SHADE`]), so that a pane reads as glass with a dark room behind it rather than as a
+//! painted panel, without showing the hollow shell behind it.
 
 use std::io::Write;
 
+use crate::color::material::Material;
 use crate::color::{srgb_to_linear, Color};
 
 use super::json::{MaterialRec, Pbr};
-use super::{GltfWriter, SurfaceClass, GLASS_METALLIC, GLASS_ROUGHNESS, GLASS_SHADE, ROUGHNESS};
-
-/// How a material renders its colour.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub(crate) enum Finish {
-    /// Matte, in the colour as given (building materials).
-    Matte,
-    /// Glazing: smooth and slightly metallic; opaque and darker than the given colour when the
-    /// colour is opaque.
-    Glass,
-}
+use super::{GltfWriter, SurfaceClass, GLASS_SHADE};
 
 impl<W: Write + Send> GltfWriter<W> {
-    /// The material of `class` in `color` and `finish`, created on first use.
+    /// The material of `class` in `color` and `material`, created on first use.
     pub(super) fn material_for(
         &mut self,
         class: SurfaceClass,
         color: Color,
-        finish: Finish,
+        material: Material,
     ) -> u32 {
-        let key = (class, color_key(color), finish);
+        let key = (class, color_key(color), material);
         if let Some(&i) = self.material_index.get(&key) {
             return i;
         }
@@ -40,10 +32,11 @@ impl<W: Write + Send> GltfWriter<W> {
         } else {
             format!("{} {}", class.name(), c.to_hex())
         };
-        if finish == Finish::Glass {
-            name.push_str(" glass");
+        if material != Material::Unspecified {
+            name.push(' ');
+            name.push_str(material.name());
         }
-        let (c, metallic, roughness) = finish_params(color, finish);
+        let (c, metallic, roughness) = finish_params(color, material);
         self.doc.materials.push(MaterialRec {
             name,
             pbr: Pbr {
@@ -65,14 +58,13 @@ impl<W: Write + Send> GltfWriter<W> {
 }
 
 /// The colour (sRGB, sanitised: [`sanitize`]) and the metallic and roughness factors a
-/// surface of `color` in `finish` is drawn with: matte as given; glass smooth and a little
-/// metallic, and darker ([`GLASS_SHADE`]) when opaque, since transparent glass shows what is
-/// behind it.
-pub(crate) fn finish_params(color: Color, finish: Finish) -> (Color, f32, f32) {
+/// surface of `color` in `material` is drawn with: the colour as given, the material's
+/// factors ([`Material::metallic`], [`Material::roughness`]); glass darker ([`GLASS_SHADE`])
+/// when opaque, since transparent glass shows what is behind it.
+pub(crate) fn finish_params(color: Color, material: Material) -> (Color, f32, f32) {
     let c = sanitize(color);
-    match finish {
-        Finish::Matte => (c, 0.0, ROUGHNESS),
-        Finish::Glass => {
+    match material {
+        Material::Glass => {
             let shade = if c.a < 1.0 { 1.0 } else { GLASS_SHADE };
             let c = Color {
                 r: c.r * shade,
@@ -80,8 +72,9 @@ pub(crate) fn finish_params(color: Color, finish: Finish) -> (Color, f32, f32) {
                 b: c.b * shade,
                 a: c.a,
             };
-            (c, GLASS_METALLIC, GLASS_ROUGHNESS)
+            (c, material.metallic(), material.roughness())
         }
+        _ => (c, material.metallic(), material.roughness()),
     }
 }
 

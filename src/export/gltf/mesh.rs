@@ -9,10 +9,10 @@ use crate::model::{Building, OpeningKind, Part};
 use super::contact::{self, Exposed};
 use super::group::{bounds, group, group_with, to_gltf, Group};
 use super::lod4::add_interior;
-use super::materials::Finish;
 use super::{
     SurfaceClass, GLASS_ALPHA, GROUND_COLOR, OPENING_SETBACK, UNSIGNED_INT, UNSIGNED_SHORT,
 };
+use crate::color::material::Material;
 
 /// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation),
 /// on its walls that are `shown` (not wholly against another part). Glazed panes are glass:
@@ -57,7 +57,7 @@ pub(super) fn add_openings(
                     a: glass_alpha,
                     ..o.color
                 };
-                group_with(groups, glass, Finish::Glass).add_face(&pane);
+                group_with(groups, glass, Material::of_pane(true)).add_face(&pane);
             } else {
                 group(groups, Color { a: 1.0, ..o.color }).add_face(&pane);
             }
@@ -89,7 +89,7 @@ pub(super) struct Encoded {
 
 /// One building's faces, triangulated (flat shaded, in the model frame) and grouped by surface
 /// class (in [`SurfaceClass::ALL`]'s order, the detail classes only with `detail`: LOD3 and up)
-/// and within a class by colour and finish (in first-seen order); faces against another part
+/// and within a class by colour and material (in first-seen order); faces against another part
 /// of the building are left out (`contact`), and classes and groups without a triangle too.
 /// What the glTF writer lays out ([`encode`]) and the 3D Tiles writer batches.
 pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, Vec<Group>)> {
@@ -104,11 +104,11 @@ pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, 
         for (part, shown) in b.parts.iter().zip(&exposed) {
             match class {
                 SurfaceClass::Walls => {
-                    let g = group(&mut groups, part.wall_color);
+                    let g = group_with(&mut groups, part.wall_color, part.wall_material);
                     shown.walls.iter().flatten().for_each(|f| g.add_face(f));
                 }
                 SurfaceClass::Roof => {
-                    let g = group(&mut groups, part.roof_color);
+                    let g = group_with(&mut groups, part.roof_color, part.roof_material);
                     shown.roof.iter().for_each(|f| g.add_face(f));
                 }
                 SurfaceClass::Ground => {
@@ -224,7 +224,7 @@ pub(super) fn encode(
             prims.push(PrimLayout {
                 class: *class,
                 color: g.color,
-                finish: g.finish,
+                material: g.material,
                 count,
                 pos_offset,
                 nrm_offset,
@@ -245,7 +245,7 @@ pub(super) fn encode(
 pub(super) struct PrimLayout {
     pub(super) class: SurfaceClass,
     pub(super) color: Color,
-    pub(super) finish: Finish,
+    pub(super) material: Material,
     pub(super) count: u32,
     pub(super) pos_offset: u64,
     pub(super) nrm_offset: u64,

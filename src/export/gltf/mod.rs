@@ -33,7 +33,11 @@
 //! the wall's middle plane, one face per side; `stairs` are the steps' closed blocks; `slabs`
 //! are the floor slabs above the ground storey without their top face (the floors cover it),
 //! so their undersides are the ceilings below. Materials are PBR metallic-roughness, one per distinct
-//! (class, colour), numbered in first-seen order. Coordinates are metres, Y up, relative to the
+//! (class, colour, material), numbered in first-seen order: `baseColorFactor` the surface's
+//! colour, `roughnessFactor` and `metallicFactor` its material's (`crate::color::material`: walls
+//! the part's `wall_material`, roofs its `roof_material`, glazed panes glass, the rest matte at
+//! roughness 0.9); a material's name is `<class> <#rrggbb>` and the material's name when one is
+//! known (`walls #a0522d brick`, `roof #4a5259 slate`). Coordinates are metres, Y up, relative to the
 //! run's local origin, which `asset.extras` records with the CRS (`{"crs": "EPSG:2154",
 //! "origin": [E, N, H]}`; when the run states a vertical datum, also `"verticalCrs": "EPSG:5773"`
 //! when its code is known and `"verticalDatum"`, its name). Faces are flat shaded: every face has its own vertices and normal.
@@ -61,6 +65,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::crs::Crs;
 use crate::export::{vertical_datum, BuildingWriter, Checked, ExportError, OutputContext};
@@ -71,9 +76,9 @@ use mesh::{encode, Encoded};
 use spool::Spool;
 
 // What the 3D Tiles writer (`export::tiles3d`) shares: the faces of a building grouped and
-// triangulated, and how a colour and finish become a PBR material.
+// triangulated, and how a colour and material become a PBR material.
 pub(crate) use group::{group, Group};
-pub(crate) use materials::{finish_params, Finish};
+pub(crate) use materials::finish_params;
 pub(crate) use mesh::building_groups;
 
 mod contact;
@@ -101,9 +106,6 @@ const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 /// view that several accessors share (a building's positions and normals share one view).
 const VEC3_STRIDE: u32 = 12;
 
-/// Roughness of every material: building materials are matte.
-const ROUGHNESS: f32 = 0.9;
-
 /// Colour of ground surfaces (the model gives them none; they face down and are rarely seen).
 const GROUND_COLOR: Color = Color::GREY;
 
@@ -116,12 +118,6 @@ pub(crate) const GLASS_ALPHA: f32 = 0.35;
 /// Opaque glass is the window colour times this (in sRGB): dark, as a pane with an unlit room
 /// behind it looks from the street.
 pub(crate) const GLASS_SHADE: f32 = 0.4;
-
-/// Roughness of glass: smooth, so that viewers with an environment light show reflections.
-pub(crate) const GLASS_ROUGHNESS: f32 = 0.1;
-
-/// Metalness of glass: a little, for a stronger reflection than a plain dielectric's.
-pub(crate) const GLASS_METALLIC: f32 = 0.2;
 
 /// Semantic class of a group of surfaces: one child node per class and building.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -218,7 +214,7 @@ pub struct GltfWriter<W: Write + Send> {
     /// Reused buffer one record is serialised into.
     json_scratch: Vec<u8>,
     /// (class, colour bits) -> material index, for reuse across buildings.
-    material_index: BTreeMap<(SurfaceClass, [u32; 4], Finish), u32>,
+    material_index: BTreeMap<(SurfaceClass, [u32; 4], Material), u32>,
     /// Whether the run is LOD3 or above (openings and balconies are written).
     detail: bool,
     /// The file's terrain, written after the buildings (`terrain`).
@@ -494,7 +490,7 @@ where
             }
         }));
         let mut color = materials::sanitize(p.color);
-        if p.finish == Finish::Glass && color.a >= 1.0 {
+        if p.material == Material::Glass && color.a >= 1.0 {
             color.r *= GLASS_SHADE;
             color.g *= GLASS_SHADE;
             color.b *= GLASS_SHADE;

@@ -262,7 +262,7 @@ impl<W: Write + Send> GltfWriter<W> {
             };
             let mut primitives = Vec::with_capacity(prims.len());
             for p in prims {
-                let material = self.material_for(p.class, p.color, p.finish);
+                let material = self.material_for(p.class, p.color, p.material);
                 let acc = &mut self.spools[ACCESSORS];
                 let position = acc.push(
                     &AccessorRec {

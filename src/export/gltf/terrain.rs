@@ -8,6 +8,7 @@ use std::io::Write;
 
 use glam::{DVec3, Vec3};
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::export::ExportError;
 use crate::model::Terrain;
@@ -15,8 +16,8 @@ use crate::model::Terrain;
 use super::json::{AccessorRec, Attributes, MeshRec, NodeRec, PrimitiveRec, ViewRec};
 use super::json::{ACCESSORS, MESHES, NODES, VIEWS};
 use super::{
-    Finish, GltfWriter, State, SurfaceClass, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT,
-    UNSIGNED_INT, VEC3_STRIDE,
+    GltfWriter, State, SurfaceClass, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, UNSIGNED_INT,
+    VEC3_STRIDE,
 };
 
 /// The terrain's colour: a dry grass green.
@@ -101,7 +102,8 @@ impl<W: Write + Send> GltfWriter<W> {
                 self.bin_len
             )));
         }
-        let material = self.material_for(SurfaceClass::Terrain, TERRAIN_COLOR, Finish::Matte);
+        let material =
+            self.material_for(SurfaceClass::Terrain, TERRAIN_COLOR, Material::Unspecified);
         let count = t.vertices.len() as u32;
         let mut tmp = std::mem::take(&mut self.json_scratch);
         let r = (|| -> std::io::Result<()> {

@@ -82,6 +82,8 @@ fn part(
         levels: vec![base, (base + eave) / 2.0],
         wall_color,
         roof_color: Color::rgb(0.7, 0.2, 0.1),
+        wall_material: Default::default(),
+        roof_material: Default::default(),
         roof_shape: shape,
         walls,
         roof,

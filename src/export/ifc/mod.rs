@@ -38,8 +38,13 @@
 //!   prisms (0.2 m, or less for very low parts) hanging below the roof surface, also
 //!   `IfcFacetedBrep`. Any other roof (e.g. gabled roofs, whose gable triangles belong to the
 //!   walls) is an `IfcShellBasedSurfaceModel` of an `IfcOpenShell` (`SurfaceModel`).
-//! - Colours: one `IfcSurfaceStyle` per distinct colour in the file, applied through
-//!   `IfcStyledItem` to wall and roof bodies.
+//! - Colours and materials: one `IfcSurfaceStyle` per distinct (colour, surface material) in the
+//!   file, applied through `IfcStyledItem` to wall and roof bodies: an `IfcSurfaceStyleShading`
+//!   of the colour when no material is known, else an `IfcSurfaceStyleRendering` of the colour
+//!   with the material's `SpecularHighlight` (`IfcSpecularRoughness`, its PBR roughness) and
+//!   `ReflectanceMethod` (`METAL`, `GLASS`, `MATT`), named `#rrggbb <material>` — the table of
+//!   `crate::color::material` that the glTF's `pbrMetallicRoughness` comes from (walls: the
+//!   part's `wall_material`, roofs its `roof_material`).
 //! - Per building, property sets `Citygen_Source` (SourceId, Zone, Appearance, MeasuredHeight,
 //!   Lod, RoofShape, and the provenance of storeys, height and roof: StoreysSource,
 //!   HeightSource, RoofSource as `IfcLabel`s `tag`/`neighbours`/`fitted`/`model`/`kb`,
@@ -73,7 +78,8 @@
 //!   colours) share one `IfcWindowType`/`IfcDoorType` holding one `IfcRepresentationMap`: a
 //!   frame (`IfcRectangleHollowProfileDef` extruded 8 cm deep) and a glass pane or door panel,
 //!   or a single pane/panel when unframed, styled with `IfcSurfaceStyleRendering` (glass 65 %
-//!   transparent; styles cached per colour and transparency). Every occurrence references the
+//!   transparent, with glass's `SpecularHighlight` and `ReflectanceMethod` `GLASS`; styles
+//!   cached per colour, transparency and material). Every occurrence references the
 //!   same `IfcProductDefinitionShape` (one `IfcMappedItem` of the map), so a window costs its
 //!   placement and relationships only. The `IfcRelDefinesByType` of each type (a type has at
 //!   most one) and an `IfcRelDeclares` of all types in the project are written by `finish`.
@@ -111,6 +117,7 @@ use glam::DVec3;
 
 use rayon::prelude::*;
 
+use crate::color::material::Material;
 use crate::export::step::{hash128, Id, StepBuf, StepWriter};
 use crate::export::{BuildingWriter, Checked, ExportError, OutputContext, PARALLEL_BATCH};
 use crate::model::{Building, RoofShape};
@@ -573,7 +580,7 @@ struct Caches {
     /// Material layer set usage per wall thickness (micrometres).
     usages: Cache<i64, Id>,
     /// Surface style per colour.
-    styles: Cache<[u16; 4], Id>,
+    styles: Cache<([u16; 4], Material), Id>,
     /// `IfcAxis2Placement3D(origin, -Y, X)`: maps a profile's (x, y) to (X, Z), extruding along
     /// its -Z goes to +Y (into the wall).
     vertical: Cache<(), Id>,
@@ -588,7 +595,7 @@ struct Caches {
     /// most [`SHARED_CACHE_LIMIT`] entries).
     fill_offsets: Cache<[i64; 3], Id>,
     /// Rendering surface style per (colour, transparency in thousandths).
-    renderings: Cache<([u16; 4], u16), Id>,
+    renderings: Cache<([u16; 4], u16, Material), Id>,
     /// Window and door types (the type and the product shape of one `IfcMappedItem` of its
     /// representation map), by what makes two openings the same kind.
     types: Cache<TypeKey, (Id, Id)>,
@@ -615,7 +622,7 @@ struct Render<'a> {
     g: &'a Globals,
     w: StepBuf,
     usages: View<'a, i64, Id>,
-    styles: View<'a, [u16; 4], Id>,
+    styles: View<'a, ([u16; 4], Material), Id>,
     shared: Lod3Views<'a>,
     /// The window and door occurrences of the building, by type.
     occurrences: Vec<(TypeKey, Id)>,
@@ -631,7 +638,7 @@ struct Lod3Views<'a> {
     identity_op: View<'a, (), Id>,
     opening_shapes: View<'a, [i64; 7], Id>,
     fill_offsets: View<'a, [i64; 3], Id>,
-    renderings: View<'a, ([u16; 4], u16), Id>,
+    renderings: View<'a, ([u16; 4], u16, Material), Id>,
     types: View<'a, TypeKey, (Id, Id)>,
 }
 
@@ -660,12 +667,12 @@ struct Rendered {
 #[derive(Default)]
 struct Logs {
     usages: Log<i64, Id>,
-    styles: Log<[u16; 4], Id>,
+    styles: Log<([u16; 4], Material), Id>,
     vertical: Log<(), Id>,
     identity_op: Log<(), Id>,
     opening_shapes: Log<[i64; 7], Id>,
     fill_offsets: Log<[i64; 3], Id>,
-    renderings: Log<([u16; 4], u16), Id>,
+    renderings: Log<([u16; 4], u16, Material), Id>,
     types: Log<TypeKey, (Id, Id)>,
 }
 

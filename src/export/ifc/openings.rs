@@ -3,6 +3,7 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::export::step::{global_id, Id};
 use crate::export::ExportError;
@@ -362,6 +363,7 @@ impl Render<'_> {
                 frame,
                 color(k.frame_color),
                 alpha_transparency(k.frame_color),
+                Material::Unspecified,
             )?;
             items.push(frame);
             fw
@@ -385,7 +387,9 @@ impl Render<'_> {
         } else {
             alpha_transparency(k.color)
         };
-        self.rendered(panel, color(k.color), transparency)?;
+        // Glass where the other writers draw glass: a glazed window's pane.
+        let material = Material::of_pane(k.glazed && !k.door);
+        self.rendered(panel, color(k.color), transparency, material)?;
         items.push(panel);
 
         let body_ctx = self.g.body_ctx;

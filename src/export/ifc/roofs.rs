@@ -174,7 +174,7 @@ impl Render<'_> {
             }
         }
         for &item in &items {
-            self.styled(item, part.roof_color)?;
+            self.styled_as(item, part.roof_color, part.roof_material)?;
         }
         let body_ctx = self.g.body_ctx;
         let rep = self.representation(body_ctx, "Body", kind, &items)?;

@@ -1,9 +1,10 @@
 //! Styles, materials and property sets of the IFC writer: surface styles and renderings per
-//! colour, material layer set usages per wall thickness, their associations, and the building's
+//! colour and surface material (`crate::color::material`), material layer set usages per wall thickness, their associations, and the building's
 //! property sets.
 
 use std::collections::BTreeMap;
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::export::step::{Id, StepBuf};
 use crate::export::ExportError;
@@ -41,10 +42,16 @@ impl Render<'_> {
         Ok(())
     }
 
-    /// The shared surface style of a colour.
-    fn style(&mut self, c: Color) -> Result<Id, ExportError> {
+    /// The shared surface style of a colour and a surface material: a shading of the colour
+    /// when no material is known, else a rendering with the material's reflectance
+    /// ([`Render::rendering`]).
+    fn style(&mut self, c: Color, m: Material) -> Result<Id, ExportError> {
+        if m != Material::Unspecified {
+            let transparency = 1.0 - f64::from(if c.a.is_finite() { c.a } else { 1.0 });
+            return self.rendering(c, transparency, m);
+        }
         let key = color_key(c);
-        if let Some(id) = self.styles.get(&key) {
+        if let Some(id) = self.styles.get(&(key, m)) {
             return Ok(id);
         }
         let rgb = self.w.entity("IFCCOLOURRGB", |a| {
@@ -69,7 +76,7 @@ impl Render<'_> {
             a.string(&name).enumeration("BOTH").ids(&[shading]);
         })?;
         let style = self.style_assignment(style)?;
-        self.styles.insert(key, style);
+        self.styles.insert((key, m), style);
         Ok(style)
     }
 
@@ -84,8 +91,14 @@ impl Render<'_> {
         })?)
     }
 
+    /// Styles `item` in colour `c` of no known material.
     pub(super) fn styled(&mut self, item: Id, c: Color) -> Result<(), ExportError> {
-        let style = self.style(c)?;
+        self.styled_as(item, c, Material::Unspecified)
+    }
+
+    /// Styles `item` in colour `c` and surface material `m` ([`Render::style`]).
+    pub(super) fn styled_as(&mut self, item: Id, c: Color, m: Material) -> Result<(), ExportError> {
+        let style = self.style(c, m)?;
         self.w.entity("IFCSTYLEDITEM", |a| {
             a.id(item).ids(&[style]).null();
         })?;
@@ -127,11 +140,15 @@ impl Render<'_> {
         Ok(usage)
     }
 
-    /// The shared rendering style of a colour with a transparency (0 opaque .. 1 invisible).
-    fn rendering(&mut self, c: Color, transparency: f64) -> Result<Id, ExportError> {
+    /// The shared rendering style of a colour with a transparency (0 opaque .. 1 invisible)
+    /// and a surface material: with a known material, its `SpecularHighlight`
+    /// (`IfcSpecularRoughness`, [`Material::specular_roughness`]) and `ReflectanceMethod`
+    /// ([`Material::reflectance_method`]) and its name after the colour's; else neither
+    /// (`NOTDEFINED`).
+    fn rendering(&mut self, c: Color, transparency: f64, m: Material) -> Result<Id, ExportError> {
         let ck = color_key(c);
         let tk = (transparency.clamp(0.0, 1.0) * 1000.0).round() as u16;
-        if let Some(id) = self.shared.renderings.get(&(ck, tk)) {
+        if let Some(id) = self.shared.renderings.get(&(ck, tk, m)) {
             return Ok(id);
         }
         let rgb = self.w.entity("IFCCOLOURRGB", |a| {
@@ -147,29 +164,43 @@ impl Render<'_> {
             } else {
                 a.null();
             }
-            a.null().null().null().null().null().null();
-            a.enumeration("NOTDEFINED");
+            a.null().null().null().null().null();
+            if m == Material::Unspecified {
+                a.null();
+            } else {
+                a.typed("IFCSPECULARROUGHNESS", |t| {
+                    t.real(f64::from(m.specular_roughness()));
+                });
+            }
+            let method = m.reflectance_method().ifc();
+            a.enumeration(method.trim_matches('.'));
         })?;
-        let name = if tk > 0 {
+        let mut name = if tk > 0 {
             format!("{} {}%", c.to_hex(), tk / 10)
         } else {
             c.to_hex()
         };
+        if m != Material::Unspecified {
+            name.push(' ');
+            name.push_str(m.name());
+        }
         let style = self.w.entity("IFCSURFACESTYLE", |a| {
             a.string(&name).enumeration("BOTH").ids(&[rendering]);
         })?;
         let style = self.style_assignment(style)?;
-        self.shared.renderings.insert((ck, tk), style);
+        self.shared.renderings.insert((ck, tk, m), style);
         Ok(style)
     }
 
+    /// Styles `item` with the rendering of `c`, `transparency` and `m` ([`Render::rendering`]).
     pub(super) fn rendered(
         &mut self,
         item: Id,
         c: Color,
         transparency: f64,
+        m: Material,
     ) -> Result<(), ExportError> {
-        let style = self.rendering(c, transparency)?;
+        let style = self.rendering(c, transparency, m)?;
         self.w.entity("IFCSTYLEDITEM", |a| {
             a.id(item).ids(&[style]).null();
         })?;

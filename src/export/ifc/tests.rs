@@ -96,6 +96,8 @@ fn flat_part(key: &str, fp: Polygon, base: f64, top: f64, storeys: u32) -> Part 
         levels: crate::derive::massing::even_levels(base, top, storeys),
         wall_color: BEIGE,
         roof_color: RED,
+        wall_material: Default::default(),
+        roof_material: Default::default(),
         roof_shape: RoofShape::Flat,
         roof: vec![roof],
     }

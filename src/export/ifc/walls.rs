@@ -99,7 +99,7 @@ impl Render<'_> {
                 a.id(profile).id(pos).id(nz).positive(wall.thickness);
             })?
         };
-        self.styled(solid, part.wall_color)?;
+        self.styled_as(solid, part.wall_color, part.wall_material)?;
         let body_ctx = self.g.body_ctx;
         let body_rep = self.representation(body_ctx, "Body", "SweptSolid", &[solid])?;
         let shape = self.shape(&[axis_rep, body_rep])?;

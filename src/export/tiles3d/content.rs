@@ -1,18 +1,21 @@
 //! The batched primitives of a content: every building's triangles, one primitive per kind of
-//! material (matte or glass, opaque or blended) with the colour per vertex (`COLOR_0`) and the
+//! material (the surface's material, opaque or blended: [`Kind`]) with the colour per vertex (`COLOR_0`) and the
 //! building's feature id per vertex (`_FEATURE_ID_0`), so a tile of thousands of buildings is
-//! drawn in at most four draw calls.
+//! drawn in one draw call per material it holds.
 //!
 //! A building is encoded on its own (in parallel): its faces grouped and triangulated as the
 //! glTF writer does, each vertex mapped to ECEF by the building's affine map, kept as an f32
 //! offset from the building's anchor. The content's frame is only known at the end, when the
 //! offsets are put in it ([`Primitive::positions_in`]).
 
+use std::collections::BTreeMap;
+
 use glam::DVec3;
 use serde_json::{json, Value};
 
+use crate::color::material::Material;
 use crate::color::{srgb_to_linear, Color};
-use crate::export::gltf::{finish_params, Finish, Group, SurfaceClass};
+use crate::export::gltf::{finish_params, Group, SurfaceClass};
 
 use super::frame::{BuildingMap, EnuFrame};
 use super::glb::Bin;
@@ -24,52 +27,37 @@ const UNSIGNED_INT: u32 = 5125;
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 
-/// The kinds of material of a content, in primitive order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Kind {
-    Matte,
-    Glass,
-    MatteBlend,
-    GlassBlend,
+/// A kind of material of a content: the surface's [`Material`] and whether it is blended
+/// (translucent). Ordered opaque first, then by material ([`Material::Unspecified`] first,
+/// glass last): the contents' primitive order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct Kind {
+    blend: bool,
+    material: Material,
 }
 
 impl Kind {
-    pub(crate) const ALL: [Kind; 4] =
-        [Kind::Matte, Kind::Glass, Kind::MatteBlend, Kind::GlassBlend];
-
-    fn of(finish: Finish, alpha: f32) -> Kind {
-        match (finish, alpha < 1.0) {
-            (Finish::Matte, false) => Kind::Matte,
-            (Finish::Glass, false) => Kind::Glass,
-            (Finish::Matte, true) => Kind::MatteBlend,
-            (Finish::Glass, true) => Kind::GlassBlend,
+    fn of(material: Material, alpha: f32) -> Kind {
+        Kind {
+            blend: alpha < 1.0,
+            material,
         }
     }
 
-    fn index(self) -> usize {
-        self as usize
-    }
-
-    fn finish(self) -> Finish {
-        match self {
-            Kind::Matte | Kind::MatteBlend => Finish::Matte,
-            Kind::Glass | Kind::GlassBlend => Finish::Glass,
-        }
-    }
-
-    fn blend(self) -> bool {
-        matches!(self, Kind::MatteBlend | Kind::GlassBlend)
-    }
-
-    /// The material: white, so the vertex colours show as they are; the finish's metallic and
-    /// roughness factors.
+    /// The material: white, so the vertex colours show as they are; the material's metallic
+    /// and roughness factors (`finish_params`, as the glTF writer's). Named `matte` for a
+    /// surface of no known material, else the material's name, `translucent` added when
+    /// blended.
     fn material(self) -> Value {
-        let (_, metallic, roughness) = finish_params(Color::WHITE, self.finish());
-        let name = match self {
-            Kind::Matte => "matte",
-            Kind::Glass => "glass",
-            Kind::MatteBlend => "matte translucent",
-            Kind::GlassBlend => "glass translucent",
+        let (_, metallic, roughness) = finish_params(Color::WHITE, self.material);
+        let base = match self.material {
+            Material::Unspecified => "matte",
+            m => m.name(),
+        };
+        let name = if self.blend {
+            format!("{base} translucent")
+        } else {
+            base.to_string()
         };
         let mut m = json!({
             "name": name,
@@ -79,12 +67,15 @@ impl Kind {
                 "roughnessFactor": short(roughness)
             }
         });
-        if self.blend() {
+        if self.blend {
             m["alphaMode"] = json!("BLEND");
         }
         m
     }
 }
+
+/// A building's or a content's primitives, one per [`Kind`], in primitive order.
+pub(crate) type Prims = BTreeMap<Kind, Primitive>;
 
 /// The triangles of one kind of material, from one building or a whole content.
 #[derive(Default)]
@@ -133,17 +124,17 @@ pub(crate) struct EncodedBuilding {
     pub(crate) anchor_ecef: DVec3,
     /// What lifts the building's heights to ellipsoidal ones (`BuildingMap::lift`).
     pub(crate) lift: Option<f64>,
-    pub(crate) prims: [Primitive; 4],
+    pub(crate) prims: Prims,
 }
 
 /// Encodes the faces `classes` of a building (grouped by [`crate::export::gltf::building_groups`]
 /// or Blocks) through its map `map`.
 pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) -> EncodedBuilding {
-    let mut prims: [Primitive; 4] = Default::default();
+    let mut prims = Prims::new();
     for g in classes.iter().flat_map(|(_, gs)| gs) {
-        let (c, _, _) = finish_params(g.color, g.finish);
-        let kind = Kind::of(g.finish, c.a);
-        let p = &mut prims[kind.index()];
+        let (c, _, _) = finish_params(g.color, g.material);
+        let kind = Kind::of(g.material, c.a);
+        let p = prims.entry(kind).or_default();
         let Ok(base) = u32::try_from(p.vertices()) else {
             continue;
         };
@@ -194,12 +185,7 @@ pub(crate) struct Laid {
 
 /// Puts the content's primitives in `frame` (glTF's y-up axes: x east, y up, z south) and lays
 /// out their data in `bin`. `anchors` are the buildings' anchors in ECEF, by feature id.
-pub(crate) fn lay_out(
-    prims: &[Primitive; 4],
-    anchors: &[DVec3],
-    frame: &EnuFrame,
-    bin: &mut Bin,
-) -> Laid {
+pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &mut Bin) -> Laid {
     let mut laid = Laid {
         primitives: Vec::new(),
         materials: Vec::new(),
@@ -209,8 +195,7 @@ pub(crate) fn lay_out(
     };
     // Each anchor in the frame, once.
     let anchors: Vec<DVec3> = anchors.iter().map(|&a| frame.to_enu(a)).collect();
-    for kind in Kind::ALL {
-        let p = &prims[kind.index()];
+    for (kind, p) in prims {
         if p.indices.is_empty() {
             continue;
         }

@@ -23,8 +23,10 @@
 //! `metadata`) are its source id, name, zone, appearance, height, base height, storeys, roof
 //! shape, and the provenance of storeys, height and roof (`storeysSource`, `heightSource`,
 //! `roofSource` strings; `storeysError`, `heightError`, `roofProbability` FLOAT32 with noData
-//! -1). The buildings' triangles are batched into one primitive per kind of material (matte,
-//! glass, each opaque or blended), coloured per vertex (`content`), so a tile is a handful of
+//! -1). The buildings' triangles are batched into one primitive per kind of material (the
+//! surface's material of `crate::color::material` — matte when none is known, brick, slate,
+//! metal, ..., glass — each opaque or blended, with that material's metallic and roughness
+//! factors), coloured per vertex (`content`), so a tile is a handful of
 //! draw calls whatever its number of colours.
 //!
 //! The writer keeps the tile in memory (about 45 bytes a vertex, twice that while the GLB is
@@ -161,7 +163,7 @@ pub(crate) struct Tiles3dWriter<W: Write + Send> {
     origin_z: f64,
     /// LOD3 and above: openings and balconies are drawn.
     detailed: bool,
-    prims: [Primitive; 4],
+    prims: content::Prims,
     /// Each building's anchor in ECEF, by feature id.
     anchors: Vec<DVec3>,
     rows: metadata::Rows,
@@ -222,14 +224,19 @@ impl<W: Write + Send> Tiles3dWriter<W> {
                 "3D Tiles writer: more than {MAX_FEATURES} buildings in one tile: use smaller tiles (--tile)"
             )));
         }
-        if !self.prims.iter().zip(&e.prims).all(|(all, p)| all.fits(p)) {
+        let empty = Primitive::default();
+        let fits = e
+            .prims
+            .iter()
+            .all(|(k, p)| self.prims.get(k).unwrap_or(&empty).fits(p));
+        if !fits {
             return Err(ExportError::Invalid(format!(
                 "3D Tiles writer: building {}: the tile passes 2^32 vertices: use smaller tiles (--tile)",
                 b.id
             )));
         }
-        for (all, p) in self.prims.iter_mut().zip(&e.prims) {
-            all.append(p, feature as u32);
+        for (k, p) in &e.prims {
+            self.prims.entry(*k).or_default().append(p, feature as u32);
         }
         self.anchors.push(e.anchor_ecef);
         let base = b.base_z + self.origin_z;
@@ -263,7 +270,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         let triangles: u64 = match (self.detail, &self.terrain) {
             (Detail::Terrain, Some(t)) => t.triangles.len() as u64,
             (Detail::Terrain, None) => 0,
-            _ => self.prims.iter().map(Primitive::triangles).sum(),
+            _ => self.prims.values().map(Primitive::triangles).sum(),
         };
         let blocks_error = self.blocks_error.max(blocks::MIN_BLOCKS_ERROR);
         let generator = concat!("citygen ", env!("CARGO_PKG_VERSION"));
