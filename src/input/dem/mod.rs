@@ -156,30 +156,33 @@ struct Deflated {
 
 impl Deflated {
     /// The strips' places when `dec`'s image is one band of `f32` heights in deflated strips
-    /// without predictor (GDAL's `COMPRESS=DEFLATE` default), else `None`.
-    fn of(dec: &mut Decoder<BufReader<File>>) -> tiff::TiffResult<Option<Deflated>> {
-        let tag = |dec: &mut Decoder<BufReader<File>>, t: Tag| dec.find_tag_unsigned::<u16>(t);
-        let strips = dec.get_chunk_type() == tiff::decoder::ChunkType::Strip;
-        let deflate = matches!(tag(dec, Tag::Compression)?, Some(8 | 32946));
-        let plain = tag(dec, Tag::Predictor)?.unwrap_or(1) == 1;
-        let float = tag(dec, Tag::SampleFormat)? == Some(3);
-        let bits = tag(dec, Tag::BitsPerSample)? == Some(32);
-        let one = tag(dec, Tag::SamplesPerPixel)?.unwrap_or(1) == 1;
-        let black_is_zero = tag(dec, Tag::PhotometricInterpretation)? == Some(1);
-        if !(strips && deflate && plain && float && bits && one && black_is_zero) {
-            return Ok(None);
+    /// without predictor (GDAL's `COMPRESS=DEFLATE` default), else `None` (also when a tag
+    /// does not read as one number: the `tiff` crate's path then says what it makes of it).
+    fn of(dec: &mut Decoder<BufReader<File>>) -> Option<Deflated> {
+        let mut tag = |t: Tag| dec.find_tag_unsigned::<u16>(t).ok();
+        let one = tag(Tag::SamplesPerPixel)?.unwrap_or(1) == 1;
+        if !one {
+            return None;
         }
-        let offsets = dec.find_tag_unsigned_vec::<u64>(Tag::StripOffsets)?;
-        let counts = dec.find_tag_unsigned_vec::<u64>(Tag::StripByteCounts)?;
-        let (Some(offsets), Some(counts)) = (offsets, counts) else {
-            return Ok(None);
-        };
-        Ok(Some(Deflated {
+        let deflate = matches!(tag(Tag::Compression)?, Some(8 | 32946));
+        let plain = tag(Tag::Predictor)?.unwrap_or(1) == 1;
+        let float = tag(Tag::SampleFormat)? == Some(3);
+        let bits = tag(Tag::BitsPerSample)? == Some(32);
+        let black_is_zero = tag(Tag::PhotometricInterpretation)? == Some(1);
+        let strips = dec.get_chunk_type() == tiff::decoder::ChunkType::Strip;
+        if !(strips && deflate && plain && float && bits && black_is_zero) {
+            return None;
+        }
+        let offsets = dec.find_tag_unsigned_vec::<u64>(Tag::StripOffsets).ok()??;
+        let counts = dec
+            .find_tag_unsigned_vec::<u64>(Tag::StripByteCounts)
+            .ok()??;
+        Some(Deflated {
             offsets,
             counts,
             little: dec.byte_order() == tiff::tags::ByteOrder::LittleEndian,
             packed: Mutex::new(Vec::new()),
-        }))
+        })
     }
 
     /// Strip `index` (`w` by `h` samples) inflated into `z`'s memory, or `z` back when it does
@@ -453,7 +456,7 @@ impl Dem {
         if chunk.0 == 0 || chunk.1 == 0 || width == 0 || height == 0 {
             return Err(unsupported("an empty raster".into()));
         }
-        let deflated = Deflated::of(&mut dec).map_err(tiff_err(path))?;
+        let deflated = Deflated::of(&mut dec);
         Ok(Dem {
             path: path.to_path_buf(),
             source: Source::Tiff(Box::new(Mutex::new(dec)), deflated),
