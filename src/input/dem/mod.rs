@@ -228,7 +228,6 @@ impl Deflated {
             let (done, rc) =
                 zlib_rs::decompress_slice(view.as_bytes_mut(), &packed, InflateConfig::default());
             whole = rc == ReturnCode::Ok && done.len() == 4 * n;
-            drop(view);
             z = match out {
                 DecodingResult::F32(z) => z,
                 _ => Vec::new(),
