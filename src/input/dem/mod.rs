@@ -26,7 +26,7 @@ mod segment;
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 
@@ -35,6 +35,7 @@ use thiserror::Error;
 use tiff::decoder::{Decoder, DecodingResult, DecodingSampleType, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
+use zlib_rs::{InflateConfig, ReturnCode};
 
 use crate::crs::{webmerc, Crs};
 
@@ -133,10 +134,119 @@ struct Chunk {
 
 /// Where a DEM's pixels come from.
 enum Source {
-    /// A GeoTIFF's decoder.
-    Tiff(Box<Mutex<Decoder<BufReader<File>>>>),
+    /// A GeoTIFF's decoder (and, for deflated `f32` strips, where they are in the file).
+    Tiff(Box<Mutex<Decoder<BufReader<File>>>>, Option<Deflated>),
     /// An SRTM `.hgt` tile (strips of `hgt::ROWS` rows).
     Hgt(Mutex<File>),
+}
+
+/// Where the deflated strips of a GeoTIFF of one band of `f32` heights (no predictor) are in
+/// its file: such strips are inflated here by `zlib-rs` in one call straight into the chunk's
+/// buffer (the `tiff` crate streams them through `flate2`'s `miniz_oxide` window, about twice
+/// as slow), outside the decoder's lock. A strip that does not inflate to its exact size goes
+/// to the `tiff` crate's decoder instead, which reads it or says what is wrong.
+struct Deflated {
+    offsets: Vec<u64>,
+    counts: Vec<u64>,
+    /// The file's samples are little-endian.
+    little: bool,
+    /// Buffers of compressed strips, read into again.
+    packed: Mutex<Vec<Vec<u8>>>,
+}
+
+impl Deflated {
+    /// The strips' places when `dec`'s image is one band of `f32` heights in deflated strips
+    /// without predictor (GDAL's `COMPRESS=DEFLATE` default), else `None` (also when a tag
+    /// does not read as one number: the `tiff` crate's path then says what it makes of it).
+    fn of(dec: &mut Decoder<BufReader<File>>) -> Option<Deflated> {
+        let mut tag = |t: Tag| dec.find_tag_unsigned::<u16>(t).ok();
+        let one = tag(Tag::SamplesPerPixel)?.unwrap_or(1) == 1;
+        if !one {
+            return None;
+        }
+        let deflate = matches!(tag(Tag::Compression)?, Some(8 | 32946));
+        let plain = tag(Tag::Predictor)?.unwrap_or(1) == 1;
+        let float = tag(Tag::SampleFormat)? == Some(3);
+        let bits = tag(Tag::BitsPerSample)? == Some(32);
+        let black_is_zero = tag(Tag::PhotometricInterpretation)? == Some(1);
+        let strips = dec.get_chunk_type() == tiff::decoder::ChunkType::Strip;
+        if !(strips && deflate && plain && float && bits && black_is_zero) {
+            return None;
+        }
+        let offsets = dec.find_tag_unsigned_vec::<u64>(Tag::StripOffsets).ok()??;
+        let counts = dec
+            .find_tag_unsigned_vec::<u64>(Tag::StripByteCounts)
+            .ok()??;
+        Some(Deflated {
+            offsets,
+            counts,
+            little: dec.byte_order() == tiff::tags::ByteOrder::LittleEndian,
+            packed: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// Strip `index` (`w` by `h` samples) inflated into `z`'s memory, or `z` back when it does
+    /// not inflate to exactly that size (or cannot be read).
+    fn inflate(
+        &self,
+        dec: &Mutex<Decoder<BufReader<File>>>,
+        index: u32,
+        (w, h): (u32, u32),
+        mut z: Vec<f32>,
+    ) -> Result<Vec<f32>, Vec<f32>> {
+        let i = index as usize;
+        let (Some(&at), Some(&len)) = (self.offsets.get(i), self.counts.get(i)) else {
+            return Err(z);
+        };
+        let Some(len) = usize::try_from(len).ok().filter(|n| *n <= MAX_CHUNK_BYTES) else {
+            return Err(z);
+        };
+        let n = w as usize * h as usize;
+        if n == 0 || 4 * n > MAX_CHUNK_BYTES {
+            return Err(z);
+        }
+        let mut packed = self
+            .packed
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .pop()
+            .unwrap_or_default();
+        packed.clear();
+        packed.resize(len, 0);
+        let read = {
+            let mut dec = dec.lock().unwrap_or_else(PoisonError::into_inner);
+            let r = dec.inner();
+            r.seek(SeekFrom::Start(at))
+                .and_then(|_| r.read_exact(&mut packed))
+        };
+        let mut whole = read.is_ok();
+        if whole {
+            z.clear();
+            z.resize(n, 0.0);
+            let mut out = DecodingResult::F32(z);
+            let mut view = out.as_buffer(0);
+            let (done, rc) =
+                zlib_rs::decompress_slice(view.as_bytes_mut(), &packed, InflateConfig::default());
+            whole = rc == ReturnCode::Ok && done.len() == 4 * n;
+            z = match out {
+                DecodingResult::F32(z) => z,
+                _ => Vec::new(),
+            };
+        }
+        let mut pool = self.packed.lock().unwrap_or_else(PoisonError::into_inner);
+        if pool.len() < SPARE_BUFFERS {
+            pool.push(packed);
+        }
+        drop(pool);
+        if !whole {
+            return Err(z);
+        }
+        if self.little != cfg!(target_endian = "little") {
+            z.iter_mut()
+                .for_each(|v| *v = f32::from_bits(v.to_bits().swap_bytes()));
+        }
+        Ok(z)
+    }
 }
 
 /// The horizontal CRS of a DEM: one citygen writes in, or web mercator (read only: it is not
@@ -350,9 +460,10 @@ impl Dem {
         if chunk.0 == 0 || chunk.1 == 0 || width == 0 || height == 0 {
             return Err(unsupported("an empty raster".into()));
         }
+        let deflated = Deflated::of(&mut dec);
         Ok(Dem {
             path: path.to_path_buf(),
-            source: Source::Tiff(Box::new(Mutex::new(dec))),
+            source: Source::Tiff(Box::new(Mutex::new(dec)), deflated),
             width,
             height,
             chunk,
@@ -397,8 +508,8 @@ impl Dem {
 
     /// Decodes chunk `index` into heights (into `spare`'s memory when its samples are `f32`).
     fn decode(&self, index: u32, spare: Vec<f32>) -> Result<Chunk, DemError> {
-        let decoder = match &self.source {
-            Source::Tiff(d) => d,
+        let (decoder, deflated) = match &self.source {
+            Source::Tiff(d, deflated) => (d, deflated),
             Source::Hgt(file) => {
                 let mut file = file.lock().unwrap_or_else(PoisonError::into_inner);
                 let z = hgt::read_strip(&mut file, self.width, index).map_err(|source| {
@@ -417,10 +528,25 @@ impl Dem {
             path: self.path.clone(),
             reason: format!("strip or tile {index}: {e}"),
         };
-        let mut dec = decoder.lock().unwrap_or_else(PoisonError::into_inner);
-        let (w, _) = dec.chunk_data_dimensions(index);
-        let raw = read_chunk(&mut dec, index, spare).map_err(bad)?;
-        drop(dec);
+        let dims = decoder
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .chunk_data_dimensions(index);
+        let w = dims.0;
+        let (raw, spare) = match deflated {
+            Some(d) => match d.inflate(decoder, index, dims, spare) {
+                Ok(z) => (Some(DecodingResult::F32(z)), Vec::new()),
+                Err(spare) => (None, spare),
+            },
+            None => (None, spare),
+        };
+        let raw = match raw {
+            Some(raw) => raw,
+            None => {
+                let mut dec = decoder.lock().unwrap_or_else(PoisonError::into_inner);
+                read_chunk(&mut dec, index, spare).map_err(bad)?
+            }
+        };
         let nd = self.nodata;
         let keep = |v: f64| -> f32 {
             match nd {
@@ -593,6 +719,28 @@ impl DemSet {
     }
 }
 
+impl DemSet {
+    /// Keeps the buffer of a chunk a sampler lets go of for the next decode when nothing else
+    /// holds the chunk (the cache dropped it already): freed, its pages would be handed back
+    /// and cleared afresh by the kernel for a later chunk.
+    fn recycle(&self, c: Arc<Chunk>) {
+        if let Ok(c) = Arc::try_unwrap(c) {
+            let mut cache = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+            if cache.spare.len() < SPARE_BUFFERS {
+                cache.spare.push(c.z);
+            }
+        }
+    }
+}
+
+impl Drop for Sampler<'_> {
+    fn drop(&mut self) {
+        for (_, c) in self.memo.drain(..) {
+            self.framed.set.recycle(c);
+        }
+    }
+}
+
 /// A [`DemSet`] in a run's local frame.
 pub struct Framed<'a> {
     set: &'a DemSet,
@@ -741,7 +889,8 @@ impl Sampler<'_> {
             None => {
                 let c = self.framed.set.chunk(d, index)?;
                 if self.memo.len() == MEMO {
-                    self.memo.remove(0);
+                    let (_, old) = self.memo.remove(0);
+                    self.framed.set.recycle(old);
                 }
                 self.memo.push((key, c));
                 self.memo.len() - 1

@@ -452,3 +452,94 @@ fn pseudo_mercator_dem_samples_in_a_utm_frame() {
         assert!((z - h(lon, lat)).abs() < 1e-2, "{z} vs {}", h(lon, lat));
     }
 }
+
+/// Every strip of `p` as the `tiff` crate's own decoder reads it.
+fn strips_by_tiff(p: &Path) -> Vec<Vec<f32>> {
+    let mut dec = Decoder::new(BufReader::new(File::open(p).unwrap())).unwrap();
+    (0..dec.strip_count().unwrap())
+        .map(|k| match dec.read_chunk(k).unwrap() {
+            DecodingResult::F32(v) => v,
+            _ => panic!("not f32"),
+        })
+        .collect()
+}
+
+#[test]
+fn deflated_f32_strips_are_inflated_to_the_tiff_crates_values() {
+    let dir = tempfile::tempdir().unwrap();
+    // 7 rows a strip over 100 rows: a short last strip; nodata kept as NaN.
+    let mut t = GeoTiff::projected(32609, (499_900.0, 5_000_100.0), 2.0, (100, 100), |x, y| {
+        150.0 + 20.0 * ((x / 7.0).sin() + (y / 9.0).cos())
+    });
+    t.packing = Packing::Deflate;
+    t.nodata = Some(-9999.0);
+    t.values[4321] = -9999.0;
+    let p = write(dir.path(), "d.tif", &t);
+    let dem = Dem::open(&p).unwrap();
+    assert!(
+        matches!(dem.source, Source::Tiff(_, Some(_))),
+        "fast path not taken"
+    );
+    let want = strips_by_tiff(&p);
+    assert_eq!(want.len(), 15);
+    for (k, w) in want.iter().enumerate() {
+        // Into a fresh buffer, and into a used one of another size.
+        for spare in [Vec::new(), vec![7.0; 1234]] {
+            let got = dem.decode(k as u32, spare).unwrap();
+            assert_eq!(got.w, 100);
+            assert_eq!(got.z.len(), w.len(), "strip {k}");
+            for (a, b) in got.z.iter().zip(w) {
+                assert!(a.to_bits() == b.to_bits() || (a.is_nan() && *b == -9999.0));
+            }
+        }
+    }
+    // Other layouts keep the `tiff` crate's path.
+    for (sample, packing) in [
+        (SampleType::F32, Packing::None),
+        (SampleType::F32, Packing::Lzw),
+        (SampleType::F64, Packing::Deflate),
+        (SampleType::I16, Packing::Deflate),
+    ] {
+        let mut t = GeoTiff::projected(32609, (499_900.0, 5_000_100.0), 2.0, (10, 10), plane);
+        t.sample = sample;
+        t.packing = packing;
+        let p = write(dir.path(), "o.tif", &t);
+        let dem = Dem::open(&p).unwrap();
+        assert!(
+            matches!(dem.source, Source::Tiff(_, None)),
+            "{sample:?} {packing:?}"
+        );
+    }
+}
+
+#[test]
+fn a_strip_that_does_not_inflate_goes_to_the_tiff_crate() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut t = GeoTiff::projected(32609, (499_900.0, 5_000_100.0), 2.0, (50, 30), plane);
+    t.packing = Packing::Deflate;
+    let p = write(dir.path(), "d.tif", &t);
+    let dem = Dem::open(&p).unwrap();
+    let Source::Tiff(dec, Some(deflated)) = &dem.source else {
+        panic!("fast path not taken");
+    };
+    // Asked for more rows than the strip holds: refused, the buffer given back.
+    let spare = vec![1.0; 10];
+    let back = deflated.inflate(dec, 0, (50, 8), spare).unwrap_err();
+    assert!(back.capacity() >= 10);
+    assert!(deflated.inflate(dec, 99, (50, 7), Vec::new()).is_err());
+    // Corrupt the first strip's bytes: both paths fail, with the tiff crate's message.
+    let mut bytes = std::fs::read(&p).unwrap();
+    let at = deflated.offsets[0] as usize;
+    bytes[at + 2..at + 40].fill(0xff);
+    let q = dir.path().join("bad.tif");
+    std::fs::write(&q, &bytes).unwrap();
+    let bad = Dem::open(&q).unwrap();
+    let e = bad
+        .decode(0, Vec::new())
+        .err()
+        .expect("corrupt strip decoded");
+    assert!(e.to_string().contains("bad.tif"), "{e}");
+    assert!(e.to_string().contains("strip or tile 0"), "{e}");
+    // The other strips still read.
+    assert!(bad.decode(1, Vec::new()).is_ok());
+}
