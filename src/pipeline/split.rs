@@ -88,6 +88,9 @@ pub struct SplitHead {
     pub(crate) report: Report,
 }
 
+/// A node as copied: id, latitude and longitude in nanodegrees, tags.
+type CopiedNode<'a> = (i64, i64, i64, Vec<(&'a str, &'a str)>);
+
 /// What [`split`] did.
 #[derive(Debug)]
 pub struct SplitSummary {
@@ -311,9 +314,9 @@ pub fn split(
         };
         let m = mask_of(lo + site.origin, hi + site.origin) | 1 << o;
         counts[o].0 += 1;
-        for s in 0..shards {
+        for (s, c) in counts.iter_mut().enumerate() {
             if s != o && m & (1 << s) != 0 {
-                counts[s].1 += 1;
+                c.1 += 1;
             }
         }
         for id in std::iter::once(lot.id).chain(lot.parts.iter().map(|p| p.id)) {
@@ -466,7 +469,7 @@ pub fn split(
             if failed.is_some() {
                 return;
             }
-            let n: Option<(i64, i64, i64, Vec<(&str, &str)>)> = match &e {
+            let n: Option<CopiedNode<'_>> = match &e {
                 osmpbf::Element::DenseNode(n) => {
                     Some((n.id(), n.nano_lat(), n.nano_lon(), n.tags().collect()))
                 }
