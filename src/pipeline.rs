@@ -684,7 +684,7 @@ impl<'a> RunState<'a> {
                 &self.targets,
                 &self.site,
                 &self.generator.kb,
-                self.split.as_ref(),
+                self.split.as_ref().map(|h| h.inputs.as_slice()),
             )?,
         };
         let mut head = g.manifest_head(rk, &self.shard, &self.site, &mut self.report)?;

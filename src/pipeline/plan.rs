@@ -182,7 +182,7 @@ impl GridPlan {
         targets: &Targets,
         site: &prepare::Site,
         kb: &kb::KnowledgeBase,
-        split: Option<&super::split::SplitHead>,
+        split_inputs: Option<&[shard::FileKey]>,
     ) -> Result<shard::RunKey, RunError> {
         let key = |p: &Path| {
             shard::file_key(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))
@@ -198,9 +198,9 @@ impl GridPlan {
         if let Some(p) = &opts.osc {
             inputs.push(key(p)?);
         }
-        if let Some(h) = split {
+        if let Some(i) = split_inputs {
             // A split part's run read the input that was split.
-            inputs = h.inputs.clone();
+            inputs = i.to_vec();
         }
         let mut outputs: Vec<String> = targets
             .models()

@@ -52,7 +52,7 @@ pub(super) fn key_lots(
         &run.targets,
         site,
         &run.generator.kb,
-        run.split.as_ref(),
+        run.split.as_ref().map(|h| h.inputs.as_slice()),
     )?;
     let dir = path
         .parent()
