@@ -15,6 +15,7 @@ pub(crate) mod outputs;
 mod plan;
 mod reuse;
 pub mod shard;
+pub mod split;
 pub mod terrain;
 mod write;
 
@@ -153,6 +154,10 @@ pub struct Options {
     /// Heights from a function, for a run that reads no DEM of its own: tests and programs
     /// that embed citygen give the run an elevation grid this way (no flag sets it).
     pub ground_fn: Option<terrain::GroundFn>,
+    /// The head of a `citygen split` part (`--split-part`): `source` is that part's PBF, and
+    /// the run takes the whole input's CRS, origin, grid and report share from the head
+    /// ([`split`]).
+    pub split_part: Option<PathBuf>,
 }
 
 /// What each lot may infer: `over` everywhere when given (`--infer`), else its zone's
@@ -505,6 +510,8 @@ struct RunState<'a> {
     in_run: Vec<bool>,
     /// The tile grid of a tiled run.
     grid: Option<GridPlan>,
+    /// The head of the `citygen split` part the run reads (`--split-part`).
+    split: Option<split::SplitHead>,
 }
 
 impl<'a> RunState<'a> {
@@ -515,12 +522,17 @@ impl<'a> RunState<'a> {
         targets: Targets,
         shard: (shard::Shard, String),
     ) -> Result<RunState<'a>, RunError> {
+        let split = match &opts.split_part {
+            Some(p) => Some(split::load_head(p, opts)?),
+            None => None,
+        };
         let mut report = Report::default();
         let read = read_source(&opts.source, opts.osc.as_deref(), opts.src_crs, &mut report)?;
         let source_crs = opts.src_crs.or(read.source_crs);
-        let source_name = match (&opts.source_name, &opts.source) {
-            (Some(n), _) => n.clone(),
-            (None, Source::Osm(p) | Source::Shp { path: p, .. }) => file_name(p),
+        let source_name = match (&opts.source_name, &opts.source, &split) {
+            (Some(n), _, _) => n.clone(),
+            (None, _, Some(h)) => h.source_name.clone(),
+            (None, Source::Osm(p) | Source::Shp { path: p, .. }, None) => file_name(p),
         };
 
         let kb = load_kb(opts.kb.as_deref(), &mut report)?;
@@ -529,12 +541,18 @@ impl<'a> RunState<'a> {
             None => Rules::Kb,
         };
 
-        let crs = match opts.crs {
-            Some(c) => c,
+        let crs = match (&split, opts.crs) {
+            // The whole input's CRS and origin, not the part's.
+            (Some(h), _) => h.crs()?,
+            (None, Some(c)) => c,
             // Errors name the input as given (two `b.shp` in two folders are two inputs).
-            None => zone_for(&read.footprints, source_crs, opts.bbox, &source_label(opts))?,
+            (None, None) => zone_for(&read.footprints, source_crs, opts.bbox, &source_label(opts))?,
         };
-        let mut site = prepare::prepare(read.footprints, source_crs, Some(crs), &mut report);
+        let origin = split
+            .as_ref()
+            .map(|h| glam::DVec2::new(h.origin[0], h.origin[1]));
+        let mut site =
+            prepare::prepare_at(read.footprints, source_crs, Some(crs), origin, &mut report);
         site.boundaries = read.boundaries;
         site.attributes = read.attributes;
         prepare::assign_fronts(&mut site, &read.streets, source_crs);
@@ -578,6 +596,7 @@ impl<'a> RunState<'a> {
             selected: Vec::new(),
             in_run: Vec::new(),
             grid: None,
+            split,
         })
     }
 
@@ -593,9 +612,10 @@ impl<'a> RunState<'a> {
                 .collect(),
             None => vec![true; site.lots.len()],
         };
-        let grid = opts
-            .tile
-            .map(|size| GridPlan::new(site, size, &selected, self.shard.0));
+        let grid = opts.tile.map(|size| match &self.split {
+            Some(h) => GridPlan::from_grid(&h.grid, size, self.shard.0),
+            None => GridPlan::new(site, size, &selected, self.shard.0),
+        });
         self.in_run = selected.clone();
         if let Some(g) = &grid {
             for (flag, lot) in selected.iter_mut().zip(&site.lots) {
@@ -665,9 +685,20 @@ impl<'a> RunState<'a> {
         };
         let rk = match run_key {
             Some(rk) => rk,
-            None => g.run_key(self.opts, &self.targets, &self.site, &self.generator.kb)?,
+            None => g.run_key(
+                self.opts,
+                &self.targets,
+                &self.site,
+                &self.generator.kb,
+                self.split.as_ref().map(|h| h.inputs.as_slice()),
+            )?,
         };
         let mut head = g.manifest_head(rk, &self.shard, &self.site, &mut self.report)?;
+        if let Some(h) = &self.split {
+            // The read and prepare stages' share as the whole input gives it, not the part.
+            head.report = h.share.clone();
+            self.report = h.report.clone();
+        }
         head.context = context.to_string();
         let crs = self.site.crs;
         self.site.lots.retain(|l| g.is_mine(crs, l));

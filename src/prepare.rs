@@ -269,6 +269,19 @@ pub fn prepare(
     out_crs: Option<Crs>,
     report: &mut Report,
 ) -> Site {
+    prepare_at(footprints, source_crs, out_crs, None, report)
+}
+
+/// [`prepare`] around `origin` (output CRS) when given, instead of the centre of the data's
+/// bounds: a shard reading its part of a split input takes the whole input's origin, so that
+/// its buildings' local coordinates are those of a run on the whole input, bit for bit.
+pub fn prepare_at(
+    footprints: Vec<Footprint>,
+    source_crs: Option<Crs>,
+    out_crs: Option<Crs>,
+    origin: Option<DVec2>,
+    report: &mut Report,
+) -> Site {
     let to_lonlat = |x: f64, y: f64| match source_crs {
         None | Some(Crs::Wgs84) => (x, y),
         Some(c) => c.file_to_lonlat(x, y),
@@ -358,7 +371,9 @@ pub fn prepare(
             }
         })
         .collect();
-    let origin = if lo.x.is_finite() {
+    let origin = if let Some(o) = origin {
+        o
+    } else if lo.x.is_finite() {
         ((lo + hi) * 0.5).round()
     } else {
         DVec2::ZERO

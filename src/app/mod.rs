@@ -19,6 +19,7 @@ pub mod merge;
 pub mod rules;
 pub mod run;
 pub mod selex;
+mod split;
 
 /// Turns a city's building footprints (OSM PBF or shapefile) into BIM and city models:
 /// IFC4, CityGML 2.0 and glTF 2.0 binary, at LOD1 to LOD4.
@@ -59,6 +60,11 @@ enum Command {
     /// manifests add up: one run, every shard, tile and building once, every file as listed.
     /// Writes the merged report, the region's CityJSONSeq, its 3D Tiles tileset and a picture.
     Merge(merge::MergeArgs),
+    /// Cut an OSM PBF into the parts the shards of a tiled run read (`part-I-of-N.osm.pbf`
+    /// with its head `part-I-of-N.split.json`): each shard's tiles and a halo around them, so
+    /// that each machine downloads and reads only its share; a shard run on its part
+    /// (`--split-part`) writes the same bytes as on the whole input.
+    Split(split::SplitArgs),
     /// Write facade rules by a genetic search (seed 003 §3.7): NSGA-II evolves integer genomes
     /// decoded into grammar rules, each derived on a test facade and scored on the seed's
     /// aesthetic objectives (all minimised). Writes the Pareto front as ruleset files with
@@ -83,6 +89,7 @@ pub fn run(cli: Cli) -> Result<Outcome, AppError> {
         Some(Command::Kb(cmd)) => kb::run(cmd),
         Some(Command::Selex(cmd)) => selex::run(cmd),
         Some(Command::Merge(args)) => merge::run(args),
+        Some(Command::Split(args)) => split::run(args),
         Some(Command::Evolve(args)) => evolve::run(args),
         Some(Command::Eval(args)) => eval::run(args),
         None => run::run(cli.run),

@@ -162,6 +162,16 @@ pub(crate) struct RunArgs {
     /// N from --shards or SLURM_ARRAY_TASK_COUNT.
     #[arg(long, value_name = "I/N|auto", value_parser = crate::pipeline::shard::parse_shard)]
     shard: Option<crate::pipeline::shard::ShardArg>,
+    /// The head of a `citygen split` part (`part-I-of-N.split.json`): --osm is its PBF
+    /// (`part-I-of-N.osm.pbf`) and --shard must be I/N. The run reads only its part of the
+    /// input and writes the files and manifest the same shard writes from the whole input.
+    #[arg(
+        long,
+        value_name = "PART.split.json",
+        requires = "shard",
+        requires = "osm"
+    )]
+    split_part: Option<PathBuf>,
     /// The number of shards for --shard auto (a Kubernetes Indexed Job's completions).
     #[arg(long, value_name = "N", requires = "shard", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     shards: Option<u32>,
@@ -317,6 +327,7 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
         terrain_tolerance: cli.terrain_tolerance,
         no_terrain: cli.no_terrain,
         ground_fn: None,
+        split_part: cli.split_part.clone(),
     };
     let show = !cli.quiet && std::io::stderr().is_terminal();
     let bar = indicatif::ProgressBar::hidden();

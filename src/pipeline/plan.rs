@@ -135,6 +135,41 @@ impl GridPlan {
     }
 
     /// Whether the lot's tile is this shard's.
+    /// The shard writing `lot`'s tile (0 for a lot of no tile of the grid).
+    pub(super) fn shard_of(&self, crs: Crs, lot: &prepare::Lot) -> usize {
+        self.of_cell
+            .get(&prepare::tile_cell(crs, lot, self.size))
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// Every tile's cell (its lower-left corner over the tile size) with its shard.
+    pub(super) fn cells(&self) -> std::collections::BTreeMap<(i64, i64), usize> {
+        self.of_cell.clone()
+    }
+
+    /// The same grid seen from shard `index` of the same count.
+    pub(super) fn set_index(&mut self, index: usize) {
+        self.shard.index = index;
+    }
+
+    /// The grid a `citygen split` head recorded ([`super::split::SplitHead::grid`]): the
+    /// whole input's tiles and shards, whatever the part holds.
+    pub(super) fn from_grid(grid: &shard::Grid, size: u32, shard: shard::Shard) -> GridPlan {
+        let s = i64::from(size.max(1));
+        GridPlan {
+            size,
+            shard,
+            tiles: grid.tiles.clone(),
+            of_cell: grid
+                .tiles
+                .iter()
+                .map(|t| ((t.corner[0] / s, t.corner[1] / s), t.shard))
+                .collect(),
+            lots: grid.lots,
+        }
+    }
+
     pub(super) fn is_mine(&self, crs: Crs, lot: &prepare::Lot) -> bool {
         self.of_cell.get(&prepare::tile_cell(crs, lot, self.size)) == Some(&self.shard.index)
     }
@@ -147,6 +182,7 @@ impl GridPlan {
         targets: &Targets,
         site: &prepare::Site,
         kb: &kb::KnowledgeBase,
+        split_inputs: Option<&[shard::FileKey]>,
     ) -> Result<shard::RunKey, RunError> {
         let key = |p: &Path| {
             shard::file_key(p).map_err(|e| RunError::Input(format!("{}: {e}", p.display())))
@@ -161,6 +197,10 @@ impl GridPlan {
         };
         if let Some(p) = &opts.osc {
             inputs.push(key(p)?);
+        }
+        if let Some(i) = split_inputs {
+            // A split part's run read the input that was split.
+            inputs = i.to_vec();
         }
         let mut outputs: Vec<String> = targets
             .models()

@@ -47,7 +47,13 @@ pub(super) fn key_lots(
         return Ok((keyed, None));
     };
     let (opts, site) = (run.opts, &run.site);
-    let rk = g.run_key(opts, &run.targets, site, &run.generator.kb)?;
+    let rk = g.run_key(
+        opts,
+        &run.targets,
+        site,
+        &run.generator.kb,
+        run.split.as_ref().map(|h| h.inputs.as_slice()),
+    )?;
     let dir = path
         .parent()
         .filter(|d| !d.as_os_str().is_empty())

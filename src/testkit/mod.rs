@@ -6,6 +6,7 @@
 pub mod day2;
 pub mod geotiff;
 pub mod osm_xml;
-pub mod pbf_write;
+/// The OSM PBF writer (in the library since `citygen split` writes PBF parts).
+pub use crate::input::osm::pbf_write;
 pub mod tiled;
 pub mod validators;

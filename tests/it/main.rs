@@ -39,6 +39,7 @@ mod s3db;
 mod selex;
 mod shards;
 mod slope;
+mod split;
 mod terrain;
 mod world_kb;
 mod zones;

@@ -67,6 +67,7 @@ fn opts(dir: &Path, tile: Option<u32>, ground: Option<GroundFn>) -> Options {
         terrain_tolerance: 0.5,
         no_terrain: false,
         ground_fn: ground,
+        split_part: None,
         dem: Vec::new(),
         ground_height: None,
     }

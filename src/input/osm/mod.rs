@@ -55,6 +55,7 @@ mod boundaries;
 mod multipolygon;
 mod osc;
 mod pbf;
+pub mod pbf_write;
 mod records;
 mod wire;
 mod xml;

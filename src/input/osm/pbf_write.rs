@@ -1,5 +1,6 @@
-//! A minimal OSM PBF writer, for tests and benchmarks: it builds inputs (synthetic, corrupt,
-//! tiled from real data) without a committed binary fixture. citygen itself never writes PBF.
+//! A minimal OSM PBF writer: `citygen split` writes each shard's part of an input with it
+//! ([`crate::pipeline::split`]), and tests and benchmarks build inputs (synthetic, corrupt,
+//! tiled from real data) with it without a committed binary fixture.
 //!
 //! Output layout: one `OSMHeader` blob (required features `OsmSchema-V0.6` and `DenseNodes`),
 //! then `OSMData` blobs of one `PrimitiveBlock` each, holding up to [`BLOCK_ENTITIES`] entities
@@ -80,6 +81,23 @@ impl<W: Write> PbfWriter<W> {
         let (lat, lon) = ((lat * 1e7).round() as i64, (lon * 1e7).round() as i64);
         if let Some(Pending::Nodes(v)) = &mut self.pending {
             v.push((id, lat, lon, tags));
+        }
+        Ok(())
+    }
+
+    /// Adds a node at (`lon_e7`, `lat_e7`) in 1e-7 degrees, as a PBF of granularity 100 holds
+    /// it: a node copied from such a file keeps its coordinates bit for bit.
+    pub fn node_e7(
+        &mut self,
+        id: i64,
+        lon_e7: i64,
+        lat_e7: i64,
+        tags: &[(&str, &str)],
+    ) -> io::Result<()> {
+        self.make_room(0)?;
+        let tags = self.tag_indices(tags);
+        if let Some(Pending::Nodes(v)) = &mut self.pending {
+            v.push((id, lat_e7, lon_e7, tags));
         }
         Ok(())
     }
