@@ -156,7 +156,7 @@ pub struct Site {
 /// town on a zone boundary) and refuses a file of places hundreds of kilometres apart.
 pub(crate) const MAX_SCALE_ERROR: f64 = 0.0025;
 
-/// The output CRS [`choose_output_crs`] picked, and how well it fits the data.
+/// The output CRS `choose_output_crs` picked, and how well it fits the data.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct CrsChoice {
     /// The input's projected CRS, or the WGS84 UTM zone of the centre of the data.
@@ -261,7 +261,7 @@ pub(crate) fn choose_output_crs(
 
 /// Projects and cleans every footprint, then groups parts under outlines.
 ///
-/// `source_crs` `None` means WGS84 degrees. `out_crs` `None` picks [`choose_output_crs`]'s CRS
+/// `source_crs` `None` means WGS84 degrees. `out_crs` `None` picks `choose_output_crs`'s CRS
 /// (the input's projected CRS, or the UTM zone of the data's centre). The origin is the centre of the data's bounds, rounded to the metre.
 pub fn prepare(
     footprints: Vec<Footprint>,

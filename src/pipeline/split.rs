@@ -1,9 +1,9 @@
 //! `citygen split`: an OSM PBF cut into the parts the shards of a tiled run read (issue 46).
 //!
 //! The split reads and prepares the whole input once, as every shard of the run does
-//! ([`super::RunState::prepare`]: output CRS, origin, fronts, inference), computes the run's
-//! tile grid and its assignment of tiles to shards ([`super::plan::GridPlan`],
-//! [`super::shard::assign`]), and writes per shard `part-I-of-N.osm.pbf` and its head
+//! (`super::RunState::prepare`: output CRS, origin, fronts, inference), computes the run's
+//! tile grid and its assignment of tiles to shards (`super::plan::GridPlan`,
+//! `super::shard::assign`), and writes per shard `part-I-of-N.osm.pbf` and its head
 //! `part-I-of-N.split.json`:
 //!
 //! - the PBF holds, copied element for element from the input (same ids, tags, coordinates,
@@ -53,7 +53,7 @@ pub const DEFAULT_HALO_M: f64 = 1000.0;
 /// What a shard reads beside its part ([`crate::pipeline::split`]).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SplitHead {
-    /// [`SPLIT_FORMAT`].
+    /// `SPLIT_FORMAT`.
     pub format: String,
     /// citygen's version.
     pub citygen: String,

@@ -3,7 +3,7 @@
 //! tiled from real data) with it without a committed binary fixture.
 //!
 //! Output layout: one `OSMHeader` blob (required features `OsmSchema-V0.6` and `DenseNodes`),
-//! then `OSMData` blobs of one `PrimitiveBlock` each, holding up to [`BLOCK_ENTITIES`] entities
+//! then `OSMData` blobs of one `PrimitiveBlock` each, holding up to `BLOCK_ENTITIES` entities
 //! of one kind: nodes as `DenseNodes` (ids and coordinates delta-coded), ways (delta-coded node
 //! refs) or relations (delta-coded member ids). Each block has its own string table, granularity
 //! 100 (coordinates in 1e-7 degrees), and is zlib-compressed with its `raw_size`. The protobuf is
