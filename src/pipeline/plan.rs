@@ -102,7 +102,8 @@ impl GridPlan {
                 .or_default() += 1;
         }
         let loads: Vec<usize> = counts.values().copied().collect();
-        let assigned = shard::assign(&loads, shard.count);
+        let cells: Vec<(i64, i64)> = counts.keys().copied().collect();
+        let assigned = shard::assign(&cells, &loads, shard.count);
         let size_m = i64::from(size.max(1));
         let tiles: Vec<shard::GridTile> = counts
             .iter()

@@ -235,24 +235,104 @@ pub(crate) fn from_env(
     ))
 }
 
-/// The shard of each tile: tiles by `counts` (their building counts), largest first, ties to
-/// the lower tile, each to the shard with the fewest buildings so far, ties to the lower
-/// shard (the longest-processing-time rule: no shard gets more than 4/3 of the best possible
-/// maximum). Depends on `counts` and `n` alone.
-pub(crate) fn assign(counts: &[usize], n: usize) -> Vec<usize> {
+/// The shard of each tile: the tiles (`cells`, their grid cells; `counts`, their building
+/// counts) in the order of a Hilbert curve over the grid, cut into `n` runs of consecutive
+/// tiles whose largest building count is the least possible (the optimal contiguous
+/// partition, found by bisection on that maximum and a greedy cut), shard 0 first. A shard
+/// so holds one compact block of the region, not tiles scattered over it: what a shard reads
+/// beyond its tiles (`citygen split`'s halo) costs only its block's perimeter. Its load is at
+/// most the ideal (total / `n`) plus the largest tile. Depends on `cells`, `counts` and `n`
+/// alone.
+pub(crate) fn assign(cells: &[(i64, i64)], counts: &[usize], n: usize) -> Vec<usize> {
     let n = n.max(1);
-    let mut order: Vec<usize> = (0..counts.len()).collect();
-    order.sort_by(|&a, &b| counts[b].cmp(&counts[a]).then(a.cmp(&b)));
-    let mut heap: std::collections::BinaryHeap<std::cmp::Reverse<(usize, usize)>> =
-        (0..n).map(|s| std::cmp::Reverse((0, s))).collect();
-    let mut shard = vec![0; counts.len()];
-    for t in order {
-        if let Some(std::cmp::Reverse((load, s))) = heap.pop() {
-            shard[t] = s;
-            heap.push(std::cmp::Reverse((load + counts[t], s)));
+    let len = cells.len().min(counts.len());
+    if len == 0 {
+        return Vec::new();
+    }
+    let (x0, y0) = cells[..len]
+        .iter()
+        .fold((i64::MAX, i64::MAX), |(x, y), c| (x.min(c.0), y.min(c.1)));
+    let span = cells[..len]
+        .iter()
+        .map(|c| (c.0.abs_diff(x0)).max(c.1.abs_diff(y0)))
+        .max()
+        .unwrap_or(0);
+    let mut side: u64 = 1;
+    while side <= span && side < (1 << 31) {
+        side <<= 1;
+    }
+    let mut order: Vec<usize> = (0..len).collect();
+    order.sort_by_key(|&t| {
+        let key = hilbert_index(
+            side,
+            cells[t].0.abs_diff(x0).min(side - 1),
+            cells[t].1.abs_diff(y0).min(side - 1),
+        );
+        (key, t)
+    });
+    let loads: Vec<usize> = order.iter().map(|&t| counts[t]).collect();
+    // The least maximum run load with at most `n` runs: between the largest tile and the sum.
+    let runs_needed = |cap: usize| {
+        let (mut runs, mut acc) = (1, 0usize);
+        for &l in &loads {
+            if acc + l > cap && acc > 0 {
+                runs += 1;
+                acc = 0;
+            }
+            acc += l;
+        }
+        runs
+    };
+    let (mut lo, mut hi) = (
+        loads.iter().copied().max().unwrap_or(0),
+        loads.iter().sum::<usize>(),
+    );
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if runs_needed(mid) <= n {
+            hi = mid;
+        } else {
+            lo = mid + 1;
         }
     }
+    let mut shard = vec![0; counts.len()];
+    let (mut s, mut acc) = (0usize, 0usize);
+    for (i, &t) in order.iter().enumerate() {
+        let l = loads[i];
+        // A new run when this tile would pass the cap, or when exactly as many tiles remain
+        // as shards still empty (so that every shard gets a tile when there are enough).
+        let left = len - i;
+        let empty = n - 1 - s;
+        if s + 1 < n && acc > 0 && (acc + l > lo || left <= empty) {
+            s += 1;
+            acc = 0;
+        }
+        shard[t] = s;
+        acc += l;
+    }
     shard
+}
+
+/// The position of cell (`x`, `y`) along the Hilbert curve filling a `side` × `side` grid
+/// (`side` a power of two).
+fn hilbert_index(side: u64, mut x: u64, mut y: u64) -> u64 {
+    let mut d = 0;
+    let mut s = side / 2;
+    while s > 0 {
+        let rx = u64::from(x & s > 0);
+        let ry = u64::from(y & s > 0);
+        d += s * s * ((3 * rx) ^ ry);
+        // Rotate the quadrant so that the curve's pieces join.
+        if ry == 0 {
+            if rx == 1 {
+                x = side - 1 - x;
+                y = side - 1 - y;
+            }
+            std::mem::swap(&mut x, &mut y);
+        }
+        s /= 2;
+    }
+    d
 }
 
 /// A shard's manifest (`citygen-manifest.{I}-of-{N}.json`, beside its outputs).
@@ -544,23 +624,74 @@ mod tests {
     }
 
     #[test]
-    fn tiles_are_balanced_largest_first_and_alike_everywhere() {
-        let counts = [10, 1, 7, 7, 3, 9, 2];
-        let a = assign(&counts, 3);
-        assert_eq!(a, assign(&counts, 3));
-        let mut load = [0; 3];
-        for (t, s) in a.iter().enumerate() {
-            load[*s] += counts[t];
+    fn tiles_go_in_compact_balanced_blocks_alike_everywhere() {
+        // A 4 x 4 grid away from the origin, uneven counts.
+        let mut cells = Vec::new();
+        let mut counts = Vec::new();
+        for y in 0..4i64 {
+            for x in 0..4i64 {
+                cells.push((x - 7, y + 3));
+                counts.push(((x * 7 + y * 3) % 5 + 1) as usize);
+            }
         }
-        // 39 buildings: the best maximum is 13; LPT gives 10+3, 9+2+1... at most 4/3 of it.
-        assert!(
-            load.iter().max().unwrap() - load.iter().min().unwrap() <= 3,
-            "{load:?}"
-        );
-        assert_eq!(a[0], 0, "the largest tile goes to shard 0");
-        assert_eq!(assign(&counts, 1), vec![0; 7]);
+        let total: usize = counts.iter().sum();
+        for n in 1..=6 {
+            let a = assign(&cells, &counts, n);
+            assert_eq!(a, assign(&cells, &counts, n));
+            let mut load = vec![0; n];
+            for (t, s) in a.iter().enumerate() {
+                load[*s] += counts[t];
+            }
+            let max = *load.iter().max().unwrap();
+            // At most the ideal plus the largest tile, and every shard holds a tile.
+            assert!(max <= total.div_ceil(n) + 5, "{n}: {load:?}");
+            assert!(load.iter().all(|l| *l > 0), "{n}: {load:?}");
+            // Each shard's tiles are one edge-connected block of the grid.
+            for s in 0..n {
+                let mine: Vec<(i64, i64)> = (0..cells.len())
+                    .filter(|t| a[*t] == s)
+                    .map(|t| cells[t])
+                    .collect();
+                let mut seen = vec![mine[0]];
+                let mut i = 0;
+                while i < seen.len() {
+                    let c = seen[i];
+                    for m in &mine {
+                        if !seen.contains(m) && (m.0 - c.0).abs() + (m.1 - c.1).abs() == 1 {
+                            seen.push(*m);
+                        }
+                    }
+                    i += 1;
+                }
+                assert_eq!(
+                    seen.len(),
+                    mine.len(),
+                    "{n}: shard {s} is not one block: {mine:?}"
+                );
+            }
+        }
+        assert_eq!(assign(&cells, &counts, 1), vec![0; cells.len()]);
         // More shards than tiles: each tile alone, the rest empty.
-        let a = assign(&[5, 4], 4);
+        let a = assign(&[(0, 0), (1, 0)], &[5, 4], 4);
         assert_eq!(a, vec![0, 1]);
+        assert!(assign(&[], &[], 3).is_empty());
+    }
+
+    #[test]
+    fn the_hilbert_curve_visits_every_cell_once_by_neighbour_steps() {
+        let side = 8;
+        let mut at = vec![(0, 0); 64];
+        for x in 0..side {
+            for y in 0..side {
+                at[hilbert_index(side, x, y) as usize] = (x as i64, y as i64);
+            }
+        }
+        for w in at.windows(2) {
+            assert_eq!(
+                (w[0].0 - w[1].0).abs() + (w[0].1 - w[1].1).abs(),
+                1,
+                "{w:?}"
+            );
+        }
     }
 }
