@@ -633,7 +633,7 @@ impl Passes for XmlPasses {
         ))
     }
 
-    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<Found>>, InputError> {
+    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<NodeBlock>>, InputError> {
         let mut found = Found::default();
         let mut cursor = NeededCursor::new(needed);
         self.scan(&[Kind::Node], Some(Kind::Way), &mut |e| {
@@ -642,6 +642,7 @@ impl Passes for XmlPasses {
             }
         })?;
         found.sort();
-        Ok(Some(vec![found]))
+        // Node tags are not read from OSM XML: no address nodes (issue 45).
+        Ok(Some(vec![(found, Vec::new())]))
     }
 }
