@@ -53,6 +53,33 @@ impl Osm {
         self.ways.push((id, refs, tags));
     }
 
+    /// The same data set as OSM XML (`.osm`).
+    fn write_xml(&self, path: &Path) {
+        let esc = |s: &str| {
+            s.replace('&', "&amp;")
+                .replace('"', "&quot;")
+                .replace('<', "&lt;")
+        };
+        let tags = |t: &Tags| {
+            t.iter()
+                .map(|(k, v)| format!("<tag k=\"{}\" v=\"{}\"/>", esc(k), esc(v)))
+                .collect::<String>()
+        };
+        let mut x = String::from("<?xml version=\"1.0\"?>\n<osm version=\"0.6\">\n");
+        for (id, lon, lat, t) in &self.nodes {
+            x += &format!(
+                "<node id=\"{id}\" lat=\"{lat:.9}\" lon=\"{lon:.9}\">{}</node>\n",
+                tags(t)
+            );
+        }
+        for (id, refs, t) in &self.ways {
+            let nds: String = refs.iter().map(|r| format!("<nd ref=\"{r}\"/>")).collect();
+            x += &format!("<way id=\"{id}\">{nds}{}</way>\n", tags(t));
+        }
+        x += "</osm>\n";
+        std::fs::write(path, x).unwrap();
+    }
+
     fn write(&self, path: &Path) {
         let mut w = PbfWriter::new(File::create(path).unwrap()).unwrap();
         for (id, lon, lat, tags) in &self.nodes {
@@ -192,12 +219,21 @@ fn doors_and_narrowest(path: &Path) -> (Doors, f64) {
 
 /// Writes the scene, runs citygen at LOD3 into CityJSON and reads the doors back.
 fn run_scene(osm: &Osm, extra: &[&str]) -> (Doors, f64) {
+    run_scene_as(osm, extra, false)
+}
+
+/// [`run_scene`], the scene written as OSM XML when `xml`.
+fn run_scene_as(osm: &Osm, extra: &[&str], xml: bool) -> (Doors, f64) {
     let dir = tempfile::tempdir().unwrap();
     let (pbf, cj) = (
-        dir.path().join("row.osm.pbf"),
+        dir.path().join(if xml { "row.osm" } else { "row.osm.pbf" }),
         dir.path().join("row.city.json"),
     );
-    osm.write(&pbf);
+    if xml {
+        osm.write_xml(&pbf);
+    } else {
+        osm.write(&pbf);
+    }
     let mut args = vec![
         "--osm",
         pbf.to_str().unwrap(),
@@ -320,6 +356,11 @@ fn us_rowhouses_face_the_street_their_address_nodes_name() {
         "{share:.2} of ground doors on the street: {doors:?}"
     );
     assert!(narrowest >= 0.4 - 1e-3, "an opening {narrowest} m wide");
+    // The same from OSM XML.
+    let (doors, _) = run_scene_as(&us_rowhouses(true), &[], true);
+    let (xml, n) = street_share(&doors);
+    assert_eq!(n, 13, "{doors:?}");
+    assert!(xml >= 0.95, "OSM XML: {xml:.2} on the street: {doors:?}");
     // Without the address nodes the nearer alley and the cross street win: what the nodes
     // change is what this test measures.
     let (doors, _) = run_scene(&us_rowhouses(false), &[]);

@@ -15,7 +15,7 @@
 //! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside),
 //!    and the nodes with an `addr:street` (issue 45: address and entrance nodes name the street
 //!    a building's door faces; a block's node tags are read only when its string table holds
-//!    `addr:street`). OSM XML and change files give no address nodes.
+//!    `addr:street`; OSM XML's too). A change file's nodes give no address nodes.
 //!
 //! Admin boundaries ride along (`boundaries`): pass 1 keeps `boundary=administrative`
 //! relations of `admin_level` 2..=10 with only their naming tags, pass 2 their member ways and
