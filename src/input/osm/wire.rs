@@ -472,11 +472,10 @@ pub(super) fn fast_nodes(
     let mut addresses: Vec<AddrNode> = Vec::new();
     let (g, lat0, lon0) = (block.granularity, block.lat_offset, block.lon_offset);
     // Tags are read only in a block whose string table holds `addr:street` (issue 45).
-    let addr_key = block
-        .strings
-        .iter()
-        .position(|s| *s == Some("addr:street"))
-        .and_then(|i| u32::try_from(i).ok());
+    let addr_keys: Vec<u32> = (0..block.strings.len())
+        .filter(|&i| block.strings[i] == Some("addr:street"))
+        .filter_map(|i| u32::try_from(i).ok())
+        .collect();
     let nano = |lon: i64, lat: i64| {
         (
             lon0.wrapping_add(g.wrapping_mul(lon)),
@@ -492,8 +491,17 @@ pub(super) fn fast_nodes(
     };
     // The `addr:street` among the (key, value) string indices of one node's tags, as
     // `addr_street_of` reads osmpbf's (a string that is not UTF-8 ends the tags).
+    // Keys compared by their index, not their text: a block of nodes holds many tags.
     let street = |pairs: &mut dyn Iterator<Item = (u32, u32)>| -> Option<Arc<str>> {
-        addr_street_of(pairs.map_while(|(k, v)| Some((block.string(k)?, block.string(v)?))))
+        for (k, v) in pairs {
+            let (Some(_), Some(value)) = (block.string(k), block.string(v)) else {
+                return None;
+            };
+            if addr_keys.contains(&k) && !value.trim().is_empty() {
+                return Some(Arc::from(value.trim()));
+            }
+        }
+        None
     };
     let mut plain: Vec<&[u8]> = Vec::new();
     for grp in &block.groups {
@@ -537,7 +545,7 @@ pub(super) fn fast_nodes(
                 lon = lon.wrapping_add(zigzag(varint(lons, &mut po)?));
                 visit(&mut out, id, lat, lon);
                 // This node's tags: (key, value) pairs up to a 0.
-                if let (Some(kv), Some(_)) = (kvs, addr_key) {
+                if let (Some(kv), false) = (kvs, addr_keys.is_empty()) {
                     let mut pairs = std::iter::from_fn(|| {
                         let k = u32::try_from(varint(kv, &mut pk)?).ok()?;
                         if k == 0 {
@@ -581,7 +589,7 @@ pub(super) fn fast_nodes(
             }
             let (id, lat, lon) = (id?, lat?, lon?);
             visit(&mut out, id, lat, lon);
-            if addr_key.is_some() && !keys.is_empty() {
+            if !addr_keys.is_empty() && !keys.is_empty() {
                 let (mut a, mut b) = (0, 0);
                 let mut pairs = std::iter::from_fn(|| {
                     Some((next_u32(keys, &mut a).ok()??, next_u32(vals, &mut b).ok()??))
