@@ -233,6 +233,11 @@ pub struct Streets {
     pub names: Vec<String>,
     /// The buildings' `addr:street` (an index into `names`), sorted by id.
     pub addresses: Vec<(SourceId, u32)>,
+    /// Nodes with an `addr:street` (address and entrance nodes, issue 45): (x, y) in source
+    /// coordinates and the name's index into `names`; a building without its own
+    /// `addr:street` takes that of the address nodes inside or on its outline
+    /// ([`crate::prepare::assign_fronts`]).
+    pub address_points: Vec<(f64, f64, u32)>,
 }
 
 impl Streets {

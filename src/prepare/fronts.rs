@@ -73,7 +73,9 @@ impl RTreeObject for StreetSegment {
 /// building whose corner touches a street does not win over the end wall that faces it). The
 /// nearest facing edge within [`FRONT_MAX_DISTANCE`] — the longest of those within 1 m of the
 /// nearest — gives the front: its outward normal. Issue 45: an outline with an `addr:street`
-/// ([`Streets::address`]) that has an edge facing a street of that name takes its front among
+/// ([`Streets::address`]; without one, the street most of its address and entrance nodes
+/// name, [`Streets::address_points`] inside it or within [`ADDRESS_NODE_REACH`] of it) that
+/// has an edge facing a street of that name takes its front among
 /// those edges only; otherwise each street's distance counts its kind's penalty
 /// (`kind_penalty`: a back lane or drive 20 m, a footway or other service road 4 m), so a
 /// row of houses between its street and a nearer alley faces the street. Pure per lot, so it runs in parallel and the
@@ -113,6 +115,13 @@ pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>
         }
     }
     let tree = RTree::bulk_load(segments);
+    let points = RTree::bulk_load(
+        streets
+            .address_points
+            .iter()
+            .filter_map(|&(x, y, n)| Some(AddressPoint::new(local(x, y)?.to_array(), n)))
+            .collect(),
+    );
     let outlines: Vec<OutlineEntry> = site
         .lots
         .iter()
@@ -138,12 +147,54 @@ pub fn assign_fronts(site: &mut Site, streets: &Streets, source_crs: Option<Crs>
                     .locate_all_at_point(p.to_array())
                     .any(|e| e.data.0 != i && lots[e.data.0].polygons[e.data.1].contains(p))
             };
-            front_of(&lot.polygons, &tree, streets.address(lot.id), &others)
+            let address = streets
+                .address(lot.id)
+                .or_else(|| address_of_points(&lot.polygons, &points));
+            front_of(&lot.polygons, &tree, address, &others)
         })
         .collect();
     for (lot, f) in site.lots.iter_mut().zip(fronts) {
         lot.front = f;
     }
+}
+
+/// An address node (`addr:street` on a node, issue 45) in the index of [`assign_fronts`]: its
+/// local position and its street's name index.
+type AddressPoint = rstar::primitives::GeomWithData<[f64; 2], u32>;
+
+/// How far outside an outline (metres) an address node still belongs to it: an entrance
+/// node sits on the outline, and a mapper's address node just outside its wall is the
+/// building's.
+pub const ADDRESS_NODE_REACH: f64 = 1.0;
+
+/// The street an outline's address nodes name (issue 45): those inside its polygons or within
+/// [`ADDRESS_NODE_REACH`] of their outer rings; the name most of them give (the first in
+/// name order on a tie), `None` without any.
+pub(super) fn address_of_points(polygons: &[Polygon], points: &RTree<AddressPoint>) -> Option<u32> {
+    let mut counts: std::collections::BTreeMap<u32, usize> = Default::default();
+    let m = DVec2::splat(ADDRESS_NODE_REACH);
+    for p in polygons {
+        let (lo, hi) = p.bounds();
+        let r = &p.outer;
+        for a in
+            points.locate_in_envelope(AABB::from_corners((lo - m).to_array(), (hi + m).to_array()))
+        {
+            let q = DVec2::from(*a.geom());
+            let near = p.contains(q)
+                || (0..r.len()).any(|i| {
+                    nearest_on_segment(r[i], r[(i + 1) % r.len()], q).distance(q)
+                        <= ADDRESS_NODE_REACH
+                });
+            if near {
+                *counts.entry(a.data).or_default() += 1;
+            }
+        }
+    }
+    counts
+        .into_iter()
+        .rev()
+        .max_by_key(|&(_, c)| c)
+        .map(|(n, _)| n)
 }
 
 /// How far outside an edge [`assign_fronts`] looks for another building (metres).

@@ -3,7 +3,8 @@
 //! building standing on the ground (on a part that is no structure, issue 45), on its street
 //! side (within 25°), at the ground, of a door's size (0.8-2.5 by 2.0-2.6 m, balcony doors
 //! too); no door in mid-air; round and many-edged towers (no structure) have windows on every
-//! storey.
+//! storey; no window, door or interior door narrower than the knowledge base's minimum
+//! (issue 45).
 //!
 //! The neighbours are computed here from the buildings themselves (each lot near the district
 //! derived at LOD2 through the public `generate`, its parts' footprints and height ranges), and
@@ -17,6 +18,9 @@ use citygen::input::{osm::read_osm, shp::read_shp, shp::ShpOptions};
 use citygen::model::{Building, Lod, OpeningKind, Part, SourceId, Wall};
 use citygen::prepare::{assign_fronts, near_bbox, prepare, retain_in_bbox, Lot};
 use glam::DVec2;
+
+/// The shipped knowledge base's narrowest window or door (`minopeningwidth` unset: 0.4 m).
+const MIN_OPENING_WIDTH: f64 = 0.4;
 
 /// CI's LOD3 districts.
 const MONACO_DISTRICT: [f64; 4] = [7.4180, 43.7290, 7.4240, 43.7330];
@@ -163,8 +167,31 @@ fn check(name: &str, area: &Area) -> String {
         let mut main_doors = Vec::new();
         for part in &b.parts {
             let grounded = part.base_z <= 0.1;
+            // No interior door narrower than the knowledge base's minimum (issue 45, LOD4).
+            for s in &part.interior {
+                for d in &s.doors {
+                    if d.u1 - d.u0 < MIN_OPENING_WIDTH - 1e-9 {
+                        faults.push(format!(
+                            "{} {}: an interior door {:.2} m wide",
+                            b.id,
+                            part.key,
+                            d.u1 - d.u0
+                        ));
+                    }
+                }
+            }
             for w in &part.walls {
                 for o in &w.openings {
+                    // No slit (issue 45): every window and door at least the minimum wide.
+                    if o.u1 - o.u0 < MIN_OPENING_WIDTH - 1e-9 {
+                        faults.push(format!(
+                            "{} {}: a {:?} {:.2} m wide",
+                            b.id,
+                            part.key,
+                            o.kind,
+                            o.u1 - o.u0
+                        ));
+                    }
                     let r = (o.u0, o.u1, o.z0, o.z1);
                     if let Some(f) = into_neighbour(area, b, part, w, r) {
                         faults.push(f);

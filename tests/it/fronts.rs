@@ -20,7 +20,7 @@ type Tags = Vec<(String, String)>;
 /// An OSM data set in metres east/north of (LON0, LAT0).
 #[derive(Default)]
 struct Osm {
-    nodes: Vec<(i64, f64, f64)>,
+    nodes: Vec<(i64, f64, f64, Tags)>,
     ways: Vec<(i64, Vec<i64>, Tags)>,
 }
 
@@ -29,8 +29,15 @@ impl Osm {
         let m_lon = 111_320.0 * LAT0.to_radians().cos();
         let id = 1 + self.nodes.len() as i64;
         self.nodes
-            .push((id, LON0 + x / m_lon, LAT0 + y / 110_574.0));
+            .push((id, LON0 + x / m_lon, LAT0 + y / 110_574.0, Vec::new()));
         id
+    }
+
+    /// A tagged node at (x, y): an address or entrance node.
+    fn tagged(&mut self, at: (f64, f64), tags: &[(&str, &str)]) {
+        self.node(at);
+        let t = &mut self.nodes.last_mut().unwrap().3;
+        t.extend(tags.iter().map(|(k, v)| (k.to_string(), v.to_string())));
     }
 
     /// A way through `pts` (closed when `closed`) with these tags.
@@ -46,10 +53,38 @@ impl Osm {
         self.ways.push((id, refs, tags));
     }
 
+    /// The same data set as OSM XML (`.osm`).
+    fn write_xml(&self, path: &Path) {
+        let esc = |s: &str| {
+            s.replace('&', "&amp;")
+                .replace('"', "&quot;")
+                .replace('<', "&lt;")
+        };
+        let tags = |t: &Tags| {
+            t.iter()
+                .map(|(k, v)| format!("<tag k=\"{}\" v=\"{}\"/>", esc(k), esc(v)))
+                .collect::<String>()
+        };
+        let mut x = String::from("<?xml version=\"1.0\"?>\n<osm version=\"0.6\">\n");
+        for (id, lon, lat, t) in &self.nodes {
+            x += &format!(
+                "<node id=\"{id}\" lat=\"{lat:.9}\" lon=\"{lon:.9}\">{}</node>\n",
+                tags(t)
+            );
+        }
+        for (id, refs, t) in &self.ways {
+            let nds: String = refs.iter().map(|r| format!("<nd ref=\"{r}\"/>")).collect();
+            x += &format!("<way id=\"{id}\">{nds}{}</way>\n", tags(t));
+        }
+        x += "</osm>\n";
+        std::fs::write(path, x).unwrap();
+    }
+
     fn write(&self, path: &Path) {
         let mut w = PbfWriter::new(File::create(path).unwrap()).unwrap();
-        for &(id, lon, lat) in &self.nodes {
-            w.node(id, lon, lat, &[]).unwrap();
+        for (id, lon, lat, tags) in &self.nodes {
+            let t: Vec<(&str, &str)> = tags.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+            w.node(*id, *lon, *lat, &t).unwrap();
         }
         for (id, refs, tags) in &self.ways {
             let t: Vec<(&str, &str)> = tags.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
@@ -184,12 +219,21 @@ fn doors_and_narrowest(path: &Path) -> (Doors, f64) {
 
 /// Writes the scene, runs citygen at LOD3 into CityJSON and reads the doors back.
 fn run_scene(osm: &Osm, extra: &[&str]) -> (Doors, f64) {
+    run_scene_as(osm, extra, false)
+}
+
+/// [`run_scene`], the scene written as OSM XML when `xml`.
+fn run_scene_as(osm: &Osm, extra: &[&str], xml: bool) -> (Doors, f64) {
     let dir = tempfile::tempdir().unwrap();
     let (pbf, cj) = (
-        dir.path().join("row.osm.pbf"),
+        dir.path().join(if xml { "row.osm" } else { "row.osm.pbf" }),
         dir.path().join("row.city.json"),
     );
-    osm.write(&pbf);
+    if xml {
+        osm.write_xml(&pbf);
+    } else {
+        osm.write(&pbf);
+    }
     let mut args = vec![
         "--osm",
         pbf.to_str().unwrap(),
@@ -229,4 +273,101 @@ fn ground_doors_face_the_street_not_the_back_lane() {
     assert_eq!(ground.len(), 28, "{doors:?}");
     assert_eq!(facing, ground.len(), "doors facing the back lane: {away:?}");
     assert!(narrowest >= 0.4 - 1e-3, "an opening {narrowest} m wide");
+}
+
+/// A US rowhouse block at `y0` (issue 45, the district where 23 % of ground doors faced
+/// away): 12 attached houses 5 m wide and 12 m deep, one way each, without `addr:street` on
+/// the way; the address is on a node: inside the house near its front for the even ones, an
+/// `entrance=main` node on the front wall for the odd ones. The named street 10 m in front
+/// (front yards, sidewalk), an unnamed `highway=service` alley 3 m behind (no `service=alley`:
+/// it does not count as a back lane), a cross street 6 m west of the corner house's side wall.
+/// Then the same row mapped as one way, its 12 address nodes inside it. With `nodes`, the
+/// address nodes are written; without, the same scene has none.
+fn us_rowhouses(nodes: bool) -> Osm {
+    let mut osm = Osm::default();
+    let street = "Jefferson Street";
+    for (row, y0) in [(0, 0.0), (1, 60.0)] {
+        if row == 0 {
+            for i in 0..12 {
+                let ring = rect(5.0 * i as f64, y0, 5.0, 12.0);
+                osm.way(100 + i, &ring, true, &[("building", "house")]);
+            }
+        } else {
+            let ring = rect(0.0, y0, 60.0, 12.0);
+            osm.way(200, &ring, true, &[("building", "terrace")]);
+        }
+        if nodes {
+            for i in 0..12 {
+                let x = 5.0 * i as f64 + 2.5;
+                let number = (1000 + 2 * i + 100 * row).to_string();
+                let addr = [
+                    ("addr:street", street),
+                    ("addr:housenumber", number.as_str()),
+                ];
+                if row == 0 && i % 2 == 1 {
+                    let mut t = addr.to_vec();
+                    t.push(("entrance", "main"));
+                    osm.tagged((x, y0 + 12.0), &t);
+                } else {
+                    osm.tagged((x, y0 + 10.5), &addr);
+                }
+            }
+        }
+        osm.way(
+            300 + row,
+            &[(-30.0, y0 + 22.0), (90.0, y0 + 22.0)],
+            false,
+            &[("highway", "residential"), ("name", street)],
+        );
+        osm.way(
+            310 + row,
+            &[(-30.0, y0 - 3.0), (90.0, y0 - 3.0)],
+            false,
+            &[("highway", "service")],
+        );
+    }
+    osm.way(
+        320,
+        &[(-6.0, -30.0), (-6.0, 110.0)],
+        false,
+        &[("highway", "residential"), ("name", "Pine Street")],
+    );
+    osm
+}
+
+/// The share of ground doors on the north (street) wall, and how many there are.
+fn street_share(doors: &Doors) -> (f64, usize) {
+    let ground: Vec<bool> = doors
+        .iter()
+        .flat_map(|(_, centre, ds)| ds.iter().map(move |y| y > centre))
+        .collect();
+    let facing = ground.iter().filter(|&&f| f).count();
+    (facing as f64 / ground.len().max(1) as f64, ground.len())
+}
+
+#[test]
+fn us_rowhouses_face_the_street_their_address_nodes_name() {
+    let (doors, narrowest) = run_scene(&us_rowhouses(true), &[]);
+    let (share, n) = street_share(&doors);
+    // 12 houses and the row mapped as one way: one ground door each.
+    assert_eq!(n, 13, "{doors:?}");
+    assert!(
+        share >= 0.95,
+        "{share:.2} of ground doors on the street: {doors:?}"
+    );
+    assert!(narrowest >= 0.4 - 1e-3, "an opening {narrowest} m wide");
+    // The same from OSM XML.
+    let (doors, _) = run_scene_as(&us_rowhouses(true), &[], true);
+    let (xml, n) = street_share(&doors);
+    assert_eq!(n, 13, "{doors:?}");
+    assert!(xml >= 0.95, "OSM XML: {xml:.2} on the street: {doors:?}");
+    // Without the address nodes the nearer alley and the cross street win: what the nodes
+    // change is what this test measures.
+    let (doors, _) = run_scene(&us_rowhouses(false), &[]);
+    let (without, n) = street_share(&doors);
+    assert_eq!(n, 13, "{doors:?}");
+    assert!(
+        without < 0.5,
+        "{without:.2} on the street without address nodes"
+    );
 }

@@ -12,7 +12,10 @@
 //!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
 //! 2. ways: building/part ways, the member ways of pass 1 and street ways (`STREET_KINDS`);
 //!    collect the node ids they need;
-//! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside).
+//! 3. nodes: only the needed ids, in a compact index (sorted ids, 1e-7 degree integers beside),
+//!    and the nodes with an `addr:street` (issue 45: address and entrance nodes name the street
+//!    a building's door faces; a block's node tags are read only when its string table holds
+//!    `addr:street`; OSM XML's too). A change file's nodes give no address nodes.
 //!
 //! Admin boundaries ride along (`boundaries`): pass 1 keeps `boundary=administrative`
 //! relations of `admin_level` 2..=10 with only their naming tags, pass 2 their member ways and
@@ -190,8 +193,8 @@ trait Passes {
         interner: &TagInterner,
     ) -> Result<Option<Vec<WaysOfBlock>>, InputError>;
     /// Pass 3: the nodes of `needed` (sorted) found, each block's sorted by index
-    /// ([`Found::sort`]).
-    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<Found>>, InputError>;
+    /// ([`Found::sort`]), and the nodes with an `addr:street` ([`AddrNode`]).
+    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<NodeBlock>>, InputError>;
 }
 
 /// The PBF's blobs `locs` of `file`, decoded in parallel by each pass.
@@ -234,11 +237,11 @@ impl Passes for PbfPasses<'_> {
         Ok((!mixed).then_some(blocks))
     }
 
-    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<Found>>, InputError> {
+    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<NodeBlock>>, InputError> {
         // Each block's found nodes sorted by index in the parallel pass, for `Nodes::fill`.
-        let by_index = |mut found: Found| {
+        let by_index = |(mut found, addresses): NodeBlock| {
             found.sort();
-            found
+            (found, addresses)
         };
         let (found, mixed) = self.pbf.pass(
             self.file,
@@ -330,6 +333,7 @@ fn read_passes(
         report.entries.truncate(mark);
         return Ok(None);
     };
+    let (found, addresses): (Vec<Found>, Vec<Vec<AddrNode>>) = found.into_iter().unzip();
     nodes.fill(&found);
     drop(found);
     if let Some(c) = change {
@@ -343,6 +347,7 @@ fn read_passes(
 
     let mut result = assemble(&mut ways, &rels, &nodes, &interner, report);
     result.streets = streets_of(&ways, &rels, &nodes);
+    add_address_nodes(&mut result.streets, addresses.into_iter().flatten());
     result.boundaries = boundaries::admin_boundaries(&ways, &rels, &nodes, report);
     // Freeing the large lists is a fair share of the read: both at once.
     rayon::join(move || drop(ways), move || drop(nodes));
@@ -525,6 +530,26 @@ fn streets_of(ways: &Ways, rels: &[RelRec], nodes: &Nodes) -> super::Streets {
     streets.addresses.sort_by_key(|a| a.0);
     streets.addresses.dedup_by_key(|a| a.0);
     streets
+}
+
+/// Adds the address nodes (issue 45: `addr:street` on a node; an entrance or address node
+/// inside or on a building's outline names its street) to `streets`, in degrees, in file
+/// order. A change file's nodes are not read for their tags.
+fn add_address_nodes(streets: &mut super::Streets, nodes: impl Iterator<Item = AddrNode>) {
+    let mut index: std::collections::HashMap<String, u32> = streets
+        .names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.clone(), i as u32))
+        .collect();
+    for (lon, lat, name) in nodes {
+        let n = streets.name_index(&name, &mut index);
+        if n != super::Streets::NO_NAME {
+            streets
+                .address_points
+                .push((lon as f64 * 1e-9, lat as f64 * 1e-9, n));
+        }
+    }
 }
 
 /// A building/part relation's footprint (`None` when skipped) and its report entries.

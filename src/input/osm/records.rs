@@ -370,6 +370,15 @@ impl Nodes {
     }
 }
 
+/// A node with an `addr:street` (issue 45: an address or entrance node inside or on a
+/// footprint names the street its door faces): nanodegrees of longitude and latitude, and the
+/// street's name, trimmed.
+pub(super) type AddrNode = (i64, i64, Arc<str>);
+
+/// What the nodes pass takes from one block: the needed nodes and the address nodes, each in
+/// file order.
+pub(super) type NodeBlock = (Found, Vec<AddrNode>);
+
 /// The needed nodes one block holds, in file order: (index in the needed ids, lon, lat).
 /// Compact (12 bytes a node) while every index fits a u32 and every coordinate is a whole
 /// number of 1e-7 degrees, as [`Nodes`] keeps it; else as found (nanodegrees).
@@ -677,8 +686,9 @@ impl<'a> NeededCursor<'a> {
 }
 
 /// The needed nodes of a block.
-pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Found {
+pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> NodeBlock {
     let mut out = Found::default();
+    let mut addresses = Vec::new();
     let mut cursor = NeededCursor::new(needed);
     let mut visit = |id: i64, lon: i64, lat: i64| {
         if let Some(j) = cursor.find(id) {
@@ -688,12 +698,18 @@ pub(super) fn nodes_of_block(block: &PrimitiveBlock, needed: &[i64]) -> Found {
     for g in block.groups() {
         for n in g.dense_nodes() {
             visit(n.id(), n.nano_lon(), n.nano_lat());
+            if let Some(a) = addr_street_of(n.tags()) {
+                addresses.push((n.nano_lon(), n.nano_lat(), a));
+            }
         }
         for n in g.nodes() {
             visit(n.id(), n.nano_lon(), n.nano_lat());
+            if let Some(a) = addr_street_of(n.tags()) {
+                addresses.push((n.nano_lon(), n.nano_lat(), a));
+            }
         }
     }
-    out
+    (out, addresses)
 }
 
 // ---------------------------------------------------------------------------------------------

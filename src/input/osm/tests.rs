@@ -823,6 +823,26 @@ fn direct_decoding_matches_osmpbf() {
         seen[usize::from(*kind == BlobKind::Ways)] += 1;
     }
     assert!(seen[0] > 0 && seen[1] > 0, "{seen:?}");
+    // Monaco's address and entrance nodes (issue 45) were among what both decoders agreed on,
+    // each at its own node's place.
+    let mut scratch = Scratch::default();
+    let addresses: Vec<AddrNode> = blocks
+        .iter()
+        .filter(|(kind, _)| *kind == BlobKind::Nodes)
+        .flat_map(|(_, b)| {
+            fast_nodes(&frame_of(1, &raw_frame(b)), &mut scratch, &needed)
+                .unwrap()
+                .1
+        })
+        .collect();
+    assert!(addresses.len() > 100, "{} address nodes", addresses.len());
+    let (lo, hi) = (
+        (7.40e9 as i64, 43.71e9 as i64),
+        (7.45e9 as i64, 43.76e9 as i64),
+    );
+    assert!(addresses
+        .iter()
+        .all(|a| (lo.0..hi.0).contains(&a.0) && (lo.1..hi.1).contains(&a.1) && !a.2.is_empty()));
     // A ways block read by the nodes pass and the other way round: left to osmpbf.
     for (kind, block) in &blocks {
         let other = if *kind == BlobKind::Ways {

@@ -461,20 +461,47 @@ pub(super) fn fast_ways(
 
 /// The needed nodes of a block of nodes (see [`nodes_of_block`]), or `None` for osmpbf to
 /// decode it.
-pub(super) fn fast_nodes(frame: &Frame, scratch: &mut Scratch, needed: &[i64]) -> Option<Found> {
+pub(super) fn fast_nodes(
+    frame: &Frame,
+    scratch: &mut Scratch,
+    needed: &[i64],
+) -> Option<NodeBlock> {
     let bytes = inflated(frame, scratch)?;
     let block = Block::parse(bytes)?;
     let mut out = Found::default();
-    let mut cursor = NeededCursor::new(needed);
+    let mut addresses: Vec<AddrNode> = Vec::new();
     let (g, lat0, lon0) = (block.granularity, block.lat_offset, block.lon_offset);
+    // Tags are read only in a block whose string table holds `addr:street` (issue 45).
+    let addr_keys: Vec<u32> = (0..block.strings.len())
+        .filter(|&i| block.strings[i] == Some("addr:street"))
+        .filter_map(|i| u32::try_from(i).ok())
+        .collect();
+    let nano = |lon: i64, lat: i64| {
+        (
+            lon0.wrapping_add(g.wrapping_mul(lon)),
+            lat0.wrapping_add(g.wrapping_mul(lat)),
+        )
+    };
+    let mut cursor = NeededCursor::new(needed);
     let mut visit = |out: &mut Found, id: i64, lat: i64, lon: i64| {
         if let Some(j) = cursor.find(id) {
-            out.push(
-                j,
-                lon0.wrapping_add(g.wrapping_mul(lon)),
-                lat0.wrapping_add(g.wrapping_mul(lat)),
-            );
+            let (x, y) = nano(lon, lat);
+            out.push(j, x, y);
         }
+    };
+    // The `addr:street` among the (key, value) string indices of one node's tags, as
+    // `addr_street_of` reads osmpbf's (a string that is not UTF-8 ends the tags).
+    // Keys compared by their index, not their text: a block of nodes holds many tags.
+    let street = |pairs: &mut dyn Iterator<Item = (u32, u32)>| -> Option<Arc<str>> {
+        for (k, v) in pairs {
+            let (Some(_), Some(value)) = (block.string(k), block.string(v)) else {
+                return None;
+            };
+            if addr_keys.contains(&k) && !value.trim().is_empty() {
+                return Some(Arc::from(value.trim()));
+            }
+        }
+        None
     };
     let mut plain: Vec<&[u8]> = Vec::new();
     for grp in &block.groups {
@@ -489,14 +516,16 @@ pub(super) fn fast_nodes(frame: &Frame, scratch: &mut Scratch, needed: &[i64]) -
             }
         }
         if let Some(d) = dense {
-            let (mut ids, mut lats, mut lons) = (None, None, None);
+            let (mut ids, mut lats, mut lons, mut kvs) = (None, None, None, None);
             for f in fields(d) {
                 match f.ok()? {
                     (1, Value::Bytes(a)) if ids.is_none() => ids = Some(a),
                     (8, Value::Bytes(a)) if lats.is_none() => lats = Some(a),
                     (9, Value::Bytes(a)) if lons.is_none() => lons = Some(a),
                     (5, Value::Bytes(i)) if check_dense_info(i) => {}
-                    (10, Value::Bytes(kv)) if check_packed(kv, Packed::I32) => {}
+                    (10, Value::Bytes(kv)) if kvs.is_none() && check_packed(kv, Packed::I32) => {
+                        kvs = Some(kv)
+                    }
                     (1 | 5 | 8..=10, _) => return None,
                     _ => {}
                 }
@@ -508,13 +537,33 @@ pub(super) fn fast_nodes(frame: &Frame, scratch: &mut Scratch, needed: &[i64]) -
             );
             out.reserve(ids.iter().filter(|&&b| b < 0x80).count());
             // Decoding checks the arrays as it goes; what is left of the longer ones after.
-            let (mut pi, mut pa, mut po) = (0, 0, 0);
+            let (mut pi, mut pa, mut po, mut pk) = (0, 0, 0, 0);
             let (mut id, mut lat, mut lon) = (0i64, 0i64, 0i64);
             while pi < ids.len() && pa < lats.len() && po < lons.len() {
                 id = id.wrapping_add(zigzag(varint(ids, &mut pi)?));
                 lat = lat.wrapping_add(zigzag(varint(lats, &mut pa)?));
                 lon = lon.wrapping_add(zigzag(varint(lons, &mut po)?));
                 visit(&mut out, id, lat, lon);
+                // This node's tags: (key, value) pairs up to a 0.
+                if let (Some(kv), false) = (kvs, addr_keys.is_empty()) {
+                    let mut pairs = std::iter::from_fn(|| {
+                        let k = u32::try_from(varint(kv, &mut pk)?).ok()?;
+                        if k == 0 {
+                            return None;
+                        }
+                        let v = u32::try_from(varint(kv, &mut pk)?).ok()?;
+                        Some((k, v))
+                    })
+                    // Not a step past this node's 0 once it has ended.
+                    .fuse();
+                    let a = street(&mut pairs);
+                    // What the lookup left of this node's pairs.
+                    pairs.for_each(drop);
+                    if let Some(a) = a {
+                        let (x, y) = nano(lon, lat);
+                        addresses.push((x, y, a));
+                    }
+                }
             }
             if !check_packed(&ids[pi..], Packed::Any64)
                 || !check_packed(&lats[pa..], Packed::Any64)
@@ -525,19 +574,32 @@ pub(super) fn fast_nodes(frame: &Frame, scratch: &mut Scratch, needed: &[i64]) -
         }
         for n in &plain {
             let (mut id, mut lat, mut lon) = (None, None, None);
+            let (mut keys, mut vals): (&[u8], &[u8]) = (&[], &[]);
             for f in fields(n) {
                 match f.ok()? {
                     (1, Value::Varint(v)) => id = Some(zigzag(v)),
                     (8, Value::Varint(v)) => lat = Some(zigzag(v)),
                     (9, Value::Varint(v)) => lon = Some(zigzag(v)),
-                    (2 | 3, Value::Bytes(k)) if check_packed(k, Packed::U32) => {}
+                    (2, Value::Bytes(k)) if check_packed(k, Packed::U32) => keys = k,
+                    (3, Value::Bytes(k)) if check_packed(k, Packed::U32) => vals = k,
                     (4, Value::Bytes(i)) if check_info(i) => {}
                     (1..=4 | 8 | 9, _) => return None,
                     _ => {}
                 }
             }
-            visit(&mut out, id?, lat?, lon?);
+            let (id, lat, lon) = (id?, lat?, lon?);
+            visit(&mut out, id, lat, lon);
+            if !addr_keys.is_empty() && !keys.is_empty() {
+                let (mut a, mut b) = (0, 0);
+                let mut pairs = std::iter::from_fn(|| {
+                    Some((next_u32(keys, &mut a).ok()??, next_u32(vals, &mut b).ok()??))
+                });
+                if let Some(s) = street(&mut pairs) {
+                    let (x, y) = nano(lon, lat);
+                    addresses.push((x, y, s));
+                }
+            }
         }
     }
-    Some(out)
+    Some((out, addresses))
 }

@@ -633,15 +633,20 @@ impl Passes for XmlPasses {
         ))
     }
 
-    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<Found>>, InputError> {
+    fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<NodeBlock>>, InputError> {
         let mut found = Found::default();
+        let mut addresses = Vec::new();
         let mut cursor = NeededCursor::new(needed);
         self.scan(&[Kind::Node], Some(Kind::Way), &mut |e| {
             if let Some(j) = cursor.find(e.id) {
                 found.push(j, e.lon, e.lat);
             }
+            // Address and entrance nodes (issue 45).
+            if let Some(a) = addr_street_of(e.tags()) {
+                addresses.push((e.lon, e.lat, a));
+            }
         })?;
         found.sort();
-        Ok(Some(vec![found]))
+        Ok(Some(vec![(found, addresses)]))
     }
 }

@@ -572,3 +572,83 @@ fn a_church_keeps_its_windows_and_its_tower_a_belfry() {
     assert_eq!(l4.count(3, "BuildingRoom"), 0, "no room in the tower");
     assert!(l4.count(2, "BuildingRoom") > 0, "the nave has its room");
 }
+
+#[test]
+fn a_deck_an_obelisk_a_statue_pillars_and_a_kiosk_are_no_houses() {
+    let mut osm = Osm::default();
+    // An elevated walkway deck over a street (the 1,131 windows).
+    osm.way(
+        1,
+        &rect(0.0, 0.0, 60.0, 4.0),
+        &[("building", "bridge"), ("min_height", "6"), ("height", "9")],
+    );
+    // An obelisk, a statue on its plinth (a memorial without storeys) and a stone column.
+    osm.way(
+        2,
+        &square(80.0, 2.0, 3.0),
+        &[
+            ("building", "yes"),
+            ("man_made", "obelisk"),
+            ("height", "22"),
+        ],
+    );
+    osm.way(
+        3,
+        &square(90.0, 2.0, 4.0),
+        &[
+            ("building", "yes"),
+            ("historic", "memorial"),
+            ("height", "7"),
+        ],
+    );
+    // A house with two pillars carrying its porch roof, and a kiosk too small for a room.
+    osm.way(
+        4,
+        &rect(0.0, 20.0, 12.0, 10.0),
+        &[("building", "house"), ("building:levels", "2")],
+    );
+    osm.way(
+        5,
+        &rect(0.0, 20.0, 12.0, 8.0),
+        &[("building:part", "yes"), ("building:levels", "2")],
+    );
+    osm.way(
+        6,
+        &square(1.0, 29.6, 0.6),
+        &[("building:part", "pillar"), ("height", "3")],
+    );
+    osm.way(
+        7,
+        &square(11.0, 29.6, 0.6),
+        &[("building:part", "pillar"), ("height", "3")],
+    );
+    osm.way(
+        8,
+        &rect(0.0, 28.0, 12.0, 2.0),
+        &[
+            ("building:part", "roof"),
+            ("min_height", "3"),
+            ("height", "3.3"),
+        ],
+    );
+    osm.way(9, &rect(30.0, 20.0, 1.8, 1.9), &[("building", "kiosk")]);
+    let (l3, l4) = (run(&osm, "3"), run(&osm, "4"));
+    for out in [&l3, &l4] {
+        assert_eq!(out.class(1), Some("bridge"));
+        assert_eq!(out.class(2), Some("monument"));
+        assert_eq!(out.class(3), Some("monument"));
+        assert_eq!(out.class(6), Some("column"));
+        assert_eq!(out.class(7), Some("column"));
+        assert_eq!(out.class(8), Some("roof"));
+        assert_eq!(out.class(9), Some("small"));
+        assert_eq!(out.class(5), None, "the house is no structure");
+        // The deck stands on nothing.
+        let deck = &out.objects[out.object_of(1)];
+        assert!((out.min_z(deck) - 6.0).abs() < 0.01, "{}", out.min_z(deck));
+    }
+    nothing_of_a_house(&l3, &l4, &[1, 2, 3, 6, 7, 8, 9]);
+    // The house keeps its programme: windows, its entrance, rooms.
+    assert!(l3.count(5, "Window") > 0, "the house has windows");
+    assert_eq!(l3.count(5, "Door"), 1, "the house has its entrance");
+    assert!(l4.count(5, "BuildingRoom") > 0, "the house has rooms");
+}
