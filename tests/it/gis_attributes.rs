@@ -514,3 +514,68 @@ fn a_shapefile_without_unique_ids_names_its_records_by_index_and_keeps_the_colum
     );
     assert!(b["feature/4"].get("GESCHOSSE").is_none());
 }
+
+#[test]
+fn the_3d_tiles_metadata_carries_every_column_as_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let shp = municipal_shapefile(dir.path(), ROWS.map(|r| r.0 as f64));
+    let tiles = dir.path().join("tiles");
+    let out = citygen(&[
+        "--footprints",
+        shp.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--tiles3d",
+        tiles.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (json, bin) = glb_json(&tiles.join("content/all.glb"));
+    let meta = &json["extensions"]["EXT_structural_metadata"];
+    let props = &meta["schema"]["classes"]["building"]["properties"];
+    for column in ["NUTZUNG", "BAUJAHR", "FLAECHE", "DENKMAL", "ERFASST"] {
+        let p = &props[format!("attr_{column}")];
+        assert_eq!(p["type"], "STRING", "{column}: {p}");
+        assert_eq!(p["name"], column);
+    }
+    // Read into citygen's fields: no property.
+    for used in ["HOEHE", "GESCHOSSE", "DACHFORM", "OBJECTID"] {
+        assert!(props.get(format!("attr_{used}")).is_none(), "{used}");
+    }
+    // The column's strings, in the table's row order (the `id` column's).
+    let table = &meta["propertyTables"][0];
+    let strings = |key: &str| -> Vec<String> {
+        let p = &table["properties"][key];
+        let view = |i: &serde_json::Value| {
+            let v = &json["bufferViews"][i.as_u64().unwrap() as usize];
+            let o = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+            &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
+        };
+        let (values, offsets) = (view(&p["values"]), view(&p["stringOffsets"]));
+        let offs: Vec<usize> = offsets
+            .chunks(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap()) as usize)
+            .collect();
+        offs.windows(2)
+            .map(|w| String::from_utf8(values[w[0]..w[1]].to_vec()).unwrap())
+            .collect()
+    };
+    let ids = strings("id");
+    let years = strings("attr_BAUJAHR");
+    let dates = strings("attr_ERFASST");
+    assert_eq!(ids.len(), 5);
+    for (id, _, _, _, year, _, _, date) in ROWS {
+        let row = ids
+            .iter()
+            .position(|i| *i == format!("feature/{id}"))
+            .unwrap();
+        assert_eq!(years[row], year.to_string());
+        assert_eq!(dates[row], date);
+    }
+}
