@@ -210,3 +210,158 @@ impl Generic {
         (p.0.to_degrees(), p.1.to_degrees())
     }
 }
+
+/// A projected CRS as a `.prj` without an EPSG code describes it: PROJ's projection name
+/// (`tmerc`, `lcc`, `sterea`, `somerc`, `laea`, `aea`, `cass`), its parameters under PROJ's
+/// keys (`lat_0`, `lon_0`, `lat_1`, `lat_2`, `k_0`, `x_0`, `y_0`; false origin in metres),
+/// the ellipsoid's semi-axes and the metres in one unit.
+#[derive(Clone, Debug)]
+pub(crate) struct Definition {
+    pub(crate) proj: &'static str,
+    pub(crate) params: Vec<(&'static str, f64)>,
+    pub(crate) a: f64,
+    pub(crate) b: f64,
+    pub(crate) to_meter: f64,
+    /// The WKT's CRS and datum names, normalised.
+    pub(crate) names: String,
+}
+
+/// The parameters compared, with the value PROJ takes when a string leaves one out.
+const SHAPE_KEYS: [(&str, f64); 7] = [
+    ("lat_0", 0.0),
+    ("lon_0", 0.0),
+    ("lat_1", f64::NAN),
+    ("lat_2", f64::NAN),
+    ("k_0", 1.0),
+    ("x_0", 0.0),
+    ("y_0", 0.0),
+];
+
+/// The EPSG codes of the table whose PROJ.4 string is `def` (same projection, parameters
+/// within 1e-7° and 1 cm, ellipsoid within 1 mm, same unit), ascending. Several entries share
+/// one definition (NAD83 and NAD83(HARN) State Planes; a CRS and its compound with heights):
+/// the caller ranks them.
+pub(crate) fn find_definition(def: &Definition) -> Vec<u16> {
+    let mut found = Vec::new();
+    for code in 1024..=u16::MAX {
+        let Some(entry) = crs_definitions::from_code(code) else {
+            continue;
+        };
+        let p = parse_proj4(entry.proj4);
+        let Some(params) = canonical(&p) else {
+            continue;
+        };
+        if params.0 != def.proj || !same_shape(&params.1, &def.params) {
+            continue;
+        }
+        let Some(g) = get(code) else { continue };
+        if g.geographic || (g.unit.metres - def.to_meter).abs() > 1e-12 * def.to_meter {
+            continue;
+        }
+        let (a, b) = g.proj.ellipse_parameters();
+        if (a - def.a).abs() > 1e-3 || (b - def.b).abs() > 1e-3 {
+            continue;
+        }
+        found.push(code);
+    }
+    found
+}
+
+/// 2 when the entry's datum realisation (`NAD83(HARN)`: `harn`) appears in `names`, 1 when
+/// the entry names none, 0 when it names one the text does not.
+pub(crate) fn realisation_score(code: u16, names: &str) -> u8 {
+    let Some(g) = get(code) else { return 0 };
+    let datum = g.name.split(" / ").next().unwrap_or("");
+    match datum.split_once('(') {
+        Some((_, rest)) => {
+            let token: String = rest
+                .chars()
+                .take_while(|c| *c != ')')
+                .filter(|c| c.is_alphanumeric())
+                .flat_map(char::to_lowercase)
+                .collect();
+            let squeezed: String = names.chars().filter(|c| c.is_alphanumeric()).collect();
+            if !token.is_empty() && squeezed.contains(&token) {
+                2
+            } else {
+                0
+            }
+        }
+        None => 1,
+    }
+}
+
+/// A PROJ.4 string's projection and shape parameters (UTM as the Transverse Mercator it is;
+/// `k` as `k_0`); `None` for strings without a projection.
+fn canonical(p: &HashMap<&str, &str>) -> Option<(&'static str, Vec<(&'static str, f64)>)> {
+    let num = |k: &str| p.get(k).and_then(|v| v.parse::<f64>().ok());
+    let proj: &'static str = match *p.get("proj")? {
+        "utm" => {
+            let zone = num("zone")?;
+            let south = p.contains_key("south");
+            return Some((
+                "tmerc",
+                vec![
+                    ("lat_0", 0.0),
+                    ("lon_0", zone * 6.0 - 183.0),
+                    ("k_0", 0.9996),
+                    ("x_0", 500_000.0),
+                    ("y_0", if south { 10_000_000.0 } else { 0.0 }),
+                ],
+            ));
+        }
+        "tmerc" => "tmerc",
+        "lcc" => "lcc",
+        "sterea" => "sterea",
+        "somerc" => "somerc",
+        "laea" => "laea",
+        "aea" => "aea",
+        "cass" => "cass",
+        _ => return None,
+    };
+    let mut out = Vec::new();
+    for (k, _) in SHAPE_KEYS {
+        let v = if k == "k_0" {
+            num("k_0").or_else(|| num("k"))
+        } else {
+            num(k)
+        };
+        if let Some(v) = v {
+            out.push((k, v));
+        }
+    }
+    Some((proj, out))
+}
+
+/// The same shape parameters, each missing one at PROJ's default; the standard parallels as
+/// a pair in either order (one parallel: both the same).
+fn same_shape(a: &[(&str, f64)], b: &[(&str, f64)]) -> bool {
+    let get = |ps: &[(&str, f64)], k: &str| {
+        ps.iter()
+            .find(|(key, _)| *key == k)
+            .map(|(_, v)| *v)
+            .unwrap_or_else(|| {
+                SHAPE_KEYS
+                    .iter()
+                    .find(|(key, _)| *key == k)
+                    .map_or(0.0, |d| d.1)
+            })
+    };
+    let parallels = |ps: &[(&str, f64)]| {
+        let (p1, p2) = (get(ps, "lat_1"), get(ps, "lat_2"));
+        let p2 = if p2.is_nan() { p1 } else { p2 };
+        (p1.min(p2), p1.max(p2))
+    };
+    let ang = 1e-7;
+    let (pa, pb) = (parallels(a), parallels(b));
+    let parallels_ok = (pa.0.is_nan() && pb.0.is_nan())
+        || ((pa.0 - pb.0).abs() <= ang && (pa.1 - pb.1).abs() <= ang);
+    parallels_ok
+        && ["lat_0", "lon_0"]
+            .iter()
+            .all(|k| (get(a, k) - get(b, k)).abs() <= ang)
+        && (get(a, "k_0") - get(b, "k_0")).abs() <= 1e-9
+        && ["x_0", "y_0"]
+            .iter()
+            .all(|k| (get(a, k) - get(b, k)).abs() <= 0.01)
+}

@@ -417,8 +417,11 @@ fn prj_garbage_and_unknown_are_errors() {
     // An EPSG code of the table is read (NAD83 / UTM zone 18N)...
     let nad83 = r#"PROJCS["NAD83 / UTM zone 18N",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",-75],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1],AUTHORITY["EPSG","26918"]]"#;
     assert_eq!(Crs::from_prj(nad83), Ok(Crs::Epsg(26918)));
+    // ...an unknown code with the same definition is that definition's entry...
+    let recoded = nad83.replace("26918", "9999");
+    assert_eq!(Crs::from_prj(&recoded), Ok(Crs::Epsg(26918)));
     // ...well-formed but unknown: the message names what was found.
-    let unknown = nad83.replace("26918", "9999");
+    let unknown = recoded.replace("\"central_meridian\",-75", "\"central_meridian\",-75.5");
     match Crs::from_prj(&unknown) {
         Err(CrsError::Unsupported(msg)) => {
             assert!(msg.contains("EPSG:9999"), "{msg}");
@@ -431,7 +434,7 @@ fn prj_garbage_and_unknown_are_errors() {
         Err(CrsError::Unsupported(msg)) => assert!(msg.contains("Mercator_1SP"), "{msg}"),
         other => panic!("{other:?}"),
     }
-    // US feet would silently scale every building by 0.3048: refused.
+    // A foot unit whose definition no entry has: refused, naming the unit.
     let feet = ESRI_L93_PRJ.replace(
         "UNIT[\"Meter\",1.0]",
         "UNIT[\"Foot_US\",0.3048006096012192]",

@@ -277,8 +277,14 @@ struct Facts {
     spheroid_name: Option<String>,
     datum: Datum,
     method: Option<String>,
-    /// Canonical parameter key (`lon0`, `lat0`, `k0`, `fe`, `fn`, `sp1`, `sp2`) and value.
+    /// Canonical parameter key (`lon0`, `lat0`, `k0`, `fe`, `fn`, `sp1`, `sp2`, `alpha`) and
+    /// value, the false origin in the CRS's unit.
     params: Vec<(&'static str, f64)>,
+    /// Metres in the projected CRS's linear unit (1 for geographic ones), and its name.
+    unit: f64,
+    unit_name: Option<String>,
+    /// The ellipsoid's semi-major axis and inverse flattening.
+    ellipsoid: Option<(f64, f64)>,
 }
 
 impl Facts {
@@ -306,6 +312,9 @@ impl Facts {
                 .map(|(k, v)| format!("{k}={v}"))
                 .collect();
             s.push_str(&format!(" ({})", ps.join(", ")));
+        }
+        if let Some(u) = &self.unit_name {
+            s.push_str(&format!(", unit {u:?} ({} m)", self.unit));
         }
         s.push_str(&format!(
             ", datum {:?}, ellipsoid {:?}",
@@ -336,6 +345,7 @@ fn param_key(name: &str) -> Option<&'static str> {
         "scale_factor" | "scale_factor_at_natural_origin" => "k0",
         "standard_parallel_1" | "latitude_of_1st_standard_parallel" => "sp1",
         "standard_parallel_2" | "latitude_of_2nd_standard_parallel" => "sp2",
+        "azimuth" | "azimuth_of_initial_line" => "alpha",
         _ => return None,
     })
 }
@@ -379,12 +389,23 @@ pub(crate) fn identify(text: &str) -> Result<Crs, CrsError> {
 
     let facts = gather(&root, projected)?;
     // 2. The method and parameters, the definition itself; 3. the name as a fallback.
+    // 4. Else the EPSG table's entry of the same definition (a State Plane in feet, RD New,
+    // LV95... written without their code, as ESRI writes them).
     let found = if projected {
-        match by_parameters(&facts) {
-            Some(ParamMatch::Found(crs)) => Some(crs),
-            Some(ParamMatch::NoMatch) => None,
-            None => by_name(&facts),
-        }
+        let known = if (facts.unit - 1.0).abs() <= 1e-12 {
+            match by_parameters(&facts) {
+                Some(ParamMatch::Found(crs)) => Some(crs),
+                Some(ParamMatch::NoMatch) => None,
+                None => by_name(&facts),
+            }
+        } else {
+            None
+        };
+        known.or_else(|| {
+            let def = definition(&facts)?;
+            let code = rank(&facts, &def, super::generic::find_definition(&def))?;
+            Crs::from_epsg(u32::from(code)).ok()
+        })
     } else {
         (facts.datum == Datum::Wgs84).then_some(Crs::Wgs84)
     };
@@ -466,6 +487,9 @@ fn gather(root: &Node, projected: bool) -> Result<Facts, CrsError> {
             }
         }
     }
+    // The linear unit: the root's, and every axis's must agree with it. A unit other than
+    // the metre is read through the EPSG table (`generic::find_definition`).
+    let mut unit = 1.0;
     if projected {
         let mut units = Vec::new();
         if let Some(u) = root.child(&["UNIT", "LENGTHUNIT"]) {
@@ -478,17 +502,21 @@ fn gather(root: &Node, projected: bool) -> Result<Facts, CrsError> {
                 units.push(u);
             }
         }
-        for u in units {
-            if let Some(f) = u.num(1) {
-                if (f - 1.0).abs() > 1e-12 {
-                    return Err(CrsError::Unsupported(format!(
-                        "{name:?}: linear unit {:?} ({f} m; only metres are supported)",
-                        u.name().unwrap_or("?")
-                    )));
-                }
+        let factors: Vec<f64> = units.iter().filter_map(|u| u.num(1)).collect();
+        if let Some(&f) = factors.first() {
+            if !(f.is_finite() && f > 0.0) || factors.iter().any(|g| (g - f).abs() > 1e-12) {
+                return Err(CrsError::Unsupported(format!(
+                    "{name:?}: linear units {factors:?} m (one positive unit expected)"
+                )));
             }
+            unit = f;
         }
     }
+    let unit_name = root
+        .child(&["UNIT", "LENGTHUNIT"])
+        .and_then(Node::name)
+        .map(str::to_owned)
+        .filter(|_| projected && (unit - 1.0).abs() > 1e-12);
 
     let method = root
         .find(&["PROJECTION", "METHOD"])
@@ -508,6 +536,9 @@ fn gather(root: &Node, projected: bool) -> Result<Facts, CrsError> {
         datum,
         method,
         params,
+        unit,
+        unit_name,
+        ellipsoid: spheroid_node.and_then(|s| Some((s.num(1)?, s.num(2)?))),
     })
 }
 
@@ -583,6 +614,113 @@ fn by_parameters(f: &Facts) -> Option<ParamMatch> {
         });
     }
     None
+}
+
+/// The projection as PROJ writes it, from the WKT's method and parameters (false origin in
+/// metres); `None` for a method not compared with the table or a parameter missing.
+fn definition(f: &Facts) -> Option<super::generic::Definition> {
+    let method = norm(f.method.as_deref()?);
+    let (a, rf) = f.ellipsoid?;
+    let b = if rf == 0.0 { a } else { a * (1.0 - 1.0 / rf) };
+    let p = |k: &str| f.param(k);
+    let lat0 = p("lat0").unwrap_or(0.0);
+    let lon0 = p("lon0").unwrap_or(0.0);
+    let k0 = p("k0").unwrap_or(1.0);
+    let mut params = vec![("lat_0", lat0), ("lon_0", lon0), ("k_0", k0)];
+    let one_sp = method.contains("1sp") || (p("sp1").is_none() && p("sp2").is_none());
+    let proj = if method.contains("transverse_mercator") && !method.contains("south")
+        || method.contains("gauss_kruger")
+    {
+        "tmerc"
+    } else if method.contains("lambert_conformal_conic")
+        || method.contains("lambert_conic_conformal")
+    {
+        if one_sp {
+            params.push(("lat_1", lat0));
+        } else {
+            params.push(("lat_1", p("sp1")?));
+            params.push(("lat_2", p("sp2").or(p("sp1"))?));
+        }
+        "lcc"
+    } else if method.contains("oblique_stereographic") || method.contains("double_stereographic") {
+        "sterea"
+    } else if (method.contains("hotine_oblique_mercator") || method.contains("oblique_mercator"))
+        && p("alpha").is_some_and(|al| (al.abs() - 90.0).abs() <= 1e-7)
+    {
+        // The Swiss oblique Mercator: an azimuth of 90° at the centre.
+        "somerc"
+    } else if method.contains("lambert_azimuthal_equal_area") {
+        "laea"
+    } else if method.contains("albers") {
+        params.push(("lat_1", p("sp1")?));
+        params.push(("lat_2", p("sp2")?));
+        "aea"
+    } else if method.contains("cassini") {
+        "cass"
+    } else {
+        return None;
+    };
+    params.push(("x_0", p("fe").unwrap_or(0.0) * f.unit));
+    params.push(("y_0", p("fn").unwrap_or(0.0) * f.unit));
+    Some(super::generic::Definition {
+        proj,
+        params,
+        a,
+        b,
+        to_meter: f.unit,
+        names: norm(&format!(
+            "{} {}",
+            f.name,
+            f.datum_name.as_deref().unwrap_or("")
+        )),
+    })
+}
+
+/// The best of the table's entries of one definition: not a compound CRS (RD New before
+/// RD New with NAP heights), not an axis-order variant, then the most words shared by the
+/// datum names (`D_North_American_1983` and `North_American_Datum_1983`: NAD83's UTM before
+/// REGVEN's), then the datum realisation the text names (`NAD83(HARN)` only when it says
+/// HARN), then the lowest code.
+fn rank(f: &Facts, def: &super::generic::Definition, codes: Vec<u16>) -> Option<u16> {
+    let words = |name: &str| -> Vec<String> {
+        norm(name)
+            .split('_')
+            .filter(|w| !matches!(*w, "d" | "datum" | ""))
+            .map(str::to_owned)
+            .collect()
+    };
+    let ours = words(f.datum_name.as_deref().unwrap_or(""));
+    let score = |code: u16| {
+        let entry = crs_definitions::from_code(code);
+        let parsed = entry.and_then(|e| parse(e.wkt).ok());
+        let compound = parsed
+            .as_ref()
+            .is_none_or(|n| n.keyword != "PROJCS" && n.keyword != "PROJCRS");
+        let datum = parsed
+            .as_ref()
+            .and_then(|n| n.find(&["DATUM"]))
+            .and_then(Node::name)
+            .map(words)
+            .unwrap_or_default();
+        let shared = datum.iter().filter(|w| ours.contains(w)).count();
+        // An axis-order variant (`... zone 3 (E-N)`) after the CRS itself.
+        let name = parsed.as_ref().and_then(|n| n.name()).unwrap_or("");
+        let variant = name.contains("(E-N)") || name.contains("(N-E)");
+        (
+            !compound,
+            !variant,
+            shared,
+            super::generic::realisation_score(code, &def.names),
+        )
+    };
+    let mut best: Option<((bool, bool, usize, u8), u16)> = None;
+    for code in codes {
+        let s = score(code);
+        if best.as_ref().is_none_or(|(b, _)| s > *b) {
+            best = Some((s, code));
+        }
+    }
+    best.map(|(_, c)| c)
 }
 
 /// The UTM CRS of `zone` on `datum`, if citygen has one.
@@ -669,5 +807,93 @@ mod tests {
     fn norm_joins_words() {
         assert_eq!(norm("WGS 84 / UTM zone 31N"), "wgs_84_utm_zone_31n");
         assert_eq!(norm("RGF93_Lambert_93"), "rgf93_lambert_93");
+    }
+
+    /// `.prj` files without an EPSG code, as ArcGIS (ESRI WKT1) and GDAL (OGC WKT1 with the
+    /// codes stripped) write them: each recognised by its definition.
+    #[test]
+    fn prj_files_without_a_code_are_recognised_by_their_definition() {
+        let geog_nad83 = r#"GEOGCS["GCS_North_American_1983",DATUM["D_North_American_1983",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]"#;
+        let bessel = |g: &str, d: &str| {
+            format!(
+                r#"GEOGCS["{g}",DATUM["{d}",SPHEROID["Bessel_1841",6377397.155,299.1528128]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]"#
+            )
+        };
+        let cases: Vec<(String, Crs)> = vec![
+            // ArcGIS: New York Long Island in US survey feet.
+            (
+                format!(
+                    r#"PROJCS["NAD_1983_StatePlane_New_York_Long_Island_FIPS_3104_Feet",{geog_nad83},PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",984250.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",-74.0],PARAMETER["Standard_Parallel_1",40.66666666666666],PARAMETER["Standard_Parallel_2",41.03333333333333],PARAMETER["Latitude_Of_Origin",40.16666666666666],UNIT["Foot_US",0.3048006096012192]]"#
+                ),
+                Crs::Epsg(2263),
+            ),
+            // GDAL: the same, 15 digits, parallels the other way round, axes.
+            (
+                r#"PROJCS["NAD83 / New York Long Island (ftUS)",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic_2SP"],PARAMETER["latitude_of_origin",40.1666666666667],PARAMETER["central_meridian",-74],PARAMETER["standard_parallel_1",41.0333333333333],PARAMETER["standard_parallel_2",40.6666666666667],PARAMETER["false_easting",984250],PARAMETER["false_northing",0],UNIT["US survey foot",0.304800609601219],AXIS["Easting",EAST],AXIS["Northing",NORTH]]"#.to_string(),
+                Crs::Epsg(2263),
+            ),
+            // ArcGIS: the same zone in metres (EPSG:32118).
+            (
+                format!(
+                    r#"PROJCS["NAD_1983_StatePlane_New_York_Long_Island_FIPS_3104",{geog_nad83},PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",300000.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",-74.0],PARAMETER["Standard_Parallel_1",40.66666666666666],PARAMETER["Standard_Parallel_2",41.03333333333333],PARAMETER["Latitude_Of_Origin",40.16666666666666],UNIT["Meter",1.0]]"#
+                ),
+                Crs::Epsg(32118),
+            ),
+            // ArcGIS: RD New (double stereographic on Bessel).
+            (
+                format!(
+                    r#"PROJCS["RD_New",{},PROJECTION["Double_Stereographic"],PARAMETER["False_Easting",155000.0],PARAMETER["False_Northing",463000.0],PARAMETER["Central_Meridian",5.38763888888889],PARAMETER["Scale_Factor",0.9999079],PARAMETER["Latitude_Of_Origin",52.15616055555555],UNIT["Meter",1.0]]"#,
+                    bessel("GCS_Amersfoort", "D_Amersfoort")
+                ),
+                Crs::Epsg(28992),
+            ),
+            // ArcGIS: Swiss LV95 (oblique Mercator, azimuth 90° at the centre).
+            (
+                format!(
+                    r#"PROJCS["CH1903+_LV95",{},PROJECTION["Hotine_Oblique_Mercator_Azimuth_Center"],PARAMETER["False_Easting",2600000.0],PARAMETER["False_Northing",1200000.0],PARAMETER["Scale_Factor",1.0],PARAMETER["Azimuth",90.0],PARAMETER["Longitude_Of_Center",7.439583333333333],PARAMETER["Latitude_Of_Center",46.95240555555556],UNIT["Meter",1.0]]"#,
+                    bessel("GCS_CH1903+", "D_CH1903+")
+                ),
+                Crs::Epsg(2056),
+            ),
+            // ArcGIS: Lambert-93, BNG, UTM 33N: citygen's own formulas.
+            (
+                r#"PROJCS["RGF_1993_Lambert_93",GEOGCS["GCS_RGF_1993",DATUM["D_RGF_1993",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",700000.0],PARAMETER["False_Northing",6600000.0],PARAMETER["Central_Meridian",3.0],PARAMETER["Standard_Parallel_1",49.0],PARAMETER["Standard_Parallel_2",44.0],PARAMETER["Latitude_Of_Origin",46.5],UNIT["Meter",1.0]]"#.to_string(),
+                Crs::Lambert93,
+            ),
+            (
+                r#"PROJCS["British_National_Grid",GEOGCS["GCS_OSGB_1936",DATUM["D_OSGB_1936",SPHEROID["Airy_1830",6377563.396,299.3249646]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["False_Easting",400000.0],PARAMETER["False_Northing",-100000.0],PARAMETER["Central_Meridian",-2.0],PARAMETER["Scale_Factor",0.9996012717],PARAMETER["Latitude_Of_Origin",49.0],UNIT["Meter",1.0]]"#.to_string(),
+                Crs::BritishNationalGrid,
+            ),
+            (
+                r#"PROJCS["WGS_1984_UTM_Zone_33N",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",15.0],PARAMETER["Scale_Factor",0.9996],PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]"#.to_string(),
+                Crs::Utm { zone: 33, north: true },
+            ),
+            // ArcGIS: Gauss-Krüger zone 3 (DHDN, Bessel): not one of citygen's own.
+            (
+                format!(
+                    r#"PROJCS["DHDN_3_Degree_Gauss_Zone_3",{},PROJECTION["Gauss_Kruger"],PARAMETER["False_Easting",3500000.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",9.0],PARAMETER["Scale_Factor",1.0],PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]"#,
+                    bessel("GCS_Deutsches_Hauptdreiecksnetz", "D_Deutsches_Hauptdreiecksnetz")
+                ),
+                Crs::Epsg(31467),
+            ),
+        ];
+        for (wkt, want) in cases {
+            let got = identify(&wkt);
+            // DHDN zone 3 is in the table twice (31463, deprecated, and 31467), alike.
+            let alike = want == Crs::Epsg(31467) && got == Ok(Crs::Epsg(31463));
+            assert!(alike || got.as_ref().ok() == Some(&want), "{wkt}: {got:?}");
+        }
+    }
+
+    #[test]
+    fn an_unknown_definition_is_an_error_that_says_what_it_is() {
+        // Long Island's Lambert with a false easting no table entry has.
+        let wkt = r#"PROJCS["Made_Up_Feet",GEOGCS["GCS_North_American_1983",DATUM["D_North_American_1983",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",123456.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",-74.0],PARAMETER["Standard_Parallel_1",40.66666666666666],PARAMETER["Standard_Parallel_2",41.03333333333333],PARAMETER["Latitude_Of_Origin",40.16666666666666],UNIT["Foot_US",0.3048006096012192]]"#;
+        match identify(wkt) {
+            Err(CrsError::Unsupported(m)) => {
+                assert!(m.contains("Made_Up_Feet") && m.contains("fe=123456"), "{m}")
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }

@@ -269,10 +269,19 @@ pub(super) struct Sink<'a> {
     /// The columns whose text values are dates (a GeoPackage `DATE`/`DATETIME` column, a
     /// FlatGeobuf `DateTime` one).
     dates: HashSet<String>,
-    /// Each footprint's other attributes, by its position among the footprints.
-    attributes: Vec<(usize, Attributes)>,
+    /// Each footprint's other attributes, by its position among the footprints, with the
+    /// shapefile's id column (left out when the ids are kept).
+    attributes: Vec<(usize, Attributes, Option<Arc<str>>)>,
     /// The columns of citygen's fields for the last set of column names seen.
     resolved: Option<Resolved>,
+    /// A shapefile's records: numbered `shp/N` when their id column does not name every one
+    /// uniquely (all or none), the fields found named in notes.
+    shapefile: bool,
+    /// The id column's name seen (shapefile), and the first value that is no id.
+    id_column_seen: Option<String>,
+    bad_id: Option<String>,
+    /// The fields found in the first set of columns, for the shapefile's notes.
+    first_fields: Vec<(&'static str, String)>,
 }
 
 /// Which columns give citygen's fields, for one set of column names.
@@ -303,6 +312,24 @@ impl<'a> Sink<'a> {
             dates: HashSet::new(),
             attributes: Vec::new(),
             resolved: None,
+            shapefile: false,
+            id_column_seen: None,
+            bad_id: None,
+            first_fields: Vec::new(),
+        }
+    }
+
+    /// A sink for the records of a shapefile: a record without an id in the id column
+    /// (`--field id=`, else the first of [`ID_COLUMNS`]), or ids not unique, number every
+    /// record `shp/N` by its index, the column kept as an attribute.
+    pub(super) fn shapefile(
+        path: &'a Path,
+        opts: &'a ShpOptions,
+        report: &'a mut Report,
+    ) -> Sink<'a> {
+        Sink {
+            shapefile: true,
+            ..Sink::new(path, opts, report)
         }
     }
 
@@ -336,13 +363,25 @@ impl<'a> Sink<'a> {
             Some(_) if self.opts.named("id").is_none() => None,
             _ => self.id_column(props),
         };
-        if let Some((column, _)) = &from_column {
+        let fallback = if self.shapefile {
+            SourceId::Shape(position)
+        } else {
+            SourceId::Feature(position)
+        };
+        let mut id_column = None;
+        if self.shapefile {
+            // All or none: the column stays among the attributes until every record is seen.
+            if let Some((column, value)) = self.id_column_of(props) {
+                id_column = Some(column.clone());
+                self.id_column_seen.get_or_insert(column);
+                if from_column.is_none() && self.bad_id.is_none() {
+                    self.bad_id = Some(value);
+                }
+            }
+        } else if let Some((column, _)) = &from_column {
             used.push(column.clone());
         }
-        let id = from_column
-            .map(|(_, id)| id)
-            .or(own_id)
-            .unwrap_or(SourceId::Feature(position));
+        let id = from_column.map(|(_, id)| id).or(own_id).unwrap_or(fallback);
         let attributes = self.attributes_of(props, &used);
         if !self.ids.insert(id) {
             self.duplicate = true;
@@ -379,7 +418,8 @@ impl<'a> Sink<'a> {
         }
         let polygons = got.polygons;
         if let Some(a) = attributes {
-            self.attributes.push((self.footprints.len(), a));
+            let column = id_column.map(|c| self.keys[c.as_str()].clone());
+            self.attributes.push((self.footprints.len(), a, column));
         }
         self.footprints.push(Footprint {
             id,
@@ -412,6 +452,9 @@ impl<'a> Sink<'a> {
             Some(r) if r.columns.iter().eq(props.keys()) => self.resolved.insert(r),
             _ => {
                 let r = self.resolve(props);
+                if self.first_fields.is_empty() {
+                    self.first_fields = r.fields.iter().map(|(_, k, c)| (*k, c.clone())).collect();
+                }
                 self.resolved.insert(r)
             }
         };
@@ -505,6 +548,19 @@ impl<'a> Sink<'a> {
         })
     }
 
+    /// The id column present in `props` (named, else the first of [`ID_COLUMNS`]) and its
+    /// value as text (empty when null).
+    fn id_column_of(&self, props: &Map<String, Value>) -> Option<(String, String)> {
+        let names: Vec<&str> = match self.opts.named("id") {
+            Some(n) => vec![n],
+            None => ID_COLUMNS.to_vec(),
+        };
+        names.iter().find_map(|c| {
+            let (k, v) = props.iter().find(|(k, _)| k.eq_ignore_ascii_case(c))?;
+            Some((k.clone(), value_text(v).unwrap_or_default()))
+        })
+    }
+
     /// The feature's other attributes, typed, in column order: every property not `used`
     /// (nulls, arrays and objects left out); `None` when there is none.
     fn attributes_of(&self, props: &Map<String, Value>, used: &[String]) -> Option<Attributes> {
@@ -554,7 +610,38 @@ impl<'a> Sink<'a> {
             }
         }
         let mut footprints = self.footprints;
-        if self.duplicate {
+        let path = self.path.display();
+        if self.shapefile {
+            for (key, column) in &self.first_fields {
+                self.report.add(
+                    None,
+                    Outcome::Note,
+                    format!("{path}: {key} taken from field {column}"),
+                );
+            }
+        }
+        let mut ids_kept = self.shapefile && self.id_column_seen.is_some();
+        if let (true, Some(column)) = (self.shapefile, &self.id_column_seen) {
+            let why = match &self.bad_id {
+                Some(v) if v.is_empty() => Some("is empty in some records".to_string()),
+                Some(v) => Some(format!("holds {v:?}, not a non-negative whole number")),
+                None if self.duplicate => Some("is not unique".to_string()),
+                None => None,
+            };
+            if let Some(why) = why {
+                ids_kept = false;
+                for (f, &p) in footprints.iter_mut().zip(&self.positions) {
+                    f.id = SourceId::Shape(p);
+                }
+                self.report.add(
+                    None,
+                    Outcome::Note,
+                    format!(
+                        "{path}: the id column {column} {why}; every record is named by its index (shp/0 is the first), the column kept as an attribute"
+                    ),
+                );
+            }
+        } else if self.duplicate {
             for (f, &p) in footprints.iter_mut().zip(&self.positions) {
                 f.id = SourceId::Feature(p);
             }
@@ -578,7 +665,7 @@ impl<'a> Sink<'a> {
                 ),
             );
         }
-        if let Some(f) = self.opts.height_field.as_deref() {
+        if let (false, Some(f)) = (self.shapefile, self.opts.height_field.as_deref()) {
             self.report.add(
                 None,
                 Outcome::Note,
@@ -588,7 +675,13 @@ impl<'a> Sink<'a> {
         let attributes = self
             .attributes
             .into_iter()
-            .map(|(i, a)| (footprints[i].id, a))
+            .filter_map(|(i, a, column)| match column {
+                Some(c) if ids_kept => {
+                    let row: Vec<_> = a.iter().filter(|(k, _)| *k != c).cloned().collect();
+                    (!row.is_empty()).then(|| (footprints[i].id, Attributes::from(row)))
+                }
+                _ => Some((footprints[i].id, a)),
+            })
             .collect();
         Ok(ReadResult {
             footprints,
@@ -612,7 +705,7 @@ pub(super) fn value_text(v: &Value) -> Option<String> {
 }
 
 /// Attribute names that hold a file's own feature ids, tried in this order (case-insensitively).
-const ID_COLUMNS: [&str; 5] = ["id", "objectid", "fid", "osm_id", "gml_id"];
+pub(super) const ID_COLUMNS: [&str; 5] = ["id", "objectid", "fid", "osm_id", "gml_id"];
 
 /// A property as a number: a JSON number, or text that reads as one.
 fn number(v: &Value) -> Option<f64> {

@@ -1,13 +1,21 @@
 //! ESRI shapefile reader: Polygon, PolygonZ and PolygonM records with their `.dbf` attributes.
 //!
-//! Each record is one footprint (`shp/<record index>`), however many outer rings it has. ESRI
-//! declares ring roles by orientation (outer clockwise, holes counter-clockwise), but files
-//! written by other tools often get it wrong, so rings are grouped by how they nest (see
-//! `input::rings`) and disagreements are counted in one file-level note.
+//! Each record is one footprint, however many outer rings it has. ESRI declares ring roles by
+//! orientation (outer clockwise, holes counter-clockwise), but files written by other tools
+//! often get it wrong, so rings are grouped by how they nest (see `input::rings`) and
+//! disagreements are counted in one file-level note.
 //!
-//! Attributes: a height field and a levels field are mapped to the OSM keys `height` and
-//! `building:levels` and parsed by [`BuildingTags`]. Without `--shp-height-field`, the first field
-//! whose name matches `HEIGHT_FIELDS` (case-insensitively, in that order) is used.
+//! Ids: the file's id column (`--field id=COLUMN`, else the first of `id`, `objectid`, `fid`,
+//! `osm_id`, `gml_id` (case-insensitively) holding whole numbers, else the first of them at
+//! all) names the records `feature/<value>` when every record has a non-negative whole number
+//! there and no two the same; otherwise every record is `shp/<record index>` with one note
+//! saying why, and the column is kept as an attribute.
+//!
+//! Attributes are read as the other GIS readers read them (`input::features`): citygen's
+//! fields (height, levels, roof shape and height, colours, ...) by their common names or
+//! `--field TARGET=COLUMN` (`--shp-height-field`/`--shp-levels-field` too), every other
+//! column carried typed into the outputs: `C` text (trimmed; empty is no value), `N`/`F`
+//! numbers (whole when the column has no decimals), `L` booleans, `D` dates (ISO 8601).
 //!
 //! About the Clifton sample (`data/clifton/clifton_test.dbf`): `MEAN_mean`, `MIN_min` and
 //! `MAX_max` are zonal statistics (mean, min, max) of a LiDAR normalised surface model (heights
@@ -23,17 +31,15 @@ use std::io::{BufReader, Read};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
+use serde_json::{Map, Value};
 use shapefile::dbase::{self, FieldValue};
 use shapefile::{Shape, ShapeReader, ShapeType};
 
-use super::{
-    BuildingTags, Footprint, FootprintKind, InputError, ReadResult, Ring, SourceId, TagInterner,
-};
+use super::features::{Sink, ID_COLUMNS};
+use super::{InputError, ReadResult, Ring};
 use crate::report::{Outcome, Report};
 
 pub use super::features::ShpOptions;
-pub(crate) use super::features::{HEIGHT_FIELDS, LEVELS_FIELDS};
-use super::features::{MORE_HEIGHT_FIELDS, MORE_LEVELS_FIELDS};
 
 /// Reads the polygon records of a shapefile and their attributes.
 ///
@@ -91,49 +97,51 @@ pub fn read_shp(
             reason: format!("has {rows} rows but the .shx indexes {count} shapes"),
         });
     }
-    let field_names: Vec<String> = table
+    let fields: Vec<(String, dbase::FieldType)> = table
         .fields()
         .iter()
-        .map(|f| f.name().to_string())
+        .map(|f| (f.name().to_string(), f.field_type()))
         .collect();
-    // The shapefile reads a height and a level count (`--field height=`/`levels=` too) with
-    // the municipal names; not 3DBAG's absolute heights, which need its ground column.
-    let heights: Vec<&str> = HEIGHT_FIELDS
+    let decimals = decimal_counts(&dbf_path);
+    // A column named (`--field`, `--shp-height-field`, `--shp-levels-field`) must exist.
+    let named = opts
+        .fields
         .iter()
-        .chain(MORE_HEIGHT_FIELDS.iter().filter(|f| !f.starts_with("b3_")))
-        .copied()
-        .collect();
-    let levels: Vec<&str> = LEVELS_FIELDS
-        .iter()
-        .chain(&MORE_LEVELS_FIELDS)
-        .copied()
-        .collect();
-    let height_field =
-        pick_field(&field_names, opts.named("height"), &heights).map_err(|reason| {
-            InputError::Shapefile {
+        .map(|(_, c)| c.as_str())
+        .chain(opts.height_field.as_deref())
+        .chain(opts.levels_field.as_deref());
+    for n in named {
+        if !fields.iter().any(|(f, _)| f.eq_ignore_ascii_case(n)) {
+            let names: Vec<&str> = fields.iter().map(|(f, _)| f.as_str()).collect();
+            return Err(InputError::Shapefile {
                 path: dbf_path.clone(),
-                reason,
-            }
-        })?;
-    let levels_field =
-        pick_field(&field_names, opts.named("levels"), &levels).map_err(|reason| {
-            InputError::Shapefile {
-                path: dbf_path.clone(),
-                reason,
-            }
-        })?;
-    for (what, f) in [
-        ("height", &height_field),
-        ("building:levels", &levels_field),
-    ] {
-        if let Some(f) = f {
-            report.add(
-                None,
-                Outcome::Note,
-                format!("{}: {what} taken from field {f}", path.display()),
-            );
+                reason: format!("no field {n:?}; the fields are {}", names.join(", ")),
+            });
         }
     }
+    // The id column: `--field id=`, else the first of the id names holding whole numbers
+    // (`N` or `F` without decimals, `I`), else the first of them at all (a text column of
+    // digits names the records too; one of other text numbers none, see `Sink::shapefile`).
+    let mut opts = opts.clone();
+    if opts.named("id").is_none() {
+        let whole = |i: usize, ty: &dbase::FieldType| match ty {
+            dbase::FieldType::Integer => true,
+            dbase::FieldType::Numeric | dbase::FieldType::Float => decimals.get(i) == Some(&0),
+            _ => false,
+        };
+        let candidates = |numeric: bool| {
+            ID_COLUMNS.iter().find_map(|c| {
+                fields.iter().enumerate().find_map(|(i, (name, ty))| {
+                    (name.eq_ignore_ascii_case(c) && (!numeric || whole(i, ty)))
+                        .then(|| name.clone())
+                })
+            })
+        };
+        if let Some(c) = candidates(true).or_else(|| candidates(false)) {
+            opts.fields.push(("id".to_string(), c));
+        }
+    }
+    let opts = &opts;
 
     let source_crs = source_crs(path, opts, &header)?;
     if source_crs.is_none() {
@@ -148,17 +156,15 @@ pub fn read_shp(
     }
 
     // A footprint shapefile has no streets (its buildings keep the thesis front) and no admin
-    // boundaries (the KB's own zones place them). Rows with the same attributes share their
-    // parsed tags.
-    let interner = TagInterner::default();
-    let mut result = ReadResult {
-        footprints: Vec::new(),
-        source_crs,
-        streets: Default::default(),
-        boundaries: Vec::new(),
-        attributes: Default::default(),
-    };
-    let mut role_fixes = 0usize;
+    // boundaries (the KB's own zones place them). Columns are read as the other GIS readers
+    // read them (`input::features`): citygen's fields by their common names or `--field`, the
+    // id column, every other column kept typed.
+    let mut sink = Sink::shapefile(path, opts, report);
+    for (name, ty) in &fields {
+        if matches!(ty, dbase::FieldType::Date | dbase::FieldType::DateTime) {
+            sink.date_column(name);
+        }
+    }
     let mut shape_iter = shapes.iter_shapes_as::<Shape>();
     let mut row_iter = table.iter_records();
     for index in 0..count {
@@ -187,102 +193,45 @@ pub fn read_shp(
                 ))
             }
         };
-        let id = SourceId::Shape(index as u64);
-        report.read += 1;
-        let rings: Vec<(Ring, bool)> = match shape {
-            Shape::NullShape => {
-                skip(report, id, "null shape (no geometry)".into());
-                continue;
-            }
-            Shape::Polygon(p) => p
+        let rings: Result<Vec<(Ring, bool)>, String> = match shape {
+            Shape::NullShape => Err("null shape (no geometry)".into()),
+            Shape::Polygon(p) => Ok(p
                 .rings()
                 .iter()
                 .map(|r| {
                     let outer = matches!(r, shapefile::PolygonRing::Outer(_));
                     (r.points().iter().map(|q| (q.x, q.y)).collect(), outer)
                 })
-                .collect(),
-            Shape::PolygonM(p) => p
+                .collect()),
+            Shape::PolygonM(p) => Ok(p
                 .rings()
                 .iter()
                 .map(|r| {
                     let outer = matches!(r, shapefile::PolygonRing::Outer(_));
                     (r.points().iter().map(|q| (q.x, q.y)).collect(), outer)
                 })
-                .collect(),
+                .collect()),
             // Z is dropped: footprints are 2D, heights come from the attributes.
-            Shape::PolygonZ(p) => p
+            Shape::PolygonZ(p) => Ok(p
                 .rings()
                 .iter()
                 .map(|r| {
                     let outer = matches!(r, shapefile::PolygonRing::Outer(_));
                     (r.points().iter().map(|q| (q.x, q.y)).collect(), outer)
                 })
-                .collect(),
-            other => {
-                skip(
-                    report,
-                    id,
-                    format!("shape type {} is not a polygon", other.shapetype()),
-                );
-                continue;
-            }
+                .collect()),
+            other => Err(format!("shape type {} is not a polygon", other.shapetype())),
         };
-
-        let got = match super::rings::polygons_of(rings) {
-            Ok(g) => g,
-            Err(why) => {
-                skip(report, id, why);
-                continue;
-            }
-        };
-        role_fixes += got.role_fixes;
-        if !got.problems.is_empty() {
-            report.repaired += 1;
-            report.add(Some(id), Outcome::Repaired, got.problems.join("; "));
-        }
-
-        let mut pairs: Vec<(&str, String)> = Vec::new();
-        for (key, field) in [
-            ("height", &height_field),
-            ("building:levels", &levels_field),
-        ] {
-            if let Some(v) = field
-                .as_deref()
-                .and_then(|f| row.get(f))
-                .and_then(field_text)
-            {
-                pairs.push((key, v));
+        let mut props = Map::new();
+        for (i, (name, _)) in fields.iter().enumerate() {
+            if let Some(v) = row.get(name) {
+                let whole = decimals.get(i).is_some_and(|&d| d == 0);
+                props.insert(name.clone(), field_value(v, whole));
             }
         }
-        let tags = BuildingTags::from_pairs(pairs.iter().map(|(k, v)| (*k, v.as_str())));
-        for (k, v, why) in &tags.ignored {
-            report.add(Some(id), Outcome::Note, format!("{k}={v} ignored: {why}"));
-        }
-        let polygons = got.polygons;
-        result.footprints.push(Footprint {
-            id,
-            kind: FootprintKind::Building,
-            polygons,
-            tags: interner.intern(tags),
-        });
+        sink.add(None, rings, &props);
     }
-    if role_fixes > 0 {
-        report.add(
-            None,
-            Outcome::Note,
-            format!(
-                "{}: {role_fixes} ring(s) had an orientation that disagreed with how they nest (ESRI: outer rings clockwise, holes counter-clockwise); nesting was used",
-                path.display()
-            ),
-        );
-    }
-    Ok(result)
-}
-
-fn skip(report: &mut Report, id: SourceId, why: String) {
-    report.skipped += 1;
-    report.add(Some(id), Outcome::Skipped, why);
+    sink.finish(source_crs)
 }
 
 fn record_error(path: &Path, record: usize, reason: String) -> InputError {
@@ -321,38 +270,67 @@ fn open(path: &Path, what: &str) -> Result<BufReader<File>, InputError> {
     }
 }
 
-/// The field to read: the one named (matched case-insensitively; an error if absent), else
-/// the first candidate present.
-fn pick_field(
-    fields: &[String],
-    named: Option<&str>,
-    candidates: &[&str],
-) -> Result<Option<String>, String> {
-    if let Some(n) = named {
-        return fields
-            .iter()
-            .find(|f| f.eq_ignore_ascii_case(n))
-            .cloned()
-            .map(Some)
-            .ok_or_else(|| format!("no field {n:?}; the fields are {}", fields.join(", ")));
+/// A dBASE value as a property: text trimmed (empty text is null), `N`/`F` numbers whole
+/// when the column has no decimals (`whole`) and the value is whole, logicals as booleans,
+/// dates as ISO 8601 text (`YYYY-MM-DD`; the column is marked a date column).
+fn field_value(v: &FieldValue, whole: bool) -> Value {
+    let real = |x: f64| -> Value {
+        if whole && x.fract() == 0.0 && x.abs() < 9.0e15 {
+            Value::from(x as i64)
+        } else {
+            serde_json::Number::from_f64(x).map_or(Value::Null, Value::Number)
+        }
+    };
+    match v {
+        FieldValue::Character(Some(s)) | FieldValue::Memo(s) if !s.trim().is_empty() => {
+            Value::String(s.trim().to_string())
+        }
+        FieldValue::Character(_) | FieldValue::Memo(_) => Value::Null,
+        FieldValue::Numeric(Some(x)) => real(*x),
+        FieldValue::Float(Some(x)) => real(f64::from(*x)),
+        FieldValue::Numeric(None) | FieldValue::Float(None) => Value::Null,
+        FieldValue::Integer(n) => Value::from(*n),
+        FieldValue::Double(x) | FieldValue::Currency(x) => {
+            serde_json::Number::from_f64(*x).map_or(Value::Null, Value::Number)
+        }
+        FieldValue::Logical(b) => b.map_or(Value::Null, Value::Bool),
+        FieldValue::Date(Some(d)) => {
+            Value::String(format!("{:04}-{:02}-{:02}", d.year(), d.month(), d.day()))
+        }
+        FieldValue::Date(None) => Value::Null,
+        FieldValue::DateTime(t) => {
+            let (d, c) = (t.date(), t.time());
+            Value::String(format!(
+                "{:04}-{:02}-{:02}T{:02}:{:02}:{:02}",
+                d.year(),
+                d.month(),
+                d.day(),
+                c.hours(),
+                c.minutes(),
+                c.seconds()
+            ))
+        }
     }
-    Ok(candidates
-        .iter()
-        .find_map(|c| fields.iter().find(|f| f.eq_ignore_ascii_case(c)))
-        .cloned())
 }
 
-/// A dBASE value as text for [`BuildingTags::from_pairs`]; `None` for empty values.
-fn field_text(v: &FieldValue) -> Option<String> {
-    match v {
-        FieldValue::Character(s) => s.as_ref().map(|s| s.trim().to_string()),
-        FieldValue::Numeric(n) => n.map(|n| n.to_string()),
-        FieldValue::Float(n) => n.map(|n| n.to_string()),
-        FieldValue::Integer(n) => Some(n.to_string()),
-        FieldValue::Double(n) | FieldValue::Currency(n) => Some(n.to_string()),
-        FieldValue::Memo(s) => Some(s.trim().to_string()),
-        FieldValue::Logical(_) | FieldValue::Date(_) | FieldValue::DateTime(_) => None,
+/// Each field's decimal count from the `.dbf` header's field descriptors (byte 17 of each
+/// 32-byte descriptor after the 32-byte header, up to the `0x0D` terminator), in field
+/// order; empty when unreadable (every number is then read as a real).
+fn decimal_counts(dbf: &Path) -> Vec<u8> {
+    let Ok(f) = File::open(dbf) else {
+        return Vec::new();
+    };
+    let mut head = Vec::new();
+    // At most 255 descriptors of 32 bytes after the header: bounded.
+    if f.take(32 + 32 * 256).read_to_end(&mut head).is_err() {
+        return Vec::new();
     }
+    head.get(32..)
+        .unwrap_or_default()
+        .chunks_exact(32)
+        .take_while(|d| d[0] != 0x0D)
+        .map(|d| d[17])
+        .collect()
 }
 
 /// `--src-crs`, else the `.prj`, else WGS84 when the bounds look like lon/lat.

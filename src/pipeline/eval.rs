@@ -265,7 +265,9 @@ fn load(kb: &KnowledgeBase, case: &Case) -> Result<Loaded, RunError> {
 }
 
 /// Reads a truth CSV: a header naming `id` and `height_m` (and optionally `roof`: `flat` or
-/// `pitched`), one building a line.
+/// `pitched`, and `source_id`), one building a line. A building is found by its `id` and,
+/// failing that, by its `source_id`: a shapefile whose id column names its records
+/// (`feature/N` rather than `shp/<index>`, see `input::shp`) still meets its truth rows.
 fn read_truth(path: &Path) -> Result<HashMap<SourceId, (f64, Option<bool>)>, RunError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))?;
@@ -284,7 +286,9 @@ fn read_truth(path: &Path) -> Result<HashMap<SourceId, (f64, Option<bool>)>, Run
         )));
     };
     let roof_col = col("roof");
+    let source_col = col("source_id");
     let mut out = HashMap::new();
+    let mut aliases = Vec::new();
     for (n, line) in lines.enumerate() {
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
         let bad = || RunError::Input(format!("{}:{}: bad line", path.display(), n + 2));
@@ -302,7 +306,17 @@ fn read_truth(path: &Path) -> Result<HashMap<SourceId, (f64, Option<bool>)>, Run
         });
         if h.is_finite() && h > 0.0 {
             out.insert(id, (h, roof));
+            let source = source_col
+                .and_then(|c| f.get(c))
+                .and_then(|s| SourceId::parse(s).or_else(|| s.parse().ok().map(SourceId::Feature)));
+            if let Some(s) = source {
+                aliases.push((s, (h, roof)));
+            }
         }
+    }
+    // Ids first: a source id never hides another building's id.
+    for (s, v) in aliases {
+        out.entry(s).or_insert(v);
     }
     Ok(out)
 }

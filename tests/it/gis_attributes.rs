@@ -363,3 +363,219 @@ fn a_truncated_flatgeobuf_is_an_error_naming_the_feature() {
     );
     assert!(!cj.exists());
 }
+
+/// ESRI's `.prj` of New York Long Island State Plane in US survey feet: no EPSG code.
+const NY_LI_FEET_ESRI: &str = r#"PROJCS["NAD_1983_StatePlane_New_York_Long_Island_FIPS_3104_Feet",GEOGCS["GCS_North_American_1983",DATUM["D_North_American_1983",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",984250.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",-74.0],PARAMETER["Standard_Parallel_1",40.66666666666666],PARAMETER["Standard_Parallel_2",41.03333333333333],PARAMETER["Latitude_Of_Origin",40.16666666666666],UNIT["Foot_US",0.3048006096012192]]"#;
+
+/// Writes the five municipal rows as a shapefile in New York's State Plane (US survey feet)
+/// with ESRI's `.prj`: OBJECTID `N` (no decimals), HOEHE `N` (2 decimals), GESCHOSSE `N`,
+/// DACHFORM and NUTZUNG `C`, BAUJAHR `N`, FLAECHE `N` (2 decimals), DENKMAL `L`, ERFASST `D`;
+/// `ids` replaces the OBJECTID values. Returns the `.shp`.
+fn municipal_shapefile(dir: &std::path::Path, ids: [f64; 5]) -> std::path::PathBuf {
+    use shapefile::dbase::{Date, FieldName, FieldValue, Record, TableWriterBuilder};
+    use shapefile::{Point, Polygon, PolygonRing};
+    let name = |n: &str| FieldName::try_from(n).unwrap();
+    let table = TableWriterBuilder::new()
+        .add_numeric_field(name("OBJECTID"), 10, 0)
+        .add_numeric_field(name("HOEHE"), 10, 2)
+        .add_numeric_field(name("GESCHOSSE"), 4, 0)
+        .add_character_field(name("DACHFORM"), 20)
+        .add_character_field(name("NUTZUNG"), 40)
+        .add_numeric_field(name("BAUJAHR"), 6, 0)
+        .add_numeric_field(name("FLAECHE"), 10, 2)
+        .add_logical_field(name("DENKMAL"))
+        .add_date_field(name("ERFASST"));
+    let path = dir.join("gebaeude.shp");
+    let mut w = shapefile::Writer::from_path(&path, table).unwrap();
+    let ft = 1200.0 / 3937.0;
+    for (i, (row, id)) in ROWS.iter().zip(ids).enumerate() {
+        let (_, h, storeys, use_, year, area, listed, date) = *row;
+        // 10 x 8 m, clockwise (ESRI's outer ring), near the Empire State Building.
+        let (x, y) = (988_000.0 + 120.0 * i as f64, 211_900.0);
+        let (dx, dy) = (10.0 / ft, 8.0 / ft);
+        let ring = vec![
+            Point::new(x, y),
+            Point::new(x, y + dy),
+            Point::new(x + dx, y + dy),
+            Point::new(x + dx, y),
+            Point::new(x, y),
+        ];
+        let mut rec = Record::default();
+        rec.insert("OBJECTID".into(), FieldValue::Numeric(Some(id)));
+        rec.insert("HOEHE".into(), FieldValue::Numeric(Some(h)));
+        rec.insert(
+            "GESCHOSSE".into(),
+            FieldValue::Numeric(Some(storeys as f64)),
+        );
+        rec.insert(
+            "DACHFORM".into(),
+            FieldValue::Character(Some("Flachdach".into())),
+        );
+        // dBASE text is ASCII here: the crate's default code page.
+        rec.insert(
+            "NUTZUNG".into(),
+            FieldValue::Character(Some(use_.replace('ü', "ue"))),
+        );
+        rec.insert("BAUJAHR".into(), FieldValue::Numeric(Some(year as f64)));
+        rec.insert("FLAECHE".into(), FieldValue::Numeric(Some(area)));
+        rec.insert("DENKMAL".into(), FieldValue::Logical(Some(listed)));
+        let d: Vec<u32> = date.split('-').map(|p| p.parse().unwrap()).collect();
+        rec.insert(
+            "ERFASST".into(),
+            FieldValue::Date(Some(Date::new(d[2], d[1], d[0]).unwrap())),
+        );
+        w.write_shape_and_record(&Polygon::new(PolygonRing::Outer(ring)), &rec)
+            .unwrap();
+    }
+    drop(w);
+    std::fs::write(path.with_extension("prj"), NY_LI_FEET_ESRI).unwrap();
+    path
+}
+
+/// The EPSG code of a CityJSON file's referenceSystem.
+fn epsg_of(cj: &serde_json::Value) -> u32 {
+    let rs = cj["metadata"]["referenceSystem"].as_str().unwrap();
+    rs.rsplit('/').next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn a_shapefile_in_state_plane_feet_keeps_its_ids_heights_and_every_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let shp = municipal_shapefile(dir.path(), ROWS.map(|r| r.0 as f64));
+    let o = run(shp.to_str().unwrap(), &[]);
+    // The ESRI .prj without a code is New York Long Island (ftUS), EPSG:2263: the outputs go
+    // to its metre edition, EPSG:32118.
+    assert_eq!(epsg_of(&o.cityjson), 32118);
+    let b = buildings(&o.cityjson);
+    for (id, ..) in ROWS {
+        let a = &b[&format!("feature/{id}")];
+        assert_eq!(a["DACHFORM"], serde_json::Value::Null, "{a}");
+        assert_eq!(a["roofType"], "1000", "Flachdach is flat: {a}");
+    }
+    // Placed in the input's CRS: x about 988,000 ftUS = 301,147 m.
+    let verts = o.cityjson["vertices"].as_array().unwrap();
+    let (scale, translate) = (
+        &o.cityjson["transform"]["scale"],
+        &o.cityjson["transform"]["translate"],
+    );
+    let x0 =
+        verts[0][0].as_f64().unwrap() * scale[0].as_f64().unwrap() + translate[0].as_f64().unwrap();
+    assert!((x0 - 301_147.0).abs() < 700.0, "{x0}");
+    // NUTZUNG was written in ASCII: compare with the fixture's umlaut spelled out.
+    let mut ascii = o.cityjson.clone();
+    for obj in ascii["CityObjects"].as_object_mut().unwrap().values_mut() {
+        if let Some(n) = obj["attributes"].get_mut("NUTZUNG") {
+            *n = n.as_str().unwrap().replace("ue", "ü").into();
+        }
+    }
+    let o = Outputs {
+        cityjson: ascii,
+        gml: o.gml.replace("Wohnen &amp; Buero", "Wohnen &amp; Büro"),
+        ifc: o
+            .ifc
+            .replace("'Wohnen & Buero'", "'Wohnen & B\\X2\\00FC\\X0\\ro'"),
+        glb: {
+            let mut g = o.glb.clone();
+            for n in g["nodes"].as_array_mut().unwrap() {
+                if let Some(v) = n["extras"]["attributes"].get_mut("NUTZUNG") {
+                    *v = v.as_str().unwrap().replace("ue", "ü").into();
+                }
+            }
+            g
+        },
+        files: o.files,
+        _dir: o._dir,
+    };
+    check_municipal(&o);
+}
+
+#[test]
+fn a_shapefile_without_unique_ids_names_its_records_by_index_and_keeps_the_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let shp = municipal_shapefile(dir.path(), [7.0, 8.0, 7.0, 9.0, 10.0]);
+    let o = run(shp.to_str().unwrap(), &[]);
+    let b = buildings(&o.cityjson);
+    let ids: Vec<&String> = b.keys().collect();
+    assert_eq!(ids, ["shp/0", "shp/1", "shp/2", "shp/3", "shp/4"]);
+    assert_eq!(b["shp/2"]["OBJECTID"].as_i64(), Some(7), "{}", b["shp/2"]);
+    assert!((b["shp/2"]["measuredHeight"].as_f64().unwrap() - 12.34).abs() < 0.05);
+
+    // Named with --field id=: a unique column gives the ids, the column is not repeated.
+    let shp = municipal_shapefile(dir.path(), [1.0, 2.0, 3.0, 4.0, 5.0]);
+    let o = run(shp.to_str().unwrap(), &["--field", "id=GESCHOSSE"]);
+    let b = buildings(&o.cityjson);
+    assert_eq!(b.len(), 5);
+    // The third row: GESCHOSSE 4, OBJECTID 3.
+    assert_eq!(
+        b["feature/4"]["OBJECTID"].as_i64(),
+        Some(3),
+        "{}",
+        b["feature/4"]
+    );
+    assert!(b["feature/4"].get("GESCHOSSE").is_none());
+}
+
+#[test]
+fn the_3d_tiles_metadata_carries_every_column_as_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let shp = municipal_shapefile(dir.path(), ROWS.map(|r| r.0 as f64));
+    let tiles = dir.path().join("tiles");
+    let out = citygen(&[
+        "--footprints",
+        shp.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--tiles3d",
+        tiles.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (json, bin) = glb_json(&tiles.join("content/all.glb"));
+    let meta = &json["extensions"]["EXT_structural_metadata"];
+    let props = &meta["schema"]["classes"]["building"]["properties"];
+    for column in ["NUTZUNG", "BAUJAHR", "FLAECHE", "DENKMAL", "ERFASST"] {
+        let p = &props[format!("attr_{column}")];
+        assert_eq!(p["type"], "STRING", "{column}: {p}");
+        assert_eq!(p["name"], column);
+    }
+    // Read into citygen's fields: no property.
+    for used in ["HOEHE", "GESCHOSSE", "DACHFORM", "OBJECTID"] {
+        assert!(props.get(format!("attr_{used}")).is_none(), "{used}");
+    }
+    // The column's strings, in the table's row order (the `id` column's).
+    let table = &meta["propertyTables"][0];
+    let strings = |key: &str| -> Vec<String> {
+        let p = &table["properties"][key];
+        let view = |i: &serde_json::Value| {
+            let v = &json["bufferViews"][i.as_u64().unwrap() as usize];
+            let o = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+            &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
+        };
+        let (values, offsets) = (view(&p["values"]), view(&p["stringOffsets"]));
+        let offs: Vec<usize> = offsets
+            .chunks(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap()) as usize)
+            .collect();
+        offs.windows(2)
+            .map(|w| String::from_utf8(values[w[0]..w[1]].to_vec()).unwrap())
+            .collect()
+    };
+    let ids = strings("id");
+    let years = strings("attr_BAUJAHR");
+    let dates = strings("attr_ERFASST");
+    assert_eq!(ids.len(), 5);
+    for (id, _, _, _, year, _, _, date) in ROWS {
+        let row = ids
+            .iter()
+            .position(|i| *i == format!("feature/{id}"))
+            .unwrap();
+        assert_eq!(years[row], year.to_string());
+        assert_eq!(dates[row], date);
+    }
+}

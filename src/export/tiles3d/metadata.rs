@@ -1,10 +1,11 @@
 //! `EXT_structural_metadata` of a content: the schema (one class, `building`) and the property
 //! table, one row per building in write order (the row is the building's feature id), stored
-//! as binary columns in the GLB's buffer.
+//! as binary columns in the GLB's buffer. The input file's other columns (GIS footprints) are
+//! `STRING` properties `attr_<name>` of the contents whose buildings have them.
 
 use serde_json::{json, Value};
 
-use crate::model::Building;
+use crate::model::{AttrValue, Attributes, Building};
 
 use super::glb::Bin;
 
@@ -27,6 +28,8 @@ pub(crate) struct Rows {
     sources: [Vec<&'static str>; 3],
     /// Storeys error, height error, roof probability; [`NO_DATA`] when unknown.
     uncertainty: [Vec<f32>; 3],
+    /// The input file's other columns of each building (GIS footprints, issue 47).
+    attributes: Vec<Option<Attributes>>,
 }
 
 /// The `noData` of the uncertainty columns (an error or a probability is never negative).
@@ -70,6 +73,38 @@ impl Rows {
         for (col, v) in self.uncertainty.iter_mut().zip(values) {
             col.push(v.map_or(NO_DATA, |v| v as f32));
         }
+        self.attributes.push(b.attributes.clone());
+    }
+
+    /// The input's columns of these rows, in first-seen order: (the schema's property id, the
+    /// column's name). An id is `attr_` and the name with every character outside
+    /// `[A-Za-z0-9_]` as `_` (the metadata spec's identifiers), `_2`, `_3`... on a clash.
+    fn columns(&self) -> Vec<(String, std::sync::Arc<str>)> {
+        let mut out: Vec<(String, std::sync::Arc<str>)> = Vec::new();
+        for a in self.attributes.iter().flatten() {
+            for (name, _) in a.iter() {
+                if out.iter().any(|(_, n)| n == name) {
+                    continue;
+                }
+                let base: String = std::iter::once("attr_".to_string())
+                    .chain(name.chars().map(|c| {
+                        if c.is_ascii_alphanumeric() || c == '_' {
+                            c.to_string()
+                        } else {
+                            "_".to_string()
+                        }
+                    }))
+                    .collect();
+                let mut id = base.clone();
+                let mut n = 1;
+                while out.iter().any(|(i, _)| *i == id) {
+                    n += 1;
+                    id = format!("{base}_{n}");
+                }
+                out.push((id, name.clone()));
+            }
+        }
+        out
     }
 
     /// Rows so far.
@@ -78,8 +113,22 @@ impl Rows {
     }
 }
 
-/// The schema of the `building` class.
-pub(crate) fn schema() -> Value {
+/// A column's value as the text of its `STRING` property: text and dates as written, numbers
+/// as Rust prints them (shortest round trip), booleans `true`/`false`.
+fn attr_text(v: &AttrValue) -> String {
+    match v {
+        AttrValue::Text(t) | AttrValue::Date(t) => t.to_string(),
+        AttrValue::Int(i) => i.to_string(),
+        AttrValue::Real(x) => x.to_string(),
+        AttrValue::Bool(b) => b.to_string(),
+    }
+}
+
+/// The schema of the `building` class, with a `STRING` property per input column of `rows`.
+/// Columns are strings whatever their type in the file: a column's type may differ between
+/// the features of a GeoJSON file, and a content holds a share of them; the other formats
+/// keep the types.
+pub(crate) fn schema(rows: &Rows) -> Value {
     let string = |description: &str| json!({"type": "STRING", "description": description});
     let mut schema = json!({
         "id": SCHEMA_ID,
@@ -137,6 +186,17 @@ pub(crate) fn schema() -> Value {
                 }),
             );
         }
+        for (id, name) in rows.columns() {
+            props.insert(
+                id,
+                json!({
+                    "type": "STRING",
+                    "name": &*name,
+                    "description": format!("The input file's column {name:?}, as text; empty when the building has none."),
+                    "noData": ""
+                }),
+            );
+        }
     }
     schema
 }
@@ -146,6 +206,22 @@ pub(crate) fn schema() -> Value {
 /// the schema's properties are optional (`name`'s no-data value is the empty string).
 pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
     let mut props = serde_json::Map::new();
+    let columns = rows.columns();
+    let attr_cols: Vec<(String, Vec<String>)> = columns
+        .iter()
+        .map(|(id, name)| {
+            let col = rows
+                .attributes
+                .iter()
+                .map(|a| {
+                    a.as_ref()
+                        .and_then(|a| a.iter().find(|(k, _)| k == name))
+                        .map_or(String::new(), |(_, v)| attr_text(v))
+                })
+                .collect();
+            (id.clone(), col)
+        })
+        .collect();
     let string_cols: [(&str, Vec<&str>); 8] = [
         ("id", rows.id.iter().map(String::as_str).collect()),
         ("name", rows.name.iter().map(String::as_str).collect()),
@@ -159,7 +235,10 @@ pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
         (PROVENANCE[1].0, rows.sources[1].clone()),
         (PROVENANCE[2].0, rows.sources[2].clone()),
     ];
-    for (key, col) in string_cols {
+    let attr_refs = attr_cols
+        .iter()
+        .map(|(id, col)| (id.as_str(), col.iter().map(String::as_str).collect()));
+    for (key, col) in string_cols.into_iter().chain(attr_refs) {
         let mut data = Vec::new();
         let mut offsets: Vec<u8> = 0u32.to_le_bytes().to_vec();
         for v in col {

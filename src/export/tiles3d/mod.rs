@@ -333,7 +333,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             "extensionsUsed": ["EXT_mesh_features", "EXT_structural_metadata"],
             "extensions": {
                 "EXT_structural_metadata": {
-                    "schema": metadata::schema(),
+                    "schema": metadata::schema(&self.rows),
                     "propertyTables": [table]
                 }
             },

@@ -1,5 +1,6 @@
 use super::*;
 use crate::crs::Crs;
+use crate::model::SourceId;
 use shapefile::dbase::{FieldName, Record, TableWriterBuilder};
 use shapefile::{Point, Polygon, PolygonRing};
 
@@ -32,11 +33,15 @@ fn clifton_every_record_is_accounted_for() {
         .filter(|e| e.outcome == Outcome::Skipped)
         .count();
     assert_eq!(skipped, report.skipped);
-    // Record order, ids are record indices.
+    // Record order; the ids are the OBJECTID column's (whole numbers, unique), the ID column
+    // (hexadecimal text) kept as an attribute.
     for w in r.footprints.windows(2) {
         assert!(w[0].id < w[1].id);
     }
-    assert_eq!(r.footprints[0].id, SourceId::Shape(0));
+    assert_eq!(r.footprints[0].id, SourceId::Feature(3_932_040));
+    let first = &r.attributes[&SourceId::Feature(3_932_040)];
+    assert!(first.iter().any(|(k, _)| &**k == "ID"), "{first:?}");
+    assert!(!first.iter().any(|(k, _)| &**k == "OBJECTID"), "{first:?}");
     // The first row: MEAN_mean 5.037, MAX_max 7.
     assert_eq!(r.footprints[0].tags.height, Some(7.0));
     assert!(report
@@ -46,16 +51,21 @@ fn clifton_every_record_is_accounted_for() {
 
     // Heights: every record with MAX_max > 0 has its height, the others a note.
     let mut table = dbase::Reader::from_path(clifton().with_extension("dbf")).unwrap();
-    let max: Vec<f64> = table
+    let max: std::collections::HashMap<u64, f64> = table
         .iter_records()
-        .map(|r| match r.unwrap().get("MAX_max") {
-            Some(FieldValue::Numeric(Some(v))) => *v,
-            other => panic!("{other:?}"),
+        .map(|r| {
+            let r = r.unwrap();
+            match (r.get("OBJECTID"), r.get("MAX_max")) {
+                (Some(FieldValue::Numeric(Some(id))), Some(FieldValue::Numeric(Some(v)))) => {
+                    (*id as u64, *v)
+                }
+                other => panic!("{other:?}"),
+            }
         })
         .collect();
     for f in &r.footprints {
-        let SourceId::Shape(i) = f.id else { panic!() };
-        let m = max[i as usize];
+        let SourceId::Feature(i) = f.id else { panic!() };
+        let m = max[&i];
         if m > 0.0 {
             assert_eq!(f.tags.height, Some(m), "{}", f.id);
         } else {
@@ -112,7 +122,7 @@ fn height_and_levels_fields_by_name() {
     assert!(report
         .entries
         .iter()
-        .any(|e| e.id == "shp/0" && e.reason.contains("building:levels")));
+        .any(|e| e.id == "feature/3932040" && e.reason.contains("building:levels")));
 
     let opts = ShpOptions {
         height_field: Some("hauteur".into()),
@@ -259,7 +269,8 @@ fn tiny_shapefile_holes_multi_outers_and_repairs() {
             .collect::<Vec<_>>()
             .join(" | ")
     };
-    assert!(reason("shp/1", Outcome::Note).contains("height=0 ignored"));
+    // HEIGHT has two decimals: read as the real 0.0.
+    assert!(reason("shp/1", Outcome::Note).contains("height=0.0 ignored"));
     assert!(reason("shp/2", Outcome::Note).contains("building:levels=many ignored"));
     assert!(reason("shp/3", Outcome::Skipped).contains("zero area"));
     assert!(reason("shp/4", Outcome::Repaired).contains("ring 1 dropped"));
