@@ -1,12 +1,14 @@
 """Renders a citygen GLB to a PNG without a browser: flat-shaded triangles, z-buffer, numpy only.
 
 python scripts/render_png.py IN.glb OUT.png bird
-python scripts/render_png.py IN.glb OUT.png street DX DY FX FY   (eye 1.7 m up at the model centre
+python scripts/render_png.py IN.glb OUT.png street DX DY FX FY   (eye 1.7 m above the ground at the model centre
     (the middle of its bounding box)
     + (DX, DY) metres east/north, looking along (FX, FY))
-python scripts/render_png.py IN.glb OUT.png at X Y FX FY   (eye 1.7 m up at (X, Y) of the file's
+python scripts/render_png.py IN.glb OUT.png at X Y FX FY   (eye 1.7 m above the ground at (X, Y) of the file's
     local frame, metres east/north, looking along (FX, FY)); numpy is in the validators' venv:
     $CITYGEN_VALIDATE_HOME/venv/bin/python (default ~/.cache/citygen-validate).
+The ground is the file's `terrain` node (a run with --dem) when it has one, drawn as a mesh, the
+eye 1.7 m above the terrain under it; otherwise a flat plane at z = 0.
 For where headless Chromium (scripts/screenshot) is missing. Like a glTF viewer, it culls the
 back faces of single-sided materials, blends BLEND materials over the opaque scene (back to
 front) and encodes the linear colours to sRGB. With ZFIGHT=1 in the environment it emulates a 24-bit depth buffer (near plane 0.1 m,
@@ -28,7 +30,7 @@ def acc(i):
         raw = np.frombuffer(bin_, np.uint8, a['count'] * stride, off).reshape(-1, stride)
         return raw[:, :12].copy().view(np.float32).reshape(-1, 3)
     return np.frombuffer(bin_, comp, a['count'] * k, off).reshape(-1, k) if k > 1 else np.frombuffer(bin_, comp, a['count'], off)
-tris = []; cols = []; alphas = []; twosided = []
+tris = []; cols = []; alphas = []; twosided = []; ground = []
 def walk(i, t):
     nd = j['nodes'][i]; t = t + np.array(nd.get('translation', [0, 0, 0]))
     if 'mesh' in nd:
@@ -38,18 +40,32 @@ def walk(i, t):
             blend = mat.get('alphaMode') == 'BLEND'
             tris.append(pos[idx]); cols.append(np.tile(m[:3], (len(idx), 1)))
             alphas.append(np.full(len(idx), m[3] if blend else 1.0)); twosided.append(np.full(len(idx), bool(mat.get('doubleSided'))))
+            ground.append(np.full(len(idx), nd.get('name') == 'terrain'))
     for c in nd.get('children', []): walk(c, t)
 for r in j['scenes'][0]['nodes']: walk(r, np.zeros(3))
 T = np.concatenate(tris).astype(np.float64); C = np.concatenate(cols); A = np.concatenate(alphas); D = np.concatenate(twosided)
+G = np.concatenate(ground)  # the triangles of the glTF `terrain` node (a run with --dem)
 # glTF y up, z south: world x east, y north, z up
 W = np.stack([T[..., 0], -T[..., 2], T[..., 1]], -1)
 P = W.reshape(-1, 3); c = (P.min(0) + P.max(0)) / 2; ext = np.ptp(W.reshape(-1, 3)[:, :2], 0).max()
+def terrain_z(px, py):
+    """The height of the terrain mesh under (px, py): the highest terrain triangle containing the
+    point in plan, 0 without a terrain node (the flat ground of a run without --dem); the nearest
+    terrain vertex's height when the point is outside every triangle."""
+    if not G.any(): return 0.0
+    t = W[G]; (ax, ay, az), (bx, by, bz), (cx, cy, cz) = t[:, 0].T, t[:, 1].T, t[:, 2].T
+    den = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy); ok = np.abs(den) > 1e-12; den = np.where(ok, den, 1.0)
+    l1 = ((by - cy) * (px - cx) + (cx - bx) * (py - cy)) / den; l2 = ((cy - ay) * (px - cx) + (ax - cx) * (py - cy)) / den
+    l3 = 1 - l1 - l2; e = -1e-9; hit = ok & (l1 >= e) & (l2 >= e) & (l3 >= e)
+    if hit.any(): return float((l1 * az + l2 * bz + l3 * cz)[hit].max())
+    v = t.reshape(-1, 3); return float(v[np.argmin((v[:, 0] - px) ** 2 + (v[:, 1] - py) ** 2), 2])
 Wd, H = 1400, 900
 if mode == 'bird':
     eye = c + np.array([-0.5, -0.9, 0.8]) * ext * 0.9; f = 1.6
 else:  # street / at: 1.7 m above the ground
     at = np.zeros(2) if mode == 'at' else c[:2]
-    eye = np.array([at[0] + float(sys.argv[4]), at[1] + float(sys.argv[5]), 1.7]); f = 1.0
+    ex, ey = at[0] + float(sys.argv[4]), at[1] + float(sys.argv[5])
+    eye = np.array([ex, ey, terrain_z(ex, ey) + 1.7]); f = 1.0
     tgt = eye + np.array([float(sys.argv[6]), float(sys.argv[7]), 0.15])
 fwd = (c - eye) if mode == 'bird' else (tgt - eye); fwd /= np.linalg.norm(fwd)
 right = np.cross(fwd, [0, 0, 1]); right /= np.linalg.norm(right); up = np.cross(right, fwd)
@@ -59,26 +75,36 @@ light = np.array([0.4, -0.5, 0.75]); light /= np.linalg.norm(light)
 shade = 0.35 + 0.65 * np.abs(nrm @ light)
 img = np.full((H, Wd, 3), [0.57, 0.71, 0.89]); zb = np.full((H, Wd), np.inf)
 s = f * Wd / 2
-if mode != 'bird':  # the ground: pixels whose ray points down
+if mode != 'bird' and not G.any():  # a flat ground at z = 0 (no terrain mesh): pixels whose ray points down
     gx, gy = np.meshgrid((np.arange(Wd) + 0.5 - Wd / 2) / s, (H / 2 - np.arange(H) - 0.5) / s)
     dz = fwd[2] + gx * right[2] + gy * up[2]
     img[dz < 0] = [0.55, 0.55, 0.53]
 facing = (nrm * (eye - W[:, 0])).sum(1) > 0  # front side towards the eye
 zfight = os.environ.get('ZFIGHT') == '1'
-order = np.argsort(-z.min(1)); opaque = A >= 1.0
-for k in np.concatenate([order[opaque[order]], order[~opaque[order]]]):
-    if z[k].min() < 0.5: continue
-    if not (facing[k] or D[k]): continue
-    px = Wd / 2 + s * x[k] / z[k]; py = H / 2 - s * y[k] / z[k]
+NEAR = 0.5
+def clip_near(k):
+    """Triangle k in camera space cut to z >= NEAR (Sutherland-Hodgman against one plane), as a
+    fan of triangles: a terrain triangle under the eye reaches behind it and is drawn in part."""
+    v = np.stack([x[k], y[k], z[k]], 1); inside = v[:, 2] >= NEAR
+    if inside.all(): return [v]
+    if not inside.any(): return []
+    poly = []
+    for i in range(3):
+        p, q = v[i], v[(i + 1) % 3]
+        if p[2] >= NEAR: poly.append(p)
+        if (p[2] >= NEAR) != (q[2] >= NEAR): poly.append(p + (q - p) * (NEAR - p[2]) / (q[2] - p[2]))
+    return [np.array([poly[0], poly[i], poly[i + 1]]) for i in range(1, len(poly) - 1)]
+def raster(v, k):
+    px = Wd / 2 + s * v[:, 0] / v[:, 2]; py = H / 2 - s * v[:, 1] / v[:, 2]
     x0, x1 = max(int(px.min()), 0), min(int(px.max()) + 1, Wd); y0, y1 = max(int(py.min()), 0), min(int(py.max()) + 1, H)
-    if x0 >= x1 or y0 >= y1: continue
+    if x0 >= x1 or y0 >= y1: return
     gx, gy = np.meshgrid(np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5)
     (ax, bx, cx), (ay, by, cy) = px, py
     den = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
-    if abs(den) < 1e-9: continue
+    if abs(den) < 1e-9: return
     l1 = ((by - cy) * (gx - cx) + (cx - bx) * (gy - cy)) / den; l2 = ((cy - ay) * (gx - cx) + (ax - cx) * (gy - cy)) / den; l3 = 1 - l1 - l2
     inside = (l1 >= 0) & (l2 >= 0) & (l3 >= 0)
-    zz = l1 * z[k][0] + l2 * z[k][1] + l3 * z[k][2]
+    zz = 1 / (l1 / v[0, 2] + l2 / v[1, 2] + l3 / v[2, 2])  # perspective-correct: 1/z is linear on the screen
     sub = zb[y0:y1, x0:x1]
     if zfight:  # 24-bit depth of a 0.1 m near plane: one step is z^2 / (0.1 * 2^24)
         q = zz * zz / (0.1 * 2 ** 24); jit = np.random.default_rng(k).random(zz.shape) - 0.5
@@ -89,6 +115,11 @@ for k in np.concatenate([order[opaque[order]], order[~opaque[order]]]):
         sub[m] = zz[m]; img[y0:y1, x0:x1][m] = C[k] * shade[k]
     else:
         img[y0:y1, x0:x1][m] = A[k] * C[k] * shade[k] + (1 - A[k]) * img[y0:y1, x0:x1][m]
+order = np.argsort(-z.min(1)); opaque = A >= 1.0
+for k in np.concatenate([order[opaque[order]], order[~opaque[order]]]):
+    if z[k].max() < NEAR: continue
+    if not (facing[k] or D[k]): continue
+    for v in clip_near(k): raster(v, k)
 img = np.clip(img, 0, 1); img = np.where(img <= 0.0031308, img * 12.92, 1.055 * img ** (1 / 2.4) - 0.055)  # linear to sRGB, as viewers show it
 px8 = (np.clip(img, 0, 1) * 255).astype(np.uint8)
 raw = b''.join(b'\x00' + px8[r].tobytes() for r in range(H))

@@ -172,6 +172,50 @@ impl Tri {
     }
 }
 
+/// A triangle of one block's hierarchy in samples from the block's corner (each coordinate at
+/// most [`BLOCK`]): [`Rtin::new`] walks the triangles of each depth from these lists instead of
+/// descending from the roots once per depth.
+#[derive(Clone, Copy)]
+struct Offsets([u16; 6]);
+
+impl Offsets {
+    /// The triangle of the block whose corner is sample `(i0, j0)`.
+    fn at(self, i0: usize, j0: usize) -> Tri {
+        let o = self.0.map(usize::from);
+        Tri {
+            a: (i0 + o[0], j0 + o[1]),
+            b: (i0 + o[2], j0 + o[3]),
+            c: (i0 + o[4], j0 + o[5]),
+        }
+    }
+}
+
+/// Per depth below [`SPLITTABLE`], a block's triangles in the order a descent from its two
+/// roots meets them (the same for every block; 131,070 triangles, 1.5 MB, made once).
+static LEVELS: std::sync::LazyLock<Vec<Vec<Offsets>>> = std::sync::LazyLock::new(|| {
+    fn walk(t: Tri, depth: u32, out: &mut [Vec<Offsets>]) {
+        let u = |v: usize| u16::try_from(v).unwrap_or(u16::MAX);
+        out[depth as usize].push(Offsets([
+            u(t.a.0),
+            u(t.a.1),
+            u(t.b.0),
+            u(t.b.1),
+            u(t.c.0),
+            u(t.c.1),
+        ]));
+        if depth + 1 < SPLITTABLE {
+            for child in t.children() {
+                walk(child, depth + 1, out);
+            }
+        }
+    }
+    let mut out = vec![Vec::new(); SPLITTABLE as usize];
+    for root in Tri::roots(0, 0) {
+        walk(root, 0, &mut out);
+    }
+    out
+});
+
 /// `v` as an f32 no smaller than it (bounds must not shrink when stored).
 fn round_up(v: f64) -> f32 {
     let f = v as f32;
@@ -198,11 +242,13 @@ impl<'a> Rtin<'a> {
             width,
             bounds: vec![0.0; width * height],
         };
+        let levels = &*LEVELS;
         for depth in (0..SPLITTABLE).rev() {
             for bj in 0..blocks.1 {
                 for bi in 0..blocks.0 {
-                    for root in Tri::roots(bi * BLOCK, bj * BLOCK) {
-                        rtin.bound_at_depth(root, 0, depth);
+                    let (i0, j0) = (bi * BLOCK, bj * BLOCK);
+                    for t in &levels[depth as usize] {
+                        rtin.bound_of(t.at(i0, j0), depth);
                     }
                 }
             }
@@ -229,14 +275,9 @@ impl<'a> Rtin<'a> {
         self.bounds[j * self.width + i]
     }
 
-    /// Sets the bounds of the triangles at `depth` below `t` (at `at`).
-    fn bound_at_depth(&mut self, t: Tri, at: u32, depth: u32) {
-        if at < depth {
-            for child in t.children() {
-                self.bound_at_depth(child, at + 1, depth);
-            }
-            return;
-        }
+    /// Sets the bound of triangle `t` (at `depth`) from its own midpoint's error and its
+    /// children's bounds.
+    fn bound_of(&mut self, t: Tri, depth: u32) {
         let m = t.mid();
         let [za, zb, zc, zm] = [t.a, t.b, t.c, m].map(|p| self.z(p));
         let own = if [za, zb, zc, zm].iter().all(|v| v.is_finite()) {
