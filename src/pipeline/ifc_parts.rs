@@ -18,8 +18,8 @@
 //! (`stale_parts`), so the folder holds exactly this run's files; a failed run publishes and
 //! removes nothing.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::export::ifc::{IfcSchema, IfcWriter};
@@ -27,13 +27,11 @@ use crate::export::{BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, SourceId};
 
 use super::file_name;
-use super::write::{open_output, OutWriter, SharedHash, Sink};
 
-/// One finished file of a split IFC output.
-pub(super) struct Part {
-    pub(super) sink: Sink,
-    pub(super) bytes: Arc<AtomicU64>,
-    pub(super) hash: Option<SharedHash>,
+/// One finished file of a split IFC output: where its bytes went (`S`, the pipeline's
+/// temporary file, counter and hash).
+pub(super) struct Part<S> {
+    pub(super) file: S,
     /// Buildings written to it.
     pub(super) buildings: usize,
     /// Its first building (the only one when `buildings` is 1).
@@ -41,48 +39,46 @@ pub(super) struct Part {
 }
 
 /// The finished files of a [`SplitIfc`], in order, for the pipeline to publish.
-pub(super) type Parts = Arc<Mutex<Vec<Part>>>;
+pub(super) type Parts<S> = Arc<Mutex<Vec<Part<S>>>>;
+
+/// Opens the file of a path: the writer of its bytes and where they go.
+pub(super) type Opener<W, S> = Box<dyn FnMut(&Path) -> Result<(W, S), ExportError> + Send>;
 
 /// The file being written.
-struct Current {
-    writer: IfcWriter<OutWriter>,
-    sink: Sink,
-    bytes: Arc<AtomicU64>,
-    hash: Option<SharedHash>,
+struct Current<W: Write + Send, S> {
+    writer: IfcWriter<W>,
+    file: S,
     buildings: usize,
     first: Option<SourceId>,
 }
 
 /// An IFC output split into files under a cap (see the module docs).
-pub(super) struct SplitIfc {
+pub(super) struct SplitIfc<W: Write + Send, S> {
     path: PathBuf,
     schema: IfcSchema,
     cap: u64,
-    dry: bool,
-    hashed: bool,
+    open: Opener<W, S>,
     ctx: Option<OutputContext>,
-    current: Option<Current>,
-    parts: Parts,
+    current: Option<Current<W, S>>,
+    parts: Parts<S>,
 }
 
-impl SplitIfc {
-    /// A split output for `path`, files of at most `cap` bytes; its finished files go to the
-    /// returned [`Parts`].
+impl<W: Write + Send, S> SplitIfc<W, S> {
+    /// A split output for `path`, files of at most `cap` bytes, each opened by `open`; its
+    /// finished files go to the returned [`Parts`].
     pub(super) fn new(
         path: &Path,
         schema: IfcSchema,
         cap: u64,
-        dry: bool,
-        hashed: bool,
-    ) -> (SplitIfc, Parts) {
-        let parts: Parts = Arc::default();
+        open: Opener<W, S>,
+    ) -> (SplitIfc<W, S>, Parts<S>) {
+        let parts: Parts<S> = Arc::default();
         (
             SplitIfc {
                 path: path.to_path_buf(),
                 schema,
                 cap,
-                dry,
-                hashed,
+                open,
                 ctx: None,
                 current: None,
                 parts: Arc::clone(&parts),
@@ -108,8 +104,7 @@ impl SplitIfc {
             later.terrain = None;
             (part_path(&self.path, k), later)
         };
-        let (w, sink, bytes, hash) = open_output(&path, self.dry, None, self.hashed)
-            .map_err(|e| ExportError::Invalid(e.to_string()))?;
+        let (w, file) = (self.open)(&path)?;
         let mut writer = IfcWriter::new(w)
             .with_file_name(&file_name(&path))
             .with_schema(self.schema)
@@ -117,9 +112,7 @@ impl SplitIfc {
         writer.begin(&ctx)?;
         self.current = Some(Current {
             writer,
-            sink,
-            bytes,
-            hash,
+            file,
             buildings: 0,
             first: None,
         });
@@ -134,9 +127,7 @@ impl SplitIfc {
         c.writer.finish()?;
         drop(c.writer);
         lock(&self.parts).push(Part {
-            sink: c.sink,
-            bytes: c.bytes,
-            hash: c.hash,
+            file: c.file,
             buildings: c.buildings,
             first: c.first,
         });
@@ -144,11 +135,11 @@ impl SplitIfc {
     }
 }
 
-fn lock(parts: &Parts) -> std::sync::MutexGuard<'_, Vec<Part>> {
+fn lock<S>(parts: &Parts<S>) -> std::sync::MutexGuard<'_, Vec<Part<S>>> {
     parts.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-impl BuildingWriter for SplitIfc {
+impl<W: Write + Send, S: Send> BuildingWriter for SplitIfc<W, S> {
     fn begin(&mut self, ctx: &OutputContext) -> Result<(), ExportError> {
         self.ctx = Some(ctx.clone());
         self.open()
@@ -237,11 +228,6 @@ pub(super) fn stale_parts(path: &Path, written: &[PathBuf]) -> Vec<PathBuf> {
     found.sort();
     stale.extend(found);
     stale
-}
-
-/// Bytes of a part, once finished.
-pub(super) fn part_bytes(p: &Part) -> u64 {
-    p.bytes.load(Ordering::Relaxed)
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sha2::{Digest as _, Sha256};
 
-use super::ifc_parts::{part_bytes, part_path, stale_parts, Parts, SplitIfc};
+use super::ifc_parts::{part_path, stale_parts, Parts, SplitIfc};
 use super::plan::{tile_targets, tiles3d_contents, tiles3d_terrain};
 use super::reuse::{rebased_entry, Keyed, ReusedTile};
 use super::{
@@ -503,7 +503,7 @@ fn render_manifest<'m>(
 }
 
 /// Where one writer's bytes go: a temporary file to publish, or (dry run) nowhere.
-pub(super) enum Sink {
+enum Sink {
     File(AtomicFile, StreamSink),
     Discard,
     /// A split IFC output's files, each with its own sink (`ifc_parts`).
@@ -512,7 +512,7 @@ pub(super) enum Sink {
 
 /// Counts the bytes that pass through it (below the writer's buffer, so once per flush), and
 /// for XML the elements (`elements`, with the state of a `<` at the end of the last write).
-pub(super) struct Counted<W> {
+struct Counted<W> {
     inner: W,
     bytes: Arc<AtomicU64>,
     elements: Option<(Arc<AtomicU64>, bool)>,
@@ -541,10 +541,10 @@ impl<W: Write> Write for Counted<W> {
 }
 
 /// A buffered, counted writer for `path`: on its temporary file, or on nothing for a dry run.
-pub(super) type OutWriter = BufWriter<Counted<Box<dyn Write + Send>>>;
+type OutWriter = BufWriter<Counted<Box<dyn Write + Send>>>;
 
 /// `elements`: also count the XML elements written, into it.
-pub(super) fn open_output(
+fn open_output(
     path: &Path,
     dry_run: bool,
     elements: Option<Arc<AtomicU64>>,
@@ -735,7 +735,7 @@ fn write_lots(
 /// one is over the cap; the names of the set they leave stale go to `written.stale_parts`.
 fn close_parts(
     path: &Path,
-    parts: &Parts,
+    parts: &Parts<PartFile>,
     cap: u64,
     report: &mut Report,
     written: &mut Written,
@@ -751,9 +751,10 @@ fn close_parts(
         } else {
             path.to_path_buf()
         };
-        let bytes = part_bytes(&part);
+        let (sink, counted, hash) = part.file;
+        let bytes = counted.load(Ordering::Relaxed);
         written.bytes += bytes;
-        if let (Some(log), Some(hash)) = (written.tile.as_mut(), part.hash) {
+        if let (Some(log), Some(hash)) = (written.tile.as_mut(), hash) {
             let sha = hash
                 .lock()
                 .unwrap_or_else(|p| p.into_inner())
@@ -784,7 +785,7 @@ fn close_parts(
             file_name(&name),
             part.buildings
         ));
-        match part.sink {
+        match sink {
             Sink::File(file, done) => {
                 done.finish().map_err(io_err(&name))?;
                 let closed = file.close().map_err(io_err(&name))?;
@@ -827,8 +828,11 @@ struct Opened {
     /// The 3D Tiles contents (full, blocks) and their facts, once written.
     contents: Vec<(PathBuf, crate::export::tiles3d::ContentInfoHandle)>,
     /// The files of the IFC output split under `--ifc-max-mb`, once written.
-    ifc_parts: Option<(PathBuf, Parts)>,
+    ifc_parts: Option<(PathBuf, Parts<PartFile>)>,
 }
+
+/// Where the bytes of one file of a split IFC output went: its sink, count and hash.
+type PartFile = (Sink, Arc<AtomicU64>, Option<SharedHash>);
 
 /// Opens every output of the file set, each with its format's writer: the model outputs in
 /// [`Model`] order, then the 3D Tiles contents named `content_name` (with the terrain's when
@@ -846,7 +850,12 @@ fn open_outputs(
     for (model, p) in targets.models() {
         let Some(p) = p else { continue };
         if let (Model::Ifc, Some(cap)) = (model, targets.ifc_max_bytes) {
-            let (w, parts) = SplitIfc::new(p, targets.ifc_schema, cap, dry, hashed);
+            let open: super::ifc_parts::Opener<OutWriter, PartFile> = Box::new(move |p: &Path| {
+                open_output(p, dry, None, hashed)
+                    .map(|(w, sink, bytes, hash)| (w, (sink, bytes, hash)))
+                    .map_err(|e| ExportError::Invalid(e.to_string()))
+            });
+            let (w, parts) = SplitIfc::new(p, targets.ifc_schema, cap, open);
             ifc_parts = Some((p.clone(), parts));
             let none = Arc::new(AtomicU64::new(0));
             outputs.push((p.clone(), Box::new(w), Sink::Parts, none, None));
@@ -1030,7 +1039,7 @@ type Output = (
 );
 
 /// The SHA-256 of an output's bytes, fed as they pass [`Counted`].
-pub(super) type SharedHash = Arc<Mutex<Sha256>>;
+type SharedHash = Arc<Mutex<Sha256>>;
 
 /// What one tile of a manifest'd run records as it is written, and the manifest's folder (the
 /// files' paths are relative to it).
