@@ -9,6 +9,7 @@ use thiserror::Error;
 pub mod building;
 pub mod eval;
 mod ground;
+mod ifc_parts;
 pub mod incremental;
 pub mod merge;
 pub(crate) mod outputs;
@@ -76,6 +77,9 @@ pub struct Options {
     pub ifc: Option<PathBuf>,
     /// The IFC schema written (`--ifc-schema`, default IFC4).
     pub ifc_schema: crate::export::ifc::IfcSchema,
+    /// Split the IFC into files of at most this many bytes (`--ifc-max-mb` times 10^6);
+    /// `None`: one file, however large.
+    pub ifc_max_bytes: Option<u64>,
     /// Write CityGML 2.0 here (`--citygml`).
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here (`--gltf`).
@@ -403,6 +407,7 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
     let targets = Targets {
         ifc: opts.ifc.clone(),
         ifc_schema: opts.ifc_schema,
+        ifc_max_bytes: opts.ifc_max_bytes,
         citygml: opts.citygml.clone(),
         gltf: opts.gltf.clone(),
         cityjson: opts.cityjson.clone(),
@@ -840,6 +845,8 @@ pub(crate) struct Targets {
     pub ifc: Option<PathBuf>,
     /// The IFC schema written (IFC4 unless `--ifc-schema` says otherwise).
     pub ifc_schema: crate::export::ifc::IfcSchema,
+    /// The most bytes of an IFC file ([`Options::ifc_max_bytes`]).
+    pub ifc_max_bytes: Option<u64>,
     /// Write CityGML 2.0 here.
     pub citygml: Option<PathBuf>,
     /// Write binary glTF 2.0 (`.glb`) here.

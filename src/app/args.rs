@@ -37,6 +37,8 @@ pub(crate) enum ArgError {
     Wkt(String),
     #[error("bad number {0:?}")]
     Number(String),
+    #[error("expected megabytes (10^6 bytes) from 0.001 to 1000000, not {0:?}")]
+    Megabytes(String),
     #[error("expected LON0,LAT0,LON1,LAT1 with LON0 < LON1 and LAT0 < LAT1")]
     Bbox,
     #[error("expected LON,LAT")]
@@ -71,6 +73,15 @@ pub(crate) fn parse_lod(s: &str) -> Result<Lod, ArgError> {
         "3" => Ok(Lod::Lod3),
         "4" => Ok(Lod::Lod4),
         _ => Err(ArgError::Lod(s.to_string())),
+    }
+}
+
+/// `--ifc-max-mb`: megabytes (10^6 bytes, decimals allowed: `0.5`), as bytes; from 0.001
+/// (1000 bytes) to 10^6 (a terabyte).
+pub(crate) fn parse_megabytes(s: &str) -> Result<u64, ArgError> {
+    match s.trim().parse::<f64>() {
+        Ok(mb) if mb.is_finite() && (0.001..=1e6).contains(&mb) => Ok((mb * 1e6).round() as u64),
+        _ => Err(ArgError::Megabytes(s.to_string())),
     }
 }
 

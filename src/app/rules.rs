@@ -121,6 +121,7 @@ pub(crate) fn run(cmd: RulesCommand) -> Result<Outcome, AppError> {
                 &Targets {
                     ifc,
                     ifc_schema: Default::default(),
+                    ifc_max_bytes: None,
                     citygml,
                     gltf,
                     cityjson: None,

@@ -7,7 +7,8 @@ use std::path::PathBuf;
 use clap::{ArgGroup, Args};
 
 use super::args::{
-    parse_bbox, parse_crs, parse_ground_height, parse_infer, parse_lod, parse_output_crs, InferArg,
+    parse_bbox, parse_crs, parse_ground_height, parse_infer, parse_lod, parse_megabytes,
+    parse_output_crs, InferArg,
 };
 use super::{AppError, Outcome};
 use crate::crs::Crs;
@@ -57,6 +58,13 @@ pub(crate) struct RunArgs {
         requires = "ifc"
     )]
     ifc_schema: crate::export::ifc::IfcSchema,
+    /// Keep every IFC file under N MB (10^6 bytes, decimals allowed; the buildingSMART
+    /// validation service takes 256): a larger IFC is split, in lot order, into complete IFC files (each with its
+    /// project, site, units and map conversion) named OUT-001.ifc, OUT-002.ifc, ...; OUT.ifc
+    /// when it fits. With --tile each tile's file is split on its own. A building larger than
+    /// the cap alone gets a file of its own (noted in the report).
+    #[arg(long, value_name = "N", value_parser = parse_megabytes, requires = "ifc")]
+    ifc_max_mb: Option<u64>,
     /// Write CityGML 2.0 here.
     #[arg(long, value_name = "OUT.gml")]
     citygml: Option<PathBuf>,
@@ -296,6 +304,7 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
         lod: cli.lod,
         ifc: cli.ifc.clone(),
         ifc_schema: cli.ifc_schema,
+        ifc_max_bytes: cli.ifc_max_mb,
         citygml: cli.citygml.clone(),
         gltf: cli.gltf.clone(),
         cityjson: cli.cityjson.clone(),

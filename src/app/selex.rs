@@ -87,6 +87,7 @@ pub(crate) fn run(cmd: SelexCommand) -> Result<Outcome, AppError> {
             let targets = Targets {
                 ifc,
                 ifc_schema: Default::default(),
+                ifc_max_bytes: None,
                 citygml,
                 gltf,
                 cityjson,

@@ -62,6 +62,7 @@ pub(crate) fn run(args: SplitArgs) -> Result<Outcome, AppError> {
         lod: crate::model::Lod::Lod2,
         ifc: None,
         ifc_schema: Default::default(),
+        ifc_max_bytes: None,
         citygml: None,
         gltf: None,
         cityjson: None,

@@ -543,6 +543,12 @@ impl StepBuf {
         self.count = 0;
     }
 
+    /// At least the bytes [`StepBuf::append_to`] writes with local id 0 numbered `start`:
+    /// the text and, for each local reference, the digits of the largest number it can get.
+    pub(crate) fn appended_len_bound(&self, start: u64) -> u64 {
+        self.bytes.len() as u64 + self.holes.len() as u64 * decimal_digits(start + self.count)
+    }
+
     /// Appends the text of the entities to `out`, local id `k` numbered `start + k`.
     pub(crate) fn append_to(&self, out: &mut Vec<u8>, start: u64) {
         out.reserve(self.bytes.len() + 8 * self.holes.len());
@@ -556,11 +562,21 @@ impl StepBuf {
     }
 }
 
+/// Bytes [`StepWriter::finish`] writes: `ENDSEC;` and `END-ISO-10303-21;`, each on its line.
+pub(crate) const TRAILER_LEN: u64 = 26;
+
+/// Decimal digits of `v`.
+pub(crate) fn decimal_digits(v: u64) -> u64 {
+    u64::from(v.checked_ilog10().unwrap_or(0)) + 1
+}
+
 /// Streaming writer of one Part 21 file: `write_header`, then `entity` (or `append`) as many
 /// times as needed, then `finish`. Entities are numbered from 1 in call order.
 pub struct StepWriter<W: Write> {
     out: W,
     next: u64,
+    /// Bytes handed to `out` so far.
+    written: u64,
     one: StepBuf,
     line: Vec<u8>,
 }
@@ -571,6 +587,7 @@ impl<W: Write> StepWriter<W> {
         StepWriter {
             out,
             next: 1,
+            written: 0,
             one: StepBuf::new(),
             line: Vec::with_capacity(256),
         }
@@ -585,15 +602,12 @@ impl<W: Write> StepWriter<W> {
                 .collect::<Vec<_>>()
                 .join(",")
         };
-        writeln!(self.out, "ISO-10303-21;")?;
-        writeln!(self.out, "HEADER;")?;
+        let mut text = Vec::with_capacity(512);
+        writeln!(text, "ISO-10303-21;")?;
+        writeln!(text, "HEADER;")?;
+        writeln!(text, "FILE_DESCRIPTION(({}),'2;1');", list(&h.description))?;
         writeln!(
-            self.out,
-            "FILE_DESCRIPTION(({}),'2;1');",
-            list(&h.description)
-        )?;
-        writeln!(
-            self.out,
+            text,
             "FILE_NAME({},{},({}),({}),{},{},{});",
             encode_string(&h.name),
             encode_string(&h.time_stamp),
@@ -603,9 +617,12 @@ impl<W: Write> StepWriter<W> {
             encode_string(&h.originating_system),
             encode_string(&h.authorization)
         )?;
-        writeln!(self.out, "FILE_SCHEMA(({}));", encode_string(&h.schema))?;
-        writeln!(self.out, "ENDSEC;")?;
-        writeln!(self.out, "DATA;")
+        writeln!(text, "FILE_SCHEMA(({}));", encode_string(&h.schema))?;
+        writeln!(text, "ENDSEC;")?;
+        writeln!(text, "DATA;")?;
+        self.out.write_all(&text)?;
+        self.written += text.len() as u64;
+        Ok(())
     }
 
     /// Writes one entity instance `#n=KEYWORD(args);` and returns its id. `keyword` is the
@@ -629,6 +646,7 @@ impl<W: Write> StepWriter<W> {
         self.line.clear();
         buf.append_to(&mut self.line, start);
         self.out.write_all(&self.line)?;
+        self.written += self.line.len() as u64;
         self.next += buf.len();
         Ok(start)
     }
@@ -638,13 +656,19 @@ impl<W: Write> StepWriter<W> {
         self.next
     }
 
+    /// Bytes written so far (the header and the entities; `finish` adds [`TRAILER_LEN`]).
+    pub(crate) fn bytes_written(&self) -> u64 {
+        self.written
+    }
+
     /// Number of entities written so far.
     #[cfg(test)]
     pub(crate) fn entity_count(&self) -> u64 {
         self.next - 1
     }
 
-    /// Closes the DATA section and the file, flushes, and hands the output back.
+    /// Closes the DATA section and the file ([`TRAILER_LEN`] bytes), flushes, and hands the
+    /// output back.
     pub fn finish(mut self) -> io::Result<W> {
         writeln!(self.out, "ENDSEC;")?;
         writeln!(self.out, "END-ISO-10303-21;")?;

@@ -245,6 +245,12 @@ impl PendingFile {
         })
     }
 
+    /// The same file, to be renamed over `target` instead (in the same folder).
+    pub(crate) fn retarget(mut self, target: &Path) -> PendingFile {
+        self.target = target.to_path_buf();
+        self
+    }
+
     /// The temporary file's path (complete: it can be read, e.g. checked, before the commit).
     pub(crate) fn temporary(&self) -> &Path {
         &self.tmp

@@ -249,6 +249,10 @@ impl GridPlan {
         if opts.ifc.is_some() && opts.ifc_schema != crate::export::ifc::IfcSchema::Ifc4 {
             options.push_str(&format!(" ifc_schema={}", opts.ifc_schema));
         }
+        // Only when given: the files of a capped IFC are not those of an uncapped one.
+        if let (Some(_), Some(cap)) = (&opts.ifc, opts.ifc_max_bytes) {
+            options.push_str(&format!(" ifc_max_bytes={cap}"));
+        }
         // Only when given: the options of runs without a ground height are those of before.
         if let Some(h) = opts.ground_height {
             options.push_str(&format!(" ground_height={h}"));

@@ -238,6 +238,7 @@ pub fn split(
     let targets = Targets {
         ifc: None,
         ifc_schema: opts.ifc_schema,
+        ifc_max_bytes: None,
         citygml: None,
         gltf: None,
         cityjson: None,

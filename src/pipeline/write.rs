@@ -14,6 +14,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use sha2::{Digest as _, Sha256};
 
+use super::ifc_parts::{part_path, stale_parts, Parts, SplitIfc};
 use super::plan::{tile_targets, tiles3d_contents, tiles3d_terrain};
 use super::reuse::{rebased_entry, Keyed, ReusedTile};
 use super::{
@@ -308,6 +309,7 @@ impl Batches<'_> {
             cell: _,
             content_name: _,
             terrain: _,
+            stale_parts,
         } = written;
         if report.generated == 0 && !targets.allow_empty {
             let named = self
@@ -368,6 +370,14 @@ impl Batches<'_> {
         // next run derives again).
         for p in &stale {
             remove_stale(p, targets)?;
+        }
+        // The names of a split IFC output's set that this run did not write (a previous
+        // run's `out.ifc` beside parts, or its parts beside `out.ifc`).
+        for p in &stale_parts {
+            match std::fs::remove_file(p) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io_err(p)(e)),
+                _ => {}
+            }
         }
         // Last: a manifest on disk says that every file it lists is in place.
         if let Some((p, file)) = manifest_file {
@@ -496,6 +506,8 @@ fn render_manifest<'m>(
 enum Sink {
     File(AtomicFile, StreamSink),
     Discard,
+    /// A split IFC output's files, each with its own sink (`ifc_parts`).
+    Parts,
 }
 
 /// Counts the bytes that pass through it (below the writer's buffer, so once per flush), and
@@ -602,6 +614,9 @@ struct Written {
     content_name: String,
     /// The terrain of the file set being written.
     terrain: Option<Arc<crate::model::Terrain>>,
+    /// Files of a split IFC output's set that a previous run left and this run does not
+    /// write (`ifc_parts::stale_parts`), removed once every file is published.
+    stale_parts: Vec<PathBuf>,
 }
 
 impl Written {
@@ -647,6 +662,7 @@ fn write_lots(
         mut outputs,
         citygml_elements,
         contents,
+        ifc_parts,
     } = open_outputs(
         targets,
         &written.content_name,
@@ -708,7 +724,99 @@ fn write_lots(
             log.record.citygml_elements = n;
         }
     }
+    if let (Some((path, parts)), Some(cap)) = (ifc_parts, targets.ifc_max_bytes) {
+        close_parts(&path, &parts, cap, report, written)?;
+    }
     close_outputs(outputs, written)
+}
+
+/// Closes the files of the IFC output `path` split under `cap` bytes (`ifc_parts`): named,
+/// counted, recorded in the tile's record, noted in the report when there are several or
+/// one is over the cap; the names of the set they leave stale go to `written.stale_parts`.
+fn close_parts(
+    path: &Path,
+    parts: &Parts<PartFile>,
+    cap: u64,
+    report: &mut Report,
+    written: &mut Written,
+) -> Result<(), RunError> {
+    let parts = std::mem::take(&mut *parts.lock().unwrap_or_else(|p| p.into_inner()));
+    let several = parts.len() > 1;
+    let mut names = Vec::with_capacity(parts.len());
+    let mut on_disk = false;
+    let mut listed = Vec::with_capacity(parts.len());
+    for (k, part) in parts.into_iter().enumerate() {
+        let name = if several {
+            part_path(path, k + 1)
+        } else {
+            path.to_path_buf()
+        };
+        let (sink, counted, hash) = part.file;
+        let bytes = counted.load(Ordering::Relaxed);
+        written.bytes += bytes;
+        if let (Some(log), Some(hash)) = (written.tile.as_mut(), hash) {
+            let sha = hash
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .clone()
+                .finalize();
+            log.record.files.push(shard::FileRecord {
+                path: relative_to(&name, &log.dir),
+                bytes,
+                sha256: shard::hex(&sha),
+            });
+        }
+        if bytes > cap {
+            let what = match (part.buildings, part.first) {
+                (1, Some(id)) => format!("building {id} alone"),
+                _ => "the terrain with the first building".to_string(),
+            };
+            report.add(
+                part.first.filter(|_| part.buildings == 1),
+                Outcome::Note,
+                format!(
+                    "{}: {what} takes {bytes} bytes, more than --ifc-max-mb's {cap}: a file of its own",
+                    name.display()
+                ),
+            );
+        }
+        listed.push(format!(
+            "{} ({} buildings, {bytes} bytes)",
+            file_name(&name),
+            part.buildings
+        ));
+        match sink {
+            Sink::File(file, done) => {
+                done.finish().map_err(io_err(&name))?;
+                let closed = file.close().map_err(io_err(&name))?;
+                let closed = if several {
+                    closed.retarget(&name)
+                } else {
+                    closed
+                };
+                written.pending.push((name.clone(), closed));
+                on_disk = true;
+            }
+            Sink::Discard | Sink::Parts => written.rendered.push(name.clone()),
+        }
+        names.push(name);
+    }
+    if several {
+        report.add(
+            None,
+            Outcome::Note,
+            format!(
+                "{} is over --ifc-max-mb's {cap} bytes: written as {} files, each a complete IFC: {}",
+                path.display(),
+                names.len(),
+                listed.join(", ")
+            ),
+        );
+    }
+    if on_disk {
+        written.stale_parts.extend(stale_parts(path, &names));
+    }
+    Ok(())
 }
 
 /// The outputs of one file set, open ([`open_outputs`]).
@@ -719,7 +827,12 @@ struct Opened {
     citygml_elements: Arc<AtomicU64>,
     /// The 3D Tiles contents (full, blocks) and their facts, once written.
     contents: Vec<(PathBuf, crate::export::tiles3d::ContentInfoHandle)>,
+    /// The files of the IFC output split under `--ifc-max-mb`, once written.
+    ifc_parts: Option<(PathBuf, Parts<PartFile>)>,
 }
+
+/// Where the bytes of one file of a split IFC output went: its sink, count and hash.
+type PartFile = (Sink, Arc<AtomicU64>, Option<SharedHash>);
 
 /// Opens every output of the file set, each with its format's writer: the model outputs in
 /// [`Model`] order, then the 3D Tiles contents named `content_name` (with the terrain's when
@@ -733,8 +846,21 @@ fn open_outputs(
     let dry = targets.dry_run;
     let mut outputs: Vec<Output> = Vec::new();
     let citygml_elements = Arc::new(AtomicU64::new(0));
+    let mut ifc_parts = None;
     for (model, p) in targets.models() {
         let Some(p) = p else { continue };
+        if let (Model::Ifc, Some(cap)) = (model, targets.ifc_max_bytes) {
+            let open: super::ifc_parts::Opener<OutWriter, PartFile> = Box::new(move |p: &Path| {
+                open_output(p, dry, None, hashed)
+                    .map(|(w, sink, bytes, hash)| (w, (sink, bytes, hash)))
+                    .map_err(|e| ExportError::Invalid(e.to_string()))
+            });
+            let (w, parts) = SplitIfc::new(p, targets.ifc_schema, cap, open);
+            ifc_parts = Some((p.clone(), parts));
+            let none = Arc::new(AtomicU64::new(0));
+            outputs.push((p.clone(), Box::new(w), Sink::Parts, none, None));
+            continue;
+        }
         let elements = (model == Model::CityGml).then(|| Arc::clone(&citygml_elements));
         let (w, sink, bytes, hash) = open_output(p, dry, elements, hashed)?;
         let w: Box<dyn BuildingWriter> = match model {
@@ -776,6 +902,7 @@ fn open_outputs(
         outputs,
         citygml_elements,
         contents,
+        ifc_parts,
     })
 }
 
@@ -895,6 +1022,8 @@ fn close_outputs(outputs: Vec<Output>, written: &mut Written) -> Result<(), RunE
                 written.pending.push((path, closed));
             }
             Sink::Discard => written.rendered.push(path),
+            // Its files are closed by `close_parts`.
+            Sink::Parts => {}
         }
     }
     Ok(())

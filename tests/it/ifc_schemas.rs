@@ -15,7 +15,9 @@ const BBOX: &str = "7.4225,43.7302,7.4232,43.7307";
 const SCHEMAS: [&str; 3] = ["IFC2X3", "IFC4", "IFC4X3_ADD2"];
 
 /// The quantity set names of the `IfcElementQuantity`s on each object.
-fn quantity_sets(ents: &BTreeMap<u64, (String, String)>) -> BTreeMap<u64, BTreeSet<String>> {
+pub(crate) fn quantity_sets(
+    ents: &BTreeMap<u64, (String, String)>,
+) -> BTreeMap<u64, BTreeSet<String>> {
     let mut out: BTreeMap<u64, BTreeSet<String>> = BTreeMap::new();
     for (kw, args) in ents.values() {
         if kw != "IFCRELDEFINESBYPROPERTIES" {

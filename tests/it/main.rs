@@ -21,6 +21,7 @@ mod fronts;
 mod geojson;
 mod gis_attributes;
 mod ifc_schemas;
+mod ifc_split;
 mod incremental;
 mod infer;
 mod iso19107;

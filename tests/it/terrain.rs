@@ -42,6 +42,7 @@ fn opts(dir: &Path, tile: Option<u32>, ground: Option<GroundFn>) -> Options {
         lod: citygen::model::Lod::Lod2,
         ifc: p("m.ifc"),
         ifc_schema: Default::default(),
+        ifc_max_bytes: None,
         citygml: p("m.gml"),
         gltf: p("m.glb"),
         cityjson: p("m.city.json"),

@@ -185,6 +185,8 @@ pub struct IfcWriter<W: Write + Send> {
     file_name: String,
     /// [`SHARED_CACHE_LIMIT`], smaller in tests.
     cache_limit: usize,
+    /// The most bytes the file may have ([`IfcWriter::with_max_bytes`]).
+    max_bytes: Option<u64>,
     schema: IfcSchema,
 }
 
@@ -203,6 +205,7 @@ impl<W: Write + Send> IfcWriter<W> {
             state: State::New(out),
             file_name: "citygen.ifc".to_string(),
             cache_limit: SHARED_CACHE_LIMIT,
+            max_bytes: None,
             schema: IfcSchema::Ifc4,
         }
     }
@@ -211,6 +214,38 @@ impl<W: Write + Send> IfcWriter<W> {
     pub fn with_schema(mut self, schema: IfcSchema) -> IfcWriter<W> {
         self.schema = schema;
         self
+    }
+
+    /// Caps the file at `max` bytes (`--ifc-max-mb`): [`IfcWriter::write_fitting`] then
+    /// writes a building only if the file, finished, would stay within `max` (the file's first
+    /// building always, however large), and the file's terrain goes first, after the project,
+    /// so that its bytes count from the start. Without a cap every byte is as before.
+    pub fn with_max_bytes(mut self, max: u64) -> IfcWriter<W> {
+        self.max_bytes = Some(max);
+        self
+    }
+
+    /// Writes the leading buildings of `finite` (buildings a [`Checked`] found finite, in
+    /// order) that fit under the cap of [`IfcWriter::with_max_bytes`] (all of them without
+    /// one) and returns how many it wrote: fewer than `finite.len()` when the next would
+    /// take the finished file past the cap. The file's first building is always written.
+    pub(crate) fn write_fitting(&mut self, finite: &[Building]) -> Result<usize, ExportError> {
+        match &mut self.state {
+            State::Open(open) => {
+                let mut done = 0;
+                for batch in finite.chunks(PARALLEL_BATCH) {
+                    let n = open.write_batch(batch)?;
+                    done += n;
+                    if n < batch.len() {
+                        break;
+                    }
+                }
+                Ok(done)
+            }
+            _ => Err(ExportError::Invalid(
+                "IFC writer: write called outside begin..finish".into(),
+            )),
+        }
     }
 
     /// Sets the name written in the header's FILE_NAME (default `citygen.ifc`).
@@ -245,6 +280,13 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
         let mut open = Open::begin(out, ctx, &self.file_name, self.schema)?;
         open.caches.opening_shapes.set_limit(self.cache_limit);
         open.caches.fill_offsets.set_limit(self.cache_limit);
+        open.max_bytes = self.max_bytes;
+        if self.max_bytes.is_some() {
+            // Under a cap the terrain's bytes are counted before any building's.
+            if let Some(t) = open.terrain.take() {
+                open.terrain(&t)?;
+            }
+        }
         self.state = State::Open(Box::new(open));
         Ok(())
     }
@@ -264,10 +306,15 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         match &mut self.state {
             State::Open(open) => {
-                checked
-                    .finite()
-                    .chunks(PARALLEL_BATCH)
-                    .try_for_each(|batch| open.write_batch(batch))?;
+                for batch in checked.finite().chunks(PARALLEL_BATCH) {
+                    if open.write_batch(batch)? < batch.len() {
+                        return Err(ExportError::Invalid(
+                            "IFC writer: the file is full (--ifc-max-mb); write_fitting writes a \
+                             capped file"
+                                .into(),
+                        ));
+                    }
+                }
                 checked.refused("IFC writer")
             }
             _ => Err(ExportError::Invalid(
@@ -295,8 +342,9 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
 
 impl<W: Write> Open<W> {
     /// Writes `batch` (at most [`PARALLEL_BATCH`] buildings, checked finite): the same bytes
-    /// and first error as writing them one by one.
-    fn write_batch(&mut self, batch: &[Building]) -> Result<(), ExportError> {
+    /// and first error as writing them one by one. Returns how many it wrote: all, unless the
+    /// file has a cap ([`Open::max_bytes`]) that the next building would pass.
+    fn write_batch(&mut self, batch: &[Building]) -> Result<usize, ExportError> {
         // GlobalId keys, in order.
         let keys: Vec<(String, u128)> = batch.iter().map(|b| self.claim_key(b)).collect();
         let start = self.w.next_number();
@@ -337,6 +385,17 @@ impl<W: Write> Open<W> {
             } else {
                 r
             };
+            if self
+                .max_bytes
+                .is_some_and(|cap| !self.buildings.is_empty() && self.bytes_with(&r) > cap)
+            {
+                // Full: this building and the ones after it go to another file.
+                for (_, h) in &keys[i..] {
+                    self.keys.remove(h);
+                }
+                self.keep(r.into_scratch());
+                return Ok(i);
+            }
             if let Err(e) = self.append(r) {
                 // The buildings after it were not written: their keys are free again.
                 for (_, h) in &keys[i + 1..] {
@@ -345,7 +404,32 @@ impl<W: Write> Open<W> {
                 return Err(e.for_building(&batch[i]));
             }
         }
-        Ok(())
+        Ok(batch.len())
+    }
+
+    /// At least the bytes of the file finished after appending `r`: those written, `r`'s
+    /// text, and what `finish` writes (the site's aggregation of every building, a
+    /// `IfcRelDefinesByType` per window and door type listing its occurrences, the
+    /// declaration of the types, the trailer), each reference counted at the digits of the
+    /// largest number it can get.
+    fn bytes_with(&self, r: &Rendered) -> u64 {
+        use crate::export::step::{decimal_digits, TRAILER_LEN};
+        // An entity's text apart from its list of references: its number, keyword,
+        // GlobalId and the few single references.
+        const ENTITY: u64 = 200;
+        let start = self.w.next_number();
+        let text = r.w.appended_len_bound(start);
+        // Every new type has an occurrence in `r`.
+        let types = (self.caches.types.map.len() + r.occurrences.len()) as u64;
+        let last = start + r.w.len() + types + 3;
+        // `#n,` per reference in a list.
+        let reference = decimal_digits(last) + 2;
+        let references = self.buildings.len() as u64
+            + 1
+            + self.occurrence_count
+            + r.occurrences.len() as u64
+            + types;
+        self.w.bytes_written() + text + ENTITY * (2 + types) + reference * references + TRAILER_LEN
     }
 
     /// The GlobalId key of `b` (its [`Building::key`], with a suffix when a building before
@@ -375,6 +459,7 @@ impl<W: Write> Open<W> {
                 .or_default()
                 .push(id.relocate(start));
         }
+        self.occurrence_count += r.occurrences.len() as u64;
         let done = std::mem::replace(&mut r.done, Ok(Id(0)));
         self.keep(r.into_scratch());
         let building = done?;
@@ -532,8 +617,12 @@ struct Open<W: Write> {
     /// 128-bit hashes of the building keys already written, to keep GlobalIds unique if a key
     /// repeats (16 bytes a building rather than the key's string).
     keys: BTreeSet<u128>,
-    /// The file's terrain, written by `finish` (`terrain`).
+    /// The file's terrain, written by `finish` (`terrain`; by `begin` in a capped file).
     terrain: Option<std::sync::Arc<crate::model::Terrain>>,
+    /// The cap of [`IfcWriter::with_max_bytes`].
+    max_bytes: Option<u64>,
+    /// Window and door occurrences written (the entries of `occurrences`).
+    occurrence_count: u64,
 }
 
 /// The entities and settings of the file that every building refers to, written by `begin`.

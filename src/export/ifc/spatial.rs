@@ -176,6 +176,8 @@ impl<W: Write> Open<W> {
             pool: Vec::new(),
             keys: BTreeSet::new(),
             terrain: ctx.terrain.clone(),
+            max_bytes: None,
+            occurrence_count: 0,
         })
     }
 
