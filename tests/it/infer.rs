@@ -78,10 +78,20 @@ fn measured_heights_of_the_truth_corpus_rank_with_the_truth() {
     // Footprints only (docs/truth.md): the estimates must follow the measured heights'
     // order, and no building may be drawn absurdly.
     let t = "tests/data/truth";
-    let cases: Vec<String> = ["denhaag", "rotterdam_delfshaven", "zurich", "clifton"]
-        .iter()
-        .map(|c| format!("{t}/{c}/footprints.shp={t}/{c}/truth.csv"))
-        .collect();
+    let cases: Vec<String> = [
+        "denhaag",
+        "rotterdam_delfshaven",
+        "zurich",
+        "clifton",
+        "delft",
+        "niiza",
+        "tatebayashi",
+        "moroyama",
+        "matsumoto",
+    ]
+    .iter()
+    .map(|c| format!("{t}/{c}/footprints.shp={t}/{c}/truth.csv"))
+    .collect();
     let args: Vec<&str> = cases.iter().map(String::as_str).collect();
     let scores = eval(&args);
     for c in scores.as_array().unwrap() {
@@ -92,6 +102,11 @@ fn measured_heights_of_the_truth_corpus_rank_with_the_truth() {
     }
     let rank = |i: usize| scores[i]["height"]["rank"].as_f64().unwrap();
     assert!(rank(0) >= 0.3 && rank(1) >= 0.3, "{scores}");
+    // Delft (3DBAG) and the PLATEAU towns: sheds, houses and blocks in their order.
+    assert!(
+        rank(4) >= 0.5 && rank(7) >= 0.5 && rank(8) >= 0.5,
+        "{scores}"
+    );
 }
 
 /// A synthetic town of 40 × 40 plots on a 26 m grid around (lon, lat), written as an OSM
