@@ -667,7 +667,7 @@ impl<W: Write> StepWriter<W> {
         self.next - 1
     }
 
-    /// Closes the DATA section and the file ([`TRAILER_LEN`] bytes), flushes, and hands the
+    /// Closes the DATA section and the file (`TRAILER_LEN` bytes), flushes, and hands the
     /// output back.
     pub fn finish(mut self) -> io::Result<W> {
         writeln!(self.out, "ENDSEC;")?;

@@ -9,7 +9,8 @@
 //! - the PBF holds, copied element for element from the input (same ids, tags, coordinates,
 //!   order), every building of the shard's tiles and the **halo**: every building, part and
 //!   street within `halo` metres of one of its tiles (their nodes, ways and relations with
-//!   their members), and every admin boundary of the input. The halo is what the shard's
+//!   their members), every node carrying `addr:street` there (address and entrance nodes
+//!   name a building's street), and every admin boundary of the input. The halo is what the shard's
 //!   buildings take from outside their tile: tagged neighbours for the estimator (500 m; their
 //!   own features look 250 m further), touching neighbours (party walls, rows), the nearest
 //!   street for the front (50 m), the boundaries for the zones.
@@ -480,7 +481,15 @@ pub fn split(
                 _ => None,
             };
             if let Some((id, nlat, nlon, tags)) = n {
-                let Some(&m) = want.get(&(0, id)) else { return };
+                let mut m = want.get(&(0, id)).copied().unwrap_or(0);
+                // Address and entrance nodes name a building's street (`Streets::address_points`):
+                // each goes to the shards whose tiles or halo hold it.
+                if tags.iter().any(|(k, _)| *k == "addr:street") {
+                    m |= node_mask(nlon as f64 * 1e-9, nlat as f64 * 1e-9);
+                }
+                if m == 0 {
+                    return;
+                }
                 if nlat % 100 != 0 || nlon % 100 != 0 {
                     failed = Some(format!(
                         "node/{id}: coordinates finer than 1e-7 degrees cannot be copied exactly"

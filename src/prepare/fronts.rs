@@ -74,7 +74,7 @@ impl RTreeObject for StreetSegment {
 /// nearest facing edge within [`FRONT_MAX_DISTANCE`] — the longest of those within 1 m of the
 /// nearest — gives the front: its outward normal. Issue 45: an outline with an `addr:street`
 /// ([`Streets::address`]; without one, the street most of its address and entrance nodes
-/// name, [`Streets::address_points`] inside it or within [`ADDRESS_NODE_REACH`] of it) that
+/// name, [`Streets::address_points`] inside it or within `ADDRESS_NODE_REACH` of it) that
 /// has an edge facing a street of that name takes its front among
 /// those edges only; otherwise each street's distance counts its kind's penalty
 /// (`kind_penalty`: a back lane or drive 20 m, a footway or other service road 4 m), so a

@@ -216,7 +216,7 @@ impl<W: Write + Send> IfcWriter<W> {
         self
     }
 
-    /// Caps the file at `max` bytes (`--ifc-max-mb`): [`IfcWriter::write_fitting`] then
+    /// Caps the file at `max` bytes (`--ifc-max-mb`): `IfcWriter::write_fitting` then
     /// writes a building only if the file, finished, would stay within `max` (the file's first
     /// building always, however large), and the file's terrain goes first, after the project,
     /// so that its bytes count from the start. Without a cap every byte is as before.
