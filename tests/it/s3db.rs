@@ -835,6 +835,114 @@ fn every_building_and_part_of_monaco_is_written_or_reported() {
     );
 }
 
+/// Every building's vertical extent, with its parts, is the same in the glTF as in the
+/// CityJSON, whose heights the tests above check against the tags (issue 45: parts' heights
+/// right in every format; 3D Tiles contents are written by the same glTF writer).
+#[test]
+fn every_buildings_height_is_the_same_in_gltf_and_cityjson() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("m.glb");
+    let cj = dir.path().join("m.city.json");
+    let out = crate::common::citygen(&[
+        "--osm",
+        "data/monaco/monaco.osm.pbf",
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--gltf",
+        &glb.display().to_string(),
+        "--cityjson",
+        &cj.display().to_string(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&cj).unwrap()).unwrap();
+    let (scale, shift) = (
+        doc["transform"]["scale"][2].as_f64().unwrap(),
+        doc["transform"]["translate"][2].as_f64().unwrap(),
+    );
+    let z: Vec<f64> = doc["vertices"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v[2].as_f64().unwrap() * scale + shift)
+        .collect();
+    fn indices(v: &serde_json::Value, out: &mut Vec<usize>) {
+        match v {
+            serde_json::Value::Number(n) => out.push(n.as_u64().unwrap() as usize),
+            serde_json::Value::Array(a) => a.iter().for_each(|x| indices(x, out)),
+            _ => {}
+        }
+    }
+    let objects = doc["CityObjects"].as_object().unwrap();
+    let mut cityjson: BTreeMap<String, (f64, f64)> = BTreeMap::new();
+    for o in objects.values().filter(|o| o["type"] == "Building") {
+        let mut idx = Vec::new();
+        let children = o["children"].as_array().cloned().unwrap_or_default();
+        for part in
+            std::iter::once(o).chain(children.iter().filter_map(|c| objects.get(c.as_str()?)))
+        {
+            for g in part["geometry"].as_array().into_iter().flatten() {
+                indices(&g["boundaries"], &mut idx);
+            }
+        }
+        if idx.is_empty() {
+            continue;
+        }
+        let lo = idx.iter().map(|i| z[*i]).fold(f64::MAX, f64::min);
+        let hi = idx.iter().map(|i| z[*i]).fold(f64::MIN, f64::max);
+        let id = o["attributes"]["sourceId"].as_str().unwrap().to_string();
+        cityjson.insert(id, (lo, hi));
+    }
+    let (g, _) = crate::common::glb_json(&glb);
+    let mut compared = 0;
+    let mut differ = Vec::new();
+    for node in g["nodes"].as_array().unwrap() {
+        let (Some(id), Some(children)) =
+            (node["extras"]["id"].as_str(), node["children"].as_array())
+        else {
+            continue;
+        };
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for c in children {
+            let child = &g["nodes"][c.as_u64().unwrap() as usize];
+            assert!(child.get("translation").is_none() && child.get("matrix").is_none());
+            let Some(mesh) = child["mesh"].as_u64() else {
+                continue;
+            };
+            for p in g["meshes"][mesh as usize]["primitives"].as_array().unwrap() {
+                let a = &g["accessors"][p["attributes"]["POSITION"].as_u64().unwrap() as usize];
+                // glTF is y-up.
+                lo = lo.min(a["min"][1].as_f64().unwrap());
+                hi = hi.max(a["max"][1].as_f64().unwrap());
+            }
+        }
+        let Some(&(clo, chi)) = cityjson.get(id) else {
+            continue;
+        };
+        compared += 1;
+        if ((hi - lo) - (chi - clo)).abs() > 0.01 {
+            differ.push(format!(
+                "{id}: glTF {:.3} m, CityJSON {:.3} m",
+                hi - lo,
+                chi - clo
+            ));
+        }
+    }
+    assert!(compared > 1100, "{compared} buildings compared");
+    assert!(
+        differ.is_empty(),
+        "{} differ: {:?}",
+        differ.len(),
+        &differ[..differ.len().min(10)]
+    );
+}
+
 /// Per tag, the share of tagged units of both samples honoured at LOD2 (a unit is a
 /// `building:part`, or an outline drawn itself): at least 99.5 % each; and no two parts of a
 /// building share a volume.
