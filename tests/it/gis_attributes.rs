@@ -612,7 +612,7 @@ fn check_text_ids(o: &Outputs, ids: &[(&str, f64, u64)], extra: &str, epsg: u32)
         let prefix = format!("B_{}", key_prefix(id));
         let (key, _) = objects
             .iter()
-            .find(|(k, v)| v["type"] == "Building" && v["attributes"]["sourceId"] == id)
+            .find(|(_, v)| v["type"] == "Building" && v["attributes"]["sourceId"] == id)
             .unwrap();
         assert!(key.starts_with(&prefix), "{key} for {id}");
         if key_prefix(id) == id {
