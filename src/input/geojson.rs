@@ -408,6 +408,11 @@ mod tests {
         };
         let (ids, _) = ids_of(&[("8", r#"{"gml_id": "g8"}"#)], &named);
         assert_eq!(ids, ["g8"]);
+        // The report names a text id by its text.
+        let text = r#"{"type":"FeatureCollection","features":[{"type":"Feature","id":"{B-7}","properties":{},"geometry":null}]}"#;
+        let (_, report) = read(text, &o);
+        assert_eq!(report.entries[0].id, "{B-7}");
+        assert_eq!(report.entries[0].outcome, crate::report::Outcome::Skipped);
         // Texts that are one XML id once sanitised (`a b`, `a_b` with the hash of `a b`), or
         // a text that reads as a numbered id beside it: renumbered by position, with a note.
         let a_b = SourceId::text("a b").key();
