@@ -812,3 +812,101 @@ fn text_ids_from_a_shapefile_and_a_geojson_are_every_output_s_ids() {
         assert!(values.contains(t), "{values}");
     }
 }
+
+/// `--previous` with text ids (the incremental path keys buildings by their ids): one BAG
+/// building's height edited, it alone is `changed`, named by its text, and every tile has the
+/// full run's bytes.
+#[test]
+fn an_incremental_run_names_a_changed_text_id_building_and_gives_the_full_run_s_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write = |name: &str, edited: f64| {
+        let features: Vec<String> = (0..6)
+            .map(|i| {
+                let (x, y) = (92_500.0 + 20.0 * i as f64, 437_000.0);
+                let h = if i == 2 { edited } else { 8.0 + i as f64 };
+                format!(
+                    r#"{{"type": "Feature", "properties": {{"identificatie": "NL.IMBAG.Pand.05991000000{i:05}", "height": {h}}}, "geometry": {{"type": "Polygon", "coordinates": [[[{x}, {y}], [{}, {y}], [{}, {}], [{x}, {}], [{x}, {y}]]]}}}}"#,
+                    x + 10.0,
+                    x + 10.0,
+                    y + 8.0,
+                    y + 8.0
+                )
+            })
+            .collect();
+        let p = d.join(name);
+        std::fs::write(
+            &p,
+            format!(
+                r#"{{"type": "FeatureCollection", "crs": {{"type": "name", "properties": {{"name": "EPSG:28992"}}}}, "features": [{}]}}"#,
+                features.join(",")
+            ),
+        )
+        .unwrap();
+        p
+    };
+    let (d1, d2) = (write("d1.geojson", 15.0), write("d2.geojson", 21.0));
+    let run = |input: &std::path::Path, out: &str, extra: &[&str]| {
+        let o = d.join(out);
+        std::fs::create_dir_all(&o).unwrap();
+        let p = |n: &str| o.join(n).display().to_string();
+        let mut args: Vec<String> = [
+            "--footprints",
+            input.to_str().unwrap(),
+            "--kb",
+            KB,
+            "--lod",
+            "2",
+            "--tile",
+            "50",
+            "--quiet",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        args.extend([
+            "--cityjsonseq".into(),
+            p("t.city.jsonl"),
+            "--ifc".into(),
+            p("t.ifc"),
+            "--gltf".into(),
+            p("t.glb"),
+            "--report".into(),
+            p("report.json"),
+        ]);
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = citygen(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        o
+    };
+    let o1 = run(&d1, "o1", &[]);
+    let full = run(&d2, "full", &[]);
+    let inc = run(&d2, "inc", &["--previous", o1.to_str().unwrap()]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(inc.join("report.json")).unwrap()).unwrap();
+    let c = &report["changes"];
+    assert_eq!(
+        c["changed"],
+        serde_json::json!(["NL.IMBAG.Pand.0599100000000002"])
+    );
+    assert_eq!(c["added"], serde_json::json!([]));
+    assert_eq!(c["removed"], serde_json::json!([]));
+    let mut n = 0;
+    for e in std::fs::read_dir(&full).unwrap() {
+        let name = e.unwrap().file_name();
+        let name = name.to_str().unwrap();
+        if name.starts_with("t_") {
+            n += 1;
+            assert!(
+                std::fs::read(full.join(name)).unwrap() == std::fs::read(inc.join(name)).unwrap(),
+                "{name}"
+            );
+        }
+    }
+    assert!(n >= 3, "{n} tile files");
+}
