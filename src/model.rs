@@ -41,7 +41,8 @@ pub(crate) fn grid_key(p: glam::DVec3) -> (i64, i64, i64) {
 }
 
 /// Where a footprint came from. Displayed as `way/123`, `relation/45` or `shp/7`
-/// (shapefile record index, 0-based).
+/// (shapefile record index, 0-based), or as the file's own text id
+/// (`NL.IMBAG.Pand.0599100000012345`, `osgb1000012345678`, a GUID).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum SourceId {
     /// An OSM closed way tagged `building` or `building:part`, by its OSM way id.
@@ -56,12 +57,84 @@ pub enum SourceId {
     /// A GeoJSON feature, by its own non-negative integer id or, without one, its 0-based
     /// position in the file (`input::geojson`).
     Feature(u64),
+    /// A GIS feature whose id is text, not a non-negative whole number: a GUID, a Dutch BAG
+    /// `identificatie`, an Ordnance Survey TOID (`input::features`). Interned ([`TextId`]), so
+    /// the id stays `Copy` and as small as the others.
+    Text(TextId),
+}
+
+/// A text id, interned for the life of the process: each distinct text is stored once (the
+/// ids of every file read), compared, ordered and hashed by its text.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct TextId(&'static String);
+
+impl TextId {
+    /// The interned id of `text`.
+    pub fn new(text: &str) -> TextId {
+        use std::collections::HashMap;
+        use std::sync::{Mutex, OnceLock};
+        static TEXTS: OnceLock<Mutex<HashMap<&'static str, &'static String>>> = OnceLock::new();
+        let mut texts = TEXTS
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        if let Some(&t) = texts.get(text) {
+            return TextId(t);
+        }
+        let t: &'static String = Box::leak(Box::new(text.to_string()));
+        texts.insert(t.as_str(), t);
+        TextId(t)
+    }
+
+    /// The text.
+    pub fn as_str(&self) -> &'static str {
+        self.0.as_str()
+    }
+
+    /// The id as an XML-id fragment and file-safe name: the text when it is made of ASCII
+    /// letters, digits, `_`, `-` and `.` only; else with every other character replaced by `_`
+    /// and `_h` and eight hex digits of the text's hash appended, so that two texts that differ
+    /// only there keep distinct keys.
+    pub fn key(&self) -> String {
+        let text = self.as_str();
+        let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
+        if !text.is_empty() && text.chars().all(safe) {
+            return text.to_string();
+        }
+        let mut k: String = text
+            .chars()
+            .map(|c| if safe(c) { c } else { '_' })
+            .collect();
+        k.push_str(&format!("_h{:08x}", fnv1a(text.as_bytes()) >> 32));
+        k
+    }
+}
+
+impl fmt::Debug for TextId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self.as_str(), f)
+    }
+}
+
+/// FNV-1a 64 of `bytes`: a fixed, platform-independent hash (a text id's seed and key).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
 }
 
 impl SourceId {
     /// `way_123`, `relation_45`, `shp_7`: usable in XML ids and file-safe names.
     pub fn key(&self) -> String {
-        self.to_string().replace('/', "_")
+        match self {
+            SourceId::Text(t) => t.key(),
+            _ => self.to_string().replace('/', "_"),
+        }
+    }
+
+    /// A text id (`SourceId::Text`) of `text`.
+    pub fn text(text: &str) -> SourceId {
+        SourceId::Text(TextId::new(text))
     }
 
     /// A stable 64-bit value used to seed the building's random generator.
@@ -73,6 +146,8 @@ impl SourceId {
             SourceId::Lot(i) => i.wrapping_mul(4),
             // Apart from the others' streams without changing them.
             SourceId::Feature(i) => i.wrapping_mul(4).wrapping_add(3) ^ 0x9E37_79B9_7F4A_7C15,
+            // The text's hash: the same text gives the same stream in every run and file.
+            SourceId::Text(t) => fnv1a(t.as_str().as_bytes()) ^ 0xD1B5_4A32_D192_ED03,
         }
     }
 
@@ -104,6 +179,7 @@ impl fmt::Display for SourceId {
             SourceId::Shape(i) => write!(f, "shp/{i}"),
             SourceId::Lot(i) => write!(f, "lot/{i}"),
             SourceId::Feature(i) => write!(f, "feature/{i}"),
+            SourceId::Text(t) => f.write_str(t.as_str()),
         }
     }
 }
@@ -1632,6 +1708,45 @@ pub enum VerticalDatum {
         /// Its name (e.g. `EGM96 height`), or a description when the code is unknown.
         name: String,
     },
+}
+
+#[cfg(test)]
+mod source_id_tests {
+    use super::*;
+
+    #[test]
+    fn text_ids_are_interned_keyed_as_xml_ids_and_seeded_by_their_text() {
+        let bag = SourceId::text("NL.IMBAG.Pand.0599100000012345");
+        assert_eq!(bag, SourceId::text("NL.IMBAG.Pand.0599100000012345"));
+        assert_eq!(bag.to_string(), "NL.IMBAG.Pand.0599100000012345");
+        assert_eq!(bag.key(), "NL.IMBAG.Pand.0599100000012345");
+        assert_eq!(std::mem::size_of::<SourceId>(), 16);
+        // Not XML-id characters: replaced, and the text's hash appended.
+        let guid = SourceId::text("{3F2504E0-4F89-11D3-9A0C-0305E82C3301}");
+        assert_eq!(
+            guid.key(),
+            format!(
+                "_3F2504E0-4F89-11D3-9A0C-0305E82C3301__h{:08x}",
+                fnv1a(b"{3F2504E0-4F89-11D3-9A0C-0305E82C3301}") >> 32
+            )
+        );
+        assert_ne!(SourceId::text("a b").key(), SourceId::text("a:b").key());
+        assert!(SourceId::text("").key().starts_with("_h"));
+        // The seed is the text's, fixed: the same in every run (pinned) and apart from the
+        // numbered ids'.
+        assert_eq!(fnv1a(b"a"), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(
+            SourceId::text("osgb1000012345678").seed_value(),
+            fnv1a(b"osgb1000012345678") ^ 0xD1B5_4A32_D192_ED03
+        );
+        assert_ne!(
+            SourceId::text("7").seed_value(),
+            SourceId::Feature(7).seed_value()
+        );
+        // Ordered by text, after the numbered ids.
+        assert!(SourceId::text("b") > SourceId::text("a"));
+        assert!(SourceId::text("a") > SourceId::Feature(u64::MAX));
+    }
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ pub enum Outcome {
 /// One report line about one record.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Entry {
-    /// `way/123`, `relation/45`, `shp/7`, or empty for file-level notes.
+    /// `way/123`, `relation/45`, `shp/7`, a text id as it is, or empty for file-level notes.
     pub id: String,
     /// What happened to the record; `skipped`, `repaired` or `note` in the JSON.
     pub outcome: Outcome,

@@ -125,6 +125,11 @@ fn build(code: u16) -> Option<Generic> {
     })
 }
 
+/// The semi-axes (a, b) in metres of the ellipsoid of EPSG CRS `code`, when the table has it.
+pub(crate) fn ellipsoid_of(code: u16) -> Option<(f64, f64)> {
+    get(code).map(|g| g.proj.ellipse_parameters())
+}
+
 /// The metre CRS of the same projection, datum and false origin as foot CRS `code` (EPSG:2263
 /// NAD83 / New York Long Island (ftUS) -> EPSG:32118, its metre edition), the lowest such code
 /// of the table; `None` for a metre CRS or when the table has no twin.

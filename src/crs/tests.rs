@@ -443,9 +443,76 @@ fn prj_garbage_and_unknown_are_errors() {
         Err(CrsError::Unsupported(msg)) => assert!(msg.contains("Foot_US"), "{msg}"),
         other => panic!("{other:?}"),
     }
-    // Geographic on another datum.
-    let ed50 = r#"GEOGCS["ED50",DATUM["European_Datum_1950",SPHEROID["International 1924",6378388,297]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]]"#;
-    assert!(matches!(Crs::from_prj(ed50), Err(CrsError::Unsupported(_))));
+    // Geographic on a datum citygen does not know.
+    let made_up = r#"GEOGCS["Made up",DATUM["Made_Up_Datum_1950",SPHEROID["International 1924",6378388,297]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]]"#;
+    assert!(matches!(
+        Crs::from_prj(made_up),
+        Err(CrsError::Unsupported(_))
+    ));
+}
+
+/// Geographic `.prj`s on datums other than WGS84, as ArcGIS writes them (no code): their
+/// EPSG geographic CRS, when its ellipsoid is the file's; NAD27 (a grid shift) is refused.
+#[test]
+fn prj_geographic_on_other_datums() {
+    let gcs = |g: &str, d: &str, sph: &str, a: f64, rf: f64| {
+        format!(
+            r#"GEOGCS["{g}",DATUM["{d}",SPHEROID["{sph}",{a:?},{rf:?}]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]"#
+        )
+    };
+    let grs80 = |g: &str, d: &str| gcs(g, d, "GRS_1980", 6378137.0, 298.257222101);
+    for (prj, code) in [
+        (grs80("GCS_North_American_1983", "D_North_American_1983"), 4269),
+        (grs80("GCS_ETRS_1989", "D_ETRS_1989"), 4258),
+        (
+            gcs("GCS_OSGB_1936", "D_OSGB_1936", "Airy_1830", 6377563.396, 299.3249646),
+            4277,
+        ),
+        (grs80("GCS_RGF_1993", "D_RGF_1993"), 4171),
+        (grs80("GCS_GDA_1994", "D_GDA_1994"), 4283),
+        (
+            gcs("GCS_European_1950", "D_European_1950", "International_1924", 6378388.0, 297.0),
+            4230,
+        ),
+        // GDAL's OGC WKT1, codes stripped.
+        (
+            r#"GEOGCS["ETRS89",DATUM["European_Terrestrial_Reference_System_1989",SPHEROID["GRS 1980",6378137,298.257222101]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]]"#.to_string(),
+            4258,
+        ),
+    ] {
+        let crs = Crs::from_prj(&prj);
+        assert_eq!(crs, Ok(Crs::Epsg(code)), "{prj}");
+        let crs = crs.unwrap();
+        assert!(crs.is_geographic());
+        // Degrees in, degrees out: within a few metres of WGS84 for these datums (OSGB36's
+        // and ED50's Helmert shifts are up to ~120 m).
+        let (lon, lat) = crs.file_to_lonlat(-1.2, 52.9);
+        assert!((lon + 1.2).abs() < 0.003 && (lat - 52.9).abs() < 0.003, "{code}: {lon} {lat}");
+    }
+    // A datum's name on another ellipsoid is not that datum.
+    let wrong = gcs(
+        "GCS_ETRS_1989",
+        "D_ETRS_1989",
+        "Airy_1830",
+        6377563.396,
+        299.3249646,
+    );
+    assert!(matches!(
+        Crs::from_prj(&wrong),
+        Err(CrsError::Unsupported(_))
+    ));
+    // NAD27 needs a grid shift citygen does not have: refused, naming the datum.
+    let nad27 = gcs(
+        "GCS_North_American_1927",
+        "D_North_American_1927",
+        "Clarke_1866",
+        6378206.4,
+        294.9786982,
+    );
+    match Crs::from_prj(&nad27) {
+        Err(CrsError::Unsupported(msg)) => assert!(msg.contains("North_American_1927"), "{msg}"),
+        other => panic!("{other:?}"),
+    }
 }
 
 /// A random point in the area of use of a random CRS, with that CRS.

@@ -406,8 +406,10 @@ pub(crate) fn identify(text: &str) -> Result<Crs, CrsError> {
             let code = rank(&facts, &def, super::generic::find_definition(&def))?;
             Crs::from_epsg(u32::from(code)).ok()
         })
+    } else if facts.datum == Datum::Wgs84 {
+        Some(Crs::Wgs84)
     } else {
-        (facts.datum == Datum::Wgs84).then_some(Crs::Wgs84)
+        geographic(&facts)
     };
     found.ok_or_else(|| {
         let mut what = facts.describe();
@@ -416,6 +418,75 @@ pub(crate) fn identify(text: &str) -> Result<Crs, CrsError> {
         }
         CrsError::Unsupported(what)
     })
+}
+
+/// Geographic CRSs by their datum's name (normalised, a part of it; the more specific first)
+/// and EPSG code: what ArcGIS writes as `GCS_North_American_1983`, `GCS_ETRS_1989`,
+/// `GCS_OSGB_1936`... without a code.
+const GEOGRAPHIC: [(&[&str], u32); 17] = [
+    (&["harn", "high_accuracy_reference_network"], 4152),
+    (&["nad_1983_2011", "nad83_2011"], 6318),
+    (&["csrs"], 4617),
+    (&["north_american_1983", "nad83", "nad_1983"], 4269),
+    (&["north_american_1927", "nad27", "nad_1927"], 4267),
+    (
+        &[
+            "etrs_1989",
+            "etrs89",
+            "european_terrestrial_reference_system_1989",
+        ],
+        4258,
+    ),
+    (
+        &[
+            "osgb_1936",
+            "osgb36",
+            "ordnance_survey_of_great_britain_1936",
+        ],
+        4277,
+    ),
+    (
+        &["rgf_1993", "rgf93", "reseau_geodesique_francais_1993"],
+        4171,
+    ),
+    (
+        &["gda2020", "gda_2020", "geocentric_datum_of_australia_2020"],
+        7844,
+    ),
+    (
+        &["gda94", "gda_1994", "geocentric_datum_of_australia_1994"],
+        4283,
+    ),
+    (
+        &["nzgd2000", "nzgd_2000", "new_zealand_geodetic_datum_2000"],
+        4167,
+    ),
+    (&["amersfoort"], 4289),
+    (&["dhdn", "deutsches_hauptdreiecksnetz"], 4314),
+    (&["european_1950", "ed50", "european_datum_1950"], 4230),
+    (
+        &["jgd2011", "jgd_2011", "japanese_geodetic_datum_2011"],
+        6668,
+    ),
+    (
+        &["jgd2000", "jgd_2000", "japanese_geodetic_datum_2000"],
+        4612,
+    ),
+    (&["sirgas_2000", "sirgas2000"], 4674),
+];
+
+/// The geographic CRS of the table [`GEOGRAPHIC`] whose datum `f` names, when the EPSG table
+/// has it (without a grid shift) and its ellipsoid is the `.prj`'s (within 1 mm).
+fn geographic(f: &Facts) -> Option<Crs> {
+    let dn = norm(f.datum_name.as_deref()?);
+    let (_, code) = GEOGRAPHIC
+        .iter()
+        .find(|(keys, _)| keys.iter().any(|k| dn.contains(k)))?;
+    let crs = Crs::from_epsg(*code).ok()?;
+    let (a, rf) = f.ellipsoid?;
+    let (ea, eb) = super::generic::ellipsoid_of(u16::try_from(*code).ok()?)?;
+    let b = if rf == 0.0 { a } else { a * (1.0 - 1.0 / rf) };
+    ((a - ea).abs() <= 1e-3 && (b - eb).abs() <= 1e-3).then_some(crs)
 }
 
 /// Collects the datum, ellipsoid, method and parameters, and rejects units citygen would

@@ -358,9 +358,18 @@ impl<'a> Sink<'a> {
             FootprintKind::Building => self.report.read += 1,
             FootprintKind::Part => self.report.parts_read += 1,
         }
-        // The file's own id, else its id column; a column named with `--field id=` wins.
+        // The file's own id, else its id column; a column named with `--field id=` wins. A
+        // text id of the feature's own gives way to a whole number in an id column, and wins
+        // over a text one; a whole number of its own (a GeoPackage's row key) gives way to a
+        // text id in a column named as one ([`IDENTITY_COLUMNS`]: the BAG's `identificatie`).
+        let named = self.opts.named("id").is_some();
         let from_column = match own_id {
-            Some(_) if self.opts.named("id").is_none() => None,
+            Some(SourceId::Text(_)) if !named => match self.id_column(props) {
+                Some((_, SourceId::Text(_))) => None,
+                c => c,
+            },
+            Some(SourceId::Feature(_)) if !named => text_id(props, &IDENTITY_COLUMNS),
+            Some(_) if !named => None,
             _ => self.id_column(props),
         };
         let fallback = if self.shapefile {
@@ -377,6 +386,10 @@ impl<'a> Sink<'a> {
                 if from_column.is_none() && self.bad_id.is_none() {
                     self.bad_id = Some(value);
                 }
+            } else if let Some((column, _)) = &from_column {
+                // A text id from a column only text ids are looked for in (`identificatie`).
+                id_column = Some(column.clone());
+                self.id_column_seen.get_or_insert(column.clone());
             }
         } else if let Some((column, _)) = &from_column {
             used.push(column.clone());
@@ -532,20 +545,27 @@ impl<'a> Sink<'a> {
     }
 
     /// The feature's own id from its id column (`--field id=COLUMN`, else the first of
-    /// [`ID_COLUMNS`] present) holding a non-negative integer, and that column's name.
+    /// [`ID_COLUMNS`] present) holding a non-negative whole number, and that column's name;
+    /// without one, the first of [`TEXT_ID_COLUMNS`] (or the named column) holding text: a
+    /// text id ([`SourceId::Text`]).
     fn id_column(&self, props: &Map<String, Value>) -> Option<(String, SourceId)> {
         let named = self.opts.named("id");
         let names: Vec<&str> = match named {
             Some(n) => vec![n],
             None => ID_COLUMNS.to_vec(),
         };
-        names.iter().find_map(|c| {
+        let whole = names.iter().find_map(|c| {
             let (k, v) = props.iter().find(|(k, _)| k.eq_ignore_ascii_case(c))?;
-            let n = v
-                .as_u64()
-                .or_else(|| v.as_str().and_then(|s| s.trim().parse().ok()))?;
+            let n = v.as_u64().or_else(|| v.as_str().and_then(whole_number))?;
             Some((k.clone(), SourceId::Feature(n)))
-        })
+        });
+        if whole.is_some() {
+            return whole;
+        }
+        match named {
+            Some(n) => text_id(props, &[n]),
+            None => text_id(props, &TEXT_ID_COLUMNS),
+        }
     }
 
     /// The id column present in `props` (named, else the first of [`ID_COLUMNS`]) and its
@@ -620,12 +640,21 @@ impl<'a> Sink<'a> {
                 );
             }
         }
+        // Text ids must stay distinct as XML ids (`SourceId::key`) and as text beside the
+        // numbered ones (a column mixing `7` and `feature/7`): else they are not unique.
+        let mut duplicate = self.duplicate;
+        if !duplicate && footprints.iter().any(|f| matches!(f.id, SourceId::Text(_))) {
+            let (mut keys, mut texts) = (HashSet::new(), HashSet::new());
+            duplicate = !footprints
+                .iter()
+                .all(|f| keys.insert(f.id.key()) & texts.insert(f.id.to_string()));
+        }
         let mut ids_kept = self.shapefile && self.id_column_seen.is_some();
         if let (true, Some(column)) = (self.shapefile, &self.id_column_seen) {
             let why = match &self.bad_id {
                 Some(v) if v.is_empty() => Some("is empty in some records".to_string()),
                 Some(v) => Some(format!("holds {v:?}, not a non-negative whole number")),
-                None if self.duplicate => Some("is not unique".to_string()),
+                None if duplicate => Some("is not unique".to_string()),
                 None => None,
             };
             if let Some(why) = why {
@@ -641,7 +670,7 @@ impl<'a> Sink<'a> {
                     ),
                 );
             }
-        } else if self.duplicate {
+        } else if duplicate {
             for (f, &p) in footprints.iter_mut().zip(&self.positions) {
                 f.id = SourceId::Feature(p);
             }
@@ -706,6 +735,47 @@ pub(super) fn value_text(v: &Value) -> Option<String> {
 
 /// Attribute names that hold a file's own feature ids, tried in this order (case-insensitively).
 pub(super) const ID_COLUMNS: [&str; 5] = ["id", "objectid", "fid", "osm_id", "gml_id"];
+
+/// Attribute names tried, in this order, for a text id when no column of [`ID_COLUMNS`] holds
+/// a whole number: those, then the Dutch BAG's `identificatie`, Ordnance Survey's `toid`,
+/// Esri's `globalid`, and `guid`, `uuid`.
+pub(super) const TEXT_ID_COLUMNS: [&str; 10] = [
+    "id",
+    "objectid",
+    "fid",
+    "osm_id",
+    "gml_id",
+    "identificatie",
+    "toid",
+    "globalid",
+    "guid",
+    "uuid",
+];
+
+/// The text id of the first of `names` present (case-insensitively) with a text or number
+/// value, and that column's name.
+fn text_id(props: &Map<String, Value>, names: &[&str]) -> Option<(String, SourceId)> {
+    names.iter().find_map(|c| {
+        let (k, v) = props.iter().find(|(k, _)| k.eq_ignore_ascii_case(c))?;
+        let text = match v {
+            Value::String(_) | Value::Number(_) => value_text(v)?,
+            _ => return None,
+        };
+        Some((k.clone(), SourceId::text(&text)))
+    })
+}
+
+/// The columns of [`TEXT_ID_COLUMNS`] that name a feature's identity: a text id in one wins
+/// over the feature's own whole-number id (a GeoPackage's row key, a GeoJSON `id`).
+const IDENTITY_COLUMNS: [&str; 5] = ["identificatie", "toid", "globalid", "guid", "uuid"];
+
+/// `s` (trimmed) as a non-negative whole number written as one: digits without a sign and
+/// without leading zeros (`0599` is a text id: its zero would be lost).
+pub(super) fn whole_number(s: &str) -> Option<u64> {
+    let s = s.trim();
+    let n: u64 = s.parse().ok()?;
+    (n.to_string() == s).then_some(n)
+}
 
 /// A property as a number: a JSON number, or text that reads as one.
 fn number(v: &Value) -> Option<f64> {

@@ -124,7 +124,8 @@ fn feature(sink: &mut Sink, f: RawFeature) {
 }
 
 /// The id a feature keeps: an OSM `way/n` or `relation/n` (the feature's `id`, else its `@id`
-/// property), or `feature/n` for a non-negative integer id.
+/// property), `feature/n` for a non-negative integer id, or a text id for any other
+/// (`Sink::add` prefers a whole number in an id column to it).
 fn feature_id(id: Option<&Value>, props: &Map<String, Value>) -> Option<SourceId> {
     let osm = |v: &Value| {
         v.as_str()
@@ -134,7 +135,17 @@ fn feature_id(id: Option<&Value>, props: &Map<String, Value>) -> Option<SourceId
     if let Some(s) = id.and_then(osm).or_else(|| props.get("@id").and_then(osm)) {
         return Some(s);
     }
-    id.and_then(Value::as_u64).map(SourceId::Feature)
+    match id? {
+        Value::Number(n) => Some(match n.as_u64() {
+            Some(n) => SourceId::Feature(n),
+            None => SourceId::text(&n.to_string()),
+        }),
+        Value::String(t) if !t.trim().is_empty() => Some(match super::features::whole_number(t) {
+            Some(n) => SourceId::Feature(n),
+            None => SourceId::text(t.trim()),
+        }),
+        _ => None,
+    }
 }
 
 /// The rings of a geometry with their declared roles (the first ring of a polygon is its
@@ -325,6 +336,106 @@ mod tests {
 
     const SQUARE: &str =
         "[[[7.42,43.73],[7.4201,43.73],[7.4201,43.7301],[7.42,43.7301],[7.42,43.73]]]";
+
+    /// The ids of the footprints read from features with these `id` members and properties.
+    fn ids_of(features: &[(&str, &str)], opts: &ShpOptions) -> (Vec<String>, Report) {
+        let f: Vec<String> = features
+            .iter()
+            .map(|(id, props)| {
+                let id = if id.is_empty() { String::new() } else { format!(r#""id":{id},"#) };
+                format!(
+                    r#"{{"type":"Feature",{id}"properties":{props},"geometry":{{"type":"Polygon","coordinates":{SQUARE}}}}}"#
+                )
+            })
+            .collect();
+        let text = format!(
+            r#"{{"type":"FeatureCollection","features":[{}]}}"#,
+            f.join(",")
+        );
+        let (r, report) = read(&text, opts);
+        let ids = r
+            .unwrap()
+            .footprints
+            .iter()
+            .map(|f| f.id.to_string())
+            .collect();
+        (ids, report)
+    }
+
+    #[test]
+    fn text_ids_are_kept_after_whole_numbers_and_unique_as_xml_ids() {
+        let o = ShpOptions::default();
+        // A whole number in an id column first; then the feature's own text id; then a text
+        // id column; a zero-padded number is text; positions last.
+        let (ids, _) = ids_of(
+            &[
+                (r#""a-b""#, r#"{"objectid": 50}"#),
+                (r#""osgb1000012345678""#, r#"{"gml_id": "x"}"#),
+                ("", r#"{"TOID": "osgb1000000347"}"#),
+                ("", r#"{"id": "0599100000012345"}"#),
+                ("", r#"{"id": " 42 "}"#),
+                (r#"{"k":1}"#, r#"{}"#),
+            ],
+            &o,
+        );
+        assert_eq!(
+            ids,
+            [
+                "feature/50",
+                "osgb1000012345678",
+                "osgb1000000347",
+                "0599100000012345",
+                "feature/42",
+                "feature/5"
+            ]
+        );
+        // A whole number of its own gives way to an identity column (the BAG's), not to
+        // another; `--field id=` names the column.
+        let (ids, _) = ids_of(
+            &[
+                (
+                    "7",
+                    r#"{"identificatie": "NL.IMBAG.Pand.0599100000012345"}"#,
+                ),
+                ("8", r#"{"gml_id": "g8"}"#),
+            ],
+            &o,
+        );
+        assert_eq!(ids, ["NL.IMBAG.Pand.0599100000012345", "feature/8"]);
+        let named = ShpOptions {
+            fields: vec![("id".into(), "GML_ID".into())],
+            ..ShpOptions::default()
+        };
+        let (ids, _) = ids_of(&[("8", r#"{"gml_id": "g8"}"#)], &named);
+        assert_eq!(ids, ["g8"]);
+        // The report names a text id by its text.
+        let text = r#"{"type":"FeatureCollection","features":[{"type":"Feature","id":"{B-7}","properties":{},"geometry":null}]}"#;
+        let (_, report) = read(text, &o);
+        assert_eq!(report.entries[0].id, "{B-7}");
+        assert_eq!(report.entries[0].outcome, crate::report::Outcome::Skipped);
+        // Texts that are one XML id once sanitised (`a b`, `a_b` with the hash of `a b`), or
+        // a text that reads as a numbered id beside it: renumbered by position, with a note.
+        let a_b = SourceId::text("a b").key();
+        assert!(
+            a_b.starts_with("a_b_h") && a_b.len() == "a_b_h".len() + 8,
+            "{a_b}"
+        );
+        for (first, second) in [
+            (r#""a b""#, format!("{a_b:?}")),
+            (r#""feature/3""#, "3".to_string()),
+            (r#""dup""#, r#""dup""#.to_string()),
+        ] {
+            let (ids, report) = ids_of(&[(first, "{}"), (&second, "{}")], &o);
+            assert_eq!(ids, ["feature/0", "feature/1"], "{first} {second}");
+            assert!(
+                report
+                    .entries
+                    .iter()
+                    .any(|e| e.reason.contains("not unique")),
+                "{first} {second}"
+            );
+        }
+    }
 
     #[test]
     fn osm_keys_overture_names_and_municipal_fields_become_tags_and_ids_are_kept() {

@@ -116,3 +116,74 @@ fn rd_new_and_lv95_files_stay_in_their_crs() {
         assert!((h - 12.5).abs() < 0.05, "EPSG:{epsg}: height {h}");
     }
 }
+
+/// A shapefile in geographic degrees on NAD83 and on ETRS89, with ArcGIS's `.prj` (no code):
+/// read (EPSG:4269, EPSG:4258), written in a projected CRS, where the point is.
+#[test]
+fn a_geographic_prj_on_nad83_or_etrs89_is_read() {
+    use shapefile::dbase::{FieldName, FieldValue, Record, TableWriterBuilder};
+    use shapefile::{Point, Polygon, PolygonRing};
+    let cases = [
+        (
+            "GCS_North_American_1983",
+            "D_North_American_1983",
+            (-73.98566, 40.74844),
+        ),
+        ("GCS_ETRS_1989", "D_ETRS_1989", (11.5755, 48.1374)),
+    ];
+    for (g, d, (lon, lat)) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let shp = dir.path().join("geo.shp");
+        let table = TableWriterBuilder::new().add_numeric_field(
+            FieldName::try_from("HEIGHT").unwrap(),
+            8,
+            2,
+        );
+        let mut w = shapefile::Writer::from_path(&shp, table).unwrap();
+        let (dx, dy) = (0.0001, 0.0001);
+        let ring = [
+            (lon - dx, lat - dy),
+            (lon - dx, lat + dy),
+            (lon + dx, lat + dy),
+            (lon + dx, lat - dy),
+            (lon - dx, lat - dy),
+        ]
+        .map(|(x, y)| Point::new(x, y))
+        .to_vec();
+        let mut rec = Record::default();
+        rec.insert("HEIGHT".into(), FieldValue::Numeric(Some(9.5)));
+        w.write_shape_and_record(&Polygon::new(PolygonRing::Outer(ring)), &rec)
+            .unwrap();
+        drop(w);
+        std::fs::write(
+            shp.with_extension("prj"),
+            format!(r#"GEOGCS["{g}",DATUM["{d}",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]]"#),
+        )
+        .unwrap();
+        let cj = dir.path().join("o.city.json");
+        let out = citygen(&[
+            "--footprints",
+            shp.to_str().unwrap(),
+            "--kb",
+            KB,
+            "--lod",
+            "1",
+            "--cityjson",
+            cj.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(
+            out.status.success(),
+            "{g}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let cj: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&cj).unwrap()).unwrap();
+        let (code, x, y, h, _) = placed(&cj);
+        let crs = Crs::from_epsg_str(&format!("EPSG:{code}")).unwrap();
+        let ll = crs.to_lonlat(x, y);
+        let m = metres_apart(ll, (lon, lat));
+        assert!(m < 0.5, "{g}: EPSG:{code} {ll:?} is {m} m from the point");
+        assert!((h - 9.5).abs() < 0.05, "{g}: height {h}");
+    }
+}

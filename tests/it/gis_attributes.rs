@@ -579,3 +579,334 @@ fn the_3d_tiles_metadata_carries_every_column_as_text() {
         assert_eq!(dates[row], date);
     }
 }
+
+/// A text id's key as `SourceId::key` makes it: the text when it holds only ASCII letters,
+/// digits, `_`, `-` and `.`, else (here, a braced GUID) a prefix that check.
+fn key_prefix(id: &str) -> String {
+    id.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Checks that each of `ids` (with its height in metres and storeys) is a building's identity
+/// in every output of `o`: the CityJSON object's id and `sourceId`, the CityGML `gml:id` and
+/// `sourceId`, the IFC building's Name (its GlobalIds derive from it) and Description, the
+/// glTF node's extras; the attribute `extra` kept; the outputs in EPSG:`epsg`.
+fn check_text_ids(o: &Outputs, ids: &[(&str, f64, u64)], extra: &str, epsg: u32) {
+    assert_eq!(epsg_of(&o.cityjson), epsg);
+    let b = buildings(&o.cityjson);
+    assert_eq!(b.len(), ids.len(), "{:?}", b.keys().collect::<Vec<_>>());
+    let objects = o.cityjson["CityObjects"].as_object().unwrap();
+    for &(id, h, storeys) in ids {
+        let a = &b[id];
+        let got = a["measuredHeight"].as_f64().unwrap();
+        assert!((got - h).abs() < 0.05, "{id}: {got} for {h}");
+        assert_eq!(a["storeysAboveGround"], storeys, "{id}");
+        assert!(a.get(extra).is_some(), "{extra} not in {a}");
+        let prefix = format!("B_{}", key_prefix(id));
+        let (key, _) = objects
+            .iter()
+            .find(|(_, v)| v["type"] == "Building" && v["attributes"]["sourceId"] == id)
+            .unwrap();
+        assert!(key.starts_with(&prefix), "{key} for {id}");
+        if key_prefix(id) == id {
+            assert_eq!(*key, prefix);
+        } else {
+            // The text's hash after the sanitised text: `_h` and eight hex digits.
+            let tail = &key[prefix.len()..];
+            assert!(tail.len() == 10 && tail.starts_with("_h"), "{key}");
+        }
+        // The same id in CityGML (an NCName: it starts with B_ and holds no other character).
+        assert!(o.gml.contains(&format!("gml:id=\"{key}\"")), "{key}");
+        assert!(
+            o.gml.contains(&format!(
+                "<gen:stringAttribute name=\"sourceId\">\n<gen:value>{id}</gen:value>"
+            )),
+            "{id}"
+        );
+        // IFC: the building's Name is the key, its Description the text.
+        let line = o
+            .ifc
+            .lines()
+            .find(|l| l.contains("IFCBUILDING(") && l.contains(&format!(",'{}',", &key[2..])))
+            .unwrap_or_else(|| panic!("no IfcBuilding named {key}"));
+        assert!(line.contains(&format!(",'{id} (")), "{line}");
+        assert!(o.glb["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n["extras"]["id"] == id));
+    }
+}
+
+/// Text ids (issue 47): braced GUIDs in a FlatGeobuf in State Plane feet (EPSG:2263), the BAG's
+/// `identificatie` in a GeoPackage in RD New (EPSG:28992), beside its row keys; fixtures by
+/// `tests/data/gis/make_text_id_fixtures.py` (GDAL).
+#[test]
+fn text_ids_from_a_flatgeobuf_and_a_geopackage_are_every_output_s_ids() {
+    let o = run("tests/data/gis/guids.fgb", &[]);
+    let ft = 1200.0 / 3937.0;
+    check_text_ids(
+        &o,
+        &[
+            ("{3F2504E0-4F89-11D3-9A0C-0305E82C3301}", 30.0 * ft, 3),
+            ("{3F2504E0-4F89-11D3-9A0C-0305E82C3302}", 45.5 * ft, 4),
+            ("{7C9E6679-7425-40DE-944B-E07FC1F90AE7}", 62.0 * ft, 6),
+            ("{A1B2C3D4-0000-4000-8000-00000000BEEF}", 20.0 * ft, 2),
+        ],
+        "bin",
+        32118,
+    );
+    // Same inputs, same bytes: a text id's seed is its text's.
+    let again = run("tests/data/gis/guids.fgb", &[]);
+    for (a, b) in o.files.iter().zip(&again.files) {
+        assert!(
+            std::fs::read(a).unwrap() == std::fs::read(b).unwrap(),
+            "{a:?}"
+        );
+    }
+    let o = run("tests/data/gis/bag.gpkg", &[]);
+    check_text_ids(
+        &o,
+        &[
+            ("NL.IMBAG.Pand.0599100000012345", 10.5, 3),
+            ("NL.IMBAG.Pand.0599100000012346", 13.5, 4),
+            ("NL.IMBAG.Pand.0599100000670001", 15.5, 5),
+            ("NL.IMBAG.Pand.0599100000670002", 8.25, 2),
+        ],
+        "status",
+        28992,
+    );
+    if let Ok(dir) = std::env::var("CITYGEN_KEEP_OUTPUTS") {
+        for f in &o.files {
+            let name = format!("bag-{}", f.file_name().unwrap().to_str().unwrap());
+            std::fs::copy(f, std::path::Path::new(&dir).join(name)).unwrap();
+        }
+    }
+}
+
+/// Text ids in a shapefile in the British National Grid (Ordnance Survey TOIDs in `TOID`, no
+/// whole-number id column) and in a GeoJSON in State Plane feet (the features' own `id`s):
+/// kept in every output, the 3D Tiles `id` property included.
+#[test]
+fn text_ids_from_a_shapefile_and_a_geojson_are_every_output_s_ids() {
+    use shapefile::dbase::{FieldName, FieldValue, Record, TableWriterBuilder};
+    use shapefile::{Point, Polygon, PolygonRing};
+    let dir = tempfile::tempdir().unwrap();
+    let toids = [
+        "osgb1000012345678",
+        "osgb1000012345679",
+        "osgb5000005123456789",
+    ];
+    let name = |n: &str| FieldName::try_from(n).unwrap();
+    let table = TableWriterBuilder::new()
+        .add_character_field(name("TOID"), 24)
+        .add_numeric_field(name("HEIGHT"), 8, 2)
+        .add_character_field(name("THEME"), 20);
+    let shp = dir.path().join("toids.shp");
+    let mut w = shapefile::Writer::from_path(&shp, table).unwrap();
+    for (i, toid) in toids.iter().enumerate() {
+        let (x, y) = (456_000.0 + 20.0 * i as f64, 335_000.0);
+        let ring = [
+            (x, y),
+            (x, y + 8.0),
+            (x + 10.0, y + 8.0),
+            (x + 10.0, y),
+            (x, y),
+        ]
+        .map(|(x, y)| Point::new(x, y))
+        .to_vec();
+        let mut rec = Record::default();
+        rec.insert("TOID".into(), FieldValue::Character(Some(toid.to_string())));
+        rec.insert("HEIGHT".into(), FieldValue::Numeric(Some(6.5 + i as f64)));
+        rec.insert(
+            "THEME".into(),
+            FieldValue::Character(Some("Buildings".into())),
+        );
+        w.write_shape_and_record(&Polygon::new(PolygonRing::Outer(ring)), &rec)
+            .unwrap();
+    }
+    drop(w);
+    std::fs::copy(
+        root().join("data/clifton/clifton_test.prj"),
+        shp.with_extension("prj"),
+    )
+    .unwrap();
+    let o = run(shp.to_str().unwrap(), &[]);
+    let ids: Vec<(&str, f64, u64)> = toids
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (*t, 6.5 + i as f64, 2))
+        .collect();
+    let b = buildings(&o.cityjson);
+    let storeys = |id: &str| b[id]["storeysAboveGround"].as_u64().unwrap();
+    let ids: Vec<_> = ids.iter().map(|&(t, h, _)| (t, h, storeys(t))).collect();
+    check_text_ids(&o, &ids, "THEME", 27700);
+    assert!(b.values().all(|a| a.get("TOID").is_none()));
+
+    // GeoJSON in EPSG:2263 (US survey feet): the features' own text ids.
+    let gj = dir.path().join("ny.geojson");
+    let ft = 1200.0 / 3937.0;
+    let features: Vec<String> = ["BIN:1001001/A", "nyc-bldg-2"]
+        .iter()
+        .enumerate()
+        .map(|(i, id)| {
+            let (x, y) = (988_000.0 + 120.0 * i as f64, 211_900.0);
+            let (x1, y1) = (x + 10.0 / ft, y + 8.0 / ft);
+            format!(
+                r#"{{"type": "Feature", "id": "{id}", "properties": {{"heightroof": 40.0, "cnstrct_yr": 1931}}, "geometry": {{"type": "Polygon", "coordinates": [[[{x}, {y}], [{x1}, {y}], [{x1}, {y1}], [{x}, {y1}], [{x}, {y}]]]}}}}"#
+            )
+        })
+        .collect();
+    std::fs::write(
+        &gj,
+        format!(
+            r#"{{"type": "FeatureCollection", "crs": {{"type": "name", "properties": {{"name": "urn:ogc:def:crs:EPSG::2263"}}}}, "features": [{}]}}"#,
+            features.join(",")
+        ),
+    )
+    .unwrap();
+    let o = run(gj.to_str().unwrap(), &[]);
+    let b = buildings(&o.cityjson);
+    let storeys = |id: &str| b[id]["storeysAboveGround"].as_u64().unwrap();
+    check_text_ids(
+        &o,
+        &[
+            ("BIN:1001001/A", 40.0 * ft, storeys("BIN:1001001/A")),
+            ("nyc-bldg-2", 40.0 * ft, storeys("nyc-bldg-2")),
+        ],
+        "cnstrct_yr",
+        32118,
+    );
+
+    // 3D Tiles: the `id` property holds the texts.
+    let tiles = dir.path().join("tiles");
+    let out = citygen(&[
+        "--footprints",
+        shp.to_str().unwrap(),
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--tiles3d",
+        tiles.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(out.status.success());
+    let (json, bin) = glb_json(&tiles.join("content/all.glb"));
+    let table = &json["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+    let p = &table["properties"]["id"];
+    let view = |i: &serde_json::Value| {
+        let v = &json["bufferViews"][i.as_u64().unwrap() as usize];
+        let o = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
+    };
+    let values = String::from_utf8(view(&p["values"]).to_vec()).unwrap();
+    for t in toids {
+        assert!(values.contains(t), "{values}");
+    }
+}
+
+/// `--previous` with text ids (the incremental path keys buildings by their ids): one BAG
+/// building's height edited, it alone is `changed`, named by its text, and every tile has the
+/// full run's bytes.
+#[test]
+fn an_incremental_run_names_a_changed_text_id_building_and_gives_the_full_run_s_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write = |name: &str, edited: f64| {
+        let features: Vec<String> = (0..6)
+            .map(|i| {
+                let (x, y) = (92_500.0 + 20.0 * i as f64, 437_000.0);
+                let h = if i == 2 { edited } else { 8.0 + i as f64 };
+                format!(
+                    r#"{{"type": "Feature", "properties": {{"identificatie": "NL.IMBAG.Pand.05991000000{i:05}", "height": {h}}}, "geometry": {{"type": "Polygon", "coordinates": [[[{x}, {y}], [{}, {y}], [{}, {}], [{x}, {}], [{x}, {y}]]]}}}}"#,
+                    x + 10.0,
+                    x + 10.0,
+                    y + 8.0,
+                    y + 8.0
+                )
+            })
+            .collect();
+        let p = d.join(name);
+        std::fs::write(
+            &p,
+            format!(
+                r#"{{"type": "FeatureCollection", "crs": {{"type": "name", "properties": {{"name": "EPSG:28992"}}}}, "features": [{}]}}"#,
+                features.join(",")
+            ),
+        )
+        .unwrap();
+        p
+    };
+    let (d1, d2) = (write("d1.geojson", 15.0), write("d2.geojson", 21.0));
+    let run = |input: &std::path::Path, out: &str, extra: &[&str]| {
+        let o = d.join(out);
+        std::fs::create_dir_all(&o).unwrap();
+        let p = |n: &str| o.join(n).display().to_string();
+        let mut args: Vec<String> = [
+            "--footprints",
+            input.to_str().unwrap(),
+            "--kb",
+            KB,
+            "--lod",
+            "2",
+            "--tile",
+            "50",
+            "--quiet",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        args.extend([
+            "--cityjsonseq".into(),
+            p("t.city.jsonl"),
+            "--ifc".into(),
+            p("t.ifc"),
+            "--gltf".into(),
+            p("t.glb"),
+            "--report".into(),
+            p("report.json"),
+        ]);
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = citygen(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        o
+    };
+    let o1 = run(&d1, "o1", &[]);
+    let full = run(&d2, "full", &[]);
+    let inc = run(&d2, "inc", &["--previous", o1.to_str().unwrap()]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(inc.join("report.json")).unwrap()).unwrap();
+    let c = &report["changes"];
+    assert_eq!(
+        c["changed"],
+        serde_json::json!(["NL.IMBAG.Pand.0599100000000002"])
+    );
+    assert_eq!(c["added"], serde_json::json!([]));
+    assert_eq!(c["removed"], serde_json::json!([]));
+    let mut n = 0;
+    for e in std::fs::read_dir(&full).unwrap() {
+        let name = e.unwrap().file_name();
+        let name = name.to_str().unwrap();
+        if name.starts_with("t_") {
+            n += 1;
+            assert!(
+                std::fs::read(full.join(name)).unwrap() == std::fs::read(inc.join(name)).unwrap(),
+                "{name}"
+            );
+        }
+    }
+    assert!(n >= 3, "{n} tile files");
+}
