@@ -18,7 +18,10 @@
 //! the outermost centres (still on the raster's area) takes the edge's values. A pixel equal to
 //! `GDAL_NODATA` (or NaN) has no height: the bilinear weights of the known pixels around a
 //! point are renormalised, and a point whose weighted pixels are all unknown has no height.
-//! Several files are tried in the order given: the first that has a height at a point gives it.
+//! Several files are tried in the order given: the first that has a height at a point between
+//! its pixel centres gives it, else the first that has one in its half-pixel margin (so tiles
+//! that share their edge samples, as SRTM's do, or overlap, are bilinear across the seam: the
+//! first tile's margin does not hide the next tile's pixels there).
 
 mod geokeys;
 mod hgt;
@@ -863,21 +866,26 @@ pub struct Sampler<'a> {
 }
 
 impl Sampler<'_> {
-    /// The height at local point `p`: from the first file that has one there.
+    /// The height at local point `p`: from the first file that has one there between its
+    /// pixel centres, else from the first that has one in its half-pixel margin.
     pub fn sample(&mut self, p: DVec2) -> Result<Sample, DemError> {
         let mut covered = false;
+        let mut margin = None;
         for d in 0..self.framed.set.dems.len() {
             let m = self.framed.to_model(d, p);
             match self.bilinear(d, m)? {
-                Sample::Value(z) => return Ok(Sample::Value(z)),
-                Sample::NoData => covered = true,
-                Sample::Outside => {}
+                (Sample::Value(z), true) => return Ok(Sample::Value(z)),
+                (Sample::Value(z), false) => {
+                    margin.get_or_insert(z);
+                }
+                (Sample::NoData, _) => covered = true,
+                (Sample::Outside, _) => {}
             }
         }
-        Ok(if covered {
-            Sample::NoData
-        } else {
-            Sample::Outside
+        Ok(match margin {
+            Some(z) => Sample::Value(z),
+            None if covered => Sample::NoData,
+            None => Sample::Outside,
         })
     }
 
@@ -921,14 +929,16 @@ impl Sampler<'_> {
         })
     }
 
-    /// File `d`'s bilinear height at its model point `m`.
-    fn bilinear(&mut self, d: usize, m: DVec2) -> Result<Sample, DemError> {
+    /// File `d`'s bilinear height at its model point `m`, and whether `m` is between the file's
+    /// pixel centres (not in the half-pixel margin outside them, where the edge's values hold).
+    fn bilinear(&mut self, d: usize, m: DVec2) -> Result<(Sample, bool), DemError> {
         let dem = &self.framed.set.dems[d];
         let c = dem.georef.to_pixel(m);
         let (w, h) = (f64::from(dem.width), f64::from(dem.height));
         if !(c.x >= -0.5 && c.y >= -0.5 && c.x <= w - 0.5 && c.y <= h - 0.5) {
-            return Ok(Sample::Outside);
+            return Ok((Sample::Outside, false));
         }
+        let inner = c.x >= 0.0 && c.y >= 0.0 && c.x <= w - 1.0 && c.y <= h - 1.0;
         let cx = c.x.clamp(0.0, w - 1.0);
         let cy = c.y.clamp(0.0, h - 1.0);
         // `cx`, `cy` are clamped to >= 0: the cast truncates as `floor` would, without the
@@ -959,11 +969,14 @@ impl Sampler<'_> {
                 weight += wt;
             }
         }
-        Ok(if weight > 0.0 {
-            Sample::Value(sum / weight)
-        } else {
-            Sample::NoData
-        })
+        Ok((
+            if weight > 0.0 {
+                Sample::Value(sum / weight)
+            } else {
+                Sample::NoData
+            },
+            inner,
+        ))
     }
 }
 

@@ -121,6 +121,34 @@ fn nodata_is_skipped_and_two_tiles_meet() {
 }
 
 #[test]
+fn tiles_that_share_a_column_are_bilinear_across_the_seam() {
+    // West: centres 499 901..499 999; east: 499 999..500 197, the column at 499 999 shared (as
+    // SRTM tiles share their edge samples). Between 499 999 and 500 000 the west tile only has
+    // its half-pixel margin (its edge's values held flat), the east tile real pixels.
+    let dir = tempfile::tempdir().unwrap();
+    let origin = DVec2::new(500_000.0, 5_000_000.0);
+    let west = GeoTiff::projected(32609, (499_900.0, 5_000_100.0), 2.0, (50, 100), plane);
+    let east = GeoTiff::projected(32609, (499_998.0, 5_000_100.0), 2.0, (100, 100), plane);
+    let pw = write(dir.path(), "west.tif", &west);
+    let pe = write(dir.path(), "east.tif", &east);
+    for paths in [[&pw, &pe], [&pe, &pw]] {
+        let set = DemSet::open(&[paths[0].clone(), paths[1].clone()]).unwrap();
+        let f = set.framed(UTM, origin);
+        let mut s = f.sampler();
+        for x in [-3.0, -1.5, -1.0, -0.9, -0.5, -0.1, 0.0, 0.5, 3.0] {
+            let z = value(s.sample(DVec2::new(x, 10.0)).unwrap());
+            let want = plane(500_000.0 + x, 5_000_010.0);
+            assert!((z - want).abs() < 1e-4, "{x}: {z} vs {want}");
+        }
+    }
+    // One file alone still holds its edge flat in its margin.
+    let set = DemSet::open(&[pw]).unwrap();
+    let f = set.framed(UTM, origin);
+    let z = value(f.sampler().sample(DVec2::new(-0.5, 10.0)).unwrap());
+    assert!((z - plane(499_999.0, 5_000_010.0)).abs() < 1e-4, "{z}");
+}
+
+#[test]
 fn geographic_dem_samples_in_a_utm_frame() {
     let dir = tempfile::tempdir().unwrap();
     // 0.0001° cells around (7.4°E, 43.7°N) (Monaco, UTM 32N).
