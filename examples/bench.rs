@@ -27,7 +27,8 @@
 //! For each input it runs the `citygen` binary next to this example (target/release/citygen)
 //! as a child process per configuration: LOD 1, 2, 3 × (IFC, CityGML, glTF, all three), and
 //! prints buildings/s, output polygons/s, output MB/s and the child's peak RSS (from `wait4`),
-//! best wall-clock time of the repetitions. Then, for a PBF, the raw osmpbf decode speed of the
+//! best wall-clock time of the repetitions, with that peak per building (`B/bldg`) and the
+//! read's share of it (`read%`: the peak when citygen's read ends, from its `memory:` line). Then, for a PBF, the raw osmpbf decode speed of the
 //! same file (every blob, osmpbf's parallel reader, counting nodes, ways and relations) beside
 //! citygen's read phase alone (`input::osm::read_osm`, in this process).
 //!
@@ -237,6 +238,8 @@ struct RunResult {
     polygons: u64,
     bytes: u64,
     rss_kib: u64,
+    /// The read's own peak RSS (KiB), from citygen's `memory:` line (Linux; 0 elsewhere).
+    read_kib: u64,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -253,7 +256,7 @@ fn bench_input(
     let size = std::fs::metadata(input)?.len();
     let is_shp = input.extension().is_some_and(|e| e == "shp");
     println!(
-        "\n== {} ({:.1} MB)\n{:<4} {:<10} {:>9} {:>10} {:>8} {:>8} {:>11} {:>12} {:>9} {:>8} {:>9}",
+        "\n== {} ({:.1} MB)\n{:<4} {:<10} {:>9} {:>10} {:>8} {:>8} {:>11} {:>12} {:>9} {:>8} {:>9} {:>8} {:>6}",
         input.display(),
         size as f64 / 1e6,
         "LOD",
@@ -266,7 +269,9 @@ fn bench_input(
         "polygons/s",
         "MB out",
         "MB/s",
-        "RSS MiB"
+        "RSS MiB",
+        "B/bldg",
+        "read%"
     );
     for &lod in lods {
         for &format in formats {
@@ -282,7 +287,7 @@ fn bench_input(
             }
             let Some(r) = best else { continue };
             println!(
-                "{:<4} {:<10} {:>9} {:>10} {:>8.2} {:>8.2} {:>11.0} {:>12.0} {:>9.1} {:>8.1} {:>9.1}",
+                "{:<4} {:<10} {:>9} {:>10} {:>8.2} {:>8.2} {:>11.0} {:>12.0} {:>9.1} {:>8.1} {:>9.1} {:>8.0} {:>6.0}",
                 lod,
                 format.name(),
                 r.buildings,
@@ -293,7 +298,9 @@ fn bench_input(
                 r.polygons as f64 / r.secs,
                 r.bytes as f64 / 1e6,
                 r.bytes as f64 / 1e6 / r.secs,
-                r.rss_kib as f64 / 1024.0
+                r.rss_kib as f64 / 1024.0,
+                r.rss_kib as f64 * 1024.0 / r.buildings.max(1) as f64,
+                100.0 * r.read_kib as f64 / r.rss_kib.max(1) as f64
             );
         }
     }
@@ -354,7 +361,20 @@ fn run_child(
         polygons: number_after("output: "),
         bytes: number_after(" polygons, "),
         rss_kib,
+        read_kib: read_peak_kib(&stderr),
     })
+}
+
+/// The read's own peak RSS in KiB from citygen's summary line `  memory: read to S s, RSS R
+/// MiB, peak P MiB; ...` (the peak so far when the read ends); 0 without the line.
+fn read_peak_kib(stderr: &str) -> u64 {
+    stderr
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("memory: read to "))
+        .and_then(|l| l.split(';').next())
+        .and_then(|l| l.split("peak ").nth(1))
+        .and_then(|l| l.trim_end_matches(" MiB").trim().parse::<f64>().ok())
+        .map_or(0, |mib| (mib * 1024.0) as u64)
 }
 
 /// Removes the outputs of a run (`b.*`, and `b_*` tiles) from the bench's output folder.

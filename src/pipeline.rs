@@ -197,6 +197,7 @@ pub(crate) fn infer_from_neighbours(
     over: Option<crate::model::Inference>,
 ) -> Inferred {
     use rayon::prelude::*;
+    let start = Instant::now();
     let zones: Vec<usize> = lots
         .par_iter()
         .map(|l| kb.locate_with(boundaries, l.lonlat.0, l.lonlat.1).zone)
@@ -214,10 +215,12 @@ pub(crate) fn infer_from_neighbours(
             .collect();
     // Freed before the estimator's own working set (a peak of memory otherwise).
     drop(inferred);
+    let mut phases = vec![Phase::mark("colours", start)];
     let models = prepare::estimate::Models::shipped();
     let mixes = roof_mixes(kb, lots, &zones);
     drop(zones);
     let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models, false);
+    phases.push(Phase::mark("estimate", start));
     if kb.has_conditions() {
         // The KB draws appearances by the footprint's form: every lot's, tagged or not.
         prepare::estimate::apply_forms(lots, &outcome.features);
@@ -227,6 +230,7 @@ pub(crate) fn infer_from_neighbours(
             notes,
             lines: Vec::new(),
             outcome,
+            phases,
         };
     }
     for (id, phrase) in prepare::estimate::neighbour_notes(lots, &outcome) {
@@ -243,6 +247,7 @@ pub(crate) fn infer_from_neighbours(
         notes,
         lines: prepare::estimate::describe(&outcome),
         outcome,
+        phases,
     }
 }
 
@@ -274,6 +279,8 @@ pub(crate) struct Inferred {
     pub lines: Vec<String>,
     /// The estimator's outcome, lot by lot.
     pub outcome: prepare::estimate::Outcome,
+    /// Its stages' ends (`colours`, `estimate`), seconds from its start.
+    pub phases: Vec<Phase>,
 }
 
 /// The buildings of `lots` (those `keep` selects) whose zone came through one of the input's
@@ -365,6 +372,50 @@ pub struct Summary {
     /// What the user should know about the outputs although the run succeeded (a CityGML file
     /// too big for the reference validator); each is also a note in the report.
     pub warnings: Vec<String>,
+    /// The run's stages in order, each with its end time and memory ([`Phase`]); empty for
+    /// the runs that are not [`run`].
+    pub phases: Vec<Phase>,
+}
+
+/// One stage of a [`run`] as it ended: `read` (the input read), `project` (the lots in the
+/// output CRS), `fronts`, `colours` (from the neighbours), `estimate` (heights and roofs
+/// estimated), `infer` (both applied),
+/// `prepare` (the generator ready), `select` (grid, keys, surroundings), `write` (derived and
+/// written).
+/// Memory from `/proc/self/status` (Linux; `None` elsewhere): the peak so far
+/// (`VmHWM`) at the end of the first stage is that stage's own peak.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Phase {
+    /// The stage's name.
+    pub name: &'static str,
+    /// Seconds since the run started, at the stage's end.
+    pub secs: f64,
+    /// Resident set size at the stage's end, KiB.
+    pub rss_kib: Option<u64>,
+    /// The process's peak resident set size so far, KiB.
+    pub peak_kib: Option<u64>,
+}
+
+impl Phase {
+    /// The stage `name` ending now, `start` being the run's start.
+    pub(crate) fn mark(name: &'static str, start: Instant) -> Phase {
+        let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+        let field = |key: &str| {
+            let line = status.lines().find(|l| l.starts_with(key))?;
+            line[key.len()..]
+                .trim()
+                .trim_end_matches("kB")
+                .trim()
+                .parse()
+                .ok()
+        };
+        Phase {
+            name,
+            secs: start.elapsed().as_secs_f64(),
+            rss_kib: field("VmRSS:"),
+            peak_kib: field("VmHWM:"),
+        }
+    }
 }
 
 /// Called after each chunk with (buildings done, buildings in all).
@@ -382,7 +433,7 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     }
     // The DEMs' headers first: a file that cannot serve fails the run before any reading.
     let dems = ground::open(opts)?;
-    let mut run = RunState::prepare(opts, targets, shard)?;
+    let mut run = RunState::prepare(opts, targets, shard, start)?;
     check_kb_files(&run)?;
     run.select();
     run.seat(dems.as_ref())?;
@@ -395,7 +446,11 @@ pub fn run(opts: &Options, progress: Progress<'_>) -> Result<Summary, RunError> 
     run.retain_in_bbox()?;
     let manifest = run.manifest(run_key, &keyed.context)?;
     keyed.previous = previous;
+    let mut phases = std::mem::take(&mut run.phases);
+    phases.push(Phase::mark("select", start));
     let mut summary = run.write(manifest, keyed, progress)?;
+    phases.push(Phase::mark("write", start));
+    summary.phases = phases;
     summary.elapsed = start.elapsed();
     Ok(summary)
 }
@@ -517,6 +572,8 @@ struct RunState<'a> {
     grid: Option<GridPlan>,
     /// The head of the `citygen split` part the run reads (`--split-part`).
     split: Option<split::SplitHead>,
+    /// The stages ended so far.
+    phases: Vec<Phase>,
 }
 
 impl<'a> RunState<'a> {
@@ -526,6 +583,7 @@ impl<'a> RunState<'a> {
         opts: &'a Options,
         targets: Targets,
         shard: (shard::Shard, String),
+        start: Instant,
     ) -> Result<RunState<'a>, RunError> {
         let split = match &opts.split_part {
             Some(p) => Some(split::load_head(p, opts)?),
@@ -533,6 +591,7 @@ impl<'a> RunState<'a> {
         };
         let mut report = Report::default();
         let read = read_source(&opts.source, opts.osc.as_deref(), opts.src_crs, &mut report)?;
+        let mut phases = vec![Phase::mark("read", start)];
         let source_crs = opts.src_crs.or(read.source_crs);
         let source_name = match (&opts.source_name, &opts.source, &split) {
             (Some(n), _, _) => n.clone(),
@@ -560,8 +619,13 @@ impl<'a> RunState<'a> {
             prepare::prepare_at(read.footprints, source_crs, Some(crs), origin, &mut report);
         site.boundaries = read.boundaries;
         site.attributes = read.attributes;
+        phases.push(Phase::mark("project", start));
         prepare::assign_fronts(&mut site, &read.streets, source_crs);
-        let own_keys = opts.tile.map(|_| incremental::own_keys(&site.lots));
+        drop(read.streets);
+        phases.push(Phase::mark("fronts", start));
+        // Only a run with a manifest records keys (`reuse::key_lots`): a dry run holds none.
+        let own_keys = (opts.tile.is_some() && targets.manifest.is_some())
+            .then(|| incremental::own_keys(&site.lots));
         let caps = Caps {
             facades: opts.lod >= Lod::Lod3,
             ..opts.caps
@@ -570,16 +634,24 @@ impl<'a> RunState<'a> {
         generator.match_boundaries(&site.boundaries);
         // Before --bbox, so that the neighbours outside the box count; noted for the buildings
         // the run keeps.
+        let before = start.elapsed().as_secs_f64();
         let inferred = infer_from_neighbours(
             &generator.kb,
             generator.boundaries(),
             &mut site.lots,
             opts.infer,
         );
+        phases.extend(inferred.phases.into_iter().map(|p| Phase {
+            secs: p.secs + before,
+            ..p
+        }));
+        // The estimator's outcome lot by lot is not needed past here.
+        drop(inferred.outcome);
         for line in inferred.lines {
             report.add(None, Outcome::Note, line);
         }
         let inferred_notes = inferred.notes;
+        phases.push(Phase::mark("infer", start));
         if matches!(generator.rules, Rules::Kb) {
             generator
                 .load_selex()
@@ -588,6 +660,7 @@ impl<'a> RunState<'a> {
                 report.add(None, Outcome::Note, n);
             }
         }
+        phases.push(Phase::mark("prepare", start));
         Ok(RunState {
             opts,
             targets,
@@ -602,6 +675,7 @@ impl<'a> RunState<'a> {
             in_run: Vec::new(),
             grid: None,
             split,
+            phases,
         })
     }
 
@@ -746,8 +820,11 @@ impl<'a> RunState<'a> {
                 })
                 .collect(),
         };
-        write_batches(
+        // The lots out of the site, so that each tile's geometry is freed once written.
+        let lots = write::Lots::Owned(std::mem::take(&mut site.lots));
+        write::write_lots_of(
             &site,
+            lots,
             &batches,
             &Maker::Generator(&generator),
             &FileSet {
@@ -1043,5 +1120,20 @@ mod tests {
         assert_eq!(listed, expected);
         assert_eq!(t.ifc, Some(PathBuf::from("0")));
         assert_eq!(t.cityjsonseq, Some(PathBuf::from("4")));
+    }
+
+    #[test]
+    fn a_phase_holds_this_process_memory_where_the_kernel_gives_it() {
+        let held: Vec<u8> = std::hint::black_box(vec![1; 8 << 20]);
+        let p = Phase::mark("x", Instant::now());
+        assert_eq!(p.name, "x");
+        if cfg!(target_os = "linux") {
+            let (rss, peak) = (p.rss_kib.unwrap(), p.peak_kib.unwrap());
+            // The 8 MiB touched above are resident.
+            assert!(rss >= 8 << 10 && peak >= rss, "{rss} {peak}");
+        } else {
+            assert_eq!((p.rss_kib, p.peak_kib), (None, None));
+        }
+        drop(held);
     }
 }

@@ -388,6 +388,9 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
                         ""
                     }
                 );
+                if let Some(line) = phases_line(&summary) {
+                    eprintln!("{line}");
+                }
                 let verb = if cli.dry_run { "would write" } else { "wrote" };
                 // One screen: a tiled run may write thousands of files.
                 const SHOWN: usize = 9;
@@ -408,6 +411,32 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
             Err(e.into())
         }
     }
+}
+
+/// The summary's line of the run's stages (`pipeline::Phase`): each one's end in seconds,
+/// resident set size and the peak so far, then the peak per building generated and the read's
+/// share of it (the read's own peak over the run's). `None` where the kernel gives no sizes.
+fn phases_line(summary: &pipeline::Summary) -> Option<String> {
+    let mib = |k: u64| k as f64 / 1024.0;
+    let mut parts = Vec::new();
+    for p in &summary.phases {
+        parts.push(format!(
+            "{} to {:.1} s, RSS {:.0} MiB, peak {:.0} MiB",
+            p.name,
+            p.secs,
+            mib(p.rss_kib?),
+            mib(p.peak_kib?)
+        ));
+    }
+    let read = summary.phases.first()?.peak_kib?;
+    let peak = summary.phases.last()?.peak_kib?;
+    let per = (peak as f64 * 1024.0) / summary.report.generated.max(1) as f64;
+    Some(format!(
+        "  memory: {}; peak {:.0} bytes a building, the read's peak {:.0} % of it",
+        parts.join("; "),
+        per,
+        100.0 * read as f64 / peak.max(1) as f64
+    ))
 }
 
 /// This process's peak resident set size in KiB (`VmHWM` of /proc/self/status), on Linux only;

@@ -253,7 +253,7 @@ pub fn split(
         terrain: None,
     };
     let one = (shard::Shard::ONE, String::new());
-    let mut run = RunState::prepare(opts, targets, one)?;
+    let mut run = RunState::prepare(opts, targets, one, Instant::now())?;
     // No terrain (refused with a part): the report says so as the shard's does.
     run.seat(None)?;
     let site = &run.site;

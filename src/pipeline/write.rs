@@ -86,10 +86,55 @@ pub(crate) struct Ledger {
     pub(super) keys: Keyed,
 }
 
+/// The lots a run writes: the site's own, or (a run's) taken out of its site, so that each
+/// batch's geometry is freed once it is written ([`Lots::release`]).
+pub(crate) enum Lots<'a> {
+    Borrowed(&'a [prepare::Lot]),
+    Owned(Vec<prepare::Lot>),
+}
+
+impl Lots<'_> {
+    fn all(&self) -> &[prepare::Lot] {
+        match self {
+            Lots::Borrowed(l) => l,
+            Lots::Owned(l) => l,
+        }
+    }
+
+    /// Frees the geometry of the lots in `range` (written: nothing reads it again). Their ids,
+    /// tags and places stay.
+    fn release(&mut self, range: std::ops::Range<usize>) {
+        if let Lots::Owned(lots) = self {
+            for l in lots.get_mut(range).unwrap_or_default() {
+                l.polygons = Vec::new();
+                l.parts = Vec::new();
+                l.drawn_outline = Vec::new();
+                l.terrain = None;
+            }
+        }
+    }
+}
+
 /// Writes each batch to its own files. Every file is complete and closed before any is renamed
 /// over its target, so a run that fails (or is killed) part-way publishes nothing.
 pub(crate) fn write_batches(
     site: &prepare::Site,
+    batches: &[Batch],
+    maker: &Maker<'_>,
+    files: &FileSet<'_>,
+    report: Report,
+    ledger: Ledger,
+    progress: Progress<'_>,
+) -> Result<Summary, RunError> {
+    let lots = Lots::Borrowed(&site.lots);
+    write_lots_of(site, lots, batches, maker, files, report, ledger, progress)
+}
+
+/// [`write_batches`] of `lots` (the site's own, or taken out of it: `site.lots` is not read).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn write_lots_of(
+    site: &prepare::Site,
+    lots: Lots<'_>,
     batches: &[Batch],
     maker: &Maker<'_>,
     files: &FileSet<'_>,
@@ -105,6 +150,7 @@ pub(crate) fn write_batches(
     let start = Instant::now();
     let mut run = Batches {
         site,
+        lots,
         source_name,
         input: files.input,
         targets,
@@ -137,6 +183,8 @@ pub(crate) fn write_batches(
 /// [`write_batches`] between its batches: what it writes, and what is written so far.
 struct Batches<'a> {
     site: &'a prepare::Site,
+    /// The lots written (not `site.lots`, which may have been taken out).
+    lots: Lots<'a>,
     source_name: &'a str,
     /// The input as given, for messages.
     input: Option<&'a Path>,
@@ -163,7 +211,7 @@ impl Batches<'_> {
             Some(sfx) => format!("{source_name} tile {sfx}"),
             None => source_name.to_string(),
         };
-        let lots = &site.lots[batch.range.clone()];
+        let lots = &self.lots.all()[batch.range.clone()];
         let mark = self.report.entries.len();
         let written = &mut self.written;
         written.cell = batch.cell;
@@ -189,12 +237,13 @@ impl Batches<'_> {
             .as_ref()
             .and_then(|sfx| self.keyed.reused.remove(sfx));
         if let Some(reused) = reused {
-            return self.reuse(reused, &tile_targets, lots.len());
+            let n = lots.len();
+            return self.reuse(reused, &tile_targets, n);
         }
         if let (Some(c), Some(sfx)) = (self.changes.as_mut(), &batch.suffix) {
             c.tiles_rewritten.push(sfx.clone());
         }
-        let (done, total, progress) = (self.done, site.lots.len(), self.progress);
+        let (done, total, progress) = (self.done, self.lots.all().len(), self.progress);
         self.written.terrain = self
             .ground
             .as_ref()
@@ -217,6 +266,7 @@ impl Batches<'_> {
             m.tiles.push(log.record);
         }
         self.done += lots.len();
+        self.lots.release(batch.range.clone());
         Ok(())
     }
 
@@ -261,7 +311,7 @@ impl Batches<'_> {
             c.tiles_reused += 1;
         }
         self.done += lots;
-        (self.progress)(self.done, self.site.lots.len());
+        (self.progress)(self.done, self.lots.all().len());
         Ok(())
     }
 
@@ -269,8 +319,8 @@ impl Batches<'_> {
     /// nothing (unless `allow_empty`), the warnings; then the manifest, preview, tileset and
     /// report rendered, and every file renamed into place, the manifest last.
     fn finish(self, batches: &[Batch], start: Instant) -> Result<Summary, RunError> {
+        let total = self.lots.all().len();
         let Batches {
-            site,
             source_name,
             targets,
             mut report,
@@ -281,7 +331,6 @@ impl Batches<'_> {
             ..
         } = self;
         let stale = keyed.stale;
-        let total = site.lots.len();
         report.skipped = report
             .entries
             .iter()
@@ -391,6 +440,7 @@ impl Batches<'_> {
             bytes,
             tiles: if tiled { batches.len() } else { 0 },
             warnings,
+            phases: Vec::new(),
         })
     }
 }
