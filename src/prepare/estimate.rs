@@ -682,6 +682,13 @@ impl Context<'_> {
         if self.m.area[i] < SMALL_M2 {
             storeys = storeys.min(model.max(SMALL_MAX_STOREYS));
         }
+        // A kind's and a footprint's caps (step 6) bound the storeys lent, whatever roof is
+        // drawn.
+        let caps = [
+            morph::kind_cap(self.lots[i].tags.building.as_deref()),
+            Some(morph::area_cap(self.m.area[i])),
+        ];
+        storeys = caps.into_iter().flatten().fold(storeys, f64::min);
         Some(storeys * fh + roof_part)
     }
 
