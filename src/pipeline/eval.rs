@@ -267,7 +267,8 @@ fn load(kb: &KnowledgeBase, case: &Case) -> Result<Loaded, RunError> {
 /// Reads a truth CSV: a header naming `id` and `height_m` (and optionally `roof`: `flat` or
 /// `pitched`, and `source_id`), one building a line. A building is found by its `id` and,
 /// failing that, by its `source_id`: a shapefile whose id column names its records
-/// (`feature/N` rather than `shp/<index>`, see `input::shp`) still meets its truth rows.
+/// (`feature/N` rather than `shp/<index>`, or a text id such as a GUID, see `input::shp`)
+/// still meets its truth rows.
 fn read_truth(path: &Path) -> Result<HashMap<SourceId, (f64, Option<bool>)>, RunError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))?;
@@ -308,7 +309,12 @@ fn read_truth(path: &Path) -> Result<HashMap<SourceId, (f64, Option<bool>)>, Run
             out.insert(id, (h, roof));
             let source = source_col
                 .and_then(|c| f.get(c))
-                .and_then(|s| SourceId::parse(s).or_else(|| s.parse().ok().map(SourceId::Feature)));
+                .filter(|s| !s.is_empty())
+                .map(|s| {
+                    SourceId::parse(s)
+                        .or_else(|| s.parse().ok().map(SourceId::Feature))
+                        .unwrap_or_else(|| SourceId::text(s))
+                });
             if let Some(s) = source {
                 aliases.push((s, (h, roof)));
             }
