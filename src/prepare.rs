@@ -82,8 +82,10 @@ pub struct Lot {
     /// What of the outline is drawn with its own tags: all of it without parts; with parts,
     /// what they leave uncovered (the outline minus their union, slivers dropped), often
     /// nothing; for a part that holds other parts (tagged `building=*` too, in no outline),
-    /// the part itself.
-    pub drawn_outline: Vec<Polygon>,
+    /// the part itself. `None` when it is the outline polygons themselves, as it is for every
+    /// lot without parts (issue 46: one copy of the geometry, not two); read it with
+    /// [`Lot::drawn_outline`].
+    pub drawn: Option<Vec<Polygon>>,
     /// For an outline with parts, its own tags as read (issue 45): what its uncovered rest
     /// ([`Lot::drawn_outline`]) is drawn with, never the values the estimator or the
     /// neighbours lend [`Lot::tags`]. `None` for a lot without parts and for a part that holds
@@ -108,6 +110,12 @@ pub struct Lot {
 }
 
 impl Lot {
+    /// What of the outline is drawn with its own tags ([`Lot::drawn`]): its own polygons
+    /// when it has some, else the outline's.
+    pub fn drawn_outline(&self) -> &[Polygon] {
+        self.drawn.as_deref().unwrap_or(&self.polygons)
+    }
+
     /// Lower-left and upper-right corners of the outline polygons (local metres), `None`
     /// when there is none or a coordinate is not finite.
     pub fn bounds(&self) -> Option<(DVec2, DVec2)> {
@@ -408,7 +416,7 @@ pub fn prepare_at(
             FootprintKind::Building => outlines.push(Lot {
                 id: p.id,
                 tags: p.tags,
-                drawn_outline: polygons.clone(),
+                drawn: None,
                 rest_tags: None,
                 polygons,
                 parts: Vec::new(),
@@ -517,7 +525,7 @@ pub(crate) fn single_lot(
     let mut lot = Lot {
         id,
         tags: SharedTags::default(),
-        drawn_outline: polygons.clone(),
+        drawn: None,
         rest_tags: None,
         polygons,
         parts: Vec::new(),

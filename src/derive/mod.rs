@@ -237,12 +237,12 @@ impl Generator {
         let mut notes = Vec::new();
         let mut pieces: Vec<&LotPiece> = lot.parts.iter().collect();
         let outline;
-        if !lot.drawn_outline.is_empty() {
+        if !lot.drawn_outline().is_empty() {
             // An outline's rest is drawn with the outline's own tags (issue 45), not with what
             // the estimator or the neighbours lent the outline.
             outline = LotPiece {
                 id: lot.id,
-                polygons: lot.drawn_outline.clone(),
+                polygons: lot.drawn_outline().to_vec(),
                 tags: lot.rest_tags.clone().unwrap_or_else(|| lot.tags.clone()),
             };
             pieces.insert(0, &outline);

@@ -96,7 +96,7 @@ pub(crate) fn own_key(lot: &Lot) -> Key {
     // that reads back to the same f64), in declaration order.
     put_str(&mut h, &format!("{:?}", lot.tags));
     put_polygons(&mut h, &lot.polygons);
-    put_polygons(&mut h, &lot.drawn_outline);
+    put_polygons(&mut h, lot.drawn_outline());
     h.update((lot.parts.len() as u64).to_le_bytes());
     for part in &lot.parts {
         put_str(&mut h, &part.id.to_string());

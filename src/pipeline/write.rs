@@ -108,7 +108,7 @@ impl Lots<'_> {
             for l in lots.get_mut(range).unwrap_or_default() {
                 l.polygons = Vec::new();
                 l.parts = Vec::new();
-                l.drawn_outline = Vec::new();
+                l.drawn = None;
                 l.terrain = None;
             }
         }

@@ -439,7 +439,7 @@ pub(crate) mod tests {
             }),
             polygons: vec![p.clone()],
             parts: Vec::new(),
-            drawn_outline: vec![p],
+            drawn: None,
             rest_tags: None,
             lonlat: (0.0, 0.0),
             front: None,

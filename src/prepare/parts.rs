@@ -28,8 +28,11 @@ pub(super) fn straighten_lot(lot: &mut Lot) {
     let rings_of = |ps: &[Polygon]| -> Vec<Vec<DVec2>> {
         ps.iter().flat_map(|p| p.rings().cloned()).collect()
     };
+    // The drawn rest as its own copy while it is straightened; kept apart afterwards only
+    // where it differs from the outline.
+    let mut drawn_polygons = lot.drawn.take().unwrap_or_else(|| lot.polygons.clone());
     let outline = rings_of(&lot.polygons);
-    let drawn = rings_of(&lot.drawn_outline);
+    let drawn = rings_of(&drawn_polygons);
     let parts: Vec<Vec<Vec<DVec2>>> = lot.parts.iter().map(|p| rings_of(&p.polygons)).collect();
     // Every edge of the lot's rings, by owner (0 the outline, 1 its drawn rest, 2 + k part
     // k), in an R-tree: a lot of 10,000 parts asks each vertex about the few edges near it,
@@ -78,11 +81,12 @@ pub(super) fn straighten_lot(lot: &mut Lot) {
     // The outline and its drawn rest keep what is near a part; a part what is near the
     // outline, the drawn rest or another part.
     fix(&mut lot.polygons, &|owner| owner >= 2);
-    fix(&mut lot.drawn_outline, &|owner| owner >= 2);
+    fix(&mut drawn_polygons, &|owner| owner >= 2);
     for (k, part) in lot.parts.iter_mut().enumerate() {
         fix(&mut part.polygons, &|owner| owner != k + 2);
     }
-    share_vertices(lot);
+    share_vertices(lot, &mut drawn_polygons);
+    lot.drawn = (drawn_polygons != lot.polygons).then_some(drawn_polygons);
 }
 
 /// How far (metres) a vertex of one of a lot's drawn rings may lie from another ring's edge
@@ -95,14 +99,14 @@ const SHARED_VERTEX_TOLERANCE: f64 = 0.002;
 /// edges of the others that pass within [`SHARED_VERTEX_TOLERANCE`] of it, strictly between
 /// their ends (at least [`crate::model::MIN_VERTEX_GAP`] from each). A polygon that the
 /// insertion would make invalid stays as it was.
-fn share_vertices(lot: &mut Lot) {
+fn share_vertices(lot: &mut Lot, drawn: &mut Vec<Polygon>) {
     if lot.parts.is_empty() {
         return;
     }
     let gap = crate::model::MIN_VERTEX_GAP;
     // Every vertex of each piece, with the piece it belongs to.
     let mut verts: Vec<(usize, DVec2)> = Vec::new();
-    let pieces = std::iter::once(&lot.drawn_outline).chain(lot.parts.iter().map(|p| &p.polygons));
+    let pieces = std::iter::once(&*drawn).chain(lot.parts.iter().map(|p| &p.polygons));
     for (k, ps) in pieces.enumerate() {
         for p in ps {
             verts.extend(p.rings().flatten().map(|&v| (k, v)));
@@ -168,7 +172,7 @@ fn share_vertices(lot: &mut Lot) {
             }
         }
     };
-    fix(0, &mut lot.drawn_outline);
+    fix(0, drawn);
     for (i, part) in lot.parts.iter_mut().enumerate() {
         fix(i + 1, &mut part.polygons);
     }
@@ -239,7 +243,7 @@ pub(super) fn group_parts(
             tags: p.tags.clone(),
             polygons: p.polygons.clone(),
             parts: Vec::new(),
-            drawn_outline: p.polygons.clone(),
+            drawn: None,
             rest_tags: None,
             lonlat: *lonlat,
             front: None,
@@ -288,9 +292,9 @@ pub(super) fn group_parts(
                 orphans.push(Lot {
                     id: piece.id,
                     tags: piece.tags.clone(),
-                    polygons: piece.polygons.clone(),
+                    polygons: piece.polygons,
                     parts: Vec::new(),
-                    drawn_outline: piece.polygons,
+                    drawn: None,
                     rest_tags: None,
                     lonlat,
                     front: None,
@@ -317,19 +321,20 @@ pub(super) fn group_parts(
             .flat_map(|p| p.polygons.iter().cloned())
             .collect();
         let outline_area = area(&lot.polygons);
-        lot.drawn_outline = cut_out(&lot.polygons, &parts);
+        let drawn = cut_out(&lot.polygons, &parts);
         lot.rest_tags = Some(lot.tags.clone());
-        if !lot.drawn_outline.is_empty() {
+        if !drawn.is_empty() {
             report.add(
                 Some(lot.id),
                 Outcome::Note,
                 format!(
                     "building:parts cover {:.0} % of the outline; the rest ({:.0} m²) is drawn with the outline's own tags (traced as its outline-rest)",
-                    100.0 * (1.0 - area(&lot.drawn_outline) / outline_area.max(1e-9)),
-                    area(&lot.drawn_outline)
+                    100.0 * (1.0 - area(&drawn) / outline_area.max(1e-9)),
+                    area(&drawn)
                 ),
             );
         }
+        lot.drawn = Some(drawn);
     }
     outlines.extend(containers);
     outlines.extend(orphans);

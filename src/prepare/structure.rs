@@ -63,7 +63,7 @@ pub(crate) fn classify_lot(lot: &mut Lot) {
         piece.tags = with_class(&piece.tags, class);
     }
     if let Some(rest) = &lot.rest_tags {
-        let class = inherited.or_else(|| small(&lot.drawn_outline));
+        let class = inherited.or_else(|| small(lot.drawn_outline()));
         lot.rest_tags = Some(with_class(rest, class));
     }
     lot.tags = with_class(&lot.tags, outline);

@@ -190,7 +190,7 @@ fn tiles_hold_every_lot_once_in_input_order_and_name_their_corner() {
             tags: Default::default(),
             polygons: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
             parts: Vec::new(),
-            drawn_outline: vec![Polygon::new(sq(0.0, 0.0, 10.0), vec![])],
+            drawn: None,
             rest_tags: None,
             lonlat: (lon, lat),
             front: None,

@@ -107,7 +107,7 @@ fn measure(min_samples: usize) -> Figures {
     let test: Vec<usize> = (0..site.lots.len())
         .filter(|&i| {
             let l = &site.lots[i];
-            l.parts.is_empty() && !l.drawn_outline.is_empty() && !l.tags.is_roof()
+            l.parts.is_empty() && !l.drawn_outline().is_empty() && !l.tags.is_roof()
         })
         .collect();
     let truth: Vec<(Option<u32>, Option<&'static str>, usize)> = test

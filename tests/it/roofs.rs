@@ -328,7 +328,7 @@ fn survey(path: &Path) -> Survey {
     // What is drawn: each outline's rest once its parts are cut out, and the parts.
     for lot in &site.lots {
         for p in lot
-            .drawn_outline
+            .drawn_outline()
             .iter()
             .chain(lot.parts.iter().flat_map(|p| p.polygons.iter()))
         {

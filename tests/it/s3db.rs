@@ -977,7 +977,7 @@ fn tags_honoured(sample: &str) {
         };
         overlaps.extend(volume_overlaps(&b));
         let mut units: Vec<(SourceId, &citygen::input::BuildingTags)> = Vec::new();
-        if !lot.drawn_outline.is_empty() {
+        if !lot.drawn_outline().is_empty() {
             units.push((lot.id, &lot.tags));
         }
         units.extend(lot.parts.iter().map(|p| (p.id, &*p.tags)));
