@@ -49,7 +49,8 @@ pub(crate) enum KbCommand {
         /// The shapefile holding the building.
         #[arg(long, value_name = "FILE.shp")]
         shp: Option<PathBuf>,
-        /// The building: way/123, relation/45 (OSM) or a 0-based shapefile record number.
+        /// The building: way/123, relation/45 (OSM), a GIS feature's own id as the outputs
+        /// write it (feature/7, a GUID, a TOID), or a 0-based shapefile record number.
         #[arg(long)]
         id: String,
         /// The run's --seed: the appearance picked is the one a run with this seed picks.
@@ -283,7 +284,8 @@ fn emit(text: &str) -> Result<(), AppError> {
 }
 
 /// `citygen kb explain`: reads the source and prepares it as a run does, finds building `id`
-/// (`way/123`, `relation/45`, or for a shapefile also a bare 0-based record number; a
+/// (`way/123`, `relation/45`, a GIS feature's own text id as the outputs write it, or for a
+/// shapefile also a bare 0-based record number; a
 /// `building:part` gets its outline's tags under its own) and explains, for the knowledge base,
 /// its zone chain, inherited values and the appearance the run's `seed` picks for it.
 pub(crate) fn explain_building(
@@ -293,14 +295,20 @@ pub(crate) fn explain_building(
     seed: u64,
     infer: Option<crate::model::Inference>,
 ) -> Result<Explanation, RunError> {
-    let wanted = match (source, SourceId::parse(id)) {
-        (Source::Shp { .. }, None) => id.trim().parse().ok().map(SourceId::Shape),
+    let text = id.trim();
+    // Anything else is a GIS feature's own text id (a GUID, a BAG identificatie, a TOID), as
+    // the outputs and the report write it.
+    let wanted = match (source, SourceId::parse(text)) {
+        (Source::Shp { .. }, None) => text.parse().ok().map(SourceId::Shape),
         (_, parsed) => parsed,
-    };
+    }
+    .or_else(|| (!text.is_empty()).then(|| SourceId::Text(crate::model::TextId::new(text))));
     let Some(wanted) = wanted else {
-        return Err(RunError::Input(format!(
-            "{id:?} is not a building id (way/123, relation/45 or a record number)"
-        )));
+        return Err(RunError::Input(
+            "an empty id is not a building id (way/123, relation/45, a record number or the \
+             feature's own id)"
+                .to_string(),
+        ));
     };
     let mut report = Report::default();
     let read = read_source(source, None, None, &mut report)?;

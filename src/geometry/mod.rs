@@ -135,6 +135,89 @@ pub(crate) fn newell_normal(ring: &[DVec3]) -> DVec3 {
     n
 }
 
+/// The largest distance of `points` from their least-squares plane (the plane through their
+/// centroid normal to the direction of least spread: the smallest eigenvector of their
+/// covariance), the measure of val3dity's planarity test (error 203: CGAL's
+/// `linear_least_squares_fitting_3` over a polygon's points, then every point's distance).
+/// A sliver face's Newell normal can tilt far from that plane, so a face within a millimetre
+/// of a plane can show centimetres against its Newell normal. 0 for fewer than four points
+/// (three points always lie on a plane); NaN when a point is not finite.
+pub(crate) fn least_squares_plane_deviation<'a>(
+    points: impl Iterator<Item = &'a DVec3> + Clone,
+) -> f64 {
+    let mut n = 0usize;
+    let mut sum = DVec3::ZERO;
+    for p in points.clone() {
+        n += 1;
+        sum += *p;
+    }
+    if n < 4 {
+        return if sum.is_finite() { 0.0 } else { f64::NAN };
+    }
+    let c = sum / n as f64;
+    // The covariance, symmetric: a[i][j].
+    let mut a = [[0.0f64; 3]; 3];
+    for p in points.clone() {
+        let d = (*p - c).to_array();
+        for i in 0..3 {
+            for j in 0..3 {
+                a[i][j] += d[i] * d[j];
+            }
+        }
+    }
+    if !a.iter().flatten().all(|v| v.is_finite()) {
+        return f64::NAN;
+    }
+    let normal = smallest_eigenvector(a);
+    points
+        .map(|p| (*p - c).dot(normal).abs())
+        .fold(0.0, f64::max)
+}
+
+/// The unit eigenvector of the smallest eigenvalue of the symmetric 3 × 3 matrix `a`, by cyclic
+/// Jacobi rotations (converges quadratically; a few sweeps reach machine precision).
+fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> DVec3 {
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let scale = a.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+    if scale == 0.0 {
+        return DVec3::Z;
+    }
+    for _ in 0..32 {
+        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+        if off <= 1e-15 * scale {
+            break;
+        }
+        for (p, q) in [(0usize, 1usize), (0, 2), (1, 2)] {
+            if a[p][q].abs() <= 1e-300 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let cs = 1.0 / (t * t + 1.0).sqrt();
+            let sn = t * cs;
+            // a <- J^T a J, with J the rotation in the (p, q) plane.
+            for row in a.iter_mut() {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = cs * akp - sn * akq;
+                row[q] = sn * akp + cs * akq;
+            }
+            let (rp, rq) = (a[p], a[q]);
+            a[p] = std::array::from_fn(|k| cs * rp[k] - sn * rq[k]);
+            a[q] = std::array::from_fn(|k| sn * rp[k] + cs * rq[k]);
+            for row in v.iter_mut() {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = cs * vp - sn * vq;
+                row[q] = sn * vp + cs * vq;
+            }
+        }
+    }
+    let k = (0..3)
+        .min_by(|&i, &j| a[i][i].total_cmp(&a[j][j]))
+        .unwrap_or(2);
+    DVec3::new(v[0][k], v[1][k], v[2][k]).normalize_or(DVec3::Z)
+}
+
 /// Two unit axes spanning the plane whose unit normal is `normal` (`ex`, `ey`, `normal` right-handed):
 /// for projecting a face into its own plane.
 pub(crate) fn plane_axes(normal: DVec3) -> (DVec3, DVec3) {
@@ -238,5 +321,63 @@ impl std::hash::Hasher for CellHasher {
     }
     fn write_usize(&mut self, v: usize) {
         self.write_u64(v as u64);
+    }
+}
+
+#[cfg(test)]
+mod plane_tests {
+    use super::*;
+
+    #[test]
+    fn least_squares_plane_of_a_sliver_is_its_own() {
+        // A crown sliver of a barrel roof on the millimetre grid: within 0.82 mm of its
+        // least-squares plane, 1 cm off the plane of its Newell normal.
+        let f = [
+            DVec3::new(3.0, 3.0, 6.289),
+            DVec3::new(2.993, 1.628, 6.289),
+            DVec3::new(2.667, 1.5, 6.333),
+            DVec3::new(2.993, 1.372, 6.289),
+            DVec3::new(3.0, 0.0, 6.289),
+            DVec3::new(3.012, 0.0, 6.288),
+            DVec3::new(3.012, 3.0, 6.288),
+        ];
+        let dev = least_squares_plane_deviation(f.iter());
+        assert!((dev - 0.000819).abs() < 2e-6, "{dev}");
+        let n = newell_normal(&f).normalize();
+        let c = f.iter().copied().sum::<DVec3>() / 7.0;
+        let newell_dev = f.iter().map(|p| (*p - c).dot(n).abs()).fold(0.0, f64::max);
+        assert!(newell_dev > 0.01, "{newell_dev}");
+    }
+
+    #[test]
+    fn least_squares_plane_deviation_measures_a_lifted_corner() {
+        // A tilted 10 m square (any orientation) with one corner lifted by d off its plane:
+        // the least-squares plane splits it, every corner d / 4 off (to first order in d).
+        for (axis, angle) in [
+            (DVec3::X, 0.3),
+            (DVec3::new(1.0, 2.0, 3.0).normalize(), 1.1),
+        ] {
+            let rot = glam::DQuat::from_axis_angle(axis, angle);
+            let n = rot * DVec3::Z;
+            let sq = [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(10.0, 0.0, 0.0),
+                DVec3::new(10.0, 10.0, 0.0),
+                DVec3::new(0.0, 10.0, 0.0),
+            ];
+            let mut pts: Vec<DVec3> = sq
+                .iter()
+                .map(|p| rot * *p + DVec3::new(5e2, 4e3, 7.0))
+                .collect();
+            assert!(least_squares_plane_deviation(pts.iter()) < 1e-9);
+            pts[2] += n * 0.02;
+            let dev = least_squares_plane_deviation(pts.iter());
+            assert!((dev - 0.005).abs() < 1e-7, "{dev}");
+        }
+        // Three points, and a point not finite.
+        let tri = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        assert_eq!(least_squares_plane_deviation(tri.iter()), 0.0);
+        let bad = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::splat(f64::NAN)];
+        assert!(least_squares_plane_deviation(bad.iter()).is_nan());
     }
 }

@@ -885,6 +885,26 @@ fn kb_explain_tells_the_zone_chain_and_the_chosen_appearance() {
 }
 
 #[test]
+fn kb_explain_finds_a_feature_by_its_text_id() {
+    // The Zürich truth footprints carry GUID text ids (their `ID` column): the outputs name
+    // the buildings by them, and so does explain.
+    let shp = "tests/data/truth/zurich/footprints.shp";
+    let id = "UUID_04153856-c970-4f34-a0cf-ff14691e3841";
+    let out = citygen(&["kb", "explain", KB, "--shp", shp, "--id", id]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("Switzerland"), "{text}");
+    let missing = citygen(&["kb", "explain", KB, "--shp", shp, "--id", "UUID_nobody"]);
+    assert_eq!(missing.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(err.contains("no building UUID_nobody"), "{err}");
+}
+
+#[test]
 fn tiled_run_puts_every_building_in_exactly_one_tile_with_the_same_bytes() {
     // A whole run and a tiled run of the same input: the tiles hold exactly the buildings of the
     // whole run, each once, with the same geometry (the frame is the site's, not the tile's).

@@ -642,9 +642,9 @@ pub fn check_part(part: &Part) -> Vec<String> {
             out.push(format!("{what}: area {area}"));
             return;
         }
-        let n = n / n.length();
-        let c = f.outer.iter().copied().sum::<DVec3>() / f.outer.len() as f64;
-        let dev = pts.map(|p| (*p - c).dot(n).abs()).fold(0.0, f64::max);
+        // Against the least-squares plane, as val3dity measures it (a sliver's Newell normal
+        // tilts off the plane its points lie on).
+        let dev = crate::geometry::least_squares_plane_deviation(pts);
         if dev > PLANAR_TOL {
             out.push(format!("{what}: not planar ({dev} m)"));
         }
@@ -793,11 +793,8 @@ pub fn written_defects(part: &Part, origin: DVec3) -> Vec<String> {
         }
         let normal = newell.normalize();
         let c = pts[0].iter().copied().sum::<DVec3>() / pts[0].len() as f64;
-        let dev = pts
-            .iter()
-            .flatten()
-            .map(|p| (*p - c).dot(normal).abs())
-            .fold(0.0, f64::max);
+        // Against the least-squares plane, as val3dity measures it (203).
+        let dev = crate::geometry::least_squares_plane_deviation(pts.iter().flatten());
         if dev > WRITTEN_PLANARITY {
             out.push(format!("{what}: not planar ({dev:.4} m)"));
         }

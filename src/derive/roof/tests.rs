@@ -996,3 +996,17 @@ fn a_small_arc_with_a_spur_closes_its_gabled_roof() {
     }
 }
 mod catalogue;
+
+/// A property case (seed-dependent, found by `shapes_orthogonal`): a barrel roof turned across
+/// a small T of two wings leaves a sliver face 12 mm wide at the crown; on the grid it lies
+/// within a millimetre of its least-squares plane (val3dity's measure), though 1 cm off the
+/// plane of its Newell normal, which the check used to take.
+#[test]
+fn round_roof_turned_across_a_small_t_is_planar() {
+    let cols = [(3u8, 2u8, 1u8), (3, 0, 5)];
+    let pts: Vec<DVec2> = histogram(&cols).iter().map(|p| *p * 0.5).collect();
+    let p = Polygon::new(pts, vec![]);
+    for turn in [None, Some(90.0)] {
+        check_oriented(&p, RoofShape::Round, 10.0, turn, true).unwrap();
+    }
+}
