@@ -108,6 +108,42 @@ fn an_attached_row_shares_one_height_and_one_roof() {
 }
 
 #[test]
+fn touching_footprints_of_like_size_share_a_roof_family_whatever_their_heights() {
+    // A 50 m² house (mostly pitched by its size) against a 100 m² block of flats (mostly
+    // flat, and too tall to share the house's height): one roof family. A 15 m² shed against
+    // a 120 m² house (8 times its size) keeps its own.
+    let lots = vec![
+        lot(1, 0.0, 0.0, 5.0, 10.0, kind("yes")),
+        lot(2, 5.0, 0.0, 10.0, 10.0, kind("apartments")),
+        lot(3, 1000.0, 0.0, 10.0, 12.0, kind("yes")),
+        lot(4, 1010.0, 0.0, 3.0, 5.0, kind("yes")),
+    ];
+    let out = run(&lots);
+    let e = |i: usize| out.estimates[i].unwrap_or_else(|| panic!("lot {i} estimated"));
+    let alone = |i: usize| {
+        gbt::sigmoid(
+            prior_roof(&RoofMix::DEFAULT, &out.features[i])
+                + Models::shipped().roof.predict(&out.features[i]),
+        )
+    };
+    assert!(
+        alone(0) >= 0.5 && alone(1) < 0.5,
+        "{} {}",
+        alone(0),
+        alone(1)
+    );
+    assert!(e(1).height > 1.35 * e(0).height, "{:?} {:?}", e(0), e(1));
+    assert_eq!(e(0).shape == RoofShape::Flat, e(1).shape == RoofShape::Flat);
+    assert_eq!(e(0).pitched, e(1).pitched);
+    assert!(
+        e(2).pitched >= 0.5 && e(2).shape != RoofShape::Flat,
+        "{:?}",
+        e(2)
+    );
+    assert_eq!(e(3).shape, RoofShape::Flat, "{:?}", e(3));
+}
+
+#[test]
 fn estimates_are_set_with_their_provenance_and_the_same_at_any_thread_count() {
     let mut lots: Vec<Lot> = (0..40)
         .map(|k| {
