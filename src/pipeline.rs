@@ -35,6 +35,10 @@ pub(crate) use write::{write_batches, Batch, FileSet, Ledger, Maker};
 
 /// Buildings derived in parallel before being written; bounds memory.
 const CHUNK: usize = 2048;
+/// [`CHUNK`] from LOD3 on, where a building holds a hundred times more (its facades' openings,
+/// and the writers render a chunk's buildings at once): two chunks of 2048 LOD3 buildings were
+/// most of a 10k-building run's peak memory.
+const CHUNK_DETAILED: usize = 256;
 
 /// The footprint source.
 #[derive(Clone, Debug)]

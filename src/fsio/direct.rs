@@ -28,31 +28,36 @@ use std::thread::JoinHandle;
 /// Alignment of buffers, lengths and offsets for `O_DIRECT` (the largest logical block size of
 /// common devices).
 const BLOCK: usize = 4096;
-/// Bytes of one buffer (a whole number of blocks).
+/// Bytes of one buffer of a large file (a whole number of blocks).
 const CAPACITY: usize = 4 << 20;
+/// Bytes of a file's first buffer (a whole number of blocks): each next one is four times
+/// larger up to [`CAPACITY`], so that a small file (a tile's 50 KB GLB) costs a small buffer,
+/// not 4 MiB cleared for it.
+const FIRST: usize = 64 << 10;
 /// Buffers handed to the I/O thread and not yet back, at most.
 const IN_FLIGHT: usize = 2;
 
-/// A heap buffer of [`CAPACITY`] bytes whose start is aligned to [`BLOCK`].
+/// A heap buffer of `cap` bytes (a whole number of blocks) whose start is aligned to [`BLOCK`].
 struct Aligned {
     mem: Vec<u8>,
     start: usize,
+    cap: usize,
 }
 
 impl Aligned {
-    fn new() -> Aligned {
-        let mem = vec![0u8; CAPACITY + BLOCK];
+    fn new(cap: usize) -> Aligned {
+        let mem = vec![0u8; cap + BLOCK];
         // The heap block does not move when the Vec does, so the offset stays valid.
         let start = mem.as_ptr().align_offset(BLOCK).min(BLOCK);
-        Aligned { mem, start }
+        Aligned { mem, start, cap }
     }
 
     fn bytes(&self) -> &[u8] {
-        &self.mem[self.start..self.start + CAPACITY]
+        &self.mem[self.start..self.start + self.cap]
     }
 
     fn bytes_mut(&mut self) -> &mut [u8] {
-        &mut self.mem[self.start..self.start + CAPACITY]
+        &mut self.mem[self.start..self.start + self.cap]
     }
 }
 
@@ -100,7 +105,7 @@ pub(crate) fn open(path: &Path) -> io::Result<(DirectWriter, DirectSink)> {
         .spawn(move || io_thread(file, direct, path, job_rx, done_tx))?;
     Ok((
         DirectWriter {
-            buf: Some(Aligned::new()),
+            buf: Some(Aligned::new(FIRST)),
             len: 0,
             offset: 0,
             jobs: Some(jobs),
@@ -181,13 +186,19 @@ impl DirectWriter {
             .buf
             .take()
             .expect("a DirectWriter always holds a buffer");
+        let cap = buf.cap;
         self.send(buf, self.len)?;
         self.offset += self.len as u64;
         self.len = 0;
-        let next = match self.spare.pop() {
-            Some(b) => b,
-            None if self.in_flight < IN_FLIGHT => Aligned::new(),
-            None => self.take_back()?,
+        let next = if cap < CAPACITY {
+            // While the buffers grow, each is new (the smaller ones coming back are dropped).
+            Aligned::new((cap * 4).min(CAPACITY))
+        } else {
+            match self.spare.pop() {
+                Some(b) => b,
+                None if self.in_flight < IN_FLIGHT => Aligned::new(CAPACITY),
+                None => self.take_full()?,
+            }
         };
         self.buf = Some(next);
         Ok(())
@@ -202,19 +213,28 @@ impl DirectWriter {
         })
         .map_err(|_| gone())?;
         self.in_flight += 1;
-        // Buffers already written go back to the spares without waiting.
+        // Buffers already written go back to the spares without waiting (the smaller ones
+        // of the first growth are dropped).
         while let Ok(r) = self.done.try_recv() {
             self.in_flight -= 1;
-            self.spare.push(r?);
+            let b = r?;
+            if b.cap == CAPACITY {
+                self.spare.push(b);
+            }
         }
         Ok(())
     }
 
-    /// Waits for a buffer the thread has written.
-    fn take_back(&mut self) -> io::Result<Aligned> {
-        let r = self.done.recv().map_err(|_| gone())?;
-        self.in_flight -= 1;
-        r
+    /// Waits for a full-size buffer the thread has written (dropping smaller ones).
+    fn take_full(&mut self) -> io::Result<Aligned> {
+        loop {
+            let r = self.done.recv().map_err(|_| gone())?;
+            self.in_flight -= 1;
+            let b = r?;
+            if b.cap == CAPACITY {
+                return Ok(b);
+            }
+        }
     }
 }
 
@@ -229,10 +249,10 @@ impl Write for DirectWriter {
             .buf
             .as_mut()
             .expect("a DirectWriter always holds a buffer");
-        let n = data.len().min(CAPACITY - self.len);
+        let n = data.len().min(buf.cap - self.len);
         buf.bytes_mut()[self.len..self.len + n].copy_from_slice(&data[..n]);
         self.len += n;
-        if self.len == CAPACITY {
+        if self.len == buf.cap {
             self.submit()?;
         }
         Ok(n)
@@ -297,12 +317,20 @@ mod tests {
     fn bytes_are_those_written_for_every_length_around_the_blocks() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("out.bin");
+        // The first buffers: FIRST, 4 FIRST, 16 FIRST, then CAPACITY.
+        let ramp = FIRST + 4 * FIRST + 16 * FIRST;
         let lengths = [
             0,
             1,
             BLOCK - 1,
             BLOCK,
             BLOCK + 1,
+            FIRST - 1,
+            FIRST,
+            FIRST + 1,
+            ramp - 1,
+            ramp,
+            ramp + 1,
             CAPACITY - 1,
             CAPACITY,
             CAPACITY + 1,

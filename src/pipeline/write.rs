@@ -19,7 +19,7 @@ use super::plan::{tile_targets, tiles3d_contents, tiles3d_terrain};
 use super::reuse::{rebased_entry, Keyed, ReusedTile};
 use super::{
     file_name, io_err, out_err, relative_to, shard, Model, Progress, RunError, Summary, Targets,
-    CHUNK,
+    CHUNK, CHUNK_DETAILED,
 };
 use crate::derive::Generator;
 use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
@@ -985,7 +985,8 @@ fn derive_and_write(
         }
         wrote
     };
-    for (ci, chunk) in lots.chunks(CHUNK).enumerate() {
+    let size = if detail { CHUNK_DETAILED } else { CHUNK };
+    for (ci, chunk) in lots.chunks(size).enumerate() {
         let (results, chunk_written) = rayon::join(
             || {
                 chunk
@@ -1035,7 +1036,7 @@ fn derive_and_write(
                 }
             }
         }
-        progress(((ci + 1) * CHUNK).min(lots.len()));
+        progress(((ci + 1) * size).min(lots.len()));
     }
     write_ready(outputs, &ready)?;
     written.preview = preview;

@@ -109,24 +109,52 @@ impl BuildingMap {
     /// The map of a building whose model-frame points lie around `anchor`.
     pub(crate) fn at(frame: &ModelFrame, anchor: DVec3) -> BuildingMap {
         let lift = frame.lift_at(anchor);
-        let f = |d: DVec3| frame.to_ecef_lifted(anchor + d * STEP, lift);
+        // The 19 points lie over 9 plan positions: each is projected once (the inverse
+        // projection is most of the cost), keyed by its exact coordinates, so every point gets
+        // the bits `ModelFrame::to_ecef_lifted` gives it.
+        let mut plan: Vec<([u64; 2], (f64, f64))> = Vec::with_capacity(9);
+        let mut f = |d: DVec3| {
+            let q = frame.origin + (anchor + d * STEP);
+            let key = [q.x.to_bits(), q.y.to_bits()];
+            let (lon, lat) = match plan.iter().find(|(k, _)| *k == key) {
+                Some((_, ll)) => *ll,
+                None => {
+                    let ll = frame.crs.to_lonlat(q.x, q.y);
+                    plan.push((key, ll));
+                    ll
+                }
+            };
+            let h = match lift {
+                Some(n) => q.z + n,
+                None => q.z,
+            };
+            DVec3::from(wgs84_to_ecef(lon, lat, h))
+        };
         let centre = f(DVec3::ZERO);
         let axes = [DVec3::X, DVec3::Y, DVec3::Z];
-        let plus = axes.map(&f);
+        let plus = axes.map(&mut f);
         let minus = axes.map(|a| f(-a));
         let d1 = |i: usize| (plus[i] - minus[i]) / (2.0 * STEP);
         let d2 = |i: usize| (plus[i] - 2.0 * centre + minus[i]) / (STEP * STEP);
-        let mixed = |i: usize, j: usize| {
+        let mut mixed = |i: usize, j: usize| {
             let (a, b) = (axes[i], axes[j]);
             (f(a + b) - f(a - b) - f(b - a) + f(-a - b)) / (4.0 * STEP * STEP)
         };
+        let hessian_mixed = [mixed(0, 1), mixed(0, 2), mixed(1, 2)];
         let jacobian = DMat3::from_cols(d1(0), d1(1), d1(2));
         BuildingMap {
             anchor,
             anchor_ecef: centre,
             lift,
             jacobian,
-            hessian: [d2(0), d2(1), d2(2), mixed(0, 1), mixed(0, 2), mixed(1, 2)],
+            hessian: [
+                d2(0),
+                d2(1),
+                d2(2),
+                hessian_mixed[0],
+                hessian_mixed[1],
+                hessian_mixed[2],
+            ],
             normal_map: jacobian.inverse().transpose(),
         }
     }
