@@ -744,6 +744,19 @@ impl Drop for Sampler<'_> {
     }
 }
 
+/// A pixel centre ([`Framed::centres_in`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Centre {
+    /// Its local position.
+    pub p: DVec2,
+    /// The file (in the set's order).
+    pub file: usize,
+    /// Its column.
+    pub i: u32,
+    /// Its row.
+    pub j: u32,
+}
+
 /// A [`DemSet`] in a run's local frame.
 pub struct Framed<'a> {
     set: &'a DemSet,
@@ -797,9 +810,9 @@ impl Framed<'_> {
         }
     }
 
-    /// The local positions of every pixel centre of every file inside the local rectangle
-    /// `lo..hi` (a footprint's bounds), file by file.
-    pub fn centres_in(&self, lo: DVec2, hi: DVec2) -> Vec<DVec2> {
+    /// Every pixel centre of every file inside the local rectangle `lo..hi` (a footprint's
+    /// bounds), file by file: its local position and its pixel.
+    pub fn centres_in(&self, lo: DVec2, hi: DVec2) -> Vec<Centre> {
         let mut out = Vec::new();
         for (d, dem) in self.set.dems.iter().enumerate() {
             let corners = [lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)];
@@ -825,11 +838,24 @@ impl Framed<'_> {
             for j in (j0 as u32)..=(j1 as u32) {
                 for i in (i0 as u32)..=(i1 as u32) {
                     let m = dem.georef.to_model(DVec2::new(f64::from(i), f64::from(j)));
-                    out.push(self.to_local(d, m));
+                    out.push(Centre {
+                        p: self.to_local(d, m),
+                        file: d,
+                        i,
+                        j,
+                    });
                 }
             }
         }
         out
+    }
+
+    /// Whether the set is one file in the run's CRS (at least 2 x 2 pixels): its pixel grid is
+    /// then an affine image of the local frame, where a straight local segment stays straight
+    /// ([`Sampler::cell_floor`]), and the file's bilinear heights are the set's.
+    pub fn single_local(&self) -> bool {
+        matches!(self.set.dems.as_slice(), [dem] if dem.crs == DemCrs::Known(self.crs)
+            && dem.width >= 2 && dem.height >= 2)
     }
 
     /// Which decoded chunk local point `p` reads (file, then strip or tile in the file's
@@ -915,6 +941,48 @@ impl Sampler<'_> {
             .get(row * chunk.w + col)
             .copied()
             .unwrap_or(f32::NAN))
+    }
+
+    /// The height of pixel (`i`, `j`) of file `d` (NaN where it has no data).
+    pub fn pixel_height(&mut self, d: usize, i: u32, j: u32) -> Result<f32, DemError> {
+        self.pixel(d, i, j)
+    }
+
+    /// A lower bound of the heights ([`Sampler::sample`]) along the local segment `p0`..`p1`
+    /// of a [`Framed::single_local`] set, when the segment's ends are in one cell between four
+    /// pixel centres, all four with data: the least of the four (a bilinear height there is a
+    /// weighted mean of them). `None` otherwise. The segment is straight in pixel space, so
+    /// every point of it is in that cell (to rounding: a point a few ulps past the cell's side
+    /// puts a weight of that order on a pixel beyond it).
+    pub fn cell_floor(&mut self, p0: DVec2, p1: DVec2) -> Result<Option<f64>, DemError> {
+        let dem = &self.framed.set.dems[0];
+        let c0 = dem.georef.to_pixel(self.framed.to_model(0, p0));
+        let c1 = dem.georef.to_pixel(self.framed.to_model(0, p1));
+        let (lo, hi) = (c0.min(c1), c0.max(c1));
+        if !(lo.x >= 0.0 && lo.y >= 0.0 && hi.x.is_finite() && hi.y.is_finite()) {
+            return Ok(None);
+        }
+        let (w, h) = (f64::from(dem.width), f64::from(dem.height));
+        if hi.x > w - 1.0 || hi.y > h - 1.0 {
+            return Ok(None);
+        }
+        let i0 = (lo.x as u32).min(dem.width.saturating_sub(2));
+        let j0 = (lo.y as u32).min(dem.height.saturating_sub(2));
+        if hi.x > f64::from(i0) + 1.0 || hi.y > f64::from(j0) + 1.0 {
+            return Ok(None);
+        }
+        let q = match self.quad(0, i0, j0)? {
+            Some(q) => q,
+            None => [
+                self.pixel(0, i0, j0)?,
+                self.pixel(0, i0 + 1, j0)?,
+                self.pixel(0, i0, j0 + 1)?,
+                self.pixel(0, i0 + 1, j0 + 1)?,
+            ],
+        };
+        Ok(q.iter()
+            .all(|v| v.is_finite())
+            .then(|| q.iter().copied().fold(f32::INFINITY, f32::min).into()))
     }
 
     /// Pixels (i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1) of file `d` when all four are in
