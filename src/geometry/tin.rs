@@ -422,9 +422,11 @@ fn on_plane(p: &[DVec3; 3], x: f64, y: f64) -> f64 {
 }
 
 /// Triangle `p` (counter-clockwise) cut to `r`: the convex polygon of their intersection in
-/// triangles, counter-clockwise, fanned from its centre when it has more than three corners
-/// (no triangle is degenerate, and every point on its edges is a corner of a triangle, so a
-/// neighbour cut to the next rectangle meets it without T-junctions). Every new point is
+/// triangles, counter-clockwise, fanned from one of its corners when it has more than three
+/// (no point added inside: one there would be no grid sample, its height the uncut triangle's
+/// plane's, not the terrain's; no triangle is degenerate, and every point on its
+/// edges is a corner of a triangle, so a neighbour cut to the next rectangle meets it without
+/// T-junctions). Every new point is
 /// computed from the uncut triangle alone: from an edge taken in a fixed order (by x, then y)
 /// and the rectangle's line, or a corner of the rectangle, with its height on the plane.
 pub fn clip_triangle(p: [DVec3; 3], r: Rect) -> Vec<[DVec3; 3]> {
@@ -493,12 +495,29 @@ fn convex_fan(p: &[DVec3; 3], mut pts: Vec<DVec2>) -> Vec<[DVec3; 3]> {
         }
     };
     let ring: Vec<DVec3> = pts.into_iter().map(lift).collect();
-    if ring.len() == 3 {
-        return vec![[ring[0], ring[1], ring[2]]];
-    }
-    let c = lift(centre);
-    (0..ring.len())
-        .map(|k| [c, ring[k], ring[(k + 1) % ring.len()]])
+    let (ring, n) = (&ring, ring.len());
+    let fan = |apex: usize| {
+        (1..n - 1).map(move |k| {
+            let (b, c) = ((apex + k) % n, (apex + k + 1) % n);
+            [ring[apex], ring[b], ring[c]]
+        })
+    };
+    // Fanned from the corner whose thinnest triangle is the widest (the first such corner):
+    // no point is added, so every corner is a grid sample or a cut point on the rectangle's
+    // edge, and a corner in line with two others is no apex while another can be.
+    let thinnest = |apex: usize| {
+        fan(apex)
+            .map(|t| cross2(t[0], t[1], t[2]))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let apex = (1..n).fold(0, |best, k| {
+        if thinnest(k) > thinnest(best) {
+            k
+        } else {
+            best
+        }
+    });
+    fan(apex)
         .filter(|t| cross2(t[0], t[1], t[2]) > MIN_DOUBLE_AREA)
         .collect()
 }
@@ -760,6 +779,41 @@ mod tests {
         assert!(a.triangles.len() > 20);
         assert_eq!(a, b);
         assert_eq!(block_shift(DVec2::new(-1.0, 513.0), 1.0), (255, 1));
+    }
+
+    #[test]
+    fn a_cut_adds_points_on_the_rectangle_only() {
+        // Every vertex of a mesh cut off the samples is a grid sample (its own height) or lies
+        // on the rectangle's edge: a cut triangle fanned from its centre added points inside,
+        // on the triangle's plane, metres off the grid on a hill (issue 44).
+        let (nx, ny) = (300, 200);
+        let (z, o) = grid(nx, ny, |x, y| hill(x, y) + 0.3 * (x * 0.37).sin());
+        let h = heights(&z, o, nx, ny);
+        let r = Rect {
+            min: o + DVec2::new(13.3, 7.6),
+            max: o + DVec2::new(271.2, 180.45),
+        };
+        let tin = Rtin::new(h).mesh(2.0, r);
+        let mut cut = 0;
+        for v in &tin.vertices {
+            let g = v.truncate() - o;
+            let on_edge = [v.x - r.min.x, r.max.x - v.x, v.y - r.min.y, r.max.y - v.y]
+                .iter()
+                .any(|d| d.abs() < 1e-9);
+            if on_edge {
+                cut += 1;
+                continue;
+            }
+            assert_eq!(
+                g,
+                g.round(),
+                "{v} is no sample and not on the rectangle's edge"
+            );
+            let sample = z[g.y as usize * nx + g.x as usize];
+            assert_eq!(v.z, f64::from(sample), "{v}");
+        }
+        assert!(cut > 10 && tin.vertices.len() > 2 * cut, "{cut} cut points");
+        check(&h, &tin, 2.0);
     }
 
     #[test]
