@@ -5,9 +5,14 @@
 //! A file's extent: for a tile (`--tile`), its square of the output CRS grid grown to hold the
 //! footprints of its buildings (a building belongs to the tile of its representative point and
 //! may reach past the square); for an untiled run, the footprints' bounding box and
-//! [`MARGIN_M`] around it. Both are cut to the grid. Tiles cut from the one mesh meet without
-//! cracks: along a shared edge both have the same points, bit for bit (the points are put on
-//! the output's millimetre grid, the same way on both sides).
+//! [`MARGIN_M`] around it. Each edge is then moved onto a line of the grid's samples: an edge
+//! of the tile's square to the nearest line (two tiles move their shared edge alike), an edge
+//! set by the footprints or the margin outwards (the buildings stay covered). So every point
+//! the cut makes along the extent's edge is at a grid sample, its height the kept triangle's
+//! there, within the tolerance of the sample (off the sample lines, a cut point on a long
+//! triangle over steep ground was metres off the DEM). Both are cut to the grid. Tiles cut from
+//! the one mesh meet without cracks: along a shared edge both have the same points, bit for bit
+//! (the points are put on the output's millimetre grid, the same way on both sides).
 //!
 //! Terrain is written whenever the run has an elevation grid, unless `--no-terrain`: a DEM
 //! given to seat the buildings is a terrain worth showing, and one flag turns it off.
@@ -32,6 +37,8 @@ pub const MARGIN_M: f64 = 25.0;
 pub(crate) struct Ground<'a> {
     rtin: Rtin<'a>,
     tolerance: f64,
+    /// The grid's sample (0, 0) and step (local frame): the lines an extent's edges are put on.
+    lattice: (DVec2, f64),
     /// The output CRS's tile size (`--tile`), if tiled, and the local origin's CRS coordinates.
     tile: Option<u32>,
     origin: DVec2,
@@ -69,6 +76,7 @@ impl<'a> Ground<'a> {
         Some(Ground {
             rtin,
             tolerance,
+            lattice: (grid.origin, grid.step),
             tile,
             origin,
         })
@@ -86,25 +94,40 @@ impl<'a> Ground<'a> {
     /// The extent of a file (see the module documentation).
     fn extent(&self, lots: &[Lot], cell: (i64, i64)) -> Option<Rect> {
         let footprints = footprint_bounds(lots);
+        let (o, step) = self.lattice;
+        // `v` (along the axis whose sample 0 is at `o`) on a line of samples: the nearest, or
+        // the next one down or up (a value already on a line, to a few ulps, stays on it).
+        let line = |v: f64, o: f64, how: fn(f64) -> f64| {
+            let k = (v - o) / step;
+            let r = k.round();
+            if (k - r).abs() <= 1e-9 * r.abs().max(1.0) {
+                o + r * step
+            } else {
+                o + how(k) * step
+            }
+        };
+        let near = |p: DVec2| DVec2::new(line(p.x, o.x, f64::round), line(p.y, o.y, f64::round));
+        let down = |p: DVec2| DVec2::new(line(p.x, o.x, f64::floor), line(p.y, o.y, f64::floor));
+        let up = |p: DVec2| DVec2::new(line(p.x, o.x, f64::ceil), line(p.y, o.y, f64::ceil));
         match self.tile {
             Some(size) => {
                 let size = f64::from(size.max(1));
                 let min = DVec2::new(cell.0 as f64, cell.1 as f64) * size - self.origin;
                 let square = Rect {
-                    min,
-                    max: min + size,
+                    min: near(min),
+                    max: near(min + size),
                 };
                 Some(match footprints {
                     Some(f) => Rect {
-                        min: square.min.min(f.min),
-                        max: square.max.max(f.max),
+                        min: square.min.min(down(f.min)),
+                        max: square.max.max(up(f.max)),
                     },
                     None => square,
                 })
             }
             None => footprints.map(|f| Rect {
-                min: f.min - MARGIN_M,
-                max: f.max + MARGIN_M,
+                min: down(f.min - MARGIN_M),
+                max: up(f.max + MARGIN_M),
             }),
         }
     }
@@ -260,6 +283,18 @@ mod tests {
         })
     }
 
+    /// Every vertex of `t` is at a sample of `grid` (the millimetre grid's point nearest it),
+    /// within `tolerance` of it: the cut points along the extent's edges too.
+    fn at_samples(t: &Terrain, grid: &ElevationGrid, tolerance: f64) {
+        for v in &t.vertices {
+            let g = (v.truncate() - grid.origin) / grid.step;
+            let s = g.round();
+            assert!((g - s).abs().max_element() < 1e-3, "{v} is at no sample");
+            let z = grid.get(s.x as usize, s.y as usize).unwrap();
+            assert!((v.z - z).abs() <= tolerance + 1e-3, "{v}: the sample {z}");
+        }
+    }
+
     #[test]
     fn tiles_cover_their_buildings_and_share_their_edges() {
         // Local origin at (500_000, 4_000_000); 100 m tiles; a hill with a cliff.
@@ -280,7 +315,8 @@ mod tests {
             let g = grid.height_at(*p).unwrap();
             assert!((h - g).abs() <= 0.5 + 0.01, "{h} vs {g}");
         }
-        // Tiles with buildings inside their squares meet along x = 100 with the same points.
+        // Tiles with buildings inside their squares meet along x = 100.5 (the line of samples
+        // nearest the squares' edge at 100) with the same points.
         let inside = lot_at(DVec2::new(20.0, 10.0), DVec2::new(40.0, 30.0));
         let west = ground
             .terrain(std::slice::from_ref(&inside), (5000, 40000))
@@ -290,7 +326,7 @@ mod tests {
             let mut v: Vec<_> = t
                 .vertices
                 .iter()
-                .filter(|p| p.x == 100.0)
+                .filter(|p| p.x == 100.5)
                 .map(|p| grid_key(*p))
                 .collect();
             v.sort_unstable();
@@ -299,10 +335,11 @@ mod tests {
         let (w, e) = (on_edge(&west), on_edge(&east));
         assert!(e.len() > 2);
         assert_eq!(w, e);
-        // The grown tile has no edge at x = 100 but covers past it.
+        // The grown tile has no edge at x = 100.5 but covers past it.
         assert!(on_edge(&grown).len() < e.len());
         assert!(height_on(&grown, DVec2::new(105.0, 90.0)).is_some());
         for t in [&west, &east, &grown] {
+            at_samples(t, &grid, 0.5);
             for k in &t.triangles {
                 let v = k.map(|i| t.vertices[i as usize]);
                 assert!(tin::cross2(v[0], v[1], v[2]) > MIN_WRITTEN_DOUBLE_AREA);
@@ -322,7 +359,9 @@ mod tests {
             (DVec2::splat(f64::MAX), DVec2::splat(f64::MIN)),
             |(lo, hi), v| (lo.min(v.truncate()), hi.max(v.truncate())),
         );
-        assert_eq!((lo, hi), (DVec2::splat(-MARGIN_M), DVec2::new(45.0, 35.0)));
+        // The margin's edges moved out to the lines of samples (every 2 m from -100).
+        assert_eq!((lo, hi), (DVec2::splat(-26.0), DVec2::new(46.0, 36.0)));
+        at_samples(&t, &grid, 0.5);
         assert!(ground.terrain(&[], (0, 0)).is_none());
     }
 }

@@ -652,7 +652,7 @@ fn grasse_at(lod: &str, geoid: &Egm96) {
         slope > 5.0,
         "at most {slope:.2} m of rise under a footprint"
     );
-    check_tin(&buildings, &tin, &|x, y| dem.at_utm(x, y), 10.0);
+    check_tin(&buildings, &tin, &|x, y| dem.at_utm(x, y), 0.51);
     let worst = check_tiles3d(
         &dir.path().join("3dtiles"),
         &buildings,
