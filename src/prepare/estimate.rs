@@ -927,42 +927,26 @@ fn roof_rows(ctx: &Context, estimates: &mut [Option<Estimate>]) {
 /// Attached rows share one height and one roof (module docs, step 7).
 fn rows(ctx: &Context, estimates: &mut [Option<Estimate>]) {
     roof_rows(ctx, estimates);
-    let n = ctx.lots.len();
-    let mut parent: Vec<usize> = (0..n).collect();
     let height = |i: usize| -> Option<f64> {
         ctx.known[i]
             .log_height
             .map(f64::exp)
             .or_else(|| estimates[i].map(|e| e.height))
     };
-    for &(a, b, shared) in &ctx.m.touching {
-        let (a, b) = (a as usize, b as usize);
+    let groups = groups_of(ctx, |a, b, shared| {
         let (aa, ab) = (ctx.m.area[a], ctx.m.area[b]);
         let like_size = aa.max(ab) / aa.min(ab).max(1.0) <= 3.0;
         let like_height = match (height(a), height(b)) {
             (Some(x), Some(y)) => x.max(y) / x.min(y).max(0.1) <= 1.35,
             _ => false,
         };
-        if shared >= 2.0 && like_size && like_height {
-            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
-            if ra != rb {
-                parent[ra.max(rb)] = ra.min(rb);
-            }
-        }
-    }
-    let mut groups: HashMap<usize, Vec<usize>> = HashMap::new();
-    for i in 0..n {
-        let r = find(&mut parent, i);
-        groups.entry(r).or_default().push(i);
-    }
-    let mut keys: Vec<usize> = groups.keys().copied().collect();
-    keys.sort_unstable();
-    for key in keys {
-        let members = &groups[&key];
-        if members.len() < 2 || members.iter().all(|&i| estimates[i].is_none()) {
+        shared >= 2.0 && like_size && like_height
+    });
+    for members in groups {
+        if members.iter().all(|&i| estimates[i].is_none()) {
             continue;
         }
-        harmonise(ctx, members, estimates);
+        harmonise(ctx, &members, estimates);
     }
 }
 
