@@ -1010,3 +1010,43 @@ fn round_roof_turned_across_a_small_t_is_planar() {
         check_oriented(&p, RoofShape::Round, 10.0, turn, true).unwrap();
     }
 }
+
+/// A proptest case of `shapes_cell_union_with_holes` (December 2026): a moved-ridge gable
+/// turned to a bearing on a small stepped cell union at 10°. Its corners project onto the
+/// ridge's normal closer together than twice the clearance (17 cm at that slope) all across
+/// the ridge's 5 % reach, so no place was clear and the ridge stayed where it was, 6 mm from a
+/// straight-through corner that then fell out of the roof's outline (an open edge). The ridge
+/// now takes the place within reach farthest from every corner.
+#[test]
+fn moved_ridge_gable_turned_on_a_stepped_union() {
+    let steps = [
+        (0, 0),
+        (55, 0),
+        (64, 1),
+        (30, 0),
+        (114, 1),
+        (130, 0),
+        (47, 0),
+        (83, 1),
+        (224, 2),
+        (13, 0),
+        (10, 0),
+    ];
+    let p = cell_union(&steps, false).unwrap();
+    let (angle, scale) = (4.087742393367577f64, 1.038530710917864);
+    let (s, c) = angle.sin_cos();
+    let rot = |r: &Vec<DVec2>| -> Vec<DVec2> {
+        r.iter()
+            .map(|p| DVec2::new(c * p.x - s * p.y, s * p.x + c * p.y) * scale)
+            .collect()
+    };
+    let p = Polygon::new(rot(&p.outer), p.holes.iter().map(rot).collect());
+    check_oriented(
+        &p,
+        RoofShape::GabledHeightMoved,
+        10.0,
+        Some(114.70061894910762),
+        false,
+    )
+    .unwrap();
+}

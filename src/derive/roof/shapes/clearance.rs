@@ -43,10 +43,43 @@ pub(super) fn clear_shift(
         .find(|&d| at.iter().all(|&c| clear(c + d)))
 }
 
-/// `c` moved by [`clear_shift`] (at most `reach`), or `c` itself when nothing within reach is
-/// clear.
+/// `c` moved by [`clear_shift`] (at most `reach`); when nothing within reach is clear (corners
+/// closer together than twice `eps` all across the reach: a small stepped footprint under a
+/// shallow slope), the place within reach farthest from every corner's projection
+/// ([`farthest_within`]), so that the cut still misses the corners by as much as it can
+/// rather than by whatever `c` happens to leave (a cut 6 mm beside a corner leaves the
+/// corner out of the roof's outline).
 pub(super) fn clear_cut(corners: &[DVec2], n: DVec2, c: f64, eps: f64, reach: f64) -> f64 {
-    c + clear_shift(corners, n, &[c], (eps, true), reach).unwrap_or(0.0)
+    match clear_shift(corners, n, &[c], (eps, true), reach) {
+        Some(d) => c + d,
+        None => farthest_within(corners, n, c, reach),
+    }
+}
+
+/// The point of `[c - reach, c + reach]` whose distance to the nearest projection `p·n` of a
+/// corner is largest (the nearer to `c` on a tie): the middle of the widest gap between
+/// projections, or an end of the interval.
+pub(super) fn farthest_within(corners: &[DVec2], n: DVec2, c: f64, reach: f64) -> f64 {
+    let (lo, hi) = (c - reach, c + reach);
+    let mut proj: Vec<f64> = corners.iter().map(|p| p.dot(n)).collect();
+    proj.sort_by(f64::total_cmp);
+    let gap = |l: f64| {
+        let i = proj.partition_point(|&t| t < l);
+        let d1 = proj.get(i).map_or(f64::INFINITY, |t| t - l);
+        let d0 = i.checked_sub(1).map_or(f64::INFINITY, |j| l - proj[j]);
+        d0.min(d1)
+    };
+    let mut candidates = vec![c, lo, hi];
+    candidates.extend(
+        proj.windows(2)
+            .map(|w| 0.5 * (w[0] + w[1]))
+            .filter(|m| (lo..=hi).contains(m)),
+    );
+    candidates
+        .into_iter()
+        .map(|l| (gap(l), -(l - c).abs(), l))
+        .max_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)))
+        .map_or(c, |(_, _, l)| l)
 }
 
 /// How high (metres) a corner beside a cut at least stands apart from the cut's height, so
@@ -72,4 +105,29 @@ pub(super) fn cut_clearance(size: f64, slope: f64) -> f64 {
 pub(super) fn size_of(poly: &Polygon) -> f64 {
     let (lo, hi) = poly.bounds();
     (hi - lo).max_element()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn farthest_within_takes_the_widest_gap_or_an_end() {
+        let corners = [
+            DVec2::new(0.0, 5.0),
+            DVec2::new(1.0, -2.0),
+            DVec2::new(3.0, 0.0),
+        ];
+        // Within [-0.1, 1.9]: the end 1.9 is 0.9 from the nearest corner (1.0); the gap's
+        // middle 0.5 only 0.5.
+        assert_eq!(farthest_within(&corners, DVec2::X, 0.9, 1.0), 1.9);
+        // Within [0.2, 2.8]: the middle of the gap (1, 3).
+        assert_eq!(farthest_within(&corners, DVec2::X, 1.5, 1.3), 2.0);
+        // A tie: in [-1, 2] with corners at 0 and 2, both -1 and 1 are 1 from a corner; 1 is
+        // nearer to 0.5.
+        let two = [DVec2::ZERO, DVec2::new(2.0, 0.0)];
+        assert_eq!(farthest_within(&two, DVec2::X, 0.5, 1.5), 1.0);
+        // Nothing to keep clear of: `c` itself.
+        assert_eq!(farthest_within(&[], DVec2::X, 0.3, 1.0), 0.3);
+    }
 }
