@@ -50,6 +50,33 @@ fn eval(args: &[&str]) -> serde_json::Value {
 }
 
 #[test]
+fn eval_over_several_seeds_prints_the_mean_of_each_seeds_ratio() {
+    let ratio = |seed: &str| {
+        let s = &eval(&[MONACO, "--seed", seed])[0]["storeys"];
+        s["error"].as_f64().unwrap() / s["baseline"].as_f64().unwrap()
+    };
+    let (a, b) = (ratio("1"), ratio("2"));
+    assert_ne!(a, b, "two seeds hide different thirds");
+    let out = citygen(&["eval", MONACO, "--seed", "1,2"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("seed 1\n") && text.contains("seed 2\n"),
+        "{text}"
+    );
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("mean | "))
+        .unwrap_or_else(|| panic!("no mean line: {text}"));
+    let storeys: f64 = line.split(" | ").nth(4).unwrap().trim().parse().unwrap();
+    assert!((storeys - (a + b) / 2.0).abs() <= 0.0051, "{line}: {a} {b}");
+}
+
+#[test]
 fn monaco_storeys_estimated_from_a_third_hidden_beat_the_median_of_the_rest() {
     // The estimator (prepare::estimate) as `citygen eval` runs it: a third of the tagged
     // buildings lose height, storeys and roof, fold by fold, and are estimated from the rest.
