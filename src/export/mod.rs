@@ -140,6 +140,38 @@ impl<'a> Checked<'a> {
 /// busy, few enough that their rendered bytes (a few MB a LOD4 building) stay small.
 pub(crate) const PARALLEL_BATCH: usize = 16;
 
+/// The output polygons ([`Building::polygon_count`]) past which a parallel batch ends early
+/// ([`batches`]): at LOD3 a tower renders to tens of MB (27 MB of CityGML for the largest of the
+/// bench input), and sixteen of them in flight in each writer were most of a run's peak memory.
+pub(crate) const BATCH_POLYGONS: usize = 8_192;
+
+/// A writer's reused per-building buffer that grew past this many bytes (a tower's) is freed
+/// after its batch rather than kept for the next one, so that what the writers keep between
+/// batches stays bounded (about `PARALLEL_BATCH` times this at most).
+pub(crate) const SLOT_KEPT: usize = 1 << 20;
+
+/// `buildings` cut, in order, into the batches a writer renders in parallel: at most
+/// [`PARALLEL_BATCH`] buildings each, and a batch ends with the building that brings its
+/// polygons to [`BATCH_POLYGONS`] (so it holds at least one). Writers append the batches'
+/// buildings in order, so the cut changes no byte, only how much is rendered at once.
+pub(crate) fn batches(buildings: &[Building]) -> impl Iterator<Item = &[Building]> {
+    let mut rest = buildings;
+    std::iter::from_fn(move || {
+        if rest.is_empty() {
+            return None;
+        }
+        let mut polygons = 0;
+        let mut n = 0;
+        while n < rest.len() && n < PARALLEL_BATCH && polygons < BATCH_POLYGONS {
+            polygons += rest[n].polygon_count();
+            n += 1;
+        }
+        let (batch, after) = rest.split_at(n);
+        rest = after;
+        Some(batch)
+    })
+}
+
 /// A streaming writer of one output format.
 ///
 /// Call order: `begin` once, `write` per building in output order, `finish` once. Output is a
@@ -260,6 +292,13 @@ mod tests {
             assert_eq!(d.0[..12], real.0[..12], "GLB header");
         }
 
+        // Towers cut the batches short: the same bytes.
+        let towers = with_towers();
+        let [one, all] = gml(&towers);
+        assert!(one.1.is_none() && one == all, "CityGML: towers");
+        let [one, all] = glb(&towers);
+        assert!(one.1.is_none() && one == all, "glTF: towers");
+
         // A building the CityGML writer refuses, in the middle of a batch: the buildings before
         // it are written, the error is the same, nothing after it is written.
         buildings[PARALLEL_BATCH + 3].measured_height = f64::NAN;
@@ -270,5 +309,60 @@ mod tests {
             one == all,
             "CityGML: write_all differs from write on an error"
         );
+    }
+
+    /// [`many_buildings`] with five towers in a row (3..8), each of more than a quarter of
+    /// [`BATCH_POLYGONS`] (one wall's opening repeated).
+    fn with_towers() -> Vec<Building> {
+        let mut buildings = many_buildings();
+        let mut tower = buildings[3].clone();
+        let wall = tower
+            .parts
+            .iter_mut()
+            .flat_map(|p| p.walls.iter_mut())
+            .find(|w| !w.openings.is_empty())
+            .expect("a wall with an opening");
+        let o = wall.openings[0].clone();
+        wall.openings
+            .extend(std::iter::repeat_n(o, BATCH_POLYGONS / 4));
+        for (i, b) in buildings.iter_mut().enumerate().take(8).skip(3) {
+            *b = Building {
+                id: crate::model::SourceId::Way(1000 + i as i64),
+                ..tower.clone()
+            };
+        }
+        buildings
+    }
+
+    #[test]
+    fn batches_keep_the_order_and_end_early_on_large_buildings() {
+        let buildings = with_towers();
+        let cut: Vec<&[Building]> = batches(&buildings).collect();
+        let ids: Vec<_> = cut.iter().flat_map(|b| b.iter().map(|b| &b.id)).collect();
+        let want: Vec<_> = buildings.iter().map(|b| &b.id).collect();
+        assert_eq!(ids, want, "every building once, in order");
+        for (k, batch) in cut.iter().enumerate() {
+            assert!(!batch.is_empty() && batch.len() <= PARALLEL_BATCH);
+            let polygons: Vec<usize> = batch.iter().map(Building::polygon_count).collect();
+            let before_last: usize = polygons[..polygons.len() - 1].iter().sum();
+            assert!(
+                before_last < BATCH_POLYGONS,
+                "batch {k} went on past the budget"
+            );
+            if k + 1 < cut.len() {
+                assert!(
+                    batch.len() == PARALLEL_BATCH
+                        || polygons.iter().sum::<usize>() >= BATCH_POLYGONS,
+                    "batch {k} ended early without reaching the budget"
+                );
+            }
+        }
+        // The towers ended the first batch early (by the fourth tower).
+        assert!(
+            cut[0].len() < PARALLEL_BATCH,
+            "{:?}",
+            cut.iter().map(|b| b.len()).collect::<Vec<_>>()
+        );
+        assert!(batches(&[]).next().is_none());
     }
 }

@@ -352,9 +352,10 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         Ok(())
     }
 
-    /// Renders the buildings in parallel, `super::PARALLEL_BATCH` at a time, each into its
-    /// own buffer (kept from batch to batch), and writes them in order: the same bytes as
-    /// `write` on each.
+    /// Renders the buildings in parallel, a batch at a time (`super::batches`: at most
+    /// `super::PARALLEL_BATCH` buildings, fewer when they are large), each into its own
+    /// buffer (kept from batch to batch unless it grew past `super::SLOT_KEPT`), and writes
+    /// them in order: the same bytes as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         self.write_checked(&Checked::check(buildings))
     }
@@ -364,7 +365,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         let (origin, srs, lod) = (self.origin, self.srs_attr.as_str(), self.lod);
         let slots = &mut self.slots;
         slots.resize_with(super::PARALLEL_BATCH, || Xml(Vec::new()));
-        for batch in checked.finite().chunks(super::PARALLEL_BATCH) {
+        for batch in super::batches(checked.finite()) {
             batch
                 .par_iter()
                 .zip(slots.par_iter_mut())
@@ -378,8 +379,12 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
                     }
                     .building(b);
                 });
-            for x in &slots[..batch.len()] {
+            for x in &mut slots[..batch.len()] {
                 self.out.write_all(&x.0)?;
+                if x.0.capacity() > super::SLOT_KEPT {
+                    // A tower's buffer: not kept for the next batch.
+                    x.0 = Vec::new();
+                }
             }
         }
         checked.refused("CityGML writer")

@@ -456,12 +456,12 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
         self.write_checked(&Checked::check(buildings))
     }
 
-    /// Renders [`super::PARALLEL_BATCH`] buildings at a time in parallel and appends them in
+    /// Renders a batch (`super::batches`: at most `super::PARALLEL_BATCH` buildings) at a time in parallel and appends them in
     /// order: the same bytes as `write` on each.
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         check_state("CityJSON writer", self.state, State::Open, "write()")?;
         let lod = self.lod;
-        for batch in checked.finite().chunks(super::PARALLEL_BATCH) {
+        for batch in super::batches(checked.finite()) {
             if self.slots.len() < batch.len() {
                 self.slots.resize_with(batch.len(), Frag::default);
             }
@@ -632,12 +632,12 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
         self.write_checked(&Checked::check(buildings))
     }
 
-    /// Renders [`super::PARALLEL_BATCH`] buildings at a time in parallel and writes them in
+    /// Renders a batch (`super::batches`: at most `super::PARALLEL_BATCH` buildings) at a time in parallel and writes them in
     /// order: the same bytes as `write` on each.
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         check_state("CityJSONSeq writer", self.state, State::Open, "write()")?;
         let lod = self.lod;
-        for batch in checked.finite().chunks(super::PARALLEL_BATCH) {
+        for batch in super::batches(checked.finite()) {
             if self.slots.len() < batch.len() {
                 self.slots.resize_with(batch.len(), Default::default);
             }

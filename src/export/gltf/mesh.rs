@@ -87,6 +87,20 @@ pub(super) struct Encoded {
     pub(super) index_bytes: Vec<u8>,
 }
 
+impl Encoded {
+    /// Frees the byte buffers that a large building grew past `SLOT_KEPT`, so that they are
+    /// not kept for the next batch.
+    pub(super) fn trim(&mut self) {
+        use crate::export::SLOT_KEPT;
+        if self.vertex_bytes.capacity() > SLOT_KEPT {
+            self.vertex_bytes = Vec::new();
+        }
+        if self.index_bytes.capacity() > SLOT_KEPT {
+            self.index_bytes = Vec::new();
+        }
+    }
+}
+
 /// One building's faces, triangulated (flat shaded, in the model frame) and grouped by surface
 /// class (in [`SurfaceClass::ALL`]'s order, the detail classes only with `detail`: LOD3 and up)
 /// and within a class by colour and material (in first-seen order); faces against another part

@@ -376,8 +376,8 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
         }
     }
 
-    /// Encodes (triangulates) the buildings in parallel, `super::PARALLEL_BATCH` at a time, and
-    /// appends them in order: the same bytes as `write` on each.
+    /// Encodes (triangulates) the buildings in parallel, a batch at a time (`super::batches`),
+    /// and appends them in order: the same bytes as `write` on each.
     fn write_all(&mut self, buildings: &[Building]) -> Result<(), ExportError> {
         self.write_checked(&Checked::check(buildings))
     }
@@ -390,21 +390,19 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
         let detail = self.detail;
         let mut slots = std::mem::take(&mut self.slots);
         slots.resize_with(super::PARALLEL_BATCH, Encoded::default);
-        let r: Result<(), ExportError> = checked
-            .finite()
-            .chunks(super::PARALLEL_BATCH)
-            .try_for_each(|batch| {
-                let encoded: Vec<_> = batch
-                    .par_iter()
-                    .zip(slots.par_iter_mut())
-                    .map(|(b, slot)| encode(b, detail, true, slot))
-                    .collect();
-                for ((b, e), slot) in batch.iter().zip(encoded).zip(&slots) {
-                    e?;
-                    self.add_encoded(b, slot)?;
-                }
-                Ok(())
-            });
+        let r: Result<(), ExportError> = super::batches(checked.finite()).try_for_each(|batch| {
+            let encoded: Vec<_> = batch
+                .par_iter()
+                .zip(slots.par_iter_mut())
+                .map(|(b, slot)| encode(b, detail, true, slot))
+                .collect();
+            for ((b, e), slot) in batch.iter().zip(encoded).zip(&mut slots) {
+                e?;
+                self.add_encoded(b, slot)?;
+                slot.trim();
+            }
+            Ok(())
+        });
         self.slots = slots;
         r?;
         checked.refused("glTF writer")

@@ -233,7 +233,7 @@ impl<W: Write + Send> IfcWriter<W> {
         match &mut self.state {
             State::Open(open) => {
                 let mut done = 0;
-                for batch in finite.chunks(PARALLEL_BATCH) {
+                for batch in crate::export::batches(finite) {
                     let n = open.write_batch(batch)?;
                     done += n;
                     if n < batch.len() {
@@ -295,7 +295,8 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
         self.write_all(std::slice::from_ref(building))
     }
 
-    /// Renders `PARALLEL_BATCH` buildings at a time in parallel, each against the shared
+    /// Renders a batch of buildings at a time in parallel (`crate::export::batches`: at most
+    /// `PARALLEL_BATCH`, fewer when they are large), each against the shared
     /// caches as the batch found them (see `cache`), and appends them in order; a building
     /// whose rendering did not see the caches as the buildings before it left them is rendered
     /// again. The same bytes as `write` on each.
@@ -306,7 +307,7 @@ impl<W: Write + Send> BuildingWriter for IfcWriter<W> {
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         match &mut self.state {
             State::Open(open) => {
-                for batch in checked.finite().chunks(PARALLEL_BATCH) {
+                for batch in crate::export::batches(checked.finite()) {
                     if open.write_batch(batch)? < batch.len() {
                         return Err(ExportError::Invalid(
                             "IFC writer: the file is full (--ifc-max-mb); write_fitting writes a \
