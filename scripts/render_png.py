@@ -1,7 +1,7 @@
 """Renders a citygen GLB to a PNG without a browser: flat-shaded triangles, z-buffer, numpy only.
 
 python scripts/render_png.py IN.glb OUT.png bird
-python scripts/render_png.py IN.glb OUT.png street DX DY FX FY   (eye 1.7 m above the ground at the model centre
+python scripts/render_png.py IN.glb OUT.png street [DX DY [FX FY]]   (eye 1.7 m above the ground at the model centre
     (the middle of its bounding box)
     + (DX, DY) metres east/north, looking along (FX, FY))
 python scripts/render_png.py IN.glb OUT.png at X Y FX FY   (eye 1.7 m above the ground at (X, Y) of the file's
@@ -64,9 +64,11 @@ if mode == 'bird':
     eye = c + np.array([-0.5, -0.9, 0.8]) * ext * 0.9; f = 1.6
 else:  # street / at: 1.7 m above the ground
     at = np.zeros(2) if mode == 'at' else c[:2]
-    ex, ey = at[0] + float(sys.argv[4]), at[1] + float(sys.argv[5])
+    # DX DY (X Y for `at`) FX FY are optional: 0 0 0 1 (at the centre, looking north) where left out.
+    dx, dy, fx, fy = [float(a) for a in sys.argv[4:8]] + [0.0, 0.0, 0.0, 1.0][len(sys.argv[4:8]):]
+    ex, ey = at[0] + dx, at[1] + dy
     eye = np.array([ex, ey, terrain_z(ex, ey) + 1.7]); f = 1.0
-    tgt = eye + np.array([float(sys.argv[6]), float(sys.argv[7]), 0.15])
+    tgt = eye + np.array([fx, fy, 0.15])
 fwd = (c - eye) if mode == 'bird' else (tgt - eye); fwd /= np.linalg.norm(fwd)
 right = np.cross(fwd, [0, 0, 1]); right /= np.linalg.norm(right); up = np.cross(right, fwd)
 V = W - eye; x = V @ right; y = V @ up; z = V @ fwd

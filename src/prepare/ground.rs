@@ -260,15 +260,9 @@ fn grid_frame(
 impl GridFrame {
     /// Row `j` of the grid: the DEM's heights, NaN where none has one.
     fn row(&self, j: usize, s: &mut Sampler<'_>) -> Result<Vec<f32>, DemError> {
-        (0..self.nx)
-            .map(|i| {
-                let p = self.lo + DVec2::new(i as f64, j as f64) * self.step;
-                Ok(match s.sample(p)? {
-                    Sample::Value(z) => z as f32,
-                    _ => f32::NAN,
-                })
-            })
-            .collect()
+        s.heights(self.nx, |i| {
+            self.lo + DVec2::new(i as f64, j as f64) * self.step
+        })
     }
 
     /// The grid of its rows (in row order; the first error in row order).
@@ -370,7 +364,11 @@ pub fn sample_all(lots: &[Lot], wanted: &Wanted<'_>, framed: &Framed<'_>) -> Sam
                 .collect::<Vec<_>>()
         })
         .collect();
-    let (mut grounds, mut patches, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut grounds, mut patches, mut rows) = (
+        Vec::with_capacity(done.len()),
+        Vec::new(),
+        Vec::with_capacity(frame.as_ref().map_or(0, |f| f.ny)),
+    );
     for d in done {
         match d {
             Done::Ground(i, r) => grounds.push((i, r)),

@@ -784,6 +784,10 @@ struct Seated {
     zs: Vec<f64>,
     ground: Vec<Vec<Vec<(f64, f64)>>>,
     parts: usize,
+    /// The outer ring of every `Door` surface (UTM x, y, z).
+    doors: Vec<Vec<[f64; 3]>>,
+    /// The vertices of each balcony (a `BuildingInstallation` whose function is `balcony`).
+    balconies: Vec<Vec<[f64; 3]>>,
 }
 
 /// Buildings by their root object's id, with the root's attributes.
@@ -821,6 +825,11 @@ fn seated_buildings(path: &Path) -> (Buildings, Vec<[[f64; 3]; 3]>) {
         } else {
             entry.0.parts += 1;
         }
+        let balcony =
+            o["type"] == "BuildingInstallation" && o["attributes"]["function"] == "balcony";
+        if balcony {
+            entry.0.balconies.push(Vec::new());
+        }
         for g in o["geometry"].as_array().into_iter().flatten() {
             // Faces (lists of rings) with their semantic index.
             let mut faces: Vec<(&Value, &Value)> = Vec::new();
@@ -842,12 +851,20 @@ fn seated_buildings(path: &Path) -> (Buildings, Vec<[[f64; 3]; 3]>) {
                 _ => faces.extend(b.as_array().unwrap().iter().zip(sem(v))),
             }
             for (face, sem) in faces {
-                let ground = sem.as_u64().is_some_and(|k| {
-                    g["semantics"]["surfaces"][k as usize]["type"] == "GroundSurface"
-                });
+                let kind = |t: &str| {
+                    sem.as_u64()
+                        .is_some_and(|k| g["semantics"]["surfaces"][k as usize]["type"] == t)
+                };
+                let ground = kind("GroundSurface");
                 let mut rings = Vec::new();
-                for ring in face.as_array().unwrap() {
+                for (r, ring) in face.as_array().unwrap().iter().enumerate() {
                     let pts: Vec<[f64; 3]> = ring.as_array().unwrap().iter().map(&vert).collect();
+                    if r == 0 && kind("Door") {
+                        entry.0.doors.push(pts.clone());
+                    }
+                    if balcony {
+                        entry.0.balconies.last_mut().unwrap().extend(&pts);
+                    }
                     entry.0.zs.extend(pts.iter().map(|p| p[2]));
                     rings.push(pts.iter().map(|p| (p[0], p[1])).collect());
                 }

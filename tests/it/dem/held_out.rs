@@ -653,6 +653,9 @@ fn grasse_at(lod: &str, geoid: &Egm96) {
         "at most {slope:.2} m of rise under a footprint"
     );
     check_tin(&buildings, &tin, &|x, y| dem.at_utm(x, y), 0.51);
+    if lod == "3" {
+        doors_on_the_terrain_or_a_balcony(&buildings, &dem, &report);
+    }
     let worst = check_tiles3d(
         &dir.path().join("3dtiles"),
         &buildings,
@@ -660,6 +663,82 @@ fn grasse_at(lod: &str, geoid: &Egm96) {
         geoid,
     );
     eprintln!("Grasse LOD{lod}: 3D Tiles bases within {worst:.3} m of DEM + N");
+}
+
+/// The LOD3 district's doors on the slope (issue 44: "the door on the street side at the
+/// street's level, not in mid-air"): every door's sill is either at the terrain along its
+/// bottom edge (not below it, at most `frontage::slope::STEP` + 5 cm above its lowest point
+/// there) or on a balcony's floor (at most 10 cm above a balcony vertex within 3 m); each building has exactly one door at the terrain, its
+/// entrance, unless the report notes the entrance above the terrain; and no building has
+/// more doors than balconies and its entrance.
+fn doors_on_the_terrain_or_a_balcony(buildings: &Buildings, dem: &Grasse, report: &Value) {
+    const STEP: f64 = 0.25;
+    let noted: Vec<String> = report["entries"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|e| e["reason"].as_str().is_some_and(|r| r.contains("entrance")))
+        .map(|e| format!("B_{}", e["id"].as_str().unwrap().replace('/', "_")))
+        .collect();
+    let mut doors_seen = 0;
+    for (id, (b, _)) in buildings {
+        let (mut at_terrain, mut on_balcony, mut mid_air) = (0, 0, Vec::new());
+        for ring in &b.doors {
+            let sill = ring.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+            let bottom: Vec<&[f64; 3]> = ring.iter().filter(|p| p[2] <= sill + 0.005).collect();
+            let (mut a, mut c, mut far) = (bottom[0], bottom[0], -1.0);
+            for p in &bottom {
+                for q in &bottom {
+                    let d = (p[0] - q[0]).hypot(p[1] - q[1]);
+                    if d > far {
+                        (a, c, far) = (p, q, d);
+                    }
+                }
+            }
+            let n = (far / 0.05).ceil().max(1.0) as usize;
+            let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in 0..=n {
+                let t = k as f64 / n as f64;
+                let z = dem.at_utm(a[0] + (c[0] - a[0]) * t, a[1] + (c[1] - a[1]) * t);
+                (low, high) = (low.min(z), high.max(z));
+            }
+            let mid = ((a[0] + c[0]) / 2.0, (a[1] + c[1]) / 2.0);
+            let balcony = b.balconies.iter().any(|v| {
+                v.iter().any(|p| (-0.001..=0.1).contains(&(sill - p[2])))
+                    && v.iter().any(|p| (p[0] - mid.0).hypot(p[1] - mid.1) < 3.0)
+            });
+            if sill >= high - 0.05 && sill - low <= STEP + 0.05 {
+                at_terrain += 1;
+            } else if balcony {
+                on_balcony += 1;
+            } else {
+                mid_air.push(format!(
+                    "sill {sill:.2}, terrain {low:.2}..{high:.2} under it"
+                ));
+            }
+        }
+        doors_seen += b.doors.len();
+        eprintln!(
+            "Grasse LOD3 {id}: {} door(s), {at_terrain} at the terrain, {on_balcony} on a \
+             balcony, {} in mid-air; {} balconies",
+            b.doors.len(),
+            mid_air.len(),
+            b.balconies.len()
+        );
+        assert!(mid_air.is_empty(), "{id}: doors in mid-air: {mid_air:?}");
+        if noted.contains(id) {
+            assert!(at_terrain <= 1, "{id}: {at_terrain} doors at the terrain");
+        } else {
+            assert_eq!(at_terrain, 1, "{id}: doors at the terrain");
+        }
+        assert!(
+            b.doors.len() <= b.balconies.len() + 1,
+            "{id}: {} doors for {} balconies",
+            b.doors.len(),
+            b.balconies.len()
+        );
+    }
+    assert!(doors_seen >= buildings.len(), "{doors_seen} doors");
 }
 
 #[test]
