@@ -5,9 +5,11 @@
 //! and assembly as a PBF: `Passes` is what a format gives each pass; the rest of this text
 //! describes the PBF's.
 //!
-//! A sweep frames every blob and inflates only the start of each data blob to see the kind of
-//! its first group (nodes, ways or relations). Then three passes, each decoding only the blobs
-//! of its kind, so every blob is decoded once:
+//! The file is read as a stream, never held whole (issue 46): a sweep reads the blob headers
+//! in order to frame every blob, and inflates only the start of each data blob to see the kind
+//! of its first group (nodes, ways or relations). Then three passes, each reading and decoding
+//! only the blobs of its kind (each thread reads its own blob from the file), so every blob is
+//! decoded once and a thread holds one blob at a time:
 //! 1. relations: `type=multipolygon` relations tagged `building`/`building:part`, and untagged
 //!    ones (old-style multipolygons carry their tags on the outer way); keep their member ways;
 //! 2. ways: building/part ways, the member ways of pass 1 and street ways (`STREET_KINDS`);
@@ -120,11 +122,9 @@ pub fn read_osm_with_changes(
         });
     }
     let pbf = Pbf::open(path)?;
-    let file = pbf.load()?;
-    let mut locs = pbf.sweep(&file)?;
+    let mut locs = pbf.sweep()?;
     let src = PbfPasses {
         pbf: &pbf,
-        file: &file,
         locs: &locs,
     };
     if let Some(r) = read_passes(&src, change, report)? {
@@ -136,7 +136,6 @@ pub fn read_osm_with_changes(
     }
     let src = PbfPasses {
         pbf: &pbf,
-        file: &file,
         locs: &locs,
     };
     read_passes(&src, change, report)?.ok_or_else(|| pbf.corrupt(0, None, "inconsistent blocks"))
@@ -197,17 +196,15 @@ trait Passes {
     fn nodes(&self, needed: &[i64]) -> Result<Option<Vec<NodeBlock>>, InputError>;
 }
 
-/// The PBF's blobs `locs` of `file`, decoded in parallel by each pass.
+/// The PBF's blobs `locs`, read from the file and decoded in parallel by each pass.
 struct PbfPasses<'a> {
     pbf: &'a Pbf,
-    file: &'a [u8],
     locs: &'a [BlobLoc],
 }
 
 impl Passes for PbfPasses<'_> {
     fn relations(&self) -> Result<Option<Vec<Vec<RelRec>>>, InputError> {
         let (rels, mixed) = self.pbf.pass(
-            self.file,
             self.locs,
             BlobKind::Relations,
             |_, _| None,
@@ -228,7 +225,6 @@ impl Passes for PbfPasses<'_> {
             (b, needed)
         };
         let (blocks, mixed) = self.pbf.pass(
-            self.file,
             self.locs,
             BlobKind::Ways,
             |f, s| fast_ways(f, s, member_ways, interner).map(with_needed),
@@ -244,7 +240,6 @@ impl Passes for PbfPasses<'_> {
             (found, addresses)
         };
         let (found, mixed) = self.pbf.pass(
-            self.file,
             self.locs,
             BlobKind::Nodes,
             |f, s| fast_nodes(f, s, needed).map(by_index),

@@ -2,6 +2,8 @@
 //! group, and the decoding of the blobs of one kind in parallel.
 
 use super::*;
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
 
 // ---------------------------------------------------------------------------------------------
 // File access
@@ -35,6 +37,27 @@ pub(super) struct BlobLoc {
     pub(super) kind: BlobKind,
 }
 
+/// Where a blob's frame lies in the file, as the sweep reads it: its length prefix and
+/// BlobHeader, not the Blob.
+struct FrameHead {
+    index: usize,
+    start: u64,
+    /// The whole frame's length.
+    len: usize,
+    /// Where the Blob message starts in the frame.
+    data: usize,
+    /// The header's type is `OSMData`.
+    data_blob: bool,
+}
+
+/// One decoding thread's handle on the file and the bytes of the blob it read last: the read
+/// holds a blob a thread, never the whole file (issue 46).
+#[derive(Default)]
+pub(super) struct BlobBytes {
+    file: Option<File>,
+    buf: Vec<u8>,
+}
+
 /// One framed blob of the file.
 pub(super) struct Frame<'a> {
     pub(super) index: usize,
@@ -47,7 +70,8 @@ pub(super) struct Frame<'a> {
     pub(super) data_blob: bool,
 }
 
-/// An opened PBF file: the path for messages and the length to detect trailing garbage.
+/// An opened PBF file: the path for messages and the length to detect trailing garbage. The
+/// file is read as a stream, blob by blob ([`Pbf::sweep`], [`Pbf::pass`]), never held whole.
 pub(super) struct Pbf {
     pub(super) path: PathBuf,
     pub(super) len: u64,
@@ -98,14 +122,6 @@ impl Pbf {
         }
     }
 
-    /// The whole file, read once: the passes take their blobs from it.
-    pub(super) fn load(&self) -> Result<Vec<u8>, InputError> {
-        std::fs::read(&self.path).map_err(|source| InputError::Io {
-            path: self.path.clone(),
-            source,
-        })
-    }
-
     /// An error while framing blob `index`: the first blob failing means this is not a PBF.
     pub(super) fn framing_error(&self, index: usize, offset: u64, reason: &str) -> InputError {
         if index == 0 {
@@ -118,38 +134,65 @@ impl Pbf {
         }
     }
 
-    /// The frame of blob `index` starting at `start` in `file`, or `None` at the end of the
-    /// file. Checks the sizes the format allows.
-    pub(super) fn read_frame<'a>(
+    /// The I/O error `source` on this file; a file that ends early (it changed since it was
+    /// opened) is a corrupt block `index` at `offset`, saying `early`.
+    fn read_error(
         &self,
-        file: &'a [u8],
+        source: std::io::Error,
         index: usize,
-        start: usize,
-    ) -> Result<Option<Frame<'a>>, InputError> {
-        let err = |reason: &str| self.framing_error(index, start as u64, reason);
-        let rest = file.get(start..).unwrap_or_default();
-        if rest.is_empty() {
+        offset: u64,
+        early: &str,
+    ) -> InputError {
+        if source.kind() == std::io::ErrorKind::UnexpectedEof {
+            self.framing_error(index, offset, early)
+        } else {
+            InputError::Io {
+                path: self.path.clone(),
+                source,
+            }
+        }
+    }
+
+    /// The head of the frame of blob `index` starting at byte `start`, read from `file`
+    /// (positioned at `start`; left at the frame's end), or `None` at the end of the file.
+    /// Checks the sizes the format allows; reads the length and the BlobHeader, not the Blob.
+    fn frame_head(
+        &self,
+        file: &mut std::io::BufReader<File>,
+        index: usize,
+        start: u64,
+        header: &mut Vec<u8>,
+    ) -> Result<Option<FrameHead>, InputError> {
+        let err = |reason: &str| self.framing_error(index, start, reason);
+        let rest = self.len.saturating_sub(start);
+        if rest == 0 {
             return Ok(None);
         }
-        let Some(len4) = rest.get(..4) else {
+        if rest < 4 {
             return Err(self.corrupt(
                 index,
-                Some(start as u64),
+                Some(start),
                 format!(
-                    "{} bytes after the last complete block: the file is truncated or has trailing garbage",
-                    rest.len()
+                    "{rest} bytes after the last complete block: the file is truncated or has trailing garbage"
                 ),
             ));
-        };
-        let hlen = u32::from_be_bytes([len4[0], len4[1], len4[2], len4[3]]) as usize;
+        }
+        let mut len4 = [0u8; 4];
+        file.read_exact(&mut len4)
+            .map_err(|e| self.read_error(e, index, start, "the file ends inside a blob header"))?;
+        let hlen = u32::from_be_bytes(len4) as usize;
         if hlen > MAX_HEADER {
             return Err(err(&format!(
                 "blob header of {hlen} bytes (at most {MAX_HEADER})"
             )));
         }
-        let Some(header) = rest.get(4..4 + hlen) else {
+        if 4 + hlen as u64 > rest {
             return Err(err("the file ends inside a blob header"));
-        };
+        }
+        header.clear();
+        header.resize(hlen, 0);
+        file.read_exact(header)
+            .map_err(|e| self.read_error(e, index, start, "the file ends inside a blob header"))?;
         let (data_blob, size) = parse_blob_header(header)
             .map(|(kind, size)| (kind == b"OSMData", size))
             .ok_or_else(|| err("unreadable blob header"))?;
@@ -157,63 +200,118 @@ impl Pbf {
             return Err(err(&format!("blob of {size} bytes (at most {MAX_BLOB})")));
         }
         let data = 4 + hlen;
-        let Some(bytes) = rest.get(..data + size as usize) else {
+        if data as u64 + size > rest {
             return Err(err("the file ends inside a blob"));
-        };
-        Ok(Some(Frame {
+        }
+        // At most MAX_BLOB: fits an i64.
+        file.seek_relative(size as i64)
+            .map_err(|source| InputError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
+        Ok(Some(FrameHead {
             index,
-            start: start as u64,
-            bytes,
+            start,
+            len: data + size as usize,
             data,
             data_blob,
         }))
     }
 
-    /// Frames every blob of `file` (the whole file) once, checks the header block, and peeks
-    /// at each data blob's first group to tell its kind, in parallel. Checks the framing: the
-    /// first blob must be an OSMHeader, and the blobs must end exactly at the end of the file.
-    pub(super) fn sweep(&self, file: &[u8]) -> Result<Vec<BlobLoc>, InputError> {
-        let mut frames = Vec::new();
-        let mut pos = 0usize;
-        while let Some(frame) = self.read_frame(file, frames.len(), pos)? {
-            pos += frame.bytes.len();
-            frames.push(frame);
+    /// The `len` bytes of blob `index` at byte `start` (its whole frame), read into `reader`'s
+    /// buffer from its own handle on the file (opened on first use).
+    pub(super) fn read_blob<'r>(
+        &self,
+        reader: &'r mut BlobBytes,
+        index: usize,
+        start: u64,
+        len: usize,
+    ) -> Result<&'r [u8], InputError> {
+        let io = |source| InputError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let file = match &mut reader.file {
+            Some(f) => f,
+            None => reader.file.insert(File::open(&self.path).map_err(io)?),
+        };
+        file.seek(SeekFrom::Start(start)).map_err(io)?;
+        reader.buf.clear();
+        reader.buf.resize(len, 0);
+        file.read_exact(&mut reader.buf).map_err(|e| {
+            self.read_error(
+                e,
+                index,
+                start,
+                "the file ends inside a blob (it changed while being read)",
+            )
+        })?;
+        Ok(&reader.buf)
+    }
+
+    /// Frames every blob of the file once, reading it as a stream (only the blob headers;
+    /// never the whole file), checks the header block, and peeks at each data blob's first
+    /// group to tell its kind, in parallel (each thread reads the blobs it peeks at). Checks
+    /// the framing: the first blob must be an OSMHeader, and the blobs must end exactly at the
+    /// end of the file.
+    pub(super) fn sweep(&self) -> Result<Vec<BlobLoc>, InputError> {
+        let io = |source| InputError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut file =
+            std::io::BufReader::with_capacity(1 << 16, File::open(&self.path).map_err(io)?);
+        let mut heads = Vec::new();
+        let mut header = Vec::new();
+        let mut pos = 0u64;
+        while let Some(h) = self.frame_head(&mut file, heads.len(), pos, &mut header)? {
+            pos += h.len as u64;
+            heads.push(h);
         }
-        if frames.is_empty() {
+        drop(file);
+        if heads.is_empty() {
             return Err(InputError::NotPbf {
                 path: self.path.clone(),
                 reason: "no PBF blocks found".into(),
             });
         }
-        if pos as u64 != self.len {
+        if pos != self.len {
             return Err(self.corrupt(
-                frames.len(),
-                Some(pos as u64),
+                heads.len(),
+                Some(pos),
                 format!(
                     "{} bytes after the last complete block: the file is truncated or has trailing garbage",
-                    self.len.saturating_sub(pos as u64)
+                    self.len.saturating_sub(pos)
                 ),
             ));
         }
-        let kinds: Vec<Result<Option<BlobKind>, InputError>> = frames
+        let kinds: Vec<Result<Option<BlobKind>, InputError>> = heads
             .par_iter()
-            .map(|f| {
+            .map_init(BlobBytes::default, |reader, h| {
+                let bytes = self.read_blob(reader, h.index, h.start, h.len)?;
+                let f = Frame {
+                    index: h.index,
+                    start: h.start,
+                    bytes,
+                    data: h.data,
+                    data_blob: h.data_blob,
+                };
                 if f.data_blob && f.index > 0 {
                     let kind = catch_unwind(AssertUnwindSafe(|| peek_kind(&f.bytes[f.data..])));
                     return Ok(Some(kind.unwrap_or(BlobKind::Any)));
                 }
                 // The header block, a data block in its place, or an unknown type: fully
                 // decoded, as osmpbf sees them.
-                self.decode(f, |_| ()).map(|_| None)
+                self.decode(&f, |_| ()).map(|_| None)
             })
             .collect();
         let mut locs = Vec::new();
-        for (f, k) in frames.iter().zip(kinds) {
+        for (h, k) in heads.iter().zip(kinds) {
             if let Some(kind) = k? {
                 locs.push(BlobLoc {
-                    index: f.index,
-                    start: f.start,
-                    len: f.bytes.len(),
+                    index: h.index,
+                    start: h.start,
+                    len: h.len,
                     kind,
                 });
             }
@@ -270,14 +368,13 @@ impl Pbf {
         }
     }
 
-    /// Runs `f` on every data block of kind `want` (and every `Any` block) of `file`, in
-    /// parallel, and returns the results in file order, with whether a block held elements of
+    /// Runs `f` on every data block of kind `want` (and every `Any` block) of the file, in
+    /// parallel (each thread reads the blobs it decodes: one blob a thread in memory), and returns the results in file order, with whether a block held elements of
     /// another kind than the sweep saw (then the caller starts again with every blob `Any`).
     /// `fast` is tried first on each block of kind `want`: the same result from the raw frame
     /// ([`wire`]), or `None` to leave the block to osmpbf and `f`.
     pub(super) fn pass<T, F, G>(
         &self,
-        file: &[u8],
         locs: &[BlobLoc],
         want: BlobKind,
         fast: G,
@@ -294,33 +391,33 @@ impl Pbf {
             .collect();
         let results: Vec<Result<Option<(T, bool)>, InputError>> = wanted
             .par_iter()
-            .map_init(Scratch::default, |scratch, l| {
-                let bytes = usize::try_from(l.start)
-                    .ok()
-                    .and_then(|s| file.get(s..s.checked_add(l.len)?))
-                    .ok_or_else(|| self.corrupt(l.index, Some(l.start), "blob out of the file"))?;
-                let frame = Frame {
-                    index: l.index,
-                    start: l.start,
-                    data: 0,
-                    bytes,
-                    data_blob: true,
-                };
-                if l.kind == want {
-                    let v = catch_unwind(AssertUnwindSafe(|| fast(&frame, scratch)));
-                    if let Ok(Some(v)) = v {
-                        return Ok(Some((v, false)));
+            .map_init(
+                || (Scratch::default(), BlobBytes::default()),
+                |(scratch, reader), l| {
+                    let bytes = self.read_blob(reader, l.index, l.start, l.len)?;
+                    let frame = Frame {
+                        index: l.index,
+                        start: l.start,
+                        data: 0,
+                        bytes,
+                        data_blob: true,
+                    };
+                    if l.kind == want {
+                        let v = catch_unwind(AssertUnwindSafe(|| fast(&frame, scratch)));
+                        if let Ok(Some(v)) = v {
+                            return Ok(Some((v, false)));
+                        }
+                        // A panic (never expected) leaves the inflater in an unknown state.
+                        if v.is_err() {
+                            *scratch = Scratch::default();
+                        }
                     }
-                    // A panic (never expected) leaves the inflater in an unknown state.
-                    if v.is_err() {
-                        *scratch = Scratch::default();
-                    }
-                }
-                self.decode(&frame, |block| {
-                    let foreign = l.kind != BlobKind::Any && holds_other_than(block, want);
-                    (f(block), foreign)
-                })
-            })
+                    self.decode(&frame, |block| {
+                        let foreign = l.kind != BlobKind::Any && holds_other_than(block, want);
+                        (f(block), foreign)
+                    })
+                },
+            )
             .collect();
         let mut out = Vec::with_capacity(results.len());
         let mut mixed = false;

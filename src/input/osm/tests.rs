@@ -668,8 +668,8 @@ type Blocks = Vec<(BlobKind, Vec<u8>)>;
 /// The inflated data blocks of Monaco with the kind the sweep saw.
 fn monaco_blocks() -> Blocks {
     let pbf = Pbf::open(&monaco()).unwrap();
-    let file = pbf.load().unwrap();
-    let locs = pbf.sweep(&file).unwrap();
+    let file = std::fs::read(monaco()).unwrap();
+    let locs = pbf.sweep().unwrap();
     locs.iter()
         .map(|l| {
             let start = l.start as usize;
