@@ -253,8 +253,7 @@ fn polygon_defects(rings: &[Vec<P>], out: &mut Vec<String>) {
             return;
         }
     }
-    // The plane: val3dity's, fitted by least squares to every point of the polygon (CGAL's
-    // `linear_least_squares_fitting_3`), oriented as the outer ring (Newell); coordinates
+    // The plane: through the centroid, with the outer ring's (Newell) normal; coordinates
     // relative to the first point.
     let o = f(rings[0][0]);
     let pts: Vec<Vec<DVec3>> = rings
@@ -262,26 +261,22 @@ fn polygon_defects(rings: &[Vec<P>], out: &mut Vec<String>) {
         .map(|r| r.iter().map(|p| f(*p) - o).collect())
         .collect();
     let outer = &pts[0];
-    let mut turn = DVec3::ZERO;
+    let mut nrm = DVec3::ZERO;
     for i in 0..outer.len() {
         let (a, b) = (outer[i], outer[(i + 1) % outer.len()]);
-        turn += DVec3::new(
+        nrm += DVec3::new(
             (a.y - b.y) * (a.z + b.z),
             (a.z - b.z) * (a.x + b.x),
             (a.x - b.x) * (a.y + b.y),
         );
     }
-    if turn.length() == 0.0 {
+    if nrm.length() == 0.0 {
         out.push("104 outer ring collapsed to a line".into());
         return;
     }
+    let nrm = nrm.normalize();
     let all: Vec<DVec3> = pts.iter().flatten().copied().collect();
     let c = all.iter().copied().sum::<DVec3>() / all.len() as f64;
-    let nrm = match least_squares_normal(&all, c) {
-        Some(n) if n.dot(turn) < 0.0 => -n,
-        Some(n) => n,
-        None => turn.normalize(),
-    };
     let dev = all
         .iter()
         .map(|p| (*p - c).dot(nrm).abs())
@@ -458,62 +453,6 @@ fn solid_defects(s: &Solid) -> Vec<String> {
     bad.sort();
     out.extend(bad.into_iter().take(3));
     out
-}
-
-/// The unit normal of the plane that fits `pts` (about their centroid `c`) by least squares:
-/// the eigenvector of the scatter matrix's smallest eigenvalue, found here independently of the
-/// library (the eigenvalues in closed form, trigonometric solution of the characteristic
-/// cubic; the eigenvector as the longest cross product of two rows of `S - λI`). Meaningless for
-/// points on a line (the caller rejects a collapsed ring first); `None` when every cross
-/// product is zero.
-fn least_squares_normal(pts: &[DVec3], c: DVec3) -> Option<DVec3> {
-    let mut s = [[0.0f64; 3]; 3];
-    for p in pts {
-        let d = (*p - c).to_array();
-        for (i, row) in s.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v += d[i] * d[j];
-            }
-        }
-    }
-    let q = (s[0][0] + s[1][1] + s[2][2]) / 3.0;
-    let p1 = s[0][1].powi(2) + s[0][2].powi(2) + s[1][2].powi(2);
-    let p2 = (s[0][0] - q).powi(2) + (s[1][1] - q).powi(2) + (s[2][2] - q).powi(2) + 2.0 * p1;
-    let p = (p2 / 6.0).sqrt();
-    let lambda = if p == 0.0 {
-        q
-    } else {
-        let b: Vec<Vec<f64>> = (0..3)
-            .map(|i| {
-                (0..3)
-                    .map(|j| (s[i][j] - if i == j { q } else { 0.0 }) / p)
-                    .collect()
-            })
-            .collect();
-        let det = b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1])
-            - b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0])
-            + b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0]);
-        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
-        // The smallest of the three roots.
-        q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos()
-    };
-    let rows: Vec<DVec3> = (0..3)
-        .map(|i| {
-            DVec3::new(
-                s[i][0] - if i == 0 { lambda } else { 0.0 },
-                s[i][1] - if i == 1 { lambda } else { 0.0 },
-                s[i][2] - if i == 2 { lambda } else { 0.0 },
-            )
-        })
-        .collect();
-    let best = [
-        rows[0].cross(rows[1]),
-        rows[0].cross(rows[2]),
-        rows[1].cross(rows[2]),
-    ]
-    .into_iter()
-    .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
-    (best.length_squared() > 0.0).then(|| best.normalize())
 }
 
 /// Twice the area vector of a ring (Newell), mm².
@@ -708,44 +647,6 @@ fn assert_valid(files: &[PathBuf]) {
         failures.len(),
         lines.join("\n")
     );
-}
-
-#[test]
-fn the_least_squares_normal_is_the_planes_and_beats_newells_on_a_bent_ring() {
-    // Points of the plane z = 0.5x + 0.2y: its normal (-0.5, -0.2, 1), up to sign.
-    let pts: Vec<DVec3> = [(0.0, 0.0), (4.0, 0.0), (4.0, 3.0), (1.0, 5.0), (0.0, 2.0)]
-        .iter()
-        .map(|&(x, y)| DVec3::new(x, y, 0.5 * x + 0.2 * y))
-        .collect();
-    let c = pts.iter().copied().sum::<DVec3>() / pts.len() as f64;
-    let n = least_squares_normal(&pts, c).unwrap();
-    let want = DVec3::new(-0.5, -0.2, 1.0).normalize();
-    assert!(n.dot(want).abs() > 1.0 - 1e-12, "{n}");
-    // A long strip whose far end is bent up by 1 (a crown sliver): the fitted plane is no
-    // farther from any point than the plane of the Newell normal through the centroid.
-    let bent: Vec<DVec3> = [
-        (0.0, 0.0, 0.0),
-        (100.0, 0.0, 0.0),
-        (100.0, 1.0, 1.0),
-        (50.0, 1.0, 0.0),
-        (0.0, 1.0, 0.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z))
-    .collect();
-    let c = bent.iter().copied().sum::<DVec3>() / bent.len() as f64;
-    let dev = |n: DVec3| {
-        bent.iter()
-            .map(|p| (*p - c).dot(n).abs())
-            .fold(0.0, f64::max)
-    };
-    let mut turn = DVec3::ZERO;
-    for i in 0..bent.len() {
-        let (a, b) = (bent[i], bent[(i + 1) % bent.len()]);
-        turn += a.cross(b);
-    }
-    let ls = dev(least_squares_normal(&bent, c).unwrap());
-    assert!(ls < dev(turn.normalize()), "{ls} {}", dev(turn.normalize()));
 }
 
 #[test]
