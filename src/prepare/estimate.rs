@@ -22,7 +22,9 @@
 //!    within [`NEIGHBOUR_RADIUS_M`], weighed by distance, size, kind and attachment, give
 //!    their weighted median of storeys (`building:levels`, else the height less its roof;
 //!    another kind's vote counts [`OTHER_KIND_STOREYS`]), drawn at the lot's own storey height
-//!    and roof; it moves the model's storeys by at most a factor [`MAX_LEND`], and lifts a
+//!    and roof; it moves the model's storeys by at most a factor [`MAX_LEND`] (a lift above
+//!    [`LIKE_LESS_LEND`] needs [`MIN_VOTES`] voters of like size, within [`LIKE_SIZE`] of the
+//!    lot's footprint: tagged hotels do not make the rowhouses around them towers), and lifts a
 //!    footprint under [`SMALL_M2`] to at most [`SMALL_MAX_STOREYS`] (or its model's storeys)
 //!    unless small tagged neighbours (under [`SMALL_LENDER_M2`]) vote. The roof: the shrunk
 //!    weighted mean of their out-of-fold errors in log-odds.
@@ -76,6 +78,11 @@ pub(crate) const MAX_VOTES: usize = 24;
 /// 0.87 → 0.86, Moscow 0.76 → 0.71 (100: Monaco 0.73, Moscow 0.72). The caps of step 6 and
 /// [`SMALL_MAX_STOREYS`] still bound sheds and small footprints beside towers.
 pub(crate) const MAX_LEND: f64 = 4.0;
+/// How far apart (a factor either way) a tagged neighbour's footprint may be from the lot's
+/// to count as like-size for [`MAX_LEND`]'s lift.
+pub(crate) const LIKE_SIZE: f64 = 3.0;
+/// The most neighbours lift an estimate's storeys without [`MIN_VOTES`] like-size voters.
+pub(crate) const LIKE_LESS_LEND: f64 = 1.6;
 /// The weight of a tagged neighbour of another `building=*` kind in the storeys' vote (the
 /// roof's: 0.5): a garage block or a church among houses says little of their storeys.
 /// Held out (as for [`MAX_LEND`]), 0.5 → 0.2: Munich 0.91 → 0.88, Moscow 0.79 → 0.76, the
@@ -712,8 +719,22 @@ impl Context<'_> {
         };
         let fh = self.known[i].mix.floor_height.max(1.0);
         let model = ((model_log.exp() - roof_part) / fh).max(1.0);
+        // Lifting by more than [`LIKE_LESS_LEND`] needs like-size voters (within
+        // [`LIKE_SIZE`] of the lot's footprint): towers alone do not make a house a tower.
+        let like = near
+            .iter()
+            .filter(|&&(j, _)| {
+                let r = self.m.area[j] / self.m.area[i].max(1.0);
+                (1.0 / LIKE_SIZE..=LIKE_SIZE).contains(&r) && self.storeys_of(j).is_some()
+            })
+            .count();
+        let up = if like >= MIN_VOTES {
+            MAX_LEND.ln()
+        } else {
+            LIKE_LESS_LEND.ln()
+        };
         let lend = MAX_LEND.ln();
-        let mut storeys = (model.ln() + (vote.ln() - model.ln()).clamp(-lend, lend)).exp();
+        let mut storeys = (model.ln() + (vote.ln() - model.ln()).clamp(-lend, up)).exp();
         if self.m.area[i] < SMALL_M2 && !small_lent {
             storeys = storeys.min(model.max(SMALL_MAX_STOREYS));
         }

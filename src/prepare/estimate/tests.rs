@@ -85,6 +85,49 @@ fn two_neighbours_are_not_enough_to_lend() {
     assert!(e.storeys < 6.0, "{e:?}");
 }
 
+/// Issue 42's case: tagged 13-storey hotels among untagged rowhouse-sized footprints. Without
+/// like-size voters the hotels may lift a house by [`LIKE_LESS_LEND`] at most, never make it a
+/// tower; a footprint of the hotels' own size beside them still rises towards them.
+#[test]
+fn tagged_towers_do_not_make_rowhouses_towers() {
+    // Two terraces of eight 6 by 12 m houses (72 m²), 25 m and 60 m from four 40 by 40 m
+    // hotels, and a 40 by 40 m untagged block beside the hotels.
+    let houses: Vec<Lot> = (0..16)
+        .map(|k| {
+            let y = if k < 8 { 65.0 } else { 100.0 };
+            lot(100 + k, 6.0 * (k % 8) as f64, y, 6.0, 12.0, kind("yes"))
+        })
+        .collect();
+    let alone = run(&houses);
+    let mut lots = houses.clone();
+    for k in 0..4 {
+        lots.push(lot(k, 50.0 * k as f64, 0.0, 40.0, 40.0, tower(13.0)));
+    }
+    lots.push(lot(200, 200.0, 0.0, 40.0, 40.0, kind("yes")));
+    let with = run(&lots);
+    for i in 0..houses.len() {
+        let (a, w) = (
+            alone.estimates[i].unwrap_or_else(|| panic!("house {i} estimated alone")),
+            with.estimates[i].unwrap_or_else(|| panic!("house {i} estimated")),
+        );
+        assert!(
+            w.storeys <= (LIKE_LESS_LEND * a.storeys).ceil(),
+            "house {i}: {} storeys beside the hotels, {} alone",
+            w.storeys,
+            a.storeys
+        );
+        assert!(w.storeys < 5.0, "house {i}: {w:?}");
+    }
+    let block = with.estimates[houses.len() + 4].unwrap_or_else(|| panic!("block estimated"));
+    let block_alone = run(&[lot(200, 200.0, 0.0, 40.0, 40.0, kind("yes"))]).estimates[0]
+        .unwrap_or_else(|| panic!("block estimated alone"));
+    assert!(
+        block.storeys >= 2.0 * block_alone.storeys,
+        "the like-size block: {block:?} beside the hotels, {block_alone:?} alone"
+    );
+    assert_eq!(block.height_source, ValueSource::Neighbours);
+}
+
 #[test]
 fn an_attached_row_shares_one_height_and_one_roof() {
     let lots: Vec<Lot> = (0..6)
