@@ -114,14 +114,16 @@ fn print(scores: &[CaseScore]) {
     for s in scores {
         if let Some(f) = &s.form {
             println!(
-                "{} as a run draws it: {} estimated, {:.1} % at 5+ storeys, {:.1} % of those under 60 m² above 2 storeys, storeys-area rank {:.2}, {:.1} % of {} touching pairs differ in roof family",
+                "{} as a run draws it: {} estimated, {:.1} % at 5+ storeys, {:.1} % of those under 60 m² above 2 storeys, storeys-area rank {:.2}, {:.1} % of {} touching pairs differ in roof family ({:.1} % of {} like-sized row pairs)",
                 s.name,
                 f.estimated,
                 100.0 * f.five_plus,
                 100.0 * f.small_above_two,
                 f.storey_area_rank,
                 100.0 * f.pairs_differing,
-                f.touching_pairs
+                f.touching_pairs,
+                100.0 * f.row_pairs_differing,
+                f.row_pairs
             );
         }
     }

@@ -124,6 +124,11 @@ pub struct Form {
     pub touching_pairs: usize,
     /// Share of them whose roof families (flat, pitched) differ.
     pub pairs_differing: f64,
+    /// Of those pairs, the ones of like size (at most `ROW_AREA_RATIO` of the estimator
+    /// apart: members of a row, not a house and its outbuilding).
+    pub row_pairs: usize,
+    /// Share of the like-sized pairs whose roof families differ (issue 42's terraces).
+    pub row_pairs_differing: f64,
 }
 
 /// [`Form`] of one run's estimates.
@@ -142,10 +147,16 @@ fn form(out: &estimate::Outcome) -> Option<Form> {
     }
     let n = rows.len() as f64;
     let small: Vec<&(f64, f64)> = rows.iter().filter(|r| r.1 < 60.0).collect();
-    let pairs: Vec<bool> = out
+    let area = |i: u32| {
+        out.features
+            .get(i as usize)
+            .map_or(0.0, |f| f64::from(f[0]).exp())
+    };
+    // (roofs differ, the pair is of like size)
+    let pairs: Vec<(bool, bool)> = out
         .touching
         .iter()
-        .filter(|p| p.2 >= 2.0)
+        .filter(|p| p.2 >= estimate::ROW_SHARED_M)
         .filter_map(|&(a, b, _)| {
             let roof = |i: u32| {
                 out.estimates
@@ -155,12 +166,18 @@ fn form(out: &estimate::Outcome) -> Option<Form> {
                     .filter(|e| e.roof_source != crate::model::ValueSource::Tag)
                     .map(|e| e.pitched >= 0.5)
             };
-            Some(roof(a)? != roof(b)?)
+            let (x, y) = (area(a), area(b));
+            let like = x.max(y) / x.min(y).max(1.0) <= estimate::ROW_AREA_RATIO;
+            Some((roof(a)? != roof(b)?, like))
         })
         .collect();
+    let row_roofs: Vec<bool> = pairs.iter().filter(|p| p.1).map(|p| p.0).collect();
     Some(Form {
         touching_pairs: pairs.len(),
-        pairs_differing: pairs.iter().filter(|d| **d).count() as f64 / pairs.len().max(1) as f64,
+        pairs_differing: pairs.iter().filter(|d| d.0).count() as f64 / pairs.len().max(1) as f64,
+        row_pairs: row_roofs.len(),
+        row_pairs_differing: row_roofs.iter().filter(|d| **d).count() as f64
+            / row_roofs.len().max(1) as f64,
         estimated: rows.len(),
         five_plus: rows.iter().filter(|r| r.0 >= 5.0).count() as f64 / n,
         small_above_two: small.iter().filter(|r| r.0 > 2.0).count() as f64

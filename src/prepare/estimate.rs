@@ -875,9 +875,9 @@ impl Context<'_> {
 /// of `docs/truth.md` touching pairs within 1.5 of each other's area differ in roof family
 /// 6-11 % of the time (Den Haag, Delfshaven, Delft), 1.5-2: 17-26 %, 2-3: 27-35 %, beyond
 /// 3: 30-48 % (a house and its shed or a block's wing).
-const ROW_AREA_RATIO: f64 = 3.0;
+pub(crate) const ROW_AREA_RATIO: f64 = 3.0;
 /// The least wall (metres) two footprints share to be one row.
-const ROW_SHARED_M: f32 = 2.0;
+pub(crate) const ROW_SHARED_M: f32 = 2.0;
 
 fn find(p: &mut [usize], mut i: usize) -> usize {
     while p[i] != i {

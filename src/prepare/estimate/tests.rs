@@ -372,3 +372,155 @@ fn forms_tell_rows_from_lone_houses_and_dense_blocks_from_hamlets() {
         assert!(std::sync::Arc::ptr_eq(&lots[3].tags, &lots[4].tags));
     }
 }
+
+/// A zone where a share `pitched` of the roofs is pitched.
+fn roofs_in(pitched: f64) -> RoofMix {
+    RoofMix {
+        pitched,
+        ..RoofMix::DEFAULT
+    }
+}
+
+/// A terrace of `n` houses wall to wall along x from (x0, 0): house `k` is `width(k)` wide
+/// and `depth(k)` deep, with `tags(k)`.
+fn terrace(
+    id0: i64,
+    x0: f64,
+    n: i64,
+    width: impl Fn(i64) -> f64,
+    depth: impl Fn(i64) -> f64,
+    tags: impl Fn(i64) -> BuildingTags,
+) -> Vec<Lot> {
+    let mut x = x0;
+    (0..n)
+        .map(|k| {
+            let l = lot(id0 + k, x, 0.0, width(k), depth(k), tags(k));
+            x += width(k);
+            l
+        })
+        .collect()
+}
+
+/// The touching pairs of like size (members of one row) whose drawn roof families differ, and
+/// every estimate's roof the likelier family of its probability (not a draw).
+fn row_pairs_differing(out: &Outcome) -> (usize, usize) {
+    for e in out.estimates.iter().flatten() {
+        assert_eq!(e.shape != RoofShape::Flat, e.pitched >= 0.5, "{e:?}");
+    }
+    let flat = |i: u32| out.estimates[i as usize].map(|e| e.shape == RoofShape::Flat);
+    let area = |i: u32| f64::from(out.features[i as usize][0]).exp();
+    let mut n = 0;
+    let mut differ = 0;
+    for &(a, b, shared) in &out.touching {
+        let (x, y) = (area(a), area(b));
+        if shared < ROW_SHARED_M || x.max(y) / x.min(y) > ROW_AREA_RATIO {
+            continue;
+        }
+        if let (Some(fa), Some(fb)) = (flat(a), flat(b)) {
+            n += 1;
+            differ += usize::from(fa != fb);
+        }
+    }
+    (n, differ)
+}
+
+#[test]
+fn a_flat_roofed_terrace_is_drawn_flat_and_a_pitched_row_pitched() {
+    // Rowhouses of 5.5 x 14 m (flat-roofed brick rows) where a sixth of the roofs is pitched:
+    // every one flat.
+    let rows = terrace(0, 0.0, 12, |_| 5.5, |_| 14.0, |_| kind("yes"));
+    let out = run_in(&rows, roofs_in(0.15));
+    assert_eq!(row_pairs_differing(&out), (11, 0));
+    for (i, e) in out.estimates.iter().enumerate() {
+        let e = e.unwrap_or_else(|| panic!("house {i} estimated"));
+        assert_eq!(e.shape, RoofShape::Flat, "house {i}: {e:?}");
+        assert_ne!(e.roof_source, ValueSource::Tag);
+    }
+    // Cottages of 6 x 8 m where most roofs are pitched: every one pitched, one shape.
+    let row = terrace(0, 0.0, 12, |_| 6.0, |_| 8.0, |_| kind("yes"));
+    let out = run_in(&row, roofs_in(0.6));
+    assert_eq!(row_pairs_differing(&out), (11, 0));
+    for (i, e) in out.estimates.iter().enumerate() {
+        let e = e.unwrap_or_else(|| panic!("house {i} estimated"));
+        assert_eq!(e.shape, RoofShape::Gabled, "house {i}: {e:?}");
+    }
+}
+
+#[test]
+fn a_row_of_mixed_sizes_shares_one_roof_family() {
+    // Alone, the 45 m² houses would be pitched and the 77 m² ones flat (the prior's size
+    // steps); wall to wall they are one row and one family.
+    let rows = terrace(
+        0,
+        0.0,
+        10,
+        |k| if k % 2 == 0 { 5.5 } else { 5.0 },
+        |k| if k % 2 == 0 { 14.0 } else { 9.0 },
+        |_| kind("yes"),
+    );
+    let mix = roofs_in(0.35);
+    let out = run_in(&rows, mix);
+    let alone = |i: usize| prior_roof(&mix, &out.features[i]) >= 0.0;
+    assert!(!alone(0) && alone(1), "the prior tells them apart");
+    assert_eq!(row_pairs_differing(&out), (9, 0));
+}
+
+#[test]
+fn tagged_members_set_their_rows_roof_family() {
+    let flat = BuildingTags {
+        roof_shape: Some(RoofShape::Flat),
+        ..kind("yes")
+    };
+    let hipped = BuildingTags {
+        roof_shape: Some(RoofShape::Hipped),
+        ..kind("yes")
+    };
+    // Where most roofs are pitched, a row whose tagged members are flat is flat; where most
+    // are flat, a row whose tagged members are hipped is hipped (two rows 1 km apart).
+    let mut lots = terrace(
+        0,
+        0.0,
+        12,
+        |_| 6.0,
+        |_| 8.0,
+        |k| {
+            if k % 3 == 0 {
+                flat.clone()
+            } else {
+                kind("yes")
+            }
+        },
+    );
+    lots.extend(terrace(
+        100,
+        1000.0,
+        12,
+        |_| 5.5,
+        |_| 14.0,
+        |k| {
+            if k % 3 == 0 {
+                hipped.clone()
+            } else {
+                kind("yes")
+            }
+        },
+    ));
+    let out = run_in(&lots, roofs_in(0.5));
+    assert_eq!(row_pairs_differing(&out).1, 0);
+    for (i, e) in out.estimates.iter().enumerate() {
+        let Some(e) = e else { continue };
+        if i % 12 % 3 == 0 {
+            // A tagged member: its roof is its own (its height is estimated).
+            assert_eq!(e.roof_source, ValueSource::Tag, "lot {i}: {e:?}");
+            continue;
+        }
+        let want = if i < 12 {
+            RoofShape::Flat
+        } else {
+            RoofShape::Hipped
+        };
+        assert_eq!(e.shape, want, "lot {i}: {e:?}");
+        assert_eq!(e.roof_source, ValueSource::Neighbours, "lot {i}: {e:?}");
+    }
+    assert_eq!(out.estimates.iter().flatten().count(), 24);
+}
