@@ -318,6 +318,14 @@ impl Generator {
                     part.structure = tags.structure;
                     part.wall_material = Material::of(style.material.as_deref());
                     part.roof_material = Material::of(style.roof_material.as_deref());
+                    // The rhythm the KB's rules give the walls (issue 49): a LOD2 facade
+                    // texture draws it; a ruleset file's facades are its own.
+                    if part.structure.is_none()
+                        && matches!(self.rules, Rules::Kb)
+                        && self.file_rules(&style).is_none()
+                    {
+                        part.rhythm = Some(rhythm_of(&style));
+                    }
                     if piece.id == lot.id {
                         part.role = rest_role;
                     }
@@ -735,6 +743,19 @@ impl Generator {
 /// or `height`: the knowledge base's pitch over the footprint alone) is no taller than the
 /// walls under it, so that a deep footprint does not get a roof higher than the building (a
 /// 30° roof over 40 m of depth is 11.5 m). Tagged roofs are drawn as tagged.
+/// The facade rhythm `kb::compile` writes for `style` (a bay of pier, window, pier; the first
+/// of its window rows' sill and height shares).
+fn rhythm_of(style: &Style) -> crate::model::Rhythm {
+    let rows = kb::compile::window_rows(style.window_height);
+    let [sill, height, _] = rows.first().map_or([0.25, 0.6, 0.15], |r| r.0);
+    crate::model::Rhythm {
+        bay: kb::compile::bay_width(style),
+        window: style.window_width,
+        sill,
+        height,
+    }
+}
+
 fn cap_guessed_roof(
     roof: crate::derive::roof::RoofGeometry,
     mass: &Mass,
