@@ -144,7 +144,9 @@ impl Texture {
                 let fx = (col as f64 + 0.5) / n as f64;
                 let fy = 1.0 - (row as f64 + 0.5) / n as f64;
                 let (x, y) = ((fx * bw).rem_euclid(w), (fy * bh).rem_euclid(h));
-                let mut l = pattern(m, x, y, w, h);
+                // Contrast eased towards 1: the surface's colour, multiplied, stays near
+                // its own (a viewer decodes the sRGB picture to linear, which darkens).
+                let mut l = 1.0 - 0.7 * (1.0 - pattern(m, x, y, w, h));
                 if let Texture::Bay {
                     window,
                     sill,

@@ -1253,7 +1253,7 @@ fn texture_coordinates_are_in_metres_and_bays() {
     // LOD1: the brick's picture covers 1 m by 0.6 m: u counts metres along a wall, v up it.
     let glb = write_glb_textured(Lod::Lod1, &[textured_box()]);
     let (json, bin) = parse_glb(&glb);
-    for (p, [u, v]) in class_uvs(&json, &bin, "walls") {
+    for (p, [u, v]) in class_uvs(&json, bin, "walls") {
         assert!(
             along_box(p).iter().any(|a| (u as f64 - a).abs() < 1e-5),
             "{p:?} {u}"
@@ -1261,7 +1261,7 @@ fn texture_coordinates_are_in_metres_and_bays() {
         assert!((v + p[1] / 0.6).abs() < 1e-5, "{p:?} {v}");
     }
     // Roof: slate's picture is 1.2 m by 1 m; the flat roof is mapped east and north.
-    for (p, [u, v]) in class_uvs(&json, &bin, "roof") {
+    for (p, [u, v]) in class_uvs(&json, bin, "roof") {
         assert!(
             (u - p[0] / 1.2).abs() < 1e-5 && (v - p[2]).abs() < 1e-5,
             "{p:?} {u} {v}"
@@ -1271,7 +1271,7 @@ fn texture_coordinates_are_in_metres_and_bays() {
     // -> 3 bays, 6 m / 3 m -> 2) and a storey (1.5 m) high.
     let glb = write_glb_textured(Lod::Lod2, &[textured_box()]);
     let (json, bin) = parse_glb(&glb);
-    let uvs = class_uvs(&json, &bin, "walls");
+    let uvs = class_uvs(&json, bin, "walls");
     let max_u = uvs.iter().map(|(_, uv)| uv[0]).fold(0.0f32, f32::max);
     assert!((max_u - 3.0).abs() < 1e-5, "{max_u}");
     for (p, [u, v]) in uvs {
