@@ -122,7 +122,7 @@ pub struct Options {
     /// disk). The report, if asked for, is written.
     pub dry_run: bool,
     /// Procedural textures on the walls and roofs of the glTF and 3D Tiles outputs
-    /// (`--textures`, [`crate::export::texture`]'s pictures; at LOD2 the facades' bays).
+    /// (`--textures`, `export::texture`'s pictures; at LOD2 the facades' bays).
     pub textures: bool,
     /// Accept output file names whose extension is not the format's (`--force-extension`).
     pub force_extension: bool,

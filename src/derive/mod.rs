@@ -1072,6 +1072,35 @@ mod tests {
     /// A building's provenance is its tags' (the estimator's, when it set one) with the KB's
     /// uncertainty where the KB drew the value.
     #[test]
+    fn a_part_carries_the_rhythm_its_kb_rules_give_its_walls() {
+        // What the LOD2 facade textures draw: the bay and window kb::compile writes.
+        let gen = Generator::new(
+            KnowledgeBase::earth_only(),
+            Rules::Kb,
+            Lod::Lod2,
+            0,
+            Caps::default(),
+        );
+        let ring = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(12.0, 0.0),
+            DVec2::new(12.0, 9.0),
+            DVec2::new(0.0, 9.0),
+        ];
+        let mut report = Report::default();
+        let site = single_lot(Polygon::new(ring, vec![]), (7.42, 43.73), None, &mut report);
+        let lot = site.unwrap().lots.pop().unwrap();
+        let (b, _) = gen.generate(&lot).unwrap();
+        let r = b.parts[0].rhythm.expect("the KB's rules give a rhythm");
+        assert!(
+            (r.bay - (r.window + 2.0 * compile::PIER_WIDTH)).abs() < 1e-9,
+            "{r:?}"
+        );
+        assert!(r.window > 0.3 && r.window < r.bay, "{r:?}");
+        assert!(r.sill > 0.0 && r.sill + r.height < 1.0, "{r:?}");
+    }
+
+    #[test]
     fn a_building_carries_the_provenance_of_its_values() {
         use crate::model::{Provenance, ValueSource};
         let gen = Generator::new(
