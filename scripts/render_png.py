@@ -13,7 +13,9 @@ For where headless Chromium (scripts/screenshot) is missing. Like a glTF viewer,
 back faces of single-sided materials, blends BLEND materials over the opaque scene (back to
 front) and encodes the linear colours to sRGB. With ZFIGHT=1 in the environment it emulates a 24-bit depth buffer (near plane 0.1 m,
 depth jittered by half a step per triangle and pixel), so coincident faces show the speckled
-seams a GPU draws."""
+seams a GPU draws. A material with a baseColorTexture (citygen --textures) is drawn with it:
+TEXCOORD_0 interpolated perspective-correct, the PNG sampled nearest with REPEAT wrap and
+multiplied by baseColorFactor (the PNG decoded here, 8-bit grey/RGB/RGBA, numpy only)."""
 import os
 import json, struct, sys, zlib, numpy as np
 glb, out, mode = sys.argv[1], sys.argv[2], sys.argv[3]
@@ -24,13 +26,44 @@ def acc(i):
     a = j['accessors'][i]; v = j['bufferViews'][a['bufferView']]
     off = v.get('byteOffset', 0) + a.get('byteOffset', 0)
     comp = {5126: np.float32, 5125: np.uint32, 5123: np.uint16}[a['componentType']]
-    k = {'SCALAR': 1, 'VEC3': 3}[a['type']]
+    k = {'SCALAR': 1, 'VEC2': 2, 'VEC3': 3}[a['type']]
     stride = v.get('byteStride')
-    if stride and k == 3:
+    if stride and k > 1 and stride != 4 * k:
         raw = np.frombuffer(bin_, np.uint8, a['count'] * stride, off).reshape(-1, stride)
-        return raw[:, :12].copy().view(np.float32).reshape(-1, 3)
+        return raw[:, :4 * k].copy().view(np.float32).reshape(-1, k)
     return np.frombuffer(bin_, comp, a['count'] * k, off).reshape(-1, k) if k > 1 else np.frombuffer(bin_, comp, a['count'], off)
-tris = []; cols = []; alphas = []; twosided = []; ground = []
+def png_decode(b):
+    """An 8-bit, non-interlaced PNG (grey, RGB or RGBA) as an (h, w, 3) float array in 0..1 (sRGB)."""
+    i, idat = 8, b''
+    while i < len(b):
+        ln = struct.unpack('>I', b[i:i+4])[0]; t = b[i+4:i+8]; c = b[i+8:i+8+ln]; i += 12 + ln
+        if t == b'IHDR': w, h, depth, ctype = struct.unpack('>IIBB', c[:10])
+        elif t == b'IDAT': idat += c
+    ch = {0: 1, 2: 3, 6: 4}[ctype]; raw = zlib.decompress(idat); row = w * ch
+    out = np.zeros((h, row), np.int32); prev = np.zeros(row, np.int32)
+    for y in range(h):
+        f = raw[y * (row + 1)]; cur = np.frombuffer(raw, np.uint8, row, y * (row + 1) + 1).astype(np.int32)
+        if f == 0: r = cur
+        elif f == 2: r = (cur + prev) & 255
+        else:
+            r = np.zeros(row, np.int32)
+            for x in range(row):
+                a = r[x - ch] if x >= ch else 0; up = prev[x]; c2 = prev[x - ch] if x >= ch else 0
+                if f == 1: pr = a
+                elif f == 3: pr = (a + up) // 2
+                else:
+                    p0 = a + up - c2; pa, pb, pc = abs(p0 - a), abs(p0 - up), abs(p0 - c2)
+                    pr = a if pa <= pb and pa <= pc else (up if pb <= pc else c2)
+                r[x] = (cur[x] + pr) & 255
+        out[y] = r; prev = r
+    px = out.reshape(h, w, ch)[..., :3] if ch >= 3 else np.repeat(out.reshape(h, w, 1), 3, 2)
+    return px / 255.0
+images = []
+for im in j.get('images', []):
+    v = j['bufferViews'][im['bufferView']]; o = v.get('byteOffset', 0)
+    srgb = png_decode(bin_[o:o + v['byteLength']])
+    images.append(np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4))  # to linear
+tris = []; cols = []; alphas = []; twosided = []; ground = []; uvs = []; texs = []
 def walk(i, t):
     nd = j['nodes'][i]; t = t + np.array(nd.get('translation', [0, 0, 0]))
     if 'mesh' in nd:
@@ -41,9 +74,15 @@ def walk(i, t):
             tris.append(pos[idx]); cols.append(np.tile(m[:3], (len(idx), 1)))
             alphas.append(np.full(len(idx), m[3] if blend else 1.0)); twosided.append(np.full(len(idx), bool(mat.get('doubleSided'))))
             ground.append(np.full(len(idx), nd.get('name') == 'terrain'))
+            tref = mat['pbrMetallicRoughness'].get('baseColorTexture')
+            if tref is not None and 'TEXCOORD_0' in p['attributes']:
+                uvs.append(acc(p['attributes']['TEXCOORD_0'])[idx]); texs.append(np.full(len(idx), j['textures'][tref['index']]['source']))
+            else:
+                uvs.append(np.zeros((len(idx), 3, 2))); texs.append(np.full(len(idx), -1))
     for c in nd.get('children', []): walk(c, t)
 for r in j['scenes'][0]['nodes']: walk(r, np.zeros(3))
 T = np.concatenate(tris).astype(np.float64); C = np.concatenate(cols); A = np.concatenate(alphas); D = np.concatenate(twosided)
+UV = np.concatenate(uvs); TX = np.concatenate(texs)
 G = np.concatenate(ground)  # the triangles of the glTF `terrain` node (a run with --dem)
 # glTF y up, z south: world x east, y north, z up
 W = np.stack([T[..., 0], -T[..., 2], T[..., 1]], -1)
@@ -87,7 +126,7 @@ NEAR = 0.5
 def clip_near(k):
     """Triangle k in camera space cut to z >= NEAR (Sutherland-Hodgman against one plane), as a
     fan of triangles: a terrain triangle under the eye reaches behind it and is drawn in part."""
-    v = np.stack([x[k], y[k], z[k]], 1); inside = v[:, 2] >= NEAR
+    v = np.concatenate([np.stack([x[k], y[k], z[k]], 1), UV[k]], 1); inside = v[:, 2] >= NEAR  # uv clipped along
     if inside.all(): return [v]
     if not inside.any(): return []
     poly = []
@@ -113,10 +152,18 @@ def raster(v, k):
         m = inside & (np.floor(zz / q + jit) < np.floor(sub / q + 0.0))
     else:
         m = inside & (zz < sub)
+    col = C[k] * shade[k]
+    if TX[k] >= 0:  # textured: perspective-correct uv, nearest texel, REPEAT
+        t = v[:, 3:5]; tex = images[TX[k]]; th, tw = tex.shape[:2]
+        uu = (l1 * t[0, 0] / v[0, 2] + l2 * t[1, 0] / v[1, 2] + l3 * t[2, 0] / v[2, 2]) * zz
+        vv = (l1 * t[0, 1] / v[0, 2] + l2 * t[1, 1] / v[1, 2] + l3 * t[2, 1] / v[2, 2]) * zz
+        ti = (np.floor(np.mod(vv, 1.0) * th).astype(int)) % th; tj = (np.floor(np.mod(uu, 1.0) * tw).astype(int)) % tw
+        col = tex[ti, tj] * (C[k] * shade[k])
+        col = col[m]
     if A[k] >= 1.0:
-        sub[m] = zz[m]; img[y0:y1, x0:x1][m] = C[k] * shade[k]
+        sub[m] = zz[m]; img[y0:y1, x0:x1][m] = col
     else:
-        img[y0:y1, x0:x1][m] = A[k] * C[k] * shade[k] + (1 - A[k]) * img[y0:y1, x0:x1][m]
+        img[y0:y1, x0:x1][m] = A[k] * col + (1 - A[k]) * img[y0:y1, x0:x1][m]
 order = np.argsort(-z.min(1)); opaque = A >= 1.0
 for k in np.concatenate([order[opaque[order]], order[~opaque[order]]]):
     if z[k].max() < NEAR: continue

@@ -821,6 +821,25 @@ pub struct Part {
     /// The structure the part is (issue 45), `None` for a part of a house: what its
     /// facades and interior honour, and what the writers record (`structure`).
     pub structure: Option<Structure>,
+    /// The bays and windows its rules lay out on its walls (issue 49), when the knowledge
+    /// base's rules draw the part: what a LOD2 facade texture shows. `None` for a structure, a
+    /// ruleset file's part and parts built without rules.
+    pub rhythm: Option<Rhythm>,
+}
+
+/// The facade rhythm of a part's walls as the knowledge base's rules lay it out at LOD3
+/// (`kb::compile`: `repeat(X, bay)` of pier, window, pier; each storey split into sill,
+/// window and lintel): what a LOD2 wall's facade texture draws (`export::texture`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rhythm {
+    /// Bay width (metres): a window and a pier on each side.
+    pub bay: f64,
+    /// Window width (metres), in the middle of the bay.
+    pub window: f64,
+    /// Height of the sill above the storey's floor, as a share of the storey.
+    pub sill: f64,
+    /// Height of the window, as a share of the storey.
+    pub height: f64,
 }
 
 /// What a part is of its source footprint ([`Part::source`]).

@@ -121,6 +121,9 @@ pub struct Options {
     /// counted and dropped (the glTF writer's scratch files, unlinked at once, still go to
     /// disk). The report, if asked for, is written.
     pub dry_run: bool,
+    /// Procedural textures on the walls and roofs of the glTF and 3D Tiles outputs
+    /// (`--textures`, `export::texture`'s pictures; at LOD2 the facades' bays).
+    pub textures: bool,
     /// Accept output file names whose extension is not the format's (`--force-extension`).
     pub force_extension: bool,
     /// Publish the outputs even when no building is generated (an empty `--bbox`, every
@@ -475,6 +478,7 @@ fn checked_targets(opts: &Options) -> Result<(Targets, (shard::Shard, String)), 
         preview: opts.preview.clone(),
         tiles3d: opts.tiles3d.clone(),
         dry_run: opts.dry_run,
+        textures: opts.textures,
         allow_empty: opts.allow_empty,
         manifest: None,
         terrain: (!opts.no_terrain).then_some(TerrainPlan {
@@ -944,6 +948,8 @@ pub(crate) struct Targets {
     pub tiles3d: Option<PathBuf>,
     /// Render the model outputs but write none (see [`Options::dry_run`]).
     pub dry_run: bool,
+    /// Textures in the glTF and 3D Tiles outputs ([`Options::textures`]).
+    pub textures: bool,
     /// Publish the outputs even when no building was generated ([`Options::allow_empty`]).
     pub allow_empty: bool,
     /// Write a shard manifest here ([`shard::Manifest`]): every output is hashed as written.

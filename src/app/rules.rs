@@ -130,6 +130,7 @@ pub(crate) fn run(cmd: RulesCommand) -> Result<Outcome, AppError> {
                     preview: None,
                     tiles3d: None,
                     dry_run: false,
+                    textures: false,
                     allow_empty: false,
                     manifest: None,
                     terrain: None,

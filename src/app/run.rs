@@ -143,6 +143,12 @@ pub(crate) struct RunArgs {
     /// write. For checking a region's input, or sizing its outputs, before a nightly run.
     #[arg(long)]
     dry_run: bool,
+    /// Procedural textures (drawn by citygen, no image files) on the walls and roofs of the
+    /// glTF and 3D Tiles outputs: each material's pattern in metres (brick courses, stone,
+    /// boards, tile and slate rows), and at LOD2 each wall's windows and storeys, the bays its
+    /// LOD3 facade would have. Off by default.
+    #[arg(long)]
+    textures: bool,
     /// Accept output file names whose extension is not the format's (.ifc, .gml or .xml, .glb,
     /// .json for the report).
     #[arg(long)]
@@ -323,6 +329,7 @@ pub(crate) fn run(cli: RunArgs) -> Result<Outcome, AppError> {
         bbox: cli.bbox,
         tile: cli.tile,
         dry_run: cli.dry_run,
+        textures: cli.textures,
         force_extension: cli.force_extension,
         allow_empty: cli.allow_empty,
         infer: cli.infer.0,

@@ -77,6 +77,7 @@ pub(crate) fn run(args: SplitArgs) -> Result<Outcome, AppError> {
         bbox: None,
         tile: Some(args.tile),
         dry_run: true,
+        textures: false,
         force_extension: false,
         allow_empty: true,
         infer: args.infer.0,

@@ -318,6 +318,14 @@ impl Generator {
                     part.structure = tags.structure;
                     part.wall_material = Material::of(style.material.as_deref());
                     part.roof_material = Material::of(style.roof_material.as_deref());
+                    // The rhythm the KB's rules give the walls (issue 49): a LOD2 facade
+                    // texture draws it; a ruleset file's facades are its own.
+                    if part.structure.is_none()
+                        && matches!(self.rules, Rules::Kb)
+                        && self.file_rules(&style).is_none()
+                    {
+                        part.rhythm = Some(rhythm_of(&style));
+                    }
                     if piece.id == lot.id {
                         part.role = rest_role;
                     }
@@ -735,6 +743,19 @@ impl Generator {
 /// or `height`: the knowledge base's pitch over the footprint alone) is no taller than the
 /// walls under it, so that a deep footprint does not get a roof higher than the building (a
 /// 30° roof over 40 m of depth is 11.5 m). Tagged roofs are drawn as tagged.
+/// The facade rhythm `kb::compile` writes for `style` (a bay of pier, window, pier; the first
+/// of its window rows' sill and height shares).
+fn rhythm_of(style: &Style) -> crate::model::Rhythm {
+    let rows = kb::compile::window_rows(style.window_height);
+    let [sill, height, _] = rows.first().map_or([0.25, 0.6, 0.15], |r| r.0);
+    crate::model::Rhythm {
+        bay: kb::compile::bay_width(style),
+        window: style.window_width,
+        sill,
+        height,
+    }
+}
+
 fn cap_guessed_roof(
     roof: crate::derive::roof::RoofGeometry,
     mass: &Mass,
@@ -1050,6 +1071,35 @@ mod tests {
 
     /// A building's provenance is its tags' (the estimator's, when it set one) with the KB's
     /// uncertainty where the KB drew the value.
+    #[test]
+    fn a_part_carries_the_rhythm_its_kb_rules_give_its_walls() {
+        // What the LOD2 facade textures draw: the bay and window kb::compile writes.
+        let gen = Generator::new(
+            KnowledgeBase::earth_only(),
+            Rules::Kb,
+            Lod::Lod2,
+            0,
+            Caps::default(),
+        );
+        let ring = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(12.0, 0.0),
+            DVec2::new(12.0, 9.0),
+            DVec2::new(0.0, 9.0),
+        ];
+        let mut report = Report::default();
+        let site = single_lot(Polygon::new(ring, vec![]), (7.42, 43.73), None, &mut report);
+        let lot = site.unwrap().lots.pop().unwrap();
+        let (b, _) = gen.generate(&lot).unwrap();
+        let r = b.parts[0].rhythm.expect("the KB's rules give a rhythm");
+        assert!(
+            (r.bay - (r.window + 2.0 * compile::PIER_WIDTH)).abs() < 1e-9,
+            "{r:?}"
+        );
+        assert!(r.window > 0.3 && r.window < r.bay, "{r:?}");
+        assert!(r.sill > 0.0 && r.sill + r.height < 1.0, "{r:?}");
+    }
+
     #[test]
     fn a_building_carries_the_provenance_of_its_values() {
         use crate::model::{Provenance, ValueSource};

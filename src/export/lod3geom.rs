@@ -1032,6 +1032,7 @@ pub(crate) mod samples {
             source: None,
             role: PartRole::Own,
             structure: None,
+            rhythm: None,
         }
     }
 

@@ -15,10 +15,12 @@ pub(crate) mod ids;
 pub mod ifc;
 pub mod lod3geom;
 pub mod lod4geom;
+pub(crate) mod png;
 pub mod preview;
 pub mod step;
 #[cfg(test)]
 mod terrain_tests;
+pub(crate) mod texture;
 pub mod tiles3d;
 
 use std::io;

@@ -246,6 +246,9 @@ impl GridPlan {
             options.push_str(&format!(" terrain={}", opts.terrain_tolerance));
         }
         // Only when not IFC4: the options of IFC4 runs are those of before.
+        if opts.textures {
+            options.push_str(" textures");
+        }
         if opts.ifc.is_some() && opts.ifc_schema != crate::export::ifc::IfcSchema::Ifc4 {
             options.push_str(&format!(" ifc_schema={}", opts.ifc_schema));
         }

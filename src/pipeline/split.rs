@@ -248,6 +248,7 @@ pub fn split(
         preview: None,
         tiles3d: None,
         dry_run: true,
+        textures: false,
         allow_empty: true,
         manifest: None,
         terrain: None,

@@ -921,8 +921,14 @@ fn open_outputs(
             ),
             Model::CityGml => Box::new(CityGmlWriter::new(w)),
             // A dry run keeps nothing, so its writer needs no scratch files.
-            Model::Gltf if dry => Box::new(GltfWriter::discarding(w)),
-            Model::Gltf => Box::new(GltfWriter::beside(w, p).map_err(io_err(p))?),
+            Model::Gltf if dry => {
+                Box::new(GltfWriter::discarding(w).with_textures(targets.textures))
+            }
+            Model::Gltf => Box::new(
+                GltfWriter::beside(w, p)
+                    .map_err(io_err(p))?
+                    .with_textures(targets.textures),
+            ),
             // A dry run may name a folder that does not exist: its vertices wait in the
             // system's temporary folder instead.
             Model::CityJson if dry => Box::new(
@@ -944,6 +950,7 @@ fn open_outputs(
         {
             let (w, sink, bytes, hash) = open_output(&p, dry, None, hashed)?;
             let (w, info) = Tiles3dWriter::new(w, detail);
+            let w = w.with_textures(targets.textures);
             contents.push((p.clone(), info));
             outputs.push((p, Box::new(w), sink, bytes, hash));
         }

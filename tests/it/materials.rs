@@ -2,6 +2,8 @@
 //! `building:material=brick` and `roof:material=slate` is written at LOD3 to glTF, CityGML,
 //! CityJSON and IFC, and each file, read back, gives its walls brick and its roof slate with the
 //! one table's parameters (`citygen::color::material`), and glazed windows glass.
+//! `--textures` (items 2-3): the house at LOD2 carries its brick bay and slate pictures, the same
+//! bytes at any thread count, validator-clean.
 
 use std::path::Path;
 
@@ -215,4 +217,69 @@ fn brick_walls_and_slate_roof_in_every_format() {
         .values()
         .any(|(t, a)| t == "IFCSURFACESTYLE" && a.contains(" glass'"));
     assert!(glass_style, "glazed panes styled as glass");
+}
+
+/// `--textures` (issue 49 items 2-3) through the binary on the house: the LOD2 GLB and 3D
+/// Tiles carry the brick bay picture and the slate one, the same bytes at 1 and 2 threads; a
+/// run without the flag has no picture; the files pass the reference validators.
+#[test]
+fn textures_through_the_binary_deterministic_and_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("house.osm");
+    std::fs::write(&input, OSM).unwrap();
+    let s = |f: &Path| f.display().to_string();
+    let write = |name: &str, extra: &[&str]| {
+        let glb = dir.path().join(format!("{name}.glb"));
+        let tiles = dir.path().join(format!("{name}-tiles"));
+        let (g, t) = (s(&glb), s(&tiles));
+        let mut args = vec!["--osm", &s(&input), "--kb", KB, "--lod", "2", "--quiet"]
+            .into_iter()
+            .map(String::from)
+            .collect::<Vec<_>>();
+        args.extend(["--gltf", &g, "--tiles3d", &t].map(String::from));
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = citygen(&refs);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (glb, tiles)
+    };
+    let (plain, _) = write("plain", &[]);
+    let (one, tiles_one) = write("one", &["--textures", "--threads", "1"]);
+    let (two, tiles_two) = write("two", &["--textures", "--threads", "2"]);
+    assert!(glb_json(&plain).0.get("images").is_none());
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap());
+    let content = |d: &Path| std::fs::read(d.join("content/all.glb")).unwrap();
+    assert_eq!(content(&tiles_one), content(&tiles_two));
+    let (json, _) = glb_json(&one);
+    let names: Vec<&str> = json["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        names.iter().any(|n| n.starts_with("bay brick")),
+        "{names:?}"
+    );
+    assert!(names.contains(&"slate"), "{names:?}");
+    let Some(tool) = citygen::testkit::validators::validate_outputs("textured glTF and 3D Tiles")
+    else {
+        return;
+    };
+    let out = std::process::Command::new(tool)
+        .arg(&one)
+        .arg(tiles_one.join("tileset.json"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("2 passed, 0 failed"), "{text}");
 }

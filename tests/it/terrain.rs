@@ -57,6 +57,7 @@ fn opts(dir: &Path, tile: Option<u32>, ground: Option<GroundFn>) -> Options {
         bbox: None,
         tile,
         dry_run: false,
+        textures: false,
         force_extension: false,
         allow_empty: false,
         infer: None,

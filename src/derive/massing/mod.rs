@@ -276,6 +276,7 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         source: None,
         role: PartRole::Own,
         structure: None,
+        rhythm: None,
     }
 }
 

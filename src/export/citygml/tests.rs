@@ -93,6 +93,7 @@ fn prism(
         source: None,
         role: PartRole::Own,
         structure: None,
+        rhythm: None,
     }
 }
 

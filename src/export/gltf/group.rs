@@ -13,6 +13,7 @@ use crate::model::Face;
 
 use super::materials::color_key;
 use crate::color::material::Material;
+use crate::export::texture::{Texture, UvMap};
 
 /// Model frame (x east, y north, z up) to glTF (y up, z towards the viewer = south). A proper
 /// rotation, so windings are kept. Adding 0.0 turns -0.0 into 0.0 for tidier min/max.
@@ -25,13 +26,20 @@ pub(crate) struct Group {
     pub(crate) color: Color,
     pub(super) color_key: [u32; 4],
     pub(crate) material: Material,
+    /// The picture its faces are textured with (`--textures`): its mesh has coordinates.
+    pub(crate) texture: Option<Texture>,
     pub(crate) mesh: MeshData,
 }
 
 impl Group {
     /// Triangulates `face` into the group (see [`MeshData::add_face`]).
     pub(crate) fn add_face(&mut self, face: &Face) {
-        self.mesh.add_face(face);
+        self.mesh.add_face(face, None);
+    }
+
+    /// Triangulates `face` into the group with texture coordinates from `map`.
+    pub(crate) fn add_mapped(&mut self, face: &Face, map: &UvMap) {
+        self.mesh.add_face(face, Some(map));
     }
 }
 
@@ -42,10 +50,20 @@ pub(crate) fn group(groups: &mut Vec<Group>, color: Color) -> &mut Group {
 
 /// The group of `color` and `material` in `groups`, created (last) on first use.
 pub(super) fn group_with(groups: &mut Vec<Group>, color: Color, material: Material) -> &mut Group {
+    group_textured(groups, color, material, None)
+}
+
+/// The group of `color`, `material` and `texture` in `groups`, created (last) on first use.
+pub(super) fn group_textured(
+    groups: &mut Vec<Group>,
+    color: Color,
+    material: Material,
+    texture: Option<Texture>,
+) -> &mut Group {
     let key = color_key(color);
     let i = match groups
         .iter()
-        .position(|g| g.color_key == key && g.material == material)
+        .position(|g| g.color_key == key && g.material == material && g.texture == texture)
     {
         Some(i) => i,
         None => {
@@ -53,6 +71,7 @@ pub(super) fn group_with(groups: &mut Vec<Group>, color: Color, material: Materi
                 color,
                 color_key: key,
                 material,
+                texture,
                 mesh: MeshData::default(),
             });
             groups.len() - 1
@@ -73,17 +92,19 @@ pub(crate) struct MeshData {
     pub(crate) positions: Vec<DVec3>,
     /// The unit normal of each vertex's face.
     pub(crate) normals: Vec<DVec3>,
+    /// Texture coordinates of each vertex (a textured group's; empty otherwise).
+    pub(crate) uvs: Vec<[f32; 2]>,
     pub(crate) indices: Vec<u32>,
 }
 
 impl MeshData {
     /// Appends a face with its own vertices and normal; degenerate faces, and faces with a
     /// vertex beyond f32 range in glTF's frame, add nothing.
-    pub(super) fn add_face(&mut self, face: &Face) {
-        TRIANGULATOR.with_borrow_mut(|tri| self.add_triangulated(face, tri));
+    pub(super) fn add_face(&mut self, face: &Face, map: Option<&UvMap>) {
+        TRIANGULATOR.with_borrow_mut(|tri| self.add_triangulated(face, tri, map));
     }
 
-    fn add_triangulated(&mut self, face: &Face, tri: &mut Triangulator) {
+    fn add_triangulated(&mut self, face: &Face, tri: &mut Triangulator, map: Option<&UvMap>) {
         let Some(t) = tri.face(&face.outer, &face.holes) else {
             return;
         };
@@ -99,6 +120,9 @@ impl MeshData {
             .any(|p| to_gltf(*p).iter().any(|c| !c.is_finite()))
         {
             return;
+        }
+        if let Some(map) = map {
+            self.uvs.extend(t.vertices.iter().map(|p| map.uv(*p)));
         }
         self.positions.extend_from_slice(t.vertices);
         self.normals

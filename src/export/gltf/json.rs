@@ -20,6 +20,9 @@ pub(super) struct Document {
     /// The scene's root nodes: one per building.
     pub(super) roots: Vec<u32>,
     pub(super) materials: Vec<MaterialRec>,
+    /// The textures, their images (PNG in buffer views) and the one sampler (`--textures`).
+    pub(super) textures: Vec<TextureRec>,
+    pub(super) images: Vec<ImageRec>,
     pub(super) buffer_length: u64,
 }
 
@@ -70,6 +73,15 @@ impl Document {
             m.pop();
             m.remove(0);
             array(&mut pieces, &mut text, "materials", Piece::Text(m));
+        }
+        if !self.textures.is_empty() {
+            let inner = |v: Vec<u8>| v[1..v.len().saturating_sub(1).max(1)].to_vec();
+            let t = serde_json::to_vec(&self.textures).map_err(io::Error::from)?;
+            array(&mut pieces, &mut text, "textures", Piece::Text(inner(t)));
+            let i = serde_json::to_vec(&self.images).map_err(io::Error::from)?;
+            array(&mut pieces, &mut text, "images", Piece::Text(inner(i)));
+            let s = serde_json::to_vec(&[SAMPLER]).map_err(io::Error::from)?;
+            array(&mut pieces, &mut text, "samplers", Piece::Text(inner(s)));
         }
         for (key, i) in [("accessors", ACCESSORS), ("bufferViews", VIEWS)] {
             if counts[i] > 0 {
@@ -250,7 +262,50 @@ pub(super) struct Attributes {
     pub(super) position: u32,
     #[serde(rename = "NORMAL")]
     pub(super) normal: u32,
+    #[serde(rename = "TEXCOORD_0", skip_serializing_if = "Option::is_none")]
+    pub(super) texcoord: Option<u32>,
 }
+
+/// A material's base colour texture: the index of a [`TextureRec`].
+#[derive(Serialize)]
+pub(super) struct TextureRef {
+    pub(super) index: u32,
+}
+
+/// A texture: its image, sampled by the one sampler.
+#[derive(Serialize)]
+pub(super) struct TextureRec {
+    pub(super) sampler: u32,
+    pub(super) source: u32,
+    pub(super) name: String,
+}
+
+/// An image: a PNG in a buffer view.
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct ImageRec {
+    pub(super) buffer_view: u32,
+    pub(super) mime_type: &'static str,
+    pub(super) name: String,
+}
+
+/// The sampler of every texture: linear, mipmapped, repeated both ways (a picture tiles).
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct Sampler {
+    pub(super) mag_filter: u32,
+    pub(super) min_filter: u32,
+    pub(super) wrap_s: u32,
+    pub(super) wrap_t: u32,
+}
+
+/// LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT.
+pub(super) const SAMPLER: Sampler = Sampler {
+    mag_filter: 9729,
+    min_filter: 9987,
+    wrap_s: 10497,
+    wrap_t: 10497,
+};
 
 #[derive(Serialize)]
 #[serde(rename_all = "camelCase")]
@@ -266,6 +321,8 @@ pub(super) struct MaterialRec {
 #[serde(rename_all = "camelCase")]
 pub(super) struct Pbr {
     pub(super) base_color_factor: [f32; 4],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) base_color_texture: Option<TextureRef>,
     pub(super) metallic_factor: f32,
     pub(super) roughness_factor: f32,
 }
@@ -299,7 +356,9 @@ pub(super) struct ViewRec {
     pub(super) byte_length: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) byte_stride: Option<u32>,
-    pub(super) target: u32,
+    /// `None` for an image's view.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) target: Option<u32>,
 }
 
 #[derive(Serialize)]

@@ -10,8 +10,9 @@ use std::io::Write;
 use crate::color::material::Material;
 use crate::color::{srgb_to_linear, Color};
 
-use super::json::{MaterialRec, Pbr};
+use super::json::{MaterialRec, Pbr, TextureRef};
 use super::{GltfWriter, SurfaceClass, GLASS_SHADE};
+use crate::export::texture::Texture;
 
 impl<W: Write + Send> GltfWriter<W> {
     /// The material of `class` in `color` and `material`, created on first use.
@@ -20,8 +21,9 @@ impl<W: Write + Send> GltfWriter<W> {
         class: SurfaceClass,
         color: Color,
         material: Material,
+        texture: Option<Texture>,
     ) -> u32 {
-        let key = (class, color_key(color), material);
+        let key = (class, color_key(color), material, texture);
         if let Some(&i) = self.material_index.get(&key) {
             return i;
         }
@@ -36,6 +38,19 @@ impl<W: Write + Send> GltfWriter<W> {
             name.push(' ');
             name.push_str(material.name());
         }
+        // The picture's index among the file's textures, in first-use order.
+        let base_color_texture = texture.map(|t| {
+            let at = match self.pictures.iter().position(|p| *p == t) {
+                Some(at) => at,
+                None => {
+                    self.pictures.push(t);
+                    self.pictures.len() - 1
+                }
+            };
+            name.push_str(" textured ");
+            name.push_str(&t.name());
+            TextureRef { index: at as u32 }
+        });
         let (c, metallic, roughness) = finish_params(color, material);
         self.doc.materials.push(MaterialRec {
             name,
@@ -46,6 +61,7 @@ impl<W: Write + Send> GltfWriter<W> {
                     srgb_to_linear(c.b),
                     c.a,
                 ],
+                base_color_texture,
                 metallic_factor: metallic,
                 roughness_factor: roughness,
             },

@@ -7,12 +7,14 @@ use crate::export::{check_finite, ExportError};
 use crate::model::{Building, OpeningKind, Part};
 
 use super::contact::{self, Exposed};
-use super::group::{bounds, group, group_with, to_gltf, Group};
+use super::group::{bounds, group, group_textured, group_with, to_gltf, Group};
 use super::lod4::add_interior;
 use super::{
     SurfaceClass, GLASS_ALPHA, GROUND_COLOR, OPENING_SETBACK, UNSIGNED_INT, UNSIGNED_SHORT,
 };
 use crate::color::material::Material;
+use crate::export::texture::{bays, Texture, UvMap};
+use glam::DVec3;
 
 /// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation),
 /// on its walls that are `shown` (not wholly against another part). Glazed panes are glass:
@@ -85,6 +87,8 @@ pub(super) struct Encoded {
     pub(super) layouts: Vec<Vec<PrimLayout>>,
     pub(super) vertex_bytes: Vec<u8>,
     pub(super) index_bytes: Vec<u8>,
+    /// Texture coordinates (`--textures`): f32 pairs, in the building's third view.
+    pub(super) uv_bytes: Vec<u8>,
 }
 
 impl Encoded {
@@ -98,6 +102,9 @@ impl Encoded {
         if self.index_bytes.capacity() > SLOT_KEPT {
             self.index_bytes = Vec::new();
         }
+        if self.uv_bytes.capacity() > SLOT_KEPT {
+            self.uv_bytes = Vec::new();
+        }
     }
 }
 
@@ -106,7 +113,11 @@ impl Encoded {
 /// and within a class by colour and material (in first-seen order); faces against another part
 /// of the building are left out (`contact`), and classes and groups without a triangle too.
 /// What the glTF writer lays out ([`encode`]) and the 3D Tiles writer batches.
-pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, Vec<Group>)> {
+pub(crate) fn building_groups(
+    b: &Building,
+    detail: bool,
+    tex: Texturing,
+) -> Vec<(SurfaceClass, Vec<Group>)> {
     // Faces against another part of the building are inside it: not drawn.
     let exposed = contact::exposed(b);
     let mut classes: Vec<(SurfaceClass, Vec<Group>)> = Vec::new();
@@ -117,9 +128,28 @@ pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, 
         let mut groups: Vec<Group> = Vec::new();
         for (part, shown) in b.parts.iter().zip(&exposed) {
             match class {
+                SurfaceClass::Walls if tex != Texturing::Off => {
+                    for (w, faces) in part.walls.iter().zip(&shown.walls) {
+                        for f in faces {
+                            add_textured_wall(&mut groups, part, w, f, tex);
+                        }
+                    }
+                }
                 SurfaceClass::Walls => {
                     let g = group_with(&mut groups, part.wall_color, part.wall_material);
                     shown.walls.iter().flatten().for_each(|f| g.add_face(f));
+                }
+                SurfaceClass::Roof if tex != Texturing::Off => {
+                    let m = part.roof_material;
+                    let (w, h) = Texture::size(m);
+                    let g =
+                        group_textured(&mut groups, part.roof_color, m, Some(Texture::Surface(m)));
+                    // Rows run along the eaves, counted from the eave's height.
+                    let origin = DVec3::new(0.0, 0.0, part.eave_z);
+                    for f in &shown.roof {
+                        let n = f.normal();
+                        g.add_mapped(f, &UvMap::plane(n, origin, 1.0 / w, 1.0 / h));
+                    }
                 }
                 SurfaceClass::Roof => {
                     let g = group_with(&mut groups, part.roof_color, part.roof_material);
@@ -165,22 +195,136 @@ pub(crate) fn building_groups(b: &Building, detail: bool) -> Vec<(SurfaceClass, 
     classes
 }
 
+/// What a writer textures (`--textures`, `crate::export::texture`): nothing, the walls and
+/// roofs with their materials' patterns, or also (LOD2) the walls with the bays of their
+/// facades.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) enum Texturing {
+    /// No texture: every byte as without `--textures`.
+    #[default]
+    Off,
+    /// Walls and roofs carry their materials' patterns, in metres.
+    Materials,
+    /// As `Materials`, and a wall of a part with a rhythm (LOD2) carries the picture of its
+    /// bays, storey by storey, up to the eaves.
+    Facades,
+}
+
+impl Texturing {
+    /// The texturing of a run at `lod` with or without `--textures`.
+    pub(crate) fn of(textures: bool, lod: crate::model::Lod) -> Texturing {
+        match (textures, lod) {
+            (false, _) => Texturing::Off,
+            (true, crate::model::Lod::Lod2) => Texturing::Facades,
+            (true, _) => Texturing::Materials,
+        }
+    }
+}
+
+/// Adds a face `f` of wall `w` of `part` to its textured group: with [`Texturing::Facades`]
+/// and a rhythm, the piece below the eaves with the bay picture (a picture a bay wide, as
+/// many bays as the rules' `repeat` fits, and a storey high from the part's ground) and the
+/// piece above them (a gable) with the material's pattern; else the material's pattern, in
+/// metres from the wall's start and the part's ground.
+fn add_textured_wall(
+    groups: &mut Vec<Group>,
+    part: &Part,
+    w: &crate::model::Wall,
+    f: &crate::model::Face,
+    tex: Texturing,
+) {
+    let m = part.wall_material;
+    let base = part.levels.first().copied().unwrap_or(part.base_z);
+    let (sw, sh) = Texture::size(m);
+    let plain = UvMap::wall(w.start, w.end, base, 1.0 / sw, 1.0 / sh);
+    let storey = (part.eave_z - base) / f64::from(part.storeys.max(1));
+    let length = w.length();
+    let rhythm = match (tex, part.rhythm) {
+        (Texturing::Facades, Some(r)) if storey > 0.5 && length > 0.01 && f.holes.is_empty() => {
+            Some(r)
+        }
+        _ => None,
+    };
+    let Some(r) = rhythm else {
+        group_textured(groups, part.wall_color, m, Some(Texture::Surface(m))).add_mapped(f, &plain);
+        return;
+    };
+    let bays = bays(length, r.bay);
+    let map = UvMap::wall(w.start, w.end, base, bays / length, 1.0 / storey);
+    let (below, above) = split_at(f, part.eave_z);
+    if let Some(below) = below {
+        let t = Texture::bay(m, &r);
+        group_textured(groups, part.wall_color, m, Some(t)).add_mapped(&below, &map);
+    }
+    if let Some(above) = above {
+        group_textured(groups, part.wall_color, m, Some(Texture::Surface(m)))
+            .add_mapped(&above, &plain);
+    }
+}
+
+/// A face without holes cut by the height `z` into its pieces below and above (each `None`
+/// when empty); a face wholly on one side is given back whole.
+pub(super) fn split_at(
+    f: &crate::model::Face,
+    z: f64,
+) -> (Option<crate::model::Face>, Option<crate::model::Face>) {
+    const EPS: f64 = 0.01;
+    let lo = f.outer.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    let hi = f
+        .outer
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if hi <= z + EPS {
+        return (Some(f.clone()), None);
+    }
+    if lo >= z - EPS {
+        return (None, Some(f.clone()));
+    }
+    let clip = |below: bool| {
+        let inside = |p: DVec3| if below { p.z <= z } else { p.z >= z };
+        let n = f.outer.len();
+        let mut out: Vec<DVec3> = Vec::with_capacity(n + 2);
+        let mut push = |p: DVec3| {
+            if out.last().is_none_or(|q: &DVec3| q.distance(p) > 1e-9) {
+                out.push(p);
+            }
+        };
+        for i in 0..n {
+            let (a, b) = (f.outer[i], f.outer[(i + 1) % n]);
+            if inside(a) {
+                push(a);
+            }
+            if inside(a) != inside(b) && (b.z - a.z).abs() > 1e-12 {
+                push(a.lerp(b, (z - a.z) / (b.z - a.z)));
+            }
+        }
+        if out.len() > 1 && out[0].distance(out[out.len() - 1]) <= 1e-9 {
+            out.pop();
+        }
+        (out.len() >= 3).then(|| crate::model::Face::new(out))
+    };
+    (clip(true), clip(false))
+}
+
 /// Triangulates and lays out one building (`detail`: LOD3 and up classes are written) into
 /// `out`, whose buffers are reused. `checked`: the building is known finite
 /// ([`crate::export::Checked`]), else it is checked here.
 pub(super) fn encode(
     b: &Building,
     detail: bool,
+    tex: Texturing,
     checked: bool,
     out: &mut Encoded,
 ) -> Result<(), ExportError> {
     out.layouts.clear();
     out.vertex_bytes.clear();
     out.index_bytes.clear();
+    out.uv_bytes.clear();
     if !checked {
         check_finite("glTF writer", b)?;
     }
-    let classes = building_groups(b, detail);
+    let classes = building_groups(b, detail, tex);
     // Positions in glTF's frame, reused from primitive to primitive.
     let mut gltf_positions: Vec<[f32; 3]> = Vec::new();
 
@@ -190,6 +334,7 @@ pub(super) fn encode(
         layouts,
         vertex_bytes,
         index_bytes,
+        uv_bytes,
     } = out;
     for (class, groups) in &classes {
         let mut prims = Vec::new();
@@ -218,6 +363,15 @@ pub(super) fn encode(
                     .iter()
                     .for_each(|c| vertex_bytes.extend_from_slice(&c.to_le_bytes()));
             }
+            // Texture coordinates, in their own view (a stride of 8), when the group has them.
+            let uv_offset = (m.uvs.len() == m.positions.len() && g.texture.is_some()).then(|| {
+                let at = uv_bytes.len() as u64;
+                for uv in &m.uvs {
+                    uv.iter()
+                        .for_each(|c| uv_bytes.extend_from_slice(&c.to_le_bytes()));
+                }
+                at
+            });
             let idx_offset = index_bytes.len() as u64;
             // 65535 is the primitive-restart value of u16 indices: never use it as an index.
             let idx_type = if count <= 65535 {
@@ -239,6 +393,8 @@ pub(super) fn encode(
                 class: *class,
                 color: g.color,
                 material: g.material,
+                texture: g.texture,
+                uv_offset,
                 count,
                 pos_offset,
                 nrm_offset,
@@ -260,6 +416,10 @@ pub(super) struct PrimLayout {
     pub(super) class: SurfaceClass,
     pub(super) color: Color,
     pub(super) material: Material,
+    /// The picture of a textured primitive, whose coordinates are at `uv_offset` of the
+    /// building's coordinate view.
+    pub(super) texture: Option<Texture>,
+    pub(super) uv_offset: Option<u64>,
     pub(super) count: u32,
     pub(super) pos_offset: u64,
     pub(super) nrm_offset: u64,

@@ -68,6 +68,7 @@ use rayon::prelude::*;
 use crate::color::material::Material;
 use crate::color::Color;
 use crate::crs::Crs;
+use crate::export::texture::Texture;
 use crate::export::{vertical_datum, BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
@@ -79,7 +80,7 @@ use spool::Spool;
 // triangulated, and how a colour and material become a PBR material.
 pub(crate) use group::{group, Group};
 pub(crate) use materials::finish_params;
-pub(crate) use mesh::building_groups;
+pub(crate) use mesh::{building_groups, Texturing};
 
 mod contact;
 mod group;
@@ -213,8 +214,14 @@ pub struct GltfWriter<W: Write + Send> {
     slots: Vec<Encoded>,
     /// Reused buffer one record is serialised into.
     json_scratch: Vec<u8>,
-    /// (class, colour bits) -> material index, for reuse across buildings.
-    material_index: BTreeMap<(SurfaceClass, [u32; 4], Material), u32>,
+    /// (class, colour bits, material, picture) -> material index, for reuse across buildings.
+    material_index: BTreeMap<(SurfaceClass, [u32; 4], Material, Option<Texture>), u32>,
+    /// `--textures`: walls and roofs carry pictures ([`GltfWriter::with_textures`]).
+    textures: bool,
+    /// What the run's buildings are textured with (from `textures` and the LOD, at `begin`).
+    tex: Texturing,
+    /// The pictures used so far, in first-use order (the file's textures and images).
+    pictures: Vec<Texture>,
     /// Whether the run is LOD3 or above (openings and balconies are written).
     detail: bool,
     /// The file's terrain, written after the buildings (`terrain`).
@@ -252,6 +259,9 @@ impl<W: Write + Send> GltfWriter<W> {
             slots: Vec::new(),
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
+            textures: false,
+            tex: Texturing::Off,
+            pictures: Vec::new(),
             detail: false,
             terrain: None,
             scratch_guard: ScratchGuard(Vec::new()),
@@ -276,6 +286,9 @@ impl<W: Write + Send> GltfWriter<W> {
             slots: Vec::new(),
             json_scratch: Vec::new(),
             material_index: BTreeMap::new(),
+            textures: false,
+            tex: Texturing::Off,
+            pictures: Vec::new(),
             detail: false,
             terrain: None,
             scratch_guard: ScratchGuard(Vec::new()),
@@ -301,6 +314,14 @@ impl<W: Write + Send> GltfWriter<W> {
             };
         }
         Ok(w)
+    }
+
+    /// With `on`, walls and roofs carry procedural textures (`--textures`,
+    /// `crate::export::texture`): the materials' patterns in metres, and at LOD2 the bays of
+    /// the facades. Off by default: every byte is as without it.
+    pub fn with_textures(mut self, on: bool) -> GltfWriter<W> {
+        self.textures = on;
+        self
     }
 
     /// Gives back the output (complete after a successful `finish`).
@@ -336,6 +357,7 @@ impl<W: Write + Send> GltfWriter<W> {
             source: ctx.source_name.clone(),
         };
         self.detail = ctx.lod >= Lod::Lod3;
+        self.tex = Texturing::of(self.textures, ctx.lod);
         self.terrain = ctx.terrain.clone();
         self.state = State::Open;
         Ok(())
@@ -348,7 +370,7 @@ impl<W: Write + Send> GltfWriter<W> {
         if slots.is_empty() {
             slots.push(Encoded::default());
         }
-        let r = encode(b, self.detail, false, &mut slots[0])
+        let r = encode(b, self.detail, self.tex, false, &mut slots[0])
             .and_then(|()| self.add_encoded(b, &slots[0]));
         self.slots = slots;
         r
@@ -388,13 +410,14 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
             return checked.buildings.first().map_or(Ok(()), |b| self.write(b));
         }
         let detail = self.detail;
+        let tex = self.tex;
         let mut slots = std::mem::take(&mut self.slots);
         slots.resize_with(super::PARALLEL_BATCH, Encoded::default);
         let r: Result<(), ExportError> = super::batches(checked.finite()).try_for_each(|batch| {
             let encoded: Vec<_> = batch
                 .par_iter()
                 .zip(slots.par_iter_mut())
-                .map(|(b, slot)| encode(b, detail, true, slot))
+                .map(|(b, slot)| encode(b, detail, tex, true, slot))
                 .collect();
             for ((b, e), slot) in batch.iter().zip(encoded).zip(&mut slots) {
                 e?;
@@ -414,6 +437,7 @@ impl<W: Write + Send> BuildingWriter for GltfWriter<W> {
                 if let Some(t) = self.terrain.take() {
                     self.add_terrain(&t)?;
                 }
+                self.add_pictures()?;
                 self.state = State::Finished;
                 self.write_glb()
             }
@@ -446,7 +470,7 @@ where
     F: FnMut(Color, &[[f32; 3]], &[u32]),
 {
     let mut e = Encoded::default();
-    encode(b, detail, false, &mut e)?;
+    encode(b, detail, Texturing::Off, false, &mut e)?;
     let f32_at = |bytes: &[u8], at: usize| {
         bytes
             .get(at..at + 4)

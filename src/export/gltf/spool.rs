@@ -11,12 +11,15 @@ use crate::export::ExportError;
 use crate::model::Building;
 
 use super::json::{
-    AccessorRec, Attributes, BuildingExtras, MeshRec, NodeRec, PartExtras, Piece, PrimitiveRec,
-    ViewRec,
+    AccessorRec, Attributes, BuildingExtras, ImageRec, MeshRec, NodeRec, PartExtras, Piece,
+    PrimitiveRec, TextureRec, ViewRec,
 };
 use super::json::{ACCESSORS, MESHES, NODES, VIEWS};
 use super::mesh::{Encoded, PrimLayout};
 use super::{GltfWriter, State, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, VEC3_STRIDE};
+
+/// Byte stride of the texture coordinates' view: f32 VEC2.
+const VEC2_STRIDE: u32 = 8;
 
 /// The serialised records of one JSON array, comma-separated, without the brackets.
 pub(super) enum Spool {
@@ -131,6 +134,7 @@ impl<W: Write + Send> GltfWriter<W> {
             layouts,
             vertex_bytes,
             index_bytes,
+            uv_bytes,
         } = e;
         // Spool the bytes first: records are added only once their data is in the scratch file.
         let vertex_view_offset = self.bin_len;
@@ -142,13 +146,14 @@ impl<W: Write + Send> GltfWriter<W> {
                 })?;
                 let written = scratch
                     .write_all(vertex_bytes)
-                    .and_then(|()| scratch.write_all(index_bytes));
+                    .and_then(|()| scratch.write_all(index_bytes))
+                    .and_then(|()| scratch.write_all(uv_bytes));
                 if let Err(e) = written {
                     self.state = State::Failed;
                     return Err(e.into());
                 }
             }
-            self.bin_len = index_view_offset + index_bytes.len() as u64;
+            self.bin_len = index_view_offset + (index_bytes.len() + uv_bytes.len()) as u64;
             // Fail as soon as the file cannot be a GLB any more, not hours later at the end.
             if self.bin_len > self.max_bin {
                 self.state = State::Failed;
@@ -166,6 +171,7 @@ impl<W: Write + Send> GltfWriter<W> {
             vertex_view_offset,
             vertex_bytes.len() as u64,
             index_bytes.len() as u64,
+            uv_bytes.len() as u64,
         );
         written.map_err(|e| {
             self.state = State::Failed;
@@ -183,6 +189,7 @@ impl<W: Write + Send> GltfWriter<W> {
         vertex_view_offset: u64,
         vertex_len: u64,
         index_len: u64,
+        uv_len: u64,
     ) -> io::Result<()> {
         let mut tmp = std::mem::take(&mut self.json_scratch);
         let index_view_offset = vertex_view_offset + vertex_len;
@@ -241,7 +248,7 @@ impl<W: Write + Send> GltfWriter<W> {
                 byte_offset: vertex_view_offset,
                 byte_length: vertex_len,
                 byte_stride: Some(VEC3_STRIDE),
-                target: ARRAY_BUFFER,
+                target: Some(ARRAY_BUFFER),
             },
             &mut tmp,
         )?;
@@ -251,10 +258,25 @@ impl<W: Write + Send> GltfWriter<W> {
                 byte_offset: index_view_offset,
                 byte_length: index_len,
                 byte_stride: None,
-                target: ELEMENT_ARRAY_BUFFER,
+                target: Some(ELEMENT_ARRAY_BUFFER),
             },
             &mut tmp,
         )?;
+        // The texture coordinates' view, after the indices (`--textures`).
+        let uv_view = if uv_len > 0 {
+            Some(self.spools[VIEWS].push(
+                &ViewRec {
+                    buffer: 0,
+                    byte_offset: index_view_offset + index_len,
+                    byte_length: uv_len,
+                    byte_stride: Some(VEC2_STRIDE),
+                    target: Some(ARRAY_BUFFER),
+                },
+                &mut tmp,
+            )?)
+        } else {
+            None
+        };
 
         for prims in layouts {
             let Some(class) = prims.first().map(|p| p.class) else {
@@ -262,7 +284,8 @@ impl<W: Write + Send> GltfWriter<W> {
             };
             let mut primitives = Vec::with_capacity(prims.len());
             for p in prims {
-                let material = self.material_for(p.class, p.color, p.material);
+                let texture = p.uv_offset.and(p.texture);
+                let material = self.material_for(p.class, p.color, p.material, texture);
                 let acc = &mut self.spools[ACCESSORS];
                 let position = acc.push(
                     &AccessorRec {
@@ -300,8 +323,27 @@ impl<W: Write + Send> GltfWriter<W> {
                     },
                     &mut tmp,
                 )?;
+                let texcoord = match (uv_view, p.uv_offset) {
+                    (Some(view), Some(at)) => Some(self.spools[ACCESSORS].push(
+                        &AccessorRec {
+                            buffer_view: view,
+                            byte_offset: at,
+                            component_type: FLOAT,
+                            count: p.count,
+                            kind: "VEC2",
+                            min: None,
+                            max: None,
+                        },
+                        &mut tmp,
+                    )?),
+                    _ => None,
+                };
                 primitives.push(PrimitiveRec {
-                    attributes: Attributes { position, normal },
+                    attributes: Attributes {
+                        position,
+                        normal,
+                        texcoord,
+                    },
                     indices,
                     material,
                 });
@@ -324,6 +366,52 @@ impl<W: Write + Send> GltfWriter<W> {
             )?;
         }
         self.json_scratch = tmp;
+        Ok(())
+    }
+
+    /// Appends the pictures the materials use (`--textures`), in first-use order, to the
+    /// binary data as PNG images, each in its own buffer view, with a texture each.
+    pub(super) fn add_pictures(&mut self) -> Result<(), ExportError> {
+        let mut tmp = std::mem::take(&mut self.json_scratch);
+        for (i, t) in self.pictures.clone().into_iter().enumerate() {
+            let png = t.png();
+            let offset = self.bin_len;
+            let padded = pad4(png.len() as u64);
+            if !self.discard {
+                let scratch = self.scratch.as_mut().ok_or_else(|| {
+                    ExportError::Invalid("glTF writer: scratch file missing".into())
+                })?;
+                scratch.write_all(&png)?;
+                scratch.write_all(&[0; 3][..(padded - png.len() as u64) as usize])?;
+            }
+            self.bin_len += padded;
+            let view = self.spools[VIEWS].push(
+                &ViewRec {
+                    buffer: 0,
+                    byte_offset: offset,
+                    byte_length: png.len() as u64,
+                    byte_stride: None,
+                    target: None,
+                },
+                &mut tmp,
+            )?;
+            self.doc.images.push(ImageRec {
+                buffer_view: view,
+                mime_type: "image/png",
+                name: t.name(),
+            });
+            self.doc.textures.push(TextureRec {
+                sampler: 0,
+                source: i as u32,
+                name: t.name(),
+            });
+        }
+        self.json_scratch = tmp;
+        if self.bin_len > self.max_bin {
+            return Err(ExportError::Invalid(
+                "the glTF binary is over the GLB limit of 4 GiB with its textures".into(),
+            ));
+        }
         Ok(())
     }
 

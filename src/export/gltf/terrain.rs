@@ -102,8 +102,12 @@ impl<W: Write + Send> GltfWriter<W> {
                 self.bin_len
             )));
         }
-        let material =
-            self.material_for(SurfaceClass::Terrain, TERRAIN_COLOR, Material::Unspecified);
+        let material = self.material_for(
+            SurfaceClass::Terrain,
+            TERRAIN_COLOR,
+            Material::Unspecified,
+            None,
+        );
         let count = t.vertices.len() as u32;
         let mut tmp = std::mem::take(&mut self.json_scratch);
         let r = (|| -> std::io::Result<()> {
@@ -112,7 +116,7 @@ impl<W: Write + Send> GltfWriter<W> {
                 byte_offset: offset,
                 byte_length: length,
                 byte_stride: stride,
-                target,
+                target: Some(target),
             };
             let len = vertex_bytes.len() as u64;
             let vertex_view = self.spools[VIEWS].push(
@@ -158,7 +162,11 @@ impl<W: Write + Send> GltfWriter<W> {
                 &MeshRec {
                     name: "terrain".into(),
                     primitives: vec![PrimitiveRec {
-                        attributes: Attributes { position, normal },
+                        attributes: Attributes {
+                            position,
+                            normal,
+                            texcoord: None,
+                        },
                         indices,
                         material,
                     }],

@@ -92,6 +92,7 @@ fn part(
         source: None,
         role: PartRole::Own,
         structure: None,
+        rhythm: None,
     }
 }
 
@@ -1112,4 +1113,225 @@ fn provenance_is_in_the_building_extras() {
     let x = extras(1);
     assert_eq!(x["storeys_source"], "kb");
     assert!(x.get("storeys_error").is_none() && x.get("roof_probability").is_none());
+}
+
+// ---- textures (issue 49, `--textures`) ----
+
+/// [`write_glb_at`] with `--textures`.
+fn write_glb_textured(lod: Lod, buildings: &[Building]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut w = GltfWriter::new(&mut out, tempfile::tempfile().unwrap()).with_textures(true);
+    w.start(&OutputContext { lod, ..ctx() }, "EPSG:2154".into())
+        .unwrap();
+    for b in buildings {
+        w.write(b).unwrap();
+    }
+    w.finish().unwrap();
+    out
+}
+
+/// The 10 x 6 m box of brick walls and slate roof, two storeys of 1.5 m, bays of 3 m with
+/// 1.2 m windows.
+fn textured_box() -> Building {
+    let mut b = box_building();
+    for p in &mut b.parts {
+        p.wall_material = Material::Brick;
+        p.roof_material = Material::Slate;
+        p.rhythm = Some(crate::model::Rhythm {
+            bay: 3.0,
+            window: 1.2,
+            sill: 0.25,
+            height: 0.6,
+        });
+    }
+    b
+}
+
+/// Every (position, uv) of the primitives of `class` in the first building.
+fn class_uvs(json: &Value, bin: &[u8], class: &str) -> Vec<([f32; 3], [f32; 2])> {
+    let node = &json["nodes"][0];
+    let m = class_mesh(json, node, class).expect("the class is drawn");
+    let mut out = Vec::new();
+    for prim in json["meshes"][m as usize]["primitives"].as_array().unwrap() {
+        let (pos, _) = accessor_data(json, bin, prim["attributes"]["POSITION"].as_u64().unwrap());
+        let t = &json["accessors"][prim["attributes"]["TEXCOORD_0"].as_u64().unwrap() as usize];
+        assert_eq!(
+            (t["type"].as_str(), t["count"].as_u64()),
+            (Some("VEC2"), Some(pos.len() as u64))
+        );
+        let view = &json["bufferViews"][t["bufferView"].as_u64().unwrap() as usize];
+        assert_eq!(view["byteStride"], 8);
+        let at = (view["byteOffset"].as_u64().unwrap_or(0) + t["byteOffset"].as_u64().unwrap_or(0))
+            as usize;
+        for (k, p) in pos.iter().enumerate() {
+            out.push((*p, [f32_at(bin, at + 8 * k), f32_at(bin, at + 8 * k + 4)]));
+        }
+    }
+    out
+}
+
+/// The box's walls (start, end, bays at 3 m) in ring order.
+const BOX_WALLS: [([f64; 2], [f64; 2], f64); 4] = [
+    ([0.0, 0.0], [10.0, 0.0], 3.0),
+    ([10.0, 0.0], [10.0, 6.0], 2.0),
+    ([10.0, 6.0], [0.0, 6.0], 3.0),
+    ([0.0, 6.0], [0.0, 0.0], 2.0),
+];
+
+/// The distances along each box wall through glTF point `p` (x east, z south) from its start.
+fn along_box(p: [f32; 3]) -> Vec<f64> {
+    let q = DVec2::new(p[0] as f64, -p[2] as f64);
+    BOX_WALLS
+        .iter()
+        .filter_map(|(a, b, _)| {
+            let (a, b) = (DVec2::from(*a), DVec2::from(*b));
+            let t = (q - a).dot(b - a) / (b - a).length_squared();
+            ((a + (b - a) * t).distance(q) < 1e-4 && (-1e-6..=1.0 + 1e-6).contains(&t))
+                .then(|| t * a.distance(b))
+        })
+        .collect()
+}
+
+/// The (length, bays) of each box wall through `p`, in [`along_box`]'s order.
+fn box_lengths(p: [f32; 3]) -> Vec<(f64, f64)> {
+    let q = DVec2::new(p[0] as f64, -p[2] as f64);
+    BOX_WALLS
+        .iter()
+        .filter_map(|(a, b, n)| {
+            let (a, b) = (DVec2::from(*a), DVec2::from(*b));
+            let t = (q - a).dot(b - a) / (b - a).length_squared();
+            ((a + (b - a) * t).distance(q) < 1e-4 && (-1e-6..=1.0 + 1e-6).contains(&t))
+                .then(|| (a.distance(b), *n))
+        })
+        .collect()
+}
+
+#[test]
+fn textures_are_off_by_default_and_shared_when_on() {
+    let plain = write_glb(&[textured_box()]);
+    let (json, _) = parse_glb(&plain);
+    assert!(json.get("textures").is_none() && json.get("images").is_none());
+    assert!(!String::from_utf8_lossy(&plain).contains("TEXCOORD_0"));
+
+    // Three buildings: one picture per kind of surface, not one per building.
+    let three = [textured_box(), textured_box(), textured_box()];
+    let glb = write_glb_textured(Lod::Lod2, &three);
+    assert_eq!(glb, write_glb_textured(Lod::Lod2, &three), "deterministic");
+    let (json, bin) = parse_glb(&glb);
+    let names: Vec<&str> = json["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["bay brick w40 s25 h60", "slate"]);
+    assert_eq!(json["textures"].as_array().unwrap().len(), 2);
+    assert_eq!(json["samplers"][0]["wrapS"], 10497);
+    assert_eq!(json["samplers"][0]["wrapT"], 10497);
+    for i in json["images"].as_array().unwrap() {
+        assert_eq!(i["mimeType"], "image/png");
+        let v = &json["bufferViews"][i["bufferView"].as_u64().unwrap() as usize];
+        let at = v["byteOffset"].as_u64().unwrap() as usize;
+        assert_eq!(&bin[at..at + 8], &crate::export::png::SIGNATURE);
+    }
+    // The colour still comes from the surface: the texture multiplies the white wall.
+    let walls = json["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"].as_str().unwrap().starts_with("walls"))
+        .unwrap();
+    assert_eq!(walls["pbrMetallicRoughness"]["baseColorFactor"][0], 1.0);
+    assert_eq!(
+        walls["pbrMetallicRoughness"]["baseColorTexture"]["index"],
+        0
+    );
+}
+
+#[test]
+fn texture_coordinates_are_in_metres_and_bays() {
+    // LOD1: the brick's picture covers 1 m by 0.6 m: u counts metres along a wall, v up it.
+    let glb = write_glb_textured(Lod::Lod1, &[textured_box()]);
+    let (json, bin) = parse_glb(&glb);
+    for (p, [u, v]) in class_uvs(&json, bin, "walls") {
+        assert!(
+            along_box(p).iter().any(|a| (u as f64 - a).abs() < 1e-5),
+            "{p:?} {u}"
+        );
+        assert!((v + p[1] / 0.6).abs() < 1e-5, "{p:?} {v}");
+    }
+    // Roof: slate's picture is 1.2 m by 1 m; the flat roof is mapped east and north.
+    for (p, [u, v]) in class_uvs(&json, bin, "roof") {
+        assert!(
+            (u - p[0] / 1.2).abs() < 1e-5 && (v - p[2]).abs() < 1e-5,
+            "{p:?} {u} {v}"
+        );
+    }
+    // LOD2: a bay picture a bay wide, as many bays as the grammar's repeat fits (10 m / 3 m
+    // -> 3 bays, 6 m / 3 m -> 2) and a storey (1.5 m) high.
+    let glb = write_glb_textured(Lod::Lod2, &[textured_box()]);
+    let (json, bin) = parse_glb(&glb);
+    let uvs = class_uvs(&json, bin, "walls");
+    let max_u = uvs.iter().map(|(_, uv)| uv[0]).fold(0.0f32, f32::max);
+    assert!((max_u - 3.0).abs() < 1e-5, "{max_u}");
+    for (p, [u, v]) in uvs {
+        // Bays: metres along times the bays over the wall's length (3 / 10 m, 2 / 6 m).
+        let bays = along_box(p)
+            .iter()
+            .zip(box_lengths(p))
+            .any(|(a, (len, n))| (u as f64 - a * n / len).abs() < 1e-5);
+        assert!(bays, "{p:?} {u}");
+        assert!((v + p[1] / 1.5).abs() < 1e-5, "{p:?} {v}");
+    }
+}
+
+#[test]
+fn a_gable_above_the_eaves_has_no_windows() {
+    // A gabled wall: the piece above the eaves gets the plain pattern, below it the bays.
+    let mut b = textured_box();
+    let p = &mut b.parts[0];
+    let w = &mut p.walls[1];
+    w.outline.outer.insert(3, DVec3::new(10.0, 3.0, 5.0));
+    let (below, above) = super::mesh::split_at(&w.outline, 3.0);
+    let (below, above) = (below.unwrap(), above.unwrap());
+    assert!(below.outer.iter().all(|q| q.z <= 3.0 + 1e-9), "{below:?}");
+    assert!(above.outer.iter().all(|q| q.z >= 3.0 - 1e-9), "{above:?}");
+    assert_eq!(above.outer.len(), 3);
+    let (whole, none) = super::mesh::split_at(&p.walls[0].outline, 3.0);
+    assert!(whole.is_some() && none.is_none());
+}
+
+#[test]
+fn khronos_validator_accepts_textured_output() {
+    let Some(tool) = crate::testkit::validators::validate_outputs("glTF LOD1-3 (Khronos)") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let mut buildings = all_buildings();
+    buildings.push(textured_box());
+    let mut paths = Vec::new();
+    for lod in [Lod::Lod1, Lod::Lod2, Lod::Lod3] {
+        let path = dir
+            .path()
+            .join(format!("citygen-textured-lod{}.glb", lod.number()));
+        let sample = if lod == Lod::Lod3 {
+            samples::all()
+        } else {
+            buildings.clone()
+        };
+        std::fs::write(&path, write_glb_textured(lod, &sample)).unwrap();
+        paths.push(path);
+    }
+    let out = std::process::Command::new(tool)
+        .args(&paths)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "validator failed:\n{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("3 passed, 0 failed"), "{text}");
+    assert_eq!(text.matches("warnings=0").count(), 3, "{text}");
 }

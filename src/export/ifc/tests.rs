@@ -88,6 +88,7 @@ fn flat_part(key: &str, fp: Polygon, base: f64, top: f64, storeys: u32) -> Part 
         source: None,
         role: PartRole::Own,
         structure: None,
+        rhythm: None,
         footprint: fp,
         base_z: base,
         eave_z: top,

@@ -42,7 +42,7 @@ use crate::export::{BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
 mod glb;
-mod png;
+use crate::export::png;
 mod raster;
 
 pub use glb::{glb_triangles, GlbError, GlbMesh, MAX_VERTICES};

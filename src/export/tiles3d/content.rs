@@ -16,6 +16,7 @@ use serde_json::{json, Value};
 use crate::color::material::Material;
 use crate::color::{srgb_to_linear, Color};
 use crate::export::gltf::{finish_params, Group, SurfaceClass};
+use crate::export::texture::Texture;
 
 use super::frame::{BuildingMap, EnuFrame};
 use super::glb::Bin;
@@ -34,13 +35,16 @@ const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 pub(crate) struct Kind {
     blend: bool,
     material: Material,
+    /// The picture its faces carry (`--textures`): their primitive has texture coordinates.
+    texture: Option<Texture>,
 }
 
 impl Kind {
-    fn of(material: Material, alpha: f32) -> Kind {
+    fn of(material: Material, alpha: f32, texture: Option<Texture>) -> Kind {
         Kind {
             blend: alpha < 1.0,
             material,
+            texture,
         }
     }
 
@@ -48,7 +52,7 @@ impl Kind {
     /// and roughness factors (`finish_params`, as the glTF writer's). Named `matte` for a
     /// surface of no known material, else the material's name, `translucent` added when
     /// blended.
-    fn material(self) -> Value {
+    fn material(self, texture: Option<usize>) -> Value {
         let (_, metallic, roughness) = finish_params(Color::WHITE, self.material);
         let base = match self.material {
             Material::Unspecified => "matte",
@@ -70,6 +74,10 @@ impl Kind {
         if self.blend {
             m["alphaMode"] = json!("BLEND");
         }
+        if let (Some(t), Some(i)) = (self.texture, texture) {
+            m["name"] = json!(format!("{name} textured {}", t.name()));
+            m["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": i });
+        }
         m
     }
 }
@@ -88,6 +96,8 @@ pub(crate) struct Primitive {
     colors: Vec<[u16; 4]>,
     /// The vertex's building: its feature id (empty in a building's own primitives).
     features: Vec<u32>,
+    /// Texture coordinates (a textured kind's; empty otherwise).
+    uvs: Vec<[f32; 2]>,
     indices: Vec<u32>,
 }
 
@@ -113,6 +123,7 @@ impl Primitive {
         self.offsets.extend_from_slice(&b.offsets);
         self.normals.extend_from_slice(&b.normals);
         self.colors.extend_from_slice(&b.colors);
+        self.uvs.extend_from_slice(&b.uvs);
         self.features
             .extend(std::iter::repeat_n(feature, b.vertices()));
         self.indices.extend(b.indices.iter().map(|i| base + i));
@@ -133,7 +144,9 @@ pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) 
     let mut prims = Prims::new();
     for g in classes.iter().flat_map(|(_, gs)| gs) {
         let (c, _, _) = finish_params(g.color, g.material);
-        let kind = Kind::of(g.material, c.a);
+        let m = &g.mesh;
+        let texture = g.texture.filter(|_| m.uvs.len() == m.positions.len());
+        let kind = Kind::of(g.material, c.a, texture);
         let p = prims.entry(kind).or_default();
         let Ok(base) = u32::try_from(p.vertices()) else {
             continue;
@@ -145,7 +158,9 @@ pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) 
             unit(srgb_to_linear(c.b)),
             unit(c.a),
         ];
-        let m = &g.mesh;
+        if texture.is_some() {
+            p.uvs.extend_from_slice(&m.uvs);
+        }
         p.offsets.extend(
             m.positions
                 .iter()
@@ -179,6 +194,8 @@ pub(crate) struct Laid {
     pub(crate) primitives: Vec<Value>,
     pub(crate) materials: Vec<Value>,
     pub(crate) accessors: Vec<Value>,
+    /// The pictures the materials use, in first-use order (the content's textures).
+    pub(crate) textures: Vec<Texture>,
     pub(crate) lo: DVec3,
     pub(crate) hi: DVec3,
 }
@@ -190,6 +207,7 @@ pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &
         primitives: Vec::new(),
         materials: Vec::new(),
         accessors: Vec::new(),
+        textures: Vec::new(),
         lo: DVec3::INFINITY,
         hi: DVec3::NEG_INFINITY,
     };
@@ -298,14 +316,41 @@ pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &
         let mut ids: Vec<u32> = p.features.clone();
         ids.sort_unstable();
         ids.dedup();
-        laid.materials.push(kind.material());
+        let mut attributes = json!({
+            "POSITION": position,
+            "NORMAL": normal,
+            "COLOR_0": color,
+            "_FEATURE_ID_0": feature
+        });
+        let texture = match kind.texture {
+            Some(t) if p.uvs.len() == count => {
+                let uvs: Vec<u8> = p
+                    .uvs
+                    .iter()
+                    .flatten()
+                    .flat_map(|c| c.to_le_bytes())
+                    .collect();
+                let view = bin.view(&uvs, Some(ARRAY_BUFFER));
+                laid.accessors.push(json!({
+                    "bufferView": view,
+                    "componentType": FLOAT,
+                    "count": count,
+                    "type": "VEC2"
+                }));
+                attributes["TEXCOORD_0"] = json!(laid.accessors.len() - 1);
+                Some(match laid.textures.iter().position(|u| *u == t) {
+                    Some(i) => i,
+                    None => {
+                        laid.textures.push(t);
+                        laid.textures.len() - 1
+                    }
+                })
+            }
+            _ => None,
+        };
+        laid.materials.push(kind.material(texture));
         laid.primitives.push(json!({
-            "attributes": {
-                "POSITION": position,
-                "NORMAL": normal,
-                "COLOR_0": color,
-                "_FEATURE_ID_0": feature
-            },
+            "attributes": attributes,
             "indices": indices,
             "material": laid.materials.len() - 1,
             "mode": 4,

@@ -56,7 +56,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use crate::export::gltf::building_groups;
+use crate::export::gltf::{building_groups, Texturing};
 use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
@@ -163,6 +163,10 @@ pub(crate) struct Tiles3dWriter<W: Write + Send> {
     origin_z: f64,
     /// LOD3 and above: openings and balconies are drawn.
     detailed: bool,
+    /// `--textures` ([`Tiles3dWriter::with_textures`]).
+    textures: bool,
+    /// What the buildings are textured with (from `textures` and the LOD, at `begin`).
+    tex: Texturing,
     prims: content::Prims,
     /// Each building's anchor in ECEF, by feature id.
     anchors: Vec<DVec3>,
@@ -187,6 +191,8 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             model: None,
             origin_z: 0.0,
             detailed: false,
+            textures: false,
+            tex: Texturing::Off,
             prims: Default::default(),
             anchors: Vec::new(),
             rows: metadata::Rows::default(),
@@ -196,6 +202,13 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             terrain: None,
         };
         (w, info)
+    }
+
+    /// With `on`, a Full content's walls and roofs carry procedural textures (`--textures`,
+    /// as the glTF writer's: `crate::export::texture`). Off by default.
+    pub(crate) fn with_textures(mut self, on: bool) -> Tiles3dWriter<W> {
+        self.textures = on;
+        self
     }
 
     /// Gives back the output (complete after a successful `finish`).
@@ -328,7 +341,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         }
         let laid = content::lay_out(&self.prims, &self.anchors, &frame, &mut bin);
         let table = metadata::property_table(&self.rows, &mut bin);
-        let doc = json!({
+        let mut doc = json!({
             "asset": {"version": "2.0", "generator": generator},
             "extensionsUsed": ["EXT_mesh_features", "EXT_structural_metadata"],
             "extensions": {
@@ -346,6 +359,21 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             "bufferViews": bin.views,
             "buffers": [{"byteLength": bin.bytes.len()}]
         });
+        if !laid.textures.is_empty() {
+            // The pictures as PNG images in the buffer, a texture each, one repeating sampler.
+            let (mut images, mut textures) = (Vec::new(), Vec::new());
+            for (i, t) in laid.textures.iter().enumerate() {
+                let view = bin.view(&t.png(), None);
+                images.push(json!({"bufferView": view, "mimeType": "image/png", "name": t.name()}));
+                textures.push(json!({"sampler": 0, "source": i, "name": t.name()}));
+            }
+            doc["textures"] = json!(textures);
+            doc["images"] = json!(images);
+            doc["samplers"] =
+                json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
+            doc["bufferViews"] = json!(bin.views);
+            doc["buffers"] = json!([{"byteLength": bin.bytes.len()}]);
+        }
         let bytes = glb::write_glb(&mut self.out, &doc, &bin.bytes)?;
         self.set_info(ContentFacts {
             triangles,
@@ -401,9 +429,14 @@ fn footprint_bounds(p: &crate::model::Part) -> (DVec2, DVec2) {
 }
 
 /// Encodes one building (a pure function of it, run in parallel).
-fn encode(b: &Building, model: &ModelFrame, detail: Detail, detailed: bool) -> EncodedBuilding {
+fn encode(
+    b: &Building,
+    model: &ModelFrame,
+    detail: Detail,
+    (detailed, tex): (bool, Texturing),
+) -> EncodedBuilding {
     let groups = match detail {
-        Detail::Full => building_groups(b, detailed),
+        Detail::Full => building_groups(b, detailed, tex),
         Detail::Blocks => blocks::block_groups(b),
         Detail::Terrain => Vec::new(),
     };
@@ -435,6 +468,7 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
         self.model = Some(ModelFrame::new(ctx));
         self.origin_z = ctx.origin.z;
         self.detailed = ctx.lod >= Lod::Lod3;
+        self.tex = Texturing::of(self.textures, ctx.lod);
         if self.detail == Detail::Terrain {
             self.terrain = ctx.terrain.clone();
         }
@@ -449,7 +483,7 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
             self.track(building);
             return Ok(());
         }
-        let e = encode(building, &model, self.detail, self.detailed);
+        let e = encode(building, &model, self.detail, (self.detailed, self.tex));
         self.add(building, e)
     }
 
@@ -461,7 +495,7 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
 
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         let model = self.open("write")?;
-        let (detail, detailed) = (self.detail, self.detailed);
+        let (detail, detailed) = (self.detail, (self.detailed, self.tex));
         if detail == Detail::Terrain {
             // Only the frame is needed: the buildings' plan and lowest base.
             checked.finite().iter().for_each(|b| self.track(b));

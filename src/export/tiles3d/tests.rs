@@ -129,6 +129,7 @@ impl Glb {
         let count = acc["count"].as_u64().unwrap() as usize;
         let comps = match acc["type"].as_str().unwrap() {
             "SCALAR" => 1,
+            "VEC2" => 2,
             "VEC3" => 3,
             "VEC4" => 4,
             t => panic!("type {t}"),
@@ -1024,4 +1025,67 @@ fn one_undulation_per_building_is_close_everywhere_on_it() {
         let want = c.origin.z + p.z + crate::crs::geoid::undulation(lon, lat);
         assert!((h - want).abs() < 0.03, "{d:?}: {h} vs {want}");
     }
+}
+
+// ---- textures (issue 49, `--textures`) ----
+
+#[test]
+fn textured_contents_carry_one_picture_per_kind_and_coordinates() {
+    let mut bs = buildings(0.0);
+    for b in &mut bs {
+        for p in &mut b.parts {
+            p.wall_material = crate::color::material::Material::Brick;
+            p.rhythm = Some(crate::model::Rhythm {
+                bay: 3.0,
+                window: 1.2,
+                sill: 0.25,
+                height: 0.6,
+            });
+        }
+    }
+    let textured = |lod: Lod| {
+        let (w, info) = Tiles3dWriter::new(Vec::new(), Detail::Full);
+        let mut w = w.with_textures(true);
+        w.begin(&ctx(lod)).unwrap();
+        w.write_all(&bs).unwrap();
+        w.finish().unwrap();
+        (w.into_inner(), info.get().unwrap())
+    };
+    // Off by default: no picture, no coordinates.
+    let (plain, _) = write(Lod::Lod2, Detail::Full, &bs, true);
+    assert!(parse(&plain).json.get("images").is_none());
+    let (glb, info) = textured(Lod::Lod2);
+    assert_eq!(glb, textured(Lod::Lod2).0, "deterministic");
+    assert!(info.triangles > 0);
+    let g = parse(&glb);
+    let names: Vec<&str> = g.json["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["name"].as_str().unwrap())
+        .collect();
+    // Every building's walls share the one bay picture; roofs their material's.
+    assert_eq!(
+        names.iter().filter(|n| n.starts_with("bay brick")).count(),
+        1,
+        "{names:?}"
+    );
+    for i in g.json["images"].as_array().unwrap() {
+        let png = g.view(i["bufferView"].as_u64().unwrap());
+        assert_eq!(&png[..8], &crate::export::png::SIGNATURE);
+    }
+    let mut textured_prims = 0;
+    for p in g.json["meshes"][0]["primitives"].as_array().unwrap() {
+        let m = &g.json["materials"][p["material"].as_u64().unwrap() as usize];
+        let has_tex = m["pbrMetallicRoughness"].get("baseColorTexture").is_some();
+        assert_eq!(has_tex, p["attributes"].get("TEXCOORD_0").is_some());
+        if has_tex {
+            textured_prims += 1;
+            let (uv, comps) = g.accessor(p["attributes"]["TEXCOORD_0"].as_u64().unwrap());
+            let (pos, _) = g.accessor(p["attributes"]["POSITION"].as_u64().unwrap());
+            assert_eq!((comps, uv.len() / 2), (2, pos.len() / 3));
+            assert!(uv.iter().all(|c| c.is_finite()));
+        }
+    }
+    assert!(textured_prims >= 2);
 }

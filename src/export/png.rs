@@ -1,4 +1,4 @@
-//! A PNG encoder for 8-bit RGB pictures (PNG 1.2 / ISO 15948): signature, `IHDR`, one `IDAT`
+//! A PNG encoder for 8-bit RGB pictures (PNG 1.2 / ISO 15948): the preview's picture and the textures (`export::texture`): signature, `IHDR`, one `IDAT`
 //! (zlib through `flate2`, every row given the filter of least absolute sum, the heuristic the
 //! PNG specification suggests), `IEND`; chunk CRCs by `crc32fast`. No clock, no metadata: the
 //! bytes are a function of the pixels.

@@ -1,0 +1,531 @@
+//! Procedural textures (issue 49, `--textures`): small tileable pictures that citygen draws
+//! itself (no image asset), one per surface material and one per kind of facade bay, and the
+//! texture coordinates that lay them on a face in metres.
+//!
+//! **What a texture is.** A [`Texture::Surface`] is the pattern of a material (brick bond,
+//! render with noise, stone courses, timber boards, concrete formwork, standing-seam metal,
+//! clay tile rows, slate rows, thatch, green roof, bitumen, gravel) covering
+//! [`Texture::size`] metres of a surface, tileable in both directions (the writers' sampler
+//! repeats it). A [`Texture::Bay`] is one bay of a LOD2 facade, one storey high: the wall's
+//! pattern with a window between two piers and a storey line at the floor, the window's width,
+//! sill and height the shares that the knowledge base's rules give it at LOD3
+//! ([`crate::model::Rhythm`]), rounded to [`BAY_STEP`] so that a file holds a few bay pictures,
+//! not one per building. A wall's coordinates make one picture one bay wide, the wall holding
+//! as many bays as the rules' `repeat` gives it (its length over the bay width, rounded), and
+//! one storey high, counted from the part's ground.
+//!
+//! **Colour.** Every picture is grey: a pattern of luminance near 1 that the writers multiply
+//! by the surface's colour (glTF's `baseColorFactor`, 3D Tiles' vertex colours), so that the
+//! map's and the knowledge base's colours still show, and one picture serves every colour.
+//!
+//! **Determinism.** A picture is a pure function of its [`Texture`]: its noise is hashed from
+//! the material and the pixel, never from a clock or a thread; the PNG encoder
+//! (`export::png`) writes no metadata.
+
+use glam::{DVec2, DVec3};
+
+use crate::color::material::Material;
+use crate::model::Rhythm;
+
+/// Side of every texture picture, pixels.
+pub(crate) const SIDE: u32 = 128;
+
+/// Bay shares (window width, sill, window height) are rounded to this many hundredths.
+pub(crate) const BAY_STEP: u8 = 5;
+
+/// Luminance levels a picture is quantised to (fewer levels, smaller PNG).
+const LEVELS: f32 = 24.0;
+
+/// A texture picture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub(crate) enum Texture {
+    /// The pattern of a surface material, [`Texture::size`] metres a picture.
+    Surface(Material),
+    /// One bay of a facade, one storey high: the wall material's pattern and a window whose
+    /// width, sill and height are percentages of the bay and of the storey (multiples of
+    /// [`BAY_STEP`]).
+    Bay {
+        /// The wall's material.
+        material: Material,
+        /// Window width, percent of the bay.
+        window: u8,
+        /// Sill height, percent of the storey.
+        sill: u8,
+        /// Window height, percent of the storey.
+        height: u8,
+    },
+}
+
+/// `x` (a share) as a percentage rounded to [`BAY_STEP`], within `lo..=hi`.
+fn percent(x: f64, lo: u8, hi: u8) -> u8 {
+    let step = f64::from(BAY_STEP);
+    let p = if x.is_finite() {
+        (x * 100.0 / step).round() * step
+    } else {
+        f64::from(lo)
+    };
+    p.clamp(f64::from(lo), f64::from(hi)) as u8
+}
+
+impl Texture {
+    /// The bay picture of a wall of `material` with the rhythm `r`.
+    pub(crate) fn bay(material: Material, r: &Rhythm) -> Texture {
+        let window = if r.bay > 0.0 { r.window / r.bay } else { 0.4 };
+        let sill = percent(r.sill, 5, 60);
+        let height = percent(r.height, 10, 90).min(95 - sill);
+        Texture::Bay {
+            material,
+            window: percent(window, 10, 80),
+            sill,
+            height,
+        }
+    }
+
+    /// The material whose pattern the picture shows.
+    pub(crate) fn material(self) -> Material {
+        match self {
+            Texture::Surface(m) | Texture::Bay { material: m, .. } => m,
+        }
+    }
+
+    /// Width and height (metres) one picture of a material's pattern covers: a whole number
+    /// of its bricks, courses, boards or tile rows, so that it tiles.
+    pub(crate) fn size(material: Material) -> (f64, f64) {
+        match material {
+            // 4 bricks of 25 cm by 8 courses of 7.5 cm.
+            Material::Brick => (1.0, 0.6),
+            // 3 blocks of 80 cm by 4 courses of 40 cm.
+            Material::Stone => (2.4, 1.6),
+            // A formwork panel.
+            Material::Concrete => (2.4, 1.2),
+            // 8 boards of 15 cm.
+            Material::Timber => (1.2, 1.2),
+            // 2 standing-seam trays of 50 cm.
+            Material::Metal => (1.0, 1.0),
+            // 4 tiles of 25 cm by 4 rows of 30 cm.
+            Material::RoofTiles => (1.0, 1.2),
+            // 4 slates of 30 cm by 4 rows of 25 cm.
+            Material::Slate => (1.2, 1.0),
+            Material::Thatch | Material::Bitumen | Material::Gravel => (1.0, 1.0),
+            _ => (2.0, 2.0),
+        }
+    }
+
+    /// The picture's name in a file (`brick`, `bay plaster w40 s25 h60`).
+    pub(crate) fn name(self) -> String {
+        match self {
+            Texture::Surface(m) => m.name().to_string(),
+            Texture::Bay {
+                material,
+                window,
+                sill,
+                height,
+            } => format!("bay {} w{window} s{sill} h{height}", material.name()),
+        }
+    }
+
+    /// The picture's luminance, [`SIDE`] x [`SIDE`] values in 0..=1, rows from the top.
+    pub(crate) fn luminance(self) -> Vec<f32> {
+        let n = SIDE as usize;
+        let mut out = Vec::with_capacity(n * n);
+        let m = self.material();
+        let (w, h) = Texture::size(m);
+        // A bay picture shows about 3 m by 3 m of wall: a whole number of pattern pictures.
+        let (bw, bh) = match self {
+            Texture::Surface(_) => (w, h),
+            Texture::Bay { .. } => (
+                (3.0 / w).round().max(1.0) * w,
+                (3.0 / h).round().max(1.0) * h,
+            ),
+        };
+        for row in 0..n {
+            for col in 0..n {
+                // Shares of the picture: x to the right, y up from its bottom.
+                let fx = (col as f64 + 0.5) / n as f64;
+                let fy = 1.0 - (row as f64 + 0.5) / n as f64;
+                let (x, y) = ((fx * bw).rem_euclid(w), (fy * bh).rem_euclid(h));
+                // Contrast eased towards 1: the surface's colour, multiplied, stays near
+                // its own (a viewer decodes the sRGB picture to linear, which darkens).
+                let mut l = 1.0 - 0.7 * (1.0 - pattern(m, x, y, w, h));
+                if let Texture::Bay {
+                    window,
+                    sill,
+                    height,
+                    ..
+                } = self
+                {
+                    l = bay(l, fx, fy, window, sill, height);
+                }
+                out.push((l.clamp(0.0, 1.0) * LEVELS).round() / LEVELS);
+            }
+        }
+        out
+    }
+
+    /// The picture as a PNG file (grey, stored as RGB): deterministic bytes.
+    pub(crate) fn png(self) -> Vec<u8> {
+        let rgb: Vec<u8> = self
+            .luminance()
+            .into_iter()
+            .flat_map(|l| {
+                let v = (l * 255.0).round() as u8;
+                [v, v, v]
+            })
+            .collect();
+        super::png::encode_rgb(SIDE, SIDE, &rgb).unwrap_or_default()
+    }
+}
+
+/// A face's texture coordinates, in pictures: `u` along the face's horizontal direction
+/// (to the right seen from outside), `v` up it (glTF's `v` runs down a picture, so it is
+/// written negated), each from `origin` and scaled by pictures a metre.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct UvMap {
+    origin: DVec3,
+    u: DVec3,
+    v: DVec3,
+}
+
+impl UvMap {
+    /// The map of a plane facing `normal` (unit), from `origin`: `u` horizontal in the plane,
+    /// `v` up its slope (on a flat face, east and north), `per_u` and `per_v` pictures a metre.
+    pub(crate) fn plane(normal: DVec3, origin: DVec3, per_u: f64, per_v: f64) -> UvMap {
+        let horizontal = DVec3::Z.cross(normal);
+        let u = if horizontal.length() < 0.05 {
+            DVec3::X
+        } else {
+            horizontal.normalize()
+        };
+        let v = normal.cross(u).normalize_or(DVec3::Y);
+        UvMap {
+            origin,
+            u: u * per_u,
+            v: v * per_v,
+        }
+    }
+
+    /// The map of a wall from `start` to `end` (seen from outside, `start` on the left) whose
+    /// pictures start at `start` on the height `base`: `per_u` and `per_v` pictures a metre
+    /// along it and up it.
+    pub(crate) fn wall(start: DVec2, end: DVec2, base: f64, per_u: f64, per_v: f64) -> UvMap {
+        let d = (end - start).normalize_or(DVec2::X);
+        UvMap {
+            origin: start.extend(base),
+            u: d.extend(0.0) * per_u,
+            v: DVec3::Z * per_v,
+        }
+    }
+
+    /// The coordinates of `p`.
+    pub(crate) fn uv(&self, p: DVec3) -> [f32; 2] {
+        let d = p - self.origin;
+        let (u, v) = (d.dot(self.u), d.dot(self.v));
+        [u as f32 + 0.0, -(v as f32) + 0.0]
+    }
+}
+
+/// The bays a wall of `length` metres holds with bays of `bay` metres, as the grammar's
+/// `repeat` fits them: the length over the bay, rounded, at least 1.
+pub(crate) fn bays(length: f64, bay: f64) -> f64 {
+    if bay > 0.0 && length.is_finite() {
+        (length / bay).round().max(1.0)
+    } else {
+        1.0
+    }
+}
+
+/// A hash of `(seed, a, b)` in 0..1.
+fn hash(seed: u32, a: i64, b: i64) -> f32 {
+    let mut x = u64::from(seed)
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add((a as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9))
+        .wrapping_add((b as u64).wrapping_mul(0x94D0_49BB_1331_11EB));
+    x ^= x >> 31;
+    x = x.wrapping_mul(0xD6E8_FEB8_6659_FD93);
+    x ^= x >> 32;
+    (x >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Value noise of period `px` by `py` cells over `x`, `y` in cells: smooth, tileable.
+fn noise(seed: u32, x: f64, y: f64, px: i64, py: i64) -> f32 {
+    let (x0, y0) = (x.floor(), y.floor());
+    let (tx, ty) = ((x - x0) as f32, (y - y0) as f32);
+    let (sx, sy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
+    let (i, j) = (x0 as i64, y0 as i64);
+    let at = |a: i64, b: i64| hash(seed, a.rem_euclid(px.max(1)), b.rem_euclid(py.max(1)));
+    let top = at(i, j) + (at(i + 1, j) - at(i, j)) * sx;
+    let bottom = at(i, j + 1) + (at(i + 1, j + 1) - at(i, j + 1)) * sx;
+    top + (bottom - top) * sy
+}
+
+/// Two octaves of [`noise`] over a `w` by `h` metre picture with cells of about `cell`
+/// metres: tileable on the picture.
+fn fbm(seed: u32, x: f64, y: f64, w: f64, h: f64, cell: f64) -> f32 {
+    let (px, py) = ((w / cell).round().max(1.0), (h / cell).round().max(1.0));
+    let (cx, cy) = (x / w * px, y / h * py);
+    let a = noise(seed, cx, cy, px as i64, py as i64);
+    let b = noise(seed + 1, 2.0 * cx, 2.0 * cy, 2 * px as i64, 2 * py as i64);
+    (2.0 * a + b) / 3.0
+}
+
+/// The luminance of `material`'s pattern at `x`, `y` metres in its `w` by `h` picture (`y`
+/// up from its bottom).
+fn pattern(material: Material, x: f64, y: f64, w: f64, h: f64) -> f32 {
+    let seed = material as u32 * 7919 + 17;
+    let fine = fbm(seed, x, y, w, h, 0.05) - 0.5;
+    match material {
+        Material::Brick => {
+            // Stretcher bond: 25 cm bricks, courses of 7.5 cm, 1 cm joints.
+            let course = (y / 0.075).floor();
+            let offset = if course as i64 % 2 == 0 { 0.0 } else { 0.125 };
+            let along = (x + offset).rem_euclid(w);
+            let brick = (along / 0.25).floor();
+            let (ja, jc) = (along - brick * 0.25, y - course * 0.075);
+            if ja < 0.012 || jc < 0.012 {
+                1.0 + 0.05 * fine
+            } else {
+                let id = hash(seed, brick as i64 % 4, course as i64);
+                0.72 + 0.2 * id + 0.12 * fine
+            }
+        }
+        Material::Stone => {
+            let course = (y / 0.4).floor();
+            let along = (x + 0.4 * course).rem_euclid(w);
+            let block = (along / 0.8).floor();
+            let (ja, jc) = (along - block * 0.8, y - course * 0.4);
+            if ja < 0.02 || jc < 0.02 {
+                0.62
+            } else {
+                let id = hash(seed, block as i64 % 3, course as i64);
+                0.8 + 0.15 * id + 0.2 * fine
+            }
+        }
+        Material::Concrete => {
+            let tie = [
+                (0.3, 0.3),
+                (0.3, 0.9),
+                (1.2, 0.3),
+                (1.2, 0.9),
+                (2.1, 0.3),
+                (2.1, 0.9),
+            ]
+            .iter()
+            .any(|(tx, ty)| (x - tx).hypot(y - ty) < 0.025);
+            if x < 0.015 || y < 0.015 {
+                0.78
+            } else if tie {
+                0.6
+            } else {
+                0.9 + 0.12 * fine
+            }
+        }
+        Material::Timber => {
+            let board = (x / 0.15).floor();
+            let a = x - board * 0.15;
+            if a < 0.008 {
+                0.5
+            } else {
+                let id = hash(seed, board as i64 % 8, 0);
+                let grain = fbm(seed + 3, a * 4.0, y, 2.4, h, 0.06) - 0.5;
+                0.74 + 0.18 * id + 0.3 * grain
+            }
+        }
+        Material::Metal => {
+            let a = x.rem_euclid(0.5);
+            if a < 0.012 {
+                1.0
+            } else if a < 0.025 {
+                0.7
+            } else {
+                0.88 + 0.04 * fine
+            }
+        }
+        Material::RoofTiles => {
+            // Pan tiles: rows of 30 cm, each tile rounded across, the row's lower edge in shade.
+            let row = (y / 0.3).floor();
+            let r = (y - row * 0.3) / 0.3;
+            let offset = if row as i64 % 2 == 0 { 0.0 } else { 0.125 };
+            let a = ((x + offset).rem_euclid(0.25)) / 0.25;
+            let round = (std::f64::consts::PI * a).sin() as f32;
+            let shade = if r < 0.1 { 0.55 } else { 1.0 };
+            let id = hash(seed, ((x + offset).rem_euclid(w) / 0.25) as i64, row as i64);
+            shade * (0.66 + 0.22 * round + 0.12 * id + 0.1 * fine)
+        }
+        Material::Slate => {
+            let row = (y / 0.25).floor();
+            let offset = if row as i64 % 2 == 0 { 0.0 } else { 0.15 };
+            let along = (x + offset).rem_euclid(w);
+            let slate = (along / 0.3).floor();
+            let (ja, jr) = (along - slate * 0.3, y - row * 0.25);
+            if ja < 0.01 || jr < 0.015 {
+                0.55
+            } else {
+                let id = hash(seed, slate as i64 % 4, row as i64);
+                0.78 + 0.16 * id + 0.1 * fine
+            }
+        }
+        Material::Thatch => {
+            let streak = fbm(seed + 5, x * 8.0, y, 8.0 * w, h, 0.25) - 0.5;
+            let row = (y / 0.25).fract() as f32;
+            0.8 + 0.35 * streak - 0.12 * (1.0 - row)
+        }
+        Material::Green => 0.8 + 0.4 * (fbm(seed, x, y, w, h, 0.15) - 0.5) + 0.15 * fine,
+        Material::Gravel => 0.7 + 0.3 * hash(seed, (x / 0.015) as i64, (y / 0.015) as i64),
+        Material::Bitumen => {
+            if y < 0.01 {
+                0.7
+            } else {
+                0.88 + 0.12 * fine
+            }
+        }
+        Material::Mud => 0.86 + 0.25 * (fbm(seed, x, y, w, h, 0.25) - 0.5) + 0.1 * fine,
+        Material::Glass => 1.0,
+        // Render, plaster and anything unknown: a fine noise and broad patches.
+        Material::Plaster | Material::Unspecified => {
+            0.93 + 0.07 * fine + 0.08 * (fbm(seed + 9, x, y, w, h, 0.5) - 0.5)
+        }
+    }
+}
+
+/// The bay picture's luminance at shares `fx`, `fy` (`fy` up from the floor) over the wall's
+/// luminance `l`: a window of `window` percent of the bay in its middle, from `sill` to
+/// `sill + height` percent of the storey, with a light frame, a mullion and a transom, a sill
+/// ledge, and a storey line at the floor.
+fn bay(l: f32, fx: f64, fy: f64, window: u8, sill: u8, height: u8) -> f32 {
+    let px = 1.0 / f64::from(SIDE);
+    let w = f64::from(window) / 100.0;
+    let (x0, x1) = (0.5 - w / 2.0, 0.5 + w / 2.0);
+    let (y0, y1) = (f64::from(sill) / 100.0, f64::from(sill + height) / 100.0);
+    if fy < 3.0 * px {
+        // The storey line: a band at the floor.
+        return l * 0.82;
+    }
+    let inside = fx >= x0 && fx < x1 && fy >= y0 && fy < y1;
+    if inside {
+        let frame = 3.0 * px;
+        let edge = fx < x0 + frame || fx >= x1 - frame || fy < y0 + frame || fy >= y1 - frame;
+        let mullion = (fx - 0.5).abs() < px;
+        let transom = (fy - (y0 + 0.72 * (y1 - y0))).abs() < px;
+        if edge || mullion || transom {
+            return 0.95;
+        }
+        // Glass: dark, a little lighter towards the top (the sky it reflects).
+        return 0.16 + 0.12 * ((fy - y0) / (y1 - y0)) as f32;
+    }
+    // The sill ledge under the window, a little wider than it.
+    if fy >= y0 - 3.0 * px && fy < y0 && fx >= x0 - 3.0 * px && fx < x1 + 3.0 * px {
+        return 0.97;
+    }
+    // The window's shadow on the wall below the ledge.
+    if fy >= y0 - 5.0 * px && fy < y0 - 3.0 * px && fx >= x0 && fx < x1 {
+        return l * 0.8;
+    }
+    l
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_picture_is_a_function_of_its_texture() {
+        let all = [
+            Material::Unspecified,
+            Material::Plaster,
+            Material::Brick,
+            Material::Stone,
+            Material::Concrete,
+            Material::Timber,
+            Material::Metal,
+            Material::Mud,
+            Material::RoofTiles,
+            Material::Slate,
+            Material::Thatch,
+            Material::Green,
+            Material::Bitumen,
+            Material::Gravel,
+        ];
+        let mut seen = Vec::new();
+        for m in all {
+            let png = Texture::Surface(m).png();
+            assert_eq!(png, Texture::Surface(m).png(), "{m:?}");
+            assert_eq!(&png[..8], &crate::export::png::SIGNATURE);
+            assert!(png.len() < 24_000, "{m:?}: {} bytes", png.len());
+            seen.push(png);
+        }
+        seen.sort();
+        seen.dedup();
+        assert_eq!(seen.len(), all.len(), "every material has its own picture");
+    }
+
+    #[test]
+    fn pictures_tile_and_keep_the_colour() {
+        for m in [
+            Material::Brick,
+            Material::Stone,
+            Material::Slate,
+            Material::Plaster,
+        ] {
+            let (w, h) = Texture::size(m);
+            // The pattern is periodic: one picture further along, and up, it is the same.
+            for (x, y) in [(0.013, 0.02), (0.4, 0.31), (0.77, 0.05)] {
+                let a = pattern(m, x, y, w, h);
+                let b = pattern(m, (x + w).rem_euclid(w), (y + h).rem_euclid(h), w, h);
+                assert_eq!(a, b, "{m:?}");
+            }
+            let l = Texture::Surface(m).luminance();
+            let mean = l.iter().sum::<f32>() / l.len() as f32;
+            assert!((0.7..=1.0).contains(&mean), "{m:?}: mean {mean}");
+        }
+    }
+
+    #[test]
+    fn a_bay_shows_its_window_where_the_rules_put_it() {
+        let r = Rhythm {
+            bay: 3.0,
+            window: 1.2,
+            sill: 0.25,
+            height: 0.6,
+        };
+        let t = Texture::bay(Material::Brick, &r);
+        assert_eq!(
+            t,
+            Texture::Bay {
+                material: Material::Brick,
+                window: 40,
+                sill: 25,
+                height: 60
+            }
+        );
+        let l = t.luminance();
+        let n = SIDE as usize;
+        let at = |fx: f64, fy: f64| {
+            let col = (fx * n as f64) as usize;
+            let row = ((1.0 - fy) * n as f64) as usize;
+            l[row.min(n - 1) * n + col.min(n - 1)]
+        };
+        // Glass in the window's middle third (left of the mullion), wall beside and under it.
+        assert!(at(0.42, 0.45) < 0.35);
+        assert!(at(0.1, 0.5) > 0.6);
+        assert!(at(0.42, 0.15) > 0.6);
+        assert!(at(0.42, 0.92) > 0.6);
+    }
+
+    #[test]
+    fn coordinates_are_in_metres() {
+        // A wall 6 m long facing south; 1 m a picture: u counts metres along it to the right,
+        // v metres up it (negated, glTF's v runs down the picture).
+        let m = UvMap::wall(DVec2::new(10.0, 5.0), DVec2::new(16.0, 5.0), 2.0, 1.0, 1.0);
+        assert_eq!(m.uv(DVec3::new(13.0, 5.0, 4.5)), [3.0, -2.5]);
+        // A roof sloping up to the north: v up the slope, in metres along it.
+        let n = DVec3::new(0.0, -1.0, 1.0).normalize();
+        let r = UvMap::plane(n, DVec3::ZERO, 1.0, 1.0);
+        let [u, v] = r.uv(DVec3::new(2.0, 3.0, 3.0));
+        assert!(
+            (u - 2.0).abs() < 1e-6 && (v + 18f32.sqrt()).abs() < 1e-5,
+            "{u} {v}"
+        );
+        assert_eq!(bays(10.0, 3.0), 3.0);
+        assert_eq!(bays(1.0, 3.0), 1.0);
+    }
+}
