@@ -572,6 +572,8 @@ struct RunState<'a> {
     own_keys: Option<std::collections::HashMap<SourceId, incremental::Key>>,
     /// What each lot inferred from its neighbours, noted for the lots the run keeps.
     inferred_notes: std::collections::HashMap<SourceId, String>,
+    /// The estimator's touching pairs (its rows), for `citygen split`; emptied by `select`.
+    touching: Vec<(u32, u32, f32)>,
     /// The lots this run writes: those in --bbox, and of a shard, those of its tiles.
     selected: Vec<bool>,
     /// The lots of the run, all shards' (for the changes since --previous).
@@ -643,7 +645,7 @@ impl<'a> RunState<'a> {
         // Before --bbox, so that the neighbours outside the box count; noted for the buildings
         // the run keeps.
         let before = start.elapsed().as_secs_f64();
-        let inferred = infer_from_neighbours(
+        let mut inferred = infer_from_neighbours(
             &generator.kb,
             generator.boundaries(),
             &mut site.lots,
@@ -653,7 +655,9 @@ impl<'a> RunState<'a> {
             secs: p.secs + before,
             ..p
         }));
-        // The estimator's outcome lot by lot is not needed past here.
+        // The estimator's outcome lot by lot is not needed past here (but its rows by
+        // `citygen split`, until `select`).
+        let touching = std::mem::take(&mut inferred.outcome.touching);
         drop(inferred.outcome);
         for line in inferred.lines {
             report.add(None, Outcome::Note, line);
@@ -679,6 +683,7 @@ impl<'a> RunState<'a> {
             generator,
             own_keys,
             inferred_notes,
+            touching,
             selected: Vec::new(),
             in_run: Vec::new(),
             grid: None,
@@ -690,6 +695,7 @@ impl<'a> RunState<'a> {
     /// Chooses the lots this run writes (`selected`, and all shards' `in_run`) and, with
     /// `--tile`, the grid.
     fn select(&mut self) {
+        self.touching = Vec::new();
         let (opts, site) = (self.opts, &self.site);
         let mut selected: Vec<bool> = match opts.bbox {
             Some(b) => site

@@ -286,9 +286,15 @@ impl GridPlan {
         site: &prepare::Site,
         report: &mut Report,
     ) -> Result<shard::Manifest, RunError> {
+        // Without entries (`citygen split` cuts them itself) there is nothing to own.
         let owner: std::collections::BTreeMap<String, usize> = site
             .lots
             .iter()
+            .take(if report.entries.is_empty() {
+                0
+            } else {
+                usize::MAX
+            })
             .map(|l| {
                 let cell = prepare::tile_cell(site.crs, l, self.size);
                 (

@@ -8,12 +8,19 @@
 //!
 //! - the PBF holds, copied element for element from the input (same ids, tags, coordinates,
 //!   order), every building of the shard's tiles and the **halo**: every building, part and
-//!   street within `halo` metres of one of its tiles (their nodes, ways and relations with
-//!   their members), every node carrying `addr:street` there (address and entrance nodes
-//!   name a building's street), and every admin boundary of the input. The halo is what the shard's
-//!   buildings take from outside their tile: tagged neighbours for the estimator (500 m; their
-//!   own features look 250 m further), touching neighbours (party walls, rows), the nearest
-//!   street for the front (50 m), the boundaries for the zones.
+//!   street (by its segments) within `halo` metres of what the shard needs (their nodes, ways
+//!   and relations with their members), every node carrying `addr:street` there (address and
+//!   entrance nodes name a building's street), and every admin boundary of the input. What a
+//!   shard needs is its tiles, each as far as its own buildings reach, and the buildings of
+//!   other shards whose *final* estimate one of its buildings takes: those within
+//!   `NEIGHBOUR_MARGIN_M` of it (party walls, what a LOD3 facade looks at) and every member
+//!   of a row (touching lots, followed to the row's ends) one of those is in. The halo
+//!   ([`DEFAULT_HALO_M`]) is how far another building decides something of a building's
+//!   estimate: its tagged neighbours within 500 m vote with their residuals, which their own
+//!   density windows (up to 707 m around them) decide; colours (300 m), fronts (50 m) and
+//!   the zones' boundaries lie within it. A run has no whole-input statistic past these: the
+//!   estimator fits no model of its own in a run (only `citygen eval --fit` does), and the
+//!   report's whole-input lines travel in the head.
 //! - the head ([`SplitHead`]) holds what a shard cannot know from its part: the original
 //!   input's name, size and SHA-256 (its manifest names the input the run read), the CRS and
 //!   origin of the whole input, the whole grid with each tile's shard, and the shard's share
@@ -47,9 +54,14 @@ pub(crate) const SPLIT_FORMAT: &str = "citygen-split/1";
 /// The most shards one split writes (a part's membership is a 64-bit mask).
 pub const MAX_SPLIT_SHARDS: usize = 64;
 
-/// The default halo (metres): the estimator's neighbours (500 m) and their own surroundings
-/// (250 m), with room for rows of touching buildings.
-pub const DEFAULT_HALO_M: f64 = 1000.0;
+/// The default halo (metres): as far as another building decides something of a building's
+/// estimate (its tagged neighbours within 500 m, whose residuals their own density windows
+/// decide, up to 707 m around them: 1,207 m), rounded up to 1,250 m. Colours (300 m), fronts
+/// (50 m) and touching neighbours lie within it; rows are followed to their ends whatever
+/// their length (module docs).
+pub const DEFAULT_HALO_M: f64 = 1250.0;
+const _: () = assert!(DEFAULT_HALO_M >= crate::prepare::estimate::REACH_M);
+const _: () = assert!(DEFAULT_HALO_M >= crate::prepare::FRONT_MAX_DISTANCE);
 
 /// What a shard reads beside its part ([`crate::pipeline::split`]).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -269,40 +281,119 @@ pub fn split(
         },
     );
 
-    // Each lot's shards: its tile's, and every shard with a tile within the halo.
+    // Each lot's shards: its tile's, and every shard one of whose *needs* lies within the
+    // halo (`Needs`): its tiles (as far as their own buildings reach), and the buildings of
+    // other shards whose estimates it takes (touching neighbours, rows).
     let own: Vec<usize> = site
         .lots
         .iter()
         .map(|l| grid.shard_of(site.crs, l))
         .collect();
-    let tiles = grid.cells();
-    let ring = (halo_m / f64::from(size)).ceil() as i64;
-    let sz = f64::from(size);
-    let mask_of = |lo: DVec2, hi: DVec2| -> u64 {
-        let mut m = 0u64;
-        let (c0, c1) = (
-            ((lo.x / sz).floor() as i64, (lo.y / sz).floor() as i64),
-            ((hi.x / sz).floor() as i64, (hi.y / sz).floor() as i64),
+    let boxes: Vec<Option<(DVec2, DVec2)>> = site
+        .lots
+        .iter()
+        .map(|l| {
+            // With the point that places the lot in its tile (its ring's mean, which a repair
+            // may leave outside the outline).
+            let (x, y) = site.crs.from_lonlat(l.lonlat.0, l.lonlat.1);
+            let p = DVec2::new(x, y);
+            let (lo, hi) = full_bounds(l)?;
+            let (lo, hi) = (lo + site.origin, hi + site.origin);
+            Some(if p.is_finite() {
+                (lo.min(p), hi.max(p))
+            } else {
+                (lo, hi)
+            })
+        })
+        .collect();
+    let mut needs = Needs::new(f64::from(size), halo_m);
+    for (cell, &s) in &grid.cells() {
+        let lo = DVec2::new(cell.0 as f64, cell.1 as f64) * f64::from(size);
+        needs.add(*cell, lo, lo + DVec2::splat(f64::from(size)), 1 << s);
+    }
+    for ((lot, b), &s) in site.lots.iter().zip(&boxes).zip(&own) {
+        if let Some((lo, hi)) = b {
+            let cell = crate::prepare::tile_cell(site.crs, lot, size);
+            needs.add(cell, *lo, *hi, 1 << s);
+        }
+    }
+    // The buildings whose final estimate a shard takes: its own, their neighbours within
+    // `NEIGHBOUR_MARGIN_M` (party walls, what a LOD3 facade looks at), and every member of
+    // a row one of those is in (rows share one estimate). Each, where it is another shard's,
+    // needs its own reach in the part too.
+    let mut finals: Vec<u64> = own.iter().map(|&s| 1u64 << s).collect();
+    {
+        use rstar::primitives::{GeomWithData, Rectangle};
+        use rstar::{RTree, AABB};
+        let margin = super::incremental::NEIGHBOUR_MARGIN_M;
+        let tree = RTree::bulk_load(
+            boxes
+                .iter()
+                .enumerate()
+                .filter_map(|(i, b)| {
+                    b.map(|(lo, hi)| {
+                        GeomWithData::new(Rectangle::from_corners(lo.to_array(), hi.to_array()), i)
+                    })
+                })
+                .collect(),
         );
-        for cx in c0.0 - ring..=c1.0 + ring {
-            for cy in c0.1 - ring..=c1.1 + ring {
-                let Some(&s) = tiles.get(&(cx, cy)) else {
-                    continue;
-                };
-                if m & (1 << s) != 0 {
-                    continue;
-                }
-                // The distance between the box and the tile.
-                let (tx, ty) = (cx as f64 * sz, cy as f64 * sz);
-                let dx = (tx - hi.x).max(lo.x - (tx + sz)).max(0.0);
-                let dy = (ty - hi.y).max(lo.y - (ty + sz)).max(0.0);
-                if dx.hypot(dy) <= halo_m {
-                    m |= 1 << s;
+        // Two lots of different shards within the margin: one of them comes within the margin
+        // of its own tile's edge (else both lie inside one tile), so only those look.
+        let sz = f64::from(size);
+        for (i, (lot, b)) in site.lots.iter().zip(&boxes).enumerate() {
+            let Some((lo, hi)) = b else {
+                continue;
+            };
+            let cell = crate::prepare::tile_cell(site.crs, lot, size);
+            let corner = DVec2::new(cell.0 as f64, cell.1 as f64) * sz;
+            let (a, z) = (*lo - DVec2::splat(margin), *hi + DVec2::splat(margin));
+            if a.cmpgt(corner).all() && z.cmplt(corner + DVec2::splat(sz)).all() {
+                continue;
+            }
+            for g in
+                tree.locate_in_envelope_intersecting(AABB::from_corners(a.to_array(), z.to_array()))
+            {
+                let j = g.data;
+                if own[j] != own[i] {
+                    finals[j] |= 1 << own[i];
+                    finals[i] |= 1 << own[j];
                 }
             }
         }
-        m
+    }
+    let touching = std::mem::take(&mut run.touching);
+    let mut parent: Vec<usize> = (0..site.lots.len()).collect();
+    let find = |p: &mut Vec<usize>, mut i: usize| {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
     };
+    for &(a, b, _) in &touching {
+        let (ra, rb) = (find(&mut parent, a as usize), find(&mut parent, b as usize));
+        if ra != rb {
+            parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    drop(touching);
+    let roots: Vec<usize> = (0..site.lots.len()).map(|i| find(&mut parent, i)).collect();
+    let mut row_mask = vec![0u64; site.lots.len()];
+    for (i, &r) in roots.iter().enumerate() {
+        row_mask[r] |= finals[i];
+    }
+    for (i, &r) in roots.iter().enumerate() {
+        finals[i] |= row_mask[r];
+    }
+    drop((parent, roots, row_mask));
+    for (i, b) in boxes.iter().enumerate() {
+        let extra = finals[i] & !(1u64 << own[i]);
+        if let (Some((lo, hi)), true) = (b, extra != 0) {
+            needs.add(needs.cell(*lo), *lo, *hi, extra);
+        }
+    }
+    drop(finals);
+    needs.finish();
     // Elements by (kind, id): 0 node, 1 way, 2 relation.
     let mut want: HashMap<(u8, i64), u64> = HashMap::new();
     let key = |id: SourceId| match id {
@@ -311,11 +402,11 @@ pub fn split(
         _ => None,
     };
     let mut counts = vec![(0usize, 0usize, 0u64); shards];
-    for (lot, &o) in site.lots.iter().zip(&own) {
-        let Some((lo, hi)) = lot.bounds() else {
+    for ((lot, &o), b) in site.lots.iter().zip(&own).zip(&boxes) {
+        let Some((lo, hi)) = b else {
             continue;
         };
-        let m = mask_of(lo + site.origin, hi + site.origin) | 1 << o;
+        let m = needs.mask(*lo, *hi) | 1 << o;
         counts[o].0 += 1;
         for (s, c) in counts.iter_mut().enumerate() {
             if s != o && m & (1 << s) != 0 {
@@ -328,6 +419,7 @@ pub fn split(
             }
         }
     }
+    drop(boxes);
     // Street nodes are placed by the node's own position.
     let node_mask = |lon: f64, lat: f64| -> u64 {
         let (x, y) = site.crs.from_lonlat(lon, lat);
@@ -335,7 +427,7 @@ pub fn split(
             return 0;
         }
         let p = DVec2::new(x, y);
-        mask_of(p, p)
+        needs.mask(p, p)
     };
     let everyone = if shards == 64 {
         u64::MAX
@@ -404,7 +496,7 @@ pub fn split(
     let mut street_nodes: Vec<i64> = streets.iter().flat_map(|s| s.1.iter().copied()).collect();
     street_nodes.sort_unstable();
     street_nodes.dedup();
-    let mut node_masks: Vec<u64> = vec![0; street_nodes.len()];
+    let mut node_at: Vec<Option<DVec2>> = vec![None; street_nodes.len()];
     osmpbf::ElementReader::from_path(input)
         .map_err(pbf_err)?
         .for_each(|e| {
@@ -414,20 +506,30 @@ pub fn split(
                 _ => return,
             };
             if let Ok(i) = street_nodes.binary_search(&id) {
-                node_masks[i] = node_mask(lon, lat);
+                let (x, y) = site.crs.from_lonlat(lon, lat);
+                node_at[i] = (x.is_finite() && y.is_finite()).then(|| DVec2::new(x, y));
             }
         })
         .map_err(pbf_err)?;
+    // Each street to every shard that needs one of its segments (a straight road's nodes
+    // may lie far apart, on either side of a shard's tiles).
     for (id, refs) in &streets {
-        let m = refs
+        let at: Vec<DVec2> = refs
             .iter()
             .filter_map(|r| street_nodes.binary_search(r).ok())
-            .fold(0, |m, i| m | node_masks[i]);
+            .filter_map(|i| node_at[i])
+            .collect();
+        let m = match at.as_slice() {
+            [p] => needs.mask(*p, *p),
+            _ => at
+                .windows(2)
+                .fold(0, |m, w| m | needs.mask(w[0].min(w[1]), w[0].max(w[1]))),
+        };
         if m != 0 {
             *want.entry((1, *id)).or_default() |= m;
         }
     }
-    drop((streets, street_nodes, node_masks));
+    drop((streets, street_nodes, node_at));
     // Pass 3: the ways' nodes.
     osmpbf::ElementReader::from_path(input)
         .map_err(pbf_err)?
@@ -549,7 +651,37 @@ pub fn split(
         counts[i].2 = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
     }
 
-    // The heads: each shard's share of the report, as a shard of the whole input makes it.
+    // The heads: each shard's share of the report, as a shard of the whole input makes it
+    // (the run's entries, then a note for every lot its neighbours changed, in lot order;
+    // each kept by the shard owning its building, with its place in that list), the list
+    // made and cut once for all shards.
+    let owner: std::collections::BTreeMap<String, usize> = site
+        .lots
+        .iter()
+        .zip(&own)
+        .map(|(l, &s)| (l.id.to_string(), s))
+        .collect();
+    let notes = site.lots.iter().filter_map(|lot| {
+        run.inferred_notes
+            .get(&lot.id)
+            .map(|n| crate::report::Entry {
+                id: lot.id.to_string(),
+                outcome: crate::report::Outcome::Note,
+                reason: n.clone(),
+            })
+    });
+    let mut entries: Vec<Vec<(usize, crate::report::Entry)>> = vec![Vec::new(); shards];
+    for (k, e) in std::mem::take(&mut run.report.entries)
+        .into_iter()
+        .chain(notes)
+        .enumerate()
+    {
+        let o = shard::owner_of(&e, &owner);
+        if let Some(list) = entries.get_mut(o) {
+            list.push((k, e));
+        }
+    }
+    drop(owner);
     let mut heads = Vec::new();
     for (i, c) in counts.iter().enumerate() {
         let s = shard::Shard {
@@ -559,11 +691,6 @@ pub fn split(
         grid.set_index(i);
         let mut report = run.report.clone();
         super::count_boundary_zones(&run.generator, &site.lots, |k| own[k] == i, &mut report);
-        for lot in &site.lots {
-            if let Some(note) = run.inferred_notes.get(&lot.id) {
-                report.add(Some(lot.id), crate::report::Outcome::Note, note.clone());
-            }
-        }
         let rk = shard::RunKey {
             inputs: Vec::new(),
             kb: None,
@@ -578,7 +705,15 @@ pub fn split(
             outputs: Vec::new(),
             dems: Vec::new(),
         };
-        let head = grid.manifest_head(rk, &(s, String::new()), site, &mut report)?;
+        // No entries: `manifest_head` cuts none, and the shard's are set below.
+        let mut head = grid.manifest_head(rk, &(s, String::new()), site, &mut report)?;
+        head.report.prepared = std::mem::take(&mut entries[i]);
+        report.entries = head
+            .report
+            .prepared
+            .iter()
+            .map(|(_, e)| e.clone())
+            .collect();
         let split = SplitHead {
             format: SPLIT_FORMAT.into(),
             citygen: env!("CARGO_PKG_VERSION").into(),
@@ -609,4 +744,95 @@ pub fn split(
         lots: site.lots.len(),
         elapsed: start.elapsed(),
     })
+}
+
+/// A lot's bounds with its parts' (local metres).
+fn full_bounds(l: &crate::prepare::Lot) -> Option<(DVec2, DVec2)> {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for p in l
+        .polygons
+        .iter()
+        .chain(l.parts.iter().flat_map(|p| &p.polygons))
+    {
+        let (a, b) = p.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    (lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+}
+
+/// A box (lower-left, upper-right corner) and the shards that need what lies within the halo
+/// of it.
+type NeedBox = (DVec2, DVec2, u64);
+
+/// What the shards need around them (output CRS metres): boxes, each with the shards that
+/// need everything within the halo of it, kept per grid cell of the run's tile size; boxes
+/// of one cell and the same shards are merged into their union (a superset: the halo of a
+/// union holds the halo of each).
+struct Needs {
+    size: f64,
+    halo: f64,
+    merged: HashMap<((i64, i64), u64), (DVec2, DVec2)>,
+    cells: HashMap<(i64, i64), Vec<NeedBox>>,
+    /// How far a box reaches below its cell's corner, and above it.
+    below: f64,
+    above: f64,
+}
+
+impl Needs {
+    fn new(size: f64, halo: f64) -> Needs {
+        Needs {
+            size,
+            halo,
+            merged: HashMap::new(),
+            cells: HashMap::new(),
+            below: 0.0,
+            above: 0.0,
+        }
+    }
+
+    fn cell(&self, p: DVec2) -> (i64, i64) {
+        (
+            (p.x / self.size).floor() as i64,
+            (p.y / self.size).floor() as i64,
+        )
+    }
+
+    /// Shards `bits` need what lies within the halo of the box (`lo`, `hi`), kept in `cell`.
+    fn add(&mut self, cell: (i64, i64), lo: DVec2, hi: DVec2, bits: u64) {
+        let e = self.merged.entry((cell, bits)).or_insert((lo, hi));
+        e.0 = e.0.min(lo);
+        e.1 = e.1.max(hi);
+    }
+
+    /// Done adding.
+    fn finish(&mut self) {
+        for ((cell, bits), (lo, hi)) in std::mem::take(&mut self.merged) {
+            let corner = DVec2::new(cell.0 as f64, cell.1 as f64) * self.size;
+            self.below = self.below.max((corner - lo).max_element());
+            self.above = self.above.max((hi - corner).max_element());
+            self.cells.entry(cell).or_default().push((lo, hi, bits));
+        }
+    }
+
+    /// The shards that need the box (`lo`, `hi`): those with a box within the halo of it.
+    fn mask(&self, lo: DVec2, hi: DVec2) -> u64 {
+        let c0 = self.cell(lo - DVec2::splat(self.halo + self.above));
+        let c1 = self.cell(hi + DVec2::splat(self.halo + self.below));
+        let mut m = 0u64;
+        for cx in c0.0..=c1.0 {
+            for cy in c0.1..=c1.1 {
+                for (a, b, bits) in self.cells.get(&(cx, cy)).into_iter().flatten() {
+                    if m & bits == *bits {
+                        continue;
+                    }
+                    let d = (*a - hi).max(lo - *b).max(DVec2::ZERO);
+                    if d.length() <= self.halo {
+                        m |= bits;
+                    }
+                }
+            }
+        }
+        m
+    }
 }

@@ -30,6 +30,10 @@ const PARALLEL_SIN: f64 = 0.17;
 const FINE_CELL_M: f64 = 50.0;
 /// The coarse density grid's cell (metres).
 const COARSE_CELL_M: f64 = 250.0;
+/// The farthest a lot's features look from its point (metres): the widest window is the
+/// 3 x 3 coarse cells around the point's cell, whose far corner lies up to two cells away
+/// on each axis. (`citygen split` sizes its halo from it.)
+pub(crate) const WINDOW_REACH_M: f64 = 2.0 * COARSE_CELL_M * std::f64::consts::SQRT_2;
 
 /// The number of features of one lot.
 pub(crate) const FEATURES: usize = 16;
