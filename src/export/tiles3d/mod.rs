@@ -30,10 +30,10 @@
 //! draw calls whatever its number of colours.
 //!
 //! The two building contents of a tile are best written by a pair of writers
-//! ([`Tiles3dWriter::pair`]): the Full writer then encodes every building for both, through
+//! (`Tiles3dWriter::pair`): the Full writer then encodes every building for both, through
 //! one map to ECEF and one property-table row (the same in both contents), and the Blocks
 //! writer, given the same buildings, only checks them; the bytes are those of two writers on
-//! their own ([`Tiles3dWriter::new`]).
+//! their own (`Tiles3dWriter::new`).
 //!
 //! The writer keeps the tile in memory (about 45 bytes a vertex, twice that while the GLB is
 //! assembled: a LOD3 tile of 150 m in Monaco-Ville is 50,000 triangles, 4 MB of GLB) and writes
