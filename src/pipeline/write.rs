@@ -943,11 +943,23 @@ fn open_outputs(
     let mut contents = Vec::new();
     if let Some(dir) = &targets.tiles3d {
         use crate::export::tiles3d::Tiles3dWriter;
-        let terrain = terrain.then(|| tiles3d_terrain(dir, content_name));
-        for (detail, p) in tiles3d_contents(dir, content_name)
-            .into_iter()
-            .chain(terrain)
-        {
+        // Full and Blocks by a pair of writers, which encodes each building once for both.
+        let [(_, full), (_, blocks)] = tiles3d_contents(dir, content_name);
+        let (fw, fsink, fbytes, fhash) = open_output(&full, dry, None, hashed)?;
+        let (bw, bsink, bbytes, bhash) = open_output(&blocks, dry, None, hashed)?;
+        let [(fw, finfo), (bw, binfo)] = Tiles3dWriter::pair(fw, bw);
+        contents.push((full.clone(), finfo));
+        contents.push((blocks.clone(), binfo));
+        outputs.push((
+            full,
+            Box::new(fw.with_textures(targets.textures)),
+            fsink,
+            fbytes,
+            fhash,
+        ));
+        outputs.push((blocks, Box::new(bw), bsink, bbytes, bhash));
+        if terrain {
+            let (detail, p) = tiles3d_terrain(dir, content_name);
             let (w, sink, bytes, hash) = open_output(&p, dry, None, hashed)?;
             let (w, info) = Tiles3dWriter::new(w, detail);
             let w = w.with_textures(targets.textures);

@@ -5,8 +5,9 @@
 //!
 //! A building is encoded on its own (in parallel): its faces grouped and triangulated as the
 //! glTF writer does, each vertex mapped to ECEF by the building's affine map, kept as an f32
-//! offset from the building's anchor. The content's frame is only known at the end, when the
-//! offsets are put in it ([`Primitive::positions_in`]).
+//! offset from the building's anchor, and kept as it is in the content's [`Batch`] of its
+//! kind. The content's frame is only known at the end, when [`lay_out`] puts the offsets in it
+//! and writes each batch's vertex and index data straight into the GLB's buffer.
 
 use std::collections::BTreeMap;
 
@@ -82,20 +83,18 @@ impl Kind {
     }
 }
 
-/// A building's or a content's primitives, one per [`Kind`], in primitive order.
+/// A building's primitives, one per [`Kind`], in primitive order.
 pub(crate) type Prims = BTreeMap<Kind, Primitive>;
 
-/// The triangles of one kind of material, from one building or a whole content.
+/// The triangles of one kind of material of one building.
 #[derive(Default)]
 pub(crate) struct Primitive {
-    /// ECEF offsets from the anchor of the vertex's building.
+    /// ECEF offsets from the anchor of the building.
     offsets: Vec<[f32; 3]>,
     /// Unit ECEF normals.
     normals: Vec<[f32; 3]>,
     /// Linear RGBA, normalised u16.
     colors: Vec<[u16; 4]>,
-    /// The vertex's building: its feature id (empty in a building's own primitives).
-    features: Vec<u32>,
     /// Texture coordinates (a textured kind's; empty otherwise).
     uvs: Vec<[f32; 2]>,
     indices: Vec<u32>,
@@ -105,29 +104,55 @@ impl Primitive {
     fn vertices(&self) -> usize {
         self.offsets.len()
     }
+}
 
+/// The triangles of one kind of material of a whole content: its buildings' primitives as
+/// they were encoded, each with its feature id, in feature order (laid out end to end, with
+/// the indices rebased, only in [`lay_out`]).
+#[derive(Default)]
+pub(crate) struct Batch {
+    parts: Vec<(u32, Primitive)>,
+    vertices: usize,
+    indices: usize,
+}
+
+impl Batch {
     /// Triangles so far.
     pub(crate) fn triangles(&self) -> u64 {
-        self.indices.len() as u64 / 3
+        self.indices as u64 / 3
     }
 
-    /// Whether `b`'s vertices can be appended (the content stays under 2^32 vertices).
+    /// Whether `b`'s vertices can be added (the content stays under 2^32 vertices).
     pub(crate) fn fits(&self, b: &Primitive) -> bool {
-        u32::try_from(self.vertices() + b.vertices()).is_ok()
+        u32::try_from(self.vertices + b.vertices()).is_ok()
     }
 
-    /// Appends a building's primitive, its vertices tagged with feature id `feature`; call
-    /// [`Primitive::fits`] first.
-    pub(crate) fn append(&mut self, b: &Primitive, feature: u32) {
-        let base = self.vertices() as u32;
-        self.offsets.extend_from_slice(&b.offsets);
-        self.normals.extend_from_slice(&b.normals);
-        self.colors.extend_from_slice(&b.colors);
-        self.uvs.extend_from_slice(&b.uvs);
-        self.features
-            .extend(std::iter::repeat_n(feature, b.vertices()));
-        self.indices.extend(b.indices.iter().map(|i| base + i));
+    /// Adds a building's primitive, its vertices tagged with feature id `feature` (greater
+    /// than every feature id before it); call [`Batch::fits`] first.
+    pub(crate) fn push(&mut self, b: Primitive, feature: u32) {
+        self.vertices += b.vertices();
+        self.indices += b.indices.len();
+        self.parts.push((feature, b));
     }
+
+    /// Bytes of this batch's buffer views in [`lay_out`], alignment padding included.
+    fn bytes(&self) -> usize {
+        let index = if self.vertices <= 65535 { 2 } else { 4 };
+        let uv = if self.parts.iter().any(|(_, p)| !p.uvs.is_empty()) {
+            8
+        } else {
+            0
+        };
+        self.vertices * (12 + 12 + 8 + 4 + uv) + self.indices * index + 6 * 8
+    }
+}
+
+/// A content's primitives, one [`Batch`] per [`Kind`], in primitive order.
+pub(crate) type Batches = BTreeMap<Kind, Batch>;
+
+/// Bytes of the buffer views [`lay_out`] appends for `batches` (alignment padding included).
+pub(crate) fn laid_bytes(batches: &Batches) -> usize {
+    batches.values().map(Batch::bytes).sum()
 }
 
 /// One building's primitives (by [`Kind`]) and where its offsets start from.
@@ -141,12 +166,39 @@ pub(crate) struct EncodedBuilding {
 /// Encodes the faces `classes` of a building (grouped by [`crate::export::gltf::building_groups`]
 /// or Blocks) through its map `map`.
 pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) -> EncodedBuilding {
-    let mut prims = Prims::new();
-    for g in classes.iter().flat_map(|(_, gs)| gs) {
-        let (c, _, _) = finish_params(g.color, g.material);
-        let m = &g.mesh;
-        let texture = g.texture.filter(|_| m.uvs.len() == m.positions.len());
-        let kind = Kind::of(g.material, c.a, texture);
+    let groups: Vec<(&Group, Kind, Color)> = classes
+        .iter()
+        .flat_map(|(_, gs)| gs)
+        .map(|g| {
+            let (c, _, _) = finish_params(g.color, g.material);
+            let m = &g.mesh;
+            let texture = g.texture.filter(|_| m.uvs.len() == m.positions.len());
+            (g, Kind::of(g.material, c.a, texture), c)
+        })
+        .collect();
+    // Each primitive's vertices and indices, to allocate it once.
+    let mut sizes: Vec<(Kind, usize, usize)> = Vec::new();
+    for (g, kind, _) in &groups {
+        let (v, i) = (g.mesh.positions.len(), g.mesh.indices.len());
+        match sizes.iter_mut().find(|(k, ..)| k == kind) {
+            Some((_, nv, ni)) => (*nv, *ni) = (*nv + v, *ni + i),
+            None => sizes.push((*kind, v, i)),
+        }
+    }
+    let mut prims: Prims = sizes
+        .into_iter()
+        .map(|(kind, v, i)| {
+            let p = Primitive {
+                offsets: Vec::with_capacity(v),
+                normals: Vec::with_capacity(v),
+                colors: Vec::with_capacity(v),
+                uvs: Vec::with_capacity(if kind.texture.is_some() { v } else { 0 }),
+                indices: Vec::with_capacity(i),
+            };
+            (kind, p)
+        })
+        .collect();
+    for (g, kind, c) in groups {
         let p = prims.entry(kind).or_default();
         let Ok(base) = u32::try_from(p.vertices()) else {
             continue;
@@ -158,7 +210,8 @@ pub(crate) fn encode(classes: &[(SurfaceClass, Vec<Group>)], map: &BuildingMap) 
             unit(srgb_to_linear(c.b)),
             unit(c.a),
         ];
-        if texture.is_some() {
+        let m = &g.mesh;
+        if kind.texture.is_some() {
             p.uvs.extend_from_slice(&m.uvs);
         }
         p.offsets.extend(
@@ -202,7 +255,12 @@ pub(crate) struct Laid {
 
 /// Puts the content's primitives in `frame` (glTF's y-up axes: x east, y up, z south) and lays
 /// out their data in `bin`. `anchors` are the buildings' anchors in ECEF, by feature id.
-pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &mut Bin) -> Laid {
+pub(crate) fn lay_out(
+    batches: &Batches,
+    anchors: &[DVec3],
+    frame: &EnuFrame,
+    bin: &mut Bin,
+) -> Laid {
     let mut laid = Laid {
         primitives: Vec::new(),
         materials: Vec::new(),
@@ -213,23 +271,27 @@ pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &
     };
     // Each anchor in the frame, once.
     let anchors: Vec<DVec3> = anchors.iter().map(|&a| frame.to_enu(a)).collect();
-    for (kind, p) in prims {
-        if p.indices.is_empty() {
+    for (kind, batch) in batches {
+        if batch.indices == 0 {
             continue;
         }
-        let mut positions: Vec<[f32; 3]> = Vec::with_capacity(p.vertices());
-        for (o, &f) in p.offsets.iter().zip(&p.features) {
-            let a = anchors.get(f as usize).copied().unwrap_or_default();
-            let enu = a + frame.rotate_in(glam::Vec3::from(*o).as_dvec3());
-            positions.push([enu.x as f32, enu.z as f32, -enu.y as f32]);
-        }
+        let count = batch.vertices;
         let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        for q in &positions {
-            for k in 0..3 {
-                lo[k] = lo[k].min(q[k]);
-                hi[k] = hi[k].max(q[k]);
+        let positions = bin.view_with(Some(ARRAY_BUFFER), |out| {
+            out.reserve(count * 12);
+            for (f, p) in &batch.parts {
+                let a = anchors.get(*f as usize).copied().unwrap_or_default();
+                for o in &p.offsets {
+                    let enu = a + frame.rotate_in(glam::Vec3::from(*o).as_dvec3());
+                    let q = [enu.x as f32, enu.z as f32, -enu.y as f32];
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(q[k]);
+                        hi[k] = hi[k].max(q[k]);
+                        out.extend_from_slice(&q[k].to_le_bytes());
+                    }
+                }
             }
-        }
+        });
         // Back to east, north, up for the bounding volumes.
         laid.lo = laid
             .lo
@@ -237,20 +299,33 @@ pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &
         laid.hi = laid
             .hi
             .max(DVec3::new(hi[0].into(), (-lo[2]).into(), hi[1].into()));
-        let normals: Vec<[f32; 3]> = p
-            .normals
-            .iter()
-            .map(|n| {
+        let normals = bin.view_with(Some(ARRAY_BUFFER), |out| {
+            out.reserve(count * 12);
+            for n in batch.parts.iter().flat_map(|(_, p)| &p.normals) {
                 let e = frame
                     .rotate_in(glam::Vec3::from(*n).as_dvec3())
                     .normalize_or_zero();
-                [e.x as f32, e.z as f32, -e.y as f32]
-            })
-            .collect();
-        let features: Vec<f32> = p.features.iter().map(|&f| f as f32).collect();
-        let count = p.vertices();
-        let mut accessor = |laid: &mut Laid, data: &[u8], target: u32, extra: Value| {
-            let view = bin.view(data, Some(target));
+                for c in [e.x as f32, e.z as f32, -e.y as f32] {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        });
+        let colors = bin.view_with(Some(ARRAY_BUFFER), |out| {
+            out.reserve(count * 8);
+            for c in batch.parts.iter().flat_map(|(_, p)| &p.colors).flatten() {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        });
+        let features = bin.view_with(Some(ARRAY_BUFFER), |out| {
+            out.reserve(count * 4);
+            for (f, p) in &batch.parts {
+                let bytes = (*f as f32).to_le_bytes();
+                for _ in 0..p.vertices() {
+                    out.extend_from_slice(&bytes);
+                }
+            }
+        });
+        let accessor = |laid: &mut Laid, view: usize, extra: Value| {
             let mut a = json!({"bufferView": view, "count": count});
             if let (Value::Object(a), Value::Object(extra)) = (&mut a, extra) {
                 a.extend(extra);
@@ -258,86 +333,80 @@ pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &
             laid.accessors.push(a);
             laid.accessors.len() - 1
         };
-        let bytes_f32 = |v: &[[f32; 3]]| -> Vec<u8> {
-            v.iter().flatten().flat_map(|c| c.to_le_bytes()).collect()
-        };
         let position = accessor(
             &mut laid,
-            &bytes_f32(&positions),
-            ARRAY_BUFFER,
+            positions,
             json!({"componentType": FLOAT, "type": "VEC3",
                    "min": lo.map(short), "max": hi.map(short)}),
         );
         let normal = accessor(
             &mut laid,
-            &bytes_f32(&normals),
-            ARRAY_BUFFER,
+            normals,
             json!({"componentType": FLOAT, "type": "VEC3"}),
         );
-        let colors: Vec<u8> = p
-            .colors
-            .iter()
-            .flatten()
-            .flat_map(|c| c.to_le_bytes())
-            .collect();
         let color = accessor(
             &mut laid,
-            &colors,
-            ARRAY_BUFFER,
+            colors,
             json!({"componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC4"}),
         );
-        let feature_bytes: Vec<u8> = features.iter().flat_map(|c| c.to_le_bytes()).collect();
         let feature = accessor(
             &mut laid,
-            &feature_bytes,
-            ARRAY_BUFFER,
+            features,
             json!({"componentType": FLOAT, "type": "SCALAR"}),
         );
         // 65535 is the primitive-restart value of u16 indices: never an index.
-        let (index_bytes, index_type): (Vec<u8>, u32) = if count <= 65535 {
-            let b = p
-                .indices
-                .iter()
-                .flat_map(|&i| (i as u16).to_le_bytes())
-                .collect();
-            (b, UNSIGNED_SHORT)
+        let short_indices = count <= 65535;
+        let view = bin.view_with(Some(ELEMENT_ARRAY_BUFFER), |out| {
+            out.reserve(batch.indices * if short_indices { 2 } else { 4 });
+            let mut base = 0u32;
+            for (_, p) in &batch.parts {
+                if short_indices {
+                    for &i in &p.indices {
+                        out.extend_from_slice(&((base + i) as u16).to_le_bytes());
+                    }
+                } else {
+                    for &i in &p.indices {
+                        out.extend_from_slice(&(base + i).to_le_bytes());
+                    }
+                }
+                // Fits: the batch's vertices are under 2^32 (`Batch::fits`).
+                base += p.vertices() as u32;
+            }
+        });
+        let index_type = if short_indices {
+            UNSIGNED_SHORT
         } else {
-            let b = p.indices.iter().flat_map(|&i| i.to_le_bytes()).collect();
-            (b, UNSIGNED_INT)
+            UNSIGNED_INT
         };
-        let view = bin.view(&index_bytes, Some(ELEMENT_ARRAY_BUFFER));
         laid.accessors.push(json!({
             "bufferView": view,
             "componentType": index_type,
-            "count": p.indices.len(),
+            "count": batch.indices,
             "type": "SCALAR"
         }));
         let indices = laid.accessors.len() - 1;
-        let mut ids: Vec<u32> = p.features.clone();
-        ids.sort_unstable();
-        ids.dedup();
+        // The buildings that have vertices here (each is in the batch once).
+        let ids = batch.parts.iter().filter(|(_, p)| p.vertices() > 0).count();
         let mut attributes = json!({
             "POSITION": position,
             "NORMAL": normal,
             "COLOR_0": color,
             "_FEATURE_ID_0": feature
         });
+        let uvs = batch.parts.iter().map(|(_, p)| p.uvs.len()).sum::<usize>();
         let texture = match kind.texture {
-            Some(t) if p.uvs.len() == count => {
-                let uvs: Vec<u8> = p
-                    .uvs
-                    .iter()
-                    .flatten()
-                    .flat_map(|c| c.to_le_bytes())
-                    .collect();
-                let view = bin.view(&uvs, Some(ARRAY_BUFFER));
-                laid.accessors.push(json!({
-                    "bufferView": view,
-                    "componentType": FLOAT,
-                    "count": count,
-                    "type": "VEC2"
-                }));
-                attributes["TEXCOORD_0"] = json!(laid.accessors.len() - 1);
+            Some(t) if uvs == count => {
+                let view = bin.view_with(Some(ARRAY_BUFFER), |out| {
+                    out.reserve(count * 8);
+                    for c in batch.parts.iter().flat_map(|(_, p)| &p.uvs).flatten() {
+                        out.extend_from_slice(&c.to_le_bytes());
+                    }
+                });
+                attributes["TEXCOORD_0"] = json!(accessor(
+                    &mut laid,
+                    view,
+                    json!({"componentType": FLOAT, "type": "VEC2"}),
+                ));
                 Some(match laid.textures.iter().position(|u| *u == t) {
                     Some(i) => i,
                     None => {
@@ -357,7 +426,7 @@ pub(crate) fn lay_out(prims: &Prims, anchors: &[DVec3], frame: &EnuFrame, bin: &
             "extensions": {
                 "EXT_mesh_features": {
                     "featureIds": [{
-                        "featureCount": ids.len(),
+                        "featureCount": ids,
                         "attribute": 0,
                         "propertyTable": 0
                     }]

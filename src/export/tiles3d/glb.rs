@@ -23,18 +23,29 @@ impl Bin {
     /// Appends `data` as a new buffer view (with `target`, an `ARRAY_BUFFER` or
     /// `ELEMENT_ARRAY_BUFFER`, for vertex and index data); returns its index.
     pub(crate) fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+        self.view_with(target, |out| out.extend_from_slice(data))
+    }
+
+    /// Appends what `fill` appends to the buffer as a new buffer view (see [`Bin::view`]);
+    /// returns its index.
+    pub(crate) fn view_with(
+        &mut self,
+        target: Option<u32>,
+        fill: impl FnOnce(&mut Vec<u8>),
+    ) -> usize {
         while self.bytes.len() % ALIGN != 0 {
             self.bytes.push(0);
         }
+        let start = self.bytes.len();
+        fill(&mut self.bytes);
         let mut v = json!({
             "buffer": 0,
-            "byteOffset": self.bytes.len(),
-            "byteLength": data.len(),
+            "byteOffset": start,
+            "byteLength": self.bytes.len() - start,
         });
         if let Some(t) = target {
             v["target"] = json!(t);
         }
-        self.bytes.extend_from_slice(data);
         self.views.push(v);
         self.views.len() - 1
     }

@@ -201,13 +201,29 @@ pub(crate) fn schema(rows: &Rows) -> Value {
     schema
 }
 
-/// The property table of `rows`, its columns appended to `bin`. A string column whose strings
-/// are all empty (no building has a name) is left out: glTF allows no empty buffer view, and
-/// the schema's properties are optional (`name`'s no-data value is the empty string).
-pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
-    let mut props = serde_json::Map::new();
-    let columns = rows.columns();
-    let attr_cols: Vec<(String, Vec<String>)> = columns
+/// The property table of some rows, its columns as bytes ([`table`]), ready to be laid out in
+/// a content's buffer ([`property_table`]): computed once for the contents of a tile, whose
+/// rows are the same.
+pub(crate) struct Table {
+    count: usize,
+    /// (property, its buffer views' bytes: `values`, and for a string column `stringOffsets`)
+    /// in buffer order.
+    columns: Vec<(String, Column)>,
+}
+
+/// The bytes of one column of a [`Table`].
+enum Column {
+    Strings { values: Vec<u8>, offsets: Vec<u8> },
+    Values(Vec<u8>),
+}
+
+/// The [`Table`] of `rows`. A string column whose strings are all empty (no building has a
+/// name) is left out: glTF allows no empty buffer view, and the schema's properties are
+/// optional (`name`'s no-data value is the empty string).
+pub(crate) fn table(rows: &Rows) -> Table {
+    let mut columns = Vec::new();
+    let attr_cols: Vec<(String, Vec<String>)> = rows
+        .columns()
         .iter()
         .map(|(id, name)| {
             let col = rows
@@ -239,37 +255,53 @@ pub(crate) fn property_table(rows: &Rows, bin: &mut Bin) -> Value {
         .iter()
         .map(|(id, col)| (id.as_str(), col.iter().map(String::as_str).collect()));
     for (key, col) in string_cols.into_iter().chain(attr_refs) {
-        let mut data = Vec::new();
-        let mut offsets: Vec<u8> = 0u32.to_le_bytes().to_vec();
+        let mut values = Vec::new();
+        let mut offsets: Vec<u8> = Vec::with_capacity(4 * (col.len() + 1));
+        offsets.extend_from_slice(&0u32.to_le_bytes());
         for v in col {
-            data.extend_from_slice(v.as_bytes());
+            values.extend_from_slice(v.as_bytes());
             // A column past 4 GiB wraps here, but makes the GLB too large: `write_glb` refuses it.
-            offsets.extend_from_slice(&(data.len() as u32).to_le_bytes());
+            offsets.extend_from_slice(&(values.len() as u32).to_le_bytes());
         }
-        if data.is_empty() {
+        if values.is_empty() {
             continue;
         }
-        let values = bin.view(&data, None);
-        let string_offsets = bin.view(&offsets, None);
-        props.insert(
-            key.to_owned(),
-            json!({"values": values, "stringOffsets": string_offsets, "stringOffsetType": "UINT32"}),
-        );
+        columns.push((key.to_owned(), Column::Strings { values, offsets }));
     }
     for (key, col) in [("height", &rows.height), ("baseHeight", &rows.base_height)] {
         let data: Vec<u8> = col.iter().flat_map(|v| v.to_le_bytes()).collect();
-        props.insert(key.to_owned(), json!({"values": bin.view(&data, None)}));
+        columns.push((key.to_owned(), Column::Values(data)));
     }
     let data: Vec<u8> = rows.storeys.iter().flat_map(|v| v.to_le_bytes()).collect();
-    props.insert("storeys".into(), json!({"values": bin.view(&data, None)}));
+    columns.push(("storeys".into(), Column::Values(data)));
     for ((_, key, _), col) in PROVENANCE.iter().zip(&rows.uncertainty) {
         let data: Vec<u8> = col.iter().flat_map(|v| v.to_le_bytes()).collect();
-        props.insert((*key).into(), json!({"values": bin.view(&data, None)}));
+        columns.push(((*key).into(), Column::Values(data)));
+    }
+    Table {
+        count: rows.len(),
+        columns,
+    }
+}
+
+/// The property table `t`, its columns appended to `bin`.
+pub(crate) fn property_table(t: &Table, bin: &mut Bin) -> Value {
+    let mut props = serde_json::Map::new();
+    for (key, col) in &t.columns {
+        let prop = match col {
+            Column::Strings { values, offsets } => {
+                let values = bin.view(values, None);
+                let string_offsets = bin.view(offsets, None);
+                json!({"values": values, "stringOffsets": string_offsets, "stringOffsetType": "UINT32"})
+            }
+            Column::Values(data) => json!({"values": bin.view(data, None)}),
+        };
+        props.insert(key.clone(), prop);
     }
     json!({
         "name": "buildings",
         "class": CLASS,
-        "count": rows.len(),
+        "count": t.count,
         "properties": props
     })
 }

@@ -29,6 +29,12 @@
 //! factors), coloured per vertex (`content`), so a tile is a handful of
 //! draw calls whatever its number of colours.
 //!
+//! The two building contents of a tile are best written by a pair of writers
+//! (`Tiles3dWriter::pair`): the Full writer then encodes every building for both, through
+//! one map to ECEF and one property-table row (the same in both contents), and the Blocks
+//! writer, given the same buildings, only checks them; the bytes are those of two writers on
+//! their own (`Tiles3dWriter::new`).
+//!
 //! The writer keeps the tile in memory (about 45 bytes a vertex, twice that while the GLB is
 //! assembled: a LOD3 tile of 150 m in Monaco-Ville is 50,000 triangles, 4 MB of GLB) and writes
 //! the GLB in [`BuildingWriter::finish`], when the frame is known. It then gives the content's facts ([`ContentInfo`]: placement, bounding
@@ -54,13 +60,13 @@ use std::sync::{Arc, Mutex};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use serde_json::json;
+use serde_json::{json, Value};
 
 use crate::export::gltf::{building_groups, Texturing};
 use crate::export::{check_finite, BuildingWriter, Checked, ExportError, OutputContext};
 use crate::model::{Building, Lod};
 
-use content::{EncodedBuilding, Primitive};
+use content::{Batch, EncodedBuilding};
 use frame::{BuildingMap, EnuFrame, ModelFrame};
 
 pub(crate) use tileset::{tileset_json, TileContent, TileEntry};
@@ -153,6 +159,34 @@ const MAX_FEATURES: usize = 1 << 24;
 /// held besides the tile.
 const PARALLEL_CHUNK: usize = 256;
 
+/// What the building contents of one tile hold: the primitives of each, and what they share
+/// (every building's anchor, property-table row, the plan and the blocks' error).
+#[derive(Default)]
+struct Tile {
+    /// The primitives of [`Detail::Full`] (`[0]`) and [`Detail::Blocks`] (`[1]`).
+    prims: [content::Batches; 2],
+    /// Each building's anchor in ECEF, by feature id.
+    anchors: Vec<DVec3>,
+    rows: metadata::Rows,
+    /// The plan bounding box of every part's footprint and the lowest part base (model frame).
+    plan: Option<(DVec2, DVec2, f64)>,
+    blocks_error: f64,
+    /// The schema and the property table of `rows`, made by the first content finished (the
+    /// rows are the same in both).
+    metadata: Option<Arc<(Value, metadata::Table)>>,
+}
+
+/// Which primitives of a [`Tile`] a writer's `write` fills.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Role {
+    /// Its own content's (a writer made by [`Tiles3dWriter::new`]).
+    Alone,
+    /// Both, Full and Blocks (the Full writer of a [`Tiles3dWriter::pair`]).
+    Both,
+    /// None: the other writer of its pair fills them (the Blocks writer of a pair).
+    Fed,
+}
+
 /// Writes one 3D Tiles content (a GLB) of one tile (see the module documentation).
 pub(crate) struct Tiles3dWriter<W: Write + Send> {
     out: W,
@@ -167,22 +201,53 @@ pub(crate) struct Tiles3dWriter<W: Write + Send> {
     textures: bool,
     /// What the buildings are textured with (from `textures` and the LOD, at `begin`).
     tex: Texturing,
-    prims: content::Prims,
-    /// Each building's anchor in ECEF, by feature id.
-    anchors: Vec<DVec3>,
-    rows: metadata::Rows,
-    /// The plan bounding box of every part's footprint and the lowest part base (model frame).
-    plan: Option<(DVec2, DVec2, f64)>,
-    blocks_error: f64,
+    /// The tile, shared with the other writer of a pair.
+    tile: Arc<Mutex<Tile>>,
+    role: Role,
     info: ContentInfoHandle,
     /// The terrain a [`Detail::Terrain`] writer draws.
     terrain: Option<Arc<crate::model::Terrain>>,
+}
+
+/// The tile, whatever a panicking writer left it in (the run then fails anyway).
+fn lock(tile: &Mutex<Tile>) -> std::sync::MutexGuard<'_, Tile> {
+    tile.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The index of a building content's primitives in [`Tile::prims`].
+fn slot(detail: Detail) -> usize {
+    match detail {
+        Detail::Blocks => 1,
+        Detail::Full | Detail::Terrain => 0,
+    }
 }
 
 impl<W: Write + Send> Tiles3dWriter<W> {
     /// A writer of `detail` to `out` (nothing is written before `finish`), and the handle that
     /// gives its [`ContentInfo`] after `finish`.
     pub(crate) fn new(out: W, detail: Detail) -> (Tiles3dWriter<W>, ContentInfoHandle) {
+        Self::with_tile(out, detail, Arc::default(), Role::Alone)
+    }
+
+    /// The writers of a tile's two building contents, Full to `full` and Blocks to `blocks`
+    /// (with the handles of their facts), that encode each building once for both: give both
+    /// the same buildings (`begin` with the same context, and `finish` the Blocks writer after
+    /// the Full writer has written every building). They write the bytes that
+    /// [`Tiles3dWriter::new`]'s writers would.
+    pub(crate) fn pair(full: W, blocks: W) -> [(Tiles3dWriter<W>, ContentInfoHandle); 2] {
+        let tile: Arc<Mutex<Tile>> = Arc::default();
+        [
+            Self::with_tile(full, Detail::Full, Arc::clone(&tile), Role::Both),
+            Self::with_tile(blocks, Detail::Blocks, tile, Role::Fed),
+        ]
+    }
+
+    fn with_tile(
+        out: W,
+        detail: Detail,
+        tile: Arc<Mutex<Tile>>,
+        role: Role,
+    ) -> (Tiles3dWriter<W>, ContentInfoHandle) {
         let info = ContentInfoHandle::default();
         let w = Tiles3dWriter {
             out,
@@ -193,11 +258,8 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             detailed: false,
             textures: false,
             tex: Texturing::Off,
-            prims: Default::default(),
-            anchors: Vec::new(),
-            rows: metadata::Rows::default(),
-            plan: None,
-            blocks_error: 0.0,
+            tile,
+            role,
             info: info.clone(),
             terrain: None,
         };
@@ -229,65 +291,78 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         }
     }
 
-    /// Appends one encoded building.
-    fn add(&mut self, b: &Building, e: EncodedBuilding) -> Result<(), ExportError> {
-        let feature = self.rows.len();
+    /// Appends one encoded building to `tile`: its primitives of this writer's content, and
+    /// with [`Role::Both`] its Blocks too.
+    fn add(&self, tile: &mut Tile, b: &Building, e: Encoded) -> Result<(), ExportError> {
+        let feature = tile.rows.len();
         if feature >= MAX_FEATURES {
             return Err(ExportError::Invalid(format!(
                 "3D Tiles writer: more than {MAX_FEATURES} buildings in one tile: use smaller tiles (--tile)"
             )));
         }
-        let empty = Primitive::default();
-        let fits = e
-            .prims
-            .iter()
-            .all(|(k, p)| self.prims.get(k).unwrap_or(&empty).fits(p));
+        let mut contents = vec![(slot(self.detail), e.prims)];
+        if let Some(blocks) = e.blocks {
+            contents.push((slot(Detail::Blocks), blocks));
+        }
+        let empty = Batch::default();
+        let fits = contents.iter().all(|(i, prims)| {
+            prims
+                .iter()
+                .all(|(k, p)| tile.prims[*i].get(k).unwrap_or(&empty).fits(p))
+        });
         if !fits {
             return Err(ExportError::Invalid(format!(
                 "3D Tiles writer: building {}: the tile passes 2^32 vertices: use smaller tiles (--tile)",
                 b.id
             )));
         }
-        for (k, p) in &e.prims {
-            self.prims.entry(*k).or_default().append(p, feature as u32);
+        for (i, prims) in contents {
+            for (k, p) in prims {
+                tile.prims[i].entry(k).or_default().push(p, feature as u32);
+            }
         }
-        self.anchors.push(e.anchor_ecef);
+        tile.anchors.push(e.anchor_ecef);
         let base = b.base_z + self.origin_z;
-        self.rows.push(
+        tile.rows.push(
             b,
             match e.lift {
                 Some(n) => base + n,
                 None => base,
             },
         );
-        self.track(b);
+        self.track(tile, b);
         Ok(())
     }
 
     /// Grows the plan bounding box and the lowest base by `b`'s parts, and the blocks' error.
-    fn track(&mut self, b: &Building) {
+    fn track(&self, tile: &mut Tile, b: &Building) {
         for p in &b.parts {
             let (lo, hi) = footprint_bounds(p);
-            let (plo, phi, base) = self.plan.get_or_insert((lo, hi, p.base_z));
+            let (plo, phi, base) = tile.plan.get_or_insert((lo, hi, p.base_z));
             *plo = plo.min(lo);
             *phi = phi.max(hi);
             *base = base.min(p.base_z);
         }
-        self.blocks_error = self
+        tile.blocks_error = tile
             .blocks_error
             .max(blocks::blocks_error(b, self.detailed));
     }
 
     /// Writes the GLB and publishes the content's facts.
     fn write_content(&mut self) -> Result<(), ExportError> {
+        let shared = Arc::clone(&self.tile);
+        let mut tile = lock(&shared);
+        // This content's primitives are not needed after it (the other content has its own).
+        let prims = std::mem::take(&mut tile.prims[slot(self.detail)]);
         let triangles: u64 = match (self.detail, &self.terrain) {
             (Detail::Terrain, Some(t)) => t.triangles.len() as u64,
             (Detail::Terrain, None) => 0,
-            _ => self.prims.values().map(Primitive::triangles).sum(),
+            _ => prims.values().map(Batch::triangles).sum(),
         };
-        let blocks_error = self.blocks_error.max(blocks::MIN_BLOCKS_ERROR);
+        let blocks_error = tile.blocks_error.max(blocks::MIN_BLOCKS_ERROR);
+        let buildings = tile.rows.len();
         let generator = concat!("citygen ", env!("CARGO_PKG_VERSION"));
-        let (model, plan) = match (self.model, self.plan) {
+        let (model, plan) = match (self.model, tile.plan) {
             (Some(m), Some(p)) if triangles > 0 => (m, p),
             _ => {
                 let doc = json!({
@@ -298,7 +373,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
                 let bytes = glb::write_glb(&mut self.out, &doc, &[])?;
                 self.info.set(ContentInfo {
                     detail: self.detail,
-                    buildings: self.rows.len(),
+                    buildings,
                     triangles: 0,
                     bytes,
                     blocks_error,
@@ -316,6 +391,9 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         };
         let frame = EnuFrame::at(lon, lat, h);
         let mut bin = glb::Bin::default();
+        // The primitives' views, and about a hundred bytes a row for the property table.
+        bin.bytes
+            .reserve(content::laid_bytes(&prims) + 128 * (tile.rows.len() + 1));
         if let (Detail::Terrain, Some(t)) = (self.detail, self.terrain.clone()) {
             let (parts, lo, hi) = terrain::lay_out(&t, &model, &frame, &mut bin);
             let mut doc = json!({
@@ -330,6 +408,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             }
             let bytes = glb::write_glb(&mut self.out, &doc, &bin.bytes)?;
             self.set_info(ContentFacts {
+                buildings,
                 triangles,
                 bytes,
                 blocks_error,
@@ -339,14 +418,23 @@ impl<W: Write + Send> Tiles3dWriter<W> {
             });
             return Ok(());
         }
-        let laid = content::lay_out(&self.prims, &self.anchors, &frame, &mut bin);
-        let table = metadata::property_table(&self.rows, &mut bin);
+        let laid = content::lay_out(&prims, &tile.anchors, &frame, &mut bin);
+        let made = match &tile.metadata {
+            Some(m) => Arc::clone(m),
+            None => {
+                let m = Arc::new((metadata::schema(&tile.rows), metadata::table(&tile.rows)));
+                tile.metadata = Some(Arc::clone(&m));
+                m
+            }
+        };
+        let (schema, table) = &*made;
+        let table = metadata::property_table(table, &mut bin);
         let mut doc = json!({
             "asset": {"version": "2.0", "generator": generator},
             "extensionsUsed": ["EXT_mesh_features", "EXT_structural_metadata"],
             "extensions": {
                 "EXT_structural_metadata": {
-                    "schema": metadata::schema(&self.rows),
+                    "schema": schema,
                     "propertyTables": [table]
                 }
             },
@@ -376,6 +464,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         }
         let bytes = glb::write_glb(&mut self.out, &doc, &bin.bytes)?;
         self.set_info(ContentFacts {
+            buildings,
             triangles,
             bytes,
             blocks_error,
@@ -391,7 +480,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
         let (c, half) = ((f.lo + f.hi) / 2.0, (f.hi - f.lo) / 2.0);
         self.info.set(ContentInfo {
             detail: self.detail,
-            buildings: self.rows.len(),
+            buildings: f.buildings,
             triangles: f.triangles,
             bytes: f.bytes,
             blocks_error: f.blocks_error,
@@ -410,6 +499,7 @@ impl<W: Write + Send> Tiles3dWriter<W> {
 /// What [`Tiles3dWriter::set_info`] publishes: counts, and the frame and bounds of the
 /// positions in it.
 struct ContentFacts<'a> {
+    buildings: usize,
     triangles: u64,
     bytes: u64,
     blocks_error: f64,
@@ -428,18 +518,24 @@ fn footprint_bounds(p: &crate::model::Part) -> (DVec2, DVec2) {
         })
 }
 
-/// Encodes one building (a pure function of it, run in parallel).
+/// One building encoded for a writer: its primitives of the writer's content, and of Blocks
+/// too for a writer of [`Role::Both`].
+struct Encoded {
+    anchor_ecef: DVec3,
+    /// What lifts the building's heights to ellipsoidal ones (`BuildingMap::lift`).
+    lift: Option<f64>,
+    prims: content::Prims,
+    blocks: Option<content::Prims>,
+}
+
+/// Encodes one building (a pure function of it, run in parallel) for a writer of `detail`
+/// and `role`: through one map to ECEF whatever the contents.
 fn encode(
     b: &Building,
     model: &ModelFrame,
-    detail: Detail,
+    (detail, role): (Detail, Role),
     (detailed, tex): (bool, Texturing),
-) -> EncodedBuilding {
-    let groups = match detail {
-        Detail::Full => building_groups(b, detailed, tex),
-        Detail::Blocks => blocks::block_groups(b),
-        Detail::Terrain => Vec::new(),
-    };
+) -> Encoded {
     // The anchor: the middle of the building's plan, at its base.
     let (lo, hi) = b.parts.iter().map(footprint_bounds).fold(
         (DVec2::INFINITY, DVec2::NEG_INFINITY),
@@ -450,7 +546,24 @@ fn encode(
     } else {
         DVec3::new(0.0, 0.0, b.base_z)
     };
-    content::encode(&groups, &BuildingMap::at(model, anchor))
+    let map = BuildingMap::at(model, anchor);
+    let groups = |detail: Detail| match detail {
+        Detail::Full => building_groups(b, detailed, tex),
+        Detail::Blocks => blocks::block_groups(b),
+        Detail::Terrain => Vec::new(),
+    };
+    let EncodedBuilding {
+        anchor_ecef,
+        lift,
+        prims,
+    } = content::encode(&groups(detail), &map);
+    let blocks = (role == Role::Both).then(|| content::encode(&groups(Detail::Blocks), &map).prims);
+    Encoded {
+        anchor_ecef,
+        lift,
+        prims,
+        blocks,
+    }
 }
 
 impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
@@ -479,12 +592,19 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
     fn write(&mut self, building: &Building) -> Result<(), ExportError> {
         let model = self.open("write")?;
         check_finite("3D Tiles writer", building)?;
-        if self.detail == Detail::Terrain {
-            self.track(building);
-            return Ok(());
+        let shared = Arc::clone(&self.tile);
+        let mut tile = lock(&shared);
+        match (self.detail, self.role) {
+            (_, Role::Fed) => Ok(()),
+            (Detail::Terrain, _) => {
+                self.track(&mut tile, building);
+                Ok(())
+            }
+            (detail, role) => {
+                let e = encode(building, &model, (detail, role), (self.detailed, self.tex));
+                self.add(&mut tile, building, e)
+            }
         }
-        let e = encode(building, &model, self.detail, (self.detailed, self.tex));
-        self.add(building, e)
     }
 
     /// Encodes the buildings in parallel and appends them in order: the same bytes as `write`
@@ -495,19 +615,29 @@ impl<W: Write + Send> BuildingWriter for Tiles3dWriter<W> {
 
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         let model = self.open("write")?;
-        let (detail, detailed) = (self.detail, (self.detailed, self.tex));
+        let (detail, role, detailed) = (self.detail, self.role, (self.detailed, self.tex));
+        if role == Role::Fed {
+            return checked.refused("3D Tiles writer");
+        }
+        let shared = Arc::clone(&self.tile);
         if detail == Detail::Terrain {
             // Only the frame is needed: the buildings' plan and lowest base.
-            checked.finite().iter().for_each(|b| self.track(b));
+            let mut tile = lock(&shared);
+            checked
+                .finite()
+                .iter()
+                .for_each(|b| self.track(&mut tile, b));
             return checked.refused("3D Tiles writer");
         }
         for chunk in checked.finite().chunks(PARALLEL_CHUNK) {
-            let encoded: Vec<EncodedBuilding> = chunk
+            let encoded: Vec<Encoded> = chunk
                 .par_iter()
-                .map(|b| encode(b, &model, detail, detailed))
+                .map(|b| encode(b, &model, (detail, role), detailed))
                 .collect();
+            // Locked only while appending: not across the parallel encoding above.
+            let mut tile = lock(&shared);
             for (b, e) in chunk.iter().zip(encoded) {
-                self.add(b, e)?;
+                self.add(&mut tile, b, e)?;
             }
         }
         checked.refused("3D Tiles writer")

@@ -498,6 +498,70 @@ fn output_is_deterministic_and_write_all_is_write() {
     }
 }
 
+/// A [`Tiles3dWriter::pair`]'s two contents of `bs` (by `write_all` or by `write`), and
+/// their facts.
+fn write_pair(c: &OutputContext, bs: &[Building], all: bool) -> [(Vec<u8>, ContentInfo); 2] {
+    let [(mut full, full_info), (mut blocks, blocks_info)] =
+        Tiles3dWriter::pair(Vec::new(), Vec::new());
+    for w in [&mut full, &mut blocks] {
+        w.begin(c).unwrap();
+        if all {
+            w.write_all(bs).unwrap();
+        } else {
+            bs.iter().for_each(|b| w.write(b).unwrap());
+        }
+    }
+    full.finish().unwrap();
+    blocks.finish().unwrap();
+    [
+        (full.into_inner(), full_info.get().unwrap()),
+        (blocks.into_inner(), blocks_info.get().unwrap()),
+    ]
+}
+
+#[test]
+fn a_pair_writes_the_bytes_of_two_writers() {
+    let bs = buildings(0.0);
+    for lod in [Lod::Lod2, Lod::Lod4] {
+        for all in [true, false] {
+            let [full, blocks] = write_pair(&ctx(lod), &bs, all);
+            assert!(full == write(lod, Detail::Full, &bs, all), "{lod:?} Full");
+            assert!(
+                blocks == write(lod, Detail::Blocks, &bs, all),
+                "{lod:?} Blocks"
+            );
+        }
+    }
+    // Buildings over several parallel chunks, orthometric heights (a lift per building).
+    let (mut c, tiles) = monaco(Lod::Lod2, 150);
+    c.vertical_datum = Some(crate::model::VerticalDatum::Orthometric {
+        epsg: Some(5773),
+        name: "EGM96 height".into(),
+    });
+    let town: Vec<Building> = tiles.into_iter().flat_map(|(_, bs)| bs).collect();
+    // Monaco-Ville four times over: more buildings than one parallel chunk.
+    let bs: Vec<Building> = (0..4).flat_map(|_| town.iter().cloned()).collect();
+    assert!(bs.len() > PARALLEL_CHUNK, "{} buildings", bs.len());
+    let [full, blocks] = write_pair(&c, &bs, true);
+    assert!(full == write_in(&c, Detail::Full, &bs), "Monaco Full");
+    assert!(blocks == write_in(&c, Detail::Blocks, &bs), "Monaco Blocks");
+    // A bad building: both refuse it, and both keep the buildings before it.
+    let mut bad = samples::house();
+    bad.measured_height = f64::NAN;
+    let [(mut full, full_info), (mut blocks, blocks_info)] =
+        Tiles3dWriter::pair(Vec::new(), Vec::new());
+    for w in [&mut full, &mut blocks] {
+        w.begin(&ctx(Lod::Lod2)).unwrap();
+        let e = w.write_all(&[samples::house(), bad.clone()]).unwrap_err();
+        assert!(e.to_string().contains("not finite"), "{e}");
+        assert!(w.write(&bad).is_err());
+    }
+    full.finish().unwrap();
+    blocks.finish().unwrap();
+    assert_eq!(full_info.get().unwrap().buildings, 1);
+    assert_eq!(blocks_info.get().unwrap().buildings, 1);
+}
+
 #[test]
 fn an_empty_tile_is_an_empty_scene_and_has_no_placement() {
     let (glb, info) = write(Lod::Lod2, Detail::Full, &[], true);
