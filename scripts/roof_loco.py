@@ -8,8 +8,8 @@ features, the truth folders' footprints (`tests/data/truth/<city>/footprints.shp
 five (cities weighted equally) and scores it on the one left out; it prints the share of
 roofs right per left-out city and pooled, beside the estimator as shipped (`est_pitched`).
 
-    citygen eval <the cases of docs/truth.md> --seed 1 --dump /tmp/dump.csv
-    python3 scripts/roof_loco.py /tmp/dump.csv [tests/data/truth]
+    citygen eval <the cases of docs/truth.md> --seed 1 --dump dump.csv
+    python3 scripts/roof_loco.py dump.csv [tests/data/truth]
 
 Needs numpy, pandas, scipy, scikit-learn and pyshp. Deterministic (fixed model seeds).
 """
