@@ -524,3 +524,42 @@ fn tagged_members_set_their_rows_roof_family() {
     }
     assert_eq!(out.estimates.iter().flatten().count(), 24);
 }
+
+#[test]
+fn like_houses_along_a_street_get_like_heights() {
+    // Ten like houses 20 m apart; one's model says 12 m, the others 7 m; a 40 m² shed among
+    // them whose model says 3 m; a house 1 km away with no neighbours.
+    let mut lots: Vec<Lot> = (0..10)
+        .map(|k| lot(k, 20.0 * k as f64, 0.0, 10.0, 10.0, kind("yes")))
+        .collect();
+    lots.push(lot(10, 40.0, 30.0, 5.0, 8.0, kind("yes")));
+    lots.push(lot(11, 1000.0, 1000.0, 10.0, 10.0, kind("yes")));
+    let m = morph::measure(&lots);
+    let points: Vec<Option<DVec2>> = lots
+        .iter()
+        .map(|l| l.bounds().map(|(lo, hi)| 0.5 * (lo + hi)))
+        .collect();
+    let mut base = vec![7f64.ln(); lots.len()];
+    base[5] = 12f64.ln();
+    base[10] = 3f64.ln();
+    let out = local_form(&lots, &m, &points, base.clone());
+    let h = |i: usize| out[i].exp();
+    assert!(h(5) < 8.5, "the odd house comes most of the way: {}", h(5));
+    assert!(
+        h(4) > 7.0 && h(4) < 7.6,
+        "its neighbours move a little: {}",
+        h(4)
+    );
+    assert!(
+        h(10) <= 3.0 + 1e-9,
+        "a small footprint is never lifted: {}",
+        h(10)
+    );
+    assert_eq!(out[11], base[11], "no neighbours, no change");
+    // The same at one thread and at several (the neighbours are summed in index order).
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map(|p| p.install(|| local_form(&lots, &m, &points, base.clone())));
+    assert_eq!(one.ok(), Some(out));
+}
