@@ -21,6 +21,7 @@ use clean::{clean_polygons, clean_polygons_quietly, Cleaned};
 pub use fronts::{assign_fronts, FRONT_MAX_DISTANCE, FRONT_PARTY_PROBE};
 pub(crate) use parts::cut_part;
 use parts::{group_parts, straighten_lot};
+pub(crate) use tiles::full_bounds;
 pub use tiles::{
     group_into_tiles, in_bbox, near_bbox, near_selected, retain_in_bbox, tile_cell, EmptyBox, Tile,
 };

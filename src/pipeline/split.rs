@@ -46,6 +46,7 @@ use super::{shard, Options, RunError, RunState, Source, Targets};
 use crate::crs::Crs;
 use crate::input::osm::pbf_write::{MemberKind, PbfWriter};
 use crate::model::SourceId;
+use crate::prepare::full_bounds;
 use crate::report::Report;
 
 /// The head's `format` value.
@@ -744,21 +745,6 @@ pub fn split(
         lots: site.lots.len(),
         elapsed: start.elapsed(),
     })
-}
-
-/// A lot's bounds with its parts' (local metres).
-fn full_bounds(l: &crate::prepare::Lot) -> Option<(DVec2, DVec2)> {
-    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    for p in l
-        .polygons
-        .iter()
-        .chain(l.parts.iter().flat_map(|p| &p.polygons))
-    {
-        let (a, b) = p.bounds();
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    (lo.is_finite() && hi.is_finite()).then_some((lo, hi))
 }
 
 /// A box (lower-left, upper-right corner) and the shards that need what lies within the halo

@@ -169,23 +169,28 @@ pub fn near_bbox(lots: &[Lot], bbox: [f64; 4], margin: f64) -> Vec<bool> {
     near_selected(lots, &kept, margin)
 }
 
+/// A lot's bounds with its parts' (local metres), `None` when it has no finite point.
+pub(crate) fn full_bounds(l: &Lot) -> Option<(DVec2, DVec2)> {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for p in l
+        .polygons
+        .iter()
+        .chain(l.parts.iter().flat_map(|p| &p.polygons))
+    {
+        let (a, b) = p.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    (lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+}
+
 /// Which lots are `selected` or have an outline within `margin` metres of a selected one's (the
 /// lots a run writing the selected ones needs as neighbours: a `--bbox`, a shard's tiles).
 /// `selected` has one flag per lot.
 pub fn near_selected(lots: &[Lot], selected: &[bool], margin: f64) -> Vec<bool> {
     let bounds = |l: &Lot| {
-        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-        for p in l
-            .polygons
-            .iter()
-            .chain(l.parts.iter().flat_map(|p| &p.polygons))
-        {
-            let (a, b) = p.bounds();
-            lo = lo.min(a);
-            hi = hi.max(b);
-        }
-        (lo.is_finite() && hi.is_finite())
-            .then(|| AABB::from_corners((lo - margin).to_array(), (hi + margin).to_array()))
+        full_bounds(l)
+            .map(|(lo, hi)| AABB::from_corners((lo - margin).to_array(), (hi + margin).to_array()))
     };
     let is_selected = |i: usize| selected.get(i).copied().unwrap_or(false);
     let kept: Vec<rstar::primitives::Rectangle<[f64; 2]>> = lots
