@@ -9,8 +9,10 @@
 //!   val3dity's CGAL kernel), no spike (104);
 //! * polygon: within 1 cm of its plane (203); inner rings inside the outer one, apart from it
 //!   and each other, turning the other way (201, 206, 208); every triangle of its constrained
-//!   Delaunay triangulation (spade, as val3dity's CGAL one) within 20° of the first one's
-//!   normal: no sliver (204);
+//!   Delaunay triangulation (spade, as val3dity's CGAL one) in the polygon within 20° of the
+//!   first one's normal: no sliver (204); the triangles in the polygon are those of odd nesting
+//!   level, found by walking the triangulation across its ring edges as CGAL's `mark_domains`
+//!   does (a triangle's centroid tested against the rings misjudges slivers along a boundary);
 //! * shell: every edge used once in each direction (closed, 2-manifold, consistently oriented:
 //!   302, 303, 307);
 //! * building: no two of its parts' solids overlap in volume (601): along a vertical line
@@ -22,12 +24,13 @@
 //! at LOD3 on a district of each (CI's) and, in a test CI runs in release, on both whole
 //! samples. Every rule is held to zero (`assert_valid`).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use geo::{Area, BooleanOps, InteriorPoint, Length};
 use glam::{DVec2, DVec3};
+use spade::handles::{FixedFaceHandle, InnerTag};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 /// A written point, in millimetres.
@@ -368,18 +371,13 @@ fn polygon_defects(rings: &[Vec<P>], out: &mut Vec<String>) {
             }
         }
     }
+    let inside = nesting_levels(&cdt);
     let mut first: Option<DVec3> = None;
     for t in cdt.inner_faces() {
-        let v = t.vertices();
-        let p2: Vec<DVec2> = v
-            .iter()
-            .map(|h| DVec2::new(h.position().x, h.position().y))
-            .collect();
-        let centre = (p2[0] + p2[1] + p2[2]) / 3.0;
-        let inside = plan.iter().filter(|r| contains(r, centre)).count() % 2 == 1;
-        if !inside {
+        if inside[t.fix().index()] % 2 == 0 {
             continue;
         }
+        let v = t.vertices();
         let q: Vec<DVec3> = v.iter().map(|h| index[&h.fix().index()]).collect();
         let tn = (q[1] - q[0]).cross(q[2] - q[0]);
         if tn.length() == 0.0 {
@@ -400,6 +398,45 @@ fn polygon_defects(rings: &[Vec<P>], out: &mut Vec<String>) {
             }
         }
     }
+}
+
+/// Each face's nesting level, indexed by its handle's index: how many constraint edges (ring
+/// edges) a walk from the outer face must cross at least to reach it, as CGAL's `mark_domains`
+/// (which val3dity uses) marks them; a face is in the polygon when its level is odd. Walking the
+/// triangulation's adjacency, unlike testing a triangle's centroid against the rings, cannot
+/// misjudge a sliver along a straight boundary whose centroid rounds to the other side.
+fn nesting_levels(cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>) -> Vec<u32> {
+    let mut level = vec![u32::MAX; cdt.num_all_faces()];
+    // A 0-1 breadth-first walk: a step across a ring edge costs one, any other step nothing.
+    let mut queue: VecDeque<(FixedFaceHandle<InnerTag>, u32)> = VecDeque::new();
+    for t in cdt.inner_faces() {
+        for e in t.adjacent_edges() {
+            if e.rev().face().is_outer() {
+                queue.push_back((t.fix(), u32::from(e.is_constraint_edge())));
+            }
+        }
+    }
+    queue.make_contiguous().sort_by_key(|&(_, l)| l);
+    while let Some((h, l)) = queue.pop_front() {
+        if level[h.index()] <= l {
+            continue;
+        }
+        level[h.index()] = l;
+        for e in cdt.face(h).adjacent_edges() {
+            let Some(n) = e.rev().face().as_inner() else {
+                continue;
+            };
+            let j = n.fix();
+            if e.is_constraint_edge() {
+                if level[j.index()] > l + 1 {
+                    queue.push_back((j, l + 1));
+                }
+            } else if level[j.index()] > l {
+                queue.push_front((j, l));
+            }
+        }
+    }
+    level
 }
 
 /// The defects of one solid, each a line starting with its code.
@@ -901,4 +938,38 @@ fn rings_crossing_or_touching_are_found() {
     let outer = xz(&[(0, 0), (4000, 0), (4000, 3000), (0, 3000)]);
     let hole = xz(&[(1000, 0), (1000, 2000), (2000, 2000), (2000, 1000)]);
     assert_eq!(defects(&[outer, hole]), ["201 rings intersect"]);
+}
+
+/// The faces inside a polygon are found by walking the triangulation: a square with a square
+/// hole and, in the hole, an island square: levels 1, 2 and 3 by area, none at 0 (the outer
+/// ring is the hull), so the walk crosses each ring once.
+#[test]
+fn nesting_levels_mark_the_polygon_and_its_islands() {
+    let square = |c: f64, r: f64| {
+        vec![
+            Point2::new(c - r, c - r),
+            Point2::new(c + r, c - r),
+            Point2::new(c + r, c + r),
+            Point2::new(c - r, c + r),
+        ]
+    };
+    let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
+        ConstrainedDelaunayTriangulation::new();
+    for ring in [square(5.0, 5.0), square(5.0, 3.0), square(5.0, 1.0)] {
+        let h: Vec<_> = ring.iter().map(|p| cdt.insert(*p).unwrap()).collect();
+        for i in 0..h.len() {
+            cdt.add_constraint(h[i], h[(i + 1) % h.len()]);
+        }
+    }
+    let level = nesting_levels(&cdt);
+    let mut area = [0.0; 4];
+    for t in cdt.inner_faces() {
+        let l = level[t.fix().index()];
+        assert!(l <= 3, "level {l}");
+        area[l as usize] += t.area();
+    }
+    assert!((area[0] - 0.0).abs() < 1e-9, "{area:?}");
+    assert!((area[1] - (100.0 - 36.0)).abs() < 1e-9, "{area:?}");
+    assert!((area[2] - (36.0 - 4.0)).abs() < 1e-9, "{area:?}");
+    assert!((area[3] - 4.0).abs() < 1e-9, "{area:?}");
 }
