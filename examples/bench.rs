@@ -35,7 +35,9 @@
 //! Flags: `--lods 1,2,3` (default all), `--formats all,ifc,gml,glb` (default all four),
 //! `--reps R` (default 1, or the number after a file path), `--kb FILE`, `--threads N`,
 //! `--tile METRES` and `--dry-run` (passed on to citygen; a dry run renders every output and
-//! counts its bytes but writes none, for runs whose outputs the disk cannot hold), `--read`
+//! counts its bytes but writes none, for runs whose outputs the disk cannot hold), `--dem FILE`
+//! (each repetition also runs on the DEM, alternated, and a line gives the median CPU seconds
+//! with and without it: the cost of terrain), `--read`
 //! (only the read comparison, no citygen runs). MB out is the byte count citygen's summary
 //! gives, the same whether written or not.
 
@@ -62,6 +64,7 @@ fn main() -> Result<(), Error> {
     let mut day2: Option<(usize, PathBuf)> = None;
     let mut seed = 1u64;
     let mut spread = citygen::testkit::day2::Spread::Uniform;
+    let mut dem: Option<String> = None;
     let mut i = 0;
     while i < args.len() {
         let a = args[i].as_str();
@@ -90,6 +93,7 @@ fn main() -> Result<(), Error> {
             "--threads" => extra.extend(["--threads".to_string(), value()?]),
             "--tile" => extra.extend(["--tile".to_string(), value()?]),
             "--dry-run" => extra.push("--dry-run".into()),
+            "--dem" => dem = Some(value()?),
             "--lods" => {
                 lods = value()?
                     .split(',')
@@ -143,9 +147,26 @@ fn main() -> Result<(), Error> {
             }
             _ => PathBuf::from(input),
         };
-        bench_input(&bin, &path, &kb, &lods, &formats, reps, &extra, &out_dir)?;
+        let dem = dem.as_deref();
+        bench_input(
+            &bin, &path, &kb, &lods, &formats, reps, &extra, dem, &out_dir,
+        )?;
     }
     Ok(())
+}
+
+/// The median of `v` (0 when empty).
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
 }
 
 /// `10000`, `10k`, `1M`.
@@ -251,9 +272,12 @@ fn bench_input(
     formats: &[Format],
     reps: usize,
     extra: &[String],
+    dem: Option<&str>,
     out_dir: &Path,
 ) -> Result<(), Error> {
     let size = std::fs::metadata(input)?.len();
+    let with_dem: Option<Vec<String>> =
+        dem.map(|d| [extra, &["--dem".to_string(), d.to_string()]].concat());
     let is_shp = input.extension().is_some_and(|e| e == "shp");
     println!(
         "\n== {} ({:.1} MB)\n{:<4} {:<10} {:>9} {:>10} {:>8} {:>8} {:>11} {:>12} {:>9} {:>8} {:>9} {:>8} {:>6}",
@@ -276,8 +300,17 @@ fn bench_input(
     for &lod in lods {
         for &format in formats {
             let mut best: Option<RunResult> = None;
+            // With `--dem`, each repetition runs the same configuration on the DEM right after,
+            // so the two alternate and share the machine's load.
+            let (mut cpu, mut cpu_dem, mut rss_dem) = (Vec::new(), Vec::new(), 0u64);
             for _ in 0..reps {
+                if let Some(w) = &with_dem {
+                    let d = run_child(bin, input, is_shp, kb, lod, format, w, out_dir)?;
+                    cpu_dem.push(d.cpu);
+                    rss_dem = rss_dem.max(d.rss_kib);
+                }
                 let r = run_child(bin, input, is_shp, kb, lod, format, extra, out_dir)?;
+                cpu.push(r.cpu);
                 let rss = best.as_ref().map_or(0, |b| b.rss_kib).max(r.rss_kib);
                 if best.as_ref().is_none_or(|b| r.secs < b.secs) {
                     best = Some(RunResult { rss_kib: rss, ..r });
@@ -302,6 +335,14 @@ fn bench_input(
                 r.rss_kib as f64 * 1024.0 / r.buildings.max(1) as f64,
                 100.0 * r.read_kib as f64 / r.rss_kib.max(1) as f64
             );
+            if !cpu_dem.is_empty() {
+                let (base, with) = (median(&mut cpu), median(&mut cpu_dem));
+                println!(
+                    "     with --dem: CPU s {with:.2} against {base:.2} (medians of {reps}): {:+.1} %, RSS {:.1} MiB",
+                    100.0 * (with / base - 1.0),
+                    rss_dem as f64 / 1024.0
+                );
+            }
         }
     }
     if !is_shp {
