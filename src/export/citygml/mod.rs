@@ -371,6 +371,9 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
                 .zip(slots.par_iter_mut())
                 .for_each(|(b, x)| {
                     x.0.clear();
+                    // Room for the building at once: a tower's tens of MB are not grown by
+                    // doubling (a copy and fresh pages each time).
+                    x.0.reserve(b.polygon_count().saturating_mul(BYTES_PER_POLYGON));
                     Renderer {
                         x,
                         origin,
@@ -404,6 +407,10 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
         Ok(())
     }
 }
+
+/// About the bytes of CityGML a polygon of a building takes at LOD3 (1,424 in the 10k bench
+/// input: 1.99 GB for 1.40 M polygons), reserved for a building before it is rendered.
+const BYTES_PER_POLYGON: usize = 1_400;
 
 /// Renders one building into the scratch buffer.
 struct Renderer<'a> {

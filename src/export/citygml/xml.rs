@@ -50,9 +50,9 @@ impl Xml {
     /// A finite number with exactly 3 decimals, never `-0.000` (the digits of
     /// [`format::push_fixed3`], without its general cases where they cannot arise).
     pub(super) fn fixed3(&mut self, v: f64) {
-        let mut buf = [0u8; 24];
-        match fixed3_into(&mut buf, v) {
-            Some(start) => self.0.extend_from_slice(&buf[start..]),
+        let mut buf = [0u8; FIXED3_MAX];
+        match fixed3_put(&mut buf, v) {
+            Some(len) => self.0.extend_from_slice(&buf[..len]),
             None => format::push_fixed3(&mut self.0, v),
         }
     }
@@ -135,41 +135,39 @@ impl Xml {
             }
         };
         self.s("<gml:LinearRing><gml:posList srsDimension=\"3\">");
-        // The points go through a stack buffer, appended a few kilobytes at a time.
-        let mut buf = [0u8; 4096];
-        let mut len = 0;
+        // The digits go straight into the buffer: it is grown (zeroed) a few points ahead of
+        // what is written, and cut back to what was written at the end.
+        let total = points.len() + 1;
+        let mut len = self.0.len();
         for (i, p) in points.iter().chain(points.first()).enumerate() {
-            if len + 1 + 3 * 24 > buf.len() {
-                self.0.extend_from_slice(&buf[..len]);
-                len = 0;
+            if self.0.len() < len + POINT_TEXT {
+                let ahead = (total - i).min(RING_AHEAD);
+                self.0.resize(len + ahead * POINT_TEXT, 0);
             }
             if i > 0 {
-                buf[len] = b' ';
+                self.0[len] = b' ';
                 len += 1;
             }
             let q = origin + *p;
             for (k, v) in [q.x, q.y, q.z].into_iter().enumerate() {
-                let mut one = [0u8; 24];
-                let Some(start) = fixed3_into(&mut one, v) else {
-                    // Beyond a million kilometres: the general formatter, point by point.
-                    self.0.extend_from_slice(&buf[..len]);
-                    len = 0;
-                    if k > 0 {
-                        self.0.push(b' ');
-                    }
-                    format::push_fixed3(&mut self.0, v);
-                    continue;
-                };
                 if k > 0 {
-                    buf[len] = b' ';
+                    self.0[len] = b' ';
                     len += 1;
                 }
-                let digits = &one[start..];
-                buf[len..len + digits.len()].copy_from_slice(digits);
-                len += digits.len();
+                match fixed3_put(&mut self.0[len..], v) {
+                    Some(n) => len += n,
+                    None => {
+                        // Beyond a million kilometres: the general formatter, point by point.
+                        self.0.truncate(len);
+                        format::push_fixed3(&mut self.0, v);
+                        len = self.0.len();
+                        let ahead = (total - i).min(RING_AHEAD);
+                        self.0.resize(len + ahead * POINT_TEXT, 0);
+                    }
+                }
             }
         }
-        self.0.extend_from_slice(&buf[..len]);
+        self.0.truncate(len);
         self.s("</gml:posList></gml:LinearRing>\n");
     }
 }
@@ -194,42 +192,54 @@ fn round_i64(v: f64) -> Option<i64> {
     })
 }
 
-/// Two-digit groups for [`fixed3_into`].
+/// Two-digit groups for [`fixed3_put`].
 const DIGIT_PAIRS: &[u8; 200] = b"00010203040506070809101112131415161718192021222324252627282930313233343536373839404142434445464748495051525354555657585960616263646566676869707172737475767778798081828384858687888990919293949596979899";
 
+/// Bytes one point of a ring can take (three numbers of at most [`FIXED3_MAX`] bytes, their
+/// separators and the one before the point), for [`Xml::linear_ring`].
+const POINT_TEXT: usize = 3 * (FIXED3_MAX + 1);
+
+/// Points of a ring the buffer is grown ahead of what is written.
+const RING_AHEAD: usize = 32;
+
+/// The most bytes [`fixed3_put`] writes: a sign, 15 digits (`|v| < 1e15` after scaling by
+/// 1000 is below 1e18), the point and 3 decimals.
+const FIXED3_MAX: usize = 24;
+
 /// Writes `v` with exactly 3 decimals (as [`format::push_fixed3`]: `(v * 1000).round()`
-/// millimetres, never `-0.000`) at the end of `buf`; returns where it starts. `None` when
-/// `|v * 1000|` reaches 1e18, which the general formatter handles.
+/// millimetres, never `-0.000`) at the start of `out` (at least [`FIXED3_MAX`] bytes long);
+/// returns its length. `None` when `|v * 1000|` reaches 1e18, which the general formatter
+/// handles.
 #[inline]
-fn fixed3_into(buf: &mut [u8; 24], v: f64) -> Option<usize> {
+fn fixed3_put(out: &mut [u8], v: f64) -> Option<usize> {
     let n = round_i64(v * 1000.0)?;
     let mut m = n.unsigned_abs();
-    let mut i = buf.len();
     let frac = (m % 1000) as usize;
     m /= 1000;
-    buf[i - 3] = b'0' + (frac / 100) as u8;
-    buf[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * (frac % 100)..2 * (frac % 100) + 2]);
-    buf[i - 4] = b'.';
+    let digits = m.checked_ilog10().unwrap_or(0) as usize + 1;
+    let len = usize::from(n < 0) + digits + 4;
+    let out = &mut out[..len];
+    if n < 0 {
+        out[0] = b'-';
+    }
+    let mut i = len;
+    out[i - 3] = b'0' + (frac / 100) as u8;
+    out[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * (frac % 100)..2 * (frac % 100) + 2]);
+    out[i - 4] = b'.';
     i -= 4;
     while m >= 100 {
         let d = (m % 100) as usize;
         m /= 100;
-        buf[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
+        out[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
         i -= 2;
     }
     if m >= 10 {
         let d = m as usize;
-        buf[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
-        i -= 2;
+        out[i - 2..i].copy_from_slice(&DIGIT_PAIRS[2 * d..2 * d + 2]);
     } else {
-        buf[i - 1] = b'0' + m as u8;
-        i -= 1;
+        out[i - 1] = b'0' + m as u8;
     }
-    if n < 0 {
-        buf[i - 1] = b'-';
-        i -= 1;
-    }
-    Some(i)
+    Some(len)
 }
 
 /// Whether the ring, as written, has no repeated consecutive point and no `x, y, x` spike
@@ -328,6 +338,42 @@ mod tests {
         ] {
             assert_eq!(fast(v), general(v), "{v}");
         }
+    }
+
+    /// The ring's text as the general formatter writes it.
+    fn ring_text(points: &[DVec3], origin: DVec3) -> Vec<u8> {
+        let mut out = b"<gml:LinearRing><gml:posList srsDimension=\"3\">".to_vec();
+        for (i, p) in points.iter().chain(points.first()).enumerate() {
+            let q = origin + *p;
+            for (k, v) in [q.x, q.y, q.z].into_iter().enumerate() {
+                if i > 0 || k > 0 {
+                    out.push(b' ');
+                }
+                format::push_fixed3(&mut out, v);
+            }
+        }
+        out.extend_from_slice(b"</gml:posList></gml:LinearRing>\n");
+        out
+    }
+
+    #[test]
+    fn long_rings_and_huge_coordinates_are_written_as_the_general_formatter() {
+        let origin = DVec3::new(574_321.25, 6_279_000.5, 12.0);
+        // 100 points on a circle (more than `RING_AHEAD`), then one far beyond a million km.
+        let mut points: Vec<DVec3> = (0..100)
+            .map(|k| {
+                let a = k as f64 * std::f64::consts::TAU / 100.0;
+                DVec3::new(30.0 * a.cos(), -30.0 * a.sin(), 0.001 * k as f64)
+            })
+            .collect();
+        let mut x = Xml(b"<a>".to_vec());
+        x.linear_ring(&points, origin);
+        assert_eq!(x.0[3..], ring_text(&points, origin)[..]);
+        points[40] = DVec3::new(1e30, -2e31, 5.0);
+        points[41] = DVec3::new(3.0, -1e25, 5.0);
+        let mut x = Xml(Vec::new());
+        x.linear_ring(&points, origin);
+        assert_eq!(x.0, ring_text(&points, origin));
     }
 
     proptest! {

@@ -325,6 +325,25 @@ pub(super) fn encode(
         check_finite("glTF writer", b)?;
     }
     let classes = building_groups(b, detail, tex);
+    // The bytes are reserved at once, at their size, rather than grown by doubling, which
+    // copies a tower's tens of MB and faults in fresh pages each time.
+    let (vertices, index_bytes_len) =
+        classes
+            .iter()
+            .flat_map(|(_, groups)| groups)
+            .fold((0, 0), |(v, i), g| {
+                let width = if g.mesh.positions.len() <= 65535 {
+                    2
+                } else {
+                    4
+                };
+                (
+                    v + g.mesh.positions.len(),
+                    i + (g.mesh.indices.len() * width).next_multiple_of(4),
+                )
+            });
+    out.vertex_bytes.reserve(vertices * 24);
+    out.index_bytes.reserve(index_bytes_len);
     // Positions in glTF's frame, reused from primitive to primitive.
     let mut gltf_positions: Vec<[f32; 3]> = Vec::new();
 
