@@ -226,7 +226,7 @@ pub(crate) fn infer_from_neighbours(
     let models = prepare::estimate::Models::shipped();
     let mixes = roof_mixes(kb, lots, &zones);
     drop(zones);
-    let outcome = prepare::estimate::estimate(lots, mixes, &wanted, &models, false);
+    let outcome = prepare::estimate::estimate_owned(lots, mixes, &wanted, &models, false);
     phases.push(Phase::mark("estimate", start));
     if kb.has_conditions() {
         // The KB draws appearances by the footprint's form: every lot's, tagged or not.

@@ -81,7 +81,7 @@ fn write_input(path: &std::path::Path) {
 }
 
 #[test]
-fn inferring_from_the_neighbours_holds_a_few_hundred_bytes_a_building() {
+fn inferring_from_the_neighbours_holds_about_half_a_kilobyte_a_building() {
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("rows.osm.pbf");
     write_input(&path);
@@ -106,10 +106,11 @@ fn inferring_from_the_neighbours_holds_a_few_hundred_bytes_a_building() {
     assert!(10 * coloured >= 9 * n, "{coloured} of {n} lots coloured");
 
     let per_building = peak / n;
-    // Measured: 612 bytes a building now, 1,112 before (the colour copies and the estimator's
-    // arrays as they were); the notes of the lots the neighbours changed (two phrases of about
+    // Measured: 521 bytes a building now, 973 before (a tag set copied for each lot whose
+    // colour was inferred, about 340 bytes a building here, and the estimator's arrays as they
+    // were, about 110). The notes of the lots the neighbours changed (a phrase or two of about
     // 100 bytes each, in a hash map) are part of it.
-    const BOUND: usize = 800;
+    const BOUND: usize = 600;
     eprintln!(
         "memory: inferring holds {per_building} B a building at its peak (bound {BOUND}), \
          {} B a building after",

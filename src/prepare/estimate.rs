@@ -474,14 +474,36 @@ fn fit_in_run(
 /// `fit` turns on the in-run model (step 4). Runs leave it off: it makes every estimate depend
 /// on every tag of the input, so a nightly increment rewrote every tile (444 of 444 against 122
 /// with the estimate local); `citygen eval --fit` measures it.
-///
-/// Memory (issue 46): this is a run's peak, over every lot at once, so what is per lot is held
-/// only while it is needed: `mixes` given by value is freed once copied into each lot's
-/// [`Known`], the lots' points once the models' neighbour indexes are built (a lot's point is
-/// taken again from its outline when it is estimated), and the indexes before the priors.
-pub(crate) fn estimate<'m>(
+pub(crate) fn estimate(
     lots: &[Lot],
-    mixes: impl Into<std::borrow::Cow<'m, [RoofMix]>>,
+    mixes: &[RoofMix],
+    want: &[Inference],
+    models: &Models,
+    fit: bool,
+) -> Outcome {
+    estimate_cow(lots, mixes.into(), want, models, fit)
+}
+
+/// [`estimate`] taking the mixes by value, as a run does: they are freed once copied into each
+/// lot's [`Known`].
+///
+/// Memory (issue 46): the estimator is a run's peak, over every lot at once, so what is per lot
+/// is held only while it is needed: the mixes (when given by value), the lots' points once the
+/// models' neighbour indexes are built (a lot's point is taken again from its outline when it
+/// is estimated), and the indexes before the priors.
+pub(crate) fn estimate_owned(
+    lots: &[Lot],
+    mixes: Vec<RoofMix>,
+    want: &[Inference],
+    models: &Models,
+    fit: bool,
+) -> Outcome {
+    estimate_cow(lots, mixes.into(), want, models, fit)
+}
+
+fn estimate_cow(
+    lots: &[Lot],
+    mixes: std::borrow::Cow<'_, [RoofMix]>,
     want: &[Inference],
     models: &Models,
     fit: bool,
@@ -493,7 +515,6 @@ pub(crate) fn estimate<'m>(
         };
     }
     let m = morph::measure(lots);
-    let mixes = mixes.into();
     let known: Vec<Known> = (0..lots.len())
         .map(|i| {
             let mix = mixes.get(i).copied().unwrap_or(RoofMix::DEFAULT);
