@@ -258,6 +258,23 @@ pub(crate) fn infer_from_neighbours(
     }
 }
 
+/// Runs what a run infers from the neighbours (colours, then the height and roof estimator)
+/// over `lots`, every inference on, as [`run`] does between its `fronts` and `select` stages:
+/// for `tests/memory_estimate.rs`, which measures its working set (feature `testkit`). Returns
+/// how many lots have storeys after it (tagged or estimated).
+#[cfg(any(test, feature = "testkit"))]
+#[doc(hidden)]
+pub fn infer_all(kb: &KnowledgeBase, lots: &mut [prepare::Lot]) -> usize {
+    let all = crate::model::Inference {
+        levels: true,
+        roof: true,
+        colour: true,
+    };
+    let boundaries = crate::kb::BoundaryZones::default();
+    drop(infer_from_neighbours(kb, &boundaries, lots, Some(all)));
+    lots.iter().filter(|l| l.tags.levels.is_some()).count()
+}
+
 /// Per lot, its zone's roof and storey prior for its kind ([`KnowledgeBase::roof_mix`]), each
 /// (zone, kind) computed once.
 pub(crate) fn roof_mixes(

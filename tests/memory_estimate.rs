@@ -98,7 +98,7 @@ fn inferring_from_the_neighbours_holds_about_half_a_kilobyte_a_building() {
 
     let base = LIVE.load(Ordering::Relaxed);
     PEAK.store(base, Ordering::Relaxed);
-    let with_height = citygen::testkit::infer_all(&kb, &mut site.lots);
+    let with_height = citygen::pipeline::infer_all(&kb, &mut site.lots);
     let peak = PEAK.load(Ordering::Relaxed) - base;
     let after = LIVE.load(Ordering::Relaxed).saturating_sub(base);
     assert_eq!(with_height, n, "every lot tagged or estimated");
