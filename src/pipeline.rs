@@ -226,7 +226,7 @@ pub(crate) fn infer_from_neighbours(
     let models = prepare::estimate::Models::shipped();
     let mixes = roof_mixes(kb, lots, &zones);
     drop(zones);
-    let outcome = prepare::estimate::estimate(lots, &mixes, &wanted, &models, false);
+    let outcome = prepare::estimate::estimate_owned(lots, mixes, &wanted, &models, false);
     phases.push(Phase::mark("estimate", start));
     if kb.has_conditions() {
         // The KB draws appearances by the footprint's form: every lot's, tagged or not.
@@ -256,6 +256,23 @@ pub(crate) fn infer_from_neighbours(
         outcome,
         phases,
     }
+}
+
+/// Runs what a run infers from the neighbours (colours, then the height and roof estimator)
+/// over `lots`, every inference on, as [`run`] does between its `fronts` and `select` stages:
+/// for `tests/memory_estimate.rs`, which measures its working set (feature `testkit`). Returns
+/// how many lots have storeys after it (tagged or estimated).
+#[cfg(any(test, feature = "testkit"))]
+#[doc(hidden)]
+pub fn infer_all(kb: &KnowledgeBase, lots: &mut [prepare::Lot]) -> usize {
+    let all = crate::model::Inference {
+        levels: true,
+        roof: true,
+        colour: true,
+    };
+    let boundaries = crate::kb::BoundaryZones::default();
+    drop(infer_from_neighbours(kb, &boundaries, lots, Some(all)));
+    lots.iter().filter(|l| l.tags.levels.is_some()).count()
 }
 
 /// Per lot, its zone's roof and storey prior for its kind ([`KnowledgeBase::roof_mix`]), each

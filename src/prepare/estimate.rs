@@ -481,6 +481,33 @@ pub(crate) fn estimate(
     models: &Models,
     fit: bool,
 ) -> Outcome {
+    estimate_cow(lots, mixes.into(), want, models, fit)
+}
+
+/// [`estimate`] taking the mixes by value, as a run does: they are freed once copied into each
+/// lot's [`Known`].
+///
+/// Memory (issue 46): the estimator is a run's peak, over every lot at once, so what is per lot
+/// is held only while it is needed: the mixes (when given by value), the lots' points once the
+/// models' neighbour indexes are built (a lot's point is taken again from its outline when it
+/// is estimated), and the indexes before the priors.
+pub(crate) fn estimate_owned(
+    lots: &[Lot],
+    mixes: Vec<RoofMix>,
+    want: &[Inference],
+    models: &Models,
+    fit: bool,
+) -> Outcome {
+    estimate_cow(lots, mixes.into(), want, models, fit)
+}
+
+fn estimate_cow(
+    lots: &[Lot],
+    mixes: std::borrow::Cow<'_, [RoofMix]>,
+    want: &[Inference],
+    models: &Models,
+    fit: bool,
+) -> Outcome {
     if !want.iter().any(|w| w.levels || w.roof) {
         return Outcome {
             estimates: vec![None; lots.len()],
@@ -494,10 +521,8 @@ pub(crate) fn estimate(
             known(&lots[i].tags, m.width[i], mix)
         })
         .collect();
-    let points: Vec<Option<DVec2>> = lots
-        .iter()
-        .map(|l| l.bounds().map(|(lo, hi)| 0.5 * (lo + hi)))
-        .collect();
+    drop(mixes);
+    let points: Vec<Option<DVec2>> = lots.iter().map(morph::point).collect();
     let base_h: Vec<f64> = m
         .features
         .par_iter()
@@ -525,11 +550,11 @@ pub(crate) fn estimate(
         |k| k.pitched,
         (Loss::Logistic, fit),
     );
+    drop(points);
     let ctx = Context {
         lots,
         m: &m,
         known: &known,
-        points: &points,
         heights: &heights,
         roofs: &roofs,
     };
@@ -538,6 +563,9 @@ pub(crate) fn estimate(
         .map(|i| ctx.one(i, want[i]))
         .collect();
     rows(&ctx, &mut estimates);
+    let (height_fit, roof_fit) = (heights.fit, roofs.fit);
+    drop((heights.base, heights.residual, heights.tree));
+    drop((roofs.base, roofs.residual, roofs.tree));
     let priors = m
         .features
         .iter()
@@ -546,8 +574,8 @@ pub(crate) fn estimate(
         .collect();
     Outcome {
         estimates,
-        height_fit: heights.fit,
-        roof_fit: roofs.fit,
+        height_fit,
+        roof_fit,
         features: m.features,
         priors,
         touching: m.touching,
@@ -632,8 +660,10 @@ struct Side {
     base: Vec<f64>,
     model: Model,
     fit: Option<Fit>,
-    /// Per lot: its target minus its out-of-fold estimate (tagged lots only).
-    residual: Vec<Option<f64>>,
+    /// Per tagged lot, by index: its target minus its out-of-fold estimate (sorted by lot; a
+    /// list of the tagged lots rather than a slot for every lot, which would be held over
+    /// every lot at once: [`estimate`]'s memory).
+    residual: Vec<(u32, f64)>,
     /// The index of tagged lots.
     tree: RTree<GeomWithData<[f64; 2], u32>>,
     /// The relative error of an estimate (mean |log error|, or the share of roofs wrong).
@@ -676,10 +706,15 @@ impl Side {
             (Model::zero(loss), None)
         };
         let error = fit.as_ref().map_or(shipped_error, |f| f.error);
+        let residual: Vec<(u32, f64)> = residual
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, r)| Some((i as u32, r?)))
+            .collect();
         let tree = RTree::bulk_load(
-            (0..known.len())
-                .filter(|&i| residual[i].is_some())
-                .filter_map(|i| Some(GeomWithData::new(points[i]?.to_array(), i as u32)))
+            residual
+                .iter()
+                .filter_map(|&(i, _)| Some(GeomWithData::new(points[i as usize]?.to_array(), i)))
                 .collect(),
         );
         Side {
@@ -690,6 +725,13 @@ impl Side {
             tree,
             error,
         }
+    }
+
+    /// Tagged lot `j`'s residual, `None` for an untagged lot.
+    fn residual(&self, j: usize) -> Option<f64> {
+        let j = u32::try_from(j).ok()?;
+        let k = self.residual.binary_search_by_key(&j, |r| r.0).ok()?;
+        Some(self.residual[k].1)
     }
 
     /// The source of an estimate without neighbours.
@@ -705,7 +747,6 @@ struct Context<'a> {
     lots: &'a [Lot],
     m: &'a Morphology,
     known: &'a [Known],
-    points: &'a [Option<DVec2>],
     heights: &'a Side,
     roofs: &'a Side,
 }
@@ -745,7 +786,7 @@ impl Context<'_> {
     /// The shrunk weighted mean of the neighbours' residuals, and whether they counted.
     fn lend(&self, side: &Side, near: &[(usize, f64)]) -> f64 {
         let (sw, sw2, swr) = near.iter().fold((0.0, 0.0, 0.0), |(a, b, c), &(j, w)| {
-            (a + w, b + w * w, c + w * side.residual[j].unwrap_or(0.0))
+            (a + w, b + w * w, c + w * side.residual(j).unwrap_or(0.0))
         });
         if sw <= 0.0 {
             return 0.0;
@@ -846,7 +887,7 @@ impl Context<'_> {
             return None;
         }
         let f = &self.m.features[i];
-        let p = self.points[i]?;
+        let p = morph::point(&self.lots[i])?;
         // Roof first: the height's roof allowance depends on it.
         let (hs, rs) = (self.heights, self.roofs);
         let near_r = self.neighbours(rs, i, p, 0.5);

@@ -366,6 +366,9 @@ pub(crate) fn describe(inf: &Inferred) -> Vec<String> {
 /// returns the report notes, one per lot changed: (lot index, text).
 pub fn apply(lots: &mut [Lot], inferred: &[Inferred]) -> Vec<(usize, String)> {
     let mut notes = Vec::new();
+    // Lots given the same values share one tag set (issue 46: a copy a lot was ~0.5 KB over
+    // every lot the neighbours changed, held through the estimator's peak).
+    let interner = crate::input::TagInterner::default();
     for (i, (lot, inf)) in lots.iter_mut().zip(inferred).enumerate() {
         if !inf.any() {
             continue;
@@ -383,7 +386,7 @@ pub fn apply(lots: &mut [Lot], inferred: &[Inferred]) -> Vec<(usize, String)> {
         if let Some(f) = inf.roof_colour {
             tags.roof_colour = Some(f.value);
         }
-        lot.tags = std::sync::Arc::new(tags);
+        lot.tags = interner.intern(tags);
         notes.push((i, describe(inf).join("; ")));
     }
     notes

@@ -356,15 +356,20 @@ fn touching_pairs(lots: &[Lot]) -> Vec<(u32, u32, f32)> {
     pairs
 }
 
-/// Measures every lot (module docs).
+/// A lot's point: the middle of its outline's bounds (what the density windows and the
+/// estimator's neighbour distances are measured from).
+pub(crate) fn point(lot: &Lot) -> Option<DVec2> {
+    lot.bounds().map(|(lo, hi)| 0.5 * (lo + hi))
+}
+
+/// Measures every lot (module docs). The touching pairs come first, so that their index of
+/// outline bounds is freed before the per-lot shapes are made (issue 46: this runs over every
+/// lot at once).
 pub(crate) fn measure(lots: &[Lot]) -> Morphology {
+    let touching = touching_pairs(lots);
     let shapes: Vec<(f64, f64, usize, f64, f64, f64)> = lots.par_iter().map(shape).collect();
     let area: Vec<f64> = shapes.iter().map(|s| s.0.max(1.0)).collect();
-    let points: Vec<Option<DVec2>> = lots
-        .par_iter()
-        .map(|l| l.bounds().map(|(lo, hi)| 0.5 * (lo + hi)))
-        .collect();
-    let touching = touching_pairs(lots);
+    let points: Vec<Option<DVec2>> = lots.par_iter().map(point).collect();
     let mut shared = vec![(0.0f64, 0u32); lots.len()];
     for &(i, j, s) in &touching {
         for k in [i, j] {
