@@ -56,11 +56,12 @@ pub(crate) const SPLIT_FORMAT: &str = "citygen-split/1";
 pub const MAX_SPLIT_SHARDS: usize = 64;
 
 /// The default halo (metres): as far as another building decides something of a building's
-/// estimate (its tagged neighbours within 500 m, whose residuals their own density windows
-/// decide, up to 707 m around them: 1,207 m), rounded up to 1,250 m. Colours (300 m), fronts
+/// estimate (its tagged neighbours within 500 m, whose residuals are taken after their local
+/// form, like lots within 100 m of them, whose own density windows look up to 707 m around
+/// them: 1,307 m, `estimate::REACH_M`), rounded up to 1,350 m. Colours (300 m), fronts
 /// (50 m) and touching neighbours lie within it; rows are followed to their ends whatever
 /// their length (module docs).
-pub const DEFAULT_HALO_M: f64 = 1250.0;
+pub const DEFAULT_HALO_M: f64 = 1350.0;
 const _: () = assert!(DEFAULT_HALO_M >= crate::prepare::estimate::REACH_M);
 const _: () = assert!(DEFAULT_HALO_M >= crate::prepare::FRONT_MAX_DISTANCE);
 

@@ -75,12 +75,12 @@ pub(crate) const NEIGHBOUR_RADIUS_M: f64 = 500.0;
 pub(crate) const MAX_VOTES: usize = 24;
 /// The farthest (metres, between lots' points) another lot decides something of a lot's
 /// estimate before rows: a tagged neighbour within [`NEIGHBOUR_RADIUS_M`] votes with its
-/// residual, which its own features (looking [`super::morph::WINDOW_REACH_M`] around it)
-/// decide; like untagged lots within [`LOCAL_FORM_RADIUS_M`] (step 2), nearer, weigh in with
-/// their model heights, decided the same way. Rows (touching lots) chain further; `citygen
-/// split` follows them one by one.
-pub(crate) const REACH_M: f64 = NEIGHBOUR_RADIUS_M + super::morph::WINDOW_REACH_M;
-const _: () = assert!(LOCAL_FORM_RADIUS_M <= NEIGHBOUR_RADIUS_M);
+/// residual, its tag less its own model height after the local form (step 2: like lots
+/// within [`LOCAL_FORM_RADIUS_M`] of it), whose features look
+/// [`super::morph::WINDOW_REACH_M`] around them: 500 + 100 + 707 = 1,307 m. Rows (touching
+/// lots) chain further; `citygen split` follows them one by one.
+pub(crate) const REACH_M: f64 =
+    NEIGHBOUR_RADIUS_M + LOCAL_FORM_RADIUS_M + super::morph::WINDOW_REACH_M;
 /// The most the neighbours may move an estimate's storeys: this factor up or down. Held-out
 /// storeys (a third hidden, seeds 1-3), as a share of the constant's, with 1.6 and 2.5:
 /// Monaco 0.74 and 0.71, Helsinki 0.68 and 0.66, Moscow 0.98 and 0.80, the others within
