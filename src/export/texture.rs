@@ -402,18 +402,27 @@ impl TextureOut {
 }
 
 /// The folder of an output's pictures (`--textures`), beside it: the output's file name
-/// without its extensions (`out.gml`, `out.city.json`, `out.city.jsonl` give `out`) and
-/// `_textures`. A CityGML and a CityJSON output of one name share it (the same pictures).
+/// without its format's extension (`out.gml`, `out.city.json`, `out.city.jsonl` give `out`,
+/// `out_0.5_1.gml` gives `out_0.5_1`) and `_textures`. A CityGML and a CityJSON output of one name share it (the same pictures).
 pub(crate) fn folder_name(output: &std::path::Path) -> String {
     let name = output
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let stem = name
-        .split('.')
-        .next()
+    let known = [
+        ".city.jsonl",
+        ".city.json",
+        ".jsonl",
+        ".json",
+        ".gml",
+        ".xml",
+    ];
+    let stem = known
+        .iter()
+        .find_map(|e| name.strip_suffix(e))
+        .or_else(|| name.rsplit_once('.').map(|(s, _)| s))
         .filter(|s| !s.is_empty())
-        .unwrap_or("out");
+        .unwrap_or(&name);
     format!("{stem}_textures")
 }
 
@@ -708,6 +717,14 @@ mod tests {
             "{u} {v}"
         );
         assert_eq!(bays(10.0, 3.0), 3.0);
+        let f = |p: &str| folder_name(std::path::Path::new(p));
+        assert_eq!(f("d/out.gml"), "out_textures");
+        assert_eq!(f("out.city.json"), f("out.city.jsonl"));
+        assert_eq!(f("m_371000.5_1.gml"), "m_371000.5_1_textures");
+        assert_eq!(
+            Texture::Surface(Material::RoofTiles).file_name(),
+            "roof_tiles.png"
+        );
         assert_eq!(bays(1.0, 3.0), 1.0);
     }
 }
