@@ -460,3 +460,59 @@ fn textures_in_citygml_and_cityjson() {
         assert!(text.contains("3 passed, 0 failed"), "{text}");
     }
 }
+
+/// `--textures` in a sharded tiled run (issue 49): the tile's pictures are in its manifest's
+/// files, and `citygen merge --cityjsonseq` into another folder names them by a relative path
+/// that resolves from the region's file.
+#[test]
+fn textures_in_a_sharded_run_and_its_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("house.osm");
+    std::fs::write(&input, OSM).unwrap();
+    let s = |f: &Path| f.display().to_string();
+    let out = dir.path().join("out");
+    let seq = s(&out.join("h.city.jsonl"));
+    let run = citygen(&[
+        "--osm",
+        &s(&input),
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--quiet",
+        "--textures",
+        "--tile",
+        "100",
+        "--shard",
+        "0/1",
+        "--cityjsonseq",
+        &seq,
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let manifest = std::fs::read_to_string(out.join("citygen-manifest.0-of-1.json")).unwrap();
+    assert!(manifest.contains("_textures/bay_brick"), "{manifest}");
+    let region = dir.path().join("region/all.city.jsonl");
+    let merged = citygen(&["merge", &s(&out), "--cityjsonseq", &s(&region), "--quiet"]);
+    assert!(
+        merged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    let text = std::fs::read_to_string(&region).unwrap();
+    let mut n = 0;
+    for line in text.lines().skip(1) {
+        let f: serde_json::Value = serde_json::from_str(line).unwrap();
+        for t in f["appearance"]["textures"].as_array().into_iter().flatten() {
+            let uri = t["image"].as_str().unwrap();
+            assert!(uri.starts_with("../out/") && !uri.starts_with('/'), "{uri}");
+            let png = std::fs::read(region.parent().unwrap().join(uri)).unwrap();
+            assert_eq!(&png[1..4], b"PNG");
+            n += 1;
+        }
+    }
+    assert!(n >= 2, "{n}");
+}
