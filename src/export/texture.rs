@@ -252,26 +252,8 @@ impl UvMap {
 }
 
 /// Texture coordinates in CityGML and CityJSON are written to 1/10000 of a picture (1/78 of
-/// a pixel of [`SIDE`]): [`UvMap::st`] counts in these units, [`push_st`] writes them.
+/// a pixel of [`SIDE`]): [`UvMap::st`] counts in these units, `export::format::push_fixed4_i64` writes them.
 pub(crate) const ST_UNIT: f64 = 10_000.0;
-
-/// Appends a coordinate of [`UvMap::st`] (`q` ten-thousandths) as a decimal with 4 places
-/// (`-12345` -> `-1.2345`).
-pub(crate) fn push_st(out: &mut Vec<u8>, q: i64) {
-    if q < 0 {
-        out.push(b'-');
-    }
-    let m = q.unsigned_abs();
-    out.extend_from_slice((m / 10_000).to_string().as_bytes());
-    let f = m % 10_000;
-    out.extend_from_slice(&[
-        b'.',
-        b'0' + (f / 1000) as u8,
-        b'0' + (f / 100 % 10) as u8,
-        b'0' + (f / 10 % 10) as u8,
-        b'0' + (f % 10) as u8,
-    ]);
-}
 
 /// What a writer textures (`--textures`): nothing, the walls and roofs with their materials'
 /// patterns, or also (LOD2) the walls with the bays of their facades.

@@ -11,8 +11,9 @@ use super::material::{x3d_material, ColorKey};
 use super::surfaces::{ring, seated_surfaces, surfaces, written_walls, SurfaceKind};
 use super::xml::written_points;
 use super::{lod4, GeometryLod, Renderer, APPEARANCE_THEME, GLASS_TRANSPARENCY};
+use crate::export::format::push_fixed4_i64;
 use crate::export::lod3geom::seated_changes;
-use crate::export::texture::{note_used, push_st, roof_map, wall_maps, Texture, Texturing};
+use crate::export::texture::{note_used, roof_map, wall_maps, Texture, Texturing};
 
 /// A polygon an appearance targets: (part index, kind, index in the part's list).
 pub(super) type Target = (usize, SurfaceKind, usize);
@@ -116,9 +117,9 @@ impl Renderer<'_> {
                         if i > 0 {
                             x.s(" ");
                         }
-                        push_st(&mut x.0, c[0]);
+                        push_fixed4_i64(&mut x.0, c[0]);
                         x.s(" ");
-                        push_st(&mut x.0, c[1]);
+                        push_fixed4_i64(&mut x.0, c[1]);
                     }
                     x.s("</app:textureCoordinates>\n");
                 }

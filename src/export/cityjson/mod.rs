@@ -96,8 +96,8 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::export::format::push_uint;
-use crate::export::texture::{note_used, push_st, Texture, TextureOut, Texturing};
+use crate::export::format::{push_fixed4_i64, push_uint};
+use crate::export::texture::{note_used, Texture, TextureOut, Texturing};
 use crate::export::{
     check_finite, vertical_datum, BuildingWriter, Checked, ExportError, OutputContext,
 };
@@ -215,9 +215,9 @@ fn textures(out: &mut Vec<u8>, texs: &[Texture], tex: &TextureOut) {
 /// Appends a texture vertex `[s,t]` ([`UvMap::st`](crate::export::texture::UvMap::st)).
 fn push_st_vertex(out: &mut Vec<u8>, st: [i64; 2]) {
     out.push(b'[');
-    push_st(out, st[0]);
+    push_fixed4_i64(out, st[0]);
     out.push(b',');
-    push_st(out, st[1]);
+    push_fixed4_i64(out, st[1]);
     out.push(b']');
 }
 
