@@ -121,7 +121,8 @@ pub struct Options {
     /// counted and dropped (the glTF writer's scratch files, unlinked at once, still go to
     /// disk). The report, if asked for, is written.
     pub dry_run: bool,
-    /// Procedural textures on the walls and roofs of the glTF and 3D Tiles outputs
+    /// Procedural textures on the walls and roofs of the glTF, 3D Tiles, CityGML and CityJSON
+    /// outputs (the last two name PNG files written beside them, `out_textures/`)
     /// (`--textures`, `export::texture`'s pictures; at LOD2 the facades' bays).
     pub textures: bool,
     /// Accept output file names whose extension is not the format's (`--force-extension`).

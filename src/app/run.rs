@@ -143,10 +143,12 @@ pub(crate) struct RunArgs {
     /// write. For checking a region's input, or sizing its outputs, before a nightly run.
     #[arg(long)]
     dry_run: bool,
-    /// Procedural textures (drawn by citygen, no image files) on the walls and roofs of the
-    /// glTF and 3D Tiles outputs: each material's pattern in metres (brick courses, stone,
-    /// boards, tile and slate rows), and at LOD2 each wall's windows and storeys, the bays its
-    /// LOD3 facade would have. Off by default.
+    /// Procedural textures (drawn by citygen, no image assets) on the walls and roofs of the
+    /// glTF, 3D Tiles, CityGML and CityJSON outputs: each material's pattern in metres (brick
+    /// courses, stone, boards, tile and slate rows), and at LOD2 each wall's windows and
+    /// storeys, the bays its LOD3 facade would have. glTF and 3D Tiles hold the pictures;
+    /// CityGML and CityJSON name PNG files written beside them (out.gml: out_textures/). Off
+    /// by default.
     #[arg(long)]
     textures: bool,
     /// Accept output file names whose extension is not the format's (.ifc, .gml or .xml, .glb,

@@ -161,7 +161,16 @@ pub(crate) fn push_fixed3(out: &mut impl Ascii, v: f64) {
 
 /// Appends a value in 1/10000 as a decimal with 4 places (`5020` -> `0.5020`).
 pub(crate) fn push_fixed4(out: &mut impl Ascii, v: u16) {
-    let v = u64::from(v);
+    push_fixed4_i64(out, i64::from(v));
+}
+
+/// Appends a signed value in 1/10000 as a decimal with 4 places (`-12345` -> `-1.2345`): the
+/// texture coordinates of `--textures` (`crate::export::texture::UvMap::st`).
+pub(crate) fn push_fixed4_i64(out: &mut impl Ascii, q: i64) {
+    if q < 0 {
+        out.push_ascii(b"-");
+    }
+    let v = q.unsigned_abs();
     push_uint(out, v / 10_000);
     let f = v % 10_000;
     out.push_ascii(&[

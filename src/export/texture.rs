@@ -25,7 +25,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::color::material::Material;
-use crate::model::Rhythm;
+use crate::model::{Face, Part, Rhythm, Wall};
 
 /// Side of every texture picture, pixels.
 pub(crate) const SIDE: u32 = 128;
@@ -124,6 +124,17 @@ impl Texture {
         }
     }
 
+    /// The picture's file name (`brick.png`, `bay_plaster_w40_s25_h60.png`): its
+    /// [`Texture::name`], every character but an ASCII letter or digit made `_`.
+    pub(crate) fn file_name(self) -> String {
+        let name: String = self
+            .name()
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        format!("{name}.png")
+    }
+
     /// The picture's luminance, [`SIDE`] x [`SIDE`] values in 0..=1, rows from the top.
     pub(crate) fn luminance(self) -> Vec<f32> {
         let n = SIDE as usize;
@@ -216,12 +227,185 @@ impl UvMap {
         }
     }
 
-    /// The coordinates of `p`.
+    /// The coordinates of `p` as glTF has them (`v` down the picture).
     pub(crate) fn uv(&self, p: DVec3) -> [f32; 2] {
         let d = p - self.origin;
         let (u, v) = (d.dot(self.u), d.dot(self.v));
         [u as f32 + 0.0, -(v as f32) + 0.0]
     }
+
+    /// The coordinates of `p` as CityGML and CityJSON have them (`s`, `t` from the picture's
+    /// bottom left, `t` up it: glTF's `v` negated), in [`ST_UNIT`]s: the same picture on the
+    /// same place of the face as [`UvMap::uv`].
+    pub(crate) fn st(&self, p: DVec3) -> [i64; 2] {
+        let d = p - self.origin;
+        let q = |x: f64| {
+            let x = (x * ST_UNIT).round();
+            if x.is_finite() && x.abs() < 1e15 {
+                x as i64
+            } else {
+                0
+            }
+        };
+        [q(d.dot(self.u)), q(d.dot(self.v))]
+    }
+}
+
+/// Texture coordinates in CityGML and CityJSON are written to 1/10000 of a picture (1/78 of
+/// a pixel of [`SIDE`]): [`UvMap::st`] counts in these units, `export::format::push_fixed4_i64` writes them.
+pub(crate) const ST_UNIT: f64 = 10_000.0;
+
+/// What a writer textures (`--textures`): nothing, the walls and roofs with their materials'
+/// patterns, or also (LOD2) the walls with the bays of their facades.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) enum Texturing {
+    /// No texture: every byte as without `--textures`.
+    #[default]
+    Off,
+    /// Walls and roofs carry their materials' patterns, in metres.
+    Materials,
+    /// As `Materials`, and a wall of a part with a rhythm (LOD2) carries the picture of its
+    /// bays, storey by storey, up to the eaves.
+    Facades,
+}
+
+impl Texturing {
+    /// The texturing of a run at `lod` with or without `--textures`.
+    pub(crate) fn of(textures: bool, lod: crate::model::Lod) -> Texturing {
+        match (textures, lod) {
+            (false, _) => Texturing::Off,
+            (true, crate::model::Lod::Lod2) => Texturing::Facades,
+            (true, _) => Texturing::Materials,
+        }
+    }
+}
+
+/// The pictures and coordinates of one wall ([`wall_maps`]), shared by every writer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct WallMaps {
+    /// The material's pattern, in metres from the wall's start and the part's ground.
+    pub(crate) plain: (Texture, UvMap),
+    /// With [`Texturing::Facades`] and a rhythm: the bay picture, a picture a bay wide (as
+    /// many bays as the rules' `repeat` fits) and a storey high from the part's ground, for
+    /// the wall below the eaves.
+    pub(crate) bay: Option<(Texture, UvMap)>,
+    /// The part's eaves: the bay picture stops there (a gable above keeps the pattern).
+    pub(crate) eave_z: f64,
+}
+
+impl WallMaps {
+    /// The picture and map of a face that a format keeps whole (CityGML, CityJSON: one
+    /// texture a polygon): the bay picture when the face is wholly below the eaves (1 cm
+    /// tolerance, as the glTF writer's cut), else the plain pattern (a gable wall, which the
+    /// glTF writer cuts at the eaves and textures in two).
+    pub(crate) fn whole(&self, f: &Face) -> (Texture, &UvMap) {
+        let top = f
+            .outer
+            .iter()
+            .map(|p| p.z)
+            .fold(f64::NEG_INFINITY, f64::max);
+        match &self.bay {
+            Some((t, m)) if top <= self.eave_z + 0.01 => (*t, m),
+            _ => (self.plain.0, &self.plain.1),
+        }
+    }
+}
+
+/// The pictures and maps of wall `w` of `part` under `tex` (not [`Texturing::Off`]): the
+/// plain pattern, and the bay picture when the texturing is [`Texturing::Facades`], the part
+/// has a rhythm and a storey over 0.5 m, the wall a length, and its face (`holes`) no hole.
+pub(crate) fn wall_maps(part: &Part, w: &Wall, holes: bool, tex: Texturing) -> WallMaps {
+    let m = part.wall_material;
+    let base = part.levels.first().copied().unwrap_or(part.base_z);
+    let (sw, sh) = Texture::size(m);
+    let plain = UvMap::wall(w.start, w.end, base, 1.0 / sw, 1.0 / sh);
+    let storey = (part.eave_z - base) / f64::from(part.storeys.max(1));
+    let length = w.length();
+    let bay = match (tex, part.rhythm) {
+        (Texturing::Facades, Some(r)) if storey > 0.5 && length > 0.01 && !holes => {
+            let map = UvMap::wall(
+                w.start,
+                w.end,
+                base,
+                bays(length, r.bay) / length,
+                1.0 / storey,
+            );
+            Some((Texture::bay(m, &r), map))
+        }
+        _ => None,
+    };
+    WallMaps {
+        plain: (Texture::Surface(m), plain),
+        bay,
+        eave_z: part.eave_z,
+    }
+}
+
+/// The picture and map of a roof face of `part` facing `normal`: the roof material's pattern,
+/// rows along the eaves counted from the eaves' height.
+pub(crate) fn roof_map(part: &Part, normal: DVec3) -> (Texture, UvMap) {
+    let m = part.roof_material;
+    let (w, h) = Texture::size(m);
+    let origin = DVec3::new(0.0, 0.0, part.eave_z);
+    (
+        Texture::Surface(m),
+        UvMap::plane(normal, origin, 1.0 / w, 1.0 / h),
+    )
+}
+
+/// The pictures an output's surfaces use (`--textures`), gathered by its writer as it writes
+/// (in parallel: a set, so the order of writing does not matter) for the run to write them
+/// beside the output once it is complete.
+pub(crate) type TextureSet = std::sync::Arc<std::sync::Mutex<std::collections::BTreeSet<Texture>>>;
+
+/// Adds `t` to `set`.
+pub(crate) fn note_used(set: &TextureSet, t: impl IntoIterator<Item = Texture>) {
+    set.lock().unwrap_or_else(|p| p.into_inner()).extend(t);
+}
+
+/// How a writer textures: what ([`Texturing`], from `--textures` and the LOD at `begin`), the
+/// folder of the pictures relative to the output (`out_textures/`, [`folder_name`]), and the
+/// set it notes the pictures it uses in.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TextureOut {
+    /// What is textured.
+    pub(crate) tex: Texturing,
+    /// The pictures' folder as a URI prefix, ending in `/`.
+    pub(crate) folder: String,
+    /// The pictures used.
+    pub(crate) used: TextureSet,
+}
+
+impl TextureOut {
+    /// The URI of picture `t` relative to the output: `out_textures/brick.png`.
+    pub(crate) fn uri(&self, t: Texture) -> String {
+        format!("{}{}", self.folder, t.file_name())
+    }
+}
+
+/// The folder of an output's pictures (`--textures`), beside it: the output's file name
+/// without its format's extension (`out.gml`, `out.city.json`, `out.city.jsonl` give `out`,
+/// `out_0.5_1.gml` gives `out_0.5_1`) and `_textures`. A CityGML and a CityJSON output of one name share it (the same pictures).
+pub(crate) fn folder_name(output: &std::path::Path) -> String {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let known = [
+        ".city.jsonl",
+        ".city.json",
+        ".jsonl",
+        ".json",
+        ".gml",
+        ".xml",
+    ];
+    let stem = known
+        .iter()
+        .find_map(|e| name.strip_suffix(e))
+        .or_else(|| name.rsplit_once('.').map(|(s, _)| s))
+        .filter(|s| !s.is_empty())
+        .unwrap_or(&name);
+    format!("{stem}_textures")
 }
 
 /// The bays a wall of `length` metres holds with bays of `bay` metres, as the grammar's
@@ -515,6 +699,14 @@ mod tests {
             "{u} {v}"
         );
         assert_eq!(bays(10.0, 3.0), 3.0);
+        let f = |p: &str| folder_name(std::path::Path::new(p));
+        assert_eq!(f("d/out.gml"), "out_textures");
+        assert_eq!(f("out.city.json"), f("out.city.jsonl"));
+        assert_eq!(f("m_371000.5_1.gml"), "m_371000.5_1_textures");
+        assert_eq!(
+            Texture::Surface(Material::RoofTiles).file_name(),
+            "roof_tiles.png"
+        );
         assert_eq!(bays(1.0, 3.0), 1.0);
     }
 }

@@ -811,8 +811,15 @@ fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError>
                 )))
             }
         }
+        // `--textures`: the tile's pictures' URIs, relative to the tile's file, made relative
+        // to the region's.
+        let rebase = picture_rebase(&path, target);
         for line in lines {
             let line = line.map_err(io_err(&path))?;
+            let line = match &rebase {
+                Some((old, new)) if line.contains(old.as_str()) => line.replace(old, new),
+                _ => line,
+            };
             w.write_all(line.as_bytes()).map_err(io_err(target))?;
             w.write_all(b"\n").map_err(io_err(target))?;
         }
@@ -820,6 +827,40 @@ fn region_seq(target: &Path, shards: &[&Found]) -> Result<PendingFile, RunError>
     w.flush().map_err(io_err(target))?;
     drop(w);
     file.close().map_err(io_err(target))
+}
+
+/// The text a tile's CityJSONSeq at `tile` names its pictures with (`--textures`:
+/// `"image":"out_0_0_textures/`) and the text that names them from the region's file `target`
+/// (a relative path, `..` where the tile lies outside `target`'s folder); `None` when the two
+/// are the same or a folder cannot be resolved.
+fn picture_rebase(tile: &Path, target: &Path) -> Option<(String, String)> {
+    let name = crate::export::texture::folder_name(tile);
+    let folder = |p: &Path| {
+        let d = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::canonicalize(d).ok()
+    };
+    let (from, to) = (folder(target)?, folder(tile)?.join(&name));
+    let common = from
+        .components()
+        .zip(to.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut parts: Vec<String> = vec!["..".to_string(); from.components().count() - common];
+    parts.extend(
+        to.components()
+            .skip(common)
+            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+    );
+    let rel = parts.join("/");
+    let quoted = |s: &str| {
+        let q = serde_json::to_string(&format!("{s}/")).ok()?;
+        Some(format!("\"image\":{}", q.strip_suffix('"')?))
+    };
+    let (old, new) = (quoted(&name)?, quoted(&rel)?);
+    (old != new).then_some((old, new))
 }
 
 /// A tile's 3D Tiles entry (its URIs as absolute paths) with the shard folder its contents

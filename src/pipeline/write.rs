@@ -26,6 +26,7 @@ use crate::export::citygml::{CityGmlWriter, VALIDATOR_MAX_ELEMENTS};
 use crate::export::cityjson::{CityJsonSeqWriter, CityJsonWriter};
 use crate::export::gltf::GltfWriter;
 use crate::export::ifc::IfcWriter;
+use crate::export::texture::{Texture, TextureSet};
 use crate::export::{
     AtomicFile, BuildingWriter, Checked, ExportError, OutputContext, PendingFile, StreamSink,
 };
@@ -359,6 +360,7 @@ impl Batches<'_> {
             content_name: _,
             terrain: _,
             stale_parts,
+            pictures: _,
         } = written;
         if report.generated == 0 && !targets.allow_empty {
             let named = self
@@ -667,6 +669,8 @@ struct Written {
     /// Files of a split IFC output's set that a previous run left and this run does not
     /// write (`ifc_parts::stale_parts`), removed once every file is published.
     stale_parts: Vec<PathBuf>,
+    /// The pictures written so far (`--textures`), each once.
+    pictures: std::collections::BTreeSet<PathBuf>,
 }
 
 impl Written {
@@ -713,6 +717,7 @@ fn write_lots(
         citygml_elements,
         contents,
         ifc_parts,
+        textures,
     } = open_outputs(
         targets,
         &written.content_name,
@@ -777,7 +782,49 @@ fn write_lots(
     if let (Some((path, parts)), Some(cap)) = (ifc_parts, targets.ifc_max_bytes) {
         close_parts(&path, &parts, cap, report, written)?;
     }
-    close_outputs(outputs, written)
+    close_outputs(outputs, written)?;
+    publish_textures(&textures, targets.dry_run, written)
+}
+
+/// Writes the pictures each output used (`--textures`) into its folder (`out_textures/`
+/// beside `out.gml`), each through a closed temporary in `written.pending` like every output
+/// (a failed run publishes none), once a run (a CityGML and a CityJSON output of one name
+/// share the folder); counted, and listed in the tile's record. A dry run counts them only.
+fn publish_textures(
+    textures: &[(PathBuf, TextureSet)],
+    dry: bool,
+    written: &mut Written,
+) -> Result<(), RunError> {
+    for (dir, set) in textures {
+        let used: Vec<Texture> = set
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+            .copied()
+            .collect();
+        for t in used {
+            let path = dir.join(t.file_name());
+            if !written.pictures.insert(path.clone()) {
+                continue;
+            }
+            let png = t.png();
+            written.bytes += png.len() as u64;
+            if let Some(log) = written.tile.as_mut() {
+                log.record.files.push(shard::FileRecord {
+                    path: relative_to(&path, &log.dir),
+                    bytes: png.len() as u64,
+                    sha256: shard::hex(&Sha256::digest(&png)),
+                });
+            }
+            if dry {
+                written.rendered.push(path);
+            } else {
+                let closed = render_bytes(&path, &png).map_err(io_err(&path))?;
+                written.pending.push((path, closed));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Closes the files of the IFC output `path` split under `cap` bytes (`ifc_parts`): named,
@@ -879,6 +926,9 @@ struct Opened {
     contents: Vec<(PathBuf, crate::export::tiles3d::ContentInfoHandle)>,
     /// The files of the IFC output split under `--ifc-max-mb`, once written.
     ifc_parts: Option<(PathBuf, Parts<PartFile>)>,
+    /// `--textures`: each CityGML and CityJSON output's pictures' folder and the pictures
+    /// its writer used, written by [`publish_textures`] once it is complete.
+    textures: Vec<(PathBuf, TextureSet)>,
 }
 
 /// Where the bytes of one file of a split IFC output went: its sink, count and hash.
@@ -897,6 +947,18 @@ fn open_outputs(
     let mut outputs: Vec<Output> = Vec::new();
     let citygml_elements = Arc::new(AtomicU64::new(0));
     let mut ifc_parts = None;
+    let mut textures: Vec<(PathBuf, TextureSet)> = Vec::new();
+    // `--textures` for a CityGML or CityJSON output: its pictures' folder (relative URI and
+    // path) and the set its writer notes them in.
+    let mut pictures = |p: &Path| {
+        targets.textures.then(|| {
+            let name = crate::export::texture::folder_name(p);
+            let set = TextureSet::default();
+            let dir = p.parent().unwrap_or(Path::new("")).join(&name);
+            textures.push((dir, set.clone()));
+            (format!("{name}/"), set)
+        })
+    };
     for (model, p) in targets.models() {
         let Some(p) = p else { continue };
         if let (Model::Ifc, Some(cap)) = (model, targets.ifc_max_bytes) {
@@ -919,7 +981,7 @@ fn open_outputs(
                     .with_file_name(&file_name(p))
                     .with_schema(targets.ifc_schema),
             ),
-            Model::CityGml => Box::new(CityGmlWriter::new(w)),
+            Model::CityGml => Box::new(CityGmlWriter::new(w).with_textures(pictures(p))),
             // A dry run keeps nothing, so its writer needs no scratch files.
             Model::Gltf if dry => {
                 Box::new(GltfWriter::discarding(w).with_textures(targets.textures))
@@ -931,12 +993,19 @@ fn open_outputs(
             ),
             // A dry run may name a folder that does not exist: its vertices wait in the
             // system's temporary folder instead.
-            Model::CityJson if dry => Box::new(
-                CityJsonWriter::beside(w, &std::env::temp_dir().join(file_name(p)))
-                    .map_err(io_err(p))?,
-            ),
-            Model::CityJson => Box::new(CityJsonWriter::beside(w, p).map_err(io_err(p))?),
-            Model::CityJsonSeq => Box::new(CityJsonSeqWriter::new(w)),
+            Model::CityJson => {
+                let scratch = if dry {
+                    std::env::temp_dir().join(file_name(p))
+                } else {
+                    p.clone()
+                };
+                Box::new(
+                    CityJsonWriter::beside(w, &scratch)
+                        .and_then(|w| w.with_textures(pictures(p), Some(&scratch)))
+                        .map_err(io_err(p))?,
+                )
+            }
+            Model::CityJsonSeq => Box::new(CityJsonSeqWriter::new(w).with_textures(pictures(p))),
         };
         outputs.push((p.clone(), w, sink, bytes, hash));
     }
@@ -972,6 +1041,7 @@ fn open_outputs(
         citygml_elements,
         contents,
         ifc_parts,
+        textures,
     })
 }
 

@@ -266,13 +266,19 @@ fn textures_through_the_binary_deterministic_and_valid() {
         "{names:?}"
     );
     assert!(names.contains(&"slate"), "{names:?}");
-    let Some(tool) = citygen::testkit::validators::validate_outputs("textured glTF and 3D Tiles")
-    else {
+    validate(
+        "textured glTF and 3D Tiles",
+        &[one, tiles_one.join("tileset.json")],
+    );
+}
+
+/// The reference validators pass on every file (when they are installed).
+fn validate(what: &str, files: &[std::path::PathBuf]) {
+    let Some(tool) = citygen::testkit::validators::validate_outputs(what) else {
         return;
     };
     let out = std::process::Command::new(tool)
-        .arg(&one)
-        .arg(tiles_one.join("tileset.json"))
+        .args(files)
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -281,5 +287,226 @@ fn textures_through_the_binary_deterministic_and_valid() {
         "{text}{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(text.contains("2 passed, 0 failed"), "{text}");
+    let all = format!("{} passed, 0 failed", files.len());
+    assert!(text.contains(&all), "{text}");
+}
+
+/// The text between `start` (after it) and the next `end`, from `at`: (text, where it ends).
+fn between<'a>(s: &'a str, at: usize, start: &str, end: &str) -> Option<(&'a str, usize)> {
+    let a = s[at..].find(start)? + at + start.len();
+    let b = s[a..].find(end)? + a;
+    Some((&s[a..b], b))
+}
+
+/// A picture URI of a file: relative, inside `out_textures/`, naming a PNG that was written.
+fn check_uri(dir: &Path, uri: &str) {
+    assert!(uri.starts_with("out_textures/"), "{uri}");
+    assert!(!uri.contains("..") && !uri.starts_with('/'), "{uri}");
+    let png = std::fs::read(dir.join(uri)).unwrap_or_else(|e| panic!("{uri}: {e}"));
+    assert_eq!(&png[1..4], b"PNG", "{uri}");
+}
+
+/// Every textured CityJSON solid of `objects`: per ring, its picture's index and one texture
+/// vertex per ring vertex, every index in range. Returns the rings textured.
+fn check_cityjson_textures(objects: &serde_json::Value, textures: usize, sts: usize) -> usize {
+    let mut rings = 0;
+    for (id, o) in objects.as_object().unwrap() {
+        for g in o["geometry"].as_array().into_iter().flatten() {
+            let Some(values) = g.pointer("/texture/citygen/values") else {
+                continue;
+            };
+            let shells = g["boundaries"].as_array().unwrap();
+            for (shell, tshell) in shells.iter().zip(values.as_array().unwrap()) {
+                let (shell, tshell) = (shell.as_array().unwrap(), tshell.as_array().unwrap());
+                assert_eq!(shell.len(), tshell.len(), "{id}");
+                for (surface, tsurface) in shell.iter().zip(tshell) {
+                    let tsurface = tsurface.as_array().unwrap();
+                    if tsurface[0][0].is_null() {
+                        continue;
+                    }
+                    let surface = surface.as_array().unwrap();
+                    assert_eq!(surface.len(), tsurface.len(), "{id}: one list a ring");
+                    for (ring, tring) in surface.iter().zip(tsurface) {
+                        let (ring, tring) = (ring.as_array().unwrap(), tring.as_array().unwrap());
+                        assert_eq!(tring.len(), ring.len() + 1, "{id}: a vertex, a coordinate");
+                        assert!(tring[0].as_u64().unwrap() < textures as u64, "{id}");
+                        assert!(tring[1..].iter().all(|i| i.as_u64().unwrap() < sts as u64));
+                        rings += 1;
+                    }
+                }
+            }
+        }
+    }
+    rings
+}
+
+/// `--textures` in CityGML, CityJSON and CityJSONSeq (issue 49): the house at LOD2 and LOD3
+/// (holes: one texture coordinate list per ring) writes its pictures into `out_textures/`
+/// beside the outputs, every URI relative and resolving there; each CityGML ring a texture
+/// names exists with as many coordinates as points, each CityJSON ring as many texture
+/// vertices as vertices; the same bytes at 1 and 2 threads; the bay picture at LOD2; the
+/// files pass the reference validators.
+#[test]
+fn textures_in_citygml_and_cityjson() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("house.osm");
+    std::fs::write(&input, OSM).unwrap();
+    let s = |f: &Path| f.display().to_string();
+    let write = |name: &str, lod: &str, threads: &str| {
+        let d = dir.path().join(name);
+        std::fs::create_dir_all(&d).unwrap();
+        let [g, j, l] = ["out.gml", "out.city.json", "out.city.jsonl"].map(|f| s(&d.join(f)));
+        let out = citygen(&[
+            "--osm",
+            &s(&input),
+            "--kb",
+            KB,
+            "--lod",
+            lod,
+            "--quiet",
+            "--textures",
+            "--threads",
+            threads,
+            "--citygml",
+            &g,
+            "--cityjson",
+            &j,
+            "--cityjsonseq",
+            &l,
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        d
+    };
+    for lod in ["2", "3"] {
+        let one = write(&format!("one{lod}"), lod, "1");
+        let two = write(&format!("two{lod}"), lod, "2");
+        let files = crate::common::files_under(&one, |_| true);
+        assert!(
+            files.keys().any(|f| f.starts_with("out_textures/")),
+            "{:?}",
+            files.keys()
+        );
+        assert!(
+            files == crate::common::files_under(&two, |_| true),
+            "the same bytes"
+        );
+        // CityGML: each texture's rings have ids and as many coordinates as points.
+        let gml = std::fs::read_to_string(one.join("out.gml")).unwrap();
+        let mut at = 0;
+        let mut uris = Vec::new();
+        while let Some((uri, end)) = between(&gml, at, "<app:imageURI>", "</app:imageURI>") {
+            uris.push(uri.to_string());
+            at = end;
+        }
+        assert!(!uris.is_empty());
+        uris.iter().for_each(|u| check_uri(&one, u));
+        if lod == "2" {
+            assert!(uris.iter().any(|u| u.contains("bay_brick")), "{uris:?}");
+        }
+        let (mut at, mut rings) = (0, 0);
+        while let Some((ring, end)) = between(&gml, at, "<app:textureCoordinates ring=\"#", "\"") {
+            let (coords, end) = between(&gml, end, ">", "<").unwrap();
+            let n = coords.split_whitespace().count();
+            let tag = format!("<gml:LinearRing gml:id=\"{ring}\"><gml:posList srsDimension=\"3\">");
+            let (pos, _) = between(&gml, 0, &tag, "<").unwrap_or_else(|| panic!("{ring}"));
+            assert_eq!(n / 2, pos.split_whitespace().count() / 3, "{ring}");
+            assert_eq!(n % 2, 0);
+            rings += 1;
+            at = end;
+        }
+        assert!(rings > 4, "{rings}");
+        if lod == "3" {
+            assert!(gml.contains("_h0\">"), "a textured hole at LOD3");
+        }
+        // CityJSON: textures, texture vertices and per-ring values.
+        let cj: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(one.join("out.city.json")).unwrap()).unwrap();
+        let app = &cj["appearance"];
+        let textures = app["textures"].as_array().unwrap();
+        for t in textures {
+            assert_eq!(t["type"], "PNG");
+            check_uri(&one, t["image"].as_str().unwrap());
+        }
+        let sts = app["vertices-texture"].as_array().unwrap().len();
+        assert!(check_cityjson_textures(&cj["CityObjects"], textures.len(), sts) > 4);
+        // CityJSONSeq: each feature its own appearance.
+        let seq = std::fs::read_to_string(one.join("out.city.jsonl")).unwrap();
+        let mut features = 0;
+        for line in seq.lines().skip(1) {
+            let f: serde_json::Value = serde_json::from_str(line).unwrap();
+            let Some(app) = f.get("appearance").filter(|a| a.get("textures").is_some()) else {
+                continue;
+            };
+            let textures = app["textures"].as_array().unwrap();
+            textures
+                .iter()
+                .for_each(|t| check_uri(&one, t["image"].as_str().unwrap()));
+            let sts = app["vertices-texture"].as_array().unwrap().len();
+            assert!(check_cityjson_textures(&f["CityObjects"], textures.len(), sts) > 4);
+            features += 1;
+        }
+        assert_eq!(features, 1);
+        let files = ["out.gml", "out.city.json", "out.city.jsonl"].map(|f| one.join(f));
+        validate("textured CityGML and CityJSON", &files);
+    }
+}
+
+/// `--textures` in a sharded tiled run (issue 49): the tile's pictures are in its manifest's
+/// files, and `citygen merge --cityjsonseq` into another folder names them by a relative path
+/// that resolves from the region's file.
+#[test]
+fn textures_in_a_sharded_run_and_its_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("house.osm");
+    std::fs::write(&input, OSM).unwrap();
+    let s = |f: &Path| f.display().to_string();
+    let out = dir.path().join("out");
+    let seq = s(&out.join("h.city.jsonl"));
+    let run = citygen(&[
+        "--osm",
+        &s(&input),
+        "--kb",
+        KB,
+        "--lod",
+        "2",
+        "--quiet",
+        "--textures",
+        "--tile",
+        "100",
+        "--shard",
+        "0/1",
+        "--cityjsonseq",
+        &seq,
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let manifest = std::fs::read_to_string(out.join("citygen-manifest.0-of-1.json")).unwrap();
+    assert!(manifest.contains("_textures/bay_brick"), "{manifest}");
+    let region = dir.path().join("region/all.city.jsonl");
+    let merged = citygen(&["merge", &s(&out), "--cityjsonseq", &s(&region), "--quiet"]);
+    assert!(
+        merged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    let text = std::fs::read_to_string(&region).unwrap();
+    let mut n = 0;
+    for line in text.lines().skip(1) {
+        let f: serde_json::Value = serde_json::from_str(line).unwrap();
+        for t in f["appearance"]["textures"].as_array().into_iter().flatten() {
+            let uri = t["image"].as_str().unwrap();
+            assert!(uri.starts_with("../out/") && !uri.starts_with('/'), "{uri}");
+            let png = std::fs::read(region.parent().unwrap().join(uri)).unwrap();
+            assert_eq!(&png[1..4], b"PNG");
+            n += 1;
+        }
+    }
+    assert!(n >= 2, "{n}");
 }

@@ -8,8 +8,12 @@ use crate::export::lod3geom::{balcony_faces, opening_face};
 use crate::model::{Building, OpeningKind};
 
 use super::material::{x3d_material, ColorKey};
-use super::surfaces::{surfaces, written_walls, SurfaceKind};
+use super::surfaces::{ring, seated_surfaces, surfaces, written_walls, SurfaceKind};
+use super::xml::written_points;
 use super::{lod4, GeometryLod, Renderer, APPEARANCE_THEME, GLASS_TRANSPARENCY};
+use crate::export::format::push_fixed4_i64;
+use crate::export::lod3geom::seated_changes;
+use crate::export::texture::{note_used, roof_map, wall_maps, Texture, Texturing};
 
 /// A polygon an appearance targets: (part index, kind, index in the part's list).
 pub(super) type Target = (usize, SurfaceKind, usize);
@@ -69,7 +73,8 @@ impl Renderer<'_> {
                 }
             }
         }
-        if materials.is_empty() {
+        let textured = self.texture_targets(b);
+        if materials.is_empty() && textured.is_empty() {
             return;
         }
         let x = &mut *self.x;
@@ -91,7 +96,95 @@ impl Renderer<'_> {
         if self.lod == GeometryLod::Lod4 {
             lod4::materials(x, building_id, b, part_ids);
         }
+        for (n, (t, targets)) in textured.iter().enumerate() {
+            x.s("<app:surfaceDataMember>\n<app:ParameterizedTexture gml:id=\"");
+            x.s(building_id);
+            x.s("_t");
+            x.uint(n as u64);
+            x.s("\">\n<app:imageURI>");
+            x.escaped(&self.tex.uri(*t), false);
+            x.s("</app:imageURI>\n<app:mimeType>image/png</app:mimeType>\n");
+            x.s("<app:wrapMode>wrap</app:wrapMode>\n");
+            for (pi, kind, index, rings) in targets {
+                x.s("<app:target uri=\"#");
+                x.polygon_id(&part_ids[*pi], *kind, *index);
+                x.s("\">\n<app:TexCoordList>\n");
+                for (k, st) in rings.iter().enumerate() {
+                    x.s("<app:textureCoordinates ring=\"#");
+                    x.ring_id(&part_ids[*pi], *kind, *index, k.checked_sub(1));
+                    x.s("\">");
+                    for (i, c) in st.iter().chain(st.first()).enumerate() {
+                        if i > 0 {
+                            x.s(" ");
+                        }
+                        push_fixed4_i64(&mut x.0, c[0]);
+                        x.s(" ");
+                        push_fixed4_i64(&mut x.0, c[1]);
+                    }
+                    x.s("</app:textureCoordinates>\n");
+                }
+                x.s("</app:TexCoordList>\n</app:target>\n");
+            }
+            x.s("</app:ParameterizedTexture>\n</app:surfaceDataMember>\n");
+        }
+        if !textured.is_empty() {
+            note_used(&self.tex.used, textured.iter().map(|(t, _)| *t));
+        }
         x.s("</app:Appearance>\n</app:appearance>\n");
+    }
+}
+
+/// A textured polygon: (part index, kind, index, each written ring's coordinates in
+/// [`crate::export::texture::ST_UNIT`]s, the exterior first, without the closing point).
+type Textured = (usize, SurfaceKind, usize, Vec<Vec<[i64; 2]>>);
+
+impl Renderer<'_> {
+    /// The building's textured polygons (`--textures`: walls and roofs) by picture, in
+    /// first-use order, each ring's coordinates those of its written points
+    /// ([`written_points`]): the pictures and maps of `crate::export::texture` that the glTF
+    /// writer uses, a wall wholly below the eaves with its bay picture ([`WallMaps::whole`]).
+    fn texture_targets(&self, b: &Building) -> Vec<(Texture, Vec<Textured>)> {
+        let mut out: Vec<(Texture, Vec<Textured>)> = Vec::new();
+        if self.tex.tex == Texturing::Off {
+            return out;
+        }
+        for (pi, part) in b.parts.iter().enumerate() {
+            let seated = if self.lod >= GeometryLod::Lod3 {
+                seated_changes(part)
+            } else {
+                Vec::new()
+            };
+            for s in seated_surfaces(part, &seated) {
+                let (t, map) = match s.kind {
+                    SurfaceKind::Wall => {
+                        let Some(w) = part.walls.get(s.index) else {
+                            continue;
+                        };
+                        let maps = wall_maps(part, w, !s.face.holes.is_empty(), self.tex.tex);
+                        let (t, map) = maps.whole(s.face);
+                        (t, *map)
+                    }
+                    SurfaceKind::Roof => roof_map(part, s.face.normal()),
+                    _ => continue,
+                };
+                let rings: Vec<Vec<[i64; 2]>> = ring(&s.face.outer)
+                    .into_iter()
+                    .chain(s.face.holes.iter().filter_map(|h| ring(h)))
+                    .map(|r| {
+                        written_points(r, self.origin)
+                            .iter()
+                            .map(|p| map.st(*p))
+                            .collect()
+                    })
+                    .collect();
+                let target = (pi, s.kind, s.index, rings);
+                match out.iter_mut().find(|(k, _)| *k == t) {
+                    Some((_, targets)) => targets.push(target),
+                    None => out.push((t, vec![target])),
+                }
+            }
+        }
+        out
     }
 }
 

@@ -79,6 +79,8 @@ use crate::model::{Building, Lod};
 
 use xml::Xml;
 
+use crate::export::texture::{TextureOut, Texturing};
+
 mod appearance;
 pub(crate) mod building;
 mod lod4;
@@ -206,6 +208,10 @@ pub struct CityGmlWriter<W: Write + Send> {
     slots: Vec<Xml>,
     /// The file's terrain and its id, written after the buildings (`relief`).
     terrain: Option<(std::sync::Arc<crate::model::Terrain>, String)>,
+    /// `--textures` ([`CityGmlWriter::with_textures`]).
+    textures: bool,
+    /// What is textured (from `textures` and the LOD at `begin`), where and with what.
+    tex: TextureOut,
 }
 
 impl<W: Write + Send> CityGmlWriter<W> {
@@ -221,7 +227,25 @@ impl<W: Write + Send> CityGmlWriter<W> {
             buf: Xml(Vec::with_capacity(64 * 1024)),
             slots: Vec::new(),
             terrain: None,
+            textures: false,
+            tex: TextureOut::default(),
         }
+    }
+
+    /// With `Some((folder, used))`, walls and roofs carry the procedural textures
+    /// (`--textures`, `crate::export::texture`): an `app:ParameterizedTexture` per picture in
+    /// each building's appearance, its `app:imageURI` the picture in `folder` (relative to the
+    /// output, `out_textures/`), the pictures noted in `used` for the run to write.
+    pub(crate) fn with_textures(
+        mut self,
+        on: Option<(String, crate::export::texture::TextureSet)>,
+    ) -> CityGmlWriter<W> {
+        if let Some((folder, used)) = on {
+            self.textures = true;
+            self.tex.folder = folder;
+            self.tex.used = used;
+        }
+        self
     }
 
     /// A writer to `out` that writes `srs_name` verbatim as every `srsName` (e.g. a compound
@@ -287,6 +311,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
             Lod::Lod3 => GeometryLod::Lod3,
             Lod::Lod4 => GeometryLod::Lod4,
         };
+        self.tex.tex = Texturing::of(self.textures, ctx.lod);
 
         let x = &mut self.buf;
         x.0.clear();
@@ -346,6 +371,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
             origin: self.origin,
             srs: &self.srs_attr,
             lod: self.lod,
+            tex: &self.tex,
         };
         r.building(building);
         self.out.write_all(&self.buf.0)?;
@@ -363,6 +389,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         self.check_state(State::Open, "write()")?;
         let (origin, srs, lod) = (self.origin, self.srs_attr.as_str(), self.lod);
+        let tex = &self.tex;
         let slots = &mut self.slots;
         slots.resize_with(super::PARALLEL_BATCH, || Xml(Vec::new()));
         for batch in super::batches(checked.finite()) {
@@ -379,6 +406,7 @@ impl<W: Write + Send> BuildingWriter for CityGmlWriter<W> {
                         origin,
                         srs,
                         lod,
+                        tex,
                     }
                     .building(b);
                 });
@@ -418,6 +446,18 @@ struct Renderer<'a> {
     origin: DVec3,
     srs: &'a str,
     lod: GeometryLod,
+    /// The textures (`--textures`; [`Texturing::Off`] without).
+    tex: &'a TextureOut,
+}
+
+/// Whether polygons of `kind` carry a texture under `tex` (walls and roofs, with
+/// `--textures`): their rings then have ids.
+fn textured(tex: Texturing, kind: surfaces::SurfaceKind) -> bool {
+    tex != Texturing::Off
+        && matches!(
+            kind,
+            surfaces::SurfaceKind::Wall | surfaces::SurfaceKind::Roof
+        )
 }
 
 #[cfg(test)]

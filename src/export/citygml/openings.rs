@@ -15,6 +15,7 @@ impl Renderer<'_> {
     /// surfaces with their openings, then `lod3Solid` referencing the closed shell's polygons.
     pub(super) fn geometry_lod3(&mut self, part: &Part, pid: &str) {
         let (origin, srs, d) = (self.origin, self.srs, self.lod.digit());
+        let tex = self.tex.tex;
         let x = &mut *self.x;
         for (wi, wall) in written_walls(part) {
             for (k, bc) in wall.balconies.iter().enumerate() {
@@ -80,7 +81,7 @@ impl Renderer<'_> {
             x.s("MultiSurface>\n<gml:MultiSurface srsName=\"");
             x.s(srs);
             x.s("\">\n<gml:surfaceMember>\n");
-            x.polygon(pid, &s, origin);
+            x.polygon_rings(pid, &s, origin, super::textured(tex, s.kind));
             x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod");
             x.s(d);
             x.s("MultiSurface>\n");

@@ -43,6 +43,7 @@ impl Renderer<'_> {
             self.geometry_lod3(part, pid);
             return;
         }
+        let tex = self.tex.tex;
         let x = &mut *self.x;
         let lod = self.lod.digit();
         x.s("<bldg:lod");
@@ -54,7 +55,7 @@ impl Renderer<'_> {
             match self.lod {
                 GeometryLod::Lod1 => {
                     x.s("<gml:surfaceMember>\n");
-                    x.polygon(pid, &s, self.origin);
+                    x.polygon_rings(pid, &s, self.origin, super::textured(tex, s.kind));
                     x.s("</gml:surfaceMember>\n");
                 }
                 GeometryLod::Lod2 | GeometryLod::Lod3 | GeometryLod::Lod4 => {
@@ -79,7 +80,7 @@ impl Renderer<'_> {
             x.s("_s\">\n<bldg:lod2MultiSurface>\n<gml:MultiSurface srsName=\"");
             x.s(self.srs);
             x.s("\">\n<gml:surfaceMember>\n");
-            x.polygon(pid, &s, self.origin);
+            x.polygon_rings(pid, &s, self.origin, super::textured(tex, s.kind));
             x.s("</gml:surfaceMember>\n</gml:MultiSurface>\n</bldg:lod2MultiSurface>\n</");
             x.s(element);
             x.s(">\n</bldg:boundedBy>\n");

@@ -103,38 +103,81 @@ impl Xml {
     /// A `gml:Polygon` with its id, exterior and interiors; rings closed by repeating the first
     /// point, coordinates `origin + p`.
     pub(super) fn polygon(&mut self, part_id: &str, s: &Surface<'_>, origin: DVec3) {
+        self.polygon_rings(part_id, s, origin, false);
+    }
+
+    /// [`Xml::polygon`], with `ring_ids` each ring with a `gml:id`: the polygon's and `_e` for
+    /// the exterior, `_h0`, `_h1` ... for the interiors (the rings a texture's coordinates
+    /// name, `--textures`).
+    pub(super) fn polygon_rings(
+        &mut self,
+        part_id: &str,
+        s: &Surface<'_>,
+        origin: DVec3,
+        ring_ids: bool,
+    ) {
         self.s("<gml:Polygon gml:id=\"");
         self.polygon_id(part_id, s.kind, s.index);
         self.s("\">\n");
         if let Some(outer) = ring(&s.face.outer) {
             self.s("<gml:exterior>\n");
-            self.linear_ring(outer, origin);
+            if ring_ids {
+                self.s("<gml:LinearRing gml:id=\"");
+                self.ring_id(part_id, s.kind, s.index, None);
+                self.s("\">");
+            } else {
+                self.s("<gml:LinearRing>");
+            }
+            self.ring_points(outer, origin);
             self.s("</gml:exterior>\n");
         }
-        for hole in s.face.holes.iter().filter_map(|h| ring(h)) {
+        for (k, hole) in s.face.holes.iter().filter_map(|h| ring(h)).enumerate() {
             self.s("<gml:interior>\n");
-            self.linear_ring(hole, origin);
+            if ring_ids {
+                self.s("<gml:LinearRing gml:id=\"");
+                self.ring_id(part_id, s.kind, s.index, Some(k));
+                self.s("\">");
+            } else {
+                self.s("<gml:LinearRing>");
+            }
+            self.ring_points(hole, origin);
             self.s("</gml:interior>\n");
         }
         self.s("</gml:Polygon>\n");
+    }
+
+    /// The id of a ring of a polygon ([`Xml::polygon_rings`]): its exterior (`hole` none) or
+    /// its interior `hole` (counting the written ones).
+    pub(super) fn ring_id(
+        &mut self,
+        part_id: &str,
+        kind: SurfaceKind,
+        index: usize,
+        hole: Option<usize>,
+    ) {
+        self.polygon_id(part_id, kind, index);
+        match hole {
+            None => self.s("_e"),
+            Some(k) => {
+                self.s("_h");
+                self.uint(k as u64);
+            }
+        }
     }
 
     /// A ring as written: millimetres, closed. The rounding can make neighbouring points one
     /// (a point 0.4 mm from the next) or fold a ring back on itself (`x, y, x`): those are
     /// written once ([`written_ring`]), so no ring of the file repeats a point or has a spike.
     pub(super) fn linear_ring(&mut self, points: &[DVec3], origin: DVec3) {
-        let cleaned;
-        let points: &[DVec3] = if written_clean(points, origin) {
-            points
-        } else {
-            cleaned = written_ring(points, origin);
-            if cleaned.len() >= 3 {
-                &cleaned
-            } else {
-                points
-            }
-        };
-        self.s("<gml:LinearRing><gml:posList srsDimension=\"3\">");
+        self.s("<gml:LinearRing>");
+        self.ring_points(points, origin);
+    }
+
+    /// The `gml:posList` of a ring ([`written_points`]) and the ring's end tag.
+    fn ring_points(&mut self, points: &[DVec3], origin: DVec3) {
+        let points = written_points(points, origin);
+        let points: &[DVec3] = &points;
+        self.s("<gml:posList srsDimension=\"3\">");
         // The digits go straight into the buffer: it is grown (zeroed) a few points ahead of
         // what is written, and cut back to what was written at the end.
         let total = points.len() + 1;
@@ -263,6 +306,21 @@ fn written_clean(points: &[DVec3], origin: DVec3) -> bool {
         (a, b) = (b, c);
     }
     true
+}
+
+/// The points a ring is written with: [`written_ring`] when the rounding to millimetres makes
+/// repeats or spikes (and it keeps 3 points), else the ring as it is. A texture's coordinates
+/// are those of these points, one each.
+pub(super) fn written_points(points: &[DVec3], origin: DVec3) -> std::borrow::Cow<'_, [DVec3]> {
+    if written_clean(points, origin) {
+        return std::borrow::Cow::Borrowed(points);
+    }
+    let cleaned = written_ring(points, origin);
+    if cleaned.len() >= 3 {
+        std::borrow::Cow::Owned(cleaned)
+    } else {
+        std::borrow::Cow::Borrowed(points)
+    }
 }
 
 /// The points of a ring as the file holds them (millimetres of `origin + p`), without

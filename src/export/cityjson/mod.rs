@@ -96,7 +96,8 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::export::format::push_uint;
+use crate::export::format::{push_fixed4_i64, push_uint};
+use crate::export::texture::{note_used, Texture, TextureOut, Texturing};
 use crate::export::{
     check_finite, vertical_datum, BuildingWriter, Checked, ExportError, OutputContext,
 };
@@ -178,14 +179,46 @@ fn header(ctx: &OutputContext, writer: &str) -> Result<(Vec<u8>, Vec<u8>), Expor
 
 /// `"appearance":{"materials":[..]}` of these material keys.
 fn appearance(out: &mut Vec<u8>, mats: &[u64]) {
-    out.extend_from_slice(b"\"appearance\":{\"materials\":[");
+    out.extend_from_slice(b"\"appearance\":{");
+    materials(out, mats);
+    out.push(b'}');
+}
+
+/// `"materials":[..]` of these material keys.
+fn materials(out: &mut Vec<u8>, mats: &[u64]) {
+    out.extend_from_slice(b"\"materials\":[");
     for (i, &k) in mats.iter().enumerate() {
         if i > 0 {
             out.push(b',');
         }
         render::push_material(out, k);
     }
-    out.extend_from_slice(b"]}");
+    out.push(b']');
+}
+
+/// `"textures":[..]` of these pictures (`--textures`): PNG files in `tex`'s folder, relative
+/// to the output, repeated (`wrap`), typical of their material.
+fn textures(out: &mut Vec<u8>, texs: &[Texture], tex: &TextureOut) {
+    out.extend_from_slice(b"\"textures\":[");
+    for (i, &t) in texs.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        out.extend_from_slice(b"{\"type\":\"PNG\",\"image\":");
+        // Writing a &str to a Vec cannot fail.
+        let _ = serde_json::to_writer(&mut *out, &tex.uri(t));
+        out.extend_from_slice(b",\"wrapMode\":\"wrap\",\"textureType\":\"typical\"}");
+    }
+    out.push(b']');
+}
+
+/// Appends a texture vertex `[s,t]` ([`UvMap::st`](crate::export::texture::UvMap::st)).
+fn push_st_vertex(out: &mut Vec<u8>, st: [i64; 2]) {
+    out.push(b'[');
+    push_fixed4_i64(out, st[0]);
+    out.push(b',');
+    push_fixed4_i64(out, st[1]);
+    out.push(b']');
 }
 
 /// Appends `[x,y,z]` (formatted on the stack, appended at once).
@@ -224,11 +257,13 @@ fn push_vertex(out: &mut Vec<u8>, v: Vertex) {
 }
 
 /// The frag's text with every mark replaced by `index(local vertex)` or, for a material mark,
-/// `material(local material)`.
+/// `material(local material)`, for a texture mark `texture(local texture)`, for a texture
+/// vertex's `st_base` plus its local index.
 fn splice(
     frag: &Frag,
     index: impl Fn(u32) -> u64,
     material: impl Fn(u32) -> u64,
+    (texture, st_base): (&dyn Fn(u32) -> u64, u64),
     out: &mut Vec<u8>,
 ) {
     let mut at = 0;
@@ -236,6 +271,10 @@ fn splice(
         out.extend_from_slice(&frag.text[at..pos]);
         if li & render::MATERIAL != 0 {
             push_uint(out, material(li & !render::MATERIAL));
+        } else if li & render::TEXTURE != 0 {
+            push_uint(out, texture(li & !render::TEXTURE));
+        } else if li & render::ST != 0 {
+            push_uint(out, st_base + u64::from(li & !render::ST));
         } else {
             push_uint(out, index(li));
         }
@@ -300,6 +339,20 @@ pub(crate) struct CityJsonWriter<W: Write + Send> {
     material_index: std::collections::HashMap<u64, u64>,
     /// Each slot's materials' file indices (scratch).
     mat_tables: Vec<Vec<u64>>,
+    /// `--textures` ([`CityJsonWriter::with_textures`]): what is textured (set at `begin`),
+    /// where the pictures are, the pictures used.
+    textures: bool,
+    tex: TextureOut,
+    /// The file's pictures in first-use order, and their indices.
+    texs: Vec<Texture>,
+    tex_index: std::collections::HashMap<Texture, u64>,
+    /// Each slot's pictures' file indices (scratch).
+    tex_tables: Vec<Vec<u64>>,
+    /// The texture vertices written so far, and where they wait until `finish` (each
+    /// building's own, after the previous building's).
+    st_count: u64,
+    st_spool: Spool,
+    _st_guard: ScratchGuard,
     /// The vertices' extent (millimetres from the translate): minimum and maximum.
     extent: Option<(Vertex, Vertex)>,
     /// The transform's translate and the `metadata` members (written at the end with the
@@ -346,10 +399,42 @@ impl<W: Write + Send> CityJsonWriter<W> {
             materials: Vec::new(),
             material_index: std::collections::HashMap::new(),
             mat_tables: Vec::new(),
+            textures: false,
+            tex: TextureOut::default(),
+            texs: Vec::new(),
+            tex_index: std::collections::HashMap::new(),
+            tex_tables: Vec::new(),
+            st_count: 0,
+            st_spool: Spool::Memory(Vec::new()),
+            _st_guard: ScratchGuard(None),
             extent: None,
             translate: glam::DVec3::ZERO,
             metadata: Vec::new(),
         }
+    }
+
+    /// With `Some((folder, used))`, walls and roofs carry the procedural textures
+    /// (`--textures`, `crate::export::texture`): `appearance.textures` (PNG files in `folder`,
+    /// relative to the output), `appearance.vertices-texture` and each solid's `texture` of
+    /// theme `citygen`; the pictures are noted in `used` for the run to write. The texture
+    /// vertices wait in a scratch file beside `target` (`None`: in memory).
+    pub(crate) fn with_textures(
+        mut self,
+        on: Option<(String, crate::export::texture::TextureSet)>,
+        target: Option<&Path>,
+    ) -> io::Result<CityJsonWriter<W>> {
+        let Some((folder, used)) = on else {
+            return Ok(self);
+        };
+        self.textures = true;
+        self.tex.folder = folder;
+        self.tex.used = used;
+        if let Some(target) = target {
+            let (file, left) = crate::export::scratch_beside(target, "uv")?;
+            self._st_guard = ScratchGuard(left);
+            self.st_spool = Spool::File(BufWriter::with_capacity(1 << 20, file));
+        }
+        Ok(self)
     }
 
     /// Gives the sink back (complete after [`BuildingWriter::finish`]).
@@ -365,7 +450,33 @@ impl<W: Write + Send> CityJsonWriter<W> {
         self.bufs.resize_with(n.max(self.bufs.len()), Vec::new);
         self.mat_tables
             .resize_with(n.max(self.mat_tables.len()), Vec::new);
+        self.tex_tables
+            .resize_with(n.max(self.tex_tables.len()), Vec::new);
         self.vtext.clear();
+        let mut st_bases = Vec::with_capacity(n);
+        for (frag, tt) in self.slots[..n].iter().zip(&mut self.tex_tables) {
+            tt.clear();
+            for &t in &frag.texs {
+                let next = self.texs.len() as u64;
+                let i = *self.tex_index.entry(t).or_insert(next);
+                if i == next {
+                    self.texs.push(t);
+                }
+                tt.push(i);
+            }
+            st_bases.push(self.st_count);
+            for &st in &frag.sts {
+                if self.st_count > 0 {
+                    self.vtext.push(b',');
+                }
+                push_st_vertex(&mut self.vtext, st);
+                self.st_count += 1;
+            }
+        }
+        if !self.vtext.is_empty() {
+            self.st_spool.write_all(&self.vtext)?;
+            self.vtext.clear();
+        }
         for (frag, mt) in self.slots[..n].iter().zip(&mut self.mat_tables) {
             mt.clear();
             for &k in &frag.mats {
@@ -409,6 +520,7 @@ impl<W: Write + Send> CityJsonWriter<W> {
         }
         self.spool.write_all(&self.vtext)?;
         let first = self.first;
+        let tex_tables = &self.tex_tables;
         self.slots[..n]
             .par_iter()
             .zip(self.tables[..n].par_iter())
@@ -418,7 +530,15 @@ impl<W: Write + Send> CityJsonWriter<W> {
             .for_each(|(k, (((frag, table), mt), buf))| {
                 buf.clear();
                 buf.extend_from_slice(if first && k == 0 { b"\n" } else { b",\n" });
-                splice(frag, |li| table[li as usize], |mi| mt[mi as usize], buf);
+                let tt = &tex_tables[k];
+                let texture = |ti: u32| tt[ti as usize];
+                splice(
+                    frag,
+                    |li| table[li as usize],
+                    |mi| mt[mi as usize],
+                    (&texture, st_bases[k]),
+                    buf,
+                );
             });
         for buf in &self.bufs[..n] {
             self.out.write_all(buf)?;
@@ -434,6 +554,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
         let (mut h, meta) = header(ctx, "CityJSON writer")?;
         h.extend_from_slice(b"\"CityObjects\":{");
         self.lod = ctx.lod;
+        self.tex.tex = Texturing::of(self.textures, ctx.lod);
         self.terrain = terrain_of(ctx);
         self.translate = ctx.origin;
         self.metadata = meta;
@@ -448,7 +569,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
         if self.slots.is_empty() {
             self.slots.push(Frag::default());
         }
-        render::building(&mut self.slots[0], building, self.lod);
+        render::building(&mut self.slots[0], building, self.lod, self.tex.tex);
         self.append(1)
     }
 
@@ -460,7 +581,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
     /// order: the same bytes as `write` on each.
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         check_state("CityJSON writer", self.state, State::Open, "write()")?;
-        let lod = self.lod;
+        let (lod, tex) = (self.lod, self.tex.tex);
         for batch in super::batches(checked.finite()) {
             if self.slots.len() < batch.len() {
                 self.slots.resize_with(batch.len(), Frag::default);
@@ -468,7 +589,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
             batch
                 .par_iter()
                 .zip(self.slots.par_iter_mut())
-                .for_each(|(b, f)| render::building(f, b, lod));
+                .for_each(|(b, f)| render::building(f, b, lod, tex));
             self.append(batch.len())?;
         }
         checked.refused("CityJSON writer")
@@ -485,7 +606,26 @@ impl<W: Write + Send> BuildingWriter for CityJsonWriter<W> {
         }
         self.state = State::Finished;
         self.out.write_all(b"\n},")?;
-        if !self.materials.is_empty() {
+        if !self.texs.is_empty() {
+            let mut a = b"\"appearance\":{".to_vec();
+            if !self.materials.is_empty() {
+                materials(&mut a, &self.materials);
+                a.push(b',');
+            }
+            textures(&mut a, &self.texs, &self.tex);
+            a.extend_from_slice(b",\"vertices-texture\":[");
+            self.out.write_all(&a)?;
+            match std::mem::replace(&mut self.st_spool, Spool::Memory(Vec::new())) {
+                Spool::Memory(v) => self.out.write_all(&v)?,
+                Spool::File(w) => {
+                    let mut file = w.into_inner().map_err(|e| e.into_error())?;
+                    file.rewind()?;
+                    io::copy(&mut file, &mut self.out)?;
+                }
+            }
+            self.out.write_all(b"]},")?;
+            note_used(&self.tex.used, self.texs.iter().copied());
+        } else if !self.materials.is_empty() {
             let mut a = Vec::new();
             appearance(&mut a, &self.materials);
             a.push(b',');
@@ -536,6 +676,9 @@ pub(crate) struct CityJsonSeqWriter<W: Write + Send> {
     slots: Vec<(Frag, Vec<u8>)>,
     /// The file's terrain and its id, its own feature after the buildings'.
     terrain: Option<(std::sync::Arc<crate::model::Terrain>, String)>,
+    /// `--textures` ([`CityJsonSeqWriter::with_textures`]) and how.
+    textures: bool,
+    tex: TextureOut,
 }
 
 impl<W: Write + Send> CityJsonSeqWriter<W> {
@@ -547,7 +690,24 @@ impl<W: Write + Send> CityJsonSeqWriter<W> {
             lod: Lod::Lod2,
             slots: Vec::new(),
             terrain: None,
+            textures: false,
+            tex: TextureOut::default(),
         }
+    }
+
+    /// With `Some((folder, used))`, walls and roofs carry the procedural textures
+    /// (`--textures`) as in [`CityJsonWriter::with_textures`], each feature with its own
+    /// pictures and texture vertices in its own `appearance`.
+    pub(crate) fn with_textures(
+        mut self,
+        on: Option<(String, crate::export::texture::TextureSet)>,
+    ) -> CityJsonSeqWriter<W> {
+        if let Some((folder, used)) = on {
+            self.textures = true;
+            self.tex.folder = folder;
+            self.tex.used = used;
+        }
+        self
     }
 
     /// Gives the sink back (complete after [`BuildingWriter::finish`]).
@@ -574,21 +734,38 @@ fn terrain_lod(lod: Lod) -> &'static str {
 }
 
 /// One building's `CityJSONFeature` line into `buf`.
-fn feature(frag: &mut Frag, buf: &mut Vec<u8>, b: &Building, lod: Lod) {
-    render::building(frag, b, lod);
-    feature_line(frag, buf);
+fn feature(frag: &mut Frag, buf: &mut Vec<u8>, b: &Building, lod: Lod, tex: &TextureOut) {
+    render::building(frag, b, lod, tex.tex);
+    feature_line(frag, buf, tex);
 }
 
-/// The `CityJSONFeature` line of a rendered fragment into `buf`, with its own vertices.
-fn feature_line(frag: &Frag, buf: &mut Vec<u8>) {
+/// The `CityJSONFeature` line of a rendered fragment into `buf`, with its own vertices and
+/// appearance (materials, and with `--textures` its pictures and texture vertices: the
+/// appearance of a CityJSONFeature is its own, local, as its vertices).
+fn feature_line(frag: &Frag, buf: &mut Vec<u8>, tex: &TextureOut) {
     buf.clear();
     buf.extend_from_slice(b"{\"type\":\"CityJSONFeature\",\"id\":");
     // Writing a &str to a Vec cannot fail.
     let _ = serde_json::to_writer(&mut *buf, &frag.id);
     buf.extend_from_slice(b",\"CityObjects\":{");
-    splice(frag, u64::from, u64::from, buf);
+    splice(frag, u64::from, u64::from, (&u64::from, 0), buf);
     buf.extend_from_slice(b"},");
-    if !frag.mats.is_empty() {
+    if !frag.texs.is_empty() {
+        buf.extend_from_slice(b"\"appearance\":{");
+        if !frag.mats.is_empty() {
+            materials(buf, &frag.mats);
+            buf.push(b',');
+        }
+        textures(buf, &frag.texs, tex);
+        buf.extend_from_slice(b",\"vertices-texture\":[");
+        for (i, st) in frag.sts.iter().enumerate() {
+            if i > 0 {
+                buf.push(b',');
+            }
+            push_st_vertex(buf, *st);
+        }
+        buf.extend_from_slice(b"]},");
+    } else if !frag.mats.is_empty() {
         appearance(buf, &frag.mats);
         buf.push(b',');
     }
@@ -610,6 +787,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
         h.extend_from_slice(&meta);
         h.extend_from_slice(b"},\"CityObjects\":{},\"vertices\":[]}\n");
         self.lod = ctx.lod;
+        self.tex.tex = Texturing::of(self.textures, ctx.lod);
         self.terrain = terrain_of(ctx);
         self.out.write_all(&h)?;
         self.state = State::Open;
@@ -623,7 +801,8 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
             self.slots.push(Default::default());
         }
         let (frag, buf) = &mut self.slots[0];
-        feature(frag, buf, building, self.lod);
+        feature(frag, buf, building, self.lod, &self.tex);
+        note_used(&self.tex.used, frag.texs.iter().copied());
         self.out.write_all(buf)?;
         Ok(())
     }
@@ -636,7 +815,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
     /// order: the same bytes as `write` on each.
     fn write_checked(&mut self, checked: &Checked<'_>) -> Result<(), ExportError> {
         check_state("CityJSONSeq writer", self.state, State::Open, "write()")?;
-        let lod = self.lod;
+        let (lod, tex) = (self.lod, &self.tex);
         for batch in super::batches(checked.finite()) {
             if self.slots.len() < batch.len() {
                 self.slots.resize_with(batch.len(), Default::default);
@@ -644,8 +823,11 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
             batch
                 .par_iter()
                 .zip(self.slots.par_iter_mut())
-                .for_each(|(b, (frag, buf))| feature(frag, buf, b, lod));
-            for (_, buf) in &self.slots[..batch.len()] {
+                .for_each(|(b, (frag, buf))| feature(frag, buf, b, lod, tex));
+            for (frag, buf) in &self.slots[..batch.len()] {
+                if !frag.texs.is_empty() {
+                    note_used(&self.tex.used, frag.texs.iter().copied());
+                }
                 self.out.write_all(buf)?;
             }
         }
@@ -657,7 +839,7 @@ impl<W: Write + Send> BuildingWriter for CityJsonSeqWriter<W> {
         if let Some((t, id)) = self.terrain.take() {
             let (mut frag, mut buf) = (Frag::default(), Vec::new());
             render::terrain(&mut frag, &t, &id, terrain_lod(self.lod));
-            feature_line(&frag, &mut buf);
+            feature_line(&frag, &mut buf, &self.tex);
             self.out.write_all(&buf)?;
         }
         self.state = State::Finished;

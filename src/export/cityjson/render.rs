@@ -14,11 +14,18 @@ use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
+use crate::export::texture::{roof_map, wall_maps, Texture, Texturing, UvMap};
 use crate::geometry::ring::{dedup_by, remove_spikes_by};
 use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, Provenance, RoofShape, Wall};
 
 /// A mark whose index has this bit set names a material (of [`Frag::mats`]), not a vertex.
 pub(super) const MATERIAL: u32 = 1 << 31;
+
+/// A mark whose index has this bit set names a texture (of [`Frag::texs`], `--textures`).
+pub(super) const TEXTURE: u32 = 1 << 30;
+
+/// A mark whose index has this bit set names a texture vertex (of [`Frag::sts`]).
+pub(super) const ST: u32 = 1 << 29;
 
 /// The appearance theme of the materials (the CityGML writer's theme).
 pub(super) const THEME: &str = "citygen";
@@ -112,6 +119,14 @@ pub(super) struct Frag {
     pub(super) verts: Vec<Vertex>,
     /// `verts` by value (scratch, emptied per building).
     index: VertexMap<u32>,
+    /// The building's pictures (`--textures`) in first-use order.
+    pub(super) texs: Vec<Texture>,
+    /// Its distinct texture vertices ([`UvMap::st`]) in first-use order.
+    pub(super) sts: Vec<[i64; 2]>,
+    /// `sts` by value (scratch).
+    st_index: HashMap<[i64; 2], u32>,
+    /// What the building's surfaces are textured with (`--textures`).
+    tex: Texturing,
     /// The building's id (`B_way_1`), the CityJSONFeature's `id`.
     pub(super) id: String,
 }
@@ -124,8 +139,59 @@ impl Frag {
         self.mats.clear();
         self.index.clear();
         self.id.clear();
+        self.texs.clear();
+        self.sts.clear();
+        self.st_index.clear();
     }
 
+    /// The index of picture `t`, marked at the end of the text.
+    fn texture(&mut self, t: Texture) {
+        let i = match self.texs.iter().position(|&k| k == t) {
+            Some(i) => i,
+            None => {
+                self.texs.push(t);
+                self.texs.len() - 1
+            }
+        } as u32;
+        self.marks.push((self.text.len(), TEXTURE | i));
+    }
+
+    /// The index of texture vertex `st`, marked at the end of the text.
+    fn st(&mut self, st: [i64; 2]) {
+        let next = self.sts.len() as u32;
+        let i = *self.st_index.entry(st).or_insert(next);
+        if i == next {
+            self.sts.push(st);
+        }
+        self.marks.push((self.text.len(), ST | i));
+    }
+
+    /// A surface's texture values: per written ring (as [`Frag::surface`] writes them)
+    /// `[t,i,j,...]`, the picture's index and a texture vertex per ring vertex; `[[null]]`
+    /// without a picture.
+    fn surface_texture(&mut self, f: &Face, tex: Option<(Texture, UvMap)>) {
+        let Some((t, map)) = tex else {
+            self.s("[[null]]");
+            return;
+        };
+        self.s("[");
+        let rings = ring(&f.outer)
+            .into_iter()
+            .chain(f.holes.iter().filter_map(|h| ring(h)));
+        for (k, r) in rings.enumerate() {
+            if k > 0 {
+                self.s(",");
+            }
+            self.s("[");
+            self.texture(t);
+            for (_, p) in written(r) {
+                self.s(",");
+                self.st(map.st(p));
+            }
+            self.s("]");
+        }
+        self.s("]");
+    }
     /// The index of the material of colour and surface material `c`, marked at the end of the
     /// text (`null` for none).
     fn material(&mut self, c: Option<(Color, Material)>) {
@@ -176,15 +242,8 @@ impl Frag {
     /// (the closing one included) and spikes that the rounding makes; a ring that would keep
     /// fewer than 3 points is written as it was (as the CityGML writer does).
     fn ring(&mut self, points: &[DVec3]) {
-        let raw: Vec<Vertex> = points.iter().map(|p| grid_key(*p)).collect();
-        let mut keys = raw.clone();
-        dedup_by(&mut keys, |a, b| a == b);
-        remove_spikes_by(&mut keys, |a, b| a == b);
-        if keys.len() < 3 {
-            keys = raw;
-        }
         self.s("[");
-        for (i, k) in keys.into_iter().enumerate() {
+        for (i, (k, _)) in written(points).into_iter().enumerate() {
             if i > 0 {
                 self.s(",");
             }
@@ -214,6 +273,7 @@ impl Frag {
         faces: &[&Face],
         sem: Option<&Semantics>,
         colours: Option<&[Option<(Color, Material)>]>,
+        textures: &[Option<(Texture, UvMap)>],
     ) {
         self.s("{\"type\":\"Solid\",\"lod\":\"");
         self.s(lod);
@@ -238,6 +298,18 @@ impl Frag {
                     self.s(",");
                 }
                 self.material(*c);
+            }
+            self.s("]]}}");
+        }
+        if textures.iter().any(Option::is_some) {
+            self.s(",\"texture\":{\"");
+            self.s(THEME);
+            self.s("\":{\"values\":[[");
+            for (i, (f, t)) in faces.iter().zip(textures).enumerate() {
+                if i > 0 {
+                    self.s(",");
+                }
+                self.surface_texture(f, *t);
             }
             self.s("]]}}");
         }
@@ -294,6 +366,21 @@ impl Frag {
         self.string(name);
         self.s(":");
     }
+}
+
+/// The points of a ring as written ([`Frag::ring`]), each with its millimetre key: without
+/// consecutive repeats (the closing one included) and spikes that the rounding makes; a ring
+/// that would keep fewer than 3 points as it was. A texture's coordinates are those of these
+/// points, one each.
+fn written(points: &[DVec3]) -> Vec<(Vertex, DVec3)> {
+    let raw: Vec<(Vertex, DVec3)> = points.iter().map(|p| (grid_key(*p), *p)).collect();
+    let mut keys = raw.clone();
+    dedup_by(&mut keys, |a, b| a.0 == b.0);
+    remove_spikes_by(&mut keys, |a, b| a.0 == b.0);
+    if keys.len() < 3 {
+        keys = raw;
+    }
+    keys
 }
 
 /// The ring without a closing duplicate of its first vertex, or `None` if fewer than 3 remain
@@ -534,8 +621,9 @@ fn extras<'a>(part: &'a Part, pid: &str, lod: Lod) -> Vec<Extra<'a>> {
 }
 
 /// Renders building `b` at `lod` into `f` (cleared first).
-pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod) {
+pub(super) fn building(f: &mut Frag, b: &Building, lod: Lod, tex: Texturing) {
     f.clear();
+    f.tex = tex;
     let id = building_id(b);
     let pids = part_ids(&id, &b.parts);
     f.id.clone_from(&id);
@@ -702,7 +790,10 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
             let faces: Vec<&Face> = surfaces(part).map(|(_, f)| f).collect();
             let colours: Vec<Option<(Color, Material)>> =
                 surfaces(part).map(|(k, _)| colour_of(part, k)).collect();
-            f.solid("1", &faces, None, Some(&colours));
+            let tex: Vec<_> = surfaces(part)
+                .map(|(k, face)| texture_of(part, k, face, f.tex))
+                .collect();
+            f.solid("1", &faces, None, Some(&colours), &tex);
         }
         Lod::Lod2 => {
             let mut sem = Semantics::default();
@@ -713,7 +804,9 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
             );
             let mut faces = Vec::new();
             let mut colours = Vec::new();
+            let mut tex = Vec::new();
             for (kind, face) in surfaces(part) {
+                tex.push(texture_of(part, kind, face, f.tex));
                 sem.values.push(match kind {
                     Kind::Ground => g,
                     Kind::Wall(_) => w,
@@ -722,7 +815,7 @@ fn geometry(f: &mut Frag, part: &Part, lod: Lod) {
                 faces.push(face);
                 colours.push(colour_of(part, kind));
             }
-            f.solid("2.2", &faces, Some(&sem), Some(&colours));
+            f.solid("2.2", &faces, Some(&sem), Some(&colours), &tex);
         }
         Lod::Lod3 | Lod::Lod4 => lod3_solid(f, part),
     }
@@ -736,6 +829,25 @@ fn colour_of(part: &Part, kind: Kind) -> Option<(Color, Material)> {
         Kind::Ground => None,
         Kind::Wall(_) => Some((part.wall_color, part.wall_material)),
         Kind::Roof => Some((part.roof_color, part.roof_material)),
+    }
+}
+
+/// The picture and map of a part's surface `face` of `kind` under `tex` (`--textures`): a
+/// wall's ([`crate::export::texture::WallMaps::whole`]) or a roof's, as the glTF writer's; none
+/// for the ground or without textures.
+fn texture_of(part: &Part, kind: Kind, face: &Face, tex: Texturing) -> Option<(Texture, UvMap)> {
+    if tex == Texturing::Off {
+        return None;
+    }
+    match kind {
+        Kind::Ground => None,
+        Kind::Wall(i) => {
+            let w = part.walls.get(i)?;
+            let maps = wall_maps(part, w, !face.holes.is_empty(), tex);
+            let (t, map) = maps.whole(face);
+            Some((t, *map))
+        }
+        Kind::Roof => Some(roof_map(part, face.normal())),
     }
 }
 
@@ -768,6 +880,7 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
     let mut faces: Vec<&Face> = Vec::new();
     let mut colours: Vec<Option<(Color, Material)>> = Vec::new();
     let mut openings: Vec<(Face, usize, (Color, Material))> = Vec::new();
+    let mut tex: Vec<Option<(Texture, UvMap)>> = Vec::new();
     for (kind, face) in surfaces(part) {
         let fi = match kind {
             Kind::Ground => Some(0),
@@ -779,6 +892,7 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
             .map_or(face, |c| &c.1);
         faces.push(face);
         colours.push(colour_of(part, kind));
+        tex.push(texture_of(part, kind, face, f.tex));
         let value = match kind {
             Kind::Ground => g,
             Kind::Roof => r,
@@ -818,8 +932,9 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
         faces.push(face);
         sem.values.push(*k);
         colours.push(Some(*colour));
+        tex.push(None);
     }
-    f.solid("3", &faces, Some(&sem), Some(&colours));
+    f.solid("3", &faces, Some(&sem), Some(&colours), &tex);
 }
 
 /// The part's extras as CityObjects (`,\n"id":{...}` each).
@@ -877,7 +992,7 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                     faces.push(d);
                     sem.values.push(k);
                 }
-                f.solid("3", &faces, Some(&sem), None);
+                f.solid("3", &faces, Some(&sem), None, &[]);
                 f.s("]}");
             }
             Extra::InteriorWall { storey, wall, id } => {
@@ -891,7 +1006,7 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.uint(s.storey as u64);
                 f.s("},\"geometry\":[");
                 let faces: Vec<&Face> = body.iter().collect();
-                f.solid("3", &faces, None, None);
+                f.solid("3", &faces, None, None, &[]);
                 f.s("]}");
             }
             Extra::Stair { storey, id } => {

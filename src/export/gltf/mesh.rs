@@ -13,7 +13,8 @@ use super::{
     SurfaceClass, GLASS_ALPHA, GROUND_COLOR, OPENING_SETBACK, UNSIGNED_INT, UNSIGNED_SHORT,
 };
 use crate::color::material::Material;
-use crate::export::texture::{bays, Texture, UvMap};
+pub(crate) use crate::export::texture::Texturing;
+use crate::export::texture::{roof_map, wall_maps, Texture};
 use glam::DVec3;
 
 /// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation),
@@ -140,15 +141,11 @@ pub(crate) fn building_groups(
                     shown.walls.iter().flatten().for_each(|f| g.add_face(f));
                 }
                 SurfaceClass::Roof if tex != Texturing::Off => {
-                    let m = part.roof_material;
-                    let (w, h) = Texture::size(m);
-                    let g =
-                        group_textured(&mut groups, part.roof_color, m, Some(Texture::Surface(m)));
                     // Rows run along the eaves, counted from the eave's height.
-                    let origin = DVec3::new(0.0, 0.0, part.eave_z);
+                    let (m, t) = (part.roof_material, Texture::Surface(part.roof_material));
+                    let g = group_textured(&mut groups, part.roof_color, m, Some(t));
                     for f in &shown.roof {
-                        let n = f.normal();
-                        g.add_mapped(f, &UvMap::plane(n, origin, 1.0 / w, 1.0 / h));
+                        g.add_mapped(f, &roof_map(part, f.normal()).1);
                     }
                 }
                 SurfaceClass::Roof => {
@@ -195,32 +192,6 @@ pub(crate) fn building_groups(
     classes
 }
 
-/// What a writer textures (`--textures`, `crate::export::texture`): nothing, the walls and
-/// roofs with their materials' patterns, or also (LOD2) the walls with the bays of their
-/// facades.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub(crate) enum Texturing {
-    /// No texture: every byte as without `--textures`.
-    #[default]
-    Off,
-    /// Walls and roofs carry their materials' patterns, in metres.
-    Materials,
-    /// As `Materials`, and a wall of a part with a rhythm (LOD2) carries the picture of its
-    /// bays, storey by storey, up to the eaves.
-    Facades,
-}
-
-impl Texturing {
-    /// The texturing of a run at `lod` with or without `--textures`.
-    pub(crate) fn of(textures: bool, lod: crate::model::Lod) -> Texturing {
-        match (textures, lod) {
-            (false, _) => Texturing::Off,
-            (true, crate::model::Lod::Lod2) => Texturing::Facades,
-            (true, _) => Texturing::Materials,
-        }
-    }
-}
-
 /// Adds a face `f` of wall `w` of `part` to its textured group: with [`Texturing::Facades`]
 /// and a rhythm, the piece below the eaves with the bay picture (a picture a bay wide, as
 /// many bays as the rules' `repeat` fits, and a storey high from the part's ground) and the
@@ -233,32 +204,19 @@ fn add_textured_wall(
     f: &crate::model::Face,
     tex: Texturing,
 ) {
-    let m = part.wall_material;
-    let base = part.levels.first().copied().unwrap_or(part.base_z);
-    let (sw, sh) = Texture::size(m);
-    let plain = UvMap::wall(w.start, w.end, base, 1.0 / sw, 1.0 / sh);
-    let storey = (part.eave_z - base) / f64::from(part.storeys.max(1));
-    let length = w.length();
-    let rhythm = match (tex, part.rhythm) {
-        (Texturing::Facades, Some(r)) if storey > 0.5 && length > 0.01 && f.holes.is_empty() => {
-            Some(r)
-        }
-        _ => None,
-    };
-    let Some(r) = rhythm else {
-        group_textured(groups, part.wall_color, m, Some(Texture::Surface(m))).add_mapped(f, &plain);
+    let (m, c) = (part.wall_material, part.wall_color);
+    let maps = wall_maps(part, w, !f.holes.is_empty(), tex);
+    let (plain_t, plain) = maps.plain;
+    let Some((bay_t, map)) = maps.bay else {
+        group_textured(groups, c, m, Some(plain_t)).add_mapped(f, &plain);
         return;
     };
-    let bays = bays(length, r.bay);
-    let map = UvMap::wall(w.start, w.end, base, bays / length, 1.0 / storey);
-    let (below, above) = split_at(f, part.eave_z);
+    let (below, above) = split_at(f, maps.eave_z);
     if let Some(below) = below {
-        let t = Texture::bay(m, &r);
-        group_textured(groups, part.wall_color, m, Some(t)).add_mapped(&below, &map);
+        group_textured(groups, c, m, Some(bay_t)).add_mapped(&below, &map);
     }
     if let Some(above) = above {
-        group_textured(groups, part.wall_color, m, Some(Texture::Surface(m)))
-            .add_mapped(&above, &plain);
+        group_textured(groups, c, m, Some(plain_t)).add_mapped(&above, &plain);
     }
 }
 
