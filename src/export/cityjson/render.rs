@@ -12,7 +12,7 @@ use crate::export::ids::{id_fragment, part_ids};
 use crate::color::material::{Material, ALL};
 use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, sill_faces, sills};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::geometry::ring::{dedup_by, remove_spikes_by};
 use crate::model::{grid_key, Building, Face, Lod, OpeningKind, Part, Provenance, RoofShape, Wall};
@@ -447,6 +447,8 @@ enum Extra<'a> {
         index: usize,
         id: String,
     },
+    /// The window sills of wall `wall` (`crate::export::lod3geom::sills`), one object.
+    Sills { wall: &'a Wall, id: String },
     /// Room `room` of storey `storey` (index in the part's interior).
     Room {
         storey: usize,
@@ -467,6 +469,7 @@ impl Extra<'_> {
     fn id(&self) -> &str {
         match self {
             Extra::Balcony { id, .. }
+            | Extra::Sills { id, .. }
             | Extra::Room { id, .. }
             | Extra::InteriorWall { id, .. }
             | Extra::Stair { id, .. } => id,
@@ -492,6 +495,12 @@ fn extras<'a>(part: &'a Part, pid: &str, lod: Lod) -> Vec<Extra<'a>> {
                     id: format!("{pid}_w{wi}_b{k}"),
                 });
             }
+        }
+        if !sills(wall).is_empty() {
+            out.push(Extra::Sills {
+                wall,
+                id: format!("{pid}_w{wi}_sills"),
+            });
         }
     }
     if lod < Lod::Lod4 {
@@ -834,6 +843,22 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.open_object(id, "BuildingInstallation", Some(parent), &[]);
                 f.s(",\"attributes\":{\"function\":\"balcony\"},\"geometry\":[");
                 let all: Vec<&Face> = faces.all().collect();
+                f.multi_surface("3", &all);
+                f.s("]}");
+            }
+            Extra::Sills { wall, id } => {
+                let boxes: Vec<Face> = sills(wall)
+                    .iter()
+                    .filter_map(|s| sill_faces(wall, s))
+                    .flatten()
+                    .collect();
+                if boxes.is_empty() {
+                    continue;
+                }
+                f.s(",");
+                f.open_object(id, "BuildingInstallation", Some(parent), &[]);
+                f.s(",\"attributes\":{\"function\":\"window sills\"},\"geometry\":[");
+                let all: Vec<&Face> = boxes.iter().collect();
                 f.multi_surface("3", &all);
                 f.s("]}");
             }
