@@ -10,7 +10,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::color::Color;
-use crate::model::{Balcony, Face, Opening, Part, Wall};
+use crate::model::{Balcony, Face, Opening, OpeningKind, Part, Wall};
 
 /// The horizontal frame of a wall: unit `dir` along start->end and unit `inward` (left of it).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -137,9 +137,10 @@ fn ring_band(f: &WallFrame, ring: &[DVec2], from: f64, to: f64, inside: bool) ->
         .collect()
 }
 
-/// A frame of explicit size ([`Opening::frame_size`]) drawn round the pane: its members
-/// `width` wide in the wall's plane, from `protrusion` metres outside the wall's outer face to
-/// the pane `depth` metres inward of it.
+/// A frame drawn round the pane: its members `width` wide in the wall's plane, from its front
+/// (`protrusion` metres outside the wall's outer face for an explicit size
+/// ([`Opening::frame_size`]), or set back into the reveal for the standard one) to the pane
+/// `depth` metres inward of it.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct FrameFaces {
     /// The pane: the outline inset by the frame's width, `depth` inward, facing out.
@@ -150,16 +151,29 @@ pub(crate) struct FrameFaces {
     pub frame: Vec<Face>,
 }
 
-/// The frame and pane of an opening with an explicit frame size (see [`FrameFaces`]); `None`
-/// for an opening without one, or one too small to hold its frame.
+/// Width of the standard frame, in the wall's plane (metres): the IFC writer's.
+pub(crate) const FRAME_WIDTH: f64 = 0.06;
+
+/// The frame and pane of a framed opening ([`Opening::framed`], see [`FrameFaces`]): an
+/// explicitly sized frame ([`Opening::frame_size`]) stands out of the wall by its protrusion;
+/// the standard one, [`FRAME_WIDTH`] wide, is set back into the reveal, its front halfway
+/// between the wall's outer face and the pane (so it needs a `depth` above zero). `None` for an
+/// opening without a frame, or one too small to hold it (a frame is at most a quarter of the
+/// opening's smaller side wide).
 pub(crate) fn opening_frame(wall: &Wall, o: &Opening, depth: f64) -> Option<FrameFaces> {
-    let size = o.frame_size.filter(|_| o.framed)?;
+    if !o.framed {
+        return None;
+    }
+    let (width, front) = match o.frame_size {
+        Some(size) => (size.width, -size.protrusion.clamp(0.0, 2.0)),
+        None if depth > 1e-3 => (FRAME_WIDTH, 0.5 * depth),
+        None => return None,
+    };
     let f = WallFrame::of(wall)?;
-    let fw = size.width.min(0.25 * o.width().min(o.height()));
+    let fw = width.min(0.25 * o.width().min(o.height()));
     if !(opening_is_valid(o) && fw.is_finite() && fw > 1e-3 && depth.is_finite()) {
         return None;
     }
-    let front = -size.protrusion.clamp(0.0, 2.0);
     let inner = o.inset(fw);
     let (outer_ring, inner_ring) = (o.outline(), inner.outline());
     let pane = Face::new(inner_ring.iter().map(|p| f.at(p.x, p.y, depth)).collect());
@@ -357,6 +371,114 @@ pub(crate) fn balcony_faces(wall: &Wall, b: &Balcony) -> Option<BalconyFaces> {
         b.z + INFILL_TOP,
     );
     Some(faces)
+}
+
+/// How far a window sill stands out of the wall's outer face (metres).
+pub(crate) const SILL_PROJECTION: f64 = 0.06;
+/// Thickness of a window sill below the window's bottom edge (metres).
+pub(crate) const SILL_THICKNESS: f64 = 0.05;
+/// How far a window sill runs past each jamb (metres), where nothing is in its way.
+pub(crate) const SILL_EAR: f64 = 0.04;
+/// The least clearance a sill keeps from another opening, a balcony and the wall's ends
+/// (metres).
+pub(crate) const SILL_CLEARANCE: f64 = 0.01;
+/// Colour of the window sills: light stone.
+pub(crate) const SILL_COLOR: Color = Color::rgb(0.83, 0.81, 0.76);
+
+/// A window sill: a box in front of the wall under a window, its top flush with the window's
+/// bottom edge, [`SILL_THICKNESS`] thick, [`SILL_PROJECTION`] out of the wall's outer face, and
+/// running from `u0` to `u1` along the wall (the window's width and up to [`SILL_EAR`] past each
+/// jamb).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Sill {
+    /// Index of the window in the wall's openings.
+    pub opening: usize,
+    /// Start along the wall (metres from its `start`).
+    pub u0: f64,
+    /// End along the wall.
+    pub u1: f64,
+    /// Height of the sill's top: the window's bottom edge.
+    pub top: f64,
+}
+
+/// The sills of `wall`'s windows, in the order of its openings: one under every window whose
+/// bottom edge stands [`LOW_SILL`] or more above the wall's base (not under a door or a French
+/// window). A sill's ears are cut to keep [`SILL_CLEARANCE`] from the wall's ends and halfway
+/// to another opening at its height; a window whose sill would meet another opening (a window
+/// just below it) or a balcony (its slab or railing) gets none.
+pub(crate) fn sills(wall: &Wall) -> Vec<Sill> {
+    let len = wall.length();
+    if WallFrame::of(wall).is_none() || !len.is_finite() {
+        return Vec::new();
+    }
+    let t = SILL_THICKNESS;
+    let c = SILL_CLEARANCE;
+    let mut out = Vec::new();
+    for (i, o) in wall.openings.iter().enumerate() {
+        let rise = o.z0 - wall.base_z;
+        if o.kind != OpeningKind::Window || !opening_is_valid(o) || rise.is_nan() || rise < LOW_SILL
+        {
+            continue;
+        }
+        let (zb, zt) = (o.z0 - t, o.z0);
+        let (mut u0, mut u1) = ((o.u0 - SILL_EAR).max(c), (o.u1 + SILL_EAR).min(len - c));
+        let mut blocked = false;
+        for (j, p) in wall.openings.iter().enumerate() {
+            if j == i || !opening_is_valid(p) || p.z1 + c <= zb || p.z0 - c >= zt {
+                continue;
+            }
+            if p.u1 <= o.u0 {
+                u0 = u0.max(0.5 * (p.u1 + o.u0));
+            } else if p.u0 >= o.u1 {
+                u1 = u1.min(0.5 * (o.u1 + p.u0));
+            } else {
+                blocked = true;
+            }
+        }
+        // The balcony's slab and railing, with the clearance round them.
+        blocked |= wall.balconies.iter().any(|b| {
+            b.u0 - c < u1
+                && b.u1 + c > u0
+                && b.z - SLAB_THICKNESS - c < zt
+                && b.z + RAILING_HEIGHT + c > zb
+        });
+        // Never narrower than the window (an opening lies at least `OPENING_MARGIN` in).
+        let (u0, u1) = (u0.min(o.u0), u1.max(o.u1));
+        if blocked || !(u0.is_finite() && u1.is_finite() && zb.is_finite()) {
+            continue;
+        }
+        out.push(Sill {
+            opening: i,
+            u0,
+            u1,
+            top: o.z0,
+        });
+    }
+    out
+}
+
+/// The six faces of sill `s` on `wall` (a closed box, each face facing out of it; the first
+/// lies in the wall's outer plane, facing into the wall: [`sill_against_wall`]), or `None` for
+/// a degenerate wall.
+pub(crate) fn sill_faces(wall: &Wall, s: &Sill) -> Option<Vec<Face>> {
+    let f = WallFrame::of(wall)?;
+    let out = -f.inward3() * SILL_PROJECTION;
+    let along = f.dir3() * (s.u1 - s.u0);
+    // (out, along, up) is right-handed: out x along points up.
+    let mut faces = cuboid(
+        f.at(s.u0, s.top - SILL_THICKNESS, 0.0),
+        out,
+        along,
+        DVec3::Z * SILL_THICKNESS,
+    );
+    // `cuboid`'s third face (-out) is the one against the wall: put it first.
+    faces.swap(0, 2);
+    Some(faces)
+}
+
+/// Whether `index` is the face of [`sill_faces`] against the wall (hidden: a view leaves it out).
+pub(crate) fn sill_against_wall(index: usize) -> bool {
+    index == 0
 }
 
 /// Sills lower than this above their wall's base (metres: a door, a French window) stand over
@@ -888,6 +1010,78 @@ mod tests {
             w.openings.retain(|o| o.z0 - w.base_z >= LOW_SILL);
         }
         assert!(seated_faces(&q).is_none());
+    }
+
+    #[test]
+    fn a_sill_is_a_closed_box_under_each_raised_window_clear_of_its_neighbours() {
+        // Front wall of a CCW footprint: outside is -y.
+        let mut w = wall(DVec2::new(0.0, 0.0), DVec2::new(10.0, 0.0));
+        let a = window(); // 1.0..2.0 at 1.0..2.5
+        let near = Opening {
+            u0: 2.05,
+            u1: 3.0,
+            ..window()
+        };
+        let door = Opening {
+            kind: OpeningKind::Door,
+            u0: 5.0,
+            u1: 6.0,
+            z0: 0.02,
+            ..window()
+        };
+        let french = Opening {
+            u0: 7.0,
+            u1: 8.0,
+            z0: 0.1,
+            ..window()
+        };
+        let edge = Opening {
+            u0: 9.0,
+            u1: 9.98,
+            ..window()
+        };
+        w.openings = vec![a.clone(), near, door, french, edge];
+        let s = sills(&w);
+        // No sill under the door or the French window.
+        assert_eq!(
+            s.iter().map(|s| s.opening).collect::<Vec<_>>(),
+            vec![0, 1, 4]
+        );
+        // Ears: a full ear on the free side, halfway to the neighbour on the other, cut at the
+        // wall's end.
+        assert!((s[0].u0 - (1.0 - SILL_EAR)).abs() < 1e-12);
+        assert!((s[0].u1 - 2.025).abs() < 1e-12);
+        assert!((s[1].u0 - 2.025).abs() < 1e-12);
+        assert!((s[2].u1 - (10.0 - SILL_CLEARANCE)).abs() < 1e-12);
+        assert!(s.iter().all(|s| s.top == 1.0));
+        let faces = sill_faces(&w, &s[0]).unwrap();
+        assert_eq!(faces.len(), 6);
+        assert!(faces.iter().all(planar));
+        assert!(area_sum(&faces).length() < 1e-9, "closed");
+        let inside = DVec3::new(1.5, -SILL_PROJECTION / 2.0, 1.0 - SILL_THICKNESS / 2.0);
+        assert!(faces_out_of(&faces, inside));
+        // The first face lies in the wall's plane (y = 0), facing into the wall (+y); the rest
+        // stand out of it, down to the window's bottom edge.
+        assert!(sill_against_wall(0) && !sill_against_wall(1));
+        assert!(faces[0].outer.iter().all(|p| p.y.abs() < 1e-12));
+        assert!(n(&faces[0]).y > 0.99);
+        let pts = faces.iter().flat_map(|f| f.outer.iter());
+        assert!(pts
+            .clone()
+            .all(|p| p.y <= 1e-12 && p.y >= -SILL_PROJECTION - 1e-12));
+        assert!(pts.clone().all(|p| p.z <= 1.0 + 1e-12));
+        // A balcony in front of the window takes its sill away.
+        w.balconies.push(Balcony {
+            u0: 0.5,
+            u1: 3.5,
+            z: 0.3,
+            depth: 1.0,
+            color: Color::WHITE,
+        });
+        assert_eq!(
+            sills(&w).iter().map(|s| s.opening).collect::<Vec<_>>(),
+            vec![4]
+        );
     }
 }
 

@@ -4,7 +4,7 @@
 
 use crate::color::material::Material;
 use crate::color::Color;
-use crate::export::lod3geom::{balcony_faces, opening_face};
+use crate::export::lod3geom::{balcony_faces, opening_face, sill_faces, sills, SILL_COLOR};
 use crate::model::{Building, OpeningKind};
 
 use super::material::{x3d_material, ColorKey};
@@ -33,7 +33,8 @@ impl Renderer<'_> {
                     // `surfaces` yields no openings or balconies.
                     SurfaceKind::Wall
                     | SurfaceKind::Opening { .. }
-                    | SurfaceKind::Balcony { .. } => (part.wall_color, part.wall_material),
+                    | SurfaceKind::Balcony { .. }
+                    | SurfaceKind::Sill { .. } => (part.wall_color, part.wall_material),
                 };
                 add_target(&mut materials, color, material, (pi, s.kind, s.index));
             }
@@ -70,6 +71,20 @@ impl Renderer<'_> {
                         };
                         add_target(&mut materials, color, Material::Unspecified, (pi, kind, i));
                     }
+                }
+                let faces = sills(wall)
+                    .iter()
+                    .filter_map(|s| sill_faces(wall, s))
+                    .count()
+                    * 6;
+                for i in 0..faces {
+                    let kind = SurfaceKind::Sill { wall: wi };
+                    add_target(
+                        &mut materials,
+                        SILL_COLOR,
+                        Material::Unspecified,
+                        (pi, kind, i),
+                    );
                 }
             }
         }

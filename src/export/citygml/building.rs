@@ -2,7 +2,7 @@
 //! parts (`bldg:BuildingPart`), and the ids derived from the source id.
 
 use crate::export::ids::{id_fragment, part_ids};
-use crate::export::lod3geom::balcony_faces;
+use crate::export::lod3geom::{balcony_faces, sill_faces, sills};
 use crate::model::{AttrValue, Attributes, Building, Provenance, RoofShape};
 
 use super::surfaces::{surfaces, written_walls};
@@ -86,7 +86,7 @@ impl Renderer<'_> {
         };
         let (mut lo, mut hi) = points.fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         if self.lod >= GeometryLod::Lod3 {
-            // Balconies stand out of the walls.
+            // Balconies and window sills stand out of the walls.
             for part in &b.parts {
                 for (_, wall) in written_walls(part) {
                     for f in wall
@@ -95,6 +95,13 @@ impl Renderer<'_> {
                         .filter_map(|bc| balcony_faces(wall, bc))
                     {
                         for p in f.all().flat_map(|f| f.outer.iter()) {
+                            lo = lo.min(*p);
+                            hi = hi.max(*p);
+                        }
+                    }
+                    // And so do the window sills.
+                    for f in sills(wall).iter().filter_map(|s| sill_faces(wall, s)) {
+                        for p in f.iter().flat_map(|f| f.outer.iter()) {
                             lo = lo.min(*p);
                             hi = hi.max(*p);
                         }

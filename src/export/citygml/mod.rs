@@ -20,7 +20,10 @@
 //!   the wall plane, facing outward like the wall, so that it fills the hole exactly. Balconies
 //!   are `bldg:outerBuildingInstallation` / `bldg:BuildingInstallation` (named `balcony`) whose
 //!   `bldg:lod3Geometry` is a `gml:MultiSurface` of the slab (a closed box) and the railing
-//!   (handrail, posts and infill panel, `crate::export::lod3geom::balcony_faces`).
+//!   (handrail, posts and infill panel, `crate::export::lod3geom::balcony_faces`). A wall's
+//!   window sills (`crate::export::lod3geom::sills`) are one more installation (named `window
+//!   sills`, id `<wall polygon id>_sills`) whose `gml:MultiSurface` holds each sill's closed box
+//!   (six polygons, ids `<part>_w<wall>_sill<k>`), coloured light stone.
 //!   `bldg:lod3Solid` references the ground, wall, roof and opening polygons, which
 //!   together close the shell. Elements follow the schema's order: installations, boundary
 //!   surfaces, then the solid. Glazed windows get their glass colour with `app:transparency`

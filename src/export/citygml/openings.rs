@@ -2,8 +2,8 @@
 //! balconies as `bldg:BuildingInstallation`s, and the `lod3Solid` (also used at LOD4 with the
 //! `lod4` properties).
 
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
-use crate::model::{OpeningKind, Part};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, sill_faces, sills};
+use crate::model::{Face, OpeningKind, Part};
 
 use super::surfaces::{
     boundary_element, seated_surfaces, surfaces, written_walls, Surface, SurfaceKind,
@@ -52,6 +52,38 @@ impl Renderer<'_> {
                 x.s(d);
                 x.s("Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
             }
+            let boxes: Vec<Face> = sills(wall)
+                .iter()
+                .filter_map(|s| sill_faces(wall, s))
+                .flatten()
+                .collect();
+            if boxes.is_empty() {
+                continue;
+            }
+            x.s("<bldg:outerBuildingInstallation>\n<bldg:BuildingInstallation gml:id=\"");
+            x.polygon_id(pid, SurfaceKind::Wall, wi);
+            x.s("_sills\">\n<gml:name>window sills</gml:name>\n<bldg:lod");
+            x.s(d);
+            x.s("Geometry>\n<gml:MultiSurface srsName=\"");
+            x.s(srs);
+            x.s("\">\n");
+            let kind = SurfaceKind::Sill { wall: wi };
+            for (i, face) in boxes.iter().enumerate() {
+                x.s("<gml:surfaceMember>\n");
+                x.polygon(
+                    pid,
+                    &Surface {
+                        kind,
+                        index: i,
+                        face,
+                    },
+                    origin,
+                );
+                x.s("</gml:surfaceMember>\n");
+            }
+            x.s("</gml:MultiSurface>\n</bldg:lod");
+            x.s(d);
+            x.s("Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
         }
         if self.lod == GeometryLod::Lod4 {
             lod4::stairs(x, part, pid, origin, srs);

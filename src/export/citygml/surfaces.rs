@@ -22,6 +22,11 @@ pub(super) enum SurfaceKind {
         wall: usize,
         balcony: usize,
     },
+    /// A face of the window sills of wall `wall` (the surface's index counts the faces of all
+    /// its sills, six each).
+    Sill {
+        wall: usize,
+    },
 }
 
 /// One polygon to write: its kind, its index in the model's list (for openings and balcony
@@ -145,9 +150,10 @@ pub(super) fn boundary_element(kind: SurfaceKind) -> &'static str {
         SurfaceKind::Ground => "bldg:GroundSurface",
         SurfaceKind::Roof => "bldg:RoofSurface",
         // Openings and balconies are not boundary surfaces; never asked for.
-        SurfaceKind::Wall | SurfaceKind::Opening { .. } | SurfaceKind::Balcony { .. } => {
-            "bldg:WallSurface"
-        }
+        SurfaceKind::Wall
+        | SurfaceKind::Opening { .. }
+        | SurfaceKind::Balcony { .. }
+        | SurfaceKind::Sill { .. } => "bldg:WallSurface",
     }
 }
 

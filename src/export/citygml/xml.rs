@@ -97,6 +97,12 @@ impl Xml {
                 self.s("_");
                 self.uint(index as u64);
             }
+            SurfaceKind::Sill { wall } => {
+                self.s("_w");
+                self.uint(wall as u64);
+                self.s("_sill");
+                self.uint(index as u64);
+            }
         }
     }
 

@@ -12,7 +12,7 @@ use crate::export::ids::{id_fragment, part_ids};
 use crate::color::material::{Material, ALL};
 use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, sill_faces, sills};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::export::texture::{roof_map, wall_maps, Texture, Texturing, UvMap};
 use crate::geometry::ring::{dedup_by, remove_spikes_by};
@@ -534,6 +534,8 @@ enum Extra<'a> {
         index: usize,
         id: String,
     },
+    /// The window sills of wall `wall` (`crate::export::lod3geom::sills`), one object.
+    Sills { wall: &'a Wall, id: String },
     /// Room `room` of storey `storey` (index in the part's interior).
     Room {
         storey: usize,
@@ -554,6 +556,7 @@ impl Extra<'_> {
     fn id(&self) -> &str {
         match self {
             Extra::Balcony { id, .. }
+            | Extra::Sills { id, .. }
             | Extra::Room { id, .. }
             | Extra::InteriorWall { id, .. }
             | Extra::Stair { id, .. } => id,
@@ -579,6 +582,12 @@ fn extras<'a>(part: &'a Part, pid: &str, lod: Lod) -> Vec<Extra<'a>> {
                     id: format!("{pid}_w{wi}_b{k}"),
                 });
             }
+        }
+        if !sills(wall).is_empty() {
+            out.push(Extra::Sills {
+                wall,
+                id: format!("{pid}_w{wi}_sills"),
+            });
         }
     }
     if lod < Lod::Lod4 {
@@ -949,6 +958,22 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.open_object(id, "BuildingInstallation", Some(parent), &[]);
                 f.s(",\"attributes\":{\"function\":\"balcony\"},\"geometry\":[");
                 let all: Vec<&Face> = faces.all().collect();
+                f.multi_surface("3", &all);
+                f.s("]}");
+            }
+            Extra::Sills { wall, id } => {
+                let boxes: Vec<Face> = sills(wall)
+                    .iter()
+                    .filter_map(|s| sill_faces(wall, s))
+                    .flatten()
+                    .collect();
+                if boxes.is_empty() {
+                    continue;
+                }
+                f.s(",");
+                f.open_object(id, "BuildingInstallation", Some(parent), &[]);
+                f.s(",\"attributes\":{\"function\":\"window sills\"},\"geometry\":[");
+                let all: Vec<&Face> = boxes.iter().collect();
                 f.multi_surface("3", &all);
                 f.s("]}");
             }

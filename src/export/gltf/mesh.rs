@@ -2,7 +2,10 @@
 //! triangulated (flat shaded) and laid out as vertex and index bytes.
 
 use crate::color::Color;
-use crate::export::lod3geom::{balcony_faces, opening_face, opening_frame, opening_reveals};
+use crate::export::lod3geom::{
+    balcony_faces, opening_face, opening_frame, opening_reveals, sill_against_wall, sill_faces,
+    sills, SILL_COLOR,
+};
 use crate::export::{check_finite, ExportError};
 use crate::model::{Building, OpeningKind, Part};
 
@@ -46,7 +49,7 @@ pub(super) fn add_openings(
             0.0
         };
         for o in w.openings.iter().filter(|o| o.kind == kind) {
-            // An explicitly sized frame is drawn round a smaller pane.
+            // A framed opening's frame is drawn round a smaller pane.
             let framed = opening_frame(w, o, depth);
             let Some(pane) = framed
                 .as_ref()
@@ -64,7 +67,9 @@ pub(super) fn add_openings(
             } else {
                 group(groups, Color { a: 1.0, ..o.color }).add_face(&pane);
             }
-            let lining = if o.framed {
+            // The reveals in the wall's colour, the frame in its own; a framed opening too small
+            // for its frame has its reveals in the frame's colour.
+            let lining = if o.framed && framed.is_none() {
                 o.frame_color
             } else {
                 part.wall_color
@@ -74,7 +79,28 @@ pub(super) fn add_openings(
                 .iter()
                 .for_each(|f| g.add_face(f));
             if let Some(f) = &framed {
+                let g = group(
+                    groups,
+                    Color {
+                        a: 1.0,
+                        ..o.frame_color
+                    },
+                );
                 f.frame.iter().for_each(|f| g.add_face(f));
+            }
+        }
+        if kind == OpeningKind::Window {
+            // The sills, less their faces in the wall's plane (hidden, they would fight it).
+            for s in sills(w) {
+                let Some(faces) = sill_faces(w, &s) else {
+                    continue;
+                };
+                let g = group(groups, SILL_COLOR);
+                for (i, f) in faces.iter().enumerate() {
+                    if !sill_against_wall(i) {
+                        g.add_face(f);
+                    }
+                }
             }
         }
     }

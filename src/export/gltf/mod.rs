@@ -17,8 +17,14 @@
 //! LOD3 (runs at [`Lod::Lod3`] or above): walls are triangulated with their holes. Each window
 //! and door is a pane in its opening's rectangle set back `OPENING_SETBACK` into the wall
 //! (towards the inside, never deeper than the wall is thick) so it reads as recessed, plus four
-//! reveal quads lining the hole up to the pane, in the frame colour when the opening is framed,
-//! else the wall colour. The shell behind a pane is hollow, so glazed windows' glass is opaque:
+//! reveal quads lining the hole up to the pane, in the wall colour. A framed opening
+//! (`Opening::framed`, the KB's `windowstyle="framed"`) has its frame
+//! (`crate::export::lod3geom::opening_frame`: the standard one `FRAME_WIDTH` wide, its front
+//! halfway into the reveal; an explicit one standing out of the wall) round a smaller pane, in
+//! the frame colour (the reveals take the frame colour where the opening is too small for a
+//! frame). Every window whose bottom edge stands `LOW_SILL` or more above its wall's base has a
+//! sill (`crate::export::lod3geom::sills`: a box `SILL_PROJECTION` out of the wall under it, in
+//! `SILL_COLOR`, without its face against the wall), in the `windows` class. The shell behind a pane is hollow, so glazed windows' glass is opaque:
 //! the window colour darkened (`GLASS_SHADE`), smooth and a little metallic, as glass with an
 //! unlit room behind it looks from the street; only a part with an interior (LOD4) has
 //! transparent glass (alpha `GLASS_ALPHA`, `BLEND`). Doors and unglazed windows are opaque in

@@ -2,7 +2,7 @@ use glam::{DVec2, DVec3};
 
 use super::*;
 use crate::color::srgb_to_linear;
-use crate::export::lod3geom::{balcony_faces, samples};
+use crate::export::lod3geom::{self, balcony_faces, samples};
 use crate::export::lod4geom;
 use crate::geometry::Polygon;
 use crate::model::{Face, Lod, Part, PartRole, RoofShape, SourceId, Wall};
@@ -914,15 +914,27 @@ fn lod3_wall_area_is_wall_minus_openings() {
             "{}: {walls} vs {expected}",
             b.id
         );
-        // Panes and reveals: w*h + 2(w+h)*0.1 per opening.
+        // Panes (or frame and pane: w*h, less nothing) and reveals (2(w+h)*0.1) per opening,
+        // the frame's inner band, and the sills less their faces against the wall.
+        let area = |f: &Face| {
+            let a = |r: &[DVec3]| crate::geometry::newell_normal(r).length() / 2.0;
+            a(&f.outer) - f.holes.iter().map(|h| a(h)).sum::<f64>()
+        };
         let mut expected_openings = 0.0;
-        for o in b
-            .parts
-            .iter()
-            .flat_map(|p| &p.walls)
-            .flat_map(|w| &w.openings)
-        {
-            expected_openings += o.width() * o.height() + 2.0 * (o.width() + o.height()) * 0.1;
+        for w in b.parts.iter().flat_map(|p| &p.walls) {
+            for o in &w.openings {
+                expected_openings += 2.0 * (o.width() + o.height()) * 0.1;
+                match lod3geom::opening_frame(w, o, 0.1) {
+                    Some(f) => {
+                        expected_openings += area(&f.pane) + f.frame.iter().map(area).sum::<f64>()
+                    }
+                    None => expected_openings += o.width() * o.height(),
+                }
+            }
+            for s in lod3geom::sills(w) {
+                let faces = lod3geom::sill_faces(w, &s).unwrap();
+                expected_openings += faces.iter().skip(1).map(area).sum::<f64>();
+            }
         }
         let mut got = 0.0;
         for class in ["windows", "doors"] {

@@ -87,6 +87,12 @@
 //! - A [`Balcony`](crate::model::Balcony) is an `IfcSlab` `.FLOOR.` named `Balcony` (its rectangle, 15 cm thick, top
 //!   at the balcony's floor height, outside the wall) and an `IfcRailing` `.BALUSTRADE.` (1 m
 //!   high, 5 cm thick, on the three free edges), both contained in the wall's storey.
+//! - A wall's window sills (`crate::export::lod3geom::sills`: a box under each raised window,
+//!   6 cm out of the wall, 5 cm thick, its top at the window's bottom edge) are one
+//!   `IfcBuildingElementProxy` named `Window sills` (IFC4 and later `.USERDEFINED.` with
+//!   ObjectType `WindowSill`; IFC has no sill entity, and a sill in the window type's body would
+//!   make a type per wall thickness), one `IfcExtrudedAreaSolid` per sill, contained in the
+//!   wall's storey.
 //! - Glazed facades are not written as `IfcCurtainWall`: windows only.
 //!
 //! At LOD4 a part's interiors are added to its LOD3 storeys (spaces, partition walls, interior

@@ -497,6 +497,9 @@ impl Render<'_> {
                 let ids = self.balcony(wall, b, &frames[s], key, &path)?;
                 contained[s].extend(ids);
             }
+            if let Some(id) = self.sills(wall, &frames[s], key, &format!("{path}/sills"))? {
+                contained[s].push(id);
+            }
         }
         if !part.interior.is_empty() {
             self.interiors(part, key, &storeys, &frames, &mut contained, &mut by_usage)?;

@@ -1,8 +1,10 @@
 //! Walls of the IFC writer (`IfcWallStandardCase`, rectangular or gable) and, at LOD3, the
-//! balconies on them (`IfcSlab` `.FLOOR.` and `IfcRailing`).
+//! balconies (`IfcSlab` `.FLOOR.` and `IfcRailing`) and window sills
+//! (`IfcBuildingElementProxy`) on them.
 
 use glam::{DVec2, DVec3};
 
+use crate::export::lod3geom;
 use crate::export::step::Id;
 use crate::export::ExportError;
 use crate::model::{Balcony, Part, Wall};
@@ -213,5 +215,71 @@ impl Render<'_> {
                 .enumeration("BALUSTRADE");
         })?;
         Ok(vec![slab, railing])
+    }
+
+    /// The window sills of `wall` (`crate::export::lod3geom::sills`): one
+    /// `IfcBuildingElementProxy` named `Window sills` (IFC4: `.USERDEFINED.`, ObjectType
+    /// `WindowSill`), placed like the wall relative to the storey, its body one
+    /// `IfcExtrudedAreaSolid` box per sill in front of the wall. `None` when the wall has none.
+    pub(super) fn sills(
+        &mut self,
+        wall: &Wall,
+        frame: &ElementFrame,
+        key: &str,
+        path: &str,
+    ) -> Result<Option<Id>, ExportError> {
+        let sills = lod3geom::sills(wall);
+        let len = wall.length();
+        if sills.is_empty() || len <= EPS {
+            return Ok(None);
+        }
+        let dir2 = (wall.end - wall.start) / len;
+        let loc = DVec3::new(wall.start.x, wall.start.y, wall.base_z) - frame.origin;
+        let axes = self.axes(loc, DVec3::new(dir2.x, dir2.y, 0.0))?;
+        let up = self.g.dir_z;
+        let mut items = Vec::with_capacity(sills.len());
+        for s in &sills {
+            // Outside is -Y in the wall's frame.
+            let profile = self.rect_profile(
+                s.u0,
+                -lod3geom::SILL_PROJECTION,
+                s.u1 - s.u0,
+                lod3geom::SILL_PROJECTION,
+            )?;
+            let bottom = s.top - lod3geom::SILL_THICKNESS - wall.base_z;
+            let position = self.axes(DVec3::new(0.0, 0.0, bottom), DVec3::X)?;
+            let solid = self.w.entity("IFCEXTRUDEDAREASOLID", |a| {
+                a.id(profile)
+                    .id(position)
+                    .id(up)
+                    .positive(lod3geom::SILL_THICKNESS);
+            })?;
+            self.styled(solid, lod3geom::SILL_COLOR)?;
+            items.push(solid);
+        }
+        let body_ctx = self.g.body_ctx;
+        let rep = self.representation(body_ctx, "Body", "SweptSolid", &items)?;
+        let shape = self.shape(&[rep])?;
+        let fp = frame.placement;
+        let pl = self.w.entity("IFCLOCALPLACEMENT", |a| {
+            a.id(fp).id(axes);
+        })?;
+        let ifc4 = self.g.schema.ifc4_attributes();
+        let id = self.w.entity("IFCBUILDINGELEMENTPROXY", |a| {
+            a.guid(key, path)
+                .opt_id(self.g.owner)
+                .string("Window sills")
+                .null()
+                .string("WindowSill")
+                .id(pl)
+                .id(shape)
+                .null();
+            if ifc4 {
+                a.enumeration("USERDEFINED");
+            } else {
+                a.null();
+            }
+        })?;
+        Ok(Some(id))
     }
 }
