@@ -457,6 +457,16 @@ pub(crate) fn sills(wall: &Wall) -> Vec<Sill> {
     out
 }
 
+/// Every face of `wall`'s sills ([`sills`], each box's six [`sill_faces`] in turn): what a
+/// writer that keeps a wall's sills together (a CityGML or CityJSON installation) draws.
+pub(crate) fn wall_sill_faces(wall: &Wall) -> Vec<Face> {
+    sills(wall)
+        .iter()
+        .filter_map(|s| sill_faces(wall, s))
+        .flatten()
+        .collect()
+}
+
 /// The six faces of sill `s` on `wall` (a closed box, each face facing out of it; the first
 /// lies in the wall's outer plane, facing into the wall: [`sill_against_wall`]), or `None` for
 /// a degenerate wall.

@@ -4,7 +4,7 @@
 
 use crate::color::material::Material;
 use crate::color::Color;
-use crate::export::lod3geom::{balcony_faces, opening_face, sill_faces, sills, SILL_COLOR};
+use crate::export::lod3geom::{balcony_faces, opening_face, wall_sill_faces, SILL_COLOR};
 use crate::model::{Building, OpeningKind};
 
 use super::material::{x3d_material, ColorKey};
@@ -72,11 +72,7 @@ impl Renderer<'_> {
                         add_target(&mut materials, color, Material::Unspecified, (pi, kind, i));
                     }
                 }
-                let faces = sills(wall)
-                    .iter()
-                    .filter_map(|s| sill_faces(wall, s))
-                    .count()
-                    * 6;
+                let faces = wall_sill_faces(wall).len();
                 for i in 0..faces {
                     let kind = SurfaceKind::Sill { wall: wi };
                     add_target(

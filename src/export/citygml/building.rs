@@ -2,7 +2,7 @@
 //! parts (`bldg:BuildingPart`), and the ids derived from the source id.
 
 use crate::export::ids::{id_fragment, part_ids};
-use crate::export::lod3geom::{balcony_faces, sill_faces, sills};
+use crate::export::lod3geom::{balcony_faces, wall_sill_faces};
 use crate::model::{AttrValue, Attributes, Building, Provenance, RoofShape};
 
 use super::surfaces::{surfaces, written_walls};
@@ -100,8 +100,8 @@ impl Renderer<'_> {
                         }
                     }
                     // And so do the window sills.
-                    for f in sills(wall).iter().filter_map(|s| sill_faces(wall, s)) {
-                        for p in f.iter().flat_map(|f| f.outer.iter()) {
+                    for f in wall_sill_faces(wall) {
+                        for p in &f.outer {
                             lo = lo.min(*p);
                             hi = hi.max(*p);
                         }

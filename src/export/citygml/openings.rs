@@ -2,13 +2,15 @@
 //! balconies as `bldg:BuildingInstallation`s, and the `lod3Solid` (also used at LOD4 with the
 //! `lod4` properties).
 
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, sill_faces, sills};
+use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, wall_sill_faces};
 use crate::model::{Face, OpeningKind, Part};
 
 use super::surfaces::{
     boundary_element, seated_surfaces, surfaces, written_walls, Surface, SurfaceKind,
 };
+use super::xml::Xml;
 use super::{lod4, GeometryLod, Renderer};
+use glam::DVec3;
 
 impl Renderer<'_> {
     /// LOD3 geometry in the schema's order: balconies (`outerBuildingInstallation`), boundary
@@ -26,64 +28,22 @@ impl Renderer<'_> {
                 x.polygon_id(pid, SurfaceKind::Wall, wi);
                 x.s("_b");
                 x.uint(k as u64);
-                x.s("\">\n<gml:name>balcony</gml:name>\n<bldg:lod");
-                x.s(d);
-                x.s("Geometry>\n<gml:MultiSurface srsName=\"");
-                x.s(srs);
-                x.s("\">\n");
                 let kind = SurfaceKind::Balcony {
                     wall: wi,
                     balcony: k,
                 };
-                for (i, face) in faces.all().enumerate() {
-                    x.s("<gml:surfaceMember>\n");
-                    x.polygon(
-                        pid,
-                        &Surface {
-                            kind,
-                            index: i,
-                            face,
-                        },
-                        origin,
-                    );
-                    x.s("</gml:surfaceMember>\n");
-                }
-                x.s("</gml:MultiSurface>\n</bldg:lod");
-                x.s(d);
-                x.s("Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
+                let at = (pid, origin, srs, d);
+                installation_rest(x, "balcony", at, kind, faces.all());
             }
-            let boxes: Vec<Face> = sills(wall)
-                .iter()
-                .filter_map(|s| sill_faces(wall, s))
-                .flatten()
-                .collect();
+            let boxes = wall_sill_faces(wall);
             if boxes.is_empty() {
                 continue;
             }
             x.s("<bldg:outerBuildingInstallation>\n<bldg:BuildingInstallation gml:id=\"");
             x.polygon_id(pid, SurfaceKind::Wall, wi);
-            x.s("_sills\">\n<gml:name>window sills</gml:name>\n<bldg:lod");
-            x.s(d);
-            x.s("Geometry>\n<gml:MultiSurface srsName=\"");
-            x.s(srs);
-            x.s("\">\n");
+            x.s("_sills");
             let kind = SurfaceKind::Sill { wall: wi };
-            for (i, face) in boxes.iter().enumerate() {
-                x.s("<gml:surfaceMember>\n");
-                x.polygon(
-                    pid,
-                    &Surface {
-                        kind,
-                        index: i,
-                        face,
-                    },
-                    origin,
-                );
-                x.s("</gml:surfaceMember>\n");
-            }
-            x.s("</gml:MultiSurface>\n</bldg:lod");
-            x.s(d);
-            x.s("Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
+            installation_rest(x, "window sills", (pid, origin, srs, d), kind, boxes.iter());
         }
         if self.lod == GeometryLod::Lod4 {
             lod4::stairs(x, part, pid, origin, srs);
@@ -183,4 +143,39 @@ impl Renderer<'_> {
             lod4::rooms(x, part, pid, origin, srs);
         }
     }
+}
+
+/// The rest of an outer `bldg:BuildingInstallation` whose `gml:id` is being written: the id's
+/// closing quote, its `name`, its `faces` as one `lodN` MultiSurface (polygon `i` of `kind`),
+/// and the closing tags. `at` is the part's id, the origin, the SRS name and the LOD digit.
+fn installation_rest<'a>(
+    x: &mut Xml,
+    name: &str,
+    (pid, origin, srs, d): (&str, DVec3, &str, &str),
+    kind: SurfaceKind,
+    faces: impl Iterator<Item = &'a Face>,
+) {
+    x.s("\">\n<gml:name>");
+    x.s(name);
+    x.s("</gml:name>\n<bldg:lod");
+    x.s(d);
+    x.s("Geometry>\n<gml:MultiSurface srsName=\"");
+    x.s(srs);
+    x.s("\">\n");
+    for (i, face) in faces.enumerate() {
+        x.s("<gml:surfaceMember>\n");
+        x.polygon(
+            pid,
+            &Surface {
+                kind,
+                index: i,
+                face,
+            },
+            origin,
+        );
+        x.s("</gml:surfaceMember>\n");
+    }
+    x.s("</gml:MultiSurface>\n</bldg:lod");
+    x.s(d);
+    x.s("Geometry>\n</bldg:BuildingInstallation>\n</bldg:outerBuildingInstallation>\n");
 }

@@ -12,7 +12,9 @@ use crate::export::ids::{id_fragment, part_ids};
 use crate::color::material::{Material, ALL};
 use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, sill_faces, sills};
+use crate::export::lod3geom::{
+    balcony_faces, opening_face, seated_changes, sills, wall_sill_faces,
+};
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::export::texture::{roof_map, wall_maps, Texture, Texturing, UvMap};
 use crate::geometry::ring::{dedup_by, remove_spikes_by};
@@ -962,11 +964,7 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.s("]}");
             }
             Extra::Sills { wall, id } => {
-                let boxes: Vec<Face> = sills(wall)
-                    .iter()
-                    .filter_map(|s| sill_faces(wall, s))
-                    .flatten()
-                    .collect();
+                let boxes = wall_sill_faces(wall);
                 if boxes.is_empty() {
                     continue;
                 }
