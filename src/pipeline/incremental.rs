@@ -499,16 +499,30 @@ pub(crate) fn load_previous(dir: &Path) -> Result<Previous, PreviousError> {
     Ok(prev)
 }
 
+/// Whether `path` (relative, `/`-separated) names a PNG directly in one of the folders
+/// `dirs` (relative too): a tile's picture ([`Previous::reusable`]).
+pub(crate) fn is_picture(path: &str, dirs: &[String]) -> bool {
+    dirs.iter().any(|d| {
+        path.strip_prefix(d.as_str())
+            .and_then(|rest| rest.strip_prefix('/'))
+            .is_some_and(|name| {
+                name.ends_with(".png") && !name.contains('/') && !name.starts_with('.')
+            })
+    })
+}
+
 impl Previous {
     /// The previous record of tile `suffix` when its lots and keys are `lots`, in order, and it
-    /// wrote the files `files` (paths relative to the manifest's folder), with the folder its
-    /// paths are relative to; else why not (`context_changed`: the run's context differs from
-    /// the previous run's, [`Previous::context_change`]).
+    /// wrote the files `files` (paths relative to the manifest's folder) and, besides them,
+    /// only pictures directly in the folders `pictures` (relative too: `--textures`, whose
+    /// files a tile knows once derived), with the folder its paths are relative to; else why
+    /// not (`context_changed`: the run's context differs from the previous run's,
+    /// [`Previous::context_change`]).
     pub(crate) fn reusable(
         &self,
         suffix: &str,
         lots: &[LotKey],
-        files: &BTreeSet<String>,
+        (files, pictures): (&BTreeSet<String>, &[String]),
         context_changed: bool,
     ) -> Result<&(PathBuf, TileRecord), String> {
         let Some(found) = self.tiles.get(suffix) else {
@@ -521,8 +535,11 @@ impl Previous {
         if t.lots != lots {
             return Err(lots_differ(&t.lots, lots, context_changed));
         }
-        let same_files =
-            t.files.len() == files.len() && t.files.iter().all(|f| files.contains(&f.path));
+        let listed = t.files.iter().filter(|f| files.contains(&f.path)).count();
+        let same_files = listed == files.len()
+            && t.files
+                .iter()
+                .all(|f| files.contains(&f.path) || is_picture(&f.path, pictures));
         if !same_files {
             return Err("the previous run wrote other files for it (other outputs)".into());
         }

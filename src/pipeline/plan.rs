@@ -402,6 +402,31 @@ pub(super) fn tile_files(targets: &Targets, content_name: &str) -> Vec<PathBuf> 
     out
 }
 
+/// The folders of a tile's pictures (`--textures`): one beside each CityGML, CityJSON and
+/// CityJSONSeq output of `targets` (a tile's targets, [`tile_targets`]), named by
+/// [`crate::export::texture::folder_name`]; none without `--textures`. Which pictures a tile
+/// draws is known once it is derived, so a previous run's record lists them and
+/// [`super::incremental::Previous::reusable`] takes its files in these folders as the tile's.
+pub(super) fn picture_dirs(targets: &Targets) -> Vec<PathBuf> {
+    use super::Model;
+    if !targets.textures {
+        return Vec::new();
+    }
+    let mut dirs: Vec<PathBuf> = targets
+        .models()
+        .into_iter()
+        .filter(|(m, _)| matches!(m, Model::CityGml | Model::CityJson | Model::CityJsonSeq))
+        .filter_map(|(_, p)| p.as_ref())
+        .map(|p| {
+            let name = crate::export::texture::folder_name(p);
+            p.parent().unwrap_or(Path::new("")).join(name)
+        })
+        .collect();
+    dirs.sort();
+    dirs.dedup();
+    dirs
+}
+
 /// The 3D Tiles contents of the tile named `name` in the `--tiles3d` folder `dir`: full
 /// detail, then blocks.
 pub(super) fn tiles3d_contents(

@@ -193,11 +193,20 @@ fn reuse_tile(
         .map(|p| (relative_to(p, dir), p.clone()))
         .collect();
     let names = rel.keys().cloned().collect();
-    let (folder, record) = prev.reusable(suffix, lots, &names, context_changed)?;
+    let pictures: Vec<String> = super::plan::picture_dirs(targets)
+        .iter()
+        .map(|d| relative_to(d, dir))
+        .collect();
+    let (folder, record) = prev.reusable(suffix, lots, (&names, &pictures), context_changed)?;
     let mut files = Vec::with_capacity(record.files.len());
     for f in &record.files {
+        // A picture (`--textures`) lands where the previous run had it, relative to the
+        // manifest's folder, like every file: in a picture folder of this tile's outputs.
+        let picture = (!rel.contains_key(&f.path) && incremental::is_picture(&f.path, &pictures))
+            .then(|| dir.join(&f.path));
         let dst = rel
             .get(&f.path)
+            .or(picture.as_ref())
             .ok_or_else(|| format!("{}: not a file of this run", f.path))?;
         // On a failure the temporaries made so far are dropped (removed).
         let p = incremental::copy_checked(folder, &f.path, dst, (f.bytes, &f.sha256), prev.link)

@@ -419,7 +419,15 @@ impl Batches<'_> {
         // An update in place: the previous run's files that this run no longer has go before
         // the manifest (a run killed here leaves the old manifest, whose missing files the
         // next run derives again).
-        for p in &stale {
+        // A file this run published again is not stale (a picture of a tile derived again,
+        // whose name no tile's list gives before it is drawn: `--textures`).
+        let dir = manifest_dir(targets);
+        let published: std::collections::HashSet<String> =
+            paths.iter().map(|p| relative_to(p, dir)).collect();
+        for p in stale
+            .iter()
+            .filter(|p| !published.contains(&relative_to(p, dir)))
+        {
             remove_stale(p, targets)?;
         }
         // The names of a split IFC output's set that this run did not write (a previous
@@ -447,15 +455,20 @@ impl Batches<'_> {
     }
 }
 
+/// The folder of the run's manifest (`.` without one): what a manifest's paths are relative to.
+fn manifest_dir(targets: &Targets) -> &Path {
+    targets
+        .manifest
+        .as_deref()
+        .and_then(Path::parent)
+        .unwrap_or(Path::new("."))
+}
+
 /// Removes `path`, a previous run's file that an update in place no longer has, when it lies
 /// in the manifest's folder with no symbolic link on the way (a link at the end is removed
 /// itself, never what it names); a file already gone is fine.
 fn remove_stale(path: &Path, targets: &Targets) -> Result<(), RunError> {
-    let dir = targets
-        .manifest
-        .as_deref()
-        .and_then(Path::parent)
-        .unwrap_or(Path::new("."));
+    let dir = manifest_dir(targets);
     let Ok(rel) = path.strip_prefix(dir) else {
         return Ok(());
     };

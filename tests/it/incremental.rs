@@ -1044,3 +1044,120 @@ fn an_update_in_place_of_two_shards_by_one_run_leaves_one_manifest() {
         "{c}"
     );
 }
+
+/// `--textures` with `--previous`: the facade pictures of an unchanged tile are reused with
+/// its files and those of an edited tile drawn again, so the increment is the full run byte
+/// for byte, pictures included; a previous run without pictures lends nothing to one with
+/// them (the option is part of every key), and a picture damaged on disk makes its tile be
+/// derived again.
+#[test]
+fn previous_with_textures_gives_the_full_runs_pictures() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (d1, d2, _) = two_days(t);
+    let tex = ["--textures"];
+    let (o1, plain, full, inc) = (t.join("o1"), t.join("plain"), t.join("full"), t.join("inc"));
+    run(&d1, &o1, "2", "50", &tex);
+    run(&d1, &plain, "2", "50", &[]);
+    run(&d2, &full, "2", "50", &tex);
+    let prev = |d: &Path| ["--textures", "--previous", d.to_str().unwrap()].map(String::from);
+    let p = prev(&o1);
+    run(
+        &d2,
+        &inc,
+        "2",
+        "50",
+        &p.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    let (ff, fi) = (files(&full), files(&inc));
+    let pngs = ff.keys().filter(|n| n.ends_with(".png")).count();
+    assert!(pngs > 0, "the full run drew no picture: {:?}", ff.keys());
+    assert_eq!(
+        ff.keys().collect::<Vec<_>>(),
+        fi.keys().collect::<Vec<_>>(),
+        "the same files"
+    );
+    for (name, bytes) in &ff {
+        assert!(
+            fi[name] == *bytes,
+            "{name}: the incremental run's bytes differ"
+        );
+    }
+    let c = changes(&inc);
+    let rewritten = c["tiles_rewritten"].as_array().unwrap().len();
+    assert!(
+        rewritten > 0 && c["tiles_reused"].as_u64().unwrap() > 0,
+        "{c}"
+    );
+    // The pictures of a reused tile are day 1's.
+    let f1 = files(&o1);
+    let kept = ff
+        .iter()
+        .filter(|(n, b)| n.ends_with(".png") && f1.get(*n) == Some(*b))
+        .count();
+    assert!(kept > 0, "no picture of day 1 reused");
+    // A previous run without pictures: nothing reused, still the full run's files.
+    let from_plain = t.join("from_plain");
+    let p = prev(&plain);
+    run(
+        &d2,
+        &from_plain,
+        "2",
+        "50",
+        &p.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    assert_eq!(changes(&from_plain)["tiles_reused"].as_u64(), Some(0));
+    assert!(files(&from_plain) == ff, "from a run without pictures");
+    // A picture of an unchanged tile damaged on disk: its tile is derived again.
+    let derived: Vec<String> = ids(&c["tiles_rewritten"])
+        .iter()
+        .map(|s| format!("_{s}_textures/"))
+        .collect();
+    let victim = ff
+        .keys()
+        .find(|n| {
+            n.ends_with(".png")
+                && f1.get(*n) == ff.get(*n)
+                && !derived.iter().any(|d| n.contains(d.as_str()))
+        })
+        .unwrap();
+    let path = o1.join(victim);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 1;
+    std::fs::write(&path, bytes).unwrap();
+    let again = t.join("again");
+    let p = prev(&o1);
+    run(
+        &d2,
+        &again,
+        "2",
+        "50",
+        &p.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    assert!(files(&again) == ff, "after a damaged previous picture");
+    assert_eq!(
+        changes(&again)["tiles_rewritten"].as_array().unwrap().len(),
+        rewritten + 1,
+        "the damaged picture's tile is derived again"
+    );
+    // An update in place: the pictures of the tiles derived again, drawn with the names the
+    // previous run's pictures had, are not removed as stale; the folder is the full run's.
+    let place = t.join("place");
+    run(&d1, &place, "2", "50", &tex);
+    let p = prev(&place);
+    run(
+        &d2,
+        &place,
+        "2",
+        "50",
+        &p.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    let all = |d: &Path| common::files_under(d, |_| true);
+    assert_eq!(
+        all(&full).keys().collect::<Vec<_>>(),
+        all(&place).keys().collect::<Vec<_>>(),
+        "in place: the same files"
+    );
+    assert!(files(&place) == ff, "in place: the same bytes");
+}
