@@ -127,6 +127,19 @@ fn print(scores: &[CaseScore]) {
             );
         }
     }
+    for s in scores {
+        if let Some(a) = &s.attached_roofs {
+            println!(
+                "{} attached footprints of {} m² and more (a tenth of the walls shared): {:.1} % of {} flat roofs drawn pitched, {:.1} % of {} pitched drawn flat",
+                s.name,
+                crate::pipeline::eval::ATTACHED_MIN_M2,
+                100.0 * a.flat_drawn_pitched,
+                a.flat,
+                100.0 * a.pitched_drawn_flat,
+                a.pitched
+            );
+        }
+    }
     let total = |get: fn(&CaseScore) -> &Option<Score>| {
         let v: Vec<&Score> = scores.iter().filter_map(|s| get(s).as_ref()).collect();
         let n: usize = v.iter().map(|s| s.n).sum();

@@ -81,6 +81,8 @@ pub struct CaseScore {
     pub roof: Option<Score>,
     /// What a run draws for the buildings it estimates (nothing hidden): their plausibility.
     pub form: Option<Form>,
+    /// How the compared attached footprints' roofs are drawn (issue 42's terraces).
+    pub attached_roofs: Option<AttachedRoofs>,
     /// One CSV line per building compared ([`dump_header`]), for offline analysis.
     #[serde(skip)]
     pub rows: Vec<String>,
@@ -129,6 +131,50 @@ pub struct Form {
     pub row_pairs: usize,
     /// Share of the like-sized pairs whose roof families differ (issue 42's terraces).
     pub row_pairs_differing: f64,
+}
+
+/// The least share of its walls a footprint shares with touching neighbours to count as attached
+/// in [`AttachedRoofs`] (as `prepare::estimate::prior_storeys` counts a row member).
+pub const ATTACHED_SHARE: f32 = 0.1;
+/// The smallest attached footprint (m²) [`AttachedRoofs`] counts: a row member, not a shed.
+pub const ATTACHED_MIN_M2: f64 = 30.0;
+
+/// The compared footprints that are attached ([`ATTACHED_SHARE`] of their walls shared or more)
+/// and of [`ATTACHED_MIN_M2`] or more, by their measured (or hidden tagged) roof family: how
+/// many, and the share drawn in the other family. Issue 42's terraces: "at most 10 % drawn
+/// pitched where the rows are flat" is `flat_drawn_pitched` where the rows are flat.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AttachedRoofs {
+    /// Attached footprints whose roof is flat.
+    pub flat: usize,
+    /// Share of them drawn pitched.
+    pub flat_drawn_pitched: f64,
+    /// Attached footprints whose roof is pitched.
+    pub pitched: usize,
+    /// Share of them drawn flat.
+    pub pitched_drawn_flat: f64,
+}
+
+impl AttachedRoofs {
+    /// From `(truth pitched, drawn pitched)` pairs of attached footprints; `None` without any.
+    pub fn of(pairs: &[(bool, bool)]) -> Option<AttachedRoofs> {
+        if pairs.is_empty() {
+            return None;
+        }
+        let share = |truth: bool| {
+            let of: Vec<bool> = pairs.iter().filter(|p| p.0 == truth).map(|p| p.1).collect();
+            let other = of.iter().filter(|&&drawn| drawn != truth).count();
+            (of.len(), other as f64 / of.len().max(1) as f64)
+        };
+        let (flat, flat_drawn_pitched) = share(false);
+        let (pitched, pitched_drawn_flat) = share(true);
+        Some(AttachedRoofs {
+            flat,
+            flat_drawn_pitched,
+            pitched,
+            pitched_drawn_flat,
+        })
+    }
 }
 
 /// [`Form`] of one run's estimates.
@@ -409,6 +455,8 @@ fn score(
     let truths: Vec<_> = case.lots.iter().map(|l| truth_of(case, l)).collect();
     let mut pairs = Pairs::default();
     let mut rows = Vec::new();
+    // (truth pitched, drawn pitched) of the compared attached footprints.
+    let mut attached = Vec::new();
     let folds = if case.truth.is_some() {
         1
     } else {
@@ -453,6 +501,10 @@ fn score(
                 }
                 if let Some(r) = r {
                     pairs.roof.push((e.pitched >= 0.5, *r));
+                    let f = &out.features[i];
+                    if f[6] >= ATTACHED_SHARE && f64::from(f[0]).exp() >= ATTACHED_MIN_M2 {
+                        attached.push((*r, e.pitched >= 0.5));
+                    }
                 }
             }
             if case.truth.is_some() || !hide(i) {
@@ -479,6 +531,7 @@ fn score(
     };
     CaseScore {
         form: form(&as_run),
+        attached_roofs: AttachedRoofs::of(&attached),
         name: case.name.clone(),
         mode: if case.truth.is_some() {
             "truth"
@@ -691,4 +744,32 @@ pub fn write_dump(path: &Path, scores: &[CaseScore]) -> Result<(), RunError> {
     }
     crate::fsio::write_atomic(path, text.as_bytes())
         .map_err(|e| RunError::Input(format!("{}: {e}", path.display())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::AttachedRoofs;
+
+    #[test]
+    fn attached_roofs_count_each_family_drawn_in_the_other() {
+        // (truth pitched, drawn pitched): 4 flat of which 1 drawn pitched, 2 pitched of which
+        // 1 drawn flat.
+        let pairs = [
+            (false, false),
+            (false, true),
+            (false, false),
+            (false, false),
+            (true, true),
+            (true, false),
+        ];
+        let a = AttachedRoofs::of(&pairs).unwrap();
+        assert_eq!((a.flat, a.pitched), (4, 2));
+        assert!((a.flat_drawn_pitched - 0.25).abs() < 1e-12, "{a:?}");
+        assert!((a.pitched_drawn_flat - 0.5).abs() < 1e-12, "{a:?}");
+        assert_eq!(AttachedRoofs::of(&[]), None);
+        // One family only: the other's share is 0 of 0.
+        let a = AttachedRoofs::of(&[(false, true)]).unwrap();
+        assert_eq!((a.flat, a.pitched, a.pitched_drawn_flat), (1, 0, 0.0));
+        assert_eq!(a.flat_drawn_pitched, 1.0);
+    }
 }

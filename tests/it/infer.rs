@@ -137,6 +137,17 @@ fn measured_heights_of_the_truth_corpus_rank_with_the_truth() {
             c["name"]
         );
     }
+    // Attached footprints by their measured roof (issue 42's terraces): counted where the
+    // truth has roofs (Clifton and three PLATEAU towns have none), shares between 0 and 1.
+    for i in [0, 1, 4] {
+        let a = &scores[i]["attached_roofs"];
+        assert!(a["flat"].as_u64().unwrap() >= 200, "{a}");
+        assert!(a["pitched"].as_u64().unwrap() >= 200, "{a}");
+        for k in ["flat_drawn_pitched", "pitched_drawn_flat"] {
+            assert!((0.0..=1.0).contains(&a[k].as_f64().unwrap()), "{a}");
+        }
+    }
+    assert!(scores[3]["attached_roofs"].is_null(), "{scores}");
     let rows = |i: usize| scores[i]["form"]["row_pairs"].as_u64().unwrap();
     assert!(
         rows(0) >= 500 && rows(1) >= 500 && rows(4) >= 500,
