@@ -825,6 +825,45 @@ pub struct Part {
     /// base's rules draw the part: what a LOD2 facade texture shows. `None` for a structure, a
     /// ruleset file's part and parts built without rules.
     pub rhythm: Option<Rhythm>,
+    /// The cornice along the top of its walls (LOD3 and above, flat roofs, where the knowledge
+    /// base's `cornice` asks; issue 49): `None` elsewhere.
+    pub cornice: Option<Cornice>,
+    /// The eaves: its roof planes carried out past the walls (LOD3 and above, pitched roofs,
+    /// where the knowledge base's `eaves` asks; issue 49): `None` elsewhere.
+    pub eaves: Option<Eaves>,
+}
+
+/// A cornice (issue 49): a moulded band along the top of a flat-roofed part's walls, standing
+/// out of them, its top at the part's eave. The writers draw its profile
+/// (`export::lod3geom::cornice_solids`): mitred where two drawn edges meet, square where an edge
+/// is not drawn.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cornice {
+    /// How far its front stands out of the wall's outer face (metres).
+    pub depth: f64,
+    /// Its height below the wall's top (metres).
+    pub height: f64,
+    /// Per footprint edge (outer ring then holes, in ring order, as the part's walls of a
+    /// storey): whether the cornice runs along it (not on a party wall, nor where it would meet
+    /// a neighbour, another part or the part's own wings: `derive::trim`).
+    pub edges: Vec<bool>,
+    /// Its colour: the part's wall colour lightened, as a stone or stucco moulding.
+    pub color: Color,
+}
+
+/// Eaves (issue 49): a pitched roof's planes carried past the walls by `overhang` metres
+/// (measured in plan, square to the wall) along its eaves and verges, as a board `thickness`
+/// thick under the roof's surface (`export::lod3geom::eaves_solids`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Eaves {
+    /// How far the roof reaches past the wall's outer face, in plan (metres).
+    pub overhang: f64,
+    /// Thickness of the overhang, vertical (metres).
+    pub thickness: f64,
+    /// Per footprint edge, as [`Cornice::edges`]: whether the roof overhangs it.
+    pub edges: Vec<bool>,
+    /// Colour of its underside (the soffit): the part's wall colour; its top is the roof's.
+    pub soffit: Color,
 }
 
 /// The facade rhythm of a part's walls as the knowledge base's rules lay it out at LOD3

@@ -13,6 +13,7 @@ pub mod selex;
 pub mod selex_lot;
 pub mod selex_place;
 pub mod surroundings;
+pub(crate) mod trim;
 
 use self::massing::Mass;
 
@@ -421,6 +422,11 @@ impl Generator {
                 );
             }
             parts.push(part);
+        }
+        // Cornices and eaves where the knowledge base asks (issue 49), against the neighbours.
+        if lod >= Lod::Lod3 {
+            let of: Vec<&Style> = part_styles.iter().map(|&s| &styles[s].0).collect();
+            trim::apply(&mut parts, &of, (lot.id, lot.ground), &self.surroundings);
         }
         if parts.is_empty() {
             return Err(format!(

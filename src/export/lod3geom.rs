@@ -9,6 +9,7 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::color::material::Material;
 use crate::color::Color;
 use crate::model::{Balcony, Face, Opening, OpeningKind, Part, Wall};
 
@@ -489,6 +490,239 @@ pub(crate) fn sill_faces(wall: &Wall, s: &Sill) -> Option<Vec<Face>> {
 /// Whether `index` is the face of [`sill_faces`] against the wall (hidden: a view leaves it out).
 pub(crate) fn sill_against_wall(index: usize) -> bool {
     index == 0
+}
+
+/// A closed solid of a cornice run or an eaves board (issue 49): its faces, each facing out of
+/// it, and the index of the one that lies in the wall's outer plane, facing into the wall
+/// (hidden: a view leaves it out, as it does a sill's).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct TrimSolid {
+    /// The faces of the closed solid.
+    pub faces: Vec<Face>,
+    /// Index in `faces` of the face against the wall.
+    pub against_wall: usize,
+}
+
+impl TrimSolid {
+    /// The faces a view draws: all but the one against the wall.
+    pub(crate) fn shown(&self) -> impl Iterator<Item = (usize, &Face)> {
+        let hidden = self.against_wall;
+        self.faces
+            .iter()
+            .enumerate()
+            .filter(move |(i, _)| *i != hidden)
+    }
+}
+
+/// The colour and material of face `index` of one of `part`'s cornice (`eaves` false) or eaves
+/// solids, as every writer draws it: a cornice in its colour and the wall's material; the eaves'
+/// top (0) and fascia (3) in the roof's colour and material, the rest (the soffit and the
+/// board's ends) in the soffit's colour.
+pub(crate) fn trim_color(part: &Part, eaves: bool, index: usize) -> (Color, Material) {
+    match (&part.cornice, &part.eaves) {
+        (Some(c), _) if !eaves => (c.color, part.wall_material),
+        (_, Some(_)) if eaves && (index == 0 || index == 3) => {
+            (part.roof_color, part.roof_material)
+        }
+        (_, Some(e)) if eaves => (e.soffit, Material::Unspecified),
+        _ => (part.wall_color, part.wall_material),
+    }
+}
+
+/// The sharpest corner a cornice or the eaves are mitred round (the cosine of the angle between
+/// the two edges' outward normals, plus one): past it (a turn of more than 120°) both end
+/// square at the corner.
+const MITRE_MIN: f64 = 0.5;
+
+/// The cornice's section, from the wall's face out (`s`, a share of its depth) and from its top
+/// down (`z`, a share of its height), counter-clockwise seen from the start of the wall: a bed
+/// mould 0.3 deep over the bottom 0.3 of the height, a sloped soffit (the cove) out to the full
+/// depth, and the corona's square front over the top 0.35.
+pub(crate) const CORNICE_PROFILE: [(f64, f64); 6] = [
+    (0.0, -1.0),
+    (0.3, -1.0),
+    (0.3, -0.7),
+    (1.0, -0.35),
+    (1.0, 0.0),
+    (0.0, 0.0),
+];
+
+/// Per footprint edge of `part` (rings in order, as [`crate::model::Cornice::edges`]) that
+/// `edges` marks: its start and end on the footprint, its outward unit normal and the
+/// vectors that offset its start and end by one metre out (a mitre where the edge before or
+/// after is marked too and the corner is not sharper than [`MITRE_MIN`], else the normal).
+/// `None` for an unmarked or degenerate edge.
+#[allow(clippy::type_complexity)]
+fn marked_edges(part: &Part, edges: &[bool]) -> Vec<Option<(DVec2, DVec2, DVec2, DVec2, DVec2)>> {
+    let mut out = Vec::new();
+    let mut k0 = 0;
+    for ring in part.footprint.rings() {
+        let n = ring.len();
+        let marked = |i: usize| edges.get(k0 + (i % n)).copied().unwrap_or(false);
+        let normal = |i: usize| {
+            let (a, b) = (ring[i % n], ring[(i + 1) % n]);
+            let d = (b - a).normalize_or_zero();
+            DVec2::new(d.y, -d.x)
+        };
+        let mitre = |i: usize, n0: DVec2, n1: DVec2, own: DVec2| {
+            let c = 1.0 + n0.dot(n1);
+            if marked(i + n - 1) && c > MITRE_MIN && n0 != DVec2::ZERO {
+                (n0 + n1) / c
+            } else {
+                own
+            }
+        };
+        for i in 0..n {
+            let (a, b) = (ring[i], ring[(i + 1) % n]);
+            let nn = normal(i);
+            if !marked(i) || nn == DVec2::ZERO || !(a.is_finite() && b.is_finite()) {
+                out.push(None);
+                continue;
+            }
+            let ma = mitre(i, normal(i + n - 1), nn, nn);
+            // At the end: the next edge's mitre at its start, when it is marked.
+            let next = normal(i + 1);
+            let c = 1.0 + nn.dot(next);
+            let mb = if marked(i + 1) && c > MITRE_MIN && next != DVec2::ZERO {
+                (nn + next) / c
+            } else {
+                nn
+            };
+            out.push(Some((a, b, nn, ma, mb)));
+        }
+        k0 += n;
+    }
+    out
+}
+
+/// The closed solids of `part`'s cornice ([`crate::model::Cornice`]), one per edge it runs
+/// along, in edge order: [`CORNICE_PROFILE`] drawn along the edge from the wall's top down,
+/// its ends mitred or square (faces: the section at the start and at the end, then one per
+/// edge of the section; its back is `against_wall`). A run whose front the mitres would
+/// shorten to nothing is left out. Empty without a cornice.
+pub(crate) fn cornice_solids(part: &Part) -> Vec<TrimSolid> {
+    let Some(c) = &part.cornice else {
+        return Vec::new();
+    };
+    let (depth, height, top) = (c.depth, c.height, part.eave_z);
+    if !([depth, height, top].iter().all(|v| v.is_finite()) && depth > 0.0 && height > 0.0) {
+        return Vec::new();
+    }
+    let section: Vec<(f64, f64)> = CORNICE_PROFILE
+        .iter()
+        .map(|&(s, z)| (s * depth, top + z * height))
+        .collect();
+    let m = section.len();
+    let mut out = Vec::new();
+    for (a, b, _, ma, mb) in marked_edges(part, &c.edges).into_iter().flatten() {
+        let d = (b - a).normalize();
+        let front = (b + mb * depth) - (a + ma * depth);
+        if front.dot(d) < 0.01 {
+            continue;
+        }
+        let at = |p: DVec2, mv: DVec2, (s, z): (f64, f64)| (p + mv * s).extend(z);
+        let sa: Vec<DVec3> = section.iter().map(|&q| at(a, ma, q)).collect();
+        let sb: Vec<DVec3> = section.iter().map(|&q| at(b, mb, q)).collect();
+        // The section is counter-clockwise seen from the wall's start: its face there faces
+        // back along the wall, the one at the end forward.
+        let mut faces = vec![
+            Face::new(sa.clone()),
+            Face::new(sb.iter().rev().copied().collect()),
+        ];
+        let mut against_wall = 0;
+        for j in 0..m {
+            let k = (j + 1) % m;
+            if section[j].0 == 0.0 && section[k].0 == 0.0 {
+                against_wall = faces.len();
+            }
+            faces.push(Face::new(vec![sa[j], sb[j], sb[k], sa[k]]));
+        }
+        out.push(TrimSolid {
+            faces,
+            against_wall,
+        });
+    }
+    out
+}
+
+/// The closed solids of `part`'s eaves ([`crate::model::Eaves`]): for every stretch of a
+/// marked footprint edge that a pitched roof face meets (an eave, or a gable's verge), a board
+/// in the face's plane from the wall's line out by the overhang (mitred at a corner with
+/// another marked edge, square elsewhere), its top the roof's surface carried on and its
+/// bottom `thickness` below. Faces: top (the roof's, index 0), bottom (the soffit, 1), then
+/// the sides: the start's end, the front (the fascia, 3), the end's end and the one against
+/// the wall (5). Empty without eaves.
+pub(crate) fn eaves_solids(part: &Part) -> Vec<TrimSolid> {
+    let Some(e) = &part.eaves else {
+        return Vec::new();
+    };
+    let (o, t) = (e.overhang, e.thickness);
+    if !([o, t].iter().all(|v| v.is_finite()) && o > 0.0 && t > 0.0) {
+        return Vec::new();
+    }
+    const ON: f64 = 0.01;
+    let planes: Vec<Option<(DVec3, DVec3)>> = part
+        .roof
+        .iter()
+        .map(|f| {
+            let n = f.normal();
+            let q = f.outer.iter().copied().sum::<DVec3>() / f.outer.len().max(1) as f64;
+            (n.z > 0.05 && n.z < 0.999 && q.is_finite()).then_some((n, q))
+        })
+        .collect();
+    let mut out = Vec::new();
+    for (a, b, nn, ma, mb) in marked_edges(part, &e.edges).into_iter().flatten() {
+        let len = a.distance(b);
+        let d = (b - a) / len;
+        for (face, plane) in part.roof.iter().zip(&planes) {
+            let Some((n, q)) = *plane else {
+                continue;
+            };
+            let z_at = |p: DVec2| q.z - (n.x * (p.x - q.x) + n.y * (p.y - q.y)) / n.z;
+            let r = &face.outer;
+            for i in 0..r.len() {
+                let (p0, p1) = (r[i].truncate(), r[(i + 1) % r.len()].truncate());
+                let on = |p: DVec2| {
+                    let u = (p - a).dot(d);
+                    ((p - a).dot(nn)).abs() < ON && u > -ON && u < len + ON
+                };
+                let (u0, u1) = (
+                    (p0 - a).dot(d).clamp(0.0, len),
+                    (p1 - a).dot(d).clamp(0.0, len),
+                );
+                if !(on(p0) && on(p1)) || u1 - u0 < 0.05 {
+                    continue;
+                }
+                let m0 = if u0 < ON { ma } else { nn };
+                let m1 = if u1 > len - ON { mb } else { nn };
+                let (c0, c1) = (a + d * u0, a + d * u1);
+                let (f0, f1) = (c0 + m0 * o, c1 + m1 * o);
+                if (f1 - f0).dot(d) < 0.01 {
+                    continue;
+                }
+                // Counter-clockwise in plan: along the wall, out, back, in.
+                let plan = [c0, f0, f1, c1];
+                let top: Vec<DVec3> = plan.iter().map(|p| p.extend(z_at(*p))).collect();
+                if !top.iter().all(|p| p.is_finite()) {
+                    continue;
+                }
+                let bottom: Vec<DVec3> = top.iter().map(|p| *p - DVec3::Z * t).collect();
+                let mut faces = vec![
+                    Face::new(top.clone()),
+                    Face::new(bottom.iter().rev().copied().collect()),
+                ];
+                for j in 0..4 {
+                    let k = (j + 1) % 4;
+                    faces.push(Face::new(vec![bottom[j], bottom[k], top[k], top[j]]));
+                }
+                out.push(TrimSolid {
+                    faces,
+                    against_wall: 5,
+                });
+            }
+        }
+    }
+    out
 }
 
 /// Sills lower than this above their wall's base (metres: a door, a French window) stand over
@@ -1022,6 +1256,113 @@ mod tests {
         assert!(seated_faces(&q).is_none());
     }
 
+    /// Signed volume of a closed set of faces (positive when they face out).
+    fn volume(faces: &[Face]) -> f64 {
+        faces
+            .iter()
+            .map(|f| {
+                let n = crate::geometry::newell_normal(&f.outer);
+                let c = f.outer.iter().copied().sum::<DVec3>() / f.outer.len() as f64;
+                c.dot(n) / 2.0
+            })
+            .sum::<f64>()
+            / 3.0
+    }
+
+    #[test]
+    fn cornices_and_eaves_are_closed_solids_facing_out_mitred_at_corners() {
+        use crate::export::lod3geom::samples;
+        use crate::model::{Cornice, Eaves};
+        // The house: 10 x 6 m, flat roof at 6 m; a cornice on three edges (not edge 2).
+        let mut p = samples::house().parts.remove(0);
+        p.cornice = Some(Cornice {
+            depth: 0.4,
+            height: 0.5,
+            edges: vec![true, true, false, true],
+            color: Color::WHITE,
+        });
+        let runs = cornice_solids(&p);
+        assert_eq!(runs.len(), 3);
+        for r in &runs {
+            assert_eq!(r.faces.len(), 8);
+            assert!(r.faces.iter().all(planar));
+            assert!(area_sum(&r.faces).length() < 1e-9, "closed");
+            assert!(volume(&r.faces) > 0.0, "facing out");
+            // The back is in the wall's plane, facing in.
+            let back = &r.faces[r.against_wall];
+            assert!(back
+                .outer
+                .iter()
+                .all(|q| q.z >= 5.5 - 1e-9 && q.z <= 6.0 + 1e-9));
+            assert!(r
+                .faces
+                .iter()
+                .flat_map(|f| &f.outer)
+                .all(|q| q.z <= 6.0 + 1e-9));
+        }
+        // Edge 0 (y = 0, outside -y): mitred with edge 3 at (0, 0) and edge 1 at (10, 0).
+        let front = &runs[0].faces[0];
+        assert!(front
+            .outer
+            .iter()
+            .any(|q| (q.x + 0.4).abs() < 1e-9 && (q.y + 0.4).abs() < 1e-9));
+        // Edge 1 ends square at (10, 6), before the bare edge 2.
+        let end = &runs[1].faces[1];
+        assert!(end.outer.iter().all(|q| (q.y - 6.0).abs() < 1e-9));
+        // Volume: the section's area along the 10 m edge, and a wedge at each mitred end (at
+        // most the area times the depth).
+        let area = {
+            let q = CORNICE_PROFILE;
+            (0..q.len())
+                .map(|i| {
+                    let (a, b) = (q[i], q[(i + 1) % q.len()]);
+                    a.0 * b.1 - b.0 * a.1
+                })
+                .sum::<f64>()
+                / 2.0
+                * 0.4
+                * 0.5
+        };
+        let v = volume(&runs[0].faces);
+        assert!(v > 10.0 * area && v < 10.8 * area, "{v} {area}");
+        // Eaves on the gable: the two eaves and the east verge's two halves.
+        let mut g = samples::gable().parts.remove(0);
+        g.eaves = Some(Eaves {
+            overhang: 0.5,
+            thickness: 0.12,
+            edges: vec![true, true, true, false],
+            soffit: Color::WHITE,
+        });
+        let boards = eaves_solids(&g);
+        assert_eq!(boards.len(), 4);
+        for b in &boards {
+            assert!(b.faces.iter().all(planar));
+            assert!(area_sum(&b.faces).length() < 1e-9, "closed");
+            assert!(volume(&b.faces) > 0.0, "facing out");
+            assert!(b.faces[0].normal().z > 0.0 && b.faces[1].normal().z < 0.0);
+        }
+        // The south eave drops along the roof's slope (eave 3, ridge 5 over 3 m): 0.5 m out
+        // is 1/3 m lower; mitred at the east corner, square at the west (edge 3 is bare).
+        let top = &boards[0].faces[0].outer;
+        assert!(top.iter().any(|q| (q.x - 100.5).abs() < 1e-9
+            && (q.y + 0.5).abs() < 1e-9
+            && (q.z - (3.0 - 1.0 / 3.0)).abs() < 1e-9));
+        assert!(top
+            .iter()
+            .any(|q| (q.x - 90.0).abs() < 1e-9 && (q.y + 0.5).abs() < 1e-9));
+        // The verge halves meet at the ridge's height, 0.5 m past the gable.
+        let ridge = DVec3::new(100.5, 3.0, 5.0);
+        let at_ridge = boards
+            .iter()
+            .filter(|b| b.faces[0].outer.iter().any(|q| q.distance(ridge) < 1e-9))
+            .count();
+        assert_eq!(at_ridge, 2);
+        // A flat part has no eaves; no cornice or eaves, nothing.
+        assert!(eaves_solids(&p).is_empty());
+        p.cornice = None;
+        assert!(cornice_solids(&p).is_empty());
+    }
+
     #[test]
     fn a_sill_is_a_closed_box_under_each_raised_window_clear_of_its_neighbours() {
         // Front wall of a CCW footprint: outside is -y.
@@ -1237,6 +1578,8 @@ pub(crate) mod samples {
             role: PartRole::Own,
             structure: None,
             rhythm: None,
+            cornice: None,
+            eaves: None,
         }
     }
 

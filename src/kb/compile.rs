@@ -436,6 +436,8 @@ mod tests {
             door_height: 2.2,
             min_opening_width: 0.4,
             balconies: 0.0,
+            cornice: None,
+            eaves: None,
             programme: None,
             window_height: WindowHeight::Tall,
             window_style: "framed".into(),

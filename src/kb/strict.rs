@@ -50,7 +50,7 @@ enum Ty {
     Terms,
 }
 
-const DESCRIPTORS: [(&str, Ty); 22] = [
+const DESCRIPTORS: [(&str, Ty); 25] = [
     ("color", Ty::Color),
     ("material", Ty::Token),
     ("nbfloor", Ty::Count),
@@ -73,6 +73,9 @@ const DESCRIPTORS: [(&str, Ty); 22] = [
     ("maxHeight", Ty::Pos),
     ("maxrotation", Ty::Dec(-360.0, 360.0)),
     ("programme", Ty::Programme),
+    ("cornice", Ty::Pos),
+    ("corniceheight", Ty::Pos),
+    ("eaves", Ty::Pos),
 ];
 
 const CIRCLE: [(&str, Ty); 3] = [

@@ -69,6 +69,13 @@ pub struct Style {
     pub min_opening_width: f64,
     /// Share (0..1) of upper-floor bays with a balcony (appearance value `balconies`).
     pub balconies: f64,
+    /// The cornice of a flat-roofed building's walls, (depth, height) in metres (issue 49):
+    /// the KB's `cornice` within 0.05-1.0 m and `corniceheight` within 0.1-1.5 m (default
+    /// 1.2 times the depth); `None` without a `cornice`.
+    pub cornice: Option<(f64, f64)>,
+    /// The eaves overhang of a pitched roof, metres in plan (issue 49): the KB's `eaves`
+    /// within 0.1-1.5 m; `None` without one.
+    pub eaves: Option<f64>,
     /// LOD4 programme for buildings whose `building=*` names no type (value `programme`).
     pub programme: Option<crate::model::Programme>,
     /// Window height class: the KB's `windowheight`, else tall.
@@ -318,6 +325,18 @@ impl KnowledgeBase {
                 .balconies
                 .filter(|b| b.is_finite())
                 .map_or(0.0, |b| b.clamp(0.0, 1.0)),
+            cornice: v.cornice.filter(|d| d.is_finite() && *d > 0.0).map(|d| {
+                let d = d.clamp(0.05, 1.0);
+                let h = v
+                    .cornice_height
+                    .filter(|h| h.is_finite() && *h > 0.0)
+                    .unwrap_or(1.2 * d);
+                (d, h.clamp(0.1, 1.5))
+            }),
+            eaves: v
+                .eaves
+                .filter(|o| o.is_finite() && *o > 0.0)
+                .map(|o| o.clamp(0.1, 1.5)),
             programme: v.programme,
             window_height: v.window_height.unwrap_or(WindowHeight::Tall),
             window_style: v

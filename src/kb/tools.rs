@@ -717,7 +717,7 @@ fn provenance_text(p: &crate::model::Provenance) -> String {
 }
 
 /// KB attribute names in the order [`value_fields`] lists them.
-const ATTRIBUTE_ORDER: [&str; 23] = [
+const ATTRIBUTE_ORDER: [&str; 26] = [
     "color",
     "material",
     "nbfloor",
@@ -740,6 +740,9 @@ const ATTRIBUTE_ORDER: [&str; 23] = [
     "windowstyle",
     "windowmaterial",
     "maxrotation",
+    "cornice",
+    "corniceheight",
+    "eaves",
     "infer",
 ];
 
@@ -748,7 +751,7 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
     let c = |x: Option<crate::color::Color>| x.map(color_word);
     let n = |x: Option<f64>| x.map(|x| format!("{x}"));
     let u = |x: Option<u32>| x.map(|x| x.to_string());
-    let fields: [(&'static str, Option<String>); 23] = [
+    let fields: [(&'static str, Option<String>); 26] = [
         ("color", c(v.wall_color)),
         ("material", v.material.clone()),
         ("nbfloor", u(v.storeys)),
@@ -774,6 +777,9 @@ fn value_fields(v: &Values) -> Vec<(&'static str, String)> {
         ("windowstyle", v.window_style.clone()),
         ("windowmaterial", v.window_material.clone()),
         ("maxrotation", n(v.max_rotation)),
+        ("cornice", n(v.cornice)),
+        ("corniceheight", n(v.cornice_height)),
+        ("eaves", n(v.eaves)),
         ("infer", v.infer.map(|i| i.as_string())),
     ];
     fields

@@ -155,6 +155,14 @@ pub struct Values {
     pub max_rotation: Option<f64>,
     /// `balconies`: the share (0..1) of upper-floor bays with a balcony and a balcony door.
     pub balconies: Option<f64>,
+    /// `cornice`: how far a cornice along the top of a flat-roofed building's walls stands out
+    /// of them, metres (positive; LOD3 and above, issue 49).
+    pub cornice: Option<f64>,
+    /// `corniceheight`: the cornice's height, metres (positive; default 1.2 times its depth).
+    pub cornice_height: Option<f64>,
+    /// `eaves`: how far a pitched roof reaches past the walls, metres in plan (positive; LOD3
+    /// and above, issue 49).
+    pub eaves: Option<f64>,
     /// `programme`: the LOD4 floor-plan programme of buildings whose `building=*` tag does not
     /// name a type (untagged or `yes`).
     pub programme: Option<crate::model::Programme>,
@@ -196,6 +204,9 @@ impl Values {
             window_material,
             max_rotation,
             balconies,
+            cornice,
+            cornice_height,
+            eaves,
             programme,
             infer
         );

@@ -226,6 +226,9 @@ impl Writer {
             ("doorwidth", v.door_width),
             ("doorheight", v.door_height),
             ("minopeningwidth", v.min_opening_width),
+            ("cornice", v.cornice),
+            ("corniceheight", v.cornice_height),
+            ("eaves", v.eaves),
         ] {
             if let Some(x) = x {
                 a.push((k, num(x)));

@@ -759,6 +759,9 @@ impl ZoneReader {
                 }
                 "maxrotation" => v.max_rotation = self.number(key, raw, line),
                 "balconies" => v.balconies = self.number(key, raw, line),
+                "cornice" => v.cornice = self.positive(key, raw, line),
+                "corniceheight" => v.cornice_height = self.positive(key, raw, line),
+                "eaves" => v.eaves = self.positive(key, raw, line),
                 "infer" if zone_level => {
                     if let Some(t) = self.clean(key, raw, line) {
                         v.infer = crate::model::Inference::parse(&t);

@@ -386,6 +386,8 @@ fn the_old_zones_resolve_the_same_styles_on_both_samples() {
             assert_ne!(a.zone_path, "earth", "{}: outside the old zones", l.id);
             b.zone_path = strip(&b.zone_path);
             b.appearance_label = strip(&b.appearance_label);
+            // The cornices and eaves the world KB added after (issue 49) are its own.
+            (b.cornice, b.eaves) = (a.cornice, a.eaves);
             assert_eq!(a, b, "{}", l.id);
             n += 1;
         }

@@ -277,6 +277,8 @@ pub fn build_part(key: String, mass: &Mass, roof: &RoofGeometry, lod: Lod) -> Pa
         role: PartRole::Own,
         structure: None,
         rhythm: None,
+        cornice: None,
+        eaves: None,
     }
 }
 

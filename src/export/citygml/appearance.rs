@@ -4,7 +4,10 @@
 
 use crate::color::material::Material;
 use crate::color::Color;
-use crate::export::lod3geom::{balcony_faces, opening_face, wall_sill_faces, SILL_COLOR};
+use crate::export::lod3geom::{
+    balcony_faces, cornice_solids, eaves_solids, opening_face, trim_color, wall_sill_faces,
+    SILL_COLOR,
+};
 use crate::model::{Building, OpeningKind};
 
 use super::material::{x3d_material, ColorKey};
@@ -34,7 +37,8 @@ impl Renderer<'_> {
                     SurfaceKind::Wall
                     | SurfaceKind::Opening { .. }
                     | SurfaceKind::Balcony { .. }
-                    | SurfaceKind::Sill { .. } => (part.wall_color, part.wall_material),
+                    | SurfaceKind::Sill { .. }
+                    | SurfaceKind::Trim { .. } => (part.wall_color, part.wall_material),
                 };
                 add_target(&mut materials, color, material, (pi, s.kind, s.index));
             }
@@ -81,6 +85,20 @@ impl Renderer<'_> {
                         Material::Unspecified,
                         (pi, kind, i),
                     );
+                }
+            }
+            // The cornice and eaves (issue 49), each face in its colour.
+            for eaves in [false, true] {
+                let solids = if eaves {
+                    eaves_solids(part)
+                } else {
+                    cornice_solids(part)
+                };
+                let faces = solids.iter().flat_map(|s| s.faces.iter().enumerate());
+                for (i, (k, _)) in faces.enumerate() {
+                    let (color, material) = trim_color(part, eaves, k);
+                    let kind = SurfaceKind::Trim { eaves };
+                    add_target(&mut materials, color, material, (pi, kind, i));
                 }
             }
         }

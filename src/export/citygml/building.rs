@@ -2,7 +2,7 @@
 //! parts (`bldg:BuildingPart`), and the ids derived from the source id.
 
 use crate::export::ids::{id_fragment, part_ids};
-use crate::export::lod3geom::{balcony_faces, wall_sill_faces};
+use crate::export::lod3geom::{balcony_faces, cornice_solids, eaves_solids, wall_sill_faces};
 use crate::model::{AttrValue, Attributes, Building, Provenance, RoofShape};
 
 use super::surfaces::{surfaces, written_walls};
@@ -105,6 +105,14 @@ impl Renderer<'_> {
                             lo = lo.min(*p);
                             hi = hi.max(*p);
                         }
+                    }
+                }
+                // And the cornice and eaves (issue 49).
+                let trim = cornice_solids(part).into_iter().chain(eaves_solids(part));
+                for s in trim {
+                    for p in s.faces.iter().flat_map(|f| f.outer.iter()) {
+                        lo = lo.min(*p);
+                        hi = hi.max(*p);
                     }
                 }
             }

@@ -2,7 +2,9 @@
 //! balconies as `bldg:BuildingInstallation`s, and the `lod3Solid` (also used at LOD4 with the
 //! `lod4` properties).
 
-use crate::export::lod3geom::{balcony_faces, opening_face, seated_changes, wall_sill_faces};
+use crate::export::lod3geom::{
+    balcony_faces, cornice_solids, eaves_solids, opening_face, seated_changes, wall_sill_faces,
+};
 use crate::model::{Face, OpeningKind, Part};
 
 use super::surfaces::{
@@ -44,6 +46,24 @@ impl Renderer<'_> {
             x.s("_sills");
             let kind = SurfaceKind::Sill { wall: wi };
             installation_rest(x, "window sills", (pid, origin, srs, d), kind, boxes.iter());
+        }
+        // The cornice and eaves (issue 49): one installation each, a surface per face.
+        for (eaves, name) in [(false, "cornice"), (true, "eaves")] {
+            let solids = if eaves {
+                eaves_solids(part)
+            } else {
+                cornice_solids(part)
+            };
+            if solids.is_empty() {
+                continue;
+            }
+            x.s("<bldg:outerBuildingInstallation>\n<bldg:BuildingInstallation gml:id=\"");
+            x.s(pid);
+            x.s("_");
+            x.s(name);
+            let faces = solids.iter().flat_map(|s| s.faces.iter());
+            let kind = SurfaceKind::Trim { eaves };
+            installation_rest(x, name, (pid, origin, srs, d), kind, faces);
         }
         if self.lod == GeometryLod::Lod4 {
             lod4::stairs(x, part, pid, origin, srs);

@@ -27,6 +27,12 @@ pub(super) enum SurfaceKind {
     Sill {
         wall: usize,
     },
+    /// A face of the part's cornice or eaves solids (`eaves`), in
+    /// `crate::export::lod3geom::cornice_solids` or `eaves_solids` order (the surface's index
+    /// counts them).
+    Trim {
+        eaves: bool,
+    },
 }
 
 /// One polygon to write: its kind, its index in the model's list (for openings and balcony
@@ -153,7 +159,8 @@ pub(super) fn boundary_element(kind: SurfaceKind) -> &'static str {
         SurfaceKind::Wall
         | SurfaceKind::Opening { .. }
         | SurfaceKind::Balcony { .. }
-        | SurfaceKind::Sill { .. } => "bldg:WallSurface",
+        | SurfaceKind::Sill { .. }
+        | SurfaceKind::Trim { .. } => "bldg:WallSurface",
     }
 }
 

@@ -94,6 +94,8 @@ fn prism(
         role: PartRole::Own,
         structure: None,
         rhythm: None,
+        cornice: None,
+        eaves: None,
     }
 }
 

@@ -103,6 +103,10 @@ impl Xml {
                 self.s("_sill");
                 self.uint(index as u64);
             }
+            SurfaceKind::Trim { eaves } => {
+                self.s(if eaves { "_eaves" } else { "_cornice" });
+                self.uint(index as u64);
+            }
         }
     }
 

@@ -13,7 +13,8 @@ use crate::color::material::{Material, ALL};
 use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{
-    balcony_faces, opening_face, seated_changes, sills, wall_sill_faces,
+    balcony_faces, cornice_solids, eaves_solids, opening_face, seated_changes, sills, trim_color,
+    wall_sill_faces,
 };
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::export::texture::{roof_map, wall_maps, Texture, Texturing, UvMap};
@@ -318,6 +319,30 @@ impl Frag {
         self.s("}");
     }
 
+    /// A MultiSurface of the faces, without semantics, each face in its colour (issue 49's
+    /// cornices and eaves).
+    fn multi_surface_colored(&mut self, lod: &str, faces: &[&Face], colours: &[(Color, Material)]) {
+        self.s("{\"type\":\"MultiSurface\",\"lod\":\"");
+        self.s(lod);
+        self.s("\",\"boundaries\":[");
+        for (i, f) in faces.iter().enumerate() {
+            if i > 0 {
+                self.s(",");
+            }
+            self.surface(f);
+        }
+        self.s("],\"material\":{\"");
+        self.s(THEME);
+        self.s("\":{\"values\":[");
+        for (i, c) in colours.iter().enumerate() {
+            if i > 0 {
+                self.s(",");
+            }
+            self.material(Some(*c));
+        }
+        self.s("]}}}");
+    }
+
     /// A MultiSurface of the faces, without semantics.
     fn multi_surface(&mut self, lod: &str, faces: &[&Face]) {
         self.s("{\"type\":\"MultiSurface\",\"lod\":\"");
@@ -538,6 +563,9 @@ enum Extra<'a> {
     },
     /// The window sills of wall `wall` (`crate::export::lod3geom::sills`), one object.
     Sills { wall: &'a Wall, id: String },
+    /// The part's cornice (`eaves` false) or eaves (`crate::export::lod3geom::cornice_solids`,
+    /// `eaves_solids`), one object.
+    Trim { eaves: bool, id: String },
     /// Room `room` of storey `storey` (index in the part's interior).
     Room {
         storey: usize,
@@ -559,6 +587,7 @@ impl Extra<'_> {
         match self {
             Extra::Balcony { id, .. }
             | Extra::Sills { id, .. }
+            | Extra::Trim { id, .. }
             | Extra::Room { id, .. }
             | Extra::InteriorWall { id, .. }
             | Extra::Stair { id, .. } => id,
@@ -591,6 +620,18 @@ fn extras<'a>(part: &'a Part, pid: &str, lod: Lod) -> Vec<Extra<'a>> {
                 id: format!("{pid}_w{wi}_sills"),
             });
         }
+    }
+    if !cornice_solids(part).is_empty() {
+        out.push(Extra::Trim {
+            eaves: false,
+            id: format!("{pid}_cornice"),
+        });
+    }
+    if !eaves_solids(part).is_empty() {
+        out.push(Extra::Trim {
+            eaves: true,
+            id: format!("{pid}_eaves"),
+        });
     }
     if lod < Lod::Lod4 {
         return out;
@@ -948,6 +989,23 @@ fn lod3_solid(f: &mut Frag, part: &Part) {
     f.solid("3", &faces, Some(&sem), Some(&colours), &tex);
 }
 
+/// Every face of a part's cornice (`eaves` false) or eaves solids with its colour and material:
+/// a cornice in its own colour; the eaves' top and fascia in the roof's, the rest (the soffit
+/// and the board's ends) in the soffit's. Every writer colours them so.
+fn trim_colors<'a>(
+    part: &Part,
+    eaves: bool,
+    solids: &'a [crate::export::lod3geom::TrimSolid],
+) -> Vec<(&'a Face, (Color, Material))> {
+    let mut out = Vec::new();
+    for s in solids {
+        for (i, f) in s.faces.iter().enumerate() {
+            out.push((f, trim_color(part, eaves, i)));
+        }
+    }
+    out
+}
+
 /// The part's extras as CityObjects (`,\n"id":{...}` each).
 fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) {
     for e in extras {
@@ -973,6 +1031,22 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.s(",\"attributes\":{\"function\":\"window sills\"},\"geometry\":[");
                 let all: Vec<&Face> = boxes.iter().collect();
                 f.multi_surface("3", &all);
+                f.s("]}");
+            }
+            Extra::Trim { eaves, id } => {
+                let (solids, function) = if *eaves {
+                    (eaves_solids(part), "eaves")
+                } else {
+                    (cornice_solids(part), "cornice")
+                };
+                let colored = trim_colors(part, *eaves, &solids);
+                f.s(",");
+                f.open_object(id, "BuildingInstallation", Some(parent), &[]);
+                f.s(",\"attributes\":{\"function\":\"");
+                f.s(function);
+                f.s("\"},\"geometry\":[");
+                let (faces, colours): (Vec<&Face>, Vec<_>) = colored.into_iter().unzip();
+                f.multi_surface_colored("3", &faces, &colours);
                 f.s("]}");
             }
             Extra::Room { storey, room, id } => {

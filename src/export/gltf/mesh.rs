@@ -3,8 +3,8 @@
 
 use crate::color::Color;
 use crate::export::lod3geom::{
-    balcony_faces, opening_face, opening_frame, opening_reveals, sill_against_wall, sill_faces,
-    sills, SILL_COLOR,
+    balcony_faces, cornice_solids, eaves_solids, opening_face, opening_frame, opening_reveals,
+    sill_against_wall, sill_faces, sills, trim_color, SILL_COLOR,
 };
 use crate::export::{check_finite, ExportError};
 use crate::model::{Building, OpeningKind, Part};
@@ -209,6 +209,12 @@ pub(crate) fn building_groups(
                 | SurfaceClass::Slabs => add_interior(&mut groups, part, class),
                 SurfaceClass::Terrain => {}
             }
+            // The cornice with the walls, the eaves with the roof (issue 49).
+            match class {
+                SurfaceClass::Walls => add_trim(&mut groups, part, false),
+                SurfaceClass::Roof => add_trim(&mut groups, part, true),
+                _ => {}
+            }
         }
         groups.retain(|g| !g.mesh.indices.is_empty());
         if !groups.is_empty() {
@@ -216,6 +222,22 @@ pub(crate) fn building_groups(
         }
     }
     classes
+}
+
+/// Adds `part`'s cornice (`eaves` false) or eaves solids, less their faces against the wall,
+/// each face in its colour and material (`lod3geom::trim_color`).
+fn add_trim(groups: &mut Vec<Group>, part: &Part, eaves: bool) {
+    let solids = if eaves {
+        eaves_solids(part)
+    } else {
+        cornice_solids(part)
+    };
+    for s in &solids {
+        for (i, f) in s.shown() {
+            let (c, m) = trim_color(part, eaves, i);
+            group_with(groups, c, m).add_face(f);
+        }
+    }
 }
 
 /// Adds a face `f` of wall `w` of `part` to its textured group: with [`Texturing::Facades`]

@@ -93,6 +93,8 @@ fn part(
         role: PartRole::Own,
         structure: None,
         rhythm: None,
+        cornice: None,
+        eaves: None,
     }
 }
 

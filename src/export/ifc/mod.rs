@@ -142,6 +142,7 @@ mod shapes;
 mod spatial;
 mod styles;
 mod terrain;
+mod trim;
 mod walls;
 
 /// Thickness of the base slab, extruded down from the ground surface (metres).

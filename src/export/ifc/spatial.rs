@@ -510,6 +510,17 @@ impl Render<'_> {
         if let Some(id) = self.roof(part, &frames[top], &global_id(key, &format!("{pk}/roof")))? {
             contained[top].push(id);
         }
+        // Cornice and eaves (issue 49), with the top storey.
+        let asks = [part.cornice.is_some(), part.eaves.is_some()];
+        for (eaves, what) in [(false, "cornice"), (true, "eaves")] {
+            if !asks[usize::from(eaves)] {
+                continue;
+            }
+            let gid = global_id(key, &format!("{pk}/{what}"));
+            if let Some(id) = self.trim(part, &frames[top], &gid, eaves)? {
+                contained[top].push(id);
+            }
+        }
         for (s, ids) in contained.iter().enumerate() {
             if ids.is_empty() {
                 continue;

@@ -89,6 +89,8 @@ fn flat_part(key: &str, fp: Polygon, base: f64, top: f64, storeys: u32) -> Part 
         role: PartRole::Own,
         structure: None,
         rhythm: None,
+        cornice: None,
+        eaves: None,
         footprint: fp,
         base_z: base,
         eave_z: top,
