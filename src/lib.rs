@@ -42,5 +42,5 @@ pub mod prepare;
 pub mod report;
 pub mod rng;
 pub mod selex;
-#[cfg(any(test, feature = "testkit"))]
+#[doc(hidden)]
 pub mod testkit;

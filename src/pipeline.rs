@@ -261,9 +261,8 @@ pub(crate) fn infer_from_neighbours(
 
 /// Runs what a run infers from the neighbours (colours, then the height and roof estimator)
 /// over `lots`, every inference on, as [`run`] does between its `fronts` and `select` stages:
-/// for `tests/memory_estimate.rs`, which measures its working set (feature `testkit`). Returns
+/// for `tests/memory_estimate.rs`, which measures its working set. Returns
 /// how many lots have storeys after it (tagged or estimated).
-#[cfg(any(test, feature = "testkit"))]
 #[doc(hidden)]
 pub fn infer_all(kb: &KnowledgeBase, lots: &mut [prepare::Lot]) -> usize {
     let all = crate::model::Inference {

@@ -63,7 +63,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         "export",
         &["model", "geometry", "color", "crs", "guard", "fsio"],
     ),
-    // The run, and the test kit (feature `testkit`) that builds inputs for tests and benches.
+    // The run, and the test kit that builds inputs for tests and benches.
     (
         "pipeline",
         &[

@@ -104,8 +104,8 @@ fn monaco_ville_interiors_write_and_validate() {
     assert_eq!(gml_rooms, rooms);
 
     // The geometry kernel is slow on the whole quarter (hundreds of buildings): validate the
-    // first 6 buildings with a multi-storey interior (stairs, upper slabs) in files of their
-    // own, and the quarter's glTF.
+    // first 3 buildings with a multi-storey interior (stairs, upper slabs) in files of their
+    // own, and the quarter's glTF (CI's sample step builds a whole LOD4 corner of it).
     let Some(tool) =
         citygen::testkit::validators::validate_outputs("Monaco-Ville LOD4 (geometry kernel)")
     else {
@@ -114,10 +114,10 @@ fn monaco_ville_interiors_write_and_validate() {
     let some: Vec<Building> = buildings
         .iter()
         .filter(|b| b.parts.iter().any(|p| p.interior.len() > 1))
-        .take(6)
+        .take(3)
         .cloned()
         .collect();
-    assert_eq!(some.len(), 6);
+    assert_eq!(some.len(), 3);
     let mut ifc = IfcWriter::new(Vec::new()).with_file_name("some.ifc");
     write(&mut ifc, &ctx, &some);
     std::fs::write(out.join("some.ifc"), ifc.into_inner().unwrap()).unwrap();

@@ -176,11 +176,17 @@ fn without_terrain_the_files_are_those_of_a_run_without_a_grid() {
         .all(|f| !f.0.to_string_lossy().contains("terrain")));
 }
 
+/// Fontvieille and Monaco-Ville (lon, lat).
+const SOUTH_WEST: [f64; 4] = [7.4120, 43.7265, 7.4240, 43.7330];
+
 #[test]
 fn shards_merge_with_their_terrain() {
     let dir = tempfile::tempdir().unwrap();
     for i in 0..2 {
         let mut o = opts(dir.path(), Some(500), Some(ground()));
+        // Fontvieille and Monaco-Ville, on six tiles of 500 m: the whole city's merged
+        // CityJSONSeq, a terrain per tile, took cjval eight minutes.
+        o.bbox = Some(SOUTH_WEST);
         o.shard = Some((
             citygen::pipeline::shard::Shard { index: i, count: 2 },
             format!("--shard {}/2", i + 1),

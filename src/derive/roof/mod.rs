@@ -155,11 +155,14 @@ pub fn hipped(poly: &Polygon, pitch_deg: f64) -> Result<RoofGeometry, RoofError>
     Ok(RoofGeometry::new(faces, Vec::new()))
 }
 
+/// The least distance, in plan, from a pyramid's apex to the line of any footprint edge (m).
+const PYRAMID_MIN_RUN: f64 = 0.01;
+
 /// A pyramidal roof: one triangle per edge rising to an apex `height` above the centroid of the
 /// footprint.
 ///
-/// Errors: non-positive height, holes, or a footprint that is not strictly star-shaped from the
-/// centroid (some triangle would fold over).
+/// Errors: non-positive height, holes, or a footprint that is not star-shaped from the
+/// centroid with room to spare (some triangle would fold over or stand almost upright).
 pub fn pyramidal(poly: &Polygon, height: f64) -> Result<RoofGeometry, RoofError> {
     if !(height.is_finite() && height > 0.0) {
         return Err(RoofError::InvalidParameter("height must be positive"));
@@ -169,13 +172,16 @@ pub fn pyramidal(poly: &Polygon, height: f64) -> Result<RoofGeometry, RoofError>
     }
     let c = centroid(&poly.outer).ok_or(RoofError::NotStarShaped)?;
     let n = poly.outer.len();
-    let (lo, hi) = poly.bounds();
-    let tol = 1e-9 * (hi - lo).max_element().powi(2);
+    // The apex must be left of every edge by a centimetre (clear of the millimetre grid the
+    // part is snapped to, which could turn a sliver face over) and every face no steeper
+    // than about 84° (a tenth of the height away): a centroid next to an edge's line would
+    // give a wall-like face, and the roof is hipped instead.
+    let clear = PYRAMID_MIN_RUN.max(0.1 * height);
     let mut faces = Vec::with_capacity(n);
     for i in 0..n {
         let (a, b) = (poly.outer[i], poly.outer[(i + 1) % n]);
-        // The apex must be strictly left of every edge.
-        if (b - a).perp_dot(c - a) <= tol {
+        let run = (b - a).perp_dot(c - a) / (b - a).length();
+        if !(run >= clear) {
             return Err(RoofError::NotStarShaped);
         }
         faces.push(Face::new(vec![

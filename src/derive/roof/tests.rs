@@ -1050,3 +1050,25 @@ fn moved_ridge_gable_turned_on_a_stepped_union() {
     )
     .unwrap();
 }
+
+/// A `shapes_general` case on a random seed (December 2026): a pyramid over a nine-point star
+/// 8.8 m across at 10°, whose outline turns back on itself at two near-collinear corners.
+#[test]
+fn pyramid_over_a_nine_point_star() {
+    let pts = [
+        (0.3611125150386453, 0.4891053891869367),
+        (0.9237854848121274, 0.336215633292744),
+        (0.9913003795727122, 0.8414685661351231),
+        (0.5677965863749853, 0.8962287471263827),
+        (0.8034768981410844, 0.9332281012633152),
+        (0.206408754367298, 0.22711611369512677),
+        (0.1913798013927692, 0.5230513777543668),
+        (0.9643083743523202, 0.6545431521399907),
+        (0.35605523364038205, 0.3730511273442392),
+    ];
+    let p = star(&pts, 8.841111875221241);
+    for shape in case_shapes(5) {
+        check_shape(&p, shape, 10.0).unwrap_or_else(|e| panic!("{shape:?}: {e}"));
+    }
+    check_oriented(&p, RoofShape::Pyramidal, 10.0, None, false).unwrap();
+}
