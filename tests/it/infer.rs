@@ -128,14 +128,13 @@ fn measured_heights_of_the_truth_corpus_rank_with_the_truth() {
         assert!(h["n"].as_u64().unwrap() >= 40);
         assert!(h["error"].as_f64().unwrap() < 8.0, "{h}");
         // Rows (issue 42's terraces): touching footprints of like size are drawn in one roof
-        // family; a house and its much smaller outbuilding may differ.
+        // family, an annex (in no row, against a footprint 3 times larger) in its host's:
+        // at most a tenth of all touching pairs differ.
         let f = &c["form"];
         assert!(f["row_pairs"].as_u64().unwrap() <= f["touching_pairs"].as_u64().unwrap());
-        assert!(
-            f["row_pairs_differing"].as_f64().unwrap() <= 0.10,
-            "{}: {f}",
-            c["name"]
-        );
+        for k in ["row_pairs_differing", "pairs_differing"] {
+            assert!(f[k].as_f64().unwrap() <= 0.10, "{}: {k} {f}", c["name"]);
+        }
     }
     // Attached footprints by their measured roof (issue 42's terraces): counted where the
     // truth has roofs (Clifton and three PLATEAU towns have none), shares between 0 and 1.

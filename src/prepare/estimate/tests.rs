@@ -154,7 +154,7 @@ fn an_attached_row_shares_one_height_and_one_roof() {
 fn touching_footprints_of_like_size_share_a_roof_family_whatever_their_heights() {
     // A 50 m² house (mostly pitched by its size) against a 100 m² block of flats (mostly
     // flat, and too tall to share the house's height): one roof family. A 15 m² shed against
-    // a 120 m² house (8 times its size) keeps its own.
+    // a 120 m² house (8 times its size), in no row of its own, takes the house's family.
     let lots = vec![
         lot(1, 0.0, 0.0, 5.0, 10.0, kind("yes")),
         lot(2, 5.0, 0.0, 10.0, 10.0, kind("apartments")),
@@ -183,7 +183,39 @@ fn touching_footprints_of_like_size_share_a_roof_family_whatever_their_heights()
         "{:?}",
         e(2)
     );
-    assert_eq!(e(3).shape, RoofShape::Flat, "{:?}", e(3));
+    assert!(alone(3) < 0.5, "alone the shed is flat: {}", alone(3));
+    assert_eq!(e(3).pitched, e(2).pitched, "{:?}", e(3));
+    assert_ne!(e(3).shape, RoofShape::Flat, "{:?}", e(3));
+}
+
+#[test]
+fn an_annex_takes_its_hosts_roof_family_and_a_row_keeps_its_own() {
+    // A 12 m² shed against a flat-tagged 200 m² block: flat, from the block's tag. A 9 m²
+    // garage against a pitched-tagged 100 m² house: pitched, the house's shape. A row of
+    // four 48 m² cottages against the end of a 600 m² flat block (12 times larger) keeps
+    // the row's own family: members of a row are not annexes.
+    let tagged = |shape: RoofShape| BuildingTags {
+        roof_shape: Some(shape),
+        ..kind("yes")
+    };
+    let mut lots = vec![
+        lot(1, 0.0, 0.0, 20.0, 10.0, tagged(RoofShape::Flat)),
+        lot(2, 20.0, 0.0, 3.0, 4.0, kind("yes")),
+        lot(3, 500.0, 0.0, 10.0, 10.0, tagged(RoofShape::Hipped)),
+        lot(4, 510.0, 0.0, 3.0, 3.0, kind("yes")),
+        lot(5, 1000.0, 0.0, 30.0, 20.0, kind("yes")),
+    ];
+    lots.extend(terrace(6, 1030.0, 4, |_| 6.0, |_| 8.0, |_| kind("yes")));
+    let out = run_in(&lots, roofs_in(0.6));
+    let e = |i: usize| out.estimates[i].unwrap_or_else(|| panic!("lot {i} estimated"));
+    assert_eq!(e(1).shape, RoofShape::Flat, "{:?}", e(1));
+    assert_eq!(e(1).roof_source, ValueSource::Neighbours);
+    assert_eq!(e(3).shape, RoofShape::Hipped, "{:?}", e(3));
+    assert_eq!(e(3).roof_source, ValueSource::Neighbours);
+    assert_eq!(e(4).shape, RoofShape::Flat, "{:?}", e(4));
+    for i in 5..9 {
+        assert_ne!(e(i).shape, RoofShape::Flat, "cottage {i}: {:?}", e(i));
+    }
 }
 
 #[test]
