@@ -595,3 +595,78 @@ fn like_houses_along_a_street_get_like_heights() {
         .map(|p| p.install(|| local_form(&lots, &m, &points, base.clone())));
     assert_eq!(one.ok(), Some(out));
 }
+
+/// Narrow old-town houses (50 m²) among tagged narrow houses of 5 storeys take their storeys
+/// (up to [`SMALL_LENT_CAP`]); without small tagged lenders the footprint's cap of 3 holds,
+/// and a 20 m² footprint stays at 2 whatever they say.
+#[test]
+fn small_tagged_lenders_lend_narrow_houses_their_storeys() {
+    let five = BuildingTags {
+        levels: Some(5.0),
+        ..kind("yes")
+    };
+    // Two rows 30 m apart: the first of tagged 5 x 10 m houses, the second untagged, with a
+    // 4 x 5 m footprint at its end.
+    let mut lots: Vec<Lot> = (0..8)
+        .map(|k| lot(k, 5.0 * k as f64, 0.0, 5.0, 10.0, five.clone()))
+        .collect();
+    lots.extend((0..8).map(|k| lot(100 + k, 5.0 * k as f64, 40.0, 5.0, 10.0, kind("yes"))));
+    lots.push(lot(200, 60.0, 40.0, 4.0, 5.0, kind("yes")));
+    let out = run_in(&lots, zone(3.0, true));
+    for i in 8..16 {
+        let e = out.estimates[i].unwrap_or_else(|| panic!("house {i} estimated"));
+        assert_eq!(e.storeys, 5.0, "house {i}: {e:?}");
+        assert!(e.voted && e.storey_cap >= 5.0, "{e:?}");
+    }
+    let tiny = out.estimates[16].unwrap_or_else(|| panic!("the 20 m² footprint estimated"));
+    assert!(tiny.storeys <= 2.0, "{tiny:?}");
+    // The same houses among tagged 5-storey blocks of 400 m²: not small lenders, capped.
+    let block = BuildingTags {
+        levels: Some(5.0),
+        ..kind("yes")
+    };
+    let mut lots: Vec<Lot> = (0..4)
+        .map(|k| lot(k, 25.0 * k as f64, 0.0, 20.0, 20.0, block.clone()))
+        .collect();
+    lots.extend((0..8).map(|k| lot(100 + k, 5.0 * k as f64, 40.0, 5.0, 10.0, kind("yes"))));
+    let out = run_in(&lots, zone(3.0, true));
+    for i in 4..12 {
+        let e = out.estimates[i].unwrap_or_else(|| panic!("house {i} estimated"));
+        assert!(e.storeys <= 3.0, "house {i}: {e:?}");
+    }
+}
+
+/// A row whose members' storeys the tagged neighbours voted keeps the voted storeys when it
+/// takes the row's height, also where the vote agreed with the model (source `Model`): the
+/// storeys are counted under the roof the estimate expected, not under the row's whole roof.
+#[test]
+fn voted_row_members_keep_their_voted_storeys() {
+    let pitched_zone = RoofMix {
+        pitched: 0.5,
+        ..zone(4.0, true)
+    };
+    // Untagged 8 x 12 m houses in a row; tagged detached houses of the same size 30-60 m away.
+    let untagged: Vec<Lot> = (0..6)
+        .map(|k| lot(100 + k, 8.0 * k as f64, 0.0, 8.0, 12.0, kind("yes")))
+        .collect();
+    let alone = run_in(&untagged, pitched_zone);
+    let model: Vec<f64> = alone
+        .estimates
+        .iter()
+        .flatten()
+        .map(|e| e.storeys)
+        .collect();
+    let levels = model[2];
+    let tagged = BuildingTags {
+        levels: Some(levels),
+        ..kind("yes")
+    };
+    let mut lots = untagged.clone();
+    lots.extend((0..6).map(|k| lot(k, 14.0 * k as f64, 40.0, 8.0, 12.0, tagged.clone())));
+    let out = run_in(&lots, pitched_zone);
+    for i in 0..untagged.len() {
+        let e = out.estimates[i].unwrap_or_else(|| panic!("house {i} estimated"));
+        assert!(e.voted, "{e:?}");
+        assert_eq!(e.storeys, levels, "house {i}: {e:?} (alone {model:?})");
+    }
+}
