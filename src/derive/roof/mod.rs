@@ -181,7 +181,7 @@ pub fn pyramidal(poly: &Polygon, height: f64) -> Result<RoofGeometry, RoofError>
     for i in 0..n {
         let (a, b) = (poly.outer[i], poly.outer[(i + 1) % n]);
         let run = (b - a).perp_dot(c - a) / (b - a).length();
-        if !(run >= clear) {
+        if run.is_nan() || run < clear {
             return Err(RoofError::NotStarShaped);
         }
         faces.push(Face::new(vec![
