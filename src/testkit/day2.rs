@@ -52,7 +52,7 @@ use crate::report::Report;
 pub const ADDED_CLEARANCE_M: f64 = 3.0;
 
 /// An edited building's bounding box grown by this many metres meets no `building:part`'s.
-pub(crate) const PART_MARGIN_M: f64 = 2.0;
+pub const PART_MARGIN_M: f64 = 2.0;
 
 /// Metres per degree of latitude (the same figure as the tiled input's jitter).
 const METRE_PER_DEG: f64 = 111_320.0;
@@ -127,10 +127,10 @@ pub enum Spread {
 }
 
 /// Edits in one cluster of [`Spread::Clustered`] (a mapper's changeset on one street block).
-pub(crate) const CLUSTER_EDITS: usize = 25;
+pub const CLUSTER_EDITS: usize = 25;
 
 /// Radius of one cluster of [`Spread::Clustered`], in metres.
-pub(crate) const CLUSTER_RADIUS_M: f64 = 250.0;
+pub const CLUSTER_RADIUS_M: f64 = 250.0;
 
 /// Writes day 1 (`n` tiled buildings), day 2, the osmChange and the edit list into `dir` (see
 /// the module documentation), with edits spread uniformly. The same `n` and `seed` give the
