@@ -139,7 +139,7 @@ fn monaco_shards_on_their_parts_write_the_whole_inputs_bytes() {
 fn synthetic_shards_on_their_parts_write_the_whole_inputs_bytes_and_need_the_halo() {
     let dir = tempfile::tempdir().unwrap();
     let osm = dir.path().join("tiled.osm.pbf");
-    citygen::testkit::tiled::make_tiled(2500, &osm).unwrap();
+    citygen::testkit::tiled::make_tiled(1200, &osm).unwrap();
     let [whole, parts] = whole_and_split(&osm, "300", 4, "1000", false);
     assert_same(&whole, &parts);
     // Without a halo the buildings at a tile's edge lose the neighbours they take heights

@@ -181,20 +181,18 @@ impl Frag {
         let rings = ring(&f.outer)
             .into_iter()
             .chain(f.holes.iter().filter_map(|h| ring(h)));
-        for (k, r) in rings.enumerate() {
-            if k > 0 {
-                self.s(",");
-            }
-            self.s("[");
-            self.texture(t);
+        self.comma(rings, |w, r| {
+            w.s("[");
+            w.texture(t);
             for (_, p) in written(r) {
-                self.s(",");
-                self.st(map.st(p));
+                w.s(",");
+                w.st(map.st(p));
             }
-            self.s("]");
-        }
+            w.s("]");
+        });
         self.s("]");
     }
+
     /// The index of the material of colour and surface material `c`, marked at the end of the
     /// text (`null` for none).
     fn material(&mut self, c: Option<(Color, Material)>) {
@@ -211,6 +209,16 @@ impl Frag {
             }
         } as u32;
         self.marks.push((self.text.len(), MATERIAL | i));
+    }
+
+    /// The items, comma-separated, each written by `each`.
+    fn comma<T>(&mut self, items: impl IntoIterator<Item = T>, mut each: impl FnMut(&mut Self, T)) {
+        for (i, x) in items.into_iter().enumerate() {
+            if i > 0 {
+                self.s(",");
+            }
+            each(self, x);
+        }
     }
 
     fn s(&mut self, s: &str) {
@@ -246,12 +254,7 @@ impl Frag {
     /// fewer than 3 points is written as it was (as the CityGML writer does).
     fn ring(&mut self, points: &[DVec3]) {
         self.s("[");
-        for (i, (k, _)) in written(points).into_iter().enumerate() {
-            if i > 0 {
-                self.s(",");
-            }
-            self.vertex(k);
-        }
+        self.comma(written(points), |w, (k, _)| w.vertex(k));
         self.s("]");
     }
 
@@ -281,12 +284,7 @@ impl Frag {
         self.s("{\"type\":\"Solid\",\"lod\":\"");
         self.s(lod);
         self.s("\",\"boundaries\":[[");
-        for (i, f) in faces.iter().enumerate() {
-            if i > 0 {
-                self.s(",");
-            }
-            self.surface(f);
-        }
+        self.comma(faces, |w, f| w.surface(f));
         self.s("]]");
         if let Some(sem) = sem {
             self.s(",\"semantics\":");
@@ -296,24 +294,16 @@ impl Frag {
             self.s(",\"material\":{\"");
             self.s(THEME);
             self.s("\":{\"values\":[[");
-            for (i, c) in colours.iter().enumerate() {
-                if i > 0 {
-                    self.s(",");
-                }
-                self.material(*c);
-            }
+            self.comma(colours, |w, c| w.material(*c));
             self.s("]]}}");
         }
         if textures.iter().any(Option::is_some) {
             self.s(",\"texture\":{\"");
             self.s(THEME);
             self.s("\":{\"values\":[[");
-            for (i, (f, t)) in faces.iter().zip(textures).enumerate() {
-                if i > 0 {
-                    self.s(",");
-                }
-                self.surface_texture(f, *t);
-            }
+            self.comma(faces.iter().zip(textures), |w, (f, t)| {
+                w.surface_texture(f, *t)
+            });
             self.s("]]}}");
         }
         self.s("}");
@@ -325,21 +315,11 @@ impl Frag {
         self.s("{\"type\":\"MultiSurface\",\"lod\":\"");
         self.s(lod);
         self.s("\",\"boundaries\":[");
-        for (i, f) in faces.iter().enumerate() {
-            if i > 0 {
-                self.s(",");
-            }
-            self.surface(f);
-        }
+        self.comma(faces, |w, f| w.surface(f));
         self.s("],\"material\":{\"");
         self.s(THEME);
         self.s("\":{\"values\":[");
-        for (i, c) in colours.iter().enumerate() {
-            if i > 0 {
-                self.s(",");
-            }
-            self.material(Some(*c));
-        }
+        self.comma(colours, |w, c| w.material(Some(*c)));
         self.s("]}}}");
     }
 
@@ -348,12 +328,7 @@ impl Frag {
         self.s("{\"type\":\"MultiSurface\",\"lod\":\"");
         self.s(lod);
         self.s("\",\"boundaries\":[");
-        for (i, f) in faces.iter().enumerate() {
-            if i > 0 {
-                self.s(",");
-            }
-            self.surface(f);
-        }
+        self.comma(faces, |w, f| w.surface(f));
         self.s("]}");
     }
 
@@ -370,12 +345,7 @@ impl Frag {
         }
         if !children.is_empty() {
             self.s(",\"children\":[");
-            for (i, c) in children.iter().enumerate() {
-                if i > 0 {
-                    self.s(",");
-                }
-                self.string(c);
-            }
+            self.comma(children, |w, c| w.string(c));
             self.s("]");
         }
     }
@@ -458,10 +428,7 @@ impl Semantics {
     /// `{"surfaces":[...],"values":[...]}`, the values in one shell (`[[...]]`) for a solid.
     fn write(&self, f: &mut Frag, solid: bool) {
         f.s("{\"surfaces\":[");
-        for (i, o) in self.objects.iter().enumerate() {
-            if i > 0 {
-                f.s(",");
-            }
+        f.comma(&self.objects, |f, o| {
             f.s("{\"type\":\"");
             f.s(o.kind);
             f.s("\"");
@@ -471,12 +438,7 @@ impl Semantics {
             }
             if !o.children.is_empty() {
                 f.s(",\"children\":[");
-                for (k, c) in o.children.iter().enumerate() {
-                    if k > 0 {
-                        f.s(",");
-                    }
-                    f.uint(*c as u64);
-                }
+                f.comma(&o.children, |f, c| f.uint(*c as u64));
                 f.s("]");
             }
             if let Some(share) = o.party {
@@ -484,18 +446,13 @@ impl Semantics {
                 f.s(&format!("{:.2}", share.min(1.0)));
             }
             f.s("}");
-        }
+        });
         f.s(if solid {
             "],\"values\":[["
         } else {
             "],\"values\":["
         });
-        for (i, v) in self.values.iter().enumerate() {
-            if i > 0 {
-                f.s(",");
-            }
-            f.uint(*v as u64);
-        }
+        f.comma(&self.values, |f, v| f.uint(*v as u64));
         f.s(if solid { "]]}" } else { "]}" });
     }
 }
@@ -515,13 +472,10 @@ pub(super) fn terrain(f: &mut Frag, t: &crate::model::Terrain, id: &str, lod: &s
     f.s(",\"boundaries\":[");
     for (k, tri) in t.triangles.iter().enumerate() {
         f.s(if k > 0 { ",[[" } else { "[[" });
-        for (i, &v) in tri.iter().enumerate() {
-            if i > 0 {
-                f.s(",");
-            }
+        f.comma(tri, |f, &v| {
             let p = t.vertices.get(v as usize).copied().unwrap_or_default();
             f.vertex(grid_key(p));
-        }
+        });
         f.s("]]");
     }
     f.s("]}]}");

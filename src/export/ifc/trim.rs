@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use crate::export::lod3geom::{cornice_solids, eaves_solids, trim_color};
-use crate::export::step::Id;
+use crate::export::step::{Args, Id};
 use crate::export::ExportError;
 use crate::model::Part;
 
@@ -64,10 +64,26 @@ impl Render<'_> {
         } else {
             ("Cornice", "Cornice")
         };
+        let id = self.proxy(|a| a.string(gid), name, object_type, pl, shape)?;
+        Ok(Some(id))
+    }
+
+    /// An `IfcBuildingElementProxy` named `name` of ObjectType `object_type` (IFC4 and later:
+    /// PredefinedType `.USERDEFINED.`), placed at `pl` with the shape `shape`; `global_id`
+    /// writes its GlobalId.
+    pub(super) fn proxy(
+        &mut self,
+        global_id: impl for<'a, 'b> FnOnce(&'a mut Args<'b>) -> &'a mut Args<'b>,
+        name: &str,
+        object_type: &str,
+        pl: Id,
+        shape: Id,
+    ) -> Result<Id, ExportError> {
         let ifc4 = self.g.schema.ifc4_attributes();
-        Ok(Some(self.w.entity("IFCBUILDINGELEMENTPROXY", |a| {
-            a.string(gid)
-                .opt_id(self.g.owner)
+        let owner = self.g.owner;
+        Ok(self.w.entity("IFCBUILDINGELEMENTPROXY", |a| {
+            global_id(a)
+                .opt_id(owner)
                 .string(name)
                 .null()
                 .string(object_type)
@@ -79,6 +95,6 @@ impl Render<'_> {
             } else {
                 a.null();
             }
-        })?))
+        })?)
     }
 }

@@ -264,22 +264,13 @@ impl Render<'_> {
         let pl = self.w.entity("IFCLOCALPLACEMENT", |a| {
             a.id(fp).id(axes);
         })?;
-        let ifc4 = self.g.schema.ifc4_attributes();
-        let id = self.w.entity("IFCBUILDINGELEMENTPROXY", |a| {
-            a.guid(key, path)
-                .opt_id(self.g.owner)
-                .string("Window sills")
-                .null()
-                .string("WindowSill")
-                .id(pl)
-                .id(shape)
-                .null();
-            if ifc4 {
-                a.enumeration("USERDEFINED");
-            } else {
-                a.null();
-            }
-        })?;
+        let id = self.proxy(
+            |a| a.guid(key, path),
+            "Window sills",
+            "WindowSill",
+            pl,
+            shape,
+        )?;
         Ok(Some(id))
     }
 }
