@@ -39,9 +39,10 @@
 //!   `WallSurface` with `partyWallShare` (as the CityGML). Ground and walls are those of
 //!   `crate::export::lod3geom::seated_changes` (a vertex under each jamb of a low opening),
 //!   as the CityGML's solid. Balconies are `BuildingInstallation` children (`function`
-//!   `balcony`) with a `MultiSurface` of lod `"3"` (slab, railing, infill); so are a wall's
-//!   window sills (`function` `window sills`, id `<part>_w<wall>_sills`: each sill's closed box,
-//!   `crate::export::lod3geom::sills`).
+//!   `balcony`) with a `MultiSurface` of lod `"3"` (slab, railing, infill, each face with the
+//!   material of its colour, as in CityGML and glTF); so are a wall's window sills (`function`
+//!   `window sills`, id `<part>_w<wall>_sills`: each sill's closed box,
+//!   `crate::export::lod3geom::sills`, in `SILL_COLOR`).
 //! - **LOD4**: CityJSON 2.0 has no LOD4; as CityGML 3.0 does, the interior is written at LOD3
 //!   in the objects CityJSON 2.0 has for it. The exterior is the LOD3 one; under the building
 //!   (or its part) each room is a `BuildingRoom` (attributes `name`, `usage`, `storey`: the

@@ -14,7 +14,7 @@ use crate::color::Color;
 use crate::export::format::{push_fixed3, push_uint};
 use crate::export::lod3geom::{
     balcony_faces, cornice_solids, eaves_solids, opening_face, seated_changes, sills, trim_color,
-    wall_sill_faces,
+    wall_sill_faces, SILL_COLOR,
 };
 use crate::export::lod4geom::{prism_faces, room_shell, stair_steps, wall_body};
 use crate::export::texture::{roof_map, wall_maps, Texture, Texturing, UvMap};
@@ -971,8 +971,12 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.s(",");
                 f.open_object(id, "BuildingInstallation", Some(parent), &[]);
                 f.s(",\"attributes\":{\"function\":\"balcony\"},\"geometry\":[");
-                let all: Vec<&Face> = faces.all().collect();
-                f.multi_surface("3", &all);
+                // Each face in its colour, as the CityGML and glTF writers draw it.
+                let (all, colours): (Vec<&Face>, Vec<(Color, Material)>) = faces
+                    .colored(&wall.balconies[*index])
+                    .map(|(face, c)| (face, (c, Material::Unspecified)))
+                    .unzip();
+                f.multi_surface_colored("3", &all, &colours);
                 f.s("]}");
             }
             Extra::Sills { wall, id } => {
@@ -984,7 +988,8 @@ fn extra_objects(f: &mut Frag, part: &Part, parent: &str, extras: &[Extra<'_>]) 
                 f.open_object(id, "BuildingInstallation", Some(parent), &[]);
                 f.s(",\"attributes\":{\"function\":\"window sills\"},\"geometry\":[");
                 let all: Vec<&Face> = boxes.iter().collect();
-                f.multi_surface("3", &all);
+                let colours = vec![(SILL_COLOR, Material::Unspecified); all.len()];
+                f.multi_surface_colored("3", &all, &colours);
                 f.s("]}");
             }
             Extra::Trim { eaves, id } => {

@@ -289,6 +289,32 @@ fn semantics_count_every_wall_roof_ground_window_and_door() {
             .filter(|w| !crate::export::lod3geom::sills(w).is_empty())
             .count();
         assert_eq!(installations, balconies + sills, "{}", b.id);
+        // Balconies and sills carry a material on every face, as in CityGML and glTF.
+        let materials = doc["appearance"]["materials"]
+            .as_array()
+            .map_or(0, Vec::len);
+        for o in doc["CityObjects"].as_object().unwrap().values() {
+            let function = o["attributes"]["function"].as_str().unwrap_or("");
+            if o["type"] != "BuildingInstallation"
+                || !["balcony", "window sills"].contains(&function)
+            {
+                continue;
+            }
+            for g in o["geometry"].as_array().unwrap() {
+                let faces = g["boundaries"].as_array().unwrap().len();
+                let values = g["material"]["citygen"]["values"].as_array();
+                let values =
+                    values.unwrap_or_else(|| panic!("{}: a {function} without material", b.id));
+                assert_eq!(values.len(), faces, "{}: {function}", b.id);
+                assert!(
+                    values
+                        .iter()
+                        .all(|v| v.as_u64().is_some_and(|i| (i as usize) < materials)),
+                    "{}: {function}: {values:?}",
+                    b.id
+                );
+            }
+        }
     }
     // LOD2: three semantic objects, one value per surface.
     let b = plain(vec![samples::house()], Lod::Lod2);
