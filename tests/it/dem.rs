@@ -615,7 +615,7 @@ const BEFORE_TERRAIN: [(&str, &[(&str, &str)]); 2] = [
             ("3dtiles/content/all-blocks.glb", "40714e8ae2a45eff"),
             ("3dtiles/content/all.glb", "a6a7739495b7afe7"),
             ("3dtiles/tileset.json", "a6e55fca9ccf19e9"),
-            ("out.city.json", "611fdaeece415fdb"),
+            ("out.city.json", "e431f015b279aac2"),
             ("out.glb", "2411cc97413b3fd4"),
             ("out.gml", "3e9ce56b015e5cc5"),
             ("out.ifc", "114caafdcae371f9"),
