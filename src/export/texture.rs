@@ -315,21 +315,27 @@ impl WallMaps {
 /// plain pattern, and the bay picture when the texturing is [`Texturing::Facades`], the part
 /// has a rhythm and a storey over 0.5 m, the wall a length, and its face (`holes`) no hole.
 pub(crate) fn wall_maps(part: &Part, w: &Wall, holes: bool, tex: Texturing) -> WallMaps {
+    edge_maps(part, w.start, w.end, holes, tex)
+}
+
+/// As [`wall_maps`], for a wall of `part` along `start` -> `end` (a footprint edge, as the
+/// Blocks of 3D Tiles draw it).
+pub(crate) fn edge_maps(
+    part: &Part,
+    start: DVec2,
+    end: DVec2,
+    holes: bool,
+    tex: Texturing,
+) -> WallMaps {
     let m = part.wall_material;
     let base = part.levels.first().copied().unwrap_or(part.base_z);
     let (sw, sh) = Texture::size(m);
-    let plain = UvMap::wall(w.start, w.end, base, 1.0 / sw, 1.0 / sh);
+    let plain = UvMap::wall(start, end, base, 1.0 / sw, 1.0 / sh);
     let storey = (part.eave_z - base) / f64::from(part.storeys.max(1));
-    let length = w.length();
+    let length = start.distance(end);
     let bay = match (tex, part.rhythm) {
         (Texturing::Facades, Some(r)) if storey > 0.5 && length > 0.01 && !holes => {
-            let map = UvMap::wall(
-                w.start,
-                w.end,
-                base,
-                bays(length, r.bay) / length,
-                1.0 / storey,
-            );
+            let map = UvMap::wall(start, end, base, bays(length, r.bay) / length, 1.0 / storey);
             Some((Texture::bay(m, &r), map))
         }
         _ => None,

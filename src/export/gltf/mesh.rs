@@ -17,7 +17,7 @@ use super::{
 };
 use crate::color::material::Material;
 pub(crate) use crate::export::texture::Texturing;
-use crate::export::texture::{roof_map, wall_maps, Texture};
+use crate::export::texture::{edge_maps, roof_map, Texture};
 use glam::DVec3;
 
 /// Adds the panes and reveals of `part`'s openings of `kind` (see the module documentation),
@@ -167,12 +167,10 @@ pub(crate) fn building_groups(
                     shown.walls.iter().flatten().for_each(|f| g.add_face(f));
                 }
                 SurfaceClass::Roof if tex != Texturing::Off => {
-                    // Rows run along the eaves, counted from the eave's height.
-                    let (m, t) = (part.roof_material, Texture::Surface(part.roof_material));
-                    let g = group_textured(&mut groups, part.roof_color, m, Some(t));
-                    for f in &shown.roof {
-                        g.add_mapped(f, &roof_map(part, f.normal()).1);
-                    }
+                    shown
+                        .roof
+                        .iter()
+                        .for_each(|f| add_textured_roof(&mut groups, part, f));
                 }
                 SurfaceClass::Roof => {
                     let g = group_with(&mut groups, part.roof_color, part.roof_material);
@@ -252,8 +250,28 @@ fn add_textured_wall(
     f: &crate::model::Face,
     tex: Texturing,
 ) {
+    add_textured_edge(groups, part, (w.start, w.end), f, tex);
+}
+
+/// Adds a roof face `f` of `part` to its textured group: the roof material's pattern, rows
+/// along the eaves counted from the eaves' height (`crate::export::texture::roof_map`).
+pub(crate) fn add_textured_roof(groups: &mut Vec<Group>, part: &Part, f: &crate::model::Face) {
+    let (m, t) = (part.roof_material, Texture::Surface(part.roof_material));
+    group_textured(groups, part.roof_color, m, Some(t))
+        .add_mapped(f, &roof_map(part, f.normal()).1);
+}
+
+/// As [`add_textured_wall`], for a face `f` of a wall of `part` along `start` -> `end` (the
+/// Blocks of 3D Tiles: one a footprint edge, `crate::export::texture::edge_maps`).
+pub(crate) fn add_textured_edge(
+    groups: &mut Vec<Group>,
+    part: &Part,
+    (start, end): (glam::DVec2, glam::DVec2),
+    f: &crate::model::Face,
+    tex: Texturing,
+) {
     let (m, c) = (part.wall_material, part.wall_color);
-    let maps = wall_maps(part, w, !f.holes.is_empty(), tex);
+    let maps = edge_maps(part, start, end, !f.holes.is_empty(), tex);
     let (plain_t, plain) = maps.plain;
     let Some((bay_t, map)) = maps.bay else {
         group_textured(groups, c, m, Some(plain_t)).add_mapped(f, &plain);

@@ -86,7 +86,7 @@ use spool::Spool;
 // triangulated, and how a colour and material become a PBR material.
 pub(crate) use group::{group, Group};
 pub(crate) use materials::finish_params;
-pub(crate) use mesh::{building_groups, Texturing};
+pub(crate) use mesh::{add_textured_edge, add_textured_roof, building_groups, Texturing};
 
 mod contact;
 mod group;

@@ -10,7 +10,9 @@
 use glam::DVec3;
 
 use crate::color::Color;
-use crate::export::gltf::{group, Group, SurfaceClass, OPENING_SETBACK};
+use crate::export::gltf::{
+    add_textured_edge, add_textured_roof, group, Group, SurfaceClass, Texturing, OPENING_SETBACK,
+};
 use crate::model::{Building, Face, Part};
 
 /// A part raised more than this above its building's base gets a bottom face (metres).
@@ -26,8 +28,11 @@ const UNDERSIDE: Color = Color::GREY;
 
 /// The Blocks faces of `b`, grouped as the glTF writer groups a building's
 /// ([`crate::export::gltf::building_groups`]): walls, roof (the tops) and ground (the raised
-/// parts' undersides), by colour.
-pub(crate) fn block_groups(b: &Building) -> Vec<(SurfaceClass, Vec<Group>)> {
+/// parts' undersides), by colour; with `tex` (`--textures`) the walls and tops textured as
+/// the full content's (at LOD2 each wall with the picture of its bays up to the eaves and the
+/// material's pattern above, the top with the roof material's pattern), so that the far
+/// tiles look like the near ones.
+pub(crate) fn block_groups(b: &Building, tex: Texturing) -> Vec<(SurfaceClass, Vec<Group>)> {
     let mut walls: Vec<Group> = Vec::new();
     let mut tops: Vec<Group> = Vec::new();
     let mut grounds: Vec<Group> = Vec::new();
@@ -36,21 +41,25 @@ pub(crate) fn block_groups(b: &Building) -> Vec<(SurfaceClass, Vec<Group>)> {
         if z1 <= z0 {
             continue;
         }
-        let g = group(&mut walls, part.wall_color);
         for ring in std::iter::once(&part.footprint.outer).chain(&part.footprint.holes) {
-            for (i, a) in ring.iter().enumerate() {
+            for (i, &a) in ring.iter().enumerate() {
                 let c = ring[(i + 1) % ring.len()];
                 // Outer rings are counter-clockwise and holes clockwise: the outside is on the
                 // right of a -> c, and this quad is counter-clockwise seen from there.
-                g.add_face(&Face::new(vec![
-                    a.extend(z0),
-                    c.extend(z0),
-                    c.extend(z1),
-                    a.extend(z1),
-                ]));
+                let quad = Face::new(vec![a.extend(z0), c.extend(z0), c.extend(z1), a.extend(z1)]);
+                if tex == Texturing::Off {
+                    group(&mut walls, part.wall_color).add_face(&quad);
+                } else {
+                    add_textured_edge(&mut walls, part, (a, c), &quad, tex);
+                }
             }
         }
-        group(&mut tops, part.roof_color).add_face(&flat(part, z1, false));
+        let top = flat(part, z1, false);
+        if tex == Texturing::Off {
+            group(&mut tops, part.roof_color).add_face(&top);
+        } else {
+            add_textured_roof(&mut tops, part, &top);
+        }
         if z0 > b.base_z + RAISED {
             group(&mut grounds, UNDERSIDE).add_face(&flat(part, z0, true));
         }

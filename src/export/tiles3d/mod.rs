@@ -549,7 +549,7 @@ fn encode(
     let map = BuildingMap::at(model, anchor);
     let groups = |detail: Detail| match detail {
         Detail::Full => building_groups(b, detailed, tex),
-        Detail::Blocks => blocks::block_groups(b),
+        Detail::Blocks => blocks::block_groups(b, tex),
         Detail::Terrain => Vec::new(),
     };
     let EncodedBuilding {

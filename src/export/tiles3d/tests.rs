@@ -1093,8 +1093,8 @@ fn one_undulation_per_building_is_close_everywhere_on_it() {
 
 // ---- textures (issue 49, `--textures`) ----
 
-#[test]
-fn textured_contents_carry_one_picture_per_kind_and_coordinates() {
+/// The test buildings in brick with a rhythm of bays (so that LOD2 walls get bay pictures).
+fn brick_bays() -> Vec<Building> {
     let mut bs = buildings(0.0);
     for b in &mut bs {
         for p in &mut b.parts {
@@ -1107,49 +1107,107 @@ fn textured_contents_carry_one_picture_per_kind_and_coordinates() {
             });
         }
     }
-    let textured = |lod: Lod| {
-        let (w, info) = Tiles3dWriter::new(Vec::new(), Detail::Full);
-        let mut w = w.with_textures(true);
-        w.begin(&ctx(lod)).unwrap();
-        w.write_all(&bs).unwrap();
-        w.finish().unwrap();
-        (w.into_inner(), info.get().unwrap())
-    };
-    // Off by default: no picture, no coordinates.
-    let (plain, _) = write(Lod::Lod2, Detail::Full, &bs, true);
-    assert!(parse(&plain).json.get("images").is_none());
-    let (glb, info) = textured(Lod::Lod2);
-    assert_eq!(glb, textured(Lod::Lod2).0, "deterministic");
-    assert!(info.triangles > 0);
-    let g = parse(&glb);
-    let names: Vec<&str> = g.json["images"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|i| i["name"].as_str().unwrap())
-        .collect();
-    // Every building's walls share the one bay picture; roofs their material's.
-    assert_eq!(
-        names.iter().filter(|n| n.starts_with("bay brick")).count(),
-        1,
-        "{names:?}"
-    );
-    for i in g.json["images"].as_array().unwrap() {
+    bs
+}
+
+/// `bs` written as a `detail` content at `lod` with `--textures`.
+fn textured(bs: &[Building], lod: Lod, detail: Detail) -> (Vec<u8>, ContentInfo) {
+    let (w, info) = Tiles3dWriter::new(Vec::new(), detail);
+    let mut w = w.with_textures(true);
+    w.begin(&ctx(lod)).unwrap();
+    w.write_all(bs).unwrap();
+    w.finish().unwrap();
+    (w.into_inner(), info.get().unwrap())
+}
+
+/// The content's image names, after checking that each is a PNG.
+fn image_names(g: &Glb) -> Vec<String> {
+    let images = g.json["images"].as_array().unwrap();
+    for i in images {
         let png = g.view(i["bufferView"].as_u64().unwrap());
         assert_eq!(&png[..8], &crate::export::png::SIGNATURE);
     }
-    let mut textured_prims = 0;
+    images
+        .iter()
+        .map(|i| i["name"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// How many primitives are textured, after checking that exactly the textured materials' have
+/// finite coordinates, one a vertex.
+fn textured_prims(g: &Glb) -> usize {
+    let mut n = 0;
     for p in g.json["meshes"][0]["primitives"].as_array().unwrap() {
         let m = &g.json["materials"][p["material"].as_u64().unwrap() as usize];
         let has_tex = m["pbrMetallicRoughness"].get("baseColorTexture").is_some();
         assert_eq!(has_tex, p["attributes"].get("TEXCOORD_0").is_some());
         if has_tex {
-            textured_prims += 1;
+            n += 1;
             let (uv, comps) = g.accessor(p["attributes"]["TEXCOORD_0"].as_u64().unwrap());
             let (pos, _) = g.accessor(p["attributes"]["POSITION"].as_u64().unwrap());
             assert_eq!((comps, uv.len() / 2), (2, pos.len() / 3));
             assert!(uv.iter().all(|c| c.is_finite()));
         }
     }
-    assert!(textured_prims >= 2);
+    n
+}
+
+#[test]
+fn textured_contents_carry_one_picture_per_kind_and_coordinates() {
+    let bs = brick_bays();
+    // Off by default: no picture, no coordinates.
+    let (plain, _) = write(Lod::Lod2, Detail::Full, &bs, true);
+    assert!(parse(&plain).json.get("images").is_none());
+    let (glb, info) = textured(&bs, Lod::Lod2, Detail::Full);
+    assert_eq!(
+        glb,
+        textured(&bs, Lod::Lod2, Detail::Full).0,
+        "deterministic"
+    );
+    assert!(info.triangles > 0);
+    let g = parse(&glb);
+    let names = image_names(&g);
+    // Every building's walls share the one bay picture; roofs their material's.
+    assert_eq!(
+        names.iter().filter(|n| n.starts_with("bay brick")).count(),
+        1,
+        "{names:?}"
+    );
+    assert!(textured_prims(&g) >= 2);
+}
+
+#[test]
+fn textured_blocks_carry_the_full_contents_pictures() {
+    // The far tiles (Blocks) look like the near ones: the walls' bay picture below the eaves,
+    // the brick pattern above (the block rises to the ridge), the roof material on the top.
+    let bs = brick_bays();
+    let (plain, _) = write(Lod::Lod2, Detail::Blocks, &bs, true);
+    assert!(parse(&plain).json.get("images").is_none());
+    let (glb, info) = textured(&bs, Lod::Lod2, Detail::Blocks);
+    assert_eq!(
+        glb,
+        textured(&bs, Lod::Lod2, Detail::Blocks).0,
+        "deterministic"
+    );
+    let g = parse(&glb);
+    let blocks = image_names(&g);
+    let (full, _) = textured(&bs, Lod::Lod2, Detail::Full);
+    let full = image_names(&parse(&full));
+    assert!(
+        blocks.iter().any(|n| n.starts_with("bay brick")),
+        "{blocks:?}"
+    );
+    assert!(
+        blocks.iter().all(|n| full.contains(n)),
+        "{blocks:?} not in {full:?}"
+    );
+    assert!(textured_prims(&g) >= 2);
+    // Still a few triangles a building: the pictures, not the geometry, carry the bays.
+    let (_, plain_info) = write(Lod::Lod2, Detail::Blocks, &bs, true);
+    assert!(
+        info.triangles <= 2 * plain_info.triangles,
+        "{} vs {}",
+        info.triangles,
+        plain_info.triangles
+    );
 }
