@@ -85,16 +85,10 @@ def footprints(path):
     return out
 
 
-def context(path):
-    """Per footprint (record order): rows and blocks (touching, 2 m of wall or more; rows of
-    like size, at most 3 times apart, as `ROW_AREA_RATIO`), density, sizes around."""
-    from scipy.spatial import cKDTree
+def touching_pairs(polys):
+    """Pairs (i, j), i < j, of footprints sharing 2 m of wall or more (0.5 m tolerance)."""
     from shapely import STRtree
 
-    polys = footprints(path)
-    n = len(polys)
-    cen = np.array([[p.centroid.x, p.centroid.y] for p in polys])
-    area = np.array([p.area for p in polys])
     tree = STRtree(polys)
     pairs = []
     for i, p in enumerate(polys):
@@ -102,25 +96,40 @@ def context(path):
         for j in tree.query(b):
             if j > i and b.intersection(polys[j].boundary).length / 2 >= 2.0:
                 pairs.append((i, j))
+    return pairs
 
-    def components(join):
-        parent = list(range(n))
 
-        def find(i):
-            while parent[i] != i:
-                parent[i] = parent[parent[i]]
-                i = parent[i]
-            return i
+def components(n, pairs, join):
+    """Per footprint, the smallest index of its group: pairs joined where join(i, j)."""
+    parent = list(range(n))
 
-        for i, j in pairs:
-            if join(i, j):
-                a, b = find(i), find(j)
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
-        return np.array([find(i) for i in range(n)])
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
 
-    row = components(lambda i, j: max(area[i], area[j]) / max(min(area[i], area[j]), 1) <= 3)
-    block = components(lambda i, j: True)
+    for i, j in pairs:
+        if join(i, j):
+            a, b = find(i), find(j)
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    return np.array([find(i) for i in range(n)])
+
+
+def context(path):
+    """Per footprint (record order): rows and blocks (touching, 2 m of wall or more; rows of
+    like size, at most 3 times apart, as `ROW_AREA_RATIO`), density, sizes around."""
+    from scipy.spatial import cKDTree
+
+    polys = footprints(path)
+    n = len(polys)
+    cen = np.array([[p.centroid.x, p.centroid.y] for p in polys])
+    area = np.array([p.area for p in polys])
+    pairs = touching_pairs(polys)
+    row = components(n, pairs,
+                     lambda i, j: max(area[i], area[j]) / max(min(area[i], area[j]), 1) <= 3)
+    block = components(n, pairs, lambda i, j: True)
     d = pd.DataFrame({"gidx": np.arange(n), "row": row})
     d["row_n"] = np.log(pd.Series(row).map(pd.Series(row).value_counts()).values)
     d["block_n"] = np.log(pd.Series(block).map(pd.Series(block).value_counts()).values)

