@@ -621,12 +621,8 @@ fn small_tagged_lenders_lend_narrow_houses_their_storeys() {
     let tiny = out.estimates[16].unwrap_or_else(|| panic!("the 20 m² footprint estimated"));
     assert!(tiny.storeys <= 2.0, "{tiny:?}");
     // The same houses among tagged 5-storey blocks of 400 m²: not small lenders, capped.
-    let block = BuildingTags {
-        levels: Some(5.0),
-        ..kind("yes")
-    };
     let mut lots: Vec<Lot> = (0..4)
-        .map(|k| lot(k, 25.0 * k as f64, 0.0, 20.0, 20.0, block.clone()))
+        .map(|k| lot(k, 25.0 * k as f64, 0.0, 20.0, 20.0, five.clone()))
         .collect();
     lots.extend((0..8).map(|k| lot(100 + k, 5.0 * k as f64, 40.0, 5.0, 10.0, kind("yes"))));
     let out = run_in(&lots, zone(3.0, true));
