@@ -1152,18 +1152,20 @@ fn textured_prims(g: &Glb) -> usize {
     n
 }
 
+/// The brick buildings as a LOD2 `detail` content with `--textures`, after checking that
+/// without it the content has no picture and that with it two writes give the same bytes.
+fn textured_lod2(detail: Detail) -> (Vec<Building>, Vec<u8>, ContentInfo) {
+    let bs = brick_bays();
+    let (plain, _) = write(Lod::Lod2, detail, &bs, true);
+    assert!(parse(&plain).json.get("images").is_none());
+    let (glb, info) = textured(&bs, Lod::Lod2, detail);
+    assert_eq!(glb, textured(&bs, Lod::Lod2, detail).0, "deterministic");
+    (bs, glb, info)
+}
+
 #[test]
 fn textured_contents_carry_one_picture_per_kind_and_coordinates() {
-    let bs = brick_bays();
-    // Off by default: no picture, no coordinates.
-    let (plain, _) = write(Lod::Lod2, Detail::Full, &bs, true);
-    assert!(parse(&plain).json.get("images").is_none());
-    let (glb, info) = textured(&bs, Lod::Lod2, Detail::Full);
-    assert_eq!(
-        glb,
-        textured(&bs, Lod::Lod2, Detail::Full).0,
-        "deterministic"
-    );
+    let (_, glb, info) = textured_lod2(Detail::Full);
     assert!(info.triangles > 0);
     let g = parse(&glb);
     let names = image_names(&g);
@@ -1180,15 +1182,7 @@ fn textured_contents_carry_one_picture_per_kind_and_coordinates() {
 fn textured_blocks_carry_the_full_contents_pictures() {
     // The far tiles (Blocks) look like the near ones: the walls' bay picture below the eaves,
     // the brick pattern above (the block rises to the ridge), the roof material on the top.
-    let bs = brick_bays();
-    let (plain, _) = write(Lod::Lod2, Detail::Blocks, &bs, true);
-    assert!(parse(&plain).json.get("images").is_none());
-    let (glb, info) = textured(&bs, Lod::Lod2, Detail::Blocks);
-    assert_eq!(
-        glb,
-        textured(&bs, Lod::Lod2, Detail::Blocks).0,
-        "deterministic"
-    );
+    let (bs, glb, info) = textured_lod2(Detail::Blocks);
     let g = parse(&glb);
     let blocks = image_names(&g);
     let (full, _) = textured(&bs, Lod::Lod2, Detail::Full);
